@@ -1,0 +1,112 @@
+"""The one in-memory model of a drive, and the conventions that hold everywhere.
+
+Conventions (every reader converts to these; nothing downstream converts again):
+
+* Time ``t_s``: seconds since the first sample of the drive, strictly increasing.
+  ``start_time_of_day_s`` is the UTC time of day of that first sample.
+* Position ``lat_deg``/``lon_deg``: WGS84 decimal degrees, east and north positive.
+* ``heading_deg``: GNSS course over ground, degrees clockwise from true north, in [0, 360).
+* ``yaw_rate_radps``: body yaw rate about the up axis, **counter-clockwise (left turn)
+  positive** (ISO 8855 / ROS REP 103). A left turn therefore *decreases* ``heading_deg``:
+  d(heading)/dt = -yaw_rate.
+* ``accel_long_mps2``: longitudinal specific force along the body x axis (forward positive)
+  as the sensor measures it, so road grade and mount tilt leak gravity into it.
+* ``speed_mps``: GNSS speed over ground (m/s).
+
+Samples stay at their native rate and time stamps; resampling to the 1-second windows of
+the paper happens in :mod:`ionav_viz.windows`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+REQUIRED_COLUMNS = (
+    "t_s",
+    "lat_deg",
+    "lon_deg",
+    "speed_mps",
+    "heading_deg",
+    "accel_long_mps2",
+    "yaw_rate_radps",
+)
+OPTIONAL_COLUMNS = (
+    "height_m",
+    "n_satellites",
+    "speed_can_mps",
+    "accel_lat_mps2",
+    "steering_angle_deg",
+    "wheel_speed_fl_radps",
+    "wheel_speed_fr_radps",
+    "wheel_speed_rl_radps",
+    "wheel_speed_rr_radps",
+)
+
+
+@dataclass
+class Drive:
+    """A drive as columns of equal length (one row per sample), plus metadata.
+
+    Attributes:
+        name: run name, e.g. ``V-Vw8``.
+        source: where it came from (a file path).
+        rate_hz: nominal sample rate (Hz), e.g. 10.0 for IO-VNBD.
+        start_time_of_day_s: UTC time of day of the first sample (s).
+        columns: ``REQUIRED_COLUMNS`` always, ``OPTIONAL_COLUMNS`` when the source has them;
+            float64 arrays, one value per sample.
+    """
+
+    name: str
+    source: str
+    rate_hz: float
+    start_time_of_day_s: float
+    columns: dict[str, np.ndarray] = field(repr=False)
+
+    def __post_init__(self) -> None:
+        missing = [c for c in REQUIRED_COLUMNS if c not in self.columns]
+        if missing:
+            raise ValueError(f"drive {self.name}: missing columns {missing}")
+        n = len(self.columns["t_s"])
+        for key, values in self.columns.items():
+            if key not in REQUIRED_COLUMNS and key not in OPTIONAL_COLUMNS:
+                raise ValueError(f"drive {self.name}: unknown column {key!r}")
+            if len(values) != n:
+                raise ValueError(f"drive {self.name}: column {key} has {len(values)} rows, expected {n}")
+            self.columns[key] = np.asarray(values, dtype=np.float64)
+
+    def __len__(self) -> int:
+        return len(self.columns["t_s"])
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self.columns["t_s"]
+
+    @property
+    def lat_deg(self) -> np.ndarray:
+        return self.columns["lat_deg"]
+
+    @property
+    def lon_deg(self) -> np.ndarray:
+        return self.columns["lon_deg"]
+
+    @property
+    def speed_mps(self) -> np.ndarray:
+        return self.columns["speed_mps"]
+
+    @property
+    def heading_deg(self) -> np.ndarray:
+        return self.columns["heading_deg"]
+
+    @property
+    def accel_long_mps2(self) -> np.ndarray:
+        return self.columns["accel_long_mps2"]
+
+    @property
+    def yaw_rate_radps(self) -> np.ndarray:
+        return self.columns["yaw_rate_radps"]
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0]) if len(self) else 0.0

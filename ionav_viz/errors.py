@@ -1,0 +1,18 @@
+"""The tool's own error for bad input; the CLI turns it into one line and exit code 2."""
+
+from __future__ import annotations
+
+
+class InputError(Exception):
+    """Bad user input: a file, row, column, option or model that cannot be used.
+
+    ``str(err)`` is one line naming what is wrong; ``hint`` says how to fix it.
+    """
+
+    def __init__(self, message: str, hint: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.hint = hint
+
+    def __str__(self) -> str:
+        return f"{self.message} (hint: {self.hint})" if self.hint else self.message

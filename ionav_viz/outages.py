@@ -1,0 +1,95 @@
+"""Where GNSS outages go: outage sequences as runs of consecutive 1-second windows.
+
+An outage of ``n`` seconds starting at window ``k`` blanks GNSS over windows ``k .. k+n-1``;
+the estimators start from the GNSS fix at the start of window ``k``. Every sequence lies in
+one gap-free segment, and window ``k-1`` must exist in that segment too: the IDNN's first
+window is fed the GNSS displacement of the second before the outage (the paper's Figure 2).
+So the first window of each segment never starts an outage.
+
+Placements (all return sorted start indices into :class:`~ionav_viz.windows.Windows`):
+
+* :func:`tile` -- the paper's protocol: consecutive, back-to-back outages from the start of each
+  segment to its end (a last partial outage is dropped).
+* :func:`every` -- an outage every ``period`` seconds, with GNSS available in between.
+* :func:`at` -- outages starting at given times (the window whose start is nearest).
+* :func:`random` -- ``count`` non-overlapping outages drawn with a seed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+from .windows import Windows
+
+
+def outage_windows(outage_s: float) -> int:
+    """Outage length (s) -> number of 1-second windows; must be a positive whole number."""
+    n = int(round(outage_s))
+    if not np.isfinite(outage_s) or outage_s <= 0 or abs(outage_s - n) > 1e-9:
+        raise InputError(
+            f"outage length {outage_s:g} s is not a positive whole number of seconds",
+            "the estimators predict once per 1 s window; use e.g. --outage 10s",
+        )
+    return n
+
+
+def _segment_ranges(windows: Windows) -> list[tuple[int, int]]:
+    """Per segment, the range ``[first possible start, end)`` of window indices."""
+    seg = windows.segment
+    if len(seg) == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(seg) != 0) + 1
+    bounds = np.concatenate([[0], cuts, [len(seg)]])
+    return [(int(a) + 1, int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def valid_start(windows: Windows, start: int, n: int) -> bool:
+    """Whether an ``n``-window outage can start at window ``start``."""
+    return any(a <= start and start + n <= b for a, b in _segment_ranges(windows))
+
+
+def tile(windows: Windows, n: int) -> np.ndarray:
+    """Back-to-back outages of ``n`` windows covering each segment (the paper's protocol)."""
+    return every(windows, n, n)
+
+
+def every(windows: Windows, n: int, period: int) -> np.ndarray:
+    """An ``n``-window outage every ``period`` windows (``period >= n``)."""
+    if period < n:
+        raise InputError(f"outage period {period} s is shorter than the outage ({n} s)", "use --every >= --outage")
+    starts = [np.arange(a, b - n + 1, period) for a, b in _segment_ranges(windows)]
+    return np.concatenate(starts).astype(int) if starts else np.zeros(0, dtype=int)
+
+
+def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
+    """Outages starting at the windows nearest to ``times_s`` (s from the start of the drive)."""
+    starts = []
+    for t in sorted(times_s):
+        k = int(np.argmin(np.abs(windows.t0_s - t))) if len(windows) else -1
+        if k < 0 or not valid_start(windows, k, n) or abs(windows.t0_s[k] - t) > 1.0:
+            raise InputError(
+                f"--at {t:g}s: no {n} s outage fits there",
+                f"choose start times between 1 s and {max(0.0, windows.t0_s[-1] + 1 - n) if len(windows) else 0:g} s, away from gaps in the log",
+            )
+        if starts and k < starts[-1] + n:
+            raise InputError(f"--at {t:g}s overlaps the outage before it", f"space the times at least {n} s apart")
+        starts.append(k)
+    return np.asarray(starts, dtype=int)
+
+
+def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
+    """``count`` non-overlapping ``n``-window outages drawn uniformly (seeded)."""
+    if count < 1:
+        raise InputError(f"--random {count}: need at least one outage")
+    rng = np.random.default_rng(seed)
+    candidates = np.concatenate([np.arange(a, b - n + 1) for a, b in _segment_ranges(windows)] or [np.zeros(0, int)])
+    chosen: list[int] = []
+    for k in rng.permutation(candidates):
+        if all(abs(int(k) - c) >= n for c in chosen):
+            chosen.append(int(k))
+            if len(chosen) == count:
+                break
+    if len(chosen) < count:
+        raise InputError(f"--random {count}: only {len(chosen)} non-overlapping {n} s outages fit in this drive")
+    return np.sort(np.asarray(chosen, dtype=int))

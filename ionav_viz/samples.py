@@ -1,0 +1,52 @@
+"""The synthetic drives bundled under ``recordings/samples/`` and how they were generated.
+
+Each is a ``V-*.csv`` written by :mod:`ionav_viz.simulate`; regenerating one with the same
+scenario, seed and duration gives the same bytes (``ionav-viz simulate --bundled DIR``
+regenerates them all). The test drive of each scenario is addressable by the scenario name
+wherever a drive is expected (``ionav-viz evaluate roundabout``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Sample:
+    """A bundled synthetic drive: file name, scenario, seed, duration (s) and role."""
+
+    file: str
+    scenario: str
+    seed: int
+    duration_s: float
+    role: str  # "test", "train" or "bias"
+
+
+SAMPLES = tuple(
+    [Sample(f"V-sim-{s}.csv", s, 100 + i, 120.0, "test") for i, s in enumerate(
+        ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering"))]
+    + [Sample(f"V-sim-{s}-train.csv", s, 200 + i, 240.0, "train") for i, s in enumerate(
+        ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering"))]
+    + [Sample("V-sim-stationary.csv", "stationary", 300, 180.0, "bias")]
+)  # fmt: skip
+
+
+def samples_dir() -> Path:
+    """Where the bundled samples are: ``$IONAV_SAMPLES`` or ``recordings/samples`` of the checkout."""
+    env = os.environ.get("IONAV_SAMPLES")
+    return Path(env) if env else Path(__file__).resolve().parent.parent / "recordings" / "samples"
+
+
+def recordings_dir() -> Path:
+    """Default place for ``.rrd`` output: ``recordings/`` of the checkout."""
+    return Path(__file__).resolve().parent.parent / "recordings"
+
+
+def by_scenario(scenario: str, role: str = "test") -> list[Sample]:
+    return [s for s in SAMPLES if s.scenario == scenario and s.role == role]
+
+
+def sample_path(sample: Sample) -> Path:
+    return samples_dir() / sample.file

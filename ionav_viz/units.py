@@ -1,0 +1,8 @@
+"""Named unit conversions; readers apply them once, at the boundary."""
+
+import math
+
+G_MPS2 = 9.80665
+KMH_TO_MPS = 1.0 / 3.6
+DEG_TO_RAD = math.pi / 180.0
+RAD_TO_DEG = 180.0 / math.pi

@@ -1,0 +1,38 @@
+import json
+import time
+
+from .conftest import run_cli
+
+
+def test_help_is_fast_and_lists_commands():
+    start = time.perf_counter()
+    proc = run_cli("--help")
+    assert proc.returncode == 0
+    assert "evaluate" in proc.stdout and "simulate" in proc.stdout
+    # no heavy import at start-up: numpy/torch/rerun stay out of the help path
+    proc = run_cli("--help", env={"PYTHONPROFILEIMPORTTIME": "1"})
+    assert "torch" not in proc.stderr and "rerun" not in proc.stderr and "numpy" not in proc.stderr
+
+
+def test_evaluate_json_schema():
+    proc = run_cli("evaluate", "roundabout", "--outage", "10s", "--json", "--no-idnn")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert rep["drive"] == "V-sim-roundabout" and rep["outage_s"] == 10
+    seq = rep["sequences"][0]
+    assert {"start_s", "gnss_distance_m", "ins"} <= set(seq)
+    assert set(seq["ins"]) == {"crse_m", "cae_m", "aeps_m", "yaw_crse_radps", "yaw_cae_radps", "yaw_aeps_radps", "final_position_error_m"}
+    assert set(rep["summary"]["ins"]["crse_m"]) == {"max", "min", "mean", "std"}
+    # 120 s drive, first window never starts an outage: (120 - 1) // 10 = 11 sequences
+    assert rep["n_sequences"] == len(rep["sequences"]) == 11
+    starts = [s["start_s"] for s in rep["sequences"]]
+    assert all(abs((b - a) - 10.0) < 1e-6 for a, b in zip(starts, starts[1:]))
+
+
+def test_bad_outage_and_unknown_drive_are_usage_errors():
+    proc = run_cli("evaluate", "roundabout", "--outage", "ten")
+    assert proc.returncode == 2 and "not a duration" in proc.stderr
+    proc = run_cli("evaluate", "roundabot", "--no-idnn")
+    assert proc.returncode == 2 and "did you mean roundabout" in proc.stderr
+    proc = run_cli("evaluate", "roundabout", "--outage", "1500ms", "--no-idnn")
+    assert proc.returncode == 2 and "whole number of seconds" in proc.stderr

@@ -1,0 +1,29 @@
+import math
+
+import numpy as np
+import pytest
+
+from ionav_viz.metrics import aeps, cae, crse, summarise
+
+
+def test_hand_computed_metrics():
+    err = np.array([1.0, -2.0, 3.0, -0.5])
+    assert crse(err) == pytest.approx(6.5)  # 1 + 2 + 3 + 0.5
+    assert cae(err) == pytest.approx(1.5)  # 1 - 2 + 3 - 0.5
+    assert aeps(err) == pytest.approx(6.5 / 4)
+
+
+def test_metrics_per_row_of_a_batch():
+    err = np.array([[1.0, 1.0], [-3.0, 1.0]])
+    np.testing.assert_allclose(crse(err), [2.0, 4.0])
+    np.testing.assert_allclose(cae(err), [2.0, -2.0])
+    np.testing.assert_allclose(aeps(err), [1.0, 2.0])
+
+
+def test_summary_uses_population_std_like_the_paper():
+    s = summarise(np.array([1.0, 2.0, 3.0, 4.0]))
+    assert s == pytest.approx({"max": 4.0, "min": 1.0, "mean": 2.5, "std": math.sqrt(1.25)})
+
+
+def test_summary_of_nothing_is_nan():
+    assert all(math.isnan(v) for v in summarise(np.zeros(0)).values())

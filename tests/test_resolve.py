@@ -1,0 +1,71 @@
+import shutil
+from pathlib import Path
+
+import pytest
+
+from ionav_viz.errors import InputError
+from ionav_viz.resolve import resolve_drive
+from ionav_viz.samples import samples_dir
+
+from .conftest import run_cli
+
+UNSYNC = "Unsynchronised V and S Dataset/Categorised IOVNB (V) Dataset/V Dataset"
+SYNC = "Synchronised V abd S datasets/Categorised IOVNB Dataset"
+
+
+@pytest.fixture()
+def fake_root(tmp_path):
+    """A tree with the dataset's real folder names; every file a copy of a small drive."""
+    src = samples_dir() / "V-sim-motorway.csv"
+    paths = [
+        f"{UNSYNC}/Vw (Driver E)/Vw08/V-Vw8.csv",
+        f"{SYNC}/Vw (Driver E)/Vw08/V-Vw8.csv",
+        f"{SYNC}/../Synchronised V abd S datasets/Uncategorised IOVNB Dataset/V-Dataset/V-Vw8.csv",
+        f"{UNSYNC}/Vta (Driver E)/Vta01a/V-Vta1a.csv",
+        f"{UNSYNC}/Vta (Driver E)/Vta11/V-Vta11.csv",
+        "Unsynchronised V and S Dataset/Uncategorised IOVNB (V and S) Dataset/V-Dataset/V-Vta11.csv",
+        f"{SYNC}/Vta (Driver E)/Vta11/V-vta11.csv",
+    ]
+    for p in paths:
+        target = (tmp_path / p).resolve()
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(src, target)
+    return tmp_path
+
+
+@pytest.mark.parametrize("spec", ["V-Vw8", "Vw8", "v-vw8.csv", "V-VW8"])
+def test_run_names_resolve_to_the_unsynchronised_copy(fake_root, spec):
+    path = resolve_drive(spec, fake_root)
+    assert path.name == "V-Vw8.csv" and UNSYNC in str(path)
+
+
+@pytest.mark.parametrize("spec", ["V-Vta1a", "Vta01a", "V-Vta01a", "vta1a"])
+def test_zero_padding_is_tolerated(fake_root, spec):
+    assert resolve_drive(spec, fake_root).name == "V-Vta1a.csv"
+
+
+def test_case_of_file_name_does_not_matter(fake_root):
+    path = resolve_drive("V-Vta11", fake_root)
+    assert "Unsynchronised" in str(path) and "/Categorised" in str(path)
+
+
+def test_plain_path_and_bundled_scenario(tmp_path):
+    assert resolve_drive(str(samples_dir() / "V-sim-roundabout.csv"), None).name == "V-sim-roundabout.csv"
+    assert resolve_drive("roundabout", None).name == "V-sim-roundabout.csv"
+
+
+def test_paper_run_without_data_root_says_what_it_is():
+    with pytest.raises(InputError) as err:
+        resolve_drive("V-Vw8", None)
+    assert "sharp-cornering test run" in str(err.value) and "--data-root" in str(err.value)
+
+
+def test_unknown_name_suggests_close_matches(fake_root):
+    with pytest.raises(InputError, match="did you mean.*V-Vw8"):
+        resolve_drive("V-Vw88", fake_root)
+
+
+def test_cli_uses_ionav_data(fake_root):
+    proc = run_cli("evaluate", "Vw8", "--no-idnn", "--json", env={"IONAV_DATA": str(fake_root)})
+    assert proc.returncode == 0, proc.stderr
+    assert '"drive": "V-Vw8"' in proc.stdout

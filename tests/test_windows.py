@@ -1,0 +1,63 @@
+import math
+
+import numpy as np
+import pytest
+
+from ionav_viz.drive import Drive
+from ionav_viz.windows import make_windows, segments
+
+WGS84_A_M = 6378137.0
+
+
+def _drive(t, lat, lon, heading, speed=None, accel=None, yaw=None):
+    n = len(t)
+    return Drive(
+        "test", "memory", 10.0, 0.0,
+        {
+            "t_s": t, "lat_deg": lat, "lon_deg": lon,
+            "speed_mps": np.full(n, 11.0) if speed is None else speed,
+            "heading_deg": heading,
+            "accel_long_mps2": np.zeros(n) if accel is None else accel,
+            "yaw_rate_radps": np.zeros(n) if yaw is None else yaw,
+        },
+    )
+
+
+def test_geodesic_displacement_along_the_equator():
+    # 1e-4 degree of longitude per second along the equator: a * pi/180 * 1e-4 metres per second.
+    t = np.arange(31) / 10.0
+    d = _drive(t, np.zeros(31), 1e-4 * t, np.full(31, 90.0))
+    w = make_windows(d)
+    assert len(w) == 3
+    expected_m = WGS84_A_M * math.pi / 180.0 * 1e-4  # 11.1319 m
+    np.testing.assert_allclose(w.gnss_disp_m, expected_m, rtol=1e-9)
+
+
+def test_gnss_yaw_rate_is_wrap_safe_and_counter_clockwise_positive():
+    t = np.arange(21) / 10.0
+    heading = np.mod(359.0 + 2.0 * t, 360.0)  # clockwise through north: a right turn
+    d = _drive(t, np.zeros(21), 1e-4 * t, heading)
+    w = make_windows(d)
+    np.testing.assert_allclose(w.gnss_yaw_rate_radps, -math.radians(2.0), atol=1e-9)
+
+
+def test_course_held_while_standing_still():
+    t = np.arange(31) / 10.0
+    speed = np.where(t < 1.5, 10.0, 0.0)
+    heading = np.where(t < 1.5, 45.0, 200.0)  # a receiver's course jumps when standing
+    d = _drive(t, np.zeros(31), np.zeros(31), heading, speed=speed)
+    w = make_windows(d)
+    np.testing.assert_allclose(w.gnss_yaw_rate_radps, 0.0)
+
+
+def test_missing_sample_is_bridged_and_long_gap_splits():
+    t = np.concatenate([np.arange(0, 2.05, 0.1), np.arange(10.0, 12.05, 0.1)])
+    t = np.delete(t, 5)  # one 0.2 s period
+    assert segments(t, 1.0) == [(0, 20), (20, 41)]
+    n = len(t)
+    d = _drive(t, np.zeros(n), 1e-4 * t, np.full(n, 90.0), accel=np.full(n, 0.5))
+    w = make_windows(d)
+    assert list(w.segment) == [0, 0, 1, 1]
+    assert w.accel_mps2.shape == (4, 11)
+    np.testing.assert_allclose(w.accel_mps2, 0.5)
+    np.testing.assert_allclose(w.t0_s, [0.0, 1.0, 10.0, 11.0], atol=1e-9)
