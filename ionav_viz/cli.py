@@ -186,6 +186,223 @@ def evaluate(
     print("\n".join(render(rep, group) for group, rep in reports.items()), end="")
 
 
+@app.command()
+def train(
+    drives: Optional[list[str]] = typer.Argument(None, help="Training drives (default: the bundled synthetic training drives)."),
+    output: Path = typer.Option(Path("models/idnn"), "-o", "--output", help="Model directory to write (weights + metadata.json)."),
+    paper_train: bool = typer.Option(False, "--paper-train", help="Train on the paper's Table 1 runs under the data root."),
+    arch: str = typer.Option("idnn", "--arch", help="idnn (the paper's), mlp, rnn, gru or lstm (Section 3.3)."),
+    steps: int = typer.Option(10, "--steps", help="Time steps (samples) per input (Table 4; 10 = 1 s at 10 Hz)."),
+    epochs_disp: int = typer.Option(40, "--epochs-disp", help="Epochs of the displacement model (Table 5: 40)."),
+    epochs_yaw: int = typer.Option(60, "--epochs-yaw", help="Epochs of the orientation-rate model (Table 5: 60)."),
+    feedback_noise: float = typer.Option(0.3, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
+    residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (see README); --no-residual is the paper's plain net."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: each drive's own stationary stretches)."),
+    data_root_opt: Optional[Path] = DataRoot,
+    yaw_sign: str = YawSign,
+) -> None:
+    """Train the displacement and orientation-rate networks and write them with their metadata."""
+    from .catalog import PAPER_TRAIN_RUNS
+    from .evaluate import resolve_bias
+    from .idnn import ModelConfig, save_model
+    from .resolve import data_root
+    from .samples import SAMPLES, sample_path
+    from .sources import load_drive
+    from .training import train_models
+
+    root = data_root(data_root_opt)
+    if paper_train:
+        if root is None:
+            raise InputError("--paper-train needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA")
+        specs, description = list(PAPER_TRAIN_RUNS), "the paper's IO-VNBD training runs (Table 1)"
+    elif drives:
+        specs, description = list(drives), "user-given drives"
+    else:
+        specs = [str(sample_path(s)) for s in SAMPLES if s.role == "train"]
+        description = "the bundled synthetic training drives (recordings/samples/V-sim-*-train.csv), not real data"
+    config = ModelConfig(arch=arch, n_steps=steps, epochs_disp=epochs_disp, epochs_yaw=epochs_yaw,
+                         feedback_noise_m=feedback_noise, residual=residual, seed=seed)
+    config.validate()
+    if epochs_disp < 1 or epochs_yaw < 1:
+        raise typer.BadParameter("epochs must be at least 1")
+    stationary = load_drive(bias_from, root, yaw_sign) if bias_from else None
+    loaded = []
+    for spec in specs:
+        drive = load_drive(spec, root, yaw_sign)
+        loaded.append((drive, resolve_bias(drive, stationary)))
+
+    with _progress(quiet) as bar:
+        tasks: dict[str, Any] = {}
+
+        def progress(label: str, done: int, total: int) -> None:
+            if bar is None:
+                return
+            if label not in tasks:
+                tasks[label] = bar.add_task(f"training {label}", total=total)
+            bar.update(tasks[label], completed=done)
+
+        model = train_models(loaded, config, progress=progress, description=description)
+    model.metadata["training"]["command"] = "ionav-viz " + " ".join(sys.argv[1:])
+    save_model(model, output)
+    val = model.metadata["validation"]
+    params = model.metadata["trainable_parameters"]
+    print(f"trained {arch} on {len(loaded)} drive(s), {model.metadata['training']['n_examples']} windows; "
+          f"trainable parameters: displacement {params['displacement']}, orientation rate {params['yaw_rate']}", file=sys.stderr)
+    print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate {val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
+    print(output)
+
+
+@app.command()
+def architectures(
+    steps: int = typer.Option(10, "--steps", help="Time steps per input."),
+) -> None:
+    """Trainable parameters of each network per hidden width, laid out like the paper's Table 2."""
+    from .idnn import ARCHS, build_net, count_parameters
+
+    widths = (8, 16, 32, 64, 128, 192, 256, 320)
+    print("hidden units  " + "  ".join(f"{a.upper():>8}" for a in ARCHS) + "   (displacement model, with feedback input)")
+    for width in widths:
+        counts = [count_parameters(build_net(a, steps, width, 0.1, True)) for a in ARCHS]
+        print(f"{width:>12}  " + "  ".join(f"{c:>8,}" for c in counts))
+
+
+def _parse_times(text: str) -> list[float]:
+    try:
+        return [parse_duration_s(part, "--at") if part.strip() not in ("0", "0s") else 0.0 for part in text.split(",") if part.strip()]
+    except typer.BadParameter:
+        raise
+    except Exception:
+        raise typer.BadParameter(f"{text!r}: give start times like 12s,40s", param_hint="--at") from None
+
+
+def _progress(quiet: bool):
+    """A rich progress bar on stderr, or a no-op when quiet or not a terminal."""
+    from contextlib import nullcontext
+
+    if quiet or not sys.stderr.isatty():
+        return nullcontext(None)
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                    TimeElapsedColumn(), console=Console(stderr=True), transient=True)
+
+
+@app.command()
+def replay(
+    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file path, bundled scenario name or IO-VNBD run name."),
+    outage: str = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds)."),
+    every: Optional[str] = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s."),
+    at: Optional[str] = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s."),
+    random_count: Optional[int] = typer.Option(None, "--random", help="Draw N non-overlapping outages at random."),
+    seed: int = typer.Option(0, "--seed", help="Seed for --random."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd; an existing file is replaced)."),
+    open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary."),
+    model: Optional[Path] = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model)."),
+    no_idnn: bool = typer.Option(False, "--no-idnn", help="Replay the INS only."),
+    bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
+    data_root_opt: Optional[Path] = DataRoot,
+    yaw_sign: str = YawSign,
+) -> None:
+    """Replay a drive with GNSS outages, run INS and IDNN side by side, and write a .rrd for review."""
+    from . import outages as place
+    from .evaluate import evaluate_drive, report, resolve_bias
+    from .fileio import atomic_path
+    from .resolve import data_root
+    from .samples import recordings_dir
+    from .sources import load_drive
+    from .tables import render_markdown, render_text
+    from .windows import make_windows
+
+    outage_s = parse_duration_s(outage, "--outage")
+    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count)) if v is not None]
+    if len(chosen) > 1:
+        raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
+    n = place.outage_windows(outage_s)
+    root = data_root(data_root_opt)
+    if output is not None and output.suffix.lower() != ".rrd":
+        raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
+
+    drive = load_drive(drive_spec, root, yaw_sign)
+    windows = make_windows(drive)
+    if every is not None:
+        period = parse_duration_s(every, "--every")
+        starts = place.every(windows, n, place.outage_windows(period))
+        placement = f"a {outage_s:g} s outage every {period:g} s"
+    elif at is not None:
+        times = _parse_times(at)
+        starts = place.at(windows, times, n)
+        placement = f"{outage_s:g} s outages at {', '.join(f'{x:g} s' for x in times)}"
+    elif random_count is not None:
+        starts = place.random(windows, n, random_count, seed)
+        placement = f"{random_count} random {outage_s:g} s outages (seed {seed})"
+    else:
+        starts = place.tile(windows, n)
+        placement = f"consecutive {outage_s:g} s outages (the paper's protocol)"
+    if len(starts) == 0:
+        raise InputError(f"{drive.source}: drive too short ({drive.duration_s:.1f} s) for a {outage_s:g} s outage", "use a shorter --outage")
+
+    idnn = _load_model(model, no_idnn)
+    stationary = load_drive(bias_from, root, yaw_sign) if bias_from else None
+    bias = resolve_bias(drive, stationary)
+    result = evaluate_drive(drive, outage_s, bias=bias, model=idnn, starts=starts, windows=windows)
+    rep = report([result])
+    out = output if output is not None else recordings_dir() / f"{drive.name}.rrd"
+    summary = summary_markdown(rep, drive, placement, bias, idnn.describe() if idnn else None) + "\n" + render_markdown(rep)
+
+    from .rerun_log import write_recording
+
+    with _progress(quiet) as bar:
+        steps = 5 + len(result.estimates)
+        task = bar.add_task(f"writing {out.name}", total=steps) if bar else None
+
+        def advance(label: str) -> None:
+            if bar is not None:
+                bar.update(task, advance=1, description=f"{out.name}: {label}")
+
+        with atomic_path(out) as tmp:
+            rows = write_recording(result, rep, summary, tmp, progress=advance)
+    if not quiet:
+        print(render_text(rep), end="", file=sys.stderr)
+    print(out)
+    log.info("%d entities, %d rows", len(rows), sum(rows.values()))
+    if open_viewer:
+        _open_viewer(out)
+
+
+def summary_markdown(rep: dict, drive, placement: str, bias, model_info: dict | None) -> str:
+    """The run's parameters as Markdown (the recording's summary document)."""
+    lines = [
+        f"# {drive.name}: INS and IDNN during GNSS outages",
+        "",
+        f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
+        f"- **Outages**: {placement}; {rep['n_sequences']} outage(s)",
+        f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from {bias.source}",
+    ]
+    if model_info:
+        trained = ", ".join(d["name"] for d in model_info.get("trained_on", [])) or "unknown"
+        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, {model_info['n_steps']} time steps), trained on {trained}")
+        if model_info.get("training_data"):
+            lines.append(f"- **Training data**: {model_info['training_data']}")
+    else:
+        lines.append("- **IDNN model**: none (INS only)")
+    lines.append("- **Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
+    return "\n".join(lines) + "\n"
+
+
+def _open_viewer(path: Path) -> None:
+    import shutil
+    import subprocess
+
+    exe = shutil.which("rerun")
+    if exe is None:
+        raise InputError("cannot open the viewer: the 'rerun' command is not on PATH", f"open {path} with the Rerun viewer yourself")
+    subprocess.Popen([exe, str(path)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
 def main() -> None:
     """Console entry point: one-line errors with exit code 2, 130 on Ctrl-C."""
     debug = "--debug" in sys.argv[1:]

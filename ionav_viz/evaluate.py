@@ -89,7 +89,7 @@ def evaluate_drive(
     estimates = {"ins": dead_reckon(windows, starts, n, bias)}
     model_info: dict[str, Any] = {}
     if model is not None:
-        estimates["idnn"] = model.predict(windows, starts, n)
+        estimates["idnn"] = model.predict(windows, starts, n, bias)
         model_info = model.describe()
     metrics = {name: sequence_metrics(windows, starts, n, est) for name, est in estimates.items()}
     return DriveResult(drive, windows, float(outage_s), starts, bias, estimates, metrics, model_info)

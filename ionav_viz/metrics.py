@@ -77,14 +77,26 @@ def sequence_metrics(windows: Windows, starts: np.ndarray, n_windows: int, est: 
 
 
 def cumulative_errors(windows: Windows, starts: np.ndarray, n_windows: int, est: Estimate) -> dict[str, np.ndarray]:
-    """Running CRSE/CAE after each window of each outage (seq, win): how the error builds up."""
+    """How the error builds up inside each outage: arrays (seq, win), value after each window.
+
+    Running displacement CRSE and CAE (m), running orientation-rate CRSE (rad/s), and the 2D
+    position error (m) at the end of each window (geodesic distance to the GNSS fix).
+    """
+    from pyproj import Geod
+
     disp_true, yaw_true = truth_for(windows, starts, n_windows)
     e_disp = disp_true - est.disp_m
     e_yaw = yaw_true - est.yaw_rate_radps
+    idx = np.asarray(starts)[:, None] + np.arange(n_windows)[None, :]
+    if idx.size:
+        _, _, pos = Geod(ellps="WGS84").inv(est.track.lon_deg[:, 1:], est.track.lat_deg[:, 1:], windows.lon1_deg[idx], windows.lat1_deg[idx])
+    else:
+        pos = np.zeros(idx.shape)
     return {
         "crse_m": np.cumsum(np.abs(e_disp), axis=1),
         "cae_m": np.cumsum(e_disp, axis=1),
         "yaw_crse_radps": np.cumsum(np.abs(e_yaw), axis=1),
+        "position_error_m": np.asarray(pos, dtype=np.float64).reshape(idx.shape),
     }
 
 

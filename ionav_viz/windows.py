@@ -91,8 +91,13 @@ def make_windows(
     rate_hz: float = 10.0,
     max_gap_s: float = 1.0,
     min_course_speed_mps: float = 1.0,
+    offset_s: float = 0.0,
 ) -> Windows:
-    """Cut ``drive`` into 1-second windows (see module docstring)."""
+    """Cut ``drive`` into 1-second windows (see module docstring).
+
+    ``offset_s`` shifts every segment's grid start (training uses the offsets 0, 0.1, ... 0.9 s
+    to see each second of a drive at every phase).
+    """
     from pyproj import Geod
 
     steps = int(round(rate_hz * WINDOW_S))
@@ -102,10 +107,10 @@ def make_windows(
     n_windows = []
     for seg_id, (i0, i1) in enumerate(segments(drive.t_s, max_gap_s)):
         t = drive.t_s[i0:i1]
-        n_win = int(np.floor((t[-1] - t[0]) * rate_hz + 1e-6)) // steps
+        n_win = int(np.floor((t[-1] - t[0] - offset_s) * rate_hz + 1e-6)) // steps
         if n_win < 1:
             continue
-        grid = t[0] + np.arange(n_win * steps + 1) / rate_hz
+        grid = t[0] + offset_s + np.arange(n_win * steps + 1) / rate_hz
 
         def on_grid(x: np.ndarray) -> np.ndarray:
             return np.interp(grid, t, x[i0:i1])

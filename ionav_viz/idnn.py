@@ -1,0 +1,322 @@
+"""The paper's Input Delay Neural Networks (Section 2.2, Table 5), and the comparison networks.
+
+Two models predict once per 1-second window:
+
+* **Displacement** (m): input = the bias-corrected longitudinal acceleration samples of the last
+  ``n_steps`` time steps (10 at 10 Hz by default, Table 4) and the displacement of the previous
+  window; output = this window's displacement. In training the previous displacement is the
+  GNSS one plus white Gaussian noise of ``feedback_noise_m`` (Figure 1); in prediction the
+  model's own previous output is fed back, and the first window of an outage gets the last
+  GNSS displacement before the outage (Figure 2).
+* **Orientation rate** (rad/s, counter-clockwise positive): input = the bias-corrected gyro
+  yaw-rate samples of the last ``n_steps`` time steps; output = the GNSS yaw rate of the window.
+
+Inputs are bias-corrected with the same stationary biases as the INS (the paper's a_INS,
+Eq. 10), so a model carries over between cars with different mount tilts. Every feature group
+and the target are min-max normalised to [0, 1] with the training statistics, stored with the
+model. Architectures (``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed
+inputs, 2 hidden layers of 32 units, 10 % dropout), ``mlp`` (the same net on the latest sample
+only), and ``rnn``/``gru``/``lstm`` (2 recurrent layers over the time steps; the feedback input
+joins the last hidden state).
+
+Weights are stored as safetensors (no pickle is ever loaded) beside a ``metadata.json``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .ins import Estimate, SensorBias
+from .track import rebuild_track
+from .windows import WINDOW_S, Windows
+
+ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
+FORMAT_VERSION = 1
+MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
+
+
+@dataclass
+class ModelConfig:
+    """Architecture and training hyperparameters (defaults: the paper's Table 5)."""
+
+    arch: str = "idnn"
+    n_steps: int = 10
+    hidden: int = 32
+    dropout: float = 0.1
+    feedback_noise_m: float = 0.3
+    residual: bool = True
+    lr_disp: float = 0.004
+    lr_yaw: float = 0.001
+    batch_size: int = 256
+    epochs_disp: int = 40
+    epochs_yaw: int = 60
+    seed: int = 0
+
+    def validate(self) -> None:
+        if self.arch not in ARCHS:
+            raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}")
+        if not 1 <= self.n_steps <= 20:
+            raise InputError(f"n_steps {self.n_steps} out of range", "use 1 to 20 time steps")
+        if self.hidden < 1 or not 0 <= self.dropout < 1 or self.feedback_noise_m < 0:
+            raise InputError("hidden units must be >= 1, dropout in [0, 1), feedback noise >= 0")
+
+
+def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bool, skip: tuple[float, float] | None = None):
+    """A torch module mapping normalised inputs (batch, n_steps [+ 1 feedback]) -> (batch,).
+
+    With ``skip = (gain, offset)`` the output adds a kinematic skip term, so the layers learn a
+    correction to it: ``gain * mean(samples) + offset`` plus, for the displacement model
+    (``feedback``), the fed-back previous displacement; see :meth:`Normalisation.skip_terms`.
+    """
+    import torch
+    from torch import nn
+
+    def skip_of(x: torch.Tensor) -> torch.Tensor | float:
+        if skip is None:
+            return 0.0
+        term = skip[0] * x[:, :n_steps].mean(dim=1) + skip[1]
+        return term + x[:, n_steps] if feedback else term
+
+    class FeedForward(nn.Module):
+        def __init__(self, n_in: int, latest_only: bool) -> None:
+            super().__init__()
+            self.latest_only = latest_only
+            self.body = nn.Sequential(
+                nn.Linear(n_in, hidden), nn.ReLU(), nn.Dropout(dropout),
+                nn.Linear(hidden, hidden), nn.ReLU(), nn.Dropout(dropout),
+                nn.Linear(hidden, 1),
+            )  # fmt: skip
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            skip = skip_of(x)
+            if self.latest_only:
+                x = torch.cat([x[:, n_steps - 1 : n_steps], x[:, n_steps:]], dim=1)
+            return skip + self.body(x).squeeze(-1)
+
+    class Recurrent(nn.Module):
+        def __init__(self, cell: type[nn.Module]) -> None:
+            super().__init__()
+            self.rnn = cell(1, hidden, num_layers=2, batch_first=True, dropout=dropout)
+            self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(hidden + int(feedback), 1))
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            seq = x[:, :n_steps].unsqueeze(-1)
+            out, _ = self.rnn(seq)
+            last = torch.cat([out[:, -1, :], x[:, n_steps:]], dim=1)
+            return skip_of(x) + self.head(last).squeeze(-1)
+
+    n_in = n_steps + int(feedback)
+    if arch == "idnn":
+        return FeedForward(n_in, latest_only=False)
+    if arch == "mlp":
+        return FeedForward(1 + int(feedback), latest_only=True)
+    cells = {"rnn": nn.RNN, "gru": nn.GRU, "lstm": nn.LSTM}
+    return Recurrent(cells[arch])
+
+
+def count_parameters(net) -> int:
+    """Trainable parameters of a torch module."""
+    return int(sum(p.numel() for p in net.parameters() if p.requires_grad))
+
+
+@dataclass
+class MinMax:
+    """Min-max scaling of one feature group to [0, 1]."""
+
+    lo: float
+    hi: float
+
+    @classmethod
+    def fit(cls, x: np.ndarray) -> "MinMax":
+        lo, hi = float(np.min(x)), float(np.max(x))
+        return cls(lo, hi if hi > lo else lo + 1.0)
+
+    def scale(self, x: np.ndarray) -> np.ndarray:
+        return (x - self.lo) / (self.hi - self.lo)
+
+    def unscale(self, y: np.ndarray) -> np.ndarray:
+        return y * (self.hi - self.lo) + self.lo
+
+
+@dataclass
+class Normalisation:
+    """Training statistics of every feature group and target."""
+
+    accel: MinMax
+    disp: MinMax
+    gyro: MinMax
+    yaw: MinMax
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {k: [getattr(self, k).lo, getattr(self, k).hi] for k in ("accel", "disp", "gyro", "yaw")}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, list[float]]) -> "Normalisation":
+        return cls(**{k: MinMax(float(d[k][0]), float(d[k][1])) for k in ("accel", "disp", "gyro", "yaw")})
+
+    def skip_terms(self, displacement: bool) -> tuple[float, float]:
+        """(gain, offset) of the kinematic skip term in normalised units.
+
+        Displacement: d_t = d_{t-1} + mean(a) * 1 s (the speed changes by the window's mean
+        acceleration). Orientation rate: the window's mean gyro rate (gyro and yaw rate share
+        one scaling).
+        """
+        if not displacement:
+            return (1.0, 0.0) if self.gyro == self.yaw else ((self.gyro.hi - self.gyro.lo) / (self.yaw.hi - self.yaw.lo), (self.gyro.lo - self.yaw.lo) / (self.yaw.hi - self.yaw.lo))
+        span = self.disp.hi - self.disp.lo
+        return ((self.accel.hi - self.accel.lo) * WINDOW_S / span, self.accel.lo * WINDOW_S / span)
+
+
+def sample_history(samples: np.ndarray, idx: np.ndarray, n_steps: int) -> np.ndarray:
+    """The last ``n_steps`` samples up to the end of each window ``idx`` (any shape).
+
+    ``samples`` is a windows array (n_windows, steps + 1); window ``k``'s own time steps are
+    ``samples[k, 1:]``. More than ``steps`` time steps reach into window ``k - 1``, which must be in
+    the same segment (outage starts and training windows guarantee it).
+    """
+    steps = samples.shape[1] - 1
+    own = samples[idx, 1:]
+    if n_steps <= steps:
+        return own[..., steps - n_steps :]
+    before = samples[np.maximum(idx - 1, 0), 1:]
+    return np.concatenate([before, own], axis=-1)[..., 2 * steps - n_steps :]
+
+
+@dataclass
+class IdnnModel:
+    """A trained displacement model and orientation-rate model with their normalisation."""
+
+    config: ModelConfig
+    norm: Normalisation
+    disp_net: Any
+    yaw_net: Any
+    metadata: dict[str, Any] = field(default_factory=dict)
+    directory: str = ""
+
+    def _run(self, net, x: np.ndarray) -> np.ndarray:
+        import torch
+
+        with torch.no_grad():
+            return net(torch.from_numpy(x.astype(np.float32))).numpy().astype(np.float64)
+
+    def predict_yaw_rate(self, gyro_radps: np.ndarray) -> np.ndarray:
+        """Orientation rate (rad/s) from bias-corrected gyro histories (..., n_steps), in one call."""
+        shape = gyro_radps.shape[:-1]
+        x = self.norm.gyro.scale(gyro_radps.reshape(-1, self.config.n_steps))
+        return self.norm.yaw.unscale(self._run(self.yaw_net, x)).reshape(shape)
+
+    def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray) -> np.ndarray:
+        """Displacement (m) of every window of every sequence, feeding back the model's own output.
+
+        ``accel_mps2``: (n_seq, n_windows, n_steps) bias-corrected; ``first_prev_disp_m``: (n_seq,)
+        GNSS displacement of the second before each outage. All sequences step together.
+        """
+        n_seq, n_win, _ = accel_mps2.shape
+        acc = self.norm.accel.scale(accel_mps2)
+        prev = self.norm.disp.scale(np.asarray(first_prev_disp_m, dtype=np.float64))
+        out = np.empty((n_seq, n_win))
+        for w in range(n_win):  # each window feeds the next
+            y = self._run(self.disp_net, np.concatenate([acc[:, w, :], prev[:, None]], axis=1))
+            out[:, w] = self.norm.disp.unscale(y)
+            prev = y
+        return out
+
+    def predict(self, windows: Windows, starts: np.ndarray, n_windows: int, bias: SensorBias) -> Estimate:
+        """IDNN estimates for outages of ``n_windows`` starting at ``starts`` (batched)."""
+        starts = np.asarray(starts, dtype=int)
+        idx = starts[:, None] + np.arange(n_windows)[None, :]
+        accel = sample_history(windows.accel_mps2, idx, self.config.n_steps) - bias.accel_mps2
+        gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps) - bias.gyro_radps
+        if len(starts) == 0:
+            disp = np.zeros((0, n_windows))
+            yaw = np.zeros((0, n_windows))
+        else:
+            disp = self.predict_displacement(accel, windows.gnss_disp_m[starts - 1])
+            yaw = self.predict_yaw_rate(gyro)
+        track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp, yaw)
+        return Estimate(disp, yaw, track)
+
+    def describe(self) -> dict[str, Any]:
+        """What the recording and reports say about the model."""
+        return {
+            "directory": self.directory,
+            "arch": self.config.arch,
+            "n_steps": self.config.n_steps,
+            "trained_on": self.metadata.get("training", {}).get("drives", []),
+            "training_data": self.metadata.get("training", {}).get("description", ""),
+        }
+
+
+def default_model_dir() -> Path:
+    """The shipped model: ``models/idnn`` of the checkout."""
+    return Path(__file__).resolve().parent.parent / "models" / "idnn"
+
+
+def save_model(model: IdnnModel, directory: Path) -> None:
+    """Write weights (safetensors) and ``metadata.json`` into ``directory``, each file atomically."""
+    from safetensors.torch import save
+
+    from .fileio import atomic_write_bytes
+
+    directory.mkdir(parents=True, exist_ok=True)
+    for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
+        state = {k: v.detach().contiguous() for k, v in net.state_dict().items()}
+        atomic_write_bytes(directory / MODEL_FILES[key], save(state))
+    meta = dict(model.metadata)
+    meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict())
+    atomic_write_bytes(directory / "metadata.json", (json.dumps(meta, indent=2) + "\n").encode())
+
+
+def load_model(directory: str | Path) -> IdnnModel:
+    """Load a model directory; a missing, corrupted or mismatched model is an :class:`InputError`."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load
+
+    directory = Path(directory)
+    meta_path = directory / "metadata.json"
+    if not meta_path.is_file():
+        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' or pass --model DIR")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        if meta.get("format_version") != FORMAT_VERSION:
+            raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}", "retrain with this version of ionav-viz")
+        config = ModelConfig(**meta["config"])
+        norm = Normalisation.from_dict(meta["normalisation"])
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{meta_path}: not valid JSON ({exc})", "the model directory is damaged; retrain or restore it") from None
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise InputError(f"{meta_path}: incomplete or invalid metadata ({type(exc).__name__}: {exc})", "retrain or restore the model") from None
+    config.validate()
+    nets = {}
+    for key, filename in MODEL_FILES.items():
+        path = directory / filename
+        is_disp = key == "displacement"
+        skip = norm.skip_terms(is_disp) if config.residual else None
+        net = build_net(config.arch, config.n_steps, config.hidden, config.dropout, is_disp, skip)
+        try:
+            state = load(path.read_bytes())
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read model weights ({exc.strerror})", "retrain or restore the model") from None
+        except (SafetensorError, ValueError, Exception) as exc:  # safetensors rejects anything else, pickles included
+            raise InputError(f"{path}: not a safetensors weights file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", "weights must be safetensors; pickled files are never loaded") from None
+        expected = net.state_dict()
+        bad = [k for k in expected if k not in state or tuple(state[k].shape) != tuple(expected[k].shape)]
+        extra = [k for k in state if k not in expected]
+        if bad or extra:
+            first = (bad or extra)[0]
+            got = tuple(state[first].shape) if first in state else "missing"
+            want = tuple(expected[first].shape) if first in expected else "unexpected"
+            raise InputError(
+                f"{path}: weights do not fit the {config.arch} architecture of metadata.json ({first}: {got} vs {want})",
+                "the weights and metadata come from different models; retrain",
+            )
+        net.load_state_dict(state)
+        net.eval()
+        nets[key] = net
+    return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory))

@@ -1,0 +1,194 @@
+"""Writing a replay's results to a Rerun ``.rrd`` recording (the logging layer).
+
+It consumes only results (:class:`ionav_viz.evaluate.DriveResult` and its report) and sends
+every series as whole columns with ``send_columns``; static layers are logged once.
+
+Timelines: ``time`` (seconds since the first sample of the drive) and ``time_of_day`` (UTC
+time of day, as a duration since midnight).
+
+Entity paths (see also the README):
+
+==============================================  ==============================================
+``map/gnss``                                    GNSS ground-truth track (static, lat/lon)
+``map/gnss/position``                           current GNSS position (per sample)
+``map/{ins,idnn}/live``                         the current outage's estimated track, growing
+                                                each second (lat/lon)
+``map/{ins,idnn}/all``                          all outages' estimated tracks (static overview)
+``local/...``                                   the same in a local east-north frame (metres,
+                                                origin at the first fix; x east, y = -north so
+                                                north is up in Rerun's y-down 2D view), for
+                                                offline review without map tiles
+``local/outages``                               outage start points with labels (static)
+``gnss/available``                              1 with GNSS, 0 during an outage (per window)
+``gnss/state``                                  "GNSS" or "outage N" (state timeline)
+``signals/accel_long_mps2``                     longitudinal acceleration (per sample)
+``signals/yaw_rate_radps/{gyro,gnss,idnn,ins}`` yaw rates, counter-clockwise positive
+``signals/displacement_m/{gnss,ins,idnn}``      displacement per second (per window)
+``signals/speed_mps``                           GNSS speed (per sample)
+``errors/{crse_m,cae_m,yaw_crse_radps,``        cumulative errors inside each outage, per
+``position_error_m}/{ins,idnn}``                estimator (per window, reset at each outage)
+``summary``                                     Markdown: metrics table and run parameters
+==============================================  ==============================================
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .evaluate import DriveResult
+from .metrics import cumulative_errors
+
+#: One colour per estimator everywhere (tracks, plots, screenshots).
+COLORS = {"gnss": (0, 170, 80), "ins": (230, 60, 50), "idnn": (40, 110, 240), "gyro": (150, 150, 150)}
+LABELS = {"gnss": "GNSS (truth)", "ins": "INS DR", "idnn": "IDNN", "gyro": "gyro"}
+APP_ID = "ionav-viz"
+
+
+def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """East and north (m) of positions relative to an origin (azimuthal equidistant projection)."""
+    from pyproj import Transformer
+
+    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
+    east, north = to_local.transform(np.asarray(lon_deg), np.asarray(lat_deg))
+    return np.asarray(east), np.asarray(north)
+
+
+def _screen(east: np.ndarray, north: np.ndarray) -> np.ndarray:
+    """Local frame -> Rerun 2D view coordinates (y grows downwards on screen)."""
+    return np.stack([east, -north], axis=-1)
+
+
+def blueprint(has_idnn: bool):
+    """The default review layout: map and local view, signals and errors, summary."""
+    import rerun.blueprint as rrb
+
+    tracks = rrb.Vertical(
+        rrb.MapView(origin="map", name="Map (GNSS, INS, IDNN)"),
+        rrb.Spatial2DView(origin="local", name="Local east-north (m), north up"),
+    )
+    signals = rrb.Vertical(
+        rrb.StateTimelineView(origin="gnss/state", name="GNSS / outages"),
+        rrb.TimeSeriesView(origin="signals/displacement_m", name="Displacement per second (m)"),
+        rrb.TimeSeriesView(origin="signals/yaw_rate_radps", name="Yaw rate (rad/s, CCW +)"),
+        rrb.TimeSeriesView(origin="signals/accel_long_mps2", name="Longitudinal acceleration (m/s²)"),
+        row_shares=[1, 3, 3, 2],
+    )
+    errors = rrb.Vertical(
+        rrb.TimeSeriesView(origin="errors/position_error_m", name="2D position error (m)"),
+        rrb.TimeSeriesView(origin="errors/crse_m", name="Displacement CRSE (m)"),
+        rrb.TimeSeriesView(origin="errors/cae_m", name="Displacement CAE (m)"),
+        rrb.TimeSeriesView(origin="errors/yaw_crse_radps", name="Orientation-rate CRSE (rad/s)"),
+        rrb.TextDocumentView(origin="summary", name="Summary"),
+    )
+    return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=[4, 3, 3]), collapse_panels=True)
+
+
+def _times(t_s: np.ndarray, start_tod_s: float):
+    import rerun as rr
+
+    t_s = np.asarray(t_s, dtype=np.float64)
+    return [rr.TimeColumn("time", duration=t_s), rr.TimeColumn("time_of_day", duration=start_tod_s + t_s)]
+
+
+def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
+    """(seq, win+1, 2) -> per (seq, win) row the strip of points 0..win+1, row-major."""
+    return [points[s, : w + 2] for s in range(points.shape[0]) for w in range(points.shape[1] - 1)]
+
+
+def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str, path: Path, progress=None) -> dict[str, int]:
+    """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
+
+    Returns row counts per entity (for messages and tests). The caller makes the write atomic.
+    """
+    import rerun as rr
+
+    drive, w, starts = result.drive, result.windows, result.starts
+    n_win = result.n_windows
+    tod = drive.start_time_of_day_s
+    rec = rr.RecordingStream(APP_ID, recording_id=f"{drive.name}-{result.outage_s:g}s")
+    rec.save(path, default_blueprint=blueprint("idnn" in result.estimates))
+    rows: dict[str, int] = {}
+
+    def send(entity: str, t_s: np.ndarray, columns) -> None:
+        rec.send_columns(entity, indexes=_times(t_s, tod), columns=columns)
+        rows[entity] = len(t_s)
+
+    def step(label: str) -> None:
+        if progress:
+            progress(label)
+
+    lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
+    east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
+    truth_ll = np.stack([drive.lat_deg, drive.lon_deg], axis=-1)
+    truth_xy = _screen(east, north)
+
+    # Styling and static layers, once.
+    estimators = list(result.estimates)
+    for est in ["gyro", "gnss", *estimators]:
+        rec.log(f"signals/yaw_rate_radps/{est}", rr.SeriesLines(colors=[COLORS[est]], names=[LABELS[est]], widths=[1.5]), static=True)
+    for est in ["gnss", *estimators]:
+        rec.log(f"signals/displacement_m/{est}", rr.SeriesLines(colors=[COLORS[est]], names=[LABELS[est]], widths=[1.5]), static=True)
+    for est in estimators:
+        for group in ("crse_m", "cae_m", "yaw_crse_radps", "position_error_m"):
+            rec.log(f"errors/{group}/{est}", rr.SeriesLines(colors=[COLORS[est]], names=[LABELS[est]], widths=[2.0]), static=True)
+    rec.log("signals/accel_long_mps2", rr.SeriesLines(colors=[COLORS["gyro"]], names=["accelerometer"]), static=True)
+    rec.log("signals/speed_mps", rr.SeriesLines(colors=[COLORS["gnss"]], names=["GNSS speed"]), static=True)
+    rec.log("gnss/available", rr.SeriesLines(colors=[COLORS["gnss"]], names=["GNSS available"]), static=True)
+    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll], colors=[COLORS["gnss"]], radii=rr.Radius.ui_points(2.0)), static=True)
+    rec.log("local/gnss", rr.LineStrips2D([truth_xy], colors=[COLORS["gnss"]], radii=rr.Radius.ui_points(1.5), draw_order=10), static=True)
+    rec.log("summary", rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
+    step("static layers")
+
+    # Per-sample series.
+    t = drive.t_s
+    send("map/gnss/position", t, rr.GeoPoints.columns(positions=truth_ll, colors=np.tile(COLORS["gnss"], (len(t), 1)), radii=np.full(len(t), -6.0)))
+    send("local/gnss/position", t, rr.Points2D.columns(positions=truth_xy, colors=np.tile(COLORS["gnss"], (len(t), 1)), radii=np.full(len(t), -6.0)))
+    send("signals/accel_long_mps2", t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
+    send("signals/yaw_rate_radps/gyro", t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
+    send("signals/speed_mps", t, rr.Scalars.columns(scalars=drive.speed_mps))
+    step("signals")
+
+    # Per-window GNSS truth and outage state.
+    t_end = w.t0_s + 1.0
+    send("signals/displacement_m/gnss", t_end, rr.Scalars.columns(scalars=w.gnss_disp_m))
+    send("signals/yaw_rate_radps/gnss", t_end, rr.Scalars.columns(scalars=w.gnss_yaw_rate_radps))
+    available = np.ones(len(w))
+    idx = starts[:, None] + np.arange(n_win)[None, :]
+    available[idx.ravel()] = 0.0
+    t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
+    send("gnss/available", t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
+    states = np.full(len(w), "GNSS", dtype=object)
+    for i, k in enumerate(starts):
+        states[k : k + n_win] = f"outage {i + 1} ({w.t0_s[k]:.0f}-{w.t0_s[k] + n_win:.0f} s)"
+    change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
+    send("gnss/state", w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
+    step("outages")
+
+    if len(starts):
+        t_win = t_end[idx].ravel()
+        start_xy = _screen(*local_en_m(w.lat0_deg[starts], w.lon0_deg[starts], lat0, lon0))
+        rec.log("local/outages", rr.Points2D(start_xy, labels=[f"#{i + 1}" for i in range(len(starts))],
+                                             colors=[(90, 90, 90)], radii=rr.Radius.ui_points(4.0)), static=True)
+        for name, est in result.estimates.items():
+            color = COLORS[name]
+            ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
+            xy = _screen(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
+            n_rows = idx.size
+            radius = rr.Radius.ui_points(2.0)
+            send(f"map/{name}/live", t_win, rr.GeoLineStrings.columns(
+                line_strings=_growing_strips(ll), colors=np.tile(color, (n_rows, 1))))
+            send(f"local/{name}/live", t_win, rr.LineStrips2D.columns(
+                strips=_growing_strips(xy), colors=np.tile(color, (n_rows, 1))))
+            rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[color], radii=radius), static=True)
+            rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[color], radii=radius, draw_order=20), static=True)
+            send(f"signals/displacement_m/{name}", t_win, rr.Scalars.columns(scalars=est.disp_m.ravel()))
+            send(f"signals/yaw_rate_radps/{name}", t_win, rr.Scalars.columns(scalars=est.yaw_rate_radps.ravel()))
+            for metric, values in cumulative_errors(w, starts, n_win, est).items():
+                send(f"errors/{metric}/{name}", t_win, rr.Scalars.columns(scalars=values.ravel()))
+            step(name)
+    rec.flush()
+    rec.disconnect()
+    return rows
