@@ -141,6 +141,7 @@ def evaluate(
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
+    overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
     model: Optional[Path] = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model)."),
     no_idnn: bool = typer.Option(False, "--no-idnn", help="Evaluate the INS only."),
     bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
@@ -151,7 +152,7 @@ def evaluate(
     from .evaluate import evaluate_drive, report, resolve_bias
     from .resolve import data_root
     from .sources import load_drive
-    from .tables import render_markdown, render_text
+    from .tables import render_markdown, render_overview, render_text
 
     outage_s = parse_duration_s(outage, "--outage")
     root = data_root(data_root_opt)
@@ -181,6 +182,9 @@ def evaluate(
     if as_json:
         out = reports[None] if None in reports else {"scenarios": reports}
         print(json.dumps(_json_safe(out), indent=2))
+        return
+    if overview:
+        print(render_overview(reports, markdown), end="")
         return
     render = render_markdown if markdown else render_text
     print("\n".join(render(rep, group) for group, rep in reports.items()), end="")

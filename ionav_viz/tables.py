@@ -67,3 +67,36 @@ def render_text(rep: dict[str, Any], scenario: str | None = None) -> str:
     out += [line(r) for r in rows]
     out += improvement_lines(rep)
     return "\n".join(out) + "\n"
+
+
+def overview_rows(reports: dict[Any, dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """One row per scenario (or drive group): mean CRSE and final position error, INS vs IDNN."""
+    header = ["Scenario", "Sequences", "Disp. CRSE μ INS (m)", "IDNN (m)", "Δ %",
+              "Yaw CRSE μ INS (rad/s)", "IDNN (rad/s)", "Δ %", "Final pos. err. μ INS (m)", "IDNN (m)"]
+    rows = []
+    for group, rep in reports.items():
+        s = rep["summary"]
+        idnn = "idnn" in s
+        imp = rep.get("improvement_pct", {})
+
+        def val(est: str, key: str, d: int = 2) -> str:
+            return _fmt(s[est][key]["mean"], d) if est in s else "-"
+
+        rows.append([
+            str(group or rep["drive"]), str(rep["n_sequences"]),
+            val("ins", "crse_m"), val("idnn", "crse_m"), _fmt(imp["crse_m"], 1) if idnn else "-",
+            val("ins", "yaw_crse_radps", 3), val("idnn", "yaw_crse_radps", 3), _fmt(imp["yaw_crse_radps"], 1) if idnn else "-",
+            val("ins", "final_position_error_m"), val("idnn", "final_position_error_m"),
+        ])  # fmt: skip
+    return header, rows
+
+
+def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool) -> str:
+    """The overview table; Δ % is the IDNN's improvement over the INS (positive = IDNN better)."""
+    header, rows = overview_rows(reports)
+    if markdown:
+        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(lines) + "\n"
+    widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
+    lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths))) for r in [header] + rows]
+    return "\n".join(lines) + "\n"

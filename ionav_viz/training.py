@@ -10,9 +10,11 @@ validation. Loss: mean absolute error; optimiser: Adamax; deterministic on the C
 
 from __future__ import annotations
 
+import hashlib
 import platform
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -66,7 +68,7 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps: int, phas
     return TrainingSet(*(np.concatenate(p) for p in zip(*parts)))
 
 
-def _fit(net, x: np.ndarray, y: np.ndarray, lr: float, epochs: int, batch: int, seed: int,
+def fit_network(net, x: np.ndarray, y: np.ndarray, lr: float, epochs: int, batch: int, seed: int,
          noise_col: int | None, noise_sd: float, progress: Progress | None, label: str) -> list[float]:
     """Minimise L1 with Adamax; optional Gaussian noise on one (already normalised) input column."""
     import torch
@@ -131,9 +133,9 @@ def train_models(
     yaw_net = build_net(config.arch, config.n_steps, config.hidden, config.dropout, False,
                         norm.skip_terms(False) if config.residual else None)
     noise_sd = config.feedback_noise_m / (norm.disp.hi - norm.disp.lo)  # metres -> normalised units
-    disp_loss = _fit(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), config.lr_disp, config.epochs_disp,
+    disp_loss = fit_network(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), config.lr_disp, config.epochs_disp,
                      config.batch_size, config.seed, config.n_steps, noise_sd, progress, "displacement")
-    yaw_loss = _fit(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), config.lr_yaw,
+    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), config.lr_yaw,
                     config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, progress, "orientation rate")
 
     model = IdnnModel(config, norm, disp_net, yaw_net)
@@ -143,7 +145,8 @@ def train_models(
     model.metadata = {
         "training": {
             "description": description,
-            "drives": [{"name": d.name, "source": d.source, "bias_accel_mps2": b.accel_mps2, "bias_gyro_radps": b.gyro_radps} for d, b in drives],
+            "drives": [{"name": d.name, "file": Path(d.source).name, "sha256": _sha256(d.source),
+                        "bias_accel_mps2": b.accel_mps2, "bias_gyro_radps": b.gyro_radps} for d, b in drives],
             "n_examples": len(train),
             "n_validation": len(val),
             "final_loss_normalised": {"displacement": disp_loss[-1], "yaw_rate": yaw_loss[-1]},
@@ -158,6 +161,13 @@ def train_models(
         "hyperparameters": asdict(config),
     }
     return model
+
+
+def _sha256(path: str) -> str | None:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
 
 
 def _versions() -> dict[str, Any]:

@@ -1,0 +1,171 @@
+"""The IDNN: feedback wiring, normalisation, determinism, safe and validated loading."""
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+import torch
+
+from ionav_viz.errors import InputError
+from ionav_viz.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, load_model, save_model
+from ionav_viz.ins import SensorBias
+from ionav_viz.iovnbd import read_iovnbd
+from ionav_viz.samples import samples_dir
+from ionav_viz.simulate import write_simulated_drive
+from ionav_viz.training import fit_network, train_models, training_examples
+
+IDENTITY = MinMax(0.0, 1.0)
+
+
+class EchoFeedback(torch.nn.Module):
+    """Returns its feedback input plus one: shows what the model is fed back."""
+
+    def __init__(self, n_steps: int) -> None:
+        super().__init__()
+        self.n_steps = n_steps
+        self.seen: list[torch.Tensor] = []
+        self.dummy = torch.nn.Parameter(torch.zeros(1))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        self.seen.append(x.detach().clone())
+        return x[:, self.n_steps] + 1.0 + 0.0 * self.dummy
+
+
+def _echo_model(n_steps=10) -> IdnnModel:
+    norm = Normalisation(IDENTITY, IDENTITY, IDENTITY, IDENTITY)
+    return IdnnModel(ModelConfig(n_steps=n_steps), norm, EchoFeedback(n_steps), EchoFeedback(n_steps))
+
+
+def test_prediction_feeds_back_its_own_output():
+    model = _echo_model()
+    accel = np.zeros((2, 5, 10))
+    out = model.predict_displacement(accel, first_prev_disp_m=np.array([5.0, 20.0]))
+    # first window gets the last GNSS displacement, every later one the model's own output
+    np.testing.assert_allclose(out, [[6, 7, 8, 9, 10], [21, 22, 23, 24, 25]])
+    # all sequences step together: one call per window, each with the whole batch
+    assert len(model.disp_net.seen) == 5 and all(x.shape == (2, 11) for x in model.disp_net.seen)
+
+
+def test_prediction_adds_no_noise():
+    model = _echo_model()
+    a = model.predict_displacement(np.zeros((3, 4, 10)), np.array([1.0, 2.0, 3.0]))
+    b = model.predict_displacement(np.zeros((3, 4, 10)), np.array([1.0, 2.0, 3.0]))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_training_feeds_noisy_gnss_displacement():
+    drive = read_iovnbd(samples_dir() / "V-sim-quick-accel.csv")
+    data = training_examples([(drive, SensorBias.none())], n_steps=10, phases=1)
+    # teacher forcing: the feedback input of window k is the GNSS displacement of window k-1
+    np.testing.assert_allclose(data.prev_disp_m[1:], data.disp_m[:-1])
+    net = EchoFeedback(10)
+    x = np.zeros((len(data), 11))
+    x[:, 0] = np.arange(len(data))  # tag each example to find it after shuffling
+    x[:, 10] = data.prev_disp_m
+    fit_network(net, x, data.disp_m, lr=0.0, epochs=1, batch=256, seed=0, noise_col=10, noise_sd=0.5, progress=None, label="t")
+    seen = torch.cat(net.seen).numpy().astype(np.float64)
+    example = np.rint(seen[:, 0]).astype(int)
+    assert sorted(example) == list(range(len(data)))  # every example once per epoch
+    noise = seen[:, 10] - x[example, 10]
+    assert noise.std() == pytest.approx(0.5, rel=0.1) and abs(noise.mean()) < 0.05
+    assert np.all(seen[:, 1:10] == 0)  # only the feedback column is perturbed
+
+
+def test_min_max_round_trip_and_metadata_round_trip():
+    x = np.array([-3.0, 0.5, 7.0])
+    mm = MinMax.fit(x)
+    np.testing.assert_allclose(mm.scale(x), [0.0, 0.35, 1.0])
+    np.testing.assert_allclose(mm.unscale(mm.scale(x)), x)
+    norm = Normalisation(mm, MinMax(0, 30), MinMax(-1, 1), MinMax(-1, 1))
+    assert Normalisation.from_dict(json.loads(json.dumps(norm.to_dict()))) == norm
+
+
+@pytest.fixture(scope="module")
+def tiny_drives():
+    drive = read_iovnbd(samples_dir() / "V-sim-roundabout-train.csv")
+    return [(drive, SensorBias(0.0, 0.0, "test", 0.0))]
+
+
+TINY = dict(epochs_disp=2, epochs_yaw=2, seed=3)
+
+
+def test_tiny_model_trains_deterministically(tiny_drives):
+    a = train_models(tiny_drives, ModelConfig(**TINY))
+    b = train_models(tiny_drives, ModelConfig(**TINY))
+    for na, nb in ((a.disp_net, b.disp_net), (a.yaw_net, b.yaw_net)):
+        for (ka, va), (kb, vb) in zip(na.state_dict().items(), nb.state_dict().items()):
+            assert ka == kb and torch.equal(va, vb)
+    c = train_models(tiny_drives, ModelConfig(**{**TINY, "seed": 4}))
+    assert not torch.equal(next(iter(a.disp_net.state_dict().values())), next(iter(c.disp_net.state_dict().values())))
+
+
+@pytest.mark.parametrize("arch", ["idnn", "mlp", "rnn", "gru", "lstm"])
+def test_saved_model_loads_and_predicts_the_same(tmp_path, tiny_drives, arch):
+    model = train_models(tiny_drives, ModelConfig(arch=arch, **TINY))
+    save_model(model, tmp_path / "m")
+    loaded = load_model(tmp_path / "m")
+    gyro = np.linspace(-0.3, 0.3, 40).reshape(4, 10)
+    np.testing.assert_allclose(loaded.predict_yaw_rate(gyro), model.predict_yaw_rate(gyro), rtol=1e-6)
+    meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
+    assert meta["config"]["arch"] == arch and meta["training"]["drives"][0]["name"] == "V-sim-roundabout-train"
+    assert {"torch", "numpy", "ionav_viz"} <= set(meta["versions"]) and meta["validation"]["disp_mae_m"] > 0
+
+
+@pytest.fixture()
+def saved(tmp_path, tiny_drives):
+    save_model(train_models(tiny_drives, ModelConfig(**TINY)), tmp_path / "m")
+    return tmp_path / "m"
+
+
+def test_missing_model(tmp_path):
+    with pytest.raises(InputError, match="metadata.json missing"):
+        load_model(tmp_path / "nothing")
+
+
+def test_corrupted_metadata(saved):
+    (saved / "metadata.json").write_text("{not json")
+    with pytest.raises(InputError, match="not valid JSON"):
+        load_model(saved)
+
+
+def test_metadata_without_normalisation(saved):
+    meta = json.loads((saved / "metadata.json").read_text())
+    del meta["normalisation"]
+    (saved / "metadata.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="incomplete or invalid metadata"):
+        load_model(saved)
+
+
+def test_weights_that_do_not_fit_the_architecture(saved):
+    meta = json.loads((saved / "metadata.json").read_text())
+    meta["config"]["n_steps"] = 12
+    (saved / "metadata.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="do not fit"):
+        load_model(saved)
+
+
+def test_truncated_weights(saved):
+    path = saved / "displacement.safetensors"
+    path.write_bytes(path.read_bytes()[:100])
+    with pytest.raises(InputError, match="not a safetensors weights file"):
+        load_model(saved)
+
+
+class _Payload:
+    def __init__(self, marker):
+        self.marker = marker
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_pickle_payload_is_refused_and_never_executed(saved):
+    marker = saved / "pwned"
+    (saved / "displacement.safetensors").write_bytes(pickle.dumps(_Payload(str(marker))))
+    with pytest.raises(InputError, match="pickled files are never loaded"):
+        load_model(saved)
+    torch.save({"x": _Payload(str(marker))}, saved / "yaw_rate.safetensors")
+    with pytest.raises(InputError):
+        load_model(saved)
+    assert not marker.exists()

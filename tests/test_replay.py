@@ -1,0 +1,136 @@
+"""Replay writes a reviewable .rrd: read back with Rerun's own reader and checked against evaluate."""
+
+import json
+from collections import defaultdict
+
+import numpy as np
+import pytest
+
+from .conftest import run_cli
+
+N_WIN = 10
+
+
+def read_rrd(path):
+    """entity path -> list of (time_s, main component of the row), via rerun.chunk.RrdReader."""
+    from rerun.chunk import RrdReader
+
+    reader = RrdReader(path)
+    assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1
+    rows = defaultdict(list)
+    static = set()
+    for chunk in reader.stream():
+        entity = str(chunk.entity_path)
+        if chunk.is_static:
+            static.add(entity)
+            continue
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        if "time" not in names:
+            continue
+        times = batch.column("time").cast("int64").to_numpy() / 1e9
+        cols = {n.split(":")[-1]: batch.column(n).to_pylist() for n in names if ":" in n}
+        # the row's main component: scalars, strips, positions or state
+        key = next(k for k in ("scalars", "strips", "line_strings", "positions", "state") if k in cols)
+        rows[entity].extend(zip(times, cols[key]))
+    return {k: sorted(v, key=lambda r: r[0]) for k, v in rows.items()}, static
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rrd") / "roundabout.rrd"
+    proc = run_cli("replay", "roundabout", "--outage", "10s", "-o", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    ev = run_cli("evaluate", "roundabout", "--outage", "10s", "--json")
+    assert ev.returncode == 0, ev.stderr
+    return out, json.loads(ev.stdout)
+
+
+def test_recording_has_the_documented_entities(replayed):
+    path, _ = replayed
+    rows, static = read_rrd(path)
+    for entity in [
+        "/map/gnss/position", "/local/gnss/position", "/gnss/available", "/gnss/state",
+        "/signals/accel_long_mps2", "/signals/speed_mps",
+        "/signals/yaw_rate_radps/gyro", "/signals/yaw_rate_radps/gnss", "/signals/displacement_m/gnss",
+    ] + [f"/{g}/{e}/live" for g in ("map", "local") for e in ("ins", "idnn")] + [
+        f"/signals/{s}/{e}" for s in ("yaw_rate_radps", "displacement_m") for e in ("ins", "idnn")
+    ] + [f"/errors/{m}/{e}" for m in ("crse_m", "cae_m", "yaw_crse_radps", "position_error_m") for e in ("ins", "idnn")]:
+        assert entity in rows, entity
+    for entity in ["/map/gnss", "/local/gnss", "/summary", "/local/outages"] + [f"/{g}/{e}/all" for g in ("map", "local") for e in ("ins", "idnn")]:
+        assert entity in static, entity
+
+
+def test_row_counts_per_outage(replayed):
+    path, rep = replayed
+    rows, _ = read_rrd(path)
+    n_seq = rep["n_sequences"]
+    assert n_seq == 11
+    for entity in ("/errors/crse_m/ins", "/errors/crse_m/idnn", "/map/idnn/live", "/local/ins/live", "/signals/displacement_m/idnn"):
+        assert len(rows[entity]) == n_seq * N_WIN, entity
+    # the growing track of outage k has 2, 3, ... 11 points
+    lengths = [len(v[0]) for _, v in rows["/local/ins/live"]]  # one strip per row
+    assert lengths == list(range(2, N_WIN + 2)) * n_seq
+    # GNSS available: 0 during outages
+    available = np.array([v[0] for _, v in rows["/gnss/available"]])
+    assert int((available == 0).sum()) == n_seq * N_WIN
+    states = [v[0] for _, v in rows["/gnss/state"]]
+    # GNSS, outage 1 .. outage 11, then GNSS again for the last seconds that fit no whole outage
+    assert states[0] == "GNSS" and states[1] == "outage 1 (1-11 s)" and states[-1] == "GNSS" and len(states) == n_seq + 2
+
+
+def test_recorded_errors_equal_evaluate_json(replayed):
+    path, rep = replayed
+    rows, _ = read_rrd(path)
+    for est in ("ins", "idnn"):
+        for entity, key in (("crse_m", "crse_m"), ("cae_m", "cae_m"), ("yaw_crse_radps", "yaw_crse_radps"), ("position_error_m", "final_position_error_m")):
+            values = np.array([v[0] for _, v in rows[f"/errors/{entity}/{est}"]]).reshape(-1, N_WIN)
+            expected = [s[est][key] for s in rep["sequences"]]
+            np.testing.assert_allclose(values[:, -1], expected, rtol=1e-9, atol=1e-9, err_msg=f"{est} {key}")
+        # the outage's last error sample sits at its end time
+        times = np.array([t for t, _ in rows[f"/errors/crse_m/{est}"]]).reshape(-1, N_WIN)
+        np.testing.assert_allclose(times[:, -1], [s["start_s"] + N_WIN for s in rep["sequences"]], atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "args, n_outages",
+    [(["--at", "12s,40s"], 2), (["--every", "30s"], 4), (["--random", "3", "--seed", "7"], 3)],
+)
+def test_outage_placements(tmp_path, args, n_outages):
+    out = tmp_path / "x.rrd"
+    proc = run_cli("replay", "hard-brake", "--outage", "10s", "-o", str(out), "--quiet", "--no-idnn", *args)
+    assert proc.returncode == 0, proc.stderr
+    rows, _ = read_rrd(out)
+    assert len(rows["/errors/crse_m/ins"]) == n_outages * N_WIN
+    assert "/errors/crse_m/idnn" not in rows
+
+
+def test_at_times_are_where_asked(tmp_path):
+    out = tmp_path / "x.rrd"
+    proc = run_cli("replay", "hard-brake", "--outage", "5s", "--at", "12s,40s", "-o", str(out), "--quiet", "--no-idnn")
+    assert proc.returncode == 0, proc.stderr
+    rows, _ = read_rrd(out)
+    t = np.array([t for t, _ in rows["/errors/crse_m/ins"]])
+    np.testing.assert_allclose(t, np.concatenate([12 + np.arange(1, 6), 40 + np.arange(1, 6)]), atol=0.05)
+
+
+def test_paper_run_without_data_root_explains(tmp_path):
+    proc = run_cli("replay", "V-Vw8", "--outage", "10s", "-o", str(tmp_path / "x.rrd"))
+    assert proc.returncode == 2
+    assert "sharp-cornering test run" in proc.stderr and "--data-root" in proc.stderr
+    assert "Traceback" not in proc.stderr and not list(tmp_path.iterdir())
+
+
+def test_bad_placements_are_clear(tmp_path):
+    out = str(tmp_path / "x.rrd")
+    cases = [
+        (["--at", "12s,15s"], "overlaps"),
+        (["--at", "500s"], "no 10 s outage fits"),
+        (["--every", "5s"], "shorter than the outage"),
+        (["--at", "12s", "--every", "30s"], "choose one outage placement"),
+        (["--outage", "10m"], "too short"),
+    ]
+    for extra, message in cases:
+        proc = run_cli("replay", "hard-brake", "--no-idnn", "-q", "-o", out, *(["--outage", "10s"] if "--outage" not in extra else []), *extra)
+        assert proc.returncode == 2 and message in proc.stderr, (extra, proc.stderr)
+    assert not list(tmp_path.iterdir())  # nothing half-written
