@@ -310,8 +310,23 @@ def replay(
     bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
+    screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
 ) -> None:
     """Replay a drive with GNSS outages, run INS and IDNN side by side, and write a .rrd for review."""
+    out = _replay_drive(drive_spec, outage, every, at, random_count, seed, output, quiet, model, no_idnn, bias_from, data_root_opt, yaw_sign)
+    print(out)
+    if screenshot_dir is not None:
+        from .screenshot import VIEWS
+
+        _render([out], screenshot_dir, ["worst"], list(VIEWS), (1600, 900), 120.0, quiet)
+    if open_viewer:
+        _open_viewer(out)
+
+
+def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Optional[str], random_count: Optional[int],
+                  seed: int, output: Optional[Path], quiet: bool, model: Optional[Path], no_idnn: bool,
+                  bias_from: Optional[str], data_root_opt: Optional[Path], yaw_sign: str) -> Path:
+    """Everything ``replay`` does up to the written ``.rrd``; returns its path."""
     from . import outages as place
     from .evaluate import evaluate_drive, report, resolve_bias
     from .fileio import atomic_path
@@ -371,10 +386,8 @@ def replay(
             rows = write_recording(result, rep, summary, tmp, progress=advance)
     if not quiet:
         print(render_text(rep), end="", file=sys.stderr)
-    print(out)
     log.info("%d entities, %d rows", len(rows), sum(rows.values()))
-    if open_viewer:
-        _open_viewer(out)
+    return out
 
 
 def summary_markdown(rep: dict, drive, placement: str, bias, model_info: dict | None) -> str:
@@ -422,6 +435,13 @@ def main() -> None:
             raise
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
+    except RuntimeError as exc:
+        from .screenshot import RendererMissing
+
+        if debug or not isinstance(exc, RendererMissing):
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(1)
     except Exception as exc:
         # typer's (click's) usage errors know how to show themselves; their exit code is 2
         if hasattr(exc, "show") and hasattr(exc, "exit_code") and not debug:

@@ -12,8 +12,10 @@ from .errors import InputError
 
 
 @contextlib.contextmanager
-def atomic_path(target: Path) -> Iterator[Path]:
+def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` if the block succeeds.
+
+    ``suffix`` ends the temporary name (writers that infer the format from it need e.g. ``.png``).
 
     On any exception (including Ctrl-C) the temporary file is removed and ``target`` is untouched.
     """
@@ -22,7 +24,7 @@ def atomic_path(target: Path) -> Iterator[Path]:
     if not parent.is_dir():
         raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another -o")
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=parent)
     except OSError as exc:
         raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable -o") from None
     os.close(fd)

@@ -61,12 +61,24 @@ def _screen(east: np.ndarray, north: np.ndarray) -> np.ndarray:
     return np.stack([east, -north], axis=-1)
 
 
-def blueprint(has_idnn: bool):
+def map_zoom(lat_deg: np.ndarray, lon_deg: np.ndarray, view_px: float) -> float:
+    """Web-map zoom level at which the track's extent fills about ``view_px`` pixels.
+
+    Web Mercator: metres per pixel = 156543.03 * cos(lat) / 2^zoom (checked on a rendered map view).
+    """
+    lat0 = float(np.mean(lat_deg))
+    east, north = local_en_m(lat_deg, lon_deg, lat0, float(np.mean(lon_deg)))
+    extent_m = max(float(np.ptp(east)), float(np.ptp(north)), 50.0)
+    zoom = np.log2(156543.03 * np.cos(np.radians(lat0)) * view_px / extent_m)
+    return float(np.clip(zoom, 3.0, 19.0))
+
+
+def blueprint(has_idnn: bool, zoom: float = 16.0):
     """The default review layout: map and local view, signals and errors, summary."""
     import rerun.blueprint as rrb
 
     tracks = rrb.Vertical(
-        rrb.MapView(origin="map", name="Map (GNSS, INS, IDNN)"),
+        rrb.MapView(origin="map", name="Map (GNSS, INS, IDNN)", zoom=zoom),
         rrb.Spatial2DView(origin="local", name="Local east-north (m), north up"),
     )
     signals = rrb.Vertical(
@@ -109,7 +121,8 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
     n_win = result.n_windows
     tod = drive.start_time_of_day_s
     rec = rr.RecordingStream(APP_ID, recording_id=f"{drive.name}-{result.outage_s:g}s")
-    rec.save(path, default_blueprint=blueprint("idnn" in result.estimates))
+    rec.save(path, default_blueprint=blueprint("idnn" in result.estimates, map_zoom(drive.lat_deg, drive.lon_deg, 350)))
+    rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
     def send(entity: str, t_s: np.ndarray, columns) -> None:
@@ -137,8 +150,9 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
     rec.log("signals/accel_long_mps2", rr.SeriesLines(colors=[COLORS["gyro"]], names=["accelerometer"]), static=True)
     rec.log("signals/speed_mps", rr.SeriesLines(colors=[COLORS["gnss"]], names=["GNSS speed"]), static=True)
     rec.log("gnss/available", rr.SeriesLines(colors=[COLORS["gnss"]], names=["GNSS available"]), static=True)
-    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll], colors=[COLORS["gnss"]], radii=rr.Radius.ui_points(2.0)), static=True)
-    rec.log("local/gnss", rr.LineStrips2D([truth_xy], colors=[COLORS["gnss"]], radii=rr.Radius.ui_points(1.5), draw_order=10), static=True)
+    # The truth is drawn wide underneath, the overview layers thin, the growing tracks wide on top.
+    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll], colors=[COLORS["gnss"]], radii=rr.Radius.ui_points(4.0)), static=True)
+    rec.log("local/gnss", rr.LineStrips2D([truth_xy], colors=[COLORS["gnss"]], radii=rr.Radius.ui_points(4.0), draw_order=10), static=True)
     rec.log("summary", rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
     step("static layers")
 
@@ -177,13 +191,14 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
             ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
             xy = _screen(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
             n_rows = idx.size
-            radius = rr.Radius.ui_points(2.0)
+            thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
             send(f"map/{name}/live", t_win, rr.GeoLineStrings.columns(
-                line_strings=_growing_strips(ll), colors=np.tile(color, (n_rows, 1))))
+                line_strings=_growing_strips(ll), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
             send(f"local/{name}/live", t_win, rr.LineStrips2D.columns(
-                strips=_growing_strips(xy), colors=np.tile(color, (n_rows, 1))))
-            rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[color], radii=radius), static=True)
-            rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[color], radii=radius, draw_order=20), static=True)
+                strips=_growing_strips(xy), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+                draw_order=np.full(n_rows, 30.0)))
+            rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[color], radii=thin), static=True)
+            rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[color], radii=thin, draw_order=20), static=True)
             send(f"signals/displacement_m/{name}", t_win, rr.Scalars.columns(scalars=est.disp_m.ravel()))
             send(f"signals/yaw_rate_radps/{name}", t_win, rr.Scalars.columns(scalars=est.yaw_rate_radps.ravel()))
             for metric, values in cumulative_errors(w, starts, n_win, est).items():
