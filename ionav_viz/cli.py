@@ -316,9 +316,9 @@ def replay(
     out = _replay_drive(drive_spec, outage, every, at, random_count, seed, output, quiet, model, no_idnn, bias_from, data_root_opt, yaw_sign)
     print(out)
     if screenshot_dir is not None:
-        from .screenshot import VIEWS
+        from .screenshot import VIEWS, render
 
-        _render([out], screenshot_dir, ["worst"], list(VIEWS), (1600, 900), 120.0, quiet)
+        render([out], screenshot_dir, ["worst"], list(VIEWS), (1600, 900), progress=print)
     if open_viewer:
         _open_viewer(out)
 
@@ -388,6 +388,49 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
         print(render_text(rep), end="", file=sys.stderr)
     log.info("%d entities, %d rows", len(rows), sum(rows.values()))
     return out
+
+
+@app.command()
+def screenshot(
+    recordings: Optional[list[Path]] = typer.Argument(None, metavar="[REC.rrd]...", help="Recordings made by 'ionav-viz replay'."),
+    output: Path = typer.Option(..., "-o", "--output", help="OUT.png for one image, else a directory (or OUT.png whose name is used as a prefix)."),
+    times: Optional[list[str]] = typer.Option(None, "--time", help="Times to show: e.g. 35s, 'worst' (end of the outage with the largest INS error) or 'end' (default). Repeatable."),
+    views: Optional[list[str]] = typer.Option(None, "--view", help="all (default), map, local, signals or errors. Repeatable."),
+    size: str = typer.Option("1600x900", "--size", help="Image size WIDTHxHEIGHT in pixels."),
+    scenario: Optional[str] = typer.Option(None, "--scenario", help="Replay and render a scenario's test drives ('all' for every scenario): bundled ones, or the paper's runs with a data root."),
+    outage: str = typer.Option("10s", "--outage", help="Outage length for --scenario replays."),
+    timeout: str = typer.Option("120s", "--timeout", help="Longest wait for the viewer to start or load a recording."),
+    data_root_opt: Optional[Path] = DataRoot,
+) -> None:
+    """Render PNG screenshots of recordings with a headless Rerun viewer (no display or GPU needed).
+
+    Prints the path of every image written.
+    """
+    import tempfile
+
+    from .resolve import data_root
+    from .screenshot import parse_size, render
+
+    width_height = parse_size(size)
+    timeout_s = parse_duration_s(timeout, "--timeout")
+    if scenario is not None and recordings:
+        raise typer.BadParameter("give recordings or --scenario, not both")
+    if scenario is None and not recordings:
+        raise typer.BadParameter("give at least one REC.rrd (or --scenario)", param_hint="REC.rrd")
+    times = list(times or (["worst"] if scenario else ["end"]))
+    views = list(views or ["all"])
+    for rec in recordings or []:
+        if not rec.is_file():
+            raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
+    with tempfile.TemporaryDirectory(prefix="ionav-shots-") as tmp:
+        rrds = list(recordings or [])
+        if scenario is not None:
+            for group, specs in _scenario_specs(scenario, data_root(data_root_opt)).items():
+                for spec in specs:
+                    rrd = Path(tmp) / f"{group}-{Path(spec).stem}.rrd"
+                    _replay_drive(spec, outage, None, None, None, 0, rrd, True, None, False, None, data_root_opt, "auto")
+                    rrds.append(rrd)
+        render(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=print)
 
 
 def summary_markdown(rep: dict, drive, placement: str, bias, model_info: dict | None) -> str:

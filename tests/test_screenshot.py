@@ -19,10 +19,9 @@ def recording(tmp_path_factory):
     proc = run_cli("replay", "sharp-cornering", "--outage", "10s", "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
     probe = run_cli("screenshot", str(out), "-o", str(out.with_suffix(".png")), "--size", "400x300")
-    if probe.returncode != 0:
-        if os.environ.get("CI"):
-            pytest.fail(f"no renderer in CI: {probe.stderr}")
+    if probe.returncode == 1 and "mesa-vulkan-drivers" in probe.stderr and not os.environ.get("CI"):
         pytest.skip(f"no renderer on this machine: {probe.stderr.strip()}")
+    assert probe.returncode == 0, probe.stderr
     return out
 
 
