@@ -70,6 +70,18 @@ def _root(
 
 DataRoot = typer.Option(None, "--data-root", help="IO-VNBD checkout to find run names in (default: $IONAV_DATA).", show_default=False)
 YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the CSV yaw-rate column: auto (checked against the GNSS heading), cw or ccw positive.")
+ImuTopic = typer.Option(None, "--imu-topic", help="MCAP: the IMU topic (default: the one sensor_msgs/msg/Imu channel).", show_default=False)
+GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP: the GNSS topic (default: the one NavSatFix or LocationFix channel).", show_default=False)
+SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP: a TwistStamped or Odometry topic for speed (optional).", show_default=False)
+Stamps = typer.Option("header", "--stamps", help="MCAP: time stamps from message headers (header) or the recorder's log time (log).")
+
+
+def _mcap_options(imu_topic, gnss_topic, speed_topic, stamps):
+    from .sources import McapOptions
+
+    if stamps not in ("header", "log"):
+        raise typer.BadParameter(f"{stamps!r}: choose header or log", param_hint="--stamps")
+    return McapOptions(imu_topic, gnss_topic, speed_topic, stamps)
 
 
 def _json_safe(obj: Any) -> Any:
@@ -147,6 +159,10 @@ def evaluate(
     bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
+    imu_topic: Optional[str] = ImuTopic,
+    gnss_topic: Optional[str] = GnssTopic,
+    speed_topic: Optional[str] = SpeedTopic,
+    stamps: str = Stamps,
 ) -> None:
     """Evaluate INS dead reckoning (and the IDNN) on consecutive GNSS outages, as the paper does."""
     from .evaluate import evaluate_drive, report, resolve_bias
@@ -156,19 +172,20 @@ def evaluate(
 
     outage_s = parse_duration_s(outage, "--outage")
     root = data_root(data_root_opt)
+    mcap = _mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
     groups = _scenario_specs(scenario, root) if scenario else {None: list(drives or [])}
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
     idnn = _load_model(model, no_idnn)
-    stationary = load_drive(bias_from, root, yaw_sign) if bias_from else None
+    stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
 
     reports: dict[Any, dict] = {}
     for group, specs in groups.items():
         results = []
         for spec in specs:
-            drive = load_drive(spec, root, yaw_sign)
+            drive = load_drive(spec, root, yaw_sign, mcap)
             bias = resolve_bias(drive, stationary)
             res = evaluate_drive(drive, outage_s, bias=bias, model=idnn)
             if len(res.starts) == 0:
@@ -206,6 +223,10 @@ def train(
     bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: each drive's own stationary stretches)."),
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
+    imu_topic: Optional[str] = ImuTopic,
+    gnss_topic: Optional[str] = GnssTopic,
+    speed_topic: Optional[str] = SpeedTopic,
+    stamps: str = Stamps,
 ) -> None:
     """Train the displacement and orientation-rate networks and write them with their metadata."""
     from .catalog import PAPER_TRAIN_RUNS
@@ -217,6 +238,7 @@ def train(
     from .training import train_models
 
     root = data_root(data_root_opt)
+    mcap = _mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
     if paper_train:
         if root is None:
             raise InputError("--paper-train needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA")
@@ -231,10 +253,10 @@ def train(
     config.validate()
     if epochs_disp < 1 or epochs_yaw < 1:
         raise typer.BadParameter("epochs must be at least 1")
-    stationary = load_drive(bias_from, root, yaw_sign) if bias_from else None
+    stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
     loaded = []
     for spec in specs:
-        drive = load_drive(spec, root, yaw_sign)
+        drive = load_drive(spec, root, yaw_sign, mcap)
         loaded.append((drive, resolve_bias(drive, stationary)))
 
     with _progress(quiet) as bar:
@@ -310,10 +332,15 @@ def replay(
     bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
+    imu_topic: Optional[str] = ImuTopic,
+    gnss_topic: Optional[str] = GnssTopic,
+    speed_topic: Optional[str] = SpeedTopic,
+    stamps: str = Stamps,
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
 ) -> None:
     """Replay a drive with GNSS outages, run INS and IDNN side by side, and write a .rrd for review."""
-    out = _replay_drive(drive_spec, outage, every, at, random_count, seed, output, quiet, model, no_idnn, bias_from, data_root_opt, yaw_sign)
+    mcap = _mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    out = _replay_drive(drive_spec, outage, every, at, random_count, seed, output, quiet, model, no_idnn, bias_from, data_root_opt, yaw_sign, mcap)
     print(out)
     if screenshot_dir is not None:
         from .screenshot import VIEWS, render
@@ -325,7 +352,7 @@ def replay(
 
 def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Optional[str], random_count: Optional[int],
                   seed: int, output: Optional[Path], quiet: bool, model: Optional[Path], no_idnn: bool,
-                  bias_from: Optional[str], data_root_opt: Optional[Path], yaw_sign: str) -> Path:
+                  bias_from: Optional[str], data_root_opt: Optional[Path], yaw_sign: str, mcap=None) -> Path:
     """Everything ``replay`` does up to the written ``.rrd``; returns its path."""
     from . import outages as place
     from .evaluate import evaluate_drive, report, resolve_bias
@@ -345,7 +372,7 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
     if output is not None and output.suffix.lower() != ".rrd":
         raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
 
-    drive = load_drive(drive_spec, root, yaw_sign)
+    drive = load_drive(drive_spec, root, yaw_sign, mcap)
     windows = make_windows(drive)
     if every is not None:
         period = parse_duration_s(every, "--every")
@@ -365,7 +392,7 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
         raise InputError(f"{drive.source}: drive too short ({drive.duration_s:.1f} s) for a {outage_s:g} s outage", "use a shorter --outage")
 
     idnn = _load_model(model, no_idnn)
-    stationary = load_drive(bias_from, root, yaw_sign) if bias_from else None
+    stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
     bias = resolve_bias(drive, stationary)
     result = evaluate_drive(drive, outage_s, bias=bias, model=idnn, starts=starts, windows=windows)
     rep = report([result])
@@ -431,6 +458,53 @@ def screenshot(
                     _replay_drive(spec, outage, None, None, None, 0, rrd, True, None, False, None, data_root_opt, "auto")
                     rrds.append(rrd)
         render(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=print)
+
+
+@app.command()
+def convert(
+    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="An IO-VNBD CSV (path, bundled scenario or run name)."),
+    output: Path = typer.Option(..., "-o", "--output", help="The .mcap file to write (ROS 2 cdr: Imu, NavSatFix, TwistStamped)."),
+    data_root_opt: Optional[Path] = DataRoot,
+    yaw_sign: str = YawSign,
+) -> None:
+    """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""
+    from .mcap_convert import TOPICS, write_mcap
+    from .resolve import data_root
+    from .sources import load_drive
+
+    if output.suffix.lower() != ".mcap":
+        raise typer.BadParameter(f"{output}: the output must end in .mcap", param_hint="-o")
+    drive = load_drive(drive_spec, data_root(data_root_opt), yaw_sign)
+    n = write_mcap(drive, output)
+    print(f"{n} messages on {', '.join(TOPICS.values())} ({len(drive)} samples, {drive.duration_s:.1f} s)", file=sys.stderr)
+    print(output)
+
+
+@app.command()
+def info(
+    path: Path = typer.Argument(..., metavar="FILE.mcap", help="An MCAP log."),
+    imu_topic: Optional[str] = ImuTopic,
+    gnss_topic: Optional[str] = GnssTopic,
+    speed_topic: Optional[str] = SpeedTopic,
+) -> None:
+    """List the channels of an MCAP log and which ones ionav-viz would read."""
+    from .mcap_source import list_channels, select_channels
+
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    channels = list_channels(path)
+    try:
+        sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
+        roles = {c.topic: c.role for c in (sel.imu, sel.gnss, sel.speed) if c is not None}
+        problem = None
+    except InputError as exc:
+        roles, problem = {}, str(exc)
+    width = max([len(c.topic) for c in channels] + [5])
+    print(f"{'topic'.ljust(width)}  {'messages':>9}  encoding  schema  -> use")
+    for c in channels:
+        print(f"{c.topic.ljust(width)}  {c.count:>9}  {c.encoding:<8}  {c.schema}  -> {roles.get(c.topic, '-')}")
+    if problem:
+        print(f"cannot replay as is: {problem}", file=sys.stderr)
 
 
 def summary_markdown(rep: dict, drive, placement: str, bias, model_info: dict | None) -> str:

@@ -48,13 +48,10 @@ class Estimate:
 def stationary_mask(drive: Drive, max_speed_mps: float = 0.3, edge_s: float = 1.0) -> np.ndarray:
     """Samples where the car stands still, at least ``edge_s`` away from moving samples.
 
-    Standing still: GNSS speed below ``max_speed_mps`` (above the receiver's speed noise) and,
-    when the drive has wheel speeds, the rear wheels not turning.
+    Standing still: GNSS speed below ``max_speed_mps`` (above the receiver's speed noise). Only
+    the GNSS speed is used, so every source of the same drive (CSV, MCAP) gives the same biases.
     """
     moving = drive.speed_mps > max_speed_mps
-    for key in ("wheel_speed_rl_radps", "wheel_speed_rr_radps"):
-        if key in drive.columns:
-            moving |= np.abs(drive.columns[key]) > 0.05
     t_moving = drive.t_s[moving]
     if t_moving.size == 0:
         return np.ones(len(drive), dtype=bool)

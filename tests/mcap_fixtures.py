@@ -1,0 +1,103 @@
+"""MCAP files written directly with mcap / mcap_ros2 writers (independent of ionav-viz's converter)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from ionav_viz.ros2_msgs import DEFINITIONS
+
+ACCEL_MPS2 = 0.5
+YAW_RATE_RADPS = 0.02
+COURSE_DEG = 30.0
+V0_MPS = 5.0
+LAT0, LON0 = 52.40, -1.52
+T0_S = 1_700_000_000.0 + 0.0123  # a UNIX time with a fraction
+
+
+def truth_position(t_s):
+    """Straight line at COURSE_DEG, speed V0 + a t."""
+    from pyproj import Geod
+
+    dist = V0_MPS * t_s + 0.5 * ACCEL_MPS2 * t_s**2
+    lon, lat, _ = Geod(ellps="WGS84").fwd(np.full_like(dist, LON0), np.full_like(dist, LAT0), np.full_like(dist, COURSE_DEG), dist)
+    return lat, lon
+
+
+def _stamp(t):
+    sec = int(math.floor(t))
+    return {"sec": sec, "nanosec": int(round((t - sec) * 1e9)) % 1_000_000_000}
+
+
+def sample_times(rate_hz, duration_s, rng, jitter_s=0.002):
+    t = np.arange(0, duration_s, 1.0 / rate_hz)
+    return np.sort(t + rng.uniform(-jitter_s, jitter_s, len(t)))
+
+
+def write_ros2(path, duration_s=30.0, imu_hz=100, gnss_hz=5, seed=0, no_fix_times=(), extra_imu_topic=False,
+               latency_s=0.03, compression=None):
+    """IMU at ``imu_hz`` and NavSatFix at ``gnss_hz`` with jittered header stamps; log time = stamp + latency."""
+    from mcap.writer import CompressionType
+    from mcap_ros2.writer import Writer
+
+    rng = np.random.default_rng(seed)
+    with open(path, "wb") as f:
+        kwargs = {} if compression is None else {"compression": CompressionType[compression]}
+        w = Writer(f, **kwargs)
+        imu_schema = w.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"])
+        fix_schema = w.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"])
+        events = []
+        for t in sample_times(imu_hz, duration_s, rng):
+            msg = {"header": {"stamp": _stamp(T0_S + t), "frame_id": "base_link"},
+                   "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
+                   "angular_velocity": {"x": 0.0, "y": 0.0, "z": YAW_RATE_RADPS}, "angular_velocity_covariance": [0.0] * 9,
+                   "linear_acceleration": {"x": ACCEL_MPS2, "y": 0.0, "z": 9.81}, "linear_acceleration_covariance": [0.0] * 9}
+            events.append((t, "/imu", imu_schema, msg))
+            if extra_imu_topic:
+                events.append((t, "/imu2", imu_schema, msg))
+        g_t = sample_times(gnss_hz, duration_s, rng)
+        lat, lon = truth_position(g_t)
+        for t, la, lo in zip(g_t, lat, lon):
+            status = -1 if any(abs(t - x) < 0.5 / gnss_hz for x in no_fix_times) else 0
+            msg = {"header": {"stamp": _stamp(T0_S + t), "frame_id": "gps"}, "status": {"status": status, "service": 1},
+                   "latitude": float(la) + (1.0 if status < 0 else 0.0), "longitude": float(lo), "altitude": 100.0,
+                   "position_covariance": [0.0] * 9, "position_covariance_type": 0}
+            events.append((t, "/fix", fix_schema, msg))
+        for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
+            log_ns = int(round((T0_S + t + latency_s) * 1e9))
+            w.write_message(topic, schema, msg, log_time=log_ns, publish_time=log_ns)
+        w.finish()
+    return path
+
+
+def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1):
+    """JSON-encoded MCAP: foxglove.LocationFix and an IMU message with sensor_msgs/Imu field names."""
+    from mcap.writer import Writer
+
+    rng = np.random.default_rng(seed)
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        s_fix = w.register_schema("foxglove.LocationFix", "jsonschema", json.dumps({"type": "object"}).encode())
+        s_imu = w.register_schema("sensor_msgs/Imu", "jsonschema", json.dumps({"type": "object"}).encode())
+        c_fix = w.register_channel("/location", "json", s_fix)
+        c_imu = w.register_channel("/imu", "json", s_imu)
+        events = []
+        for t in sample_times(imu_hz, duration_s, rng):
+            st = _stamp(T0_S + t)
+            msg = {"header": {"stamp": {"sec": st["sec"], "nsec": st["nanosec"]}, "frame_id": "base_link"},
+                   "angular_velocity": {"x": 0, "y": 0, "z": YAW_RATE_RADPS}, "linear_acceleration": {"x": ACCEL_MPS2, "y": 0, "z": 9.81}}
+            events.append((t, c_imu, msg))
+        g_t = sample_times(gnss_hz, duration_s, rng)
+        lat, lon = truth_position(g_t)
+        for t, la, lo in zip(g_t, lat, lon):
+            st = _stamp(T0_S + t)
+            events.append((t, c_fix, {"timestamp": {"sec": st["sec"], "nsec": st["nanosec"]}, "frame_id": "gps",
+                                      "latitude": float(la), "longitude": float(lo), "altitude": 100.0}))
+        for t, ch, msg in sorted(events, key=lambda e: e[0]):
+            ns = int(round((T0_S + t) * 1e9))
+            w.add_message(ch, log_time=ns, data=json.dumps(msg).encode(), publish_time=ns)
+        w.finish()
+    return path

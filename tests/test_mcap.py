@@ -1,0 +1,179 @@
+"""MCAP in (ROS 2 cdr and JSON, written independently of the converter) and out (convert round trip)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from ionav_viz.errors import InputError
+from ionav_viz.mcap_source import read_mcap
+
+from . import mcap_fixtures as fx
+from .conftest import run_cli
+
+
+def _check_straight_line(drive, start_offset_s=0.0, gnss_hz=5, longest_gnss_gap_s=None):
+    dt = np.diff(drive.t_s)
+    assert drive.rate_hz == 10.0 and np.allclose(dt, 0.1, atol=1e-6)
+    # IMU averaged per 0.1 s bin: constant readings come back exactly
+    np.testing.assert_allclose(drive.accel_long_mps2, fx.ACCEL_MPS2, rtol=1e-12)
+    np.testing.assert_allclose(drive.yaw_rate_radps, fx.YAW_RATE_RADPS, rtol=1e-12)
+    # GNSS interpolated onto the grid: the path is a parabola in time, so linear interpolation
+    # between fixes 1/gnss_hz apart is off by at most a h^2 / 8
+    t_abs = drive.start_time_of_day_s - (fx.T0_S % 86400) + drive.t_s - start_offset_s
+    lat, lon = fx.truth_position(t_abs)
+    from pyproj import Geod
+
+    _, _, err = Geod(ellps="WGS84").inv(lon, lat, drive.lon_deg, drive.lat_deg)
+    h = (longest_gnss_gap_s or 1.0 / gnss_hz) + 0.004
+    assert np.max(err) < fx.ACCEL_MPS2 * h * h / 8 + 0.002
+    # speed and course from the GNSS fixes
+    v_true = fx.V0_MPS + fx.ACCEL_MPS2 * t_abs
+    assert np.max(np.abs(drive.speed_mps - v_true)[2:-2]) < 0.06
+    assert np.max(np.abs(drive.heading_deg - fx.COURSE_DEG)) < 0.01
+
+
+def test_ros2_imu_100hz_gnss_5hz_jittered(tmp_path):
+    path = fx.write_ros2(tmp_path / "a.mcap")
+    drive = read_mcap(path)
+    assert drive.start_time_of_day_s == pytest.approx(fx.T0_S % 86400, abs=0.06)
+    assert 28.5 < drive.duration_s < 30.0
+    _check_straight_line(drive)
+
+
+def test_log_time_instead_of_header_stamps(tmp_path):
+    path = fx.write_ros2(tmp_path / "a.mcap", latency_s=0.03)
+    header = read_mcap(path)
+    log = read_mcap(path, stamps="log")
+    # the recorder's log time is 30 ms late: the grid starts 30 ms later in the day
+    assert log.start_time_of_day_s - header.start_time_of_day_s == pytest.approx(0.03, abs=0.003)
+
+
+def test_json_location_fix_and_imu(tmp_path):
+    drive = read_mcap(fx.write_json(tmp_path / "j.mcap"))
+    _check_straight_line(drive, gnss_hz=2)
+
+
+def test_gnss_without_fix_is_dropped(tmp_path, caplog):
+    path = fx.write_ros2(tmp_path / "n.mcap", no_fix_times=(10.0, 10.2))
+    with caplog.at_level("WARNING", logger="ionav_viz"):
+        drive = read_mcap(path)
+    assert "without a fix" in caplog.text
+    # the bogus no-fix positions (1 degree off) never show up; two dropped fixes leave a 0.6 s gap
+    _check_straight_line(drive, longest_gnss_gap_s=0.6)
+
+
+def test_several_imu_topics_need_a_choice(tmp_path):
+    path = fx.write_ros2(tmp_path / "two.mcap", extra_imu_topic=True)
+    with pytest.raises(InputError, match="several IMU topics.*--imu-topic"):
+        read_mcap(path)
+    _check_straight_line(read_mcap(path, imu_topic="/imu2"))
+    proc = run_cli("info", str(path))
+    assert proc.returncode == 0 and "/imu2" in proc.stdout and "several IMU topics" in proc.stderr
+
+
+def test_convert_round_trip_gives_the_same_metrics(tmp_path):
+    out = tmp_path / "V-sim-hard-brake.mcap"
+    proc = run_cli("convert", "hard-brake", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    info = run_cli("info", str(out))
+    assert "sensor_msgs/msg/Imu  -> IMU" in info.stdout and "NavSatFix  -> GNSS" in info.stdout
+    a = run_cli("evaluate", "hard-brake", "--json")
+    b = run_cli("evaluate", str(out), "--json")
+    assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
+    ra, rb = json.loads(a.stdout), json.loads(b.stdout)
+    assert len(ra["sequences"]) == len(rb["sequences"]) > 5
+    for sa, sb in zip(ra["sequences"], rb["sequences"]):
+        assert sa["start_s"] == pytest.approx(sb["start_s"], abs=1e-9)
+        for est in ("ins", "idnn"):
+            for key, value in sa[est].items():
+                assert sb[est][key] == pytest.approx(value, rel=1e-9, abs=1e-9), (est, key)
+
+
+def test_replay_and_train_accept_mcap(tmp_path):
+    mcap = tmp_path / "r.mcap"
+    assert run_cli("convert", "roundabout", "-o", str(mcap)).returncode == 0
+    proc = run_cli("replay", str(mcap), "-o", str(tmp_path / "r.rrd"), "-q")
+    assert proc.returncode == 0, proc.stderr
+    proc = run_cli("train", str(mcap), "-o", str(tmp_path / "m"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((tmp_path / "m" / "metadata.json").read_text())["training"]["drives"][0]["file"] == "r.mcap"
+
+
+@pytest.fixture()
+def good(tmp_path):
+    return fx.write_ros2(tmp_path / "good.mcap", duration_s=10.0, compression="NONE")
+
+
+def _expect_error(path, message):
+    proc = run_cli("evaluate", str(path), "--no-idnn")
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+
+
+def test_truncated(tmp_path, good):
+    bad = tmp_path / "cut.mcap"
+    bad.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    _expect_error(bad, "truncated MCAP file")
+
+
+def test_not_an_mcap_file(tmp_path):
+    bad = tmp_path / "text.mcap"
+    bad.write_text("hello")
+    _expect_error(bad, "not an MCAP file")
+
+
+def test_crc_mismatch(tmp_path, good):
+    data = bytearray(good.read_bytes())
+    marker = bytes(np.float64(fx.ACCEL_MPS2).tobytes())
+    at = data.find(marker, len(data) // 3)
+    data[at + 7] ^= 0x01  # change one IMU reading inside a chunk
+    bad = tmp_path / "flipped.mcap"
+    bad.write_bytes(bytes(data))
+    _expect_error(bad, "CRC mismatch")
+
+
+def test_empty_file(tmp_path):
+    bad = tmp_path / "zero.mcap"
+    bad.write_bytes(b"")
+    _expect_error(bad, "empty file")
+
+
+def test_no_imu_or_no_gnss_channel(tmp_path):
+    from mcap_ros2.writer import Writer
+
+    from ionav_viz.ros2_msgs import DEFINITIONS
+
+    for schema_name, missing in (("sensor_msgs/msg/NavSatFix", "no IMU channel"), ("sensor_msgs/msg/Imu", "no GNSS channel")):
+        path = tmp_path / f"{schema_name.rsplit('/', 1)[-1]}-only.mcap"
+        with open(path, "wb") as f:
+            w = Writer(f)
+            schema = w.register_msgdef(schema_name, DEFINITIONS[schema_name])
+            msg = fx._stamp(1.0)
+            body = ({"header": {"stamp": msg, "frame_id": "x"}, "status": {"status": 0, "service": 1}, "latitude": 1.0,
+                     "longitude": 1.0, "altitude": 0.0, "position_covariance": [0.0] * 9, "position_covariance_type": 0}
+                    if "NavSat" in schema_name else
+                    {"header": {"stamp": msg, "frame_id": "x"}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                     "orientation_covariance": [0.0] * 9, "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0},
+                     "angular_velocity_covariance": [0.0] * 9, "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 0.0},
+                     "linear_acceleration_covariance": [0.0] * 9})
+            w.write_message("/only", schema, body, log_time=1_000_000_000)
+            w.finish()
+        _expect_error(path, missing)
+
+
+def test_unknown_encoding(tmp_path):
+    from mcap.writer import Writer
+
+    path = tmp_path / "p.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        s_imu = w.register_schema("sensor_msgs/msg/Imu", "protobuf", b"")
+        s_fix = w.register_schema("sensor_msgs/msg/NavSatFix", "protobuf", b"")
+        c_imu = w.register_channel("/imu", "protobuf", s_imu)
+        c_fix = w.register_channel("/fix", "protobuf", s_fix)
+        w.add_message(c_imu, log_time=1, data=b"\x00", publish_time=1)
+        w.add_message(c_fix, log_time=1, data=b"\x00", publish_time=1)
+        w.finish()
+    _expect_error(path, "message encoding 'protobuf'")
