@@ -70,12 +70,80 @@ class ManifestEntry:
     size_bytes: int
 
 
+def parse_manifest(text: str, source: str = "manifest") -> tuple[ManifestEntry, ...]:
+    """Entries of a manifest TSV (``path``, ``sha256``, ``size_bytes``)."""
+    from .errors import InputError
+
+    rows = csv.DictReader(text.splitlines(), delimiter="\t")
+    if rows.fieldnames is None or not {"path", "sha256", "size_bytes"} <= set(rows.fieldnames):
+        raise InputError(f"{source}: not a manifest (expected the columns path, sha256, size_bytes)")
+    out = []
+    for line, r in enumerate(rows, start=2):
+        try:
+            size = int(r["size_bytes"])
+        except (TypeError, ValueError):
+            raise InputError(f"{source}: line {line}: size_bytes {r['size_bytes']!r} is not a whole number") from None
+        if not re.fullmatch(r"[0-9a-f]{64}", (r["sha256"] or "").lower()):
+            raise InputError(f"{source}: line {line}: sha256 {r['sha256']!r} is not 64 hex digits")
+        out.append(ManifestEntry(r["path"], r["sha256"].lower(), size))
+    return tuple(out)
+
+
 @lru_cache(maxsize=1)
 def manifest() -> tuple[ManifestEntry, ...]:
     """All entries of the packaged LFS manifest."""
     text = resources.files("ionav_viz").joinpath("data/iovnbd-manifest.tsv").read_text(encoding="utf-8")
-    rows = csv.DictReader(text.splitlines(), delimiter="\t")
-    return tuple(ManifestEntry(r["path"], r["sha256"], int(r["size_bytes"])) for r in rows)
+    return parse_manifest(text, "packaged manifest")
+
+
+@dataclass(frozen=True)
+class RunFiles:
+    """A run of the dataset and its files: vehicle (``V-``) and phone (``S-``), both trees."""
+
+    key: str
+    name: str
+    group: str
+    driver: str
+    vehicle: ManifestEntry | None  # unsynchronised (complete) copy
+    vehicle_sync: ManifestEntry | None
+    phone: ManifestEntry | None
+    phone_sync: ManifestEntry | None
+
+
+def _tree_rank(path: str) -> tuple[int, int]:
+    low = path.lower()
+    return (0 if low.startswith("unsynchronised") else 1, 0 if "/categorised" in low else 1)
+
+
+def runs(entries: tuple[ManifestEntry, ...] | None = None) -> dict[str, RunFiles]:
+    """Every run with a vehicle file in the manifest, by :func:`run_key`, in name order."""
+    entries = manifest() if entries is None else entries
+    found: dict[str, dict[str, list[ManifestEntry]]] = {}
+    for entry in entries:
+        base = entry.path.rsplit("/", 1)[-1]
+        low = base.lower()
+        if not low.endswith(".csv") or low[:2] not in ("v-", "s-"):
+            continue
+        kind = "V" if low.startswith("v-") else "S"
+        sync = "sync" if not entry.path.lower().startswith("unsynchronised") else "unsync"
+        found.setdefault(run_key(base[2:]), {}).setdefault(kind + sync, []).append(entry)
+    out = {}
+    for key, files in found.items():
+        def best(k: str) -> ManifestEntry | None:
+            return min(files.get(k, []), key=lambda e: _tree_rank(e.path), default=None)
+
+        vehicle, vehicle_sync = best("Vunsync"), best("Vsync")
+        main = vehicle or vehicle_sync
+        if main is None:
+            continue
+        group, driver = "", ""
+        for part in main.path.split("/"):
+            m = re.fullmatch(r"(\w+) \(Driver (\w+)\)", part)
+            if m:
+                group, driver = m.groups()
+        name = "V-" + main.path.rsplit("/", 1)[-1][2:-4]
+        out[key] = RunFiles(key, name, group, driver, vehicle, vehicle_sync, best("Sunsync"), best("Ssync"))
+    return dict(sorted(out.items(), key=lambda kv: kv[1].name.lower()))
 
 
 @lru_cache(maxsize=1)

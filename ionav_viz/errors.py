@@ -16,3 +16,7 @@ class InputError(Exception):
 
     def __str__(self) -> str:
         return f"{self.message} (hint: {self.hint})" if self.hint else self.message
+
+
+class ToolFailure(RuntimeError):
+    """Something outside the user's input failed (network, renderer): one line, exit code 1."""

@@ -20,10 +20,14 @@ from .samples import SAMPLES, by_scenario, sample_path
 
 
 def data_root(option: str | Path | None) -> Path | None:
-    """The data root from the option, else ``$IONAV_DATA``, else None."""
+    """The data root from the option, else ``$IONAV_DATA``, else the per-user data directory
+    that ``ionav-viz fetch`` fills (when it exists), else None."""
     value = option if option not in (None, "") else os.environ.get("IONAV_DATA") or None
     if value is None:
-        return None
+        from .fetch import default_data_root
+
+        default = default_data_root()
+        return default if default.is_dir() else None
     root = Path(value).expanduser()
     if not root.is_dir():
         raise InputError(f"data root {root} is not a directory", "pass --data-root DIR or set IONAV_DATA to the IO-VNBD checkout")
@@ -81,7 +85,7 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         where = f"it is not under the data root {root}" if root else "no data root is set"
         raise InputError(
             f"{what} of the real IO-VNBD dataset, and {where}",
-            f"download it from {DATASET_URL} (files are in Git LFS), then pass --data-root DIR or set IONAV_DATA",
+            f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a copy",
         )
     candidates = {s.scenario for s in SAMPLES if s.role == "test"} | {Path(s.file).stem for s in SAMPLES}
     candidates |= {f"V-{k}" for k in known}

@@ -30,13 +30,13 @@ from typing import Any
 import numpy as np
 
 from . import rerun_log
-from .errors import InputError
+from .errors import InputError, ToolFailure
 
 VIEWS = ("all", "map", "local", "signals", "errors")
 _ORIGINS = {"map": "map", "local": "local", "signals": "signals/displacement_m", "errors": "errors/crse_m"}
 
 
-class RendererMissing(RuntimeError):
+class RendererMissing(ToolFailure):
     """The headless viewer could not start or render (no GPU and no software renderer)."""
 
 
