@@ -24,7 +24,6 @@ Everything is converted to :class:`ionav_viz.drive.Drive` units here, once:
 
 from __future__ import annotations
 
-import io
 import logging
 import re
 from pathlib import Path
@@ -103,28 +102,88 @@ def _label(header: str) -> str:
     return re.sub(r"\s+", " ", header.split("(")[0]).strip().lower()
 
 
-def decode_text(raw: bytes, path: Path) -> str:
-    """Bytes of a CSV file -> text: UTF-8 (with or without BOM), UTF-16 with BOM, else cp1252/latin-1."""
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        try:
-            return raw.decode("utf-16")
-        except UnicodeDecodeError as exc:
-            raise InputError(f"{path}: broken UTF-16 text ({exc.reason})") from None
-    if b"\x00" in raw[:65536]:
+#: Files above this size are refused rather than risking memory (IO-VNBD's largest run is 27 MB).
+MAX_FILE_BYTES = 2 * 1024**3
+_BOMS = (b"\xff\xfe", b"\xfe\xff")
+
+
+def _encodings(path: Path) -> list[str]:
+    """Encodings to try, in order: UTF-16 when a BOM says so, else UTF-8, cp1252, latin-1."""
+    with open(path, "rb") as f:
+        head = f.read(65536)
+    if head.startswith(_BOMS):
+        return ["utf-16"]
+    if b"\x00" in head:
         raise InputError(f"{path}: binary data, not a CSV text file", "pass an IO-VNBD V-*.csv file")
-    for encoding in ("utf-8-sig", "cp1252"):
-        try:
-            return raw.decode(encoding)
-        except UnicodeDecodeError:
-            continue
-    return raw.decode("latin-1")
+    return ["utf-8-sig", "cp1252", "latin-1"]
+
+
+def _last_line_is_cut(path: Path, encoding: str, n_fields: int) -> bool:
+    """Whether the file ends mid-line: no final newline and fewer fields than the header."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        f.seek(max(0, size - 65536))
+        tail = f.read()
+    if tail.endswith(b"\n") or tail.endswith(b"\n\x00"):
+        return False
+    last = tail.decode(encoding, errors="replace").splitlines()[-1] if tail else ""
+    return 0 < len(last.split(",")) < n_fields
+
+
+def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], "object", int]:
+    """Header labels -> header names, the needed columns as float64 (pandas C parser), and the
+    number of header fields."""
+    import pandas as pd
+
+    header = pd.read_csv(path, encoding=encoding, nrows=0, skipinitialspace=True)
+    by_label: dict[str, str] = {}
+    for name in header.columns:
+        by_label.setdefault(_label(str(name)), name)
+    missing = [label for key, (label, _, req) in _COLUMNS.items() if req and label not in by_label]
+    if missing:
+        raise InputError(
+            f"{path}: missing column(s) {', '.join(repr(m) for m in missing)}",
+            "expected the IO-VNBD V-*.csv header (see README, 'Reading IO-VNBD')",
+        )
+    wanted = [by_label[label] for label, _, _ in _COLUMNS.values() if label in by_label]
+    try:
+        frame = pd.read_csv(path, encoding=encoding, usecols=wanted, skipinitialspace=True, dtype=np.float64)
+    except ValueError as exc:
+        if isinstance(exc, UnicodeDecodeError):
+            raise
+        _locate_bad_cell(path, encoding, wanted, required=wanted)
+        raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})") from None
+    return by_label, frame, len(header.columns)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _locate_bad_cell(path: Path, encoding: str, columns: list[str], required: list[str]) -> None:
+    """Raise an InputError naming the first cell of ``required`` that is not a finite number."""
+    import pandas as pd
+
+    cells = pd.read_csv(path, encoding=encoding, usecols=columns, skipinitialspace=True, dtype=str, keep_default_na=False)
+    for name in required:
+        text = cells[name].fillna("").str.strip()
+        numbers = pd.to_numeric(text, errors="coerce").to_numpy(dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(numbers))
+        if bad.size:
+            row, cell = int(bad[0]), text.iloc[int(bad[0])]
+            what = "empty cell" if cell == "" else (f"not a finite number ({cell!r})" if cell.lower() in ("nan", "inf", "-inf", "+inf", "infinity", "-infinity") else f"non-numeric value {cell!r}")
+            raise InputError(f"{path}: row {row + 2}, column {name.strip()!r}: {what}", "fix or delete that row")
 
 
 def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "auto") -> Drive:
     """Read an IO-VNBD vehicle file into a :class:`Drive` (SI units, documented conventions).
 
     Raises :class:`InputError` naming the file, row (1-based line number in the file) or
-    column for anything that cannot be read.
+    column for anything that cannot be read. Only the columns the drive model uses are parsed
+    (as numbers, by pandas' C parser), so memory stays near 16 x 8 bytes per row; files over
+    2 GiB are refused. A last line cut off mid-way (a log that ended abruptly) is dropped with a
+    warning.
     """
     import pandas as pd
 
@@ -132,47 +191,49 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     if yaw_sign not in YAW_SIGNS:
         raise InputError(f"unknown yaw sign {yaw_sign!r}", "use one of auto, cw, ccw")
     try:
-        raw = path.read_bytes()
+        size = path.stat().st_size
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    text = decode_text(raw, path)
-    if not text.strip():
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    if not head.strip(b" \t\r\n\x00\xef\xbb\xbf\xff\xfe"):
         raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header")
-    try:
-        frame = pd.read_csv(io.StringIO(text), dtype=str, skipinitialspace=True, keep_default_na=False)
-    except (pd.errors.ParserError, ValueError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{path}: not a readable CSV ({first})") from None
-
-    by_label: dict[str, str] = {}
-    for header in frame.columns:
-        by_label.setdefault(_label(str(header)), header)
-    missing = [label for key, (label, _, req) in _COLUMNS.items() if req and label not in by_label]
-    if missing:
-        raise InputError(
-            f"{path}: missing column(s) {', '.join(repr(m) for m in missing)}",
-            "expected the IO-VNBD V-*.csv header (see README, 'Data formats')",
-        )
+    if size > MAX_FILE_BYTES:
+        raise InputError(f"{path}: {size / 2**30:.1f} GiB is larger than the 2 GiB ionav-viz reads at once",
+                         "split the log into drives of a few hours (IO-VNBD's largest run is 27 MB)")
+    frame = by_label = encoding = None
+    n_fields = 0
+    for encoding in _encodings(path):
+        try:
+            by_label, frame, n_fields = _read_columns(path, encoding)
+            break
+        except UnicodeDecodeError:
+            continue
+        except pd.errors.EmptyDataError:
+            raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header") from None
+        except pd.errors.ParserError as exc:
+            raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})", "every row needs the header's columns") from None
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if frame is None:
+        raise InputError(f"{path}: text in an unknown encoding")
+    if len(frame) and _last_line_is_cut(path, encoding, n_fields):
+        log.warning("%s: the file ends mid-line; dropped its last row (%d)", path, len(frame) + 1)
+        frame = frame.iloc[:-1]
     if len(frame) < 2:
         raise InputError(f"{path}: fewer than 2 data rows", "a drive needs samples to replay")
 
     values: dict[str, np.ndarray] = {}
-    for key, (label, factor, required) in _COLUMNS.items():
+    required = [by_label[label] for label, _, req in _COLUMNS.values() if req]
+    for key, (label, factor, req) in _COLUMNS.items():
         header = by_label.get(label)
         if header is None:
             continue
-        cells = frame[header].str.strip()
-        numbers = pd.to_numeric(cells, errors="coerce").to_numpy(dtype=np.float64)
-        bad = ~np.isfinite(numbers)
-        if required and bad.any():
-            row = int(np.flatnonzero(bad)[0])
-            cell = cells.iloc[row]
-            what = "empty cell" if cell == "" else f"non-numeric value {cell!r}"
-            raise InputError(
-                f"{path}: row {row + 2}, column {header.strip()!r}: {what}",
-                "fix or delete that row",
-            )
-        if not required and bad.all():
+        numbers = frame[header].to_numpy(dtype=np.float64)
+        finite = np.isfinite(numbers)
+        if req and not finite.all():
+            _locate_bad_cell(path, encoding, required, required)
+        if not req and not finite.any():
             continue  # an optional column left empty by the logger
         values[key] = numbers * factor
 
@@ -226,16 +287,21 @@ def _drop_repeated_times(t_s: np.ndarray, path: Path) -> np.ndarray:
 
 
 def _fix_degrees(values: dict[str, np.ndarray], path: Path) -> None:
+    """Detect VBOX minutes (every |latitude| above 90) and check ranges; errors name the row."""
     lat, lon = values["lat_deg"], values["lon_deg"]
-    if np.nanmax(np.abs(lat)) > 90.0:
-        if np.nanmax(np.abs(lat)) > 90.0 * 60 or np.nanmax(np.abs(lon)) > 180.0 * 60:
-            raise InputError(f"{path}: latitude/longitude out of range, neither degrees nor VBOX minutes")
+    above = np.abs(lat) > 90.0
+    if above.all():
         log.info("%s: latitude/longitude in VBOX minutes; converted to degrees", path)
-        values["lat_deg"] = lat / 60.0
-        values["lon_deg"] = -lon / 60.0
-    elif np.nanmax(np.abs(lon)) > 180.0:
-        row = int(np.flatnonzero(np.abs(lon) > 180.0)[0])
-        raise InputError(f"{path}: row {row + 2}: longitude {lon[row]} out of range [-180, 180]")
+        lat, lon = lat / 60.0, -lon / 60.0
+        values["lat_deg"], values["lon_deg"] = lat, lon
+    for name, x, limit in (("latitude", lat, 90.0), ("longitude", lon, 180.0)):
+        bad = np.flatnonzero(np.abs(x) > limit)
+        if bad.size:
+            row = int(bad[0])
+            raise InputError(
+                f"{path}: row {row + 2}: {name} {x[row]:g} out of range [-{limit:g}, {limit:g}]",
+                "fix or delete that row (a file in VBOX minutes has every latitude above 90)",
+            )
 
 
 def heading_rate_ccw_radps(t_s: np.ndarray, heading_deg: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
