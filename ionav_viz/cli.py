@@ -55,6 +55,11 @@ class _StderrHandler(logging.Handler):
 
 
 def _setup_logging(verbose: bool = False) -> None:
+    import os
+
+    # Rerun's native logger writes to stderr; our own one-line errors say what failed.
+    if not verbose and "--debug" not in sys.argv:
+        os.environ.setdefault("RUST_LOG", "off")
     log.handlers[:] = [_StderrHandler()]
     log.setLevel(logging.INFO if verbose else logging.WARNING)
     log.propagate = False
@@ -410,7 +415,7 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
                 bar.update(task, advance=1, description=f"{out.name}: {label}")
 
         with atomic_path(out) as tmp:
-            rows = write_recording(result, rep, summary, tmp, progress=advance)
+            rows = write_recording(result, rep, summary, tmp, progress=advance, target=out)
     if not quiet:
         print(render_text(rep), end="", file=sys.stderr)
     log.info("%d entities, %d rows", len(rows), sum(rows.values()))
@@ -660,7 +665,12 @@ def main() -> None:
     """Console entry point: one-line errors with exit code 2, 130 on Ctrl-C."""
     debug = "--debug" in sys.argv[1:]
     try:
-        app(standalone_mode=False)
+        code = app(standalone_mode=False)
+        # Without standalone mode, typer returns exit codes (130 for Ctrl-C) instead of exiting.
+        if isinstance(code, int) and not isinstance(code, bool):
+            if code == 130:
+                print("interrupted", file=sys.stderr)
+            sys.exit(code)
     except typer.Exit as exc:
         sys.exit(exc.exit_code)
     except (KeyboardInterrupt, typer.Abort):
@@ -677,9 +687,11 @@ def main() -> None:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(1)
     except Exception as exc:
-        # typer's (click's) usage errors know how to show themselves; their exit code is 2
-        if hasattr(exc, "show") and hasattr(exc, "exit_code") and not debug:
-            exc.show()
+        # typer's (click's) usage errors: one line too, with the command's --help as the hint
+        if hasattr(exc, "format_message") and hasattr(exc, "exit_code") and not debug:
+            ctx = getattr(exc, "ctx", None)
+            command = ctx.command_path.replace("python -m ionav_viz.cli", "ionav-viz") if ctx is not None else "ionav-viz"
+            print(f"error: {exc.format_message()} (hint: see '{command} --help')", file=sys.stderr)
             sys.exit(exc.exit_code)
         raise
 

@@ -117,7 +117,7 @@ class VerifiedCache:
             from .fileio import atomic_write_bytes
 
             atomic_write_bytes(self.path, json.dumps(self.data, indent=0).encode())
-        except (OSError, InputError):
+        except (OSError, InputError, ToolFailure):
             pass  # the cache only saves time
 
 

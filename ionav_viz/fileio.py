@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, ToolFailure
+
+#: errno values of a write that failed for lack of room or a broken device.
+_WRITE_FAILURES = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO, errno.EROFS}
 
 
 @contextlib.contextmanager
@@ -35,6 +39,11 @@ def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
     try:
         yield tmp
         os.replace(tmp, target)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        if exc.errno in _WRITE_FAILURES:
+            raise ToolFailure(f"{target}: write failed ({exc.strerror}); is the disk full?") from None
+        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -43,7 +52,4 @@ def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
 def atomic_write_bytes(target: Path, data: bytes) -> None:
     """Write ``data`` to ``target`` atomically (temporary file + rename)."""
     with atomic_path(target) as tmp:
-        try:
-            tmp.write_bytes(data)
-        except OSError as exc:
-            raise InputError(f"{target}: write failed ({exc.strerror})") from None
+        tmp.write_bytes(data)

@@ -156,6 +156,31 @@ def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], "object", 
     return by_label, frame, len(header.columns)
 
 
+def _check_field_counts(path: Path, encoding: str, n_fields: int, n_rows: int, cut_last: bool) -> None:
+    """Every row must have the header's number of fields: a shifted row would silently misalign.
+
+    Counting the commas of the whole file is fast; only a mismatch scans line by line to name it.
+    """
+    if encoding.startswith("utf-16"):
+        text = path.read_bytes().decode(encoding)
+        commas = text.count(",")
+    else:
+        commas = 0
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 22), b""):
+                commas += block.count(b",")
+    if commas == (n_fields - 1) * (n_rows + 1) and not cut_last:
+        return
+    with open(path, encoding=encoding, errors="replace", newline="") as f:
+        for number, line in enumerate(f, start=1):
+            fields = line.rstrip("\r\n").count(",") + 1
+            if fields != n_fields and line.strip() and not (cut_last and number == n_rows + 1):
+                raise InputError(
+                    f"{path}: line {number} has {fields} fields, the header has {n_fields}",
+                    "a shifted or broken row; fix or delete it",
+                )
+
+
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
@@ -194,13 +219,13 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
         size = path.stat().st_size
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    with open(path, "rb") as f:
-        head = f.read(4096)
-    if not head.strip(b" \t\r\n\x00\xef\xbb\xbf\xff\xfe"):
-        raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header")
     if size > MAX_FILE_BYTES:
         raise InputError(f"{path}: {size / 2**30:.1f} GiB is larger than the 2 GiB ionav-viz reads at once",
                          "split the log into drives of a few hours (IO-VNBD's largest run is 27 MB)")
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    if not head.strip(b" \t\r\n\xef\xbb\xbf\xff\xfe"):
+        raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header")
     frame = by_label = encoding = None
     n_fields = 0
     for encoding in _encodings(path):
@@ -217,7 +242,9 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
             raise InputError(f"{path}: cannot read ({exc.strerror})") from None
     if frame is None:
         raise InputError(f"{path}: text in an unknown encoding")
-    if len(frame) and _last_line_is_cut(path, encoding, n_fields):
+    cut = len(frame) > 0 and _last_line_is_cut(path, encoding, n_fields)
+    _check_field_counts(path, encoding, n_fields, len(frame), cut)
+    if cut:
         log.warning("%s: the file ends mid-line; dropped its last row (%d)", path, len(frame) + 1)
         frame = frame.iloc[:-1]
     if len(frame) < 2:
@@ -242,6 +269,8 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     keep = _drop_repeated_times(t_s, path)
     t_s = t_s[keep]
     values = {k: v[keep] for k, v in values.items()}
+    if len(t_s) < 2:
+        raise InputError(f"{path}: fewer than 2 rows with distinct time stamps", "check the 'Time Since Start of Day' column")
 
     _fix_degrees(values, path)
     raw_yaw = values.pop("yaw_rate_raw")

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import ToolFailure
 from .evaluate import DriveResult
 from .metrics import cumulative_errors
 
@@ -110,10 +111,12 @@ def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
     return [points[s, : w + 2] for s in range(points.shape[0]) for w in range(points.shape[1] - 1)]
 
 
-def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str, path: Path, progress=None) -> dict[str, int]:
+def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str, path: Path, progress=None,
+                    target: Path | None = None) -> dict[str, int]:
     """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
 
-    Returns row counts per entity (for messages and tests). The caller makes the write atomic.
+    Returns row counts per entity (for messages and tests). The caller makes the write atomic:
+    ``path`` is then a temporary file and ``target`` the name used in error messages.
     """
     import rerun as rr
 
@@ -204,6 +207,23 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
             for metric, values in cumulative_errors(w, starts, n_win, est).items():
                 send(f"errors/{metric}/{name}", t_win, rr.Scalars.columns(scalars=values.ravel()))
             step(name)
-    rec.flush()
-    rec.disconnect()
+    try:
+        rec.flush()
+    except RuntimeError as exc:  # the file sink failed: disk full, file too large, I/O error
+        raise ToolFailure(f"{target or path}: writing the recording failed ({exc}); is the disk full?") from None
+    finally:
+        rec.disconnect()
+    _check_written(path, target or path)
     return rows
+
+
+def _check_written(path: Path, target: Path) -> None:
+    """Read the file's footer back: a sink that failed silently must not pass as a recording."""
+    from rerun.chunk import RrdReader
+
+    try:
+        ok = len(RrdReader(path).recordings()) == 1
+    except Exception as exc:  # the reader's errors are not one class
+        raise ToolFailure(f"{target}: the written recording does not read back ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); is the disk full?") from None
+    if not ok:
+        raise ToolFailure(f"{target}: the written recording holds no recording; is the disk full?")

@@ -1,0 +1,121 @@
+"""Property-based tests (hypothesis, derandomised so runs are repeatable)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ionav_viz.errors import InputError
+from ionav_viz.iovnbd import HEADER, HEADER_LINE, read_iovnbd
+from ionav_viz.metrics import aeps, cae, crse, sequence_metrics
+from ionav_viz.ins import Estimate
+from ionav_viz.track import Track
+
+SETTINGS = settings(max_examples=120, deadline=None, derandomize=True,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+cell = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True, width=32).map(lambda x: f"{x:.6g}"),
+    st.integers(-10**6, 10**6).map(str),
+    st.sampled_from(["", " ", "nan", "inf", "-", "1e400", "abc", "0x10", "1,5", '"3"', "°", "\t"]),
+)
+
+
+def plausible_row(i: int, draw) -> list[str]:
+    """A row of the real format with values near a real drive, so some inputs pass."""
+    t = 36000.0 + 0.1 * i + draw(st.floats(-0.02, 0.02))
+    cells = ["9", f"{t:.3f}", f"{52.4 + 1e-5 * i:.8f}", f"{-1.5 + 1e-5 * i:.8f}", f"{draw(st.floats(0, 120)):.2f}",
+             f"{draw(st.floats(-10, 400)):.2f}"] + ["1.0"] * 23
+    return cells
+
+
+@st.composite
+def csv_texts(draw) -> bytes:
+    kind = draw(st.sampled_from(["plausible", "mutated", "garbage", "header-variants"]))
+    if kind == "garbage":
+        return draw(st.binary(max_size=2000))
+    n = draw(st.integers(0, 40))
+    rows = [plausible_row(i, draw) for i in range(n)]
+    if kind == "mutated" and rows:
+        for _ in range(draw(st.integers(1, 6))):
+            r = draw(st.integers(0, len(rows) - 1))
+            c = draw(st.integers(0, 28))
+            rows[r][c] = draw(cell)
+        if draw(st.booleans()):
+            r = draw(st.integers(0, len(rows) - 1))
+            rows[r] = rows[r][: draw(st.integers(0, 29))] + draw(st.lists(cell, max_size=3))
+    header = HEADER_LINE
+    if kind == "header-variants":
+        names = list(HEADER)
+        if draw(st.booleans()):
+            names = draw(st.permutations(names))
+        if draw(st.booleans()):
+            del names[draw(st.integers(0, len(names) - 1))]
+            rows = [r[: len(names)] for r in rows]
+        header = ",".join([names[0]] + [" " + h for h in names[1:]])
+    end = draw(st.sampled_from(["\r\n", "\n"]))
+    text = end.join([header] + [",".join(r) for r in rows]) + draw(st.sampled_from([end, ""]))
+    data = text.encode(draw(st.sampled_from(["utf-8", "cp1252", "utf-16"])), errors="replace")
+    if draw(st.booleans()) and data:
+        data = data[: draw(st.integers(0, len(data)))]
+    return data
+
+
+@SETTINGS
+@given(data=csv_texts())
+def test_reader_returns_a_valid_drive_or_its_own_error(tmp_path_factory, data):
+    path = tmp_path_factory.mktemp("h") / "V-h.csv"
+    path.write_bytes(data)
+    try:
+        drive = read_iovnbd(path)
+    except InputError as exc:
+        assert str(exc) and "\n" not in str(exc)
+        return
+    from hypothesis import event
+
+    event("a valid drive")
+    t = drive.t_s
+    assert len(drive) >= 2 and t[0] == 0.0 and np.all(np.diff(t) > 0)
+    for key in ("lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps"):
+        assert np.all(np.isfinite(drive.columns[key])), key
+    assert np.all(np.abs(drive.lat_deg) <= 90) and np.all(np.abs(drive.lon_deg) <= 180)
+    assert np.all((drive.heading_deg >= 0) & (drive.heading_deg < 360))
+    # and what the reader accepts, the navigation code takes
+    from ionav_viz.evaluate import evaluate_drive
+
+    try:
+        evaluate_drive(drive, 1.0)
+    except InputError:
+        pass
+
+
+errors = st.lists(st.floats(-1e4, 1e4), min_size=1, max_size=30).map(np.array)
+
+
+@SETTINGS
+@given(err=errors)
+def test_metric_invariants(err):
+    assert crse(err) >= abs(cae(err)) - 1e-9
+    assert math.isclose(aeps(err), crse(err) / len(err), rel_tol=1e-12, abs_tol=1e-12)
+    assert crse(np.zeros_like(err)) == 0 and cae(np.zeros_like(err)) == 0
+
+
+@SETTINGS
+@given(n=st.integers(1, 12), pick=st.integers(0, 10**6))
+def test_errors_are_zero_when_the_estimate_is_the_truth(n, pick):
+    from ionav_viz.outages import every
+    from ionav_viz.sources import load_drive
+    from ionav_viz.windows import make_windows
+
+    w = make_windows(load_drive("roundabout"))
+    starts = every(w, n, n)
+    starts = starts[pick % len(starts) :][:3]
+    idx = starts[:, None] + np.arange(n)[None, :]
+    lat = np.concatenate([w.lat0_deg[idx], w.lat1_deg[idx[:, -1:]]], axis=1)
+    lon = np.concatenate([w.lon0_deg[idx], w.lon1_deg[idx[:, -1:]]], axis=1)
+    truth = Estimate(w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx], Track(lat, lon, np.zeros_like(lat)))
+    for values in sequence_metrics(w, starts, n, truth).values():
+        np.testing.assert_allclose(values, 0.0, atol=1e-9)

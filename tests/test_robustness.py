@@ -1,0 +1,330 @@
+"""Hostile inputs and interruptions: every case states its input and the expected behaviour.
+
+The CLI behaves the same everywhere: bad input or usage -> exit code 2 and one line naming the
+file, row, column or option with a hint, no traceback (unless --debug); a failure outside the
+input (disk full, renderer, network) -> exit code 1 and one line; Ctrl-C -> exit code 130; and
+never a partial file at the output path.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ionav_viz.iovnbd import HEADER
+from ionav_viz.samples import samples_dir
+
+from .conftest import REPO, run_cli
+
+SOURCE = samples_dir() / "V-sim-hard-brake.csv"
+LINES = SOURCE.read_text().splitlines()
+HEADER_LINE, ROWS = LINES[0], LINES[1:]
+COL = {name: i for i, name in enumerate(HEADER)}
+
+
+def write(path: Path, rows: list[str], header: str = HEADER_LINE, end: str = "\r\n", encoding: str = "utf-8") -> Path:
+    path.write_bytes((end.join([header] + rows) + end).encode(encoding))
+    return path
+
+
+def with_cell(row: str, column: str, value: str) -> str:
+    cells = row.split(",")
+    cells[COL[column]] = value
+    return ",".join(cells)
+
+
+def evaluate(path: Path, *extra: str) -> subprocess.CompletedProcess:
+    return run_cli("evaluate", str(path), "--no-idnn", "--json", *extra)
+
+
+def assert_input_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    lines = [l for l in proc.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+
+
+@pytest.fixture(scope="module")
+def reference():
+    proc = evaluate(SOURCE)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def same_metrics(a: dict, b: dict) -> None:
+    assert len(a["sequences"]) == len(b["sequences"])
+    for sa, sb in zip(a["sequences"], b["sequences"]):
+        for key, value in sa["ins"].items():
+            assert sb["ins"][key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
+
+
+# ---- CSV drives --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(
+    "case, make, fragments",
+    [
+        ("empty file -> 'empty file'", lambda p: p.write_bytes(b"") or p, ["empty file"]),
+        ("header only -> too few rows", lambda p: write(p, []), ["fewer than 2 data rows"]),
+        ("missing required column -> named",
+         lambda p: write(p, ROWS, HEADER_LINE.replace(" Indicated Longitudinal Acceleration (g),", " Long Accel (g),")),
+         ["missing column", "'indicated longitudinal acceleration'"]),
+        ("non-numeric cell -> row and column",
+         lambda p: write(p, ROWS[:10] + [with_cell(ROWS[10], "Yaw Rate (deg/sec)", "n/a")] + ROWS[11:]),
+         ["row 12", "'Yaw Rate (deg/sec)'", "'n/a'"]),
+        ("NaN -> row and column", lambda p: write(p, [with_cell(ROWS[0], "Latitude (degrees)", "NaN")] + ROWS[1:]),
+         ["row 2", "'Latitude (degrees)'", "not a finite number"]),
+        ("inf -> row and column", lambda p: write(p, ROWS[:3] + [with_cell(ROWS[3], "Velocity (km/hr)", "inf")] + ROWS[4:]),
+         ["row 5", "'Velocity (km/hr)'", "not a finite number"]),
+        ("latitude out of range", lambda p: write(p, ROWS[:20] + [with_cell(ROWS[20], "Latitude (degrees)", "95.5")] + ROWS[21:]),
+         ["row 22", "latitude 95.5 out of range"]),
+        ("longitude out of range", lambda p: write(p, ROWS[:20] + [with_cell(ROWS[20], "Longitude (degrees)", "-181")] + ROWS[21:]),
+         ["row 22", "longitude -181 out of range"]),
+        ("time going backwards -> row", lambda p: write(p, ROWS[:50] + [ROWS[52], ROWS[51]] + ROWS[53:]),
+         ["row 53", "time goes backwards"]),
+        ("binary garbage", lambda p: p.write_bytes(bytes(range(256)) * 200) or p, ["binary data"]),
+        ("a row with more fields than the header", lambda p: write(p, ROWS[:5] + [ROWS[5] + ",1,2"] + ROWS[6:]),
+         ["line 7 has 31 fields, the header has 29"]),
+    ],
+    ids=lambda x: x if isinstance(x, str) else "",
+)
+def test_bad_csv(tmp_path, case, make, fragments):
+    path = tmp_path / "V-bad.csv"
+    make(path)
+    assert_input_error(evaluate(path), str(path), *fragments)
+
+
+def test_debug_shows_the_traceback(tmp_path):
+    path = tmp_path / "V-empty.csv"
+    path.write_bytes(b"")
+    proc = run_cli("--debug", "evaluate", str(path), "--no-idnn")
+    assert proc.returncode != 0 and "Traceback" in proc.stderr and "InputError" in proc.stderr
+
+
+def test_very_large_file_is_refused_not_read(tmp_path):
+    """Input: a 3 GiB file (sparse). Expected: refused at once with a message, no memory blow-up."""
+    path = tmp_path / "V-huge.csv"
+    with open(path, "wb") as f:
+        f.truncate(3 * 2**30)
+    start = time.monotonic()
+    assert_input_error(evaluate(path), "larger than the 2 GiB")
+    assert time.monotonic() - start < 20
+
+
+@pytest.mark.parametrize(
+    "case, make",
+    [
+        ("extra columns -> ignored", lambda p: write(p, [r + ",7" for r in ROWS], HEADER_LINE + ", Extra (x)")),
+        ("reordered columns -> matched by name",
+         lambda p: write(p, [",".join(reversed(r.split(","))) for r in ROWS], ",".join(reversed(HEADER_LINE.split(","))))),
+        ("UTF-16 with BOM -> decoded", lambda p: write(p, ROWS, encoding="utf-16")),
+        ("LF line ends -> same", lambda p: write(p, ROWS, end="\n")),
+    ],
+    ids=lambda x: x if isinstance(x, str) else "",
+)
+def test_csv_variants_give_the_same_metrics(tmp_path, reference, case, make):
+    path = tmp_path / "V-ok.csv"
+    make(path)
+    proc = evaluate(path)
+    assert proc.returncode == 0, proc.stderr
+    same_metrics(reference, json.loads(proc.stdout))
+
+
+def test_duplicated_timestamps_are_dropped_with_a_warning(tmp_path, reference):
+    path = write(tmp_path / "V-dup.csv", ROWS[:30] + [ROWS[29]] + ROWS[30:])
+    proc = evaluate(path)
+    assert proc.returncode == 0 and "dropped 1 row(s) repeating the previous time stamp (first at row 32)" in proc.stderr
+    same_metrics(reference, json.loads(proc.stdout))
+
+
+def test_file_cut_mid_line_drops_the_last_row(tmp_path):
+    path = tmp_path / "V-cut.csv"
+    text = (HEADER_LINE + "\r\n" + "\r\n".join(ROWS)).encode()
+    path.write_bytes(text[:-40])
+    proc = evaluate(path)
+    assert proc.returncode == 0 and "ends mid-line; dropped its last row" in proc.stderr
+
+
+def test_30_s_dropout_splits_the_drive(tmp_path):
+    """Input: 30 s of rows missing. Expected: no outage spans the gap; evaluation still runs."""
+    t0 = float(ROWS[0].split(",")[1])
+    times = np.array([float(r.split(",")[1]) - t0 for r in ROWS])
+    kept = [r for r, t in zip(ROWS, times) if not 40.0 <= t < 70.0]
+    proc = evaluate(write(tmp_path / "V-gap.csv", kept))
+    assert proc.returncode == 0, proc.stderr
+    for seq in json.loads(proc.stdout)["sequences"]:
+        assert seq["start_s"] + 10 <= 40.0 + 1e-6 or seq["start_s"] >= 70.0 - 1e-6
+
+
+@pytest.mark.parametrize("rate_hz", [5, 20])
+def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
+    """Input: the drive at 5 Hz (every other row) or 20 Hz (midpoints added). Expected: read at that
+    rate, resampled to the 10 Hz windows, metrics close to the 10 Hz original."""
+    if rate_hz == 5:
+        rows = ROWS[::2]
+    else:
+        rows = []
+        for a, b in zip(ROWS[:-1], ROWS[1:]):
+            va, vb = np.array(a.split(","), float), np.array(b.split(","), float)
+            mid = 0.5 * (va + vb)
+            rows += [a, ",".join(f"{x:.8f}" for x in mid)]
+        rows.append(ROWS[-1])
+    proc = evaluate(write(tmp_path / f"V-{rate_hz}hz.csv", rows))
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert abs(rep["summary"]["ins"]["crse_m"]["mean"] - reference["summary"]["ins"]["crse_m"]["mean"]) < 2.0
+
+
+# ---- outage settings -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize(
+    "args, fragments",
+    [
+        (["--outage", "10m"], ["too short", "shorter --outage"]),
+        (["--outage", "0"], ["--outage", "positive"]),
+        (["--outage=-10s"], ["--outage", "not a duration"]),
+        (["--outage", "2.5s"], ["whole number of seconds"]),
+        (["--at", "20s,25s"], ["--at 25s", "overlaps"]),
+        (["--every", "5s"], ["shorter than the outage"]),
+        (["--random", "50"], ["--random 50", "only"]),
+    ],
+)
+def test_bad_outage_settings(tmp_path, args, fragments):
+    out = tmp_path / "x.rrd"
+    proc = run_cli("replay", "hard-brake", "--no-idnn", "-q", "-o", str(out), *args)
+    assert_input_error(proc, *fragments)
+    assert not list(tmp_path.iterdir())
+
+
+def test_outage_starting_while_standing_still(tmp_path):
+    """Input: an outage at 2 s, while the car still waits (GNSS course undefined). Expected: the
+    course is the one held from the first moving fix; both estimators run; errors stay small."""
+    out = tmp_path / "still.rrd"
+    proc = run_cli("replay", "hard-brake", "--at", "2s", "--outage", "3s", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    ev = run_cli("evaluate", "hard-brake", "--outage", "3s", "--json")
+    from ionav_viz.evaluate import evaluate_drive
+    from ionav_viz.sources import load_drive
+
+    drive = load_drive("hard-brake")
+    res = evaluate_drive(drive, 3, starts=np.array([2]))
+    assert np.isfinite(res.metrics["ins"]["crse_m"]).all()
+    assert res.metrics["ins"]["final_position_error_m"][0] < 1.0  # standing still: stays put
+    assert ev.returncode == 0
+
+
+# ---- models --------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def model_copy(tmp_path):
+    import shutil
+
+    from ionav_viz.idnn import default_model_dir
+
+    target = tmp_path / "model"
+    shutil.copytree(default_model_dir(), target)
+    return target
+
+
+def test_model_missing(tmp_path):
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(tmp_path / "none")), "metadata.json missing")
+
+
+def test_model_truncated(model_copy):
+    weights = model_copy / "yaw_rate.safetensors"
+    weights.write_bytes(weights.read_bytes()[:300])
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy)), "yaw_rate.safetensors", "not a safetensors")
+
+
+@pytest.mark.parametrize("change", [{"n_steps": 14}, {"hidden": 16}, {"arch": "gru"}])
+def test_model_with_wrong_architecture_or_feature_count(model_copy, change):
+    meta = json.loads((model_copy / "metadata.json").read_text())
+    meta["config"].update(change)
+    (model_copy / "metadata.json").write_text(json.dumps(meta))
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy)), "do not fit")
+
+
+def test_model_pickle_payload_does_not_execute(model_copy, tmp_path):
+    marker = tmp_path / "executed"
+    payload = f"cos\nsystem\n(S'touch {marker}'\ntR.".encode()  # a classic pickle that runs a shell command
+    (model_copy / "displacement.safetensors").write_bytes(payload)
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy)), "never loaded")
+    assert not marker.exists()
+
+
+# ---- outputs ---------------------------------------------------------------------------------------
+
+def test_output_directory_missing_or_a_file(tmp_path):
+    assert_input_error(run_cli("replay", "hard-brake", "-q", "--no-idnn", "-o", str(tmp_path / "no" / "x.rrd")), "does not exist")
+    (tmp_path / "file").write_text("x")
+    assert_input_error(run_cli("replay", "hard-brake", "-q", "--no-idnn", "-o", str(tmp_path / "file" / "x.rrd")), "does not exist")
+
+
+def test_existing_output_is_replaced_only_by_a_complete_file(tmp_path):
+    """Decision (README): an existing output is replaced, atomically: a failed run leaves it intact."""
+    out = tmp_path / "x.rrd"
+    out.write_bytes(b"previous")
+    bad = write(tmp_path / "V-bad.csv", [ROWS[1], ROWS[0]] + ROWS[2:])
+    assert_input_error(run_cli("replay", str(bad), "-q", "--no-idnn", "-o", str(out)), "time goes backwards")
+    assert out.read_bytes() == b"previous"
+    proc = run_cli("replay", "hard-brake", "-q", "--no-idnn", "-o", str(out))
+    assert proc.returncode == 0 and out.read_bytes()[:4] != b"prev"
+
+
+def _limited_file_size(limit_bytes: int):
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+    return apply
+
+
+@pytest.mark.parametrize("command", [["replay", "hard-brake", "--no-idnn", "-q"], ["convert", "hard-brake"], ["simulate", "motorway"]])
+def test_disk_full(tmp_path, command):
+    """Input: writes fail part-way (file size limit, as on a full disk). Expected: exit 1 or 2 with
+    one line, the old output intact, no temporary file left."""
+    suffix = {"replay": ".rrd", "convert": ".mcap", "simulate": ".csv"}[command[0]]
+    out = tmp_path / f"out{suffix}"
+    out.write_bytes(b"previous")
+    proc = subprocess.run([sys.executable, "-m", "ionav_viz.cli", *command, "-o", str(out)], cwd=REPO, capture_output=True,
+                          text=True, preexec_fn=_limited_file_size(20_000), timeout=120)
+    assert proc.returncode in (1, 2), proc.stderr
+    lines = [l for l in proc.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert out.read_bytes() == b"previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+
+
+@pytest.fixture(scope="module")
+def long_drive(tmp_path_factory):
+    from ionav_viz.simulate import write_simulated_drive
+
+    return write_simulated_drive(tmp_path_factory.mktemp("long") / "V-long.csv", "quick-accel", seed=9, duration_s=4 * 3600)
+
+
+def test_ctrl_c_in_the_middle_of_a_replay(long_drive, tmp_path):
+    """Input: SIGINT while a 4 h drive replays. Expected: exit 130, 'interrupted', no output and no
+    temporary file (a run that finishes before the signal leaves a complete file)."""
+    interrupted = 0
+    for delay in (0.8, 1.4, 2.0, 2.6):
+        out = tmp_path / f"r{delay}.rrd"
+        proc = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", "replay", str(long_drive), "-o", str(out), "-q"],
+                                cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+        if proc.returncode == 130:
+            interrupted += 1
+            assert "interrupted" in err and "Traceback" not in err
+            assert not out.exists()
+        else:
+            assert proc.returncode == 0 and out.stat().st_size > 1000
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert interrupted >= 1
