@@ -115,8 +115,9 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
                     target: Path | None = None) -> dict[str, int]:
     """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
 
-    Returns row counts per entity (for messages and tests). The caller makes the write atomic:
-    ``path`` is then a temporary file and ``target`` the name used in error messages.
+    Returns row counts per entity (for messages and tests). The recording is built in memory and
+    written in one go. The caller makes the write atomic: ``path`` is then a temporary file and
+    ``target`` the name used in error messages.
     """
     import rerun as rr
 
@@ -124,7 +125,10 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
     n_win = result.n_windows
     tod = drive.start_time_of_day_s
     rec = rr.RecordingStream(APP_ID, recording_id=f"{drive.name}-{result.outage_s:g}s")
-    rec.save(path, default_blueprint=blueprint("idnn" in result.estimates, map_zoom(drive.lat_deg, drive.lon_deg, 350)))
+    # Logged into memory and written by Python: a full disk then fails as a plain OSError, where
+    # Rerun's file sink can block forever once its writer thread has died.
+    memory = rec.memory_recording()
+    rec.send_blueprint(blueprint("idnn" in result.estimates, map_zoom(drive.lat_deg, drive.lon_deg, 350)))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
@@ -207,12 +211,10 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
             for metric, values in cumulative_errors(w, starts, n_win, est).items():
                 send(f"errors/{metric}/{name}", t_win, rr.Scalars.columns(scalars=values.ravel()))
             step(name)
-    try:
-        rec.flush()
-    except RuntimeError as exc:  # the file sink failed: disk full, file too large, I/O error
-        raise ToolFailure(f"{target or path}: writing the recording failed ({exc}); is the disk full?") from None
-    finally:
-        rec.disconnect()
+    data = memory.drain_as_bytes()
+    rec.disconnect()
+    with open(path, "wb") as f:  # OSError (disk full) reaches the caller's atomic write
+        f.write(data)
     _check_written(path, target or path)
     return rows
 
