@@ -81,6 +81,25 @@ SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP: a TwistStamped or O
 Stamps = typer.Option("header", "--stamps", help="MCAP: time stamps from message headers (header) or the recorder's log time (log).")
 
 
+Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
+
+
+def _thresholds(pairs: Optional[list[str]]):
+    from .events import EventThresholds
+
+    return EventThresholds().with_overrides(list(pairs or []))
+
+
+def _event_types(text: str) -> tuple[str, ...]:
+    from .events import EVENT_TYPES
+
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    unknown = [k for k in kinds if k not in EVENT_TYPES]
+    if unknown or not kinds:
+        raise typer.BadParameter(f"unknown event type(s) {', '.join(unknown) or text!r}; choose from {', '.join(EVENT_TYPES)}", param_hint="--on")
+    return kinds
+
+
 def _mcap_options(imu_topic, gnss_topic, speed_topic, stamps):
     from .sources import McapOptions
 
@@ -159,6 +178,9 @@ def evaluate(
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
     overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
+    by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives."),
+    on: Optional[str] = typer.Option(None, "--on", help="With --by-event: only these event types (default: all)."),
+    thresholds: Optional[list[str]] = Thresholds,
     model: Optional[Path] = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model)."),
     no_idnn: bool = typer.Option(False, "--no-idnn", help="Evaluate the INS only."),
     bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
@@ -187,7 +209,10 @@ def evaluate(
     stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
 
     reports: dict[Any, dict] = {}
-    for group, specs in groups.items():
+    if by_event:
+        reports = _reports_by_event([s for specs in groups.values() for s in specs], outage_s, on, thresholds, root,
+                                    yaw_sign, mcap, stationary, idnn)
+    for group, specs in ({} if by_event else groups).items():
         results = []
         for spec in specs:
             drive = load_drive(spec, root, yaw_sign, mcap)
@@ -202,11 +227,11 @@ def evaluate(
         reports[group] = report(results)
 
     if as_json:
-        out = reports[None] if None in reports else {"scenarios": reports}
+        out = reports[None] if None in reports else {"by_event" if by_event else "scenarios": reports}
         print(json.dumps(_json_safe(out), indent=2))
         return
     if overview:
-        print(render_overview(reports, markdown), end="")
+        print(render_overview(reports, markdown, "Manoeuvre" if by_event else "Scenario"), end="")
         return
     render = render_markdown if markdown else render_text
     print("\n".join(render(rep, group) for group, rep in reports.items()), end="")
@@ -342,10 +367,13 @@ def replay(
     speed_topic: Optional[str] = SpeedTopic,
     stamps: str = Stamps,
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
+    on: Optional[str] = typer.Option(None, "--on", help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout (see 'ionav-viz events')."),
+    thresholds: Optional[list[str]] = Thresholds,
 ) -> None:
     """Replay a drive with GNSS outages, run INS and IDNN side by side, and write a .rrd for review."""
     mcap = _mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
-    out = _replay_drive(drive_spec, outage, every, at, random_count, seed, output, quiet, model, no_idnn, bias_from, data_root_opt, yaw_sign, mcap)
+    out = _replay_drive(drive_spec, outage, every, at, random_count, seed, output, quiet, model, no_idnn, bias_from,
+                        data_root_opt, yaw_sign, mcap, on, thresholds)
     print(out)
     if screenshot_dir is not None:
         from .screenshot import VIEWS, render
@@ -357,7 +385,8 @@ def replay(
 
 def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Optional[str], random_count: Optional[int],
                   seed: int, output: Optional[Path], quiet: bool, model: Optional[Path], no_idnn: bool,
-                  bias_from: Optional[str], data_root_opt: Optional[Path], yaw_sign: str, mcap=None) -> Path:
+                  bias_from: Optional[str], data_root_opt: Optional[Path], yaw_sign: str, mcap=None,
+                  on: Optional[str] = None, thresholds: Optional[list[str]] = None) -> Path:
     """Everything ``replay`` does up to the written ``.rrd``; returns its path."""
     from . import outages as place
     from .evaluate import evaluate_drive, report, resolve_bias
@@ -366,10 +395,11 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
     from .samples import recordings_dir
     from .sources import load_drive
     from .tables import render_markdown, render_text
+    from .events import detect_events
     from .windows import make_windows
 
     outage_s = parse_duration_s(outage, "--outage")
-    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count)) if v is not None]
+    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
     if len(chosen) > 1:
         raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
     n = place.outage_windows(outage_s)
@@ -379,7 +409,19 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
 
     drive = load_drive(drive_spec, root, yaw_sign, mcap)
     windows = make_windows(drive)
-    if every is not None:
+    events = detect_events(drive, _thresholds(thresholds))
+    if on is not None:
+        kinds = _event_types(on)
+        targets = [e for e in events if e.type in kinds]
+        starts, used = place.around(windows, [(e.t0_s, e.t1_s) for e in targets], n)
+        if len(used) < len(targets):
+            log.warning("%s: %d of %d %s event(s) got no outage (overlapping another, or too near a gap or an end)",
+                        drive.name, len(targets) - len(used), len(targets), "/".join(kinds))
+        placement = f"one {outage_s:g} s outage centred on each {', '.join(kinds)} event ({len(used)} of {len(targets)})"
+        if len(starts) == 0:
+            raise InputError(f"{drive.source}: no {' or '.join(kinds)} event with room for a {outage_s:g} s outage",
+                             f"see 'ionav-viz events {drive_spec}'")
+    elif every is not None:
         period = parse_duration_s(every, "--every")
         starts = place.every(windows, n, place.outage_windows(period))
         placement = f"a {outage_s:g} s outage every {period:g} s"
@@ -415,7 +457,7 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
                 bar.update(task, advance=1, description=f"{out.name}: {label}")
 
         with atomic_path(out) as tmp:
-            rows = write_recording(result, rep, summary, tmp, progress=advance, target=out)
+            rows = write_recording(result, rep, summary, tmp, progress=advance, target=out, events=events)
     if not quiet:
         print(render_text(rep), end="", file=sys.stderr)
     log.info("%d entities, %d rows", len(rows), sum(rows.values()))
@@ -629,6 +671,102 @@ def fetch(
             finished += entry.size_bytes
             print(f"{result.action:>10}  {result.path}", file=sys.stderr)
     print(root)
+
+
+def _reports_by_event(specs: list[str], outage_s: float, on: Optional[str], thresholds, root, yaw_sign, mcap,
+                      stationary, idnn) -> dict[str, dict]:
+    """One report per manoeuvre type: outages centred on each detected event, across drives."""
+    from . import outages as place
+    from .evaluate import evaluate_drive, report, resolve_bias
+    from .events import EVENT_TYPES, detect_events
+    from .sources import load_drive
+    from .windows import make_windows
+
+    kinds = _event_types(on) if on else EVENT_TYPES
+    th = _thresholds(thresholds)
+    n = place.outage_windows(outage_s)
+    per_type: dict[str, list] = {k: [] for k in kinds}
+    for spec in specs:
+        drive = load_drive(spec, root, yaw_sign, mcap)
+        windows = make_windows(drive)
+        bias = resolve_bias(drive, stationary)
+        found = detect_events(drive, th, kinds)
+        for kind in kinds:
+            starts, _ = place.around(windows, [(e.t0_s, e.t1_s) for e in found if e.type == kind], n)
+            if len(starts):
+                per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, model=idnn, starts=starts, windows=windows))
+    reports = {kind: report(results) for kind, results in per_type.items() if results}
+    if not reports:
+        raise InputError(f"no {', '.join(kinds)} event with room for a {outage_s:g} s outage in {', '.join(specs)}",
+                         "see 'ionav-viz events DRIVE'")
+    return reports
+
+
+@app.command()
+def events(
+    drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
+    types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated."),
+    quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),
+    thresholds: Optional[list[str]] = Thresholds,
+    data_root_opt: Optional[Path] = DataRoot,
+    yaw_sign: str = YawSign,
+    imu_topic: Optional[str] = ImuTopic,
+    gnss_topic: Optional[str] = GnssTopic,
+    speed_topic: Optional[str] = SpeedTopic,
+    stamps: str = Stamps,
+) -> None:
+    """Find the paper's challenging manoeuvres (hard brakes, roundabouts, sharp corners,
+    left-right turns, quick acceleration changes) and straight cruising in drives.
+
+    Definitions and thresholds: ionav_viz/events.py and the README ('Manoeuvres').
+    """
+    from .events import EVENT_TYPES, detect_events, score
+    from .resolve import data_root
+    from .samples import SAMPLES, sample_path
+    from .simulate import simulated_manoeuvres
+    from .sources import load_drive
+
+    th = _thresholds(thresholds)
+    kinds = _event_types(types) if types else EVENT_TYPES
+    if quality:
+        from .iovnbd import read_iovnbd
+
+        totals: dict[str, list[int]] = {k: [0, 0, 0, 0] for k in EVENT_TYPES}
+        for sample in SAMPLES:
+            drive = read_iovnbd(sample_path(sample))
+            truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s)
+            for kind, sc in score(truth, detect_events(drive, th), drive.duration_s).items():
+                for i, v in enumerate((sc.n_truth, sc.recalled, sc.n_found, sc.precise)):
+                    totals[kind][i] += v
+        rows = {k: {"known": t[0], "recalled": t[1], "found": t[2], "precise": t[3],
+                    "recall": t[1] / t[0] if t[0] else None, "precision": t[3] / t[2] if t[2] else None}
+                for k, t in totals.items() if k in kinds}
+        if as_json:
+            print(json.dumps({"drives": [s.file for s in SAMPLES], "detectors": rows}, indent=2))
+            return
+        print(f"{'event':<13} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
+        for k, r in rows.items():
+            rec = f"{100 * r['recall']:.0f} %" if r["recall"] is not None else "-"
+            prec = f"{100 * r['precision']:.0f} %" if r["precision"] is not None else "-"
+            print(f"{k:<13} {r['known']:>5} {r['found']:>5}  {rec:>7}  {prec:>9}")
+        return
+    if not drives:
+        raise typer.BadParameter("give at least one drive (or --quality)", param_hint="DRIVES")
+    root = data_root(data_root_opt)
+    mcap = _mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    found = {}
+    for spec in drives:
+        drive = load_drive(spec, root, yaw_sign, mcap)
+        found[drive.name] = [e for e in detect_events(drive, th) if e.type in kinds]
+    if as_json:
+        print(json.dumps({name: [e.to_dict() for e in evs] for name, evs in found.items()}, indent=2))
+        return
+    for name, evs in found.items():
+        print(f"{name}: {len(evs)} event(s)")
+        for e in evs:
+            values = ", ".join(f"{k} {v:.2f}" for k, v in e.values.items())
+            print(f"  {e.type:<13} {e.t0_s:8.1f} - {e.t1_s:8.1f} s   {values}")
 
 
 def summary_markdown(rep: dict, drive, placement: str, bias, model_info: dict | None) -> str:

@@ -13,6 +13,10 @@ Placements (all return sorted start indices into :class:`~ionav_viz.windows.Wind
 * :func:`every` -- an outage every ``period`` seconds, with GNSS available in between.
 * :func:`at` -- outages starting at given times (the window whose start is nearest).
 * :func:`random` -- ``count`` non-overlapping outages drawn with a seed.
+* :func:`around` -- one outage around each of a list of time intervals (detected manoeuvres):
+  the outage is centred on the interval, so the manoeuvre lies inside it when it is shorter
+  than the outage (a longer one starts 1 s into the outage); an outage that would overlap the
+  one before it, or not fit in the drive, is skipped.
 """
 
 from __future__ import annotations
@@ -93,3 +97,19 @@ def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
     if len(chosen) < count:
         raise InputError(f"--random {count}: only {len(chosen)} non-overlapping {n} s outages fit in this drive")
     return np.sort(np.asarray(chosen, dtype=int))
+
+
+def around(windows: Windows, intervals: list[tuple[float, float]], n: int) -> tuple[np.ndarray, list[int]]:
+    """Outage starts centred on each interval (s); returns the starts and which intervals got one."""
+    starts: list[int] = []
+    used: list[int] = []
+    for i, (t0, t1) in sorted(enumerate(intervals), key=lambda x: x[1][0]):
+        length = t1 - t0
+        first = t0 - (n - length) / 2.0 if length <= n - 1.0 else t0 - 1.0
+        k = int(np.argmin(np.abs(windows.t0_s - first))) if len(windows) else -1
+        for candidate in (k, k + 1, k - 1):
+            if 0 <= candidate < len(windows) and valid_start(windows, candidate, n) and (not starts or candidate >= starts[-1] + n):
+                starts.append(candidate)
+                used.append(i)
+                break
+    return np.asarray(starts, dtype=int), used

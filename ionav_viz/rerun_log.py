@@ -27,6 +27,8 @@ Entity paths (see also the README):
 ``signals/speed_mps``                           GNSS speed (per sample)
 ``errors/{crse_m,cae_m,yaw_crse_radps,``        cumulative errors inside each outage, per
 ``position_error_m}/{ins,idnn}``                estimator (per window, reset at each outage)
+``events/state``                                detected manoeuvres ("hard-brake #3"), state timeline
+``map/events``, ``local/events``                manoeuvre positions, labelled in the local view
 ``summary``                                     Markdown: metrics table and run parameters
 ==============================================  ==============================================
 """
@@ -83,11 +85,11 @@ def blueprint(has_idnn: bool, zoom: float = 16.0):
         rrb.Spatial2DView(origin="local", name="Local east-north (m), north up"),
     )
     signals = rrb.Vertical(
-        rrb.StateTimelineView(origin="gnss/state", name="GNSS / outages"),
+        rrb.StateTimelineView(origin="/", contents=["gnss/state", "events/state"], name="GNSS / outages / manoeuvres"),
         rrb.TimeSeriesView(origin="signals/displacement_m", name="Displacement per second (m)"),
         rrb.TimeSeriesView(origin="signals/yaw_rate_radps", name="Yaw rate (rad/s, CCW +)"),
         rrb.TimeSeriesView(origin="signals/accel_long_mps2", name="Longitudinal acceleration (m/s²)"),
-        row_shares=[1, 3, 3, 2],
+        row_shares=[1.7, 3, 3, 2],
     )
     errors = rrb.Vertical(
         rrb.TimeSeriesView(origin="errors/position_error_m", name="2D position error (m)"),
@@ -112,7 +114,7 @@ def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
 
 
 def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str, path: Path, progress=None,
-                    target: Path | None = None) -> dict[str, int]:
+                    target: Path | None = None, events: list | None = None) -> dict[str, int]:
     """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
 
     Returns row counts per entity (for messages and tests). The recording is built in memory and
@@ -187,6 +189,8 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
     send("gnss/state", w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
     step("outages")
+    if events:
+        _log_events(rec, events, drive, lat0, lon0, send)
 
     if len(starts):
         t_win = t_end[idx].ravel()
@@ -217,6 +221,31 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
         f.write(data)
     _check_written(path, target or path)
     return rows
+
+
+EVENT_COLOR = (250, 200, 40)
+
+
+def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> None:
+    """Detected manoeuvres: a state timeline, and labelled points on the map and local view."""
+    import rerun as rr
+
+    times, states = [], []
+    for i, e in enumerate(sorted(events, key=lambda e: e.t0_s)):
+        if times and e.t0_s < times[-1]:  # overlapping events: the timeline shows the later one
+            times.pop()
+            states.pop()
+        times += [e.t0_s, e.t1_s]
+        states += [f"{e.type} #{i + 1}", "none"]
+    order = np.argsort(times, kind="stable")
+    send("events/state", np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
+    mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
+    lat = np.interp(mid, drive.t_s, drive.lat_deg)
+    lon = np.interp(mid, drive.t_s, drive.lon_deg)
+    labels = [f"{e.type} #{i + 1}" for i, e in enumerate(events)]
+    rec.log("map/events", rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
+    rec.log("local/events", rr.Points2D(_screen(*local_en_m(lat, lon, lat0, lon0)), labels=labels, colors=[EVENT_COLOR],
+                                        radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
 
 
 def _check_written(path: Path, target: Path) -> None:

@@ -16,7 +16,7 @@ Vehicle model (truth, integrated at 100 Hz)
 
 Scenarios mirror the paper's: ``motorway`` (80-100 km/h, gentle curves, lane changes),
 ``roundabout`` (UK roundabouts, driven clockwise, radii 12-40 m, left entry and exit flares),
-``quick-accel`` (speed swinging between 38 and 74 km/h at 0.15-0.25 g), ``hard-brake``
+``quick-accel`` (speeding up and slowing down in turn by 2-5 m/s at 0.18-0.29 g, between 38 and 74 km/h), ``hard-brake``
 (braking at 0.5-0.76 g, often to a stop), ``sharp-cornering`` (90-degree junction turns at
 8-15 m radius and successive left-right zig-zags), and ``stationary`` (engine idling, for
 sensor-bias calibration). Every drive but the motorway one starts with the car standing still
@@ -52,6 +52,7 @@ from .errors import InputError
 from .iovnbd import HEADER, write_iovnbd
 from .units import G_MPS2
 
+HARD_BRAKE_G = 0.45  # the paper's hard-brake threshold (Section 2)
 SCENARIOS = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering", "stationary")
 TRUTH_RATE_HZ = 100.0
 OUTPUT_RATE_HZ = 10.0
@@ -92,12 +93,14 @@ class SensorModel:
 
 @dataclass
 class Truth:
-    """Ground truth at ``TRUTH_RATE_HZ``: time (s), speed (m/s), accel (m/s^2), curvature (1/m)."""
+    """Ground truth at ``TRUTH_RATE_HZ``: time (s), speed (m/s), accel (m/s^2), curvature (1/m),
+    and the manoeuvres the plan put in: (type, start s, end s)."""
 
     t_s: np.ndarray
     speed_mps: np.ndarray
     accel_mps2: np.ndarray
     curvature_1pm: np.ndarray
+    manoeuvres: list[tuple[str, float, float]]
 
 
 class _Plan:
@@ -110,6 +113,11 @@ class _Plan:
         self.k: list[np.ndarray] = []
         self.speed = 0.0
         self.duration_s = 0.0
+        self.manoeuvres: list[tuple[str, float, float]] = []
+
+    def mark(self, kind: str, start_s: float) -> None:
+        """Record that the pieces since ``start_s`` form one manoeuvre of ``kind``."""
+        self.manoeuvres.append((kind, start_s, self.duration_s))
 
     def _append(self, v: np.ndarray, a: np.ndarray, k: np.ndarray) -> None:
         self.v.append(v)
@@ -132,6 +140,7 @@ class _Plan:
         if abs(dv) < 1e-6:
             return
         seconds = math.pi * abs(dv) / (2.0 * peak_accel_mps2)
+        start = self.duration_s
         n = self._n(seconds)
         tau = (np.arange(n) + 1) * self.dt
         big_t = n * self.dt
@@ -139,6 +148,8 @@ class _Plan:
         a = dv * math.pi / (2.0 * big_t) * np.sin(np.pi * tau / big_t)
         self._append(v, a, np.zeros(n))
         self.speed = target_mps
+        if dv < 0 and peak_accel_mps2 >= HARD_BRAKE_G * G_MPS2:
+            self.mark("hard-brake", start)
 
     def turn(self, angle_deg: float, radius_m: float, ramp_s: float = 1.0) -> None:
         """Turn by ``angle_deg`` (left positive) on ``radius_m`` at the current speed."""
@@ -147,8 +158,8 @@ class _Plan:
         kappa = math.copysign(1.0 / radius_m, angle_deg)
         total_s = math.radians(abs(angle_deg)) * radius_m / self.speed
         ramp_s = min(ramp_s, total_s / 2.0)
-        hold_s = total_s - ramp_s
-        n_ramp, n_hold = self._n(ramp_s), max(0, int(round(hold_s / self.dt)) - self._n(ramp_s))
+        # the two cosine ramps together turn as much as ramp_s at full curvature
+        n_ramp, n_hold = self._n(ramp_s), max(0, int(round((total_s - ramp_s) / self.dt)))
         up = kappa * 0.5 * (1.0 - np.cos(np.pi * (np.arange(n_ramp) + 0.5) / n_ramp))
         k = np.concatenate([up, np.full(n_hold, kappa), up[::-1]])
         self._append(np.full(len(k), self.speed), np.zeros(len(k)), k)
@@ -160,7 +171,9 @@ class _Plan:
         k = np.concatenate([[0.0]] + self.k)
         if len(v) < n:
             raise ValueError("plan shorter than the requested duration")
-        return Truth(np.arange(n) * self.dt, np.maximum(v[:n], 0.0), a[:n], k[:n])
+        end = (n - 1) * self.dt
+        kept = [(kind, t0, min(t1, end)) for kind, t0, t1 in self.manoeuvres if t0 < end]
+        return Truth(np.arange(n) * self.dt, np.maximum(v[:n], 0.0), a[:n], k[:n], kept)
 
 
 def _plan_motorway(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
@@ -191,18 +204,23 @@ def _plan_roundabout(p: _Plan, rng: np.random.Generator, duration_s: float) -> N
         v_circ = float(np.clip(math.sqrt(2.5 * radius), 4.5, 10.0))
         p.speed_to(v_circ, rng.uniform(1.5, 3.0))
         flare = rng.uniform(15, 30)
+        start = p.duration_s
         p.turn(flare, 15.0, ramp_s=0.6)  # UK: enter turning left
         p.turn(-(rng.choice([90, 180, 270]) + 2 * flare), radius)  # circulate clockwise
         p.turn(flare, 15.0, ramp_s=0.6)
+        p.mark("roundabout", start)
         p.speed_to(rng.uniform(11, 16), rng.uniform(1.2, 2.2))
 
 
 def _plan_quick_accel(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
     p.hold(rng.uniform(5, 8))
     p.speed_to(rng.uniform(12, 15), 2.0)
-    while p.duration_s < duration_s:
-        p.speed_to(rng.uniform(10.5, 20.5), rng.uniform(1.5, 2.5))
-        p.hold(rng.uniform(0.5, 3.0))
+    sign = 1.0
+    while p.duration_s < duration_s:  # speed up and slow down in turn, between 38 and 74 km/h
+        target = float(np.clip(p.speed + sign * rng.uniform(2.0, 5.0), 10.5, 20.5))
+        p.speed_to(target, rng.uniform(1.8, 2.8))
+        sign = -sign
+        p.hold(rng.uniform(0.3, 1.5))
         if rng.random() < 0.2:
             p.turn(rng.choice([-1, 1]) * rng.uniform(10, 30), rng.uniform(200, 500))
 
@@ -217,7 +235,9 @@ def _plan_hard_brake(p: _Plan, rng: np.random.Generator, duration_s: float) -> N
         if stop:
             p.hold(rng.uniform(2, 5))
         elif rng.random() < 0.5:
+            start = p.duration_s
             p.turn(rng.choice([-1, 1]) * 90, rng.uniform(10, 15))
+            p.mark("sharp-corner", start)
 
 
 def _plan_sharp_cornering(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
@@ -227,13 +247,17 @@ def _plan_sharp_cornering(p: _Plan, rng: np.random.Generator, duration_s: float)
         p.hold(rng.uniform(2, 6))
         if rng.random() < 0.5:  # junction
             p.speed_to(rng.uniform(4, 6), rng.uniform(1.5, 3.0))
+            start = p.duration_s
             p.turn(rng.choice([-1, 1]) * rng.uniform(80, 100), rng.uniform(8, 15), ramp_s=0.8)
+            p.mark("sharp-corner", start)
             p.speed_to(rng.uniform(8, 12.5), rng.uniform(1.5, 2.5))
         else:  # successive left-right turns
             side = rng.choice([-1, 1])
+            start = p.duration_s
             for _ in range(int(rng.integers(2, 5))):
                 p.turn(side * rng.uniform(30, 60), rng.uniform(15, 25), ramp_s=0.8)
                 side = -side
+            p.mark("left-right", start)
 
 
 def _plan_stationary(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
@@ -260,6 +284,29 @@ def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
     plan = _Plan()
     _PLANS[scenario](plan, rng, duration_s + 1.0)
     return plan.truth(duration_s)
+
+
+def simulated_manoeuvres(scenario: str, seed: int, duration_s: float) -> list[tuple[str, float, float]]:
+    """Where the simulator put each manoeuvre: (type, start s, end s), times as in the CSV.
+
+    ``hard-brake``, ``roundabout``, ``sharp-corner`` and ``left-right`` come from the plan's
+    pieces (those the end of the drive cut off are left out). ``quick-accel`` and ``cruise`` are
+    properties of the motion rather than pieces, so they are found on the exact, noise-free truth
+    (true speed and yaw rate at 10 Hz: no sensor errors, no road grade) by their definitions in
+    :mod:`ionav_viz.events`.
+    """
+    from .events import EventThresholds, detect_cruise, detect_quick_accel, smoothed_signals
+
+    truth = plan_truth(scenario, seed, duration_s)
+    step = int(round(TRUTH_RATE_HZ / 10.0))
+    t = truth.t_s[::step]
+    th = EventThresholds()
+    clean = smoothed_signals(t, truth.speed_mps[::step], (truth.speed_mps * truth.curvature_1pm)[::step],
+                             np.ones(len(t), dtype=bool), th)
+    derived = [(e.type, e.t0_s, e.t1_s) for e in detect_quick_accel(clean, th) + detect_cruise(clean, th)]
+    end = truth.t_s[-1]
+    planned = [m for m in truth.manoeuvres if m[2] < end - 1e-9]  # drop manoeuvres the drive's end cut off
+    return sorted(planned + derived, key=lambda m: (m[1], m[0]))
 
 
 def _gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau: float) -> np.ndarray:

@@ -69,9 +69,9 @@ def render_text(rep: dict[str, Any], scenario: str | None = None) -> str:
     return "\n".join(out) + "\n"
 
 
-def overview_rows(reports: dict[Any, dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
     """One row per scenario (or drive group): mean CRSE and final position error, INS vs IDNN."""
-    header = ["Scenario", "Sequences", "Disp. CRSE μ INS (m)", "IDNN (m)", "Δ %",
+    header = [label, "Sequences", "Disp. CRSE μ INS (m)", "IDNN (m)", "Δ %",
               "Yaw CRSE μ INS (rad/s)", "IDNN (rad/s)", "Δ %", "Final pos. err. μ INS (m)", "IDNN (m)"]
     rows = []
     for group, rep in reports.items():
@@ -91,9 +91,9 @@ def overview_rows(reports: dict[Any, dict[str, Any]]) -> tuple[list[str], list[l
     return header, rows
 
 
-def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool) -> str:
+def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: str = "Scenario") -> str:
     """The overview table; Δ % is the IDNN's improvement over the INS (positive = IDNN better)."""
-    header, rows = overview_rows(reports)
+    header, rows = overview_rows(reports, label)
     if markdown:
         lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
         return "\n".join(lines) + "\n"

@@ -1,0 +1,94 @@
+"""Manoeuvre detectors: measured against the simulator's own record of where it put each one."""
+
+import json
+
+import numpy as np
+import pytest
+
+from ionav_viz.events import EVENT_TYPES, EventThresholds, detect_events, score
+from ionav_viz.iovnbd import read_iovnbd
+from ionav_viz.samples import SAMPLES, sample_path
+from ionav_viz.simulate import simulated_manoeuvres
+
+from .conftest import run_cli
+
+
+@pytest.fixture(scope="module")
+def quality():
+    totals = {k: np.zeros(4, int) for k in EVENT_TYPES}
+    for sample in SAMPLES:
+        drive = read_iovnbd(sample_path(sample))
+        truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s)
+        for kind, sc in score(truth, detect_events(drive), drive.duration_s).items():
+            totals[kind] += (sc.n_truth, sc.recalled, sc.n_found, sc.precise)
+    return totals
+
+
+@pytest.mark.parametrize("kind", EVENT_TYPES)
+def test_recall_and_precision_on_the_bundled_drives(quality, kind):
+    n_truth, recalled, n_found, precise = quality[kind]
+    assert n_truth >= 5, f"too few {kind} manoeuvres in the bundled drives to measure"
+    assert recalled / n_truth >= 0.9, (kind, recalled, n_truth)
+    assert precise / n_found >= 0.8, (kind, precise, n_found)
+
+
+def test_no_hard_brake_or_roundabout_on_the_motorway():
+    sample = next(s for s in SAMPLES if s.file == "V-sim-motorway.csv")
+    found = detect_events(read_iovnbd(sample_path(sample)))
+    assert not [e for e in found if e.type in ("hard-brake", "roundabout")]
+    assert [e for e in found if e.type == "cruise"]
+
+
+def test_hard_brake_values_match_the_plan():
+    sample = next(s for s in SAMPLES if s.file == "V-sim-hard-brake.csv")
+    found = [e for e in detect_events(read_iovnbd(sample_path(sample))) if e.type == "hard-brake"]
+    assert found and all(0.45 <= e.values["peak_decel_g"] <= 0.8 for e in found)
+
+
+def test_thresholds_can_be_overridden():
+    sample = next(s for s in SAMPLES if s.file == "V-sim-hard-brake.csv")
+    drive = read_iovnbd(sample_path(sample))
+    assert not [e for e in detect_events(drive, EventThresholds().with_overrides(["hard_brake_g=0.9"])) if e.type == "hard-brake"]
+    proc = run_cli("events", "hard-brake", "--threshold", "nonsense=1")
+    assert proc.returncode == 2 and "unknown threshold" in proc.stderr
+
+
+def test_events_cli_json_and_quality():
+    proc = run_cli("events", "roundabout", "--json")
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)["V-sim-roundabout"]
+    assert [e["type"] for e in found].count("roundabout") == 3
+    assert {"start_s", "end_s", "turn_deg", "radius_m"} <= set(found[0])
+    q = run_cli("events", "--quality", "--json")
+    assert q.returncode == 0 and json.loads(q.stdout)["detectors"]["hard-brake"]["recall"] == 1.0
+
+
+def test_replay_aims_outages_at_events(tmp_path):
+    from .test_replay import read_rrd
+
+    out = tmp_path / "rb.rrd"
+    proc = run_cli("replay", "roundabout", "--outage", "10s", "--on", "roundabout", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    rows, static = read_rrd(out)
+    events = [e for e in json.loads(run_cli("events", "roundabout", "--json").stdout)["V-sim-roundabout"] if e["type"] == "roundabout"]
+    starts = [t for t, v in rows["/gnss/state"] if v[0].startswith("outage")]
+    assert len(starts) == len(events) == 3
+    for start, ev in zip(starts, events):
+        if ev["end_s"] - ev["start_s"] <= 9:  # short enough: inside the outage
+            assert start <= ev["start_s"] and ev["end_s"] <= start + 10
+        else:  # longer than the outage: it starts 1 s into the outage
+            assert start == pytest.approx(ev["start_s"] - 1.0, abs=0.6)
+    marked = [v[0] for _, v in rows["/events/state"] if v[0] != "none"]
+    assert marked == ["roundabout #1", "roundabout #2", "roundabout #3"]
+    assert "/map/events" in static and "/local/events" in static
+
+
+def test_evaluate_by_event_builds_tables_per_manoeuvre():
+    proc = run_cli("evaluate", "hard-brake", "sharp-cornering", "--by-event", "--on", "hard-brake,sharp-corner,left-right", "--json")
+    assert proc.returncode == 0, proc.stderr
+    by = json.loads(proc.stdout)["by_event"]
+    assert set(by) == {"hard-brake", "sharp-corner", "left-right"}
+    assert {s["drive"] for s in by["hard-brake"]["sequences"]} == {"V-sim-hard-brake"}
+    assert set(by["left-right"]["summary"]) == {"ins", "idnn"}
+    text = run_cli("evaluate", "hard-brake", "--by-event", "--on", "hard-brake")
+    assert text.returncode == 0 and text.stdout.startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")
