@@ -81,6 +81,10 @@ SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP: a TwistStamped or O
 Stamps = typer.Option("header", "--stamps", help="MCAP: time stamps from message headers (header) or the recorder's log time (log).")
 
 
+OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
+ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
+NoIdnnOpt = typer.Option(False, "--no-idnn", help="INS only, no IDNN.")
+BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
 
 
@@ -173,7 +177,7 @@ def _scenario_specs(scenario: str, root: Optional[Path]) -> dict[str, list[str]]
 @app.command()
 def evaluate(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
-    outage: str = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds)."),
+    outage: str = OutageOpt,
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
@@ -181,9 +185,9 @@ def evaluate(
     by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives."),
     on: Optional[str] = typer.Option(None, "--on", help="With --by-event: only these event types (default: all)."),
     thresholds: Optional[list[str]] = Thresholds,
-    model: Optional[Path] = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model)."),
-    no_idnn: bool = typer.Option(False, "--no-idnn", help="Evaluate the INS only."),
-    bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
+    model: Optional[Path] = ModelOpt,
+    no_idnn: bool = NoIdnnOpt,
+    bias_from: Optional[str] = BiasFromOpt,
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
     imu_topic: Optional[str] = ImuTopic,
@@ -250,7 +254,7 @@ def train(
     residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (see README); --no-residual is the paper's plain net."),
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
-    bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: each drive's own stationary stretches)."),
+    bias_from: Optional[str] = BiasFromOpt,
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
     imu_topic: Optional[str] = ImuTopic,
@@ -349,7 +353,7 @@ def _progress(quiet: bool):
 @app.command()
 def replay(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file path, bundled scenario name or IO-VNBD run name."),
-    outage: str = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds)."),
+    outage: str = OutageOpt,
     every: Optional[str] = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s."),
     at: Optional[str] = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s."),
     random_count: Optional[int] = typer.Option(None, "--random", help="Draw N non-overlapping outages at random."),
@@ -357,9 +361,9 @@ def replay(
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd; an existing file is replaced)."),
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary."),
-    model: Optional[Path] = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model)."),
-    no_idnn: bool = typer.Option(False, "--no-idnn", help="Replay the INS only."),
-    bias_from: Optional[str] = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches)."),
+    model: Optional[Path] = ModelOpt,
+    no_idnn: bool = NoIdnnOpt,
+    bias_from: Optional[str] = BiasFromOpt,
     data_root_opt: Optional[Path] = DataRoot,
     yaw_sign: str = YawSign,
     imu_topic: Optional[str] = ImuTopic,

@@ -179,7 +179,9 @@ class HeadlessViewer:
                     [_rerun_executable(), "--headless", "--port", str(port), "--window-size", f"{self.width}x{self.height}",
                      "--hide-welcome-screen", "--memory-limit", "25%"],
                     stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
-                    env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn")},
+                    # TMPDIR: the viewer's own scratch folders go into ours and are removed with it
+                    env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn"),
+                         "TMPDIR": self._dir.name},
                 )
             url = f"rerun+http://127.0.0.1:{port}/proxy"
             deadline = time.monotonic() + min(30.0, self.timeout_s)

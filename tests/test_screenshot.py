@@ -54,13 +54,22 @@ def test_several_times_and_views_make_one_png_each(recording, tmp_path):
                      "V-sim-sharp-cornering-signals-0035.0s.png", "V-sim-sharp-cornering-signals-end.png"]
 
 
+def _viewer_scratch():
+    import tempfile
+    from pathlib import Path
+
+    return {p.name for p in Path(tempfile.gettempdir()).glob("rerun-data-*")} | {p.name for p in Path(tempfile.gettempdir()).glob("ionav-viewer-*")}
+
+
 def test_two_runs_in_parallel(recording, tmp_path):
+    scratch_before = _viewer_scratch()
     cmds = [[sys.executable, "-m", "ionav_viz.cli", "screenshot", str(recording), "-o", str(tmp_path / f"p{i}.png"),
              "--view", "local", "--size", "600x400"] for i in range(2)]
     procs = [subprocess.Popen(c, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in cmds]
     results = [p.communicate(timeout=180) for p in procs]
     assert all(p.returncode == 0 for p in procs), results
     assert (tmp_path / "p0.png").is_file() and (tmp_path / "p1.png").is_file()
+    assert _viewer_scratch() <= scratch_before  # the viewers' scratch folders are gone too
 
 
 def _viewer_processes():
