@@ -720,8 +720,7 @@ def events(
     speed_topic: Optional[str] = SpeedTopic,
     stamps: str = Stamps,
 ) -> None:
-    """Find the paper's challenging manoeuvres (hard brakes, roundabouts, sharp corners,
-    left-right turns, quick acceleration changes) and straight cruising in drives.
+    """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes and cruising.
 
     Definitions and thresholds: ionav_viz/events.py and the README ('Manoeuvres').
     """
