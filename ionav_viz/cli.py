@@ -628,7 +628,7 @@ def fetch(
     manifest_opt: Optional[Path] = ManifestOpt,
 ) -> None:
     """Download IO-VNBD runs by name into the data root, resuming and verifying size and sha256."""
-    from .catalog import BIAS_RUN, PAPER_TEST_RUNS, PAPER_TRAIN_RUNS, run_key, runs
+    from .catalog import PAPER_TEST_RUNS, PAPER_TRAIN_RUNS, run_key, runs
     from .fetch import VerifiedCache, base_url, fetch_file
 
     catalog = runs(_manifest(manifest_opt))
@@ -667,9 +667,9 @@ def fetch(
         task = bar.add_task("fetching", total=sum(e.size_bytes for e in entries)) if bar else None
         finished = 0
         for entry in entries:
-            def progress(e, done: int) -> None:
+            def progress(e, done: int, before: int = finished) -> None:
                 if bar is not None:
-                    bar.update(task, completed=finished + done, description=e.path.rsplit("/", 1)[-1])
+                    bar.update(task, completed=before + done, description=e.path.rsplit("/", 1)[-1])
 
             result = fetch_file(entry, root, url, timeout_s=timeout_s, cache=cache, progress=progress)
             finished += entry.size_bytes

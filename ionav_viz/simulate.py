@@ -368,7 +368,7 @@ def simulate_rows(
     def at(x: np.ndarray, times: np.ndarray = t) -> np.ndarray:
         return np.interp(times, truth.t_s, x)
 
-    v_s, a_s, r_s, g_s = at(v), at(truth.accel_mps2), at(yaw_rate), at(grade)
+    v_s, a_s, g_s = at(v), at(truth.accel_mps2), at(grade)
     moving = v_s > 0.05
 
     # Accelerometer.

@@ -12,7 +12,6 @@ from ionav_viz.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, load_m
 from ionav_viz.ins import SensorBias
 from ionav_viz.iovnbd import read_iovnbd
 from ionav_viz.samples import samples_dir
-from ionav_viz.simulate import write_simulated_drive
 from ionav_viz.training import fit_network, train_models, training_examples
 
 IDENTITY = MinMax(0.0, 1.0)

@@ -9,7 +9,6 @@ never a partial file at the output path.
 from __future__ import annotations
 
 import json
-import os
 import resource
 import signal
 import subprocess

@@ -1,7 +1,6 @@
 import math
 
 import numpy as np
-import pytest
 
 from ionav_viz.drive import Drive
 from ionav_viz.windows import make_windows, segments
