@@ -108,6 +108,17 @@ def _times(t_s: np.ndarray, start_tod_s: float):
     return [rr.TimeColumn("time", duration=t_s), rr.TimeColumn("time_of_day", duration=start_tod_s + t_s)]
 
 
+def with_breaks(t_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-outage series (seq, win) flattened, with a NaN half a second after every outage that the
+    next one does not follow at once, so plots break the line instead of bridging the GNSS stretch."""
+    t, v = t_s.ravel(), np.asarray(values, dtype=np.float64).ravel()
+    if t_s.shape[0] < 2:
+        return t, v
+    gaps = np.flatnonzero(t_s[1:, 0] - t_s[:-1, -1] > 1.0 + 1e-6)  # outage i is followed by GNSS
+    at = (gaps + 1) * t_s.shape[1]
+    return np.insert(t, at, t_s[gaps, -1] + 0.5), np.insert(v, at, np.nan)
+
+
 def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
     """(seq, win+1, 2) -> per (seq, win) row the strip of points 0..win+1, row-major."""
     return [points[s, : w + 2] for s in range(points.shape[0]) for w in range(points.shape[1] - 1)]
@@ -210,10 +221,11 @@ def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str
                 draw_order=np.full(n_rows, 30.0)))
             rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[color], radii=thin), static=True)
             rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[color], radii=thin, draw_order=20), static=True)
-            send(f"signals/displacement_m/{name}", t_win, rr.Scalars.columns(scalars=est.disp_m.ravel()))
-            send(f"signals/yaw_rate_radps/{name}", t_win, rr.Scalars.columns(scalars=est.yaw_rate_radps.ravel()))
-            for metric, values in cumulative_errors(w, starts, n_win, est).items():
-                send(f"errors/{metric}/{name}", t_win, rr.Scalars.columns(scalars=values.ravel()))
+            series = {f"signals/displacement_m/{name}": est.disp_m, f"signals/yaw_rate_radps/{name}": est.yaw_rate_radps}
+            series.update({f"errors/{m}/{name}": v for m, v in cumulative_errors(w, starts, n_win, est).items()})
+            for entity, values in series.items():
+                t_plot, v_plot = with_breaks(t_end[idx], values)
+                send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
             step(name)
     data = memory.drain_as_bytes()
     rec.disconnect()

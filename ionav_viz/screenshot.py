@@ -95,7 +95,7 @@ def read_recording_info(path: Path) -> RecordingInfo:
             track += [p[0] for p in batch.column(col).to_pylist()]
         elif entity == "/errors/position_error_m/ins":
             col = next(n for n in names if n.endswith(":scalars"))
-            errors += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
+            errors += [(t, v[0]) for t, v in zip(times, batch.column(col).to_pylist()) if v and v[0] == v[0]]  # no NaN breaks
     if not states:
         raise InputError(f"{path}: not an ionav-viz replay recording (no /gnss/state)", "make one with 'ionav-viz replay DRIVE'")
     states.sort()
