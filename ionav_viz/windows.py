@@ -2,8 +2,9 @@
 
 Resampling (how gaps are handled)
     Inertial signals and GNSS are first put on a uniform grid of ``rate_hz`` (10 Hz) points,
-    starting at the first sample of each *segment*, by linear interpolation in time. A
-    missing sample (a 0.2 s period) is thereby bridged. A gap longer than ``max_gap_s``
+    starting at the first sample of each *segment*, by linear interpolation in time (inertial
+    samples of a faster log, e.g. 20 Hz, are averaged per grid bin instead). A missing sample
+    (a 0.2 s period) is thereby bridged. A gap longer than ``max_gap_s``
     (default 1 s) splits the drive into segments: no window spans such a gap, and no outage
     sequence spans two segments.
 
@@ -79,6 +80,23 @@ def hold_course_when_slow(heading_deg: np.ndarray, speed_mps: np.ndarray, min_sp
     return heading_deg[idx]
 
 
+def imu_on_grid(t_s: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Inertial samples on the grid: interpolated, or averaged per grid bin when the log is
+    faster than the grid (e.g. 20 Hz onto 10 Hz), so extra samples lower the noise instead of
+    being skipped."""
+    out = np.interp(grid, t_s, x)
+    h = grid[1] - grid[0] if len(grid) > 1 else 0.0
+    if len(t_s) < 2 or h <= 0 or np.median(np.diff(t_s)) >= 0.75 * h:
+        return out
+    idx = np.rint((t_s - grid[0]) / h).astype(np.int64)
+    inside = (idx >= 0) & (idx < len(grid))
+    sums = np.bincount(idx[inside], weights=x[inside], minlength=len(grid))
+    counts = np.bincount(idx[inside], minlength=len(grid))
+    has = counts > 0
+    out[has] = sums[has] / counts[has]
+    return out
+
+
 def segments(t_s: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
     """Index ranges ``[i0, i1)`` of the stretches without a time gap longer than ``max_gap_s``."""
     cuts = np.flatnonzero(np.diff(t_s) > max_gap_s) + 1
@@ -121,8 +139,8 @@ def make_windows(
         parts["lon"].append(on_grid(drive.lon_deg)[::steps])
         parts["hdg"].append(on_grid(heading_unwrapped)[::steps])
         parts["spd"].append(on_grid(drive.speed_mps)[::steps])
-        acc = on_grid(drive.accel_long_mps2)
-        gyr = on_grid(drive.yaw_rate_radps)
+        acc = imu_on_grid(t, drive.accel_long_mps2[i0:i1], grid)
+        gyr = imu_on_grid(t, drive.yaw_rate_radps[i0:i1], grid)
         # Window w uses grid points steps*w .. steps*w + steps (shared boundary points).
         idx = steps * np.arange(n_win)[:, None] + np.arange(steps + 1)[None, :]
         parts["acc"].append(acc[idx])
