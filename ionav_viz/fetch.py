@@ -139,10 +139,25 @@ def fetch_file(entry: ManifestEntry, root: Path, url_base: str, *, timeout_s: fl
     state = cache.status(entry, target, check=True) if target.exists() else "missing"
     if state == "verified":
         return FetchResult(entry, target, "skipped")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    safe_target(root, entry.path)  # re-check: no symlink appeared among the new folders
     if state == "mismatch":
         target.unlink()
+    new_dirs = [p for p in [target.parent, *target.parent.parents] if root.resolve() in p.parents and not p.exists()]
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        return _fetch_into(entry, root, target, url_base, timeout_s, retries, cache, progress)
+    except BaseException:
+        for folder in new_dirs:  # leave no empty folders behind a failed first download
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
+        raise
+
+
+def _fetch_into(entry: ManifestEntry, root: Path, target: Path, url_base: str, timeout_s: float, retries: int,
+                cache: VerifiedCache, progress: Progress | None) -> FetchResult:
+    """Download ``entry`` to ``target`` (its folder exists): resume, retry, verify, rename."""
+    safe_target(root, entry.path)  # re-check: no symlink appeared among the new folders
     part = target.with_name(target.name + ".part")
     if part.is_symlink():
         raise InputError(f"{part}: a symlink inside the data root; refusing to write through it", "remove the link")
