@@ -1,7 +1,8 @@
 """Finding a drive from what a user types: a path, a bundled scenario name or an IO-VNBD run name.
 
 Order: (1) an existing file path; (2) a bundled sample: a scenario name (``roundabout``) means
-its bundled test drive, and bundled file names work too (``V-sim-roundabout``); (3) a run name
+its bundled test drive, ``stationary`` the bundled stationary drive, and bundled file names work
+too (``V-sim-roundabout``); (3) a run name
 looked up under the data root (``--data-root`` or ``$IONAV_DATA``), case-insensitively and
 tolerant of zero padding (``V-Vw8``, ``Vw8``, ``v-vw8.csv``, ``V-Vta01a``), preferring the
 ``Unsynchronised`` tree (complete runs) over the synchronised copies.
@@ -52,9 +53,9 @@ def index_data_root(root: Path) -> dict[str, list[Path]]:
 
 def _bundled(spec: str) -> Path | None:
     key = spec.strip().lower()
-    tests = by_scenario(key)
-    if tests:
-        return sample_path(tests[0])
+    named = by_scenario(key) or by_scenario(key, role="bias")  # 'stationary' is the bias drive
+    if named:
+        return sample_path(named[0])
     for sample in SAMPLES:
         if run_key(sample.file) == run_key(spec):
             return sample_path(sample)

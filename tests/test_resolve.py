@@ -51,6 +51,7 @@ def test_case_of_file_name_does_not_matter(fake_root):
 def test_plain_path_and_bundled_scenario(tmp_path):
     assert resolve_drive(str(samples_dir() / "V-sim-roundabout.csv"), None).name == "V-sim-roundabout.csv"
     assert resolve_drive("roundabout", None).name == "V-sim-roundabout.csv"
+    assert resolve_drive("stationary", None).name == "V-sim-stationary.csv"
 
 
 def test_paper_run_without_data_root_says_what_it_is():
