@@ -34,3 +34,8 @@ def test_bad_outage_and_unknown_drive_are_usage_errors():
     assert proc.returncode == 2 and "did you mean roundabout" in proc.stderr
     proc = run_cli("evaluate", "roundabout", "--outage", "1500ms", "--no-idnn")
     assert proc.returncode == 2 and "whole number of seconds" in proc.stderr
+
+
+def test_version():
+    proc = run_cli("--version")
+    assert proc.returncode == 0 and proc.stdout.startswith("ionav-viz 0.")
