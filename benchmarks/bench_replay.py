@@ -78,7 +78,7 @@ def replay_once(csv: Path, out: Path, model) -> tuple[float, float, DriveResult]
     result = evaluate_drive(drive, 10.0, bias=resolve_bias(drive), model=model)
     rep = report([result])
     log_start = time.perf_counter()
-    write_recording(result, rep, render_markdown(rep), out)
+    write_recording(result, render_markdown(rep), out)
     end = time.perf_counter()
     return end - start, end - log_start, result
 

@@ -470,7 +470,7 @@ def _replay_drive(drive_spec: str, outage: str, every: Optional[str], at: Option
                 bar.update(task, advance=1, description=f"{out.name}: {label}")
 
         with atomic_path(out) as tmp:
-            rows = write_recording(result, rep, summary, tmp, progress=advance, target=out, events=events)
+            rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
     if not quiet:
         print(render_text(rep), end="", file=sys.stderr)
     log.info("%d entities, %d rows", len(rows), sum(rows.values()))

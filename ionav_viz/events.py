@@ -6,8 +6,8 @@ than 1 s), on two smoothed signals:
 * longitudinal acceleration ``a`` (m/s^2): the derivative of the GNSS (Doppler) speed, smoothed
   over ``accel_smooth_s`` (0.5 s). The GNSS speed is used rather than the accelerometer because
   it carries no mount offset and no road-grade gravity;
-* yaw rate ``r`` (rad/s, counter-clockwise positive): the gyro minus its median while standing
-  still (when the drive stands still for 3 s or more), smoothed over ``yaw_smooth_s`` (1 s).
+* yaw rate ``r`` (rad/s, counter-clockwise positive): the gyro minus its standstill bias (as the
+  INS estimates it, when the drive stands still for 3 s or more), smoothed over ``yaw_smooth_s`` (1 s).
 
 A *turning segment* is a maximal stretch where ``|r| >= turn_rate_radps`` (3 deg/s) with one
 sign; its heading change is the integral of ``r`` and its radius the distance travelled divided
@@ -131,15 +131,15 @@ def _smooth(x: np.ndarray, seconds: float, rate_hz: float) -> np.ndarray:
 
 def signals_of(drive: Drive, th: EventThresholds) -> Signals:
     """The drive on a 10 Hz grid with smoothed acceleration (from GNSS speed) and yaw rate."""
-    from .ins import stationary_mask
+    from .ins import estimate_bias
 
     t = drive.t_s
     grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / RATE_HZ)
     k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
     valid = (t[k] - t[k - 1]) <= 1.0
     speed = np.interp(grid, t, drive.speed_mps)
-    still = stationary_mask(drive)
-    bias = float(np.median(drive.yaw_rate_radps[still])) if still.sum() * (t[-1] / max(len(t) - 1, 1)) >= 3.0 else 0.0
+    still = estimate_bias(drive)  # the same standstill biases the INS uses
+    bias = still.gyro_radps if still is not None else 0.0
     return smoothed_signals(grid, speed, np.interp(grid, t, drive.yaw_rate_radps) - bias, valid, th)
 
 

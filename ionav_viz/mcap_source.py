@@ -76,7 +76,7 @@ class Selection:
     channels: list[ChannelInfo] = field(default_factory=list)
 
 
-def _open_reader(path: Path, stream):
+def _open_reader(stream):
     from mcap.reader import make_reader
 
     return make_reader(stream, validate_crcs=True)
@@ -118,7 +118,7 @@ def list_channels(path: Path) -> list[ChannelInfo]:
     _check_framing(path)
     try:
         with open(path, "rb") as f:
-            summary = _open_reader(path, f).get_summary()
+            summary = _open_reader(f).get_summary()
     except InputError:
         raise
     except Exception as exc:
@@ -194,7 +194,7 @@ def _messages(path: Path, sel: Selection) -> Iterator[tuple[str, float, Any]]:
     factory = DecoderFactory()
     decoders: dict[int, Any] = {}
     with open(path, "rb") as f:
-        reader = _open_reader(path, f)
+        reader = _open_reader(f)
         for schema, channel, message in reader.iter_messages(topics=list(roles), log_time_order=False):
             if channel.message_encoding == "json":
                 try:

@@ -1,6 +1,7 @@
 """Writing a replay's results to a Rerun ``.rrd`` recording (the logging layer).
 
-It consumes only results (:class:`ionav_viz.evaluate.DriveResult` and its report) and sends
+It consumes only results (:class:`ionav_viz.evaluate.DriveResult`, a summary text and detected
+events) and sends
 every series as whole columns with ``send_columns``; static layers are logged once.
 
 Timelines: ``time`` (seconds since the first sample of the drive) and ``time_of_day`` (UTC
@@ -36,7 +37,6 @@ Entity paths (see also the README):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -124,7 +124,7 @@ def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
     return [points[s, : w + 2] for s in range(points.shape[0]) for w in range(points.shape[1] - 1)]
 
 
-def write_recording(result: DriveResult, report: dict[str, Any], summary_md: str, path: Path, progress=None,
+def write_recording(result: DriveResult, summary_md: str, path: Path, progress=None,
                     target: Path | None = None, events: list | None = None) -> dict[str, int]:
     """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
 

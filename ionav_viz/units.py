@@ -5,4 +5,3 @@ import math
 G_MPS2 = 9.80665
 KMH_TO_MPS = 1.0 / 3.6
 DEG_TO_RAD = math.pi / 180.0
-RAD_TO_DEG = 180.0 / math.pi
