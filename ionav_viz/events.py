@@ -293,12 +293,12 @@ def score(truth: list[tuple[str, float, float]], found: list[Event], end_s: floa
     """Match detections to known manoeuvres of the same type by overlapping intervals.
 
     A known manoeuvre is recalled when a detection overlaps it; a detection is precise when it
-    overlaps a known manoeuvre. Detections within ``edge_s`` of the end of the drive are not
-    scored: the simulator leaves out manoeuvres that the end of the drive cuts off.
+    overlaps a known manoeuvre. Neither known manoeuvres nor detections that reach within
+    ``edge_s`` of the end of the drive are scored: the end of the drive cuts them off.
     """
     out = {}
     for kind in EVENT_TYPES:
-        t = [(a, b) for k, a, b in truth if k == kind]
+        t = [(a, b) for k, a, b in truth if k == kind and b < end_s - edge_s]
         d = [(e.t0_s, e.t1_s) for e in found if e.type == kind and e.t1_s < end_s - edge_s]
         def hits(x, ys):
             return any(x[0] <= y[1] and y[0] <= x[1] for y in ys)
