@@ -256,11 +256,13 @@ def train(
     output: Path = typer.Option(Path("models/idnn"), "-o", "--output", help="Model directory to write (weights + metadata.json)."),
     paper_train: bool = typer.Option(False, "--paper-train", help="Train on the paper's Table 1 runs under the data root."),
     arch: str = typer.Option("idnn", "--arch", help="idnn (the paper's), mlp, rnn, gru or lstm (Section 3.3)."),
-    steps: int = typer.Option(10, "--steps", help="Time steps (samples) per input (Table 4; 10 = 1 s at 10 Hz)."),
+    steps: int = typer.Option(10, "--steps", help="Time steps (10 Hz samples) of acceleration per displacement input (Table 4; 10 = 1 s, 20 = 2 s)."),
+    steps_yaw: int = typer.Option(10, "--steps-yaw", help="Time steps of gyro yaw rate per orientation-rate input (Table 3)."),
     epochs_disp: int = typer.Option(40, "--epochs-disp", help="Epochs of the displacement model (Table 5: 40)."),
     epochs_yaw: int = typer.Option(60, "--epochs-yaw", help="Epochs of the orientation-rate model (Table 5: 60)."),
-    feedback_noise: float = typer.Option(0.3, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
+    feedback_noise: float = typer.Option(0.1, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
     residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (see README); --no-residual is the paper's plain net."),
+    lr_decay_tail: float = typer.Option(0.3, "--lr-decay-tail", help="Fraction of the training over which the learning rate falls linearly to 0 at the end (0 = constant, as in the paper)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     bias_from: Optional[str] = BiasFromOpt,
@@ -290,9 +292,10 @@ def train(
         specs, description = list(drives), "user-given drives"
     else:
         specs = [str(sample_path(s)) for s in SAMPLES if s.role == "train"]
-        description = "the bundled synthetic training drives (recordings/samples/V-sim-*-train.csv), not real data"
-    config = ModelConfig(arch=arch, n_steps=steps, epochs_disp=epochs_disp, epochs_yaw=epochs_yaw,
-                         feedback_noise_m=feedback_noise, residual=residual, seed=seed)
+        description = "the bundled synthetic training drives (recordings/samples/V-sim-*-train-*.csv), not real data"
+    config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp,
+                         epochs_yaw=epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
+                         lr_decay_tail=lr_decay_tail, seed=seed)
     config.validate()
     if epochs_disp < 1 or epochs_yaw < 1:
         raise typer.BadParameter("epochs must be at least 1")
@@ -792,7 +795,7 @@ def summary_markdown(rep: dict, drive, placement: str, bias, model_info: dict | 
     ]
     if model_info:
         trained = ", ".join(d["name"] for d in model_info.get("trained_on", [])) or "unknown"
-        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, {model_info['n_steps']} time steps), trained on {trained}")
+        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, {model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
             lines.append(f"- **Training data**: {model_info['training_data']}")
     else:

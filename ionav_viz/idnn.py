@@ -3,18 +3,20 @@
 Two models predict once per 1-second window:
 
 * **Displacement** (m): input = the bias-corrected longitudinal acceleration samples of the last
-  ``n_steps`` time steps (10 at 10 Hz by default, Table 4) and the displacement of the previous
+  ``n_steps_disp`` time steps (10 at 10 Hz by default, Table 4) and the displacement of the previous
   window; output = this window's displacement. In training the previous displacement is the
   GNSS one plus white Gaussian noise of ``feedback_noise_m`` (Figure 1); in prediction the
   model's own previous output is fed back, and the first window of an outage gets the last
   GNSS displacement before the outage (Figure 2).
 * **Orientation rate** (rad/s, counter-clockwise positive): input = the bias-corrected gyro
-  yaw-rate samples of the last ``n_steps`` time steps; output = the GNSS yaw rate of the window.
+  yaw-rate samples of the last ``n_steps_yaw`` time steps (10 by default, Table 3); output = the
+  GNSS yaw rate of the window.
 
 Inputs are bias-corrected with the same stationary biases as the INS (the paper's a_INS,
 Eq. 10), so a model carries over between cars with different mount tilts. Every feature group
 and the target are min-max normalised to [0, 1] with the training statistics, stored with the
-model. Architectures (``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed
+model. With ``residual`` (default, beyond the paper) each network learns a correction to a
+kinematic skip term (:func:`kinematic_weights`, :meth:`Normalisation.skip_terms`). Architectures (``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed
 inputs, 2 hidden layers of 32 units, 10 % dropout), ``mlp`` (the same net on the latest sample
 only), and ``rnn``/``gru``/``lstm`` (2 recurrent layers over the time steps; the feedback input
 joins the last hidden state).
@@ -37,7 +39,8 @@ from .track import rebuild_track
 from .windows import WINDOW_S, Windows
 
 ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+STEP_S = 0.1  # one time step: the 10 Hz grid of the windows
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 
 
@@ -46,41 +49,67 @@ class ModelConfig:
     """Architecture and training hyperparameters (defaults: the paper's Table 5)."""
 
     arch: str = "idnn"
-    n_steps: int = 10
+    n_steps_disp: int = 10
+    n_steps_yaw: int = 10
     hidden: int = 32
     dropout: float = 0.1
-    feedback_noise_m: float = 0.3
+    feedback_noise_m: float = 0.1
     residual: bool = True
     lr_disp: float = 0.004
     lr_yaw: float = 0.001
     batch_size: int = 256
     epochs_disp: int = 40
     epochs_yaw: int = 60
+    lr_decay_tail: float = 0.3
     seed: int = 0
 
     def validate(self) -> None:
         if self.arch not in ARCHS:
             raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}")
-        if not 1 <= self.n_steps <= 20:
-            raise InputError(f"n_steps {self.n_steps} out of range", "use 1 to 20 time steps")
+        for name in ("n_steps_disp", "n_steps_yaw"):
+            if not 1 <= getattr(self, name) <= 20:
+                raise InputError(f"{name} {getattr(self, name)} out of range", "use 1 to 20 time steps (2 s at 10 Hz)")
         if self.hidden < 1 or not 0 <= self.dropout < 1 or self.feedback_noise_m < 0:
             raise InputError("hidden units must be >= 1, dropout in [0, 1), feedback noise >= 0")
+        if not 0 <= self.lr_decay_tail <= 1:
+            raise InputError(f"lr_decay_tail {self.lr_decay_tail} out of range", "use a fraction of the training in [0, 1]")
+
+
+def kinematic_weights(n_steps: int) -> np.ndarray:
+    """Weights (summing to 1) of the last ``n_steps`` acceleration samples in ``d_t - d_{t-1}``.
+
+    With a window of 1 s, ``d_t - d_{t-1} = integral of K(tau) a(tau) dtau`` over the two windows,
+    with the triangular kernel ``K = 1 - |tau|`` (tau in s, 0 at the start of window t). The
+    samples at tau = 1 - (n_steps - 1 - j) * STEP_S get ``K * STEP_S`` (the trapezoid rule on
+    the 10 Hz grid): 20 steps give the exact increment for piecewise-linear acceleration; fewer
+    steps miss part of the previous window, so the weights are rescaled to sum to 1 and a
+    constant acceleration still gives its exact increment.
+    """
+    tau = 1.0 - (n_steps - 1 - np.arange(n_steps)) * STEP_S
+    k = np.clip(1.0 - np.abs(tau), 0.0, None)
+    if k.sum() <= 0:  # a single sample at tau = 1: fall back to it alone
+        k = np.ones(n_steps)
+    return k / k.sum()
 
 
 def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bool, skip: tuple[float, float] | None = None):
     """A torch module mapping normalised inputs (batch, n_steps [+ 1 feedback]) -> (batch,).
 
     With ``skip = (gain, offset)`` the output adds a kinematic skip term, so the layers learn a
-    correction to it: ``gain * mean(samples) + offset`` plus, for the displacement model
-    (``feedback``), the fed-back previous displacement; see :meth:`Normalisation.skip_terms`.
+    correction to it: ``gain * sum(w * samples) + offset`` plus, for the displacement model
+    (``feedback``), the fed-back previous displacement; ``w`` are the
+    :func:`kinematic_weights` for the displacement model and equal weights (the mean rate) for
+    the orientation-rate model; see :meth:`Normalisation.skip_terms`.
     """
     import torch
     from torch import nn
 
+    weights = torch.from_numpy((kinematic_weights(n_steps) if feedback else np.full(n_steps, 1.0 / n_steps)).astype(np.float32))
+
     def skip_of(x: torch.Tensor) -> torch.Tensor | float:
         if skip is None:
             return 0.0
-        term = skip[0] * x[:, :n_steps].mean(dim=1) + skip[1]
+        term = skip[0] * (x[:, :n_steps] @ weights) + skip[1]
         return term + x[:, n_steps] if feedback else term
 
     class FeedForward(nn.Module):
@@ -163,9 +192,8 @@ class Normalisation:
     def skip_terms(self, displacement: bool) -> tuple[float, float]:
         """(gain, offset) of the kinematic skip term in normalised units.
 
-        Displacement: d_t = d_{t-1} + mean(a) * 1 s (the speed changes by the window's mean
-        acceleration). Orientation rate: the window's mean gyro rate (gyro and yaw rate share
-        one scaling).
+        Displacement: d_t = d_{t-1} + sum(w * a) * 1 s with the :func:`kinematic_weights` ``w``
+        (summing to 1). Orientation rate: the mean gyro rate (gyro and yaw rate share one scaling).
         """
         if not displacement:
             return (1.0, 0.0) if self.gyro == self.yaw else ((self.gyro.hi - self.gyro.lo) / (self.yaw.hi - self.yaw.lo), (self.gyro.lo - self.yaw.lo) / (self.yaw.hi - self.yaw.lo))
@@ -208,13 +236,13 @@ class IdnnModel:
     def predict_yaw_rate(self, gyro_radps: np.ndarray) -> np.ndarray:
         """Orientation rate (rad/s) from bias-corrected gyro histories (..., n_steps), in one call."""
         shape = gyro_radps.shape[:-1]
-        x = self.norm.gyro.scale(gyro_radps.reshape(-1, self.config.n_steps))
+        x = self.norm.gyro.scale(gyro_radps.reshape(-1, self.config.n_steps_yaw))
         return self.norm.yaw.unscale(self._run(self.yaw_net, x)).reshape(shape)
 
     def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray) -> np.ndarray:
         """Displacement (m) of every window of every sequence, feeding back the model's own output.
 
-        ``accel_mps2``: (n_seq, n_windows, n_steps) bias-corrected; ``first_prev_disp_m``: (n_seq,)
+        ``accel_mps2``: (n_seq, n_windows, n_steps_disp) bias-corrected; ``first_prev_disp_m``: (n_seq,)
         GNSS displacement of the second before each outage. All sequences step together.
         """
         n_seq, n_win, _ = accel_mps2.shape
@@ -231,8 +259,8 @@ class IdnnModel:
         """IDNN estimates for outages of ``n_windows`` starting at ``starts`` (batched)."""
         starts = np.asarray(starts, dtype=int)
         idx = starts[:, None] + np.arange(n_windows)[None, :]
-        accel = sample_history(windows.accel_mps2, idx, self.config.n_steps) - bias.accel_mps2
-        gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps) - bias.gyro_radps
+        accel = sample_history(windows.accel_mps2, idx, self.config.n_steps_disp) - bias.accel_mps2
+        gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps_yaw) - bias.gyro_radps
         if len(starts) == 0:
             disp = np.zeros((0, n_windows))
             yaw = np.zeros((0, n_windows))
@@ -247,7 +275,8 @@ class IdnnModel:
         return {
             "directory": self.directory,
             "arch": self.config.arch,
-            "n_steps": self.config.n_steps,
+            "n_steps_disp": self.config.n_steps_disp,
+            "n_steps_yaw": self.config.n_steps_yaw,
             "trained_on": self.metadata.get("training", {}).get("drives", []),
             "training_data": self.metadata.get("training", {}).get("description", ""),
         }
@@ -298,7 +327,8 @@ def load_model(directory: str | Path) -> IdnnModel:
         path = directory / filename
         is_disp = key == "displacement"
         skip = norm.skip_terms(is_disp) if config.residual else None
-        net = build_net(config.arch, config.n_steps, config.hidden, config.dropout, is_disp, skip)
+        steps = config.n_steps_disp if is_disp else config.n_steps_yaw
+        net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
         try:
             state = load(path.read_bytes())
         except OSError as exc:

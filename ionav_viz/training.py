@@ -5,7 +5,10 @@ Training examples are 1-second windows of the training drives, taken at ten grid
 when the window before it lies in the same gap-free segment (it supplies the previous GNSS
 displacement, the feedback input). Inputs are bias-corrected with each drive's stationary
 biases (:func:`ionav_viz.evaluate.resolve_bias`). A seeded 10 % of the examples is held out for
-validation. Loss: mean absolute error; optimiser: Adamax; deterministic on the CPU for a seed.
+validation. Loss: mean absolute error; optimiser: Adamax, its learning rate falling linearly to
+zero over the last ``lr_decay_tail`` of the steps (beyond the paper: the displacement model's
+small constant offset, which the feedback loop integrates, otherwise depends on the last
+batches); deterministic on the CPU for a seed.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ Progress = Callable[[str, int, int], None]
 
 @dataclass
 class TrainingSet:
-    """Examples: accel/gyro histories (n, n_steps), previous and current GNSS displacement, GNSS yaw rate."""
+    """Examples: accel (n, n_steps_disp) and gyro (n, n_steps_yaw) histories, previous and current GNSS
+    displacement, GNSS yaw rate."""
 
     accel_mps2: np.ndarray
     prev_disp_m: np.ndarray
@@ -45,7 +49,7 @@ class TrainingSet:
         return TrainingSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
 
 
-def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps: int, phases: int = 10) -> TrainingSet:
+def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int, n_steps_yaw: int, phases: int = 10) -> TrainingSet:
     """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets."""
     parts: list[tuple[np.ndarray, ...]] = []
     for drive, bias in drives:
@@ -53,14 +57,14 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps: int, phas
             w = make_windows(drive, offset_s=phase / 10.0)
             if len(w) < 2:
                 continue
-            need_before = 2 if n_steps > w.steps else 1  # windows whose history stays in the segment
-            k = np.arange(need_before, len(w))
-            k = k[w.segment[k] == w.segment[k - need_before]]
+            # the previous window (feedback input, and history beyond 10 steps) is in the same segment
+            k = np.arange(1, len(w))
+            k = k[w.segment[k] == w.segment[k - 1]]
             parts.append((
-                sample_history(w.accel_mps2, k, n_steps) - bias.accel_mps2,
+                sample_history(w.accel_mps2, k, n_steps_disp) - bias.accel_mps2,
                 w.gnss_disp_m[k - 1],
                 w.gnss_disp_m[k],
-                sample_history(w.gyro_radps, k, n_steps) - bias.gyro_radps,
+                sample_history(w.gyro_radps, k, n_steps_yaw) - bias.gyro_radps,
                 w.gnss_yaw_rate_radps[k],
             ))  # fmt: skip
     if not parts:
@@ -69,13 +73,22 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps: int, phas
 
 
 def fit_network(net, x: np.ndarray, y: np.ndarray, lr: float, epochs: int, batch: int, seed: int,
-         noise_col: int | None, noise_sd: float, progress: Progress | None, label: str) -> list[float]:
-    """Minimise L1 with Adamax; optional Gaussian noise on one (already normalised) input column."""
+         noise_col: int | None, noise_sd: float, progress: Progress | None, label: str,
+         decay_tail: float = 0.0) -> list[float]:
+    """Minimise L1 with Adamax; optional Gaussian noise on one (already normalised) input column.
+
+    The learning rate is constant, then falls linearly to zero over the last ``decay_tail``
+    fraction of the optimiser steps (0: constant throughout, as in the paper's Keras set-up).
+    """
     import torch
 
     gen = torch.Generator().manual_seed(seed)
     xt, yt = torch.from_numpy(x.astype(np.float32)), torch.from_numpy(y.astype(np.float32))
     opt = torch.optim.Adamax(net.parameters(), lr=lr)
+    total_steps = epochs * ((len(xt) + batch - 1) // batch)
+    tail_steps = decay_tail * total_steps
+    schedule = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda step: 1.0 if tail_steps <= 0 else min(1.0, max(0.0, (total_steps - step) / tail_steps)))
     loss_fn = torch.nn.L1Loss()
     history = []
     net.train()
@@ -91,6 +104,7 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, lr: float, epochs: int, batch
             loss = loss_fn(net(xb), yt[sel])
             loss.backward()
             opt.step()
+            schedule.step()
             total += float(loss.detach()) * len(sel)
         history.append(total / len(xt))
         if progress:
@@ -111,7 +125,7 @@ def train_models(
     config.validate()
     torch.manual_seed(config.seed)
     torch.use_deterministic_algorithms(True)
-    data = training_examples(drives, config.n_steps)
+    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw)
     rng = np.random.default_rng(config.seed)
     val_mask = rng.random(len(data)) < 0.1
     train, val = data.subset(~val_mask), data.subset(val_mask)
@@ -128,15 +142,17 @@ def train_models(
     def disp_inputs(s: TrainingSet) -> np.ndarray:
         return np.concatenate([norm.accel.scale(s.accel_mps2), norm.disp.scale(s.prev_disp_m)[:, None]], axis=1)
 
-    disp_net = build_net(config.arch, config.n_steps, config.hidden, config.dropout, True,
+    disp_net = build_net(config.arch, config.n_steps_disp, config.hidden, config.dropout, True,
                          norm.skip_terms(True) if config.residual else None)
-    yaw_net = build_net(config.arch, config.n_steps, config.hidden, config.dropout, False,
+    yaw_net = build_net(config.arch, config.n_steps_yaw, config.hidden, config.dropout, False,
                         norm.skip_terms(False) if config.residual else None)
     noise_sd = config.feedback_noise_m / (norm.disp.hi - norm.disp.lo)  # metres -> normalised units
     disp_loss = fit_network(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), config.lr_disp, config.epochs_disp,
-                     config.batch_size, config.seed, config.n_steps, noise_sd, progress, "displacement")
+                     config.batch_size, config.seed, config.n_steps_disp, noise_sd, progress, "displacement",
+                     config.lr_decay_tail)
     yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), config.lr_yaw,
-                    config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, progress, "orientation rate")
+                    config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, progress, "orientation rate",
+                    config.lr_decay_tail)
 
     model = IdnnModel(config, norm, disp_net, yaw_net)
     with torch.no_grad():

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from ionav_viz.errors import InputError
-from ionav_viz.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, load_model, save_model
+from ionav_viz.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
 from ionav_viz.ins import SensorBias
 from ionav_viz.iovnbd import read_iovnbd
 from ionav_viz.samples import samples_dir
@@ -33,7 +33,7 @@ class EchoFeedback(torch.nn.Module):
 
 def _echo_model(n_steps=10) -> IdnnModel:
     norm = Normalisation(IDENTITY, IDENTITY, IDENTITY, IDENTITY)
-    return IdnnModel(ModelConfig(n_steps=n_steps), norm, EchoFeedback(n_steps), EchoFeedback(n_steps))
+    return IdnnModel(ModelConfig(n_steps_disp=n_steps, n_steps_yaw=n_steps), norm, EchoFeedback(n_steps), EchoFeedback(n_steps))
 
 
 def test_prediction_feeds_back_its_own_output():
@@ -55,7 +55,7 @@ def test_prediction_adds_no_noise():
 
 def test_training_feeds_noisy_gnss_displacement():
     drive = read_iovnbd(samples_dir() / "V-sim-quick-accel.csv")
-    data = training_examples([(drive, SensorBias.none())], n_steps=10, phases=1)
+    data = training_examples([(drive, SensorBias.none())], n_steps_disp=10, n_steps_yaw=10, phases=1)
     # teacher forcing: the feedback input of window k is the GNSS displacement of window k-1
     np.testing.assert_allclose(data.prev_disp_m[1:], data.disp_m[:-1])
     net = EchoFeedback(10)
@@ -82,7 +82,7 @@ def test_min_max_round_trip_and_metadata_round_trip():
 
 @pytest.fixture(scope="module")
 def tiny_drives():
-    drive = read_iovnbd(samples_dir() / "V-sim-roundabout-train.csv")
+    drive = read_iovnbd(samples_dir() / "V-sim-roundabout-train-1.csv")
     return [(drive, SensorBias(0.0, 0.0, "test", 0.0))]
 
 
@@ -107,7 +107,7 @@ def test_saved_model_loads_and_predicts_the_same(tmp_path, tiny_drives, arch):
     gyro = np.linspace(-0.3, 0.3, 40).reshape(4, 10)
     np.testing.assert_allclose(loaded.predict_yaw_rate(gyro), model.predict_yaw_rate(gyro), rtol=1e-6)
     meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
-    assert meta["config"]["arch"] == arch and meta["training"]["drives"][0]["name"] == "V-sim-roundabout-train"
+    assert meta["config"]["arch"] == arch and meta["training"]["drives"][0]["name"] == "V-sim-roundabout-train-1"
     assert {"torch", "numpy", "ionav_viz"} <= set(meta["versions"]) and meta["validation"]["disp_mae_m"] > 0
 
 
@@ -138,7 +138,7 @@ def test_metadata_without_normalisation(saved):
 
 def test_weights_that_do_not_fit_the_architecture(saved):
     meta = json.loads((saved / "metadata.json").read_text())
-    meta["config"]["n_steps"] = 12
+    meta["config"]["n_steps_disp"] = 12
     (saved / "metadata.json").write_text(json.dumps(meta))
     with pytest.raises(InputError, match="do not fit"):
         load_model(saved)
@@ -168,3 +168,57 @@ def test_pickle_payload_is_refused_and_never_executed(saved):
     with pytest.raises(InputError):
         load_model(saved)
     assert not marker.exists()
+
+
+def test_kinematic_weights_by_hand():
+    # 20 steps span both windows: trapezoid weights of the triangular kernel 1 - |tau|, tau = -0.9 .. 1.0
+    np.testing.assert_allclose(kinematic_weights(20), np.r_[np.arange(1, 11), np.arange(9, -1, -1)] / 100.0)
+    # 10 steps only see the window itself: the kernel 0.9, 0.8, ... 0 rescaled to sum to 1
+    np.testing.assert_allclose(kinematic_weights(10), np.arange(9, -1, -1) / 45.0)
+    for n in range(1, 21):
+        assert kinematic_weights(n).sum() == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("n_steps", [10, 14, 20])
+def test_untrained_residual_net_is_exact_kinematics_for_constant_acceleration(n_steps):
+    # With the learned correction switched off, d_t = d_{t-1} + sum(w a) * 1 s: for a constant
+    # acceleration of 0.5 m/s^2 and 10.25 m in the window before the outage (speed 10.5 m/s at
+    # its start), window k's displacement is its mean speed 10.5 + 0.5 (k + 1/2) = 10.75 + 0.5 k.
+    norm = Normalisation(MinMax(-4.0, 4.0), MinMax(0.0, 40.0), MinMax(-1.0, 1.0), MinMax(-1.0, 1.0))
+    net = build_net("idnn", n_steps, 8, 0.0, True, norm.skip_terms(True))
+    with torch.no_grad():
+        net.body[-1].weight.zero_()
+        net.body[-1].bias.zero_()
+    net.eval()
+    model = IdnnModel(ModelConfig(n_steps_disp=n_steps), norm, net, None)
+    out = model.predict_displacement(np.full((1, 6, n_steps), 0.5), np.array([10.25]))
+    np.testing.assert_allclose(out[0], 10.75 + 0.5 * np.arange(6), atol=1e-4)
+
+
+def test_learning_rate_falls_to_zero_over_the_tail():
+    class Flat(torch.nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.linear = torch.nn.Linear(1, 1)
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return self.linear(x).squeeze(-1)
+
+    net = Flat()
+    x, y = np.zeros((100, 1)), np.ones(100)
+    lrs = []
+    real_step = torch.optim.Adamax.step
+
+    def spy(self, *args, **kwargs):
+        lrs.append(self.param_groups[0]["lr"])
+        return real_step(self, *args, **kwargs)
+
+    torch.optim.Adamax.step = spy
+    try:
+        fit_network(net, x, y, lr=0.01, epochs=10, batch=10, seed=0, noise_col=None, noise_sd=0.0,
+                    progress=None, label="t", decay_tail=0.5)
+    finally:
+        torch.optim.Adamax.step = real_step
+    # 100 steps: constant for the first 50, then (100 - step) / 50 of the rate
+    assert lrs[:51] == [0.01] * 51
+    np.testing.assert_allclose(lrs[51:], 0.01 * (100 - np.arange(51, 100)) / 50)

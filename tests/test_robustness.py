@@ -244,7 +244,7 @@ def test_model_truncated(model_copy):
     assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy)), "yaw_rate.safetensors", "not a safetensors")
 
 
-@pytest.mark.parametrize("change", [{"n_steps": 14}, {"hidden": 16}, {"arch": "gru"}])
+@pytest.mark.parametrize("change", [{"n_steps_disp": 10}, {"n_steps_yaw": 12}, {"hidden": 16}, {"arch": "gru"}])
 def test_model_with_wrong_architecture_or_feature_count(model_copy, change):
     meta = json.loads((model_copy / "metadata.json").read_text())
     meta["config"].update(change)
