@@ -65,7 +65,7 @@ def test_row_counts_per_outage(replayed):
     path, rep = replayed
     rows, _ = read_rrd(path)
     n_seq = rep["n_sequences"]
-    assert n_seq == 11
+    assert n_seq == 59  # (600 s - 1 s) // 10 s
     for entity in ("/errors/crse_m/ins", "/errors/crse_m/idnn", "/map/idnn/live", "/local/ins/live", "/signals/displacement_m/idnn"):
         assert len(rows[entity]) == n_seq * N_WIN, entity
     # the growing track of outage k has 2, 3, ... 11 points
@@ -75,7 +75,7 @@ def test_row_counts_per_outage(replayed):
     available = np.array([v[0] for _, v in rows["/gnss/available"]])
     assert int((available == 0).sum()) == n_seq * N_WIN
     states = [v[0] for _, v in rows["/gnss/state"]]
-    # GNSS, outage 1 .. outage 11, then GNSS again for the last seconds that fit no whole outage
+    # GNSS, outage 1 .. outage 59, then GNSS again for the last seconds that fit no whole outage
     assert states[0] == "GNSS" and states[1] == "outage 1 (1-11 s)" and states[-1] == "GNSS" and len(states) == n_seq + 2
 
 
@@ -94,7 +94,7 @@ def test_recorded_errors_equal_evaluate_json(replayed):
 
 @pytest.mark.parametrize(
     "args, n_outages",
-    [(["--at", "12s,40s"], 2), (["--every", "30s"], 4), (["--random", "3", "--seed", "7"], 3)],
+    [(["--at", "12s,40s"], 2), (["--every", "150s"], 4), (["--random", "3", "--seed", "7"], 3)],
 )
 def test_outage_placements(tmp_path, args, n_outages):
     out = tmp_path / "x.rrd"
@@ -128,7 +128,7 @@ def test_bad_placements_are_clear(tmp_path):
     out = str(tmp_path / "x.rrd")
     cases = [
         (["--at", "12s,15s"], "overlaps"),
-        (["--at", "500s"], "no 10 s outage fits"),
+        (["--at", "5000s"], "no 10 s outage fits"),
         (["--every", "5s"], "shorter than the outage"),
         (["--at", "12s", "--every", "30s"], "choose one outage placement"),
         (["--outage", "10m"], "too short"),
