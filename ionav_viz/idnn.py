@@ -66,9 +66,9 @@ class ModelConfig:
     def validate(self) -> None:
         if self.arch not in ARCHS:
             raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}")
-        for name in ("n_steps_disp", "n_steps_yaw"):
+        for name, option in (("n_steps_disp", "--steps"), ("n_steps_yaw", "--steps-yaw")):
             if not 1 <= getattr(self, name) <= 20:
-                raise InputError(f"{name} {getattr(self, name)} out of range", "use 1 to 20 time steps (2 s at 10 Hz)")
+                raise InputError(f"{getattr(self, name)} time steps ({name}, {option}) out of range", "use 1 to 20 time steps (2 s at 10 Hz)")
         if self.hidden < 1 or not 0 <= self.dropout < 1 or self.feedback_noise_m < 0:
             raise InputError("hidden units must be >= 1, dropout in [0, 1), feedback noise >= 0")
         if not 0 <= self.lr_decay_tail <= 1:

@@ -1,5 +1,7 @@
 import json
 
+import pytest
+
 from .conftest import run_cli
 
 
@@ -39,3 +41,12 @@ def test_bad_outage_and_unknown_drive_are_usage_errors():
 def test_version():
     proc = run_cli("--version")
     assert proc.returncode == 0 and proc.stdout.startswith("ionav-viz 0.")
+
+
+@pytest.mark.parametrize("args, option", [(["--steps", "30"], "--steps"), (["--steps-yaw", "0"], "--steps-yaw"),
+                                          (["--lr-decay-tail", "1.5"], "lr_decay_tail")])
+def test_train_refuses_bad_hyperparameters_before_any_work(tmp_path, args, option):
+    out = tmp_path / "m"
+    proc = run_cli("train", "-o", str(out), "-q", *args)
+    assert proc.returncode == 2 and option in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    assert not out.exists()
