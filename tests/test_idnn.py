@@ -222,3 +222,16 @@ def test_learning_rate_falls_to_zero_over_the_tail():
     # 100 steps: constant for the first 50, then (100 - step) / 50 of the rate
     assert lrs[:51] == [0.01] * 51
     np.testing.assert_allclose(lrs[51:], 0.01 * (100 - np.arange(51, 100)) / 50)
+
+
+@pytest.mark.parametrize("scenario", ["motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering"])
+def test_shipped_model_beats_dead_reckoning_on_the_bundled_test_drive(scenario):
+    # the acceptance point: lower mean displacement CRSE and mean orientation-rate CRSE
+    from ionav_viz.evaluate import evaluate_drive
+    from ionav_viz.idnn import default_model_dir
+
+    result = evaluate_drive(read_iovnbd(samples_dir() / f"V-sim-{scenario}.csv"), 10.0, model=load_model(default_model_dir()))
+    ins, idnn = result.metrics["ins"], result.metrics["idnn"]
+    assert len(result.starts) == 59
+    assert idnn["crse_m"].mean() < ins["crse_m"].mean()
+    assert idnn["yaw_crse_radps"].mean() < ins["yaw_crse_radps"].mean()
