@@ -12,7 +12,7 @@ shipped one) on
 
 Prints, per model and test set, the IDNN's improvement over the INS on mean displacement CRSE
 and mean orientation-rate CRSE per scenario (positive = IDNN better) and how many of the ten
-comparisons the IDNN wins. Run: ``python benchmarks/idnn_heldout.py`` (about 2 minutes on 2 cores).
+comparisons the IDNN wins. Run: ``python benchmarks/idnn_heldout.py`` (about 40 s on 2 cores).
 """
 
 from __future__ import annotations
@@ -63,11 +63,9 @@ def main() -> None:
     header = "model            test set   " + "  ".join(f"{s[:13]:>13}" for s in TEST_SCENARIOS) + "  wins"
     print("IDNN improvement over INS in % (displacement CRSE, orientation-rate CRSE), 10 s outages")
     print(header)
-    models = [("shipped", shipped)]
-    models += [(f"seed {seed}", None) for seed in args.seeds]
-    for name, model in models:
-        if model is None:
-            model = train_models(train, ModelConfig(**{**hyper, "seed": int(name.split()[1])}))
+    for seed in [None, *args.seeds]:
+        name = "shipped" if seed is None else f"seed {seed}"
+        model = shipped if seed is None else train_models(train, ModelConfig(**{**hyper, "seed": seed}))
         for label, drives in (("bundled", bundled), ("held-out", heldout)):
             cells, wins = compare(model, drives)
             print(f"{name:<16} {label:<10} " + "  ".join(cells) + f"  {wins}/10", flush=True)

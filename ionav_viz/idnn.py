@@ -72,7 +72,7 @@ class ModelConfig:
         if self.hidden < 1 or not 0 <= self.dropout < 1 or self.feedback_noise_m < 0:
             raise InputError("hidden units must be >= 1, dropout in [0, 1), feedback noise >= 0")
         if not 0 <= self.lr_decay_tail <= 1:
-            raise InputError(f"lr_decay_tail {self.lr_decay_tail} out of range", "use a fraction of the training in [0, 1]")
+            raise InputError(f"lr_decay_tail {self.lr_decay_tail} (--lr-decay-tail) out of range", "use a fraction of the training in [0, 1]")
 
 
 def kinematic_weights(n_steps: int) -> np.ndarray:
