@@ -69,8 +69,10 @@ class ModelConfig:
         for name, option in (("n_steps_disp", "--steps"), ("n_steps_yaw", "--steps-yaw")):
             if not 1 <= getattr(self, name) <= 20:
                 raise InputError(f"{getattr(self, name)} time steps ({name}, {option}) out of range", "use 1 to 20 time steps (2 s at 10 Hz)")
-        if self.hidden < 1 or not 0 <= self.dropout < 1 or self.feedback_noise_m < 0:
-            raise InputError("hidden units must be >= 1, dropout in [0, 1), feedback noise >= 0")
+        if self.hidden < 1 or not 0 <= self.dropout < 1:
+            raise InputError(f"hidden units {self.hidden} / dropout {self.dropout} out of range", "use >= 1 hidden units and a dropout in [0, 1)")
+        if self.feedback_noise_m < 0:
+            raise InputError(f"feedback noise {self.feedback_noise_m} m (--feedback-noise) is negative", "give a standard deviation >= 0")
         if not 0 <= self.lr_decay_tail <= 1:
             raise InputError(f"lr_decay_tail {self.lr_decay_tail} (--lr-decay-tail) out of range", "use a fraction of the training in [0, 1]")
 

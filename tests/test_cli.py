@@ -44,7 +44,8 @@ def test_version():
 
 
 @pytest.mark.parametrize("args, option", [(["--steps", "30"], "--steps"), (["--steps-yaw", "0"], "--steps-yaw"),
-                                          (["--lr-decay-tail", "1.5"], "lr_decay_tail")])
+                                          (["--lr-decay-tail", "1.5"], "--lr-decay-tail"),
+                                          (["--feedback-noise", "-1"], "--feedback-noise")])
 def test_train_refuses_bad_hyperparameters_before_any_work(tmp_path, args, option):
     out = tmp_path / "m"
     proc = run_cli("train", "-o", str(out), "-q", *args)
