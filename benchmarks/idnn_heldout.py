@@ -22,17 +22,18 @@ import json
 import tempfile
 from pathlib import Path
 
+from ionav_viz.catalog import SCENARIOS
 from ionav_viz.evaluate import evaluate_drive, improvement_pct, resolve_bias
 from ionav_viz.idnn import ModelConfig, default_model_dir, load_model
 from ionav_viz.iovnbd import read_iovnbd
-from ionav_viz.samples import SAMPLES, TEST_SCENARIOS, sample_path
+from ionav_viz.samples import SAMPLES, sample_path
 from ionav_viz.simulate import write_simulated_drive
 from ionav_viz.training import train_models
 
 
 def compare(model, drives: dict) -> tuple[list[str], int]:
     cells, wins = [], 0
-    for scenario in TEST_SCENARIOS:
+    for scenario in SCENARIOS:
         result = evaluate_drive(drives[scenario], 10.0, model=model)
         ins, idnn = result.metrics["ins"], result.metrics["idnn"]
         disp = improvement_pct(ins["crse_m"].mean(), idnn["crse_m"].mean())
@@ -57,10 +58,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         heldout = {
             sc: read_iovnbd(write_simulated_drive(Path(tmp) / f"V-heldout-{sc}.csv", sc, args.seed_base + i, 60.0 * args.minutes))
-            for i, sc in enumerate(TEST_SCENARIOS)
+            for i, sc in enumerate(SCENARIOS)
         }
 
-    header = "model            test set   " + "  ".join(f"{s[:13]:>13}" for s in TEST_SCENARIOS) + "  wins"
+    header = "model            test set   " + "  ".join(f"{s[:13]:>13}" for s in SCENARIOS) + "  wins"
     print("IDNN improvement over INS in % (displacement CRSE, orientation-rate CRSE), 10 s outages")
     print(header)
     for seed in [None, *args.seeds]:

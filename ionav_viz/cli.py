@@ -28,7 +28,6 @@ app = typer.Typer(
 )
 log = logging.getLogger("ionav_viz")
 
-SCENARIO_CHOICES = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering")
 _DURATION = re.compile(r"^\s*(?:(\d+(?:\.\d+)?)h)?\s*(?:(\d+(?:\.\d+)?)m(?!s))?\s*(?:(\d+(?:\.\d+)?)s)?\s*(?:(\d+(?:\.\d+)?)ms)?\s*$")
 
 
@@ -172,12 +171,12 @@ def _load_model(model: Optional[Path], no_idnn: bool):
 
 
 def _scenario_specs(scenario: str, root: Optional[Path]) -> dict[str, list[str]]:
-    from .catalog import PAPER_TEST_RUNS
+    from .catalog import PAPER_TEST_RUNS, SCENARIOS
     from .samples import by_scenario
 
-    names = SCENARIO_CHOICES if scenario == "all" else (scenario,)
-    if scenario != "all" and scenario not in SCENARIO_CHOICES:
-        raise typer.BadParameter(f"unknown scenario {scenario!r}; choose {', '.join(SCENARIO_CHOICES)} or all", param_hint="--scenario")
+    names = SCENARIOS if scenario == "all" else (scenario,)
+    if scenario != "all" and scenario not in SCENARIOS:
+        raise typer.BadParameter(f"unknown scenario {scenario!r}; choose {', '.join(SCENARIOS)} or all", param_hint="--scenario")
     if root is not None:
         return {s: list(PAPER_TEST_RUNS[s]) for s in names}
     return {s: [sample.file for sample in by_scenario(s)] for s in names}

@@ -12,6 +12,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from .catalog import SCENARIOS
+
 
 @dataclass(frozen=True)
 class Sample:
@@ -24,7 +26,6 @@ class Sample:
     role: str  # "test", "train" or "bias"
 
 
-TEST_SCENARIOS = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering")
 TRAIN_DRIVES_PER_SCENARIO = 8
 
 # Test drives: 10 minutes each, so a scenario is compared over 59 outages of 10 s (a 2-minute
@@ -32,9 +33,9 @@ TRAIN_DRIVES_PER_SCENARIO = 8
 # short drives per scenario, each with its own mount offset, bias and road-grade profile, so the
 # networks learn what drives have in common rather than one drive's quirks.
 SAMPLES = tuple(
-    [Sample(f"V-sim-{s}.csv", s, 100 + i, 600.0, "test") for i, s in enumerate(TEST_SCENARIOS)]
+    [Sample(f"V-sim-{s}.csv", s, 100 + i, 600.0, "test") for i, s in enumerate(SCENARIOS)]
     + [Sample(f"V-sim-{s}-train-{k + 1}.csv", s, 200 + 10 * i + k, 150.0, "train")
-       for i, s in enumerate(TEST_SCENARIOS) for k in range(TRAIN_DRIVES_PER_SCENARIO)]
+       for i, s in enumerate(SCENARIOS) for k in range(TRAIN_DRIVES_PER_SCENARIO)]
     + [Sample("V-sim-stationary.csv", "stationary", 300, 180.0, "bias")]
 )  # fmt: skip
 

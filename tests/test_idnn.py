@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from ionav_viz.catalog import SCENARIOS
 from ionav_viz.errors import InputError
 from ionav_viz.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
 from ionav_viz.ins import SensorBias
@@ -224,7 +225,7 @@ def test_learning_rate_falls_to_zero_over_the_tail():
     np.testing.assert_allclose(lrs[51:], 0.01 * (100 - np.arange(51, 100)) / 50)
 
 
-@pytest.mark.parametrize("scenario", ["motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering"])
+@pytest.mark.parametrize("scenario", SCENARIOS)
 def test_shipped_model_beats_dead_reckoning_on_the_bundled_test_drive(scenario):
     # the acceptance point: lower mean displacement CRSE and mean orientation-rate CRSE
     from ionav_viz.evaluate import evaluate_drive
