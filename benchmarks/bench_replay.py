@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from ionav_viz.evaluate import DriveResult, evaluate_drive, report, resolve_bias
-from ionav_viz.idnn import default_model_dir, load_model
-from ionav_viz.iovnbd import read_iovnbd
-from ionav_viz.metrics import cumulative_errors
-from ionav_viz.rerun_log import APP_ID, _screen, local_en_m, write_recording
-from ionav_viz.simulate import write_simulated_drive
-from ionav_viz.tables import render_markdown
+from ionav_viz.analysis.evaluate import DriveResult, evaluate_drive, report, resolve_bias
+from ionav_viz.nav.idnn import default_model_dir, load_model
+from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.analysis.metrics import cumulative_errors
+from ionav_viz.viz.recording import APP_ID, _screen, local_en_m, write_recording
+from ionav_viz.sim.simulate import write_simulated_drive
+from ionav_viz.analysis.tables import render_markdown
 
 
 def write_recording_rowwise(result: DriveResult, path: Path) -> None:

@@ -66,7 +66,7 @@ def soak_cli(runs: int, drive: str, out: Path) -> None:
 
 
 def soak_in_process(runs: int, drive: str, out: Path) -> None:
-    from ionav_viz.cli import _replay_drive
+    from ionav_viz.cli.app import _replay_drive
 
     samples = []
     for i in range(1, runs + 1):

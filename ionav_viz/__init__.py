@@ -1,11 +1,67 @@
-"""ionav-viz: replay drives, inject GNSS outages, compare INS dead reckoning with the IDNN.
+"""ionav-viz: replay drives, inject GNSS outages, compare INS dead reckoning, the IDNN and your own
+estimators, and review them in Rerun.
 
-Data flows one way:
+The public API (see "Python API" in the README)::
 
-    sources (``iovnbd``)  ->  ``Drive``  ->  navigation (``windows``, ``ins``, ``idnn``,
-    ``metrics``, ``evaluate``)  ->  results  ->  logging (``rerun_log``)  ->  ``cli`` wires them.
+    import ionav_viz as iv
 
-The conventions every module follows are written once, in :mod:`ionav_viz.drive`.
+    drive = iv.load_drive("roundabout")
+    report = iv.evaluate([drive], outage_s=10.0, estimators=["ins", "idnn"])
+    result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd")
+    iv.screenshot([result.path], "shots/", times=["worst"])
+
+Data flows one way through the subpackages (a test enforces it):
+
+    core (drive model, errors, grid)  <-  dataset (catalog, samples, fetch)  <-  sources (readers)
+    <-  nav (windows, outages, INS, IDNN, estimator plug-ins)  <-  analysis (metrics, events,
+    reports)  <-  sim  <-  viz (recordings, screenshots)  <-  api  <-  cli
+
+Names are imported lazily, so ``import ionav_viz`` (and ``ionav-viz --help``) stays fast.
 """
 
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+_EXPORTS = {
+    "load_drive": "api", "evaluate": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
+    "scenario_drives": "api", "ReplayResult": "api", "Outage": "api",
+    "Report": "analysis.report", "DriveResult": "analysis.evaluate",
+    "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
+    "Estimate": "nav.estimators", "EstimatorInputs": "nav.estimators", "Estimator": "nav.estimators",
+    "EstimatorError": "nav.estimators",
+    "SensorBias": "nav.bias",
+    "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
+    "AroundEvents": "nav.outages",
+    "EventThresholds": "analysis.events", "McapOptions": "sources.load",
+}  # fmt: skip
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'ionav_viz' has no attribute {name!r}")
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports on first use
+    from .analysis.evaluate import DriveResult  # noqa: F401
+    from .analysis.events import EventThresholds  # noqa: F401
+    from .analysis.report import Report  # noqa: F401
+    from .api import Outage, ReplayResult, evaluate, evaluate_by_event, load_drive, replay, scenario_drives, screenshot  # noqa: F401
+    from .core.drive import Drive  # noqa: F401
+    from .core.errors import InputError, ToolFailure  # noqa: F401
+    from .nav.bias import SensorBias  # noqa: F401
+    from .nav.estimators import Estimate, Estimator, EstimatorError, EstimatorInputs  # noqa: F401
+    from .nav.outages import At, AroundEvents, Every, Random, Tile  # noqa: F401
+    from .sources.load import McapOptions  # noqa: F401

@@ -29,7 +29,7 @@ def run_cli(*args: str, env: dict | None = None, cwd: Path | None = None, timeou
 @pytest.fixture(scope="session")
 def ideal_drive_csv(tmp_path_factory) -> Path:
     """A noise-free synthetic motorway drive (perfect sensors, flat road)."""
-    from ionav_viz.simulate import SensorModel, write_simulated_drive
+    from ionav_viz.sim.simulate import SensorModel, write_simulated_drive
 
     path = tmp_path_factory.mktemp("drives") / "V-ideal.csv"
     return write_simulated_drive(path, "motorway", seed=3, duration_s=120, sensors=SensorModel.ideal())

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ionav_viz.ros2_msgs import DEFINITIONS
+from ionav_viz.sources.ros2_msgs import DEFINITIONS
 
 ACCEL_MPS2 = 0.5
 YAW_RATE_RADPS = 0.02

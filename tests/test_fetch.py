@@ -9,7 +9,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
 
-from ionav_viz.samples import samples_dir
+from ionav_viz.dataset.samples import samples_dir
 
 from .conftest import run_cli
 

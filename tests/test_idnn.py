@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import torch
 
-from ionav_viz.catalog import SCENARIOS
-from ionav_viz.errors import InputError
-from ionav_viz.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
-from ionav_viz.ins import SensorBias
-from ionav_viz.iovnbd import read_iovnbd
-from ionav_viz.samples import samples_dir
-from ionav_viz.training import fit_network, train_models, training_examples
+from ionav_viz.dataset.catalog import SCENARIOS
+from ionav_viz.core.errors import InputError
+from ionav_viz.nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
+from ionav_viz.nav.bias import SensorBias
+from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.dataset.samples import samples_dir
+from ionav_viz.nav.training import fit_network, train_models, training_examples
 
 IDENTITY = MinMax(0.0, 1.0)
 
@@ -228,8 +228,8 @@ def test_learning_rate_falls_to_zero_over_the_tail():
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_shipped_model_beats_dead_reckoning_on_the_bundled_test_drive(scenario):
     # the acceptance point: lower mean displacement CRSE and mean orientation-rate CRSE
-    from ionav_viz.evaluate import evaluate_drive
-    from ionav_viz.idnn import default_model_dir
+    from ionav_viz.analysis.evaluate import evaluate_drive
+    from ionav_viz.nav.idnn import default_model_dir
 
     result = evaluate_drive(read_iovnbd(samples_dir() / f"V-sim-{scenario}.csv"), 10.0, model=load_model(default_model_dir()))
     ins, idnn = result.metrics["ins"], result.metrics["idnn"]

@@ -1,16 +1,16 @@
 import numpy as np
 import pytest
 
-from ionav_viz.evaluate import evaluate_drive
-from ionav_viz.ins import SensorBias, estimate_bias
-from ionav_viz.iovnbd import read_iovnbd
-from ionav_viz.metrics import truth_for
-from ionav_viz.simulate import ideal_sensors_with, write_simulated_drive
+from ionav_viz.analysis.evaluate import evaluate_drive
+from ionav_viz.nav.bias import SensorBias, estimate_bias
+from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.analysis.metrics import truth_for
+from ionav_viz.sim.simulate import ideal_sensors_with, write_simulated_drive
 
 
 @pytest.mark.parametrize("scenario", ["motorway", "quick-accel"])
 def test_noise_free_ins_matches_gnss_displacement_within_1cm(tmp_path, scenario):
-    from ionav_viz.simulate import SensorModel
+    from ionav_viz.sim.simulate import SensorModel
 
     path = write_simulated_drive(tmp_path / "V-x.csv", scenario, seed=3, duration_s=120, sensors=SensorModel.ideal())
     res = evaluate_drive(read_iovnbd(path), 10, bias=SensorBias.none())

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from ionav_viz.errors import InputError
-from ionav_viz.mcap_source import read_mcap
+from ionav_viz.core.errors import InputError
+from ionav_viz.sources.mcap_reader import read_mcap
 
 from . import mcap_fixtures as fx
 from .conftest import run_cli
@@ -142,7 +142,7 @@ def test_empty_file(tmp_path):
 def test_no_imu_or_no_gnss_channel(tmp_path):
     from mcap_ros2.writer import Writer
 
-    from ionav_viz.ros2_msgs import DEFINITIONS
+    from ionav_viz.sources.ros2_msgs import DEFINITIONS
 
     for schema_name, missing in (("sensor_msgs/msg/NavSatFix", "no IMU channel"), ("sensor_msgs/msg/Imu", "no GNSS channel")):
         path = tmp_path / f"{schema_name.rsplit('/', 1)[-1]}-only.mcap"

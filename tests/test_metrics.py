@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from ionav_viz.metrics import aeps, cae, crse, summarise
+from ionav_viz.analysis.metrics import aeps, cae, crse, summarise
 
 
 def test_hand_computed_metrics():

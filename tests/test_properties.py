@@ -8,11 +8,11 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ionav_viz.errors import InputError
-from ionav_viz.iovnbd import HEADER, HEADER_LINE, read_iovnbd
-from ionav_viz.metrics import aeps, cae, crse, sequence_metrics
-from ionav_viz.ins import Estimate
-from ionav_viz.track import Track
+from ionav_viz.core.errors import InputError
+from ionav_viz.sources.iovnbd import HEADER, HEADER_LINE, read_iovnbd
+from ionav_viz.analysis.metrics import aeps, cae, crse, sequence_metrics
+from ionav_viz.nav.ins import Estimate
+from ionav_viz.nav.track import Track
 
 SETTINGS = settings(max_examples=120, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -84,7 +84,7 @@ def test_reader_returns_a_valid_drive_or_its_own_error(tmp_path_factory, data):
     assert np.all(np.abs(drive.lat_deg) <= 90) and np.all(np.abs(drive.lon_deg) <= 180)
     assert np.all((drive.heading_deg >= 0) & (drive.heading_deg < 360))
     # and what the reader accepts, the navigation code takes
-    from ionav_viz.evaluate import evaluate_drive
+    from ionav_viz.analysis.evaluate import evaluate_drive
 
     try:
         evaluate_drive(drive, 1.0)
@@ -106,9 +106,9 @@ def test_metric_invariants(err):
 @SETTINGS
 @given(n=st.integers(1, 12), pick=st.integers(0, 10**6))
 def test_errors_are_zero_when_the_estimate_is_the_truth(n, pick):
-    from ionav_viz.outages import every
-    from ionav_viz.sources import load_drive
-    from ionav_viz.windows import make_windows
+    from ionav_viz.nav.outages import every
+    from ionav_viz.sources.load import load_drive
+    from ionav_viz.nav.windows import make_windows
 
     w = make_windows(load_drive("roundabout"))
     starts = every(w, n, n)

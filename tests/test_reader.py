@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from ionav_viz.errors import InputError
-from ionav_viz.iovnbd import HEADER, HEADER_LINE, read_iovnbd
-from ionav_viz.units import G_MPS2
+from ionav_viz.core.errors import InputError
+from ionav_viz.sources.iovnbd import HEADER, HEADER_LINE, read_iovnbd
+from ionav_viz.core.units import G_MPS2
 
 from .conftest import run_cli
 
@@ -62,7 +62,7 @@ def test_vbox_minutes_are_detected(tmp_path):
 
 
 def test_yaw_sign_flipped_when_the_data_says_so(tmp_path, caplog):
-    from ionav_viz.simulate import write_simulated_drive
+    from ionav_viz.sim.simulate import write_simulated_drive
 
     path = write_simulated_drive(tmp_path / "V-r.csv", "roundabout", seed=5, duration_s=90)
     reference = read_iovnbd(path)

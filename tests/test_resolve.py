@@ -2,9 +2,9 @@ import shutil
 
 import pytest
 
-from ionav_viz.errors import InputError
-from ionav_viz.resolve import resolve_drive
-from ionav_viz.samples import samples_dir
+from ionav_viz.core.errors import InputError
+from ionav_viz.sources.resolve import resolve_drive
+from ionav_viz.dataset.samples import samples_dir
 
 from .conftest import run_cli
 

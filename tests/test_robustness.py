@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ionav_viz.iovnbd import HEADER
-from ionav_viz.samples import samples_dir
+from ionav_viz.sources.iovnbd import HEADER
+from ionav_viz.dataset.samples import samples_dir
 
 from .conftest import REPO, run_cli
 
@@ -211,8 +211,8 @@ def test_outage_starting_while_standing_still(tmp_path):
     proc = run_cli("replay", "hard-brake", "--at", "2s", "--outage", "3s", "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
     ev = run_cli("evaluate", "hard-brake", "--outage", "3s", "--json")
-    from ionav_viz.evaluate import evaluate_drive
-    from ionav_viz.sources import load_drive
+    from ionav_viz.analysis.evaluate import evaluate_drive
+    from ionav_viz.sources.load import load_drive
 
     drive = load_drive("hard-brake")
     res = evaluate_drive(drive, 3, starts=np.array([2]))
@@ -227,7 +227,7 @@ def test_outage_starting_while_standing_still(tmp_path):
 def model_copy(tmp_path):
     import shutil
 
-    from ionav_viz.idnn import default_model_dir
+    from ionav_viz.nav.idnn import default_model_dir
 
     target = tmp_path / "model"
     shutil.copytree(default_model_dir(), target)
@@ -303,7 +303,7 @@ def test_disk_full(tmp_path, command):
 
 @pytest.fixture(scope="module")
 def long_drive(tmp_path_factory):
-    from ionav_viz.simulate import write_simulated_drive
+    from ionav_viz.sim.simulate import write_simulated_drive
 
     return write_simulated_drive(tmp_path_factory.mktemp("long") / "V-long.csv", "quick-accel", seed=9, duration_s=4 * 3600)
 

@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from ionav_viz.rerun_log import COLORS
+from ionav_viz.viz.recording import COLORS
 
 from .conftest import REPO, run_cli
 

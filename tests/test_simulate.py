@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from ionav_viz.iovnbd import HEADER_LINE, read_iovnbd
-from ionav_viz.samples import SAMPLES, samples_dir
-from ionav_viz.simulate import write_simulated_drive
+from ionav_viz.sources.iovnbd import HEADER_LINE, read_iovnbd
+from ionav_viz.dataset.samples import SAMPLES, samples_dir
+from ionav_viz.sim.simulate import write_simulated_drive
 
 from .conftest import run_cli
 

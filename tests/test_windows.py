@@ -2,8 +2,8 @@ import math
 
 import numpy as np
 
-from ionav_viz.drive import Drive
-from ionav_viz.windows import make_windows, segments
+from ionav_viz.core.drive import Drive
+from ionav_viz.nav.windows import make_windows, segments
 
 WGS84_A_M = 6378137.0
 

@@ -1,0 +1,112 @@
+"""Run the estimators on the same outages of a drive and score them all the same way.
+
+:func:`evaluate_drive` is the one pure entry point that ``evaluate``, ``replay`` and the Python
+API use: it cuts the drive into windows, places the outages (the paper's tiling by default),
+runs every estimator on them (:func:`ionav_viz.nav.estimators.solve` checks the output and
+rebuilds the track) and computes the paper's metrics per outage. The result is a
+:class:`DriveResult`; :mod:`ionav_viz.analysis.report` turns results into reports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..nav.bias import SensorBias, resolve_bias
+from ..nav.estimators import BASELINE, Estimator, EstimatorInputs, Solution, describe, solve
+from ..nav.estimators import resolve as resolve_estimators
+from ..nav.outages import outage_windows, tile
+from ..nav.windows import Windows, make_windows
+from .metrics import METRICS, sequence_metrics, truth_for
+
+__all__ = ["METRICS", "DriveResult", "evaluate_drive", "improvement_pct", "resolve_bias"]
+
+
+@dataclass
+class DriveResult:
+    """Everything computed for one drive: windows, outages, and per estimator its solution and metrics.
+
+    Attributes:
+        drive, windows: the drive and its 1-second windows.
+        outage_s: outage length (s); ``starts``: first window index of each outage.
+        bias: the sensor biases every estimator was given.
+        estimators: the estimators, in report order.
+        estimates: per estimator name, its :class:`~ionav_viz.nav.estimators.Solution` (per-window
+            displacement and yaw rate, and the rebuilt track).
+        metrics: per estimator name, each of :data:`METRICS` as an array (n_outages,).
+    """
+
+    drive: Drive
+    windows: Windows
+    outage_s: float
+    starts: np.ndarray
+    bias: SensorBias
+    estimators: list[Estimator]
+    estimates: dict[str, Solution]
+    metrics: dict[str, dict[str, np.ndarray]]
+
+    @property
+    def n_windows(self) -> int:
+        return outage_windows(self.outage_s)
+
+    @property
+    def gnss_distance_m(self) -> np.ndarray:
+        """GNSS distance travelled during each outage (m)."""
+        disp, _ = truth_for(self.windows, self.starts, self.n_windows)
+        return disp.sum(axis=1)
+
+    @property
+    def outage_t0_s(self) -> np.ndarray:
+        """Start time of each outage (s since the drive's first sample)."""
+        return self.windows.t0_s[self.starts]
+
+    def estimator_info(self) -> list[dict[str, Any]]:
+        """Name, label and description of every estimator (for reports)."""
+        return [{"name": e.name, "label": e.label, **({"info": info} if (info := describe(e)) else {})} for e in self.estimators]
+
+
+def evaluate_drive(
+    drive: Drive,
+    outage_s: float,
+    *,
+    bias: SensorBias | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    model: Any = None,
+    starts: np.ndarray | None = None,
+    windows: Windows | None = None,
+) -> DriveResult:
+    """Every estimator on the outages ``starts`` (default: the paper's tiling) of ``drive``.
+
+    ``estimators``: names or objects (see :func:`ionav_viz.nav.estimators.resolve`); default the
+    INS, plus the IDNN when ``model`` (an IDNN model or its directory) is given. ``bias``: default
+    from the drive's own stationary stretches.
+    """
+    n = outage_windows(outage_s)
+    windows = windows if windows is not None else make_windows(drive)
+    starts = tile(windows, n) if starts is None else np.asarray(starts, dtype=int)
+    bias = bias if bias is not None else resolve_bias(drive)
+    if estimators is None:
+        estimators = ["ins", "idnn"] if model is not None else ["ins"]
+    chosen = [e if not isinstance(e, str) else None for e in estimators]
+    if any(c is None for c in chosen):
+        chosen = resolve_estimators(list(estimators), model=model)
+    inputs = EstimatorInputs(drive, windows, starts, n, bias)
+    solutions = {est.name: solve(est, inputs) for est in chosen}
+    metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
+    return DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics)
+
+
+def improvement_pct(baseline: float, candidate: float) -> float:
+    """How much lower ``candidate`` is than ``baseline``, in percent of the baseline."""
+    if not np.isfinite(baseline) or baseline == 0:
+        return float("nan")
+    return 100.0 * (baseline - candidate) / baseline
+
+
+def is_baseline(name: str) -> bool:
+    """Whether ``name`` is the paper's INS DR, the baseline of every improvement."""
+    return name == BASELINE

@@ -1,0 +1,307 @@
+"""Finding the paper's challenging manoeuvres (Section 2) in any drive.
+
+All detectors work on the drive resampled to a uniform 10 Hz grid (never across a gap longer
+than 1 s), on two smoothed signals:
+
+* longitudinal acceleration ``a`` (m/s^2): the derivative of the GNSS (Doppler) speed, smoothed
+  over ``accel_smooth_s`` (0.5 s). The GNSS speed is used rather than the accelerometer because
+  it carries no mount offset and no road-grade gravity;
+* yaw rate ``r`` (rad/s, counter-clockwise positive): the gyro minus its standstill bias (as the
+  INS estimates it, when the drive stands still for 3 s or more), smoothed over ``yaw_smooth_s`` (1 s).
+
+A *turning segment* is a maximal stretch where ``|r| >= turn_rate_radps`` (3 deg/s) with one
+sign; its heading change is the integral of ``r`` and its radius the distance travelled divided
+by the heading change. Definitions (thresholds in :class:`EventThresholds`, all overridable):
+
+``hard-brake``
+    ``a <= -0.45 g`` (the paper's definition, after [19]); the event spans the surrounding
+    deceleration below ``-brake_onset_g`` (0.1 g). Values: peak deceleration (g), speed before and
+    after (m/s).
+``roundabout``
+    A turning segment through at least ``roundabout_min_turn_deg`` (115 deg) of heading at a
+    radius of 8-60 m: most of the way round a roundabout (first exits included: a UK roundabout's
+    circulating turn plus its opposite entry and exit flares). The event spans the segment and
+    any turning segment of the other sign within 3 s on either side (the flares).
+    Values: heading change (deg), radius (m). U-turns at that radius count too.
+``sharp-corner``
+    A turning segment of 70-115 deg within 8 s at a radius of at most 30 m, outside a roundabout.
+    Values: heading change, radius, duration.
+``left-right``
+    Successive left and right turns: at least two consecutive turning segments of alternating
+    sign, each turning at least 20 deg, less than ``left_right_gap_s`` (2 s) apart, outside a
+    roundabout. Values: number of turns, largest heading change.
+``quick-accel``
+    A quick change in acceleration: two consecutive acceleration peaks of opposite sign, each at
+    least ``quick_accel_peak_mps2`` (1.2 m/s^2), at most ``quick_accel_window_s`` (4 s) apart.
+    The event spans the two peaks. Values: the two peaks (m/s^2) and the jerk between them (m/s^3).
+``cruise``
+    Straight-line cruising, the motorway reference: speed at least 15 m/s, ``|a| <= 0.5 m/s^2``,
+    ``|r| <= 0.02 rad/s``, for at least 10 s. Values: mean speed (m/s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, replace
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.grid import GRID_RATE_HZ
+from ..core.units import G_MPS2
+
+EVENT_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
+RATE_HZ = GRID_RATE_HZ
+
+
+@dataclass(frozen=True)
+class EventThresholds:
+    """Every threshold of the detectors (see the module docstring)."""
+
+    accel_smooth_s: float = 0.5
+    yaw_smooth_s: float = 1.0
+    hard_brake_g: float = 0.45
+    brake_onset_g: float = 0.1
+    turn_rate_radps: float = 0.0524  # 3 deg/s
+    roundabout_min_turn_deg: float = 115.0
+    roundabout_radius_m: tuple[float, float] = (8.0, 60.0)
+    flare_gap_s: float = 3.0
+    sharp_min_turn_deg: float = 70.0
+    sharp_max_s: float = 8.0
+    sharp_max_radius_m: float = 30.0
+    left_right_min_turn_deg: float = 20.0
+    left_right_gap_s: float = 2.0
+    quick_accel_peak_mps2: float = 1.2
+    quick_accel_window_s: float = 4.0
+    cruise_min_speed_mps: float = 15.0
+    cruise_max_accel_mps2: float = 0.5
+    cruise_max_yaw_radps: float = 0.02
+    cruise_min_s: float = 10.0
+
+    def with_overrides(self, pairs: list[str]) -> "EventThresholds":
+        """``['hard_brake_g=0.4', ...]`` -> a copy with those thresholds changed."""
+        from ..core.errors import InputError
+
+        known = {f.name: f for f in fields(self)}
+        changes = {}
+        for pair in pairs:
+            name, _, value = pair.partition("=")
+            name = name.strip().replace("-", "_")
+            if name not in known or not value:
+                raise InputError(f"--threshold {pair!r}: unknown threshold", f"choose from {', '.join(known)}")
+            try:
+                parsed = tuple(float(v) for v in value.split(",")) if "," in value else float(value)
+            except ValueError:
+                raise InputError(f"--threshold {pair!r}: {value!r} is not a number") from None
+            changes[name] = parsed
+        return replace(self, **changes)
+
+
+@dataclass
+class Event:
+    """A detected manoeuvre: type, interval (s from the start of the drive) and measured values."""
+
+    type: str
+    t0_s: float
+    t1_s: float
+    values: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"type": self.type, "start_s": round(self.t0_s, 2), "end_s": round(self.t1_s, 2),
+                **{k: round(float(v), 3) for k, v in self.values.items()}}
+
+
+@dataclass
+class Signals:
+    """Uniform 10 Hz signals of a drive; ``valid`` is False in gaps."""
+
+    t_s: np.ndarray
+    speed_mps: np.ndarray
+    accel_mps2: np.ndarray
+    yaw_rate_radps: np.ndarray
+    valid: np.ndarray
+
+
+def _smooth(x: np.ndarray, seconds: float, rate_hz: float) -> np.ndarray:
+    n = max(1, int(round(seconds * rate_hz)))
+    if n == 1:
+        return x.copy()
+    kernel = np.ones(n) / n
+    padded = np.concatenate([np.full(n // 2, x[0]), x, np.full(n - 1 - n // 2, x[-1])])
+    return np.convolve(padded, kernel, mode="valid")
+
+
+def signals_of(drive: Drive, th: EventThresholds) -> Signals:
+    """The drive on a 10 Hz grid with smoothed acceleration (from GNSS speed) and yaw rate."""
+    from ..nav.bias import estimate_bias
+
+    t = drive.t_s
+    grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / RATE_HZ)
+    k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
+    valid = (t[k] - t[k - 1]) <= 1.0
+    speed = np.interp(grid, t, drive.speed_mps)
+    still = estimate_bias(drive)  # the same standstill biases the INS uses
+    bias = still.gyro_radps if still is not None else 0.0
+    return smoothed_signals(grid, speed, np.interp(grid, t, drive.yaw_rate_radps) - bias, valid, th)
+
+
+def smoothed_signals(t_s: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, valid: np.ndarray,
+                     th: EventThresholds) -> Signals:
+    """Signals on a 10 Hz grid: acceleration from the smoothed speed, smoothed yaw rate."""
+    yaw = _smooth(yaw_rate_radps, th.yaw_smooth_s, RATE_HZ)
+    accel = _smooth(np.gradient(_smooth(speed_mps, th.accel_smooth_s, RATE_HZ), t_s), th.accel_smooth_s, RATE_HZ)
+    return Signals(t_s, speed_mps, accel, yaw, valid)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [i0, i1) where ``mask`` is True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+
+
+def detect_hard_brakes(s: Signals, th: EventThresholds) -> list[Event]:
+    out = []
+    braking = (s.accel_mps2 <= -th.brake_onset_g * G_MPS2) & s.valid
+    for i0, i1 in _runs(braking):
+        peak = float(s.accel_mps2[i0:i1].min())
+        if peak <= -th.hard_brake_g * G_MPS2:
+            out.append(Event("hard-brake", s.t_s[i0], s.t_s[i1 - 1], {
+                "peak_decel_g": -peak / G_MPS2, "speed_before_mps": s.speed_mps[i0], "speed_after_mps": s.speed_mps[i1 - 1]}))
+    return out
+
+
+@dataclass
+class _Turn:
+    i0: int
+    i1: int
+    sign: int
+    turn_deg: float
+    radius_m: float
+    t0: float
+    t1: float
+
+
+def turning_segments(s: Signals, th: EventThresholds) -> list[_Turn]:
+    """Maximal one-signed stretches of turning faster than ``turn_rate_radps``."""
+    dt = 1.0 / RATE_HZ
+    turns = []
+    for sign in (1, -1):
+        for i0, i1 in _runs((sign * s.yaw_rate_radps >= th.turn_rate_radps) & s.valid):
+            heading = float(np.sum(s.yaw_rate_radps[i0:i1]) * dt)
+            dist = float(np.sum(s.speed_mps[i0:i1]) * dt)
+            radius = dist / abs(heading) if heading else np.inf
+            turns.append(_Turn(i0, i1, sign, float(np.degrees(abs(heading))), radius, s.t_s[i0], s.t_s[i1 - 1]))
+    return sorted(turns, key=lambda x: x.i0)
+
+
+def detect_turn_events(s: Signals, th: EventThresholds) -> list[Event]:
+    """Roundabouts, sharp corners and successive left-right turns, from the turning segments."""
+    turns = turning_segments(s, th)
+    out: list[Event] = []
+    r_lo, r_hi = th.roundabout_radius_m
+    round_spans = []
+    for tr in turns:
+        if tr.turn_deg >= th.roundabout_min_turn_deg and r_lo <= tr.radius_m <= r_hi:
+            t0, t1 = tr.t0, tr.t1
+            for other in turns:  # entry and exit flares: the other way, just before and after
+                if other.sign != tr.sign and (0 <= tr.t0 - other.t1 <= th.flare_gap_s or 0 <= other.t0 - tr.t1 <= th.flare_gap_s):
+                    t0, t1 = min(t0, other.t0), max(t1, other.t1)
+            round_spans.append((t0, t1))
+            out.append(Event("roundabout", t0, t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m}))
+
+    def in_roundabout(tr: _Turn) -> bool:
+        return any(tr.t0 <= b and tr.t1 >= a for a, b in round_spans)
+
+    for tr in turns:
+        if (th.sharp_min_turn_deg <= tr.turn_deg < th.roundabout_min_turn_deg and tr.t1 - tr.t0 <= th.sharp_max_s
+                and tr.radius_m <= th.sharp_max_radius_m and not in_roundabout(tr)):
+            out.append(Event("sharp-corner", tr.t0, tr.t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m, "duration_s": tr.t1 - tr.t0}))
+
+    big = [tr for tr in turns if tr.turn_deg >= th.left_right_min_turn_deg and not in_roundabout(tr)]
+    series: list[_Turn] = []
+    for tr in big + [None]:
+        if tr is not None and series and tr.sign != series[-1].sign and tr.t0 - series[-1].t1 <= th.left_right_gap_s:
+            series.append(tr)
+            continue
+        if len(series) >= 2:
+            out.append(Event("left-right", series[0].t0, series[-1].t1,
+                             {"turns": len(series), "max_turn_deg": max(x.turn_deg for x in series)}))
+        series = [tr] if tr is not None else []
+    return out
+
+
+def detect_quick_accel(s: Signals, th: EventThresholds) -> list[Event]:
+    """Consecutive acceleration peaks of opposite sign, both large, close in time."""
+    a = s.accel_mps2
+    peaks = []
+    for sign in (1, -1):
+        for i0, i1 in _runs((sign * a >= th.quick_accel_peak_mps2) & s.valid):
+            i = i0 + int(np.argmax(sign * a[i0:i1]))
+            peaks.append((i, sign))
+    peaks.sort()
+    out = []
+    for (i, si), (j, sj) in zip(peaks[:-1], peaks[1:]):
+        dt = s.t_s[j] - s.t_s[i]
+        if si != sj and dt <= th.quick_accel_window_s and s.valid[i:j + 1].all():
+            out.append(Event("quick-accel", s.t_s[i], s.t_s[j], {
+                "first_peak_mps2": a[i], "second_peak_mps2": a[j], "jerk_mps3": (a[j] - a[i]) / max(dt, 1e-9)}))
+    return out
+
+
+def detect_cruise(s: Signals, th: EventThresholds) -> list[Event]:
+    calm = ((s.speed_mps >= th.cruise_min_speed_mps) & (np.abs(s.accel_mps2) <= th.cruise_max_accel_mps2)
+            & (np.abs(s.yaw_rate_radps) <= th.cruise_max_yaw_radps) & s.valid)
+    out = []
+    for i0, i1 in _runs(calm):
+        if s.t_s[i1 - 1] - s.t_s[i0] >= th.cruise_min_s:
+            out.append(Event("cruise", s.t_s[i0], s.t_s[i1 - 1], {"mean_speed_mps": float(s.speed_mps[i0:i1].mean())}))
+    return out
+
+
+def detect_events(drive: Drive, thresholds: EventThresholds | None = None, types: tuple[str, ...] = EVENT_TYPES) -> list[Event]:
+    """Every manoeuvre of the requested ``types`` in ``drive``, in time order."""
+    th = thresholds or EventThresholds()
+    if len(drive) < 2:
+        return []
+    s = signals_of(drive, th)
+    found = detect_hard_brakes(s, th) + detect_turn_events(s, th) + detect_quick_accel(s, th) + detect_cruise(s, th)
+    return sorted((e for e in found if e.type in types), key=lambda e: (e.t0_s, e.type))
+
+
+def thresholds_dict(th: EventThresholds) -> dict:
+    return asdict(th)
+
+
+@dataclass
+class DetectorScore:
+    """Recall and precision of one detector against known manoeuvres."""
+
+    type: str
+    n_truth: int
+    n_found: int
+    recalled: int
+    precise: int
+
+    @property
+    def recall(self) -> float:
+        return self.recalled / self.n_truth if self.n_truth else float("nan")
+
+    @property
+    def precision(self) -> float:
+        return self.precise / self.n_found if self.n_found else float("nan")
+
+
+def score(truth: list[tuple[str, float, float]], found: list[Event], end_s: float, edge_s: float = 1.0) -> dict[str, DetectorScore]:
+    """Match detections to known manoeuvres of the same type by overlapping intervals.
+
+    A known manoeuvre is recalled when a detection overlaps it; a detection is precise when it
+    overlaps a known manoeuvre. Neither known manoeuvres nor detections that reach within
+    ``edge_s`` of the end of the drive are scored: the end of the drive cuts them off.
+    """
+    out = {}
+    for kind in EVENT_TYPES:
+        t = [(a, b) for k, a, b in truth if k == kind and b < end_s - edge_s]
+        d = [(e.t0_s, e.t1_s) for e in found if e.type == kind and e.t1_s < end_s - edge_s]
+        def hits(x, ys):
+            return any(x[0] <= y[1] and y[0] <= x[1] for y in ys)
+        out[kind] = DetectorScore(kind, len(t), len(d), sum(hits(x, d) for x in t), sum(hits(x, t) for x in d))
+    return out

@@ -1,0 +1,192 @@
+"""Reports: the per-outage metrics and their summaries across drives, as JSON, text or Markdown.
+
+A :class:`Report` is what ``ionav-viz evaluate`` prints for one group of drives (one scenario,
+one manoeuvre type, or the drives given); :meth:`Report.to_json` is exactly ``evaluate --json``.
+Groups of reports (``--scenario all``, ``--by-event``) print as ``{"scenarios": {...}}`` or
+``{"by_event": {...}}`` (:func:`reports_to_json`) and as one overview table
+(:func:`ionav_viz.analysis.tables.render_overview`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import InputError
+from .evaluate import DriveResult, improvement_pct, is_baseline
+from .metrics import METRICS, summarise
+
+#: The metrics whose means are compared with the baseline in ``improvement_pct``.
+IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
+
+
+def json_safe(obj: Any) -> Any:
+    """NaN and infinities -> None (JSON has neither), recursively."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    return obj
+
+
+@dataclass
+class Report:
+    """Metrics of every estimator on the outages of one or more drives.
+
+    Attributes:
+        results: one :class:`~ionav_viz.analysis.evaluate.DriveResult` per drive.
+        title: the group's name (a scenario or manoeuvre type), or None.
+    """
+
+    results: list[DriveResult]
+    title: str | None = None
+    _dict: dict[str, Any] | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not self.results:
+            raise InputError("a report needs at least one evaluated drive")
+        names = [e.name for e in self.results[0].estimators]
+        for res in self.results[1:]:
+            if [e.name for e in res.estimators] != names:
+                raise ValueError("every drive of a report must be evaluated with the same estimators")
+
+    @property
+    def estimators(self) -> list[str]:
+        """Estimator names in report order."""
+        return [e.name for e in self.results[0].estimators]
+
+    @property
+    def labels(self) -> dict[str, str]:
+        return {e.name: e.label for e in self.results[0].estimators}
+
+    @property
+    def n_sequences(self) -> int:
+        return int(sum(len(r.starts) for r in self.results))
+
+    def metric(self, estimator: str, metric: str) -> np.ndarray:
+        """One metric of one estimator for every outage of every drive, shape (n_sequences,)."""
+        return np.concatenate([r.metrics[estimator][metric] for r in self.results])
+
+    @cached_property
+    def summary(self) -> dict[str, dict[str, dict[str, float]]]:
+        """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages."""
+        return {est: {m: summarise(self.metric(est, m)) for m in METRICS} for est in self.estimators}
+
+    @cached_property
+    def improvement_pct(self) -> dict[str, dict[str, float]]:
+        """Per estimator other than the INS DR: how much lower its mean metrics are than the INS's (%)."""
+        names = self.estimators
+        base = next((n for n in names if is_baseline(n)), None)
+        if base is None:
+            return {}
+        return {
+            est: {m: improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"]) for m in IMPROVEMENT_METRICS}
+            for est in names if est != base
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``evaluate --json`` object.
+
+        Keys: ``drive`` (names joined with '+'), ``drives``, ``outage_s``, ``n_sequences``,
+        ``sequences`` (each: ``drive``, ``start_s``, ``gnss_distance_m`` and per estimator the
+        :data:`METRICS`), ``summary`` (per estimator and metric: ``max``, ``min``, ``mean``, ``std``),
+        ``distance_m`` (max/min/mean of the outages' GNSS distance), ``bias`` (per drive),
+        ``estimators`` (name, label, info), ``improvement_pct`` (per estimator other than the INS
+        DR, on the mean of CRSE, orientation-rate CRSE and final position error) and ``model``
+        (the IDNN's, when it ran). NaN is kept here; :meth:`to_json` writes it as null.
+        """
+        if self._dict is not None:
+            return self._dict
+        results, estimators = self.results, self.estimators
+        sequences = []
+        for res in results:
+            dist = res.gnss_distance_m
+            for i, k in enumerate(res.starts):
+                entry: dict[str, Any] = {
+                    "drive": res.drive.name,
+                    "start_s": round(float(res.windows.t0_s[k]), 3),
+                    "gnss_distance_m": float(dist[i]),
+                }
+                for est in estimators:
+                    entry[est] = {m: float(res.metrics[est][m][i]) for m in METRICS}
+                sequences.append(entry)
+        distances = np.concatenate([r.gnss_distance_m for r in results])
+        out: dict[str, Any] = {
+            "drive": "+".join(r.drive.name for r in results),
+            "drives": [{"name": r.drive.name, "source": r.drive.source} for r in results],
+            "outage_s": results[0].outage_s,
+            "n_sequences": len(sequences),
+            "sequences": sequences,
+            "summary": self.summary,
+            "distance_m": {k: v for k, v in summarise(distances).items() if k != "std"},
+            "bias": [
+                {"drive": r.drive.name, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps, "source": r.bias.source}
+                for r in results
+            ],
+            "estimators": results[0].estimator_info(),
+        }
+        if self.improvement_pct:
+            out["improvement_pct"] = self.improvement_pct
+        idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
+        if idnn is not None:
+            out["model"] = idnn.get("info", {})
+        self._dict = out
+        return out
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """Exactly what ``ionav-viz evaluate --json`` prints for one group (NaN as null)."""
+        return json.dumps(json_safe(self.to_dict()), indent=indent)
+
+    def to_text(self) -> str:
+        """The paper's table layout (Tables 8-12) as plain text."""
+        from .tables import render_text
+
+        return render_text(self.to_dict(), self.title)
+
+    def to_markdown(self) -> str:
+        """The same table as Markdown."""
+        from .tables import render_markdown
+
+        return render_markdown(self.to_dict(), self.title)
+
+
+def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", indent: int | None = 2) -> str:
+    """Several groups as one JSON object ``{key: {group: report}}`` (``evaluate --scenario all --json``)."""
+    return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}}), indent=indent)
+
+
+def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
+    """A replay's parameters as Markdown (the recording's summary document)."""
+    drive, bias = result.drive, result.bias
+    names = [e.label[:-3] if e.label.endswith(" DR") else e.label for e in result.estimators]
+    labels = " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else names[0]
+    lines = [
+        f"# {drive.name}: {labels} during GNSS outages",
+        "",
+        f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
+        f"- **Outages**: {placement}; {report.n_sequences} outage(s)",
+        f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from {bias.source}",
+    ]
+    info = {e["name"]: e.get("info", {}) for e in result.estimator_info()}
+    if "idnn" in info:
+        model_info = info["idnn"]
+        trained = ", ".join(d["name"] for d in model_info.get("trained_on", [])) or "unknown"
+        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, {model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
+        if model_info.get("training_data"):
+            lines.append(f"- **Training data**: {model_info['training_data']}")
+    else:
+        lines.append("- **IDNN model**: none")
+    for est in result.estimators:
+        if est.name not in ("ins", "idnn"):
+            extra = ", ".join(f"{k}: {v}" for k, v in info.get(est.name, {}).items())
+            lines.append(f"- **{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`" + (f" ({extra})" if extra else ""))
+    lines.append("- **Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,359 @@
+"""The public Python API: load drives, evaluate estimators on GNSS outages, replay to ``.rrd``, render screenshots.
+
+Every function here is what one CLI command does, without the shell: arguments are Python values
+(seconds as floats, paths, placement objects, estimator names or objects), results are
+dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad input) or
+:class:`~ionav_viz.core.errors.ToolFailure` (the environment: disk, renderer, network).
+
+    import ionav_viz as iv
+
+    drive = iv.load_drive("roundabout")                  # a bundled scenario, a path or a run name
+    report = iv.evaluate([drive], outage_s=10.0)          # the paper's consecutive outages
+    print(report.to_text())
+    result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd")
+    iv.screenshot([result.path], "shots/", times=["worst"], views=["local"])
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .analysis.evaluate import DriveResult, evaluate_drive
+from .analysis.events import EVENT_TYPES, Event, EventThresholds, detect_events
+from .analysis.report import Report, run_summary_markdown
+from .core.drive import Drive
+from .core.errors import InputError
+from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS
+from .nav.bias import SensorBias, resolve_bias
+from .nav.estimators import Estimator, applies
+from .nav.estimators import resolve as resolve_estimators
+from .nav.outages import AroundEvents, Placement, Tile, outage_windows
+from .nav.windows import make_windows
+from .sources.load import McapOptions
+from .sources.load import load_drive as _load_drive
+from .sources.resolve import data_root as _data_root
+
+log = logging.getLogger("ionav_viz")
+
+#: ``progress(label, done, total)``: called as long work advances (e.g. to drive a progress bar).
+Progress = Callable[[str, int, int], None]
+DriveLike = Drive | str | Path
+
+
+@dataclass(frozen=True)
+class Outage:
+    """One GNSS outage of a replay: its number (from 1), start and end (s since the drive's start)."""
+
+    number: int
+    start_s: float
+    end_s: float
+    first_window: int
+
+
+@dataclass
+class ReplayResult:
+    """What :func:`replay` produced: the written recording, the report and the outages."""
+
+    path: Path
+    report: Report
+    outages: list[Outage]
+    placement: str
+    result: DriveResult = field(repr=False)
+    events: list[Event] = field(default_factory=list, repr=False)
+
+
+def load_drive(
+    spec: DriveLike,
+    data_root: str | Path | None = None,
+    *,
+    yaw_sign: str = "auto",
+    mcap: McapOptions | None = None,
+) -> Drive:
+    """Read a drive: a file path (IO-VNBD ``V-*.csv`` or ``.mcap``), a bundled scenario name
+    (``"roundabout"``, ``"stationary"``) or an IO-VNBD run name (``"V-Vw8"``) under ``data_root``
+    (default ``$IONAV_DATA``, else the per-user data directory ``fetch`` fills).
+
+    ``yaw_sign``: sign of the CSV yaw-rate column, ``"auto"``, ``"cw"`` or ``"ccw"``; ``mcap``:
+    topics and time stamps for MCAP logs. A :class:`Drive` is returned as is.
+    """
+    if isinstance(spec, Drive):
+        return spec
+    if yaw_sign not in ("auto", "cw", "ccw"):
+        raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw")
+    return _load_drive(str(spec), _data_root(data_root), yaw_sign, mcap)
+
+
+def scenario_drives(scenario: str, data_root: str | Path | None = None) -> dict[str, list[str]]:
+    """The test drives of a scenario (``"all"``: of every scenario), by scenario: the paper's runs
+    when a data root is set, else the bundled synthetic drives."""
+    from .dataset.samples import by_scenario
+
+    if scenario != "all" and scenario not in SCENARIOS:
+        raise InputError(f"unknown scenario {scenario!r}", f"choose {', '.join(SCENARIOS)} or all")
+    names = SCENARIOS if scenario == "all" else (scenario,)
+    root = _data_root(data_root)
+    if root is not None:
+        return {s: list(PAPER_TEST_RUNS[s]) for s in names}
+    return {s: [str(_bundled_path(sample.file)) for sample in by_scenario(s)] for s in names}
+
+
+def _bundled_path(file: str) -> Path:
+    from .dataset.samples import samples_dir
+
+    return samples_dir() / file
+
+
+def _estimators_for(drive: Drive, chosen: list[Estimator], defaulted: bool) -> list[Estimator]:
+    if not defaulted:
+        return chosen
+    return [e for e in chosen if applies(e, drive)]
+
+
+def _bias(drive: Drive, bias_from: DriveLike | SensorBias | None, data_root: Any, load_kw: dict) -> SensorBias:
+    if isinstance(bias_from, SensorBias):
+        return bias_from
+    stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None else None
+    return resolve_bias(drive, stationary)
+
+
+def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str]:
+    n = outage_windows(outage_s)
+    if isinstance(placement, AroundEvents):
+        unknown = [t for t in placement.types if t not in EVENT_TYPES]
+        if unknown or not placement.types:
+            raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}")
+        targets = placement.targets(events or [])
+        from .nav.outages import around
+
+        starts, used = around(windows, [(e.t0_s, e.t1_s) for e in targets], n)
+        if len(used) < len(targets):
+            log.warning("%s: %d of %d %s event(s) got no outage (overlapping another, or too near a gap or an end)",
+                        drive.name, len(targets) - len(used), len(targets), "/".join(placement.types))
+        if len(starts) == 0:
+            raise InputError(f"{drive.source}: no {' or '.join(placement.types)} event with room for a {outage_s:g} s outage",
+                             f"see 'ionav-viz events {drive.source}'")
+        return starts, placement.describe(outage_s, len(used), len(targets))
+    return placement.starts(windows, n), placement.describe(outage_s)
+
+
+def evaluate(
+    drives: Sequence[DriveLike] | DriveLike,
+    outage_s: float = 10.0,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    model: Any = None,
+    *,
+    bias_from: DriveLike | SensorBias | None = None,
+    data_root: str | Path | None = None,
+    thresholds: EventThresholds | None = None,
+    title: str | None = None,
+    yaw_sign: str = "auto",
+    mcap: McapOptions | None = None,
+    progress: Progress | None = None,
+) -> Report:
+    """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
+
+    Args:
+        drives: drives or what names them (see :func:`load_drive`).
+        outage_s: length of each outage, whole seconds.
+        placement: where outages go (default :class:`Tile`, the paper's consecutive outages).
+            A drive too short for one outage is skipped with a warning.
+        estimators: names (``"ins"``, ``"idnn"``, entry-point names, ``"module:NAME"``) or
+            estimator objects; default every built-in that applies (the IDNN when a model exists).
+        model: the IDNN's model (an ``IdnnModel`` or its directory); default the shipped one.
+        bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
+            default each drive's own stationary stretches.
+        thresholds: event-detector thresholds (for :class:`AroundEvents`).
+        title: the report's group name (a scenario), shown in its tables.
+
+    Returns:
+        a :class:`Report`; ``report.to_json()`` is what ``ionav-viz evaluate --json`` prints.
+    """
+    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
+    if not items:
+        raise InputError("no drive to evaluate", "give at least one drive")
+    placement = placement or Tile()
+    n = outage_windows(outage_s)
+    chosen = resolve_estimators(estimators, model=model)
+    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
+    fixed_bias = bias_from if isinstance(bias_from, SensorBias) else None
+    stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None and fixed_bias is None else None
+    results = []
+    for i, item in enumerate(items):
+        drive = load_drive(item, data_root, **load_kw)
+        if progress:
+            progress(drive.name, i, len(items))
+        windows = make_windows(drive)
+        events = detect_events(drive, thresholds or EventThresholds()) if isinstance(placement, AroundEvents) else None
+        if isinstance(placement, Tile):
+            starts = placement.starts(windows, n)
+            if len(starts) == 0:
+                log.warning("%s: too short for a single %g s outage; skipped", drive.name, outage_s)
+                continue
+        else:
+            starts, _ = _starts(drive, windows, placement, outage_s, events)
+        bias = fixed_bias or resolve_bias(drive, stationary)
+        ests = _estimators_for(drive, chosen, estimators is None)
+        results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows))
+    if progress:
+        progress("done", len(items), len(items))
+    if not results:
+        raise InputError(f"no {outage_s:g} s outage fits in {', '.join(_name(d) for d in items)}", "use shorter outages", param="outage_s")
+    return Report(results, title)
+
+
+def evaluate_by_event(
+    drives: Sequence[DriveLike],
+    outage_s: float = 10.0,
+    types: Sequence[str] | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    model: Any = None,
+    *,
+    bias_from: DriveLike | SensorBias | None = None,
+    data_root: str | Path | None = None,
+    thresholds: EventThresholds | None = None,
+    yaw_sign: str = "auto",
+    mcap: McapOptions | None = None,
+) -> dict[str, Report]:
+    """One report per manoeuvre type: an outage centred on each detected event, across ``drives``."""
+    kinds = tuple(types) if types else EVENT_TYPES
+    unknown = [k for k in kinds if k not in EVENT_TYPES]
+    if unknown:
+        raise InputError(f"unknown event type(s) {', '.join(unknown)}", f"choose from {', '.join(EVENT_TYPES)}")
+    n = outage_windows(outage_s)
+    chosen = resolve_estimators(estimators, model=model)
+    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
+    fixed_bias = bias_from if isinstance(bias_from, SensorBias) else None
+    stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None and fixed_bias is None else None
+    th = thresholds or EventThresholds()
+    per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
+    for item in drives:
+        drive = load_drive(item, data_root, **load_kw)
+        windows = make_windows(drive)
+        bias = fixed_bias or resolve_bias(drive, stationary)
+        found = detect_events(drive, th, kinds)
+        ests = _estimators_for(drive, chosen, estimators is None)
+        for kind in kinds:
+            starts = AroundEvents((kind,)).starts(windows, n, found)
+            if len(starts):
+                per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows))
+    reports = {kind: Report(results, kind) for kind, results in per_type.items() if results}
+    if not reports:
+        raise InputError(f"no {', '.join(kinds)} event with room for a {outage_s:g} s outage in {', '.join(_name(d) for d in drives)}",
+                         "see 'ionav-viz events DRIVE'")
+    return reports
+
+
+def _name(item: DriveLike) -> str:
+    return item.name if isinstance(item, Drive) else str(item)
+
+
+def replay(
+    drive: DriveLike,
+    outage_s: float = 10.0,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    output: str | Path | None = None,
+    *,
+    model: Any = None,
+    bias_from: DriveLike | SensorBias | None = None,
+    data_root: str | Path | None = None,
+    thresholds: EventThresholds | None = None,
+    yaw_sign: str = "auto",
+    mcap: McapOptions | None = None,
+    progress: Progress | None = None,
+) -> ReplayResult:
+    """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
+
+    Args:
+        drive, outage_s, placement, estimators, model, bias_from, thresholds: as for :func:`evaluate`
+            (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
+        output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` of the checkout); an
+            existing file is replaced atomically, nothing is left behind on failure.
+        progress: called as the recording is built.
+
+    Returns:
+        a :class:`ReplayResult` with the written path, the report and the outages.
+    """
+    from .core.fileio import atomic_path
+    from .dataset.samples import recordings_dir
+    from .viz.recording import write_recording
+
+    out = Path(output) if output is not None else None
+    if out is not None and out.suffix.lower() != ".rrd":
+        raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd")
+    placement = placement or Tile()
+    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
+    d = load_drive(drive, data_root, **load_kw)
+    windows = make_windows(d)
+    events = detect_events(d, thresholds or EventThresholds())
+    starts, description = _starts(d, windows, placement, outage_s, events)
+    if len(starts) == 0:
+        raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
+    chosen = _estimators_for(d, resolve_estimators(estimators, model=model), estimators is None)
+    bias = _bias(d, bias_from, data_root, load_kw)
+    result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows)
+    report = Report([result])
+    summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
+    out = out if out is not None else recordings_dir() / f"{d.name}.rrd"
+    total = 5 + len(result.estimates)
+    done = [0]
+
+    def advance(label: str) -> None:
+        done[0] += 1
+        if progress:
+            progress(f"{out.name}: {label}", done[0], total)
+
+    with atomic_path(out) as tmp:
+        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
+    log.info("%d entities, %d rows", len(rows), sum(rows.values()))
+    n = result.n_windows
+    outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(starts)]
+    return ReplayResult(out, report, outages, description, result, events)
+
+
+def screenshot(
+    recordings: Sequence[str | Path] | str | Path,
+    output: str | Path,
+    times: Sequence[str | float] = ("end",),
+    views: Sequence[str] = ("all",),
+    size: tuple[int, int] = (1600, 900),
+    *,
+    timeout_s: float = 120.0,
+    progress: Callable[[Path], None] | None = None,
+) -> list[Path]:
+    """Render PNG screenshots of recordings with a private headless Rerun viewer.
+
+    Args:
+        recordings: ``.rrd`` files written by :func:`replay`.
+        output: a ``.png`` for one image, else a directory (or a ``.png`` whose stem prefixes the names).
+        times: seconds (float), ``"35s"``, ``"worst"`` (end of the outage with the largest INS DR
+            position error) or ``"end"``.
+        views: ``all``, ``map``, ``local``, ``signals``, ``errors``.
+        size: image width and height in pixels.
+
+    Returns:
+        the written PNG paths. Needs a Vulkan renderer (Mesa's lavapipe on machines without a GPU).
+    """
+    from .viz.screenshot import VIEWS, render
+
+    paths = [Path(recordings)] if isinstance(recordings, (str, Path)) else [Path(r) for r in recordings]
+    if not paths:
+        raise InputError("no recording to render", "give at least one .rrd made by replay")
+    for rec in paths:
+        if not rec.is_file():
+            raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
+    for view in views:
+        if view not in VIEWS:
+            raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}")
+    width, height = (int(x) for x in size)
+    if not (200 <= width <= 8192 and 200 <= height <= 8192):
+        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels")
+    spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in times]
+    return render(paths, Path(output), spec, list(views), (width, height), timeout_s=timeout_s, progress=progress)

@@ -1,0 +1,107 @@
+"""The ``ionav-viz`` application: the root options, and one-line errors with exit codes.
+
+Commands live one per module beside this one and register themselves on :data:`app`.
+
+Heavy libraries (numpy, torch, pyproj, rerun) are imported inside the commands so that
+``ionav-viz --help`` answers at once. Every known input problem is an
+:class:`~ionav_viz.errors.InputError`, printed by :func:`main` as one line with exit code 2
+(a traceback only with ``--debug``); Ctrl-C exits with 130.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import typer
+
+from ..core.errors import InputError, ToolFailure
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Replay drives, inject GNSS outages, and compare INS dead reckoning, the IDNN and your own estimators in Rerun.",
+)
+log = logging.getLogger("ionav_viz")
+
+class _StderrHandler(logging.Handler):
+    def emit(self, record: logging.LogRecord) -> None:
+        prefix = "warning: " if record.levelno >= logging.WARNING else ""
+        print(prefix + record.getMessage(), file=sys.stderr)
+
+
+def _setup_logging(verbose: bool = False) -> None:
+    import os
+
+    # Rerun's native logger writes to stderr; our own one-line errors say what failed.
+    if not verbose and "--debug" not in sys.argv:
+        os.environ.setdefault("RUST_LOG", "off")
+    log.handlers[:] = [_StderrHandler()]
+    log.setLevel(logging.INFO if verbose else logging.WARNING)
+    log.propagate = False
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        print(f"ionav-viz {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    debug: bool = typer.Option(False, "--debug", help="Show full tracebacks on errors."),
+    verbose: bool = typer.Option(False, "--verbose", "-v", help="Say more about what is read and assumed."),
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True, help="Print the version and exit."),
+) -> None:
+    _setup_logging(verbose)
+
+
+
+#: API argument -> the option that set it in the running command (for error messages).
+OPTION_OF: dict[str, str] = {}
+
+
+def name_options(**options: str) -> None:
+    """Say which option set each API argument, so library errors name the option."""
+    OPTION_OF.update(options)
+
+
+def main() -> None:
+    """Console entry point: one-line errors with exit code 2, 130 on Ctrl-C."""
+    debug = "--debug" in sys.argv[1:]
+    try:
+        code = app(standalone_mode=False)
+        # Without standalone mode, typer returns exit codes (130 for Ctrl-C) instead of exiting.
+        if isinstance(code, int) and not isinstance(code, bool):
+            if code == 130:
+                print("interrupted", file=sys.stderr)
+            sys.exit(code)
+    except typer.Exit as exc:
+        sys.exit(exc.exit_code)
+    except (KeyboardInterrupt, typer.Abort):
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)
+    except InputError as exc:
+        if debug:
+            raise
+        option = OPTION_OF.get(exc.param or "")
+        text = f"{option}: {exc}" if option and not exc.message.startswith(option) else str(exc)
+        print(f"error: {text}", file=sys.stderr)
+        sys.exit(2)
+    except ToolFailure as exc:
+        if debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(1)
+    except Exception as exc:
+        # typer's (click's) usage errors: one line too, with the command's --help as the hint
+        if hasattr(exc, "format_message") and hasattr(exc, "exit_code") and not debug:
+            ctx = getattr(exc, "ctx", None)
+            command = ctx.command_path.replace("python -m ionav_viz.cli", "ionav-viz") if ctx is not None else "ionav-viz"
+            print(f"error: {exc.format_message()} (hint: see '{command} --help')", file=sys.stderr)
+            sys.exit(exc.exit_code)
+        raise
+

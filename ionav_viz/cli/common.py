@@ -1,0 +1,132 @@
+"""What several commands share: option declarations (once), option parsing, progress bars.
+
+Heavy libraries are imported inside functions so that ``ionav-viz --help`` answers at once.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+
+# --- options shared by several commands -----------------------------------------------------
+DataRoot = typer.Option(None, "--data-root", help="IO-VNBD checkout to find run names in (default: $IONAV_DATA).", show_default=False)
+YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the CSV yaw-rate column: auto (checked against the GNSS heading), cw or ccw positive.")
+ImuTopic = typer.Option(None, "--imu-topic", help="MCAP: the IMU topic (default: the one sensor_msgs/msg/Imu channel).", show_default=False)
+GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP: the GNSS topic (default: the one NavSatFix or LocationFix channel).", show_default=False)
+SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP: a TwistStamped or Odometry topic for speed (optional).", show_default=False)
+Stamps = typer.Option("header", "--stamps", help="MCAP: time stamps from message headers (header) or the recorder's log time (log).")
+OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
+ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
+NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
+EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, or names registered by installed packages (default: every built-in that applies).", show_default=False)
+EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Python API' in the README.", show_default=False)
+BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
+Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
+ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
+
+
+def duration_s(text: str, option: str) -> float:
+    """A duration option -> seconds; a bad one is a usage error naming the option."""
+    from ..core.durations import parse_duration_s
+    from ..core.errors import InputError
+
+    try:
+        return parse_duration_s(text, option)
+    except InputError as exc:
+        raise typer.BadParameter(f"{text!r} {'is not a duration; use e.g. 10s, 500ms, 1m' if 'not a duration' in exc.message else 'must be a positive duration'}", param_hint=option) from None
+
+
+def whole_seconds(text: str, option: str) -> float:
+    """A duration option that must be a whole number of seconds (outage lengths and periods)."""
+    from ..core.errors import InputError
+    from ..nav.outages import outage_windows
+
+    seconds = duration_s(text, option)
+    try:
+        outage_windows(seconds)
+    except InputError as exc:
+        raise InputError(f"{option} {text}: {exc.message}", "the estimators predict once per 1 s window; use e.g. 10s") from None
+    return seconds
+
+
+def thresholds(pairs: Optional[list[str]]):
+    from ..analysis.events import EventThresholds
+
+    return EventThresholds().with_overrides(list(pairs or []))
+
+
+def event_types(text: str, option: str = "--on") -> tuple[str, ...]:
+    from ..analysis.events import EVENT_TYPES
+
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    unknown = [k for k in kinds if k not in EVENT_TYPES]
+    if unknown or not kinds:
+        raise typer.BadParameter(f"unknown event type(s) {', '.join(unknown) or text!r}; choose from {', '.join(EVENT_TYPES)}", param_hint=option)
+    return kinds
+
+
+def mcap_options(imu_topic, gnss_topic, speed_topic, stamps):
+    from ..sources.load import McapOptions
+
+    if stamps not in ("header", "log"):
+        raise typer.BadParameter(f"{stamps!r}: choose header or log", param_hint="--stamps")
+    return McapOptions(imu_topic, gnss_topic, speed_topic, stamps)
+
+
+def yaw_sign(value: str) -> str:
+    if value not in ("auto", "cw", "ccw"):
+        raise typer.BadParameter(f"{value!r}: choose auto, cw or ccw", param_hint="--yaw-sign")
+    return value
+
+
+def estimators(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool, model: Optional[Path]) -> list[Any]:
+    """The estimator objects ``--estimators``, ``--estimator`` and ``--no-idnn`` choose."""
+    from ..nav.estimators import BUILTIN, EstimatorError, resolve
+
+    chosen: Optional[list[str]] = None
+    if names is not None:
+        chosen = [n.strip() for n in names.split(",") if n.strip()]
+        if not chosen:
+            raise typer.BadParameter(f"{names!r}: name at least one estimator, e.g. ins,idnn", param_hint="--estimators")
+    if no_idnn:
+        chosen = [n for n in (chosen if chosen is not None else BUILTIN) if n != "idnn"]
+        if not chosen and not plugins:
+            raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
+    try:
+        if chosen is None:
+            # every built-in that applies, plus the plug-ins
+            return resolve(None, plugins=list(plugins or []), model=model)
+        return resolve(chosen, plugins=list(plugins or []), model=model)
+    except EstimatorError as exc:
+        option = "--estimator" if any(p and p in exc.message for p in plugins or []) else "--estimators"
+        raise type(exc)(f"{option}: {exc.message}", exc.hint) from exc
+
+
+def progress(quiet: bool):
+    """A rich progress bar on stderr, or a no-op when quiet or not a terminal."""
+    from contextlib import nullcontext
+
+    if quiet or not sys.stderr.isatty():
+        return nullcontext(None)
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                    TimeElapsedColumn(), console=Console(stderr=True), transient=True)
+
+
+def progress_callback(bar, label: str):
+    """A ``progress(label, done, total)`` callback that drives one task of ``bar`` (or does nothing)."""
+    task: list[Any] = []
+
+    def update(text: str, done: int, total: int) -> None:
+        if bar is None:
+            return
+        if not task:
+            task.append(bar.add_task(label, total=total))
+        bar.update(task[0], completed=done, total=total, description=text)
+
+    return update

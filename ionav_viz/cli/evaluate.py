@@ -1,0 +1,70 @@
+"""``ionav-viz evaluate``: the paper's tables for every estimator on consecutive GNSS outages."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from . import common as c
+from .app import app, name_options
+
+
+@app.command()
+def evaluate(
+    drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
+    outage: str = c.OutageOpt,
+    scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
+    markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
+    overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
+    by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives."),
+    on: Optional[str] = typer.Option(None, "--on", help="With --by-event: only these event types (default: all)."),
+    thresholds: Optional[list[str]] = c.Thresholds,
+    estimator_names: Optional[str] = c.EstimatorsOpt,
+    plugins: Optional[list[str]] = c.EstimatorOpt,
+    model: Optional[Path] = c.ModelOpt,
+    no_idnn: bool = c.NoIdnnOpt,
+    bias_from: Optional[str] = c.BiasFromOpt,
+    data_root_opt: Optional[Path] = c.DataRoot,
+    yaw_sign: str = c.YawSign,
+    imu_topic: Optional[str] = c.ImuTopic,
+    gnss_topic: Optional[str] = c.GnssTopic,
+    speed_topic: Optional[str] = c.SpeedTopic,
+    stamps: str = c.Stamps,
+) -> None:
+    """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
+    from .. import api
+    from ..analysis.report import json_safe, reports_to_json
+    from ..analysis.tables import render_overview
+
+    name_options(outage_s="--outage", bias_from="--bias-from", model="--model", placement="--on")
+    outage_s = c.whole_seconds(outage, "--outage")
+    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    c.yaw_sign(yaw_sign)
+    if scenario is not None and drives:
+        raise typer.BadParameter("give drives or --scenario, not both")
+    groups = api.scenario_drives(scenario, data_root_opt) if scenario else {None: list(drives or [])}
+    if not any(groups.values()):
+        raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
+    ests = c.estimators(estimator_names, plugins, no_idnn, model)
+    th = c.thresholds(thresholds)
+    common = dict(estimators=ests, model=model, bias_from=bias_from, data_root=data_root_opt, yaw_sign=yaw_sign, mcap=mcap)
+    if by_event:
+        kinds = c.event_types(on) if on else None
+        reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, kinds, thresholds=th, **common)
+    else:
+        reports = {group: api.evaluate(specs, outage_s, title=group, **common) for group, specs in groups.items()}
+
+    if as_json:
+        if None in reports:
+            print(reports[None].to_json())
+        else:
+            print(reports_to_json(reports, "by_event" if by_event else "scenarios"))
+        return
+    if overview:
+        dicts = {group: json_safe(rep.to_dict()) for group, rep in reports.items()}
+        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Scenario"), end="")
+        return
+    print("\n".join(rep.to_markdown() if markdown else rep.to_text() for rep in reports.values()), end="")

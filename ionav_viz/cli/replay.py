@@ -1,0 +1,104 @@
+"""``ionav-viz replay``: one drive, GNSS outages, every estimator side by side, written to a ``.rrd``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from . import common as c
+from .app import app, log, name_options
+
+
+def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int, on: Optional[str]):
+    """The outage placement the options choose (at most one of them), and the option that chose it."""
+    from ..nav.outages import At, AroundEvents, Every, Random, Tile
+
+    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
+    if len(chosen) > 1:
+        raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
+    if on is not None:
+        return AroundEvents(c.event_types(on)), "--on"
+    if every is not None:
+        return Every(c.whole_seconds(every, "--every")), "--every"
+    if at is not None:
+        return At(tuple(_parse_times(at))), "--at"
+    if random_count is not None:
+        return Random(random_count, seed), "--random"
+    return Tile(), "--outage"
+
+
+def _parse_times(text: str) -> list[float]:
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    if not parts:
+        raise typer.BadParameter(f"{text!r}: give start times like 12s,40s", param_hint="--at")
+    return [0.0 if p in ("0", "0s") else c.duration_s(p, "--at") for p in parts]
+
+
+@app.command()
+def replay(
+    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file path, bundled scenario name or IO-VNBD run name."),
+    outage: str = c.OutageOpt,
+    every: Optional[str] = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s."),
+    at: Optional[str] = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s."),
+    random_count: Optional[int] = typer.Option(None, "--random", help="Draw N non-overlapping outages at random."),
+    seed: int = typer.Option(0, "--seed", help="Seed for --random."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd; an existing file is replaced)."),
+    open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary."),
+    estimator_names: Optional[str] = c.EstimatorsOpt,
+    plugins: Optional[list[str]] = c.EstimatorOpt,
+    model: Optional[Path] = c.ModelOpt,
+    no_idnn: bool = c.NoIdnnOpt,
+    bias_from: Optional[str] = c.BiasFromOpt,
+    data_root_opt: Optional[Path] = c.DataRoot,
+    yaw_sign: str = c.YawSign,
+    imu_topic: Optional[str] = c.ImuTopic,
+    gnss_topic: Optional[str] = c.GnssTopic,
+    speed_topic: Optional[str] = c.SpeedTopic,
+    stamps: str = c.Stamps,
+    screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
+    on: Optional[str] = typer.Option(None, "--on", help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout (see 'ionav-viz events')."),
+    thresholds: Optional[list[str]] = c.Thresholds,
+) -> None:
+    """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
+    from .. import api
+
+    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    outage_s = c.whole_seconds(outage, "--outage")
+    placement, option = placement_of(every, at, random_count, seed, on)
+    name_options(outage_s="--outage", placement=option, bias_from="--bias-from", model="--model")
+    if output is not None and output.suffix.lower() != ".rrd":
+        raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
+    c.yaw_sign(yaw_sign)
+    ests = c.estimators(estimator_names, plugins, no_idnn, model)
+    with c.progress(quiet) as bar:
+        result = api.replay(drive_spec, outage_s, placement, ests, output, model=model, bias_from=bias_from,
+                            data_root=data_root_opt, thresholds=c.thresholds(thresholds), yaw_sign=yaw_sign, mcap=mcap,
+                            progress=c.progress_callback(bar, "writing"))
+    if not quiet:
+        print(result.report.to_text(), end="", file=sys.stderr)
+    print(result.path)
+    if screenshot_dir is not None:
+        from ..viz.screenshot import VIEWS
+
+        api.screenshot([result.path], screenshot_dir, ["worst"], list(VIEWS), (1600, 900), progress=print)
+    if open_viewer:
+        _open_viewer(result.path)
+
+
+def _open_viewer(path: Path) -> None:
+    import shutil
+    import subprocess
+
+    from ..core.errors import InputError
+
+    exe = shutil.which("rerun")
+    if exe is None:
+        raise InputError("cannot open the viewer: the 'rerun' command is not on PATH", f"open {path} with the Rerun viewer yourself")
+    subprocess.Popen([exe, str(path)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+__all__ = ["log", "placement_of", "replay"]

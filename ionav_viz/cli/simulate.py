@@ -1,0 +1,38 @@
+"""``ionav-viz simulate``: synthetic drives in the exact IO-VNBD format."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from . import common as c
+from .app import app
+
+@app.command()
+def simulate(
+    scenario: Optional[str] = typer.Argument(None, help="motorway, roundabout, quick-accel, hard-brake, sharp-cornering or stationary."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The V-*.csv file to write."),
+    seed: int = typer.Option(0, "--seed", help="Random seed; the same seed gives the same bytes."),
+    duration: str = typer.Option("120s", "--duration", help="Length of the drive, e.g. 120s or 5m."),
+    ideal: bool = typer.Option(False, "--ideal", help="Perfect sensors and flat roads (for checks)."),
+    bundled: Optional[Path] = typer.Option(None, "--bundled", help="Regenerate every bundled sample into this directory instead."),
+) -> None:
+    """Write a synthetic drive in the exact IO-VNBD V-*.csv format."""
+    from ..dataset.samples import SAMPLES
+    from ..sim.simulate import SCENARIOS, SensorModel, write_simulated_drive
+
+    if bundled is not None:
+        bundled.mkdir(parents=True, exist_ok=True)
+        for sample in SAMPLES:
+            write_simulated_drive(bundled / sample.file, sample.scenario, sample.seed, sample.duration_s)
+            print(bundled / sample.file)
+        return
+    if scenario is None or output is None:
+        raise typer.BadParameter("give a SCENARIO and -o FILE.csv (or --bundled DIR)")
+    if scenario not in SCENARIOS:
+        raise typer.BadParameter(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}", param_hint="SCENARIO")
+    seconds = c.duration_s(duration, "--duration")
+    path = write_simulated_drive(output, scenario, seed, seconds, SensorModel.ideal() if ideal else None)
+    print(path)

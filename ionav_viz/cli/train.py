@@ -1,0 +1,102 @@
+"""``ionav-viz train`` and ``architectures``: the IDNN's two networks and their sizes."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+
+from . import common as c
+from ..core.errors import InputError
+from .app import app
+
+@app.command()
+def train(
+    drives: Optional[list[str]] = typer.Argument(None, help="Training drives (default: the bundled synthetic training drives)."),
+    output: Path = typer.Option(Path("models/idnn"), "-o", "--output", help="Model directory to write (weights + metadata.json)."),
+    paper_train: bool = typer.Option(False, "--paper-train", help="Train on the paper's Table 1 runs under the data root."),
+    arch: str = typer.Option("idnn", "--arch", help="idnn (the paper's), mlp, rnn, gru or lstm (Section 3.3)."),
+    steps: int = typer.Option(10, "--steps", help="Time steps (10 Hz samples) of acceleration per displacement input (Table 4; 10 = 1 s, 20 = 2 s)."),
+    steps_yaw: int = typer.Option(10, "--steps-yaw", help="Time steps of gyro yaw rate per orientation-rate input (Table 3)."),
+    epochs_disp: int = typer.Option(40, "--epochs-disp", help="Epochs of the displacement model (Table 5: 40)."),
+    epochs_yaw: int = typer.Option(60, "--epochs-yaw", help="Epochs of the orientation-rate model (Table 5: 60)."),
+    feedback_noise: float = typer.Option(0.1, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
+    residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (see README); --no-residual is the paper's plain net."),
+    lr_decay_tail: float = typer.Option(0.3, "--lr-decay-tail", help="Fraction of the training over which the learning rate falls linearly to 0 at the end (0 = constant, as in the paper)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    bias_from: Optional[str] = c.BiasFromOpt,
+    data_root_opt: Optional[Path] = c.DataRoot,
+    yaw_sign: str = c.YawSign,
+    imu_topic: Optional[str] = c.ImuTopic,
+    gnss_topic: Optional[str] = c.GnssTopic,
+    speed_topic: Optional[str] = c.SpeedTopic,
+    stamps: str = c.Stamps,
+) -> None:
+    """Train the displacement and orientation-rate networks and write them with their metadata."""
+    from ..dataset.catalog import PAPER_TRAIN_RUNS
+    from ..nav.bias import resolve_bias
+    from ..nav.idnn import ModelConfig, save_model
+    from ..sources.resolve import data_root
+    from ..dataset.samples import SAMPLES, sample_path
+    from ..sources.load import load_drive
+    from ..nav.training import train_models
+
+    root = data_root(data_root_opt)
+    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    if paper_train:
+        if root is None:
+            raise InputError("--paper-train needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA")
+        specs, description = list(PAPER_TRAIN_RUNS), "the paper's IO-VNBD training runs (Table 1)"
+    elif drives:
+        specs, description = list(drives), "user-given drives"
+    else:
+        specs = [str(sample_path(s)) for s in SAMPLES if s.role == "train"]
+        description = "the bundled synthetic training drives (recordings/samples/V-sim-*-train-*.csv), not real data"
+    config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp,
+                         epochs_yaw=epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
+                         lr_decay_tail=lr_decay_tail, seed=seed)
+    config.validate()
+    if epochs_disp < 1 or epochs_yaw < 1:
+        raise typer.BadParameter("epochs must be at least 1")
+    stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
+    loaded = []
+    for spec in specs:
+        drive = load_drive(spec, root, yaw_sign, mcap)
+        loaded.append((drive, resolve_bias(drive, stationary)))
+
+    with c.progress(quiet) as bar:
+        tasks: dict[str, Any] = {}
+
+        def progress(label: str, done: int, total: int) -> None:
+            if bar is None:
+                return
+            if label not in tasks:
+                tasks[label] = bar.add_task(f"training {label}", total=total)
+            bar.update(tasks[label], completed=done)
+
+        model = train_models(loaded, config, progress=progress, description=description)
+    model.metadata["training"]["command"] = "ionav-viz " + " ".join(sys.argv[1:])
+    save_model(model, output)
+    val = model.metadata["validation"]
+    params = model.metadata["trainable_parameters"]
+    print(f"trained {arch} on {len(loaded)} drive(s), {model.metadata['training']['n_examples']} windows; "
+          f"trainable parameters: displacement {params['displacement']}, orientation rate {params['yaw_rate']}", file=sys.stderr)
+    print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate {val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
+    print(output)
+
+
+@app.command()
+def architectures(
+    steps: int = typer.Option(10, "--steps", help="Time steps per input."),
+) -> None:
+    """Trainable parameters of each network per hidden width, laid out like the paper's Table 2."""
+    from ..nav.idnn import ARCHS, build_net, count_parameters
+
+    widths = (8, 16, 32, 64, 128, 192, 256, 320)
+    print("hidden units  " + "  ".join(f"{a.upper():>8}" for a in ARCHS) + "   (displacement model, with feedback input)")
+    for width in widths:
+        counts = [count_parameters(build_net(a, steps, width, 0.1, True)) for a in ARCHS]
+        print(f"{width:>12}  " + "  ".join(f"{c:>8,}" for c in counts))

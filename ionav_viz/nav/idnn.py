@@ -1,0 +1,397 @@
+"""The paper's Input Delay Neural Networks (Section 2.2, Table 5), and the comparison networks.
+
+Two models predict once per 1-second window:
+
+* **Displacement** (m): input = the bias-corrected longitudinal acceleration samples of the last
+  ``n_steps_disp`` time steps (10 at 10 Hz by default, Table 4) and the displacement of the previous
+  window; output = this window's displacement. In training the previous displacement is the
+  GNSS one plus white Gaussian noise of ``feedback_noise_m`` (Figure 1); in prediction the
+  model's own previous output is fed back, and the first window of an outage gets the last
+  GNSS displacement before the outage (Figure 2).
+* **Orientation rate** (rad/s, counter-clockwise positive): input = the bias-corrected gyro
+  yaw-rate samples of the last ``n_steps_yaw`` time steps (10 by default, Table 3); output = the
+  GNSS yaw rate of the window.
+
+Inputs are bias-corrected with the same stationary biases as the INS (the paper's a_INS,
+Eq. 10), so a model carries over between cars with different mount tilts. Every feature group
+and the target are min-max normalised to [0, 1] with the training statistics, stored with the
+model. With ``residual`` (default, beyond the paper) each network learns a correction to a
+kinematic skip term (:func:`kinematic_weights`, :meth:`Normalisation.skip_terms`). Architectures (``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed
+inputs, 2 hidden layers of 32 units, 10 % dropout), ``mlp`` (the same net on the latest sample
+only), and ``rnn``/``gru``/``lstm`` (2 recurrent layers over the time steps; the feedback input
+joins the last hidden state).
+
+Weights are stored as safetensors (no pickle is ever loaded) beside a ``metadata.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..core.errors import InputError
+from .bias import SensorBias
+from ..core.grid import GRID_STEP_S, WINDOW_S
+from .windows import Windows
+
+if TYPE_CHECKING:
+    from .estimators import Estimate, EstimatorInputs
+
+log = logging.getLogger("ionav_viz")
+
+ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
+FORMAT_VERSION = 2
+STEP_S = GRID_STEP_S  # one time step of the windows' grid
+MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
+
+
+@dataclass
+class ModelConfig:
+    """Architecture and training hyperparameters (defaults: the paper's Table 5)."""
+
+    arch: str = "idnn"
+    n_steps_disp: int = 10
+    n_steps_yaw: int = 10
+    hidden: int = 32
+    dropout: float = 0.1
+    feedback_noise_m: float = 0.1
+    residual: bool = True
+    lr_disp: float = 0.004
+    lr_yaw: float = 0.001
+    batch_size: int = 256
+    epochs_disp: int = 40
+    epochs_yaw: int = 60
+    lr_decay_tail: float = 0.3
+    seed: int = 0
+
+    def validate(self) -> None:
+        if self.arch not in ARCHS:
+            raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}")
+        for name, option in (("n_steps_disp", "--steps"), ("n_steps_yaw", "--steps-yaw")):
+            if not 1 <= getattr(self, name) <= 20:
+                raise InputError(f"{getattr(self, name)} time steps ({name}, {option}) out of range", "use 1 to 20 time steps (2 s at 10 Hz)")
+        if self.hidden < 1 or not 0 <= self.dropout < 1:
+            raise InputError(f"hidden units {self.hidden} / dropout {self.dropout} out of range", "use >= 1 hidden units and a dropout in [0, 1)")
+        if self.feedback_noise_m < 0:
+            raise InputError(f"feedback noise {self.feedback_noise_m} m (--feedback-noise) is negative", "give a standard deviation >= 0")
+        if not 0 <= self.lr_decay_tail <= 1:
+            raise InputError(f"lr_decay_tail {self.lr_decay_tail} (--lr-decay-tail) out of range", "use a fraction of the training in [0, 1]")
+
+
+def kinematic_weights(n_steps: int) -> np.ndarray:
+    """Weights (summing to 1) of the last ``n_steps`` acceleration samples in ``d_t - d_{t-1}``.
+
+    With a window of 1 s, ``d_t - d_{t-1} = integral of K(tau) a(tau) dtau`` over the two windows,
+    with the triangular kernel ``K = 1 - |tau|`` (tau in s, 0 at the start of window t). The
+    samples at tau = 1 - (n_steps - 1 - j) * STEP_S get ``K * STEP_S`` (the trapezoid rule on
+    the 10 Hz grid): 20 steps give the exact increment for piecewise-linear acceleration; fewer
+    steps miss part of the previous window, so the weights are rescaled to sum to 1 and a
+    constant acceleration still gives its exact increment.
+    """
+    tau = 1.0 - (n_steps - 1 - np.arange(n_steps)) * STEP_S
+    k = np.clip(1.0 - np.abs(tau), 0.0, None)
+    if k.sum() <= 0:  # a single sample at tau = 1: fall back to it alone
+        k = np.ones(n_steps)
+    return k / k.sum()
+
+
+def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bool, skip: tuple[float, float] | None = None):
+    """A torch module mapping normalised inputs (batch, n_steps [+ 1 feedback]) -> (batch,).
+
+    With ``skip = (gain, offset)`` the output adds a kinematic skip term, so the layers learn a
+    correction to it: ``gain * sum(w * samples) + offset`` plus, for the displacement model
+    (``feedback``), the fed-back previous displacement; ``w`` are the
+    :func:`kinematic_weights` for the displacement model and equal weights (the mean rate) for
+    the orientation-rate model; see :meth:`Normalisation.skip_terms`.
+    """
+    import torch
+    from torch import nn
+
+    weights = torch.from_numpy((kinematic_weights(n_steps) if feedback else np.full(n_steps, 1.0 / n_steps)).astype(np.float32))
+
+    def skip_of(x: torch.Tensor) -> torch.Tensor | float:
+        if skip is None:
+            return 0.0
+        term = skip[0] * (x[:, :n_steps] @ weights) + skip[1]
+        return term + x[:, n_steps] if feedback else term
+
+    class FeedForward(nn.Module):
+        def __init__(self, n_in: int, latest_only: bool) -> None:
+            super().__init__()
+            self.latest_only = latest_only
+            self.body = nn.Sequential(
+                nn.Linear(n_in, hidden), nn.ReLU(), nn.Dropout(dropout),
+                nn.Linear(hidden, hidden), nn.ReLU(), nn.Dropout(dropout),
+                nn.Linear(hidden, 1),
+            )  # fmt: skip
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            skip = skip_of(x)
+            if self.latest_only:
+                x = torch.cat([x[:, n_steps - 1 : n_steps], x[:, n_steps:]], dim=1)
+            return skip + self.body(x).squeeze(-1)
+
+    class Recurrent(nn.Module):
+        def __init__(self, cell: type[nn.Module]) -> None:
+            super().__init__()
+            self.rnn = cell(1, hidden, num_layers=2, batch_first=True, dropout=dropout)
+            self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(hidden + int(feedback), 1))
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            seq = x[:, :n_steps].unsqueeze(-1)
+            out, _ = self.rnn(seq)
+            last = torch.cat([out[:, -1, :], x[:, n_steps:]], dim=1)
+            return skip_of(x) + self.head(last).squeeze(-1)
+
+    n_in = n_steps + int(feedback)
+    if arch == "idnn":
+        return FeedForward(n_in, latest_only=False)
+    if arch == "mlp":
+        return FeedForward(1 + int(feedback), latest_only=True)
+    cells = {"rnn": nn.RNN, "gru": nn.GRU, "lstm": nn.LSTM}
+    return Recurrent(cells[arch])
+
+
+def count_parameters(net) -> int:
+    """Trainable parameters of a torch module."""
+    return int(sum(p.numel() for p in net.parameters() if p.requires_grad))
+
+
+@dataclass
+class MinMax:
+    """Min-max scaling of one feature group to [0, 1]."""
+
+    lo: float
+    hi: float
+
+    @classmethod
+    def fit(cls, x: np.ndarray) -> "MinMax":
+        lo, hi = float(np.min(x)), float(np.max(x))
+        return cls(lo, hi if hi > lo else lo + 1.0)
+
+    def scale(self, x: np.ndarray) -> np.ndarray:
+        return (x - self.lo) / (self.hi - self.lo)
+
+    def unscale(self, y: np.ndarray) -> np.ndarray:
+        return y * (self.hi - self.lo) + self.lo
+
+
+@dataclass
+class Normalisation:
+    """Training statistics of every feature group and target."""
+
+    accel: MinMax
+    disp: MinMax
+    gyro: MinMax
+    yaw: MinMax
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {k: [getattr(self, k).lo, getattr(self, k).hi] for k in ("accel", "disp", "gyro", "yaw")}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, list[float]]) -> "Normalisation":
+        return cls(**{k: MinMax(float(d[k][0]), float(d[k][1])) for k in ("accel", "disp", "gyro", "yaw")})
+
+    def skip_terms(self, displacement: bool) -> tuple[float, float]:
+        """(gain, offset) of the kinematic skip term in normalised units.
+
+        Displacement: d_t = d_{t-1} + sum(w * a) * 1 s with the :func:`kinematic_weights` ``w``
+        (summing to 1). Orientation rate: the mean gyro rate (gyro and yaw rate share one scaling).
+        """
+        if not displacement:
+            return (1.0, 0.0) if self.gyro == self.yaw else ((self.gyro.hi - self.gyro.lo) / (self.yaw.hi - self.yaw.lo), (self.gyro.lo - self.yaw.lo) / (self.yaw.hi - self.yaw.lo))
+        span = self.disp.hi - self.disp.lo
+        return ((self.accel.hi - self.accel.lo) * WINDOW_S / span, self.accel.lo * WINDOW_S / span)
+
+
+def sample_history(samples: np.ndarray, idx: np.ndarray, n_steps: int) -> np.ndarray:
+    """The last ``n_steps`` samples up to the end of each window ``idx`` (any shape).
+
+    ``samples`` is a windows array (n_windows, steps + 1); window ``k``'s own time steps are
+    ``samples[k, 1:]``. More than ``steps`` time steps reach into window ``k - 1``, which must be in
+    the same segment (outage starts and training windows guarantee it).
+    """
+    steps = samples.shape[1] - 1
+    own = samples[idx, 1:]
+    if n_steps <= steps:
+        return own[..., steps - n_steps :]
+    before = samples[np.maximum(idx - 1, 0), 1:]
+    return np.concatenate([before, own], axis=-1)[..., 2 * steps - n_steps :]
+
+
+@dataclass
+class IdnnModel:
+    """A trained displacement model and orientation-rate model with their normalisation."""
+
+    config: ModelConfig
+    norm: Normalisation
+    disp_net: Any
+    yaw_net: Any
+    metadata: dict[str, Any] = field(default_factory=dict)
+    directory: str = ""
+
+    def _run(self, net, x: np.ndarray) -> np.ndarray:
+        import torch
+
+        with torch.no_grad():
+            return net(torch.from_numpy(x.astype(np.float32))).numpy().astype(np.float64)
+
+    def predict_yaw_rate(self, gyro_radps: np.ndarray) -> np.ndarray:
+        """Orientation rate (rad/s) from bias-corrected gyro histories (..., n_steps), in one call."""
+        shape = gyro_radps.shape[:-1]
+        x = self.norm.gyro.scale(gyro_radps.reshape(-1, self.config.n_steps_yaw))
+        return self.norm.yaw.unscale(self._run(self.yaw_net, x)).reshape(shape)
+
+    def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray) -> np.ndarray:
+        """Displacement (m) of every window of every sequence, feeding back the model's own output.
+
+        ``accel_mps2``: (n_seq, n_windows, n_steps_disp) bias-corrected; ``first_prev_disp_m``: (n_seq,)
+        GNSS displacement of the second before each outage. All sequences step together.
+        """
+        n_seq, n_win, _ = accel_mps2.shape
+        acc = self.norm.accel.scale(accel_mps2)
+        prev = self.norm.disp.scale(np.asarray(first_prev_disp_m, dtype=np.float64))
+        out = np.empty((n_seq, n_win))
+        for w in range(n_win):  # each window feeds the next
+            y = self._run(self.disp_net, np.concatenate([acc[:, w, :], prev[:, None]], axis=1))
+            out[:, w] = self.norm.disp.unscale(y)
+            prev = y
+        return out
+
+    def predict(self, windows: Windows, starts: np.ndarray, n_windows: int, bias: SensorBias) -> tuple[np.ndarray, np.ndarray]:
+        """Displacement (m) and yaw rate (rad/s) per window for outages of ``n_windows`` starting at
+        ``starts`` (batched): two arrays of shape (n_outages, n_windows)."""
+        starts = np.asarray(starts, dtype=int)
+        idx = starts[:, None] + np.arange(n_windows)[None, :]
+        if len(starts) == 0:
+            return np.zeros((0, n_windows)), np.zeros((0, n_windows))
+        accel = sample_history(windows.accel_mps2, idx, self.config.n_steps_disp) - bias.accel_mps2
+        gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps_yaw) - bias.gyro_radps
+        return self.predict_displacement(accel, windows.gnss_disp_m[starts - 1]), self.predict_yaw_rate(gyro)
+
+    def describe(self) -> dict[str, Any]:
+        """What the recording and reports say about the model."""
+        return {
+            "directory": self.directory,
+            "arch": self.config.arch,
+            "n_steps_disp": self.config.n_steps_disp,
+            "n_steps_yaw": self.config.n_steps_yaw,
+            "trained_on": self.metadata.get("training", {}).get("drives", []),
+            "training_data": self.metadata.get("training", {}).get("description", ""),
+        }
+
+
+class IdnnEstimator:
+    """The paper's IDNN as an estimator: a trained model, or the shipped one (loaded when first used).
+
+    ``model``: an :class:`IdnnModel`, a model directory, or None for the shipped model. Without a
+    shipped model the estimator is not :meth:`available` (the default estimator set then skips it).
+    """
+
+    name = "idnn"
+    label = "IDNN"
+    color = (40, 110, 240)
+
+    def __init__(self, model: "IdnnModel | str | Path | None" = None) -> None:
+        self._model = model if isinstance(model, IdnnModel) else None
+        self._directory = Path(model) if isinstance(model, (str, Path)) else None
+
+    def available(self) -> bool:
+        """A model was given, or the shipped one exists."""
+        if self._model is not None or self._directory is not None:
+            return True
+        if (default_model_dir() / "metadata.json").is_file():
+            return True
+        log.warning("no shipped IDNN model at %s; evaluating without the IDNN (train one with 'ionav-viz train')",
+                    default_model_dir())
+        return False
+
+    @property
+    def model(self) -> IdnnModel:
+        if self._model is None:
+            self._model = load_model(self._directory or default_model_dir())
+        return self._model
+
+    def estimate(self, inputs: "EstimatorInputs") -> "Estimate":
+        from .estimators import Estimate
+
+        disp, yaw = self.model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias)
+        return Estimate(disp, yaw)
+
+    def describe(self) -> dict[str, Any]:
+        return self.model.describe()
+
+
+def default_model_dir() -> Path:
+    """The shipped model: ``models/idnn`` of the checkout."""
+    return Path(__file__).resolve().parents[2] / "models" / "idnn"
+
+
+def save_model(model: IdnnModel, directory: Path) -> None:
+    """Write weights (safetensors) and ``metadata.json`` into ``directory``, each file atomically."""
+    from safetensors.torch import save
+
+    from ..core.fileio import atomic_write_bytes
+
+    directory.mkdir(parents=True, exist_ok=True)
+    for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
+        state = {k: v.detach().contiguous() for k, v in net.state_dict().items()}
+        atomic_write_bytes(directory / MODEL_FILES[key], save(state))
+    meta = dict(model.metadata)
+    meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict())
+    atomic_write_bytes(directory / "metadata.json", (json.dumps(meta, indent=2) + "\n").encode())
+
+
+def load_model(directory: str | Path) -> IdnnModel:
+    """Load a model directory; a missing, corrupted or mismatched model is an :class:`InputError`."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load
+
+    directory = Path(directory)
+    meta_path = directory / "metadata.json"
+    if not meta_path.is_file():
+        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' or pass --model DIR")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        if meta.get("format_version") != FORMAT_VERSION:
+            raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}", "retrain with this version of ionav-viz")
+        config = ModelConfig(**meta["config"])
+        norm = Normalisation.from_dict(meta["normalisation"])
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{meta_path}: not valid JSON ({exc})", "the model directory is damaged; retrain or restore it") from None
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise InputError(f"{meta_path}: incomplete or invalid metadata ({type(exc).__name__}: {exc})", "retrain or restore the model") from None
+    config.validate()
+    nets = {}
+    for key, filename in MODEL_FILES.items():
+        path = directory / filename
+        is_disp = key == "displacement"
+        skip = norm.skip_terms(is_disp) if config.residual else None
+        steps = config.n_steps_disp if is_disp else config.n_steps_yaw
+        net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
+        try:
+            state = load(path.read_bytes())
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read model weights ({exc.strerror})", "retrain or restore the model") from None
+        except (SafetensorError, ValueError, Exception) as exc:  # safetensors rejects anything else, pickles included
+            raise InputError(f"{path}: not a safetensors weights file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", "weights must be safetensors; pickled files are never loaded") from None
+        expected = net.state_dict()
+        bad = [k for k in expected if k not in state or tuple(state[k].shape) != tuple(expected[k].shape)]
+        extra = [k for k in state if k not in expected]
+        if bad or extra:
+            first = (bad or extra)[0]
+            got = tuple(state[first].shape) if first in state else "missing"
+            want = tuple(expected[first].shape) if first in expected else "unexpected"
+            raise InputError(
+                f"{path}: weights do not fit the {config.arch} architecture of metadata.json ({first}: {got} vs {want})",
+                "the weights and metadata come from different models; retrain",
+            )
+        net.load_state_dict(state)
+        net.eval()
+        nets[key] = net
+    return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory))

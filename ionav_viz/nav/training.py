@@ -1,0 +1,195 @@
+"""Training the displacement and orientation-rate networks (the paper's Section 3.4, Table 5).
+
+Training examples are 1-second windows of the training drives, taken at ten grid phases
+(offsets 0, 0.1, ... 0.9 s) so every second of a drive is seen at every phase. A window is used
+when the window before it lies in the same gap-free segment (it supplies the previous GNSS
+displacement, the feedback input). Inputs are bias-corrected with each drive's stationary
+biases (:func:`ionav_viz.evaluate.resolve_bias`). A seeded 10 % of the examples is held out for
+validation. Loss: mean absolute error; optimiser: Adamax, its learning rate falling linearly to
+zero over the last ``lr_decay_tail`` of the steps (beyond the paper: the displacement model's
+small constant offset, which the feedback loop integrates, otherwise depends on the last
+batches); deterministic on the CPU for a seed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from ..nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
+from ..nav.bias import SensorBias
+from ..nav.windows import make_windows
+
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass
+class TrainingSet:
+    """Examples: accel (n, n_steps_disp) and gyro (n, n_steps_yaw) histories, previous and current GNSS
+    displacement, GNSS yaw rate."""
+
+    accel_mps2: np.ndarray
+    prev_disp_m: np.ndarray
+    disp_m: np.ndarray
+    gyro_radps: np.ndarray
+    yaw_rate_radps: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.disp_m)
+
+    def subset(self, mask: np.ndarray) -> "TrainingSet":
+        return TrainingSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
+
+
+def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int, n_steps_yaw: int, phases: int = 10) -> TrainingSet:
+    """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets."""
+    parts: list[tuple[np.ndarray, ...]] = []
+    for drive, bias in drives:
+        for phase in range(phases):
+            w = make_windows(drive, offset_s=phase / 10.0)
+            if len(w) < 2:
+                continue
+            # the previous window (feedback input, and history beyond 10 steps) is in the same segment
+            k = np.arange(1, len(w))
+            k = k[w.segment[k] == w.segment[k - 1]]
+            parts.append((
+                sample_history(w.accel_mps2, k, n_steps_disp) - bias.accel_mps2,
+                w.gnss_disp_m[k - 1],
+                w.gnss_disp_m[k],
+                sample_history(w.gyro_radps, k, n_steps_yaw) - bias.gyro_radps,
+                w.gnss_yaw_rate_radps[k],
+            ))  # fmt: skip
+    if not parts:
+        raise InputError("no training windows: the training drives are too short", "give drives of at least a few seconds")
+    return TrainingSet(*(np.concatenate(p) for p in zip(*parts)))
+
+
+def fit_network(net, x: np.ndarray, y: np.ndarray, lr: float, epochs: int, batch: int, seed: int,
+         noise_col: int | None, noise_sd: float, progress: Progress | None, label: str,
+         decay_tail: float = 0.0) -> list[float]:
+    """Minimise L1 with Adamax; optional Gaussian noise on one (already normalised) input column.
+
+    The learning rate is constant, then falls linearly to zero over the last ``decay_tail``
+    fraction of the optimiser steps (0: constant throughout, as in the paper's Keras set-up).
+    """
+    import torch
+
+    gen = torch.Generator().manual_seed(seed)
+    xt, yt = torch.from_numpy(x.astype(np.float32)), torch.from_numpy(y.astype(np.float32))
+    opt = torch.optim.Adamax(net.parameters(), lr=lr)
+    total_steps = epochs * ((len(xt) + batch - 1) // batch)
+    tail_steps = decay_tail * total_steps
+    schedule = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda step: 1.0 if tail_steps <= 0 else min(1.0, max(0.0, (total_steps - step) / tail_steps)))
+    loss_fn = torch.nn.L1Loss()
+    history = []
+    net.train()
+    for epoch in range(epochs):
+        order = torch.randperm(len(xt), generator=gen)
+        total = 0.0
+        for i in range(0, len(xt), batch):
+            sel = order[i : i + batch]
+            xb = xt[sel].clone()
+            if noise_col is not None and noise_sd > 0:
+                xb[:, noise_col] += torch.randn(len(sel), generator=gen) * noise_sd
+            opt.zero_grad()
+            loss = loss_fn(net(xb), yt[sel])
+            loss.backward()
+            opt.step()
+            schedule.step()
+            total += float(loss.detach()) * len(sel)
+        history.append(total / len(xt))
+        if progress:
+            progress(label, epoch + 1, epochs)
+    net.eval()
+    return history
+
+
+def train_models(
+    drives: list[tuple[Drive, SensorBias]],
+    config: ModelConfig,
+    progress: Progress | None = None,
+    description: str = "",
+) -> IdnnModel:
+    """Train both networks on ``drives`` with ``config``; returns the model with its metadata."""
+    import torch
+
+    config.validate()
+    torch.manual_seed(config.seed)
+    torch.use_deterministic_algorithms(True)
+    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw)
+    rng = np.random.default_rng(config.seed)
+    val_mask = rng.random(len(data)) < 0.1
+    train, val = data.subset(~val_mask), data.subset(val_mask)
+    # Feedback input and output share one scaling, and so do gyro input and yaw-rate output
+    # (same units), which the residual skip terms need.
+    rate_scale = MinMax.fit(np.concatenate([train.gyro_radps.ravel(), train.yaw_rate_radps]))
+    norm = Normalisation(
+        accel=MinMax.fit(train.accel_mps2),
+        disp=MinMax.fit(np.concatenate([train.disp_m, train.prev_disp_m])),
+        gyro=rate_scale,
+        yaw=rate_scale,
+    )
+
+    def disp_inputs(s: TrainingSet) -> np.ndarray:
+        return np.concatenate([norm.accel.scale(s.accel_mps2), norm.disp.scale(s.prev_disp_m)[:, None]], axis=1)
+
+    disp_net = build_net(config.arch, config.n_steps_disp, config.hidden, config.dropout, True,
+                         norm.skip_terms(True) if config.residual else None)
+    yaw_net = build_net(config.arch, config.n_steps_yaw, config.hidden, config.dropout, False,
+                        norm.skip_terms(False) if config.residual else None)
+    noise_sd = config.feedback_noise_m / (norm.disp.hi - norm.disp.lo)  # metres -> normalised units
+    disp_loss = fit_network(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), config.lr_disp, config.epochs_disp,
+                     config.batch_size, config.seed, config.n_steps_disp, noise_sd, progress, "displacement",
+                     config.lr_decay_tail)
+    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), config.lr_yaw,
+                    config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, progress, "orientation rate",
+                    config.lr_decay_tail)
+
+    model = IdnnModel(config, norm, disp_net, yaw_net)
+    with torch.no_grad():
+        val_disp = norm.disp.unscale(model._run(disp_net, disp_inputs(val))) if len(val) else np.zeros(0)
+        val_yaw = model.predict_yaw_rate(val.gyro_radps) if len(val) else np.zeros(0)
+    model.metadata = {
+        "training": {
+            "description": description,
+            "drives": [{"name": d.name, "file": Path(d.source).name, "sha256": _sha256(d.source),
+                        "bias_accel_mps2": b.accel_mps2, "bias_gyro_radps": b.gyro_radps} for d, b in drives],
+            "n_examples": len(train),
+            "n_validation": len(val),
+            "final_loss_normalised": {"displacement": disp_loss[-1], "yaw_rate": yaw_loss[-1]},
+        },
+        "validation": {
+            "disp_mae_m": float(np.mean(np.abs(val_disp - val.disp_m))) if len(val) else None,
+            "yaw_rate_mae_radps": float(np.mean(np.abs(val_yaw - val.yaw_rate_radps))) if len(val) else None,
+            "note": "one-window predictions on a seeded 10 % hold-out, previous displacement from GNSS",
+        },
+        "trainable_parameters": {"displacement": count_parameters(disp_net), "yaw_rate": count_parameters(yaw_net)},
+        "versions": _versions(),
+        "hyperparameters": asdict(config),
+    }
+    return model
+
+
+def _sha256(path: str) -> str | None:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _versions() -> dict[str, Any]:
+    import numpy
+    import torch
+
+    from .. import __version__
+
+    return {"ionav_viz": __version__, "torch": torch.__version__, "numpy": numpy.__version__, "python": platform.python_version()}

@@ -1,0 +1,167 @@
+"""The paper's 1-second windows, built from a :class:`~ionav_viz.drive.Drive`.
+
+Resampling (how gaps are handled)
+    Inertial signals and GNSS are first put on a uniform grid of ``rate_hz`` (10 Hz) points,
+    starting at the first sample of each *segment*, by linear interpolation in time (inertial
+    samples of a faster log, e.g. 20 Hz, are averaged per grid bin instead). A missing sample
+    (a 0.2 s period) is thereby bridged. A gap longer than ``max_gap_s``
+    (default 1 s) splits the drive into segments: no window spans such a gap, and no outage
+    sequence spans two segments.
+
+Window ``w`` of a segment covers grid points ``10w .. 10w+10`` (both boundaries included),
+i.e. ``[t0, t0 + 1 s]``. Per window:
+
+* ``gnss_disp_m``: geodesic distance between the GNSS fixes at the two boundaries (WGS84,
+  pyproj ``Geod.inv``, Vincenty-class accuracy), the paper's x_GPS.
+* ``gnss_yaw_rate_radps``: counter-clockwise turn rate from the GNSS course change across the
+  window, wrap-around safe. The course is meaningless when (nearly) standing still: below
+  ``min_course_speed_mps`` (1 m/s) the last course seen at speed is held, so a standing car
+  has a zero GNSS yaw rate.
+* ``accel_mps2`` / ``gyro_radps``: the 11 inertial samples on the window's grid points
+  (the INS integrates them with the trapezoid rule; the IDNN takes the last 10, the samples
+  of the window's 10 time steps).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, WINDOW_S, hold_course_when_slow
+
+__all__ = ["WINDOW_S", "Windows", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
+
+
+@dataclass
+class Windows:
+    """All 1-second windows of a drive, as arrays with one row per window.
+
+    ``segment`` numbers the gap-free stretch a window belongs to; windows of one segment are
+    consecutive in time. Boundary quantities have a ``0`` (start) and ``1`` (end) suffix.
+    """
+
+    rate_hz: float
+    t0_s: np.ndarray
+    segment: np.ndarray
+    lat0_deg: np.ndarray
+    lon0_deg: np.ndarray
+    lat1_deg: np.ndarray
+    lon1_deg: np.ndarray
+    heading0_deg: np.ndarray
+    heading1_deg: np.ndarray
+    speed0_mps: np.ndarray
+    gnss_disp_m: np.ndarray
+    gnss_yaw_rate_radps: np.ndarray
+    accel_mps2: np.ndarray  # (n, steps + 1)
+    gyro_radps: np.ndarray  # (n, steps + 1)
+
+    def __len__(self) -> int:
+        return len(self.t0_s)
+
+    @property
+    def steps(self) -> int:
+        """Samples per window (10 at 10 Hz)."""
+        return self.accel_mps2.shape[1] - 1
+
+
+def imu_on_grid(t_s: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Inertial samples on the grid: interpolated, or averaged per grid bin when the log is
+    faster than the grid (e.g. 20 Hz onto 10 Hz), so extra samples lower the noise instead of
+    being skipped."""
+    out = np.interp(grid, t_s, x)
+    h = grid[1] - grid[0] if len(grid) > 1 else 0.0
+    if len(t_s) < 2 or h <= 0 or np.median(np.diff(t_s)) >= 0.75 * h:
+        return out
+    idx = np.rint((t_s - grid[0]) / h).astype(np.int64)
+    inside = (idx >= 0) & (idx < len(grid))
+    sums = np.bincount(idx[inside], weights=x[inside], minlength=len(grid))
+    counts = np.bincount(idx[inside], minlength=len(grid))
+    has = counts > 0
+    out[has] = sums[has] / counts[has]
+    return out
+
+
+def segments(t_s: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
+    """Index ranges ``[i0, i1)`` of the stretches without a time gap longer than ``max_gap_s``."""
+    cuts = np.flatnonzero(np.diff(t_s) > max_gap_s) + 1
+    bounds = np.concatenate([[0], cuts, [len(t_s)]])
+    return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def make_windows(
+    drive: Drive,
+    rate_hz: float = GRID_RATE_HZ,
+    max_gap_s: float = 1.0,
+    min_course_speed_mps: float = MIN_COURSE_SPEED_MPS,
+    offset_s: float = 0.0,
+) -> Windows:
+    """Cut ``drive`` into 1-second windows (see module docstring).
+
+    ``offset_s`` shifts every segment's grid start (training uses the offsets 0, 0.1, ... 0.9 s
+    to see each second of a drive at every phase).
+    """
+    from pyproj import Geod
+
+    steps = int(round(rate_hz * WINDOW_S))
+    heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps)
+    heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr")}
+    n_windows = []
+    for seg_id, (i0, i1) in enumerate(segments(drive.t_s, max_gap_s)):
+        t = drive.t_s[i0:i1]
+        n_win = int(np.floor((t[-1] - t[0] - offset_s) * rate_hz + 1e-6)) // steps
+        if n_win < 1:
+            continue
+        grid = t[0] + offset_s + np.arange(n_win * steps + 1) / rate_hz
+
+        def on_grid(x: np.ndarray) -> np.ndarray:
+            return np.interp(grid, t, x[i0:i1])
+
+        parts["t"].append(grid[:-1:steps])
+        parts["seg"].append(np.full(n_win, seg_id))
+        parts["lat"].append(on_grid(drive.lat_deg)[::steps])
+        parts["lon"].append(on_grid(drive.lon_deg)[::steps])
+        parts["hdg"].append(on_grid(heading_unwrapped)[::steps])
+        parts["spd"].append(on_grid(drive.speed_mps)[::steps])
+        acc = imu_on_grid(t, drive.accel_long_mps2[i0:i1], grid)
+        gyr = imu_on_grid(t, drive.yaw_rate_radps[i0:i1], grid)
+        # Window w uses grid points steps*w .. steps*w + steps (shared boundary points).
+        idx = steps * np.arange(n_win)[:, None] + np.arange(steps + 1)[None, :]
+        parts["acc"].append(acc[idx])
+        parts["gyr"].append(gyr[idx])
+        n_windows.append(n_win)
+
+    if not n_windows:
+        empty = np.zeros(0)
+        return Windows(rate_hz, empty, empty.astype(int), empty, empty, empty, empty, empty, empty, empty,
+                       empty, empty, np.zeros((0, steps + 1)), np.zeros((0, steps + 1)))
+
+    def starts_ends(key: str) -> tuple[np.ndarray, np.ndarray]:
+        # per segment, boundary arrays have n_win + 1 entries
+        return (np.concatenate([b[:-1] for b in parts[key]]), np.concatenate([b[1:] for b in parts[key]]))
+
+    lat0, lat1 = starts_ends("lat")
+    lon0, lon1 = starts_ends("lon")
+    hdg0, hdg1 = starts_ends("hdg")
+    spd0, _ = starts_ends("spd")
+    _, _, disp = Geod(ellps="WGS84").inv(lon0, lat0, lon1, lat1)
+    # d(heading)/dt is clockwise; the drive model's yaw rate is counter-clockwise positive.
+    gnss_yaw = -np.deg2rad(hdg1 - hdg0) / WINDOW_S
+    return Windows(
+        rate_hz=rate_hz,
+        t0_s=np.concatenate(parts["t"]),
+        segment=np.concatenate(parts["seg"]),
+        lat0_deg=lat0,
+        lon0_deg=lon0,
+        lat1_deg=lat1,
+        lon1_deg=lon1,
+        heading0_deg=np.mod(hdg0, 360.0),
+        heading1_deg=np.mod(hdg1, 360.0),
+        speed0_mps=spd0,
+        gnss_disp_m=np.asarray(disp, dtype=np.float64),
+        gnss_yaw_rate_radps=gnss_yaw,
+        accel_mps2=np.concatenate(parts["acc"]),
+        gyro_radps=np.concatenate(parts["gyr"]),
+    )

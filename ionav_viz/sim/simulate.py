@@ -1,0 +1,476 @@
+"""Synthetic drives in the exact IO-VNBD ``V-*.csv`` format, from a vehicle model and a sensor error model.
+
+The real dataset cannot be downloaded on every machine, so tests and bundled samples use
+drives generated here. They are written through the same header, units, decimals, CRLF
+line ends and 10 Hz timing as the real files, so :func:`ionav_viz.iovnbd.read_iovnbd`
+cannot tell them apart.
+
+Vehicle model (truth, integrated at 100 Hz)
+    A planar point vehicle with no side slip. A plan of manoeuvres gives speed v(t) and path
+    curvature kappa(t) (1/m, left positive). Speed changes follow half-sine acceleration pulses
+    (peak accel = pi * dv / (2 T)); curvature ramps in and out of turns over cosine ramps (a
+    clothoid-like transition). Yaw rate r = v * kappa (counter-clockwise positive), heading is
+    the integral of -r (compass, clockwise), positions are integrated in a local east-north frame
+    around a random origin in England and projected to WGS84 with pyproj (azimuthal equidistant).
+    Road grade is a smooth random function of distance (sum of sinusoids, ~2 % rms).
+
+Scenarios mirror the paper's: ``motorway`` (80-100 km/h, gentle curves, lane changes),
+``roundabout`` (UK roundabouts, driven clockwise, radii 12-40 m, left entry and exit flares),
+``quick-accel`` (speeding up and slowing down in turn by 2-5 m/s at 0.18-0.29 g, between 38 and 74 km/h), ``hard-brake``
+(braking at 0.5-0.76 g, often to a stop), ``sharp-cornering`` (90-degree junction turns at
+8-15 m radius and successive left-right zig-zags), and ``stationary`` (engine idling, for
+sensor-bias calibration). Every drive but the motorway one starts with the car standing still
+for 5-8 s; the motorway drive starts from a standstill on a slip road.
+
+Sensor error model (:class:`SensorModel`, defaults from measured real logs, see SENSORS.md)
+    accelerometer (longitudinal, reported in g like CAN):
+        f = a + g*sin(grade) + offset + bias_walk + white noise, quantised to 0.01 g.
+        offset = -0.12 m/s^2 for the simulated car (mount tilt + bias) +- 0.03 per drive;
+        bias random walk 0.002 m/s^2/sqrt(s); white noise 0.15 m/s^2 standing,
+        growing 0.012 m/s^2 per m/s of speed up to 0.45 m/s^2.
+    gyroscope (yaw rate, written clockwise positive in deg/s, 0.01 deg/s resolution):
+        r_meas = (1 + scale) * r(t - latency) + bias + bias_walk + white noise;
+        scale +1.5 %, latency 0.1 s (CAN), bias 0.25 deg/s +- 0.05 per drive,
+        bias random walk 0.002 deg/s/sqrt(s), noise 0.08 deg/s standing, 0.25 deg/s driving.
+    GNSS (VBOX-class, 10 Hz): position error is a first-order Gauss-Markov wander per axis
+        (sigma 0.5 m, tau 20 s) plus 2 cm white noise; speed noise 0.15 km/h; course noise
+        0.3 deg at 10 m/s, growing as 1/speed; the course holds its last value below 1 m/s.
+    timing: sample periods jitter by +-1 ms and ~0.2 % of samples are missing (0.2 s periods).
+
+Output is byte-identical for a given scenario, seed and duration.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..sources.iovnbd import HEADER, write_iovnbd
+from ..core.grid import GRID_RATE_HZ
+from ..core.units import G_MPS2
+
+HARD_BRAKE_G = 0.45  # the paper's hard-brake threshold (Section 2)
+SCENARIOS = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering", "stationary")
+TRUTH_RATE_HZ = 100.0
+OUTPUT_RATE_HZ = GRID_RATE_HZ  # IO-VNBD's rate
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """Sensor error parameters (see module docstring). ``SensorModel.ideal()`` has none."""
+
+    accel_offset_mps2: float = -0.12
+    accel_offset_spread_mps2: float = 0.03
+    accel_bias_walk_mps2_per_sqrt_s: float = 0.002
+    accel_noise_still_mps2: float = 0.15
+    accel_noise_per_mps: float = 0.012
+    accel_noise_max_mps2: float = 0.45
+    accel_quantum_g: float = 0.01
+    gyro_bias_dps: float = 0.25
+    gyro_bias_spread_dps: float = 0.05
+    gyro_bias_walk_dps_per_sqrt_s: float = 0.002
+    gyro_noise_still_dps: float = 0.08
+    gyro_noise_driving_dps: float = 0.25
+    gyro_scale_error: float = 0.015
+    gyro_latency_s: float = 0.1
+    gnss_wander_m: float = 0.5
+    gnss_wander_tau_s: float = 20.0
+    gnss_white_m: float = 0.02
+    gnss_speed_noise_kmh: float = 0.15
+    gnss_heading_noise_deg_at_10mps: float = 0.3
+    grade_rms: float = 0.02
+    clock_jitter_s: float = 0.001
+    missing_sample_prob: float = 0.002
+
+    @classmethod
+    def ideal(cls) -> "SensorModel":
+        """Perfect sensors and flat roads: for tests with exact expectations."""
+        return cls(**{f: 0.0 for f in cls.__dataclass_fields__})
+
+
+@dataclass
+class Truth:
+    """Ground truth at ``TRUTH_RATE_HZ``: time (s), speed (m/s), accel (m/s^2), curvature (1/m),
+    and the manoeuvres the plan put in: (type, start s, end s)."""
+
+    t_s: np.ndarray
+    speed_mps: np.ndarray
+    accel_mps2: np.ndarray
+    curvature_1pm: np.ndarray
+    manoeuvres: list[tuple[str, float, float]]
+
+
+class _Plan:
+    """Builds speed and curvature profiles piece by piece at 100 Hz."""
+
+    def __init__(self) -> None:
+        self.dt = 1.0 / TRUTH_RATE_HZ
+        self.v: list[np.ndarray] = []
+        self.a: list[np.ndarray] = []
+        self.k: list[np.ndarray] = []
+        self.speed = 0.0
+        self.duration_s = 0.0
+        self.manoeuvres: list[tuple[str, float, float]] = []
+
+    def mark(self, kind: str, start_s: float) -> None:
+        """Record that the pieces since ``start_s`` form one manoeuvre of ``kind``."""
+        self.manoeuvres.append((kind, start_s, self.duration_s))
+
+    def _append(self, v: np.ndarray, a: np.ndarray, k: np.ndarray) -> None:
+        self.v.append(v)
+        self.a.append(a)
+        self.k.append(k)
+        self.duration_s += len(v) * self.dt
+        self.speed = float(v[-1]) if len(v) else self.speed
+
+    def _n(self, seconds: float) -> int:
+        return max(1, int(round(seconds / self.dt)))
+
+    def hold(self, seconds: float) -> None:
+        """Keep speed, drive straight (or stand still at speed 0)."""
+        n = self._n(seconds)
+        self._append(np.full(n, self.speed), np.zeros(n), np.zeros(n))
+
+    def speed_to(self, target_mps: float, peak_accel_mps2: float) -> None:
+        """Change speed with a half-sine acceleration pulse of the given peak magnitude."""
+        dv = target_mps - self.speed
+        if abs(dv) < 1e-6:
+            return
+        seconds = math.pi * abs(dv) / (2.0 * peak_accel_mps2)
+        start = self.duration_s
+        n = self._n(seconds)
+        tau = (np.arange(n) + 1) * self.dt
+        big_t = n * self.dt
+        v = self.speed + dv * 0.5 * (1.0 - np.cos(np.pi * tau / big_t))
+        a = dv * math.pi / (2.0 * big_t) * np.sin(np.pi * tau / big_t)
+        self._append(v, a, np.zeros(n))
+        self.speed = target_mps
+        if dv < 0 and peak_accel_mps2 >= HARD_BRAKE_G * G_MPS2:
+            self.mark("hard-brake", start)
+
+    def turn(self, angle_deg: float, radius_m: float, ramp_s: float = 1.0) -> None:
+        """Turn by ``angle_deg`` (left positive) on ``radius_m`` at the current speed."""
+        if self.speed <= 0.5:
+            raise ValueError("turn needs speed")
+        kappa = math.copysign(1.0 / radius_m, angle_deg)
+        total_s = math.radians(abs(angle_deg)) * radius_m / self.speed
+        ramp_s = min(ramp_s, total_s / 2.0)
+        # the two cosine ramps together turn as much as ramp_s at full curvature
+        n_ramp, n_hold = self._n(ramp_s), max(0, int(round((total_s - ramp_s) / self.dt)))
+        up = kappa * 0.5 * (1.0 - np.cos(np.pi * (np.arange(n_ramp) + 0.5) / n_ramp))
+        k = np.concatenate([up, np.full(n_hold, kappa), up[::-1]])
+        self._append(np.full(len(k), self.speed), np.zeros(len(k)), k)
+
+    def truth(self, duration_s: float) -> Truth:
+        n = int(round(duration_s * TRUTH_RATE_HZ)) + 1
+        v = np.concatenate([[0.0]] + self.v)  # every plan starts standing still
+        a = np.concatenate([[0.0]] + self.a)
+        k = np.concatenate([[0.0]] + self.k)
+        if len(v) < n:
+            raise ValueError("plan shorter than the requested duration")
+        end = (n - 1) * self.dt
+        kept = [(kind, t0, min(t1, end)) for kind, t0, t1 in self.manoeuvres if t0 < end]
+        return Truth(np.arange(n) * self.dt, np.maximum(v[:n], 0.0), a[:n], k[:n], kept)
+
+
+def _plan_motorway(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
+    p.hold(rng.uniform(5, 8))
+    p.speed_to(rng.uniform(9, 12), 1.5)
+    p.turn(rng.uniform(-40, 40), rng.uniform(150, 300))  # slip road
+    p.speed_to(rng.uniform(24, 27), 1.6)
+    while p.duration_s < duration_s:
+        p.hold(rng.uniform(4, 14))
+        kind = rng.integers(0, 3)
+        if kind == 0:
+            p.turn(rng.choice([-1, 1]) * rng.uniform(5, 20), rng.uniform(800, 2000))
+        elif kind == 1:  # lane change
+            side = rng.choice([-1, 1])
+            p.turn(side * rng.uniform(3, 5), 300.0)
+            p.hold(rng.uniform(0.5, 1.5))
+            p.turn(-side * rng.uniform(3, 5), 300.0)
+        else:
+            p.speed_to(rng.uniform(22.5, 27.5), rng.uniform(0.3, 0.7))
+
+
+def _plan_roundabout(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
+    p.hold(rng.uniform(5, 8))
+    p.speed_to(rng.uniform(12, 15), 1.8)
+    while p.duration_s < duration_s:
+        p.hold(rng.uniform(4, 10))
+        radius = rng.uniform(12, 40)
+        v_circ = float(np.clip(math.sqrt(2.5 * radius), 4.5, 10.0))
+        p.speed_to(v_circ, rng.uniform(1.5, 3.0))
+        flare = rng.uniform(15, 30)
+        start = p.duration_s
+        p.turn(flare, 15.0, ramp_s=0.6)  # UK: enter turning left
+        p.turn(-(rng.choice([90, 180, 270]) + 2 * flare), radius)  # circulate clockwise
+        p.turn(flare, 15.0, ramp_s=0.6)
+        p.mark("roundabout", start)
+        p.speed_to(rng.uniform(11, 16), rng.uniform(1.2, 2.2))
+
+
+def _plan_quick_accel(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
+    p.hold(rng.uniform(5, 8))
+    p.speed_to(rng.uniform(12, 15), 2.0)
+    sign = 1.0
+    while p.duration_s < duration_s:  # speed up and slow down in turn, between 38 and 74 km/h
+        target = float(np.clip(p.speed + sign * rng.uniform(2.0, 5.0), 10.5, 20.5))
+        p.speed_to(target, rng.uniform(1.8, 2.8))
+        sign = -sign
+        p.hold(rng.uniform(0.3, 1.5))
+        if rng.random() < 0.2:
+            p.turn(rng.choice([-1, 1]) * rng.uniform(10, 30), rng.uniform(200, 500))
+
+
+def _plan_hard_brake(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
+    p.hold(rng.uniform(5, 8))
+    while p.duration_s < duration_s:
+        p.speed_to(rng.uniform(14, 24), rng.uniform(1.5, 2.5))
+        p.hold(rng.uniform(4, 10))
+        stop = rng.random() < 0.6
+        p.speed_to(0.0 if stop else rng.uniform(2, 8), rng.uniform(5.0, 7.5))
+        if stop:
+            p.hold(rng.uniform(2, 5))
+        elif rng.random() < 0.5:
+            start = p.duration_s
+            p.turn(rng.choice([-1, 1]) * 90, rng.uniform(10, 15))
+            p.mark("sharp-corner", start)
+
+
+def _plan_sharp_cornering(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
+    p.hold(rng.uniform(5, 8))
+    p.speed_to(rng.uniform(8, 11), 1.5)
+    while p.duration_s < duration_s:
+        p.hold(rng.uniform(2, 6))
+        if rng.random() < 0.5:  # junction
+            p.speed_to(rng.uniform(4, 6), rng.uniform(1.5, 3.0))
+            start = p.duration_s
+            p.turn(rng.choice([-1, 1]) * rng.uniform(80, 100), rng.uniform(8, 15), ramp_s=0.8)
+            p.mark("sharp-corner", start)
+            p.speed_to(rng.uniform(8, 12.5), rng.uniform(1.5, 2.5))
+        else:  # successive left-right turns
+            side = rng.choice([-1, 1])
+            start = p.duration_s
+            for _ in range(int(rng.integers(2, 5))):
+                p.turn(side * rng.uniform(30, 60), rng.uniform(15, 25), ramp_s=0.8)
+                side = -side
+            p.mark("left-right", start)
+
+
+def _plan_stationary(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
+    p.hold(duration_s + 1.0)
+
+
+_PLANS = {
+    "motorway": _plan_motorway,
+    "roundabout": _plan_roundabout,
+    "quick-accel": _plan_quick_accel,
+    "hard-brake": _plan_hard_brake,
+    "sharp-cornering": _plan_sharp_cornering,
+    "stationary": _plan_stationary,
+}
+
+
+def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
+    """The ground-truth motion of a scenario (100 Hz)."""
+    if scenario not in _PLANS:
+        raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SCENARIOS)}")
+    if not duration_s > 0:
+        raise InputError(f"duration must be positive, got {duration_s} s")
+    rng = np.random.default_rng([seed, SCENARIOS.index(scenario)])
+    plan = _Plan()
+    _PLANS[scenario](plan, rng, duration_s + 1.0)
+    return plan.truth(duration_s)
+
+
+def simulated_manoeuvres(scenario: str, seed: int, duration_s: float) -> list[tuple[str, float, float]]:
+    """Where the simulator put each manoeuvre: (type, start s, end s), times as in the CSV.
+
+    ``hard-brake``, ``roundabout``, ``sharp-corner`` and ``left-right`` come from the plan's
+    pieces (those the end of the drive cut off are left out). ``quick-accel`` and ``cruise`` are
+    properties of the motion rather than pieces, so they are found on the exact, noise-free truth
+    (true speed and yaw rate at 10 Hz: no sensor errors, no road grade) by their definitions in
+    :mod:`ionav_viz.events`.
+    """
+    from ..analysis.events import EventThresholds, detect_cruise, detect_quick_accel, smoothed_signals
+
+    truth = plan_truth(scenario, seed, duration_s)
+    step = int(round(TRUTH_RATE_HZ / OUTPUT_RATE_HZ))
+    t = truth.t_s[::step]
+    th = EventThresholds()
+    clean = smoothed_signals(t, truth.speed_mps[::step], (truth.speed_mps * truth.curvature_1pm)[::step],
+                             np.ones(len(t), dtype=bool), th)
+    derived = [(e.type, e.t0_s, e.t1_s) for e in detect_quick_accel(clean, th) + detect_cruise(clean, th)]
+    end = truth.t_s[-1]
+    planned = [m for m in truth.manoeuvres if m[2] < end - 1e-9]  # drop manoeuvres the drive's end cut off
+    return sorted(planned + derived, key=lambda m: (m[1], m[0]))
+
+
+def _gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau: float) -> np.ndarray:
+    """First-order Gauss-Markov process (stationary std ``sigma``, correlation time ``tau``)."""
+    out = np.zeros(n)
+    if sigma == 0.0 or n == 0:
+        return out
+    phi = math.exp(-dt / tau)
+    drive = rng.normal(0.0, sigma * math.sqrt(1 - phi * phi), n)
+    x = rng.normal(0.0, sigma)
+    for i in range(n):  # each step depends on the last
+        x = phi * x + drive[i]
+        out[i] = x
+    return out
+
+
+def _grade(rng: np.random.Generator, distance_m: np.ndarray, rms: float) -> np.ndarray:
+    """Smooth random road grade (rise/run) along the path: a sum of sinusoids in distance."""
+    if rms == 0.0:
+        return np.zeros_like(distance_m)
+    wavelengths = rng.uniform(150.0, 1500.0, 6)
+    phases = rng.uniform(0, 2 * np.pi, 6)
+    g = sum(np.sin(2 * np.pi * distance_m / w + ph) for w, ph in zip(wavelengths, phases))
+    return g * rms / math.sqrt(6 / 2)
+
+
+def simulate_rows(
+    scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None
+) -> dict[str, np.ndarray]:
+    """Raw IO-VNBD columns (file units, keyed by header name) of a synthetic drive."""
+    from pyproj import Transformer
+
+    sensors = sensors if sensors is not None else SensorModel()
+    truth = plan_truth(scenario, seed, duration_s)
+    rng = np.random.default_rng([seed, 1000 + SCENARIOS.index(scenario)])
+    dt = 1.0 / TRUTH_RATE_HZ
+
+    # Truth integration at 100 Hz (trapezoid): heading (compass, rad), distance, east/north.
+    v, k = truth.speed_mps, truth.curvature_1pm
+    yaw_rate = v * k
+    start_heading = rng.uniform(0, 2 * np.pi)
+    heading = start_heading - np.concatenate([[0.0], np.cumsum(0.5 * (yaw_rate[1:] + yaw_rate[:-1]) * dt)])
+    distance = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
+    ve, vn = v * np.sin(heading), v * np.cos(heading)
+    east = np.concatenate([[0.0], np.cumsum(0.5 * (ve[1:] + ve[:-1]) * dt)])
+    north = np.concatenate([[0.0], np.cumsum(0.5 * (vn[1:] + vn[:-1]) * dt)])
+    grade = _grade(rng, distance, sensors.grade_rms)
+    elevation = np.concatenate([[0.0], np.cumsum(0.5 * (grade[1:] + grade[:-1]) * np.diff(distance))])
+
+    # Sample times at 10 Hz with clock jitter and a few missing samples.
+    n_out = int(round(duration_s * OUTPUT_RATE_HZ)) + 1
+    t = np.arange(n_out) / OUTPUT_RATE_HZ
+    t[1:-1] += rng.uniform(-sensors.clock_jitter_s, sensors.clock_jitter_s, n_out - 2)
+    keep = rng.random(n_out) >= sensors.missing_sample_prob
+    keep[[0, -1]] = True
+    t = t[keep]
+    n = len(t)
+
+    def at(x: np.ndarray, times: np.ndarray = t) -> np.ndarray:
+        return np.interp(times, truth.t_s, x)
+
+    v_s, a_s, g_s = at(v), at(truth.accel_mps2), at(grade)
+    moving = v_s > 0.05
+
+    # Accelerometer.
+    accel_offset = sensors.accel_offset_mps2 + rng.normal(0, 1) * sensors.accel_offset_spread_mps2
+    accel_walk = np.cumsum(rng.normal(0, sensors.accel_bias_walk_mps2_per_sqrt_s * math.sqrt(0.1), n))
+    accel_sigma = np.minimum(sensors.accel_noise_still_mps2 + sensors.accel_noise_per_mps * v_s, max(sensors.accel_noise_max_mps2, sensors.accel_noise_still_mps2))
+    f = a_s + G_MPS2 * np.sin(np.arctan(g_s)) + accel_offset + accel_walk + rng.normal(0, 1, n) * accel_sigma
+    accel_g = f / G_MPS2
+    if sensors.accel_quantum_g > 0:
+        accel_g = np.round(accel_g / sensors.accel_quantum_g) * sensors.accel_quantum_g
+
+    # Gyroscope (the file column is clockwise positive).
+    gyro_bias = sensors.gyro_bias_dps + rng.normal(0, 1) * sensors.gyro_bias_spread_dps
+    gyro_walk = np.cumsum(rng.normal(0, sensors.gyro_bias_walk_dps_per_sqrt_s * math.sqrt(0.1), n))
+    gyro_sigma = np.where(moving, sensors.gyro_noise_driving_dps, sensors.gyro_noise_still_dps)
+    r_meas_dps = (
+        (1 + sensors.gyro_scale_error) * np.degrees(at(yaw_rate, t - sensors.gyro_latency_s))
+        + gyro_bias + gyro_walk + rng.normal(0, 1, n) * gyro_sigma
+    )
+
+    # GNSS.
+    e_err = _gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
+    n_err = _gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
+    e_meas = at(east) + e_err + rng.normal(0, 1, n) * sensors.gnss_white_m
+    n_meas = at(north) + n_err + rng.normal(0, 1, n) * sensors.gnss_white_m
+    lat0 = rng.uniform(52.0, 53.0)
+    lon0 = rng.uniform(-2.2, -0.7)
+    to_wgs84 = Transformer.from_crs(f"+proj=aeqd +lat_0={lat0} +lon_0={lon0} +datum=WGS84", "EPSG:4326", always_xy=True)
+    lon, lat = to_wgs84.transform(e_meas, n_meas)
+    speed_kmh = np.maximum(v_s * 3.6 + rng.normal(0, 1, n) * sensors.gnss_speed_noise_kmh, 0.0)
+    speed_kmh[~moving] = np.abs(rng.normal(0, 1, (~moving).sum())) * sensors.gnss_speed_noise_kmh
+    course = np.degrees(at(np.unwrap(heading)))
+    course += rng.normal(0, 1, n) * sensors.gnss_heading_noise_deg_at_10mps * 10.0 / np.maximum(v_s, 1.0)
+    slow = v_s < 1.0
+    if slow.any():  # the receiver holds its last course while (nearly) standing still
+        idx = np.where(slow, 0, np.arange(n))
+        np.maximum.accumulate(idx, out=idx)
+        first_fast = int(np.argmax(~slow)) if (~slow).any() else 0
+        idx[: first_fast] = first_fast
+        course = course[idx]
+    course = np.mod(course, 360.0)
+
+    # CAN and housekeeping channels.
+    k_s = at(k)
+    gear = np.select([v_s < 0.3, v_s < 4, v_s < 8, v_s < 12.5, v_s < 17], [0, 1, 2, 3, 4], 5)
+    brake_psi = np.clip((-a_s - 0.5) * 150.0, 0.0, None)
+    standing = np.convolve(~moving, np.ones(30), "same") >= 30
+    half_track_m, wheel_radius_m = 0.75, 0.3
+    rows = {
+        HEADER[0]: np.clip(np.round(11 + np.cumsum(rng.integers(-1, 2, n)) * 0.05), 6, 16),
+        HEADER[1]: rng.uniform(7, 17) * 3600.0 + t,
+        HEADER[2]: lat,
+        HEADER[3]: lon,
+        HEADER[4]: speed_kmh,
+        HEADER[5]: course,
+        HEADER[6]: 120.0 + at(elevation) + np.cumsum(rng.normal(0, 0.02, n)),
+        HEADER[7]: v_s * np.sin(np.arctan(g_s)) * 3.6,
+        HEADER[8]: np.concatenate([[0.1], np.diff(t)]),
+        HEADER[9]: np.degrees(np.arctan(2.5 * k_s)) * 15.0,
+        HEADER[10]: v_s * (1 - k_s * half_track_m) / wheel_radius_m,
+        HEADER[11]: v_s * (1 + k_s * half_track_m) / wheel_radius_m,
+        HEADER[12]: v_s * (1 - k_s * half_track_m) / wheel_radius_m,
+        HEADER[13]: v_s * (1 + k_s * half_track_m) / wheel_radius_m,
+        HEADER[14]: -r_meas_dps,
+        HEADER[15]: v_s * 3.6 * 1.03,
+        HEADER[16]: accel_g,
+        HEADER[17]: (v_s * v_s * k_s + rng.normal(0, 1, n) * 0.1 * (sensors.accel_noise_still_mps2 > 0)) / G_MPS2,
+        HEADER[18]: standing.astype(float),
+        HEADER[19]: gear,
+        HEADER[20]: gear,
+        HEADER[21]: np.where(gear == 0, 800.0, 800.0 + v_s * 3.6 * np.array([0, 90, 55, 40, 32, 27])[gear]),
+        HEADER[22]: 90.0 + np.round(np.sin(t / 300.0) * 2),
+        HEADER[23]: np.zeros(n),
+        HEADER[24]: brake_psi,
+        HEADER[25]: (brake_psi > 0).astype(float),
+        HEADER[26]: 14.2 + rng.normal(0, 0.02, n),
+        HEADER[27]: np.full(n, round(rng.uniform(4, 20))),
+        HEADER[28]: np.clip(a_s * 30 + v_s * 0.8, 0, 100) * moving,
+    }
+    return rows
+
+
+#: Decimals each column is written with (the real files use a similar resolution).
+DECIMALS = dict(
+    zip(
+        HEADER,
+        (0, 3, 8, 8, 2, 2, 2, 2, 3, 1, 2, 2, 2, 2, 3, 1, 3, 3, 0, 0, 0, 0, 0, 0, 1, 0, 2, 0, 1),
+    )
+)
+
+
+def write_simulated_drive(
+    path: str | Path, scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None
+) -> Path:
+    """Simulate a drive and write it as an IO-VNBD ``V-*.csv`` (atomically). Returns the path."""
+    path = Path(path)
+    rows = simulate_rows(scenario, seed, duration_s, sensors)
+    write_iovnbd(path, rows, DECIMALS)
+    return path
+
+
+def ideal_sensors_with(**changes: float) -> SensorModel:
+    """Perfect sensors with a few chosen errors switched on (for tests)."""
+    return replace(SensorModel.ideal(), **changes)

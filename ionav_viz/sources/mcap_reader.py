@@ -1,0 +1,390 @@
+"""Reading MCAP logs (ROS 2 ``cdr`` or JSON messages) into a :class:`~ionav_viz.drive.Drive`.
+
+Channels are found by schema name (``--imu-topic`` / ``--gnss-topic`` / ``--speed-topic`` choose
+when there are several or none match):
+
+* IMU: ``sensor_msgs/msg/Imu`` (cdr) or a JSON message with the same field names. REP 103 body
+  frame: x forward, y left, z up. ``linear_acceleration.x`` is the longitudinal specific force
+  (m/s^2) and ``angular_velocity.z`` the yaw rate, counter-clockwise positive (rad/s): both are
+  already the drive model's conventions.
+* GNSS (ground truth): ``sensor_msgs/msg/NavSatFix`` (fixes with ``status.status < 0``, no fix,
+  are dropped) or JSON ``foxglove.LocationFix`` (``timestamp``, ``latitude``, ``longitude``,
+  ``altitude``).
+* Speed and course (optional): ``geometry_msgs/msg/TwistStamped`` in a world frame is GNSS
+  velocity as GNSS drivers publish it (nmea_navsat_driver's ``/vel``: ``linear.x`` east,
+  ``linear.y`` north, m/s), giving speed and course; a TwistStamped whose ``frame_id`` is a body
+  frame (``base_link``, ``base_footprint``, ``body``, ``vehicle``) and ``nav_msgs/msg/Odometry``
+  (twist in the child body frame) give the speed ``linear.x`` only. Without them, speed and
+  course come from the GNSS fixes (geodesic distance and azimuth between consecutive fixes);
+  the course is held below 1 m/s.
+
+Time stamps: the message **header stamp** (the sensor's acquisition time) by default, the MCAP
+log time (when the recorder received it, with transport latency and jitter) with
+``stamps='log'``; a zero header stamp falls back to the log time. The time of day of the drive
+is the UTC time of day of the first stamp.
+
+Rates: sensors at different rates (IMU at 50-400 Hz, GNSS at 1-20 Hz) are resampled onto one
+10 Hz grid: IMU samples are averaged per bin of 0.1 s centred on each grid time, GNSS positions
+(and speeds) linearly interpolated, never across a GNSS gap longer than 1 s; grid times without
+IMU samples or GNSS coverage are left out (a gap, which the windows bridge when short and split
+at when long). A log whose IMU and GNSS stamps are the same (as ``ionav-viz convert`` writes
+them) is kept at its own stamps, so converting a CSV and reading it back changes nothing.
+
+Memory: messages are streamed; IMU samples are folded into per-bin sums as they arrive, so memory
+grows with the output columns (and the GNSS fixes), not with the file.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
+
+IMU_SCHEMAS = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
+GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.LocationFix", "foxglove_msgs/msg/LocationFix")
+SPEED_SCHEMAS = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/TwistStamped", "nav_msgs/msg/Odometry", "nav_msgs/Odometry")
+BODY_FRAMES = ("base_link", "base_footprint", "body", "vehicle")
+ENCODINGS = ("cdr", "json")
+RATE_HZ = GRID_RATE_HZ
+MAX_GNSS_GAP_S = 1.0
+
+
+@dataclass
+class ChannelInfo:
+    """One channel of an MCAP file, with what ionav-viz would use it for."""
+
+    topic: str
+    schema: str
+    encoding: str
+    count: int
+    role: str = ""
+
+
+@dataclass
+class Selection:
+    imu: ChannelInfo
+    gnss: ChannelInfo
+    speed: ChannelInfo | None
+    channels: list[ChannelInfo] = field(default_factory=list)
+
+
+def _open_reader(stream):
+    from mcap.reader import make_reader
+
+    return make_reader(stream, validate_crcs=True)
+
+
+def _bad(path: Path, exc: BaseException) -> InputError:
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    name = type(exc).__name__
+    if "crc" in text.lower() or "CRC" in name:
+        what = f"CRC mismatch, the file is corrupted ({text})"
+    elif name in ("EndOfFile", "InvalidMagic") or "magic" in text.lower() or "end of file" in text.lower():
+        what = f"truncated or not an MCAP file ({name}: {text})"
+    else:
+        what = f"damaged MCAP file ({name}: {text})"
+    return InputError(f"{path}: {what}", "re-record or repair it (e.g. 'mcap recover')")
+
+
+MAGIC = b"\x89MCAP0\r\n"
+
+
+def _check_framing(path: Path) -> None:
+    """Empty, foreign and cut-off files, told apart by the MCAP magic bytes at both ends."""
+    size = path.stat().st_size
+    if size == 0:
+        raise InputError(f"{path}: empty file", "not an MCAP recording")
+    with open(path, "rb") as f:
+        head = f.read(len(MAGIC))
+        f.seek(max(0, size - len(MAGIC)))
+        tail = f.read(len(MAGIC))
+    if head != MAGIC:
+        raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)", "ionav-viz reads .mcap logs and IO-VNBD .csv files")
+    if tail != MAGIC or size < 2 * len(MAGIC):
+        raise InputError(f"{path}: truncated MCAP file (no footer: the recording was cut off)", "repair it with 'mcap recover', then replay the result")
+
+
+def list_channels(path: Path) -> list[ChannelInfo]:
+    """Every channel with its schema, encoding and message count (from the summary)."""
+    path = Path(path)
+    _check_framing(path)
+    try:
+        with open(path, "rb") as f:
+            summary = _open_reader(f).get_summary()
+    except InputError:
+        raise
+    except Exception as exc:
+        raise _bad(path, exc) from None
+    if summary is None:
+        raise InputError(f"{path}: truncated MCAP file (no summary section)", "re-record or repair it (e.g. 'mcap recover')")
+    counts = summary.statistics.channel_message_counts if summary.statistics else {}
+    out = []
+    for cid, ch in sorted(summary.channels.items()):
+        schema = summary.schemas.get(ch.schema_id)
+        out.append(ChannelInfo(ch.topic, schema.name if schema else "", ch.message_encoding, int(counts.get(cid, 0))))
+    return out
+
+
+def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, option: str,
+          path: Path, required: bool) -> ChannelInfo | None:
+    if topic is not None:
+        found = [c for c in channels if c.topic == topic]
+        if not found:
+            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}")
+        return found[0]
+    found = [c for c in channels if c.schema in schemas]
+    if len(found) > 1:
+        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", f"choose one with {option}")
+    if not found:
+        if not required:
+            return None
+        listing = ", ".join(f"{c.topic} [{c.schema}]" for c in channels) or "none"
+        raise InputError(f"{path}: no {what} channel ({schemas[0]}); channels: {listing}", f"choose one with {option}")
+    return found[0]
+
+
+def select_channels(path: Path, imu_topic: str | None = None, gnss_topic: str | None = None,
+                    speed_topic: str | None = None) -> Selection:
+    """The IMU, GNSS and (optional) speed channels to read, by schema or by the given topics."""
+    channels = list_channels(path)
+    if not channels:
+        raise InputError(f"{path}: no channels (an empty recording)", "record IMU and GNSS topics")
+    imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
+    gnss = _pick(channels, GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
+    speed = _pick(channels, SPEED_SCHEMAS, speed_topic, "speed", "--speed-topic", path, False)
+    for role, ch in (("IMU", imu), ("GNSS", gnss), ("speed", speed)):
+        if ch is None:
+            continue
+        ch.role = role
+        if ch.encoding not in ENCODINGS:
+            raise InputError(f"{path}: {role} topic {ch.topic} has message encoding {ch.encoding!r}", "ionav-viz reads cdr (ROS 2) and json messages")
+        if ch.count == 0:
+            raise InputError(f"{path}: {role} topic {ch.topic} has no messages", "record some, or choose another topic")
+    return Selection(imu, gnss, speed, channels)
+
+
+def _get(obj: Any, *names: str) -> Any:
+    for name in names:
+        obj = obj[name] if isinstance(obj, dict) else getattr(obj, name)
+    return obj
+
+
+def _stamp_s(stamp: Any) -> float:
+    sec = _get(stamp, "sec")
+    try:
+        nsec = _get(stamp, "nanosec")
+    except (KeyError, AttributeError):
+        nsec = _get(stamp, "nsec")
+    return float(sec) + float(nsec) * 1e-9
+
+
+def _messages(path: Path, sel: Selection) -> Iterator[tuple[str, float, Any]]:
+    """(role, log time s, decoded message) for the selected topics, streamed."""
+    from mcap_ros2.decoder import DecoderFactory
+
+    roles = {c.topic: c.role for c in (sel.imu, sel.gnss, sel.speed) if c is not None}
+    factory = DecoderFactory()
+    decoders: dict[int, Any] = {}
+    with open(path, "rb") as f:
+        reader = _open_reader(f)
+        for schema, channel, message in reader.iter_messages(topics=list(roles), log_time_order=False):
+            if channel.message_encoding == "json":
+                try:
+                    decoded = json.loads(message.data)
+                except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+                    raise InputError(f"{path}: topic {channel.topic}: message at log time {message.log_time} is not valid JSON ({exc})") from None
+            else:
+                if channel.id not in decoders:
+                    decoder = factory.decoder_for(channel.message_encoding, schema)
+                    if decoder is None:
+                        raise InputError(f"{path}: topic {channel.topic}: cannot decode {channel.message_encoding} with schema encoding {schema.encoding if schema else None!r}")
+                    decoders[channel.id] = decoder
+                decoded = decoders[channel.id](message.data)
+            yield roles[channel.topic], message.log_time * 1e-9, decoded
+
+
+class _BinSums:
+    """Per-bin sums of IMU samples on a grid of ``dt`` (bins centred on grid times), streamed."""
+
+    def __init__(self, dt: float, keep_samples: bool) -> None:
+        self.dt = dt
+        self.origin: float | None = None
+        self.first_bin = 0
+        self.sums = np.zeros((0, 3))  # accel sum, yaw sum, count
+        self.buffer: list[tuple[float, float, float]] = []
+        # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
+        # then they are as many as the output rows.
+        self.samples: list[tuple[float, float, float]] | None = [] if keep_samples else None
+
+    def add(self, t: float, accel: float, yaw: float) -> None:
+        self.buffer.append((t, accel, yaw))
+        if self.samples is not None:
+            self.samples.append((t, accel, yaw))
+        if len(self.buffer) >= 65536:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self.buffer:
+            return
+        data = np.asarray(self.buffer)
+        self.buffer.clear()
+        if self.origin is None:
+            self.origin = float(data[:, 0].min())
+        bins = np.rint((data[:, 0] - self.origin) / self.dt).astype(np.int64)
+        lo, hi = int(bins.min()), int(bins.max())
+        if lo < self.first_bin or hi >= self.first_bin + len(self.sums):
+            new_first = min(lo, self.first_bin) if len(self.sums) else lo
+            new_end = max(hi + 1, self.first_bin + len(self.sums))
+            grown = np.zeros((new_end - new_first, 3))
+            if len(self.sums):
+                grown[self.first_bin - new_first : self.first_bin - new_first + len(self.sums)] = self.sums
+            self.sums, self.first_bin = grown, new_first
+        idx = bins - self.first_bin
+        for col, values in enumerate((data[:, 1], data[:, 2], np.ones(len(data)))):
+            self.sums[:, col] += np.bincount(idx, weights=values, minlength=len(self.sums))
+
+    def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid times (s) of non-empty bins, mean accel, mean yaw rate."""
+        self.flush()
+        full = self.sums[:, 2] > 0
+        t = self.origin + (np.flatnonzero(full) + self.first_bin) * self.dt if self.origin is not None else np.zeros(0)
+        return t, self.sums[full, 0] / self.sums[full, 2], self.sums[full, 1] / self.sums[full, 2]
+
+
+def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
+              speed_topic: str | None = None, stamps: str = "header", name: str | None = None) -> Drive:
+    """Read an MCAP log into a drive on a 10 Hz grid (see the module docstring)."""
+    path = Path(path)
+    if stamps not in ("header", "log"):
+        raise InputError(f"--stamps {stamps!r}: choose header or log")
+    sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
+    imu = _BinSums(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count)
+    gnss: list[tuple[float, float, float, float]] = []
+    speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
+    dropped_no_fix = 0
+
+    def when(msg: Any, log_t: float, *stamp_path: str) -> float:
+        if stamps == "log":
+            return log_t
+        try:
+            t = _stamp_s(_get(msg, *stamp_path))
+        except (KeyError, AttributeError, TypeError):
+            return log_t
+        return t if t > 0 else log_t
+
+    try:
+        for role, log_t, msg in _messages(path, sel):
+            try:
+                if role == "IMU":
+                    imu.add(when(msg, log_t, "header", "stamp"), float(_get(msg, "linear_acceleration", "x")),
+                            float(_get(msg, "angular_velocity", "z")))
+                elif role == "GNSS":
+                    if sel.gnss.schema.startswith("foxglove"):
+                        t = when(msg, log_t, "timestamp")
+                    else:
+                        t = when(msg, log_t, "header", "stamp")
+                        if int(_get(msg, "status", "status")) < 0:
+                            dropped_no_fix += 1
+                            continue
+                    alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
+                    gnss.append((t, float(_get(msg, "latitude")), float(_get(msg, "longitude")), float(alt or 0.0)))
+                else:
+                    speed.append(_speed_sample(msg, log_t, when, sel.speed.schema))
+            except (KeyError, AttributeError, TypeError, ValueError) as exc:
+                topic = {"IMU": sel.imu, "GNSS": sel.gnss}.get(role, sel.speed).topic
+                raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
+                                 f"expected the {role} field names of {({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}") from None
+    except InputError:
+        raise
+    except Exception as exc:
+        raise _bad(path, exc) from None
+
+    if dropped_no_fix:
+        import logging
+
+        logging.getLogger("ionav_viz").warning("%s: dropped %d GNSS message(s) without a fix", path, dropped_no_fix)
+    if len(gnss) < 2:
+        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}", "the drive needs GNSS ground truth")
+    return _to_drive(path, name or path.stem, imu, np.asarray(sorted(gnss)), np.asarray(sorted(speed)) if speed else None)
+
+
+def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, float, float]:
+    if "Odometry" in schema:
+        t = when(msg, log_t, "header", "stamp")
+        return t, abs(float(_get(msg, "twist", "twist", "linear", "x"))), math.nan
+    t = when(msg, log_t, "header", "stamp")
+    lin = _get(msg, "twist", "linear")
+    vx, vy = float(_get(lin, "x")), float(_get(lin, "y"))
+    frame = str(_get(msg, "header", "frame_id")).strip("/").lower()
+    if frame in BODY_FRAMES:
+        return t, abs(vx), math.nan
+    return t, math.hypot(vx, vy), math.degrees(math.atan2(vx, vy)) % 360.0  # east, north -> course
+
+
+def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.ndarray | None) -> Drive:
+    from pyproj import Geod
+
+
+    g_t, g_lat, g_lon, g_alt = gnss.T
+    samples = np.asarray(sorted(imu.samples)) if imu.samples else None
+    if samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t):
+        t, accel, yaw = samples.T  # IMU and GNSS share their stamps: keep them
+        lat, lon, alt = g_lat, g_lon, g_alt
+    else:
+        t, accel, yaw = imu.means()
+        covered = _covered(t, g_t)
+        t, accel, yaw = t[covered], accel[covered], yaw[covered]
+        lat, lon, alt = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt))
+    if len(t) < 2:
+        raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the --stamps choice")
+
+    if speed is not None and len(speed) >= 2:
+        s_t, s_v, s_course = speed.T
+        v = np.interp(t, s_t, s_v)
+        has_course = np.isfinite(s_course)
+        course = None
+        if has_course.any():
+            unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
+            course = np.mod(np.interp(t, s_t[has_course], unwrapped), 360.0)
+    else:
+        v, course = None, None
+    if v is None or course is None:
+        geod = Geod(ellps="WGS84")
+        az, _, dist = geod.inv(g_lon[:-1], g_lat[:-1], g_lon[1:], g_lat[1:])
+        dt = np.diff(g_t)
+        mid = 0.5 * (g_t[1:] + g_t[:-1])
+        if v is None:
+            v = np.interp(t, mid, np.asarray(dist) / np.maximum(dt, 1e-9))
+        if course is None:
+            seg_speed = np.asarray(dist) / np.maximum(dt, 1e-9)
+            az_held = hold_course_when_slow(np.mod(np.asarray(az), 360.0), seg_speed, MIN_COURSE_SPEED_MPS)
+            unwrapped = np.rad2deg(np.unwrap(np.deg2rad(az_held)))
+            course = np.mod(np.interp(t, mid, unwrapped), 360.0)
+    start = float(t[0])
+    return Drive(
+        name=name,
+        source=str(path),
+        rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
+        start_time_of_day_s=start % 86400.0,
+        columns={
+            "t_s": t - start, "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
+            "accel_long_mps2": accel, "yaw_rate_radps": yaw, "height_m": alt,
+        },
+    )
+
+
+def _covered(t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
+    """Grid times inside the GNSS record and not inside a GNSS gap longer than MAX_GNSS_GAP_S."""
+    inside = (t >= g_t[0]) & (t <= g_t[-1])
+    k = np.clip(np.searchsorted(g_t, t), 1, len(g_t) - 1)
+    gap = g_t[k] - g_t[k - 1]
+    return inside & (gap <= MAX_GNSS_GAP_S)

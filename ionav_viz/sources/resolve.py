@@ -1,0 +1,97 @@
+"""Finding a drive from what a user types: a path, a bundled scenario name or an IO-VNBD run name.
+
+Order: (1) an existing file path; (2) a bundled sample: a scenario name (``roundabout``) means
+its bundled test drive, ``stationary`` the bundled stationary drive, and bundled file names work
+too (``V-sim-roundabout``); (3) a run name
+looked up under the data root (``--data-root`` or ``$IONAV_DATA``), case-insensitively and
+tolerant of zero padding (``V-Vw8``, ``Vw8``, ``v-vw8.csv``, ``V-Vta01a``), preferring the
+``Unsynchronised`` tree (complete runs) over the synchronised copies.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from functools import lru_cache
+from pathlib import Path
+
+from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
+from ..core.errors import InputError
+from ..dataset.samples import SAMPLES, by_scenario, sample_path
+
+
+def data_root(option: str | Path | None) -> Path | None:
+    """The data root from the option, else ``$IONAV_DATA``, else the per-user data directory
+    that ``ionav-viz fetch`` fills (when it exists), else None."""
+    value = option if option not in (None, "") else os.environ.get("IONAV_DATA") or None
+    if value is None:
+        from ..dataset.fetch import default_data_root
+
+        default = default_data_root()
+        return default if default.is_dir() else None
+    root = Path(value).expanduser()
+    if not root.is_dir():
+        raise InputError(f"data root {root} is not a directory", "pass --data-root DIR or set IONAV_DATA to the IO-VNBD checkout")
+    return root
+
+
+def _preference(path: Path) -> tuple:
+    text = str(path).lower()
+    return (0 if "unsynchronised" in text else 1, 0 if "/categorised" in text.replace("\\", "/") else 1, len(text), text)
+
+
+@lru_cache(maxsize=8)
+def index_data_root(root: Path) -> dict[str, list[Path]]:
+    """All ``V-*.csv`` under ``root`` by run key, best copy first."""
+    index: dict[str, list[Path]] = {}
+    for path in root.rglob("*"):
+        name = path.name.lower()
+        if name.startswith("v-") and name.endswith(".csv") and path.is_file():
+            index.setdefault(run_key(path.name), []).append(path)
+    return {k: sorted(v, key=_preference) for k, v in index.items()}
+
+
+def _bundled(spec: str) -> Path | None:
+    key = spec.strip().lower()
+    named = by_scenario(key) or by_scenario(key, role="bias")  # 'stationary' is the bias drive
+    if named:
+        return sample_path(named[0])
+    for sample in SAMPLES:
+        if run_key(sample.file) == run_key(spec):
+            return sample_path(sample)
+    return None
+
+
+def resolve_drive(spec: str, root: Path | None) -> Path:
+    """Path of the drive ``spec`` names (see module docstring), or an :class:`InputError`."""
+    path = Path(spec).expanduser()
+    if path.is_file():
+        return path
+    if path.suffix.lower() in (".csv", ".mcap") and (os.sep in spec or "/" in spec):
+        raise InputError(f"{spec}: no such file")
+    bundled = _bundled(spec)
+    if bundled is not None:
+        if not bundled.is_file():
+            raise InputError(f"bundled sample {bundled} is missing", "run from a full checkout, or regenerate with 'ionav-viz simulate --bundled recordings/samples'")
+        return bundled
+    key = run_key(spec)
+    if root is not None:
+        found = index_data_root(root.resolve()).get(key)
+        if found:
+            return found[0]
+    known = vehicle_runs()
+    role = paper_role(spec)
+    if key in known or role:
+        what = f"{spec} is {role}" if role else f"{spec} is an IO-VNBD run"
+        where = f"it is not under the data root {root}" if root else "no data root is set"
+        raise InputError(
+            f"{what} of the real IO-VNBD dataset, and {where}",
+            f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a copy",
+        )
+    candidates = {s.scenario for s in SAMPLES if s.role == "test"} | {Path(s.file).stem for s in SAMPLES}
+    candidates |= {f"V-{k}" for k in known}
+    if root is not None:
+        candidates |= {p[0].stem for p in index_data_root(root.resolve()).values()}
+    close = difflib.get_close_matches(spec, sorted(candidates), n=3, cutoff=0.6)
+    hint = f"did you mean {', '.join(close)}?" if close else "give a file path, a bundled scenario (motorway, roundabout, quick-accel, hard-brake, sharp-cornering) or an IO-VNBD run name"
+    raise InputError(f"unknown drive {spec!r}", hint)

@@ -1,0 +1,275 @@
+"""Writing a replay's results to a Rerun ``.rrd`` recording (the logging layer).
+
+It consumes only results (:class:`ionav_viz.analysis.evaluate.DriveResult`, a summary text and
+detected events) and sends
+every series as whole columns with ``send_columns``; static layers are logged once.
+
+Timelines: ``time`` (seconds since the first sample of the drive) and ``time_of_day`` (UTC
+time of day, as a duration since midnight).
+
+Entity paths (see also the README):
+
+==============================================  ==============================================
+``map/gnss``                                    GNSS ground-truth track (static, lat/lon)
+``map/gnss/position``                           current GNSS position (per sample)
+``map/<estimator>/live``                        the current outage's estimated track, growing
+                                                each second (lat/lon); <estimator> is each
+                                                estimator's name (``ins``, ``idnn``, plug-ins)
+``map/<estimator>/all``                         all outages' estimated tracks (static overview)
+``local/...``                                   the same in a local east-north frame (metres,
+                                                origin at the first fix; x east, y = -north so
+                                                north is up in Rerun's y-down 2D view), for
+                                                offline review without map tiles
+``local/outages``                               outage start points with labels (static)
+``gnss/available``                              1 with GNSS, 0 during an outage (per window)
+``gnss/state``                                  "GNSS" or "outage N" (state timeline)
+``signals/accel_long_mps2``                     longitudinal acceleration (per sample)
+``signals/yaw_rate_radps/{gyro,gnss,<est>}``   yaw rates, counter-clockwise positive
+``signals/displacement_m/{gnss,<est>}``         displacement per second (per window)
+``signals/speed_mps``                           GNSS speed (per sample)
+``errors/{crse_m,cae_m,yaw_crse_radps,``        cumulative errors inside each outage, per
+``position_error_m}/<est>``                     estimator (per window, reset at each outage)
+``events/state``                                detected manoeuvres ("hard-brake #3"), state timeline
+``map/events``, ``local/events``                manoeuvre positions, labelled in the local view
+``summary``                                     Markdown: metrics table and run parameters
+==============================================  ==============================================
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.evaluate import DriveResult
+from ..analysis.metrics import cumulative_errors
+from ..core.errors import ToolFailure
+from .style import EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, estimator_colors
+
+APP_ID = "ionav-viz"
+
+
+def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """East and north (m) of positions relative to an origin (azimuthal equidistant projection)."""
+    from pyproj import Transformer
+
+    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
+    east, north = to_local.transform(np.asarray(lon_deg), np.asarray(lat_deg))
+    return np.asarray(east), np.asarray(north)
+
+
+def _screen(east: np.ndarray, north: np.ndarray) -> np.ndarray:
+    """Local frame -> Rerun 2D view coordinates (y grows downwards on screen)."""
+    return np.stack([east, -north], axis=-1)
+
+
+def map_zoom(lat_deg: np.ndarray, lon_deg: np.ndarray, view_px: float) -> float:
+    """Web-map zoom level at which the track's extent fills about ``view_px`` pixels.
+
+    Web Mercator: metres per pixel = 156543.03 * cos(lat) / 2^zoom (checked on a rendered map view).
+    """
+    lat0 = float(np.mean(lat_deg))
+    east, north = local_en_m(lat_deg, lon_deg, lat0, float(np.mean(lon_deg)))
+    extent_m = max(float(np.ptp(east)), float(np.ptp(north)), 50.0)
+    zoom = np.log2(156543.03 * np.cos(np.radians(lat0)) * view_px / extent_m)
+    return float(np.clip(zoom, 3.0, 19.0))
+
+
+def blueprint(labels: list[str], zoom: float = 16.0):
+    """The default review layout: map and local view, signals and errors, summary."""
+    import rerun.blueprint as rrb
+
+    tracks = rrb.Vertical(
+        rrb.MapView(origin="map", name=f"Map ({', '.join(['GNSS', *labels])})", zoom=zoom),
+        rrb.Spatial2DView(origin="local", name="Local east-north (m), north up"),
+    )
+    signals = rrb.Vertical(
+        rrb.StateTimelineView(origin="/", contents=["gnss/state", "events/state"], name="GNSS / outages / manoeuvres"),
+        rrb.TimeSeriesView(origin="signals/displacement_m", name="Displacement per second (m)"),
+        rrb.TimeSeriesView(origin="signals/yaw_rate_radps", name="Yaw rate (rad/s, CCW +)"),
+        rrb.TimeSeriesView(origin="signals/accel_long_mps2", name="Longitudinal acceleration (m/s²)"),
+        row_shares=[1.7, 3, 3, 2],
+    )
+    errors = rrb.Vertical(
+        rrb.TimeSeriesView(origin="errors/position_error_m", name="2D position error (m)"),
+        rrb.TimeSeriesView(origin="errors/crse_m", name="Displacement CRSE (m)"),
+        rrb.TimeSeriesView(origin="errors/cae_m", name="Displacement CAE (m)"),
+        rrb.TimeSeriesView(origin="errors/yaw_crse_radps", name="Orientation-rate CRSE (rad/s)"),
+        rrb.TextDocumentView(origin="summary", name="Summary"),
+    )
+    return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=[4, 3, 3]), collapse_panels=True)
+
+
+def short_label(label: str) -> str:
+    """``'INS DR'`` -> ``'INS'``: the map title names estimators briefly."""
+    return label[:-3] if label.endswith(" DR") else label
+
+
+def _times(t_s: np.ndarray, start_tod_s: float):
+    import rerun as rr
+
+    t_s = np.asarray(t_s, dtype=np.float64)
+    return [rr.TimeColumn("time", duration=t_s), rr.TimeColumn("time_of_day", duration=start_tod_s + t_s)]
+
+
+def with_breaks(t_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-outage series (seq, win) flattened, with a NaN half a second after every outage that the
+    next one does not follow at once, so plots break the line instead of bridging the GNSS stretch."""
+    t, v = t_s.ravel(), np.asarray(values, dtype=np.float64).ravel()
+    if t_s.shape[0] < 2:
+        return t, v
+    gaps = np.flatnonzero(t_s[1:, 0] - t_s[:-1, -1] > 1.0 + 1e-6)  # outage i is followed by GNSS
+    at = (gaps + 1) * t_s.shape[1]
+    return np.insert(t, at, t_s[gaps, -1] + 0.5), np.insert(v, at, np.nan)
+
+
+def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
+    """(seq, win+1, 2) -> per (seq, win) row the strip of points 0..win+1, row-major."""
+    return [points[s, : w + 2] for s in range(points.shape[0]) for w in range(points.shape[1] - 1)]
+
+
+def write_recording(result: DriveResult, summary_md: str, path: Path, progress=None,
+                    target: Path | None = None, events: list | None = None) -> dict[str, int]:
+    """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
+
+    Returns row counts per entity (for messages and tests). The recording is built in memory and
+    written in one go. The caller makes the write atomic: ``path`` is then a temporary file and
+    ``target`` the name used in error messages.
+    """
+    import rerun as rr
+
+    drive, w, starts = result.drive, result.windows, result.starts
+    n_win = result.n_windows
+    tod = drive.start_time_of_day_s
+    rec = rr.RecordingStream(APP_ID, recording_id=f"{drive.name}-{result.outage_s:g}s")
+    # Logged into memory and written by Python: a full disk then fails as a plain OSError, where
+    # Rerun's file sink can block forever once its writer thread has died.
+    memory = rec.memory_recording()
+    rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], map_zoom(drive.lat_deg, drive.lon_deg, 350)))
+    rec.send_recording_name(drive.name)
+    rows: dict[str, int] = {}
+
+    def send(entity: str, t_s: np.ndarray, columns) -> None:
+        rec.send_columns(entity, indexes=_times(t_s, tod), columns=columns)
+        rows[entity] = len(t_s)
+
+    def step(label: str) -> None:
+        if progress:
+            progress(label)
+
+    lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
+    east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
+    truth_ll = np.stack([drive.lat_deg, drive.lon_deg], axis=-1)
+    truth_xy = _screen(east, north)
+
+    # Styling and static layers, once.
+    estimators = list(result.estimates)
+    colors = {**estimator_colors(result.estimators), "gnss": GNSS_COLOR, "gyro": GYRO_COLOR}
+    labels = {**{e.name: e.label for e in result.estimators}, "gnss": GNSS_LABEL, "gyro": GYRO_LABEL}
+    for est in ["gyro", "gnss", *estimators]:
+        rec.log(f"signals/yaw_rate_radps/{est}", rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]), static=True)
+    for est in ["gnss", *estimators]:
+        rec.log(f"signals/displacement_m/{est}", rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]), static=True)
+    for est in estimators:
+        for group in ("crse_m", "cae_m", "yaw_crse_radps", "position_error_m"):
+            rec.log(f"errors/{group}/{est}", rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[2.0]), static=True)
+    rec.log("signals/accel_long_mps2", rr.SeriesLines(colors=[GYRO_COLOR], names=["accelerometer"]), static=True)
+    rec.log("signals/speed_mps", rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS speed"]), static=True)
+    rec.log("gnss/available", rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS available"]), static=True)
+    # The truth is drawn wide underneath, the overview layers thin, the growing tracks wide on top.
+    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll], colors=[GNSS_COLOR], radii=rr.Radius.ui_points(4.0)), static=True)
+    rec.log("local/gnss", rr.LineStrips2D([truth_xy], colors=[GNSS_COLOR], radii=rr.Radius.ui_points(4.0), draw_order=10), static=True)
+    rec.log("summary", rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
+    step("static layers")
+
+    # Per-sample series.
+    t = drive.t_s
+    send("map/gnss/position", t, rr.GeoPoints.columns(positions=truth_ll, colors=np.tile(GNSS_COLOR, (len(t), 1)), radii=np.full(len(t), -6.0)))
+    send("local/gnss/position", t, rr.Points2D.columns(positions=truth_xy, colors=np.tile(GNSS_COLOR, (len(t), 1)), radii=np.full(len(t), -6.0)))
+    send("signals/accel_long_mps2", t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
+    send("signals/yaw_rate_radps/gyro", t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
+    send("signals/speed_mps", t, rr.Scalars.columns(scalars=drive.speed_mps))
+    step("signals")
+
+    # Per-window GNSS truth and outage state.
+    t_end = w.t0_s + 1.0
+    send("signals/displacement_m/gnss", t_end, rr.Scalars.columns(scalars=w.gnss_disp_m))
+    send("signals/yaw_rate_radps/gnss", t_end, rr.Scalars.columns(scalars=w.gnss_yaw_rate_radps))
+    available = np.ones(len(w))
+    idx = starts[:, None] + np.arange(n_win)[None, :]
+    available[idx.ravel()] = 0.0
+    t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
+    send("gnss/available", t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
+    states = np.full(len(w), "GNSS", dtype=object)
+    for i, k in enumerate(starts):
+        states[k : k + n_win] = f"outage {i + 1} ({w.t0_s[k]:.0f}-{w.t0_s[k] + n_win:.0f} s)"
+    change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
+    send("gnss/state", w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
+    step("outages")
+    if events:
+        _log_events(rec, events, drive, lat0, lon0, send)
+
+    if len(starts):
+        t_win = t_end[idx].ravel()
+        start_xy = _screen(*local_en_m(w.lat0_deg[starts], w.lon0_deg[starts], lat0, lon0))
+        rec.log("local/outages", rr.Points2D(start_xy, labels=[f"#{i + 1}" for i in range(len(starts))],
+                                             colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(4.0)), static=True)
+        for name, est in result.estimates.items():
+            color = colors[name]
+            ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
+            xy = _screen(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
+            n_rows = idx.size
+            thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
+            send(f"map/{name}/live", t_win, rr.GeoLineStrings.columns(
+                line_strings=_growing_strips(ll), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
+            send(f"local/{name}/live", t_win, rr.LineStrips2D.columns(
+                strips=_growing_strips(xy), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+                draw_order=np.full(n_rows, 30.0)))
+            rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[color], radii=thin), static=True)
+            rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[color], radii=thin, draw_order=20), static=True)
+            series = {f"signals/displacement_m/{name}": est.disp_m, f"signals/yaw_rate_radps/{name}": est.yaw_rate_radps}
+            series.update({f"errors/{m}/{name}": v for m, v in cumulative_errors(w, starts, n_win, est).items()})
+            for entity, values in series.items():
+                t_plot, v_plot = with_breaks(t_end[idx], values)
+                send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
+            step(name)
+    data = memory.drain_as_bytes()
+    rec.disconnect()
+    with open(path, "wb") as f:  # OSError (disk full) reaches the caller's atomic write
+        f.write(data)
+    _check_written(path, target or path)
+    return rows
+
+
+def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> None:
+    """Detected manoeuvres: a state timeline, and labelled points on the map and local view."""
+    import rerun as rr
+
+    times, states = [], []
+    for i, e in enumerate(sorted(events, key=lambda e: e.t0_s)):
+        if times and e.t0_s < times[-1]:  # overlapping events: the timeline shows the later one
+            times.pop()
+            states.pop()
+        times += [e.t0_s, e.t1_s]
+        states += [f"{e.type} #{i + 1}", "none"]
+    order = np.argsort(times, kind="stable")
+    send("events/state", np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
+    mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
+    lat = np.interp(mid, drive.t_s, drive.lat_deg)
+    lon = np.interp(mid, drive.t_s, drive.lon_deg)
+    labels = [f"{e.type} #{i + 1}" for i, e in enumerate(events)]
+    rec.log("map/events", rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
+    rec.log("local/events", rr.Points2D(_screen(*local_en_m(lat, lon, lat0, lon0)), labels=labels, colors=[EVENT_COLOR],
+                                        radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
+
+
+def _check_written(path: Path, target: Path) -> None:
+    """Read the file's footer back: a sink that failed silently must not pass as a recording."""
+    from rerun.chunk import RrdReader
+
+    try:
+        ok = len(RrdReader(path).recordings()) == 1
+    except Exception as exc:  # the reader's errors are not one class
+        raise ToolFailure(f"{target}: the written recording does not read back ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); is the disk full?") from None
+    if not ok:
+        raise ToolFailure(f"{target}: the written recording holds no recording; is the disk full?")

@@ -1,0 +1,44 @@
+"""Colours and names of what recordings and screenshots draw: one home for each.
+
+Estimators carry their own ``label`` and optional ``color`` (the built-ins' are fixed in their
+classes); a plug-in without a colour gets one from :data:`PALETTE`, chosen by a stable hash of
+its name among the colours no other estimator of the run uses, so it keeps its colour from run to run.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Sequence
+from typing import Any
+
+RGB = tuple[int, int, int]
+
+#: Colours of what is not an estimator.
+GNSS_COLOR: RGB = (0, 170, 80)
+GYRO_COLOR: RGB = (150, 150, 150)
+OUTAGE_MARK_COLOR: RGB = (90, 90, 90)
+EVENT_COLOR: RGB = (250, 200, 40)
+GNSS_LABEL = "GNSS (truth)"
+GYRO_LABEL = "gyro"
+
+#: Colours for plug-ins that bring none (distinct from the GNSS green and the built-ins' red and blue).
+PALETTE: tuple[RGB, ...] = (
+    (230, 140, 20), (150, 60, 200), (0, 170, 190), (210, 60, 150), (120, 90, 40), (110, 160, 30), (60, 60, 60),
+)
+
+
+def estimator_colors(estimators: Sequence[Any]) -> dict[str, RGB]:
+    """A distinct colour per estimator name: its own ``color``, else a palette colour."""
+    out: dict[str, RGB] = {}
+    for est in estimators:
+        if getattr(est, "color", None) is not None:
+            out[est.name] = tuple(int(c) for c in est.color)  # type: ignore[assignment]
+    taken = set(out.values()) | {GNSS_COLOR}
+    for est in estimators:
+        if est.name in out:
+            continue
+        free = [c for c in PALETTE if c not in taken] or list(PALETTE)
+        color = free[zlib.crc32(est.name.encode()) % len(free)]
+        out[est.name] = color
+        taken.add(color)
+    return out
