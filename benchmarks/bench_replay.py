@@ -20,11 +20,12 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from ionav_viz.analysis.evaluate import DriveResult, evaluate_drive, report, resolve_bias
+from ionav_viz.analysis.evaluate import DriveResult, evaluate_drive, resolve_bias
+from ionav_viz.analysis.report import Report
 from ionav_viz.nav.idnn import default_model_dir, load_model
 from ionav_viz.sources.iovnbd import read_iovnbd
 from ionav_viz.analysis.metrics import cumulative_errors
-from ionav_viz.viz.recording import APP_ID, _screen, local_en_m, write_recording
+from ionav_viz.viz.recording import APP_ID, screen_xy, local_en_m, write_recording
 from ionav_viz.sim.simulate import write_simulated_drive
 from ionav_viz.analysis.tables import render_markdown
 
@@ -37,7 +38,7 @@ def write_recording_rowwise(result: DriveResult, path: Path) -> None:
     tod = drive.start_time_of_day_s
     lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
     east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
-    xy = _screen(east, north)
+    xy = screen_xy(east, north)
 
     def at(t: float) -> None:
         rec.set_time("time", duration=t)
@@ -56,7 +57,7 @@ def write_recording_rowwise(result: DriveResult, path: Path) -> None:
         rec.log("signals/yaw_rate_radps/gnss", rr.Scalars(w.gnss_yaw_rate_radps[k]))
     for name, est in result.estimates.items():
         ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)
-        loc = _screen(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
+        loc = screen_xy(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
         errs = cumulative_errors(w, starts, n_win, est)
         for s, k0 in enumerate(starts):
             for j in range(n_win):
@@ -76,7 +77,7 @@ def replay_once(csv: Path, out: Path, model) -> tuple[float, float, DriveResult]
     start = time.perf_counter()
     drive = read_iovnbd(csv)
     result = evaluate_drive(drive, 10.0, bias=resolve_bias(drive), model=model)
-    rep = report([result])
+    rep = Report([result]).to_dict()
     log_start = time.perf_counter()
     write_recording(result, render_markdown(rep), out)
     end = time.perf_counter()

@@ -66,11 +66,11 @@ def soak_cli(runs: int, drive: str, out: Path) -> None:
 
 
 def soak_in_process(runs: int, drive: str, out: Path) -> None:
-    from ionav_viz.cli.app import _replay_drive
+    import ionav_viz
 
     samples = []
     for i in range(1, runs + 1):
-        _replay_drive(drive, "10s", None, None, None, 0, out, True, None, False, None, None, "auto")
+        ionav_viz.replay(drive, 10.0, output=out)
         if i % 10 == 0 or i == 1:
             samples.append((i, rss_mb()))
             print(f"run {i:4d}: RSS {samples[-1][1]:7.1f} MB", flush=True)

@@ -89,12 +89,6 @@ def test_replay_aims_outages_at_events(tmp_path):
     assert "/map/events" in static and "/local/events" in static
 
 
-def test_evaluate_by_event_builds_tables_per_manoeuvre():
-    proc = run_cli("evaluate", "hard-brake", "sharp-cornering", "--by-event", "--on", "hard-brake,sharp-corner,left-right", "--json")
-    assert proc.returncode == 0, proc.stderr
-    by = json.loads(proc.stdout)["by_event"]
-    assert set(by) == {"hard-brake", "sharp-corner", "left-right"}
-    assert {s["drive"] for s in by["hard-brake"]["sequences"]} == {"V-sim-hard-brake"}
-    assert set(by["left-right"]["summary"]) == {"ins", "idnn"}
+def test_evaluate_by_event_text():
     text = run_cli("evaluate", "hard-brake", "--by-event", "--on", "hard-brake")
     assert text.returncode == 0 and text.stdout.startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from ionav_viz.core.errors import InputError
 from ionav_viz.sources.iovnbd import HEADER, HEADER_LINE, read_iovnbd
 from ionav_viz.analysis.metrics import aeps, cae, crse, sequence_metrics
-from ionav_viz.nav.ins import Estimate
+from ionav_viz.nav.estimators import Solution
 from ionav_viz.nav.track import Track
 
 SETTINGS = settings(max_examples=120, deadline=None, derandomize=True,
@@ -116,6 +116,6 @@ def test_errors_are_zero_when_the_estimate_is_the_truth(n, pick):
     idx = starts[:, None] + np.arange(n)[None, :]
     lat = np.concatenate([w.lat0_deg[idx], w.lat1_deg[idx[:, -1:]]], axis=1)
     lon = np.concatenate([w.lon0_deg[idx], w.lon1_deg[idx[:, -1:]]], axis=1)
-    truth = Estimate(w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx], Track(lat, lon, np.zeros_like(lat)))
+    truth = Solution(w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx], Track(lat, lon, np.zeros_like(lat)))
     for values in sequence_metrics(w, starts, n, truth).values():
         np.testing.assert_allclose(values, 0.0, atol=1e-9)

@@ -92,31 +92,6 @@ def test_recorded_errors_equal_evaluate_json(replayed):
         np.testing.assert_allclose(times[:, -1], [s["start_s"] + N_WIN for s in rep["sequences"]], atol=1e-6)
 
 
-@pytest.mark.parametrize(
-    "args, n_outages",
-    [(["--at", "12s,40s"], 2), (["--every", "150s"], 4), (["--random", "3", "--seed", "7"], 3)],
-)
-def test_outage_placements(tmp_path, args, n_outages):
-    out = tmp_path / "x.rrd"
-    proc = run_cli("replay", "hard-brake", "--outage", "10s", "-o", str(out), "--quiet", "--no-idnn", *args)
-    assert proc.returncode == 0, proc.stderr
-    rows, _ = read_rrd(out)
-    values = [v[0] for _, v in rows["/errors/crse_m/ins"]]
-    assert sum(np.isfinite(values)) == n_outages * N_WIN
-    # a NaN after every outage that GNSS follows, so the plot does not bridge the gap
-    assert sum(np.isnan(values)) == n_outages - 1
-    assert "/errors/crse_m/idnn" not in rows
-
-
-def test_at_times_are_where_asked(tmp_path):
-    out = tmp_path / "x.rrd"
-    proc = run_cli("replay", "hard-brake", "--outage", "5s", "--at", "12s,40s", "-o", str(out), "--quiet", "--no-idnn")
-    assert proc.returncode == 0, proc.stderr
-    rows, _ = read_rrd(out)
-    t = np.array([t for t, v in rows["/errors/crse_m/ins"] if np.isfinite(v[0])])
-    np.testing.assert_allclose(t, np.concatenate([12 + np.arange(1, 6), 40 + np.arange(1, 6)]), atol=0.05)
-
-
 def test_paper_run_without_data_root_explains(tmp_path):
     proc = run_cli("replay", "V-Vw8", "--outage", "10s", "-o", str(tmp_path / "x.rrd"))
     assert proc.returncode == 2

@@ -188,11 +188,11 @@ def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
 @pytest.mark.parametrize(
     "args, fragments",
     [
-        (["--outage", "10m"], ["too short", "shorter --outage"]),
+        (["--outage", "10m"], ["--outage 10m", "too short", "shorter outages"]),
         (["--outage", "0"], ["--outage", "positive"]),
         (["--outage=-10s"], ["--outage", "not a duration"]),
         (["--outage", "2.5s"], ["whole number of seconds"]),
-        (["--at", "20s,25s"], ["--at 25s", "overlaps"]),
+        (["--at", "20s,25s"], ["--at 20s,25s", "start time 25 s", "overlaps"]),
         (["--every", "5s"], ["shorter than the outage"]),
         (["--random", "50"], ["--random 50", "only"]),
     ],

@@ -8,7 +8,11 @@ import time
 import numpy as np
 import pytest
 
-from ionav_viz.viz.recording import COLORS
+from ionav_viz.nav.idnn import IdnnEstimator
+from ionav_viz.nav.ins import InsEstimator
+from ionav_viz.viz.style import GNSS_COLOR
+
+COLORS = {"gnss": GNSS_COLOR, "ins": InsEstimator.color, "idnn": IdnnEstimator.color}
 
 from .conftest import REPO, run_cli
 

@@ -39,7 +39,7 @@ def evaluate(
     from ..analysis.report import json_safe, reports_to_json
     from ..analysis.tables import render_overview
 
-    name_options(outage_s="--outage", bias_from="--bias-from", model="--model", placement="--on")
+    name_options(outage_s=f"--outage {outage}", bias_from="--bias-from", model="--model", placement="--on")
     outage_s = c.whole_seconds(outage, "--outage")
     mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
     c.yaw_sign(yaw_sign)

@@ -20,13 +20,13 @@ def placement_of(every: Optional[str], at: Optional[str], random_count: Optional
     if len(chosen) > 1:
         raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
     if on is not None:
-        return AroundEvents(c.event_types(on)), "--on"
+        return AroundEvents(c.event_types(on)), f"--on {on}"
     if every is not None:
-        return Every(c.whole_seconds(every, "--every")), "--every"
+        return Every(c.whole_seconds(every, "--every")), f"--every {every}"
     if at is not None:
-        return At(tuple(_parse_times(at))), "--at"
+        return At(tuple(_parse_times(at))), f"--at {at}"
     if random_count is not None:
-        return Random(random_count, seed), "--random"
+        return Random(random_count, seed), f"--random {random_count}"
     return Tile(), "--outage"
 
 
@@ -69,7 +69,7 @@ def replay(
     mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
     outage_s = c.whole_seconds(outage, "--outage")
     placement, option = placement_of(every, at, random_count, seed, on)
-    name_options(outage_s="--outage", placement=option, bias_from="--bias-from", model="--model")
+    name_options(outage_s=f"--outage {outage}", placement=option, bias_from="--bias-from", model="--model")
     if output is not None and output.suffix.lower() != ".rrd":
         raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
     c.yaw_sign(yaw_sign)

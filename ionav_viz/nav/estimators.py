@@ -35,6 +35,7 @@ read ``inputs.windows`` (the whole drive's windows) only *before* each outage's 
 from __future__ import annotations
 
 import importlib
+import inspect
 import logging
 import re
 from collections.abc import Sequence
@@ -261,7 +262,9 @@ def load_plugin(spec: str) -> Estimator:
 
 def _instantiate(factory: Any, origin: str) -> Estimator:
     try:
-        obj = factory() if callable(factory) and not isinstance(factory, Estimator) else factory
+        # a class passes the protocol check by its class attributes: instantiate classes always
+        is_instance = not inspect.isclass(factory) and isinstance(factory, Estimator)
+        obj = factory if is_instance or not callable(factory) else factory()
     except Exception as exc:
         raise EstimatorError(
             f"estimator {origin!r}: creating it failed ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})",
@@ -304,7 +307,7 @@ def resolve(
     chosen: list[Estimator] = []
     for item in list(BUILTIN if names is None else names) + list(plugins):
         if not isinstance(item, str):
-            chosen.append(validate(item, type(item).__name__))
+            chosen.append(_instantiate(item, getattr(item, "__name__", type(item).__name__)) if inspect.isclass(item) else validate(item))
             continue
         key = item.strip()
         if ":" in key:

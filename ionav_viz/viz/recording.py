@@ -58,7 +58,7 @@ def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_d
     return np.asarray(east), np.asarray(north)
 
 
-def _screen(east: np.ndarray, north: np.ndarray) -> np.ndarray:
+def screen_xy(east: np.ndarray, north: np.ndarray) -> np.ndarray:
     """Local frame -> Rerun 2D view coordinates (y grows downwards on screen)."""
     return np.stack([east, -north], axis=-1)
 
@@ -160,7 +160,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
     east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
     truth_ll = np.stack([drive.lat_deg, drive.lon_deg], axis=-1)
-    truth_xy = _screen(east, north)
+    truth_xy = screen_xy(east, north)
 
     # Styling and static layers, once.
     estimators = list(result.estimates)
@@ -211,13 +211,13 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
 
     if len(starts):
         t_win = t_end[idx].ravel()
-        start_xy = _screen(*local_en_m(w.lat0_deg[starts], w.lon0_deg[starts], lat0, lon0))
+        start_xy = screen_xy(*local_en_m(w.lat0_deg[starts], w.lon0_deg[starts], lat0, lon0))
         rec.log("local/outages", rr.Points2D(start_xy, labels=[f"#{i + 1}" for i in range(len(starts))],
                                              colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(4.0)), static=True)
         for name, est in result.estimates.items():
             color = colors[name]
             ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
-            xy = _screen(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
+            xy = screen_xy(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
             n_rows = idx.size
             thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
             send(f"map/{name}/live", t_win, rr.GeoLineStrings.columns(
@@ -259,7 +259,7 @@ def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> Non
     lon = np.interp(mid, drive.t_s, drive.lon_deg)
     labels = [f"{e.type} #{i + 1}" for i, e in enumerate(events)]
     rec.log("map/events", rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
-    rec.log("local/events", rr.Points2D(_screen(*local_en_m(lat, lon, lat0, lon0)), labels=labels, colors=[EVENT_COLOR],
+    rec.log("local/events", rr.Points2D(screen_xy(*local_en_m(lat, lon, lat0, lon0)), labels=labels, colors=[EVENT_COLOR],
                                         radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
 
 

@@ -1,0 +1,46 @@
+"""Estimator plug-ins for the tests: a working one and broken ones (each fails in one way)."""
+
+import numpy as np
+
+from ionav_viz import Estimate, EstimatorInputs
+
+
+class ConstantSpeed:
+    """Keeps the GNSS speed of the outage start, drives straight (zero yaw rate)."""
+
+    name = "const"
+    label = "Constant speed"
+
+    def estimate(self, inputs: EstimatorInputs) -> Estimate:
+        disp = np.repeat(inputs.speed0_mps[:, None], inputs.n_windows, axis=1) * 1.0  # m per 1 s window
+        return Estimate(disp_m=disp, yaw_rate_radps=np.zeros_like(disp))
+
+
+def make_constant_speed():
+    """A no-argument factory works as well as a class."""
+    return ConstantSpeed()
+
+
+class WrongShape(ConstantSpeed):
+    name = "wrong-shape"
+
+    def estimate(self, inputs):
+        est = super().estimate(inputs)
+        return Estimate(est.disp_m[:, :-1], est.yaw_rate_radps)
+
+
+class NaNOutput(ConstantSpeed):
+    name = "nan-out"
+
+    def estimate(self, inputs):
+        est = super().estimate(inputs)
+        disp = est.disp_m.copy()
+        disp[1, 3] = np.nan
+        return Estimate(disp, est.yaw_rate_radps)
+
+
+class Raises(ConstantSpeed):
+    name = "raises"
+
+    def estimate(self, inputs):
+        raise ZeroDivisionError("division by zero in my filter")

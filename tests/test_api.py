@@ -1,0 +1,118 @@
+"""The Python API, in-process: the same results as the commands, placements as values, clear errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+from ionav_viz import InputError
+
+from .conftest import run_cli
+from .test_replay import read_rrd
+
+N_WIN = 10
+
+
+def test_evaluate_to_json_is_exactly_what_the_command_prints():
+    proc = run_cli("evaluate", "roundabout", "motorway", "--json")
+    assert proc.returncode == 0, proc.stderr
+    report = iv.evaluate(["roundabout", "motorway"], outage_s=10.0)
+    assert report.to_json() + "\n" == proc.stdout
+    assert report.n_sequences == 2 * 59 and report.estimators == ["ins", "idnn"]
+    # text and Markdown renderings come from the same report
+    assert report.to_text().startswith("V-sim-roundabout+V-sim-motorway, 10 s GNSS outages")
+    assert "| **CRSE** | max |" in report.to_markdown()
+
+
+def test_report_fields_agree_with_each_other():
+    report = iv.evaluate("hard-brake", 10.0, estimators=["ins"])
+    crse = report.metric("ins", "crse_m")
+    assert crse.shape == (report.n_sequences,)
+    assert report.summary["ins"]["crse_m"]["mean"] == pytest.approx(crse.mean())
+    assert report.summary["ins"]["crse_m"]["std"] == pytest.approx(crse.std())  # population std, as the paper
+    assert report.improvement_pct == {}  # nothing to compare with the INS
+
+
+@pytest.mark.parametrize(
+    ("placement", "n_outages"),
+    [(iv.At((12.0, 40.0)), 2), (iv.Every(150.0), 4), (iv.Random(3, seed=7), 3), (iv.Tile(), 59)],
+)
+def test_replay_with_placements(tmp_path, placement, n_outages):
+    result = iv.replay("hard-brake", 10.0, placement, estimators=["ins"], output=tmp_path / "x.rrd")
+    assert result.path == tmp_path / "x.rrd" and result.path.is_file()
+    assert len(result.outages) == n_outages == result.report.n_sequences
+    assert all(o.end_s - o.start_s == 10.0 for o in result.outages)
+    assert all(b.start_s >= a.end_s for a, b in zip(result.outages, result.outages[1:]))  # no overlap
+    rows, _ = read_rrd(result.path)
+    values = [v[0] for _, v in rows["/errors/crse_m/ins"]]
+    assert sum(np.isfinite(values)) == n_outages * N_WIN
+    # a NaN after every outage that GNSS follows, so the plot does not bridge the gap
+    gaps = sum(b.start_s > a.end_s for a, b in zip(result.outages, result.outages[1:]))
+    assert sum(np.isnan(values)) == gaps
+    assert "/errors/crse_m/idnn" not in rows
+
+
+def test_at_times_are_where_asked(tmp_path):
+    result = iv.replay("hard-brake", 5.0, iv.At((12.0, 40.0)), estimators=["ins"], output=tmp_path / "x.rrd")
+    assert [o.start_s for o in result.outages] == pytest.approx([12.0, 40.0], abs=0.05)
+    rows, _ = read_rrd(result.path)
+    t = np.array([t for t, v in rows["/errors/crse_m/ins"] if np.isfinite(v[0])])
+    np.testing.assert_allclose(t, np.concatenate([12 + np.arange(1, 6), 40 + np.arange(1, 6)]), atol=0.05)
+
+
+def test_evaluate_by_event_builds_reports_per_manoeuvre():
+    by = iv.evaluate_by_event(["hard-brake", "sharp-cornering"], 10.0, ["hard-brake", "sharp-corner", "left-right"])
+    assert set(by) == {"hard-brake", "sharp-corner", "left-right"}
+    assert {s["drive"] for s in by["hard-brake"].to_dict()["sequences"]} == {"V-sim-hard-brake"}
+    assert by["left-right"].estimators == ["ins", "idnn"]
+    assert by["hard-brake"].to_text().startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")
+
+
+@pytest.mark.parametrize(
+    ("call", "param", "fragment"),
+    [
+        (lambda out: iv.replay("hard-brake", 10.0, iv.At((5000.0,)), estimators=["ins"], output=out), "placement", "start time 5000 s"),
+        (lambda out: iv.replay("hard-brake", 10.0, iv.At((12.0, 15.0)), estimators=["ins"], output=out), "placement", "overlaps"),
+        (lambda out: iv.replay("hard-brake", 10.0, iv.Every(5.0), estimators=["ins"], output=out), "placement", "shorter than the outage"),
+        (lambda out: iv.replay("hard-brake", 600.0, estimators=["ins"], output=out), "outage_s", "too short"),
+        (lambda out: iv.replay("hard-brake", 2.5, estimators=["ins"], output=out), "outage_s", "whole number of seconds"),
+    ],
+)
+def test_library_errors_make_sense_outside_a_shell(tmp_path, call, param, fragment):
+    with pytest.raises(InputError) as info:
+        call(tmp_path / "x.rrd")
+    assert info.value.param == param and fragment in str(info.value)
+    assert "--" not in str(info.value)  # no command-line option in a library message
+    assert not list(tmp_path.iterdir())  # nothing half-written
+
+
+def test_load_drive_accepts_names_paths_and_drives(tmp_path):
+    from ionav_viz.dataset.samples import samples_dir
+
+    by_name = iv.load_drive("roundabout")
+    by_path = iv.load_drive(samples_dir() / "V-sim-roundabout.csv")
+    assert by_name.name == by_path.name == "V-sim-roundabout" and len(by_name) == len(by_path)
+    assert iv.load_drive(by_name) is by_name
+    with pytest.raises(InputError, match="unknown drive"):
+        iv.load_drive("no-such-drive")
+
+
+def test_the_package_exports_a_typed_api():
+    import inspect
+
+    for name in ("load_drive", "evaluate", "replay", "screenshot"):
+        sig = inspect.signature(getattr(iv, name))
+        assert sig.return_annotation != inspect.Signature.empty, name
+    assert {"Estimate", "EstimatorInputs", "Report", "ReplayResult", "Tile", "Every", "At", "Random", "AroundEvents"} <= set(dir(iv))
+
+
+def test_help_does_not_import_the_heavy_libraries():
+    import subprocess
+    import sys
+
+    code = "import sys, ionav_viz; import ionav_viz.cli; print(sorted(m for m in ('numpy','torch','rerun','pyproj') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert json.loads(out.replace("'", '"')) == []

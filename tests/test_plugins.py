@@ -1,0 +1,137 @@
+"""User estimators beside the built-ins: through the API, the CLI, the tables and the recording."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+from ionav_viz.nav.estimators import EstimatorError, resolve
+
+from .conftest import run_cli
+from .test_replay import read_rrd
+
+PLUGINS = Path(__file__).resolve().parent / "plugins"
+ENV = {"PYTHONPATH": str(PLUGINS)}
+
+
+@pytest.fixture(autouse=True)
+def plugins_importable(monkeypatch):
+    monkeypatch.syspath_prepend(str(PLUGINS))
+
+
+def test_constant_speed_metrics_follow_from_its_definition():
+    import toy_estimators
+
+    report = iv.evaluate(["roundabout"], 10.0, estimators=["ins", toy_estimators.ConstantSpeed()])
+    drive = iv.load_drive("roundabout")
+    rep = report.to_dict()
+    assert [e["name"] for e in rep["estimators"]] == ["ins", "const"]
+    for seq in rep["sequences"]:
+        # By hand: e = truth - estimate per window, and the estimate is v0 * 1 s in each of 10 windows,
+        # so CAE = GNSS distance - 10 v0 and AEPS = CRSE / 10; the speed is the drive's at the start.
+        v0 = float(np.interp(seq["start_s"], drive.t_s, drive.speed_mps))
+        assert seq["const"]["cae_m"] == pytest.approx(seq["gnss_distance_m"] - 10 * v0, abs=1e-9)
+        assert seq["const"]["aeps_m"] == pytest.approx(seq["const"]["crse_m"] / 10, abs=1e-12)
+        assert seq["const"]["crse_m"] >= abs(seq["const"]["cae_m"]) - 1e-12
+    # the INS numbers do not depend on which other estimators run
+    alone = iv.evaluate(["roundabout"], 10.0, estimators=["ins"]).to_dict()
+    assert alone["summary"]["ins"] == rep["summary"]["ins"]
+    assert set(rep["improvement_pct"]) == {"const"}
+    base, cand = rep["summary"]["ins"]["crse_m"]["mean"], rep["summary"]["const"]["crse_m"]["mean"]
+    assert rep["improvement_pct"]["const"]["crse_m"] == pytest.approx(100 * (base - cand) / base)
+
+
+def test_cli_json_tables_and_recording_show_the_plugin(tmp_path):
+    spec = "toy_estimators:make_constant_speed"
+    ev = run_cli("evaluate", "roundabout", "--json", "--estimator", spec, env=ENV)
+    assert ev.returncode == 0, ev.stderr
+    rep = json.loads(ev.stdout)
+    assert [e["name"] for e in rep["estimators"]] == ["ins", "idnn", "const"]
+    assert {"ins", "idnn", "const"} <= set(rep["sequences"][0]) and set(rep["improvement_pct"]) == {"idnn", "const"}
+
+    text = run_cli("evaluate", "roundabout", "--estimators", "ins", "--estimator", spec, env=ENV)
+    assert text.returncode == 0, text.stderr
+    assert "Constant speed (m)" in text.stdout and "Constant speed improvement over INS" in text.stdout
+    assert "IDNN" not in text.stdout
+    overview = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--estimator", spec, env=ENV)
+    assert "Constant speed (m)" in overview.stdout and overview.stdout.count("Δ %") == 4  # IDNN and const, two blocks
+
+    out = tmp_path / "r.rrd"
+    proc = run_cli("replay", "roundabout", "-o", str(out), "-q", "--estimator", spec, env=ENV)
+    assert proc.returncode == 0, proc.stderr
+    rows, static = read_rrd(out)
+    for entity in ["/map/const/live", "/local/const/live", "/signals/displacement_m/const", "/signals/yaw_rate_radps/const",
+                   "/errors/crse_m/const", "/errors/position_error_m/const"]:
+        assert entity in rows, entity
+    assert {"/map/const/all", "/local/const/all"} <= static
+    # the last CRSE of every outage in the recording is the JSON's
+    crse = [v[0] for _, v in rows["/errors/crse_m/const"] if v and v[0] == v[0]]
+    np.testing.assert_allclose(crse[9::10], [s["const"]["crse_m"] for s in rep["sequences"]], rtol=1e-12)
+
+
+def test_a_plugin_gets_its_own_colour_and_legend():
+    import toy_estimators
+
+    from ionav_viz.nav.estimators import resolve
+    from ionav_viz.viz.style import GNSS_COLOR, estimator_colors
+
+    ests = resolve(["ins", "idnn", toy_estimators.ConstantSpeed()])
+    colors = estimator_colors(ests)
+    assert len(set(colors.values()) | {GNSS_COLOR}) == 4
+    assert estimator_colors(ests) == colors  # fixed from run to run
+
+
+@pytest.mark.parametrize(
+    ("spec", "fragments"),
+    [
+        ("broken_import:Anything", ["broken_import:Anything", "cannot import", "no_such_module_anywhere"]),
+        ("toy_estimators:Missing", ["toy_estimators:Missing", "has no Missing"]),
+        ("toy_estimators:WrongShape", ["'wrong-shape'", "disp_m has shape", "expected"]),
+        ("toy_estimators:NaNOutput", ["'nan-out'", "nan in outage 2, window 4"]),
+        ("toy_estimators:Raises", ["'raises' failed", "ZeroDivisionError"]),
+        ("not-a-spec", ["unknown estimator 'not-a-spec'", "MODULE:NAME"]),
+    ],
+)
+def test_broken_plugins_are_one_line_errors_naming_them(spec, fragments):
+    option = "--estimators" if ":" not in spec else "--estimator"
+    proc = run_cli("evaluate", "roundabout", option, spec, env=ENV)
+    assert proc.returncode == 2, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+
+
+def test_broken_plugin_in_python_raises_the_package_error():
+    import toy_estimators
+
+    with pytest.raises(EstimatorError, match="nan-out"):
+        iv.evaluate(["roundabout"], 10.0, estimators=["ins", toy_estimators.NaNOutput()])
+    with pytest.raises(EstimatorError, match="ZeroDivisionError") as info:
+        iv.evaluate(["roundabout"], 10.0, estimators=[toy_estimators.Raises()])
+    assert isinstance(info.value.__cause__, ZeroDivisionError)  # the plug-in's traceback is kept
+
+
+def test_entry_point_plugins_are_found_by_name(tmp_path, monkeypatch):
+    dist = tmp_path / "toy_estimators_pkg-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: toy-estimators-pkg\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text("[ionav_viz.estimators]\nconst = toy_estimators:ConstantSpeed\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    chosen = resolve(["ins", "const"])
+    assert [e.name for e in chosen] == ["ins", "const"] and chosen[1].label == "Constant speed"
+    proc = run_cli("evaluate", "roundabout", "--estimators", "ins,const", "--json",
+                   env={"PYTHONPATH": f"{tmp_path}:{PLUGINS}"})
+    assert proc.returncode == 0, proc.stderr
+    assert [e["name"] for e in json.loads(proc.stdout)["estimators"]] == ["ins", "const"]
+
+
+def test_estimators_option_chooses_and_orders():
+    proc = run_cli("evaluate", "roundabout", "--estimators", "idnn", "--json")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert [e["name"] for e in rep["estimators"]] == ["idnn"] and "improvement_pct" not in rep
