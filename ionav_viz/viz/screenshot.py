@@ -23,7 +23,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +51,7 @@ class RecordingInfo:
     worst_s: float | None  # end of the outage with the largest INS position error
     lat_deg: np.ndarray  # the GNSS track
     lon_deg: np.ndarray
+    estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
 
     def outage_at(self, t_s: float) -> str | None:
         for start, end, label in self.outages:
@@ -72,10 +73,14 @@ def read_recording_info(path: Path) -> RecordingInfo:
     if not recordings:
         raise InputError(f"{path}: no recording inside", "make one with 'ionav-viz replay DRIVE'")
     drive, end_s, states, errors, track = path.stem, 0.0, [], [], []
+    estimators: dict[str, tuple[str, tuple[int, int, int]]] = {}
     for chunk in reader.stream():
         entity = str(chunk.entity_path)
         batch = chunk.to_record_batch()
         names = batch.schema.names
+        if chunk.is_static and entity.startswith("/errors/position_error_m/"):
+            estimators[entity.rsplit("/", 1)[-1]] = _series_style(batch)
+            continue
         if entity == "/__properties":
             for n in names:
                 if n.endswith(":name"):
@@ -106,7 +111,34 @@ def read_recording_info(path: Path) -> RecordingInfo:
             outages.append((float(t), float(nxt), label))
     worst = max(errors, key=lambda r: r[1])[0] if errors else None
     ll = np.asarray(track, dtype=np.float64).reshape(-1, 2)
-    return RecordingInfo(path, drive, end_s, outages, float(worst) if worst is not None else None, ll[:, 0], ll[:, 1])
+    return RecordingInfo(path, drive, end_s, outages, float(worst) if worst is not None else None, ll[:, 0], ll[:, 1], estimators)
+
+
+def _series_style(batch) -> tuple[str, tuple[int, int, int]]:
+    """(label, RGB) of a static ``SeriesLines`` row."""
+    label, rgb = "", (128, 128, 128)
+    for n in batch.schema.names:
+        values = batch.column(n).to_pylist()
+        if not values or not values[0]:
+            continue
+        if n.endswith(":names"):
+            label = str(values[0][0])
+        elif n.endswith(":colors"):
+            packed = int(values[0][0])  # 0xRRGGBBAA
+            rgb = ((packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255)
+    return label, rgb
+
+
+_COLOR_WORDS = {
+    "red": (230, 60, 50), "blue": (40, 110, 240), "green": (0, 170, 80), "orange": (230, 140, 20), "purple": (150, 60, 200),
+    "cyan": (0, 170, 190), "pink": (210, 60, 150), "brown": (120, 90, 40), "olive": (110, 160, 30), "grey": (100, 100, 100),
+    "yellow": (240, 220, 40), "black": (20, 20, 20), "white": (240, 240, 240),
+}
+
+
+def color_word(rgb: tuple[int, int, int]) -> str:
+    """The nearest plain colour name, for titles that say which line is which."""
+    return min(_COLOR_WORDS, key=lambda w: sum((a - b) ** 2 for a, b in zip(_COLOR_WORDS[w], rgb)))
 
 
 def resolve_time(spec: str, info: RecordingInfo) -> float:
@@ -323,8 +355,9 @@ def titles_for(info: RecordingInfo, t_s: float) -> dict[str, str]:
     """View titles that say drive, outage and time."""
     outage = info.outage_at(t_s)
     when = f"t = {t_s:.1f} s" + (f", {outage}" if outage else ", GNSS available")
+    legend = ", ".join(["GNSS green"] + [f"{label.removesuffix(' DR')} {color_word(rgb)}" for _, (label, rgb) in sorted(info.estimators.items(), key=lambda kv: kv[0] != "ins")])
     return {
-        "map": f"{info.drive}: map, {when} (GNSS green, INS red, IDNN blue)",
+        "map": f"{info.drive}: map, {when} ({legend})",
         "local": f"{info.drive}: local east-north (m), north up, {when}",
         "signals/displacement_m": f"{info.drive}: displacement per second (m), {when}",
         "errors/position_error_m": f"{info.drive}: 2D position error (m), {when}",
