@@ -115,11 +115,12 @@ def _estimators_for(drive: Drive, chosen: list[Estimator], defaulted: bool) -> l
     return [e for e in chosen if applies(e, drive)]
 
 
-def _bias(drive: Drive, bias_from: DriveLike | SensorBias | None, data_root: Any, load_kw: dict) -> SensorBias:
+def _bias_for(bias_from: DriveLike | SensorBias | None, data_root: Any, load_kw: dict) -> Callable[[Drive], SensorBias]:
+    """``drive -> biases``: a given :class:`SensorBias`, a stationary drive's (read once), or each drive's own."""
     if isinstance(bias_from, SensorBias):
-        return bias_from
+        return lambda drive: bias_from
     stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None else None
-    return resolve_bias(drive, stationary)
+    return lambda drive: resolve_bias(drive, stationary)
 
 
 def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str]:
@@ -182,8 +183,7 @@ def evaluate(
     n = outage_windows(outage_s)
     chosen = resolve_estimators(estimators, model=model)
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
-    fixed_bias = bias_from if isinstance(bias_from, SensorBias) else None
-    stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None and fixed_bias is None else None
+    bias_of = _bias_for(bias_from, data_root, load_kw)
     results = []
     for i, item in enumerate(items):
         drive = load_drive(item, data_root, **load_kw)
@@ -198,7 +198,7 @@ def evaluate(
                 continue
         else:
             starts, _ = _starts(drive, windows, placement, outage_s, events)
-        bias = fixed_bias or resolve_bias(drive, stationary)
+        bias = bias_of(drive)
         ests = _estimators_for(drive, chosen, estimators is None)
         results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows))
     if progress:
@@ -229,14 +229,13 @@ def evaluate_by_event(
     n = outage_windows(outage_s)
     chosen = resolve_estimators(estimators, model=model)
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
-    fixed_bias = bias_from if isinstance(bias_from, SensorBias) else None
-    stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None and fixed_bias is None else None
+    bias_of = _bias_for(bias_from, data_root, load_kw)
     th = thresholds or EventThresholds()
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
     for item in drives:
         drive = load_drive(item, data_root, **load_kw)
         windows = make_windows(drive)
-        bias = fixed_bias or resolve_bias(drive, stationary)
+        bias = bias_of(drive)
         found = detect_events(drive, th, kinds)
         ests = _estimators_for(drive, chosen, estimators is None)
         for kind in kinds:
@@ -297,7 +296,7 @@ def replay(
     if len(starts) == 0:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
     chosen = _estimators_for(d, resolve_estimators(estimators, model=model), estimators is None)
-    bias = _bias(d, bias_from, data_root, load_kw)
+    bias = _bias_for(bias_from, data_root, load_kw)(d)
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows)
     report = Report([result])
     summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()

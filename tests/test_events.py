@@ -70,20 +70,20 @@ def test_events_cli_json_and_quality():
 
 
 def test_replay_aims_outages_at_events(tmp_path):
+    import ionav_viz as iv
+
     from .test_replay import read_rrd
 
-    out = tmp_path / "rb.rrd"
-    proc = run_cli("replay", "roundabout", "--outage", "10s", "--on", "roundabout", "-o", str(out), "-q")
-    assert proc.returncode == 0, proc.stderr
-    rows, static = read_rrd(out)
-    events = [e for e in json.loads(run_cli("events", "roundabout", "--json").stdout)["V-sim-roundabout"] if e["type"] == "roundabout"]
+    result = iv.replay("roundabout", 10.0, iv.AroundEvents(("roundabout",)), output=tmp_path / "rb.rrd")
+    rows, static = read_rrd(result.path)
+    events = [e for e in detect_events(iv.load_drive("roundabout")) if e.type == "roundabout"]
     starts = [t for t, v in rows["/gnss/state"] if v[0].startswith("outage")]
-    assert len(starts) == len(events) == _planned("V-sim-roundabout.csv", "roundabout")
+    assert len(starts) == len(events) == _planned("V-sim-roundabout.csv", "roundabout") == len(result.outages)
     for start, ev in zip(starts, events):
-        if ev["end_s"] - ev["start_s"] <= 9:  # short enough: inside the outage
-            assert start <= ev["start_s"] and ev["end_s"] <= start + 10
+        if ev.t1_s - ev.t0_s <= 9:  # short enough: inside the outage
+            assert start <= ev.t0_s and ev.t1_s <= start + 10
         else:  # longer than the outage: it starts 1 s into the outage
-            assert start == pytest.approx(ev["start_s"] - 1.0, abs=0.6)
+            assert start == pytest.approx(ev.t0_s - 1.0, abs=0.6)
     marked = [v[0] for _, v in rows["/events/state"] if v[0].startswith("roundabout")]
     assert len(marked) == len(set(marked)) == len(events)  # numbered among all manoeuvres of the drive
     assert "/map/events" in static and "/local/events" in static

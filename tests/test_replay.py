@@ -100,15 +100,13 @@ def test_paper_run_without_data_root_explains(tmp_path):
 
 
 def test_bad_placements_are_clear(tmp_path):
+    # The placement logic is tested through the API (test_api.py); here: the CLI names its options.
     out = str(tmp_path / "x.rrd")
     cases = [
-        (["--at", "12s,15s"], "overlaps"),
-        (["--at", "5000s"], "no 10 s outage fits"),
-        (["--every", "5s"], "shorter than the outage"),
-        (["--at", "12s", "--every", "30s"], "choose one outage placement"),
-        (["--outage", "10m"], "too short"),
+        (["--at", "12s,15s"], ["--at 12s,15s", "overlaps"]),
+        (["--at", "12s", "--every", "30s"], ["choose one outage placement"]),
     ]
-    for extra, message in cases:
-        proc = run_cli("replay", "hard-brake", "--no-idnn", "-q", "-o", out, *(["--outage", "10s"] if "--outage" not in extra else []), *extra)
-        assert proc.returncode == 2 and message in proc.stderr, (extra, proc.stderr)
+    for extra, fragments in cases:
+        proc = run_cli("replay", "hard-brake", "--no-idnn", "-q", "-o", out, *extra)
+        assert proc.returncode == 2 and all(f in proc.stderr for f in fragments), (extra, proc.stderr)
     assert not list(tmp_path.iterdir())  # nothing half-written
