@@ -29,6 +29,7 @@ from .analysis.events import EVENT_TYPES, Event, EventThresholds, detect_events
 from .analysis.report import Report, run_summary_markdown
 from .core.drive import Drive
 from .core.errors import InputError
+from .core.timing import stage
 from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS
 from .nav.bias import SensorBias, resolve_bias
 from .nav.estimators import Estimator, applies
@@ -85,22 +86,50 @@ def load_drive(
     if isinstance(spec, Drive):
         return spec
     if yaw_sign not in ("auto", "cw", "ccw"):
-        raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw")
-    return _load_drive(str(spec), _data_root(data_root), yaw_sign, mcap)
+        raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
+    with stage(f"read {spec}") as s:
+        drive = _load_drive(str(spec), _data_root(data_root), yaw_sign, mcap)
+        s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
+    return drive
 
 
-def scenario_drives(scenario: str, data_root: str | Path | None = None) -> dict[str, list[str]]:
+class ScenarioDrives(dict):
+    """Test drives by scenario (a ``dict``), with ``source``: one line saying where they come from."""
+
+    source: str = ""
+
+
+def scenario_drives(scenario: str, data_root: str | Path | None = None) -> ScenarioDrives:
     """The test drives of a scenario (``"all"``: of every scenario), by scenario: the paper's runs
-    when a data root is set, else the bundled synthetic drives."""
+    where all of a scenario's runs are under the data root, else the bundled synthetic drive.
+    ``.source`` says which, in one line."""
     from .dataset.samples import by_scenario
+    from .sources.resolve import index_data_root
 
     if scenario != "all" and scenario not in SCENARIOS:
-        raise InputError(f"unknown scenario {scenario!r}", f"choose {', '.join(SCENARIOS)} or all")
+        raise InputError(f"unknown scenario {scenario!r}", f"choose {', '.join(SCENARIOS)} or all", param="scenario")
     names = SCENARIOS if scenario == "all" else (scenario,)
     root = _data_root(data_root)
-    if root is not None:
-        return {s: list(PAPER_TEST_RUNS[s]) for s in names}
-    return {s: [str(_bundled_path(sample.file)) for sample in by_scenario(s)] for s in names}
+    present = index_data_root(root.resolve()) if root is not None else {}
+    from .dataset.catalog import run_key
+
+    out = ScenarioDrives()
+    paper, bundled = [], []
+    for s in names:
+        if root is not None and all(run_key(r) in present for r in PAPER_TEST_RUNS[s]):
+            out[s] = list(PAPER_TEST_RUNS[s])
+            paper.append(s)
+        else:
+            out[s] = [str(_bundled_path(sample.file)) for sample in by_scenario(s)]
+            bundled.append(s)
+    parts = []
+    if paper:
+        parts.append(f"{', '.join(paper)}: the paper's IO-VNBD test runs under {root}")
+    if bundled:
+        why = f"the paper's runs are not all under {root}; 'ionav-viz fetch --scenario NAME' gets them" if root else "no IO-VNBD data root"
+        parts.append(f"{', '.join(bundled)}: the bundled synthetic test drives ({why})")
+    out.source = "; ".join(parts)
+    return out
 
 
 def _bundled_path(file: str) -> Path:
@@ -273,7 +302,7 @@ def replay(
     Args:
         drive, outage_s, placement, estimators, model, bias_from, thresholds: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
-        output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` of the checkout); an
+        output: the ``.rrd`` to write (default ``<drive>.rrd`` in the current directory); an
             existing file is replaced atomically, nothing is left behind on failure.
         progress: called as the recording is built.
 
@@ -281,7 +310,6 @@ def replay(
         a :class:`ReplayResult` with the written path, the report and the outages.
     """
     from .core.fileio import atomic_path
-    from .dataset.samples import recordings_dir
     from .viz.recording import write_recording
 
     out = Path(output) if output is not None else None
@@ -290,8 +318,12 @@ def replay(
     placement = placement or Tile()
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
     d = load_drive(drive, data_root, **load_kw)
-    windows = make_windows(d)
-    events = detect_events(d, thresholds or EventThresholds())
+    with stage("windows") as s:
+        windows = make_windows(d)
+        s.detail = f"{len(windows)} of 1 s"
+    with stage("manoeuvres") as s:
+        events = detect_events(d, thresholds or EventThresholds())
+        s.detail = f"{len(events)} detected"
     starts, description = _starts(d, windows, placement, outage_s, events)
     if len(starts) == 0:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
@@ -300,7 +332,7 @@ def replay(
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows)
     report = Report([result])
     summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
-    out = out if out is not None else recordings_dir() / f"{d.name}.rrd"
+    out = out if out is not None else Path(f"{d.name}.rrd")  # where the user is
     total = 5 + len(result.estimates)
     done = [0]
 
@@ -309,9 +341,9 @@ def replay(
         if progress:
             progress(f"{out.name}: {label}", done[0], total)
 
-    with atomic_path(out) as tmp:
+    with stage(f"write {out}") as s, atomic_path(out) as tmp:
         rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
-    log.info("%d entities, %d rows", len(rows), sum(rows.values()))
+        s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     n = result.n_windows
     outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(starts)]
     return ReplayResult(out, report, outages, description, result, events)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..core.drive import Drive
+from ..core.timing import stage
 from ..nav.bias import SensorBias, resolve_bias
 from ..nav.estimators import BASELINE, Estimator, EstimatorInputs, Solution, describe, solve
 from ..nav.estimators import resolve as resolve_estimators
@@ -95,7 +96,11 @@ def evaluate_drive(
     if any(c is None for c in chosen):
         chosen = resolve_estimators(list(estimators), model=model)
     inputs = EstimatorInputs(drive, windows, starts, n, bias)
-    solutions = {est.name: solve(est, inputs) for est in chosen}
+    solutions = {}
+    for est in chosen:
+        with stage(f"{est.label} on {drive.name}") as s:
+            solutions[est.name] = solve(est, inputs)
+            s.detail = f"{len(starts)} outages of {n} s"
     metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
     return DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics)
 

@@ -69,11 +69,23 @@ def name_options(**options: str) -> None:
     OPTION_OF.update(options)
 
 
+#: Root options that work anywhere on the command line (moved before the command name).
+_ANYWHERE = ("--debug", "--verbose", "-v")
+
+
+def root_options_first(argv: list[str]) -> list[str]:
+    """``ionav-viz replay X --debug`` -> ``ionav-viz --debug replay X`` (arguments after ``--`` stay)."""
+    end = argv.index("--") if "--" in argv else len(argv)
+    moved = [a for a in argv[:end] if a in _ANYWHERE]
+    return moved + [a for a in argv[:end] if a not in _ANYWHERE] + argv[end:]
+
+
 def main() -> None:
     """Console entry point: one-line errors with exit code 2, 130 on Ctrl-C."""
-    debug = "--debug" in sys.argv[1:]
+    args = root_options_first(sys.argv[1:])
+    debug = "--debug" in args
     try:
-        code = app(standalone_mode=False)
+        code = app(args=args, standalone_mode=False)
         # Without standalone mode, typer returns exit codes (130 for Ctrl-C) instead of exiting.
         if isinstance(code, int) and not isinstance(code, bool):
             if code == 130:

@@ -84,7 +84,7 @@ def fetch(
 ) -> None:
     """Download IO-VNBD runs by name into the data root, resuming and verifying size and sha256."""
     from ..dataset.catalog import PAPER_TEST_RUNS, PAPER_TRAIN_RUNS, run_key, runs
-    from ..dataset.fetch import VerifiedCache, base_url, fetch_file
+    from ..dataset.fetch import base_url
 
     catalog = runs(_manifest(manifest_opt))
     wanted = list(names or [])
@@ -114,9 +114,43 @@ def fetch(
                 raise InputError(f"{run.name}: the manifest has no {'synchronised ' if synchronised else ''}{'phone ' if phone else ''}file for it")
             entries.append(entry)
     root = _fetch_root(data_root_opt)
-    root.mkdir(parents=True, exist_ok=True)
     url = base_url(base_url_opt)
     timeout_s = c.duration_s(timeout, "--timeout")
+    created = [p for p in [root, *root.parents] if not p.exists()]
+    root.mkdir(parents=True, exist_ok=True)
+    try:
+        _fetch_all(entries, root, url, timeout_s, quiet)
+    except BaseException:
+        _remove_if_empty(created)  # a failed first download leaves no empty data root behind
+        raise
+    print(root)
+
+
+def _remove_if_empty(created: list[Path]) -> None:
+    """Remove the folders this run created (innermost first) if nothing but empty folders is in them."""
+    from ..dataset.fetch import VERIFIED_CACHE
+
+    for folder in created:
+        if not folder.is_dir():
+            continue
+        for path in sorted(folder.rglob("*"), key=lambda p: len(p.parts), reverse=True):
+            if path.is_dir():
+                try:
+                    path.rmdir()
+                except OSError:
+                    pass
+        cache = folder / VERIFIED_CACHE
+        if cache.is_file() and [p.name for p in folder.iterdir()] == [VERIFIED_CACHE]:
+            cache.unlink()
+        try:
+            folder.rmdir()
+        except OSError:
+            return  # something was downloaded: keep it
+
+
+def _fetch_all(entries, root: Path, url: str, timeout_s: float, quiet: bool) -> None:
+    from ..dataset.fetch import VerifiedCache, fetch_file
+
     cache = VerifiedCache(root)
     with c.progress(quiet) as bar:
         task = bar.add_task("fetching", total=sum(e.size_bytes for e in entries)) if bar else None
@@ -129,4 +163,3 @@ def fetch(
             result = fetch_file(entry, root, url, timeout_s=timeout_s, cache=cache, progress=progress)
             finished += entry.size_bytes
             print(f"{result.action:>10}  {result.path}", file=sys.stderr)
-    print(root)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Optional
 
@@ -46,6 +47,8 @@ def evaluate(
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
     groups = api.scenario_drives(scenario, data_root_opt) if scenario else {None: list(drives or [])}
+    if scenario:
+        print(f"drives: {groups.source}", file=sys.stderr)
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
     ests = c.estimators(estimator_names, plugins, no_idnn, model)

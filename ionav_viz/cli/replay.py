@@ -45,7 +45,7 @@ def replay(
     at: Optional[str] = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s."),
     random_count: Optional[int] = typer.Option(None, "--random", help="Draw N non-overlapping outages at random."),
     seed: int = typer.Option(0, "--seed", help="Seed for --random."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd; an existing file is replaced)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: ./<drive>.rrd; an existing file is replaced)."),
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary."),
     estimator_names: Optional[str] = c.EstimatorsOpt,
@@ -90,14 +90,19 @@ def replay(
 
 
 def _open_viewer(path: Path) -> None:
+    import os
     import shutil
     import subprocess
 
-    from ..core.errors import InputError
+    from ..core.errors import ToolFailure
 
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ToolFailure(f"--open: no display here (DISPLAY and WAYLAND_DISPLAY are unset); {path} is written: "
+                          f"open it with 'rerun {path}' on a machine with a display, or render images with "
+                          f"'ionav-viz screenshot {path} -o shots/'")
     exe = shutil.which("rerun")
     if exe is None:
-        raise InputError("cannot open the viewer: the 'rerun' command is not on PATH", f"open {path} with the Rerun viewer yourself")
+        raise ToolFailure(f"--open: the 'rerun' viewer command is not on PATH; open {path} with the Rerun viewer yourself")
     subprocess.Popen([exe, str(path)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import tempfile
 from pathlib import Path
 from typing import Optional
@@ -53,7 +54,9 @@ def screenshot(
         if scenario is not None:
             outage_s = c.whole_seconds(outage, "--outage")
             ests = c.estimators(estimator_names, plugins, False, None)
-            for group, specs in api.scenario_drives(scenario, data_root_opt).items():
+            groups = api.scenario_drives(scenario, data_root_opt)
+            print(f"drives: {groups.source}", file=sys.stderr)
+            for group, specs in groups.items():
                 for spec in specs:
                     rrd = Path(tmp) / f"{group}-{Path(spec).stem}.rrd"
                     rrds.append(api.replay(spec, outage_s, estimators=ests, output=rrd, data_root=data_root_opt).path)

@@ -10,15 +10,46 @@ import typer
 
 from . import common as c
 from ..core.errors import InputError
-from .app import app
+from .app import app, name_options
+
+def check_model_output(output: Path, force: bool) -> None:
+    """Refuse, before any work, to train into the shipped model or over an existing directory."""
+    from ..nav.idnn import is_shipped_model_dir
+
+    if is_shipped_model_dir(output):
+        raise InputError(f"-o {output}: this is the shipped IDNN model, which is never overwritten",
+                         "write the new model somewhere else and pass it with --model")
+    if output.exists() and not force:
+        raise InputError(f"-o {output}: exists already", "choose another directory, or replace it with --force")
+    if output.exists() and not output.is_dir():
+        raise InputError(f"-o {output}: exists and is not a directory", "choose a model directory name")
+
+
+def training_command(argv: list[str]) -> str:
+    """The command that trained a model, without the options that only say where and how loudly
+    (so the same training gives the same metadata wherever it is written)."""
+    words, skip = ["ionav-viz"], False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg in ("-o", "--output"):
+            skip = True
+            continue
+        if arg.startswith("--output=") or arg in ("--force", "-q", "--quiet", "--debug", "-v", "--verbose"):
+            continue
+        words.append(arg)
+    return " ".join(words)
+
 
 @app.command()
 def train(
     drives: Optional[list[str]] = typer.Argument(None, help="Training drives (default: the bundled synthetic training drives)."),
-    output: Path = typer.Option(Path("models/idnn"), "-o", "--output", help="Model directory to write (weights + metadata.json)."),
+    output: Path = typer.Option(..., "-o", "--output", help="Model directory to write (weights + metadata.json); it must not exist yet, unless --force."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing model directory (atomically: the old one stays if training fails)."),
     paper_train: bool = typer.Option(False, "--paper-train", help="Train on the paper's Table 1 runs under the data root."),
     arch: str = typer.Option("idnn", "--arch", help="idnn (the paper's), mlp, rnn, gru or lstm (Section 3.3)."),
-    steps: int = typer.Option(10, "--steps", help="Time steps (10 Hz samples) of acceleration per displacement input (Table 4; 10 = 1 s, 20 = 2 s)."),
+    steps: int = typer.Option(14, "--steps", help="Time steps (10 Hz samples) of acceleration per displacement input (Table 4; 10 = 1 s, 20 = 2 s; 14 as the shipped model)."),
     steps_yaw: int = typer.Option(10, "--steps-yaw", help="Time steps of gyro yaw rate per orientation-rate input (Table 3)."),
     epochs_disp: int = typer.Option(40, "--epochs-disp", help="Epochs of the displacement model (Table 5: 40)."),
     epochs_yaw: int = typer.Option(60, "--epochs-yaw", help="Epochs of the orientation-rate model (Table 5: 60)."),
@@ -54,13 +85,15 @@ def train(
         specs, description = list(drives), "user-given drives"
     else:
         specs = [str(sample_path(s)) for s in SAMPLES if s.role == "train"]
-        description = "the bundled synthetic training drives (recordings/samples/V-sim-*-train-*.csv), not real data"
+        description = "the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), not real data"
     config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp,
                          epochs_yaw=epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
                          lr_decay_tail=lr_decay_tail, seed=seed)
     config.validate()
     if epochs_disp < 1 or epochs_yaw < 1:
         raise typer.BadParameter("epochs must be at least 1")
+    name_options(output="-o")
+    check_model_output(output, force)
     stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
     loaded = []
     for spec in specs:
@@ -78,8 +111,8 @@ def train(
             bar.update(tasks[label], completed=done)
 
         model = train_models(loaded, config, progress=progress, description=description)
-    model.metadata["training"]["command"] = "ionav-viz " + " ".join(sys.argv[1:])
-    save_model(model, output)
+    model.metadata["training"]["command"] = training_command(sys.argv[1:])
+    save_model(model, output, overwrite=force)
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
     print(f"trained {arch} on {len(loaded)} drive(s), {model.metadata['training']['n_examples']} windows; "

@@ -92,7 +92,7 @@ def parse_manifest(text: str, source: str = "manifest") -> tuple[ManifestEntry, 
 @lru_cache(maxsize=1)
 def manifest() -> tuple[ManifestEntry, ...]:
     """All entries of the packaged LFS manifest."""
-    text = resources.files("ionav_viz.dataset").joinpath("data/iovnbd-manifest.tsv").read_text(encoding="utf-8")
+    text = resources.files("ionav_viz").joinpath("data/iovnbd-manifest.tsv").read_text(encoding="utf-8")
     return parse_manifest(text, "packaged manifest")
 
 

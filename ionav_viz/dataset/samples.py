@@ -1,4 +1,4 @@
-"""The synthetic drives bundled under ``recordings/samples/`` and how they were generated.
+"""The synthetic drives bundled with the package (``ionav_viz/data/samples/``) and how they were generated.
 
 Each is a ``V-*.csv`` written by :mod:`ionav_viz.simulate`; regenerating one with the same
 scenario, seed and duration gives the same bytes (``ionav-viz simulate --bundled DIR``
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 from ..dataset.catalog import SCENARIOS
@@ -41,14 +42,18 @@ SAMPLES = tuple(
 
 
 def samples_dir() -> Path:
-    """Where the bundled samples are: ``$IONAV_SAMPLES`` or ``recordings/samples`` of the checkout."""
+    """Where the bundled samples are: ``$IONAV_SAMPLES``, else the package data (``ionav_viz/data/samples``)."""
     env = os.environ.get("IONAV_SAMPLES")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "recordings" / "samples"
+    return Path(env) if env else package_data("samples")
 
 
-def recordings_dir() -> Path:
-    """Default place for ``.rrd`` output: ``recordings/`` of the checkout."""
-    return Path(__file__).resolve().parents[2] / "recordings"
+def package_data(*parts: str) -> Path:
+    """A file or folder of the package's own data (read-only), as a path.
+
+    Installed packages keep their data as plain files (wheels are unpacked), so the resource is
+    a real directory; nothing is ever written there.
+    """
+    return Path(str(resources.files("ionav_viz").joinpath("data", *parts)))
 
 
 def by_scenario(scenario: str, role: str = "test") -> list[Sample]:

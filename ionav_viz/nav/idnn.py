@@ -26,6 +26,7 @@ Weights are stored as safetensors (no pickle is ever loaded) beside a ``metadata
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 from dataclasses import asdict, dataclass, field
@@ -55,7 +56,7 @@ class ModelConfig:
     """Architecture and training hyperparameters (defaults: the paper's Table 5)."""
 
     arch: str = "idnn"
-    n_steps_disp: int = 10
+    n_steps_disp: int = 14  # the shipped model's (Table 4's range is 1-20)
     n_steps_yaw: int = 10
     hidden: int = 32
     dropout: float = 0.1
@@ -328,23 +329,77 @@ class IdnnEstimator:
 
 
 def default_model_dir() -> Path:
-    """The shipped model: ``models/idnn`` of the checkout."""
-    return Path(__file__).resolve().parents[2] / "models" / "idnn"
+    """The shipped model (package data, read-only): ``ionav_viz/data/models/idnn``."""
+    from importlib import resources
+
+    return Path(str(resources.files("ionav_viz").joinpath("data", "models", "idnn")))
 
 
-def save_model(model: IdnnModel, directory: Path) -> None:
-    """Write weights (safetensors) and ``metadata.json`` into ``directory``, each file atomically."""
+def is_shipped_model_dir(directory: Path) -> bool:
+    """Whether ``directory`` is (or lies inside) the package's shipped model."""
+    shipped = default_model_dir().resolve()
+    target = Path(directory).expanduser().resolve()
+    return target == shipped or shipped in target.parents
+
+
+def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) -> None:
+    """Write weights (safetensors) and ``metadata.json`` (with each weight file's sha256) as one
+    directory, atomically: they are written into a temporary directory beside ``directory`` that is
+    renamed when complete, so a failed or interrupted save leaves the previous model intact.
+
+    An existing ``directory`` is replaced only with ``overwrite``; the shipped model never.
+    """
+    import hashlib
+    import shutil
+    import tempfile
+
     from safetensors.torch import save
 
-    from ..core.fileio import atomic_write_bytes
+    directory = Path(directory)
+    if is_shipped_model_dir(directory):
+        raise InputError(f"{directory}: this is the shipped IDNN model, which is never overwritten",
+                         "write the new model somewhere else and pass it with --model", param="output")
+    if directory.exists() and not overwrite:
+        raise InputError(f"{directory}: exists already", "choose another directory, or replace it with --force", param="output")
+    if directory.exists() and not directory.is_dir():
+        raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
+    parent = directory.parent if str(directory.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{directory}: {parent} does not exist", "create it first", param="output")
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=parent))
+    except OSError as exc:
+        raise InputError(f"{directory}: cannot write in {parent} ({exc.strerror})", "choose a writable directory", param="output") from None
+    try:
+        checksums = {}
+        for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
+            data = save({k: v.detach().contiguous() for k, v in net.state_dict().items()})
+            (tmp / MODEL_FILES[key]).write_bytes(data)
+            checksums[MODEL_FILES[key]] = hashlib.sha256(data).hexdigest()
+        meta = dict(model.metadata)
+        meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict(),
+                    weights_sha256=checksums)
+        (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+        tmp.chmod(0o777 & ~_umask())
+        if directory.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{directory.name}.old.", dir=parent))
+            old.rmdir()
+            directory.rename(old)
+            tmp.rename(directory)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            tmp.rename(directory)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
 
-    directory.mkdir(parents=True, exist_ok=True)
-    for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
-        state = {k: v.detach().contiguous() for k, v in net.state_dict().items()}
-        atomic_write_bytes(directory / MODEL_FILES[key], save(state))
-    meta = dict(model.metadata)
-    meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict())
-    atomic_write_bytes(directory / "metadata.json", (json.dumps(meta, indent=2) + "\n").encode())
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def load_model(directory: str | Path) -> IdnnModel:
@@ -367,6 +422,9 @@ def load_model(directory: str | Path) -> IdnnModel:
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
         raise InputError(f"{meta_path}: incomplete or invalid metadata ({type(exc).__name__}: {exc})", "retrain or restore the model") from None
     config.validate()
+    digests = meta.get("weights_sha256")
+    if not isinstance(digests, dict):
+        raise InputError(f"{meta_path}: no weights_sha256 (checksums of the weight files)", "retrain it with this version of ionav-viz")
     nets = {}
     for key, filename in MODEL_FILES.items():
         path = directory / filename
@@ -375,7 +433,8 @@ def load_model(directory: str | Path) -> IdnnModel:
         steps = config.n_steps_disp if is_disp else config.n_steps_yaw
         net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
         try:
-            state = load(path.read_bytes())
+            raw = path.read_bytes()
+            state = load(raw)
         except OSError as exc:
             raise InputError(f"{path}: cannot read model weights ({exc.strerror})", "retrain or restore the model") from None
         except (SafetensorError, ValueError, Exception) as exc:  # safetensors rejects anything else, pickles included
@@ -390,6 +449,11 @@ def load_model(directory: str | Path) -> IdnnModel:
             raise InputError(
                 f"{path}: weights do not fit the {config.arch} architecture of metadata.json ({first}: {got} vs {want})",
                 "the weights and metadata come from different models; retrain",
+            )
+        if digests.get(filename) != hashlib.sha256(raw).hexdigest():
+            raise InputError(
+                f"{path}: sha256 differs from the one metadata.json records",
+                "the weights and metadata come from different models (or a file was changed); retrain or restore it",
             )
         net.load_state_dict(state)
         net.eval()

@@ -72,7 +72,7 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
     bundled = _bundled(spec)
     if bundled is not None:
         if not bundled.is_file():
-            raise InputError(f"bundled sample {bundled} is missing", "run from a full checkout, or regenerate with 'ionav-viz simulate --bundled recordings/samples'")
+            raise InputError(f"bundled sample {bundled} is missing", "reinstall ionav-viz; the package ships it under ionav_viz/data/samples")
         return bundled
     key = run_key(spec)
     if root is not None:
