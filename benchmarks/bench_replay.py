@@ -21,13 +21,13 @@ import numpy as np
 import rerun as rr
 
 from ionav_viz.analysis.evaluate import DriveResult, evaluate_drive, resolve_bias
-from ionav_viz.analysis.report import Report
-from ionav_viz.nav.idnn import default_model_dir, load_model
-from ionav_viz.sources.iovnbd import read_iovnbd
 from ionav_viz.analysis.metrics import cumulative_errors
-from ionav_viz.viz.recording import APP_ID, screen_xy, local_en_m, write_recording
-from ionav_viz.sim.simulate import write_simulated_drive
+from ionav_viz.analysis.report import Report
 from ionav_viz.analysis.tables import render_markdown
+from ionav_viz.nav.idnn import default_model_dir, load_model
+from ionav_viz.sim.simulate import write_simulated_drive
+from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.viz.recording import APP_ID, local_en_m, screen_xy, write_recording
 
 
 def write_recording_rowwise(result: DriveResult, path: Path) -> None:

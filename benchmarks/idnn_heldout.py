@@ -22,13 +22,13 @@ import json
 import tempfile
 from pathlib import Path
 
-from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.analysis.evaluate import evaluate_drive, improvement_pct, resolve_bias
-from ionav_viz.nav.idnn import ModelConfig, default_model_dir, load_model
-from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import SAMPLES, sample_path
-from ionav_viz.sim.simulate import write_simulated_drive
+from ionav_viz.nav.idnn import ModelConfig, default_model_dir, load_model
 from ionav_viz.nav.training import train_models
+from ionav_viz.sim.simulate import write_simulated_drive
+from ionav_viz.sources.iovnbd import read_iovnbd
 
 
 def compare(model, drives: dict) -> tuple[list[str], int]:

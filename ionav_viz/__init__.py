@@ -55,13 +55,13 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports on first use
-    from .analysis.evaluate import DriveResult  # noqa: F401
-    from .analysis.events import EventThresholds  # noqa: F401
-    from .analysis.report import Report  # noqa: F401
-    from .api import Outage, ReplayResult, evaluate, evaluate_by_event, load_drive, replay, scenario_drives, screenshot  # noqa: F401
-    from .core.drive import Drive  # noqa: F401
-    from .core.errors import InputError, ToolFailure  # noqa: F401
-    from .nav.bias import SensorBias  # noqa: F401
-    from .nav.estimators import Estimate, Estimator, EstimatorError, EstimatorInputs  # noqa: F401
-    from .nav.outages import At, AroundEvents, Every, Random, Tile  # noqa: F401
-    from .sources.load import McapOptions  # noqa: F401
+    from .analysis.evaluate import DriveResult
+    from .analysis.events import EventThresholds
+    from .analysis.report import Report
+    from .api import Outage, ReplayResult, evaluate, evaluate_by_event, load_drive, replay, scenario_drives, screenshot
+    from .core.drive import Drive
+    from .core.errors import InputError, ToolFailure
+    from .nav.bias import SensorBias
+    from .nav.estimators import Estimate, Estimator, EstimatorError, EstimatorInputs
+    from .nav.outages import AroundEvents, At, Every, Random, Tile
+    from .sources.load import McapOptions

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from ionav_viz.analysis.events import EVENT_TYPES, EventThresholds, detect_events, score
-from ionav_viz.sources.iovnbd import read_iovnbd
 from ionav_viz.dataset.samples import SAMPLES, sample_path
 from ionav_viz.sim.simulate import simulated_manoeuvres
+from ionav_viz.sources.iovnbd import read_iovnbd
 
 from .conftest import run_cli
 

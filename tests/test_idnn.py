@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import torch
 
-from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.core.errors import InputError
-from ionav_viz.nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
-from ionav_viz.nav.bias import SensorBias
-from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import samples_dir
+from ionav_viz.nav.bias import SensorBias
+from ionav_viz.nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
 from ionav_viz.nav.training import fit_network, train_models, training_examples
+from ionav_viz.sources.iovnbd import read_iovnbd
 
 IDENTITY = MinMax(0.0, 1.0)
 
@@ -119,7 +119,7 @@ def saved(tmp_path, tiny_drives):
 
 
 def test_missing_model(tmp_path):
-    with pytest.raises(InputError, match="metadata.json missing"):
+    with pytest.raises(InputError, match=r"metadata.json missing"):
         load_model(tmp_path / "nothing")
 
 

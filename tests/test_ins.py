@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 from ionav_viz.analysis.evaluate import evaluate_drive
-from ionav_viz.nav.bias import SensorBias, estimate_bias
-from ionav_viz.sources.iovnbd import read_iovnbd
 from ionav_viz.analysis.metrics import truth_for
+from ionav_viz.nav.bias import SensorBias, estimate_bias
 from ionav_viz.sim.simulate import ideal_sensors_with, write_simulated_drive
+from ionav_viz.sources.iovnbd import read_iovnbd
 
 
 @pytest.mark.parametrize("scenario", ["motorway", "quick-accel"])

@@ -19,7 +19,7 @@ def _layer(module: str) -> str | None:
 def _imports(path: Path) -> list[str]:
     """Every ionav_viz module ``path`` imports (absolute names), lazily inside functions too."""
     rel = path.relative_to(PACKAGE.parent).with_suffix("")
-    package = list(rel.parts[:-1]) if rel.name != "__init__" else list(rel.parts[:-1])
+    package = list(rel.parts[:-1])  # the package a module (or an __init__) belongs to
     out = []
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom):

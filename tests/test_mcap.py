@@ -65,7 +65,7 @@ def test_gnss_without_fix_is_dropped(tmp_path, caplog):
 
 def test_several_imu_topics_need_a_choice(tmp_path):
     path = fx.write_ros2(tmp_path / "two.mcap", extra_imu_topic=True)
-    with pytest.raises(InputError, match="several IMU topics.*--imu-topic"):
+    with pytest.raises(InputError, match=r"several IMU topics.*--imu-topic"):
         read_mcap(path)
     _check_straight_line(read_mcap(path, imu_topic="/imu2"))
     proc = run_cli("info", str(path))

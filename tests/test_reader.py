@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from ionav_viz.core.errors import InputError
-from ionav_viz.sources.iovnbd import HEADER, HEADER_LINE, read_iovnbd
 from ionav_viz.core.units import G_MPS2
+from ionav_viz.sources.iovnbd import HEADER, HEADER_LINE, read_iovnbd
 
 from .conftest import run_cli
 
@@ -68,7 +68,7 @@ def test_yaw_sign_flipped_when_the_data_says_so(tmp_path, caplog):
     reference = read_iovnbd(path)
     lines = path.read_text().splitlines()
     col = HEADER.index("Yaw Rate (deg/sec)")
-    flipped = [lines[0]] + [",".join(f"{-float(c):.3f}" if i == col else c for i, c in enumerate(l.split(","))) for l in lines[1:]]
+    flipped = [lines[0]] + [",".join(f"{-float(c):.3f}" if i == col else c for i, c in enumerate(row.split(","))) for row in lines[1:]]
     other = tmp_path / "V-ccw.csv"
     other.write_text("\r\n".join(flipped) + "\r\n")
     with caplog.at_level("WARNING", logger="ionav_viz"):
@@ -81,7 +81,7 @@ def test_yaw_sign_flipped_when_the_data_says_so(tmp_path, caplog):
 
 def test_missing_columns_are_named(tmp_path):
     header = HEADER_LINE.replace(" Yaw Rate (deg/sec),", " Yaw (deg/sec),")
-    with pytest.raises(InputError, match="missing column.*'yaw rate'"):
+    with pytest.raises(InputError, match=r"missing column.*'yaw rate'"):
         read_iovnbd(_write(tmp_path / "V-a.csv", header=header))
 
 

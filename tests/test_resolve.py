@@ -3,8 +3,8 @@ import shutil
 import pytest
 
 from ionav_viz.core.errors import InputError
-from ionav_viz.sources.resolve import resolve_drive
 from ionav_viz.dataset.samples import samples_dir
+from ionav_viz.sources.resolve import resolve_drive
 
 from .conftest import run_cli
 
@@ -61,7 +61,7 @@ def test_paper_run_without_data_root_says_what_it_is():
 
 
 def test_unknown_name_suggests_close_matches(fake_root):
-    with pytest.raises(InputError, match="did you mean.*V-Vw8"):
+    with pytest.raises(InputError, match=r"did you mean.*V-Vw8"):
         resolve_drive("V-Vw88", fake_root)
 
 

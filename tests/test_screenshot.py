@@ -12,9 +12,10 @@ from ionav_viz.nav.idnn import IdnnEstimator
 from ionav_viz.nav.ins import InsEstimator
 from ionav_viz.viz.style import GNSS_COLOR
 
+from .conftest import REPO, run_cli
+
 COLORS = {"gnss": GNSS_COLOR, "ins": InsEstimator.color, "idnn": IdnnEstimator.color}
 
-from .conftest import REPO, run_cli
 
 
 @pytest.fixture(scope="module")

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from ionav_viz.sources.iovnbd import HEADER_LINE, read_iovnbd
 from ionav_viz.dataset.samples import SAMPLES, samples_dir
 from ionav_viz.sim.simulate import write_simulated_drive
+from ionav_viz.sources.iovnbd import HEADER_LINE, read_iovnbd
 
 from .conftest import run_cli
 
@@ -28,7 +28,7 @@ def test_format_is_the_real_one(tmp_path):
     raw = write_simulated_drive(tmp_path / "V-x.csv", "sharp-cornering", seed=1, duration_s=20).read_bytes()
     lines = raw.split(b"\r\n")
     assert lines[0].decode() == HEADER_LINE
-    assert all(len(l.split(b",")) == 29 for l in lines[1:-1]) and lines[-1] == b""
+    assert all(len(row.split(b",")) == 29 for row in lines[1:-1]) and lines[-1] == b""
     d = read_iovnbd(tmp_path / "V-x.csv")
     dt = np.diff(d.t_s)
     assert 9.5 < d.rate_hz < 10.5 and dt.min() > 0.09 and dt.max() < 0.31

@@ -77,7 +77,7 @@ class EventThresholds:
     cruise_max_yaw_radps: float = 0.02
     cruise_min_s: float = 10.0
 
-    def with_overrides(self, pairs: list[str]) -> "EventThresholds":
+    def with_overrides(self, pairs: list[str]) -> EventThresholds:
         """``['hard_brake_g=0.4', ...]`` -> a copy with those thresholds changed."""
         from ..core.errors import InputError
 

@@ -8,9 +8,10 @@ from typing import Optional
 
 import typer
 
-from . import common as c
 from ..core.errors import InputError
+from . import common as c
 from .app import app
+
 
 @app.command()
 def convert(
@@ -20,9 +21,9 @@ def convert(
     yaw_sign: str = c.YawSign,
 ) -> None:
     """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""
+    from ..sources.load import load_drive
     from ..sources.mcap_writer import TOPICS, write_mcap
     from ..sources.resolve import data_root
-    from ..sources.load import load_drive
 
     if output.suffix.lower() != ".mcap":
         raise typer.BadParameter(f"{output}: the output must end in .mcap", param_hint="-o")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -9,9 +10,10 @@ from typing import Optional
 
 import typer
 
-from . import common as c
 from ..core.errors import InputError
+from . import common as c
 from .app import app
+
 
 def _fetch_root(option: Optional[Path]) -> Path:
     """Where fetch writes and list looks: --data-root, $IONAV_DATA, else the per-user data directory."""
@@ -135,10 +137,8 @@ def _remove_if_empty(created: list[Path]) -> None:
             continue
         for path in sorted(folder.rglob("*"), key=lambda p: len(p.parts), reverse=True):
             if path.is_dir():
-                try:
+                with contextlib.suppress(OSError):
                     path.rmdir()
-                except OSError:
-                    pass
         cache = folder / VERIFIED_CACHE
         if cache.is_file() and [p.name for p in folder.iterdir()] == [VERIFIED_CACHE]:
             cache.unlink()

@@ -11,6 +11,7 @@ import typer
 from . import common as c
 from .app import app
 
+
 @app.command()
 def events(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
@@ -30,10 +31,10 @@ def events(
     Definitions and thresholds: ionav_viz/events.py and the README ('Manoeuvres').
     """
     from ..analysis.events import EVENT_TYPES, detect_events, score
-    from ..sources.resolve import data_root
     from ..dataset.samples import SAMPLES, sample_path
     from ..sim.simulate import simulated_manoeuvres
     from ..sources.load import load_drive
+    from ..sources.resolve import data_root
 
     th = c.thresholds(thresholds)
     kinds = c.event_types(types) if types else EVENT_TYPES

@@ -14,7 +14,7 @@ from .app import app, log, name_options
 
 def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int, on: Optional[str]):
     """The outage placement the options choose (at most one of them), and the option that chose it."""
-    from ..nav.outages import At, AroundEvents, Every, Random, Tile
+    from ..nav.outages import AroundEvents, At, Every, Random, Tile
 
     chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
     if len(chosen) > 1:

@@ -10,6 +10,7 @@ import typer
 from . import common as c
 from .app import app
 
+
 @app.command()
 def simulate(
     scenario: Optional[str] = typer.Argument(None, help="motorway, roundabout, quick-accel, hard-brake, sharp-cornering or stationary."),

@@ -8,9 +8,10 @@ from typing import Any, Optional
 
 import typer
 
-from . import common as c
 from ..core.errors import InputError
+from . import common as c
 from .app import app, name_options
+
 
 def check_model_output(output: Path, force: bool) -> None:
     """Refuse, before any work, to train into the shipped model or over an existing directory."""
@@ -68,12 +69,12 @@ def train(
 ) -> None:
     """Train the displacement and orientation-rate networks and write them with their metadata."""
     from ..dataset.catalog import PAPER_TRAIN_RUNS
+    from ..dataset.samples import SAMPLES, sample_path
     from ..nav.bias import resolve_bias
     from ..nav.idnn import ModelConfig, save_model
-    from ..sources.resolve import data_root
-    from ..dataset.samples import SAMPLES, sample_path
-    from ..sources.load import load_drive
     from ..nav.training import train_models
+    from ..sources.load import load_drive
+    from ..sources.resolve import data_root
 
     root = data_root(data_root_opt)
     mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)

@@ -129,7 +129,7 @@ def runs(entries: tuple[ManifestEntry, ...] | None = None) -> dict[str, RunFiles
         found.setdefault(run_key(base[2:]), {}).setdefault(kind + sync, []).append(entry)
     out = {}
     for key, files in found.items():
-        def best(k: str) -> ManifestEntry | None:
+        def best(k: str, files: dict = files) -> ManifestEntry | None:
             return min(files.get(k, []), key=lambda e: _tree_rank(e.path), default=None)
 
         vehicle, vehicle_sync = best("Vunsync"), best("Vsync")

@@ -16,10 +16,10 @@ path, so the data root mirrors the repository's layout and run names resolve in 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
-import socket
 import time
 import urllib.error
 import urllib.parse
@@ -28,8 +28,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-from ..dataset.catalog import ManifestEntry
 from ..core.errors import InputError, ToolFailure
+from ..dataset.catalog import ManifestEntry
 
 DEFAULT_BASE_URL = "https://media.githubusercontent.com/media/onyekpeu/IO-VNBD/master"
 VERIFIED_CACHE = ".ionav-verified.json"
@@ -147,10 +147,8 @@ def fetch_file(entry: ManifestEntry, root: Path, url_base: str, *, timeout_s: fl
         return _fetch_into(entry, root, target, url_base, timeout_s, retries, cache, progress)
     except BaseException:
         for folder in new_dirs:  # leave no empty folders behind a failed first download
-            try:
+            with contextlib.suppress(OSError):
                 folder.rmdir()
-            except OSError:
-                pass
         raise
 
 
@@ -171,7 +169,7 @@ def _fetch_into(entry: ManifestEntry, root: Path, target: Path, url_base: str, t
             break
         except FetchError:
             raise
-        except (_Retry, urllib.error.URLError, socket.timeout, TimeoutError, ConnectionError, OSError) as exc:
+        except (_Retry, urllib.error.URLError, TimeoutError, ConnectionError, OSError) as exc:
             if attempt >= retries:
                 reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
                 raise FetchError(f"{entry.path}: download failed after {attempt} attempts ({reason})") from None

@@ -29,7 +29,7 @@ class SensorBias:
     still_s: float
 
     @classmethod
-    def none(cls) -> "SensorBias":
+    def none(cls) -> SensorBias:
         return cls(0.0, 0.0, "none (no stationary data)", 0.0)
 
 

@@ -36,8 +36,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..core.errors import InputError
-from .bias import SensorBias
 from ..core.grid import GRID_STEP_S, WINDOW_S
+from .bias import SensorBias
 from .windows import Windows
 
 if TYPE_CHECKING:
@@ -171,7 +171,7 @@ class MinMax:
     hi: float
 
     @classmethod
-    def fit(cls, x: np.ndarray) -> "MinMax":
+    def fit(cls, x: np.ndarray) -> MinMax:
         lo, hi = float(np.min(x)), float(np.max(x))
         return cls(lo, hi if hi > lo else lo + 1.0)
 
@@ -195,7 +195,7 @@ class Normalisation:
         return {k: [getattr(self, k).lo, getattr(self, k).hi] for k in ("accel", "disp", "gyro", "yaw")}
 
     @classmethod
-    def from_dict(cls, d: dict[str, list[float]]) -> "Normalisation":
+    def from_dict(cls, d: dict[str, list[float]]) -> Normalisation:
         return cls(**{k: MinMax(float(d[k][0]), float(d[k][1])) for k in ("accel", "disp", "gyro", "yaw")})
 
     def skip_terms(self, displacement: bool) -> tuple[float, float]:
@@ -298,7 +298,7 @@ class IdnnEstimator:
     label = "IDNN"
     color = (40, 110, 240)
 
-    def __init__(self, model: "IdnnModel | str | Path | None" = None) -> None:
+    def __init__(self, model: IdnnModel | str | Path | None = None) -> None:
         self._model = model if isinstance(model, IdnnModel) else None
         self._directory = Path(model) if isinstance(model, (str, Path)) else None
 
@@ -318,7 +318,7 @@ class IdnnEstimator:
             self._model = load_model(self._directory or default_model_dir())
         return self._model
 
-    def estimate(self, inputs: "EstimatorInputs") -> "Estimate":
+    def estimate(self, inputs: EstimatorInputs) -> Estimate:
         from .estimators import Estimate
 
         disp, yaw = self.model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias)

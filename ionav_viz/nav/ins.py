@@ -56,7 +56,7 @@ class InsEstimator:
     def available(self) -> bool:
         return True
 
-    def estimate(self, inputs: "EstimatorInputs") -> "Estimate":
+    def estimate(self, inputs: EstimatorInputs) -> Estimate:
         from .estimators import Estimate
 
         disp, yaw = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias, inputs.rate_hz)

@@ -24,8 +24,8 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
 from ..nav.bias import SensorBias
+from ..nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
 from ..nav.windows import make_windows
 
 Progress = Callable[[str, int, int], None]
@@ -45,7 +45,7 @@ class TrainingSet:
     def __len__(self) -> int:
         return len(self.disp_m)
 
-    def subset(self, mask: np.ndarray) -> "TrainingSet":
+    def subset(self, mask: np.ndarray) -> TrainingSet:
         return TrainingSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
 
 

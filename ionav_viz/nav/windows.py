@@ -116,7 +116,7 @@ def make_windows(
             continue
         grid = t[0] + offset_s + np.arange(n_win * steps + 1) / rate_hz
 
-        def on_grid(x: np.ndarray) -> np.ndarray:
+        def on_grid(x: np.ndarray, grid=grid, t=t, i0=i0, i1=i1) -> np.ndarray:
             return np.interp(grid, t, x[i0:i1])
 
         parts["t"].append(grid[:-1:steps])

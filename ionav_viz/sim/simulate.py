@@ -49,9 +49,9 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..sources.iovnbd import HEADER, write_iovnbd
 from ..core.grid import GRID_RATE_HZ
 from ..core.units import G_MPS2
+from ..sources.iovnbd import HEADER, write_iovnbd
 
 HARD_BRAKE_G = 0.45  # the paper's hard-brake threshold (Section 2)
 SCENARIOS = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering", "stationary")
@@ -87,7 +87,7 @@ class SensorModel:
     missing_sample_prob: float = 0.002
 
     @classmethod
-    def ideal(cls) -> "SensorModel":
+    def ideal(cls) -> SensorModel:
         """Perfect sensors and flat roads: for tests with exact expectations."""
         return cls(**{f: 0.0 for f in cls.__dataclass_fields__})
 

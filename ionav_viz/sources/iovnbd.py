@@ -130,7 +130,7 @@ def _last_line_is_cut(path: Path, encoding: str, n_fields: int) -> bool:
     return 0 < len(last.split(",")) < n_fields
 
 
-def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], "object", int]:
+def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, int]:
     """Header labels -> header names, the needed columns as float64 (pandas C parser), and the
     number of header fields."""
     import pandas as pd

@@ -44,43 +44,42 @@ def write_mcap(drive: Drive, path: Path, progress=None) -> int:
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
     count = 0
-    with atomic_path(Path(path), suffix=".tmp.mcap") as tmp:
-        with open(tmp, "wb") as stream:
-            writer = Writer(stream)
-            schemas = {
-                "imu": writer.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"]),
-                "fix": writer.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"]),
-                "vel": writer.register_msgdef("geometry_msgs/msg/TwistStamped", DEFINITIONS["geometry_msgs/msg/TwistStamped"]),
+    with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
+        writer = Writer(stream)
+        schemas = {
+            "imu": writer.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"]),
+            "fix": writer.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"]),
+            "vel": writer.register_msgdef("geometry_msgs/msg/TwistStamped", DEFINITIONS["geometry_msgs/msg/TwistStamped"]),
+        }
+        for i in range(len(drive)):  # one message per sample and topic
+            stamp = int(t_ns[i])
+            imu = {
+                "header": _header(stamp, "base_link"),
+                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                "orientation_covariance": unknown_orientation,
+                "angular_velocity": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])},
+                "angular_velocity_covariance": zeros9,
+                "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": 0.0},
+                "linear_acceleration_covariance": zeros9,
             }
-            for i in range(len(drive)):  # one message per sample and topic
-                stamp = int(t_ns[i])
-                imu = {
-                    "header": _header(stamp, "base_link"),
-                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
-                    "orientation_covariance": unknown_orientation,
-                    "angular_velocity": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])},
-                    "angular_velocity_covariance": zeros9,
-                    "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": 0.0},
-                    "linear_acceleration_covariance": zeros9,
-                }
-                fix = {
-                    "header": _header(stamp, "gps"),
-                    "status": {"status": 0, "service": 1},
-                    "latitude": float(drive.lat_deg[i]),
-                    "longitude": float(drive.lon_deg[i]),
-                    "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
-                    "position_covariance": zeros9,
-                    "position_covariance_type": 0,
-                }
-                vel = {
-                    "header": _header(stamp, "gps"),
-                    "twist": {"linear": {"x": float(v_east[i]), "y": float(v_north[i]), "z": 0.0},
-                              "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-                }
-                for key, msg in (("imu", imu), ("fix", fix), ("vel", vel)):
-                    writer.write_message(TOPICS[key], schemas[key], msg, log_time=stamp, publish_time=stamp)
-                    count += 1
-                if progress and i % 1000 == 0:
-                    progress(i, len(drive))
-            writer.finish()
+            fix = {
+                "header": _header(stamp, "gps"),
+                "status": {"status": 0, "service": 1},
+                "latitude": float(drive.lat_deg[i]),
+                "longitude": float(drive.lon_deg[i]),
+                "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
+                "position_covariance": zeros9,
+                "position_covariance_type": 0,
+            }
+            vel = {
+                "header": _header(stamp, "gps"),
+                "twist": {"linear": {"x": float(v_east[i]), "y": float(v_north[i]), "z": 0.0},
+                          "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
+            }
+            for key, msg in (("imu", imu), ("fix", fix), ("vel", vel)):
+                writer.write_message(TOPICS[key], schemas[key], msg, log_time=stamp, publish_time=stamp)
+                count += 1
+            if progress and i % 1000 == 0:
+                progress(i, len(drive))
+        writer.finish()
     return count

@@ -15,8 +15,8 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
-from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
 from ..core.errors import InputError
+from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
 from ..dataset.samples import SAMPLES, by_scenario, sample_path
 
 

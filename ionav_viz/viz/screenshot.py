@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from . import recording as rerun_log
 from ..core.errors import InputError, ToolFailure
+from . import recording as rerun_log
 
 VIEWS = ("all", "map", "local", "signals", "errors")
 _ORIGINS = {"map": "map", "local": "local", "signals": "signals/displacement_m", "errors": "errors/crse_m"}
@@ -188,7 +188,7 @@ class HeadlessViewer:
         self.client: Any = None
         self._old_sigterm: Any = None
 
-    def __enter__(self) -> "HeadlessViewer":
+    def __enter__(self) -> HeadlessViewer:
         from rerun.experimental import ViewerClient
 
         # Turn SIGTERM into an exception too, so __exit__ always runs.
@@ -241,7 +241,7 @@ class HeadlessViewer:
 
     def _raise_dead(self) -> None:
         text = self._log_tail()
-        lines = [l for l in text.splitlines() if "panicked" in l or "adapter" in l.lower() or "Error" in l]
+        lines = [line for line in text.splitlines() if "panicked" in line or "adapter" in line.lower() or "Error" in line]
         why = lines[0].strip() if lines else f"exit code {self.proc.returncode if self.proc else '?'}"
         raise RendererMissing(
             f"the headless Rerun viewer could not render ({why[:200]}); on a machine without a GPU install "

@@ -1,0 +1,120 @@
+"""Behaving like a released package: outputs where the user is, models never clobbered, no first-run traps."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+
+import pytest
+
+from ionav_viz import InputError
+from ionav_viz.nav.idnn import default_model_dir, load_model, save_model
+
+from .conftest import run_cli
+
+
+def test_replay_writes_into_the_current_directory(tmp_path):
+    proc = run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "V-sim-hard-brake.rrd"
+    assert [p.name for p in tmp_path.iterdir()] == ["V-sim-hard-brake.rrd"]
+
+
+def test_shipped_data_is_package_data():
+    from ionav_viz.dataset.samples import SAMPLES, package_data, samples_dir
+
+    assert samples_dir() == package_data("samples") and default_model_dir() == package_data("models", "idnn")
+    assert all((samples_dir() / s.file).is_file() for s in SAMPLES)
+    assert samples_dir().parts[-3:] == ("ionav_viz", "data", "samples")
+
+
+@pytest.fixture()
+def shipped_copy(tmp_path):
+    target = tmp_path / "model"
+    shutil.copytree(default_model_dir(), target)
+    return target
+
+
+def test_train_refuses_existing_or_shipped_directories_before_any_work(tmp_path, shipped_copy):
+    proc = run_cli("train", "-o", str(shipped_copy), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")
+    assert proc.returncode == 2 and "exists already" in proc.stderr and "--force" in proc.stderr
+    proc = run_cli("train", "-o", str(default_model_dir()), "--force", "-q")
+    assert proc.returncode == 2 and "shipped IDNN model" in proc.stderr
+    proc = run_cli("train", "-q")
+    assert proc.returncode == 2 and "-o" in proc.stderr  # no default model directory to write over
+
+
+def test_force_replaces_a_model_atomically(tmp_path, shipped_copy, monkeypatch):
+    model = load_model(shipped_copy)
+    with pytest.raises(InputError, match="exists already"):
+        save_model(model, shipped_copy)
+    before = {p.name: p.read_bytes() for p in shipped_copy.iterdir()}
+
+    # a save that fails half-way (after the first weights file) leaves the old model as it was
+    import ionav_viz.nav.idnn as idnn
+
+    real_save = __import__("safetensors.torch", fromlist=["save"]).save
+    calls = []
+
+    def failing_save(state):
+        calls.append(1)
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return real_save(state)
+
+    monkeypatch.setattr("safetensors.torch.save", failing_save)
+    with pytest.raises(OSError):
+        idnn.save_model(model, shipped_copy, overwrite=True)
+    assert {p.name: p.read_bytes() for p in shipped_copy.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model"]  # no temporary directory left
+    monkeypatch.setattr("safetensors.torch.save", real_save)
+
+    idnn.save_model(model, shipped_copy, overwrite=True)
+    assert {p.name: p.read_bytes() for p in shipped_copy.iterdir()} == before  # same model, same bytes
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model"]
+    with pytest.raises(InputError, match="shipped IDNN model"):
+        save_model(model, default_model_dir(), overwrite=True)
+
+
+def test_weights_that_differ_from_the_recorded_checksum_are_refused(shipped_copy):
+    weights = shipped_copy / "yaw_rate.safetensors"
+    data = bytearray(weights.read_bytes())
+    data[-1] ^= 0x01  # one weight's lowest bit: still a valid file of the right shapes
+    weights.write_bytes(bytes(data))
+    with pytest.raises(InputError, match="sha256 differs"):
+        load_model(shipped_copy)
+    meta = json.loads((shipped_copy / "metadata.json").read_text())
+    del meta["weights_sha256"]
+    (shipped_copy / "metadata.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="no weights_sha256"):
+        load_model(shipped_copy)
+
+
+def test_debug_and_verbose_work_anywhere_on_the_command_line():
+    plain = run_cli("evaluate", "roundabout", "--outage", "2.5s")
+    assert plain.returncode == 2 and "Traceback" not in plain.stderr
+    debug = run_cli("evaluate", "roundabout", "--outage", "2.5s", "--debug")
+    assert debug.returncode != 0 and "Traceback" in debug.stderr
+    verbose = run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-o", "/dev/null/x.rrd", "-v")
+    assert verbose.returncode == 2  # the output directory is not a directory; stages before it were logged
+    assert "read hard-brake: V-sim-hard-brake" in verbose.stderr and " s)" in verbose.stderr
+
+
+def test_open_without_a_display_says_what_to_do_instead(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    out = tmp_path / "x.rrd"
+    proc = run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", "-o", str(out), "--open", env={**env, "DISPLAY": ""})
+    assert proc.returncode == 1, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "no display" in lines[0] and "ionav-viz screenshot" in lines[0]
+    assert out.is_file()  # the recording itself was written
+
+
+def test_scenario_says_which_drives_it_uses(tmp_path):
+    empty_root = tmp_path / "IO-VNBD"
+    empty_root.mkdir()
+    proc = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--no-idnn", "--data-root", str(empty_root))
+    assert proc.returncode == 0, proc.stderr
+    assert "roundabout: the bundled synthetic test drives (the paper's runs are not all under" in proc.stderr
+    assert proc.stdout.splitlines()[1].startswith("roundabout")
