@@ -59,32 +59,42 @@ def test_several_times_and_views_make_one_png_each(recording, tmp_path):
                      "V-sim-sharp-cornering-signals-0035.0s.png", "V-sim-sharp-cornering-signals-end.png"]
 
 
-def _viewer_scratch():
-    import tempfile
+def _viewers_under(tmpdir):
+    """Headless viewer processes started with a TMPDIR inside ``tmpdir`` (ours, not other tests')."""
     from pathlib import Path
 
-    return {p.name for p in Path(tempfile.gettempdir()).glob("rerun-data-*")} | {p.name for p in Path(tempfile.gettempdir()).glob("ionav-viewer-*")}
+    found = set()
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            cmd = (proc / "cmdline").read_bytes().split(b"\0")
+            env = (proc / "environ").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if any(b"rerun" in c for c in cmd[:1]) and b"--headless" in cmd and any(e.startswith(b"TMPDIR=" + str(tmpdir).encode()) for e in env):
+            found.add(proc.name)
+    return found
 
 
 def test_two_runs_in_parallel(recording, tmp_path):
-    scratch_before = _viewer_scratch()
+    private_tmp = tmp_path / "tmp"
+    private_tmp.mkdir()
     cmds = [[sys.executable, "-m", "ionav_viz.cli", "screenshot", str(recording), "-o", str(tmp_path / f"p{i}.png"),
              "--view", "local", "--size", "600x400"] for i in range(2)]
-    procs = [subprocess.Popen(c, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in cmds]
+    env = {**os.environ, "TMPDIR": str(private_tmp)}
+    procs = [subprocess.Popen(c, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env) for c in cmds]
     results = [p.communicate(timeout=180) for p in procs]
     assert all(p.returncode == 0 for p in procs), results
     assert (tmp_path / "p0.png").is_file() and (tmp_path / "p1.png").is_file()
-    assert _viewer_scratch() <= scratch_before  # the viewers' scratch folders are gone too
-
-
-def _viewer_processes():
-    out = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
-    return {line.split()[0] for line in out.splitlines() if "rerun" in line and "--headless" in line}
+    assert list(private_tmp.iterdir()) == []  # the viewers' scratch folders are gone too
+    assert _viewers_under(private_tmp) == set()
 
 
 def test_missing_renderer_is_a_clear_error_and_leaves_no_viewer(recording, tmp_path):
-    before = _viewer_processes()
-    env = {"VK_ICD_FILENAMES": str(tmp_path / "none.json"), "LIBGL_ALWAYS_SOFTWARE": "0", "MESA_LOADER_DRIVER_OVERRIDE": "none",
+    private_tmp = tmp_path / "tmp"
+    private_tmp.mkdir()
+    env = {"TMPDIR": str(private_tmp), "VK_ICD_FILENAMES": str(tmp_path / "none.json"), "LIBGL_ALWAYS_SOFTWARE": "0", "MESA_LOADER_DRIVER_OVERRIDE": "none",
            "GALLIUM_DRIVER": "none", "WGPU_BACKEND": "vulkan"}
     start = time.monotonic()
     proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), "--size", "400x300", env=env, timeout=120)
@@ -93,8 +103,8 @@ def test_missing_renderer_is_a_clear_error_and_leaves_no_viewer(recording, tmp_p
     assert "mesa-vulkan-drivers" in proc.stderr and "Traceback" not in proc.stderr
     assert proc.stderr.count("\n") == 1  # one line; the viewer's own output stays out of the terminal
     assert not (tmp_path / "x.png").exists()
-    time.sleep(0.5)
-    assert _viewer_processes() <= before
+    assert _viewers_under(private_tmp) == set()  # the viewer is stopped before the command returns
+    assert list(private_tmp.iterdir()) == []
 
 
 def test_replay_with_screenshot_dir(tmp_path):
