@@ -382,9 +382,9 @@ def screenshot(
             raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
     for view in views:
         if view not in VIEWS:
-            raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}")
+            raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}", param="views")
     width, height = (int(x) for x in size)
     if not (200 <= width <= 8192 and 200 <= height <= 8192):
-        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels")
+        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels", param="size")
     spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in times]
     return render(paths, Path(output), spec, list(views), (width, height), timeout_s=timeout_s, progress=progress)

@@ -87,11 +87,11 @@ class EventThresholds:
             name, _, value = pair.partition("=")
             name = name.strip().replace("-", "_")
             if name not in known or not value:
-                raise InputError(f"--threshold {pair!r}: unknown threshold", f"choose from {', '.join(known)}")
+                raise InputError(f"unknown threshold {pair!r}", f"choose from {', '.join(known)}", param="thresholds")
             try:
                 parsed = tuple(float(v) for v in value.split(",")) if "," in value else float(value)
             except ValueError:
-                raise InputError(f"--threshold {pair!r}: {value!r} is not a number") from None
+                raise InputError(f"threshold {pair!r}: {value!r} is not a number", param="thresholds") from None
             changes[name] = parsed
         return replace(self, **changes)
 

@@ -60,8 +60,14 @@ def _root(
 
 
 
-#: API argument -> the option that set it in the running command (for error messages).
-OPTION_OF: dict[str, str] = {}
+#: API argument -> the option that set it in the running command (for error messages); commands
+#: add or override entries with :func:`name_options`.
+OPTION_OF: dict[str, str] = {
+    "data_root": "--data-root", "stamps": "--stamps", "model": "--model", "bias_from": "--bias-from",
+    "thresholds": "--threshold", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
+    "estimators": "--estimators", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
+    "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o",
+}
 
 
 def name_options(**options: str) -> None:

@@ -244,7 +244,7 @@ def load_plugin(spec: str) -> Estimator:
     """``MODULE:NAME`` -> an estimator: NAME is a class or a no-argument factory in MODULE."""
     module_name, _, attr = spec.partition(":")
     if not module_name or not attr:
-        raise EstimatorError(f"estimator {spec!r}: expected MODULE:NAME", "e.g. --estimator mypackage.estimators:ConstantSpeed")
+        raise EstimatorError(f"estimator {spec!r}: expected MODULE:NAME", "e.g. 'mypackage.estimators:ConstantSpeed'", param="estimators")
     try:
         module = importlib.import_module(module_name)
     except Exception as exc:
@@ -336,5 +336,5 @@ def resolve(
             continue
         seen[est.name] = est
     if not seen:
-        raise EstimatorError("no estimator to run", "choose at least one, e.g. --estimators ins")
+        raise EstimatorError("no estimator to run", "choose at least one, e.g. ins", param="estimators")
     return list(seen.values())

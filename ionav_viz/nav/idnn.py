@@ -71,17 +71,18 @@ class ModelConfig:
     seed: int = 0
 
     def validate(self) -> None:
+        """Check the values; errors name the field (``param``) so the command line can name its option."""
         if self.arch not in ARCHS:
-            raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}")
-        for name, option in (("n_steps_disp", "--steps"), ("n_steps_yaw", "--steps-yaw")):
+            raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}", param="arch")
+        for name in ("n_steps_disp", "n_steps_yaw"):
             if not 1 <= getattr(self, name) <= 20:
-                raise InputError(f"{getattr(self, name)} time steps ({name}, {option}) out of range", "use 1 to 20 time steps (2 s at 10 Hz)")
+                raise InputError(f"{getattr(self, name)} time steps ({name}) out of range", "use 1 to 20 time steps (2 s at 10 Hz)", param=name)
         if self.hidden < 1 or not 0 <= self.dropout < 1:
             raise InputError(f"hidden units {self.hidden} / dropout {self.dropout} out of range", "use >= 1 hidden units and a dropout in [0, 1)")
         if self.feedback_noise_m < 0:
-            raise InputError(f"feedback noise {self.feedback_noise_m} m (--feedback-noise) is negative", "give a standard deviation >= 0")
+            raise InputError(f"feedback noise {self.feedback_noise_m} m is negative", "give a standard deviation >= 0", param="feedback_noise_m")
         if not 0 <= self.lr_decay_tail <= 1:
-            raise InputError(f"lr_decay_tail {self.lr_decay_tail} (--lr-decay-tail) out of range", "use a fraction of the training in [0, 1]")
+            raise InputError(f"lr_decay_tail {self.lr_decay_tail} out of range", "use a fraction of the training in [0, 1]", param="lr_decay_tail")
 
 
 def kinematic_weights(n_steps: int) -> np.ndarray:
@@ -360,7 +361,7 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
         raise InputError(f"{directory}: this is the shipped IDNN model, which is never overwritten",
                          "write the new model somewhere else and pass it with --model", param="output")
     if directory.exists() and not overwrite:
-        raise InputError(f"{directory}: exists already", "choose another directory, or replace it with --force", param="output")
+        raise InputError(f"{directory}: exists already", "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
     if directory.exists() and not directory.is_dir():
         raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
     parent = directory.parent if str(directory.parent) else Path(".")
@@ -410,7 +411,7 @@ def load_model(directory: str | Path) -> IdnnModel:
     directory = Path(directory)
     meta_path = directory / "metadata.json"
     if not meta_path.is_file():
-        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' or pass --model DIR")
+        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' and give that directory", param="model")
     try:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
         if meta.get("format_version") != FORMAT_VERSION:

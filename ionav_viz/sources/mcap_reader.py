@@ -265,7 +265,7 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
     """Read an MCAP log into a drive on a 10 Hz grid (see the module docstring)."""
     path = Path(path)
     if stamps not in ("header", "log"):
-        raise InputError(f"--stamps {stamps!r}: choose header or log")
+        raise InputError(f"stamps {stamps!r}: choose header or log", param="stamps")
     sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
     imu = _BinSums(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count)
     gnss: list[tuple[float, float, float, float]] = []
@@ -345,7 +345,7 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
         t, accel, yaw = t[covered], accel[covered], yaw[covered]
         lat, lon, alt = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt))
     if len(t) < 2:
-        raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the --stamps choice")
+        raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
 
     if speed is not None and len(speed) >= 2:
         s_t, s_v, s_course = speed.T

@@ -31,7 +31,7 @@ def data_root(option: str | Path | None) -> Path | None:
         return default if default.is_dir() else None
     root = Path(value).expanduser()
     if not root.is_dir():
-        raise InputError(f"data root {root} is not a directory", "pass --data-root DIR or set IONAV_DATA to the IO-VNBD checkout")
+        raise InputError(f"data root {root} is not a directory", "give the IO-VNBD checkout (or set IONAV_DATA to it)", param="data_root")
     return root
 
 

@@ -150,13 +150,13 @@ def resolve_time(spec: str, info: RecordingInfo) -> float:
         return info.end_s
     if key == "worst":
         if info.worst_s is None:
-            raise InputError(f"{info.path}: --time worst needs INS errors in the recording", "replay with outages first")
+            raise InputError(f"{info.path}: time 'worst' needs INS errors in the recording", "replay with outages first", param="times")
         return info.worst_s
     if key in ("0", "0s"):
         return 0.0
     t = parse_duration_s(spec, "time")
     if t > info.end_s + 1e-6:
-        raise InputError(f"--time {spec}: after the end of the recording ({info.end_s:.1f} s)", "choose a time within the drive, 'worst' or 'end'")
+        raise InputError(f"time {spec}: after the end of the recording ({info.end_s:.1f} s)", "choose a time within the drive, 'worst' or 'end'", param="times")
     return t
 
 
@@ -369,9 +369,9 @@ def parse_size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(x) for x in text.lower().split("x"))
     except ValueError:
-        raise InputError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 1600x900") from None
+        raise InputError(f"image size {text!r}: expected WIDTHxHEIGHT, e.g. 1600x900", param="size") from None
     if not (200 <= w <= 8192 and 200 <= h <= 8192):
-        raise InputError(f"--size {text}: width and height must be between 200 and 8192 pixels")
+        raise InputError(f"image size {text}: width and height must be between 200 and 8192 pixels", param="size")
     return w, h
 
 
@@ -397,7 +397,7 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
     """Render every (recording, time, view) combination with one headless viewer; returns the PNGs."""
     for view in views:
         if view not in VIEWS:
-            raise InputError(f"--view {view!r}: unknown view", f"choose from {', '.join(VIEWS)}")
+            raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}", param="views")
     infos = [read_recording_info(p) for p in recordings]
     plans = []
     for info in infos:
