@@ -17,6 +17,7 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,7 @@ from .analysis.events import EVENT_TYPES, Event, EventThresholds, detect_events
 from .analysis.report import Report, run_summary_markdown
 from .core.drive import Drive
 from .core.errors import InputError
+from .core.fileio import check_output_file
 from .core.timing import stage
 from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS
 from .nav.bias import SensorBias, resolve_bias
@@ -327,12 +329,12 @@ def replay(
     starts, description = _starts(d, windows, placement, outage_s, events)
     if len(starts) == 0:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
+    out = check_output_file(out if out is not None else Path(f"{d.name}.rrd"))  # before the work: where the user is
     chosen = _estimators_for(d, resolve_estimators(estimators, model=model), estimators is None)
     bias = _bias_for(bias_from, data_root, load_kw)(d)
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows)
     report = Report([result])
     summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
-    out = out if out is not None else Path(f"{d.name}.rrd")  # where the user is
     total = 5 + len(result.estimates)
     done = [0]
 
@@ -386,5 +388,15 @@ def screenshot(
     width, height = (int(x) for x in size)
     if not (200 <= width <= 8192 and 200 <= height <= 8192):
         raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels", param="size")
+    out = Path(output)
+    single = out.suffix.lower() == ".png" and len(paths) == 1 and len(times) * len(views) == 1
+    if single:
+        check_output_file(out)
+    elif out.suffix.lower() != ".png" and out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory", "several images go into a directory: name one", param="output")
+    folder = out if out.suffix.lower() != ".png" else out.parent
+    existing = next((p for p in [folder, *folder.parents] if p.exists()), Path("."))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory", param="output")
     spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in times]
     return render(paths, Path(output), spec, list(views), (width, height), timeout_s=timeout_s, progress=progress)

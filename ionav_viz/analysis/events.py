@@ -41,6 +41,7 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
@@ -51,6 +52,18 @@ from ..core.units import G_MPS2
 
 EVENT_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
 RATE_HZ = GRID_RATE_HZ
+
+
+#: Plausible range of each threshold (values outside are refused before any work; smoothing
+#: windows are bounded so the filters stay small). Units are in the names.
+THRESHOLD_LIMITS = {
+    "accel_smooth_s": (0.1, 10.0), "yaw_smooth_s": (0.1, 10.0), "hard_brake_g": (0.05, 2.0), "brake_onset_g": (0.0, 2.0),
+    "turn_rate_radps": (0.001, 2.0), "roundabout_min_turn_deg": (0.0, 1080.0), "roundabout_radius_m": (1.0, 1000.0),
+    "flare_gap_s": (0.0, 60.0), "sharp_min_turn_deg": (0.0, 360.0), "sharp_max_s": (0.5, 120.0), "sharp_max_radius_m": (1.0, 1000.0),
+    "left_right_min_turn_deg": (0.0, 360.0), "left_right_gap_s": (0.0, 60.0), "quick_accel_peak_mps2": (0.05, 20.0),
+    "quick_accel_window_s": (0.5, 60.0), "cruise_min_speed_mps": (0.0, 100.0), "cruise_max_accel_mps2": (0.0, 20.0),
+    "cruise_max_yaw_radps": (0.0, 2.0), "cruise_min_s": (1.0, 3600.0),
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -88,10 +101,19 @@ class EventThresholds:
             name = name.strip().replace("-", "_")
             if name not in known or not value:
                 raise InputError(f"unknown threshold {pair!r}", f"choose from {', '.join(known)}", param="thresholds")
+            pair_field = known[name]
+            wants_pair = isinstance(getattr(self, name), tuple)
             try:
-                parsed = tuple(float(v) for v in value.split(",")) if "," in value else float(value)
+                parsed = tuple(float(v) for v in value.split(",")) if wants_pair else float(value)
             except ValueError:
-                raise InputError(f"threshold {pair!r}: {value!r} is not a number", param="thresholds") from None
+                kind = "two numbers LOW,HIGH" if wants_pair else "one number"
+                raise InputError(f"threshold {pair!r}: {value!r} is not {kind}", param="thresholds") from None
+            values = parsed if wants_pair else (parsed,)
+            low, high = THRESHOLD_LIMITS.get(pair_field.name, (0.0, 1e6))
+            if wants_pair and (len(values) != 2 or values[0] > values[1]):
+                raise InputError(f"threshold {pair!r}: give two numbers LOW,HIGH with LOW <= HIGH", param="thresholds")
+            if not all(math.isfinite(v) and low <= v <= high for v in values):
+                raise InputError(f"threshold {pair!r} is out of range", f"{name} takes values from {low:g} to {high:g}", param="thresholds")
             changes[name] = parsed
         return replace(self, **changes)
 

@@ -66,7 +66,8 @@ OPTION_OF: dict[str, str] = {
     "data_root": "--data-root", "stamps": "--stamps", "model": "--model", "bias_from": "--bias-from",
     "thresholds": "--threshold", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
     "estimators": "--estimators", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
-    "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o",
+    "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
+    "duration_s": "--duration", "seed": "--seed",
 }
 
 
@@ -87,9 +88,13 @@ def root_options_first(argv: list[str]) -> list[str]:
 
 
 def main() -> None:
-    """Console entry point: one-line errors with exit code 2, 130 on Ctrl-C."""
+    """Console entry point: one-line errors with exit code 2, 1 for the environment, 130 on Ctrl-C,
+    143 on SIGTERM and 129 on SIGHUP (after cleaning up)."""
+    from ..core.signals import Terminated, raise_on_stop_signals
+
     args = root_options_first(sys.argv[1:])
     debug = "--debug" in args
+    raise_on_stop_signals()  # SIGTERM and SIGHUP clean up like Ctrl-C
     try:
         code = app(args=args, standalone_mode=False)
         # Without standalone mode, typer returns exit codes (130 for Ctrl-C) instead of exiting.
@@ -102,6 +107,9 @@ def main() -> None:
     except (KeyboardInterrupt, typer.Abort):
         print("interrupted", file=sys.stderr)
         sys.exit(130)
+    except Terminated as exc:
+        print(f"terminated ({exc})", file=sys.stderr)
+        sys.exit(exc.exit_code)
     except InputError as exc:
         if debug:
             raise

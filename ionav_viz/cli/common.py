@@ -39,14 +39,14 @@ def duration_s(text: str, option: str) -> float:
         raise typer.BadParameter(f"{text!r} {'is not a duration; use e.g. 10s, 500ms, 1m' if 'not a duration' in exc.message else 'must be a positive duration'}", param_hint=option) from None
 
 
-def whole_seconds(text: str, option: str) -> float:
+def whole_seconds(text: str, option: str, what: str = "outage length") -> float:
     """A duration option that must be a whole number of seconds (outage lengths and periods)."""
     from ..core.errors import InputError
     from ..nav.outages import outage_windows
 
     seconds = duration_s(text, option)
     try:
-        outage_windows(seconds)
+        outage_windows(seconds, what)
     except InputError as exc:
         raise InputError(f"{option} {text}: {exc.message}", "the estimators predict once per 1 s window; use e.g. 10s") from None
     return seconds

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Optional
@@ -119,7 +120,12 @@ def fetch(
     url = base_url(base_url_opt)
     timeout_s = c.duration_s(timeout, "--timeout")
     created = [p for p in [root, *root.parents] if not p.exists()]
-    root.mkdir(parents=True, exist_ok=True)
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"data root {root}: cannot create it ({exc.strerror})", "choose a writable --data-root") from None
+    if not os.access(root, os.W_OK | os.X_OK):
+        raise InputError(f"data root {root}: cannot write in it (permission denied)", "choose a writable --data-root")
     try:
         _fetch_all(entries, root, url, timeout_s, quiet)
     except BaseException:

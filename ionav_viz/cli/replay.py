@@ -22,7 +22,7 @@ def placement_of(every: Optional[str], at: Optional[str], random_count: Optional
     if on is not None:
         return AroundEvents(c.event_types(on)), f"--on {on}"
     if every is not None:
-        return Every(c.whole_seconds(every, "--every")), f"--every {every}"
+        return Every(c.whole_seconds(every, "--every", "outage period")), f"--every {every}"
     if at is not None:
         return At(tuple(_parse_times(at))), f"--at {at}"
     if random_count is not None:

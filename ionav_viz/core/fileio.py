@@ -5,14 +5,36 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..core.errors import InputError, ToolFailure
+from .errors import InputError, ToolFailure
+from .signals import deferred_signals
 
 #: errno values of a write that failed for lack of room or a broken device.
 _WRITE_FAILURES = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO, errno.EROFS}
+
+
+def check_output_file(target: Path) -> Path:
+    """Check, before any work, that ``target`` can be written as a file: its folder exists, and it
+    is absent or a regular file (never a directory, device node, FIFO or socket: those are not
+    replaced). Returns ``target``."""
+    target = Path(target)
+    parent = target.parent if str(target.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another output", param="output")
+    if target.is_dir():
+        raise InputError(f"{target}: is a directory", "name a file inside it", param="output")
+    if target.exists() or target.is_symlink():
+        mode = target.lstat().st_mode
+        if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)) or (target.exists() and not target.is_file()):
+            raise InputError(f"{target}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another output",
+                             param="output")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{target}: cannot write in {parent} (permission denied)", "choose a writable output directory", param="output")
+    return target
 
 
 @contextlib.contextmanager
@@ -21,28 +43,31 @@ def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
 
     ``suffix`` ends the temporary name (writers that infer the format from it need e.g. ``.png``).
 
-    On any exception (including Ctrl-C) the temporary file is removed and ``target`` is untouched.
+    On any exception (including Ctrl-C, SIGTERM and SIGHUP) the temporary file is removed and
+    ``target`` is untouched. Signals are held back while the temporary file is created, so no
+    signal can fall between its creation and the cleanup that removes it.
     """
-    target = Path(target)
+    target = check_output_file(Path(target))
     parent = target.parent if str(target.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another -o")
-    try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=parent)
-    except OSError as exc:
-        raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable -o") from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; outputs get the usual permissions
-    try:
+    with deferred_signals():
+        try:
+            fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=parent)
+        except OSError as exc:
+            raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable output", param="output") from None
+        tmp = Path(tmp_name)
+    try:  # a signal held back above arrives here, inside the cleanup
+        os.close(fd)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; outputs get the usual permissions
         yield tmp
         os.replace(tmp, target)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         if exc.errno in _WRITE_FAILURES:
             raise ToolFailure(f"{target}: write failed ({exc.strerror}); is the disk full?") from None
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EISDIR):
+            raise InputError(f"{target}: cannot write it ({exc.strerror})", "choose another output", param="output") from None
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import http.client
 import json
 import os
 import time
@@ -29,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 from ..core.errors import InputError, ToolFailure
-from ..dataset.catalog import ManifestEntry
+from .catalog import ManifestEntry
 
 DEFAULT_BASE_URL = "https://media.githubusercontent.com/media/onyekpeu/IO-VNBD/master"
 VERIFIED_CACHE = ".ionav-verified.json"
@@ -52,7 +53,16 @@ def default_data_root() -> Path:
 
 
 def base_url(option: str | None) -> str:
-    return (option or os.environ.get("IONAV_BASE_URL") or DEFAULT_BASE_URL).rstrip("/")
+    """The repository root to download from: the option, ``$IONAV_BASE_URL``, or the dataset's; checked."""
+    url = (option or os.environ.get("IONAV_BASE_URL") or DEFAULT_BASE_URL).rstrip("/")
+    try:
+        parts = urllib.parse.urlsplit(url)
+        parts.port  # noqa: B018  (raises ValueError for a bad port)
+    except ValueError as exc:
+        raise InputError(f"base URL {url!r} is not a valid URL ({exc})", "give e.g. https://host/path", param="base_url") from None
+    if parts.scheme not in ("http", "https") or not parts.netloc:
+        raise InputError(f"base URL {url!r} is not an http(s) URL", "give e.g. https://host/path", param="base_url")
+    return url
 
 
 def safe_target(root: Path, repo_path: str) -> Path:
@@ -169,7 +179,7 @@ def _fetch_into(entry: ManifestEntry, root: Path, target: Path, url_base: str, t
             break
         except FetchError:
             raise
-        except (_Retry, urllib.error.URLError, TimeoutError, ConnectionError, OSError) as exc:
+        except (_Retry, urllib.error.URLError, http.client.HTTPException, TimeoutError, ConnectionError, OSError) as exc:
             if attempt >= retries:
                 reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
                 raise FetchError(f"{entry.path}: download failed after {attempt} attempts ({reason})") from None

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..dataset.catalog import SCENARIOS
+from .catalog import SCENARIOS
 
 
 @dataclass(frozen=True)

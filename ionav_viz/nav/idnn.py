@@ -29,6 +29,8 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
+import stat
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -71,18 +73,37 @@ class ModelConfig:
     seed: int = 0
 
     def validate(self) -> None:
-        """Check the values; errors name the field (``param``) so the command line can name its option."""
+        """Check types and ranges; errors name the field (``param``) so the command line can name its
+        option. Sizes are bounded before any network is built (a huge ``hidden`` would eat the memory)."""
         if self.arch not in ARCHS:
             raise InputError(f"unknown architecture {self.arch!r}", f"choose one of {', '.join(ARCHS)}", param="arch")
-        for name in ("n_steps_disp", "n_steps_yaw"):
-            if not 1 <= getattr(self, name) <= 20:
-                raise InputError(f"{getattr(self, name)} time steps ({name}) out of range", "use 1 to 20 time steps (2 s at 10 Hz)", param=name)
-        if self.hidden < 1 or not 0 <= self.dropout < 1:
-            raise InputError(f"hidden units {self.hidden} / dropout {self.dropout} out of range", "use >= 1 hidden units and a dropout in [0, 1)")
-        if self.feedback_noise_m < 0:
-            raise InputError(f"feedback noise {self.feedback_noise_m} m is negative", "give a standard deviation >= 0", param="feedback_noise_m")
-        if not 0 <= self.lr_decay_tail <= 1:
-            raise InputError(f"lr_decay_tail {self.lr_decay_tail} out of range", "use a fraction of the training in [0, 1]", param="lr_decay_tail")
+        for name, (low, high) in _INT_LIMITS.items():
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise InputError(f"{name} = {value!r} is not a whole number", param=name)
+            if not low <= value <= high:
+                what = "time steps" if name.startswith("n_steps") else name
+                raise InputError(f"{value} {what} ({name}) out of range", f"use {low} to {high}" + (" time steps (2 s at 10 Hz)" if name.startswith("n_steps") else ""),
+                                 param=name)
+        for name, (low, high) in _FLOAT_LIMITS.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise InputError(f"{name} = {value!r} is not a finite number", param=name)
+            if not low <= value <= high:
+                raise InputError(f"{name} = {value:g} out of range", f"use {low:g} to {high:g}", param=name)
+        if self.dropout >= 1:
+            raise InputError(f"dropout {self.dropout} out of range", "use a dropout in [0, 1)", param="dropout")
+        if not isinstance(self.residual, bool):
+            raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
+
+
+#: Ranges of the integer and real hyperparameters (checked by :meth:`ModelConfig.validate`).
+_INT_LIMITS = {"n_steps_disp": (1, 20), "n_steps_yaw": (1, 20), "hidden": (1, 1024), "batch_size": (1, 65536),
+               "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1)}
+_FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0), "lr_yaw": (1e-9, 10.0),
+                 "lr_decay_tail": (0.0, 1.0)}
+#: Largest weights file read (bytes): the biggest network of the allowed sizes is far smaller.
+MAX_WEIGHTS_BYTES = 256 * 2**20
 
 
 def kinematic_weights(n_steps: int) -> np.ndarray:
@@ -197,7 +218,16 @@ class Normalisation:
 
     @classmethod
     def from_dict(cls, d: dict[str, list[float]]) -> Normalisation:
-        return cls(**{k: MinMax(float(d[k][0]), float(d[k][1])) for k in ("accel", "disp", "gyro", "yaw")})
+        """From metadata; every span must be finite and positive (a zero span would divide by zero)."""
+        out = {}
+        for k in ("accel", "disp", "gyro", "yaw"):
+            lo, hi = d[k]
+            if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in (lo, hi)):
+                raise ValueError(f"normalisation {k}: {d[k]!r} is not two numbers")
+            if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+                raise ValueError(f"normalisation {k}: [{lo}, {hi}] is not a finite, non-empty range")
+            out[k] = MinMax(float(lo), float(hi))
+        return cls(**out)
 
     def skip_terms(self, displacement: bool) -> tuple[float, float]:
         """(gain, offset) of the kinematic skip term in normalised units.
@@ -412,6 +442,8 @@ def load_model(directory: str | Path) -> IdnnModel:
     meta_path = directory / "metadata.json"
     if not meta_path.is_file():
         raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' and give that directory", param="model")
+    if not meta_path.is_file() or meta_path.stat().st_size > 16 * 2**20:
+        raise InputError(f"{meta_path}: not a regular file of a plausible size", "retrain or restore the model")
     try:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
         if meta.get("format_version") != FORMAT_VERSION:
@@ -422,7 +454,10 @@ def load_model(directory: str | Path) -> IdnnModel:
         raise InputError(f"{meta_path}: not valid JSON ({exc})", "the model directory is damaged; retrain or restore it") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
         raise InputError(f"{meta_path}: incomplete or invalid metadata ({type(exc).__name__}: {exc})", "retrain or restore the model") from None
-    config.validate()
+    try:
+        config.validate()
+    except InputError as exc:
+        raise InputError(f"{meta_path}: {exc.message}", "the metadata is damaged; retrain or restore the model") from None
     digests = meta.get("weights_sha256")
     if not isinstance(digests, dict):
         raise InputError(f"{meta_path}: no weights_sha256 (checksums of the weight files)", "retrain it with this version of ionav-viz")
@@ -434,10 +469,17 @@ def load_model(directory: str | Path) -> IdnnModel:
         steps = config.n_steps_disp if is_disp else config.n_steps_yaw
         net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
         try:
+            info = path.stat()
+            if not stat.S_ISREG(info.st_mode):
+                raise InputError(f"{path}: not a regular file", "the weights must be a safetensors file")
+            if info.st_size > MAX_WEIGHTS_BYTES:
+                raise InputError(f"{path}: {info.st_size / 2**20:.0f} MiB, far more than any IDNN's weights", "retrain or restore the model")
             raw = path.read_bytes()
             state = load(raw)
         except OSError as exc:
             raise InputError(f"{path}: cannot read model weights ({exc.strerror})", "retrain or restore the model") from None
+        except InputError:
+            raise
         except (SafetensorError, ValueError, Exception) as exc:  # safetensors rejects anything else, pickles included
             raise InputError(f"{path}: not a safetensors weights file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", "weights must be safetensors; pickled files are never loaded") from None
         expected = net.state_dict()
@@ -451,6 +493,11 @@ def load_model(directory: str | Path) -> IdnnModel:
                 f"{path}: weights do not fit the {config.arch} architecture of metadata.json ({first}: {got} vs {want})",
                 "the weights and metadata come from different models; retrain",
             )
+        for name, tensor in state.items():
+            if tensor.dtype != expected[name].dtype:
+                raise InputError(f"{path}: {name} is {tensor.dtype}, expected {expected[name].dtype}", "retrain or restore the model")
+            if not bool(tensor.isfinite().all()):
+                raise InputError(f"{path}: {name} holds NaN or infinite weights", "retrain or restore the model")
         if digests.get(filename) != hashlib.sha256(raw).hexdigest():
             raise InputError(
                 f"{path}: sha256 differs from the one metadata.json records",

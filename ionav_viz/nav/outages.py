@@ -30,19 +30,18 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..nav.windows import Windows
+from .windows import Windows
 
 
-def outage_windows(outage_s: float) -> int:
+def outage_windows(outage_s: float, what: str = "outage length", param: str = "outage_s") -> int:
     """Outage length (s) -> number of 1-second windows; must be a positive whole number."""
-    n = int(round(outage_s))
-    if not np.isfinite(outage_s) or outage_s <= 0 or abs(outage_s - n) > 1e-9:
+    if not np.isfinite(outage_s) or outage_s <= 0 or abs(outage_s - round(outage_s)) > 1e-9:
         raise InputError(
-            f"outage length {outage_s:g} s is not a positive whole number of seconds",
+            f"{what} {outage_s:g} s is not a positive whole number of seconds",
             "the estimators predict once per 1 s window; use whole seconds, e.g. 10 s",
-            param="outage_s",
+            param=param,
         )
-    return n
+    return int(round(outage_s))
 
 
 def _segment_ranges(windows: Windows) -> list[tuple[int, int]]:
@@ -94,6 +93,8 @@ def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
     """``count`` non-overlapping ``n``-window outages drawn uniformly (seeded)."""
     if count < 1:
         raise InputError(f"{count} random outages: need at least one", param="placement")
+    if seed < 0:
+        raise InputError(f"random seed {seed} is negative", "use a seed >= 0", param="placement")
     rng = np.random.default_rng(seed)
     candidates = np.concatenate([np.arange(a, b - n + 1) for a, b in _segment_ranges(windows)] or [np.zeros(0, int)])
     chosen: list[int] = []
@@ -144,7 +145,7 @@ class Every:
     period_s: float
 
     def starts(self, windows: Windows, n: int, events: Sequence[Any] = ()) -> np.ndarray:
-        return every(windows, n, outage_windows(self.period_s))
+        return every(windows, n, outage_windows(self.period_s, "outage period", "placement"))
 
     def describe(self, outage_s: float) -> str:
         return f"a {outage_s:g} s outage every {self.period_s:g} s"

@@ -24,9 +24,9 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..nav.bias import SensorBias
-from ..nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
-from ..nav.windows import make_windows
+from .bias import SensorBias
+from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
+from .windows import make_windows
 
 Progress = Callable[[str, int, int], None]
 

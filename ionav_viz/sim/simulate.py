@@ -49,12 +49,14 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.fileio import check_output_file
 from ..core.grid import GRID_RATE_HZ
 from ..core.units import G_MPS2
+from ..dataset.catalog import SCENARIOS as PAPER_SCENARIOS
 from ..sources.iovnbd import HEADER, write_iovnbd
 
 HARD_BRAKE_G = 0.45  # the paper's hard-brake threshold (Section 2)
-SCENARIOS = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering", "stationary")
+SCENARIOS = (*PAPER_SCENARIOS, "stationary")  # the paper's five, and a standing car for biases
 TRUTH_RATE_HZ = 100.0
 OUTPUT_RATE_HZ = GRID_RATE_HZ  # IO-VNBD's rate
 
@@ -275,12 +277,21 @@ _PLANS = {
 }
 
 
+#: Longest drive the simulator makes (s): its 100 Hz truth needs about 0.4 GB per hour.
+MAX_DURATION_S = 12 * 3600.0
+
+
 def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
     """The ground-truth motion of a scenario (100 Hz)."""
     if scenario not in _PLANS:
         raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SCENARIOS)}")
     if not duration_s > 0:
-        raise InputError(f"duration must be positive, got {duration_s} s")
+        raise InputError(f"duration must be positive, got {duration_s} s", param="duration_s")
+    if duration_s > MAX_DURATION_S:
+        raise InputError(f"duration {duration_s / 3600:g} h is longer than the {MAX_DURATION_S / 3600:g} h the simulator allows",
+                         "simulate several shorter drives", param="duration_s")
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise InputError(f"seed {seed!r} must be a whole number >= 0", param="seed")
     rng = np.random.default_rng([seed, SCENARIOS.index(scenario)])
     plan = _Plan()
     _PLANS[scenario](plan, rng, duration_s + 1.0)
@@ -465,7 +476,7 @@ def write_simulated_drive(
     path: str | Path, scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None
 ) -> Path:
     """Simulate a drive and write it as an IO-VNBD ``V-*.csv`` (atomically). Returns the path."""
-    path = Path(path)
+    path = check_output_file(Path(path))
     rows = simulate_rows(scenario, seed, duration_s, sensors)
     write_iovnbd(path, rows, DECIMALS)
     return path

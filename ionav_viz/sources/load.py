@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..sources.resolve import resolve_drive
+from .resolve import resolve_drive
 
 
 @dataclass(frozen=True)
@@ -29,12 +29,30 @@ def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap
     path = resolve_drive(spec, root)
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        from ..sources.iovnbd import read_iovnbd
+        from .iovnbd import read_iovnbd
 
-        return read_iovnbd(path, yaw_sign=yaw_sign)
+        return check_rate(read_iovnbd(path, yaw_sign=yaw_sign), path)
     if suffix == ".mcap":
-        from ..sources.mcap_reader import read_mcap
+        from .mcap_reader import read_mcap
 
         opts = mcap or McapOptions()
-        return read_mcap(path, imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic, stamps=opts.stamps)
+        drive = read_mcap(path, imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic, stamps=opts.stamps)
+        return check_rate(drive, path)
     raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", "ionav-viz reads IO-VNBD V-*.csv files and MCAP (.mcap) logs")
+
+
+#: Slowest sample rate a drive may have (Hz): the estimators work on 1 s windows of 10 Hz samples,
+#: so a slower log cannot be put on that grid without inventing most of it.
+MIN_RATE_HZ = 2.0
+
+
+def check_rate(drive: Drive, path: Path) -> Drive:
+    """Refuse a drive sampled too slowly for the 10 Hz grid (with the real reason, not 'too short')."""
+    import numpy as np
+
+    if len(drive) > 1:
+        dt = float(np.median(np.diff(drive.t_s)))
+        if dt > 1.0 / MIN_RATE_HZ:
+            raise InputError(f"{path}: samples are {dt:.2f} s apart ({1 / dt:.2g} Hz); ionav-viz needs at least {MIN_RATE_HZ:g} Hz",
+                             "the estimators use 1 s windows of 10 Hz samples: use the log's full-rate file")
+    return drive

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.drive import Drive
-from ..core.fileio import atomic_path
-from ..sources.ros2_msgs import DEFINITIONS
+from ..core.fileio import atomic_path, check_output_file
+from .ros2_msgs import DEFINITIONS
 
 TOPICS = {"imu": "/imu/data", "fix": "/gps/fix", "vel": "/gps/vel"}
 
@@ -36,6 +36,8 @@ def _header(stamp_ns: int, frame: str) -> dict:
 def write_mcap(drive: Drive, path: Path, progress=None) -> int:
     """Write ``drive`` to ``path`` (atomically); returns the number of messages."""
     from mcap_ros2.writer import Writer
+
+    check_output_file(Path(path))
 
     t_ns = np.rint((drive.start_time_of_day_s + drive.t_s) * 1e9).astype(np.int64)
     heading = np.deg2rad(drive.heading_deg)

@@ -15,6 +15,7 @@ outage and time.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -30,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError, ToolFailure
+from ..core.signals import STOP_SIGNALS, Terminated
 from . import recording as rerun_log
 
 VIEWS = ("all", "map", "local", "signals", "errors")
@@ -186,16 +188,15 @@ class HeadlessViewer:
         self.log_path = Path(self._dir.name) / "viewer.log"
         self.proc: subprocess.Popen | None = None
         self.client: Any = None
-        self._old_sigterm: Any = None
+        self._old_handlers: dict[int, Any] = {}
 
     def __enter__(self) -> HeadlessViewer:
         from rerun.experimental import ViewerClient
 
-        # Turn SIGTERM into an exception too, so __exit__ always runs.
-        try:
-            self._old_sigterm = signal.signal(signal.SIGTERM, _raise_interrupt)
-        except ValueError:  # not the main thread
-            self._old_sigterm = None
+        # SIGTERM and SIGHUP become an exception too (as Ctrl-C is), so __exit__ always runs.
+        for sig in STOP_SIGNALS:
+            with contextlib.suppress(ValueError):  # not the main thread
+                self._old_handlers[sig] = signal.signal(sig, _raise_terminated)
         try:
             self._start(ViewerClient)
         except BaseException:
@@ -300,14 +301,14 @@ class HeadlessViewer:
 
     def __exit__(self, *exc: Any) -> None:
         self._stop()
-        if self._old_sigterm is not None:
-            signal.signal(signal.SIGTERM, self._old_sigterm)
-            self._old_sigterm = None
+        for sig, old in self._old_handlers.items():
+            signal.signal(sig, old)
+        self._old_handlers = {}
         self._dir.cleanup()
 
 
-def _raise_interrupt(signum: int, frame: Any) -> None:
-    raise KeyboardInterrupt
+def _raise_terminated(signum: int, frame: Any) -> None:
+    raise Terminated(signum)
 
 
 def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], map_zoom: float | None = None) -> dict[str, Any]:
@@ -384,7 +385,14 @@ def output_paths(out: Path, stem: str, requests: list[tuple[str, str]], single_f
         directory, stem = out.parent, out.stem
     else:
         directory = out
-    return [directory / f"{stem}-{view}-{label}.png" for view, label in requests]
+    return [directory / f"{safe_stem(stem)}-{view}-{label}.png" for view, label in requests]
+
+
+def safe_stem(name: str) -> str:
+    """A file-name stem from text that comes from inside a file (a recording's drive name): only
+    letters, digits, '.', '-' and '_', no leading dot, never a path."""
+    cleaned = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name).lstrip(".")
+    return cleaned[:100] or "recording"
 
 
 def time_label(spec: str, t_s: float) -> str:
