@@ -330,3 +330,236 @@ def test_ctrl_c_in_the_middle_of_a_replay(tmp_path, stage):
     assert proc.returncode == 130, proc.stderr
     assert "interrupted" in proc.stderr and "Traceback" not in proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+# ---- round 2: signals ----------------------------------------------------------------------
+
+def _interrupted_child(argv: list[str], signum: int, private_tmp: Path | None = None) -> subprocess.CompletedProcess:
+    """Run ``ionav-viz ARGV`` with a real signal sent to itself right as the output's temporary
+    file is created (the moment a race once left it behind). Deterministic: no timer involved."""
+    child = textwrap.dedent(f"""
+        import os, sys, tempfile
+        import ionav_viz.core.fileio as fileio
+        real = tempfile.mkstemp
+        def mkstemp_then_signal(*args, **kwargs):
+            made = real(*args, **kwargs)
+            os.kill(os.getpid(), {int(signum)})  # held back until the cleanup is armed
+            return made
+        fileio.tempfile = type(sys)("tempfile_probe")
+        fileio.tempfile.mkstemp = mkstemp_then_signal
+        sys.argv = ["ionav-viz", *{argv!r}]
+        from ionav_viz.cli import main
+        main()
+    """)
+    env = None if private_tmp is None else {**__import__("os").environ, "TMPDIR": str(private_tmp)}
+    return subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120, env=env)
+
+
+@pytest.mark.parametrize(
+    ("command", "signame", "code", "word"),
+    [
+        (["replay", "hard-brake", "--no-idnn", "-q"], "SIGTERM", 143, "terminated (SIGTERM)"),
+        (["replay", "hard-brake", "--no-idnn", "-q"], "SIGHUP", 129, "terminated (SIGHUP)"),
+        (["replay", "hard-brake", "--no-idnn", "-q"], "SIGINT", 130, "interrupted"),
+        (["convert", "hard-brake"], "SIGTERM", 143, "terminated (SIGTERM)"),
+        (["simulate", "motorway", "--duration", "30s"], "SIGHUP", 129, "terminated (SIGHUP)"),
+    ],
+)
+def test_stop_signals_clean_up_and_exit_128_plus_the_signal(tmp_path, command, signame, code, word):
+    """Input: SIGTERM, SIGHUP or SIGINT while the output is being written. Expected: exit 130/143/129,
+    one line, no output and no temporary file."""
+    import signal
+
+    suffix = {"replay": ".rrd", "convert": ".mcap", "simulate": ".csv"}[command[0]]
+    proc = _interrupted_child([*command, "-o", str(tmp_path / f"out{suffix}")], getattr(signal, signame))
+    assert proc.returncode == code, proc.stderr
+    assert proc.stderr.strip() == word and "Traceback" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sighup_during_screenshot_stops_the_viewer(tmp_path):
+    """Input: SIGHUP while the headless viewer renders. Expected: exit 129, no viewer left, no scratch folder."""
+
+    from .test_screenshot import _viewers_under
+
+    rec = tmp_path / "r.rrd"
+    assert run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", "-o", str(rec)).returncode == 0
+    private_tmp = tmp_path / "tmp"
+    private_tmp.mkdir()
+    child = textwrap.dedent(f"""
+        import os, sys, signal
+        import ionav_viz.viz.screenshot as shots
+        real_open = shots.HeadlessViewer.open
+        def open_then_hangup(self, *args, **kwargs):
+            real_open(self, *args, **kwargs)
+            os.kill(os.getpid(), signal.SIGHUP)
+        shots.HeadlessViewer.open = open_then_hangup
+        sys.argv = ["ionav-viz", "screenshot", {str(rec)!r}, "-o", {str(tmp_path / "x.png")!r}, "--size", "400x300"]
+        from ionav_viz.cli import main
+        main()
+    """)
+    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=180,
+                          env={**__import__("os").environ, "TMPDIR": str(private_tmp)})
+    if proc.returncode == 1 and "mesa" in proc.stderr and not __import__("os").environ.get("CI"):
+        pytest.skip("no renderer on this machine")
+    assert proc.returncode == 129, proc.stderr
+    assert _viewers_under(private_tmp) == set() and list(private_tmp.iterdir()) == []
+    assert not (tmp_path / "x.png").exists()
+
+
+# ---- round 2: output paths -----------------------------------------------------------------
+
+@pytest.mark.parametrize(
+    ("command", "suffix"),
+    [(["replay", "hard-brake", "--no-idnn", "-q"], ".rrd"), (["convert", "hard-brake"], ".mcap"), (["simulate", "motorway"], ".csv")],
+)
+@pytest.mark.parametrize("kind", ["directory", "fifo", "device"])
+def test_output_that_is_not_a_regular_file_is_never_replaced(tmp_path, command, suffix, kind):
+    """Input: -o naming an existing directory, FIFO or device node. Expected: exit 2 before any
+    work, one line naming it, the node untouched."""
+    import os
+    import stat
+
+    target = tmp_path / f"target{suffix}"
+    if kind == "directory":
+        target.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(target)
+    else:
+        if os.geteuid() != 0:
+            pytest.skip("creating a device node needs root")
+        os.mknod(target, 0o600 | stat.S_IFCHR, os.makedev(1, 3))  # a private node with /dev/null's numbers
+    mode = target.lstat().st_mode
+    proc = run_cli(*command, "-o", str(target))
+    assert_input_error(proc, str(target), "is a directory" if kind == "directory" else "not a regular file")
+    assert target.lstat().st_mode == mode and sorted(p.name for p in tmp_path.iterdir()) == [target.name]
+
+
+def test_train_output_that_is_a_file_is_refused_before_training(tmp_path):
+    target = tmp_path / "model"
+    target.write_text("not a model")
+    start = time.monotonic()
+    assert_input_error(run_cli("train", "-o", str(target), "--force"), "not a directory")
+    assert time.monotonic() - start < 20 and target.read_text() == "not a model"
+
+
+def test_unwritable_output_directory_is_one_line(tmp_path, monkeypatch):
+    """Input: an output directory the user cannot write (simulated: root may write anywhere)."""
+    import os
+
+    from ionav_viz import InputError
+    from ionav_viz.core.fileio import check_output_file
+
+    monkeypatch.setattr(os, "access", lambda *args, **kwargs: False)
+    with pytest.raises(InputError, match="permission denied"):
+        check_output_file(tmp_path / "x.rrd")
+
+
+def test_names_from_inside_a_recording_never_leave_the_output_directory(tmp_path):
+    """Input: a crafted .rrd whose recording name is '../../evil/x'. Expected: PNG names stay inside -o."""
+    import rerun as rr
+
+    from ionav_viz.viz.screenshot import output_paths, read_recording_info
+
+    crafted = tmp_path / "crafted.rrd"
+    rec = rr.RecordingStream("ionav-viz", recording_id="crafted")
+    rec.save(str(crafted))
+    rec.send_recording_name("../../evil/x")
+    rec.send_columns("gnss/state", indexes=[rr.TimeColumn("time", duration=[0.0, 5.0])],
+                     columns=rr.StateChange.columns(state=["GNSS", "outage 1 (5-15 s)"]))
+    rec.flush()
+    rec.disconnect()
+    info = read_recording_info(crafted)
+    assert info.drive == "../../evil/x"
+    out = tmp_path / "shots"
+    for path in output_paths(out, info.drive, [("local", "end"), ("map", "worst")], single_file_ok=False):
+        assert path.parent == out and ".." not in path.name and "/" not in path.name
+
+
+# ---- round 2: models ---------------------------------------------------------------------
+
+@pytest.mark.parametrize(
+    ("change", "fragment"),
+    [
+        ({"config": {"hidden": "32"}}, "hidden = '32' is not a whole number"),
+        ({"config": {"n_steps_disp": True}}, "n_steps_disp = True is not a whole number"),
+        ({"config": {"hidden": 60000}}, "out of range"),
+        ({"config": {"dropout": float("nan")}}, "dropout = nan is not a finite number"),
+        ({"normalisation": {"accel": [0.5, 0.5]}}, "not a finite, non-empty range"),
+        ({"normalisation": {"gyro": [float("nan"), 1.0]}}, "not a finite, non-empty range"),
+    ],
+)
+def test_model_metadata_with_wrong_types_or_ranges(model_copy, change, fragment):
+    meta = json.loads((model_copy / "metadata.json").read_text())
+    for key, values in change.items():
+        meta[key].update(values)
+    (model_copy / "metadata.json").write_text(json.dumps(meta))
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy)), "metadata.json", fragment)
+
+
+@pytest.mark.parametrize("kind", ["nan", "int8", "fifo", "dev-zero"])
+def test_model_weights_that_cannot_be_right(model_copy, kind):
+    """NaN weights, int8 weights, a FIFO or /dev/zero as the weights file: refused at once."""
+    import os
+
+    import torch
+    from safetensors.torch import load, save
+
+    path = model_copy / "yaw_rate.safetensors"
+    if kind in ("nan", "int8"):
+        state = load(path.read_bytes())
+        name = next(iter(state))
+        state[name] = state[name].clone()
+        if kind == "nan":
+            state[name].view(-1)[0] = float("nan")
+        else:
+            state[name] = state[name].to(torch.int8)
+        path.write_bytes(save(state))
+        fragment = "NaN or infinite" if kind == "nan" else "torch.int8"
+    elif kind == "fifo":
+        path.unlink()
+        os.mkfifo(path)
+        fragment = "not a regular file"
+    else:
+        path.unlink()
+        path.symlink_to("/dev/zero")
+        fragment = "not a regular file"
+    start = time.monotonic()
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy), timeout=60), "yaw_rate.safetensors", fragment)
+    assert time.monotonic() - start < 30
+
+
+def test_training_options_that_would_make_a_nan_model(tmp_path):
+    assert_input_error(run_cli("train", "-o", str(tmp_path / "m"), "--feedback-noise", "inf"), "--feedback-noise", "not a finite number")
+    assert not (tmp_path / "m").exists()
+
+
+# ---- round 2: sizes, options and messages ---------------------------------------------------
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["events", "hard-brake", "--threshold", "yaw_smooth_s=1e8"], ["yaw_smooth_s", "out of range", "0.1 to 10"]),
+        (["events", "hard-brake", "--threshold", "hard_brake_g=1,2"], ["hard_brake_g=1,2", "not one number"]),
+        (["events", "hard-brake", "--threshold", "roundabout_radius_m=5"], ["roundabout_radius_m=5", "LOW,HIGH"]),
+        (["events", "hard-brake", "--threshold", "hard_brake_g=inf"], ["out of range"]),
+        (["simulate", "motorway", "-o", "{tmp}/V-x.csv", "--duration", "90h"], ["90 h", "12 h"]),
+        (["simulate", "motorway", "-o", "{tmp}/V-x.csv", "--seed", "-1"], ["seed", ">= 0"]),
+        (["replay", "hard-brake", "--no-idnn", "-o", "{tmp}/x.rrd", "--random", "3", "--seed", "-1"], ["--random 3", "seed -1 is negative"]),
+        (["replay", "hard-brake", "--no-idnn", "-o", "{tmp}/x.rrd", "--every", "10.5s"], ["--every 10.5s", "outage period 10.5 s"]),
+        (["replay", "hard-brake", "--no-idnn", "-o", "{tmp}/x.rrd", "--at", ","], ["--at", "start times like 12s,40s"]),
+        (["fetch", "V-Vw8", "--base-url", "http://[bad", "--data-root", "{tmp}/root"], ["--base-url", "not a valid URL"]),
+        (["fetch", "V-Vw8", "--base-url", "ftp://host/x", "--data-root", "{tmp}/root"], ["--base-url", "not an http(s) URL"]),
+    ],
+)
+def test_options_are_checked_before_any_work(tmp_path, args, fragments):
+    start = time.monotonic()
+    proc = run_cli(*[a.replace("{tmp}", str(tmp_path)) for a in args])
+    assert_input_error(proc, *fragments)
+    assert time.monotonic() - start < 30
+    assert list(tmp_path.iterdir()) == []  # nothing written, no data root created
+
+
+def test_a_1_hz_log_is_refused_with_the_real_reason(tmp_path):
+    path = write(tmp_path / "V-1hz.csv", ROWS[::10])
+    assert_input_error(evaluate(path), "V-1hz.csv", "1 Hz", "at least 2 Hz")

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import InputError, ToolFailure
-from .signals import deferred_signals
+from .signals import hold_signals
 
 #: errno values of a write that failed for lack of room or a broken device.
 _WRITE_FAILURES = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO, errno.EROFS}
@@ -49,13 +49,15 @@ def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
     """
     target = check_output_file(Path(target))
     parent = target.parent if str(target.parent) else Path(".")
-    with deferred_signals():
-        try:
-            fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=parent)
-        except OSError as exc:
-            raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable output", param="output") from None
-        tmp = Path(tmp_name)
-    try:  # a signal held back above arrives here, inside the cleanup
+    release = hold_signals()
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=parent)
+    except OSError as exc:
+        release()
+        raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable output", param="output") from None
+    tmp = Path(tmp_name)
+    try:
+        release()  # a signal held back since before mkstemp is delivered here, inside the cleanup
         os.close(fd)
         umask = os.umask(0)
         os.umask(umask)

@@ -8,8 +8,10 @@ is left, and the exit code is 128 + the signal number (143 for SIGTERM, 129 for 
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable
 from typing import Any
 
 #: The signals that stop a command; SIGINT is Python's KeyboardInterrupt.
@@ -39,17 +41,34 @@ def raise_on_stop_signals() -> None:
             signal.signal(sig, _raise_terminated)
 
 
-@contextlib.contextmanager
-def deferred_signals() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGHUP back for the duration of the block (e.g. while a temporary
-    file is created and its cleanup armed); they are delivered when the block ends."""
-    sigs = {signal.SIGINT, *STOP_SIGNALS}
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
-    except (AttributeError, ValueError, OSError):  # no pthread_sigmask here
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+def hold_signals() -> Callable[[], None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back until the returned ``release()`` is called.
+
+    Call ``release()`` inside the ``try`` whose cleanup must run: a signal that arrived while held
+    is acted on during ``release()`` (its previous handler runs, raising ``KeyboardInterrupt`` or
+    :class:`Terminated`), so it raises inside that ``try``. Python runs signal handlers in the main
+    thread only, so a deferring handler closes the window whichever thread the signal reached
+    (blocking the signal with ``pthread_sigmask`` would not: other threads could still take it).
+    Outside the main thread this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    pending: list[int] = []
+    sigs = (signal.SIGINT, *STOP_SIGNALS)
+    previous = {sig: signal.signal(sig, lambda signum, frame: pending.append(signum)) for sig in sigs}
+    released: list[bool] = []
+
+    def release() -> None:
+        if released:
+            return
+        released.append(True)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if pending:
+            signum, handler = pending[0], previous[pending[0]]
+            if callable(handler):
+                handler(signum, None)  # raises KeyboardInterrupt or Terminated
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), signum)  # the default action, as if never held
+
+    return release

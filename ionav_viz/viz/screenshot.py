@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import socket
@@ -391,7 +392,8 @@ def output_paths(out: Path, stem: str, requests: list[tuple[str, str]], single_f
 def safe_stem(name: str) -> str:
     """A file-name stem from text that comes from inside a file (a recording's drive name): only
     letters, digits, '.', '-' and '_', no leading dot, never a path."""
-    cleaned = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name).lstrip(".")
+    cleaned = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name)
+    cleaned = re.sub(r"\.{2,}", ".", cleaned).lstrip(".")
     return cleaned[:100] or "recording"
 
 
