@@ -5,7 +5,11 @@ Heavy libraries are imported inside functions so that ``ionav-viz --help`` answe
 
 from __future__ import annotations
 
+import functools
+import inspect
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional
 
@@ -26,6 +30,48 @@ EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MO
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
+
+
+@dataclass(frozen=True)
+class SourceArgs:
+    """How to find and read drives, from the options every drive-reading command shares."""
+
+    data_root: Optional[Path]
+    yaw_sign: str
+    mcap: Any
+
+    def api_kwargs(self) -> dict[str, Any]:
+        """As keyword arguments of the :mod:`ionav_viz.api` functions."""
+        return {"data_root": self.data_root, "yaw_sign": self.yaw_sign, "mcap": self.mcap}
+
+
+#: The options that say how drives are found and read: (parameter, typer option, type).
+_SOURCE_OPTIONS = (
+    ("data_root_opt", DataRoot, Optional[Path]), ("yaw_sign", YawSign, str), ("imu_topic", ImuTopic, Optional[str]),
+    ("gnss_topic", GnssTopic, Optional[str]), ("speed_topic", SpeedTopic, Optional[str]), ("stamps", Stamps, str),
+)
+
+
+def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
+    the command receives them checked, as one ``source: SourceArgs`` argument.
+
+    Typer reads the command's parameters from its signature, so the options are added to it.
+    """
+    signature = inspect.signature(command)
+    params = [p for name, p in signature.parameters.items() if name != "source"]
+    params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind) for name, option, kind in _SOURCE_OPTIONS]
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        values = {name: kwargs.pop(name) for name, _, _ in _SOURCE_OPTIONS}
+        kwargs["source"] = SourceArgs(values["data_root_opt"], yaw_sign(values["yaw_sign"]),
+                                      mcap_options(values["imu_topic"], values["gnss_topic"], values["speed_topic"], values["stamps"]))
+        return command(*args, **kwargs)
+
+    wrapper.__signature__ = signature.replace(parameters=params)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {k: v for k, v in command.__annotations__.items() if k != "source"} | {n: t for n, _, t in _SOURCE_OPTIONS}
+    return wrapper
 
 
 def duration_s(text: str, option: str) -> float:

@@ -13,6 +13,7 @@ from .app import app, name_options
 
 
 @app.command()
+@c.with_source_options
 def evaluate(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
     outage: str = c.OutageOpt,
@@ -28,12 +29,7 @@ def evaluate(
     model: Optional[Path] = c.ModelOpt,
     no_idnn: bool = c.NoIdnnOpt,
     bias_from: Optional[str] = c.BiasFromOpt,
-    data_root_opt: Optional[Path] = c.DataRoot,
-    yaw_sign: str = c.YawSign,
-    imu_topic: Optional[str] = c.ImuTopic,
-    gnss_topic: Optional[str] = c.GnssTopic,
-    speed_topic: Optional[str] = c.SpeedTopic,
-    stamps: str = c.Stamps,
+    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
     from .. import api
@@ -42,18 +38,16 @@ def evaluate(
 
     name_options(outage_s=f"--outage {outage}", bias_from="--bias-from", model="--model", placement="--on")
     outage_s = c.whole_seconds(outage, "--outage")
-    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
-    c.yaw_sign(yaw_sign)
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
-    groups = api.scenario_drives(scenario, data_root_opt) if scenario else {None: list(drives or [])}
+    groups = api.scenario_drives(scenario, source.data_root) if scenario else {None: list(drives or [])}
     if scenario:
         print(f"drives: {groups.source}", file=sys.stderr)
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
     ests = c.estimators(estimator_names, plugins, no_idnn, model)
     th = c.thresholds(thresholds)
-    common = dict(estimators=ests, model=model, bias_from=bias_from, data_root=data_root_opt, yaw_sign=yaw_sign, mcap=mcap)
+    common = dict(estimators=ests, model=model, bias_from=bias_from, **source.api_kwargs())
     if by_event:
         kinds = c.event_types(on) if on else None
         reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, kinds, thresholds=th, **common)

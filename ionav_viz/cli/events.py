@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Optional
 
 import typer
@@ -13,18 +12,14 @@ from .app import app
 
 
 @app.command()
+@c.with_source_options
 def events(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
     types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated."),
     quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),
     thresholds: Optional[list[str]] = c.Thresholds,
-    data_root_opt: Optional[Path] = c.DataRoot,
-    yaw_sign: str = c.YawSign,
-    imu_topic: Optional[str] = c.ImuTopic,
-    gnss_topic: Optional[str] = c.GnssTopic,
-    speed_topic: Optional[str] = c.SpeedTopic,
-    stamps: str = c.Stamps,
+    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
 ) -> None:
     """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes and cruising.
 
@@ -62,8 +57,8 @@ def events(
         return
     if not drives:
         raise typer.BadParameter("give at least one drive (or --quality)", param_hint="DRIVES")
-    root = data_root(data_root_opt)
-    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    root = data_root(source.data_root)
+    yaw_sign, mcap = source.yaw_sign, source.mcap
     found = {}
     for spec in drives:
         drive = load_drive(spec, root, yaw_sign, mcap)

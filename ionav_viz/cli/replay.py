@@ -38,6 +38,7 @@ def _parse_times(text: str) -> list[float]:
 
 
 @app.command()
+@c.with_source_options
 def replay(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file path, bundled scenario name or IO-VNBD run name."),
     outage: str = c.OutageOpt,
@@ -53,12 +54,7 @@ def replay(
     model: Optional[Path] = c.ModelOpt,
     no_idnn: bool = c.NoIdnnOpt,
     bias_from: Optional[str] = c.BiasFromOpt,
-    data_root_opt: Optional[Path] = c.DataRoot,
-    yaw_sign: str = c.YawSign,
-    imu_topic: Optional[str] = c.ImuTopic,
-    gnss_topic: Optional[str] = c.GnssTopic,
-    speed_topic: Optional[str] = c.SpeedTopic,
-    stamps: str = c.Stamps,
+    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
     on: Optional[str] = typer.Option(None, "--on", help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout (see 'ionav-viz events')."),
     thresholds: Optional[list[str]] = c.Thresholds,
@@ -66,17 +62,15 @@ def replay(
     """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
     from .. import api
 
-    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
     outage_s = c.whole_seconds(outage, "--outage")
     placement, option = placement_of(every, at, random_count, seed, on)
     name_options(outage_s=f"--outage {outage}", placement=option, bias_from="--bias-from", model="--model")
     if output is not None and output.suffix.lower() != ".rrd":
         raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
-    c.yaw_sign(yaw_sign)
     ests = c.estimators(estimator_names, plugins, no_idnn, model)
     with c.progress(quiet) as bar:
         result = api.replay(drive_spec, outage_s, placement, ests, output, model=model, bias_from=bias_from,
-                            data_root=data_root_opt, thresholds=c.thresholds(thresholds), yaw_sign=yaw_sign, mcap=mcap,
+                            thresholds=c.thresholds(thresholds), **source.api_kwargs(),
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(), end="", file=sys.stderr)

@@ -44,6 +44,7 @@ def training_command(argv: list[str]) -> str:
 
 
 @app.command()
+@c.with_source_options
 def train(
     drives: Optional[list[str]] = typer.Argument(None, help="Training drives (default: the bundled synthetic training drives)."),
     output: Path = typer.Option(..., "-o", "--output", help="Model directory to write (weights + metadata.json); it must not exist yet, unless --force."),
@@ -60,12 +61,7 @@ def train(
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     bias_from: Optional[str] = c.BiasFromOpt,
-    data_root_opt: Optional[Path] = c.DataRoot,
-    yaw_sign: str = c.YawSign,
-    imu_topic: Optional[str] = c.ImuTopic,
-    gnss_topic: Optional[str] = c.GnssTopic,
-    speed_topic: Optional[str] = c.SpeedTopic,
-    stamps: str = c.Stamps,
+    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
 ) -> None:
     """Train the displacement and orientation-rate networks and write them with their metadata."""
     from ..dataset.catalog import PAPER_TRAIN_RUNS
@@ -76,8 +72,8 @@ def train(
     from ..sources.load import load_drive
     from ..sources.resolve import data_root
 
-    root = data_root(data_root_opt)
-    mcap = c.mcap_options(imu_topic, gnss_topic, speed_topic, stamps)
+    root = data_root(source.data_root)
+    yaw_sign, mcap = source.yaw_sign, source.mcap
     if paper_train:
         if root is None:
             raise InputError("--paper-train needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA")
