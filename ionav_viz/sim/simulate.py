@@ -277,7 +277,9 @@ _PLANS = {
 }
 
 
-#: Longest drive the simulator makes (s): its 100 Hz truth needs about 0.4 GB per hour.
+#: Longest drive the simulator makes (s). Measured peak memory of `ionav-viz simulate`: 0.17 GB for
+#: 1 h, 0.27 GB for 2 h (about 0.1 GB per hour, so roughly 1.3 GB for 12 h, extrapolated); 12 h is
+#: longer than any IO-VNBD run.
 MAX_DURATION_S = 12 * 3600.0
 
 
