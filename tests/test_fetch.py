@@ -174,3 +174,56 @@ def test_symlink_inside_the_data_root_is_refused(server, manifest, tmp_path):
     proc = fetch(server, manifest, root, "V-Vw8")
     assert proc.returncode == 2 and "symlink" in proc.stderr
     assert not list(outside.rglob("*"))
+
+
+class RawServer:
+    """A TCP server that answers every request with the same raw bytes, then closes."""
+
+    def __init__(self, response: bytes) -> None:
+        import socket
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(8)
+        self.url = f"http://127.0.0.1:{self.sock.getsockname()[1]}"
+        self.response = response
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            with conn, contextlib.suppress(OSError):
+                conn.recv(65536)
+                conn.sendall(self.response)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@pytest.mark.parametrize(
+    ("response", "why"),
+    [
+        (b"HTTP/1.1 2OO OK\r\n\r\n", "malformed status line"),
+        (b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n400\r\nabc", "truncated chunked body"),
+        (b"HTTP/1.1 200 OK\r\n" + b"".join(b"X-H%d: v\r\n" % i for i in range(200)) + b"\r\n", "over 100 headers"),
+        (b"HTTP/1.1 200 OK\r\nX-Long: " + b"a" * 100_000 + b"\r\n\r\n", "an over-long header line"),
+    ],
+)
+def test_a_broken_server_is_one_line_and_leaves_nothing(manifest, tmp_path, response, why):
+    """Input: a server answering with a malformed HTTP response. Expected: exit 1, one line, and at most
+    a resumable ``.part`` of what arrived (never a file under the run's name, never an empty folder)."""
+    raw = RawServer(response)
+    try:
+        root = tmp_path / "data"
+        proc = run_cli("fetch", "V-Vw8", "--data-root", str(root), "--base-url", raw.url, "--manifest", str(manifest), "--timeout", "2s", "-q")
+    finally:
+        raw.close()
+    assert proc.returncode == 1, (why, proc.stderr)
+    assert proc.stderr.count("\n") == 1 and "download failed" in proc.stderr and "Traceback" not in proc.stderr, (why, proc.stderr)
+    left = list(root.rglob("*")) if root.exists() else []
+    assert all(p.is_dir() or p.name.endswith(".csv.part") for p in left), left
+    assert all(any(p.iterdir()) for p in left if p.is_dir())

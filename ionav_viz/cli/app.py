@@ -87,6 +87,11 @@ def root_options_first(argv: list[str]) -> list[str]:
     return moved + [a for a in argv[:end] if a not in _ANYWHERE] + argv[end:]
 
 
+def one_line(text: str) -> str:
+    """Errors are one line: line breaks (e.g. from a server's reply quoted in a message) become spaces."""
+    return " ".join(text.split()) if "\n" in text or "\r" in text else text
+
+
 def main() -> None:
     """Console entry point: one-line errors with exit code 2, 1 for the environment, 130 on Ctrl-C,
     143 on SIGTERM and 129 on SIGHUP (after cleaning up)."""
@@ -115,12 +120,12 @@ def main() -> None:
             raise
         option = OPTION_OF.get(exc.param or "")
         text = f"{option}: {exc}" if option and not exc.message.startswith(option) else str(exc)
-        print(f"error: {text}", file=sys.stderr)
+        print(f"error: {one_line(text)}", file=sys.stderr)
         sys.exit(2)
     except ToolFailure as exc:
         if debug:
             raise
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
         sys.exit(1)
     except Exception as exc:
         # typer's (click's) usage errors: one line too, with the command's --help as the hint
