@@ -72,13 +72,14 @@ def write_ros2(path, duration_s=30.0, imu_hz=100, gnss_hz=5, seed=0, no_fix_time
     return path
 
 
-def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1):
-    """JSON-encoded MCAP: foxglove.LocationFix and an IMU message with sensor_msgs/Imu field names."""
+def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, **writer_options):
+    """JSON-encoded MCAP: foxglove.LocationFix and an IMU message with sensor_msgs/Imu field names.
+    ``writer_options`` go to mcap's Writer (e.g. ``use_statistics=False``)."""
     from mcap.writer import Writer
 
     rng = np.random.default_rng(seed)
     with open(path, "wb") as f:
-        w = Writer(f)
+        w = Writer(f, **writer_options)
         w.start()
         s_fix = w.register_schema("foxglove.LocationFix", "jsonschema", json.dumps({"type": "object"}).encode())
         s_imu = w.register_schema("sensor_msgs/Imu", "jsonschema", json.dumps({"type": "object"}).encode())

@@ -177,3 +177,54 @@ def test_unknown_encoding(tmp_path):
         w.add_message(c_fix, log_time=1, data=b"\x00", publish_time=1)
         w.finish()
     _expect_error(path, "message encoding 'protobuf'")
+
+
+def _same_drive(a, b):
+    assert len(a) == len(b)
+    for key in ("t_s", "lat_deg", "lon_deg", "speed_mps", "accel_long_mps2", "yaw_rate_radps"):
+        np.testing.assert_array_equal(a.columns[key], b.columns[key], err_msg=key)
+
+
+@pytest.mark.parametrize(
+    ("options", "why"),
+    [
+        ({"use_statistics": False}, "no message statistics"),
+        ({"use_statistics": False, "repeat_channels": False, "repeat_schemas": False, "use_summary_offsets": False,
+          "index_types": __import__("mcap.writer", fromlist=["IndexType"]).IndexType.NONE, "use_chunking": False}, "no summary section"),
+    ],
+)
+def test_valid_files_without_statistics_or_summary_are_read_by_streaming(tmp_path, caplog, options, why):
+    """Input: a complete MCAP written without a Statistics record, or without any summary section.
+    Expected: read (by streaming, one warning line saying why), the same drive as the indexed file."""
+    full = read_mcap(fx.write_json(tmp_path / "full.mcap"))
+    with caplog.at_level("WARNING", logger="ionav_viz"):
+        lean = read_mcap(fx.write_json(tmp_path / "lean.mcap", **options))
+    assert [r.getMessage() for r in caplog.records if "streaming" in r.getMessage()] == [f"{tmp_path / 'lean.mcap'}: {why}; reading it by streaming (slower)"]
+    _same_drive(full, lean)
+
+
+def _top_level_records(path):
+    """(offset, opcode) of every top-level record of an MCAP file."""
+    data = path.read_bytes()
+    pos, out = 8, []
+    while pos + 9 <= len(data) - 8:
+        out.append((pos, data[pos]))
+        pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
+    return out
+
+
+def test_a_recording_stopped_at_a_record_boundary_is_read(tmp_path, caplog):
+    """Input: a ROS 2 MCAP whose recorder stopped without writing its summary and footer (cut right
+    before the DataEnd record). Expected: read by streaming, the same drive; a cut inside a record
+    is still refused, saying so."""
+    good = fx.write_ros2(tmp_path / "good.mcap")
+    data_end = next(pos for pos, op in _top_level_records(good) if op == 0x0F)
+    cut = tmp_path / "stopped.mcap"
+    cut.write_bytes(good.read_bytes()[:data_end])
+    with caplog.at_level("WARNING", logger="ionav_viz"):
+        _same_drive(read_mcap(good), read_mcap(cut))
+    assert any("no footer" in r.getMessage() for r in caplog.records)
+    inside = tmp_path / "inside.mcap"
+    inside.write_bytes(good.read_bytes()[: data_end - 100])
+    with pytest.raises(InputError, match="cut off inside a record"):
+        read_mcap(inside)

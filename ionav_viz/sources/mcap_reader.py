@@ -98,8 +98,10 @@ def _bad(path: Path, exc: BaseException) -> InputError:
 MAGIC = b"\x89MCAP0\r\n"
 
 
-def _check_framing(path: Path) -> None:
-    """Empty, foreign and cut-off files, told apart by the MCAP magic bytes at both ends."""
+def _check_framing(path: Path) -> str:
+    """``"complete"`` (magic at both ends) or ``"unterminated"`` (no footer, but the file ends at a
+    record boundary: a recorder that stopped without closing the file; readable by streaming).
+    Empty, foreign files and files cut off inside a record are refused with that reason."""
     size = path.stat().st_size
     if size == 0:
         raise InputError(f"{path}: empty file", "not an MCAP recording")
@@ -109,29 +111,86 @@ def _check_framing(path: Path) -> None:
         tail = f.read(len(MAGIC))
     if head != MAGIC:
         raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)", "ionav-viz reads .mcap logs and IO-VNBD .csv files")
-    if tail != MAGIC or size < 2 * len(MAGIC):
-        raise InputError(f"{path}: truncated MCAP file (no footer: the recording was cut off)", "repair it with 'mcap recover', then replay the result")
+    if tail == MAGIC and size >= 2 * len(MAGIC):
+        return "complete"
+    end = _last_record_end(path, size)
+    if end == size and end > len(MAGIC):
+        return "unterminated"
+    raise InputError(f"{path}: truncated MCAP file (cut off inside a record, at byte {end} of {size})",
+                     "repair it with 'mcap recover', then replay the result")
+
+
+def _last_record_end(path: Path, size: int) -> int:
+    """Where the last complete top-level record ends (records: 1-byte opcode, uint64 length, payload)."""
+    pos = len(MAGIC)
+    with open(path, "rb") as f:
+        while pos + 9 <= size:
+            f.seek(pos)
+            header = f.read(9)
+            nxt = pos + 9 + int.from_bytes(header[1:9], "little")
+            if nxt > size:
+                break
+            pos = nxt
+    return pos
 
 
 def list_channels(path: Path) -> list[ChannelInfo]:
-    """Every channel with its schema, encoding and message count (from the summary)."""
+    """Every channel with its schema, encoding and message count: from the summary, or, when the
+    file has no footer, no summary or no statistics, by reading it through once (one warning)."""
     path = Path(path)
-    _check_framing(path)
+    framing = _check_framing(path)
+    summary = None
+    if framing == "complete":
+        try:
+            with open(path, "rb") as f:
+                summary = _open_reader(f).get_summary()
+        except InputError:
+            raise
+        except Exception as exc:
+            raise _bad(path, exc) from None
+    if summary is not None and summary.statistics is not None:
+        counts = summary.statistics.channel_message_counts
+        out = []
+        for cid, ch in sorted(summary.channels.items()):
+            schema = summary.schemas.get(ch.schema_id)
+            out.append(ChannelInfo(ch.topic, schema.name if schema else "", ch.message_encoding, int(counts.get(cid, 0))))
+        return out
+    why = {"unterminated": "no footer (the recorder stopped without closing the file)"}.get(
+        framing, "no summary section" if summary is None else "no message statistics")
+    import logging
+
+    logging.getLogger("ionav_viz").warning("%s: %s; reading it by streaming (slower)", path, why)
+    return _scan_channels(path, framing)
+
+
+def _scan_channels(path: Path, framing: str) -> list[ChannelInfo]:
+    """Channels and message counts by streaming through every record (CRCs checked)."""
+    from mcap.exceptions import EndOfFile
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+
+    schemas: dict[int, str] = {}
+    channels: dict[int, Any] = {}
+    counts: dict[int, int] = {}
     try:
         with open(path, "rb") as f:
-            summary = _open_reader(f).get_summary()
+            try:
+                for record in StreamReader(f, skip_magic=False, validate_crcs=True).records:
+                    if isinstance(record, Message):
+                        counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+                    elif isinstance(record, Channel):
+                        channels[record.id] = record
+                    elif isinstance(record, Schema):
+                        schemas[record.id] = record.name
+            except EndOfFile:
+                if framing != "unterminated":
+                    raise
     except InputError:
         raise
     except Exception as exc:
         raise _bad(path, exc) from None
-    if summary is None:
-        raise InputError(f"{path}: truncated MCAP file (no summary section)", "re-record or repair it (e.g. 'mcap recover')")
-    counts = summary.statistics.channel_message_counts if summary.statistics else {}
-    out = []
-    for cid, ch in sorted(summary.channels.items()):
-        schema = summary.schemas.get(ch.schema_id)
-        out.append(ChannelInfo(ch.topic, schema.name if schema else "", ch.message_encoding, int(counts.get(cid, 0))))
-    return out
+    return [ChannelInfo(ch.topic, schemas.get(ch.schema_id, ""), ch.message_encoding, counts.get(cid, 0))
+            for cid, ch in sorted(channels.items())]
 
 
 def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, option: str,
@@ -195,8 +254,7 @@ def _messages(path: Path, sel: Selection) -> Iterator[tuple[str, float, Any]]:
     factory = DecoderFactory()
     decoders: dict[int, Any] = {}
     with open(path, "rb") as f:
-        reader = _open_reader(f)
-        for schema, channel, message in reader.iter_messages(topics=list(roles), log_time_order=False):
+        for schema, channel, message in _iter_messages(path, f, list(roles)):
             if channel.message_encoding == "json":
                 try:
                     decoded = json.loads(message.data)
@@ -210,6 +268,21 @@ def _messages(path: Path, sel: Selection) -> Iterator[tuple[str, float, Any]]:
                     decoders[channel.id] = decoder
                 decoded = decoders[channel.id](message.data)
             yield roles[channel.topic], message.log_time * 1e-9, decoded
+
+
+def _iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:
+    """The file's messages on ``topics``: indexed when it can be, else streamed (a file without a
+    footer ends at its last complete record)."""
+    from mcap.exceptions import EndOfFile
+    from mcap.reader import NonSeekingReader
+
+    if _check_framing(path) == "complete":
+        yield from _open_reader(f).iter_messages(topics=topics, log_time_order=False)
+        return
+    try:
+        yield from NonSeekingReader(f, validate_crcs=True).iter_messages(topics=topics, log_time_order=False)
+    except EndOfFile:
+        return
 
 
 class _BinSums:
