@@ -52,26 +52,58 @@ _SOURCE_OPTIONS = (
 )
 
 
-def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
-    the command receives them checked, as one ``source: SourceArgs`` argument.
-
-    Typer reads the command's parameters from its signature, so the options are added to it.
-    """
+def _with_options(command: Callable[..., Any], options: tuple, argument: str, build: Callable[[dict[str, Any]], Any]) -> Callable[..., Any]:
+    """Add ``options`` ((parameter, typer option, type), ...) to ``command``'s signature, where typer
+    reads them, and pass them to it built into one value, as the parameter ``argument``."""
     signature = inspect.signature(command)
-    params = [p for name, p in signature.parameters.items() if name != "source"]
-    params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind) for name, option, kind in _SOURCE_OPTIONS]
+    params = [p for name, p in signature.parameters.items() if name != argument]
+    params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind) for name, option, kind in options]
 
     @functools.wraps(command)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        values = {name: kwargs.pop(name) for name, _, _ in _SOURCE_OPTIONS}
-        kwargs["source"] = SourceArgs(values["data_root_opt"], yaw_sign(values["yaw_sign"]),
-                                      mcap_options(values["imu_topic"], values["gnss_topic"], values["speed_topic"], values["stamps"]))
+        kwargs[argument] = build({name: kwargs.pop(name) for name, _, _ in options})
         return command(*args, **kwargs)
 
     wrapper.__signature__ = signature.replace(parameters=params)  # type: ignore[attr-defined]
-    wrapper.__annotations__ = {k: v for k, v in command.__annotations__.items() if k != "source"} | {n: t for n, _, t in _SOURCE_OPTIONS}
+    wrapper.__annotations__ = {k: v for k, v in command.__annotations__.items() if k != argument} | {n: t for n, _, t in options}
     return wrapper
+
+
+def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
+    the command receives them checked, as one ``source: SourceArgs`` argument."""
+    def build(v: dict[str, Any]) -> SourceArgs:
+        return SourceArgs(v["data_root_opt"], yaw_sign(v["yaw_sign"]), mcap_options(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"]))
+
+    return _with_options(command, _SOURCE_OPTIONS, "source", build)
+
+
+@dataclass(frozen=True)
+class EstimatorArgs:
+    """Which estimators run, with the IDNN's model and the sensor-bias source, from the options."""
+
+    estimators: list[Any]
+    model: Optional[Path]
+    bias_from: Optional[str]
+
+    def api_kwargs(self) -> dict[str, Any]:
+        """As keyword arguments of :func:`ionav_viz.api.evaluate` and :func:`ionav_viz.api.replay`."""
+        return {"estimators": self.estimators, "model": self.model, "bias_from": self.bias_from}
+
+
+_ESTIMATOR_OPTIONS = (
+    ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
+    ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]),
+)
+
+
+def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn`` and ``--bias-from``
+    (declared once, in :data:`_ESTIMATOR_OPTIONS`), resolved into one ``run: EstimatorArgs`` argument."""
+    def build(v: dict[str, Any]) -> EstimatorArgs:
+        return EstimatorArgs(estimators(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"]), v["model"], v["bias_from"])
+
+    return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 
 
 def duration_s(text: str, option: str) -> float:

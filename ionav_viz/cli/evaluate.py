@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Optional
 
 import typer
@@ -14,6 +13,7 @@ from .app import app, name_options
 
 @app.command()
 @c.with_source_options
+@c.with_estimator_options
 def evaluate(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
     outage: str = c.OutageOpt,
@@ -24,11 +24,7 @@ def evaluate(
     by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives."),
     on: Optional[str] = typer.Option(None, "--on", help="With --by-event: only these event types (default: all)."),
     thresholds: Optional[list[str]] = c.Thresholds,
-    estimator_names: Optional[str] = c.EstimatorsOpt,
-    plugins: Optional[list[str]] = c.EstimatorOpt,
-    model: Optional[Path] = c.ModelOpt,
-    no_idnn: bool = c.NoIdnnOpt,
-    bias_from: Optional[str] = c.BiasFromOpt,
+    run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
     source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
@@ -45,9 +41,8 @@ def evaluate(
         print(f"drives: {groups.source}", file=sys.stderr)
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
-    ests = c.estimators(estimator_names, plugins, no_idnn, model)
     th = c.thresholds(thresholds)
-    common = dict(estimators=ests, model=model, bias_from=bias_from, **source.api_kwargs())
+    common = dict(**run.api_kwargs(), **source.api_kwargs())
     if by_event:
         kinds = c.event_types(on) if on else None
         reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, kinds, thresholds=th, **common)

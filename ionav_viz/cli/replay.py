@@ -39,6 +39,7 @@ def _parse_times(text: str) -> list[float]:
 
 @app.command()
 @c.with_source_options
+@c.with_estimator_options
 def replay(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file path, bundled scenario name or IO-VNBD run name."),
     outage: str = c.OutageOpt,
@@ -49,11 +50,7 @@ def replay(
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: ./<drive>.rrd; an existing file is replaced)."),
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary."),
-    estimator_names: Optional[str] = c.EstimatorsOpt,
-    plugins: Optional[list[str]] = c.EstimatorOpt,
-    model: Optional[Path] = c.ModelOpt,
-    no_idnn: bool = c.NoIdnnOpt,
-    bias_from: Optional[str] = c.BiasFromOpt,
+    run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
     source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
     on: Optional[str] = typer.Option(None, "--on", help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout (see 'ionav-viz events')."),
@@ -67,10 +64,9 @@ def replay(
     name_options(outage_s=f"--outage {outage}", placement=option, bias_from="--bias-from", model="--model")
     if output is not None and output.suffix.lower() != ".rrd":
         raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
-    ests = c.estimators(estimator_names, plugins, no_idnn, model)
     with c.progress(quiet) as bar:
-        result = api.replay(drive_spec, outage_s, placement, ests, output, model=model, bias_from=bias_from,
-                            thresholds=c.thresholds(thresholds), **source.api_kwargs(),
+        result = api.replay(drive_spec, outage_s, placement, output=output, thresholds=c.thresholds(thresholds),
+                            **run.api_kwargs(), **source.api_kwargs(),
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(), end="", file=sys.stderr)
