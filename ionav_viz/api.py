@@ -32,7 +32,7 @@ from .core.drive import Drive
 from .core.errors import InputError
 from .core.fileio import check_output_file
 from .core.timing import stage
-from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS
+from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from .nav.bias import SensorBias, resolve_bias
 from .nav.estimators import Estimator, applies
 from .nav.estimators import resolve as resolve_estimators
@@ -105,7 +105,7 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
     """The test drives of a scenario (``"all"``: of every scenario), by scenario: the paper's runs
     where all of a scenario's runs are under the data root, else the bundled synthetic drive.
     ``.source`` says which, in one line."""
-    from .dataset.samples import by_scenario
+    from .dataset.samples import by_scenario, sample_path
     from .sources.resolve import index_data_root
 
     if scenario != "all" and scenario not in SCENARIOS:
@@ -113,8 +113,6 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
     names = SCENARIOS if scenario == "all" else (scenario,)
     root = _data_root(data_root)
     present = index_data_root(root.resolve()) if root is not None else {}
-    from .dataset.catalog import run_key
-
     out = ScenarioDrives()
     paper, bundled = [], []
     for s in names:
@@ -122,7 +120,7 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
             out[s] = list(PAPER_TEST_RUNS[s])
             paper.append(s)
         else:
-            out[s] = [str(_bundled_path(sample.file)) for sample in by_scenario(s)]
+            out[s] = [str(sample_path(sample)) for sample in by_scenario(s)]
             bundled.append(s)
     parts = []
     if paper:
@@ -132,12 +130,6 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
         parts.append(f"{', '.join(bundled)}: the bundled synthetic test drives ({why})")
     out.source = "; ".join(parts)
     return out
-
-
-def _bundled_path(file: str) -> Path:
-    from .dataset.samples import samples_dir
-
-    return samples_dir() / file
 
 
 def _estimators_for(drive: Drive, chosen: list[Estimator], defaulted: bool) -> list[Estimator]:
@@ -154,12 +146,16 @@ def _bias_for(bias_from: DriveLike | SensorBias | None, data_root: Any, load_kw:
     return lambda drive: resolve_bias(drive, stationary)
 
 
+def _check_event_types(types: Sequence[str]) -> None:
+    unknown = [t for t in types if t not in EVENT_TYPES]
+    if unknown or not types:
+        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}")
+
+
 def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str]:
     n = outage_windows(outage_s)
     if isinstance(placement, AroundEvents):
-        unknown = [t for t in placement.types if t not in EVENT_TYPES]
-        if unknown or not placement.types:
-            raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}")
+        _check_event_types(placement.types)
         targets = placement.targets(events or [])
         from .nav.outages import around
 
@@ -254,9 +250,7 @@ def evaluate_by_event(
 ) -> dict[str, Report]:
     """One report per manoeuvre type: an outage centred on each detected event, across ``drives``."""
     kinds = tuple(types) if types else EVENT_TYPES
-    unknown = [k for k in kinds if k not in EVENT_TYPES]
-    if unknown:
-        raise InputError(f"unknown event type(s) {', '.join(unknown)}", f"choose from {', '.join(EVENT_TYPES)}")
+    _check_event_types(kinds)
     n = outage_windows(outage_s)
     chosen = resolve_estimators(estimators, model=model)
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
@@ -374,7 +368,7 @@ def screenshot(
     Returns:
         the written PNG paths. Needs a Vulkan renderer (Mesa's lavapipe on machines without a GPU).
     """
-    from .viz.screenshot import VIEWS, render
+    from .viz.screenshot import check_size, render
 
     paths = [Path(recordings)] if isinstance(recordings, (str, Path)) else [Path(r) for r in recordings]
     if not paths:
@@ -382,12 +376,7 @@ def screenshot(
     for rec in paths:
         if not rec.is_file():
             raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
-    for view in views:
-        if view not in VIEWS:
-            raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}", param="views")
-    width, height = (int(x) for x in size)
-    if not (200 <= width <= 8192 and 200 <= height <= 8192):
-        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels", param="size")
+    width, height = check_size(*(int(x) for x in size))
     out = Path(output)
     single = out.suffix.lower() == ".png" and len(paths) == 1 and len(times) * len(views) == 1
     if single:

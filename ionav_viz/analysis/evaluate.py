@@ -92,9 +92,7 @@ def evaluate_drive(
     bias = bias if bias is not None else resolve_bias(drive)
     if estimators is None:
         estimators = ["ins", "idnn"] if model is not None else ["ins"]
-    chosen = [e if not isinstance(e, str) else None for e in estimators]
-    if any(c is None for c in chosen):
-        chosen = resolve_estimators(list(estimators), model=model)
+    chosen = resolve_estimators(list(estimators), model=model)
     inputs = EstimatorInputs(drive, windows, starts, n, bias)
     solutions = {}
     for est in chosen:

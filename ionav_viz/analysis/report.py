@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
+from ..nav.estimators import short_label
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
 
@@ -166,7 +167,7 @@ def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", inden
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
     """A replay's parameters as Markdown (the recording's summary document)."""
     drive, bias = result.drive, result.bias
-    names = [e.label[:-3] if e.label.endswith(" DR") else e.label for e in result.estimators]
+    names = [short_label(e.label) for e in result.estimators]
     labels = " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else names[0]
     lines = [
         f"# {drive.name}: {labels} during GNSS outages",

@@ -173,10 +173,7 @@ def estimators(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool
         chosen = [n for n in (chosen if chosen is not None else BUILTIN) if n != "idnn"]
         if not chosen and not plugins:
             raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
-    try:
-        if chosen is None:
-            # every built-in that applies, plus the plug-ins
-            return resolve(None, plugins=list(plugins or []), model=model)
+    try:  # chosen None: every built-in that applies, plus the plug-ins
         return resolve(chosen, plugins=list(plugins or []), model=model)
     except EstimatorError as exc:
         option = "--estimator" if any(p and p in exc.message for p in plugins or []) else "--estimators"

@@ -32,7 +32,7 @@ def evaluate(
     from ..analysis.report import json_safe, reports_to_json
     from ..analysis.tables import render_overview
 
-    name_options(outage_s=f"--outage {outage}", bias_from="--bias-from", model="--model", placement="--on")
+    name_options(outage_s=f"--outage {outage}", placement="--on")
     outage_s = c.whole_seconds(outage, "--outage")
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")

@@ -61,7 +61,7 @@ def replay(
 
     outage_s = c.whole_seconds(outage, "--outage")
     placement, option = placement_of(every, at, random_count, seed, on)
-    name_options(outage_s=f"--outage {outage}", placement=option, bias_from="--bias-from", model="--model")
+    name_options(outage_s=f"--outage {outage}", placement=option)
     if output is not None and output.suffix.lower() != ".rrd":
         raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
     with c.progress(quiet) as bar:

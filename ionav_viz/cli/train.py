@@ -10,20 +10,7 @@ import typer
 
 from ..core.errors import InputError
 from . import common as c
-from .app import app, name_options
-
-
-def check_model_output(output: Path, force: bool) -> None:
-    """Refuse, before any work, to train into the shipped model or over an existing directory."""
-    from ..nav.idnn import is_shipped_model_dir
-
-    if is_shipped_model_dir(output):
-        raise InputError(f"-o {output}: this is the shipped IDNN model, which is never overwritten",
-                         "write the new model somewhere else and pass it with --model")
-    if output.exists() and not force:
-        raise InputError(f"-o {output}: exists already", "choose another directory, or replace it with --force")
-    if output.exists() and not output.is_dir():
-        raise InputError(f"-o {output}: exists and is not a directory", "choose a model directory name")
+from .app import app
 
 
 def training_command(argv: list[str]) -> str:
@@ -67,7 +54,7 @@ def train(
     from ..dataset.catalog import PAPER_TRAIN_RUNS
     from ..dataset.samples import SAMPLES, sample_path
     from ..nav.bias import resolve_bias
-    from ..nav.idnn import ModelConfig, save_model
+    from ..nav.idnn import ModelConfig, check_model_dir, save_model
     from ..nav.training import train_models
     from ..sources.load import load_drive
     from ..sources.resolve import data_root
@@ -89,8 +76,7 @@ def train(
     config.validate()
     if epochs_disp < 1 or epochs_yaw < 1:
         raise typer.BadParameter("epochs must be at least 1")
-    name_options(output="-o")
-    check_model_output(output, force)
+    check_model_dir(output, overwrite=force)  # before any work
     stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
     loaded = []
     for spec in specs:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
-import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -27,11 +26,9 @@ def check_output_file(target: Path) -> Path:
         raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another output", param="output")
     if target.is_dir():
         raise InputError(f"{target}: is a directory", "name a file inside it", param="output")
-    if target.exists() or target.is_symlink():
-        mode = target.lstat().st_mode
-        if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)) or (target.exists() and not target.is_file()):
-            raise InputError(f"{target}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another output",
-                             param="output")
+    if target.exists() and not target.is_file():  # a link to a regular file, or a dangling one, is fine
+        raise InputError(f"{target}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another output",
+                         param="output")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{target}: cannot write in {parent} (permission denied)", "choose a writable output directory", param="output")
     return target

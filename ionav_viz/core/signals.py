@@ -30,7 +30,8 @@ class Terminated(BaseException):
         return 128 + self.signum
 
 
-def _raise_terminated(signum: int, frame: Any) -> None:
+def raise_terminated(signum: int, frame: Any) -> None:
+    """A signal handler: raise :class:`Terminated`."""
     raise Terminated(signum)
 
 
@@ -38,7 +39,7 @@ def raise_on_stop_signals() -> None:
     """Make SIGTERM and SIGHUP raise :class:`Terminated` (in the main thread)."""
     for sig in STOP_SIGNALS:
         with contextlib.suppress(ValueError):  # not the main thread
-            signal.signal(sig, _raise_terminated)
+            signal.signal(sig, raise_terminated)
 
 
 def hold_signals() -> Callable[[], None]:

@@ -182,7 +182,7 @@ def _fetch_into(entry: ManifestEntry, root: Path, target: Path, url_base: str, t
         except (_Retry, urllib.error.URLError, http.client.HTTPException, TimeoutError, ConnectionError, OSError) as exc:
             if attempt >= retries:
                 reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
-                reason = " ".join(repr(reason)[1:-1].split())[:200] if not isinstance(reason, str) or "\n" in reason or "\r" in reason else reason
+                reason = " ".join(str(reason).split())[:200]  # one line, even when quoting a server's reply
                 raise FetchError(f"{entry.path}: download failed after {attempt} attempts ({reason})") from None
             time.sleep(min(2.0 ** (attempt - 1) * 0.2, 5.0))
             resumed = True

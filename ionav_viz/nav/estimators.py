@@ -162,6 +162,11 @@ class Estimator(Protocol):
     def estimate(self, inputs: EstimatorInputs) -> Estimate: ...
 
 
+def short_label(label: str) -> str:
+    """``'INS DR'`` -> ``'INS'``: titles and legends that list estimators name them briefly."""
+    return label.removesuffix(" DR")
+
+
 def applies(estimator: Estimator, drive: Drive) -> bool:
     """Whether ``estimator`` runs on ``drive`` (its optional ``applies``; default yes)."""
     check = getattr(estimator, "applies", None)
@@ -306,8 +311,8 @@ def resolve(
     explicit = names is not None
     chosen: list[Estimator] = []
     for item in list(BUILTIN if names is None else names) + list(plugins):
-        if not isinstance(item, str):
-            chosen.append(_instantiate(item, getattr(item, "__name__", type(item).__name__)) if inspect.isclass(item) else validate(item))
+        if not isinstance(item, str):  # an object, a class or a factory
+            chosen.append(_instantiate(item, getattr(item, "__name__", type(item).__name__)))
             continue
         key = item.strip()
         if ":" in key:

@@ -373,6 +373,23 @@ def is_shipped_model_dir(directory: Path) -> bool:
     return target == shipped or shipped in target.parents
 
 
+def check_model_dir(directory: Path, overwrite: bool = False) -> Path:
+    """Check, before any training, that a model can be written as ``directory``: never the shipped
+    model, an existing directory only with ``overwrite``, and its parent must exist."""
+    directory = Path(directory)
+    if is_shipped_model_dir(directory):
+        raise InputError(f"{directory}: this is the shipped IDNN model, which is never overwritten",
+                         "write the new model somewhere else and pass it with --model", param="output")
+    if directory.exists() and not directory.is_dir():
+        raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
+    if directory.exists() and not overwrite:
+        raise InputError(f"{directory}: exists already", "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
+    parent = directory.parent if str(directory.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{directory}: {parent} does not exist", "create it first", param="output")
+    return directory
+
+
 def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) -> None:
     """Write weights (safetensors) and ``metadata.json`` (with each weight file's sha256) as one
     directory, atomically: they are written into a temporary directory beside ``directory`` that is
@@ -386,17 +403,8 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 
     from safetensors.torch import save
 
-    directory = Path(directory)
-    if is_shipped_model_dir(directory):
-        raise InputError(f"{directory}: this is the shipped IDNN model, which is never overwritten",
-                         "write the new model somewhere else and pass it with --model", param="output")
-    if directory.exists() and not overwrite:
-        raise InputError(f"{directory}: exists already", "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
-    if directory.exists() and not directory.is_dir():
-        raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
+    directory = check_model_dir(directory, overwrite)
     parent = directory.parent if str(directory.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(f"{directory}: {parent} does not exist", "create it first", param="output")
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=parent))
     except OSError as exc:

@@ -44,6 +44,7 @@ import numpy as np
 from ..analysis.evaluate import DriveResult
 from ..analysis.metrics import cumulative_errors
 from ..core.errors import ToolFailure
+from ..nav.estimators import short_label
 from .style import EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, estimator_colors
 
 APP_ID = "ionav-viz"
@@ -98,11 +99,6 @@ def blueprint(labels: list[str], zoom: float = 16.0):
         rrb.TextDocumentView(origin="summary", name="Summary"),
     )
     return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=[4, 3, 3]), collapse_panels=True)
-
-
-def short_label(label: str) -> str:
-    """``'INS DR'`` -> ``'INS'``: the map title names estimators briefly."""
-    return label[:-3] if label.endswith(" DR") else label
 
 
 def _times(t_s: np.ndarray, start_tod_s: float):

@@ -32,8 +32,10 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError, ToolFailure
-from ..core.signals import STOP_SIGNALS, Terminated
+from ..core.signals import STOP_SIGNALS, raise_terminated
+from ..nav.estimators import short_label
 from . import recording as rerun_log
+from .style import color_word
 
 VIEWS = ("all", "map", "local", "signals", "errors")
 _ORIGINS = {"map": "map", "local": "local", "signals": "signals/displacement_m", "errors": "errors/crse_m"}
@@ -132,18 +134,6 @@ def _series_style(batch) -> tuple[str, tuple[int, int, int]]:
     return label, rgb
 
 
-_COLOR_WORDS = {
-    "red": (230, 60, 50), "blue": (40, 110, 240), "green": (0, 170, 80), "orange": (230, 140, 20), "purple": (150, 60, 200),
-    "cyan": (0, 170, 190), "pink": (210, 60, 150), "brown": (120, 90, 40), "olive": (110, 160, 30), "grey": (100, 100, 100),
-    "yellow": (240, 220, 40), "black": (20, 20, 20), "white": (240, 240, 240),
-}
-
-
-def color_word(rgb: tuple[int, int, int]) -> str:
-    """The nearest plain colour name, for titles that say which line is which."""
-    return min(_COLOR_WORDS, key=lambda w: sum((a - b) ** 2 for a, b in zip(_COLOR_WORDS[w], rgb)))
-
-
 def resolve_time(spec: str, info: RecordingInfo) -> float:
     """``'35s'``, ``'worst'`` or ``'end'`` -> seconds on the ``time`` timeline."""
     from ..core.durations import parse_duration_s
@@ -197,7 +187,7 @@ class HeadlessViewer:
         # SIGTERM and SIGHUP become an exception too (as Ctrl-C is), so __exit__ always runs.
         for sig in STOP_SIGNALS:
             with contextlib.suppress(ValueError):  # not the main thread
-                self._old_handlers[sig] = signal.signal(sig, _raise_terminated)
+                self._old_handlers[sig] = signal.signal(sig, raise_terminated)
         try:
             self._start(ViewerClient)
         except BaseException:
@@ -308,10 +298,6 @@ class HeadlessViewer:
         self._dir.cleanup()
 
 
-def _raise_terminated(signum: int, frame: Any) -> None:
-    raise Terminated(signum)
-
-
 def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], map_zoom: float | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by origin)."""
     bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
@@ -357,7 +343,7 @@ def titles_for(info: RecordingInfo, t_s: float) -> dict[str, str]:
     """View titles that say drive, outage and time."""
     outage = info.outage_at(t_s)
     when = f"t = {t_s:.1f} s" + (f", {outage}" if outage else ", GNSS available")
-    legend = ", ".join(["GNSS green"] + [f"{label.removesuffix(' DR')} {color_word(rgb)}" for _, (label, rgb) in sorted(info.estimators.items(), key=lambda kv: kv[0] != "ins")])
+    legend = ", ".join(["GNSS green"] + [f"{short_label(label)} {color_word(rgb)}" for _, (label, rgb) in sorted(info.estimators.items(), key=lambda kv: kv[0] != "ins")])
     return {
         "map": f"{info.drive}: map, {when} ({legend})",
         "local": f"{info.drive}: local east-north (m), north up, {when}",
@@ -372,9 +358,14 @@ def parse_size(text: str) -> tuple[int, int]:
         w, h = (int(x) for x in text.lower().split("x"))
     except ValueError:
         raise InputError(f"image size {text!r}: expected WIDTHxHEIGHT, e.g. 1600x900", param="size") from None
-    if not (200 <= w <= 8192 and 200 <= h <= 8192):
-        raise InputError(f"image size {text}: width and height must be between 200 and 8192 pixels", param="size")
-    return w, h
+    return check_size(w, h)
+
+
+def check_size(width: int, height: int) -> tuple[int, int]:
+    """An image size the viewer can render: 200 to 8192 pixels each way."""
+    if not (200 <= width <= 8192 and 200 <= height <= 8192):
+        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels", param="size")
+    return width, height
 
 
 def output_paths(out: Path, stem: str, requests: list[tuple[str, str]], single_file_ok: bool) -> list[Path]:

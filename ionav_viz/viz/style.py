@@ -42,3 +42,15 @@ def estimator_colors(estimators: Sequence[Any]) -> dict[str, RGB]:
         out[est.name] = color
         taken.add(color)
     return out
+
+
+_COLOR_WORDS = {
+    "red": (230, 60, 50), "blue": (40, 110, 240), "green": (0, 170, 80), "orange": (230, 140, 20), "purple": (150, 60, 200),
+    "cyan": (0, 170, 190), "pink": (210, 60, 150), "brown": (120, 90, 40), "olive": (110, 160, 30), "grey": (100, 100, 100),
+    "yellow": (240, 220, 40), "black": (20, 20, 20), "white": (240, 240, 240),
+}
+
+
+def color_word(rgb: tuple[int, int, int]) -> str:
+    """The nearest plain colour name, for titles that say which line is which."""
+    return min(_COLOR_WORDS, key=lambda w: sum((a - b) ** 2 for a, b in zip(_COLOR_WORDS[w], rgb)))
