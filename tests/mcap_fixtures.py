@@ -72,9 +72,10 @@ def write_ros2(path, duration_s=30.0, imu_hz=100, gnss_hz=5, seed=0, no_fix_time
     return path
 
 
-def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, **writer_options):
+def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, tamper=None, **writer_options):
     """JSON-encoded MCAP: foxglove.LocationFix and an IMU message with sensor_msgs/Imu field names.
-    ``writer_options`` go to mcap's Writer (e.g. ``use_statistics=False``)."""
+    ``writer_options`` go to mcap's Writer (e.g. ``use_statistics=False``); ``tamper(kind, i, msg)``
+    (kind "imu" or "fix", i the message's index) returns the messages to write instead of ``msg``."""
     from mcap.writer import Writer
 
     rng = np.random.default_rng(seed)
@@ -97,8 +98,14 @@ def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, **writer_opt
             st = _stamp(T0_S + t)
             events.append((t, c_fix, {"timestamp": {"sec": st["sec"], "nsec": st["nanosec"]}, "frame_id": "gps",
                                       "latitude": float(la), "longitude": float(lo), "altitude": 100.0}))
+        counters = {c_imu: 0, c_fix: 0}
         for t, ch, msg in sorted(events, key=lambda e: e[0]):
             ns = int(round((T0_S + t) * 1e9))
-            w.add_message(ch, log_time=ns, data=json.dumps(msg).encode(), publish_time=ns)
+            out = [msg]
+            if tamper is not None:
+                out = tamper("imu" if ch == c_imu else "fix", counters[ch], msg)
+                counters[ch] += 1
+            for m in out:
+                w.add_message(ch, log_time=ns, data=json.dumps(m).encode(), publish_time=ns)
         w.finish()
     return path

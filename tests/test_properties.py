@@ -118,3 +118,76 @@ def test_errors_are_zero_when_the_estimate_is_the_truth(n, pick):
     truth = Solution(w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx], Track(lat, lon, np.zeros_like(lat)))
     for values in sequence_metrics(w, starts, n, truth).values():
         np.testing.assert_allclose(values, 0.0, atol=1e-9)
+
+
+value = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-50, 50), st.sampled_from([0.0, -0.0, 1e-300, 1e300]))
+stamp = st.one_of(st.floats(0, 40), st.floats(-1e3, 1e10), st.sampled_from([0.0, 20.0, math.nan, math.inf, -math.inf]))
+
+
+@st.composite
+def mcap_messages(draw):
+    """Sequences of IMU and fix messages near a drive, with any values and stamps mixed in."""
+    n_imu, n_fix = draw(st.integers(0, 100)), draw(st.integers(0, 30))
+    # shares of fields drawn arbitrarily: values (often fatal), stamps, fix positions and status
+    wild_value, wild_stamp, wild_fix = (draw(st.sampled_from(shares)) for shares in
+                                        ([0.0, 0.0, 0.0, 0.002, 0.05], [0.0, 0.05, 0.3, 1.0], [0.0, 0.0, 0.02, 0.3]))
+
+    def maybe(strategy, normal, share):
+        return draw(strategy) if draw(st.floats(0, 1)) < share else normal
+
+    imu = [(maybe(stamp, 0.1 * i, wild_stamp), maybe(value, 0.3, wild_value), maybe(value, 0.01, wild_value)) for i in range(n_imu)]
+    fixes = [(maybe(stamp, 0.4 * i, wild_stamp), maybe(value, 52.4 + 1e-5 * i, wild_fix), maybe(value, -1.5 + 1e-5 * i, wild_fix),
+              maybe(st.integers(-2, 2), 0, wild_fix)) for i in range(n_fix)]
+    return imu, fixes
+
+
+def _write_mcap(path, imu, fixes) -> None:
+    import json
+
+    from mcap.writer import Writer
+
+    def stamp_of(t):
+        if not math.isfinite(t):
+            return {"sec": 0, "nanosec": 0}
+        sec = math.floor(t)
+        return {"sec": int(sec), "nanosec": int((t - sec) * 1e9) % 1_000_000_000}
+
+    t0 = 1_700_000_000
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        s_imu = w.register_schema("sensor_msgs/msg/Imu", "jsonschema", b"{}")
+        s_fix = w.register_schema("sensor_msgs/msg/NavSatFix", "jsonschema", b"{}")
+        c_imu, c_fix = w.register_channel("/imu", "json", s_imu), w.register_channel("/fix", "json", s_fix)
+        for i, (t, a, r) in enumerate(imu):
+            msg = {"header": {"stamp": stamp_of(t0 + t)}, "linear_acceleration": {"x": a}, "angular_velocity": {"z": r}}
+            w.add_message(c_imu, log_time=(t0 + i) * 10**9, data=json.dumps(msg).encode(), publish_time=0)
+        for i, (t, lat, lon, status) in enumerate(fixes):
+            msg = {"header": {"stamp": stamp_of(t0 + t)}, "status": {"status": status}, "latitude": lat, "longitude": lon, "altitude": 80.0}
+            w.add_message(c_fix, log_time=(t0 + i) * 10**9, data=json.dumps(msg).encode(), publish_time=0)
+        w.finish()
+
+
+@settings(SETTINGS, max_examples=250)
+@given(messages=mcap_messages())
+def test_mcap_reader_returns_a_valid_drive_or_its_own_error(tmp_path_factory, messages):
+    from ionav_viz.sources.mcap_reader import read_mcap
+
+    path = tmp_path_factory.mktemp("m") / "h.mcap"
+    _write_mcap(path, *messages)
+    from hypothesis import event
+
+    try:
+        drive = read_mcap(path)
+    except InputError as exc:
+        assert str(exc) and "\n" not in str(exc)
+        event(str(exc).split(": ", 1)[1].split(" stamped")[0][:30])
+        return
+    event("a valid drive")
+    t = drive.t_s
+    assert len(drive) >= 2 and t[0] == 0.0 and np.all(np.diff(t) > 0)
+    for key, column in drive.columns.items():
+        assert np.all(np.isfinite(column)), key
+    assert np.all(np.abs(drive.lat_deg) <= 90) and np.all(np.abs(drive.lon_deg) <= 180)
+    assert np.all((drive.heading_deg >= 0) & (drive.heading_deg < 360)) and np.all(drive.speed_mps >= 0)
+    assert drive.duration_s < 3600 + 40  # stray stamps never stretch the drive

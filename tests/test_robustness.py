@@ -93,6 +93,23 @@ def same_metrics(a: dict, b: dict) -> None:
         ("binary garbage", lambda p: p.write_bytes(bytes(range(256)) * 200) or p, ["binary data"]),
         ("a row with more fields than the header", lambda p: write(p, ROWS[:5] + [ROWS[5] + ",1,2"] + ROWS[6:]),
          ["line 7 has 31 fields, the header has 29"]),
+        ("a row a field short, the next a field long (right total) -> the short one named",
+         lambda p: write(p, ROWS[:7] + [ROWS[7].rsplit(",", 1)[0], ROWS[8] + ",1"] + ROWS[9:]),
+         ["line 9 has 28 fields, the header has 29"]),
+        # physical plausibility (sources/plausibility.py), shown in the file's own unit
+        ("accelerometer 1e300 g", lambda p: write(p, ROWS[:40] + [with_cell(ROWS[40], "Indicated Longitudinal Acceleration (g)", "1e300")] + ROWS[41:]),
+         ["row 42", "Indicated Longitudinal Acceleration (g)", "1e+300 g outside [-16, 16]"]),
+        ("negative speed over ground", lambda p: write(p, ROWS[:40] + [with_cell(ROWS[40], "Velocity (km/hr)", "-12.5")] + ROWS[41:]),
+         ["row 42", "Velocity (km/hr)", "-12.5 km/hr outside [0, 360]"]),
+        ("heading 1e20", lambda p: write(p, ROWS[:3] + [with_cell(ROWS[3], "Heading (degrees)", "1e20")] + ROWS[4:]),
+         ["row 5", "Heading (degrees)", "1e+20 degrees outside [-360, 360]"]),
+        ("yaw rate beyond any gyro", lambda p: write(p, ROWS[:3] + [with_cell(ROWS[3], "Yaw Rate (deg/sec)", "-2500")] + ROWS[4:]),
+         ["row 5", "Yaw Rate (deg/sec)", "-2500 deg/sec outside [-2000, 2000]"]),
+        ("an optional column is checked too", lambda p: write(p, ROWS[:3] + [with_cell(ROWS[3], "Wheel Speed Rear Left (rad/sec)", "9999")] + ROWS[4:]),
+         ["row 5", "Wheel Speed Rear Left (rad/sec)", "9999 rad/sec outside [-500, 500]"]),
+        ("a unit the reader does not know",
+         lambda p: write(p, ROWS, HEADER_LINE.replace("Velocity (km/hr)", "Velocity (knots)")),
+         ["column 'Velocity (knots)'", "unknown unit 'knots'", "km/hr"]),
     ],
     ids=lambda x: x if isinstance(x, str) else "",
 )
@@ -127,6 +144,13 @@ def test_very_large_file_is_refused_not_read(tmp_path):
          lambda p: write(p, [",".join(reversed(r.split(","))) for r in ROWS], ",".join(reversed(HEADER_LINE.split(","))))),
         ("UTF-16 with BOM -> decoded", lambda p: write(p, ROWS, encoding="utf-16")),
         ("LF line ends -> same", lambda p: write(p, ROWS, end="\n")),
+        ("speed in m/s with a header that says so -> converted by its own unit",
+         lambda p: write(p, [with_cell(r, "Velocity (km/hr)", repr(float(r.split(",")[COL["Velocity (km/hr)"]]) * (1 / 3.6))) for r in ROWS],
+                         HEADER_LINE.replace("Velocity (km/hr)", "Velocity (m/s)"))),
+        ("accelerations in m/s^2 with a header that says so -> converted by its own unit",
+         lambda p: write(p, [with_cell(r, "Indicated Longitudinal Acceleration (g)",
+                                       repr(float(r.split(",")[COL["Indicated Longitudinal Acceleration (g)"]]) * 9.80665)) for r in ROWS],
+                         HEADER_LINE.replace("Indicated Longitudinal Acceleration (g)", "Indicated Longitudinal Acceleration (m/s^2)"))),
     ],
     ids=lambda x: x if isinstance(x, str) else "",
 )
@@ -563,3 +587,95 @@ def test_options_are_checked_before_any_work(tmp_path, args, fragments):
 def test_a_1_hz_log_is_refused_with_the_real_reason(tmp_path):
     path = write(tmp_path / "V-1hz.csv", ROWS[::10])
     assert_input_error(evaluate(path), "V-1hz.csv", "1 Hz", "at least 2 Hz")
+
+
+# ---- MCAP logs: impossible values, repeated and stray stamps ---------------------------------
+
+def _mcap(tmp_path: Path, name: str, tamper=None) -> Path:
+    from .mcap_fixtures import write_json
+
+    return write_json(tmp_path / f"{name}.mcap", duration_s=40.0, imu_hz=50, gnss_hz=5, tamper=tamper)
+
+
+def _set(kind: str, index: int, field: str, value: float):
+    def tamper(k, i, msg):
+        if k == kind and i == index:
+            msg = json.loads(json.dumps(msg))
+            target = msg
+            *path, last = field.split(".")
+            for part in path:
+                target = target[part]
+            target[last] = value
+        return [msg]
+    return tamper
+
+
+@pytest.mark.parametrize(
+    "case, tamper, fragments",
+    [
+        ("latitude 200 deg", _set("fix", 10, "latitude", 200.0), ["topic /location", "latitude 200 deg outside [-90, 90]"]),
+        ("longitude -1e9 deg", _set("fix", 3, "longitude", -1e9), ["topic /location", "longitude -1e+09 deg outside [-180, 180]"]),
+        ("NaN acceleration", _set("imu", 100, "linear_acceleration.x", float("nan")), ["topic /imu", "linear_acceleration.x not a finite number"]),
+        ("infinite yaw rate", _set("imu", 7, "angular_velocity.z", float("inf")), ["topic /imu", "angular_velocity.z not a finite number"]),
+        ("acceleration of 1e300", _set("imu", 7, "linear_acceleration.x", 1e300), ["linear_acceleration.x 1e+300 m/s^2 outside"]),
+        ("every fix NaN -> no truth", lambda k, i, m: [{**m, "latitude": float("nan")}] if k == "fix" else [m],
+         ["fewer than 2 GNSS fixes"]),
+    ],
+    ids=lambda x: x if isinstance(x, str) else "",
+)
+def test_bad_mcap_values(tmp_path, case, tamper, fragments):
+    path = _mcap(tmp_path, "bad", tamper)
+    assert_input_error(evaluate(path), str(path), *fragments)
+
+
+@pytest.fixture(scope="module")
+def mcap_reference(tmp_path_factory):
+    proc = evaluate(_mcap(tmp_path_factory.mktemp("ref"), "ref"), "--outage", "5s")
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def _whole_second(k, i, msg):
+    if k == "fix":
+        msg = json.loads(json.dumps(msg))
+        msg["timestamp"]["nsec"] = 0
+    return [msg]
+
+
+def _boot_stamp(k, i, msg):
+    if k == "imu" and i == 300:
+        msg = json.loads(json.dumps(msg))
+        msg["header"]["stamp"] = {"sec": 125, "nsec": 0}  # seconds since boot, among UNIX stamps
+    return [msg]
+
+
+@pytest.mark.parametrize(
+    "case, tamper, warning, exact",
+    [
+        ("every fix published twice -> the first of each kept, same metrics",
+         lambda k, i, m: [m, m] if k == "fix" else [m], "share a time stamp", True),
+        ("NaN and infinite fixes (drivers' 'no fix') -> dropped like status -1",
+         lambda k, i, m: [{**m, "latitude": float("nan")} if k == "fix" and i in (20, 21) else
+                          {**m, "longitude": float("inf")} if k == "fix" and i == 40 else m],
+         "dropped 3 GNSS message(s) without a fix", False),
+        ("one IMU message stamped from boot time -> dropped, memory bounded, same metrics",
+         _boot_stamp, "dropped 1 IMU sample(s) stamped more than 3600 s away", True),
+        ("fixes stamped to whole seconds -> one fix per second, no division by 1e-9",
+         _whole_second, "share a time stamp", False),
+    ],
+    ids=lambda x: x if isinstance(x, str) else "",
+)
+def test_mcap_repeated_missing_or_stray_stamps(tmp_path, mcap_reference, case, tamper, warning, exact):
+    path = _mcap(tmp_path, "odd", tamper)
+    proc = subprocess.run([sys.executable, "-m", "ionav_viz.cli", "evaluate", str(path), "--no-idnn", "--json", "--outage", "5s"],
+                          cwd=REPO, capture_output=True, text=True, timeout=120,
+                          preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30)))
+    assert proc.returncode == 0, proc.stderr
+    assert warning in proc.stderr
+    got = json.loads(proc.stdout)
+    if exact:
+        same_metrics(mcap_reference, got)
+    else:
+        # the straight-line drive's truth hardly changes: each outage's CRSE within 0.5 m
+        for ref, seq in zip(mcap_reference["sequences"], got["sequences"], strict=True):
+            assert abs(seq["ins"]["crse_m"] - ref["ins"]["crse_m"]) < 0.5, (ref, seq)

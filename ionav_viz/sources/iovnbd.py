@@ -33,6 +33,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS
+from .plausibility import check_plausible
 
 log = logging.getLogger("ionav_viz")
 
@@ -72,25 +73,33 @@ HEADER = (
 #: The header line as the real files write it: a leading space before every name but the first.
 HEADER_LINE = ",".join([HEADER[0]] + [" " + h for h in HEADER[1:]])
 
-# Drive-model column <- (header label before the unit, factor to SI, required)
+_ANGLE = {"degrees": 1.0, "deg": 1.0}
+_SPEED = {"km/hr": KMH_TO_MPS, "km/h": KMH_TO_MPS, "kmh": KMH_TO_MPS, "kph": KMH_TO_MPS, "m/s": 1.0, "mph": 0.44704}
+_ACCEL = {"g": G_MPS2, "m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0}
+_RATE = {"deg/sec": DEG_TO_RAD, "deg/s": DEG_TO_RAD, "rad/sec": 1.0, "rad/s": 1.0}
+_WHEEL = {"rad/sec": 1.0, "rad/s": 1.0}
+
+# Drive-model column <- (header label before the unit, {unit in the header: factor to SI}, required).
+# The first unit is the dataset's own, assumed when a header gives none; another known unit is
+# converted (a CSV written in SI units reads the same), an unknown one is refused.
 _COLUMNS = {
-    "n_satellites": ("no of gps satellites available", 1.0, False),
-    "time_of_day_s": ("time since start of day", 1.0, True),
-    "lat_deg": ("latitude", 1.0, True),
-    "lon_deg": ("longitude", 1.0, True),
-    "speed_mps": ("velocity", KMH_TO_MPS, True),
-    "heading_deg": ("heading", 1.0, True),
+    "n_satellites": ("no of gps satellites available", {"": 1.0}, False),
+    "time_of_day_s": ("time since start of day", {"seconds": 1.0, "s": 1.0, "sec": 1.0}, True),
+    "lat_deg": ("latitude", _ANGLE, True),
+    "lon_deg": ("longitude", _ANGLE, True),
+    "speed_mps": ("velocity", _SPEED, True),
+    "heading_deg": ("heading", _ANGLE, True),
     # The header says km, but the values (20-535) are metres above sea level.
-    "height_m": ("height", 1.0, False),
-    "steering_angle_deg": ("steering angle", 1.0, False),
-    "wheel_speed_fl_radps": ("wheel speed front left", 1.0, False),
-    "wheel_speed_fr_radps": ("wheel speed front right", 1.0, False),
-    "wheel_speed_rl_radps": ("wheel speed rear left", 1.0, False),
-    "wheel_speed_rr_radps": ("wheel speed rear right", 1.0, False),
-    "yaw_rate_raw": ("yaw rate", DEG_TO_RAD, True),
-    "speed_can_mps": ("indicated vehicle speed", KMH_TO_MPS, False),
-    "accel_long_mps2": ("indicated longitudinal acceleration", G_MPS2, True),
-    "accel_lat_mps2": ("indicated lateral acceleration", G_MPS2, False),
+    "height_m": ("height", {"km": 1.0, "m": 1.0}, False),
+    "steering_angle_deg": ("steering angle", _ANGLE, False),
+    "wheel_speed_fl_radps": ("wheel speed front left", _WHEEL, False),
+    "wheel_speed_fr_radps": ("wheel speed front right", _WHEEL, False),
+    "wheel_speed_rl_radps": ("wheel speed rear left", _WHEEL, False),
+    "wheel_speed_rr_radps": ("wheel speed rear right", _WHEEL, False),
+    "yaw_rate_raw": ("yaw rate", _RATE, True),
+    "speed_can_mps": ("indicated vehicle speed", _SPEED, False),
+    "accel_long_mps2": ("indicated longitudinal acceleration", _ACCEL, True),
+    "accel_lat_mps2": ("indicated lateral acceleration", _ACCEL, False),
 }
 
 YAW_SIGNS = ("auto", "cw", "ccw")
@@ -100,6 +109,25 @@ _DAY_S = 86400.0
 def _label(header: str) -> str:
     """'  Yaw Rate (deg/sec)' -> 'yaw rate'."""
     return re.sub(r"\s+", " ", header.split("(")[0]).strip().lower()
+
+
+def _unit(header: str) -> str | None:
+    """'  Yaw Rate (deg/sec)' -> 'deg/sec'; None when the name carries no unit."""
+    found = re.search(r"\(([^)]*)\)", header)
+    return re.sub(r"\s+", "", found.group(1)).lower() if found else None
+
+
+def _factor(path: Path, header: str, units: dict[str, float]) -> float:
+    """Factor from the unit the header names to drive-model units; an unknown unit is refused."""
+    unit = _unit(header)
+    if unit is None or "" in units:
+        return next(iter(units.values()))
+    if unit not in units:
+        raise InputError(f"{path}: column {header.strip()!r}: unknown unit {unit!r}",
+                         f"ionav-viz reads this column in {', '.join(u for u in units)}; fix the header")
+    if unit != next(iter(units)):
+        log.info("%s: column %r in %s, converted", path, header.strip(), unit)
+    return units[unit]
 
 
 #: Files above this size are refused rather than risking memory (IO-VNBD's largest run is 27 MB).
@@ -159,17 +187,10 @@ def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, in
 def _check_field_counts(path: Path, encoding: str, n_fields: int, n_rows: int, cut_last: bool) -> None:
     """Every row must have the header's number of fields: a shifted row would silently misalign.
 
-    Counting the commas of the whole file is fast; only a mismatch scans line by line to name it.
+    Fields are counted per line with numpy, block by block (a row one field short followed by one
+    a field long has the right total); only a mismatch scans line by line to name it.
     """
-    if encoding.startswith("utf-16"):
-        text = path.read_bytes().decode(encoding)
-        commas = text.count(",")
-    else:
-        commas = 0
-        with open(path, "rb") as f:
-            for block in iter(lambda: f.read(1 << 22), b""):
-                commas += block.count(b",")
-    if commas == (n_fields - 1) * (n_rows + 1) and not cut_last:
+    if not encoding.startswith("utf-16") and _field_counts_match(path, n_fields):
         return
     with open(path, encoding=encoding, errors="replace", newline="") as f:
         for number, line in enumerate(f, start=1):
@@ -179,6 +200,26 @@ def _check_field_counts(path: Path, encoding: str, n_fields: int, n_rows: int, c
                     f"{path}: line {number} has {fields} fields, the header has {n_fields}",
                     "a shifted or broken row; fix or delete it",
                 )
+
+
+def _field_counts_match(path: Path, n_fields: int) -> bool:
+    """Whether every line (the last may lack its newline) has ``n_fields - 1`` commas; False also
+    for blank lines or a cut last line, which the line-by-line scan then judges."""
+    carry = 0  # commas of the line still open at the end of the previous block
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            data = np.frombuffer(block, dtype=np.uint8)
+            commas = np.flatnonzero(data == ord(","))
+            newlines = np.flatnonzero(data == ord("\n"))
+            per_line = np.diff(np.searchsorted(commas, newlines), prepend=0)
+            if len(per_line):
+                per_line[0] += carry
+                if np.any(per_line != n_fields - 1):
+                    return False
+                carry = len(commas) - int(np.searchsorted(commas, newlines[-1]))
+            else:
+                carry += len(commas)
+    return carry in (0, n_fields - 1)
 
 
 def _first_line(exc: BaseException) -> str:
@@ -251,11 +292,14 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
         raise InputError(f"{path}: fewer than 2 data rows", "a drive needs samples to replay")
 
     values: dict[str, np.ndarray] = {}
+    file_units: dict[str, tuple[float, str]] = {}
     required = [by_label[label] for label, _, req in _COLUMNS.values() if req]
-    for key, (label, factor, req) in _COLUMNS.items():
+    for key, (label, units, req) in _COLUMNS.items():
         header = by_label.get(label)
         if header is None:
             continue
+        factor = _factor(path, header, units)
+        file_units["yaw_rate_radps" if key == "yaw_rate_raw" else key] = (factor, _unit(header) or next(iter(units)))
         numbers = frame[header].to_numpy(dtype=np.float64)
         finite = np.isfinite(numbers)
         if req and not finite.all():
@@ -269,11 +313,16 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     keep = _drop_repeated_times(t_s, path)
     t_s = t_s[keep]
     values = {k: v[keep] for k, v in values.items()}
+    line_of_row = np.flatnonzero(keep) + 2
     if len(t_s) < 2:
         raise InputError(f"{path}: fewer than 2 rows with distinct time stamps", "check the 'Time Since Start of Day' column")
 
     _fix_degrees(values, path)
-    raw_yaw = values.pop("yaw_rate_raw")
+    values["yaw_rate_radps"] = values.pop("yaw_rate_raw")  # the limits do not depend on the sign
+    names = {key: by_label[label].strip() for key, (label, _, _) in _COLUMNS.items() if label in by_label}
+    names["yaw_rate_radps"] = names["yaw_rate_raw"]
+    check_plausible(values, path, lambda i: f"row {line_of_row[i]}", names, file_units)
+    raw_yaw = values.pop("yaw_rate_radps")
     values["yaw_rate_radps"] = _yaw_rate_ccw(raw_yaw, values, t_s, yaw_sign, path)
     values["heading_deg"] = np.mod(values["heading_deg"], 360.0)
     values["t_s"] = t_s - t_s[0]

@@ -15,13 +15,20 @@ when there are several or none match):
   ``linear.y`` north, m/s), giving speed and course; a TwistStamped whose ``frame_id`` is a body
   frame (``base_link``, ``base_footprint``, ``body``, ``vehicle``) and ``nav_msgs/msg/Odometry``
   (twist in the child body frame) give the speed ``linear.x`` only. Without them, speed and
-  course come from the GNSS fixes (geodesic distance and azimuth between consecutive fixes);
-  the course is held below 1 m/s.
+  course come from the GNSS fixes by centred differences over at least 1 s
+  (:func:`velocity_from_fixes`), never by dividing by the time between two fixes; the course is
+  held below 1 m/s.
+* Values: every value is checked against the physical limits of :mod:`.plausibility` (an
+  impossible one is an error naming the topic and stamp). Fixes with ``status.status < 0`` or a
+  non-finite position (how drivers say "no fix") are dropped with one warning; of fixes sharing a
+  stamp (published twice, or stamped to whole seconds) the first is kept, with one warning.
 
 Time stamps: the message **header stamp** (the sensor's acquisition time) by default, the MCAP
 log time (when the recorder received it, with transport latency and jitter) with
 ``stamps='log'``; a zero header stamp falls back to the log time. The time of day of the drive
-is the UTC time of day of the first stamp.
+is the UTC time of day of the first stamp. Stamps more than an hour away from the rest of their
+topic (a boot-time stamp among UNIX stamps, a clock not yet synchronised) are dropped with one
+warning, so they cannot stretch the drive.
 
 Rates: sensors at different rates (IMU at 50-400 Hz, GNSS at 1-20 Hz) are resampled onto one
 10 Hz grid: IMU samples are averaged per bin of 0.1 s centred on each grid time, GNSS positions
@@ -37,6 +44,7 @@ grows with the output columns (and the GNSS fixes), not with the file.
 from __future__ import annotations
 
 import json
+import logging
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -48,6 +56,9 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
+from .plausibility import first_implausible, implausible
+
+log = logging.getLogger("ionav_viz")
 
 IMU_SCHEMAS = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.LocationFix", "foxglove_msgs/msg/LocationFix")
@@ -157,9 +168,7 @@ def list_channels(path: Path) -> list[ChannelInfo]:
         return out
     why = {"unterminated": "no footer (the recorder stopped without closing the file)"}.get(
         framing, "no summary section" if summary is None else "no message statistics")
-    import logging
-
-    logging.getLogger("ionav_viz").warning("%s: %s; reading it by streaming (slower)", path, why)
+    log.warning("%s: %s; reading it by streaming (slower)", path, why)
     return _scan_channels(path, framing)
 
 
@@ -286,13 +295,16 @@ def _iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any,
 
 
 class _BinSums:
-    """Per-bin sums of IMU samples on a grid of ``dt`` (bins centred on grid times), streamed."""
+    """Per-bin sums of IMU samples on a grid of ``dt`` (bins centred on grid times), streamed.
+
+    Sums are kept sparse (occupied bins only), so a stray stamp far from the others (a boot-time
+    stamp among UNIX stamps) costs one entry, not an array spanning the distance.
+    """
 
     def __init__(self, dt: float, keep_samples: bool) -> None:
         self.dt = dt
         self.origin: float | None = None
-        self.first_bin = 0
-        self.sums = np.zeros((0, 3))  # accel sum, yaw sum, count
+        self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (bins, [accel sum, yaw sum, count])
         self.buffer: list[tuple[float, float, float]] = []
         # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
         # then they are as many as the output rows.
@@ -311,26 +323,69 @@ class _BinSums:
         data = np.asarray(self.buffer)
         self.buffer.clear()
         if self.origin is None:
-            self.origin = float(data[:, 0].min())
+            self.origin = float(data[0, 0])
         bins = np.rint((data[:, 0] - self.origin) / self.dt).astype(np.int64)
-        lo, hi = int(bins.min()), int(bins.max())
-        if lo < self.first_bin or hi >= self.first_bin + len(self.sums):
-            new_first = min(lo, self.first_bin) if len(self.sums) else lo
-            new_end = max(hi + 1, self.first_bin + len(self.sums))
-            grown = np.zeros((new_end - new_first, 3))
-            if len(self.sums):
-                grown[self.first_bin - new_first : self.first_bin - new_first + len(self.sums)] = self.sums
-            self.sums, self.first_bin = grown, new_first
-        idx = bins - self.first_bin
-        for col, values in enumerate((data[:, 1], data[:, 2], np.ones(len(data)))):
-            self.sums[:, col] += np.bincount(idx, weights=values, minlength=len(self.sums))
+        self.parts.append(_sum_by_bin(bins, np.column_stack([data[:, 1], data[:, 2], np.ones(len(data))])))
+        if len(self.parts) > 64:
+            self.parts = [_sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))]
 
-    def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Grid times (s) of non-empty bins, mean accel, mean yaw rate."""
+    def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Grid times (s) of non-empty bins, mean accel, mean yaw rate, samples per bin."""
         self.flush()
-        full = self.sums[:, 2] > 0
-        t = self.origin + (np.flatnonzero(full) + self.first_bin) * self.dt if self.origin is not None else np.zeros(0)
-        return t, self.sums[full, 0] / self.sums[full, 2], self.sums[full, 1] / self.sums[full, 2]
+        if not self.parts:
+            return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)
+        bins, sums = _sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))
+        return self.origin + bins * self.dt, sums[:, 0] / sums[:, 2], sums[:, 1] / sums[:, 2], sums[:, 2]
+
+
+def _sum_by_bin(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted unique bins and the column sums of ``values`` per bin."""
+    unique, inverse = np.unique(bins, return_inverse=True)
+    sums = np.zeros((len(unique), values.shape[1]))
+    np.add.at(sums, inverse, values)
+    return unique, sums
+
+
+#: Stamps separated from the bulk of a topic's stamps by more than this (s) are strays (a clock
+#: not yet synchronised, a boot-time stamp) and are dropped; a recording paused for less is kept.
+MAX_STAMP_JUMP_S = 3600.0
+
+
+def _main_span(t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Mask of the stamps in the largest group of ``t`` without a jump over MAX_STAMP_JUMP_S.
+
+    ``t`` must be sorted; ``weights`` count samples per stamp (default one each).
+    """
+    if len(t) == 0:
+        return np.zeros(0, dtype=bool)
+    group = np.concatenate([[0], np.cumsum(np.diff(t) > MAX_STAMP_JUMP_S)])
+    size = np.bincount(group, weights=weights)
+    return group == int(np.argmax(size))
+
+
+def _drop_strays(path: Path, what: str, t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Mask of ``t`` (sorted) to keep, warning once about stray stamps."""
+    keep = _main_span(t, weights)
+    if not keep.all():
+        n = int((weights[~keep] if weights is not None else (~keep)).sum())
+        log.warning("%s: dropped %d %s sample(s) stamped more than %g s away from the rest of the log "
+                    "(e.g. %.3f s against %.3f-%.3f s): a clock not yet synchronised?",
+                    path, n, what, MAX_STAMP_JUMP_S, float(t[~keep][0]), float(t[keep][0]), float(t[keep][-1]))
+    return keep
+
+
+def _first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
+    """Fixes in time order, keeping the first (as recorded) of fixes sharing one stamp."""
+    order = np.argsort(fixes[:, 0], kind="stable")
+    fixes = fixes[order]
+    first = np.concatenate([[True], np.diff(fixes[:, 0]) > 0])
+    if not first.all():
+        same_place = (np.diff(fixes[:, 1]) == 0) & (np.diff(fixes[:, 2]) == 0)
+        repeats = int((~first[1:] & same_place).sum())
+        log.warning("%s: %d GNSS fix(es) share a time stamp with an earlier one (%d of them the same position); "
+                    "kept the first of each stamp (a receiver publishing twice, or stamping whole seconds?)",
+                    path, int((~first).sum()), repeats)
+    return fixes[first]
 
 
 def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
@@ -352,14 +407,23 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
             t = _stamp_s(_get(msg, *stamp_path))
         except (KeyError, AttributeError, TypeError):
             return log_t
-        return t if t > 0 else log_t
+        return t if t > 0 and math.isfinite(t) else log_t
+
+    def check(topic: str, t: float, field_name: str, column: str, value: float) -> None:
+        reason = implausible(column, value)
+        if reason:
+            raise InputError(f"{path}: topic {topic}, message stamped {t:.3f} s: {field_name} {reason}",
+                             "no car sensor produces that value: fix the log or choose another topic")
 
     try:
         for role, log_t, msg in _messages(path, sel):
             try:
                 if role == "IMU":
-                    imu.add(when(msg, log_t, "header", "stamp"), float(_get(msg, "linear_acceleration", "x")),
-                            float(_get(msg, "angular_velocity", "z")))
+                    t = when(msg, log_t, "header", "stamp")
+                    accel, yaw = float(_get(msg, "linear_acceleration", "x")), float(_get(msg, "angular_velocity", "z"))
+                    check(sel.imu.topic, t, "linear_acceleration.x", "accel_long_mps2", accel)
+                    check(sel.imu.topic, t, "angular_velocity.z", "yaw_rate_radps", yaw)
+                    imu.add(t, accel, yaw)
                 elif role == "GNSS":
                     if sel.gnss.schema.startswith("foxglove"):
                         t = when(msg, log_t, "timestamp")
@@ -368,10 +432,18 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
                         if int(_get(msg, "status", "status")) < 0:
                             dropped_no_fix += 1
                             continue
+                    lat, lon = float(_get(msg, "latitude")), float(_get(msg, "longitude"))
+                    if not (math.isfinite(lat) and math.isfinite(lon)):
+                        dropped_no_fix += 1  # drivers publish NaN positions when they have no fix
+                        continue
+                    check(sel.gnss.topic, t, "latitude", "lat_deg", lat)
+                    check(sel.gnss.topic, t, "longitude", "lon_deg", lon)
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
-                    gnss.append((t, float(_get(msg, "latitude")), float(_get(msg, "longitude")), float(alt or 0.0)))
+                    gnss.append((t, lat, lon, float(alt if alt is not None else math.nan)))
                 else:
-                    speed.append(_speed_sample(msg, log_t, when, sel.speed.schema))
+                    sample = _speed_sample(msg, log_t, when, sel.speed.schema)
+                    check(sel.speed.topic, sample[0], "speed", "speed_mps", sample[1])
+                    speed.append(sample)
             except (KeyError, AttributeError, TypeError, ValueError) as exc:
                 topic = {"IMU": sel.imu, "GNSS": sel.gnss}.get(role, sel.speed).topic
                 raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
@@ -381,13 +453,19 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
     except Exception as exc:
         raise _bad(path, exc) from None
 
-    if dropped_no_fix:
-        import logging
-
-        logging.getLogger("ionav_viz").warning("%s: dropped %d GNSS message(s) without a fix", path, dropped_no_fix)
     if len(gnss) < 2:
-        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}", "the drive needs GNSS ground truth")
-    return _to_drive(path, name or path.stem, imu, np.asarray(sorted(gnss)), np.asarray(sorted(speed)) if speed else None)
+        without = f" ({dropped_no_fix} message(s) without a fix)" if dropped_no_fix else ""
+        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
+    if dropped_no_fix:
+        log.warning("%s: dropped %d GNSS message(s) without a fix", path, dropped_no_fix)
+    fixes = _first_per_stamp(path, np.asarray(gnss))
+    fixes = fixes[_drop_strays(path, "GNSS", fixes[:, 0])]
+    speeds = None
+    if speed:
+        speeds = np.asarray(speed)
+        speeds = speeds[np.argsort(speeds[:, 0], kind="stable")]
+        speeds = speeds[_drop_strays(path, "speed", speeds[:, 0])]
+    return _to_drive(path, name or path.stem, imu, fixes, speeds)
 
 
 def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, float, float]:
@@ -404,55 +482,63 @@ def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, flo
 
 
 def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.ndarray | None) -> Drive:
-    from pyproj import Geod
-
-
     g_t, g_lat, g_lon, g_alt = gnss.T
     samples = np.asarray(sorted(imu.samples)) if imu.samples else None
     if samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t):
         t, accel, yaw = samples.T  # IMU and GNSS share their stamps: keep them
         lat, lon, alt = g_lat, g_lon, g_alt
     else:
-        t, accel, yaw = imu.means()
-        covered = _covered(t, g_t)
+        t, accel, yaw, count = imu.means()
+        keep = _drop_strays(path, "IMU", t, count)
+        covered = keep & _covered(t, g_t)
         t, accel, yaw = t[covered], accel[covered], yaw[covered]
         lat, lon, alt = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt))
     if len(t) < 2:
         raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
 
+    v = course = None
     if speed is not None and len(speed) >= 2:
         s_t, s_v, s_course = speed.T
         v = np.interp(t, s_t, s_v)
         has_course = np.isfinite(s_course)
-        course = None
         if has_course.any():
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
             course = np.mod(np.interp(t, s_t[has_course], unwrapped), 360.0)
-    else:
-        v, course = None, None
     if v is None or course is None:
-        geod = Geod(ellps="WGS84")
-        az, _, dist = geod.inv(g_lon[:-1], g_lat[:-1], g_lon[1:], g_lat[1:])
-        dt = np.diff(g_t)
-        mid = 0.5 * (g_t[1:] + g_t[:-1])
-        if v is None:
-            v = np.interp(t, mid, np.asarray(dist) / np.maximum(dt, 1e-9))
-        if course is None:
-            seg_speed = np.asarray(dist) / np.maximum(dt, 1e-9)
-            az_held = hold_course_when_slow(np.mod(np.asarray(az), 360.0), seg_speed, MIN_COURSE_SPEED_MPS)
-            unwrapped = np.rad2deg(np.unwrap(np.deg2rad(az_held)))
-            course = np.mod(np.interp(t, mid, unwrapped), 360.0)
+        fix_v, fix_course = velocity_from_fixes(t, g_t, g_lat, g_lon)
+        v = fix_v if v is None else v
+        course = hold_course_when_slow(fix_course, fix_v, MIN_COURSE_SPEED_MPS) if course is None else course
+    columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
+               "accel_long_mps2": accel, "yaw_rate_radps": yaw}
+    if first_implausible("height_m", alt) is None:
+        columns["height_m"] = alt
     start = float(t[0])
-    return Drive(
-        name=name,
-        source=str(path),
-        rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
-        start_time_of_day_s=start % 86400.0,
-        columns={
-            "t_s": t - start, "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
-            "accel_long_mps2": accel, "yaw_rate_radps": yaw, "height_m": alt,
-        },
-    )
+    return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
+                 start_time_of_day_s=start % 86400.0, columns=columns)
+
+
+#: Shortest half-baseline (s) of the centred differences that give speed and course from fixes:
+#: fix noise divided by a baseline of at least 1 s, never by the time between two fixes.
+MIN_HALF_BASELINE_S = 0.5
+
+
+def velocity_from_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (m/s) and course (deg from north, clockwise) at times ``t`` from GNSS fixes alone.
+
+    Centred differences of the fix track (linearly interpolated) over ``t - h .. t + h`` with
+    ``h`` the larger of MIN_HALF_BASELINE_S and the median time between fixes, one-sided at the
+    ends: the noise of a fix is divided by at least ``h``, whatever the fix rate, duplicates or
+    jitter. ``g_t`` must be strictly increasing.
+    """
+    from pyproj import Geod
+
+    h = max(MIN_HALF_BASELINE_S, float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0)
+    ta, tb = np.clip(t - h, g_t[0], g_t[-1]), np.clip(t + h, g_t[0], g_t[-1])
+    lat_a, lat_b = np.interp(ta, g_t, g_lat), np.interp(tb, g_t, g_lat)
+    lon_a, lon_b = np.interp(ta, g_t, g_lon), np.interp(tb, g_t, g_lon)
+    az, _, dist = Geod(ellps="WGS84").inv(lon_a, lat_a, lon_b, lat_b)
+    speed = np.asarray(dist) / np.maximum(tb - ta, h)
+    return speed, np.mod(np.asarray(az), 360.0)
 
 
 def _covered(t: np.ndarray, g_t: np.ndarray) -> np.ndarray:

@@ -1,0 +1,99 @@
+"""Physical plausibility limits: values no car sensor can produce, checked at every reader's boundary.
+
+One table for every source (IO-VNBD CSV, MCAP). A value outside its limits is not noise to average
+away but a broken file or a unit mix-up, so the reader refuses the drive with an error naming the
+file, the row (CSV) or time (MCAP), the column and the limit. Limits are generous on purpose:
+they catch impossible values (1e300 g, a heading of 1e20, a negative speed over ground), not
+unusual driving. *Plausible but bad* GNSS (fixes at (0, 0), frozen or jumping fixes, 0 satellites)
+is not refused here: that is a per-sample quality question for the GNSS integrity checks.
+
+Limits (inclusive), in drive-model units:
+
+========================  ==================  ==================================================
+column                    limits              why
+========================  ==================  ==================================================
+``lat_deg``               -90 .. 90           WGS84
+``lon_deg``               -180 .. 180         WGS84
+``speed_mps``             0 .. 100            speed over ground is a magnitude; 360 km/h
+``speed_can_mps``         0 .. 100            as above
+``heading_deg``           -360 .. 360         a course, before wrapping to [0, 360)
+``height_m``              -1000 .. 10000      ellipsoid/sea-level height of a road
+``accel_long_mps2``       -157 .. 157         16 g, the widest full-scale range of vehicle IMUs
+``accel_lat_mps2``        -157 .. 157         as above
+``yaw_rate_radps``        -34.9 .. 34.9       2000 deg/s, the widest full-scale range of gyros
+``steering_angle_deg``    -1800 .. 1800       five turns of the steering wheel
+``wheel_speed_*_radps``   -500 .. 500         100 m/s on a 0.2 m wheel
+========================  ==================  ==================================================
+
+Every value must also be finite.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from ..core.errors import InputError
+
+_G16_MPS2 = 16 * 9.80665
+
+#: column -> (lowest, highest) plausible value, in drive-model units.
+LIMITS: dict[str, tuple[float, float]] = {
+    "lat_deg": (-90.0, 90.0),
+    "lon_deg": (-180.0, 180.0),
+    "speed_mps": (0.0, 100.0),
+    "speed_can_mps": (0.0, 100.0),
+    "heading_deg": (-360.0, 360.0),
+    "height_m": (-1000.0, 10000.0),
+    "accel_long_mps2": (-_G16_MPS2, _G16_MPS2),
+    "accel_lat_mps2": (-_G16_MPS2, _G16_MPS2),
+    "yaw_rate_radps": (-math.radians(2000.0), math.radians(2000.0)),
+    "steering_angle_deg": (-1800.0, 1800.0),
+    "wheel_speed_fl_radps": (-500.0, 500.0),
+    "wheel_speed_fr_radps": (-500.0, 500.0),
+    "wheel_speed_rl_radps": (-500.0, 500.0),
+    "wheel_speed_rr_radps": (-500.0, 500.0),
+}
+
+
+_UNITS = {"deg": "deg", "mps": "m/s", "mps2": "m/s^2", "radps": "rad/s", "m": "m"}
+
+
+def first_implausible(column: str, values: np.ndarray) -> int | None:
+    """Index of the first value of ``column`` that is not finite or outside its limits, else None."""
+    lo, hi = LIMITS.get(column, (-math.inf, math.inf))
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(values) & (values >= lo) & (values <= hi))
+    return int(np.argmax(bad)) if bad.any() else None
+
+
+def implausible(column: str, value: float) -> str | None:
+    """Why one value of ``column`` is implausible ("not a finite number", "... outside [lo, hi]"), else None."""
+    lo, hi = LIMITS.get(column, (-math.inf, math.inf))
+    if not math.isfinite(value):
+        return "not a finite number"
+    if not lo <= value <= hi:
+        return f"{value:.6g} {_UNITS.get(column.rsplit('_', 1)[-1], '')} outside [{lo:.6g}, {hi:.6g}]"
+    return None
+
+
+def check_plausible(columns: dict[str, np.ndarray], path: object, where: Callable[[int], str],
+                    names: dict[str, str] | None = None, file_units: dict[str, tuple[float, str]] | None = None) -> None:
+    """Raise :class:`InputError` for the first implausible value of any column with limits.
+
+    ``where(i)`` says where sample ``i`` is in the file ("row 57", "t = 12.3 s"); ``names`` maps a
+    column to the name the file gives it, ``file_units`` to (factor to drive-model units, unit
+    name) so the message shows the value as the file has it.
+    """
+    for column, values in columns.items():
+        i = first_implausible(column, values)
+        if i is None:
+            continue
+        factor, unit = (file_units or {}).get(column, (1.0, _UNITS.get(column.rsplit("_", 1)[-1], "")))
+        lo, hi = (x / factor for x in LIMITS.get(column, (-math.inf, math.inf)))
+        value = float(values[i]) / factor
+        reason = "not a finite number" if not math.isfinite(value) else f"{value:.6g} {unit} outside [{lo:.6g}, {hi:.6g}]"
+        raise InputError(f"{path}: {where(i)}, {(names or {}).get(column, column)}: {reason}",
+                         "no car sensor produces that value: fix or delete the sample, or check the column's unit")
