@@ -31,12 +31,13 @@ from .analysis.report import Report, run_summary_markdown
 from .core.drive import Drive
 from .core.errors import InputError
 from .core.fileio import check_output_file
+from .core.gnss_quality import GnssLimits
 from .core.timing import stage
 from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from .nav.bias import SensorBias, resolve_bias
 from .nav.estimators import Estimator, applies
 from .nav.estimators import resolve as resolve_estimators
-from .nav.outages import AroundEvents, Placement, Tile, outage_windows
+from .nav.outages import AroundEvents, Placement, Tile, around, excluded_by_truth, outage_windows
 from .nav.windows import make_windows
 from .sources.load import McapOptions
 from .sources.load import load_drive as _load_drive
@@ -77,20 +78,23 @@ def load_drive(
     *,
     yaw_sign: str = "auto",
     mcap: McapOptions | None = None,
+    gnss_limits: GnssLimits | None = None,
 ) -> Drive:
     """Read a drive: a file path (IO-VNBD ``V-*.csv`` or ``.mcap``), a bundled scenario name
     (``"roundabout"``, ``"stationary"``) or an IO-VNBD run name (``"V-Vw8"``) under ``data_root``
     (default ``$IONAV_DATA``, else the per-user data directory ``fetch`` fills).
 
     ``yaw_sign``: sign of the CSV yaw-rate column, ``"auto"``, ``"cw"`` or ``"ccw"``; ``mcap``:
-    topics and time stamps for MCAP logs. A :class:`Drive` is returned as is.
+    topics and time stamps for MCAP logs; ``gnss_limits``: thresholds of the GNSS quality checks
+    that mark untrustworthy fixes (default :class:`GnssLimits`). A :class:`Drive` is returned as
+    is.
     """
     if isinstance(spec, Drive):
         return spec
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     with stage(f"read {spec}") as s:
-        drive = _load_drive(str(spec), _data_root(data_root), yaw_sign, mcap)
+        drive = _load_drive(str(spec), _data_root(data_root), yaw_sign, mcap, gnss_limits)
         s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
     return drive
 
@@ -152,22 +156,24 @@ def _check_event_types(types: Sequence[str]) -> None:
         raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}")
 
 
-def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str]:
+def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str, int]:
+    """Outage starts, the placement's description, and how many outages bad GNSS truth excluded."""
     n = outage_windows(outage_s)
     if isinstance(placement, AroundEvents):
         _check_event_types(placement.types)
         targets = placement.targets(events or [])
-        from .nav.outages import around
-
-        starts, used = around(windows, [(e.t0_s, e.t1_s) for e in targets], n)
+        spans = [(e.t0_s, e.t1_s) for e in targets]
+        starts, used = around(windows, spans, n)
+        excluded = excluded_by_truth(windows, n, lambda w: around(w, spans, n)[0])
         if len(used) < len(targets):
-            log.warning("%s: %d of %d %s event(s) got no outage (overlapping another, or too near a gap or an end)",
+            log.warning("%s: %d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, or on bad GNSS truth)",
                         drive.name, len(targets) - len(used), len(targets), "/".join(placement.types))
         if len(starts) == 0:
             raise InputError(f"{drive.source}: no {' or '.join(placement.types)} event with room for a {outage_s:g} s outage",
                              f"see 'ionav-viz events {drive.source}'")
-        return starts, placement.describe(outage_s, len(used), len(targets))
-    return placement.starts(windows, n), placement.describe(outage_s)
+        return starts, placement.describe(outage_s, len(used), len(targets)), excluded
+    starts = placement.starts(windows, n, events or ())
+    return starts, placement.describe(outage_s), excluded_by_truth(windows, n, lambda w: placement.starts(w, n, events or ()))
 
 
 def evaluate(
@@ -183,6 +189,7 @@ def evaluate(
     title: str | None = None,
     yaw_sign: str = "auto",
     mcap: McapOptions | None = None,
+    gnss_limits: GnssLimits | None = None,
     progress: Progress | None = None,
 ) -> Report:
     """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
@@ -199,6 +206,8 @@ def evaluate(
             default each drive's own stationary stretches.
         thresholds: event-detector thresholds (for :class:`AroundEvents`).
         title: the report's group name (a scenario), shown in its tables.
+        gnss_limits: thresholds of the GNSS quality checks (see :func:`load_drive`); outages
+            go only where every window has good truth, and the report counts what was excluded.
 
     Returns:
         a :class:`Report`; ``report.to_json()`` is what ``ionav-viz evaluate --json`` prints.
@@ -209,7 +218,7 @@ def evaluate(
     placement = placement or Tile()
     n = outage_windows(outage_s)
     chosen = resolve_estimators(estimators, model=model)
-    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
+    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     bias_of = _bias_for(bias_from, data_root, load_kw)
     results = []
     for i, item in enumerate(items):
@@ -220,14 +229,17 @@ def evaluate(
         events = detect_events(drive, thresholds or EventThresholds()) if isinstance(placement, AroundEvents) else None
         if isinstance(placement, Tile):
             starts = placement.starts(windows, n)
+            excluded = excluded_by_truth(windows, n, lambda w: placement.starts(w, n))
             if len(starts) == 0:
-                log.warning("%s: too short for a single %g s outage; skipped", drive.name, outage_s)
+                log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, outage_s,
+                            " on good GNSS truth" if excluded else "")
                 continue
         else:
-            starts, _ = _starts(drive, windows, placement, outage_s, events)
+            starts, _, excluded = _starts(drive, windows, placement, outage_s, events)
         bias = bias_of(drive)
         ests = _estimators_for(drive, chosen, estimators is None)
-        results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows))
+        results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,
+                                      excluded_outages=excluded))
     if progress:
         progress("done", len(items), len(items))
     if not results:
@@ -247,13 +259,14 @@ def evaluate_by_event(
     thresholds: EventThresholds | None = None,
     yaw_sign: str = "auto",
     mcap: McapOptions | None = None,
+    gnss_limits: GnssLimits | None = None,
 ) -> dict[str, Report]:
     """One report per manoeuvre type: an outage centred on each detected event, across ``drives``."""
     kinds = tuple(types) if types else EVENT_TYPES
     _check_event_types(kinds)
     n = outage_windows(outage_s)
     chosen = resolve_estimators(estimators, model=model)
-    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
+    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     bias_of = _bias_for(bias_from, data_root, load_kw)
     th = thresholds or EventThresholds()
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
@@ -265,8 +278,10 @@ def evaluate_by_event(
         ests = _estimators_for(drive, chosen, estimators is None)
         for kind in kinds:
             starts = AroundEvents((kind,)).starts(windows, n, found)
+            excluded = excluded_by_truth(windows, n, lambda w, kind=kind, found=found: AroundEvents((kind,)).starts(w, n, found))
             if len(starts):
-                per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows))
+                per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,
+                                                     excluded_outages=excluded))
     reports = {kind: Report(results, kind) for kind, results in per_type.items() if results}
     if not reports:
         raise InputError(f"no {', '.join(kinds)} event with room for a {outage_s:g} s outage in {', '.join(_name(d) for d in drives)}",
@@ -291,6 +306,7 @@ def replay(
     thresholds: EventThresholds | None = None,
     yaw_sign: str = "auto",
     mcap: McapOptions | None = None,
+    gnss_limits: GnssLimits | None = None,
     progress: Progress | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
@@ -312,7 +328,7 @@ def replay(
     if out is not None and out.suffix.lower() != ".rrd":
         raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd")
     placement = placement or Tile()
-    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap}
+    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     d = load_drive(drive, data_root, **load_kw)
     with stage("windows") as s:
         windows = make_windows(d)
@@ -320,13 +336,13 @@ def replay(
     with stage("manoeuvres") as s:
         events = detect_events(d, thresholds or EventThresholds())
         s.detail = f"{len(events)} detected"
-    starts, description = _starts(d, windows, placement, outage_s, events)
+    starts, description, excluded = _starts(d, windows, placement, outage_s, events)
     if len(starts) == 0:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
     out = check_output_file(out if out is not None else Path(f"{d.name}.rrd"))  # before the work: where the user is
     chosen = _estimators_for(d, resolve_estimators(estimators, model=model), estimators is None)
     bias = _bias_for(bias_from, data_root, load_kw)(d)
-    result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows)
+    result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded)
     report = Report([result])
     summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
     total = 5 + len(result.estimates)

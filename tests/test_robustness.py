@@ -679,3 +679,17 @@ def test_mcap_repeated_missing_or_stray_stamps(tmp_path, mcap_reference, case, t
         # the straight-line drive's truth hardly changes: each outage's CRSE within 0.5 m
         for ref, seq in zip(mcap_reference["sequences"], got["sequences"], strict=True):
             assert abs(seq["ins"]["crse_m"] - ref["ins"]["crse_m"]) < 0.5, (ref, seq)
+
+
+def test_fixes_at_zero_zero_are_never_scored(tmp_path, reference):
+    """Input: three rows at (0, 0) in a drive in England (a 5,800 km jump in 0.1 s). Expected: exit 0,
+    one warning naming them, the windows around them excluded, every metric the size of the others."""
+    rows = [with_cell(with_cell(r, "Latitude (degrees)", "0"), "Longitude (degrees)", "0") if 500 <= i < 503 else r
+            for i, r in enumerate(ROWS)]
+    proc = evaluate(write(tmp_path / "V-zero.csv", rows))
+    assert proc.returncode == 0, proc.stderr
+    assert "3 of" in proc.stderr and "near-zero 3" in proc.stderr
+    got = json.loads(proc.stdout)
+    assert got["gnss_truth"]["excluded_by_reason"] == {"near-zero": 2}  # 50.0-50.2 s: the windows either side of 50 s
+    worst = max(seq["ins"]["crse_m"] for seq in reference["sequences"])
+    assert all(seq["ins"]["crse_m"] <= worst for seq in got["sequences"])

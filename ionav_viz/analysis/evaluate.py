@@ -16,11 +16,12 @@ from typing import Any
 import numpy as np
 
 from ..core.drive import Drive
+from ..core.gnss_quality import count_by_fault
 from ..core.timing import stage
 from ..nav.bias import SensorBias, resolve_bias
 from ..nav.estimators import BASELINE, Estimator, EstimatorInputs, Solution, describe, solve
 from ..nav.estimators import resolve as resolve_estimators
-from ..nav.outages import outage_windows, tile
+from ..nav.outages import excluded_by_truth, outage_windows, tile
 from ..nav.windows import Windows, make_windows
 from .metrics import METRICS, sequence_metrics, truth_for
 
@@ -39,6 +40,7 @@ class DriveResult:
         estimates: per estimator name, its :class:`~ionav_viz.nav.estimators.Solution` (per-window
             displacement and yaw rate, and the rebuilt track).
         metrics: per estimator name, each of :data:`METRICS` as an array (n_outages,).
+        excluded_outages: how many outages the placement would have put on bad GNSS truth.
     """
 
     drive: Drive
@@ -49,6 +51,15 @@ class DriveResult:
     estimators: list[Estimator]
     estimates: dict[str, Solution]
     metrics: dict[str, dict[str, np.ndarray]]
+    excluded_outages: int = 0
+
+    def truth(self) -> dict[str, Any]:
+        """What the GNSS quality checks excluded: ``windows`` (all), ``excluded_windows`` (bad
+        truth), ``excluded_by_reason`` (windows per fault name) and ``excluded_outages``."""
+        fault = self.windows.truth_fault
+        bad = fault != 0
+        return {"windows": len(fault), "excluded_windows": int(bad.sum()), "excluded_by_reason": count_by_fault(fault[bad]),
+                "excluded_outages": int(self.excluded_outages)}
 
     @property
     def n_windows(self) -> int:
@@ -79,16 +90,21 @@ def evaluate_drive(
     model: Any = None,
     starts: np.ndarray | None = None,
     windows: Windows | None = None,
+    excluded_outages: int | None = None,
 ) -> DriveResult:
     """Every estimator on the outages ``starts`` (default: the paper's tiling) of ``drive``.
 
     ``estimators``: names or objects (see :func:`ionav_viz.nav.estimators.resolve`); default the
     INS, plus the IDNN when ``model`` (an IDNN model or its directory) is given. ``bias``: default
-    from the drive's own stationary stretches.
+    from the drive's own stationary stretches. ``excluded_outages``: how many outages the caller's
+    placement lost to bad GNSS truth (counted here for the default tiling).
     """
     n = outage_windows(outage_s)
     windows = windows if windows is not None else make_windows(drive)
-    starts = tile(windows, n) if starts is None else np.asarray(starts, dtype=int)
+    if starts is None:
+        starts = tile(windows, n)
+        excluded_outages = excluded_by_truth(windows, n, lambda w: tile(w, n))
+    starts = np.asarray(starts, dtype=int)
     bias = bias if bias is not None else resolve_bias(drive)
     if estimators is None:
         estimators = ["ins", "idnn"] if model is not None else ["ins"]
@@ -100,7 +116,7 @@ def evaluate_drive(
             solutions[est.name] = solve(est, inputs)
             s.detail = f"{len(starts)} outages of {n} s"
     metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
-    return DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics)
+    return DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics, excluded_outages or 0)
 
 
 def improvement_pct(baseline: float, candidate: float) -> float:

@@ -22,6 +22,7 @@ from ..core.errors import InputError
 from ..nav.estimators import short_label
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
+from .tables import truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
@@ -101,8 +102,9 @@ class Report:
         :data:`METRICS`), ``summary`` (per estimator and metric: ``max``, ``min``, ``mean``, ``std``),
         ``distance_m`` (max/min/mean of the outages' GNSS distance), ``bias`` (per drive),
         ``estimators`` (name, label, info), ``improvement_pct`` (per estimator other than the INS
-        DR, on the mean of CRSE, orientation-rate CRSE and final position error) and ``model``
-        (the IDNN's, when it ran). NaN is kept here; :meth:`to_json` writes it as null.
+        DR, on the mean of CRSE, orientation-rate CRSE and final position error), ``gnss_truth``
+        (windows in all, windows excluded for bad GNSS truth, by reason, and outages not placed
+        there; per drive under ``drives``) and ``model`` (the IDNN's, when it ran). NaN is kept here; :meth:`to_json` writes it as null.
         """
         if self._dict is not None:
             return self._dict
@@ -122,7 +124,7 @@ class Report:
         distances = np.concatenate([r.gnss_distance_m for r in results])
         out: dict[str, Any] = {
             "drive": "+".join(r.drive.name for r in results),
-            "drives": [{"name": r.drive.name, "source": r.drive.source} for r in results],
+            "drives": [{"name": r.drive.name, "source": r.drive.source, "gnss_truth": r.truth()} for r in results],
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
             "sequences": sequences,
@@ -133,6 +135,7 @@ class Report:
                 for r in results
             ],
             "estimators": results[0].estimator_info(),
+            "gnss_truth": _sum_truth([r.truth() for r in results]),
         }
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
@@ -159,6 +162,15 @@ class Report:
         return render_markdown(self.to_dict(), self.title)
 
 
+def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    reasons: dict[str, int] = {}
+    for p in parts:
+        for name, n in p["excluded_by_reason"].items():
+            reasons[name] = reasons.get(name, 0) + n
+    return {"windows": sum(p["windows"] for p in parts), "excluded_windows": sum(p["excluded_windows"] for p in parts),
+            "excluded_by_reason": reasons, "excluded_outages": sum(p["excluded_outages"] for p in parts)}
+
+
 def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", indent: int | None = 2) -> str:
     """Several groups as one JSON object ``{key: {group: report}}`` (``evaluate --scenario all --json``)."""
     return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}}), indent=indent)
@@ -174,6 +186,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         "",
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"- **Outages**: {placement}; {report.n_sequences} outage(s)",
+        f"- **{truth_line(report.to_dict())}**",
         f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from {bias.source}",
     ]
     info = {e["name"]: e.get("info", {}) for e in result.estimator_info()}

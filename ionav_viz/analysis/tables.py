@@ -58,6 +58,18 @@ def improvement_lines(rep: dict[str, Any]) -> list[str]:
     ]
 
 
+def truth_line(rep: dict[str, Any]) -> str:
+    """One line on what the GNSS quality checks kept out of the scores."""
+    truth = rep.get("gnss_truth")
+    if not truth:
+        return ""
+    if not truth["excluded_windows"]:
+        return f"GNSS truth: all {truth['windows']} windows trustworthy, none excluded"
+    reasons = ", ".join(f"{name} {n}" for name, n in truth["excluded_by_reason"].items())
+    return (f"GNSS truth: {truth['excluded_windows']} of {truth['windows']} windows excluded ({reasons}); "
+            f"{truth['excluded_outages']} outage(s) not placed there")
+
+
 def title_of(rep: dict[str, Any], scenario: str | None = None) -> str:
     what = f"{scenario}: " if scenario else ""
     return f"{what}{rep['drive']}, {rep['outage_s']:g} s GNSS outages"
@@ -67,7 +79,7 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
     header, rows = table_rows(rep)
     lines = [f"**{title_of(rep, scenario)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(f"**{c}**" if j == 0 and c else c for j, c in enumerate(r)) + " |" for r in rows]
-    extra = improvement_lines(rep)
+    extra = improvement_lines(rep) + [x for x in [truth_line(rep)] if x]
     return "\n".join(lines + ([""] + extra if extra else [])) + "\n"
 
 
@@ -78,7 +90,7 @@ def render_text(rep: dict[str, Any], scenario: str | None = None) -> str:
         return "  ".join(c.ljust(w) if j < 2 else c.rjust(w) for j, (c, w) in enumerate(zip(r, widths))).rstrip()
     out = [title_of(rep, scenario), line(header), "  ".join("-" * w for w in widths)]
     out += [line(r) for r in rows]
-    out += improvement_lines(rep)
+    out += improvement_lines(rep) + [x for x in [truth_line(rep)] if x]
     return "\n".join(out) + "\n"
 
 

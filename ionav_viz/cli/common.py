@@ -29,6 +29,7 @@ EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, c
 EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Python API' in the README.", show_default=False)
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
+GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; see README 'GNSS quality').", show_default=False)
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 
@@ -39,16 +40,18 @@ class SourceArgs:
     data_root: Optional[Path]
     yaw_sign: str
     mcap: Any
+    gnss_limits: Any
 
     def api_kwargs(self) -> dict[str, Any]:
         """As keyword arguments of the :mod:`ionav_viz.api` functions."""
-        return {"data_root": self.data_root, "yaw_sign": self.yaw_sign, "mcap": self.mcap}
+        return {"data_root": self.data_root, "yaw_sign": self.yaw_sign, "mcap": self.mcap, "gnss_limits": self.gnss_limits}
 
 
 #: The options that say how drives are found and read: (parameter, typer option, type).
 _SOURCE_OPTIONS = (
     ("data_root_opt", DataRoot, Optional[Path]), ("yaw_sign", YawSign, str), ("imu_topic", ImuTopic, Optional[str]),
     ("gnss_topic", GnssTopic, Optional[str]), ("speed_topic", SpeedTopic, Optional[str]), ("stamps", Stamps, str),
+    ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
 )
 
 
@@ -73,7 +76,8 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
     the command receives them checked, as one ``source: SourceArgs`` argument."""
     def build(v: dict[str, Any]) -> SourceArgs:
-        return SourceArgs(v["data_root_opt"], yaw_sign(v["yaw_sign"]), mcap_options(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"]))
+        return SourceArgs(v["data_root_opt"], yaw_sign(v["yaw_sign"]), mcap_options(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"]),
+                          gnss_limits(v["gnss_limit"]))
 
     return _with_options(command, _SOURCE_OPTIONS, "source", build)
 
@@ -134,6 +138,12 @@ def thresholds(pairs: Optional[list[str]]):
     from ..analysis.events import EventThresholds
 
     return EventThresholds().with_overrides(list(pairs or []))
+
+
+def gnss_limits(pairs: Optional[list[str]]):
+    from ..core.gnss_quality import GnssLimits
+
+    return GnssLimits().with_overrides(list(pairs or []))
 
 
 def event_types(text: str, option: str = "--on") -> tuple[str, ...]:

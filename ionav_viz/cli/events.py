@@ -61,7 +61,7 @@ def events(
     yaw_sign, mcap = source.yaw_sign, source.mcap
     found = {}
     for spec in drives:
-        drive = load_drive(spec, root, yaw_sign, mcap)
+        drive = load_drive(spec, root, yaw_sign, mcap, source.gnss_limits)
         found[drive.name] = [e for e in detect_events(drive, th) if e.type in kinds]
     if as_json:
         print(json.dumps({name: [e.to_dict() for e in evs] for name, evs in found.items()}, indent=2))

@@ -77,10 +77,10 @@ def train(
     if epochs_disp < 1 or epochs_yaw < 1:
         raise typer.BadParameter("epochs must be at least 1")
     check_model_dir(output, overwrite=force)  # before any work
-    stationary = load_drive(bias_from, root, yaw_sign, mcap) if bias_from else None
+    stationary = load_drive(bias_from, root, yaw_sign, mcap, source.gnss_limits) if bias_from else None
     loaded = []
     for spec in specs:
-        drive = load_drive(spec, root, yaw_sign, mcap)
+        drive = load_drive(spec, root, yaw_sign, mcap, source.gnss_limits)
         loaded.append((drive, resolve_bias(drive, stationary)))
 
     with c.progress(quiet) as bar:

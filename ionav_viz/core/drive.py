@@ -12,6 +12,8 @@ Conventions (every reader converts to these; nothing downstream converts again):
 * ``accel_long_mps2``: longitudinal specific force along the body x axis (forward positive)
   as the sensor measures it, so road grade and mount tilt leak gravity into it.
 * ``speed_mps``: GNSS speed over ground (m/s).
+* ``gnss_fault``: per sample, 0 where the GNSS fix is trustworthy ground truth, else the bits of
+  :class:`~ionav_viz.core.gnss_quality.GnssFault` saying why (set by the readers' loader).
 
 Samples stay at their native rate and time stamps; resampling to the 1-second windows of
 the paper happens in :mod:`ionav_viz.windows`.
@@ -35,6 +37,7 @@ REQUIRED_COLUMNS = (
 OPTIONAL_COLUMNS = (
     "height_m",
     "n_satellites",
+    "gnss_sigma_m",
     "speed_can_mps",
     "accel_lat_mps2",
     "steering_angle_deg",
@@ -55,7 +58,10 @@ class Drive:
         rate_hz: nominal sample rate (Hz), e.g. 10.0 for IO-VNBD.
         start_time_of_day_s: UTC time of day of the first sample (s).
         columns: ``REQUIRED_COLUMNS`` always, ``OPTIONAL_COLUMNS`` when the source has them;
-            float64 arrays, one value per sample.
+            float64 arrays, one value per sample. ``gnss_sigma_m`` is the horizontal standard
+            deviation of the fix the source reports (m).
+        gnss_fault: uint16 per sample, 0 = good GNSS truth (see :mod:`ionav_viz.core.gnss_quality`);
+            all good when not given.
     """
 
     name: str
@@ -63,6 +69,7 @@ class Drive:
     rate_hz: float
     start_time_of_day_s: float
     columns: dict[str, np.ndarray] = field(repr=False)
+    gnss_fault: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         missing = [c for c in REQUIRED_COLUMNS if c not in self.columns]
@@ -75,6 +82,11 @@ class Drive:
             if len(values) != n:
                 raise ValueError(f"drive {self.name}: column {key} has {len(values)} rows, expected {n}")
             self.columns[key] = np.asarray(values, dtype=np.float64)
+        if self.gnss_fault is None:
+            self.gnss_fault = np.zeros(n, dtype=np.uint16)
+        self.gnss_fault = np.asarray(self.gnss_fault, dtype=np.uint16)
+        if len(self.gnss_fault) != n:
+            raise ValueError(f"drive {self.name}: gnss_fault has {len(self.gnss_fault)} rows, expected {n}")
 
     def __len__(self) -> int:
         return len(self.columns["t_s"])
@@ -106,6 +118,11 @@ class Drive:
     @property
     def yaw_rate_radps(self) -> np.ndarray:
         return self.columns["yaw_rate_radps"]
+
+    @property
+    def gnss_ok(self) -> np.ndarray:
+        """Whether each sample's GNSS fix is trustworthy ground truth."""
+        return self.gnss_fault == 0
 
     @property
     def duration_s(self) -> float:

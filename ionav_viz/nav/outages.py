@@ -4,7 +4,9 @@ An outage of ``n`` seconds starting at window ``k`` blanks GNSS over windows ``k
 the estimators start from the GNSS fix at the start of window ``k``. Every sequence lies in
 one gap-free segment, and window ``k-1`` must exist in that segment too: the IDNN's first
 window is fed the GNSS displacement of the second before the outage (the paper's Figure 2).
-So the first window of each segment never starts an outage.
+So the first window of each segment never starts an outage. The same holds for bad GNSS truth
+(:attr:`Windows.truth_ok`): every window of an outage, and the one before it, must have good
+truth, so a stretch of bad fixes splits a segment as a gap does.
 
 Placements are values (:class:`Tile`, :class:`Every`, :class:`At`, :class:`Random`,
 :class:`AroundEvents`), each with ``starts(windows, n, events)`` and ``describe(outage_s)``, over
@@ -23,13 +25,14 @@ these functions (all return sorted start indices into :class:`~ionav_viz.nav.win
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.gnss_quality import fault_names
 from .windows import Windows
 
 
@@ -45,13 +48,33 @@ def outage_windows(outage_s: float, what: str = "outage length", param: str = "o
 
 
 def _segment_ranges(windows: Windows) -> list[tuple[int, int]]:
-    """Per segment, the range ``[first possible start, end)`` of window indices."""
+    """Per run of consecutive good-truth windows of one segment, the range ``[first possible
+    start, end)`` of window indices (the run's first window only feeds the IDNN's first input)."""
     seg = windows.segment
     if len(seg) == 0:
         return []
-    cuts = np.flatnonzero(np.diff(seg) != 0) + 1
-    bounds = np.concatenate([[0], cuts, [len(seg)]])
-    return [(int(a) + 1, int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    ok = windows.truth_ok
+    # a run breaks where the segment changes or the truth turns bad
+    key = np.where(ok, seg, -1)
+    starts = np.flatnonzero(ok & np.concatenate([[True], key[1:] != key[:-1]]))
+    ends = np.flatnonzero(ok & np.concatenate([key[1:] != key[:-1], [True]])) + 1
+    return [(int(a) + 1, int(b)) for a, b in zip(starts, ends)]
+
+
+def truth_faults_near(windows: Windows, start: int, n: int) -> int:
+    """Fault bits of the windows an ``n``-window outage at ``start`` needs good (start-1 .. start+n-1)."""
+    return int(np.bitwise_or.reduce(windows.truth_fault[max(start - 1, 0) : start + n])) if len(windows) else 0
+
+
+def excluded_by_truth(windows: Windows, n: int, place: Callable[[Windows], np.ndarray]) -> int:
+    """How many outages ``place`` would have put where the GNSS truth is bad."""
+    if windows.truth_ok.all():
+        return 0
+    try:
+        starts = place(windows.ignoring_truth())
+    except InputError:
+        return 0
+    return sum(1 for k in starts if truth_faults_near(windows, int(k), n))
 
 
 def valid_start(windows: Windows, start: int, n: int) -> bool:
@@ -77,6 +100,13 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
     starts = []
     for t in sorted(times_s):
         k = int(np.argmin(np.abs(windows.t0_s - t))) if len(windows) else -1
+        faults = truth_faults_near(windows, k, n) if k >= 0 and abs(windows.t0_s[k] - t) <= 1.0 else 0
+        if faults and valid_start(windows.ignoring_truth(), k, n):
+            raise InputError(
+                f"start time {t:g} s: the GNSS truth of that {n} s outage is not trustworthy ({', '.join(fault_names(faults))})",
+                "choose a time where the fixes are good (the recording's gnss/quality timeline shows them)",
+                param="placement",
+            )
         if k < 0 or not valid_start(windows, k, n) or abs(windows.t0_s[k] - t) > 1.0:
             raise InputError(
                 f"start time {t:g} s: no {n} s outage fits there",

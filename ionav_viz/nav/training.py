@@ -57,9 +57,10 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int,
             w = make_windows(drive, offset_s=phase / 10.0)
             if len(w) < 2:
                 continue
-            # the previous window (feedback input, and history beyond 10 steps) is in the same segment
+            # the previous window (feedback input, and history beyond 10 steps) is in the same segment,
+            # and both have trustworthy GNSS truth (a bad fix is never a training target)
             k = np.arange(1, len(w))
-            k = k[w.segment[k] == w.segment[k - 1]]
+            k = k[(w.segment[k] == w.segment[k - 1]) & w.truth_ok[k] & w.truth_ok[k - 1]]
             parts.append((
                 sample_history(w.accel_mps2, k, n_steps_disp) - bias.accel_mps2,
                 w.gnss_disp_m[k - 1],

@@ -20,18 +20,21 @@ i.e. ``[t0, t0 + 1 s]``. Per window:
 * ``accel_mps2`` / ``gyro_radps``: the 11 inertial samples on the window's grid points
   (the INS integrates them with the trapezoid rule; the IDNN takes the last 10, the samples
   of the window's 10 time steps).
+* ``truth_fault``: the GNSS fault bits (:mod:`ionav_viz.core.gnss_quality`) of every sample the
+  window touches (its boundaries are interpolated from); a window with any is not a ground-truth
+  window: no outage covers it or starts right after it, and it is never scored.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..core.drive import Drive
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, WINDOW_S, hold_course_when_slow
 
-__all__ = ["WINDOW_S", "Windows", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
+__all__ = ["WINDOW_S", "Windows", "faults_between", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
 
 
 @dataclass
@@ -56,9 +59,23 @@ class Windows:
     gnss_yaw_rate_radps: np.ndarray
     accel_mps2: np.ndarray  # (n, steps + 1)
     gyro_radps: np.ndarray  # (n, steps + 1)
+    truth_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = good truth
+
+    def __post_init__(self) -> None:
+        if self.truth_fault is None:
+            self.truth_fault = np.zeros(len(self.t0_s), dtype=np.uint16)
 
     def __len__(self) -> int:
         return len(self.t0_s)
+
+    @property
+    def truth_ok(self) -> np.ndarray:
+        """Whether each window's boundary fixes are trustworthy ground truth."""
+        return self.truth_fault == 0
+
+    def ignoring_truth(self) -> Windows:
+        """The same windows with every one taken as good truth (to count what bad truth excluded)."""
+        return replace(self, truth_fault=np.zeros(len(self), dtype=np.uint16))
 
     @property
     def steps(self) -> int:
@@ -80,6 +97,22 @@ def imu_on_grid(t_s: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
     counts = np.bincount(idx[inside], minlength=len(grid))
     has = counts > 0
     out[has] = sums[has] / counts[has]
+    return out
+
+
+def faults_between(t_s: np.ndarray, fault: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """GNSS fault bits of every sample an interpolation over ``[t0, t1]`` touches (the samples
+    inside, and the ones just outside that the boundaries are interpolated from)."""
+    lo = np.clip(np.searchsorted(t_s, t0, side="right") - 1, 0, len(t_s) - 1)
+    hi = np.clip(np.searchsorted(t_s, t1, side="left"), 0, len(t_s) - 1)
+    out = np.zeros(len(t0), dtype=np.uint16)
+    bits = int(np.bitwise_or.reduce(fault)) if len(fault) else 0
+    b = 1
+    while b <= bits:
+        if bits & b:
+            count = np.concatenate([[0], np.cumsum((fault & b) != 0)])
+            out[count[hi + 1] - count[lo] > 0] |= np.uint16(b)
+        b <<= 1
     return out
 
 
@@ -107,7 +140,7 @@ def make_windows(
     steps = int(round(rate_hz * WINDOW_S))
     heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps)
     heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr")}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad")}
     n_windows = []
     for seg_id, (i0, i1) in enumerate(segments(drive.t_s, max_gap_s)):
         t = drive.t_s[i0:i1]
@@ -125,6 +158,7 @@ def make_windows(
         parts["lon"].append(on_grid(drive.lon_deg)[::steps])
         parts["hdg"].append(on_grid(heading_unwrapped)[::steps])
         parts["spd"].append(on_grid(drive.speed_mps)[::steps])
+        parts["bad"].append(faults_between(t, drive.gnss_fault[i0:i1], grid[:-1:steps], grid[steps::steps]))
         acc = imu_on_grid(t, drive.accel_long_mps2[i0:i1], grid)
         gyr = imu_on_grid(t, drive.yaw_rate_radps[i0:i1], grid)
         # Window w uses grid points steps*w .. steps*w + steps (shared boundary points).
@@ -164,4 +198,5 @@ def make_windows(
         gnss_yaw_rate_radps=gnss_yaw,
         accel_mps2=np.concatenate(parts["acc"]),
         gyro_radps=np.concatenate(parts["gyr"]),
+        truth_fault=np.concatenate(parts["bad"]),
     )

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.gnss_quality import GnssLimits, assess_gnss, count_by_fault
 from .resolve import resolve_drive
 
 
@@ -20,25 +21,45 @@ class McapOptions:
     stamps: str = "header"
 
 
-def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: McapOptions | None = None) -> Drive:
+def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: McapOptions | None = None,
+               gnss_limits: GnssLimits | None = None) -> Drive:
     """Resolve ``spec`` (path, bundled scenario or run name) and read it into a :class:`Drive`.
 
     ``.csv`` files are IO-VNBD vehicle files (``yaw_sign`` applies); ``.mcap`` files are ROS 2 or
-    JSON MCAP logs (``mcap`` options apply).
+    JSON MCAP logs (``mcap`` options apply). Every source then gets the same GNSS quality checks
+    (``gnss_limits``, see :mod:`ionav_viz.core.gnss_quality`).
     """
     path = resolve_drive(spec, root)
     suffix = path.suffix.lower()
     if suffix == ".csv":
         from .iovnbd import read_iovnbd
 
-        return check_rate(read_iovnbd(path, yaw_sign=yaw_sign), path)
-    if suffix == ".mcap":
+        drive = read_iovnbd(path, yaw_sign=yaw_sign)
+    elif suffix == ".mcap":
         from .mcap_reader import read_mcap
 
         opts = mcap or McapOptions()
         drive = read_mcap(path, imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic, stamps=opts.stamps)
-        return check_rate(drive, path)
-    raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", "ionav-viz reads IO-VNBD V-*.csv files and MCAP (.mcap) logs")
+    else:
+        raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", "ionav-viz reads IO-VNBD V-*.csv files and MCAP (.mcap) logs")
+    check_rate(drive, path)
+    mark_gnss_quality(drive, gnss_limits or GnssLimits())
+    return drive
+
+
+def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
+    """Set ``drive.gnss_fault`` from the GNSS quality checks and say once what was found."""
+    cols = drive.columns
+    drive.gnss_fault = assess_gnss(drive.t_s, drive.lat_deg, drive.lon_deg, drive.speed_mps, cols.get("n_satellites"),
+                                   cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits)
+    bad = drive.gnss_fault != 0
+    if bad.any():
+        import logging
+
+        reasons = ", ".join(f"{name} {n}" for name, n in count_by_fault(drive.gnss_fault).items())
+        logging.getLogger("ionav_viz").warning(
+            "%s: %d of %d GNSS samples are not trustworthy truth (%s); windows touching them are not scored",
+            drive.source, int(bad.sum()), len(drive), reasons)
 
 
 #: Slowest sample rate a drive may have (Hz): the estimators work on 1 s windows of 10 Hz samples,

@@ -9,7 +9,8 @@ when there are several or none match):
   already the drive model's conventions.
 * GNSS (ground truth): ``sensor_msgs/msg/NavSatFix`` (fixes with ``status.status < 0``, no fix,
   are dropped) or JSON ``foxglove.LocationFix`` (``timestamp``, ``latitude``, ``longitude``,
-  ``altitude``).
+  ``altitude``). A known ``position_covariance`` (type > 0) gives the fix's horizontal standard
+  deviation, ``gnss_sigma_m`` (the larger of east and north), which the GNSS quality checks use.
 * Speed and course (optional): ``geometry_msgs/msg/TwistStamped`` in a world frame is GNSS
   velocity as GNSS drivers publish it (nmea_navsat_driver's ``/vel``: ``linear.x`` east,
   ``linear.y`` north, m/s), giving speed and course; a TwistStamped whose ``frame_id`` is a body
@@ -396,7 +397,7 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
         raise InputError(f"stamps {stamps!r}: choose header or log", param="stamps")
     sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
     imu = _BinSums(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count)
-    gnss: list[tuple[float, float, float, float]] = []
+    gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
     speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
     dropped_no_fix = 0
 
@@ -439,7 +440,7 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
                     check(sel.gnss.topic, t, "latitude", "lat_deg", lat)
                     check(sel.gnss.topic, t, "longitude", "lon_deg", lon)
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
-                    gnss.append((t, lat, lon, float(alt if alt is not None else math.nan)))
+                    gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
                 else:
                     sample = _speed_sample(msg, log_t, when, sel.speed.schema)
                     check(sel.speed.topic, sample[0], "speed", "speed_mps", sample[1])
@@ -468,6 +469,20 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
     return _to_drive(path, name or path.stem, imu, fixes, speeds)
 
 
+def _horizontal_sigma_m(msg: Any) -> float:
+    """Horizontal standard deviation (m) from a fix's ``position_covariance`` (ENU, m^2), the
+    larger of east and north; NaN when the type says unknown (0) or the field is missing."""
+    get = msg.get if isinstance(msg, dict) else (lambda name, default=None: getattr(msg, name, default))
+    kind, cov = get("position_covariance_type", 0), get("position_covariance", None)
+    try:
+        if not kind or cov is None or len(cov) < 5:
+            return math.nan
+        var = max(float(cov[0]), float(cov[4]))
+    except (TypeError, ValueError):
+        return math.nan
+    return math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan
+
+
 def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, float, float]:
     if "Odometry" in schema:
         t = when(msg, log_t, "header", "stamp")
@@ -482,17 +497,17 @@ def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, flo
 
 
 def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.ndarray | None) -> Drive:
-    g_t, g_lat, g_lon, g_alt = gnss.T
+    g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
     samples = np.asarray(sorted(imu.samples)) if imu.samples else None
     if samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t):
         t, accel, yaw = samples.T  # IMU and GNSS share their stamps: keep them
-        lat, lon, alt = g_lat, g_lon, g_alt
+        lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
     else:
         t, accel, yaw, count = imu.means()
         keep = _drop_strays(path, "IMU", t, count)
         covered = keep & _covered(t, g_t)
         t, accel, yaw = t[covered], accel[covered], yaw[covered]
-        lat, lon, alt = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt))
+        lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
         raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
 
@@ -512,6 +527,8 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
                "accel_long_mps2": accel, "yaw_rate_radps": yaw}
     if first_implausible("height_m", alt) is None:
         columns["height_m"] = alt
+    if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one
+        columns["gnss_sigma_m"] = sigma
     start = float(t[0])
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
                  start_time_of_day_s=start % 86400.0, columns=columns)

@@ -10,8 +10,14 @@ time of day, as a duration since midnight).
 Entity paths (see also the README):
 
 ==============================================  ==============================================
-``map/gnss``                                    GNSS ground-truth track (static, lat/lon)
-``map/gnss/position``                           current GNSS position (per sample)
+``map/gnss``                                    GNSS ground-truth track (static, lat/lon), broken
+                                                where the fixes are not trustworthy truth
+``map/gnss_bad``                                stretches of untrustworthy fixes with a usable
+                                                position (frozen, no fix, few satellites, poor
+                                                accuracy), thin and grey; fixes at (0, 0) or
+                                                jumping are not drawn at all
+``map/gnss/position``                           current GNSS position (per sample with a usable
+                                                position)
 ``map/<estimator>/live``                        the current outage's estimated track, growing
                                                 each second (lat/lon); <estimator> is each
                                                 estimator's name (``ins``, ``idnn``, plug-ins)
@@ -23,6 +29,8 @@ Entity paths (see also the README):
 ``local/outages``                               outage start points with labels (static)
 ``gnss/available``                              1 with GNSS, 0 during an outage (per window)
 ``gnss/state``                                  "GNSS" or "outage N" (state timeline)
+``gnss/quality``                                "good" or the reasons the fixes are not
+                                                trustworthy truth (state timeline, per sample)
 ``signals/accel_long_mps2``                     longitudinal acceleration (per sample)
 ``signals/yaw_rate_radps/{gyro,gnss,<est>}``   yaw rates, counter-clockwise positive
 ``signals/displacement_m/{gnss,<est>}``         displacement per second (per window)
@@ -44,8 +52,9 @@ import numpy as np
 from ..analysis.evaluate import DriveResult
 from ..analysis.metrics import cumulative_errors
 from ..core.errors import ToolFailure
+from ..core.gnss_quality import GnssFault, fault_names
 from ..nav.estimators import short_label
-from .style import EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, estimator_colors
+from .style import BAD_GNSS_COLOR, EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, estimator_colors
 
 APP_ID = "ionav-viz"
 
@@ -85,11 +94,12 @@ def blueprint(labels: list[str], zoom: float = 16.0):
         rrb.Spatial2DView(origin="local", name="Local east-north (m), north up"),
     )
     signals = rrb.Vertical(
-        rrb.StateTimelineView(origin="/", contents=["gnss/state", "events/state"], name="GNSS / outages / manoeuvres"),
+        rrb.StateTimelineView(origin="/", contents=["gnss/state", "gnss/quality", "events/state"],
+                              name="GNSS / quality / outages / manoeuvres"),
         rrb.TimeSeriesView(origin="signals/displacement_m", name="Displacement per second (m)"),
         rrb.TimeSeriesView(origin="signals/yaw_rate_radps", name="Yaw rate (rad/s, CCW +)"),
         rrb.TimeSeriesView(origin="signals/accel_long_mps2", name="Longitudinal acceleration (m/s²)"),
-        row_shares=[1.7, 3, 3, 2],
+        row_shares=[2.4, 3, 3, 2],
     )
     errors = rrb.Vertical(
         rrb.TimeSeriesView(origin="errors/position_error_m", name="2D position error (m)"),
@@ -141,7 +151,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     # Logged into memory and written by Python: a full disk then fails as a plain OSError, where
     # Rerun's file sink can block forever once its writer thread has died.
     memory = rec.memory_recording()
-    rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], map_zoom(drive.lat_deg, drive.lon_deg, 350)))
+    rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], map_zoom(*_usable_positions(drive), 350)))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
@@ -153,10 +163,13 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         if progress:
             progress(label)
 
-    lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
+    usable = usable_fixes(drive.gnss_fault)
+    first = int(np.argmax(usable))
+    lat0, lon0 = float(drive.lat_deg[first]), float(drive.lon_deg[first])
     east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
     truth_ll = np.stack([drive.lat_deg, drive.lon_deg], axis=-1)
     truth_xy = screen_xy(east, north)
+    good_runs, bad_runs = truth_runs(drive.gnss_fault == 0, usable)
 
     # Styling and static layers, once.
     estimators = list(result.estimates)
@@ -173,15 +186,26 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     rec.log("signals/speed_mps", rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS speed"]), static=True)
     rec.log("gnss/available", rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS available"]), static=True)
     # The truth is drawn wide underneath, the overview layers thin, the growing tracks wide on top.
-    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll], colors=[GNSS_COLOR], radii=rr.Radius.ui_points(4.0)), static=True)
-    rec.log("local/gnss", rr.LineStrips2D([truth_xy], colors=[GNSS_COLOR], radii=rr.Radius.ui_points(4.0), draw_order=10), static=True)
+    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in good_runs], colors=[GNSS_COLOR],
+                                           radii=rr.Radius.ui_points(4.0)), static=True)
+    rec.log("local/gnss", rr.LineStrips2D([truth_xy[a:b] for a, b in good_runs], colors=[GNSS_COLOR], radii=rr.Radius.ui_points(4.0),
+                                          draw_order=10), static=True)
+    if bad_runs:
+        rec.log("map/gnss_bad", rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in bad_runs], colors=[BAD_GNSS_COLOR],
+                                                  radii=rr.Radius.ui_points(1.5)), static=True)
+        rec.log("local/gnss_bad", rr.LineStrips2D([truth_xy[a:b] for a, b in bad_runs], colors=[BAD_GNSS_COLOR],
+                                                  radii=rr.Radius.ui_points(1.5), draw_order=11), static=True)
     rec.log("summary", rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
     step("static layers")
 
     # Per-sample series.
     t = drive.t_s
-    send("map/gnss/position", t, rr.GeoPoints.columns(positions=truth_ll, colors=np.tile(GNSS_COLOR, (len(t), 1)), radii=np.full(len(t), -6.0)))
-    send("local/gnss/position", t, rr.Points2D.columns(positions=truth_xy, colors=np.tile(GNSS_COLOR, (len(t), 1)), radii=np.full(len(t), -6.0)))
+    tu, nu = t[usable], int(usable.sum())
+    send("map/gnss/position", tu, rr.GeoPoints.columns(positions=truth_ll[usable], colors=np.tile(GNSS_COLOR, (nu, 1)), radii=np.full(nu, -6.0)))
+    send("local/gnss/position", tu, rr.Points2D.columns(positions=truth_xy[usable], colors=np.tile(GNSS_COLOR, (nu, 1)), radii=np.full(nu, -6.0)))
+    quality = _quality_states(drive.gnss_fault)
+    change = np.concatenate([[True], quality[1:] != quality[:-1]])
+    send("gnss/quality", t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
     send("signals/accel_long_mps2", t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send("signals/yaw_rate_radps/gyro", t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send("signals/speed_mps", t, rr.Scalars.columns(scalars=drive.speed_mps))
@@ -235,6 +259,47 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         f.write(data)
     _check_written(path, target or path)
     return rows
+
+
+def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+    """Index ranges ``[a, b)`` of the good stretches and of the bad-but-drawable ones of a track.
+
+    A bad stretch also takes the good samples on either side, so the grey line joins the green.
+    Unusable samples (no position) are in neither: the track is broken there.
+    """
+    def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+        edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+        return [(int(a), int(b)) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)) if b - a >= 1]
+
+    n = len(good)
+    good_runs = [(a, b) for a, b in runs(good & usable) if b - a >= 2]
+    bad_runs = []
+    for a, b in runs(~good & usable):
+        a = a - 1 if a > 0 and usable[a - 1] else a
+        b = b + 1 if b < n and usable[b] else b
+        if b - a >= 2:
+            bad_runs.append((a, b))
+    return good_runs, bad_runs
+
+
+def _quality_states(fault: np.ndarray) -> np.ndarray:
+    """Per sample "good" or the fault names ("bad: frozen, jump")."""
+    states = np.full(len(fault), "good", dtype=object)
+    for mask in np.unique(fault[fault != 0]):
+        states[fault == mask] = "bad: " + ", ".join(fault_names(int(mask)))
+    return states
+
+
+def usable_fixes(fault: np.ndarray) -> np.ndarray:
+    """Samples whose fix is a position worth drawing (and framing views around): not at (0, 0),
+    not a jump. All of them if none is."""
+    usable = (fault & np.uint16(GnssFault.NEAR_ZERO | GnssFault.JUMP)) == 0
+    return usable if usable.any() else np.ones(len(fault), dtype=bool)
+
+
+def _usable_positions(drive) -> tuple[np.ndarray, np.ndarray]:
+    usable = usable_fixes(drive.gnss_fault)
+    return drive.lat_deg[usable], drive.lon_deg[usable]
 
 
 def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> None:

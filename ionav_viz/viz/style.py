@@ -18,6 +18,8 @@ GNSS_COLOR: RGB = (0, 170, 80)
 GYRO_COLOR: RGB = (150, 150, 150)
 OUTAGE_MARK_COLOR: RGB = (90, 90, 90)
 EVENT_COLOR: RGB = (250, 200, 40)
+#: Stretches of the GNSS track that are not trustworthy truth (drawn thin and grey).
+BAD_GNSS_COLOR: RGB = (175, 175, 175)
 GNSS_LABEL = "GNSS (truth)"
 GYRO_LABEL = "gyro"
 

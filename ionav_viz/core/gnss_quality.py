@@ -1,0 +1,166 @@
+"""GNSS quality per sample: which fixes are trustworthy ground truth, and why not.
+
+Every number ionav-viz reports is a difference from the GNSS track, so a bad fix must never be
+scored. Each sample of a drive carries a fault mask (:attr:`Drive.gnss_fault`, 0 = good); the
+bits say why (:class:`GnssFault`). They come from what the source says (satellite count,
+reported accuracy) and from consistency with the drive's own speed, in :func:`assess_gnss`,
+with thresholds in one place (:class:`GnssLimits`, every one overridable: ``--gnss-limit
+jump_margin_m=5`` on the command line, ``gnss_limits=GnssLimits(jump_margin_m=5)`` in Python).
+
+Fixes a reader cannot use at all (``status < 0``, a non-finite position) are dropped by the
+reader, leaving a gap; fixes sharing a time stamp keep the first; out-of-order fixes are sorted
+by stamp (MCAP) or refused (CSV, where time going backwards means two logs joined).
+
+Checks, per sample ``i`` (positions compared in a local flat frame, fine for the metres
+between consecutive samples):
+
+* ``no-fix``: satellite count 0 (IO-VNBD's logger keeps its last numbers during a loss).
+* ``few-satellites``: satellite count below ``min_satellites``.
+* ``poor-accuracy``: reported horizontal standard deviation above ``max_sigma_m``.
+* ``near-zero``: latitude and longitude both within ``near_zero_deg`` of 0 (a receiver's
+  "no position" written as (0, 0)).
+* ``frozen``: the position does not change for at least ``frozen_min_s`` while the speed says
+  the car moved (mean of the GNSS speed and, where the drive has it, the vehicle speed at least
+  ``moving_mps``): a receiver holding its last fix. The run's first sample (the last real fix)
+  stays good.
+* ``jump``: between two otherwise good samples the position moves further than the speed can
+  explain: ``d > jump_speed_factor * max(v_i, v_i+1) * dt + jump_margin_m``. A single sample
+  jumping away and back is flagged alone; a step (the track jumps once, e.g. when the receiver
+  settles after a loss) flags both samples around it.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from .errors import InputError
+
+
+class GnssFault(enum.IntFlag):
+    """Why a GNSS sample is not trustworthy truth (bits of :attr:`Drive.gnss_fault`)."""
+
+    NO_FIX = 1
+    FEW_SATELLITES = 2
+    POOR_ACCURACY = 4
+    NEAR_ZERO = 8
+    FROZEN = 16
+    JUMP = 32
+
+
+#: Each fault bit's name in reports, JSON and the recording.
+FAULT_NAMES = {
+    GnssFault.NO_FIX: "no-fix",
+    GnssFault.FEW_SATELLITES: "few-satellites",
+    GnssFault.POOR_ACCURACY: "poor-accuracy",
+    GnssFault.NEAR_ZERO: "near-zero",
+    GnssFault.FROZEN: "frozen",
+    GnssFault.JUMP: "jump",
+}
+
+
+@dataclass(frozen=True)
+class GnssLimits:
+    """Thresholds of the GNSS quality checks (see the module docstring for what each does)."""
+
+    min_satellites: int = 4
+    max_sigma_m: float = 5.0
+    near_zero_deg: float = 0.01
+    frozen_min_s: float = 0.5
+    moving_mps: float = 1.0
+    jump_speed_factor: float = 1.5
+    jump_margin_m: float = 3.0
+
+    def with_overrides(self, pairs: list[str]) -> GnssLimits:
+        """``['jump_margin_m=5', ...]`` -> a copy with those limits changed, each checked against its range."""
+        known = {f.name for f in fields(self)}
+        changes: dict[str, float | int] = {}
+        for pair in pairs:
+            name, _, text = pair.partition("=")
+            name = name.strip().replace("-", "_")
+            if name not in known or not text.strip():
+                raise InputError(f"unknown GNSS limit {pair!r}", f"choose from {', '.join(sorted(known))}, as NAME=VALUE", param="gnss_limits")
+            try:
+                value = float(text)
+            except ValueError:
+                raise InputError(f"GNSS limit {pair!r}: {text!r} is not one number", param="gnss_limits") from None
+            lo, hi = _LIMIT_RANGES[name]
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise InputError(f"GNSS limit {pair!r} is out of range", f"{name} takes values from {lo:g} to {hi:g}", param="gnss_limits")
+            changes[name] = int(value) if name == "min_satellites" else value
+        return replace(self, **changes)
+
+
+_LIMIT_RANGES = {
+    "min_satellites": (0, 64), "max_sigma_m": (0.001, 1e4), "near_zero_deg": (0.0, 10.0), "frozen_min_s": (0.05, 60.0),
+    "moving_mps": (0.0, 50.0), "jump_speed_factor": (1.0, 10.0), "jump_margin_m": (0.0, 1e4),
+}
+
+
+def fault_names(mask: int) -> list[str]:
+    """Names of the bits set in ``mask``."""
+    return [name for bit, name in FAULT_NAMES.items() if mask & bit]
+
+
+def count_by_fault(masks: np.ndarray) -> dict[str, int]:
+    """How many of ``masks`` have each fault bit (only faults that occur)."""
+    masks = np.asarray(masks, dtype=np.int64)
+    counts = {name: int(np.count_nonzero(masks & bit)) for bit, name in FAULT_NAMES.items()}
+    return {name: n for name, n in counts.items() if n}
+
+
+def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed_mps: np.ndarray,
+                n_satellites: np.ndarray | None = None, sigma_m: np.ndarray | None = None,
+                vehicle_speed_mps: np.ndarray | None = None, limits: GnssLimits = GnssLimits()) -> np.ndarray:
+    """Fault mask (uint16, 0 = good) of each sample; see the module docstring for the checks."""
+    n = len(t_s)
+    fault = np.zeros(n, dtype=np.uint16)
+    if n_satellites is not None:
+        fault[n_satellites <= 0] |= np.uint16(GnssFault.NO_FIX)
+        fault[(n_satellites > 0) & (n_satellites < limits.min_satellites)] |= np.uint16(GnssFault.FEW_SATELLITES)
+    if sigma_m is not None:
+        fault[sigma_m > limits.max_sigma_m] |= np.uint16(GnssFault.POOR_ACCURACY)
+    fault[(np.abs(lat_deg) < limits.near_zero_deg) & (np.abs(lon_deg) < limits.near_zero_deg)] |= np.uint16(GnssFault.NEAR_ZERO)
+    if n < 2:
+        return fault
+
+    dt = np.diff(t_s)
+    north = np.diff(lat_deg) * _M_PER_DEG
+    east = np.diff(lon_deg) * _M_PER_DEG * np.cos(np.deg2rad(0.5 * (lat_deg[1:] + lat_deg[:-1])))
+    step_m = np.hypot(north, east)
+    speed = speed_mps if vehicle_speed_mps is None else np.maximum(speed_mps, vehicle_speed_mps)
+    fault |= _frozen(t_s, step_m, speed, limits)
+
+    # Jumps, only between samples not already known bad.
+    good = fault == 0
+    expected = limits.jump_speed_factor * np.maximum(speed[1:], speed[:-1]) * dt + limits.jump_margin_m
+    jump = (step_m > expected) & good[1:] & good[:-1]
+    spike = np.zeros(n, dtype=bool)
+    spike[1:-1] = jump[:-1] & jump[1:]
+    step = jump & ~spike[:-1] & ~spike[1:]
+    flagged = spike.copy()
+    flagged[:-1] |= step
+    flagged[1:] |= step
+    fault[flagged] |= np.uint16(GnssFault.JUMP)
+    return fault
+
+
+_M_PER_DEG = 6_371_008.8 * np.pi / 180.0  # mean Earth radius: local steps only
+
+
+def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: GnssLimits) -> np.ndarray:
+    """FROZEN on samples repeating the previous position for >= frozen_min_s while moving."""
+    fault = np.zeros(len(t_s), dtype=np.uint16)
+    same = step_m < 1e-3
+    if not same.any():
+        return fault
+    # runs of repeated positions: samples k+1 .. j repeat sample k
+    edges = np.diff(np.concatenate([[0], same.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):  # steps a .. b-1
+        first, last = a, b  # samples first .. last share one position
+        if t_s[last] - t_s[first] >= limits.frozen_min_s and speed[first + 1 : last + 1].mean() >= limits.moving_mps:
+            fault[first + 1 : last + 1] |= np.uint16(GnssFault.FROZEN)
+    return fault

@@ -1,0 +1,203 @@
+"""GNSS quality: bad fixes are flagged per sample, never scored, counted in every report and drawn apart.
+
+Faults are injected into a bundled simulated drive (known rows), so the expected flags and the
+expected excluded windows follow from the injection, computed here independently of the code.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ionav_viz.core.gnss_quality import GnssFault, GnssLimits, assess_gnss
+from ionav_viz.dataset.samples import SAMPLES, sample_path, samples_dir
+from ionav_viz.sources.iovnbd import HEADER
+
+from .conftest import run_cli
+from .test_replay import read_rrd
+
+SOURCE = samples_dir() / "V-sim-roundabout.csv"
+LINES = SOURCE.read_text().splitlines()
+COL = {name: i for i, name in enumerate(HEADER)}
+T_S = np.array([float(r.split(",")[COL["Time Since Start of Day (seconds)"]]) for r in LINES[1:]])
+T_S -= T_S[0]
+
+# Injected faults, by sample index (file row = index + 2)
+NEAR_ZERO = range(998, 1001)
+NO_SATS = range(1998, 2028)
+FROZEN = range(2999, 3019)  # repeat sample 2998's position; the car drives at ~10 m/s there
+SPIKE = 3998  # one fix 22 m north, back at the next
+
+
+def _faulty_lines() -> list[str]:
+    rows = [r.split(",") for r in LINES[1:]]
+    lat, lon = COL["Latitude (degrees)"], COL["Longitude (degrees)"]
+    for i in NEAR_ZERO:
+        rows[i][lat] = rows[i][lon] = "0.0"
+    for i in NO_SATS:
+        rows[i][COL["No of GPS Satellites Available"]] = "0"
+    for i in FROZEN:
+        rows[i][lat], rows[i][lon] = rows[2998][lat], rows[2998][lon]
+    rows[SPIKE][lat] = f"{float(rows[SPIKE][lat]) + 0.0002:.8f}"
+    return [LINES[0]] + [",".join(r) for r in rows]
+
+
+@pytest.fixture(scope="module")
+def faulty(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("q") / "V-faults.csv"
+    path.write_text("\r\n".join(_faulty_lines()) + "\r\n")
+    return path
+
+
+def _expected_bad_windows(bad_samples: set[int], n_windows: int) -> set[int]:
+    """Windows [w, w + 1] s touching a bad sample: one inside, or one a boundary is interpolated from."""
+    out = set()
+    for w in range(n_windows):
+        inside = np.flatnonzero((T_S >= w) & (T_S <= w + 1))
+        touched = set(inside) | {int(inside[0]) - 1, int(inside[-1]) + 1}
+        if (T_S[inside[0]] == w):
+            touched.discard(int(inside[0]) - 1)
+        if (T_S[inside[-1]] == w + 1):
+            touched.discard(int(inside[-1]) + 1)
+        if touched & bad_samples:
+            out.add(w)
+    return out
+
+
+def test_injected_faults_are_flagged_exactly(faulty):
+    from ionav_viz import load_drive
+
+    drive = load_drive(faulty)
+    fault = drive.gnss_fault
+    assert set(np.flatnonzero(fault & GnssFault.NEAR_ZERO)) == set(NEAR_ZERO)
+    assert set(np.flatnonzero(fault & GnssFault.NO_FIX)) == set(NO_SATS)
+    assert set(np.flatnonzero(fault & GnssFault.FROZEN)) == set(FROZEN)
+    assert set(np.flatnonzero(fault & GnssFault.JUMP)) == {SPIKE}
+    injected = set(NEAR_ZERO) | set(NO_SATS) | set(FROZEN) | {SPIKE}
+    assert set(np.flatnonzero(fault)) == injected  # recall and precision 1 on samples
+
+
+def test_bad_truth_is_never_scored_and_reports_say_so(faulty):
+    proc = run_cli("evaluate", str(faulty), "--no-idnn", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert "54 of 5983 GNSS samples are not trustworthy truth (no-fix 30, near-zero 3, frozen 20, jump 1)" in proc.stderr
+    rep = json.loads(proc.stdout)
+    injected = set(NEAR_ZERO) | set(NO_SATS) | set(FROZEN) | {SPIKE}
+    bad = _expected_bad_windows(injected, rep["gnss_truth"]["windows"])
+    assert rep["gnss_truth"]["excluded_windows"] == len(bad)
+    assert sum(rep["gnss_truth"]["excluded_by_reason"].values()) >= len(bad)
+    assert set(rep["gnss_truth"]["excluded_by_reason"]) == {"near-zero", "no-fix", "frozen", "jump"}
+    # tiled outages: none covers a bad window, nor starts right after one
+    for seq in rep["sequences"]:
+        k = round(seq["start_s"])
+        assert not (set(range(k - 1, k + 10)) & bad), (k, sorted(bad))
+    # the clean drive tiles 59 outages; the bad stretches each cost the tiles they touch
+    assert rep["n_sequences"] + rep["gnss_truth"]["excluded_outages"] >= 59
+    assert rep["gnss_truth"]["excluded_outages"] > 0
+    text = run_cli("evaluate", str(faulty), "--no-idnn")
+    assert f"GNSS truth: {len(bad)} of 600 windows excluded" in text.stdout
+
+
+def test_outages_asked_for_on_bad_truth_are_refused(faulty, tmp_path):
+    proc = run_cli("replay", str(faulty), "--no-idnn", "--at", "195", "-o", str(tmp_path / "x.rrd"))
+    assert proc.returncode == 2
+    assert "--at 195: start time 195 s: the GNSS truth of that 10 s outage is not trustworthy (no-fix)" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_thresholds_can_be_overridden(faulty):
+    from ionav_viz import load_drive
+
+    # a margin larger than the injected 22 m spike lets it pass
+    drive = load_drive(faulty, gnss_limits=GnssLimits().with_overrides(["jump_margin_m=50"]))
+    assert not (drive.gnss_fault & GnssFault.JUMP).any()
+    proc = run_cli("evaluate", str(faulty), "--no-idnn", "--json", "--gnss-limit", "frozen_min_s=5")
+    assert "frozen" not in json.loads(proc.stdout)["gnss_truth"]["excluded_by_reason"]  # the 2 s freeze is now too short
+    bad = run_cli("evaluate", str(faulty), "--gnss-limit", "frozen_min_s=-1")
+    assert bad.returncode == 2 and "--gnss-limit: GNSS limit 'frozen_min_s=-1' is out of range" in bad.stderr
+
+
+def test_no_false_exclusions_on_any_bundled_drive():
+    from ionav_viz import load_drive
+
+    flagged = {s.file: int(np.count_nonzero(load_drive(sample_path(s)).gnss_fault)) for s in SAMPLES}
+    assert len(flagged) == 46 and not any(flagged.values()), flagged
+
+
+def test_recording_shows_quality_and_draws_bad_stretches_apart(faulty, tmp_path):
+    out = tmp_path / "f.rrd"
+    proc = run_cli("replay", str(faulty), "--no-idnn", "-q", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    rows, static = read_rrd(out)
+    states = {s[0] for _, s in rows["/gnss/quality"]}
+    assert states == {"good", "bad: near-zero", "bad: no-fix", "bad: frozen", "bad: jump"}
+    # fixes at (0, 0) and the jump are not drawn; the frozen and no-fix stretches are, in grey
+    assert "/local/gnss_bad" in static and "/map/gnss_bad" in static
+    positions = rows["/map/gnss/position"]
+    assert len(positions) == 5983 - len(NEAR_ZERO) - 1
+    assert min(abs(p[0][0]) for _, p in positions) > 1.0
+
+
+# --- the checks themselves, on hand-made arrays -------------------------------------------------
+
+def _straight(n: int = 50, speed_mps: float = 10.0, rate_hz: float = 10.0):
+    t = np.arange(n) / rate_hz
+    lat = 52.0 + speed_mps * t / 111_195.0  # due north, metres -> degrees on the mean sphere
+    return t, lat, np.full(n, -1.5), np.full(n, speed_mps)
+
+
+def test_a_spike_flags_one_sample_and_a_step_both_sides():
+    t, lat, lon, v = _straight()
+    spiked = lat.copy()
+    spiked[20] += 10.0 / 111_195.0  # 10 m off: more than 1.5 * 10 m/s * 0.1 s + 3 m
+    assert list(np.flatnonzero(assess_gnss(t, spiked, lon, v))) == [20]
+    stepped = lat.copy()
+    stepped[30:] += 10.0 / 111_195.0
+    assert list(np.flatnonzero(assess_gnss(t, stepped, lon, v))) == [29, 30]
+    small = lat.copy()
+    small[20] += 2.0 / 111_195.0  # 2 m: within the margin
+    assert not assess_gnss(t, small, lon, v).any()
+
+
+def test_frozen_only_while_moving_and_only_long_enough():
+    t, lat, lon, v = _straight()
+    frozen = lat.copy()
+    frozen[10:20] = lat[9]  # 1 s held while driving 10 m/s
+    assert list(np.flatnonzero(assess_gnss(t, frozen, lon, v))) == list(range(10, 20))
+    standing = np.zeros_like(v)
+    assert not assess_gnss(t, np.full_like(lat, lat[0]), lon, standing).any()  # a car standing still keeps its position
+    short = lat.copy()
+    short[10:13] = lat[9]  # 0.3 s < frozen_min_s; the jump after it stays within the margin
+    assert not assess_gnss(t, short, lon, v).any()
+    # a frozen GNSS speed of zero is caught through the vehicle speed
+    assert assess_gnss(t, frozen, lon, standing, vehicle_speed_mps=v)[15] == GnssFault.FROZEN
+
+
+def test_source_flags_satellites_accuracy_and_null_island():
+    t, lat, lon, v = _straight(10)
+    sats = np.array([0, 3, 4, 9, 9, 9, 9, 9, 9, 9], dtype=float)
+    sigma = np.array([1, 1, 1, 6, 1, 1, 1, 1, 1, 1], dtype=float)
+    lat[7], lon[7] = 0.0, 0.0
+    fault = assess_gnss(t, lat, lon, v, n_satellites=sats, sigma_m=sigma)
+    assert list(fault) == [GnssFault.NO_FIX, GnssFault.FEW_SATELLITES, 0, GnssFault.POOR_ACCURACY, 0, 0, 0,
+                           GnssFault.NEAR_ZERO, 0, 0]
+
+
+def test_mcap_covariance_gives_poor_accuracy(tmp_path):
+    from ionav_viz import load_drive
+
+    from .mcap_fixtures import write_json
+
+    def tamper(kind, i, msg):
+        if kind == "fix":
+            var = 64.0 if 20 <= i < 30 else 0.25  # 8 m and 0.5 m standard deviation
+            msg = {**msg, "position_covariance_type": 2, "position_covariance": [var, 0, 0, 0, var, 0, 0, 0, 4 * var]}
+        return [msg]
+
+    drive = load_drive(write_json(tmp_path / "cov.mcap", duration_s=30.0, gnss_hz=2, tamper=tamper))
+    bad_t = drive.t_s[(drive.gnss_fault & GnssFault.POOR_ACCURACY) != 0]
+    # fixes 20-29 at 2 Hz: 10-15 s after the first fix (interpolated neighbours included)
+    assert bad_t.min() > 9.4 and bad_t.max() < 15.1 and len(bad_t) >= 45
