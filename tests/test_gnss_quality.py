@@ -56,7 +56,7 @@ def _expected_bad_windows(bad_samples: set[int], n_windows: int) -> set[int]:
     """Windows [w, w + 1] s touching a bad sample: one inside, or one a boundary is interpolated from."""
     out = set()
     for w in range(n_windows):
-        inside = np.flatnonzero((T_S >= w) & (T_S <= w + 1))
+        inside = np.flatnonzero((w <= T_S) & (w + 1 >= T_S))
         touched = set(inside) | {int(inside[0]) - 1, int(inside[-1]) + 1}
         if (T_S[inside[0]] == w):
             touched.discard(int(inside[0]) - 1)

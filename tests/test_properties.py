@@ -191,3 +191,11 @@ def test_mcap_reader_returns_a_valid_drive_or_its_own_error(tmp_path_factory, me
     assert np.all(np.abs(drive.lat_deg) <= 90) and np.all(np.abs(drive.lon_deg) <= 180)
     assert np.all((drive.heading_deg >= 0) & (drive.heading_deg < 360)) and np.all(drive.speed_mps >= 0)
     assert drive.duration_s < 3600 + 40  # stray stamps never stretch the drive
+
+
+def test_headings_wrap_into_0_360_even_for_tiny_negative_angles():
+    """Found by the MCAP property test: np.mod(-1e-15, 360) is 360.0, outside [0, 360)."""
+    from ionav_viz.core.units import wrap_360
+
+    assert np.mod(-1e-15, 360.0) == 360.0
+    assert list(wrap_360(np.array([-1e-15, 0.0, 359.5, 360.0, -90.0, 725.0]))) == [0.0, 0.0, 359.5, 0.0, 270.0, 5.0]

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, WINDOW_S, hold_course_when_slow
+from ..core.units import wrap_360
 
 __all__ = ["WINDOW_S", "Windows", "faults_between", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
 
@@ -191,8 +192,8 @@ def make_windows(
         lon0_deg=lon0,
         lat1_deg=lat1,
         lon1_deg=lon1,
-        heading0_deg=np.mod(hdg0, 360.0),
-        heading1_deg=np.mod(hdg1, 360.0),
+        heading0_deg=wrap_360(hdg0),
+        heading1_deg=wrap_360(hdg1),
         speed0_mps=spd0,
         gnss_disp_m=np.asarray(disp, dtype=np.float64),
         gnss_yaw_rate_radps=gnss_yaw,

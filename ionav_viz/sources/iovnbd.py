@@ -32,7 +32,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS
+from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
 from .plausibility import check_plausible
 
 log = logging.getLogger("ionav_viz")
@@ -324,7 +324,7 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     check_plausible(values, path, lambda i: f"row {line_of_row[i]}", names, file_units)
     raw_yaw = values.pop("yaw_rate_radps")
     values["yaw_rate_radps"] = _yaw_rate_ccw(raw_yaw, values, t_s, yaw_sign, path)
-    values["heading_deg"] = np.mod(values["heading_deg"], 360.0)
+    values["heading_deg"] = wrap_360(values["heading_deg"])
     values["t_s"] = t_s - t_s[0]
 
     return Drive(

@@ -16,9 +16,9 @@ when there are several or none match):
   ``linear.y`` north, m/s), giving speed and course; a TwistStamped whose ``frame_id`` is a body
   frame (``base_link``, ``base_footprint``, ``body``, ``vehicle``) and ``nav_msgs/msg/Odometry``
   (twist in the child body frame) give the speed ``linear.x`` only. Without them, speed and
-  course come from the GNSS fixes by centred differences over at least 1 s
+  course come from the GNSS fixes by a local parabola fitted over at least 2 s of track
   (:func:`velocity_from_fixes`), never by dividing by the time between two fixes; the course is
-  held below 1 m/s.
+  held below 2 m/s (1 m/s for a receiver's own course).
 * Values: every value is checked against the physical limits of :mod:`.plausibility` (an
   impossible one is an error naming the topic and stamp). Fixes with ``status.status < 0`` or a
   non-finite position (how drivers say "no fix") are dropped with one warning; of fixes sharing a
@@ -33,7 +33,8 @@ warning, so they cannot stretch the drive.
 
 Rates: sensors at different rates (IMU at 50-400 Hz, GNSS at 1-20 Hz) are resampled onto one
 10 Hz grid: IMU samples are averaged per bin of 0.1 s centred on each grid time, GNSS positions
-(and speeds) linearly interpolated, never across a GNSS gap longer than 1 s; grid times without
+(and speeds) linearly interpolated, never across a GNSS gap (longer than 1 s and than 1.5 of
+the receiver's usual interval between fixes); grid times without
 IMU samples or GNSS coverage are left out (a gap, which the windows bridge when short and split
 at when long). A log whose IMU and GNSS stamps are the same (as ``ionav-viz convert`` writes
 them) is kept at its own stamps, so converting a CSV and reading it back changes nothing.
@@ -56,7 +57,8 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
+from ..core.grid import GRID_RATE_HZ, hold_course_when_slow
+from ..core.units import wrap_360
 from .plausibility import first_implausible, implausible
 
 log = logging.getLogger("ionav_viz")
@@ -518,11 +520,11 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
         has_course = np.isfinite(s_course)
         if has_course.any():
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
-            course = np.mod(np.interp(t, s_t[has_course], unwrapped), 360.0)
+            course = wrap_360(np.interp(t, s_t[has_course], unwrapped))
     if v is None or course is None:
         fix_v, fix_course = velocity_from_fixes(t, g_t, g_lat, g_lon)
         v = fix_v if v is None else v
-        course = hold_course_when_slow(fix_course, fix_v, MIN_COURSE_SPEED_MPS) if course is None else course
+        course = hold_course_when_slow(fix_course, fix_v, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": accel, "yaw_rate_radps": yaw}
     if first_implausible("height_m", alt) is None:
@@ -534,33 +536,63 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
                  start_time_of_day_s=start % 86400.0, columns=columns)
 
 
-#: Shortest half-baseline (s) of the centred differences that give speed and course from fixes:
-#: fix noise divided by a baseline of at least 1 s, never by the time between two fixes.
-MIN_HALF_BASELINE_S = 0.5
+#: Below this speed (m/s) a course from fixes is noise (the fixes' scatter, not the car's motion,
+#: sets its direction), so the last course at speed is held; a receiver's Doppler course is good
+#: down to MIN_COURSE_SPEED_MPS.
+FIX_COURSE_MIN_SPEED_MPS = 2.0
+
+#: Shortest half-width (s) of the local fit that gives speed and course from fixes: the fix noise is
+#: averaged over at least 2 s of track, never divided by the time between two fixes.
+MIN_HALF_BASELINE_S = 1.0
+_WGS84_A_M, _WGS84_E2 = 6_378_137.0, 6.694379990141317e-3
 
 
 def velocity_from_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Speed (m/s) and course (deg from north, clockwise) at times ``t`` from GNSS fixes alone.
 
-    Centred differences of the fix track (linearly interpolated) over ``t - h .. t + h`` with
-    ``h`` the larger of MIN_HALF_BASELINE_S and the median time between fixes, one-sided at the
-    ends: the noise of a fix is divided by at least ``h``, whatever the fix rate, duplicates or
-    jitter. ``g_t`` must be strictly increasing.
+    A parabola in time fitted by least squares to the fixes within ``t - h .. t + h`` (``h`` the
+    larger of MIN_HALF_BASELINE_S and 1.5 median fix intervals), differentiated at ``t``: exact for
+    a constant acceleration whatever the spacing of the fixes, unbiased for a constant turn rate,
+    and the noise of the fixes averaged over every fix in the window, whatever the rate (1-20
+    Hz), jitter or duplicates. Degrees become metres with the WGS84 radii of curvature at the
+    window's first fix. ``g_t`` must be strictly increasing.
     """
-    from pyproj import Geod
-
-    h = max(MIN_HALF_BASELINE_S, float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0)
-    ta, tb = np.clip(t - h, g_t[0], g_t[-1]), np.clip(t + h, g_t[0], g_t[-1])
-    lat_a, lat_b = np.interp(ta, g_t, g_lat), np.interp(tb, g_t, g_lat)
-    lon_a, lon_b = np.interp(ta, g_t, g_lon), np.interp(tb, g_t, g_lon)
-    az, _, dist = Geod(ellps="WGS84").inv(lon_a, lat_a, lon_b, lat_b)
-    speed = np.asarray(dist) / np.maximum(tb - ta, h)
-    return speed, np.mod(np.asarray(az), 360.0)
+    gap = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0
+    h = max(MIN_HALF_BASELINE_S, 1.5 * gap)
+    ve, vn = np.zeros(len(t)), np.zeros(len(t))
+    max_fixes = int(np.max(np.searchsorted(g_t, g_t + 2 * h, side="right") - np.arange(len(g_t)))) + 3
+    block = 20_000  # bounds the (grid x fixes) arrays
+    for a in range(0, len(t), block):
+        tb = t[a : a + block]
+        at = np.searchsorted(g_t, tb)
+        # the fixes within h, and at least the ones either side of t (across a wider gap: the chord)
+        lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"), np.clip(at - 1, 0, None))
+        hi = np.maximum(np.searchsorted(g_t, tb + h, side="right"), np.minimum(at + 1, len(g_t)))
+        lo = np.maximum(np.minimum(lo, hi - 3), 0)  # three fixes for a parabola, at the ends too
+        hi = np.minimum(np.maximum(hi, lo + 3), len(g_t))
+        idx = lo[:, None] + np.arange(max_fixes)[None, :]
+        use = idx < hi[:, None]
+        idx = np.minimum(idx, len(g_t) - 1)
+        dt = np.where(use, g_t[idx] - tb[:, None], 0.0)
+        design = np.stack([use * 1.0, dt, 0.5 * dt * dt], axis=-1)  # value, rate, acceleration at t
+        normal = design.transpose(0, 2, 1) @ design
+        normal[:, 2, 2] += 1e-9  # two fixes only: no curvature, the chord
+        for out, values in ((vn, g_lat), (ve, g_lon)):
+            y = np.where(use, values[idx] - values[lo][:, None], 0.0)
+            coef = np.linalg.solve(normal, (design.transpose(0, 2, 1) @ y[:, :, None]))
+            out[a : a + block] = coef[:, 1, 0]  # deg/s
+        sin2 = np.sin(np.radians(g_lat[lo])) ** 2
+        vn[a : a + block] *= np.radians(_WGS84_A_M * (1 - _WGS84_E2) / (1 - _WGS84_E2 * sin2) ** 1.5)
+        ve[a : a + block] *= np.radians(_WGS84_A_M / np.sqrt(1 - _WGS84_E2 * sin2)) * np.cos(np.radians(g_lat[lo]))
+    return np.hypot(ve, vn), wrap_360(np.degrees(np.arctan2(ve, vn)))
 
 
 def _covered(t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
-    """Grid times inside the GNSS record and not inside a GNSS gap longer than MAX_GNSS_GAP_S."""
+    """Grid times inside the GNSS record and not inside a GNSS gap: a gap is longer than
+    MAX_GNSS_GAP_S and than 1.5 of the receiver's usual intervals (a jittered 1 Hz receiver's
+    1.004 s between fixes is its rate, not a gap)."""
     inside = (t >= g_t[0]) & (t <= g_t[-1])
     k = np.clip(np.searchsorted(g_t, t), 1, len(g_t) - 1)
     gap = g_t[k] - g_t[k - 1]
-    return inside & (gap <= MAX_GNSS_GAP_S)
+    usual = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0
+    return inside & (gap <= max(MAX_GNSS_GAP_S, 1.5 * usual))
