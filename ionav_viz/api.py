@@ -216,7 +216,7 @@ def evaluate(
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
     placement = placement or Tile()
-    n = outage_windows(outage_s)
+    outage_windows(outage_s)  # checked before any drive is read
     chosen = resolve_estimators(estimators, model=model)
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     bias_of = _bias_for(bias_from, data_root, load_kw)
@@ -227,15 +227,11 @@ def evaluate(
             progress(drive.name, i, len(items))
         windows = make_windows(drive)
         events = detect_events(drive, thresholds or EventThresholds()) if isinstance(placement, AroundEvents) else None
-        if isinstance(placement, Tile):
-            starts = placement.starts(windows, n)
-            excluded = excluded_by_truth(windows, n, lambda w: placement.starts(w, n))
-            if len(starts) == 0:
-                log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, outage_s,
-                            " on good GNSS truth" if excluded else "")
-                continue
-        else:
-            starts, _, excluded = _starts(drive, windows, placement, outage_s, events)
+        starts, _, excluded = _starts(drive, windows, placement, outage_s, events)
+        if isinstance(placement, Tile) and len(starts) == 0:
+            log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, outage_s,
+                        " on good GNSS truth" if excluded else "")
+            continue
         bias = bias_of(drive)
         ests = _estimators_for(drive, chosen, estimators is None)
         results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,

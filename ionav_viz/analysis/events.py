@@ -41,13 +41,13 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
 
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from ..core.drive import Drive
 from ..core.grid import GRID_RATE_HZ
+from ..core.overrides import with_overrides
 from ..core.units import G_MPS2
 
 EVENT_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
@@ -92,30 +92,7 @@ class EventThresholds:
 
     def with_overrides(self, pairs: list[str]) -> EventThresholds:
         """``['hard_brake_g=0.4', ...]`` -> a copy with those thresholds changed."""
-        from ..core.errors import InputError
-
-        known = {f.name: f for f in fields(self)}
-        changes = {}
-        for pair in pairs:
-            name, _, value = pair.partition("=")
-            name = name.strip().replace("-", "_")
-            if name not in known or not value:
-                raise InputError(f"unknown threshold {pair!r}", f"choose from {', '.join(known)}", param="thresholds")
-            pair_field = known[name]
-            wants_pair = isinstance(getattr(self, name), tuple)
-            try:
-                parsed = tuple(float(v) for v in value.split(",")) if wants_pair else float(value)
-            except ValueError:
-                kind = "two numbers LOW,HIGH" if wants_pair else "one number"
-                raise InputError(f"threshold {pair!r}: {value!r} is not {kind}", param="thresholds") from None
-            values = parsed if wants_pair else (parsed,)
-            low, high = THRESHOLD_LIMITS.get(pair_field.name, (0.0, 1e6))
-            if wants_pair and (len(values) != 2 or values[0] > values[1]):
-                raise InputError(f"threshold {pair!r}: give two numbers LOW,HIGH with LOW <= HIGH", param="thresholds")
-            if not all(math.isfinite(v) and low <= v <= high for v in values):
-                raise InputError(f"threshold {pair!r} is out of range", f"{name} takes values from {low:g} to {high:g}", param="thresholds")
-            changes[name] = parsed
-        return replace(self, **changes)
+        return with_overrides(self, pairs, THRESHOLD_LIMITS, "threshold", "thresholds")
 
 
 @dataclass

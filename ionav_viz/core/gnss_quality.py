@@ -32,12 +32,11 @@ between consecutive samples):
 from __future__ import annotations
 
 import enum
-import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from .overrides import with_overrides
 
 
 class GnssFault(enum.IntFlag):
@@ -76,22 +75,7 @@ class GnssLimits:
 
     def with_overrides(self, pairs: list[str]) -> GnssLimits:
         """``['jump_margin_m=5', ...]`` -> a copy with those limits changed, each checked against its range."""
-        known = {f.name for f in fields(self)}
-        changes: dict[str, float | int] = {}
-        for pair in pairs:
-            name, _, text = pair.partition("=")
-            name = name.strip().replace("-", "_")
-            if name not in known or not text.strip():
-                raise InputError(f"unknown GNSS limit {pair!r}", f"choose from {', '.join(sorted(known))}, as NAME=VALUE", param="gnss_limits")
-            try:
-                value = float(text)
-            except ValueError:
-                raise InputError(f"GNSS limit {pair!r}: {text!r} is not one number", param="gnss_limits") from None
-            lo, hi = _LIMIT_RANGES[name]
-            if not (math.isfinite(value) and lo <= value <= hi):
-                raise InputError(f"GNSS limit {pair!r} is out of range", f"{name} takes values from {lo:g} to {hi:g}", param="gnss_limits")
-            changes[name] = int(value) if name == "min_satellites" else value
-        return replace(self, **changes)
+        return with_overrides(self, pairs, _LIMIT_RANGES, "GNSS limit", "gnss_limits")
 
 
 _LIMIT_RANGES = {
@@ -157,10 +141,12 @@ def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: Gnss
     same = step_m < 1e-3
     if not same.any():
         return fault
-    # runs of repeated positions: samples k+1 .. j repeat sample k
+    # runs of repeated positions: samples first+1 .. last repeat sample first
     edges = np.diff(np.concatenate([[0], same.astype(np.int8), [0]]))
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):  # steps a .. b-1
-        first, last = a, b  # samples first .. last share one position
-        if t_s[last] - t_s[first] >= limits.frozen_min_s and speed[first + 1 : last + 1].mean() >= limits.moving_mps:
-            fault[first + 1 : last + 1] |= np.uint16(GnssFault.FROZEN)
+    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    speed_sum = np.concatenate([[0.0], np.cumsum(speed)])
+    mean_speed = (speed_sum[last + 1] - speed_sum[first + 1]) / (last - first)
+    held = (t_s[last] - t_s[first] >= limits.frozen_min_s) & (mean_speed >= limits.moving_mps)
+    run_of = np.cumsum(np.bincount(first[held] + 1, minlength=len(t_s) + 1) - np.bincount(last[held] + 1, minlength=len(t_s) + 1))
+    fault[run_of[: len(t_s)] > 0] = np.uint16(GnssFault.FROZEN)
     return fault

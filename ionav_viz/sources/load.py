@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -9,6 +10,8 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.gnss_quality import GnssLimits, assess_gnss, count_by_fault
 from .resolve import resolve_drive
+
+log = logging.getLogger("ionav_viz")
 
 
 @dataclass(frozen=True)
@@ -52,12 +55,10 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
     cols = drive.columns
     drive.gnss_fault = assess_gnss(drive.t_s, drive.lat_deg, drive.lon_deg, drive.speed_mps, cols.get("n_satellites"),
                                    cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits)
-    bad = drive.gnss_fault != 0
+    bad = ~drive.gnss_ok
     if bad.any():
-        import logging
-
         reasons = ", ".join(f"{name} {n}" for name, n in count_by_fault(drive.gnss_fault).items())
-        logging.getLogger("ionav_viz").warning(
+        log.warning(
             "%s: %d of %d GNSS samples are not trustworthy truth (%s); windows touching them are not scored",
             drive.source, int(bad.sum()), len(drive), reasons)
 

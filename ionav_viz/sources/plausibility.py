@@ -69,14 +69,17 @@ def first_implausible(column: str, values: np.ndarray) -> int | None:
     return int(np.argmax(bad)) if bad.any() else None
 
 
-def implausible(column: str, value: float) -> str | None:
-    """Why one value of ``column`` is implausible ("not a finite number", "... outside [lo, hi]"), else None."""
+def implausible(column: str, value: float, file_unit: tuple[float, str] | None = None) -> str | None:
+    """Why one value of ``column`` (drive-model units) is implausible, else None: "not a finite
+    number" or "VALUE UNIT outside [LO, HI]", shown in ``file_unit`` = (factor to drive-model
+    units, unit name) when given, so a message shows the value as the file has it."""
     lo, hi = LIMITS.get(column, (-math.inf, math.inf))
     if not math.isfinite(value):
         return "not a finite number"
-    if not lo <= value <= hi:
-        return f"{value:.6g} {_UNITS.get(column.rsplit('_', 1)[-1], '')} outside [{lo:.6g}, {hi:.6g}]"
-    return None
+    if lo <= value <= hi:
+        return None
+    factor, unit = file_unit or (1.0, _UNITS.get(column.rsplit("_", 1)[-1], ""))
+    return f"{value / factor:.6g} {unit} outside [{lo / factor:.6g}, {hi / factor:.6g}]"
 
 
 def check_plausible(columns: dict[str, np.ndarray], path: object, where: Callable[[int], str],
@@ -85,15 +88,11 @@ def check_plausible(columns: dict[str, np.ndarray], path: object, where: Callabl
 
     ``where(i)`` says where sample ``i`` is in the file ("row 57", "t = 12.3 s"); ``names`` maps a
     column to the name the file gives it, ``file_units`` to (factor to drive-model units, unit
-    name) so the message shows the value as the file has it.
+    name) as for :func:`implausible`.
     """
     for column, values in columns.items():
         i = first_implausible(column, values)
-        if i is None:
-            continue
-        factor, unit = (file_units or {}).get(column, (1.0, _UNITS.get(column.rsplit("_", 1)[-1], "")))
-        lo, hi = (x / factor for x in LIMITS.get(column, (-math.inf, math.inf)))
-        value = float(values[i]) / factor
-        reason = "not a finite number" if not math.isfinite(value) else f"{value:.6g} {unit} outside [{lo:.6g}, {hi:.6g}]"
-        raise InputError(f"{path}: {where(i)}, {(names or {}).get(column, column)}: {reason}",
-                         "no car sensor produces that value: fix or delete the sample, or check the column's unit")
+        if i is not None:
+            reason = implausible(column, float(values[i]), (file_units or {}).get(column))
+            raise InputError(f"{path}: {where(i)}, {(names or {}).get(column, column)}: {reason}",
+                             "no car sensor produces that value: fix or delete the sample, or check the column's unit")

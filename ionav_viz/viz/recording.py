@@ -151,7 +151,9 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     # Logged into memory and written by Python: a full disk then fails as a plain OSError, where
     # Rerun's file sink can block forever once its writer thread has died.
     memory = rec.memory_recording()
-    rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], map_zoom(*_usable_positions(drive), 350)))
+    usable = usable_fixes(drive.gnss_fault)
+    zoom = map_zoom(drive.lat_deg[usable], drive.lon_deg[usable], 350)
+    rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], zoom))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
@@ -163,13 +165,12 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         if progress:
             progress(label)
 
-    usable = usable_fixes(drive.gnss_fault)
     first = int(np.argmax(usable))
     lat0, lon0 = float(drive.lat_deg[first]), float(drive.lon_deg[first])
     east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
     truth_ll = np.stack([drive.lat_deg, drive.lon_deg], axis=-1)
     truth_xy = screen_xy(east, north)
-    good_runs, bad_runs = truth_runs(drive.gnss_fault == 0, usable)
+    good_runs, bad_runs = truth_runs(drive.gnss_ok, usable)
 
     # Styling and static layers, once.
     estimators = list(result.estimates)
@@ -296,10 +297,6 @@ def usable_fixes(fault: np.ndarray) -> np.ndarray:
     usable = (fault & np.uint16(GnssFault.NEAR_ZERO | GnssFault.JUMP)) == 0
     return usable if usable.any() else np.ones(len(fault), dtype=bool)
 
-
-def _usable_positions(drive) -> tuple[np.ndarray, np.ndarray]:
-    usable = usable_fixes(drive.gnss_fault)
-    return drive.lat_deg[usable], drive.lon_deg[usable]
 
 
 def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> None:
