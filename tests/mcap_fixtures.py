@@ -109,3 +109,50 @@ def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, tamper=None,
                 w.add_message(ch, log_time=ns, data=json.dumps(m).encode(), publish_time=ns)
         w.finish()
     return path
+
+
+def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0.02, jitter_s=0.004, sensor_from_body=None):
+    """``drive`` (a simulated one, the logger's CSV) as a ROS 2 MCAP the way many real bags are:
+    ``sensor_msgs/Imu`` at the drive's samples and ``NavSatFix`` at ``gnss_hz`` with no velocity
+    topic. The fixes are the CSV's positions at jittered (``jitter_s``) stamps plus what a
+    consumer receiver adds on top of a VBOX-class track: white noise of ``white_m`` per axis, the
+    1e-7 deg rounding of its NMEA output and the odd fix published twice (``duplicate_share``).
+    The IMU carries gravity (+9.81 m/s^2 up) and the centripetal acceleration (speed x yaw rate,
+    to the left in a left turn); ``sensor_from_body`` (3x3) rotates both vectors into a mount
+    other than REP 103's. Written with mcap_ros2 directly, not with ionav-viz's converter."""
+    from mcap_ros2.writer import Writer
+
+    rng = np.random.default_rng(seed)
+    rot = np.eye(3) if sensor_from_body is None else np.asarray(sensor_from_body, dtype=float)
+    t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
+    g_t = np.arange(0.0, drive.t_s[-1], 1.0 / gnss_hz)
+    g_t = np.clip(np.sort(g_t + rng.uniform(-jitter_s, jitter_s, len(g_t))), 0.0, drive.t_s[-1])
+    m_per_deg = 6_371_008.8 * math.pi / 180.0
+    lat = np.round(np.interp(g_t, drive.t_s, drive.lat_deg) + rng.normal(0, white_m, len(g_t)) / m_per_deg, 7)
+    lon = np.interp(g_t, drive.t_s, drive.lon_deg)
+    lon = np.round(lon + rng.normal(0, white_m, len(g_t)) / (m_per_deg * np.cos(np.radians(lat))), 7)
+    accel = rot @ np.stack([drive.accel_long_mps2, drive.speed_mps * drive.yaw_rate_radps, np.full(len(drive), 9.81)])
+    gyro = rot @ np.stack([np.zeros(len(drive)), np.zeros(len(drive)), drive.yaw_rate_radps])
+    with open(path, "wb") as f:
+        w = Writer(f)
+        imu_schema = w.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"])
+        fix_schema = w.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"])
+        events = []
+        for i, t in enumerate(drive.t_s):
+            events.append((t, "/imu/data", imu_schema, {
+                "header": {"stamp": _stamp(t0 + t), "frame_id": "imu_link"},
+                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
+                "angular_velocity": dict(zip("xyz", map(float, gyro[:, i]))), "angular_velocity_covariance": [0.0] * 9,
+                "linear_acceleration": dict(zip("xyz", map(float, accel[:, i]))), "linear_acceleration_covariance": [0.0] * 9}))
+        for t, la, lo in zip(g_t, lat, lon):
+            msg = {"header": {"stamp": _stamp(t0 + t), "frame_id": "gps"}, "status": {"status": 0, "service": 1},
+                   "latitude": float(la), "longitude": float(lo), "altitude": 100.0,
+                   "position_covariance": [0.0] * 9, "position_covariance_type": 0}
+            events.append((t, "/fix", fix_schema, msg))
+            if rng.uniform() < duplicate_share:
+                events.append((t + 0.001, "/fix", fix_schema, msg))
+        for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
+            ns = int(round((t0 + t + 0.02) * 1e9))
+            w.write_message(topic, schema, msg, log_time=ns, publish_time=ns)
+        w.finish()
+    return path

@@ -35,8 +35,10 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
     least ``quick_accel_peak_mps2`` (1.2 m/s^2), at most ``quick_accel_window_s`` (4 s) apart.
     The event spans the two peaks. Values: the two peaks (m/s^2) and the jerk between them (m/s^3).
 ``cruise``
-    Straight-line cruising, the motorway reference: speed at least 15 m/s, ``|a| <= 0.5 m/s^2``,
-    ``|r| <= 0.02 rad/s``, for at least 10 s. Values: mean speed (m/s).
+    Straight-line cruising, the motorway reference: speed at least 15 m/s, ``|a| <= 0.5 m/s^2``
+    (``a`` further smoothed over ``cruise_smooth_s``, 3 s: steady on average, so the speed noise of
+    a fix-only log does not cut a cruise into pieces), ``|r| <= 0.02 rad/s``, for at least 10 s.
+    Values: mean speed (m/s).
 """
 
 from __future__ import annotations
@@ -62,7 +64,7 @@ THRESHOLD_LIMITS = {
     "flare_gap_s": (0.0, 60.0), "sharp_min_turn_deg": (0.0, 360.0), "sharp_max_s": (0.5, 120.0), "sharp_max_radius_m": (1.0, 1000.0),
     "left_right_min_turn_deg": (0.0, 360.0), "left_right_gap_s": (0.0, 60.0), "quick_accel_peak_mps2": (0.05, 20.0),
     "quick_accel_window_s": (0.5, 60.0), "cruise_min_speed_mps": (0.0, 100.0), "cruise_max_accel_mps2": (0.0, 20.0),
-    "cruise_max_yaw_radps": (0.0, 2.0), "cruise_min_s": (1.0, 3600.0),
+    "cruise_max_yaw_radps": (0.0, 2.0), "cruise_min_s": (1.0, 3600.0), "cruise_smooth_s": (0.1, 30.0),
 }  # fmt: skip
 
 
@@ -89,6 +91,7 @@ class EventThresholds:
     cruise_max_accel_mps2: float = 0.5
     cruise_max_yaw_radps: float = 0.02
     cruise_min_s: float = 10.0
+    cruise_smooth_s: float = 3.0
 
     def with_overrides(self, pairs: list[str]) -> EventThresholds:
         """``['hard_brake_g=0.4', ...]`` -> a copy with those thresholds changed."""
@@ -247,7 +250,8 @@ def detect_quick_accel(s: Signals, th: EventThresholds) -> list[Event]:
 
 
 def detect_cruise(s: Signals, th: EventThresholds) -> list[Event]:
-    calm = ((s.speed_mps >= th.cruise_min_speed_mps) & (np.abs(s.accel_mps2) <= th.cruise_max_accel_mps2)
+    steady = _smooth(s.accel_mps2, th.cruise_smooth_s, RATE_HZ)  # a moment's noise does not end a cruise
+    calm = ((s.speed_mps >= th.cruise_min_speed_mps) & (np.abs(steady) <= th.cruise_max_accel_mps2)
             & (np.abs(s.yaw_rate_radps) <= th.cruise_max_yaw_radps) & s.valid)
     out = []
     for i0, i1 in _runs(calm):

@@ -17,8 +17,9 @@ when there are several or none match):
   frame (``base_link``, ``base_footprint``, ``body``, ``vehicle``) and ``nav_msgs/msg/Odometry``
   (twist in the child body frame) give the speed ``linear.x`` only. Without them, speed and
   course come from the GNSS fixes by a local parabola fitted over at least 2 s of track
-  (:func:`velocity_from_fixes`), never by dividing by the time between two fixes; the course is
-  held below 2 m/s (1 m/s for a receiver's own course).
+  (:func:`fit_fixes`), never by dividing by the time between two fixes, and the positions are
+  that fit's (smoothed: a 1-second window's displacement would otherwise carry the fixes' white
+  noise twice); the course is held below 2 m/s (1 m/s for a receiver's own course).
 * Values: every value is checked against the physical limits of :mod:`.plausibility` (an
   impossible one is an error naming the topic and stamp). Fixes with ``status.status < 0`` or a
   non-finite position (how drivers say "no fix") are dropped with one warning; of fixes sharing a
@@ -522,9 +523,12 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
             course = wrap_360(np.interp(t, s_t[has_course], unwrapped))
     if v is None or course is None:
-        fix_v, fix_course = velocity_from_fixes(t, g_t, g_lat, g_lon)
-        v = fix_v if v is None else v
-        course = hold_course_when_slow(fix_course, fix_v, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
+        # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
+        # (the per-window displacement of raw fixes would carry their white noise twice)
+        fit = fit_fixes(t, g_t, g_lat, g_lon)
+        v = fit.speed_mps if v is None else v
+        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
+        lat, lon = fit.lat_deg, fit.lon_deg
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": accel, "yaw_rate_radps": yaw}
     if first_implausible("height_m", alt) is None:
@@ -547,44 +551,82 @@ MIN_HALF_BASELINE_S = 1.0
 _WGS84_A_M, _WGS84_E2 = 6_378_137.0, 6.694379990141317e-3
 
 
-def velocity_from_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Speed (m/s) and course (deg from north, clockwise) at times ``t`` from GNSS fixes alone.
+def fit_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray) -> FixFit:
+    """Position, speed (m/s) and course (deg from north, clockwise) at times ``t`` from GNSS fixes alone.
 
     A parabola in time fitted by least squares to the fixes within ``t - h .. t + h`` (``h`` the
-    larger of MIN_HALF_BASELINE_S and 1.5 median fix intervals), differentiated at ``t``: exact for
-    a constant acceleration whatever the spacing of the fixes, unbiased for a constant turn rate,
-    and the noise of the fixes averaged over every fix in the window, whatever the rate (1-20
-    Hz), jitter or duplicates. Degrees become metres with the WGS84 radii of curvature at the
-    window's first fix. ``g_t`` must be strictly increasing.
+    larger of MIN_HALF_BASELINE_S and 1.5 median fix intervals), evaluated and differentiated at
+    ``t``: exact for a constant acceleration whatever the spacing of the fixes, unbiased for a
+    constant turn rate, and the noise of the fixes averaged over every fix in the window, whatever
+    the rate (1-20 Hz), jitter or duplicates. Degrees become metres with the WGS84 radii of
+    curvature at the window's first fix. ``g_t`` must be strictly increasing.
+
+    At a standstill the parabola's speed is the magnitude of the fix noise's slope (a Rayleigh
+    variable, ~0.2 m/s for 0.15 m of noise at 10 Hz), which would hide the stillness the bias
+    estimate needs. So below ~1.5 m/s the speed blends towards the smaller of it and a straight
+    line fitted over SLOW_BASELINE_FACTOR times the baseline (well under 0.1 m/s when still); the
+    smaller, because the long line lags when the car stops, and blended, so the speed stays
+    continuous (its derivative is the events' acceleration).
     """
     gap = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0
     h = max(MIN_HALF_BASELINE_S, 1.5 * gap)
-    ve, vn = np.zeros(len(t)), np.zeros(len(t))
-    max_fixes = int(np.max(np.searchsorted(g_t, g_t + 2 * h, side="right") - np.arange(len(g_t)))) + 3
-    block = 20_000  # bounds the (grid x fixes) arrays
+    lat, lon, ve, vn = _local_fit(t, g_t, g_lat, g_lon, h, degree=2)
+    speed = np.hypot(ve, vn)
+    _, _, slow_ve, slow_vn = _local_fit(t, g_t, g_lat, g_lon, SLOW_BASELINE_FACTOR * h, degree=1)
+    still = np.minimum(speed, np.hypot(slow_ve, slow_vn))
+    w = np.clip((speed - SLOW_BLEND_MPS[0]) / (SLOW_BLEND_MPS[1] - SLOW_BLEND_MPS[0]), 0.0, 1.0)
+    return FixFit(lat, lon, w * speed + (1.0 - w) * still, wrap_360(np.degrees(np.arctan2(ve, vn))))
+
+
+@dataclass(frozen=True)
+class FixFit:
+    """What :func:`fit_fixes` gives per grid time: smoothed position (deg), speed (m/s), course (deg)."""
+
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    speed_mps: np.ndarray
+    course_deg: np.ndarray
+
+
+#: How much longer the straight-line fit is where the car is slow, and the speeds (m/s) between
+#: which the fixes' speed blends from it to the parabola's (see fit_fixes).
+SLOW_BASELINE_FACTOR = 2.5
+SLOW_BLEND_MPS = (0.5, 1.5)
+
+
+def _local_fit(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray, h: float,
+               degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Latitude, longitude (deg) and east, north velocity (m/s) at ``t`` from a polynomial of
+    ``degree`` (1 or 2) in time fitted to the fixes within ``t +- h``."""
+    lat, lon, ve, vn = (np.zeros(len(t)) for _ in range(4))
+    need = degree + 1
+    max_fixes = int(np.max(np.searchsorted(g_t, g_t + 2 * h, side="right") - np.arange(len(g_t)))) + need
+    block = max(1, 2_000_000 // max_fixes)  # bounds the (grid x fixes) arrays
     for a in range(0, len(t), block):
         tb = t[a : a + block]
         at = np.searchsorted(g_t, tb)
         # the fixes within h, and at least the ones either side of t (across a wider gap: the chord)
         lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"), np.clip(at - 1, 0, None))
         hi = np.maximum(np.searchsorted(g_t, tb + h, side="right"), np.minimum(at + 1, len(g_t)))
-        lo = np.maximum(np.minimum(lo, hi - 3), 0)  # three fixes for a parabola, at the ends too
-        hi = np.minimum(np.maximum(hi, lo + 3), len(g_t))
+        lo = np.maximum(np.minimum(lo, hi - need), 0)  # enough fixes for the polynomial, at the ends too
+        hi = np.minimum(np.maximum(hi, lo + need), len(g_t))
         idx = lo[:, None] + np.arange(max_fixes)[None, :]
         use = idx < hi[:, None]
         idx = np.minimum(idx, len(g_t) - 1)
         dt = np.where(use, g_t[idx] - tb[:, None], 0.0)
-        design = np.stack([use * 1.0, dt, 0.5 * dt * dt], axis=-1)  # value, rate, acceleration at t
+        terms = [use * 1.0, dt, 0.5 * dt * dt][:need]  # value, rate, acceleration at t
+        design = np.stack(terms, axis=-1)
         normal = design.transpose(0, 2, 1) @ design
-        normal[:, 2, 2] += 1e-9  # two fixes only: no curvature, the chord
-        for out, values in ((vn, g_lat), (ve, g_lon)):
+        normal[:, -1, -1] += 1e-9  # fewer fixes than terms (two fixes): the chord
+        for position, rate, values in ((lat, vn, g_lat), (lon, ve, g_lon)):
             y = np.where(use, values[idx] - values[lo][:, None], 0.0)
             coef = np.linalg.solve(normal, (design.transpose(0, 2, 1) @ y[:, :, None]))
-            out[a : a + block] = coef[:, 1, 0]  # deg/s
+            position[a : a + block] = values[lo] + coef[:, 0, 0]
+            rate[a : a + block] = coef[:, 1, 0]  # deg/s
         sin2 = np.sin(np.radians(g_lat[lo])) ** 2
         vn[a : a + block] *= np.radians(_WGS84_A_M * (1 - _WGS84_E2) / (1 - _WGS84_E2 * sin2) ** 1.5)
         ve[a : a + block] *= np.radians(_WGS84_A_M / np.sqrt(1 - _WGS84_E2 * sin2)) * np.cos(np.radians(g_lat[lo]))
-    return np.hypot(ve, vn), wrap_360(np.degrees(np.arctan2(ve, vn)))
+    return lat, lon, ve, vn
 
 
 def _covered(t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
