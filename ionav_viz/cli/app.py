@@ -64,7 +64,7 @@ def _root(
 #: add or override entries with :func:`name_options`.
 OPTION_OF: dict[str, str] = {
     "data_root": "--data-root", "stamps": "--stamps", "model": "--model", "bias_from": "--bias-from",
-    "thresholds": "--threshold", "gnss_limits": "--gnss-limit", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
+    "thresholds": "--threshold", "gnss_limits": "--gnss-limit", "imu_axes": "--imu-axes", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
     "estimators": "--estimators", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
     "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
     "duration_s": "--duration", "seed": "--seed",

@@ -17,7 +17,8 @@ import typer
 
 # --- options shared by several commands -----------------------------------------------------
 DataRoot = typer.Option(None, "--data-root", help="IO-VNBD checkout to find run names in (default: $IONAV_DATA).", show_default=False)
-YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the CSV yaw-rate column: auto (checked against the GNSS heading), cw or ccw positive.")
+YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the yaw rate: auto (the source's convention, checked against the GNSS heading), cw or ccw positive.")
+ImuAxes = typer.Option(None, "--imu-axes", help="MCAP: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
 ImuTopic = typer.Option(None, "--imu-topic", help="MCAP: the IMU topic (default: the one sensor_msgs/msg/Imu channel).", show_default=False)
 GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP: the GNSS topic (default: the one NavSatFix or LocationFix channel).", show_default=False)
 SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP: a TwistStamped or Odometry topic for speed (optional).", show_default=False)
@@ -51,7 +52,7 @@ class SourceArgs:
 _SOURCE_OPTIONS = (
     ("data_root_opt", DataRoot, Optional[Path]), ("yaw_sign", YawSign, str), ("imu_topic", ImuTopic, Optional[str]),
     ("gnss_topic", GnssTopic, Optional[str]), ("speed_topic", SpeedTopic, Optional[str]), ("stamps", Stamps, str),
-    ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
+    ("imu_axes", ImuAxes, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
 )
 
 
@@ -76,7 +77,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
     the command receives them checked, as one ``source: SourceArgs`` argument."""
     def build(v: dict[str, Any]) -> SourceArgs:
-        return SourceArgs(v["data_root_opt"], yaw_sign(v["yaw_sign"]), mcap_options(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"]),
+        return SourceArgs(v["data_root_opt"], yaw_sign(v["yaw_sign"]), mcap_options(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"], v["imu_axes"]),
                           gnss_limits(v["gnss_limit"]))
 
     return _with_options(command, _SOURCE_OPTIONS, "source", build)
@@ -156,12 +157,15 @@ def event_types(text: str, option: str = "--on") -> tuple[str, ...]:
     return kinds
 
 
-def mcap_options(imu_topic, gnss_topic, speed_topic, stamps):
+def mcap_options(imu_topic, gnss_topic, speed_topic, stamps, imu_axes=None):
+    from ..sources.imu_frame import parse_imu_axes
     from ..sources.load import McapOptions
 
     if stamps not in ("header", "log"):
         raise typer.BadParameter(f"{stamps!r}: choose header or log", param_hint="--stamps")
-    return McapOptions(imu_topic, gnss_topic, speed_topic, stamps)
+    if imu_axes is not None:
+        parse_imu_axes(imu_axes)  # checked before any work; InputError names --imu-axes
+    return McapOptions(imu_topic, gnss_topic, speed_topic, stamps, imu_axes)
 
 
 def yaw_sign(value: str) -> str:

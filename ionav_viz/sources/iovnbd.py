@@ -33,6 +33,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
+from .imu_frame import STRONG, heading_rate_ccw_radps, yaw_correlation
 from .plausibility import check_plausible
 
 log = logging.getLogger("ionav_viz")
@@ -382,26 +383,14 @@ def _fix_degrees(values: dict[str, np.ndarray], path: Path) -> None:
             )
 
 
-def heading_rate_ccw_radps(t_s: np.ndarray, heading_deg: np.ndarray, speed_mps: np.ndarray) -> np.ndarray:
-    """Counter-clockwise turn rate implied by the GNSS course (rad/s), NaN where speed < 3 m/s."""
-    unwrapped = np.unwrap(np.deg2rad(heading_deg))
-    rate = -np.gradient(unwrapped, t_s)
-    rate[speed_mps < 3.0] = np.nan
-    return rate
-
-
 def _yaw_rate_ccw(raw: np.ndarray, values: dict, t_s: np.ndarray, yaw_sign: str, path: Path) -> np.ndarray:
     if yaw_sign == "ccw":
         return raw
     assumed = -raw  # documented default: the column is clockwise positive
     if yaw_sign == "cw":
         return assumed
-    gnss = heading_rate_ccw_radps(t_s, values["heading_deg"], values["speed_mps"])
-    turning = np.isfinite(gnss) & (np.abs(gnss) > np.deg2rad(3.0))
-    if turning.sum() < 50:
-        return assumed
-    corr = float(np.corrcoef(assumed[turning], gnss[turning])[0, 1])
-    if corr < -0.5:
+    corr = yaw_correlation(assumed, heading_rate_ccw_radps(t_s, values["heading_deg"], values["speed_mps"]))
+    if corr is not None and corr < -STRONG:
         log.warning(
             "%s: yaw-rate column is counter-clockwise positive (correlation with the GNSS heading "
             "change %.2f); flipped it. Force with --yaw-sign cw|ccw",

@@ -22,27 +22,33 @@ class McapOptions:
     gnss_topic: str | None = None
     speed_topic: str | None = None
     stamps: str = "header"
+    imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
 
 
 def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: McapOptions | None = None,
                gnss_limits: GnssLimits | None = None) -> Drive:
     """Resolve ``spec`` (path, bundled scenario or run name) and read it into a :class:`Drive`.
 
-    ``.csv`` files are IO-VNBD vehicle files (``yaw_sign`` applies); ``.mcap`` files are ROS 2 or
-    JSON MCAP logs (``mcap`` options apply). Every source then gets the same GNSS quality checks
+    ``.csv`` files are IO-VNBD vehicle files; ``.mcap`` files are ROS 2 or JSON MCAP logs
+    (``mcap`` options apply). ``yaw_sign`` applies to both (``auto``: the source's convention,
+    checked against the GNSS course). Every source then gets the same GNSS quality checks
     (``gnss_limits``, see :mod:`ionav_viz.core.gnss_quality`).
     """
     path = resolve_drive(spec, root)
     suffix = path.suffix.lower()
+    opts = mcap or McapOptions()
     if suffix == ".csv":
         from .iovnbd import read_iovnbd
 
+        if opts.imu_axes:
+            raise InputError(f"{path}: an IO-VNBD file has one accelerometer and one gyro axis; --imu-axes applies to MCAP logs",
+                             "leave --imu-axes out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes")
         drive = read_iovnbd(path, yaw_sign=yaw_sign)
     elif suffix == ".mcap":
         from .mcap_reader import read_mcap
 
-        opts = mcap or McapOptions()
-        drive = read_mcap(path, imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic, stamps=opts.stamps)
+        drive = read_mcap(path, imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic, stamps=opts.stamps,
+                          imu_axes=opts.imu_axes, yaw_sign=yaw_sign)
     else:
         raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", "ionav-viz reads IO-VNBD V-*.csv files and MCAP (.mcap) logs")
     check_rate(drive, path)

@@ -60,6 +60,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ, hold_course_when_slow
 from ..core.units import wrap_360
+from .imu_frame import AXES, YAW_REVERSED, check_imu_frame, parse_imu_axes
 from .plausibility import first_implausible, implausible
 
 log = logging.getLogger("ionav_viz")
@@ -308,16 +309,16 @@ class _BinSums:
     def __init__(self, dt: float, keep_samples: bool) -> None:
         self.dt = dt
         self.origin: float | None = None
-        self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (bins, [accel sum, yaw sum, count])
-        self.buffer: list[tuple[float, float, float]] = []
+        self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (bins, [value sums..., count])
+        self.buffer: list[tuple[float, ...]] = []  # (t, accel x, y, z, gyro x, y, z)
         # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
         # then they are as many as the output rows.
-        self.samples: list[tuple[float, float, float]] | None = [] if keep_samples else None
+        self.samples: list[tuple[float, ...]] | None = [] if keep_samples else None
 
-    def add(self, t: float, accel: float, yaw: float) -> None:
-        self.buffer.append((t, accel, yaw))
+    def add(self, sample: tuple[float, ...]) -> None:
+        self.buffer.append(sample)
         if self.samples is not None:
-            self.samples.append((t, accel, yaw))
+            self.samples.append(sample)
         if len(self.buffer) >= 65536:
             self.flush()
 
@@ -329,17 +330,17 @@ class _BinSums:
         if self.origin is None:
             self.origin = float(data[0, 0])
         bins = np.rint((data[:, 0] - self.origin) / self.dt).astype(np.int64)
-        self.parts.append(_sum_by_bin(bins, np.column_stack([data[:, 1], data[:, 2], np.ones(len(data))])))
+        self.parts.append(_sum_by_bin(bins, np.column_stack([data[:, 1:], np.ones(len(data))])))
         if len(self.parts) > 64:
             self.parts = [_sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))]
 
-    def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Grid times (s) of non-empty bins, mean accel, mean yaw rate, samples per bin."""
+    def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid times (s) of non-empty bins, the mean values per bin (n, 6), samples per bin."""
         self.flush()
         if not self.parts:
-            return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)
+            return np.zeros(0), np.zeros((0, 6)), np.zeros(0)
         bins, sums = _sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))
-        return self.origin + bins * self.dt, sums[:, 0] / sums[:, 2], sums[:, 1] / sums[:, 2], sums[:, 2]
+        return self.origin + bins * self.dt, sums[:, :-1] / sums[:, -1:], sums[:, -1]
 
 
 def _sum_by_bin(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -393,11 +394,23 @@ def _first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
 
 
 def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
-              speed_topic: str | None = None, stamps: str = "header", name: str | None = None) -> Drive:
-    """Read an MCAP log into a drive on a 10 Hz grid (see the module docstring)."""
+              speed_topic: str | None = None, stamps: str = "header", name: str | None = None,
+              imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
+    """Read an MCAP log into a drive on a 10 Hz grid (see the module docstring).
+
+    ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
+    :mod:`.imu_frame`); ``yaw_sign`` ``"cw"`` says the yaw axis turns clockwise positive, ``"ccw"``
+    (REP 103) that it does not, ``"auto"`` assumes REP 103 and checks it against the GNSS course.
+    """
     path = Path(path)
     if stamps not in ("header", "log"):
         raise InputError(f"stamps {stamps!r}: choose header or log", param="stamps")
+    if yaw_sign not in ("auto", "cw", "ccw"):
+        raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
+    mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
+    # body axis k = sign * log axis source[k]
+    source = [int(np.argmax(np.abs(row))) for row in mapping]
+    sign = [float(mapping[k, source[k]]) for k in range(3)]
     sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
     imu = _BinSums(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count)
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
@@ -424,10 +437,12 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
             try:
                 if role == "IMU":
                     t = when(msg, log_t, "header", "stamp")
-                    accel, yaw = float(_get(msg, "linear_acceleration", "x")), float(_get(msg, "angular_velocity", "z"))
-                    check(sel.imu.topic, t, "linear_acceleration.x", "accel_long_mps2", accel)
-                    check(sel.imu.topic, t, "angular_velocity.z", "yaw_rate_radps", yaw)
-                    imu.add(t, accel, yaw)
+                    lin, ang = _get(msg, "linear_acceleration"), _get(msg, "angular_velocity")
+                    raw = [float(_get(lin, a)) for a in AXES] + [float(_get(ang, a)) for a in AXES]
+                    for k, a in enumerate(AXES):  # every axis within the same limits
+                        check(sel.imu.topic, t, f"linear_acceleration.{a}", "accel_long_mps2", raw[k])
+                        check(sel.imu.topic, t, f"angular_velocity.{a}", "yaw_rate_radps", raw[3 + k])
+                    imu.add((t, *(sign[k] * raw[source[k]] for k in range(3)), *(sign[k] * raw[3 + source[k]] for k in range(3))))
                 elif role == "GNSS":
                     if sel.gnss.schema.startswith("foxglove"):
                         t = when(msg, log_t, "timestamp")
@@ -469,7 +484,8 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
         speeds = np.asarray(speed)
         speeds = speeds[np.argsort(speeds[:, 0], kind="stable")]
         speeds = speeds[_drop_strays(path, "speed", speeds[:, 0])]
-    return _to_drive(path, name or path.stem, imu, fixes, speeds)
+    drive = _to_drive(path, name or path.stem, imu, fixes, speeds, mapping, yaw_sign)
+    return drive
 
 
 def _horizontal_sigma_m(msg: Any) -> float:
@@ -499,17 +515,18 @@ def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, flo
     return t, math.hypot(vx, vy), math.degrees(math.atan2(vx, vy)) % 360.0  # east, north -> course
 
 
-def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.ndarray | None) -> Drive:
+def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.ndarray | None,
+              mapping: np.ndarray, yaw_sign: str) -> Drive:
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
     samples = np.asarray(sorted(imu.samples)) if imu.samples else None
     if samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t):
-        t, accel, yaw = samples.T  # IMU and GNSS share their stamps: keep them
+        t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps: keep them
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
     else:
-        t, accel, yaw, count = imu.means()
+        t, body, count = imu.means()
         keep = _drop_strays(path, "IMU", t, count)
         covered = keep & _covered(t, g_t)
-        t, accel, yaw = t[covered], accel[covered], yaw[covered]
+        t, body = t[covered], body[covered]
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
         raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
@@ -529,6 +546,9 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
         v = fit.speed_mps if v is None else v
         course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
         lat, lon = fit.lat_deg, fit.lon_deg
+    accel, yaw = body[:, 0], body[:, 5] * (-1.0 if yaw_sign == "cw" else 1.0)
+    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto"):
+        yaw = -yaw
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": accel, "yaw_rate_radps": yaw}
     if first_implausible("height_m", alt) is None:
@@ -538,6 +558,20 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
     start = float(t[0])
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
                  start_time_of_day_s=start % 86400.0, columns=columns)
+
+
+def _imu_frame_reversed(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
+                        mapping: np.ndarray, check_yaw_sign: bool) -> bool:
+    """Check the IMU's frame (:func:`.imu_frame.check_imu_frame`), warn once, and say whether the
+    yaw rate must be flipped (only when ``check_yaw_sign``)."""
+    found = check_imu_frame(t, body[:, :3], body[:, 3:], speed_mps, course_deg, mapping)
+    problems = [p for p in found.problems if check_yaw_sign or not p.startswith(YAW_REVERSED)]
+    if problems:
+        fix = f"; map the axes with --imu-axes {found.suggestion}" if found.suggestion else ""
+        force = "; force the sign with --yaw-sign cw|ccw" if found.yaw_reversed and check_yaw_sign else ""
+        log.warning("%s: the IMU is not in the body frame ionav-viz expects (REP 103: x forward, z up): %s%s%s",
+                    path, "; ".join(problems), fix, force)
+    return found.yaw_reversed and check_yaw_sign
 
 
 #: Below this speed (m/s) a course from fixes is noise (the fixes' scatter, not the car's motion,

@@ -5,7 +5,8 @@ Topics (``cdr`` encoding, standard schemas from :mod:`ionav_viz.ros2_msgs`):
 * ``/imu/data`` ``sensor_msgs/msg/Imu``, frame ``base_link`` (REP 103: x forward, z up):
   ``linear_acceleration.x`` = longitudinal specific force (m/s^2), ``angular_velocity.z`` = yaw
   rate, counter-clockwise positive (rad/s); orientation unknown (``orientation_covariance[0] = -1``,
-  REP 145), the other axes 0 with unknown covariance.
+  REP 145); ``linear_acceleration.z`` is gravity's +9.80665 m/s^2 (what a level IMU at rest
+  reads), the other axes 0, with unknown covariance.
 * ``/gps/fix`` ``sensor_msgs/msg/NavSatFix``, frame ``gps``: latitude, longitude, altitude (m).
 * ``/gps/vel`` ``geometry_msgs/msg/TwistStamped``, frame ``gps``: GNSS velocity as
   nmea_navsat_driver publishes it, ``linear.x`` east and ``linear.y`` north (m/s), from the GNSS
@@ -24,6 +25,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.fileio import atomic_path, check_output_file
+from ..core.units import G_MPS2
 from .ros2_msgs import DEFINITIONS
 
 TOPICS = {"imu": "/imu/data", "fix": "/gps/fix", "vel": "/gps/vel"}
@@ -61,7 +63,7 @@ def write_mcap(drive: Drive, path: Path, progress=None) -> int:
                 "orientation_covariance": unknown_orientation,
                 "angular_velocity": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])},
                 "angular_velocity_covariance": zeros9,
-                "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": 0.0},
+                "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": G_MPS2},
                 "linear_acceleration_covariance": zeros9,
             }
             fix = {
