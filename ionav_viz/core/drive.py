@@ -38,6 +38,7 @@ OPTIONAL_COLUMNS = (
     "height_m",
     "n_satellites",
     "gnss_sigma_m",
+    "gnss_fix",
     "speed_can_mps",
     "accel_lat_mps2",
     "steering_angle_deg",
@@ -59,7 +60,9 @@ class Drive:
         start_time_of_day_s: UTC time of day of the first sample (s).
         columns: ``REQUIRED_COLUMNS`` always, ``OPTIONAL_COLUMNS`` when the source has them;
             float64 arrays, one value per sample. ``gnss_sigma_m`` is the horizontal standard
-            deviation of the fix the source reports (m).
+            deviation of the fix the source reports (m); ``gnss_fix`` is 0 where the source had no
+            fix at that sample (a log's IMU goes on through a GNSS gap; the position there is only
+            interpolated) and 1 elsewhere.
         gnss_fault: uint16 per sample, 0 = good GNSS truth (see :mod:`ionav_viz.core.gnss_quality`);
             all good when not given.
     """

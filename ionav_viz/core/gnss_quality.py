@@ -14,15 +14,18 @@ by stamp (MCAP) or refused (CSV, where time going backwards means two logs joine
 Checks, per sample ``i`` (positions compared in a local flat frame, fine for the metres
 between consecutive samples):
 
-* ``no-fix``: satellite count 0 (IO-VNBD's logger keeps its last numbers during a loss).
+* ``no-fix``: satellite count 0 (IO-VNBD's logger keeps its last numbers during a loss), or no
+  fix at all at that time (an MCAP log whose IMU goes on through a gap between fixes).
 * ``few-satellites``: satellite count below ``min_satellites``.
 * ``poor-accuracy``: reported horizontal standard deviation above ``max_sigma_m``.
 * ``near-zero``: latitude and longitude both within ``near_zero_deg`` of 0 (a receiver's
   "no position" written as (0, 0)).
-* ``frozen``: the position does not change for at least ``frozen_min_s`` while the speed says
-  the car moved (mean of the GNSS speed and, where the drive has it, the vehicle speed at least
-  ``moving_mps``): a receiver holding its last fix. The run's first sample (the last real fix)
-  stays good.
+* ``frozen``: the position does not change for at least ``frozen_min_s`` while the car moved: the
+  mean of the GNSS speed (and, where the drive has it, the vehicle speed) over the run is at least
+  ``moving_mps``, or the car was moving that fast just before the run and the accelerometer does not
+  brake it below that within the run (a receiver holding its speed at 0, or a fix-only log whose
+  speed comes from the frozen positions). A receiver holding its last fix. The run's first sample
+  (the last real fix) stays good.
 * ``jump``: between two otherwise good samples the position moves further than the speed can
   explain: ``d > jump_speed_factor * max(v_i, v_i+1) * dt + jump_margin_m``. A single sample
   jumping away and back is flagged alone; a step (the track jumps once, e.g. when the receiver
@@ -98,10 +101,15 @@ def count_by_fault(masks: np.ndarray) -> dict[str, int]:
 
 def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed_mps: np.ndarray,
                 n_satellites: np.ndarray | None = None, sigma_m: np.ndarray | None = None,
-                vehicle_speed_mps: np.ndarray | None = None, limits: GnssLimits = GnssLimits()) -> np.ndarray:
-    """Fault mask (uint16, 0 = good) of each sample; see the module docstring for the checks."""
+                vehicle_speed_mps: np.ndarray | None = None, limits: GnssLimits = GnssLimits(),
+                has_fix: np.ndarray | None = None, accel_mps2: np.ndarray | None = None) -> np.ndarray:
+    """Fault mask (uint16, 0 = good) of each sample; see the module docstring for the checks.
+    ``has_fix`` (0 where the source had no fix) and ``accel_mps2`` (longitudinal specific force,
+    for the frozen check) are optional."""
     n = len(t_s)
     fault = np.zeros(n, dtype=np.uint16)
+    if has_fix is not None:
+        fault[has_fix <= 0] |= np.uint16(GnssFault.NO_FIX)
     if n_satellites is not None:
         fault[n_satellites <= 0] |= np.uint16(GnssFault.NO_FIX)
         fault[(n_satellites > 0) & (n_satellites < limits.min_satellites)] |= np.uint16(GnssFault.FEW_SATELLITES)
@@ -116,7 +124,7 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
     east = np.diff(lon_deg) * _M_PER_DEG * np.cos(np.deg2rad(0.5 * (lat_deg[1:] + lat_deg[:-1])))
     step_m = np.hypot(north, east)
     speed = speed_mps if vehicle_speed_mps is None else np.maximum(speed_mps, vehicle_speed_mps)
-    fault |= _frozen(t_s, step_m, speed, limits)
+    fault |= _frozen(t_s, step_m, speed, limits, accel_mps2)
 
     # Jumps, only between samples not already known bad.
     good = fault == 0
@@ -135,7 +143,7 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
 _M_PER_DEG = 6_371_008.8 * np.pi / 180.0  # mean Earth radius: local steps only
 
 
-def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: GnssLimits) -> np.ndarray:
+def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: GnssLimits, accel_mps2: np.ndarray | None = None) -> np.ndarray:
     """FROZEN on samples repeating the previous position for >= frozen_min_s while moving."""
     fault = np.zeros(len(t_s), dtype=np.uint16)
     same = step_m < 1e-3
@@ -146,7 +154,15 @@ def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: Gnss
     first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     speed_sum = np.concatenate([[0.0], np.cumsum(speed)])
     mean_speed = (speed_sum[last + 1] - speed_sum[first + 1]) / (last - first)
-    held = (t_s[last] - t_s[first] >= limits.frozen_min_s) & (mean_speed >= limits.moving_mps)
+    moving = mean_speed >= limits.moving_mps
+    if accel_mps2 is not None:
+        # moving just before the run, and the accelerometer never brakes it below moving_mps:
+        # the slowest speed within the run is v_before + min(integral of a) over the run
+        before = np.clip(np.searchsorted(t_s, t_s[first] - 1.0), 0, len(t_s) - 1)
+        dv = np.concatenate([[0.0], np.cumsum(0.5 * (accel_mps2[1:] + accel_mps2[:-1]) * np.diff(t_s)), [np.inf]])
+        lowest = np.minimum.reduceat(dv, np.column_stack([first, last + 1]).ravel())[::2] - dv[first]
+        moving |= (speed[before] >= limits.moving_mps) & (speed[before] + lowest >= limits.moving_mps)
+    held = (t_s[last] - t_s[first] >= limits.frozen_min_s) & moving
     run_of = np.cumsum(np.bincount(first[held] + 1, minlength=len(t_s) + 1) - np.bincount(last[held] + 1, minlength=len(t_s) + 1))
     fault[run_of[: len(t_s)] > 0] = np.uint16(GnssFault.FROZEN)
     return fault

@@ -60,7 +60,8 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
     """Set ``drive.gnss_fault`` from the GNSS quality checks and say once what was found."""
     cols = drive.columns
     drive.gnss_fault = assess_gnss(drive.t_s, drive.lat_deg, drive.lon_deg, drive.speed_mps, cols.get("n_satellites"),
-                                   cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits)
+                                   cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
+                                   has_fix=cols.get("gnss_fix"), accel_mps2=drive.accel_long_mps2)
     bad = ~drive.gnss_ok
     if bad.any():
         reasons = ", ".join(f"{name} {n}" for name, n in count_by_fault(drive.gnss_fault).items())

@@ -34,10 +34,11 @@ warning, so they cannot stretch the drive.
 
 Rates: sensors at different rates (IMU at 50-400 Hz, GNSS at 1-20 Hz) are resampled onto one
 10 Hz grid: IMU samples are averaged per bin of 0.1 s centred on each grid time, GNSS positions
-(and speeds) linearly interpolated, never across a GNSS gap (longer than 1 s and than 1.5 of
-the receiver's usual interval between fixes); grid times without
-IMU samples or GNSS coverage are left out (a gap, which the windows bridge when short and split
-at when long). A log whose IMU and GNSS stamps are the same (as ``ionav-viz convert`` writes
+(and speeds) linearly interpolated. Grid times without IMU samples are left out (a gap, which
+the windows bridge when short and split at when long); grid times with IMU samples inside a GNSS
+gap (longer than 1 s and than 1.5 of the receiver's usual interval between fixes: a tunnel) are
+kept with ``gnss_fix`` 0, so the GNSS quality marks them no-fix: never scored, but the inertial
+data through the gap is there for ``replay --on gnss-outage``. A log whose IMU and GNSS stamps are the same (as ``ionav-viz convert`` writes
 them) is kept at its own stamps, so converting a CSV and reading it back changes nothing.
 
 Memory: messages are streamed; IMU samples are folded into per-bin sums as they arrive, so memory
@@ -522,11 +523,12 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
     if samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t):
         t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps: keep them
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
+        has_fix = np.ones(len(t), dtype=bool)
     else:
         t, body, count = imu.means()
-        keep = _drop_strays(path, "IMU", t, count)
-        covered = keep & _covered(t, g_t)
-        t, body = t[covered], body[covered]
+        keep = _drop_strays(path, "IMU", t, count) & (t >= g_t[0]) & (t <= g_t[-1])
+        t, body = t[keep], body[keep]
+        has_fix = _covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
         raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
@@ -555,6 +557,8 @@ def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.
         columns["height_m"] = alt
     if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one
         columns["gnss_sigma_m"] = sigma
+    if not has_fix.all():
+        columns["gnss_fix"] = has_fix.astype(float)
     start = float(t[0])
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
                  start_time_of_day_s=start % 86400.0, columns=columns)
