@@ -8,7 +8,7 @@ import pytest
 from ionav_viz.analysis.events import EVENT_TYPES, EventThresholds, detect_events, score
 from ionav_viz.dataset.samples import SAMPLES, sample_path
 from ionav_viz.sim.simulate import simulated_manoeuvres
-from ionav_viz.sources.iovnbd import read_iovnbd
+from ionav_viz.sources.load import load_drive
 
 from .conftest import run_cli
 
@@ -16,15 +16,15 @@ from .conftest import run_cli
 def _planned(file: str, kind: str) -> int:
     """How many manoeuvres of ``kind`` the simulator put into the bundled drive ``file``."""
     sample = next(s for s in SAMPLES if s.file == file)
-    return sum(k == kind for k, _, _ in simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s))
+    return sum(k == kind for k, _, _ in simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s, sample.gnss_losses))
 
 
 @pytest.fixture(scope="module")
 def quality():
     totals = {k: np.zeros(4, int) for k in EVENT_TYPES}
     for sample in SAMPLES:
-        drive = read_iovnbd(sample_path(sample))
-        truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s)
+        drive = load_drive(str(sample_path(sample)))
+        truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s, sample.gnss_losses)
         for kind, sc in score(truth, detect_events(drive), drive.duration_s).items():
             totals[kind] += (sc.n_truth, sc.recalled, sc.n_found, sc.precise)
     return totals
@@ -40,20 +40,20 @@ def test_recall_and_precision_on_the_bundled_drives(quality, kind):
 
 def test_no_hard_brake_or_roundabout_on_the_motorway():
     sample = next(s for s in SAMPLES if s.file == "V-sim-motorway.csv")
-    found = detect_events(read_iovnbd(sample_path(sample)))
+    found = detect_events(load_drive(str(sample_path(sample))))
     assert not [e for e in found if e.type in ("hard-brake", "roundabout")]
     assert [e for e in found if e.type == "cruise"]
 
 
 def test_hard_brake_values_match_the_plan():
     sample = next(s for s in SAMPLES if s.file == "V-sim-hard-brake.csv")
-    found = [e for e in detect_events(read_iovnbd(sample_path(sample))) if e.type == "hard-brake"]
+    found = [e for e in detect_events(load_drive(str(sample_path(sample)))) if e.type == "hard-brake"]
     assert found and all(0.45 <= e.values["peak_decel_g"] <= 0.8 for e in found)
 
 
 def test_thresholds_can_be_overridden():
     sample = next(s for s in SAMPLES if s.file == "V-sim-hard-brake.csv")
-    drive = read_iovnbd(sample_path(sample))
+    drive = load_drive(str(sample_path(sample)))
     assert not [e for e in detect_events(drive, EventThresholds().with_overrides(["hard_brake_g=0.9"])) if e.type == "hard-brake"]
     proc = run_cli("events", "hard-brake", "--threshold", "nonsense=1")
     assert proc.returncode == 2 and "unknown threshold" in proc.stderr

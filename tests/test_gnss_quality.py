@@ -123,8 +123,35 @@ def test_thresholds_can_be_overridden(faulty):
 def test_no_false_exclusions_on_any_bundled_drive():
     from ionav_viz import load_drive
 
-    flagged = {s.file: int(np.count_nonzero(load_drive(sample_path(s)).gnss_fault)) for s in SAMPLES}
+    flagged = {s.file: int(np.count_nonzero(load_drive(sample_path(s)).gnss_fault)) for s in SAMPLES if not s.gnss_losses}
     assert len(flagged) == 46 and not any(flagged.values()), flagged
+
+
+def test_simulated_losses_are_flagged_exactly():
+    """The bundled drive with tunnel-like losses: the flagged samples are exactly the lost ones
+    (the simulator's own record), and the excluded windows exactly those touching them."""
+    from ionav_viz import load_drive
+    from ionav_viz.nav.windows import make_windows
+    from ionav_viz.sim.simulate import gnss_loss_spans
+
+    sample = next(s for s in SAMPLES if s.gnss_losses)
+    drive = load_drive(sample_path(sample))
+    spans = gnss_loss_spans(sample.scenario, sample.seed, sample.duration_s, sample.gnss_losses)
+    assert len(spans) == sample.gnss_losses and {k for _, _, k in spans} == {"frozen", "absent"}
+    lost = np.zeros(len(drive), dtype=bool)
+    edge = np.zeros(len(drive), dtype=bool)  # within the file's 1 ms time rounding of a loss's ends
+    for t0, t1, _ in spans:
+        lost |= (drive.t_s >= t0) & (drive.t_s < t1)
+        edge |= (np.abs(drive.t_s - t0) < 2e-3) | (np.abs(drive.t_s - t1) < 2e-3)
+    flagged = drive.gnss_fault != 0
+    assert np.array_equal(flagged[~edge], lost[~edge]), (int((flagged & ~lost).sum()), int((lost & ~flagged).sum()))
+    assert lost.sum() > 400 and edge.sum() <= 2 * len(spans)
+    w = make_windows(drive)
+    # a window touches the samples from the last one at or before its start to the first at or after its end
+    first = np.searchsorted(drive.t_s, w.t0_s + 1e-9, side="right") - 1
+    last = np.searchsorted(drive.t_s, w.t0_s + 1.0 - 1e-9, side="left")
+    touching = np.array([flagged[a : b + 1].any() for a, b in zip(first, last)])
+    assert np.array_equal(w.truth_fault != 0, touching) and touching.sum() > 50
 
 
 def test_recording_shows_quality_and_draws_bad_stretches_apart(faulty, tmp_path):

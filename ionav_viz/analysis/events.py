@@ -34,6 +34,12 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
     A quick change in acceleration: two consecutive acceleration peaks of opposite sign, each at
     least ``quick_accel_peak_mps2`` (1.2 m/s^2), at most ``quick_accel_window_s`` (4 s) apart.
     The event spans the two peaks. Values: the two peaks (m/s^2) and the jerk between them (m/s^3).
+``gnss-outage``
+    A real loss of GNSS in the log: a stretch of samples whose GNSS is bad or missing
+    (:mod:`ionav_viz.core.gnss_quality`: no fix, frozen, at (0, 0), ...) lasting at least
+    ``gnss_outage_min_s`` (2 s) from the last good fix to the first good fix after it; the event
+    spans those two fixes. Values: length (s), bad samples. The other detectors see nothing inside
+    bad GNSS (their speed is the GNSS speed).
 ``cruise``
     Straight-line cruising, the motorway reference: speed at least 15 m/s, ``|a| <= 0.5 m/s^2``
     (``a`` further smoothed over ``cruise_smooth_s``, 3 s: steady on average, so the speed noise of
@@ -52,7 +58,7 @@ from ..core.grid import GRID_RATE_HZ
 from ..core.overrides import with_overrides
 from ..core.units import G_MPS2
 
-EVENT_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
+EVENT_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise", "gnss-outage")
 RATE_HZ = GRID_RATE_HZ
 
 
@@ -64,7 +70,7 @@ THRESHOLD_LIMITS = {
     "flare_gap_s": (0.0, 60.0), "sharp_min_turn_deg": (0.0, 360.0), "sharp_max_s": (0.5, 120.0), "sharp_max_radius_m": (1.0, 1000.0),
     "left_right_min_turn_deg": (0.0, 360.0), "left_right_gap_s": (0.0, 60.0), "quick_accel_peak_mps2": (0.05, 20.0),
     "quick_accel_window_s": (0.5, 60.0), "cruise_min_speed_mps": (0.0, 100.0), "cruise_max_accel_mps2": (0.0, 20.0),
-    "cruise_max_yaw_radps": (0.0, 2.0), "cruise_min_s": (1.0, 3600.0), "cruise_smooth_s": (0.1, 30.0),
+    "cruise_max_yaw_radps": (0.0, 2.0), "cruise_min_s": (1.0, 3600.0), "cruise_smooth_s": (0.1, 30.0), "gnss_outage_min_s": (0.1, 3600.0),
 }  # fmt: skip
 
 
@@ -92,6 +98,7 @@ class EventThresholds:
     cruise_max_yaw_radps: float = 0.02
     cruise_min_s: float = 10.0
     cruise_smooth_s: float = 3.0
+    gnss_outage_min_s: float = 2.0
 
     def with_overrides(self, pairs: list[str]) -> EventThresholds:
         """``['hard_brake_g=0.4', ...]`` -> a copy with those thresholds changed."""
@@ -139,8 +146,9 @@ def signals_of(drive: Drive, th: EventThresholds) -> Signals:
     t = drive.t_s
     grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / RATE_HZ)
     k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
-    valid = (t[k] - t[k - 1]) <= 1.0
-    speed = np.interp(grid, t, drive.speed_mps)
+    good = drive.gnss_ok
+    valid = ((t[k] - t[k - 1]) <= 1.0) & good[k] & good[k - 1]  # nothing is seen inside bad GNSS
+    speed = np.interp(grid, t[good], drive.speed_mps[good]) if good.sum() >= 2 else np.interp(grid, t, drive.speed_mps)
     still = estimate_bias(drive)  # the same standstill biases the INS uses
     bias = still.gyro_radps if still is not None else 0.0
     return smoothed_signals(grid, speed, np.interp(grid, t, drive.yaw_rate_radps) - bias, valid, th)
@@ -260,13 +268,28 @@ def detect_cruise(s: Signals, th: EventThresholds) -> list[Event]:
     return out
 
 
+def detect_gnss_outages(drive: Drive, th: EventThresholds) -> list[Event]:
+    """Stretches of bad GNSS lasting ``gnss_outage_min_s`` or more, from the last good fix before
+    to the first good fix after (a stretch reaching an end of the drive has no such fix: left out)."""
+    bad = ~drive.gnss_ok
+    out = []
+    for i0, i1 in _runs(bad):
+        if i0 == 0 or i1 >= len(drive):
+            continue
+        t0, t1 = float(drive.t_s[i0 - 1]), float(drive.t_s[i1])
+        if t1 - t0 >= th.gnss_outage_min_s:
+            out.append(Event("gnss-outage", t0, t1, {"length_s": t1 - t0, "bad_samples": float(i1 - i0)}))
+    return out
+
+
 def detect_events(drive: Drive, thresholds: EventThresholds | None = None, types: tuple[str, ...] = EVENT_TYPES) -> list[Event]:
     """Every manoeuvre of the requested ``types`` in ``drive``, in time order."""
     th = thresholds or EventThresholds()
     if len(drive) < 2:
         return []
     s = signals_of(drive, th)
-    found = detect_hard_brakes(s, th) + detect_turn_events(s, th) + detect_quick_accel(s, th) + detect_cruise(s, th)
+    found = (detect_hard_brakes(s, th) + detect_turn_events(s, th) + detect_quick_accel(s, th) + detect_cruise(s, th)
+             + detect_gnss_outages(drive, th))
     return sorted((e for e in found if e.type in types), key=lambda e: (e.t0_s, e.type))
 
 

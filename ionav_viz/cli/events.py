@@ -34,12 +34,10 @@ def events(
     th = c.thresholds(thresholds)
     kinds = c.event_types(types) if types else EVENT_TYPES
     if quality:
-        from ..sources.iovnbd import read_iovnbd
-
         totals: dict[str, list[int]] = {k: [0, 0, 0, 0] for k in EVENT_TYPES}
         for sample in SAMPLES:
-            drive = read_iovnbd(sample_path(sample))
-            truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s)
+            drive = load_drive(str(sample_path(sample)))  # with the GNSS quality marks, as every command reads
+            truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s, sample.gnss_losses)
             for kind, sc in score(truth, detect_events(drive, th), drive.duration_s).items():
                 for i, v in enumerate((sc.n_truth, sc.recalled, sc.n_found, sc.precise)):
                     totals[kind][i] += v

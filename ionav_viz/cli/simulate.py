@@ -19,6 +19,7 @@ def simulate(
     duration: str = typer.Option("120s", "--duration", help="Length of the drive, e.g. 120s or 5m."),
     ideal: bool = typer.Option(False, "--ideal", help="Perfect sensors and flat roads (for checks)."),
     bundled: Optional[Path] = typer.Option(None, "--bundled", help="Regenerate every bundled sample into this directory instead."),
+    gnss_loss: int = typer.Option(0, "--gnss-loss", help="Add this many tunnel-like GNSS losses (3-15 s while driving: satellites 0, the fix frozen or zeros)."),
 ) -> None:
     """Write a synthetic drive in the exact IO-VNBD V-*.csv format."""
     from ..dataset.samples import SAMPLES
@@ -27,7 +28,7 @@ def simulate(
     if bundled is not None:
         bundled.mkdir(parents=True, exist_ok=True)
         for sample in SAMPLES:
-            write_simulated_drive(bundled / sample.file, sample.scenario, sample.seed, sample.duration_s)
+            write_simulated_drive(bundled / sample.file, sample.scenario, sample.seed, sample.duration_s, gnss_losses=sample.gnss_losses)
             print(bundled / sample.file)
         return
     if scenario is None or output is None:
@@ -35,5 +36,7 @@ def simulate(
     if scenario not in SCENARIOS:
         raise typer.BadParameter(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}", param_hint="SCENARIO")
     seconds = c.duration_s(duration, "--duration")
-    path = write_simulated_drive(output, scenario, seed, seconds, SensorModel.ideal() if ideal else None)
+    if gnss_loss < 0:
+        raise typer.BadParameter(f"{gnss_loss}: give 0 or more losses", param_hint="--gnss-loss")
+    path = write_simulated_drive(output, scenario, seed, seconds, SensorModel.ideal() if ideal else None, gnss_losses=gnss_loss)
     print(path)

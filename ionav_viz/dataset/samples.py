@@ -18,13 +18,15 @@ from .catalog import SCENARIOS
 
 @dataclass(frozen=True)
 class Sample:
-    """A bundled synthetic drive: file name, scenario, seed, duration (s) and role."""
+    """A bundled synthetic drive: file name, scenario, seed, duration (s), role and how many
+    tunnel-like GNSS losses it has (see :func:`ionav_viz.sim.simulate.gnss_loss_spans`)."""
 
     file: str
     scenario: str
     seed: int
     duration_s: float
-    role: str  # "test", "train" or "bias"
+    role: str  # "test", "train", "bias" or "losses" (real GNSS losses, for replay --on gnss-outage)
+    gnss_losses: int = 0
 
 
 TRAIN_DRIVES_PER_SCENARIO = 8
@@ -38,6 +40,7 @@ SAMPLES = tuple(
     + [Sample(f"V-sim-{s}-train-{k + 1}.csv", s, 200 + 10 * i + k, 150.0, "train")
        for i, s in enumerate(SCENARIOS) for k in range(TRAIN_DRIVES_PER_SCENARIO)]
     + [Sample("V-sim-stationary.csv", "stationary", 300, 180.0, "bias")]
+    + [Sample("V-sim-motorway-tunnels.csv", "motorway", 400, 600.0, "losses", gnss_losses=6)]
 )  # fmt: skip
 
 

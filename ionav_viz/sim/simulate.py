@@ -36,6 +36,9 @@ Sensor error model (:class:`SensorModel`, defaults from measured real logs, see 
         (sigma 0.5 m, tau 20 s) plus 2 cm white noise; speed noise 0.15 km/h; course noise
         0.3 deg at 10 m/s, growing as 1/speed; the course holds its last value below 1 m/s.
     timing: sample periods jitter by +-1 ms and ~0.2 % of samples are missing (0.2 s periods).
+    GNSS losses (``gnss_losses``, off by default): tunnel-like stretches of 3-15 s while driving,
+        satellites 0, the last fix (position, speed, course, height) repeated or zeros written,
+        alternately; the CAN bus and the IMU go on (see :func:`gnss_loss_spans`).
 
 Output is byte-identical for a given scenario, seed and duration.
 """
@@ -300,8 +303,10 @@ def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
     return plan.truth(duration_s)
 
 
-def simulated_manoeuvres(scenario: str, seed: int, duration_s: float) -> list[tuple[str, float, float]]:
+def simulated_manoeuvres(scenario: str, seed: int, duration_s: float, gnss_losses: int = 0) -> list[tuple[str, float, float]]:
     """Where the simulator put each manoeuvre: (type, start s, end s), times as in the CSV.
+
+    ``gnss-outage``: the GNSS losses of a drive simulated with ``gnss_losses``.
 
     ``hard-brake``, ``roundabout``, ``sharp-corner`` and ``left-right`` come from the plan's
     pieces (those the end of the drive cut off are left out). ``quick-accel`` and ``cruise`` are
@@ -320,7 +325,8 @@ def simulated_manoeuvres(scenario: str, seed: int, duration_s: float) -> list[tu
     derived = [(e.type, e.t0_s, e.t1_s) for e in detect_quick_accel(clean, th) + detect_cruise(clean, th)]
     end = truth.t_s[-1]
     planned = [m for m in truth.manoeuvres if m[2] < end - 1e-9]  # drop manoeuvres the drive's end cut off
-    return sorted(planned + derived, key=lambda m: (m[1], m[0]))
+    losses = [("gnss-outage", a, b) for a, b, _ in gnss_loss_spans(scenario, seed, duration_s, gnss_losses)]
+    return sorted(planned + derived + losses, key=lambda m: (m[1], m[0]))
 
 
 def _gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau: float) -> np.ndarray:
@@ -347,10 +353,44 @@ def _grade(rng: np.random.Generator, distance_m: np.ndarray, rms: float) -> np.n
     return g * rms / math.sqrt(6 / 2)
 
 
+#: Tunnel-like GNSS losses (``gnss_losses``): lengths (s), the speed (m/s) the car drives when
+#: one begins, and the time kept clear at the ends of the drive and between losses (s).
+LOSS_LENGTH_S = (3.0, 15.0)
+LOSS_MIN_SPEED_MPS = 5.0
+LOSS_CLEAR_S = 20.0
+
+
+def gnss_loss_spans(scenario: str, seed: int, duration_s: float, count: int) -> list[tuple[float, float, str]]:
+    """Where a drive of ``simulate_rows(..., gnss_losses=count)`` loses GNSS: ``(start s, end s,
+    kind)``, sorted. Kinds alternate between ``frozen`` (the logger repeats its last fix, speed and
+    course) and ``absent`` (it writes zeros); the satellite count is 0 in both. Losses begin
+    while driving and stay LOSS_CLEAR_S away from each other and from the ends of the drive; fewer
+    than ``count`` when the drive has no room for more."""
+    if count < 0:
+        raise InputError(f"{count} GNSS losses: give 0 or more", param="gnss_losses")
+    if count == 0:
+        return []
+    truth = plan_truth(scenario, seed, duration_s)
+    rng = np.random.default_rng([seed, 2000 + SCENARIOS.index(scenario)])  # its own stream: the rest of the drive is unchanged
+    spans: list[tuple[float, float, str]] = []
+    for _ in range(50 * count):
+        if len(spans) == count:
+            break
+        length = float(np.round(rng.uniform(*LOSS_LENGTH_S), 1))
+        t0 = float(np.round(rng.uniform(LOSS_CLEAR_S, duration_s - LOSS_CLEAR_S - length), 1)) if duration_s > 2 * LOSS_CLEAR_S + length else -1.0
+        if t0 < 0 or np.interp(t0, truth.t_s, truth.speed_mps) < LOSS_MIN_SPEED_MPS:
+            continue
+        if all(t0 >= b + LOSS_CLEAR_S or t0 + length + LOSS_CLEAR_S <= a for a, b, _ in spans):
+            spans.append((t0, t0 + length, ""))
+    spans.sort()
+    return [(a, b, ("frozen", "absent")[i % 2]) for i, (a, b, _) in enumerate(spans)]
+
+
 def simulate_rows(
-    scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None
+    scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None, gnss_losses: int = 0
 ) -> dict[str, np.ndarray]:
-    """Raw IO-VNBD columns (file units, keyed by header name) of a synthetic drive."""
+    """Raw IO-VNBD columns (file units, keyed by header name) of a synthetic drive, with
+    ``gnss_losses`` tunnel-like GNSS losses (:func:`gnss_loss_spans`)."""
     from pyproj import Transformer
 
     sensors = sensors if sensors is not None else SensorModel()
@@ -462,7 +502,21 @@ def simulate_rows(
         HEADER[27]: np.full(n, round(rng.uniform(4, 20))),
         HEADER[28]: np.clip(a_s * 30 + v_s * 0.8, 0, 100) * moving,
     }
+    for t0, t1, kind in gnss_loss_spans(scenario, seed, duration_s, gnss_losses):
+        _lose_gnss(rows, t, t0, t1, kind)
     return rows
+
+
+def _lose_gnss(rows: dict[str, np.ndarray], t: np.ndarray, t0: float, t1: float, kind: str) -> None:
+    """Write a GNSS loss over ``t0 <= t < t1`` as the VBOX logger does: no satellites, and the last
+    fix repeated (``frozen``) or zeros (``absent``) in the GNSS columns. CAN and IMU go on."""
+    lost = (t >= t0) & (t < t1)
+    if not lost.any():
+        return
+    last = max(int(np.argmax(lost)) - 1, 0)
+    rows[HEADER[0]][lost] = 0
+    for column in (HEADER[2], HEADER[3], HEADER[4], HEADER[5], HEADER[6], HEADER[7]):
+        rows[column][lost] = rows[column][last] if kind == "frozen" else 0.0
 
 
 #: Decimals each column is written with (the real files use a similar resolution).
@@ -475,11 +529,12 @@ DECIMALS = dict(
 
 
 def write_simulated_drive(
-    path: str | Path, scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None
+    path: str | Path, scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None,
+    gnss_losses: int = 0,
 ) -> Path:
     """Simulate a drive and write it as an IO-VNBD ``V-*.csv`` (atomically). Returns the path."""
     path = check_output_file(Path(path))
-    rows = simulate_rows(scenario, seed, duration_s, sensors)
+    rows = simulate_rows(scenario, seed, duration_s, sensors, gnss_losses)
     write_iovnbd(path, rows, DECIMALS)
     return path
 
