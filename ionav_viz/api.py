@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from .analysis.evaluate import DriveResult, evaluate_drive
-from .analysis.events import EVENT_TYPES, Event, EventThresholds, detect_events
+from .analysis.events import EVENT_TYPES, GNSS_OUTAGE, MANOEUVRE_TYPES, Event, EventThresholds, detect_events
 from .analysis.report import Report, run_summary_markdown
 from .core.drive import Drive
 from .core.errors import InputError
@@ -84,8 +84,9 @@ def load_drive(
     (``"roundabout"``, ``"stationary"``) or an IO-VNBD run name (``"V-Vw8"``) under ``data_root``
     (default ``$IONAV_DATA``, else the per-user data directory ``fetch`` fills).
 
-    ``yaw_sign``: sign of the CSV yaw-rate column, ``"auto"``, ``"cw"`` or ``"ccw"``; ``mcap``:
-    topics and time stamps for MCAP logs; ``gnss_limits``: thresholds of the GNSS quality checks
+    ``yaw_sign``: sign of the yaw rate (the CSV column, the MCAP gyro's z), ``"auto"`` (the
+    source's convention, checked against the GNSS course), ``"cw"`` or ``"ccw"``; ``mcap``: topics,
+    time stamps and IMU axes (``imu_axes``) for MCAP logs; ``gnss_limits``: thresholds of the GNSS quality checks
     that mark untrustworthy fixes (default :class:`GnssLimits`). A :class:`Drive` is returned as
     is.
     """
@@ -156,11 +157,28 @@ def _check_event_types(types: Sequence[str]) -> None:
         raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}")
 
 
+def _gnss_gaps(placement: Placement, events: list[Event] | None) -> list[tuple[float, float]]:
+    """The log's own GNSS outages to bridge: ``(last good fix s, first good fix s)`` of each
+    ``gnss-outage`` event, when the placement asks for them."""
+    if not isinstance(placement, AroundEvents) or GNSS_OUTAGE not in placement.types:
+        return []
+    return [(e.t0_s, e.t1_s) for e in events or [] if e.type == GNSS_OUTAGE]
+
+
 def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str, int]:
     """Outage starts, the placement's description, and how many outages bad GNSS truth excluded."""
     n = outage_windows(outage_s)
     if isinstance(placement, AroundEvents):
         _check_event_types(placement.types)
+        if GNSS_OUTAGE in placement.types:  # bridged separately (_gnss_gaps): no synthetic outage on them
+            rest = tuple(t for t in placement.types if t != GNSS_OUTAGE)
+            gaps = _gnss_gaps(placement, events)
+            if not rest:
+                if not gaps:
+                    raise InputError(f"{drive.source}: no GNSS outage of 2 s or more in this drive", f"see 'ionav-viz events {drive.source}'")
+                return np.zeros(0, dtype=int), f"every estimator through the log's own {len(gaps)} GNSS outage(s), from the last good fix", 0
+            starts, description, excluded = _starts(drive, windows, AroundEvents(rest), outage_s, events)
+            return starts, f"{description}; and the log's own {len(gaps)} GNSS outage(s)", excluded
         targets = placement.targets(events or [])
         spans = [(e.t0_s, e.t1_s) for e in targets]
         starts, used = around(windows, spans, n)
@@ -228,6 +246,7 @@ def evaluate(
         windows = make_windows(drive)
         events = detect_events(drive, thresholds or EventThresholds()) if isinstance(placement, AroundEvents) else None
         starts, _, excluded = _starts(drive, windows, placement, outage_s, events)
+        gaps = _gnss_gaps(placement, events)
         if isinstance(placement, Tile) and len(starts) == 0:
             log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, outage_s,
                         " on good GNSS truth" if excluded else "")
@@ -235,7 +254,7 @@ def evaluate(
         bias = bias_of(drive)
         ests = _estimators_for(drive, chosen, estimators is None)
         results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,
-                                      excluded_outages=excluded))
+                                      excluded_outages=excluded, gnss_gaps=gaps))
     if progress:
         progress("done", len(items), len(items))
     if not results:
@@ -258,7 +277,7 @@ def evaluate_by_event(
     gnss_limits: GnssLimits | None = None,
 ) -> dict[str, Report]:
     """One report per manoeuvre type: an outage centred on each detected event, across ``drives``."""
-    kinds = tuple(types) if types else EVENT_TYPES
+    kinds = tuple(types) if types else MANOEUVRE_TYPES
     _check_event_types(kinds)
     n = outage_windows(outage_s)
     chosen = resolve_estimators(estimators, model=model)
@@ -273,6 +292,12 @@ def evaluate_by_event(
         found = detect_events(drive, th, kinds)
         ests = _estimators_for(drive, chosen, estimators is None)
         for kind in kinds:
+            if kind == GNSS_OUTAGE:  # the log's own losses: bridged, scored at the first good fix after
+                gaps = _gnss_gaps(AroundEvents((kind,)), found)
+                if gaps:
+                    per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=np.zeros(0, dtype=int),
+                                                         windows=windows, gnss_gaps=gaps))
+                continue
             starts = AroundEvents((kind,)).starts(windows, n, found)
             excluded = excluded_by_truth(windows, n, lambda w, kind=kind, found=found: AroundEvents((kind,)).starts(w, n, found))
             if len(starts):
@@ -333,12 +358,14 @@ def replay(
         events = detect_events(d, thresholds or EventThresholds())
         s.detail = f"{len(events)} detected"
     starts, description, excluded = _starts(d, windows, placement, outage_s, events)
-    if len(starts) == 0:
+    gaps = _gnss_gaps(placement, events)
+    if len(starts) == 0 and not gaps:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
     out = check_output_file(out if out is not None else Path(f"{d.name}.rrd"))  # before the work: where the user is
     chosen = _estimators_for(d, resolve_estimators(estimators, model=model), estimators is None)
     bias = _bias_for(bias_from, data_root, load_kw)(d)
-    result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded)
+    result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded,
+                            gnss_gaps=gaps)
     report = Report([result])
     summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
     total = 5 + len(result.estimates)

@@ -111,7 +111,8 @@ def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, tamper=None,
     return path
 
 
-def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0.02, jitter_s=0.004, sensor_from_body=None):
+def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0.02, jitter_s=0.004, sensor_from_body=None,
+                   no_fix_spans=()):
     """``drive`` (a simulated one, the logger's CSV) as a ROS 2 MCAP the way many real bags are:
     ``sensor_msgs/Imu`` at the drive's samples and ``NavSatFix`` at ``gnss_hz`` with no velocity
     topic. The fixes are the CSV's positions at jittered (``jitter_s``) stamps plus what a
@@ -119,7 +120,8 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
     1e-7 deg rounding of its NMEA output and the odd fix published twice (``duplicate_share``).
     The IMU carries gravity (+9.81 m/s^2 up) and the centripetal acceleration (speed x yaw rate,
     to the left in a left turn); ``sensor_from_body`` (3x3) rotates both vectors into a mount
-    other than REP 103's. Written with mcap_ros2 directly, not with ionav-viz's converter."""
+    other than REP 103's; no fix is published within ``no_fix_spans`` ((start s, end s), a tunnel).
+    Written with mcap_ros2 directly, not with ionav-viz's converter."""
     from mcap_ros2.writer import Writer
 
     rng = np.random.default_rng(seed)
@@ -127,6 +129,8 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
     t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
     g_t = np.arange(0.0, drive.t_s[-1], 1.0 / gnss_hz)
     g_t = np.clip(np.sort(g_t + rng.uniform(-jitter_s, jitter_s, len(g_t))), 0.0, drive.t_s[-1])
+    for a, b in no_fix_spans:
+        g_t = g_t[(g_t < a) | (g_t >= b)]
     m_per_deg = 6_371_008.8 * math.pi / 180.0
     lat = np.round(np.interp(g_t, drive.t_s, drive.lat_deg) + rng.normal(0, white_m, len(g_t)) / m_per_deg, 7)
     lon = np.interp(g_t, drive.t_s, drive.lon_deg)

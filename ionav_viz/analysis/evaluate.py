@@ -10,7 +10,7 @@ rebuilds the track) and computes the paper's metrics per outage. The result is a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -23,6 +23,7 @@ from ..nav.estimators import BASELINE, Estimator, EstimatorInputs, Solution, des
 from ..nav.estimators import resolve as resolve_estimators
 from ..nav.outages import excluded_by_truth, outage_windows, tile
 from ..nav.windows import Windows, make_windows
+from .bridging import BridgedOutage, bridge_gnss_outages
 from .metrics import METRICS, sequence_metrics, truth_for
 
 __all__ = ["METRICS", "DriveResult", "evaluate_drive", "improvement_pct", "resolve_bias"]
@@ -41,6 +42,8 @@ class DriveResult:
             displacement and yaw rate, and the rebuilt track).
         metrics: per estimator name, each of :data:`METRICS` as an array (n_outages,).
         excluded_outages: how many outages the placement would have put on bad GNSS truth.
+        bridged: the log's own GNSS losses every estimator was run through (``--on gnss-outage``),
+            scored at the first good fix after each; ``unbridged``: losses that could not be.
     """
 
     drive: Drive
@@ -52,6 +55,8 @@ class DriveResult:
     estimates: dict[str, Solution]
     metrics: dict[str, dict[str, np.ndarray]]
     excluded_outages: int = 0
+    bridged: list[BridgedOutage] = field(default_factory=list)
+    unbridged: int = 0
 
     def truth(self) -> dict[str, Any]:
         """What the GNSS quality checks excluded: ``windows`` (all), ``excluded_windows`` (bad
@@ -91,13 +96,16 @@ def evaluate_drive(
     starts: np.ndarray | None = None,
     windows: Windows | None = None,
     excluded_outages: int | None = None,
+    gnss_gaps: Sequence[tuple[float, float]] = (),
 ) -> DriveResult:
     """Every estimator on the outages ``starts`` (default: the paper's tiling) of ``drive``.
 
     ``estimators``: names or objects (see :func:`ionav_viz.nav.estimators.resolve`); default the
     INS, plus the IDNN when ``model`` (an IDNN model or its directory) is given. ``bias``: default
     from the drive's own stationary stretches. ``excluded_outages``: how many outages the caller's
-    placement lost to bad GNSS truth (counted here for the default tiling).
+    placement lost to bad GNSS truth (counted here for the default tiling). ``gnss_gaps``: the
+    log's own GNSS losses ``(last good fix s, first good fix s)`` to bridge as well
+    (:mod:`ionav_viz.analysis.bridging`).
     """
     n = outage_windows(outage_s)
     windows = windows if windows is not None else make_windows(drive)
@@ -116,7 +124,11 @@ def evaluate_drive(
             solutions[est.name] = solve(est, inputs)
             s.detail = f"{len(starts)} outages of {n} s"
     metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
-    return DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics, excluded_outages or 0)
+    result = DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics, excluded_outages or 0)
+    if gnss_gaps:
+        with stage(f"bridge {len(gnss_gaps)} GNSS outage(s) of {drive.name}"):
+            result.bridged, result.unbridged = bridge_gnss_outages(drive, windows, gnss_gaps, chosen, bias)
+    return result
 
 
 def improvement_pct(baseline: float, candidate: float) -> float:

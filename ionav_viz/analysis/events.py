@@ -58,7 +58,9 @@ from ..core.grid import GRID_RATE_HZ
 from ..core.overrides import with_overrides
 from ..core.units import G_MPS2
 
-EVENT_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise", "gnss-outage")
+GNSS_OUTAGE = "gnss-outage"  # a real loss of GNSS in the log, not a manoeuvre
+MANOEUVRE_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
+EVENT_TYPES = (*MANOEUVRE_TYPES, GNSS_OUTAGE)
 RATE_HZ = GRID_RATE_HZ
 
 
@@ -278,7 +280,7 @@ def detect_gnss_outages(drive: Drive, th: EventThresholds) -> list[Event]:
             continue
         t0, t1 = float(drive.t_s[i0 - 1]), float(drive.t_s[i1])
         if t1 - t0 >= th.gnss_outage_min_s:
-            out.append(Event("gnss-outage", t0, t1, {"length_s": t1 - t0, "bad_samples": float(i1 - i0)}))
+            out.append(Event(GNSS_OUTAGE, t0, t1, {"length_s": t1 - t0, "bad_samples": float(i1 - i0)}))
     return out
 
 

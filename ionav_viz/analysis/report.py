@@ -104,7 +104,10 @@ class Report:
         ``estimators`` (name, label, info), ``improvement_pct`` (per estimator other than the INS
         DR, on the mean of CRSE, orientation-rate CRSE and final position error), ``gnss_truth``
         (windows in all, windows excluded for bad GNSS truth, by reason, and outages not placed
-        there; per drive under ``drives``) and ``model`` (the IDNN's, when it ran). NaN is kept here; :meth:`to_json` writes it as null.
+        there; per drive under ``drives``) and ``model`` (the IDNN's, when it ran). With the log's own
+        GNSS losses bridged (``--on gnss-outage``), ``gnss_outages``: ``bridged`` (each with its
+        ``drive``, gap, outage and ``final_error_m`` per estimator), ``not_bridged`` and
+        ``final_error_m`` (per estimator: max, min, mean, std). NaN is kept here; :meth:`to_json` writes it as null.
         """
         if self._dict is not None:
             return self._dict
@@ -139,6 +142,13 @@ class Report:
         }
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
+        bridged = [(r.drive.name, b) for r in results for b in r.bridged]
+        if bridged or any(r.unbridged for r in results):
+            out["gnss_outages"] = {
+                "bridged": [{"drive": name, **b.to_dict()} for name, b in bridged],
+                "not_bridged": sum(r.unbridged for r in results),
+                "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged])) for est in estimators},
+            }
         idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
         if idnn is not None:
             out["model"] = idnn.get("info", {})

@@ -76,22 +76,59 @@ def title_of(rep: dict[str, Any], scenario: str | None = None) -> str:
 
 
 def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
-    header, rows = table_rows(rep)
-    lines = [f"**{title_of(rep, scenario)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(f"**{c}**" if j == 0 and c else c for j, c in enumerate(r)) + " |" for r in rows]
-    extra = improvement_lines(rep) + [x for x in [truth_line(rep)] if x]
-    return "\n".join(lines + ([""] + extra if extra else [])) + "\n"
+    lines: list[str] = []
+    if rep["n_sequences"] or "gnss_outages" not in rep:
+        header, rows = table_rows(rep)
+        lines = [f"**{title_of(rep, scenario)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += ["| " + " | ".join(f"**{c}**" if j == 0 and c else c for j, c in enumerate(r)) + " |" for r in rows]
+        lines += [""] if lines else []
+    if "gnss_outages" in rep:
+        header, rows = bridged_rows(rep)
+        lines += [f"**{rep['drive']}: the log's own GNSS outages** (truth: the first good fix after each)", "",
+                  "| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
+        lines += [bridged_line(rep)]
+    extra = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    return "\n".join(lines + extra) + "\n"
 
 
 def render_text(rep: dict[str, Any], scenario: str | None = None) -> str:
-    header, rows = table_rows(rep)
+    out: list[str] = []
+    if rep["n_sequences"] or "gnss_outages" not in rep:
+        header, rows = table_rows(rep)
+        out = [title_of(rep, scenario), *_aligned(header, rows, 2)]
+    if "gnss_outages" in rep:
+        header, rows = bridged_rows(rep)
+        out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *_aligned(header, rows, 1), bridged_line(rep)]
+    out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    return "\n".join(out) + "\n"
+
+
+def _aligned(header: list[str], rows: list[list[str]], left: int) -> list[str]:
+    """A plain-text table: the first ``left`` columns left-aligned, the rest right-aligned."""
     widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
     def line(r: list[str]) -> str:
-        return "  ".join(c.ljust(w) if j < 2 else c.rjust(w) for j, (c, w) in enumerate(zip(r, widths))).rstrip()
-    out = [title_of(rep, scenario), line(header), "  ".join("-" * w for w in widths)]
-    out += [line(r) for r in rows]
-    out += improvement_lines(rep) + [x for x in [truth_line(rep)] if x]
-    return "\n".join(out) + "\n"
+        return "  ".join(c.ljust(w) if j < left else c.rjust(w) for j, (c, w) in enumerate(zip(r, widths))).rstrip()
+    return [line(header), "  ".join("-" * w for w in widths)] + [line(r) for r in rows]
+
+
+def bridged_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """One row per bridged GNSS outage: where, how long, and each estimator's final position error."""
+    labels = labels_of(rep)
+    several = len({b["drive"] for b in rep["gnss_outages"]["bridged"]}) > 1
+    header = ["#", *(["Drive"] if several else []), "Gap (s)", "From (s)", "Outage (s)", "Span (m)"]
+    header += [f"{labels[e]} final err. (m)" for e in labels]
+    rows = [[str(b["number"]), *([b["drive"]] if several else []), f"{b['gap_s']:.1f}", f"{b['gap_start_s']:.1f}", str(b["outage_s"]),
+             f"{b['span_m']:.0f}", *(_fmt(b["final_error_m"][e], 2) for e in labels)] for b in rep["gnss_outages"]["bridged"]]
+    return header, rows
+
+
+def bridged_line(rep: dict[str, Any]) -> str:
+    """Mean final position error per estimator over the bridged outages, and what was left out."""
+    g = rep["gnss_outages"]
+    labels = labels_of(rep)
+    means = ", ".join(f"{labels[e]} {_fmt(g['final_error_m'][e]['mean'], 2)} m" for e in labels)
+    missed = f"; {g['not_bridged']} outage(s) not bridged (a gap in the log or an end of the drive)" if g["not_bridged"] else ""
+    return f"Mean final position error over {len(g['bridged'])} real GNSS outage(s): {means}{missed}"
 
 
 def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:

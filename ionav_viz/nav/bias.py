@@ -38,8 +38,10 @@ def stationary_mask(drive: Drive, max_speed_mps: float = 0.3, edge_s: float = 1.
 
     Standing still: GNSS speed below ``max_speed_mps`` (above the receiver's speed noise). Only
     the GNSS speed is used, so every source of the same drive (CSV, MCAP) gives the same biases.
+    A sample without trustworthy GNSS counts as moving: a logger that writes zeros in a tunnel
+    would otherwise make a car at speed look parked.
     """
-    moving = drive.speed_mps > max_speed_mps
+    moving = (drive.speed_mps > max_speed_mps) | ~drive.gnss_ok
     t_moving = drive.t_s[moving]
     if t_moving.size == 0:
         return np.ones(len(drive), dtype=bool)

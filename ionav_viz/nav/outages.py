@@ -231,3 +231,29 @@ class AroundEvents:
 
 
 Placement = Tile | Every | At | Random | AroundEvents
+
+
+def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> list[tuple[int, int, int]]:
+    """Outages through the log's own GNSS gaps: for each gap ``(last good fix s, first good fix s)``,
+    ``(gap index, start window, windows)`` of the outage that starts at the window boundary at or
+    before the last good fix (the window before it has good truth, for the IDNN's first input)
+    and ends at the first boundary at or after the first good fix whose next window has good truth
+    (its start is the only truth there is). Gaps without such windows in one gap-free segment
+    (a data gap, an end of the drive) get none."""
+    out = []
+    t0 = windows.t0_s
+    for i, (last_good, first_good) in enumerate(gaps):
+        k = int(np.searchsorted(t0, last_good + 1e-6, side="right")) - 1
+        while k >= 2 and not windows.truth_ok[k - 1] and t0[k] > last_good - max_extra:
+            k -= 1  # the window before touches the loss (its end is interpolated from a bad sample)
+        if k < 1 or not windows.truth_ok[k - 1] or windows.segment[k - 1] != windows.segment[k]:
+            continue
+        shortest = max(1, int(np.ceil(first_good - t0[k] - 1e-6)))
+        for n in range(shortest, shortest + max_extra + 1):
+            end = k + n
+            if end >= len(windows) or windows.segment[end] != windows.segment[k]:
+                break
+            if windows.truth_ok[end]:
+                out.append((i, k, n))
+                break
+    return out

@@ -214,16 +214,22 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
 
     # Per-window GNSS truth and outage state.
     t_end = w.t0_s + 1.0
-    send("signals/displacement_m/gnss", t_end, rr.Scalars.columns(scalars=w.gnss_disp_m))
-    send("signals/yaw_rate_radps/gnss", t_end, rr.Scalars.columns(scalars=w.gnss_yaw_rate_radps))
+    # windows without trustworthy truth are not drawn (NaN breaks the line: no spike to (0, 0))
+    ok = w.truth_ok
+    send("signals/displacement_m/gnss", t_end, rr.Scalars.columns(scalars=np.where(ok, w.gnss_disp_m, np.nan)))
+    send("signals/yaw_rate_radps/gnss", t_end, rr.Scalars.columns(scalars=np.where(ok, w.gnss_yaw_rate_radps, np.nan)))
     available = np.ones(len(w))
     idx = starts[:, None] + np.arange(n_win)[None, :]
     available[idx.ravel()] = 0.0
     t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
     send("gnss/available", t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
+    for b in result.bridged:
+        available[b.start : b.start + b.n_windows] = 0.0
     states = np.full(len(w), "GNSS", dtype=object)
     for i, k in enumerate(starts):
         states[k : k + n_win] = f"outage {i + 1} ({w.t0_s[k]:.0f}-{w.t0_s[k] + n_win:.0f} s)"
+    for b in result.bridged:
+        states[b.start : b.start + b.n_windows] = f"real GNSS outage {b.number} ({b.gap_t0_s:.1f}-{b.gap_t1_s:.1f} s)"
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
     send("gnss/state", w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
     step("outages")
@@ -254,12 +260,40 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
                 t_plot, v_plot = with_breaks(t_end[idx], values)
                 send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
             step(name)
+    if result.bridged:
+        _log_bridged(rec, result, colors, labels, lat0, lon0)
+        step("real GNSS outages")
     data = memory.drain_as_bytes()
     rec.disconnect()
     with open(path, "wb") as f:  # OSError (disk full) reaches the caller's atomic write
         f.write(data)
     _check_written(path, target or path)
     return rows
+
+
+def _log_bridged(rec, result: DriveResult, colors: dict, labels: dict, lat0: float, lon0: float) -> None:
+    """The log's own GNSS outages: each estimator's track through them (wide, on top), the first
+    good fix after each (the truth that scores them) and each final error on the error timeline."""
+    import rerun as rr
+
+    bridged = result.bridged
+    end_ll = np.array([[b.end_lat_deg, b.end_lon_deg] for b in bridged])
+    rec.log("map/gnss_outages/end_fix", rr.GeoPoints(lat_lon=end_ll, colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
+    rec.log("local/gnss_outages/end_fix", rr.Points2D(screen_xy(*local_en_m(end_ll[:, 0], end_ll[:, 1], lat0, lon0)),
+                                                      colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
+    t1 = np.array([b.t1_s for b in bridged])
+    for est in result.estimators:
+        name, color = est.name, colors[est.name]
+        lat = [b.tracks[name].lat_deg[0] for b in bridged]
+        lon = [b.tracks[name].lon_deg[0] for b in bridged]
+        rec.log(f"map/{name}/real_outages", rr.GeoLineStrings(lat_lon=[np.stack([a, o], axis=-1) for a, o in zip(lat, lon)],
+                                                              colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
+        rec.log(f"local/{name}/real_outages", rr.LineStrips2D([screen_xy(*local_en_m(a, o, lat0, lon0)) for a, o in zip(lat, lon)],
+                                                              colors=[color], radii=rr.Radius.ui_points(3.0), draw_order=30), static=True)
+        entity = f"errors/position_error_m/real_outages/{name}"
+        rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
+        rec.send_columns(entity, indexes=_times(t1, result.drive.start_time_of_day_s),
+                         columns=rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
@@ -313,8 +347,9 @@ def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> Non
     order = np.argsort(times, kind="stable")
     send("events/state", np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
-    lat = np.interp(mid, drive.t_s, drive.lat_deg)
-    lon = np.interp(mid, drive.t_s, drive.lon_deg)
+    usable = usable_fixes(drive.gnss_fault)  # a loss's middle lies between its good fixes, not at (0, 0)
+    lat = np.interp(mid, drive.t_s[usable], drive.lat_deg[usable])
+    lon = np.interp(mid, drive.t_s[usable], drive.lon_deg[usable])
     labels = [f"{e.type} #{i + 1}" for i, e in enumerate(events)]
     rec.log("map/events", rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
     rec.log("local/events", rr.Points2D(screen_xy(*local_en_m(lat, lon, lat0, lon0)), labels=labels, colors=[EVENT_COLOR],

@@ -1,0 +1,93 @@
+"""Real GNSS outages in a log (issue 16, part 6): listed as events, bridged by every estimator from
+the last good fix and scored at the first good fix after, from the simulator and from MCAP gaps."""
+
+from __future__ import annotations
+
+import json
+import logging
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+from ionav_viz.analysis.events import detect_events
+from ionav_viz.sim.simulate import gnss_loss_spans, write_simulated_drive
+
+from .conftest import run_cli
+from .mcap_fixtures import write_fix_only
+from .test_replay import read_rrd
+
+LOSSES = 3
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    """The same simulated drive without and with tunnel-like losses (the losses draw from their own
+    random stream, so the sensors and the fixes outside the losses are the same)."""
+    folder = tmp_path_factory.mktemp("losses")
+    clean = write_simulated_drive(folder / "V-clean.csv", "motorway", 7, 240.0)
+    lossy = write_simulated_drive(folder / "V-lossy.csv", "motorway", 7, 240.0, gnss_losses=LOSSES)
+    return clean, lossy, gnss_loss_spans("motorway", 7, 240.0, LOSSES)
+
+
+def test_losses_are_listed_with_their_length(pair):
+    _, lossy, spans = pair
+    assert len(spans) == LOSSES
+    found = [e for e in detect_events(iv.load_drive(str(lossy))) if e.type == "gnss-outage"]
+    assert len(found) == LOSSES
+    for e, (t0, t1, _) in zip(found, spans):
+        # from the last good fix (the sample before the loss; the file's 1 ms rounding of the time
+        # may put a sample on the boundary) to the first good one (at its end)
+        assert t0 - 0.11 <= e.t0_s <= t0 + 0.001 and t1 - 0.001 <= e.t1_s <= t1 + 0.11
+        assert t1 - t0 - 0.01 <= e.values["length_s"] <= t1 - t0 + 0.21
+    proc = run_cli("events", str(lossy), "--type", "gnss-outage", "--json")
+    assert proc.returncode == 0, proc.stderr
+    events = json.loads(proc.stdout)[lossy.stem]
+    assert [e["type"] for e in events] == ["gnss-outage"] * LOSSES and all("length_s" in e for e in events)
+
+
+def test_bridged_errors_equal_synthetic_outages_on_the_clean_drive(pair):
+    """The final error of a bridged loss is scored against the first good fix: the clean copy of the
+    drive has that very fix, so a synthetic outage there (same start, same length) must give the
+    same final position error for every estimator."""
+    clean, lossy, _ = pair
+    report = iv.evaluate([str(lossy)], 10.0, iv.AroundEvents(("gnss-outage",)))
+    bridged = report.to_dict()["gnss_outages"]["bridged"]
+    assert len(bridged) == LOSSES and report.to_dict()["gnss_outages"]["not_bridged"] == 0
+    for b in bridged:
+        ref = iv.evaluate([str(clean)], float(b["outage_s"]), iv.At((b["outage_start_s"],))).to_dict()
+        for est in ("ins", "idnn"):
+            assert b["final_error_m"][est] == pytest.approx(ref["sequences"][0][est]["final_position_error_m"], abs=1e-3), (b, est)
+
+
+def test_replay_on_gnss_outage_reports_and_records_them(tmp_path):
+    out = tmp_path / "tunnels.rrd"
+    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert "the log's own GNSS outages" in proc.stderr and "Mean final position error over 6 real GNSS outage(s)" in proc.stderr
+    rows, static = read_rrd(out)
+    assert len(rows["/errors/position_error_m/real_outages/ins"]) == 6 and len(rows["/errors/position_error_m/real_outages/idnn"]) == 6
+    assert {"/map/ins/real_outages", "/local/idnn/real_outages", "/local/gnss_outages/end_fix"} <= static
+    states = [s for _, s in rows["/gnss/state"]]
+    assert sum("real GNSS outage" in str(s) for s in states) == 6
+
+
+def test_no_loss_to_bridge_is_one_line():
+    proc = run_cli("replay", "roundabout", "--on", "gnss-outage")
+    assert proc.returncode == 2 and "no GNSS outage of 2 s or more" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_mcap_gap_keeps_the_imu_and_is_bridged(tmp_path, caplog):
+    csv = iv.load_drive("V-sim-motorway")
+    path = write_fix_only(csv, tmp_path / "tunnel.mcap", 10, white_m=0.0, duplicate_share=0.0, no_fix_spans=[(200.0, 208.0)])
+    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+        drive = iv.load_drive(str(path))
+    assert np.all(np.diff(drive.t_s) < 0.25), "the IMU samples in the gap are kept (the CSV misses a sample now and then)"
+    lost = (drive.t_s + drive.start_time_of_day_s - csv.start_time_of_day_s > 200.05) & (drive.t_s + drive.start_time_of_day_s - csv.start_time_of_day_s < 207.95)
+    assert np.all(drive.gnss_fault[lost] != 0) and lost.sum() >= 78
+    gaps = [e for e in detect_events(drive) if e.type == "gnss-outage"]
+    # the fixes stop for 8 s; the 10 Hz grid sample next to each edge may fall inside the gap
+    assert len(gaps) == 1 and gaps[0].values["length_s"] == pytest.approx(8.0, abs=0.35)
+    report = iv.evaluate([drive], 10.0, iv.AroundEvents(("gnss-outage",))).to_dict()
+    (b,) = report["gnss_outages"]["bridged"]
+    assert b["outage_s"] in (9, 10) and all(np.isfinite(v) for v in b["final_error_m"].values())
