@@ -91,3 +91,11 @@ def test_mcap_gap_keeps_the_imu_and_is_bridged(tmp_path, caplog):
     report = iv.evaluate([drive], 10.0, iv.AroundEvents(("gnss-outage",))).to_dict()
     (b,) = report["gnss_outages"]["bridged"]
     assert b["outage_s"] in (9, 10) and all(np.isfinite(v) for v in b["final_error_m"].values())
+
+
+def test_evaluate_on_gnss_outage_json():
+    proc = run_cli("evaluate", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--json")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert rep["n_sequences"] == 0 and len(rep["gnss_outages"]["bridged"]) == 6 and rep["gnss_outages"]["not_bridged"] == 0
+    assert set(rep["gnss_outages"]["final_error_m"]) == {"ins", "idnn"}

@@ -22,7 +22,7 @@ def evaluate(
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
     overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
     by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives."),
-    on: Optional[str] = typer.Option(None, "--on", help="With --by-event: only these event types (default: all)."),
+    on: Optional[str] = typer.Option(None, "--on", help="Event types: one outage centred on each (as replay --on; gnss-outage: the log's own losses); with --by-event, the types to tabulate."),
     thresholds: Optional[list[str]] = c.Thresholds,
     run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
     source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
@@ -47,7 +47,8 @@ def evaluate(
         kinds = c.event_types(on) if on else None
         reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, kinds, thresholds=th, **common)
     else:
-        reports = {group: api.evaluate(specs, outage_s, title=group, **common) for group, specs in groups.items()}
+        placement = api.AroundEvents(tuple(c.event_types(on))) if on else None
+        reports = {group: api.evaluate(specs, outage_s, placement, title=group, thresholds=th, **common) for group, specs in groups.items()}
 
     if as_json:
         if None in reports:
