@@ -36,6 +36,13 @@ Sensor error model (:class:`SensorModel`, defaults from measured real logs, see 
         (sigma 0.5 m, tau 20 s) plus 2 cm white noise; speed noise 0.15 km/h; course noise
         0.3 deg at 10 m/s, growing as 1/speed; the course holds its last value below 1 m/s.
     timing: sample periods jitter by +-1 ms and ~0.2 % of samples are missing (0.2 s periods).
+    wheel speeds (rad/s, CAN) and indicated speed (see SENSORS.md):
+        omega = v_wheel / r_eff, the effective rolling radius off the nominal 0.3 m by 1-3 % (either
+        way, per drive); v_wheel = v (1 -+ curvature * half track) for the inner and outer wheels,
+        minus ABS slip under hard braking (up to 15 % below -4 m/s^2, cycling at 3 Hz) and, on the
+        driven front wheels, plus wheelspin under hard acceleration (up to 6 % above 2.5 m/s^2);
+        quantised to 0.05 rad/s and 0 below 0.5 m/s; 50 ms CAN latency. Indicated speed: 3 % over
+        the true speed (as speedometers read), rounded to 1 km/h, with the same latency.
     GNSS losses (``gnss_losses``, off by default): tunnel-like stretches of 3-15 s while driving,
         satellites 0, the last fix (position, speed, course, height) repeated or zeros written,
         alternately; the CAN bus and the IMU go on (see :func:`gnss_loss_spans`).
@@ -90,6 +97,15 @@ class SensorModel:
     grade_rms: float = 0.02
     clock_jitter_s: float = 0.001
     missing_sample_prob: float = 0.002
+    wheel_radius_error_min: float = 0.01
+    wheel_radius_error_max: float = 0.03
+    wheel_quantum_radps: float = 0.05
+    wheel_min_speed_mps: float = 0.5
+    brake_slip: float = 0.15
+    wheelspin: float = 0.06
+    can_latency_s: float = 0.05
+    can_speed_overread: float = 0.03
+    can_speed_quantum_kmh: float = 1.0
 
     @classmethod
     def ideal(cls) -> SensorModel:
@@ -482,12 +498,8 @@ def simulate_rows(
         HEADER[7]: v_s * np.sin(np.arctan(g_s)) * 3.6,
         HEADER[8]: np.concatenate([[0.1], np.diff(t)]),
         HEADER[9]: np.degrees(np.arctan(2.5 * k_s)) * 15.0,
-        HEADER[10]: v_s * (1 - k_s * half_track_m) / wheel_radius_m,
-        HEADER[11]: v_s * (1 + k_s * half_track_m) / wheel_radius_m,
-        HEADER[12]: v_s * (1 - k_s * half_track_m) / wheel_radius_m,
-        HEADER[13]: v_s * (1 + k_s * half_track_m) / wheel_radius_m,
+        **_vehicle_speeds(np.random.default_rng([seed, 3000 + SCENARIOS.index(scenario)]), t, truth, sensors, half_track_m, wheel_radius_m),
         HEADER[14]: -r_meas_dps,
-        HEADER[15]: v_s * 3.6 * 1.03,
         HEADER[16]: accel_g,
         HEADER[17]: (v_s * v_s * k_s + rng.normal(0, 1, n) * 0.1 * (sensors.accel_noise_still_mps2 > 0)) / G_MPS2,
         HEADER[18]: standing.astype(float),
@@ -505,6 +517,33 @@ def simulate_rows(
     for t0, t1, kind in gnss_loss_spans(scenario, seed, duration_s, gnss_losses):
         _lose_gnss(rows, t, t0, t1, kind)
     return rows
+
+
+def _vehicle_speeds(rng: np.random.Generator, t: np.ndarray, truth: Truth, sensors: SensorModel, half_track_m: float,
+                    nominal_radius_m: float) -> dict[str, np.ndarray]:
+    """The four wheel speeds (rad/s, front left, front right, rear left, rear right) and the
+    indicated speed (km/h) as the CAN bus reports them (see the module docstring). Drawn from
+    their own random stream, so the other columns do not depend on them."""
+    error = rng.uniform(sensors.wheel_radius_error_min, sensors.wheel_radius_error_max) * rng.choice([-1.0, 1.0])
+    r_eff = nominal_radius_m * (1.0 + error)
+    late = t - sensors.can_latency_s
+    v, a, k = (np.interp(late, truth.t_s, x) for x in (truth.speed_mps, truth.accel_mps2, truth.curvature_1pm))
+    slip = np.clip((-a - 4.0) / 3.0, 0.0, 1.0) * sensors.brake_slip * (0.6 + 0.4 * np.sin(2 * np.pi * 3.0 * late))
+    spin = np.clip((a - 2.5) / 1.5, 0.0, 1.0) * sensors.wheelspin
+
+    def wheel(side: float, driven: bool) -> np.ndarray:
+        v_wheel = v * (1.0 + side * k * half_track_m) * (1.0 - slip) * (1.0 + (spin if driven else 0.0))
+        omega = v_wheel / r_eff
+        if sensors.wheel_quantum_radps > 0:
+            omega = np.round(omega / sensors.wheel_quantum_radps) * sensors.wheel_quantum_radps
+        return np.where(v_wheel < sensors.wheel_min_speed_mps, 0.0, omega)
+
+    indicated = v * 3.6 * (1.0 + sensors.can_speed_overread)
+    if sensors.can_speed_quantum_kmh > 0:
+        indicated = np.round(indicated / sensors.can_speed_quantum_kmh) * sensors.can_speed_quantum_kmh
+    # left wheels are on the inside of a left (counter-clockwise, k > 0) turn
+    return {HEADER[10]: wheel(-1.0, True), HEADER[11]: wheel(1.0, True), HEADER[12]: wheel(-1.0, False),
+            HEADER[13]: wheel(1.0, False), HEADER[15]: indicated}
 
 
 def _lose_gnss(rows: dict[str, np.ndarray], t: np.ndarray, t0: float, t1: float, kind: str) -> None:
