@@ -137,10 +137,21 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
     return out
 
 
-def _estimators_for(drive: Drive, chosen: list[Estimator], defaulted: bool) -> list[Estimator]:
-    if not defaulted:
-        return chosen
-    return [e for e in chosen if applies(e, drive)]
+def _estimators_for(drives: Sequence[Drive], chosen: list[Estimator], defaulted: bool) -> list[Estimator]:
+    """The estimators that apply to every one of ``drives`` (one report compares them all on the
+    same outages). A default one left out is said at ``-v`` (by its ``applies``); one the caller
+    chose, with a warning; none left is an error."""
+    kept = []
+    for est in chosen:
+        missing = [d.name for d in drives if not applies(est, d)]
+        if not missing:
+            kept.append(est)
+        elif not defaulted:
+            log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
+    if not kept:
+        raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
+                         "choose others with --estimators (ins always applies)", param="estimators")
+    return kept
 
 
 def _bias_for(bias_from: DriveLike | SensorBias | None, data_root: Any, load_kw: dict) -> Callable[[Drive], SensorBias]:
@@ -238,9 +249,10 @@ def evaluate(
     chosen = resolve_estimators(estimators, model=model)
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     bias_of = _bias_for(bias_from, data_root, load_kw)
+    loaded = [load_drive(item, data_root, **load_kw) for item in items]
+    ests = _estimators_for(loaded, chosen, estimators is None)
     results = []
-    for i, item in enumerate(items):
-        drive = load_drive(item, data_root, **load_kw)
+    for i, drive in enumerate(loaded):
         if progress:
             progress(drive.name, i, len(items))
         windows = make_windows(drive)
@@ -252,7 +264,6 @@ def evaluate(
                         " on good GNSS truth" if excluded else "")
             continue
         bias = bias_of(drive)
-        ests = _estimators_for(drive, chosen, estimators is None)
         results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,
                                       excluded_outages=excluded, gnss_gaps=gaps))
     if progress:
@@ -285,12 +296,12 @@ def evaluate_by_event(
     bias_of = _bias_for(bias_from, data_root, load_kw)
     th = thresholds or EventThresholds()
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
-    for item in drives:
-        drive = load_drive(item, data_root, **load_kw)
+    loaded = [load_drive(item, data_root, **load_kw) for item in drives]
+    ests = _estimators_for(loaded, chosen, estimators is None)
+    for drive in loaded:
         windows = make_windows(drive)
         bias = bias_of(drive)
         found = detect_events(drive, th, kinds)
-        ests = _estimators_for(drive, chosen, estimators is None)
         for kind in kinds:
             if kind == GNSS_OUTAGE:  # the log's own losses: bridged, scored at the first good fix after
                 gaps = _gnss_gaps(AroundEvents((kind,)), found)
@@ -362,7 +373,7 @@ def replay(
     if len(starts) == 0 and not gaps:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
     out = check_output_file(out if out is not None else Path(f"{d.name}.rrd"))  # before the work: where the user is
-    chosen = _estimators_for(d, resolve_estimators(estimators, model=model), estimators is None)
+    chosen = _estimators_for([d], resolve_estimators(estimators, model=model), estimators is None)
     bias = _bias_for(bias_from, data_root, load_kw)(d)
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded,
                             gnss_gaps=gaps)

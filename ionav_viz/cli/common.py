@@ -26,7 +26,7 @@ Stamps = typer.Option("header", "--stamps", help="MCAP: time stamps from message
 OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
 NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
-EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, or names registered by installed packages (default: every built-in that applies).", show_default=False)
+EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, odo, or names registered by installed packages (default: every built-in that applies).", show_default=False)
 EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Python API' in the README.", show_default=False)
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
@@ -90,10 +90,11 @@ class EstimatorArgs:
     estimators: list[Any]
     model: Optional[Path]
     bias_from: Optional[str]
+    defaulted: bool = False  # no choice made: every built-in that applies to the drives
 
     def api_kwargs(self) -> dict[str, Any]:
         """As keyword arguments of :func:`ionav_viz.api.evaluate` and :func:`ionav_viz.api.replay`."""
-        return {"estimators": self.estimators, "model": self.model, "bias_from": self.bias_from}
+        return {"estimators": None if self.defaulted else self.estimators, "model": self.model, "bias_from": self.bias_from}
 
 
 _ESTIMATOR_OPTIONS = (
@@ -106,7 +107,8 @@ def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn`` and ``--bias-from``
     (declared once, in :data:`_ESTIMATOR_OPTIONS`), resolved into one ``run: EstimatorArgs`` argument."""
     def build(v: dict[str, Any]) -> EstimatorArgs:
-        return EstimatorArgs(estimators(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"]), v["model"], v["bias_from"])
+        defaulted = v["estimator_names"] is None and not v["plugins"] and not v["no_idnn"]
+        return EstimatorArgs(estimators(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"]), v["model"], v["bias_from"], defaulted)
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 

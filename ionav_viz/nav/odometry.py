@@ -1,0 +1,126 @@
+"""Vehicle-speed odometry (``odo``): distance from the car's own speed, heading from the gyro.
+
+A car with a CAN bus measures its speed far better than an accelerometer integrated twice; this
+is the baseline a practitioner would set beside the paper's INS (the same authors' WhONet uses
+the wheel speeds too).
+
+* Speed: the mean of the rear wheel speeds (rad/s; the undriven wheels of a front-wheel-drive
+  car, like IO-VNBD's Fiesta, slip least), else the indicated CAN speed (m/s). Each window's
+  distance is its trapezoid mean on the window's 10 Hz grid times 1 s, times a **scale**.
+* Scale (the effective rolling radius in m for wheel speeds, a unitless factor for the indicated
+  speed): calibrated while GNSS is good, per outage, as the GNSS distance over the wheels'
+  distance in the good-truth windows of the CALIBRATION_S seconds before its start (only windows
+  where the car moves more than MIN_CALIBRATION_STEP_M count). The effective radius is 1-3 % off
+  any nominal value and changes with tyre pressure, load and wear, so a fixed one would not do.
+  With less than MIN_CALIBRATION_M of such driving before an outage, the nominal values are used
+  (NOMINAL_RADIUS_M, or 1 for a speed).
+* Yaw rate: the gyro minus its standstill bias, averaged per window (as the INS).
+
+The drive must have a usable vehicle speed: a column that is missing, not finite, all zero or
+constant is not one (:func:`vehicle_speed`). The estimator then does not apply (it is left out
+of the default set, said once at ``-v``) and choosing it explicitly is an error.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from .ins import trapezoid_mean
+
+if TYPE_CHECKING:
+    from .estimators import Estimate, EstimatorInputs
+    from .windows import Windows
+
+log = logging.getLogger("ionav_viz")
+
+CALIBRATION_S = 120.0
+MIN_CALIBRATION_STEP_M = 1.0
+MIN_CALIBRATION_M = 100.0
+NOMINAL_RADIUS_M = 0.3
+
+#: Where a drive's vehicle speed comes from, in order of preference: (columns averaged, unit).
+SOURCES = (
+    (("wheel_speed_rl_radps", "wheel_speed_rr_radps"), "rad/s"),
+    (("speed_can_mps",), "m/s"),
+)
+
+
+def vehicle_speed(drive: Drive) -> tuple[np.ndarray, str, str] | None:
+    """The drive's usable vehicle speed: (values per sample, unit, description), or None."""
+    for columns, unit in SOURCES:
+        if not all(c in drive.columns for c in columns):
+            continue
+        values = np.mean([drive.columns[c] for c in columns], axis=0)
+        if np.isfinite(values).all() and np.any(values != 0) and np.ptp(values) > 0:
+            return values, unit, " and ".join(columns)
+    return None
+
+
+def _why_not(drive: Drive) -> str:
+    present = [c for cols, _ in SOURCES for c in cols if c in drive.columns]
+    if not present:
+        return "no wheel speeds or vehicle speed"
+    return f"its {', '.join(present)} {'is' if len(present) == 1 else 'are'} not usable (non-finite, all zero or constant)"
+
+
+def window_distance(windows: Windows, drive: Drive, values: np.ndarray) -> np.ndarray:
+    """Trapezoid mean of ``values`` (per sample) over each window's 10 Hz grid, times 1 s."""
+    steps = int(round(windows.rate_hz))
+    grid = windows.t0_s[:, None] + np.arange(steps + 1)[None, :] / windows.rate_hz
+    return trapezoid_mean(np.interp(grid, drive.t_s, values))
+
+
+def calibrated_scale(windows: Windows, raw: np.ndarray, starts: np.ndarray, nominal: float) -> np.ndarray:
+    """Per outage start, the GNSS distance over the raw distance in the good-truth, moving
+    windows of the CALIBRATION_S seconds before it (``nominal`` with too little of them)."""
+    use = windows.truth_ok & (windows.gnss_disp_m > MIN_CALIBRATION_STEP_M) & (raw > 0)
+    gnss = np.concatenate([[0.0], np.cumsum(np.where(use, windows.gnss_disp_m, 0.0))])
+    wheel = np.concatenate([[0.0], np.cumsum(np.where(use, raw, 0.0))])
+    first = np.searchsorted(windows.t0_s, windows.t0_s[starts] - CALIBRATION_S)
+    g, w = gnss[starts] - gnss[first], wheel[starts] - wheel[first]
+    return np.where(g >= MIN_CALIBRATION_M, g / np.where(w > 0, w, 1.0), nominal)
+
+
+class OdometryEstimator:
+    """Distance from the wheel speeds (or indicated speed), yaw rate from the bias-corrected gyro."""
+
+    name = "odo"
+    label = "Odometry"
+    color = (150, 60, 200)
+
+    def __init__(self) -> None:
+        self._last: dict[str, Any] = {}
+
+    def available(self) -> bool:
+        return True
+
+    def applies(self, drive: Drive) -> bool:
+        if vehicle_speed(drive) is not None:
+            return True
+        log.info("%s: odometry left out: %s", drive.name, _why_not(drive))
+        return False
+
+    def estimate(self, inputs: EstimatorInputs) -> Estimate:
+        from .estimators import Estimate
+
+        found = vehicle_speed(inputs.drive)
+        if found is None:
+            raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and {_why_not(inputs.drive)}",
+                             "leave odo out of --estimators for this drive", param="estimators")
+        values, unit, source = found
+        raw = window_distance(inputs.windows, inputs.drive, values)
+        nominal = NOMINAL_RADIUS_M if unit == "rad/s" else 1.0
+        scale = calibrated_scale(inputs.windows, raw, inputs.starts, nominal)
+        disp = raw[inputs.window_index] * scale[:, None]
+        yaw = trapezoid_mean(inputs.gyro_radps - inputs.bias.gyro_radps)
+        self._last = {"speed": f"{source} ({unit})", "scale": f"{'radius' if unit == 'rad/s' else 'factor'} "
+                      f"{np.median(scale) if len(scale) else nominal:.4f}{' m' if unit == 'rad/s' else ''} (median, from GNSS before each outage)"}
+        return Estimate(disp, yaw)
+
+    def describe(self) -> dict[str, Any]:
+        return dict(self._last)
