@@ -21,7 +21,7 @@ def test_evaluate_to_json_is_exactly_what_the_command_prints():
     assert proc.returncode == 0, proc.stderr
     report = iv.evaluate(["roundabout", "motorway"], outage_s=10.0)
     assert report.to_json() + "\n" == proc.stdout
-    assert report.n_sequences == 2 * 59 and report.estimators == ["ins", "idnn", "odo"]
+    assert report.n_sequences == 2 * 59 and report.estimators == ["ins", "idnn", "odo", "ekf"]
     # text and Markdown renderings come from the same report
     assert report.to_text().startswith("V-sim-roundabout+V-sim-motorway, 10 s GNSS outages")
     assert "| **CRSE** | max |" in report.to_markdown()
@@ -67,7 +67,7 @@ def test_evaluate_by_event_builds_reports_per_manoeuvre():
     by = iv.evaluate_by_event(["hard-brake", "sharp-cornering"], 10.0, ["hard-brake", "sharp-corner", "left-right"])
     assert set(by) == {"hard-brake", "sharp-corner", "left-right"}
     assert {s["drive"] for s in by["hard-brake"].to_dict()["sequences"]} == {"V-sim-hard-brake"}
-    assert by["left-right"].estimators == ["ins", "idnn", "odo"]
+    assert by["left-right"].estimators == ["ins", "idnn", "odo", "ekf"]
     assert by["hard-brake"].to_text().startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")
 
 

@@ -45,7 +45,7 @@ def test_calibrated_radius_and_distance_on_a_noise_free_drive(known_radius):
 
 def test_odometry_runs_by_default_where_the_drive_has_wheel_speeds():
     rep = iv.evaluate(["roundabout"], 10.0).to_dict()
-    assert [e["name"] for e in rep["estimators"]] == ["ins", "idnn", "odo"]
+    assert [e["name"] for e in rep["estimators"]] == ["ins", "idnn", "odo", "ekf"]
     # the car's own speed beats twice-integrated acceleration by far on every bundled drive
     assert rep["summary"]["odo"]["crse_m"]["mean"] < 0.5 * rep["summary"]["ins"]["crse_m"]["mean"]
 
@@ -77,6 +77,6 @@ def test_a_log_without_vehicle_speed_leaves_odometry_out(tmp_path):
     alone = run_cli("evaluate", str(path), "--estimators", "odo")
     assert alone.returncode == 2 and "none of the chosen estimators (odo) applies" in alone.stderr and "Traceback" not in alone.stderr
     mixed = run_cli("evaluate", "roundabout", str(path), "--json")  # one report: the estimators common to both
-    assert mixed.returncode == 0 and [e["name"] for e in json.loads(mixed.stdout)["estimators"]] == ["ins", "idnn"]
+    assert mixed.returncode == 0 and [e["name"] for e in json.loads(mixed.stdout)["estimators"]] == ["ins", "idnn", "ekf"]
     verbose = run_cli("-v", "evaluate", str(path), "--json")
     assert verbose.returncode == 0 and "odometry left out" in verbose.stderr

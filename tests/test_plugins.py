@@ -50,15 +50,15 @@ def test_cli_json_tables_and_recording_show_the_plugin(tmp_path):
     ev = run_cli("evaluate", "roundabout", "--json", "--estimator", spec, env=ENV)
     assert ev.returncode == 0, ev.stderr
     rep = json.loads(ev.stdout)
-    assert [e["name"] for e in rep["estimators"]] == ["ins", "idnn", "odo", "const"]
-    assert {"ins", "idnn", "odo", "const"} <= set(rep["sequences"][0]) and set(rep["improvement_pct"]) == {"idnn", "odo", "const"}
+    assert [e["name"] for e in rep["estimators"]] == ["ins", "idnn", "odo", "ekf", "const"]
+    assert {"ins", "idnn", "odo", "ekf", "const"} <= set(rep["sequences"][0]) and set(rep["improvement_pct"]) == {"idnn", "odo", "ekf", "const"}
 
     text = run_cli("evaluate", "roundabout", "--estimators", "ins", "--estimator", spec, env=ENV)
     assert text.returncode == 0, text.stderr
     assert "Constant speed (m)" in text.stdout and "Constant speed improvement over INS" in text.stdout
     assert "IDNN" not in text.stdout
     overview = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--estimator", spec, env=ENV)
-    assert "Constant speed (m)" in overview.stdout and overview.stdout.count("Δ %") == 6  # IDNN, odometry and const, two blocks
+    assert "Constant speed (m)" in overview.stdout and overview.stdout.count("Δ %") == 8  # IDNN, odometry, EKF and const, two blocks
 
     out = tmp_path / "r.rrd"
     proc = run_cli("replay", "roundabout", "-o", str(out), "-q", "--estimator", spec, env=ENV)

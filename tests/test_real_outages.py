@@ -98,4 +98,4 @@ def test_evaluate_on_gnss_outage_json():
     assert proc.returncode == 0, proc.stderr
     rep = json.loads(proc.stdout)
     assert rep["n_sequences"] == 0 and len(rep["gnss_outages"]["bridged"]) == 6 and rep["gnss_outages"]["not_bridged"] == 0
-    assert set(rep["gnss_outages"]["final_error_m"]) == {"ins", "idnn", "odo"}
+    assert set(rep["gnss_outages"]["final_error_m"]) == {"ins", "idnn", "odo", "ekf"}

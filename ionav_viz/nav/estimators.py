@@ -56,7 +56,7 @@ log = logging.getLogger("ionav_viz")
 ENTRY_POINT_GROUP = "ionav_viz.estimators"
 #: The built-in estimators, in report order. ``ins`` is the paper's baseline (improvements are
 #: reported against it).
-BUILTIN = ("ins", "idnn", "odo")
+BUILTIN = ("ins", "idnn", "odo", "ekf")
 BASELINE = "ins"
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 
@@ -239,6 +239,10 @@ def builtin(name: str, model: Any = None) -> Estimator:
         from .odometry import OdometryEstimator
 
         return OdometryEstimator()
+    if name == "ekf":
+        from .ekf import EkfEstimator
+
+        return EkfEstimator()
     raise EstimatorError(f"unknown built-in estimator {name!r}", f"choose from {', '.join(BUILTIN)}")
 
 
