@@ -24,6 +24,7 @@ from ionav_viz.analysis.evaluate import DriveResult, evaluate_drive, resolve_bia
 from ionav_viz.analysis.metrics import cumulative_errors
 from ionav_viz.analysis.report import Report
 from ionav_viz.analysis.tables import render_markdown
+from ionav_viz.nav.estimators import EstimatorInputs, applies, resolve, solve
 from ionav_viz.nav.idnn import default_model_dir, load_model
 from ionav_viz.sim.simulate import write_simulated_drive
 from ionav_viz.sources.iovnbd import read_iovnbd
@@ -73,10 +74,12 @@ def write_recording_rowwise(result: DriveResult, path: Path) -> None:
 
 
 def replay_once(csv: Path, out: Path, model) -> tuple[float, float, DriveResult]:
-    """Returns (total seconds, logging seconds, result) of one batched replay."""
+    """Returns (total seconds, logging seconds, result) of one batched replay with every
+    built-in estimator that applies (as ``ionav-viz replay`` runs them)."""
     start = time.perf_counter()
     drive = read_iovnbd(csv)
-    result = evaluate_drive(drive, 10.0, bias=resolve_bias(drive), model=model)
+    chosen = [e for e in resolve(None, model=model) if applies(e, drive)]
+    result = evaluate_drive(drive, 10.0, bias=resolve_bias(drive), estimators=chosen)
     rep = Report([result]).to_dict()
     log_start = time.perf_counter()
     write_recording(result, render_markdown(rep), out)
@@ -98,6 +101,11 @@ def main() -> None:
         print(f"{args.hours:g} h drive: {n} samples, {len(result.starts)} outages of 10 s")
         print(f"  batched replay after imports: {total:.2f} s ({n / total:,.0f} samples/s), of which logging {logging:.2f} s")
         print(f"  .rrd size: {(tmp_dir / 'long.rrd').stat().st_size / 1e6:.1f} MB")
+        inputs = EstimatorInputs(result.drive, result.windows, result.starts, result.n_windows, result.bias)
+        for est in result.estimators:
+            t0 = time.perf_counter()
+            solve(est, inputs)
+            print(f"  {est.label}: {time.perf_counter() - t0:.2f} s for all {len(result.starts)} outages")
 
         short_csv = write_simulated_drive(tmp_dir / "V-short.csv", "quick-accel", seed=6, duration_s=args.rowwise_hours * 3600)
         _, batched_log, short = replay_once(short_csv, tmp_dir / "short.rrd", model)
