@@ -55,6 +55,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..core.drive import Drive
+from ..core.geo import local_en_m
 from .odometry import NOMINAL_RADIUS_M, vehicle_speed
 
 if TYPE_CHECKING:
@@ -186,10 +187,7 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise) -> Measurement
     """What the filter is updated with, at the start of every window and the end of the last."""
     lat = np.concatenate([windows.lat0_deg, windows.lat1_deg[-1:]])
     lon = np.concatenate([windows.lon0_deg, windows.lon1_deg[-1:]])
-    lat0, lon0 = float(lat[0]), float(lon[0])
-    m_per_deg = 6_371_008.8 * np.pi / 180.0
-    e = (lon - lon0) * m_per_deg * np.cos(np.deg2rad(lat0))
-    n = (lat - lat0) * m_per_deg
+    e, n = local_en_m(lat, lon, float(lat[0]), float(lon[0]))
     speed = np.concatenate([windows.speed0_mps, windows.speed0_mps[-1:]])
     course = np.deg2rad(np.concatenate([windows.heading0_deg, windows.heading1_deg[-1:]]))
     ok = windows.truth_ok
@@ -239,8 +237,11 @@ def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: floa
     """The filter over the whole drive: its state and covariance at the start of every window,
     having used the GNSS of earlier boundaries only (shapes (n_windows, 7) and (n_windows, 7, 7)),
     and the offset's slow part there (its mean over the last ~OFFSET_MEMORY_S, (n_windows,))."""
-    meas = measurements(drive, windows, noise)
-    inc = increments(windows)
+    return _forward(windows, measurements(drive, windows, noise), increments(windows), accel_offset, gyro_bias, noise)
+
+
+def _forward(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float,
+             noise: EkfNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     nw = len(windows)
     xs, Ps = np.zeros((nw, N_STATES)), np.zeros((nw, N_STATES, N_STATES))
     slow = np.zeros(nw)
@@ -279,9 +280,8 @@ class EkfEstimator:
         from .estimators import Estimate
 
         w = inputs.windows
-        xs, Ps, slow = forward(inputs.drive, w, inputs.bias.accel_mps2, inputs.bias.gyro_radps, self.noise)
-        meas = measurements(inputs.drive, w, self.noise)
-        inc = increments(w)
+        meas, inc = measurements(inputs.drive, w, self.noise), increments(w)
+        xs, Ps, slow = _forward(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, self.noise)
         x, P = xs[inputs.starts].copy(), Ps[inputs.starts].copy()
         grade0, base = x[:, BA] - slow[inputs.starts], slow[inputs.starts]
         travelled = np.zeros(inputs.n_outages)

@@ -50,7 +50,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -304,30 +304,33 @@ class _BinSums:
     """Per-bin sums of IMU samples on a grid of ``dt`` (bins centred on grid times), streamed.
 
     Sums are kept sparse (occupied bins only), so a stray stamp far from the others (a boot-time
-    stamp among UNIX stamps) costs one entry, not an array spanning the distance.
+    stamp among UNIX stamps) costs one entry, not an array spanning the distance. Samples arrive
+    as the log has them, ``(t, accel x, y, z, gyro x, y, z)``; ``prepare`` turns each buffered
+    block into body-frame samples (checking their values) with numpy, not per message.
     """
 
-    def __init__(self, dt: float, keep_samples: bool) -> None:
+    def __init__(self, dt: float, keep_samples: bool, prepare: Callable[[np.ndarray], np.ndarray]) -> None:
         self.dt = dt
+        self.prepare = prepare
         self.origin: float | None = None
         self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (bins, [value sums..., count])
-        self.buffer: list[tuple[float, ...]] = []  # (t, accel x, y, z, gyro x, y, z)
+        self.buffer: list[tuple[float, ...]] = []
         # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
         # then they are as many as the output rows.
-        self.samples: list[tuple[float, ...]] | None = [] if keep_samples else None
+        self.samples: list[np.ndarray] | None = [] if keep_samples else None
 
     def add(self, sample: tuple[float, ...]) -> None:
         self.buffer.append(sample)
-        if self.samples is not None:
-            self.samples.append(sample)
         if len(self.buffer) >= 65536:
             self.flush()
 
     def flush(self) -> None:
         if not self.buffer:
             return
-        data = np.asarray(self.buffer)
+        data = self.prepare(np.asarray(self.buffer))
         self.buffer.clear()
+        if self.samples is not None:
+            self.samples.append(data)
         if self.origin is None:
             self.origin = float(data[0, 0])
         bins = np.rint((data[:, 0] - self.origin) / self.dt).astype(np.int64)
@@ -342,6 +345,14 @@ class _BinSums:
             return np.zeros(0), np.zeros((0, 6)), np.zeros(0)
         bins, sums = _sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))
         return self.origin + bins * self.dt, sums[:, :-1] / sums[:, -1:], sums[:, -1]
+
+    def kept_samples(self) -> np.ndarray | None:
+        """The body-frame samples in time order, when they were kept (else None)."""
+        self.flush()
+        if not self.samples:
+            return None
+        data = np.concatenate(self.samples)
+        return data[np.argsort(data[:, 0], kind="stable")]
 
 
 def _sum_by_bin(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -409,11 +420,7 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
-    # body axis k = sign * log axis source[k]
-    source = [int(np.argmax(np.abs(row))) for row in mapping]
-    sign = [float(mapping[k, source[k]]) for k in range(3)]
     sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
-    imu = _BinSums(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count)
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
     speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
     dropped_no_fix = 0
@@ -433,17 +440,22 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
             raise InputError(f"{path}: topic {topic}, message stamped {t:.3f} s: {field_name} {reason}",
                              "no car sensor produces that value: fix the log or choose another topic")
 
+    def to_body(data: np.ndarray) -> np.ndarray:
+        """A block of IMU samples as the log has them -> checked, in the body frame."""
+        if (bad := _first_implausible_imu(data)) is not None:
+            i, k = bad
+            check(sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1], float(data[i, k]))
+        return _imu_to_body(data, mapping)
+
+    imu = _BinSums(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=to_body)
+
     try:
         for role, log_t, msg in _messages(path, sel):
             try:
                 if role == "IMU":
                     t = when(msg, log_t, "header", "stamp")
                     lin, ang = _get(msg, "linear_acceleration"), _get(msg, "angular_velocity")
-                    raw = [float(_get(lin, a)) for a in AXES] + [float(_get(ang, a)) for a in AXES]
-                    for k, a in enumerate(AXES):  # every axis within the same limits
-                        check(sel.imu.topic, t, f"linear_acceleration.{a}", "accel_long_mps2", raw[k])
-                        check(sel.imu.topic, t, f"angular_velocity.{a}", "yaw_rate_radps", raw[3 + k])
-                    imu.add((t, *(sign[k] * raw[source[k]] for k in range(3)), *(sign[k] * raw[3 + source[k]] for k in range(3))))
+                    imu.add((t, *(float(_get(lin, a)) for a in AXES), *(float(_get(ang, a)) for a in AXES)))
                 elif role == "GNSS":
                     if sel.gnss.schema.startswith("foxglove"):
                         t = when(msg, log_t, "timestamp")
@@ -485,8 +497,7 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
         speeds = np.asarray(speed)
         speeds = speeds[np.argsort(speeds[:, 0], kind="stable")]
         speeds = speeds[_drop_strays(path, "speed", speeds[:, 0])]
-    drive = _to_drive(path, name or path.stem, imu, fixes, speeds, mapping, yaw_sign)
-    return drive
+    return _to_drive(path, name or path.stem, imu, fixes, speeds, mapping, yaw_sign)
 
 
 def _horizontal_sigma_m(msg: Any) -> float:
@@ -516,10 +527,35 @@ def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, flo
     return t, math.hypot(vx, vy), math.degrees(math.atan2(vx, vy)) % 360.0  # east, north -> course
 
 
+#: The IMU sample columns after the stamp, as the log names them and the limits that apply to them
+#: (every accelerometer axis has the longitudinal one's, every gyro axis the yaw rate's).
+_IMU_FIELDS = tuple(f"linear_acceleration.{a}" for a in AXES) + tuple(f"angular_velocity.{a}" for a in AXES)
+_IMU_COLUMNS = ("accel_long_mps2",) * 3 + ("yaw_rate_radps",) * 3
+
+
+def _first_implausible_imu(data: np.ndarray) -> tuple[int, int] | None:
+    """(row, column) of the first implausible value in a block of IMU samples (columns 1-6), in
+    the order a message is checked (accelerometer then gyro, x then y then z), or None."""
+    order = (1, 4, 2, 5, 3, 6)
+    firsts = [(i, n, k) for n, k in enumerate(order) if (i := first_implausible(_IMU_COLUMNS[k - 1], data[:, k])) is not None]
+    if not firsts:
+        return None
+    row, _, column = min(firsts)
+    return row, column
+
+
+def _imu_to_body(data: np.ndarray, mapping: np.ndarray) -> np.ndarray:
+    """``(t, accel xyz, gyro xyz)`` in the log's axes -> the body frame (``body = mapping @ log``)."""
+    out = data.copy()
+    out[:, 1:4] = data[:, 1:4] @ mapping.T
+    out[:, 4:7] = data[:, 4:7] @ mapping.T
+    return out
+
+
 def _to_drive(path: Path, name: str, imu: _BinSums, gnss: np.ndarray, speed: np.ndarray | None,
               mapping: np.ndarray, yaw_sign: str) -> Drive:
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
-    samples = np.asarray(sorted(imu.samples)) if imu.samples else None
+    samples = imu.kept_samples()
     if samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t):
         t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps: keep them
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma

@@ -52,20 +52,12 @@ import numpy as np
 from ..analysis.evaluate import DriveResult
 from ..analysis.metrics import cumulative_errors
 from ..core.errors import ToolFailure
+from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
 from ..nav.estimators import short_label
 from .style import BAD_GNSS_COLOR, EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, estimator_colors
 
 APP_ID = "ionav-viz"
-
-
-def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    """East and north (m) of positions relative to an origin (azimuthal equidistant projection)."""
-    from pyproj import Transformer
-
-    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
-    east, north = to_local.transform(np.asarray(lon_deg), np.asarray(lat_deg))
-    return np.asarray(east), np.asarray(north)
 
 
 def screen_xy(east: np.ndarray, north: np.ndarray) -> np.ndarray:
@@ -234,7 +226,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     send("gnss/state", w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
     step("outages")
     if events:
-        _log_events(rec, events, drive, lat0, lon0, send)
+        _log_events(rec, events, drive, usable, lat0, lon0, send)
 
     if len(starts):
         t_win = t_end[idx].ravel()
@@ -261,7 +253,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
                 send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
             step(name)
     if result.bridged:
-        _log_bridged(rec, result, colors, labels, lat0, lon0)
+        _log_bridged(rec, result, colors, labels, lat0, lon0, send)
         step("real GNSS outages")
     data = memory.drain_as_bytes()
     rec.disconnect()
@@ -271,7 +263,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     return rows
 
 
-def _log_bridged(rec, result: DriveResult, colors: dict, labels: dict, lat0: float, lon0: float) -> None:
+def _log_bridged(rec, result: DriveResult, colors: dict, labels: dict, lat0: float, lon0: float, send) -> None:
     """The log's own GNSS outages: each estimator's track through them (wide, on top), the first
     good fix after each (the truth that scores them) and each final error on the error timeline."""
     import rerun as rr
@@ -284,16 +276,15 @@ def _log_bridged(rec, result: DriveResult, colors: dict, labels: dict, lat0: flo
     t1 = np.array([b.t1_s for b in bridged])
     for est in result.estimators:
         name, color = est.name, colors[est.name]
-        lat = [b.tracks[name].lat_deg[0] for b in bridged]
-        lon = [b.tracks[name].lon_deg[0] for b in bridged]
-        rec.log(f"map/{name}/real_outages", rr.GeoLineStrings(lat_lon=[np.stack([a, o], axis=-1) for a, o in zip(lat, lon)],
-                                                              colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
-        rec.log(f"local/{name}/real_outages", rr.LineStrips2D([screen_xy(*local_en_m(a, o, lat0, lon0)) for a, o in zip(lat, lon)],
-                                                              colors=[color], radii=rr.Radius.ui_points(3.0), draw_order=30), static=True)
+        ll = [np.stack([b.tracks[name].lat_deg[0], b.tracks[name].lon_deg[0]], axis=-1) for b in bridged]
+        xy = screen_xy(*local_en_m(*np.concatenate(ll).T, lat0, lon0))  # one projection for every track
+        ends = np.cumsum([len(x) for x in ll])[:-1]
+        rec.log(f"map/{name}/real_outages", rr.GeoLineStrings(lat_lon=ll, colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
+        rec.log(f"local/{name}/real_outages", rr.LineStrips2D(np.split(xy, ends), colors=[color], radii=rr.Radius.ui_points(3.0),
+                                                              draw_order=30), static=True)
         entity = f"errors/position_error_m/real_outages/{name}"
         rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
-        rec.send_columns(entity, indexes=_times(t1, result.drive.start_time_of_day_s),
-                         columns=rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
+        send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
@@ -333,7 +324,7 @@ def usable_fixes(fault: np.ndarray) -> np.ndarray:
 
 
 
-def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> None:
+def _log_events(rec, events: list, drive, usable: np.ndarray, lat0: float, lon0: float, send) -> None:
     """Detected manoeuvres: a state timeline, and labelled points on the map and local view."""
     import rerun as rr
 
@@ -347,7 +338,7 @@ def _log_events(rec, events: list, drive, lat0: float, lon0: float, send) -> Non
     order = np.argsort(times, kind="stable")
     send("events/state", np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
-    usable = usable_fixes(drive.gnss_fault)  # a loss's middle lies between its good fixes, not at (0, 0)
+    # a loss's middle lies between its good fixes (``usable``), not at (0, 0)
     lat = np.interp(mid, drive.t_s[usable], drive.lat_deg[usable])
     lon = np.interp(mid, drive.t_s[usable], drive.lon_deg[usable])
     labels = [f"{e.type} #{i + 1}" for i, e in enumerate(events)]
