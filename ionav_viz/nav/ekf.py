@@ -45,6 +45,10 @@ documented, the GNSS wander taken as white with its full standard deviation, the
 Measured on those drives with the vehicle speed left out (`python benchmarks/ekf_tuning.py`):
 displacement CRSE 0.24-0.96 of the INS DR's, the motorway (grade changing within an outage at
 26 m/s) the closest.
+
+The filter's loops are compiled with numba (``cache=True``: the first run on a machine compiles
+them in about 6 s and stores the result in ``__pycache__``). Its pass over a drive runs at about
+4 million samples/s on our 2-core machine (`python benchmarks/bench_replay.py`).
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numba import njit
 
 from ..core.drive import Drive
 from ..core.geo import local_en_m
@@ -113,29 +118,8 @@ def increments(windows: Windows) -> Increments:
     return Increments(dv.sum(axis=1), G, W, h * (acc.shape[1] - 1))
 
 
-def propagate(x: np.ndarray, P: np.ndarray, F: np.ndarray, G: np.ndarray, W: np.ndarray, T: float,
-              noise: EkfNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """One window for a batch of filters (``x`` (m, 7), ``P`` (m, 7, 7)): the new state and
-    covariance, the distance along the window (m) and its mean yaw rate (rad/s, CCW +)."""
-    v, psi, ba, bg = x[:, V], x[:, PSI], x[:, BA], x[:, BG]
-    turn = W - bg * T  # counter-clockwise, rad
-    mid = psi - 0.5 * turn
-    d = v * T + G - 0.5 * ba * T * T
-    s, c = np.sin(mid), np.cos(mid)
-    out = x.copy()
-    out[:, E] += d * s
-    out[:, N] += d * c
-    out[:, V] = v + F - ba * T
-    out[:, PSI] = psi - turn
-    J = np.broadcast_to(np.eye(N_STATES), P.shape).copy()
-    # d(e, n) / d(v, psi, b_a, b_g); psi_mid depends on psi and (through the turn) on b_g
-    for row, a, b in ((E, s, c), (N, c, -s)):
-        J[:, row, V] = T * a
-        J[:, row, PSI] = d * b
-        J[:, row, BA] = -0.5 * T * T * a
-        J[:, row, BG] = d * b * 0.5 * T
-    J[:, V, BA] = -T
-    J[:, PSI, BG] = T
+def _noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """The process noise per window (diagonal, (7,)) and the initial standard deviations (7,)."""
     q = np.zeros(N_STATES)
     q[E] = q[N] = 0.01 * T
     q[V] = noise.accel_white_mps2**2 * T / 10.0  # white noise per 0.1 s sample, summed over the window
@@ -143,30 +127,147 @@ def propagate(x: np.ndarray, P: np.ndarray, F: np.ndarray, G: np.ndarray, W: np.
     q[BA] = noise.accel_offset_walk_mps2**2 * T
     q[BG] = noise.gyro_bias_walk_radps**2 * T
     q[K] = noise.scale_walk**2 * T
-    P_new = J @ P @ J.transpose(0, 2, 1) + np.diag(q)
-    return out, P_new, d, turn / T
+    init = np.array([noise.init_position_m, noise.init_position_m, noise.init_speed_mps, noise.init_course_rad,
+                     noise.init_accel_offset_mps2, noise.init_gyro_bias_radps, noise.init_scale])
+    return q, init
 
 
-def update(x: np.ndarray, P: np.ndarray, H: np.ndarray, z: np.ndarray, h_x: np.ndarray, r: np.ndarray,
-           use: np.ndarray, wrap: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Scalar measurement ``z = h(x)`` (linearised ``H`` (m, 7)) with variance ``r`` for the
-    filters where ``use`` (m,) is True; angles (``wrap``) use the wrapped innovation."""
+# The filter runs one small state per window, which numpy cannot batch along the drive: the
+# loops below are compiled by numba (cached on disk after the first run), about 100x faster
+# than the same numpy code per window (benchmarks/bench_replay.py).
+
+
+@njit(cache=True)
+def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
+    """One window, in place: the state ``x`` (7,) and covariance ``P`` (7, 7); returns the
+    distance along the window (m) and its mean yaw rate (rad/s, CCW +). ``J`` is scratch."""
+    v, psi, ba, bg = x[V], x[PSI], x[BA], x[BG]
+    turn = W - bg * T  # counter-clockwise, rad
+    mid = psi - 0.5 * turn
+    d = v * T + G - 0.5 * ba * T * T
+    s, c = np.sin(mid), np.cos(mid)
+    x[E] += d * s
+    x[N] += d * c
+    x[V] = v + F - ba * T
+    x[PSI] = psi - turn
+    J[:, :] = 0.0
+    for i in range(N_STATES):
+        J[i, i] = 1.0
+    # d(e, n) / d(v, psi, b_a, b_g); psi_mid depends on psi and (through the turn) on b_g
+    J[E, V], J[E, PSI], J[E, BA], J[E, BG] = T * s, d * c, -0.5 * T * T * s, d * c * 0.5 * T
+    J[N, V], J[N, PSI], J[N, BA], J[N, BG] = T * c, -d * s, -0.5 * T * T * c, -d * s * 0.5 * T
+    J[V, BA] = -T
+    J[PSI, BG] = T
+    _congruence(J, P, q)
+    return d, turn / T
+
+
+@njit(cache=True)
+def _congruence(J, P, q):  # pragma: no cover - compiled
+    """``P <- J P J^T + diag(q)`` in place, with plain loops (numba's matrix product needs
+    SciPy's BLAS and compiles slowly)."""
+    JP = np.zeros((N_STATES, N_STATES))
+    for i in range(N_STATES):
+        for j in range(N_STATES):
+            acc = 0.0
+            for m in range(N_STATES):
+                acc += J[i, m] * P[m, j]
+            JP[i, j] = acc
+    for i in range(N_STATES):
+        for j in range(N_STATES):
+            acc = 0.0
+            for m in range(N_STATES):
+                acc += JP[i, m] * J[j, m]
+            P[i, j] = acc
+        P[i, i] += q[i]
+
+
+@njit(cache=True)
+def _update(x, P, H, z, h_x, r, wrap):  # pragma: no cover - compiled
+    """Scalar measurement ``z = h(x)`` (linearised ``H`` (7,)) with variance ``r``, in place;
+    angles (``wrap``) use the wrapped innovation."""
     innov = z - h_x
     if wrap:
         innov = (innov + np.pi) % (2 * np.pi) - np.pi
-    PHt = np.einsum("mij,mj->mi", P, H)
-    S = np.einsum("mi,mi->m", H, PHt) + r
-    gain = PHt / S[:, None]
-    gain[~use] = 0.0
-    x = x + gain * innov[:, None]
-    P = P - gain[:, :, None] * PHt[:, None, :]
-    return x, 0.5 * (P + P.transpose(0, 2, 1))
+    PHt = np.zeros(N_STATES)
+    S = r
+    for i in range(N_STATES):
+        for j in range(N_STATES):
+            PHt[i] += P[i, j] * H[j]
+        S += H[i] * PHt[i]
+    for i in range(N_STATES):
+        x[i] += PHt[i] / S * innov
+    for i in range(N_STATES):
+        for j in range(i + 1):
+            p = 0.5 * ((P[i, j] - PHt[i] / S * PHt[j]) + (P[j, i] - PHt[j] / S * PHt[i]))
+            P[i, j] = P[j, i] = p
 
 
-def _unit_row(i: int, m: int) -> np.ndarray:
-    H = np.zeros((m, N_STATES))
-    H[:, i] = 1.0
-    return H
+@njit(cache=True)
+def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
+    """The vehicle speed ``z = k v``."""
+    H[:] = 0.0
+    H[V], H[K] = x[K], x[V]
+    _update(x, P, H, z, x[K] * x[V], r, False)
+
+
+@njit(cache=True)
+def _forward_kernel(segment, e, n, speed, course, good, sigma, vehicle, F, G, W, T, accel_offset, gyro_bias,
+                    q, init_sd, r_speed, course_sd_at_10mps, r_vehicle, alpha):  # pragma: no cover - compiled
+    nw = len(segment)
+    xs, Ps, slow = np.zeros((nw, N_STATES)), np.zeros((nw, N_STATES, N_STATES)), np.zeros(nw)
+    x, P = np.zeros(N_STATES), np.zeros((N_STATES, N_STATES))
+    J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
+    z, r = np.zeros(4), np.zeros(4)
+    mean = accel_offset
+    for k in range(nw):
+        if k == 0 or segment[k] != segment[k - 1]:
+            prior_x, prior_P = x.copy(), P.copy()
+            x[:] = (e[k], n[k], speed[k], course[k], accel_offset, gyro_bias, 1.0)
+            P[:, :] = 0.0
+            for i in range(N_STATES):
+                P[i, i] = init_sd[i] ** 2
+            if k > 0:  # after a gap: keep what was learnt about the sensors
+                x[BA:] = prior_x[BA:]
+                P[BA:, BA:] = prior_P[BA:, BA:]
+        elif good[k]:
+            z[0], z[1], z[2], z[3] = e[k], n[k], speed[k], course[k]
+            r[0] = r[1] = sigma[k] ** 2
+            r[2] = r_speed
+            r[3] = (course_sd_at_10mps * 10.0 / max(speed[k], 1.0)) ** 2
+            for i in range(4 if speed[k] > MIN_COURSE_SPEED_MPS else 3):  # course only when moving
+                H[:] = 0.0
+                H[i] = 1.0  # states E, N, V, PSI
+                _update(x, P, H, z[i], x[i], r[i], i == PSI)
+        xs[k], Ps[k] = x, P
+        mean += alpha * (x[BA] - mean)
+        slow[k] = mean
+        _propagate(x, P, F[k], G[k], W[k], T, q, J)
+        if np.isfinite(vehicle[k]):
+            _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+    return xs, Ps, slow
+
+
+@njit(cache=True)
+def _outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_vehicle, grade_length_m):  # pragma: no cover - compiled
+    m = len(starts)
+    disp, yaw = np.zeros((m, n_windows)), np.zeros((m, n_windows))
+    J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
+    for o in range(m):
+        k0 = starts[o]
+        x, P = xs[k0].copy(), Ps[k0].copy()
+        base = slow[k0]
+        grade0 = x[BA] - base
+        travelled = 0.0
+        for j in range(n_windows):
+            k = k0 + j
+            # the fast part of the offset is road grade: it fades over GRADE_LENGTH_M of road
+            x[BA] = base + grade0 * np.exp(-travelled / grade_length_m)
+            disp[o, j], yaw[o, j] = _propagate(x, P, F[k], G[k], W[k], T, q, J)
+            travelled += max(disp[o, j], 0.0)
+            if np.isfinite(vehicle[k]):
+                _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+    return disp, yaw
 
 
 @dataclass
@@ -206,33 +307,6 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise) -> Measurement
     return Measurements(e, n, speed, course, good, sigma, vehicle)
 
 
-def _gnss_update(x, P, meas: Measurements, i: np.ndarray, noise: EkfNoise, use: np.ndarray):
-    m = len(x)
-    for idx, z, r in ((E, meas.e[i], meas.sigma_m[i] ** 2), (N, meas.n[i], meas.sigma_m[i] ** 2),
-                      (V, meas.speed[i], np.full(m, noise.gnss_speed_mps**2))):
-        x, P = update(x, P, _unit_row(idx, m), z, x[:, idx], r, use)
-    fast = use & (meas.speed[i] > MIN_COURSE_SPEED_MPS)
-    r = (noise.gnss_course_rad_at_10mps * 10.0 / np.maximum(meas.speed[i], 1.0)) ** 2
-    return update(x, P, _unit_row(PSI, m), meas.course[i], x[:, PSI], r, fast, wrap=True)
-
-
-def _vehicle_update(x, P, z: np.ndarray, noise: EkfNoise):
-    use = np.isfinite(z)
-    H = np.zeros((len(x), N_STATES))
-    H[:, V], H[:, K] = x[:, K], x[:, V]
-    return update(x, P, H, np.where(use, z, 0.0), x[:, K] * x[:, V], np.full(len(x), noise.vehicle_speed_mps**2), use)
-
-
-def _initial(meas: Measurements, i: int, accel_offset: float, gyro_bias: float, noise: EkfNoise, prior=None):
-    x = np.array([meas.e[i], meas.n[i], meas.speed[i], meas.course[i], accel_offset, gyro_bias, 1.0])
-    sd = [noise.init_position_m, noise.init_position_m, noise.init_speed_mps, noise.init_course_rad,
-          noise.init_accel_offset_mps2, noise.init_gyro_bias_radps, noise.init_scale]
-    P = np.diag(np.square(sd))
-    if prior is not None:  # after a gap: keep what was learnt about the sensors
-        x[BA:], P[BA:, BA:] = prior[0][BA:], prior[1][BA:, BA:]
-    return x, P
-
-
 def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = EkfNoise()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The filter over the whole drive: its state and covariance at the start of every window,
     having used the GNSS of earlier boundaries only (shapes (n_windows, 7) and (n_windows, 7, 7)),
@@ -242,24 +316,11 @@ def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: floa
 
 def _forward(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float,
              noise: EkfNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    nw = len(windows)
-    xs, Ps = np.zeros((nw, N_STATES)), np.zeros((nw, N_STATES, N_STATES))
-    slow = np.zeros(nw)
-    mean = accel_offset
-    alpha = inc.T / OFFSET_MEMORY_S
-    x = P = None
-    for k in range(nw):
-        if x is None or windows.segment[k] != windows.segment[k - 1]:
-            x, P = _initial(meas, k, accel_offset, gyro_bias, noise, None if x is None else (x[0], P[0]))
-            x, P = x[None], P[None]
-        else:
-            x, P = _gnss_update(x, P, meas, np.array([k]), noise, np.array([bool(meas.good[k])]))
-        xs[k], Ps[k] = x[0], P[0]
-        mean += alpha * (x[0, BA] - mean)
-        slow[k] = mean
-        x, P, _, _ = propagate(x, P, inc.F[k : k + 1], inc.G[k : k + 1], inc.W[k : k + 1], inc.T, noise)
-        x, P = _vehicle_update(x, P, meas.vehicle[k : k + 1], noise)
-    return xs, Ps, slow
+    q, init = _noise_arrays(noise, inc.T)
+    return _forward_kernel(np.ascontiguousarray(windows.segment, dtype=np.int64), meas.e, meas.n, meas.speed, meas.course,
+                           meas.good.astype(np.bool_), meas.sigma_m, meas.vehicle, inc.F, inc.G, inc.W, float(inc.T),
+                           float(accel_offset), float(gyro_bias), q, init, noise.gnss_speed_mps**2,
+                           float(noise.gnss_course_rad_at_10mps), noise.vehicle_speed_mps**2, inc.T / OFFSET_MEMORY_S)
 
 
 class EkfEstimator:
@@ -282,18 +343,9 @@ class EkfEstimator:
         w = inputs.windows
         meas, inc = measurements(inputs.drive, w, self.noise), increments(w)
         xs, Ps, slow = _forward(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, self.noise)
-        x, P = xs[inputs.starts].copy(), Ps[inputs.starts].copy()
-        grade0, base = x[:, BA] - slow[inputs.starts], slow[inputs.starts]
-        travelled = np.zeros(inputs.n_outages)
-        disp = np.zeros((inputs.n_outages, inputs.n_windows))
-        yaw = np.zeros_like(disp)
-        for j in range(inputs.n_windows):
-            k = inputs.starts + j
-            # the fast part of the offset is road grade: it fades over GRADE_LENGTH_M of road
-            x[:, BA] = base + grade0 * np.exp(-travelled / GRADE_LENGTH_M)
-            x, P, disp[:, j], yaw[:, j] = propagate(x, P, inc.F[k], inc.G[k], inc.W[k], inc.T, self.noise)
-            travelled += np.maximum(disp[:, j], 0.0)
-            x, P = _vehicle_update(x, P, meas.vehicle[k], self.noise)
+        q, _ = _noise_arrays(self.noise, inc.T)
+        disp, yaw = _outage_kernel(xs, Ps, slow, np.asarray(inputs.starts, dtype=np.int64), int(inputs.n_windows), inc.F, inc.G, inc.W,
+                                   float(inc.T), meas.vehicle, q, self.noise.vehicle_speed_mps**2, GRADE_LENGTH_M)
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",
