@@ -21,8 +21,17 @@ def test_evaluate_json_schema():
     assert rep["drive"] == "V-sim-roundabout" and rep["outage_s"] == 10
     seq = rep["sequences"][0]
     assert {"start_s", "gnss_distance_m", "ins"} <= set(seq)
-    assert set(seq["ins"]) == {"crse_m", "cae_m", "aeps_m", "yaw_crse_radps", "yaw_cae_radps", "yaw_aeps_radps", "final_position_error_m"}
+    assert set(seq["ins"]) == {"crse_m", "cae_m", "aeps_m", "yaw_crse_radps", "yaw_cae_radps", "yaw_aeps_radps", "final_position_error_m", "final_error_pct"}
     assert set(rep["summary"]["ins"]["crse_m"]) == {"max", "min", "mean", "std"}
+    # the final error as a percentage of the outage's GNSS distance, undefined below 10 m driven
+    pcts = []
+    for s in rep["sequences"]:
+        if s["gnss_distance_m"] >= 10.0:
+            assert s["ins"]["final_error_pct"] == pytest.approx(100 * s["ins"]["final_position_error_m"] / s["gnss_distance_m"])
+            pcts.append(s["ins"]["final_error_pct"])
+        else:
+            assert s["ins"]["final_error_pct"] is None
+    assert rep["summary"]["ins"]["final_error_pct"]["mean"] == pytest.approx(sum(pcts) / len(pcts))
     # 600 s drive, first window never starts an outage: (600 - 1) // 10 = 59 sequences
     assert rep["n_sequences"] == len(rep["sequences"]) == 59
     starts = [s["start_s"] for s in rep["sequences"]]

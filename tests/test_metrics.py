@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from ionav_viz.analysis.metrics import aeps, cae, crse, summarise
+from ionav_viz.analysis.metrics import aeps, cae, crse, final_error_pct, summarise
 
 
 def test_hand_computed_metrics():
@@ -27,3 +27,12 @@ def test_summary_uses_population_std_like_the_paper():
 
 def test_summary_of_nothing_is_nan():
     assert all(math.isnan(v) for v in summarise(np.zeros(0)).values())
+
+
+def test_final_error_as_a_percentage_of_distance_driven():
+    # 2 m off after 100 m is 2 %; 1 m off after 5 m is undefined (a car nearly standing)
+    pct = final_error_pct(np.array([2.0, 1.0, 0.5]), np.array([100.0, 5.0, 10.0]))
+    assert pct[0] == pytest.approx(2.0) and math.isnan(pct[1]) and pct[2] == pytest.approx(5.0)
+    # the summary is over the outages where it is defined
+    assert summarise(pct) == pytest.approx({"max": 5.0, "min": 2.0, "mean": 3.5, "std": 1.5})
+    assert all(math.isnan(v) for v in summarise(np.array([np.nan])).values())

@@ -8,8 +8,11 @@ displacement (m) and for the orientation rate (rad/s). Over the N windows of one
 * AEPS = CRSE / N        (average error per second, Eq. 22)
 
 Beyond the paper, ``final_position_error_m`` is the geodesic distance between the estimated
-and the GNSS position at the end of the outage. Summaries across sequences give max, min,
-mean and the population standard deviation (Eq. 24, divided by N_s).
+and the GNSS position at the end of the outage, and ``final_error_pct`` that error as a
+percentage of the distance the car drove in the outage (the GNSS displacements summed; the
+drift measure of odometry benchmarks), undefined (NaN) where it drove less than
+:data:`MIN_PCT_DISTANCE_M`. Summaries across sequences give max, min, mean and the population
+standard deviation (Eq. 24, divided by N_s), over the sequences where the metric is defined.
 """
 
 from __future__ import annotations
@@ -27,7 +30,11 @@ METRICS = (
     "yaw_cae_radps",
     "yaw_aeps_radps",
     "final_position_error_m",
+    "final_error_pct",
 )
+
+#: Below this distance driven in an outage (m), an error as a percentage of it means nothing.
+MIN_PCT_DISTANCE_M = 10.0
 
 
 def crse(err: np.ndarray) -> np.ndarray:
@@ -73,7 +80,16 @@ def sequence_metrics(windows: Windows, starts: np.ndarray, n_windows: int, est: 
         "yaw_cae_radps": cae(e_yaw),
         "yaw_aeps_radps": aeps(e_yaw),
         "final_position_error_m": np.asarray(final, dtype=np.float64),
+        "final_error_pct": final_error_pct(np.asarray(final, dtype=np.float64), disp_true.sum(axis=1)),
     }
+
+
+def final_error_pct(final_m: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+    """Final position error (m) as a percentage of the distance driven (m); NaN below
+    :data:`MIN_PCT_DISTANCE_M`."""
+    driven = np.asarray(distance_m, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(driven >= MIN_PCT_DISTANCE_M, 100.0 * np.asarray(final_m) / driven, np.nan)
 
 
 def cumulative_errors(windows: Windows, starts: np.ndarray, n_windows: int, est: Solution) -> dict[str, np.ndarray]:
@@ -101,8 +117,10 @@ def cumulative_errors(windows: Windows, starts: np.ndarray, n_windows: int, est:
 
 
 def summarise(values: np.ndarray) -> dict[str, float]:
-    """max, min, mean and population std of one metric across sequences (NaN when empty)."""
+    """max, min, mean and population std of one metric across the sequences where it is defined
+    (not NaN); all NaN when there is none."""
     v = np.asarray(values, dtype=np.float64)
+    v = v[~np.isnan(v)]
     if v.size == 0:
         return {"max": float("nan"), "min": float("nan"), "mean": float("nan"), "std": float("nan")}
     return {"max": float(v.max()), "min": float(v.min()), "mean": float(v.mean()), "std": float(v.std())}

@@ -43,6 +43,10 @@ def table_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
         row = ["Final position error" if i == 0 else "", label]
         row += [_fmt(rep["summary"][e]["final_position_error_m"][stat]) for e in ests] + [""] * len(ests)
         rows.append(row)
+    for i, (stat, label) in enumerate(_STATS):
+        row = ["Final error, % of distance" if i == 0 else "", label]
+        row += [_fmt(rep["summary"][e]["final_error_pct"][stat], 1) for e in ests] + [""] * len(ests)
+        rows.append(row)
     for i, (stat, label) in enumerate(_STATS[:3]):
         rows.append(["Total distance (m)" if i == 0 else "", label, _fmt(rep["distance_m"][stat])] + [""] * (2 * len(ests) - 1))
     rows.append(["Number of sequences", "", str(rep["n_sequences"])] + [""] * (2 * len(ests) - 1))
@@ -138,7 +142,7 @@ def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -
     labels = labels_of(first)
     names = [n for n in labels if n == "ins"] + [n for n in labels if n != "ins"]
     blocks = (("Disp. CRSE μ", "crse_m", "m", 2, True), ("Yaw CRSE μ", "yaw_crse_radps", "rad/s", 3, True),
-              ("Final pos. err. μ", "final_position_error_m", "m", 2, False))
+              ("Final pos. err. μ", "final_position_error_m", "m", 2, False), ("Final err. μ", "final_error_pct", "% of distance", 1, False))
     header = [label, "Sequences"]
     for title, _key, unit, _d, delta in blocks:
         for i, est in enumerate(names):
