@@ -5,21 +5,22 @@ over the drive while GNSS is good also learns the accelerometer offset (bias, mo
 slowly changing road grade) and the gyro bias as they are *at the outage*, and starts each
 outage from its own speed estimate instead of one noisy GNSS speed.
 
-State (7), on a local east-north plane (m) around the drive's first fix::
+State (8), on a local east-north plane (m) around the drive's first fix::
 
-    x = [e, n, v, psi, b_a, b_g, k]
+    x = [e, n, v, psi, b_a, b_g, k, s]
 
 ``e, n`` position (m), ``v`` speed along the course (m/s), ``psi`` course (rad, clockwise from
 north, as GNSS gives it), ``b_a`` accelerometer offset (m/s^2), ``b_g`` gyro bias (rad/s, on the
 counter-clockwise yaw rate), ``k`` the vehicle-speed scale (the drive's vehicle speed, converted
-with the nominal wheel radius, over the true speed).
+with the nominal wheel radius, over the true speed), ``s`` the gyro's scale error (the gyro
+reads ``(1 + s)`` times the true yaw rate, plus ``b_g``; learnt from the GNSS course in turns).
 
 Propagation, once per 1-second window from its 11 inertial samples (trapezoid integrals over the
 window: ``F = int f dt``, ``G = int int f dt dt``, ``W = int omega dt``)::
 
-    v'   = v + F - b_a T                 psi' = psi - (W - b_g T)
+    v'   = v + F - b_a T                 psi' = psi - turn,  turn = (W - b_g T) / (1 + s)
     d    = v T + G - b_a T^2 / 2         (distance along the window)
-    e'   = e + d sin(psi_mid)            n' = n + d cos(psi_mid),  psi_mid = psi - (W - b_g T) / 2
+    e'   = e + d sin(psi_mid)            n' = n + d cos(psi_mid),  psi_mid = psi - turn / 2
 
 with its Jacobian for the covariance, and process noise from the sensors' white noise and the
 offsets' random walks (:class:`EkfNoise`).
@@ -67,8 +68,8 @@ if TYPE_CHECKING:
     from .estimators import Estimate, EstimatorInputs
     from .windows import Windows
 
-E, N, V, PSI, BA, BG, K = range(7)
-N_STATES = 7
+E, N, V, PSI, BA, BG, K, S = range(8)
+N_STATES = 8
 MIN_COURSE_SPEED_MPS = 3.0
 #: The accelerometer offset's slow part (bias, mount tilt) is its mean over about this long (s);
 #: the rest is road grade, which an outage does not keep: it fades over GRADE_LENGTH_M of road.
@@ -85,6 +86,7 @@ class EkfNoise:
     accel_offset_walk_mps2: float = 0.1
     gyro_bias_walk_radps: float = np.deg2rad(0.005)
     scale_walk: float = 1e-4
+    gyro_scale_walk: float = 1e-5
     gnss_position_m: float = 1.0
     gnss_speed_mps: float = 0.05
     gnss_course_rad_at_10mps: float = np.deg2rad(0.5)
@@ -95,6 +97,7 @@ class EkfNoise:
     init_accel_offset_mps2: float = 0.3
     init_gyro_bias_radps: float = np.deg2rad(0.5)
     init_scale: float = 0.05
+    init_gyro_scale: float = 0.03
 
 
 @dataclass
@@ -127,8 +130,9 @@ def _noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
     q[BA] = noise.accel_offset_walk_mps2**2 * T
     q[BG] = noise.gyro_bias_walk_radps**2 * T
     q[K] = noise.scale_walk**2 * T
+    q[S] = noise.gyro_scale_walk**2 * T
     init = np.array([noise.init_position_m, noise.init_position_m, noise.init_speed_mps, noise.init_course_rad,
-                     noise.init_accel_offset_mps2, noise.init_gyro_bias_radps, noise.init_scale])
+                     noise.init_accel_offset_mps2, noise.init_gyro_bias_radps, noise.init_scale, noise.init_gyro_scale])
     return q, init
 
 
@@ -141,11 +145,12 @@ def _noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
 def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
     """One window, in place: the state ``x`` (7,) and covariance ``P`` (7, 7); returns the
     distance along the window (m) and its mean yaw rate (rad/s, CCW +). ``J`` is scratch."""
-    v, psi, ba, bg = x[V], x[PSI], x[BA], x[BG]
-    turn = W - bg * T  # counter-clockwise, rad
+    v, psi, ba, bg, gain = x[V], x[PSI], x[BA], x[BG], 1.0 + x[S]
+    turn = (W - bg * T) / gain  # counter-clockwise, rad
     mid = psi - 0.5 * turn
     d = v * T + G - 0.5 * ba * T * T
     s, c = np.sin(mid), np.cos(mid)
+    dturn_dbg, dturn_ds = -T / gain, -turn / gain
     x[E] += d * s
     x[N] += d * c
     x[V] = v + F - ba * T
@@ -153,11 +158,13 @@ def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
     J[:, :] = 0.0
     for i in range(N_STATES):
         J[i, i] = 1.0
-    # d(e, n) / d(v, psi, b_a, b_g); psi_mid depends on psi and (through the turn) on b_g
-    J[E, V], J[E, PSI], J[E, BA], J[E, BG] = T * s, d * c, -0.5 * T * T * s, d * c * 0.5 * T
-    J[N, V], J[N, PSI], J[N, BA], J[N, BG] = T * c, -d * s, -0.5 * T * T * c, -d * s * 0.5 * T
+    # d(e, n) / d(v, psi, b_a, b_g, s); psi_mid depends on psi and (through the turn) on b_g and s
+    J[E, V], J[E, PSI], J[E, BA] = T * s, d * c, -0.5 * T * T * s
+    J[N, V], J[N, PSI], J[N, BA] = T * c, -d * s, -0.5 * T * T * c
+    J[E, BG], J[E, S] = -0.5 * d * c * dturn_dbg, -0.5 * d * c * dturn_ds
+    J[N, BG], J[N, S] = 0.5 * d * s * dturn_dbg, 0.5 * d * s * dturn_ds
     J[V, BA] = -T
-    J[PSI, BG] = T
+    J[PSI, BG], J[PSI, S] = -dturn_dbg, -dturn_ds
     _congruence(J, P, q)
     return d, turn / T
 
@@ -223,7 +230,7 @@ def _forward_kernel(segment, e, n, speed, course, good, sigma, vehicle, F, G, W,
     for k in range(nw):
         if k == 0 or segment[k] != segment[k - 1]:
             prior_x, prior_P = x.copy(), P.copy()
-            x[:] = (e[k], n[k], speed[k], course[k], accel_offset, gyro_bias, 1.0)
+            x[:] = (e[k], n[k], speed[k], course[k], accel_offset, gyro_bias, 1.0, 0.0)
             P[:, :] = 0.0
             for i in range(N_STATES):
                 P[i, i] = init_sd[i] ** 2
