@@ -67,7 +67,7 @@ OPTION_OF: dict[str, str] = {
     "thresholds": "--threshold", "gnss_limits": "--gnss-limit", "imu_axes": "--imu-axes", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
     "estimators": "--estimators", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
     "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
-    "duration_s": "--duration", "seed": "--seed",
+    "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs",
 }
 
 

@@ -45,6 +45,7 @@ def train(
     feedback_noise: float = typer.Option(0.1, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
     residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (see README); --no-residual is the paper's plain net."),
     lr_decay_tail: float = typer.Option(0.3, "--lr-decay-tail", help="Fraction of the training over which the learning rate falls linearly to 0 at the end (0 = constant, as in the paper)."),
+    inputs: str = typer.Option("calibrated", "--inputs", help="calibrated (shipped): samples corrected by the GNSS-aided INS at the outage start; plain: by the standstill biases (the paper)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     bias_from: Optional[str] = c.BiasFromOpt,
@@ -72,7 +73,7 @@ def train(
         description = "the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), not real data"
     config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp,
                          epochs_yaw=epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
-                         lr_decay_tail=lr_decay_tail, seed=seed)
+                         lr_decay_tail=lr_decay_tail, inputs=inputs, seed=seed)
     config.validate()
     if epochs_disp < 1 or epochs_yaw < 1:
         raise typer.BadParameter("epochs must be at least 1")

@@ -27,17 +27,19 @@ class Sample:
     duration_s: float
     role: str  # "test", "train", "bias" or "losses" (real GNSS losses, for replay --on gnss-outage)
     gnss_losses: int = 0
+    fleet: str = ""  # "": the simulator's default car; else a fleet of ionav_viz.sim.simulate.FLEETS
 
 
 TRAIN_DRIVES_PER_SCENARIO = 8
 
 # Test drives: 10 minutes each, so a scenario is compared over 59 outages of 10 s (a 2-minute
 # drive gives only 11, too few to tell a 10 % difference from chance). Training drives: eight
-# short drives per scenario, each with its own mount offset, bias and road-grade profile, so the
-# networks learn what drives have in common rather than one drive's quirks.
+# short drives per scenario, each from another car of the training fleet (its own offset, gyro
+# bias, scale and latency, noise, road grade and wheel radius), so the networks learn what cars
+# have in common rather than one car's quirks.
 SAMPLES = tuple(
     [Sample(f"V-sim-{s}.csv", s, 100 + i, 600.0, "test") for i, s in enumerate(SCENARIOS)]
-    + [Sample(f"V-sim-{s}-train-{k + 1}.csv", s, 200 + 10 * i + k, 150.0, "train")
+    + [Sample(f"V-sim-{s}-train-{k + 1}.csv", s, 200 + 10 * i + k, 150.0, "train", fleet="training")
        for i, s in enumerate(SCENARIOS) for k in range(TRAIN_DRIVES_PER_SCENARIO)]
     + [Sample("V-sim-stationary.csv", "stationary", 300, 180.0, "bias")]
     + [Sample("V-sim-motorway-tunnels.csv", "motorway", 400, 600.0, "losses", gnss_losses=6)]

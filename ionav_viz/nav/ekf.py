@@ -25,8 +25,8 @@ window: ``F = int f dt``, ``G = int int f dt dt``, ``W = int omega dt``)::
 with its Jacobian for the covariance, and process noise from the sensors' white noise and the
 offsets' random walks (:class:`EkfNoise`).
 
-Measurements at each window boundary where GNSS is good (the windows on both sides have good
-truth): position (sigma :attr:`EkfNoise.gnss_position_m`, or the receiver's own when the drive has
+Measurements at each window boundary where GNSS is good (the fix ends or starts a window with
+good truth): position (sigma :attr:`EkfNoise.gnss_position_m`, or the receiver's own when the drive has
 ``gnss_sigma_m``), speed, and course while faster than 3 m/s (its noise grows as 1/speed). Where
 the drive has a vehicle speed (:func:`ionav_viz.nav.odometry.vehicle_speed`) it is a measurement
 ``z = k v`` too, at every boundary, GNSS or not.
@@ -299,7 +299,7 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise) -> Measurement
     speed = np.concatenate([windows.speed0_mps, windows.speed0_mps[-1:]])
     course = np.deg2rad(np.concatenate([windows.heading0_deg, windows.heading1_deg[-1:]]))
     ok = windows.truth_ok
-    good = np.concatenate([[ok[0]], ok[1:] & ok[:-1], [ok[-1]]])  # both windows around the boundary
+    good = np.concatenate([[ok[0]], ok[1:] | ok[:-1], [ok[-1]]])  # the fix ends or starts a good window
     sigma = np.full(len(lat), noise.gnss_position_m)
     if "gnss_sigma_m" in drive.columns:
         t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + 1.0])
@@ -328,6 +328,57 @@ def _forward(windows: Windows, meas: Measurements, inc: Increments, accel_offset
                            meas.good.astype(np.bool_), meas.sigma_m, meas.vehicle, inc.F, inc.G, inc.W, float(inc.T),
                            float(accel_offset), float(gyro_bias), q, init, noise.gnss_speed_mps**2,
                            float(noise.gnss_course_rad_at_10mps), noise.vehicle_speed_mps**2, inc.T / OFFSET_MEMORY_S)
+
+
+@dataclass
+class SensorCalibration:
+    """What the filter knows about the sensors at each window start, having seen GNSS only
+    before it (arrays over windows): the accelerometer offset (m/s^2) as its slow part (bias and
+    mount tilt) and the road grade there, the gyro bias (rad/s, on the counter-clockwise rate) and
+    its scale error.
+
+    A sample ``d`` metres of road later is corrected as the filter propagates an outage: ``f -
+    (accel_slow_mps2 + accel_grade_mps2 exp(-d / GRADE_LENGTH_M))`` and ``(omega - gyro_bias_radps)
+    / (1 + gyro_scale)``.
+    """
+
+    accel_slow_mps2: np.ndarray
+    accel_grade_mps2: np.ndarray
+    gyro_bias_radps: np.ndarray
+    gyro_scale: np.ndarray
+
+    def at(self, idx: np.ndarray) -> SensorCalibration:
+        """The calibration at windows ``idx`` (any shape)."""
+        return SensorCalibration(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+    def accel(self, accel_mps2: np.ndarray, distance_m: np.ndarray | float = 0.0) -> np.ndarray:
+        """Correct samples ``(..., steps)`` whose leading shape is this calibration's, ``distance_m``
+        (same leading shape) of road after the calibration's window."""
+        offset = self.accel_slow_mps2 + self.accel_grade_mps2 * np.exp(-np.asarray(distance_m) / GRADE_LENGTH_M)
+        return accel_mps2 - offset[..., None]
+
+    def gyro(self, gyro_radps: np.ndarray) -> np.ndarray:
+        return (gyro_radps - self.gyro_bias_radps[..., None]) / (1.0 + self.gyro_scale[..., None])
+
+
+#: The calibration's filter trusts the GNSS speed less (0.3 m/s) and lets the offset wander
+#: less (0.05 m/s^2/sqrt(s)) than ``ekf``'s: a speed fitted to fixes (logs without a velocity
+#: topic) lags in hard braking, and the IDNN must get the same inputs from such a log as from a
+#: receiver's Doppler speed (measured: CRSE within 5 % between a CSV and its 5-10 Hz fix-only MCAP).
+CALIBRATION_NOISE = EkfNoise(gnss_speed_mps=0.3, accel_offset_walk_mps2=0.05)
+
+
+def calibration(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = CALIBRATION_NOISE) -> SensorCalibration:
+    """The filter's sensor calibration at every window start (see :class:`SensorCalibration`),
+    started from the standstill biases ``accel_offset`` (m/s^2) and ``gyro_bias`` (rad/s).
+
+    From the IMU and GNSS alone, even where the drive has a vehicle speed: what calibrates the
+    IDNN's inputs then does not depend on whether a log carries wheel speeds (a CSV and its MCAP
+    conversion give the same calibration)."""
+    meas = measurements(drive, windows, noise)
+    meas.vehicle[:] = np.nan
+    xs, _, slow = _forward(windows, meas, increments(windows), accel_offset, gyro_bias, noise)
+    return SensorCalibration(slow, xs[:, BA] - slow, xs[:, BG].copy(), xs[:, S].copy())
 
 
 class EkfEstimator:

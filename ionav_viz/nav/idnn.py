@@ -13,7 +13,10 @@ Two models predict once per 1-second window:
   GNSS yaw rate of the window.
 
 Inputs are bias-corrected with the same stationary biases as the INS (the paper's a_INS,
-Eq. 10), so a model carries over between cars with different mount tilts. Every feature group
+Eq. 10; ``inputs="plain"``), so a model carries over between cars with different mount tilts.
+With ``inputs="calibrated"`` (beyond the paper) they are corrected instead by what the GNSS-aided
+INS (:mod:`ionav_viz.nav.ekf`) has learnt at the outage start: the accelerometer offset (bias,
+tilt and the road grade there), the gyro bias and the gyro scale error. Every feature group
 and the target are min-max normalised to [0, 1] with the training statistics, stored with the
 model. With ``residual`` (default, beyond the paper) each network learns a correction to a
 kinematic skip term (:func:`kinematic_weights`, :meth:`Normalisation.skip_terms`). Architectures (``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed
@@ -43,11 +46,13 @@ from .bias import SensorBias
 from .windows import Windows
 
 if TYPE_CHECKING:
+    from .ekf import SensorCalibration
     from .estimators import Estimate, EstimatorInputs
 
 log = logging.getLogger("ionav_viz")
 
 ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
+INPUTS = ("plain", "calibrated")
 FORMAT_VERSION = 2
 STEP_S = GRID_STEP_S  # one time step of the windows' grid
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
@@ -70,6 +75,7 @@ class ModelConfig:
     epochs_disp: int = 40
     epochs_yaw: int = 60
     lr_decay_tail: float = 0.3
+    inputs: str = "calibrated"  # the ekf's calibration at the outage start (the shipped model's); "plain": the paper's standstill biases
     seed: int = 0
 
     def validate(self) -> None:
@@ -93,6 +99,8 @@ class ModelConfig:
                 raise InputError(f"{name} = {value:g} out of range", f"use {low:g} to {high:g}", param=name)
         if self.dropout >= 1:
             raise InputError(f"dropout {self.dropout} out of range", "use a dropout in [0, 1)", param="dropout")
+        if self.inputs not in INPUTS:
+            raise InputError(f"unknown inputs {self.inputs!r}", f"choose one of {', '.join(INPUTS)}", param="inputs")
         if not isinstance(self.residual, bool):
             raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
 
@@ -295,15 +303,28 @@ class IdnnModel:
             prev = y
         return out
 
-    def predict(self, windows: Windows, starts: np.ndarray, n_windows: int, bias: SensorBias) -> tuple[np.ndarray, np.ndarray]:
+    def predict(self, windows: Windows, starts: np.ndarray, n_windows: int, bias: SensorBias,
+                calibration: SensorCalibration | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Displacement (m) and yaw rate (rad/s) per window for outages of ``n_windows`` starting at
-        ``starts`` (batched): two arrays of shape (n_outages, n_windows)."""
+        ``starts`` (batched): two arrays of shape (n_outages, n_windows).
+
+        Inputs are corrected with the standstill ``bias`` (``inputs="plain"``, the paper's) or with
+        the filter's ``calibration`` at each outage start (``inputs="calibrated"``, required then)."""
         starts = np.asarray(starts, dtype=int)
         idx = starts[:, None] + np.arange(n_windows)[None, :]
         if len(starts) == 0:
             return np.zeros((0, n_windows)), np.zeros((0, n_windows))
-        accel = sample_history(windows.accel_mps2, idx, self.config.n_steps_disp) - bias.accel_mps2
-        gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps_yaw) - bias.gyro_radps
+        accel = sample_history(windows.accel_mps2, idx, self.config.n_steps_disp)
+        gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps_yaw)
+        if self.config.inputs == "calibrated":
+            if calibration is None:
+                raise ValueError("this model takes calibrated inputs: pass the filter's calibration (ionav_viz.nav.ekf.calibration)")
+            # the road driven since the start, as the speed there would take it (the grade part fades)
+            at_start = calibration.at(np.broadcast_to(starts[:, None], idx.shape))
+            driven = windows.speed0_mps[starts][:, None] * WINDOW_S * np.arange(n_windows)[None, :]
+            accel, gyro = at_start.accel(accel, driven), at_start.gyro(gyro)
+        else:
+            accel, gyro = accel - bias.accel_mps2, gyro - bias.gyro_radps
         return self.predict_displacement(accel, windows.gnss_disp_m[starts - 1]), self.predict_yaw_rate(gyro)
 
     def describe(self) -> dict[str, Any]:
@@ -313,6 +334,7 @@ class IdnnModel:
             "arch": self.config.arch,
             "n_steps_disp": self.config.n_steps_disp,
             "n_steps_yaw": self.config.n_steps_yaw,
+            "inputs": self.config.inputs,
             "trained_on": self.metadata.get("training", {}).get("drives", []),
             "training_data": self.metadata.get("training", {}).get("description", ""),
         }
@@ -352,7 +374,12 @@ class IdnnEstimator:
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         from .estimators import Estimate
 
-        disp, yaw = self.model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias)
+        model, cal = self.model, None
+        if model.config.inputs == "calibrated":
+            from .ekf import calibration
+
+            cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
+        disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal)
         return Estimate(disp, yaw)
 
     def describe(self) -> dict[str, Any]:
@@ -456,7 +483,7 @@ def load_model(directory: str | Path) -> IdnnModel:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
         if meta.get("format_version") != FORMAT_VERSION:
             raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}", "retrain with this version of ionav-viz")
-        config = ModelConfig(**meta["config"])
+        config = ModelConfig(**{"inputs": "plain", **meta["config"]})  # models from before the option took plain inputs
         norm = Normalisation.from_dict(meta["normalisation"])
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{meta_path}: not valid JSON ({exc})", "the model directory is damaged; retrain or restore it") from None

@@ -4,7 +4,8 @@ Training examples are 1-second windows of the training drives, taken at ten grid
 (offsets 0, 0.1, ... 0.9 s) so every second of a drive is seen at every phase. A window is used
 when the window before it lies in the same gap-free segment (it supplies the previous GNSS
 displacement, the feedback input). Inputs are bias-corrected with each drive's stationary
-biases (:func:`ionav_viz.evaluate.resolve_bias`). A seeded 10 % of the examples is held out for
+biases (:func:`ionav_viz.evaluate.resolve_bias`), or calibrated by the GNSS-aided INS
+(``inputs="calibrated"``, :func:`training_examples`). A seeded 10 % of the examples is held out for
 validation. Loss: mean absolute error; optimiser: Adamax, its learning rate falling linearly to
 zero over the last ``lr_decay_tail`` of the steps (beyond the paper: the displacement model's
 small constant offset, which the feedback loop integrates, otherwise depends on the last
@@ -26,7 +27,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from .bias import SensorBias
 from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
-from .windows import make_windows
+from .windows import WINDOW_S, make_windows
 
 Progress = Callable[[str, int, int], None]
 
@@ -49,8 +50,22 @@ class TrainingSet:
         return TrainingSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
 
 
-def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int, n_steps_yaw: int, phases: int = 10) -> TrainingSet:
-    """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets."""
+#: Calibrated inputs: a training window takes the filter's calibration of 0 to this many - 1
+#: windows before it, as a window that far into an outage takes the outage start's.
+CALIBRATION_LAG_WINDOWS = 10
+
+
+def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int, n_steps_yaw: int, phases: int = 10,
+                      inputs: str = "plain", seed: int = 0) -> TrainingSet:
+    """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets.
+
+    ``inputs="plain"`` corrects the samples with the standstill biases (the paper's); ``"calibrated"``
+    with the GNSS-aided INS's calibration (:func:`ionav_viz.nav.ekf.calibration`) of a window a seeded
+    random 0-9 s earlier in the same segment (:data:`CALIBRATION_LAG_WINDOWS`).
+    """
+    from .ekf import calibration
+
+    rng = np.random.default_rng([seed, 17])
     parts: list[tuple[np.ndarray, ...]] = []
     for drive, bias in drives:
         for phase in range(phases):
@@ -61,13 +76,17 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int,
             # and both have trustworthy GNSS truth (a bad fix is never a training target)
             k = np.arange(1, len(w))
             k = k[(w.segment[k] == w.segment[k - 1]) & w.truth_ok[k] & w.truth_ok[k - 1]]
-            parts.append((
-                sample_history(w.accel_mps2, k, n_steps_disp) - bias.accel_mps2,
-                w.gnss_disp_m[k - 1],
-                w.gnss_disp_m[k],
-                sample_history(w.gyro_radps, k, n_steps_yaw) - bias.gyro_radps,
-                w.gnss_yaw_rate_radps[k],
-            ))  # fmt: skip
+            accel = sample_history(w.accel_mps2, k, n_steps_disp)
+            gyro = sample_history(w.gyro_radps, k, n_steps_yaw)
+            if inputs == "calibrated":
+                first = np.searchsorted(w.segment, w.segment, side="left")  # each window's segment start
+                lagged = np.maximum(k - rng.integers(0, CALIBRATION_LAG_WINDOWS, len(k)), first[k])
+                cal = calibration(drive, w, bias.accel_mps2, bias.gyro_radps).at(lagged)
+                driven = w.speed0_mps[lagged] * WINDOW_S * (k - lagged)  # as in prediction
+                accel, gyro = cal.accel(accel, driven), cal.gyro(gyro)
+            else:
+                accel, gyro = accel - bias.accel_mps2, gyro - bias.gyro_radps
+            parts.append((accel, w.gnss_disp_m[k - 1], w.gnss_disp_m[k], gyro, w.gnss_yaw_rate_radps[k]))
     if not parts:
         raise InputError("no training windows: the training drives are too short", "give drives of at least a few seconds")
     return TrainingSet(*(np.concatenate(p) for p in zip(*parts)))
@@ -126,7 +145,7 @@ def train_models(
     config.validate()
     torch.manual_seed(config.seed)
     torch.use_deterministic_algorithms(True)
-    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw)
+    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
     rng = np.random.default_rng(config.seed)
     val_mask = rng.random(len(data)) < 0.1
     train, val = data.subset(~val_mask), data.subset(val_mask)

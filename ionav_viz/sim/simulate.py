@@ -43,6 +43,10 @@ Sensor error model (:class:`SensorModel`, defaults from measured real logs, see 
         driven front wheels, plus wheelspin under hard acceleration (up to 6 % above 2.5 m/s^2);
         quantised to 0.05 rad/s and 0 below 0.5 m/s; 50 ms CAN latency. Indicated speed: 3 % over
         the true speed (as speedometers read), rounded to 1 km/h, with the same latency.
+    fleets (:data:`FLEETS`, :func:`fleet_sensors`): the defaults above are one car; the bundled
+        training drives come from a "training" fleet of cars whose offsets, biases, gyro scale
+        and latency, noise, road grade and wheel radius vary per drive, and "held-out" cars lie
+        outside all of those ranges.
     GNSS losses (``gnss_losses``, off by default): tunnel-like stretches of 3-15 s while driving,
         satellites 0, the last fix (position, speed, course, height) repeated or zeros written,
         alternately; the CAN bus and the IMU go on (see :func:`gnss_loss_spans`).
@@ -576,6 +580,48 @@ def write_simulated_drive(
     rows = simulate_rows(scenario, seed, duration_s, sensors, gnss_losses)
     write_iovnbd(path, rows, DECIMALS)
     return path
+
+
+#: Fleets of simulated cars: per drive each parameter is drawn uniformly from its range (magnitude
+#: and, where marked signed, a random sign). The training fleet varies every sensor and vehicle
+#: error the IDNN could otherwise learn as a constant of one car; the held-out fleet lies outside
+#: every training range, to test whether a model transfers to a car it has never seen. The noise
+#: factor multiplies the accelerometer and gyro white noise.
+FLEETS: dict[str, dict[str, tuple[float, float, bool]]] = {
+    "training": {
+        "accel_offset_mps2": (0.0, 0.25, True),
+        "gyro_bias_dps": (0.0, 0.4, True),
+        "gyro_scale_error": (0.0, 0.02, True),
+        "gyro_latency_s": (0.0, 0.1, False),
+        "noise_factor": (0.7, 1.3, False),
+        "grade_rms": (0.01, 0.03, False),
+        "wheel_radius_error": (0.01, 0.03, False),
+    },
+    "held-out": {
+        "accel_offset_mps2": (0.25, 0.4, True),
+        "gyro_bias_dps": (0.4, 0.7, True),
+        "gyro_scale_error": (0.02, 0.035, True),
+        "gyro_latency_s": (0.1, 0.15, False),
+        "noise_factor": (1.3, 1.6, False),
+        "grade_rms": (0.03, 0.04, False),
+        "wheel_radius_error": (0.03, 0.045, False),
+    },
+}
+
+
+def fleet_sensors(fleet: str, seed: int) -> SensorModel:
+    """The sensors of one car of ``fleet`` (:data:`FLEETS`), drawn from their own random stream."""
+    if fleet not in FLEETS:
+        raise InputError(f"unknown fleet {fleet!r}", f"choose one of {', '.join(FLEETS)}")
+    rng = np.random.default_rng([seed, 4000])
+    draw = {name: rng.uniform(lo, hi) * (rng.choice([-1.0, 1.0]) if signed else 1.0) for name, (lo, hi, signed) in FLEETS[fleet].items()}
+    base = SensorModel()
+    noise = draw.pop("noise_factor")
+    radius = abs(draw.pop("wheel_radius_error"))
+    return replace(base, **draw, accel_offset_spread_mps2=0.0, gyro_bias_spread_dps=0.0,
+                   accel_noise_still_mps2=base.accel_noise_still_mps2 * noise, accel_noise_per_mps=base.accel_noise_per_mps * noise,
+                   accel_noise_max_mps2=base.accel_noise_max_mps2 * noise, gyro_noise_still_dps=base.gyro_noise_still_dps * noise,
+                   gyro_noise_driving_dps=base.gyro_noise_driving_dps * noise, wheel_radius_error_min=radius, wheel_radius_error_max=radius)
 
 
 def ideal_sensors_with(**changes: float) -> SensorModel:
