@@ -22,12 +22,13 @@ import json
 import tempfile
 from pathlib import Path
 
+from results_table import held_out_drives  # the same held-out cars as the README's table
+
 from ionav_viz.analysis.evaluate import evaluate_drive, improvement_pct, resolve_bias
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import SAMPLES, sample_path
 from ionav_viz.nav.idnn import ModelConfig, default_model_dir, load_model
 from ionav_viz.nav.training import train_models
-from ionav_viz.sim.simulate import fleet_sensors, write_simulated_drive
 from ionav_viz.sources.iovnbd import read_iovnbd
 
 
@@ -56,11 +57,7 @@ def main() -> None:
     train = [(d, resolve_bias(d)) for d in train]
     bundled = {s.scenario: read_iovnbd(sample_path(s)) for s in SAMPLES if s.role == "test"}
     with tempfile.TemporaryDirectory() as tmp:
-        heldout = {
-            sc: read_iovnbd(write_simulated_drive(Path(tmp) / f"V-heldout-{sc}.csv", sc, args.seed_base + i, 60.0 * args.minutes,
-                                                  fleet_sensors("held-out", args.seed_base + i)))
-            for i, sc in enumerate(SCENARIOS)
-        }
+        heldout = {sc: read_iovnbd(path) for sc, path in held_out_drives(Path(tmp), args.minutes, args.seed_base).items()}
 
     header = "model            test set   " + "  ".join(f"{s[:13]:>13}" for s in SCENARIOS) + "  wins"
     print("IDNN improvement over INS in % (displacement CRSE, orientation-rate CRSE), 10 s outages")

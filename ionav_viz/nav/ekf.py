@@ -122,7 +122,7 @@ def increments(windows: Windows) -> Increments:
 
 
 def _noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """The process noise per window (diagonal, (7,)) and the initial standard deviations (7,)."""
+    """The process noise per window (diagonal, (8,)) and the initial standard deviations (8,)."""
     q = np.zeros(N_STATES)
     q[E] = q[N] = 0.01 * T
     q[V] = noise.accel_white_mps2**2 * T / 10.0  # white noise per 0.1 s sample, summed over the window
@@ -137,13 +137,13 @@ def _noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 # The filter runs one small state per window, which numpy cannot batch along the drive: the
-# loops below are compiled by numba (cached on disk after the first run), about 100x faster
+# loops below are compiled by numba (cached on disk after the first run), about 50x faster
 # than the same numpy code per window (benchmarks/bench_replay.py).
 
 
 @njit(cache=True)
 def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
-    """One window, in place: the state ``x`` (7,) and covariance ``P`` (7, 7); returns the
+    """One window, in place: the state ``x`` (8,) and covariance ``P`` (8, 8); returns the
     distance along the window (m) and its mean yaw rate (rad/s, CCW +). ``J`` is scratch."""
     v, psi, ba, bg, gain = x[V], x[PSI], x[BA], x[BG], 1.0 + x[S]
     turn = (W - bg * T) / gain  # counter-clockwise, rad
@@ -171,27 +171,29 @@ def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _congruence(J, P, q):  # pragma: no cover - compiled
-    """``P <- J P J^T + diag(q)`` in place, with plain loops (numba's matrix product needs
-    SciPy's BLAS and compiles slowly)."""
-    JP = np.zeros((N_STATES, N_STATES))
+    """``P <- J P J^T + diag(q)`` in place."""
+    JP = np.empty((N_STATES, N_STATES))
+    _product(J, P, JP)
+    _product(JP, J.T, P)
     for i in range(N_STATES):
-        for j in range(N_STATES):
-            acc = 0.0
-            for m in range(N_STATES):
-                acc += J[i, m] * P[m, j]
-            JP[i, j] = acc
-    for i in range(N_STATES):
-        for j in range(N_STATES):
-            acc = 0.0
-            for m in range(N_STATES):
-                acc += JP[i, m] * J[j, m]
-            P[i, j] = acc
         P[i, i] += q[i]
 
 
 @njit(cache=True)
+def _product(A, B, out):  # pragma: no cover - compiled
+    """``out <- A @ B`` (``out`` neither ``A`` nor ``B``) with plain loops: numba's matrix product
+    needs SciPy's BLAS and compiles slowly."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            acc = 0.0
+            for m in range(A.shape[1]):
+                acc += A[i, m] * B[m, j]
+            out[i, j] = acc
+
+
+@njit(cache=True)
 def _update(x, P, H, z, h_x, r, wrap):  # pragma: no cover - compiled
-    """Scalar measurement ``z = h(x)`` (linearised ``H`` (7,)) with variance ``r``, in place;
+    """Scalar measurement ``z = h(x)`` (linearised ``H`` (8,)) with variance ``r``, in place;
     angles (``wrap``) use the wrapped innovation."""
     innov = z - h_x
     if wrap:
@@ -291,8 +293,9 @@ class Measurements:
     vehicle: np.ndarray
 
 
-def measurements(drive: Drive, windows: Windows, noise: EkfNoise) -> Measurements:
-    """What the filter is updated with, at the start of every window and the end of the last."""
+def measurements(drive: Drive, windows: Windows, noise: EkfNoise, use_vehicle_speed: bool = True) -> Measurements:
+    """What the filter is updated with, at the start of every window and the end of the last
+    (the vehicle speed only with ``use_vehicle_speed``)."""
     lat = np.concatenate([windows.lat0_deg, windows.lat1_deg[-1:]])
     lon = np.concatenate([windows.lon0_deg, windows.lon1_deg[-1:]])
     e, n = local_en_m(lat, lon, float(lat[0]), float(lon[0]))
@@ -305,7 +308,7 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise) -> Measurement
         t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + 1.0])
         sigma = np.maximum(np.interp(t, drive.t_s, drive.columns["gnss_sigma_m"]), 0.3)
     vehicle = np.full(len(windows), np.nan)
-    found = vehicle_speed(drive)
+    found = vehicle_speed(drive) if use_vehicle_speed else None
     if found is not None:
         values, unit, _ = found
         per_s = values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0)
@@ -316,7 +319,7 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise) -> Measurement
 
 def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = EkfNoise()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The filter over the whole drive: its state and covariance at the start of every window,
-    having used the GNSS of earlier boundaries only (shapes (n_windows, 7) and (n_windows, 7, 7)),
+    having used the GNSS of earlier boundaries only (shapes (n_windows, 8) and (n_windows, 8, 8)),
     and the offset's slow part there (its mean over the last ~OFFSET_MEMORY_S, (n_windows,))."""
     return _forward(windows, measurements(drive, windows, noise), increments(windows), accel_offset, gyro_bias, noise)
 
@@ -375,8 +378,7 @@ def calibration(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: 
     From the IMU and GNSS alone, even where the drive has a vehicle speed: what calibrates the
     IDNN's inputs then does not depend on whether a log carries wheel speeds (a CSV and its MCAP
     conversion give the same calibration)."""
-    meas = measurements(drive, windows, noise)
-    meas.vehicle[:] = np.nan
+    meas = measurements(drive, windows, noise, use_vehicle_speed=False)
     xs, _, slow = _forward(windows, meas, increments(windows), accel_offset, gyro_bias, noise)
     return SensorCalibration(slow, xs[:, BA] - slow, xs[:, BG].copy(), xs[:, S].copy())
 
