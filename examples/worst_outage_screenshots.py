@@ -2,7 +2,7 @@
 
 For each scenario's bundled 10-minute test drive, replay it with the paper's consecutive 10 s
 outages, find the outage with the largest final position error of the INS DR, and render the
-local east-north view at the end of that outage with a headless Rerun viewer.
+local east-north view framed on that outage with a headless Rerun viewer.
 
     python examples/worst_outage_screenshots.py shots/
 
@@ -22,7 +22,7 @@ from ionav_viz.dataset.catalog import SCENARIOS
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("output", type=Path, help="directory for the PNGs")
-    parser.add_argument("--view", default="local", help="all, map, local, signals or errors")
+    parser.add_argument("--view", default="local", help="all, outage, map, local, signals or errors")
     parser.add_argument("--size", default="1280x720", help="WIDTHxHEIGHT")
     args = parser.parse_args()
     width, height = (int(x) for x in args.size.split("x"))
@@ -31,15 +31,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="worst-") as tmp:
         for scenario in SCENARIOS:
             result = iv.replay(scenario, outage_s=10.0, output=Path(tmp) / f"{scenario}.rrd")
-            final_error_m = result.report.metric("ins", "final_position_error_m")
-            worst = result.outages[int(final_error_m.argmax())]
-            others = ", ".join(f"{e} {result.report.metric(e, 'final_position_error_m')[worst.number - 1]:.1f} m"
-                               for e in result.report.estimators if e != "ins")
-            [png] = iv.screenshot([result.path], args.output / f"{scenario}-worst.png", times=[worst.end_s],
+            worst = result.report.worst_outages(1)[0]  # by the INS DR's final position error
+            errors = ", ".join(f"{name} {err:.1f} m" for name, err in worst["final_error_m"].items())
+            # 'worst' frames the same outage: its tracks fill the view, its errors are in the title
+            [png] = iv.screenshot([result.path], args.output / f"{scenario}-worst.png", times=["worst"],
                                   views=[args.view], size=(width, height))
-            print(f"{scenario}: outage {worst.number} ({worst.start_s:.0f}-{worst.end_s:.0f} s), "
-                  f"INS DR final error {final_error_m.max():.1f} m, {others} -> {png}")
-
+            print(f"{scenario}: outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s), "
+                  f"final error {errors} -> {png}")
 
 if __name__ == "__main__":
     main()

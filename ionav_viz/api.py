@@ -340,6 +340,7 @@ def replay(
     mcap: McapOptions | None = None,
     gnss_limits: GnssLimits | None = None,
     progress: Progress | None = None,
+    connect: str | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
 
@@ -349,12 +350,19 @@ def replay(
         output: the ``.rrd`` to write (default ``<drive>.rrd`` in the current directory); an
             existing file is replaced atomically, nothing is left behind on failure.
         progress: called as the recording is built.
+        connect: also stream the recording to the Rerun viewer at this gRPC address (e.g.
+            ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens); checked
+            before any work.
 
     Returns:
         a :class:`ReplayResult` with the written path, the report and the outages.
     """
     from .core.fileio import atomic_path
+    from .viz import live
     from .viz.recording import write_recording
+
+    if connect is not None:
+        live.check_listening(connect)
 
     out = Path(output) if output is not None else None
     if out is not None and out.suffix.lower() != ".rrd":
@@ -378,7 +386,7 @@ def replay(
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded,
                             gnss_gaps=gaps)
     report = Report([result])
-    summary = run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
+    summary = _summary_markdown(result, report, description)
     total = 5 + len(result.estimates)
     done = [0]
 
@@ -390,9 +398,27 @@ def replay(
     with stage(f"write {out}") as s, atomic_path(out) as tmp:
         rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
+    if connect is not None:
+        with stage(f"stream to {connect}"):
+            live.connect(result, summary, connect, events=events)
     n = result.n_windows
     outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(starts)]
     return ReplayResult(out, report, outages, description, result, events)
+
+
+def _summary_markdown(result: DriveResult, report: Report, description: str) -> str:
+    """The recording's summary document: the run, the worst outages and the paper's table."""
+    return run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
+
+
+def serve_web(replayed: ReplayResult, grpc_port: int = 9876, web_port: int = 9090):
+    """Serve a replay's recording to browsers from this process (Rerun's gRPC server and web
+    viewer); returns a :class:`ionav_viz.viz.live.WebServer` whose ``web_url`` to open. The
+    servers stop when the process ends."""
+    from .viz import live
+
+    return live.serve_web(replayed.result, _summary_markdown(replayed.result, replayed.report, replayed.placement),
+                          replayed.events, grpc_port=grpc_port, web_port=web_port)
 
 
 def screenshot(
@@ -404,16 +430,21 @@ def screenshot(
     *,
     timeout_s: float = 120.0,
     progress: Callable[[Path], None] | None = None,
+    outages: Sequence[int] = (),
+    worst_of: str = "ins",
 ) -> list[Path]:
     """Render PNG screenshots of recordings with a private headless Rerun viewer.
 
     Args:
         recordings: ``.rrd`` files written by :func:`replay`.
         output: a ``.png`` for one image, else a directory (or a ``.png`` whose stem prefixes the names).
-        times: seconds (float), ``"35s"``, ``"worst"`` (end of the outage with the largest INS DR
-            position error) or ``"end"``.
-        views: ``all``, ``map``, ``local``, ``signals``, ``errors``.
+        times: seconds (float), ``"35s"``, ``"worst"`` or ``"end"``. ``"worst"`` is the end of the
+            outage with the largest final position error of ``worst_of`` (default the INS DR), and
+            frames that outage.
+        views: ``all``, ``outage`` (the outage inspector), ``map``, ``local``, ``signals``, ``errors``.
         size: image width and height in pixels.
+        outages: outage numbers (1-based, as the replay lists them): each is shown at its end, framed.
+        worst_of: the estimator whose final error picks ``"worst"``.
 
     Returns:
         the written PNG paths. Needs a Vulkan renderer (Mesa's lavapipe on machines without a GPU).
@@ -428,7 +459,7 @@ def screenshot(
             raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
     width, height = check_size(*(int(x) for x in size))
     out = Path(output)
-    single = out.suffix.lower() == ".png" and len(paths) == 1 and len(times) * len(views) == 1
+    single = out.suffix.lower() == ".png" and len(paths) == 1 and (len(times) + len(outages)) * len(views) == 1
     if single:
         check_output_file(out)
     elif out.suffix.lower() != ".png" and out.exists() and not out.is_dir():
@@ -438,4 +469,5 @@ def screenshot(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory", param="output")
     spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in times]
-    return render(paths, Path(output), spec, list(views), (width, height), timeout_s=timeout_s, progress=progress)
+    return render(paths, Path(output), spec, list(views), (width, height), timeout_s=timeout_s, progress=progress,
+                  outages=[int(n) for n in outages], worst_of=worst_of)

@@ -60,3 +60,38 @@ def test_train_refuses_bad_hyperparameters_before_any_work(tmp_path, args, optio
     proc = run_cli("train", "-o", str(out), "-q", *args)
     assert proc.returncode == 2 and option in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_worst_outages_in_json_text_and_replay(tmp_path):
+    """``worst``: the three outages with the largest INS DR final error, found here from the JSON's
+    own sequences; the text table and replay's output list the same three."""
+    proc = run_cli("evaluate", "sharp-cornering", "hard-brake", "--json", "--estimators", "ins,odo")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    per_drive: dict = {}
+    for s in rep["sequences"]:
+        per_drive.setdefault(s["drive"], []).append(s)
+    ranked = sorted(((s["ins"]["final_position_error_m"], s["drive"], i + 1, s) for d, seqs in per_drive.items()
+                     for i, s in enumerate(seqs)), key=lambda r: -r[0])[:3]
+    assert rep["worst_of"] == "ins"
+    assert [(w["drive"], w["number"]) for w in rep["worst"]] == [(d, n) for _, d, n, _ in ranked]
+    for w, (_, _, _, s) in zip(rep["worst"], ranked):
+        assert w["start_s"] == s["start_s"] and w["end_s"] == s["start_s"] + 10
+        assert w["final_error_m"] == {e: s[e]["final_position_error_m"] for e in ("ins", "odo")}
+    text = run_cli("replay", "sharp-cornering", "--estimators", "ins,odo", "-o", str(tmp_path / "s.rrd")).stderr
+    lines = text[text.index("Worst outages by INS DR final position error"):].splitlines()[3:6]
+    sharp = [r for r in ranked if r[1] == "V-sim-sharp-cornering"] or ranked
+    assert lines[0].split()[0] == f"#{sharp[0][2]}" and f"{sharp[0][0]:.2f}" in lines[0]
+    assert len(lines) == 3 and all(line.startswith("#") for line in lines)
+
+
+def test_overview_has_a_row_per_drive_and_a_total():
+    """The total row is over every outage: its mean is the outage-weighted mean of the drives' rows."""
+    proc = run_cli("evaluate", "sharp-cornering", "hard-brake", "--overview", "--estimators", "ins,odo", "--markdown")
+    assert proc.returncode == 0, proc.stderr
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in proc.stdout.splitlines()[2:]]
+    assert [r[0] for r in rows] == ["V-sim-sharp-cornering", "V-sim-hard-brake", "total"]
+    n = [int(r[1]) for r in rows]
+    crse = [float(r[2]) for r in rows]
+    assert n[2] == n[0] + n[1]
+    assert crse[2] == pytest.approx((n[0] * crse[0] + n[1] * crse[1]) / n[2], abs=0.01)

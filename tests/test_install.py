@@ -107,8 +107,8 @@ def test_open_without_a_display_says_what_to_do_instead(tmp_path):
     proc = run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", "-o", str(out), "--open", env={**env, "DISPLAY": ""})
     assert proc.returncode == 1, proc.stderr
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and "no display" in lines[0] and "ionav-viz screenshot" in lines[0]
-    assert out.is_file()  # the recording itself was written
+    assert len(lines) == 1 and "no display" in lines[0] and "--serve-web" in lines[0] and "ionav-viz screenshot" in lines[0]
+    assert not out.exists()  # said before any work, not after a long replay
 
 
 def test_scenario_says_which_drives_it_uses(tmp_path):

@@ -66,17 +66,56 @@ def test_row_counts_per_outage(replayed):
     rows, _ = read_rrd(path)
     n_seq = rep["n_sequences"]
     assert n_seq == 59  # (600 s - 1 s) // 10 s
-    for entity in ("/errors/crse_m/ins", "/errors/crse_m/idnn", "/map/idnn/live", "/local/ins/live", "/signals/displacement_m/idnn"):
+    for entity in ("/errors/crse_m/ins", "/errors/crse_m/idnn", "/signals/displacement_m/idnn"):
         assert len(rows[entity]) == n_seq * N_WIN, entity
-    # the growing track of outage k has 2, 3, ... 11 points
+    for entity in ("/map/idnn/live", "/local/ins/live", "/inspect/ins", "/inspect/idnn"):
+        assert len(rows[entity]) == n_seq * (N_WIN + 1), entity
+    # the track of outage k is its start alone just after the start (clearing the previous one), then grows to 11 points
     lengths = [len(v[0]) for _, v in rows["/local/ins/live"]]  # one strip per row
-    assert lengths == list(range(2, N_WIN + 2)) * n_seq
+    assert lengths == list(range(1, N_WIN + 2)) * n_seq
+    for entity in ("/inspect/gnss", "/inspect/grid", "/inspect/scale", "/local/gnss/outage", "/map/gnss/outage"):
+        assert len(rows[entity]) == n_seq, entity
     # GNSS available: 0 during outages
     available = np.array([v[0] for _, v in rows["/gnss/available"]])
     assert int((available == 0).sum()) == n_seq * N_WIN
     states = [v[0] for _, v in rows["/gnss/state"]]
     # GNSS, outage 1 .. outage 59, then GNSS again for the last seconds that fit no whole outage
     assert states[0] == "GNSS" and states[1] == "outage 1 (1-11 s)" and states[-1] == "GNSS" and len(states) == n_seq + 2
+
+
+def test_outage_inspector_shows_each_outage_from_its_start_fix(replayed):
+    """The inspector's truth is the GNSS track of the outage (read from the logged per-sample
+    positions) less the fix at its start; each estimate's end is its final error away from the
+    truth's end (evaluate's number, computed from lat/lon); the grid covers everything drawn and the
+    scale bar's label is the grid's step."""
+    path, rep = replayed
+    rows, _ = read_rrd(path)
+    pos_t = np.array([t for t, _ in rows["/local/gnss/position"]])
+    pos = np.array([v[0] for _, v in rows["/local/gnss/position"]])
+    truth_rows = rows["/inspect/gnss"]
+    for k, seq in enumerate(rep["sequences"]):
+        t0 = seq["start_s"]
+        t_row, strip = truth_rows[k]
+        assert t0 < t_row < t0 + 0.01  # just after the start: the previous outage stays shown at t0
+        inside = (pos_t > t0 + 1e-6) & (pos_t < t0 + N_WIN - 1e-6)
+        start_local = np.array(rows["/local/ins/live"][k * (N_WIN + 1)][1][0][0])  # the fix every estimate starts from
+        truth = np.array(strip[0])
+        assert np.allclose(truth[0], 0.0)
+        np.testing.assert_allclose(truth[1:-1], pos[inside] - start_local, atol=1e-3)
+        assert np.hypot(*(truth[-1] - truth[-2])) < 2.0  # the end on the windows' grid, a sample's travel from the last fix
+        drawn = [np.array(strip[0])]
+        for est in ("ins", "idnn"):
+            final_strip = np.array(rows[f"/inspect/{est}"][k * (N_WIN + 1) + N_WIN][1][0])
+            assert len(final_strip) == N_WIN + 1 and np.allclose(final_strip[0], 0.0, atol=1e-6)
+            error = np.hypot(*(final_strip[-1] - np.array(strip[0])[-1]))
+            assert error == pytest.approx(seq[est]["final_position_error_m"], abs=0.05 + 0.02 * seq[est]["final_position_error_m"])
+            drawn.append(final_strip)
+        pts = np.concatenate(drawn)
+        grid = np.concatenate([np.array(line) for line in rows["/inspect/grid"][k][1]])
+        assert (pts.min(axis=0) >= grid.min(axis=0)).all() and (pts.max(axis=0) <= grid.max(axis=0)).all()
+        xs = np.unique(np.round([line[0][0] for line in rows["/inspect/grid"][k][1] if line[0][0] == line[1][0]], 6))
+        bar = np.array(rows["/inspect/scale"][k][1][0])
+        assert np.diff(xs) == pytest.approx(np.full(len(xs) - 1, bar[1, 0] - bar[0, 0]))
 
 
 def test_recorded_errors_equal_evaluate_json(replayed):

@@ -8,13 +8,17 @@ import time
 import numpy as np
 import pytest
 
+from ionav_viz.nav.ekf import EkfEstimator
 from ionav_viz.nav.idnn import IdnnEstimator
 from ionav_viz.nav.ins import InsEstimator
+from ionav_viz.nav.odometry import OdometryEstimator
 from ionav_viz.viz.style import GNSS_COLOR
 
 from .conftest import REPO, run_cli
 
-COLORS = {"gnss": GNSS_COLOR, "ins": InsEstimator.color, "idnn": IdnnEstimator.color}
+COLORS = {"gnss": GNSS_COLOR, "ins": InsEstimator.color, "idnn": IdnnEstimator.color, "odo": OdometryEstimator.color,
+          "ekf": EkfEstimator.color}
+TITLE_BAR_PX = 62  # the viewer's top bar and the view's title (text down to y = 58)
 
 
 
@@ -30,11 +34,113 @@ def recording(tmp_path_factory):
     return out
 
 
-def _pixels_near(path, rgb, tol=45):
+def _image(path):
     from PIL import Image
 
-    img = np.asarray(Image.open(path).convert("RGB")).astype(int)
-    return int((np.abs(img - np.array(rgb)).max(axis=-1) <= tol).sum())
+    return np.asarray(Image.open(path).convert("RGB")).astype(int)
+
+
+def _pixels_near(path, rgb, tol=45):
+    return int((np.abs(_image(path) - np.array(rgb)).max(axis=-1) <= tol).sum())
+
+
+def _extent_of(path, rgb, tol=30):
+    """(width, height) in pixels of the box around the pixels of colour ``rgb`` below the title bar."""
+    img = _image(path)[TITLE_BAR_PX:-40]  # not the title bar, not the time panel
+    ys, xs = np.nonzero(np.abs(img - np.array(rgb)).max(axis=-1) <= tol)
+    return (int(np.ptp(xs)), int(np.ptp(ys))) if len(xs) else (0, 0)
+
+
+def test_worst_outage_local_view_frames_that_outage(recording, tmp_path):
+    """Framed: the outage's own GNSS track (full green; the rest of the drive is drawn faint) spans a
+    large part of the image, where the whole-drive view shows it a few pixels long; every
+    estimator's colour is there."""
+    framed, whole = tmp_path / "framed.png", tmp_path / "whole.png"
+    assert run_cli("screenshot", str(recording), "-o", str(framed), "--view", "local", "--time", "worst", "--size", "800x450").returncode == 0
+    proc = run_cli("screenshot", str(recording), "-o", str(whole), "--view", "local", "--time", "291s", "--size", "800x450")
+    assert proc.returncode == 0, proc.stderr
+    w, h = _extent_of(framed, GNSS_COLOR)
+    assert w > 0.5 * 800 or h > 0.5 * (450 - TITLE_BAR_PX - 40), (w, h)
+    w_whole, h_whole = _extent_of(whole, GNSS_COLOR)  # the same time (the worst outage's end), not framed
+    assert max(w_whole, h_whole) < 0.25 * max(w, h), ((w, h), (w_whole, h_whole))
+    for name, rgb in COLORS.items():
+        assert _pixels_near(framed, rgb, tol=30) > 30, name
+
+
+def _static_points(path, entity):
+    from rerun.chunk import RrdReader
+
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static and str(chunk.entity_path) == entity:
+            batch = chunk.to_record_batch()
+            col = next(n for n in batch.schema.names if n.endswith(":positions") or n.endswith(":lat_lon"))
+            return len(batch.column(col).to_pylist()[0])
+    return 0
+
+
+def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_path):
+    """Events and outage starts carry names, but only in hover text. A label is drawn in its marker's
+    colour: with labels turned on, the event colour covered 8,548 pixels of this local view (the bound
+    is 3,770); by default it stays within the markers. No white text over the tracks either (the local view's scale bar,
+    bottom left, is white and shows that the count sees white drawing)."""
+    from ionav_viz.viz.style import EVENT_COLOR
+
+    n_events = _static_points(recording, "/local/events")
+    assert n_events > 20
+    marker_px = np.pi * 5.0**2  # a 3.5-point radius marker, antialiased edge included
+    for view in ("map", "local"):
+        out = tmp_path / f"{view}.png"
+        assert run_cli("screenshot", str(recording), "-o", str(out), "--view", view, "--time", "end", "--size", "800x600").returncode == 0
+        img = _image(out)[TITLE_BAR_PX:-45]  # not the titles, nor the time panel and map attribution
+        yellow = int((np.abs(img - np.array(EVENT_COLOR)).max(axis=-1) <= 60).sum())
+        assert yellow < 1.2 * n_events * marker_px, (view, yellow, n_events)
+        white = img.min(axis=-1) >= 200
+        corner = np.zeros_like(white)
+        corner[-int(0.25 * white.shape[0]):, : int(0.3 * white.shape[1])] = True
+        assert int(white[~corner].sum()) < 10, view
+        if view == "local":
+            assert int(white[corner].sum()) > 20  # the scale bar and its label
+
+
+def test_outage_numbers_and_worst_of(recording, tmp_path):
+    out = tmp_path / "shots"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "outage", "--outage", "3", "--outage", "7",
+                   "--size", "400x300")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["V-sim-sharp-cornering-outage-outage3.png", "V-sim-sharp-cornering-outage-outage7.png"]
+    for args, message in [(["--outage", "999"], "no outage 999 (the recording has 59)"), (["--outage", "10s"], "--outage-length"),
+                          (["--time", "worst", "--worst-of", "nope"], "choose one of")]:
+        proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), *args)
+        assert proc.returncode == 2 and message in proc.stderr and proc.stderr.count("\n") == 1, (args, proc.stderr)
+
+
+def test_worst_of_picks_the_outage_with_the_largest_final_error_of_that_estimator(recording):
+    """Against the final errors read back from the recording's error series, independently."""
+    from ionav_viz.viz.screenshot import read_recording_info
+
+    from .test_replay import read_rrd
+
+    rows, _ = read_rrd(recording)
+    info = read_recording_info(recording)
+    for est in ("ins", "idnn"):
+        series = [(t, v[0]) for t, v in rows[f"/errors/position_error_m/{est}"] if v[0] == v[0]]
+        finals = [max((r for r in series if o.start_s < r[0] <= o.end_s + 1e-6), key=lambda r: r[0])[1] for o in info.outages]
+        assert info.worst(est).number == int(np.argmax(finals)) + 1
+
+
+@pytest.mark.parametrize("size", [(1600, 900), (1280, 720)])
+def test_review_layout_titles_fit_their_views(recording, size):
+    """Every title of the 'all' layout, at the worst outage, fits its column's width (at the title
+    font's measured width per character)."""
+    from ionav_viz.viz.screenshot import COLUMN_FRACTION, TITLE_ICONS_PX, TITLE_PX_PER_CHAR, Shot, read_recording_info, titles_for
+
+    info = read_recording_info(recording)
+    worst = info.worst()
+    titles = titles_for(info, Shot("all", worst.end_s, "worst", worst), size[0])
+    assert f"outage {worst.number}" in titles["inspect"] or f"#{worst.number}" in titles["inspect"]
+    assert all(f"{worst.final_error_m[e]:.1f}" in titles["inspect"] for e in COLORS if e != "gnss")
+    for origin, title in titles.items():
+        assert len(title) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= size[0] * COLUMN_FRACTION[origin], (origin, title)
 
 
 @pytest.mark.parametrize("view", ["map", "local"])
@@ -113,7 +219,7 @@ def test_replay_with_screenshot_dir(tmp_path):
         pytest.skip("no renderer on this machine")
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in (tmp_path / "shots").iterdir()) == [
-        f"V-sim-motorway-{v}-worst.png" for v in ("all", "errors", "local", "map", "signals")]
+        f"V-sim-motorway-{v}-worst.png" for v in ("all", "errors", "local", "map", "outage", "signals")]
 
 
 def test_bad_screenshot_inputs(tmp_path):

@@ -26,6 +26,8 @@ from .tables import truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
+#: How many of the worst outages reports list.
+WORST_COUNT = 3
 
 
 def json_safe(obj: Any) -> Any:
@@ -94,6 +96,24 @@ class Report:
             for est in names if est != base
         }
 
+    @property
+    def worst_of(self) -> str:
+        """The estimator whose final position error ranks the worst outages: the INS DR if it ran."""
+        return next((n for n in self.estimators if is_baseline(n)), self.estimators[0])
+
+    def worst_outages(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[dict[str, Any]]:
+        """The ``count`` outages with the largest final position error of ``estimator`` (default
+        :attr:`worst_of`), worst first: ``drive``, ``number`` (1-based within its drive, as the
+        recording's "outage N"), ``start_s``, ``end_s`` and ``final_error_m`` per estimator."""
+        est = estimator or self.worst_of
+        ranked = [(float(err), r, i) for r in self.results for i, err in enumerate(r.metrics[est]["final_position_error_m"])
+                  if np.isfinite(err)]
+        ranked.sort(key=lambda x: -x[0])
+        return [{"drive": r.drive.name, "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
+                 "end_s": round(float(r.outage_t0_s[i] + r.n_windows), 3),
+                 "final_error_m": {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators}}
+                for _err, r, i in ranked[:count]]
+
     def to_dict(self) -> dict[str, Any]:
         """The ``evaluate --json`` object.
 
@@ -107,7 +127,9 @@ class Report:
         there; per drive under ``drives``) and ``model`` (the IDNN's, when it ran). With the log's own
         GNSS losses bridged (``--on gnss-outage``), ``gnss_outages``: ``bridged`` (each with its
         ``drive``, gap, outage and ``final_error_m`` per estimator), ``not_bridged`` and
-        ``final_error_m`` (per estimator: max, min, mean, std). NaN is kept here; :meth:`to_json` writes it as null.
+        ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
+        the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`).
+        NaN is kept here; :meth:`to_json` writes it as null.
         """
         if self._dict is not None:
             return self._dict
@@ -142,6 +164,8 @@ class Report:
         }
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
+        out["worst_of"] = self.worst_of
+        out["worst"] = self.worst_outages()
         bridged = [(r.drive.name, b) for r in results for b in r.bridged]
         if bridged or any(r.unbridged for r in results):
             out["gnss_outages"] = {
@@ -181,9 +205,30 @@ def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:
             "excluded_by_reason": reasons, "excluded_outages": sum(p["excluded_outages"] for p in parts)}
 
 
+def combined(reports: Mapping[Any, Report]) -> Report:
+    """One report over every drive of several groups (the total of an overview)."""
+    return Report([r for rep in reports.values() for r in rep.results], "total")
+
+
+def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> dict[str, Report]:
+    """The rows of an overview: one per drive (named ``group: drive`` in named groups), or one per
+    group with ``by_group`` (manoeuvre types share drives), then ``total`` over every outage."""
+    rows: dict[str, Report] = {}
+    for group, rep in reports.items():
+        if by_group:
+            rows[str(group)] = rep
+            continue
+        for res in rep.results:
+            rows[f"{group}: {res.drive.name}" if group else res.drive.name] = Report([res], res.drive.name)
+    rows["total"] = combined(reports)
+    return rows
+
+
 def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", indent: int | None = 2) -> str:
-    """Several groups as one JSON object ``{key: {group: report}}`` (``evaluate --scenario all --json``)."""
-    return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}}), indent=indent)
+    """Several groups as one JSON object ``{key: {group: report}, "worst": [...]}`` (``evaluate
+    --scenario all --json``); ``worst`` ranks the outages of every group together."""
+    return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}, "worst_of": combined(reports).worst_of,
+                                 "worst": combined(reports).worst_outages()}), indent=indent)
 
 
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
@@ -191,9 +236,25 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
     drive, bias = result.drive, result.bias
     names = [short_label(e.label) for e in result.estimators]
     labels = " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else names[0]
+    ests = report.estimators
+    short = {e.name: short_label(e.label) for e in result.estimators}
+    mean = {e: report.summary[e] for e in ests}
     lines = [
-        f"# {drive.name}: {labels} during GNSS outages",
+        f"**{drive.name}**: {labels}, {report.n_sequences} GNSS outage(s) of {result.outage_s:g} s",
         "",
+        "| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
+        "|---|---|---|---|",
+        *(f"| {short[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
+          f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
+        "",
+    ]
+    worst = report.worst_outages()
+    if worst:
+        lines += [f"**Worst outages** (by {short[report.worst_of]} final error, m):", ""]
+        lines += [f"- #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
+                  + ", ".join(f"{short[e]} {w['final_error_m'][e]:.1f}" for e in ests) for w in worst]
+        lines.append("")
+    lines += [
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"- **Outages**: {placement}; {report.n_sequences} outage(s)",
         f"- **{truth_line(report.to_dict())}**",

@@ -79,6 +79,21 @@ def title_of(rep: dict[str, Any], scenario: str | None = None) -> str:
     return f"{what}{rep['drive']}, {rep['outage_s']:g} s GNSS outages"
 
 
+def worst_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """The worst outages: number, span and each estimator's final position error."""
+    labels = labels_of(rep)
+    several = len({w["drive"] for w in rep.get("worst", [])}) > 1 or "+" in rep["drive"]
+    header = ["Outage", *(["Drive"] if several else []), "Span (s)"] + [f"{labels[e]} final err. (m)" for e in labels]
+    rows = [[f"#{w['number']}", *([w["drive"]] if several else []), f"{w['start_s']:.0f}-{w['end_s']:.0f}",
+             *(_fmt(w["final_error_m"][e], 2) for e in labels)] for w in rep.get("worst", [])]
+    return header, rows
+
+
+def worst_title(rep: dict[str, Any]) -> str:
+    labels = labels_of(rep)
+    return f"Worst outages by {labels.get(rep.get('worst_of', 'ins'), 'INS DR')} final position error"
+
+
 def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
     lines: list[str] = []
     if rep["n_sequences"] or "gnss_outages" not in rep:
@@ -92,6 +107,10 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
                   "| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
         lines += [bridged_line(rep)]
     extra = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    if rep.get("worst"):
+        header, rows = worst_rows(rep)
+        extra += ["", f"**{worst_title(rep)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        extra += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(lines + extra) + "\n"
 
 
@@ -104,6 +123,9 @@ def render_text(rep: dict[str, Any], scenario: str | None = None) -> str:
         header, rows = bridged_rows(rep)
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *_aligned(header, rows, 1), bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    if rep.get("worst"):
+        header, rows = worst_rows(rep)
+        out += [f"{worst_title(rep)}:", *_aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2)]
     return "\n".join(out) + "\n"
 
 

@@ -87,6 +87,19 @@ def root_options_first(argv: list[str]) -> list[str]:
     return moved + [a for a in argv[:end] if a not in _ANYWHERE] + argv[end:]
 
 
+def optional_values(argv: list[str]) -> list[str]:
+    """``--connect`` without an address (the next word is not a URL) -> ``--connect <default>``,
+    as ``rerun --connect [URL]`` takes it."""
+    from ..viz.live import DEFAULT_CONNECT_URL
+
+    out = []
+    for i, arg in enumerate(argv):
+        out.append(arg)
+        if arg == "--connect" and (i + 1 == len(argv) or "://" not in argv[i + 1]):
+            out.append(DEFAULT_CONNECT_URL)
+    return out
+
+
 def one_line(text: str) -> str:
     """Errors are one line: line breaks (e.g. from a server's reply quoted in a message) become spaces."""
     return " ".join(text.split()) if "\n" in text or "\r" in text else text
@@ -97,7 +110,7 @@ def main() -> None:
     143 on SIGTERM and 129 on SIGHUP (after cleaning up)."""
     from ..core.signals import Terminated, raise_on_stop_signals
 
-    args = root_options_first(sys.argv[1:])
+    args = optional_values(root_options_first(sys.argv[1:]))
     debug = "--debug" in args
     raise_on_stop_signals()  # SIGTERM and SIGHUP clean up like Ctrl-C
     try:

@@ -29,7 +29,7 @@ def evaluate(
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
     from .. import api
-    from ..analysis.report import json_safe, reports_to_json
+    from ..analysis.report import json_safe, overview_reports, reports_to_json
     from ..analysis.tables import render_overview
 
     name_options(outage_s=f"--outage {outage}", placement="--on")
@@ -57,7 +57,8 @@ def evaluate(
             print(reports_to_json(reports, "by_event" if by_event else "scenarios"))
         return
     if overview:
-        dicts = {group: json_safe(rep.to_dict()) for group, rep in reports.items()}
-        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Scenario"), end="")
+        rows = overview_reports(reports, by_event)
+        dicts = {group: json_safe(rep.to_dict()) for group, rep in rows.items()}
+        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive"), end="")
         return
     print("\n".join(rep.to_markdown() if markdown else rep.to_text() for rep in reports.values()), end="")

@@ -8,6 +8,7 @@ from typing import Optional
 
 import typer
 
+from ..viz.live import DEFAULT_CONNECT_URL
 from . import common as c
 from .app import app, log, name_options
 
@@ -48,7 +49,11 @@ def replay(
     random_count: Optional[int] = typer.Option(None, "--random", help="Draw N non-overlapping outages at random."),
     seed: int = typer.Option(0, "--seed", help="Seed for --random."),
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: ./<drive>.rrd; an existing file is replaced)."),
-    open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards."),
+    open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards (needs a display)."),
+    connect: Optional[str] = typer.Option(None, "--connect", metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
+    serve_web: bool = typer.Option(False, "--serve-web", help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),
+    grpc_port: int = typer.Option(9876, "--grpc-port", help="--serve-web: the port of the recording's gRPC server."),
+    web_port: int = typer.Option(9090, "--web-port", help="--serve-web: the port of the web viewer."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary."),
     run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
     source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
@@ -64,9 +69,11 @@ def replay(
     name_options(outage_s=f"--outage {outage}", placement=option)
     if output is not None and output.suffix.lower() != ".rrd":
         raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
+    if open_viewer:
+        _check_display()
     with c.progress(quiet) as bar:
         result = api.replay(drive_spec, outage_s, placement, output=output, thresholds=c.thresholds(thresholds),
-                            **run.api_kwargs(), **source.api_kwargs(),
+                            **run.api_kwargs(), **source.api_kwargs(), connect=connect,
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(), end="", file=sys.stderr)
@@ -75,21 +82,39 @@ def replay(
         from ..viz.screenshot import VIEWS
 
         api.screenshot([result.path], screenshot_dir, ["worst"], list(VIEWS), (1600, 900), progress=print)
+    if connect is not None and not quiet:
+        print(f"streamed to the viewer at {connect}", file=sys.stderr)
     if open_viewer:
         _open_viewer(result.path)
+    if serve_web:
+        _serve(api.serve_web(result, grpc_port=grpc_port, web_port=web_port))
+
+
+def _serve(server) -> None:
+    """Print where to look and keep the servers up until Ctrl-C or SIGTERM (exit 130 / 143)."""
+    import time
+
+    print(f"serving the recording: open {server.web_url} in a browser (gRPC: {server.grpc_url}); Ctrl-C to stop", flush=True)
+    while True:
+        time.sleep(3600)
+
+
+def _check_display() -> None:
+    import os
+
+    from ..core.errors import ToolFailure
+
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ToolFailure("--open: no display here (DISPLAY and WAYLAND_DISPLAY are unset); use --serve-web to view the "
+                          "recording in a browser, or 'ionav-viz screenshot' for images")
 
 
 def _open_viewer(path: Path) -> None:
-    import os
     import shutil
     import subprocess
 
     from ..core.errors import ToolFailure
 
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ToolFailure(f"--open: no display here (DISPLAY and WAYLAND_DISPLAY are unset); {path} is written: "
-                          f"open it with 'rerun {path}' on a machine with a display, or render images with "
-                          f"'ionav-viz screenshot {path} -o shots/'")
     exe = shutil.which("rerun")
     if exe is None:
         raise ToolFailure(f"--open: the 'rerun' viewer command is not on PATH; open {path} with the Rerun viewer yourself")

@@ -18,11 +18,13 @@ from .app import app, name_options
 def screenshot(
     recordings: Optional[list[Path]] = typer.Argument(None, metavar="[REC.rrd]...", help="Recordings made by 'ionav-viz replay'."),
     output: Path = typer.Option(..., "-o", "--output", help="OUT.png for one image, else a directory (or OUT.png whose name is used as a prefix)."),
-    times: Optional[list[str]] = typer.Option(None, "--time", help="Times to show: e.g. 35s, 'worst' (end of the outage with the largest INS error) or 'end' (default). Repeatable."),
-    views: Optional[list[str]] = typer.Option(None, "--view", help="all (default), map, local, signals or errors. Repeatable."),
+    times: Optional[list[str]] = typer.Option(None, "--time", help="Times to show: e.g. 35s, 'end' (default) or 'worst' (the end of the outage with the largest final position error of --worst-of, framed). Repeatable."),
+    outage_numbers: Optional[list[str]] = typer.Option(None, "--outage", help="Outage numbers (as replay lists them): each framed and shown at its end. Repeatable."),
+    worst_of: str = typer.Option("ins", "--worst-of", help="The estimator whose final error picks --time worst (default: the paper's INS DR)."),
+    views: Optional[list[str]] = typer.Option(None, "--view", help="all (default), outage (the outage inspector), map, local, signals or errors. Repeatable."),
     size: str = typer.Option("1600x900", "--size", help="Image size WIDTHxHEIGHT in pixels."),
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Replay and render a scenario's test drives ('all' for every scenario): bundled ones, or the paper's runs with a data root."),
-    outage: str = typer.Option("10s", "--outage", help="Outage length for --scenario replays."),
+    outage_length: str = typer.Option("10s", "--outage-length", help="Outage length for --scenario replays."),
     estimator_names: Optional[str] = c.EstimatorsOpt,
     plugins: Optional[list[str]] = c.EstimatorOpt,
     timeout: str = typer.Option("120s", "--timeout", help="Longest wait for the viewer to start or load a recording."),
@@ -35,7 +37,7 @@ def screenshot(
     from .. import api
     from ..viz.screenshot import parse_size
 
-    name_options(outage_s="--outage")
+    name_options(outage_s="--outage-length", outages="--outage", worst_of="--worst-of")
     width_height = parse_size(size)
     timeout_s = c.duration_s(timeout, "--timeout")
     if scenario is not None and recordings:
@@ -44,7 +46,8 @@ def screenshot(
         raise typer.BadParameter("give at least one REC.rrd (or --scenario)", param_hint="REC.rrd")
     if scenario is None and (estimator_names is not None or plugins):
         raise typer.BadParameter("--estimators and --estimator choose what --scenario replays run", param_hint="--scenario")
-    times = list(times or (["worst"] if scenario else ["end"]))
+    numbers = [_outage_number(n) for n in outage_numbers or []]
+    times = list(times or ([] if numbers else ["worst"] if scenario else ["end"]))
     views = list(views or ["all"])
     for rec in recordings or []:
         if not rec.is_file():
@@ -52,7 +55,7 @@ def screenshot(
     with tempfile.TemporaryDirectory(prefix="ionav-shots-") as tmp:
         rrds = list(recordings or [])
         if scenario is not None:
-            outage_s = c.whole_seconds(outage, "--outage")
+            outage_s = c.whole_seconds(outage_length, "--outage-length")
             ests = c.estimators(estimator_names, plugins, False, None)
             groups = api.scenario_drives(scenario, data_root_opt)
             print(f"drives: {groups.source}", file=sys.stderr)
@@ -60,4 +63,12 @@ def screenshot(
                 for spec in specs:
                     rrd = Path(tmp) / f"{group}-{Path(spec).stem}.rrd"
                     rrds.append(api.replay(spec, outage_s, estimators=ests, output=rrd, data_root=data_root_opt).path)
-        api.screenshot(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=print)
+        api.screenshot(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=print, outages=numbers,
+                       worst_of=worst_of)
+
+
+def _outage_number(text: str) -> int:
+    if not text.strip().isdigit() or int(text) < 1:
+        hint = "; the outage length of --scenario replays is --outage-length" if text.strip().endswith("s") else ""
+        raise typer.BadParameter(f"{text!r}: give an outage number (1, 2, ...) as replay lists them{hint}", param_hint="--outage")
+    return int(text)

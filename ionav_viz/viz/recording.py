@@ -26,7 +26,14 @@ Entity paths (see also the README):
                                                 origin at the first fix; x east, y = -north so
                                                 north is up in Rerun's y-down 2D view), for
                                                 offline review without map tiles
-``local/outages``                               outage start points with labels (static)
+``local/outages``                               outage start points, named in the hover text (static)
+``{local,map}/gnss/outage``                     the current outage's GNSS track, wide (per outage)
+``map/gnss/context``                            the GNSS track 3 s either side of it, faint
+``local/grid``, ``local/grid/scale``            static grid and labelled scale bar over the drive
+``local/scale``                                 the current outage's scale bar (framed screenshots)
+``inspect/{gnss,<est>}``                        outage inspector: the current outage in metres from
+                                                the fix at its start (screen frame as ``local``)
+``inspect/{grid,scale,start}``                  its grid, labelled scale bar and origin
 ``gnss/available``                              1 with GNSS, 0 during an outage (per window)
 ``gnss/state``                                  "GNSS" or "outage N" (state timeline)
 ``gnss/quality``                                "good" or the reasons the fixes are not
@@ -38,7 +45,7 @@ Entity paths (see also the README):
 ``errors/{crse_m,cae_m,yaw_crse_radps,``        cumulative errors inside each outage, per
 ``position_error_m}/<est>``                     estimator (per window, reset at each outage)
 ``events/state``                                detected manoeuvres ("hard-brake #3"), state timeline
-``map/events``, ``local/events``                manoeuvre positions, labelled in the local view
+``map/events``, ``local/events``                manoeuvre positions, named in the hover text
 ``summary``                                     Markdown: metrics table and run parameters
 ==============================================  ==============================================
 """
@@ -55,7 +62,8 @@ from ..core.errors import ToolFailure
 from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
 from ..nav.estimators import short_label
-from .style import BAD_GNSS_COLOR, EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, estimator_colors
+from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_label
+from .style import BAD_GNSS_COLOR, EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GRID_COLOR, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, SCALE_COLOR, estimator_colors
 
 APP_ID = "ionav-viz"
 
@@ -77,28 +85,44 @@ def map_zoom(lat_deg: np.ndarray, lon_deg: np.ndarray, view_px: float) -> float:
     return float(np.clip(zoom, 3.0, 19.0))
 
 
+INSPECTOR_NAME = "Current outage: m from its start fix, north up"
+#: The local view shows the whole drive's scale bar; framed on an outage (screenshots), that outage's.
+LOCAL_CONTENTS = ["+ $origin/**", "- /local/scale"]
+LOCAL_FRAMED_CONTENTS = ["+ $origin/**", "- /local/grid/scale"]
+
+
 def blueprint(labels: list[str], zoom: float = 16.0):
-    """The default review layout: map and local view, signals and errors, summary."""
+    """The default review layout: the outage inspector above the whole-drive local and map views,
+    the signals, the errors and the summary."""
     import rerun.blueprint as rrb
 
     tracks = rrb.Vertical(
-        rrb.MapView(origin="map", name=f"Map ({', '.join(['GNSS', *labels])})", zoom=zoom),
-        rrb.Spatial2DView(origin="local", name="Local east-north (m), north up"),
+        rrb.Spatial2DView(origin="inspect", name=INSPECTOR_NAME),
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="local", contents=LOCAL_CONTENTS, name="Drive: east-north (m)"),
+            rrb.MapView(origin="map", name="Map", zoom=zoom),
+        ),
+        row_shares=[3, 2],
     )
+    # Legends where the lines are first met (and the yaw rate's gyro); more would cover the data.
+    hidden = rrb.PlotLegend(visible=False)
     signals = rrb.Vertical(
         rrb.StateTimelineView(origin="/", contents=["gnss/state", "gnss/quality", "events/state"],
-                              name="GNSS / quality / outages / manoeuvres"),
+                              name="GNSS, outages, manoeuvres"),
         rrb.TimeSeriesView(origin="signals/displacement_m", name="Displacement per second (m)"),
-        rrb.TimeSeriesView(origin="signals/yaw_rate_radps", name="Yaw rate (rad/s, CCW +)"),
-        rrb.TimeSeriesView(origin="signals/accel_long_mps2", name="Longitudinal acceleration (m/s²)"),
-        row_shares=[2.4, 3, 3, 2],
+        rrb.TimeSeriesView(origin="signals/yaw_rate_radps", name="Yaw rate (rad/s, CCW +; gyro grey)", plot_legend=hidden),
+        rrb.TimeSeriesView(origin="signals/accel_long_mps2", name="Longitudinal acceleration (m/s²)", plot_legend=hidden),
+        row_shares=[2.8, 3, 3, 2],
     )
     errors = rrb.Vertical(
         rrb.TimeSeriesView(origin="errors/position_error_m", name="2D position error (m)"),
-        rrb.TimeSeriesView(origin="errors/crse_m", name="Displacement CRSE (m)"),
-        rrb.TimeSeriesView(origin="errors/cae_m", name="Displacement CAE (m)"),
-        rrb.TimeSeriesView(origin="errors/yaw_crse_radps", name="Orientation-rate CRSE (rad/s)"),
+        rrb.Tabs(
+            rrb.TimeSeriesView(origin="errors/crse_m", name="Displacement CRSE (m)", plot_legend=hidden),
+            rrb.TimeSeriesView(origin="errors/cae_m", name="Displacement CAE (m)", plot_legend=hidden),
+        ),
+        rrb.TimeSeriesView(origin="errors/yaw_crse_radps", name="Orientation-rate CRSE (rad/s)", plot_legend=hidden),
         rrb.TextDocumentView(origin="summary", name="Summary"),
+        row_shares=[3, 3, 2.5, 3.5],
     )
     return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=[4, 3, 3]), collapse_panels=True)
 
@@ -121,14 +145,37 @@ def with_breaks(t_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.nda
     return np.insert(t, at, t_s[gaps, -1] + 0.5), np.insert(v, at, np.nan)
 
 
-def _growing_strips(points: np.ndarray) -> list[np.ndarray]:
-    """(seq, win+1, 2) -> per (seq, win) row the strip of points 0..win+1, row-major."""
-    return [points[s, : w + 2] for s in range(points.shape[0]) for w in range(points.shape[1] - 1)]
+#: Per-outage layers are logged just after the outage's start, so at the start time itself (the end
+#: of the previous outage, when outages follow each other) the previous outage is still shown.
+OUTAGE_EPS_S = 1e-3
+#: Seconds of GNSS track before and after an outage drawn faintly around it on the map.
+CONTEXT_S = 3.0
+
+
+def faded(color: tuple[int, int, int], keep: float = 0.45) -> tuple[int, int, int]:
+    """``color`` mixed into the viewer's dark background: the faint overview layers."""
+    return tuple(int(round(keep * c + (1 - keep) * 18)) for c in color)  # type: ignore[return-value]
+
+
+def _outage_times(t0_s: np.ndarray, t_win: np.ndarray) -> np.ndarray:
+    """Row times of the per-outage growing tracks: just after each start, then each window's end."""
+    return np.concatenate([t0_s[:, None] + OUTAGE_EPS_S, t_win], axis=1).ravel()
+
+
+def _outage_strips(points: np.ndarray) -> list[np.ndarray]:
+    """(seq, win+1, 2) -> per outage the start point alone (clears the previous outage's track),
+    then the strip of points 0..win+1 at each window's end (rows as :func:`_outage_times`)."""
+    return [points[s, : w + 1] for s in range(points.shape[0]) for w in range(points.shape[1])]
+
+
+def recording_id(result: DriveResult) -> str:
+    """The recording's id: the same drive and outage length replayed again is the same recording."""
+    return f"{result.drive.name}-{result.outage_s:g}s"
 
 
 def write_recording(result: DriveResult, summary_md: str, path: Path, progress=None,
                     target: Path | None = None, events: list | None = None) -> dict[str, int]:
-    """Log ``result`` to the ``.rrd`` file ``path`` (written by Rerun's file sink).
+    """Log ``result`` to the ``.rrd`` file ``path``.
 
     Returns row counts per entity (for messages and tests). The recording is built in memory and
     written in one go. The caller makes the write atomic: ``path`` is then a temporary file and
@@ -136,13 +183,27 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     """
     import rerun as rr
 
-    drive, w, starts = result.drive, result.windows, result.starts
-    n_win = result.n_windows
-    tod = drive.start_time_of_day_s
-    rec = rr.RecordingStream(APP_ID, recording_id=f"{drive.name}-{result.outage_s:g}s")
+    rec = rr.RecordingStream(APP_ID, recording_id=recording_id(result))
     # Logged into memory and written by Python: a full disk then fails as a plain OSError, where
     # Rerun's file sink can block forever once its writer thread has died.
     memory = rec.memory_recording()
+    rows = log_result(rec, result, summary_md, progress, events)
+    data = memory.drain_as_bytes()
+    rec.disconnect()
+    with open(path, "wb") as f:  # OSError (disk full) reaches the caller's atomic write
+        f.write(data)
+    _check_written(path, target or path)
+    return rows
+
+
+def log_result(rec, result: DriveResult, summary_md: str, progress=None, events: list | None = None) -> dict[str, int]:
+    """Log everything about ``result`` to the recording stream ``rec`` (any sink: memory, a viewer,
+    a server). Returns row counts per entity."""
+    import rerun as rr
+
+    drive, w, starts = result.drive, result.windows, result.starts
+    n_win = result.n_windows
+    tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
     zoom = map_zoom(drive.lat_deg[usable], drive.lon_deg[usable], 350)
     rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], zoom))
@@ -179,10 +240,12 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     rec.log("signals/speed_mps", rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS speed"]), static=True)
     rec.log("gnss/available", rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS available"]), static=True)
     # The truth is drawn wide underneath, the overview layers thin, the growing tracks wide on top.
-    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in good_runs], colors=[GNSS_COLOR],
-                                           radii=rr.Radius.ui_points(4.0)), static=True)
-    rec.log("local/gnss", rr.LineStrips2D([truth_xy[a:b] for a, b in good_runs], colors=[GNSS_COLOR], radii=rr.Radius.ui_points(4.0),
-                                          draw_order=10), static=True)
+    # The whole drive's truth is faint: the current outage's (``*/gnss/outage``) is drawn wide on top.
+    rec.log("map/gnss", rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in good_runs], colors=[faded(GNSS_COLOR, 0.6)],
+                                           radii=rr.Radius.ui_points(2.5)), static=True)
+    rec.log("local/gnss", rr.LineStrips2D([truth_xy[a:b] for a, b in good_runs], colors=[faded(GNSS_COLOR, 0.6)],
+                                          radii=rr.Radius.ui_points(2.5), draw_order=10), static=True)
+    _log_grid(rec, truth_xy[usable])
     if bad_runs:
         rec.log("map/gnss_bad", rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in bad_runs], colors=[BAD_GNSS_COLOR],
                                                   radii=rr.Radius.ui_points(1.5)), static=True)
@@ -229,23 +292,26 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         _log_events(rec, events, drive, usable, lat0, lon0, send)
 
     if len(starts):
+        _log_outages(rec, result, colors, truth_xy, truth_ll, usable, lat0, lon0, send)
         t_win = t_end[idx].ravel()
-        start_xy = screen_xy(*local_en_m(w.lat0_deg[starts], w.lon0_deg[starts], lat0, lon0))
-        rec.log("local/outages", rr.Points2D(start_xy, labels=[f"#{i + 1}" for i in range(len(starts))],
-                                             colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(4.0)), static=True)
+        t_rows = _outage_times(w.t0_s[starts], t_win.reshape(len(starts), n_win))
         for name, est in result.estimates.items():
             color = colors[name]
             ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
             xy = screen_xy(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
-            n_rows = idx.size
+            n_rows = len(t_rows)
             thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
-            send(f"map/{name}/live", t_win, rr.GeoLineStrings.columns(
-                line_strings=_growing_strips(ll), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
-            send(f"local/{name}/live", t_win, rr.LineStrips2D.columns(
-                strips=_growing_strips(xy), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+            send(f"map/{name}/live", t_rows, rr.GeoLineStrings.columns(
+                line_strings=_outage_strips(ll), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
+            send(f"local/{name}/live", t_rows, rr.LineStrips2D.columns(
+                strips=_outage_strips(xy), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
                 draw_order=np.full(n_rows, 30.0)))
-            rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[color], radii=thin), static=True)
-            rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[color], radii=thin, draw_order=20), static=True)
+            send(f"inspect/{name}", t_rows, rr.LineStrips2D.columns(
+                strips=_outage_strips(xy - xy[:, :1]), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+                draw_order=np.full(n_rows, 30.0)))
+            faint = faded(color)
+            rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[faint], radii=thin), static=True)
+            rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[faint], radii=thin, draw_order=20), static=True)
             series = {f"signals/displacement_m/{name}": est.disp_m, f"signals/yaw_rate_radps/{name}": est.yaw_rate_radps}
             series.update({f"errors/{m}/{name}": v for m, v in cumulative_errors(w, starts, n_win, est).items()})
             for entity, values in series.items():
@@ -255,12 +321,80 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     if result.bridged:
         _log_bridged(rec, result, colors, labels, lat0, lon0, send)
         step("real GNSS outages")
-    data = memory.drain_as_bytes()
-    rec.disconnect()
-    with open(path, "wb") as f:  # OSError (disk full) reaches the caller's atomic write
-        f.write(data)
-    _check_written(path, target or path)
     return rows
+
+
+def _log_outages(rec, result: DriveResult, colors: dict, truth_xy: np.ndarray, truth_ll: np.ndarray, usable: np.ndarray,
+                 lat0: float, lon0: float, send) -> None:
+    """What frames each outage: its GNSS track (wide, on top of the faint whole drive), the outage
+    inspector (everything in metres from the fix at the outage start, with a grid and a scale bar)
+    and the outage start markers."""
+    import rerun as rr
+
+    drive, w, starts, n_win = result.drive, result.windows, result.starts, result.n_windows
+    t0 = w.t0_s[starts]
+    t_rows = t0 + OUTAGE_EPS_S
+    n = len(starts)
+    last = starts + n_win - 1
+    start_ll = np.stack([w.lat0_deg[starts], w.lon0_deg[starts]], axis=-1)
+    end_ll = np.stack([w.lat1_deg[last], w.lon1_deg[last]], axis=-1)
+    start_xy = screen_xy(*local_en_m(start_ll[:, 0], start_ll[:, 1], lat0, lon0))
+    end_xy = screen_xy(*local_en_m(end_ll[:, 0], end_ll[:, 1], lat0, lon0))
+    ti = np.flatnonzero(usable)
+    # the fixes inside the outage, between its start and end on the windows' grid (what metrics score)
+    a = np.searchsorted(drive.t_s[ti], t0, side="right")
+    b = np.searchsorted(drive.t_s[ti], t0 + n_win, side="left")
+    ca = np.searchsorted(drive.t_s[ti], t0 - CONTEXT_S, side="left")
+    cb = np.searchsorted(drive.t_s[ti], t0 + n_win + CONTEXT_S, side="right")
+    truth = [np.concatenate([start_xy[k : k + 1], truth_xy[ti[i:j]], end_xy[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
+    truth_geo = [np.concatenate([start_ll[k : k + 1], truth_ll[ti[i:j]], end_ll[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
+    wide = rr.Radius.ui_points(4.5)
+    send("local/gnss/outage", t_rows, rr.LineStrips2D.columns(
+        strips=truth, colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
+    send("map/gnss/outage", t_rows, rr.GeoLineStrings.columns(
+        line_strings=truth_geo, colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide)))
+    send("map/gnss/context", t_rows, rr.GeoLineStrings.columns(
+        line_strings=[truth_ll[ti[i:j]] for i, j in zip(ca, cb)], colors=np.tile(faded(GNSS_COLOR), (n, 1)),
+        radii=np.full(n, rr.Radius.ui_points(2.0))))
+    send("inspect/gnss", t_rows, rr.LineStrips2D.columns(
+        strips=[tr - s for tr, s in zip(truth, start_xy)], colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide),
+        draw_order=np.full(n, 12.0)))
+
+    # Each outage's frame: its truth and every estimate, padded; a grid and a scale bar to match.
+    tracks = [screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0)) for e in result.estimates.values()]
+    bounds = []
+    for i in range(n):
+        pts = np.concatenate([truth[i], *(t[i] for t in tracks), start_xy[i : i + 1]])
+        bounds.append(padded_bounds(pts - start_xy[i]))
+    steps = [nice_step(max(bx[1] - bx[0], bx[3] - bx[2])) for bx in bounds]
+    grids = [grid_strips(bx, st) for bx, st in zip(bounds, steps)]
+    send("inspect/grid", t_rows, rr.LineStrips2D.columns(
+        strips=[g for grid in grids for g in grid], colors=np.tile(GRID_COLOR, (sum(map(len, grids)), 1)),
+        radii=np.full(sum(map(len, grids)), rr.Radius.ui_points(0.8)), draw_order=np.full(sum(map(len, grids)), 1.0)).partition(
+            [len(g) for g in grids]))
+    send("inspect/scale", t_rows, rr.LineStrips2D.columns(
+        strips=[scale_bar(bx, st) for bx, st in zip(bounds, steps)], labels=[scale_label(st) for st in steps],
+        colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
+    local_bounds = [(bx[0] + s[0], bx[1] + s[0], bx[2] + s[1], bx[3] + s[1]) for bx, s in zip(bounds, start_xy)]
+    send("local/scale", t_rows, rr.LineStrips2D.columns(
+        strips=[scale_bar(bx, st) for bx, st in zip(local_bounds, steps)], labels=[scale_label(st) for st in steps],
+        colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
+    rec.log("inspect/start", rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
+            static=True)
+    rec.log("local/outages", rr.Points2D(start_xy, labels=[f"outage {i + 1}" for i in range(n)], show_labels=False,
+                                         colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(3.0), draw_order=25), static=True)
+
+
+def _log_grid(rec, xy: np.ndarray) -> None:
+    """A static grid and scale bar over the whole drive in the local view."""
+    import rerun as rr
+
+    bounds = padded_bounds(xy, margin=0.02)
+    step = nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2]), lines=8)
+    grid = grid_strips(bounds, step)
+    rec.log("local/grid", rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
+    rec.log("local/grid/scale", rr.LineStrips2D([scale_bar(bounds, step)], labels=[scale_label(step)], colors=[SCALE_COLOR],
+                                                radii=rr.Radius.ui_points(2.0), draw_order=50), static=True)
 
 
 def _log_bridged(rec, result: DriveResult, colors: dict, labels: dict, lat0: float, lon0: float, send) -> None:
@@ -342,9 +476,11 @@ def _log_events(rec, events: list, drive, usable: np.ndarray, lat0: float, lon0:
     lat = np.interp(mid, drive.t_s[usable], drive.lat_deg[usable])
     lon = np.interp(mid, drive.t_s[usable], drive.lon_deg[usable])
     labels = [f"{e.type} #{i + 1}" for i, e in enumerate(events)]
-    rec.log("map/events", rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
-    rec.log("local/events", rr.Points2D(screen_xy(*local_en_m(lat, lon, lat0, lon0)), labels=labels, colors=[EVENT_COLOR],
-                                        radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
+    # names in the hover text and on the timeline only: permanent labels would cover the tracks
+    rec.log("map/events", rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5)),
+            static=True)
+    rec.log("local/events", rr.Points2D(screen_xy(*local_en_m(lat, lon, lat0, lon0)), labels=labels, show_labels=False,
+                                        colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5), draw_order=25), static=True)
 
 
 def _check_written(path: Path, target: Path) -> None:

@@ -25,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,16 +34,42 @@ import numpy as np
 
 from ..core.errors import InputError, ToolFailure
 from ..core.signals import STOP_SIGNALS, raise_terminated
-from ..nav.estimators import short_label
+from ..nav.estimators import BASELINE, short_label
 from . import recording as rerun_log
+from .geometry import padded_bounds
 from .style import color_word
 
-VIEWS = ("all", "map", "local", "signals", "errors")
-_ORIGINS = {"map": "map", "local": "local", "signals": "signals/displacement_m", "errors": "errors/crse_m"}
+VIEWS = ("all", "outage", "map", "local", "signals", "errors")
+_ORIGINS = {"outage": "inspect", "map": "map", "local": "local", "signals": "signals/displacement_m", "errors": "errors/position_error_m"}
 
 
 class RendererMissing(ToolFailure):
     """The headless viewer could not start or render (no GPU and no software renderer)."""
+
+
+@dataclass
+class OutageInfo:
+    """One outage of a recording, as drawn: where it is and how each estimator ended it.
+
+    Attributes:
+        number: 1-based, as in the recording's ``gnss/state`` ("outage 3 (20-30 s)").
+        start_s, end_s: its span on the ``time`` timeline (s).
+        final_error_m: per estimator name, the 2D position error at the outage's end (m).
+        local_points: truth and every estimate in the local view's screen frame (m), for framing.
+        lat_deg, lon_deg: the same on the map.
+    """
+
+    number: int
+    start_s: float
+    end_s: float
+    final_error_m: dict[str, float]
+    local_points: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+
+    @property
+    def span(self) -> str:
+        return f"{self.start_s:.0f}-{self.end_s:.0f} s"
 
 
 @dataclass
@@ -52,21 +79,80 @@ class RecordingInfo:
     path: Path
     drive: str
     end_s: float
-    outages: list[tuple[float, float, str]]  # (start s, end s, label)
-    worst_s: float | None  # end of the outage with the largest INS position error
+    states: list[tuple[float, float, str]]  # (start s, end s, label) of every outage state, real ones too
+    outages: list[OutageInfo]
     lat_deg: np.ndarray  # the GNSS track
     lon_deg: np.ndarray
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
 
-    def outage_at(self, t_s: float) -> str | None:
-        for start, end, label in self.outages:
+    def state_at(self, t_s: float) -> str | None:
+        """The outage label at ``t_s`` (the one ending there, when one ends as the next starts)."""
+        for start, end, label in self.states:
             if start <= t_s <= end + 1e-6:
                 return label
         return None
 
+    def outage(self, number: int) -> OutageInfo:
+        if not 1 <= number <= len(self.outages):
+            raise InputError(f"{self.path}: no outage {number} (the recording has {len(self.outages)})",
+                             "choose an outage number from the replay's list, or --time worst", param="outages")
+        return self.outages[number - 1]
+
+    def worst(self, estimator: str = BASELINE) -> OutageInfo:
+        """The outage with the largest final position error of ``estimator``."""
+        if estimator not in self.estimators:
+            raise InputError(f"{self.path}: --worst-of {estimator}: no such estimator in the recording",
+                             f"choose one of {', '.join(self.estimators) or 'none'}", param="worst_of")
+        scored = [o for o in self.outages if np.isfinite(o.final_error_m.get(estimator, np.nan))]
+        if not scored:
+            raise InputError(f"{self.path}: 'worst' needs outages with {estimator} errors in the recording",
+                             "replay with outages first", param="times")
+        return max(scored, key=lambda o: o.final_error_m[estimator])
+
+
+def _rows(batch, column: str) -> tuple[np.ndarray, np.ndarray]:
+    """A list<list<[2]>> column as (points (N, 2), per-row offsets into them (rows+1))."""
+    import pyarrow as pa
+
+    col = batch.column(column)
+    if isinstance(col, pa.ChunkedArray):
+        col = col.combine_chunks()
+    strips = col.flatten()
+    row_off = np.asarray(col.offsets)
+    strip_off = np.asarray(strips.offsets)
+    pts = np.asarray(strips.flatten().flatten(), dtype=np.float64).reshape(-1, 2)
+    return pts, strip_off[row_off] - strip_off[0]
+
+
+def _times_of(batch) -> np.ndarray:
+    return batch.column("time").cast("int64").to_numpy() / 1e9
+
+
+class _Rows:
+    """Rows of one drawn entity: times and per-row points (strips joined)."""
+
+    def __init__(self) -> None:
+        self.times: list[np.ndarray] = []
+        self.points: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def add(self, batch, column: str) -> None:
+        self.times.append(_times_of(batch))
+        self.points.append(_rows(batch, column))
+
+    def last_in(self, t0: float, t1: float) -> np.ndarray:
+        """Points of the last row with t0 < time <= t1 (empty if none)."""
+        best, found = -np.inf, np.zeros((0, 2))
+        for times, (pts, off) in zip(self.times, self.points):
+            inside = np.flatnonzero((times > t0) & (times <= t1 + 1e-6))
+            if len(inside):
+                k = inside[np.argmax(times[inside])]
+                if times[k] >= best:
+                    best, found = times[k], pts[off[k]:off[k + 1]]
+        return found
+
 
 def read_recording_info(path: Path) -> RecordingInfo:
-    """Drive name, length, outages and the worst INS outage of a ionav-viz recording."""
+    """Drive name, length, outages (span, final errors, drawn extent) and estimators of a ionav-viz recording."""
     from rerun.chunk import RrdReader
 
     try:
@@ -77,13 +163,15 @@ def read_recording_info(path: Path) -> RecordingInfo:
                          "make one with 'ionav-viz replay DRIVE'") from None
     if not recordings:
         raise InputError(f"{path}: no recording inside", "make one with 'ionav-viz replay DRIVE'")
-    drive, end_s, states, errors, track = path.stem, 0.0, [], [], []
+    drive, end_s, states, track = path.stem, 0.0, [], []
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = {}
+    errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    drawn: dict[str, _Rows] = {}
     for chunk in reader.stream():
         entity = str(chunk.entity_path)
         batch = chunk.to_record_batch()
         names = batch.schema.names
-        if chunk.is_static and entity.startswith("/errors/position_error_m/"):
+        if chunk.is_static and entity.startswith("/errors/position_error_m/") and entity.count("/") == 3:
             estimators[entity.rsplit("/", 1)[-1]] = _series_style(batch)
             continue
         if entity == "/__properties":
@@ -94,29 +182,47 @@ def read_recording_info(path: Path) -> RecordingInfo:
             continue
         if chunk.is_static or "time" not in names:
             continue
-        times = batch.column("time").cast("int64").to_numpy() / 1e9
+        times = _times_of(batch)
         if len(times):
             end_s = max(end_s, float(times.max()))
+        parts = entity.strip("/").split("/")
         if entity == "/gnss/state":
             col = next(n for n in names if n.endswith(":state"))
             states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
         elif entity == "/map/gnss/position":
             col = next(n for n in names if n.endswith(":positions"))
-            track += [p[0] for p in batch.column(col).to_pylist()]
-        elif entity == "/errors/position_error_m/ins":
+            track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
+        elif parts[:2] == ["errors", "position_error_m"] and len(parts) == 3:
             col = next(n for n in names if n.endswith(":scalars"))
-            errors += [(t, v[0]) for t, v in zip(times, batch.column(col).to_pylist()) if v and v[0] == v[0]]  # no NaN breaks
+            errors.setdefault(parts[2], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
+        elif parts[0] in ("local", "map") and (parts[1:] == ["gnss", "outage"] or (len(parts) == 3 and parts[2] == "live")):
+            col = next(n for n in names if n.endswith(":strips") or n.endswith(":line_strings"))
+            drawn.setdefault("/".join(parts), _Rows()).add(batch, col)
     if not states:
         raise InputError(f"{path}: not an ionav-viz replay recording (no /gnss/state)", "make one with 'ionav-viz replay DRIVE'")
     states.sort()
-    outages = []
+    spans = []
     for i, (t, label) in enumerate(states):
-        if label.startswith("outage"):
+        if "outage" in label:
             nxt = states[i + 1][0] if i + 1 < len(states) else end_s
-            outages.append((float(t), float(nxt), label))
-    worst = max(errors, key=lambda r: r[1])[0] if errors else None
-    ll = np.asarray(track, dtype=np.float64).reshape(-1, 2)
-    return RecordingInfo(path, drive, end_s, outages, float(worst) if worst is not None else None, ll[:, 0], ll[:, 1], estimators)
+            spans.append((float(t), float(nxt), label))
+    outages = []
+    for start, end, label in spans:
+        if not label.startswith("outage"):
+            continue  # the log's own losses are labelled "real GNSS outage N"
+        final = {}
+        for name, parts_ in errors.items():
+            t = np.concatenate([p[0] for p in parts_])
+            v = np.concatenate([p[1] for p in parts_])
+            inside = np.flatnonzero((t > start) & (t <= end + 1e-6) & np.isfinite(v))
+            final[name] = float(v[inside[np.argmax(t[inside])]]) if len(inside) else float("nan")
+        local = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith("local/")]
+        geo = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith("map/")]
+        ll = np.concatenate(geo) if geo else np.zeros((0, 2))
+        outages.append(OutageInfo(len(outages) + 1, start, end, final, np.concatenate(local) if local else np.zeros((0, 2)),
+                                  ll[:, 0], ll[:, 1]))
+    ll = np.concatenate(track) if track else np.zeros((0, 2))
+    return RecordingInfo(path, drive, end_s, spans, outages, ll[:, 0], ll[:, 1], estimators)
 
 
 def _series_style(batch) -> tuple[str, tuple[int, int, int]]:
@@ -134,23 +240,33 @@ def _series_style(batch) -> tuple[str, tuple[int, int, int]]:
     return label, rgb
 
 
-def resolve_time(spec: str, info: RecordingInfo) -> float:
-    """``'35s'``, ``'worst'`` or ``'end'`` -> seconds on the ``time`` timeline."""
+@dataclass
+class Shot:
+    """One image to render: a view at a time, framed on an outage or not."""
+
+    view: str
+    t_s: float
+    label: str  # for the file name: 'worst', 'end', 'outage12', '0035.0s'
+    outage: OutageInfo | None = None
+
+
+def resolve_time(spec: str, info: RecordingInfo, worst_of: str = BASELINE) -> tuple[float, OutageInfo | None]:
+    """``'35s'``, ``'worst'`` or ``'end'`` -> seconds on the ``time`` timeline, and the outage it
+    frames (``'worst'``: the end of the outage with the largest final error of ``worst_of``)."""
     from ..core.durations import parse_duration_s
 
     key = spec.strip().lower()
     if key == "end":
-        return info.end_s
+        return info.end_s, None
     if key == "worst":
-        if info.worst_s is None:
-            raise InputError(f"{info.path}: time 'worst' needs INS errors in the recording", "replay with outages first", param="times")
-        return info.worst_s
+        worst = info.worst(worst_of)
+        return worst.end_s, worst
     if key in ("0", "0s"):
-        return 0.0
+        return 0.0, None
     t = parse_duration_s(spec, "time")
     if t > info.end_s + 1e-6:
         raise InputError(f"time {spec}: after the end of the recording ({info.end_s:.1f} s)", "choose a time within the drive, 'worst' or 'end'", param="times")
-    return t
+    return t, None
 
 
 def free_port() -> int:
@@ -172,6 +288,9 @@ def _rerun_executable() -> str:
 
 class HeadlessViewer:
     """A private headless Rerun viewer process; use as a context manager (always shut down)."""
+
+    #: Seconds to let the viewer draw after a change of blueprint and time, before the screenshot.
+    settle_s = 0.4
 
     def __init__(self, width: int, height: int, timeout_s: float = 60.0) -> None:
         self.width, self.height, self.timeout_s = width, height, timeout_s
@@ -251,9 +370,8 @@ class HeadlessViewer:
                 self._raise_dead()
             raise RendererMissing(f"the headless Rerun viewer failed during {method}: {str(exc).splitlines()[0][:200]}") from None
 
-    def open(self, path: Path, track_lat_deg=(), track_lon_deg=()) -> None:
-        """Open a recording and wait until it is the active one (the track sets the map zoom)."""
-        self.track_lat_deg, self.track_lon_deg = np.asarray(track_lat_deg), np.asarray(track_lon_deg)
+    def open(self, path: Path) -> None:
+        """Open a recording and wait until it is the active one."""
         self.call("close", "all")
         self.call("open", str(path.resolve()))
         deadline = time.monotonic() + self.timeout_s
@@ -261,22 +379,22 @@ class HeadlessViewer:
             if time.monotonic() > deadline:
                 raise RendererMissing(f"the viewer did not load {path} within {self.timeout_s:.0f} s")
             time.sleep(0.1)
+        # every image starts from the recording's own layout (shots change titles, framing, maximised view)
+        self.base_blueprint = self.call("get_blueprint").blueprint
 
-    def shot(self, view: str, t_s: float, titles: dict[str, str], out: Path) -> None:
-        """Render ``view`` at ``t_s`` with view titles rewritten by origin, and save it to ``out``."""
-        base = self.call("get_blueprint")
-        zoom = rerun_log.map_zoom(self.track_lat_deg, self.track_lon_deg, 0.8 * self.height) if len(self.track_lat_deg) else None
-        bp = focus_blueprint(base.blueprint, view, titles, zoom)
+    def shot(self, shot: Shot, info: RecordingInfo, out: Path) -> None:
+        """Render ``shot`` (a view at a time, framed on its outage if any) and save it to ``out``."""
+        frame = framing(info, shot.outage, (self.width, self.height), shot.view)
+        bp = focus_blueprint(self.base_blueprint, shot.view, titles_for(info, shot, self.width), frame)
         self.call("set_blueprint", bp, of="recording")
-        self.call("set_time", "time", duration=float(t_s), play_state="paused")
-        time.sleep(0.4)  # let the viewer render a few frames at the new time
+        self.call("set_time", "time", duration=float(shot.t_s), play_state="paused")
+        time.sleep(self.settle_s)  # let the viewer render a few frames at the new time
         from ..core.fileio import atomic_path
 
         with atomic_path(out, suffix=".tmp.png") as tmp:
             self.call("save_screenshot", str(tmp))
             if not tmp.is_file() or tmp.stat().st_size == 0:
                 raise RendererMissing(f"the viewer wrote no screenshot for {out}")
-        self.call("set_blueprint", base.blueprint, of="recording")
 
     def _stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
@@ -298,14 +416,49 @@ class HeadlessViewer:
         self._dir.cleanup()
 
 
-def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], map_zoom: float | None = None) -> dict[str, Any]:
-    """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by origin)."""
+@dataclass
+class Framing:
+    """Where the map and local views look for one image: the whole drive, or one outage."""
+
+    map_zoom: float | None = None
+    local_bounds: tuple[float, float, float, float] | None = None  # x_min, x_max, y_min, y_max (m)
+    map_entities: list[str] = field(default_factory=list)  # the map's contents when framed on an outage
+
+
+def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int], view: str) -> Framing:
+    """The whole drive (map zoom from the GNSS track), or ``outage``: its truth and estimated tracks
+    with a margin, in the local view's bounds and on the map (only that outage's tracks and the
+    GNSS track just around it, so the map centres on them)."""
+    width, height = size
+    # the map's side in pixels: the whole image maximised, else its tile of the review layout
+    map_px = min(width, height) if view == "map" else min(COLUMN_FRACTION["map"] * width, 0.4 * height * 0.85)
+    if outage is None:
+        zoom = rerun_log.map_zoom(info.lat_deg, info.lon_deg, 0.8 * map_px) if len(info.lat_deg) else None
+        return Framing(zoom)
+    zoom = rerun_log.map_zoom(outage.lat_deg, outage.lon_deg, 0.6 * map_px) if len(outage.lat_deg) else None
+    bounds = padded_bounds(outage.local_points, margin=0.12) if len(outage.local_points) else None
+    entities = ["map/gnss/outage", "map/gnss/context", *(f"map/{name}/live" for name in info.estimators)]
+    return Framing(zoom, bounds, entities)
+
+
+def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None) -> dict[str, Any]:
+    """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
+    origin) and the map and local views framed as ``frame`` says."""
+    frame = frame or Framing()
     bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
-    for vb in views.values():
+    for key, vb in views.items():
         origin = vb.get("space_origin", "")
         if origin in titles:
             vb["display_name"] = titles[origin]
+        if origin == "map" and frame.map_zoom is not None:
+            bp[key + "/MapZoom"] = {"MapZoom": {"zoom": frame.map_zoom}}
+        if origin == "map" and frame.map_entities:
+            bp[key + "/ViewContents"] = {"ViewContents": {"query": [f"+ /{e}" for e in frame.map_entities]}}
+        if origin == "local" and frame.local_bounds is not None and view in ("local", "map"):
+            x0, x1, y0, y1 = frame.local_bounds
+            bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
+            bp[key + "/ViewContents"] = {"ViewContents": {"query": rerun_log.LOCAL_FRAMED_CONTENTS}}
     if view == "all":
         return bp
     target = _ORIGINS[view]
@@ -313,18 +466,17 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     if view_key is None:
         raise InputError(f"the recording has no {view} view", "replay it again with this version of ionav-viz")
     viewport = bp.setdefault("/viewport", {}).setdefault("ViewportBlueprint", {})
-    if view in ("map", "local"):
+    if view in ("map", "local", "outage"):
         viewport["maximized"] = view_key.rsplit("/", 1)[-1]
-        if view == "map" and map_zoom is not None:
-            bp[view_key + "/MapZoom"] = {"MapZoom": {"zoom": map_zoom}}
     else:  # keep only the column of plots that holds the target view
+        # the viewer writes container contents as "view/<id>" or "/view/<id>"
         ref = "view/" + view_key.rsplit("/", 1)[-1]
-        column = next(k for k, v in bp.items() if ref in v.get("ContainerBlueprint", {}).get("contents", []))
-        root_key = "/container/" + viewport["root_container"]
+        column = next(k for k, v in bp.items() if ref in [c.lstrip("/") for c in v.get("ContainerBlueprint", {}).get("contents", [])])
+        root_key = "/container/" + viewport["root_container"].rsplit("/", 1)[-1]
         root = bp[root_key]["ContainerBlueprint"]
         for other in root["contents"]:
-            if "/" + other != column:
-                _drop(bp, "/" + other)
+            if "/" + other.lstrip("/") != column:
+                _drop(bp, "/" + other.lstrip("/"))
         root["contents"] = [column.lstrip("/")]
         for shares in ("col_shares", "row_shares"):
             root.pop(shares, None)
@@ -334,22 +486,68 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
 def _drop(bp: dict[str, Any], key: str) -> None:
     """Remove a container or view and everything under it from a blueprint dict."""
     for child in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []):
-        _drop(bp, "/" + child)
+        _drop(bp, "/" + child.lstrip("/"))
     for k in [k for k in bp if k == key or k.startswith(key + "/")]:
         del bp[k]
 
 
-def titles_for(info: RecordingInfo, t_s: float) -> dict[str, str]:
-    """View titles that say drive, outage and time."""
-    outage = info.outage_at(t_s)
-    when = f"t = {t_s:.1f} s" + (f", {outage}" if outage else ", GNSS available")
-    legend = ", ".join(["GNSS green"] + [f"{short_label(label)} {color_word(rgb)}" for _, (label, rgb) in sorted(info.estimators.items(), key=lambda kv: kv[0] != "ins")])
-    return {
-        "map": f"{info.drive}: map, {when} ({legend})",
-        "local": f"{info.drive}: local east-north (m), north up, {when}",
-        "signals/displacement_m": f"{info.drive}: displacement per second (m), {when}",
-        "errors/position_error_m": f"{info.drive}: 2D position error (m), {when}",
+#: Pixels per character of a view title, and what the title bar's icons take (measured on renders).
+TITLE_PX_PER_CHAR = 6.3
+TITLE_ICONS_PX = 110
+#: Widths of the review layout's columns (``recording.blueprint``'s column shares 4:3:3).
+COLUMN_FRACTION = {"inspect": 0.4, "local": 0.2, "map": 0.2, "/": 0.3, "signals/displacement_m": 0.3, "errors/position_error_m": 0.3}
+
+
+def _fit(variants: list[str], width_px: float) -> str:
+    """The first (longest) title variant that fits ``width_px``, else the last."""
+    budget = (width_px - TITLE_ICONS_PX) / TITLE_PX_PER_CHAR
+    return next((v for v in variants if len(v) <= budget), variants[-1])
+
+
+def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]:
+    """View titles that say drive, outage and time, and each estimator's final error on the framed
+    outage; shortened to fit each view's width (the maximised view has the whole image)."""
+    ests = sorted(info.estimators.items(), key=lambda kv: (kv[0] != BASELINE, kv[1][0]))  # as the plot legends
+    legend = ", ".join(["GNSS green"] + [f"{short_label(label)} {color_word(rgb)}" for _, (label, rgb) in ests])
+    o = shot.outage
+    state = info.state_at(shot.t_s)
+    when = f"t = {shot.t_s:.1f} s" + (f", {state}" if state else ", GNSS available")
+    if o is not None:
+        errs = [(short_label(label), name, o.final_error_m.get(name, float("nan"))) for name, (label, _rgb) in ests]
+        long_err = ", ".join(f"{lab} ({color_word(info.estimators[n][1])}) {e:.1f} m" for lab, n, e in errs)
+        mid_err = ", ".join(f"{lab} {e:.1f} m" for lab, _n, e in errs)
+        short_err = ", ".join(f"{n} {e:.1f}" for _lab, n, e in errs)
+        head = f"outage {o.number} ({o.span})"
+        focus = [f"{head}, final error: {long_err}", f"{head}, final error: {mid_err}", f"{head}, final error (m): {short_err}",
+                 f"#{o.number} {o.span}, final: {short_err} m", f"outage {o.number}, final (m): {short_err}"]
+    else:
+        focus = [when]
+    full = width_px if shot.view != "all" else None
+    def w(origin: str) -> float:
+        return full or width_px * COLUMN_FRACTION.get(origin, 0.3)
+    inspected = o or _outage_before(info, shot.t_s)
+    inspect_head = f"outage {inspected.number} ({inspected.span})" if inspected else "no outage yet"
+    titles = {
+        "inspect": _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus, w("inspect")) if o else
+        _fit([f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
+              f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head], w("inspect")),
+        "map": _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
+                    + ["Map" + (f", outage {o.number}" if o else "")], w("map")),
+        "local": _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
+                      + [f"{info.drive}: east-north (m), {f}" for f in focus] + ["Drive: east-north (m)"], w("local")),
+        "/": _fit([f"{info.drive}, {when}", f"{info.drive}, t = {shot.t_s:.1f} s", f"t = {shot.t_s:.1f} s"], w("/")),
+        "signals/displacement_m": _fit([f"{info.drive}: displacement per second (m), {when}", "Displacement per second (m)"],
+                                       w("signals/displacement_m")),
+        "errors/position_error_m": _fit([f"{info.drive}: 2D position error (m), {when}", "2D position error (m)"],
+                                        w("errors/position_error_m")),
     }
+    return titles
+
+
+def _outage_before(info: RecordingInfo, t_s: float) -> OutageInfo | None:
+    """The outage the inspector shows at ``t_s``: the one under way, else the last one before."""
+    started = [o for o in info.outages if o.start_s + rerun_log.OUTAGE_EPS_S <= t_s + 1e-9]
+    return started[-1] if started else None
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -388,33 +586,38 @@ def safe_stem(name: str) -> str:
     return cleaned[:100] or "recording"
 
 
-def time_label(spec: str, t_s: float) -> str:
-    key = spec.strip().lower()
-    return key if key in ("worst", "end") else f"{t_s:06.1f}s"
-
-
 def render(recordings: list[Path], out: Path, times: list[str], views: list[str], size: tuple[int, int],
-           timeout_s: float = 120.0, progress=None) -> list[Path]:
-    """Render every (recording, time, view) combination with one headless viewer; returns the PNGs."""
+           timeout_s: float = 120.0, progress=None, outages: Sequence[int] = (), worst_of: str = BASELINE) -> list[Path]:
+    """Render every (recording, time or outage, view) combination with one headless viewer; returns the PNGs.
+
+    ``times``: ``'35s'``, ``'end'`` or ``'worst'`` (the outage with the largest final position error
+    of ``worst_of``, framed); ``outages``: outage numbers, each framed and shown at its end.
+    """
     for view in views:
         if view not in VIEWS:
             raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}", param="views")
-    infos = [read_recording_info(p) for p in recordings]
     plans = []
+    infos = [read_recording_info(p) for p in recordings]
     for info in infos:
-        resolved = [(spec, resolve_time(spec, info)) for spec in times]
-        requests = [(view, spec, t) for spec, t in resolved for view in views]
-        paths = output_paths(out, info.drive, [(v, time_label(s, t)) for v, s, t in requests], len(infos) == 1)
-        plans.append((info, requests, paths))
+        shots = []
+        for spec in times:
+            t, outage = resolve_time(spec, info, worst_of)
+            key = spec.strip().lower()
+            shots += [Shot(view, t, key if key in ("worst", "end") else f"{t:06.1f}s", outage) for view in views]
+        for number in outages:
+            o = info.outage(int(number))
+            shots += [Shot(view, o.end_s, f"outage{o.number}", o) for view in views]
+        paths = output_paths(out, info.drive, [(s.view, s.label) for s in shots], len(infos) == 1)
+        plans.append((info, shots, paths))
     if out.suffix.lower() != ".png" or len(plans[0][2]) > 1 or len(infos) > 1:
         target_dir = out if out.suffix.lower() != ".png" else out.parent
         target_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
-        for info, requests, paths in plans:
-            viewer.open(info.path, info.lat_deg, info.lon_deg)
-            for (view, _spec, t), path in zip(requests, paths):
-                viewer.shot(view, t, titles_for(info, t), path)
+        for info, shots, paths in plans:
+            viewer.open(info.path)
+            for shot, path in zip(shots, paths):
+                viewer.shot(shot, info, path)
                 written.append(path)
                 if progress:
                     progress(path)

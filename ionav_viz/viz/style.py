@@ -20,6 +20,9 @@ OUTAGE_MARK_COLOR: RGB = (90, 90, 90)
 EVENT_COLOR: RGB = (250, 200, 40)
 #: Stretches of the GNSS track that are not trustworthy truth (drawn thin and grey).
 BAD_GNSS_COLOR: RGB = (175, 175, 175)
+#: Grid lines and scale bars of the metric 2D views.
+GRID_COLOR: RGB = (55, 55, 55)
+SCALE_COLOR: RGB = (220, 220, 220)
 GNSS_LABEL = "GNSS (truth)"
 GYRO_LABEL = "gyro"
 

@@ -1,0 +1,55 @@
+"""Framing and scale references for the 2D views: padded bounds, grid lines, scale bars.
+
+Pure functions over numpy arrays in the views' screen frame: x east (m), y = -north (m), so north
+is up in Rerun's y-down 2D view (see :func:`ionav_viz.viz.recording.screen_xy`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+Bounds = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max (m)
+
+
+def padded_bounds(points: np.ndarray, margin: float = 0.15, min_half_m: float = 5.0) -> Bounds:
+    """Bounds of ``points`` (N, 2) (NaN ignored) grown by ``margin`` of the larger side on each side,
+    and to at least ``min_half_m`` either way of the centre, so a car standing still still gets a
+    readable frame."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if not len(pts):
+        return (-min_half_m, min_half_m, -min_half_m, min_half_m)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    half = np.maximum(half + margin * 2 * half.max(), min_half_m)
+    return (float(centre[0] - half[0]), float(centre[0] + half[0]), float(centre[1] - half[1]), float(centre[1] + half[1]))
+
+
+def nice_step(extent_m: float, lines: int = 6) -> float:
+    """The 1-2-5 step (m) that cuts ``extent_m`` into about ``lines`` parts (at least 1 m)."""
+    raw = max(float(extent_m) / max(lines, 1), 1.0)
+    decade = 10.0 ** np.floor(np.log10(raw))
+    return float(next(m * decade for m in (1.0, 2.0, 5.0, 10.0) if m * decade >= raw))
+
+
+def grid_strips(bounds: Bounds, step_m: float) -> list[np.ndarray]:
+    """Grid lines every ``step_m`` covering ``bounds`` (multiples of the step, so they stay put
+    when the bounds move): one 2-point strip per line."""
+    x0, x1, y0, y1 = bounds
+    xs = np.arange(np.floor(x0 / step_m), np.ceil(x1 / step_m) + 1) * step_m
+    ys = np.arange(np.floor(y0 / step_m), np.ceil(y1 / step_m) + 1) * step_m
+    lo_x, hi_x, lo_y, hi_y = xs[0], xs[-1], ys[0], ys[-1]
+    return [np.array([[x, lo_y], [x, hi_y]]) for x in xs] + [np.array([[lo_x, y], [hi_x, y]]) for y in ys]
+
+
+def scale_bar(bounds: Bounds, step_m: float) -> np.ndarray:
+    """A bar one ``step_m`` long near the bottom-left corner of ``bounds`` (2 points)."""
+    x0, x1, y0, y1 = bounds
+    x = x0 + 0.05 * (x1 - x0)
+    y = y1 - 0.1 * (y1 - y0)  # screen y grows downwards: the bottom is y1 (room below for the label)
+    return np.array([[x, y], [x + step_m, y]])
+
+
+def scale_label(step_m: float) -> str:
+    """``'20 m'``, ``'1 km'``."""
+    return f"{step_m / 1000:g} km" if step_m >= 1000 else f"{step_m:g} m"

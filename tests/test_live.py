@@ -1,0 +1,103 @@
+"""Live viewing: replay --connect streams to a running viewer, --serve-web serves a browser, --open
+without a display points to --serve-web. The viewer here is a private headless one."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+
+import pytest
+
+from .conftest import REPO, run_cli
+
+ARGS = ("replay", "hard-brake", "--estimators", "ins,odo", "--every", "60s", "-q")
+
+
+@pytest.fixture(scope="module")
+def viewer():
+    from ionav_viz.viz.screenshot import HeadlessViewer, RendererMissing
+
+    try:
+        with HeadlessViewer(400, 300) as v:
+            yield v
+    except RendererMissing as exc:
+        if os.environ.get("CI"):
+            raise
+        pytest.skip(f"no renderer on this machine: {exc}")
+
+
+def _url(viewer) -> str:
+    return f"rerun+http://127.0.0.1:{viewer.proc.args[viewer.proc.args.index('--port') + 1]}/proxy"
+
+
+def _wait_for_recording(viewer, recording_id: str, timeout_s: float = 30.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        state = viewer.call("get_state")
+        found = [r for r in state.recordings if r.store_id.endswith(":" + recording_id)]
+        if found:
+            return found[0], state
+        time.sleep(0.2)
+    raise AssertionError(f"the viewer never got {recording_id}: {viewer.call('get_state')}")
+
+
+def test_connect_streams_to_a_running_viewer_and_saves(viewer, tmp_path):
+    out = tmp_path / "hb.rrd"
+    proc = run_cli(*ARGS, "-o", str(out), "--connect", _url(viewer))
+    assert proc.returncode == 0, proc.stderr
+    assert out.is_file()
+    rec, state = _wait_for_recording(viewer, "V-sim-hard-brake-10s")
+    timeline = next(t for t in rec.timelines if t.name == "time")
+    assert timeline.end / 1e9 > 590  # the whole 600 s drive arrived
+    assert any(v.origin == "/inspect" for v in state.views)  # with the review layout
+
+
+def test_connect_without_a_viewer_and_bad_addresses(tmp_path):
+    from ionav_viz.viz.screenshot import free_port
+
+    out = tmp_path / "x.rrd"
+    proc = run_cli(*ARGS, "-o", str(out), "--connect", f"rerun+http://127.0.0.1:{free_port()}/proxy")
+    assert proc.returncode == 1 and "no Rerun viewer is listening" in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+    assert not out.exists()  # checked before the work
+    proc = run_cli(*ARGS, "-o", str(out), "--connect", "ftp://x")
+    assert proc.returncode == 2 and "not a Rerun viewer address" in proc.stderr, proc.stderr
+
+
+def test_connect_without_an_address_means_rerun_default(monkeypatch):
+    from ionav_viz.cli.app import optional_values
+    from ionav_viz.viz.live import DEFAULT_CONNECT_URL
+
+    assert optional_values(["replay", "--connect", "V-Vw8"]) == ["replay", "--connect", DEFAULT_CONNECT_URL, "V-Vw8"]
+    assert optional_values(["replay", "V-Vw8", "--connect"]) == ["replay", "V-Vw8", "--connect", DEFAULT_CONNECT_URL]
+    assert optional_values(["replay", "--connect", "rerun+http://h:1/proxy"]) == ["replay", "--connect", "rerun+http://h:1/proxy"]
+    assert DEFAULT_CONNECT_URL == "rerun+http://127.0.0.1:9876/proxy"  # where a plain 'rerun' listens
+
+
+def test_serve_web_serves_the_viewer_and_the_recording(viewer, tmp_path):
+    from ionav_viz.viz.screenshot import free_port
+
+    grpc_port, web_port = free_port(), free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", *ARGS, "-o", str(tmp_path / "hb.rrd"), "--serve-web",
+                             "--grpc-port", str(grpc_port), "--web-port", str(web_port)],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        saved = proc.stdout.readline()  # the recording's path, as every replay prints it
+        line = proc.stdout.readline()
+        assert saved.strip() == str(tmp_path / "hb.rrd") and (tmp_path / "hb.rrd").is_file(), saved
+        assert line.startswith("serving the recording: open http://127.0.0.1:") and f":{web_port}/" in line, line
+        page = urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=20).read().decode()
+        assert "<html" in page.lower()
+        viewer.call("open", f"rerun+http://127.0.0.1:{grpc_port}/proxy")
+        _wait_for_recording(viewer, "V-sim-hard-brake-10s")
+    finally:
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=20)
+    assert code == 130 and "Traceback" not in proc.stderr.read()
+
+
+def test_open_without_a_display_points_to_serve_web(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = run_cli(*ARGS, "-o", str(tmp_path / "x.rrd"), "--open", env={**env, "DISPLAY": ""})
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "--serve-web" in proc.stderr, proc.stderr
