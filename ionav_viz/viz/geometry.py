@@ -43,11 +43,11 @@ def grid_strips(bounds: Bounds, step_m: float) -> list[np.ndarray]:
 
 
 def scale_bar(bounds: Bounds, step_m: float) -> np.ndarray:
-    """A bar one ``step_m`` long near the bottom-left corner of ``bounds`` (2 points)."""
-    x0, x1, y0, y1 = bounds
-    x = x0 + 0.05 * (x1 - x0)
-    y = y1 - 0.1 * (y1 - y0)  # screen y grows downwards: the bottom is y1 (room below for the label)
-    return np.array([[x, y], [x + step_m, y]])
+    """A bar one ``step_m`` long just above the bottom edge of ``bounds``, from its left corner (2
+    points): with bounds padded around the data (:func:`padded_bounds`), it stays off the tracks."""
+    x0, _x1, y0, y1 = bounds
+    y = y1 - 0.05 * (y1 - y0)  # screen y grows downwards: the bottom is y1; room below for the label
+    return np.array([[x0, y], [x0 + step_m, y]])
 
 
 def scale_label(step_m: float) -> str:

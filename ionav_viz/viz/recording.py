@@ -33,6 +33,7 @@ Entity paths (see also the README):
 ``local/scale``                                 the current outage's scale bar (framed screenshots)
 ``inspect/{gnss,<est>}``                        outage inspector: the current outage in metres from
                                                 the fix at its start (screen frame as ``local``)
+``inspect/<est>/position``                      each estimate's current position in it (a dot)
 ``inspect/{grid,scale,start}``                  its grid, labelled scale bar and origin
 ``gnss/available``                              1 with GNSS, 0 during an outage (per window)
 ``gnss/state``                                  "GNSS" or "outage N" (state timeline)
@@ -306,9 +307,14 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
             send(f"local/{name}/live", t_rows, rr.LineStrips2D.columns(
                 strips=_outage_strips(xy), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
                 draw_order=np.full(n_rows, 30.0)))
+            rel = xy - xy[:, :1]
             send(f"inspect/{name}", t_rows, rr.LineStrips2D.columns(
-                strips=_outage_strips(xy - xy[:, :1]), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+                strips=_outage_strips(rel), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
                 draw_order=np.full(n_rows, 30.0)))
+            # the estimate's current position: visible where tracks along the same road cover each other
+            send(f"inspect/{name}/position", t_rows, rr.Points2D.columns(
+                positions=rel.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
+                draw_order=np.full(n_rows, 40.0)))
             faint = faded(color)
             rec.log(f"map/{name}/all", rr.GeoLineStrings(lat_lon=list(ll), colors=[faint], radii=thin), static=True)
             rec.log(f"local/{name}/all", rr.LineStrips2D(list(xy), colors=[faint], radii=thin, draw_order=20), static=True)

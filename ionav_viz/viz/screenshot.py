@@ -55,7 +55,8 @@ class OutageInfo:
         number: 1-based, as in the recording's ``gnss/state`` ("outage 3 (20-30 s)").
         start_s, end_s: its span on the ``time`` timeline (s).
         final_error_m: per estimator name, the 2D position error at the outage's end (m).
-        local_points: truth and every estimate in the local view's screen frame (m), for framing.
+        local_points: truth, every estimate and the outage's scale bar in the local view's screen
+            frame (m), for framing.
         lat_deg, lon_deg: the same on the map.
     """
 
@@ -195,7 +196,7 @@ def read_recording_info(path: Path) -> RecordingInfo:
         elif parts[:2] == ["errors", "position_error_m"] and len(parts) == 3:
             col = next(n for n in names if n.endswith(":scalars"))
             errors.setdefault(parts[2], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
-        elif parts[0] in ("local", "map") and (parts[1:] == ["gnss", "outage"] or (len(parts) == 3 and parts[2] == "live")):
+        elif parts[0] in ("local", "map") and (parts[1:] in (["gnss", "outage"], ["scale"]) or (len(parts) == 3 and parts[2] == "live")):
             col = next(n for n in names if n.endswith(":strips") or n.endswith(":line_strings"))
             drawn.setdefault("/".join(parts), _Rows()).add(batch, col)
     if not states:
