@@ -227,8 +227,9 @@ def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> d
 def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", indent: int | None = 2) -> str:
     """Several groups as one JSON object ``{key: {group: report}, "worst": [...]}`` (``evaluate
     --scenario all --json``); ``worst`` ranks the outages of every group together."""
-    return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}, "worst_of": combined(reports).worst_of,
-                                 "worst": combined(reports).worst_outages()}), indent=indent)
+    total = combined(reports)
+    return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}, "worst_of": total.worst_of,
+                                 "worst": total.worst_outages()}), indent=indent)
 
 
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:

@@ -293,13 +293,15 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         _log_events(rec, events, drive, usable, lat0, lon0, send)
 
     if len(starts):
-        _log_outages(rec, result, colors, truth_xy, truth_ll, usable, lat0, lon0, send)
+        # every estimate's tracks in the local frame, (seq, win+1, 2): projected once
+        tracks_xy = {name: screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0)) for name, e in result.estimates.items()}
+        _log_outages(rec, result, truth_xy, truth_ll, tracks_xy, usable, lat0, lon0, send)
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(w.t0_s[starts], t_win.reshape(len(starts), n_win))
         for name, est in result.estimates.items():
             color = colors[name]
             ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
-            xy = screen_xy(*local_en_m(est.track.lat_deg, est.track.lon_deg, lat0, lon0))
+            xy = tracks_xy[name]
             n_rows = len(t_rows)
             thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
             send(f"map/{name}/live", t_rows, rr.GeoLineStrings.columns(
@@ -330,8 +332,8 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     return rows
 
 
-def _log_outages(rec, result: DriveResult, colors: dict, truth_xy: np.ndarray, truth_ll: np.ndarray, usable: np.ndarray,
-                 lat0: float, lon0: float, send) -> None:
+def _log_outages(rec, result: DriveResult, truth_xy: np.ndarray, truth_ll: np.ndarray, tracks_xy: dict[str, np.ndarray],
+                 usable: np.ndarray, lat0: float, lon0: float, send) -> None:
     """What frames each outage: its GNSS track (wide, on top of the faint whole drive), the outage
     inspector (everything in metres from the fix at the outage start, with a grid and a scale bar)
     and the outage start markers."""
@@ -367,10 +369,9 @@ def _log_outages(rec, result: DriveResult, colors: dict, truth_xy: np.ndarray, t
         draw_order=np.full(n, 12.0)))
 
     # Each outage's frame: its truth and every estimate, padded; a grid and a scale bar to match.
-    tracks = [screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0)) for e in result.estimates.values()]
     bounds = []
     for i in range(n):
-        pts = np.concatenate([truth[i], *(t[i] for t in tracks), start_xy[i : i + 1]])
+        pts = np.concatenate([truth[i], *(t[i] for t in tracks_xy.values()), start_xy[i : i + 1]])
         bounds.append(padded_bounds(pts - start_xy[i]))
     steps = [nice_step(max(bx[1] - bx[0], bx[3] - bx[2])) for bx in bounds]
     grids = [grid_strips(bx, st) for bx, st in zip(bounds, steps)]

@@ -102,7 +102,7 @@ class RecordingInfo:
     def worst(self, estimator: str = BASELINE) -> OutageInfo:
         """The outage with the largest final position error of ``estimator``."""
         if estimator not in self.estimators:
-            raise InputError(f"{self.path}: --worst-of {estimator}: no such estimator in the recording",
+            raise InputError(f"{self.path}: no estimator {estimator!r} in the recording",
                              f"choose one of {', '.join(self.estimators) or 'none'}", param="worst_of")
         scored = [o for o in self.outages if np.isfinite(o.final_error_m.get(estimator, np.nan))]
         if not scored:
@@ -129,27 +129,37 @@ def _times_of(batch) -> np.ndarray:
     return batch.column("time").cast("int64").to_numpy() / 1e9
 
 
+def _last_in(times: np.ndarray, t0: float, t1: float) -> int | None:
+    """Index of the last of the sorted ``times`` with t0 < time <= t1, or None."""
+    k = int(np.searchsorted(times, t1 + 1e-6, side="right")) - 1
+    return k if k >= 0 and times[k] > t0 else None
+
+
 class _Rows:
-    """Rows of one drawn entity: times and per-row points (strips joined)."""
+    """Rows of one drawn entity: times and per-row points (strips joined), over all its chunks."""
 
     def __init__(self) -> None:
-        self.times: list[np.ndarray] = []
-        self.points: list[tuple[np.ndarray, np.ndarray]] = []
+        self._parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._index: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def add(self, batch, column: str) -> None:
-        self.times.append(_times_of(batch))
-        self.points.append(_rows(batch, column))
+        self._parts.append((_times_of(batch), *_rows(batch, column)))
+        self._index = None
 
     def last_in(self, t0: float, t1: float) -> np.ndarray:
         """Points of the last row with t0 < time <= t1 (empty if none)."""
-        best, found = -np.inf, np.zeros((0, 2))
-        for times, (pts, off) in zip(self.times, self.points):
-            inside = np.flatnonzero((times > t0) & (times <= t1 + 1e-6))
-            if len(inside):
-                k = inside[np.argmax(times[inside])]
-                if times[k] >= best:
-                    best, found = times[k], pts[off[k]:off[k + 1]]
-        return found
+        if self._index is None:  # every row in time order: (time, chunk, row in chunk)
+            times = np.concatenate([t for t, _, _ in self._parts])
+            chunk = np.concatenate([np.full(len(t), i) for i, (t, _, _) in enumerate(self._parts)])
+            row = np.concatenate([np.arange(len(t)) for t, _, _ in self._parts])
+            order = np.argsort(times, kind="stable")
+            self._index = (times[order], chunk[order], row[order])
+        times, chunk, row = self._index
+        k = _last_in(times, t0, t1)
+        if k is None:
+            return np.zeros((0, 2))
+        _, pts, off = self._parts[chunk[k]]
+        return pts[off[row[k]]:off[row[k] + 1]]
 
 
 def read_recording_info(path: Path) -> RecordingInfo:
@@ -207,16 +217,20 @@ def read_recording_info(path: Path) -> RecordingInfo:
         if "outage" in label:
             nxt = states[i + 1][0] if i + 1 < len(states) else end_s
             spans.append((float(t), float(nxt), label))
+    finite = {}  # per estimator, its error samples in time order (without the NaN line breaks)
+    for name, parts_ in errors.items():
+        t, v = np.concatenate([p[0] for p in parts_]), np.concatenate([p[1] for p in parts_])
+        order = np.argsort(t, kind="stable")
+        keep = order[np.isfinite(v[order])]
+        finite[name] = (t[keep], v[keep])
     outages = []
     for start, end, label in spans:
         if not label.startswith("outage"):
             continue  # the log's own losses are labelled "real GNSS outage N"
         final = {}
-        for name, parts_ in errors.items():
-            t = np.concatenate([p[0] for p in parts_])
-            v = np.concatenate([p[1] for p in parts_])
-            inside = np.flatnonzero((t > start) & (t <= end + 1e-6) & np.isfinite(v))
-            final[name] = float(v[inside[np.argmax(t[inside])]]) if len(inside) else float("nan")
+        for name, (t, v) in finite.items():
+            k = _last_in(t, start, end)
+            final[name] = float(v[k]) if k is not None else float("nan")
         local = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith("local/")]
         geo = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith("map/")]
         ll = np.concatenate(geo) if geo else np.zeros((0, 2))
