@@ -145,7 +145,7 @@ def test_no_imu_or_no_gnss_channel(tmp_path):
 
     from ionav_viz.sources.ros2_msgs import DEFINITIONS
 
-    for schema_name, missing in (("sensor_msgs/msg/NavSatFix", "no IMU channel"), ("sensor_msgs/msg/Imu", "no GNSS channel")):
+    for schema_name, missing in (("sensor_msgs/msg/NavSatFix", "no IMU topic"), ("sensor_msgs/msg/Imu", "no GNSS topic")):
         path = tmp_path / f"{schema_name.rsplit('/', 1)[-1]}-only.mcap"
         with open(path, "wb") as f:
             w = Writer(f)

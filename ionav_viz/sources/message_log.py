@@ -1,0 +1,321 @@
+"""Reading message logs (MCAP files, ROS 1 bags, ROS 2 bags) into a :class:`~ionav_viz.core.drive.Drive`.
+
+This is the one layer every message-log format shares; a format only says what its channels are
+and streams decoded messages (:class:`MessageLog`: :mod:`.mcap_reader`, :mod:`.rosbag_reader`).
+
+Channels are found by message type (``--imu-topic`` / ``--gnss-topic`` / ``--speed-topic`` choose
+when there are several or none match):
+
+* IMU: ``sensor_msgs/msg/Imu`` (ROS 1 ``sensor_msgs/Imu``) or a JSON message with the same field
+  names. REP 103 body frame: x forward, y left, z up. ``linear_acceleration.x`` is the
+  longitudinal specific force (m/s^2) and ``angular_velocity.z`` the yaw rate, counter-clockwise
+  positive (rad/s): both are already the drive model's conventions (``--imu-axes`` maps another
+  mount, :mod:`.imu_frame` checks it).
+* GNSS (ground truth): ``sensor_msgs/msg/NavSatFix`` (fixes with ``status.status < 0``, no fix,
+  are dropped) or JSON ``foxglove.LocationFix`` (``timestamp``, ``latitude``, ``longitude``,
+  ``altitude``). A known ``position_covariance`` (type > 0) gives the fix's horizontal standard
+  deviation, ``gnss_sigma_m`` (the larger of east and north), which the GNSS quality checks use.
+* Speed and course (optional): ``geometry_msgs/msg/TwistStamped`` in a world frame is GNSS
+  velocity as GNSS drivers publish it (nmea_navsat_driver's ``/vel``: ``linear.x`` east,
+  ``linear.y`` north, m/s), giving speed and course; a TwistStamped whose ``frame_id`` is a body
+  frame (``base_link``, ``base_footprint``, ``body``, ``vehicle``) and ``nav_msgs/msg/Odometry``
+  (twist in the child body frame) give the speed ``linear.x`` only. Without them, speed and course
+  come from the fixes (:func:`.resample.fit_fixes`).
+* Values: every value is checked against the physical limits of :mod:`.plausibility` (an
+  impossible one is an error naming the topic and stamp). Fixes with ``status.status < 0`` or a
+  non-finite position (how drivers say "no fix") are dropped with one warning; of fixes sharing a
+  stamp (published twice, or stamped to whole seconds) the first is kept, with one warning.
+
+Time stamps: the message **header stamp** (the sensor's acquisition time) by default, the log's
+receive time (when the recorder got it, with transport latency and jitter) with
+``stamps='log'``; a zero header stamp falls back to the log time. The time of day of the drive is
+the UTC time of day of the first stamp.
+
+Rates, gaps and memory: see :mod:`.resample` (one 10 Hz grid; IMU samples folded into per-bin
+sums as they stream past, so memory grows with the output, not the log). Only the selected
+topics are decoded.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from .imu_frame import AXES, parse_imu_axes
+from .plausibility import first_implausible, implausible
+from .resample import RATE_HZ, ImuBins, assemble_drive, drop_strays, first_per_stamp
+
+log = logging.getLogger("ionav_viz")
+
+IMU_SCHEMAS = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
+GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.LocationFix", "foxglove_msgs/msg/LocationFix")
+SPEED_SCHEMAS = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/TwistStamped", "nav_msgs/msg/Odometry", "nav_msgs/Odometry")
+BODY_FRAMES = ("base_link", "base_footprint", "body", "vehicle")
+
+
+@dataclass
+class ChannelInfo:
+    """One topic of a log (a channel in MCAP terms), with what ionav-viz would use it for."""
+
+    topic: str
+    schema: str  # the message type, e.g. sensor_msgs/msg/Imu
+    encoding: str  # cdr, json, ros1
+    count: int
+    role: str = ""
+
+
+@dataclass
+class Selection:
+    imu: ChannelInfo
+    gnss: ChannelInfo
+    speed: ChannelInfo | None
+    channels: list[ChannelInfo] = field(default_factory=list)
+
+    @property
+    def chosen(self) -> list[ChannelInfo]:
+        return [c for c in (self.imu, self.gnss, self.speed) if c is not None]
+
+
+class MessageLog(Protocol):
+    """What a log format gives the shared reader."""
+
+    path: Path
+    #: Message encodings the format can decode (a selected topic in another one is an error).
+    encodings: tuple[str, ...]
+
+    def channels(self) -> list[ChannelInfo]:
+        """Every topic with its type, encoding and message count."""
+        ...
+
+    def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, float, Any]]:
+        """``(topic, log time s, decoded message)`` for the given channels, streamed; decoding
+        errors are :class:`InputError` naming the file and topic."""
+        ...
+
+    def damaged(self, exc: BaseException) -> InputError:
+        """The one-line error for a failure of the format's library while reading."""
+        ...
+
+
+def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, option: str,
+          path: Path, required: bool) -> ChannelInfo | None:
+    if topic is not None:
+        found = [c for c in channels if c.topic == topic]
+        if not found:
+            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}")
+        return found[0]
+    found = [c for c in channels if c.schema in schemas]
+    if len(found) > 1:
+        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", f"choose one with {option}")
+    if not found:
+        if not required:
+            return None
+        listing = ", ".join(f"{c.topic} [{c.schema}]" for c in channels) or "none"
+        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", f"choose one with {option}")
+    return found[0]
+
+
+def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
+                    speed_topic: str | None = None, channels: list[ChannelInfo] | None = None) -> Selection:
+    """The IMU, GNSS and (optional) speed topics to read, by message type or by the given topics."""
+    path = source.path
+    channels = source.channels() if channels is None else channels
+    if not channels:
+        raise InputError(f"{path}: no topics (an empty recording)", "record IMU and GNSS topics")
+    imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
+    gnss = _pick(channels, GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
+    speed = _pick(channels, SPEED_SCHEMAS, speed_topic, "speed", "--speed-topic", path, False)
+    for role, ch in (("IMU", imu), ("GNSS", gnss), ("speed", speed)):
+        if ch is None:
+            continue
+        ch.role = role
+        if ch.encoding not in source.encodings:
+            raise InputError(f"{path}: {role} topic {ch.topic} has message encoding {ch.encoding!r}", f"ionav-viz reads {' and '.join(source.encodings)} messages from this format")
+        if ch.count == 0:
+            raise InputError(f"{path}: {role} topic {ch.topic} has no messages", "record some, or choose another topic")
+    return Selection(imu, gnss, speed, channels)
+
+
+def _get(obj: Any, *names: str) -> Any:
+    for name in names:
+        obj = obj[name] if isinstance(obj, dict) else getattr(obj, name)
+    return obj
+
+
+def _stamp_s(stamp: Any) -> float:
+    sec = _get(stamp, "sec")
+    try:
+        nsec = _get(stamp, "nanosec")
+    except (KeyError, AttributeError):
+        nsec = _get(stamp, "nsec")
+    return float(sec) + float(nsec) * 1e-9
+
+
+def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
+    """A JSON message, or an error naming the topic and log time."""
+    try:
+        return json.loads(data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not valid JSON ({exc})") from None
+
+
+def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,
+             speed_topic: str | None = None, stamps: str = "header", name: str | None = None,
+             imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
+    """Read a message log into a drive on a 10 Hz grid (see the module docstring).
+
+    ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
+    :mod:`.imu_frame`); ``yaw_sign`` ``"cw"`` says the yaw axis turns clockwise positive, ``"ccw"``
+    (REP 103) that it does not, ``"auto"`` assumes REP 103 and checks it against the GNSS course.
+    """
+    path = source.path
+    if stamps not in ("header", "log"):
+        raise InputError(f"stamps {stamps!r}: choose header or log", param="stamps")
+    if yaw_sign not in ("auto", "cw", "ccw"):
+        raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
+    mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
+    sel = select_channels(source, imu_topic, gnss_topic, speed_topic)
+    roles = {c.topic: c.role for c in sel.chosen}
+    gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
+    speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
+    dropped_no_fix = 0
+
+    def when(msg: Any, log_t: float, *stamp_path: str) -> float:
+        if stamps == "log":
+            return log_t
+        try:
+            t = _stamp_s(_get(msg, *stamp_path))
+        except (KeyError, AttributeError, TypeError):
+            return log_t
+        return t if t > 0 and math.isfinite(t) else log_t
+
+    def check(topic: str, t: float, field_name: str, column: str, value: float) -> None:
+        reason = implausible(column, value)
+        if reason:
+            raise InputError(f"{path}: topic {topic}, message stamped {t:.3f} s: {field_name} {reason}",
+                             "no car sensor produces that value: fix the log or choose another topic")
+
+    def to_body(data: np.ndarray) -> np.ndarray:
+        """A block of IMU samples as the log has them -> checked, in the body frame."""
+        if (bad := _first_implausible_imu(data)) is not None:
+            i, k = bad
+            check(sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1], float(data[i, k]))
+        return _imu_to_body(data, mapping)
+
+    imu = ImuBins(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=to_body)
+
+    try:
+        for topic, log_t, msg in source.messages(sel.chosen):
+            role = roles[topic]
+            try:
+                if role == "IMU":
+                    t = when(msg, log_t, "header", "stamp")
+                    lin, ang = _get(msg, "linear_acceleration"), _get(msg, "angular_velocity")
+                    imu.add((t, *(float(_get(lin, a)) for a in AXES), *(float(_get(ang, a)) for a in AXES)))
+                elif role == "GNSS":
+                    if sel.gnss.schema.startswith("foxglove"):
+                        t = when(msg, log_t, "timestamp")
+                    else:
+                        t = when(msg, log_t, "header", "stamp")
+                        if int(_get(msg, "status", "status")) < 0:
+                            dropped_no_fix += 1
+                            continue
+                    lat, lon = float(_get(msg, "latitude")), float(_get(msg, "longitude"))
+                    if not (math.isfinite(lat) and math.isfinite(lon)):
+                        dropped_no_fix += 1  # drivers publish NaN positions when they have no fix
+                        continue
+                    check(sel.gnss.topic, t, "latitude", "lat_deg", lat)
+                    check(sel.gnss.topic, t, "longitude", "lon_deg", lon)
+                    alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
+                    gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
+                else:
+                    sample = _speed_sample(msg, log_t, when, sel.speed.schema)
+                    check(sel.speed.topic, sample[0], "speed", "speed_mps", sample[1])
+                    speed.append(sample)
+            except (KeyError, AttributeError, TypeError, ValueError) as exc:
+                raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
+                                 f"expected the {role} field names of {({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}") from None
+    except InputError:
+        raise
+    except Exception as exc:
+        raise source.damaged(exc) from None
+
+    if len(gnss) < 2:
+        without = f" ({dropped_no_fix} message(s) without a fix)" if dropped_no_fix else ""
+        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
+    if dropped_no_fix:
+        log.warning("%s: dropped %d GNSS message(s) without a fix", path, dropped_no_fix)
+    fixes = first_per_stamp(path, np.asarray(gnss))
+    fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0])]
+    speeds = None
+    if speed:
+        speeds = np.asarray(speed)
+        speeds = speeds[np.argsort(speeds[:, 0], kind="stable")]
+        speeds = speeds[drop_strays(path, "speed", speeds[:, 0])]
+    return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign)
+
+
+def _default_name(path: Path) -> str:
+    """A drive's name from its log: the file's stem, or the bag folder's name for its metadata.yaml."""
+    return path.parent.name if path.name == "metadata.yaml" else path.stem
+
+
+def _horizontal_sigma_m(msg: Any) -> float:
+    """Horizontal standard deviation (m) from a fix's ``position_covariance`` (ENU, m^2), the
+    larger of east and north; NaN when the type says unknown (0) or the field is missing."""
+    get = msg.get if isinstance(msg, dict) else (lambda name, default=None: getattr(msg, name, default))
+    kind, cov = get("position_covariance_type", 0), get("position_covariance", None)
+    try:
+        if not kind or cov is None or len(cov) < 5:
+            return math.nan
+        var = max(float(cov[0]), float(cov[4]))
+    except (TypeError, ValueError):
+        return math.nan
+    return math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan
+
+
+def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, float, float]:
+    if "Odometry" in schema:
+        t = when(msg, log_t, "header", "stamp")
+        return t, abs(float(_get(msg, "twist", "twist", "linear", "x"))), math.nan
+    t = when(msg, log_t, "header", "stamp")
+    lin = _get(msg, "twist", "linear")
+    vx, vy = float(_get(lin, "x")), float(_get(lin, "y"))
+    frame = str(_get(msg, "header", "frame_id")).strip("/").lower()
+    if frame in BODY_FRAMES:
+        return t, abs(vx), math.nan
+    return t, math.hypot(vx, vy), math.degrees(math.atan2(vx, vy)) % 360.0  # east, north -> course
+
+
+#: The IMU sample columns after the stamp, as the log names them and the limits that apply to them
+#: (every accelerometer axis has the longitudinal one's, every gyro axis the yaw rate's).
+_IMU_FIELDS = tuple(f"linear_acceleration.{a}" for a in AXES) + tuple(f"angular_velocity.{a}" for a in AXES)
+_IMU_COLUMNS = ("accel_long_mps2",) * 3 + ("yaw_rate_radps",) * 3
+
+
+def _first_implausible_imu(data: np.ndarray) -> tuple[int, int] | None:
+    """(row, column) of the first implausible value in a block of IMU samples (columns 1-6), in
+    the order a message is checked (accelerometer then gyro, x then y then z), or None."""
+    order = (1, 4, 2, 5, 3, 6)
+    firsts = [(i, n, k) for n, k in enumerate(order) if (i := first_implausible(_IMU_COLUMNS[k - 1], data[:, k])) is not None]
+    if not firsts:
+        return None
+    row, _, column = min(firsts)
+    return row, column
+
+
+def _imu_to_body(data: np.ndarray, mapping: np.ndarray) -> np.ndarray:
+    """``(t, accel xyz, gyro xyz)`` in the log's axes -> the body frame (``body = mapping @ log``)."""
+    out = data.copy()
+    out[:, 1:4] = data[:, 1:4] @ mapping.T
+    out[:, 4:7] = data[:, 4:7] @ mapping.T
+    return out

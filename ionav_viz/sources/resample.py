@@ -1,0 +1,321 @@
+"""Putting sensor streams on the drive's 10 Hz grid: IMU samples, GNSS fixes and speeds -> one Drive.
+
+Every log reader (MCAP, ROS 1 and ROS 2 bags, KITTI OXTS folders) collects its streams in the
+log's own units and rates, then calls :func:`assemble_drive`:
+
+* IMU samples ``(t, accel x, y, z, gyro x, y, z)`` (s, m/s^2, rad/s; REP 103 body frame once
+  mapped) are folded into per-bin sums as they arrive (:class:`ImuBins`), bins of 0.1 s centred on
+  each grid time, so memory grows with the output, not the log;
+* GNSS fixes ``(t, lat, lon, altitude, sigma)`` (s, deg, deg, m, m) are linearly interpolated to the
+  grid times; grid times with IMU samples inside a GNSS gap (longer than 1 s and than 1.5 of the
+  receiver's usual interval: a tunnel) are kept with ``gnss_fix`` 0, so the GNSS quality marks
+  them no-fix: never scored, but the inertial data through the gap is there;
+* speeds ``(t, speed, course)`` (s, m/s, deg clockwise from north or NaN) from the receiver or the
+  navigation solution; without them, speed and course come from the fixes by a local parabola
+  fitted over at least 2 s of track (:func:`fit_fixes`), and the positions are that fit's.
+
+A log whose IMU and GNSS share their stamps at no more than the grid rate (as ``ionav-viz
+convert`` writes them) is kept at its own stamps, so converting a CSV and reading it back changes
+nothing. Stamps more than an hour away from the rest of their stream are dropped with one warning
+(:func:`drop_strays`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from ..core.grid import GRID_RATE_HZ, hold_course_when_slow
+from ..core.units import wrap_360
+from .imu_frame import YAW_REVERSED, check_imu_frame
+from .plausibility import first_implausible
+
+log = logging.getLogger("ionav_viz")
+
+RATE_HZ = GRID_RATE_HZ
+MAX_GNSS_GAP_S = 1.0
+
+class ImuBins:
+    """Per-bin sums of IMU samples on a grid of ``dt`` (bins centred on grid times), streamed.
+
+    Sums are kept sparse (occupied bins only), so a stray stamp far from the others (a boot-time
+    stamp among UNIX stamps) costs one entry, not an array spanning the distance. Samples arrive
+    as the log has them, ``(t, accel x, y, z, gyro x, y, z)``; ``prepare`` turns each buffered
+    block into body-frame samples (checking their values) with numpy, not per message.
+    """
+
+    def __init__(self, dt: float, keep_samples: bool, prepare: Callable[[np.ndarray], np.ndarray]) -> None:
+        self.dt = dt
+        self.prepare = prepare
+        self.origin: float | None = None
+        self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (bins, [value sums..., count])
+        self.buffer: list[tuple[float, ...]] = []
+        # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
+        # then they are as many as the output rows.
+        self.samples: list[np.ndarray] | None = [] if keep_samples else None
+
+    def add(self, sample: tuple[float, ...]) -> None:
+        self.buffer.append(sample)
+        if len(self.buffer) >= 65536:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self.buffer:
+            return
+        data = self.prepare(np.asarray(self.buffer))
+        self.buffer.clear()
+        if self.samples is not None:
+            self.samples.append(data)
+        if self.origin is None:
+            self.origin = float(data[0, 0])
+        bins = np.rint((data[:, 0] - self.origin) / self.dt).astype(np.int64)
+        self.parts.append(_sum_by_bin(bins, np.column_stack([data[:, 1:], np.ones(len(data))])))
+        if len(self.parts) > 64:
+            self.parts = [_sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))]
+
+    def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid times (s) of non-empty bins, the mean values per bin (n, 6), samples per bin."""
+        self.flush()
+        if not self.parts:
+            return np.zeros(0), np.zeros((0, 6)), np.zeros(0)
+        bins, sums = _sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))
+        return self.origin + bins * self.dt, sums[:, :-1] / sums[:, -1:], sums[:, -1]
+
+    def kept_samples(self) -> np.ndarray | None:
+        """The body-frame samples in time order, when they were kept (else None)."""
+        self.flush()
+        if not self.samples:
+            return None
+        data = np.concatenate(self.samples)
+        return data[np.argsort(data[:, 0], kind="stable")]
+
+
+def _sum_by_bin(bins: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted unique bins and the column sums of ``values`` per bin."""
+    unique, inverse = np.unique(bins, return_inverse=True)
+    sums = np.zeros((len(unique), values.shape[1]))
+    np.add.at(sums, inverse, values)
+    return unique, sums
+
+
+#: Stamps separated from the bulk of a topic's stamps by more than this (s) are strays (a clock
+#: not yet synchronised, a boot-time stamp) and are dropped; a recording paused for less is kept.
+MAX_STAMP_JUMP_S = 3600.0
+
+
+def _main_span(t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Mask of the stamps in the largest group of ``t`` without a jump over MAX_STAMP_JUMP_S.
+
+    ``t`` must be sorted; ``weights`` count samples per stamp (default one each).
+    """
+    if len(t) == 0:
+        return np.zeros(0, dtype=bool)
+    group = np.concatenate([[0], np.cumsum(np.diff(t) > MAX_STAMP_JUMP_S)])
+    size = np.bincount(group, weights=weights)
+    return group == int(np.argmax(size))
+
+
+def drop_strays(path: Path, what: str, t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Mask of ``t`` (sorted) to keep, warning once about stray stamps."""
+    keep = _main_span(t, weights)
+    if not keep.all():
+        n = int((weights[~keep] if weights is not None else (~keep)).sum())
+        log.warning("%s: dropped %d %s sample(s) stamped more than %g s away from the rest of the log "
+                    "(e.g. %.3f s against %.3f-%.3f s): a clock not yet synchronised?",
+                    path, n, what, MAX_STAMP_JUMP_S, float(t[~keep][0]), float(t[keep][0]), float(t[keep][-1]))
+    return keep
+
+
+def first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
+    """Fixes in time order, keeping the first (as recorded) of fixes sharing one stamp."""
+    order = np.argsort(fixes[:, 0], kind="stable")
+    fixes = fixes[order]
+    first = np.concatenate([[True], np.diff(fixes[:, 0]) > 0])
+    if not first.all():
+        same_place = (np.diff(fixes[:, 1]) == 0) & (np.diff(fixes[:, 2]) == 0)
+        repeats = int((~first[1:] & same_place).sum())
+        log.warning("%s: %d GNSS fix(es) share a time stamp with an earlier one (%d of them the same position); "
+                    "kept the first of each stamp (a receiver publishing twice, or stamping whole seconds?)",
+                    path, int((~first).sum()), repeats)
+    return fixes[first]
+
+
+def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed: np.ndarray | None,
+                   mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None) -> Drive:
+    """The drive on the grid from a log's streams (see the module docstring).
+
+    ``gnss``: fixes ``(t s, lat deg, lon deg, altitude m, sigma m or NaN)``, sorted, one per stamp;
+    ``speed``: ``(t s, speed m/s, course deg or NaN)`` sorted, or None; ``mapping``: the IMU axis
+    mapping already applied (for the frame check's hint); ``yaw_sign``: ``auto`` checks the yaw
+    sign against the GNSS course, ``cw`` flips it. ``fix_columns``: more per-fix drive columns
+    (e.g. ``n_satellites``), each held from the last fix at every grid time.
+    """
+    g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
+    samples = imu.kept_samples()
+    same_stamps = samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t)
+    if same_stamps and len(g_t) > 1 and float(np.median(np.diff(g_t))) >= 0.9 / RATE_HZ:
+        t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps at the grid rate: keep them
+        lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
+        has_fix = np.ones(len(t), dtype=bool)
+    else:
+        t, body, count = imu.means()
+        keep = drop_strays(path, "IMU", t, count) & (t >= g_t[0]) & (t <= g_t[-1])
+        t, body = t[keep], body[keep]
+        has_fix = _covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
+        lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
+    if len(t) < 2:
+        raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
+
+    v = course = None
+    if speed is not None and len(speed) >= 2:
+        s_t, s_v, s_course = speed.T
+        v = np.interp(t, s_t, s_v)
+        has_course = np.isfinite(s_course)
+        if has_course.any():
+            unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
+            course = wrap_360(np.interp(t, s_t[has_course], unwrapped))
+    if v is None or course is None:
+        # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
+        # (the per-window displacement of raw fixes would carry their white noise twice)
+        fit = fit_fixes(t, g_t, g_lat, g_lon)
+        v = fit.speed_mps if v is None else v
+        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
+        lat, lon = fit.lat_deg, fit.lon_deg
+    accel, yaw = body[:, 0], body[:, 5] * (-1.0 if yaw_sign == "cw" else 1.0)
+    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto"):
+        yaw = -yaw
+    columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
+               "accel_long_mps2": accel, "yaw_rate_radps": yaw}
+    if first_implausible("height_m", alt) is None:
+        columns["height_m"] = alt
+    if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one
+        columns["gnss_sigma_m"] = sigma
+    if not has_fix.all():
+        columns["gnss_fix"] = has_fix.astype(float)
+    last_fix = np.clip(np.searchsorted(g_t, t, side="right") - 1, 0, len(g_t) - 1)
+    for column, values in (fix_columns or {}).items():
+        columns[column] = np.asarray(values, dtype=float)[last_fix]
+    start = float(t[0])
+    return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
+                 start_time_of_day_s=start % 86400.0, columns=columns)
+
+
+def _imu_frame_reversed(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
+                        mapping: np.ndarray, check_yaw_sign: bool) -> bool:
+    """Check the IMU's frame (:func:`.imu_frame.check_imu_frame`), warn once, and say whether the
+    yaw rate must be flipped (only when ``check_yaw_sign``)."""
+    found = check_imu_frame(t, body[:, :3], body[:, 3:], speed_mps, course_deg, mapping)
+    problems = [p for p in found.problems if check_yaw_sign or not p.startswith(YAW_REVERSED)]
+    if problems:
+        fix = f"; map the axes with --imu-axes {found.suggestion}" if found.suggestion else ""
+        force = "; force the sign with --yaw-sign cw|ccw" if found.yaw_reversed and check_yaw_sign else ""
+        log.warning("%s: the IMU is not in the body frame ionav-viz expects (REP 103: x forward, z up): %s%s%s",
+                    path, "; ".join(problems), fix, force)
+    return found.yaw_reversed and check_yaw_sign
+
+
+#: Below this speed (m/s) a course from fixes is noise (the fixes' scatter, not the car's motion,
+#: sets its direction), so the last course at speed is held; a receiver's Doppler course is good
+#: down to MIN_COURSE_SPEED_MPS.
+FIX_COURSE_MIN_SPEED_MPS = 2.0
+
+#: Shortest half-width (s) of the local fit that gives speed and course from fixes: the fix noise is
+#: averaged over at least 2 s of track, never divided by the time between two fixes.
+MIN_HALF_BASELINE_S = 1.0
+_WGS84_A_M, _WGS84_E2 = 6_378_137.0, 6.694379990141317e-3
+
+
+def fit_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray) -> FixFit:
+    """Position, speed (m/s) and course (deg from north, clockwise) at times ``t`` from GNSS fixes alone.
+
+    A parabola in time fitted by least squares to the fixes within ``t - h .. t + h`` (``h`` the
+    larger of MIN_HALF_BASELINE_S and 1.5 median fix intervals), evaluated and differentiated at
+    ``t``: exact for a constant acceleration whatever the spacing of the fixes, unbiased for a
+    constant turn rate, and the noise of the fixes averaged over every fix in the window, whatever
+    the rate (1-20 Hz), jitter or duplicates. Degrees become metres with the WGS84 radii of
+    curvature at the window's first fix. ``g_t`` must be strictly increasing.
+
+    At a standstill the parabola's speed is the magnitude of the fix noise's slope (a Rayleigh
+    variable, ~0.2 m/s for 0.15 m of noise at 10 Hz), which would hide the stillness the bias
+    estimate needs. So below ~1.5 m/s the speed blends towards the smaller of it and a straight
+    line fitted over SLOW_BASELINE_FACTOR times the baseline (well under 0.1 m/s when still); the
+    smaller, because the long line lags when the car stops, and blended, so the speed stays
+    continuous (its derivative is the events' acceleration).
+    """
+    gap = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0
+    h = max(MIN_HALF_BASELINE_S, 1.5 * gap)
+    lat, lon, ve, vn = _local_fit(t, g_t, g_lat, g_lon, h, degree=2)
+    speed = np.hypot(ve, vn)
+    _, _, slow_ve, slow_vn = _local_fit(t, g_t, g_lat, g_lon, SLOW_BASELINE_FACTOR * h, degree=1)
+    still = np.minimum(speed, np.hypot(slow_ve, slow_vn))
+    w = np.clip((speed - SLOW_BLEND_MPS[0]) / (SLOW_BLEND_MPS[1] - SLOW_BLEND_MPS[0]), 0.0, 1.0)
+    return FixFit(lat, lon, w * speed + (1.0 - w) * still, wrap_360(np.degrees(np.arctan2(ve, vn))))
+
+
+@dataclass(frozen=True)
+class FixFit:
+    """What :func:`fit_fixes` gives per grid time: smoothed position (deg), speed (m/s), course (deg)."""
+
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    speed_mps: np.ndarray
+    course_deg: np.ndarray
+
+
+#: How much longer the straight-line fit is where the car is slow, and the speeds (m/s) between
+#: which the fixes' speed blends from it to the parabola's (see fit_fixes).
+SLOW_BASELINE_FACTOR = 2.5
+SLOW_BLEND_MPS = (0.5, 1.5)
+
+
+def _local_fit(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray, h: float,
+               degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Latitude, longitude (deg) and east, north velocity (m/s) at ``t`` from a polynomial of
+    ``degree`` (1 or 2) in time fitted to the fixes within ``t +- h``."""
+    lat, lon, ve, vn = (np.zeros(len(t)) for _ in range(4))
+    need = degree + 1
+    max_fixes = int(np.max(np.searchsorted(g_t, g_t + 2 * h, side="right") - np.arange(len(g_t)))) + need
+    block = max(1, 2_000_000 // max_fixes)  # bounds the (grid x fixes) arrays
+    for a in range(0, len(t), block):
+        tb = t[a : a + block]
+        at = np.searchsorted(g_t, tb)
+        # the fixes within h, and at least the ones either side of t (across a wider gap: the chord)
+        lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"), np.clip(at - 1, 0, None))
+        hi = np.maximum(np.searchsorted(g_t, tb + h, side="right"), np.minimum(at + 1, len(g_t)))
+        lo = np.maximum(np.minimum(lo, hi - need), 0)  # enough fixes for the polynomial, at the ends too
+        hi = np.minimum(np.maximum(hi, lo + need), len(g_t))
+        idx = lo[:, None] + np.arange(max_fixes)[None, :]
+        use = idx < hi[:, None]
+        idx = np.minimum(idx, len(g_t) - 1)
+        dt = np.where(use, g_t[idx] - tb[:, None], 0.0)
+        terms = [use * 1.0, dt, 0.5 * dt * dt][:need]  # value, rate, acceleration at t
+        design = np.stack(terms, axis=-1)
+        normal = design.transpose(0, 2, 1) @ design
+        normal[:, -1, -1] += 1e-9  # fewer fixes than terms (two fixes): the chord
+        for position, rate, values in ((lat, vn, g_lat), (lon, ve, g_lon)):
+            y = np.where(use, values[idx] - values[lo][:, None], 0.0)
+            coef = np.linalg.solve(normal, (design.transpose(0, 2, 1) @ y[:, :, None]))
+            position[a : a + block] = values[lo] + coef[:, 0, 0]
+            rate[a : a + block] = coef[:, 1, 0]  # deg/s
+        sin2 = np.sin(np.radians(g_lat[lo])) ** 2
+        vn[a : a + block] *= np.radians(_WGS84_A_M * (1 - _WGS84_E2) / (1 - _WGS84_E2 * sin2) ** 1.5)
+        ve[a : a + block] *= np.radians(_WGS84_A_M / np.sqrt(1 - _WGS84_E2 * sin2)) * np.cos(np.radians(g_lat[lo]))
+    return lat, lon, ve, vn
+
+
+def _covered(t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
+    """Grid times inside the GNSS record and not inside a GNSS gap: a gap is longer than
+    MAX_GNSS_GAP_S and than 1.5 of the receiver's usual intervals (a jittered 1 Hz receiver's
+    1.004 s between fixes is its rate, not a gap)."""
+    inside = (t >= g_t[0]) & (t <= g_t[-1])
+    k = np.clip(np.searchsorted(g_t, t), 1, len(g_t) - 1)
+    gap = g_t[k] - g_t[k - 1]
+    usual = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0
+    return inside & (gap <= max(MAX_GNSS_GAP_S, 1.5 * usual))
+
