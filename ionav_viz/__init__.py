@@ -36,7 +36,7 @@ _EXPORTS = {
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
     "AroundEvents": "nav.outages",
-    "EventThresholds": "analysis.events", "McapOptions": "sources.load",
+    "EventThresholds": "analysis.events", "LogOptions": "sources.load", "McapOptions": "sources.load",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
@@ -64,4 +64,4 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .nav.bias import SensorBias
     from .nav.estimators import Estimate, Estimator, EstimatorError, EstimatorInputs
     from .nav.outages import AroundEvents, At, Every, Random, Tile
-    from .sources.load import McapOptions
+    from .sources.load import LogOptions, McapOptions

@@ -39,7 +39,7 @@ from .nav.estimators import Estimator, applies
 from .nav.estimators import resolve as resolve_estimators
 from .nav.outages import AroundEvents, Placement, Tile, around, excluded_by_truth, outage_windows
 from .nav.windows import make_windows
-from .sources.load import McapOptions
+from .sources.load import LogOptions
 from .sources.load import load_drive as _load_drive
 from .sources.resolve import data_root as _data_root
 
@@ -77,16 +77,17 @@ def load_drive(
     data_root: str | Path | None = None,
     *,
     yaw_sign: str = "auto",
-    mcap: McapOptions | None = None,
+    mcap: LogOptions | None = None,
     gnss_limits: GnssLimits | None = None,
 ) -> Drive:
-    """Read a drive: a file path (IO-VNBD ``V-*.csv`` or ``.mcap``), a bundled scenario name
+    """Read a drive: a path (IO-VNBD ``V-*.csv``, ``.mcap``, ROS 1 ``.bag``, a ROS 2 bag folder or its
+    ``metadata.yaml``, a KITTI raw drive folder), a bundled scenario name
     (``"roundabout"``, ``"stationary"``) or an IO-VNBD run name (``"V-Vw8"``) under ``data_root``
     (default ``$IONAV_DATA``, else the per-user data directory ``fetch`` fills).
 
     ``yaw_sign``: sign of the yaw rate (the CSV column, the MCAP gyro's z), ``"auto"`` (the
     source's convention, checked against the GNSS course), ``"cw"`` or ``"ccw"``; ``mcap``: topics,
-    time stamps and IMU axes (``imu_axes``) for MCAP logs; ``gnss_limits``: thresholds of the GNSS quality checks
+    time stamps and IMU axes (``imu_axes``) for MCAP logs and ROS bags (a :class:`LogOptions`); ``gnss_limits``: thresholds of the GNSS quality checks
     that mark untrustworthy fixes (default :class:`GnssLimits`). A :class:`Drive` is returned as
     is.
     """
@@ -217,7 +218,7 @@ def evaluate(
     thresholds: EventThresholds | None = None,
     title: str | None = None,
     yaw_sign: str = "auto",
-    mcap: McapOptions | None = None,
+    mcap: LogOptions | None = None,
     gnss_limits: GnssLimits | None = None,
     progress: Progress | None = None,
 ) -> Report:
@@ -284,7 +285,7 @@ def evaluate_by_event(
     data_root: str | Path | None = None,
     thresholds: EventThresholds | None = None,
     yaw_sign: str = "auto",
-    mcap: McapOptions | None = None,
+    mcap: LogOptions | None = None,
     gnss_limits: GnssLimits | None = None,
 ) -> dict[str, Report]:
     """One report per manoeuvre type: an outage centred on each detected event, across ``drives``."""
@@ -337,7 +338,7 @@ def replay(
     data_root: str | Path | None = None,
     thresholds: EventThresholds | None = None,
     yaw_sign: str = "auto",
-    mcap: McapOptions | None = None,
+    mcap: LogOptions | None = None,
     gnss_limits: GnssLimits | None = None,
     progress: Progress | None = None,
     connect: str | None = None,

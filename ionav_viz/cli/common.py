@@ -18,11 +18,11 @@ import typer
 # --- options shared by several commands -----------------------------------------------------
 DataRoot = typer.Option(None, "--data-root", help="IO-VNBD checkout to find run names in (default: $IONAV_DATA).", show_default=False)
 YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the yaw rate: auto (the source's convention, checked against the GNSS heading), cw or ccw positive.")
-ImuAxes = typer.Option(None, "--imu-axes", help="MCAP: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
-ImuTopic = typer.Option(None, "--imu-topic", help="MCAP: the IMU topic (default: the one sensor_msgs/msg/Imu channel).", show_default=False)
-GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP: the GNSS topic (default: the one NavSatFix or LocationFix channel).", show_default=False)
-SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP: a TwistStamped or Odometry topic for speed (optional).", show_default=False)
-Stamps = typer.Option("header", "--stamps", help="MCAP: time stamps from message headers (header) or the recorder's log time (log).")
+ImuAxes = typer.Option(None, "--imu-axes", help="MCAP/ROS bags: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
+ImuTopic = typer.Option(None, "--imu-topic", help="MCAP/ROS bags: the IMU topic (default: the one sensor_msgs/msg/Imu topic).", show_default=False)
+GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP/ROS bags: the GNSS topic (default: the one NavSatFix or LocationFix topic).", show_default=False)
+SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP/ROS bags: a TwistStamped or Odometry topic for speed (optional).", show_default=False)
+Stamps = typer.Option("header", "--stamps", help="MCAP/ROS bags: time stamps from message headers (header) or the recorder's receive time (log).")
 OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
 NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
@@ -161,13 +161,13 @@ def event_types(text: str, option: str = "--on") -> tuple[str, ...]:
 
 def mcap_options(imu_topic, gnss_topic, speed_topic, stamps, imu_axes=None):
     from ..sources.imu_frame import parse_imu_axes
-    from ..sources.load import McapOptions
+    from ..sources.load import LogOptions
 
     if stamps not in ("header", "log"):
         raise typer.BadParameter(f"{stamps!r}: choose header or log", param_hint="--stamps")
     if imu_axes is not None:
         parse_imu_axes(imu_axes)  # checked before any work; InputError names --imu-axes
-    return McapOptions(imu_topic, gnss_topic, speed_topic, stamps, imu_axes)
+    return LogOptions(imu_topic, gnss_topic, speed_topic, stamps, imu_axes)
 
 
 def yaw_sign(value: str) -> str:

@@ -1,4 +1,4 @@
-"""``ionav-viz convert`` and ``info``: MCAP out, and what an MCAP log holds."""
+"""``ionav-viz convert`` and ``info``: MCAP out, and what a log (MCAP, ROS bag, KITTI folder) holds."""
 
 from __future__ import annotations
 
@@ -14,11 +14,11 @@ from .app import app
 
 
 @app.command()
+@c.with_source_options
 def convert(
-    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="An IO-VNBD CSV (path, bundled scenario or run name)."),
+    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
     output: Path = typer.Option(..., "-o", "--output", help="The .mcap file to write (ROS 2 cdr: Imu, NavSatFix, TwistStamped)."),
-    data_root_opt: Optional[Path] = c.DataRoot,
-    yaw_sign: str = c.YawSign,
+    source: c.SourceArgs = None,
 ) -> None:
     """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""
     from ..sources.load import load_drive
@@ -27,7 +27,7 @@ def convert(
 
     if output.suffix.lower() != ".mcap":
         raise typer.BadParameter(f"{output}: the output must end in .mcap", param_hint="-o")
-    drive = load_drive(drive_spec, data_root(data_root_opt), yaw_sign)
+    drive = load_drive(drive_spec, data_root(source.data_root), source.yaw_sign, source.mcap, source.gnss_limits)
     n = write_mcap(drive, output)
     print(f"{n} messages on {', '.join(TOPICS.values())} ({len(drive)} samples, {drive.duration_s:.1f} s)", file=sys.stderr)
     print(output)
@@ -35,26 +35,41 @@ def convert(
 
 @app.command()
 def info(
-    path: Path = typer.Argument(..., metavar="FILE.mcap", help="An MCAP log."),
+    path: Path = typer.Argument(..., metavar="LOG", help="An MCAP log, a ROS 1 .bag, a ROS 2 bag folder (or its metadata.yaml) or a KITTI raw drive folder."),
     imu_topic: Optional[str] = c.ImuTopic,
     gnss_topic: Optional[str] = c.GnssTopic,
     speed_topic: Optional[str] = c.SpeedTopic,
 ) -> None:
-    """List the channels of an MCAP log and which ones ionav-viz would read."""
-    from ..sources.mcap_reader import list_channels, select_channels
+    """List a log's topics (type, messages) and which ones ionav-viz would read."""
+    from ..sources.load import open_message_log, source_kind
 
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    channels = list_channels(path)
-    try:
-        sel = select_channels(path, imu_topic, gnss_topic, speed_topic)
-        roles = {ch.topic: ch.role for ch in (sel.imu, sel.gnss, sel.speed) if ch is not None}
-        problem = None
-    except InputError as exc:
-        roles, problem = {}, str(exc)
-    width = max([len(ch.topic) for ch in channels] + [5])
-    print(f"{'topic'.ljust(width)}  {'messages':>9}  encoding  schema  -> use")
-    for ch in channels:
-        print(f"{ch.topic.ljust(width)}  {ch.count:>9}  {ch.encoding:<8}  {ch.schema}  -> {roles.get(ch.topic, '-')}")
-    if problem:
-        print(f"cannot replay as is: {problem}", file=sys.stderr)
+    if not path.exists():
+        raise InputError(f"{path}: no such file or folder")
+    kind = source_kind(path)
+    if kind == "kitti":
+        _info_kitti(path)
+        return
+    source = open_message_log(path)
+    if source is None:
+        raise InputError(f"{path}: an IO-VNBD CSV file has no topics", "info lists the topics of MCAP logs and ROS bags; replay or evaluate the CSV directly")
+    from ..sources.message_log import describe_log
+
+    found = describe_log(source, imu_topic, gnss_topic, speed_topic)
+    rows = [(ch.topic, str(ch.count), ch.encoding, ch.schema, ch.role or "-") for ch in found.channels]
+    header = ("topic", "messages", "encoding", "type", "use")
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    for row in [header, *rows]:
+        cells = [row[0].ljust(widths[0]), row[1].rjust(widths[1]), row[2].ljust(widths[2]), row[3].ljust(widths[3]), row[4]]
+        print("  ".join(cells).rstrip())
+    if found.problem:
+        print(f"cannot replay as is: {found.problem}", file=sys.stderr)
+
+
+def _info_kitti(path: Path) -> None:
+    from ..sources.kitti import NAVSTAT_LOCKED, describe_kitti
+
+    d = describe_kitti(path)
+    statuses = ", ".join(f"{n} x navstat {s}{' (locked)' if s == NAVSTAT_LOCKED else ''}" for s, n in sorted(d.navstat_counts.items()))
+    print(f"KITTI raw OXTS: {d.oxts}")
+    print(f"{d.packets} packets over {d.duration_s:.1f} s ({d.rate_hz:.1f} Hz): {statuses}")
+    print("used: lat/lon/alt and vn/ve as truth, af and wu as inertial inputs, navstat as quality, pos_accuracy as sigma, numsats")

@@ -15,7 +15,7 @@ from .app import app, name_options
 @c.with_source_options
 @c.with_estimator_options
 def evaluate(
-    drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
+    drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     outage: str = c.OutageOpt,
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),

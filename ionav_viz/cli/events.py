@@ -14,7 +14,7 @@ from .app import app
 @app.command()
 @c.with_source_options
 def events(
-    drives: Optional[list[str]] = typer.Argument(None, help="Drives: file paths, bundled scenario names or IO-VNBD run names."),
+    drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
     types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated."),
     quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),

@@ -42,7 +42,7 @@ def _parse_times(text: str) -> list[float]:
 @c.with_source_options
 @c.with_estimator_options
 def replay(
-    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file path, bundled scenario name or IO-VNBD run name."),
+    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario name or IO-VNBD run name."),
     outage: str = c.OutageOpt,
     every: Optional[str] = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s."),
     at: Optional[str] = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s."),

@@ -15,8 +15,9 @@ log = logging.getLogger("ionav_viz")
 
 
 @dataclass(frozen=True)
-class McapOptions:
-    """How to read MCAP logs: topics (None: found by schema) and which time stamps to use."""
+class LogOptions:
+    """How to read message logs (MCAP, ROS 1 and ROS 2 bags): topics (None: found by message
+    type), which time stamps to use and the IMU's axes."""
 
     imu_topic: str | None = None
     gnss_topic: str | None = None
@@ -25,32 +26,95 @@ class McapOptions:
     imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
 
 
-def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: McapOptions | None = None,
+#: The earlier name of :class:`LogOptions`, from when MCAP was the only message log.
+McapOptions = LogOptions
+
+#: What :func:`source_kind` tells apart.
+KINDS = ("iovnbd", "mcap", "ros1", "ros2", "kitti")
+_SUPPORTED = ("ionav-viz reads IO-VNBD V-*.csv files, MCAP (.mcap) logs, ROS 1 .bag files, ROS 2 bag folders "
+              "(or their metadata.yaml / .db3) and KITTI raw drive folders")
+
+
+def source_kind(path: Path) -> str:
+    """Which reader a path needs (one of :data:`KINDS`), or an error saying what it is not."""
+    from .kitti import oxts_folder
+    from .rosbag_reader import is_ros1_bag
+
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        if (path / "metadata.yaml").is_file():
+            return "ros2"
+        if oxts_folder(path) is not None:
+            return "kitti"
+        storage = sorted(p.name for p in path.iterdir() if p.suffix in (".db3", ".mcap") or p.name.endswith((".db3.zstd", ".mcap.zstd")))
+        if storage:
+            raise InputError(f"{path}: a folder without metadata.yaml is not a ROS 2 bag (it holds {', '.join(storage[:3])})",
+                             "recreate the metadata with 'ros2 bag reindex DIR' (ROS 2), or give one of its .db3 files")
+        raise InputError(f"{path}: neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive (no oxts/)", _SUPPORTED)
+    if suffix == ".csv":
+        return "iovnbd"
+    if suffix == ".mcap":
+        return "mcap"
+    if is_ros1_bag(path):
+        return "ros1"
+    if path.name == "metadata.yaml" or suffix == ".db3":
+        return "ros2"
+    raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", _SUPPORTED)
+
+
+def open_message_log(path: Path):
+    """The :class:`~.message_log.MessageLog` of an MCAP file or a ROS bag, else None."""
+    kind = source_kind(path)
+    if kind == "mcap":
+        from .mcap_reader import McapLog
+
+        return McapLog(path)
+    if kind in ("ros1", "ros2"):
+        from .rosbag_reader import RosbagLog
+
+        return RosbagLog(path)
+    return None
+
+
+def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None = None) -> Drive:
+    """Read a path into a drive with the reader its kind needs (no GNSS quality marked yet)."""
+    opts = options or LogOptions()
+    kind = source_kind(path)
+    if kind in ("iovnbd", "kitti") and opts.imu_axes:
+        what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
+        raise InputError(f"{path}: {what}; --imu-axes applies to MCAP logs and ROS bags",
+                         "leave --imu-axes out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes")
+    if kind == "iovnbd":
+        from .iovnbd import read_iovnbd
+
+        return read_iovnbd(path, yaw_sign=yaw_sign)
+    if kind == "kitti":
+        from .kitti import read_kitti
+
+        return read_kitti(path, yaw_sign=yaw_sign)
+    log_options = {"imu_topic": opts.imu_topic, "gnss_topic": opts.gnss_topic, "speed_topic": opts.speed_topic,
+                   "stamps": opts.stamps, "imu_axes": opts.imu_axes, "yaw_sign": yaw_sign}
+    if kind == "mcap":
+        from .mcap_reader import read_mcap
+
+        return read_mcap(path, **log_options)
+    from .rosbag_reader import read_rosbag
+
+    return read_rosbag(path, **log_options)
+
+
+def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: LogOptions | None = None,
                gnss_limits: GnssLimits | None = None) -> Drive:
     """Resolve ``spec`` (path, bundled scenario or run name) and read it into a :class:`Drive`.
 
-    ``.csv`` files are IO-VNBD vehicle files; ``.mcap`` files are ROS 2 or JSON MCAP logs
-    (``mcap`` options apply). ``yaw_sign`` applies to both (``auto``: the source's convention,
-    checked against the GNSS course). Every source then gets the same GNSS quality checks
-    (``gnss_limits``, see :mod:`ionav_viz.core.gnss_quality`).
+    ``.csv`` files are IO-VNBD vehicle files; ``.mcap`` files, ROS 1 ``.bag`` files and ROS 2 bag
+    folders are message logs (``mcap``: the :class:`LogOptions` that apply to all of them); a
+    folder with ``oxts/`` is a KITTI raw drive. ``yaw_sign`` applies to all (``auto``: the
+    source's convention, checked against the GNSS course). Every source then gets the same GNSS
+    quality checks (``gnss_limits``, see :mod:`ionav_viz.core.gnss_quality`).
     """
     path = resolve_drive(spec, root)
-    suffix = path.suffix.lower()
-    opts = mcap or McapOptions()
-    if suffix == ".csv":
-        from .iovnbd import read_iovnbd
-
-        if opts.imu_axes:
-            raise InputError(f"{path}: an IO-VNBD file has one accelerometer and one gyro axis; --imu-axes applies to MCAP logs",
-                             "leave --imu-axes out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes")
-        drive = read_iovnbd(path, yaw_sign=yaw_sign)
-    elif suffix == ".mcap":
-        from .mcap_reader import read_mcap
-
-        drive = read_mcap(path, imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic, stamps=opts.stamps,
-                          imu_axes=opts.imu_axes, yaw_sign=yaw_sign)
-    else:
-        raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", "ionav-viz reads IO-VNBD V-*.csv files and MCAP (.mcap) logs")
+    drive = read_source(path, yaw_sign, mcap)
     check_rate(drive, path)
     mark_gnss_quality(drive, gnss_limits or GnssLimits())
     return drive

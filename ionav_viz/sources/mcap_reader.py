@@ -150,7 +150,7 @@ class McapLog:
     def damaged(self, exc: BaseException) -> InputError:
         return _bad(self.path, exc)
 
-    def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, float, Any]]:
+    def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, int, Any]]:
         from mcap_ros2.decoder import DecoderFactory
 
         path = self.path
@@ -167,7 +167,7 @@ class McapLog:
                             raise InputError(f"{path}: topic {channel.topic}: cannot decode {channel.message_encoding} with schema encoding {schema.encoding if schema else None!r}")
                         decoders[channel.id] = decoder
                     decoded = decoders[channel.id](message.data)
-                yield channel.topic, message.log_time * 1e-9, decoded
+                yield channel.topic, message.log_time, decoded
 
 
 def _iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:

@@ -96,8 +96,8 @@ class MessageLog(Protocol):
         """Every topic with its type, encoding and message count."""
         ...
 
-    def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, float, Any]]:
-        """``(topic, log time s, decoded message)`` for the given channels, streamed; decoding
+    def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, int, Any]]:
+        """``(topic, log time ns since 1970, decoded message)`` for the given channels, streamed; decoding
         errors are :class:`InputError` naming the file and topic."""
         ...
 
@@ -145,19 +145,46 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     return Selection(imu, gnss, speed, channels)
 
 
+@dataclass
+class LogDescription:
+    """What a log holds and what ionav-viz would read from it (``ionav-viz info``)."""
+
+    channels: list[ChannelInfo]
+    problem: str | None  # why the log cannot be read as is (no IMU topic, ...), else None
+
+    @property
+    def used(self) -> dict[str, str]:
+        """topic -> role (IMU, GNSS, speed) of the topics that would be read."""
+        return {c.topic: c.role for c in self.channels if c.role}
+
+
+def describe_log(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
+                 speed_topic: str | None = None) -> LogDescription:
+    """Every topic of the log, with the roles the reader would give them (or why it cannot)."""
+    channels = source.channels()
+    try:
+        select_channels(source, imu_topic, gnss_topic, speed_topic, channels=channels)
+        problem = None
+    except InputError as exc:
+        for c in channels:
+            c.role = ""
+        problem = str(exc)
+    return LogDescription(channels, problem)
+
+
 def _get(obj: Any, *names: str) -> Any:
     for name in names:
         obj = obj[name] if isinstance(obj, dict) else getattr(obj, name)
     return obj
 
 
-def _stamp_s(stamp: Any) -> float:
+def _stamp_ns(stamp: Any) -> int:
     sec = _get(stamp, "sec")
     try:
         nsec = _get(stamp, "nanosec")
     except (KeyError, AttributeError):
         nsec = _get(stamp, "nsec")
-    return float(sec) + float(nsec) * 1e-9
+    return int(sec) * 1_000_000_000 + int(nsec)
 
 
 def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
@@ -189,19 +216,31 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
     dropped_no_fix = 0
 
-    def when(msg: Any, log_t: float, *stamp_path: str) -> float:
+    # Stamps are kept as seconds after the first one's whole second: float64 seconds since 1970
+    # would round them to 0.24 us, and a drive's samples would no longer fall on its grid.
+    origin_ns: list[int] = []
+
+    def seconds(ns: int) -> float:
+        if not origin_ns:
+            origin_ns.append(ns - ns % 1_000_000_000)
+        return (ns - origin_ns[0]) * 1e-9
+
+    def when(msg: Any, log_ns: int, *stamp_path: str) -> float:
         if stamps == "log":
-            return log_t
+            return seconds(log_ns)
         try:
-            t = _stamp_s(_get(msg, *stamp_path))
-        except (KeyError, AttributeError, TypeError):
-            return log_t
-        return t if t > 0 and math.isfinite(t) else log_t
+            ns = _stamp_ns(_get(msg, *stamp_path))
+        except (KeyError, AttributeError, TypeError, ValueError, OverflowError):
+            return seconds(log_ns)
+        return seconds(ns) if ns > 0 else seconds(log_ns)
+
+    def absolute_s(t: float) -> float:
+        return t + (origin_ns[0] // 1_000_000_000 if origin_ns else 0)
 
     def check(topic: str, t: float, field_name: str, column: str, value: float) -> None:
         reason = implausible(column, value)
         if reason:
-            raise InputError(f"{path}: topic {topic}, message stamped {t:.3f} s: {field_name} {reason}",
+            raise InputError(f"{path}: topic {topic}, message stamped {absolute_s(t):.3f} s: {field_name} {reason}",
                              "no car sensor produces that value: fix the log or choose another topic")
 
     def to_body(data: np.ndarray) -> np.ndarray:
@@ -214,18 +253,18 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     imu = ImuBins(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=to_body)
 
     try:
-        for topic, log_t, msg in source.messages(sel.chosen):
+        for topic, log_ns, msg in source.messages(sel.chosen):
             role = roles[topic]
             try:
                 if role == "IMU":
-                    t = when(msg, log_t, "header", "stamp")
+                    t = when(msg, log_ns, "header", "stamp")
                     lin, ang = _get(msg, "linear_acceleration"), _get(msg, "angular_velocity")
                     imu.add((t, *(float(_get(lin, a)) for a in AXES), *(float(_get(ang, a)) for a in AXES)))
                 elif role == "GNSS":
                     if sel.gnss.schema.startswith("foxglove"):
-                        t = when(msg, log_t, "timestamp")
+                        t = when(msg, log_ns, "timestamp")
                     else:
-                        t = when(msg, log_t, "header", "stamp")
+                        t = when(msg, log_ns, "header", "stamp")
                         if int(_get(msg, "status", "status")) < 0:
                             dropped_no_fix += 1
                             continue
@@ -238,7 +277,7 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
                     gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
                 else:
-                    sample = _speed_sample(msg, log_t, when, sel.speed.schema)
+                    sample = _speed_sample(msg, log_ns, when, sel.speed.schema)
                     check(sel.speed.topic, sample[0], "speed", "speed_mps", sample[1])
                     speed.append(sample)
             except (KeyError, AttributeError, TypeError, ValueError) as exc:
@@ -254,14 +293,15 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
         raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
     if dropped_no_fix:
         log.warning("%s: dropped %d GNSS message(s) without a fix", path, dropped_no_fix)
+    origin_s = float(origin_ns[0] // 1_000_000_000)
     fixes = first_per_stamp(path, np.asarray(gnss))
-    fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0])]
+    fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0], origin_s=origin_s)]
     speeds = None
     if speed:
         speeds = np.asarray(speed)
         speeds = speeds[np.argsort(speeds[:, 0], kind="stable")]
-        speeds = speeds[drop_strays(path, "speed", speeds[:, 0])]
-    return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign)
+        speeds = speeds[drop_strays(path, "speed", speeds[:, 0], origin_s=origin_s)]
+    return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s)
 
 
 def _default_name(path: Path) -> str:
@@ -283,11 +323,11 @@ def _horizontal_sigma_m(msg: Any) -> float:
     return math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan
 
 
-def _speed_sample(msg: Any, log_t: float, when, schema: str) -> tuple[float, float, float]:
+def _speed_sample(msg: Any, log_ns: int, when, schema: str) -> tuple[float, float, float]:
     if "Odometry" in schema:
-        t = when(msg, log_t, "header", "stamp")
+        t = when(msg, log_ns, "header", "stamp")
         return t, abs(float(_get(msg, "twist", "twist", "linear", "x"))), math.nan
-    t = when(msg, log_t, "header", "stamp")
+    t = when(msg, log_ns, "header", "stamp")
     lin = _get(msg, "twist", "linear")
     vx, vy = float(_get(lin, "x")), float(_get(lin, "y"))
     frame = str(_get(msg, "header", "frame_id")).strip("/").lower()

@@ -68,8 +68,15 @@ class ImuBins:
     def flush(self) -> None:
         if not self.buffer:
             return
-        data = self.prepare(np.asarray(self.buffer))
+        block = np.asarray(self.buffer)
         self.buffer.clear()
+        self.add_block(block)
+
+    def add_block(self, block: np.ndarray) -> None:
+        """Add samples already gathered in an array ``(n, 7)``, as the log has them."""
+        if not len(block):
+            return
+        data = self.prepare(block)
         if self.samples is not None:
             self.samples.append(data)
         if self.origin is None:
@@ -121,14 +128,14 @@ def _main_span(t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     return group == int(np.argmax(size))
 
 
-def drop_strays(path: Path, what: str, t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
-    """Mask of ``t`` (sorted) to keep, warning once about stray stamps."""
+def drop_strays(path: Path, what: str, t: np.ndarray, weights: np.ndarray | None = None, origin_s: float = 0.0) -> np.ndarray:
+    """Mask of ``t`` (sorted; s after ``origin_s``) to keep, warning once about stray stamps."""
     keep = _main_span(t, weights)
     if not keep.all():
         n = int((weights[~keep] if weights is not None else (~keep)).sum())
         log.warning("%s: dropped %d %s sample(s) stamped more than %g s away from the rest of the log "
                     "(e.g. %.3f s against %.3f-%.3f s): a clock not yet synchronised?",
-                    path, n, what, MAX_STAMP_JUMP_S, float(t[~keep][0]), float(t[keep][0]), float(t[keep][-1]))
+                    path, n, what, MAX_STAMP_JUMP_S, origin_s + float(t[~keep][0]), origin_s + float(t[keep][0]), origin_s + float(t[keep][-1]))
     return keep
 
 
@@ -147,13 +154,15 @@ def first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
 
 
 def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed: np.ndarray | None,
-                   mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None) -> Drive:
+                   mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None,
+                   origin_s: float = 0.0) -> Drive:
     """The drive on the grid from a log's streams (see the module docstring).
 
     ``gnss``: fixes ``(t s, lat deg, lon deg, altitude m, sigma m or NaN)``, sorted, one per stamp;
     ``speed``: ``(t s, speed m/s, course deg or NaN)`` sorted, or None; ``mapping``: the IMU axis
     mapping already applied (for the frame check's hint); ``yaw_sign``: ``auto`` checks the yaw
-    sign against the GNSS course, ``cw`` flips it. ``fix_columns``: more per-fix drive columns
+    sign against the GNSS course, ``cw`` flips it. Times are s after ``origin_s`` (a whole second since
+    1970, so that float64 keeps the stamps' nanoseconds). ``fix_columns``: more per-fix drive columns
     (e.g. ``n_satellites``), each held from the last fix at every grid time.
     """
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
@@ -165,7 +174,7 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         has_fix = np.ones(len(t), dtype=bool)
     else:
         t, body, count = imu.means()
-        keep = drop_strays(path, "IMU", t, count) & (t >= g_t[0]) & (t <= g_t[-1])
+        keep = drop_strays(path, "IMU", t, count, origin_s=origin_s) & (t >= g_t[0]) & (t <= g_t[-1])
         t, body = t[keep], body[keep]
         has_fix = _covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
@@ -201,9 +210,9 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     last_fix = np.clip(np.searchsorted(g_t, t, side="right") - 1, 0, len(g_t) - 1)
     for column, values in (fix_columns or {}).items():
         columns[column] = np.asarray(values, dtype=float)[last_fix]
-    start = float(t[0])
+    start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
-                 start_time_of_day_s=start % 86400.0, columns=columns)
+                 start_time_of_day_s=start_of_day, columns=columns)
 
 
 def _imu_frame_reversed(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,

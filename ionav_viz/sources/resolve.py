@@ -1,6 +1,6 @@
 """Finding a drive from what a user types: a path, a bundled scenario name or an IO-VNBD run name.
 
-Order: (1) an existing file path; (2) a bundled sample: a scenario name (``roundabout``) means
+Order: (1) an existing file or folder (a ROS 2 bag, a KITTI drive); (2) a bundled sample: a scenario name (``roundabout``) means
 its bundled test drive, ``stationary`` the bundled stationary drive, and bundled file names work
 too (``V-sim-roundabout``); (3) a run name
 looked up under the data root (``--data-root`` or ``$IONAV_DATA``), case-insensitively and
@@ -65,10 +65,10 @@ def _bundled(spec: str) -> Path | None:
 def resolve_drive(spec: str, root: Path | None) -> Path:
     """Path of the drive ``spec`` names (see module docstring), or an :class:`InputError`."""
     path = Path(spec).expanduser()
-    if path.is_file():
+    if path.is_file() or path.is_dir():
         return path
-    if path.suffix.lower() in (".csv", ".mcap") and (os.sep in spec or "/" in spec):
-        raise InputError(f"{spec}: no such file")
+    if path.suffix.lower() in (".mcap", ".bag", ".db3", ".yaml") or os.sep in spec or "/" in spec:  # a run name may end in .csv
+        raise InputError(f"{spec}: no such file or folder")
     bundled = _bundled(spec)
     if bundled is not None:
         if not bundled.is_file():

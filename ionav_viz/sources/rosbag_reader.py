@@ -1,0 +1,217 @@
+"""ROS 1 bags and ROS 2 bags: their format under the shared message-log reader, with ``rosbags``.
+
+``rosbags`` (pure Python, no ROS install) reads:
+
+* ROS 1 ``.bag`` files (format 2.0), uncompressed or with bz2/lz4 chunks;
+* ROS 2 bag folders (``metadata.yaml`` plus SQLite ``.db3`` or ``.mcap`` storage files), named by
+  the folder or by its ``metadata.yaml``, with zstd file or message compression (file-compressed
+  storage is decompressed to a temporary file that is removed when reading ends), and a single
+  ``.db3`` file without its folder.
+
+What is read from which topic, stamps, rates and memory: :mod:`.message_log`. Here: listing the
+topics (type, serialization, message count from the bag's index or metadata) and streaming the
+selected topics' messages, deserialised with the message definitions the bag carries (ROS 1
+always; ROS 2 from Iron on, and MCAP storage) or, for a bag without them, with the standard
+ROS 2 Humble / ROS 1 Noetic definitions. Only the selected topics are deserialised, each with a
+type store built from its own definition, so a broken definition on a topic that is not used
+(a camera driver's custom message) does not stop the read. Messages of other topics are never
+decoded: an SQLite bag does not even read them; a ROS 1 bag decompresses the chunks that hold
+selected messages one at a time (memory: one chunk).
+
+Log time (``--stamps log``) is the bag's receive time stamp.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from .message_log import ChannelInfo, read_log
+
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+ROS1_SUFFIXES = (".bag", ".active")  # ``x.bag.active``: a recording that did not finish
+ROS2_STORAGE_SUFFIXES = (".db3", ".mcap")
+
+
+def is_ros1_bag(path: Path) -> bool:
+    return path.suffix.lower() in ROS1_SUFFIXES
+
+
+class RosbagLog:
+    """A ROS 1 bag, a ROS 2 bag folder (or its ``metadata.yaml``) or a ROS 2 ``.db3`` file, as a
+    :class:`~.message_log.MessageLog`."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.ros1 = is_ros1_bag(self.path)
+        self.encodings = ("ros1",) if self.ros1 else ("cdr",)
+        # what rosbags opens: the .bag, the bag folder, or a single storage file
+        self._target = self.path.parent if self.path.name == "metadata.yaml" else self.path
+        self._kind = "ROS 1 bag" if self.ros1 else "ROS 2 bag"
+
+    # --- opening, with the errors a user can act on ------------------------------------------
+    def _check(self) -> None:
+        if self.ros1:
+            _check_ros1_framing(self.path)
+        elif self._target.is_dir() and not (self._target / "metadata.yaml").is_file():
+            raise InputError(f"{self._target}: a folder without metadata.yaml is not a ROS 2 bag",
+                             "recreate the metadata with 'ros2 bag reindex DIR' (ROS 2), or give one of its .db3 files")
+
+    @contextlib.contextmanager
+    def _open(self) -> Iterator[Any]:
+        self._check()
+        if self.ros1:
+            from rosbags.rosbag1 import Reader
+        else:
+            from rosbags.rosbag2 import Reader
+        try:
+            reader = Reader(self._target)
+            reader.open()
+        except InputError:
+            raise
+        except Exception as exc:
+            raise self.damaged(exc) from None
+        try:
+            yield reader
+        finally:
+            with contextlib.suppress(Exception):
+                reader.close()
+
+    def damaged(self, exc: BaseException) -> InputError:
+        text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        if "not indexed" in text:
+            return InputError(f"{self.path}: the ROS 1 bag has no index (a recording that did not finish)",
+                              "run 'rosbag reindex' on it (ROS 1), then read it again")
+        if "database files are missing" in text or "files are missing" in text:
+            missing = ", ".join(Path(m).name for m in re.findall(r"'([^']+)'", text)) or text
+            return InputError(f"{self._target / 'metadata.yaml'}: lists storage files that are not in the folder ({missing})",
+                              "copy the whole bag folder, or run 'ros2 bag reindex DIR' to describe the files that are there")
+        if "metadata" in text.lower() or "yaml" in text.lower():
+            return InputError(f"{self._target / 'metadata.yaml'}: unreadable bag metadata ({text})",
+                              "recreate it with 'ros2 bag reindex DIR' (ROS 2)")
+        if isinstance(exc, FileNotFoundError):
+            return InputError(f"{self.path}: {text}", "check the path")
+        return InputError(f"{self.path}: damaged {self._kind} ({type(exc).__name__}: {text})",
+                          "run 'rosbag reindex' on it (ROS 1) or 'ros2 bag reindex DIR' (ROS 2), or re-record it")
+
+    # --- the MessageLog interface -------------------------------------------------------------
+    def channels(self) -> list[ChannelInfo]:
+        with self._open() as reader:
+            return _topics(reader.connections, self.ros1)
+
+    def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, int, Any]]:
+        wanted = {c.topic for c in channels}
+        with self._open() as reader:
+            connections = [c for c in reader.connections if c.topic in wanted]
+            decoders = {c.id: self._decoder(c) for c in connections}
+            for connection, time_ns, raw in reader.messages(connections=connections):
+                try:
+                    msg = decoders[connection.id](raw)
+                except Exception as exc:
+                    raise InputError(f"{self.path}: topic {connection.topic}: a message at log time {time_ns} does not match its "
+                                     f"definition of {connection.msgtype} ({type(exc).__name__}: {exc})",
+                                     "the bag's message definition is not the one the messages were written with; re-record, or choose another topic") from None
+                yield connection.topic, int(time_ns), msg
+
+    def _decoder(self, connection: Any):
+        """A function raw bytes -> message object for one connection, from its own definition."""
+        store = _typestore(self.path, connection, self.ros1)
+        if self.ros1:
+            return lambda raw: store.deserialize_ros1(raw, connection.msgtype)
+        return lambda raw: store.deserialize_cdr(raw, connection.msgtype)
+
+
+def _topics(connections: list[Any], ros1: bool) -> list[ChannelInfo]:
+    """One :class:`ChannelInfo` per topic (a ROS 1 topic can have a connection per publisher)."""
+    topics: dict[str, ChannelInfo] = {}
+    for c in connections:
+        encoding = "ros1" if ros1 else getattr(c.ext, "serialization_format", "cdr")
+        info = topics.setdefault(c.topic, ChannelInfo(c.topic, c.msgtype, encoding, 0))
+        info.count += int(c.msgcount)
+    return sorted(topics.values(), key=lambda ch: ch.topic)
+
+
+def _typestore(path: Path, connection: Any, ros1: bool) -> Any:
+    """A type store holding the connection's message type: from the definition the bag carries,
+    else from the standard definitions of ROS 1 Noetic / ROS 2 Humble."""
+    from rosbags.interfaces import MessageDefinitionFormat
+    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+
+    msgdef, msgtype = connection.msgdef, connection.msgtype
+    if msgdef.format == MessageDefinitionFormat.NONE or not msgdef.data.strip():
+        store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        if msgtype not in store.fielddefs:
+            raise InputError(f"{path}: topic {connection.topic}: the bag has no definition of its message type {msgtype}, "
+                             "and it is not a standard ROS message", "record with ROS 2 Iron or later (bags then carry definitions), or choose another topic")
+        return store
+    try:
+        if msgdef.format == MessageDefinitionFormat.MSG:
+            types = get_types_from_msg(msgdef.data, msgtype)
+        else:
+            sep = "=" * 80 + "\n"
+            types = {}
+            parts = msgdef.data.split(sep)[1:] if msgdef.data.startswith(f"{sep}IDL: ") else [f"IDL: \n{msgdef.data}"]
+            for part in parts:
+                types.update(get_types_from_idl(part.split("\n", 1)[1]))
+        store = get_typestore(Stores.EMPTY)
+        store.register(types)
+        store.get_msgdef(msgtype)  # every field's type is defined
+    except Exception as exc:
+        text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise InputError(f"{path}: topic {connection.topic}: the bag's definition of {msgtype} cannot be read ({type(exc).__name__}: {text})",
+                         "re-record the topic, or choose another one") from None
+    return store
+
+
+def _check_ros1_framing(path: Path) -> None:
+    """Refuse a file that is not a ROS 1 bag, an unindexed bag or a truncated one, saying what to do."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        magic = f.read(len(ROS1_MAGIC))
+        if magic != ROS1_MAGIC:
+            if magic.startswith(b"#ROSBAG V"):
+                raise InputError(f"{path}: ROS bag version {magic[9:].strip().decode(errors='replace')} is not supported",
+                                 "ionav-viz reads ROS 1 bags of format 2.0 (ROS 1 Groovy and later)")
+            raise InputError(f"{path}: not a ROS 1 bag (no '#ROSBAG V2.0' magic at the start)", "ionav-viz reads .bag files written by 'rosbag record'")
+        index_pos = _bag_header_index_pos(f)
+    if index_pos is None:
+        raise InputError(f"{path}: truncated ROS 1 bag (its header is incomplete, {size} bytes)", "copy the file again whole")
+    if index_pos == 0:
+        raise InputError(f"{path}: the ROS 1 bag has no index (a recording that did not finish)",
+                         "run 'rosbag reindex' on it (ROS 1), then read it again")
+    if index_pos >= size:
+        raise InputError(f"{path}: truncated ROS 1 bag (its index should start at byte {index_pos}, the file has {size} bytes)",
+                         "copy the file again whole, or recover the messages before the cut with 'rosbag reindex' (ROS 1)")
+
+
+def _bag_header_index_pos(f: Any) -> int | None:
+    """The ``index_pos`` field of a ROS 1 bag's header record (the stream is just past the magic)."""
+    raw = f.read(4)
+    if len(raw) < 4:
+        return None
+    (length,) = struct.unpack("<I", raw)
+    header = f.read(length)
+    if len(header) < length:
+        return None
+    pos = 0
+    while pos + 4 <= length:
+        (n,) = struct.unpack_from("<I", header, pos)
+        name, _, value = header[pos + 4 : pos + 4 + n].partition(b"=")
+        if name == b"index_pos" and len(value) == 8:
+            return struct.unpack("<Q", value)[0]
+        pos += 4 + n
+    return None
+
+
+def read_rosbag(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
+                speed_topic: str | None = None, stamps: str = "header", name: str | None = None,
+                imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
+    """Read a ROS 1 bag or a ROS 2 bag into a drive on a 10 Hz grid (see :mod:`.message_log`)."""
+    return read_log(RosbagLog(path), imu_topic=imu_topic, gnss_topic=gnss_topic, speed_topic=speed_topic, stamps=stamps,
+                    name=name, imu_axes=imu_axes, yaw_sign=yaw_sign)

@@ -1,0 +1,131 @@
+"""KITTI raw drive folders (OXTS packets), written as the KITTI devkit documents them."""
+
+import json
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+from ionav_viz.core.drive import Drive
+
+from . import bag_fixtures as bf
+from .conftest import run_cli
+
+CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps")
+ESTIMATORS = ["ins", "idnn", "ekf"]
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return iv.load_drive("hard-brake")
+
+
+def _carried(drive, n=None, **extra):
+    cols = {c: drive.columns[c][:n] for c in CARRIED}
+    return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, cols | extra)
+
+
+def test_round_trip_gives_the_csv_metrics(tmp_path, drive):
+    folder = bf.write_kitti(drive, tmp_path / "2011_09_26_drive_0001_sync")
+    read = iv.load_drive(folder)
+    assert read.name == "2011_09_26_drive_0001_sync" and read.rate_hz == 10.0 and len(read) == len(drive)
+    assert read.start_time_of_day_s == pytest.approx(bf.T0_S % 86400, abs=1e-9)
+    moving = drive.speed_mps > 1.0  # the course comes from vn, ve (clockwise from north), not from KITTI's yaw
+    np.testing.assert_allclose(read.heading_deg[moving], drive.heading_deg[moving], atol=1e-9)
+    np.testing.assert_allclose(read.columns["gnss_sigma_m"], 0.02)
+    np.testing.assert_allclose(read.columns["n_satellites"], 11)
+    # the same drive with the receiver's accuracy KITTI carries: the same metrics
+    reference = json.loads(iv.evaluate(_carried(drive, gnss_sigma_m=np.full(len(drive), 0.02)), estimators=ESTIMATORS).to_json())
+    got = json.loads(iv.evaluate(folder / "oxts", estimators=ESTIMATORS).to_json())
+    assert len(got["sequences"]) == len(reference["sequences"]) > 50
+    for a, b in zip(reference["sequences"], got["sequences"]):
+        for est in ESTIMATORS:
+            for key, value in a[est].items():
+                assert b[est][key] == pytest.approx(value, rel=1e-6, abs=1e-9), (est, key)
+
+
+def test_extract_at_100hz_is_averaged_onto_the_grid(tmp_path, drive):
+    short = _carried(drive, 600)
+    t = np.arange(0, short.t_s[-1], 0.01)
+    ramp = 0.01 * t  # m/s^2
+    wiggle = np.where(np.arange(len(t)) % 2 == 0, 1.0, -1.0)  # 50 Hz, averages out per 0.1 s
+    cols = {c: np.interp(t, short.t_s, short.columns[c]) for c in CARRIED}
+    cols.update(t_s=t, accel_long_mps2=ramp + wiggle, yaw_rate_radps=np.full(len(t), 0.05))
+    fast = Drive("fast", "x", 100.0, 0.0, cols)
+    read = iv.load_drive(bf.write_kitti(fast, tmp_path / "2011_09_26_drive_0002_extract"))
+    assert read.rate_hz == 10.0 and abs(len(read) - len(t) / 10) <= 1
+    # a 0.1 s bin holds 9 to 11 samples (a stamp on a bin's edge goes to the even bin), so the
+    # wiggle's mean is at most 1/9 of it; taking one sample per bin would be off by the whole wiggle
+    assert np.max(np.abs(read.accel_long_mps2 - 0.01 * read.t_s)) < 1 / 9 + 0.01 * 0.06
+    np.testing.assert_allclose(read.yaw_rate_radps, 0.05)
+
+
+def test_navigation_status_is_the_truth_quality(tmp_path, drive, caplog):
+    short = _carried(drive, 900)
+    navstat = np.full(900, 4)
+    navstat[400:430] = 2  # 3 s initialising: not a locked solution
+    folder = bf.write_kitti(short, tmp_path / "k", navstat=navstat)
+    with caplog.at_level("WARNING", logger="ionav_viz"):
+        read = iv.load_drive(folder)
+    assert "30 of 900 OXTS packets are not locked" in caplog.text
+    assert len(read) == 900  # the inertial data goes on through the loss
+    bad = ~read.gnss_ok
+    assert bad[401:429].all() and not bad[:399].any() and not bad[431:].any()
+    proc = run_cli("info", str(folder))
+    span_s = short.t_s[-1] - short.t_s[0]
+    expected = f"900 packets over {span_s:.1f} s ({899 / span_s:.1f} Hz): 30 x navstat 2, 870 x navstat 4 (locked)"
+    assert proc.returncode == 0 and expected in proc.stdout, proc.stdout
+
+
+def test_replay_of_a_kitti_drive(tmp_path, drive):
+    folder = bf.write_kitti(_carried(drive, 1200), tmp_path / "2011_09_26_drive_0005_sync")
+    proc = run_cli("replay", str(folder), "-o", str(tmp_path / "k.rrd"), "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "k.rrd").stat().st_size > 50_000
+
+
+# --- bad folders: one line naming the file, exit 2 -------------------------------------------
+
+@pytest.fixture()
+def small(tmp_path, drive):
+    return bf.write_kitti(_carried(drive, 200), tmp_path / "2011_09_26_drive_0009_sync")
+
+
+def _expect_error(path, *messages):
+    proc = run_cli("evaluate", str(path), "--no-idnn")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for message in messages:
+        assert message in proc.stderr, proc.stderr
+
+
+def test_missing_timestamps(small):
+    (small / "oxts" / "timestamps.txt").unlink()
+    _expect_error(small, "oxts/timestamps.txt: missing", "extract the drive's zip again")
+
+
+def test_missing_packet_file(small):
+    (small / "oxts" / "data" / "0000000007.txt").unlink()
+    _expect_error(small, "oxts/data/0000000007.txt: missing")
+
+
+def test_ragged_packet(small):
+    f = small / "oxts" / "data" / "0000000042.txt"
+    f.write_text(" ".join(f.read_text().split()[:29]) + "\n")
+    _expect_error(small, "0000000042.txt: 29 values, an OXTS packet has 30")
+
+
+def test_more_stamps_than_packets(small):
+    stamps = small / "oxts" / "timestamps.txt"
+    stamps.write_text(stamps.read_text() + "2011-09-26 13:05:00.000000000\n")
+    _expect_error(small, "201 stamps in timestamps.txt but 200 packet files in data/")
+
+
+def test_garbled_values_and_stamps(small):
+    f = small / "oxts" / "data" / "0000000003.txt"
+    f.write_text(f.read_text().replace(" ", " x", 1))
+    _expect_error(small, "0000000003.txt: not all values are numbers")
+    f.write_text("49.0 8.4 " + " ".join(["0"] * 12) + " 250.0 " + " ".join(["0"] * 15) + "\n")  # af 250 m/s^2
+    _expect_error(small, "0000000003.txt: af 250 m/s^2 outside")
+    (small / "oxts" / "timestamps.txt").write_text("yesterday\n")
+    _expect_error(small, "timestamps.txt: line 1 is not a stamp")

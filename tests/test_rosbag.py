@@ -1,0 +1,215 @@
+"""ROS 1 bags and ROS 2 bag folders, written with rosbags' own writers, read through every entry point."""
+
+import json
+import shutil
+import sqlite3
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+from ionav_viz.core.drive import Drive
+from ionav_viz.core.errors import InputError
+
+from . import bag_fixtures as bf
+from .conftest import run_cli
+
+#: The columns a bag of IMU, NavSatFix (no covariance) and GNSS velocity carries.
+CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps")
+ESTIMATORS = ["ins", "idnn", "ekf"]
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return iv.load_drive("hard-brake")
+
+
+@pytest.fixture(scope="module")
+def reference(drive):
+    """Metrics of the CSV drive reduced to what a bag carries (the EKF would use the CSV's wheel speeds)."""
+    carried = Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {c: drive.columns[c] for c in CARRIED})
+    return json.loads(iv.evaluate(carried, estimators=ESTIMATORS).to_json())
+
+
+def _same_metrics(reference, report):
+    got = json.loads(report.to_json())
+    assert len(got["sequences"]) == len(reference["sequences"]) > 50
+    for a, b in zip(reference["sequences"], got["sequences"]):
+        assert b["start_s"] == pytest.approx(a["start_s"], abs=1e-9)
+        for est in ESTIMATORS:
+            for key, value in a[est].items():
+                # same stamps as the CSV, so no resampling: equal up to float rounding
+                assert b[est][key] == pytest.approx(value, rel=1e-6, abs=1e-9), (est, key)
+
+
+BAGS = [
+    ("ros1", {"compression": None, "broken_extra_topic": True, "image_every": 10}),
+    ("ros1", {"compression": "bz2"}),
+    ("ros1", {"compression": "lz4"}),
+    ("ros2", {"storage": "sqlite3"}),
+    ("ros2", {"storage": "sqlite3", "compression": "message"}),
+    ("ros2", {"storage": "mcap", "compression": "file", "image_every": 10}),
+    ("ros2", {"storage": "mcap", "compression": "message"}),
+]
+
+
+@pytest.mark.parametrize(("kind", "options"), BAGS, ids=[f"{k}-{'-'.join(str(v) for v in o.values())}" for k, o in BAGS])
+def test_round_trip_gives_the_csv_metrics(tmp_path, drive, reference, kind, options):
+    if kind == "ros1":
+        path = bf.write_ros1(drive, tmp_path / "drive.bag", **options)
+    else:
+        path = bf.write_ros2(drive, tmp_path / "drive", **options)
+    _same_metrics(reference, iv.evaluate(path, estimators=ESTIMATORS))
+    if kind == "ros2":  # the folder's metadata.yaml names the same bag
+        read = iv.load_drive(path / "metadata.yaml")
+        assert read.name == "drive" and len(read) == len(drive)
+    assert not list(tmp_path.glob("**/*.tmp*")) and sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+
+
+def test_topics_are_chosen_by_type_or_by_option(tmp_path, drive):
+    path = bf.write_ros1(drive, tmp_path / "a.bag", broken_extra_topic=True, image_every=50)
+    proc = run_cli("info", str(path))
+    assert proc.returncode == 0, proc.stderr
+    rows = {line.split()[0]: line.split() for line in proc.stdout.splitlines()[1:]}
+    assert rows["/imu/data"][1:] == ["5990", "ros1", "sensor_msgs/msg/Imu", "IMU"]
+    assert rows["/gps/fix"][-1] == "GNSS" and rows["/gps/vel"][-1] == "speed"
+    assert rows["/camera/image"][1:] == ["120", "ros1", "sensor_msgs/msg/Image", "-"]
+    assert rows["/vendor/status"][-1] == "-"  # its definition cannot be parsed, and it is never decoded
+    # --speed-topic picks the topic; a missing one is named with the topics there are
+    proc = run_cli("evaluate", str(path), "--no-idnn", "--speed-topic", "/nope")
+    assert proc.returncode == 2 and "no topic '/nope'" in proc.stderr and "/gps/vel" in proc.stderr, proc.stderr
+
+
+def test_header_or_receive_stamps(tmp_path, drive):
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    # the recorder received every message 40 ms after its header stamp
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "late"
+    with Writer(path, version=9) as w:
+        conns = {}
+        for topic, msgtype, ns, msg in bf._messages(store, drive, bf._stamps_ns(drive), ros1=False):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, msgtype, typestore=store)
+            w.write(conns[topic], ns + 40_000_000, store.serialize_cdr(msg, msgtype))
+    header = iv.load_drive(path)
+    received = iv.load_drive(path, mcap=iv.LogOptions(stamps="log"))
+    assert received.start_time_of_day_s - header.start_time_of_day_s == pytest.approx(0.04, abs=1e-6)
+    assert header.start_time_of_day_s == pytest.approx(bf.T0_S % 86400, abs=1e-9)
+
+
+def test_every_command_takes_a_bag(tmp_path, drive):
+    bag = bf.write_ros1(drive, tmp_path / "hb.bag", compression="lz4")
+    folder = bf.write_ros2(drive, tmp_path / "hb2", storage="sqlite3")
+    for args in (("replay", str(bag), "-o", str(tmp_path / "r.rrd"), "-q"),
+                 ("events", str(folder / "metadata.yaml")),
+                 ("convert", str(folder), "-o", str(tmp_path / "c.mcap")),
+                 ("train", str(bag), "-o", str(tmp_path / "m"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")):
+        proc = run_cli(*args)
+        assert proc.returncode == 0, (args, proc.stderr)
+    assert (tmp_path / "r.rrd").stat().st_size > 100_000
+    assert json.loads((tmp_path / "m" / "metadata.json").read_text())["training"]["drives"][0]["file"] == "hb.bag"
+    converted = iv.load_drive(tmp_path / "c.mcap")
+    np.testing.assert_allclose(converted.lat_deg, drive.lat_deg, rtol=0, atol=1e-12)
+
+
+# --- bad input: one line, the file, what to do, exit 2 -------------------------------------------
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    d = iv.load_drive("hard-brake")
+    return Drive(d.name, d.source, d.rate_hz, d.start_time_of_day_s, {c: d.columns[c][:300] for c in CARRIED})
+
+
+def _expect_error(path, *messages):
+    proc = run_cli("evaluate", str(path), "--no-idnn")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for message in messages:
+        assert message in proc.stderr, proc.stderr
+
+
+def test_truncated_ros1_bag(tmp_path, small):
+    good = bf.write_ros1(small, tmp_path / "good.bag")
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    _expect_error(cut, "cut.bag: truncated ROS 1 bag", "rosbag reindex")
+
+
+def test_unindexed_ros1_bag(tmp_path, small):
+    good = bf.write_ros1(small, tmp_path / "good.bag")
+    data = bytearray(good.read_bytes())
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    data[at : at + 8] = bytes(8)  # what 'rosbag record' leaves when it is killed
+    (tmp_path / "live.bag.active").write_bytes(bytes(data))
+    _expect_error(tmp_path / "live.bag.active", "live.bag.active: the ROS 1 bag has no index", "rosbag reindex")
+
+
+def test_not_a_bag(tmp_path):
+    (tmp_path / "notes.bag").write_text("hello")
+    _expect_error(tmp_path / "notes.bag", "notes.bag: not a ROS 1 bag")
+
+
+def test_bag_folder_without_metadata(tmp_path, small):
+    folder = bf.write_ros2(small, tmp_path / "rec")
+    (folder / "metadata.yaml").unlink()
+    _expect_error(folder, "rec: a folder without metadata.yaml is not a ROS 2 bag", "rec.db3", "ros2 bag reindex")
+    # its storage file alone is still readable
+    assert len(iv.load_drive(folder / "rec.db3")) == 300
+    (folder / "rec.db3").unlink()
+    _expect_error(folder, "neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive")
+
+
+def test_metadata_pointing_to_missing_files(tmp_path, small):
+    folder = bf.write_ros2(small, tmp_path / "rec", storage="mcap")
+    (folder / "rec.mcap").rename(tmp_path / "elsewhere.mcap")
+    _expect_error(folder / "metadata.yaml", "metadata.yaml: lists storage files that are not in the folder (rec.mcap)", "copy the whole bag folder")
+
+
+def test_unparseable_definition_of_a_used_topic(tmp_path, small):
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    path = tmp_path / "bad.bag"
+    with Writer(path) as w:
+        conns = {}
+        for topic, msgtype, ns, msg in bf._messages(store, small, bf._stamps_ns(small), ros1=True):
+            if topic not in conns:
+                broken = {"msgdef": bf.BROKEN_DEFINITION, "md5sum": "0" * 32} if topic == "/imu/data" else {"typestore": store}
+                conns[topic] = w.add_connection(topic, msgtype, **broken)
+            w.write(conns[topic], ns, store.serialize_ros1(msg, msgtype))
+    _expect_error(path, "topic /imu/data: the bag's definition of sensor_msgs/msg/Imu cannot be read")
+
+
+def test_unknown_message_type_without_definition(tmp_path, small):
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    store.register(get_types_from_msg("float64 latitude\nfloat64 longitude\n", "acme_msgs/msg/Position"))
+    folder = tmp_path / "old"
+    with Writer(folder, version=9) as w:
+        fix = w.add_connection("/acme/position", "acme_msgs/msg/Position", typestore=store)
+        imu = w.add_connection("/imu/data", "sensor_msgs/msg/Imu", typestore=store)
+        for topic, msgtype, ns, msg in bf._messages(store, small, bf._stamps_ns(small), ros1=False):
+            if topic == "/imu/data":
+                w.write(imu, ns, store.serialize_cdr(msg, msgtype))
+            elif topic == "/gps/fix":
+                pos = store.types["acme_msgs/msg/Position"](latitude=msg.latitude, longitude=msg.longitude)
+                w.write(fix, ns, store.serialize_cdr(pos, "acme_msgs/msg/Position"))
+    with sqlite3.connect(folder / "old.db3") as db:  # a bag from before ROS 2 Iron: no definitions
+        db.execute("DELETE FROM message_definitions")
+    proc = run_cli("evaluate", str(folder), "--no-idnn", "--gnss-topic", "/acme/position")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "topic /acme/position: the bag has no definition of its message type acme_msgs/msg/Position" in proc.stderr
+    assert "ROS 2 Iron" in proc.stderr
+
+
+def test_api_names_the_bag(tmp_path, small):
+    folder = bf.write_ros2(small, tmp_path / "rec")
+    shutil.rmtree(folder)
+    folder.mkdir()
+    with pytest.raises(InputError, match="neither a ROS 2 bag folder"):
+        iv.load_drive(folder)
