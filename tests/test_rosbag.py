@@ -213,3 +213,16 @@ def test_api_names_the_bag(tmp_path, small):
     folder.mkdir()
     with pytest.raises(InputError, match="neither a ROS 2 bag folder"):
         iv.load_drive(folder)
+
+
+def test_receiver_course_is_held_at_a_standstill(tmp_path, drive):
+    """A GNSS velocity of (0, 0) has no direction (atan2 gives 0, north): the course at speed is held."""
+    read = iv.load_drive(bf.write_ros2(drive, tmp_path / "stop"))
+    assert (drive.speed_mps == 0).sum() > 20
+    last_at_speed = None
+    for v, course, got in zip(read.speed_mps, drive.heading_deg, read.heading_deg):
+        if v >= 1.0:
+            last_at_speed = course
+            assert got == pytest.approx(course, abs=1e-9)
+        elif last_at_speed is not None:
+            assert got == pytest.approx(last_at_speed, abs=1e-9)

@@ -11,7 +11,8 @@ log's own units and rates, then calls :func:`assemble_drive`:
   receiver's usual interval: a tunnel) are kept with ``gnss_fix`` 0, so the GNSS quality marks
   them no-fix: never scored, but the inertial data through the gap is there;
 * speeds ``(t, speed, course)`` (s, m/s, deg clockwise from north or NaN) from the receiver or the
-  navigation solution; without them, speed and course come from the fixes by a local parabola
+  navigation solution (its course held below 1 m/s, where a velocity's direction is noise, and
+  at a standstill ``atan2(0, 0)``); without them, speed and course come from the fixes by a local parabola
   fitted over at least 2 s of track (:func:`fit_fixes`), and the positions are that fit's.
 
 A log whose IMU and GNSS share their stamps at no more than the grid rate (as ``ionav-viz
@@ -31,7 +32,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..core.grid import GRID_RATE_HZ, hold_course_when_slow
+from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
 from ..core.units import wrap_360
 from .imu_frame import YAW_REVERSED, check_imu_frame
 from .plausibility import first_implausible
@@ -188,7 +189,8 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         has_course = np.isfinite(s_course)
         if has_course.any():
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
-            course = wrap_360(np.interp(t, s_t[has_course], unwrapped))
+            # a receiver's course at a standstill is atan2(0, 0): the course at speed is held instead
+            course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS)
     if v is None or course is None:
         # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
         # (the per-window displacement of raw fixes would carry their white noise twice)
