@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 
 G = 9.81
+#: The columns a log of IMU, NavSatFix (no covariance) and GNSS velocity carries.
+CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps")
 #: A ROS 1 message definition nothing can parse, for a topic ionav-viz does not read.
 BROKEN_DEFINITION = "this is ### not a message definition\n"
 T0_S = 1_317_042_145.0  # 2011-09-26 13:02:25 UTC, a KITTI day
@@ -57,6 +59,20 @@ def _image(store, ns: int, size: tuple[int, int], ros1: bool):
     return T["sensor_msgs/msg/Image"](header=header, height=h, width=w, encoding="rgb8", is_bigendian=0, step=w * 3, data=data)
 
 
+def _write_drive(w, store, drive, stamps, ros1: bool, image_every: int, image_size) -> None:
+    """The drive's messages (and an image every ``image_every`` samples) through an open rosbags writer."""
+    serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
+    conns = {}
+    for i, (topic, msgtype, ns, msg) in enumerate(_messages(store, drive, stamps, ros1=ros1)):
+        if topic not in conns:
+            conns[topic] = w.add_connection(topic, msgtype, typestore=store)
+        w.write(conns[topic], ns, serialize(msg, msgtype))
+        if image_every and topic == "/gps/vel" and (i // 3) % image_every == 0:
+            if "/camera/image" not in conns:
+                conns["/camera/image"] = w.add_connection("/camera/image", "sensor_msgs/msg/Image", typestore=store)
+            w.write(conns["/camera/image"], ns, serialize(_image(store, ns, image_size, ros1), "sensor_msgs/msg/Image"))
+
+
 def write_ros1(drive, path: Path, compression: str | None = None, image_every: int = 0, image_size=(48, 64),
                broken_extra_topic: bool = False) -> Path:
     """A ROS 1 bag of ``drive`` (compression None, "bz2" or "lz4"); an rgb8 image every
@@ -70,18 +86,10 @@ def write_ros1(drive, path: Path, compression: str | None = None, image_every: i
     if compression:
         w.set_compression(Writer.CompressionFormat[compression.upper()])
     with w:
-        conns = {}
         if broken_extra_topic:
             bad = w.add_connection("/vendor/status", "vendor_msgs/msg/Status", msgdef=BROKEN_DEFINITION, md5sum="0" * 32)
             w.write(bad, int(stamps[0]), b"\x00\x01\x02")
-        for i, (topic, msgtype, ns, msg) in enumerate(_messages(store, drive, stamps, ros1=True)):
-            if topic not in conns:
-                conns[topic] = w.add_connection(topic, msgtype, typestore=store)
-            w.write(conns[topic], ns, store.serialize_ros1(msg, msgtype))
-            if image_every and topic == "/gps/vel" and (i // 3) % image_every == 0:
-                if "/camera/image" not in conns:
-                    conns["/camera/image"] = w.add_connection("/camera/image", "sensor_msgs/msg/Image", typestore=store)
-                w.write(conns["/camera/image"], ns, store.serialize_ros1(_image(store, ns, image_size, True), "sensor_msgs/msg/Image"))
+        _write_drive(w, store, drive, stamps, True, image_every, image_size)
     return path
 
 
@@ -99,15 +107,7 @@ def write_ros2(drive, path: Path, storage: str = "sqlite3", compression: str | N
     if compression:
         w.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
     with w:
-        conns = {}
-        for i, (topic, msgtype, ns, msg) in enumerate(_messages(store, drive, stamps, ros1=False)):
-            if topic not in conns:
-                conns[topic] = w.add_connection(topic, msgtype, typestore=store)
-            w.write(conns[topic], ns, store.serialize_cdr(msg, msgtype))
-            if image_every and topic == "/gps/vel" and (i // 3) % image_every == 0:
-                if "/camera/image" not in conns:
-                    conns["/camera/image"] = w.add_connection("/camera/image", "sensor_msgs/msg/Image", typestore=store)
-                w.write(conns["/camera/image"], ns, store.serialize_cdr(_image(store, ns, image_size, False), "sensor_msgs/msg/Image"))
+        _write_drive(w, store, drive, stamps, False, image_every, image_size)
     return path
 
 
@@ -140,3 +140,10 @@ def write_kitti(drive, folder: Path, navstat=None, t0_s: float = T0_S) -> Path:
         lines.append(f"{stamp}.{frac:09d}")
     (oxts / "timestamps.txt").write_text("\n".join(lines) + "\n")
     return folder
+
+
+def carried(drive, n: int | None = None, **extra):
+    """The first ``n`` samples of ``drive`` with only the :data:`CARRIED` columns (plus ``extra``)."""
+    from ionav_viz.core.drive import Drive
+
+    return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {c: drive.columns[c][:n] for c in CARRIED} | extra)

@@ -26,6 +26,15 @@ def run_cli(*args: str, env: dict | None = None, cwd: Path | None = None, timeou
     )
 
 
+def expect_one_line_error(path: Path, *messages: str) -> None:
+    """``ionav-viz evaluate PATH`` fails on bad input: exit 2, one line, no traceback, naming ``messages``."""
+    proc = run_cli("evaluate", str(path), "--no-idnn")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for message in messages:
+        assert message in proc.stderr, proc.stderr
+
+
 @pytest.fixture(scope="session")
 def ideal_drive_csv(tmp_path_factory) -> Path:
     """A noise-free synthetic motorway drive (perfect sensors, flat road)."""

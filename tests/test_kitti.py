@@ -9,20 +9,14 @@ import ionav_viz as iv
 from ionav_viz.core.drive import Drive
 
 from . import bag_fixtures as bf
-from .conftest import run_cli
+from .conftest import expect_one_line_error, run_cli
 
-CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps")
 ESTIMATORS = ["ins", "idnn", "ekf"]
 
 
 @pytest.fixture(scope="module")
 def drive():
     return iv.load_drive("hard-brake")
-
-
-def _carried(drive, n=None, **extra):
-    cols = {c: drive.columns[c][:n] for c in CARRIED}
-    return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, cols | extra)
 
 
 def test_round_trip_gives_the_csv_metrics(tmp_path, drive):
@@ -35,7 +29,7 @@ def test_round_trip_gives_the_csv_metrics(tmp_path, drive):
     np.testing.assert_allclose(read.columns["gnss_sigma_m"], 0.02)
     np.testing.assert_allclose(read.columns["n_satellites"], 11)
     # the same drive with the receiver's accuracy KITTI carries: the same metrics
-    reference = json.loads(iv.evaluate(_carried(drive, gnss_sigma_m=np.full(len(drive), 0.02)), estimators=ESTIMATORS).to_json())
+    reference = json.loads(iv.evaluate(bf.carried(drive, gnss_sigma_m=np.full(len(drive), 0.02)), estimators=ESTIMATORS).to_json())
     got = json.loads(iv.evaluate(folder / "oxts", estimators=ESTIMATORS).to_json())
     assert len(got["sequences"]) == len(reference["sequences"]) > 50
     for a, b in zip(reference["sequences"], got["sequences"]):
@@ -45,11 +39,11 @@ def test_round_trip_gives_the_csv_metrics(tmp_path, drive):
 
 
 def test_extract_at_100hz_is_averaged_onto_the_grid(tmp_path, drive):
-    short = _carried(drive, 600)
+    short = bf.carried(drive, 600)
     t = np.arange(0, short.t_s[-1], 0.01)
     ramp = 0.01 * t  # m/s^2
     wiggle = np.where(np.arange(len(t)) % 2 == 0, 1.0, -1.0)  # 50 Hz, averages out per 0.1 s
-    cols = {c: np.interp(t, short.t_s, short.columns[c]) for c in CARRIED}
+    cols = {c: np.interp(t, short.t_s, short.columns[c]) for c in bf.CARRIED}
     cols.update(t_s=t, accel_long_mps2=ramp + wiggle, yaw_rate_radps=np.full(len(t), 0.05))
     fast = Drive("fast", "x", 100.0, 0.0, cols)
     read = iv.load_drive(bf.write_kitti(fast, tmp_path / "2011_09_26_drive_0002_extract"))
@@ -61,7 +55,7 @@ def test_extract_at_100hz_is_averaged_onto_the_grid(tmp_path, drive):
 
 
 def test_navigation_status_is_the_truth_quality(tmp_path, drive, caplog):
-    short = _carried(drive, 900)
+    short = bf.carried(drive, 900)
     navstat = np.full(900, 4)
     navstat[400:430] = 2  # 3 s initialising: not a locked solution
     folder = bf.write_kitti(short, tmp_path / "k", navstat=navstat)
@@ -78,7 +72,7 @@ def test_navigation_status_is_the_truth_quality(tmp_path, drive, caplog):
 
 
 def test_replay_of_a_kitti_drive(tmp_path, drive):
-    folder = bf.write_kitti(_carried(drive, 1200), tmp_path / "2011_09_26_drive_0005_sync")
+    folder = bf.write_kitti(bf.carried(drive, 1200), tmp_path / "2011_09_26_drive_0005_sync")
     proc = run_cli("replay", str(folder), "-o", str(tmp_path / "k.rrd"), "-q")
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "k.rrd").stat().st_size > 50_000
@@ -88,44 +82,36 @@ def test_replay_of_a_kitti_drive(tmp_path, drive):
 
 @pytest.fixture()
 def small(tmp_path, drive):
-    return bf.write_kitti(_carried(drive, 200), tmp_path / "2011_09_26_drive_0009_sync")
-
-
-def _expect_error(path, *messages):
-    proc = run_cli("evaluate", str(path), "--no-idnn")
-    assert proc.returncode == 2, proc.stderr
-    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
-    for message in messages:
-        assert message in proc.stderr, proc.stderr
+    return bf.write_kitti(bf.carried(drive, 200), tmp_path / "2011_09_26_drive_0009_sync")
 
 
 def test_missing_timestamps(small):
     (small / "oxts" / "timestamps.txt").unlink()
-    _expect_error(small, "oxts/timestamps.txt: missing", "extract the drive's zip again")
+    expect_one_line_error(small, "oxts/timestamps.txt: missing", "extract the drive's zip again")
 
 
 def test_missing_packet_file(small):
     (small / "oxts" / "data" / "0000000007.txt").unlink()
-    _expect_error(small, "oxts/data/0000000007.txt: missing")
+    expect_one_line_error(small, "oxts/data/0000000007.txt: missing")
 
 
 def test_ragged_packet(small):
     f = small / "oxts" / "data" / "0000000042.txt"
     f.write_text(" ".join(f.read_text().split()[:29]) + "\n")
-    _expect_error(small, "0000000042.txt: 29 values, an OXTS packet has 30")
+    expect_one_line_error(small, "0000000042.txt: 29 values, an OXTS packet has 30")
 
 
 def test_more_stamps_than_packets(small):
     stamps = small / "oxts" / "timestamps.txt"
     stamps.write_text(stamps.read_text() + "2011-09-26 13:05:00.000000000\n")
-    _expect_error(small, "201 stamps in timestamps.txt but 200 packet files in data/")
+    expect_one_line_error(small, "201 stamps in timestamps.txt but 200 packet files in data/")
 
 
 def test_garbled_values_and_stamps(small):
     f = small / "oxts" / "data" / "0000000003.txt"
     f.write_text(f.read_text().replace(" ", " x", 1))
-    _expect_error(small, "0000000003.txt: not all values are numbers")
+    expect_one_line_error(small, "0000000003.txt: not all values are numbers")
     f.write_text("49.0 8.4 " + " ".join(["0"] * 12) + " 250.0 " + " ".join(["0"] * 15) + "\n")  # af 250 m/s^2
-    _expect_error(small, "0000000003.txt: af 250 m/s^2 outside")
+    expect_one_line_error(small, "0000000003.txt: af 250 m/s^2 outside")
     (small / "oxts" / "timestamps.txt").write_text("yesterday\n")
-    _expect_error(small, "timestamps.txt: line 1 is not a stamp")
+    expect_one_line_error(small, "timestamps.txt: line 1 is not a stamp")

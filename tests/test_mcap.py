@@ -9,7 +9,7 @@ from ionav_viz.core.errors import InputError
 from ionav_viz.sources.mcap_reader import read_mcap
 
 from . import mcap_fixtures as fx
-from .conftest import run_cli
+from .conftest import expect_one_line_error, run_cli
 
 
 def _check_straight_line(drive, start_offset_s=0.0, gnss_hz=5, longest_gnss_gap_s=None):
@@ -107,22 +107,16 @@ def good(tmp_path):
     return fx.write_ros2(tmp_path / "good.mcap", duration_s=10.0, compression="NONE")
 
 
-def _expect_error(path, message):
-    proc = run_cli("evaluate", str(path), "--no-idnn")
-    assert proc.returncode == 2, proc.stderr
-    assert message in proc.stderr and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
-
-
 def test_truncated(tmp_path, good):
     bad = tmp_path / "cut.mcap"
     bad.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
-    _expect_error(bad, "truncated MCAP file")
+    expect_one_line_error(bad, "truncated MCAP file")
 
 
 def test_not_an_mcap_file(tmp_path):
     bad = tmp_path / "text.mcap"
     bad.write_text("hello")
-    _expect_error(bad, "not an MCAP file")
+    expect_one_line_error(bad, "not an MCAP file")
 
 
 def test_crc_mismatch(tmp_path, good):
@@ -132,13 +126,13 @@ def test_crc_mismatch(tmp_path, good):
     data[at + 7] ^= 0x01  # change one IMU reading inside a chunk
     bad = tmp_path / "flipped.mcap"
     bad.write_bytes(bytes(data))
-    _expect_error(bad, "CRC mismatch")
+    expect_one_line_error(bad, "CRC mismatch")
 
 
 def test_empty_file(tmp_path):
     bad = tmp_path / "zero.mcap"
     bad.write_bytes(b"")
-    _expect_error(bad, "empty file")
+    expect_one_line_error(bad, "empty file")
 
 
 def test_no_imu_or_no_gnss_channel(tmp_path):
@@ -161,7 +155,7 @@ def test_no_imu_or_no_gnss_channel(tmp_path):
                      "linear_acceleration_covariance": [0.0] * 9})
             w.write_message("/only", schema, body, log_time=1_000_000_000)
             w.finish()
-        _expect_error(path, missing)
+        expect_one_line_error(path, missing)
 
 
 def test_unknown_encoding(tmp_path):
@@ -178,7 +172,7 @@ def test_unknown_encoding(tmp_path):
         w.add_message(c_imu, log_time=1, data=b"\x00", publish_time=1)
         w.add_message(c_fix, log_time=1, data=b"\x00", publish_time=1)
         w.finish()
-    _expect_error(path, "message encoding 'protobuf'")
+    expect_one_line_error(path, "message encoding 'protobuf'")
 
 
 def _same_drive(a, b):

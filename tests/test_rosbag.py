@@ -8,14 +8,11 @@ import numpy as np
 import pytest
 
 import ionav_viz as iv
-from ionav_viz.core.drive import Drive
 from ionav_viz.core.errors import InputError
 
 from . import bag_fixtures as bf
-from .conftest import run_cli
+from .conftest import expect_one_line_error, run_cli
 
-#: The columns a bag of IMU, NavSatFix (no covariance) and GNSS velocity carries.
-CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps")
 ESTIMATORS = ["ins", "idnn", "ekf"]
 
 
@@ -27,8 +24,7 @@ def drive():
 @pytest.fixture(scope="module")
 def reference(drive):
     """Metrics of the CSV drive reduced to what a bag carries (the EKF would use the CSV's wheel speeds)."""
-    carried = Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {c: drive.columns[c] for c in CARRIED})
-    return json.loads(iv.evaluate(carried, estimators=ESTIMATORS).to_json())
+    return json.loads(iv.evaluate(bf.carried(drive), estimators=ESTIMATORS).to_json())
 
 
 def _same_metrics(reference, report):
@@ -117,24 +113,15 @@ def test_every_command_takes_a_bag(tmp_path, drive):
 # --- bad input: one line, the file, what to do, exit 2 -------------------------------------------
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    d = iv.load_drive("hard-brake")
-    return Drive(d.name, d.source, d.rate_hz, d.start_time_of_day_s, {c: d.columns[c][:300] for c in CARRIED})
-
-
-def _expect_error(path, *messages):
-    proc = run_cli("evaluate", str(path), "--no-idnn")
-    assert proc.returncode == 2, proc.stderr
-    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
-    for message in messages:
-        assert message in proc.stderr, proc.stderr
+def small(drive):
+    return bf.carried(drive, 300)
 
 
 def test_truncated_ros1_bag(tmp_path, small):
     good = bf.write_ros1(small, tmp_path / "good.bag")
     cut = tmp_path / "cut.bag"
     cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
-    _expect_error(cut, "cut.bag: truncated ROS 1 bag", "rosbag reindex")
+    expect_one_line_error(cut, "cut.bag: truncated ROS 1 bag", "rosbag reindex")
 
 
 def test_unindexed_ros1_bag(tmp_path, small):
@@ -143,28 +130,28 @@ def test_unindexed_ros1_bag(tmp_path, small):
     at = data.index(b"index_pos=") + len(b"index_pos=")
     data[at : at + 8] = bytes(8)  # what 'rosbag record' leaves when it is killed
     (tmp_path / "live.bag.active").write_bytes(bytes(data))
-    _expect_error(tmp_path / "live.bag.active", "live.bag.active: the ROS 1 bag has no index", "rosbag reindex")
+    expect_one_line_error(tmp_path / "live.bag.active", "live.bag.active: the ROS 1 bag has no index", "rosbag reindex")
 
 
 def test_not_a_bag(tmp_path):
     (tmp_path / "notes.bag").write_text("hello")
-    _expect_error(tmp_path / "notes.bag", "notes.bag: not a ROS 1 bag")
+    expect_one_line_error(tmp_path / "notes.bag", "notes.bag: not a ROS 1 bag")
 
 
 def test_bag_folder_without_metadata(tmp_path, small):
     folder = bf.write_ros2(small, tmp_path / "rec")
     (folder / "metadata.yaml").unlink()
-    _expect_error(folder, "rec: a folder without metadata.yaml is not a ROS 2 bag", "rec.db3", "ros2 bag reindex")
+    expect_one_line_error(folder, "rec: a folder without metadata.yaml is not a ROS 2 bag", "rec.db3", "ros2 bag reindex")
     # its storage file alone is still readable
     assert len(iv.load_drive(folder / "rec.db3")) == 300
     (folder / "rec.db3").unlink()
-    _expect_error(folder, "neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive")
+    expect_one_line_error(folder, "neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive")
 
 
 def test_metadata_pointing_to_missing_files(tmp_path, small):
     folder = bf.write_ros2(small, tmp_path / "rec", storage="mcap")
     (folder / "rec.mcap").rename(tmp_path / "elsewhere.mcap")
-    _expect_error(folder / "metadata.yaml", "metadata.yaml: lists storage files that are not in the folder (rec.mcap)", "copy the whole bag folder")
+    expect_one_line_error(folder / "metadata.yaml", "metadata.yaml: lists storage files that are not in the folder (rec.mcap)", "copy the whole bag folder")
 
 
 def test_unparseable_definition_of_a_used_topic(tmp_path, small):
@@ -180,7 +167,7 @@ def test_unparseable_definition_of_a_used_topic(tmp_path, small):
                 broken = {"msgdef": bf.BROKEN_DEFINITION, "md5sum": "0" * 32} if topic == "/imu/data" else {"typestore": store}
                 conns[topic] = w.add_connection(topic, msgtype, **broken)
             w.write(conns[topic], ns, store.serialize_ros1(msg, msgtype))
-    _expect_error(path, "topic /imu/data: the bag's definition of sensor_msgs/msg/Imu cannot be read")
+    expect_one_line_error(path, "topic /imu/data: the bag's definition of sensor_msgs/msg/Imu cannot be read")
 
 
 def test_unknown_message_type_without_definition(tmp_path, small):

@@ -49,7 +49,7 @@ def info(
     if kind == "kitti":
         _info_kitti(path)
         return
-    source = open_message_log(path)
+    source = open_message_log(path, kind)
     if source is None:
         raise InputError(f"{path}: an IO-VNBD CSV file has no topics", "info lists the topics of MCAP logs and ROS bags; replay or evaluate the CSV directly")
     from ..sources.message_log import describe_log

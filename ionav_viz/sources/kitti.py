@@ -65,6 +65,14 @@ def oxts_folder(path: Path) -> Path | None:
     return None
 
 
+def _oxts_of(path: Path) -> Path:
+    """:func:`oxts_folder`, or the error saying what a KITTI drive folder holds."""
+    oxts = oxts_folder(path)
+    if oxts is None:
+        raise InputError(f"{path}: no oxts folder (oxts/timestamps.txt and oxts/data/)", "give a KITTI raw drive folder (…_sync or …_extract) with its oxts data")
+    return oxts
+
+
 def read_stamps_ns(path: Path) -> np.ndarray:
     """Stamps (int64 ns since 1970 on the folder's clock) from a KITTI ``timestamps.txt``."""
     lines = [line.strip() for line in path.read_text(errors="replace").splitlines()]
@@ -140,10 +148,7 @@ def _check_values(oxts: Path, packets: np.ndarray) -> None:
 
 def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "auto") -> Drive:
     """Read a KITTI raw drive folder (or its ``oxts`` folder) into a drive (see the module docstring)."""
-    path = Path(path)
-    oxts = oxts_folder(path)
-    if oxts is None:
-        raise InputError(f"{path}: no oxts folder (oxts/timestamps.txt and oxts/data/)", "give a KITTI raw drive folder (…_sync or …_extract) with its oxts data")
+    oxts = _oxts_of(Path(path))
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     t_ns, p = read_packets(oxts)
@@ -190,9 +195,7 @@ class KittiDescription:
 
 def describe_kitti(path: str | Path) -> KittiDescription:
     """Packets, span, rate and navigation statuses of a KITTI drive folder."""
-    oxts = oxts_folder(Path(path))
-    if oxts is None:
-        raise InputError(f"{path}: no oxts folder (oxts/timestamps.txt and oxts/data/)", "give a KITTI raw drive folder (…_sync or …_extract) with its oxts data")
+    oxts = _oxts_of(Path(path))
     t, p = read_packets(oxts)
     status, counts = np.unique(p[:, COLUMN["navstat"]].astype(int), return_counts=True)
     duration = float(t.max() - t.min()) * 1e-9 if len(t) else 0.0

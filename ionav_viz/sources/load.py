@@ -29,16 +29,15 @@ class LogOptions:
 #: The earlier name of :class:`LogOptions`, from when MCAP was the only message log.
 McapOptions = LogOptions
 
-#: What :func:`source_kind` tells apart.
-KINDS = ("iovnbd", "mcap", "ros1", "ros2", "kitti")
 _SUPPORTED = ("ionav-viz reads IO-VNBD V-*.csv files, MCAP (.mcap) logs, ROS 1 .bag files, ROS 2 bag folders "
               "(or their metadata.yaml / .db3) and KITTI raw drive folders")
 
 
 def source_kind(path: Path) -> str:
-    """Which reader a path needs (one of :data:`KINDS`), or an error saying what it is not."""
+    """Which reader a path needs (``iovnbd``, ``mcap``, ``ros1``, ``ros2`` or ``kitti``), or an error
+    saying what it is not."""
     from .kitti import oxts_folder
-    from .rosbag_reader import is_ros1_bag
+    from .rosbag_reader import is_ros1_bag, missing_metadata
 
     suffix = path.suffix.lower()
     if path.is_dir():
@@ -46,10 +45,8 @@ def source_kind(path: Path) -> str:
             return "ros2"
         if oxts_folder(path) is not None:
             return "kitti"
-        storage = sorted(p.name for p in path.iterdir() if p.suffix in (".db3", ".mcap") or p.name.endswith((".db3.zstd", ".mcap.zstd")))
-        if storage:
-            raise InputError(f"{path}: a folder without metadata.yaml is not a ROS 2 bag (it holds {', '.join(storage[:3])})",
-                             "recreate the metadata with 'ros2 bag reindex DIR' (ROS 2), or give one of its .db3 files")
+        if (error := missing_metadata(path)) is not None:
+            raise error
         raise InputError(f"{path}: neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive (no oxts/)", _SUPPORTED)
     if suffix == ".csv":
         return "iovnbd"
@@ -62,9 +59,10 @@ def source_kind(path: Path) -> str:
     raise InputError(f"{path}: unsupported file type {suffix or '(none)'}", _SUPPORTED)
 
 
-def open_message_log(path: Path):
-    """The :class:`~.message_log.MessageLog` of an MCAP file or a ROS bag, else None."""
-    kind = source_kind(path)
+def open_message_log(path: Path, kind: str | None = None):
+    """The :class:`~.message_log.MessageLog` of an MCAP file or a ROS bag, else None (``kind``:
+    the path's :func:`source_kind`, when known)."""
+    kind = kind or source_kind(path)
     if kind == "mcap":
         from .mcap_reader import McapLog
 
@@ -92,15 +90,10 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
         from .kitti import read_kitti
 
         return read_kitti(path, yaw_sign=yaw_sign)
-    log_options = {"imu_topic": opts.imu_topic, "gnss_topic": opts.gnss_topic, "speed_topic": opts.speed_topic,
-                   "stamps": opts.stamps, "imu_axes": opts.imu_axes, "yaw_sign": yaw_sign}
-    if kind == "mcap":
-        from .mcap_reader import read_mcap
+    from .message_log import read_log
 
-        return read_mcap(path, **log_options)
-    from .rosbag_reader import read_rosbag
-
-    return read_rosbag(path, **log_options)
+    return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic,
+                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign)
 
 
 def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: LogOptions | None = None,

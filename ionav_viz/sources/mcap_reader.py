@@ -15,8 +15,7 @@ from typing import Any
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from .message_log import ChannelInfo, Selection, decode_json, read_log
-from .message_log import select_channels as _select
+from .message_log import ChannelInfo, decode_json, read_log
 
 log = logging.getLogger("ionav_viz")
 
@@ -183,12 +182,6 @@ def _iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any,
         yield from NonSeekingReader(f, validate_crcs=True).iter_messages(topics=topics, log_time_order=False)
     except EndOfFile:
         return
-
-
-def select_channels(path: str | Path, imu_topic: str | None = None, gnss_topic: str | None = None,
-                    speed_topic: str | None = None) -> Selection:
-    """The IMU, GNSS and (optional) speed channels of an MCAP file, by schema or by the given topics."""
-    return _select(McapLog(path), imu_topic, gnss_topic, speed_topic)
 
 
 def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,

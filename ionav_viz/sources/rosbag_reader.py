@@ -30,9 +30,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..core.drive import Drive
 from ..core.errors import InputError
-from .message_log import ChannelInfo, read_log
+from .message_log import ChannelInfo
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 ROS1_SUFFIXES = (".bag", ".active")  # ``x.bag.active``: a recording that did not finish
@@ -57,11 +56,12 @@ class RosbagLog:
 
     # --- opening, with the errors a user can act on ------------------------------------------
     def _check(self) -> None:
+        if not self.path.exists():
+            raise InputError(f"{self.path}: no such file or folder")
         if self.ros1:
             _check_ros1_framing(self.path)
-        elif self._target.is_dir() and not (self._target / "metadata.yaml").is_file():
-            raise InputError(f"{self._target}: a folder without metadata.yaml is not a ROS 2 bag",
-                             "recreate the metadata with 'ros2 bag reindex DIR' (ROS 2), or give one of its .db3 files")
+        elif (error := missing_metadata(self._target)) is not None:
+            raise error
 
     @contextlib.contextmanager
     def _open(self) -> Iterator[Any]:
@@ -85,18 +85,13 @@ class RosbagLog:
 
     def damaged(self, exc: BaseException) -> InputError:
         text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        if "not indexed" in text:
-            return InputError(f"{self.path}: the ROS 1 bag has no index (a recording that did not finish)",
-                              "run 'rosbag reindex' on it (ROS 1), then read it again")
-        if "database files are missing" in text or "files are missing" in text:
+        if "files are missing" in text:
             missing = ", ".join(Path(m).name for m in re.findall(r"'([^']+)'", text)) or text
             return InputError(f"{self._target / 'metadata.yaml'}: lists storage files that are not in the folder ({missing})",
                               "copy the whole bag folder, or run 'ros2 bag reindex DIR' to describe the files that are there")
         if "metadata" in text.lower() or "yaml" in text.lower():
             return InputError(f"{self._target / 'metadata.yaml'}: unreadable bag metadata ({text})",
                               "recreate it with 'ros2 bag reindex DIR' (ROS 2)")
-        if isinstance(exc, FileNotFoundError):
-            return InputError(f"{self.path}: {text}", "check the path")
         return InputError(f"{self.path}: damaged {self._kind} ({type(exc).__name__}: {text})",
                           "run 'rosbag reindex' on it (ROS 1) or 'ros2 bag reindex DIR' (ROS 2), or re-record it")
 
@@ -125,6 +120,17 @@ class RosbagLog:
         if self.ros1:
             return lambda raw: store.deserialize_ros1(raw, connection.msgtype)
         return lambda raw: store.deserialize_cdr(raw, connection.msgtype)
+
+
+def missing_metadata(folder: Path) -> InputError | None:
+    """The error for a folder of ROS 2 storage files without its ``metadata.yaml`` (else None)."""
+    if not folder.is_dir() or (folder / "metadata.yaml").is_file():
+        return None
+    storage = sorted(p.name for p in folder.iterdir() if p.name.endswith((".db3", ".mcap", ".db3.zstd", ".mcap.zstd")))
+    if not storage:
+        return None
+    return InputError(f"{folder}: a folder without metadata.yaml is not a ROS 2 bag (it holds {', '.join(storage[:3])})",
+                      "recreate the metadata with 'ros2 bag reindex DIR' (ROS 2), or give one of its .db3 files")
 
 
 def _topics(connections: list[Any], ros1: bool) -> list[ChannelInfo]:
@@ -208,10 +214,3 @@ def _bag_header_index_pos(f: Any) -> int | None:
         pos += 4 + n
     return None
 
-
-def read_rosbag(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
-                speed_topic: str | None = None, stamps: str = "header", name: str | None = None,
-                imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
-    """Read a ROS 1 bag or a ROS 2 bag into a drive on a 10 Hz grid (see :mod:`.message_log`)."""
-    return read_log(RosbagLog(path), imu_topic=imu_topic, gnss_topic=gnss_topic, speed_topic=speed_topic, stamps=stamps,
-                    name=name, imu_axes=imu_axes, yaw_sign=yaw_sign)
