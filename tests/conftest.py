@@ -26,6 +26,22 @@ def run_cli(*args: str, env: dict | None = None, cwd: Path | None = None, timeou
     )
 
 
+def assert_same_sequences(reference: list[dict], got: list[dict], estimators, rel: float, abs: float = 1e-9) -> None:
+    """Two reports' ``sequences`` (``to_json``) agree: the same outages, and every metric of each
+    estimator within ``rel``/``abs``. A metric that is undefined (``None``, e.g. ``final_error_pct``
+    below 10 m driven) must be undefined in both."""
+    assert len(got) == len(reference) > 0
+    for a, b in zip(reference, got):
+        assert b["start_s"] == pytest.approx(a["start_s"], abs=1e-9)
+        for est in estimators:
+            assert b[est].keys() == a[est].keys(), est
+            for key, value in a[est].items():
+                if value is None:
+                    assert b[est][key] is None, (est, key, b[est][key])
+                else:
+                    assert b[est][key] == pytest.approx(value, rel=rel, abs=abs), (est, key)
+
+
 def expect_one_line_error(path: Path, *messages: str) -> None:
     """``ionav-viz evaluate PATH`` fails on bad input: exit 2, one line, no traceback, naming ``messages``."""
     proc = run_cli("evaluate", str(path), "--no-idnn")

@@ -22,7 +22,7 @@ import pytest
 from ionav_viz.dataset.samples import samples_dir
 from ionav_viz.sources.iovnbd import HEADER
 
-from .conftest import REPO, run_cli
+from .conftest import REPO, assert_same_sequences, run_cli
 
 SOURCE = samples_dir() / "V-sim-hard-brake.csv"
 LINES = SOURCE.read_text().splitlines()
@@ -61,10 +61,7 @@ def reference():
 
 
 def same_metrics(a: dict, b: dict) -> None:
-    assert len(a["sequences"]) == len(b["sequences"])
-    for sa, sb in zip(a["sequences"], b["sequences"]):
-        for key, value in sa["ins"].items():
-            assert sb["ins"][key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
+    assert_same_sequences(a["sequences"], b["sequences"], ("ins",), rel=1e-9)
 
 
 # ---- CSV drives --------------------------------------------------------------------------------
