@@ -9,9 +9,9 @@ log="$work/log"
 run() { echo "+ $*" >>"$log"; "$@" >>"$log" 2>&1; }
 fail() { cat "$log" >&2; echo "wheel check failed: $*" >&2; exit 1; }
 
-run python3 -m pip wheel --quiet --no-deps -w "$work/dist" "$repo" || fail "building the wheel"
+run python -m pip wheel --quiet --no-deps -w "$work/dist" "$repo" || fail "building the wheel"
 wheel="$(ls "$work"/dist/ionav_viz-*.whl)"
-run python3 -m venv "$work/venv" || fail "creating the venv"
+run python -m venv "$work/venv" || fail "creating the venv"
 run "$work/venv/bin/pip" install --quiet torch==2.13.0 "$wheel" || fail "installing the wheel"
 mkdir "$work/user" && cd "$work/user"  # an empty directory, away from the checkout
 site="$("$work/venv/bin/python" -c 'import ionav_viz, pathlib; print(pathlib.Path(ionav_viz.__file__).parent)')"
@@ -19,13 +19,13 @@ case "$site" in "$work/venv/"*) ;; *) fail "ionav_viz imported from $site, not f
 touch "$work/marker"
 bin="$work/venv/bin"
 run "$bin/ionav-viz" replay sharp-cornering -q || fail "replay sharp-cornering"
-[ -s V-sim-sharp-cornering.rrd ] || fail "replay wrote no ./V-sim-sharp-cornering.rrd"
+[ -s recordings/V-sim-sharp-cornering.rrd ] || fail "replay wrote no ./recordings/V-sim-sharp-cornering.rrd"
 grep -q "IDNN" <("$bin/python" -c 'import ionav_viz as iv; print(iv.evaluate("sharp-cornering").to_text())') || fail "no IDNN in the report"
 "$bin/ionav-viz" evaluate --scenario all --overview >overview.txt 2>>"$log" || fail "evaluate --scenario all --overview"
 grep -q "IDNN (m)" overview.txt || fail "the overview has no IDNN column"
 [ "$(grep -c '^[a-z-]*: V-sim-[a-z-]* *59 ' overview.txt)" -eq 5 ] || fail "the overview does not have the five bundled scenarios' drives"
 grep -q '^total *295 ' overview.txt || fail "the overview has no total row over the 295 outages"
-run "$bin/ionav-viz" screenshot V-sim-sharp-cornering.rrd -o shot.png --time worst --view local || fail "screenshot"
+run "$bin/ionav-viz" screenshot recordings/V-sim-sharp-cornering.rrd -o shot.png --time worst --view local || fail "screenshot"
 [ -s shot.png ] || fail "screenshot wrote no shot.png"
 written="$(find "$site" -newer "$work/marker" -not -path '*/__pycache__*' | head -5)"
 [ -z "$written" ] || fail "files were written inside the installed package: $written"

@@ -48,6 +48,8 @@ log = logging.getLogger("ionav_viz")
 #: ``progress(label, done, total)``: called as long work advances (e.g. to drive a progress bar).
 Progress = Callable[[str, int, int], None]
 DriveLike = Drive | str | Path
+#: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
+RECORDINGS_DIR = "recordings"
 
 
 @dataclass(frozen=True)
@@ -348,8 +350,9 @@ def replay(
     Args:
         drive, outage_s, placement, estimators, model, bias_from, thresholds: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
-        output: the ``.rrd`` to write (default ``<drive>.rrd`` in the current directory); an
-            existing file is replaced atomically, nothing is left behind on failure.
+        output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
+            directory, the folder made when missing); an existing file is replaced atomically,
+            nothing is left behind on failure.
         progress: called as the recording is built.
         connect: also stream the recording to the Rerun viewer at this gRPC address (e.g.
             ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens); checked
@@ -381,7 +384,8 @@ def replay(
     gaps = _gnss_gaps(placement, events)
     if len(starts) == 0 and not gaps:
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
-    out = check_output_file(out if out is not None else Path(f"{d.name}.rrd"))  # before the work: where the user is
+    default = out is None
+    out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
     chosen = _estimators_for([d], resolve_estimators(estimators, model=model), estimators is None)
     bias = _bias_for(bias_from, data_root, load_kw)(d)
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded,
@@ -396,7 +400,7 @@ def replay(
         if progress:
             progress(f"{out.name}: {label}", done[0], total)
 
-    with stage(f"write {out}") as s, atomic_path(out) as tmp:
+    with stage(f"write {out}") as s, atomic_path(out, create_parent=default) as tmp:
         rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     if connect is not None:

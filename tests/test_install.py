@@ -5,26 +5,57 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from pathlib import Path
 
 import pytest
 
 from ionav_viz import InputError
 from ionav_viz.nav.idnn import default_model_dir, load_model, save_model
 
-from .conftest import run_cli
+from .conftest import REPO, run_cli
 
 
-def test_replay_writes_into_the_current_directory(tmp_path):
+def test_replay_writes_into_recordings_in_the_current_directory(tmp_path):
     proc = run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "V-sim-hard-brake.rrd"
-    assert [p.name for p in tmp_path.iterdir()] == ["V-sim-hard-brake.rrd"]
+    assert proc.stdout.strip() == str(Path("recordings", "V-sim-hard-brake.rrd"))
+    assert [p.relative_to(tmp_path).as_posix() for p in sorted(tmp_path.rglob("*"))] == ["recordings", "recordings/V-sim-hard-brake.rrd"]
+    again = run_cli("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", cwd=tmp_path)  # the folder exists now
+    assert again.returncode == 0 and len(list(tmp_path.rglob("*.rrd"))) == 1, again.stderr
+
+
+def test_a_failed_replay_leaves_no_recordings_folder(tmp_path):
+    """Bad input (before any work) and a write that fails part-way (a file size limit, as on a
+    full disk) both leave the current directory as it was: no recordings/ made."""
+    import resource
+    import subprocess
+    import sys
+
+    proc = run_cli("replay", "hard-brake", "--no-idnn", "--at", "99999s", "-q", cwd=tmp_path)
+    assert proc.returncode == 2 and list(tmp_path.iterdir()) == [], proc.stderr
+
+    def small_files() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+
+    full = subprocess.run([sys.executable, "-m", "ionav_viz.cli", "replay", "hard-brake", "--no-idnn", "-q"], cwd=tmp_path,
+                          capture_output=True, text=True, preexec_fn=small_files, timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert full.returncode == 1 and "write failed" in full.stderr, full.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_shipped_model_lives_once_in_the_repository_models_folder():
+    from ionav_viz.dataset.samples import package_data
+
+    assert default_model_dir() == REPO / "models" / "idnn"  # an editable install reads the checkout's models/
+    assert sorted(p.name for p in default_model_dir().iterdir()) == ["displacement.safetensors", "metadata.json", "yaw_rate.safetensors"]
+    assert not package_data("models").exists()  # no second copy inside the package
 
 
 def test_shipped_data_is_package_data():
     from ionav_viz.dataset.samples import SAMPLES, package_data, samples_dir
 
-    assert samples_dir() == package_data("samples") and default_model_dir() == package_data("models", "idnn")
+    assert samples_dir() == package_data("samples")
     assert all((samples_dir() / s.file).is_file() for s in SAMPLES)
     assert samples_dir().parts[-3:] == ("ionav_viz", "data", "samples")
 

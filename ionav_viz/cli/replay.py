@@ -48,7 +48,7 @@ def replay(
     at: Optional[str] = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s."),
     random_count: Optional[int] = typer.Option(None, "--random", help="Draw N non-overlapping outages at random."),
     seed: int = typer.Option(0, "--seed", help="Seed for --random."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: ./<drive>.rrd; an existing file is replaced)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd in the current directory, made when missing; an existing file is replaced)."),
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards (needs a display)."),
     connect: Optional[str] = typer.Option(None, "--connect", metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
     serve_web: bool = typer.Option(False, "--serve-web", help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),

@@ -16,12 +16,17 @@ from .signals import hold_signals
 _WRITE_FAILURES = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO, errno.EROFS}
 
 
-def check_output_file(target: Path) -> Path:
-    """Check, before any work, that ``target`` can be written as a file: its folder exists, and it
-    is absent or a regular file (never a directory, device node, FIFO or socket: those are not
-    replaced). Returns ``target``."""
+def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
+    """Check, before any work, that ``target`` can be written as a file: its folder exists (or,
+    with ``create_parent``, can be made in an existing folder), and it is absent or a regular file
+    (never a directory, device node, FIFO or socket: those are not replaced). Returns ``target``."""
     target = Path(target)
     parent = target.parent if str(target.parent) else Path(".")
+    if create_parent and not parent.exists() and parent.parent.is_dir():
+        if not os.access(parent.parent, os.W_OK | os.X_OK):
+            raise InputError(f"{target}: cannot create {parent} in {parent.parent} (permission denied)", "choose a writable output directory",
+                             param="output")
+        return target
     if not parent.is_dir():
         raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another output", param="output")
     if target.is_dir():
@@ -35,21 +40,28 @@ def check_output_file(target: Path) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
+def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` if the block succeeds.
 
     ``suffix`` ends the temporary name (writers that infer the format from it need e.g. ``.png``).
+    ``create_parent``: make ``target``'s missing folder (one level) first; it is removed again,
+    if still empty, when the block fails.
 
     On any exception (including Ctrl-C, SIGTERM and SIGHUP) the temporary file is removed and
     ``target`` is untouched. Signals are held back while the temporary file is created, so no
     signal can fall between its creation and the cleanup that removes it.
     """
-    target = check_output_file(Path(target))
+    target = check_output_file(Path(target), create_parent=create_parent)
     parent = target.parent if str(target.parent) else Path(".")
     release = hold_signals()
+    made_parent = False
     try:
+        if create_parent and not parent.exists():
+            parent.mkdir()
+            made_parent = True
         fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=parent)
     except OSError as exc:
+        _remove_if_empty(parent, made_parent)
         release()
         raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable output", param="output") from None
     tmp = Path(tmp_name)
@@ -63,6 +75,7 @@ def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
         os.replace(tmp, target)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
+        _remove_if_empty(parent, made_parent)
         if exc.errno in _WRITE_FAILURES:
             raise ToolFailure(f"{target}: write failed ({exc.strerror}); is the disk full?") from None
         if exc.errno in (errno.EACCES, errno.EPERM, errno.EISDIR):
@@ -70,7 +83,14 @@ def atomic_path(target: Path, suffix: str = ".tmp") -> Iterator[Path]:
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
+        _remove_if_empty(parent, made_parent)
         raise
+
+
+def _remove_if_empty(folder: Path, made: bool) -> None:
+    if made:
+        with contextlib.suppress(OSError):  # not empty (another process wrote there): keep it
+            folder.rmdir()
 
 
 def atomic_write_bytes(target: Path, data: bytes) -> None:

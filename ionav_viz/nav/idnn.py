@@ -387,10 +387,11 @@ class IdnnEstimator:
 
 
 def default_model_dir() -> Path:
-    """The shipped model (package data, read-only): ``ionav_viz/data/models/idnn``."""
+    """The shipped model (read-only): ``models/idnn`` of the repository, installed as the package
+    data of ``ionav_viz.models``."""
     from importlib import resources
 
-    return Path(str(resources.files("ionav_viz").joinpath("data", "models", "idnn")))
+    return Path(str(resources.files("ionav_viz.models").joinpath("idnn")))
 
 
 def is_shipped_model_dir(directory: Path) -> bool:
