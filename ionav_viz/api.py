@@ -35,7 +35,7 @@ from .core.gnss_quality import GnssLimits
 from .core.timing import stage
 from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from .nav.bias import SensorBias, resolve_bias
-from .nav.estimators import Estimator, applies
+from .nav.estimators import BUILTIN, Estimator, applies
 from .nav.estimators import resolve as resolve_estimators
 from .nav.outages import AroundEvents, Placement, Tile, around, excluded_by_truth, outage_windows
 from .nav.windows import make_windows
@@ -140,16 +140,19 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
     return out
 
 
-def _estimators_for(drives: Sequence[Drive], chosen: list[Estimator], defaulted: bool) -> list[Estimator]:
+def _estimators_for(drives: Sequence[Drive], estimators: Sequence[str | Estimator] | None, plugins: Sequence[str | Estimator],
+                    without: Sequence[str], model: Any) -> list[Estimator]:
     """The estimators that apply to every one of ``drives`` (one report compares them all on the
     same outages). A default one left out is said at ``-v`` (by its ``applies``); one the caller
-    chose, with a warning; none left is an error."""
+    named (in ``estimators`` or ``plugins``), with a warning; none left is an error."""
+    chosen = resolve_estimators(estimators, plugins=plugins, without=without, model=model)
+    defaults = set(BUILTIN) if estimators is None else set()
     kept = []
     for est in chosen:
         missing = [d.name for d in drives if not applies(est, d)]
         if not missing:
             kept.append(est)
-        elif not defaulted:
+        elif est.name not in defaults:
             log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
     if not kept:
         raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
@@ -215,6 +218,8 @@ def evaluate(
     estimators: Sequence[str | Estimator] | None = None,
     model: Any = None,
     *,
+    plugins: Sequence[str | Estimator] = (),
+    without: Sequence[str] = (),
     bias_from: DriveLike | SensorBias | None = None,
     data_root: str | Path | None = None,
     thresholds: EventThresholds | None = None,
@@ -234,6 +239,9 @@ def evaluate(
         estimators: names (``"ins"``, ``"idnn"``, entry-point names, ``"module:NAME"``) or
             estimator objects; default every built-in that applies (the IDNN when a model exists).
         model: the IDNN's model (an ``IdnnModel`` or its directory); default the shipped one.
+        plugins: estimators added to ``estimators`` (or to the default ones), as ``--estimator``:
+            ``"module:NAME"``, ``"path/to/file.py:NAME"`` or objects.
+        without: built-in names left out of the default estimators (``("idnn",)`` is ``--no-idnn``).
         bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
             default each drive's own stationary stretches.
         thresholds: event-detector thresholds (for :class:`AroundEvents`).
@@ -249,11 +257,11 @@ def evaluate(
         raise InputError("no drive to evaluate", "give at least one drive")
     placement = placement or Tile()
     outage_windows(outage_s)  # checked before any drive is read
-    chosen = resolve_estimators(estimators, model=model)
+    resolve_estimators(estimators, plugins=plugins, without=without, model=model)  # checked before any drive is read
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     bias_of = _bias_for(bias_from, data_root, load_kw)
     loaded = [load_drive(item, data_root, **load_kw) for item in items]
-    ests = _estimators_for(loaded, chosen, estimators is None)
+    ests = _estimators_for(loaded, estimators, plugins, without, model)
     results = []
     for i, drive in enumerate(loaded):
         if progress:
@@ -283,6 +291,8 @@ def evaluate_by_event(
     estimators: Sequence[str | Estimator] | None = None,
     model: Any = None,
     *,
+    plugins: Sequence[str | Estimator] = (),
+    without: Sequence[str] = (),
     bias_from: DriveLike | SensorBias | None = None,
     data_root: str | Path | None = None,
     thresholds: EventThresholds | None = None,
@@ -294,13 +304,13 @@ def evaluate_by_event(
     kinds = tuple(types) if types else MANOEUVRE_TYPES
     _check_event_types(kinds)
     n = outage_windows(outage_s)
-    chosen = resolve_estimators(estimators, model=model)
+    resolve_estimators(estimators, plugins=plugins, without=without, model=model)  # checked before any drive is read
     load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
     bias_of = _bias_for(bias_from, data_root, load_kw)
     th = thresholds or EventThresholds()
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
     loaded = [load_drive(item, data_root, **load_kw) for item in drives]
-    ests = _estimators_for(loaded, chosen, estimators is None)
+    ests = _estimators_for(loaded, estimators, plugins, without, model)
     for drive in loaded:
         windows = make_windows(drive)
         bias = bias_of(drive)
@@ -336,6 +346,8 @@ def replay(
     output: str | Path | None = None,
     *,
     model: Any = None,
+    plugins: Sequence[str | Estimator] = (),
+    without: Sequence[str] = (),
     bias_from: DriveLike | SensorBias | None = None,
     data_root: str | Path | None = None,
     thresholds: EventThresholds | None = None,
@@ -386,7 +398,7 @@ def replay(
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
     default = out is None
     out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
-    chosen = _estimators_for([d], resolve_estimators(estimators, model=model), estimators is None)
+    chosen = _estimators_for([d], estimators, plugins, without, model)
     bias = _bias_for(bias_from, data_root, load_kw)(d)
     result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded,
                             gnss_gaps=gaps)

@@ -85,16 +85,19 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 
 @dataclass(frozen=True)
 class EstimatorArgs:
-    """Which estimators run, with the IDNN's model and the sensor-bias source, from the options."""
+    """Which estimators run, with the IDNN's model and the sensor-bias source, from the options:
+    what the user named (``--estimators``; None: every built-in that applies), the plug-ins
+    (``--estimator``, loaded and checked before any work) and the built-ins left out (``--no-idnn``)."""
 
-    estimators: list[Any]
+    estimators: Optional[list[str]]
+    plugins: list[Any]
+    without: tuple[str, ...]
     model: Optional[Path]
     bias_from: Optional[str]
-    defaulted: bool = False  # no choice made: every built-in that applies to the drives
 
     def api_kwargs(self) -> dict[str, Any]:
         """As keyword arguments of :func:`ionav_viz.api.evaluate` and :func:`ionav_viz.api.replay`."""
-        return {"estimators": None if self.defaulted else self.estimators, "model": self.model, "bias_from": self.bias_from}
+        return {"estimators": self.estimators, "plugins": self.plugins, "without": self.without, "model": self.model, "bias_from": self.bias_from}
 
 
 _ESTIMATOR_OPTIONS = (
@@ -107,10 +110,96 @@ def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn`` and ``--bias-from``
     (declared once, in :data:`_ESTIMATOR_OPTIONS`), resolved into one ``run: EstimatorArgs`` argument."""
     def build(v: dict[str, Any]) -> EstimatorArgs:
-        defaulted = v["estimator_names"] is None and not v["plugins"] and not v["no_idnn"]
-        return EstimatorArgs(estimators(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"]), v["model"], v["bias_from"], defaulted)
+        return estimator_args(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"])
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
+
+
+def estimator_args(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool = False, model: Optional[Path] = None,
+                   bias_from: Optional[str] = None) -> EstimatorArgs:
+    """The estimators ``--estimators``, ``--estimator`` and ``--no-idnn`` choose, checked (plug-ins
+    loaded) before any work."""
+    from ..nav.estimators import EstimatorError, load_plugin, resolve
+
+    chosen: Optional[list[str]] = None
+    if names is not None:
+        chosen = [n.strip() for n in names.split(",") if n.strip()]
+        if not chosen:
+            raise typer.BadParameter(f"{names!r}: name at least one estimator, e.g. ins,idnn", param_hint="--estimators")
+        if no_idnn:
+            chosen = [n for n in chosen if n != "idnn"]
+            if not chosen and not plugins:
+                raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
+    without = ("idnn",) if no_idnn and chosen is None else ()
+    try:
+        loaded = [load_plugin(spec) for spec in plugins or []]
+    except EstimatorError as exc:
+        raise type(exc)(f"--estimator: {exc.message}", exc.hint) from exc
+    try:
+        resolve(chosen, plugins=loaded, without=without, model=model)
+    except EstimatorError as exc:
+        raise type(exc)(f"--estimators: {exc.message}", exc.hint) from exc
+    return EstimatorArgs(chosen, loaded, without, model, bias_from)
+
+
+#: The options that place outages, shared by every command that places them.
+EveryOpt = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s.", show_default=False)
+AtOpt = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s.", show_default=False)
+RandomOpt = typer.Option(None, "--random", help="Draw N non-overlapping outages at random (with --seed).", show_default=False)
+SeedOpt = typer.Option(0, "--seed", help="Seed for --random.")
+OnOpt = typer.Option(None, "--on", help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout; gnss-outage: the log's own losses (see 'ionav-viz events').", show_default=False)
+
+_PLACEMENT_OPTIONS = (
+    ("every", EveryOpt, Optional[str]), ("at", AtOpt, Optional[str]), ("random_count", RandomOpt, Optional[int]),
+    ("seed", SeedOpt, int), ("on", OnOpt, Optional[str]),
+)
+
+
+@dataclass(frozen=True)
+class PlacementArgs:
+    """The outage placement the options chose, and the option that chose it (for messages)."""
+
+    placement: Any
+    option: str
+    on: Optional[tuple[str, ...]]  # the --on event types, if given
+
+
+def with_placement_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a command ``--every``, ``--at``, ``--random``, ``--seed`` and ``--on`` (declared once, in
+    :data:`_PLACEMENT_OPTIONS`), as one ``placement: PlacementArgs`` argument."""
+    def build(v: dict[str, Any]) -> PlacementArgs:
+        return placement_of(v["every"], v["at"], v["random_count"], v["seed"], v["on"])
+
+    return _with_options(command, _PLACEMENT_OPTIONS, "placement", build)
+
+
+def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int, on: Optional[str]) -> PlacementArgs:
+    """The outage placement the options choose (at most one of them)."""
+    from ..nav.outages import AroundEvents, At, Every, Random, Tile
+
+    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
+    if len(chosen) > 1:
+        raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
+    if on is not None:
+        kinds = event_types(on)
+        return PlacementArgs(AroundEvents(kinds), f"--on {on}", kinds)
+    if every is not None:
+        return PlacementArgs(Every(whole_seconds(every, "--every", "outage period")), f"--every {every}", None)
+    if at is not None:
+        return PlacementArgs(At(tuple(_start_times(at))), f"--at {at}", None)
+    if random_count is not None:
+        return PlacementArgs(Random(random_count, seed), f"--random {random_count}", None)
+    return PlacementArgs(Tile(), "--outage", None)
+
+
+def _start_times(text: str) -> list[float]:
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    if not parts:
+        raise typer.BadParameter(f"{text!r}: give start times like 12s,40s", param_hint="--at")
+    return [0.0 if p in ("0", "0s") else duration_s(p, "--at") for p in parts]
+
+
+QuietOpt = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary on stderr.")
 
 
 def duration_s(text: str, option: str) -> float:
@@ -174,26 +263,6 @@ def yaw_sign(value: str) -> str:
     if value not in ("auto", "cw", "ccw"):
         raise typer.BadParameter(f"{value!r}: choose auto, cw or ccw", param_hint="--yaw-sign")
     return value
-
-
-def estimators(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool, model: Optional[Path]) -> list[Any]:
-    """The estimator objects ``--estimators``, ``--estimator`` and ``--no-idnn`` choose."""
-    from ..nav.estimators import BUILTIN, EstimatorError, resolve
-
-    chosen: Optional[list[str]] = None
-    if names is not None:
-        chosen = [n.strip() for n in names.split(",") if n.strip()]
-        if not chosen:
-            raise typer.BadParameter(f"{names!r}: name at least one estimator, e.g. ins,idnn", param_hint="--estimators")
-    if no_idnn:
-        chosen = [n for n in (chosen if chosen is not None else BUILTIN) if n != "idnn"]
-        if not chosen and not plugins:
-            raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
-    try:  # chosen None: every built-in that applies, plus the plug-ins
-        return resolve(chosen, plugins=list(plugins or []), model=model)
-    except EstimatorError as exc:
-        option = "--estimator" if any(p and p in exc.message for p in plugins or []) else "--estimators"
-        raise type(exc)(f"{option}: {exc.message}", exc.hint) from exc
 
 
 def progress(quiet: bool):

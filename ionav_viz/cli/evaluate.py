@@ -14,6 +14,7 @@ from .app import app, name_options
 @app.command()
 @c.with_source_options
 @c.with_estimator_options
+@c.with_placement_options
 def evaluate(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     outage: str = c.OutageOpt,
@@ -21,9 +22,10 @@ def evaluate(
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
     overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
-    by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives."),
-    on: Optional[str] = typer.Option(None, "--on", help="Event types: one outage centred on each (as replay --on; gnss-outage: the log's own losses); with --by-event, the types to tabulate."),
+    by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives (--on: the types to tabulate)."),
     thresholds: Optional[list[str]] = c.Thresholds,
+    quiet: bool = c.QuietOpt,
+    placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
     source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
 ) -> None:
@@ -32,23 +34,26 @@ def evaluate(
     from ..analysis.report import json_safe, overview_reports, reports_to_json
     from ..analysis.tables import render_overview
 
-    name_options(outage_s=f"--outage {outage}", placement="--on")
+    name_options(outage_s=f"--outage {outage}", placement=placement.option)
     outage_s = c.whole_seconds(outage, "--outage")
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
+    if by_event and placement.on is None and placement.option != "--outage":
+        raise typer.BadParameter(f"--by-event places one outage on each event; {placement.option.split()[0]} places them otherwise", param_hint="--by-event")
     groups = api.scenario_drives(scenario, source.data_root) if scenario else {None: list(drives or [])}
-    if scenario:
+    if scenario and not quiet:
         print(f"drives: {groups.source}", file=sys.stderr)
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
     th = c.thresholds(thresholds)
     common = dict(**run.api_kwargs(), **source.api_kwargs())
     if by_event:
-        kinds = c.event_types(on) if on else None
-        reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, kinds, thresholds=th, **common)
+        reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on, thresholds=th, **common)
     else:
-        placement = api.AroundEvents(tuple(c.event_types(on))) if on else None
-        reports = {group: api.evaluate(specs, outage_s, placement, title=group, thresholds=th, **common) for group, specs in groups.items()}
+        with c.progress(quiet) as bar:
+            reports = {group: api.evaluate(specs, outage_s, placement.placement, title=group, thresholds=th, **common,
+                                           progress=c.progress_callback(bar, "evaluating"))
+                       for group, specs in groups.items()}
 
     if as_json:
         if None in reports:

@@ -15,6 +15,7 @@ from .app import app, name_options
 
 
 @app.command()
+@c.with_placement_options
 def screenshot(
     recordings: Optional[list[Path]] = typer.Argument(None, metavar="[REC.rrd]...", help="Recordings made by 'ionav-viz replay'."),
     output: Path = typer.Option(..., "-o", "--output", help="OUT.png for one image, else a directory (or OUT.png whose name is used as a prefix)."),
@@ -29,15 +30,17 @@ def screenshot(
     plugins: Optional[list[str]] = c.EstimatorOpt,
     timeout: str = typer.Option("120s", "--timeout", help="Longest wait for the viewer to start or load a recording."),
     data_root_opt: Optional[Path] = c.DataRoot,
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the path of each image, nor where --scenario drives come from."),
+    placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on for --scenario replays (c.with_placement_options)
 ) -> None:
     """Render PNG screenshots of recordings with a headless Rerun viewer (no display or GPU needed).
 
-    Prints the path of every image written.
+    Prints the path of every image written (unless -q).
     """
     from .. import api
     from ..viz.screenshot import parse_size
 
-    name_options(outage_s="--outage-length", outages="--outage", worst_of="--worst-of")
+    name_options(outage_s="--outage-length", outages="--outage", worst_of="--worst-of", placement=placement.option)
     width_height = parse_size(size)
     timeout_s = c.duration_s(timeout, "--timeout")
     if scenario is not None and recordings:
@@ -46,6 +49,8 @@ def screenshot(
         raise typer.BadParameter("give at least one REC.rrd (or --scenario)", param_hint="REC.rrd")
     if scenario is None and (estimator_names is not None or plugins):
         raise typer.BadParameter("--estimators and --estimator choose what --scenario replays run", param_hint="--scenario")
+    if scenario is None and placement.option != "--outage":
+        raise typer.BadParameter(f"{placement.option.split()[0]} places the outages of --scenario replays", param_hint="--scenario")
     numbers = [_outage_number(n) for n in outage_numbers or []]
     times = list(times or ([] if numbers else ["worst"] if scenario else ["end"]))
     views = list(views or ["all"])
@@ -56,14 +61,15 @@ def screenshot(
         rrds = list(recordings or [])
         if scenario is not None:
             outage_s = c.whole_seconds(outage_length, "--outage-length")
-            ests = c.estimators(estimator_names, plugins, False, None)
+            run = c.estimator_args(estimator_names, plugins)
             groups = api.scenario_drives(scenario, data_root_opt)
-            print(f"drives: {groups.source}", file=sys.stderr)
+            if not quiet:
+                print(f"drives: {groups.source}", file=sys.stderr)
             for group, specs in groups.items():
                 for spec in specs:
                     rrd = Path(tmp) / f"{group}-{Path(spec).stem}.rrd"
-                    rrds.append(api.replay(spec, outage_s, estimators=ests, output=rrd, data_root=data_root_opt).path)
-        api.screenshot(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=print, outages=numbers,
+                    rrds.append(api.replay(spec, outage_s, placement.placement, output=rrd, data_root=data_root_opt, **run.api_kwargs()).path)
+        api.screenshot(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=None if quiet else print, outages=numbers,
                        worst_of=worst_of)
 
 
