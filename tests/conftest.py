@@ -15,7 +15,9 @@ REPO = Path(__file__).resolve().parent.parent
 def run_cli(*args: str, env: dict | None = None, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
     """Run ``ionav-viz ARGS`` in a fresh interpreter; returns the completed process (text)."""
     full_env = {**os.environ, **(env or {})}
-    full_env.pop("IONAV_DATA", None) if env is None or "IONAV_DATA" not in env else None
+    for inherited in ("IONAV_DATA", "COLUMNS"):  # the developer's data root and terminal width are not the test's
+        if inherited not in (env or {}):
+            full_env.pop(inherited, None)
     return subprocess.run(
         [sys.executable, "-m", "ionav_viz.cli", *args],
         capture_output=True,

@@ -183,11 +183,12 @@ class Report:
         """Exactly what ``ionav-viz evaluate --json`` prints for one group (NaN as null)."""
         return json.dumps(json_safe(self.to_dict()), indent=indent)
 
-    def to_text(self) -> str:
-        """The paper's table layout (Tables 8-12) as plain text."""
+    def to_text(self, width: int | None = None) -> str:
+        """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
+        into that many columns (wrapped headers, then blocks of columns), None: no limit."""
         from .tables import render_text
 
-        return render_text(self.to_dict(), self.title)
+        return render_text(self.to_dict(), self.title, width)
 
     def to_markdown(self) -> str:
         """The same table as Markdown."""

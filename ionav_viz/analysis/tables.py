@@ -7,6 +7,7 @@ Any number of estimators: the paper's layout puts the candidate estimators first
 from __future__ import annotations
 
 import math
+import textwrap
 from typing import Any
 
 _STATS = (("max", "max"), ("min", "min"), ("mean", "μ"), ("std", "σ"))
@@ -114,27 +115,80 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
     return "\n".join(lines + extra) + "\n"
 
 
-def render_text(rep: dict[str, Any], scenario: str | None = None) -> str:
+def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | None = None) -> str:
+    """The report as plain-text tables; ``width`` (columns, e.g. the terminal's): wider tables get
+    wrapped headers and then are split into blocks of columns (None: one line per row, any width)."""
     out: list[str] = []
     if rep["n_sequences"] or "gnss_outages" not in rep:
         header, rows = table_rows(rep)
-        out = [title_of(rep, scenario), *_aligned(header, rows, 2)]
+        out = [title_of(rep, scenario), *aligned(header, rows, 2, width)]
     if "gnss_outages" in rep:
         header, rows = bridged_rows(rep)
-        out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *_aligned(header, rows, 1), bridged_line(rep)]
+        out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
+                bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
     if rep.get("worst"):
         header, rows = worst_rows(rep)
-        out += [f"{worst_title(rep)}:", *_aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2)]
-    return "\n".join(out) + "\n"
+        out += [f"{worst_title(rep)}:", *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]
+    return "\n".join(_folded(line, width) for line in out) + "\n"
 
 
-def _aligned(header: list[str], rows: list[list[str]], left: int) -> list[str]:
-    """A plain-text table: the first ``left`` columns left-aligned, the rest right-aligned."""
-    widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
+def _folded(line: str, width: int | None) -> str:
+    """A prose line (title, summary) wrapped at ``width``; table lines already fit."""
+    if width is None or len(line) <= width:
+        return line
+    return "\n".join(textwrap.wrap(line, width, subsequent_indent="  ", break_on_hyphens=False))
+
+
+def aligned(header: list[str], rows: list[list[str]], left: int, width: int | None = None) -> list[str]:
+    """A plain-text table: the first ``left`` columns (the keys) left-aligned, the rest right-aligned.
+
+    Wider than ``width``, the header cells are wrapped onto several lines (a column as wide as its
+    values or its longest word), and if that is still too wide the value columns are split into
+    blocks, one under the other, each repeating the key columns.
+    """
+    lines = _table([header], rows, left)
+    if width is None or max(map(len, lines)) <= width:
+        return lines
+    for lines_per_header in (2, 3, 4, 99):  # as few header lines as fit
+        header_lines = _wrapped_header(header, rows, lines_per_header)
+        lines = _table(header_lines, rows, left)
+        if max(map(len, lines)) <= width:
+            return lines
+    header_lines = _wrapped_header(header, rows, 2)
+    col_w = [max(len(r[j]) for r in header_lines + rows) for j in range(len(header))]
+    keys, values = list(range(min(left, len(header)))), list(range(min(left, len(header)), len(header)))
+    room = width - sum(col_w[j] + 2 for j in keys)
+    for n_blocks in range(2, len(values) + 1):  # as few blocks as fit, of equal column counts
+        size = -(-len(values) // n_blocks)
+        blocks = [values[i : i + size] for i in range(0, len(values), size)]
+        if all(sum(col_w[j] + 2 for j in block) - 2 <= room for block in blocks):
+            break
+    out: list[str] = []
+    for b, block in enumerate(blocks):
+        cols = keys + block
+        kept = [r for r in rows if any(r[j] for j in block)]  # a row with nothing in this block is left out of it
+        heads = [line for line in ([h[j] for j in cols] for h in header_lines) if any(line)]
+        out += ([""] if b else []) + _table(heads, [[r[j] for j in cols] for r in kept], len(keys))
+    return out
+
+
+def _wrapped_header(header: list[str], rows: list[list[str]], n_lines: int) -> list[list[str]]:
+    """Header cells wrapped onto about ``n_lines`` lines (a column never narrower than its values or
+    its longest word), bottom-aligned: one list of cells per header line."""
+    widths = [max([len(r[j]) for r in rows] + [len(w) for w in h.split()] + [-(-len(h) // n_lines)]) for j, h in enumerate(header)]
+    wrapped = [textwrap.wrap(h, widths[j], break_on_hyphens=False) or [""] for j, h in enumerate(header)]
+    depth = max(map(len, wrapped))
+    padded = [[""] * (depth - len(w)) + w for w in wrapped]
+    return [[cell[i] for cell in padded] for i in range(depth)]
+
+
+def _table(header_lines: list[list[str]], rows: list[list[str]], left: int) -> list[str]:
+    widths = [max(len(r[j]) for r in header_lines + rows) for j in range(len(header_lines[0]))]
+
     def line(r: list[str]) -> str:
         return "  ".join(c.ljust(w) if j < left else c.rjust(w) for j, (c, w) in enumerate(zip(r, widths))).rstrip()
-    return [line(header), "  ".join("-" * w for w in widths)] + [line(r) for r in rows]
+    return [line(h) for h in header_lines] + ["  ".join("-" * w for w in widths)] + [line(r) for r in rows]
 
 
 def bridged_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
@@ -184,12 +238,40 @@ def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -
     return header, rows
 
 
-def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: str = "Scenario") -> str:
-    """The overview table; Δ % is an estimator's improvement over the INS DR (positive = better)."""
+def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: str = "Scenario", width: int | None = None) -> str:
+    """The overview table; Δ % is an estimator's improvement over the INS DR (positive = better).
+
+    As text wider than ``width`` it is transposed: one column per group, one row per metric and
+    estimator (and split into blocks of groups if that is still too wide)."""
     header, rows = overview_rows(reports, label)
     if markdown:
         lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
         return "\n".join(lines) + "\n"
     widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
     lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths))) for r in [header] + rows]
+    if width is not None and max(map(len, lines)) > width:
+        lines = aligned(*overview_transposed(reports, label), 2, width)
     return "\n".join(lines) + "\n"
+
+
+def overview_transposed(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
+    """The overview with one column per group: rows are (metric, estimator) and each candidate's
+    improvement over the INS DR (``Δ %``) under it."""
+    header, rows = overview_rows(reports, label)
+    first = next(iter(reports.values()))
+    labels = labels_of(first)
+    out_header = ["Metric", "Estimator", *(r[0].split(": ")[0] for r in rows)]  # "motorway: V-sim-motorway" -> its group
+    out_rows = [["Sequences", "", *(r[1] for r in rows)]]
+    metric = ""
+    for j in range(2, len(header)):
+        name = header[j]
+        est = next((lab for lab in labels.values() if name.startswith(f"{lab} (") or f" {lab} (" in name), "")
+        if name == "Δ %":
+            out_rows.append(["", f"{out_rows[-1][1]} Δ %", *(r[j] for r in rows)])
+            continue
+        title = name[: name.index(est)].strip() if est and not name.startswith(est) else ""
+        unit = name[name.rindex("(") :].replace("% of distance", "% of dist.")
+        if title:
+            metric = f"{title} {unit}"
+        out_rows.append([metric if title else "", est, *(r[j] for r in rows)])
+    return out_header, out_rows

@@ -265,6 +265,21 @@ def yaw_sign(value: str) -> str:
     return value
 
 
+def terminal_width(stream=None) -> Optional[int]:
+    """The width text tables must fit: ``COLUMNS`` when set, else the terminal's when ``stream``
+    (default stdout) is one; None when piped, so scripts read one line per row as before."""
+    import os
+    import shutil
+
+    columns = os.environ.get("COLUMNS", "")
+    if columns.strip().isdigit() and int(columns) > 0:
+        return max(int(columns), 40)
+    stream = stream or sys.stdout
+    if stream.isatty():
+        return max(shutil.get_terminal_size().columns, 40)
+    return None
+
+
 def progress(quiet: bool):
     """A rich progress bar on stderr, or a no-op when quiet or not a terminal."""
     from contextlib import nullcontext

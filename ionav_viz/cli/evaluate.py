@@ -64,6 +64,6 @@ def evaluate(
     if overview:
         rows = overview_reports(reports, by_event)
         dicts = {group: json_safe(rep.to_dict()) for group, rep in rows.items()}
-        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive"), end="")
+        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()), end="")
         return
-    print("\n".join(rep.to_markdown() if markdown else rep.to_text() for rep in reports.values()), end="")
+    print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width()) for rep in reports.values()), end="")

@@ -47,7 +47,7 @@ def replay(
                             **run.api_kwargs(), **source.api_kwargs(), connect=connect,
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
-        print(result.report.to_text(), end="", file=sys.stderr)
+        print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     print(result.path)
     if screenshot_dir is not None:
         from ..viz.screenshot import VIEWS

@@ -1,0 +1,80 @@
+"""Text tables fit the terminal (COLUMNS) without losing a number; JSON and Markdown never change."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from ionav_viz.analysis.tables import aligned
+
+from .conftest import run_cli
+
+NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
+
+
+def numbers(text: str) -> list[str]:
+    return sorted(NUMBER.findall(text))
+
+
+def widest(text: str) -> int:
+    return max(len(line) for line in text.splitlines())
+
+
+@pytest.fixture(scope="module")
+def full_tables():
+    """The tables with no width limit (piped, no COLUMNS): one line per row, as scripts read them."""
+    evaluate = run_cli("evaluate", "roundabout", "--every", "60s", "-q")
+    overview = run_cli("evaluate", "--scenario", "all", "--overview", "-q")
+    assert evaluate.returncode == 0 and overview.returncode == 0, evaluate.stderr + overview.stderr
+    assert widest(overview.stdout) > 300 and widest(evaluate.stdout) > 150  # otherwise nothing below is tested
+    return evaluate.stdout, overview.stdout
+
+
+@pytest.mark.parametrize("columns", [100, 120])
+def test_evaluate_fits_the_width_and_keeps_every_number(full_tables, columns):
+    proc = run_cli("evaluate", "roundabout", "--every", "60s", "-q", env={"COLUMNS": str(columns)})
+    assert proc.returncode == 0, proc.stderr
+    assert widest(proc.stdout) <= columns
+    assert numbers(proc.stdout) == numbers(full_tables[0])
+
+
+def test_overview_is_readable_at_120_columns(full_tables):
+    """Transposed: one column per scenario and the total, one row per metric and estimator."""
+    proc = run_cli("evaluate", "--scenario", "all", "--overview", "-q", env={"COLUMNS": "120"})
+    assert proc.returncode == 0, proc.stderr
+    assert widest(proc.stdout) <= 120
+    header = proc.stdout.splitlines()[0].split()
+    assert header == ["Metric", "Estimator", "motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering", "total"]
+    assert numbers(proc.stdout) == numbers(full_tables[1])
+    ins = next(line for line in proc.stdout.splitlines() if line.startswith("Disp. CRSE"))
+    full_total = next(line for line in full_tables[1].splitlines() if line.startswith("total"))
+    assert ins.split()[-1] == full_total.split()[2]  # the total's INS DR mean CRSE, the first value of the total row
+
+
+@pytest.mark.parametrize("args", [["evaluate", "roundabout", "--every", "60s", "--json"],
+                                  ["evaluate", "roundabout", "--every", "60s", "--markdown"],
+                                  ["evaluate", "--scenario", "motorway", "--overview", "--markdown", "-q"]])
+def test_json_and_markdown_ignore_the_width(args):
+    wide, narrow = run_cli(*args), run_cli(*args, env={"COLUMNS": "60"})
+    assert wide.returncode == 0 and wide.stdout == narrow.stdout, narrow.stderr
+
+
+def test_aligned_wraps_headers_then_splits_columns_into_blocks():
+    header = ["Key", "a long header one", "another long header", "third"]
+    rows = [["alpha", "1.00", "2.00", "3.00"], ["beta", "4.00", "", "6.00"]]
+    full = aligned(header, rows, 1)
+    assert full[0] == "Key    a long header one  another long header  third" and len(full) == 4  # 52 wide: no limit
+    wrapped = aligned(header, rows, 1, width=40)
+    assert max(map(len, wrapped)) <= 40 and wrapped[-2].startswith("alpha") and "-----" in wrapped[-3]
+    assert sorted(" ".join(wrapped[:-3]).split()) == sorted(" ".join(header).split())  # every header word kept
+    # width 22: key column 5 + 2 leaves 15 for values; wrapped headers make the value columns
+    # 6 ("a long/header/one"), 7 ("another/long/header") and 5 wide: 6 + 2 + 7 = 15, so two blocks.
+    blocks = aligned(header, rows, 1, width=22)
+    assert max(map(len, blocks)) <= 22 and blocks.count("") == 1
+    assert blocks[blocks.index("") + 1].split() == ["Key", "third"]
+    assert sum(line.startswith("alpha") for line in blocks) == 2 and sum(line.startswith("beta") for line in blocks) == 2
+    assert [line.split() for line in blocks if line.startswith("beta")] == [["beta", "4.00"], ["beta", "6.00"]]
+    alone = aligned(["Key", "x", "y"], [["a", "1.00", "2.00"], ["b", "3.00", ""]], 1, width=9)  # one value column per block
+    assert [line.split() for line in alone if line.startswith("b")] == [["b", "3.00"]]  # row b has no y: left out of its block
+    assert numbers("\n".join(blocks)) == numbers("\n".join(full))
