@@ -1,6 +1,6 @@
 """How robust is "the IDNN beats the INS"? Retrain with other seeds and test on unseen drives.
 
-Trains the networks with the shipped model's hyperparameters (``ionav_viz/data/models/idnn/metadata.json``)
+Trains the networks with the shipped model's hyperparameters (its ``metadata.json``)
 on the bundled training drives for each ``--seeds`` value, and evaluates each model (and the
 shipped one) on
 
@@ -12,18 +12,22 @@ shipped one) on
 
 Prints, per model and test set, the IDNN's improvement over the INS on mean displacement CRSE
 and mean orientation-rate CRSE per scenario (positive = IDNN better) and how many of the ten
-comparisons the IDNN wins. Run: ``python benchmarks/idnn_heldout.py``.
+comparisons the IDNN wins. Run: ``python benchmarks/idnn_heldout.py``;
+``--write docs/results-idnn-seeds.md`` writes the complete Markdown page (heading, the command and
+machine, the table, the columns explained) atomically instead.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import tempfile
 from pathlib import Path
 
-from results_table import held_out_drives  # the same held-out cars as the README's table
+from results_table import command_line, held_out_drives, machine, wrap, write_atomically  # the same held-out cars as docs/results.md
 
+import ionav_viz as iv
 from ionav_viz.analysis.evaluate import evaluate_drive, improvement_pct, resolve_bias
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import SAMPLES, sample_path
@@ -32,16 +36,57 @@ from ionav_viz.nav.training import train_models
 from ionav_viz.sources.iovnbd import read_iovnbd
 
 
-def compare(model, drives: dict) -> tuple[list[str], int]:
-    cells, wins = [], 0
+def compare(model, drives: dict) -> list[tuple[float, float]]:
+    """Per scenario: the IDNN's improvement over the INS in % (displacement CRSE, orientation-rate CRSE)."""
+    out = []
     for scenario in SCENARIOS:
         result = evaluate_drive(drives[scenario], 10.0, model=model)
         ins, idnn = result.metrics["ins"], result.metrics["idnn"]
         disp = improvement_pct(ins["crse_m"].mean(), idnn["crse_m"].mean())
         yaw = improvement_pct(ins["yaw_crse_radps"].mean(), idnn["yaw_crse_radps"].mean())
-        wins += int(disp > 0) + int(yaw > 0)
-        cells.append(f"{disp:+6.1f} {yaw:+6.1f}")
-    return cells, wins
+        out.append((disp, yaw))
+    return out
+
+
+def wins(pairs: list[tuple[float, float]]) -> int:
+    return sum(int(d > 0) + int(y > 0) for d, y in pairs)
+
+
+def page(rows: list[tuple[str, str, list[tuple[float, float]]]], seeds: list[int], minutes: float, seed_base: int) -> str:
+    day = datetime.datetime.now(datetime.UTC).date().isoformat()
+    total = sum(wins(p) for _, _, p in rows)
+    n = sum(2 * len(p) for _, _, p in rows)
+    table = ["| Model | Test drives | " + " | ".join(SCENARIOS) + " | Wins |", "|---|---|" + "---:|" * (len(SCENARIOS) + 1)]
+    for name, test_set, pairs in rows:
+        table.append(f"| {name} | {test_set} | " + " | ".join(f"{d:+.1f} / {y:+.1f}" for d, y in pairs)
+                     + f" | {wins(pairs)}/{2 * len(pairs)} |")
+    return wrap("\n".join([
+        "# The IDNN across training seeds",
+        "",
+        f"Written by `{command_line()}` on a {machine()} machine ({day}, ionav-viz {iv.__version__}); "
+        "do not edit by hand, run the command again.",
+        "",
+        "Does the IDNN's gain over the INS DR depend on the luck of one training run? The shipped model "
+        f"and models retrained with seeds {', '.join(map(str, seeds))} (the shipped model's hyperparameters, the "
+        "bundled training drives) are each tested with 10 s outages on the bundled test drive of every "
+        "scenario and on the held-out drives of [results.md](results.md) (cars outside the training "
+        f"fleet, {minutes:g} minutes each, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}).",
+        "",
+        f"- The IDNN wins {total} of {n} comparisons.",
+        "",
+        "\n".join(table),
+        "",
+        "Columns:",
+        "",
+        "- **Model**: `shipped`, or retrained with `seed N` (`ionav-viz train --seed N -o DIR`).",
+        "- **Test drives**: `bundled` (the bundled test drives) or `held-out` (cars outside the "
+        "training fleet).",
+        "- **Scenario columns**: the IDNN's improvement over the INS DR in %, displacement CRSE / "
+        "orientation-rate CRSE, each from the means over the drive's outages (positive: the IDNN's "
+        "error is lower).",
+        "- **Wins**: the comparisons of the row in which the IDNN's error is lower.",
+        "",
+    ]))
 
 
 def main() -> None:
@@ -49,7 +94,10 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="*", default=[1, 2, 3], help="training seeds to retrain with")
     parser.add_argument("--minutes", type=float, default=10.0, help="length of each held-out drive")
     parser.add_argument("--seed-base", type=int, default=800, help="seed of the first held-out drive")
+    parser.add_argument("--write", metavar="FILE", type=Path, help="write the complete Markdown page to FILE (atomically) instead of printing")
     args = parser.parse_args()
+    if args.write is not None and not args.write.parent.is_dir():
+        parser.error(f"--write: folder {args.write.parent} does not exist")
 
     shipped = load_model(default_model_dir())
     hyper = json.loads((default_model_dir() / "metadata.json").read_text())["config"]
@@ -59,15 +107,22 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         heldout = {sc: read_iovnbd(path) for sc, path in held_out_drives(Path(tmp), args.minutes, args.seed_base).items()}
 
-    header = "model            test set   " + "  ".join(f"{s[:13]:>13}" for s in SCENARIOS) + "  wins"
-    print("IDNN improvement over INS in % (displacement CRSE, orientation-rate CRSE), 10 s outages")
-    print(header)
+    if args.write is None:
+        print("IDNN improvement over INS in % (displacement CRSE, orientation-rate CRSE), 10 s outages")
+        print("model            test set   " + "  ".join(f"{s[:13]:>13}" for s in SCENARIOS) + "  wins")
+    rows = []
     for seed in [None, *args.seeds]:
         name = "shipped" if seed is None else f"seed {seed}"
         model = shipped if seed is None else train_models(train, ModelConfig(**{**hyper, "seed": seed}))
         for label, drives in (("bundled", bundled), ("held-out", heldout)):
-            cells, wins = compare(model, drives)
-            print(f"{name:<16} {label:<10} " + "  ".join(cells) + f"  {wins}/10", flush=True)
+            pairs = compare(model, drives)
+            rows.append((name, label, pairs))
+            if args.write is None:
+                cells = "  ".join(f"{d:+6.1f} {y:+6.1f}" for d, y in pairs)
+                print(f"{name:<16} {label:<10} {cells}  {wins(pairs)}/{2 * len(pairs)}", flush=True)
+    if args.write is not None:
+        write_atomically(args.write, page(rows, args.seeds, args.minutes, args.seed_base))
+        print(args.write)
 
 
 if __name__ == "__main__":
