@@ -1,7 +1,7 @@
 """ionav-viz: replay drives, inject GNSS outages, compare INS dead reckoning, the IDNN and your own
 estimators, and review them in Rerun.
 
-The public API (see "Python API" in the README)::
+The public API (see "Python API" in the README, and docs/ for the reference)::
 
     import ionav_viz as iv
 
@@ -28,7 +28,7 @@ __version__ = "0.1.0"
 
 _EXPORTS = {
     "load_drive": "api", "evaluate": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
-    "scenario_drives": "api", "ReplayResult": "api", "Outage": "api",
+    "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
     "Estimate": "nav.estimators", "EstimatorInputs": "nav.estimators", "Estimator": "nav.estimators",
@@ -36,7 +36,7 @@ _EXPORTS = {
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
     "AroundEvents": "nav.outages",
-    "EventThresholds": "analysis.events", "LogOptions": "sources.load", "McapOptions": "sources.load",
+    "EventThresholds": "analysis.events", "Event": "analysis.events", "LogOptions": "sources.load", "McapOptions": "sources.load",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
@@ -56,9 +56,9 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports on first use
     from .analysis.evaluate import DriveResult
-    from .analysis.events import EventThresholds
+    from .analysis.events import Event, EventThresholds
     from .analysis.report import Report
-    from .api import Outage, ReplayResult, evaluate, evaluate_by_event, load_drive, replay, scenario_drives, screenshot
+    from .api import Outage, ReplayResult, evaluate, evaluate_by_event, load_drive, replay, scenario_drives, screenshot, serve_web
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
     from .nav.bias import SensorBias

@@ -62,7 +62,7 @@ class Outage:
     first_window: int
 
 
-@dataclass
+@dataclass(repr=False)
 class ReplayResult:
     """What :func:`replay` produced: the written recording, the report and the outages."""
 
@@ -70,8 +70,12 @@ class ReplayResult:
     report: Report
     outages: list[Outage]
     placement: str
-    result: DriveResult = field(repr=False)
-    events: list[Event] = field(default_factory=list, repr=False)
+    result: DriveResult
+    events: list[Event] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return (f"ReplayResult({str(self.path)!r}\n  drive: {self.result.drive.name}, {len(self.outages)} outage(s): {self.placement}\n"
+                f"  {self.report.summary_line()}\n)")
 
 
 def load_drive(

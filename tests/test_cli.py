@@ -95,3 +95,49 @@ def test_overview_has_a_row_per_drive_and_a_total():
     crse = [float(r[2]) for r in rows]
     assert n[2] == n[0] + n[1]
     assert crse[2] == pytest.approx((n[0] * crse[0] + n[1] * crse[1]) / n[2], abs=0.01)
+
+
+PLACEMENT_AND_QUIET = {"--every", "--at", "--random", "--seed", "--on", "-q", "--quiet"}
+
+
+@pytest.mark.parametrize("command", ["replay", "evaluate", "screenshot"])
+def test_every_command_that_places_outages_takes_the_same_options(command):
+    import typer.main
+
+    from ionav_viz.cli import app
+
+    group = typer.main.get_command(app)
+    cmd = group.get_command(group.context_class(group, info_name="ionav-viz"), command)
+    options = {opt for param in cmd.params for opt in getattr(param, "opts", [])}
+    assert options >= PLACEMENT_AND_QUIET, PLACEMENT_AND_QUIET - options
+
+
+def test_evaluate_places_outages_as_replay_does(tmp_path):
+    """The same placement gives the same outages in evaluate and replay (and the API)."""
+    import ionav_viz as iv
+
+    for args, placement in ((["--every", "60s"], iv.Every(60.0)), (["--at", "30s,200s"], iv.At((30.0, 200.0))),
+                            (["--random", "4", "--seed", "3"], iv.Random(4, 3)), (["--on", "roundabout"], iv.AroundEvents(("roundabout",)))):
+        proc = run_cli("evaluate", "roundabout", *args, "--json", "--estimators", "ins")
+        assert proc.returncode == 0, proc.stderr
+        starts = [s["start_s"] for s in json.loads(proc.stdout)["sequences"]]
+        expected = [o.start_s for o in iv.replay("roundabout", 10.0, placement, ["ins"], tmp_path / "r.rrd").outages]
+        assert starts == expected and len(starts) >= 2, (args, starts, expected)
+    assert [s["start_s"] for s in json.loads(run_cli("evaluate", "roundabout", "--at", "30s,200s", "--json").stdout)["sequences"]] == [30.0, 200.0]
+
+
+def test_quiet_evaluate_prints_only_the_tables():
+    proc = run_cli("evaluate", "--scenario", "motorway", "-q", "--every", "100s", "--estimators", "ins")
+    assert proc.returncode == 0 and proc.stderr == "" and proc.stdout.startswith("motorway: V-sim-motorway"), proc.stderr
+    loud = run_cli("evaluate", "--scenario", "motorway", "--every", "100s", "--estimators", "ins")
+    assert loud.stderr.startswith("drives: motorway: the bundled synthetic test drives")
+
+
+def test_screenshot_scenario_takes_the_placement(tmp_path):
+    out = tmp_path / "shot.png"
+    proc = run_cli("screenshot", "--scenario", "motorway", "--at", "100s", "--estimators", "ins", "--view", "local", "-o", str(out), "-q",
+                   "--size", "640x360")
+    assert proc.returncode == 0 and proc.stdout == "" and proc.stderr == "", proc.stderr
+    assert out.stat().st_size > 10_000
+    wrong = run_cli("screenshot", str(out), "--every", "30s", "-o", str(tmp_path / "x.png"))
+    assert wrong.returncode == 2 and "--scenario" in wrong.stderr, wrong.stderr

@@ -244,3 +244,56 @@ def test_named_repository_files_exist(doc):
 def test_path_checker_finds_a_missing_file():
     text = "See `ionav_viz/core/drive.py` and `benchmarks/no_such.py`.\n\n```bash\npython docs/gone.md\n```\n"
     assert missing_paths(text) == {"benchmarks/no_such.py", "docs/gone.md"}
+
+
+# ---- help texts and the Python API point only to what exists ------------------------------------
+
+def command_helps() -> dict[str, str]:
+    """Every command's --help text (and the root's) as a user sees it, one line per option (a
+    wide terminal, so no reference is wrapped)."""
+    from typer.testing import CliRunner
+
+    group = typer.main.get_command(app)
+    names = group.list_commands(group.context_class(group, info_name="ionav-viz"))
+    runner = CliRunner()
+    helps = {}
+    for name in ["", *names]:
+        result = runner.invoke(app, [name, "--help"] if name else ["--help"], env={"COLUMNS": "400"})
+        assert result.exit_code == 0, (name, result.output)
+        helps[name or "ionav-viz"] = result.output
+    return helps
+
+
+def test_help_texts_name_only_existing_files_and_sections():
+    text = "\n".join(command_helps().values())
+    named = set(re.findall(r"(?:docs|ionav_viz)/[\w./-]*\w", text))
+    assert named, "the help texts point to the docs somewhere"
+    assert [p for p in named if not (ROOT / p).exists()] == []
+    for doc, section in re.findall(r"'([^']+)' in (docs/[\w.-]+\.md|the README)", text):
+        path = README if section == "the README" else ROOT / section
+        assert slug(doc) in anchors(path), (doc, section)
+    for section in re.findall(r"docs/method\.md \('([^']+)'\)", text):  # events: "docs/method.md ('Manoeuvres')"
+        assert slug(section) in anchors(ROOT / "docs/method.md"), section
+
+
+def test_events_help_lists_every_threshold_with_default_and_range():
+    from dataclasses import asdict
+
+    from ionav_viz.analysis.events import THRESHOLD_LIMITS, EventThresholds
+
+    text = " ".join(command_helps()["events"].split())
+    for name, default in asdict(EventThresholds()).items():
+        lo, hi = THRESHOLD_LIMITS[name]
+        shown = ",".join(f"{x:g}" for x in default) if isinstance(default, tuple) else f"{default:g}"
+        assert f"{name} = {shown} ({lo:g} to {hi:g})" in text, name
+    assert "ionav-viz events --help" in command_helps()["replay"]  # where --threshold's help sends the user
+
+
+def test_everything_the_docs_call_on_the_package_is_exported():
+    import ionav_viz
+
+    called = set()
+    for doc in DOCS:
+        called |= set(re.findall(r"\biv\.([A-Za-z_]\w*)", doc.read_text(encoding="utf-8")))
+    assert {"evaluate", "replay", "screenshot", "serve_web", "load_drive"} <= called
+    assert sorted(name for name in called if not hasattr(ionav_viz, name)) == []

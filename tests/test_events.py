@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+import ionav_viz as iv
 from ionav_viz.analysis.events import EVENT_TYPES, EventThresholds, detect_events, score
 from ionav_viz.dataset.samples import SAMPLES, sample_path
 from ionav_viz.sim.simulate import simulated_manoeuvres
@@ -92,3 +93,35 @@ def test_replay_aims_outages_at_events(tmp_path):
 def test_evaluate_by_event_text():
     text = run_cli("evaluate", "hard-brake", "--by-event", "--on", "hard-brake")
     assert text.returncode == 0 and text.stdout.startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")
+
+
+def _turning_drive(yaw_profile: list[tuple[float, float]], speed_mps: float = 8.0) -> iv.Drive:
+    """A 10 Hz drive at constant speed whose gyro follows ``yaw_profile`` ((seconds, rad/s), ...),
+    with a GNSS track and course integrated from it (north-up, course clockwise from north)."""
+    yaw = np.concatenate([np.full(int(round(dur * 10)), rate) for dur, rate in yaw_profile])
+    t = np.arange(len(yaw)) / 10.0
+    course = np.radians(90.0) - np.cumsum(yaw) / 10.0  # clockwise from north: a left turn lowers it
+    north = np.cumsum(speed_mps * np.cos(course)) / 10.0
+    east = np.cumsum(speed_mps * np.sin(course)) / 10.0
+    columns = {"t_s": t, "lat_deg": 52.0 + north / 111_320.0, "lon_deg": -1.5 + east / (111_320.0 * np.cos(np.radians(52.0))),
+               "speed_mps": np.full(len(t), speed_mps), "heading_deg": np.degrees(course) % 360.0,
+               "accel_long_mps2": np.zeros(len(t)), "yaw_rate_radps": yaw}
+    return iv.Drive("V-turns", "generated", 10.0, 0.0, columns)
+
+
+def test_overlapping_detections_of_one_type_are_listed_once():
+    """A left turn through 172 deg straight into a right turn through 344 deg (radius 16 m, as a
+    roundabout with a long exit flare): each turning segment is a roundabout whose span takes in
+    the other as its flare, so the detectors find the same stretch twice; events lists it once,
+    spanning both, with the values of the longer one."""
+    from ionav_viz.analysis.events import detect_events
+
+    drive = _turning_drive([(10.0, 0.0), (6.0, 0.5), (12.0, -0.5), (10.0, 0.0)])
+    found = [e for e in detect_events(drive) if e.type == "roundabout"]
+    assert len(found) == 1, found
+    (event,) = found
+    assert 9.0 <= event.t0_s <= 10.5 and 27.0 <= event.t1_s <= 28.5  # the two turns: 10-16 s and 16-28 s
+    assert event.values["turn_deg"] == pytest.approx(344.0, abs=15.0)  # the longer turn: 12 s at 0.5 rad/s = 344 deg
+    assert event.values["radius_m"] == pytest.approx(16.0, rel=0.1)  # 8 m/s / 0.5 rad/s
+    assert type(event.t0_s) is float and all(type(v) is float for v in event.values.values())
+    assert "np.float64" not in repr(event)

@@ -26,10 +26,19 @@ from ..nav.windows import Windows, make_windows
 from .bridging import BridgedOutage, bridge_gnss_outages
 from .metrics import METRICS, sequence_metrics, truth_for
 
-__all__ = ["METRICS", "DriveResult", "evaluate_drive", "improvement_pct", "resolve_bias"]
+__all__ = ["METRICS", "DriveResult", "OutageTruth", "evaluate_drive", "improvement_pct", "resolve_bias"]
 
 
-@dataclass
+@dataclass(frozen=True)
+class OutageTruth:
+    """The GNSS truth of each outage's windows: displacement (m) and yaw rate (rad/s, counter-
+    clockwise positive), shape (n_outages, n_windows)."""
+
+    disp_m: np.ndarray
+    yaw_rate_radps: np.ndarray
+
+
+@dataclass(repr=False)
 class DriveResult:
     """Everything computed for one drive: windows, outages, and per estimator its solution and metrics.
 
@@ -58,7 +67,18 @@ class DriveResult:
     bridged: list[BridgedOutage] = field(default_factory=list)
     unbridged: int = 0
 
-    def truth(self) -> dict[str, Any]:
+    def __repr__(self) -> str:
+        ests = ", ".join(e.name for e in self.estimators)
+        bridged = f", {len(self.bridged)} real GNSS outage(s) bridged" if self.bridged else ""
+        return f"DriveResult(drive={self.drive.name!r}, {len(self.starts)} outage(s) of {self.outage_s:g} s{bridged}, estimators: {ests})"
+
+    @property
+    def truth(self) -> OutageTruth:
+        """The GNSS truth every estimate of each outage is scored against."""
+        disp, yaw = truth_for(self.windows, self.starts, self.n_windows)
+        return OutageTruth(disp, yaw)
+
+    def truth_exclusions(self) -> dict[str, Any]:
         """What the GNSS quality checks excluded: ``windows`` (all), ``excluded_windows`` (bad
         truth), ``excluded_by_reason`` (windows per fault name) and ``excluded_outages``."""
         fault = self.windows.truth_fault

@@ -116,6 +116,13 @@ class Event:
     t1_s: float
     values: dict[str, float] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # plain floats (not numpy scalars), times to the microsecond: the 10 Hz grid's sums carry
+        # rounding noise (28.700000000000003) that says nothing
+        self.t0_s = round(float(self.t0_s), 6)
+        self.t1_s = round(float(self.t1_s), 6)
+        self.values = {k: float(v) for k, v in self.values.items()}
+
     def to_dict(self) -> dict:
         return {"type": self.type, "start_s": round(self.t0_s, 2), "end_s": round(self.t1_s, 2),
                 **{k: round(float(v), 3) for k, v in self.values.items()}}
@@ -292,7 +299,35 @@ def detect_events(drive: Drive, thresholds: EventThresholds | None = None, types
     s = signals_of(drive, th)
     found = (detect_hard_brakes(s, th) + detect_turn_events(s, th) + detect_quick_accel(s, th) + detect_cruise(s, th)
              + detect_gnss_outages(drive, th))
-    return sorted((e for e in found if e.type in types), key=lambda e: (e.t0_s, e.type))
+    return merge_overlapping([e for e in found if e.type in types])
+
+
+def merge_overlapping(events: list[Event]) -> list[Event]:
+    """Events in time order, overlapping detections of one type merged into one event spanning
+    them all, with the values of the longest (of equal spans, the one whose first value, e.g. the
+    turn, is largest): a roundabout's circulating turn and its exit flare both turn far enough to
+    be found as roundabouts, each spanning the other."""
+    merged: list[list[Event]] = []
+    for e in sorted(events, key=lambda e: (e.type, e.t0_s)):
+        if merged and merged[-1][0].type == e.type and e.t0_s <= max(x.t1_s for x in merged[-1]):
+            merged[-1].append(e)
+        else:
+            merged.append([e])
+    out = []
+    for group in merged:
+        longest = max(group, key=lambda e: (round(e.t1_s - e.t0_s, 6), abs(next(iter(e.values.values()), 0.0))))
+        out.append(Event(longest.type, min(e.t0_s for e in group), max(e.t1_s for e in group), dict(longest.values)))
+    return sorted(out, key=lambda e: (e.t0_s, e.type))
+
+
+def threshold_help() -> str:
+    """Every threshold with its default and the range ``--threshold`` accepts, one per line."""
+    lines = ["Thresholds (--threshold NAME=VALUE; default, accepted range):"]
+    for name, default in asdict(EventThresholds()).items():
+        lo, hi = THRESHOLD_LIMITS[name]
+        shown = ",".join(f"{x:g}" for x in default) if isinstance(default, tuple) else f"{default:g}"
+        lines.append(f"  {name} = {shown}   ({lo:g} to {hi:g})")
+    return "\n".join(lines)
 
 
 def thresholds_dict(th: EventThresholds) -> dict:

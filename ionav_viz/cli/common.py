@@ -27,10 +27,10 @@ OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (wh
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
 NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
 EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, odo, ekf, or names registered by installed packages (default: every built-in that applies).", show_default=False)
-EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Python API' in the README.", show_default=False)
+EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Your own estimator' in the README.", show_default=False)
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
-GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; see README 'GNSS quality').", show_default=False)
+GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; names, defaults: 'GNSS quality' in docs/method.md).", show_default=False)
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 

@@ -6,12 +6,24 @@ import json
 from typing import Optional
 
 import typer
+from typer.core import TyperCommand
 
 from . import common as c
 from .app import app
 
 
-@app.command()
+class _EventsCommand(TyperCommand):
+    """``events --help`` ends with every detector threshold, its default and range (read from
+    :class:`~ionav_viz.analysis.events.EventThresholds` only when help is shown)."""
+
+    def format_help(self, ctx, formatter):
+        from ..analysis.events import threshold_help
+
+        self.epilog = threshold_help()
+        return super().format_help(ctx, formatter)
+
+
+@app.command(cls=_EventsCommand)
 @c.with_source_options
 def events(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
@@ -23,7 +35,8 @@ def events(
 ) -> None:
     """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes and cruising.
 
-    Definitions and thresholds: ionav_viz/events.py and the README ('Manoeuvres').
+    Definitions: docs/method.md ('Manoeuvres') and the docstring of ionav_viz/analysis/events.py;
+    every --threshold NAME=VALUE, with its default and range, is listed below.
     """
     from ..analysis.events import EVENT_TYPES, detect_events, score
     from ..dataset.samples import SAMPLES, sample_path

@@ -43,7 +43,7 @@ def train(
     epochs_disp: int = typer.Option(40, "--epochs-disp", help="Epochs of the displacement model (Table 5: 40)."),
     epochs_yaw: int = typer.Option(60, "--epochs-yaw", help="Epochs of the orientation-rate model (Table 5: 60)."),
     feedback_noise: float = typer.Option(0.1, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
-    residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (see README); --no-residual is the paper's plain net."),
+    residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (docs/method.md, 'The IDNN'); --no-residual is the paper's plain net."),
     lr_decay_tail: float = typer.Option(0.3, "--lr-decay-tail", help="Fraction of the training over which the learning rate falls linearly to 0 at the end (0 = constant, as in the paper)."),
     inputs: str = typer.Option("calibrated", "--inputs", help="calibrated (shipped): samples corrected by the GNSS-aided INS at the outage start; plain: by the standstill biases (the paper)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),

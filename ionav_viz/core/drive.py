@@ -16,7 +16,7 @@ Conventions (every reader converts to these; nothing downstream converts again):
   :class:`~ionav_viz.core.gnss_quality.GnssFault` saying why (set by the readers' loader).
 
 Samples stay at their native rate and time stamps; resampling to the 1-second windows of
-the paper happens in :mod:`ionav_viz.windows`.
+the paper happens in :mod:`ionav_viz.nav.windows`.
 """
 
 from __future__ import annotations

@@ -360,7 +360,7 @@ def validate(obj: Any, origin: str = "") -> Estimator:
         )
     if not isinstance(getattr(obj, "label", None), str) or not callable(getattr(obj, "estimate", None)):
         raise EstimatorError(f"estimator {name!r}{where}: needs a 'label' string and an estimate(inputs) method",
-                             "see 'Python API' in the README")
+                             "see 'Your own estimator' in the README")
     color = getattr(obj, "color", None)
     if color is not None and (len(tuple(color)) != 3 or not all(isinstance(c, int) and 0 <= c <= 255 for c in color)):
         raise EstimatorError(f"estimator {name!r}{where}: color {color!r} is not an RGB triple of 0-255 integers")

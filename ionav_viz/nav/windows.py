@@ -1,4 +1,4 @@
-"""The paper's 1-second windows, built from a :class:`~ionav_viz.drive.Drive`.
+"""The paper's 1-second windows, built from a :class:`~ionav_viz.core.drive.Drive`.
 
 Resampling (how gaps are handled)
     Inertial signals and GNSS are first put on a uniform grid of ``rate_hz`` (10 Hz) points,

@@ -5,7 +5,7 @@ names after the first carry a leading space and the dataset's own typos ("fof"),
 from the car's CAN bus and a Racelogic VBOX GNSS logger, units km/h, g, deg/s, decimal
 degrees. Some files carry cp1252 bytes.
 
-Everything is converted to :class:`ionav_viz.drive.Drive` units here, once:
+Everything is converted to :class:`ionav_viz.core.drive.Drive` units here, once:
 
 * km/h -> m/s, g -> m/s^2 (9.80665), deg/s -> rad/s.
 * Latitude/longitude given as VBOX minutes (|lat| > 90) are divided by 60 and the
@@ -19,7 +19,7 @@ Everything is converted to :class:`ionav_viz.drive.Drive` units here, once:
 * Time: "time since start of day" becomes ``t_s`` from the first row; a wrap past midnight
   is unwrapped. Time going backwards is an error naming the row; rows repeating the previous
   time stamp are dropped with a warning. Gaps (0.2 s periods, longer dropouts) are kept as
-  they are: :mod:`ionav_viz.windows` bridges short gaps and splits the drive at long ones.
+  they are: :mod:`ionav_viz.nav.windows` bridges short gaps and splits the drive at long ones.
 """
 
 from __future__ import annotations
@@ -172,7 +172,7 @@ def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, in
     if missing:
         raise InputError(
             f"{path}: missing column(s) {', '.join(repr(m) for m in missing)}",
-            "expected the IO-VNBD V-*.csv header (see README, 'Reading IO-VNBD')",
+            "expected the IO-VNBD V-*.csv header (see 'IO-VNBD CSV' in docs/formats.md)",
         )
     wanted = [by_label[label] for label, _, _ in _COLUMNS.values() if label in by_label]
     try:

@@ -7,7 +7,7 @@ every series as whole columns with ``send_columns``; static layers are logged on
 Timelines: ``time`` (seconds since the first sample of the drive) and ``time_of_day`` (UTC
 time of day, as a duration since midnight).
 
-Entity paths (see also the README):
+Entity paths (docs/recording.md lists them for users):
 
 ==============================================  ==============================================
 ``map/gnss``                                    GNSS ground-truth track (static, lat/lon), broken
