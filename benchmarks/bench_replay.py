@@ -27,8 +27,9 @@ from ionav_viz.analysis.metrics import cumulative_errors
 from ionav_viz.analysis.report import Report
 from ionav_viz.analysis.tables import render_markdown
 from ionav_viz.nav import ekf
-from ionav_viz.nav.estimators import EstimatorInputs, applies, resolve, solve
 from ionav_viz.nav.idnn import default_model_dir, load_model
+from ionav_viz.nav.protocol import EstimatorInputs, applies, solve
+from ionav_viz.nav.registry import resolve
 from ionav_viz.sim.simulate import write_simulated_drive
 from ionav_viz.sources.iovnbd import read_iovnbd
 from ionav_viz.viz.recording import APP_ID, local_en_m, screen_xy, write_recording

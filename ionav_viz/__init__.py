@@ -31,8 +31,8 @@ _EXPORTS = {
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
-    "Estimate": "nav.estimators", "EstimatorInputs": "nav.estimators", "Estimator": "nav.estimators",
-    "EstimatorError": "nav.estimators",
+    "Estimate": "nav.protocol", "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol",
+    "EstimatorError": "nav.protocol",
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
     "AroundEvents": "nav.outages",
@@ -62,6 +62,6 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
     from .nav.bias import SensorBias
-    from .nav.estimators import Estimate, Estimator, EstimatorError, EstimatorInputs
     from .nav.outages import AroundEvents, At, Every, Random, Tile
+    from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs
     from .sources.load import LogOptions, McapOptions

@@ -35,9 +35,10 @@ from .core.gnss_quality import GnssLimits
 from .core.timing import stage
 from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from .nav.bias import SensorBias, resolve_bias
-from .nav.estimators import BUILTIN, Estimator, applies
-from .nav.estimators import resolve as resolve_estimators
 from .nav.outages import AroundEvents, Placement, Tile, around, excluded_by_truth, outage_windows
+from .nav.protocol import Estimator, applies
+from .nav.registry import BUILTIN
+from .nav.registry import resolve as resolve_estimators
 from .nav.windows import make_windows
 from .sources.load import LogOptions
 from .sources.load import load_drive as _load_drive
@@ -432,12 +433,15 @@ def _summary_markdown(result: DriveResult, report: Report, description: str) -> 
     return run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
 
 
-def serve_web(replayed: ReplayResult, grpc_port: int = 9876, web_port: int = 9090):
+def serve_web(replayed: ReplayResult, grpc_port: int | None = None, web_port: int | None = None):
     """Serve a replay's recording to browsers from this process (Rerun's gRPC server and web
-    viewer); returns a :class:`ionav_viz.viz.live.WebServer` whose ``web_url`` to open. The
-    servers stop when the process ends."""
+    viewer, on ports ``viz.live.DEFAULT_GRPC_PORT`` and ``DEFAULT_WEB_PORT`` unless given);
+    returns a :class:`ionav_viz.viz.live.WebServer` whose ``web_url`` to open. The servers stop
+    when the process ends."""
     from .viz import live
 
+    grpc_port = live.DEFAULT_GRPC_PORT if grpc_port is None else grpc_port
+    web_port = live.DEFAULT_WEB_PORT if web_port is None else web_port
     return live.serve_web(replayed.result, _summary_markdown(replayed.result, replayed.report, replayed.placement),
                           replayed.events, grpc_port=grpc_port, web_port=web_port)
 

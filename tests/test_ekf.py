@@ -9,7 +9,7 @@ import pytest
 
 import ionav_viz as iv
 from ionav_viz.core.units import G_MPS2
-from ionav_viz.nav.ekf import BA, BG, S, forward
+from ionav_viz.nav.planar_filter import BA, BG, S, forward
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sim.simulate import ideal_sensors_with, write_simulated_drive
 from ionav_viz.sources.iovnbd import HEADER

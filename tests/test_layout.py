@@ -12,12 +12,40 @@ LAYERS = ["core", "dataset", "sources", "nav", "analysis", "sim", "viz", "api", 
 
 
 def _layer(module: str) -> str | None:
+    """The layer of a module (``ionav_viz.nav.ins`` -> ``nav``). The package itself, or a name
+    taken from it (``from .. import __version__``), is its ``__init__``: it re-exports the API."""
     parts = module.split(".")
-    return parts[1] if len(parts) > 1 and parts[0] == "ionav_viz" else None
+    if parts[0] != "ionav_viz":
+        return None
+    if len(parts) == 1 or not _is_module(parts[1]):
+        return "api"
+    return parts[1]
+
+
+def _is_module(name: str) -> bool:
+    return (PACKAGE / name).is_dir() or (PACKAGE / f"{name}.py").is_file()
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE.parent).with_suffix("")
+    return ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+
+
+def _resolve(name: str) -> str:
+    """``ionav_viz.nav.protocol.Estimate`` -> the module ``ionav_viz.nav.protocol``; a module stays."""
+    parts = name.split(".")
+    while len(parts) > 1:
+        path = PACKAGE.parent.joinpath(*parts)
+        if path.is_dir() or path.with_suffix(".py").is_file():
+            return ".".join(parts)
+        parts = parts[:-1]
+    return "ionav_viz"
 
 
 def _imports(path: Path) -> list[str]:
-    """Every ionav_viz module ``path`` imports (absolute names), lazily inside functions too."""
+    """Every ionav_viz module or name ``path`` imports (absolute names), lazily inside functions
+    too; every form: ``import ionav_viz.x``, ``from ionav_viz.x import y``, ``from .x import y``,
+    ``from . import x``, ``from .. import x``."""
     rel = path.relative_to(PACKAGE.parent).with_suffix("")
     package = list(rel.parts[:-1])  # the package a module (or an __init__) belongs to
     out = []
@@ -26,13 +54,47 @@ def _imports(path: Path) -> list[str]:
             if node.level:
                 base = package[: len(package) - node.level + 1]
                 target = ".".join(base + ([node.module] if node.module else []))
-                names = [target] if node.module else [f"{target}.{a.name}" for a in node.names]
             else:
-                names = [node.module or ""]
-            out += [n for n in names if n.startswith("ionav_viz")]
+                target = node.module or ""
+            out += [f"{target}.{a.name}" for a in node.names if target.startswith("ionav_viz")]
         elif isinstance(node, ast.Import):
             out += [a.name for a in node.names if a.name.startswith("ionav_viz")]
     return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the ionav_viz modules it imports (lazy imports too; the package's __init__ left
+    out: it only re-exports names, lazily)."""
+    graph: dict[str, set[str]] = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        name = _module_name(path)
+        if name == "ionav_viz":
+            continue
+        graph[name] = {_resolve(t) for t in _imports(path)} - {name, "ionav_viz"}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import circle of ``graph`` (``[a, b, ..., a]``), or None."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
 
 
 def test_imports_go_one_way_only():
@@ -62,6 +124,82 @@ def test_the_check_catches_an_upward_import(tmp_path, monkeypatch):
             assert "nav/_layer_probe.py imports ionav_viz.cli" in str(exc)
         else:
             raise AssertionError("an upward import was not reported")
+    finally:
+        fake.unlink()
+
+
+def test_the_check_reads_imports_of_the_package_itself(tmp_path):
+    """``from .. import __version__`` in nav imports the package's __init__, which re-exports the
+    API: an arrow against the flow."""
+    fake = PACKAGE / "nav" / "_layer_probe.py"
+    fake.write_text("def f():\n    from .. import __version__\n")
+    try:
+        try:
+            test_imports_go_one_way_only()
+        except AssertionError as exc:
+            assert "nav/_layer_probe.py imports ionav_viz.__version__" in str(exc)
+        else:
+            raise AssertionError("an import of the package from nav was not reported")
+    finally:
+        fake.unlink()
+
+
+def test_no_import_circle():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, " -> ".join(cycle or [])
+
+
+def test_the_circle_check_finds_a_circle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+    graph = import_graph()
+    assert "ionav_viz.nav.protocol" in graph["ionav_viz.nav.ins"]  # lazy and module-level imports are both edges
+    assert "ionav_viz.nav.ins" in graph["ionav_viz.nav.registry"]
+
+
+def _constants(path: Path) -> set[str]:
+    """UPPER_CASE names assigned at the top level of a module."""
+    names = set()
+    for node in ast.parse(path.read_text()).body:
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        for target in targets:
+            for name in [target] if isinstance(target, ast.Name) else getattr(target, "elts", []):
+                if isinstance(name, ast.Name) and name.id.isupper() and len(name.id) > 1:
+                    names.add(name.id)
+    return names
+
+
+def test_every_constant_has_one_home():
+    """An UPPER_CASE module constant is assigned in one module of the package (no second copy, no
+    alias such as ``RATE_HZ = GRID_RATE_HZ``), and is imported from that module (no re-export)."""
+    homes: dict[str, list[str]] = {}
+    defined: dict[str, set[str]] = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        names = _constants(path)
+        defined[_module_name(path)] = names
+        for name in names:
+            homes.setdefault(name, []).append(str(path.relative_to(PACKAGE)))
+    twice = {name: where for name, where in homes.items() if len(where) > 1}
+    assert not twice, twice
+    through = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for target in _imports(path):
+            module, _, name = target.rpartition(".")
+            if name.isupper() and len(name) > 1 and module in defined and name not in defined[module]:
+                through.append(f"{path.relative_to(PACKAGE)} imports {name} from {module}, which does not define it")
+    assert not through, through
+
+
+def test_the_constant_check_finds_a_copy():
+    fake = PACKAGE / "nav" / "_constant_probe.py"
+    fake.write_text("GRID_RATE_HZ = 10.0\n")
+    try:
+        try:
+            test_every_constant_has_one_home()
+        except AssertionError as exc:
+            assert "GRID_RATE_HZ" in str(exc) and "nav/_constant_probe.py" in str(exc)
+        else:
+            raise AssertionError("a second GRID_RATE_HZ was not reported")
     finally:
         fake.unlink()
 

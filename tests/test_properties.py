@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from ionav_viz.analysis.metrics import aeps, cae, crse, sequence_metrics
 from ionav_viz.core.errors import InputError
-from ionav_viz.nav.estimators import Solution
+from ionav_viz.nav.protocol import Solution
 from ionav_viz.nav.track import Track
 from ionav_viz.sources.iovnbd import HEADER, HEADER_LINE, read_iovnbd
 

@@ -18,9 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..core.drive import Drive
+from ..core.geo import wgs84
 from ..nav.bias import SensorBias
-from ..nav.estimators import Estimator, EstimatorInputs, solve
 from ..nav.outages import bridging
+from ..nav.protocol import Estimator, EstimatorInputs, solve
 from ..nav.track import Track
 from ..nav.windows import Windows
 
@@ -63,9 +64,7 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
                         bias: SensorBias) -> tuple[list[BridgedOutage], int]:
     """Every estimator through each GNSS gap ``(last good fix s, first good fix s)``; returns the
     bridged outages and how many gaps could not be bridged (a data gap, an end of the drive)."""
-    from pyproj import Geod
-
-    geod = Geod(ellps="WGS84")
+    geod = wgs84()
     placed = bridging(windows, gaps)
     out: list[BridgedOutage] = []
     for number, (i, k, n) in enumerate(placed, start=1):

@@ -2,7 +2,7 @@
 
 :func:`evaluate_drive` is the one pure entry point that ``evaluate``, ``replay`` and the Python
 API use: it cuts the drive into windows, places the outages (the paper's tiling by default),
-runs every estimator on them (:func:`ionav_viz.nav.estimators.solve` checks the output and
+runs every estimator on them (:func:`ionav_viz.nav.protocol.solve` checks the output and
 rebuilds the track) and computes the paper's metrics per outage. The result is a
 :class:`DriveResult`; :mod:`ionav_viz.analysis.report` turns results into reports.
 """
@@ -19,9 +19,10 @@ from ..core.drive import Drive
 from ..core.gnss_quality import count_by_fault
 from ..core.timing import stage
 from ..nav.bias import SensorBias, resolve_bias
-from ..nav.estimators import BASELINE, Estimator, EstimatorInputs, Solution, describe, solve
-from ..nav.estimators import resolve as resolve_estimators
 from ..nav.outages import excluded_by_truth, outage_windows, tile
+from ..nav.protocol import Estimator, EstimatorInputs, Solution, describe, solve
+from ..nav.registry import BASELINE
+from ..nav.registry import resolve as resolve_estimators
 from ..nav.windows import Windows, make_windows
 from .bridging import BridgedOutage, bridge_gnss_outages
 from .metrics import METRICS, sequence_metrics, truth_for
@@ -47,7 +48,7 @@ class DriveResult:
         outage_s: outage length (s); ``starts``: first window index of each outage.
         bias: the sensor biases every estimator was given.
         estimators: the estimators, in report order.
-        estimates: per estimator name, its :class:`~ionav_viz.nav.estimators.Solution` (per-window
+        estimates: per estimator name, its :class:`~ionav_viz.nav.protocol.Solution` (per-window
             displacement and yaw rate, and the rebuilt track).
         metrics: per estimator name, each of :data:`METRICS` as an array (n_outages,).
         excluded_outages: how many outages the placement would have put on bad GNSS truth.
@@ -120,7 +121,7 @@ def evaluate_drive(
 ) -> DriveResult:
     """Every estimator on the outages ``starts`` (default: the paper's tiling) of ``drive``.
 
-    ``estimators``: names or objects (see :func:`ionav_viz.nav.estimators.resolve`); default the
+    ``estimators``: names or objects (see :func:`ionav_viz.nav.registry.resolve`); default the
     INS, plus the IDNN when ``model`` (an IDNN model or its directory) is given. ``bias``: default
     from the drive's own stationary stretches. ``excluded_outages``: how many outages the caller's
     placement lost to bad GNSS truth (counted here for the default tiling). ``gnss_gaps``: the

@@ -56,12 +56,12 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.grid import GRID_RATE_HZ
 from ..core.overrides import with_overrides
+from ..core.runs import run_ranges
 from ..core.units import G_MPS2
 
 GNSS_OUTAGE = "gnss-outage"  # a real loss of GNSS in the log, not a manoeuvre
 MANOEUVRE_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
 EVENT_TYPES = (*MANOEUVRE_TYPES, GNSS_OUTAGE)
-RATE_HZ = GRID_RATE_HZ
 
 
 #: Plausible range of each threshold (values outside are refused before any work; smoothing
@@ -153,7 +153,7 @@ def signals_of(drive: Drive, th: EventThresholds) -> Signals:
     from ..nav.bias import estimate_bias
 
     t = drive.t_s
-    grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / RATE_HZ)
+    grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / GRID_RATE_HZ)
     k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
     good = drive.gnss_ok
     valid = ((t[k] - t[k - 1]) <= 1.0) & good[k] & good[k - 1]  # nothing is seen inside bad GNSS
@@ -166,21 +166,15 @@ def signals_of(drive: Drive, th: EventThresholds) -> Signals:
 def smoothed_signals(t_s: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, valid: np.ndarray,
                      th: EventThresholds) -> Signals:
     """Signals on a 10 Hz grid: acceleration from the smoothed speed, smoothed yaw rate."""
-    yaw = _smooth(yaw_rate_radps, th.yaw_smooth_s, RATE_HZ)
-    accel = _smooth(np.gradient(_smooth(speed_mps, th.accel_smooth_s, RATE_HZ), t_s), th.accel_smooth_s, RATE_HZ)
+    yaw = _smooth(yaw_rate_radps, th.yaw_smooth_s, GRID_RATE_HZ)
+    accel = _smooth(np.gradient(_smooth(speed_mps, th.accel_smooth_s, GRID_RATE_HZ), t_s), th.accel_smooth_s, GRID_RATE_HZ)
     return Signals(t_s, speed_mps, accel, yaw, valid)
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Index ranges [i0, i1) where ``mask`` is True."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
 def detect_hard_brakes(s: Signals, th: EventThresholds) -> list[Event]:
     out = []
     braking = (s.accel_mps2 <= -th.brake_onset_g * G_MPS2) & s.valid
-    for i0, i1 in _runs(braking):
+    for i0, i1 in run_ranges(braking):
         peak = float(s.accel_mps2[i0:i1].min())
         if peak <= -th.hard_brake_g * G_MPS2:
             out.append(Event("hard-brake", s.t_s[i0], s.t_s[i1 - 1], {
@@ -201,10 +195,10 @@ class _Turn:
 
 def turning_segments(s: Signals, th: EventThresholds) -> list[_Turn]:
     """Maximal one-signed stretches of turning faster than ``turn_rate_radps``."""
-    dt = 1.0 / RATE_HZ
+    dt = 1.0 / GRID_RATE_HZ
     turns = []
     for sign in (1, -1):
-        for i0, i1 in _runs((sign * s.yaw_rate_radps >= th.turn_rate_radps) & s.valid):
+        for i0, i1 in run_ranges((sign * s.yaw_rate_radps >= th.turn_rate_radps) & s.valid):
             heading = float(np.sum(s.yaw_rate_radps[i0:i1]) * dt)
             dist = float(np.sum(s.speed_mps[i0:i1]) * dt)
             radius = dist / abs(heading) if heading else np.inf
@@ -253,7 +247,7 @@ def detect_quick_accel(s: Signals, th: EventThresholds) -> list[Event]:
     a = s.accel_mps2
     peaks = []
     for sign in (1, -1):
-        for i0, i1 in _runs((sign * a >= th.quick_accel_peak_mps2) & s.valid):
+        for i0, i1 in run_ranges((sign * a >= th.quick_accel_peak_mps2) & s.valid):
             i = i0 + int(np.argmax(sign * a[i0:i1]))
             peaks.append((i, sign))
     peaks.sort()
@@ -267,11 +261,11 @@ def detect_quick_accel(s: Signals, th: EventThresholds) -> list[Event]:
 
 
 def detect_cruise(s: Signals, th: EventThresholds) -> list[Event]:
-    steady = _smooth(s.accel_mps2, th.cruise_smooth_s, RATE_HZ)  # a moment's noise does not end a cruise
+    steady = _smooth(s.accel_mps2, th.cruise_smooth_s, GRID_RATE_HZ)  # a moment's noise does not end a cruise
     calm = ((s.speed_mps >= th.cruise_min_speed_mps) & (np.abs(steady) <= th.cruise_max_accel_mps2)
             & (np.abs(s.yaw_rate_radps) <= th.cruise_max_yaw_radps) & s.valid)
     out = []
-    for i0, i1 in _runs(calm):
+    for i0, i1 in run_ranges(calm):
         if s.t_s[i1 - 1] - s.t_s[i0] >= th.cruise_min_s:
             out.append(Event("cruise", s.t_s[i0], s.t_s[i1 - 1], {"mean_speed_mps": float(s.speed_mps[i0:i1].mean())}))
     return out
@@ -282,7 +276,7 @@ def detect_gnss_outages(drive: Drive, th: EventThresholds) -> list[Event]:
     to the first good fix after (a stretch reaching an end of the drive has no such fix: left out)."""
     bad = ~drive.gnss_ok
     out = []
-    for i0, i1 in _runs(bad):
+    for i0, i1 in run_ranges(bad):
         if i0 == 0 or i1 >= len(drive):
             continue
         t0, t1 = float(drive.t_s[i0 - 1]), float(drive.t_s[i1])

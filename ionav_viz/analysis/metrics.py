@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..nav.estimators import Solution
+from ..core.geo import wgs84
+from ..nav.protocol import Solution
 from ..nav.windows import Windows
 
 METRICS = (
@@ -60,14 +61,12 @@ def truth_for(windows: Windows, starts: np.ndarray, n_windows: int) -> tuple[np.
 
 def sequence_metrics(windows: Windows, starts: np.ndarray, n_windows: int, est: Solution) -> dict[str, np.ndarray]:
     """All :data:`METRICS` for each sequence: arrays of shape (n_sequences,)."""
-    from pyproj import Geod
-
     disp_true, yaw_true = truth_for(windows, starts, n_windows)
     e_disp = disp_true - est.disp_m
     e_yaw = yaw_true - est.yaw_rate_radps
     last = np.asarray(starts) + n_windows - 1
     if len(last):
-        _, _, final = Geod(ellps="WGS84").inv(
+        _, _, final = wgs84().inv(
             est.track.lon_deg[:, -1], est.track.lat_deg[:, -1], windows.lon1_deg[last], windows.lat1_deg[last]
         )
     else:
@@ -98,14 +97,12 @@ def cumulative_errors(windows: Windows, starts: np.ndarray, n_windows: int, est:
     Running displacement CRSE and CAE (m), running orientation-rate CRSE (rad/s), and the 2D
     position error (m) at the end of each window (geodesic distance to the GNSS fix).
     """
-    from pyproj import Geod
-
     disp_true, yaw_true = truth_for(windows, starts, n_windows)
     e_disp = disp_true - est.disp_m
     e_yaw = yaw_true - est.yaw_rate_radps
     idx = np.asarray(starts)[:, None] + np.arange(n_windows)[None, :]
     if idx.size:
-        _, _, pos = Geod(ellps="WGS84").inv(est.track.lon_deg[:, 1:], est.track.lat_deg[:, 1:], windows.lon1_deg[idx], windows.lat1_deg[idx])
+        _, _, pos = wgs84().inv(est.track.lon_deg[:, 1:], est.track.lat_deg[:, 1:], windows.lon1_deg[idx], windows.lat1_deg[idx])
     else:
         pos = np.zeros(idx.shape)
     return {

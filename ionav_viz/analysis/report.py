@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..nav.estimators import short_label
+from ..nav.protocol import short_label
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
 from .tables import truth_line

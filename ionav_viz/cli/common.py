@@ -119,7 +119,8 @@ def estimator_args(names: Optional[str], plugins: Optional[list[str]], no_idnn: 
                    bias_from: Optional[str] = None) -> EstimatorArgs:
     """The estimators ``--estimators``, ``--estimator`` and ``--no-idnn`` choose, checked (plug-ins
     loaded) before any work."""
-    from ..nav.estimators import EstimatorError, load_plugin, resolve
+    from ..nav.protocol import EstimatorError
+    from ..nav.registry import load_plugin, resolve
 
     chosen: Optional[list[str]] = None
     if names is not None:

@@ -18,12 +18,9 @@ from .app import app
 
 def _fetch_root(option: Optional[Path]) -> Path:
     """Where fetch writes and list looks: --data-root, $IONAV_DATA, else the per-user data directory."""
-    import os
+    from ..dataset.fetch import configured_data_root, default_data_root
 
-    from ..dataset.fetch import default_data_root
-
-    value = option or (Path(os.environ["IONAV_DATA"]) if os.environ.get("IONAV_DATA") else None)
-    return (value or default_data_root()).expanduser()
+    return configured_data_root(option) or default_data_root()
 
 
 def _manifest(option: Optional[Path]):
@@ -37,7 +34,6 @@ def _manifest(option: Optional[Path]):
         raise InputError(f"{option}: cannot read the manifest ({exc.strerror})") from None
 
 
-ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 
 @app.command("list")

@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from ..viz.live import DEFAULT_CONNECT_URL
+from ..viz.live import DEFAULT_CONNECT_URL, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 from . import common as c
 from .app import app, log, name_options
 
@@ -24,8 +24,8 @@ def replay(
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards (needs a display)."),
     connect: Optional[str] = typer.Option(None, "--connect", metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
     serve_web: bool = typer.Option(False, "--serve-web", help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),
-    grpc_port: int = typer.Option(9876, "--grpc-port", help="--serve-web: the port of the recording's gRPC server."),
-    web_port: int = typer.Option(9090, "--web-port", help="--serve-web: the port of the web viewer."),
+    grpc_port: int = typer.Option(DEFAULT_GRPC_PORT, "--grpc-port", help="--serve-web: the port of the recording's gRPC server."),
+    web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", help="--serve-web: the port of the web viewer."),
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)

@@ -24,7 +24,7 @@ def simulate(
 ) -> None:
     """Write a synthetic drive in the exact IO-VNBD V-*.csv format."""
     from ..dataset.samples import SAMPLES
-    from ..sim.simulate import FLEETS, SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
+    from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
 
     if bundled is not None:
         bundled.mkdir(parents=True, exist_ok=True)
@@ -35,8 +35,8 @@ def simulate(
         return
     if scenario is None or output is None:
         raise typer.BadParameter("give a SCENARIO and -o FILE.csv (or --bundled DIR)")
-    if scenario not in SCENARIOS:
-        raise typer.BadParameter(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}", param_hint="SCENARIO")
+    if scenario not in SIMULATED_SCENARIOS:
+        raise typer.BadParameter(f"unknown scenario {scenario!r}; choose one of {', '.join(SIMULATED_SCENARIOS)}", param_hint="SCENARIO")
     seconds = c.duration_s(duration, "--duration")
     if gnss_loss < 0:
         raise typer.BadParameter(f"{gnss_loss}: give 0 or more losses", param_hint="--gnss-loss")

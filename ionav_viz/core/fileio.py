@@ -39,6 +39,13 @@ def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
     return target
 
 
+def current_umask() -> int:
+    """The process's file-creation mask (reading it means setting it: set back at once)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` if the block succeeds.
@@ -68,9 +75,7 @@ def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = Fal
     try:
         release()  # a signal held back since before mkstemp is delivered here, inside the cleanup
         os.close(fd)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; outputs get the usual permissions
+        os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp creates 0600; outputs get the usual permissions
         yield tmp
         os.replace(tmp, target)
     except OSError as exc:

@@ -1,8 +1,20 @@
-"""Positions on a local plane: WGS84 latitude/longitude to east/north metres around an origin."""
+"""Geodesy on WGS84: geodesics between positions, and positions on a local east-north plane."""
 
 from __future__ import annotations
 
+from functools import cache
+from typing import Any
+
 import numpy as np
+
+
+@cache
+def wgs84() -> Any:
+    """The WGS84 ellipsoid's geodesics (a ``pyproj.Geod``: ``inv`` for distance and azimuths,
+    ``fwd`` to move along a geodesic); pyproj imported on first use."""
+    from pyproj import Geod
+
+    return Geod(ellps="WGS84")
 
 
 def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .overrides import with_overrides
+from .runs import true_runs
 
 
 class GnssFault(enum.IntFlag):
@@ -150,8 +151,7 @@ def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: Gnss
     if not same.any():
         return fault
     # runs of repeated positions: samples first+1 .. last repeat sample first
-    edges = np.diff(np.concatenate([[0], same.astype(np.int8), [0]]))
-    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    first, last = true_runs(same)
     speed_sum = np.concatenate([[0.0], np.cumsum(speed)])
     mean_speed = (speed_sum[last + 1] - speed_sum[first + 1]) / (last - first)
     moving = mean_speed >= limits.moving_mps

@@ -52,6 +52,13 @@ def default_data_root() -> Path:
     return Path(user_data_dir("ionav-viz", appauthor=False)) / "IO-VNBD"
 
 
+def configured_data_root(option: str | Path | None) -> Path | None:
+    """The data root the user chose: the option, else ``$IONAV_DATA``, else None (then the
+    per-user :func:`default_data_root` applies); ``~`` expanded."""
+    value = option if option not in (None, "") else os.environ.get("IONAV_DATA") or None
+    return Path(value).expanduser() if value is not None else None
+
+
 def base_url(option: str | None) -> str:
     """The repository root to download from: the option, ``$IONAV_BASE_URL``, or the dataset's; checked."""
     url = (option or os.environ.get("IONAV_BASE_URL") or DEFAULT_BASE_URL).rstrip("/")

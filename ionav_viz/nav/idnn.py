@@ -15,7 +15,7 @@ Two models predict once per 1-second window:
 Inputs are bias-corrected with the same stationary biases as the INS (the paper's a_INS,
 Eq. 10; ``inputs="plain"``), so a model carries over between cars with different mount tilts.
 With ``inputs="calibrated"`` (beyond the paper) they are corrected instead by what the GNSS-aided
-INS (:mod:`ionav_viz.nav.ekf`) has learnt at the outage start: the accelerometer offset (bias,
+INS (:mod:`ionav_viz.nav.planar_filter`) has learnt at the outage start: the accelerometer offset (bias,
 tilt and the road grade there), the gyro bias and the gyro scale error. Every feature group
 and the target are min-max normalised to [0, 1] with the training statistics, stored with the
 model. With ``residual`` (default, beyond the paper) each network learns a correction to a
@@ -36,25 +36,23 @@ import math
 import stat
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.fileio import current_umask
 from ..core.grid import GRID_STEP_S, WINDOW_S
 from .bias import SensorBias
+from .planar_filter import SensorCalibration, calibration
+from .protocol import Estimate, EstimatorInputs
 from .windows import Windows
-
-if TYPE_CHECKING:
-    from .ekf import SensorCalibration
-    from .estimators import Estimate, EstimatorInputs
 
 log = logging.getLogger("ionav_viz")
 
 ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
 INPUTS = ("plain", "calibrated")
 FORMAT_VERSION = 2
-STEP_S = GRID_STEP_S  # one time step of the windows' grid
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 
 
@@ -119,12 +117,12 @@ def kinematic_weights(n_steps: int) -> np.ndarray:
 
     With a window of 1 s, ``d_t - d_{t-1} = integral of K(tau) a(tau) dtau`` over the two windows,
     with the triangular kernel ``K = 1 - |tau|`` (tau in s, 0 at the start of window t). The
-    samples at tau = 1 - (n_steps - 1 - j) * STEP_S get ``K * STEP_S`` (the trapezoid rule on
+    samples at tau = 1 - (n_steps - 1 - j) * GRID_STEP_S get ``K * GRID_STEP_S`` (the trapezoid rule on
     the 10 Hz grid): 20 steps give the exact increment for piecewise-linear acceleration; fewer
     steps miss part of the previous window, so the weights are rescaled to sum to 1 and a
     constant acceleration still gives its exact increment.
     """
-    tau = 1.0 - (n_steps - 1 - np.arange(n_steps)) * STEP_S
+    tau = 1.0 - (n_steps - 1 - np.arange(n_steps)) * GRID_STEP_S
     k = np.clip(1.0 - np.abs(tau), 0.0, None)
     if k.sum() <= 0:  # a single sample at tau = 1: fall back to it alone
         k = np.ones(n_steps)
@@ -318,7 +316,7 @@ class IdnnModel:
         gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps_yaw)
         if self.config.inputs == "calibrated":
             if calibration is None:
-                raise ValueError("this model takes calibrated inputs: pass the filter's calibration (ionav_viz.nav.ekf.calibration)")
+                raise ValueError("this model takes calibrated inputs: pass the filter's calibration (ionav_viz.nav.planar_filter.calibration)")
             # the road driven since the start, as the speed there would take it (the grade part fades)
             at_start = calibration.at(np.broadcast_to(starts[:, None], idx.shape))
             driven = windows.speed0_mps[starts][:, None] * WINDOW_S * np.arange(n_windows)[None, :]
@@ -372,12 +370,8 @@ class IdnnEstimator:
         return self._model
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
-        from .estimators import Estimate
-
         model, cal = self.model, None
         if model.config.inputs == "calibrated":
-            from .ekf import calibration
-
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal)
         return Estimate(disp, yaw)
@@ -447,7 +441,7 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
         meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict(),
                     weights_sha256=checksums)
         (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
-        tmp.chmod(0o777 & ~_umask())
+        tmp.chmod(0o777 & ~current_umask())
         if directory.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{directory.name}.old.", dir=parent))
             old.rmdir()
@@ -459,14 +453,6 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-
-
-def _umask() -> int:
-    import os
-
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def load_model(directory: str | Path) -> IdnnModel:

@@ -11,19 +11,13 @@ The library rebuilds the 2D track from the last fix (:func:`ionav_viz.nav.track.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from .bias import SensorBias
-
-if TYPE_CHECKING:
-    from .estimators import Estimate, EstimatorInputs
-
-
-def trapezoid_mean(x: np.ndarray) -> np.ndarray:
-    """Mean over the last axis of samples on a uniform grid including both ends."""
-    return 0.5 * (x[..., 1:] + x[..., :-1]).mean(axis=-1)
+from .integrals import trapezoid_mean
+from .protocol import Estimate, EstimatorInputs
 
 
 def dead_reckon(accel_mps2: np.ndarray, gyro_radps: np.ndarray, speed0_mps: np.ndarray, bias: SensorBias,
@@ -57,8 +51,6 @@ class InsEstimator:
         return True
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
-        from .estimators import Estimate
-
         disp, yaw = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias, inputs.rate_hz)
         return Estimate(disp, yaw)
 

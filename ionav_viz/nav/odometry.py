@@ -17,56 +17,29 @@ the wheel speeds too).
 * Yaw rate: the gyro minus its standstill bias, averaged per window (as the INS).
 
 The drive must have a usable vehicle speed: a column that is missing, not finite, all zero or
-constant is not one (:func:`vehicle_speed`). The estimator then does not apply (it is left out
+constant is not one (:func:`ionav_viz.nav.vehicle_speed.vehicle_speed`). The estimator then does not apply (it is left out
 of the default set, said once at ``-v``) and choosing it explicitly is an error.
 """
 
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from .ins import trapezoid_mean
-
-if TYPE_CHECKING:
-    from .estimators import Estimate, EstimatorInputs
-    from .windows import Windows
+from .integrals import trapezoid_mean
+from .protocol import Estimate, EstimatorInputs
+from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed, why_no_vehicle_speed
+from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
 
 CALIBRATION_S = 120.0
 MIN_CALIBRATION_STEP_M = 1.0
 MIN_CALIBRATION_M = 100.0
-NOMINAL_RADIUS_M = 0.3
-
-#: Where a drive's vehicle speed comes from, in order of preference: (columns averaged, unit).
-SOURCES = (
-    (("wheel_speed_rl_radps", "wheel_speed_rr_radps"), "rad/s"),
-    (("speed_can_mps",), "m/s"),
-)
-
-
-def vehicle_speed(drive: Drive) -> tuple[np.ndarray, str, str] | None:
-    """The drive's usable vehicle speed: (values per sample, unit, description), or None."""
-    for columns, unit in SOURCES:
-        if not all(c in drive.columns for c in columns):
-            continue
-        values = np.mean([drive.columns[c] for c in columns], axis=0)
-        if np.isfinite(values).all() and np.any(values != 0) and np.ptp(values) > 0:
-            return values, unit, " and ".join(columns)
-    return None
-
-
-def _why_not(drive: Drive) -> str:
-    present = [c for cols, _ in SOURCES for c in cols if c in drive.columns]
-    if not present:
-        return "no wheel speeds or vehicle speed"
-    return f"its {', '.join(present)} {'is' if len(present) == 1 else 'are'} not usable (non-finite, all zero or constant)"
-
 
 def window_distance(windows: Windows, drive: Drive, values: np.ndarray) -> np.ndarray:
     """Trapezoid mean of ``values`` (per sample) over each window's 10 Hz grid, times 1 s."""
@@ -102,15 +75,13 @@ class OdometryEstimator:
     def applies(self, drive: Drive) -> bool:
         if vehicle_speed(drive) is not None:
             return True
-        log.info("%s: odometry left out: %s", drive.name, _why_not(drive))
+        log.info("%s: odometry left out: %s", drive.name, why_no_vehicle_speed(drive))
         return False
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
-        from .estimators import Estimate
-
         found = vehicle_speed(inputs.drive)
         if found is None:
-            raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and {_why_not(inputs.drive)}",
+            raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and {why_no_vehicle_speed(inputs.drive)}",
                              "leave odo out of --estimators for this drive", param="estimators")
         values, unit, source = found
         raw = window_distance(inputs.windows, inputs.drive, values)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.geo import wgs84
 from ..core.grid import WINDOW_S
 
 
@@ -32,9 +33,7 @@ def rebuild_track(
     yaw_rate_radps: np.ndarray,
 ) -> Track:
     """Dead-reckon all sequences at once; loops over the (few) windows, vectorised over sequences."""
-    from pyproj import Geod
-
-    geod = Geod(ellps="WGS84")
+    geod = wgs84()
     n_seq, n_win = disp_m.shape
     lat = np.empty((n_seq, n_win + 1))
     lon = np.empty((n_seq, n_win + 1))

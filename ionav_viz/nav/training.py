@@ -25,9 +25,11 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.grid import WINDOW_S
 from .bias import SensorBias
 from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
-from .windows import WINDOW_S, make_windows
+from .planar_filter import calibration
+from .windows import make_windows
 
 Progress = Callable[[str, int, int], None]
 
@@ -60,11 +62,9 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int,
     """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets.
 
     ``inputs="plain"`` corrects the samples with the standstill biases (the paper's); ``"calibrated"``
-    with the GNSS-aided INS's calibration (:func:`ionav_viz.nav.ekf.calibration`) of a window a seeded
+    with the GNSS-aided INS's calibration (:func:`ionav_viz.nav.planar_filter.calibration`) of a window a seeded
     random 0-9 s earlier in the same segment (:data:`CALIBRATION_LAG_WINDOWS`).
     """
-    from .ekf import calibration
-
     rng = np.random.default_rng([seed, 17])
     parts: list[tuple[np.ndarray, ...]] = []
     for drive, bias in drives:
@@ -207,9 +207,9 @@ def _sha256(path: str) -> str | None:
 
 
 def _versions() -> dict[str, Any]:
+    from importlib.metadata import version  # not the package's __version__: nav imports nothing above it
+
     import numpy
     import torch
 
-    from .. import __version__
-
-    return {"ionav_viz": __version__, "torch": torch.__version__, "numpy": numpy.__version__, "python": platform.python_version()}
+    return {"ionav_viz": version("ionav-viz"), "torch": torch.__version__, "numpy": numpy.__version__, "python": platform.python_version()}

@@ -32,10 +32,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core.drive import Drive
+from ..core.geo import wgs84
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, WINDOW_S, hold_course_when_slow
 from ..core.units import wrap_360
 
-__all__ = ["WINDOW_S", "Windows", "faults_between", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
+__all__ = ["Windows", "faults_between", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
 
 
 @dataclass
@@ -136,8 +137,6 @@ def make_windows(
     ``offset_s`` shifts every segment's grid start (training uses the offsets 0, 0.1, ... 0.9 s
     to see each second of a drive at every phase).
     """
-    from pyproj import Geod
-
     steps = int(round(rate_hz * WINDOW_S))
     heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps)
     heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
@@ -181,7 +180,7 @@ def make_windows(
     lon0, lon1 = starts_ends("lon")
     hdg0, hdg1 = starts_ends("hdg")
     spd0, _ = starts_ends("spd")
-    _, _, disp = Geod(ellps="WGS84").inv(lon0, lat0, lon1, lat1)
+    _, _, disp = wgs84().inv(lon0, lat0, lon1, lat1)
     # d(heading)/dt is clockwise; the drive model's yaw rate is counter-clockwise positive.
     gnss_yaw = -np.deg2rad(hdg1 - hdg0) / WINDOW_S
     return Windows(

@@ -62,6 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.events import EventThresholds
 from ..core.errors import InputError
 from ..core.fileio import check_output_file
 from ..core.grid import GRID_RATE_HZ
@@ -69,8 +70,10 @@ from ..core.units import G_MPS2
 from ..dataset.catalog import SCENARIOS as PAPER_SCENARIOS
 from ..sources.iovnbd import HEADER, write_iovnbd
 
-HARD_BRAKE_G = 0.45  # the paper's hard-brake threshold (Section 2)
-SCENARIOS = (*PAPER_SCENARIOS, "stationary")  # the paper's five, and a standing car for biases
+#: The paper's hard-brake threshold (Section 2), as the event detector has it by default.
+HARD_BRAKE_G = EventThresholds().hard_brake_g
+
+SIMULATED_SCENARIOS = (*PAPER_SCENARIOS, "stationary")  # the paper's five, and a standing car for biases
 TRUTH_RATE_HZ = 100.0
 OUTPUT_RATE_HZ = GRID_RATE_HZ  # IO-VNBD's rate
 
@@ -309,7 +312,7 @@ MAX_DURATION_S = 12 * 3600.0
 def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
     """The ground-truth motion of a scenario (100 Hz)."""
     if scenario not in _PLANS:
-        raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SCENARIOS)}")
+        raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SIMULATED_SCENARIOS)}")
     if not duration_s > 0:
         raise InputError(f"duration must be positive, got {duration_s} s", param="duration_s")
     if duration_s > MAX_DURATION_S:
@@ -317,7 +320,7 @@ def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
                          "simulate several shorter drives", param="duration_s")
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise InputError(f"seed {seed!r} must be a whole number >= 0", param="seed")
-    rng = np.random.default_rng([seed, SCENARIOS.index(scenario)])
+    rng = np.random.default_rng([seed, SIMULATED_SCENARIOS.index(scenario)])
     plan = _Plan()
     _PLANS[scenario](plan, rng, duration_s + 1.0)
     return plan.truth(duration_s)
@@ -334,7 +337,7 @@ def simulated_manoeuvres(scenario: str, seed: int, duration_s: float, gnss_losse
     (true speed and yaw rate at 10 Hz: no sensor errors, no road grade) by their definitions in
     :mod:`ionav_viz.events`.
     """
-    from ..analysis.events import EventThresholds, detect_cruise, detect_quick_accel, smoothed_signals
+    from ..analysis.events import detect_cruise, detect_quick_accel, smoothed_signals
 
     truth = plan_truth(scenario, seed, duration_s)
     step = int(round(TRUTH_RATE_HZ / OUTPUT_RATE_HZ))
@@ -391,7 +394,7 @@ def gnss_loss_spans(scenario: str, seed: int, duration_s: float, count: int) -> 
     if count == 0:
         return []
     truth = plan_truth(scenario, seed, duration_s)
-    rng = np.random.default_rng([seed, 2000 + SCENARIOS.index(scenario)])  # its own stream: the rest of the drive is unchanged
+    rng = np.random.default_rng([seed, 2000 + SIMULATED_SCENARIOS.index(scenario)])  # its own stream: the rest of the drive is unchanged
     spans: list[tuple[float, float, str]] = []
     for _ in range(50 * count):
         if len(spans) == count:
@@ -415,7 +418,7 @@ def simulate_rows(
 
     sensors = sensors if sensors is not None else SensorModel()
     truth = plan_truth(scenario, seed, duration_s)
-    rng = np.random.default_rng([seed, 1000 + SCENARIOS.index(scenario)])
+    rng = np.random.default_rng([seed, 1000 + SIMULATED_SCENARIOS.index(scenario)])
     dt = 1.0 / TRUTH_RATE_HZ
 
     # Truth integration at 100 Hz (trapezoid): heading (compass, rad), distance, east/north.
@@ -502,7 +505,7 @@ def simulate_rows(
         HEADER[7]: v_s * np.sin(np.arctan(g_s)) * 3.6,
         HEADER[8]: np.concatenate([[0.1], np.diff(t)]),
         HEADER[9]: np.degrees(np.arctan(2.5 * k_s)) * 15.0,
-        **_vehicle_speeds(np.random.default_rng([seed, 3000 + SCENARIOS.index(scenario)]), t, truth, sensors, half_track_m, wheel_radius_m),
+        **_vehicle_speeds(np.random.default_rng([seed, 3000 + SIMULATED_SCENARIOS.index(scenario)]), t, truth, sensors, half_track_m, wheel_radius_m),
         HEADER[14]: -r_meas_dps,
         HEADER[16]: accel_g,
         HEADER[17]: (v_s * v_s * k_s + rng.normal(0, 1, n) * 0.1 * (sensors.accel_noise_still_mps2 > 0)) / G_MPS2,

@@ -40,8 +40,9 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.grid import GRID_RATE_HZ
 from .plausibility import first_implausible, implausible
-from .resample import RATE_HZ, ImuBins, assemble_drive, drop_strays
+from .resample import ImuBins, assemble_drive, drop_strays
 
 log = logging.getLogger("ionav_viz")
 
@@ -172,7 +173,7 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
         log.warning("%s: %d of %d OXTS packets are not locked (navstat != %d); their positions are not truth",
                     oxts, int((~locked).sum()), len(t), NAVSTAT_LOCKED)
 
-    imu = ImuBins(1.0 / RATE_HZ, keep_samples=True, prepare=lambda block: block)
+    imu = ImuBins(1.0 / GRID_RATE_HZ, keep_samples=True, prepare=lambda block: block)
     imu.add_block(np.column_stack([t, col["af"], col["al"], col["au"], col["wf"], col["wl"], col["wu"]]))
     fixes = np.column_stack([t, col["lat"], col["lon"], col["alt"], col["pos_accuracy"]])[locked]
     course_deg = np.degrees(np.arctan2(col["ve"], col["vn"])) % 360.0

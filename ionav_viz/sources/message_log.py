@@ -50,9 +50,10 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.grid import GRID_RATE_HZ
 from .imu_frame import AXES, parse_imu_axes
 from .plausibility import first_implausible, implausible
-from .resample import RATE_HZ, ImuBins, assemble_drive, drop_strays, first_per_stamp
+from .resample import ImuBins, assemble_drive, drop_strays, first_per_stamp
 
 log = logging.getLogger("ionav_viz")
 
@@ -250,7 +251,7 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
             check(sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1], float(data[i, k]))
         return _imu_to_body(data, mapping)
 
-    imu = ImuBins(1.0 / RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=to_body)
+    imu = ImuBins(1.0 / GRID_RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=to_body)
 
     try:
         for topic, log_ns, msg in source.messages(sel.chosen):

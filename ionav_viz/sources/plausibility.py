@@ -36,8 +36,9 @@ from collections.abc import Callable
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.units import G_MPS2
 
-_G16_MPS2 = 16 * 9.80665
+_G16_MPS2 = 16 * G_MPS2
 
 #: column -> (lowest, highest) plausible value, in drive-model units.
 LIMITS: dict[str, tuple[float, float]] = {

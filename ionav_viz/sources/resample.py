@@ -39,7 +39,6 @@ from .plausibility import first_implausible
 
 log = logging.getLogger("ionav_viz")
 
-RATE_HZ = GRID_RATE_HZ
 MAX_GNSS_GAP_S = 1.0
 
 class ImuBins:
@@ -169,7 +168,7 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
     samples = imu.kept_samples()
     same_stamps = samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t)
-    if same_stamps and len(g_t) > 1 and float(np.median(np.diff(g_t))) >= 0.9 / RATE_HZ:
+    if same_stamps and len(g_t) > 1 and float(np.median(np.diff(g_t))) >= 0.9 / GRID_RATE_HZ:
         t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps at the grid rate: keep them
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
         has_fix = np.ones(len(t), dtype=bool)

@@ -23,13 +23,12 @@ from ..dataset.samples import SAMPLES, by_scenario, sample_path
 def data_root(option: str | Path | None) -> Path | None:
     """The data root from the option, else ``$IONAV_DATA``, else the per-user data directory
     that ``ionav-viz fetch`` fills (when it exists), else None."""
-    value = option if option not in (None, "") else os.environ.get("IONAV_DATA") or None
-    if value is None:
-        from ..dataset.fetch import default_data_root
+    from ..dataset.fetch import configured_data_root, default_data_root
 
+    root = configured_data_root(option)
+    if root is None:
         default = default_data_root()
         return default if default.is_dir() else None
-    root = Path(value).expanduser()
     if not root.is_dir():
         raise InputError(f"data root {root} is not a directory", "give the IO-VNBD checkout (or set IONAV_DATA to it)", param="data_root")
     return root

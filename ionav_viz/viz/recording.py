@@ -62,7 +62,7 @@ from ..analysis.metrics import cumulative_errors
 from ..core.errors import ToolFailure
 from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
-from ..nav.estimators import short_label
+from ..nav.protocol import short_label
 from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_label
 from .style import BAD_GNSS_COLOR, EVENT_COLOR, GNSS_COLOR, GNSS_LABEL, GRID_COLOR, GYRO_COLOR, GYRO_LABEL, OUTAGE_MARK_COLOR, SCALE_COLOR, estimator_colors
 

@@ -34,7 +34,8 @@ import numpy as np
 
 from ..core.errors import InputError, ToolFailure
 from ..core.signals import STOP_SIGNALS, raise_terminated
-from ..nav.estimators import BASELINE, short_label
+from ..nav.protocol import short_label
+from ..nav.registry import BASELINE
 from . import recording as rerun_log
 from .geometry import padded_bounds
 from .style import color_word

@@ -1,4 +1,4 @@
-"""Estimators as plug-ins: one protocol, the inputs every estimator gets, and how they are found.
+"""The estimator contract: what an estimator gets, what it returns, and how its output is checked.
 
 An estimator bridges GNSS outages. Given the outages of one drive (:class:`EstimatorInputs`) it
 returns, for every outage and every 1-second window of it, the distance travelled (m) and the
@@ -20,13 +20,8 @@ Writing one::
             disp = np.repeat(inputs.speed0_mps[:, None], inputs.n_windows, axis=1) * 1.0  # m per 1 s window
             return Estimate(disp_m=disp, yaw_rate_radps=np.zeros_like(disp))
 
-Use it with ``ionav-viz evaluate DRIVE --estimator mymodule:ConstantSpeed`` (a class or a
-no-argument factory), or register it in a package's metadata under the entry-point group
-``ionav_viz.estimators`` (``const = "mymodule:ConstantSpeed"``) and select it by name with
-``--estimators ins,const``.
-
-Optional members: ``color`` (RGB), ``applies(drive) -> bool`` (default: applies to every
-drive), ``describe() -> dict`` (shown in reports and recordings).
+How estimators are found by name, loaded as plug-ins and chosen by default is
+:mod:`ionav_viz.nav.registry`.
 
 Rule for fair comparison: GNSS inside an outage is the truth being scored. An estimator may
 read ``inputs.windows`` (the whole drive's windows) only *before* each outage's start window.
@@ -34,11 +29,7 @@ read ``inputs.windows`` (the whole drive's windows) only *before* each outage's 
 
 from __future__ import annotations
 
-import importlib
-import inspect
-import logging
 import re
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -50,14 +41,6 @@ from .bias import SensorBias
 from .track import Track, rebuild_track
 from .windows import Windows
 
-log = logging.getLogger("ionav_viz")
-
-#: The entry-point group that installed packages register estimators under.
-ENTRY_POINT_GROUP = "ionav_viz.estimators"
-#: The built-in estimators, in report order. ``ins`` is the paper's baseline (improvements are
-#: reported against it).
-BUILTIN = ("ins", "idnn", "odo", "ekf")
-BASELINE = "ins"
 _NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
 
 
@@ -154,12 +137,35 @@ class EstimatorInputs:
 
 @runtime_checkable
 class Estimator(Protocol):
-    """The estimator protocol (see the module docstring for an example)."""
+    """The estimator protocol: a ``name`` (a short lower-case identifier: JSON key and entity path
+    segment), a ``label`` (legends, table headers) and :meth:`estimate`.
+
+    Optional members, read with :func:`applies`, :func:`describe`, :func:`available` and
+    :func:`color_of` (an estimator without them gets the defaults):
+
+    * ``color``: RGB triple of 0-255 integers (default: a palette colour chosen by name);
+    * ``applies(drive) -> bool``: whether it can run on a drive (default: every drive);
+    * ``describe() -> dict``: what it is and what it used, shown in reports (default: nothing);
+    * ``available() -> bool``: whether it can run at all here, e.g. the IDNN needs a model
+      (default: yes); one that is not is left out of the default set.
+    """
 
     name: str
     label: str
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate: ...
+
+
+class OptionalMembers(Protocol):
+    """The optional members of :class:`Estimator`, for type checkers (see its docstring)."""
+
+    color: tuple[int, int, int]
+
+    def applies(self, drive: Drive) -> bool: ...
+
+    def describe(self) -> dict[str, Any]: ...
+
+    def available(self) -> bool: ...
 
 
 def short_label(label: str) -> str:
@@ -177,6 +183,18 @@ def describe(estimator: Estimator) -> dict[str, Any]:
     """The estimator's own description (its optional ``describe()``), for reports."""
     fn = getattr(estimator, "describe", None)
     return dict(fn()) if callable(fn) else {}
+
+
+def available(estimator: Estimator) -> bool:
+    """Whether ``estimator`` can run here at all (its optional ``available()``; default yes)."""
+    check = getattr(estimator, "available", None)
+    return bool(check()) if callable(check) else True
+
+
+def color_of(estimator: Estimator) -> tuple[int, int, int] | None:
+    """The estimator's own colour (its optional ``color``), or None."""
+    color = getattr(estimator, "color", None)
+    return None if color is None else tuple(color)  # type: ignore[return-value]
 
 
 def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
@@ -222,133 +240,6 @@ def _checked(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.nd
     return out[0], out[1]
 
 
-# --- finding estimators -------------------------------------------------------------------
-
-
-def builtin(name: str, model: Any = None) -> Estimator:
-    """A built-in estimator by name; ``model`` (an IDNN model or its directory) is for ``idnn``."""
-    if name == "ins":
-        from .ins import InsEstimator
-
-        return InsEstimator()
-    if name == "idnn":
-        from .idnn import IdnnEstimator
-
-        return IdnnEstimator(model)
-    if name == "odo":
-        from .odometry import OdometryEstimator
-
-        return OdometryEstimator()
-    if name == "ekf":
-        from .ekf import EkfEstimator
-
-        return EkfEstimator()
-    raise EstimatorError(f"unknown built-in estimator {name!r}", f"choose from {', '.join(BUILTIN)}")
-
-
-def entry_points() -> dict[str, Any]:
-    """Estimators registered by installed packages under :data:`ENTRY_POINT_GROUP`, by name."""
-    from importlib.metadata import entry_points as eps
-
-    return {ep.name: ep for ep in eps(group=ENTRY_POINT_GROUP)}
-
-
-def load_plugin(spec: str) -> Estimator:
-    """``MODULE:NAME`` or ``PATH.py:NAME`` -> an estimator: NAME is a class or a no-argument factory.
-
-    A module is looked up as Python imports it, and then in the current directory (a console
-    script does not put it on ``sys.path``, ``python -m`` does); a path to a ``.py`` file is
-    loaded from that file, its folder added to ``sys.path`` so that it can import its neighbours.
-    """
-    module_spec, _, attr = spec.rpartition(":")  # rpartition: a Windows path has a drive colon
-    if not module_spec or not attr:
-        raise EstimatorError(f"estimator {spec!r}: expected MODULE:NAME or FILE.py:NAME",
-                             "e.g. 'mymodule:ConstantSpeed' or './myest.py:ConstantSpeed'", param="estimators")
-    try:
-        module = _import_file(module_spec) if _is_path(module_spec) else _import_module(module_spec)
-    except EstimatorError:
-        raise
-    except Exception as exc:
-        raise EstimatorError(
-            f"estimator {spec!r}: cannot import {module_spec} ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})",
-            "give a module importable from the current directory or installed, or a path like ./myest.py",
-        ) from exc
-    factory = module
-    for part in attr.split("."):
-        factory = getattr(factory, part, None)
-        if factory is None:
-            raise EstimatorError(f"estimator {spec!r}: {module_spec} has no {attr}", "name a class or a no-argument factory")
-    return _instantiate(factory, spec)
-
-
-def _is_path(module_spec: str) -> bool:
-    return module_spec.endswith(".py") or "/" in module_spec or "\\" in module_spec
-
-
-def _import_module(name: str) -> Any:
-    """Import ``name`` as Python would, falling back to the current directory (appended to
-    ``sys.path``, so a local file never shadows an installed package)."""
-    import os
-    import sys
-
-    try:
-        return importlib.import_module(name)
-    except ModuleNotFoundError as exc:
-        here = os.getcwd()
-        top = name.split(".")[0]
-        if exc.name != top or here in sys.path or "" in sys.path:
-            raise
-        sys.path.append(here)
-        return importlib.import_module(name)
-
-
-def _import_file(path_text: str) -> Any:
-    """Load a plug-in module from a ``.py`` file (registered in ``sys.modules`` under a private name)."""
-    import importlib.util
-    import sys
-    import zlib
-    from pathlib import Path
-
-    path = Path(path_text).expanduser()
-    if path.suffix != ".py":
-        raise EstimatorError(f"estimator file {path_text!r} is not a .py file", "give a Python file, e.g. ./myest.py:ConstantSpeed",
-                             param="estimators")
-    if not path.is_file():
-        raise EstimatorError(f"estimator file {path_text}: no such file", "check the path (relative to the current directory)",
-                             param="estimators")
-    path = path.resolve()
-    stem = re.sub(r"\W", "_", path.stem)
-    name = f"ionav_viz_plugin_{stem}_{zlib.crc32(str(path).encode()):08x}"  # one module per file
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
-        raise EstimatorError(f"estimator file {path_text}: cannot be loaded as a Python module", param="estimators")
-    module = importlib.util.module_from_spec(spec)
-    if str(path.parent) not in sys.path:
-        sys.path.append(str(path.parent))
-    sys.modules[name] = module  # before running it: dataclasses and pickling look the module up
-    try:
-        spec.loader.exec_module(module)
-    except BaseException:
-        del sys.modules[name]
-        raise
-    return module
-
-
-def _instantiate(factory: Any, origin: str) -> Estimator:
-    try:
-        # a class passes the protocol check by its class attributes: instantiate classes always
-        is_instance = not inspect.isclass(factory) and isinstance(factory, Estimator)
-        obj = factory if is_instance or not callable(factory) else factory()
-    except Exception as exc:
-        raise EstimatorError(
-            f"estimator {origin!r}: creating it failed ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})",
-            "NAME must be a class or a factory that takes no arguments",
-        ) from exc
-    return validate(obj, origin)
-
-
 def validate(obj: Any, origin: str = "") -> Estimator:
     """Check that ``obj`` follows the protocol; returns it."""
     where = f" ({origin})" if origin else ""
@@ -365,58 +256,3 @@ def validate(obj: Any, origin: str = "") -> Estimator:
     if color is not None and (len(tuple(color)) != 3 or not all(isinstance(c, int) and 0 <= c <= 255 for c in color)):
         raise EstimatorError(f"estimator {name!r}{where}: color {color!r} is not an RGB triple of 0-255 integers")
     return obj
-
-
-def resolve(
-    names: Sequence[str | Estimator] | None = None,
-    *,
-    plugins: Sequence[str | Estimator] = (),
-    without: Sequence[str] = (),
-    model: Any = None,
-) -> list[Estimator]:
-    """The estimators to run, in order, without duplicates.
-
-    ``names``: built-in names, entry-point names, ``MODULE:NAME`` / ``FILE.py:NAME`` specs or
-    estimator objects; None means every built-in but those in ``without`` (the IDNN only if a
-    model is available: the shipped one or ``model``). ``plugins`` are added after them
-    (``--estimator``).
-    """
-    explicit = names is not None
-    unknown = [w for w in without if w not in BUILTIN]
-    if unknown:
-        raise EstimatorError(f"cannot leave out {', '.join(map(repr, unknown))}: not a built-in estimator", f"built-ins: {', '.join(BUILTIN)}")
-    defaults = [n for n in BUILTIN if n not in without]
-    chosen: list[Estimator] = []
-    for item in list(defaults if names is None else names) + list(plugins):
-        if not isinstance(item, str):  # an object, a class or a factory
-            chosen.append(_instantiate(item, getattr(item, "__name__", type(item).__name__)))
-            continue
-        key = item.strip()
-        if ":" in key:
-            chosen.append(load_plugin(key))
-        elif key in BUILTIN:
-            est = builtin(key, model)
-            if not explicit and not est.available():  # type: ignore[attr-defined]
-                continue
-            chosen.append(est)
-        else:
-            found = entry_points()
-            if key not in found:
-                known = sorted(set(BUILTIN) | set(found))
-                raise EstimatorError(f"unknown estimator {key!r}", f"choose from {', '.join(known)}, or give MODULE:NAME")
-            try:
-                factory = found[key].load()
-            except Exception as exc:
-                raise EstimatorError(f"estimator {key!r}: its entry point {found[key].value} does not load "
-                                     f"({type(exc).__name__}: {exc})", "reinstall the package that provides it") from exc
-            chosen.append(_instantiate(factory, found[key].value))
-    seen: dict[str, Estimator] = {}
-    for est in chosen:
-        if est.name in seen:
-            if seen[est.name] is not est and type(seen[est.name]) is not type(est):
-                raise EstimatorError(f"two estimators are named {est.name!r}", "rename one of them")
-            continue
-        seen[est.name] = est
-    if not seen:
-        raise EstimatorError("no estimator to run", "choose at least one, e.g. ins", param="estimators")
-    return list(seen.values())

@@ -1,0 +1,384 @@
+"""A GNSS-aided INS on the planar vehicle model: the filter behind the ``ekf`` estimator
+(:mod:`ionav_viz.nav.ekf`) and the sensor calibration the IDNN's inputs are corrected with.
+
+The paper's INS restarts blind at every outage with the biases of a standstill. A filter running
+over the drive while GNSS is good also learns the accelerometer offset (bias, mount tilt and the
+slowly changing road grade) and the gyro bias as they are *at the outage*, and starts each
+outage from its own speed estimate instead of one noisy GNSS speed.
+
+State (8), on a local east-north plane (m) around the drive's first fix::
+
+    x = [e, n, v, psi, b_a, b_g, k, s]
+
+``e, n`` position (m), ``v`` speed along the course (m/s), ``psi`` course (rad, clockwise from
+north, as GNSS gives it), ``b_a`` accelerometer offset (m/s^2), ``b_g`` gyro bias (rad/s, on the
+counter-clockwise yaw rate), ``k`` the vehicle-speed scale (the drive's vehicle speed, converted
+with the nominal wheel radius, over the true speed), ``s`` the gyro's scale error (the gyro
+reads ``(1 + s)`` times the true yaw rate, plus ``b_g``; learnt from the GNSS course in turns).
+
+Propagation, once per 1-second window from its 11 inertial samples (trapezoid integrals over the
+window: ``F = int f dt``, ``G = int int f dt dt``, ``W = int omega dt``)::
+
+    v'   = v + F - b_a T                 psi' = psi - turn,  turn = (W - b_g T) / (1 + s)
+    d    = v T + G - b_a T^2 / 2         (distance along the window)
+    e'   = e + d sin(psi_mid)            n' = n + d cos(psi_mid),  psi_mid = psi - turn / 2
+
+with its Jacobian for the covariance, and process noise from the sensors' white noise and the
+offsets' random walks (:class:`EkfNoise`).
+
+Measurements at each window boundary where GNSS is good (the fix ends or starts a window with
+good truth): position (sigma :attr:`EkfNoise.gnss_position_m`, or the receiver's own when the drive has
+``gnss_sigma_m``), speed, and course while faster than 3 m/s (its noise grows as 1/speed). Where
+the drive has a vehicle speed (:func:`ionav_viz.nav.vehicle_speed.vehicle_speed`) it is a measurement
+``z = k v`` too, at every boundary, GNSS or not.
+
+Each outage starts from the filter's state at its first window (it has seen GNSS only before
+it) and is propagated through the outage without GNSS, still updated with the vehicle speed
+where there is one. Per window it reports the distance ``d`` and the yaw rate ``(W - b_g T) / T``.
+
+The offset the filter has learnt at an outage start is its slow part (bias and tilt: its mean
+over the last OFFSET_MEMORY_S) plus road grade, and road grade does not last: through the outage
+the grade part fades over GRADE_LENGTH_M of road.
+
+Noise values were chosen on the simulator's bundled test drives only (never on the real
+dataset), starting from its error model (``ionav_viz/sim/simulate.py``): sensor white noise as
+documented, the GNSS wander taken as white with its full standard deviation, the GNSS speed at
+0.05 m/s, and an offset random walk of 0.1 m/s^2/sqrt(s) loose enough to follow the road grade.
+Measured on those drives with the vehicle speed left out (`python benchmarks/ekf_tuning.py`):
+displacement CRSE 0.24-0.96 of the INS DR's, the motorway (grade changing within an outage at
+26 m/s) the closest.
+
+The filter's loops are compiled with numba (``cache=True``: the first run on a machine compiles
+them in about 6 s and stores the result in ``__pycache__``). Its pass over a drive runs at about
+4 million samples/s on our 2-core machine (`python benchmarks/bench_replay.py`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..core.drive import Drive
+from ..core.geo import local_en_m
+from ..core.grid import GRID_RATE_HZ
+from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+from .windows import Windows
+
+E, N, V, PSI, BA, BG, K, S = range(8)
+N_STATES = 8
+#: The GNSS course is a measurement only above this speed (m/s; its noise grows as 1/speed). Not the
+#: grid's course hold (:data:`ionav_viz.core.grid.MIN_COURSE_SPEED_MPS`), a meaning of its own.
+FILTER_COURSE_MIN_SPEED_MPS = 3.0
+#: The accelerometer offset's slow part (bias, mount tilt) is its mean over about this long (s);
+#: the rest is road grade, which an outage does not keep: it fades over GRADE_LENGTH_M of road.
+OFFSET_MEMORY_S = 120.0
+GRADE_LENGTH_M = 150.0
+
+
+@dataclass(frozen=True)
+class EkfNoise:
+    """Noise of the filter (1 sigma; random walks per sqrt(s)); see the module docstring."""
+
+    accel_white_mps2: float = 0.3
+    gyro_white_radps: float = np.deg2rad(0.25)
+    accel_offset_walk_mps2: float = 0.1
+    gyro_bias_walk_radps: float = np.deg2rad(0.005)
+    scale_walk: float = 1e-4
+    gyro_scale_walk: float = 1e-5
+    gnss_position_m: float = 1.0
+    gnss_speed_mps: float = 0.05
+    gnss_course_rad_at_10mps: float = np.deg2rad(0.5)
+    vehicle_speed_mps: float = 0.15
+    init_position_m: float = 1.0
+    init_speed_mps: float = 0.2
+    init_course_rad: float = np.deg2rad(2.0)
+    init_accel_offset_mps2: float = 0.3
+    init_gyro_bias_radps: float = np.deg2rad(0.5)
+    init_scale: float = 0.05
+    init_gyro_scale: float = 0.03
+
+
+@dataclass
+class Increments:
+    """Per window: ``F``, ``G``, ``W`` (see the module docstring) and its length ``T`` (s)."""
+
+    F: np.ndarray
+    G: np.ndarray
+    W: np.ndarray
+    T: float
+
+
+def increments(windows: Windows) -> Increments:
+    """Trapezoid integrals of each window's 11 accelerometer and gyro samples."""
+    h = 1.0 / windows.rate_hz
+    acc, gyr = windows.accel_mps2, windows.gyro_radps
+    dv = 0.5 * (acc[:, 1:] + acc[:, :-1]) * h  # per step
+    v_rel = np.concatenate([np.zeros((len(acc), 1)), np.cumsum(dv, axis=1)], axis=1)  # speed gained since the window start
+    G = (0.5 * (v_rel[:, 1:] + v_rel[:, :-1]) * h).sum(axis=1)
+    W = (0.5 * (gyr[:, 1:] + gyr[:, :-1]) * h).sum(axis=1)
+    return Increments(dv.sum(axis=1), G, W, h * (acc.shape[1] - 1))
+
+
+def noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """The process noise per window (diagonal, (8,)) and the initial standard deviations (8,)."""
+    q = np.zeros(N_STATES)
+    q[E] = q[N] = 0.01 * T
+    # white noise on each grid sample (variance sigma^2 step^2), summed over the T / step samples of a window
+    q[V] = noise.accel_white_mps2**2 * T / GRID_RATE_HZ
+    q[PSI] = noise.gyro_white_radps**2 * T / GRID_RATE_HZ
+    q[BA] = noise.accel_offset_walk_mps2**2 * T
+    q[BG] = noise.gyro_bias_walk_radps**2 * T
+    q[K] = noise.scale_walk**2 * T
+    q[S] = noise.gyro_scale_walk**2 * T
+    init = np.array([noise.init_position_m, noise.init_position_m, noise.init_speed_mps, noise.init_course_rad,
+                     noise.init_accel_offset_mps2, noise.init_gyro_bias_radps, noise.init_scale, noise.init_gyro_scale])
+    return q, init
+
+
+# The filter runs one small state per window, which numpy cannot batch along the drive: the
+# loops below are compiled by numba (cached on disk after the first run), about 50x faster
+# than the same numpy code per window (benchmarks/bench_replay.py).
+
+
+@njit(cache=True)
+def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
+    """One window, in place: the state ``x`` (8,) and covariance ``P`` (8, 8); returns the
+    distance along the window (m) and its mean yaw rate (rad/s, CCW +). ``J`` is scratch."""
+    v, psi, ba, bg, gain = x[V], x[PSI], x[BA], x[BG], 1.0 + x[S]
+    turn = (W - bg * T) / gain  # counter-clockwise, rad
+    mid = psi - 0.5 * turn
+    d = v * T + G - 0.5 * ba * T * T
+    s, c = np.sin(mid), np.cos(mid)
+    dturn_dbg, dturn_ds = -T / gain, -turn / gain
+    x[E] += d * s
+    x[N] += d * c
+    x[V] = v + F - ba * T
+    x[PSI] = psi - turn
+    J[:, :] = 0.0
+    for i in range(N_STATES):
+        J[i, i] = 1.0
+    # d(e, n) / d(v, psi, b_a, b_g, s); psi_mid depends on psi and (through the turn) on b_g and s
+    J[E, V], J[E, PSI], J[E, BA] = T * s, d * c, -0.5 * T * T * s
+    J[N, V], J[N, PSI], J[N, BA] = T * c, -d * s, -0.5 * T * T * c
+    J[E, BG], J[E, S] = -0.5 * d * c * dturn_dbg, -0.5 * d * c * dturn_ds
+    J[N, BG], J[N, S] = 0.5 * d * s * dturn_dbg, 0.5 * d * s * dturn_ds
+    J[V, BA] = -T
+    J[PSI, BG], J[PSI, S] = -dturn_dbg, -dturn_ds
+    _congruence(J, P, q)
+    return d, turn / T
+
+
+@njit(cache=True)
+def _congruence(J, P, q):  # pragma: no cover - compiled
+    """``P <- J P J^T + diag(q)`` in place."""
+    JP = np.empty((N_STATES, N_STATES))
+    _product(J, P, JP)
+    _product(JP, J.T, P)
+    for i in range(N_STATES):
+        P[i, i] += q[i]
+
+
+@njit(cache=True)
+def _product(A, B, out):  # pragma: no cover - compiled
+    """``out <- A @ B`` (``out`` neither ``A`` nor ``B``) with plain loops: numba's matrix product
+    needs SciPy's BLAS and compiles slowly."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            acc = 0.0
+            for m in range(A.shape[1]):
+                acc += A[i, m] * B[m, j]
+            out[i, j] = acc
+
+
+@njit(cache=True)
+def _update(x, P, H, z, h_x, r, wrap):  # pragma: no cover - compiled
+    """Scalar measurement ``z = h(x)`` (linearised ``H`` (8,)) with variance ``r``, in place;
+    angles (``wrap``) use the wrapped innovation."""
+    innov = z - h_x
+    if wrap:
+        innov = (innov + np.pi) % (2 * np.pi) - np.pi
+    PHt = np.zeros(N_STATES)
+    S = r
+    for i in range(N_STATES):
+        for j in range(N_STATES):
+            PHt[i] += P[i, j] * H[j]
+        S += H[i] * PHt[i]
+    for i in range(N_STATES):
+        x[i] += PHt[i] / S * innov
+    for i in range(N_STATES):
+        for j in range(i + 1):
+            p = 0.5 * ((P[i, j] - PHt[i] / S * PHt[j]) + (P[j, i] - PHt[j] / S * PHt[i]))
+            P[i, j] = P[j, i] = p
+
+
+@njit(cache=True)
+def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
+    """The vehicle speed ``z = k v``."""
+    H[:] = 0.0
+    H[V], H[K] = x[K], x[V]
+    _update(x, P, H, z, x[K] * x[V], r, False)
+
+
+@njit(cache=True)
+def _forward_kernel(segment, e, n, speed, course, good, sigma, vehicle, F, G, W, T, accel_offset, gyro_bias,
+                    q, init_sd, r_speed, course_sd_at_10mps, r_vehicle, alpha):  # pragma: no cover - compiled
+    nw = len(segment)
+    xs, Ps, slow = np.zeros((nw, N_STATES)), np.zeros((nw, N_STATES, N_STATES)), np.zeros(nw)
+    x, P = np.zeros(N_STATES), np.zeros((N_STATES, N_STATES))
+    J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
+    z, r = np.zeros(4), np.zeros(4)
+    mean = accel_offset
+    for k in range(nw):
+        if k == 0 or segment[k] != segment[k - 1]:
+            prior_x, prior_P = x.copy(), P.copy()
+            x[:] = (e[k], n[k], speed[k], course[k], accel_offset, gyro_bias, 1.0, 0.0)
+            P[:, :] = 0.0
+            for i in range(N_STATES):
+                P[i, i] = init_sd[i] ** 2
+            if k > 0:  # after a gap: keep what was learnt about the sensors
+                x[BA:] = prior_x[BA:]
+                P[BA:, BA:] = prior_P[BA:, BA:]
+        elif good[k]:
+            z[0], z[1], z[2], z[3] = e[k], n[k], speed[k], course[k]
+            r[0] = r[1] = sigma[k] ** 2
+            r[2] = r_speed
+            r[3] = (course_sd_at_10mps * 10.0 / max(speed[k], 1.0)) ** 2
+            for i in range(4 if speed[k] > FILTER_COURSE_MIN_SPEED_MPS else 3):  # course only when moving
+                H[:] = 0.0
+                H[i] = 1.0  # states E, N, V, PSI
+                _update(x, P, H, z[i], x[i], r[i], i == PSI)
+        xs[k], Ps[k] = x, P
+        mean += alpha * (x[BA] - mean)
+        slow[k] = mean
+        _propagate(x, P, F[k], G[k], W[k], T, q, J)
+        if np.isfinite(vehicle[k]):
+            _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+    return xs, Ps, slow
+
+
+@njit(cache=True)
+def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_vehicle, grade_length_m):  # pragma: no cover - compiled
+    m = len(starts)
+    disp, yaw = np.zeros((m, n_windows)), np.zeros((m, n_windows))
+    J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
+    for o in range(m):
+        k0 = starts[o]
+        x, P = xs[k0].copy(), Ps[k0].copy()
+        base = slow[k0]
+        grade0 = x[BA] - base
+        travelled = 0.0
+        for j in range(n_windows):
+            k = k0 + j
+            # the fast part of the offset is road grade: it fades over GRADE_LENGTH_M of road
+            x[BA] = base + grade0 * np.exp(-travelled / grade_length_m)
+            disp[o, j], yaw[o, j] = _propagate(x, P, F[k], G[k], W[k], T, q, J)
+            travelled += max(disp[o, j], 0.0)
+            if np.isfinite(vehicle[k]):
+                _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+    return disp, yaw
+
+
+@dataclass
+class Measurements:
+    """GNSS at every window boundary (arrays of n_windows + 1, local metres), and the vehicle
+    speed per window end (m/s, NaN where none)."""
+
+    e: np.ndarray
+    n: np.ndarray
+    speed: np.ndarray
+    course: np.ndarray
+    good: np.ndarray
+    sigma_m: np.ndarray
+    vehicle: np.ndarray
+
+
+def measurements(drive: Drive, windows: Windows, noise: EkfNoise, use_vehicle_speed: bool = True) -> Measurements:
+    """What the filter is updated with, at the start of every window and the end of the last
+    (the vehicle speed only with ``use_vehicle_speed``)."""
+    lat = np.concatenate([windows.lat0_deg, windows.lat1_deg[-1:]])
+    lon = np.concatenate([windows.lon0_deg, windows.lon1_deg[-1:]])
+    e, n = local_en_m(lat, lon, float(lat[0]), float(lon[0]))
+    speed = np.concatenate([windows.speed0_mps, windows.speed0_mps[-1:]])
+    course = np.deg2rad(np.concatenate([windows.heading0_deg, windows.heading1_deg[-1:]]))
+    ok = windows.truth_ok
+    good = np.concatenate([[ok[0]], ok[1:] | ok[:-1], [ok[-1]]])  # the fix ends or starts a good window
+    sigma = np.full(len(lat), noise.gnss_position_m)
+    if "gnss_sigma_m" in drive.columns:
+        t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + 1.0])
+        sigma = np.maximum(np.interp(t, drive.t_s, drive.columns["gnss_sigma_m"]), 0.3)
+    vehicle = np.full(len(windows), np.nan)
+    found = vehicle_speed(drive) if use_vehicle_speed else None
+    if found is not None:
+        values, unit, _ = found
+        per_s = values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0)
+        steps = int(round(windows.rate_hz))
+        vehicle = np.interp(windows.t0_s + steps / windows.rate_hz, drive.t_s, per_s)  # at each window's end
+    return Measurements(e, n, speed, course, good, sigma, vehicle)
+
+
+def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = EkfNoise()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The filter over the whole drive: its state and covariance at the start of every window,
+    having used the GNSS of earlier boundaries only (shapes (n_windows, 8) and (n_windows, 8, 8)),
+    and the offset's slow part there (its mean over the last ~OFFSET_MEMORY_S, (n_windows,))."""
+    return forward_states(windows, measurements(drive, windows, noise), increments(windows), accel_offset, gyro_bias, noise)
+
+
+def forward_states(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float,
+             noise: EkfNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    q, init = noise_arrays(noise, inc.T)
+    return _forward_kernel(np.ascontiguousarray(windows.segment, dtype=np.int64), meas.e, meas.n, meas.speed, meas.course,
+                           meas.good.astype(np.bool_), meas.sigma_m, meas.vehicle, inc.F, inc.G, inc.W, float(inc.T),
+                           float(accel_offset), float(gyro_bias), q, init, noise.gnss_speed_mps**2,
+                           float(noise.gnss_course_rad_at_10mps), noise.vehicle_speed_mps**2, inc.T / OFFSET_MEMORY_S)
+
+
+@dataclass
+class SensorCalibration:
+    """What the filter knows about the sensors at each window start, having seen GNSS only
+    before it (arrays over windows): the accelerometer offset (m/s^2) as its slow part (bias and
+    mount tilt) and the road grade there, the gyro bias (rad/s, on the counter-clockwise rate) and
+    its scale error.
+
+    A sample ``d`` metres of road later is corrected as the filter propagates an outage: ``f -
+    (accel_slow_mps2 + accel_grade_mps2 exp(-d / GRADE_LENGTH_M))`` and ``(omega - gyro_bias_radps)
+    / (1 + gyro_scale)``.
+    """
+
+    accel_slow_mps2: np.ndarray
+    accel_grade_mps2: np.ndarray
+    gyro_bias_radps: np.ndarray
+    gyro_scale: np.ndarray
+
+    def at(self, idx: np.ndarray) -> SensorCalibration:
+        """The calibration at windows ``idx`` (any shape)."""
+        return SensorCalibration(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+    def accel(self, accel_mps2: np.ndarray, distance_m: np.ndarray | float = 0.0) -> np.ndarray:
+        """Correct samples ``(..., steps)`` whose leading shape is this calibration's, ``distance_m``
+        (same leading shape) of road after the calibration's window."""
+        offset = self.accel_slow_mps2 + self.accel_grade_mps2 * np.exp(-np.asarray(distance_m) / GRADE_LENGTH_M)
+        return accel_mps2 - offset[..., None]
+
+    def gyro(self, gyro_radps: np.ndarray) -> np.ndarray:
+        return (gyro_radps - self.gyro_bias_radps[..., None]) / (1.0 + self.gyro_scale[..., None])
+
+
+#: The calibration's filter trusts the GNSS speed less (0.3 m/s) and lets the offset wander
+#: less (0.05 m/s^2/sqrt(s)) than ``ekf``'s: a speed fitted to fixes (logs without a velocity
+#: topic) lags in hard braking, and the IDNN must get the same inputs from such a log as from a
+#: receiver's Doppler speed (measured: CRSE within 5 % between a CSV and its 5-10 Hz fix-only MCAP).
+CALIBRATION_NOISE = EkfNoise(gnss_speed_mps=0.3, accel_offset_walk_mps2=0.05)
+
+
+def calibration(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = CALIBRATION_NOISE) -> SensorCalibration:
+    """The filter's sensor calibration at every window start (see :class:`SensorCalibration`),
+    started from the standstill biases ``accel_offset`` (m/s^2) and ``gyro_bias`` (rad/s).
+
+    From the IMU and GNSS alone, even where the drive has a vehicle speed: what calibrates the
+    IDNN's inputs then does not depend on whether a log carries wheel speeds (a CSV and its MCAP
+    conversion give the same calibration)."""
+    meas = measurements(drive, windows, noise, use_vehicle_speed=False)
+    xs, _, slow = forward_states(windows, meas, increments(windows), accel_offset, gyro_bias, noise)
+    return SensorCalibration(slow, xs[:, BA] - slow, xs[:, BG].copy(), xs[:, S].copy())
