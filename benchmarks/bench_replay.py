@@ -83,7 +83,7 @@ def replay_once(csv: Path, out: Path, model) -> tuple[float, float, DriveResult]
     start = time.perf_counter()
     drive = read_iovnbd(csv)
     chosen = [e for e in resolve(None, model=model) if applies(e, drive)]
-    result = evaluate_drive(drive, 10.0, bias=resolve_bias(drive), estimators=chosen)
+    result = evaluate_drive(drive, 10, chosen, bias=resolve_bias(drive))
     rep = Report([result]).to_dict()
     log_start = time.perf_counter()
     write_recording(result, render_markdown(rep), out)

@@ -32,6 +32,7 @@ from ionav_viz.analysis.evaluate import evaluate_drive, improvement_pct, resolve
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import SAMPLES, sample_path
 from ionav_viz.nav.idnn import ModelConfig, default_model_dir, load_model
+from ionav_viz.nav.registry import resolve
 from ionav_viz.nav.training import train_models
 from ionav_viz.sources.iovnbd import read_iovnbd
 
@@ -40,7 +41,7 @@ def compare(model, drives: dict) -> list[tuple[float, float]]:
     """Per scenario: the IDNN's improvement over the INS in % (displacement CRSE, orientation-rate CRSE)."""
     out = []
     for scenario in SCENARIOS:
-        result = evaluate_drive(drives[scenario], 10.0, model=model)
+        result = evaluate_drive(drives[scenario], 10, resolve(["ins", "idnn"], model=model))
         ins, idnn = result.metrics["ins"], result.metrics["idnn"]
         disp = improvement_pct(ins["crse_m"].mean(), idnn["crse_m"].mean())
         yaw = improvement_pct(ins["yaw_crse_radps"].mean(), idnn["yaw_crse_radps"].mean())

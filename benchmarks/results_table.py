@@ -87,7 +87,7 @@ def measure(model: str | None, minutes: float, seed_base: int) -> tuple[dict[str
                 "held-out": {sc: str(p) for sc, p in held_out_drives(Path(tmp), minutes, seed_base).items()}}
         for scenario in SCENARIOS:
             for name, drives in sets.items():
-                runs.append((scenario, name, iv.evaluate([drives[scenario]], 10.0, model=model).to_dict()))
+                runs.append((scenario, name, iv.evaluate([drives[scenario]], 10.0, run=iv.RunOptions(model=model)).to_dict()))
     labels = {e["name"]: e["label"] for e in runs[0][2]["estimators"]}
     return labels, runs
 

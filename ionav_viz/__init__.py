@@ -7,7 +7,8 @@ The public API (see "Python API" in the README, and docs/ for the reference)::
 
     drive = iv.load_drive("roundabout")
     report = iv.evaluate([drive], outage_s=10.0, estimators=["ins", "idnn"])
-    result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd")
+    result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd",
+                       run=iv.RunOptions(bias_from="stationary"), read=iv.ReadOptions(yaw_sign="auto"))
     iv.screenshot([result.path], "shots/", times=["worst"])
 
 Data flows one way through the subpackages (a test enforces it):
@@ -27,8 +28,8 @@ from typing import TYPE_CHECKING, Any
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "load_drive": "api", "evaluate": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
-    "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api",
+    "load_drive": "sources.load", "evaluate": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
+    "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
     "Estimate": "nav.protocol", "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol",
@@ -36,12 +37,17 @@ _EXPORTS = {
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
     "AroundEvents": "nav.outages",
-    "EventThresholds": "analysis.events", "Event": "analysis.events", "LogOptions": "sources.load", "McapOptions": "sources.load",
+    "EventThresholds": "analysis.events", "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
 
 def __getattr__(name: str) -> Any:
+    if name == "McapOptions":  # the earlier name of LogOptions, from when MCAP was the only message log
+        import warnings
+
+        warnings.warn("ionav_viz.McapOptions is deprecated: use ionav_viz.LogOptions", DeprecationWarning, stacklevel=2)
+        name = "LogOptions"
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'ionav_viz' has no attribute {name!r}")
@@ -58,10 +64,10 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .analysis.evaluate import DriveResult
     from .analysis.events import Event, EventThresholds
     from .analysis.report import Report
-    from .api import Outage, ReplayResult, evaluate, evaluate_by_event, load_drive, replay, scenario_drives, screenshot, serve_web
+    from .api import Outage, ReplayResult, RunOptions, evaluate, evaluate_by_event, replay, scenario_drives, screenshot, serve_web
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
     from .nav.bias import SensorBias
     from .nav.outages import AroundEvents, At, Every, Random, Tile
     from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs
-    from .sources.load import LogOptions, McapOptions
+    from .sources.load import LogOptions, ReadOptions, load_drive

@@ -19,29 +19,25 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from .analysis.evaluate import DriveResult, evaluate_drive
-from .analysis.events import EVENT_TYPES, GNSS_OUTAGE, MANOEUVRE_TYPES, Event, EventThresholds, detect_events
+from .analysis.events import EVENT_TYPES, MANOEUVRE_TYPES, Event, EventThresholds, detect_events
 from .analysis.report import Report, run_summary_markdown
 from .core.drive import Drive
 from .core.errors import InputError
 from .core.fileio import check_output_file
-from .core.gnss_quality import GnssLimits
 from .core.timing import stage
 from .dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from .nav.bias import SensorBias, resolve_bias
-from .nav.outages import AroundEvents, Placement, Tile, around, excluded_by_truth, outage_windows
+from .nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement, Tile, outage_windows
 from .nav.protocol import Estimator, applies
 from .nav.registry import BUILTIN
 from .nav.registry import resolve as resolve_estimators
-from .nav.windows import make_windows
-from .sources.load import LogOptions
-from .sources.load import load_drive as _load_drive
+from .nav.windows import Windows, make_windows
+from .sources.load import LogOptions, ReadOptions, load_drive, with_deprecated_log
 from .sources.resolve import data_root as _data_root
 
 log = logging.getLogger("ionav_viz")
@@ -77,35 +73,6 @@ class ReplayResult:
     def __repr__(self) -> str:
         return (f"ReplayResult({str(self.path)!r}\n  drive: {self.result.drive.name}, {len(self.outages)} outage(s): {self.placement}\n"
                 f"  {self.report.summary_line()}\n)")
-
-
-def load_drive(
-    spec: DriveLike,
-    data_root: str | Path | None = None,
-    *,
-    yaw_sign: str = "auto",
-    mcap: LogOptions | None = None,
-    gnss_limits: GnssLimits | None = None,
-) -> Drive:
-    """Read a drive: a path (IO-VNBD ``V-*.csv``, ``.mcap``, ROS 1 ``.bag``, a ROS 2 bag folder or its
-    ``metadata.yaml``, a KITTI raw drive folder), a bundled scenario name
-    (``"roundabout"``, ``"stationary"``) or an IO-VNBD run name (``"V-Vw8"``) under ``data_root``
-    (default ``$IONAV_DATA``, else the per-user data directory ``fetch`` fills).
-
-    ``yaw_sign``: sign of the yaw rate (the CSV column, the MCAP gyro's z), ``"auto"`` (the
-    source's convention, checked against the GNSS course), ``"cw"`` or ``"ccw"``; ``mcap``: topics,
-    time stamps and IMU axes (``imu_axes``) for MCAP logs and ROS bags (a :class:`LogOptions`); ``gnss_limits``: thresholds of the GNSS quality checks
-    that mark untrustworthy fixes (default :class:`GnssLimits`). A :class:`Drive` is returned as
-    is.
-    """
-    if isinstance(spec, Drive):
-        return spec
-    if yaw_sign not in ("auto", "cw", "ccw"):
-        raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
-    with stage(f"read {spec}") as s:
-        drive = _load_drive(str(spec), _data_root(data_root), yaw_sign, mcap, gnss_limits)
-        s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
-    return drive
 
 
 class ScenarioDrives(dict):
@@ -145,75 +112,88 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
     return out
 
 
-def _estimators_for(drives: Sequence[Drive], estimators: Sequence[str | Estimator] | None, plugins: Sequence[str | Estimator],
-                    without: Sequence[str], model: Any) -> list[Estimator]:
-    """The estimators that apply to every one of ``drives`` (one report compares them all on the
-    same outages). A default one left out is said at ``-v`` (by its ``applies``); one the caller
-    named (in ``estimators`` or ``plugins``), with a warning; none left is an error."""
-    chosen = resolve_estimators(estimators, plugins=plugins, without=without, model=model)
-    defaults = set(BUILTIN) if estimators is None else set()
-    kept = []
-    for est in chosen:
-        missing = [d.name for d in drives if not applies(est, d)]
-        if not missing:
-            kept.append(est)
-        elif est.name not in defaults:
-            log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
-    if not kept:
-        raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
-                         "choose others with --estimators (ins always applies)", param="estimators")
-    return kept
+@dataclass(frozen=True)
+class RunOptions:
+    """How the estimators run, the same for every API function and command.
+
+    Attributes:
+        estimators: names (``"ins"``, ``"idnn"``, entry-point names, ``"module:NAME"``,
+            ``"path/to/file.py:NAME"``) or estimator objects; None: every built-in that applies
+            (the IDNN when a model exists, odometry where the drive has a vehicle speed).
+        plugins: estimators added to those (``--estimator``).
+        without: built-ins left out of the default set (``("idnn",)`` is ``--no-idnn``).
+        model: the IDNN's model (an ``IdnnModel`` or its directory); default the shipped one.
+        bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
+            default each drive's own stationary stretches.
+        thresholds: the event detectors' thresholds (default :class:`EventThresholds`).
+    """
+
+    estimators: Sequence[str | Estimator] | None = None
+    plugins: Sequence[str | Estimator] = ()
+    without: Sequence[str] = ()
+    model: Any = None
+    bias_from: DriveLike | SensorBias | None = None
+    thresholds: EventThresholds = field(default_factory=EventThresholds)
+
+    def chosen(self) -> list[Estimator]:
+        """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""
+        return resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
+
+    def applying_to(self, drives: Sequence[Drive]) -> list[Estimator]:
+        """The estimators that apply to every one of ``drives`` (one report compares them all on
+        the same outages). A default one left out is said at ``-v`` (by its ``applies``); one the
+        caller named (in ``estimators`` or ``plugins``), with a warning; none left is an error."""
+        defaults = set(BUILTIN) if self.estimators is None else set()
+        kept = []
+        for est in self.chosen():
+            missing = [d.name for d in drives if not applies(est, d)]
+            if not missing:
+                kept.append(est)
+            elif est.name not in defaults:
+                log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
+        if not kept:
+            raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in self.chosen())}) applies to {', '.join(d.name for d in drives)}",
+                             "choose others with --estimators (ins always applies)", param="estimators")
+        return kept
+
+    def bias_of(self, read: ReadOptions) -> Callable[[Drive], SensorBias]:
+        """``drive -> biases``: a given :class:`SensorBias`, a stationary drive's (read once), or each drive's own."""
+        if isinstance(self.bias_from, SensorBias):
+            fixed = self.bias_from
+            return lambda drive: fixed
+        stationary = load_drive(self.bias_from, read) if self.bias_from is not None else None
+        return lambda drive: resolve_bias(drive, stationary)
 
 
-def _bias_for(bias_from: DriveLike | SensorBias | None, data_root: Any, load_kw: dict) -> Callable[[Drive], SensorBias]:
-    """``drive -> biases``: a given :class:`SensorBias`, a stationary drive's (read once), or each drive's own."""
-    if isinstance(bias_from, SensorBias):
-        return lambda drive: bias_from
-    stationary = load_drive(bias_from, data_root, **load_kw) if bias_from is not None else None
-    return lambda drive: resolve_bias(drive, stationary)
+def _options(run: RunOptions | None, estimators: Sequence[str | Estimator] | None, read: ReadOptions | None,
+             mcap: LogOptions | None) -> tuple[RunOptions, ReadOptions]:
+    """The run and read options of a call: ``estimators`` is a shortcut for ``run.estimators``."""
+    run = run if run is not None else RunOptions()
+    if estimators is not None:
+        if run.estimators is not None:
+            raise InputError("estimators given twice (as estimators= and in run=)", "give them once", param="estimators")
+        run = replace(run, estimators=estimators)
+    return run, with_deprecated_log(read, mcap)
 
 
 def _check_event_types(types: Sequence[str]) -> None:
     unknown = [t for t in types if t not in EVENT_TYPES]
     if unknown or not types:
-        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}")
+        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}", param="placement")
 
 
-def _gnss_gaps(placement: Placement, events: list[Event] | None) -> list[tuple[float, float]]:
-    """The log's own GNSS outages to bridge: ``(last good fix s, first good fix s)`` of each
-    ``gnss-outage`` event, when the placement asks for them."""
-    if not isinstance(placement, AroundEvents) or GNSS_OUTAGE not in placement.types:
-        return []
-    return [(e.t0_s, e.t1_s) for e in events or [] if e.type == GNSS_OUTAGE]
+def _plan(drive: Drive, windows: Windows, placement: Placement, n_windows: int, run: RunOptions,
+          events: list[Event] | None = None) -> tuple[OutagePlan, list[Event]]:
+    """The placement's plan for one drive, with the events it was planned on (detected when the
+    placement needs them and they were not given)."""
+    if events is None and placement.event_types:
+        events = detect_events(drive, run.thresholds)
+    return placement.plan(windows, n_windows, events or [], drive.source), events or []
 
 
-def _starts(drive: Drive, windows, placement: Placement, outage_s: float, events: list[Event] | None) -> tuple[np.ndarray, str, int]:
-    """Outage starts, the placement's description, and how many outages bad GNSS truth excluded."""
-    n = outage_windows(outage_s)
-    if isinstance(placement, AroundEvents):
-        _check_event_types(placement.types)
-        if GNSS_OUTAGE in placement.types:  # bridged separately (_gnss_gaps): no synthetic outage on them
-            rest = tuple(t for t in placement.types if t != GNSS_OUTAGE)
-            gaps = _gnss_gaps(placement, events)
-            if not rest:
-                if not gaps:
-                    raise InputError(f"{drive.source}: no GNSS outage of 2 s or more in this drive", f"see 'ionav-viz events {drive.source}'")
-                return np.zeros(0, dtype=int), f"every estimator through the log's own {len(gaps)} GNSS outage(s), from the last good fix", 0
-            starts, description, excluded = _starts(drive, windows, AroundEvents(rest), outage_s, events)
-            return starts, f"{description}; and the log's own {len(gaps)} GNSS outage(s)", excluded
-        targets = placement.targets(events or [])
-        spans = [(e.t0_s, e.t1_s) for e in targets]
-        starts, used = around(windows, spans, n)
-        excluded = excluded_by_truth(windows, n, lambda w: around(w, spans, n)[0])
-        if len(used) < len(targets):
-            log.warning("%s: %d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, or on bad GNSS truth)",
-                        drive.name, len(targets) - len(used), len(targets), "/".join(placement.types))
-        if len(starts) == 0:
-            raise InputError(f"{drive.source}: no {' or '.join(placement.types)} event with room for a {outage_s:g} s outage",
-                             f"see 'ionav-viz events {drive.source}'")
-        return starts, placement.describe(outage_s, len(used), len(targets)), excluded
-    starts = placement.starts(windows, n, events or ())
-    return starts, placement.describe(outage_s), excluded_by_truth(windows, n, lambda w: placement.starts(w, n, events or ()))
+def _windows_of(outage_s: float) -> int:
+    """The one place seconds become windows: the outage length (whole seconds) as windows."""
+    return outage_windows(outage_s)
 
 
 def evaluate(
@@ -221,18 +201,11 @@ def evaluate(
     outage_s: float = 10.0,
     placement: Placement | None = None,
     estimators: Sequence[str | Estimator] | None = None,
-    model: Any = None,
     *,
-    plugins: Sequence[str | Estimator] = (),
-    without: Sequence[str] = (),
-    bias_from: DriveLike | SensorBias | None = None,
-    data_root: str | Path | None = None,
-    thresholds: EventThresholds | None = None,
-    title: str | None = None,
-    yaw_sign: str = "auto",
-    mcap: LogOptions | None = None,
-    gnss_limits: GnssLimits | None = None,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
     progress: Progress | None = None,
+    mcap: LogOptions | None = None,
 ) -> Report:
     """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
 
@@ -240,19 +213,12 @@ def evaluate(
         drives: drives or what names them (see :func:`load_drive`).
         outage_s: length of each outage, whole seconds.
         placement: where outages go (default :class:`Tile`, the paper's consecutive outages).
-            A drive too short for one outage is skipped with a warning.
-        estimators: names (``"ins"``, ``"idnn"``, entry-point names, ``"module:NAME"``) or
-            estimator objects; default every built-in that applies (the IDNN when a model exists).
-        model: the IDNN's model (an ``IdnnModel`` or its directory); default the shipped one.
-        plugins: estimators added to ``estimators`` (or to the default ones), as ``--estimator``:
-            ``"module:NAME"``, ``"path/to/file.py:NAME"`` or objects.
-        without: built-in names left out of the default estimators (``("idnn",)`` is ``--no-idnn``).
-        bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
-            default each drive's own stationary stretches.
-        thresholds: event-detector thresholds (for :class:`AroundEvents`).
-        title: the report's group name (a scenario), shown in its tables.
-        gnss_limits: thresholds of the GNSS quality checks (see :func:`load_drive`); outages
-            go only where every window has good truth, and the report counts what was excluded.
+            A drive too short for one tiled outage is skipped with a warning.
+        estimators: a shortcut for ``run.estimators``.
+        run: which estimators run with what model, biases and event thresholds (:class:`RunOptions`).
+        read: how drives are read (:class:`ReadOptions`); outages go only where every window has
+            good GNSS truth, and the report counts what was excluded.
+        mcap: deprecated, ``read.log``.
 
     Returns:
         a :class:`Report`; ``report.to_json()`` is what ``ionav-viz evaluate --json`` prints.
@@ -261,32 +227,30 @@ def evaluate(
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
     placement = placement or Tile()
-    outage_windows(outage_s)  # checked before any drive is read
-    resolve_estimators(estimators, plugins=plugins, without=without, model=model)  # checked before any drive is read
-    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
-    bias_of = _bias_for(bias_from, data_root, load_kw)
-    loaded = [load_drive(item, data_root, **load_kw) for item in items]
-    ests = _estimators_for(loaded, estimators, plugins, without, model)
+    n = _windows_of(outage_s)  # checked before any drive is read
+    run, read = _options(run, estimators, read, mcap)
+    if placement.event_types:
+        _check_event_types(placement.event_types)
+    run.chosen()
+    bias_of = run.bias_of(read)
+    loaded = [load_drive(item, read) for item in items]
+    ests = run.applying_to(loaded)
     results = []
     for i, drive in enumerate(loaded):
         if progress:
             progress(drive.name, i, len(items))
         windows = make_windows(drive)
-        events = detect_events(drive, thresholds or EventThresholds()) if isinstance(placement, AroundEvents) else None
-        starts, _, excluded = _starts(drive, windows, placement, outage_s, events)
-        gaps = _gnss_gaps(placement, events)
-        if isinstance(placement, Tile) and len(starts) == 0:
-            log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, outage_s,
-                        " on good GNSS truth" if excluded else "")
+        plan, _ = _plan(drive, windows, placement, n, run)
+        if plan.too_short:
+            log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, n, " on good GNSS truth" if plan.excluded else "")
             continue
-        bias = bias_of(drive)
-        results.append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,
-                                      excluded_outages=excluded, gnss_gaps=gaps))
+        results.append(evaluate_drive(drive, n, ests, bias=bias_of(drive), starts=plan.starts, windows=windows,
+                                      excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
     if progress:
         progress("done", len(items), len(items))
     if not results:
-        raise InputError(f"no {outage_s:g} s outage fits in {', '.join(_name(d) for d in items)}", "use shorter outages", param="outage_s")
-    return Report(results, title)
+        raise InputError(f"no {n:g} s outage fits in {', '.join(_name(d) for d in items)}", "use shorter outages", param="outage_s")
+    return Report(results)
 
 
 def evaluate_by_event(
@@ -294,47 +258,39 @@ def evaluate_by_event(
     outage_s: float = 10.0,
     types: Sequence[str] | None = None,
     estimators: Sequence[str | Estimator] | None = None,
-    model: Any = None,
     *,
-    plugins: Sequence[str | Estimator] = (),
-    without: Sequence[str] = (),
-    bias_from: DriveLike | SensorBias | None = None,
-    data_root: str | Path | None = None,
-    thresholds: EventThresholds | None = None,
-    yaw_sign: str = "auto",
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
     mcap: LogOptions | None = None,
-    gnss_limits: GnssLimits | None = None,
 ) -> dict[str, Report]:
-    """One report per manoeuvre type: an outage centred on each detected event, across ``drives``."""
+    """One report per manoeuvre type: an outage centred on each detected event, across ``drives``
+    (``types`` default: every manoeuvre type; ``gnss-outage``: the log's own losses, bridged).
+    The other arguments as for :func:`evaluate`."""
     kinds = tuple(types) if types else MANOEUVRE_TYPES
     _check_event_types(kinds)
-    n = outage_windows(outage_s)
-    resolve_estimators(estimators, plugins=plugins, without=without, model=model)  # checked before any drive is read
-    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
-    bias_of = _bias_for(bias_from, data_root, load_kw)
-    th = thresholds or EventThresholds()
+    n = _windows_of(outage_s)
+    run, read = _options(run, estimators, read, mcap)
+    run.chosen()
+    bias_of = run.bias_of(read)
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
-    loaded = [load_drive(item, data_root, **load_kw) for item in drives]
-    ests = _estimators_for(loaded, estimators, plugins, without, model)
+    loaded = [load_drive(item, read) for item in drives]
+    ests = run.applying_to(loaded)
     for drive in loaded:
         windows = make_windows(drive)
         bias = bias_of(drive)
-        found = detect_events(drive, th, kinds)
+        found = detect_events(drive, run.thresholds, kinds)
         for kind in kinds:
-            if kind == GNSS_OUTAGE:  # the log's own losses: bridged, scored at the first good fix after
-                gaps = _gnss_gaps(AroundEvents((kind,)), found)
-                if gaps:
-                    per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=np.zeros(0, dtype=int),
-                                                         windows=windows, gnss_gaps=gaps))
+            if kind != GNSS_OUTAGE and not any(e.type == kind for e in found):
                 continue
-            starts = AroundEvents((kind,)).starts(windows, n, found)
-            excluded = excluded_by_truth(windows, n, lambda w, kind=kind, found=found: AroundEvents((kind,)).starts(w, n, found))
-            if len(starts):
-                per_type[kind].append(evaluate_drive(drive, outage_s, bias=bias, estimators=ests, starts=starts, windows=windows,
-                                                     excluded_outages=excluded))
+            try:
+                plan, _ = _plan(drive, windows, AroundEvents((kind,)), n, run, found)
+            except InputError:  # no room for an outage on this drive's events of that type, or no loss
+                continue
+            per_type[kind].append(evaluate_drive(drive, n, ests, bias=bias, starts=plan.starts, windows=windows,
+                                                 excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
     reports = {kind: Report(results, kind) for kind, results in per_type.items() if results}
     if not reports:
-        raise InputError(f"no {', '.join(kinds)} event with room for a {outage_s:g} s outage in {', '.join(_name(d) for d in drives)}",
+        raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in {', '.join(_name(d) for d in drives)}",
                          "see 'ionav-viz events DRIVE'")
     return reports
 
@@ -350,22 +306,16 @@ def replay(
     estimators: Sequence[str | Estimator] | None = None,
     output: str | Path | None = None,
     *,
-    model: Any = None,
-    plugins: Sequence[str | Estimator] = (),
-    without: Sequence[str] = (),
-    bias_from: DriveLike | SensorBias | None = None,
-    data_root: str | Path | None = None,
-    thresholds: EventThresholds | None = None,
-    yaw_sign: str = "auto",
-    mcap: LogOptions | None = None,
-    gnss_limits: GnssLimits | None = None,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
     progress: Progress | None = None,
     connect: str | None = None,
+    mcap: LogOptions | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
 
     Args:
-        drive, outage_s, placement, estimators, model, bias_from, thresholds: as for :func:`evaluate`
+        drive, outage_s, placement, estimators, run, read: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
         output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
             directory, the folder made when missing); an existing file is replaced atomically,
@@ -384,31 +334,32 @@ def replay(
 
     if connect is not None:
         live.check_listening(connect)
-
     out = Path(output) if output is not None else None
     if out is not None and out.suffix.lower() != ".rrd":
-        raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd")
+        raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     placement = placement or Tile()
-    load_kw = {"yaw_sign": yaw_sign, "mcap": mcap, "gnss_limits": gnss_limits}
-    d = load_drive(drive, data_root, **load_kw)
+    n = _windows_of(outage_s)
+    run, read = _options(run, estimators, read, mcap)
+    if placement.event_types:
+        _check_event_types(placement.event_types)
+    run.chosen()
+    d = load_drive(drive, read)
     with stage("windows") as s:
         windows = make_windows(d)
         s.detail = f"{len(windows)} of 1 s"
     with stage("manoeuvres") as s:
-        events = detect_events(d, thresholds or EventThresholds())
+        events = detect_events(d, run.thresholds)
         s.detail = f"{len(events)} detected"
-    starts, description, excluded = _starts(d, windows, placement, outage_s, events)
-    gaps = _gnss_gaps(placement, events)
-    if len(starts) == 0 and not gaps:
-        raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {outage_s:g} s outage", "use shorter outages", param="outage_s")
+    plan, _ = _plan(d, windows, placement, n, run, events)
+    if len(plan.starts) == 0 and not plan.gnss_gaps:
+        raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {n:g} s outage", "use shorter outages", param="outage_s")
     default = out is None
     out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
-    chosen = _estimators_for([d], estimators, plugins, without, model)
-    bias = _bias_for(bias_from, data_root, load_kw)(d)
-    result = evaluate_drive(d, outage_s, bias=bias, estimators=chosen, starts=starts, windows=windows, excluded_outages=excluded,
-                            gnss_gaps=gaps)
+    chosen = run.applying_to([d])
+    result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
+                            gnss_gaps=plan.gnss_gaps)
     report = Report([result])
-    summary = _summary_markdown(result, report, description)
+    summary = _summary_markdown(result, report, plan.description)
     total = 5 + len(result.estimates)
     done = [0]
 
@@ -423,10 +374,133 @@ def replay(
     if connect is not None:
         with stage(f"stream to {connect}"):
             live.connect(result, summary, connect, events=events)
-    n = result.n_windows
-    outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(starts)]
-    return ReplayResult(out, report, outages, description, result, events)
+    outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(plan.starts)]
+    return ReplayResult(out, report, outages, plan.description, result, events)
 
+
+
+def find_events(drives: Sequence[DriveLike] | DriveLike, types: Sequence[str] | None = None, *, thresholds: EventThresholds | None = None,
+                read: ReadOptions | None = None) -> dict[str, list[Event]]:
+    """The detected events of each drive (by drive name), of ``types`` (default every type), in
+    time order; overlapping detections of one type are one event (``ionav-viz events``)."""
+    kinds = tuple(types) if types else EVENT_TYPES
+    _check_event_types(kinds)
+    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
+    if not items:
+        raise InputError("no drive to look at", "give at least one drive")
+    found = {}
+    for item in items:
+        drive = load_drive(item, read)
+        found[drive.name] = detect_events(drive, thresholds or EventThresholds(), kinds)
+    return found
+
+
+@dataclass(frozen=True)
+class DetectorQuality:
+    """One detector's measured quality: known manoeuvres, recalled ones, detections, precise ones."""
+
+    known: int
+    recalled: int
+    found: int
+    precise: int
+
+    @property
+    def recall(self) -> float | None:
+        return self.recalled / self.known if self.known else None
+
+    @property
+    def precision(self) -> float | None:
+        return self.precise / self.found if self.found else None
+
+
+def detector_quality(thresholds: EventThresholds | None = None, types: Sequence[str] | None = None) -> dict[str, DetectorQuality]:
+    """Each detector's recall and precision on the bundled synthetic drives, where the simulator
+    knows every manoeuvre it drove (``ionav-viz events --quality``)."""
+    from .analysis.events import score
+    from .dataset.samples import SAMPLES, sample_path
+    from .sim.simulate import simulated_manoeuvres
+
+    kinds = tuple(types) if types else EVENT_TYPES
+    _check_event_types(kinds)
+    totals = {k: [0, 0, 0, 0] for k in EVENT_TYPES}
+    for sample in SAMPLES:
+        drive = load_drive(sample_path(sample))  # with the GNSS quality marks, as every command reads
+        truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s, sample.gnss_losses)
+        for kind, sc in score(truth, detect_events(drive, thresholds or EventThresholds()), drive.duration_s).items():
+            for i, v in enumerate((sc.n_truth, sc.recalled, sc.n_found, sc.precise)):
+                totals[kind][i] += v
+    return {k: DetectorQuality(*t) for k, t in totals.items() if k in kinds}
+
+
+class TrainingDrives(list):
+    """Training drives (a ``list``), with ``description``: what they are, kept in the model's metadata."""
+
+    description: str = "user-given drives"
+
+
+def training_drives(paper: bool = False, data_root: str | Path | None = None) -> TrainingDrives:
+    """The bundled synthetic training drives, or with ``paper`` the paper's IO-VNBD training runs
+    (Table 1) under the data root."""
+    from .dataset.catalog import PAPER_TRAIN_RUNS
+    from .dataset.samples import SAMPLES, sample_path
+
+    if paper:
+        if _data_root(data_root) is None:
+            raise InputError("training on the paper's runs needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA", param="data_root")
+        drives = TrainingDrives(PAPER_TRAIN_RUNS)
+        drives.description = "the paper's IO-VNBD training runs (Table 1)"
+        return drives
+    drives = TrainingDrives(str(sample_path(s)) for s in SAMPLES if s.role == "train")
+    drives.description = "the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), not real data"
+    return drives
+
+
+def train(
+    output: str | Path,
+    drives: Sequence[DriveLike] | None = None,
+    config: Any = None,
+    *,
+    bias_from: DriveLike | None = None,
+    read: ReadOptions | None = None,
+    force: bool = False,
+    progress: Progress | None = None,
+    command: str = "ionav_viz.train",
+) -> Any:
+    """Train the IDNN's two networks and write them with their metadata to ``output`` (a model
+    directory; an existing one is replaced only with ``force``, atomically).
+
+    ``drives``: default the bundled synthetic training drives (:func:`training_drives`, which
+    also gives the paper's runs);
+    ``config``: an ``ionav_viz.nav.idnn.ModelConfig`` (default the shipped model's settings);
+    ``bias_from``: a stationary drive for the sensor biases (default each drive's own);
+    ``command``: how it was trained, kept in the metadata. Returns the trained ``IdnnModel``.
+    """
+    from .nav.idnn import ModelConfig, check_model_dir, save_model
+    from .nav.training import train_models
+
+    read = read if read is not None else ReadOptions()
+    config = config if config is not None else ModelConfig()
+    config.validate()
+    out = check_model_dir(Path(output), overwrite=force)  # before any work
+    specs = training_drives() if drives is None else drives
+    description = getattr(specs, "description", TrainingDrives.description)
+    stationary = load_drive(bias_from, read) if bias_from is not None else None
+    loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
+    model = train_models(loaded, config, progress=progress, description=description)
+    model.metadata["training"]["command"] = command
+    save_model(model, out, overwrite=force)
+    return model
+
+
+def replay_scenario(scenario: str, folder: str | Path, outage_s: float = 10.0, placement: Placement | None = None, *,
+                    run: RunOptions | None = None, read: ReadOptions | None = None) -> list[Path]:
+    """Replay every test drive of ``scenario`` (``"all"``: of every scenario; see
+    :func:`scenario_drives`) into ``folder`` as ``<scenario>-<drive>.rrd``; returns the paths."""
+    read = read if read is not None else ReadOptions()
+    groups = scenario_drives(scenario, read.data_root)
+    log.info("drives: %s", groups.source)
+    return [replay(spec, outage_s, placement, output=Path(folder) / f"{group}-{Path(spec).stem}.rrd", run=run, read=read).path
+            for group, specs in groups.items() for spec in specs]
 
 def _summary_markdown(result: DriveResult, report: Report, description: str) -> str:
     """The recording's summary document: the run, the worst outages and the paper's table."""

@@ -21,7 +21,7 @@ def test_evaluate_to_json_is_exactly_what_the_command_prints():
     assert proc.returncode == 0, proc.stderr
     report = iv.evaluate(["roundabout", "motorway"], outage_s=10.0)
     assert report.to_json() + "\n" == proc.stdout
-    assert report.n_sequences == 2 * 59 and report.estimators == ["ins", "idnn", "odo", "ekf"]
+    assert report.n_outages == 2 * 59 and report.estimators == ["ins", "idnn", "odo", "ekf"]
     # text and Markdown renderings come from the same report
     assert report.to_text().startswith("V-sim-roundabout+V-sim-motorway, 10 s GNSS outages")
     assert "| **CRSE** | max |" in report.to_markdown()
@@ -30,7 +30,7 @@ def test_evaluate_to_json_is_exactly_what_the_command_prints():
 def test_report_fields_agree_with_each_other():
     report = iv.evaluate("hard-brake", 10.0, estimators=["ins"])
     crse = report.metric("ins", "crse_m")
-    assert crse.shape == (report.n_sequences,)
+    assert crse.shape == (report.n_outages,)
     assert report.summary["ins"]["crse_m"]["mean"] == pytest.approx(crse.mean())
     assert report.summary["ins"]["crse_m"]["std"] == pytest.approx(crse.std())  # population std, as the paper
     assert report.improvement_pct == {}  # nothing to compare with the INS
@@ -43,7 +43,7 @@ def test_report_fields_agree_with_each_other():
 def test_replay_with_placements(tmp_path, placement, n_outages):
     result = iv.replay("hard-brake", 10.0, placement, estimators=["ins"], output=tmp_path / "x.rrd")
     assert result.path == tmp_path / "x.rrd" and result.path.is_file()
-    assert len(result.outages) == n_outages == result.report.n_sequences
+    assert len(result.outages) == n_outages == result.report.n_outages
     assert all(o.end_s - o.start_s == 10.0 for o in result.outages)
     assert all(b.start_s >= a.end_s for a, b in zip(result.outages, result.outages[1:]))  # no overlap
     rows, _ = read_rrd(result.path)

@@ -109,10 +109,10 @@ def test_outages_asked_for_on_bad_truth_are_refused(faulty, tmp_path):
 
 
 def test_thresholds_can_be_overridden(faulty):
-    from ionav_viz import load_drive
+    from ionav_viz import ReadOptions, load_drive
 
     # a margin larger than the injected 22 m spike lets it pass
-    drive = load_drive(faulty, gnss_limits=GnssLimits().with_overrides(["jump_margin_m=50"]))
+    drive = load_drive(faulty, ReadOptions(gnss_limits=GnssLimits().with_overrides(["jump_margin_m=50"])))
     assert not (drive.gnss_fault & GnssFault.JUMP).any()
     proc = run_cli("evaluate", str(faulty), "--no-idnn", "--json", "--gnss-limit", "frozen_min_s=5")
     assert "frozen" not in json.loads(proc.stdout)["gnss_truth"]["excluded_by_reason"]  # the 2 s freeze is now too short

@@ -230,8 +230,9 @@ def test_shipped_model_beats_dead_reckoning_on_the_bundled_test_drive(scenario):
     # the acceptance point: lower mean displacement CRSE and mean orientation-rate CRSE
     from ionav_viz.analysis.evaluate import evaluate_drive
     from ionav_viz.nav.idnn import default_model_dir
+    from ionav_viz.nav.registry import resolve
 
-    result = evaluate_drive(read_iovnbd(samples_dir() / f"V-sim-{scenario}.csv"), 10.0, model=load_model(default_model_dir()))
+    result = evaluate_drive(read_iovnbd(samples_dir() / f"V-sim-{scenario}.csv"), 10, resolve(["ins", "idnn"], model=load_model(default_model_dir())))
     ins, idnn = result.metrics["ins"], result.metrics["idnn"]
     assert len(result.starts) == 59
     assert idnn["crse_m"].mean() < ins["crse_m"].mean()

@@ -198,7 +198,7 @@ def test_a_plugin_path_that_cannot_load_is_one_line(tmp_path, spec, fragment):
 def test_python_api_takes_plugins_and_leaves_defaults_out():
     import toy_estimators
 
-    report = iv.evaluate(["roundabout"], 10.0, iv.Every(60.0), plugins=[toy_estimators.ConstantSpeed()], without=["idnn"])
+    report = iv.evaluate(["roundabout"], 10.0, iv.Every(60.0), run=iv.RunOptions(plugins=[toy_estimators.ConstantSpeed()], without=["idnn"]))
     assert [e["name"] for e in report.to_dict()["estimators"]] == ["ins", "odo", "ekf", "const"]  # run order
     with pytest.raises(EstimatorError, match="not a built-in"):
-        iv.evaluate(["roundabout"], without=["const"])
+        iv.evaluate(["roundabout"], run=iv.RunOptions(without=["const"]))

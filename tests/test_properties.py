@@ -88,7 +88,7 @@ def test_reader_returns_a_valid_drive_or_its_own_error(tmp_path_factory, data):
     from ionav_viz.analysis.evaluate import evaluate_drive
 
     with contextlib.suppress(InputError):
-        evaluate_drive(drive, 1.0)
+        evaluate_drive(drive, 1, ["ins"])
 
 
 errors = st.lists(st.floats(-1e4, 1e4), min_size=1, max_size=30).map(np.array)

@@ -86,7 +86,9 @@ def test_header_or_receive_stamps(tmp_path, drive):
                 conns[topic] = w.add_connection(topic, msgtype, typestore=store)
             w.write(conns[topic], ns + 40_000_000, store.serialize_cdr(msg, msgtype))
     header = iv.load_drive(path)
-    received = iv.load_drive(path, mcap=iv.LogOptions(stamps="log"))
+    received = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(stamps="log")))
+    with pytest.deprecated_call():  # the earlier keyword, for one release
+        assert iv.load_drive(path, mcap=iv.LogOptions(stamps="log")).start_time_of_day_s == received.start_time_of_day_s
     assert received.start_time_of_day_s - header.start_time_of_day_s == pytest.approx(0.04, abs=1e-6)
     assert header.start_time_of_day_s == pytest.approx(bf.T0_S % 86400, abs=1e-9)
 

@@ -17,9 +17,10 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.gnss_quality import count_by_fault
+from ..core.grid import WINDOW_S
 from ..core.timing import stage
 from ..nav.bias import SensorBias, resolve_bias
-from ..nav.outages import excluded_by_truth, outage_windows, tile
+from ..nav.outages import excluded_by_truth, tile
 from ..nav.protocol import Estimator, EstimatorInputs, Solution, describe, solve
 from ..nav.registry import BASELINE
 from ..nav.registry import resolve as resolve_estimators
@@ -45,7 +46,7 @@ class DriveResult:
 
     Attributes:
         drive, windows: the drive and its 1-second windows.
-        outage_s: outage length (s); ``starts``: first window index of each outage.
+        n_windows: windows (seconds) per outage; ``starts``: first window index of each outage.
         bias: the sensor biases every estimator was given.
         estimators: the estimators, in report order.
         estimates: per estimator name, its :class:`~ionav_viz.nav.protocol.Solution` (per-window
@@ -58,7 +59,7 @@ class DriveResult:
 
     drive: Drive
     windows: Windows
-    outage_s: float
+    n_windows: int
     starts: np.ndarray
     bias: SensorBias
     estimators: list[Estimator]
@@ -88,8 +89,9 @@ class DriveResult:
                 "excluded_outages": int(self.excluded_outages)}
 
     @property
-    def n_windows(self) -> int:
-        return outage_windows(self.outage_s)
+    def outage_s(self) -> float:
+        """Outage length (s)."""
+        return float(self.n_windows * WINDOW_S)
 
     @property
     def gnss_distance_m(self) -> np.ndarray:
@@ -109,35 +111,32 @@ class DriveResult:
 
 def evaluate_drive(
     drive: Drive,
-    outage_s: float,
+    n_windows: int,
+    estimators: Sequence[str | Estimator],
     *,
     bias: SensorBias | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    model: Any = None,
     starts: np.ndarray | None = None,
     windows: Windows | None = None,
     excluded_outages: int | None = None,
     gnss_gaps: Sequence[tuple[float, float]] = (),
 ) -> DriveResult:
-    """Every estimator on the outages ``starts`` (default: the paper's tiling) of ``drive``.
+    """Every one of ``estimators`` on the ``n_windows``-second outages ``starts`` (default: the
+    paper's tiling) of ``drive``.
 
-    ``estimators``: names or objects (see :func:`ionav_viz.nav.registry.resolve`); default the
-    INS, plus the IDNN when ``model`` (an IDNN model or its directory) is given. ``bias``: default
-    from the drive's own stationary stretches. ``excluded_outages``: how many outages the caller's
-    placement lost to bad GNSS truth (counted here for the default tiling). ``gnss_gaps``: the
-    log's own GNSS losses ``(last good fix s, first good fix s)`` to bridge as well
-    (:mod:`ionav_viz.analysis.bridging`).
+    ``estimators``: names or objects (see :func:`ionav_viz.nav.registry.resolve`). ``bias``:
+    default from the drive's own stationary stretches. ``excluded_outages``: how many outages the
+    caller's placement lost to bad GNSS truth (counted here for the default tiling).
+    ``gnss_gaps``: the log's own GNSS losses ``(last good fix s, first good fix s)`` to bridge as
+    well (:mod:`ionav_viz.analysis.bridging`).
     """
-    n = outage_windows(outage_s)
+    n = int(n_windows)
     windows = windows if windows is not None else make_windows(drive)
     if starts is None:
         starts = tile(windows, n)
         excluded_outages = excluded_by_truth(windows, n, lambda w: tile(w, n))
     starts = np.asarray(starts, dtype=int)
     bias = bias if bias is not None else resolve_bias(drive)
-    if estimators is None:
-        estimators = ["ins", "idnn"] if model is not None else ["ins"]
-    chosen = resolve_estimators(list(estimators), model=model)
+    chosen = resolve_estimators(list(estimators))
     inputs = EstimatorInputs(drive, windows, starts, n, bias)
     solutions = {}
     for est in chosen:
@@ -145,7 +144,7 @@ def evaluate_drive(
             solutions[est.name] = solve(est, inputs)
             s.detail = f"{len(starts)} outages of {n} s"
     metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
-    result = DriveResult(drive, windows, float(outage_s), starts, bias, list(chosen), solutions, metrics, excluded_outages or 0)
+    result = DriveResult(drive, windows, n, starts, bias, list(chosen), solutions, metrics, excluded_outages or 0)
     if gnss_gaps:
         with stage(f"bridge {len(gnss_gaps)} GNSS outage(s) of {drive.name}"):
             result.bridged, result.unbridged = bridge_gnss_outages(drive, windows, gnss_gaps, chosen, bias)

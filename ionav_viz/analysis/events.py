@@ -58,8 +58,8 @@ from ..core.grid import GRID_RATE_HZ
 from ..core.overrides import with_overrides
 from ..core.runs import run_ranges
 from ..core.units import G_MPS2
+from ..nav.outages import GNSS_OUTAGE  # a real loss of GNSS in the log, not a manoeuvre
 
-GNSS_OUTAGE = "gnss-outage"  # a real loss of GNSS in the log, not a manoeuvre
 MANOEUVRE_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
 EVENT_TYPES = (*MANOEUVRE_TYPES, GNSS_OUTAGE)
 

@@ -65,7 +65,7 @@ class Report:
     def __repr__(self) -> str:
         drives = ", ".join(r.drive.name for r in self.results)
         title = f"{self.title!r}, " if self.title else ""
-        return f"Report({title}{len(self.results)} drive(s): {drives}; {self.n_sequences} outage(s); {self.summary_line()})"
+        return f"Report({title}{len(self.results)} drive(s): {drives}; {self.n_outages} outage(s); {self.summary_line()})"
 
     def summary_line(self) -> str:
         """Each estimator's mean final position error, in one line (``"mean final error: INS DR 8.17 m, ..."``)."""
@@ -74,7 +74,7 @@ class Report:
             errors = self.metric(name, "final_position_error_m")
             finite = errors[np.isfinite(errors)]
             means.append(f"{label} {float(finite.mean()):.2f} m" if len(finite) else f"{label} -")
-        return "mean final error: " + ", ".join(means) if self.n_sequences else "no synthetic outage"
+        return "mean final error: " + ", ".join(means) if self.n_outages else "no synthetic outage"
 
     @property
     def estimators(self) -> list[str]:
@@ -86,7 +86,8 @@ class Report:
         return {e.name: e.label for e in self.results[0].estimators}
 
     @property
-    def n_sequences(self) -> int:
+    def n_outages(self) -> int:
+        """Synthetic outages over all drives (the JSON's ``n_sequences``, the paper's word)."""
         return int(sum(len(r.starts) for r in self.results))
 
     def metric(self, estimator: str, metric: str) -> np.ndarray:
@@ -256,7 +257,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
     short = {e.name: short_label(e.label) for e in result.estimators}
     mean = {e: report.summary[e] for e in ests}
     lines = [
-        f"**{drive.name}**: {labels}, {report.n_sequences} GNSS outage(s) of {result.outage_s:g} s",
+        f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s",
         "",
         "| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
         "|---|---|---|---|",
@@ -272,7 +273,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         lines.append("")
     lines += [
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
-        f"- **Outages**: {placement}; {report.n_sequences} outage(s)",
+        f"- **Outages**: {placement}; {report.n_outages} outage(s)",
         f"- **{truth_line(report.to_dict())}**",
         f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from {bias.source}",
     ]

@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import logging
 import sys
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from types import MappingProxyType
 
 import typer
 
@@ -60,20 +63,28 @@ def _root(
 
 
 
-#: API argument -> the option that set it in the running command (for error messages); commands
-#: add or override entries with :func:`name_options`.
-OPTION_OF: dict[str, str] = {
+#: API argument -> the option that sets it, for error messages; a command names options whose text
+#: depends on its own arguments (``--outage 7s``) with :func:`options_named`.
+OPTION_OF: Mapping[str, str] = MappingProxyType({
     "data_root": "--data-root", "stamps": "--stamps", "model": "--model", "bias_from": "--bias-from",
     "thresholds": "--threshold", "gnss_limits": "--gnss-limit", "imu_axes": "--imu-axes", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
-    "estimators": "--estimators", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
+    "estimators": "--estimators", "plugins": "--estimator", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
     "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
-    "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs",
-}
+    "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs", "outage_s": "--outage", "placement": "--on",
+    "outages": "--outage", "worst_of": "--worst-of",
+})
 
 
-def name_options(**options: str) -> None:
-    """Say which option set each API argument, so library errors name the option."""
-    OPTION_OF.update(options)
+@contextmanager
+def options_named(**options: str) -> Iterator[None]:
+    """Errors raised in the block name these options for the API arguments they set
+    (``outage_s="--outage 7s"``), instead of :data:`OPTION_OF`'s."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.param in options and exc.option is None:
+            exc.option = options[exc.param]
+        raise
 
 
 #: Root options that work anywhere on the command line (moved before the command name).
@@ -131,7 +142,7 @@ def main() -> None:
     except InputError as exc:
         if debug:
             raise
-        option = OPTION_OF.get(exc.param or "")
+        option = exc.option or OPTION_OF.get(exc.param or "")
         text = f"{option}: {exc}" if option and not exc.message.startswith(option) else str(exc)
         print(f"error: {one_line(text)}", file=sys.stderr)
         sys.exit(2)

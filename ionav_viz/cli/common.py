@@ -34,20 +34,6 @@ GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality 
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 
-@dataclass(frozen=True)
-class SourceArgs:
-    """How to find and read drives, from the options every drive-reading command shares."""
-
-    data_root: Optional[Path]
-    yaw_sign: str
-    mcap: Any
-    gnss_limits: Any
-
-    def api_kwargs(self) -> dict[str, Any]:
-        """As keyword arguments of the :mod:`ionav_viz.api` functions."""
-        return {"data_root": self.data_root, "yaw_sign": self.yaw_sign, "mcap": self.mcap, "gnss_limits": self.gnss_limits}
-
-
 #: The options that say how drives are found and read: (parameter, typer option, type).
 _SOURCE_OPTIONS = (
     ("data_root_opt", DataRoot, Optional[Path]), ("yaw_sign", YawSign, str), ("imu_topic", ImuTopic, Optional[str]),
@@ -75,52 +61,37 @@ def _with_options(command: Callable[..., Any], options: tuple, argument: str, bu
 
 def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
-    the command receives them checked, as one ``source: SourceArgs`` argument."""
-    def build(v: dict[str, Any]) -> SourceArgs:
-        return SourceArgs(v["data_root_opt"], yaw_sign(v["yaw_sign"]), mcap_options(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"], v["imu_axes"]),
-                          gnss_limits(v["gnss_limit"]))
+    the command receives them as one ``read: ReadOptions`` argument (checked by the library)."""
+    def build(v: dict[str, Any]) -> Any:
+        from ..core.gnss_quality import GnssLimits
+        from ..sources.load import LogOptions, ReadOptions
 
-    return _with_options(command, _SOURCE_OPTIONS, "source", build)
+        log = LogOptions(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"], v["imu_axes"])
+        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])))
 
-
-@dataclass(frozen=True)
-class EstimatorArgs:
-    """Which estimators run, with the IDNN's model and the sensor-bias source, from the options:
-    what the user named (``--estimators``; None: every built-in that applies), the plug-ins
-    (``--estimator``, loaded and checked before any work) and the built-ins left out (``--no-idnn``)."""
-
-    estimators: Optional[list[str]]
-    plugins: list[Any]
-    without: tuple[str, ...]
-    model: Optional[Path]
-    bias_from: Optional[str]
-
-    def api_kwargs(self) -> dict[str, Any]:
-        """As keyword arguments of :func:`ionav_viz.api.evaluate` and :func:`ionav_viz.api.replay`."""
-        return {"estimators": self.estimators, "plugins": self.plugins, "without": self.without, "model": self.model, "bias_from": self.bias_from}
+    return _with_options(command, _SOURCE_OPTIONS, "read", build)
 
 
 _ESTIMATOR_OPTIONS = (
     ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
-    ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]),
+    ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]), ("thresholds", Thresholds, Optional[list[str]]),
 )
 
 
 def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn`` and ``--bias-from``
-    (declared once, in :data:`_ESTIMATOR_OPTIONS`), resolved into one ``run: EstimatorArgs`` argument."""
-    def build(v: dict[str, Any]) -> EstimatorArgs:
-        return estimator_args(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"])
+    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from`` and
+    ``--threshold`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
+    def build(v: dict[str, Any]) -> Any:
+        return run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"])
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 
 
-def estimator_args(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool = False, model: Optional[Path] = None,
-                   bias_from: Optional[str] = None) -> EstimatorArgs:
-    """The estimators ``--estimators``, ``--estimator`` and ``--no-idnn`` choose, checked (plug-ins
-    loaded) before any work."""
-    from ..nav.protocol import EstimatorError
-    from ..nav.registry import load_plugin, resolve
+def run_options(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool = False, model: Optional[Path] = None,
+                bias_from: Optional[str] = None, threshold_pairs: Optional[list[str]] = None) -> Any:
+    """The :class:`~ionav_viz.api.RunOptions` the estimator options say (the library checks them)."""
+    from ..analysis.events import EventThresholds
+    from ..api import RunOptions
 
     chosen: Optional[list[str]] = None
     if names is not None:
@@ -132,15 +103,7 @@ def estimator_args(names: Optional[str], plugins: Optional[list[str]], no_idnn: 
             if not chosen and not plugins:
                 raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
     without = ("idnn",) if no_idnn and chosen is None else ()
-    try:
-        loaded = [load_plugin(spec) for spec in plugins or []]
-    except EstimatorError as exc:
-        raise type(exc)(f"--estimator: {exc.message}", exc.hint) from exc
-    try:
-        resolve(chosen, plugins=loaded, without=without, model=model)
-    except EstimatorError as exc:
-        raise type(exc)(f"--estimators: {exc.message}", exc.hint) from exc
-    return EstimatorArgs(chosen, loaded, without, model, bias_from)
+    return RunOptions(chosen, tuple(plugins or ()), without, model, bias_from, EventThresholds().with_overrides(list(threshold_pairs or [])))
 
 
 #: The options that place outages, shared by every command that places them.
@@ -175,17 +138,19 @@ def with_placement_options(command: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int, on: Optional[str]) -> PlacementArgs:
-    """The outage placement the options choose (at most one of them)."""
+    """The outage placement the options choose (at most one of them; the library checks its values)."""
     from ..nav.outages import AroundEvents, At, Every, Random, Tile
+    from .app import options_named
 
     chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
     if len(chosen) > 1:
         raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
     if on is not None:
-        kinds = event_types(on)
+        kinds = split_list(on)
         return PlacementArgs(AroundEvents(kinds), f"--on {on}", kinds)
     if every is not None:
-        return PlacementArgs(Every(whole_seconds(every, "--every", "outage period")), f"--every {every}", None)
+        with options_named(placement=f"--every {every}"):
+            return PlacementArgs(Every(duration_s(every, "--every")), f"--every {every}", None)
     if at is not None:
         return PlacementArgs(At(tuple(_start_times(at))), f"--at {at}", None)
     if random_count is not None:
@@ -214,56 +179,9 @@ def duration_s(text: str, option: str) -> float:
         raise typer.BadParameter(f"{text!r} {'is not a duration; use e.g. 10s, 500ms, 1m' if 'not a duration' in exc.message else 'must be a positive duration'}", param_hint=option) from None
 
 
-def whole_seconds(text: str, option: str, what: str = "outage length") -> float:
-    """A duration option that must be a whole number of seconds (outage lengths and periods)."""
-    from ..core.errors import InputError
-    from ..nav.outages import outage_windows
-
-    seconds = duration_s(text, option)
-    try:
-        outage_windows(seconds, what)
-    except InputError as exc:
-        raise InputError(f"{option} {text}: {exc.message}", "the estimators predict once per 1 s window; use e.g. 10s") from None
-    return seconds
-
-
-def thresholds(pairs: Optional[list[str]]):
-    from ..analysis.events import EventThresholds
-
-    return EventThresholds().with_overrides(list(pairs or []))
-
-
-def gnss_limits(pairs: Optional[list[str]]):
-    from ..core.gnss_quality import GnssLimits
-
-    return GnssLimits().with_overrides(list(pairs or []))
-
-
-def event_types(text: str, option: str = "--on") -> tuple[str, ...]:
-    from ..analysis.events import EVENT_TYPES
-
-    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
-    unknown = [k for k in kinds if k not in EVENT_TYPES]
-    if unknown or not kinds:
-        raise typer.BadParameter(f"unknown event type(s) {', '.join(unknown) or text!r}; choose from {', '.join(EVENT_TYPES)}", param_hint=option)
-    return kinds
-
-
-def mcap_options(imu_topic, gnss_topic, speed_topic, stamps, imu_axes=None):
-    from ..sources.imu_frame import parse_imu_axes
-    from ..sources.load import LogOptions
-
-    if stamps not in ("header", "log"):
-        raise typer.BadParameter(f"{stamps!r}: choose header or log", param_hint="--stamps")
-    if imu_axes is not None:
-        parse_imu_axes(imu_axes)  # checked before any work; InputError names --imu-axes
-    return LogOptions(imu_topic, gnss_topic, speed_topic, stamps, imu_axes)
-
-
-def yaw_sign(value: str) -> str:
-    if value not in ("auto", "cw", "ccw"):
-        raise typer.BadParameter(f"{value!r}: choose auto, cw or ccw", param_hint="--yaw-sign")
-    return value
+def split_list(text: str) -> tuple[str, ...]:
+    """``"a, b,"`` -> ``("a", "b")``: a comma-separated option (the library checks the names)."""
+    return tuple(k.strip() for k in text.split(",") if k.strip())
 
 
 def terminal_width(stream=None) -> Optional[int]:

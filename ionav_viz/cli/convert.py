@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 
@@ -18,16 +18,15 @@ from .app import app
 def convert(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
     output: Path = typer.Option(..., "-o", "--output", help="The .mcap file to write (ROS 2 cdr: Imu, NavSatFix, TwistStamped)."),
-    source: c.SourceArgs = None,
+    read: Any = None,  # ReadOptions (c.with_source_options)
 ) -> None:
     """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""
     from ..sources.load import load_drive
     from ..sources.mcap_writer import TOPICS, write_mcap
-    from ..sources.resolve import data_root
 
     if output.suffix.lower() != ".mcap":
         raise typer.BadParameter(f"{output}: the output must end in .mcap", param_hint="-o")
-    drive = load_drive(drive_spec, data_root(source.data_root), source.yaw_sign, source.mcap, source.gnss_limits)
+    drive = load_drive(drive_spec, read)
     n = write_mcap(drive, output)
     print(f"{n} messages on {', '.join(TOPICS.values())} ({len(drive)} samples, {drive.duration_s:.1f} s)", file=sys.stderr)
     print(output)

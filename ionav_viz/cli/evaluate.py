@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import sys
-from typing import Optional
+from dataclasses import replace
+from typing import Any, Optional
 
 import typer
 
 from . import common as c
-from .app import app, name_options
+from .app import app, options_named
 
 
 @app.command()
@@ -23,36 +24,32 @@ def evaluate(
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
     overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
     by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives (--on: the types to tabulate)."),
-    thresholds: Optional[list[str]] = c.Thresholds,
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
-    run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
-    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
+    run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
+    read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
     from .. import api
     from ..analysis.report import json_safe, overview_reports, reports_to_json
     from ..analysis.tables import render_overview
 
-    name_options(outage_s=f"--outage {outage}", placement=placement.option)
-    outage_s = c.whole_seconds(outage, "--outage")
+    outage_s = c.duration_s(outage, "--outage")
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
     if by_event and placement.on is None and placement.option != "--outage":
         raise typer.BadParameter(f"--by-event places one outage on each event; {placement.option.split()[0]} places them otherwise", param_hint="--by-event")
-    groups = api.scenario_drives(scenario, source.data_root) if scenario else {None: list(drives or [])}
+    groups = api.scenario_drives(scenario, read.data_root) if scenario else {None: list(drives or [])}
     if scenario and not quiet:
         print(f"drives: {groups.source}", file=sys.stderr)
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
-    th = c.thresholds(thresholds)
-    common = dict(**run.api_kwargs(), **source.api_kwargs())
-    if by_event:
-        reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on, thresholds=th, **common)
-    else:
-        with c.progress(quiet) as bar:
-            reports = {group: api.evaluate(specs, outage_s, placement.placement, title=group, thresholds=th, **common,
-                                           progress=c.progress_callback(bar, "evaluating"))
+    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
+        if by_event:
+            reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on, run=run, read=read)
+        else:
+            reports = {group: replace(api.evaluate(specs, outage_s, placement.placement, run=run, read=read,
+                                                   progress=c.progress_callback(bar, "evaluating")), title=group)
                        for group, specs in groups.items()}
 
     if as_json:

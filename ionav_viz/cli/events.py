@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 from typer.core import TyperCommand
 
 from . import common as c
-from .app import app
+from .app import app, options_named
 
 
 class _EventsCommand(TyperCommand):
@@ -31,49 +31,37 @@ def events(
     types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated."),
     quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),
     thresholds: Optional[list[str]] = c.Thresholds,
-    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
+    read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
 ) -> None:
     """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes and cruising.
 
     Definitions: docs/method.md ('Manoeuvres') and the docstring of ionav_viz/analysis/events.py;
     every --threshold NAME=VALUE, with its default and range, is listed below.
     """
-    from ..analysis.events import EVENT_TYPES, detect_events, score
-    from ..dataset.samples import SAMPLES, sample_path
-    from ..sim.simulate import simulated_manoeuvres
-    from ..sources.load import load_drive
-    from ..sources.resolve import data_root
+    from .. import api
+    from ..analysis.events import EventThresholds
 
-    th = c.thresholds(thresholds)
-    kinds = c.event_types(types) if types else EVENT_TYPES
+    th = EventThresholds().with_overrides(list(thresholds or []))
+    kinds = c.split_list(types) if types else None
     if quality:
-        totals: dict[str, list[int]] = {k: [0, 0, 0, 0] for k in EVENT_TYPES}
-        for sample in SAMPLES:
-            drive = load_drive(str(sample_path(sample)))  # with the GNSS quality marks, as every command reads
-            truth = simulated_manoeuvres(sample.scenario, sample.seed, sample.duration_s, sample.gnss_losses)
-            for kind, sc in score(truth, detect_events(drive, th), drive.duration_s).items():
-                for i, v in enumerate((sc.n_truth, sc.recalled, sc.n_found, sc.precise)):
-                    totals[kind][i] += v
-        rows = {k: {"known": t[0], "recalled": t[1], "found": t[2], "precise": t[3],
-                    "recall": t[1] / t[0] if t[0] else None, "precision": t[3] / t[2] if t[2] else None}
-                for k, t in totals.items() if k in kinds}
+        rows = api.detector_quality(th, kinds)
         if as_json:
-            print(json.dumps({"drives": [s.file for s in SAMPLES], "detectors": rows}, indent=2))
+            from ..dataset.samples import SAMPLES
+
+            print(json.dumps({"drives": [s.file for s in SAMPLES], "detectors": {
+                k: {"known": q.known, "recalled": q.recalled, "found": q.found, "precise": q.precise, "recall": q.recall, "precision": q.precision}
+                for k, q in rows.items()}}, indent=2))
             return
         print(f"{'event':<13} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
-        for k, r in rows.items():
-            rec = f"{100 * r['recall']:.0f} %" if r["recall"] is not None else "-"
-            prec = f"{100 * r['precision']:.0f} %" if r["precision"] is not None else "-"
-            print(f"{k:<13} {r['known']:>5} {r['found']:>5}  {rec:>7}  {prec:>9}")
+        for k, q in rows.items():
+            rec = f"{100 * q.recall:.0f} %" if q.recall is not None else "-"
+            prec = f"{100 * q.precision:.0f} %" if q.precision is not None else "-"
+            print(f"{k:<13} {q.known:>5} {q.found:>5}  {rec:>7}  {prec:>9}")
         return
     if not drives:
         raise typer.BadParameter("give at least one drive (or --quality)", param_hint="DRIVES")
-    root = data_root(source.data_root)
-    yaw_sign, mcap = source.yaw_sign, source.mcap
-    found = {}
-    for spec in drives:
-        drive = load_drive(spec, root, yaw_sign, mcap, source.gnss_limits)
-        found[drive.name] = [e for e in detect_events(drive, th) if e.type in kinds]
+    with options_named(placement="--type"):
+        found = api.find_events(drives, kinds, thresholds=th, read=read)
     if as_json:
         print(json.dumps({name: [e.to_dict() for e in evs] for name, evs in found.items()}, indent=2))
         return

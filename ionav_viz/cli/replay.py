@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 
 from ..viz.live import DEFAULT_CONNECT_URL, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 from . import common as c
-from .app import app, log, name_options
+from .app import app, log, options_named
 
 
 @app.command()
@@ -28,23 +28,18 @@ def replay(
     web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", help="--serve-web: the port of the web viewer."),
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
-    run: c.EstimatorArgs = None,  # --estimators, --estimator, --model, --no-idnn, --bias-from (c.with_estimator_options)
-    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
+    run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
+    read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
-    thresholds: Optional[list[str]] = c.Thresholds,
 ) -> None:
     """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
     from .. import api
 
-    outage_s = c.whole_seconds(outage, "--outage")
-    name_options(outage_s=f"--outage {outage}", placement=placement.option)
-    if output is not None and output.suffix.lower() != ".rrd":
-        raise typer.BadParameter(f"{output}: the output must end in .rrd", param_hint="-o")
+    outage_s = c.duration_s(outage, "--outage")
     if open_viewer:
         _check_display()
-    with c.progress(quiet) as bar:
-        result = api.replay(drive_spec, outage_s, placement.placement, output=output, thresholds=c.thresholds(thresholds),
-                            **run.api_kwargs(), **source.api_kwargs(), connect=connect,
+    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
+        result = api.replay(drive_spec, outage_s, placement.placement, output=output, run=run, read=read, connect=connect,
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)

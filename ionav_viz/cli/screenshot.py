@@ -9,9 +9,8 @@ from typing import Optional
 
 import typer
 
-from ..core.errors import InputError
 from . import common as c
-from .app import app, name_options
+from .app import app, options_named
 
 
 @app.command()
@@ -38,9 +37,9 @@ def screenshot(
     Prints the path of every image written (unless -q).
     """
     from .. import api
+    from ..sources.load import ReadOptions
     from ..viz.screenshot import parse_size
 
-    name_options(outage_s="--outage-length", outages="--outage", worst_of="--worst-of", placement=placement.option)
     width_height = parse_size(size)
     timeout_s = c.duration_s(timeout, "--timeout")
     if scenario is not None and recordings:
@@ -54,21 +53,15 @@ def screenshot(
     numbers = [_outage_number(n) for n in outage_numbers or []]
     times = list(times or ([] if numbers else ["worst"] if scenario else ["end"]))
     views = list(views or ["all"])
-    for rec in recordings or []:
-        if not rec.is_file():
-            raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
-    with tempfile.TemporaryDirectory(prefix="ionav-shots-") as tmp:
+    names = options_named(outage_s="--outage-length", outages="--outage", worst_of="--worst-of", placement=placement.option)
+    with tempfile.TemporaryDirectory(prefix="ionav-shots-") as tmp, names:
         rrds = list(recordings or [])
         if scenario is not None:
-            outage_s = c.whole_seconds(outage_length, "--outage-length")
-            run = c.estimator_args(estimator_names, plugins)
-            groups = api.scenario_drives(scenario, data_root_opt)
+            read = ReadOptions(data_root=data_root_opt)
             if not quiet:
-                print(f"drives: {groups.source}", file=sys.stderr)
-            for group, specs in groups.items():
-                for spec in specs:
-                    rrd = Path(tmp) / f"{group}-{Path(spec).stem}.rrd"
-                    rrds.append(api.replay(spec, outage_s, placement.placement, output=rrd, data_root=data_root_opt, **run.api_kwargs()).path)
+                print(f"drives: {api.scenario_drives(scenario, read.data_root).source}", file=sys.stderr)
+            rrds = api.replay_scenario(scenario, tmp, c.duration_s(outage_length, "--outage-length"), placement.placement,
+                                       run=c.run_options(estimator_names, plugins), read=read)
         api.screenshot(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=None if quiet else print, outages=numbers,
                        worst_of=worst_of)
 

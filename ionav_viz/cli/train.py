@@ -8,7 +8,6 @@ from typing import Any, Optional
 
 import typer
 
-from ..core.errors import InputError
 from . import common as c
 from .app import app
 
@@ -49,41 +48,16 @@ def train(
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     bias_from: Optional[str] = c.BiasFromOpt,
-    source: c.SourceArgs = None,  # --data-root, --yaw-sign, MCAP topics and stamps (c.with_source_options)
+    read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
 ) -> None:
     """Train the displacement and orientation-rate networks and write them with their metadata."""
-    from ..dataset.catalog import PAPER_TRAIN_RUNS
-    from ..dataset.samples import SAMPLES, sample_path
-    from ..nav.bias import resolve_bias
-    from ..nav.idnn import ModelConfig, check_model_dir, save_model
-    from ..nav.training import train_models
-    from ..sources.load import load_drive
-    from ..sources.resolve import data_root
+    from .. import api
+    from ..nav.idnn import ModelConfig
 
-    root = data_root(source.data_root)
-    yaw_sign, mcap = source.yaw_sign, source.mcap
-    if paper_train:
-        if root is None:
-            raise InputError("--paper-train needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA")
-        specs, description = list(PAPER_TRAIN_RUNS), "the paper's IO-VNBD training runs (Table 1)"
-    elif drives:
-        specs, description = list(drives), "user-given drives"
-    else:
-        specs = [str(sample_path(s)) for s in SAMPLES if s.role == "train"]
-        description = "the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), not real data"
     config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp,
                          epochs_yaw=epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
                          lr_decay_tail=lr_decay_tail, inputs=inputs, seed=seed)
-    config.validate()
-    if epochs_disp < 1 or epochs_yaw < 1:
-        raise typer.BadParameter("epochs must be at least 1")
-    check_model_dir(output, overwrite=force)  # before any work
-    stationary = load_drive(bias_from, root, yaw_sign, mcap, source.gnss_limits) if bias_from else None
-    loaded = []
-    for spec in specs:
-        drive = load_drive(spec, root, yaw_sign, mcap, source.gnss_limits)
-        loaded.append((drive, resolve_bias(drive, stationary)))
-
+    specs = api.training_drives(paper=True, data_root=read.data_root) if paper_train else (list(drives) if drives else None)
     with c.progress(quiet) as bar:
         tasks: dict[str, Any] = {}
 
@@ -94,12 +68,11 @@ def train(
                 tasks[label] = bar.add_task(f"training {label}", total=total)
             bar.update(tasks[label], completed=done)
 
-        model = train_models(loaded, config, progress=progress, description=description)
-    model.metadata["training"]["command"] = training_command(sys.argv[1:])
-    save_model(model, output, overwrite=force)
+        model = api.train(output, specs, config, bias_from=bias_from, read=read, force=force, progress=progress,
+                          command=training_command(sys.argv[1:]))
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
-    print(f"trained {arch} on {len(loaded)} drive(s), {model.metadata['training']['n_examples']} windows; "
+    print(f"trained {arch} on {len(model.metadata['training']['drives'])} drive(s), {model.metadata['training']['n_examples']} windows; "
           f"trainable parameters: displacement {params['displacement']}, orientation rate {params['yaw_rate']}", file=sys.stderr)
     print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate {val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
     print(output)

@@ -16,6 +16,7 @@ class InputError(Exception):
         self.message = message
         self.hint = hint
         self.param = param
+        self.option: str | None = None  # the command-line option that set ``param``, when a command says
 
     def __str__(self) -> str:
         return f"{self.message} (hint: {self.hint})" if self.hint else self.message

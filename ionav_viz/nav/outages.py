@@ -9,8 +9,9 @@ So the first window of each segment never starts an outage. The same holds for b
 truth, so a stretch of bad fixes splits a segment as a gap does.
 
 Placements are values (:class:`Tile`, :class:`Every`, :class:`At`, :class:`Random`,
-:class:`AroundEvents`), each with ``starts(windows, n, events)`` and ``describe(outage_s)``, over
-these functions (all return sorted start indices into :class:`~ionav_viz.nav.windows.Windows`):
+:class:`AroundEvents`), each planning its own outages (``plan(windows, n_windows, events, source)
+-> OutagePlan``: starts, description, what bad truth excluded, GNSS losses to bridge), over these
+functions (all return sorted start indices into :class:`~ionav_viz.nav.windows.Windows`):
 
 * :func:`tile` -- the paper's protocol: consecutive, back-to-back outages from the start of each
   segment to its end (a last partial outage is dropped).
@@ -25,6 +26,7 @@ these functions (all return sorted start indices into :class:`~ionav_viz.nav.win
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +36,8 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.gnss_quality import fault_names
 from .windows import Windows
+
+log = logging.getLogger("ionav_viz")
 
 
 def outage_windows(outage_s: float, what: str = "outage length", param: str = "outage_s") -> int:
@@ -158,14 +162,35 @@ def around(windows: Windows, intervals: list[tuple[float, float]], n: int) -> tu
 
 
 @dataclass(frozen=True)
+class OutagePlan:
+    """Where one drive's outages go, as a placement planned them.
+
+    Attributes:
+        starts: first window of each synthetic outage (sorted indices into the windows).
+        description: the placement in words, for reports and recordings.
+        excluded: how many outages the placement would have put where the GNSS truth is bad.
+        gnss_gaps: the log's own GNSS losses to bridge, ``(last good fix s, first good fix s)``.
+        too_short: no outage fits the drive, and the placement skips such a drive (the tiling
+            of a report over several drives) instead of failing.
+    """
+
+    starts: np.ndarray
+    description: str
+    excluded: int = 0
+    gnss_gaps: tuple[tuple[float, float], ...] = ()
+    too_short: bool = False
+
+
+@dataclass(frozen=True)
 class Tile:
     """The paper's protocol: consecutive, back-to-back outages covering each segment."""
 
-    def starts(self, windows: Windows, n: int, events: Sequence[Any] = ()) -> np.ndarray:
-        return tile(windows, n)
+    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
 
-    def describe(self, outage_s: float) -> str:
-        return f"consecutive {outage_s:g} s outages (the paper's protocol)"
+    def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
+        starts = tile(windows, n_windows)
+        return OutagePlan(starts, f"consecutive {n_windows:g} s outages (the paper's protocol)",
+                          excluded_by_truth(windows, n_windows, lambda w: tile(w, n_windows)), too_short=len(starts) == 0)
 
 
 @dataclass(frozen=True)
@@ -173,12 +198,15 @@ class Every:
     """An outage every ``period_s`` seconds (whole seconds, at least the outage length)."""
 
     period_s: float
+    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
 
-    def starts(self, windows: Windows, n: int, events: Sequence[Any] = ()) -> np.ndarray:
-        return every(windows, n, outage_windows(self.period_s, "outage period", "placement"))
+    def __post_init__(self) -> None:
+        outage_windows(self.period_s, "outage period", "placement")
 
-    def describe(self, outage_s: float) -> str:
-        return f"a {outage_s:g} s outage every {self.period_s:g} s"
+    def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
+        period = outage_windows(self.period_s, "outage period", "placement")
+        return OutagePlan(every(windows, n_windows, period), f"a {n_windows:g} s outage every {self.period_s:g} s",
+                          excluded_by_truth(windows, n_windows, lambda w: every(w, n_windows, period)))
 
 
 @dataclass(frozen=True)
@@ -186,12 +214,12 @@ class At:
     """Outages starting at the given times (s since the drive's first sample)."""
 
     times_s: tuple[float, ...]
+    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
 
-    def starts(self, windows: Windows, n: int, events: Sequence[Any] = ()) -> np.ndarray:
-        return at(windows, list(self.times_s), n)
-
-    def describe(self, outage_s: float) -> str:
-        return f"{outage_s:g} s outages at {', '.join(f'{x:g} s' for x in self.times_s)}"
+    def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
+        times = list(self.times_s)
+        return OutagePlan(at(windows, times, n_windows), f"{n_windows:g} s outages at {', '.join(f'{x:g} s' for x in self.times_s)}",
+                          excluded_by_truth(windows, n_windows, lambda w: at(w, times, n_windows)))
 
 
 @dataclass(frozen=True)
@@ -200,34 +228,58 @@ class Random:
 
     count: int
     seed: int = 0
+    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
 
-    def starts(self, windows: Windows, n: int, events: Sequence[Any] = ()) -> np.ndarray:
-        return random(windows, n, self.count, self.seed)
+    def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
+        def draw(w: Windows) -> np.ndarray:
+            return random(w, n_windows, self.count, self.seed)
 
-    def describe(self, outage_s: float) -> str:
-        return f"{self.count} random {outage_s:g} s outages (seed {self.seed})"
+        return OutagePlan(draw(windows), f"{self.count} random {n_windows:g} s outages (seed {self.seed})",
+                          excluded_by_truth(windows, n_windows, draw))
+
+
+#: A real loss of GNSS in the log (an event type, :mod:`ionav_viz.analysis.events`): outages
+#: bridge it from the last good fix and are scored at the first good fix after it.
+GNSS_OUTAGE = "gnss-outage"
 
 
 @dataclass(frozen=True)
 class AroundEvents:
-    """One outage centred on each detected manoeuvre of the given types (see ``ionav-viz events``).
+    """One outage centred on each detected event of the given types (see ``ionav-viz events``);
+    ``gnss-outage`` bridges the log's own GNSS losses instead.
 
-    The caller detects the events (:func:`ionav_viz.analysis.events.detect_events`) and passes
-    them to :meth:`starts`; ``used``/``targets`` then say how many got an outage.
+    The caller detects the events of :attr:`event_types` (:func:`ionav_viz.analysis.events.detect_events`)
+    and passes them to :meth:`plan`; every placement has ``event_types`` (the others none).
     """
 
     types: tuple[str, ...]
 
-    def targets(self, events: Sequence[Any]) -> list[Any]:
-        return [e for e in events if e.type in self.types]
+    @property
+    def event_types(self) -> tuple[str, ...]:
+        """The events :meth:`plan` needs detected."""
+        return self.types
 
-    def starts(self, windows: Windows, n: int, events: Sequence[Any] = ()) -> np.ndarray:
-        starts, _ = around(windows, [(e.t0_s, e.t1_s) for e in self.targets(events)], n)
-        return starts
-
-    def describe(self, outage_s: float, used: int | None = None, targets: int | None = None) -> str:
-        counts = f" ({used} of {targets})" if used is not None else ""
-        return f"one {outage_s:g} s outage centred on each {', '.join(self.types)} event{counts}"
+    def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
+        where = f"{source}: " if source else ""
+        gaps = tuple((e.t0_s, e.t1_s) for e in events if e.type == GNSS_OUTAGE) if GNSS_OUTAGE in self.types else ()
+        kinds = tuple(t for t in self.types if t != GNSS_OUTAGE)
+        bridged = f"the log's own {len(gaps)} GNSS outage(s)"
+        if not kinds:
+            if not gaps:
+                raise InputError(f"{where}no GNSS outage of 2 s or more in this drive", f"see 'ionav-viz events {source}'")
+            return OutagePlan(np.zeros(0, dtype=int), f"every estimator through {bridged}, from the last good fix", 0, gaps)
+        targets = [e for e in events if e.type in kinds]
+        spans = [(e.t0_s, e.t1_s) for e in targets]
+        starts, used = around(windows, spans, n_windows)
+        if len(used) < len(targets):
+            log.warning("%s%d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, or on bad GNSS truth)",
+                        where, len(targets) - len(used), len(targets), "/".join(kinds))
+        if len(starts) == 0:
+            raise InputError(f"{where}no {' or '.join(kinds)} event with room for a {n_windows:g} s outage", f"see 'ionav-viz events {source}'")
+        description = f"one {n_windows:g} s outage centred on each {', '.join(kinds)} event ({len(used)} of {len(targets)})"
+        if gaps:
+            description += f"; and {bridged}"
+        return OutagePlan(starts, description, excluded_by_truth(windows, n_windows, lambda w: around(w, spans, n_windows)[0]), gaps)
 
 
 Placement = Tile | Every | At | Random | AroundEvents

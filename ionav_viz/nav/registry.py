@@ -170,29 +170,16 @@ def resolve(
         raise EstimatorError(f"cannot leave out {', '.join(map(repr, unknown))}: not a built-in estimator", f"built-ins: {', '.join(BUILTIN)}")
     defaults = [n for n in BUILTIN if n not in without]
     chosen: list[Estimator] = []
-    for item in list(defaults if names is None else names) + list(plugins):
-        if not isinstance(item, str):  # an object, a class or a factory
-            chosen.append(_instantiate(item, getattr(item, "__name__", type(item).__name__)))
-            continue
-        key = item.strip()
-        if ":" in key:
-            chosen.append(load_plugin(key))
-        elif key in BUILTIN:
-            est = builtin(key, model)
-            if not explicit and not available(est):
-                continue
+    for item in list(defaults if names is None else names):
+        est = _one(item, model, explicit)
+        if est is not None:
             chosen.append(est)
-        else:
-            found = entry_points()
-            if key not in found:
-                known = sorted(set(BUILTIN) | set(found))
-                raise EstimatorError(f"unknown estimator {key!r}", f"choose from {', '.join(known)}, or give MODULE:NAME")
-            try:
-                factory = found[key].load()
-            except Exception as exc:
-                raise EstimatorError(f"estimator {key!r}: its entry point {found[key].value} does not load "
-                                     f"({type(exc).__name__}: {exc})", "reinstall the package that provides it") from exc
-            chosen.append(_instantiate(factory, found[key].value))
+    for item in plugins:
+        try:
+            chosen.append(_one(item, model, True))
+        except EstimatorError as exc:
+            exc.param = "plugins"  # the command line's --estimator
+            raise
     seen: dict[str, Estimator] = {}
     for est in chosen:
         if est.name in seen:
@@ -203,3 +190,26 @@ def resolve(
     if not seen:
         raise EstimatorError("no estimator to run", "choose at least one, e.g. ins", param="estimators")
     return list(seen.values())
+
+
+def _one(item: str | Estimator, model: Any, explicit: bool) -> Estimator | None:
+    """One estimator from a name, spec or object (None: a default built-in not available here)."""
+    if not isinstance(item, str):  # an object, a class or a factory
+        return _instantiate(item, getattr(item, "__name__", type(item).__name__))
+    key = item.strip()
+    if ":" in key:
+        return load_plugin(key)
+    elif key in BUILTIN:
+        est = builtin(key, model)
+        return est if explicit or available(est) else None
+    else:
+        found = entry_points()
+        if key not in found:
+            known = sorted(set(BUILTIN) | set(found))
+            raise EstimatorError(f"unknown estimator {key!r}", f"choose from {', '.join(known)}, or give MODULE:NAME")
+        try:
+            factory = found[key].load()
+        except Exception as exc:
+            raise EstimatorError(f"estimator {key!r}: its entry point {found[key].value} does not load "
+                                 f"({type(exc).__name__}: {exc})", "reinstall the package that provides it") from exc
+        return _instantiate(factory, found[key].value)

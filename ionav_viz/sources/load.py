@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.gnss_quality import GnssLimits, assess_gnss, count_by_fault
-from .resolve import resolve_drive
+from ..core.timing import stage
+from .resolve import data_root, resolve_drive
 
 log = logging.getLogger("ionav_viz")
 
@@ -26,8 +28,33 @@ class LogOptions:
     imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
 
 
-#: The earlier name of :class:`LogOptions`, from when MCAP was the only message log.
-McapOptions = LogOptions
+@dataclass(frozen=True)
+class ReadOptions:
+    """How drives are found and read, the same for every command and API function.
+
+    Attributes:
+        data_root: where run names are looked up (default ``$IONAV_DATA``, else the per-user data
+            directory ``fetch`` fills).
+        yaw_sign: sign of the yaw rate (the CSV column, a log's gyro z): ``"auto"`` (the source's
+            convention, checked against the GNSS course), ``"cw"`` or ``"ccw"``.
+        log: topics, stamps and IMU axes of message logs (MCAP, ROS bags).
+        gnss_limits: thresholds of the GNSS quality checks that mark untrustworthy fixes.
+    """
+
+    data_root: str | Path | None = None
+    yaw_sign: str = "auto"
+    log: LogOptions = field(default_factory=LogOptions)
+    gnss_limits: GnssLimits = field(default_factory=GnssLimits)
+
+    def __post_init__(self) -> None:
+        if self.yaw_sign not in ("auto", "cw", "ccw"):
+            raise InputError(f"yaw sign {self.yaw_sign!r} is not auto, cw or ccw", "choose auto, cw or ccw", param="yaw_sign")
+        if self.log.stamps not in ("header", "log"):
+            raise InputError(f"stamps {self.log.stamps!r}: choose header or log", param="stamps")
+        if self.log.imu_axes is not None:
+            from .imu_frame import parse_imu_axes
+
+            parse_imu_axes(self.log.imu_axes)  # checked before any work; names imu_axes
 
 _SUPPORTED = ("ionav-viz reads IO-VNBD V-*.csv files, MCAP (.mcap) logs, ROS 1 .bag files, ROS 2 bag folders "
               "(or their metadata.yaml / .db3) and KITTI raw drive folders")
@@ -96,21 +123,34 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
                     stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign)
 
 
-def load_drive(spec: str, root: Path | None = None, yaw_sign: str = "auto", mcap: LogOptions | None = None,
-               gnss_limits: GnssLimits | None = None) -> Drive:
-    """Resolve ``spec`` (path, bundled scenario or run name) and read it into a :class:`Drive`.
+def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mcap: LogOptions | None = None) -> Drive:
+    """Read a drive: a path (IO-VNBD ``V-*.csv``, ``.mcap``, ROS 1 ``.bag``, a ROS 2 bag folder or
+    its ``metadata.yaml``, a KITTI raw drive folder), a bundled scenario name (``"roundabout"``,
+    ``"stationary"``) or an IO-VNBD run name (``"V-Vw8"``) under ``read.data_root``. A
+    :class:`Drive` is returned as it is.
 
-    ``.csv`` files are IO-VNBD vehicle files; ``.mcap`` files, ROS 1 ``.bag`` files and ROS 2 bag
-    folders are message logs (``mcap``: the :class:`LogOptions` that apply to all of them); a
-    folder with ``oxts/`` is a KITTI raw drive. ``yaw_sign`` applies to all (``auto``: the
-    source's convention, checked against the GNSS course). Every source then gets the same GNSS
-    quality checks (``gnss_limits``, see :mod:`ionav_viz.core.gnss_quality`).
+    Every source gets the same GNSS quality checks (``read.gnss_limits``, see
+    :mod:`ionav_viz.core.gnss_quality`). ``mcap``: the earlier name of ``read.log``, deprecated.
     """
-    path = resolve_drive(spec, root)
-    drive = read_source(path, yaw_sign, mcap)
-    check_rate(drive, path)
-    mark_gnss_quality(drive, gnss_limits or GnssLimits())
+    if isinstance(spec, Drive):
+        return spec
+    read = with_deprecated_log(read, mcap)
+    with stage(f"read {spec}") as s:
+        path = resolve_drive(str(spec), data_root(read.data_root))
+        drive = read_source(path, read.yaw_sign, read.log)
+        check_rate(drive, path)
+        mark_gnss_quality(drive, read.gnss_limits)
+        s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
     return drive
+
+
+def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> ReadOptions:
+    """``read`` (default :class:`ReadOptions`), with the deprecated ``mcap=`` keyword as its ``log``."""
+    read = read if read is not None else ReadOptions()
+    if mcap is None:
+        return read
+    warnings.warn("mcap= is deprecated: pass read=ReadOptions(log=LogOptions(...))", DeprecationWarning, stacklevel=3)
+    return replace(read, log=mcap)
 
 
 def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
