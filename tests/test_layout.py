@@ -113,35 +113,31 @@ def test_imports_go_one_way_only():
     assert not wrong, "\n".join(wrong)
 
 
-def test_the_check_catches_an_upward_import(tmp_path, monkeypatch):
-    # the rule above must be able to fail: a nav module importing the CLI is reported
-    fake = PACKAGE / "nav" / "_layer_probe.py"
-    fake.write_text("from ..cli import app\n")
+def assert_probe_reported(source: str, check, *fragments: str) -> None:
+    """A module ``nav/_probe.py`` holding ``source`` makes ``check`` fail with ``fragments`` in its
+    message: the rule can fail."""
+    fake = PACKAGE / "nav" / "_probe.py"
+    fake.write_text(source)
     try:
         try:
-            test_imports_go_one_way_only()
+            check()
         except AssertionError as exc:
-            assert "nav/_layer_probe.py imports ionav_viz.cli" in str(exc)
+            assert all(f in str(exc) for f in fragments), str(exc)
         else:
-            raise AssertionError("an upward import was not reported")
+            raise AssertionError(f"{check.__name__} did not report nav/_probe.py")
     finally:
         fake.unlink()
 
 
-def test_the_check_reads_imports_of_the_package_itself(tmp_path):
+def test_the_check_catches_an_upward_import():
+    assert_probe_reported("from ..cli import app\n", test_imports_go_one_way_only, "nav/_probe.py imports ionav_viz.cli")
+
+
+def test_the_check_reads_imports_of_the_package_itself():
     """``from .. import __version__`` in nav imports the package's __init__, which re-exports the
     API: an arrow against the flow."""
-    fake = PACKAGE / "nav" / "_layer_probe.py"
-    fake.write_text("def f():\n    from .. import __version__\n")
-    try:
-        try:
-            test_imports_go_one_way_only()
-        except AssertionError as exc:
-            assert "nav/_layer_probe.py imports ionav_viz.__version__" in str(exc)
-        else:
-            raise AssertionError("an import of the package from nav was not reported")
-    finally:
-        fake.unlink()
+    assert_probe_reported("def f():\n    from .. import __version__\n", test_imports_go_one_way_only,
+                          "nav/_probe.py imports ionav_viz.__version__")
 
 
 def test_no_import_circle():
@@ -190,18 +186,9 @@ def test_every_constant_has_one_home():
     assert not through, through
 
 
-def test_the_constant_check_finds_a_copy():
-    fake = PACKAGE / "nav" / "_constant_probe.py"
-    fake.write_text("GRID_RATE_HZ = 10.0\n")
-    try:
-        try:
-            test_every_constant_has_one_home()
-        except AssertionError as exc:
-            assert "GRID_RATE_HZ" in str(exc) and "nav/_constant_probe.py" in str(exc)
-        else:
-            raise AssertionError("a second GRID_RATE_HZ was not reported")
-    finally:
-        fake.unlink()
+def test_the_constant_check_finds_a_copy_and_a_re_export():
+    assert_probe_reported("GRID_RATE_HZ = 10.0\n", test_every_constant_has_one_home, "GRID_RATE_HZ", "nav/_probe.py")
+    assert_probe_reported("from .windows import WINDOW_S\n", test_every_constant_has_one_home, "imports WINDOW_S from ionav_viz.nav.windows")
 
 
 def test_every_subpackage_says_what_it_is():
