@@ -31,8 +31,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench-shots-") as tmp:
         rec = iv.replay("sharp-cornering", outage_s=10.0, output=Path(tmp) / "sharp.rrd").path
         stamps = [time.perf_counter()]
-        iv.screenshot([rec], Path(tmp) / "shots", times=(), views=[args.view], size=(width, height),
-                      outages=range(1, args.images + 1), progress=lambda _p: stamps.append(time.perf_counter()))
+        iv.screenshot([rec], Path(tmp) / "shots", iv.Shots(times=(), views=[args.view], size=(width, height), outages=range(1, args.images + 1)),
+                      progress=lambda _p: stamps.append(time.perf_counter()))
         per_image = np.diff(stamps)
     rest = per_image[1:]
     print(f"{len(per_image)} images, view {args.view}, {width}x{height}: first {per_image[0]:.2f} s (viewer start and load), "

@@ -34,8 +34,8 @@ def main() -> None:
             worst = result.report.worst_outages(1)[0]  # by the INS DR's final position error
             errors = ", ".join(f"{name} {err:.1f} m" for name, err in worst["final_error_m"].items())
             # 'worst' frames the same outage: its tracks fill the view, its errors are in the title
-            [png] = iv.screenshot([result.path], args.output / f"{scenario}-worst.png", times=["worst"],
-                                  views=[args.view], size=(width, height))
+            [png] = iv.screenshot([result.path], args.output / f"{scenario}-worst.png",
+                                  iv.Shots(times=["worst"], views=[args.view], size=(width, height)))
             print(f"{scenario}: outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s), "
                   f"final error {errors} -> {png}")
 

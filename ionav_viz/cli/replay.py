@@ -47,7 +47,7 @@ def replay(
     if screenshot_dir is not None:
         from ..viz.screenshot import VIEWS
 
-        api.screenshot([result.path], screenshot_dir, ["worst"], list(VIEWS), (1600, 900), progress=print)
+        api.screenshot([result.path], screenshot_dir, api.Shots(times=["worst"], views=list(VIEWS)), progress=print)
     if connect is not None and not quiet:
         print(f"streamed to the viewer at {connect}", file=sys.stderr)
     if open_viewer:

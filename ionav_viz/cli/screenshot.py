@@ -62,8 +62,8 @@ def screenshot(
                 print(f"drives: {api.scenario_drives(scenario, read.data_root).source}", file=sys.stderr)
             rrds = api.replay_scenario(scenario, tmp, c.duration_s(outage_length, "--outage-length"), placement.placement,
                                        run=c.run_options(estimator_names, plugins), read=read)
-        api.screenshot(rrds, output, times, views, width_height, timeout_s=timeout_s, progress=None if quiet else print, outages=numbers,
-                       worst_of=worst_of)
+        api.screenshot(rrds, output, api.Shots(times, views, width_height, numbers, worst_of), timeout_s=timeout_s,
+                       progress=None if quiet else print)
 
 
 def _outage_number(text: str) -> int:
