@@ -1,0 +1,29 @@
+"""The public Python API: load drives, evaluate estimators on GNSS outages, replay to ``.rrd``, render screenshots.
+
+Every function here is what one CLI command does, without the shell: arguments are Python values
+(seconds as floats, paths, placement objects, estimator names or objects), results are
+dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad input) or
+:class:`~ionav_viz.core.errors.ToolFailure` (the environment: disk, renderer, network).
+
+    import ionav_viz as iv
+
+    drive = iv.load_drive("roundabout")                  # a bundled scenario, a path or a run name
+    report = iv.evaluate([drive], outage_s=10.0)          # the paper's consecutive outages
+    print(report.to_text())
+    result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd")
+    iv.screenshot([result.path], "shots/", iv.Shots(times=["worst"], views=["local"]))
+"""
+
+
+from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, scenario_drives
+from .events import DetectorQuality, detector_quality, find_events
+from .options import RunOptions
+from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_scenario, serve_web
+from .screenshots import Shots, screenshot
+from .training import TrainingDrives, train, training_drives
+
+__all__ = [
+    "RECORDINGS_DIR", "DetectorQuality", "Outage", "ReplayResult", "RunOptions", "ScenarioDrives", "Shots", "TrainingDrives",
+    "detector_quality", "evaluate", "evaluate_by_event", "find_events", "replay", "replay_scenario", "scenario_drives",
+    "screenshot", "serve_web", "train", "training_drives",
+]

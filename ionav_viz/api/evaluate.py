@@ -1,0 +1,168 @@
+"""Evaluating estimators on GNSS outages: :func:`evaluate`, :func:`evaluate_by_event`, and the
+scenarios' test drives."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..analysis.evaluate import DriveResult, evaluate_drive
+from ..analysis.events import MANOEUVRE_TYPES, Event, detect_events
+from ..analysis.report import Report
+from ..core.drive import Drive
+from ..core.errors import InputError
+from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
+from ..nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement, Tile
+from ..nav.protocol import Estimator
+from ..nav.windows import Windows, make_windows
+from ..sources.load import LogOptions, ReadOptions, load_drive
+from ..sources.resolve import data_root as _data_root
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, options_of, windows_of
+
+
+class ScenarioDrives(dict):
+    """Test drives by scenario (a ``dict``), with ``source``: one line saying where they come from."""
+
+    source: str = ""
+
+
+def scenario_drives(scenario: str, data_root: str | Path | None = None) -> ScenarioDrives:
+    """The test drives of a scenario (``"all"``: of every scenario), by scenario: the paper's runs
+    where all of a scenario's runs are under the data root, else the bundled synthetic drive.
+    ``.source`` says which, in one line."""
+    from ..dataset.samples import by_scenario, sample_path
+    from ..sources.resolve import index_data_root
+
+    if scenario != "all" and scenario not in SCENARIOS:
+        raise InputError(f"unknown scenario {scenario!r}", f"choose {', '.join(SCENARIOS)} or all", param="scenario")
+    names = SCENARIOS if scenario == "all" else (scenario,)
+    root = _data_root(data_root)
+    present = index_data_root(root.resolve()) if root is not None else {}
+    out = ScenarioDrives()
+    paper, bundled = [], []
+    for s in names:
+        if root is not None and all(run_key(r) in present for r in PAPER_TEST_RUNS[s]):
+            out[s] = list(PAPER_TEST_RUNS[s])
+            paper.append(s)
+        else:
+            out[s] = [str(sample_path(sample)) for sample in by_scenario(s)]
+            bundled.append(s)
+    parts = []
+    if paper:
+        parts.append(f"{', '.join(paper)}: the paper's IO-VNBD test runs under {root}")
+    if bundled:
+        why = f"the paper's runs are not all under {root}; 'ionav-viz fetch --scenario NAME' gets them" if root else "no IO-VNBD data root"
+        parts.append(f"{', '.join(bundled)}: the bundled synthetic test drives ({why})")
+    out.source = "; ".join(parts)
+    return out
+
+
+
+def plan_outages(drive: Drive, windows: Windows, placement: Placement, n_windows: int, run: RunOptions,
+          events: list[Event] | None = None) -> tuple[OutagePlan, list[Event]]:
+    """The placement's plan for one drive, with the events it was planned on (detected when the
+    placement needs them and they were not given)."""
+    if events is None and placement.event_types:
+        events = detect_events(drive, run.thresholds)
+    return placement.plan(windows, n_windows, events or [], drive.source), events or []
+
+
+
+def evaluate(
+    drives: Sequence[DriveLike] | DriveLike,
+    outage_s: float = 10.0,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    progress: Progress | None = None,
+    mcap: LogOptions | None = None,
+) -> Report:
+    """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
+
+    Args:
+        drives: drives or what names them (see :func:`load_drive`).
+        outage_s: length of each outage, whole seconds.
+        placement: where outages go (default :class:`Tile`, the paper's consecutive outages).
+            A drive too short for one tiled outage is skipped with a warning.
+        estimators: a shortcut for ``run.estimators``.
+        run: which estimators run with what model, biases and event thresholds (:class:`RunOptions`).
+        read: how drives are read (:class:`ReadOptions`); outages go only where every window has
+            good GNSS truth, and the report counts what was excluded.
+        mcap: deprecated, ``read.log``.
+
+    Returns:
+        a :class:`Report`; ``report.to_json()`` is what ``ionav-viz evaluate --json`` prints.
+    """
+    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
+    if not items:
+        raise InputError("no drive to evaluate", "give at least one drive")
+    placement = placement or Tile()
+    n = windows_of(outage_s)  # checked before any drive is read
+    run, read = options_of(run, estimators, read, mcap)
+    if placement.event_types:
+        check_event_types(placement.event_types)
+    run.chosen()
+    bias_of = run.bias_of(read)
+    loaded = [load_drive(item, read) for item in items]
+    ests = run.applying_to(loaded)
+    results = []
+    for i, drive in enumerate(loaded):
+        if progress:
+            progress(drive.name, i, len(items))
+        windows = make_windows(drive)
+        plan, _ = plan_outages(drive, windows, placement, n, run)
+        if plan.too_short:
+            log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, n, " on good GNSS truth" if plan.excluded else "")
+            continue
+        results.append(evaluate_drive(drive, n, ests, bias=bias_of(drive), starts=plan.starts, windows=windows,
+                                      excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
+    if progress:
+        progress("done", len(items), len(items))
+    if not results:
+        raise InputError(f"no {n:g} s outage fits in {', '.join(name_of(d) for d in items)}", "use shorter outages", param="outage_s")
+    return Report(results)
+
+
+def evaluate_by_event(
+    drives: Sequence[DriveLike],
+    outage_s: float = 10.0,
+    types: Sequence[str] | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    mcap: LogOptions | None = None,
+) -> dict[str, Report]:
+    """One report per manoeuvre type: an outage centred on each detected event, across ``drives``
+    (``types`` default: every manoeuvre type; ``gnss-outage``: the log's own losses, bridged).
+    The other arguments as for :func:`evaluate`."""
+    kinds = tuple(types) if types else MANOEUVRE_TYPES
+    check_event_types(kinds)
+    n = windows_of(outage_s)
+    run, read = options_of(run, estimators, read, mcap)
+    run.chosen()
+    bias_of = run.bias_of(read)
+    per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
+    loaded = [load_drive(item, read) for item in drives]
+    ests = run.applying_to(loaded)
+    for drive in loaded:
+        windows = make_windows(drive)
+        bias = bias_of(drive)
+        found = detect_events(drive, run.thresholds, kinds)
+        for kind in kinds:
+            if kind != GNSS_OUTAGE and not any(e.type == kind for e in found):
+                continue
+            try:
+                plan, _ = plan_outages(drive, windows, AroundEvents((kind,)), n, run, found)
+            except InputError:  # no room for an outage on this drive's events of that type, or no loss
+                continue
+            per_type[kind].append(evaluate_drive(drive, n, ests, bias=bias, starts=plan.starts, windows=windows,
+                                                 excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
+    reports = {kind: Report(results, kind) for kind, results in per_type.items() if results}
+    if not reports:
+        raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in {', '.join(name_of(d) for d in drives)}",
+                         "see 'ionav-viz events DRIVE'")
+    return reports
+

@@ -1,0 +1,109 @@
+"""The values every API function shares: how estimators run (:class:`RunOptions`), and the
+checks on the arguments they take, each in one place."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from ..analysis.events import EVENT_TYPES, EventThresholds
+from ..core.drive import Drive
+from ..core.errors import InputError
+from ..nav.bias import SensorBias, resolve_bias
+from ..nav.outages import outage_windows
+from ..nav.protocol import Estimator, applies
+from ..nav.registry import BUILTIN
+from ..nav.registry import resolve as resolve_estimators
+from ..sources.load import LogOptions, ReadOptions, load_drive, with_deprecated_log
+
+log = logging.getLogger("ionav_viz")
+
+#: ``progress(label, done, total)``: called as long work advances (e.g. to drive a progress bar).
+Progress = Callable[[str, int, int], None]
+DriveLike = Drive | str | Path
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How the estimators run, the same for every API function and command.
+
+    Attributes:
+        estimators: names (``"ins"``, ``"idnn"``, entry-point names, ``"module:NAME"``,
+            ``"path/to/file.py:NAME"``) or estimator objects; None: every built-in that applies
+            (the IDNN when a model exists, odometry where the drive has a vehicle speed).
+        plugins: estimators added to those (``--estimator``).
+        without: built-ins left out of the default set (``("idnn",)`` is ``--no-idnn``).
+        model: the IDNN's model (an ``IdnnModel`` or its directory); default the shipped one.
+        bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
+            default each drive's own stationary stretches.
+        thresholds: the event detectors' thresholds (default :class:`EventThresholds`).
+    """
+
+    estimators: Sequence[str | Estimator] | None = None
+    plugins: Sequence[str | Estimator] = ()
+    without: Sequence[str] = ()
+    model: Any = None
+    bias_from: DriveLike | SensorBias | None = None
+    thresholds: EventThresholds = field(default_factory=EventThresholds)
+
+    def chosen(self) -> list[Estimator]:
+        """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""
+        return resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
+
+    def applying_to(self, drives: Sequence[Drive]) -> list[Estimator]:
+        """The estimators that apply to every one of ``drives`` (one report compares them all on
+        the same outages). A default one left out is said at ``-v`` (by its ``applies``); one the
+        caller named (in ``estimators`` or ``plugins``), with a warning; none left is an error."""
+        defaults = set(BUILTIN) if self.estimators is None else set()
+        kept = []
+        for est in self.chosen():
+            missing = [d.name for d in drives if not applies(est, d)]
+            if not missing:
+                kept.append(est)
+            elif est.name not in defaults:
+                log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
+        if not kept:
+            raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in self.chosen())}) applies to {', '.join(d.name for d in drives)}",
+                             "choose others with --estimators (ins always applies)", param="estimators")
+        return kept
+
+    def bias_of(self, read: ReadOptions) -> Callable[[Drive], SensorBias]:
+        """``drive -> biases``: a given :class:`SensorBias`, a stationary drive's (read once), or each drive's own."""
+        if isinstance(self.bias_from, SensorBias):
+            fixed = self.bias_from
+            return lambda drive: fixed
+        stationary = load_drive(self.bias_from, read) if self.bias_from is not None else None
+        return lambda drive: resolve_bias(drive, stationary)
+
+
+def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | None, read: ReadOptions | None,
+             mcap: LogOptions | None) -> tuple[RunOptions, ReadOptions]:
+    """The run and read options of a call: ``estimators`` is a shortcut for ``run.estimators``."""
+    run = run if run is not None else RunOptions()
+    if estimators is not None:
+        if run.estimators is not None:
+            raise InputError("estimators given twice (as estimators= and in run=)", "give them once", param="estimators")
+        run = replace(run, estimators=estimators)
+    return run, with_deprecated_log(read, mcap)
+
+
+
+def check_event_types(types: Sequence[str]) -> None:
+    unknown = [t for t in types if t not in EVENT_TYPES]
+    if unknown or not types:
+        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}", param="placement")
+
+
+
+def windows_of(outage_s: float) -> int:
+    """The one place seconds become windows: the outage length (whole seconds) as windows."""
+    return outage_windows(outage_s)
+
+
+
+def name_of(item: DriveLike) -> str:
+    return item.name if isinstance(item, Drive) else str(item)
+

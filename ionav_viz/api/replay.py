@@ -1,0 +1,160 @@
+"""Replaying a drive to a ``.rrd`` recording, a scenario's drives, and serving a recording to browsers."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..analysis.evaluate import DriveResult, evaluate_drive
+from ..analysis.events import Event, detect_events
+from ..analysis.report import Report, run_summary_markdown
+from ..core.errors import InputError
+from ..core.fileio import check_output_file
+from ..core.timing import stage
+from ..nav.outages import Placement, Tile
+from ..nav.protocol import Estimator
+from ..nav.windows import make_windows
+from ..sources.load import LogOptions, ReadOptions, load_drive
+from .evaluate import plan_outages, scenario_drives
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, options_of, windows_of
+
+#: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
+RECORDINGS_DIR = "recordings"
+
+
+@dataclass(frozen=True)
+class Outage:
+    """One GNSS outage of a replay: its number (from 1), start and end (s since the drive's start)."""
+
+    number: int
+    start_s: float
+    end_s: float
+    first_window: int
+
+
+@dataclass(repr=False)
+class ReplayResult:
+    """What :func:`replay` produced: the written recording, the report and the outages."""
+
+    path: Path
+    report: Report
+    outages: list[Outage]
+    placement: str
+    result: DriveResult
+    events: list[Event] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return (f"ReplayResult({str(self.path)!r}\n  drive: {self.result.drive.name}, {len(self.outages)} outage(s): {self.placement}\n"
+                f"  {self.report.summary_line()}\n)")
+
+
+
+def replay(
+    drive: DriveLike,
+    outage_s: float = 10.0,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    output: str | Path | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    progress: Progress | None = None,
+    connect: str | None = None,
+    mcap: LogOptions | None = None,
+) -> ReplayResult:
+    """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
+
+    Args:
+        drive, outage_s, placement, estimators, run, read: as for :func:`evaluate`
+            (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
+        output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
+            directory, the folder made when missing); an existing file is replaced atomically,
+            nothing is left behind on failure.
+        progress: called as the recording is built.
+        connect: also stream the recording to the Rerun viewer at this gRPC address (e.g.
+            ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens); checked
+            before any work.
+
+    Returns:
+        a :class:`ReplayResult` with the written path, the report and the outages.
+    """
+    from ..core.fileio import atomic_path
+    from ..viz import live
+    from ..viz.recording import write_recording
+
+    if connect is not None:
+        live.check_listening(connect)
+    out = Path(output) if output is not None else None
+    if out is not None and out.suffix.lower() != ".rrd":
+        raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
+    placement = placement or Tile()
+    n = windows_of(outage_s)
+    run, read = options_of(run, estimators, read, mcap)
+    if placement.event_types:
+        check_event_types(placement.event_types)
+    run.chosen()
+    d = load_drive(drive, read)
+    with stage("windows") as s:
+        windows = make_windows(d)
+        s.detail = f"{len(windows)} of 1 s"
+    with stage("manoeuvres") as s:
+        events = detect_events(d, run.thresholds)
+        s.detail = f"{len(events)} detected"
+    plan, _ = plan_outages(d, windows, placement, n, run, events)
+    if len(plan.starts) == 0 and not plan.gnss_gaps:
+        raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {n:g} s outage", "use shorter outages", param="outage_s")
+    default = out is None
+    out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
+    chosen = run.applying_to([d])
+    result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
+                            gnss_gaps=plan.gnss_gaps)
+    report = Report([result])
+    summary = _summary_markdown(result, report, plan.description)
+    total = 5 + len(result.estimates)
+    done = [0]
+
+    def advance(label: str) -> None:
+        done[0] += 1
+        if progress:
+            progress(f"{out.name}: {label}", done[0], total)
+
+    with stage(f"write {out}") as s, atomic_path(out, create_parent=default) as tmp:
+        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
+        s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
+    if connect is not None:
+        with stage(f"stream to {connect}"):
+            live.connect(result, summary, connect, events=events)
+    outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(plan.starts)]
+    return ReplayResult(out, report, outages, plan.description, result, events)
+
+
+
+
+def replay_scenario(scenario: str, folder: str | Path, outage_s: float = 10.0, placement: Placement | None = None, *,
+                    run: RunOptions | None = None, read: ReadOptions | None = None) -> list[Path]:
+    """Replay every test drive of ``scenario`` (``"all"``: of every scenario; see
+    :func:`scenario_drives`) into ``folder`` as ``<scenario>-<drive>.rrd``; returns the paths."""
+    read = read if read is not None else ReadOptions()
+    groups = scenario_drives(scenario, read.data_root)
+    log.info("drives: %s", groups.source)
+    return [replay(spec, outage_s, placement, output=Path(folder) / f"{group}-{Path(spec).stem}.rrd", run=run, read=read).path
+            for group, specs in groups.items() for spec in specs]
+
+def _summary_markdown(result: DriveResult, report: Report, description: str) -> str:
+    """The recording's summary document: the run, the worst outages and the paper's table."""
+    return run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
+
+
+def serve_web(replayed: ReplayResult, grpc_port: int | None = None, web_port: int | None = None):
+    """Serve a replay's recording to browsers from this process (Rerun's gRPC server and web
+    viewer, on ports ``viz.live.DEFAULT_GRPC_PORT`` and ``DEFAULT_WEB_PORT`` unless given);
+    returns a :class:`ionav_viz.viz.live.WebServer` whose ``web_url`` to open. The servers stop
+    when the process ends."""
+    from ..viz import live
+
+    grpc_port = live.DEFAULT_GRPC_PORT if grpc_port is None else grpc_port
+    web_port = live.DEFAULT_WEB_PORT if web_port is None else web_port
+    return live.serve_web(replayed.result, _summary_markdown(replayed.result, replayed.report, replayed.placement),
+                          replayed.events, grpc_port=grpc_port, web_port=web_port)
+

@@ -1,0 +1,78 @@
+"""Headless screenshots of recordings (``ionav-viz screenshot``)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..core.errors import InputError
+from ..core.fileio import check_output_file
+
+
+@dataclass(frozen=True)
+class Shots:
+    """What :func:`screenshot` renders of each recording: every view at every time and outage.
+
+    Attributes:
+        times: seconds (float), ``"35s"``, ``"worst"`` or ``"end"``. ``"worst"`` is the end of the
+            outage with the largest final position error of ``worst_of`` (default the INS DR), and
+            frames that outage.
+        views: ``all``, ``outage`` (the outage inspector), ``map``, ``local``, ``signals``, ``errors``.
+        size: image width and height in pixels.
+        outages: outage numbers (1-based, as the replay lists them): each is shown at its end, framed.
+        worst_of: the estimator whose final error picks ``"worst"``.
+    """
+
+    times: Sequence[str | float] = ("end",)
+    views: Sequence[str] = ("all",)
+    size: tuple[int, int] = (1600, 900)
+    outages: Sequence[int] = ()
+    worst_of: str = "ins"
+
+
+def screenshot(
+    recordings: Sequence[str | Path] | str | Path,
+    output: str | Path,
+    shots: Shots | None = None,
+    *,
+    timeout_s: float = 120.0,
+    progress: Callable[[Path], None] | None = None,
+) -> list[Path]:
+    """Render PNG screenshots of recordings with a private headless Rerun viewer.
+
+    Args:
+        recordings: ``.rrd`` files written by :func:`replay`.
+        output: a ``.png`` for one image, else a directory (or a ``.png`` whose stem prefixes the names).
+        shots: which views at which times and outages, and the image size (default :class:`Shots`:
+            the whole review layout at the end, 1600x900).
+        timeout_s: longest wait for the viewer to start or load a recording.
+        progress: called with each image's path as it is written.
+
+    Returns:
+        the written PNG paths. Needs a Vulkan renderer (Mesa's lavapipe on machines without a GPU).
+    """
+    from ..viz.screenshot import check_size, render
+
+    paths = [Path(recordings)] if isinstance(recordings, (str, Path)) else [Path(r) for r in recordings]
+    if not paths:
+        raise InputError("no recording to render", "give at least one .rrd made by replay")
+    for rec in paths:
+        if not rec.is_file():
+            raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
+    shots = shots if shots is not None else Shots()
+    width, height = check_size(*(int(x) for x in shots.size))
+    out = Path(output)
+    single = out.suffix.lower() == ".png" and len(paths) == 1 and (len(shots.times) + len(shots.outages)) * len(shots.views) == 1
+    if single:
+        check_output_file(out)
+    elif out.suffix.lower() != ".png" and out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory", "several images go into a directory: name one", param="output")
+    folder = out if out.suffix.lower() != ".png" else out.parent
+    existing = next((p for p in [folder, *folder.parents] if p.exists()), Path("."))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory", param="output")
+    spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in shots.times]
+    return render(paths, Path(output), spec, list(shots.views), (width, height), timeout_s=timeout_s, progress=progress,
+                  outages=[int(n) for n in shots.outages], worst_of=shots.worst_of)

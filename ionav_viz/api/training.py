@@ -1,0 +1,74 @@
+"""Training the IDNN (``ionav-viz train``): the training drives and the model directory."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ..core.errors import InputError
+from ..nav.bias import resolve_bias
+from ..sources.load import ReadOptions, load_drive
+from ..sources.resolve import data_root as _data_root
+from .options import DriveLike, Progress
+
+
+class TrainingDrives(list):
+    """Training drives (a ``list``), with ``description``: what they are, kept in the model's metadata."""
+
+    description: str = "user-given drives"
+
+
+def training_drives(paper: bool = False, data_root: str | Path | None = None) -> TrainingDrives:
+    """The bundled synthetic training drives, or with ``paper`` the paper's IO-VNBD training runs
+    (Table 1) under the data root."""
+    from ..dataset.catalog import PAPER_TRAIN_RUNS
+    from ..dataset.samples import SAMPLES, sample_path
+
+    if paper:
+        if _data_root(data_root) is None:
+            raise InputError("training on the paper's runs needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA", param="data_root")
+        drives = TrainingDrives(PAPER_TRAIN_RUNS)
+        drives.description = "the paper's IO-VNBD training runs (Table 1)"
+        return drives
+    drives = TrainingDrives(str(sample_path(s)) for s in SAMPLES if s.role == "train")
+    drives.description = "the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), not real data"
+    return drives
+
+
+def train(
+    output: str | Path,
+    drives: Sequence[DriveLike] | None = None,
+    config: Any = None,
+    *,
+    bias_from: DriveLike | None = None,
+    read: ReadOptions | None = None,
+    force: bool = False,
+    progress: Progress | None = None,
+    command: str = "ionav_viz.train",
+) -> Any:
+    """Train the IDNN's two networks and write them with their metadata to ``output`` (a model
+    directory; an existing one is replaced only with ``force``, atomically).
+
+    ``drives``: default the bundled synthetic training drives (:func:`training_drives`, which
+    also gives the paper's runs);
+    ``config``: an ``ionav_viz.nav.idnn.ModelConfig`` (default the shipped model's settings);
+    ``bias_from``: a stationary drive for the sensor biases (default each drive's own);
+    ``command``: how it was trained, kept in the metadata. Returns the trained ``IdnnModel``.
+    """
+    from ..nav.idnn import ModelConfig, check_model_dir, save_model
+    from ..nav.training import train_models
+
+    read = read if read is not None else ReadOptions()
+    config = config if config is not None else ModelConfig()
+    config.validate()
+    out = check_model_dir(Path(output), overwrite=force)  # before any work
+    specs = training_drives() if drives is None else drives
+    description = getattr(specs, "description", TrainingDrives.description)
+    stationary = load_drive(bias_from, read) if bias_from is not None else None
+    loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
+    model = train_models(loaded, config, progress=progress, description=description)
+    model.metadata["training"]["command"] = command
+    save_model(model, out, overwrite=force)
+    return model
+
