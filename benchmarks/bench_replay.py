@@ -26,13 +26,15 @@ from ionav_viz.analysis.evaluate import DriveResult, evaluate_drive, resolve_bia
 from ionav_viz.analysis.metrics import cumulative_errors
 from ionav_viz.analysis.report import Report
 from ionav_viz.analysis.tables import render_markdown
+from ionav_viz.core.geo import local_en_m
 from ionav_viz.nav import ekf
 from ionav_viz.nav.idnn import default_model_dir, load_model
 from ionav_viz.nav.protocol import EstimatorInputs, applies, solve
 from ionav_viz.nav.registry import resolve
 from ionav_viz.sim.simulate import write_simulated_drive
 from ionav_viz.sources.iovnbd import read_iovnbd
-from ionav_viz.viz.recording import APP_ID, local_en_m, screen_xy, write_recording
+from ionav_viz.viz.geometry import screen_xy
+from ionav_viz.viz.recording import APP_ID, write_recording
 
 
 def write_recording_rowwise(result: DriveResult, path: Path) -> None:

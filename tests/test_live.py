@@ -17,7 +17,7 @@ ARGS = ("replay", "hard-brake", "--estimators", "ins,odo", "--every", "60s", "-q
 
 @pytest.fixture(scope="module")
 def viewer():
-    from ionav_viz.viz.screenshot import HeadlessViewer, RendererMissing
+    from ionav_viz.viz.viewer import HeadlessViewer, RendererMissing
 
     try:
         with HeadlessViewer(400, 300) as v:
@@ -55,7 +55,7 @@ def test_connect_streams_to_a_running_viewer_and_saves(viewer, tmp_path):
 
 
 def test_connect_without_a_viewer_and_bad_addresses(tmp_path):
-    from ionav_viz.viz.screenshot import free_port
+    from ionav_viz.viz.viewer import free_port
 
     out = tmp_path / "x.rrd"
     proc = run_cli(*ARGS, "-o", str(out), "--connect", f"rerun+http://127.0.0.1:{free_port()}/proxy")
@@ -76,7 +76,7 @@ def test_connect_without_an_address_means_rerun_default(monkeypatch):
 
 
 def test_serve_web_serves_the_viewer_and_the_recording(viewer, tmp_path):
-    from ionav_viz.viz.screenshot import free_port
+    from ionav_viz.viz.viewer import free_port
 
     grpc_port, web_port = free_port(), free_port()
     proc = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", *ARGS, "-o", str(tmp_path / "hb.rrd"), "--serve-web",

@@ -480,7 +480,8 @@ def test_names_from_inside_a_recording_never_leave_the_output_directory(tmp_path
     """Input: a crafted .rrd whose recording name is '../../evil/x'. Expected: PNG names stay inside -o."""
     import rerun as rr
 
-    from ionav_viz.viz.screenshot import output_paths, read_recording_info
+    from ionav_viz.viz.recording_info import read_recording_info
+    from ionav_viz.viz.screenshot import output_paths
 
     crafted = tmp_path / "crafted.rrd"
     rec = rr.RecordingStream("ionav-viz", recording_id="crafted")

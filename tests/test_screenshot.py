@@ -116,7 +116,7 @@ def test_outage_numbers_and_worst_of(recording, tmp_path):
 
 def test_worst_of_picks_the_outage_with_the_largest_final_error_of_that_estimator(recording):
     """Against the final errors read back from the recording's error series, independently."""
-    from ionav_viz.viz.screenshot import read_recording_info
+    from ionav_viz.viz.recording_info import read_recording_info
 
     from .test_replay import read_rrd
 
@@ -132,7 +132,8 @@ def test_worst_of_picks_the_outage_with_the_largest_final_error_of_that_estimato
 def test_review_layout_titles_fit_their_views(recording, size):
     """Every title of the 'all' layout, at the worst outage, fits its column's width (at the title
     font's measured width per character)."""
-    from ionav_viz.viz.screenshot import COLUMN_FRACTION, TITLE_ICONS_PX, TITLE_PX_PER_CHAR, Shot, read_recording_info, titles_for
+    from ionav_viz.viz.blueprints import TITLE_ICONS_PX, TITLE_PX_PER_CHAR, Shot, column_fraction, titles_for
+    from ionav_viz.viz.recording_info import read_recording_info
 
     info = read_recording_info(recording)
     worst = info.worst()
@@ -140,7 +141,7 @@ def test_review_layout_titles_fit_their_views(recording, size):
     assert f"outage {worst.number}" in titles["inspect"] or f"#{worst.number}" in titles["inspect"]
     assert all(f"{worst.final_error_m[e]:.1f}" in titles["inspect"] for e in COLORS if e != "gnss")
     for origin, title in titles.items():
-        assert len(title) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= size[0] * COLUMN_FRACTION[origin], (origin, title)
+        assert len(title) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= size[0] * column_fraction(origin), (origin, title)
 
 
 @pytest.mark.parametrize("view", ["map", "local"])

@@ -45,7 +45,7 @@ def replay(
         print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     print(result.path)
     if screenshot_dir is not None:
-        from ..viz.screenshot import VIEWS
+        from ..viz.blueprints import VIEWS
 
         api.screenshot([result.path], screenshot_dir, api.Shots(times=["worst"], views=list(VIEWS)), progress=print)
     if connect is not None and not quiet:

@@ -1,12 +1,14 @@
 """Framing and scale references for the 2D views: padded bounds, grid lines, scale bars.
 
 Pure functions over numpy arrays in the views' screen frame: x east (m), y = -north (m), so north
-is up in Rerun's y-down 2D view (see :func:`ionav_viz.viz.recording.screen_xy`).
+is up in Rerun's y-down 2D view (see :func:`screen_xy`).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from ..core.geo import local_en_m
 
 Bounds = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max (m)
 
@@ -53,3 +55,20 @@ def scale_bar(bounds: Bounds, step_m: float) -> np.ndarray:
 def scale_label(step_m: float) -> str:
     """``'20 m'``, ``'1 km'``."""
     return f"{step_m / 1000:g} km" if step_m >= 1000 else f"{step_m:g} m"
+
+
+def map_zoom(lat_deg: np.ndarray, lon_deg: np.ndarray, view_px: float) -> float:
+    """Web-map zoom level at which the track's extent fills about ``view_px`` pixels.
+
+    Web Mercator: metres per pixel = 156543.03 * cos(lat) / 2^zoom (checked on a rendered map view).
+    """
+    lat0 = float(np.mean(lat_deg))
+    east, north = local_en_m(lat_deg, lon_deg, lat0, float(np.mean(lon_deg)))
+    extent_m = max(float(np.ptp(east)), float(np.ptp(north)), 50.0)
+    zoom = np.log2(156543.03 * np.cos(np.radians(lat0)) * view_px / extent_m)
+    return float(np.clip(zoom, 3.0, 19.0))
+
+
+def screen_xy(east: np.ndarray, north: np.ndarray) -> np.ndarray:
+    """Local frame -> Rerun 2D view coordinates (y grows downwards on screen)."""
+    return np.stack([east, -north], axis=-1)

@@ -19,9 +19,9 @@ if TYPE_CHECKING:  # the CLI reads the defaults here without loading the logging
     from ..analysis.evaluate import DriveResult
 
 #: Where a viewer started with a plain ``rerun`` listens.
-DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
 DEFAULT_GRPC_PORT = 9876
 DEFAULT_WEB_PORT = 9090
+DEFAULT_CONNECT_URL = f"rerun+http://127.0.0.1:{DEFAULT_GRPC_PORT}/proxy"
 
 
 def _endpoint(url: str) -> tuple[str, int]:

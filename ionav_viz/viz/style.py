@@ -59,3 +59,8 @@ _COLOR_WORDS = {
 def color_word(rgb: tuple[int, int, int]) -> str:
     """The nearest plain colour name, for titles that say which line is which."""
     return min(_COLOR_WORDS, key=lambda w: sum((a - b) ** 2 for a, b in zip(_COLOR_WORDS[w], rgb)))
+
+
+def faded(color: tuple[int, int, int], keep: float = 0.45) -> tuple[int, int, int]:
+    """``color`` mixed into the viewer's dark background: the faint overview layers."""
+    return tuple(int(round(keep * c + (1 - keep) * 18)) for c in color)  # type: ignore[return-value]

@@ -1,0 +1,182 @@
+"""The recording's entity paths and state labels: built here, parsed back here, nowhere else.
+
+A recording is a contract between the writer (:mod:`ionav_viz.viz.recording`), the screenshot
+code that reads it back (:mod:`ionav_viz.viz.recording_info`), the blueprints that show it, and
+the users who open it (``docs/recording.md`` lists :data:`PATTERNS`; a test keeps them equal).
+
+Paths are written without a leading ``/``; Rerun reads them back with one (:func:`parse`
+accepts both). ``view`` is ``"map"`` (lat/lon) or ``"local"`` (east-north metres); ``est`` an
+estimator's name; ``source`` of a signal is ``"gyro"``, ``"gnss"`` or an estimator's name.
+"""
+
+from __future__ import annotations
+
+import re
+
+MAP, LOCAL, INSPECT = "map", "local", "inspect"
+VIEWS_2D = (MAP, LOCAL)
+#: The cumulative error series of each estimator inside each outage (``errors/<metric>/<est>``).
+ERROR_METRICS = ("crse_m", "cae_m", "yaw_crse_radps", "position_error_m")
+
+#: Per-outage rows are logged this long (s) after the outage's start, so at the start time itself
+#: (the end of the previous outage, when outages follow each other) the previous one is still shown.
+OUTAGE_EPS_S = 1e-3
+
+GNSS_STATE = "gnss/state"
+GNSS_QUALITY = "gnss/quality"
+GNSS_AVAILABLE = "gnss/available"
+EVENTS_STATE = "events/state"
+SUMMARY = "summary"
+ACCEL = "signals/accel_long_mps2"
+SPEED = "signals/speed_mps"
+YAW_RATES = "signals/yaw_rate_radps"
+DISPLACEMENTS = "signals/displacement_m"
+ERRORS = "errors"
+MAP_CONTEXT = "map/gnss/context"
+LOCAL_GRID = "local/grid"
+LOCAL_GRID_SCALE = "local/grid/scale"
+LOCAL_SCALE = "local/scale"
+LOCAL_OUTAGES = "local/outages"
+INSPECT_GRID = "inspect/grid"
+INSPECT_SCALE = "inspect/scale"
+INSPECT_START = "inspect/start"
+
+
+def truth(view: str) -> str:
+    """The GNSS track (static), broken where the fixes are not trustworthy truth."""
+    return f"{view}/gnss"
+
+
+def truth_bad(view: str) -> str:
+    return f"{view}/gnss_bad"
+
+
+def truth_position(view: str) -> str:
+    return f"{view}/gnss/position"
+
+
+def outage_truth(view: str) -> str:
+    """The current outage's GNSS track (``view`` may be ``inspect``: ``inspect/gnss``)."""
+    return f"{INSPECT}/gnss" if view == INSPECT else f"{view}/gnss/outage"
+
+
+def live_track(view: str, est: str) -> str:
+    """The current outage's estimated track, growing each second (``inspect/<est>`` in the inspector)."""
+    return f"{INSPECT}/{est}" if view == INSPECT else f"{view}/{est}/live"
+
+
+def all_tracks(view: str, est: str) -> str:
+    return f"{view}/{est}/all"
+
+
+def real_outage_tracks(view: str, est: str) -> str:
+    return f"{view}/{est}/real_outages"
+
+
+def inspect_position(est: str) -> str:
+    return f"{INSPECT}/{est}/position"
+
+
+def end_fixes(view: str) -> str:
+    return f"{view}/gnss_outages/end_fix"
+
+
+def event_points(view: str) -> str:
+    return f"{view}/events"
+
+
+def yaw_rate(source: str) -> str:
+    return f"{YAW_RATES}/{source}"
+
+
+def displacement(source: str) -> str:
+    return f"{DISPLACEMENTS}/{source}"
+
+
+def error_group(metric: str) -> str:
+    """The folder of one metric's series (a plot's origin)."""
+    return f"{ERRORS}/{metric}"
+
+
+def error_series(metric: str, est: str) -> str:
+    return f"{error_group(metric)}/{est}"
+
+
+def real_outage_errors(est: str) -> str:
+    return f"{ERRORS}/position_error_m/real_outages/{est}"
+
+
+def parse_error_series(path: str) -> tuple[str, str] | None:
+    """``errors/<metric>/<est>`` (with or without the leading ``/``) -> (metric, est), else None."""
+    parts = path.strip("/").split("/")
+    return (parts[1], parts[2]) if len(parts) == 3 and parts[0] == ERRORS and parts[1] in ERROR_METRICS else None
+
+
+def is_outage_frame(path: str) -> bool:
+    """Whether ``path`` is drawn per outage in the map or local view and so frames it: the outage's
+    truth, every growing estimated track, the outage's scale bar."""
+    parts = path.strip("/").split("/")
+    return parts[0] in VIEWS_2D and (parts[1:] in (["gnss", "outage"], ["scale"]) or (len(parts) == 3 and parts[2] == "live"))
+
+
+# --- state labels -------------------------------------------------------------------------
+
+GNSS_AVAILABLE_STATE = "GNSS"
+GOOD_TRUTH_STATE = "good"
+NO_EVENT_STATE = "none"
+_OUTAGE = re.compile(r"^outage (\d+) \(")
+
+
+def outage_state(number: int, t0_s: float, t1_s: float) -> str:
+    """``gnss/state`` during synthetic outage ``number`` (from 1)."""
+    return f"outage {number} ({t0_s:.0f}-{t1_s:.0f} s)"
+
+
+def real_outage_state(number: int, t0_s: float, t1_s: float) -> str:
+    """``gnss/state`` during the log's own GNSS loss ``number``, from its last to its first good fix."""
+    return f"real GNSS outage {number} ({t0_s:.1f}-{t1_s:.1f} s)"
+
+
+def parse_outage_state(label: str) -> int | None:
+    """The synthetic outage's number of a ``gnss/state`` label, else None (GNSS, real losses)."""
+    found = _OUTAGE.match(label)
+    return int(found.group(1)) if found else None
+
+
+def is_outage_state(label: str) -> bool:
+    """Whether a ``gnss/state`` label is an outage, synthetic or real."""
+    return label != GNSS_AVAILABLE_STATE and "outage" in label
+
+
+def bad_truth_state(fault_names: list[str]) -> str:
+    """``gnss/quality`` of a sample whose fix is not trustworthy truth."""
+    return "bad: " + ", ".join(fault_names)
+
+
+def event_state(event_type: str, number: int) -> str:
+    """``events/state`` during a detected event (``hard-brake #3``), also its name in hover texts."""
+    return f"{event_type} #{number}"
+
+
+#: Every path a recording can hold, with ``<est>`` for an estimator's name: what
+#: ``docs/recording.md`` documents (a test checks both ways).
+PATTERNS = (
+    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), truth_position(MAP), truth_position(LOCAL),
+    *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
+    *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
+    inspect_position("<est>"), INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
+    GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
+    *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
+    *(error_series(m, "<est>") for m in ERROR_METRICS),
+    *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),
+    EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY,
+)
+
+
+def pattern_of(path: str) -> str | None:
+    """The entry of :data:`PATTERNS` a written path is an instance of, else None."""
+    path = path.strip("/")
+    for pattern in sorted(PATTERNS, key=lambda p: "<est>" in p):  # literal paths before the patterns with a name in them
+        if re.fullmatch(re.escape(pattern).replace(re.escape("<est>"), r"[a-z][a-z0-9_-]*"), path):
+            return pattern
+    return None

@@ -1,0 +1,163 @@
+"""The layers that frame each outage and mark events in a recording: the outage inspector, the
+outage's truth and scale bars, the drive's grid, the tracks through the log's own GNSS losses, and
+the detected events (:func:`ionav_viz.viz.recording.log_result` logs the rest)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..analysis.evaluate import DriveResult
+from ..core.geo import local_en_m
+from . import entities as ent
+from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_label, screen_xy
+from .style import EVENT_COLOR, GNSS_COLOR, GRID_COLOR, OUTAGE_MARK_COLOR, SCALE_COLOR, faded
+
+#: Seconds of GNSS track before and after an outage drawn faintly around it on the map.
+CONTEXT_S = 3.0
+
+
+
+
+@dataclass
+class Layers:
+    """What every layer of one recording is logged with: the stream and its ``send`` (columns on the
+    time lines, row counts kept), and the drive's local frame (origin at the first usable fix)."""
+
+    rec: Any
+    send: Callable[[str, np.ndarray, Any], None]
+    lat0: float
+    lon0: float
+    truth_ll: np.ndarray  # every sample's fix (lat, lon)
+    truth_xy: np.ndarray  # the same in the local view's screen frame (m)
+    usable: np.ndarray  # samples whose fix is worth drawing (:func:`usable_fixes`)
+
+    def xy(self, lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+        """Positions in the local view's screen frame (m)."""
+        return screen_xy(*local_en_m(lat_deg, lon_deg, self.lat0, self.lon0))
+
+
+def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, np.ndarray]) -> None:
+    """What frames each outage: its GNSS track (wide, on top of the faint whole drive), the outage
+    inspector (everything in metres from the fix at the outage start, with a grid and a scale bar)
+    and the outage start markers."""
+    import rerun as rr
+
+    rec, send, truth_xy, truth_ll, usable = layers.rec, layers.send, layers.truth_xy, layers.truth_ll, layers.usable
+    drive, w, starts, n_win = result.drive, result.windows, result.starts, result.n_windows
+    t0 = w.t0_s[starts]
+    t_rows = t0 + ent.OUTAGE_EPS_S
+    n = len(starts)
+    last = starts + n_win - 1
+    start_ll = np.stack([w.lat0_deg[starts], w.lon0_deg[starts]], axis=-1)
+    end_ll = np.stack([w.lat1_deg[last], w.lon1_deg[last]], axis=-1)
+    start_xy = layers.xy(start_ll[:, 0], start_ll[:, 1])
+    end_xy = layers.xy(end_ll[:, 0], end_ll[:, 1])
+    ti = np.flatnonzero(usable)
+    # the fixes inside the outage, between its start and end on the windows' grid (what metrics score)
+    a = np.searchsorted(drive.t_s[ti], t0, side="right")
+    b = np.searchsorted(drive.t_s[ti], t0 + n_win, side="left")
+    ca = np.searchsorted(drive.t_s[ti], t0 - CONTEXT_S, side="left")
+    cb = np.searchsorted(drive.t_s[ti], t0 + n_win + CONTEXT_S, side="right")
+    truth = [np.concatenate([start_xy[k : k + 1], truth_xy[ti[i:j]], end_xy[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
+    truth_geo = [np.concatenate([start_ll[k : k + 1], truth_ll[ti[i:j]], end_ll[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
+    wide = rr.Radius.ui_points(4.5)
+    send(ent.outage_truth(ent.LOCAL), t_rows, rr.LineStrips2D.columns(
+        strips=truth, colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
+    send(ent.outage_truth(ent.MAP), t_rows, rr.GeoLineStrings.columns(
+        line_strings=truth_geo, colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide)))
+    send(ent.MAP_CONTEXT, t_rows, rr.GeoLineStrings.columns(
+        line_strings=[truth_ll[ti[i:j]] for i, j in zip(ca, cb)], colors=np.tile(faded(GNSS_COLOR), (n, 1)),
+        radii=np.full(n, rr.Radius.ui_points(2.0))))
+    send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
+        strips=[tr - s for tr, s in zip(truth, start_xy)], colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide),
+        draw_order=np.full(n, 12.0)))
+
+    # Each outage's frame: its truth and every estimate, padded; a grid and a scale bar to match.
+    bounds = []
+    for i in range(n):
+        pts = np.concatenate([truth[i], *(t[i] for t in tracks_xy.values()), start_xy[i : i + 1]])
+        bounds.append(padded_bounds(pts - start_xy[i]))
+    steps = [nice_step(max(bx[1] - bx[0], bx[3] - bx[2])) for bx in bounds]
+    grids = [grid_strips(bx, st) for bx, st in zip(bounds, steps)]
+    send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
+        strips=[g for grid in grids for g in grid], colors=np.tile(GRID_COLOR, (sum(map(len, grids)), 1)),
+        radii=np.full(sum(map(len, grids)), rr.Radius.ui_points(0.8)), draw_order=np.full(sum(map(len, grids)), 1.0)).partition(
+            [len(g) for g in grids]))
+    send(ent.INSPECT_SCALE, t_rows, rr.LineStrips2D.columns(
+        strips=[scale_bar(bx, st) for bx, st in zip(bounds, steps)], labels=[scale_label(st) for st in steps],
+        colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
+    local_bounds = [(bx[0] + s[0], bx[1] + s[0], bx[2] + s[1], bx[3] + s[1]) for bx, s in zip(bounds, start_xy)]
+    send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
+        strips=[scale_bar(bx, st) for bx, st in zip(local_bounds, steps)], labels=[scale_label(st) for st in steps],
+        colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
+    rec.log(ent.INSPECT_START, rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
+            static=True)
+    rec.log(ent.LOCAL_OUTAGES, rr.Points2D(start_xy, labels=[f"outage {i + 1}" for i in range(n)], show_labels=False,
+                                         colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(3.0), draw_order=25), static=True)
+
+
+def log_grid(rec, xy: np.ndarray) -> None:
+    """A static grid and scale bar over the whole drive in the local view."""
+    import rerun as rr
+
+    bounds = padded_bounds(xy, margin=0.02)
+    step = nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2]), lines=8)
+    grid = grid_strips(bounds, step)
+    rec.log(ent.LOCAL_GRID, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
+    rec.log(ent.LOCAL_GRID_SCALE, rr.LineStrips2D([scale_bar(bounds, step)], labels=[scale_label(step)], colors=[SCALE_COLOR],
+                                                radii=rr.Radius.ui_points(2.0), draw_order=50), static=True)
+
+
+def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: dict) -> None:
+    """The log's own GNSS outages: each estimator's track through them (wide, on top), the first
+    good fix after each (the truth that scores them) and each final error on the error timeline."""
+    import rerun as rr
+
+    rec, send = layers.rec, layers.send
+    bridged = result.bridged
+    end_ll = np.array([[b.end_lat_deg, b.end_lon_deg] for b in bridged])
+    rec.log(ent.end_fixes(ent.MAP), rr.GeoPoints(lat_lon=end_ll, colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
+    rec.log(ent.end_fixes(ent.LOCAL), rr.Points2D(layers.xy(end_ll[:, 0], end_ll[:, 1]),
+                                                      colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
+    t1 = np.array([b.t1_s for b in bridged])
+    for est in result.estimators:
+        name, color = est.name, colors[est.name]
+        ll = [np.stack([b.tracks[name].lat_deg[0], b.tracks[name].lon_deg[0]], axis=-1) for b in bridged]
+        xy = layers.xy(*np.concatenate(ll).T)  # one projection for every track
+        ends = np.cumsum([len(x) for x in ll])[:-1]
+        rec.log(ent.real_outage_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=ll, colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
+        rec.log(ent.real_outage_tracks(ent.LOCAL, name), rr.LineStrips2D(np.split(xy, ends), colors=[color], radii=rr.Radius.ui_points(3.0),
+                                                              draw_order=30), static=True)
+        entity = ent.real_outage_errors(name)
+        rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
+        send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
+
+
+def log_events(layers: Layers, events: list, drive) -> None:
+    """Detected manoeuvres: a state timeline, and labelled points on the map and local view."""
+    import rerun as rr
+
+    rec, send, usable = layers.rec, layers.send, layers.usable
+    times, states = [], []
+    for i, e in enumerate(sorted(events, key=lambda e: e.t0_s)):
+        if times and e.t0_s < times[-1]:  # overlapping events: the timeline shows the later one
+            times.pop()
+            states.pop()
+        times += [e.t0_s, e.t1_s]
+        states += [ent.event_state(e.type, i + 1), ent.NO_EVENT_STATE]
+    order = np.argsort(times, kind="stable")
+    send(ent.EVENTS_STATE, np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
+    mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
+    # a loss's middle lies between its good fixes (``usable``), not at (0, 0)
+    lat = np.interp(mid, drive.t_s[usable], drive.lat_deg[usable])
+    lon = np.interp(mid, drive.t_s[usable], drive.lon_deg[usable])
+    labels = [ent.event_state(e.type, i + 1) for i, e in enumerate(events)]
+    # names in the hover text and on the timeline only: permanent labels would cover the tracks
+    rec.log(ent.event_points(ent.MAP), rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5)),
+            static=True)
+    rec.log(ent.event_points(ent.LOCAL), rr.Points2D(layers.xy(lat, lon), labels=labels, show_labels=False,
+                                        colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5), draw_order=25), static=True)

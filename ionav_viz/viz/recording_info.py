@@ -1,0 +1,221 @@
+"""Reading a replay's recording back: its drive, outages (span, each estimator's final error, the
+extent drawn for it) and estimators, from the ``.rrd`` alone (what screenshots frame and title)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..nav.registry import BASELINE
+from . import entities as ent
+
+
+@dataclass
+class OutageInfo:
+    """One outage of a recording, as drawn: where it is and how each estimator ended it.
+
+    Attributes:
+        number: 1-based, as in the recording's ``gnss/state`` ("outage 3 (20-30 s)").
+        start_s, end_s: its span on the ``time`` timeline (s).
+        final_error_m: per estimator name, the 2D position error at the outage's end (m).
+        local_points: truth, every estimate and the outage's scale bar in the local view's screen
+            frame (m), for framing.
+        lat_deg, lon_deg: the same on the map.
+    """
+
+    number: int
+    start_s: float
+    end_s: float
+    final_error_m: dict[str, float]
+    local_points: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+
+    @property
+    def span(self) -> str:
+        return f"{self.start_s:.0f}-{self.end_s:.0f} s"
+
+
+@dataclass
+class RecordingInfo:
+    """What a screenshot needs to know about a recording, read from the ``.rrd`` itself."""
+
+    path: Path
+    drive: str
+    end_s: float
+    states: list[tuple[float, float, str]]  # (start s, end s, label) of every outage state, real ones too
+    outages: list[OutageInfo]
+    lat_deg: np.ndarray  # the GNSS track
+    lon_deg: np.ndarray
+    estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
+
+    def state_at(self, t_s: float) -> str | None:
+        """The outage label at ``t_s`` (the one ending there, when one ends as the next starts)."""
+        for start, end, label in self.states:
+            if start <= t_s <= end + 1e-6:
+                return label
+        return None
+
+    def outage(self, number: int) -> OutageInfo:
+        if not 1 <= number <= len(self.outages):
+            raise InputError(f"{self.path}: no outage {number} (the recording has {len(self.outages)})",
+                             "choose an outage number from the replay's list, or --time worst", param="outages")
+        return self.outages[number - 1]
+
+    def worst(self, estimator: str = BASELINE) -> OutageInfo:
+        """The outage with the largest final position error of ``estimator``."""
+        if estimator not in self.estimators:
+            raise InputError(f"{self.path}: no estimator {estimator!r} in the recording",
+                             f"choose one of {', '.join(self.estimators) or 'none'}", param="worst_of")
+        scored = [o for o in self.outages if np.isfinite(o.final_error_m.get(estimator, np.nan))]
+        if not scored:
+            raise InputError(f"{self.path}: 'worst' needs outages with {estimator} errors in the recording",
+                             "replay with outages first", param="times")
+        return max(scored, key=lambda o: o.final_error_m[estimator])
+
+
+def _rows(batch, column: str) -> tuple[np.ndarray, np.ndarray]:
+    """A list<list<[2]>> column as (points (N, 2), per-row offsets into them (rows+1))."""
+    import pyarrow as pa
+
+    col = batch.column(column)
+    if isinstance(col, pa.ChunkedArray):
+        col = col.combine_chunks()
+    strips = col.flatten()
+    row_off = np.asarray(col.offsets)
+    strip_off = np.asarray(strips.offsets)
+    pts = np.asarray(strips.flatten().flatten(), dtype=np.float64).reshape(-1, 2)
+    return pts, strip_off[row_off] - strip_off[0]
+
+
+def _times_of(batch) -> np.ndarray:
+    return batch.column("time").cast("int64").to_numpy() / 1e9
+
+
+def _last_in(times: np.ndarray, t0: float, t1: float) -> int | None:
+    """Index of the last of the sorted ``times`` with t0 < time <= t1, or None."""
+    k = int(np.searchsorted(times, t1 + 1e-6, side="right")) - 1
+    return k if k >= 0 and times[k] > t0 else None
+
+
+class _Rows:
+    """Rows of one drawn entity: times and per-row points (strips joined), over all its chunks."""
+
+    def __init__(self) -> None:
+        self._parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._index: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def add(self, batch, column: str) -> None:
+        self._parts.append((_times_of(batch), *_rows(batch, column)))
+        self._index = None
+
+    def last_in(self, t0: float, t1: float) -> np.ndarray:
+        """Points of the last row with t0 < time <= t1 (empty if none)."""
+        if self._index is None:  # every row in time order: (time, chunk, row in chunk)
+            times = np.concatenate([t for t, _, _ in self._parts])
+            chunk = np.concatenate([np.full(len(t), i) for i, (t, _, _) in enumerate(self._parts)])
+            row = np.concatenate([np.arange(len(t)) for t, _, _ in self._parts])
+            order = np.argsort(times, kind="stable")
+            self._index = (times[order], chunk[order], row[order])
+        times, chunk, row = self._index
+        k = _last_in(times, t0, t1)
+        if k is None:
+            return np.zeros((0, 2))
+        _, pts, off = self._parts[chunk[k]]
+        return pts[off[row[k]]:off[row[k] + 1]]
+
+
+def read_recording_info(path: Path) -> RecordingInfo:
+    """Drive name, length, outages (span, final errors, drawn extent) and estimators of a ionav-viz recording."""
+    from rerun.chunk import RrdReader
+
+    try:
+        reader = RrdReader(path)
+        recordings = reader.recordings()
+    except Exception as exc:  # the reader raises various errors for files that are not .rrd
+        raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                         "make one with 'ionav-viz replay DRIVE'") from None
+    if not recordings:
+        raise InputError(f"{path}: no recording inside", "make one with 'ionav-viz replay DRIVE'")
+    drive, end_s, states, track = path.stem, 0.0, [], []
+    estimators: dict[str, tuple[str, tuple[int, int, int]]] = {}
+    errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    drawn: dict[str, _Rows] = {}
+    for chunk in reader.stream():
+        entity = str(chunk.entity_path)
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        series = ent.parse_error_series(entity)
+        if chunk.is_static and series is not None and series[0] == "position_error_m":
+            estimators[series[1]] = _series_style(batch)
+            continue
+        if entity == "/__properties":
+            for n in names:
+                if n.endswith(":name"):
+                    values = [v for v in batch.column(n).to_pylist() if v]
+                    drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else drive
+            continue
+        if chunk.is_static or "time" not in names:
+            continue
+        times = _times_of(batch)
+        if len(times):
+            end_s = max(end_s, float(times.max()))
+        if entity.strip("/") == ent.GNSS_STATE:
+            col = next(n for n in names if n.endswith(":state"))
+            states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
+        elif entity.strip("/") == ent.truth_position(ent.MAP):
+            col = next(n for n in names if n.endswith(":positions"))
+            track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
+        elif series is not None and series[0] == "position_error_m":
+            col = next(n for n in names if n.endswith(":scalars"))
+            errors.setdefault(series[1], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
+        elif ent.is_outage_frame(entity):
+            col = next(n for n in names if n.endswith(":strips") or n.endswith(":line_strings"))
+            drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
+    if not states:
+        raise InputError(f"{path}: not an ionav-viz replay recording (no /{ent.GNSS_STATE})", "make one with 'ionav-viz replay DRIVE'")
+    states.sort()
+    spans = []
+    for i, (t, label) in enumerate(states):
+        if ent.is_outage_state(label):
+            nxt = states[i + 1][0] if i + 1 < len(states) else end_s
+            spans.append((float(t), float(nxt), label))
+    finite = {}  # per estimator, its error samples in time order (without the NaN line breaks)
+    for name, parts_ in errors.items():
+        t, v = np.concatenate([p[0] for p in parts_]), np.concatenate([p[1] for p in parts_])
+        order = np.argsort(t, kind="stable")
+        keep = order[np.isfinite(v[order])]
+        finite[name] = (t[keep], v[keep])
+    outages = []
+    for start, end, label in spans:
+        if ent.parse_outage_state(label) is None:
+            continue  # the log's own losses (ent.real_outage_state)
+        final = {}
+        for name, (t, v) in finite.items():
+            k = _last_in(t, start, end)
+            final[name] = float(v[k]) if k is not None else float("nan")
+        local = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith(ent.LOCAL + "/")]
+        geo = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith(ent.MAP + "/")]
+        ll = np.concatenate(geo) if geo else np.zeros((0, 2))
+        outages.append(OutageInfo(len(outages) + 1, start, end, final, np.concatenate(local) if local else np.zeros((0, 2)),
+                                  ll[:, 0], ll[:, 1]))
+    ll = np.concatenate(track) if track else np.zeros((0, 2))
+    return RecordingInfo(path, drive, end_s, spans, outages, ll[:, 0], ll[:, 1], estimators)
+
+
+def _series_style(batch) -> tuple[str, tuple[int, int, int]]:
+    """(label, RGB) of a static ``SeriesLines`` row."""
+    label, rgb = "", (128, 128, 128)
+    for n in batch.schema.names:
+        values = batch.column(n).to_pylist()
+        if not values or not values[0]:
+            continue
+        if n.endswith(":names"):
+            label = str(values[0][0])
+        elif n.endswith(":colors"):
+            packed = int(values[0][0])  # 0xRRGGBBAA
+            rgb = ((packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255)
+    return label, rgb

@@ -1,0 +1,176 @@
+"""A private headless Rerun viewer process, driven through ``rerun.experimental.ViewerClient``.
+
+Started in headless mode (``rerun --headless --window-size WxH``) on a free local port, it opens
+recordings, shows them with a given blueprint at a given time and saves screenshots, and is always
+shut down afterwards, also on Ctrl-C, SIGTERM and SIGHUP. Its own output (including the failed
+OpenStreetMap tile downloads of an offline map view) goes to a log file, never to the user's
+terminal. On a machine without a GPU, Mesa's lavapipe Vulkan driver (Debian package
+``mesa-vulkan-drivers``) renders on the CPU; without any renderer the viewer cannot start and
+:class:`RendererMissing` says so.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from ..core.errors import ToolFailure
+from ..core.fileio import atomic_path
+from ..core.signals import STOP_SIGNALS, raise_terminated
+
+
+class RendererMissing(ToolFailure):
+    """The headless viewer could not start or render (no GPU and no software renderer)."""
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 right now (the OS picks it)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _rerun_executable() -> str:
+    beside = Path(sys.executable).parent / "rerun"
+    if beside.is_file():
+        return str(beside)
+    found = shutil.which("rerun")
+    if found is None:
+        raise RendererMissing("the 'rerun' viewer executable is not installed (it comes with rerun-sdk)")
+    return found
+
+
+class HeadlessViewer:
+    """A private headless Rerun viewer process; use as a context manager (always shut down)."""
+
+    #: Seconds to let the viewer draw after a change of blueprint and time, before the screenshot.
+    settle_s = 0.4
+
+    def __init__(self, width: int, height: int, timeout_s: float = 60.0) -> None:
+        self.width, self.height, self.timeout_s = width, height, timeout_s
+        self._dir = tempfile.TemporaryDirectory(prefix="ionav-viewer-")
+        self.log_path = Path(self._dir.name) / "viewer.log"
+        self.proc: subprocess.Popen | None = None
+        self.client: Any = None
+        self._old_handlers: dict[int, Any] = {}
+
+    def __enter__(self) -> HeadlessViewer:
+        from rerun.experimental import ViewerClient
+
+        # SIGTERM and SIGHUP become an exception too (as Ctrl-C is), so __exit__ always runs.
+        for sig in STOP_SIGNALS:
+            with contextlib.suppress(ValueError):  # not the main thread
+                self._old_handlers[sig] = signal.signal(sig, raise_terminated)
+        try:
+            self._start(ViewerClient)
+        except BaseException:
+            self.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def _start(self, client_cls) -> None:
+        for _attempt in range(3):  # another process may grab the free port first
+            port = free_port()
+            with open(self.log_path, "ab") as log:
+                self.proc = subprocess.Popen(
+                    [_rerun_executable(), "--headless", "--port", str(port), "--window-size", f"{self.width}x{self.height}",
+                     "--hide-welcome-screen", "--memory-limit", "25%"],
+                    stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
+                    # TMPDIR: the viewer's own scratch folders go into ours and are removed with it
+                    env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn"),
+                         "TMPDIR": self._dir.name},
+                )
+            url = f"rerun+http://127.0.0.1:{port}/proxy"
+            deadline = time.monotonic() + min(30.0, self.timeout_s)
+            while time.monotonic() < deadline:
+                if self.proc.poll() is not None:
+                    break
+                try:
+                    self.client = client_cls.connect(url)
+                    self.client.get_state()
+                    return
+                except Exception:
+                    time.sleep(0.2)
+            if self.proc.poll() is None:
+                self._stop()
+                raise RendererMissing(f"the headless Rerun viewer did not answer within {min(30.0, self.timeout_s):.0f} s")
+            if "Address already in use" not in self._log_tail():
+                self._raise_dead()
+        self._raise_dead()
+
+    def _log_tail(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")[-20000:]
+        except OSError:
+            return ""
+
+    def _raise_dead(self) -> None:
+        text = self._log_tail()
+        lines = [line for line in text.splitlines() if "panicked" in line or "adapter" in line.lower() or "Error" in line]
+        why = lines[0].strip() if lines else f"exit code {self.proc.returncode if self.proc else '?'}"
+        raise RendererMissing(
+            f"the headless Rerun viewer could not render ({why[:200]}); on a machine without a GPU install "
+            "Mesa's software Vulkan driver: apt-get install mesa-vulkan-drivers"
+        )
+
+    def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
+        """A ViewerClient call; a dead viewer becomes :class:`RendererMissing`."""
+        try:
+            return getattr(self.client, method)(*args, **kwargs)
+        except (KeyboardInterrupt, SystemExit):
+            raise
+        except Exception as exc:
+            if self.proc is not None and self.proc.poll() is not None:
+                self._raise_dead()
+            raise RendererMissing(f"the headless Rerun viewer failed during {method}: {str(exc).splitlines()[0][:200]}") from None
+
+    def open(self, path: Path) -> None:
+        """Open a recording and wait until it is the active one."""
+        self.call("close", "all")
+        self.call("open", str(path.resolve()))
+        deadline = time.monotonic() + self.timeout_s
+        while self.call("get_state").active_recording is None:
+            if time.monotonic() > deadline:
+                raise RendererMissing(f"the viewer did not load {path} within {self.timeout_s:.0f} s")
+            time.sleep(0.1)
+        # every image starts from the recording's own layout (shots change titles, framing, maximised view)
+        self.base_blueprint = self.call("get_blueprint").blueprint
+
+    def show(self, blueprint: dict[str, Any], t_s: float, out: Path) -> None:
+        """Show the open recording with ``blueprint`` at ``t_s`` on the ``time`` timeline and save
+        the image to ``out`` (atomically)."""
+        self.call("set_blueprint", blueprint, of="recording")
+        self.call("set_time", "time", duration=float(t_s), play_state="paused")
+        time.sleep(self.settle_s)  # let the viewer render a few frames at the new time
+        with atomic_path(out, suffix=".tmp.png") as tmp:
+            self.call("save_screenshot", str(tmp))
+            if not tmp.is_file() or tmp.stat().st_size == 0:
+                raise RendererMissing(f"the viewer wrote no screenshot for {out}")
+
+    def _stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGTERM)
+                self.proc.wait(timeout=5)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
+                try:
+                    os.killpg(self.proc.pid, signal.SIGKILL)
+                    self.proc.wait(timeout=5)
+                except (ProcessLookupError, subprocess.TimeoutExpired):
+                    pass
+
+    def __exit__(self, *exc: Any) -> None:
+        self._stop()
+        for sig, old in self._old_handlers.items():
+            signal.signal(sig, old)
+        self._old_handlers = {}
+        self._dir.cleanup()
