@@ -29,7 +29,8 @@ __version__ = "0.1.0"
 
 _EXPORTS = {
     "load_drive": "sources.load", "evaluate": "api", "find_events": "api", "detector_quality": "api", "train": "api",
-    "training_drives": "api", "replay_scenario": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
+    "training_drives": "api", "replay_scenario": "api", "simulate": "api", "convert": "api", "fetch": "api", "list_runs": "api",
+    "RunSelection": "api", "DatasetSource": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
@@ -65,7 +66,29 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .analysis.evaluate import DriveResult
     from .analysis.events import Event, EventThresholds
     from .analysis.report import Report
-    from .api import Outage, ReplayResult, RunOptions, Shots, detector_quality, evaluate, evaluate_by_event, find_events, replay, replay_scenario, scenario_drives, screenshot, serve_web, train, training_drives
+    from .api import (
+        DatasetSource,
+        Outage,
+        ReplayResult,
+        RunOptions,
+        RunSelection,
+        Shots,
+        convert,
+        detector_quality,
+        evaluate,
+        evaluate_by_event,
+        fetch,
+        find_events,
+        list_runs,
+        replay,
+        replay_scenario,
+        scenario_drives,
+        screenshot,
+        serve_web,
+        simulate,
+        train,
+        training_drives,
+    )
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
     from .nav.bias import SensorBias

@@ -149,3 +149,13 @@ def test_scenario_says_which_drives_it_uses(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "roundabout: the bundled synthetic test drives (the paper's runs are not all under" in proc.stderr
     assert proc.stdout.splitlines()[1].startswith("roundabout")
+
+
+def test_every_package_is_in_the_wheel():
+    """pyproject.toml lists the packages (models/ is mapped into ionav_viz.models): a new
+    subpackage left out of the list would be missing from the wheel."""
+    import tomllib
+
+    listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    on_disk = {".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "ionav_viz").rglob("__init__.py")}
+    assert on_disk | {"ionav_viz.models"} == listed

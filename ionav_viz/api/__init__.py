@@ -15,15 +15,41 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 """
 
 
+from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
 from .options import RunOptions
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_scenario, serve_web
 from .screenshots import Shots, screenshot
+from .simulation import Converted, convert, simulate, simulate_bundled
 from .training import TrainingDrives, train, training_drives
 
 __all__ = [
-    "RECORDINGS_DIR", "DetectorQuality", "Outage", "ReplayResult", "RunOptions", "ScenarioDrives", "Shots", "TrainingDrives",
-    "detector_quality", "evaluate", "evaluate_by_event", "find_events", "replay", "replay_scenario", "scenario_drives",
-    "screenshot", "serve_web", "train", "training_drives",
+    "RECORDINGS_DIR",
+    "Converted",
+    "DatasetSource",
+    "DetectorQuality",
+    "Outage",
+    "ReplayResult",
+    "RunOptions",
+    "RunSelection",
+    "ScenarioDrives",
+    "Shots",
+    "TrainingDrives",
+    "convert",
+    "detector_quality",
+    "evaluate",
+    "evaluate_by_event",
+    "fetch",
+    "find_events",
+    "list_runs",
+    "replay",
+    "replay_scenario",
+    "scenario_drives",
+    "screenshot",
+    "serve_web",
+    "simulate",
+    "simulate_bundled",
+    "train",
+    "training_drives",
 ]

@@ -21,15 +21,11 @@ def convert(
     read: Any = None,  # ReadOptions (c.with_source_options)
 ) -> None:
     """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""
-    from ..sources.load import load_drive
-    from ..sources.mcap_writer import TOPICS, write_mcap
+    from .. import api
 
-    if output.suffix.lower() != ".mcap":
-        raise typer.BadParameter(f"{output}: the output must end in .mcap", param_hint="-o")
-    drive = load_drive(drive_spec, read)
-    n = write_mcap(drive, output)
-    print(f"{n} messages on {', '.join(TOPICS.values())} ({len(drive)} samples, {drive.duration_s:.1f} s)", file=sys.stderr)
-    print(output)
+    done = api.convert(drive_spec, output, read)
+    print(f"{done.messages} messages on {', '.join(done.topics)} ({done.samples} samples, {done.duration_s:.1f} s)", file=sys.stderr)
+    print(done.path)
 
 
 @app.command()

@@ -23,27 +23,14 @@ def simulate(
     gnss_loss: int = typer.Option(0, "--gnss-loss", help="Add this many tunnel-like GNSS losses (3-15 s while driving: satellites 0, the fix frozen or zeros)."),
 ) -> None:
     """Write a synthetic drive in the exact IO-VNBD V-*.csv format."""
-    from ..dataset.samples import SAMPLES
-    from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
+    from .. import api
+    from .app import options_named
 
     if bundled is not None:
-        bundled.mkdir(parents=True, exist_ok=True)
-        for sample in SAMPLES:
-            write_simulated_drive(bundled / sample.file, sample.scenario, sample.seed, sample.duration_s,
-                                  fleet_sensors(sample.fleet, sample.seed) if sample.fleet else None, gnss_losses=sample.gnss_losses)
-            print(bundled / sample.file)
+        for path in api.simulate_bundled(bundled):
+            print(path)
         return
     if scenario is None or output is None:
         raise typer.BadParameter("give a SCENARIO and -o FILE.csv (or --bundled DIR)")
-    if scenario not in SIMULATED_SCENARIOS:
-        raise typer.BadParameter(f"unknown scenario {scenario!r}; choose one of {', '.join(SIMULATED_SCENARIOS)}", param_hint="SCENARIO")
-    seconds = c.duration_s(duration, "--duration")
-    if gnss_loss < 0:
-        raise typer.BadParameter(f"{gnss_loss}: give 0 or more losses", param_hint="--gnss-loss")
-    if fleet is not None and fleet not in FLEETS:
-        raise typer.BadParameter(f"unknown fleet {fleet!r}; choose one of {', '.join(FLEETS)}", param_hint="--fleet")
-    if fleet is not None and ideal:
-        raise typer.BadParameter("--ideal and --fleet exclude each other", param_hint="--fleet")
-    sensors = SensorModel.ideal() if ideal else fleet_sensors(fleet, seed) if fleet else None
-    path = write_simulated_drive(output, scenario, seed, seconds, sensors, gnss_losses=gnss_loss)
-    print(path)
+    with options_named(scenario="SCENARIO", gnss_losses="--gnss-loss", fleet="--fleet"):
+        print(api.simulate(scenario, output, seed, c.duration_s(duration, "--duration"), fleet=fleet, ideal=ideal, gnss_losses=gnss_loss))

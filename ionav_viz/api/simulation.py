@@ -1,0 +1,62 @@
+"""Synthetic drives in the exact IO-VNBD format (``ionav-viz simulate``), and MCAP copies of any
+drive (``ionav-viz convert``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..core.errors import InputError
+from ..dataset.samples import SAMPLES
+from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
+from ..sources.load import ReadOptions, load_drive
+from .options import DriveLike
+
+
+def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float = 120.0, *, fleet: str | None = None,
+             ideal: bool = False, gnss_losses: int = 0) -> Path:
+    """Simulate a drive of ``scenario`` and write it as an IO-VNBD ``V-*.csv`` (atomically).
+
+    ``fleet``: draw the car's sensor and vehicle errors from a fleet (``"training"``, ``"held-out"``);
+    ``ideal``: perfect sensors and flat roads; ``gnss_losses``: tunnel-like GNSS losses to add.
+    """
+    if scenario not in SIMULATED_SCENARIOS:
+        raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SIMULATED_SCENARIOS)}", param="scenario")
+    if gnss_losses < 0:
+        raise InputError(f"{gnss_losses} GNSS losses: give 0 or more", param="gnss_losses")
+    if fleet is not None and fleet not in FLEETS:
+        raise InputError(f"unknown fleet {fleet!r}", f"choose one of {', '.join(FLEETS)}", param="fleet")
+    if fleet is not None and ideal:
+        raise InputError("ideal sensors and a fleet's exclude each other", "choose one", param="fleet")
+    sensors = SensorModel.ideal() if ideal else fleet_sensors(fleet, seed) if fleet else None
+    return write_simulated_drive(output, scenario, seed, duration_s, sensors, gnss_losses=gnss_losses)
+
+
+def simulate_bundled(folder: str | Path) -> list[Path]:
+    """Regenerate every bundled sample drive into ``folder`` (made when missing)."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    return [write_simulated_drive(Path(folder) / s.file, s.scenario, s.seed, s.duration_s,
+                                  fleet_sensors(s.fleet, s.seed) if s.fleet else None, gnss_losses=s.gnss_losses) for s in SAMPLES]
+
+
+@dataclass(frozen=True)
+class Converted:
+    """A drive written as an MCAP log: where, how many messages on which topics, of how long a drive."""
+
+    path: Path
+    messages: int
+    topics: tuple[str, ...]
+    samples: int
+    duration_s: float
+
+
+def convert(drive: DriveLike, output: str | Path, read: ReadOptions | None = None) -> Converted:
+    """Write a drive as a ROS 2 MCAP log (``sensor_msgs/Imu``, ``NavSatFix``, ``TwistStamped``;
+    atomically), that opens in Foxglove and ``ros2 bag``."""
+    from ..sources.mcap_writer import TOPICS, write_mcap
+
+    out = Path(output)
+    if out.suffix.lower() != ".mcap":
+        raise InputError(f"{out}: the output must end in .mcap", "choose a name like drive.mcap", param="output")
+    d = load_drive(drive, read)
+    return Converted(out, write_mcap(d, out), tuple(TOPICS.values()), len(d), d.duration_s)
