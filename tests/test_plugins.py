@@ -202,3 +202,36 @@ def test_python_api_takes_plugins_and_leaves_defaults_out():
     assert [e["name"] for e in report.to_dict()["estimators"]] == ["ins", "odo", "ekf", "const"]  # run order
     with pytest.raises(EstimatorError, match="not a built-in"):
         iv.evaluate(["roundabout"], run=iv.RunOptions(without=["const"]))
+
+
+@pytest.mark.parametrize(
+    ("spec", "fragments"),
+    [
+        ("toy_estimators:WritesInputs", ["'writes' failed", "ValueError", "read-only"]),
+        ("toy_estimators:ComplexOutput", ["'complex'", "disp_m is complex"]),
+        ("toy_estimators:HugeOutput", ["'huge'", "disp_m is 1e+200 in outage 3, window 6", "beyond what a car does in 1 s"]),
+        ("toy_estimators:AppliesRaises", ["'applies-raises'", "applies() failed", "KeyError"]),
+        ("toy_estimators:AvailableRaises", ["'available-raises'", "available() failed", "no licence"]),
+        ("toy_estimators:DescribesAList", ["'describes-list'", "describe() returned list, not a dict"]),
+    ],
+)
+def test_hostile_plugins_are_one_line_errors(spec, fragments):
+    """Round 3: a plug-in that writes into its inputs, returns complex or impossible numbers, or
+    whose optional members raise or return the wrong type: one line naming it, exit 2."""
+    proc = run_cli("evaluate", "roundabout", "--every", "60s", "--estimator", spec, env=ENV)
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert proc.returncode == 2 and len(lines) == 1 and "Traceback" not in proc.stderr and "Warning" not in proc.stderr, proc.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+
+
+def test_a_plugin_cannot_change_what_the_others_see():
+    """The INS DR's metrics are the same whether a plug-in that writes into the drive runs before it
+    or not (it fails; with writable inputs it changed the INS's first outage from 1.84 m to 15.45 m)."""
+    import toy_estimators
+
+    drive = iv.load_drive("roundabout")
+    before = drive.lat_deg.copy()
+    with pytest.raises(EstimatorError, match="read-only"):
+        iv.evaluate([drive], 10.0, iv.Every(60.0), [toy_estimators.WritesInputs(), "ins"])
+    np.testing.assert_array_equal(drive.lat_deg, before)

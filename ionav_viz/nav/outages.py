@@ -27,9 +27,10 @@ functions (all return sorted start indices into :class:`~ionav_viz.nav.windows.W
 from __future__ import annotations
 
 import logging
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -42,6 +43,8 @@ log = logging.getLogger("ionav_viz")
 
 def outage_windows(outage_s: float, what: str = "outage length", param: str = "outage_s") -> int:
     """Outage length (s) -> number of 1-second windows; must be a positive whole number."""
+    if isinstance(outage_s, bool) or not isinstance(outage_s, numbers.Real):
+        raise InputError(f"{what} {outage_s!r} is not a number of seconds", "give seconds as a number, e.g. 10.0", param=param)
     if not np.isfinite(outage_s) or outage_s <= 0 or abs(outage_s - round(outage_s)) > 1e-9:
         raise InputError(
             f"{what} {outage_s:g} s is not a positive whole number of seconds",
@@ -185,7 +188,7 @@ class OutagePlan:
 class Tile:
     """The paper's protocol: consecutive, back-to-back outages covering each segment."""
 
-    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
+    event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
 
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         starts = tile(windows, n_windows)
@@ -198,7 +201,7 @@ class Every:
     """An outage every ``period_s`` seconds (whole seconds, at least the outage length)."""
 
     period_s: float
-    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
+    event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
 
     def __post_init__(self) -> None:
         outage_windows(self.period_s, "outage period", "placement")
@@ -214,7 +217,7 @@ class At:
     """Outages starting at the given times (s since the drive's first sample)."""
 
     times_s: tuple[float, ...]
-    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
+    event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
 
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         times = list(self.times_s)
@@ -228,7 +231,12 @@ class Random:
 
     count: int
     seed: int = 0
-    event_types: tuple[str, ...] = ()  # the events the plan needs detected: none
+    event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
+
+    def __post_init__(self) -> None:
+        for name, value, low in (("count", self.count, 1), ("seed", self.seed, 0)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+                raise InputError(f"random outages: {name} {value!r} is not a whole number of at least {low}", param="placement")
 
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         def draw(w: Windows) -> np.ndarray:

@@ -30,13 +30,15 @@ read ``inputs.windows`` (the whole drive's windows) only *before* each outage's 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.grid import WINDOW_S
+from ..sources.plausibility import LIMITS
 from .bias import SensorBias
 from .track import Track, rebuild_track
 from .windows import Windows
@@ -119,6 +121,13 @@ class EstimatorInputs:
         self.prev_gnss_disp_m = w.gnss_disp_m[k - 1] if len(k) else np.zeros(0)
         self.accel_mps2 = w.accel_mps2[idx]
         self.gyro_radps = w.gyro_radps[idx]
+        # every estimator sees the same data: none can change what the others (or the metrics) see
+        self.drive = replace(self.drive, columns={k: _read_only(v) for k, v in self.drive.columns.items()},
+                             gnss_fault=None if self.drive.gnss_fault is None else _read_only(self.drive.gnss_fault))
+        self.windows = replace(self.windows, **{f.name: _read_only(getattr(self.windows, f.name)) for f in fields(self.windows)
+                                                if isinstance(getattr(self.windows, f.name), np.ndarray)})
+        for name in ("starts", "t0_s", "speed0_mps", "course0_deg", "lat0_deg", "lon0_deg", "prev_gnss_disp_m", "accel_mps2", "gyro_radps"):
+            setattr(self, name, _read_only(getattr(self, name)))
 
     @property
     def n_outages(self) -> int:
@@ -133,6 +142,13 @@ class EstimatorInputs:
     def rate_hz(self) -> float:
         """Rate of the inertial samples (Hz)."""
         return self.windows.rate_hz
+
+
+def _read_only(values: np.ndarray) -> np.ndarray:
+    """A view of ``values`` that cannot be written through."""
+    view = values.view()
+    view.flags.writeable = False
+    return view
 
 
 @runtime_checkable
@@ -173,22 +189,39 @@ def short_label(label: str) -> str:
     return label.removesuffix(" DR")
 
 
+def _member(estimator: Estimator, member: str, default: Any, *args: Any) -> Any:
+    """Call an optional member of a plug-in; one it has that raises is the plug-in's error."""
+    fn = getattr(estimator, member, None)
+    if not callable(fn):
+        return default
+    try:
+        return fn(*args)
+    except InputError:
+        raise
+    except Exception as exc:
+        raise EstimatorError(f"estimator {getattr(estimator, 'name', '?')!r}: {member}() failed: {type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": "),
+                             "fix the plug-in (run with --debug for the traceback)") from exc
+
+
 def applies(estimator: Estimator, drive: Drive) -> bool:
     """Whether ``estimator`` runs on ``drive`` (its optional ``applies``; default yes)."""
-    check = getattr(estimator, "applies", None)
-    return bool(check(drive)) if callable(check) else True
+    return bool(_member(estimator, "applies", True, drive))
 
 
 def describe(estimator: Estimator) -> dict[str, Any]:
-    """The estimator's own description (its optional ``describe()``), for reports."""
-    fn = getattr(estimator, "describe", None)
-    return dict(fn()) if callable(fn) else {}
+    """The estimator's own description (its optional ``describe()``), for reports: a mapping of
+    names to short values."""
+    info = _member(estimator, "describe", {})
+    if not isinstance(info, dict):
+        raise EstimatorError(f"estimator {estimator.name!r}: describe() returned {type(info).__name__}, not a dict",
+                             "return a dict of names to short values, e.g. {'model': 'v2'}")
+    return dict(info)
 
 
 def available(estimator: Estimator) -> bool:
     """Whether ``estimator`` can run here at all (its optional ``available()``; default yes)."""
-    check = getattr(estimator, "available", None)
-    return bool(check()) if callable(check) else True
+    return bool(_member(estimator, "available", True))
 
 
 def color_of(estimator: Estimator) -> tuple[int, int, int] | None:
@@ -214,14 +247,22 @@ def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
     return Solution(disp, yaw, track)
 
 
+#: What an estimate may say of one 1 s window: no car covers more than the fastest speed the
+#: readers accept (m) or turns faster than the fastest gyro (rad/s) (:mod:`ionav_viz.sources.plausibility`).
+ESTIMATE_LIMITS = {"disp_m": LIMITS["speed_mps"][1] * WINDOW_S, "yaw_rate_radps": LIMITS["yaw_rate_radps"][1]}
+
+
 def _checked(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.ndarray, np.ndarray]:
     hint = "estimate() must return Estimate(disp_m=..., yaw_rate_radps=...) with finite arrays of shape (n_outages, n_windows)"
     if not hasattr(est, "disp_m") or not hasattr(est, "yaw_rate_radps"):
         raise EstimatorError(f"estimator {name!r} returned {type(est).__name__}, not an Estimate", hint)
     out = []
     for field_name in ("disp_m", "yaw_rate_radps"):
+        raw = getattr(est, field_name)
+        if np.iscomplexobj(raw):
+            raise EstimatorError(f"estimator {name!r}: {field_name} is complex", "return real numbers (m, rad/s)")
         try:
-            values = np.asarray(getattr(est, field_name), dtype=np.float64)
+            values = np.asarray(raw, dtype=np.float64)
         except (TypeError, ValueError):
             raise EstimatorError(f"estimator {name!r}: {field_name} is not numeric", hint) from None
         if values.shape != (n_outages, n_windows):
@@ -236,6 +277,13 @@ def _checked(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.nd
                 f"({int(bad.sum())} non-finite value(s))",
                 hint,
             )
+        limit = ESTIMATE_LIMITS[field_name]
+        beyond = np.abs(values) > limit
+        if beyond.any():
+            i, j = (int(x) for x in np.argwhere(beyond)[0])
+            raise EstimatorError(
+                f"estimator {name!r}: {field_name} is {values[i, j]:.6g} in outage {i + 1}, window {j + 1}, beyond what a car does "
+                f"in 1 s (|{field_name}| <= {limit:.4g})", "check the plug-in's units (m per 1 s window, rad/s)")
         out.append(values)
     return out[0], out[1]
 

@@ -193,6 +193,16 @@ def resolve(
 
 
 def _one(item: str | Estimator, model: Any, explicit: bool) -> Estimator | None:
+    """One estimator from a name, spec or object (None: a default built-in not available here); a
+    chosen plug-in must be available."""
+    est = _named(item, model, explicit)
+    plugin = est is not None and not (isinstance(item, str) and item.strip() in BUILTIN)
+    if plugin and not available(est):
+        raise EstimatorError(f"estimator {est.name!r} is not available here (its available() says so)", "leave it out, or fix what it needs")
+    return est
+
+
+def _named(item: str | Estimator, model: Any, explicit: bool) -> Estimator | None:
     """One estimator from a name, spec or object (None: a default built-in not available here)."""
     if not isinstance(item, str):  # an object, a class or a factory
         return _instantiate(item, getattr(item, "__name__", type(item).__name__))

@@ -44,3 +44,52 @@ class Raises(ConstantSpeed):
 
     def estimate(self, inputs):
         raise ZeroDivisionError("division by zero in my filter")
+
+
+class WritesInputs(ConstantSpeed):
+    """Tries to change what every estimator sees: the drive's GNSS track and its own inputs."""
+
+    name = "writes"
+
+    def estimate(self, inputs):
+        inputs.drive.columns["lat_deg"][:] = 0.0
+        return super().estimate(inputs)
+
+
+class ComplexOutput(ConstantSpeed):
+    name = "complex"
+
+    def estimate(self, inputs):
+        est = super().estimate(inputs)
+        return Estimate(est.disp_m + 1j, est.yaw_rate_radps)
+
+
+class HugeOutput(ConstantSpeed):
+    name = "huge"
+
+    def estimate(self, inputs):
+        est = super().estimate(inputs)
+        disp = est.disp_m.copy()
+        disp[2, 5] = 1e200
+        return Estimate(disp, est.yaw_rate_radps)
+
+
+class AppliesRaises(ConstantSpeed):
+    name = "applies-raises"
+
+    def applies(self, drive):
+        raise KeyError("speed_can_mps")
+
+
+class AvailableRaises(ConstantSpeed):
+    name = "available-raises"
+
+    def available(self):
+        raise RuntimeError("no licence")
+
+
+class DescribesAList(ConstantSpeed):
+    name = "describes-list"
+
+    def describe(self):
+        return ["not", "a", "dict"]
