@@ -145,17 +145,19 @@ def placement_of(every: Optional[str], at: Optional[str], random_count: Optional
     chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
     if len(chosen) > 1:
         raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
-    if on is not None:
-        kinds = split_list(on)
-        return PlacementArgs(AroundEvents(kinds), f"--on {on}", kinds)
-    if every is not None:
-        with options_named(placement=f"--every {every}"):
-            return PlacementArgs(Every(duration_s(every, "--every")), f"--every {every}", None)
-    if at is not None:
-        return PlacementArgs(At(tuple(_start_times(at))), f"--at {at}", None)
-    if random_count is not None:
-        return PlacementArgs(Random(random_count, seed), f"--random {random_count}", None)
-    return PlacementArgs(Tile(), "--outage", None)
+    option = {"--every": f"--every {every}", "--at": f"--at {at}", "--random": f"--random {random_count}", "--on": f"--on {on}"}.get(
+        chosen[0] if chosen else "", "--outage")
+    with options_named(placement=option):  # the library checks the values; its errors name the option
+        if on is not None:
+            kinds = split_list(on)
+            return PlacementArgs(AroundEvents(kinds), option, kinds)
+        if every is not None:
+            return PlacementArgs(Every(duration_s(every, "--every")), option, None)
+        if at is not None:
+            return PlacementArgs(At(tuple(_start_times(at))), option, None)
+        if random_count is not None:
+            return PlacementArgs(Random(random_count, seed), option, None)
+        return PlacementArgs(Tile(), option, None)
 
 
 def _start_times(text: str) -> list[float]:

@@ -127,11 +127,7 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
 
 
 def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
-    """``count`` non-overlapping ``n``-window outages drawn uniformly (seeded)."""
-    if count < 1:
-        raise InputError(f"{count} random outages: need at least one", param="placement")
-    if seed < 0:
-        raise InputError(f"random seed {seed} is negative", "use a seed >= 0", param="placement")
+    """``count`` non-overlapping ``n``-window outages drawn uniformly (seeded; :class:`Random` checks both)."""
     rng = np.random.default_rng(seed)
     candidates = np.concatenate([np.arange(a, b - n + 1) for a, b in _segment_ranges(windows)] or [np.zeros(0, int)])
     chosen: list[int] = []
@@ -234,9 +230,13 @@ class Random:
     event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
 
     def __post_init__(self) -> None:
-        for name, value, low in (("count", self.count, 1), ("seed", self.seed, 0)):
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
-                raise InputError(f"random outages: {name} {value!r} is not a whole number of at least {low}", param="placement")
+        for name, value in (("count", self.count), ("seed", self.seed)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+                raise InputError(f"random outages: {name} {value!r} is not a whole number", param="placement")
+        if self.count < 1:
+            raise InputError(f"{self.count} random outages: need at least one", param="placement")
+        if self.seed < 0:
+            raise InputError(f"random seed {self.seed} is negative", "use a seed >= 0", param="placement")
 
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         def draw(w: Windows) -> np.ndarray:
