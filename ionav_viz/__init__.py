@@ -30,7 +30,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "load_drive": "sources.load", "evaluate": "api", "find_events": "api", "detector_quality": "api", "train": "api",
     "training_drives": "api", "replay_scenario": "api", "simulate": "api", "convert": "api", "fetch": "api", "list_runs": "api",
-    "RunSelection": "api", "DatasetSource": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
+    "RunSelection": "api", "DatasetSource": "api", "WebServing": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
@@ -73,6 +73,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         RunOptions,
         RunSelection,
         Shots,
+        WebServing,
         convert,
         detector_quality,
         evaluate,

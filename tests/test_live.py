@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 import urllib.request
+from pathlib import Path
 
 import pytest
 
@@ -101,3 +102,53 @@ def test_open_without_a_display_points_to_serve_web(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     proc = run_cli(*ARGS, "-o", str(tmp_path / "x.rrd"), "--open", env={**env, "DISPLAY": ""})
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "--serve-web" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize(("extra", "fragment"), [
+    (["--grpc-port", "0"], "--grpc-port: port 0 is not a TCP port"),
+    (["--web-port", "70000"], "--web-port: port 70000 is not a TCP port"),
+    (["--grpc-port", "19999", "--web-port", "19999"], "cannot share port 19999"),
+    (["--bind", "everywhere"], "--bind: bind address 'everywhere' is not an IP address"),
+])
+def test_serve_options_are_checked_before_any_work(tmp_path, extra, fragment):
+    """Round 3: bad ports were refused only after the whole replay; the same port for both was a traceback."""
+    out = tmp_path / "x.rrd"
+    proc = run_cli(*ARGS, "-o", str(out), "--serve-web", *extra)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and fragment in proc.stderr, proc.stderr
+    assert not out.exists()  # before the work
+
+
+def _listening(port: int) -> set[str]:
+    """The local addresses a TCP port listens on, from /proc/net/tcp (state 0A: LISTEN)."""
+    found = set()
+    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
+        local, state = line.split()[1], line.split()[3]
+        host, p = local.split(":")
+        if state == "0A" and int(p, 16) == port:
+            found.add(".".join(str(int(host[i : i + 2], 16)) for i in (6, 4, 2, 0)))
+    return found
+
+
+@pytest.mark.parametrize("bind", [None, "0.0.0.0"])
+def test_serve_web_listens_on_this_machine_only_unless_told(tmp_path, bind):
+    """Round 3: --serve-web listened on 0.0.0.0, exposing the drive's positions to every network."""
+    from ionav_viz.viz.viewer import free_port
+
+    if not Path("/proc/net/tcp").is_file():
+        pytest.skip("needs Linux's /proc/net/tcp")
+    grpc_port, web_port = free_port(), free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", *ARGS, "-o", str(tmp_path / "hb.rrd"), "--serve-web",
+                             "--grpc-port", str(grpc_port), "--web-port", str(web_port), *(["--bind", bind] if bind else [])],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        proc.stdout.readline()
+        assert proc.stdout.readline().startswith("serving the recording")
+        expected = {"127.0.0.1"} if bind is None else {"0.0.0.0"}
+        assert _listening(grpc_port) == expected and _listening(web_port) == expected
+    finally:
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=20)
+    err = proc.stderr.read()
+    assert code == 130 and "Traceback" not in err
+    assert ("reachable from every network" in err) == (bind is not None), err
+    assert _listening(grpc_port) == set() and _listening(web_port) == set()  # the server process is gone

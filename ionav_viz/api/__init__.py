@@ -15,6 +15,7 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 """
 
 
+from ..viz.live import WebServing
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
@@ -35,7 +36,7 @@ __all__ = [
     "RunSelection",
     "ScenarioDrives",
     "Shots",
-    "TrainingDrives",
+    "TrainingDrives", "WebServing",
     "convert",
     "detector_quality",
     "evaluate",

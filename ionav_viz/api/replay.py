@@ -16,6 +16,7 @@ from ..nav.outages import Placement, Tile
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
+from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
 from .options import DriveLike, Progress, RunOptions, check_event_types, log, options_of, windows_of
 
@@ -146,15 +147,11 @@ def _summary_markdown(result: DriveResult, report: Report, description: str) -> 
     return run_summary_markdown(result, report, description) + "\n" + report.to_markdown()
 
 
-def serve_web(replayed: ReplayResult, grpc_port: int | None = None, web_port: int | None = None):
-    """Serve a replay's recording to browsers from this process (Rerun's gRPC server and web
-    viewer, on ports ``viz.live.DEFAULT_GRPC_PORT`` and ``DEFAULT_WEB_PORT`` unless given);
-    returns a :class:`ionav_viz.viz.live.WebServer` whose ``web_url`` to open. The servers stop
-    when the process ends."""
+def serve_web(replayed: ReplayResult, serving: WebServing | None = None):
+    """Serve a replay's recording to browsers: a :class:`ionav_viz.viz.live.WebServer` to use with
+    ``with`` (the servers run inside it), whose ``web_url`` to open. ``serving``: a
+    :class:`WebServing` (ports and bind address; default the loopback address and Rerun's ports)."""
     from ..viz import live
 
-    grpc_port = live.DEFAULT_GRPC_PORT if grpc_port is None else grpc_port
-    web_port = live.DEFAULT_WEB_PORT if web_port is None else web_port
-    return live.serve_web(replayed.result, _summary_markdown(replayed.result, replayed.report, replayed.placement),
-                          replayed.events, grpc_port=grpc_port, web_port=web_port)
+    return live.serve_web(replayed.path, serving)
 

@@ -26,6 +26,7 @@ def replay(
     serve_web: bool = typer.Option(False, "--serve-web", help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),
     grpc_port: int = typer.Option(DEFAULT_GRPC_PORT, "--grpc-port", help="--serve-web: the port of the recording's gRPC server."),
     web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", help="--serve-web: the port of the web viewer."),
+    bind: str = typer.Option("127.0.0.1", "--bind", metavar="ADDRESS", help="--serve-web: the address to listen on (default: this machine only; 0.0.0.0 opens the recording to every network the machine is on)."),
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
@@ -38,6 +39,12 @@ def replay(
     outage_s = c.duration_s(outage, "--outage")
     if open_viewer:
         _check_display()
+    serving = None
+    if serve_web:
+        with options_named(grpc_port="--grpc-port", web_port="--web-port", bind="--bind"):
+            serving = api.WebServing(grpc_port, web_port, bind)  # checked before any work
+        if serving.public:
+            log.warning("--bind %s: the served recording (the drive's positions) is reachable from every network this machine is on", bind)
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
         result = api.replay(drive_spec, outage_s, placement.placement, output=output, run=run, read=read, connect=connect,
                             progress=c.progress_callback(bar, "writing"))
@@ -52,17 +59,19 @@ def replay(
         print(f"streamed to the viewer at {connect}", file=sys.stderr)
     if open_viewer:
         _open_viewer(result.path)
-    if serve_web:
-        _serve(api.serve_web(result, grpc_port=grpc_port, web_port=web_port))
+    if serving is not None:
+        _serve(api.serve_web(result, serving))
 
 
 def _serve(server) -> None:
-    """Print where to look and keep the servers up until Ctrl-C or SIGTERM (exit 130 / 143)."""
+    """Print where to look and keep the servers up until Ctrl-C or SIGTERM (exit 130 / 143); the
+    server process is stopped on the way out."""
     import time
 
-    print(f"serving the recording: open {server.web_url} in a browser (gRPC: {server.grpc_url}); Ctrl-C to stop", flush=True)
-    while True:
-        time.sleep(3600)
+    with server:
+        print(f"serving the recording: open {server.web_url} in a browser (gRPC: {server.grpc_url}); Ctrl-C to stop", flush=True)
+        while True:
+            time.sleep(3600)
 
 
 def _check_display() -> None:

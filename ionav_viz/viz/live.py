@@ -2,14 +2,22 @@
 
 ``connect``: the same recording as the ``.rrd`` file, logged to a viewer's gRPC endpoint
 (default Rerun's local ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens).
-``serve_web``: a gRPC server in this process holding the recording, and Rerun's web viewer
-served over HTTP pointing at it; both live until the process is stopped.
+``serve_web``: the written ``.rrd`` served to browsers by a ``rerun --serve-web`` process of our own
+(a gRPC server holding it and Rerun's web viewer pointing at it), bound to the loopback address
+unless the user opens it to a network (``--bind``); stopped with the command.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import socket
+import subprocess
+import tempfile
+import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import quote, urlparse
 
@@ -63,38 +71,113 @@ def connect(result: DriveResult, summary_md: str, url: str = DEFAULT_CONNECT_URL
     rec.disconnect()
 
 
-@dataclass
-class WebServer:
-    """A served recording: the browser address, the gRPC address, and the stream holding it."""
+@dataclass(frozen=True)
+class WebServing:
+    """Where a recording is served to browsers: the gRPC server's and the web viewer's ports and
+    the address both bind to. The loopback address by default: positions of a drive are nobody
+    else's business; another address opens the recording to that network. Checked on creation,
+    before any work: ports 1-65535, different, free; ``bind`` an IP address."""
 
-    web_url: str
-    grpc_url: str
-    stream: object
+    grpc_port: int = DEFAULT_GRPC_PORT
+    web_port: int = DEFAULT_WEB_PORT
+    bind: str = "127.0.0.1"
 
+    def __post_init__(self) -> None:
+        import ipaddress
 
-def serve_web(result: DriveResult, summary_md: str, events: list | None = None, grpc_port: int = DEFAULT_GRPC_PORT,
-              web_port: int = DEFAULT_WEB_PORT) -> WebServer:
-    """Serve the recording of ``result`` from this process: a gRPC server on ``grpc_port`` and
-    Rerun's web viewer on ``web_port`` (both on all interfaces, as ``rerun --serve-web``). The
-    servers run until the process ends; the caller waits (``ionav-viz replay --serve-web`` until Ctrl-C)."""
-    import rerun as rr
-
-    from .recording import APP_ID, log_result, recording_id
-
-    for port, option in ((grpc_port, "--grpc-port"), (web_port, "--web-port")):
-        _check_free(port, option)
-    rec = rr.RecordingStream(APP_ID, recording_id=recording_id(result))
-    grpc_url = rec.serve_grpc(grpc_port=grpc_port)
-    log_result(rec, result, summary_md, events=events)
-    rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=grpc_url)
-    return WebServer(f"http://127.0.0.1:{web_port}/?url={quote(grpc_url, safe=':/')}", grpc_url, rec)
-
-
-def _check_free(port: int, option: str) -> None:
-    if not 1 <= port <= 65535:
-        raise InputError(f"{option} {port}: not a TCP port", "choose a port between 1024 and 65535", param=option)
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        for port, param in ((self.grpc_port, "grpc_port"), (self.web_port, "web_port")):
+            if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
+                raise InputError(f"port {port!r} is not a TCP port", "choose a port between 1024 and 65535", param=param)
+        if self.grpc_port == self.web_port:
+            raise InputError(f"the gRPC server and the web viewer cannot share port {self.web_port}", "give them different ports",
+                             param="web_port")
         try:
-            s.bind(("0.0.0.0", port))
+            ipaddress.ip_address(self.bind)
+        except ValueError:
+            raise InputError(f"bind address {self.bind!r} is not an IP address", "use e.g. 127.0.0.1 (this machine only) or 0.0.0.0",
+                             param="bind") from None
+        for port, option in ((self.grpc_port, "--grpc-port"), (self.web_port, "--web-port")):
+            _check_free(self.bind, port, option)
+
+    @property
+    def public(self) -> bool:
+        """Whether other machines can reach the served recording."""
+        import ipaddress
+
+        return not ipaddress.ip_address(self.bind).is_loopback
+
+    @property
+    def host(self) -> str:
+        """Where this machine reaches the servers."""
+        return "127.0.0.1" if self.bind in ("0.0.0.0", "::") else self.bind
+
+
+class WebServer:
+    """A recording served to browsers by a ``rerun --serve-web`` process of our own; a context
+    manager: the process is stopped on exit (Ctrl-C and SIGTERM included)."""
+
+    def __init__(self, path: Path, serving: WebServing, timeout_s: float = 30.0) -> None:
+        self.serving = serving
+        host = f"[{serving.host}]" if ":" in serving.host else serving.host
+        self.grpc_url = f"rerun+http://{host}:{serving.grpc_port}/proxy"
+        self.web_url = f"http://{host}:{serving.web_port}/?url={quote(self.grpc_url, safe=':/')}"
+        self._path, self._timeout_s = Path(path), timeout_s
+        self._dir = tempfile.TemporaryDirectory(prefix="ionav-serve-")
+        self._proc: subprocess.Popen | None = None
+
+    def __enter__(self) -> WebServer:
+        from .viewer import rerun_executable
+
+        log = Path(self._dir.name) / "serve.log"
+        s = self.serving
+        try:
+            with open(log, "ab") as out:
+                self._proc = subprocess.Popen(
+                    [rerun_executable(), "--serve-web", "--bind", s.bind, "--port", str(s.grpc_port), "--web-viewer-port", str(s.web_port),
+                     str(self._path.resolve())],
+                    stdin=subprocess.DEVNULL, stdout=out, stderr=out, start_new_session=True,
+                    env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "warn"), "TMPDIR": self._dir.name})
+            deadline = time.monotonic() + self._timeout_s
+            while not all(_accepts(s.host, port) for port in (s.grpc_port, s.web_port)):
+                if self._proc.poll() is not None or time.monotonic() > deadline:
+                    tail = [line for line in log.read_text(errors="replace").splitlines() if line.strip()][-1:] or ["no output"]
+                    raise ToolFailure(f"the Rerun web viewer did not start ({tail[0].strip()[:200]})")
+                time.sleep(0.1)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._proc is not None and self._proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self._proc.pid, signal.SIGTERM)
+            try:
+                self._proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(self._proc.pid, signal.SIGKILL)
+                self._proc.wait(timeout=5)
+        self._dir.cleanup()
+
+
+def serve_web(path: Path, serving: WebServing | None = None) -> WebServer:
+    """A :class:`WebServer` for the ``.rrd`` at ``path`` (use it with ``with``: it starts there)."""
+    return WebServer(path, serving or WebServing())
+
+
+def _accepts(host: str, port: int) -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
+def _check_free(bind: str, port: int, option: str) -> None:
+    family = socket.AF_INET6 if ":" in bind else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        try:
+            s.bind((bind, port))
         except OSError:
-            raise ToolFailure(f"{option} {port}: the port is in use (another viewer or server?); choose another with {option}") from None
+            raise ToolFailure(f"{option} {port}: the port is in use on {bind} (another viewer or server?); choose another with {option}") from None

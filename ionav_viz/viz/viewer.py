@@ -39,7 +39,8 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _rerun_executable() -> str:
+def rerun_executable() -> str:
+    """The ``rerun`` executable that came with rerun-sdk (beside this interpreter, else on PATH)."""
     beside = Path(sys.executable).parent / "rerun"
     if beside.is_file():
         return str(beside)
@@ -82,7 +83,7 @@ class HeadlessViewer:
             port = free_port()
             with open(self.log_path, "ab") as log:
                 self.proc = subprocess.Popen(
-                    [_rerun_executable(), "--headless", "--port", str(port), "--window-size", f"{self.width}x{self.height}",
+                    [rerun_executable(), "--headless", "--port", str(port), "--window-size", f"{self.width}x{self.height}",
                      "--hide-welcome-screen", "--memory-limit", "25%"],
                     stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
                     # TMPDIR: the viewer's own scratch folders go into ours and are removed with it
