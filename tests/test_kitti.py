@@ -1,12 +1,14 @@
 """KITTI raw drive folders (OXTS packets), written as the KITTI devkit documents them."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import ionav_viz as iv
 from ionav_viz.core.drive import Drive
+from ionav_viz.sources.kitti import FIELDS
 
 from . import bag_fixtures as bf
 from .conftest import assert_same_sequences, expect_one_line_error, run_cli
@@ -112,3 +114,27 @@ def test_garbled_values_and_stamps(small):
     expect_one_line_error(small, "0000000003.txt: af 250 m/s^2 outside")
     (small / "oxts" / "timestamps.txt").write_text("yesterday\n")
     expect_one_line_error(small, "timestamps.txt: line 1 is not a stamp")
+
+
+def _set_field(packet: Path, field: str, value: str) -> None:
+    values = packet.read_text().split()
+    values[FIELDS.index(field)] = value
+    packet.write_text(" ".join(values) + "\n")
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("vn", "1e9", "0000000005.txt: vn 1e+09 m/s outside [-100, 100]"),  # round 3: a mean CRSE of 909,090,894 m, exit 0
+    ("ve", "nan", "0000000005.txt: ve not a finite number"),  # round 3: blamed on the INS ("disp_m is nan in outage 4")
+    ("pos_accuracy", "inf", "0000000005.txt: pos_accuracy not a finite number"),
+])
+def test_every_field_used_is_checked(small, field, value, message):
+    _set_field(small / "oxts" / "data" / "0000000005.txt", field, value)
+    expect_one_line_error(small, message, "the packet is damaged")
+
+
+def test_a_folder_named_like_a_packet(small):
+    """Round 3: an IsADirectoryError traceback."""
+    packet = small / "oxts" / "data" / "0000000011.txt"
+    packet.unlink()
+    packet.mkdir()
+    expect_one_line_error(small, "0000000011.txt: not a packet file", "extract the drive's zip again")

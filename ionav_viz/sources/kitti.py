@@ -52,8 +52,11 @@ COLUMN = {name: i for i, name in enumerate(FIELDS)}
 #: The OXTS navigation status of a locked (GNSS-aided, real-time) solution.
 NAVSTAT_LOCKED = 4
 #: Values checked at the boundary: OXTS field -> the drive-model column whose limits apply.
+#: Every field the reader uses is checked (a column without limits must still be a finite number).
 _CHECKED = {"lat": "lat_deg", "lon": "lon_deg", "alt": "height_m", "af": "accel_long_mps2", "al": "accel_long_mps2",
-            "au": "accel_long_mps2", "wf": "yaw_rate_radps", "wl": "yaw_rate_radps", "wu": "yaw_rate_radps"}
+            "au": "accel_long_mps2", "wf": "yaw_rate_radps", "wl": "yaw_rate_radps", "wu": "yaw_rate_radps",
+            **{v: "velocity_mps" for v in ("vn", "ve", "vf", "vl", "vu")}, "pos_accuracy": "gnss_sigma_m", "numsats": "n_satellites",
+            "navstat": "navstat"}
 
 
 def oxts_folder(path: Path) -> Path | None:
@@ -107,6 +110,8 @@ def read_packets(oxts: Path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(f"{data}: missing", "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the drive's zip again")
     t = read_stamps_ns(stamps_file)
     files = sorted(p for p in data.iterdir() if p.suffix == ".txt")
+    if folder := next((p for p in files if not p.is_file()), None):
+        raise InputError(f"{folder}: not a packet file (a folder or a special file)", "extract the drive's zip again")
     if not files:
         raise InputError(f"{data}: no packet files (0000000000.txt, ...)", "extract the drive's zip again")
     for i, f in enumerate(files):

@@ -1,6 +1,6 @@
 """Physical plausibility limits: values no car sensor can produce, checked at every reader's boundary.
 
-One table for every source (IO-VNBD CSV, MCAP). A value outside its limits is not noise to average
+One table for every source (IO-VNBD CSV, MCAP and ROS bags, KITTI). A value outside its limits is not noise to average
 away but a broken file or a unit mix-up, so the reader refuses the drive with an error naming the
 file, the row (CSV) or time (MCAP), the column and the limit. Limits are generous on purpose:
 they catch impossible values (1e300 g, a heading of 1e20, a negative speed over ground), not
@@ -16,6 +16,7 @@ column                    limits              why
 ``lon_deg``               -180 .. 180         WGS84
 ``speed_mps``             0 .. 100            speed over ground is a magnitude; 360 km/h
 ``speed_can_mps``         0 .. 100            as above
+``velocity_mps``          -100 .. 100         one component of a velocity (KITTI's vn, ve, vf, vl, vu)
 ``heading_deg``           -360 .. 360         a course, before wrapping to [0, 360)
 ``height_m``              -1000 .. 10000      ellipsoid/sea-level height of a road
 ``accel_long_mps2``       -157 .. 157         16 g, the widest full-scale range of vehicle IMUs
@@ -25,7 +26,7 @@ column                    limits              why
 ``wheel_speed_*_radps``   -500 .. 500         100 m/s on a 0.2 m wheel
 ========================  ==================  ==================================================
 
-Every value must also be finite.
+Every value must also be finite, in every column a reader uses (those without limits too).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ LIMITS: dict[str, tuple[float, float]] = {
     "lon_deg": (-180.0, 180.0),
     "speed_mps": (0.0, 100.0),
     "speed_can_mps": (0.0, 100.0),
+    "velocity_mps": (-100.0, 100.0),  # one component of a velocity (KITTI's vn, ve, vf, vl, vu)
     "heading_deg": (-360.0, 360.0),
     "height_m": (-1000.0, 10000.0),
     "accel_long_mps2": (-_G16_MPS2, _G16_MPS2),
