@@ -159,3 +159,13 @@ def test_every_package_is_in_the_wheel():
     listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     on_disk = {".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "ionav_viz").rglob("__init__.py")}
     assert on_disk | {"ionav_viz.models"} == listed
+
+
+def test_train_leaves_nothing_in_the_temporary_directory(tmp_path):
+    """Round 3: every train left an empty torchinductor_<user> folder in the temporary directory."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    proc = run_cli("train", "-o", str(tmp_path / "model"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q", env={"TMPDIR": str(scratch)})
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "model" / "metadata.json").is_file()
+    assert list(scratch.iterdir()) == []

@@ -14,9 +14,11 @@ batches); deterministic on the CPU for a seed.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import platform
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -140,6 +142,23 @@ def train_models(
     description: str = "",
 ) -> IdnnModel:
     """Train both networks on ``drives`` with ``config``; returns the model with its metadata."""
+    with _torch_scratch():
+        return _train(drives, config, progress, description)
+
+
+@contextlib.contextmanager
+def _torch_scratch() -> Iterator[None]:
+    """torch makes a cache folder (``torchinductor_<user>``) in the temporary directory as training
+    starts and never removes it: it goes into a private folder instead, removed afterwards."""
+    with tempfile.TemporaryDirectory(prefix="ionav-torch-") as scratch:
+        before, tempfile.tempdir = tempfile.tempdir, scratch
+        try:
+            yield
+        finally:
+            tempfile.tempdir = before
+
+
+def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress: Progress | None, description: str) -> IdnnModel:
     import torch
 
     config.validate()
