@@ -58,15 +58,16 @@ class RunOptions:
         the same outages). A default one left out is said at ``-v`` (by its ``applies``); one the
         caller named (in ``estimators`` or ``plugins``), with a warning; none left is an error."""
         defaults = set(BUILTIN) if self.estimators is None else set()
+        chosen = self.chosen()
         kept = []
-        for est in self.chosen():
+        for est in chosen:
             missing = [d.name for d in drives if not applies(est, d)]
             if not missing:
                 kept.append(est)
             elif est.name not in defaults:
                 log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
         if not kept:
-            raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in self.chosen())}) applies to {', '.join(d.name for d in drives)}",
+            raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
                              "choose others with --estimators (ins always applies)", param="estimators")
         return kept
 
