@@ -1,6 +1,7 @@
 """Live viewing: replay --connect streams to a running viewer, --serve-web serves a browser, --open
 without a display points to --serve-web. The viewer here is a private headless one."""
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -64,6 +65,76 @@ def test_connect_without_a_viewer_and_bad_addresses(tmp_path):
     assert not out.exists()  # checked before the work
     proc = run_cli(*ARGS, "-o", str(out), "--connect", "ftp://x")
     assert proc.returncode == 2 and "not a Rerun viewer address" in proc.stderr, proc.stderr
+
+
+class _Swallower:
+    """A TCP server on a free port that accepts connections and reads everything, answering
+    nothing, or (``settings=True``) only a gRPC server's first frame: a viewer that stops reading."""
+
+    def __init__(self, greeting: bytes = b""):
+        import socket
+        import threading
+
+        self.sock = socket.create_server(("127.0.0.1", 0))
+        self.port = self.sock.getsockname()[1]
+        self.greeting = greeting
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self):
+        import threading
+
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            threading.Thread(target=self._swallow, args=(conn,), daemon=True).start()
+
+    def _swallow(self, conn):
+        with conn, contextlib.suppress(OSError):  # the client hangs up as it likes
+            conn.sendall(self.greeting)
+            while conn.recv(65536):
+                pass
+
+    def close(self):
+        self.sock.close()
+
+
+@pytest.mark.parametrize("greeting", [b"", b"HTTP/1.1 400 Bad Request\r\n\r\n"], ids=["silent", "http"])
+def test_connect_to_something_that_is_not_a_viewer_fails_before_the_work(tmp_path, greeting):
+    """Round 3: a server that accepts and discards data hung the process in Rerun's shutdown hook
+    (9 minutes, once ignoring SIGTERM); an HTTP server gave a traceback."""
+    server = _Swallower(greeting)
+    out = tmp_path / "x.rrd"
+    try:
+        start = time.monotonic()
+        proc = run_cli(*ARGS, "-o", str(out), "--connect", f"rerun+http://127.0.0.1:{server.port}/proxy", timeout=60)
+    finally:
+        server.close()
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "does not answer as a Rerun viewer" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists() and time.monotonic() - start < 30
+
+
+def test_a_viewer_that_stops_reading_is_dropped_in_bounded_time(tmp_path):
+    """The stream to a viewer that answers, then takes no data, is dropped after the timeout with one
+    line; the sending process is gone and the recording stays."""
+    from ionav_viz.core.errors import ToolFailure
+    from ionav_viz.viz import live
+
+    rrd = tmp_path / "hb.rrd"
+    assert run_cli(*ARGS, "-o", str(rrd)).returncode == 0
+    server = _Swallower(bytes(3) + b"\x04" + bytes(5))  # an HTTP/2 SETTINGS frame, then silence
+    try:
+        start = time.monotonic()
+        with pytest.raises(ToolFailure, match="did not take the recording within 2 s; the stream was dropped"):
+            live.send_recording(rrd, f"rerun+http://127.0.0.1:{server.port}/proxy", timeout_s=2)
+        assert time.monotonic() - start < 20
+    finally:
+        server.close()
+    assert rrd.is_file()
+    children = subprocess.run(["pgrep", "-P", str(os.getpid())], capture_output=True, text=True).stdout.split()
+    assert children == [], children
 
 
 def test_connect_without_an_address_means_rerun_default(monkeypatch):

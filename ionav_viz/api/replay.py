@@ -85,7 +85,7 @@ def replay(
     from ..viz.recording import write_recording
 
     if connect is not None:
-        live.check_listening(connect)
+        live.check_viewer(connect)
     out = Path(output) if output is not None else None
     if out is not None and out.suffix.lower() != ".rrd":
         raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
@@ -125,7 +125,7 @@ def replay(
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     if connect is not None:
         with stage(f"stream to {connect}"):
-            live.connect(result, summary, connect, events=events)
+            live.send_recording(out, connect)
     outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(plan.starts)]
     return ReplayResult(out, report, outages, plan.description, result, events)
 

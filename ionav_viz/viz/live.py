@@ -1,7 +1,8 @@
 """Live viewing by Rerun's conventions: stream a replay to a running viewer, or serve it to a browser.
 
-``connect``: the same recording as the ``.rrd`` file, logged to a viewer's gRPC endpoint
-(default Rerun's local ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens).
+``send_recording``: the written ``.rrd`` file streamed to a viewer's gRPC endpoint (default Rerun's
+local ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens) by a child process
+that is dropped when the viewer stops taking data, so a stuck viewer never hangs us.
 ``serve_web``: the written ``.rrd`` served to browsers by a ``rerun --serve-web`` process of our own
 (a gRPC server holding it and Rerun's web viewer pointing at it), bound to the loopback address
 unless the user opens it to a network (``--bind``); stopped with the command.
@@ -18,13 +19,9 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 from urllib.parse import quote, urlparse
 
 from ..core.errors import InputError, ToolFailure
-
-if TYPE_CHECKING:  # the CLI reads the defaults here without loading the logging layer
-    from ..analysis.evaluate import DriveResult
 
 #: Where a viewer started with a plain ``rerun`` listens.
 DEFAULT_GRPC_PORT = 9876
@@ -44,31 +41,98 @@ def _endpoint(url: str) -> tuple[str, int]:
     return parsed.hostname, port
 
 
-def check_listening(url: str, timeout_s: float = 2.0) -> None:
-    """Fail with one line unless something accepts connections at the viewer address (the SDK's
-    own sink would retry silently in the background and lose the data)."""
+#: A gRPC server's first words: the HTTP/2 client preface and an empty SETTINGS frame. A Rerun
+#: viewer (or server) answers with its own SETTINGS frame; a socket that swallows data or an
+#: HTTP/1 server does not.
+_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes(3) + b"\x04" + bytes(5)
+_SETTINGS = 4
+
+
+def check_viewer(url: str, timeout_s: float = 2.0) -> None:
+    """Fail with one line unless a gRPC server answers at the viewer address within ``timeout_s``:
+    nothing listening, or something that accepts connections but never answers as a Rerun viewer
+    does (the SDK's own sink would retry or block in the background and lose the data)."""
+    import ssl
+
     host, port = _endpoint(url)
     try:
-        with socket.create_connection((host, port), timeout=timeout_s):
-            return
+        raw = socket.create_connection((host, port), timeout=timeout_s)
     except OSError as exc:
         raise ToolFailure(f"--connect {url}: no Rerun viewer is listening there ({exc.strerror or exc}); start one with 'rerun' "
                           "(or 'ionav-viz replay ... --serve-web' to view in a browser)") from None
+    try:
+        with raw:
+            sock = raw
+            if url.startswith(("rerun+https", "https")):
+                context = ssl.create_default_context()
+                context.set_alpn_protocols(["h2"])
+                sock = context.wrap_socket(raw, server_hostname=host)
+            sock.settimeout(timeout_s)
+            sock.sendall(_H2_PREFACE)
+            head = _read_exactly(sock, 9)
+    except OSError:  # reset, TLS refused: not a viewer either
+        head = b""
+    if len(head) < 9 or head[3] != _SETTINGS:
+        raise ToolFailure(f"--connect {url}: something accepts connections there but does not answer as a Rerun viewer "
+                          f"(no gRPC reply within {timeout_s:g} s); check the address, or start a viewer with 'rerun'")
 
 
-def connect(result: DriveResult, summary_md: str, url: str = DEFAULT_CONNECT_URL, events: list | None = None,
-            timeout_s: float = 30.0) -> None:
-    """Stream the recording of ``result`` to the viewer at ``url`` and wait until it is sent."""
-    import rerun as rr
+def _read_exactly(sock, n: int) -> bytes:
+    """Up to ``n`` bytes; fewer when the peer closes or stays silent past the socket's timeout."""
+    data = b""
+    try:
+        while len(data) < n:
+            got = sock.recv(n - len(data))
+            if not got:
+                break
+            data += got
+    except (TimeoutError, socket.timeout):
+        pass
+    return data
 
-    from .recording import APP_ID, log_result, recording_id
 
-    check_listening(url)
-    rec = rr.RecordingStream(APP_ID, recording_id=recording_id(result))
-    rec.connect_grpc(url)
-    log_result(rec, result, summary_md, events=events)
-    rec.flush(timeout_sec=timeout_s)
-    rec.disconnect()
+def send_recording(path: Path, url: str = DEFAULT_CONNECT_URL, timeout_s: float = 60.0) -> None:
+    """Stream the written recording ``path`` to the viewer at ``url`` (its recording id and layout
+    as in the file) and wait until it is sent.
+
+    The sending runs in a child process: a viewer that stops reading mid-stream can block the
+    SDK's flush and its shutdown hook for ever, and only a process can be stopped for sure. After
+    ``timeout_s`` the stream is dropped (the child killed) with one line; the file stays.
+    """
+    import sys
+
+    check_viewer(url)
+    code = ("import sys, rerun as rr\n"
+            "rec = rr.RecordingStream('ionav-viz')\n"
+            "rec.connect_grpc(sys.argv[1])\n"
+            "rec.log_file_from_path(sys.argv[2])\n"
+            "rec.flush(timeout_sec=float(sys.argv[3]))\n"
+            "rec.disconnect()\n")
+    with subprocess.Popen([sys.executable, "-c", code, url, str(path), str(timeout_s)], stdin=subprocess.DEVNULL,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) as proc:
+        try:
+            _, err = proc.communicate(timeout=timeout_s + 5.0)
+        except subprocess.TimeoutExpired:
+            _stop(proc)
+            raise ToolFailure(f"--connect {url}: the viewer did not take the recording within {timeout_s:g} s; "
+                              f"the stream was dropped (the recording is saved in {path.name})") from None
+        finally:
+            if proc.poll() is None:  # interrupted (Ctrl-C): the stream goes with us
+                _stop(proc)
+    if proc.returncode != 0:
+        last = next((line for line in reversed(err.decode(errors="replace").splitlines()) if line.strip()), "")
+        raise ToolFailure(f"--connect {url}: streaming failed ({last.strip()[:200] or f'exit {proc.returncode}'}); "
+                          f"the recording is saved in {path.name}")
+
+
+def _stop(proc: subprocess.Popen, grace_s: float = 2.0) -> None:
+    """SIGTERM, then SIGKILL if it is still there after ``grace_s`` (Rerun's hooks may ignore the first)."""
+    proc.terminate()
+    try:
+        proc.wait(grace_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 @dataclass(frozen=True)
