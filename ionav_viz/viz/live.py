@@ -86,7 +86,7 @@ def _read_exactly(sock, n: int) -> bytes:
             if not got:
                 break
             data += got
-    except (TimeoutError, socket.timeout):
+    except TimeoutError:
         pass
     return data
 
