@@ -108,6 +108,63 @@ def test_force_replaces_a_model_atomically(tmp_path, shipped_copy, monkeypatch):
         save_model(model, default_model_dir(), overwrite=True)
 
 
+def test_a_stop_signal_at_any_step_of_a_forced_save_keeps_one_complete_model(tmp_path, shipped_copy, monkeypatch):
+    """Round 3: SIGTERM right after the old model was renamed aside left no model at the target,
+    deleted the new one and kept the old only as a hidden folder. Here a real SIGTERM arrives right
+    after each file-system step of the save in turn (Terminated, as the command line raises it):
+    the target is always one complete model, old or new, and nothing else is left."""
+    import os
+    import signal
+    import tempfile
+
+    import ionav_viz.nav.idnn as idnn
+    from ionav_viz.core.signals import Terminated, raise_terminated
+
+    old_meta = (shipped_copy / "metadata.json").read_bytes()
+    model = load_model(shipped_copy)
+    model.metadata["note"] = "the new model"
+    steps = [(tempfile, "mkdtemp"), (Path, "write_bytes"), (Path, "write_text"), (Path, "chmod"), (Path, "rename"),
+             (__import__("shutil"), "rmtree")]
+    calls, stopped_after = [], []
+
+    def after_step(owner, name):
+        real = getattr(owner, name)
+
+        def step(*args, **kwargs):
+            out = real(*args, **kwargs)
+            calls.append(name)
+            if len(calls) == stop_at:
+                stopped_after.append(name)
+                os.kill(os.getpid(), signal.SIGTERM)
+            return out
+        return step
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        for owner, name in steps:
+            monkeypatch.setattr(owner, name, after_step(owner, name))
+        stop_at = 0
+        while True:
+            stop_at, calls[:] = stop_at + 1, []
+            try:
+                idnn.save_model(model, shipped_copy, overwrite=True)
+            except Terminated:
+                pass
+            else:
+                break
+            monkeypatch.undo()
+            meta = (shipped_copy / "metadata.json").read_bytes()
+            assert meta == old_meta or b"the new model" in meta, f"after {stopped_after[-1]}"
+            load_model(shipped_copy)  # complete: every weight file matches its checksum
+            assert sorted(p.name for p in tmp_path.iterdir()) == ["model"], f"left behind after {stopped_after[-1]}"
+            for owner, name in steps:
+                monkeypatch.setattr(owner, name, after_step(owner, name))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert {"mkdtemp", "write_bytes", "write_text", "chmod", "rename", "rmtree"} <= set(stopped_after), stopped_after
+    assert b"the new model" in (shipped_copy / "metadata.json").read_bytes()
+
+
 def test_weights_that_differ_from_the_recorded_checksum_are_refused(shipped_copy):
     weights = shipped_copy / "yaw_rate.safetensors"
     data = bytearray(weights.read_bytes())

@@ -102,3 +102,30 @@ def atomic_write_bytes(target: Path, data: bytes) -> None:
     """Write ``data`` to ``target`` atomically (temporary file + rename)."""
     with atomic_path(target) as tmp:
         tmp.write_bytes(data)
+
+
+def swap_in_directory(new: Path, directory: Path) -> None:
+    """Put the complete directory ``new`` at ``directory``, replacing any directory there.
+
+    The old directory is renamed aside, ``new`` renamed in, the old one removed, all with stop
+    signals held: the process cannot stop between the renames (with nothing at the path) or leave
+    the old directory under its hidden name. A rename that fails puts the old one back.
+    """
+    import shutil
+
+    release = hold_signals()
+    try:
+        if not directory.exists():
+            new.rename(directory)
+            return
+        old = Path(tempfile.mkdtemp(prefix=f".{directory.name}.old.", dir=directory.parent))
+        old.rmdir()
+        directory.rename(old)
+        try:
+            new.rename(directory)
+        except BaseException:
+            old.rename(directory)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+    finally:
+        release()  # a signal that came during the swap acts now, with the swap complete

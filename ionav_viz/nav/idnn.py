@@ -41,8 +41,9 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import current_umask
+from ..core.fileio import current_umask, swap_in_directory
 from ..core.grid import GRID_STEP_S, WINDOW_S
+from ..core.signals import hold_signals
 from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
@@ -427,11 +428,14 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 
     directory = check_model_dir(directory, overwrite)
     parent = directory.parent if str(directory.parent) else Path(".")
+    release = hold_signals()  # until the cleanup of the temporary directory is armed
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=parent))
     except OSError as exc:
+        release()
         raise InputError(f"{directory}: cannot write in {parent} ({exc.strerror})", "choose a writable directory", param="output") from None
     try:
+        release()
         checksums = {}
         for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
             data = save({k: v.detach().contiguous() for k, v in net.state_dict().items()})
@@ -442,17 +446,11 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
                     weights_sha256=checksums)
         (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
         tmp.chmod(0o777 & ~current_umask())
-        if directory.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{directory.name}.old.", dir=parent))
-            old.rmdir()
-            directory.rename(old)
-            tmp.rename(directory)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(directory)
+        swap_in_directory(tmp, directory)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
 
 
 def load_model(directory: str | Path) -> IdnnModel:
