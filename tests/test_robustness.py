@@ -691,3 +691,38 @@ def test_fixes_at_zero_zero_are_never_scored(tmp_path, reference):
     assert got["gnss_truth"]["excluded_by_reason"] == {"near-zero": 2}  # 50.0-50.2 s: the windows either side of 50 s
     worst = max(seq["ins"]["crse_m"] for seq in reference["sequences"])
     assert all(seq["ins"]["crse_m"] <= worst for seq in got["sequences"])
+
+
+# ---- round 3: bounded readers ---------------------------------------------------------------
+
+@pytest.mark.parametrize(("compression", "bomb_mib"), [("bz2", 768), ("lz4", 16)])
+def test_a_ros1_compression_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch, compression, bomb_mib):
+    """Round 3: a 113 KB ROS 1 bag whose bz2 chunks inflate to 6 GB climbed to the address-space cap
+    before a MemoryError. Here each chunk carries up to 768 MiB of zeros after its messages (a few
+    KiB compressed): refused with one line naming the chunk, peak memory far below the bomb."""
+    import bz2
+
+    import lz4.frame
+
+    import ionav_viz as iv
+    import rosbags.rosbag1.writer as writer
+
+    from . import bag_fixtures as bf
+
+    zeros = b"\0" * 2**20
+    bomb = (bz2.compress(zeros) if compression == "bz2" else lz4.frame.compress(zeros)) * bomb_mib
+    real = getattr(writer, f"{compression}_compress")
+    monkeypatch.setattr(writer, f"{compression}_compress", lambda data, level: real(data, level) + bomb)
+    bag = bf.write_ros1(iv.load_drive("hard-brake"), tmp_path / "bomb.bag", compression=compression)
+    assert bag.stat().st_size < 10 * 2**20
+    child = ("import resource, sys\n"
+             "from ionav_viz.cli import main\n"
+             f"sys.argv = ['ionav-viz', 'evaluate', {str(bag)!r}, '--no-idnn']\n"
+             "try:\n    main()\nfinally:\n"
+             "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n")
+    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120)
+    *lines, peak_kib = proc.stderr.splitlines()
+    message = "\n".join(lines)
+    assert proc.returncode == 2 and len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"{bag}: the ROS 1 chunk at byte" in message and "compression bomb" in message, message
+    assert int(peak_kib) < 600 * 1024, f"peak memory {int(peak_kib) / 1024:.0f} MiB"
