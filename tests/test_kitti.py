@@ -138,3 +138,31 @@ def test_a_folder_named_like_a_packet(small):
     packet.unlink()
     packet.mkdir()
     expect_one_line_error(small, "0000000011.txt: not a packet file", "extract the drive's zip again")
+
+
+def test_stamps_going_backwards_are_refused_like_csv_rows(small):
+    """Round 3: out-of-order stamps were silently sorted (CRSE 5.87 m vs 0.26 m) where the CSV
+    reader refuses time going backwards: packets are numbered in the order they were sampled."""
+    stamps = small / "oxts" / "timestamps.txt"
+    lines = stamps.read_text().splitlines()
+    lines[40], lines[41] = lines[41], lines[40]
+    stamps.write_text("\n".join(lines) + "\n")
+    expect_one_line_error(small, "timestamps.txt: line 42: time goes backwards", "packets 0000000040 and 0000000041")
+
+
+def test_stamps_beyond_numpys_clock_are_named(small):
+    """Round 3: a stamp in 2262 (past datetime64[ns]) printed a nonsense time in a warning."""
+    stamps = small / "oxts" / "timestamps.txt"
+    lines = stamps.read_text().splitlines()
+    lines[7] = "2262-06-01 00:00:00.000000000"
+    stamps.write_text("\n".join(lines) + "\n")
+    expect_one_line_error(small, "timestamps.txt: line 8: the stamp '2262-06-01 00:00:00.000000000' is not in the years 1970-2199")
+
+
+@pytest.mark.parametrize("name", ["timestamps.txt", "data/0000000003.txt"])
+def test_sparse_giant_files_are_refused_before_reading(small, name):
+    """Round 3: a sparse 3 GiB packet or timestamps file was read whole (MemoryError traceback)."""
+    f = small / "oxts" / name
+    with open(f, "r+b") as handle:
+        handle.truncate(3 * 2**30)  # sparse: no disk used
+    expect_one_line_error(small, f"{name}: 3221225472 bytes is far more than", "extract the drive's zip again")

@@ -703,9 +703,9 @@ def test_a_ros1_compression_bomb_is_refused_before_it_fills_memory(tmp_path, mon
     import bz2
 
     import lz4.frame
+    import rosbags.rosbag1.writer as writer
 
     import ionav_viz as iv
-    import rosbags.rosbag1.writer as writer
 
     from . import bag_fixtures as bf
 

@@ -77,8 +77,23 @@ def _oxts_of(path: Path) -> Path:
     return oxts
 
 
-def read_stamps_ns(path: Path) -> np.ndarray:
-    """Stamps (int64 ns since 1970 on the folder's clock) from a KITTI ``timestamps.txt``."""
+#: Bounds on what is read (real files: one 30-byte line per packet; a packet of 30 numbers in
+#: about 250 bytes). Beyond them a file is damaged or crafted (a sparse file of gigabytes), refused
+#: before it is read.
+MAX_STAMP_LINE_BYTES = 64
+MAX_PACKET_FILE_BYTES = 4096
+#: Stamps outside these years are not a drive's (numpy's nanosecond clock ends in April 2262).
+STAMP_YEARS = (1970, 2200)
+
+
+def read_stamps_ns(path: Path, n_packets: int | None = None) -> np.ndarray:
+    """Stamps (int64 ns since 1970 on the folder's clock) from a KITTI ``timestamps.txt``, in the
+    file's order (one line per packet). With ``n_packets``, a file too large for that many lines is
+    refused before it is read."""
+    size = path.stat().st_size
+    if n_packets is not None and size > MAX_STAMP_LINE_BYTES * (n_packets + 1):
+        raise InputError(f"{path}: {size} bytes is far more than {n_packets} stamp lines (about 30 bytes each)",
+                         "the file is damaged; extract the drive's zip again")
     lines = [line.strip() for line in path.read_text(errors="replace").splitlines()]
     while lines and not lines[-1]:
         lines.pop()
@@ -86,11 +101,17 @@ def read_stamps_ns(path: Path) -> np.ndarray:
         if not line:
             raise InputError(f"{path}: line {i + 1} is empty", "each line is one packet's stamp (YYYY-MM-DD HH:MM:SS.fffffffff); extract the drive again")
     try:
-        ns = np.array(lines, dtype="datetime64[ns]").astype(np.int64)
+        coarse = np.array(lines, dtype="datetime64[us]")  # a range of ±290,000 years: no overflow
     except ValueError:
         bad = next(i for i, line in enumerate(lines) if not _is_stamp(line))
         raise InputError(f"{path}: line {bad + 1} is not a stamp ({lines[bad][:40]!r})", "expected YYYY-MM-DD HH:MM:SS.fffffffff; extract the drive again") from None
-    return ns
+    years = coarse.astype("datetime64[Y]").astype(np.int64) + 1970
+    outside = (years < STAMP_YEARS[0]) | (years >= STAMP_YEARS[1])
+    if outside.any():
+        bad = int(np.argmax(outside))
+        raise InputError(f"{path}: line {bad + 1}: the stamp {lines[bad][:40]!r} is not in the years {STAMP_YEARS[0]}-{STAMP_YEARS[1] - 1}",
+                         "the file is damaged; extract the drive again")
+    return np.array(lines, dtype="datetime64[ns]").astype(np.int64)
 
 
 def _is_stamp(text: str) -> bool:
@@ -108,7 +129,6 @@ def read_packets(oxts: Path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(f"{stamps_file}: missing", "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the drive's zip again")
     if not data.is_dir():
         raise InputError(f"{data}: missing", "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the drive's zip again")
-    t = read_stamps_ns(stamps_file)
     files = sorted(p for p in data.iterdir() if p.suffix == ".txt")
     if folder := next((p for p in files if not p.is_file()), None):
         raise InputError(f"{folder}: not a packet file (a folder or a special file)", "extract the drive's zip again")
@@ -118,11 +138,15 @@ def read_packets(oxts: Path) -> tuple[np.ndarray, np.ndarray]:
         if f.stem != f"{i:010d}":
             raise InputError(f"{data / f'{i:010d}.txt'}: missing (the packets are numbered from 0000000000.txt without gaps)",
                              "extract the drive's zip again")
+    t = read_stamps_ns(stamps_file, len(files))
     if len(files) != len(t):
         raise InputError(f"{oxts}: {len(t)} stamps in timestamps.txt but {len(files)} packet files in data/",
                          "the folder is incomplete or mixed from two drives; extract the drive's zip again")
     rows = []
     for f in files:
+        if (size := f.stat().st_size) > MAX_PACKET_FILE_BYTES:
+            raise InputError(f"{f}: {size} bytes is far more than an OXTS packet (30 numbers, about 250 bytes)",
+                             "the file is damaged; extract the drive's zip again")
         values = f.read_text(errors="replace").split()
         if len(values) != len(FIELDS):
             raise InputError(f"{f}: {len(values)} values, an OXTS packet has {len(FIELDS)}", "the file is damaged; extract the drive's zip again")
@@ -162,13 +186,18 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     origin_ns = int(t_ns.min()) - int(t_ns.min()) % 1_000_000_000
     t = (t_ns - origin_ns) * 1e-9  # s after a whole second: float64 keeps the nanoseconds
     order = np.argsort(t, kind="stable")
-    t, p = t[order], p[order]
+    keep = np.empty(len(t), dtype=bool)
+    keep[order] = drop_strays(oxts, "OXTS", t[order], origin_s=origin_ns // 1_000_000_000)
+    line, t, p = np.flatnonzero(keep) + 1, t[keep], p[keep]
+    if (back := np.diff(t) < 0).any():  # packets are numbered in the order they were sampled
+        i = int(np.argmax(back)) + 1
+        raise InputError(f"{oxts / 'timestamps.txt'}: line {line[i]}: time goes backwards ({t[i - 1]:.3f} s -> {t[i]:.3f} s after the first "
+                         f"whole second) between packets {line[i - 1] - 1:010d} and {line[i] - 1:010d}",
+                         "the stamps and packets are out of step: extract the drive's zip again")
     first = np.concatenate([[True], np.diff(t) > 0])
     if not first.all():
         log.warning("%s: %d OXTS packet(s) repeat an earlier stamp; kept the first of each", oxts, int((~first).sum()))
         t, p = t[first], p[first]
-    keep = drop_strays(oxts, "OXTS", t, origin_s=origin_ns // 1_000_000_000)
-    t, p = t[keep], p[keep]
     col = {k: p[:, i] for k, i in COLUMN.items()}
     locked = col["navstat"] == NAVSTAT_LOCKED
     if locked.sum() < 2:
