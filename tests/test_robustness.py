@@ -608,6 +608,28 @@ def _set(kind: str, index: int, field: str, value: float):
     return tamper
 
 
+def _set_many(kind: str, indices, field: str, value):
+    each = [_set(kind, i, field, value) for i in indices]
+
+    def tamper(k, i, msg):
+        for one in each:
+            [msg] = one(k, i, msg)
+        return [msg]
+    return tamper
+
+
+def test_an_imu_topic_without_rates_is_refused(tmp_path):
+    """Round 3: an IMU topic with only an orientation (REP 145 marks accelerations and rates 'not
+    provided' with covariance[0] = -1) was scored on zeros (CRSE 6.60 m vs 0.13 m), no warning."""
+    every = _set_many("imu", range(100_000), "angular_velocity_covariance", [-1.0] + [0.0] * 8)
+    both = _set_many("imu", range(100_000), "linear_acceleration_covariance", [-1.0] + [0.0] * 8)
+    path = _mcap(tmp_path, "orientation-only", lambda k, i, m: [x for y in every(k, i, m) for x in both(k, i, y)])
+    proc = run_cli("evaluate", str(path), "--no-idnn")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "topic /imu marks its linear acceleration" in proc.stderr and "'not provided' (REP 145" in proc.stderr
+    assert "--imu-topic" in proc.stderr
+
+
 @pytest.mark.parametrize(
     "case, tamper, fragments",
     [
@@ -640,6 +662,16 @@ def _whole_second(k, i, msg):
     return [msg]
 
 
+def _received_out_of_order(k, i, msg, held=[]):  # noqa: B006 - the held message, between two calls
+    """IMU messages 100 and 101 received in swapped order (two publishers, a transport)."""
+    if k == "imu" and i == 100:
+        held.append(msg)
+        return []
+    if k == "imu" and i == 101:
+        return [msg, held.pop()]
+    return [msg]
+
+
 def _boot_stamp(k, i, msg):
     if k == "imu" and i == 300:
         msg = json.loads(json.dumps(msg))
@@ -660,6 +692,11 @@ def _boot_stamp(k, i, msg):
          _boot_stamp, "dropped 1 IMU sample(s) stamped more than 3600 s away", True),
         ("fixes stamped to whole seconds -> one fix per second, no division by 1e-9",
          _whole_second, "share a time stamp", False),
+        ("IMU messages received out of stamp order -> used in stamp order, same metrics (round 3: the documented rule)",
+         _received_out_of_order, "topic /imu: 1 message(s) stamped earlier than the one received before them", True),
+        ("a few IMU messages marking their rates 'not provided' (REP 145) -> skipped, not read as zeros",
+         _set_many("imu", range(200, 205), "angular_velocity_covariance", [-1.0] + [0.0] * 8),
+         "skipped the messages marking their angular velocity (5 message(s)) 'not provided'", False),
     ],
     ids=lambda x: x if isinstance(x, str) else "",
 )

@@ -179,6 +179,19 @@ def _get(obj: Any, *names: str) -> Any:
     return obj
 
 
+def _not_provided(msg: Any) -> str | None:
+    """The IMU field a ``sensor_msgs/Imu`` message marks "not provided" (REP 145: the first element
+    of its covariance is -1), linear acceleration before angular velocity; None if all are there."""
+    for name in ("linear_acceleration", "angular_velocity"):
+        try:
+            cov = _get(msg, f"{name}_covariance")
+            if len(cov) and float(cov[0]) == -1.0:
+                return name.replace("_", " ")
+        except (KeyError, AttributeError, TypeError, ValueError, IndexError):
+            continue
+    return None
+
+
 def _stamp_ns(stamp: Any) -> int:
     sec = _get(stamp, "sec")
     try:
@@ -216,6 +229,16 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
     speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
     dropped_no_fix = 0
+    not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
+    last_t: dict[str, float] = {}  # per role, the previous message's stamp
+    backwards: dict[str, list] = {}  # per role: [count, first stamp, the stamp before it]
+
+    def in_order(role: str, t: float) -> None:
+        """Count messages stamped before the one received before them (used in stamp order)."""
+        if t < last_t.get(role, -math.inf):
+            seen = backwards.setdefault(role, [0, t, last_t[role]])
+            seen[0] += 1
+        last_t[role] = t
 
     # Stamps are kept as seconds after the first one's whole second: float64 seconds since 1970
     # would round them to 0.24 us, and a drive's samples would no longer fall on its grid.
@@ -259,6 +282,10 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
             try:
                 if role == "IMU":
                     t = when(msg, log_ns, "header", "stamp")
+                    if missing := _not_provided(msg):
+                        not_provided[missing] = not_provided.get(missing, 0) + 1
+                        continue
+                    in_order(role, t)
                     lin, ang = _get(msg, "linear_acceleration"), _get(msg, "angular_velocity")
                     imu.add((t, *(float(_get(lin, a)) for a in AXES), *(float(_get(ang, a)) for a in AXES)))
                 elif role == "GNSS":
@@ -276,10 +303,12 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     check(sel.gnss.topic, t, "latitude", "lat_deg", lat)
                     check(sel.gnss.topic, t, "longitude", "lon_deg", lon)
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
+                    in_order(role, t)
                     gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
                 else:
                     sample = _speed_sample(msg, log_ns, when, sel.speed.schema)
                     check(sel.speed.topic, sample[0], "speed", "speed_mps", sample[1])
+                    in_order(role, sample[0])
                     speed.append(sample)
             except (KeyError, AttributeError, TypeError, ValueError) as exc:
                 raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
@@ -289,6 +318,17 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     except Exception as exc:
         raise source.damaged(exc) from None
 
+    if not_provided:
+        fields = " and ".join(f"{name} ({n} message(s))" for name, n in sorted(not_provided.items()))
+        if "IMU" not in last_t:
+            raise InputError(f"{path}: topic {sel.imu.topic} marks its {fields} 'not provided' (REP 145: covariance[0] = -1)",
+                             "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw) with --imu-topic")
+        log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: covariance[0] = -1)",
+                    path, sel.imu.topic, fields)
+    topic_of = {"IMU": sel.imu.topic, "GNSS": sel.gnss.topic, "speed": sel.speed.topic if sel.speed else ""}
+    for role, (n, first, before) in backwards.items():
+        log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s after %.3f s); "
+                    "used in stamp order", path, topic_of[role], n, absolute_s(first), absolute_s(before))
     if len(gnss) < 2:
         without = f" ({dropped_no_fix} message(s) without a fix)" if dropped_no_fix else ""
         raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
