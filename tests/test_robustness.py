@@ -732,34 +732,81 @@ def test_fixes_at_zero_zero_are_never_scored(tmp_path, reference):
 
 # ---- round 3: bounded readers ---------------------------------------------------------------
 
-@pytest.mark.parametrize(("compression", "bomb_mib"), [("bz2", 768), ("lz4", 16)])
-def test_a_ros1_compression_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch, compression, bomb_mib):
-    """Round 3: a 113 KB ROS 1 bag whose bz2 chunks inflate to 6 GB climbed to the address-space cap
-    before a MemoryError. Here each chunk carries up to 768 MiB of zeros after its messages (a few
-    KiB compressed): refused with one line naming the chunk, peak memory far below the bomb."""
+def _peak_memory_run(path: Path) -> tuple[subprocess.CompletedProcess, str, int]:
+    """``ionav-viz evaluate PATH`` in a child: (process, its stderr without the last line, peak RSS in MiB)."""
+    # VmHWM, not ru_maxrss: Linux carries the latter over from the forking test process
+    child = ("import sys\n"
+             "from ionav_viz.cli import main\n"
+             f"sys.argv = ['ionav-viz', 'evaluate', {str(path)!r}, '--no-idnn']\n"
+             "try:\n    main()\nfinally:\n"
+             "    status = open('/proc/self/status').read().split('VmHWM:')[1]\n"
+             "    print(int(status.split()[0]), file=sys.stderr)\n")
+    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120)
+    *lines, peak_kib = proc.stderr.splitlines()
+    return proc, "\n".join(lines), int(peak_kib) // 1024
+
+
+BOMB_MIB = 768
+
+
+def _first_call_bombs(real, compression: str):
+    """A compressor whose first chunk carries BOMB_MIB MiB of zeros after its data, in a few KiB:
+    bz2 as extra streams (bz2.decompress reads them all), lz4 inside the one frame."""
     import bz2
 
-    import lz4.frame
+    calls = []
+
+    def compress(data, *args, **kwargs):
+        calls.append(1)
+        if len(calls) > 1:
+            return real(data, *args, **kwargs)
+        if compression == "bz2":
+            return real(data, *args, **kwargs) + bz2.compress(b"\0" * 2**20) * BOMB_MIB
+        return real(data + b"\0" * (BOMB_MIB << 20), *args, **kwargs)
+    return compress
+
+
+@pytest.mark.parametrize("compression", ["bz2", "lz4"])
+def test_a_ros1_compression_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch, compression):
+    """Round 3: a 113 KB ROS 1 bag whose bz2 chunks inflate to 6 GB climbed to the address-space cap
+    before a MemoryError. Here the first chunk inflates to 768 MiB more than its header declares:
+    refused with one line naming the chunk, peak memory far below the bomb."""
     import rosbags.rosbag1.writer as writer
 
     import ionav_viz as iv
 
     from . import bag_fixtures as bf
 
-    zeros = b"\0" * 2**20
-    bomb = (bz2.compress(zeros) if compression == "bz2" else lz4.frame.compress(zeros)) * bomb_mib
-    real = getattr(writer, f"{compression}_compress")
-    monkeypatch.setattr(writer, f"{compression}_compress", lambda data, level: real(data, level) + bomb)
+    name = f"{compression}_compress"
+    monkeypatch.setattr(writer, name, _first_call_bombs(getattr(writer, name), compression))
     bag = bf.write_ros1(iv.load_drive("hard-brake"), tmp_path / "bomb.bag", compression=compression)
     assert bag.stat().st_size < 10 * 2**20
-    child = ("import resource, sys\n"
-             "from ionav_viz.cli import main\n"
-             f"sys.argv = ['ionav-viz', 'evaluate', {str(bag)!r}, '--no-idnn']\n"
-             "try:\n    main()\nfinally:\n"
-             "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n")
-    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120)
-    *lines, peak_kib = proc.stderr.splitlines()
-    message = "\n".join(lines)
-    assert proc.returncode == 2 and len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    proc, message, peak_mib = _peak_memory_run(bag)
+    assert proc.returncode == 2 and message.count("\n") == 0 and "Traceback" not in proc.stderr, proc.stderr
     assert f"{bag}: the ROS 1 chunk at byte" in message and "compression bomb" in message, message
-    assert int(peak_kib) < 600 * 1024, f"peak memory {int(peak_kib) / 1024:.0f} MiB"
+    assert peak_mib < 600, f"peak memory {peak_mib} MiB"
+
+
+@pytest.mark.parametrize("compression", ["LZ4", "ZSTD"])
+def test_an_mcap_compression_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch, compression):
+    """The same for MCAP chunks: lz4 inflated without a bound in the mcap package; a chunk declaring
+    more than 256 MiB (zstd would allocate it) is refused from its header."""
+    import lz4.frame
+    import mcap.writer
+
+    from .mcap_fixtures import write_ros2
+
+    if compression == "LZ4":
+        monkeypatch.setattr(lz4.frame, "compress", _first_call_bombs(lz4.frame.compress, "lz4"))
+    else:
+        real_chunk = mcap.writer.Chunk
+
+        def declaring_a_gigabyte(*args, **kwargs):
+            return real_chunk(*args, **{**kwargs, "uncompressed_size": 2**30})
+        monkeypatch.setattr(mcap.writer, "Chunk", declaring_a_gigabyte)
+    path = write_ros2(tmp_path / "bomb.mcap", duration_s=20.0, compression=compression)
+    proc, message, peak_mib = _peak_memory_run(path)
+    assert proc.returncode == 2 and message.count("\n") == 0 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"{path}: the MCAP chunk of messages from log time" in message, message
+    assert ("compression bomb" if compression == "LZ4" else "declares 1024 MiB") in message, message
+    assert peak_mib < 600, f"peak memory {peak_mib} MiB"

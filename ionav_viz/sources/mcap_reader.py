@@ -8,6 +8,8 @@ the selected channels' decoded messages: indexed when the file is complete, else
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import logging
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +17,7 @@ from typing import Any
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from .inflate import check_declared, inflate
 from .message_log import ChannelInfo, decode_json, read_log
 
 log = logging.getLogger("ionav_viz")
@@ -171,17 +174,45 @@ class McapLog:
 
 def _iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:
     """The file's messages on ``topics``: indexed when it can be, else streamed (a file without a
-    footer ends at its last complete record)."""
+    footer ends at its last complete record); chunks inflate within bounds."""
     from mcap.exceptions import EndOfFile
     from mcap.reader import NonSeekingReader
 
-    if _check_framing(path) == "complete":
-        yield from _open_reader(f).iter_messages(topics=topics, log_time_order=False)
-        return
+    with _bounded_chunks(path):
+        if _check_framing(path) == "complete":
+            yield from _open_reader(f).iter_messages(topics=topics, log_time_order=False)
+            return
+        try:
+            yield from NonSeekingReader(f, validate_crcs=True).iter_messages(topics=topics, log_time_order=False)
+        except EndOfFile:
+            return
+
+
+@contextlib.contextmanager
+def _bounded_chunks(path: Path) -> Iterator[None]:
+    """While reading, every chunk inflates within bounds (:mod:`.inflate`).
+
+    Both of the ``mcap`` package's readers decompress each chunk through
+    ``mcap.stream_reader.get_chunk_data_stream``, which bounds zstd by the chunk's declared size
+    but inflates lz4 without limit; it has no hook, so for the time of a read that function checks
+    the declared size first and inflates lz4 here.
+    """
+    import mcap.stream_reader as stream_reader
+
+    real = stream_reader.get_chunk_data_stream
+
+    def bounded(chunk: Any, validate_crc: bool = False):
+        where = f"{path}: the MCAP chunk of messages from log time {chunk.message_start_time} ns"
+        check_declared(chunk.uncompressed_size, where)
+        if chunk.compression == "lz4":
+            chunk = dataclasses.replace(chunk, compression="", data=inflate(chunk.data, "lz4", chunk.uncompressed_size, where))
+        return real(chunk, validate_crc)
+
+    stream_reader.get_chunk_data_stream = bounded
     try:
-        yield from NonSeekingReader(f, validate_crcs=True).iter_messages(topics=topics, log_time_order=False)
-    except EndOfFile:
-        return
+        yield
+    finally:
+        stream_reader.get_chunk_data_stream = real
 
 
 def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,

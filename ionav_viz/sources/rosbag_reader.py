@@ -31,13 +31,10 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
+from .inflate import check_declared, inflate
 from .message_log import ChannelInfo
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
-#: The most a ROS 1 chunk may inflate to ('rosbag record' writes 768 KiB chunks by default): a
-#: larger declared size, or data that inflates past what its header declares, is a damaged or
-#: crafted bag (a compression bomb), refused before it fills memory.
-MAX_CHUNK_BYTES = 256 * 2**20
 ROS1_SUFFIXES = (".bag", ".active")  # ``x.bag.active``: a recording that did not finish
 ROS2_STORAGE_SUFFIXES = (".db3", ".mcap")
 
@@ -221,10 +218,9 @@ def _bag_header_index_pos(f: Any) -> int | None:
     return None
 
 
-
 def _bound_chunks(reader: Any, path: Path) -> None:
-    """Make every compressed chunk of an open ROS 1 reader inflate to at most the size its header
-    declares (``size``), itself at most :data:`MAX_CHUNK_BYTES`."""
+    """Make every compressed chunk of an open ROS 1 reader inflate within bounds (:mod:`.inflate`:
+    at most the size its header declares)."""
     from rosbags.rosbag1.reader import Header, RecordType
 
     with open(path, "rb") as f:
@@ -232,37 +228,8 @@ def _bound_chunks(reader: Any, path: Path) -> None:
             f.seek(pos)
             header = Header.read(f, RecordType.CHUNK)
             declared, compression = header.get_uint32("size"), header.get_string("compression")
-            if declared > MAX_CHUNK_BYTES:
-                raise InputError(f"{path}: the ROS 1 chunk at byte {pos} declares {declared / 2**20:.0f} MiB of messages, more than "
-                                 f"the {MAX_CHUNK_BYTES // 2**20} MiB ionav-viz inflates (a damaged or crafted bag)",
-                                 "re-record with 'rosbag record --chunksize' at its default, or copy the bag again")
+            where = f"{path}: the ROS 1 chunk at byte {pos}"
+            check_declared(declared, where)
             if compression in ("bz2", "lz4"):
-                reader.chunks[pos] = chunk._replace(decompressor=_bounded_inflate(compression, declared, path, pos))
-
-
-def _bounded_inflate(compression: str, declared: int, path: Path, pos: int):
-    """A decompressor for one chunk that stops as soon as the output passes ``declared`` bytes."""
-    import bz2
-
-    def fresh():
-        if compression == "bz2":
-            return bz2.BZ2Decompressor()
-        import lz4.frame
-
-        return lz4.frame.LZ4FrameDecompressor()
-
-    def inflate(data: bytes) -> bytes:
-        out = bytearray()
-        while data:  # concatenated streams, as bz2.decompress reads them
-            stream = fresh()
-            out += stream.decompress(data, max_length=declared + 1 - len(out))
-            if len(out) > declared:
-                raise InputError(f"{path}: the ROS 1 chunk at byte {pos} inflates past the {declared} bytes its header declares "
-                                 "(a damaged or crafted bag: a compression bomb)", "copy the bag again, or re-record it")
-            if not stream.eof:
-                raise InputError(f"{path}: the {compression} data of the ROS 1 chunk at byte {pos} is cut short (a damaged bag)",
-                                 "copy the bag again, or run 'rosbag reindex' on it (ROS 1)")
-            data = stream.unused_data
-        return bytes(out)
-
-    return inflate
+                reader.chunks[pos] = chunk._replace(
+                    decompressor=lambda data, c=compression, n=declared, w=where: inflate(data, c, n, w))
