@@ -810,3 +810,33 @@ def test_an_mcap_compression_bomb_is_refused_before_it_fills_memory(tmp_path, mo
     assert f"{path}: the MCAP chunk of messages from log time" in message, message
     assert ("compression bomb" if compression == "LZ4" else "declares 1024 MiB") in message, message
     assert peak_mib < 600, f"peak memory {peak_mib} MiB"
+
+
+def test_a_ros2_bag_compression_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch):
+    """The same for a ROS 2 bag's MCAP storage (chunk-compressed with zstd by 'ros2 bag record
+    --compression-mode file' in MCAP): rosbags inflated its chunks without a bound."""
+    from rosbags.rosbag2 import storage_mcap
+
+    import ionav_viz as iv
+
+    from . import bag_fixtures as bf
+
+    calls = []
+    real_init = storage_mcap.McapWriter.__init__
+    bomb = __import__("zstandard").ZstdCompressor().compress(b"\0" * (BOMB_MIB << 20))
+
+    def bombing(self, *args, **kwargs):
+        real_init(self, *args, **kwargs)
+        real = self.compressor
+
+        def compress(data):
+            calls.append(1)
+            return real(data) + (bomb if len(calls) == 1 else b"")
+        self.compressor = compress
+    monkeypatch.setattr(storage_mcap.McapWriter, "__init__", bombing)
+    folder = bf.write_ros2(iv.load_drive("hard-brake"), tmp_path / "bomb", storage="mcap", compression="storage")
+    assert calls, "the writer never compressed a chunk"
+    proc, message, peak_mib = _peak_memory_run(folder)
+    assert proc.returncode == 2 and message.count("\n") == 0 and "Traceback" not in proc.stderr, proc.stderr
+    assert "an MCAP chunk of the ROS 2 bag" in message and "compression bomb" in message, message
+    assert peak_mib < 600, f"peak memory {peak_mib} MiB"

@@ -1,7 +1,8 @@
 """Decompressing a log's chunks within bounds: a chunk inflates at most to the size its header
 declares, itself at most :data:`MAX_CHUNK_BYTES`, so a damaged or crafted file (a compression
 bomb: kilobytes that inflate to gigabytes) is refused before it fills memory. Used by the ROS 1
-bag and MCAP readers, whose chunk headers both declare the uncompressed size."""
+bag and MCAP readers (MCAP files and ROS 2 bags' MCAP storage), whose chunk headers declare the
+uncompressed size."""
 
 from __future__ import annotations
 
@@ -23,9 +24,11 @@ def check_declared(declared: int, where: str) -> None:
 
 
 def inflate(data: bytes, compression: str, declared: int, where: str) -> bytes:
-    """``data`` decompressed (``"bz2"`` or ``"lz4"`` frames, concatenated streams as their
+    """``data`` decompressed (``"bz2"``, ``"lz4"`` or ``"zstd"``; concatenated streams as their
     libraries read them), stopping as soon as the output passes ``declared`` bytes."""
     check_declared(declared, where)
+    if compression == "zstd":
+        return _inflate_zstd(data, declared, where)
     out = bytearray()
     while data:
         if compression == "lz4":  # lz4 allocates a frame's stated content size whatever max_length says
@@ -39,6 +42,22 @@ def inflate(data: bytes, compression: str, declared: int, where: str) -> bytes:
             raise InputError(f"{where}: its {compression} data is cut short (a damaged file)", _HINT)
         data = stream.unused_data
     return bytes(out)
+
+
+def _inflate_zstd(data: bytes, declared: int, where: str) -> bytes:
+    import io
+
+    import zstandard
+
+    try:
+        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data), read_across_frames=True) as reader:
+            out = reader.read(declared + 1)
+    except zstandard.ZstdError as exc:
+        raise InputError(f"{where}: its zstd data is damaged ({exc})", _HINT) from None
+    if len(out) > declared:
+        raise InputError(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
+                         "a compression bomb)", _HINT)
+    return out
 
 
 def _check_lz4_frame(data: bytes, room: int, where: str) -> None:

@@ -81,7 +81,8 @@ class RosbagLog:
         except Exception as exc:
             raise self.damaged(exc) from None
         try:
-            yield reader
+            with _bounded_ros2_chunks(self.path):
+                yield reader
         finally:
             with contextlib.suppress(Exception):
                 reader.close()
@@ -233,3 +234,23 @@ def _bound_chunks(reader: Any, path: Path) -> None:
             if compression in ("bz2", "lz4"):
                 reader.chunks[pos] = chunk._replace(
                     decompressor=lambda data, c=compression, n=declared, w=where: inflate(data, c, n, w))
+
+
+@contextlib.contextmanager
+def _bounded_ros2_chunks(path: Path) -> Iterator[None]:
+    """While reading, the chunks of a ROS 2 bag's MCAP storage inflate within bounds (:mod:`.inflate`).
+
+    ``rosbags`` inflates them through the table ``rosbags.rosbag2.storage_mcap.DECOMPRESSORS``
+    (data, declared size) without a bound; for the time of a read its entries are bounded ones.
+    """
+    from rosbags.rosbag2 import storage_mcap
+
+    table = storage_mcap.DECOMPRESSORS
+    saved = dict(table)
+    where = f"{path}: an MCAP chunk of the ROS 2 bag"
+    for compression in ("lz4", "zstd"):
+        table[compression] = lambda data, size, c=compression: inflate(data, c, size, where)
+    try:
+        yield
+    finally:
+        table.update(saved)
