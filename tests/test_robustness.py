@@ -840,3 +840,53 @@ def test_a_ros2_bag_compression_bomb_is_refused_before_it_fills_memory(tmp_path,
     assert proc.returncode == 2 and message.count("\n") == 0 and "Traceback" not in proc.stderr, proc.stderr
     assert "an MCAP chunk of the ROS 2 bag" in message and "compression bomb" in message, message
     assert peak_mib < 600, f"peak memory {peak_mib} MiB"
+
+
+# ---- round 3: output limits and names ---------------------------------------------------------
+
+def _file_size_limit(kib: int):
+    return lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (kib * 1024, kib * 1024))
+
+
+@pytest.mark.parametrize("command", [
+    ["evaluate", "hard-brake", "--no-idnn", "--json"],
+    ["train", "hard-brake", "--epochs-disp", "1", "--epochs-yaw", "1", "-q"],
+])
+def test_a_file_size_limit_is_one_line(tmp_path, command):
+    """Round 3: with 'ulimit -f' low, 'evaluate --json > out.json' and 'train' ended in an
+    'OSError: File too large' traceback."""
+    out = tmp_path / "out.json"
+    if command[0] == "train":
+        command = [*command, "-o", str(tmp_path / "model")]
+    with open(out, "wb") as stdout:
+        proc = subprocess.run([sys.executable, "-m", "ionav_viz.cli", *command], cwd=REPO, stdout=stdout, stderr=subprocess.PIPE,
+                              text=True, timeout=300, preexec_fn=_file_size_limit(4))
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "write failed (File too large); a file size limit was reached" in proc.stderr
+    named = "standard output" if command[0] == "evaluate" else str(tmp_path / "model")
+    assert proc.stderr.startswith(f"error: {named}: "), proc.stderr
+    if command[0] == "train":
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]  # no model, no temporary folder
+
+
+def test_output_names_that_are_not_utf8(tmp_path):
+    """Round 3: '-o $'out\\377.rrd'' (a valid Linux name) failed with 'does not read back ... is the
+    disk full?': Rerun's reader takes only UTF-8 paths."""
+    import os
+
+    def run(*args):  # the path on stdout is not UTF-8 either
+        return subprocess.run([sys.executable, "-m", "ionav_viz.cli", *args], cwd=REPO, capture_output=True, text=True,
+                              errors="surrogateescape", timeout=300)
+
+    folder = os.fsencode(tmp_path)
+    rrd = os.fsdecode(folder + b"/out\xff.rrd")
+    proc = run("replay", "hard-brake", "--no-idnn", "--every", "100s", "-q", "-o", rrd)
+    assert proc.returncode == 0, proc.stderr
+    assert os.listdir(folder) == [b"out\xff.rrd"]
+    png = os.fsdecode(folder + b"/shot\xff.png")
+    proc = run("screenshot", rrd, "-o", png, "--size", "400x300")
+    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+        pytest.skip("no renderer on this machine")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(os.listdir(folder)) == [b"out\xff.rrd", b"shot\xff.png"]  # no alias or temporary file left
+    assert Path(png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -10,6 +10,7 @@ Heavy libraries (numpy, torch, pyproj, rerun) are imported inside the commands s
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
 from collections.abc import Iterator, Mapping
@@ -116,6 +117,15 @@ def one_line(text: str) -> str:
     return " ".join(text.split()) if "\n" in text or "\r" in text else text
 
 
+def _silence_stdout() -> None:
+    """Point standard output at /dev/null (Python's advice for a closed pipe: exit quietly)."""
+    import os
+
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
 def main() -> None:
     """Console entry point: one-line errors with exit code 2, 1 for the environment, 130 on Ctrl-C,
     143 on SIGTERM and 129 on SIGHUP (after cleaning up)."""
@@ -150,6 +160,14 @@ def main() -> None:
         if debug:
             raise
         print(f"error: {one_line(str(exc))}", file=sys.stderr)
+        sys.exit(1)
+    except OSError as exc:
+        from ..core.fileio import write_failure
+
+        if debug or (failure := write_failure(exc.filename or "standard output", exc)) is None:
+            raise
+        _silence_stdout()  # what is still buffered would fail again at exit, with a second message
+        print(f"error: {one_line(str(failure))}", file=sys.stderr)
         sys.exit(1)
     except Exception as exc:
         # typer's (click's) usage errors: one line too, with the command's --help as the hint

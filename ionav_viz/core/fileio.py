@@ -16,6 +16,16 @@ from .signals import hold_signals
 _WRITE_FAILURES = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EIO, errno.EROFS}
 
 
+def write_failure(target: str | Path, exc: OSError) -> ToolFailure | None:
+    """The one-line failure for a write that found no room (disk full, a file size limit, a
+    read-only or failing device), naming ``target``; None for any other error."""
+    if exc.errno not in _WRITE_FAILURES:
+        return None
+    why = {errno.EFBIG: "a file size limit was reached ('ulimit -f', or the file system's largest file)",
+           errno.EROFS: "the file system is read-only", errno.EIO: "the device failed"}.get(exc.errno, "is the disk full?")
+    return ToolFailure(f"{target}: write failed ({exc.strerror}); {why}")
+
+
 def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
     """Check, before any work, that ``target`` can be written as a file: its folder exists (or,
     with ``create_parent``, can be made in an existing folder), and it is absent or a regular file
@@ -81,8 +91,8 @@ def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = Fal
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         _remove_if_empty(parent, made_parent)
-        if exc.errno in _WRITE_FAILURES:
-            raise ToolFailure(f"{target}: write failed ({exc.strerror}); is the disk full?") from None
+        if (failure := write_failure(target, exc)) is not None:
+            raise failure from None
         if exc.errno in (errno.EACCES, errno.EPERM, errno.EISDIR):
             raise InputError(f"{target}: cannot write it ({exc.strerror})", "choose another output", param="output") from None
         raise
@@ -129,3 +139,18 @@ def swap_in_directory(new: Path, directory: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
     finally:
         release()  # a signal that came during the swap acts now, with the swap complete
+
+
+@contextlib.contextmanager
+def utf8_alias(path: Path) -> Iterator[Path]:
+    """``path``, or when its name is not valid UTF-8 (legal on Linux; Rerun's Rust code takes only
+    UTF-8 paths) a symbolic link to it in a private temporary folder, removed afterwards."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        with tempfile.TemporaryDirectory(prefix="ionav-viz-") as folder:
+            alias = Path(folder) / f"alias{''.join(path.suffixes[-1:]).encode('ascii', 'replace').decode()}"
+            alias.symlink_to(Path(path).absolute())
+            yield alias
+        return
+    yield path

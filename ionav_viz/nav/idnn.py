@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import current_umask, swap_in_directory
+from ..core.fileio import current_umask, swap_in_directory, write_failure
 from ..core.grid import GRID_STEP_S, WINDOW_S
 from ..core.signals import hold_signals
 from .bias import SensorBias
@@ -447,6 +447,11 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
         (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
         tmp.chmod(0o777 & ~current_umask())
         swap_in_directory(tmp, directory)
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if (failure := write_failure(directory, exc)) is not None:
+            raise failure from None
+        raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -20,6 +20,7 @@ import numpy as np
 from ..analysis.evaluate import DriveResult
 from ..analysis.metrics import cumulative_errors
 from ..core.errors import ToolFailure
+from ..core.fileio import utf8_alias
 from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
 from ..core.runs import run_ranges
@@ -264,7 +265,8 @@ def _check_written(path: Path, target: Path) -> None:
     from rerun.chunk import RrdReader
 
     try:
-        ok = len(RrdReader(path).recordings()) == 1
+        with utf8_alias(path) as readable:
+            ok = len(RrdReader(readable).recordings()) == 1
     except Exception as exc:  # the reader's errors are not one class
         raise ToolFailure(f"{target}: the written recording does not read back ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); is the disk full?") from None
     if not ok:

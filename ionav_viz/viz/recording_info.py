@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.fileio import utf8_alias
 from ..nav.registry import BASELINE
 from . import entities as ent
 
@@ -130,10 +131,15 @@ class _Rows:
 
 def read_recording_info(path: Path) -> RecordingInfo:
     """Drive name, length, outages (span, final errors, drawn extent) and estimators of a ionav-viz recording."""
+    with utf8_alias(path) as readable:
+        return _read_recording_info(path, readable)
+
+
+def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     from rerun.chunk import RrdReader
 
     try:
-        reader = RrdReader(path)
+        reader = RrdReader(readable)
         recordings = reader.recordings()
     except Exception as exc:  # the reader raises various errors for files that are not .rrd
         raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",

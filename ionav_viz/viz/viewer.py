@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import ToolFailure
-from ..core.fileio import atomic_path
+from ..core.fileio import atomic_path, utf8_alias
 from ..core.signals import STOP_SIGNALS, raise_terminated
 
 
@@ -59,6 +59,7 @@ class HeadlessViewer:
     def __init__(self, width: int, height: int, timeout_s: float = 60.0) -> None:
         self.width, self.height, self.timeout_s = width, height, timeout_s
         self._dir = tempfile.TemporaryDirectory(prefix="ionav-viewer-")
+        self._aliases = contextlib.ExitStack()  # UTF-8 names of open recordings, while the viewer reads them
         self.log_path = Path(self._dir.name) / "viewer.log"
         self.proc: subprocess.Popen | None = None
         self.client: Any = None
@@ -137,7 +138,7 @@ class HeadlessViewer:
     def open(self, path: Path) -> None:
         """Open a recording and wait until it is the active one."""
         self.call("close", "all")
-        self.call("open", str(path.resolve()))
+        self.call("open", str(self._aliases.enter_context(utf8_alias(path.resolve()))))
         deadline = time.monotonic() + self.timeout_s
         while self.call("get_state").active_recording is None:
             if time.monotonic() > deadline:
@@ -152,8 +153,8 @@ class HeadlessViewer:
         self.call("set_blueprint", blueprint, of="recording")
         self.call("set_time", "time", duration=float(t_s), play_state="paused")
         time.sleep(self.settle_s)  # let the viewer render a few frames at the new time
-        with atomic_path(out, suffix=".tmp.png") as tmp:
-            self.call("save_screenshot", str(tmp))
+        with atomic_path(out, suffix=".tmp.png") as tmp, utf8_alias(tmp) as writable:
+            self.call("save_screenshot", str(writable))
             if not tmp.is_file() or tmp.stat().st_size == 0:
                 raise RendererMissing(f"the viewer wrote no screenshot for {out}")
 
@@ -174,4 +175,5 @@ class HeadlessViewer:
         for sig, old in self._old_handlers.items():
             signal.signal(sig, old)
         self._old_handlers = {}
+        self._aliases.close()
         self._dir.cleanup()
