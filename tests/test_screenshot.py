@@ -233,3 +233,51 @@ def test_bad_screenshot_inputs(tmp_path):
     ]:
         proc = run_cli("screenshot", *args)
         assert proc.returncode == 2 and message in proc.stderr, (args, proc.stderr)
+
+
+# --- round 3: crafted and damaged recordings ----------------------------------------------------
+
+def test_a_recording_with_an_entity_of_another_type(tmp_path):
+    """Round 3: /gnss/state logged as another type gave a StopIteration traceback."""
+    import rerun as rr
+
+    path = tmp_path / "crafted.rrd"
+    rec = rr.RecordingStream("ionav-viz", recording_id="crafted")
+    rec.save(path)
+    rec.set_time("time", duration=1.0)
+    rec.log("/gnss/state", rr.Points2D([[0, 0]]))
+    rec.flush()
+    rec.disconnect()
+    proc = run_cli("screenshot", str(path), "-o", str(tmp_path / "x.png"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"{path}: /gnss/state holds no state (it is logged as another type)" in proc.stderr
+
+
+def test_a_truncated_recording_is_one_line(recording, tmp_path):
+    """Round 3: a truncated .rrd printed a raw two-line RerunWarning before the error."""
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(recording.read_bytes()[: recording.stat().st_size // 2])
+    proc = run_cli("screenshot", str(cut), "-o", str(tmp_path / "x.png"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"{cut}: not a readable Rerun recording" in proc.stderr and "RerunWarning" not in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.rrd"]
+
+
+def test_a_missing_view_names_the_recording_and_leaves_no_folders(recording, tmp_path):
+    """Round 3: '-o new/deep/ --view local' on a recording without that view exited 2 but left the
+    folders it made, and the message did not name the file."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+    from rerun.chunk import RrdReader
+
+    path = tmp_path / "noview.rrd"
+    rec = rr.RecordingStream("ionav-viz", recording_id="V-sim-sharp-cornering-10s")
+    rec.save(path)
+    rec.send_chunks(list(RrdReader(recording).stream()))  # the data, without the recording's own layout
+    rec.send_blueprint(rrb.Blueprint(rrb.TextDocumentView(origin="/summary")))  # the review layout without its views
+    rec.flush()
+    rec.disconnect()
+    proc = run_cli("screenshot", str(path), "-o", str(tmp_path / "new" / "deep") + "/", "--view", "local", "--size", "400x300")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"{path}: the recording has no local view" in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["noview.rrd"]

@@ -154,3 +154,25 @@ def utf8_alias(path: Path) -> Iterator[Path]:
             yield alias
         return
     yield path
+
+
+@contextlib.contextmanager
+def made_folders(folder: Path | None) -> Iterator[None]:
+    """Make ``folder`` and its missing parents for the block; if the block fails, the folders made
+    here are removed again (those still empty: nothing the block wrote is lost)."""
+    made: list[Path] = []
+    try:
+        for level in [*reversed(Path(folder).parents), Path(folder)] if folder is not None else []:
+            if not level.exists():
+                try:
+                    level.mkdir()
+                except OSError as exc:
+                    raise InputError(f"{folder}: cannot create {level} ({exc.strerror})", "choose a writable output folder",
+                                     param="output") from None
+                made.append(level)
+        yield
+    except BaseException:
+        for level in reversed(made):
+            with contextlib.suppress(OSError):
+                level.rmdir()
+        raise

@@ -102,12 +102,7 @@ def send_recording(path: Path, url: str = DEFAULT_CONNECT_URL, timeout_s: float 
     import sys
 
     check_viewer(url)
-    code = ("import sys, rerun as rr\n"
-            "rec = rr.RecordingStream('ionav-viz')\n"
-            "rec.connect_grpc(sys.argv[1])\n"
-            "rec.log_file_from_path(sys.argv[2])\n"
-            "rec.flush(timeout_sec=float(sys.argv[3]))\n"
-            "rec.disconnect()\n")
+    code = "import sys; from ionav_viz.viz.live import stream_file; stream_file(sys.argv[1], sys.argv[2], float(sys.argv[3]))"
     with subprocess.Popen([sys.executable, "-c", code, url, str(path), str(timeout_s)], stdin=subprocess.DEVNULL,
                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) as proc:
         try:
@@ -123,6 +118,29 @@ def send_recording(path: Path, url: str = DEFAULT_CONNECT_URL, timeout_s: float 
         last = next((line for line in reversed(err.decode(errors="replace").splitlines()) if line.strip()), "")
         raise ToolFailure(f"--connect {url}: streaming failed ({last.strip()[:200] or f'exit {proc.returncode}'}); "
                           f"the recording is saved in {path.name}")
+
+
+def stream_file(url: str, path: str, timeout_s: float) -> None:
+    """The child's work: the recording in the ``.rrd`` at ``path`` and its review layout, sent to
+    ``url``. Chunks are read and sent synchronously (``log_file_from_path`` would load the file in
+    the background, racing the flush and the exit)."""
+    import rerun as rr
+    from rerun.chunk import RrdReader
+
+    from ..core.fileio import utf8_alias
+    from .recording import review_blueprint
+    from .recording_info import read_recording_info
+
+    info = read_recording_info(Path(path))
+    with utf8_alias(Path(path)) as readable:
+        reader = RrdReader(readable)
+        [store] = reader.recordings()
+        rec = rr.RecordingStream(store.application_id, recording_id=store.recording_id)
+        rec.connect_grpc(url)
+        rec.send_blueprint(review_blueprint([label for label, _ in info.estimators.values()], info.lat_deg, info.lon_deg))
+        rec.send_chunks(reader.stream(store=store))
+    rec.flush(timeout_sec=timeout_s)
+    rec.disconnect()
 
 
 def _stop(proc: subprocess.Popen, grace_s: float = 2.0) -> None:

@@ -91,6 +91,12 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     return rows
 
 
+def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray):
+    """The review layout for estimators ``labels``, its map zoomed to the track (``lat_deg``,
+    ``lon_deg``: the usable GNSS fixes)."""
+    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350))
+
+
 def log_result(rec, result: DriveResult, summary_md: str, progress=None, events: list | None = None) -> dict[str, int]:
     """Log everything about ``result`` to the recording stream ``rec`` (any sink: memory, a viewer,
     a server). Returns row counts per entity."""
@@ -100,8 +106,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     n_win = result.n_windows
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
-    zoom = map_zoom(drive.lat_deg[usable], drive.lon_deg[usable], 350)
-    rec.send_blueprint(blueprint([short_label(e.label) for e in result.estimators], zoom))
+    rec.send_blueprint(review_blueprint([short_label(e.label) for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable]))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 

@@ -136,11 +136,15 @@ def read_recording_info(path: Path) -> RecordingInfo:
 
 
 def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
+    import warnings
+
     from rerun.chunk import RrdReader
 
     try:
-        reader = RrdReader(readable)
-        recordings = reader.recordings()
+        with warnings.catch_warnings():  # a file without a footer (cut off, or an old one) is read by scanning
+            warnings.simplefilter("ignore")
+            reader = RrdReader(readable)
+            recordings = reader.recordings()
     except Exception as exc:  # the reader raises various errors for files that are not .rrd
         raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
                          "make one with 'ionav-viz replay DRIVE'") from None
@@ -150,37 +154,53 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = {}
     errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     drawn: dict[str, _Rows] = {}
-    for chunk in reader.stream():
-        entity = str(chunk.entity_path)
-        batch = chunk.to_record_batch()
-        names = batch.schema.names
-        series = ent.parse_error_series(entity)
-        if chunk.is_static and series is not None and series[0] == "position_error_m":
-            estimators[series[1]] = _series_style(batch)
-            continue
-        if entity == "/__properties":
-            for n in names:
-                if n.endswith(":name"):
-                    values = [v for v in batch.column(n).to_pylist() if v]
-                    drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else drive
-            continue
-        if chunk.is_static or "time" not in names:
-            continue
-        times = _times_of(batch)
-        if len(times):
-            end_s = max(end_s, float(times.max()))
-        if entity.strip("/") == ent.GNSS_STATE:
-            col = next(n for n in names if n.endswith(":state"))
-            states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
-        elif entity.strip("/") == ent.truth_position(ent.MAP):
-            col = next(n for n in names if n.endswith(":positions"))
-            track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
-        elif series is not None and series[0] == "position_error_m":
-            col = next(n for n in names if n.endswith(":scalars"))
-            errors.setdefault(series[1], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
-        elif ent.is_outage_frame(entity):
-            col = next(n for n in names if n.endswith(":strips") or n.endswith(":line_strings"))
-            drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
+    try:
+        chunks = reader.stream()
+    except Exception as exc:
+        raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                         "make one with 'ionav-viz replay DRIVE'") from None
+    entity = ""
+    try:
+        for chunk in chunks:
+            entity = ""  # reading the next chunk: a file cut off fails here
+            entity = str(chunk.entity_path)
+            batch = chunk.to_record_batch()
+            names = batch.schema.names
+            series = ent.parse_error_series(entity)
+            if chunk.is_static and series is not None and series[0] == "position_error_m":
+                estimators[series[1]] = _series_style(batch)
+                continue
+            if entity == "/__properties":
+                for n in names:
+                    if n.endswith(":name"):
+                        values = [v for v in batch.column(n).to_pylist() if v]
+                        drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else drive
+                continue
+            if chunk.is_static or "time" not in names:
+                continue
+            times = _times_of(batch)
+            if len(times):
+                end_s = max(end_s, float(times.max()))
+            if entity.strip("/") == ent.GNSS_STATE:
+                col = _column(path, entity, names, ":state")
+                states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
+            elif entity.strip("/") == ent.truth_position(ent.MAP):
+                col = _column(path, entity, names, ":positions")
+                track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
+            elif series is not None and series[0] == "position_error_m":
+                col = _column(path, entity, names, ":scalars")
+                errors.setdefault(series[1], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
+            elif ent.is_outage_frame(entity):
+                col = _column(path, entity, names, ":strips", ":line_strings")
+                drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
+    except InputError:
+        raise
+    except Exception as exc:  # values of other types or shapes than ionav-viz logs (pyarrow's errors are not one class)
+        if not entity:
+            raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                             "make one with 'ionav-viz replay DRIVE'") from None
+        raise InputError(f"{path}: {entity} is not laid out as ionav-viz logs it ({type(exc).__name__}: {str(exc)[:120]})",
+                         "replay the drive again with this version of ionav-viz") from None
     if not states:
         raise InputError(f"{path}: not an ionav-viz replay recording (no /{ent.GNSS_STATE})", "make one with 'ionav-viz replay DRIVE'")
     states.sort()
@@ -210,6 +230,16 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
                                   ll[:, 0], ll[:, 1]))
     ll = np.concatenate(track) if track else np.zeros((0, 2))
     return RecordingInfo(path, drive, end_s, spans, outages, ll[:, 0], ll[:, 1], estimators)
+
+
+def _column(path: Path, entity: str, names: list[str], *suffixes: str) -> str:
+    """The column of ``entity`` whose name ends in one of ``suffixes``; a recording without it was
+    not written by this version of ionav-viz (or was crafted)."""
+    found = next((n for n in names if n.endswith(suffixes)), None)
+    if found is None:
+        raise InputError(f"{path}: {entity} holds no {' or '.join(s.lstrip(':') for s in suffixes)} (it is logged as another type)",
+                         "replay the drive again with this version of ionav-viz")
+    return found
 
 
 def _series_style(batch) -> tuple[str, tuple[int, int, int]]:

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..core.errors import InputError
+from ..core.fileio import made_folders
 from ..nav.registry import BASELINE
 from .blueprints import VIEWS, Shot, focus_blueprint, framing, titles_for
 from .recording_info import OutageInfo, RecordingInfo, read_recording_info
@@ -102,16 +103,20 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
             shots += [Shot(view, o.end_s, f"outage{o.number}", o) for view in views]
         paths = output_paths(out, info.drive, [(s.view, s.label) for s in shots], len(infos) == 1)
         plans.append((info, shots, paths))
+    folder = None
     if out.suffix.lower() != ".png" or len(plans[0][2]) > 1 or len(infos) > 1:
-        target_dir = out if out.suffix.lower() != ".png" else out.parent
-        target_dir.mkdir(parents=True, exist_ok=True)
+        folder = out if out.suffix.lower() != ".png" else out.parent
     written: list[Path] = []
-    with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
+    with made_folders(folder), HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
         for info, shots, paths in plans:
             viewer.open(info.path)
             for shot, path in zip(shots, paths):
                 frame = framing(info, shot.outage, size, shot.view)
-                viewer.show(focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame), shot.t_s, path)
+                try:
+                    layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame)
+                except InputError as exc:
+                    raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
+                viewer.show(layout, shot.t_s, path)
                 written.append(path)
                 if progress:
                     progress(path)
