@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 
 import numpy as np
@@ -200,3 +201,150 @@ def test_headings_wrap_into_0_360_even_for_tiny_negative_angles():
 
     assert np.mod(-1e-15, 360.0) == 360.0
     assert list(wrap_360(np.array([-1e-15, 0.0, 359.5, 360.0, -90.0, 725.0]))) == [0.0, 0.0, 359.5, 0.0, 270.0, 5.0]
+
+
+# --- KITTI OXTS folders (round 3) ------------------------------------------------------------------
+
+oxts_text = st.one_of(
+    value.map(repr),
+    st.sampled_from(["", "nan", "inf", "-inf", "1e400", "abc", "0x10", "1,5", "4.", "--1", "\x00", "°"]),
+)
+stamp_line = st.one_of(
+    st.sampled_from(["", "yesterday", "2011-09-26", "2011-13-40 25:61:61.000000000", "2262-06-01 00:00:00.000000000",
+                     "1969-12-31 23:59:59.000000000", "9999-01-01 00:00:00.0", "2011-09-26 13:02:25.1234567891234"]),
+    st.datetimes(min_value=__import__("datetime").datetime(1960, 1, 1), max_value=__import__("datetime").datetime(2300, 1, 1))
+    .map(lambda d: d.strftime("%Y-%m-%d %H:%M:%S.%f") + "000"),
+)
+
+
+@st.composite
+def oxts_folders(draw):
+    """(stamp lines, packet texts) near a real KITTI drive, with fields, stamps and files mutated."""
+    from ionav_viz.sources.kitti import FIELDS
+
+    n = draw(st.integers(0, 40))
+    base = [52.4, -1.5, 116.0, 0.0, 0.0, 0.3, 9.0, 3.0, 9.5, 0.0, 0.0, 0.2, 0.0, 9.81, 0.2, 0.0, 9.81,
+            0.0, 0.0, 0.01, 0.0, 0.0, 0.01, 0.02, 0.01, 4, 11, 6, 6, 6]
+    assert len(base) == len(FIELDS)
+    packets = [[repr(float(v)) if k < 25 else str(int(v)) for k, v in enumerate(base)] for _ in range(n)]
+    for i in range(n):
+        packets[i][0], packets[i][1] = repr(52.4 + 1e-5 * i), repr(-1.5 + 1e-5 * i)
+    stamps = [f"2011-09-26 13:02:{25 + i // 10:02d}.{(i % 10) * 100_000_000:09d}" for i in range(n)]
+    kind = draw(st.sampled_from(["plausible", "fields", "stamps", "files"]))
+    if kind == "fields" and n:
+        for _ in range(draw(st.integers(1, 5))):
+            packets[draw(st.integers(0, n - 1))][draw(st.integers(0, len(FIELDS) - 1))] = draw(oxts_text)
+    if kind == "stamps" and n:
+        for _ in range(draw(st.integers(1, 4))):
+            i = draw(st.integers(0, n - 1))
+            stamps[i] = draw(st.one_of(stamp_line, st.just(stamps[max(i - 1, 0)]), st.just(stamps[min(i + 1, n - 1)])))
+    if kind == "files" and n:
+        i = draw(st.integers(0, n - 1))
+        change = draw(st.sampled_from(["ragged", "extra stamp", "missing stamp", "empty packet"]))
+        if change == "ragged":
+            packets[i] = packets[i][: draw(st.integers(0, len(FIELDS) - 1))] + draw(st.lists(oxts_text, max_size=3))
+        elif change == "extra stamp":
+            stamps.append(stamps[-1])
+        elif change == "missing stamp":
+            del stamps[i]
+        else:
+            packets[i] = []
+    return stamps, packets
+
+
+@SETTINGS
+@given(folder=oxts_folders())
+def test_kitti_reader_returns_a_valid_drive_or_its_own_error(tmp_path_factory, folder):
+    from hypothesis import event
+
+    from ionav_viz.sources.kitti import read_kitti
+
+    stamps, packets = folder
+    root = tmp_path_factory.mktemp("k") / "2011_09_26_drive_0001_sync"
+    (root / "oxts" / "data").mkdir(parents=True)
+    (root / "oxts" / "timestamps.txt").write_text("\n".join(stamps) + "\n", errors="surrogateescape")
+    for i, packet in enumerate(packets):
+        (root / "oxts" / "data" / f"{i:010d}.txt").write_text(" ".join(packet) + "\n")
+    try:
+        drive = read_kitti(root)
+    except InputError as exc:
+        assert str(exc) and "\n" not in str(exc)
+        event(str(exc).split(": ", 1)[1][:25])
+        return
+    event("a valid drive")
+    t = drive.t_s
+    assert len(drive) >= 2 and t[0] == 0.0 and np.all(np.diff(t) > 0)
+    for key, column in drive.columns.items():
+        assert np.all(np.isfinite(column)), key
+    assert np.all(np.abs(drive.lat_deg) <= 90) and np.all(np.abs(drive.lon_deg) <= 180)
+    assert np.all((drive.heading_deg >= 0) & (drive.heading_deg < 360)) and np.all(drive.speed_mps >= 0)
+
+
+# --- plug-in outputs (round 3) ---------------------------------------------------------------------
+
+output_cell = st.one_of(st.floats(-60, 60), st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([1e200, -1e200, 1e-300]))
+
+
+@st.composite
+def plugin_outputs(draw):
+    """What a plug-in's estimate() may return for (n_outages, n_windows) = (3, 10): arrays of any
+    values, shapes and types, and objects that are not an Estimate at all."""
+    kind = draw(st.sampled_from(["floats", "floats", "shape", "complex", "ints", "objects", "lists", "not an estimate"]))
+    if kind == "not an estimate":
+        return draw(st.sampled_from([None, 3.0, "x", (1, 2), {"disp_m": 1}]))
+    shape = (3, 10) if kind != "shape" else draw(st.sampled_from([(3, 9), (10, 3), (30,), (), (3, 10, 1), (0, 10)]))
+    size = int(np.prod(shape))
+    arrays = []
+    for _ in range(2):
+        cells = draw(st.lists(output_cell, min_size=size, max_size=size)) if draw(st.booleans()) else [1.0] * size
+        values = np.array(cells, dtype=np.float64).reshape(shape)
+        if kind == "complex":
+            values = values + 1j * draw(st.floats(-1, 1))
+        elif kind == "ints":
+            values = np.rint(np.nan_to_num(np.clip(values, -100, 100))).astype(np.int64)
+        elif kind == "objects":
+            values = values.astype(object)
+            values.flat[0] = draw(st.sampled_from(["a", None, [1, 2], 1.0]))
+        elif kind == "lists":
+            values = values.tolist()
+        arrays.append(values)
+    return arrays
+
+
+@settings(SETTINGS, max_examples=80)
+@given(output=plugin_outputs())
+def test_plugin_outputs_are_accepted_only_when_real_finite_and_physical(output):
+    """Whatever a plug-in returns, the run either scores real, finite, physical numbers or stops
+    with one line naming the estimator (and the outage and window, for a value out of bounds)."""
+    from ionav_viz.nav.protocol import ESTIMATE_LIMITS, Estimate, EstimatorError, solve
+
+    class Returns:
+        name, label, needs = "returns", "Returns", ()
+
+        def estimate(self, inputs):
+            return Estimate(*output) if isinstance(output, list) else output
+
+    inputs = _plugin_inputs()
+    try:
+        solution = solve(Returns(), inputs)
+    except EstimatorError as exc:
+        assert str(exc).startswith("estimator 'returns'") and "\n" not in str(exc), str(exc)
+        if "beyond what a car does" in str(exc):
+            assert " in outage " in str(exc) and ", window " in str(exc)
+        return
+    for name in ("disp_m", "yaw_rate_radps"):
+        values = getattr(solution, name)
+        assert values.dtype == np.float64 and values.shape == (3, 10), name
+        assert np.all(np.isfinite(values)) and np.all(np.abs(values) <= ESTIMATE_LIMITS[name]), name
+
+
+@functools.cache
+def _plugin_inputs():
+    """Three outages of ten windows of a bundled drive."""
+    import ionav_viz as iv
+    from ionav_viz.nav.bias import SensorBias
+    from ionav_viz.nav.protocol import EstimatorInputs
+    from ionav_viz.nav.windows import make_windows
+
+    drive = iv.load_drive("hard-brake")
+    return EstimatorInputs(drive, make_windows(drive), np.array([5, 40, 80]), 10, SensorBias.none())
