@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from ionav_viz import InputError
+from ionav_viz import InputError, ToolFailure
 from ionav_viz.nav.idnn import default_model_dir, load_model, save_model
 
 from .conftest import REPO, run_cli
@@ -95,7 +95,7 @@ def test_force_replaces_a_model_atomically(tmp_path, shipped_copy, monkeypatch):
         return real_save(state)
 
     monkeypatch.setattr("safetensors.torch.save", failing_save)
-    with pytest.raises(OSError):
+    with pytest.raises(ToolFailure, match=r"model: write failed \(No space left on device\); is the disk full\?"):
         idnn.save_model(model, shipped_copy, overwrite=True)
     assert {p.name: p.read_bytes() for p in shipped_copy.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model"]  # no temporary directory left

@@ -890,3 +890,29 @@ def test_output_names_that_are_not_utf8(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert sorted(os.listdir(folder)) == [b"out\xff.rrd", b"shot\xff.png"]  # no alias or temporary file left
     assert Path(png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_ros2_message_compression_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch):
+    """A ROS 2 bag recorded with '--compression-mode message': rosbags inflated each message
+    without a bound; one message here inflates to 768 MiB."""
+    import types
+
+    import rosbags.rosbag2.writer as writer
+
+    import ionav_viz as iv
+
+    from . import bag_fixtures as bf
+
+    real = writer.zstd
+    bomb = real.compress(b"\0" * (BOMB_MIB << 20))
+    calls = []
+
+    def compress(data, *args, **kwargs):
+        calls.append(1)
+        return bomb if len(calls) == 50 else real.compress(data, *args, **kwargs)
+    monkeypatch.setattr(writer, "zstd", types.SimpleNamespace(compress=compress, open=real.open))
+    folder = bf.write_ros2(iv.load_drive("hard-brake"), tmp_path / "bomb", storage="sqlite3", compression="message")
+    proc, message, peak_mib = _peak_memory_run(folder)
+    assert proc.returncode == 2 and message.count("\n") == 0 and "Traceback" not in proc.stderr, proc.stderr
+    assert "a compressed message of the ROS 2 bag inflates past 256 MiB" in message and "compression bomb" in message, message
+    assert peak_mib < 600, f"peak memory {peak_mib} MiB"

@@ -23,9 +23,18 @@ def check_declared(declared: int, where: str) -> None:
                          "ionav-viz inflates (a damaged or crafted file)", _HINT)
 
 
-def inflate(data: bytes, compression: str, declared: int, where: str) -> bytes:
+def inflate(data: bytes, compression: str, declared: int | None, where: str) -> bytes:
     """``data`` decompressed (``"bz2"``, ``"lz4"`` or ``"zstd"``; concatenated streams as their
-    libraries read them), stopping as soon as the output passes ``declared`` bytes."""
+    libraries read them), stopping as soon as the output passes ``declared`` bytes (None: where
+    the format declares no size, :data:`MAX_CHUNK_BYTES`)."""
+    if declared is None:
+        try:
+            return inflate(data, compression, MAX_CHUNK_BYTES, where)
+        except InputError as exc:
+            if "inflates past" not in exc.message:
+                raise
+            raise InputError(f"{where} inflates past {MAX_CHUNK_BYTES // 2**20} MiB, more than ionav-viz inflates (a damaged or "
+                             "crafted file: a compression bomb)", _HINT) from None
     check_declared(declared, where)
     if compression == "zstd":
         return _inflate_zstd(data, declared, where)

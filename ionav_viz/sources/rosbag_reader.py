@@ -238,19 +238,24 @@ def _bound_chunks(reader: Any, path: Path) -> None:
 
 @contextlib.contextmanager
 def _bounded_ros2_chunks(path: Path) -> Iterator[None]:
-    """While reading, the chunks of a ROS 2 bag's MCAP storage inflate within bounds (:mod:`.inflate`).
-
-    ``rosbags`` inflates them through the table ``rosbags.rosbag2.storage_mcap.DECOMPRESSORS``
-    (data, declared size) without a bound; for the time of a read its entries are bounded ones.
+    """While reading, what ``rosbags`` inflates of a ROS 2 bag stays within bounds (:mod:`.inflate`):
+    the chunks of its MCAP storage (through the table ``rosbags.rosbag2.storage_mcap.DECOMPRESSORS``
+    of (data, declared size)) and zstd-compressed messages (through the ``zstd`` module
+    ``rosbags.rosbag2.reader`` calls), each without a bound in ``rosbags``.
     """
+    import types
+
+    from rosbags.rosbag2 import reader as bag_reader
     from rosbags.rosbag2 import storage_mcap
 
     table = storage_mcap.DECOMPRESSORS
-    saved = dict(table)
-    where = f"{path}: an MCAP chunk of the ROS 2 bag"
+    saved, real_zstd = dict(table), bag_reader.zstd
+    chunk, message = f"{path}: an MCAP chunk of the ROS 2 bag", f"{path}: a compressed message of the ROS 2 bag"
     for compression in ("lz4", "zstd"):
-        table[compression] = lambda data, size, c=compression: inflate(data, c, size, where)
+        table[compression] = lambda data, size, c=compression: inflate(data, c, size, chunk)
+    bag_reader.zstd = types.SimpleNamespace(open=real_zstd.open, decompress=lambda data: inflate(data, "zstd", None, message))
     try:
         yield
     finally:
         table.update(saved)
+        bag_reader.zstd = real_zstd
