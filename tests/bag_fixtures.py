@@ -20,8 +20,9 @@ def _stamps_ns(drive, t0_s: float = T0_S) -> np.ndarray:
     return int(t0_s) * 1_000_000_000 + np.rint(drive.t_s * 1e9).astype(np.int64)
 
 
-def _messages(store, drive, stamps_ns, ros1: bool):
-    """(topic, msgtype, stamp ns, message) per sample: IMU, NavSatFix and world-frame GNSS velocity."""
+def _messages(store, drive, stamps_ns, ros1: bool, vehicle_speed_as: str = "odometry"):
+    """(topic, msgtype, stamp ns, message) per sample: IMU, NavSatFix and world-frame GNSS velocity,
+    and the vehicle speed as ``/wheel/odom`` Odometry when the drive has ``speed_can_mps``."""
     T = store.types
     header_kw = (lambda i: {"seq": i}) if ros1 else (lambda i: {})
     v3, quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
@@ -48,6 +49,21 @@ def _messages(store, drive, stamps_ns, ros1: bool):
         yield "/imu/data", "sensor_msgs/msg/Imu", int(ns), imu
         yield "/gps/fix", "sensor_msgs/msg/NavSatFix", int(ns), fix
         yield "/gps/vel", "geometry_msgs/msg/TwistStamped", int(ns), vel
+        if "speed_can_mps" in drive.columns:  # CAN speed as a car's bridge publishes it: Odometry, twist in base_link
+            twist = T["geometry_msgs/msg/Twist"](linear=v3(x=float(drive.columns["speed_can_mps"][i]), y=0.0, z=0.0),
+                                                 angular=v3(x=0.0, y=0.0, z=float(drive.yaw_rate_radps[i])))
+            pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0), orientation=quat(x=0.0, y=0.0, z=0.0, w=1.0))
+            odom = T["nav_msgs/msg/Odometry"](
+                header=header("odom"), child_frame_id="base_link",
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.diag(np.full(6, -1.0)).ravel()),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)))
+            if vehicle_speed_as in ("odometry", "odometry+filtered"):
+                yield "/wheel/odom", "nav_msgs/msg/Odometry", int(ns), odom
+            if vehicle_speed_as == "odometry+filtered":  # robot_localization's output beside the wheels
+                yield "/odometry/filtered", "nav_msgs/msg/Odometry", int(ns), odom
+            if vehicle_speed_as == "twist":  # a body-frame TwistStamped, as some CAN bridges publish it
+                yield "/vehicle/twist", "geometry_msgs/msg/TwistStamped", int(ns), T["geometry_msgs/msg/TwistStamped"](
+                    header=header("base_link"), twist=twist)
 
 
 def _image(store, ns: int, size: tuple[int, int], ros1: bool):
@@ -59,24 +75,28 @@ def _image(store, ns: int, size: tuple[int, int], ros1: bool):
     return T["sensor_msgs/msg/Image"](header=header, height=h, width=w, encoding="rgb8", is_bigendian=0, step=w * 3, data=data)
 
 
-def _write_drive(w, store, drive, stamps, ros1: bool, image_every: int, image_size) -> None:
+def _write_drive(w, store, drive, stamps, ros1: bool, image_every: int, image_size, vehicle_speed_as: str = "odometry") -> None:
     """The drive's messages (and an image every ``image_every`` samples) through an open rosbags writer."""
     serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
     conns = {}
-    for i, (topic, msgtype, ns, msg) in enumerate(_messages(store, drive, stamps, ros1=ros1)):
+    sample = -1
+    for topic, msgtype, ns, msg in _messages(store, drive, stamps, ros1=ros1, vehicle_speed_as=vehicle_speed_as):
         if topic not in conns:
             conns[topic] = w.add_connection(topic, msgtype, typestore=store)
         w.write(conns[topic], ns, serialize(msg, msgtype))
-        if image_every and topic == "/gps/vel" and (i // 3) % image_every == 0:
+        sample += topic == "/gps/vel"
+        if image_every and topic == "/gps/vel" and sample % image_every == 0:
             if "/camera/image" not in conns:
                 conns["/camera/image"] = w.add_connection("/camera/image", "sensor_msgs/msg/Image", typestore=store)
             w.write(conns["/camera/image"], ns, serialize(_image(store, ns, image_size, ros1), "sensor_msgs/msg/Image"))
 
 
 def write_ros1(drive, path: Path, compression: str | None = None, image_every: int = 0, image_size=(48, 64),
-               broken_extra_topic: bool = False) -> Path:
+               broken_extra_topic: bool = False, vehicle_speed_as: str = "odometry") -> Path:
     """A ROS 1 bag of ``drive`` (compression None, "bz2" or "lz4"); an rgb8 image every
-    ``image_every`` samples; a topic with an unparseable definition if ``broken_extra_topic``."""
+    ``image_every`` samples; a topic with an unparseable definition if ``broken_extra_topic``;
+    the vehicle speed (when the drive has one) as ``"odometry"``, ``"odometry+filtered"`` (and a
+    fused odometry beside it) or ``"twist"`` (a body-frame TwistStamped)."""
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -89,7 +109,7 @@ def write_ros1(drive, path: Path, compression: str | None = None, image_every: i
         if broken_extra_topic:
             bad = w.add_connection("/vendor/status", "vendor_msgs/msg/Status", msgdef=BROKEN_DEFINITION, md5sum="0" * 32)
             w.write(bad, int(stamps[0]), b"\x00\x01\x02")
-        _write_drive(w, store, drive, stamps, True, image_every, image_size)
+        _write_drive(w, store, drive, stamps, True, image_every, image_size, vehicle_speed_as)
     return path
 
 

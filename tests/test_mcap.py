@@ -78,14 +78,17 @@ def test_convert_round_trip_gives_the_same_metrics(tmp_path):
     proc = run_cli("convert", "hard-brake", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
     info = run_cli("info", str(out))
-    uses = {line.split()[0]: line.split()[-1] for line in info.stdout.splitlines()[1:]}
-    assert uses == {"/imu/data": "IMU", "/gps/fix": "GNSS", "/gps/vel": "speed"}, info.stdout
+    uses = {line.split()[0]: " ".join(line.split()[4:]) for line in info.stdout.splitlines()[1:]}
+    assert uses == {"/imu/data": "IMU", "/gps/fix": "GNSS", "/gps/vel": "GNSS velocity", "/wheel/odom": "vehicle speed"}, info.stdout
     a = run_cli("evaluate", "hard-brake", "--json")
     b = run_cli("evaluate", str(out), "--json")
     assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
     ra, rb = json.loads(a.stdout), json.loads(b.stdout)
     assert len(ra["sequences"]) > 5
-    assert_same_sequences(ra["sequences"], rb["sequences"], ("ins", "idnn"), rel=1e-8, abs=1e-8)
+    # every estimator, odometry and the filter included (round trip of the vehicle speed on /wheel/odom)
+    assert [e["name"] for e in rb["estimators"]] == ["ins", "idnn", "odo", "ekf"]
+    assert_same_sequences(ra["sequences"], rb["sequences"], ("ins", "idnn", "odo", "ekf"), rel=1e-8, abs=1e-8)
+    assert "not carried by the MCAP log: n_satellites, steering_angle_deg" in proc.stderr
 
 
 def test_replay_and_train_accept_mcap(tmp_path):

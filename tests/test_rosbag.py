@@ -13,7 +13,7 @@ from ionav_viz.core.errors import InputError
 from . import bag_fixtures as bf
 from .conftest import assert_same_sequences, expect_one_line_error, run_cli
 
-ESTIMATORS = ["ins", "idnn", "ekf"]
+ESTIMATORS = ["ins", "idnn", "odo", "ekf"]
 
 
 @pytest.fixture(scope="module")
@@ -23,8 +23,9 @@ def drive():
 
 @pytest.fixture(scope="module")
 def reference(drive):
-    """Metrics of the CSV drive reduced to what a bag carries (the EKF would use the CSV's wheel speeds)."""
-    return json.loads(iv.evaluate(bf.carried(drive), estimators=ESTIMATORS).to_json())
+    """Metrics of the CSV drive reduced to what a bag carries: IMU, fixes, GNSS velocity and the CAN
+    speed on /wheel/odom (odometry and the filter's speed updates run from it, as from the CSV)."""
+    return json.loads(iv.evaluate(bf.carried(drive, speed_can_mps=drive.columns["speed_can_mps"]), estimators=ESTIMATORS).to_json())
 
 
 def _same_metrics(reference, report):
@@ -64,11 +65,11 @@ def test_topics_are_chosen_by_type_or_by_option(tmp_path, drive):
     assert proc.returncode == 0, proc.stderr
     rows = {line.split()[0]: line.split() for line in proc.stdout.splitlines()[1:]}
     assert rows["/imu/data"][1:] == ["5990", "ros1", "sensor_msgs/msg/Imu", "IMU"]
-    assert rows["/gps/fix"][-1] == "GNSS" and rows["/gps/vel"][-1] == "speed"
+    assert rows["/gps/fix"][-1] == "GNSS" and rows["/gps/vel"][4:] == ["GNSS", "velocity"]
     assert rows["/camera/image"][1:] == ["120", "ros1", "sensor_msgs/msg/Image", "-"]
     assert rows["/vendor/status"][-1] == "-"  # its definition cannot be parsed, and it is never decoded
-    # --speed-topic picks the topic; a missing one is named with the topics there are
-    proc = run_cli("evaluate", str(path), "--no-idnn", "--speed-topic", "/nope")
+    # --gnss-velocity-topic picks the topic; a missing one is named with the topics there are
+    proc = run_cli("evaluate", str(path), "--no-idnn", "--gnss-velocity-topic", "/nope")
     assert proc.returncode == 2 and "no topic '/nope'" in proc.stderr and "/gps/vel" in proc.stderr, proc.stderr
 
 
@@ -211,3 +212,30 @@ def test_receiver_course_is_held_at_a_standstill(tmp_path, drive):
             assert got == pytest.approx(course, abs=1e-9)
         elif last_at_speed is not None:
             assert got == pytest.approx(last_at_speed, abs=1e-9)
+
+
+def test_vehicle_speed_topics_are_told_from_gnss_velocity(tmp_path, drive, reference, caplog):
+    """Round 4 (real logs): wheel odometry was read as the GNSS speed (the truth), so odometry and the
+    filter's speed updates never ran from a bag. Odometry and body-frame twists are vehicle speed."""
+    with_can = bf.carried(drive, speed_can_mps=drive.columns["speed_can_mps"])
+    twist = bf.write_ros1(with_can, tmp_path / "twist.bag", vehicle_speed_as="twist")
+    rows = {line.split()[0]: " ".join(line.split()[4:]) for line in run_cli("info", str(twist)).stdout.splitlines()[1:]}
+    assert rows == {"/gps/fix": "GNSS", "/gps/vel": "GNSS velocity", "/imu/data": "IMU", "/vehicle/twist": "vehicle speed"}
+    _same_metrics(reference, iv.evaluate(twist, estimators=ESTIMATORS))
+
+    # a fused odometry beside the wheels: neither is guessed, one line says how to choose
+    both = bf.write_ros1(with_can, tmp_path / "both.bag", vehicle_speed_as="odometry+filtered")
+    with caplog.at_level("WARNING", logger="ionav_viz"):
+        drive_both = iv.load_drive(both)
+    assert "speed_can_mps" not in drive_both.columns
+    assert "several vehicle speed topics (/odometry/filtered, /wheel/odom); none is used" in caplog.text
+    chosen = iv.load_drive(both, iv.ReadOptions(log=iv.LogOptions(vehicle_speed_topic="/wheel/odom")))
+    np.testing.assert_allclose(chosen.columns["speed_can_mps"], with_can.columns["speed_can_mps"], atol=1e-9)
+
+    # 'none' leaves it out: the IMU alone (no odometry; the filter without speed updates)
+    proc = run_cli("evaluate", str(twist), "--vehicle-speed-topic", "none", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert [e["name"] for e in json.loads(proc.stdout)["estimators"]] == ["ins", "idnn", "ekf"]
+    # a body-frame twist is not the receiver's velocity
+    proc = run_cli("evaluate", str(twist), "--gnss-velocity-topic", "/vehicle/twist")
+    assert proc.returncode == 2 and "is in a body frame" in proc.stderr and "--vehicle-speed-topic /vehicle/twist" in proc.stderr

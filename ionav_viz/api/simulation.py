@@ -3,6 +3,7 @@ drive (``ionav-viz convert``)."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -11,6 +12,8 @@ from ..dataset.samples import SAMPLES
 from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
 from ..sources.load import ReadOptions, load_drive
 from .options import DriveLike
+
+log = logging.getLogger("ionav_viz")
 
 
 def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float = 120.0, *, fleet: str | None = None,
@@ -53,10 +56,20 @@ class Converted:
 def convert(drive: DriveLike, output: str | Path, read: ReadOptions | None = None) -> Converted:
     """Write a drive as a ROS 2 MCAP log (``sensor_msgs/Imu``, ``NavSatFix``, ``TwistStamped``;
     atomically), that opens in Foxglove and ``ros2 bag``."""
-    from ..sources.mcap_writer import TOPICS, write_mcap
+    from ..nav.vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+    from ..sources.mcap_writer import write_mcap
 
     out = Path(output)
     if out.suffix.lower() != ".mcap":
         raise InputError(f"{out}: the output must end in .mcap", "choose a name like drive.mcap", param="output")
     d = load_drive(drive, read)
-    return Converted(out, write_mcap(d, out), tuple(TOPICS.values()), len(d), d.duration_s)
+    found = vehicle_speed(d)
+    speed_mps, columns = None, ()
+    if found is not None:
+        values, unit, described = found
+        # wheel speeds at the nominal radius: odometry and the filter calibrate the scale against GNSS
+        speed_mps, columns = (values * NOMINAL_RADIUS_M if unit == "rad/s" else values), tuple(described.split(" and "))
+    written = write_mcap(d, out, speed_mps, columns)
+    if written.left_out:
+        log.warning("%s: not carried by the MCAP log: %s", out, ", ".join(written.left_out))
+    return Converted(out, written.messages, written.topics, len(d), d.duration_s)

@@ -72,7 +72,8 @@ OPTION_OF: Mapping[str, str] = MappingProxyType({
     "estimators": "--estimators", "plugins": "--estimator", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
     "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
     "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs", "outage_s": "--outage", "placement": "--on",
-    "outages": "--outage", "worst_of": "--worst-of",
+    "outages": "--outage", "worst_of": "--worst-of", "gnss_velocity_topic": "--gnss-velocity-topic",
+    "vehicle_speed_topic": "--vehicle-speed-topic",
 })
 
 

@@ -21,7 +21,10 @@ YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the yaw rate: auto (t
 ImuAxes = typer.Option(None, "--imu-axes", help="MCAP/ROS bags: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
 ImuTopic = typer.Option(None, "--imu-topic", help="MCAP/ROS bags: the IMU topic (default: the one sensor_msgs/msg/Imu topic).", show_default=False)
 GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP/ROS bags: the GNSS topic (default: the one NavSatFix or LocationFix topic).", show_default=False)
-SpeedTopic = typer.Option(None, "--speed-topic", help="MCAP/ROS bags: a TwistStamped or Odometry topic for speed (optional).", show_default=False)
+GnssVelocityTopic = typer.Option(None, "--gnss-velocity-topic", "--speed-topic", help="MCAP/ROS bags: the receiver's velocity (TwistStamped, world frame): GNSS speed and course (default: the one such topic).",
+                                 show_default=False)
+VehicleSpeedTopic = typer.Option(None, "--vehicle-speed-topic", help="MCAP/ROS bags: the vehicle's speed (wheel or CAN odometry: Odometry, or TwistStamped in a body frame; default: the one such topic), or 'none'.",
+                                 show_default=False)
 Stamps = typer.Option("header", "--stamps", help="MCAP/ROS bags: time stamps from message headers (header) or the recorder's receive time (log).")
 OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
@@ -37,7 +40,8 @@ ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha25
 #: The options that say how drives are found and read: (parameter, typer option, type).
 _SOURCE_OPTIONS = (
     ("data_root_opt", DataRoot, Optional[Path]), ("yaw_sign", YawSign, str), ("imu_topic", ImuTopic, Optional[str]),
-    ("gnss_topic", GnssTopic, Optional[str]), ("speed_topic", SpeedTopic, Optional[str]), ("stamps", Stamps, str),
+    ("gnss_topic", GnssTopic, Optional[str]), ("gnss_velocity_topic", GnssVelocityTopic, Optional[str]),
+    ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("stamps", Stamps, str),
     ("imu_axes", ImuAxes, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
 )
 
@@ -66,7 +70,8 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
         from ..core.gnss_quality import GnssLimits
         from ..sources.load import LogOptions, ReadOptions
 
-        log = LogOptions(v["imu_topic"], v["gnss_topic"], v["speed_topic"], v["stamps"], v["imu_axes"])
+        log = LogOptions(v["imu_topic"], v["gnss_topic"], v["gnss_velocity_topic"], v["stamps"], v["imu_axes"],
+                         vehicle_speed_topic=v["vehicle_speed_topic"])
         return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])))
 
     return _with_options(command, _SOURCE_OPTIONS, "read", build)

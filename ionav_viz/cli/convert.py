@@ -33,7 +33,8 @@ def info(
     path: Path = typer.Argument(..., metavar="LOG", help="An MCAP log, a ROS 1 .bag, a ROS 2 bag folder (or its metadata.yaml) or a KITTI raw drive folder."),
     imu_topic: Optional[str] = c.ImuTopic,
     gnss_topic: Optional[str] = c.GnssTopic,
-    speed_topic: Optional[str] = c.SpeedTopic,
+    gnss_velocity_topic: Optional[str] = c.GnssVelocityTopic,
+    vehicle_speed_topic: Optional[str] = c.VehicleSpeedTopic,
 ) -> None:
     """List a log's topics (type, messages) and which ones ionav-viz would read."""
     from ..sources.load import open_message_log, source_kind
@@ -49,7 +50,7 @@ def info(
         raise InputError(f"{path}: an IO-VNBD CSV file has no topics", "info lists the topics of MCAP logs and ROS bags; replay or evaluate the CSV directly")
     from ..sources.message_log import describe_log
 
-    found = describe_log(source, imu_topic, gnss_topic, speed_topic)
+    found = describe_log(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic)
     rows = [(ch.topic, str(ch.count), ch.encoding, ch.schema, ch.role or "-") for ch in found.channels]
     header = ("topic", "messages", "encoding", "type", "use")
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]

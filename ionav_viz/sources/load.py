@@ -23,9 +23,22 @@ class LogOptions:
 
     imu_topic: str | None = None
     gnss_topic: str | None = None
-    speed_topic: str | None = None
+    #: the receiver's velocity (TwistStamped in a world frame): GNSS speed and course
+    gnss_velocity_topic: str | None = None
     stamps: str = "header"
     imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
+    #: the vehicle's own speed (nav_msgs/Odometry, or TwistStamped in a body frame); "none" leaves it out
+    vehicle_speed_topic: str | None = None
+    #: deprecated: the earlier name of ``gnss_velocity_topic``
+    speed_topic: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.speed_topic is not None:
+            warnings.warn("LogOptions(speed_topic=...) is now gnss_velocity_topic (and vehicle_speed_topic for wheel or CAN "
+                          "odometry)", DeprecationWarning, stacklevel=3)
+            if self.gnss_velocity_topic is None:
+                object.__setattr__(self, "gnss_velocity_topic", self.speed_topic)
+            object.__setattr__(self, "speed_topic", None)
 
 
 @dataclass(frozen=True)
@@ -119,7 +132,8 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
         return read_kitti(path, yaw_sign=yaw_sign)
     from .message_log import read_log
 
-    return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic, speed_topic=opts.speed_topic,
+    return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic,
+                    gnss_velocity_topic=opts.gnss_velocity_topic, vehicle_speed_topic=opts.vehicle_speed_topic,
                     stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign)
 
 

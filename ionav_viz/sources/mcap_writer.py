@@ -11,6 +11,14 @@ Topics (``cdr`` encoding, standard schemas from :mod:`ionav_viz.ros2_msgs`):
 * ``/gps/vel`` ``geometry_msgs/msg/TwistStamped``, frame ``gps``: GNSS velocity as
   nmea_navsat_driver publishes it, ``linear.x`` east and ``linear.y`` north (m/s), from the GNSS
   speed and course.
+* ``/wheel/odom`` ``nav_msgs/msg/Odometry``, frame ``odom``, child frame ``base_link``, when the
+  drive has a vehicle speed (the caller gives it in m/s): ``twist.twist.linear.x`` (m/s); the pose
+  is unknown (covariance -1 on the diagonal, as robot_localization reads "do not use").
+
+Also carried: ``height_m`` as the fix's altitude, ``gnss_sigma_m`` as a diagonal
+``position_covariance`` (type 2, sigma^2 on east, north and up), and samples without a fix
+(``gnss_fix`` 0) as fixes with ``status.status = -1`` (no fix), which the reader drops. Other
+columns are not carried; :func:`write_mcap` names them.
 
 Every message of a sample carries the same header stamp, also used as log and publish time:
 UTC time of day of the sample on 1970-01-01 (IO-VNBD logs carry no date).
@@ -19,6 +27,7 @@ UTC time of day of the sample on 1970-01-01 (IO-VNBD logs carry no date).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,62 +37,89 @@ from ..core.fileio import atomic_path, check_output_file
 from ..core.units import G_MPS2
 from .ros2_msgs import DEFINITIONS
 
-TOPICS = {"imu": "/imu/data", "fix": "/gps/fix", "vel": "/gps/vel"}
+TOPICS = {"imu": "/imu/data", "fix": "/gps/fix", "vel": "/gps/vel", "odom": "/wheel/odom"}
+SCHEMAS = {"imu": "sensor_msgs/msg/Imu", "fix": "sensor_msgs/msg/NavSatFix", "vel": "geometry_msgs/msg/TwistStamped",
+           "odom": "nav_msgs/msg/Odometry"}
+#: The drive's columns a log written here carries (``speed_can_mps`` and the wheel speeds: as the
+#: vehicle speed the caller gives).
+CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps", "height_m",
+           "gnss_sigma_m", "gnss_fix")
+
+
+@dataclass(frozen=True)
+class Written:
+    """What :func:`write_mcap` wrote: messages, topics, and the drive's columns it could not carry."""
+
+    messages: int
+    topics: tuple[str, ...]
+    left_out: tuple[str, ...]
 
 
 def _header(stamp_ns: int, frame: str) -> dict:
     return {"stamp": {"sec": stamp_ns // 1_000_000_000, "nanosec": stamp_ns % 1_000_000_000}, "frame_id": frame}
 
 
-def write_mcap(drive: Drive, path: Path, progress=None) -> int:
-    """Write ``drive`` to ``path`` (atomically); returns the number of messages."""
+def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = None,
+               vehicle_speed_from: tuple[str, ...] = ()) -> Written:
+    """Write ``drive`` to ``path`` (atomically), with ``vehicle_speed_mps`` (per sample, or None)
+    on ``/wheel/odom``; ``vehicle_speed_from``: the columns it stands for (carried through it)."""
     from mcap_ros2.writer import Writer
 
     check_output_file(Path(path))
-
+    n = len(drive)
     t_ns = np.rint((drive.start_time_of_day_s + drive.t_s) * 1e9).astype(np.int64)
     heading = np.deg2rad(drive.heading_deg)
     v_east, v_north = drive.speed_mps * np.sin(heading), drive.speed_mps * np.cos(heading)
-    height = drive.columns.get("height_m", np.zeros(len(drive)))
+    height = drive.columns.get("height_m", np.zeros(n))
+    sigma = drive.columns.get("gnss_sigma_m")
+    has_fix = drive.columns.get("gnss_fix", np.ones(n)) != 0
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
+    unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
+    keys = ["imu", "fix", "vel"] + (["odom"] if vehicle_speed_mps is not None else [])
     count = 0
     with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
         writer = Writer(stream)
-        schemas = {
-            "imu": writer.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"]),
-            "fix": writer.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"]),
-            "vel": writer.register_msgdef("geometry_msgs/msg/TwistStamped", DEFINITIONS["geometry_msgs/msg/TwistStamped"]),
-        }
-        for i in range(len(drive)):  # one message per sample and topic
+        schemas = {k: writer.register_msgdef(SCHEMAS[k], DEFINITIONS[SCHEMAS[k]]) for k in keys}
+        for i in range(n):  # one message per sample and topic
             stamp = int(t_ns[i])
-            imu = {
-                "header": _header(stamp, "base_link"),
-                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
-                "orientation_covariance": unknown_orientation,
-                "angular_velocity": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])},
-                "angular_velocity_covariance": zeros9,
-                "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": G_MPS2},
-                "linear_acceleration_covariance": zeros9,
+            msgs = {
+                "imu": {
+                    "header": _header(stamp, "base_link"),
+                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                    "orientation_covariance": unknown_orientation,
+                    "angular_velocity": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])},
+                    "angular_velocity_covariance": zeros9,
+                    "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": G_MPS2},
+                    "linear_acceleration_covariance": zeros9,
+                },
+                "fix": {
+                    "header": _header(stamp, "gps"),
+                    "status": {"status": 0 if has_fix[i] else -1, "service": 1},
+                    "latitude": float(drive.lat_deg[i]),
+                    "longitude": float(drive.lon_deg[i]),
+                    "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
+                    "position_covariance": zeros9 if sigma is None else [float(sigma[i]) ** 2 if k in (0, 4, 8) else 0.0 for k in range(9)],
+                    "position_covariance_type": 0 if sigma is None else 2,
+                },
+                "vel": {
+                    "header": _header(stamp, "gps"),
+                    "twist": {"linear": {"x": float(v_east[i]), "y": float(v_north[i]), "z": 0.0},
+                              "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                },
             }
-            fix = {
-                "header": _header(stamp, "gps"),
-                "status": {"status": 0, "service": 1},
-                "latitude": float(drive.lat_deg[i]),
-                "longitude": float(drive.lon_deg[i]),
-                "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
-                "position_covariance": zeros9,
-                "position_covariance_type": 0,
-            }
-            vel = {
-                "header": _header(stamp, "gps"),
-                "twist": {"linear": {"x": float(v_east[i]), "y": float(v_north[i]), "z": 0.0},
-                          "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-            }
-            for key, msg in (("imu", imu), ("fix", fix), ("vel", vel)):
-                writer.write_message(TOPICS[key], schemas[key], msg, log_time=stamp, publish_time=stamp)
+            if vehicle_speed_mps is not None:
+                msgs["odom"] = {
+                    "header": _header(stamp, "odom"), "child_frame_id": "base_link",
+                    "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                             "covariance": unknown_pose},
+                    "twist": {"twist": {"linear": {"x": float(vehicle_speed_mps[i]), "y": 0.0, "z": 0.0},
+                                        "angular": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])}},
+                              "covariance": [0.0] * 36},
+                }
+            for key in keys:
+                writer.write_message(TOPICS[key], schemas[key], msgs[key], log_time=stamp, publish_time=stamp)
                 count += 1
-            if progress and i % 1000 == 0:
-                progress(i, len(drive))
         writer.finish()
-    return count
+    left_out = tuple(c for c in drive.columns if c not in CARRIED and c not in vehicle_speed_from)
+    return Written(count, tuple(TOPICS[k] for k in keys), left_out)

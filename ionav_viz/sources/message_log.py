@@ -3,24 +3,30 @@
 This is the one layer every message-log format shares; a format only says what its channels are
 and streams decoded messages (:class:`MessageLog`: :mod:`.mcap_reader`, :mod:`.rosbag_reader`).
 
-Channels are found by message type (``--imu-topic`` / ``--gnss-topic`` / ``--speed-topic`` choose
-when there are several or none match):
+Channels are found by message type (``--imu-topic``, ``--gnss-topic``, ``--gnss-velocity-topic``
+and ``--vehicle-speed-topic`` choose when there are several or none match):
 
 * IMU: ``sensor_msgs/msg/Imu`` (ROS 1 ``sensor_msgs/Imu``) or a JSON message with the same field
   names. REP 103 body frame: x forward, y left, z up. ``linear_acceleration.x`` is the
   longitudinal specific force (m/s^2) and ``angular_velocity.z`` the yaw rate, counter-clockwise
   positive (rad/s): both are already the drive model's conventions (``--imu-axes`` maps another
-  mount, :mod:`.imu_frame` checks it).
+  mount, :mod:`.imu_frame` checks it). Messages marking their accelerations or rates "not
+  provided" (REP 145: ``covariance[0] = -1``) are skipped.
 * GNSS (ground truth): ``sensor_msgs/msg/NavSatFix`` (fixes with ``status.status < 0``, no fix,
   are dropped) or JSON ``foxglove.LocationFix`` (``timestamp``, ``latitude``, ``longitude``,
   ``altitude``). A known ``position_covariance`` (type > 0) gives the fix's horizontal standard
   deviation, ``gnss_sigma_m`` (the larger of east and north), which the GNSS quality checks use.
-* Speed and course (optional): ``geometry_msgs/msg/TwistStamped`` in a world frame is GNSS
-  velocity as GNSS drivers publish it (nmea_navsat_driver's ``/vel``: ``linear.x`` east,
-  ``linear.y`` north, m/s), giving speed and course; a TwistStamped whose ``frame_id`` is a body
-  frame (``base_link``, ``base_footprint``, ``body``, ``vehicle``) and ``nav_msgs/msg/Odometry``
-  (twist in the child body frame) give the speed ``linear.x`` only. Without them, speed and course
-  come from the fixes (:func:`.resample.fit_fixes`).
+* GNSS velocity (optional): ``geometry_msgs/msg/TwistStamped`` in a world frame, as GNSS drivers
+  publish it (nmea_navsat_driver's ``/vel``: ``linear.x`` east, ``linear.y`` north, m/s), gives
+  the GNSS speed and course. Without it, speed and course come from the fixes
+  (:func:`.resample.fit_fixes`).
+* Vehicle speed (optional): the vehicle's own speed, wheel or CAN odometry, as
+  ``nav_msgs/msg/Odometry`` (``twist.twist.linear.x`` in the child body frame) or a
+  ``TwistStamped`` whose ``frame_id`` is a body frame (``base_link``, ``base_footprint``, ``body``,
+  ``vehicle``; ``linear.x``): the drive's ``speed_can_mps`` (magnitude: reversing is distance
+  too), which odometry and the filter's speed updates use. Several candidates (wheel odometry
+  beside robot_localization's fused ``/odometry/filtered``) use none, with a warning;
+  ``--vehicle-speed-topic none`` leaves a log's vehicle speed out.
 * Values: every value is checked against the physical limits of :mod:`.plausibility` (an
   impossible one is an error naming the topic and stamp). Fixes with ``status.status < 0`` or a
   non-finite position (how drivers say "no fix") are dropped with one warning; of fixes sharing a
@@ -59,8 +65,12 @@ log = logging.getLogger("ionav_viz")
 
 IMU_SCHEMAS = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.LocationFix", "foxglove_msgs/msg/LocationFix")
-SPEED_SCHEMAS = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/TwistStamped", "nav_msgs/msg/Odometry", "nav_msgs/Odometry")
+TWIST_SCHEMAS = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/TwistStamped")
+ODOMETRY_SCHEMAS = ("nav_msgs/msg/Odometry", "nav_msgs/Odometry")
+SPEED_SCHEMAS = TWIST_SCHEMAS + ODOMETRY_SCHEMAS
 BODY_FRAMES = ("base_link", "base_footprint", "body", "vehicle")
+#: ``vehicle_speed_topic`` that leaves a log's vehicle speed out (what the IMU alone achieves).
+NO_TOPIC = "none"
 
 
 @dataclass
@@ -76,14 +86,18 @@ class ChannelInfo:
 
 @dataclass
 class Selection:
+    """The topics read: IMU, GNSS fixes, and optionally the receiver's velocity (GNSS speed and
+    course) and the vehicle's own speed (wheel or CAN odometry)."""
+
     imu: ChannelInfo
     gnss: ChannelInfo
-    speed: ChannelInfo | None
+    gnss_velocity: ChannelInfo | None
+    vehicle_speed: ChannelInfo | None
     channels: list[ChannelInfo] = field(default_factory=list)
 
     @property
     def chosen(self) -> list[ChannelInfo]:
-        return [c for c in (self.imu, self.gnss, self.speed) if c is not None]
+        return [c for c in (self.imu, self.gnss, self.gnss_velocity, self.vehicle_speed) if c is not None]
 
 
 class MessageLog(Protocol):
@@ -126,16 +140,47 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
 
 
 def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
-                    speed_topic: str | None = None, channels: list[ChannelInfo] | None = None) -> Selection:
-    """The IMU, GNSS and (optional) speed topics to read, by message type or by the given topics."""
+                    gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None,
+                    channels: list[ChannelInfo] | None = None) -> Selection:
+    """The topics to read, by message type or by the given topics (see the module docstring).
+
+    A ``TwistStamped`` topic is GNSS velocity when its first message's frame is a world frame, and
+    vehicle speed when it is a body frame (:data:`BODY_FRAMES`); an ``Odometry`` is vehicle speed.
+    Several vehicle-speed topics (wheel odometry beside a fused ``/odometry/filtered``) use none,
+    with a warning, unless one is named; ``vehicle_speed_topic="none"`` leaves it out.
+    """
     path = source.path
     channels = source.channels() if channels is None else channels
     if not channels:
         raise InputError(f"{path}: no topics (an empty recording)", "record IMU and GNSS topics")
+    for c in channels:
+        c.role = ""
     imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
     gnss = _pick(channels, GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
-    speed = _pick(channels, SPEED_SCHEMAS, speed_topic, "speed", "--speed-topic", path, False)
-    for role, ch in (("IMU", imu), ("GNSS", gnss), ("speed", speed)):
+    named = {t for t in (gnss_velocity_topic, vehicle_speed_topic) if t not in (None, NO_TOPIC)}
+    body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
+    world_twists = [c for c in channels if c.schema in TWIST_SCHEMAS and c.topic not in body_twists and c.topic not in named]
+    if gnss_velocity_topic is not None:
+        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "--gnss-velocity-topic", path, False)
+        if velocity is not None and velocity.topic in body_twists:
+            raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the receiver's velocity",
+                             f"give it as --vehicle-speed-topic {velocity.topic}", param="gnss_velocity_topic")
+    else:
+        velocity = _pick(world_twists, TWIST_SCHEMAS, None, "GNSS velocity", "--gnss-velocity-topic", path, False)
+    if vehicle_speed_topic == NO_TOPIC:
+        vehicle = None
+    elif vehicle_speed_topic is not None:
+        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "--vehicle-speed-topic", path, False)
+        if vehicle is not None and vehicle.schema not in SPEED_SCHEMAS:
+            raise InputError(f"{path}: {vehicle.topic} is a {vehicle.schema}, not a vehicle speed",
+                             "give a nav_msgs/Odometry or a TwistStamped in a body frame", param="vehicle_speed_topic")
+    else:
+        found = [c for c in channels if (c.schema in ODOMETRY_SCHEMAS or c.topic in body_twists) and c.count and c.topic not in named]
+        vehicle = found[0] if len(found) == 1 else None
+        if len(found) > 1:
+            log.warning("%s: several vehicle speed topics (%s); none is used: choose one with --vehicle-speed-topic",
+                        path, ", ".join(c.topic for c in found))
+    for role, ch in (("IMU", imu), ("GNSS", gnss), ("GNSS velocity", velocity), ("vehicle speed", vehicle)):
         if ch is None:
             continue
         ch.role = role
@@ -143,7 +188,23 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
             raise InputError(f"{path}: {role} topic {ch.topic} has message encoding {ch.encoding!r}", f"ionav-viz reads {' and '.join(source.encodings)} messages from this format")
         if ch.count == 0:
             raise InputError(f"{path}: {role} topic {ch.topic} has no messages", "record some, or choose another topic")
-    return Selection(imu, gnss, speed, channels)
+    return Selection(imu, gnss, velocity, vehicle, channels)
+
+
+def _in_body_frame(source: MessageLog, channel: ChannelInfo) -> bool:
+    """Whether a TwistStamped topic's first message is in a body frame (:data:`BODY_FRAMES`)."""
+    messages = source.messages([channel])
+    try:
+        _, _, msg = next(messages)
+        return _frame_id(msg) in BODY_FRAMES
+    except (StopIteration, KeyError, AttributeError, TypeError):
+        return False
+    finally:
+        messages.close()
+
+
+def _frame_id(msg: Any) -> str:
+    return str(_get(msg, "header", "frame_id")).strip("/").lower()
 
 
 @dataclass
@@ -155,16 +216,16 @@ class LogDescription:
 
     @property
     def used(self) -> dict[str, str]:
-        """topic -> role (IMU, GNSS, speed) of the topics that would be read."""
+        """topic -> role (IMU, GNSS, GNSS velocity, vehicle speed) of the topics that would be read."""
         return {c.topic: c.role for c in self.channels if c.role}
 
 
 def describe_log(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
-                 speed_topic: str | None = None) -> LogDescription:
+                 gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None) -> LogDescription:
     """Every topic of the log, with the roles the reader would give them (or why it cannot)."""
     channels = source.channels()
     try:
-        select_channels(source, imu_topic, gnss_topic, speed_topic, channels=channels)
+        select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, channels=channels)
         problem = None
     except InputError as exc:
         for c in channels:
@@ -210,8 +271,8 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
 
 
 def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,
-             speed_topic: str | None = None, stamps: str = "header", name: str | None = None,
-             imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
+             gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
+             name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
     """Read a message log into a drive on a 10 Hz grid (see the module docstring).
 
     ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
@@ -224,10 +285,11 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
-    sel = select_channels(source, imu_topic, gnss_topic, speed_topic)
+    sel = select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic)
     roles = {c.topic: c.role for c in sel.chosen}
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
-    speed: list[tuple[float, float, float]] = []  # t, speed m/s, course deg (nan if unknown)
+    speed: list[tuple[float, float, float]] = []  # GNSS velocity: t, speed m/s, course deg
+    vehicle: list[tuple[float, float]] = []  # vehicle speed: t, m/s
     dropped_no_fix = 0
     not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
     last_t: dict[str, float] = {}  # per role, the previous message's stamp
@@ -305,11 +367,21 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
                     in_order(role, t)
                     gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
-                else:
-                    sample = _speed_sample(msg, log_ns, when, sel.speed.schema)
-                    check(sel.speed.topic, sample[0], "speed", "speed_mps", sample[1])
-                    in_order(role, sample[0])
+                elif role == "GNSS velocity":
+                    t = when(msg, log_ns, "header", "stamp")
+                    lin = _get(msg, "twist", "linear")
+                    v_east, v_north = float(_get(lin, "x")), float(_get(lin, "y"))  # as nmea_navsat_driver publishes it
+                    sample = (t, math.hypot(v_east, v_north), math.degrees(math.atan2(v_east, v_north)) % 360.0)
+                    check(topic, t, "speed", "speed_mps", sample[1])
+                    in_order(role, t)
                     speed.append(sample)
+                else:
+                    t = when(msg, log_ns, "header", "stamp")
+                    twist = _get(msg, "twist", "twist") if sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else _get(msg, "twist")
+                    v = abs(float(_get(twist, "linear", "x")))  # body-frame forward speed; reversing counts as distance
+                    check(topic, t, "linear.x", "speed_can_mps", v)
+                    in_order(role, t)
+                    vehicle.append((t, v))
             except (KeyError, AttributeError, TypeError, ValueError) as exc:
                 raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
                                  f"expected the {role} field names of {({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}") from None
@@ -325,7 +397,7 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                              "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw) with --imu-topic")
         log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: covariance[0] = -1)",
                     path, sel.imu.topic, fields)
-    topic_of = {"IMU": sel.imu.topic, "GNSS": sel.gnss.topic, "speed": sel.speed.topic if sel.speed else ""}
+    topic_of = {c.role: c.topic for c in sel.chosen}
     for role, (n, first, before) in backwards.items():
         log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s after %.3f s); "
                     "used in stamp order", path, topic_of[role], n, absolute_s(first), absolute_s(before))
@@ -337,12 +409,18 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     origin_s = float(origin_ns[0] // 1_000_000_000)
     fixes = first_per_stamp(path, np.asarray(gnss))
     fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0], origin_s=origin_s)]
-    speeds = None
-    if speed:
-        speeds = np.asarray(speed)
-        speeds = speeds[np.argsort(speeds[:, 0], kind="stable")]
-        speeds = speeds[drop_strays(path, "speed", speeds[:, 0], origin_s=origin_s)]
-    return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s)
+    speeds, vehicle_speeds = (_in_stamp_order(path, what, samples, origin_s) for what, samples in (("GNSS velocity", speed), ("vehicle speed", vehicle)))
+    return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s,
+                          vehicle_speed=vehicle_speeds)
+
+
+def _in_stamp_order(path: Path, what: str, samples: list, origin_s: float) -> np.ndarray | None:
+    """Samples ``(t, ...)`` sorted by stamp without strays, or None when there are none."""
+    if not samples:
+        return None
+    data = np.asarray(samples, dtype=float)
+    data = data[np.argsort(data[:, 0], kind="stable")]
+    return data[drop_strays(path, what, data[:, 0], origin_s=origin_s)]
 
 
 def _default_name(path: Path) -> str:
@@ -362,19 +440,6 @@ def _horizontal_sigma_m(msg: Any) -> float:
     except (TypeError, ValueError):
         return math.nan
     return math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan
-
-
-def _speed_sample(msg: Any, log_ns: int, when, schema: str) -> tuple[float, float, float]:
-    if "Odometry" in schema:
-        t = when(msg, log_ns, "header", "stamp")
-        return t, abs(float(_get(msg, "twist", "twist", "linear", "x"))), math.nan
-    t = when(msg, log_ns, "header", "stamp")
-    lin = _get(msg, "twist", "linear")
-    vx, vy = float(_get(lin, "x")), float(_get(lin, "y"))
-    frame = str(_get(msg, "header", "frame_id")).strip("/").lower()
-    if frame in BODY_FRAMES:
-        return t, abs(vx), math.nan
-    return t, math.hypot(vx, vy), math.degrees(math.atan2(vx, vy)) % 360.0  # east, north -> course
 
 
 #: The IMU sample columns after the stamp, as the log names them and the limits that apply to them

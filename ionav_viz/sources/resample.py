@@ -155,7 +155,7 @@ def first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
 
 def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed: np.ndarray | None,
                    mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None,
-                   origin_s: float = 0.0) -> Drive:
+                   origin_s: float = 0.0, vehicle_speed: np.ndarray | None = None) -> Drive:
     """The drive on the grid from a log's streams (see the module docstring).
 
     ``gnss``: fixes ``(t s, lat deg, lon deg, altitude m, sigma m or NaN)``, sorted, one per stamp;
@@ -163,7 +163,9 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     mapping already applied (for the frame check's hint); ``yaw_sign``: ``auto`` checks the yaw
     sign against the GNSS course, ``cw`` flips it. Times are s after ``origin_s`` (a whole second since
     1970, so that float64 keeps the stamps' nanoseconds). ``fix_columns``: more per-fix drive columns
-    (e.g. ``n_satellites``), each held from the last fix at every grid time.
+    (e.g. ``n_satellites``), each held from the last fix at every grid time. ``vehicle_speed``:
+    ``(t s, speed m/s)`` sorted, the vehicle's own speed (wheel or CAN odometry), or None: the
+    drive's ``speed_can_mps``, interpolated onto the grid.
     """
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
     samples = imu.kept_samples()
@@ -208,6 +210,8 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         columns["gnss_sigma_m"] = sigma
     if not has_fix.all():
         columns["gnss_fix"] = has_fix.astype(float)
+    if vehicle_speed is not None and len(vehicle_speed) >= 2:
+        columns["speed_can_mps"] = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1])
     last_fix = np.clip(np.searchsorted(g_t, t, side="right") - 1, 0, len(g_t) - 1)
     for column, values in (fix_columns or {}).items():
         columns[column] = np.asarray(values, dtype=float)[last_fix]

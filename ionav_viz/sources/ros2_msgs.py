@@ -1,6 +1,6 @@
 """ROS 2 message definitions (``ros2msg`` text with dependencies) for the MCAP files we write.
 
-They are the standard ``sensor_msgs``/``geometry_msgs`` definitions, so the files open in
+They are the standard ``sensor_msgs``/``geometry_msgs``/``nav_msgs`` definitions, so the files open in
 Foxglove and in ``ros2 bag``.
 """
 
@@ -43,8 +43,20 @@ NAVSATFIX = _join(
 
 TWIST_STAMPED = _join("std_msgs/Header header\ngeometry_msgs/Twist twist\n", _HEADER, _TIME, _TWIST, _VECTOR3)
 
+_POINT = "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
+_POSE = "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\ngeometry_msgs/Quaternion orientation\n"
+_POSE_COV = "MSG: geometry_msgs/PoseWithCovariance\ngeometry_msgs/Pose pose\nfloat64[36] covariance\n"
+_TWIST_COV = "MSG: geometry_msgs/TwistWithCovariance\ngeometry_msgs/Twist twist\nfloat64[36] covariance\n"
+
+ODOMETRY = _join(
+    "std_msgs/Header header\nstring child_frame_id\n"
+    "geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n",
+    _HEADER, _TIME, _POSE_COV, _POSE, _POINT, _QUATERNION, _TWIST_COV, _TWIST, _VECTOR3,
+)
+
 DEFINITIONS = {
     "sensor_msgs/msg/Imu": IMU,
     "sensor_msgs/msg/NavSatFix": NAVSATFIX,
     "geometry_msgs/msg/TwistStamped": TWIST_STAMPED,
+    "nav_msgs/msg/Odometry": ODOMETRY,
 }
