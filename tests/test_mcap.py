@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+import ionav_viz as iv
 from ionav_viz.core.errors import InputError
 from ionav_viz.sources.mcap_reader import read_mcap
 
@@ -223,3 +224,23 @@ def test_a_recording_stopped_at_a_record_boundary_is_read(tmp_path, caplog):
     inside.write_bytes(good.read_bytes()[: data_end - 100])
     with pytest.raises(InputError, match="cut off inside a record"):
         read_mcap(inside)
+
+
+def test_warnings_reach_the_json_and_the_recording(tmp_path):
+    """What the loader warns about (here: an IMU mapped onto the wrong axes) is in the report's
+    'warnings' and in the recording's summary, so a .rrd reviewed later carries it."""
+    from rerun.chunk import RrdReader
+
+    log = tmp_path / "hb.mcap"
+    assert run_cli("convert", "hard-brake", "-o", str(log)).returncode == 0
+    wrong = iv.ReadOptions(log=iv.LogOptions(imu_axes="x=y,y=-x,z=z"))
+    report = iv.evaluate(log, estimators=["ins"], read=wrong)
+    assert any("the IMU is not in the body frame" in w for w in report.warnings), report.warnings
+    assert json.loads(report.to_json())["warnings"] == report.warnings
+    assert json.loads(iv.evaluate(log, estimators=["ins"]).to_json())["warnings"] == []
+
+    replayed = iv.replay(log, output=tmp_path / "r.rrd", estimators=["ins"], read=wrong)
+    texts = [str(v) for chunk in RrdReader(replayed.path).stream() if str(chunk.entity_path) == "/summary"
+             for column in chunk.to_record_batch().columns for v in column.to_pylist()]
+    summary = next(t for t in texts if "Warnings" in t)
+    assert "the IMU is not in the body frame" in summary

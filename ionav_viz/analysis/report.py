@@ -48,10 +48,13 @@ class Report:
     Attributes:
         results: one :class:`~ionav_viz.analysis.evaluate.DriveResult` per drive.
         title: the group's name (a scenario or manoeuvre type), or None.
+        warnings: what the run warned about while reading the drives and running the estimators
+            (one line each), so that a report read later says it too.
     """
 
     results: list[DriveResult]
     title: str | None = None
+    warnings: list[str] = field(default_factory=list)
     _dict: dict[str, Any] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -144,6 +147,7 @@ class Report:
         ``drive``, gap, outage and ``final_error_m`` per estimator), ``not_bridged`` and
         ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
         the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`).
+        ``warnings``: what the run warned about (one line each; see :attr:`warnings`).
         NaN is kept here; :meth:`to_json` writes it as null.
         """
         if self._dict is not None:
@@ -191,6 +195,7 @@ class Report:
         idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
         if idnn is not None:
             out["model"] = idnn.get("info", {})
+        out["warnings"] = list(self.warnings)
         self._dict = out
         return out
 
@@ -271,6 +276,8 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         lines += [f"- #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
                   + ", ".join(f"{short[e]} {w['final_error_m'][e]:.1f}" for e in ests) for w in worst]
         lines.append("")
+    if report.warnings:
+        lines += ["**Warnings** (as printed when the run was made):", "", *(f"- {w}" for w in report.warnings), ""]
     lines += [
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"- **Outages**: {placement}; {report.n_outages} outage(s)",

@@ -11,6 +11,7 @@ from ..analysis.events import MANOEUVRE_TYPES, Event, detect_events
 from ..analysis.report import Report
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from ..nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement, Tile
 from ..nav.protocol import Estimator
@@ -104,6 +105,13 @@ def evaluate(
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()
+    with collecting_warnings() as warned:
+        results = _evaluate_each(items, n, placement, run, read, progress)
+    return Report(results, warnings=warned)
+
+
+def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: RunOptions, read: ReadOptions,
+                   progress: Progress | None) -> list[DriveResult]:
     bias_of = run.bias_of(read)
     loaded = [load_drive(item, read) for item in items]
     ests = run.applying_to(loaded)
@@ -122,7 +130,7 @@ def evaluate(
         progress("done", len(items), len(items))
     if not results:
         raise InputError(f"no {n:g} s outage fits in {', '.join(name_of(d) for d in items)}", "use shorter outages", param="outage_s")
-    return Report(results)
+    return results
 
 
 def evaluate_by_event(
@@ -143,6 +151,17 @@ def evaluate_by_event(
     n = windows_of(outage_s)
     run, read = options_of(run, estimators, read, mcap)
     run.chosen()
+    with collecting_warnings() as warned:
+        per_type = _evaluate_by_event_each(drives, n, kinds, run, read)
+    reports = {kind: Report(results, kind, warnings=warned) for kind, results in per_type.items() if results}
+    if not reports:
+        raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in {', '.join(name_of(d) for d in drives)}",
+                         "see 'ionav-viz events DRIVE'")
+    return reports
+
+
+def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[str, ...], run: RunOptions,
+                            read: ReadOptions) -> dict[str, list[DriveResult]]:
     bias_of = run.bias_of(read)
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
     loaded = [load_drive(item, read) for item in drives]
@@ -160,9 +179,5 @@ def evaluate_by_event(
                 continue
             per_type[kind].append(evaluate_drive(drive, n, ests, bias=bias, starts=plan.starts, windows=windows,
                                                  excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
-    reports = {kind: Report(results, kind) for kind, results in per_type.items() if results}
-    if not reports:
-        raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in {', '.join(name_of(d) for d in drives)}",
-                         "see 'ionav-viz events DRIVE'")
-    return reports
+    return per_type
 

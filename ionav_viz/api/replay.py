@@ -12,6 +12,7 @@ from ..analysis.report import Report, run_summary_markdown
 from ..core.errors import InputError
 from ..core.fileio import check_output_file
 from ..core.timing import stage
+from ..core.warnings_log import collecting_warnings
 from ..nav.outages import Placement, Tile
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
@@ -80,9 +81,7 @@ def replay(
     Returns:
         a :class:`ReplayResult` with the written path, the report and the outages.
     """
-    from ..core.fileio import atomic_path
     from ..viz import live
-    from ..viz.recording import write_recording
 
     if connect is not None:
         live.check_viewer(connect)
@@ -95,6 +94,16 @@ def replay(
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()
+    with collecting_warnings() as warned:
+        return _replay(drive, n, placement, out, run, read, progress, connect, warned)
+
+
+def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, run: RunOptions, read: ReadOptions,
+            progress: Progress | None, connect: str | None, warned: list[str]) -> ReplayResult:
+    from ..core.fileio import atomic_path
+    from ..viz import live
+    from ..viz.recording import write_recording
+
     d = load_drive(drive, read)
     with stage("windows") as s:
         windows = make_windows(d)
@@ -110,7 +119,7 @@ def replay(
     chosen = run.applying_to([d])
     result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
                             gnss_gaps=plan.gnss_gaps)
-    report = Report([result])
+    report = Report([result], warnings=warned)  # what was warned so far: reading, planning, estimating
     summary = _summary_markdown(result, report, plan.description)
     total = 5 + len(result.estimates)
     done = [0]

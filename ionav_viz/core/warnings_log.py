@@ -1,0 +1,37 @@
+"""Collecting the warnings a run prints, so that they reach the review: the JSON report's
+``warnings`` and the recording's summary carry what stderr said (an IMU frame, a GNSS quality
+problem, an estimator left out, dropped stamps), for whoever opens them later."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterator
+
+#: The logger every module of ionav-viz writes to.
+LOGGER = "ionav_viz"
+
+
+class _Collector(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        with contextlib.suppress(Exception):  # a message that cannot be formatted is not worth failing a run for
+            message = " ".join(record.getMessage().split())
+            if message not in self.messages:
+                self.messages.append(message)
+
+
+@contextlib.contextmanager
+def collecting_warnings() -> Iterator[list[str]]:
+    """Within the block, every warning logged by ionav-viz is also appended (once, on one line) to
+    the yielded list; what is printed is unchanged."""
+    collector = _Collector()
+    logger = logging.getLogger(LOGGER)
+    logger.addHandler(collector)
+    try:
+        yield collector.messages
+    finally:
+        logger.removeHandler(collector)
