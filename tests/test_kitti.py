@@ -30,6 +30,9 @@ def test_round_trip_gives_the_csv_metrics(tmp_path, drive):
     np.testing.assert_allclose(read.heading_deg[moving], drive.heading_deg[moving], atol=1e-9)
     np.testing.assert_allclose(read.columns["gnss_sigma_m"], 0.02)
     np.testing.assert_allclose(read.columns["n_satellites"], 11)
+    # OXTS's full IMU (af, al, au, wf, wl, wu: forward, left, up) is kept, gravity on z
+    np.testing.assert_allclose(read.columns["accel_z_mps2"], bf.G, atol=1e-9)
+    np.testing.assert_array_equal(read.columns["gyro_z_radps"], read.yaw_rate_radps)
     # the same drive with the receiver's accuracy KITTI carries: the same metrics
     reference = json.loads(iv.evaluate(bf.carried(drive, gnss_sigma_m=np.full(len(drive), 0.02)), estimators=ESTIMATORS).to_json())
     got = json.loads(iv.evaluate(folder / "oxts", estimators=ESTIMATORS).to_json())

@@ -244,3 +244,37 @@ def test_warnings_reach_the_json_and_the_recording(tmp_path):
              for column in chunk.to_record_batch().columns for v in column.to_pylist()]
     summary = next(t for t in texts if "Warnings" in t)
     assert "the IMU is not in the body frame" in summary
+
+
+def test_the_full_imu_is_kept_in_the_body_frame(tmp_path):
+    """Round 4 (real logs): a 6-axis IMU's other axes were dropped at the reader. All six are kept
+    in REP 103's body frame, also for a z-down (FRD) IMU, and convert writes them back."""
+    from ionav_viz.core.drive import IMU_COLUMNS
+
+    path = fx.write_ros2(tmp_path / "six.mcap", duration_s=30.0)
+    drive = read_mcap(path)
+    assert set(IMU_COLUMNS) <= set(drive.columns)
+    np.testing.assert_allclose(drive.columns["accel_z_mps2"], 9.81, atol=1e-9)  # gravity, level IMU
+    np.testing.assert_array_equal(drive.columns["accel_x_mps2"], drive.accel_long_mps2)
+    np.testing.assert_array_equal(drive.columns["gyro_z_radps"], drive.yaw_rate_radps)
+    np.testing.assert_allclose(drive.yaw_rate_radps, fx.YAW_RATE_RADPS, atol=1e-12)
+
+    # the same IMU mounted z-down (x forward, y right): told with --yaw-sign cw, read into REP 103
+    def frd(k, i, msg):
+        if k == "imu":
+            msg = json.loads(json.dumps(msg))
+            msg["angular_velocity"]["z"] *= -1
+            msg["linear_acceleration"]["z"] *= -1
+            msg["linear_acceleration"]["y"] = -0.5  # 0.5 m/s^2 to the left
+        return [msg]
+
+    turned = read_mcap(fx.write_json(tmp_path / "frd.mcap", duration_s=30.0, imu_hz=50, gnss_hz=5, tamper=frd), yaw_sign="cw")
+    np.testing.assert_allclose(turned.columns["accel_z_mps2"], 9.81, atol=1e-9)
+    np.testing.assert_allclose(turned.columns["accel_y_mps2"], 0.5, atol=1e-9)
+    np.testing.assert_allclose(turned.yaw_rate_radps, fx.YAW_RATE_RADPS, atol=1e-12)
+
+    out = tmp_path / "back.mcap"
+    iv.convert(turned, out)
+    back = read_mcap(out)
+    for column in IMU_COLUMNS:
+        np.testing.assert_allclose(back.columns[column], turned.columns[column], atol=1e-9, err_msg=column)

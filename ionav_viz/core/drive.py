@@ -11,7 +11,10 @@ Conventions (every reader converts to these; nothing downstream converts again):
   d(heading)/dt = -yaw_rate.
 * ``accel_long_mps2``: longitudinal specific force along the body x axis (forward positive)
   as the sensor measures it, so road grade and mount tilt leak gravity into it.
-* ``speed_mps``: GNSS speed over ground (m/s).
+* ``speed_mps``: GNSS speed over ground (m/s); ``speed_can_mps``: the vehicle's own speed (CAN or
+  wheel odometry, m/s), when the source has one.
+* ``accel_{x,y,z}_mps2`` and ``gyro_{x,y,z}_radps`` (optional, :data:`IMU_COLUMNS`): the full IMU in
+  the body frame, x forward, y left, z up (REP 103), for sources that have all six axes.
 * ``gnss_fault``: per sample, 0 where the GNSS fix is trustworthy ground truth, else the bits of
   :class:`~ionav_viz.core.gnss_quality.GnssFault` saying why (set by the readers' loader).
 
@@ -34,6 +37,11 @@ REQUIRED_COLUMNS = (
     "accel_long_mps2",
     "yaw_rate_radps",
 )
+#: The full IMU, when the source has one (message logs, KITTI): specific force and angular rate
+#: on the three axes of the vehicle body frame (REP 103: x forward, y left, z up), as measured (not
+#: bias-corrected; gravity included, so a level car at rest reads +9.81 m/s² on z).
+#: ``accel_x_mps2`` is ``accel_long_mps2`` and ``gyro_z_radps`` is ``yaw_rate_radps``.
+IMU_COLUMNS = ("accel_x_mps2", "accel_y_mps2", "accel_z_mps2", "gyro_x_radps", "gyro_y_radps", "gyro_z_radps")
 OPTIONAL_COLUMNS = (
     "height_m",
     "n_satellites",
@@ -46,6 +54,7 @@ OPTIONAL_COLUMNS = (
     "wheel_speed_fr_radps",
     "wheel_speed_rl_radps",
     "wheel_speed_rr_radps",
+    *IMU_COLUMNS,
 )
 
 

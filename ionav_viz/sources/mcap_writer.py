@@ -5,8 +5,8 @@ Topics (``cdr`` encoding, standard schemas from :mod:`ionav_viz.ros2_msgs`):
 * ``/imu/data`` ``sensor_msgs/msg/Imu``, frame ``base_link`` (REP 103: x forward, z up):
   ``linear_acceleration.x`` = longitudinal specific force (m/s^2), ``angular_velocity.z`` = yaw
   rate, counter-clockwise positive (rad/s); orientation unknown (``orientation_covariance[0] = -1``,
-  REP 145); ``linear_acceleration.z`` is gravity's +9.80665 m/s^2 (what a level IMU at rest
-  reads), the other axes 0, with unknown covariance.
+  REP 145). The other axes are the drive's full IMU (``accel_y_mps2``, ...) when it has one, else
+  those of a level IMU: ``linear_acceleration.z`` gravity's +9.80665 m/s^2, the others 0.
 * ``/gps/fix`` ``sensor_msgs/msg/NavSatFix``, frame ``gps``: latitude, longitude, altitude (m).
 * ``/gps/vel`` ``geometry_msgs/msg/TwistStamped``, frame ``gps``: GNSS velocity as
   nmea_navsat_driver publishes it, ``linear.x`` east and ``linear.y`` north (m/s), from the GNSS
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.drive import Drive
+from ..core.drive import IMU_COLUMNS, Drive
 from ..core.fileio import atomic_path, check_output_file
 from ..core.units import G_MPS2
 from .ros2_msgs import DEFINITIONS
@@ -43,7 +43,7 @@ SCHEMAS = {"imu": "sensor_msgs/msg/Imu", "fix": "sensor_msgs/msg/NavSatFix", "ve
 #: The drive's columns a log written here carries (``speed_can_mps`` and the wheel speeds: as the
 #: vehicle speed the caller gives).
 CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps", "height_m",
-           "gnss_sigma_m", "gnss_fix")
+           "gnss_sigma_m", "gnss_fix", *IMU_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,10 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     height = drive.columns.get("height_m", np.zeros(n))
     sigma = drive.columns.get("gnss_sigma_m")
     has_fix = drive.columns.get("gnss_fix", np.ones(n)) != 0
+    # the full IMU when the drive has it, else a level IMU: gravity on z, nothing on the other axes
+    imu_axes = {c: drive.columns.get(c, np.full(n, G_MPS2 if c == "accel_z_mps2" else 0.0)) for c in IMU_COLUMNS}
+    imu_axes["accel_x_mps2"], imu_axes["gyro_z_radps"] = drive.accel_long_mps2, drive.yaw_rate_radps
+    ax, ay, az, gx, gy, gz = (imu_axes[c] for c in IMU_COLUMNS)
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
     unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
@@ -88,9 +92,9 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
                     "header": _header(stamp, "base_link"),
                     "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
                     "orientation_covariance": unknown_orientation,
-                    "angular_velocity": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])},
+                    "angular_velocity": {"x": float(gx[i]), "y": float(gy[i]), "z": float(gz[i])},
                     "angular_velocity_covariance": zeros9,
-                    "linear_acceleration": {"x": float(drive.accel_long_mps2[i]), "y": 0.0, "z": G_MPS2},
+                    "linear_acceleration": {"x": float(ax[i]), "y": float(ay[i]), "z": float(az[i])},
                     "linear_acceleration_covariance": zeros9,
                 },
                 "fix": {

@@ -22,6 +22,8 @@ column                    limits              why
 ``accel_long_mps2``       -157 .. 157         16 g, the widest full-scale range of vehicle IMUs
 ``accel_lat_mps2``        -157 .. 157         as above
 ``yaw_rate_radps``        -34.9 .. 34.9       2000 deg/s, the widest full-scale range of gyros
+``accel_{x,y,z}_mps2``    -157 .. 157         16 g, as ``accel_long_mps2``
+``gyro_{x,y,z}_radps``    -34.9 .. 34.9       2000 deg/s, as ``yaw_rate_radps``
 ``steering_angle_deg``    -1800 .. 1800       five turns of the steering wheel
 ``wheel_speed_*_radps``   -500 .. 500         100 m/s on a 0.2 m wheel
 ========================  ==================  ==================================================
@@ -53,6 +55,8 @@ LIMITS: dict[str, tuple[float, float]] = {
     "accel_long_mps2": (-_G16_MPS2, _G16_MPS2),
     "accel_lat_mps2": (-_G16_MPS2, _G16_MPS2),
     "yaw_rate_radps": (-math.radians(2000.0), math.radians(2000.0)),
+    **{f"accel_{a}_mps2": (-_G16_MPS2, _G16_MPS2) for a in "xyz"},
+    **{f"gyro_{a}_radps": (-math.radians(2000.0), math.radians(2000.0)) for a in "xyz"},
     "steering_angle_deg": (-1800.0, 1800.0),
     "wheel_speed_fl_radps": (-500.0, 500.0),
     "wheel_speed_fr_radps": (-500.0, 500.0),

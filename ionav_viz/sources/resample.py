@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.drive import Drive
+from ..core.drive import IMU_COLUMNS, Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
 from ..core.units import wrap_360
@@ -199,11 +199,14 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         v = fit.speed_mps if v is None else v
         course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
         lat, lon = fit.lat_deg, fit.lon_deg
-    accel, yaw = body[:, 0], body[:, 5] * (-1.0 if yaw_sign == "cw" else 1.0)
+    flipped = yaw_sign == "cw"
     if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto"):
-        yaw = -yaw
+        flipped = not flipped
+    if flipped:  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
+        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
-               "accel_long_mps2": accel, "yaw_rate_radps": yaw}
+               "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
+    columns |= dict(zip(IMU_COLUMNS, body.T, strict=True))  # the full IMU, body frame
     if first_implausible("height_m", alt) is None:
         columns["height_m"] = alt
     if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one
