@@ -56,30 +56,32 @@ def test_rep103_log_reads_without_a_frame_warning(logs, caplog):
 
 
 @pytest.mark.parametrize("mount", list(MOUNTS))
-def test_a_mount_is_named_in_one_line_and_imu_axes_fixes_it(logs, caplog, mount):
-    _, axes, finding = MOUNTS[mount]
-    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+def test_a_mount_stops_the_run_with_its_estimate_and_the_options(logs, mount):
+    """Round 4 (real logs): a wrong IMU frame was only a warning, and full tables followed. Now the
+    run stops before any work with the estimated mount, --imu-mount auto, and the exact --imu-axes."""
+    _, axes, _ = MOUNTS[mount]
+    with pytest.raises(InputError) as raised:
         read_mcap(logs[mount])
-    (line,) = _frame_warnings(caplog)
-    assert finding in line and f"--imu-axes {axes}" in line and "\n" not in line
-    caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
-        fixed = read_mcap(logs[mount], imu_axes=axes)
-    assert _frame_warnings(caplog) == []
+    message = str(raised.value)
+    assert "the IMU is not in the body frame" in message and "its mount is estimated as roll" in message
+    assert "--imu-mount auto" in message and f"--imu-axes {axes} (the nearest exact permutation)" in message
+    assert "\n" not in message
     ref = read_mcap(logs["rep103"])
+    fixed = read_mcap(logs[mount], imu_axes=axes)  # the exact permutation: the same drive
     np.testing.assert_allclose(fixed.accel_long_mps2, ref.accel_long_mps2, atol=1e-9)
     np.testing.assert_allclose(fixed.yaw_rate_radps, ref.yaw_rate_radps, atol=1e-9)
+    auto = read_mcap(logs[mount], imu_mount="auto")  # the estimate: within a degree or two of it
+    assert np.abs(auto.yaw_rate_radps - ref.yaw_rate_radps).max() < 0.005
+    assert np.abs(auto.accel_long_mps2 - ref.accel_long_mps2).max() < 0.5
 
 
-def test_yaw_sign_check_applies_to_mcap(logs, caplog):
-    """Upside down, the gyro's z turns clockwise: flipped with a warning, unless --yaw-sign says."""
+def test_yaw_sign_cw_reads_a_z_down_imu(logs):
+    """Upside down (turned over about x) the gyro's z turns clockwise: --yaw-sign cw reads it as a
+    z-down IMU; without it the mount check stops the run (roll 180)."""
     ref = read_mcap(logs["rep103"])
-    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
-        auto = read_mcap(logs["upside down"])
-    assert "flipped it" in _frame_warnings(caplog)[0]
-    np.testing.assert_allclose(auto.yaw_rate_radps, ref.yaw_rate_radps, atol=1e-9)
-    np.testing.assert_allclose(read_mcap(logs["upside down"], yaw_sign="ccw").yaw_rate_radps, -ref.yaw_rate_radps, atol=1e-9)
     np.testing.assert_allclose(read_mcap(logs["upside down"], yaw_sign="cw").yaw_rate_radps, ref.yaw_rate_radps, atol=1e-9)
+    with pytest.raises(InputError, match=r"roll [+-]1(79\.\d|80\.\d)"):
+        read_mcap(logs["upside down"], yaw_sign="ccw")
 
 
 @pytest.mark.parametrize("text, message", [
@@ -101,6 +103,6 @@ def test_cli_imu_axes_errors_are_one_line(logs):
     bad = run_cli("events", str(logs["rep103"]), "--imu-axes", "x=x,y=x,z=z")
     assert bad.returncode == 2 and "--imu-axes" in bad.stderr and "used twice" in bad.stderr and "Traceback" not in bad.stderr
     csv = run_cli("events", "V-sim-roundabout", "--imu-axes", "x=-y,y=x,z=z")
-    assert csv.returncode == 2 and "applies to MCAP" in csv.stderr and len(csv.stderr.strip().splitlines()) <= 2
+    assert csv.returncode == 2 and "apply to MCAP" in csv.stderr and len(csv.stderr.strip().splitlines()) <= 2
     ok = run_cli("events", str(logs["turned right"]), "--imu-axes", "x=-y,y=x,z=z")
     assert ok.returncode == 0 and "body frame" not in ok.stderr

@@ -227,15 +227,15 @@ def test_a_recording_stopped_at_a_record_boundary_is_read(tmp_path, caplog):
 
 
 def test_warnings_reach_the_json_and_the_recording(tmp_path):
-    """What the loader warns about (here: an IMU mapped onto the wrong axes) is in the report's
+    """What the loader warns about (here: the IMU mount it applied) is in the report's
     'warnings' and in the recording's summary, so a .rrd reviewed later carries it."""
     from rerun.chunk import RrdReader
 
     log = tmp_path / "hb.mcap"
     assert run_cli("convert", "hard-brake", "-o", str(log)).returncode == 0
-    wrong = iv.ReadOptions(log=iv.LogOptions(imu_axes="x=y,y=-x,z=z"))
+    wrong = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto"))  # the mount applied is reported
     report = iv.evaluate(log, estimators=["ins"], read=wrong)
-    assert any("the IMU is not in the body frame" in w for w in report.warnings), report.warnings
+    assert any("applied the IMU mount estimated from the log" in w for w in report.warnings), report.warnings
     assert json.loads(report.to_json())["warnings"] == report.warnings
     assert json.loads(iv.evaluate(log, estimators=["ins"]).to_json())["warnings"] == []
 
@@ -243,7 +243,7 @@ def test_warnings_reach_the_json_and_the_recording(tmp_path):
     texts = [str(v) for chunk in RrdReader(replayed.path).stream() if str(chunk.entity_path) == "/summary"
              for column in chunk.to_record_batch().columns for v in column.to_pylist()]
     summary = next(t for t in texts if "Warnings" in t)
-    assert "the IMU is not in the body frame" in summary
+    assert "applied the IMU mount estimated from the log" in summary
 
 
 def test_the_full_imu_is_kept_in_the_body_frame(tmp_path):
@@ -265,12 +265,12 @@ def test_the_full_imu_is_kept_in_the_body_frame(tmp_path):
             msg = json.loads(json.dumps(msg))
             msg["angular_velocity"]["z"] *= -1
             msg["linear_acceleration"]["z"] *= -1
-            msg["linear_acceleration"]["y"] = -0.5  # 0.5 m/s^2 to the left
+            msg["angular_velocity"]["y"] = -0.01  # pitching nose down at 0.01 rad/s, seen z-down
         return [msg]
 
     turned = read_mcap(fx.write_json(tmp_path / "frd.mcap", duration_s=30.0, imu_hz=50, gnss_hz=5, tamper=frd), yaw_sign="cw")
     np.testing.assert_allclose(turned.columns["accel_z_mps2"], 9.81, atol=1e-9)
-    np.testing.assert_allclose(turned.columns["accel_y_mps2"], 0.5, atol=1e-9)
+    np.testing.assert_allclose(turned.columns["gyro_y_radps"], 0.01, atol=1e-9)
     np.testing.assert_allclose(turned.yaw_rate_radps, fx.YAW_RATE_RADPS, atol=1e-12)
 
     out = tmp_path / "back.mcap"

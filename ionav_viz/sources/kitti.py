@@ -214,7 +214,8 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     speeds = np.column_stack([t, np.hypot(col["vn"], col["ve"]), course_deg])[locked]
     drive_name = name or (oxts.parent.name if oxts.name == "oxts" else oxts.name)
     return assemble_drive(oxts, drive_name, imu, fixes, speeds, np.eye(3), yaw_sign,
-                          fix_columns={"n_satellites": col["numsats"][locked]}, origin_s=origin_ns // 1_000_000_000)
+                          fix_columns={"n_satellites": col["numsats"][locked]}, origin_s=origin_ns // 1_000_000_000,
+                          imu_mount=np.eye(3))  # OXTS gives its inertial data in the vehicle frame
 
 
 @dataclass(frozen=True)

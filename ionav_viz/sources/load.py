@@ -31,6 +31,9 @@ class LogOptions:
     vehicle_speed_topic: str | None = None
     #: deprecated: the earlier name of ``gnss_velocity_topic``
     speed_topic: str | None = None
+    #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
+    #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu_mount)
+    imu_mount: str | None = None
 
     def __post_init__(self) -> None:
         if self.speed_topic is not None:
@@ -68,6 +71,10 @@ class ReadOptions:
             from .imu_frame import parse_imu_axes
 
             parse_imu_axes(self.log.imu_axes)  # checked before any work; names imu_axes
+        if self.log.imu_mount is not None:
+            from .imu_mount import parse_mount
+
+            parse_mount(self.log.imu_mount)  # checked before any work; names imu_mount
 
 _SUPPORTED = ("ionav-viz reads IO-VNBD V-*.csv files, MCAP (.mcap) logs, ROS 1 .bag files, ROS 2 bag folders "
               "(or their metadata.yaml / .db3) and KITTI raw drive folders")
@@ -118,10 +125,10 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
     """Read a path into a drive with the reader its kind needs (no GNSS quality marked yet)."""
     opts = options or LogOptions()
     kind = source_kind(path)
-    if kind in ("iovnbd", "kitti") and opts.imu_axes:
+    if kind in ("iovnbd", "kitti") and (opts.imu_axes or opts.imu_mount):
         what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
-        raise InputError(f"{path}: {what}; --imu-axes applies to MCAP logs and ROS bags",
-                         "leave --imu-axes out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes")
+        raise InputError(f"{path}: {what}; --imu-axes and --imu-mount apply to MCAP logs and ROS bags",
+                         "leave them out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes" if opts.imu_axes else "imu_mount")
     if kind == "iovnbd":
         from .iovnbd import read_iovnbd
 
@@ -134,7 +141,7 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
 
     return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic,
                     gnss_velocity_topic=opts.gnss_velocity_topic, vehicle_speed_topic=opts.vehicle_speed_topic,
-                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign)
+                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign, imu_mount=opts.imu_mount)
 
 
 def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mcap: LogOptions | None = None) -> Drive:

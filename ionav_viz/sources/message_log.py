@@ -58,6 +58,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
 from .imu_frame import AXES, parse_imu_axes
+from .imu_mount import parse_mount
 from .plausibility import first_implausible, implausible
 from .resample import ImuBins, assemble_drive, drop_strays, first_per_stamp
 
@@ -272,11 +273,12 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
 
 def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,
              gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
-             name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto") -> Drive:
+             name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None) -> Drive:
     """Read a message log into a drive on a 10 Hz grid (see the module docstring).
 
     ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
-    :mod:`.imu_frame`); ``yaw_sign`` ``"cw"`` says the yaw axis turns clockwise positive, ``"ccw"``
+    :mod:`.imu_frame`); ``imu_mount`` (``"auto"``, ``"roll=..,pitch=..,yaw=.."`` or
+    ``"quat=w,x,y,z"``, see :mod:`.imu_mount`) turns them further, after the axes; ``yaw_sign`` ``"cw"`` says the yaw axis turns clockwise positive, ``"ccw"``
     (REP 103) that it does not, ``"auto"`` assumes REP 103 and checks it against the GNSS course.
     """
     path = source.path
@@ -285,6 +287,7 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
+    mount = parse_mount(imu_mount) if imu_mount else None
     sel = select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic)
     roles = {c.topic: c.role for c in sel.chosen}
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
@@ -411,7 +414,7 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0], origin_s=origin_s)]
     speeds, vehicle_speeds = (_in_stamp_order(path, what, samples, origin_s) for what, samples in (("GNSS velocity", speed), ("vehicle speed", vehicle)))
     return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s,
-                          vehicle_speed=vehicle_speeds)
+                          vehicle_speed=vehicle_speeds, imu_mount=mount)
 
 
 def _in_stamp_order(path: Path, what: str, samples: list, origin_s: float) -> np.ndarray | None:

@@ -35,6 +35,7 @@ from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
 from ..core.units import wrap_360
 from .imu_frame import YAW_REVERSED, check_imu_frame
+from .imu_mount import MAX_SILENT_DEG, MIN_APPLIED_DEG, estimate_mount, format_mount, nearest_axes
 from .plausibility import first_implausible
 
 log = logging.getLogger("ionav_viz")
@@ -155,7 +156,8 @@ def first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
 
 def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed: np.ndarray | None,
                    mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None,
-                   origin_s: float = 0.0, vehicle_speed: np.ndarray | None = None) -> Drive:
+                   origin_s: float = 0.0, vehicle_speed: np.ndarray | None = None,
+                   imu_mount: np.ndarray | str | None = None) -> Drive:
     """The drive on the grid from a log's streams (see the module docstring).
 
     ``gnss``: fixes ``(t s, lat deg, lon deg, altitude m, sigma m or NaN)``, sorted, one per stamp;
@@ -165,7 +167,9 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     1970, so that float64 keeps the stamps' nanoseconds). ``fix_columns``: more per-fix drive columns
     (e.g. ``n_satellites``), each held from the last fix at every grid time. ``vehicle_speed``:
     ``(t s, speed m/s)`` sorted, the vehicle's own speed (wheel or CAN odometry), or None: the
-    drive's ``speed_can_mps``, interpolated onto the grid.
+    drive's ``speed_can_mps``, interpolated onto the grid. ``imu_mount``: a rotation (``body =
+    M @ imu``) to apply, ``"auto"`` to apply the one estimated from the log, or None to estimate
+    it and decide (:func:`_mounted`).
     """
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
     samples = imu.kept_samples()
@@ -199,10 +203,13 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         v = fit.speed_mps if v is None else v
         course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
         lat, lon = fit.lat_deg, fit.lon_deg
-    flipped = yaw_sign == "cw"
+    if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
+        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+    body = _mounted(path, t, body, v, course, imu_mount, mapping)
+    flipped = False
     if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto"):
         flipped = not flipped
-    if flipped:  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
+    if flipped:  # the yaw check found a clockwise z: turned over like --yaw-sign cw
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
@@ -221,6 +228,41 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
                  start_time_of_day_s=start_of_day, columns=columns)
+
+
+def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
+             imu_mount: np.ndarray | str | None, mapping: np.ndarray) -> np.ndarray:
+    """IMU samples ``(n, 6)`` turned into the body frame by the mount (see :mod:`.imu_mount`).
+
+    Given a rotation: applied. Otherwise estimated: with ``"auto"`` applied and reported; without,
+    below :data:`~.imu_mount.MIN_APPLIED_DEG` left alone (gravity cannot tell so small a tilt from
+    an accelerometer bias or a road's grade), up to :data:`~.imu_mount.MAX_SILENT_DEG` applied and
+    reported, beyond it a stop showing the estimate and the options.
+    """
+    if isinstance(imu_mount, np.ndarray):
+        matrix = imu_mount
+    else:
+        found = estimate_mount(t, body[:, :3], speed_mps, course_deg)
+        if found is None:
+            log.warning("%s: the IMU's mount cannot be estimated (gravity does not read 7-13 m/s^2 on average); "
+                        "its axes are used as they are", path)
+            return body
+        angle = found.angle_deg
+        if imu_mount != "auto" and angle > MAX_SILENT_DEG:
+            permutation = nearest_axes(found.matrix @ mapping)
+            axes = f", or --imu-axes {permutation} (the nearest exact permutation)" if permutation else ""
+            raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount is estimated "
+                             f"as {found.describe()}, {angle:.0f} deg from it",
+                             f"apply this estimate with --imu-mount auto, or give it as --imu-mount {format_mount(found.matrix)}{axes}",
+                             param="imu_mount")
+        if imu_mount != "auto" and angle < MIN_APPLIED_DEG:
+            return body
+        matrix = found.matrix
+        log.warning("%s: applied the IMU mount estimated from the log: %s (%.1f deg from the body frame; "
+                    "--imu-mount %s gives it exactly)", path, found.describe(), angle, format_mount(matrix))
+    out = body.copy()
+    out[:, :3], out[:, 3:] = body[:, :3] @ matrix.T, body[:, 3:] @ matrix.T
+    return out
 
 
 def _imu_frame_reversed(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,

@@ -1,0 +1,215 @@
+"""The IMU's mount: the rotation from the IMU's axes to the vehicle body frame, estimated from the
+log itself, given by the user, and applied at the reader.
+
+Convention: ``body = M @ imu`` for every specific-force and angular-rate vector, ``M`` a rotation
+(REP 103 body frame: x forward, y left, z up). The same matrix as ``--imu-axes`` (a signed
+permutation); a mount is any rotation. It is reported as the IMU's attitude in the body frame, in
+degrees, z-y-x: ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)``. So yaw +5 means the IMU's x axis points 5
+degrees to the left of forward, pitch +7 that it points 7 degrees down, roll +2 that its y axis is
+turned 2 degrees up (right-handed rotations about the body axes).
+
+Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS speed and course:
+
+* **up** (roll and pitch): the mean specific force where the vehicle stands still (speed below
+  0.3 m/s for at least 5 s in all), else over the whole drive (where the car's accelerations
+  average out), is gravity: the rotation that takes it onto +z, the shortest one;
+* **yaw**: in that levelled frame, the horizontal specific force ``h`` (east of the IMU's x, say)
+  follows the body's ``b = (dv/dt, v * omega)`` (forward: the GNSS speed's derivative; left:
+  speed times the GNSS course rate, counter-clockwise) turned by the yaw: ``h = exp(-i yaw) b`` as
+  complex numbers, so ``yaw = -arg(sum((h - mean h) * conj(b - mean b)))`` (least squares; the
+  means take out accelerometer bias and gravity left by a road's grade), over samples above 0.5 m/s
+  (a slow robot counts too), both smoothed over 1 s alike;
+* **uncertainty**: yaw's standard deviation from the residuals, ``sigma / sqrt(2 * sum |b|^2)``;
+  roll and pitch's from the spread of the still samples (or, over a whole drive, 1 degree: a
+  road's grade and the car's accelerations do not quite average out).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.units import G_MPS2
+
+#: A mount further than this from the body frame (degrees, the rotation's angle) is "clearly not
+#: in the body frame": the run stops and shows the estimate instead of guessing.
+MAX_SILENT_DEG = 10.0
+#: A mount closer than this (degrees) is left alone: gravity cannot tell so small a tilt from an
+#: accelerometer bias (0.1 m/s^2 is 0.6 deg) or the road's grade where the car stood.
+MIN_APPLIED_DEG = 2.0
+#: Still: below this speed (m/s); at least this many seconds of it make the gravity estimate.
+STILL_MPS, MIN_STILL_S = 0.3, 5.0
+#: Yaw uses samples above this speed (m/s), and needs this much horizontal excitation
+#: (sum of |b|^2 over samples, (m/s^2)^2) to say anything.
+MOVING_MPS = 0.5
+MIN_EXCITATION = 20.0
+#: Gravity must read between these (m/s^2) for the up axis to be trusted.
+GRAVITY_RANGE_MPS2 = (0.7 * G_MPS2, 1.3 * G_MPS2)
+
+
+def rotation_deg(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (degrees)."""
+    r, p, y = np.radians([roll, pitch, yaw])
+    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def angles_deg(matrix: np.ndarray) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) in degrees of a rotation ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
+    pitch = -math.degrees(math.asin(float(np.clip(matrix[2, 0], -1.0, 1.0))))
+    roll = math.degrees(math.atan2(matrix[2, 1], matrix[2, 2]))
+    yaw = math.degrees(math.atan2(matrix[1, 0], matrix[0, 0]))
+    return roll, pitch, yaw
+
+
+def rotation_angle_deg(matrix: np.ndarray) -> float:
+    """How far a rotation turns, whatever the axis (degrees)."""
+    return math.degrees(math.acos(float(np.clip((np.trace(matrix) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def nearest_axes(matrix: np.ndarray, within_deg: float = 5.0) -> str | None:
+    """The ``--imu-axes`` signed permutation within ``within_deg`` of a rotation, else None."""
+    from .imu_frame import format_imu_axes
+
+    perm = np.zeros((3, 3))
+    for row in range(3):
+        k = int(np.argmax(np.abs(matrix[row])))
+        perm[row, k] = np.sign(matrix[row, k])
+    if sorted(np.argmax(np.abs(perm), axis=1)) != [0, 1, 2] or np.linalg.det(perm) < 0:
+        return None
+    return format_imu_axes(perm) if rotation_angle_deg(perm.T @ matrix) <= within_deg else None
+
+
+def format_mount(matrix: np.ndarray) -> str:
+    """``roll=2.0,pitch=-7.0,yaw=5.0``: what ``--imu-mount`` takes back."""
+    roll, pitch, yaw = angles_deg(matrix)
+    return f"roll={roll:.1f},pitch={pitch:.1f},yaw={yaw:.1f}"
+
+
+def parse_mount(text: str) -> np.ndarray | str:
+    """``--imu-mount``: ``"auto"`` (returned as is), ``"roll=R,pitch=P,yaw=Y"`` (degrees, any of
+    them; the others 0) or ``"quat=w,x,y,z"`` (a unit quaternion of the rotation body <- IMU)."""
+    hint = "give --imu-mount auto, roll=2,pitch=-7,yaw=5 (degrees) or quat=w,x,y,z"
+    text = text.strip().lower()
+    if text == "auto":
+        return text
+    if text.startswith("quat="):
+        try:
+            w, x, y, z = (float(v) for v in text[5:].split(","))
+        except ValueError:
+            raise InputError(f"imu mount {text!r}: a quaternion is quat=w,x,y,z", hint, param="imu_mount") from None
+        norm = math.sqrt(w * w + x * x + y * y + z * z)
+        if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
+            raise InputError(f"imu mount {text!r}: not a unit quaternion (norm {norm:.4g})", hint, param="imu_mount")
+        w, x, y, z = w / norm, x / norm, y / norm, z / norm
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    angles = {"roll": 0.0, "pitch": 0.0, "yaw": 0.0}
+    for part in (p.strip() for p in text.split(",")):
+        name, sep, value = part.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not sep or name.strip() not in angles or not math.isfinite(number) or abs(number) > 360:
+            raise InputError(f"imu mount {text!r}: {part!r} is not roll=, pitch= or yaw= degrees", hint, param="imu_mount")
+        angles[name.strip()] = number
+    return rotation_deg(angles["roll"], angles["pitch"], angles["yaw"])
+
+
+@dataclass(frozen=True)
+class MountEstimate:
+    """A mount estimated from a log: ``matrix`` (``body = matrix @ imu``), its angles and their
+    standard deviations (degrees; NaN: not estimated), and how up and yaw were found."""
+
+    matrix: np.ndarray
+    sigma_deg: tuple[float, float, float]  # roll, pitch, yaw
+    up_from: str
+    yaw_known: bool
+
+    @property
+    def angles_deg(self) -> tuple[float, float, float]:
+        return angles_deg(self.matrix)
+
+    @property
+    def angle_deg(self) -> float:
+        return rotation_angle_deg(self.matrix)
+
+    def describe(self) -> str:
+        roll, pitch, yaw = self.angles_deg
+        s_roll, s_pitch, s_yaw = self.sigma_deg
+        yaw_text = f"yaw {yaw:+.1f} ± {s_yaw:.1f}" if self.yaw_known else "yaw unknown (too little motion)"
+        return f"roll {roll:+.1f} ± {s_roll:.1f}, pitch {pitch:+.1f} ± {s_pitch:.1f}, {yaw_text} deg (up from {self.up_from})"
+
+
+def _onto_z(u: np.ndarray) -> np.ndarray:
+    """The shortest rotation taking the unit vector ``u`` onto +z."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(u, z)
+    s, c = float(np.linalg.norm(axis)), float(u @ z)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])  # upside down: half a turn about x
+    k = axis / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
+
+
+def _smooth(x: np.ndarray, n: int) -> np.ndarray:
+    return np.convolve(x, np.ones(n) / n, mode="same") if len(x) >= n else x
+
+
+def estimate_mount(t_s: np.ndarray, accel_xyz: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray) -> MountEstimate | None:
+    """The mount from grid samples (``accel_xyz`` ``(n, 3)`` m/s^2 in the IMU's axes; GNSS speed,
+    course clockwise from north), or None when gravity cannot be told (see the module docstring)."""
+    if len(t_s) < 3:
+        return None
+    dt = float(np.median(np.diff(t_s)))
+    n_smooth = max(1, int(round(1.0 / dt)))
+    accel_fwd = _smooth(np.gradient(speed_mps, t_s), n_smooth)
+    turn_ccw = -np.gradient(np.unwrap(np.radians(course_deg)), t_s)
+    accel_left = _smooth(speed_mps * turn_ccw, n_smooth)
+    motion = np.column_stack([accel_fwd, accel_left, np.zeros(len(t_s))])  # the body's own acceleration
+    mean_f = accel_xyz.mean(axis=0)
+    g = float(np.linalg.norm(mean_f))
+    if not GRAVITY_RANGE_MPS2[0] <= g <= GRAVITY_RANGE_MPS2[1]:
+        return None
+    estimate = _estimate(accel_xyz, mean_f, motion, speed_mps, n_smooth)
+    for _ in range(3):  # up again, from the mean with the motion (turned into the IMU's axes) taken out
+        mean_f = (accel_xyz - motion @ estimate[0]).mean(axis=0)
+        estimate = _estimate(accel_xyz, mean_f, motion, speed_mps, n_smooth)
+    matrix, s_yaw, yaw_known = estimate
+    return MountEstimate(matrix, (1.0, 1.0, s_yaw), "the mean over the drive", yaw_known)
+
+
+def _estimate(accel_xyz: np.ndarray, mean_f: np.ndarray, motion: np.ndarray, speed_mps: np.ndarray,
+              n_smooth: int) -> tuple[np.ndarray, float, bool]:
+    """(matrix, yaw sigma deg, yaw known) for the up direction ``mean_f``."""
+    g = float(np.linalg.norm(mean_f))
+    level = _onto_z(mean_f / g)
+    h = accel_xyz @ level.T  # levelled: horizontal components in h[:, :2]
+    moving = speed_mps > MOVING_MPS
+    hc = _smooth(h[:, 0], n_smooth) + 1j * _smooth(h[:, 1], n_smooth)
+    b = motion[:, 0] + 1j * motion[:, 1]
+    hc, b = hc[moving], b[moving]
+    yaw_known = len(b) > 10
+    excitation = 0.0
+    if yaw_known:
+        hc, b = hc - hc.mean(), b - b.mean()
+        excitation = float(np.sum(np.abs(b) ** 2))
+        yaw_known = excitation >= MIN_EXCITATION
+    if yaw_known:
+        yaw = -float(np.angle(np.sum(hc * np.conj(b))))
+        residual = hc - np.exp(-1j * yaw) * b
+        sigma = float(np.sqrt(np.mean(np.abs(residual) ** 2) / 2.0))
+        # samples smoothed over 1 s are not independent: count one per second
+        s_yaw = math.degrees(sigma / math.sqrt(2.0 * excitation / n_smooth))
+    else:
+        yaw, s_yaw = 0.0, math.nan
+    rz = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+    return rz @ level, s_yaw, yaw_known
