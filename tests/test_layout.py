@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import shutil
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "ionav_viz"
@@ -113,30 +114,30 @@ def test_imports_go_one_way_only():
     assert not wrong, "\n".join(wrong)
 
 
-def assert_probe_reported(source: str, check, *fragments: str) -> None:
+def assert_probe_reported(tmp_path: Path, monkeypatch, source: str, check, *fragments: str) -> None:
     """A module ``nav/_probe.py`` holding ``source`` makes ``check`` fail with ``fragments`` in its
-    message: the rule can fail."""
-    fake = PACKAGE / "nav" / "_probe.py"
-    fake.write_text(source)
+    message: the rule can fail. The probe goes into a copy of the package (the checks read
+    :data:`PACKAGE`), never into the package itself, which tests running beside this one read."""
+    copy = tmp_path / "ionav_viz"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__", "*.csv", "*.safetensors", "*.tsv"))
+    monkeypatch.setitem(globals(), "PACKAGE", copy)
+    (copy / "nav" / "_probe.py").write_text(source)
     try:
-        try:
-            check()
-        except AssertionError as exc:
-            assert all(f in str(exc) for f in fragments), str(exc)
-        else:
-            raise AssertionError(f"{check.__name__} did not report nav/_probe.py")
-    finally:
-        fake.unlink()
+        check()
+    except AssertionError as exc:
+        assert all(f in str(exc) for f in fragments), str(exc)
+    else:
+        raise AssertionError(f"{check.__name__} did not report nav/_probe.py")
 
 
-def test_the_check_catches_an_upward_import():
-    assert_probe_reported("from ..cli import app\n", test_imports_go_one_way_only, "nav/_probe.py imports ionav_viz.cli")
+def test_the_check_catches_an_upward_import(tmp_path, monkeypatch):
+    assert_probe_reported(tmp_path, monkeypatch, "from ..cli import app\n", test_imports_go_one_way_only, "nav/_probe.py imports ionav_viz.cli")
 
 
-def test_the_check_reads_imports_of_the_package_itself():
+def test_the_check_reads_imports_of_the_package_itself(tmp_path, monkeypatch):
     """``from .. import __version__`` in nav imports the package's __init__, which re-exports the
     API: an arrow against the flow."""
-    assert_probe_reported("def f():\n    from .. import __version__\n", test_imports_go_one_way_only,
+    assert_probe_reported(tmp_path, monkeypatch, "def f():\n    from .. import __version__\n", test_imports_go_one_way_only,
                           "nav/_probe.py imports ionav_viz.__version__")
 
 
@@ -186,9 +187,10 @@ def test_every_constant_has_one_home():
     assert not through, through
 
 
-def test_the_constant_check_finds_a_copy_and_a_re_export():
-    assert_probe_reported("GRID_RATE_HZ = 10.0\n", test_every_constant_has_one_home, "GRID_RATE_HZ", "nav/_probe.py")
-    assert_probe_reported("from .windows import WINDOW_S\n", test_every_constant_has_one_home, "imports WINDOW_S from ionav_viz.nav.windows")
+def test_the_constant_check_finds_a_copy_and_a_re_export(tmp_path, monkeypatch):
+    assert_probe_reported(tmp_path / "a", monkeypatch, "GRID_RATE_HZ = 10.0\n", test_every_constant_has_one_home, "GRID_RATE_HZ", "nav/_probe.py")
+    monkeypatch.undo()
+    assert_probe_reported(tmp_path / "b", monkeypatch, "from .windows import WINDOW_S\n", test_every_constant_has_one_home, "imports WINDOW_S from ionav_viz.nav.windows")
 
 
 def test_every_subpackage_says_what_it_is():
