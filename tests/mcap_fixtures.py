@@ -160,3 +160,82 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
             w.write_message(topic, schema, msg, log_time=ns, publish_time=ns)
         w.finish()
     return path
+
+
+def _turn(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
+    """Rz(yaw) @ Ry(pitch) @ Rx(roll): the IMU's axes in the body frame (written out here, not
+    taken from ionav-viz)."""
+    r, p, y = np.radians([roll_deg, pitch_deg, yaw_deg])
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz=5, odom_hz=50, seed=0,
+                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4)):
+    """``drive`` (a simulated one) as a real car's ROS 2 MCAP looks: a 6-axis IMU at ``imu_hz`` in
+    its own frame ``imu_link``, turned by ``mount_deg`` (roll, pitch, yaw of the IMU in the body
+    frame) and offset by ``lever_arm_m`` from the body origin (the centripetal acceleration it adds
+    there), with white noise; a receiver at ``gnss_hz`` with ``gnss_sigma_m`` of noise per axis and
+    that covariance, and its velocity on ``/gps/vel``; the CAN speed as ``/wheel/odom`` Odometry at
+    ``odom_hz``; and a post-processed reference on ``/reference/fix`` (the drive's own positions).
+    Written with mcap_ros2 directly."""
+    from mcap_ros2.writer import Writer
+
+    rng = np.random.default_rng(seed)
+    t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
+    end = float(drive.t_s[-1])
+    m = _turn(*mount_deg)
+    t_imu = np.arange(0.0, end, 1.0 / imu_hz)
+    speed, yaw = (np.interp(t_imu, drive.t_s, x) for x in (drive.speed_mps, drive.yaw_rate_radps))
+    body_f = np.stack([np.interp(t_imu, drive.t_s, drive.accel_long_mps2), speed * yaw, np.full(len(t_imu), 9.81)])
+    body_f[0] -= yaw**2 * lever_arm_m[0]  # centripetal acceleration at the lever arm (turning about z)
+    body_f[1] -= yaw**2 * lever_arm_m[1]
+    body_w = np.stack([np.zeros(len(t_imu)), np.zeros(len(t_imu)), yaw])
+    accel = m.T @ body_f + rng.normal(0.0, 0.05, body_f.shape)
+    gyro = m.T @ body_w + rng.normal(0.0, 0.002, body_w.shape)
+    g_t = np.arange(0.0, end, 1.0 / gnss_hz)
+    m_per_deg = 6_371_008.8 * math.pi / 180.0
+    lat = np.interp(g_t, drive.t_s, drive.lat_deg) + rng.normal(0, gnss_sigma_m, len(g_t)) / m_per_deg
+    lon = np.interp(g_t, drive.t_s, drive.lon_deg) + rng.normal(0, gnss_sigma_m, len(g_t)) / (m_per_deg * np.cos(np.radians(lat)))
+    course = np.radians(np.interp(g_t, drive.t_s, np.rad2deg(np.unwrap(np.radians(drive.heading_deg)))))
+    g_speed = np.interp(g_t, drive.t_s, drive.speed_mps)
+    o_t = np.arange(0.0, end, 1.0 / odom_hz)
+    o_speed = np.interp(o_t, drive.t_s, drive.columns["speed_can_mps"])
+    cov = [gnss_sigma_m**2 if k in (0, 4) else (2 * gnss_sigma_m) ** 2 if k == 8 else 0.0 for k in range(9)]
+    with open(path, "wb") as f:
+        w = Writer(f)
+        schemas = {name: w.register_msgdef(name, DEFINITIONS[name]) for name in DEFINITIONS}
+        events = []
+        for i, t in enumerate(t_imu):
+            events.append((t, "/imu/data_raw", "sensor_msgs/msg/Imu", {
+                "header": {"stamp": _stamp(t0 + t), "frame_id": "imu_link"},
+                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
+                "angular_velocity": dict(zip("xyz", map(float, gyro[:, i]))), "angular_velocity_covariance": [4e-6 if k % 4 == 0 else 0.0 for k in range(9)],
+                "linear_acceleration": dict(zip("xyz", map(float, accel[:, i]))), "linear_acceleration_covariance": [2.5e-3 if k % 4 == 0 else 0.0 for k in range(9)]}))
+        for t, la, lo, c, v in zip(g_t, lat, lon, course, g_speed):
+            header = {"stamp": _stamp(t0 + t), "frame_id": "gps"}
+            events.append((t, "/gps/fix", "sensor_msgs/msg/NavSatFix", {
+                "header": header, "status": {"status": 0, "service": 1}, "latitude": float(la), "longitude": float(lo),
+                "altitude": 100.0, "position_covariance": cov, "position_covariance_type": 2}))
+            events.append((t, "/gps/vel", "geometry_msgs/msg/TwistStamped", {
+                "header": header, "twist": {"linear": {"x": float(v * math.sin(c)), "y": float(v * math.cos(c)), "z": 0.0},
+                                            "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}}))
+        for t, v in zip(o_t, o_speed):
+            events.append((t, "/wheel/odom", "nav_msgs/msg/Odometry", {
+                "header": {"stamp": _stamp(t0 + t), "frame_id": "odom"}, "child_frame_id": "base_link",
+                "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                         "covariance": [-1.0 if k % 7 == 0 else 0.0 for k in range(36)]},
+                "twist": {"twist": {"linear": {"x": float(v), "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                          "covariance": [0.0] * 36}}))
+        for i, t in enumerate(drive.t_s):
+            events.append((t, "/reference/fix", "sensor_msgs/msg/NavSatFix", {
+                "header": {"stamp": _stamp(t0 + t), "frame_id": "gps"}, "status": {"status": 2, "service": 1},
+                "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]), "altitude": 100.0,
+                "position_covariance": [1e-4 if k % 4 == 0 else 0.0 for k in range(9)], "position_covariance_type": 2}))
+        for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
+            ns = int(round((t0 + t + 0.01) * 1e9))
+            w.write_message(topic, schemas[schema], msg, log_time=ns, publish_time=ns)
+        w.finish()
+    return path
