@@ -49,3 +49,16 @@ def test_a_real_cars_log_is_read_as_recorded(log):
     np.testing.assert_allclose(drive.columns["gnss_sigma_m"], 1.0, atol=1e-9)  # the larger of east and north (up is 2 m)
     finals = {e: np.nanmean([s[e]["final_error_pct"] for s in got["sequences"]]) for e in ("ins", "odo", "ekf")}
     assert finals["odo"] < 3.0 and finals["ekf"] < finals["ins"], finals  # the wheels bridge the outages
+
+
+def test_a_poor_receiver_is_named_not_the_outage_length(tmp_path):
+    """Round 4: with a phone's poor fixes every window was 'poor-accuracy' and the error said 'no 10 s
+    outage fits (hint: use shorter outages)', which was misleading."""
+    poor = write_realistic(iv.load_drive("hard-brake"), tmp_path / "phone.mcap", gnss_sigma_m=12.0)
+    for command in ("evaluate", "replay"):
+        proc = run_cli(command, str(poor), "--gnss-topic", "/gps/fix", "--no-idnn", "-o" if command == "replay" else "--json",
+                       *([str(tmp_path / "r.rrd")] if command == "replay" else []))
+        error = proc.stderr.strip().splitlines()[-1]  # after the warnings (the mount, the GNSS quality)
+        assert proc.returncode == 2 and error.startswith("error: ") and "Traceback" not in proc.stderr, proc.stderr
+        assert "the GNSS is untrustworthy in 100% of the samples (poor-accuracy 100%)" in error, error
+        assert "shorter outages will not help" in error and "use shorter outages" not in proc.stderr

@@ -18,7 +18,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, options_of, windows_of
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, no_outage_fits, options_of, windows_of
 
 
 class ScenarioDrives(dict):
@@ -129,7 +129,7 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
     if progress:
         progress("done", len(items), len(items))
     if not results:
-        raise InputError(f"no {n:g} s outage fits in {', '.join(name_of(d) for d in items)}", "use shorter outages", param="outage_s")
+        raise no_outage_fits(loaded, n, ", ".join(name_of(d) for d in items))
     return results
 
 

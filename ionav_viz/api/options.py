@@ -9,6 +9,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..analysis.events import EVENT_TYPES, EventThresholds
 from ..core.drive import Drive
 from ..core.errors import InputError
@@ -108,3 +110,22 @@ def windows_of(outage_s: float) -> int:
 def name_of(item: DriveLike) -> str:
     return item.name if isinstance(item, Drive) else str(item)
 
+
+#: Above this share of samples with untrustworthy GNSS, "no outage fits" is the receiver's doing,
+#: not the outage length's.
+POOR_GNSS_SHARE = 0.5
+
+
+def no_outage_fits(drives: Sequence[Drive], n_windows: int, where: str) -> InputError:
+    """The error for ``where`` (drives or a file) when no outage of ``n_windows`` s fits: when most
+    of the GNSS is marked untrustworthy, that says so and why (shorter outages would not help)."""
+    from ..core.gnss_quality import count_by_fault
+
+    faults = np.concatenate([d.gnss_fault for d in drives]) if drives else np.zeros(0, dtype=np.uint16)
+    bad = float(np.mean(faults != 0)) if len(faults) else 0.0
+    if bad >= POOR_GNSS_SHARE:
+        reasons = ", ".join(f"{name} {n / len(faults):.0%}" for name, n in sorted(count_by_fault(faults).items(), key=lambda kv: -kv[1]))
+        return InputError(f"no {n_windows:g} s outage fits on good GNSS truth in {where}: the GNSS is untrustworthy in {bad:.0%} of the "
+                          f"samples ({reasons})", "shorter outages will not help: check the receiver's fixes (the recording's GNSS "
+                          "quality view), or loosen the checks with --gnss-limit (docs/method.md, GNSS quality)", param="outage_s")
+    return InputError(f"no {n_windows:g} s outage fits in {where}", "use shorter outages", param="outage_s")

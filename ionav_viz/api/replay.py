@@ -19,7 +19,7 @@ from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, options_of, windows_of
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, no_outage_fits, options_of, windows_of
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -113,6 +113,8 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
         s.detail = f"{len(events)} detected"
     plan, _ = plan_outages(d, windows, placement, n, run, events)
     if len(plan.starts) == 0 and not plan.gnss_gaps:
+        if plan.excluded:
+            raise no_outage_fits([d], n, d.source)
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {n:g} s outage", "use shorter outages", param="outage_s")
     default = out is None
     out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
