@@ -173,19 +173,19 @@ def _turn(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
 
 
 def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz=5, odom_hz=50, seed=0,
-                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4)):
+                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4), duration_s=None):
     """``drive`` (a simulated one) as a real car's ROS 2 MCAP looks: a 6-axis IMU at ``imu_hz`` in
     its own frame ``imu_link``, turned by ``mount_deg`` (roll, pitch, yaw of the IMU in the body
     frame) and offset by ``lever_arm_m`` from the body origin (the centripetal acceleration it adds
     there), with white noise; a receiver at ``gnss_hz`` with ``gnss_sigma_m`` of noise per axis and
     that covariance, and its velocity on ``/gps/vel``; the CAN speed as ``/wheel/odom`` Odometry at
     ``odom_hz``; and a post-processed reference on ``/reference/fix`` (the drive's own positions).
-    Written with mcap_ros2 directly."""
+    ``duration_s``: only the drive's first seconds. Written with mcap_ros2 directly."""
     from mcap_ros2.writer import Writer
 
     rng = np.random.default_rng(seed)
     t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
-    end = float(drive.t_s[-1])
+    end = float(drive.t_s[-1]) if duration_s is None else min(float(drive.t_s[-1]), duration_s)
     m = _turn(*mount_deg)
     t_imu = np.arange(0.0, end, 1.0 / imu_hz)
     speed, yaw = (np.interp(t_imu, drive.t_s, x) for x in (drive.speed_mps, drive.yaw_rate_radps))
@@ -229,7 +229,7 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
                          "covariance": [-1.0 if k % 7 == 0 else 0.0 for k in range(36)]},
                 "twist": {"twist": {"linear": {"x": float(v), "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
                           "covariance": [0.0] * 36}}))
-        for i, t in enumerate(drive.t_s):
+        for i, t in enumerate(drive.t_s[drive.t_s < end]):
             events.append((t, "/reference/fix", "sensor_msgs/msg/NavSatFix", {
                 "header": {"stamp": _stamp(t0 + t), "frame_id": "gps"}, "status": {"status": 2, "service": 1},
                 "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]), "altitude": 100.0,

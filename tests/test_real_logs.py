@@ -19,7 +19,7 @@ from .mcap_fixtures import write_realistic
 
 @pytest.fixture(scope="module")
 def log(tmp_path_factory):
-    return write_realistic(iv.load_drive("roundabout"), tmp_path_factory.mktemp("real") / "car.mcap")
+    return write_realistic(iv.load_drive("roundabout"), tmp_path_factory.mktemp("real") / "car.mcap", duration_s=300.0)
 
 
 def test_info_shows_each_topics_use(log):
@@ -48,13 +48,13 @@ def test_a_real_cars_log_is_read_as_recorded(log):
     np.testing.assert_allclose(np.median(drive.columns["accel_z_mps2"]), 9.81, atol=0.05)  # the mount took gravity back to z
     np.testing.assert_allclose(drive.columns["gnss_sigma_m"], 1.0, atol=1e-9)  # the larger of east and north (up is 2 m)
     finals = {e: np.nanmean([s[e]["final_error_pct"] for s in got["sequences"]]) for e in ("ins", "odo", "ekf")}
-    assert finals["odo"] < 3.0 and finals["ekf"] < finals["ins"], finals  # the wheels bridge the outages
+    assert finals["odo"] < finals["ins"] / 2 and finals["ekf"] < finals["ins"] / 2, finals  # the wheels bridge the outages
 
 
 def test_a_poor_receiver_is_named_not_the_outage_length(tmp_path):
     """Round 4: with a phone's poor fixes every window was 'poor-accuracy' and the error said 'no 10 s
     outage fits (hint: use shorter outages)', which was misleading."""
-    poor = write_realistic(iv.load_drive("hard-brake"), tmp_path / "phone.mcap", gnss_sigma_m=12.0)
+    poor = write_realistic(iv.load_drive("hard-brake"), tmp_path / "phone.mcap", gnss_sigma_m=12.0, duration_s=120.0)
     for command in ("evaluate", "replay"):
         proc = run_cli(command, str(poor), "--gnss-topic", "/gps/fix", "--no-idnn", "-o" if command == "replay" else "--json",
                        *([str(tmp_path / "r.rrd")] if command == "replay" else []))
