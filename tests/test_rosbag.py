@@ -239,3 +239,9 @@ def test_vehicle_speed_topics_are_told_from_gnss_velocity(tmp_path, drive, refer
     # a body-frame twist is not the receiver's velocity
     proc = run_cli("evaluate", str(twist), "--gnss-velocity-topic", "/vehicle/twist")
     assert proc.returncode == 2 and "is in a body frame" in proc.stderr and "--vehicle-speed-topic /vehicle/twist" in proc.stderr
+
+
+def test_the_earlier_speed_topic_is_the_gnss_velocity_topic():
+    with pytest.deprecated_call():
+        options = iv.LogOptions(speed_topic="/gps/vel")
+    assert options.gnss_velocity_topic == "/gps/vel" and options.speed_topic is None
