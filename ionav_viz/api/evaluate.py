@@ -122,7 +122,10 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
         windows = make_windows(drive)
         plan, _ = plan_outages(drive, windows, placement, n, run)
         if plan.too_short:
-            log.warning("%s: too short for a single %g s outage%s; skipped", drive.name, n, " on good GNSS truth" if plan.excluded else "")
+            if plan.excluded:
+                log.warning("%s: no %g s outage fits where the GNSS truth is good; skipped", drive.name, n)
+            else:
+                log.warning("%s: too short for a single %g s outage; skipped", drive.name, n)
             continue
         results.append(evaluate_drive(drive, n, ests, bias=bias_of(drive), starts=plan.starts, windows=windows,
                                       excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
