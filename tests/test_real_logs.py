@@ -62,3 +62,40 @@ def test_a_poor_receiver_is_named_not_the_outage_length(tmp_path):
         assert proc.returncode == 2 and error.startswith("error: ") and "Traceback" not in proc.stderr, proc.stderr
         assert "the GNSS is untrustworthy in 100% of the samples (poor-accuracy 100%)" in error, error
         assert "shorter outages will not help" in error and "use shorter outages" not in proc.stderr
+
+
+def test_a_reference_beside_the_receiver_is_the_truth(log, tmp_path):
+    """Round 4 (real logs): one GNSS topic was both the estimators' input and the truth. With
+    --truth-topic the reference scores every estimator, which get only the receiver's fixes."""
+    from rerun.chunk import RrdReader
+
+    read = iv.ReadOptions(log=iv.LogOptions(gnss_topic="/gps/fix", truth_topic="/reference/fix"))
+    seen = {}
+
+    class Records:  # a plug-in that keeps what it was given
+        name, label, needs = "records", "Records", ()
+
+        def estimate(self, inputs):
+            seen["lat0"], seen["drive"] = np.array(inputs.lat0_deg), inputs.drive
+            return iv.Estimate(np.zeros((inputs.n_outages, inputs.n_windows)), np.zeros((inputs.n_outages, inputs.n_windows)))
+
+    with_ref = json.loads(iv.evaluate(log, estimators=["ins", "odo", "ekf", Records()], read=read).to_json())
+    receiver_only = json.loads(iv.evaluate(log, estimators=["ins", "odo", "ekf"], read=iv.ReadOptions(log=iv.LogOptions(gnss_topic="/gps/fix"))).to_json())
+    assert with_ref["truth"] == "reference" and receiver_only["truth"] == "gnss"
+    drive = iv.load_drive(log, read)
+    np.testing.assert_array_equal(seen["drive"].lat_deg, drive.columns["gnss_lat_deg"])  # the receiver, not the reference
+    assert "gnss_lat_deg" not in seen["drive"].columns
+    # the 1 m receiver noise no longer counts as the estimators' error: odometry's and the filter's CRSE drop by half
+    for est in ("odo", "ekf"):
+        assert with_ref["summary"][est]["crse_m"]["mean"] < receiver_only["summary"][est]["crse_m"]["mean"] / 2, est
+    replayed = iv.replay(log, output=tmp_path / "r.rrd", estimators=["ins"], read=read)
+    entities = {str(c.entity_path) for c in RrdReader(replayed.path).stream()}
+    assert {"/map/gnss_receiver", "/local/gnss_receiver", "/map/gnss"} <= entities  # both drawn
+    assert "a reference trajectory beside the receiver" in summary_of(replayed.path)
+
+
+def summary_of(path) -> str:
+    from rerun.chunk import RrdReader
+
+    return " ".join(str(v) for c in RrdReader(path).stream() if str(c.entity_path) == "/summary"
+                    for col in c.to_record_batch().columns for v in col.to_pylist())

@@ -137,7 +137,9 @@ def evaluate_drive(
     starts = np.asarray(starts, dtype=int)
     bias = bias if bias is not None else resolve_bias(drive)
     chosen = resolve_estimators(list(estimators))
-    inputs = EstimatorInputs(drive, windows, starts, n, bias)
+    # estimators get the receiver's GNSS; they are scored against the truth (a reference, if any)
+    received = drive.as_received()
+    inputs = EstimatorInputs(received, windows if received is drive else make_windows(received), starts, n, bias)
     solutions = {}
     for est in chosen:
         with stage(f"{est.label} on {drive.name}") as s:

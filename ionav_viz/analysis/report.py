@@ -147,7 +147,9 @@ class Report:
         ``drive``, gap, outage and ``final_error_m`` per estimator), ``not_bridged`` and
         ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
         the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`).
-        ``warnings``: what the run warned about (one line each; see :attr:`warnings`).
+        ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
+        ``"gnss"`` (the receiver's fixes are the truth) or ``"reference"`` (a reference trajectory
+        beside them is; the estimators got only the receiver's).
         NaN is kept here; :meth:`to_json` writes it as null.
         """
         if self._dict is not None:
@@ -195,6 +197,7 @@ class Report:
         idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
         if idnn is not None:
             out["model"] = idnn.get("info", {})
+        out["truth"] = "reference" if any(r.drive.has_reference for r in results) else "gnss"
         out["warnings"] = list(self.warnings)
         self._dict = out
         return out
@@ -282,6 +285,8 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"- **Outages**: {placement}; {report.n_outages} outage(s)",
         f"- **{truth_line(report.to_dict())}**",
+        *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes (drawn as dots)"]
+          if drive.has_reference else []),
         f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from {bias.source}",
     ]
     info = {e["name"]: e.get("info", {}) for e in result.estimator_info()}

@@ -35,6 +35,7 @@ def info(
     gnss_topic: Optional[str] = c.GnssTopic,
     gnss_velocity_topic: Optional[str] = c.GnssVelocityTopic,
     vehicle_speed_topic: Optional[str] = c.VehicleSpeedTopic,
+    truth_topic: Optional[str] = c.TruthTopic,
 ) -> None:
     """List a log's topics (type, messages) and which ones ionav-viz would read."""
     from ..sources.load import open_message_log, source_kind
@@ -50,7 +51,7 @@ def info(
         raise InputError(f"{path}: an IO-VNBD CSV file has no topics", "info lists the topics of MCAP logs and ROS bags; replay or evaluate the CSV directly")
     from ..sources.message_log import describe_log
 
-    found = describe_log(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic)
+    found = describe_log(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, truth_topic)
     rows = [(ch.topic, str(ch.count), ch.encoding, ch.schema, ch.role or "-") for ch in found.channels]
     header = ("topic", "messages", "encoding", "type", "use")
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]

@@ -42,6 +42,10 @@ REQUIRED_COLUMNS = (
 #: bias-corrected; gravity included, so a level car at rest reads +9.81 m/s² on z).
 #: ``accel_x_mps2`` is ``accel_long_mps2`` and ``gyro_z_radps`` is ``yaw_rate_radps``.
 IMU_COLUMNS = ("accel_x_mps2", "accel_y_mps2", "accel_z_mps2", "gyro_x_radps", "gyro_y_radps", "gyro_z_radps")
+#: The GNSS receiver's own fixes, speed and course, when the drive's position columns are a
+#: separate reference trajectory (post-processed GNSS/INS, RTK): what estimators are given, while
+#: the reference is the truth they are scored against (:meth:`Drive.as_received`).
+RECEIVER_COLUMNS = ("gnss_lat_deg", "gnss_lon_deg", "gnss_speed_mps", "gnss_heading_deg")
 OPTIONAL_COLUMNS = (
     "height_m",
     "n_satellites",
@@ -55,6 +59,7 @@ OPTIONAL_COLUMNS = (
     "wheel_speed_rl_radps",
     "wheel_speed_rr_radps",
     *IMU_COLUMNS,
+    *RECEIVER_COLUMNS,
 )
 
 
@@ -74,6 +79,8 @@ class Drive:
             interpolated) and 1 elsewhere.
         gnss_fault: uint16 per sample, 0 = good GNSS truth (see :mod:`ionav_viz.core.gnss_quality`);
             all good when not given.
+        receiver_fault: with :data:`RECEIVER_COLUMNS`, the same for the receiver's fixes (which
+            of them the filters may use); None otherwise.
     """
 
     name: str
@@ -82,6 +89,7 @@ class Drive:
     start_time_of_day_s: float
     columns: dict[str, np.ndarray] = field(repr=False)
     gnss_fault: np.ndarray | None = field(default=None, repr=False)
+    receiver_fault: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         missing = [c for c in REQUIRED_COLUMNS if c not in self.columns]
@@ -135,6 +143,22 @@ class Drive:
     def gnss_ok(self) -> np.ndarray:
         """Whether each sample's GNSS fix is trustworthy ground truth."""
         return self.gnss_fault == 0
+
+    @property
+    def has_reference(self) -> bool:
+        """Whether the positions are a reference trajectory beside the receiver's own fixes."""
+        return RECEIVER_COLUMNS[0] in self.columns
+
+    def as_received(self) -> Drive:
+        """The drive as its GNSS receiver saw it: positions, speed and course from
+        :data:`RECEIVER_COLUMNS`, quality from ``receiver_fault``. What estimators are given; the
+        drive itself when it has no separate reference."""
+        if not self.has_reference:
+            return self
+        columns = {k: v for k, v in self.columns.items() if k not in RECEIVER_COLUMNS}
+        columns |= {"lat_deg": self.columns["gnss_lat_deg"], "lon_deg": self.columns["gnss_lon_deg"],
+                    "speed_mps": self.columns["gnss_speed_mps"], "heading_deg": self.columns["gnss_heading_deg"]}
+        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, self.receiver_fault)
 
     @property
     def duration_s(self) -> float:

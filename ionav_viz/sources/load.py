@@ -31,6 +31,9 @@ class LogOptions:
     vehicle_speed_topic: str | None = None
     #: deprecated: the earlier name of ``gnss_velocity_topic``
     speed_topic: str | None = None
+    #: a reference trajectory (NavSatFix: post-processed GNSS/INS, RTK) beside the receiver: the truth
+    #: every score is measured against, while the estimators get only the GNSS topic
+    truth_topic: str | None = None
     #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
     #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu_mount)
     imu_mount: str | None = None
@@ -141,7 +144,8 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
 
     return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic,
                     gnss_velocity_topic=opts.gnss_velocity_topic, vehicle_speed_topic=opts.vehicle_speed_topic,
-                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign, imu_mount=opts.imu_mount)
+                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign, imu_mount=opts.imu_mount,
+                    truth_topic=opts.truth_topic)
 
 
 def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mcap: LogOptions | None = None) -> Drive:
@@ -177,9 +181,21 @@ def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> Re
 def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
     """Set ``drive.gnss_fault`` from the GNSS quality checks and say once what was found."""
     cols = drive.columns
-    drive.gnss_fault = assess_gnss(drive.t_s, drive.lat_deg, drive.lon_deg, drive.speed_mps, cols.get("n_satellites"),
-                                   cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
-                                   has_fix=cols.get("gnss_fix"), accel_mps2=drive.accel_long_mps2)
+    received = drive.as_received()  # the receiver's own fixes, sigma and gaps
+    receiver_fault = assess_gnss(drive.t_s, received.lat_deg, received.lon_deg, received.speed_mps, cols.get("n_satellites"),
+                                 cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
+                                 has_fix=cols.get("gnss_fix"), accel_mps2=drive.accel_long_mps2)
+    if drive.has_reference:  # the truth is the reference: its own continuity checks only
+        drive.receiver_fault = receiver_fault
+        drive.gnss_fault = assess_gnss(drive.t_s, drive.lat_deg, drive.lon_deg, drive.speed_mps, limits=limits,
+                                       accel_mps2=drive.accel_long_mps2)
+        bad_input = receiver_fault != 0
+        if bad_input.any():
+            log.warning("%s: %d of %d samples of the receiver's GNSS are not trustworthy (%s); the filters do not use them",
+                        drive.source, int(bad_input.sum()), len(drive),
+                        ", ".join(f"{name} {n}" for name, n in count_by_fault(receiver_fault).items()))
+    else:
+        drive.gnss_fault = receiver_fault
     bad = ~drive.gnss_ok
     if bad.any():
         reasons = ", ".join(f"{name} {n}" for name, n in count_by_fault(drive.gnss_fault).items())

@@ -95,10 +95,11 @@ class Selection:
     gnss_velocity: ChannelInfo | None
     vehicle_speed: ChannelInfo | None
     channels: list[ChannelInfo] = field(default_factory=list)
+    reference: ChannelInfo | None = None
 
     @property
     def chosen(self) -> list[ChannelInfo]:
-        return [c for c in (self.imu, self.gnss, self.gnss_velocity, self.vehicle_speed) if c is not None]
+        return [c for c in (self.imu, self.gnss, self.gnss_velocity, self.vehicle_speed, self.reference) if c is not None]
 
 
 class MessageLog(Protocol):
@@ -142,7 +143,7 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
 
 def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
                     gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None,
-                    channels: list[ChannelInfo] | None = None) -> Selection:
+                    channels: list[ChannelInfo] | None = None, truth_topic: str | None = None) -> Selection:
     """The topics to read, by message type or by the given topics (see the module docstring).
 
     A ``TwistStamped`` topic is GNSS velocity when its first message's frame is a world frame, and
@@ -157,7 +158,14 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     for c in channels:
         c.role = ""
     imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
-    gnss = _pick(channels, GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
+    reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "--truth-topic", path, False) if truth_topic else None
+    if reference is not None and reference.schema not in GNSS_SCHEMAS[:2]:
+        raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}", "give a sensor_msgs/NavSatFix topic as --truth-topic",
+                         param="truth_topic")
+    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
+    if reference is not None and gnss is reference:
+        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "give the receiver's topic as --gnss-topic",
+                         param="truth_topic")
     named = {t for t in (gnss_velocity_topic, vehicle_speed_topic) if t not in (None, NO_TOPIC)}
     body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
     world_twists = [c for c in channels if c.schema in TWIST_SCHEMAS and c.topic not in body_twists and c.topic not in named]
@@ -181,7 +189,7 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
         if len(found) > 1:
             log.warning("%s: several vehicle speed topics (%s); none is used: choose one with --vehicle-speed-topic",
                         path, ", ".join(c.topic for c in found))
-    for role, ch in (("IMU", imu), ("GNSS", gnss), ("GNSS velocity", velocity), ("vehicle speed", vehicle)):
+    for role, ch in (("IMU", imu), ("GNSS", gnss), ("GNSS velocity", velocity), ("vehicle speed", vehicle), ("reference (truth)", reference)):
         if ch is None:
             continue
         ch.role = role
@@ -189,7 +197,7 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
             raise InputError(f"{path}: {role} topic {ch.topic} has message encoding {ch.encoding!r}", f"ionav-viz reads {' and '.join(source.encodings)} messages from this format")
         if ch.count == 0:
             raise InputError(f"{path}: {role} topic {ch.topic} has no messages", "record some, or choose another topic")
-    return Selection(imu, gnss, velocity, vehicle, channels)
+    return Selection(imu, gnss, velocity, vehicle, channels, reference)
 
 
 def _in_body_frame(source: MessageLog, channel: ChannelInfo) -> bool:
@@ -222,11 +230,13 @@ class LogDescription:
 
 
 def describe_log(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
-                 gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None) -> LogDescription:
+                 gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None,
+                 truth_topic: str | None = None) -> LogDescription:
     """Every topic of the log, with the roles the reader would give them (or why it cannot)."""
     channels = source.channels()
     try:
-        select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, channels=channels)
+        select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, channels=channels,
+                        truth_topic=truth_topic)
         problem = None
     except InputError as exc:
         for c in channels:
@@ -273,7 +283,8 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
 
 def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,
              gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
-             name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None) -> Drive:
+             name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None,
+             truth_topic: str | None = None) -> Drive:
     """Read a message log into a drive on a 10 Hz grid (see the module docstring).
 
     ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
@@ -288,11 +299,12 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
     mount = parse_mount(imu_mount) if imu_mount else None
-    sel = select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic)
+    sel = select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, truth_topic=truth_topic)
     roles = {c.topic: c.role for c in sel.chosen}
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
     speed: list[tuple[float, float, float]] = []  # GNSS velocity: t, speed m/s, course deg
     vehicle: list[tuple[float, float]] = []  # vehicle speed: t, m/s
+    reference: list[tuple[float, float, float]] = []  # the reference trajectory: t, lat, lon
     dropped_no_fix = 0
     not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
     last_t: dict[str, float] = {}  # per role, the previous message's stamp
@@ -370,6 +382,15 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
                     in_order(role, t)
                     gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
+                elif role == "reference (truth)":
+                    t = when(msg, log_ns, "header", "stamp")
+                    lat, lon = float(_get(msg, "latitude")), float(_get(msg, "longitude"))
+                    if int(_get(msg, "status", "status")) < 0 or not (math.isfinite(lat) and math.isfinite(lon)):
+                        continue
+                    check(topic, t, "latitude", "lat_deg", lat)
+                    check(topic, t, "longitude", "lon_deg", lon)
+                    in_order(role, t)
+                    reference.append((t, lat, lon))
                 elif role == "GNSS velocity":
                     t = when(msg, log_ns, "header", "stamp")
                     lin = _get(msg, "twist", "linear")
@@ -413,8 +434,14 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
     fixes = first_per_stamp(path, np.asarray(gnss))
     fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0], origin_s=origin_s)]
     speeds, vehicle_speeds = (_in_stamp_order(path, what, samples, origin_s) for what, samples in (("GNSS velocity", speed), ("vehicle speed", vehicle)))
+    truth = None
+    if sel.reference is not None:
+        truth = _in_stamp_order(path, "reference", reference, origin_s)
+        if truth is None or len(truth) < 2:
+            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another --truth-topic")
+        truth = truth[np.concatenate([[True], np.diff(truth[:, 0]) > 0])]
     return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s,
-                          vehicle_speed=vehicle_speeds, imu_mount=mount)
+                          vehicle_speed=vehicle_speeds, imu_mount=mount, reference=truth)
 
 
 def _in_stamp_order(path: Path, what: str, samples: list, origin_s: float) -> np.ndarray | None:

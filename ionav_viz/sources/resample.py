@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.drive import IMU_COLUMNS, Drive
+from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
 from ..core.units import wrap_360
@@ -157,7 +157,7 @@ def first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
 def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed: np.ndarray | None,
                    mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None,
                    origin_s: float = 0.0, vehicle_speed: np.ndarray | None = None,
-                   imu_mount: np.ndarray | str | None = None) -> Drive:
+                   imu_mount: np.ndarray | str | None = None, reference: np.ndarray | None = None) -> Drive:
     """The drive on the grid from a log's streams (see the module docstring).
 
     ``gnss``: fixes ``(t s, lat deg, lon deg, altitude m, sigma m or NaN)``, sorted, one per stamp;
@@ -169,7 +169,9 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     ``(t s, speed m/s)`` sorted, the vehicle's own speed (wheel or CAN odometry), or None: the
     drive's ``speed_can_mps``, interpolated onto the grid. ``imu_mount``: a rotation (``body =
     M @ imu``) to apply, ``"auto"`` to apply the one estimated from the log, or None to estimate
-    it and decide (:func:`_mounted`).
+    it and decide (:func:`_mounted`). ``reference``: ``(t s, lat deg, lon deg)`` sorted, a reference
+    trajectory: then it is the drive's position, speed and course (the truth), fitted like fixes,
+    and the receiver's go into :data:`~ionav_viz.core.drive.RECEIVER_COLUMNS`.
     """
     g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
     samples = imu.kept_samples()
@@ -214,6 +216,11 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
     columns |= dict(zip(IMU_COLUMNS, body.T, strict=True))  # the full IMU, body frame
+    if reference is not None:
+        truth = fit_fixes(t, reference[:, 0], reference[:, 1], reference[:, 2])
+        columns |= dict(zip(RECEIVER_COLUMNS, (lat, lon, v, course), strict=True))
+        columns |= {"lat_deg": truth.lat_deg, "lon_deg": truth.lon_deg, "speed_mps": truth.speed_mps,
+                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS)}
     if first_implausible("height_m", alt) is None:
         columns["height_m"] = alt
     if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one

@@ -51,6 +51,11 @@ def truth_bad(view: str) -> str:
     return f"{view}/gnss_bad"
 
 
+def receiver(view: str) -> str:
+    """The receiver's own fixes (static), where the truth is a separate reference."""
+    return f"{view}/gnss_receiver"
+
+
 def truth_position(view: str) -> str:
     return f"{view}/gnss/position"
 

@@ -29,7 +29,7 @@ from . import entities as ent
 from .blueprints import blueprint
 from .geometry import map_zoom, screen_xy
 from .layers import Layers, log_events, log_grid, log_outage_frames, log_real_outages
-from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, estimator_colors, faded
+from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
 
 APP_ID = "ionav-viz"
 
@@ -129,7 +129,8 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     # Styling and static layers, once.
     estimators = list(result.estimates)
     colors = {**estimator_colors(result.estimators), "gnss": GNSS_COLOR, "gyro": GYRO_COLOR}
-    labels = {**{e.name: e.label for e in result.estimators}, "gnss": GNSS_LABEL, "gyro": GYRO_LABEL}
+    labels = {**{e.name: e.label for e in result.estimators}, "gnss": REFERENCE_LABEL if drive.has_reference else GNSS_LABEL,
+              "gyro": GYRO_LABEL}
     for est in ["gyro", "gnss", *estimators]:
         rec.log(ent.yaw_rate(est), rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]), static=True)
     for est in ["gnss", *estimators]:
@@ -152,6 +153,12 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
                                                   radii=rr.Radius.ui_points(1.5)), static=True)
         rec.log(ent.truth_bad(ent.LOCAL), rr.LineStrips2D([truth_xy[a:b] for a, b in bad_runs], colors=[BAD_GNSS_COLOR],
                                                   radii=rr.Radius.ui_points(1.5), draw_order=11), static=True)
+    if drive.has_reference:  # the receiver's fixes the estimators were given, as small dots beside the truth
+        rx_ll = np.column_stack([drive.columns["gnss_lat_deg"], drive.columns["gnss_lon_deg"]])
+        rx_east, rx_north = local_en_m(rx_ll[:, 0], rx_ll[:, 1], lat0, lon0)
+        rec.log(ent.receiver(ent.MAP), rr.GeoPoints(lat_lon=rx_ll[usable], colors=[RECEIVER_COLOR], radii=rr.Radius.ui_points(1.5)), static=True)
+        rec.log(ent.receiver(ent.LOCAL), rr.Points2D(screen_xy(rx_east, rx_north)[usable], colors=[RECEIVER_COLOR],
+                                                     radii=rr.Radius.ui_points(1.5), draw_order=9), static=True)
     rec.log(ent.SUMMARY, rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
     step("static layers")
 

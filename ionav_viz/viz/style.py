@@ -24,6 +24,9 @@ BAD_GNSS_COLOR: RGB = (175, 175, 175)
 GRID_COLOR: RGB = (55, 55, 55)
 SCALE_COLOR: RGB = (220, 220, 220)
 GNSS_LABEL = "GNSS (truth)"
+#: Where the truth is a reference beside the receiver: its label, and the receiver's fixes' colour.
+REFERENCE_LABEL = "reference (truth)"
+RECEIVER_COLOR: RGB = (120, 200, 150)
 GYRO_LABEL = "gyro"
 
 #: Colours for plug-ins that bring none (distinct from the GNSS green and the built-ins' red and blue).
