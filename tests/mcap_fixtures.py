@@ -173,14 +173,18 @@ def _turn(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
 
 
 def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz=5, odom_hz=50, seed=0,
-                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4), duration_s=None):
+                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4), duration_s=None, reference_frame=None):
     """``drive`` (a simulated one) as a real car's ROS 2 MCAP looks: a 6-axis IMU at ``imu_hz`` in
     its own frame ``imu_link``, turned by ``mount_deg`` (roll, pitch, yaw of the IMU in the body
     frame) and offset by ``lever_arm_m`` from the body origin (the centripetal acceleration it adds
     there), with white noise; a receiver at ``gnss_hz`` with ``gnss_sigma_m`` of noise per axis and
     that covariance, and its velocity on ``/gps/vel``; the CAN speed as ``/wheel/odom`` Odometry at
     ``odom_hz``; and a post-processed reference on ``/reference/fix`` (the drive's own positions).
-    ``duration_s``: only the drive's first seconds. Written with mcap_ros2 directly."""
+    ``duration_s``: only the drive's first seconds. ``reference_frame`` ``(lat0, lon0, yaw_deg)``:
+    the reference is also on ``/reference/odom``, an Odometry in the local frame ``map`` whose
+    origin is at ``lat0, lon0`` and whose x axis points ``yaw_deg`` counter-clockwise from east
+    (east and north from the geodesic's distance and azimuth: the azimuthal equidistant plane).
+    Written with mcap_ros2 directly."""
     from mcap_ros2.writer import Writer
 
     rng = np.random.default_rng(seed)
@@ -234,6 +238,21 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
                 "header": {"stamp": _stamp(t0 + t), "frame_id": "gps"}, "status": {"status": 2, "service": 1},
                 "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]), "altitude": 100.0,
                 "position_covariance": [1e-4 if k % 4 == 0 else 0.0 for k in range(9)], "position_covariance_type": 2}))
+        if reference_frame is not None:
+            from pyproj import Geod
+
+            lat0, lon0, yaw0 = reference_frame
+            keep = drive.t_s < end
+            az, _, dist = Geod(ellps="WGS84").inv(np.full(keep.sum(), lon0), np.full(keep.sum(), lat0), drive.lon_deg[keep], drive.lat_deg[keep])
+            east, north = dist * np.sin(np.radians(az)), dist * np.cos(np.radians(az))
+            c, s_ = math.cos(math.radians(yaw0)), math.sin(math.radians(yaw0))
+            for t, x, y in zip(drive.t_s[keep], c * east + s_ * north, -s_ * east + c * north):
+                events.append((t, "/reference/odom", "nav_msgs/msg/Odometry", {
+                    "header": {"stamp": _stamp(t0 + t), "frame_id": "map"}, "child_frame_id": "base_link",
+                    "pose": {"pose": {"position": {"x": float(x), "y": float(y), "z": 3.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                             "covariance": [0.0] * 36},
+                    "twist": {"twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                              "covariance": [0.0] * 36}}))
         for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
             ns = int(round((t0 + t + 0.01) * 1e9))
             w.write_message(topic, schemas[schema], msg, log_time=ns, publish_time=ns)

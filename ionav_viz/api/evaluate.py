@@ -79,6 +79,7 @@ def evaluate(
     read: ReadOptions | None = None,
     progress: Progress | None = None,
     mcap: LogOptions | None = None,
+    truth: str | None = None,
 ) -> Report:
     """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
 
@@ -92,6 +93,8 @@ def evaluate(
         read: how drives are read (:class:`ReadOptions`); outages go only where every window has
             good GNSS truth, and the report counts what was excluded.
         mcap: deprecated, ``read.log``.
+        truth: a message log's reference topic, the truth every score is measured against
+            (a shortcut for ``read.log.truth_topic``; see :class:`LogOptions`).
 
     Returns:
         a :class:`Report`; ``report.to_json()`` is what ``ionav-viz evaluate --json`` prints.
@@ -101,7 +104,7 @@ def evaluate(
         raise InputError("no drive to evaluate", "give at least one drive")
     placement = placement or Tile()
     n = windows_of(outage_s)  # checked before any drive is read
-    run, read = options_of(run, estimators, read, mcap)
+    run, read = options_of(run, estimators, read, mcap, truth)
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()
@@ -145,6 +148,7 @@ def evaluate_by_event(
     run: RunOptions | None = None,
     read: ReadOptions | None = None,
     mcap: LogOptions | None = None,
+    truth: str | None = None,
 ) -> dict[str, Report]:
     """One report per manoeuvre type: an outage centred on each detected event, across ``drives``
     (``types`` default: every manoeuvre type; ``gnss-outage``: the log's own losses, bridged).
@@ -152,7 +156,7 @@ def evaluate_by_event(
     kinds = tuple(types) if types else MANOEUVRE_TYPES
     check_event_types(kinds)
     n = windows_of(outage_s)
-    run, read = options_of(run, estimators, read, mcap)
+    run, read = options_of(run, estimators, read, mcap, truth)
     run.chosen()
     with collecting_warnings() as warned:
         per_type = _evaluate_by_event_each(drives, n, kinds, run, read)

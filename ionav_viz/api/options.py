@@ -83,14 +83,22 @@ class RunOptions:
 
 
 def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | None, read: ReadOptions | None,
-             mcap: LogOptions | None) -> tuple[RunOptions, ReadOptions]:
-    """The run and read options of a call: ``estimators`` is a shortcut for ``run.estimators``."""
+             mcap: LogOptions | None, truth: str | None = None) -> tuple[RunOptions, ReadOptions]:
+    """The run and read options of a call: ``estimators`` is a shortcut for ``run.estimators``,
+    ``truth`` for ``read.log.truth_topic``."""
     run = run if run is not None else RunOptions()
     if estimators is not None:
         if run.estimators is not None:
             raise InputError("estimators given twice (as estimators= and in run=)", "give them once", param="estimators")
         run = replace(run, estimators=estimators)
-    return run, with_deprecated_log(read, mcap)
+    read = with_deprecated_log(read, mcap)
+    if truth is not None:
+        if not isinstance(truth, str) or not truth:
+            raise InputError(f"truth={truth!r} is not a topic name", "give the reference's topic, e.g. truth='/reference/fix'", param="truth")
+        if read.log.truth_topic not in (None, truth):
+            raise InputError("the reference given twice (as truth= and in read.log.truth_topic)", "give it once", param="truth")
+        read = replace(read, log=replace(read.log, truth_topic=truth))
+    return run, read
 
 
 

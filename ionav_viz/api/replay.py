@@ -64,11 +64,12 @@ def replay(
     progress: Progress | None = None,
     connect: str | None = None,
     mcap: LogOptions | None = None,
+    truth: str | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
 
     Args:
-        drive, outage_s, placement, estimators, run, read: as for :func:`evaluate`
+        drive, outage_s, placement, estimators, run, read, truth: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
         output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
             directory, the folder made when missing); an existing file is replaced atomically,
@@ -90,7 +91,7 @@ def replay(
         raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     placement = placement or Tile()
     n = windows_of(outage_s)
-    run, read = options_of(run, estimators, read, mcap)
+    run, read = options_of(run, estimators, read, mcap, truth)
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

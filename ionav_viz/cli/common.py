@@ -19,8 +19,10 @@ import typer
 DataRoot = typer.Option(None, "--data-root", help="IO-VNBD checkout to find run names in (default: $IONAV_DATA).", show_default=False)
 YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the yaw rate: auto (the source's convention, checked against the GNSS heading), cw or ccw positive.")
 ImuAxes = typer.Option(None, "--imu-axes", help="MCAP/ROS bags: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
-TruthTopic = typer.Option(None, "--truth-topic", help="MCAP/ROS bags: a reference trajectory (NavSatFix: post-processed, RTK) to score against; estimators get only the GNSS topic.",
+TruthTopic = typer.Option(None, "--truth-topic", help="MCAP/ROS bags: a reference trajectory to score against (NavSatFix, or Odometry/PoseStamped with --truth-origin); estimators get only the GNSS topic.",
                           show_default=False)
+TruthOrigin = typer.Option(None, "--truth-origin", help="Where a local-frame reference lies: LAT,LON[,YAW] (its origin; x axis YAW deg from east) or auto (fitted to the GNSS fixes).",
+                           show_default=False)
 ImuMount = typer.Option(None, "--imu-mount", help="MCAP/ROS bags: the IMU's mount, after --imu-axes: auto (estimated from the log), roll=2,pitch=-7,yaw=5 (degrees) or quat=w,x,y,z.",
                         show_default=False)
 ImuTopic = typer.Option(None, "--imu-topic", help="MCAP/ROS bags: the IMU topic (default: the one sensor_msgs/msg/Imu topic).", show_default=False)
@@ -45,7 +47,8 @@ ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha25
 _SOURCE_OPTIONS = (
     ("data_root_opt", DataRoot, Optional[Path]), ("yaw_sign", YawSign, str), ("imu_topic", ImuTopic, Optional[str]),
     ("gnss_topic", GnssTopic, Optional[str]), ("gnss_velocity_topic", GnssVelocityTopic, Optional[str]),
-    ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("truth_topic", TruthTopic, Optional[str]), ("stamps", Stamps, str),
+    ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("truth_topic", TruthTopic, Optional[str]),
+    ("truth_origin", TruthOrigin, Optional[str]), ("stamps", Stamps, str),
     ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
 )
 
@@ -75,7 +78,8 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
         from ..sources.load import LogOptions, ReadOptions
 
         log = LogOptions(v["imu_topic"], v["gnss_topic"], v["gnss_velocity_topic"], v["stamps"], v["imu_axes"],
-                         vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"], truth_topic=v["truth_topic"])
+                         vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"], truth_topic=v["truth_topic"],
+                         truth_origin=v["truth_origin"])
         return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])))
 
     return _with_options(command, _SOURCE_OPTIONS, "read", build)

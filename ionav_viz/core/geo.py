@@ -25,3 +25,13 @@ def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_d
     to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
     east, north = to_local.transform(np.asarray(lon_deg), np.asarray(lat_deg))
     return np.asarray(east), np.asarray(north)
+
+
+def geodetic_of_en_m(east_m: np.ndarray, north_m: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Latitude and longitude (deg) of east and north offsets (m) from an origin: the inverse of
+    :func:`local_en_m` (the same azimuthal equidistant projection)."""
+    from pyproj import Transformer
+
+    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
+    lon, lat = to_local.transform(np.asarray(east_m, dtype=float), np.asarray(north_m, dtype=float), direction="INVERSE")
+    return np.asarray(lat), np.asarray(lon)

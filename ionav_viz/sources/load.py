@@ -34,6 +34,9 @@ class LogOptions:
     #: a reference trajectory (NavSatFix: post-processed GNSS/INS, RTK) beside the receiver: the truth
     #: every score is measured against, while the estimators get only the GNSS topic
     truth_topic: str | None = None
+    #: where a reference in a local frame (Odometry, PoseStamped) lies: "LAT,LON[,YAW]" (degrees; the frame's
+    #: origin, x axis YAW counter-clockwise from east) or "auto" (fitted to the receiver's fixes; sources.reference)
+    truth_origin: str | None = None
     #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
     #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu_mount)
     imu_mount: str | None = None
@@ -78,6 +81,10 @@ class ReadOptions:
             from .imu_mount import parse_mount
 
             parse_mount(self.log.imu_mount)  # checked before any work; names imu_mount
+        if self.log.truth_origin is not None:
+            from .reference import parse_origin
+
+            parse_origin(self.log.truth_origin)
 
 _SUPPORTED = ("ionav-viz reads IO-VNBD V-*.csv files, MCAP (.mcap) logs, ROS 1 .bag files, ROS 2 bag folders "
               "(or their metadata.yaml / .db3) and KITTI raw drive folders")
@@ -128,6 +135,9 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
     """Read a path into a drive with the reader its kind needs (no GNSS quality marked yet)."""
     opts = options or LogOptions()
     kind = source_kind(path)
+    if kind in ("iovnbd", "kitti") and (opts.truth_topic or opts.truth_origin):
+        raise InputError(f"{path}: --truth-topic and --truth-origin choose a reference topic of an MCAP log or ROS bag",
+                         "leave them out: this file's GNSS is its truth", param="truth_topic" if opts.truth_topic else "truth_origin")
     if kind in ("iovnbd", "kitti") and (opts.imu_axes or opts.imu_mount):
         what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
         raise InputError(f"{path}: {what}; --imu-axes and --imu-mount apply to MCAP logs and ROS bags",
@@ -145,7 +155,7 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
     return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic,
                     gnss_velocity_topic=opts.gnss_velocity_topic, vehicle_speed_topic=opts.vehicle_speed_topic,
                     stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign, imu_mount=opts.imu_mount,
-                    truth_topic=opts.truth_topic)
+                    truth_topic=opts.truth_topic, truth_origin=opts.truth_origin)
 
 
 def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mcap: LogOptions | None = None) -> Drive:

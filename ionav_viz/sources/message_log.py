@@ -27,6 +27,11 @@ and ``--vehicle-speed-topic`` choose when there are several or none match):
   too), which odometry and the filter's speed updates use. Several candidates (wheel odometry
   beside robot_localization's fused ``/odometry/filtered``) use none, with a warning;
   ``--vehicle-speed-topic none`` leaves a log's vehicle speed out.
+* Reference (optional, ``--truth-topic``): a trajectory to score against beside the receiver
+  (post-processed GNSS/INS, RTK): a ``NavSatFix``, or an ``Odometry``/``PoseStamped``/
+  ``PoseWithCovarianceStamped`` in a local world frame that ``--truth-origin`` places on the earth
+  (:mod:`.reference`). It becomes the drive's positions, speed and course; the receiver's fixes
+  stay the estimators' GNSS (:data:`~ionav_viz.core.drive.RECEIVER_COLUMNS`).
 * Values: every value is checked against the physical limits of :mod:`.plausibility` (an
   impossible one is an error naming the topic and stamp). Fixes with ``status.status < 0`` or a
   non-finite position (how drivers say "no fix") are dropped with one warning; of fixes sharing a
@@ -60,6 +65,7 @@ from ..core.grid import GRID_RATE_HZ
 from .imu_frame import AXES, parse_imu_axes
 from .imu_mount import parse_mount
 from .plausibility import first_implausible, implausible
+from .reference import parse_origin, place_reference
 from .resample import ImuBins, assemble_drive, drop_strays, first_per_stamp
 
 log = logging.getLogger("ionav_viz")
@@ -69,6 +75,10 @@ GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.
 TWIST_SCHEMAS = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/TwistStamped")
 ODOMETRY_SCHEMAS = ("nav_msgs/msg/Odometry", "nav_msgs/Odometry")
 SPEED_SCHEMAS = TWIST_SCHEMAS + ODOMETRY_SCHEMAS
+POSE_SCHEMAS = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/PoseStamped",
+                "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/PoseWithCovarianceStamped")
+#: A reference trajectory: fixes, or poses in a local world frame placed by ``--truth-origin`` (:mod:`.reference`).
+REFERENCE_SCHEMAS = GNSS_SCHEMAS[:2] + ODOMETRY_SCHEMAS + POSE_SCHEMAS
 BODY_FRAMES = ("base_link", "base_footprint", "body", "vehicle")
 #: ``vehicle_speed_topic`` that leaves a log's vehicle speed out (what the IMU alone achieves).
 NO_TOPIC = "none"
@@ -159,14 +169,15 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
         c.role = ""
     imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
     reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "--truth-topic", path, False) if truth_topic else None
-    if reference is not None and reference.schema not in GNSS_SCHEMAS[:2]:
-        raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}", "give a sensor_msgs/NavSatFix topic as --truth-topic",
+    if reference is not None and reference.schema not in REFERENCE_SCHEMAS:
+        raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}",
+                         "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with --truth-origin), as --truth-topic",
                          param="truth_topic")
     gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
     if reference is not None and gnss is reference:
         raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "give the receiver's topic as --gnss-topic",
                          param="truth_topic")
-    named = {t for t in (gnss_velocity_topic, vehicle_speed_topic) if t not in (None, NO_TOPIC)}
+    named = {t for t in (gnss_velocity_topic, vehicle_speed_topic, truth_topic) if t not in (None, NO_TOPIC)}
     body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
     world_twists = [c for c in channels if c.schema in TWIST_SCHEMAS and c.topic not in body_twists and c.topic not in named]
     if gnss_velocity_topic is not None:
@@ -284,13 +295,15 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
 def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,
              gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
              name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None,
-             truth_topic: str | None = None) -> Drive:
+             truth_topic: str | None = None, truth_origin: str | None = None) -> Drive:
     """Read a message log into a drive on a 10 Hz grid (see the module docstring).
 
     ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
     :mod:`.imu_frame`); ``imu_mount`` (``"auto"``, ``"roll=..,pitch=..,yaw=.."`` or
     ``"quat=w,x,y,z"``, see :mod:`.imu_mount`) turns them further, after the axes; ``yaw_sign`` ``"cw"`` says the yaw axis turns clockwise positive, ``"ccw"``
     (REP 103) that it does not, ``"auto"`` assumes REP 103 and checks it against the GNSS course.
+    ``truth_topic``: a reference trajectory, the drive's truth (NavSatFix, or Odometry/PoseStamped
+    in a local frame placed by ``truth_origin``: ``"auto"`` or ``"LAT,LON[,YAW]"``, see :mod:`.reference`).
     """
     path = source.path
     if stamps not in ("header", "log"):
@@ -299,12 +312,16 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
     mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
     mount = parse_mount(imu_mount) if imu_mount else None
+    origin = parse_origin(truth_origin) if truth_origin else None
     sel = select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, truth_topic=truth_topic)
+    if sel.reference is not None and sel.reference.schema not in GNSS_SCHEMAS and origin is None:
+        place_reference(np.zeros((0, 3)), None, np.zeros((0, 3)), f"{path}: reference {sel.reference.topic} ({sel.reference.schema})")
     roles = {c.topic: c.role for c in sel.chosen}
     gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
     speed: list[tuple[float, float, float]] = []  # GNSS velocity: t, speed m/s, course deg
     vehicle: list[tuple[float, float]] = []  # vehicle speed: t, m/s
-    reference: list[tuple[float, float, float]] = []  # the reference trajectory: t, lat, lon
+    reference: list[tuple[float, float, float]] = []  # the reference trajectory: t, lat, lon (or x, y m in a local frame)
+    reference_frame: list[str] = []  # a local reference's frame_id
     dropped_no_fix = 0
     not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
     last_t: dict[str, float] = {}  # per role, the previous message's stamp
@@ -382,6 +399,14 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
                     in_order(role, t)
                     gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
+                elif role == "reference (truth)" and sel.reference.schema not in GNSS_SCHEMAS:
+                    t = when(msg, log_ns, "header", "stamp")
+                    pose = _get(msg, "pose", "pose") if sel.reference.schema not in POSE_SCHEMAS[:2] else _get(msg, "pose")
+                    position = _get(pose, "position")
+                    if not reference_frame:
+                        reference_frame.append(_frame_id(msg))
+                    in_order(role, t)
+                    reference.append((t, float(_get(position, "x")), float(_get(position, "y"))))
                 elif role == "reference (truth)":
                     t = when(msg, log_ns, "header", "stamp")
                     lat, lon = float(_get(msg, "latitude")), float(_get(msg, "longitude"))
@@ -440,6 +465,13 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
         if truth is None or len(truth) < 2:
             raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another --truth-topic")
         truth = truth[np.concatenate([[True], np.diff(truth[:, 0]) > 0])]
+        if sel.reference.schema not in GNSS_SCHEMAS:
+            where = f"{path}: reference {sel.reference.topic} (frame {reference_frame[0] or 'unnamed'!r})"
+            truth, how = place_reference(truth, origin, fixes, where)
+            log.warning("%s: %s", where, how)
+    elif origin is not None:
+        raise InputError(f"{path}: --truth-origin places a reference in a local frame, and no --truth-topic is given",
+                         "name the reference with --truth-topic, or leave --truth-origin out", param="truth_origin")
     return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s,
                           vehicle_speed=vehicle_speeds, imu_mount=mount, reference=truth)
 
