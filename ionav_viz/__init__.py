@@ -32,6 +32,7 @@ _EXPORTS = {
     "training_drives": "api", "replay_scenario": "api", "simulate": "api", "convert": "api", "fetch": "api", "list_runs": "api",
     "RunSelection": "api", "DatasetSource": "api", "WebServing": "api", "evaluate_by_event": "api", "replay": "api", "screenshot": "api",
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
+    "outage_log": "api", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
     "Estimate": "nav.protocol", "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol",
@@ -69,6 +70,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .api import (
         DatasetSource,
         Outage,
+        OutageLogResult,
         ReplayResult,
         RunOptions,
         RunSelection,
@@ -81,6 +83,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         fetch,
         find_events,
         list_runs,
+        outage_log,
         replay,
         replay_scenario,
         scenario_drives,
@@ -94,5 +97,6 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .core.errors import InputError, ToolFailure
     from .nav.bias import SensorBias
     from .nav.outages import AroundEvents, At, Every, Random, Tile
+    from .nav.plan_file import FromPlan
     from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs
     from .sources.load import LogOptions, ReadOptions, load_drive

@@ -20,6 +20,7 @@ from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
 from .options import RunOptions
+from .outage_log import OutageLogResult, outage_log
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_scenario, serve_web
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
@@ -31,6 +32,7 @@ __all__ = [
     "DatasetSource",
     "DetectorQuality",
     "Outage",
+    "OutageLogResult",
     "ReplayResult",
     "RunOptions",
     "RunSelection",
@@ -44,6 +46,7 @@ __all__ = [
     "fetch",
     "find_events",
     "list_runs",
+    "outage_log",
     "replay",
     "replay_scenario",
     "scenario_drives",

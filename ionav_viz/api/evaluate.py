@@ -13,12 +13,13 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
-from ..nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement, Tile
+from ..nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement
+from ..nav.plan_file import FromPlan
 from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, no_outage_fits, options_of, windows_of
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, no_outage_fits, options_of, placement_of, windows_of
 
 
 class ScenarioDrives(dict):
@@ -63,6 +64,10 @@ def plan_outages(drive: Drive, windows: Windows, placement: Placement, n_windows
           events: list[Event] | None = None) -> tuple[OutagePlan, list[Event]]:
     """The placement's plan for one drive, with the events it was planned on (detected when the
     placement needs them and they were not given)."""
+    from ..nav.plan_file import FromPlan
+
+    if isinstance(placement, FromPlan):
+        placement = placement.for_drive(drive)
     if events is None and placement.event_types:
         events = detect_events(drive, run.thresholds)
     return placement.plan(windows, n_windows, events or [], drive.source), events or []
@@ -71,7 +76,7 @@ def plan_outages(drive: Drive, windows: Windows, placement: Placement, n_windows
 
 def evaluate(
     drives: Sequence[DriveLike] | DriveLike,
-    outage_s: float = 10.0,
+    outage_s: float | None = None,
     placement: Placement | None = None,
     estimators: Sequence[str | Estimator] | None = None,
     *,
@@ -80,6 +85,7 @@ def evaluate(
     progress: Progress | None = None,
     mcap: LogOptions | None = None,
     truth: str | None = None,
+    plan: str | Path | None = None,
 ) -> Report:
     """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
 
@@ -93,6 +99,8 @@ def evaluate(
         read: how drives are read (:class:`ReadOptions`); outages go only where every window has
             good GNSS truth, and the report counts what was excluded.
         mcap: deprecated, ``read.log``.
+        plan: an outage plan file (``OUT.outages.json`` of :func:`outage_log`): exactly its outages
+            (instead of ``placement``; the outage length is the plan's).
         truth: a message log's reference topic, the truth every score is measured against
             (a shortcut for ``read.log.truth_topic``; see :class:`LogOptions`).
 
@@ -102,8 +110,10 @@ def evaluate(
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
-    placement = placement or Tile()
-    n = windows_of(outage_s)  # checked before any drive is read
+    placement = placement_of(placement, plan)
+    n = windows_of(outage_s, placement)  # checked before any drive is read
+    if isinstance(placement, FromPlan) and len(items) != 1:
+        raise InputError(f"a plan is made for one drive, and {len(items)} are given", "evaluate the plan's drive alone", param="plan")
     run, read = options_of(run, estimators, read, mcap, truth)
     if placement.event_types:
         check_event_types(placement.event_types)
@@ -141,7 +151,7 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
 
 def evaluate_by_event(
     drives: Sequence[DriveLike],
-    outage_s: float = 10.0,
+    outage_s: float | None = None,
     types: Sequence[str] | None = None,
     estimators: Sequence[str | Estimator] | None = None,
     *,

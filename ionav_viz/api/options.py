@@ -109,9 +109,34 @@ def check_event_types(types: Sequence[str]) -> None:
 
 
 
-def windows_of(outage_s: float) -> int:
-    """The one place seconds become windows: the outage length (whole seconds) as windows."""
-    return outage_windows(outage_s)
+def placement_of(placement: Any, plan: str | Path | None) -> Any:
+    """The placement of a call: ``plan`` (a plan file) or ``placement``, default :class:`Tile`."""
+    from ..nav.outages import Tile
+    from ..nav.plan_file import FromPlan
+
+    if plan is not None:
+        if placement is not None:
+            raise InputError("outages given twice (a plan and a placement)", "give a plan or a placement, not both", param="plan")
+        return FromPlan(plan)
+    return placement or Tile()
+
+
+#: The outage length when none is given (s).
+DEFAULT_OUTAGE_S = 10.0
+
+
+def windows_of(outage_s: float | None, placement: object = None) -> int:
+    """The one place seconds become windows: the outage length (whole seconds; None: a plan file's
+    length, else :data:`DEFAULT_OUTAGE_S`) as windows. A plan file's placement fixes the length."""
+    from ..nav.plan_file import FromPlan
+
+    if isinstance(placement, FromPlan):
+        planned = placement.file.outage_s
+        if outage_s is not None and float(outage_s) != planned:
+            raise InputError(f"outage length {outage_s:g} s, and the plan {placement.path} has {planned:g} s outages",
+                             "leave the outage length out with a plan", param="outage_s")
+        outage_s = planned
+    return outage_windows(DEFAULT_OUTAGE_S if outage_s is None else outage_s)
 
 
 

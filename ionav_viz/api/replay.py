@@ -13,13 +13,13 @@ from ..core.errors import InputError
 from ..core.fileio import check_output_file
 from ..core.timing import stage
 from ..core.warnings_log import collecting_warnings
-from ..nav.outages import Placement, Tile
+from ..nav.outages import Placement
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, no_outage_fits, options_of, windows_of
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, no_outage_fits, options_of, placement_of, windows_of
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -54,7 +54,7 @@ class ReplayResult:
 
 def replay(
     drive: DriveLike,
-    outage_s: float = 10.0,
+    outage_s: float | None = None,
     placement: Placement | None = None,
     estimators: Sequence[str | Estimator] | None = None,
     output: str | Path | None = None,
@@ -65,11 +65,12 @@ def replay(
     connect: str | None = None,
     mcap: LogOptions | None = None,
     truth: str | None = None,
+    plan: str | Path | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
 
     Args:
-        drive, outage_s, placement, estimators, run, read, truth: as for :func:`evaluate`
+        drive, outage_s, placement, estimators, run, read, truth, plan: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
         output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
             directory, the folder made when missing); an existing file is replaced atomically,
@@ -89,8 +90,8 @@ def replay(
     out = Path(output) if output is not None else None
     if out is not None and out.suffix.lower() != ".rrd":
         raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
-    placement = placement or Tile()
-    n = windows_of(outage_s)
+    placement = placement_of(placement, plan)
+    n = windows_of(outage_s, placement)
     run, read = options_of(run, estimators, read, mcap, truth)
     if placement.event_types:
         check_event_types(placement.event_types)

@@ -33,6 +33,25 @@ VehicleSpeedTopic = typer.Option(None, "--vehicle-speed-topic", help="MCAP/ROS b
                                  show_default=False)
 Stamps = typer.Option("header", "--stamps", help="MCAP/ROS bags: time stamps from message headers (header) or the recorder's receive time (log).")
 OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
+PlanOpt = typer.Option(None, "--plan", help="Exactly the outages of a plan file (NAME.outages.json, written by outage-log) instead of --every/--at/--random/--on.",
+                       show_default=False)
+
+
+#: ``--outage`` of the commands that also take ``--plan`` (not given: 10 s, or the plan's length).
+OutageOrPlanOpt = typer.Option(None, "--outage", help="Length of each GNSS outage (whole seconds; default 10s, or the plan's).", show_default=False)
+
+
+def outage_and_placement(outage: Optional[str], plan: Optional[Path], placement: PlacementArgs) -> tuple[Optional[float], Any]:
+    """The outage length and placement of a command with ``--plan``: with a plan, its length unless
+    --outage is given (the library checks they agree) and its outages (no other placement)."""
+    length = duration_s(outage, "--outage") if outage is not None else None
+    if plan is None:
+        return length, placement.placement
+    if placement.option != "--outage":
+        raise typer.BadParameter(f"give --plan or {placement.option.split()[0]}, not both", param_hint="--plan")
+    from ..nav.plan_file import FromPlan
+
+    return length, FromPlan(plan)
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
 NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
 EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, odo, ekf, or names registered by installed packages (default: every built-in that applies).", show_default=False)

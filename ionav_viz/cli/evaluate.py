@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any, Optional
 
 import typer
@@ -18,7 +19,8 @@ from .app import app, options_named
 @c.with_placement_options
 def evaluate(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
-    outage: str = c.OutageOpt,
+    outage: Optional[str] = c.OutageOrPlanOpt,
+    plan: Optional[Path] = c.PlanOpt,
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
@@ -34,9 +36,11 @@ def evaluate(
     from ..analysis.report import json_safe, overview_reports, reports_to_json
     from ..analysis.tables import render_overview
 
-    outage_s = c.duration_s(outage, "--outage")
+    outage_s, chosen = c.outage_and_placement(outage, plan, placement)
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
+    if by_event and plan is not None:
+        raise typer.BadParameter("--by-event places one outage on each event; --plan places the plan's", param_hint="--by-event")
     if by_event and placement.on is None and placement.option != "--outage":
         raise typer.BadParameter(f"--by-event places one outage on each event; {placement.option.split()[0]} places them otherwise", param_hint="--by-event")
     groups = api.scenario_drives(scenario, read.data_root) if scenario else {None: list(drives or [])}
@@ -44,11 +48,11 @@ def evaluate(
         print(f"drives: {groups.source}", file=sys.stderr)
     if not any(groups.values()):
         raise typer.BadParameter("give at least one drive (or --scenario)", param_hint="DRIVES")
-    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
+    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage or '10s'}", placement="--plan" if plan else placement.option):
         if by_event:
             reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on, run=run, read=read)
         else:
-            reports = {group: replace(api.evaluate(specs, outage_s, placement.placement, run=run, read=read,
+            reports = {group: replace(api.evaluate(specs, outage_s, chosen, run=run, read=read,
                                                    progress=c.progress_callback(bar, "evaluating")), title=group)
                        for group, specs in groups.items()}
 

@@ -81,6 +81,9 @@ class Drive:
             all good when not given.
         receiver_fault: with :data:`RECEIVER_COLUMNS`, the same for the receiver's fixes (which
             of them the filters may use); None otherwise.
+        start_stamp_s: the source's own time stamp of the first sample (s): UNIX seconds for
+            message logs and KITTI, the CSV's time since the start of the day for IO-VNBD (which
+            carries no date); None: unknown (then :meth:`stamp_s` uses ``start_time_of_day_s``).
     """
 
     name: str
@@ -90,6 +93,7 @@ class Drive:
     columns: dict[str, np.ndarray] = field(repr=False)
     gnss_fault: np.ndarray | None = field(default=None, repr=False)
     receiver_fault: np.ndarray | None = field(default=None, repr=False)
+    start_stamp_s: float | None = None
 
     def __post_init__(self) -> None:
         missing = [c for c in REQUIRED_COLUMNS if c not in self.columns]
@@ -158,7 +162,13 @@ class Drive:
         columns = {k: v for k, v in self.columns.items() if k not in RECEIVER_COLUMNS}
         columns |= {"lat_deg": self.columns["gnss_lat_deg"], "lon_deg": self.columns["gnss_lon_deg"],
                     "speed_mps": self.columns["gnss_speed_mps"], "heading_deg": self.columns["gnss_heading_deg"]}
-        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, self.receiver_fault)
+        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, self.receiver_fault,
+                     self.start_stamp_s)
+
+    def stamp_s(self, t_s: np.ndarray | float) -> np.ndarray | float:
+        """The source's own time stamp (s, see ``start_stamp_s``) of drive time ``t_s`` (s since the first sample)."""
+        start = self.start_stamp_s if self.start_stamp_s is not None else self.start_time_of_day_s
+        return start + t_s
 
     @property
     def duration_s(self) -> float:

@@ -8,7 +8,7 @@ So the first window of each segment never starts an outage. The same holds for b
 (:attr:`Windows.truth_ok`): every window of an outage, and the one before it, must have good
 truth, so a stretch of bad fixes splits a segment as a gap does.
 
-Placements are values (:class:`Tile`, :class:`Every`, :class:`At`, :class:`Random`,
+Placements are values (:class:`Tile`, :class:`Every`, :class:`At`, :class:`Random`, :class:`Planned`,
 :class:`AroundEvents`), each planning its own outages (``plan(windows, n_windows, events, source)
 -> OutagePlan``: starts, description, what bad truth excluded, GNSS losses to bridge), over these
 functions (all return sorted start indices into :class:`~ionav_viz.nav.windows.Windows`):
@@ -290,7 +290,31 @@ class AroundEvents:
         return OutagePlan(starts, description, excluded_by_truth(windows, n_windows, lambda w: around(w, spans, n_windows)[0]), gaps)
 
 
-Placement = Tile | Every | At | Random | AroundEvents
+@dataclass(frozen=True)
+class Planned:
+    """Exactly the outages of a plan file (``--plan``, :mod:`.plan_file`): starts in s since the
+    drive's first sample, each on a window boundary (within 1 ms) with room for the outage, else an
+    error naming the outage: the plan was made on another drive, or the drive was read differently."""
+
+    times_s: tuple[float, ...]
+    description: str
+    where: str = "the plan"
+    event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
+
+    def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
+        starts: list[int] = []
+        for i, t in enumerate(self.times_s):
+            k = int(np.argmin(np.abs(windows.t0_s - t))) if len(windows) else -1
+            if k < 0 or abs(windows.t0_s[k] - t) > 1e-3 or not valid_start(windows, k, n_windows):
+                raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start) does not fit this drive's windows",
+                                 "give the drive and reading options the plan was made with", param="plan")
+            if starts and k < starts[-1] + n_windows:
+                raise InputError(f"{self.where}: outage {i + 1} overlaps the one before it", "write the plan again with outage-log", param="plan")
+            starts.append(k)
+        return OutagePlan(np.asarray(starts, dtype=int), self.description)
+
+
+Placement = Tile | Every | At | Random | AroundEvents | Planned
 
 
 def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> list[tuple[int, int, int]]:

@@ -334,6 +334,7 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
         rate_hz=_nominal_rate(t_s),
         start_time_of_day_s=float(time_of_day[0] % _DAY_S),
         columns=values,
+        start_stamp_s=float(time_of_day[0]),
     )
 
 

@@ -20,8 +20,9 @@ Also carried: ``height_m`` as the fix's altitude, ``gnss_sigma_m`` as a diagonal
 (``gnss_fix`` 0) as fixes with ``status.status = -1`` (no fix), which the reader drops. Other
 columns are not carried; :func:`write_mcap` names them.
 
-Every message of a sample carries the same header stamp, also used as log and publish time:
-UTC time of day of the sample on 1970-01-01 (IO-VNBD logs carry no date).
+Every message of a sample carries the same header stamp, also used as log and publish time: the
+source's own stamp (:meth:`~ionav_viz.core.drive.Drive.stamp_s`: UNIX time for message logs and
+KITTI; for IO-VNBD, which carries no date, the UTC time of day on 1970-01-01).
 """
 
 from __future__ import annotations
@@ -60,14 +61,16 @@ def _header(stamp_ns: int, frame: str) -> dict:
 
 
 def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = None,
-               vehicle_speed_from: tuple[str, ...] = ()) -> Written:
+               vehicle_speed_from: tuple[str, ...] = (), omit_gnss: np.ndarray | None = None) -> Written:
     """Write ``drive`` to ``path`` (atomically), with ``vehicle_speed_mps`` (per sample, or None)
-    on ``/wheel/odom``; ``vehicle_speed_from``: the columns it stands for (carried through it)."""
+    on ``/wheel/odom``; ``vehicle_speed_from``: the columns it stands for (carried through it).
+    ``omit_gnss``: per sample, True where no ``/gps/fix`` and ``/gps/vel`` message is written (an outage)."""
     from mcap_ros2.writer import Writer
 
     check_output_file(Path(path))
     n = len(drive)
-    t_ns = np.rint((drive.start_time_of_day_s + drive.t_s) * 1e9).astype(np.int64)
+    t_ns = np.rint(np.asarray(drive.stamp_s(drive.t_s)) * 1e9).astype(np.int64)
+    omit = np.zeros(n, dtype=bool) if omit_gnss is None else np.asarray(omit_gnss, dtype=bool)
     heading = np.deg2rad(drive.heading_deg)
     v_east, v_north = drive.speed_mps * np.sin(heading), drive.speed_mps * np.cos(heading)
     height = drive.columns.get("height_m", np.zeros(n))
@@ -122,6 +125,8 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
                               "covariance": [0.0] * 36},
                 }
             for key in keys:
+                if omit[i] and key in ("fix", "vel"):
+                    continue
                 writer.write_message(TOPICS[key], schemas[key], msgs[key], log_time=stamp, publish_time=stamp)
                 count += 1
         writer.finish()

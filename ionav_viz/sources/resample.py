@@ -234,7 +234,7 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         columns[column] = np.asarray(values, dtype=float)[last_fix]
     start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
-                 start_time_of_day_s=start_of_day, columns=columns)
+                 start_time_of_day_s=start_of_day, columns=columns, start_stamp_s=origin_s + float(t[0]))
 
 
 def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,

@@ -1,0 +1,106 @@
+"""``outage_log``: a drive's log with the GNSS removed inside the outages ``replay``/``evaluate``
+would place, and the plan that scores an estimate made on it (:mod:`ionav_viz.nav.plan_file`)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, is_dataclass
+from pathlib import Path
+
+from ..core.errors import InputError
+from ..core.fileio import atomic_path, check_output_file
+from ..core.timing import stage
+from ..nav.outages import Placement
+from ..nav.plan_file import FromPlan, PlanFile, checksum
+from ..nav.windows import make_windows
+from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
+from .evaluate import plan_outages
+from .options import DriveLike, RunOptions, check_event_types, no_outage_fits, options_of, placement_of, windows_of
+
+
+@dataclass(frozen=True)
+class OutageLogResult:
+    """What :func:`outage_log` wrote: the outaged log, its plan file and the plan."""
+
+    path: Path
+    plan_path: Path
+    plan: PlanFile
+    removed: int
+
+    def __repr__(self) -> str:
+        return (f"OutageLogResult({str(self.path)!r}, plan {str(self.plan_path)!r}: {len(self.plan.start_stamps_s)} outage(s) of "
+                f"{self.plan.outage_s:g} s, {self.removed} GNSS message(s) removed)")
+
+
+def plan_path_of(output: Path) -> Path:
+    """``drive.mcap`` -> ``drive.outages.json`` beside it."""
+    return output.with_name(output.stem + ".outages.json")
+
+
+def outage_log(
+    drive: DriveLike,
+    output: str | Path,
+    outage_s: float | None = None,
+    placement: Placement | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+) -> OutageLogResult:
+    """Write ``drive``'s log with its GNSS removed inside each outage, and the plan beside it.
+
+    The outages are exactly those :func:`evaluate` and :func:`replay` place with the same
+    ``outage_s``, ``placement`` (and seed) and ``read`` options. ``output``'s suffix chooses the
+    format (:mod:`ionav_viz.sources.outage_writer`: ``.mcap`` from any source, every other topic of
+    an MCAP source kept byte for byte; ``.csv`` from an IO-VNBD file, the logger's no-fix rows).
+    The plan goes to ``OUTPUT`` with ``.outages.json`` for its suffix: give it to
+    ``evaluate(..., plan=...)`` with the same drive to score an estimate made on the outaged log.
+    Both files are written atomically, or neither.
+    """
+    from ..sources.message_log import select_channels
+    from ..sources.outage_writer import write_outage_log
+
+    out = Path(output)
+    plan_file = plan_path_of(out)
+    check_output_file(out)
+    check_output_file(plan_file)
+    if isinstance(drive, (str, Path)) is False:
+        raise InputError(f"outage_log needs the drive's file, not a {type(drive).__name__}", "give its path or name", param="drive")
+    if isinstance(placement, FromPlan):
+        raise InputError("outage_log places outages itself", "give a placement (Tile, Every, At, Random, AroundEvents)", param="placement")
+    placement = placement_of(placement, None)
+    n = windows_of(outage_s, placement)
+    run, read = options_of(run, None, read, None)
+    if placement.event_types:
+        check_event_types(placement.event_types)
+    d = load_drive(drive, read)
+    source = Path(d.source)
+    kind = source_kind(source)
+    with stage("windows"):
+        windows = make_windows(d)
+    plan, _ = plan_outages(d, windows, placement, n, run)
+    if plan.gnss_gaps and not len(plan.starts):
+        raise InputError(f"{d.name}: --on gnss-outage bridges the log's own GNSS losses; there is nothing to remove",
+                         "place synthetic outages (--every, --at, --random, --on a manoeuvre)", param="placement")
+    if not len(plan.starts):
+        raise no_outage_fits([d], n, "")
+    start_s = windows.t0_s[plan.starts]
+    stamps = [float(s) for s in d.stamp_s(start_s)]
+    outages = [(a, a + n) for a in stamps]
+    gnss_topics: tuple[str, ...] = ()
+    if kind == "mcap":
+        sel = select_channels(open_message_log(source, kind), read.log.imu_topic, read.log.gnss_topic, read.log.gnss_velocity_topic,
+                              read.log.vehicle_speed_topic, truth_topic=read.log.truth_topic)
+        gnss_topics = tuple(c.topic for c in (sel.gnss, sel.gnss_velocity) if c is not None)
+    clock = ("IO-VNBD time since the start of the day (s)" if kind == "iovnbd"
+             else f"UNIX time (s), the messages' {'log times' if read.log.stamps == 'log' else 'header stamps'}")
+    options = {"type": type(placement).__name__, **(asdict(placement) if is_dataclass(placement) else {})}
+    with stage(f"write {out.name}"):
+        written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps)
+    result = PlanFile(str(source), checksum(source), d.name, float(n), plan.description, options, tuple(stamps),
+                      tuple(float(s) for s in start_s), clock, written.removed_topics)
+    try:
+        with atomic_path(plan_file) as tmp:
+            tmp.write_text(result.to_json(), encoding="utf-8")
+    except BaseException:
+        out.unlink(missing_ok=True)  # both or neither
+        raise
+    return OutageLogResult(out, plan_file, result, written.removed)

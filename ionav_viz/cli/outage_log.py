@@ -1,0 +1,37 @@
+"""``ionav-viz outage-log``: a drive's log with the GNSS removed inside the outages, for an estimator
+outside ionav-viz, and the plan that scores what it comes back with (``evaluate --plan``)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from . import common as c
+from .app import app, options_named
+
+
+@app.command("outage-log")
+@c.with_source_options
+@c.with_placement_options
+def outage_log(
+    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
+    output: Path = typer.Option(..., "-o", "--output", help="The outaged log: .mcap (any source; an MCAP source's other topics kept) or .csv (an IO-VNBD source); the plan goes beside it as NAME.outages.json."),
+    outage: str = c.OutageOpt,
+    placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
+    read: Any = None,  # ReadOptions (c.with_source_options)
+) -> None:
+    """Write a drive's log without GNSS inside the outages replay/evaluate would place, and the plan to score an estimate made on it."""
+    from .. import api
+
+    outage_s = c.duration_s(outage, "--outage")
+    with options_named(outage_s=f"--outage {outage}", placement=placement.option):
+        done = api.outage_log(drive_spec, output, outage_s, placement.placement, read=read)
+    plan = done.plan
+    print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "
+          f"from {', '.join(plan.removed_topics)}", file=sys.stderr)
+    print(f"the same outages: ionav-viz evaluate {drive_spec} --plan {done.plan_path}", file=sys.stderr)
+    print(done.path)
+    print(done.plan_path)

@@ -1,0 +1,162 @@
+"""Writing a drive's log with its GNSS removed inside outages (``ionav-viz outage-log``), for an
+estimator outside ionav-viz to run on.
+
+Every outage is ``(start, end]`` on the source's own clock (:meth:`~ionav_viz.core.drive.Drive.stamp_s`):
+the fix at its start stays (the estimators' start state), every GNSS message after it up to and
+including its end goes. Formats, by the output's name:
+
+* ``.mcap`` from an MCAP source: every message of every topic copied byte for byte, in the
+  file's order, except the GNSS fixes and GNSS velocity (the topics the reader uses) stamped inside an
+  outage (the header stamp, or the log time with ``stamps="log"``, as the reader decides).
+* ``.mcap`` from any other source: the drive as ``ionav-viz convert`` writes it
+  (:mod:`.mcap_writer`, stamps on the source's clock), without ``/gps/fix`` and ``/gps/vel``
+  messages inside an outage. Where the drive has a reference truth, the receiver's fixes are written.
+* ``.csv`` from an IO-VNBD ``V-*.csv``: every line as it was, except rows whose time of day lies
+  inside an outage: the logger's no-fix convention, 0 satellites and the last fix before the
+  outage repeated in the GNSS columns (latitude to vertical velocity).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.drive import Drive
+from ..core.errors import InputError
+from ..core.fileio import atomic_path, atomic_write_bytes, check_output_file
+
+log = logging.getLogger("ionav_viz")
+
+
+@dataclass(frozen=True)
+class OutageLog:
+    """What :func:`write_outage_log` wrote: the file, its format, how many GNSS messages (or CSV rows)
+    it left out, from which topics (or columns)."""
+
+    path: Path
+    format: str
+    removed: int
+    removed_topics: tuple[str, ...]
+
+
+def inside(stamps_s: np.ndarray, outages: Sequence[tuple[float, float]]) -> np.ndarray:
+    """Which stamps lie inside an outage ``(start, end]`` (s on the same clock)."""
+    stamps_s = np.asarray(stamps_s, dtype=float)
+    hit = np.zeros(len(stamps_s), dtype=bool)
+    for a, b in outages:
+        hit |= (stamps_s > a + 1e-6) & (stamps_s <= b + 1e-6)
+    return hit
+
+
+def write_outage_log(drive: Drive, source: Path, kind: str, outages: Sequence[tuple[float, float]], out: Path,
+                     gnss_topics: Sequence[str] = (), stamps: str = "header") -> OutageLog:
+    """Write ``drive`` (read from ``source``, of reader ``kind``) with its GNSS removed inside
+    ``outages`` (``(start, end]`` stamps, s) to ``out`` (atomically; format by its suffix).
+    ``gnss_topics``: for a message-log source, the topics the reader took GNSS from."""
+    suffix = out.suffix.lower()
+    check_output_file(out)
+    if suffix == ".csv":
+        if kind != "iovnbd":
+            raise InputError(f"{out}: a CSV outage log is an IO-VNBD file, and {source} is not one", "write .mcap instead", param="output")
+        return _iovnbd(source, outages, out)
+    if suffix != ".mcap":
+        raise InputError(f"{out}: unsupported outage-log format {suffix or '(none)'}",
+                         "write .mcap (any source) or .csv (an IO-VNBD source)", param="output")
+    if kind == "mcap":
+        return _mcap_copy(source, outages, out, tuple(gnss_topics), stamps)
+    return _mcap_from_drive(drive, outages, out)
+
+
+def _mcap_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: Path) -> OutageLog:
+    from ..nav.vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+    from .mcap_writer import TOPICS, write_mcap
+
+    received = drive.as_received()
+    found = vehicle_speed(received)
+    speed_mps, columns = None, ()
+    if found is not None:
+        values, unit, described = found
+        speed_mps, columns = (values * NOMINAL_RADIUS_M if unit == "rad/s" else values), tuple(described.split(" and "))
+    lost = inside(received.stamp_s(received.t_s), outages)
+    write_mcap(received, out, speed_mps, columns, omit_gnss=lost)
+    return OutageLog(out, "mcap", int(lost.sum()) * 2, (TOPICS["fix"], TOPICS["vel"]))
+
+
+def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
+    from mcap.writer import Writer
+    from mcap_ros2.decoder import DecoderFactory
+
+    from .mcap_reader import _iter_messages
+    from .message_log import _get, _stamp_ns, decode_json
+
+    factory = DecoderFactory()
+    decoders: dict[int, Any] = {}
+    schema_ids: dict[int, int] = {}
+    channel_ids: dict[int, int] = {}
+    removed = 0
+
+    def stamp_s(schema: Any, channel: Any, message: Any) -> float:
+        if stamps == "log":
+            return message.log_time * 1e-9
+        if channel.message_encoding == "json":
+            msg = decode_json(source, channel.topic, message.data, message.log_time)
+        else:
+            if channel.id not in decoders:
+                decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
+            msg = decoders[channel.id](message.data)
+        try:
+            ns = _stamp_ns(_get(msg, "timestamp") if schema is not None and schema.name.startswith("foxglove") else _get(msg, "header", "stamp"))
+        except (KeyError, AttributeError, TypeError, ValueError):
+            ns = 0
+        return (ns if ns > 0 else message.log_time) * 1e-9
+
+    with atomic_path(out, suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream, open(source, "rb") as f:
+        writer = Writer(stream)
+        writer.start(profile="ros2", library="ionav-viz outage-log")
+        for schema, channel, message in _iter_messages(source, f, None):
+            if channel.topic in gnss_topics and inside(np.array([stamp_s(schema, channel, message)]), outages)[0]:
+                removed += 1
+                continue
+            if schema is not None and schema.id not in schema_ids:
+                schema_ids[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channel_ids:
+                channel_ids[channel.id] = writer.register_channel(channel.topic, channel.message_encoding,
+                                                                  schema_ids.get(channel.schema_id, 0), dict(channel.metadata))
+            writer.add_message(channel_ids[channel.id], message.log_time, message.data, message.publish_time, message.sequence)
+        writer.finish()
+    return OutageLog(out, "mcap", removed, gnss_topics)
+
+
+#: IO-VNBD columns the logger fills from its fix (latitude ... vertical velocity), and the satellites.
+_SATELLITES, _TIME, _GNSS_COLUMNS = 0, 1, (2, 3, 4, 5, 6, 7)
+
+
+def _iovnbd(source: Path, outages: Sequence[tuple[float, float]], out: Path) -> OutageLog:
+    raw = source.read_bytes()
+    lines = raw.splitlines(keepends=True)
+    removed, last_fix = 0, None
+    for i, line in enumerate(lines[1:], start=1):
+        body = line.rstrip(b"\r\n")
+        cells = body.split(b",")
+        try:
+            t = float(cells[_TIME])
+        except (IndexError, ValueError):
+            continue  # a line the reader skips or refuses: left as it is
+        if not inside(np.array([t]), outages)[0]:
+            last_fix = cells
+            continue
+        if last_fix is None:
+            continue
+        cells = list(cells)
+        cells[_SATELLITES] = b"0"
+        for k in _GNSS_COLUMNS:
+            cells[k] = last_fix[k]
+        lines[i] = b",".join(cells) + line[len(body):]
+        removed += 1
+    atomic_write_bytes(out, b"".join(lines))
+    return OutageLog(out, "iovnbd", removed, ("GNSS columns (satellites 0, the last fix repeated)",))
