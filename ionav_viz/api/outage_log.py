@@ -15,6 +15,7 @@ from ..nav.windows import make_windows
 from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
 from .evaluate import plan_outages
 from .options import DriveLike, RunOptions, check_event_types, no_outage_fits, options_of, placement_of, windows_of
+from .simulation import vehicle_speed_for_log
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,7 @@ def outage_log(
              else f"UNIX time (s), the messages' {'log times' if read.log.stamps == 'log' else 'header stamps'}")
     options = {"type": type(placement).__name__, **(asdict(placement) if is_dataclass(placement) else {})}
     with stage(f"write {out.name}"):
-        written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps)
+        written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps, vehicle_speed_for_log(d.as_received()))
     result = PlanFile(str(source), checksum(source), d.name, float(n), plan.description, options, tuple(stamps),
                       tuple(float(s) for s in start_s), clock, written.removed_topics)
     try:

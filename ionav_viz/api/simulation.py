@@ -7,6 +7,9 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from ..core.drive import Drive
 from ..core.errors import InputError
 from ..dataset.samples import SAMPLES
 from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
@@ -53,22 +56,29 @@ class Converted:
     duration_s: float
 
 
+def vehicle_speed_for_log(drive: Drive) -> tuple[np.ndarray, tuple[str, ...]] | None:
+    """The drive's vehicle speed as a log carries it (m/s per sample on ``/wheel/odom``) and the
+    columns it stands for, or None. Wheel speeds at the nominal radius: odometry and the filter
+    calibrate the scale against GNSS."""
+    from ..nav.vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+
+    found = vehicle_speed(drive)
+    if found is None:
+        return None
+    values, unit, described = found
+    return (values * NOMINAL_RADIUS_M if unit == "rad/s" else values), tuple(described.split(" and "))
+
+
 def convert(drive: DriveLike, output: str | Path, read: ReadOptions | None = None) -> Converted:
     """Write a drive as a ROS 2 MCAP log (``sensor_msgs/Imu``, ``NavSatFix``, ``TwistStamped``;
     atomically), that opens in Foxglove and ``ros2 bag``."""
-    from ..nav.vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
     from ..sources.mcap_writer import write_mcap
 
     out = Path(output)
     if out.suffix.lower() != ".mcap":
         raise InputError(f"{out}: the output must end in .mcap", "choose a name like drive.mcap", param="output")
     d = load_drive(drive, read)
-    found = vehicle_speed(d)
-    speed_mps, columns = None, ()
-    if found is not None:
-        values, unit, described = found
-        # wheel speeds at the nominal radius: odometry and the filter calibrate the scale against GNSS
-        speed_mps, columns = (values * NOMINAL_RADIUS_M if unit == "rad/s" else values), tuple(described.split(" and "))
+    speed_mps, columns = vehicle_speed_for_log(d) or (None, ())
     written = write_mcap(d, out, speed_mps, columns)
     if written.left_out:
         log.warning("%s: not carried by the MCAP log: %s", out, ", ".join(written.left_out))

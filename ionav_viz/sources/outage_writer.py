@@ -54,10 +54,13 @@ def inside(stamps_s: np.ndarray, outages: Sequence[tuple[float, float]]) -> np.n
 
 
 def write_outage_log(drive: Drive, source: Path, kind: str, outages: Sequence[tuple[float, float]], out: Path,
-                     gnss_topics: Sequence[str] = (), stamps: str = "header") -> OutageLog:
+                     gnss_topics: Sequence[str] = (), stamps: str = "header",
+                     vehicle_speed: tuple[np.ndarray, tuple[str, ...]] | None = None) -> OutageLog:
     """Write ``drive`` (read from ``source``, of reader ``kind``) with its GNSS removed inside
     ``outages`` (``(start, end]`` stamps, s) to ``out`` (atomically; format by its suffix).
-    ``gnss_topics``: for a message-log source, the topics the reader took GNSS from."""
+    ``gnss_topics``: for a message-log source, the topics the reader took GNSS from;
+    ``vehicle_speed``: for a log written from the drive, its vehicle speed (m/s per sample) and the
+    columns it stands for (as ``convert`` writes it)."""
     suffix = out.suffix.lower()
     check_output_file(out)
     if suffix == ".csv":
@@ -69,19 +72,15 @@ def write_outage_log(drive: Drive, source: Path, kind: str, outages: Sequence[tu
                          "write .mcap (any source) or .csv (an IO-VNBD source)", param="output")
     if kind == "mcap":
         return _mcap_copy(source, outages, out, tuple(gnss_topics), stamps)
-    return _mcap_from_drive(drive, outages, out)
+    return _mcap_from_drive(drive, outages, out, vehicle_speed)
 
 
-def _mcap_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: Path) -> OutageLog:
-    from ..nav.vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+def _mcap_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: Path,
+                     vehicle_speed: tuple[np.ndarray, tuple[str, ...]] | None) -> OutageLog:
     from .mcap_writer import TOPICS, write_mcap
 
     received = drive.as_received()
-    found = vehicle_speed(received)
-    speed_mps, columns = None, ()
-    if found is not None:
-        values, unit, described = found
-        speed_mps, columns = (values * NOMINAL_RADIUS_M if unit == "rad/s" else values), tuple(described.split(" and "))
+    speed_mps, columns = vehicle_speed if vehicle_speed is not None else (None, ())
     lost = inside(received.stamp_s(received.t_s), outages)
     write_mcap(received, out, speed_mps, columns, omit_gnss=lost)
     return OutageLog(out, "mcap", int(lost.sum()) * 2, (TOPICS["fix"], TOPICS["vel"]))
@@ -133,7 +132,7 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
 
 
 #: IO-VNBD columns the logger fills from its fix (latitude ... vertical velocity), and the satellites.
-_SATELLITES, _TIME, _GNSS_COLUMNS = 0, 1, (2, 3, 4, 5, 6, 7)
+_CSV_SATELLITES, _CSV_TIME, _CSV_GNSS = 0, 1, (2, 3, 4, 5, 6, 7)
 
 
 def _iovnbd(source: Path, outages: Sequence[tuple[float, float]], out: Path) -> OutageLog:
@@ -144,7 +143,7 @@ def _iovnbd(source: Path, outages: Sequence[tuple[float, float]], out: Path) -> 
         body = line.rstrip(b"\r\n")
         cells = body.split(b",")
         try:
-            t = float(cells[_TIME])
+            t = float(cells[_CSV_TIME])
         except (IndexError, ValueError):
             continue  # a line the reader skips or refuses: left as it is
         if not inside(np.array([t]), outages)[0]:
@@ -153,8 +152,8 @@ def _iovnbd(source: Path, outages: Sequence[tuple[float, float]], out: Path) -> 
         if last_fix is None:
             continue
         cells = list(cells)
-        cells[_SATELLITES] = b"0"
-        for k in _GNSS_COLUMNS:
+        cells[_CSV_SATELLITES] = b"0"
+        for k in _CSV_GNSS:
             cells[k] = last_fix[k]
         lines[i] = b",".join(cells) + line[len(body):]
         removed += 1
