@@ -7,6 +7,7 @@ not with ionav-viz's readers, and compared with the source message by message or
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -85,7 +86,7 @@ def test_an_iovnbd_source_gets_the_loggers_no_fix_rows(tmp_path):
     result = iv.outage_log(source, out, 10.0, iv.At((20.0,)))
     plan = json.loads(result.plan_path.read_text())
     (a, b), = [(o["start_stamp_s"], o["end_stamp_s"]) for o in plan["outages"]]
-    src, cut = open(source, "rb").read().split(b"\r\n"), out.read_bytes().split(b"\r\n")
+    src, cut = Path(source).read_bytes().split(b"\r\n"), out.read_bytes().split(b"\r\n")
     assert len(src) == len(cut) and src[0] == cut[0]
     changed = [i for i, (x, y) in enumerate(zip(src, cut)) if x != y]
     times = [float(line.split(b",")[1]) for line in src[1:-1]]
@@ -117,3 +118,98 @@ def test_plans_and_outage_logs_refuse_what_does_not_fit(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps({"format": "ionav-viz outage plan", "version": 1}))
     with pytest.raises(iv.InputError, match="field 'source'"):
         iv.evaluate("roundabout", plan=tmp_path / "bad.json")
+
+
+class ConstantVelocity:
+    """tests/external/constant_velocity.py as a plug-in: from the last fix at or before each
+    outage's start, along its course at its speed (its own positions at the window boundaries)."""
+
+    name, label = "cv", "Constant velocity"
+
+    def estimate(self, inputs):
+        from pyproj import Geod
+
+        drive = inputs.drive
+        stamps = drive.stamp_s(drive.t_s)
+        starts = drive.stamp_s(inputs.t0_s)
+        last = np.searchsorted(stamps, starts + 1e-6) - 1
+        t_fix, speed, course = stamps[last], drive.speed_mps[last], drive.heading_deg[last]
+        when = starts[:, None] + np.arange(inputs.n_windows + 1)[None, :] - t_fix[:, None]
+        lon, lat, _ = Geod(ellps="WGS84").fwd(np.broadcast_to(drive.lon_deg[last][:, None], when.shape),
+                                              np.broadcast_to(drive.lat_deg[last][:, None], when.shape),
+                                              np.broadcast_to(course[:, None], when.shape), speed[:, None] * when)
+        from ionav_viz.nav.track import windows_of_track
+
+        shape = (inputs.n_outages, inputs.n_windows)
+        _, yaw = windows_of_track(lat, lon, inputs.course0_deg)  # the yaw rates its track implies, as for an external one
+        return iv.Estimate(np.broadcast_to(speed[:, None], shape).copy(), yaw, lat_deg=lat, lon_deg=lon)
+
+
+def test_an_external_filter_is_scored_exactly_as_the_same_plug_in(tmp_path):
+    """Issue 32.2-3: a filter in its own process (tests/external/constant_velocity.py, no ionav-viz
+    in it) runs on the outaged log and writes its trajectory; --external scores it like the same
+    algorithm as a plug-in, within 1 mm, and in every view."""
+    import subprocess
+    import sys
+
+    cut = tmp_path / "cut.mcap"
+    assert run_cli("outage-log", "roundabout", "--every", "40s", "-o", str(cut)).returncode == 0
+    plan = tmp_path / "cut.outages.json"
+    script = Path(__file__).parent / "external" / "constant_velocity.py"
+    subprocess.run([sys.executable, str(script), str(cut), str(tmp_path / "cv.csv")], check=True, timeout=300)
+
+    proc = run_cli("evaluate", "roundabout", "--plan", str(plan), "--external", f"ext={tmp_path / 'cv.csv'}", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    external = json.loads(proc.stdout)
+    plugin = json.loads(iv.evaluate("roundabout", plan=plan, estimators=["ins", ConstantVelocity()]).to_json())
+    assert [e["name"] for e in external["estimators"]] == ["ins", "ext"] and external["estimators"][1]["label"] == "ext (external)"
+    assert len(external["sequences"]) == len(plugin["sequences"]) >= 10
+    for a, b in zip(external["sequences"], plugin["sequences"], strict=True):
+        for metric in ("crse_m", "cae_m", "final_position_error_m"):
+            assert abs(a["ext"][metric] - b["cv"][metric]) < 1e-3, (metric, a["start_s"], a["ext"][metric], b["cv"][metric])
+        assert abs(a["ext"]["yaw_crse_radps"] - b["cv"]["yaw_crse_radps"]) < 1e-6
+        assert a["ins"] == b["ins"]
+    assert "positions are the GNSS fixes" not in proc.stderr
+
+    # the same trajectory in the local frame, as TUM: the same scores
+    origin = iv.load_drive("roundabout")
+    data = np.loadtxt(tmp_path / "cv.csv", delimiter=",", skiprows=1)
+    from pyproj import Geod
+
+    az, _, dist = Geod(ellps="WGS84").inv(np.full(len(data), origin.lon_deg[0]), np.full(len(data), origin.lat_deg[0]), data[:, 2], data[:, 1])
+    east, north = dist * np.sin(np.radians(az)), dist * np.cos(np.radians(az))
+    (tmp_path / "cv.tum").write_text("".join(f"{t:.9f} {x:.6f} {y:.6f} 0 0 0 0 1\n" for t, x, y in zip(data[:, 0], east, north)))
+    tum = json.loads(iv.evaluate("roundabout", plan=plan, estimators=["ins"], external={"ext": tmp_path / "cv.tum"}).to_json())
+    for a, b in zip(tum["sequences"], external["sequences"], strict=True):
+        assert abs(a["ext"]["final_position_error_m"] - b["ext"]["final_position_error_m"]) < 1e-3
+
+    # the trajectory recorded and drawn like a built-in
+    replayed = iv.replay("roundabout", plan=plan, estimators=["ins"], external={"ext": tmp_path / "cv.csv"}, output=tmp_path / "r.rrd")
+    assert "ext" in {e.name for e in replayed.result.estimators}
+
+
+def test_external_estimates_that_cheat_or_fall_short_are_named(tmp_path):
+    cut = tmp_path / "cut.mcap"
+    assert run_cli("outage-log", "roundabout", "--at", "20s,60s", "-o", str(cut)).returncode == 0
+    plan = str(tmp_path / "cut.outages.json")
+    drive = iv.load_drive("roundabout")
+    gnss = tmp_path / "gnss.csv"  # the GNSS itself, outages included: it saw the removed fixes
+    np.savetxt(gnss, np.column_stack([drive.stamp_s(drive.t_s), drive.lat_deg, drive.lon_deg]), delimiter=",",
+               header="time_s,lat_deg,lon_deg", comments="", fmt="%.9f")
+    proc = run_cli("evaluate", "roundabout", "--plan", plan, "--external", f"gnss={gnss}", "--estimators", "ins")
+    assert proc.returncode == 0 and "external gnss: inside 2 of 2 outage(s) its positions are the GNSS fixes" in proc.stderr, proc.stderr
+    short = tmp_path / "short.csv"  # ends before the second outage
+    keep = drive.t_s < 40
+    np.savetxt(short, np.column_stack([drive.stamp_s(drive.t_s[keep]), drive.lat_deg[keep], drive.lon_deg[keep]]), delimiter=",",
+               header="time_s,lat_deg,lon_deg", comments="", fmt="%.9f")
+    for args, fragment in [
+        (("--external", f"short={short}"), "does not cover outage 2"),
+        (("--external", f"x={tmp_path / 'none.csv'}"), "no such trajectory file"),
+        (("--external", "x"), "give NAME=TRAJECTORY"),
+        (("--external", f"Bad Name={gnss}"), "is not a short lower-case identifier"),
+        (("--external", f"x={cut}:/imu/data"), "is a sensor_msgs/msg/Imu"),
+    ]:
+        proc = run_cli("evaluate", "roundabout", "--plan", plan, "--estimators", "ins", *args)
+        assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, (args, proc.stderr)
+    proc = run_cli("evaluate", "roundabout", "--external", f"gnss={gnss}")
+    assert proc.returncode == 2 and "--plan" in proc.stderr, proc.stderr

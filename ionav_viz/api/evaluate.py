@@ -3,7 +3,7 @@ scenarios' test drives."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from ..analysis.evaluate import DriveResult, evaluate_drive
@@ -19,7 +19,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, no_outage_fits, options_of, placement_of, windows_of
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, no_outage_fits, options_of, placement_of, windows_of, with_externals
 
 
 class ScenarioDrives(dict):
@@ -86,6 +86,7 @@ def evaluate(
     mcap: LogOptions | None = None,
     truth: str | None = None,
     plan: str | Path | None = None,
+    external: Mapping[str, str | Path] | None = None,
 ) -> Report:
     """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
 
@@ -101,6 +102,9 @@ def evaluate(
         mcap: deprecated, ``read.log``.
         plan: an outage plan file (``OUT.outages.json`` of :func:`outage_log`): exactly its outages
             (instead of ``placement``; the outage length is the plan's).
+        external: estimates made outside ionav-viz on the plan's outaged log, ``{name: trajectory}``
+            (a ``.csv``, a ``.tum`` or ``LOG:TOPIC``, :mod:`ionav_viz.sources.trajectory`), scored
+            like the built-ins; they need ``plan``.
         truth: a message log's reference topic, the truth every score is measured against
             (a shortcut for ``read.log.truth_topic``; see :class:`LogOptions`).
 
@@ -115,6 +119,7 @@ def evaluate(
     if isinstance(placement, FromPlan) and len(items) != 1:
         raise InputError(f"a plan is made for one drive, and {len(items)} are given", "evaluate the plan's drive alone", param="plan")
     run, read = options_of(run, estimators, read, mcap, truth)
+    run = with_externals(run, external, placement)
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

@@ -121,6 +121,29 @@ def placement_of(placement: Any, plan: str | Path | None) -> Any:
     return placement or Tile()
 
 
+def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions:
+    """``run`` with the external estimates (``{name: trajectory}``, see :mod:`ionav_viz.nav.external`)
+    added to its plug-ins; they need the plan of the outaged log they were made on."""
+    from ..nav.external import External
+    from ..nav.plan_file import FromPlan
+    from ..nav.protocol import validate
+    from ..sources.trajectory import read_trajectory
+
+    if not external:
+        return run
+    if not hasattr(external, "items"):
+        raise InputError(f"external={external!r} is not a mapping of names to trajectories", "e.g. external={'rl': 'rl.csv'}", param="external")
+    if not isinstance(placement, FromPlan):
+        raise InputError("an external estimate is scored on the outages of the log it ran on", "give that log's plan (--plan NAME.outages.json)",
+                         param="external")
+    built = []
+    for name, spec in external.items():
+        est = External(str(name), read_trajectory(spec))
+        validate(est, f"--external {name}")
+        built.append(est)
+    return replace(run, plugins=tuple(run.plugins) + tuple(built))
+
+
 #: The outage length when none is given (s).
 DEFAULT_OUTAGE_S = 10.0
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,7 +19,7 @@ from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, no_outage_fits, options_of, placement_of, windows_of
+from .options import DriveLike, Progress, RunOptions, check_event_types, log, no_outage_fits, options_of, placement_of, windows_of, with_externals
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -66,11 +66,12 @@ def replay(
     mcap: LogOptions | None = None,
     truth: str | None = None,
     plan: str | Path | None = None,
+    external: Mapping[str, str | Path] | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
 
     Args:
-        drive, outage_s, placement, estimators, run, read, truth, plan: as for :func:`evaluate`
+        drive, outage_s, placement, estimators, run, read, truth, plan, external: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
         output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
             directory, the folder made when missing); an existing file is replaced atomically,
@@ -93,6 +94,7 @@ def replay(
     placement = placement_of(placement, plan)
     n = windows_of(outage_s, placement)
     run, read = options_of(run, estimators, read, mcap, truth)
+    run = with_externals(run, external, placement)
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

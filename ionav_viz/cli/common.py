@@ -37,6 +37,23 @@ PlanOpt = typer.Option(None, "--plan", help="Exactly the outages of a plan file 
                        show_default=False)
 
 
+ExternalOpt = typer.Option(None, "--external", help="NAME=TRAJECTORY: an estimate made outside ionav-viz on the plan's outaged log (.csv, .tum or LOG:TOPIC), scored like the built-ins (repeatable; needs --plan).",
+                           show_default=False)
+
+
+def externals_of(values: Optional[list[str]]) -> dict[str, str]:
+    """``["rl=rl.csv", ...]`` -> ``{"rl": "rl.csv"}`` (the library checks names and files)."""
+    out: dict[str, str] = {}
+    for value in values or []:
+        name, sep, spec = value.partition("=")
+        if not sep or not name.strip() or not spec.strip():
+            raise typer.BadParameter(f"{value!r}: give NAME=TRAJECTORY, e.g. rl=rl.csv", param_hint="--external")
+        if name.strip() in out:
+            raise typer.BadParameter(f"{name.strip()!r} given twice", param_hint="--external")
+        out[name.strip()] = spec.strip()
+    return out
+
+
 #: ``--outage`` of the commands that also take ``--plan`` (not given: 10 s, or the plan's length).
 OutageOrPlanOpt = typer.Option(None, "--outage", help="Length of each GNSS outage (whole seconds; default 10s, or the plan's).", show_default=False)
 

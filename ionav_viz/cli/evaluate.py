@@ -21,6 +21,7 @@ def evaluate(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     outage: Optional[str] = c.OutageOrPlanOpt,
     plan: Optional[Path] = c.PlanOpt,
+    external: Optional[list[str]] = c.ExternalOpt,
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
@@ -52,7 +53,7 @@ def evaluate(
         if by_event:
             reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on, run=run, read=read)
         else:
-            reports = {group: replace(api.evaluate(specs, outage_s, chosen, run=run, read=read,
+            reports = {group: replace(api.evaluate(specs, outage_s, chosen, external=c.externals_of(external), run=run, read=read,
                                                    progress=c.progress_callback(bar, "evaluating")), title=group)
                        for group, specs in groups.items()}
 

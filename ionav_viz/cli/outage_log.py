@@ -32,6 +32,7 @@ def outage_log(
     plan = done.plan
     print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "
           f"from {', '.join(plan.removed_topics)}", file=sys.stderr)
-    print(f"the same outages: ionav-viz evaluate {drive_spec} --plan {done.plan_path}", file=sys.stderr)
+    print(f"score what your estimator writes on it: ionav-viz evaluate {drive_spec} --plan {done.plan_path} --external NAME=TRAJECTORY",
+          file=sys.stderr)
     print(done.path)
     print(done.plan_path)

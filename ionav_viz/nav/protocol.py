@@ -58,10 +58,17 @@ class Estimate:
         disp_m: distance travelled in each 1-second window (m), shape ``(n_outages, n_windows)``.
         yaw_rate_radps: mean yaw rate over each window (rad/s, counter-clockwise positive),
             same shape.
+        lat_deg, lon_deg: optional, the estimator's own positions at the window boundaries (WGS84
+            degrees), shape ``(n_outages, n_windows + 1)``, the first at the outage's start: then
+            the final position error and the drawn track use them, not the track rebuilt from
+            ``disp_m`` and ``yaw_rate_radps`` (an estimator that tracks positions itself, or an
+            external trajectory).
     """
 
     disp_m: np.ndarray
     yaw_rate_radps: np.ndarray
+    lat_deg: np.ndarray | None = None
+    lon_deg: np.ndarray | None = None
 
 
 @dataclass
@@ -243,8 +250,34 @@ def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
             "fix the plug-in (run with --debug for the traceback)",
         ) from exc
     disp, yaw = _checked(name, est, inputs.n_outages, inputs.n_windows)
-    track = rebuild_track(inputs.lat0_deg, inputs.lon0_deg, inputs.course0_deg, disp, yaw)
+    own = _own_positions(name, est, inputs.n_outages, inputs.n_windows)
+    if own is None:
+        track = rebuild_track(inputs.lat0_deg, inputs.lon0_deg, inputs.course0_deg, disp, yaw)
+    else:  # its own positions; the course at the boundaries as its yaw rates turn it
+        course = np.asarray(inputs.course0_deg, dtype=float)[:, None] - np.concatenate(
+            [np.zeros((inputs.n_outages, 1)), np.cumsum(np.rad2deg(yaw) * WINDOW_S, axis=1)], axis=1)
+        track = Track(own[0], own[1], np.mod(course, 360.0))
     return Solution(disp, yaw, track)
+
+
+def _own_positions(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """An estimate's own positions at the window boundaries, checked, or None when it has none."""
+    lat, lon = getattr(est, "lat_deg", None), getattr(est, "lon_deg", None)
+    if lat is None and lon is None:
+        return None
+    hint = "give lat_deg and lon_deg (WGS84 degrees) of shape (n_outages, n_windows + 1), or neither"
+    try:
+        lat, lon = np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise EstimatorError(f"estimator {name!r}: lat_deg/lon_deg are not numeric", hint) from None
+    for field_name, values, limit in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
+        if values.shape != (n_outages, n_windows + 1):
+            raise EstimatorError(f"estimator {name!r}: {field_name} has shape {values.shape}, expected ({n_outages}, {n_windows + 1})", hint)
+        bad = ~np.isfinite(values) | (np.abs(values) > limit)
+        if bad.any():
+            i, j = (int(x) for x in np.argwhere(bad)[0])
+            raise EstimatorError(f"estimator {name!r}: {field_name} is {values[i, j]} in outage {i + 1}, boundary {j}", hint)
+    return lat, lon
 
 
 #: What an estimate may say of one 1 s window: no car covers more than the fastest speed the

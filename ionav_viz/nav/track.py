@@ -46,3 +46,34 @@ def rebuild_track(
             lon[:, w + 1], lat[:, w + 1], _ = geod.fwd(lon[:, w], lat[:, w], mid, disp_m[:, w])
         hdg[:, w + 1] = hdg[:, w] + turn_deg[:, w]
     return Track(lat, lon, np.mod(hdg, 360.0))
+
+
+#: Below this distance in a window (m) a track's own direction is noise: its course is held.
+MIN_COURSE_DISTANCE_M = 0.05
+
+
+def windows_of_track(lat_deg: np.ndarray, lon_deg: np.ndarray, heading0_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-window distance (m) and yaw rate (rad/s, counter-clockwise) of positions at window
+    boundaries ``(n_sequences, n_windows + 1)``: what :func:`rebuild_track` takes, from a track.
+
+    Distance is the geodesic between consecutive boundaries. A window's yaw rate is the change of
+    the track's direction of travel from the window before (from ``heading0_deg``, the course at
+    the start, for the first), over the window's length: exact for a steady turn, a two-window
+    mean of a rebuilt track's turns; a window under :data:`MIN_COURSE_DISTANCE_M` keeps the
+    direction before it (standing still, a track's direction is its noise).
+    """
+    geod = wgs84()
+    lat, lon = np.asarray(lat_deg, dtype=float), np.asarray(lon_deg, dtype=float)
+    n_seq, n_b = lat.shape
+    if n_seq == 0:
+        return np.zeros((0, n_b - 1)), np.zeros((0, n_b - 1))
+    az, _, dist = geod.inv(lon[:, :-1], lat[:, :-1], lon[:, 1:], lat[:, 1:])
+    dist, az = np.asarray(dist).reshape(n_seq, -1), np.asarray(az).reshape(n_seq, -1)
+    yaw = np.zeros_like(dist)
+    direction = np.asarray(heading0_deg, dtype=float).copy()
+    for w in range(dist.shape[1]):
+        moved = dist[:, w] >= MIN_COURSE_DISTANCE_M
+        turn = np.where(moved, (az[:, w] - direction + 180.0) % 360.0 - 180.0, 0.0)
+        yaw[:, w] = -np.deg2rad(turn) / WINDOW_S
+        direction = direction + turn
+    return dist, yaw

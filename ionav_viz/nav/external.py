@@ -1,0 +1,102 @@
+"""An estimate made outside ionav-viz, scored like a built-in (``--external NAME=PATH``).
+
+The external program ran on the outaged log (``ionav-viz outage-log``) and wrote its trajectory
+(:mod:`ionav_viz.sources.trajectory`). Per outage, its positions at the window boundaries are
+interpolated from that trajectory on the log's own clock (:meth:`~ionav_viz.core.drive.Drive.stamp_s`),
+from its poses up to the outage's end only (the end extrapolated from the last two when no pose falls
+on it: nothing written after the GNSS came back counts);
+per-window distance and yaw rate come from those positions (:func:`.track.windows_of_track`), and
+its final position error from its own position at the outage's end. A trajectory that does not
+cover an outage is an error naming it; one that equals the removed GNSS fixes inside the outages
+(it ran on the original log, or is the GNSS itself) is reported.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.geo import geodetic_of_en_m, wgs84
+from ..sources.trajectory import Trajectory
+from .protocol import Estimate, EstimatorError, EstimatorInputs
+from .track import windows_of_track
+
+log = logging.getLogger("ionav_viz")
+
+#: The trajectory must have a pose within this (s) of every boundary, before and after it.
+MAX_GAP_S = 2.0
+#: Positions within this (m) of the removed fixes at most of an outage's boundaries: it saw them.
+LEAK_M = 0.01
+
+
+@dataclass
+class External:
+    """An external trajectory as an estimator (``name``, ``label`` as the report shows it)."""
+
+    name: str
+    trajectory: Trajectory
+    label: str = ""
+    needs = ()
+
+    def __post_init__(self) -> None:
+        self.label = self.label or f"{self.name} (external)"
+
+    def describe(self) -> dict:
+        return {"external": self.trajectory.source}
+
+    def estimate(self, inputs: EstimatorInputs) -> Estimate:
+        drive, traj, n = inputs.drive, self.trajectory, inputs.n_windows
+        offsets = np.arange(n + 1, dtype=float)
+        when = np.asarray(drive.stamp_s(inputs.t0_s[:, None] + offsets[None, :]), dtype=float)
+        t = traj.stamps_s
+        if traj.local:
+            lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
+            lat_all, lon_all = geodetic_of_en_m(traj.east_m, traj.north_m, lat0, lon0)
+        else:
+            lat_all, lon_all = traj.lat_deg, traj.lon_deg
+        lon_all = np.rad2deg(np.unwrap(np.deg2rad(lon_all)))
+        lat, lon = np.empty_like(when), np.empty_like(when)
+        for i, row in enumerate(when):
+            # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
+            upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
+            k = np.searchsorted(t[:upto], row)
+            before = np.where(k > 0, row - t[np.maximum(k - 1, 0)], np.inf)
+            on = (k < upto) & np.isclose(t[np.minimum(k, upto - 1)], row, rtol=0.0, atol=1e-6) if upto else np.zeros(len(row), bool)
+            after = np.where(k < upto, t[np.minimum(k, max(upto - 1, 0))] - row, 0.0)
+            if upto < 2 or not np.all(on | ((before <= MAX_GAP_S) & (after <= MAX_GAP_S))):
+                raise EstimatorError(
+                    f"external {self.name!r} ({traj.source}): its trajectory does not cover outage {i + 1} "
+                    f"(stamps {row[0]:.3f}-{row[-1]:.3f} s; it spans {t[0]:.3f}-{t[-1]:.3f} s, poses at most {MAX_GAP_S:g} s apart needed)",
+                    "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
+            lat[i], lon[i] = (_interpolated(row, t[:upto], v[:upto]) for v in (lat_all, lon_all))
+        lon = (lon + 180.0) % 360.0 - 180.0
+        self._report_leaks(inputs, when, lat, lon)
+        disp, yaw = windows_of_track(lat, lon, inputs.course0_deg)
+        return Estimate(disp, yaw, lat_deg=lat, lon_deg=lon)
+
+    def _report_leaks(self, inputs: EstimatorInputs, when: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
+        """Warn when inside the outages the trajectory sits on the GNSS fixes that were removed."""
+        drive, n = inputs.drive, inputs.n_windows
+        if n < 2:
+            return
+        stamps = np.asarray(drive.stamp_s(drive.t_s), dtype=float)
+        inner = when[:, 1:-1]
+        g_lat, g_lon = np.interp(inner, stamps, drive.lat_deg), np.interp(inner, stamps, drive.lon_deg)
+        _, _, dist = wgs84().inv(lon[:, 1:-1].ravel(), lat[:, 1:-1].ravel(), g_lon.ravel(), g_lat.ravel())
+        on_fixes = (np.asarray(dist).reshape(inner.shape) < LEAK_M).mean(axis=1) > 0.5
+        if on_fixes.any():
+            log.warning("external %s: inside %d of %d outage(s) its positions are the GNSS fixes the outaged log lacks (within %g m): "
+                        "it ran on the original log, or is the GNSS itself; its scores are not an outage's",
+                        self.name, int(on_fixes.sum()), len(on_fixes), LEAK_M)
+
+
+def _interpolated(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Linear in time between poses; after the last one, extrapolated from the last two."""
+    out = np.interp(at, t, values)
+    late = at > t[-1]
+    if late.any():
+        rate = (values[-1] - values[-2]) / (t[-1] - t[-2])
+        out[late] = values[-1] + rate * (at[late] - t[-1])
+    return out

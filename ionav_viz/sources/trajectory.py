@@ -1,0 +1,167 @@
+"""Reading an estimated trajectory that an estimator outside ionav-viz wrote (``--external NAME=PATH``).
+
+Stamps are on the clock of the outaged log the estimator ran on (:mod:`ionav_viz.nav.plan_file`:
+UNIX seconds for message logs, the time of day for IO-VNBD). Positions are WGS84 degrees, or
+metres in the **local frame**: east (x) and north (y) on the azimuthal equidistant plane about the
+drive's first GNSS fix (the first position the estimators are given), up ignored. Formats:
+
+* ``PATH:TOPIC`` of an MCAP file or a ROS bag: ``sensor_msgs/NavSatFix`` (latitude, longitude;
+  no-fix messages skipped), or ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or
+  ``PoseWithCovarianceStamped`` in the local frame; stamped by the header (the log time when 0).
+* ``.tum``: evo's TUM format, one pose per line ``t x y z qx qy qz qw`` (``#`` comments), x and y
+  in the local frame.
+* ``.csv``: a header ``time_s,lat_deg,lon_deg`` or ``time_s,east_m,north_m`` (further columns
+  ignored), one row per pose.
+
+Samples are sorted by stamp; of samples sharing one the first is kept.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+
+#: A trajectory file larger than this is refused (a day at 100 Hz in CSV is about 300 MB).
+MAX_BYTES = 2 << 30
+_TRAJECTORY_HINT = "write time_s,lat_deg,lon_deg (or time_s,east_m,north_m) CSV, a TUM file, or give LOG:TOPIC"
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Poses of an external estimate: ``stamps_s`` (sorted, unique) with either ``lat_deg``/``lon_deg``
+    or ``east_m``/``north_m`` in the local frame (the other pair None)."""
+
+    source: str
+    stamps_s: np.ndarray
+    lat_deg: np.ndarray | None = None
+    lon_deg: np.ndarray | None = None
+    east_m: np.ndarray | None = None
+    north_m: np.ndarray | None = None
+
+    @property
+    def local(self) -> bool:
+        return self.east_m is not None
+
+
+def read_trajectory(spec: str | Path) -> Trajectory:
+    """The trajectory ``spec`` names (see the module docstring), checked; an error naming the file otherwise."""
+    text = str(spec)
+    path = Path(text)
+    topic = None
+    if not path.exists() and ":" in text:
+        head, topic = text.rsplit(":", 1)
+        path = Path(head)
+    if not path.exists():
+        raise InputError(f"{path}: no such trajectory file", _TRAJECTORY_HINT, param="external")
+    if topic is not None:
+        return _from_log(path, topic)
+    suffix = path.suffix.lower()
+    if path.is_file() and path.stat().st_size > MAX_BYTES:
+        raise InputError(f"{path}: {path.stat().st_size} bytes is too large for a trajectory", _TRAJECTORY_HINT, param="external")
+    if suffix == ".tum":
+        return _from_tum(path)
+    if suffix == ".csv":
+        return _from_csv(path)
+    raise InputError(f"{path}: a trajectory is a .csv, a .tum or LOG:TOPIC", _TRAJECTORY_HINT, param="external")
+
+
+def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.ndarray, local: bool) -> Trajectory:
+    t = np.asarray(stamps, dtype=float)
+    if len(t) < 2:
+        raise InputError(f"{path}: fewer than 2 poses", _TRAJECTORY_HINT, param="external")
+    bad = ~(np.isfinite(t) & np.isfinite(a) & np.isfinite(b))
+    if not local:
+        bad |= (np.abs(a) > 90) | (np.abs(b) > 180)
+    else:
+        bad |= (np.abs(a) > 2e6) | (np.abs(b) > 2e6)
+    if bad.any():
+        i = int(np.argmax(bad))
+        what = "east/north (m) beyond 2000 km of the local origin" if local else "latitude/longitude outside WGS84's range"
+        raise InputError(f"{path}: pose {i + 1} (stamp {t[i]!r}): not finite, or {what}", _TRAJECTORY_HINT, param="external")
+    order = np.argsort(t, kind="stable")
+    t, a, b = t[order], a[order], b[order]
+    keep = np.concatenate([[True], np.diff(t) > 0])
+    t, a, b = t[keep], a[keep], b[keep]
+    if local:
+        return Trajectory(path, t, east_m=a, north_m=b)
+    return Trajectory(path, t, lat_deg=a, lon_deg=b)
+
+
+def _from_csv(path: Path) -> Trajectory:
+    try:
+        with open(path, encoding="utf-8") as f:
+            header = [h.strip() for h in f.readline().split(",")]
+            data = np.loadtxt(f, delimiter=",", ndmin=2, usecols=(0, 1, 2)) if header else np.zeros((0, 3))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{path}: not a trajectory CSV ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
+                         param="external") from None
+    names = tuple(header[:3])
+    if names not in (("time_s", "lat_deg", "lon_deg"), ("time_s", "east_m", "north_m")):
+        raise InputError(f"{path}: header {','.join(header[:3])!r} is not time_s,lat_deg,lon_deg or time_s,east_m,north_m", _TRAJECTORY_HINT, param="external")
+    return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], names[1] == "east_m")
+
+
+def _from_tum(path: Path) -> Trajectory:
+    rows = []
+    try:
+        with open(path, encoding="utf-8") as f:
+            for n, line in enumerate(f, start=1):
+                line = line.strip()
+                if not line or line.startswith("#"):
+                    continue
+                cells = line.split()
+                if len(cells) != 8:
+                    raise InputError(f"{path}: line {n} has {len(cells)} values, TUM has 8 (t x y z qx qy qz qw)", _TRAJECTORY_HINT, param="external")
+                rows.append([float(c) for c in cells[:3]])
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{path}: not a TUM trajectory ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
+                         param="external") from None
+    data = np.asarray(rows, dtype=float).reshape(-1, 3)
+    return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], True)
+
+
+def _from_log(path: Path, topic: str) -> Trajectory:
+    from .load import open_message_log, source_kind
+    from .message_log import GNSS_SCHEMAS, ODOMETRY_SCHEMAS, POSE_SCHEMAS, _get, _stamp_ns
+
+    log = open_message_log(path, source_kind(path))
+    if log is None:
+        raise InputError(f"{path}: LOG:TOPIC needs an MCAP file or a ROS bag", _TRAJECTORY_HINT, param="external")
+    found = [c for c in log.channels() if c.topic == topic]
+    if not found:
+        raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in log.channels())}", param="external")
+    channel = found[0]
+    fixes = channel.schema in GNSS_SCHEMAS[:2]
+    if not fixes and channel.schema not in ODOMETRY_SCHEMAS + POSE_SCHEMAS:
+        raise InputError(f"{path}: {topic} is a {channel.schema}", "give a NavSatFix, Odometry or PoseStamped topic", param="external")
+    t, a, b = [], [], []
+    try:
+        for _, log_ns, msg in log.messages([channel]):
+            try:
+                ns = _stamp_ns(_get(msg, "header", "stamp"))
+            except (KeyError, AttributeError, TypeError, ValueError):
+                ns = 0
+            stamp = (ns if ns > 0 else log_ns) * 1e-9
+            if fixes:
+                if int(_get(msg, "status", "status")) < 0 or not math.isfinite(float(_get(msg, "latitude"))):
+                    continue
+                t.append(stamp)
+                a.append(float(_get(msg, "latitude")))
+                b.append(float(_get(msg, "longitude")))
+            else:
+                pose = _get(msg, "pose") if channel.schema in POSE_SCHEMAS[:2] else _get(msg, "pose", "pose")
+                t.append(stamp)
+                a.append(float(_get(pose, "position", "x")))
+                b.append(float(_get(pose, "position", "y")))
+    except InputError:
+        raise
+    except (KeyError, AttributeError, TypeError, ValueError) as exc:
+        raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})", _TRAJECTORY_HINT, param="external") from None
+    except Exception as exc:
+        raise log.damaged(exc) from None
+    return _checked(f"{path}:{topic}", t, np.asarray(a), np.asarray(b), not fixes)
