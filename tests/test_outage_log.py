@@ -213,3 +213,36 @@ def test_external_estimates_that_cheat_or_fall_short_are_named(tmp_path):
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, (args, proc.stderr)
     proc = run_cli("evaluate", "roundabout", "--external", f"gnss={gnss}")
     assert proc.returncode == 2 and "--plan" in proc.stderr, proc.stderr
+
+
+def _bag_messages(path):
+    """Every message of a ROS bag read with rosbags itself: (topic, log time ns, raw bytes)."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([Path(path)]) as reader:
+        return [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()]
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2"])
+def test_a_bag_source_is_copied_to_a_bag_without_the_outages_gnss(tmp_path, kind):
+    """Issue 32.1: ROS 1 and ROS 2 bags (with an image topic ionav-viz does not read) copied with
+    rosbags' writers: every message as it was, the fixes and velocities inside each outage gone."""
+    from .bag_fixtures import T0_S, write_ros1, write_ros2
+
+    drive = iv.load_drive("hard-brake")
+    keep = drive.t_s < 60
+    short = iv.Drive("short", "", drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()})
+    source = write_ros1(short, tmp_path / "car.bag", image_every=50) if kind == "ros1" else write_ros2(short, tmp_path / "car", image_every=50)
+    out = tmp_path / ("cut.bag" if kind == "ros1" else "cut")
+    result = iv.outage_log(source, out, 10.0, iv.At((10.0, 30.0)))
+    plan = json.loads(result.plan_path.read_text())
+    assert result.plan_path == tmp_path / "cut.outages.json" and plan["removed_topics"] == ["/gps/fix", "/gps/vel"]
+    before, after = _bag_messages(source), _bag_messages(out)
+    gone = [m for m in before if m[0] in ("/gps/fix", "/gps/vel") and _inside(m[1] * 1e-9, plan)]  # header stamp = log time here
+    assert len(gone) == result.removed and 390 <= len(gone) <= 400  # 2 outages x 10 s x 10 Hz, fix and velocity (stamps jitter)
+    assert {m[0] for m in before} == {m[0] for m in after}
+    assert sorted(after) == sorted(m for m in before if m not in gone)
+    assert abs(plan["outages"][0]["start_stamp_s"] - (int(T0_S) + 10.0)) < 1e-6
+    if kind == "ros2":  # a folder is never replaced (a file is, atomically)
+        proc = run_cli("outage-log", str(source), "-o", str(out))
+        assert proc.returncode == 2 and "exists" in proc.stderr, proc.stderr

@@ -61,7 +61,8 @@ def outage_log(
 
     out = Path(output)
     plan_file = plan_path_of(out)
-    check_output_file(out)
+    if out.suffix:
+        check_output_file(out)
     check_output_file(plan_file)
     if isinstance(drive, (str, Path)) is False:
         raise InputError(f"outage_log needs the drive's file, not a {type(drive).__name__}", "give its path or name", param="drive")
@@ -87,7 +88,7 @@ def outage_log(
     stamps = [float(s) for s in d.stamp_s(start_s)]
     outages = [(a, a + n) for a in stamps]
     gnss_topics: tuple[str, ...] = ()
-    if kind == "mcap":
+    if kind in ("mcap", "ros1", "ros2"):
         sel = select_channels(open_message_log(source, kind), read.log.imu_topic, read.log.gnss_topic, read.log.gnss_velocity_topic,
                               read.log.vehicle_speed_topic, truth_topic=read.log.truth_topic)
         gnss_topics = tuple(c.topic for c in (sel.gnss, sel.gnss_velocity) if c is not None)
@@ -102,6 +103,11 @@ def outage_log(
         with atomic_path(plan_file) as tmp:
             tmp.write_text(result.to_json(), encoding="utf-8")
     except BaseException:
-        out.unlink(missing_ok=True)  # both or neither
+        if out.is_dir():  # both or neither
+            import shutil
+
+            shutil.rmtree(out, ignore_errors=True)
+        else:
+            out.unlink(missing_ok=True)
         raise
     return OutageLogResult(out, plan_file, result, written.removed)

@@ -11,6 +11,10 @@ including its end goes. Formats, by the output's name:
 * ``.mcap`` from any other source: the drive as ``ionav-viz convert`` writes it
   (:mod:`.mcap_writer`, stamps on the source's clock), without ``/gps/fix`` and ``/gps/vel``
   messages inside an outage. Where the drive has a reference truth, the receiver's fixes are written.
+* ``.bag`` from a ROS 1 bag, or a folder (a name without a suffix, that does not exist yet) from a
+  ROS 2 bag: every message copied as it is, connections and definitions too, except the GNSS
+  fixes and velocities inside an outage (stamped as the reader decides); a ROS 2 bag is written
+  as SQLite storage, uncompressed.
 * ``.csv`` from an IO-VNBD ``V-*.csv``: every line as it was, except rows whose time of day lies
   inside an outage: the logger's no-fix convention, 0 satellites and the last fix before the
   outage repeated in the GNSS columns (latitude to vertical velocity).
@@ -62,14 +66,20 @@ def write_outage_log(drive: Drive, source: Path, kind: str, outages: Sequence[tu
     ``vehicle_speed``: for a log written from the drive, its vehicle speed (m/s per sample) and the
     columns it stands for (as ``convert`` writes it)."""
     suffix = out.suffix.lower()
+    if kind == "ros2" and suffix == "":
+        return _bag_copy(source, outages, out, tuple(gnss_topics), stamps)
     check_output_file(out)
+    if suffix == ".bag":
+        if kind != "ros1":
+            raise InputError(f"{out}: a ROS 1 outage log is copied from a ROS 1 bag, and {source} is not one", "write .mcap instead", param="output")
+        return _bag_copy(source, outages, out, tuple(gnss_topics), stamps)
     if suffix == ".csv":
         if kind != "iovnbd":
             raise InputError(f"{out}: a CSV outage log is an IO-VNBD file, and {source} is not one", "write .mcap instead", param="output")
         return _iovnbd(source, outages, out)
     if suffix != ".mcap":
-        raise InputError(f"{out}: unsupported outage-log format {suffix or '(none)'}",
-                         "write .mcap (any source) or .csv (an IO-VNBD source)", param="output")
+        raise InputError(f"{out}: unsupported outage-log format {suffix or '(a folder: ROS 2 bags only)'}",
+                         "write .mcap (any source), .bag (a ROS 1 bag), a folder (a ROS 2 bag) or .csv (an IO-VNBD source)", param="output")
     if kind == "mcap":
         return _mcap_copy(source, outages, out, tuple(gnss_topics), stamps)
     return _mcap_from_drive(drive, outages, out, vehicle_speed)
@@ -129,6 +139,47 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
             writer.add_message(channel_ids[channel.id], message.log_time, message.data, message.publish_time, message.sequence)
         writer.finish()
     return OutageLog(out, "mcap", removed, gnss_topics)
+
+
+def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
+    import os
+    import shutil
+    import tempfile
+
+    from ..core.signals import hold_signals
+    from .message_log import _get, _stamp_ns
+    from .rosbag_reader import RosbagLog
+
+    log_ = RosbagLog(source)
+    if not log_.ros1 and out.exists():
+        raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name", param="output")
+    if not out.parent.is_dir():
+        raise InputError(f"{out}: no folder {out.parent}", "create it first", param="output")
+
+    def inside_outage(log_ns: int, msg: Any) -> bool:
+        ns = log_ns
+        if stamps != "log":
+            try:
+                ns = _stamp_ns(_get(msg, "header", "stamp")) or log_ns
+            except (KeyError, AttributeError, TypeError, ValueError):
+                ns = log_ns
+        return bool(inside(np.array([ns * 1e-9]), outages)[0])
+
+    release = hold_signals()
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    finally:
+        release()
+    try:
+        staged = stage / out.name
+        removed = log_.copy(staged, set(gnss_topics), inside_outage)
+        if log_.ros1:
+            os.replace(staged, out)
+        else:
+            staged.rename(out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return OutageLog(out, "ros1" if log_.ros1 else "ros2", removed, gnss_topics)
 
 
 #: IO-VNBD columns the logger fills from its fix (latitude ... vertical velocity), and the satellites.

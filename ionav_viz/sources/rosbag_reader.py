@@ -118,6 +118,39 @@ class RosbagLog:
                                      "the bag's message definition is not the one the messages were written with; re-record, or choose another topic") from None
                 yield connection.topic, int(time_ns), msg
 
+    def copy(self, out: Path, topics: set[str], drop: Any) -> int:
+        """Write every message to a new bag of the same kind at ``out`` (a ROS 1 ``.bag`` file, or a
+        ROS 2 bag folder that must not exist, written as SQLite), raw bytes and definitions as they
+        are, except messages on ``topics`` for which ``drop(log time ns, decoded message)`` is true.
+        Returns how many were dropped."""
+        if self.ros1:
+            from rosbags.rosbag1 import Writer
+        else:
+            from rosbags.rosbag2 import Writer
+        dropped = 0
+        with self._open() as reader:
+            writer = Writer(out) if self.ros1 else Writer(out, version=9)
+            writer.open()
+            try:
+                ids = {}
+                decoders = {c.id: self._decoder(c) for c in reader.connections if c.topic in topics}
+                for c in reader.connections:
+                    if self.ros1:
+                        ids[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest,
+                                                          callerid=c.ext.callerid, latching=c.ext.latching)
+                    else:
+                        ids[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data or None, rihs01=c.digest or None,
+                                                          serialization_format=c.ext.serialization_format,
+                                                          offered_qos_profiles=c.ext.offered_qos_profiles)
+                for connection, time_ns, raw in reader.messages():
+                    if connection.id in decoders and drop(int(time_ns), decoders[connection.id](raw)):
+                        dropped += 1
+                        continue
+                    writer.write(ids[connection.id], int(time_ns), raw)
+            finally:
+                writer.close()
+        return dropped
+
     def _decoder(self, connection: Any):
         """A function raw bytes -> message object for one connection, from its own definition."""
         store = _typestore(self.path, connection, self.ros1)
