@@ -77,6 +77,15 @@ def test_an_mcap_source_keeps_every_other_message_byte_for_byte(tmp_path):
     assert len(gone) == 2 * 2 * 10 * 5 == result.removed  # 2 outages x 10 s x 5 Hz, fix and velocity
     assert sorted(after) == sorted(m for m in before if m not in gone)
 
+    # with a reference truth, an external trajectory on the log's UNIX clock is scored (the drive
+    # the estimators get kept its clock): the reference itself ends every outage on the truth
+    read = iv.ReadOptions(log=iv.LogOptions(gnss_topic="/gps/fix", truth_topic="/reference/fix"))
+    iv.outage_log(log, out, 10.0, iv.At((10.0, 30.0)), read=read)
+    got = json.loads(iv.evaluate(log, plan=result.plan_path, estimators=["ins"], read=read,
+                                 external={"ref": f"{log}:/reference/fix"}).to_json())
+    # (centimetres: the drive's truth is the reference fitted on the 10 Hz grid, the external one is interpolated raw)
+    assert all(s["ref"]["final_position_error_m"] < 0.2 for s in got["sequences"]) and len(got["sequences"]) == 2
+
 
 def test_an_iovnbd_source_gets_the_loggers_no_fix_rows(tmp_path):
     """A CSV outage log: rows inside an outage have 0 satellites and the last fix repeated in the
@@ -110,7 +119,9 @@ def test_plans_and_outage_logs_refuse_what_does_not_fit(tmp_path):
         (("evaluate", "roundabout", "hard-brake", "--plan", plan), "a plan is made for one drive"),
         (("replay", "roundabout", "--plan", str(tmp_path / "none.json"), "-o", str(tmp_path / "x.rrd")), "no such plan file"),
         (("outage-log", str(out), "-o", str(tmp_path / "y.csv")), "is not one"),
-        (("outage-log", "roundabout", "-o", str(tmp_path / "y.bag")), "unsupported outage-log format"),
+        (("outage-log", "roundabout", "-o", str(tmp_path / "y.bag")), "is copied from a ROS 1 bag"),
+        (("outage-log", "roundabout", "-o", str(tmp_path / "y.txt")), "unsupported outage-log format"),
+        (("outage-log", "roundabout", "-o", str(tmp_path / "folder")), "unsupported outage-log format"),
     ]:
         proc = run_cli(*args)
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, (args, proc.stderr)

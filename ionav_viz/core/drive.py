@@ -162,8 +162,8 @@ class Drive:
         columns = {k: v for k, v in self.columns.items() if k not in RECEIVER_COLUMNS}
         columns |= {"lat_deg": self.columns["gnss_lat_deg"], "lon_deg": self.columns["gnss_lon_deg"],
                     "speed_mps": self.columns["gnss_speed_mps"], "heading_deg": self.columns["gnss_heading_deg"]}
-        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, self.receiver_fault,
-                     self.start_stamp_s)
+        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, gnss_fault=self.receiver_fault,
+                     start_stamp_s=self.start_stamp_s)
 
     def stamp_s(self, t_s: np.ndarray | float) -> np.ndarray | float:
         """The source's own time stamp (s, see ``start_stamp_s``) of drive time ``t_s`` (s since the first sample)."""

@@ -14,8 +14,10 @@ Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS spe
   0.3 m/s for at least 5 s in all), else over the whole drive (where the car's accelerations
   average out), is gravity: the rotation that takes it onto +z, the shortest one;
 * **yaw**: in that levelled frame, the horizontal specific force ``h`` (east of the IMU's x, say)
-  follows the body's ``b = (dv/dt, v * omega)`` (forward: the GNSS speed's derivative; left:
-  speed times the GNSS course rate, counter-clockwise) turned by the yaw: ``h = exp(-i yaw) b`` as
+  follows the body's ``b = (dv/dt, v * omega)`` (forward: the speed's derivative, the wheels' speed
+  where the log has one, else the GNSS's; left: speed times the turn rate, counter-clockwise, from
+  the levelled gyro's vertical axis, which the yaw does not change, else the GNSS course's rate)
+  turned by the yaw: ``h = exp(-i yaw) b`` as
   complex numbers, so ``yaw = -arg(sum((h - mean h) * conj(b - mean b)))`` (least squares; the
   means take out accelerometer bias and gravity left by a road's grade), over samples above 0.5 m/s
   (a slow robot counts too), both smoothed over 1 s alike;
@@ -164,21 +166,32 @@ def _smooth(x: np.ndarray, n: int) -> np.ndarray:
     return np.convolve(x, np.ones(n) / n, mode="same") if len(x) >= n else x
 
 
-def estimate_mount(t_s: np.ndarray, accel_xyz: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray) -> MountEstimate | None:
+def estimate_mount(t_s: np.ndarray, accel_xyz: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
+                   gyro_xyz: np.ndarray | None = None, vehicle_speed_mps: np.ndarray | None = None) -> MountEstimate | None:
     """The mount from grid samples (``accel_xyz`` ``(n, 3)`` m/s^2 in the IMU's axes; GNSS speed,
-    course clockwise from north), or None when gravity cannot be told (see the module docstring)."""
+    course clockwise from north), or None when gravity cannot be told (see the module docstring).
+
+    ``gyro_xyz`` ``(n, 3)`` rad/s in the IMU's axes: the turn rate is the levelled gyro's vertical
+    axis (whatever the yaw), not the GNSS course's rate, which a slow vehicle's fixes make noise;
+    ``vehicle_speed_mps``: the speed (and its rate) from the wheels instead of the GNSS.
+    """
     if len(t_s) < 3:
         return None
-    dt = float(np.median(np.diff(t_s)))
-    n_smooth = max(1, int(round(1.0 / dt)))
-    accel_fwd = _smooth(np.gradient(speed_mps, t_s), n_smooth)
-    turn_ccw = -np.gradient(np.unwrap(np.radians(course_deg)), t_s)
-    accel_left = _smooth(speed_mps * turn_ccw, n_smooth)
-    motion = np.column_stack([accel_fwd, accel_left, np.zeros(len(t_s))])  # the body's own acceleration
     mean_f = accel_xyz.mean(axis=0)
     g = float(np.linalg.norm(mean_f))
     if not GRAVITY_RANGE_MPS2[0] <= g <= GRAVITY_RANGE_MPS2[1]:
         return None
+    dt = float(np.median(np.diff(t_s)))
+    n_smooth = max(1, int(round(1.0 / dt)))
+    speed = speed_mps if vehicle_speed_mps is None else vehicle_speed_mps
+    accel_fwd = _smooth(np.gradient(speed, t_s), n_smooth)
+    if gyro_xyz is not None:
+        turn_ccw = (gyro_xyz @ _onto_z(mean_f / g).T)[:, 2]
+    else:
+        turn_ccw = -np.gradient(np.unwrap(np.radians(course_deg)), t_s)
+    accel_left = _smooth(speed, n_smooth) * _smooth(turn_ccw, n_smooth)
+    motion = np.column_stack([accel_fwd, accel_left, np.zeros(len(t_s))])  # the body's own acceleration
+    speed_mps = speed
     estimate = _estimate(accel_xyz, mean_f, motion, speed_mps, n_smooth)
     for _ in range(3):  # up again, from the mean with the motion (turned into the IMU's axes) taken out
         mean_f = (accel_xyz - motion @ estimate[0]).mean(axis=0)

@@ -207,7 +207,8 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         lat, lon = fit.lat_deg, fit.lon_deg
     if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
-    body = _mounted(path, t, body, v, course, imu_mount, mapping)
+    wheels = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
+    body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels)
     flipped = False
     if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto"):
         flipped = not flipped
@@ -238,7 +239,7 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
 
 
 def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-             imu_mount: np.ndarray | str | None, mapping: np.ndarray) -> np.ndarray:
+             imu_mount: np.ndarray | str | None, mapping: np.ndarray, vehicle_speed_mps: np.ndarray | None = None) -> np.ndarray:
     """IMU samples ``(n, 6)`` turned into the body frame by the mount (see :mod:`.imu_mount`).
 
     Given a rotation: applied. Otherwise estimated: with ``"auto"`` applied and reported; without,
@@ -249,7 +250,7 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
     if isinstance(imu_mount, np.ndarray):
         matrix = imu_mount
     else:
-        found = estimate_mount(t, body[:, :3], speed_mps, course_deg)
+        found = estimate_mount(t, body[:, :3], speed_mps, course_deg, gyro_xyz=body[:, 3:6], vehicle_speed_mps=vehicle_speed_mps)
         if found is None:
             log.warning("%s: the IMU's mount cannot be estimated (gravity does not read 7-13 m/s^2 on average); "
                         "its axes are used as they are", path)
