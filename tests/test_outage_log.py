@@ -119,9 +119,8 @@ def test_plans_and_outage_logs_refuse_what_does_not_fit(tmp_path):
         (("evaluate", "roundabout", "hard-brake", "--plan", plan), "a plan is made for one drive"),
         (("replay", "roundabout", "--plan", str(tmp_path / "none.json"), "-o", str(tmp_path / "x.rrd")), "no such plan file"),
         (("outage-log", str(out), "-o", str(tmp_path / "y.csv")), "is not one"),
-        (("outage-log", "roundabout", "-o", str(tmp_path / "y.bag")), "is copied from a ROS 1 bag"),
         (("outage-log", "roundabout", "-o", str(tmp_path / "y.txt")), "unsupported outage-log format"),
-        (("outage-log", "roundabout", "-o", str(tmp_path / "folder")), "unsupported outage-log format"),
+        (("outage-log", "roundabout", "-o", str(tmp_path / "no" / "y.bag")), "y.bag"),
     ]:
         proc = run_cli(*args)
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, (args, proc.stderr)
@@ -257,3 +256,23 @@ def test_a_bag_source_is_copied_to_a_bag_without_the_outages_gnss(tmp_path, kind
     if kind == "ros2":  # a folder is never replaced (a file is, atomically)
         proc = run_cli("outage-log", str(source), "-o", str(out))
         assert proc.returncode == 2 and "exists" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize("name", ["cut.bag", "cut"])
+def test_a_csv_drive_becomes_a_bag_of_the_kind_asked_for(tmp_path, name):
+    """From an IO-VNBD drive, a ROS 1 bag (.bag) or a ROS 2 bag (a new folder): standard messages,
+    read back with rosbags itself; no fix stamped inside an outage, every other one there."""
+    from rosbags.highlevel import AnyReader
+
+    out = tmp_path / name
+    result = iv.outage_log("roundabout", out, 10.0, iv.Every(40.0))
+    plan = json.loads(result.plan_path.read_text())
+    with AnyReader([out]) as reader:
+        fixes = [(reader.deserialize(raw, c.msgtype)) for c, _, raw in reader.messages() if c.topic == "/gps/fix"]
+        topics = {c.topic for c in reader.connections}
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in fixes]
+    drive = iv.load_drive("roundabout")
+    expected = [s for s in drive.start_stamp_s + drive.t_s if not _inside(s, plan)]
+    assert topics == {"/imu/data", "/gps/fix", "/gps/vel", "/wheel/odom"}
+    np.testing.assert_allclose(stamps, expected, atol=1e-6)
+    np.testing.assert_allclose([m.latitude for m in fixes], drive.lat_deg[[not _inside(s, plan) for s in drive.start_stamp_s + drive.t_s]])

@@ -18,7 +18,7 @@ from .app import app, options_named
 @c.with_placement_options
 def outage_log(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
-    output: Path = typer.Option(..., "-o", "--output", help="The outaged log: .mcap (any source; an MCAP source's other topics kept) or .csv (an IO-VNBD source); the plan goes beside it as NAME.outages.json."),
+    output: Path = typer.Option(..., "-o", "--output", help="The outaged log: .mcap, .bag (ROS 1), a new folder (ROS 2 bag) or .csv (an IO-VNBD source); the plan goes beside it as NAME.outages.json."),
     outage: str = c.OutageOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     read: Any = None,  # ReadOptions (c.with_source_options)

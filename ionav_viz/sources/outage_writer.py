@@ -11,10 +11,11 @@ including its end goes. Formats, by the output's name:
 * ``.mcap`` from any other source: the drive as ``ionav-viz convert`` writes it
   (:mod:`.mcap_writer`, stamps on the source's clock), without ``/gps/fix`` and ``/gps/vel``
   messages inside an outage. Where the drive has a reference truth, the receiver's fixes are written.
-* ``.bag`` from a ROS 1 bag, or a folder (a name without a suffix, that does not exist yet) from a
-  ROS 2 bag: every message copied as it is, connections and definitions too, except the GNSS
-  fixes and velocities inside an outage (stamped as the reader decides); a ROS 2 bag is written
-  as SQLite storage, uncompressed.
+* ``.bag`` (ROS 1) from a ROS 1 bag, or a folder (a name without a suffix, that does not exist
+  yet: a ROS 2 bag) from a ROS 2 bag: every message copied as it is, connections and definitions
+  too, except the GNSS fixes and velocities inside an outage (stamped as the reader decides); a
+  ROS 2 bag is written as SQLite storage, uncompressed. From any other source: the drive's topics
+  as for ``.mcap`` from a drive, as standard ROS messages.
 * ``.csv`` from an IO-VNBD ``V-*.csv``: every line as it was, except rows whose time of day lies
   inside an outage: the logger's no-fix convention, 0 satellites and the last fix before the
   outage repeated in the GNSS columns (latitude to vertical velocity).
@@ -66,19 +67,21 @@ def write_outage_log(drive: Drive, source: Path, kind: str, outages: Sequence[tu
     ``vehicle_speed``: for a log written from the drive, its vehicle speed (m/s per sample) and the
     columns it stands for (as ``convert`` writes it)."""
     suffix = out.suffix.lower()
-    if kind == "ros2" and suffix == "":
-        return _bag_copy(source, outages, out, tuple(gnss_topics), stamps)
+    if suffix == "" and not out.is_file():  # a ROS 2 bag folder
+        if kind == "ros2":
+            return _bag_copy(source, outages, out, tuple(gnss_topics), stamps)
+        return _bag_from_drive(drive, outages, out, vehicle_speed, ros1=False)
     check_output_file(out)
     if suffix == ".bag":
-        if kind != "ros1":
-            raise InputError(f"{out}: a ROS 1 outage log is copied from a ROS 1 bag, and {source} is not one", "write .mcap instead", param="output")
-        return _bag_copy(source, outages, out, tuple(gnss_topics), stamps)
+        if kind == "ros1":
+            return _bag_copy(source, outages, out, tuple(gnss_topics), stamps)
+        return _bag_from_drive(drive, outages, out, vehicle_speed, ros1=True)
     if suffix == ".csv":
         if kind != "iovnbd":
             raise InputError(f"{out}: a CSV outage log is an IO-VNBD file, and {source} is not one", "write .mcap instead", param="output")
         return _iovnbd(source, outages, out)
     if suffix != ".mcap":
-        raise InputError(f"{out}: unsupported outage-log format {suffix or '(a folder: ROS 2 bags only)'}",
+        raise InputError(f"{out}: unsupported outage-log format {suffix}",
                          "write .mcap (any source), .bag (a ROS 1 bag), a folder (a ROS 2 bag) or .csv (an IO-VNBD source)", param="output")
     if kind == "mcap":
         return _mcap_copy(source, outages, out, tuple(gnss_topics), stamps)
@@ -141,20 +144,72 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
     return OutageLog(out, "mcap", removed, gnss_topics)
 
 
-def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
-    import os
-    import shutil
+def _staging(out: Path) -> Path:
+    """A new hidden folder beside ``out`` to write into (made with stop signals held)."""
     import tempfile
 
     from ..core.signals import hold_signals
+
+    if not out.parent.is_dir():
+        raise InputError(f"{out}: no folder {out.parent}", "create it first", param="output")
+    release = hold_signals()
+    try:
+        return Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    finally:
+        release()
+
+
+def _bag_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: Path,
+                    vehicle_speed: tuple[np.ndarray, tuple[str, ...]] | None, ros1: bool) -> OutageLog:
+    """The drive's topics as ``convert`` writes them (:mod:`.mcap_writer`), as a ROS 1 bag or a ROS 2
+    bag folder: the MCAP's CDR messages, standard ROS types, re-serialised for ROS 1."""
+    import os
+    import shutil
+
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore
+
+    if not ros1 and out.exists():
+        raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name", param="output")
+    stage = _staging(out)
+    try:
+        written = _mcap_from_drive(drive, outages, stage / "drive.mcap", vehicle_speed)
+        if ros1:
+            from rosbags.rosbag1 import Writer
+
+            writer = Writer(stage / out.name)
+        else:
+            from rosbags.rosbag2 import Writer
+
+            writer = Writer(stage / out.name, version=9)
+        store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        cdr = get_typestore(Stores.ROS2_HUMBLE)
+        connections: dict[int, Any] = {}
+        with writer, open(stage / "drive.mcap", "rb") as f:
+            for schema, channel, message in make_reader(f).iter_messages(log_time_order=True):
+                if channel.id not in connections:
+                    connections[channel.id] = writer.add_connection(channel.topic, schema.name, typestore=store)
+                data = cdr.cdr_to_ros1(message.data, schema.name) if ros1 else message.data
+                writer.write(connections[channel.id], message.log_time, data)
+        if ros1:
+            os.replace(stage / out.name, out)
+        else:
+            (stage / out.name).rename(out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return OutageLog(out, "ros1" if ros1 else "ros2", written.removed, written.removed_topics)
+
+
+def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
+    import os
+    import shutil
+
     from .message_log import _get, _stamp_ns
     from .rosbag_reader import RosbagLog
 
     log_ = RosbagLog(source)
     if not log_.ros1 and out.exists():
         raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name", param="output")
-    if not out.parent.is_dir():
-        raise InputError(f"{out}: no folder {out.parent}", "create it first", param="output")
 
     def inside_outage(log_ns: int, msg: Any) -> bool:
         ns = log_ns
@@ -165,11 +220,7 @@ def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, g
                 ns = log_ns
         return bool(inside(np.array([ns * 1e-9]), outages)[0])
 
-    release = hold_signals()
-    try:
-        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    finally:
-        release()
+    stage = _staging(out)
     try:
         staged = stage / out.name
         removed = log_.copy(staged, set(gnss_topics), inside_outage)
