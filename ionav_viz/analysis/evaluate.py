@@ -21,7 +21,7 @@ from ..core.grid import WINDOW_S
 from ..core.timing import stage
 from ..nav.bias import SensorBias, resolve_bias
 from ..nav.outages import excluded_by_truth, tile
-from ..nav.protocol import Estimator, EstimatorInputs, Solution, describe, solve
+from ..nav.protocol import Estimator, EstimatorInputs, Solution, color_of, describe, solve
 from ..nav.registry import BASELINE
 from ..nav.registry import resolve as resolve_estimators
 from ..nav.windows import Windows, make_windows
@@ -105,8 +105,9 @@ class DriveResult:
         return self.windows.t0_s[self.starts]
 
     def estimator_info(self) -> list[dict[str, Any]]:
-        """Name, label and description of every estimator (for reports)."""
-        return [{"name": e.name, "label": e.label, **({"info": info} if (info := describe(e)) else {})} for e in self.estimators]
+        """Name, label, its own colour (RGB, when it has one) and description of every estimator (for reports)."""
+        return [{"name": e.name, "label": e.label, **({"color": list(color)} if (color := color_of(e)) else {}),
+                 **({"info": info} if (info := describe(e)) else {})} for e in self.estimators]
 
 
 def evaluate_drive(

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..nav.protocol import short_label
+from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
 from .tables import truth_line
@@ -149,7 +150,10 @@ class Report:
         the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`).
         ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
         ``"gnss"`` (the receiver's fixes are the truth) or ``"reference"`` (a reference trajectory
-        beside them is; the estimators got only the receiver's).
+        beside them is; the estimators got only the receiver's). ``drift``: per estimator, the
+        position error against seconds since the outage began (``t_s``, ``mean_m``, ``p10_m``,
+        ``p90_m`` over the outages; :mod:`.drift`); ``final_error_percentiles``: per estimator the
+        ``p50``, ``p90``, ``p95`` and ``max`` of the final position error (m).
         NaN is kept here; :meth:`to_json` writes it as null.
         """
         if self._dict is not None:
@@ -185,6 +189,9 @@ class Report:
         }
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
+        if sequences:
+            out["drift"] = report_drift(results, estimators)
+            out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m")) for e in estimators}
         out["worst_of"] = self.worst_of
         out["worst"] = self.worst_outages()
         bridged = [(r.drive.name, b) for r in results for b in r.bridged]

@@ -90,6 +90,25 @@ def worst_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
+def drift_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """Position error against seconds since the outage began (about five points, the end always):
+    per estimator the mean with the 10-90 % range; then the final-error percentiles."""
+    labels = labels_of(rep)
+    t = rep["drift"][next(iter(labels))]["t_s"]
+    step = max(1, round((len(t) - 1) / 5))
+    picks = sorted({*range(step, len(t), step), len(t) - 1})
+    header = ["Estimator", *(f"{t[k]:g} s" for k in picks), "p50", "p90", "p95", "max"]
+    rows = []
+    for e, label in labels.items():
+        d, pct = rep["drift"][e], rep["final_error_percentiles"][e]
+        rows.append([label, *(f"{_fmt(d['mean_m'][k], 1)} [{_fmt(d['p10_m'][k], 1)}-{_fmt(d['p90_m'][k], 1)}]" for k in picks),
+                     *(_fmt(pct[q], 1) for q in ("p50", "p90", "p95", "max"))])
+    return header, rows
+
+
+DRIFT_TITLE = "Position error since the outage began (m): mean [10-90 %], and final-error percentiles (m)"
+
+
 def worst_title(rep: dict[str, Any]) -> str:
     labels = labels_of(rep)
     return f"Worst outages by {labels.get(rep.get('worst_of', 'ins'), 'INS DR')} final position error"
@@ -108,6 +127,10 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
                   "| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
         lines += [bridged_line(rep)]
     extra = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    if rep.get("drift"):
+        header, rows = drift_rows(rep)
+        extra += ["", f"**{DRIFT_TITLE}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        extra += ["| " + " | ".join(r) + " |" for r in rows]
     if rep.get("worst"):
         header, rows = worst_rows(rep)
         extra += ["", f"**{worst_title(rep)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
@@ -127,6 +150,9 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
                 bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    if rep.get("drift"):
+        header, rows = drift_rows(rep)
+        out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
     if rep.get("worst"):
         header, rows = worst_rows(rep)
         out += [f"{worst_title(rep)}:", *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]

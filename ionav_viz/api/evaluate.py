@@ -87,6 +87,7 @@ def evaluate(
     truth: str | None = None,
     plan: str | Path | None = None,
     external: Mapping[str, str | Path] | None = None,
+    export: str | Path | None = None,
 ) -> Report:
     """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
 
@@ -105,6 +106,8 @@ def evaluate(
         external: estimates made outside ionav-viz on the plan's outaged log, ``{name: trajectory}``
             (a ``.csv``, a ``.tum`` or ``LOG:TOPIC``, :mod:`ionav_viz.sources.trajectory`), scored
             like the built-ins; they need ``plan``.
+        export: a folder to write the per-outage table, evo's TUM tracks and GeoJSON/GPX tracks
+            into (:mod:`ionav_viz.analysis.exports`).
         truth: a message log's reference topic, the truth every score is measured against
             (a shortcut for ``read.log.truth_topic``; see :class:`LogOptions`).
 
@@ -125,7 +128,12 @@ def evaluate(
     run.chosen()
     with collecting_warnings() as warned:
         results = _evaluate_each(items, n, placement, run, read, progress)
-    return Report(results, warnings=warned)
+    report = Report(results, warnings=warned)
+    if export is not None:
+        from ..analysis.exports import export_results
+
+        export_results(results, export)
+    return report
 
 
 def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: RunOptions, read: ReadOptions,

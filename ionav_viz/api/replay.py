@@ -67,11 +67,12 @@ def replay(
     truth: str | None = None,
     plan: str | Path | None = None,
     external: Mapping[str, str | Path] | None = None,
+    export: str | Path | None = None,
 ) -> ReplayResult:
     """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
 
     Args:
-        drive, outage_s, placement, estimators, run, read, truth, plan, external: as for :func:`evaluate`
+        drive, outage_s, placement, estimators, run, read, truth, plan, external, export: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
         output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
             directory, the folder made when missing); an existing file is replaced atomically,
@@ -99,7 +100,12 @@ def replay(
         check_event_types(placement.event_types)
     run.chosen()
     with collecting_warnings() as warned:
-        return _replay(drive, n, placement, out, run, read, progress, connect, warned)
+        replayed = _replay(drive, n, placement, out, run, read, progress, connect, warned)
+    if export is not None:
+        from ..analysis.exports import export_results
+
+        export_results(replayed.report.results, export)
+    return replayed
 
 
 def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, run: RunOptions, read: ReadOptions,

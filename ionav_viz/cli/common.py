@@ -37,6 +37,7 @@ PlanOpt = typer.Option(None, "--plan", help="Exactly the outages of a plan file 
                        show_default=False)
 
 
+ExportOpt = typer.Option(None, "--export", help="Also write outages.csv, evo's TUM tracks per outage and GeoJSON/GPX tracks into this folder.", show_default=False)
 ExternalOpt = typer.Option(None, "--external", help="NAME=TRAJECTORY: an estimate made outside ionav-viz on the plan's outaged log (.csv, .tum or LOG:TOPIC), scored like the built-ins (repeatable; needs --plan).",
                            show_default=False)
 

@@ -22,6 +22,7 @@ def evaluate(
     outage: Optional[str] = c.OutageOrPlanOpt,
     plan: Optional[Path] = c.PlanOpt,
     external: Optional[list[str]] = c.ExternalOpt,
+    export: Optional[Path] = c.ExportOpt,
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Evaluate a scenario's test drives: the paper's runs with a data root, else the bundled ones; 'all' for every scenario."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
     markdown: bool = typer.Option(False, "--markdown", help="Print the tables as Markdown."),
@@ -53,7 +54,8 @@ def evaluate(
         if by_event:
             reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on, run=run, read=read)
         else:
-            reports = {group: replace(api.evaluate(specs, outage_s, chosen, external=c.externals_of(external), run=run, read=read,
+            reports = {group: replace(api.evaluate(specs, outage_s, chosen, external=c.externals_of(external),
+                                                   export=None if export is None else (export / group if group else export), run=run, read=read,
                                                    progress=c.progress_callback(bar, "evaluating")), title=group)
                        for group, specs in groups.items()}
 

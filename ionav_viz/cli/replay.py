@@ -22,6 +22,7 @@ def replay(
     outage: Optional[str] = c.OutageOrPlanOpt,
     plan: Optional[Path] = c.PlanOpt,
     external: Optional[list[str]] = c.ExternalOpt,
+    export: Optional[Path] = c.ExportOpt,
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd in the current directory, made when missing; an existing file is replaced)."),
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards (needs a display)."),
     connect: Optional[str] = typer.Option(None, "--connect", metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
@@ -48,7 +49,7 @@ def replay(
         if serving.public:
             log.warning("--bind %s: the served recording (the drive's positions) is reachable from every network this machine is on", bind)
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage or '10s'}", placement="--plan" if plan else placement.option):
-        result = api.replay(drive_spec, outage_s, chosen, external=c.externals_of(external), output=output, run=run, read=read, connect=connect,
+        result = api.replay(drive_spec, outage_s, chosen, external=c.externals_of(external), export=export, output=output, run=run, read=read, connect=connect,
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)

@@ -1,0 +1,150 @@
+"""Results in the forms other tools read (``--export DIR``): a per-outage metrics table, tracks for
+evo, and tracks for GIS tools.
+
+Files written into ``DIR`` (each atomically; an existing file of the same name is replaced):
+
+* ``outages.csv``: one row per outage and estimator, every metric, units in the column names.
+* ``tum/<drive>/outage-NNN-<estimator>.tum`` and ``outage-NNN-truth.tum``: each outage's estimated
+  track and the truth in evo's TUM format (``timestamp x y z qx qy qz qw``), one pose per second
+  from the outage's start to its end. Timestamps are the source's own clock (UNIX seconds for
+  message logs, the time of day for IO-VNBD; :meth:`~ionav_viz.core.drive.Drive.stamp_s`); x east and y
+  north in metres on the azimuthal equidistant plane about the drive's first GNSS fix (the local
+  frame ``--external`` reads too), z 0; the orientation is the course (yaw about up, from east,
+  counter-clockwise). ``evo_ape tum outage-001-truth.tum outage-001-ins.tum`` reads them as they are.
+* ``tracks.geojson`` (RFC 7946, WGS84 longitude/latitude): each drive's truth and every outage's
+  estimated tracks as LineStrings with their drive, outage, estimator and final error.
+* ``tracks.gpx`` (GPX 1.1): the same tracks, one ``trk`` each, for Google Earth, QGIS or a phone.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+from ..core.fileio import atomic_write_bytes
+from ..core.geo import local_en_m
+from .metrics import METRICS
+
+#: The columns of ``outages.csv``: keys, then every metric (their names carry their units).
+OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS)
+
+
+def export_results(results: list[Any], folder: str | Path) -> list[Path]:
+    """Write the exports of ``results`` (:class:`~ionav_viz.analysis.evaluate.DriveResult` s of one
+    report) into ``folder`` (made when missing, with its parents). Returns the files written."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [_write(folder / "outages.csv", _outages_csv(results).encode())]
+    features, gpx_tracks = [], []
+    for res in results:
+        written += _tum_files(res, folder / "tum" / _safe(res.drive.name))
+        f, g = _tracks(res)
+        features += f
+        gpx_tracks += g
+    written.append(_write(folder / "tracks.geojson", json.dumps({"type": "FeatureCollection", "features": features}).encode()))
+    written.append(_write(folder / "tracks.gpx", _gpx(gpx_tracks).encode()))
+    return written
+
+
+def _write(path: Path, data: bytes) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, data)
+    return path
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "drive"
+
+
+def _outages_csv(results: list[Any]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(OUTAGE_COLUMNS)
+    for res in results:
+        distance = res.gnss_distance_m
+        for i, k in enumerate(res.starts):
+            t0 = float(res.windows.t0_s[k])
+            for est in res.estimators:
+                m = res.metrics[est.name]
+                writer.writerow([res.drive.name, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}", f"{float(res.drive.stamp_s(t0)):.6f}",
+                                 est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS)])
+    return out.getvalue()
+
+
+def _number(x: float) -> str:
+    return "" if not math.isfinite(float(x)) else repr(float(x))
+
+
+def _boundaries(res: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per outage: stamps (s), truth latitude, longitude and course at the window boundaries."""
+    w, starts, n = res.windows, np.asarray(res.starts, dtype=int), res.n_windows
+    idx = starts[:, None] + np.arange(n)[None, :]
+    t = np.asarray(res.drive.stamp_s(w.t0_s[starts][:, None] + np.arange(n + 1)[None, :]), dtype=float)
+    lat = np.concatenate([w.lat0_deg[starts][:, None], w.lat1_deg[idx]], axis=1)
+    lon = np.concatenate([w.lon0_deg[starts][:, None], w.lon1_deg[idx]], axis=1)
+    heading = np.concatenate([w.heading0_deg[starts][:, None], w.heading1_deg[idx]], axis=1)
+    return t, lat, lon, heading
+
+
+def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray) -> str:
+    yaw = np.radians(90.0 - course_deg)  # ENU yaw: from east, counter-clockwise
+    rows = ["# timestamp x y z qx qy qz qw  (x east, y north m about the drive's first GNSS fix; ionav-viz)"]
+    rows += [f"{ti:.6f} {x:.4f} {y:.4f} 0 0 0 {math.sin(a / 2):.9f} {math.cos(a / 2):.9f}" for ti, x, y, a in zip(t, east, north, yaw)]
+    return "\n".join(rows) + "\n"
+
+
+def _tum_files(res: Any, folder: Path) -> list[Path]:
+    if len(res.starts) == 0:
+        return []
+    received = res.drive.as_received()
+    lat0, lon0 = float(received.lat_deg[0]), float(received.lon_deg[0])
+    t, lat, lon, heading = _boundaries(res)
+    out = []
+    for i in range(len(res.starts)):
+        east, north = local_en_m(lat[i], lon[i], lat0, lon0)
+        out.append(_write(folder / f"outage-{i + 1:03d}-truth.tum", _tum(t[i], east, north, heading[i]).encode()))
+        for est in res.estimators:
+            track = res.estimates[est.name].track
+            east, north = local_en_m(track.lat_deg[i], track.lon_deg[i], lat0, lon0)
+            out.append(_write(folder / f"outage-{i + 1:03d}-{est.name}.tum", _tum(t[i], east, north, track.heading_deg[i]).encode()))
+    return out
+
+
+def _tracks(res: Any) -> tuple[list[dict[str, Any]], list[tuple[str, np.ndarray, np.ndarray]]]:
+    """GeoJSON features and GPX tracks ``(name, lat, lon)`` of one drive: its truth, and every outage's estimates."""
+    d = res.drive
+    step = max(1, int(round(d.rate_hz)))  # the truth at about 1 Hz keeps the files small
+    features = [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(d.lat_deg[::step], d.lon_deg[::step])},
+                 "properties": {"drive": d.name, "kind": "truth"}}]
+    gpx = [(f"{d.name} truth", d.lat_deg[::step], d.lon_deg[::step])]
+    for i, k in enumerate(res.starts):
+        for est in res.estimators:
+            track = res.estimates[est.name].track
+            final = float(res.metrics[est.name]["final_position_error_m"][i])
+            features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[i], track.lon_deg[i])},
+                             "properties": {"drive": d.name, "kind": "estimate", "outage": i + 1, "start_s": round(float(res.windows.t0_s[k]), 3),
+                                            "estimator": est.name, "label": est.label,
+                                            "final_position_error_m": final if math.isfinite(final) else None}})
+            gpx.append((f"{d.name} outage {i + 1} {est.label}", track.lat_deg[i], track.lon_deg[i]))
+    return features, gpx
+
+
+def _coords(lat: np.ndarray, lon: np.ndarray) -> list[list[float]]:
+    return [[round(float(x), 8), round(float(y), 8)] for y, x in zip(lat, lon)]
+
+
+def _gpx(tracks: list[tuple[str, np.ndarray, np.ndarray]]) -> str:
+    out = ['<?xml version="1.0" encoding="UTF-8"?>',
+           '<gpx version="1.1" creator="ionav-viz" xmlns="http://www.topografix.com/GPX/1/1">']
+    for name, lat, lon in tracks:
+        points = "".join(f'<trkpt lat="{float(y):.8f}" lon="{float(x):.8f}"/>' for y, x in zip(lat, lon))
+        out.append(f"<trk><name>{escape(name)}</name><trkseg>{points}</trkseg></trk>")
+    out.append("</gpx>")
+    return "\n".join(out) + "\n"

@@ -1,0 +1,86 @@
+"""Issue 31.2 and 31.4: drift curves and final-error percentiles in the report, and the exports
+(outages.csv, evo's TUM tracks, GeoJSON and GPX) read back with the tools they are for."""
+
+from __future__ import annotations
+
+import csv
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+
+from .conftest import run_cli
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("export")
+    report = iv.evaluate("roundabout", placement=iv.Every(60.0), estimators=["ins", "odo", "ekf"], export=folder)
+    return report, json.loads(report.to_json()), folder
+
+
+def test_evo_reads_the_tum_tracks_and_their_end_points_are_the_final_errors(exported):
+    """The end-point distance between an estimate's and the truth's TUM track, as evo reads them,
+    is the report's final position error within 1 cm."""
+    from evo.tools import file_interface
+
+    _, got, folder = exported
+    tum = folder / "tum" / "V-sim-roundabout"
+    checked = 0
+    for i, seq in enumerate(got["sequences"], start=1):
+        truth = file_interface.read_tum_trajectory_file(str(tum / f"outage-{i:03d}-truth.tum"))
+        assert truth.num_poses == 11 and abs(truth.timestamps[-1] - truth.timestamps[0] - 10.0) < 1e-6
+        for est in ("ins", "odo", "ekf"):
+            track = file_interface.read_tum_trajectory_file(str(tum / f"outage-{i:03d}-{est}.tum"))
+            np.testing.assert_allclose(track.timestamps, truth.timestamps)
+            end = float(np.linalg.norm(track.positions_xyz[-1] - truth.positions_xyz[-1]))
+            assert abs(end - seq[est]["final_position_error_m"]) < 0.01, (i, est, end, seq[est]["final_position_error_m"])
+            checked += 1
+    assert checked >= 27
+
+
+def test_the_outage_table_geojson_and_gpx_hold_every_outage(exported):
+    _, got, folder = exported
+    with open(folder / "outages.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 3 * got["n_sequences"] and set(rows[0]) >= {"crse_m", "yaw_crse_radps", "final_position_error_m", "start_stamp_s"}
+    for row in rows:
+        seq = got["sequences"][int(row["outage"]) - 1]
+        assert float(row["final_position_error_m"]) == pytest.approx(seq[row["estimator"]]["final_position_error_m"], rel=1e-12)
+        assert float(row["start_s"]) == seq["start_s"]
+    geo = json.loads((folder / "tracks.geojson").read_text())
+    kinds = [f["properties"]["kind"] for f in geo["features"]]
+    assert kinds.count("truth") == 1 and kinds.count("estimate") == 3 * got["n_sequences"]
+    lon, lat = geo["features"][0]["geometry"]["coordinates"][0]
+    drive = iv.load_drive("roundabout")
+    assert (lat, lon) == pytest.approx((drive.lat_deg[0], drive.lon_deg[0]), abs=1e-8)  # GeoJSON: longitude first
+    gpx = ET.parse(folder / "tracks.gpx").getroot()
+    ns = {"g": "http://www.topografix.com/GPX/1/1"}
+    assert len(gpx.findall("g:trk", ns)) == 1 + 3 * got["n_sequences"]
+
+
+def test_drift_curves_and_percentiles_agree_with_the_outages(exported):
+    """Drift: zero at the start for estimators that start on the fix, its end the mean final
+    error; the percentiles are those of the per-outage final errors (computed here with numpy)."""
+    report, got, _ = exported
+    for est in ("ins", "odo", "ekf"):
+        d = got["drift"][est]
+        finals = np.array([s[est]["final_position_error_m"] for s in got["sequences"]])
+        assert d["t_s"] == [float(k) for k in range(11)] and d["mean_m"][0] == pytest.approx(0.0, abs=1e-6)
+        assert d["mean_m"][-1] == pytest.approx(finals.mean(), rel=1e-9)
+        errors_at_end = finals  # the band at the end: the 10th and 90th percentiles of the final errors
+        assert (d["p10_m"][-1], d["p90_m"][-1]) == pytest.approx((np.percentile(errors_at_end, 10), np.percentile(errors_at_end, 90)))
+        pct = got["final_error_percentiles"][est]
+        assert pct == pytest.approx({"p50": np.median(finals), "p90": np.percentile(finals, 90), "p95": np.percentile(finals, 95),
+                                     "max": finals.max()})
+    text = report.to_text()
+    assert "Position error since the outage began (m)" in text and "p95" in text
+
+
+def test_export_from_the_command_line(tmp_path):
+    proc = run_cli("replay", "hard-brake", "--every", "60s", "--no-idnn", "-o", str(tmp_path / "r.rrd"), "--export", str(tmp_path / "ex"), "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert {p.name for p in (tmp_path / "ex").iterdir()} == {"outages.csv", "tracks.geojson", "tracks.gpx", "tum"}
