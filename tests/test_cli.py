@@ -11,7 +11,7 @@ def test_help_lists_commands_without_heavy_imports():
     assert "evaluate" in proc.stdout and "simulate" in proc.stdout
     # no heavy import at start-up: numpy/torch/rerun stay out of the help path
     proc = run_cli("--help", env={"PYTHONPROFILEIMPORTTIME": "1"})
-    assert "torch" not in proc.stderr and "rerun" not in proc.stderr and "numpy" not in proc.stderr
+    assert "torch" not in proc.stderr and "rerun" not in proc.stderr and "numpy" not in proc.stderr and "matplotlib" not in proc.stderr
 
 
 def test_evaluate_json_schema():

@@ -84,3 +84,30 @@ def test_export_from_the_command_line(tmp_path):
     proc = run_cli("replay", "hard-brake", "--every", "60s", "--no-idnn", "-o", str(tmp_path / "r.rrd"), "--export", str(tmp_path / "ex"), "-q")
     assert proc.returncode == 0, proc.stderr
     assert {p.name for p in (tmp_path / "ex").iterdir()} == {"outages.csv", "tracks.geojson", "tracks.gpx", "tum"}
+
+
+def test_figures_from_a_recording_and_from_json(tmp_path):
+    """Issue 31.3: drift, CDF, per-outage and worst-outage figures as SVG, PDF and PNG, from the
+    recording replay wrote and from evaluate --json alike; labels as text in the SVG; one paper
+    column wide (3.5 in at 300 dpi)."""
+    from PIL import Image
+
+    rec = tmp_path / "r.rrd"
+    assert run_cli("replay", "roundabout", "--every", "60s", "--no-idnn", "-o", str(rec), "-q").returncode == 0
+    proc = run_cli("figures", str(rec), "-o", str(tmp_path / "figs"))
+    assert proc.returncode == 0, proc.stderr
+    names = {p.name for p in (tmp_path / "figs").iterdir()}
+    assert names == {f"{f}.{x}" for f in ("drift", "cdf", "outages", "worst") for x in ("svg", "pdf", "png")}
+    drift_svg = (tmp_path / "figs" / "drift.svg").read_text()
+    assert all(label in drift_svg for label in ("INS DR", "Odometry", "GNSS-aided INS", "position error (m)"))
+    assert "20 m" in (tmp_path / "figs" / "worst.svg").read_text() or " m</text>" in (tmp_path / "figs" / "worst.svg").read_text()
+    width, _ = Image.open(tmp_path / "figs" / "drift.png").size
+    assert 900 <= width <= 1200
+    assert (tmp_path / "figs" / "cdf.pdf").read_bytes().startswith(b"%PDF")
+
+    js = tmp_path / "r.json"
+    js.write_text(run_cli("evaluate", "roundabout", "--every", "60s", "--no-idnn", "--json").stdout)
+    assert run_cli("figures", str(js), "-o", str(tmp_path / "figs2")).returncode == 0
+    for bad, fragment in [(tmp_path / "figs" / "cdf.pdf", "not JSON"), (tmp_path / "none.json", "no such file")]:
+        proc = run_cli("figures", str(bad), "-o", str(tmp_path / "x"))
+        assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr

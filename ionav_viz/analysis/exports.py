@@ -106,14 +106,15 @@ def _tum_files(res: Any, folder: Path) -> list[Path]:
     received = res.drive.as_received()
     lat0, lon0 = float(received.lat_deg[0]), float(received.lon_deg[0])
     t, lat, lon, heading = _boundaries(res)
+    # one projection per track set (a projection is set up per call: thousands of outages add up)
+    local = {"truth": (*local_en_m(lat, lon, lat0, lon0), heading)}
+    for est in res.estimators:
+        track = res.estimates[est.name].track
+        local[est.name] = (*local_en_m(track.lat_deg, track.lon_deg, lat0, lon0), track.heading_deg)
     out = []
     for i in range(len(res.starts)):
-        east, north = local_en_m(lat[i], lon[i], lat0, lon0)
-        out.append(_write(folder / f"outage-{i + 1:03d}-truth.tum", _tum(t[i], east, north, heading[i]).encode()))
-        for est in res.estimators:
-            track = res.estimates[est.name].track
-            east, north = local_en_m(track.lat_deg[i], track.lon_deg[i], lat0, lon0)
-            out.append(_write(folder / f"outage-{i + 1:03d}-{est.name}.tum", _tum(t[i], east, north, track.heading_deg[i]).encode()))
+        for name, (east, north, course) in local.items():
+            out.append(_write(folder / f"outage-{i + 1:03d}-{name}.tum", _tum(t[i], east[i], north[i], course[i]).encode()))
     return out
 
 

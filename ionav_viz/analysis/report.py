@@ -133,6 +133,25 @@ class Report:
                  "final_error_m": {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators}}
                 for _err, r, i in ranked[:count]]
 
+    def outage_tracks(self, drive: str, number: int) -> dict[str, Any]:
+        """One outage's tracks at its window boundaries: ``drive``, ``number``, ``start_s``, and
+        per estimator and ``truth`` the ``east_m`` and ``north_m`` of each boundary, metres on the
+        local plane about the truth at the outage's start (for figures with a scale bar)."""
+        from ..core.geo import local_en_m
+
+        res = next(r for r in self.results if r.drive.name == drive)
+        i, w = number - 1, res.windows
+        k = int(res.starts[i])
+        idx = k + np.arange(res.n_windows)
+        lat0, lon0 = float(w.lat0_deg[k]), float(w.lon0_deg[k])
+        lines = {"truth": (np.r_[lat0, w.lat1_deg[idx]], np.r_[lon0, w.lon1_deg[idx]])}
+        lines |= {e: (res.estimates[e].track.lat_deg[i], res.estimates[e].track.lon_deg[i]) for e in self.estimators}
+        out: dict[str, Any] = {"drive": drive, "number": number, "start_s": round(float(w.t0_s[k]), 3)}
+        for name, (lat, lon) in lines.items():
+            east, north = local_en_m(lat, lon, lat0, lon0)
+            out[name] = {"east_m": np.round(east, 4).tolist(), "north_m": np.round(north, 4).tolist()}
+        return out
+
     def to_dict(self) -> dict[str, Any]:
         """The ``evaluate --json`` object.
 
@@ -147,7 +166,8 @@ class Report:
         GNSS losses bridged (``--on gnss-outage``), ``gnss_outages``: ``bridged`` (each with its
         ``drive``, gap, outage and ``final_error_m`` per estimator), ``not_bridged`` and
         ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
-        the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`).
+        the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`),
+        and ``worst_tracks``: the worst one's tracks in local metres (:meth:`outage_tracks`).
         ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
         ``"gnss"`` (the receiver's fixes are the truth) or ``"reference"`` (a reference trajectory
         beside them is; the estimators got only the receiver's). ``drift``: per estimator, the
@@ -194,6 +214,8 @@ class Report:
             out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m")) for e in estimators}
         out["worst_of"] = self.worst_of
         out["worst"] = self.worst_outages()
+        if out["worst"]:
+            out["worst_tracks"] = self.outage_tracks(out["worst"][0]["drive"], out["worst"][0]["number"])
         bridged = [(r.drive.name, b) for r in results for b in r.bridged]
         if bridged or any(r.unbridged for r in results):
             out["gnss_outages"] = {

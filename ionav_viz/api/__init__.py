@@ -19,6 +19,7 @@ from ..viz.live import WebServing
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
+from .figures import figures
 from .options import RunOptions
 from .outage_log import OutageLogResult, outage_log
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_scenario, serve_web
@@ -44,6 +45,7 @@ __all__ = [
     "evaluate",
     "evaluate_by_event",
     "fetch",
+    "figures",
     "find_events",
     "list_runs",
     "outage_log",

@@ -142,7 +142,7 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
             progress(f"{out.name}: {label}", done[0], total)
 
     with stage(f"write {out}") as s, atomic_path(out, create_parent=default) as tmp:
-        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events)
+        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events, report_json=report.to_json())
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     if connect is not None:
         with stage(f"stream to {connect}"):

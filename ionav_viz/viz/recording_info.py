@@ -255,3 +255,30 @@ def _series_style(batch) -> tuple[str, tuple[int, int, int]]:
             packed = int(values[0][0])  # 0xRRGGBBAA
             rgb = ((packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255)
     return label, rgb
+
+
+def report_json(path: Path) -> str:
+    """The report a recording carries (``report``: what ``evaluate --json`` prints), or an error
+    saying the recording has none (made before it carried one)."""
+    with utf8_alias(path) as readable:
+        import warnings
+
+        from rerun.chunk import RrdReader
+
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                for chunk in RrdReader(readable).stream():
+                    if str(chunk.entity_path).strip("/") != ent.REPORT:
+                        continue
+                    batch = chunk.to_record_batch()
+                    column = next((n for n in batch.schema.names if n.endswith(":text")), None)
+                    if column is not None:
+                        values = batch.column(column).to_pylist()
+                        if values and values[0]:
+                            return str(values[0][0] if isinstance(values[0], list) else values[0])
+        except Exception as exc:
+            raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                             "make one with 'ionav-viz replay DRIVE'") from None
+    raise InputError(f"{path}: the recording carries no report (made by an earlier ionav-viz?)", "replay the drive again, or give 'evaluate --json' output",
+                     param="result")

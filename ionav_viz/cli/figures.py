@@ -1,0 +1,24 @@
+"""``ionav-viz figures``: publication figures of a recording or an ``evaluate --json`` report."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import typer
+
+from .app import app
+
+
+@app.command()
+def figures(
+    result: Path = typer.Argument(..., metavar="RESULT", help="A recording (.rrd) written by replay, or the output of 'evaluate --json' for one drive."),
+    output: Path = typer.Option(..., "-o", "--output", help="The folder to write drift, cdf, outages and worst as SVG, PDF and PNG into (made when missing)."),
+) -> None:
+    """Draw a run's drift curve, final-error CDF, per-outage errors and worst outage as publication figures."""
+    from .. import api
+
+    written = api.figures(result, output)
+    print(f"{len(written)} files in {output}", file=sys.stderr)
+    for path in written:
+        print(path)
