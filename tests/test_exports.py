@@ -111,3 +111,23 @@ def test_figures_from_a_recording_and_from_json(tmp_path):
     for bad, fragment in [(tmp_path / "figs" / "cdf.pdf", "not JSON"), (tmp_path / "none.json", "no such file")]:
         proc = run_cli("figures", str(bad), "-o", str(tmp_path / "x"))
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
+def test_several_outage_lengths_in_one_call():
+    """Issue 31.2: --outage 10s,30s,60s runs every length on the same drives; each length's report
+    is the single-length run's, and the error against outage length summarises them."""
+    proc = run_cli("evaluate", "hard-brake", "--outage", "30s,10s", "--no-idnn", "--json")
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout)
+    assert list(got["lengths"]) == ["10", "30"]
+    single = json.loads(iv.evaluate("hard-brake", 30.0, estimators=["ins", "odo", "ekf"]).to_json())
+    assert got["lengths"]["30"]["sequences"] == single["sequences"]
+    for est in ("ins", "odo", "ekf"):
+        row = got["by_length"][est]
+        assert row["outage_s"] == [10.0, 30.0]
+        finals = [s[est]["final_position_error_m"] for s in single["sequences"]]
+        assert row["final_position_error_m"][1] == pytest.approx(np.mean(finals)) and row["n_outages"][1] == len(finals)
+    text = run_cli("evaluate", "hard-brake", "--outage", "10s,30s", "--no-idnn")
+    assert text.returncode == 0 and "Error against outage length" in text.stdout
+    bad = run_cli("evaluate", "--scenario", "all", "--outage", "10s,30s")
+    assert bad.returncode == 2 and "--scenario" in bad.stderr

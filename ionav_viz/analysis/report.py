@@ -285,6 +285,33 @@ def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", inden
                                  "worst": total.worst_outages()}), indent=indent)
 
 
+def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
+    """Error against outage length (``evaluate --outage 10s,30s,60s``): per estimator, the lengths
+    (``outage_s``) with the mean ``final_position_error_m``, ``final_error_pct`` and ``crse_m``, and
+    the ``final_error_p90_m``, over each length's outages."""
+    lengths = sorted(reports)
+    names = reports[lengths[0]].estimators
+    out: dict[str, Any] = {}
+    for est in names:
+        rows: dict[str, list[float]] = {"outage_s": [float(x) for x in lengths], "n_outages": [], "final_position_error_m": [],
+                                        "final_error_pct": [], "crse_m": [], "final_error_p90_m": []}
+        for length in lengths:
+            rep = reports[length]
+            rows["n_outages"].append(rep.n_outages)
+            for metric in ("final_position_error_m", "final_error_pct", "crse_m"):
+                rows[metric].append(rep.summary[est][metric]["mean"] if rep.n_outages else float("nan"))
+            rows["final_error_p90_m"].append(final_error_percentiles(rep.metric(est, "final_position_error_m"))["p90"])
+        out[est] = rows
+    return out
+
+
+def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> str:
+    """Several outage lengths as one JSON object: ``lengths`` (each length's report, keyed by its
+    seconds) and ``by_length`` (:func:`by_length`)."""
+    return json.dumps(json_safe({"lengths": {f"{k:g}": r.to_dict() for k, r in sorted(reports.items())},
+                                 "by_length": by_length(reports)}), indent=indent)
+
+
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
     """A replay's parameters as Markdown (the recording's summary document)."""
     drive, bias = result.drive, result.bias

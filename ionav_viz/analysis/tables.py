@@ -301,3 +301,18 @@ def overview_transposed(reports: dict[Any, dict[str, Any]], label: str = "Scenar
             metric = f"{title} {unit}"
         out_rows.append([metric if title else "", est, *(r[j] for r in rows)])
     return out_header, out_rows
+
+
+def render_lengths(summary: dict[str, Any], labels: dict[str, str], markdown: bool = False, width: int | None = None) -> str:
+    """Error against outage length: per estimator and length, the mean final position error (m)
+    with its share of the distance (%), and the mean displacement CRSE (m)."""
+    first = next(iter(summary.values()))
+    header = ["Estimator", *(f"{x:g} s final (m, %)" for x in first["outage_s"]), *(f"{x:g} s CRSE (m)" for x in first["outage_s"])]
+    rows = [[labels.get(e, e), *(f"{_fmt(m, 2)} ({_fmt(p, 1)} %)" for m, p in zip(r["final_position_error_m"], r["final_error_pct"])),
+             *(_fmt(c, 2) for c in r["crse_m"])] for e, r in summary.items()]
+    title = "Error against outage length (mean over each length's outages; " + ", ".join(
+        f"{x:g} s: {n}" for x, n in zip(first["outage_s"], first["n_outages"])) + " outages)"
+    if markdown:
+        return "\n".join([f"**{title}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+                         + ["| " + " | ".join(r) + " |" for r in rows]) + "\n"
+    return "\n".join([title, *aligned(header, rows, 1, width)]) + "\n"

@@ -17,7 +17,7 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 
 from ..viz.live import WebServing
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
-from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, scenario_drives
+from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
 from .figures import figures
 from .options import RunOptions
@@ -44,6 +44,7 @@ __all__ = [
     "detector_quality",
     "evaluate",
     "evaluate_by_event",
+    "evaluate_lengths",
     "fetch",
     "figures",
     "find_events",

@@ -162,6 +162,29 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
     return results
 
 
+def evaluate_lengths(
+    drives: Sequence[DriveLike] | DriveLike,
+    lengths_s: Sequence[float],
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    progress: Progress | None = None,
+    truth: str | None = None,
+) -> dict[float, Report]:
+    """:func:`evaluate` for each outage length of ``lengths_s`` on the same drives and placement:
+    ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them)."""
+    lengths = sorted({float(x) for x in lengths_s})
+    if not lengths:
+        raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
+    for length in lengths:
+        windows_of(length)  # every length checked before any drive is read
+    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
+    loaded = [load_drive(d, read) if not isinstance(d, Drive) else d for d in items]  # read once, used for every length
+    return {length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress, truth=truth) for length in lengths}
+
+
 def evaluate_by_event(
     drives: Sequence[DriveLike],
     outage_s: float | None = None,

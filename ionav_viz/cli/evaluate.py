@@ -38,6 +38,9 @@ def evaluate(
     from ..analysis.report import json_safe, overview_reports, reports_to_json
     from ..analysis.tables import render_overview
 
+    if outage is not None and "," in outage:
+        _evaluate_lengths(outage, drives, scenario, plan, export, by_event, overview, external, as_json, markdown, quiet, placement, run, read)
+        return
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)
     if scenario is not None and drives:
         raise typer.BadParameter("give drives or --scenario, not both")
@@ -71,3 +74,30 @@ def evaluate(
         print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()), end="")
         return
     print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width()) for rep in reports.values()), end="")
+
+
+def _evaluate_lengths(outage: str, drives: Optional[list[str]], scenario: Optional[str], plan: Optional[Path], export: Optional[Path],
+                      by_event: bool, overview: bool, external: Optional[list[str]], as_json: bool, markdown: bool, quiet: bool,
+                      placement: c.PlacementArgs, run: Any, read: Any) -> None:
+    """``--outage 10s,30s,60s``: each length's report, then the error against outage length."""
+    from .. import api
+    from ..analysis.report import by_length, lengths_to_json
+    from ..analysis.tables import render_lengths
+
+    for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),
+                          (overview or None, "--overview"), (external or None, "--external")):
+        if given:
+            raise typer.BadParameter(f"several outage lengths are evaluated on drives given by name, without {option}", param_hint="--outage")
+    if not drives:
+        raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
+    lengths = [c.duration_s(part.strip(), "--outage") for part in outage.split(",") if part.strip()]
+    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
+        reports = api.evaluate_lengths(drives, lengths, placement.placement, run=run, read=read, progress=c.progress_callback(bar, "evaluating"))
+    if as_json:
+        print(lengths_to_json(reports))
+        return
+    width = c.terminal_width()
+    labels = {e: lab for e, lab in next(iter(reports.values())).labels.items()}
+    parts = [rep.to_markdown() if markdown else rep.to_text(width) for rep in reports.values()]
+    parts.append(render_lengths(by_length(reports), labels, markdown, width))
+    print("\n".join(parts), end="")
