@@ -281,3 +281,52 @@ def test_a_missing_view_names_the_recording_and_leaves_no_folders(recording, tmp
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert f"{path}: the recording has no local view" in proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["noview.rrd"]
+
+
+@pytest.mark.parametrize("size", ["1600x900", "1280x720"])
+def test_clean_review_images_with_the_whole_summary(recording, tmp_path, size):
+    """Issue 31.1: only the views: no menu, badges or timeline (the top rows are background, the
+    orange of the 'Software rasterizer' and 'Docker' badges is nowhere), and the summary tab ends
+    above the image's bottom edge (its last line drawn, nothing cut) in the review layout."""
+    out = tmp_path / "all.png"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "all", "--time", "end", "--size", size)
+    assert proc.returncode == 0, proc.stderr
+    img = _image(out)
+    h, w, _ = img.shape
+    assert (img[:28].max(axis=-1) > 80).sum() == 0, "the top panel (white 'Menu' text, badges) is drawn"  # only a dark border there
+    badge_orange = (np.abs(img - np.array([255, 140, 40])).max(axis=-1) <= 40) & (img[..., 0] > 200) & (img[..., 2] < 90)
+    assert badge_orange[: h // 10].sum() == 0
+    # the summary sits at the bottom of the right-hand column: its last rows are empty background
+    corner = img[int(0.96 * h):, int(0.72 * w):]
+    assert (corner.max(axis=-1) > 80).sum() == 0, "the summary runs into the bottom edge"
+    text_rows = np.nonzero(np.ptp(img[int(0.6 * h):, int(0.72 * w):], axis=(1, 2)) > 60)[0]
+    assert len(text_rows) > 40  # there is a summary there, of several lines
+
+
+def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
+    """Issue 31.1: the time plots of a shot show a minute inside the drive (--time end: ending at
+    its end), and without map tiles the map view is left out of the layout, the local view taking
+    its place (and a --view map shot draws the local view)."""
+    from ionav_viz.viz import entities as ent
+    from ionav_viz.viz.blueprints import focus_blueprint, plot_window
+
+    assert plot_window(341.8, 341.8) == (281.8, 341.8) and plot_window(10.0, 341.8) == (0.0, 60.0)
+    assert plot_window(100.0, 341.8) == (70.0, 130.0) and plot_window(5.0, 30.0) == (0.0, 30.0)
+    bp = {
+        "/viewport": {"ViewportBlueprint": {"root_container": "/container/root"}},
+        "/container/root": {"ContainerBlueprint": {"container_kind": "Horizontal", "contents": ["/container/tracks", "/view/ts"],
+                                                   "col_shares": [1, 1]}},
+        "/container/tracks": {"ContainerBlueprint": {"container_kind": "Horizontal", "contents": ["/view/local", "/view/map"],
+                                                     "col_shares": [1, 1]}},
+        "/view/local": {"ViewBlueprint": {"class_identifier": "2D", "space_origin": ent.LOCAL}},
+        "/view/map": {"ViewBlueprint": {"class_identifier": "Map", "space_origin": ent.MAP}},
+        "/view/ts": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.DISPLACEMENTS}},
+    }
+    online = focus_blueprint(bp, "all", {}, t_s=341.8, end_s=341.8)
+    assert online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"] == {"start": {"Absolute": 281_800_000_000}, "end": {"Absolute": 341_800_000_000}}
+    assert "/view/map" in online and all(online[p] == {k: {**v, "state": "Hidden"}} for p, (k, v) in
+                                         {"/top_panel": ("PanelBlueprint", {}), "/time_panel": ("TimePanelBlueprint", {})}.items())
+    offline = focus_blueprint(bp, "all", {}, map_tiles=False)
+    assert "/view/map" not in offline and offline["/container/tracks"]["ContainerBlueprint"]["contents"] == ["/view/local"]
+    maximised = focus_blueprint(bp, "map", {}, map_tiles=False)["/viewport"]["ViewportBlueprint"]["maximized"]
+    assert maximised == "local"

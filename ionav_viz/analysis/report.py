@@ -312,6 +312,26 @@ def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> 
                                  "by_length": by_length(reports)}), indent=indent)
 
 
+def overview_markdown(result: DriveResult, report: Report) -> str:
+    """The summary's head as Markdown, short enough for a screenshot's summary tab (the
+    recording's ``overview``): the run in a line, each estimator's means, the worst outage."""
+    ests = report.estimators
+    short = {e.name: short_label(e.label) for e in result.estimators}
+    mean = {e: report.summary[e] for e in ests}
+    lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
+             "| mean | final (m) | CRSE (m) | yaw (rad/s) |", "|---|---|---|---|",
+             *(f"| {short[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
+               f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
+    worst = report.worst_outages(1)
+    if worst:
+        w = worst[0]
+        lines += [f"**Worst** #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s, m): "
+                  + ", ".join(f"{short[e]} {w['final_error_m'][e]:.1f}" for e in ests), ""]
+    more = ", the warnings" if report.warnings else ""
+    lines.append(f"_More outages{more} and the run's parameters: Details._")
+    return "\n".join(lines) + "\n"
+
+
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
     """A replay's parameters as Markdown (the recording's summary document)."""
     drive, bias = result.drive, result.bias

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..analysis.evaluate import DriveResult, evaluate_drive
 from ..analysis.events import Event, detect_events
-from ..analysis.report import Report, run_summary_markdown
+from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.errors import InputError
 from ..core.fileio import check_output_file
 from ..core.timing import stage
@@ -142,7 +142,8 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
             progress(f"{out.name}: {label}", done[0], total)
 
     with stage(f"write {out}") as s, atomic_path(out, create_parent=default) as tmp:
-        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events, report_json=report.to_json())
+        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events, report_json=report.to_json(),
+                               overview_md=overview_markdown(result, report))
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     if connect is not None:
         with stage(f"stream to {connect}"):

@@ -68,8 +68,9 @@ def blueprint(labels: list[str], zoom: float = 16.0):
             rrb.TimeSeriesView(origin=ent.error_group("cae_m"), name="Displacement CAE (m)", plot_legend=hidden),
         ),
         rrb.TimeSeriesView(origin=ent.error_group("yaw_crse_radps"), name="Orientation-rate CRSE (rad/s)", plot_legend=hidden),
-        rrb.TextDocumentView(origin=ent.SUMMARY, name="Summary"),
-        row_shares=[3, 3, 2.5, 3.5],
+        rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"), rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"),
+                 active_tab=0),
+        row_shares=list(ERROR_COLUMN_SHARES),
     )
     return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=list(COLUMN_SHARES)), collapse_panels=True)
 
@@ -109,12 +110,58 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
     return Framing(zoom, bounds, entities)
 
 
-def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None) -> dict[str, Any]:
+#: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs; in
+#: screenshots of the whole layout the summary gets more, so that it is never cut.
+ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
+SCREENSHOT_ERROR_SHARES = (2.3, 2.3, 1.9, 5.5)
+#: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
+PLOT_WINDOW_S = 60.0
+#: The viewer's panels a screenshot hides (only the views are drawn: no menu, badges or timeline).
+HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint", "/selection_panel": "PanelBlueprint",
+                 "/time_panel": "TimePanelBlueprint"}
+
+
+def plot_window(t_s: float, end_s: float, width_s: float = PLOT_WINDOW_S) -> tuple[float, float]:
+    """The time plots' x range (s) for a shot at ``t_s`` of a drive ending at ``end_s``: ``width_s``
+    centred on ``t_s``, shifted to lie inside ``[0, end_s]`` (the whole drive when it is shorter)."""
+    if end_s <= width_s:
+        return 0.0, max(end_s, 1.0)
+    start = min(max(t_s - width_s / 2, 0.0), end_s - width_s)
+    return start, start + width_s
+
+
+def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None,
+                    t_s: float | None = None, end_s: float | None = None, map_tiles: bool = True) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
-    origin) and the map and local views framed as ``frame`` says."""
+    origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
+    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`; without
+    ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place."""
     frame = frame or Framing()
     bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
+    for key, archetype in HIDDEN_PANELS.items():
+        bp[key] = {archetype: {**bp.get(key, {}).get(archetype, {}), "state": "Hidden"}}
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
+    if t_s is not None and end_s is not None:
+        x0, x1 = plot_window(t_s, end_s)
+        for key, vb in views.items():
+            if vb.get("class_identifier") == "TimeSeries":
+                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(x0 * 1e9))},
+                                                                     "end": {"Absolute": int(round(x1 * 1e9))}}}}
+    if not map_tiles:
+        if view == "map":
+            view = "local"
+        map_key = next((k for k, vb in views.items() if vb.get("space_origin") == ent.MAP), None)
+        if map_key is not None:
+            ref = map_key.lstrip("/")
+            for value in bp.values():
+                container = value.get("ContainerBlueprint")
+                if container and ref in [c.lstrip("/") for c in container.get("contents", [])]:
+                    keep = [c for c in container["contents"] if c.lstrip("/") != ref]
+                    container["contents"] = keep
+                    container.pop("col_shares", None)
+                    container.pop("row_shares", None)
+            _drop(bp, map_key)
+            views.pop(map_key)
     for key, vb in views.items():
         origin = vb.get("space_origin", "")
         if origin in titles:
@@ -128,6 +175,13 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
     if view == "all":
+        summary_key = next((k for k, vb in views.items() if vb.get("space_origin") == ent.OVERVIEW), None)
+        for value in bp.values():
+            container = value.get("ContainerBlueprint", {})
+            tabs = [c.lstrip("/") for c in container.get("contents", [])]
+            if summary_key is not None and container.get("row_shares") and len(container["row_shares"]) == len(SCREENSHOT_ERROR_SHARES) \
+                    and any(_holds(bp, "/" + c, summary_key) for c in tabs):
+                container["row_shares"] = list(SCREENSHOT_ERROR_SHARES)
         return bp
     target = _ORIGINS[view]
     view_key = next((k for k, vb in views.items() if vb.get("space_origin") == target), None)
@@ -149,6 +203,13 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
         for shares in ("col_shares", "row_shares"):
             root.pop(shares, None)
     return bp
+
+
+def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
+    """Whether the container or view ``key`` is ``view_key`` or holds it."""
+    if key.lstrip("/") == view_key.lstrip("/"):
+        return True
+    return any(_holds(bp, "/" + c.lstrip("/"), view_key) for c in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []))
 
 
 def _drop(bp: dict[str, Any], key: str) -> None:

@@ -27,6 +27,8 @@ GNSS_QUALITY = "gnss/quality"
 GNSS_AVAILABLE = "gnss/available"
 EVENTS_STATE = "events/state"
 SUMMARY = "summary"
+#: The summary's head (means and the worst outages), the review layout's first text tab: it fits a screenshot.
+OVERVIEW = "overview"
 #: The run's report as ``evaluate --json`` prints it (plain text), for ``ionav-viz figures``.
 REPORT = "report"
 ACCEL = "signals/accel_long_mps2"
@@ -176,7 +178,7 @@ PATTERNS = (
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),
     *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),
-    EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, REPORT,
+    EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT,
 )
 
 

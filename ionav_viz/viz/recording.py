@@ -69,8 +69,10 @@ def recording_id(result: DriveResult) -> str:
 
 
 def write_recording(result: DriveResult, summary_md: str, path: Path, progress=None,
-                    target: Path | None = None, events: list | None = None, report_json: str | None = None) -> dict[str, int]:
-    """Log ``result`` to the ``.rrd`` file ``path`` (with ``report_json``, the run's report, at ``report``).
+                    target: Path | None = None, events: list | None = None, report_json: str | None = None,
+                    overview_md: str | None = None) -> dict[str, int]:
+    """Log ``result`` to the ``.rrd`` file ``path`` (with ``report_json``, the run's report, at
+    ``report``, and ``overview_md``, the summary's head, at ``overview``).
 
     Returns row counts per entity (for messages and tests). The recording is built in memory and
     written in one go. The caller makes the write atomic: ``path`` is then a temporary file and
@@ -83,6 +85,9 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     # Rerun's file sink can block forever once its writer thread has died.
     memory = rec.memory_recording()
     rows = log_result(rec, result, summary_md, progress, events)
+    if overview_md is not None:
+        rec.log(ent.OVERVIEW, rr.TextDocument(overview_md, media_type=rr.MediaType.MARKDOWN), static=True)
+        rows[ent.OVERVIEW] = 1
     if report_json is not None:
         rec.log(ent.REPORT, rr.TextDocument(report_json, media_type=rr.MediaType.TEXT), static=True)
         rows[ent.REPORT] = 1

@@ -11,7 +11,9 @@ Views: ``all`` (the recording's review layout), ``outage`` (the inspector), ``ma
 
 from __future__ import annotations
 
+import logging
 import re
+import socket
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -21,6 +23,21 @@ from ..nav.registry import BASELINE
 from .blueprints import VIEWS, Shot, focus_blueprint, framing, titles_for
 from .recording_info import OutageInfo, RecordingInfo, read_recording_info
 from .viewer import HeadlessViewer, RendererMissing
+
+log = logging.getLogger("ionav_viz")
+
+#: The map view's tile server (Rerun's default map style draws OpenStreetMap's tiles).
+TILE_HOST, TILE_PORT = "tile.openstreetmap.org", 443
+
+
+def map_tiles_reachable(host: str = TILE_HOST, port: int = TILE_PORT, timeout_s: float = 2.0) -> bool:
+    """Whether the map's tile server accepts a connection (a TCP connect within ``timeout_s``):
+    offline, the map view would be black, so screenshots draw the local metric view instead."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            return True
+    except OSError:
+        return False
 
 __all__ = ["RendererMissing", "check_size", "parse_size", "render", "resolve_time"]
 
@@ -108,12 +125,16 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
         folder = out if out.suffix.lower() != ".png" else out.parent
     written: list[Path] = []
     with made_folders(folder), HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
+        tiles = map_tiles_reachable()  # once the viewer runs: a missing renderer is said first, alone
+        if not tiles and any(v in ("map", "all") for v in views):
+            log.warning("map tiles cannot load (%s is unreachable): screenshots draw the local east-north view in the map's place", TILE_HOST)
         for info, shots, paths in plans:
             viewer.open(info.path)
             for shot, path in zip(shots, paths):
                 frame = framing(info, shot.outage, size, shot.view)
                 try:
-                    layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame)
+                    layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
+                                             t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles)
                 except InputError as exc:
                     raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
                 viewer.show(layout, shot.t_s, path)
