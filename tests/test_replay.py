@@ -149,3 +149,31 @@ def test_bad_placements_are_clear(tmp_path):
         proc = run_cli("replay", "hard-brake", "--no-idnn", "-q", "-o", out, *extra)
         assert proc.returncode == 2 and all(f in proc.stderr for f in fragments), (extra, proc.stderr)
     assert not list(tmp_path.iterdir())  # nothing half-written
+
+
+def test_the_recording_draws_the_drift_curve_of_its_report(tmp_path):
+    """Issue 31.2: the drift view's mean lines are the report's drift curve (plot units: seconds
+    across 160, the axis top in metres down 100), and the current outage's curve ends at its final
+    error."""
+    import json
+
+    from rerun.chunk import RrdReader
+
+    import ionav_viz as iv
+
+    replayed = iv.replay("hard-brake", placement=iv.Every(60.0), estimators=["ins", "odo"], output=tmp_path / "r.rrd")
+    drift = json.loads(replayed.report.to_json())["drift"]
+    strips = {}
+    for chunk in RrdReader(replayed.path).stream():
+        path = str(chunk.entity_path).strip("/")
+        if path.startswith("drift/") and path.endswith("/mean"):
+            batch = chunk.to_record_batch()
+            column = next(n for n in batch.schema.names if n.endswith(":strips"))
+            strips[path.split("/")[1]] = np.asarray(batch.column(column).to_pylist()[0][0])
+    assert set(strips) == {"ins", "odo"}
+    for est, points in strips.items():
+        x, y = points[:, 0], -points[:, 1]
+        assert np.allclose(x, np.arange(len(x)) / (len(x) - 1) * 160.0)
+        mean = np.asarray(drift[est]["mean_m"])
+        scale = y[-1] / mean[-1]  # metres per plot unit: one for both estimators
+        assert np.allclose(y, mean * scale, atol=1e-3) and 100.0 / scale >= max(drift[e]["p90_m"][-1] for e in drift)

@@ -62,7 +62,11 @@ def blueprint(labels: list[str], zoom: float = 16.0):
         row_shares=[2.8, 3, 3, 2],
     )
     errors = rrb.Vertical(
-        rrb.TimeSeriesView(origin=ent.error_group("position_error_m"), name="2D position error (m)"),
+        rrb.Tabs(
+            rrb.TimeSeriesView(origin=ent.error_group("position_error_m"), name="2D position error (m)"),
+            rrb.Spatial2DView(origin=ent.DRIFT, name="Drift: error (m) by s into the outage; mean, 10-90 %, current"),
+            active_tab=0,
+        ),
         rrb.Tabs(
             rrb.TimeSeriesView(origin=ent.error_group("crse_m"), name="Displacement CRSE (m)", plot_legend=hidden),
             rrb.TimeSeriesView(origin=ent.error_group("cae_m"), name="Displacement CAE (m)", plot_legend=hidden),
@@ -192,10 +196,9 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
         viewport["maximized"] = view_key.rsplit("/", 1)[-1]
     else:  # keep only the column of plots that holds the target view
         # the viewer writes container contents as "view/<id>" or "/view/<id>"
-        ref = "view/" + view_key.rsplit("/", 1)[-1]
-        column = next(k for k, v in bp.items() if ref in [c.lstrip("/") for c in v.get("ContainerBlueprint", {}).get("contents", [])])
         root_key = "/container/" + viewport["root_container"].rsplit("/", 1)[-1]
         root = bp[root_key]["ContainerBlueprint"]
+        column = next("/" + c.lstrip("/") for c in root["contents"] if _holds(bp, "/" + c.lstrip("/"), view_key))
         for other in root["contents"]:
             if "/" + other.lstrip("/") != column:
                 _drop(bp, "/" + other.lstrip("/"))

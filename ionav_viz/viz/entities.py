@@ -41,6 +41,10 @@ LOCAL_GRID = "local/grid"
 LOCAL_GRID_SCALE = "local/grid/scale"
 LOCAL_SCALE = "local/scale"
 LOCAL_OUTAGES = "local/outages"
+#: The drift view: position error against seconds since the outage began (its grid and tick labels).
+DRIFT = "drift"
+DRIFT_AXES = "drift/grid"
+DRIFT_TICKS = "drift/labels"
 INSPECT_GRID = "inspect/grid"
 INSPECT_SCALE = "inspect/scale"
 INSPECT_START = "inspect/start"
@@ -80,6 +84,21 @@ def all_tracks(view: str, est: str) -> str:
 
 def real_outage_tracks(view: str, est: str) -> str:
     return f"{view}/{est}/real_outages"
+
+
+def drift_mean(est: str) -> str:
+    """The estimator's mean position error over the outages, against seconds since their start."""
+    return f"{DRIFT}/{est}/mean"
+
+
+def drift_band(est: str) -> str:
+    """Its 10th and 90th percentiles (two thin lines)."""
+    return f"{DRIFT}/{est}/band"
+
+
+def drift_current(est: str) -> str:
+    """The current outage's position error, growing each second."""
+    return f"{DRIFT}/{est}/current"
 
 
 def inspect_position(est: str) -> str:
@@ -179,6 +198,7 @@ PATTERNS = (
     *(error_series(m, "<est>") for m in ERROR_METRICS),
     *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),
     EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT,
+    DRIFT_AXES, DRIFT_TICKS, drift_mean("<est>"), drift_band("<est>"), drift_current("<est>"),
 )
 
 

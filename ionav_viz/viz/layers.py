@@ -161,3 +161,51 @@ def log_events(layers: Layers, events: list, drive) -> None:
             static=True)
     rec.log(ent.event_points(ent.LOCAL), rr.Points2D(layers.xy(lat, lon), labels=labels, show_labels=False,
                                         colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5), draw_order=25), static=True)
+
+
+#: The drift view's plot area (its own units: the 2D view keeps one scale on both axes, so seconds
+#: and metres are each mapped onto it): width and height.
+DRIFT_W, DRIFT_H = 160.0, 100.0
+
+
+def log_drift(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndarray, strips_of: Callable[[np.ndarray], list]) -> None:
+    """The drift view (``drift``): position error against seconds since the outage began, per
+    estimator its mean over the drive's outages (wide) and 10th and 90th percentiles (thin, faded),
+    static; and the current outage's own curve, growing each second as the recording plays (rows
+    ``t_rows``, strips by ``strips_of``, as the live tracks). Axes with labelled ticks."""
+    import rerun as rr
+
+    from ..analysis.drift import boundary_errors_m, drift_curve
+
+    rec, send = layers.rec, layers.send
+    n_win = result.n_windows
+    errors = {name: boundary_errors_m(result, name) for name in result.estimates}
+    curves = {name: drift_curve(e) for name, e in errors.items()}
+    top = max([max(c["p90_m"]) for c in curves.values()] + [1.0])
+    step = nice_step(top * 1.05, lines=4)
+    y_max = step * np.ceil(top * 1.05 / step)
+    t_step = max(1, int(nice_step(float(n_win), lines=5)))
+
+    def xy(t_s: np.ndarray, err_m: np.ndarray) -> np.ndarray:
+        return np.stack([np.asarray(t_s, dtype=float) / n_win * DRIFT_W, -np.asarray(err_m, dtype=float) / y_max * DRIFT_H], axis=-1)
+
+    t_axis = np.arange(n_win + 1, dtype=float)
+    ys = np.arange(0.0, y_max + step / 2, step)
+    ts = np.arange(0.0, n_win + 0.5, t_step)
+    grid = [xy([0, n_win], [y, y]) for y in ys] + [xy([t, t], [0, y_max]) for t in ts]
+    rec.log(ent.DRIFT_AXES, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
+    ticks = np.concatenate([xy(ts, np.zeros(len(ts))) + [0.0, 6.0], xy(np.zeros(len(ys)), ys) - [10.0, 0.0]])
+    labels = [f"{t:g} s" for t in ts] + [f"{y:g} m" for y in ys]
+    rec.log(ent.DRIFT_TICKS, rr.Points2D(ticks, labels=labels, colors=[SCALE_COLOR], radii=rr.Radius.ui_points(0.5), show_labels=True,
+                                         draw_order=2), static=True)
+    for name, curve in curves.items():
+        color = colors[name]
+        rec.log(ent.drift_mean(name), rr.LineStrips2D([xy(t_axis, curve["mean_m"])], colors=[color], radii=rr.Radius.ui_points(3.5),
+                                                      draw_order=20), static=True)
+        rec.log(ent.drift_band(name), rr.LineStrips2D([xy(t_axis, curve["p10_m"]), xy(t_axis, curve["p90_m"])], colors=[faded(color, 0.3)],
+                                                      radii=rr.Radius.ui_points(0.6), draw_order=10), static=True)
+        current = xy(np.broadcast_to(t_axis, errors[name].shape), errors[name])  # (outages, win+1, 2)
+        n_rows = len(t_rows)
+        send(ent.drift_current(name), t_rows, rr.LineStrips2D.columns(
+            strips=strips_of(current), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(1.6)),
+            draw_order=np.full(n_rows, 30.0)))

@@ -28,7 +28,7 @@ from ..nav.protocol import short_label
 from . import entities as ent
 from .blueprints import blueprint
 from .geometry import map_zoom, screen_xy
-from .layers import Layers, log_events, log_grid, log_outage_frames, log_real_outages
+from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
 from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
 
 APP_ID = "ionav-viz"
@@ -241,6 +241,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
                 t_plot, v_plot = with_breaks(t_end[idx], values)
                 send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
             step(name)
+        log_drift(layers, result, colors, t_rows, _outage_strips)
     if result.bridged:
         log_real_outages(layers, result, colors, labels)
         step("real GNSS outages")
