@@ -30,7 +30,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "load_drive": "sources.load", "evaluate": "api", "find_events": "api", "detector_quality": "api", "train": "api",
     "training_drives": "api", "replay_scenario": "api", "simulate": "api", "convert": "api", "fetch": "api", "list_runs": "api",
-    "RunSelection": "api", "DatasetSource": "api", "WebServing": "api", "evaluate_by_event": "api", "evaluate_lengths": "api", "replay": "api", "screenshot": "api",
+    "RunSelection": "api", "DatasetSource": "api", "WebServing": "api", "evaluate_by_event": "api", "evaluate_lengths": "api", "replay_lengths": "api", "replay": "api", "screenshot": "api",
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
     "outage_log": "api", "figures": "api", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
@@ -87,6 +87,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         list_runs,
         outage_log,
         replay,
+        replay_lengths,
         replay_scenario,
         scenario_drives,
         screenshot,

@@ -131,3 +131,17 @@ def test_several_outage_lengths_in_one_call():
     assert text.returncode == 0 and "Error against outage length" in text.stdout
     bad = run_cli("evaluate", "--scenario", "all", "--outage", "10s,30s")
     assert bad.returncode == 2 and "--scenario" in bad.stderr
+
+
+def test_several_outage_lengths_replayed_into_one_recording_each(tmp_path):
+    """Issue 31.2: replay --outage 10s,30s writes a recording per length (each carrying its own
+    report), then the error against outage length."""
+    from ionav_viz.viz.recording_info import report_json
+
+    proc = run_cli("replay", "hard-brake", "--outage", "10s,30s", "--no-idnn", "-o", str(tmp_path / "hb.rrd"))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == [str(tmp_path / "hb-10s.rrd"), str(tmp_path / "hb-30s.rrd")]
+    assert [json.loads(report_json(tmp_path / f"hb-{x}s.rrd"))["outage_s"] for x in (10, 30)] == [10, 30]
+    assert "Error against outage length" in proc.stderr
+    bad = run_cli("replay", "hard-brake", "--outage", "10s,30s", "--open")
+    assert bad.returncode == 2 and "--open" in bad.stderr

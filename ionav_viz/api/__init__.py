@@ -22,7 +22,7 @@ from .events import DetectorQuality, detector_quality, find_events
 from .figures import figures
 from .options import RunOptions
 from .outage_log import OutageLogResult, outage_log
-from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_scenario, serve_web
+from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
 from .training import TrainingDrives, train, training_drives
@@ -51,6 +51,7 @@ __all__ = [
     "list_runs",
     "outage_log",
     "replay",
+    "replay_lengths",
     "replay_scenario",
     "scenario_drives",
     "screenshot",

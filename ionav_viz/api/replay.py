@@ -154,6 +154,39 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
 
 
 
+def replay_lengths(
+    drive: DriveLike,
+    lengths_s: Sequence[float],
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    output: str | Path | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    progress: Progress | None = None,
+    export: str | Path | None = None,
+) -> list[ReplayResult]:
+    """:func:`replay` for each outage length of ``lengths_s`` (increasing) on the same drive and
+    placement: one recording per length, ``OUTPUT-<length>s.rrd`` (default
+    ``recordings/<drive>-<length>s.rrd``), and with ``export`` one folder ``EXPORT/<length>s`` each.
+    ``analysis.report.by_length`` of their reports gives the error against outage length."""
+    lengths = sorted({float(x) for x in lengths_s})
+    if not lengths:
+        raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
+    for length in lengths:
+        windows_of(length)  # every length checked before any work
+    if output is not None and Path(output).suffix.lower() != ".rrd":
+        raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
+    d = load_drive(drive, read)  # read once, replayed for every length
+    out = []
+    for length in lengths:
+        name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
+        target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
+        out.append(replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
+                          export=None if export is None else Path(export) / f"{length:g}s"))
+    return out
+
+
 def replay_scenario(scenario: str, folder: str | Path, outage_s: float = 10.0, placement: Placement | None = None, *,
                     run: RunOptions | None = None, read: ReadOptions | None = None) -> list[Path]:
     """Replay every test drive of ``scenario`` (``"all"``: of every scenario; see

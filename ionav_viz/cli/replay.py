@@ -39,6 +39,24 @@ def replay(
     """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
     from .. import api
 
+    if outage is not None and "," in outage:
+        for given, option in ((plan, "--plan"), (external, "--external"), (open_viewer or None, "--open"), (connect, "--connect"),
+                              (serve_web or None, "--serve-web"), (screenshot_dir, "--screenshot")):
+            if given:
+                raise typer.BadParameter(f"several outage lengths write one recording each, without {option}", param_hint="--outage")
+        lengths = [c.duration_s(part.strip(), "--outage") for part in outage.split(",") if part.strip()]
+        with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
+            results = api.replay_lengths(drive_spec, lengths, placement.placement, output=output, run=run, read=read, export=export,
+                                         progress=c.progress_callback(bar, "writing"))
+        if not quiet:
+            from ..analysis.report import by_length
+            from ..analysis.tables import render_lengths
+
+            reports = {r.report.results[0].outage_s: r.report for r in results}
+            print(render_lengths(by_length(reports), results[0].report.labels, width=c.terminal_width(sys.stderr)), end="", file=sys.stderr)
+        for r in results:
+            print(r.path)
+        return
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)
     if open_viewer:
         _check_display()
