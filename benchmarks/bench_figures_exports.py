@@ -3,6 +3,7 @@ drive, against the replay that makes the recording they come from.
 
     python benchmarks/bench_figures_exports.py              # 3.5 h drive (~126,000 samples, like V-Vw4)
     python benchmarks/bench_figures_exports.py --hours 0.5
+    python benchmarks/bench_figures_exports.py --dir /dev/shm   # files on a RAM disk
 
 Prints the seconds of the replay (``iv.replay``, every built-in but the IDNN's model load counted
 in), of the exports of its report and of the figures drawn from its recording, and their share of
@@ -24,8 +25,9 @@ from ionav_viz.sim.simulate import write_simulated_drive
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=3.5)
+    parser.add_argument("--dir", default=None, help="where to write (default: the system's temporary folder); e.g. /dev/shm to leave the disk out")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         folder = Path(tmp)
         csv = write_simulated_drive(folder / "V-long.csv", "motorway", seed=7, duration_s=args.hours * 3600.0)
         import matplotlib.pyplot  # noqa: F401  (imports and the font cache are not the figures' own time)
