@@ -44,7 +44,7 @@ def export_results(results: list[Any], folder: str | Path) -> list[Path]:
     written = [_write(folder / "outages.csv", _outages_csv(results).encode())]
     features, gpx_tracks = [], []
     for res in results:
-        written += _tum_files(res, folder / "tum" / _safe(res.drive.name))
+        written += _tum_folder(res, folder / "tum" / _safe(res.drive.name))
         f, g = _tracks(res)
         features += f
         gpx_tracks += g
@@ -100,9 +100,35 @@ def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndar
     return "\n".join(rows) + "\n"
 
 
-def _tum_files(res: Any, folder: Path) -> list[Path]:
+def _tum_folder(res: Any, folder: Path) -> list[Path]:
+    """A drive's TUM files, written into a hidden folder beside ``folder`` and put in its place
+    at once (a folder of thousands of files: one atomic swap, not one per file)."""
+    import shutil
+    import tempfile
+
+    from ..core.fileio import current_umask, swap_in_directory
+    from ..core.signals import hold_signals
+
     if len(res.starts) == 0:
         return []
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    release = hold_signals()
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    finally:
+        release()
+    try:
+        stage.chmod(0o777 & ~current_umask())  # mkdtemp makes it 0700; an output folder gets the usual permissions
+        names = _tum_files(res, stage)
+        swap_in_directory(stage, folder)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    return [folder / n for n in names]
+
+
+def _tum_files(res: Any, folder: Path) -> list[str]:
+    """Write the TUM files of every outage into ``folder`` (plain writes: the caller swaps it in); their names."""
     received = res.drive.as_received()
     lat0, lon0 = float(received.lat_deg[0]), float(received.lon_deg[0])
     t, lat, lon, heading = _boundaries(res)
@@ -114,7 +140,9 @@ def _tum_files(res: Any, folder: Path) -> list[Path]:
     out = []
     for i in range(len(res.starts)):
         for name, (east, north, course) in local.items():
-            out.append(_write(folder / f"outage-{i + 1:03d}-{name}.tum", _tum(t[i], east[i], north[i], course[i]).encode()))
+            file = f"outage-{i + 1:03d}-{name}.tum"
+            (folder / file).write_text(_tum(t[i], east[i], north[i], course[i]))
+            out.append(file)
     return out
 
 
