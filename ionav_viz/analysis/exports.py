@@ -1,7 +1,7 @@
 """Results in the forms other tools read (``--export DIR``): a per-outage metrics table, tracks for
 evo, and tracks for GIS tools.
 
-Files written into ``DIR`` (each atomically; an existing file of the same name is replaced):
+Files written into ``DIR`` (each atomically, an existing one of the same name replaced; a drive's ``tum`` folder replaced as a whole):
 
 * ``outages.csv``: one row per outage and estimator, every metric, units in the column names.
 * ``tum/<drive>/outage-NNN-<estimator>.tum`` and ``outage-NNN-truth.tum``: each outage's estimated
