@@ -327,8 +327,8 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
         w = worst[0]
         lines += [f"**Worst** #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s, m): "
                   + ", ".join(f"{short[e]} {w['final_error_m'][e]:.1f}" for e in ests), ""]
-    more = ", the warnings" if report.warnings else ""
-    lines.append(f"_More outages{more} and the run's parameters: Details._")
+    if report.warnings:  # the Details tab beside this one lists them, with the run's parameters
+        lines.append(f"**{len(report.warnings)} warning(s)**: see Details.")
     return "\n".join(lines) + "\n"
 
 

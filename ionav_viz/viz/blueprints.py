@@ -178,7 +178,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             x0, x1, y0, y1 = frame.local_bounds
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
-    if view == "all":
+    if view in ("all", "errors"):  # the layouts that show the summary: room for all of it
         summary_key = next((k for k, vb in views.items() if vb.get("space_origin") == ent.OVERVIEW), None)
         for value in bp.values():
             container = value.get("ContainerBlueprint", {})
@@ -186,6 +186,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             if summary_key is not None and container.get("row_shares") and len(container["row_shares"]) == len(SCREENSHOT_ERROR_SHARES) \
                     and any(_holds(bp, "/" + c, summary_key) for c in tabs):
                 container["row_shares"] = list(SCREENSHOT_ERROR_SHARES)
+    if view == "all":
         return bp
     target = _ORIGINS[view]
     view_key = next((k for k, vb in views.items() if vb.get("space_origin") == target), None)
