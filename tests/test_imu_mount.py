@@ -99,17 +99,24 @@ def test_mount_texts_round_trip_and_bad_ones_are_named():
     assert proc.returncode == 2 and "--imu-mount apply to MCAP logs and ROS bags" in proc.stderr
 
 
+def _weaving_robot(rate_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A ground robot at about 1 m/s: 10 s still, then 5 minutes of gentle weaving. Times (s),
+    speed (m/s), yaw rate (rad/s, CCW) and the speed's rate (m/s^2), written out here."""
+    t = np.arange(0.0, 310.0, 1.0 / rate_hz)
+    moving = t >= 10.0
+    speed = np.where(moving, 1.0 + 0.3 * np.sin(2 * np.pi * t / 20.0), 0.0)
+    yaw_rate = np.where(moving, 0.4 * np.sin(2 * np.pi * t / 37.0), 0.0)
+    dv = np.where(moving, 0.3 * 2 * np.pi / 20.0 * np.cos(2 * np.pi * t / 20.0), 0.0)
+    return t, speed, yaw_rate, dv
+
+
 @pytest.mark.parametrize("mount", [(-4.0, 6.0, 30.0), (0.0, 0.0, 90.0)])
 def test_a_slow_robots_mount_is_recovered_too(mount):
     """Issue 29.3 "for cars and slow robots alike": a ground robot at about 1 m/s (a Husky), 10 s
     still and then 5 minutes of gentle weaving, its IMU turned by ``mount``; the estimate is within
     half a degree. The body-frame IMU is written out here: forward dv/dt, left v * omega, gravity up."""
     rate_hz, rng = 10.0, np.random.default_rng(7)
-    t = np.arange(0.0, 310.0, 1.0 / rate_hz)
-    moving = t >= 10.0
-    speed = np.where(moving, 1.0 + 0.3 * np.sin(2 * np.pi * t / 20.0), 0.0)
-    yaw_rate = np.where(moving, 0.4 * np.sin(2 * np.pi * t / 37.0), 0.0)
-    dv = np.where(moving, 0.3 * 2 * np.pi / 20.0 * np.cos(2 * np.pi * t / 20.0), 0.0)
+    t, speed, yaw_rate, dv = _weaving_robot(rate_hz)
     course_deg = np.degrees(np.cumsum(yaw_rate) / rate_hz)
     body = np.column_stack([dv, speed * yaw_rate, np.full(len(t), G)]) + rng.normal(0.0, 0.05, (len(t), 3))
     truth = rotation_deg(*mount)
@@ -125,11 +132,7 @@ def test_a_slow_robots_noisy_gnss_course_does_not_turn_the_estimate():
     levelled gyro and the speed from the wheels: a robot whose GNSS course carries 20 deg of noise
     per sample (and its speed 0.3 m/s) gives its mount within a degree through them."""
     rate_hz, rng = 10.0, np.random.default_rng(11)
-    t = np.arange(0.0, 310.0, 1.0 / rate_hz)
-    moving = t >= 10.0
-    speed = np.where(moving, 1.0 + 0.3 * np.sin(2 * np.pi * t / 20.0), 0.0)
-    yaw_rate = np.where(moving, 0.4 * np.sin(2 * np.pi * t / 37.0), 0.0)
-    dv = np.where(moving, 0.3 * 2 * np.pi / 20.0 * np.cos(2 * np.pi * t / 20.0), 0.0)
+    t, speed, yaw_rate, dv = _weaving_robot(rate_hz)
     course_deg = (90.0 - np.degrees(np.cumsum(yaw_rate) / rate_hz) + rng.normal(0.0, 20.0, len(t))) % 360.0
     gnss_speed = np.abs(speed + rng.normal(0.0, 0.3, len(t)))
     body_f = np.column_stack([dv, speed * yaw_rate, np.full(len(t), G)]) + rng.normal(0.0, 0.05, (len(t), 3))

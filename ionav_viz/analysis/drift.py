@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..core.geo import wgs84
+from .metrics import truth_boundaries
 
 #: The percentiles of the final position error a report gives (``final_error_percentiles``).
 FINAL_PERCENTILES = (50, 90, 95)
@@ -23,13 +24,10 @@ FINAL_PERCENTILES = (50, 90, 95)
 def boundary_errors_m(result: Any, estimator: str) -> np.ndarray:
     """Position error (m) of ``estimator`` at every window boundary of every outage of one
     :class:`~ionav_viz.analysis.evaluate.DriveResult`, shape ``(n_outages, n_windows + 1)``."""
-    w, starts, n = result.windows, np.asarray(result.starts, dtype=int), result.n_windows
     track = result.estimates[estimator].track
-    if len(starts) == 0:
-        return np.zeros((0, n + 1))
-    idx = starts[:, None] + np.arange(n)[None, :]
-    truth_lat = np.concatenate([w.lat0_deg[starts][:, None], w.lat1_deg[idx]], axis=1)
-    truth_lon = np.concatenate([w.lon0_deg[starts][:, None], w.lon1_deg[idx]], axis=1)
+    if len(result.starts) == 0:
+        return np.zeros((0, result.n_windows + 1))
+    truth_lat, truth_lon, _ = truth_boundaries(result.windows, result.starts, result.n_windows)
     _, _, dist = wgs84().inv(track.lon_deg.ravel(), track.lat_deg.ravel(), truth_lon.ravel(), truth_lat.ravel())
     return np.asarray(dist, dtype=float).reshape(truth_lat.shape)
 

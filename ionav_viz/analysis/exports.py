@@ -30,7 +30,7 @@ import numpy as np
 
 from ..core.fileio import atomic_write_bytes
 from ..core.geo import local_en_m
-from .metrics import METRICS
+from .metrics import METRICS, truth_boundaries
 
 #: The columns of ``outages.csv``: keys, then every metric (their names carry their units).
 OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS)
@@ -85,12 +85,8 @@ def _number(x: float) -> str:
 def _boundaries(res: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per outage: stamps (s), truth latitude, longitude and course at the window boundaries."""
     w, starts, n = res.windows, np.asarray(res.starts, dtype=int), res.n_windows
-    idx = starts[:, None] + np.arange(n)[None, :]
     t = np.asarray(res.drive.stamp_s(w.t0_s[starts][:, None] + np.arange(n + 1)[None, :]), dtype=float)
-    lat = np.concatenate([w.lat0_deg[starts][:, None], w.lat1_deg[idx]], axis=1)
-    lon = np.concatenate([w.lon0_deg[starts][:, None], w.lon1_deg[idx]], axis=1)
-    heading = np.concatenate([w.heading0_deg[starts][:, None], w.heading1_deg[idx]], axis=1)
-    return t, lat, lon, heading
+    return (t, *truth_boundaries(w, starts, n))
 
 
 def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray) -> str:

@@ -22,7 +22,7 @@ from ..core.errors import InputError
 from ..nav.protocol import short_label
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
-from .metrics import METRICS, summarise
+from .metrics import METRICS, summarise, truth_boundaries
 from .tables import truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
@@ -140,13 +140,12 @@ class Report:
         from ..core.geo import local_en_m
 
         res = next(r for r in self.results if r.drive.name == drive)
-        i, w = number - 1, res.windows
-        k = int(res.starts[i])
-        idx = k + np.arange(res.n_windows)
-        lat0, lon0 = float(w.lat0_deg[k]), float(w.lon0_deg[k])
-        lines = {"truth": (np.r_[lat0, w.lat1_deg[idx]], np.r_[lon0, w.lon1_deg[idx]])}
+        i = number - 1
+        lat, lon, _ = truth_boundaries(res.windows, res.starts[i : i + 1], res.n_windows)
+        lat0, lon0 = float(lat[0, 0]), float(lon[0, 0])
+        lines = {"truth": (lat[0], lon[0])}
         lines |= {e: (res.estimates[e].track.lat_deg[i], res.estimates[e].track.lon_deg[i]) for e in self.estimators}
-        out: dict[str, Any] = {"drive": drive, "number": number, "start_s": round(float(w.t0_s[k]), 3)}
+        out: dict[str, Any] = {"drive": drive, "number": number, "start_s": round(float(res.windows.t0_s[res.starts[i]]), 3)}
         for name, (lat, lon) in lines.items():
             east, north = local_en_m(lat, lon, lat0, lon0)
             out[name] = {"east_m": np.round(east, 4).tolist(), "north_m": np.round(north, 4).tolist()}

@@ -19,7 +19,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, name_of, no_outage_fits, options_of, placement_of, windows_of, with_externals
+from .options import DriveLike, Progress, RunOptions, check_event_types, lengths_of, log, name_of, no_outage_fits, options_of, placement_of, windows_of, with_externals
 
 
 class ScenarioDrives(dict):
@@ -175,14 +175,11 @@ def evaluate_lengths(
 ) -> dict[float, Report]:
     """:func:`evaluate` for each outage length of ``lengths_s`` on the same drives and placement:
     ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them)."""
-    lengths = sorted({float(x) for x in lengths_s})
-    if not lengths:
-        raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
-    for length in lengths:
-        windows_of(length)  # every length checked before any drive is read
+    lengths = lengths_of(lengths_s)
+    _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
-    loaded = [load_drive(d, read) if not isinstance(d, Drive) else d for d in items]  # read once, used for every length
-    return {length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress, truth=truth) for length in lengths}
+    loaded = [load_drive(d, read) for d in items]  # read once, used for every length
+    return {length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress) for length in lengths}
 
 
 def evaluate_by_event(

@@ -144,6 +144,16 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
     return replace(run, plugins=tuple(run.plugins) + tuple(built))
 
 
+def lengths_of(lengths_s: Sequence[float]) -> list[float]:
+    """Several outage lengths (s), increasing and distinct, each checked before any work."""
+    lengths = sorted({float(x) for x in lengths_s})
+    if not lengths:
+        raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
+    for length in lengths:
+        windows_of(length)
+    return lengths
+
+
 #: The outage length when none is given (s).
 DEFAULT_OUTAGE_S = 10.0
 

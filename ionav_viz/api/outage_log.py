@@ -64,7 +64,7 @@ def outage_log(
     if out.suffix:
         check_output_file(out)
     check_output_file(plan_file)
-    if isinstance(drive, (str, Path)) is False:
+    if not isinstance(drive, (str, Path)):
         raise InputError(f"outage_log needs the drive's file, not a {type(drive).__name__}", "give its path or name", param="drive")
     if isinstance(placement, FromPlan):
         raise InputError("outage_log places outages itself", "give a placement (Tile, Every, At, Random, AroundEvents)", param="placement")

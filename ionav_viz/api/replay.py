@@ -19,7 +19,7 @@ from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, log, no_outage_fits, options_of, placement_of, windows_of, with_externals
+from .options import DriveLike, Progress, RunOptions, check_event_types, lengths_of, log, no_outage_fits, options_of, placement_of, windows_of, with_externals
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -170,11 +170,7 @@ def replay_lengths(
     placement: one recording per length, ``OUTPUT-<length>s.rrd`` (default
     ``recordings/<drive>-<length>s.rrd``), and with ``export`` one folder ``EXPORT/<length>s`` each.
     ``analysis.report.by_length`` of their reports gives the error against outage length."""
-    lengths = sorted({float(x) for x in lengths_s})
-    if not lengths:
-        raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
-    for length in lengths:
-        windows_of(length)  # every length checked before any work
+    lengths = lengths_of(lengths_s)
     if output is not None and Path(output).suffix.lower() != ".rrd":
         raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     d = load_drive(drive, read)  # read once, replayed for every length

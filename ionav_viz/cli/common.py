@@ -231,6 +231,11 @@ def duration_s(text: str, option: str) -> float:
         raise typer.BadParameter(f"{text!r} {'is not a duration; use e.g. 10s, 500ms, 1m' if 'not a duration' in exc.message else 'must be a positive duration'}", param_hint=option) from None
 
 
+def durations_of(text: str, option: str) -> list[float]:
+    """``"10s,30s,60s"`` -> seconds, each checked like one duration."""
+    return [duration_s(part, option) for part in split_list(text)]
+
+
 def split_list(text: str) -> tuple[str, ...]:
     """``"a, b,"`` -> ``("a", "b")``: a comma-separated option (the library checks the names)."""
     return tuple(k.strip() for k in text.split(",") if k.strip())

@@ -90,7 +90,7 @@ def _evaluate_lengths(outage: str, drives: Optional[list[str]], scenario: Option
             raise typer.BadParameter(f"several outage lengths are evaluated on drives given by name, without {option}", param_hint="--outage")
     if not drives:
         raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
-    lengths = [c.duration_s(part.strip(), "--outage") for part in outage.split(",") if part.strip()]
+    lengths = c.durations_of(outage, "--outage")
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
         reports = api.evaluate_lengths(drives, lengths, placement.placement, run=run, read=read, progress=c.progress_callback(bar, "evaluating"))
     if as_json:

@@ -44,7 +44,7 @@ def replay(
                               (serve_web or None, "--serve-web"), (screenshot_dir, "--screenshot")):
             if given:
                 raise typer.BadParameter(f"several outage lengths write one recording each, without {option}", param_hint="--outage")
-        lengths = [c.duration_s(part.strip(), "--outage") for part in outage.split(",") if part.strip()]
+        lengths = c.durations_of(outage, "--outage")
         with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
             results = api.replay_lengths(drive_spec, lengths, placement.placement, output=output, run=run, read=read, export=export,
                                          progress=c.progress_callback(bar, "writing"))

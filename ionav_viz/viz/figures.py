@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.drift import error_cdf
 from ..core.errors import InputError
 from ..core.fileio import atomic_path
 from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors
@@ -128,10 +129,10 @@ def _cdf(plt: Any, rep: dict[str, Any]) -> Any:
     fig, ax = plt.subplots(figsize=(COLUMN_IN, 2.4))
     colors = colors_of(rep)
     for name, label in _labels(rep).items():
-        v = np.sort(_finals(rep, name)[np.isfinite(_finals(rep, name))])
+        v, share = error_cdf(_finals(rep, name))
         if len(v):
-            ax.step(np.r_[0.0, v], np.r_[0.0, np.arange(1, len(v) + 1) / len(v)], where="post", color=colors[name], lw=1.2,
-                    label=f"{label} (p50 {np.percentile(v, 50):.1f} m)")
+            ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=colors[name], lw=1.2,
+                    label=f"{label} (p50 {rep['final_error_percentiles'][name]['p50']:.1f} m)")
     ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
     ax.set_ylabel("share of outages")
     ax.set_ylim(0, 1.0)
