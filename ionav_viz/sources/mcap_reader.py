@@ -159,7 +159,7 @@ class McapLog:
         factory = DecoderFactory()
         decoders: dict[int, Any] = {}
         with open(path, "rb") as f:
-            for schema, channel, message in _iter_messages(path, f, [c.topic for c in channels]):
+            for schema, channel, message in iter_messages(path, f, [c.topic for c in channels]):
                 if channel.message_encoding == "json":
                     decoded = decode_json(path, channel.topic, message.data, message.log_time)
                 else:
@@ -172,7 +172,7 @@ class McapLog:
                 yield channel.topic, message.log_time, decoded
 
 
-def _iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:
+def iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:
     """The file's messages on ``topics``: indexed when it can be, else streamed (a file without a
     footer ends at its last complete record); chunks inflate within bounds."""
     from mcap.exceptions import EndOfFile

@@ -224,7 +224,7 @@ def _in_body_frame(source: MessageLog, channel: ChannelInfo) -> bool:
 
 
 def _frame_id(msg: Any) -> str:
-    return str(_get(msg, "header", "frame_id")).strip("/").lower()
+    return str(get_field(msg, "header", "frame_id")).strip("/").lower()
 
 
 @dataclass
@@ -256,7 +256,8 @@ def describe_log(source: MessageLog, imu_topic: str | None = None, gnss_topic: s
     return LogDescription(channels, problem)
 
 
-def _get(obj: Any, *names: str) -> Any:
+def get_field(obj: Any, *names: str) -> Any:
+    """``obj.a.b`` (or ``obj["a"]["b"]`` for a JSON message) for ``names`` ``("a", "b")``."""
     for name in names:
         obj = obj[name] if isinstance(obj, dict) else getattr(obj, name)
     return obj
@@ -267,7 +268,7 @@ def _not_provided(msg: Any) -> str | None:
     of its covariance is -1), linear acceleration before angular velocity; None if all are there."""
     for name in ("linear_acceleration", "angular_velocity"):
         try:
-            cov = _get(msg, f"{name}_covariance")
+            cov = get_field(msg, f"{name}_covariance")
             if len(cov) and float(cov[0]) == -1.0:
                 return name.replace("_", " ")
         except (KeyError, AttributeError, TypeError, ValueError, IndexError):
@@ -275,12 +276,13 @@ def _not_provided(msg: Any) -> str | None:
     return None
 
 
-def _stamp_ns(stamp: Any) -> int:
-    sec = _get(stamp, "sec")
+def stamp_ns(stamp: Any) -> int:
+    """A ROS time stamp (ROS 2 ``sec``/``nanosec``, ROS 1 ``sec``/``nsec``) as nanoseconds since 1970."""
+    sec = get_field(stamp, "sec")
     try:
-        nsec = _get(stamp, "nanosec")
+        nsec = get_field(stamp, "nanosec")
     except (KeyError, AttributeError):
-        nsec = _get(stamp, "nsec")
+        nsec = get_field(stamp, "nsec")
     return int(sec) * 1_000_000_000 + int(nsec)
 
 
@@ -347,7 +349,7 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
         if stamps == "log":
             return seconds(log_ns)
         try:
-            ns = _stamp_ns(_get(msg, *stamp_path))
+            ns = stamp_ns(get_field(msg, *stamp_path))
         except (KeyError, AttributeError, TypeError, ValueError, OverflowError):
             return seconds(log_ns)
         return seconds(ns) if ns > 0 else seconds(log_ns)
@@ -380,17 +382,17 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                         not_provided[missing] = not_provided.get(missing, 0) + 1
                         continue
                     in_order(role, t)
-                    lin, ang = _get(msg, "linear_acceleration"), _get(msg, "angular_velocity")
-                    imu.add((t, *(float(_get(lin, a)) for a in AXES), *(float(_get(ang, a)) for a in AXES)))
+                    lin, ang = get_field(msg, "linear_acceleration"), get_field(msg, "angular_velocity")
+                    imu.add((t, *(float(get_field(lin, a)) for a in AXES), *(float(get_field(ang, a)) for a in AXES)))
                 elif role == "GNSS":
                     if sel.gnss.schema.startswith("foxglove"):
                         t = when(msg, log_ns, "timestamp")
                     else:
                         t = when(msg, log_ns, "header", "stamp")
-                        if int(_get(msg, "status", "status")) < 0:
+                        if int(get_field(msg, "status", "status")) < 0:
                             dropped_no_fix += 1
                             continue
-                    lat, lon = float(_get(msg, "latitude")), float(_get(msg, "longitude"))
+                    lat, lon = float(get_field(msg, "latitude")), float(get_field(msg, "longitude"))
                     if not (math.isfinite(lat) and math.isfinite(lon)):
                         dropped_no_fix += 1  # drivers publish NaN positions when they have no fix
                         continue
@@ -401,16 +403,16 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
                 elif role == "reference (truth)" and sel.reference.schema not in GNSS_SCHEMAS:
                     t = when(msg, log_ns, "header", "stamp")
-                    pose = _get(msg, "pose", "pose") if sel.reference.schema not in POSE_SCHEMAS[:2] else _get(msg, "pose")
-                    position = _get(pose, "position")
+                    pose = get_field(msg, "pose", "pose") if sel.reference.schema not in POSE_SCHEMAS[:2] else get_field(msg, "pose")
+                    position = get_field(pose, "position")
                     if not reference_frame:
                         reference_frame.append(_frame_id(msg))
                     in_order(role, t)
-                    reference.append((t, float(_get(position, "x")), float(_get(position, "y"))))
+                    reference.append((t, float(get_field(position, "x")), float(get_field(position, "y"))))
                 elif role == "reference (truth)":
                     t = when(msg, log_ns, "header", "stamp")
-                    lat, lon = float(_get(msg, "latitude")), float(_get(msg, "longitude"))
-                    if int(_get(msg, "status", "status")) < 0 or not (math.isfinite(lat) and math.isfinite(lon)):
+                    lat, lon = float(get_field(msg, "latitude")), float(get_field(msg, "longitude"))
+                    if int(get_field(msg, "status", "status")) < 0 or not (math.isfinite(lat) and math.isfinite(lon)):
                         continue
                     check(topic, t, "latitude", "lat_deg", lat)
                     check(topic, t, "longitude", "lon_deg", lon)
@@ -418,16 +420,16 @@ def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: st
                     reference.append((t, lat, lon))
                 elif role == "GNSS velocity":
                     t = when(msg, log_ns, "header", "stamp")
-                    lin = _get(msg, "twist", "linear")
-                    v_east, v_north = float(_get(lin, "x")), float(_get(lin, "y"))  # as nmea_navsat_driver publishes it
+                    lin = get_field(msg, "twist", "linear")
+                    v_east, v_north = float(get_field(lin, "x")), float(get_field(lin, "y"))  # as nmea_navsat_driver publishes it
                     sample = (t, math.hypot(v_east, v_north), math.degrees(math.atan2(v_east, v_north)) % 360.0)
                     check(topic, t, "speed", "speed_mps", sample[1])
                     in_order(role, t)
                     speed.append(sample)
                 else:
                     t = when(msg, log_ns, "header", "stamp")
-                    twist = _get(msg, "twist", "twist") if sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else _get(msg, "twist")
-                    v = abs(float(_get(twist, "linear", "x")))  # body-frame forward speed; reversing counts as distance
+                    twist = get_field(msg, "twist", "twist") if sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else get_field(msg, "twist")
+                    v = abs(float(get_field(twist, "linear", "x")))  # body-frame forward speed; reversing counts as distance
                     check(topic, t, "linear.x", "speed_can_mps", v)
                     in_order(role, t)
                     vehicle.append((t, v))

@@ -103,8 +103,8 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
     from mcap.writer import Writer
     from mcap_ros2.decoder import DecoderFactory
 
-    from .mcap_reader import _iter_messages
-    from .message_log import _get, _stamp_ns, decode_json
+    from .mcap_reader import iter_messages
+    from .message_log import decode_json, get_field, stamp_ns
 
     factory = DecoderFactory()
     decoders: dict[int, Any] = {}
@@ -122,7 +122,7 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
                 decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
             msg = decoders[channel.id](message.data)
         try:
-            ns = _stamp_ns(_get(msg, "timestamp") if schema is not None and schema.name.startswith("foxglove") else _get(msg, "header", "stamp"))
+            ns = stamp_ns(get_field(msg, "timestamp") if schema is not None and schema.name.startswith("foxglove") else get_field(msg, "header", "stamp"))
         except (KeyError, AttributeError, TypeError, ValueError):
             ns = 0
         return (ns if ns > 0 else message.log_time) * 1e-9
@@ -130,7 +130,7 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
     with atomic_path(out, suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream, open(source, "rb") as f:
         writer = Writer(stream)
         writer.start(profile="ros2", library="ionav-viz outage-log")
-        for schema, channel, message in _iter_messages(source, f, None):
+        for schema, channel, message in iter_messages(source, f, None):
             if channel.topic in gnss_topics and inside(np.array([stamp_s(schema, channel, message)]), outages)[0]:
                 removed += 1
                 continue
@@ -204,7 +204,7 @@ def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, g
     import os
     import shutil
 
-    from .message_log import _get, _stamp_ns
+    from .message_log import get_field, stamp_ns
     from .rosbag_reader import RosbagLog
 
     log_ = RosbagLog(source)
@@ -215,7 +215,7 @@ def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, g
         ns = log_ns
         if stamps != "log":
             try:
-                ns = _stamp_ns(_get(msg, "header", "stamp")) or log_ns
+                ns = stamp_ns(get_field(msg, "header", "stamp")) or log_ns
             except (KeyError, AttributeError, TypeError, ValueError):
                 ns = log_ns
         return bool(inside(np.array([ns * 1e-9]), outages)[0])

@@ -127,7 +127,7 @@ def _from_tum(path: Path) -> Trajectory:
 
 def _from_log(path: Path, topic: str) -> Trajectory:
     from .load import open_message_log, source_kind
-    from .message_log import GNSS_SCHEMAS, ODOMETRY_SCHEMAS, POSE_SCHEMAS, _get, _stamp_ns
+    from .message_log import GNSS_SCHEMAS, ODOMETRY_SCHEMAS, POSE_SCHEMAS, get_field, stamp_ns
 
     log = open_message_log(path, source_kind(path))
     if log is None:
@@ -143,21 +143,21 @@ def _from_log(path: Path, topic: str) -> Trajectory:
     try:
         for _, log_ns, msg in log.messages([channel]):
             try:
-                ns = _stamp_ns(_get(msg, "header", "stamp"))
+                ns = stamp_ns(get_field(msg, "header", "stamp"))
             except (KeyError, AttributeError, TypeError, ValueError):
                 ns = 0
             stamp = (ns if ns > 0 else log_ns) * 1e-9
             if fixes:
-                if int(_get(msg, "status", "status")) < 0 or not math.isfinite(float(_get(msg, "latitude"))):
+                if int(get_field(msg, "status", "status")) < 0 or not math.isfinite(float(get_field(msg, "latitude"))):
                     continue
                 t.append(stamp)
-                a.append(float(_get(msg, "latitude")))
-                b.append(float(_get(msg, "longitude")))
+                a.append(float(get_field(msg, "latitude")))
+                b.append(float(get_field(msg, "longitude")))
             else:
-                pose = _get(msg, "pose") if channel.schema in POSE_SCHEMAS[:2] else _get(msg, "pose", "pose")
+                pose = get_field(msg, "pose") if channel.schema in POSE_SCHEMAS[:2] else get_field(msg, "pose", "pose")
                 t.append(stamp)
-                a.append(float(_get(pose, "position", "x")))
-                b.append(float(_get(pose, "position", "y")))
+                a.append(float(get_field(pose, "position", "x")))
+                b.append(float(get_field(pose, "position", "y")))
     except InputError:
         raise
     except (KeyError, AttributeError, TypeError, ValueError) as exc:
