@@ -145,3 +145,10 @@ def test_several_outage_lengths_replayed_into_one_recording_each(tmp_path):
     assert "Error against outage length" in proc.stderr
     bad = run_cli("replay", "hard-brake", "--outage", "10s,30s", "--open")
     assert bad.returncode == 2 and "--open" in bad.stderr
+
+
+def test_an_export_folder_that_cannot_be_made_stops_before_any_work(tmp_path):
+    (tmp_path / "taken").write_text("a file")
+    proc = run_cli("replay", "hard-brake", "--no-idnn", "-o", str(tmp_path / "r.rrd"), "--export", str(tmp_path / "taken" / "ex"), "-q")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "--export" in proc.stderr, proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]  # no recording written

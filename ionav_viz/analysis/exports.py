@@ -28,7 +28,8 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..core.fileio import atomic_write_bytes
+from ..core.errors import InputError
+from ..core.fileio import atomic_write_bytes, write_failure
 from ..core.geo import local_en_m
 from .metrics import METRICS, truth_boundaries
 
@@ -40,7 +41,13 @@ def export_results(results: list[Any], folder: str | Path) -> list[Path]:
     """Write the exports of ``results`` (:class:`~ionav_viz.analysis.evaluate.DriveResult` s of one
     report) into ``folder`` (made when missing, with its parents). Returns the files written."""
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if (failure := write_failure(folder, exc)) is not None:
+            raise failure from None
+        raise InputError(f"{folder}: cannot make the export folder ({exc.strerror or type(exc).__name__})", "choose a writable folder",
+                         param="export") from None
     written = [_write(folder / "outages.csv", _outages_csv(results).encode())]
     features, gpx_tracks = [], []
     for res in results:

@@ -11,6 +11,7 @@ from ..analysis.events import MANOEUVRE_TYPES, Event, detect_events
 from ..analysis.report import Report
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.fileio import check_output_folder
 from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from ..nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement
@@ -123,6 +124,8 @@ def evaluate(
         raise InputError(f"a plan is made for one drive, and {len(items)} are given", "evaluate the plan's drive alone", param="plan")
     run, read = options_of(run, estimators, read, mcap, truth)
     run = with_externals(run, external, placement)
+    if export is not None:
+        check_output_folder(Path(export), param="export")
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

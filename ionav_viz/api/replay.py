@@ -10,7 +10,7 @@ from ..analysis.evaluate import DriveResult, evaluate_drive
 from ..analysis.events import Event, detect_events
 from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.errors import InputError
-from ..core.fileio import check_output_file
+from ..core.fileio import check_output_file, check_output_folder
 from ..core.timing import stage
 from ..core.warnings_log import collecting_warnings
 from ..nav.outages import Placement
@@ -96,6 +96,8 @@ def replay(
     n = windows_of(outage_s, placement)
     run, read = options_of(run, estimators, read, mcap, truth)
     run = with_externals(run, external, placement)
+    if export is not None:
+        check_output_folder(Path(export), param="export")
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

@@ -49,6 +49,23 @@ def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
     return target
 
 
+def check_output_folder(folder: Path, param: str = "output") -> Path:
+    """Check, before any work, that ``folder`` is a directory or can be made (with its parents) in
+    the nearest existing one, which must be writable. Returns ``folder``; nothing is created."""
+    folder = Path(folder)
+    if folder.exists():
+        if not folder.is_dir():
+            raise InputError(f"{folder}: exists and is not a folder", "choose a folder name", param=param)
+        existing = folder
+    else:
+        existing = next((p for p in folder.absolute().parents if p.exists()), Path("/"))
+        if not existing.is_dir():
+            raise InputError(f"{folder}: {existing} is not a folder", "choose a folder name", param=param)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{folder}: cannot write in {existing} (permission denied)", "choose a writable folder", param=param)
+    return folder
+
+
 def current_umask() -> int:
     """The process's file-creation mask (reading it means setting it: set back at once)."""
     mask = os.umask(0)
