@@ -1,20 +1,27 @@
-"""The measured-results tables (docs/results.md): every built-in estimator per scenario, on the
-bundled test drives and on held-out drives from cars outside the training fleet.
+"""The measured-results page (docs/results.md): every built-in estimator on 10, 30 and 60 s GNSS
+outages, on the bundled test drives, on held-out drives from cars outside the training fleet, and
+on simulated 6-axis logs of the kinds users record.
 
     python benchmarks/results_table.py                          # prints the Markdown
     python benchmarks/results_table.py --write docs/results.md  # writes the complete page
-    python benchmarks/results_table.py [--model DIR] [--minutes 10] [--seed-base 800]
+    python benchmarks/results_table.py [--model DIR] [--minutes 10] [--seed-base 800] [--lengths 10,30,60]
 
 Held-out drives: one per scenario, ``--minutes`` long, seed ``--seed-base`` + scenario index, its
 sensor and vehicle errors drawn from the simulator's "held-out" fleet (every parameter outside the
 range the training drives were drawn from; ``ionav_viz.sim.simulate.FLEETS``). The same drive is
 ``ionav-viz simulate SCENARIO --fleet held-out --seed SEED --duration 10m -o FILE``.
 
-One table per metric, with 10 s outages tiling each drive: each estimator's mean displacement CRSE
-(m), mean orientation-rate CRSE (rad/s), mean final position error (m) and mean final error as a
-percentage of the distance driven in the outage. ``--write FILE`` writes a complete Markdown page
-(heading, the command and machine, the tables, the columns explained), atomically: under a
-temporary name beside FILE, renamed when complete.
+6-axis logs (:mod:`ionav_viz.sim.imu`, written as MCAP and read back like a user's log, the mount
+estimated and applied, scored against the reference on ``/truth/fix``): a phone at 10 Hz in
+town (IMU only), a roof MEMS IMU at 100 Hz on hilly roads (grade 6 % rms; IMU only: its CAN speed
+left out) and the same car on the motorway with its CAN speed. ``ionav-viz simulate SCENARIO --imu
+phone --seed SEED --duration 10m -o FILE.mcap`` writes one (the hilly set uses a steeper grade
+than the CLI's).
+
+Outages tile each drive. Each cell is a mean over the outages of a set of drives: the final position
+error as a percentage of the distance driven in the outage, and the displacement CRSE (m).
+``--write FILE`` writes a complete Markdown page atomically: under a temporary name beside FILE,
+renamed when complete.
 """
 
 from __future__ import annotations
@@ -28,24 +35,36 @@ import re
 import sys
 import tempfile
 import textwrap
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 import ionav_viz as iv
 from ionav_viz.dataset.catalog import SCENARIOS
+from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
 from ionav_viz.sim.simulate import fleet_sensors, write_simulated_drive
 
-#: (summary key, decimals, table heading)
-METRICS = (
-    ("crse_m", 2, "Displacement CRSE (m)"),
-    ("yaw_crse_radps", 4, "Orientation-rate CRSE (rad/s)"),
-    ("final_position_error_m", 2, "Final position error (m)"),
-    ("final_error_pct", 1, "Final position error (% of the distance driven)"),
+#: The 6-axis sets: (key, title, grade, steeper grade or None, IMU only, scenarios, first seed).
+IMU_SETS = (
+    ("phone-urban", "phone IMU 10 Hz, urban", "phone", None, True, ("roundabout", "sharp-cornering", "hard-brake"), 900),
+    ("mems-hills", "roof MEMS IMU 100 Hz, hills", "mems", 0.06, True, ("quick-accel", "roundabout", "hard-brake"), 910),
+    ("highway-can", "highway, with CAN speed", "mems", None, False, ("motorway", "motorway"), 920),
 )
+ESTIMATORS = ("ins", "idnn", "odo", "ekf", "gins")
 
 
 def held_out_drives(directory: Path, minutes: float, seed_base: int) -> dict[str, Path]:
     return {sc: write_simulated_drive(directory / f"V-heldout-{sc}.csv", sc, seed_base + i, 60.0 * minutes, fleet_sensors("held-out", seed_base + i))
             for i, sc in enumerate(SCENARIOS)}
+
+
+def imu_logs(directory: Path, minutes: float) -> dict[str, list[Path]]:
+    out = {}
+    for key, _, grade, steep, _, scenarios, seed in IMU_SETS:
+        g = IMU_GRADES[grade] if steep is None else replace(IMU_GRADES[grade], grade_rms=steep)
+        out[key] = [write_imu_log(directory / f"{key}-{i}.mcap", sc, seed + i, 60.0 * minutes, g) for i, sc in enumerate(scenarios)]
+    return out
 
 
 def machine() -> str:
@@ -79,47 +98,106 @@ def write_atomically(path: Path, text: str) -> None:
         raise
 
 
-def measure(model: str | None, minutes: float, seed_base: int) -> tuple[dict[str, str], list[tuple[str, str, dict]]]:
-    """Estimator labels by name, and (scenario, test set, report dict) per drive."""
-    runs = []
+@dataclass
+class Cell:
+    """Per estimator, the outages' final errors (% of distance) and displacement CRSEs (m) of a set."""
+
+    pct: dict[str, list[float]]
+    crse: dict[str, list[float]]
+    outages: int = 0
+
+    def add(self, rep: dict) -> None:
+        names = [e["name"] for e in rep["estimators"]]
+        for seq in rep["sequences"]:
+            for name in names:
+                m = seq.get(name)
+                if not isinstance(m, dict):
+                    continue
+                if m.get("final_error_pct") is not None:
+                    self.pct.setdefault(name, []).append(m["final_error_pct"])
+                self.crse.setdefault(name, []).append(m["crse_m"])
+        self.outages += len(rep["sequences"])
+
+    def mean(self, name: str, key: str) -> float | None:
+        values = (self.pct if key == "pct" else self.crse).get(name)
+        return float(np.mean(values)) if values else None
+
+
+def measure(model: str | None, minutes: float, seed_base: int, lengths: list[float]) -> tuple[dict[str, str], dict[tuple[str, float], Cell]]:
+    """Estimator labels by name, and per (set, outage length) the pooled outages."""
+    cells: dict[tuple[str, float], Cell] = {}
+    labels: dict[str, str] = {}
+    run = iv.RunOptions(model=model)
+
+    def add(key: str, drives: list, read: iv.ReadOptions | None = None) -> None:
+        for length, rep in iv.evaluate_lengths(drives, lengths, estimators=list(ESTIMATORS), run=run, read=read).items():
+            d = rep.to_dict()
+            labels.update({e["name"]: e["label"] for e in d["estimators"]})
+            cells.setdefault((key, length), Cell({}, {})).add(d)
+
     with tempfile.TemporaryDirectory() as tmp:
-        sets = {"bundled": {sc: sc for sc in SCENARIOS},
-                "held-out": {sc: str(p) for sc, p in held_out_drives(Path(tmp), minutes, seed_base).items()}}
-        for scenario in SCENARIOS:
-            for name, drives in sets.items():
-                runs.append((scenario, name, iv.evaluate([drives[scenario]], 10.0, run=iv.RunOptions(model=model)).to_dict()))
-    labels = {e["name"]: e["label"] for e in runs[0][2]["estimators"]}
-    return labels, runs
+        add("bundled", list(SCENARIOS))
+        add("held-out", [str(p) for p in held_out_drives(Path(tmp), minutes, seed_base).values()])
+        logs = imu_logs(Path(tmp), minutes)
+        for key, _, _, _, imu_only, _, _ in IMU_SETS:
+            log_options = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none" if imu_only else None)
+            add(key, [str(p) for p in logs[key]], iv.ReadOptions(log=log_options))
+    return {n: labels[n] for n in ESTIMATORS if n in labels}, cells
 
 
-def tables(labels: dict[str, str], runs: list[tuple[str, str, dict]]) -> str:
+def set_titles() -> dict[str, str]:
+    return {"bundled": "bundled test drives (IO-VNBD format)", "held-out": "held-out fleet (IO-VNBD format)"} | {
+        key: title for key, title, *_ in IMU_SETS}
+
+
+def overview(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
+    """The issue's shape: per outage length and set, the best estimator and the others (% of distance)."""
+    titles = set_titles()
+    out = ["| outage | " + " | ".join(titles.values()) + " |", "|---|" + "---|" * len(titles)]
+    for length in lengths:
+        row = []
+        for key in titles:
+            cell = cells[(key, length)]
+            ranked = sorted((m, n) for n in labels if (m := cell.mean(n, "pct")) is not None)
+            if not ranked:
+                row.append("–")
+                continue
+            best = f"best {ranked[0][0]:.1f} % ({ranked[0][1]})"
+            row.append(", ".join([best] + [f"{n} {m:.1f}" for m, n in ranked[1:]]))
+        out.append(f"| {length:g} s | " + " | ".join(row) + " |")
+    return "\n".join(out)
+
+
+def tables(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
     out = []
-    for key, decimals, heading in METRICS:
-        out += [f"## {heading}", "", "| Scenario | Drives | Outages | " + " | ".join(labels.values()) + " |",
-                "|---|---|---:|" + "---:|" * len(labels)]
-        for scenario, test_set, rep in runs:
-            s = rep["summary"]
-            cells = [f"{s[e][key]['mean']:.{decimals}f}" for e in labels]
-            out.append(f"| {scenario} | {test_set} | {rep['n_sequences']} | " + " | ".join(cells) + " |")
+    titles = set_titles()
+    for key, heading, decimals in (("pct", "Final position error (% of the distance driven)", 1), ("crse", "Displacement CRSE (m)", 2)):
+        out += [f"## {heading}", "", "| Drives | Outage | Outages | " + " | ".join(labels.values()) + " |",
+                "|---|---:|---:|" + "---:|" * len(labels)]
+        for s_key, title in titles.items():
+            for length in lengths:
+                cell = cells[(s_key, length)]
+                values = [cell.mean(n, key) for n in labels]
+                out.append(f"| {title} | {length:g} s | {cell.outages} | " + " | ".join("–" if v is None else f"{v:.{decimals}f}" for v in values) + " |")
         out.append("")
     return "\n".join(out)
 
 
-def comparisons(labels: dict[str, str], runs: list[tuple[str, str, dict]]) -> str:
+def comparisons(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
     """What the tables say, counted from them (no number here is typed by hand)."""
-    n = len(runs)
     lines = []
-    if "ins" in labels and "idnn" in labels:
-        disp = sum(r["summary"]["idnn"]["crse_m"]["mean"] < r["summary"]["ins"]["crse_m"]["mean"] for _, _, r in runs)
-        yaw = sum(r["summary"]["idnn"]["yaw_crse_radps"]["mean"] < r["summary"]["ins"]["yaw_crse_radps"]["mean"] for _, _, r in runs)
-        lines.append(f"- The {labels['idnn']}'s mean displacement CRSE is lower than the {labels['ins']}'s on {disp} of {n} drives, "
-                     f"its mean orientation-rate CRSE on {yaw} of {n}.")
-    best: dict[str, int] = {}
-    for _, _, r in runs:
-        name = min(labels, key=lambda e: r["summary"][e]["crse_m"]["mean"])
-        best[name] = best.get(name, 0) + 1
-    ranked = ", ".join(f"{labels[e]} on {k}" for e, k in sorted(best.items(), key=lambda x: -x[1]))
-    lines.append(f"- Lowest mean displacement CRSE: {ranked} of {n} drives.")
+    pairs = [(k, length) for k, length in cells if "idnn" in labels and "ins" in labels]
+    if pairs:
+        better = sum(cells[p].mean("idnn", "crse") <= cells[p].mean("ins", "crse") for p in pairs)
+        lines.append(f"- The IDNN's mean displacement CRSE is at most the INS DR's on {better} of {len(pairs)} sets and lengths.")
+    for key, title, _, _, imu_only, _, _ in IMU_SETS:
+        parts = []
+        for length in lengths:
+            m = cells[(key, length)].mean("gins", "pct")
+            if m is not None:
+                parts.append(f"{m:.1f} % after {length:g} s")
+        if parts:
+            lines.append(f"- {labels.get('gins', 'gins')} on the {title} logs{' (IMU only)' if imu_only else ''}: " + ", ".join(parts) + ".")
     return "\n".join(lines)
 
 
@@ -137,7 +215,8 @@ def wrap(markdown: str, width: int = 100) -> str:
     return "\n\n".join(out).replace("\u00a0", " ") + "\n"
 
 
-def page(labels: dict[str, str], runs: list[tuple[str, str, dict]], minutes: float, seed_base: int, model: str | None) -> str:
+def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float], minutes: float, seed_base: int,
+         model: str | None) -> str:
     day = datetime.datetime.now(datetime.UTC).date().isoformat()
     model_text = f"the IDNN model in `{model}`" if model else "the shipped IDNN model"
     return wrap("\n".join([
@@ -146,29 +225,37 @@ def page(labels: dict[str, str], runs: list[tuple[str, str, dict]], minutes: flo
         f"Written by `{command_line()}` on a {machine()} machine ({day}, ionav-viz {iv.__version__}, "
         f"{model_text}); do not edit by hand, run the command again.",
         "",
-        "Every built-in estimator on 10 s GNSS outages tiling each drive (the paper's protocol), on two "
-        "sets of synthetic drives: **bundled**, the bundled test drive of each scenario "
-        "(`ionav-viz evaluate SCENARIO`), and **held-out**, one drive per scenario from a car of the "
-        "simulator's held-out fleet, whose sensor and vehicle errors all lie outside the ranges of the "
-        f"training drives (`ionav-viz simulate SCENARIO --fleet held-out --seed SEED --duration {minutes:g}m -o FILE.csv`, "
-        f"seeds {seed_base}-{seed_base + len(SCENARIOS) - 1} in the scenario order below). Each cell is the mean "
-        "over the drive's outages.",
+        "Every built-in estimator on GNSS outages of " + ", ".join(f"{x:g}" for x in lengths) + " s tiling each drive, on "
+        "synthetic drives of five kinds: the **bundled** test drive of each scenario (`ionav-viz evaluate SCENARIO`); "
+        "**held-out** drives, one per scenario from a car of the simulator's held-out fleet, whose sensor and vehicle errors "
+        f"all lie outside the ranges of the training drives (`ionav-viz simulate SCENARIO --fleet held-out --seed SEED "
+        f"--duration {minutes:g}m -o FILE.csv`, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}); and three sets of "
+        "**6-axis logs** as users record them, written as MCAP by the 6-axis simulator and read back like a user's log "
+        "(the IMU's mount estimated and applied, the receiver's fixes given to the estimators, the reference on "
+        "`/truth/fix` scoring them): "
+        + "; ".join(f"{title} ({', '.join(sc)}, seeds {seed}-{seed + len(sc) - 1}{', IMU only' if imu_only else ''})"
+                    for _, title, _, _, imu_only, sc, seed in IMU_SETS)
+        + f". Every drive is {minutes:g} minutes long. A cell pools the outages of its set.",
         "",
-        comparisons(labels, runs),
+        "The 3D GNSS/INS (`gins`) needs all six IMU axes: IO-VNBD files carry two, so it does not run on the first two "
+        "sets (–); odometry needs a vehicle speed.",
         "",
-        tables(labels, runs),
+        "## Final position error as a share of the distance driven, mean over outages",
+        "",
+        overview(labels, cells, lengths),
+        "",
+        comparisons(labels, cells, lengths),
+        "",
+        tables(labels, cells, lengths),
         "Columns:",
         "",
-        "- **Drives**: `bundled` or `held-out`, as above; **Outages**: the outages scored on that drive.",
-        "- **Displacement CRSE (m)**: per outage, the sum over its 1 s windows of the absolute error of "
-        "the distance travelled in the window, against GNSS.",
-        "- **Orientation-rate CRSE (rad/s)**: the same for the mean yaw rate of each window.",
-        "- **Final position error (m)**: the 2D distance between the estimated and the GNSS position at "
-        "the end of the outage.",
-        "- **Final position error (% of the distance driven)**: that error over the GNSS distance driven "
-        "in the outage (outages under 10 m driven are left out of this mean).",
+        "- **Outages**: the outages scored in that set at that length.",
+        "- **Final position error (% of the distance driven)**: the 2D distance between the estimated and the true "
+        "position at the end of the outage, over the distance driven in it (outages under 10 m driven are left out).",
+        "- **Displacement CRSE (m)**: per outage, the sum over its 1 s windows of the absolute error of the distance "
+        "travelled in the window.",
         "- Estimators: " + ", ".join(f"{label} (`{name}`)" for name, label in labels.items()) + "; "
-        "described in [method.md](method.md).",
+        "described in [method.md](method.md) and [estimators.md](estimators.md).",
         "",
     ]))
 
@@ -176,18 +263,20 @@ def page(labels: dict[str, str], runs: list[tuple[str, str, dict]], minutes: flo
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", help="IDNN model directory (default: the shipped one)")
-    parser.add_argument("--minutes", type=float, default=10.0, help="length of each held-out drive")
+    parser.add_argument("--minutes", type=float, default=10.0, help="length of each drive")
     parser.add_argument("--seed-base", type=int, default=800, help="seed of the first held-out drive")
+    parser.add_argument("--lengths", default="10,30,60", help="outage lengths (s), comma-separated")
     parser.add_argument("--write", metavar="FILE", type=Path, help="write the complete Markdown page to FILE (atomically) instead of printing the tables")
     args = parser.parse_args()
     if args.write is not None and not args.write.parent.is_dir():
         parser.error(f"--write: folder {args.write.parent} does not exist")
+    lengths = [float(x) for x in args.lengths.split(",")]
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
-    labels, runs = measure(args.model, args.minutes, args.seed_base)
+    labels, cells = measure(args.model, args.minutes, args.seed_base, lengths)
     if args.write is None:
-        print(comparisons(labels, runs) + "\n\n" + tables(labels, runs), end="")
+        print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths), end="")
     else:
-        write_atomically(args.write, page(labels, runs, args.minutes, args.seed_base, args.model))
+        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model))
         print(args.write)
 
 

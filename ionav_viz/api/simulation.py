@@ -12,6 +12,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..dataset.samples import SAMPLES
+from ..sim.imu import write_imu_log
 from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
 from ..sources.load import ReadOptions, load_drive
 from .options import DriveLike
@@ -20,14 +21,20 @@ log = logging.getLogger("ionav_viz")
 
 
 def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float = 120.0, *, fleet: str | None = None,
-             ideal: bool = False, gnss_losses: int = 0) -> Path:
+             ideal: bool = False, gnss_losses: int = 0, imu: str | None = None) -> Path:
     """Simulate a drive of ``scenario`` and write it as an IO-VNBD ``V-*.csv`` (atomically).
 
     ``fleet``: draw the car's sensor and vehicle errors from a fleet (``"training"``, ``"held-out"``);
     ``ideal``: perfect sensors and flat roads; ``gnss_losses``: tunnel-like GNSS losses to add.
+    ``imu``: instead, a logger's MCAP with a full 6-axis IMU of that grade (``"mems"``, ``"phone"``:
+    :mod:`ionav_viz.sim.imu`), its receiver, and the reference truth on ``/truth/fix``.
     """
     if scenario not in SIMULATED_SCENARIOS:
         raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SIMULATED_SCENARIOS)}", param="scenario")
+    if imu is not None:
+        if fleet is not None or ideal or gnss_losses:
+            raise InputError("a simulated IMU log has its grade's sensors: no fleet, --ideal or GNSS losses", "leave them out", param="imu")
+        return write_imu_log(output, scenario, seed, duration_s, imu)
     if gnss_losses < 0:
         raise InputError(f"{gnss_losses} GNSS losses: give 0 or more", param="gnss_losses")
     if fleet is not None and fleet not in FLEETS:

@@ -21,8 +21,9 @@ def simulate(
     bundled: Optional[Path] = typer.Option(None, "--bundled", help="Regenerate every bundled sample into this directory instead."),
     fleet: Optional[str] = typer.Option(None, "--fleet", help="Draw the car's sensor and vehicle errors from a fleet: training (the bundled training drives') or held-out (outside every training range)."),
     gnss_loss: int = typer.Option(0, "--gnss-loss", help="Add this many tunnel-like GNSS losses (3-15 s while driving: satellites 0, the fix frozen or zeros)."),
+    imu: Optional[str] = typer.Option(None, "--imu", help="Write a logger MCAP with a 6-axis IMU instead: mems (100 Hz, 10 Hz receiver, CAN speed) or phone (10 Hz, 1 Hz GPS); truth on /truth/fix."),
 ) -> None:
-    """Write a synthetic drive in the exact IO-VNBD V-*.csv format."""
+    """Write a synthetic drive in the exact IO-VNBD V-*.csv format (or, with --imu, a 6-axis MCAP log)."""
     from .. import api
     from .app import options_named
 
@@ -32,5 +33,6 @@ def simulate(
         return
     if scenario is None or output is None:
         raise typer.BadParameter("give a SCENARIO and -o FILE.csv (or --bundled DIR)")
-    with options_named(scenario="SCENARIO", gnss_losses="--gnss-loss", fleet="--fleet"):
-        print(api.simulate(scenario, output, seed, c.duration_s(duration, "--duration"), fleet=fleet, ideal=ideal, gnss_losses=gnss_loss))
+    with options_named(scenario="SCENARIO", gnss_losses="--gnss-loss", fleet="--fleet", imu="--imu", output="-o"):
+        print(api.simulate(scenario, output, seed, c.duration_s(duration, "--duration"), fleet=fleet, ideal=ideal, gnss_losses=gnss_loss,
+                           imu=imu))

@@ -22,7 +22,7 @@ from .protocol import Estimator, EstimatorError, available, validate
 ENTRY_POINT_GROUP = "ionav_viz.estimators"
 #: The built-in estimators, in report order. ``ins`` is the paper's baseline (improvements are
 #: reported against it).
-BUILTIN = ("ins", "idnn", "odo", "ekf")
+BUILTIN = ("ins", "idnn", "odo", "ekf", "gins")
 BASELINE = "ins"
 
 
@@ -44,6 +44,10 @@ def builtin(name: str, model: Any = None) -> Estimator:
         from .ekf import EkfEstimator
 
         return EkfEstimator()
+    if name == "gins":
+        from .gins import GinsEstimator
+
+        return GinsEstimator()
     raise EstimatorError(f"unknown built-in estimator {name!r}", f"choose from {', '.join(BUILTIN)}")
 
 

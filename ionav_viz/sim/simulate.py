@@ -352,7 +352,7 @@ def simulated_manoeuvres(scenario: str, seed: int, duration_s: float, gnss_losse
     return sorted(planned + derived + losses, key=lambda m: (m[1], m[0]))
 
 
-def _gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau: float) -> np.ndarray:
+def gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau: float) -> np.ndarray:
     """First-order Gauss-Markov process (stationary std ``sigma``, correlation time ``tau``)."""
     out = np.zeros(n)
     if sigma == 0.0 or n == 0:
@@ -366,7 +366,7 @@ def _gauss_markov(rng: np.random.Generator, n: int, dt: float, sigma: float, tau
     return out
 
 
-def _grade(rng: np.random.Generator, distance_m: np.ndarray, rms: float) -> np.ndarray:
+def grade_profile(rng: np.random.Generator, distance_m: np.ndarray, rms: float) -> np.ndarray:
     """Smooth random road grade (rise/run) along the path: a sum of sinusoids in distance."""
     if rms == 0.0:
         return np.zeros_like(distance_m)
@@ -430,7 +430,7 @@ def simulate_rows(
     ve, vn = v * np.sin(heading), v * np.cos(heading)
     east = np.concatenate([[0.0], np.cumsum(0.5 * (ve[1:] + ve[:-1]) * dt)])
     north = np.concatenate([[0.0], np.cumsum(0.5 * (vn[1:] + vn[:-1]) * dt)])
-    grade = _grade(rng, distance, sensors.grade_rms)
+    grade = grade_profile(rng, distance, sensors.grade_rms)
     elevation = np.concatenate([[0.0], np.cumsum(0.5 * (grade[1:] + grade[:-1]) * np.diff(distance))])
 
     # Sample times at 10 Hz with clock jitter and a few missing samples.
@@ -467,8 +467,8 @@ def simulate_rows(
     )
 
     # GNSS.
-    e_err = _gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
-    n_err = _gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
+    e_err = gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
+    n_err = gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
     e_meas = at(east) + e_err + rng.normal(0, 1, n) * sensors.gnss_white_m
     n_meas = at(north) + n_err + rng.normal(0, 1, n) * sensors.gnss_white_m
     lat0 = rng.uniform(52.0, 53.0)
@@ -505,7 +505,7 @@ def simulate_rows(
         HEADER[7]: v_s * np.sin(np.arctan(g_s)) * 3.6,
         HEADER[8]: np.concatenate([[0.1], np.diff(t)]),
         HEADER[9]: np.degrees(np.arctan(2.5 * k_s)) * 15.0,
-        **_vehicle_speeds(np.random.default_rng([seed, 3000 + SIMULATED_SCENARIOS.index(scenario)]), t, truth, sensors, half_track_m, wheel_radius_m),
+        **can_speeds(np.random.default_rng([seed, 3000 + SIMULATED_SCENARIOS.index(scenario)]), t, truth, sensors, half_track_m, wheel_radius_m),
         HEADER[14]: -r_meas_dps,
         HEADER[16]: accel_g,
         HEADER[17]: (v_s * v_s * k_s + rng.normal(0, 1, n) * 0.1 * (sensors.accel_noise_still_mps2 > 0)) / G_MPS2,
@@ -526,7 +526,7 @@ def simulate_rows(
     return rows
 
 
-def _vehicle_speeds(rng: np.random.Generator, t: np.ndarray, truth: Truth, sensors: SensorModel, half_track_m: float,
+def can_speeds(rng: np.random.Generator, t: np.ndarray, truth: Truth, sensors: SensorModel, half_track_m: float,
                     nominal_radius_m: float) -> dict[str, np.ndarray]:
     """The four wheel speeds (rad/s, front left, front right, rear left, rear right) and the
     indicated speed (km/h) as the CAN bus reports them (see the module docstring). Drawn from

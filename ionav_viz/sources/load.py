@@ -7,9 +7,11 @@ import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..core.gnss_quality import GnssLimits, assess_gnss, count_by_fault
+from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fault
 from ..core.timing import stage
 from .resolve import data_root, resolve_drive
 
@@ -196,6 +198,9 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
                                  cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
                                  has_fix=cols.get("gnss_fix"), accel_mps2=drive.accel_long_mps2)
     if drive.has_reference:  # the truth is the reference: its own continuity checks only
+        # beside a reference the fixes are only the filters' input, weighted by their reported
+        # sigma: a phone's 8 m fixes still aid them (they are never scored against)
+        receiver_fault = receiver_fault & np.uint16(~GnssFault.POOR_ACCURACY & 0xFFFF)
         drive.receiver_fault = receiver_fault
         drive.gnss_fault = assess_gnss(drive.t_s, drive.lat_deg, drive.lon_deg, drive.speed_mps, limits=limits,
                                        accel_mps2=drive.accel_long_mps2)

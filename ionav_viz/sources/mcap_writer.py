@@ -33,18 +33,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.drive import IMU_COLUMNS, Drive
+from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
 from ..core.fileio import atomic_path, check_output_file
 from ..core.units import G_MPS2
 from .ros2_msgs import DEFINITIONS
 
-TOPICS = {"imu": "/imu/data", "fix": "/gps/fix", "vel": "/gps/vel", "odom": "/wheel/odom"}
+#: Where a drive with a reference trajectory (:data:`~ionav_viz.core.drive.RECEIVER_COLUMNS`) has it
+#: written: the receiver's fixes go on ``/gps/fix``, the reference on this NavSatFix topic
+#: (read back with ``--truth-topic /truth/fix``).
+TRUTH_TOPIC = "/truth/fix"
+TOPICS = {"imu": "/imu/data", "fix": "/gps/fix", "vel": "/gps/vel", "odom": "/wheel/odom", "truth": TRUTH_TOPIC}
 SCHEMAS = {"imu": "sensor_msgs/msg/Imu", "fix": "sensor_msgs/msg/NavSatFix", "vel": "geometry_msgs/msg/TwistStamped",
-           "odom": "nav_msgs/msg/Odometry"}
+           "odom": "nav_msgs/msg/Odometry", "truth": "sensor_msgs/msg/NavSatFix"}
 #: The drive's columns a log written here carries (``speed_can_mps`` and the wheel speeds: as the
 #: vehicle speed the caller gives).
 CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps", "height_m",
-           "gnss_sigma_m", "gnss_fix", *IMU_COLUMNS)
+           "gnss_sigma_m", "gnss_fix", *IMU_COLUMNS, *RECEIVER_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -64,15 +68,18 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
                vehicle_speed_from: tuple[str, ...] = (), omit_gnss: np.ndarray | None = None) -> Written:
     """Write ``drive`` to ``path`` (atomically), with ``vehicle_speed_mps`` (per sample, or None)
     on ``/wheel/odom``; ``vehicle_speed_from``: the columns it stands for (carried through it).
-    ``omit_gnss``: per sample, True where no ``/gps/fix`` and ``/gps/vel`` message is written (an outage)."""
+    ``omit_gnss``: per sample, True where no ``/gps/fix`` and ``/gps/vel`` message is written (an outage).
+    A drive with a reference trajectory has its receiver written on ``/gps/fix`` and ``/gps/vel``
+    and the reference on :data:`TRUTH_TOPIC` (at every sample)."""
     from mcap_ros2.writer import Writer
 
     check_output_file(Path(path))
     n = len(drive)
     t_ns = np.rint(np.asarray(drive.stamp_s(drive.t_s)) * 1e9).astype(np.int64)
     omit = np.zeros(n, dtype=bool) if omit_gnss is None else np.asarray(omit_gnss, dtype=bool)
-    heading = np.deg2rad(drive.heading_deg)
-    v_east, v_north = drive.speed_mps * np.sin(heading), drive.speed_mps * np.cos(heading)
+    received = drive.as_received()  # the receiver's fixes, speed and course (the drive itself without a reference)
+    heading = np.deg2rad(received.heading_deg)
+    v_east, v_north = received.speed_mps * np.sin(heading), received.speed_mps * np.cos(heading)
     height = drive.columns.get("height_m", np.zeros(n))
     sigma = drive.columns.get("gnss_sigma_m")
     has_fix = drive.columns.get("gnss_fix", np.ones(n)) != 0
@@ -83,7 +90,7 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
     unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
-    keys = ["imu", "fix", "vel"] + (["odom"] if vehicle_speed_mps is not None else [])
+    keys = ["imu", "fix", "vel"] + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else [])
     count = 0
     with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
         writer = Writer(stream)
@@ -103,8 +110,8 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
                 "fix": {
                     "header": _header(stamp, "gps"),
                     "status": {"status": 0 if has_fix[i] else -1, "service": 1},
-                    "latitude": float(drive.lat_deg[i]),
-                    "longitude": float(drive.lon_deg[i]),
+                    "latitude": float(received.lat_deg[i]),
+                    "longitude": float(received.lon_deg[i]),
                     "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
                     "position_covariance": zeros9 if sigma is None else [float(sigma[i]) ** 2 if k in (0, 4, 8) else 0.0 for k in range(9)],
                     "position_covariance_type": 0 if sigma is None else 2,
@@ -115,6 +122,10 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
                               "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
                 },
             }
+            if drive.has_reference:
+                msgs["truth"] = {"header": _header(stamp, "truth"), "status": {"status": 0, "service": 1},
+                                 "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]), "altitude": 0.0,
+                                 "position_covariance": zeros9, "position_covariance_type": 0}
             if vehicle_speed_mps is not None:
                 msgs["odom"] = {
                     "header": _header(stamp, "odom"), "child_frame_id": "base_link",

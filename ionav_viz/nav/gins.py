@@ -1,0 +1,242 @@
+"""``gins``: a 3D GNSS/INS with vehicle constraints, for drives with a full 6-axis IMU.
+
+The practitioner's baseline: the error-state filter of :mod:`ionav_viz.nav.strapdown` runs over
+the drive with GNSS (position, and velocity at speed), non-holonomic constraints, the odometer
+where the drive has a vehicle speed, and zero-velocity updates where the IMU shows the vehicle
+standing (:mod:`ionav_viz.nav.stillness`). Each outage starts from the filter's state at its
+first window boundary (it has seen GNSS only before it) and runs on without GNSS, still
+constrained, to its end. Per 1-second window it reports the horizontal distance travelled (the
+integral of the horizontal speed, never negative), the mean yaw rate (counter-clockwise), and its
+own positions at the window boundaries, which the metrics use.
+
+Initial alignment, at the drive's first window boundary: level (roll and pitch) from the mean
+specific force over the first second, heading from the GNSS course at speed (the windows hold
+the first course at speed through a standstill at the start), velocity from the GNSS speed and
+course, biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
+white noise (the filter's random walks) is measured on the drive: the robust spread of successive
+differences of each axis, the signal being smooth at 10 Hz.
+
+Drives with only the paper's two channels (IO-VNBD) are the planar ``ekf``'s: ``gins`` does not
+apply to them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..core.drive import IMU_COLUMNS, Drive
+from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodetic, geodetic_of_enu, normal_gravity_mps2
+from .bias import stationary_mask
+from .protocol import Estimate, EstimatorInputs
+from .stillness import still_samples
+from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
+from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+from .windows import Windows
+
+#: GNSS velocity updates the filter above this speed (m/s), where the course is worth something.
+GNSS_VELOCITY_MIN_SPEED_MPS = 3.0
+
+
+def has_full_imu(drive: Drive) -> bool:
+    """Whether a drive carries all six IMU axes (:data:`~ionav_viz.core.drive.IMU_COLUMNS`) as
+    measured: an axis that never changes is a placeholder (an MCAP converted from a two-channel
+    drive carries a level IMU: gravity on z and zeros), not a sensor."""
+    return all(c in drive.columns and np.ptp(drive.columns[c]) > 0 for c in IMU_COLUMNS)
+
+
+def white_noise_per_sample(x: np.ndarray) -> float:
+    """The white noise (1 sigma per sample) of signals ``(n, 3)``: the robust spread (1.4826 MAD)
+    of successive differences over sqrt(2), the median over the axes."""
+    d = np.diff(x, axis=0)
+    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    return float(np.median(1.4826 * mad / np.sqrt(2.0)))
+
+
+@dataclass
+class Boundaries:
+    """The drive's window boundaries, in time order: every window's start and each segment's
+    last end. ``of_window[k]``: the boundary where window ``k`` starts (its end is the next)."""
+
+    t_s: np.ndarray
+    sample: np.ndarray
+    segment_start: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    speed_mps: np.ndarray
+    course_deg: np.ndarray
+    gnss_ok: np.ndarray
+    of_window: np.ndarray
+
+
+def boundaries(drive: Drive, windows: Windows) -> Boundaries:
+    """Window boundaries with the GNSS there (the windows' own interpolated fixes)."""
+    n = len(windows)
+    last = np.ones(n, dtype=bool)
+    last[:-1] = windows.segment[1:] != windows.segment[:-1]
+    first = np.ones(n, dtype=bool)
+    first[1:] = last[:-1]
+    ends_through = np.cumsum(last)
+    start_at = np.arange(n) + ends_through - last  # each window's start, after the ends of earlier segments
+    end_at = start_at[last] + 1  # a segment's last end, right after its last window's start
+    nb = n + int(last.sum())
+    t, lat, lon, course, speed = (np.zeros(nb) for _ in range(5))
+    good, seg_start = np.zeros(nb, dtype=bool), np.zeros(nb, dtype=bool)
+    t[start_at], t[end_at] = windows.t0_s, windows.t0_s[last] + 1.0
+    lat[start_at], lat[end_at] = windows.lat0_deg, windows.lat1_deg[last]
+    lon[start_at], lon[end_at] = windows.lon0_deg, windows.lon1_deg[last]
+    course[start_at], course[end_at] = windows.heading0_deg, windows.heading1_deg[last]
+    speed[start_at], speed[end_at] = windows.speed0_mps, np.interp(t[end_at], drive.t_s, drive.speed_mps)
+    ok = windows.truth_ok
+    prev_ok = np.concatenate([[False], ok[:-1]]) & ~first
+    # a boundary's fix is usable when it starts or ends a window with good GNSS
+    good[start_at], good[end_at] = ok | prev_ok, ok[last]
+    seg_start[start_at] = first
+    sample = np.clip(np.searchsorted(drive.t_s, t - 1e-6), 0, len(drive) - 1)
+    return Boundaries(t, sample, seg_start, lat, lon, speed, course, good, start_at)
+
+
+def _level_attitude(accel_mean: np.ndarray, heading_deg: float) -> np.ndarray:
+    """The quaternion (w, x, y, z) of ``C_b^n`` from the mean specific force (level) and the course (yaw)."""
+    fx, fy, fz = accel_mean
+    roll = np.arctan2(fy, fz)
+    pitch = np.arctan2(fx, np.hypot(fy, fz))
+    yaw = np.pi / 2 - np.deg2rad(heading_deg)
+    # Rz(yaw) Ry(-pitch) Rx(roll) as a quaternion product
+    qz = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+    qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])
+    qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
+    return _qmul(_qmul(qz, qy), qx)
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3], a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1], a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+@dataclass
+class GinsRun:
+    """The filter's pass over a drive: boundaries, the state after each (``(nb, 20)``) and its
+    covariance (``(nb, 19, 19)``), and what the outages need to run on."""
+
+    bounds: Boundaries
+    xs: np.ndarray
+    Ps: np.ndarray
+    args: dict[str, Any]
+    origin: tuple[float, float, float]
+    still: np.ndarray
+
+
+class GinsEstimator:
+    """The 3D GNSS/INS (see the module docstring)."""
+
+    name = "gins"
+    label = "GNSS/INS 3D"
+    color = (150, 90, 210)
+
+    def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True) -> None:
+        self.noise = noise or GinsNoise()
+        self.nhc, self.zupt, self.odometer = nhc, zupt, odometer
+        self._last: dict[str, Any] = {}
+
+    def available(self) -> bool:
+        return True
+
+    def applies(self, drive: Drive) -> bool:
+        return has_full_imu(drive)
+
+    def run(self, drive: Drive, windows: Windows) -> GinsRun:
+        """The forward pass over the drive with GNSS (see the module docstring)."""
+        b = boundaries(drive, windows)
+        acc = np.ascontiguousarray(np.column_stack([drive.columns[c] for c in IMU_COLUMNS[:3]]))
+        gyr = np.ascontiguousarray(np.column_stack([drive.columns[c] for c in IMU_COLUMNS[3:]]))
+        height = drive.columns.get("height_m")
+        has_height = height is not None and bool(np.isfinite(height).all())
+        h = np.interp(b.t_s, drive.t_s, height) if has_height else np.zeros(len(b.t_s))
+        origin = (float(b.lat_deg[0]), float(b.lon_deg[0]), float(h[0]))
+        pos = np.ascontiguousarray(enu_of_geodetic(b.lat_deg, b.lon_deg, h, *origin))
+        sigma = np.full(len(b.t_s), self.noise.gnss_position_m)
+        if "gnss_sigma_m" in drive.columns:
+            sigma = np.maximum(np.interp(b.t_s, drive.t_s, drive.columns["gnss_sigma_m"]), 0.3)
+        course = np.deg2rad(b.course_deg)
+        vel = np.ascontiguousarray(np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)]))
+        vel_ok = b.gnss_ok & (b.speed_mps > GNSS_VELOCITY_MIN_SPEED_MPS)
+        odo = np.full(len(b.t_s), np.nan)
+        found = vehicle_speed(drive)
+        if found is not None:
+            values, unit, _ = found
+            odo = np.interp(b.t_s, drive.t_s, values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0))
+        still_s = still_samples(drive.t_s, acc, gyr, stationary_mask(drive))
+        # a boundary is still when every sample within half a second of it is
+        k = np.searchsorted(drive.t_s, b.t_s - 0.5), np.searchsorted(drive.t_s, b.t_s + 0.5, side="right")
+        moving_count = np.concatenate([[0], np.cumsum(~still_s)])
+        still = (moving_count[k[1]] - moving_count[k[0]] == 0) & (k[1] > k[0])
+
+        dt = float(np.median(np.diff(drive.t_s))) if len(drive) > 1 else 0.1
+        sigma_a = max(white_noise_per_sample(acc), self.noise.accel_white_floor_mps2)
+        sigma_g = max(white_noise_per_sample(gyr), self.noise.gyro_white_floor_radps)
+        walk, init = self.noise.arrays()
+        lat0 = origin[0]
+        n = self.noise
+        args = dict(t=np.ascontiguousarray(drive.t_s), acc=acc, gyr=gyr, b_sample=b.sample.astype(np.int64), b_start=b.segment_start,
+                    gnss_ok=b.gnss_ok, gnss_pos=pos, gnss_sigma=sigma, has_height=has_height, gnss_vel=vel, vel_ok=vel_ok, odo=odo,
+                    still=still, q_white_v=sigma_a**2 * dt, q_white_phi=sigma_g**2 * dt, walk=walk, r_vel=n.gnss_velocity_mps**2,
+                    r_lat=n.nhc_lateral_mps**2, r_vert=n.nhc_vertical_mps**2, r_odo=n.odometer_mps**2, r_zupt=n.zupt_mps**2,
+                    r_zaru=sigma_g**2, omega_ie=earth_rate_enu_radps(lat0), g0=normal_gravity_mps2(lat0, origin[2]),
+                    radius=EARTH_MEAN_RADIUS_M, use_nhc=self.nhc, use_odo=self.odometer and found is not None, use_zupt=self.zupt)
+
+        x0 = np.zeros(N_NOMINAL)
+        x0[PX:PX + 3] = pos[0]
+        x0[VX:VX + 2] = vel[0]
+        j0 = b.sample[0]
+        x0[QW:QW + 4] = _level_attitude(acc[j0:j0 + max(int(round(1.0 / dt)), 1)].mean(axis=0), float(b.course_deg[0]))
+        x0[KO] = 1.0
+        P0 = np.diag(init**2)
+        P0[0, 0] = P0[1, 1] = sigma[0] ** 2
+        P0[2, 2] = (2.0 * sigma[0]) ** 2
+        nb = len(b.t_s)
+        xs, Ps = np.zeros((nb, N_NOMINAL)), np.zeros((nb, N_ERR, N_ERR))
+        pos_out, yaw_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
+        run_filter(**args, x0=x0, P0=P0, use_gnss=True, b_first=0, b_last=nb - 1, xs=xs, Ps=Ps, pos_out=pos_out, yaw_out=yaw_out,
+                   dist_out=dist_out)
+        self._last = {"imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample",
+                      "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
+                      "accel_bias_mps2": _median_text(xs[:, BAX:BAX + 3]),
+                      "mount_residual_deg": f"yaw {np.rad2deg(np.median(xs[:, PSIM])):+.2f}, pitch {np.rad2deg(np.median(xs[:, THM])):+.2f}",
+                      "gyro_z_scale_error": f"{np.median(xs[:, SG]):+.4f}",
+                      "vehicle_speed": f"used, scale {np.median(xs[:, KO]):.4f}" if args["use_odo"] else "none",
+                      "still_s": f"{float(still_s.sum() * dt):.0f} s of the drive detected standing"}
+        return GinsRun(b, xs, Ps, args, origin, still)
+
+    def estimate(self, inputs: EstimatorInputs) -> Estimate:
+        drive, n = inputs.drive, int(inputs.n_windows)
+        m = inputs.n_outages
+        if m == 0:
+            return Estimate(np.zeros((0, n)), np.zeros((0, n)))
+        r = self.run(drive, inputs.windows)
+        nb = len(r.bounds.t_s)
+        pos_out, yaw_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
+        empty_x, empty_P = np.zeros((0, N_NOMINAL)), np.zeros((0, N_ERR, N_ERR))
+        positions = np.zeros((m, n + 1, 3))
+        disp, yaw = np.zeros((m, n)), np.zeros((m, n))
+        for o, k in enumerate(np.asarray(inputs.starts)):
+            b0 = int(r.bounds.of_window[k])
+            run_filter(**r.args, x0=r.xs[b0], P0=r.Ps[b0], use_gnss=False, b_first=b0, b_last=b0 + n, xs=empty_x, Ps=empty_P,
+                       pos_out=pos_out, yaw_out=yaw_out, dist_out=dist_out)
+            span = slice(b0, b0 + n + 1)
+            positions[o] = pos_out[span]
+            disp[o] = np.diff(dist_out[span])
+            T = np.diff(r.bounds.t_s[span])
+            yaw[o] = np.angle(np.exp(1j * np.diff(yaw_out[span]))) / T
+        lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
+        return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1))
+
+    def describe(self) -> dict[str, Any]:
+        return dict(self._last)
+
+
+def _median_text(values: np.ndarray) -> str:
+    med = np.median(values, axis=0)
+    return "x {:+.3f}, y {:+.3f}, z {:+.3f} (median over the drive)".format(*med)

@@ -1,0 +1,100 @@
+"""Standing still, as the IMU itself shows it: the zero-velocity detector behind ``gins``'s ZUPTs.
+
+A car standing with its engine running shakes its IMU less than a moving one (SENSORS.md, per
+10 Hz sample: the accelerometer 0.13-0.28 m/s^2 standing, 0.14-0.45 driving; the gyro 0.05-0.14
+deg/s standing, 0.1-0.75 driving), and does not turn. The detector compares, over a centred
+window of STILL_WINDOW_S,
+
+* the spread (standard deviation, the mean over the axes given) of the accelerometer,
+* the spread of the gyro,
+* and how far the gyro's mean lies from its standing value (the bias; a steady turn is never still),
+
+with the levels this drive's IMU shows while the GNSS says the car stands (``reference_still``,
+e.g. :func:`ionav_viz.nav.bias.stationary_mask`): a sample is still when both spreads are under
+STILL_MARGIN times their standing medians and the mean rate is within the standing mean's own
+noise. The margin: a 1 s window of 10 samples estimates a standard deviation to about 24 % (one
+axis; less with three), so 1.6 times the median is about three of its standard errors above it,
+while moving the gyro spread is 2.5-4 times the standing one (the table above). Still stretches
+shorter than MIN_STANDING_S are dropped.
+
+A false "still" while moving is far worse than a missed stop (a zero-velocity update would
+stop the car on the road), so a drive that never stands still under good GNSS, where the levels
+cannot be measured, gets no still samples at all: the detector is only used where it was
+calibrated on the drive itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Length of the centred window of the statistics (s).
+STILL_WINDOW_S = 1.0
+#: A spread counts as standing below this factor of the standing median (see the module docstring).
+STILL_MARGIN = 1.6
+#: Still stretches shorter than this are dropped (s).
+MIN_STANDING_S = 0.5
+#: The standing levels need at least this much standing under good GNSS (s).
+MIN_REFERENCE_S = 3.0
+#: The gyro's mean may lie this far from its standing value at least (rad/s): 0.1 deg/s.
+MIN_RATE_TOLERANCE_RADPS = np.deg2rad(0.1)
+
+
+def _columns(x: np.ndarray) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    return x[:, None] if x.ndim == 1 else x
+
+
+def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred moving mean over ``n`` samples along the first axis (shorter windows at the ends)."""
+    x = _columns(x)
+    c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    i = np.arange(len(x))
+    lo, hi = np.clip(i - n // 2, 0, len(x)), np.clip(i - n // 2 + n, 0, len(x))
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def moving_spread(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred moving standard deviation over ``n`` samples, the root mean square over the columns (n,)."""
+    x = _columns(x)
+    mean = moving_mean(x, n)
+    var = np.maximum(moving_mean(x * x, n) - mean * mean, 0.0)
+    return np.sqrt(var.mean(axis=1))
+
+
+def _drop_short(mask: np.ndarray, min_len: int) -> np.ndarray:
+    """``mask`` without its runs of True shorter than ``min_len`` samples."""
+    if min_len <= 1 or not mask.any():
+        return mask
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros_like(mask)
+    for a, b in zip(starts, ends):
+        if b - a >= min_len:
+            out[a:b] = True
+    return out
+
+
+def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, reference_still: np.ndarray | None = None) -> np.ndarray:
+    """Whether the vehicle stands still at each sample (see the module docstring).
+
+    ``accel_mps2``/``gyro_radps``: as measured (gravity and biases in), shape ``(n,)`` (one axis,
+    e.g. IO-VNBD's longitudinal accelerometer and yaw gyro) or ``(n, 3)``; ``reference_still``:
+    samples known to stand (the GNSS speed says so), where the standing levels are measured.
+    Without MIN_REFERENCE_S of them nothing is still.
+    """
+    n = len(t_s)
+    if n < 3 or reference_still is None:
+        return np.zeros(n, dtype=bool)
+    dt = float(np.median(np.diff(t_s)))
+    ref = np.asarray(reference_still, dtype=bool)
+    if ref.sum() * dt < MIN_REFERENCE_S:
+        return np.zeros(n, dtype=bool)
+    w = max(3, int(round(STILL_WINDOW_S / dt)))
+    acc, gyr = _columns(accel_mps2), _columns(gyro_radps)
+    spread_a, spread_g = moving_spread(acc, w), moving_spread(gyr, w)
+    level_a, level_g = float(np.median(spread_a[ref])), float(np.median(spread_g[ref]))
+    bias = np.median(gyr[ref], axis=0)
+    offset = np.sqrt(((moving_mean(gyr, w) - bias) ** 2).mean(axis=1))
+    tolerance = max(4.0 * level_g / np.sqrt(w), MIN_RATE_TOLERANCE_RADPS)
+    still = (spread_a < STILL_MARGIN * level_a) & (spread_g < STILL_MARGIN * level_g) & (offset < tolerance)
+    return _drop_short(still, int(round(MIN_STANDING_S / dt)))

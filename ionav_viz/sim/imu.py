@@ -1,0 +1,260 @@
+"""Drives with a full 6-axis IMU, a GNSS receiver and a reference truth, as a car's logger records
+them: the evidence for the 3D GNSS/INS (:mod:`ionav_viz.nav.gins`), written as MCAP logs.
+
+Vehicle (truth, 100 Hz, from :func:`~ionav_viz.sim.simulate.plan_truth`'s speed and curvature)
+    A car with no side slip on a 3D road: yaw from the curvature, pitch from a road grade and roll
+    from a road camber (both smooth random functions of distance). The attitude is
+    ``C_b^n = Rz(alpha) Ry(-pitch) Rx(roll)`` (body x forward, y left, z up; n east-north-up, a
+    tangent frame fixed to the Earth at a random origin in England; ``alpha`` counter-clockwise
+    from east), the velocity ``v C_b^n e_x``. The IMU senses the body rates plus the Earth's
+    rotation, and the specific force ``f = a + 2 Omega x v - g(p)`` with normal gravity pointing
+    to the Earth's centre wherever the car is (:func:`ionav_viz.core.geo.gravity_enu_mps2`), so
+    the log is physically consistent in 3D: grade and camber put gravity into the forward and
+    lateral axes exactly as on a road.
+
+IMU grades (:data:`IMU_GRADES`, per ``../shared/SENSORS.md``; noise given as 1 sigma of a 10 Hz
+average, the unit of that table, and scaled by sqrt(rate / 10) per raw sample)
+    ``mems``: a roof or dashboard MEMS IMU at 100 Hz (gyro turn-on bias 50 deg/h per axis, as
+    SENSORS.md's consumer MEMS; accelerometer bias 0.05 m/s^2; scale errors 0.3 %; engine and road
+    vibration as measured: gyro 0.06 deg/s standing, 0.15 driving; accelerometer 0.13 m/s^2
+    standing, growing with speed to 0.3), mounted about 2 degrees off the car in yaw and under
+    1 degree in pitch and roll (what a fit leaves of a configured roof mount), an automotive
+    receiver at 10 Hz (about 1.4 m median error, as SENSORS.md's u-blox, wandering with a 30 s correlation time) and
+    the CAN vehicle speed (1-3 % off through the wheel radius, 1 km/h steps, 50 ms late).
+    ``phone``: a phone on the dashboard at 10 Hz (gyro bias 0.3 deg/s per axis, up to the 0.7
+    SENSORS.md saw; accelerometer bias 0.15 m/s^2; 1 % scale errors; gyro noise 0.12 deg/s
+    standing, 0.5 driving; accelerometer 0.25 standing, to 0.45 driving), turned 8 degrees in yaw
+    and 1 in pitch on its holder, its clock jittering by 5 ms with 1 % of samples lost, and its
+    GPS at 1 Hz (about 3 m median error, reporting 8 m), no vehicle speed.
+    Biases are a turn-on value plus a first-order Gauss-Markov wander (``bias_tau_s``).
+
+Output is identical for a given scenario, seed, duration and grade.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.drive import IMU_COLUMNS, Drive
+from ..core.errors import InputError
+from ..core.fileio import check_output_file
+from ..core.geo import earth_rate_enu_radps, geodetic_of_enu, gravity_enu_mps2, normal_gravity_mps2
+from ..core.units import wrap_360
+from ..sources.imu_mount import rotation_deg
+from ..sources.iovnbd import HEADER
+from ..sources.mcap_writer import TRUTH_TOPIC, write_mcap
+from .simulate import SIMULATED_SCENARIOS, TRUTH_RATE_HZ, SensorModel, can_speeds, gauss_markov, grade_profile, plan_truth
+
+
+@dataclass(frozen=True)
+class ImuGrade:
+    """The sensors of one kind of logger (see the module docstring; noise as 1 sigma at 10 Hz)."""
+
+    name: str
+    imu_rate_hz: float
+    gnss_rate_hz: float
+    gyro_bias_dps: float
+    gyro_instability_dps: float
+    gyro_scale: float
+    gyro_noise_still_dps: float
+    gyro_noise_driving_dps: float
+    accel_bias_mps2: float
+    accel_instability_mps2: float
+    accel_scale: float
+    accel_noise_still_mps2: float
+    accel_noise_per_mps: float
+    accel_noise_max_mps2: float
+    bias_tau_s: float
+    mount_deg: tuple[float, float, float]
+    mount_spread_deg: float
+    gnss_wander_m: float
+    gnss_tau_s: float
+    gnss_white_m: float
+    gnss_reported_sigma_m: float
+    gnss_speed_noise_mps: float
+    clock_jitter_s: float
+    missing_sample_prob: float
+    vehicle_speed: bool
+    grade_rms: float = 0.03
+    camber_rms: float = 0.015
+
+
+IMU_GRADES = {
+    "mems": ImuGrade("mems", 100.0, 10.0, gyro_bias_dps=50.0 / 3600.0, gyro_instability_dps=0.005, gyro_scale=0.003,
+                     gyro_noise_still_dps=0.06, gyro_noise_driving_dps=0.15, accel_bias_mps2=0.05, accel_instability_mps2=0.01,
+                     accel_scale=0.003, accel_noise_still_mps2=0.13, accel_noise_per_mps=0.008, accel_noise_max_mps2=0.3,
+                     bias_tau_s=600.0, mount_deg=(0.5, -0.7, 2.2), mount_spread_deg=0.3, gnss_wander_m=1.2, gnss_tau_s=30.0,
+                     gnss_white_m=0.1, gnss_reported_sigma_m=1.5, gnss_speed_noise_mps=0.05, clock_jitter_s=0.0005,
+                     missing_sample_prob=0.0, vehicle_speed=True),
+    "phone": ImuGrade("phone", 10.0, 1.0, gyro_bias_dps=0.3, gyro_instability_dps=0.02, gyro_scale=0.01,
+                      gyro_noise_still_dps=0.12, gyro_noise_driving_dps=0.5, accel_bias_mps2=0.15, accel_instability_mps2=0.02,
+                      accel_scale=0.01, accel_noise_still_mps2=0.25, accel_noise_per_mps=0.015, accel_noise_max_mps2=0.45,
+                      bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0, gnss_wander_m=2.5, gnss_tau_s=60.0,
+                      gnss_white_m=0.5, gnss_reported_sigma_m=8.0, gnss_speed_noise_mps=0.3, clock_jitter_s=0.005,
+                      missing_sample_prob=0.01, vehicle_speed=False),
+}
+#: Where the simulated logs carry the reference truth (a NavSatFix, read with ``--truth-topic``).
+SIM_TRUTH_TOPIC = TRUTH_TOPIC
+
+
+@dataclass
+class Motion3d:
+    """Exact 3D motion at ``TRUTH_RATE_HZ``: time (s), position (m, east-north-up tangent frame),
+    velocity (m/s, same frame), attitude ``C_b^n`` (n, 3, 3), and the ideal IMU in the body frame:
+    specific force (m/s^2) and angular rate against inertial space (rad/s)."""
+
+    t_s: np.ndarray
+    position_m: np.ndarray
+    velocity_mps: np.ndarray
+    attitude: np.ndarray
+    specific_force_mps2: np.ndarray
+    angular_rate_radps: np.ndarray
+    speed_mps: np.ndarray
+    origin: tuple[float, float, float]
+
+
+def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) about a frame axis (0 x, 1 y, 2 z) by ``angle`` (rad)."""
+    c, s = np.cos(angle), np.sin(angle)
+    m = np.zeros((len(angle), 3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    m[:, axis, axis] = 1.0
+    m[:, i, i] = c
+    m[:, j, j] = c
+    m[:, i, j] = -s
+    m[:, j, i] = s
+    return m
+
+
+def _cumtrapz(x: np.ndarray, dt: float) -> np.ndarray:
+    return np.concatenate([np.zeros((1, *x.shape[1:])), np.cumsum(0.5 * (x[1:] + x[:-1]) * dt, axis=0)])
+
+
+def motion_3d(scenario: str, seed: int, duration_s: float, grade_rms: float, camber_rms: float) -> Motion3d:
+    """The exact motion of a scenario's drive in 3D (see the module docstring)."""
+    truth = plan_truth(scenario, seed, duration_s)
+    rng = np.random.default_rng([seed, 5000 + SIMULATED_SCENARIOS.index(scenario)])
+    dt = 1.0 / TRUTH_RATE_HZ
+    t, v, a = truth.t_s, truth.speed_mps, truth.accel_mps2
+    distance = _cumtrapz(v, dt)
+    alpha = rng.uniform(-np.pi, np.pi) + _cumtrapz(v * truth.curvature_1pm, dt)
+    pitch = np.arctan(grade_profile(rng, distance, grade_rms))
+    roll = np.arctan(grade_profile(rng, distance, camber_rms))
+    origin = (float(rng.uniform(52.0, 53.0)), float(rng.uniform(-2.2, -0.7)), float(rng.uniform(50.0, 150.0)))
+    C = _rot(2, alpha) @ _rot(1, -pitch) @ _rot(0, roll)
+    # body rates of C = Rz(alpha) Ry(beta) Rx(roll), beta = -pitch (the Euler-angle kinematics)
+    da, db, dr = np.gradient(alpha, dt), np.gradient(-pitch, dt), np.gradient(roll, dt)
+    sb, cb, sr, cr = np.sin(-pitch), np.cos(-pitch), np.sin(roll), np.cos(roll)
+    w_nb = np.column_stack([dr - sb * da, cr * db + sr * cb * da, -sr * db + cr * cb * da])
+    velocity = v[:, None] * C[:, :, 0]
+    position = _cumtrapz(velocity, dt)
+    accel_n = np.einsum("nij,nj->ni", C, np.column_stack([a, v * w_nb[:, 2], -v * w_nb[:, 1]]))
+    omega_ie = earth_rate_enu_radps(origin[0])
+    gravity = gravity_enu_mps2(position, normal_gravity_mps2(origin[0], origin[2]))
+    f_n = accel_n + 2.0 * np.cross(omega_ie, velocity) - gravity
+    f_b = np.einsum("nji,nj->ni", C, f_n)
+    w_ib = w_nb + np.einsum("nji,j->ni", C, omega_ie)
+    return Motion3d(t, position, velocity, C, f_b, w_ib, v, origin)
+
+
+@dataclass
+class ImuLog:
+    """A simulated log: the drive at the IMU's rate (the reference truth as its positions, the
+    receiver's fixes in the receiver columns, the IMU in its own mounted axes), the rows that carry
+    a GNSS fix, and the errors drawn for it: the mount (``body = mount @ sensor``), the turn-on
+    biases (sensor axes; gyro rad/s, accelerometer m/s^2) and scale errors."""
+
+    drive: Drive
+    fix: np.ndarray
+    mount: np.ndarray
+    gyro_bias_radps: np.ndarray
+    accel_bias_mps2: np.ndarray
+    gyro_scale: np.ndarray
+    accel_scale: np.ndarray
+
+
+def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: str | ImuGrade = "mems") -> ImuLog:
+    """A simulated log of ``grade`` (a name of :data:`IMU_GRADES`, or a grade of one's own): what
+    :func:`write_imu_log` writes."""
+    if isinstance(grade, str) and grade not in IMU_GRADES:
+        raise InputError(f"unknown IMU grade {grade!r}", f"choose one of {', '.join(IMU_GRADES)}", param="imu")
+    g = IMU_GRADES[grade] if isinstance(grade, str) else grade
+    m = motion_3d(scenario, seed, duration_s, g.grade_rms, g.camber_rms)
+    rng = np.random.default_rng([seed, 6000 + SIMULATED_SCENARIOS.index(scenario), int(g.imu_rate_hz)])
+
+    # IMU sample times: the IMU's own clock, jittered, a few samples lost
+    n = int(round(duration_s * g.imu_rate_hz)) + 1
+    t = np.arange(n) / g.imu_rate_hz
+    t[1:-1] += rng.uniform(-g.clock_jitter_s, g.clock_jitter_s, n - 2)
+    keep = rng.random(n) >= g.missing_sample_prob
+    keep[[0, -1]] = True
+    keep[:: int(round(g.imu_rate_hz / g.gnss_rate_hz))] = True  # the receiver's epochs stay (its own clock)
+    t = t[keep]
+    n = len(t)
+
+    def at(x: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(t, m.t_s, x[:, k]) for k in range(x.shape[1])]) if x.ndim == 2 else np.interp(t, m.t_s, x)
+
+    speed = at(m.speed_mps)
+    mount = rotation_deg(*(np.array(g.mount_deg) + rng.normal(0.0, g.mount_spread_deg, 3)))
+    f_s, w_s = at(m.specific_force_mps2) @ mount, at(m.angular_rate_radps) @ mount  # sensor = mount^T body
+    per_sample = math.sqrt(g.imu_rate_hz / 10.0)
+    dt_mean = 1.0 / g.imu_rate_hz
+
+    def wander(instability: float) -> np.ndarray:
+        return np.column_stack([gauss_markov(rng, n, dt_mean, instability, g.bias_tau_s) for _ in range(3)])
+
+    moving = speed > 0.05
+    gyro_sigma = np.deg2rad(np.where(moving, g.gyro_noise_driving_dps, g.gyro_noise_still_dps)) * per_sample
+    accel_sigma = np.minimum(g.accel_noise_still_mps2 + g.accel_noise_per_mps * speed, max(g.accel_noise_max_mps2, g.accel_noise_still_mps2)) * per_sample
+    gyro_bias, gyro_scale = np.deg2rad(rng.normal(0.0, g.gyro_bias_dps, 3)), rng.normal(0.0, g.gyro_scale, 3)
+    gyro = (1.0 + gyro_scale) * w_s + gyro_bias + np.deg2rad(wander(g.gyro_instability_dps)) + rng.normal(0.0, 1.0, (n, 3)) * gyro_sigma[:, None]
+    accel_bias, accel_scale = rng.normal(0.0, g.accel_bias_mps2, 3), rng.normal(0.0, g.accel_scale, 3)
+    accel = (1.0 + accel_scale) * f_s + accel_bias + wander(g.accel_instability_mps2) + rng.normal(0.0, 1.0, (n, 3)) * accel_sigma[:, None]
+
+    # the reference truth (exact) and the receiver (wandering), at every row; fixes at its epochs
+    position = at(m.position_m)
+    lat, lon, _ = geodetic_of_enu(position, *m.origin)
+    wander = np.column_stack([gauss_markov(rng, n, dt_mean, g.gnss_wander_m, g.gnss_tau_s) for _ in range(3)])
+    noisy = position + wander * np.array([1.0, 1.0, 2.0]) + rng.normal(0.0, g.gnss_white_m, (n, 3))
+    g_lat, g_lon, g_height = geodetic_of_enu(noisy, *m.origin)
+    vel = at(m.velocity_mps)
+    v_e = vel[:, 0] + rng.normal(0.0, g.gnss_speed_noise_mps, n)
+    v_n = vel[:, 1] + rng.normal(0.0, g.gnss_speed_noise_mps, n)
+    g_speed = np.hypot(v_e, v_n)
+    g_course = wrap_360(np.degrees(np.arctan2(v_e, v_n)))
+    course = wrap_360(np.degrees(np.arctan2(vel[:, 0], vel[:, 1])))
+    fix = np.zeros(n, dtype=bool)
+    epochs = np.round(t * g.gnss_rate_hz)
+    fix[np.concatenate([[True], np.diff(epochs) > 0])] = True  # the first row at or after each receiver epoch
+
+    columns = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "speed_mps": np.hypot(vel[:, 0], vel[:, 1]), "heading_deg": course,
+               "accel_long_mps2": accel[:, 0], "yaw_rate_radps": gyro[:, 2], "height_m": g_height,
+               "gnss_sigma_m": np.full(n, g.gnss_reported_sigma_m), "gnss_lat_deg": g_lat, "gnss_lon_deg": g_lon,
+               "gnss_speed_mps": g_speed, "gnss_heading_deg": g_course}
+    columns |= dict(zip(IMU_COLUMNS, np.column_stack([accel, gyro]).T, strict=True))
+    if g.vehicle_speed:
+        can = can_speeds(np.random.default_rng([seed, 7000 + SIMULATED_SCENARIOS.index(scenario)]), t, plan_truth(scenario, seed, duration_s),
+                         SensorModel(), 0.75, 0.3)
+        columns["speed_can_mps"] = can[HEADER[15]] / 3.6  # the indicated speed, km/h
+    name = f"sim-{g.name}-{scenario}-{seed}"
+    drive = Drive(name, name, g.imu_rate_hz, 0.0, columns, start_stamp_s=1_700_000_000.0 + 86400.0 * seed)
+    return ImuLog(drive, fix, mount, gyro_bias, accel_bias, gyro_scale, accel_scale)
+
+
+def write_imu_log(path: str | Path, scenario: str, seed: int = 0, duration_s: float = 300.0, grade: str | ImuGrade = "mems") -> Path:
+    """Simulate a log of ``grade`` and write it as a ROS 2 MCAP (atomically): ``/imu/data`` at the
+    IMU's rate (its own mounted axes), ``/gps/fix`` and ``/gps/vel`` at the receiver's epochs, the
+    reference truth on :data:`SIM_TRUTH_TOPIC`, and ``/wheel/odom`` where the grade has a vehicle
+    speed. Read it with ``--truth-topic /truth/fix``."""
+    path = check_output_file(Path(path))
+    if path.suffix.lower() != ".mcap":
+        raise InputError(f"{path}: a simulated IMU log is an MCAP file", "choose a name like drive.mcap", param="output")
+    log = imu_drive(scenario, seed, duration_s, grade)
+    speed = log.drive.columns.get("speed_can_mps")
+    write_mcap(log.drive, path, speed, ("speed_can_mps",) if speed is not None else (), omit_gnss=~log.fix)
+    return path
