@@ -173,3 +173,12 @@ class Drive:
     @property
     def duration_s(self) -> float:
         return float(self.t_s[-1] - self.t_s[0]) if len(self) else 0.0
+
+
+def measured_imu(drive: Drive) -> tuple[np.ndarray, np.ndarray] | None:
+    """The drive's full IMU as ``(accel (n, 3) m/s^2, gyro (n, 3) rad/s)`` in the body frame, or None
+    when it lacks an axis or carries a placeholder: an axis that never changes is not a sensor (an
+    MCAP converted from a two-channel drive carries a level IMU, gravity on z and zeros)."""
+    if not all(c in drive.columns and np.ptp(drive.columns[c]) > 0 for c in IMU_COLUMNS):
+        return None
+    return (np.column_stack([drive.columns[c] for c in IMU_COLUMNS[:3]]), np.column_stack([drive.columns[c] for c in IMU_COLUMNS[3:]]))

@@ -1,7 +1,9 @@
 """``ekf``: a GNSS-aided INS on the planar vehicle model, the baseline a practitioner would run.
 
 The filter, its equations and noise values are :mod:`ionav_viz.nav.planar_filter`: it runs over
-the drive with GNSS, and each outage goes on from its state at the outage start without GNSS.
+the drive with GNSS, and each outage goes on from its state at the outage start without GNSS,
+with a zero-speed update where the IMU shows the car standing (:mod:`ionav_viz.nav.stillness`)
+and its speed never below zero.
 """
 
 from __future__ import annotations
@@ -33,8 +35,10 @@ class EkfEstimator:
         meas, inc = measurements(inputs.drive, w, self.noise), increments(w)
         xs, Ps, slow = forward_states(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, self.noise)
         q, _ = noise_arrays(self.noise, inc.T)
+        still_at_end = np.ascontiguousarray(inputs.still[..., -1])  # each window's last grid point: where its state ends
         disp, yaw = outage_kernel(xs, Ps, slow, np.asarray(inputs.starts, dtype=np.int64), int(inputs.n_windows), inc.F, inc.G, inc.W,
-                                   float(inc.T), meas.vehicle, q, self.noise.vehicle_speed_mps**2, GRADE_LENGTH_M)
+                                   float(inc.T), meas.vehicle, q, self.noise.vehicle_speed_mps**2, GRADE_LENGTH_M, still_at_end,
+                                   self.noise.still_speed_mps**2)
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",

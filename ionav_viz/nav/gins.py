@@ -27,24 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from ..core.drive import IMU_COLUMNS, Drive
+from ..core.drive import Drive, measured_imu
 from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodetic, geodetic_of_enu, normal_gravity_mps2
-from .bias import stationary_mask
 from .protocol import Estimate, EstimatorInputs
-from .stillness import still_samples
+from .stillness import drive_still
 from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
 from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
 from .windows import Windows
 
 #: GNSS velocity updates the filter above this speed (m/s), where the course is worth something.
 GNSS_VELOCITY_MIN_SPEED_MPS = 3.0
-
-
-def has_full_imu(drive: Drive) -> bool:
-    """Whether a drive carries all six IMU axes (:data:`~ionav_viz.core.drive.IMU_COLUMNS`) as
-    measured: an axis that never changes is a placeholder (an MCAP converted from a two-channel
-    drive carries a level IMU: gravity on z and zeros), not a sensor."""
-    return all(c in drive.columns and np.ptp(drive.columns[c]) > 0 for c in IMU_COLUMNS)
 
 
 def white_noise_per_sample(x: np.ndarray) -> float:
@@ -145,13 +137,15 @@ class GinsEstimator:
         return True
 
     def applies(self, drive: Drive) -> bool:
-        return has_full_imu(drive)
+        return measured_imu(drive) is not None
 
     def run(self, drive: Drive, windows: Windows) -> GinsRun:
         """The forward pass over the drive with GNSS (see the module docstring)."""
         b = boundaries(drive, windows)
-        acc = np.ascontiguousarray(np.column_stack([drive.columns[c] for c in IMU_COLUMNS[:3]]))
-        gyr = np.ascontiguousarray(np.column_stack([drive.columns[c] for c in IMU_COLUMNS[3:]]))
+        imu = measured_imu(drive)
+        if imu is None:
+            raise ValueError(f"drive {drive.name}: gins needs all six IMU axes, measured")
+        acc, gyr = (np.ascontiguousarray(x) for x in imu)
         height = drive.columns.get("height_m")
         has_height = height is not None and bool(np.isfinite(height).all())
         h = np.interp(b.t_s, drive.t_s, height) if has_height else np.zeros(len(b.t_s))
@@ -168,7 +162,7 @@ class GinsEstimator:
         if found is not None:
             values, unit, _ = found
             odo = np.interp(b.t_s, drive.t_s, values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0))
-        still_s = still_samples(drive.t_s, acc, gyr, stationary_mask(drive))
+        still_s = drive_still(drive)
         # a boundary is still when every sample within half a second of it is
         k = np.searchsorted(drive.t_s, b.t_s - 0.5), np.searchsorted(drive.t_s, b.t_s + 0.5, side="right")
         moving_count = np.concatenate([[0], np.cumsum(~still_s)])

@@ -24,6 +24,12 @@ inputs, 2 hidden layers of 32 units, 10 % dropout), ``mlp`` (the same net on the
 only), and ``rnn``/``gru``/``lstm`` (2 recurrent layers over the time steps; the feedback input
 joins the last hidden state).
 
+In prediction (beyond the paper, as the INS DR, :mod:`ionav_viz.nav.ins`): a displacement is a
+distance, so the network's output is clipped at zero before it is fed back, and a window where the
+IMU shows the car standing throughout (:mod:`ionav_viz.nav.stillness`) predicts no displacement and
+no turn and feeds back zero. The paper's method allows it: its feedback input is the previous
+window's displacement, which is zero for a standing car, and its networks are unchanged.
+
 Weights are stored as safetensors (no pickle is ever loaded) beside a ``metadata.json``.
 """
 
@@ -286,11 +292,13 @@ class IdnnModel:
         x = self.norm.gyro.scale(gyro_radps.reshape(-1, self.config.n_steps_yaw))
         return self.norm.yaw.unscale(self._run(self.yaw_net, x)).reshape(shape)
 
-    def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray) -> np.ndarray:
+    def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray, still: np.ndarray | None = None) -> np.ndarray:
         """Displacement (m) of every window of every sequence, feeding back the model's own output.
 
         ``accel_mps2``: (n_seq, n_windows, n_steps_disp) bias-corrected; ``first_prev_disp_m``: (n_seq,)
-        GNSS displacement of the second before each outage. All sequences step together.
+        GNSS displacement of the second before each outage; ``still``: (n_seq, n_windows), windows
+        where the car stands throughout. All sequences step together. A displacement is a distance:
+        it is never below zero, and a still window's is zero; what is fed back is that.
         """
         n_seq, n_win, _ = accel_mps2.shape
         acc = self.norm.accel.scale(accel_mps2)
@@ -298,17 +306,22 @@ class IdnnModel:
         out = np.empty((n_seq, n_win))
         for w in range(n_win):  # each window feeds the next
             y = self._run(self.disp_net, np.concatenate([acc[:, w, :], prev[:, None]], axis=1))
-            out[:, w] = self.norm.disp.unscale(y)
-            prev = y
+            disp = np.maximum(self.norm.disp.unscale(y), 0.0)
+            if still is not None:
+                disp = np.where(still[:, w], 0.0, disp)
+            out[:, w] = disp
+            prev = self.norm.disp.scale(disp)
         return out
 
     def predict(self, windows: Windows, starts: np.ndarray, n_windows: int, bias: SensorBias,
-                calibration: SensorCalibration | None = None) -> tuple[np.ndarray, np.ndarray]:
+                calibration: SensorCalibration | None = None, still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Displacement (m) and yaw rate (rad/s) per window for outages of ``n_windows`` starting at
         ``starts`` (batched): two arrays of shape (n_outages, n_windows).
 
         Inputs are corrected with the standstill ``bias`` (``inputs="plain"``, the paper's) or with
-        the filter's ``calibration`` at each outage start (``inputs="calibrated"``, required then)."""
+        the filter's ``calibration`` at each outage start (``inputs="calibrated"``, required then).
+        ``still`` (n_outages, n_windows, steps + 1): where the IMU shows the car standing; a window
+        standing throughout has no displacement and no turn (see :meth:`predict_displacement`)."""
         starts = np.asarray(starts, dtype=int)
         idx = starts[:, None] + np.arange(n_windows)[None, :]
         if len(starts) == 0:
@@ -324,7 +337,11 @@ class IdnnModel:
             accel, gyro = at_start.accel(accel, driven), at_start.gyro(gyro)
         else:
             accel, gyro = accel - bias.accel_mps2, gyro - bias.gyro_radps
-        return self.predict_displacement(accel, windows.gnss_disp_m[starts - 1]), self.predict_yaw_rate(gyro)
+        standing = None if still is None else np.asarray(still).all(axis=-1)
+        yaw = self.predict_yaw_rate(gyro)
+        if standing is not None:
+            yaw = np.where(standing, 0.0, yaw)
+        return self.predict_displacement(accel, windows.gnss_disp_m[starts - 1], standing), yaw
 
     def describe(self) -> dict[str, Any]:
         """What the recording and reports say about the model."""
@@ -374,7 +391,7 @@ class IdnnEstimator:
         model, cal = self.model, None
         if model.config.inputs == "calibrated":
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
-        disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal)
+        disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
         return Estimate(disp, yaw)
 
     def describe(self) -> dict[str, Any]:

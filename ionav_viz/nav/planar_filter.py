@@ -91,6 +91,7 @@ class EkfNoise:
     gnss_speed_mps: float = 0.05
     gnss_course_rad_at_10mps: float = np.deg2rad(0.5)
     vehicle_speed_mps: float = 0.15
+    still_speed_mps: float = 0.05
     init_position_m: float = 1.0
     init_speed_mps: float = 0.2
     init_course_rad: float = np.deg2rad(2.0)
@@ -259,7 +260,10 @@ def _forward_kernel(segment, e, n, speed, course, good, sigma, vehicle, F, G, W,
 
 
 @njit(cache=True)
-def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_vehicle, grade_length_m):  # pragma: no cover - compiled
+def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_vehicle, grade_length_m, still, r_still):  # pragma: no cover - compiled
+    """Every outage from the state at its start, without GNSS. ``still[o, j]``: the car stands at the
+    end of window ``j`` of outage ``o`` (the IMU shows it): a zero-speed update there, of variance
+    ``r_still``. The speed never goes below zero (a car's filter drives forward)."""
     m = len(starts)
     disp, yaw = np.zeros((m, n_windows)), np.zeros((m, n_windows))
     J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
@@ -277,6 +281,11 @@ def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_veh
             travelled += max(disp[o, j], 0.0)
             if np.isfinite(vehicle[k]):
                 _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+            if still[o, j]:
+                H[:] = 0.0
+                H[V] = 1.0
+                _update(x, P, H, 0.0, x[V], r_still, False)
+            x[V] = max(x[V], 0.0)
     return disp, yaw
 
 

@@ -40,6 +40,7 @@ from ..core.errors import InputError
 from ..core.grid import WINDOW_S
 from ..sources.plausibility import LIMITS
 from .bias import SensorBias
+from .stillness import still_on_grid
 from .track import Track, rebuild_track
 from .windows import Windows
 
@@ -99,7 +100,9 @@ class EstimatorInputs:
     Inertial samples on the 10 Hz grid, as measured (not bias-corrected), shape
     ``(n_outages, n_windows, samples)`` with ``samples = 11``: the window's grid points including
     both ends (a window's last sample is the next window's first): ``accel_mps2`` (longitudinal
-    specific force, forward positive) and ``gyro_radps`` (yaw rate, counter-clockwise positive).
+    specific force, forward positive) and ``gyro_radps`` (yaw rate, counter-clockwise positive);
+    and ``still``, the same shape: where the IMU shows the car standing
+    (:func:`ionav_viz.nav.stillness.still_on_grid`), for zero-velocity updates.
     """
 
     drive: Drive
@@ -115,6 +118,7 @@ class EstimatorInputs:
     prev_gnss_disp_m: np.ndarray = field(init=False, repr=False)
     accel_mps2: np.ndarray = field(init=False, repr=False)
     gyro_radps: np.ndarray = field(init=False, repr=False)
+    still: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.starts = np.asarray(self.starts, dtype=int)
@@ -128,12 +132,14 @@ class EstimatorInputs:
         self.prev_gnss_disp_m = w.gnss_disp_m[k - 1] if len(k) else np.zeros(0)
         self.accel_mps2 = w.accel_mps2[idx]
         self.gyro_radps = w.gyro_radps[idx]
+        self.still = still_on_grid(self.drive, w)[idx] if len(k) else np.zeros(idx.shape + (w.steps + 1,), dtype=bool)
         # every estimator sees the same data: none can change what the others (or the metrics) see
         self.drive = replace(self.drive, columns={k: _read_only(v) for k, v in self.drive.columns.items()},
                              gnss_fault=None if self.drive.gnss_fault is None else _read_only(self.drive.gnss_fault))
         self.windows = replace(self.windows, **{f.name: _read_only(getattr(self.windows, f.name)) for f in fields(self.windows)
                                                 if isinstance(getattr(self.windows, f.name), np.ndarray)})
-        for name in ("starts", "t0_s", "speed0_mps", "course0_deg", "lat0_deg", "lon0_deg", "prev_gnss_disp_m", "accel_mps2", "gyro_radps"):
+        for name in ("starts", "t0_s", "speed0_mps", "course0_deg", "lat0_deg", "lon0_deg", "prev_gnss_disp_m", "accel_mps2", "gyro_radps",
+                     "still"):
             setattr(self, name, _read_only(getattr(self, name)))
 
     @property

@@ -27,6 +27,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.drive import Drive, measured_imu
+from .bias import stationary_mask
+from .windows import Windows
+
 #: Length of the centred window of the statistics (s).
 STILL_WINDOW_S = 1.0
 #: A spread counts as standing below this factor of the standing median (see the module docstring).
@@ -98,3 +102,24 @@ def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarra
     tolerance = max(4.0 * level_g / np.sqrt(w), MIN_RATE_TOLERANCE_RADPS)
     still = (spread_a < STILL_MARGIN * level_a) & (spread_g < STILL_MARGIN * level_g) & (offset < tolerance)
     return _drop_short(still, int(round(MIN_STANDING_S / dt)))
+
+
+def drive_still(drive: Drive) -> np.ndarray:
+    """:func:`still_samples` of a drive: on its full IMU where it has one, else on the longitudinal
+    accelerometer and the yaw gyro, calibrated where the GNSS says the car stands."""
+    imu = measured_imu(drive)
+    acc, gyr = imu if imu is not None else (drive.accel_long_mps2, drive.yaw_rate_radps)
+    return still_samples(drive.t_s, acc, gyr, stationary_mask(drive))
+
+
+def still_on_grid(drive: Drive, windows: Windows) -> np.ndarray:
+    """Whether the car stands at each window's grid points, shape ``(n_windows, steps + 1)`` like
+    :attr:`Windows.accel_mps2` (the nearest sample's :func:`drive_still`)."""
+    steps = windows.steps
+    if len(windows) == 0 or len(drive) == 0:
+        return np.zeros((len(windows), steps + 1), dtype=bool)
+    still = drive_still(drive)
+    grid = windows.t0_s[:, None] + np.arange(steps + 1)[None, :] / windows.rate_hz
+    i = np.clip(np.searchsorted(drive.t_s, grid), 1, len(drive) - 1)
+    nearest = np.where(np.abs(drive.t_s[i - 1] - grid) <= np.abs(drive.t_s[i] - grid), i - 1, i)
+    return still[nearest]
