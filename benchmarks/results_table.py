@@ -35,7 +35,7 @@ import re
 import sys
 import tempfile
 import textwrap
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -105,18 +105,24 @@ class Cell:
     pct: dict[str, list[float]]
     crse: dict[str, list[float]]
     outages: int = 0
+    #: per drive of the set, each estimator's mean displacement CRSE (m)
+    drive_crse: list[dict[str, float]] = field(default_factory=list)
 
     def add(self, rep: dict) -> None:
         names = [e["name"] for e in rep["estimators"]]
+        by_drive: dict[str, dict[str, list[float]]] = {}
         for seq in rep["sequences"]:
             for name in names:
                 m = seq.get(name)
                 if not isinstance(m, dict):
                     continue
-                if m.get("final_error_pct") is not None:
-                    self.pct.setdefault(name, []).append(m["final_error_pct"])
+                pct = m.get("final_error_pct")
+                if pct is not None and np.isfinite(pct):  # none for outages under 10 m driven
+                    self.pct.setdefault(name, []).append(pct)
                 self.crse.setdefault(name, []).append(m["crse_m"])
+                by_drive.setdefault(seq["drive"], {}).setdefault(name, []).append(m["crse_m"])
         self.outages += len(rep["sequences"])
+        self.drive_crse += [{"drive": name} | {n: float(np.mean(v)) for n, v in d.items()} for name, d in by_drive.items()]
 
     def mean(self, name: str, key: str) -> float | None:
         values = (self.pct if key == "pct" else self.crse).get(name)
@@ -140,7 +146,7 @@ def measure(model: str | None, minutes: float, seed_base: int, lengths: list[flo
         add("held-out", [str(p) for p in held_out_drives(Path(tmp), minutes, seed_base).values()])
         logs = imu_logs(Path(tmp), minutes)
         for key, _, _, _, imu_only, _, _ in IMU_SETS:
-            log_options = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none" if imu_only else None)
+            log_options = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none" if imu_only else None, imu_mount="auto")
             add(key, [str(p) for p in logs[key]], iv.ReadOptions(log=log_options))
     return {n: labels[n] for n in ESTIMATORS if n in labels}, cells
 
@@ -186,10 +192,12 @@ def tables(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths
 def comparisons(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
     """What the tables say, counted from them (no number here is typed by hand)."""
     lines = []
-    pairs = [(k, length) for k, length in cells if "idnn" in labels and "ins" in labels]
-    if pairs:
-        better = sum(cells[p].mean("idnn", "crse") <= cells[p].mean("ins", "crse") for p in pairs)
-        lines.append(f"- The IDNN's mean displacement CRSE is at most the INS DR's on {better} of {len(pairs)} sets and lengths.")
+    if "idnn" in labels and "ins" in labels:
+        for length in lengths:
+            drives = [d for (_, ln), c in cells.items() if ln == length for d in c.drive_crse if "idnn" in d]
+            worse = [f"{d['drive']} ({d['idnn']:.1f} against {d['ins']:.1f} m)" for d in drives if d["idnn"] > d["ins"]]
+            lines.append(f"- {length:g} s outages: the IDNN's mean displacement CRSE is above the INS DR's on {len(worse)} of {len(drives)} drives"
+                         + (": " + ", ".join(worse) if worse else "") + ".")
     for key, title, _, _, imu_only, _, _ in IMU_SETS:
         parts = []
         for length in lengths:
@@ -231,7 +239,7 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         f"all lie outside the ranges of the training drives (`ionav-viz simulate SCENARIO --fleet held-out --seed SEED "
         f"--duration {minutes:g}m -o FILE.csv`, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}); and three sets of "
         "**6-axis logs** as users record them, written as MCAP by the 6-axis simulator and read back like a user's log "
-        "(the IMU's mount estimated and applied, the receiver's fixes given to the estimators, the reference on "
+        "(`--imu-mount auto`: the IMU's mount estimated and applied; the receiver's fixes given to the estimators, the reference on "
         "`/truth/fix` scoring them): "
         + "; ".join(f"{title} ({', '.join(sc)}, seeds {seed}-{seed + len(sc) - 1}{', IMU only' if imu_only else ''})"
                     for _, title, _, _, imu_only, sc, seed in IMU_SETS)

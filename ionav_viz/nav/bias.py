@@ -33,15 +33,17 @@ class SensorBias:
         return cls(0.0, 0.0, "none (no stationary data)", 0.0)
 
 
-def stationary_mask(drive: Drive, max_speed_mps: float = 0.3, edge_s: float = 1.0) -> np.ndarray:
+def stationary_mask(drive: Drive, max_speed_mps: float = 0.3, edge_s: float = 1.0, speed_mps: np.ndarray | None = None) -> np.ndarray:
     """Samples where the car stands still, at least ``edge_s`` away from moving samples.
 
     Standing still: GNSS speed below ``max_speed_mps`` (above the receiver's speed noise). Only
     the GNSS speed is used, so every source of the same drive (CSV, MCAP) gives the same biases.
     A sample without trustworthy GNSS counts as moving: a logger that writes zeros in a tunnel
-    would otherwise make a car at speed look parked.
+    would otherwise make a car at speed look parked. ``speed_mps``: another speed per sample to
+    judge by (e.g. the GNSS speed smoothed), instead of ``drive.speed_mps``.
     """
-    moving = (drive.speed_mps > max_speed_mps) | ~drive.gnss_ok
+    speed = drive.speed_mps if speed_mps is None else speed_mps
+    moving = (speed > max_speed_mps) | ~drive.gnss_ok
     t_moving = drive.t_s[moving]
     if t_moving.size == 0:
         return np.ones(len(drive), dtype=bool)

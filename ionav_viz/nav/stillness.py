@@ -10,7 +10,7 @@ window of STILL_WINDOW_S,
 * and how far the gyro's mean lies from its standing value (the bias; a steady turn is never still),
 
 with the levels this drive's IMU shows while the GNSS says the car stands (``reference_still``,
-e.g. :func:`ionav_viz.nav.bias.stationary_mask`): a sample is still when both spreads are under
+:func:`standing_reference`): a sample is still when both spreads are under
 STILL_MARGIN times their standing medians and the mean rate is within the standing mean's own
 noise. The margin: a 1 s window of 10 samples estimates a standard deviation to about 24 % (one
 axis; less with three), so 1.6 times the median is about three of its standard errors above it,
@@ -104,12 +104,30 @@ def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarra
     return _drop_short(still, int(round(MIN_STANDING_S / dt)))
 
 
+#: The GNSS speed that says where the car stands is its median over this long (s): a phone's
+#: receiver scatters its speed by a few tenths of a m/s at a standstill.
+REFERENCE_MEDIAN_S = 3.0
+
+
+def standing_reference(drive: Drive) -> np.ndarray:
+    """Where the GNSS says the car stands (:func:`ionav_viz.nav.bias.stationary_mask` on the GNSS
+    speed's moving median over REFERENCE_MEDIAN_S): where the detector's levels are measured."""
+    n = len(drive)
+    if n < 3:
+        return np.zeros(n, dtype=bool)
+    dt = float(np.median(np.diff(drive.t_s)))
+    w = max(1, int(round(REFERENCE_MEDIAN_S / dt)) // 2 * 2 + 1)
+    padded = np.pad(drive.speed_mps, w // 2, mode="edge")
+    smooth = np.median(np.lib.stride_tricks.sliding_window_view(padded, w), axis=1)
+    return stationary_mask(drive, speed_mps=smooth)
+
+
 def drive_still(drive: Drive) -> np.ndarray:
     """:func:`still_samples` of a drive: on its full IMU where it has one, else on the longitudinal
-    accelerometer and the yaw gyro, calibrated where the GNSS says the car stands."""
+    accelerometer and the yaw gyro, calibrated where the GNSS says the car stands (:func:`standing_reference`)."""
     imu = measured_imu(drive)
     acc, gyr = imu if imu is not None else (drive.accel_long_mps2, drive.yaw_rate_radps)
-    return still_samples(drive.t_s, acc, gyr, stationary_mask(drive))
+    return still_samples(drive.t_s, acc, gyr, standing_reference(drive))
 
 
 def still_on_grid(drive: Drive, windows: Windows) -> np.ndarray:
