@@ -726,8 +726,10 @@ def test_fixes_at_zero_zero_are_never_scored(tmp_path, reference):
     assert "3 of" in proc.stderr and "near-zero 3" in proc.stderr
     got = json.loads(proc.stdout)
     assert got["gnss_truth"]["excluded_by_reason"] == {"near-zero": 2}  # 50.0-50.2 s: the windows either side of 50 s
+    # the size of the others: the exclusions shift the later outages by a window or two, so one may
+    # come out a little worse than the reference's worst, never by the 5,800 km of the jump
     worst = max(seq["ins"]["crse_m"] for seq in reference["sequences"])
-    assert all(seq["ins"]["crse_m"] <= worst for seq in got["sequences"])
+    assert all(seq["ins"]["crse_m"] <= 1.5 * worst for seq in got["sequences"])
 
 
 # ---- round 3: bounded readers ---------------------------------------------------------------

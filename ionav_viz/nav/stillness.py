@@ -31,12 +31,15 @@ from ..core.drive import Drive, measured_imu
 from .bias import stationary_mask
 from .windows import Windows
 
-#: Length of the centred window of the statistics (s).
+#: Length of the centred window of the statistics (s), and its fewest samples (a slower log's
+#: window is longer): fewer than 10 samples estimate a spread too loosely for STILL_MARGIN
+#: (measured: a 5 Hz log's 5-sample windows called 0.5 % of its moving samples still).
 STILL_WINDOW_S = 1.0
+MIN_WINDOW_SAMPLES = 10
 #: A spread counts as standing below this factor of the standing median (see the module docstring).
 STILL_MARGIN = 1.6
 #: Still stretches shorter than this are dropped (s).
-MIN_STANDING_S = 0.5
+MIN_STANDING_S = 1.0
 #: The standing levels need at least this much standing under good GNSS (s).
 MIN_REFERENCE_S = 3.0
 #: The gyro's mean may lie this far from its standing value at least (rad/s): 0.1 deg/s.
@@ -93,7 +96,7 @@ def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarra
     ref = np.asarray(reference_still, dtype=bool)
     if ref.sum() * dt < MIN_REFERENCE_S:
         return np.zeros(n, dtype=bool)
-    w = max(3, int(round(STILL_WINDOW_S / dt)))
+    w = max(MIN_WINDOW_SAMPLES, int(round(STILL_WINDOW_S / dt)))
     acc, gyr = _columns(accel_mps2), _columns(gyro_radps)
     spread_a, spread_g = moving_spread(acc, w), moving_spread(gyr, w)
     level_a, level_g = float(np.median(spread_a[ref])), float(np.median(spread_g[ref]))

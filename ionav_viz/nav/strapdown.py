@@ -44,6 +44,18 @@ window boundary, as scalar updates, their corrections fed back into the nominal 
   the last second is its bias plus the Earth's rate (ZARU).
 
 Noise values are :class:`GinsNoise`; the sensors' white noise is measured on the drive itself.
+
+What follows KF-GINS (i2Nav-WHU, ``src/kf-gins/gi_engine.cpp``) and where it differs: the same
+phi-angle error model and F blocks (``insPropagation``: ``F_v,phi = [(C f) x]``, ``F_v,ba = C``,
+``F_phi,bg = -C``: its bias errors are true minus estimated, ours estimated minus true, hence our
+signs; its position, velocity and attitude errors are ours, ``stateFeedback``), the GNSS update
+with the receiver's standard deviations as R (``gnssUpdate``) and the feedback of the error state
+into the nominal one after each update. KF-GINS propagates ``Phi = I + F dt`` per IMU sample with
+Gauss-Markov biases (``corrtime``, hours) and a lever arm; we propagate once per window (a third-
+order series, for speed), take the biases as random walks (the same over an outage's seconds) and
+have no lever arm (logs rarely carry it; its error is the arm times the attitude error, centimetres).
+KF-GINS has no vehicle constraints; its sibling OB_GINS and the AI-IMU line of work add the
+non-holonomic and odometer updates that a car's filter needs, as here.
 """
 
 from __future__ import annotations
@@ -304,7 +316,7 @@ def _propagate_covariance(P, D, q_diag, q_pv, A, B):  # pragma: no cover - compi
 @njit(cache=True)
 def _scalar_update(P, dx, H, cols, dz, r):  # pragma: no cover - compiled
     """A scalar measurement ``dz = H dx + noise`` (variance ``r``; H's nonzeros at ``cols``) folded
-    into the error estimate ``dx`` and covariance ``P`` in place (Joseph-free, symmetric)."""
+    into the error estimate ``dx`` and covariance ``P`` in place (the standard form, kept symmetric)."""
     n = P.shape[0]
     PH = np.zeros(n)
     for i in range(n):
