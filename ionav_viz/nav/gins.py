@@ -12,7 +12,7 @@ own positions at the window boundaries, which the metrics use.
 Initial alignment, at the drive's first window boundary: level (roll and pitch) from the mean
 specific force over the first second, heading from the GNSS course at speed (the windows hold
 the first course at speed through a standstill at the start), velocity from the GNSS speed and
-course, biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
+course (15 degrees of sigma: a course at walking pace is worth little), biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
 white noise (the filter's random walks) is measured on the drive: the robust spread of successive
 differences of each axis, the signal being smooth at 10 Hz.
 
@@ -29,14 +29,16 @@ import numpy as np
 
 from ..core.drive import Drive, measured_imu
 from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodetic, geodetic_of_enu, normal_gravity_mps2
+from ..core.grid import MIN_COURSE_SPEED_MPS
 from .protocol import Estimate, EstimatorInputs
 from .stillness import drive_still
 from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
 from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
 from .windows import Windows
 
-#: GNSS velocity updates the filter above this speed (m/s), where the course is worth something.
-GNSS_VELOCITY_MIN_SPEED_MPS = 3.0
+#: GNSS velocity updates the filter from this speed (m/s): below it the windows hold the course
+#: (:data:`ionav_viz.core.grid.MIN_COURSE_SPEED_MPS`), so east and north would point the held way.
+GNSS_VELOCITY_MIN_SPEED_MPS = MIN_COURSE_SPEED_MPS
 
 
 def white_noise_per_sample(x: np.ndarray) -> float:

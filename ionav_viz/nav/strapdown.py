@@ -34,8 +34,8 @@ transition matrix's series to third order in the window's mean ``f^n`` and ``C``
 products: the pass must run at millions of samples a second), and the measurements come once per
 window boundary, as scalar updates, their corrections fed back into the nominal state:
 
-* GNSS position (the receiver's sigma; height at twice it), and GNSS horizontal velocity above
-  3 m/s (where the course means something);
+* GNSS position (the receiver's sigma; height at twice it), and GNSS horizontal velocity from
+  1 m/s (below it the course is held);
 * non-holonomic constraint: the vehicle frame's lateral and vertical velocity are zero, with
   noise for slip and road roughness; the residual mount angles turn body into vehicle frame;
 * odometer: the vehicle speed reads ``k`` times the forward velocity;
@@ -100,7 +100,7 @@ class GinsNoise:
     zupt_mps: float = 0.02
     init_velocity_mps: float = 0.5
     init_level_rad: float = np.deg2rad(2.0)
-    init_heading_rad: float = np.deg2rad(5.0)
+    init_heading_rad: float = np.deg2rad(15.0)
     init_gyro_bias_radps: float = np.deg2rad(0.5)
     init_accel_bias_mps2: float = 0.3
     init_scale: float = 0.05
