@@ -41,10 +41,12 @@ from .windows import Windows
 GNSS_VELOCITY_MIN_SPEED_MPS = MIN_COURSE_SPEED_MPS
 
 
-def white_noise_per_sample(x: np.ndarray) -> float:
+def white_noise_per_sample(x: np.ndarray, most: int = 20_000) -> float:
     """The white noise (1 sigma per sample) of signals ``(n, 3)``: the robust spread (1.4826 MAD)
-    of successive differences over sqrt(2), the median over the axes."""
+    of successive differences over sqrt(2), the median over the axes (from at most ``most``
+    differences spread over the drive: a robust spread needs no more)."""
     d = np.diff(x, axis=0)
+    d = d[:: max(1, len(d) // most)]
     mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
     return float(np.median(1.4826 * mad / np.sqrt(2.0)))
 

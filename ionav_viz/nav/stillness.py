@@ -107,24 +107,22 @@ def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarra
     return _drop_short(still, int(round(MIN_STANDING_S / dt)))
 
 
-#: The GNSS speed that says where the car stands is its median over this long (s), below
+#: The GNSS speed that says where the car stands is its mean over this long (s), below
 #: REFERENCE_MAX_SPEED_MPS: a phone's receiver scatters its speed by a few tenths of a m/s at a
-#: standstill (0.3 m/s per axis puts the median of its magnitude at 0.35 m/s).
-REFERENCE_MEDIAN_S = 3.0
+#: standstill (0.3 m/s per axis puts the mean of its magnitude at 0.38 m/s).
+REFERENCE_MEAN_S = 3.0
 REFERENCE_MAX_SPEED_MPS = 0.5
 
 
 def standing_reference(drive: Drive) -> np.ndarray:
     """Where the GNSS says the car stands (:func:`ionav_viz.nav.bias.stationary_mask` on the GNSS
-    speed's moving median over REFERENCE_MEDIAN_S, below REFERENCE_MAX_SPEED_MPS): where the
+    speed's moving mean over REFERENCE_MEAN_S, below REFERENCE_MAX_SPEED_MPS): where the
     detector's levels are measured."""
     n = len(drive)
     if n < 3:
         return np.zeros(n, dtype=bool)
     dt = float(np.median(np.diff(drive.t_s)))
-    w = max(1, int(round(REFERENCE_MEDIAN_S / dt)) // 2 * 2 + 1)
-    padded = np.pad(drive.speed_mps, w // 2, mode="edge")
-    smooth = np.median(np.lib.stride_tricks.sliding_window_view(padded, w), axis=1)
+    smooth = moving_mean(drive.speed_mps, max(1, int(round(REFERENCE_MEAN_S / dt))))[:, 0]
     return stationary_mask(drive, REFERENCE_MAX_SPEED_MPS, speed_mps=smooth)
 
 

@@ -257,10 +257,10 @@ def _body_velocity_jacobian(C, v):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _transition(C, fn, wz, T):  # pragma: no cover - compiled
-    """``Phi - I`` for a window of ``T`` s: the series of ``exp(F T)`` to third order, whose only
-    blocks are these (rows dp, dv, phi; columns dv, phi, db_g, db_a, ds_g)."""
-    D = np.zeros((N_ERR, N_ERR))
+def _transition(C, fn, wz, T, D):  # pragma: no cover - compiled
+    """``Phi - I`` for a window of ``T`` s into ``D`` (every entry it has is written; the rest stay
+    zero): the series of ``exp(F T)`` to third order, whose only blocks are these (rows dp, dv,
+    phi; columns dv, phi, db_g, db_a, ds_g)."""
     Fx = _cross_matrix(fn)
     FxC = _mul3(Fx, C)
     cz = C[:, 2] * wz
@@ -278,30 +278,24 @@ def _transition(C, fn, wz, T):  # pragma: no cover - compiled
             D[DV + i, DBA + j] = -T * C[i, j]
             D[DV + i, DBG + j] = 0.5 * T * T * FxC[i, j]
             D[PHI + i, DBG + j] = T * C[i, j]
-    return D
-
-
-#: The columns where ``Phi - I`` has entries (in the rows of dp, dv and phi only; see :func:`_transition`).
-_COLS = np.array([DV, DV + 1, DV + 2, PHI, PHI + 1, PHI + 2, DBG, DBG + 1, DBG + 2, DBA, DBA + 1, DBA + 2, DSG])
 
 
 @njit(cache=True)
 def _propagate_covariance(P, D, q_diag, q_pv, A, B):  # pragma: no cover - compiled
-    """``P <- Phi P Phi^T + Q`` in place, ``Phi = I + D`` with D's sparse structure (only the rows
-    of dp, dv and phi change; ``A``, ``B``: scratch)."""
-    cols = _COLS
+    """``P <- Phi P Phi^T + Q`` in place, ``Phi = I + D`` with D's sparse structure: only the rows of
+    dp, dv and phi (< 9) have entries, in the columns dv .. db_a (3 .. 14) and ds_g (``A``, ``B``: scratch)."""
     A[:, :] = P  # A = Phi P
     for i in range(9):
         for j in range(N_ERR):
-            acc = 0.0
-            for c in cols:
+            acc = D[i, DSG] * P[DSG, j]
+            for c in range(DV, DBA + 3):
                 acc += D[i, c] * P[c, j]
             A[i, j] += acc
     B[:, :] = A  # B = A Phi^T: only its columns < 9 change
-    for j in range(9):
-        for i in range(N_ERR):
-            acc = 0.0
-            for c in cols:
+    for i in range(N_ERR):
+        for j in range(9):
+            acc = A[i, DSG] * D[j, DSG]
+            for c in range(DV, DBA + 3):
                 acc += A[i, c] * D[j, c]
             B[i, j] += acc
     for i in range(N_ERR):
@@ -311,6 +305,17 @@ def _propagate_covariance(P, D, q_diag, q_pv, A, B):  # pragma: no cover - compi
     for i in range(3):
         P[DP + i, DV + i] += q_pv
         P[DV + i, DP + i] += q_pv
+
+
+@njit(cache=True)
+def _subtract_outer(P, PH, S):  # pragma: no cover - compiled
+    """``P <- P - PH PH^T / S`` row by row (contiguous; the product is symmetric, and the next
+    propagation symmetrises what rounding leaves)."""
+    n = P.shape[0]
+    for i in range(n):
+        k = PH[i] / S
+        for j in range(n):
+            P[i, j] -= k * PH[j]
 
 
 @njit(cache=True)
@@ -334,10 +339,7 @@ def _scalar_update(P, dx, H, cols, dz, r):  # pragma: no cover - compiled
     innov = dz - pred
     for i in range(n):
         dx[i] += PH[i] / S * innov
-    for i in range(n):
-        for j in range(i + 1):
-            P[i, j] -= PH[i] * PH[j] / S
-            P[j, i] = P[i, j]
+    _subtract_outer(P, PH, S)
 
 
 @njit(cache=True)
@@ -351,10 +353,7 @@ def _unit_update(P, dx, col, dz, r):  # pragma: no cover - compiled
     PH = P[:, col].copy()
     for i in range(n):
         dx[i] += PH[i] / S * innov
-    for i in range(n):
-        for j in range(i + 1):
-            P[i, j] -= PH[i] * PH[j] / S
-            P[j, i] = P[i, j]
+    _subtract_outer(P, PH, S)
 
 
 @njit(cache=True)
@@ -465,7 +464,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
     store = xs.shape[0] > 0
     q_diag = np.zeros(N_ERR)
     step = np.zeros(4)
-    scratch_a, scratch_b = np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR))
+    scratch_a, scratch_b, D = np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR))
     dist = 0.0
     j = b_sample[b_first]
     for b in range(b_first, b_last + 1):
@@ -497,7 +496,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
                 j += 1
             if T > 0.0:
                 Cm = 0.5 * (C0 + _dcm(x[QW:QW + 4]))
-                D = _transition(Cm, fsum / T, wz / T, T)
+                _transition(Cm, fsum / T, wz / T, T, D)
                 for i in range(3):
                     q_diag[DV + i] = q_white_v * T
                     q_diag[PHI + i] = q_white_phi * T
