@@ -14,7 +14,10 @@ import ionav_viz as iv
 from ionav_viz.core.drive import IMU_COLUMNS, Drive
 from ionav_viz.core.geo import earth_rate_enu_radps, geodetic_of_enu, gravity_enu_mps2, normal_gravity_mps2
 from ionav_viz.core.units import wrap_360
+from ionav_viz.nav.bias import SensorBias
 from ionav_viz.nav.gins import GinsEstimator
+from ionav_viz.nav.outages import tile
+from ionav_viz.nav.protocol import EstimatorInputs
 from ionav_viz.nav.strapdown import BAX, BGX, KO, N_NOMINAL, QW, SG, VX, propagate
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sim.imu import motion_3d
@@ -157,6 +160,11 @@ def test_zero_velocity_updates_hold_the_car_still_through_its_stops():
     with_zupt = _final_errors(drive, GinsEstimator(), 30.0)
     without = _final_errors(drive, GinsEstimator(zupt=False), 30.0)
     assert with_zupt < 0.8 * without, (with_zupt, without)
+    received = drive.as_received()
+    windows = make_windows(received)
+    inputs = EstimatorInputs(received, windows, tile(windows, 30), 30, SensorBias.none())
+    assert inputs.still.any()  # the outages do hold stops
+    assert (GinsEstimator().estimate(inputs).disp_m >= 0).all()
 
 
 def test_gins_does_not_apply_to_a_two_channel_drive(ideal_drive_csv):
