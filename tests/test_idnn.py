@@ -38,13 +38,35 @@ def _echo_model(n_steps=10) -> IdnnModel:
 
 
 def test_prediction_feeds_back_its_own_output():
+    """The echo net says one metre more than its feedback input, at any acceleration; the model
+    takes off what a net says without acceleration beyond its feedback input (a drift), so this
+    net's "+1" is removed and only what acceleration adds stays."""
     model = _echo_model()
     accel = np.zeros((2, 5, 10))
     out = model.predict_displacement(accel, first_prev_disp_m=np.array([5.0, 20.0]))
-    # first window gets the last GNSS displacement, every later one the model's own output
-    np.testing.assert_allclose(out, [[6, 7, 8, 9, 10], [21, 22, 23, 24, 25]])
-    # all sequences step together: one call per window, each with the whole batch
-    assert len(model.disp_net.seen) == 5 and all(x.shape == (2, 11) for x in model.disp_net.seen)
+    # first window gets the last GNSS displacement, every later one the model's own output: here
+    # the echo's drift of one metre a window, taken off
+    np.testing.assert_allclose(out, [[5, 5, 5, 5, 5], [20, 20, 20, 20, 20]])
+    # all sequences step together: one call per window, each with the whole batch twice (as
+    # measured, and without acceleration)
+    assert len(model.disp_net.seen) == 5 and all(x.shape == (4, 11) for x in model.disp_net.seen)
+    np.testing.assert_allclose(model.disp_net.seen[1][:, 10], [5, 20, 5, 20])  # what was fed back
+
+
+def test_a_window_without_acceleration_keeps_the_displacement():
+    """A net that adds 0.3 m to every window drifts by 0.3 m a window at constant speed; a net that
+    adds the window's mean acceleration (m/s^2 over 1 s, m/s) plus the same drift gains exactly that."""
+
+    class Drifting(torch.nn.Module):
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return x[:, 10] + x[:, :10].mean(dim=1) + 0.3
+
+    norm = Normalisation(IDENTITY, IDENTITY, IDENTITY, IDENTITY)
+    model = IdnnModel(ModelConfig(n_steps_disp=10, n_steps_yaw=10), norm, Drifting(), None)
+    cruise = model.predict_displacement(np.zeros((1, 30, 10)), np.array([25.0]))
+    np.testing.assert_allclose(cruise[0], 25.0)  # not 25.3, 25.6, ... 34.0
+    speeding_up = model.predict_displacement(np.full((1, 4, 10), 0.5), np.array([10.0]))
+    np.testing.assert_allclose(speeding_up[0], [10.5, 11.0, 11.5, 12.0])
 
 
 def test_prediction_adds_no_noise():
