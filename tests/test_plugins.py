@@ -183,7 +183,8 @@ def test_adding_a_plugin_warns_only_of_estimators_the_user_named(tmp_path):
         proc = _run_script("evaluate", "stationary", *extra, "--every", "30s", "-q", cwd=tmp_path)
         assert proc.returncode == 0 and proc.stderr == "", (extra, proc.stderr)
     named = _run_script("evaluate", "stationary", "--estimators", "ins,odo", "--every", "30s", "-q", cwd=tmp_path)
-    assert named.returncode == 0 and named.stderr.strip() == "warning: Odometry left out: it does not apply to V-sim-stationary"
+    assert named.returncode == 0 and named.stderr.strip() == ("warning: Odometry left out: it does not apply to V-sim-stationary "
+                                                              "(it needs a vehicle speed: wheel speeds, CAN speed or wheel odometry)")
 
 
 @pytest.mark.parametrize(("spec", "fragment"), [("./missing.py:X", "no such file"), ("./notes.txt:X", "is not a .py file"),

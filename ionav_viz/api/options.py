@@ -67,7 +67,8 @@ class RunOptions:
             if not missing:
                 kept.append(est)
             elif est.name not in defaults:
-                log.warning("%s left out: it does not apply to %s", est.label, ", ".join(missing))
+                need = getattr(est, "requires", "")
+                log.warning("%s left out: it does not apply to %s%s", est.label, ", ".join(missing), f" (it needs {need})" if need else "")
         if not kept:
             raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
                              "choose others with --estimators (ins always applies)", param="estimators")

@@ -130,7 +130,8 @@ class GinsEstimator:
 
     name = "gins"
     label = "GNSS/INS 3D"
-    color = (150, 90, 210)
+    color = (235, 160, 0)  # amber: apart from odometry's purple and the ekf's cyan
+    requires = "all six IMU axes, measured: a message log's or KITTI's IMU"
 
     def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True) -> None:
         self.noise = noise or GinsNoise()

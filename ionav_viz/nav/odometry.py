@@ -65,6 +65,7 @@ class OdometryEstimator:
     name = "odo"
     label = "Odometry"
     color = (150, 60, 200)
+    requires = "a vehicle speed: wheel speeds, CAN speed or wheel odometry"
 
     def __init__(self) -> None:
         self._last: dict[str, Any] = {}

@@ -173,7 +173,8 @@ class Estimator(Protocol):
     :func:`color_of` (an estimator without them gets the defaults):
 
     * ``color``: RGB triple of 0-255 integers (default: a palette colour chosen by name);
-    * ``applies(drive) -> bool``: whether it can run on a drive (default: every drive);
+    * ``applies(drive) -> bool``: whether it can run on a drive (default: every drive), and
+      ``requires``, a short text of what a drive must have (said when it is left out);
     * ``describe() -> dict``: what it is and what it used, shown in reports (default: nothing);
     * ``available() -> bool``: whether it can run at all here, e.g. the IDNN needs a model
       (default: yes); one that is not is left out of the default set.
