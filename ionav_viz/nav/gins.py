@@ -6,7 +6,8 @@ where the drive has a vehicle speed, and zero-velocity updates where the IMU sho
 standing (:mod:`ionav_viz.nav.stillness`). Each outage starts from the filter's state at its
 first window boundary (it has seen GNSS only before it) and runs on without GNSS, still
 constrained, to its end. Per 1-second window it reports the horizontal distance travelled (the
-integral of the horizontal speed, never negative), the mean yaw rate (counter-clockwise), and its
+integral of the horizontal speed, never negative), the mean yaw rate (counter-clockwise: the
+corrected gyro's, so that the updates' corrections of the heading are not counted as turns), and its
 own positions at the window boundaries, which the metrics use.
 
 Initial alignment, at the drive's first window boundary: level (roll and pitch) from the mean
@@ -197,8 +198,8 @@ class GinsEstimator:
         P0[2, 2] = (2.0 * sigma[0]) ** 2
         nb = len(b.t_s)
         xs, Ps = np.zeros((nb, N_NOMINAL)), np.zeros((nb, N_ERR, N_ERR))
-        pos_out, yaw_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
-        run_filter(**args, x0=x0, P0=P0, use_gnss=True, b_first=0, b_last=nb - 1, xs=xs, Ps=Ps, pos_out=pos_out, yaw_out=yaw_out,
+        pos_out, turn_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
+        run_filter(**args, x0=x0, P0=P0, use_gnss=True, b_first=0, b_last=nb - 1, xs=xs, Ps=Ps, pos_out=pos_out, turn_out=turn_out,
                    dist_out=dist_out)
         self._last = {"imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample",
                       "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
@@ -216,19 +217,19 @@ class GinsEstimator:
             return Estimate(np.zeros((0, n)), np.zeros((0, n)))
         r = self.run(drive, inputs.windows)
         nb = len(r.bounds.t_s)
-        pos_out, yaw_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
+        pos_out, turn_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
         empty_x, empty_P = np.zeros((0, N_NOMINAL)), np.zeros((0, N_ERR, N_ERR))
         positions = np.zeros((m, n + 1, 3))
         disp, yaw = np.zeros((m, n)), np.zeros((m, n))
         for o, k in enumerate(np.asarray(inputs.starts)):
             b0 = int(r.bounds.of_window[k])
             run_filter(**r.args, x0=r.xs[b0], P0=r.Ps[b0], use_gnss=False, b_first=b0, b_last=b0 + n, xs=empty_x, Ps=empty_P,
-                       pos_out=pos_out, yaw_out=yaw_out, dist_out=dist_out)
+                       pos_out=pos_out, turn_out=turn_out, dist_out=dist_out)
             span = slice(b0, b0 + n + 1)
             positions[o] = pos_out[span]
             disp[o] = np.diff(dist_out[span])
             T = np.diff(r.bounds.t_s[span])
-            yaw[o] = np.angle(np.exp(1j * np.diff(yaw_out[span]))) / T
+            yaw[o] = np.diff(turn_out[span]) / T
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
         return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1))
 

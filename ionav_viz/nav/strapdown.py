@@ -451,11 +451,12 @@ def _gnss(x, P, dx, pos, sigma, has_height, vel, vel_ok, r_vel):  # pragma: no c
 @njit(cache=True)
 def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, has_height, gnss_vel, vel_ok, odo, still,
                x0, P0, q_white_v, q_white_phi, walk, r_vel, r_lat, r_vert, r_odo, r_zupt, r_zaru, omega_ie, g0, radius,
-               use_gnss, use_nhc, use_odo, use_zupt, b_first, b_last, xs, Ps, pos_out, yaw_out, dist_out):  # pragma: no cover - compiled
+               use_gnss, use_nhc, use_odo, use_zupt, b_first, b_last, xs, Ps, pos_out, turn_out, dist_out):  # pragma: no cover - compiled
     """Run from boundary ``b_first`` to ``b_last`` (inclusive) from the state ``x0, P0`` at
     ``b_first``'s sample, updating at every boundary after the first; stores the state after each
-    boundary's updates (``xs``/``Ps``, when non-empty), and per boundary the position (m), yaw
-    (rad, counter-clockwise from east) and the distance since ``b_first`` (m).
+    boundary's updates (``xs``/``Ps``, when non-empty), and per boundary the position (m), the turn
+    since ``b_first`` (rad, counter-clockwise: the corrected gyro integrated, so a window's yaw rate
+    is a rate, not the updates' corrections of the heading) and the distance since ``b_first`` (m).
 
     ``b_start[b]``: boundary ``b`` starts a segment (the state restarts from GNSS there)."""
     x = x0.copy()
@@ -466,6 +467,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
     step = np.zeros(4)
     scratch_a, scratch_b, D = np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR))
     dist = 0.0
+    turn = 0.0
     j = b_sample[b_first]
     for b in range(b_first, b_last + 1):
         jb = b_sample[b]
@@ -489,6 +491,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
             while j < jb:
                 dt = t[j + 1] - t[j]
                 dist += _mechanise(x, acc[j], acc[j + 1], gyr[j], gyr[j + 1], dt, omega_ie, g0, radius, step)
+                turn += (step[3] - omega_ie[2]) * dt  # the turn against the Earth, about the body's z
                 for i in range(3):
                     fsum[i] += step[i] * dt
                 wz += step[3] * dt
@@ -518,10 +521,9 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
         if store:
             xs[b] = x
             Ps[b] = P
-        C = _dcm(x[QW:QW + 4])
         for i in range(3):
             pos_out[b, i] = x[PX + i]
-        yaw_out[b] = math.atan2(C[1, 0], C[0, 0])
+        turn_out[b] = turn
         dist_out[b] = dist
     return x, P
 
