@@ -34,8 +34,9 @@ transition matrix's series to third order in the window's mean ``f^n`` and ``C``
 products: the pass must run at millions of samples a second), and the measurements come once per
 window boundary, as scalar updates, their corrections fed back into the nominal state:
 
-* GNSS position (the receiver's sigma; height at twice it), and GNSS horizontal velocity from
-  1 m/s (below it the course is held);
+* GNSS position (the receiver's sigma; height at twice it; a component 5 sigma off the
+  prediction is a jump and is left out, GNSS_GATE), and GNSS horizontal velocity from 1 m/s
+  (below it the course is held);
 * non-holonomic constraint: the vehicle frame's lateral and vertical velocity are zero, with
   noise for slip and road roughness; the residual mount angles turn body into vehicle frame;
 * odometer: the vehicle speed reads ``k`` times the forward velocity;
@@ -66,6 +67,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+#: A GNSS position component further than this many variances (a chi-square, 1 degree of freedom:
+#: 5 sigma) from the filter's prediction is a jump, not a fix (receivers jump by metres when they
+#: come back after losing the sky), and is not used.
+GNSS_GATE = 25.0
+#: After this many boundaries in a row whose fix was left out, the next is used whatever it says.
+GNSS_REJECTS_MAX = 5
 #: A zero-velocity update is used only when the filter's velocity is within this chi-square
 #: (3 degrees of freedom, p = 0.001) of zero: the detector can be wrong, the update must not be.
 ZUPT_GATE = 16.27
@@ -343,17 +350,22 @@ def _scalar_update(P, dx, H, cols, dz, r):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _unit_update(P, dx, col, dz, r):  # pragma: no cover - compiled
-    """:func:`_scalar_update` for ``dz = dx[col] + noise`` (a state measured directly)."""
+def _unit_update(P, dx, col, dz, r, gate=np.inf):  # pragma: no cover - compiled
+    """:func:`_scalar_update` for ``dz = dx[col] + noise`` (a state measured directly); a
+    measurement whose innovation is more than ``sqrt(gate)`` of its standard deviations away is
+    not used. Returns whether it was."""
     n = P.shape[0]
     S = P[col, col] + r
     if S <= 0.0:
-        return
+        return False
     innov = dz - dx[col]
+    if innov * innov > gate * S:
+        return False
     PH = P[:, col].copy()
     for i in range(n):
         dx[i] += PH[i] / S * innov
     _subtract_outer(P, PH, S)
+    return True
 
 
 @njit(cache=True)
@@ -439,13 +451,17 @@ def _velocity_rows_with_mount(x, C, dx, P, row, offset, r, col, h):  # pragma: n
 
 
 @njit(cache=True)
-def _gnss(x, P, dx, pos, sigma, has_height, vel, vel_ok, r_vel):  # pragma: no cover - compiled
+def _gnss(x, P, dx, pos, sigma, has_height, vel, vel_ok, r_vel, gate):  # pragma: no cover - compiled
+    """The GNSS updates of one boundary; returns whether its horizontal position was used."""
+    used = True
     for i in range(3 if has_height else 2):
         s = sigma if i < 2 else 2.0 * sigma
-        _unit_update(P, dx, DP + i, x[PX + i] - pos[i], s * s)
-    if vel_ok:
+        ok = _unit_update(P, dx, DP + i, x[PX + i] - pos[i], s * s, gate)
+        used = used and (ok or i == 2)
+    if vel_ok and used:
         for i in range(2):
             _unit_update(P, dx, DV + i, x[VX + i] - vel[i], r_vel)
+    return used
 
 
 @njit(cache=True)
@@ -468,6 +484,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
     scratch_a, scratch_b, D = np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR))
     dist = 0.0
     turn = 0.0
+    rejected = 0
     j = b_sample[b_first]
     for b in range(b_first, b_last + 1):
         jb = b_sample[b]
@@ -514,7 +531,12 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
                 gm += gyr[k]
             gm /= jb + 1 - k0
             if use_gnss and gnss_ok[b]:
-                _gnss(x, P, dx, gnss_pos[b], gnss_sigma[b], has_height, gnss_vel[b], vel_ok[b], r_vel)
+                # after GNSS_REJECTS_MAX fixes in a row left out, the filter is the one that is off: take the next
+                if _gnss(x, P, dx, gnss_pos[b], gnss_sigma[b], has_height, gnss_vel[b], vel_ok[b], r_vel,
+                         GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf):
+                    rejected = 0
+                else:
+                    rejected += 1
             _constraints(x, P, dx, use_nhc, r_lat, r_vert, odo[b] if use_odo else np.nan, r_odo, use_zupt and still[b], r_zupt, gm,
                          r_zaru / max(jb + 1 - k0, 1), omega_ie)
             _correct(x, dx)
