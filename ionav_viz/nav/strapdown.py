@@ -387,24 +387,18 @@ def _correct(x, dx):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _velocity_rows(x, C, dx, P, row, z, r, extra_col, extra_h, scale):  # pragma: no cover - compiled
-    """A body-frame velocity component ``scale * (C^T v)[row] (+ extra_h * state extra_col)`` measured as ``z``."""
-    v = x[VX:VX + 3]
-    vb = _tmul3(C, v)
-    M = _body_velocity_jacobian(C, v)
-    n = 7 if extra_col >= 0 else 6
-    cols = np.empty(n, dtype=np.int64)
-    H = np.empty(n)
+def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
+    """A measurement of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (the body-frame velocity
+    ``vb = C^T v``, ``M = -C^T [v x]`` its attitude Jacobian); ``dz``: prediction minus measurement.
+    ``cols``/``H``: scratch of 7."""
     for j in range(3):
         cols[j] = DV + j
         H[j] = scale * C[j, row]
         cols[3 + j] = PHI + j
         H[3 + j] = scale * M[row, j]
-    if extra_col >= 0:
-        cols[6] = extra_col
-        H[6] = extra_h
-    _scalar_update(P, dx, H, cols, scale * vb[row] - z, r)
-    return vb
+    cols[6] = extra_col
+    H[6] = extra_h
+    _scalar_update(P, dx, H, cols, dz, r)
 
 
 @njit(cache=True)
@@ -423,31 +417,17 @@ def _constraints(x, P, dx, nhc, r_lat, r_vert, odo, r_odo, still, r_zupt, gyro_m
         for i in range(3):
             _unit_update(P, dx, DBG + i, x[BGX + i] + earth_b[i] - gyro_mean[i], r_zaru)
         return
-    vb = _tmul3(C, x[VX:VX + 3])
-    if nhc:
-        # vehicle lateral = vb_y + psi_m vb_x, vertical = vb_z - theta_m vb_x; both zero
-        _velocity_rows_with_mount(x, C, dx, P, 1, x[PSIM] * vb[0], r_lat, DPSIM, vb[0])
-        _velocity_rows_with_mount(x, C, dx, P, 2, -x[THM] * vb[0], r_vert, DTHM, -vb[0])
-    if not math.isnan(odo):
-        _velocity_rows(x, C, dx, P, 0, odo, r_odo, DK, vb[0], x[KO])
-
-
-@njit(cache=True)
-def _velocity_rows_with_mount(x, C, dx, P, row, offset, r, col, h):  # pragma: no cover - compiled
-    """``vb[row] + offset = 0`` with ``d offset / d state col = h``."""
     v = x[VX:VX + 3]
     vb = _tmul3(C, v)
     M = _body_velocity_jacobian(C, v)
-    cols = np.empty(7, dtype=np.int64)
-    H = np.empty(7)
-    for j in range(3):
-        cols[j] = DV + j
-        H[j] = C[j, row]
-        cols[3 + j] = PHI + j
-        H[3 + j] = M[row, j]
-    cols[6] = col
-    H[6] = h
-    _scalar_update(P, dx, H, cols, vb[row] + offset, r)
+    cols, H = np.empty(7, dtype=np.int64), np.empty(7)
+    if nhc:
+        # vehicle lateral = vb_y + psi_m vb_x, vertical = vb_z - theta_m vb_x; both zero
+        _body_velocity_update(C, vb, M, dx, P, 1, 1.0, vb[1] + x[PSIM] * vb[0], r_lat, DPSIM, vb[0], cols, H)
+        _body_velocity_update(C, vb, M, dx, P, 2, 1.0, vb[2] - x[THM] * vb[0], r_vert, DTHM, -vb[0], cols, H)
+    if not math.isnan(odo):
+        # the odometer reads k times the forward velocity
+        _body_velocity_update(C, vb, M, dx, P, 0, x[KO], x[KO] * vb[0] - odo, r_odo, DK, vb[0], cols, H)
 
 
 @njit(cache=True)
@@ -480,7 +460,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
     dx = np.zeros(N_ERR)
     store = xs.shape[0] > 0
     q_diag = np.zeros(N_ERR)
-    step = np.zeros(4)
+    step, fsum, gm = np.zeros(4), np.zeros(3), np.zeros(3)
     scratch_a, scratch_b, D = np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR))
     dist = 0.0
     turn = 0.0
@@ -502,7 +482,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
             j = jb
         elif b > b_first:
             T = 0.0
-            fsum = np.zeros(3)
+            fsum[:] = 0.0
             wz = 0.0
             C0 = _dcm(x[QW:QW + 4])
             while j < jb:
@@ -525,7 +505,7 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
                     q_diag[i] = walk[i] * T
                 _propagate_covariance(P, D, q_diag, q_white_v * T * T / 2.0, scratch_a, scratch_b)
             # the mean gyro reading over the last window, for the zero-rate update
-            gm = np.zeros(3)
+            gm[:] = 0.0
             k0 = max(b_sample[b - 1], jb - 10)
             for k in range(k0, jb + 1):
                 gm += gyr[k]
