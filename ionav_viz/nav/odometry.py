@@ -5,8 +5,10 @@ is the baseline a practitioner would set beside the paper's INS (the same author
 the wheel speeds too).
 
 * Speed: the mean of the rear wheel speeds (rad/s; the undriven wheels of a front-wheel-drive
-  car, like IO-VNBD's Fiesta, slip least), else the indicated CAN speed (m/s). Each window's
-  distance is its trapezoid mean on the window's 10 Hz grid times 1 s, times a **scale**.
+  car, like IO-VNBD's Fiesta, slip least), else the indicated CAN speed (m/s), as a magnitude.
+  Each window's distance is its trapezoid mean on the window's 10 Hz grid times 1 s, times a
+  **scale** (positive): never negative, and zero where the wheels stand, so a stop inside an
+  outage needs no stillness detector here.
 * Scale (the effective rolling radius in m for wheel speeds, a unitless factor for the indicated
   speed): calibrated while GNSS is good, per outage, as the GNSS distance over the wheels'
   distance in the good-truth windows of the CALIBRATION_S seconds before its start (only windows
@@ -85,7 +87,9 @@ class OdometryEstimator:
             raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and {why_no_vehicle_speed(inputs.drive)}",
                              "leave odo out of --estimators for this drive", param="estimators")
         values, unit, source = found
-        raw = window_distance(inputs.windows, inputs.drive, values)
+        # a distance, never negative: the speed's magnitude (a log's signed wheel speeds or odometry
+        # count reversing as distance too, as the reader does for a body twist)
+        raw = window_distance(inputs.windows, inputs.drive, np.abs(values))
         nominal = NOMINAL_RADIUS_M if unit == "rad/s" else 1.0
         scale = calibrated_scale(inputs.windows, raw, inputs.starts, nominal)
         disp = raw[inputs.window_index] * scale[:, None]
