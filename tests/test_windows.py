@@ -49,6 +49,20 @@ def test_course_held_while_standing_still():
     np.testing.assert_allclose(w.gnss_yaw_rate_radps, 0.0)
 
 
+def test_a_standing_receivers_speed_noise_does_not_give_the_drive_its_course():
+    """A phone standing at the start reports 0.3-0.5 m/s of speed noise, and one fix of 1.4 m/s
+    with a random course; the car then drives off east. The course before it moves is the course
+    it drives off on (east), not the noise's, and no window turns."""
+    t = np.arange(201) / 10.0
+    speed = np.where(t < 10.0, 0.4, 5.0)
+    heading = np.where(t < 10.0, 250.0, 90.0)
+    speed[30:42], heading[30:42] = 1.4, 320.0  # the spike: 1.2 s above 1 m/s
+    d = _drive(t, np.zeros(201), 1e-5 * np.maximum(t - 10.0, 0.0), heading, speed=speed)
+    w = make_windows(d)
+    np.testing.assert_allclose(w.heading0_deg, 90.0)
+    np.testing.assert_allclose(w.gnss_yaw_rate_radps, 0.0, atol=1e-12)
+
+
 def test_missing_sample_is_bridged_and_long_gap_splits():
     t = np.concatenate([np.arange(0, 2.05, 0.1), np.arange(10.0, 12.05, 0.1)])
     t = np.delete(t, 5)  # one 0.2 s period

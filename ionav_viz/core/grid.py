@@ -16,15 +16,31 @@ GRID_STEP_S = 1.0 / GRID_RATE_HZ
 WINDOW_S = 1.0
 #: Below this GNSS speed (m/s) the course over ground is noise: the last course at speed is held.
 MIN_COURSE_SPEED_MPS = 1.0
+#: A stretch above that speed counts only when it lasts this long (s): a standing receiver's speed
+#: noise crosses it for a second or so (:func:`hold_course_when_slow`).
+MIN_COURSE_RUN_S = 2.0
 
 
-def hold_course_when_slow(heading_deg: np.ndarray, speed_mps: np.ndarray, min_speed_mps: float = MIN_COURSE_SPEED_MPS) -> np.ndarray:
+def hold_course_when_slow(heading_deg: np.ndarray, speed_mps: np.ndarray, min_speed_mps: float = MIN_COURSE_SPEED_MPS,
+                          t_s: np.ndarray | None = None, min_run_s: float = MIN_COURSE_RUN_S) -> np.ndarray:
     """Replace the course at speeds below ``min_speed_mps`` by the last course seen at speed.
 
     Before the first fast sample the first fast course is used; a drive that never moves keeps
-    its logged course.
+    its logged course. With sample times ``t_s`` (s), a stretch at speed shorter than
+    ``min_run_s`` does not count as at speed: a standing receiver's speed noise crosses the
+    threshold now and then (a phone's, 0.3 m/s per axis, for a fix or two), and its course
+    then is noise that would be held, or given to the drive's start, as the course. A drive with
+    no stretch that long keeps its short ones.
     """
-    fast = speed_mps >= min_speed_mps
+    fast = np.asarray(speed_mps) >= min_speed_mps
+    if t_s is not None and min_run_s > 0 and fast.any():
+        edges = np.diff(np.concatenate([[0], fast.astype(np.int8), [0]]))
+        first, end = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        t = np.asarray(t_s, dtype=float)
+        long_enough = t[end - 1] - t[first] >= min_run_s
+        run = np.cumsum(edges[:-1] == 1) - 1  # each sample's stretch (valid where fast)
+        if long_enough.any():  # else the short stretches are all the course there is
+            fast &= long_enough[np.maximum(run, 0)]
     if fast.all() or not fast.any():
         return heading_deg.copy()
     idx = np.where(fast, np.arange(len(fast)), 0)

@@ -138,7 +138,7 @@ def make_windows(
     to see each second of a drive at every phase).
     """
     steps = int(round(rate_hz * WINDOW_S))
-    heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps)
+    heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps, drive.t_s)
     heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad")}
     n_windows = []

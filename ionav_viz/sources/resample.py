@@ -195,15 +195,17 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         v = np.interp(t, s_t, s_v)
         has_course = np.isfinite(s_course)
         if has_course.any():
-            unwrapped = np.rad2deg(np.unwrap(np.deg2rad(s_course[has_course])))
-            # a receiver's course at a standstill is atan2(0, 0): the course at speed is held instead
-            course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS)
+            # a receiver's course at a standstill is atan2(0, 0): the course at speed is held instead,
+            # fix by fix before interpolating (a row between a standing and a moving fix would mix them)
+            held = hold_course_when_slow(s_course[has_course], s_v[has_course], MIN_COURSE_SPEED_MPS, s_t[has_course])
+            unwrapped = np.rad2deg(np.unwrap(np.deg2rad(held)))
+            course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS, t)
     if v is None or course is None:
         # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
         # (the per-window displacement of raw fixes would carry their white noise twice)
         fit = fit_fixes(t, g_t, g_lat, g_lon)
         v = fit.speed_mps if v is None else v
-        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS) if course is None else course
+        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t) if course is None else course
         lat, lon = fit.lat_deg, fit.lon_deg
     if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
@@ -221,7 +223,7 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         truth = fit_fixes(t, reference[:, 0], reference[:, 1], reference[:, 2])
         columns |= dict(zip(RECEIVER_COLUMNS, (lat, lon, v, course), strict=True))
         columns |= {"lat_deg": truth.lat_deg, "lon_deg": truth.lon_deg, "speed_mps": truth.speed_mps,
-                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS)}
+                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t)}
     if first_implausible("height_m", alt) is None:
         columns["height_m"] = alt
     if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one
