@@ -12,7 +12,8 @@ import pytest
 import ionav_viz as iv
 from ionav_viz.core.drive import IMU_COLUMNS
 from ionav_viz.core.geo import wgs84
-from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, imu_drive
+from ionav_viz.nav.windows import make_windows
+from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, imu_drive, write_imu_log
 from ionav_viz.sources.imu_mount import parse_mount, rotation_angle_deg
 
 from .conftest import run_cli
@@ -84,6 +85,22 @@ def test_a_simulated_log_reads_back_as_a_users_log_and_gins_runs_on_it(tmp_path)
     assert rotation_angle_deg(found.T @ log.mount) < 2.0, (found, log.mount)
     drive = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC)))
     assert len(drive) == pytest.approx(3001, abs=2)  # 10 Hz bins of the 100 Hz IMU
+
+
+def test_a_phone_standing_at_the_start_gets_the_course_it_drives_off_on(tmp_path):
+    """A standing phone's 1 Hz fixes carry speed noise and random courses. The course the
+    estimators start from before the car moves is the one it drives off on, not a standing fix's
+    course nor a mix of the two (held fix by fix before interpolation; 2 s at speed needed).
+    Measured on seeds 0-5: 14, 23, 2, 42, 20 and 9 degrees off before, 3-13 after."""
+    read = iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, imu_mount="auto"))
+    errors = []
+    for seed in range(6):
+        path = write_imu_log(tmp_path / f"{seed}.mcap", "hard-brake", seed, 60.0, "phone")
+        drive = iv.load_drive(path, read)
+        truth, received = make_windows(drive), make_windows(drive.as_received())
+        assert drive.speed_mps[:40].max() < 0.05  # the car stands for the first seconds
+        errors.append(abs((received.heading0_deg[0] - truth.heading0_deg[0] + 180.0) % 360.0 - 180.0))
+    assert np.mean(errors) < 10.0 and max(errors) < 20.0, errors
 
 
 def test_simulate_imu_refuses_what_it_cannot_carry(tmp_path):

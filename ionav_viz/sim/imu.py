@@ -12,21 +12,35 @@ Vehicle (truth, 100 Hz, from :func:`~ionav_viz.sim.simulate.plan_truth`'s speed 
     the log is physically consistent in 3D: grade and camber put gravity into the forward and
     lateral axes exactly as on a road.
 
-IMU grades (:data:`IMU_GRADES`, per ``../shared/SENSORS.md``; noise given as 1 sigma of a 10 Hz
-average, the unit of that table, and scaled by sqrt(rate / 10) per raw sample)
-    ``mems``: a roof or dashboard MEMS IMU at 100 Hz (gyro turn-on bias 50 deg/h per axis, as
-    SENSORS.md's consumer MEMS; accelerometer bias 0.05 m/s^2; scale errors 0.3 %; engine and road
-    vibration as measured: gyro 0.06 deg/s standing, 0.15 driving; accelerometer 0.13 m/s^2
-    standing, growing with speed to 0.3), mounted about 2 degrees off the car in yaw and under
-    1 degree in pitch and roll (what a fit leaves of a configured roof mount), an automotive
-    receiver at 10 Hz (about 1.4 m median error, as SENSORS.md's u-blox, wandering with a 30 s correlation time) and
-    the CAN vehicle speed (1-3 % off through the wheel radius, 1 km/h steps, 50 ms late).
+IMU grades (:data:`IMU_GRADES`, per ``../shared/SENSORS.md``)
+    ``mems``: a roof or dashboard MEMS IMU at 100 Hz (gyro turn-on bias 50 deg/h per axis and
+    angle random walk 0.24 deg/sqrt(h), velocity random walk 0.24 m/s/sqrt(h): SENSORS.md's consumer
+    MEMS, KF-GINS's configuration for one; accelerometer bias 0.05 m/s^2; scale errors 0.3 %;
+    engine and road vibration as measured: gyro 0.06 deg/s standing, 0.15 driving; accelerometer
+    0.13 m/s^2 standing, growing with speed to 0.3), mounted about 2 degrees off the car in yaw and
+    under 1 degree in pitch and roll (what a fit leaves of a configured roof mount), an automotive
+    receiver at 10 Hz (about 1.4 m median error, as SENSORS.md's u-blox, wandering with a 30 s
+    correlation time) and the CAN vehicle speed (1-3 % off through the wheel radius, 1 km/h steps,
+    50 ms late).
     ``phone``: a phone on the dashboard at 10 Hz (gyro bias 0.3 deg/s per axis, up to the 0.7
-    SENSORS.md saw; accelerometer bias 0.15 m/s^2; 1 % scale errors; gyro noise 0.12 deg/s
-    standing, 0.5 driving; accelerometer 0.25 standing, to 0.45 driving), turned 8 degrees in yaw
-    and 1 in pitch on its holder, its clock jittering by 5 ms with 1 % of samples lost, and its
-    GPS at 1 Hz (about 3 m median error, reporting 8 m), no vehicle speed.
+    SENSORS.md saw; accelerometer bias 0.15 m/s^2; 1 % scale errors; random walks 0.8 deg/sqrt(h)
+    and 0.3 m/s/sqrt(h), a phone IMU's noise densities of about 0.014 deg/s/sqrt(Hz) and
+    100-300 ug/sqrt(Hz); vibration of the holder: gyro 0.12 deg/s standing, 0.5 driving;
+    accelerometer 0.25 standing, to 0.45 driving), turned 8 degrees in yaw and 1 in pitch on its
+    holder, its clock jittering by 5 ms with 1 % of samples lost, and its GPS at 1 Hz (about 3 m
+    median error, reporting 8 m), no vehicle speed.
     Biases are a turn-on value plus a first-order Gauss-Markov wander (``bias_tau_s``).
+
+Noise: two parts, because they integrate differently
+    SENSORS.md's noise table is the spread of 10 Hz samples on real cars, and most of it is
+    vibration: the engine and the road shaking the sensor, a real motion that stays within
+    centimetres (and hundredths of a degree). Its integral is that motion, not a random walk, so it
+    is simulated as the rate of change of a bounded Gauss-Markov motion (:func:`vibration`, 50 ms
+    correlation) whose 10 Hz samples spread as the table says (the successive-difference spread
+    over sqrt(2), as the table and :func:`ionav_viz.nav.gins.white_noise_per_sample` measure).
+    The sensor's own white noise is its datasheet random walk (``*_random_walk``), tens of times
+    smaller per sample; it is what integrates. Drawn as white noise at the table's level, a MEMS
+    gyro would walk at 2.9 deg/sqrt(h), twelve times SENSORS.md's 0.24.
 
 Output is identical for a given scenario, seed, duration and grade.
 """
@@ -52,7 +66,8 @@ from .simulate import SIMULATED_SCENARIOS, TRUTH_RATE_HZ, SensorModel, can_speed
 
 @dataclass(frozen=True)
 class ImuGrade:
-    """The sensors of one kind of logger (see the module docstring; noise as 1 sigma at 10 Hz)."""
+    """The sensors of one kind of logger (see the module docstring): biases and vibration as 1
+    sigma at 10 Hz, the white noise as random walks (deg/sqrt(h), m/s/sqrt(h))."""
 
     name: str
     imu_rate_hz: float
@@ -62,12 +77,14 @@ class ImuGrade:
     gyro_scale: float
     gyro_noise_still_dps: float
     gyro_noise_driving_dps: float
+    gyro_random_walk_dps_rthr: float
     accel_bias_mps2: float
     accel_instability_mps2: float
     accel_scale: float
     accel_noise_still_mps2: float
     accel_noise_per_mps: float
     accel_noise_max_mps2: float
+    accel_random_walk_mps_rthr: float
     bias_tau_s: float
     mount_deg: tuple[float, float, float]
     mount_spread_deg: float
@@ -85,14 +102,14 @@ class ImuGrade:
 
 IMU_GRADES = {
     "mems": ImuGrade("mems", 100.0, 10.0, gyro_bias_dps=50.0 / 3600.0, gyro_instability_dps=0.005, gyro_scale=0.003,
-                     gyro_noise_still_dps=0.06, gyro_noise_driving_dps=0.15, accel_bias_mps2=0.05, accel_instability_mps2=0.01,
-                     accel_scale=0.003, accel_noise_still_mps2=0.13, accel_noise_per_mps=0.008, accel_noise_max_mps2=0.3,
+                     gyro_noise_still_dps=0.06, gyro_noise_driving_dps=0.15, gyro_random_walk_dps_rthr=0.24, accel_bias_mps2=0.05, accel_instability_mps2=0.01,
+                     accel_scale=0.003, accel_noise_still_mps2=0.13, accel_noise_per_mps=0.008, accel_noise_max_mps2=0.3, accel_random_walk_mps_rthr=0.24,
                      bias_tau_s=600.0, mount_deg=(0.5, -0.7, 2.2), mount_spread_deg=0.3, gnss_wander_m=1.2, gnss_tau_s=30.0,
                      gnss_white_m=0.1, gnss_reported_sigma_m=1.5, gnss_speed_noise_mps=0.05, clock_jitter_s=0.0005,
                      missing_sample_prob=0.0, vehicle_speed=True),
     "phone": ImuGrade("phone", 10.0, 1.0, gyro_bias_dps=0.3, gyro_instability_dps=0.02, gyro_scale=0.01,
-                      gyro_noise_still_dps=0.12, gyro_noise_driving_dps=0.5, accel_bias_mps2=0.15, accel_instability_mps2=0.02,
-                      accel_scale=0.01, accel_noise_still_mps2=0.25, accel_noise_per_mps=0.015, accel_noise_max_mps2=0.45,
+                      gyro_noise_still_dps=0.12, gyro_noise_driving_dps=0.5, gyro_random_walk_dps_rthr=0.8, accel_bias_mps2=0.15, accel_instability_mps2=0.02,
+                      accel_scale=0.01, accel_noise_still_mps2=0.25, accel_noise_per_mps=0.015, accel_noise_max_mps2=0.45, accel_random_walk_mps_rthr=0.3,
                       bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0, gnss_wander_m=2.5, gnss_tau_s=60.0,
                       gnss_white_m=0.5, gnss_reported_sigma_m=8.0, gnss_speed_noise_mps=0.3, clock_jitter_s=0.005,
                       missing_sample_prob=0.01, vehicle_speed=False),
@@ -161,6 +178,32 @@ def motion_3d(scenario: str, seed: int, duration_s: float, grade_rms: float, cam
     return Motion3d(t, position, velocity, C, f_b, w_ib, v, origin)
 
 
+#: Correlation time (s) of the simulated vibration's motion: engine and road shake at several Hz.
+VIBRATION_TAU_S = 0.05
+#: The sample interval (s) of SENSORS.md's noise table.
+TABLE_INTERVAL_S = 0.1
+
+
+def vibration(rng: np.random.Generator, t_s: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Vibration on three axes at sample times ``t_s`` (s): the rate of change of a bounded motion,
+    so that its integral is that motion (centimetres, hundredths of a degree), never a random walk.
+
+    The motion is a Gauss-Markov process (:data:`VIBRATION_TAU_S`) scaled so that the 0.1 s means
+    of its rate spread by ``sigma`` (per sample, the signal's unit) as SENSORS.md measures noise:
+    the successive differences of those means over sqrt(2). A 0.1 s mean of the rate is the
+    motion's change over 0.1 s divided by 0.1 s, and for a Gauss-Markov motion of correlation
+    ``rho`` over 0.1 s that spread is ``std * sqrt((1 - rho)(3 - rho)) / 0.1``.
+    """
+    n = len(t_s)
+    dt = float(np.mean(np.diff(t_s))) if n > 1 else TABLE_INTERVAL_S
+    rho = math.exp(-TABLE_INTERVAL_S / VIBRATION_TAU_S)
+    scale = np.asarray(sigma, dtype=float) * TABLE_INTERVAL_S / math.sqrt((1.0 - rho) * (3.0 - rho))
+    motion = np.column_stack([gauss_markov(rng, n, dt, 1.0, VIBRATION_TAU_S) for _ in range(3)]) * np.broadcast_to(scale, (n,))[:, None]
+    rate = np.zeros_like(motion)
+    rate[1:] = np.diff(motion, axis=0) / np.diff(t_s)[:, None]
+    return rate
+
+
 @dataclass
 class ImuLog:
     """A simulated log: the drive at the IMU's rate (the reference truth as its positions, the
@@ -202,19 +245,23 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
     speed = at(m.speed_mps)
     mount = rotation_deg(*(np.array(g.mount_deg) + rng.normal(0.0, g.mount_spread_deg, 3)))
     f_s, w_s = at(m.specific_force_mps2) @ mount, at(m.angular_rate_radps) @ mount  # sensor = mount^T body
-    per_sample = math.sqrt(g.imu_rate_hz / 10.0)
     dt_mean = 1.0 / g.imu_rate_hz
 
     def wander(instability: float) -> np.ndarray:
         return np.column_stack([gauss_markov(rng, n, dt_mean, instability, g.bias_tau_s) for _ in range(3)])
 
-    moving = speed > 0.05
-    gyro_sigma = np.deg2rad(np.where(moving, g.gyro_noise_driving_dps, g.gyro_noise_still_dps)) * per_sample
-    accel_sigma = np.minimum(g.accel_noise_still_mps2 + g.accel_noise_per_mps * speed, max(g.accel_noise_max_mps2, g.accel_noise_still_mps2)) * per_sample
+    # vibration: full strength from walking pace (a stepless ramp, so its motion has no jump)
+    moving = np.clip(speed / 1.0, 0.0, 1.0)
+    gyro_vib = np.deg2rad(g.gyro_noise_still_dps + moving * (g.gyro_noise_driving_dps - g.gyro_noise_still_dps))
+    accel_vib = np.minimum(g.accel_noise_still_mps2 + g.accel_noise_per_mps * speed, max(g.accel_noise_max_mps2, g.accel_noise_still_mps2))
+    white = math.sqrt(g.imu_rate_hz) / 60.0  # a random walk per sqrt(h) -> 1 sigma per sample
+    gyro_white, accel_white = np.deg2rad(g.gyro_random_walk_dps_rthr) * white, g.accel_random_walk_mps_rthr * white
     gyro_bias, gyro_scale = np.deg2rad(rng.normal(0.0, g.gyro_bias_dps, 3)), rng.normal(0.0, g.gyro_scale, 3)
-    gyro = (1.0 + gyro_scale) * w_s + gyro_bias + np.deg2rad(wander(g.gyro_instability_dps)) + rng.normal(0.0, 1.0, (n, 3)) * gyro_sigma[:, None]
+    gyro = ((1.0 + gyro_scale) * w_s + gyro_bias + np.deg2rad(wander(g.gyro_instability_dps)) + vibration(rng, t, gyro_vib)
+            + rng.normal(0.0, gyro_white, (n, 3)))
     accel_bias, accel_scale = rng.normal(0.0, g.accel_bias_mps2, 3), rng.normal(0.0, g.accel_scale, 3)
-    accel = (1.0 + accel_scale) * f_s + accel_bias + wander(g.accel_instability_mps2) + rng.normal(0.0, 1.0, (n, 3)) * accel_sigma[:, None]
+    accel = ((1.0 + accel_scale) * f_s + accel_bias + wander(g.accel_instability_mps2) + vibration(rng, t, accel_vib)
+             + rng.normal(0.0, accel_white, (n, 3)))
 
     # the reference truth (exact) and the receiver (wandering), at every row; fixes at its epochs
     position = at(m.position_m)
