@@ -24,28 +24,27 @@ import time
 import numpy as np
 
 from ionav_viz.core.drive import IMU_COLUMNS, Drive
+from ionav_viz.core.grid import GRID_RATE_HZ, GRID_STEP_S
 from ionav_viz.nav.bias import SensorBias
 from ionav_viz.nav.gins import GinsEstimator
 from ionav_viz.nav.outages import tile
 from ionav_viz.nav.protocol import EstimatorInputs
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sim.imu import imu_drive
+from ionav_viz.sources.resample import ImuBins
 
 
 def ten_hz(drive: Drive) -> Drive:
-    """The drive as a log reader bins it: means of the IMU per 0.1 s, the other columns sampled."""
-    k = np.floor((drive.t_s - drive.t_s[0]) / 0.1 + 1e-9).astype(int)
-    n = np.bincount(k)
-    keep = n > 0
-    first = np.searchsorted(k, np.flatnonzero(keep))
-    columns = {}
-    for name, values in drive.columns.items():
-        if name in IMU_COLUMNS or name in ("accel_long_mps2", "yaw_rate_radps"):
-            columns[name] = np.bincount(k, values)[keep] / n[keep]
-        else:
-            columns[name] = values[first]
-    columns["t_s"] = np.flatnonzero(keep) * 0.1
-    return Drive(drive.name, drive.source, 10.0, drive.start_time_of_day_s, columns)
+    """The drive as a log reader bins it: the reader's own 0.1 s means of the IMU
+    (:class:`~ionav_viz.sources.resample.ImuBins`), the other columns taken at the nearest sample."""
+    bins = ImuBins(GRID_STEP_S, False, lambda block: block)
+    bins.add_block(np.column_stack([drive.t_s, *(drive.columns[c] for c in IMU_COLUMNS)]))
+    t, means, _ = bins.means()
+    nearest = np.clip(np.searchsorted(drive.t_s, t), 0, len(drive) - 1)
+    columns = {name: values[nearest] for name, values in drive.columns.items() if name not in IMU_COLUMNS}
+    columns |= dict(zip(IMU_COLUMNS, means.T, strict=True))
+    columns |= {"t_s": t - t[0], "accel_long_mps2": means[:, 0], "yaw_rate_radps": means[:, 5]}
+    return Drive(drive.name, drive.source, GRID_RATE_HZ, drive.start_time_of_day_s, columns)
 
 
 def best_of(repeat: int, fn) -> float:

@@ -33,7 +33,7 @@ from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodeti
 from ..core.grid import MIN_COURSE_SPEED_MPS
 from .protocol import Estimate, EstimatorInputs
 from .stillness import drive_still
-from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
+from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, quat_mul, run_filter
 from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
 from .windows import Windows
 
@@ -105,12 +105,7 @@ def _level_attitude(accel_mean: np.ndarray, heading_deg: float) -> np.ndarray:
     qz = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
     qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])
     qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
-    return _qmul(_qmul(qz, qy), qx)
-
-
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3], a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1], a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+    return quat_mul(quat_mul(qz, qy), qx)
 
 
 @dataclass

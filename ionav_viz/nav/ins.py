@@ -25,6 +25,10 @@ from .bias import SensorBias
 from .integrals import trapezoid_mean
 from .protocol import Estimate, EstimatorInputs
 
+#: A still step's change of speed in :func:`dead_reckon` (m/s): more than any speed an outage can
+#: integrate to, less than the running sum's precision would notice (1e-9 m/s after 600 stops).
+STOP_STEP_MPS = 1e4
+
 
 def dead_reckon(accel_mps2: np.ndarray, gyro_radps: np.ndarray, speed0_mps: np.ndarray, bias: SensorBias,
                 rate_hz: float, still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -45,10 +49,12 @@ def dead_reckon(accel_mps2: np.ndarray, gyro_radps: np.ndarray, speed0_mps: np.n
     dv = (0.5 * (acc[..., 1:] + acc[..., :-1]) * h).reshape(n_seq, n_windows * steps)
     # the end of each step: still when the window's sample there is (a window's last sample is the next one's first)
     stop = np.zeros_like(dv, dtype=bool) if still is None else still[..., 1:].reshape(n_seq, n_windows * steps)
-    v = np.empty((n_seq, n_windows * steps + 1))
-    v[:, 0] = np.asarray(speed0_mps, dtype=np.float64)
-    for k in range(n_windows * steps):  # each step depends on the last (clamped at zero); vectorised over outages
-        v[:, k + 1] = np.where(stop[:, k], 0.0, np.maximum(v[:, k] + dv[:, k], 0.0))
+    # v[k+1] = max(v[k] + dv[k], 0), and 0 after a still step. Without the clamp v is the running
+    # sum S; with it (Lindley's recursion) v = S - min(0, running min of S). A still step is a
+    # step down larger than any speed, so the clamp brings v to zero there.
+    dv = np.where(stop, -STOP_STEP_MPS, dv)
+    s = np.concatenate([np.asarray(speed0_mps, dtype=np.float64).reshape(n_seq, 1), dv], axis=1).cumsum(axis=1)
+    v = s - np.minimum(np.minimum.accumulate(s, axis=1), 0.0)
     disp = (0.5 * (v[:, :-1] + v[:, 1:]) * h).reshape(n_seq, n_windows, steps).sum(axis=-1)
     return disp, trapezoid_mean(gyr)
 

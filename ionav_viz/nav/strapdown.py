@@ -141,7 +141,8 @@ class GinsNoise:
 
 
 @njit(cache=True)
-def _quat_mul(a, b):  # pragma: no cover - compiled
+def quat_mul(a, b):  # pragma: no cover - compiled
+    """The Hamilton product ``a b`` of quaternions (w, x, y, z)."""
     return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
                      a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
                      a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
@@ -381,7 +382,7 @@ def _correct(x, dx):  # pragma: no cover - compiled
     x[THM] -= dx[DTHM]
     x[SG] -= dx[DSG]
     # C = (I + [phi x]) C_hat: the quaternion of the small rotation phi, on the left
-    q = _quat_mul(_quat_of_rotvec(dx[PHI:PHI + 3]), x[QW:QW + 4].copy())
+    q = quat_mul(_quat_of_rotvec(dx[PHI:PHI + 3]), x[QW:QW + 4].copy())
     x[QW:QW + 4] = q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     dx[:] = 0.0
 
