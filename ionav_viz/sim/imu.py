@@ -250,8 +250,8 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
     def wander(instability: float) -> np.ndarray:
         return np.column_stack([gauss_markov(rng, n, dt_mean, instability, g.bias_tau_s) for _ in range(3)])
 
-    # vibration: full strength from walking pace (a stepless ramp, so its motion has no jump)
-    moving = np.clip(speed / 1.0, 0.0, 1.0)
+    # the road's vibration starts with the wheels rolling (a ramp to 0.1 m/s, so its motion has no jump)
+    moving = np.clip(speed / 0.1, 0.0, 1.0)
     gyro_vib = np.deg2rad(g.gyro_noise_still_dps + moving * (g.gyro_noise_driving_dps - g.gyro_noise_still_dps))
     accel_vib = np.minimum(g.accel_noise_still_mps2 + g.accel_noise_per_mps * speed, max(g.accel_noise_max_mps2, g.accel_noise_still_mps2))
     white = math.sqrt(g.imu_rate_hz) / 60.0  # a random walk per sqrt(h) -> 1 sigma per sample
