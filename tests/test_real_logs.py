@@ -12,6 +12,7 @@ import pytest
 
 import ionav_viz as iv
 from ionav_viz.core.drive import IMU_COLUMNS
+from ionav_viz.sim.imu import write_imu_log
 
 from .conftest import run_cli
 from .mcap_fixtures import write_realistic
@@ -62,6 +63,20 @@ def test_a_poor_receiver_is_named_not_the_outage_length(tmp_path):
         assert proc.returncode == 2 and error.startswith("error: ") and "Traceback" not in proc.stderr, proc.stderr
         assert "the GNSS is untrustworthy in 100% of the samples (poor-accuracy 100%)" in error, error
         assert "shorter outages will not help" in error and "use shorter outages" not in proc.stderr
+        assert "the receiver reports 12.0 m (median); --gnss-limit max_sigma_m=12" in error, error  # the limit that takes them
+
+
+def test_a_phone_without_a_reference_is_scored_with_the_limit_the_error_names(tmp_path):
+    """A phone reports 8 m for every fix: without a reference nothing is trustworthy truth, and the
+    error names the --gnss-limit that scores against its own fixes; with it, the log is scored."""
+    phone = write_imu_log(tmp_path / "phone.mcap", "hard-brake", 2, 120.0, "phone")
+    args = ("evaluate", str(phone), "--gnss-topic", "/gps/fix", "--imu-mount", "auto", "--no-idnn", "--json")
+    proc = run_cli(*args)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    limit = re.search(r"--gnss-limit (max_sigma_m=\d+) scores against fixes that coarse", proc.stderr)
+    assert limit and limit.group(1) == "max_sigma_m=8", proc.stderr
+    proc = run_cli(*args, "--gnss-limit", limit.group(1))
+    assert proc.returncode == 0 and len(json.loads(proc.stdout)["sequences"]) >= 5, proc.stderr
 
 
 def test_a_reference_beside_the_receiver_is_the_truth(log, tmp_path):

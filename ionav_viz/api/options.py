@@ -4,6 +4,7 @@ checks on the arguments they take, each in one place."""
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -191,8 +192,18 @@ def no_outage_fits(drives: Sequence[Drive], n_windows: int, where: str) -> Input
     faults = np.concatenate([d.gnss_fault for d in drives]) if drives else np.zeros(0, dtype=np.uint16)
     bad = float(np.mean(faults != 0)) if len(faults) else 0.0
     if bad >= POOR_GNSS_SHARE:
-        reasons = ", ".join(f"{name} {n / len(faults):.0%}" for name, n in sorted(count_by_fault(faults).items(), key=lambda kv: -kv[1]))
+        counts = sorted(count_by_fault(faults).items(), key=lambda kv: -kv[1])
+        reasons = ", ".join(f"{name} {n / len(faults):.0%}" for name, n in counts)
+        hint = ("shorter outages will not help: check the receiver's fixes (the recording's GNSS quality view), or loosen the checks "
+                "with --gnss-limit (docs/method.md, GNSS quality)")
+        sigmas = [d.columns["gnss_sigma_m"] for d in drives if "gnss_sigma_m" in d.columns]
+        if counts[0][0] == "poor-accuracy" and sigmas:
+            sigma = np.concatenate(sigmas)
+            sigma = sigma[np.isfinite(sigma)]
+            if len(sigma):  # a phone reports ~8 m: name the limit that scores against fixes that coarse
+                hint = (f"shorter outages will not help: the receiver reports {np.median(sigma):.1f} m (median); "
+                        f"--gnss-limit max_sigma_m={math.ceil(np.percentile(sigma, 90))} scores against fixes that coarse, "
+                        "or --truth-topic names a reference to score against (docs/method.md, GNSS quality)")
         return InputError(f"no {n_windows:g} s outage fits on good GNSS truth in {where}: the GNSS is untrustworthy in {bad:.0%} of the "
-                          f"samples ({reasons})", "shorter outages will not help: check the receiver's fixes (the recording's GNSS "
-                          "quality view), or loosen the checks with --gnss-limit (docs/method.md, GNSS quality)", param="outage_s")
+                          f"samples ({reasons})", hint, param="outage_s")
     return InputError(f"no {n_windows:g} s outage fits in {where}", "use shorter outages", param="outage_s")
