@@ -21,7 +21,9 @@ Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS spe
   complex numbers, so ``yaw = -arg(sum((h - mean h) * conj(b - mean b)))`` (least squares; the
   means take out accelerometer bias and gravity left by a road's grade), over samples above 0.5 m/s
   (a slow robot counts too), both smoothed over 1 s alike;
-* **uncertainty**: yaw's standard deviation from the residuals, ``sigma / sqrt(2 * sum |b|^2)``;
+* **uncertainty**: yaw's standard deviation from the residuals, from their sums over 30 s blocks
+  (batch means: a road's camber tilts gravity into ``h`` for tens of seconds, so neighbouring
+  seconds are not independent), never below ``sigma / sqrt(2 * sum |b|^2)`` of independent seconds;
   roll and pitch's from the spread of the still samples (or, over a whole drive, 1 degree: a
   road's grade and the car's accelerations do not quite average out).
 """
@@ -48,6 +50,9 @@ STILL_MPS, MIN_STILL_S = 0.3, 5.0
 #: (sum of |b|^2 over samples, (m/s^2)^2) to say anything.
 MOVING_MPS = 0.5
 MIN_EXCITATION = 20.0
+#: The yaw's uncertainty counts blocks of this many seconds as independent (a road's camber and
+#: grade leave errors correlated over tens of seconds; see ``_estimate``).
+YAW_BLOCK_S = 30.0
 #: Gravity must read between these (m/s^2) for the up axis to be trusted.
 GRAVITY_RANGE_MPS2 = (0.7 * G_MPS2, 1.3 * G_MPS2)
 
@@ -210,6 +215,7 @@ def _estimate(accel_xyz: np.ndarray, mean_f: np.ndarray, motion: np.ndarray, spe
     hc = _smooth(h[:, 0], n_smooth) + 1j * _smooth(h[:, 1], n_smooth)
     b = motion[:, 0] + 1j * motion[:, 1]
     hc, b = hc[moving], b[moving]
+    block = np.flatnonzero(moving) // (n_smooth * int(YAW_BLOCK_S))
     yaw_known = len(b) > 10
     excitation = 0.0
     if yaw_known:
@@ -221,7 +227,13 @@ def _estimate(accel_xyz: np.ndarray, mean_f: np.ndarray, motion: np.ndarray, spe
         residual = hc - np.exp(-1j * yaw) * b
         sigma = float(np.sqrt(np.mean(np.abs(residual) ** 2) / 2.0))
         # samples smoothed over 1 s are not independent: count one per second
-        s_yaw = math.degrees(sigma / math.sqrt(2.0 * excitation / n_smooth))
+        s_white = sigma / math.sqrt(2.0 * excitation / n_smooth)
+        # nor are the seconds: a road's camber and grade tilt gravity into h for tens of seconds.
+        # The yaw's error is -Im(exp(i yaw) sum(residual conj(b))) / excitation; its variance from
+        # the sums over YAW_BLOCK_S blocks (batch means), never below the independent seconds'.
+        terms = np.imag(np.exp(1j * yaw) * residual * np.conj(b))
+        s_blocks = math.sqrt(float(np.sum(np.bincount(block, weights=terms) ** 2))) / excitation
+        s_yaw = math.degrees(max(s_white, s_blocks))
     else:
         yaw, s_yaw = 0.0, math.nan
     rz = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
