@@ -75,15 +75,15 @@ class ImuGrade:
     gyro_bias_dps: float
     gyro_instability_dps: float
     gyro_scale: float
-    gyro_noise_still_dps: float
-    gyro_noise_driving_dps: float
+    gyro_vibration_still_dps: float
+    gyro_vibration_driving_dps: float
     gyro_random_walk_dps_rthr: float
     accel_bias_mps2: float
     accel_instability_mps2: float
     accel_scale: float
-    accel_noise_still_mps2: float
-    accel_noise_per_mps: float
-    accel_noise_max_mps2: float
+    accel_vibration_still_mps2: float
+    accel_vibration_per_mps: float
+    accel_vibration_max_mps2: float
     accel_random_walk_mps_rthr: float
     bias_tau_s: float
     mount_deg: tuple[float, float, float]
@@ -102,14 +102,14 @@ class ImuGrade:
 
 IMU_GRADES = {
     "mems": ImuGrade("mems", 100.0, 10.0, gyro_bias_dps=50.0 / 3600.0, gyro_instability_dps=0.005, gyro_scale=0.003,
-                     gyro_noise_still_dps=0.06, gyro_noise_driving_dps=0.15, gyro_random_walk_dps_rthr=0.24, accel_bias_mps2=0.05, accel_instability_mps2=0.01,
-                     accel_scale=0.003, accel_noise_still_mps2=0.13, accel_noise_per_mps=0.008, accel_noise_max_mps2=0.3, accel_random_walk_mps_rthr=0.24,
+                     gyro_vibration_still_dps=0.06, gyro_vibration_driving_dps=0.15, gyro_random_walk_dps_rthr=0.24, accel_bias_mps2=0.05, accel_instability_mps2=0.01,
+                     accel_scale=0.003, accel_vibration_still_mps2=0.13, accel_vibration_per_mps=0.008, accel_vibration_max_mps2=0.3, accel_random_walk_mps_rthr=0.24,
                      bias_tau_s=600.0, mount_deg=(0.5, -0.7, 2.2), mount_spread_deg=0.3, gnss_wander_m=1.2, gnss_tau_s=30.0,
                      gnss_white_m=0.1, gnss_reported_sigma_m=1.5, gnss_speed_noise_mps=0.05, clock_jitter_s=0.0005,
                      missing_sample_prob=0.0, vehicle_speed=True),
     "phone": ImuGrade("phone", 10.0, 1.0, gyro_bias_dps=0.3, gyro_instability_dps=0.02, gyro_scale=0.01,
-                      gyro_noise_still_dps=0.12, gyro_noise_driving_dps=0.5, gyro_random_walk_dps_rthr=0.8, accel_bias_mps2=0.15, accel_instability_mps2=0.02,
-                      accel_scale=0.01, accel_noise_still_mps2=0.25, accel_noise_per_mps=0.015, accel_noise_max_mps2=0.45, accel_random_walk_mps_rthr=0.3,
+                      gyro_vibration_still_dps=0.12, gyro_vibration_driving_dps=0.5, gyro_random_walk_dps_rthr=0.8, accel_bias_mps2=0.15, accel_instability_mps2=0.02,
+                      accel_scale=0.01, accel_vibration_still_mps2=0.25, accel_vibration_per_mps=0.015, accel_vibration_max_mps2=0.45, accel_random_walk_mps_rthr=0.3,
                       bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0, gnss_wander_m=2.5, gnss_tau_s=60.0,
                       gnss_white_m=0.5, gnss_reported_sigma_m=8.0, gnss_speed_noise_mps=0.3, clock_jitter_s=0.005,
                       missing_sample_prob=0.01, vehicle_speed=False),
@@ -252,8 +252,8 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
 
     # the road's vibration starts with the wheels rolling (a ramp to 0.1 m/s, so its motion has no jump)
     moving = np.clip(speed / 0.1, 0.0, 1.0)
-    gyro_vib = np.deg2rad(g.gyro_noise_still_dps + moving * (g.gyro_noise_driving_dps - g.gyro_noise_still_dps))
-    accel_vib = np.minimum(g.accel_noise_still_mps2 + g.accel_noise_per_mps * speed, max(g.accel_noise_max_mps2, g.accel_noise_still_mps2))
+    gyro_vib = np.deg2rad(g.gyro_vibration_still_dps + moving * (g.gyro_vibration_driving_dps - g.gyro_vibration_still_dps))
+    accel_vib = np.minimum(g.accel_vibration_still_mps2 + g.accel_vibration_per_mps * speed, max(g.accel_vibration_max_mps2, g.accel_vibration_still_mps2))
     white = math.sqrt(g.imu_rate_hz) / 60.0  # a random walk per sqrt(h) -> 1 sigma per sample
     gyro_white, accel_white = np.deg2rad(g.gyro_random_walk_dps_rthr) * white, g.accel_random_walk_mps_rthr * white
     gyro_bias, gyro_scale = np.deg2rad(rng.normal(0.0, g.gyro_bias_dps, 3)), rng.normal(0.0, g.gyro_scale, 3)
