@@ -55,8 +55,17 @@ into the nominal one after each update. KF-GINS propagates ``Phi = I + F dt`` pe
 Gauss-Markov biases (``corrtime``, hours) and a lever arm; we propagate once per window (a third-
 order series, for speed), take the biases as random walks (the same over an outage's seconds) and
 have no lever arm (logs rarely carry it; its error is the arm times the attitude error, centimetres).
-KF-GINS has no vehicle constraints; its sibling OB_GINS and the AI-IMU line of work add the
-non-holonomic and odometer updates that a car's filter needs, as here.
+KF-GINS has no vehicle constraints. Its sibling OB_GINS (i2Nav-WHU, a sliding-window
+optimiser over 30 s of pre-integrated IMU) adds them as we do: the odometer and the non-holonomic
+constraint are one measurement of the vehicle-frame velocity ``(v_odo, 0, 0)`` with a standard
+deviation per axis (``odometer.std``, 0.05 m/s; ``preintegration_odo.cc``), the IMU turned into
+the vehicle frame by mounting angles (``bodyangle``, fixed there, estimated residuals here) and the
+odometer's scale error estimated as a state (``sodo``, a random walk of ``srw`` ppm). It integrates
+the odometer's distance between epochs; we take the velocity at each window boundary. pyins
+(nmayorov, ``filters.run_feedback_filter``) propagates the covariance over batches of increments
+(``time_step``, "should not exceed 1 second") from the batch's mean state and rates, the
+trade-off we make with our 1 s windows, and takes odometry or NHC as a ``BodyVelocity``
+measurement, as above. Neither has a zero-velocity detector: ours is :mod:`ionav_viz.nav.stillness`.
 """
 
 from __future__ import annotations
