@@ -31,17 +31,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import ionav_viz as iv
+from ionav_viz.core.runs import run_ranges
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.nav.stillness import drive_still
 from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, imu_drive, write_imu_log
 from ionav_viz.sim.simulate import fleet_sensors, plan_truth, write_simulated_drive
 
 STANDING_MPS, CREEPING_MPS, MOVING_MPS, MIN_STOP_S = 0.01, 0.05, 0.5, 1.0
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
 
 
 class Tally:
@@ -55,7 +51,7 @@ class Tally:
     def add(self, t_s: np.ndarray, speed_mps: np.ndarray, still: np.ndarray) -> None:
         dt = np.gradient(t_s)
         standing = speed_mps < STANDING_MPS
-        for a, b in _runs(standing)[1:]:  # the first stand calibrates the detector: not scored
+        for a, b in run_ranges(standing)[1:]:  # the first stand calibrates the detector: not scored
             self.standing += b - a
             self.standing_hit += int(still[a:b].sum())
             if t_s[b - 1] - t_s[a] >= MIN_STOP_S:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .runs import keep_runs, true_runs
+
 #: Rate (Hz) of the grid that inertial signals and GNSS are put on (the IO-VNBD rate).
 GRID_RATE_HZ = 10.0
 #: One time step of the grid (s).
@@ -34,13 +36,11 @@ def hold_course_when_slow(heading_deg: np.ndarray, speed_mps: np.ndarray, min_sp
     """
     fast = np.asarray(speed_mps) >= min_speed_mps
     if t_s is not None and min_run_s > 0 and fast.any():
-        edges = np.diff(np.concatenate([[0], fast.astype(np.int8), [0]]))
-        first, end = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        first, end = true_runs(fast)
         t = np.asarray(t_s, dtype=float)
         long_enough = t[end - 1] - t[first] >= min_run_s
-        run = np.cumsum(edges[:-1] == 1) - 1  # each sample's stretch (valid where fast)
         if long_enough.any():  # else the short stretches are all the course there is
-            fast &= long_enough[np.maximum(run, 0)]
+            fast = keep_runs(fast, long_enough)
     if fast.all() or not fast.any():
         return heading_deg.copy()
     idx = np.where(fast, np.arange(len(fast)), 0)

@@ -50,6 +50,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.drive import Drive, measured_imu
+from ..core.runs import keep_runs, true_runs
 from .bias import stationary_mask
 from .windows import Windows
 
@@ -76,10 +77,16 @@ def _columns(x: np.ndarray) -> np.ndarray:
 def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
     """Centred moving mean over ``n`` samples along the first axis (shorter windows at the ends)."""
     x = _columns(x)
+    m = len(x)
     c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-    i = np.arange(len(x))
-    lo, hi = np.clip(i - n // 2, 0, len(x)), np.clip(i - n // 2 + n, 0, len(x))
-    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+    out = np.empty((m, x.shape[1]))
+    first, last = n // 2, m - n + n // 2  # samples whose whole window lies inside: slices, no gather
+    if last >= first:
+        out[first:last + 1] = (c[n:] - c[:m - n + 1]) / n
+    edges = np.r_[0:min(first, m), max(last + 1, 0):m]
+    lo, hi = np.clip(edges - n // 2, 0, m), np.clip(edges - n // 2 + n, 0, m)
+    out[edges] = (c[hi] - c[lo]) / (hi - lo)[:, None]
+    return out
 
 
 def moving_spread(x: np.ndarray, n: int) -> np.ndarray:
@@ -92,15 +99,10 @@ def moving_spread(x: np.ndarray, n: int) -> np.ndarray:
 
 def _drop_short(mask: np.ndarray, min_len: int) -> np.ndarray:
     """``mask`` without its runs of True shorter than ``min_len`` samples."""
-    if min_len <= 1 or not mask.any():
+    if min_len <= 1:
         return mask
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    out = np.zeros_like(mask)
-    for a, b in zip(starts, ends):
-        if b - a >= min_len:
-            out[a:b] = True
-    return out
+    starts, ends = true_runs(mask)
+    return keep_runs(mask, ends - starts >= min_len)
 
 
 def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, reference_still: np.ndarray | None = None) -> np.ndarray:
