@@ -3,6 +3,7 @@ and the INS DR on simulated 6-axis logs of seeds other than docs/results.md's.
 
     python benchmarks/gins_seeds.py                       # phone, seeds 930-938, 10 and 30 s outages
     python benchmarks/gins_seeds.py --grade mems --first-seed 940 --drives 9
+    python benchmarks/gins_seeds.py --without-velocity    # the receiver's velocity left out: speed and course fitted to the fixes
 
 Each drive is ``--minutes`` long, written as MCAP by the 6-axis simulator (the scenarios roundabout,
 sharp-cornering and hard-brake in turn) and read back like a user's log (``--truth-topic
@@ -34,15 +35,18 @@ def main() -> None:
     parser.add_argument("--drives", type=int, default=9)
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--lengths", default="10,30", help="outage lengths (s), comma-separated")
+    parser.add_argument("--without-velocity", action="store_true", help="read the logs with --gnss-velocity-topic none (a log of fixes only)")
     args = parser.parse_args()
     lengths = [float(x) for x in args.lengths.split(",")]
     seeds = range(args.first_seed, args.first_seed + args.drives)
-    log = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto")
+    log = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto",
+                        gnss_velocity_topic="none" if args.without_velocity else None)
     with tempfile.TemporaryDirectory() as tmp:
         paths = [str(write_imu_log(Path(tmp) / f"{args.grade}-{s}.mcap", SCENARIOS[i % 3], s, 60.0 * args.minutes, args.grade))
                  for i, s in enumerate(seeds)]
         reports = iv.evaluate_lengths(paths, lengths, estimators=list(ESTIMATORS), read=iv.ReadOptions(log=log))
-    print(f"{args.grade}, seeds {seeds[0]}-{seeds[-1]}, {args.minutes:g} min each: final error, % of distance driven")
+    fixes_only = ", fixes only (no receiver velocity)" if args.without_velocity else ""
+    print(f"{args.grade}{fixes_only}, seeds {seeds[0]}-{seeds[-1]}, {args.minutes:g} min each: final error, % of distance driven")
     for length, rep in reports.items():
         per: dict[str, dict[str, list[float]]] = {}
         for seq in rep.to_dict()["sequences"]:

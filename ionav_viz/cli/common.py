@@ -27,7 +27,9 @@ ImuMount = typer.Option(None, "--imu-mount", help="MCAP/ROS bags: the IMU's moun
                         show_default=False)
 ImuTopic = typer.Option(None, "--imu-topic", help="MCAP/ROS bags: the IMU topic (default: the one sensor_msgs/msg/Imu topic).", show_default=False)
 GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP/ROS bags: the GNSS topic (default: the one NavSatFix or LocationFix topic).", show_default=False)
-GnssVelocityTopic = typer.Option(None, "--gnss-velocity-topic", "--speed-topic", help="MCAP/ROS bags: the receiver's velocity (TwistStamped, world frame): GNSS speed and course (default: the one such topic).",
+GnssVelocityTopic = typer.Option(None, "--gnss-velocity-topic", "--speed-topic",
+                                 help="MCAP/ROS bags: the receiver's velocity (TwistStamped, world frame): GNSS speed and course "
+                                      "(default: the one such topic), or 'none' (from the fixes).",
                                  show_default=False)
 VehicleSpeedTopic = typer.Option(None, "--vehicle-speed-topic", help="MCAP/ROS bags: the vehicle's speed (wheel or CAN odometry: Odometry, or TwistStamped in a body frame; default: the one such topic), or 'none'.",
                                  show_default=False)

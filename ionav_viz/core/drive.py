@@ -51,6 +51,7 @@ OPTIONAL_COLUMNS = (
     "n_satellites",
     "gnss_sigma_m",
     "gnss_fix",
+    "gnss_speed_fitted",
     "speed_can_mps",
     "accel_lat_mps2",
     "steering_angle_deg",
@@ -76,7 +77,9 @@ class Drive:
             float64 arrays, one value per sample. ``gnss_sigma_m`` is the horizontal standard
             deviation of the fix the source reports (m); ``gnss_fix`` is 0 where the source had no
             fix at that sample (a log's IMU goes on through a GNSS gap; the position there is only
-            interpolated) and 1 elsewhere.
+            interpolated) and 1 elsewhere; ``gnss_speed_fitted`` is 1 where the receiver's speed and
+            course are fitted to its fixes (the source gave no velocity: they carry no information
+            the positions do not) and 0 where it measured them.
         gnss_fault: uint16 per sample, 0 = good GNSS truth (see :mod:`ionav_viz.core.gnss_quality`);
             all good when not given.
         receiver_fault: with :data:`RECEIVER_COLUMNS`, the same for the receiver's fixes (which
@@ -147,6 +150,13 @@ class Drive:
     def gnss_ok(self) -> np.ndarray:
         """Whether each sample's GNSS fix is trustworthy ground truth."""
         return self.gnss_fault == 0
+
+    @property
+    def speed_fitted(self) -> np.ndarray:
+        """Whether each sample's receiver speed and course were fitted to the fixes (the source gave
+        no velocity; ``gnss_speed_fitted``), not measured: bool per sample."""
+        flag = self.columns.get("gnss_speed_fitted")
+        return np.zeros(len(self), dtype=bool) if flag is None else flag != 0
 
     @property
     def has_reference(self) -> bool:

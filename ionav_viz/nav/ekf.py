@@ -8,6 +8,7 @@ and its speed never below zero.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -32,13 +33,17 @@ class EkfEstimator:
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         w = inputs.windows
-        meas, inc = measurements(inputs.drive, w, self.noise), increments(w)
-        xs, Ps, slow = forward_states(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, self.noise)
-        q, _ = noise_arrays(self.noise, inc.T)
+        noise = self.noise
+        if len(inputs.drive) and inputs.drive.speed_fitted.all():  # no receiver velocity: the fixes' fit is noisier
+            noise = replace(noise, gnss_speed_mps=max(noise.gnss_speed_mps, noise.gnss_fitted_speed_mps),
+                            gnss_course_rad_at_10mps=max(noise.gnss_course_rad_at_10mps, noise.gnss_fitted_course_rad_at_10mps))
+        meas, inc = measurements(inputs.drive, w, noise), increments(w)
+        xs, Ps, slow = forward_states(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, noise)
+        q, _ = noise_arrays(noise, inc.T)
         still_at_end = np.ascontiguousarray(inputs.still[..., -1])  # each window's last grid point: where its state ends
         disp, yaw = outage_kernel(xs, Ps, slow, np.asarray(inputs.starts, dtype=np.int64), int(inputs.n_windows), inc.F, inc.G, inc.W,
-                                   float(inc.T), meas.vehicle, q, self.noise.vehicle_speed_mps**2, GRADE_LENGTH_M, still_at_end,
-                                   self.noise.still_speed_mps**2)
+                                   float(inc.T), meas.vehicle, q, noise.vehicle_speed_mps**2, GRADE_LENGTH_M, still_at_end,
+                                   noise.still_speed_mps**2)
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",

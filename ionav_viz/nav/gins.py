@@ -173,11 +173,14 @@ class GinsEstimator:
         sigma_a = max(white_noise_per_sample(acc), self.noise.accel_white_floor_mps2)
         sigma_g = max(white_noise_per_sample(gyr), self.noise.gyro_white_floor_radps)
         walk, init = self.noise.arrays()
+        # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
+        fitted = len(drive) > 0 and bool(drive.speed_fitted.all())
+        r_vel = (self.noise.gnss_fitted_velocity_mps if fitted else self.noise.gnss_velocity_mps) ** 2
         lat0 = origin[0]
         n = self.noise
         args = dict(t=np.ascontiguousarray(drive.t_s), acc=acc, gyr=gyr, b_sample=b.sample.astype(np.int64), b_start=b.segment_start,
                     gnss_ok=b.gnss_ok, gnss_pos=pos, gnss_sigma=sigma, has_height=has_height, gnss_vel=vel, vel_ok=vel_ok, odo=odo,
-                    still=still, q_white_v=sigma_a**2 * dt, q_white_phi=sigma_g**2 * dt, walk=walk, r_vel=n.gnss_velocity_mps**2,
+                    still=still, q_white_v=sigma_a**2 * dt, q_white_phi=sigma_g**2 * dt, walk=walk, r_vel=r_vel,
                     r_lat=n.nhc_lateral_mps**2, r_vert=n.nhc_vertical_mps**2, r_odo=n.odometer_mps**2, r_zupt=n.zupt_mps**2,
                     r_zaru=sigma_g**2, omega_ie=earth_rate_enu_radps(lat0), g0=normal_gravity_mps2(lat0, origin[2]),
                     radius=EARTH_MEAN_RADIUS_M, use_nhc=self.nhc, use_odo=self.odometer and found is not None, use_zupt=self.zupt)

@@ -90,6 +90,10 @@ class EkfNoise:
     gnss_position_m: float = 1.0
     gnss_speed_mps: float = 0.05
     gnss_course_rad_at_10mps: float = np.deg2rad(0.5)
+    #: the same where the speed and course are fitted to the fixes (no receiver velocity;
+    #: Drive.speed_fitted): measured on 1 Hz phone logs and 1-20 Hz fix-only logs (docs/method.md)
+    gnss_fitted_speed_mps: float = 0.5
+    gnss_fitted_course_rad_at_10mps: float = np.deg2rad(2.0)
     vehicle_speed_mps: float = 0.15
     still_speed_mps: float = 0.05
     init_position_m: float = 1.0

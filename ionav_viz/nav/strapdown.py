@@ -110,6 +110,8 @@ class GinsNoise:
     gyro_scale_walk: float = 1e-5
     gnss_position_m: float = 1.0
     gnss_velocity_mps: float = 0.3
+    #: where the speed and course are fitted to the fixes (no receiver velocity; Drive.speed_fitted)
+    gnss_fitted_velocity_mps: float = 2.0
     nhc_lateral_mps: float = 0.1
     nhc_vertical_mps: float = 0.1
     odometer_mps: float = 0.1

@@ -25,7 +25,7 @@ class LogOptions:
 
     imu_topic: str | None = None
     gnss_topic: str | None = None
-    #: the receiver's velocity (TwistStamped in a world frame): GNSS speed and course
+    #: the receiver's velocity (TwistStamped in a world frame): GNSS speed and course; "none": from the fixes
     gnss_velocity_topic: str | None = None
     stamps: str = "header"
     imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)

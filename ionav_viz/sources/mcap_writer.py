@@ -48,7 +48,7 @@ SCHEMAS = {"imu": "sensor_msgs/msg/Imu", "fix": "sensor_msgs/msg/NavSatFix", "ve
 #: The drive's columns a log written here carries (``speed_can_mps`` and the wheel speeds: as the
 #: vehicle speed the caller gives).
 CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps", "height_m",
-           "gnss_sigma_m", "gnss_fix", *IMU_COLUMNS, *RECEIVER_COLUMNS)
+           "gnss_sigma_m", "gnss_fix", "gnss_speed_fitted", *IMU_COLUMNS, *RECEIVER_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -90,7 +90,9 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
     unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
-    keys = ["imu", "fix", "vel"] + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else [])
+    # a speed fitted to the fixes is no receiver's velocity: written as one it would read back as measured
+    fitted = bool(np.all(drive.columns.get("gnss_speed_fitted", np.zeros(1)) != 0))
+    keys = ["imu", "fix"] + ([] if fitted else ["vel"]) + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else [])
     count = 0
     with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
         writer = Writer(stream)

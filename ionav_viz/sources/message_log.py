@@ -159,7 +159,8 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     A ``TwistStamped`` topic is GNSS velocity when its first message's frame is a world frame, and
     vehicle speed when it is a body frame (:data:`BODY_FRAMES`); an ``Odometry`` is vehicle speed.
     Several vehicle-speed topics (wheel odometry beside a fused ``/odometry/filtered``) use none,
-    with a warning, unless one is named; ``vehicle_speed_topic="none"`` leaves it out.
+    with a warning, unless one is named; ``vehicle_speed_topic="none"`` leaves it out, and
+    ``gnss_velocity_topic="none"`` the receiver's velocity (speed and course then come from the fixes).
     """
     path = source.path
     channels = source.channels() if channels is None else channels
@@ -180,7 +181,9 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     named = {t for t in (gnss_velocity_topic, vehicle_speed_topic, truth_topic) if t not in (None, NO_TOPIC)}
     body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
     world_twists = [c for c in channels if c.schema in TWIST_SCHEMAS and c.topic not in body_twists and c.topic not in named]
-    if gnss_velocity_topic is not None:
+    if gnss_velocity_topic == NO_TOPIC:  # speed and course from the fixes (a receiver's velocity not to be trusted)
+        velocity = None
+    elif gnss_velocity_topic is not None:
         velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "--gnss-velocity-topic", path, False)
         if velocity is not None and velocity.topic in body_twists:
             raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the receiver's velocity",

@@ -200,7 +200,8 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
             held = hold_course_when_slow(s_course[has_course], s_v[has_course], MIN_COURSE_SPEED_MPS, s_t[has_course])
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(held)))
             course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS, t)
-    if v is None or course is None:
+    fitted = v is None or course is None
+    if fitted:
         # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
         # (the per-window displacement of raw fixes would carry their white noise twice)
         fit = fit_fixes(t, g_t, g_lat, g_lon)
@@ -230,6 +231,8 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         columns["gnss_sigma_m"] = sigma
     if not has_fix.all():
         columns["gnss_fix"] = has_fix.astype(float)
+    if fitted:  # the receiver's speed and course are the positions' (Drive: gnss_speed_fitted)
+        columns["gnss_speed_fitted"] = np.ones(len(t))
     if vehicle_speed is not None and len(vehicle_speed) >= 2:
         columns["speed_can_mps"] = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1])
     last_fix = np.clip(np.searchsorted(g_t, t, side="right") - 1, 0, len(g_t) - 1)
