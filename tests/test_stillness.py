@@ -89,6 +89,49 @@ def test_without_a_calibrated_standstill_nothing_is_still():
     assert not still_samples(t, quiet, quiet, reference_still=t < 2.0).any()  # 2 s: too little to measure the levels
 
 
+def _crawl_then_drive(standing_gyro_dps: float) -> iv.Drive:
+    """Two minutes at 10 Hz: 20 s where a phone's receiver reports 0.6-0.9 m/s (its standing
+    scatter, or a crawl), then 10 m/s; the gyro shakes 0.5 deg/s driving and ``standing_gyro_dps``
+    in the first 20 s."""
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 120.0, 0.1)
+    first = t < 20.0
+    speed = np.where(first, 0.75 + 0.15 * np.sin(t), 10.0)
+    gyro = rng.normal(0.0, np.deg2rad(np.where(first, standing_gyro_dps, 0.5)))
+    accel = rng.normal(0.0, np.where(first, 0.25, 0.45))
+    cols = {"t_s": t, "lat_deg": np.full_like(t, 52.0), "lon_deg": np.full_like(t, -1.5), "speed_mps": speed,
+            "heading_deg": np.zeros_like(t), "accel_long_mps2": accel, "yaw_rate_radps": gyro}
+    return iv.Drive("V-crawl", "test", 10.0, 0.0, cols)
+
+
+def test_a_stand_the_receivers_speed_scatter_hides_is_found_where_the_imu_confirms_it():
+    """A phone's receiver scatters a standing car's speed to 0.8 m/s, above the 0.5 m/s that says
+    "standing" for certain. Where the gyro there is four times quieter than driving (a phone on a
+    standing car: SENSORS.md), the stand calibrates the detector; where it shakes as much as
+    driving (a crawl in a jam), nothing is still."""
+    standing = drive_still(_crawl_then_drive(0.12))
+    t = np.arange(0.0, 120.0, 0.1)
+    assert standing[(t > 1.0) & (t < 19.0)].mean() > 0.9
+    assert not standing[t > 21.0].any()
+    assert not drive_still(_crawl_then_drive(0.5)).any()
+
+
+@pytest.mark.parametrize("seed", [5, 6, 7])
+def test_a_phone_log_whose_receiver_hides_its_only_stand_still_gets_zero_velocity(tmp_path, seed):
+    """Simulated phone logs (sharp-cornering, seeds chosen where the receiver's 3 s mean speed
+    stays above 0.5 m/s for all but 0-2 s of the start's 6 s stand): the stand is found from the IMU,
+    and no moving sample is still."""
+    from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
+
+    path = write_imu_log(tmp_path / "phone.mcap", "sharp-cornering", seed, 60.0, "phone")
+    drive = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto")))
+    still = drive_still(drive.as_received())
+    standing, moving = drive.speed_mps < 0.01, drive.speed_mps > 0.5
+    assert standing.sum() > 50
+    assert still[standing].mean() > 0.8, still[standing].mean()
+    assert not still[moving].any()
+
+
 def _plain_double_integration(inputs: EstimatorInputs) -> np.ndarray:
     """The paper's INS as it was: the bias-corrected acceleration integrated twice, through zero."""
     acc = inputs.accel_mps2 - inputs.bias.accel_mps2
