@@ -320,16 +320,18 @@ def fit_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarr
     smaller, because the long line lags when the car stops, and blended, so the speed stays
     continuous (its derivative is the events' acceleration).
 
-    Within ``h`` of the first and last fix the window is one-sided and the parabola's slope there
-    several times noisier: a parabola over ``4 h`` of fixes gives the velocity instead.
+    Within ``h`` of the first and last fix, and of a gap in the fixes longer than ``h``, the window
+    is one-sided and the parabola's slope there several times noisier: a parabola over ``4 h`` of
+    fixes gives the velocity instead.
     """
     gap = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0
     h = max(MIN_HALF_BASELINE_S, 1.5 * gap)
     lat, lon, ve, vn = _local_fit(t, g_t, g_lat, g_lon, h, degree=2)
-    # within h of the record's ends the window is one-sided, and a parabola's slope at its end has
-    # 3.6 times the noise of a centred one (three fixes): one over 4 h of fixes has about the
-    # centre's (seven 1 Hz fixes: 0.68 against 0.71 sigma) and stays exact for a constant acceleration
-    edge = (t < g_t[0] + h) | (t > g_t[-1] - h)
+    # within h of the record's ends, and of a gap wider than h, the window is one-sided, and a
+    # parabola's slope at its end has 3.6 times the noise of a centred one (three fixes): one over
+    # 4 h of fixes has about the centre's (seven 1 Hz fixes: 0.68 against 0.71 sigma) and stays
+    # exact for a constant acceleration
+    edge = _near_run_ends(t, g_t, h)
     if edge.any():
         _, _, ve[edge], vn[edge] = _local_fit(t[edge], g_t, g_lat, g_lon, 4.0 * h, degree=2)
     speed = np.hypot(ve, vn)
@@ -337,6 +339,15 @@ def fit_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarr
     still = np.minimum(speed, np.hypot(slow_ve, slow_vn))
     w = np.clip((speed - SLOW_BLEND_MPS[0]) / (SLOW_BLEND_MPS[1] - SLOW_BLEND_MPS[0]), 0.0, 1.0)
     return FixFit(lat, lon, w * speed + (1.0 - w) * still, wrap_360(np.degrees(np.arctan2(ve, vn))))
+
+
+def _near_run_ends(t: np.ndarray, g_t: np.ndarray, h: float) -> np.ndarray:
+    """Whether each time lies within ``h`` of either end of its run of fixes (runs split where the
+    fixes are more than ``h`` apart: a window of ``t +- h`` there holds fixes on one side only)."""
+    brk = np.flatnonzero(np.diff(g_t) > h)
+    first, last = np.r_[g_t[0], g_t[brk + 1]], np.r_[g_t[brk], g_t[-1]]
+    run = np.clip(np.searchsorted(first, t, side="right") - 1, 0, len(first) - 1)
+    return (t < first[run] + h) | (t > last[run] - h)
 
 
 @dataclass(frozen=True)
@@ -366,8 +377,9 @@ def _local_fit(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndar
     for a in range(0, len(t), block):
         tb = t[a : a + block]
         at = np.searchsorted(g_t, tb)
-        # the fixes within h, and at least the ones either side of t (across a wider gap: the chord)
-        lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"), np.clip(at - 1, 0, None))
+        # the fixes within h, and at least the last at or before t and the first at or after it
+        # (across a wider gap: the chord; a fix at t is its own, not one across the gap before it)
+        lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"), np.clip(np.searchsorted(g_t, tb, side="right") - 1, 0, None))
         hi = np.maximum(np.searchsorted(g_t, tb + h, side="right"), np.minimum(at + 1, len(g_t)))
         lo = np.maximum(np.minimum(lo, hi - need), 0)  # enough fixes for the polynomial, at the ends too
         hi = np.minimum(np.maximum(hi, lo + need), len(g_t))
