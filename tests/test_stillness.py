@@ -15,6 +15,7 @@ import ionav_viz as iv
 from ionav_viz import Estimate, EstimatorInputs
 from ionav_viz.nav.ins import dead_reckon
 from ionav_viz.nav.stillness import drive_still, still_samples
+from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
 from ionav_viz.sim.simulate import plan_truth, write_simulated_drive
 
 SEED, MINUTES = 3, 10
@@ -121,8 +122,6 @@ def test_a_phone_log_whose_receiver_hides_its_only_stand_still_gets_zero_velocit
     """Simulated phone logs (sharp-cornering, seeds chosen where the receiver's 3 s mean speed
     stays above 0.5 m/s for all but 0-2 s of the start's 6 s stand): the stand is found from the IMU,
     and no moving sample is still."""
-    from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
-
     path = write_imu_log(tmp_path / "phone.mcap", "sharp-cornering", seed, 60.0, "phone")
     drive = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto")))
     still = drive_still(drive.as_received())

@@ -159,6 +159,12 @@ class Drive:
         return np.zeros(len(self), dtype=bool) if flag is None else flag != 0
 
     @property
+    def velocity_fitted(self) -> bool:
+        """Whether the whole drive's receiver speed and course are fitted to the fixes (a log
+        without a velocity topic): the filters weigh them as the noisier measurements they are."""
+        return len(self) > 0 and bool(self.speed_fitted.all())
+
+    @property
     def has_reference(self) -> bool:
         """Whether the positions are a reference trajectory beside the receiver's own fixes."""
         return RECEIVER_COLUMNS[0] in self.columns

@@ -34,7 +34,7 @@ class EkfEstimator:
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         w = inputs.windows
         noise = self.noise
-        if len(inputs.drive) and inputs.drive.speed_fitted.all():  # no receiver velocity: the fixes' fit is noisier
+        if inputs.drive.velocity_fitted:  # no receiver velocity: the fixes' fit is noisier
             noise = replace(noise, gnss_speed_mps=max(noise.gnss_speed_mps, noise.gnss_fitted_speed_mps),
                             gnss_course_rad_at_10mps=max(noise.gnss_course_rad_at_10mps, noise.gnss_fitted_course_rad_at_10mps))
         meas, inc = measurements(inputs.drive, w, noise), increments(w)

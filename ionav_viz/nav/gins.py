@@ -174,8 +174,7 @@ class GinsEstimator:
         sigma_g = max(white_noise_per_sample(gyr), self.noise.gyro_white_floor_radps)
         walk, init = self.noise.arrays()
         # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
-        fitted = len(drive) > 0 and bool(drive.speed_fitted.all())
-        r_vel = (self.noise.gnss_fitted_velocity_mps if fitted else self.noise.gnss_velocity_mps) ** 2
+        r_vel = (self.noise.gnss_fitted_velocity_mps if drive.velocity_fitted else self.noise.gnss_velocity_mps) ** 2
         lat0 = origin[0]
         n = self.noise
         args = dict(t=np.ascontiguousarray(drive.t_s), acc=acc, gyr=gyr, b_sample=b.sample.astype(np.int64), b_start=b.segment_start,

@@ -91,8 +91,7 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     unknown_orientation = [-1.0] + [0.0] * 8
     unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
     # a speed fitted to the fixes is no receiver's velocity: written as one it would read back as measured
-    fitted = bool(np.all(drive.columns.get("gnss_speed_fitted", np.zeros(1)) != 0))
-    keys = ["imu", "fix"] + ([] if fitted else ["vel"]) + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else [])
+    keys = ["imu", "fix"] + ([] if drive.velocity_fitted else ["vel"]) + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else [])
     count = 0
     with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
         writer = Writer(stream)
