@@ -1,13 +1,20 @@
-"""Atomic writes: outputs appear at their target path only when complete."""
+"""Files in and out: outputs appear at their target path only when complete and never onto an
+input; inputs are regular files (never a FIFO, device or socket), JSON inputs bounded in size and
+depth."""
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import json
+import math
 import os
+import re
+import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 from .errors import InputError, ToolFailure
 from .signals import hold_signals
@@ -193,3 +200,154 @@ def made_folders(folder: Path | None) -> Iterator[None]:
             with contextlib.suppress(OSError):
                 level.rmdir()
         raise
+
+
+#: What a special file is called in messages, by its ``stat`` test.
+_SPECIAL_KINDS = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
+                  (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def _special_kind(mode: int) -> str | None:
+    return next((name for test, name in _SPECIAL_KINDS if test(mode)), None)
+
+
+def check_regular_input(path: str | Path, param: str, *, hint: str | None = None, folder_ok: bool = False,
+                        missing_ok: bool = False) -> Path:
+    """Check, without opening it, that the input ``path`` is a regular file (or, with
+    ``folder_ok``, a folder): a named pipe would block the reader forever, a device could be
+    endless. A link is followed. Returns ``path``; an :class:`InputError` for ``param`` otherwise
+    (a missing path too, unless ``missing_ok``: then the caller says what it expected)."""
+    path = Path(path)
+    hint = hint or "give a regular file"
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        if missing_ok:
+            return path
+        raise InputError(f"{path}: no such file", hint, param=param) from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
+    if (kind := _special_kind(mode)) is not None:
+        raise InputError(f"{path}: is {kind}, not a regular file", f"{hint}; ionav-viz reads no pipes or devices (save the data to a file first)",
+                         param=param)
+    if stat.S_ISDIR(mode) and not folder_ok:
+        raise InputError(f"{path}: is a folder", hint, param=param)
+    return path
+
+
+#: A JSON input's default limits: an outage plan or a report is kilobytes and a few levels deep.
+JSON_MAX_BYTES = 64 << 20
+JSON_MAX_DEPTH = 64
+
+_JSON_STRING = re.compile(rb'"(?:[^"\\]++|\\.)*+"')
+
+
+def _json_depth(data: bytes) -> tuple[int, int]:
+    """The deepest nesting of arrays and objects in ``data`` (strings skipped) and the offset, in
+    the bracket-only text, where it is first reached (0 for none)."""
+    import numpy as np
+
+    brackets = _JSON_STRING.sub(b"", data).translate(None, bytes(b for b in range(256) if b not in b"[]{}"))
+    if not brackets:
+        return 0, 0
+    step = np.full(256, -1, dtype=np.int32)
+    step[list(b"[{")] = 1
+    depth = np.cumsum(step[np.frombuffer(brackets, dtype=np.uint8)], dtype=np.int32)
+    deepest = int(depth.argmax())
+    return int(depth[deepest]), deepest
+
+
+def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES, max_depth: int = JSON_MAX_DEPTH,
+                      hint: str | None = None, what: str = "a JSON file") -> Any:
+    """The JSON value in the file ``path``, read safely: a regular file (checked before opening,
+    and again on the opened file), at most ``max_bytes`` long, nested at most ``max_depth``
+    arrays/objects deep, UTF-8, strict JSON (no NaN or Infinity, no number that overflows to
+    infinity) and no key given twice in one object (JSON would keep the last silently).
+
+    Anything else is one :class:`InputError` for ``param`` naming ``path`` and what is wrong
+    (``what`` names the expected content in messages, ``hint`` says what to give instead); never a
+    RecursionError or a hang."""
+    path = Path(path)
+    hint = hint or f"give {what}"
+    check_regular_input(path, param, hint=hint)
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
+    with os.fdopen(fd, "rb") as stream:
+        info = os.fstat(stream.fileno())
+        if not stat.S_ISREG(info.st_mode):  # replaced since the check above
+            raise InputError(f"{path}: is not a regular file", hint, param=param)
+        if info.st_size > max_bytes:
+            raise InputError(f"{path}: {info.st_size} bytes is too large for {what} (at most {max_bytes})", hint, param=param)
+        try:
+            data = stream.read(max_bytes + 1)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
+    if len(data) > max_bytes:  # grew while read
+        raise InputError(f"{path}: more than {max_bytes} bytes is too large for {what}", hint, param=param)
+    depth, _ = _json_depth(data)
+    if depth > max_depth:
+        raise InputError(f"{path}: nested {depth} levels deep; {what} nests at most {max_depth}", hint, param=param)
+
+    def constant(token: str) -> Any:
+        raise ValueError(f"{token} is not a number JSON allows")
+
+    def finite(token: str) -> float:
+        value = float(token)
+        if not math.isfinite(value):
+            raise ValueError(f"{token} overflows to infinity")
+        return value
+
+    def no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        body: dict[str, Any] = {}
+        for key, value in pairs:
+            if key in body:
+                raise ValueError(f"key {key!r} appears twice in one object")
+            body[key] = value
+        return body
+
+    try:
+        return json.loads(data.decode("utf-8"), parse_constant=constant, parse_float=finite, object_pairs_hook=no_duplicates)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (byte {exc.start})", hint, param=param) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not valid JSON (line {exc.lineno} column {exc.colno}: {exc.msg})", hint, param=param) from None
+    except (ValueError, RecursionError) as exc:  # our checks above; an integer of over 4300 digits
+        why = "a number has over 4300 digits" if "digits" in str(exc) else str(exc).splitlines()[0]
+        raise InputError(f"{path}: not usable JSON ({why})", hint, param=param) from None
+
+
+def refuse_output_onto_input(output: str | Path | None, inputs: Iterable[str | Path | None], *, param: str = "output",
+                             output_is_folder: bool = False) -> None:
+    """Refuse, before any work, an output that is one of the command's inputs: the same path once
+    links are resolved, or another name (a hard link) of the same file. With ``output_is_folder``
+    (a folder that is replaced whole) an input inside it is refused too; an output inside an input
+    folder (a ROS 2 bag, a KITTI drive) always is. ``None`` entries are skipped."""
+    if output is None:
+        return
+    out = Path(output)
+    out_real = Path(os.path.realpath(out))
+    out_stat = _stat_or_none(out)
+    for given in inputs:
+        if given is None:
+            continue
+        inp = Path(given)
+        inp_real = Path(os.path.realpath(inp))
+        inp_stat = _stat_or_none(inp)
+        hint = "choose another output; ionav-viz never writes over its input"
+        if out_real == inp_real or (out_stat is not None and inp_stat is not None and os.path.samestat(out_stat, inp_stat)):
+            how = ("is" if out.absolute() == inp.absolute() else "is a link to" if out_real == inp_real
+                   else "is another name (a hard link) of")
+            raise InputError(f"{out}: {how} the input {inp}", hint, param=param)
+        if output_is_folder and out_real in inp_real.parents:
+            raise InputError(f"{out}: holds the input {inp}, and the output folder is replaced whole", hint, param=param)
+        if inp_stat is not None and stat.S_ISDIR(inp_stat.st_mode) and inp_real in out_real.parents:
+            raise InputError(f"{out}: is inside the input folder {inp}", hint, param=param)
+
+
+def _stat_or_none(path: Path) -> os.stat_result | None:
+    try:
+        return os.stat(path)
+    except OSError:
+        return None
