@@ -20,7 +20,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, lengths_of, log, name_of, no_outage_fits, options_of, placement_of, windows_of, with_externals
+from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, name_of, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, windows_of, with_externals
 
 
 class ScenarioDrives(dict):
@@ -126,6 +126,7 @@ def evaluate(
     run = with_externals(run, external, placement)
     if export is not None:
         check_output_folder(Path(export), param="export")
+        refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement, external=external))
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

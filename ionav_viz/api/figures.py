@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..core.fileio import refuse_output_onto_input
 from ..core.timing import stage
 
 
@@ -13,6 +14,7 @@ def figures(result: str | Path, output: str | Path) -> list[Path]:
     into the folder ``output`` as SVG, PDF and PNG. Returns the files written."""
     from ..viz.figures import read_report, write_figures
 
+    refuse_output_onto_input(output, [result], output_is_folder=True)  # before reading: the folder is replaced
     rep = read_report(result)
     with stage(f"figures of {Path(result).name}"):
         return write_figures(rep, output)

@@ -146,6 +146,58 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
     return replace(run, plugins=tuple(run.plugins) + tuple(built))
 
 
+def input_paths(drives: Any, read: ReadOptions | None = None, *, run: RunOptions | None = None, plan: Any = None,
+                external: Any = None) -> list[Path]:
+    """The files and folders a call reads: its drives (resolved as :func:`load_drive` resolves them),
+    a plan file, external trajectories, a bias drive, a model directory and plug-in files; for
+    :func:`~ionav_viz.core.fileio.refuse_output_onto_input` before any work. A name that does not
+    resolve is left out (its reader says why later)."""
+    from ..nav.plan_file import FromPlan
+    from ..sources.resolve import data_root, resolve_drive
+
+    read = read if read is not None else ReadOptions()
+    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives or [])
+    if run is not None and isinstance(run.bias_from, (Drive, str, Path)):
+        items.append(run.bias_from)
+    out: list[Path] = []
+    for item in items:
+        if isinstance(item, Drive):
+            if item.source:
+                out.append(Path(item.source))
+            continue
+        try:
+            out.append(resolve_drive(str(item), data_root(read.data_root)))
+        except InputError:
+            continue
+    if isinstance(plan, FromPlan):
+        plan = plan.path
+    if isinstance(plan, (str, Path)):
+        out.append(Path(plan))
+    for spec in (external.values() if hasattr(external, "values") else []):
+        text = str(spec)
+        out.append(Path(text) if Path(text).exists() or ":" not in text else Path(text.rsplit(":", 1)[0]))
+    if run is not None:
+        if isinstance(run.model, (str, Path)):
+            out.append(Path(run.model))
+        for spec in [*(run.estimators or []), *run.plugins]:
+            if isinstance(spec, str) and ".py:" in spec:
+                out.append(Path(spec.rsplit(":", 1)[0]).expanduser())
+    return out
+
+
+def refuse_export_onto_inputs(export: str | Path, inputs: Sequence[Path]) -> None:
+    """``--export DIR`` writes ``outages.csv``, ``tracks.geojson`` and ``tracks.gpx`` into DIR and
+    replaces ``DIR/tum/<drive>`` whole (:mod:`ionav_viz.analysis.exports`): none may be an input,
+    and DIR may not lie inside an input folder (other files already in DIR are left alone)."""
+    from ..core.fileio import refuse_output_onto_input
+
+    folder = Path(export)
+    refuse_output_onto_input(folder, inputs, param="export")
+    for name in ("outages.csv", "tracks.geojson", "tracks.gpx"):
+        refuse_output_onto_input(folder / name, inputs, param="export")
+    refuse_output_onto_input(folder / "tum", inputs, param="export", output_is_folder=True)
+
+
 def lengths_of(lengths_s: Sequence[float]) -> list[float]:
     """Several outage lengths (s), increasing and distinct, each checked before any work."""
     lengths = sorted({float(x) for x in lengths_s})

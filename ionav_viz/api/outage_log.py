@@ -7,14 +7,14 @@ from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 
 from ..core.errors import InputError
-from ..core.fileio import atomic_path, check_output_file
+from ..core.fileio import atomic_path, check_output_file, refuse_output_onto_input
 from ..core.timing import stage
 from ..nav.outages import Placement
 from ..nav.plan_file import FromPlan, PlanFile, checksum
 from ..nav.windows import make_windows
 from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
 from .evaluate import plan_outages
-from .options import DriveLike, RunOptions, check_event_types, no_outage_fits, options_of, placement_of, windows_of
+from .options import DriveLike, RunOptions, check_event_types, input_paths, no_outage_fits, options_of, placement_of, windows_of
 from .simulation import vehicle_speed_for_log
 
 
@@ -66,6 +66,9 @@ def outage_log(
     check_output_file(plan_file)
     if not isinstance(drive, (str, Path)):
         raise InputError(f"outage_log needs the drive's file, not a {type(drive).__name__}", "give its path or name", param="drive")
+    sources = input_paths(drive, read)
+    refuse_output_onto_input(out, sources)  # an outaged log written over its source would lose it
+    refuse_output_onto_input(plan_file, sources)
     if isinstance(placement, FromPlan):
         raise InputError("outage_log places outages itself", "give a placement (Tile, Every, At, Random, AroundEvents)", param="placement")
     placement = placement_of(placement, None)

@@ -10,7 +10,7 @@ from ..analysis.evaluate import DriveResult, evaluate_drive
 from ..analysis.events import Event, detect_events
 from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.errors import InputError
-from ..core.fileio import check_output_file, check_output_folder
+from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input
 from ..core.timing import stage
 from ..core.warnings_log import collecting_warnings
 from ..nav.outages import Placement
@@ -19,7 +19,7 @@ from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, lengths_of, log, no_outage_fits, options_of, placement_of, windows_of, with_externals
+from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, windows_of, with_externals
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -96,8 +96,11 @@ def replay(
     n = windows_of(outage_s, placement)
     run, read = options_of(run, estimators, read, mcap, truth)
     run = with_externals(run, external, placement)
+    inputs = input_paths(drive, read, run=run, plan=placement, external=external)
+    refuse_output_onto_input(out, inputs)
     if export is not None:
         check_output_folder(Path(export), param="export")
+        refuse_export_onto_inputs(export, inputs)
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()

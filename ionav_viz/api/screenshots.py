@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..core.errors import InputError
-from ..core.fileio import check_output_file
+from ..core.fileio import check_output_file, check_regular_input, refuse_output_onto_input
 
 
 @dataclass(frozen=True)
@@ -59,8 +59,10 @@ def screenshot(
     if not paths:
         raise InputError("no recording to render", "give at least one .rrd made by replay")
     for rec in paths:
+        check_regular_input(rec, "recordings", hint="give a .rrd made by 'ionav-viz replay DRIVE'", missing_ok=True)
         if not rec.is_file():
             raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
+    refuse_output_onto_input(output, paths)
     shots = shots if shots is not None else Shots()
     width, height = check_size(*(int(x) for x in shots.size))
     out = Path(output)

@@ -11,11 +11,12 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.fileio import refuse_output_onto_input
 from ..dataset.samples import SAMPLES
 from ..sim.imu import write_imu_log
 from ..sim.simulate import FLEETS, SIMULATED_SCENARIOS, SensorModel, fleet_sensors, write_simulated_drive
 from ..sources.load import ReadOptions, load_drive
-from .options import DriveLike
+from .options import DriveLike, input_paths
 
 log = logging.getLogger("ionav_viz")
 
@@ -84,6 +85,7 @@ def convert(drive: DriveLike, output: str | Path, read: ReadOptions | None = Non
     out = Path(output)
     if out.suffix.lower() != ".mcap":
         raise InputError(f"{out}: the output must end in .mcap", "choose a name like drive.mcap", param="output")
+    refuse_output_onto_input(out, input_paths(drive, read))  # before reading: a log converted onto itself would be lost
     d = load_drive(drive, read)
     speed_mps, columns = vehicle_speed_for_log(d) or (None, ())
     written = write_mcap(d, out, speed_mps, columns)

@@ -7,10 +7,11 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
+from ..core.fileio import refuse_output_onto_input
 from ..nav.bias import resolve_bias
 from ..sources.load import ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress
+from .options import DriveLike, Progress, input_paths
 
 
 class TrainingDrives(list):
@@ -65,6 +66,8 @@ def train(
     out = check_model_dir(Path(output), overwrite=force)  # before any work
     specs = training_drives() if drives is None else drives
     description = getattr(specs, "description", TrainingDrives.description)
+    # the model folder is replaced whole: no training drive may lie in it
+    refuse_output_onto_input(out, input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
     stationary = load_drive(bias_from, read) if bias_from is not None else None
     loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
     model = train_models(loaded, config, progress=progress, description=description)

@@ -58,6 +58,14 @@ def replay(
             print(r.path)
         return
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)
+    if screenshot_dir is not None:  # checked before any work, as the other outputs are
+        from ..api.options import input_paths
+        from ..core.fileio import check_output_folder, refuse_output_onto_input
+
+        with options_named(screenshot="--screenshot"):
+            check_output_folder(screenshot_dir, param="screenshot")
+            refuse_output_onto_input(screenshot_dir, input_paths(drive_spec, read, run=run, plan=chosen, external=c.externals_of(external)),
+                                     param="screenshot")
     if open_viewer:
         _check_display()
     serving = None

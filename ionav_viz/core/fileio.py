@@ -337,9 +337,9 @@ def refuse_output_onto_input(output: str | Path | None, inputs: Iterable[str | P
         inp_stat = _stat_or_none(inp)
         hint = "choose another output; ionav-viz never writes over its input"
         if out_real == inp_real or (out_stat is not None and inp_stat is not None and os.path.samestat(out_stat, inp_stat)):
-            how = ("is" if out.absolute() == inp.absolute() else "is a link to" if out_real == inp_real
-                   else "is another name (a hard link) of")
-            raise InputError(f"{out}: {how} the input {inp}", hint, param=param)
+            how = ("is another name (a hard link) of" if out_real != inp_real else "is a link to" if os.path.islink(out) else "is")
+            what = f"the input {inp}" + (" (a link to it)" if os.path.islink(inp) and not os.path.islink(out) else "")
+            raise InputError(f"{out}: {how} {what}", hint, param=param)
         if output_is_folder and out_real in inp_real.parents:
             raise InputError(f"{out}: holds the input {inp}, and the output folder is replaced whole", hint, param=param)
         if inp_stat is not None and stat.S_ISDIR(inp_stat.st_mode) and inp_real in out_real.parents:
