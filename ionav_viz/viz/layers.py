@@ -12,6 +12,7 @@ import numpy as np
 
 from ..analysis.evaluate import DriveResult
 from ..core.geo import local_en_m
+from . import columns
 from . import entities as ent
 from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_label, screen_xy
 from .style import EVENT_COLOR, GNSS_COLOR, GRID_COLOR, OUTAGE_MARK_COLOR, SCALE_COLOR, faded
@@ -66,14 +67,14 @@ def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, 
     truth_geo = [np.concatenate([start_ll[k : k + 1], truth_ll[ti[i:j]], end_ll[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
     wide = rr.Radius.ui_points(4.5)
     send(ent.outage_truth(ent.LOCAL), t_rows, rr.LineStrips2D.columns(
-        strips=truth, colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
+        strips=columns.line_strips_2d(*columns.ragged(truth)), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
     send(ent.outage_truth(ent.MAP), t_rows, rr.GeoLineStrings.columns(
-        line_strings=truth_geo, colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide)))
+        line_strings=columns.geo_line_strings(*columns.ragged(truth_geo)), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide)))
     send(ent.MAP_CONTEXT, t_rows, rr.GeoLineStrings.columns(
-        line_strings=[truth_ll[ti[i:j]] for i, j in zip(ca, cb)], colors=np.tile(faded(GNSS_COLOR), (n, 1)),
+        line_strings=columns.geo_line_strings(*columns.ragged([truth_ll[ti[i:j]] for i, j in zip(ca, cb)])), colors=np.tile(faded(GNSS_COLOR), (n, 1)),
         radii=np.full(n, rr.Radius.ui_points(2.0))))
     send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
-        strips=[tr - s for tr, s in zip(truth, start_xy)], colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide),
+        strips=columns.line_strips_2d(*columns.ragged([tr - s for tr, s in zip(truth, start_xy)])), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide),
         draw_order=np.full(n, 12.0)))
 
     # Each outage's frame: its truth and every estimate, padded; a grid and a scale bar to match.
@@ -84,15 +85,15 @@ def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, 
     steps = [nice_step(max(bx[1] - bx[0], bx[3] - bx[2])) for bx in bounds]
     grids = [grid_strips(bx, st) for bx, st in zip(bounds, steps)]
     send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
-        strips=[g for grid in grids for g in grid], colors=np.tile(GRID_COLOR, (sum(map(len, grids)), 1)),
+        strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (sum(map(len, grids)), 1)),
         radii=np.full(sum(map(len, grids)), rr.Radius.ui_points(0.8)), draw_order=np.full(sum(map(len, grids)), 1.0)).partition(
             [len(g) for g in grids]))
     send(ent.INSPECT_SCALE, t_rows, rr.LineStrips2D.columns(
-        strips=[scale_bar(bx, st) for bx, st in zip(bounds, steps)], labels=[scale_label(st) for st in steps],
+        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st) for bx, st in zip(bounds, steps)])), labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
     local_bounds = [(bx[0] + s[0], bx[1] + s[0], bx[2] + s[1], bx[3] + s[1]) for bx, s in zip(bounds, start_xy)]
     send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
-        strips=[scale_bar(bx, st) for bx, st in zip(local_bounds, steps)], labels=[scale_label(st) for st in steps],
+        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st) for bx, st in zip(local_bounds, steps)])), labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
     rec.log(ent.INSPECT_START, rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
             static=True)
@@ -168,11 +169,11 @@ def log_events(layers: Layers, events: list, drive) -> None:
 DRIFT_W, DRIFT_H = 160.0, 100.0
 
 
-def log_drift(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndarray, strips_of: Callable[[np.ndarray], list]) -> None:
+def log_drift(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndarray) -> None:
     """The drift view (``drift``): position error against seconds since the outage began, per
     estimator its mean over the drive's outages (wide) and 10th and 90th percentiles (thin, faded),
     static; and the current outage's own curve, growing each second as the recording plays (rows
-    ``t_rows``, strips by ``strips_of``, as the live tracks). Axes with labelled ticks."""
+    ``t_rows``, as the live tracks). Axes with labelled ticks."""
     import rerun as rr
 
     from ..analysis.drift import boundary_errors_m, drift_curve
@@ -207,5 +208,5 @@ def log_drift(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndar
         current = xy(np.broadcast_to(t_axis, errors[name].shape), errors[name])  # (outages, win+1, 2)
         n_rows = len(t_rows)
         send(ent.drift_current(name), t_rows, rr.LineStrips2D.columns(
-            strips=strips_of(current), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(1.6)),
+            strips=columns.line_strips_2d(*columns.growing(current)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(1.6)),
             draw_order=np.full(n_rows, 30.0)))

@@ -25,6 +25,7 @@ from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
 from ..core.runs import run_ranges
 from ..nav.protocol import short_label
+from . import columns
 from . import entities as ent
 from .blueprints import blueprint
 from .geometry import map_zoom, screen_xy
@@ -57,10 +58,6 @@ def _outage_times(t0_s: np.ndarray, t_win: np.ndarray) -> np.ndarray:
     return np.concatenate([t0_s[:, None] + ent.OUTAGE_EPS_S, t_win], axis=1).ravel()
 
 
-def _outage_strips(points: np.ndarray) -> list[np.ndarray]:
-    """(seq, win+1, 2) -> per outage the start point alone (clears the previous outage's track),
-    then the strip of points 0..win+1 at each window's end (rows as :func:`_outage_times`)."""
-    return [points[s, : w + 1] for s in range(points.shape[0]) for w in range(points.shape[1])]
 
 
 def recording_id(result: DriveResult) -> str:
@@ -219,29 +216,31 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
             xy = tracks_xy[name]
             n_rows = len(t_rows)
             thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
+            # per outage the start point alone (clears the previous outage's track), then the
+            # strip of points 0..k at each window's end (rows as :func:`_outage_times`)
             send(ent.live_track(ent.MAP, name), t_rows, rr.GeoLineStrings.columns(
-                line_strings=_outage_strips(ll), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
+                line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
             send(ent.live_track(ent.LOCAL, name), t_rows, rr.LineStrips2D.columns(
-                strips=_outage_strips(xy), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+                strips=columns.line_strips_2d(*columns.growing(xy)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
                 draw_order=np.full(n_rows, 30.0)))
             rel = xy - xy[:, :1]
             send(ent.live_track(ent.INSPECT, name), t_rows, rr.LineStrips2D.columns(
-                strips=_outage_strips(rel), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+                strips=columns.line_strips_2d(*columns.growing(rel)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
                 draw_order=np.full(n_rows, 30.0)))
             # the estimate's current position: visible where tracks along the same road cover each other
             send(ent.inspect_position(name), t_rows, rr.Points2D.columns(
                 positions=rel.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
                 draw_order=np.full(n_rows, 40.0)))
             faint = faded(color)
-            rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=list(ll), colors=[faint], radii=thin), static=True)
-            rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(list(xy), colors=[faint], radii=thin, draw_order=20), static=True)
+            rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
+            rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
             series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
             series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
             for entity, values in series.items():
                 t_plot, v_plot = with_breaks(t_end[idx], values)
                 send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
             step(name)
-        log_drift(layers, result, colors, t_rows, _outage_strips)
+        log_drift(layers, result, colors, t_rows)
     if result.bridged:
         log_real_outages(layers, result, colors, labels)
         step("real GNSS outages")
