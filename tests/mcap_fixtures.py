@@ -112,7 +112,7 @@ def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, tamper=None,
 
 
 def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0.02, jitter_s=0.004, sensor_from_body=None,
-                   no_fix_spans=()):
+                   no_fix_spans=(), imu_noise=False):
     """``drive`` (a simulated one, the logger's CSV) as a ROS 2 MCAP the way many real bags are:
     ``sensor_msgs/Imu`` at the drive's samples and ``NavSatFix`` at ``gnss_hz`` with no velocity
     topic. The fixes are the CSV's positions at jittered (``jitter_s``) stamps plus what a
@@ -121,6 +121,9 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
     The IMU carries gravity (+9.81 m/s^2 up) and the centripetal acceleration (speed x yaw rate,
     to the left in a left turn); ``sensor_from_body`` (3x3) rotates both vectors into a mount
     other than REP 103's; no fix is published within ``no_fix_spans`` ((start s, end s), a tunnel).
+    ``imu_noise``: white noise on every axis (0.05 m/s^2, 0.002 rad/s; drawn in the body frame, so
+    every mount carries the same), as a real IMU has: without it gravity and the gyro's x and y
+    read one value throughout, which the reader takes as axes not measured (no mount estimated).
     Written with mcap_ros2 directly, not with ionav-viz's converter."""
     from mcap_ros2.writer import Writer
 
@@ -135,8 +138,12 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
     lat = np.round(np.interp(g_t, drive.t_s, drive.lat_deg) + rng.normal(0, white_m, len(g_t)) / m_per_deg, 7)
     lon = np.interp(g_t, drive.t_s, drive.lon_deg)
     lon = np.round(lon + rng.normal(0, white_m, len(g_t)) / (m_per_deg * np.cos(np.radians(lat))), 7)
-    accel = rot @ np.stack([drive.accel_long_mps2, drive.speed_mps * drive.yaw_rate_radps, np.full(len(drive), 9.81)])
-    gyro = rot @ np.stack([np.zeros(len(drive)), np.zeros(len(drive)), drive.yaw_rate_radps])
+    accel = np.stack([drive.accel_long_mps2, drive.speed_mps * drive.yaw_rate_radps, np.full(len(drive), 9.81)])
+    gyro = np.stack([np.zeros(len(drive)), np.zeros(len(drive)), drive.yaw_rate_radps])
+    if imu_noise:
+        noise = np.random.default_rng(seed + 7919)
+        accel, gyro = accel + noise.normal(0.0, 0.05, accel.shape), gyro + noise.normal(0.0, 0.002, gyro.shape)
+    accel, gyro = rot @ accel, rot @ gyro
     with open(path, "wb") as f:
         w = Writer(f)
         imu_schema = w.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"])

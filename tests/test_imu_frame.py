@@ -40,8 +40,9 @@ def logs(tmp_path_factory):
     logging.getLogger("ionav_viz").setLevel(logging.WARNING)
     folder = tmp_path_factory.mktemp("mounts")
     csv = iv.load_drive("V-sim-roundabout")
-    paths = {name: write_fix_only(csv, folder / f"{name.replace(' ', '-')}.mcap", 10, sensor_from_body=r) for name, (r, _, _) in MOUNTS.items()}
-    paths["rep103"] = write_fix_only(csv, folder / "rep103.mcap", 10)
+    paths = {name: write_fix_only(csv, folder / f"{name.replace(' ', '-')}.mcap", 10, sensor_from_body=r, imu_noise=True)
+             for name, (r, _, _) in MOUNTS.items()}
+    paths["rep103"] = write_fix_only(csv, folder / "rep103.mcap", 10, imu_noise=True)
     return paths
 
 

@@ -109,11 +109,15 @@ class FrameCheck:
 
 
 def check_imu_frame(t_s: np.ndarray, accel_xyz: np.ndarray, gyro_xyz: np.ndarray, speed_mps: np.ndarray,
-                    heading_deg: np.ndarray, mapping: np.ndarray | None = None) -> FrameCheck:
+                    heading_deg: np.ndarray, mapping: np.ndarray | None = None, measured: np.ndarray | None = None) -> FrameCheck:
     """Check body-frame IMU samples (``(n, 3)`` arrays, m/s^2 and rad/s, on the times ``t_s``)
     against gravity and the GNSS speed and course (see the module docstring). ``mapping`` is the
-    ``--imu-axes`` matrix already applied (the suggestion is given in the log's axes)."""
+    ``--imu-axes`` matrix already applied (the suggestion is given in the log's axes). ``measured``:
+    per axis (accel x, y, z, gyro x, y, z), whether the log measures it (default all); an axis that
+    does not (it reads one value throughout) is no evidence of anything and is left out."""
     problems: list[str] = []
+    measured = np.ones(6, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
+    accel_xyz, gyro_xyz = accel_xyz * measured[:3], gyro_xyz * measured[3:]  # a placeholder reads as nothing
     # gravity: the axis of the mean specific force at rest
     still = speed_mps < 0.3
     mean_f = accel_xyz[still].mean(axis=0) if still.sum() >= MIN_SAMPLES else accel_xyz.mean(axis=0)

@@ -6,7 +6,11 @@ Topics (``cdr`` encoding, standard schemas from :mod:`ionav_viz.ros2_msgs`):
   ``linear_acceleration.x`` = longitudinal specific force (m/s^2), ``angular_velocity.z`` = yaw
   rate, counter-clockwise positive (rad/s); orientation unknown (``orientation_covariance[0] = -1``,
   REP 145). The other axes are the drive's full IMU (``accel_y_mps2``, ...) when it has one, else
-  those of a level IMU: ``linear_acceleration.z`` gravity's +9.80665 m/s^2, the others 0.
+  ``linear_acceleration.y`` its lateral acceleration (``accel_lat_mps2``, left positive: a drive
+  whose lateral clearly reads right positive against speed x yaw rate is turned over, with a
+  warning) and the rest those of a level IMU: ``linear_acceleration.z`` gravity's +9.80665 m/s^2,
+  the others 0. Such a placeholder reads one value over the whole log, and the reader takes an
+  axis that does as not measured (:mod:`.resample`): no mount is estimated from it.
 * ``/gps/fix`` ``sensor_msgs/msg/NavSatFix``, frame ``gps``: latitude, longitude, altitude (m).
 * ``/gps/vel`` ``geometry_msgs/msg/TwistStamped``, frame ``gps``: GNSS velocity as
   nmea_navsat_driver publishes it, ``linear.x`` east and ``linear.y`` north (m/s), from the GNSS
@@ -27,6 +31,7 @@ KITTI; for IO-VNBD, which carries no date, the UTC time of day on 1970-01-01).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +43,8 @@ from ..core.fileio import atomic_path, check_output_file
 from ..core.units import G_MPS2
 from .ros2_msgs import DEFINITIONS
 
+log = logging.getLogger("ionav_viz")
+
 #: Where a drive with a reference trajectory (:data:`~ionav_viz.core.drive.RECEIVER_COLUMNS`) has it
 #: written: the receiver's fixes go on ``/gps/fix``, the reference on this NavSatFix topic
 #: (read back with ``--truth-topic /truth/fix``).
@@ -48,7 +55,10 @@ SCHEMAS = {"imu": "sensor_msgs/msg/Imu", "fix": "sensor_msgs/msg/NavSatFix", "ve
 #: The drive's columns a log written here carries (``speed_can_mps`` and the wheel speeds: as the
 #: vehicle speed the caller gives).
 CARRIED = ("t_s", "lat_deg", "lon_deg", "speed_mps", "heading_deg", "accel_long_mps2", "yaw_rate_radps", "height_m",
-           "gnss_sigma_m", "gnss_fix", "gnss_speed_fitted", *IMU_COLUMNS, *RECEIVER_COLUMNS)
+           "gnss_sigma_m", "gnss_fix", "gnss_speed_fitted", "accel_lat_mps2", *IMU_COLUMNS, *RECEIVER_COLUMNS)
+#: The lateral sign check looks at samples whose centripetal acceleration (speed x yaw rate) is above
+#: this (m/s^2), needs this many of them, and turns the lateral over below minus this correlation.
+LATERAL_CHECK_MPS2, LATERAL_CHECK_SAMPLES, LATERAL_CHECK_CORRELATION = 0.5, 50, 0.5
 
 
 @dataclass(frozen=True)
@@ -62,6 +72,25 @@ class Written:
 
 def _header(stamp_ns: int, frame: str) -> dict:
     return {"stamp": {"sec": stamp_ns // 1_000_000_000, "nanosec": stamp_ns % 1_000_000_000}, "frame_id": frame}
+
+
+def lateral_left(drive: Drive, path: Path | str = "") -> np.ndarray | None:
+    """The drive's lateral acceleration (``accel_lat_mps2``) left positive (REP 103's y), or None.
+    Sources disagree on its sign (IO-VNBD's is reported right positive): where the car turns, it
+    must follow speed x yaw rate (counter-clockwise), and one that clearly opposes it is turned
+    over, with a warning."""
+    lateral = drive.columns.get("accel_lat_mps2")
+    if lateral is None:
+        return None
+    centripetal = drive.speed_mps * drive.yaw_rate_radps
+    turning = np.isfinite(centripetal) & np.isfinite(lateral) & (np.abs(centripetal) > LATERAL_CHECK_MPS2)
+    if turning.sum() >= LATERAL_CHECK_SAMPLES and np.std(lateral[turning]) > 0:
+        corr = float(np.corrcoef(lateral[turning], centripetal[turning])[0, 1])
+        if corr < -LATERAL_CHECK_CORRELATION:
+            log.warning("%s: the lateral acceleration reads right positive (correlation %+.2f with speed x yaw rate): "
+                        "written left positive (REP 103's y)", path or drive.name, corr)
+            return -lateral
+    return lateral
 
 
 def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = None,
@@ -86,6 +115,8 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     # the full IMU when the drive has it, else a level IMU: gravity on z, nothing on the other axes
     imu_axes = {c: drive.columns.get(c, np.full(n, G_MPS2 if c == "accel_z_mps2" else 0.0)) for c in IMU_COLUMNS}
     imu_axes["accel_x_mps2"], imu_axes["gyro_z_radps"] = drive.accel_long_mps2, drive.yaw_rate_radps
+    if "accel_y_mps2" not in drive.columns and (lateral := lateral_left(drive, path)) is not None:
+        imu_axes["accel_y_mps2"] = lateral
     ax, ay, az, gx, gy, gz = (imu_axes[c] for c in IMU_COLUMNS)
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8

@@ -60,6 +60,8 @@ class ImuBins:
         # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
         # then they are as many as the output rows.
         self.samples: list[np.ndarray] | None = [] if keep_samples else None
+        # each axis's smallest and largest value: one that never changes is no measurement
+        self.low, self.high = np.full(6, np.inf), np.full(6, -np.inf)
 
     def add(self, sample: tuple[float, ...]) -> None:
         self.buffer.append(sample)
@@ -78,6 +80,8 @@ class ImuBins:
         if not len(block):
             return
         data = self.prepare(block)
+        self.low = np.minimum(self.low, data[:, 1:].min(axis=0))
+        self.high = np.maximum(self.high, data[:, 1:].max(axis=0))
         if self.samples is not None:
             self.samples.append(data)
         if self.origin is None:
@@ -94,6 +98,12 @@ class ImuBins:
             return np.zeros(0), np.zeros((0, 6)), np.zeros(0)
         bins, sums = _sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))
         return self.origin + bins * self.dt, sums[:, :-1] / sums[:, -1:], sums[:, -1]
+
+    def constant_axes(self) -> np.ndarray:
+        """Per axis (accel x, y, z, gyro x, y, z), whether every sample read the same value: not a
+        measurement (a placeholder a converter or driver wrote for an axis it does not have)."""
+        self.flush()
+        return self.low == self.high
 
     def kept_samples(self) -> np.ndarray | None:
         """The body-frame samples in time order, when they were kept (else None)."""
@@ -188,6 +198,13 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
         raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
+    # an axis that reads one value over the whole log is not measured (a two-channel log written as
+    # sensor_msgs/Imu: zeros and a constant gravity): no mount is estimated from it, no axis check
+    # uses it, and it keeps its exact value (a mean per bin could round it), so that
+    # core.drive.measured_imu does not count it either
+    measured = ~imu.constant_axes()
+    body = body.copy()
+    body[:, ~measured] = imu.low[~measured]
 
     v = course = None
     if speed is not None and len(speed) >= 2:
@@ -211,9 +228,9 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
     wheels = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
-    body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels)
+    body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels, measured)
     flipped = False
-    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto"):
+    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto", measured=measured):
         flipped = not flipped
     if flipped:  # the yaw check found a clockwise z: turned over like --yaw-sign cw
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
@@ -243,17 +260,36 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
                  start_time_of_day_s=start_of_day, columns=columns, start_stamp_s=origin_s + float(t[0]))
 
 
+#: The IMU's axes in the body frame, as messages name them.
+IMU_AXIS_NAMES = ("accel x", "accel y", "accel z", "gyro x", "gyro y", "gyro z")
+
+
 def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-             imu_mount: np.ndarray | str | None, mapping: np.ndarray, vehicle_speed_mps: np.ndarray | None = None) -> np.ndarray:
+             imu_mount: np.ndarray | str | None, mapping: np.ndarray, vehicle_speed_mps: np.ndarray | None = None,
+             measured: np.ndarray | None = None) -> np.ndarray:
     """IMU samples ``(n, 6)`` turned into the body frame by the mount (see :mod:`.imu_mount`).
 
     Given a rotation: applied. Otherwise estimated: with ``"auto"`` applied and reported; without,
     below :data:`~.imu_mount.MIN_APPLIED_DEG` left alone (gravity cannot tell so small a tilt from
     an accelerometer bias or a road's grade), up to :data:`~.imu_mount.MAX_SILENT_DEG` applied and
     reported, beyond it a stop showing the estimate and the options.
+
+    ``measured``: per axis, whether the log measures it (default all). A mount turns whole vectors,
+    so with an axis not measured none is estimated (said at ``-v``; a warning with ``"auto"``) and a
+    given rotation other than a signed permutation of the axes is refused.
     """
+    unmeasured = [] if measured is None else [name for name, ok in zip(IMU_AXIS_NAMES, measured, strict=True) if not ok]
     if isinstance(imu_mount, np.ndarray):
+        if unmeasured and not np.array_equal(np.abs(imu_mount), np.abs(imu_mount).round()):
+            raise InputError(f"{path}: the IMU's {', '.join(unmeasured)} read one value over the whole log (not measured), "
+                             "so its vectors cannot be turned by a mount", "leave --imu-mount out (--imu-axes maps whole axes)",
+                             param="imu_mount")
         matrix = imu_mount
+    elif unmeasured:
+        (log.warning if imu_mount == "auto" else log.info)(
+            "%s: the IMU's mount is not estimated: its %s read one value over the whole log (not measured); "
+            "its axes are used as they are", path, ", ".join(unmeasured))
+        return body
     else:
         found = estimate_mount(t, body[:, :3], speed_mps, course_deg, gyro_xyz=body[:, 3:6], vehicle_speed_mps=vehicle_speed_mps)
         if found is None:
@@ -279,10 +315,10 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
 
 
 def _imu_frame_reversed(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-                        mapping: np.ndarray, check_yaw_sign: bool) -> bool:
-    """Check the IMU's frame (:func:`.imu_frame.check_imu_frame`), warn once, and say whether the
-    yaw rate must be flipped (only when ``check_yaw_sign``)."""
-    found = check_imu_frame(t, body[:, :3], body[:, 3:], speed_mps, course_deg, mapping)
+                        mapping: np.ndarray, check_yaw_sign: bool, measured: np.ndarray | None = None) -> bool:
+    """Check the IMU's frame (:func:`.imu_frame.check_imu_frame`, on the ``measured`` axes), warn
+    once, and say whether the yaw rate must be flipped (only when ``check_yaw_sign``)."""
+    found = check_imu_frame(t, body[:, :3], body[:, 3:], speed_mps, course_deg, mapping, measured=measured)
     problems = [p for p in found.problems if check_yaw_sign or not p.startswith(YAW_REVERSED)]
     if problems:
         fix = f"; map the axes with --imu-axes {found.suggestion}" if found.suggestion else ""
