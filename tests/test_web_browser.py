@@ -1,0 +1,183 @@
+"""``replay --serve-web`` in a real browser: Debian's ``chromium``, headless on the CPU (SwiftShader),
+driven by selenium through Debian's ``chromium-driver``; nothing is downloaded at run time (the
+driver's path is given, so Selenium Manager is never asked). The page the command prints is
+opened, and the rendered views are checked by their pixels, as the screenshot tests do.
+
+The browser is kept on this machine (every other host name fails to resolve), so the test needs
+no network and sends nothing; the hosts the page tries are read from the browser's network log.
+Skipped where chromium, chromedriver or selenium are missing, except under CI, where it fails.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ionav_viz.nav.ins import InsEstimator
+from ionav_viz.nav.odometry import OdometryEstimator
+from ionav_viz.viz.style import GNSS_COLOR
+
+from .conftest import REPO
+
+ARGS = ("replay", "hard-brake", "--estimators", "ins,odo", "--every", "60s", "-q")
+WINDOW_PX = (1280, 720)
+#: The left column of the review layout (outage inspector, drive, map) as a share of the page's
+#: width, and the web viewer's top bar and time panel (pixels) left out of it.
+LEFT_COLUMN = 0.4
+TOP_BAR_PX, TIME_PANEL_PX = 40, 40
+#: Least pixels of each colour in the left column: the truth's green track, the odometry's purple
+#: track (in the outage inspector) and the INS's red (its end marker at least). Measured on a
+#: rendered page: about 2,400, 1,760 and 80.
+MIN_PIXELS = {"gnss": (GNSS_COLOR, 1000), "odo": (OdometryEstimator.color, 500), "ins": (InsEstimator.color, 30)}
+RENDER_TIMEOUT_S = 90.0  # ~10-20 s on an idle 2-core machine; bounded for a loaded one
+#: What Rerun's web viewer (rerun-sdk 0.41) asks of other hosts, as the README's --serve-web
+#: paragraph lists them: fonts, map tiles, Rerun's release and examples lists, its usage events.
+DOCUMENTED_HOSTS = {"fonts.googleapis.com", "tile.openstreetmap.org", "api.github.com", "app.rerun.io", "tel.rerun.io"}
+
+
+def _browser_or_skip() -> tuple[str, str]:
+    """Paths of chromium and chromedriver, with selenium importable; skip without them (fail under CI)."""
+    found = {name: shutil.which(name) for name in ("chromium", "chromedriver")}
+    missing = [f"the '{name}' command" for name, path in found.items() if path is None]
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        missing.append("the selenium package")
+    if missing:
+        reason = (f"needs {', '.join(missing)} (Debian: apt-get install chromium chromium-driver; "
+                  "pip install -e '.[test]')")
+        if os.environ.get("CI"):
+            pytest.fail(f"CI must run the browser test: {reason}")
+        pytest.skip(reason)
+    return found["chromium"], found["chromedriver"]
+
+
+def _chrome(chromium: str, chromedriver: str, profile: Path, log: Path, env: dict[str, str]):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = chromium
+    for arg in ("--headless=new", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",  # WebGL on the CPU
+                f"--window-size={WINDOW_PX[0]},{WINDOW_PX[1]}", f"--user-data-dir={profile}",
+                "--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1", "--no-proxy-server",  # this machine only
+                "--disable-background-networking", "--disable-component-update", "--no-first-run",
+                "--disable-dev-shm-usage"):  # containers' small /dev/shm
+        options.add_argument(arg)
+    if os.geteuid() == 0:  # Chromium refuses its sandbox to root (CI containers)
+        options.add_argument("--no-sandbox")
+    options.set_capability("goog:loggingPrefs", {"performance": "ALL", "browser": "SEVERE"})
+    service = Service(executable_path=chromedriver, log_output=str(log), env=env)  # the test's HOME: nothing written in the user's
+    return webdriver.Chrome(service=service, options=options)
+
+
+def _counts(png: bytes) -> dict[str, int]:
+    """Pixels of each colour of MIN_PIXELS in the left column, below the top bar and above the time panel."""
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    left = img[TOP_BAR_PX : img.shape[0] - TIME_PANEL_PX, : int(LEFT_COLUMN * img.shape[1])]
+    return {name: int((np.abs(left - np.array(rgb)).max(axis=-1) <= 30).sum()) for name, (rgb, _) in MIN_PIXELS.items()}
+
+
+def _requested_hosts(driver) -> set[str]:
+    """Hosts of every http(s) request the page made, from the browser's network log."""
+    hosts = set()
+    for entry in driver.get_log("performance"):
+        message = json.loads(entry["message"])["message"]
+        if message["method"] == "Network.requestWillBeSent":
+            url = message["params"]["request"]["url"]
+            if url.startswith(("http://", "https://")):
+                hosts.add(url.split("/")[2])
+    return hosts
+
+
+def _processes_with(fragment: str) -> list[str]:
+    """Ids of processes whose command line holds ``fragment`` (this test's own profile or ports)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        if proc.name.isdigit():
+            try:
+                if fragment.encode() in (proc / "cmdline").read_bytes():
+                    found.append(proc.name)
+            except OSError:
+                continue
+    return found
+
+
+def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
+    """The page ``replay --serve-web`` prints shows the recording: the truth's green and both
+    estimators' colours in the left column (outage inspector, drive, map). The user's Rerun
+    analytics setting (disabled here) is left as it was; the page asks no host beyond the
+    README's list. Browser, driver and server are gone afterwards."""
+    from ionav_viz.viz.viewer import free_port, rerun_executable
+
+    chromium, chromedriver = _browser_or_skip()
+    monkeypatch.setenv("SE_OFFLINE", "true")  # Selenium Manager, were it ever asked, downloads nothing
+    home = tmp_path / "home"  # Rerun's analytics.json lives under the user's config folder
+    env = {**os.environ, "HOME": str(home), "XDG_CONFIG_HOME": str(home / ".config"), "XDG_DATA_HOME": str(home / ".local" / "share")}
+    env.pop("IONAV_DATA", None)
+    optout = subprocess.run([rerun_executable(), "analytics", "disable"], env=env, capture_output=True, text=True, timeout=60)
+    config = home / ".config" / "rerun" / "analytics.json"
+    assert optout.returncode == 0 and config.is_file(), optout.stderr
+    config_before = config.read_bytes()
+    queued = home / ".local" / "share" / "rerun" / "analytics"  # Rerun's events waiting to be sent
+    queued_before = sorted(queued.iterdir()) if queued.is_dir() else []
+
+    grpc_port, web_port = free_port(), free_port()
+    out, shot, profile = tmp_path / "hb.rrd", tmp_path / "browser.png", tmp_path / "profile"
+    start = time.monotonic()
+    server = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", *ARGS, "-o", str(out), "--serve-web",
+                               "--grpc-port", str(grpc_port), "--web-port", str(web_port)],
+                              cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    driver = None
+    counts: dict[str, int] = {}
+    try:
+        assert server.stdout.readline().strip() == str(out)
+        line = server.stdout.readline()
+        url = re.search(r"open (http://127\.0\.0\.1:\d+/\S*)", line)
+        assert url and f":{web_port}/" in url.group(1), line
+        driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
+        driver.set_page_load_timeout(60)
+        driver.get(url.group(1))
+        deadline = time.monotonic() + RENDER_TIMEOUT_S
+        while True:  # a screenshot waits for the next frame: seconds apart while the viewer loads
+            png = driver.get_screenshot_as_png()
+            counts = _counts(png)
+            if all(counts[name] >= least for name, (_, least) in MIN_PIXELS.items()) or time.monotonic() > deadline:
+                break
+            time.sleep(0.5)
+        shot.write_bytes(png)
+        hosts = _requested_hosts(driver) - {f"127.0.0.1:{web_port}", f"127.0.0.1:{grpc_port}"}
+        severe = [entry["message"] for entry in driver.get_log("browser") if "ERR_NAME_NOT_RESOLVED" not in entry["message"]]
+    finally:
+        if driver is not None:
+            driver.quit()
+        server.send_signal(signal.SIGINT)
+        try:
+            code = server.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            code = server.wait()
+    elapsed_s = time.monotonic() - start
+    for name, (_, least) in MIN_PIXELS.items():
+        assert counts[name] >= least, (f"{name}: {counts[name]} pixels of its colour after {elapsed_s:.0f} s (see {shot}; "
+                                       f"console: {severe[-3:]})")
+    assert hosts <= DOCUMENTED_HOSTS, f"the page asked hosts the README does not name: {sorted(hosts - DOCUMENTED_HOSTS)}"
+    assert "tel.rerun.io" in hosts  # the README says the page sends usage events, opt-out or not
+    assert code == 130 and "Traceback" not in server.stderr.read()
+    assert config.read_bytes() == config_before  # still disabled: ionav-viz never touches the setting
+    assert (sorted(queued.iterdir()) if queued.is_dir() else []) == queued_before  # and the server it starts heeds it
+    assert _processes_with(str(profile)) == [] and _processes_with(f"--web-viewer-port\0{web_port}") == []
+    shutil.rmtree(profile)  # ~50 MB of browser profile; the screenshot and the driver's log stay
