@@ -8,11 +8,15 @@ failed before.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import json
 import os
 import shutil
+import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import ionav_viz as iv
@@ -105,3 +109,211 @@ def test_no_command_writes_over_its_input(tmp_path, short_csv):
     for args, fragment in cases:
         assert_refused(run_cli(*args, cwd=tmp_path), fragment)
         assert snapshot(tmp_path) == before, args  # nothing written, nothing replaced
+
+
+# --- 2. special files are refused before they are opened -----------------------------------------
+@contextlib.contextmanager
+def fifo_unblocked(path: Path):
+    """A named pipe at ``path``; if a reader opens it (the defect: it blocked forever), a writer
+    opens and closes it at once, so the reader sees an empty file and the test fails instead of hanging."""
+    os.mkfifo(path)
+    stop = threading.Event()
+
+    def unblock() -> None:
+        while not stop.wait(0.05):
+            try:
+                fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+            except OSError:  # no reader (ENXIO): nothing is blocked
+                continue
+            os.close(fd)
+
+    thread = threading.Thread(target=unblock, daemon=True)
+    thread.start()
+    try:
+        yield path
+    finally:
+        stop.set()
+        thread.join()
+
+
+def test_special_files_are_refused_before_opening(tmp_path, short_csv, outaged):
+    """Every input path a user gives (drive, plan, external trajectory, model, plug-in file,
+    recording, manifest) that is a named pipe or a device is one line naming it, before it is
+    opened: an external trajectory that was a named pipe hung forever, a manifest too; a drive,
+    model or plug-in file was 'no such file'."""
+    _, plan = outaged
+    (tmp_path / "model").mkdir()
+    pipes = {name: tmp_path / name for name in ("pipe.csv", "pipe.json", "pipe.py", "pipe.rrd", "pipe.tsv", "model/metadata.json")}
+    with contextlib.ExitStack() as stack:
+        for p in pipes.values():
+            stack.enter_context(fifo_unblocked(p))
+        before = snapshot(tmp_path)
+        cases = [
+            (("evaluate", "pipe.csv", "--no-idnn"), "pipe.csv: is a named pipe (FIFO), not a regular file"),
+            (("evaluate", "/dev/zero", "--no-idnn"), "/dev/zero: is a character device"),
+            (("evaluate", str(short_csv), "--no-idnn", "--plan", "pipe.json"), "pipe.json: is a named pipe (FIFO)"),
+            (("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", "x=pipe.csv"), "pipe.csv: is a named pipe (FIFO)"),
+            (("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", "x=/dev/zero:/fix"), "/dev/zero: is a character device"),
+            (("evaluate", str(short_csv), "--model", "model"), "model/metadata.json: is a named pipe (FIFO)"),
+            (("evaluate", str(short_csv), "--estimator", "pipe.py:Mine"), "pipe.py: is a named pipe (FIFO)"),
+            (("screenshot", "pipe.rrd", "-o", "out.png"), "pipe.rrd: is a named pipe (FIFO)"),
+            (("list", "--manifest", "pipe.tsv"), "pipe.tsv: is a named pipe (FIFO)"),
+        ]
+        for args, fragment in cases:
+            assert_refused(run_cli(*args, cwd=tmp_path), fragment)
+        assert snapshot(tmp_path) == before
+
+
+# --- 3. JSON readers bound depth and size; 4. plans are checked outage by outage ----------------
+def plan_with(folder: Path, plan: Path, name: str, change) -> Path:
+    """``plan`` as JSON, changed by ``change(body)`` (in place), written to ``folder/name``."""
+    body = json.loads(plan.read_text())
+    change(body)
+    out = folder / name
+    out.write_text(json.dumps(body))
+    return out
+
+
+def test_plan_files_are_bounded_strict_json(tmp_path, short_csv):
+    """A plan of nested brackets was a RecursionError traceback; one over the size limit, one with
+    NaN, a number that overflows to infinity or a key given twice were read as given (JSON keeps the
+    last of two keys). Each is now one line naming the file."""
+    from ionav_viz.core.fileio import read_json_bounded
+    from ionav_viz.nav.plan_file import PLAN_MAX_BYTES
+
+    (tmp_path / "deep.json").write_text("[" * 200_000 + "]" * 200_000)
+    with open(tmp_path / "huge.json", "wb") as f:  # sparse: its size alone refuses it
+        f.truncate(PLAN_MAX_BYTES + 1)
+    (tmp_path / "nan.json").write_text('{"format": "ionav-viz outage plan", "version": 1, "outage_s": NaN}')
+    (tmp_path / "inf.json").write_text('{"format": "ionav-viz outage plan", "version": 1, "outage_s": 1e999}')
+    (tmp_path / "twice.json").write_text('{"format": "ionav-viz outage plan", "format": "x"}')
+    (tmp_path / "binary.json").write_bytes(b"\xff\xfe{")
+    before = snapshot(tmp_path)
+    for name, fragment in [("deep.json", "deep.json: nested 200000 levels deep; an outage plan nests at most 16"),
+                           ("huge.json", f"huge.json: {PLAN_MAX_BYTES + 1} bytes is too large for an outage plan"),
+                           ("nan.json", "nan.json: not usable JSON (NaN is not a number JSON allows)"),
+                           ("inf.json", "inf.json: not usable JSON (1e999 overflows to infinity)"),
+                           ("twice.json", "twice.json: not usable JSON (key 'format' appears twice in one object)"),
+                           ("binary.json", "binary.json: not UTF-8 text")]:
+        line = assert_refused(run_cli("replay", str(short_csv), "--no-idnn", "--plan", name, "-o", "r.rrd", cwd=tmp_path), fragment)
+        assert line.startswith("error: --plan: "), line
+    assert snapshot(tmp_path) == before
+    # the reader itself, as the figures command and the model loader use it
+    (tmp_path / "ok.json").write_text('{"a": "[[[[[[[[", "b": [1, [2, {"c": 3.5}]]}')
+    assert read_json_bounded(tmp_path / "ok.json", param="x", max_depth=4) == {"a": "[[[[[[[[", "b": [1, [2, {"c": 3.5}]]}
+    with pytest.raises(iv.InputError, match="nested 4 levels deep"):
+        read_json_bounded(tmp_path / "ok.json", param="x", max_depth=3)
+    with pytest.raises(iv.InputError, match="too large"):
+        read_json_bounded(tmp_path / "ok.json", param="x", max_bytes=10)
+
+
+def test_model_metadata_nested_deep_is_one_line(tmp_path, short_csv):
+    """A model whose metadata.json is nested brackets was a RecursionError traceback."""
+    (tmp_path / "model").mkdir()
+    (tmp_path / "model" / "metadata.json").write_text("[" * 100_000)
+    assert_refused(run_cli("evaluate", str(short_csv), "--model", "model", cwd=tmp_path), "metadata.json: nested 100000 levels deep")
+
+
+def test_hostile_plans_name_the_outage_and_the_field(tmp_path, short_csv, outaged):
+    """A plan whose outage ends before it starts was accepted, as were negative times, a repeated
+    or overlapping outage, stamps that disagree with the drive times, and outages outside the
+    drive (those were 'does not fit this drive's windows', with no word of units). Each is one line
+    naming the outage and the field."""
+    _, plan = outaged
+    first = json.loads(plan.read_text())["outages"][0]
+
+    def outage(i: int, **values):
+        return lambda body: body["outages"][i].update(values)
+
+    def ms(body):  # a plan written in milliseconds by hand
+        body["outages"] = [{k: v * 1000 if "stamp" in k else v for k, v in o.items()} for o in body["outages"][:1]]
+        body["outages"][0]["end_stamp_s"] = body["outages"][0]["start_stamp_s"] + 10
+
+    cases = [
+        ("ends-early.json", outage(0, end_stamp_s=first["start_stamp_s"] - 5),
+         "outage 1: field 'end_stamp_s' (36940.405 s) is not after its start_stamp_s (36945.405 s)"),
+        ("end-s.json", outage(1, end_s=45.0), "outage 2: field 'end_s' (45.0 s) is 5 s after its start_s"),
+        ("negative.json", outage(0, start_s=-20.0, end_s=-10.0), "outage 1: field 'start_s' is negative (-20.0 s)"),
+        ("nan.json", outage(1, start_s=None), "outage 2: field 'start_s' is None, not a finite number of seconds"),
+        ("twice.json", lambda b: b["outages"].append(dict(b["outages"][1])), "outage 3: field 'start_s' (40.0 s) repeats outage 2"),
+        ("overlap.json", lambda b: b["outages"].append({"start_stamp_s": first["start_stamp_s"] + 25, "start_s": 45.0}),
+         "outage 3: field 'start_s' (45.0 s) is inside outage 2 (40.0-50.0 s)"),
+        ("order.json", lambda b: b["outages"].reverse(), "outage 2: field 'start_s' (20.0 s) is before outage 1's"),
+        ("clock.json", outage(1, start_stamp_s=first["start_stamp_s"] + 3600, end_stamp_s=first["start_stamp_s"] + 3610),
+         "outage 2: field 'start_stamp_s' (40545.405 s) and start_s (40.0 s) disagree with outage 1's"),
+        ("none.json", lambda b: b.update(outages=[]), "field 'outages' holds no outage"),
+        ("version.json", lambda b: b.update(version=True), "field 'version' is True"),
+        ("outside.json", lambda b: b.update(outages=[{k: v + 3600 for k, v in first.items()}]),
+         "outage 1: field 'start_stamp_s' (40545.405 s) puts it at 3620.000-3630.000 s, outside the drive V-short (0-"),
+        ("ms.json", ms, "its stamps look like milliseconds"),
+    ]
+    for name, change, fragment in cases:
+        bad = plan_with(tmp_path, plan, name, change)
+        line = assert_refused(run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(bad), cwd=tmp_path), fragment, str(bad))
+        assert line.startswith("error: --plan: "), line
+    assert not list(tmp_path.glob("*.rrd"))
+
+
+# --- 5. external trajectories ----------------------------------------------------------------------
+def trajectory_csv(path: Path, stamps, lat, lon) -> Path:
+    np.savetxt(path, np.column_stack([stamps, lat, lon]), delimiter=",", header="time_s,lat_deg,lon_deg", comments="", fmt="%.9f")
+    return path
+
+
+def test_external_poses_sharing_a_stamp(tmp_path, short_csv, outaged):
+    """The same stamp twice with positions 1 km apart was accepted silently (the first kept). Now a
+    conflicting duplicate is refused naming both poses; an identical one is kept once, with a warning."""
+    _, plan = outaged
+    drive = iv.load_drive(short_csv)
+    stamps, lat, lon = drive.stamp_s(drive.t_s), drive.lat_deg.copy(), drive.lon_deg.copy()
+    k = 100
+    conflict = trajectory_csv(tmp_path / "conflict.csv", np.insert(stamps, k + 1, stamps[k]), np.insert(lat, k + 1, lat[k] + 1000 / 111_195),
+                              np.insert(lon, k + 1, lon[k]))
+    line = assert_refused(run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={conflict}", cwd=tmp_path),
+                          f"conflict.csv: poses {k + 1} and {k + 2} share the stamp {float(stamps[k])!r} s and lie 1001 m apart")
+    assert line.startswith("error: --external: ") and "np." not in line, line
+    same = trajectory_csv(tmp_path / "same.csv", np.insert(stamps, k + 1, stamps[k]), np.insert(lat, k + 1, lat[k]), np.insert(lon, k + 1, lon[k]))
+    proc = run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={same}", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "warning: " + str(same) + ": 1 pose(s) repeat the stamp and position of another; each is kept once" in proc.stderr
+    assert len(json.loads(proc.stdout)["sequences"]) == 2
+
+
+def test_external_stamped_in_milliseconds_says_so(tmp_path, short_csv, outaged):
+    """A trajectory stamped in milliseconds was 'does not cover outage 1' with no word of units."""
+    _, plan = outaged
+    drive = iv.load_drive(short_csv)
+    ms = trajectory_csv(tmp_path / "ms.csv", drive.stamp_s(drive.t_s) * 1000, drive.lat_deg, drive.lon_deg)
+    relative = trajectory_csv(tmp_path / "rel.csv", drive.t_s, drive.lat_deg, drive.lon_deg)
+    for path, fragment in [(ms, "its stamps look like milliseconds"), (relative, "its stamps look like seconds since the drive's start")]:
+        assert_refused(run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={path}", cwd=tmp_path),
+                       "does not cover outage 1", fragment)
+
+
+def test_external_written_only_inside_the_gaps_starts_from_the_start_fix(tmp_path, short_csv, outaged):
+    """An estimator that writes poses only inside the outages, the first one output step (0.1 s)
+    after the start, was refused as 'does not cover outage 1'. It now starts from the plan's start
+    fix: here poses 5 m north of the truth score a final error of 5 m, in both outages."""
+    _, plan = outaged
+    drive = iv.load_drive(short_csv)
+    starts = [o["start_stamp_s"] for o in json.loads(plan.read_text())["outages"]]
+    t = np.concatenate([s + np.arange(1, 101) / 10 for s in starts])
+    stamps = drive.stamp_s(drive.t_s)
+    inside = trajectory_csv(tmp_path / "gaps.csv", t, np.interp(t, stamps, drive.lat_deg) + 5 / 111_250, np.interp(t, stamps, drive.lon_deg))
+    proc = run_cli("evaluate", str(short_csv), "--estimators", "ins", "--plan", str(plan), "--external", f"gaps={inside}", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    sequences = json.loads(proc.stdout)["sequences"]
+    assert len(sequences) == 2
+    for s in sequences:
+        assert s["gaps"]["final_position_error_m"] == pytest.approx(5.0, abs=0.1), s["gaps"]
+
+
+def test_a_json_message_nested_deep_is_one_line(tmp_path, monkeypatch):
+    """A JSON-encoded MCAP message of brackets nested 100,000 deep was a RecursionError traceback."""
+    from . import mcap_fixtures
+
+    real_dumps = json.dumps
+    monkeypatch.setattr(mcap_fixtures.json, "dumps", lambda obj, **kw: "[" * 100_000 + "]" * 100_000 if obj == "deep" else real_dumps(obj, **kw))
+    log = mcap_fixtures.write_json(tmp_path / "deep.mcap", tamper=lambda kind, i, msg: ["deep"] if kind == "imu" and i == 5 else [msg])
+    monkeypatch.undo()
+    assert_refused(run_cli("evaluate", str(log), "--no-idnn", cwd=tmp_path), "deep.mcap: topic /imu: message at log time", "nests too deep")

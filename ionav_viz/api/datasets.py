@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
+from ..core.fileio import check_regular_input
 from ..dataset.catalog import PAPER_TEST_RUNS, PAPER_TRAIN_RUNS, manifest, paper_role, parse_manifest, run_key, runs
 from ..dataset.fetch import VERIFIED_CACHE, VerifiedCache, base_url, configured_data_root, default_data_root, fetch_file, safe_target
 
@@ -44,6 +45,7 @@ class DatasetSource:
         """The runs of the manifest, by key."""
         if self.manifest is None:
             return runs(manifest())
+        check_regular_input(self.manifest, "manifest", hint="give a manifest TSV (path, sha256, size_bytes)", missing_ok=True)
         try:
             return runs(parse_manifest(Path(self.manifest).read_text(encoding="utf-8"), str(self.manifest)))
         except OSError as exc:

@@ -103,11 +103,15 @@ class VerifiedCache:
     """Remembers which files were verified, by path, size and modification time."""
 
     def __init__(self, root: Path) -> None:
+        from ..core.errors import InputError
+        from ..core.fileio import read_json_bounded
+
         self.path = root / VERIFIED_CACHE
-        try:
-            self.data = json.loads(self.path.read_text())
-        except (OSError, ValueError):
-            self.data = {}
+        try:  # a cache: one that is missing, damaged, a pipe or nested deep is empty
+            data = read_json_bounded(self.path, param="data_root", what="the verified-files cache") if self.path.exists() else {}
+        except InputError:
+            data = {}
+        self.data = data if isinstance(data, dict) else {}
 
     def _key(self, file: Path) -> list:
         st = file.stat()

@@ -4,10 +4,13 @@ The external program ran on the outaged log (``ionav-viz outage-log``) and wrote
 (:mod:`ionav_viz.sources.trajectory`). Per outage, its positions at the window boundaries are
 interpolated from that trajectory on the log's own clock (:meth:`~ionav_viz.core.drive.Drive.stamp_s`),
 from its poses up to the outage's end only (the end extrapolated from the last two when no pose falls
-on it: nothing written after the GNSS came back counts);
+on it: nothing written after the GNSS came back counts); a trajectory whose poses begin only after an
+outage's start (an estimator that writes inside the gaps) begins at the outage's start fix, the last
+fix the outaged log keeps and the estimators' start state;
 per-window distance and yaw rate come from those positions (:func:`.track.windows_of_track`), and
 its final position error from its own position at the outage's end. A trajectory that does not
-cover an outage is an error naming it; one that equals the removed GNSS fixes inside the outages
+cover an outage is an error naming it (and, when its stamps look like milliseconds or another unit,
+saying so); one that equals the removed GNSS fixes inside the outages
 (it ran on the original log, or is the GNSS itself) is reported.
 """
 
@@ -19,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.geo import geodetic_of_en_m, wgs84
+from ..core.units import stamp_unit_hint
 from ..sources.trajectory import Trajectory
 from .protocol import Estimate, EstimatorError, EstimatorInputs
 from .track import windows_of_track
@@ -61,16 +65,16 @@ class External:
         for i, row in enumerate(when):
             # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
             upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
-            k = np.searchsorted(t[:upto], row)
-            before = np.where(k > 0, row - t[np.maximum(k - 1, 0)], np.inf)
-            on = (k < upto) & np.isclose(t[np.minimum(k, upto - 1)], row, rtol=0.0, atol=1e-6) if upto else np.zeros(len(row), bool)
-            after = np.where(k < upto, t[np.minimum(k, max(upto - 1, 0))] - row, 0.0)
-            if upto < 2 or not np.all(on | ((before <= MAX_GAP_S) & (after <= MAX_GAP_S))):
+            t_i, lat_i, lon_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
+                                                float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
+            if not _covers(t_i, row):
+                first = float(drive.stamp_s(drive.t_s[0]))
+                units = stamp_unit_hint(t, first, float(drive.stamp_s(drive.t_s[-1])))
                 raise EstimatorError(
                     f"external {self.name!r} ({traj.source}): its trajectory does not cover outage {i + 1} "
                     f"(stamps {row[0]:.3f}-{row[-1]:.3f} s; it spans {t[0]:.3f}-{t[-1]:.3f} s, poses at most {MAX_GAP_S:g} s apart needed)",
-                    "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
-            lat[i], lon[i] = (_interpolated(row, t[:upto], v[:upto]) for v in (lat_all, lon_all))
+                    units or "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
+            lat[i], lon[i] = (_interpolated(row, t_i, v) for v in (lat_i, lon_i))
         lon = (lon + 180.0) % 360.0 - 180.0
         self._report_leaks(inputs, when, lat, lon)
         disp, yaw = windows_of_track(lat, lon, inputs.course0_deg)
@@ -90,6 +94,31 @@ class External:
             log.warning("external %s: inside %d of %d outage(s) its positions are the GNSS fixes the outaged log lacks (within %g m): "
                         "it ran on the original log, or is the GNSS itself; its scores are not an outage's",
                         self.name, int(on_fixes.sum()), len(on_fixes), LEAK_M)
+
+
+def _covers(t: np.ndarray, at: np.ndarray) -> bool:
+    """Whether poses at ``t`` (sorted) give every boundary ``at``: a pose on it, or one within
+    :data:`MAX_GAP_S` before and after it; at least two poses."""
+    if len(t) < 2:
+        return False
+    k = np.searchsorted(t, at)
+    before = np.where(k > 0, at - t[np.maximum(k - 1, 0)], np.inf)
+    on = (k < len(t)) & np.isclose(t[np.minimum(k, len(t) - 1)], at, rtol=0.0, atol=1e-6)
+    after = np.where(k < len(t), t[np.minimum(k, len(t) - 1)] - at, 0.0)
+    return bool(np.all(on | ((before <= MAX_GAP_S) & (after <= MAX_GAP_S))))
+
+
+def _from_start_fix(start: float, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, lat0: float,
+                    lon0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The poses, begun at the outage's start fix (``lat0``, ``lon0``: the estimators' start state,
+    the last fix the outaged log keeps) when the trajectory has none within :data:`MAX_GAP_S` at or
+    before ``start`` but one within it after: an estimator that writes poses only inside the gaps
+    starts from that fix. Otherwise the poses as they are."""
+    k = int(np.searchsorted(t, start + 1e-6, side="right"))  # poses at or before the start
+    if (k > 0 and start - t[k - 1] <= MAX_GAP_S) or k >= len(t) or t[k] - start > MAX_GAP_S:
+        return t, lat, lon
+    lon0 += 360.0 * round((lon[k] - lon0) / 360.0)  # on the trajectory's unwrapped longitudes
+    return np.insert(t, k, start), np.insert(lat, k, lat0), np.insert(lon, k, lon0)
 
 
 def _interpolated(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import current_umask, swap_in_directory, write_failure
+from ..core.fileio import check_regular_input, current_umask, read_json_bounded, swap_in_directory, write_failure
 from ..core.grid import GRID_STEP_S, WINDOW_S
 from ..core.signals import hold_signals
 from .bias import SensorBias
@@ -494,12 +494,13 @@ def load_model(directory: str | Path) -> IdnnModel:
 
     directory = Path(directory)
     meta_path = directory / "metadata.json"
+    check_regular_input(directory, "model", hint="give a model directory written by 'ionav-viz train'", folder_ok=True, missing_ok=True)
+    check_regular_input(meta_path, "model", hint="retrain or restore the model", missing_ok=True)
     if not meta_path.is_file():
         raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' and give that directory", param="model")
-    if not meta_path.is_file() or meta_path.stat().st_size > 16 * 2**20:
-        raise InputError(f"{meta_path}: not a regular file of a plausible size", "retrain or restore the model")
+    # bounded in size (16 MiB) and depth: nested brackets were a RecursionError traceback
+    meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model", what="a model's metadata")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
         if meta.get("format_version") != FORMAT_VERSION:
             raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}", "retrain with this version of ionav-viz")
         config = ModelConfig(**{"inputs": "plain", **meta["config"]})  # models from before the option took plain inputs

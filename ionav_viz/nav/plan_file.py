@@ -4,7 +4,8 @@ an outaged log lacks its GNSS in, so that an estimate made on that log is scored
 Times are the source's own stamps (:meth:`~ionav_viz.core.drive.Drive.stamp_s`: UNIX seconds for
 message logs, the CSV's time of day for IO-VNBD). Outage ``k`` lasts from ``start_stamps_s[k]`` (its
 last GNSS fix, the estimators' start state) to ``start_stamps_s[k] + outage_s`` (where it is
-scored); the outaged log has no GNSS message stamped in ``(start, end]``.
+scored); the outaged log has no GNSS message stamped in ``(start, end]`` (a fix stamped within
+:data:`~ionav_viz.sources.outage_writer.STAMP_TOL_S` after the start is the start fix, and stays).
 
 The file is plain JSON (never a pickle), checked field by field when read.
 """
@@ -12,13 +13,13 @@ The file is plain JSON (never a pickle), checked field by field when read.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
+from ..core.json_out import dumps_json
 
 PLAN_FORMAT = "ionav-viz outage plan"
 PLAN_VERSION = 1
@@ -54,43 +55,86 @@ class PlanFile:
         body["outages"] = [{"start_stamp_s": a, "end_stamp_s": a + self.outage_s, "start_s": b, "end_s": b + self.outage_s}
                            for a, b in zip(self.start_stamps_s, self.start_s, strict=True)]
         del body["start_stamps_s"], body["start_s"]
-        return json.dumps(body, indent=2) + "\n"
+        return dumps_json(body) + "\n"  # numpy values in the placement's options, NaN: plain JSON
+
+
+#: A plan's limits: thousands of outages are a few hundred kilobytes, nested three levels deep.
+PLAN_MAX_BYTES = 64 << 20
+PLAN_MAX_DEPTH = 16
+#: How far (s) a plan's numbers may disagree with each other (they are written with full precision).
+PLAN_TOLERANCE_S = 1e-3
+_PLAN_HINT = "give the OUT.outages.json that 'ionav-viz outage-log' wrote"
 
 
 def read_plan(path: str | Path) -> PlanFile:
-    """A plan file, checked; an error naming the file and the field otherwise."""
+    """A plan file, checked; an error naming the file and the field (and the outage) otherwise.
+
+    Read as bounded, strict JSON (:func:`~ionav_viz.core.fileio.read_json_bounded`: a regular
+    file, no NaN or Infinity, no key twice). Every outage needs finite, non-negative
+    ``start_stamp_s`` and ``start_s``; its ``end_stamp_s`` and ``end_s`` (when given) lie
+    ``outage_s`` after them; the stamps and drive times keep one offset; outages come in order and
+    none overlaps (or repeats) the one before."""
+    from ..core.fileio import read_json_bounded
+
     path = Path(path)
-    try:
-        if path.stat().st_size > 64 << 20:
-            raise InputError(f"{path}: {path.stat().st_size} bytes is too large for an outage plan", "give the OUT.outages.json outage-log wrote", param="plan")
-        body = json.loads(path.read_bytes())
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such plan file", "give the OUT.outages.json that 'ionav-viz outage-log' wrote", param="plan") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: not an outage plan ({type(exc).__name__}: {str(exc).splitlines()[0]})",
-                         "give the OUT.outages.json that 'ionav-viz outage-log' wrote", param="plan") from None
+    if not path.exists() and not path.is_symlink():
+        raise InputError(f"{path}: no such plan file", _PLAN_HINT, param="plan")
+    body = read_json_bounded(path, param="plan", max_bytes=PLAN_MAX_BYTES, max_depth=PLAN_MAX_DEPTH, hint=_PLAN_HINT, what="an outage plan")
 
     def bad(field: str, why: str) -> InputError:
-        return InputError(f"{path}: field {field!r} {why}", "give the OUT.outages.json that 'ionav-viz outage-log' wrote", param="plan")
+        return InputError(f"{path}: field {field!r} {why}", _PLAN_HINT, param="plan")
+
+    def number(value: Any) -> bool:
+        return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
     if not isinstance(body, dict) or body.get("format") != PLAN_FORMAT:
         raise bad("format", f"is not {PLAN_FORMAT!r}")
-    if body.get("version") != PLAN_VERSION:
-        raise bad("version", f"is {body.get('version')!r}; this ionav-viz reads version {PLAN_VERSION}")
+    version = body.get("version")
+    if isinstance(version, bool) or version != PLAN_VERSION:
+        raise bad("version", f"is {version!r}; this ionav-viz reads version {PLAN_VERSION}")
     for field, kind in (("source", str), ("source_sha256", str), ("drive", str), ("placement", str), ("clock", str),
                         ("placement_options", dict), ("outages", list)):
         if not isinstance(body.get(field), kind):
             raise bad(field, f"is missing or not a {kind.__name__}")
     outage_s = body.get("outage_s")
-    if isinstance(outage_s, bool) or not isinstance(outage_s, (int, float)) or not math.isfinite(outage_s) or outage_s <= 0:
+    if not number(outage_s) or outage_s <= 0:
         raise bad("outage_s", "is not a positive number of seconds")
+    if not body["outages"]:
+        raise bad("outages", "holds no outage")
     starts, starts_s = [], []
     for i, o in enumerate(body["outages"]):
-        values = [o.get(k) if isinstance(o, dict) else None for k in ("start_stamp_s", "start_s")]
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in values):
-            raise bad(f"outages[{i}]", "needs finite start_stamp_s and start_s (s)")
-        starts.append(float(values[0]))
-        starts_s.append(float(values[1]))
+        def wrong(field: str, why: str, i: int = i) -> InputError:
+            return InputError(f"{path}: outage {i + 1}: field {field!r} {why}", _PLAN_HINT, param="plan")
+
+        if not isinstance(o, dict):
+            raise wrong("outages", "is not an object with start_stamp_s, start_s, end_stamp_s and end_s")
+        for field in ("start_stamp_s", "start_s", "end_stamp_s", "end_s"):
+            if (field in o or field.startswith("start")) and not number(o.get(field)):
+                raise wrong(field, f"is {'missing' if field not in o else repr(o[field])}, not a finite number of seconds")
+        start, start_s = float(o["start_stamp_s"]), float(o["start_s"])
+        for field, value in (("start_stamp_s", start), ("start_s", start_s)):
+            if value < 0:
+                raise wrong(field, f"is negative ({value!r} s)")
+        for field, begin, label in (("end_stamp_s", start, "start_stamp_s"), ("end_s", start_s, "start_s")):
+            if field not in o:
+                continue
+            end = float(o[field])
+            if end <= begin:
+                raise wrong(field, f"({end!r} s) is not after its {label} ({begin!r} s): the outage ends before it starts")
+            if abs(end - begin - outage_s) > PLAN_TOLERANCE_S:
+                raise wrong(field, f"({end!r} s) is {end - begin:.6g} s after its {label}, and the plan's outage_s is {outage_s!r} s")
+        if starts and abs((start - start_s) - (starts[0] - starts_s[0])) > PLAN_TOLERANCE_S:
+            raise wrong("start_stamp_s", f"({start!r} s) and start_s ({start_s!r} s) disagree with outage 1's: the stamps are on another clock")
+        if starts:
+            gap = start_s - starts_s[-1]
+            if abs(gap) <= PLAN_TOLERANCE_S:
+                raise wrong("start_s", f"({start_s!r} s) repeats outage {i}")
+            if gap < 0:
+                raise wrong("start_s", f"({start_s!r} s) is before outage {i}'s: outages are listed in time order")
+            if gap < outage_s - PLAN_TOLERANCE_S:
+                raise wrong("start_s", f"({start_s!r} s) is inside outage {i} ({starts_s[-1]!r}-{starts_s[-1] + outage_s!r} s): outages may not overlap")
+        starts.append(start)
+        starts_s.append(start_s)
     removed = body.get("removed_topics", [])
     if not isinstance(removed, list) or not all(isinstance(t, str) for t in removed):
         raise bad("removed_topics", "is not a list of names")
@@ -138,4 +182,14 @@ class FromPlan:
             raise InputError(f"{self.path}: the plan was made on another file than {source} (its checksum differs)",
                              f"give the drive the plan was made on ({plan.source})", param="plan")
         times = tuple(round(float(s - drive.stamp_s(0.0)), 6) for s in plan.start_stamps_s)
+        duration = drive.duration_s
+        for i, t in enumerate(times):
+            if t < -PLAN_TOLERANCE_S or t + plan.outage_s > duration + PLAN_TOLERANCE_S:
+                from ..core.units import stamp_unit_hint
+
+                first = float(drive.stamp_s(0.0))
+                units = stamp_unit_hint(plan.start_stamps_s, first, first + duration)
+                raise InputError(f"{self.path}: outage {i + 1}: field 'start_stamp_s' ({plan.start_stamps_s[i]!r} s) puts it at {t:.3f}-"
+                                 f"{t + plan.outage_s:.3f} s, outside the drive {drive.name} (0-{duration:.3f} s)",
+                                 units or "give the drive and reading options the plan was made with", param="plan")
         return Planned(times, f"{len(times)} {plan.outage_s:g} s outages from {Path(self.path).name} ({plan.placement})", str(self.path))

@@ -16,6 +16,7 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
+from ..core.fileio import check_regular_input
 from .protocol import Estimator, EstimatorError, available, validate
 
 #: The entry-point group that installed packages register estimators under.
@@ -118,6 +119,7 @@ def _import_file(path_text: str) -> Any:
     if path.suffix != ".py":
         raise EstimatorError(f"estimator file {path_text!r} is not a .py file", "give a Python file, e.g. ./myest.py:ConstantSpeed",
                              param="estimators")
+    check_regular_input(path, "estimators", hint="give a Python file, e.g. ./myest.py:ConstantSpeed", missing_ok=True)
     if not path.is_file():
         raise EstimatorError(f"estimator file {path_text}: no such file", "check the path (relative to the current directory)",
                              param="estimators")

@@ -295,6 +295,11 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
         return json.loads(data)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not valid JSON ({exc})") from None
+    except RecursionError:  # brackets nested thousands deep (a message is bounded in size by its chunk)
+        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} nests too deep to be a sensor message",
+                         "the log is damaged or crafted; record it again") from None
+    except ValueError as exc:  # an integer of over 4300 digits
+        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not usable JSON ({str(exc)[:80]})") from None
 
 
 def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,

@@ -16,6 +16,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..core.errors import InputError
+from ..core.fileio import check_regular_input
 from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
 from ..dataset.samples import SAMPLES, by_scenario, sample_path
 
@@ -66,6 +67,8 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
     path = Path(spec).expanduser()
     if path.is_file() or path.is_dir():
         return path
+    if path.exists():  # a named pipe would block the reader forever, a device could be endless
+        return check_regular_input(path, "drive", hint="give the log's file or folder", folder_ok=True)
     if path.suffix.lower() in (".mcap", ".bag", ".db3", ".yaml") or os.sep in spec or "/" in spec:  # a run name may end in .csv
         raise InputError(f"{spec}: no such file or folder")
     bundled = _bundled(spec)

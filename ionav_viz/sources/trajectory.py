@@ -13,11 +13,13 @@ drive's first GNSS fix (the first position the estimators are given), up ignored
 * ``.csv``: a header ``time_s,lat_deg,lon_deg`` or ``time_s,east_m,north_m`` (further columns
   ignored), one row per pose.
 
-Samples are sorted by stamp; of samples sharing one the first is kept.
+Samples are sorted by stamp. Poses sharing a stamp are one pose written twice when within
+:data:`SAME_POSE_M` (kept once, with a warning); farther apart they conflict, and the trajectory is refused.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,9 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.fileio import check_regular_input
 
 #: A trajectory file larger than this is refused (a day at 100 Hz in CSV is about 300 MB).
 MAX_BYTES = 2 << 30
+#: Two poses with one stamp closer than this (m) are one pose written twice (dropped, with a warning);
+#: farther apart they conflict (refused).
+SAME_POSE_M = 0.001
+_M_PER_DEG = 111_319.49  # metres per degree of latitude (and of longitude at the equator), for the distance above
+log = logging.getLogger("ionav_viz")
 _TRAJECTORY_HINT = "write time_s,lat_deg,lon_deg (or time_s,east_m,north_m) CSV, a TUM file, or give LOG:TOPIC"
 
 
@@ -58,6 +66,7 @@ def read_trajectory(spec: str | Path) -> Trajectory:
         path = Path(head)
     if not path.exists():
         raise InputError(f"{path}: no such trajectory file", _TRAJECTORY_HINT, param="external")
+    check_regular_input(path, "external", hint=_TRAJECTORY_HINT, folder_ok=topic is not None)  # a named pipe hung the reader
     if topic is not None:
         return _from_log(path, topic)
     suffix = path.suffix.lower()
@@ -82,10 +91,21 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
     if bad.any():
         i = int(np.argmax(bad))
         what = "east/north (m) beyond 2000 km of the local origin" if local else "latitude/longitude outside WGS84's range"
-        raise InputError(f"{path}: pose {i + 1} (stamp {t[i]!r}): not finite, or {what}", _TRAJECTORY_HINT, param="external")
+        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): not finite, or {what}", _TRAJECTORY_HINT, param="external")
     order = np.argsort(t, kind="stable")
     t, a, b = t[order], a[order], b[order]
-    keep = np.concatenate([[True], np.diff(t) > 0])
+    repeated = np.diff(t) == 0
+    if repeated.any():
+        apart_m = (np.hypot(np.diff(a), np.diff(b)) if local else
+                   np.hypot(np.diff(a), np.diff(b) * np.cos(np.radians(a[1:]))) * _M_PER_DEG)
+        conflict = repeated & (apart_m > SAME_POSE_M)
+        if conflict.any():
+            k = int(np.argmax(conflict))
+            i, j = sorted((int(order[k]), int(order[k + 1])))
+            raise InputError(f"{path}: poses {i + 1} and {j + 1} share the stamp {float(t[k])!r} s and lie {float(apart_m[k]):.4g} m apart",
+                             "write one pose per stamp: two positions at one instant cannot both be the estimate", param="external")
+        log.warning("%s: %d pose(s) repeat the stamp and position of another; each is kept once", path, int(repeated.sum()))
+    keep = np.concatenate([[True], ~repeated])
     t, a, b = t[keep], a[keep], b[keep]
     if local:
         return Trajectory(path, t, east_m=a, north_m=b)
