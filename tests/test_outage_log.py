@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import ionav_viz as iv
+from ionav_viz.sources.outage_writer import STAMP_TOL_S
 
 from .conftest import run_cli
 from .mcap_fixtures import write_realistic
@@ -34,7 +35,7 @@ def _messages(path):
 
 
 def _inside(stamp, plan):
-    return any(o["start_stamp_s"] + 1e-6 < stamp <= o["end_stamp_s"] + 1e-6 for o in plan["outages"])
+    return any(o["start_stamp_s"] + STAMP_TOL_S < stamp <= o["end_stamp_s"] + STAMP_TOL_S for o in plan["outages"])
 
 
 def test_the_outaged_log_lacks_gnss_exactly_in_the_plans_outages(tmp_path):
@@ -99,7 +100,7 @@ def test_an_iovnbd_source_gets_the_loggers_no_fix_rows(tmp_path):
     assert len(src) == len(cut) and src[0] == cut[0]
     changed = [i for i, (x, y) in enumerate(zip(src, cut)) if x != y]
     times = [float(line.split(b",")[1]) for line in src[1:-1]]
-    assert [i - 1 for i in changed] == [k for k, t in enumerate(times) if a + 1e-6 < t <= b + 1e-6] and 95 <= len(changed) <= 101  # 10 s at 10 Hz, stamps jittered
+    assert [i - 1 for i in changed] == [k for k, t in enumerate(times) if a + STAMP_TOL_S < t <= b + STAMP_TOL_S] and 95 <= len(changed) <= 101  # 10 s at 10 Hz, stamps jittered
     last = src[changed[0] - 1].split(b",")
     for i in changed:
         x, y = src[i].split(b","), cut[i].split(b",")
@@ -142,7 +143,7 @@ class ConstantVelocity:
         drive = inputs.drive
         stamps = drive.stamp_s(drive.t_s)
         starts = drive.stamp_s(inputs.t0_s)
-        last = np.searchsorted(stamps, starts + 1e-6) - 1
+        last = np.searchsorted(stamps, starts + STAMP_TOL_S) - 1  # the last fix the outaged log keeps
         t_fix, speed, course = stamps[last], drive.speed_mps[last], drive.heading_deg[last]
         when = starts[:, None] + np.arange(inputs.n_windows + 1)[None, :] - t_fix[:, None]
         lon, lat, _ = Geod(ellps="WGS84").fwd(np.broadcast_to(drive.lon_deg[last][:, None], when.shape),

@@ -3,7 +3,10 @@ estimator outside ionav-viz to run on.
 
 Every outage is ``(start, end]`` on the source's own clock (:meth:`~ionav_viz.core.drive.Drive.stamp_s`):
 the fix at its start stays (the estimators' start state), every GNSS message after it up to and
-including its end goes. Formats, by the output's name:
+including its end goes. A logger stamps its fixes a few milliseconds off the grid an outage starts on
+(IO-VNBD's 60653.341 for the grid's 60653.34), so a fix within :data:`STAMP_TOL_S` after the start is
+the start fix, and one within it after the end is the end's: removed is ``(start + tol, end + tol]``.
+Formats, by the output's name:
 
 * ``.mcap`` from an MCAP source: every message of every topic copied byte for byte, in the
   file's order, except the GNSS fixes and GNSS velocity (the topics the reader uses) stamped inside an
@@ -49,12 +52,19 @@ class OutageLog:
     removed_topics: tuple[str, ...]
 
 
+#: A fix stamped within this (s) after an outage's start (end) is the fix at its start (end): a
+#: logger's stamps jitter by milliseconds around the 10 Hz grid; a receiver's fixes are 50 ms or more apart.
+STAMP_TOL_S = 0.01
+
+
 def inside(stamps_s: np.ndarray, outages: Sequence[tuple[float, float]]) -> np.ndarray:
-    """Which stamps lie inside an outage ``(start, end]`` (s on the same clock)."""
+    """Which stamps lie inside an outage: ``(start + STAMP_TOL_S, end + STAMP_TOL_S]`` (s on the
+    same clock). The fix at the start stays whether it is stamped a millisecond before or after it
+    (with ``1e-6`` here, the first of ``outage-log roundabout --every 30s`` lost its 60653.341 fix)."""
     stamps_s = np.asarray(stamps_s, dtype=float)
     hit = np.zeros(len(stamps_s), dtype=bool)
     for a, b in outages:
-        hit |= (stamps_s > a + 1e-6) & (stamps_s <= b + 1e-6)
+        hit |= (stamps_s > a + STAMP_TOL_S) & (stamps_s <= b + STAMP_TOL_S)
     return hit
 
 
