@@ -20,6 +20,7 @@ def outage_log(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
     output: Path = typer.Option(..., "-o", "--output", help="The outaged log: .mcap, .bag (ROS 1), a new folder (ROS 2 bag) or .csv (an IO-VNBD source); the plan goes beside it as NAME.outages.json."),
     outage: str = c.OutageOpt,
+    quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     read: Any = None,  # ReadOptions (c.with_source_options)
 ) -> None:
@@ -30,9 +31,10 @@ def outage_log(
     with options_named(outage_s=f"--outage {outage}", placement=placement.option):
         done = api.outage_log(drive_spec, output, outage_s, placement.placement, read=read)
     plan = done.plan
-    print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "
-          f"from {', '.join(plan.removed_topics)}", file=sys.stderr)
-    print(f"score what your estimator writes on it: ionav-viz evaluate {drive_spec} --plan {done.plan_path} --external NAME=TRAJECTORY",
-          file=sys.stderr)
+    if not quiet:
+        print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "
+              f"from {', '.join(plan.removed_topics)}", file=sys.stderr)
+        print(f"score what your estimator writes on it: ionav-viz evaluate {drive_spec} --plan {done.plan_path} --external NAME=TRAJECTORY",
+              file=sys.stderr)
     print(done.path)
     print(done.plan_path)
