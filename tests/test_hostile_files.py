@@ -317,3 +317,67 @@ def test_a_json_message_nested_deep_is_one_line(tmp_path, monkeypatch):
     log = mcap_fixtures.write_json(tmp_path / "deep.mcap", tamper=lambda kind, i, msg: ["deep"] if kind == "imu" and i == 5 else [msg])
     monkeypatch.undo()
     assert_refused(run_cli("evaluate", str(log), "--no-idnn", cwd=tmp_path), "deep.mcap: topic /imu: message at log time", "nests too deep")
+
+
+# --- 6. outage-log -q; 7. the fix at an outage's start stays ------------------------------------
+def test_outage_log_takes_quiet(tmp_path, short_csv):
+    """Every command that places outages takes -q; outage-log did not ('No such option: -q')."""
+    proc = run_cli("outage-log", str(short_csv), "--at", "20s", "-q", "-o", "cut.mcap", cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert proc.stdout.split() == ["cut.mcap", "cut.outages.json"]
+
+
+def _fix_stamps(path: Path) -> np.ndarray:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        return np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, _, _, m in reader.iter_decoded_messages(topics=["/gps/fix"])])
+
+
+def test_the_fix_at_each_outages_start_stays(tmp_path):
+    """The plan says the fix at an outage's start stays in the outaged log. IO-VNBD stamps jitter
+    by a millisecond around the 10 Hz grid the outages start on: the first outage of
+    ``outage-log roundabout --every 30s`` starts at 60653.34 and its fix is stamped 60653.341, which
+    went (the second's, 60683.339, stayed). Both stay now; the next fix after each start is gone."""
+    drive = iv.load_drive("roundabout")
+    proc = run_cli("outage-log", "roundabout", "--every", "30s", "-q", "-o", "x.mcap", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    plan = json.loads((tmp_path / "x.outages.json").read_text())
+    fixes = _fix_stamps(tmp_path / "x.mcap")
+    source = np.asarray(drive.stamp_s(drive.t_s))
+    for o in plan["outages"][:2]:
+        start = o["start_stamp_s"]
+        at_start = source[np.argmin(np.abs(source - start))]  # the source's fix at the start: 60653.341, then 60683.339
+        assert abs(at_start - start) < 0.002
+        assert np.min(np.abs(fixes - at_start)) < 1e-6, (start, at_start)  # kept
+        assert not np.any((fixes > at_start + 1e-6) & (fixes <= o["end_stamp_s"] - 0.05)), start  # the rest of the outage is gone
+    assert abs(source[np.argmin(np.abs(source - plan["outages"][0]["start_stamp_s"]))] - 60653.341) < 1e-6  # the case the issue names
+
+
+# --- 8. messages show numbers, not numpy reprs -----------------------------------------------------
+def test_messages_show_plain_numbers(tmp_path, short_csv, outaged):
+    """A trajectory with a NaN position said 'stamp np.float64(60648.34)'. Every InputError,
+    ToolFailure and logged warning now shows numpy scalars as plain numbers."""
+    import logging
+
+    from ionav_viz.core.errors import plain
+    from ionav_viz.core.warnings_log import collecting_warnings
+
+    _, plan = outaged
+    drive = iv.load_drive(short_csv)
+    lat = drive.lat_deg.copy()
+    lat[7] = np.nan
+    nan = trajectory_csv(tmp_path / "nan.csv", drive.stamp_s(drive.t_s), lat, drive.lon_deg)
+    stamp = float(drive.stamp_s(drive.t_s[7]))
+    line = assert_refused(run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={nan}", cwd=tmp_path),
+                          f"pose 8 (stamp {stamp!r}): not finite")
+    assert "np." not in line
+    x = np.float64(60648.34)
+    assert str(iv.InputError(f"stamp {x!r} of {(x, np.int64(3))}", f"try {np.float32(0.5)!r}")) == "stamp 60648.34 of (60648.34, 3) (hint: try 0.5)"
+    assert str(iv.ToolFailure(f"at {x!r}")) == "at 60648.34"
+    assert plain((x, [np.int64(2)], np.array([1.5]))) == (60648.34, [2], [1.5])
+    with collecting_warnings() as warned:
+        logging.getLogger("ionav_viz").warning("stamps %s", (x, np.float64(1.25)))
+    assert warned == ["stamps (60648.34, 1.25)"]

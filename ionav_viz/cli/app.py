@@ -31,8 +31,10 @@ log = logging.getLogger("ionav_viz")
 
 class _StderrHandler(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
+        from ..core.errors import plain_text
+
         prefix = "warning: " if record.levelno >= logging.WARNING else ""
-        print(prefix + record.getMessage(), file=sys.stderr)
+        print(prefix + plain_text(record.getMessage()), file=sys.stderr)
 
 
 def _setup_logging(verbose: bool = False) -> None:

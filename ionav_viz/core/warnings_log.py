@@ -8,6 +8,8 @@ import contextlib
 import logging
 from collections.abc import Iterator
 
+from .errors import plain_text
+
 #: The logger every module of ionav-viz writes to.
 LOGGER = "ionav_viz"
 
@@ -19,7 +21,7 @@ class _Collector(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         with contextlib.suppress(Exception):  # a message that cannot be formatted is not worth failing a run for
-            message = " ".join(record.getMessage().split())
+            message = " ".join(plain_text(record.getMessage()).split())
             if message not in self.messages:
                 self.messages.append(message)
 

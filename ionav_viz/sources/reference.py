@@ -72,7 +72,7 @@ def place_reference(local: np.ndarray, origin: FrameOrigin | str | None, fixes: 
                          "(fitted to the receiver's fixes)", param="truth_origin")
     if not (np.isfinite(x).all() and np.isfinite(y).all()) or max(np.abs(x).max(), np.abs(y).max()) > MAX_LOCAL_M:
         bad = int(np.argmax(~np.isfinite(x) | ~np.isfinite(y) | (np.abs(x) > MAX_LOCAL_M) | (np.abs(y) > MAX_LOCAL_M)))
-        raise InputError(f"{where}: reference position {x[bad]!r}, {y[bad]!r} m at {t[bad]:.3f} s is not within {MAX_LOCAL_M / 1000:.0f} km "
+        raise InputError(f"{where}: reference position {float(x[bad])!r}, {float(y[bad])!r} m at {t[bad]:.3f} s is not within {MAX_LOCAL_M / 1000:.0f} km "
                          "of its frame's origin", "give a reference in a local metric frame (map, odom, enu)")
     if origin == "auto":
         origin, rms_m, n = fit_origin(t, x, y, fixes, where)
