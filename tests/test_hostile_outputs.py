@@ -9,14 +9,19 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import ionav_viz as iv
+from ionav_viz.core.json_out import dumps_json, plain_json
 
 from .conftest import run_cli
+
+PLUGINS = Path(__file__).resolve().parent / "plugins"
+
 
 def _one_line_error(proc, *fragments: str) -> None:
     lines = proc.stderr.splitlines()
@@ -119,3 +124,102 @@ def test_bundled_motorway_converted_and_evaluated_keeps_its_ins_crse(tmp_path):
     iv.convert("motorway", out)
     a, b = iv.evaluate("motorway", estimators=["ins"]), iv.evaluate(out, estimators=["ins"])
     assert a.summary["ins"]["crse_m"]["mean"] == pytest.approx(b.summary["ins"]["crse_m"]["mean"], rel=1e-6)
+
+
+# ---------------------------------------------------------------------------------------------
+# JSON output: plug-ins' and reports' values become plain JSON at one boundary
+
+
+class _Described:
+    """A plug-in (ConstantSpeed's estimate) whose describe() holds what numpy and Python give."""
+
+    name = "described"
+    label = "Described"
+
+    def __init__(self, info):
+        self.info = info
+
+    def estimate(self, inputs):
+        disp = np.repeat(inputs.speed0_mps[:, None], inputs.n_windows, axis=1) * 1.0
+        return iv.Estimate(disp_m=disp, yaw_rate_radps=np.zeros_like(disp))
+
+    def describe(self):
+        return self.info
+
+
+HOSTILE_INFO = {"gains": np.array([[1.0, np.nan], [np.inf, -np.inf]]), "n": np.int64(3), "f32": np.float32(0.5),
+                "ok": np.bool_(True), "weights": Path("/models/w.safetensors"), "shape": (2, 3), "nan": float("nan"),
+                "set": {3, 1, 2}, 7: "int key", "empty": np.zeros((0, 2))}
+PLAIN_INFO = {"gains": [[1.0, None], [None, None]], "n": 3, "f32": 0.5, "ok": True, "weights": "/models/w.safetensors",
+              "shape": [2, 3], "nan": None, "set": [1, 2, 3], "7": "int key", "empty": []}
+
+
+def test_plain_json_converts_what_numpy_and_plugins_give():
+    assert plain_json(HOSTILE_INFO) == PLAIN_INFO
+    text = dumps_json({"x": np.float64("nan"), "y": [np.float32("inf")]})
+    assert json.loads(text) == {"x": None, "y": [None]} and "NaN" not in text and "Infinity" not in text
+
+
+def test_a_plugin_describing_numpy_values_gets_plain_json(tmp_path):
+    """--json crashed with 'Object of type ndarray is not JSON serializable' (a traceback)."""
+    report = iv.evaluate(["roundabout"], 10.0, iv.Every(60.0), run=iv.RunOptions(plugins=[_Described(HOSTILE_INFO)], without=["idnn"]))
+    got = json.loads(report.to_json())
+    assert got["estimators"][-1]["info"] == PLAIN_INFO
+    assert "Described" in report.to_text()
+
+
+def test_cli_json_with_a_numpy_plugin_is_valid_json(tmp_path):
+    (tmp_path / "npest.py").write_text(
+        "import numpy as np\n"
+        "from ionav_viz import Estimate\n\n"
+        "class NumpyInfo:\n"
+        "    name, label = 'npinfo', 'Numpy info'\n\n"
+        "    def estimate(self, inputs):\n"
+        "        disp = np.repeat(inputs.speed0_mps[:, None], inputs.n_windows, axis=1) * 1.0\n"
+        "        return Estimate(disp_m=disp, yaw_rate_radps=np.zeros_like(disp))\n\n"
+        "    def describe(self):\n"
+        "        return {'gains': np.array([1.0, np.nan, np.inf]), 'k': np.float64(2.5), 'mode': ('a', 'b')}\n")
+    proc = run_cli("evaluate", "roundabout", "--estimator", "./npest.py:NumpyInfo", "--every", "60s", "--no-idnn", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "NaN" not in proc.stdout and "Infinity" not in proc.stdout
+    info = json.loads(proc.stdout)["estimators"][-1]["info"]
+    assert info == {"gains": [1.0, None, None], "k": 2.5, "mode": ["a", "b"]}
+
+
+@pytest.mark.parametrize(("info", "fragment"), [("cycle", "holds itself"), ("deep", "is nested more than 16 levels")])
+def test_a_plugin_describing_a_cycle_or_a_deep_value_is_one_line(info, fragment):
+    value: dict = {}
+    if info == "cycle":
+        value["self"] = value
+    else:
+        inner = value
+        for _ in range(100):
+            inner["x"] = {}
+            inner = inner["x"]
+    with pytest.raises(iv.InputError, match=rf"estimator 'described': describe\(\) returned a value that {fragment}"):
+        iv.evaluate(["roundabout"], 10.0, iv.Every(60.0), run=iv.RunOptions(plugins=[_Described(value)], without=["idnn"])).to_json()
+
+
+def test_the_recording_carries_the_plugins_plain_report(tmp_path):
+    """The report stored in a recording passes the same boundary: figures read it back."""
+    from ionav_viz.viz.recording_info import report_json
+
+    result = iv.replay("roundabout", output=tmp_path / "r.rrd", run=iv.RunOptions(plugins=[_Described(HOSTILE_INFO)], without=["idnn"]))
+    stored = json.loads(report_json(result.path))
+    assert next(e for e in stored["estimators"] if e["name"] == "described")["info"] == PLAIN_INFO
+
+
+def test_exports_and_nan_metrics_are_plain_json(tmp_path):
+    """An undefined metric (final_error_pct below 10 m driven) is null in --json and the GeoJSON is
+    valid strict JSON."""
+    report = iv.evaluate(["stationary"], 10.0, iv.Every(30.0), estimators=["ins"], export=tmp_path / "x")
+    text = report.to_json()
+    assert "NaN" not in text and any(s["ins"]["final_error_pct"] is None for s in json.loads(text)["sequences"])
+    geo = (tmp_path / "x" / "tracks.geojson").read_text()
+    json.loads(geo, parse_constant=lambda token: pytest.fail(f"{token} in tracks.geojson"))
+
+
+def test_stationary_drive_has_undefined_metrics():
+    """The case above relies on the stationary drive having undefined percentages."""
+    report = iv.evaluate(["stationary"], 10.0, iv.Every(30.0), estimators=["ins"])
+    assert any(math.isnan(v) for v in report.metric("ins", "final_error_pct"))

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.fileio import atomic_write_bytes, write_failure
 from ..core.geo import local_en_m
+from ..core.json_out import dumps_json
 from .metrics import METRICS, truth_boundaries
 
 #: The columns of ``outages.csv``: keys, then every metric (their names carry their units).
@@ -55,7 +55,7 @@ def export_results(results: list[Any], folder: str | Path) -> list[Path]:
         f, g = _tracks(res)
         features += f
         gpx_tracks += g
-    written.append(_write(folder / "tracks.geojson", json.dumps({"type": "FeatureCollection", "features": features}).encode()))
+    written.append(_write(folder / "tracks.geojson", dumps_json({"type": "FeatureCollection", "features": features}, indent=None).encode()))
     written.append(_write(folder / "tracks.gpx", _gpx(gpx_tracks).encode()))
     return written
 

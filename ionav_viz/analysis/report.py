@@ -9,8 +9,6 @@ Groups of reports (``--scenario all``, ``--by-event``) print as ``{"scenarios": 
 
 from __future__ import annotations
 
-import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -19,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.json_out import dumps_json
 from ..nav.protocol import short_label
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
@@ -29,17 +28,6 @@ from .tables import truth_line
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
 #: How many of the worst outages reports list.
 WORST_COUNT = 3
-
-
-def json_safe(obj: Any) -> Any:
-    """NaN and infinities -> None (JSON has neither), recursively."""
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    return obj
 
 
 @dataclass(repr=False)
@@ -173,7 +161,7 @@ class Report:
         position error against seconds since the outage began (``t_s``, ``mean_m``, ``p10_m``,
         ``p90_m`` over the outages; :mod:`.drift`); ``final_error_percentiles``: per estimator the
         ``p50``, ``p90``, ``p95`` and ``max`` of the final position error (m).
-        NaN is kept here; :meth:`to_json` writes it as null.
+        NaN is kept here; :meth:`to_json` writes it as null (:mod:`ionav_viz.core.json_out`).
         """
         if self._dict is not None:
             return self._dict
@@ -232,7 +220,7 @@ class Report:
 
     def to_json(self, indent: int | None = 2) -> str:
         """Exactly what ``ionav-viz evaluate --json`` prints for one group (NaN as null)."""
-        return json.dumps(json_safe(self.to_dict()), indent=indent)
+        return dumps_json(self.to_dict(), indent=indent)
 
     def to_text(self, width: int | None = None) -> str:
         """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
@@ -280,8 +268,8 @@ def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", inden
     """Several groups as one JSON object ``{key: {group: report}, "worst": [...]}`` (``evaluate
     --scenario all --json``); ``worst`` ranks the outages of every group together."""
     total = combined(reports)
-    return json.dumps(json_safe({key: {g: r.to_dict() for g, r in reports.items()}, "worst_of": total.worst_of,
-                                 "worst": total.worst_outages()}), indent=indent)
+    return dumps_json({key: {g: r.to_dict() for g, r in reports.items()}, "worst_of": total.worst_of,
+                       "worst": total.worst_outages()}, indent=indent)
 
 
 def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
@@ -307,8 +295,8 @@ def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
 def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> str:
     """Several outage lengths as one JSON object: ``lengths`` (each length's report, keyed by its
     seconds) and ``by_length`` (:func:`by_length`)."""
-    return json.dumps(json_safe({"lengths": {f"{k:g}": r.to_dict() for k, r in sorted(reports.items())},
-                                 "by_length": by_length(reports)}), indent=indent)
+    return dumps_json({"lengths": {f"{k:g}": r.to_dict() for k, r in sorted(reports.items())},
+                       "by_length": by_length(reports)}, indent=indent)
 
 
 def overview_markdown(result: DriveResult, report: Report) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Optional
@@ -22,11 +21,12 @@ def list_runs(
 ) -> None:
     """List the IO-VNBD runs: group, driver, role in the paper, size, and whether present locally."""
     from ..api.datasets import DatasetSource, fetch_root, list_runs
+    from ..core.json_out import dumps_json
 
     root = fetch_root(data_root_opt)
     rows = list_runs(root, DatasetSource(manifest=manifest_opt), verify)
     if as_json:
-        print(json.dumps({"data_root": str(root), "runs": rows}, indent=2))
+        print(dumps_json({"data_root": root, "runs": rows}))
         return
     width = max(len(r["name"]) for r in rows) if rows else 4
     print(f"data root: {root}")

@@ -35,8 +35,9 @@ def evaluate(
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
     from .. import api
-    from ..analysis.report import json_safe, overview_reports, reports_to_json
+    from ..analysis.report import overview_reports, reports_to_json
     from ..analysis.tables import render_overview
+    from ..core.json_out import plain_json
 
     if outage is not None and "," in outage:
         _evaluate_lengths(outage, drives, scenario, plan, export, by_event, overview, external, as_json, markdown, quiet, placement, run, read)
@@ -70,7 +71,7 @@ def evaluate(
         return
     if overview:
         rows = overview_reports(reports, by_event)
-        dicts = {group: json_safe(rep.to_dict()) for group, rep in rows.items()}
+        dicts = {group: plain_json(rep.to_dict()) for group, rep in rows.items()}
         print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()), end="")
         return
     print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width()) for rep in reports.values()), end="")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any, Optional
 
 import typer
@@ -40,6 +39,7 @@ def events(
     """
     from .. import api
     from ..analysis.events import EventThresholds
+    from ..core.json_out import dumps_json
 
     th = EventThresholds().with_overrides(list(thresholds or []))
     kinds = c.split_list(types) if types else None
@@ -48,9 +48,9 @@ def events(
         if as_json:
             from ..dataset.samples import SAMPLES
 
-            print(json.dumps({"drives": [s.file for s in SAMPLES], "detectors": {
+            print(dumps_json({"drives": [s.file for s in SAMPLES], "detectors": {
                 k: {"known": q.known, "recalled": q.recalled, "found": q.found, "precise": q.precise, "recall": q.recall, "precision": q.precision}
-                for k, q in rows.items()}}, indent=2))
+                for k, q in rows.items()}}))
             return
         print(f"{'event':<13} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
         for k, q in rows.items():
@@ -63,7 +63,7 @@ def events(
     with options_named(placement="--type"):
         found = api.find_events(drives, kinds, thresholds=th, read=read)
     if as_json:
-        print(json.dumps({name: [e.to_dict() for e in evs] for name, evs in found.items()}, indent=2))
+        print(dumps_json({name: [e.to_dict() for e in evs] for name, evs in found.items()}))
         return
     for name, evs in found.items():
         print(f"{name}: {len(evs)} event(s)")

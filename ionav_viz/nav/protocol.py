@@ -38,6 +38,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import WINDOW_S
+from ..core.json_out import plain_json
 from ..sources.plausibility import LIMITS
 from .bias import SensorBias
 from .stillness import still_on_grid
@@ -223,14 +224,23 @@ def applies(estimator: Estimator, drive: Drive) -> bool:
     return bool(_member(estimator, "applies", True, drive))
 
 
+#: How deep a plug-in's description may nest (arrays and objects): "names to short values".
+DESCRIBE_MAX_DEPTH = 16
+
+
 def describe(estimator: Estimator) -> dict[str, Any]:
     """The estimator's own description (its optional ``describe()``), for reports: a mapping of
-    names to short values."""
+    names to short values, as JSON's plain types (:func:`~ionav_viz.core.json_out.plain_json`:
+    numpy values, paths and tuples converted, NaN and infinities None)."""
     info = _member(estimator, "describe", {})
     if not isinstance(info, dict):
         raise EstimatorError(f"estimator {estimator.name!r}: describe() returned {type(info).__name__}, not a dict",
                              "return a dict of names to short values, e.g. {'model': 'v2'}")
-    return dict(info)
+    try:
+        return plain_json(info, max_depth=DESCRIBE_MAX_DEPTH)
+    except ValueError as exc:
+        raise EstimatorError(f"estimator {estimator.name!r}: describe() returned a value that {exc}",
+                             "return a dict of names to short values, e.g. {'model': 'v2'}") from None
 
 
 def available(estimator: Estimator) -> bool:

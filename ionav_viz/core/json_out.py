@@ -1,0 +1,99 @@
+"""JSON output: every value a JSON file or ``--json`` prints passes :func:`plain_json` once, here.
+
+Reports, the report a recording carries, exports and outage plans hold what numpy and plug-ins
+give them: numpy scalars and arrays, NaN and infinities, tuples, paths. JSON has none of those
+(and Python's ``json`` writes NaN as the invalid token ``NaN``), so :func:`plain_json` turns them
+into JSON's own types, and :func:`dumps_json` writes the result, refusing anything left over:
+
+* NaN, +inf and -inf become ``null``;
+* numpy scalars become numbers or booleans, arrays (any shape) nested lists, tuples and sets
+  lists (sets sorted when they can be), paths strings, bytes UTF-8 text (undecodable bytes
+  replaced), dates ISO 8601 text, enumerations their values, complex numbers their text;
+* mapping keys become strings as ``json`` would make them (``1`` -> ``"1"``, ``None`` -> ``"null"``);
+* anything else becomes its ``str()``.
+
+A value nested deeper than :data:`MAX_DEPTH` (or the caller's limit) or holding itself is refused
+with ``ValueError`` (the caller names where it came from: a plug-in's ``describe()`` is one line
+naming the plug-in).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import enum
+import json
+import math
+from collections.abc import Mapping
+from pathlib import PurePath
+from typing import Any
+
+import numpy as np
+
+#: Deeper than this a value is refused: a report is six levels deep, a plug-in's description at
+#: most :data:`~ionav_viz.nav.protocol.DESCRIBE_MAX_DEPTH` inside it; readers take 64 (core.fileio).
+MAX_DEPTH = 48
+
+
+def plain_json(value: Any, max_depth: int = MAX_DEPTH) -> Any:
+    """``value`` as JSON's own types: dict (string keys), list, str, int, float (finite), bool or
+    None (see the module docstring). ValueError for a value nested deeper than ``max_depth``
+    arrays and objects, or holding itself."""
+    return _plain(value, 0, set(), max_depth)
+
+
+def dumps_json(value: Any, indent: int | None = 2) -> str:
+    """``json.dumps`` of :func:`plain_json` of ``value``: valid JSON whatever numpy or a plug-in gave."""
+    return json.dumps(plain_json(value), indent=indent, allow_nan=False)
+
+
+def _plain(value: Any, depth: int, path: set[int], max_depth: int = MAX_DEPTH) -> Any:
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, int):
+        return int(value)  # an int subclass (IntEnum's member is an Enum: handled below) prints as a number
+    if isinstance(value, float):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.generic):
+        return _plain(value.item(), depth, path, max_depth)  # numpy bool, integer, floating, complex, str, datetime
+    if isinstance(value, enum.Enum):
+        return _plain(value.value, depth, path, max_depth)
+    if isinstance(value, complex):
+        return str(value)
+    if isinstance(value, PurePath):
+        return str(value)
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value).decode("utf-8", "replace")
+    if isinstance(value, (datetime.date, datetime.time)):
+        return value.isoformat()
+    if isinstance(value, (Mapping, list, tuple, set, frozenset, np.ndarray)):
+        if depth >= max_depth:
+            raise ValueError(f"is nested more than {max_depth} levels deep")
+        if id(value) in path:
+            raise ValueError("holds itself (a cycle)")
+        path.add(id(value))
+        try:
+            if isinstance(value, np.ndarray):
+                return _plain(value.tolist(), depth, path, max_depth)  # tolist gives Python scalars, nested per axis
+            if isinstance(value, Mapping):
+                return {_key(k): _plain(v, depth + 1, path, max_depth) for k, v in value.items()}
+            items = list(value)
+            if isinstance(value, (set, frozenset)):
+                with contextlib.suppress(TypeError):  # mixed types do not sort: as iterated
+                    items = sorted(items)
+            return [_plain(v, depth + 1, path, max_depth) for v in items]
+        finally:
+            path.discard(id(value))
+    return str(value)
+
+
+def _key(key: Any) -> str:
+    """A mapping key as ``json`` writes one (it takes str, int, float, bool and None only)."""
+    if isinstance(key, str):
+        return key
+    plain = _plain(key, 0, set())
+    if isinstance(plain, str):
+        return plain
+    if plain is None or isinstance(plain, (bool, int, float)):
+        return json.dumps(plain)
+    return str(key)
