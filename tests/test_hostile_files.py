@@ -103,7 +103,7 @@ def test_no_command_writes_over_its_input(tmp_path, short_csv):
         (("replay", "V-src.csv", "--no-idnn", "-o", "r.rrd", "--screenshot", "hard.csv"), "--screenshot: hard.csv: exists and is not a folder"),
         (("train", "model/V-train.csv", "-o", "model", "--force"), "model: holds the input model/V-train.csv"),
         (("figures", "figs/report.json", "-o", "figs"), "figs: holds the input figs/report.json"),
-        (("figures", "figs/report.json", "-o", "figs/report.json"), "figs/report.json: is the input"),
+        (("figures", "figs/report.json", "-o", "figs/report.json"), "-o: figs/report.json: "),  # the input, or not a folder
         (("screenshot", "a.rrd", "-o", "shot.png"), "shot.png: is another name (a hard link) of the input a.rrd"),
     ]
     for args, fragment in cases:
@@ -138,8 +138,8 @@ def fifo_unblocked(path: Path):
 
 def test_special_files_are_refused_before_opening(tmp_path, short_csv, outaged):
     """Every input path a user gives (drive, plan, external trajectory, model, plug-in file,
-    recording, manifest) that is a named pipe or a device is one line naming it, before it is
-    opened: an external trajectory that was a named pipe hung forever, a manifest too; a drive,
+    recording, manifest, figures' report) that is a named pipe or a device is one line naming it,
+    before it is opened: an external trajectory that was a named pipe hung forever, a manifest too; a drive,
     model or plug-in file was 'no such file'."""
     _, plan = outaged
     (tmp_path / "model").mkdir()
@@ -158,6 +158,7 @@ def test_special_files_are_refused_before_opening(tmp_path, short_csv, outaged):
             (("evaluate", str(short_csv), "--estimator", "pipe.py:Mine"), "pipe.py: is a named pipe (FIFO)"),
             (("screenshot", "pipe.rrd", "-o", "out.png"), "pipe.rrd: is a named pipe (FIFO)"),
             (("list", "--manifest", "pipe.tsv"), "pipe.tsv: is a named pipe (FIFO)"),
+            (("figures", "pipe.json", "-o", "figs"), "pipe.json: is a named pipe (FIFO)"),
         ]
         for args, fragment in cases:
             assert_refused(run_cli(*args, cwd=tmp_path), fragment)
