@@ -147,7 +147,7 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
             progress(f"{out.name}: {label}", done[0], total)
 
     with stage(f"write {out}") as s, atomic_path(out, create_parent=default) as tmp:
-        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events, report_json=report.to_json(),
+        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events, report_json=report.to_json(indent=None),
                                overview_md=overview_markdown(result, report))
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     if connect is not None:

@@ -33,6 +33,9 @@ from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, 
 from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
 
 APP_ID = "ionav-viz"
+#: Longest wait (s) for Rerun's file sink to write what was logged: a healthy disk writes a 12 h
+#: drive's recording in about a second, and a failed writer makes the flush raise at once.
+FLUSH_TIMEOUT_S = 600.0
 
 
 def _times(t_s: np.ndarray, start_tod_s: float):
@@ -71,27 +74,31 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     """Log ``result`` to the ``.rrd`` file ``path`` (with ``report_json``, the run's report, at
     ``report``, and ``overview_md``, the summary's head, at ``overview``).
 
-    Returns row counts per entity (for messages and tests). The recording is built in memory and
-    written in one go. The caller makes the write atomic: ``path`` is then a temporary file and
+    Returns row counts per entity (for messages and tests). The recording is streamed to ``path``
+    as it is logged. The caller makes the write atomic: ``path`` is then a temporary file and
     ``target`` the name used in error messages.
     """
     import rerun as rr
 
     rec = rr.RecordingStream(APP_ID, recording_id=recording_id(result))
-    # Logged into memory and written by Python: a full disk then fails as a plain OSError, where
-    # Rerun's file sink can block forever once its writer thread has died.
-    memory = rec.memory_recording()
-    rows = log_result(rec, result, summary_md, progress, events)
-    if overview_md is not None:
-        rec.log(ent.OVERVIEW, rr.TextDocument(overview_md, media_type=rr.MediaType.MARKDOWN), static=True)
-        rows[ent.OVERVIEW] = 1
-    if report_json is not None:
-        rec.log(ent.REPORT, rr.TextDocument(report_json, media_type=rr.MediaType.TEXT), static=True)
-        rows[ent.REPORT] = 1
-    data = memory.drain_as_bytes()
-    rec.disconnect()
-    with open(path, "wb") as f:  # OSError (disk full) reaches the caller's atomic write
-        f.write(data)
+    try:
+        # Rerun's file sink streams chunks to disk as they are batched: the recording never sits
+        # whole in memory (a 12 h drive's is 180 MB). A write that fails (disk full, file size
+        # limit) ends its writer thread, and the flush below then raises instead of waiting.
+        rec.save(path)
+        rows = log_result(rec, result, summary_md, progress, events)
+        if overview_md is not None:
+            rec.log(ent.OVERVIEW, rr.TextDocument(overview_md, media_type=rr.MediaType.MARKDOWN), static=True)
+            rows[ent.OVERVIEW] = 1
+        if report_json is not None:
+            rec.log(ent.REPORT, rr.TextDocument(report_json, media_type=rr.MediaType.TEXT), static=True)
+            rows[ent.REPORT] = 1
+        rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+    except RuntimeError as exc:  # the file sink's failures (Rerun's bindings raise RuntimeError)
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ToolFailure(f"{target or path}: writing the recording failed ({first}); is the disk full?") from None
+    finally:
+        rec.disconnect()
     _check_written(path, target or path)
     return rows
 
