@@ -244,6 +244,7 @@ def test_hostile_plans_name_the_outage_and_the_field(tmp_path, short_csv, outage
          "outage 2: field 'start_stamp_s' (40545.405 s) and start_s (40.0 s) disagree with outage 1's"),
         ("none.json", lambda b: b.update(outages=[]), "field 'outages' holds no outage"),
         ("version.json", lambda b: b.update(version=True), "field 'version' is True"),
+        ("half.json", lambda b: b.update(outage_s=10.5), "field 'outage_s' (10.5) is not a whole number of seconds"),
         ("outside.json", lambda b: b.update(outages=[{k: v + 3600 for k, v in first.items()}]),
          "outage 1: field 'start_stamp_s' (40545.405 s) puts it at 3620.000-3630.000 s, outside the drive V-short (0-"),
         ("ms.json", ms, "its stamps look like milliseconds"),
@@ -382,3 +383,29 @@ def test_messages_show_plain_numbers(tmp_path, short_csv, outaged):
     with collecting_warnings() as warned:
         logging.getLogger("ionav_viz").warning("stamps %s", (x, np.float64(1.25)))
     assert warned == ["stamps (60648.34, 1.25)"]
+
+
+def test_external_positions_in_other_units_say_so(tmp_path_factory, short_csv, outaged):
+    """Positions in radians, latitude and longitude swapped, or local metres in kilometres were
+    scored as they were (errors of thousands of km, no word of why). A pose more than 1 km from the
+    start fix at an outage's start is refused, naming the likely unit."""
+    from ionav_viz.core.geo import local_en_m
+    from ionav_viz.sim.simulate import write_simulated_drive
+
+    tmp_path = tmp_path_factory.mktemp("units")
+    _, plan = outaged
+    drive = iv.load_drive(short_csv)
+    stamps = drive.stamp_s(drive.t_s)
+    for path, fragment in [(trajectory_csv(tmp_path / "rad.csv", stamps, np.radians(drive.lat_deg), np.radians(drive.lon_deg)), "look like radians"),
+                           (trajectory_csv(tmp_path / "swap.csv", stamps, drive.lon_deg, drive.lat_deg), "look like longitude first")]:
+        assert_refused(run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={path}", cwd=tmp_path),
+                       "at outage 1's start its pose lies", fragment)
+    # kilometres show only where the outage starts over 1 km from the first fix: a motorway, 90 s in
+    motorway = write_simulated_drive(tmp_path / "V-motorway.csv", "motorway", seed=2, duration_s=120)
+    cut = iv.outage_log(motorway, tmp_path / "m.mcap", 10.0, iv.At((90.0,)))
+    drive = iv.load_drive(motorway)
+    east, north = local_en_m(drive.lat_deg, drive.lon_deg, float(drive.lat_deg[0]), float(drive.lon_deg[0]))
+    km = tmp_path / "km.tum"
+    km.write_text("".join(f"{t:.6f} {x / 1000:.9f} {y / 1000:.9f} 0 0 0 0 1\n" for t, x, y in zip(drive.stamp_s(drive.t_s), east, north)))
+    assert_refused(run_cli("evaluate", str(motorway), "--no-idnn", "--plan", str(cut.plan_path), "--external", f"x={km}", cwd=tmp_path),
+                   "at outage 1's start its pose lies", "look like kilometres")

@@ -33,6 +33,9 @@ log = logging.getLogger("ionav_viz")
 MAX_GAP_S = 2.0
 #: Positions within this (m) of the removed fixes at most of an outage's boundaries: it saw them.
 LEAK_M = 0.01
+#: The pose nearest an outage's start may lie at most this far (m) from the start fix the estimator
+#: was given; farther, its positions are in other units or on another origin.
+MAX_START_OFFSET_M = 1000.0
 
 
 @dataclass
@@ -62,9 +65,11 @@ class External:
             lat_all, lon_all = traj.lat_deg, traj.lon_deg
         lon_all = np.rad2deg(np.unwrap(np.deg2rad(lon_all)))
         lat, lon = np.empty_like(when), np.empty_like(when)
+        nearest = np.zeros(len(when), dtype=int)  # per outage, the pose nearest its start
         for i, row in enumerate(when):
             # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
             upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
+            nearest[i] = int(np.argmin(np.abs(t[:upto] - row[0]))) if upto else 0
             t_i, lat_i, lon_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
                                                 float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
             if not _covers(t_i, row):
@@ -76,9 +81,41 @@ class External:
                     units or "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
             lat[i], lon[i] = (_interpolated(row, t_i, v) for v in (lat_i, lon_i))
         lon = (lon + 180.0) % 360.0 - 180.0
+        self._check_start(inputs, nearest, lat_all, lon_all)
         self._report_leaks(inputs, when, lat, lon)
         disp, yaw = windows_of_track(lat, lon, inputs.course0_deg)
         return Estimate(disp, yaw, lat_deg=lat, lon_deg=lon)
+
+    def _check_start(self, inputs: EstimatorInputs, nearest: np.ndarray, lat_all: np.ndarray, lon_all: np.ndarray) -> None:
+        """Refuse a trajectory whose pose nearest an outage's start lies more than
+        :data:`MAX_START_OFFSET_M` from the start fix it was given: positions in other units
+        (radians, kilometres), latitude and longitude swapped, or another local origin; the hint
+        names the likely one."""
+        if not len(nearest):
+            return
+        geod = wgs84()
+        _, _, dist = geod.inv(lon_all[nearest], lat_all[nearest], inputs.lon0_deg, inputs.lat0_deg)
+        dist = np.asarray(dist, dtype=float)
+        if not (dist > MAX_START_OFFSET_M).any():
+            return
+        i = int(np.argmax(dist > MAX_START_OFFSET_M))
+        j, traj = int(nearest[i]), self.trajectory
+        lat0, lon0 = float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i])
+        if traj.local:
+            e, n = float(traj.east_m[j]), float(traj.north_m[j])
+            origin = float(inputs.drive.lat_deg[0]), float(inputs.drive.lon_deg[0])
+            candidates = [("kilometres", *geodetic_of_en_m(e * 1e3, n * 1e3, *origin)), ("x north and y east", *geodetic_of_en_m(n, e, *origin)),
+                          ("latitude and longitude in degrees", e, n)]
+        else:
+            a, b = float(traj.lat_deg[j]), float(traj.lon_deg[j])
+            candidates = [("radians", np.degrees(a), np.degrees(b)), ("longitude first, then latitude", b, a)]
+        likely = next((label for label, la, lo in candidates if abs(float(la)) <= 90
+                       and geod.inv(float(lo), float(la), lon0, lat0)[2] <= MAX_START_OFFSET_M), None)
+        what = "time_s,east_m,north_m (metres about the drive's first fix)" if traj.local else "time_s,lat_deg,lon_deg (WGS84 degrees)"
+        raise EstimatorError(
+            f"external {self.name!r} ({traj.source}): at outage {i + 1}'s start its pose lies {dist[i] / 1000:.4g} km from the start fix "
+            f"it was given ({lat0:.6f}, {lon0:.6f}); at most {MAX_START_OFFSET_M / 1000:g} km is an estimate",
+            (f"its positions look like {likely}: " if likely else "") + f"write {what}")
 
     def _report_leaks(self, inputs: EstimatorInputs, when: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
         """Warn when inside the outages the trajectory sits on the GNSS fixes that were removed."""

@@ -99,6 +99,8 @@ def read_plan(path: str | Path) -> PlanFile:
     outage_s = body.get("outage_s")
     if not number(outage_s) or outage_s <= 0:
         raise bad("outage_s", "is not a positive number of seconds")
+    if abs(outage_s - round(outage_s)) > 1e-9:
+        raise bad("outage_s", f"({outage_s!r}) is not a whole number of seconds, as every outage is")
     if not body["outages"]:
         raise bad("outages", "holds no outage")
     starts, starts_s = [], []
