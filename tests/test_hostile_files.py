@@ -409,3 +409,30 @@ def test_external_positions_in_other_units_say_so(tmp_path_factory, short_csv, o
     km.write_text("".join(f"{t:.6f} {x / 1000:.9f} {y / 1000:.9f} 0 0 0 0 1\n" for t, x, y in zip(drive.stamp_s(drive.t_s), east, north)))
     assert_refused(run_cli("evaluate", str(motorway), "--no-idnn", "--plan", str(cut.plan_path), "--external", f"x={km}", cwd=tmp_path),
                    "at outage 1's start its pose lies", "look like kilometres")
+
+
+def test_outage_log_keeps_the_previous_log_when_its_plan_fails(tmp_path, short_csv, monkeypatch):
+    """The log is written before its plan; when the plan failed (a full disk, a signal), the new
+    log was removed and the previous file at OUT was already gone. Now it comes back."""
+    import errno
+    import importlib
+
+    from ionav_viz.core.fileio import atomic_path as real_atomic_path
+
+    module = importlib.import_module("ionav_viz.api.outage_log")
+
+    out = tmp_path / "cut.mcap"
+    out.write_bytes(b"the previous outaged log")
+    (tmp_path / "cut.outages.json").write_text("the previous plan")
+
+    def failing(target, *args, **kwargs):
+        if str(target).endswith(".outages.json"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_atomic_path(target, *args, **kwargs)
+
+    monkeypatch.setattr(module, "atomic_path", failing)
+    with pytest.raises(OSError):
+        iv.outage_log(short_csv, out, 10.0, iv.At((20.0,)))
+    assert out.read_bytes() == b"the previous outaged log"
+    assert (tmp_path / "cut.outages.json").read_text() == "the previous plan"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.mcap", "cut.outages.json"]  # nothing aside left

@@ -3,11 +3,13 @@ would place, and the plan that scores an estimate made on it (:mod:`ionav_viz.na
 
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 
 from ..core.errors import InputError
 from ..core.fileio import atomic_path, check_output_file, refuse_output_onto_input
+from ..core.signals import hold_signals
 from ..core.timing import stage
 from ..nav.outages import Placement
 from ..nav.plan_file import FromPlan, PlanFile, checksum
@@ -98,19 +100,49 @@ def outage_log(
     clock = ("IO-VNBD time since the start of the day (s)" if kind == "iovnbd"
              else f"UNIX time (s), the messages' {'log times' if read.log.stamps == 'log' else 'header stamps'}")
     options = {"type": type(placement).__name__, **(asdict(placement) if is_dataclass(placement) else {})}
-    with stage(f"write {out.name}"):
-        written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps, vehicle_speed_for_log(d.as_received()))
-    result = PlanFile(str(source), checksum(source), d.name, float(n), plan.description, options, tuple(stamps),
-                      tuple(float(s) for s in start_s), clock, written.removed_topics)
+    # Both files or neither: the log is written first (atomically), then the plan; if the plan
+    # fails (a full disk, a signal), the new log goes and the previous file at OUT, kept aside
+    # under a hard link while they are written, comes back.
+    release = hold_signals()  # no signal between making the link and the cleanup that removes it
+    previous: Path | None = None
+    written = None
     try:
+        previous = _link_aside(out)
+        release()
+        with stage(f"write {out.name}"):
+            written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps, vehicle_speed_for_log(d.as_received()))
+        result = PlanFile(str(source), checksum(source), d.name, float(n), plan.description, options, tuple(stamps),
+                          tuple(float(s) for s in start_s), clock, written.removed_topics)
         with atomic_path(plan_file) as tmp:
             tmp.write_text(result.to_json(), encoding="utf-8")
     except BaseException:
-        if out.is_dir():  # both or neither
-            import shutil
+        release()
+        if written is not None:
+            if out.is_dir():
+                import shutil
 
-            shutil.rmtree(out, ignore_errors=True)
-        else:
-            out.unlink(missing_ok=True)
+                shutil.rmtree(out, ignore_errors=True)
+            else:
+                out.unlink(missing_ok=True)
+            if previous is not None:
+                os.replace(previous, out)
         raise
+    finally:
+        if previous is not None:
+            previous.unlink(missing_ok=True)
     return OutageLogResult(out, plan_file, result, written.removed)
+
+
+def _link_aside(path: Path) -> Path | None:
+    """A hidden hard link beside ``path`` to the regular file there (None: no file, or the file
+    system makes no hard links)."""
+    import secrets
+
+    if not path.is_file():
+        return None
+    aside = path.with_name(f".{path.name}.previous.{secrets.token_hex(6)}")
+    try:
+        os.link(path, aside, follow_symlinks=False)  # a link at OUT comes back as the link
+    except OSError:
+        return None
+    return aside
