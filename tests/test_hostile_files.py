@@ -143,7 +143,9 @@ def test_special_files_are_refused_before_opening(tmp_path, short_csv, outaged):
     model or plug-in file was 'no such file'."""
     _, plan = outaged
     (tmp_path / "model").mkdir()
-    pipes = {name: tmp_path / name for name in ("pipe.csv", "pipe.json", "pipe.py", "pipe.rrd", "pipe.tsv", "model/metadata.json")}
+    (tmp_path / "bag").mkdir()
+    (tmp_path / "bag" / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: 9\n")
+    pipes = {name: tmp_path / name for name in ("pipe.csv", "pipe.json", "pipe.py", "pipe.rrd", "pipe.tsv", "model/metadata.json", "bag/bag_0.db3")}
     with contextlib.ExitStack() as stack:
         for p in pipes.values():
             stack.enter_context(fifo_unblocked(p))
@@ -159,6 +161,7 @@ def test_special_files_are_refused_before_opening(tmp_path, short_csv, outaged):
             (("screenshot", "pipe.rrd", "-o", "out.png"), "pipe.rrd: is a named pipe (FIFO)"),
             (("list", "--manifest", "pipe.tsv"), "pipe.tsv: is a named pipe (FIFO)"),
             (("figures", "pipe.json", "-o", "figs"), "pipe.json: is a named pipe (FIFO)"),
+            (("evaluate", "bag", "--no-idnn"), "bag/bag_0.db3: is a named pipe (FIFO)"),  # a file the reader opens in a folder
         ]
         for args, fragment in cases:
             assert_refused(run_cli(*args, cwd=tmp_path), fragment)

@@ -235,6 +235,32 @@ def check_regular_input(path: str | Path, param: str, *, hint: str | None = None
     return path
 
 
+def check_regular_tree(folder: str | Path, param: str, *, hint: str | None = None, max_depth: int = 3, max_entries: int = 200_000) -> Path:
+    """:func:`check_regular_input` for the files a reader opens inside an input folder (a ROS 2
+    bag's ``metadata.yaml`` and ``.db3``, a KITTI drive's OXTS text files): no named pipe, device
+    or socket within ``max_depth`` levels (the first ``max_entries`` entries; directory listings only,
+    no file is opened). Returns ``folder``."""
+    folder = Path(folder)
+    level, seen = [folder], 0
+    for _ in range(max_depth):
+        below = []
+        for directory in level:
+            try:
+                entries = list(os.scandir(directory))
+            except OSError:
+                continue
+            for entry in entries:
+                seen += 1
+                if seen > max_entries:
+                    return folder
+                if entry.is_dir():
+                    below.append(entry.path)
+                elif not entry.is_file():
+                    check_regular_input(entry.path, param, hint=hint, missing_ok=True)  # a dangling link is the reader's to name
+        level = below
+    return folder
+
+
 #: A JSON input's default limits: an outage plan or a report is kilobytes and a few levels deep.
 JSON_MAX_BYTES = 64 << 20
 JSON_MAX_DEPTH = 64

@@ -16,7 +16,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..core.errors import InputError
-from ..core.fileio import check_regular_input
+from ..core.fileio import check_regular_input, check_regular_tree
 from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
 from ..dataset.samples import SAMPLES, by_scenario, sample_path
 
@@ -65,7 +65,9 @@ def _bundled(spec: str) -> Path | None:
 def resolve_drive(spec: str, root: Path | None) -> Path:
     """Path of the drive ``spec`` names (see module docstring), or an :class:`InputError`."""
     path = Path(spec).expanduser()
-    if path.is_file() or path.is_dir():
+    if path.is_dir():  # a ROS 2 bag, a KITTI drive: no pipe or device among the files read in it
+        return check_regular_tree(path, "drive", hint="give the log's file or folder")
+    if path.is_file():
         return path
     if path.exists():  # a named pipe would block the reader forever, a device could be endless
         return check_regular_input(path, "drive", hint="give the log's file or folder", folder_ok=True)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import check_regular_input
+from ..core.fileio import check_regular_input, check_regular_tree
 
 #: A trajectory file larger than this is refused (a day at 100 Hz in CSV is about 300 MB).
 MAX_BYTES = 2 << 30
@@ -67,6 +67,8 @@ def read_trajectory(spec: str | Path) -> Trajectory:
     if not path.exists():
         raise InputError(f"{path}: no such trajectory file", _TRAJECTORY_HINT, param="external")
     check_regular_input(path, "external", hint=_TRAJECTORY_HINT, folder_ok=topic is not None)  # a named pipe hung the reader
+    if path.is_dir():
+        check_regular_tree(path, "external", hint=_TRAJECTORY_HINT)  # a ROS 2 bag's files
     if topic is not None:
         return _from_log(path, topic)
     suffix = path.suffix.lower()
