@@ -108,7 +108,7 @@ def test_figures_from_a_recording_and_from_json(tmp_path):
     js = tmp_path / "r.json"
     js.write_text(run_cli("evaluate", "roundabout", "--every", "60s", "--no-idnn", "--json").stdout)
     assert run_cli("figures", str(js), "-o", str(tmp_path / "figs2")).returncode == 0
-    for bad, fragment in [(tmp_path / "figs" / "cdf.pdf", "not JSON"), (tmp_path / "none.json", "no such file")]:
+    for bad, fragment in [(tmp_path / "figs" / "cdf.pdf", "not UTF-8 text"), (tmp_path / "none.json", "no such file")]:
         proc = run_cli("figures", str(bad), "-o", str(tmp_path / "x"))
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -207,6 +208,7 @@ def test_the_recording_carries_the_plugins_plain_report(tmp_path):
     result = iv.replay("roundabout", output=tmp_path / "r.rrd", run=iv.RunOptions(plugins=[_Described(HOSTILE_INFO)], without=["idnn"]))
     stored = json.loads(report_json(result.path))
     assert next(e for e in stored["estimators"] if e["name"] == "described")["info"] == PLAIN_INFO
+    assert {p.name for p in iv.figures(result.path, tmp_path / "figs")} == FIGURE_FILES
 
 
 def test_exports_and_nan_metrics_are_plain_json(tmp_path):
@@ -223,3 +225,192 @@ def test_stationary_drive_has_undefined_metrics():
     """The case above relies on the stationary drive having undefined percentages."""
     report = iv.evaluate(["stationary"], 10.0, iv.Every(30.0), estimators=["ins"])
     assert any(math.isnan(v) for v in report.metric("ins", "final_error_pct"))
+
+
+def test_an_outage_plan_with_numpy_values_is_plain_json():
+    from ionav_viz.nav.plan_file import PlanFile
+
+    plan = PlanFile(source="x.mcap", source_sha256="0" * 64, drive="x", outage_s=np.float64(10.0), placement="every 30 s",
+                    placement_options={"every_s": np.float64(30.0), "seed": np.int64(3), "at": np.array([1.0, np.nan])},
+                    start_stamps_s=(np.float64(100.0),), start_s=(np.float64(0.0),), clock="UNIX seconds")
+    body = json.loads(plan.to_json())
+    assert body["placement_options"] == {"every_s": 30.0, "seed": 3, "at": [1.0, None]} and body["outages"][0]["end_s"] == 10.0
+
+
+# ---------------------------------------------------------------------------------------------
+# figures: hostile reports, outputs that are files, signals and full disks while drawing
+
+FIGURE_FILES = {f"{f}.{x}" for f in ("drift", "cdf", "outages", "worst") for x in ("svg", "pdf", "png")}
+
+
+@pytest.fixture(scope="session")
+def report(tmp_path_factory) -> Path:
+    """One drive's evaluate --json (INS DR and odometry, outages every 60 s)."""
+    path = tmp_path_factory.mktemp("report") / "report.json"
+    path.write_text(iv.evaluate("roundabout", 10.0, iv.Every(60.0), estimators=["ins", "odo"]).to_json())
+    return path
+
+
+def _variant(report: Path, folder: Path, change) -> Path:
+    rep = json.loads(report.read_text())
+    change(rep)
+    out = folder / "variant.json"
+    out.write_text(json.dumps(rep))
+    return out
+
+
+def _nulls(rep: dict) -> None:
+    rep["drift"]["ins"]["mean_m"][3] = None
+    rep["drift"]["odo"] = {k: [None] * len(v) if k != "t_s" else v for k, v in rep["drift"]["odo"].items()}
+    rep["sequences"][0]["ins"]["final_position_error_m"] = None
+    rep["final_error_percentiles"]["ins"]["p50"] = None
+    rep["worst_tracks"]["odo"]["east_m"][2] = None
+
+
+def test_a_report_with_null_drift_is_drawn_and_what_is_left_out_is_said(report, tmp_path, caplog):
+    """Was a TypeError traceback. Values the report leaves undefined are not drawn, each figure
+    says what it left out, and an estimator with nothing defined is left out of that figure."""
+    bad = _variant(report, tmp_path, _nulls)
+    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+        written = iv.figures(bad, tmp_path / "figs")
+    assert {p.name for p in written} == FIGURE_FILES == {p.name for p in (tmp_path / "figs").iterdir()}
+    said = [r.getMessage() for r in caplog.records]
+    assert any(m.startswith("figures: drift:") and "Odometry has no defined point, left out" in m and "INS DR: 1 of" in m for m in said), said
+    assert any(m.startswith("figures: cdf:") and "INS DR: 1 of" in m for m in said), said
+    assert any(m.startswith("figures: worst:") and "Odometry: 1 of" in m for m in said), said
+    assert "Odometry" not in (tmp_path / "figs" / "drift.svg").read_text()
+    assert "INS DR (p50 n/a)" in (tmp_path / "figs" / "cdf.svg").read_text()
+
+
+def _deep(rep: dict) -> None:
+    inner = rep["estimators"][0]
+    for _ in range(80):
+        inner["info"] = {}
+        inner = inner["info"]
+
+
+HOSTILE_REPORTS = {
+    "not JSON": (lambda path: path.write_bytes(b"%PDF-1.4\n\xe2\xe3"), "not UTF-8 text"),
+    "truncated": (lambda path: path.write_text('{"drive": "x", "drift": {'), "not valid JSON"),
+    "Infinity": (lambda path: path.write_text('{"drive": "x", "outage_s": Infinity}'), "Infinity is not a number JSON allows"),
+    "overflow": (lambda path: path.write_text('{"drive": "x", "outage_s": 1e999}'), "1e999 overflows to infinity"),
+    "nested brackets": (lambda path: path.write_text("[" * 100_000 + "]" * 100_000), "nested 100000 levels deep"),
+    "huge": (lambda path: os.truncate(path.write_bytes(b"") or path, 100 << 20), "104857600 bytes is too large for a report"),
+    "an array": (lambda path: path.write_text("[1, 2]"), "a JSON array, not a report"),
+    "several reports": (lambda path: path.write_text('{"scenarios": {}}'), "holds several reports"),
+}
+HOSTILE_FIELDS = {
+    "drift not numbers": (lambda rep: rep["drift"]["ins"]["mean_m"].__setitem__(2, "x"), "drift.ins.mean_m[2]: 'x' is not a number"),
+    "drift lengths differ": (lambda rep: rep["drift"]["odo"]["p90_m"].pop(), "drift.odo: t_s, mean_m, p10_m and p90_m differ in length"),
+    "no drift for one": (lambda rep: rep["drift"].pop("odo"), "drift.odo: missing"),
+    "a huge value": (lambda rep: rep["worst_tracks"]["ins"]["east_m"].__setitem__(1, 1e300), "worst_tracks.ins.east_m[1]: 1e+300 is beyond any drive"),
+    "negative length": (lambda rep: rep.__setitem__("outage_s", -10), "outage_s: -10 is not an outage length"),
+    "estimators a string": (lambda rep: rep.__setitem__("estimators", "ins"), "estimators: is not a list of estimators"),
+    "a bad colour": (lambda rep: rep["estimators"][0].__setitem__("color", [300, 0, 0]), "estimators[0].color: [300, 0, 0] is not an RGB triple"),
+    "an outage without one": (lambda rep: rep["sequences"][1].pop("odo"), "sequences[1].odo: missing"),
+    "a boolean final error": (lambda rep: rep["sequences"][0]["ins"].__setitem__("final_position_error_m", True),
+                              "sequences[0].ins.final_position_error_m: True is not a number"),
+    "no outages": (lambda rep: rep.__setitem__("n_sequences", 0), "n_sequences: 0 is not a count of outages"),
+    "deeply nested info": (_deep, "levels deep; a report nests at most 64"),
+}
+
+
+@pytest.mark.parametrize("case", list(HOSTILE_REPORTS) + list(HOSTILE_FIELDS))
+def test_hostile_reports_are_one_line_and_write_nothing(report, tmp_path, case):
+    if case in HOSTILE_REPORTS:
+        write, fragment = HOSTILE_REPORTS[case]
+        bad = tmp_path / "bad.json"
+        write(bad)
+    else:
+        change, fragment = HOSTILE_FIELDS[case]
+        bad = _variant(report, tmp_path, change)
+    out = tmp_path / "figs"
+    proc = run_cli("figures", str(bad), "-o", str(out))
+    _one_line_error(proc, str(bad), fragment, "ionav-viz evaluate")
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [bad.name]
+
+
+def test_figures_onto_an_existing_file_is_one_line(report, tmp_path):
+    """Was a FileExistsError traceback."""
+    target = tmp_path / "paper.pdf"
+    target.write_bytes(b"my paper")
+    _one_line_error(run_cli("figures", str(report), "-o", str(target)), str(target), "not a folder")
+    assert target.read_bytes() == b"my paper"
+    _one_line_error(run_cli("figures", str(report), "-o", str(target / "figs")), "not a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["paper.pdf"]
+
+
+def test_figures_leave_the_callers_matplotlib_alone(report, tmp_path):
+    """viz.figures called matplotlib.use('Agg'): a caller's backend was switched for good."""
+    import matplotlib
+
+    before, font = matplotlib.get_backend(), matplotlib.rcParams["font.size"]
+    matplotlib.use("pdf")
+    try:
+        iv.figures(report, tmp_path / "figs")
+        assert matplotlib.get_backend() == "pdf" and matplotlib.rcParams["font.size"] == font
+    finally:
+        matplotlib.use(before)
+
+
+def test_a_full_disk_while_drawing_leaves_the_folder_as_it_was(report, tmp_path, monkeypatch):
+    """No room for the fifth file: one line naming the folder; the earlier figures, the user's
+    other files and no temporary folder are what is left."""
+    from matplotlib.figure import Figure
+
+    from ionav_viz.core.errors import ToolFailure
+
+    out = tmp_path / "figs"
+    out.mkdir()
+    before = {name: f"old {name}".encode() for name in FIGURE_FILES} | {"notes.txt": b"mine"}
+    for name, data in before.items():
+        (out / name).write_bytes(data)
+    real, calls = Figure.savefig, []
+
+    def failing(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 5:
+            raise OSError(28, "No space left on device")
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", failing)
+    with pytest.raises(ToolFailure, match=r"figs/cdf\.pdf: write failed \(No space left on device\); is the disk full\?"):
+        iv.figures(report, out)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["figs"]
+    monkeypatch.setattr(Figure, "savefig", real)
+    assert {p.name for p in iv.figures(report, out)} == FIGURE_FILES
+    assert (out / "notes.txt").read_bytes() == b"mine" and (out / "drift.pdf").read_bytes().startswith(b"%PDF")
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_sigterm_while_drawing_leaves_the_folder_as_it_was(report, tmp_path, existing):
+    """A real SIGTERM once the first figure is written: exit 143, and the output folder as it was
+    (absent, or with its old figures and other files); no temporary folder left beside it."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "figs"
+    before = {name: b"old" for name in FIGURE_FILES} | {"notes.txt": b"mine"} if existing else None
+    if existing:
+        out.mkdir()
+        for name, data in before.items():
+            (out / name).write_bytes(data)
+    proc = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", "figures", str(report), "-o", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if any(p.read_bytes() != b"old" for p in tmp_path.rglob("drift.png")):  # in the temporary folder (or, before, in figs)
+            break
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, (proc.returncode, err)
+    if existing:
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    else:
+        assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == (["figs"] if existing else []), list(tmp_path.iterdir())

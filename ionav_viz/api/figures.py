@@ -4,16 +4,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..core.fileio import check_regular_input, refuse_output_onto_input
+from ..core.fileio import check_output_folder, check_regular_input, refuse_output_onto_input
 from ..core.timing import stage
 
 
 def figures(result: str | Path, output: str | Path) -> list[Path]:
     """Draw the drift curve, the final-error CDF, the per-outage errors and the worst outage's
     tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output)
-    into the folder ``output`` as SVG, PDF and PNG. Returns the files written."""
+    into the folder ``output`` as SVG, PDF and PNG. Returns the files written.
+
+    The report is checked field by field first (one :class:`InputError` naming the file and the
+    field); values it leaves undefined (null) are not drawn, each figure warning what it left out.
+    The figures appear in ``output`` only when all are complete (drawn in a temporary folder beside
+    it); other files there are kept."""
     from ..viz.figures import read_report, write_figures
 
+    check_output_folder(Path(output))  # before any work: -o naming a file is refused
     refuse_output_onto_input(output, [result], output_is_folder=True)  # before reading: the folder is replaced
     check_regular_input(result, "result", hint="give a .rrd written by replay or the output of 'evaluate --json'", missing_ok=True)
     rep = read_report(result)

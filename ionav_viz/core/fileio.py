@@ -312,6 +312,18 @@ def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX
             raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
     if len(data) > max_bytes:  # grew while read
         raise InputError(f"{path}: more than {max_bytes} bytes is too large for {what}", hint, param=param)
+    return parse_json_bounded(data, path, param=param, max_bytes=max_bytes, max_depth=max_depth, hint=hint, what=what)
+
+
+def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES,
+                       max_depth: int = JSON_MAX_DEPTH, hint: str | None = None, what: str = "a JSON file") -> Any:
+    """:func:`read_json_bounded`'s checks on JSON already in memory (``data``; ``path`` names where
+    it came from in messages, e.g. the recording that carried it): size, depth, strict JSON."""
+    hint = hint or f"give {what}"
+    if isinstance(data, str):
+        data = data.encode("utf-8", "surrogatepass")
+    if len(data) > max_bytes:
+        raise InputError(f"{path}: {len(data)} bytes is too large for {what} (at most {max_bytes})", hint, param=param)
     depth, _ = _json_depth(data)
     if depth > max_depth:
         raise InputError(f"{path}: nested {depth} levels deep; {what} nests at most {max_depth}", hint, param=param)

@@ -10,12 +10,28 @@ as vector (SVG and PDF) and raster (PNG, 300 dpi), sized for one column of a two
 * ``cdf``: the empirical distribution of the final position error;
 * ``outages``: the final position error of every outage, per estimator;
 * ``worst``: the worst outage's tracks and the truth, in metres about its start, with a scale bar.
+
+The report is read as bounded, strict JSON and checked field by field before anything is drawn
+(:func:`read_report`: one line naming the file and the field otherwise). A value a report leaves
+undefined (``null``: the JSON writes NaN so) is not drawn: a gap in a curve or track, an outage
+left out of the CDF and the per-outage errors, ``p50 n/a`` in a legend, and an estimator with no
+defined value in a figure is left out of it; each is said in one warning line per figure.
+
+The figures are drawn into a temporary folder (beside a new output folder, inside an existing one)
+and moved in when all are complete, with stop signals held (:func:`write_figures`): a run stopped
+while drawing leaves the folder as it was. Other files in the folder are kept. Matplotlib is used through its object
+interface (``Figure`` and the Agg canvas), never ``pyplot``: the caller's backend and figures are
+untouched.
 """
 
 from __future__ import annotations
 
-import json
+import contextlib
+import logging
 import math
+import os
+import shutil
+import tempfile
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -24,8 +40,11 @@ import numpy as np
 
 from ..analysis.drift import error_cdf
 from ..core.errors import InputError
-from ..core.fileio import atomic_path
+from ..core.fileio import check_output_folder, check_regular_input, current_umask, parse_json_bounded, read_json_bounded, write_failure
+from ..core.signals import hold_signals
 from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors
+
+log = logging.getLogger("ionav_viz")
 
 #: One column of a two-column paper (inches), and the type size (pt).
 COLUMN_IN, FONT_PT = 3.5, 8
@@ -33,34 +52,149 @@ FORMATS = ("svg", "pdf", "png")
 FIGURES = ("drift", "cdf", "outages", "worst")
 
 
+#: What a report's reader says to give instead of a bad one.
+REPORT_HINT = "give the output of 'ionav-viz evaluate --json' for one drive, or a recording written by 'ionav-viz replay'"
+#: Numbers a report may hold (metres, seconds): beyond this none comes from a drive (the earth's
+#: circumference is 4e7 m, twelve hours 4.3e4 s), and the axes and scale bar could not be drawn.
+MAX_REPORT_VALUE = 1e9
+
+
 def read_report(path: str | Path) -> dict[str, Any]:
-    """A report's JSON from ``evaluate --json`` output or a recording (``.rrd``); one line of error otherwise."""
+    """A report's JSON from ``evaluate --json`` output or a recording (``.rrd``), read as bounded,
+    strict JSON (:func:`~ionav_viz.core.fileio.read_json_bounded`) and checked field by field
+    (:func:`check_report`); one line of error naming the file and the field otherwise."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file", "give a recording (.rrd) or the output of 'ionav-viz evaluate --json'", param="result")
     if path.suffix.lower() == ".rrd":
         from .recording_info import report_json
 
-        text = report_json(path)
+        check_regular_input(path, "result", hint=REPORT_HINT)
+        rep = parse_json_bounded(report_json(path), path, param="result", hint=REPORT_HINT, what="a report")
     else:
-        if path.stat().st_size > 1 << 30:
-            raise InputError(f"{path}: {path.stat().st_size} bytes is too large for a report", "give 'ionav-viz evaluate --json' output", param="result")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise InputError(f"{path}: not JSON (not UTF-8 text)", "give 'ionav-viz evaluate --json' output", param="result") from None
-        except OSError as exc:
-            raise InputError(f"{path}: unreadable ({exc.strerror})", "give 'ionav-viz evaluate --json' output", param="result") from None
-    try:
-        rep = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})", "give 'ionav-viz evaluate --json' output", param="result") from None
-    if isinstance(rep, dict) and ("scenarios" in rep or "by_event" in rep):
-        raise InputError(f"{path}: holds several reports (--scenario or --by-event)", "write one drive's report with evaluate --json", param="result")
-    if not isinstance(rep, dict) or not rep.get("n_sequences") or "drift" not in rep:
-        raise InputError(f"{path}: not a report with outages and drift curves", "make it with this version's 'ionav-viz evaluate --json' or replay",
-                         param="result")
+        rep = read_json_bounded(path, param="result", hint=REPORT_HINT, what="a report")
+    check_report(rep, path)
     return rep
+
+
+def check_report(rep: Any, path: Path) -> None:
+    """That ``rep`` holds every field the figures draw, of the right type: the estimators (a name,
+    a label, an optional RGB colour), their drift curves, every outage's final error, the final
+    error percentiles and the worst outage's tracks. Numbers are finite (the strict reader) and
+    within :data:`MAX_REPORT_VALUE`; ``null`` is allowed where the report leaves a value undefined."""
+
+    def fail(field: str, why: str) -> None:
+        raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
+
+    if isinstance(rep, dict) and any(k in rep for k in ("scenarios", "by_event", "lengths")):
+        raise InputError(f"{path}: holds several reports (--scenario, --by-event or several --outage lengths)",
+                         "write one drive's report with 'ionav-viz evaluate DRIVE --json'", param="result")
+    if not isinstance(rep, dict):
+        raise InputError(f"{path}: a JSON {_kind(rep)}, not a report (an object)", REPORT_HINT, param="result")
+    for key in ("drive", "n_sequences", "outage_s", "estimators", "sequences", "drift", "final_error_percentiles", "worst_tracks"):
+        if key not in rep:
+            fail(key, "missing (not a report with outages and drift curves, or one made by an earlier ionav-viz)")
+    _need_text(rep["drive"], "drive", fail)
+    if not _is_int(rep["n_sequences"]) or rep["n_sequences"] < 1:
+        fail("n_sequences", f"{rep['n_sequences']!r} is not a count of outages (1 or more)")
+    outage = rep["outage_s"]
+    if not _is_number(outage) or not 0 < outage <= MAX_REPORT_VALUE:
+        fail("outage_s", f"{outage!r} is not an outage length in seconds")
+    ests = rep["estimators"]
+    if not isinstance(ests, list) or not ests:
+        fail("estimators", "is not a list of estimators")
+    names: list[str] = []
+    for i, e in enumerate(ests):
+        where = f"estimators[{i}]"
+        if not isinstance(e, dict):
+            fail(where, f"is a JSON {_kind(e)}, not an object")
+        for key in ("name", "label"):
+            _need_text(e.get(key), f"{where}.{key}", fail)
+        if e["name"] in names:
+            fail(f"{where}.name", f"{e['name']!r} is listed twice")
+        names.append(e["name"])
+        color = e.get("color")
+        if color is not None and not (isinstance(color, list) and len(color) == 3 and all(_is_int(c) and 0 <= c <= 255 for c in color)):
+            fail(f"{where}.color", f"{color!r} is not an RGB triple of 0-255 integers")
+    for name in names:
+        curve = _need_object(_need_object(rep["drift"], "drift", fail).get(name), f"drift.{name}", fail)
+        lengths = {key: len(_need_numbers(curve.get(key), f"drift.{name}.{key}", fail)) for key in ("t_s", "mean_m", "p10_m", "p90_m")}
+        if len(set(lengths.values())) != 1:
+            fail(f"drift.{name}", f"t_s, mean_m, p10_m and p90_m differ in length ({', '.join(f'{k} {n}' for k, n in lengths.items())})")
+        p50 = _need_object(_need_object(rep["final_error_percentiles"], "final_error_percentiles", fail).get(name),
+                           f"final_error_percentiles.{name}", fail).get("p50")
+        _need_number(p50, f"final_error_percentiles.{name}.p50", fail)
+    sequences = rep["sequences"]
+    if not isinstance(sequences, list) or not sequences:
+        fail("sequences", "is not a list of outages")
+    for i, seq in enumerate(sequences):
+        for name in names:
+            metrics = _need_object(_need_object(seq, f"sequences[{i}]", fail).get(name), f"sequences[{i}].{name}", fail)
+            if "final_position_error_m" not in metrics:
+                fail(f"sequences[{i}].{name}.final_position_error_m", "missing")
+            _need_number(metrics["final_position_error_m"], f"sequences[{i}].{name}.final_position_error_m", fail)
+    tracks = _need_object(rep["worst_tracks"], "worst_tracks", fail)
+    _need_text(tracks.get("drive"), "worst_tracks.drive", fail)
+    if not _is_int(tracks.get("number")):
+        fail("worst_tracks.number", f"{tracks.get('number')!r} is not an outage number")
+    if not _is_number(tracks.get("start_s")) or abs(tracks["start_s"]) > MAX_REPORT_VALUE:
+        fail("worst_tracks.start_s", f"{tracks.get('start_s')!r} is not a time in seconds")
+    for name in ("truth", *names):
+        track = _need_object(tracks.get(name), f"worst_tracks.{name}", fail)
+        east = _need_numbers(track.get("east_m"), f"worst_tracks.{name}.east_m", fail)
+        north = _need_numbers(track.get("north_m"), f"worst_tracks.{name}.north_m", fail)
+        if len(east) != len(north):
+            fail(f"worst_tracks.{name}", f"east_m has {len(east)} points, north_m {len(north)}")
+    if rep.get("truth") is not None:
+        _need_text(rep["truth"], "truth", fail)
+
+
+def _kind(value: Any) -> str:
+    return {dict: "object", list: "array", str: "string", bool: "boolean", type(None): "null"}.get(type(value), "number")
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _need_text(value: Any, field: str, fail: Any) -> str:
+    if not isinstance(value, str) or not value.strip():
+        fail(field, f"{value!r} is not a name (a non-empty string)")
+    return value
+
+
+def _need_object(value: Any, field: str, fail: Any) -> dict[str, Any]:
+    if value is None:
+        fail(field, "missing")
+    if not isinstance(value, dict):
+        fail(field, f"is a JSON {_kind(value)}, not an object")
+    return value
+
+
+def _need_numbers(values: Any, field: str, fail: Any) -> list[Any]:
+    """A list of numbers within MAX_REPORT_VALUE, or null (undefined)."""
+    if values is None:
+        fail(field, "missing")
+    if not isinstance(values, list):
+        fail(field, f"is a JSON {_kind(values)}, not a list of numbers")
+    for k, v in enumerate(values):
+        _need_number(v, f"{field}[{k}]", fail)
+    return values
+
+
+def _need_number(value: Any, field: str, fail: Any) -> None:
+    """A number within MAX_REPORT_VALUE, or null (undefined)."""
+    if value is not None and not _is_number(value):
+        fail(field, f"{value!r} is not a number")
+    if value is not None and abs(value) > MAX_REPORT_VALUE:
+        fail(field, f"{value!r} is beyond any drive (at most {MAX_REPORT_VALUE:g} m or s)")
+
+
+def _floats(values: list[Any]) -> np.ndarray:
+    """Checked numbers, null as NaN (not drawn)."""
+    return np.array([math.nan if v is None else v for v in values], dtype=float)
 
 
 def colors_of(rep: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
@@ -71,28 +205,113 @@ def colors_of(rep: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
 
 def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
     """Every figure of :data:`FIGURES` in every format of :data:`FORMATS`, into ``folder`` (made
-    when missing); each file written atomically. Returns the files."""
-    import matplotlib
+    when missing, with its parents). Returns the files.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Drawn into a temporary folder, beside ``folder`` when that is new (then renamed to it), else
+    inside it (``-o .`` needs no right to write in the folder above); when all are written, the
+    files are moved in (replacing the figures of an earlier run, keeping everything else), with
+    stop signals held. A failure or a signal while drawing leaves ``folder`` as it was and no
+    temporary folder."""
+    from matplotlib import rc_context
 
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    given = check_output_folder(Path(folder))  # as messages name it
+    folder = Path(os.path.abspath(given))  # '.' and '..' by name
+    for name in (f"{f}.{fmt}" for f in FIGURES for fmt in FORMATS):  # before drawing: what the moves would refuse
+        _check_replaceable(folder / name, given / name)
+    parent = folder if folder.is_dir() else folder.parent
     style = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
              "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
              "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "tight", "savefig.pad_inches": 0.02}
-    written = []
-    with plt.rc_context(style):
-        for name, draw in (("drift", _drift), ("cdf", _cdf), ("outages", _outages), ("worst", _worst)):
-            fig = draw(plt, rep)
-            for fmt in FORMATS:
-                target = folder / f"{name}.{fmt}"
-                with atomic_path(target, suffix=f".{fmt}") as tmp:
-                    fig.savefig(tmp, format=fmt, dpi=300)
-                written.append(target)
-            plt.close(fig)
-    return written
+    made = [] if folder.is_dir() else _make_parents(parent, given)
+    release = hold_signals()  # a signal between mkdtemp and the try would leave the folder behind
+    try:
+        try:
+            scratch = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=parent))
+        except OSError as exc:
+            raise _write_error(given, exc) from None
+        try:
+            release()  # a signal held since before mkdtemp acts here, inside the cleanup
+            os.chmod(scratch, 0o777 & ~current_umask())  # mkdtemp makes 0700; a folder of figures gets the usual permissions
+            names = []
+            with rc_context(style):
+                for name, draw in (("drift", _drift), ("cdf", _cdf), ("outages", _outages), ("worst", _worst)):
+                    fig = draw(rep)
+                    for fmt in FORMATS:
+                        target = scratch / f"{name}.{fmt}"
+                        try:
+                            fig.savefig(target, format=fmt, dpi=300)
+                        except OSError as exc:
+                            raise _write_error(given / target.name, exc) from None
+                        os.chmod(target, 0o666 & ~current_umask())
+                        names.append(target.name)
+            _move_in(scratch, folder, names, given)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)  # gone when moved in; otherwise nothing half-drawn stays
+    except BaseException:
+        for level in reversed(made):  # folders made for the output, still empty
+            with contextlib.suppress(OSError):
+                level.rmdir()
+        release()  # when mkdtemp failed (else a no-op)
+        raise
+    return [given / name for name in names]
+
+
+def _make_parents(parent: Path, folder: Path) -> list[Path]:
+    """Make ``folder``'s missing parents (not ``folder``); returns those made, outermost first."""
+    made: list[Path] = []
+    for level in [*reversed(parent.parents), parent]:
+        if not level.exists():
+            try:
+                level.mkdir()
+            except OSError as exc:
+                for done in reversed(made):
+                    with contextlib.suppress(OSError):
+                        done.rmdir()
+                raise _write_error(folder, exc) from None
+            made.append(level)
+    return made
+
+
+def _write_error(target: Path, exc: OSError) -> Exception:
+    """A write that failed: no room (one line, :func:`~ionav_viz.core.fileio.write_failure`) or a
+    folder that cannot be written."""
+    return write_failure(target, exc) or InputError(f"{target}: cannot write it ({exc.strerror or type(exc).__name__})",
+                                                    "choose a writable output folder", param="output")
+
+
+def _move_in(scratch: Path, folder: Path, names: list[str], given: Path) -> None:
+    """The complete figures in ``scratch`` into ``folder`` (``given``: as messages name it), with
+    stop signals held: the whole folder renamed when ``folder`` is new, else each file renamed over
+    its old version."""
+    release = hold_signals()
+    try:
+        if not folder.exists():
+            scratch.rename(folder)
+            return
+        for name in names:
+            _check_replaceable(folder / name, given / name)
+        for name in names:
+            os.replace(scratch / name, folder / name)
+    except OSError as exc:
+        raise _write_error(given, exc) from None
+    finally:
+        release()  # a signal that came during the moves acts now, with the figures complete
+
+
+def _check_replaceable(target: Path, shown: Path) -> None:
+    if target.is_dir() or (target.exists() and not target.is_file()):
+        raise InputError(f"{shown}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another folder",
+                         param="output")
+
+
+def _new_figure(width_in: float, height_in: float) -> tuple[Any, Any]:
+    """A figure on its own Agg canvas, and its axes: no pyplot, no global state."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in))
+    FigureCanvasAgg(fig)
+    return fig, fig.add_subplot()
 
 
 def _labels(rep: dict[str, Any]) -> dict[str, str]:
@@ -103,42 +322,68 @@ def _title(rep: dict[str, Any]) -> str:
     return f"{rep['drive']}: {rep['n_sequences']} outages of {rep['outage_s']:g} s"
 
 
-def _drift(plt: Any, rep: dict[str, Any]) -> Any:
-    fig, ax = plt.subplots(figsize=(COLUMN_IN, 2.4))
+def _skipped(figure: str, what: list[str]) -> None:
+    if what:
+        log.warning("figures: %s: %s (undefined in the report, null)", figure, "; ".join(what))
+
+
+def _legend(ax: Any, **options: Any) -> None:
+    if ax.get_legend_handles_labels()[0]:  # nothing drawn: no empty legend (matplotlib warns)
+        ax.legend(frameon=False, **options)
+
+
+def _drift(rep: dict[str, Any]) -> Any:
+    fig, ax = _new_figure(COLUMN_IN, 2.4)
     colors = colors_of(rep)
+    skipped = []
     for name, label in _labels(rep).items():
         d = rep["drift"][name]
-        t, mean = np.asarray(d["t_s"]), np.asarray(d["mean_m"], dtype=float)
-        ax.fill_between(t, np.asarray(d["p10_m"], dtype=float), np.asarray(d["p90_m"], dtype=float), color=colors[name], alpha=0.18, lw=0)
-        ax.plot(t, mean, color=colors[name], lw=1.2, label=label)
+        t, mean, p10, p90 = (_floats(d[k]) for k in ("t_s", "mean_m", "p10_m", "p90_m"))
+        shown = np.isfinite(t) & np.isfinite(mean)
+        if not shown.any():
+            skipped.append(f"{label} has no defined point, left out")
+            continue
+        if not shown.all():
+            skipped.append(f"{label}: {int((~shown).sum())} of {len(t)} points left out")
+        band = np.isfinite(t) & np.isfinite(p10) & np.isfinite(p90)
+        ax.fill_between(t, p10, p90, where=band, color=colors[name], alpha=0.18, lw=0)
+        ax.plot(t[shown], mean[shown], color=colors[name], lw=1.2, label=label)
+    _skipped("drift", skipped)
     ax.set_xlabel("time since the outage began (s)")
     ax.set_ylabel("position error (m)")
     ax.set_xlim(0, float(rep["outage_s"]))
     ax.set_ylim(bottom=0)
     ax.set_title(f"{_title(rep)}; mean and 10-90 %")
-    ax.legend(frameon=False, loc="upper left")
+    _legend(ax, loc="upper left")
     return fig
 
 
 def _finals(rep: dict[str, Any], name: str) -> np.ndarray:
-    return np.array([s[name]["final_position_error_m"] if s[name]["final_position_error_m"] is not None else math.nan
-                     for s in rep["sequences"]], dtype=float)
+    return _floats([s[name]["final_position_error_m"] for s in rep["sequences"]])
 
 
-def _cdf(plt: Any, rep: dict[str, Any]) -> Any:
-    fig, ax = plt.subplots(figsize=(COLUMN_IN, 2.4))
+def _cdf(rep: dict[str, Any]) -> Any:
+    fig, ax = _new_figure(COLUMN_IN, 2.4)
     colors = colors_of(rep)
+    skipped = []
     for name, label in _labels(rep).items():
-        v, share = error_cdf(_finals(rep, name))
-        if len(v):
-            ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=colors[name], lw=1.2,
-                    label=f"{label} (p50 {rep['final_error_percentiles'][name]['p50']:.1f} m)")
+        finals = _finals(rep, name)
+        v, share = error_cdf(finals)
+        if not len(v):
+            skipped.append(f"{label} has no defined final error, left out")
+            continue
+        if len(v) < len(finals):
+            skipped.append(f"{label}: {len(finals) - len(v)} of {len(finals)} outages left out")
+        p50 = rep["final_error_percentiles"][name]["p50"]
+        ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=colors[name], lw=1.2,
+                label=f"{label} (p50 {p50:.1f} m)" if p50 is not None else f"{label} (p50 n/a)")
+    _skipped("cdf", skipped)
     ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
     ax.set_ylabel("share of outages")
     ax.set_ylim(0, 1.0)
     ax.set_xlim(left=0)
     ax.set_title(_title(rep))
-    ax.legend(frameon=False, loc="lower right")
+    _legend(ax, loc="lower right")
     return fig
 
 
@@ -146,18 +391,28 @@ def _cdf(plt: Any, rep: dict[str, Any]) -> Any:
 MAX_BARS = 40
 
 
-def _outages(plt: Any, rep: dict[str, Any]) -> Any:
+def _outages(rep: dict[str, Any]) -> Any:
     labels = _labels(rep)
     n = len(rep["sequences"])
-    fig, ax = plt.subplots(figsize=(max(COLUMN_IN, min(7.16, 0.12 * n * len(labels))), 2.2))  # up to a full page width
+    fig, ax = _new_figure(max(COLUMN_IN, min(7.16, 0.12 * n * len(labels))), 2.2)  # up to a full page width
     colors = colors_of(rep)
     width = 0.8 / len(labels)
     x = np.arange(1, n + 1)
+    skipped = []
     for j, (name, label) in enumerate(labels.items()):
+        finals = _finals(rep, name)
+        shown = np.isfinite(finals)
+        if not shown.any():
+            skipped.append(f"{label} has no defined final error, left out")
+            continue
+        if not shown.all():
+            missing = x[~shown]
+            skipped.append(f"{label}: outage(s) {', '.join(str(k) for k in missing[:5])}{' ...' if len(missing) > 5 else ''} left out")
         if n <= MAX_BARS:
-            ax.bar(x - 0.4 + width * (j + 0.5), np.nan_to_num(_finals(rep, name)), width, color=colors[name], label=label, lw=0)
+            ax.bar(x[shown] - 0.4 + width * (j + 0.5), finals[shown], width, color=colors[name], label=label, lw=0)
         else:
-            ax.plot(x, _finals(rep, name), ls="none", marker=".", ms=2.5, color=colors[name], label=label)
+            ax.plot(x[shown], finals[shown], ls="none", marker=".", ms=2.5, color=colors[name], label=label)
+    _skipped("outages", skipped)
     ax.set_ylim(bottom=0)
     ax.set_xlabel("outage")
     ax.set_ylabel("final position error (m)")
@@ -167,19 +422,28 @@ def _outages(plt: Any, rep: dict[str, Any]) -> Any:
     else:
         ax.set_xticks(x)
     ax.set_title(_title(rep))
-    ax.legend(frameon=False, ncols=min(4, len(labels)), loc="upper left")
+    _legend(ax, ncols=min(4, len(labels)), loc="upper left")
     return fig
 
 
-def _worst(plt: Any, rep: dict[str, Any]) -> Any:
+def _worst(rep: dict[str, Any]) -> Any:
     tracks = rep["worst_tracks"]
-    fig, ax = plt.subplots(figsize=(COLUMN_IN, COLUMN_IN * 0.8))
+    fig, ax = _new_figure(COLUMN_IN, COLUMN_IN * 0.8)
     colors = colors_of(rep)
     truth_label = REFERENCE_LABEL if rep.get("truth") == "reference" else GNSS_LABEL
-    ax.plot(tracks["truth"]["east_m"], tracks["truth"]["north_m"], color=tuple(c / 255 for c in GNSS_COLOR), lw=2.0, label=truth_label)
-    for name, label in _labels(rep).items():
-        t = tracks[name]
-        ax.plot(t["east_m"], t["north_m"], color=colors[name], lw=1.2, marker="o", ms=1.8, label=label)
+    skipped = []
+    lines = [("truth", truth_label, tuple(c / 255 for c in GNSS_COLOR), {"lw": 2.0}),
+             *((name, label, colors[name], {"lw": 1.2, "marker": "o", "ms": 1.8}) for name, label in _labels(rep).items())]
+    for name, label, color, style in lines:
+        east, north = _floats(tracks[name]["east_m"]), _floats(tracks[name]["north_m"])
+        shown = np.isfinite(east) & np.isfinite(north)
+        if not shown.any():
+            skipped.append(f"{label} has no defined point, left out")
+            continue
+        if not shown.all():
+            skipped.append(f"{label}: {int((~shown).sum())} of {len(east)} points left out")
+        ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, **style)
+    _skipped("worst", skipped)
     ax.plot([0], [0], "k^", ms=4)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xticks([])
@@ -188,7 +452,7 @@ def _worst(plt: Any, rep: dict[str, Any]) -> Any:
         ax.spines[side].set_visible(False)
     _scale_bar(ax)
     ax.set_title(f"worst outage: {tracks['drive']} #{tracks['number']}, {tracks['start_s']:g}-{tracks['start_s'] + rep['outage_s']:g} s")
-    ax.legend(frameon=False, loc="best")
+    _legend(ax, loc="best")
     return fig
 
 
@@ -198,7 +462,7 @@ def _scale_bar(ax: Any) -> None:
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
     target = (x1 - x0) / 5
-    if target <= 0:
+    if not math.isfinite(target) or target <= 0:
         return
     k = math.floor(math.log10(target))
     length = max((m * 10**k for m in (1, 2, 5) if m * 10**k <= target), default=10**k)
