@@ -209,6 +209,8 @@ def test_plan_files_are_bounded_strict_json(tmp_path, short_csv):
         read_json_bounded(tmp_path / "ok.json", param="x", max_depth=3)
     with pytest.raises(iv.InputError, match="too large"):
         read_json_bounded(tmp_path / "ok.json", param="x", max_bytes=10)
+    # a model's metadata, written by json.dumps, may hold NaN (its fields are checked one by one)
+    assert np.isnan(read_json_bounded(tmp_path / "nan.json", param="model", allow_nan=True)["outage_s"])
 
 
 def test_model_metadata_nested_deep_is_one_line(tmp_path, short_csv):

@@ -284,11 +284,13 @@ def _json_depth(data: bytes) -> tuple[int, int]:
 
 
 def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES, max_depth: int = JSON_MAX_DEPTH,
-                      hint: str | None = None, what: str = "a JSON file") -> Any:
+                      hint: str | None = None, what: str = "a JSON file", allow_nan: bool = False) -> Any:
     """The JSON value in the file ``path``, read safely: a regular file (checked before opening,
     and again on the opened file), at most ``max_bytes`` long, nested at most ``max_depth``
     arrays/objects deep, UTF-8, strict JSON (no NaN or Infinity, no number that overflows to
-    infinity) and no key given twice in one object (JSON would keep the last silently).
+    infinity; ``allow_nan`` takes them, as Python's ``json.dumps`` writes them, for a file whose
+    reader checks its numbers field by field) and no key given twice in one object (JSON would keep
+    the last silently).
 
     Anything else is one :class:`InputError` for ``param`` naming ``path`` and what is wrong
     (``what`` names the expected content in messages, ``hint`` says what to give instead); never a
@@ -312,11 +314,11 @@ def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX
             raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
     if len(data) > max_bytes:  # grew while read
         raise InputError(f"{path}: more than {max_bytes} bytes is too large for {what}", hint, param=param)
-    return parse_json_bounded(data, path, param=param, max_bytes=max_bytes, max_depth=max_depth, hint=hint, what=what)
+    return parse_json_bounded(data, path, param=param, max_bytes=max_bytes, max_depth=max_depth, hint=hint, what=what, allow_nan=allow_nan)
 
 
 def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES,
-                       max_depth: int = JSON_MAX_DEPTH, hint: str | None = None, what: str = "a JSON file") -> Any:
+                       max_depth: int = JSON_MAX_DEPTH, hint: str | None = None, what: str = "a JSON file", allow_nan: bool = False) -> Any:
     """:func:`read_json_bounded`'s checks on JSON already in memory (``data``; ``path`` names where
     it came from in messages, e.g. the recording that carried it): size, depth, strict JSON."""
     hint = hint or f"give {what}"
@@ -346,7 +348,8 @@ def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_b
         return body
 
     try:
-        return json.loads(data.decode("utf-8"), parse_constant=constant, parse_float=finite, object_pairs_hook=no_duplicates)
+        return json.loads(data.decode("utf-8"), parse_constant=None if allow_nan else constant, parse_float=float if allow_nan else finite,
+                          object_pairs_hook=no_duplicates)
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not UTF-8 text (byte {exc.start})", hint, param=param) from None
     except json.JSONDecodeError as exc:

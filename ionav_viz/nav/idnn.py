@@ -499,7 +499,8 @@ def load_model(directory: str | Path) -> IdnnModel:
     if not meta_path.is_file():
         raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' and give that directory", param="model")
     # bounded in size (16 MiB) and depth: nested brackets were a RecursionError traceback
-    meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model", what="a model's metadata")
+    meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model", what="a model's metadata",
+                             allow_nan=True)  # json.dumps wrote them (a NaN validation score); the fields are checked below
     try:
         if meta.get("format_version") != FORMAT_VERSION:
             raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}", "retrain with this version of ionav-viz")
