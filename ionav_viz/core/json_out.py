@@ -48,7 +48,14 @@ def dumps_json(value: Any, indent: int | None = 2) -> str:
 
 
 def _plain(value: Any, depth: int, path: set[int], max_depth: int = MAX_DEPTH) -> Any:
-    if value is None or isinstance(value, (bool, str)):
+    kind = type(value)
+    if kind is float:  # the common cases first, by exact type: a report is mostly floats in dicts and lists
+        return value if math.isfinite(value) else None
+    if value is None or kind is str or kind is int or kind is bool:
+        return value
+    if kind is dict or kind is list or kind is tuple:
+        return _nested(value, depth, path, max_depth)
+    if isinstance(value, (bool, str)):
         return value
     if isinstance(value, int):
         return int(value)  # an int subclass (IntEnum's member is an Enum: handled below) prints as a number
@@ -67,24 +74,34 @@ def _plain(value: Any, depth: int, path: set[int], max_depth: int = MAX_DEPTH) -
     if isinstance(value, (datetime.date, datetime.time)):
         return value.isoformat()
     if isinstance(value, (Mapping, list, tuple, set, frozenset, np.ndarray)):
-        if depth >= max_depth:
-            raise ValueError(f"is nested more than {max_depth} levels deep")
-        if id(value) in path:
-            raise ValueError("holds itself (a cycle)")
-        path.add(id(value))
-        try:
-            if isinstance(value, np.ndarray):
-                return _plain(value.tolist(), depth, path, max_depth)  # tolist gives Python scalars, nested per axis
-            if isinstance(value, Mapping):
-                return {_key(k): _plain(v, depth + 1, path, max_depth) for k, v in value.items()}
-            items = list(value)
-            if isinstance(value, (set, frozenset)):
-                with contextlib.suppress(TypeError):  # mixed types do not sort: as iterated
-                    items = sorted(items)
-            return [_plain(v, depth + 1, path, max_depth) for v in items]
-        finally:
-            path.discard(id(value))
+        return _nested(value, depth, path, max_depth)
     return str(value)
+
+
+def _nested(value: Any, depth: int, path: set[int], max_depth: int) -> Any:
+    """A mapping, sequence, set or array: its items, each plain."""
+    if depth >= max_depth:
+        raise ValueError(f"is nested more than {max_depth} levels deep")
+    if id(value) in path:
+        raise ValueError("holds itself (a cycle)")
+    path.add(id(value))
+    try:
+        kind = type(value)
+        if kind is dict:
+            return {k if type(k) is str else _key(k): _plain(v, depth + 1, path, max_depth) for k, v in value.items()}
+        if kind is list or kind is tuple:
+            return [_plain(v, depth + 1, path, max_depth) for v in value]
+        if isinstance(value, np.ndarray):
+            return _plain(value.tolist(), depth, path, max_depth)  # tolist gives Python scalars, nested per axis
+        if isinstance(value, Mapping):
+            return {k if type(k) is str else _key(k): _plain(v, depth + 1, path, max_depth) for k, v in value.items()}
+        items = list(value)
+        if isinstance(value, (set, frozenset)):
+            with contextlib.suppress(TypeError):  # mixed types do not sort: as iterated
+                items = sorted(items)
+        return [_plain(v, depth + 1, path, max_depth) for v in items]
+    finally:
+        path.discard(id(value))
 
 
 def _key(key: Any) -> str:
