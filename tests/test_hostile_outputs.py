@@ -80,6 +80,16 @@ def test_a_lateral_acceleration_read_right_positive_is_written_left_positive(two
     np.testing.assert_allclose(read_mcap(tmp_path / "right.mcap").columns["accel_y_mps2"], -csv.columns["accel_lat_mps2"], atol=1e-9)
 
 
+def test_a_drive_whose_imu_is_not_finite_is_not_converted(two_channel, tmp_path):
+    """A drive built in Python with NaN in its lateral acceleration was written, and the log did
+    not read back ('linear_acceleration.y not a finite number')."""
+    csv = iv.load_drive(two_channel)
+    csv.columns["accel_lat_mps2"][50] = np.nan
+    with pytest.raises(iv.InputError, match=r"linear_acceleration\.y at 5\.00 s is not a finite number \(nan\)"):
+        iv.convert(csv, tmp_path / "nan.mcap")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_convert_then_evaluate_gives_the_drives_metrics(two_channel, converted):
     """Gravity and the gyro's x and y of a converted two-channel drive are placeholders (one value
     throughout): no mount is estimated from them (a wrong one was applied by default: 8.00 -> 7.93 m

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
+from ..core.errors import InputError
 from ..core.fileio import atomic_path, check_output_file
 from ..core.units import G_MPS2
 from .ros2_msgs import DEFINITIONS
@@ -117,6 +118,13 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     imu_axes["accel_x_mps2"], imu_axes["gyro_z_radps"] = drive.accel_long_mps2, drive.yaw_rate_radps
     if "accel_y_mps2" not in drive.columns and (lateral := lateral_left(drive, path)) is not None:
         imu_axes["accel_y_mps2"] = lateral
+    for axis, column in enumerate(IMU_COLUMNS):
+        values = imu_axes[column]
+        if not np.isfinite(values).all():  # the reader refuses it: the log would not read back
+            k = int(np.flatnonzero(~np.isfinite(values))[0])
+            field = f"{'linear_acceleration' if axis < 3 else 'angular_velocity'}.{'xyz'[axis % 3]}"
+            raise InputError(f"{drive.name}: {field} at {float(drive.t_s[k]):.2f} s is not a finite number ({float(values[k])})",
+                             "fix the drive's IMU columns: a log with it would not read back", param="drive")
     ax, ay, az, gx, gy, gz = (imu_axes[c] for c in IMU_COLUMNS)
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
