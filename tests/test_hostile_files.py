@@ -441,3 +441,20 @@ def test_outage_log_keeps_the_previous_log_when_its_plan_fails(tmp_path, short_c
     assert out.read_bytes() == b"the previous outaged log"
     assert (tmp_path / "cut.outages.json").read_text() == "the previous plan"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.mcap", "cut.outages.json"]  # nothing aside left
+
+
+def test_no_output_inside_an_input_folder(tmp_path):
+    """A ROS 2 bag is a folder: an outaged log, a conversion or an export written into it would
+    change the source (its checksum, and what a reader finds there)."""
+    from .bag_fixtures import write_ros2
+
+    drive = iv.load_drive("hard-brake")
+    keep = drive.t_s < 30
+    short = iv.Drive("short", "", drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()})
+    bag = write_ros2(short, tmp_path / "bag")
+    before = snapshot(tmp_path)
+    for args, fragment in [(("outage-log", "bag", "--at", "5s", "-o", "bag/cut.mcap"), "-o: bag/cut.mcap: is inside the input folder bag"),
+                           (("convert", "bag", "-o", "bag/x.mcap"), "bag/x.mcap: is inside the input folder bag"),
+                           (("evaluate", "bag", "--no-idnn", "--export", "bag"), "--export: bag: is the input bag")]:
+        assert_refused(run_cli(*args, cwd=tmp_path), fragment)
+    assert snapshot(tmp_path) == before and bag.is_dir()
