@@ -85,7 +85,8 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         # Rerun's file sink streams chunks to disk as they are batched: the recording never sits
         # whole in memory (a 12 h drive's is 180 MB). A write that fails (disk full, file size
         # limit) ends its writer thread, and the flush below then raises instead of waiting.
-        rec.save(path)
+        with utf8_alias(path) as writable:
+            rec.save(writable)
         rows = log_result(rec, result, summary_md, progress, events)
         if overview_md is not None:
             rec.log(ent.OVERVIEW, rr.TextDocument(overview_md, media_type=rr.MediaType.MARKDOWN), static=True)
@@ -96,7 +97,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
     except RuntimeError as exc:  # the file sink's failures (Rerun's bindings raise RuntimeError)
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ToolFailure(f"{target or path}: writing the recording failed ({first}); is the disk full?") from None
+        raise ToolFailure(f"{target or path}: write failed ({first}); is the disk full?") from None
     finally:
         rec.disconnect()
     _check_written(path, target or path)
