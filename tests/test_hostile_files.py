@@ -87,6 +87,7 @@ def test_no_command_writes_over_its_input(tmp_path, short_csv):
     shutil.copyfile(short_csv, tmp_path / "model" / "V-train.csv")
     (tmp_path / "figs").mkdir()
     (tmp_path / "figs" / "report.json").write_text("{}")
+    (tmp_path / "figs" / "drift.svg").write_text("{}")
     (tmp_path / "a.rrd").write_bytes(b"not a recording")
     os.link(tmp_path / "a.rrd", tmp_path / "shot.png")
     before = snapshot(tmp_path)
@@ -102,7 +103,7 @@ def test_no_command_writes_over_its_input(tmp_path, short_csv):
         (("evaluate", "exp/tum/x/V-in.csv", "--no-idnn", "--export", "exp"), "exp/tum: holds the input exp/tum/x/V-in.csv"),
         (("replay", "V-src.csv", "--no-idnn", "-o", "r.rrd", "--screenshot", "hard.csv"), "--screenshot: hard.csv: exists and is not a folder"),
         (("train", "model/V-train.csv", "-o", "model", "--force"), "model: holds the input model/V-train.csv"),
-        (("figures", "figs/report.json", "-o", "figs"), "figs: holds the input figs/report.json"),
+        (("figures", "figs/drift.svg", "-o", "figs"), "figs/drift.svg: is the input figs/drift.svg"),  # a figure it replaces
         (("figures", "figs/report.json", "-o", "figs/report.json"), "-o: figs/report.json: "),  # the input, or not a folder
         (("screenshot", "a.rrd", "-o", "shot.png"), "shot.png: is another name (a hard link) of the input a.rrd"),
     ]

@@ -17,10 +17,12 @@ def figures(result: str | Path, output: str | Path) -> list[Path]:
     field); values it leaves undefined (null) are not drawn, each figure warning what it left out.
     The figures appear in ``output`` only when all are complete (drawn in a temporary folder beside
     it); other files there are kept."""
-    from ..viz.figures import read_report, write_figures
+    from ..viz.figures import FIGURES, FORMATS, read_report, write_figures
 
     check_output_folder(Path(output))  # before any work: -o naming a file is refused
-    refuse_output_onto_input(output, [result], output_is_folder=True)  # before reading: the folder is replaced
+    refuse_output_onto_input(output, [result])  # before reading: -o inside the input's folder, or the input itself
+    for name in (f"{f}.{fmt}" for f in FIGURES for fmt in FORMATS):  # the files it replaces (others there are kept)
+        refuse_output_onto_input(Path(output) / name, [result])
     check_regular_input(result, "result", hint="give a .rrd written by replay or the output of 'evaluate --json'", missing_ok=True)
     rep = read_report(result)
     with stage(f"figures of {Path(result).name}"):
