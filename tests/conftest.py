@@ -13,19 +13,84 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def run_cli(*args: str, env: dict | None = None, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run ``ionav-viz ARGS`` as a user would and return the completed process (text).
+
+    In this process by default: ``ionav_viz.cli.main`` with its own argv, environment, working
+    directory, standard streams (no standard input) and a fresh set of Python's default warning
+    filters, exactly as the console script calls it, without paying the interpreter's start and
+    the imports of torch and Rerun on every call. ``IONAV_TEST_SUBPROCESS=1`` runs every call in a
+    fresh interpreter instead; a test whose point is the process itself (signals, start-up time,
+    what is imported) uses :func:`run_cli_process`."""
+    if os.environ.get("IONAV_TEST_SUBPROCESS") == "1":
+        return run_cli_process(*args, env=env, cwd=cwd, timeout=timeout)
+    return _run_cli_here(list(args), env, cwd)
+
+
+def run_cli_process(*args: str, env: dict | None = None, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
     """Run ``ionav-viz ARGS`` in a fresh interpreter; returns the completed process (text)."""
-    full_env = {**os.environ, **(env or {})}
-    for inherited in ("IONAV_DATA", "COLUMNS"):  # the developer's data root and terminal width are not the test's
-        if inherited not in (env or {}):
-            full_env.pop(inherited, None)
     return subprocess.run(
         [sys.executable, "-m", "ionav_viz.cli", *args],
         capture_output=True,
         text=True,
-        env=full_env,
+        env=_cli_env(env),
         cwd=cwd or REPO,
         timeout=timeout,
     )
+
+
+def _cli_env(env: dict | None) -> dict:
+    full_env = {**os.environ, **(env or {})}
+    for inherited in ("IONAV_DATA", "COLUMNS"):  # the developer's data root and terminal width are not the test's
+        if inherited not in (env or {}):
+            full_env.pop(inherited, None)
+    return full_env
+
+
+def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None) -> subprocess.CompletedProcess:
+    import io
+    import logging
+    import signal
+    import traceback
+    import warnings
+
+    from ionav_viz.cli import main
+
+    saved_env, saved_cwd, saved_argv = dict(os.environ), os.getcwd(), sys.argv
+    saved_streams = sys.stdin, sys.stdout, sys.stderr
+    saved_signals = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    logger = logging.getLogger("ionav_viz")  # main() points it at stderr; library tests read it with caplog
+    saved_logger = logger.handlers[:], logger.level, logger.propagate
+    out, err = io.StringIO(), io.StringIO()
+    code = 0
+    try:
+        os.environ.clear()
+        os.environ.update(_cli_env(env))
+        os.chdir(cwd or REPO)
+        sys.argv = ["ionav-viz", *args]
+        sys.stdin, sys.stdout, sys.stderr = io.StringIO(""), out, err
+        with warnings.catch_warnings():
+            # a fresh interpreter's filters, printed to stderr as there (pytest records them instead)
+            warnings.resetwarnings()
+            for category in (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning):
+                warnings.simplefilter("ignore", category)
+            warnings.showwarning = warnings._showwarning_orig  # type: ignore[attr-defined]
+            try:
+                main()
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+            except BaseException:  # what the interpreter would print before exiting with 1
+                traceback.print_exc(file=err)
+                code = 1
+    finally:
+        sys.stdin, sys.stdout, sys.stderr = saved_streams
+        sys.argv = saved_argv
+        os.chdir(saved_cwd)
+        os.environ.clear()
+        os.environ.update(saved_env)
+        for signum, handler in saved_signals.items():
+            signal.signal(signum, handler)
+        logger.handlers[:], logger.level, logger.propagate = saved_logger
+    return subprocess.CompletedProcess(["ionav-viz", *args], code, out.getvalue(), err.getvalue())
 
 
 def assert_same_sequences(reference: list[dict], got: list[dict], estimators, rel: float, abs: float = 1e-9) -> None:

@@ -13,6 +13,9 @@ from ionav_viz.viz import entities as ent
 from .conftest import run_cli
 from .test_replay import read_rrd
 
+# the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("entities")
+
 DOC = Path(__file__).resolve().parent.parent / "docs" / "recording.md"
 
 

@@ -22,6 +22,9 @@ from ionav_viz.nav.windows import make_windows
 
 from .mcap_fixtures import write_fix_only
 
+# the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("fix_pairs")
+
 SCENARIOS = ("V-sim-roundabout", "V-sim-hard-brake", "V-sim-motorway")
 RATES_HZ = (1, 5, 10, 20)
 

@@ -17,6 +17,9 @@ from ionav_viz.sim.imu import write_imu_log
 from .conftest import run_cli
 from .mcap_fixtures import write_realistic
 
+# the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("real_logs")
+
 
 @pytest.fixture(scope="module")
 def log(tmp_path_factory):

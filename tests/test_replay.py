@@ -8,6 +8,9 @@ import pytest
 
 from .conftest import run_cli
 
+# the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("replay")
+
 N_WIN = 10
 
 

@@ -16,6 +16,9 @@ from ionav_viz.viz.style import GNSS_COLOR
 
 from .conftest import REPO, run_cli
 
+# the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("screenshot")
+
 COLORS = {"gnss": GNSS_COLOR, "ins": InsEstimator.color, "idnn": IdnnEstimator.color, "odo": OdometryEstimator.color,
           "ekf": EkfEstimator.color}
 TITLE_BAR_PX = 62  # the viewer's top bar and the view's title (text down to y = 58)

@@ -10,6 +10,9 @@ from ionav_viz.analysis.tables import aligned
 
 from .conftest import run_cli
 
+# the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("tables")
+
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
 
 
