@@ -16,7 +16,7 @@ def figures(result: str | Path, output: str | Path) -> list[Path]:
     The report is checked field by field first (one :class:`InputError` naming the file and the
     field); values it leaves undefined (null) are not drawn, each figure warning what it left out.
     The figures appear in ``output`` only when all are complete (drawn in a temporary folder beside
-    it); other files there are kept."""
+    it, or inside it when it exists); other files there are kept."""
     from ..viz.figures import FIGURES, FORMATS, read_report, write_figures
 
     check_output_folder(Path(output))  # before any work: -o naming a file is refused
