@@ -278,7 +278,7 @@ def test_external_poses_sharing_a_stamp(tmp_path, short_csv, outaged):
     conflict = trajectory_csv(tmp_path / "conflict.csv", np.insert(stamps, k + 1, stamps[k]), np.insert(lat, k + 1, lat[k] + 1000 / 111_195),
                               np.insert(lon, k + 1, lon[k]))
     line = assert_refused(run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={conflict}", cwd=tmp_path),
-                          f"conflict.csv: poses {k + 1} and {k + 2} share the stamp {float(stamps[k])!r} s and lie 1001 m apart")
+                          f"conflict.csv: poses {k + 1} and {k + 2} share the stamp {float(stamps[k])!r} s and lie 1000 m apart")
     assert line.startswith("error: --external: ") and "np." not in line, line
     same = trajectory_csv(tmp_path / "same.csv", np.insert(stamps, k + 1, stamps[k]), np.insert(lat, k + 1, lat[k]), np.insert(lon, k + 1, lon[k]))
     proc = run_cli("evaluate", str(short_csv), "--no-idnn", "--plan", str(plan), "--external", f"x={same}", "--json", cwd=tmp_path)

@@ -89,6 +89,9 @@ def _ecef_to_enu(lat0_deg: float, lon0_deg: float) -> np.ndarray:
 #: The Earth's mean radius (m): where "down" points from a tangent-frame position (a sphere's
 #: centre; within 0.2 degrees of the ellipsoid's normal, and only its change over a drive matters).
 EARTH_MEAN_RADIUS_M = 6_371_000.0
+#: Metres per degree of latitude on a sphere of the mean Earth radius (6,371,008.8 m): for local
+#: steps and distance checks (of longitude too, times the latitude's cosine), not for positions.
+M_PER_DEG = 6_371_008.8 * np.pi / 180.0
 
 
 def gravity_enu_mps2(enu_m: np.ndarray, gravity_mps2: float) -> np.ndarray:

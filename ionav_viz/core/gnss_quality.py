@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .geo import M_PER_DEG
 from .overrides import with_overrides
 from .runs import true_runs
 
@@ -121,8 +122,8 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
         return fault
 
     dt = np.diff(t_s)
-    north = np.diff(lat_deg) * _M_PER_DEG
-    east = np.diff(lon_deg) * _M_PER_DEG * np.cos(np.deg2rad(0.5 * (lat_deg[1:] + lat_deg[:-1])))
+    north = np.diff(lat_deg) * M_PER_DEG
+    east = np.diff(lon_deg) * M_PER_DEG * np.cos(np.deg2rad(0.5 * (lat_deg[1:] + lat_deg[:-1])))
     step_m = np.hypot(north, east)
     speed = speed_mps if vehicle_speed_mps is None else np.maximum(speed_mps, vehicle_speed_mps)
     fault |= _frozen(t_s, step_m, speed, limits, accel_mps2)
@@ -141,7 +142,6 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
     return fault
 
 
-_M_PER_DEG = 6_371_008.8 * np.pi / 180.0  # mean Earth radius: local steps only
 
 
 def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: GnssLimits, accel_mps2: np.ndarray | None = None) -> np.ndarray:

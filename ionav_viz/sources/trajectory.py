@@ -28,13 +28,13 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, check_regular_tree
+from ..core.geo import M_PER_DEG
 
 #: A trajectory file larger than this is refused (a day at 100 Hz in CSV is about 300 MB).
 MAX_BYTES = 2 << 30
 #: Two poses with one stamp closer than this (m) are one pose written twice (dropped, with a warning);
 #: farther apart they conflict (refused).
 SAME_POSE_M = 0.001
-_M_PER_DEG = 111_319.49  # metres per degree of latitude (and of longitude at the equator), for the distance above
 log = logging.getLogger("ionav_viz")
 _TRAJECTORY_HINT = "write time_s,lat_deg,lon_deg (or time_s,east_m,north_m) CSV, a TUM file, or give LOG:TOPIC"
 
@@ -99,7 +99,7 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
     repeated = np.diff(t) == 0
     if repeated.any():
         apart_m = (np.hypot(np.diff(a), np.diff(b)) if local else
-                   np.hypot(np.diff(a), np.diff(b) * np.cos(np.radians(a[1:]))) * _M_PER_DEG)
+                   np.hypot(np.diff(a), np.diff(b) * np.cos(np.radians(a[1:]))) * M_PER_DEG)
         conflict = repeated & (apart_m > SAME_POSE_M)
         if conflict.any():
             k = int(np.argmax(conflict))
