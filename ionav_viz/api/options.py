@@ -162,7 +162,7 @@ def input_paths(drives: Any, read: ReadOptions | None = None, *, run: RunOptions
     out: list[Path] = []
     for item in items:
         if isinstance(item, Drive):
-            if item.source:
+            if item.source and Path(item.source).exists():  # a drive built in memory names a file it may not have come from
                 out.append(Path(item.source))
             continue
         try:
