@@ -32,14 +32,17 @@ RATES_HZ = (1, 5, 10, 20)
 @pytest.fixture(scope="module")
 def pairs(tmp_path_factory):
     """{scenario: (csv drive, csv report, {rate: mcap drive})}, every MCAP with its own noise seed."""
-    logging.getLogger("ionav_viz").setLevel(logging.ERROR)  # the duplicated fixes' warning
+    logger = logging.getLogger("ionav_viz")
+    level = logger.level
+    logger.setLevel(logging.ERROR)  # the duplicated fixes' warning, for this module's tests only
     out = {}
     folder = tmp_path_factory.mktemp("pairs")
     for scenario in SCENARIOS:
         csv = iv.load_drive(scenario)
         mcaps = {hz: iv.load_drive(write_fix_only(csv, folder / f"{scenario}-{hz}.mcap", hz, seed=hz)) for hz in RATES_HZ}
         out[scenario] = (csv, iv.evaluate([csv], 10.0), mcaps)
-    return out
+    yield out
+    logger.setLevel(level)
 
 
 def _logger_yaw_rate(csv, t0_s):
