@@ -332,6 +332,18 @@ def _legend(ax: Any, **options: Any) -> None:
         ax.legend(frameon=False, **options)
 
 
+def _defined(label: str, x: np.ndarray, y: np.ndarray, skipped: list[str]) -> np.ndarray | None:
+    """Where both ``x`` and ``y`` are defined (a report's null is NaN here); None when nowhere.
+    What is left out is said in ``skipped``."""
+    shown = np.isfinite(x) & np.isfinite(y)
+    if not shown.any():
+        skipped.append(f"{label} has no defined point, left out")
+        return None
+    if not shown.all():
+        skipped.append(f"{label}: {int((~shown).sum())} of {len(x)} points left out")
+    return shown
+
+
 def _drift(rep: dict[str, Any]) -> Any:
     fig, ax = _new_figure(COLUMN_IN, 2.4)
     colors = colors_of(rep)
@@ -339,15 +351,12 @@ def _drift(rep: dict[str, Any]) -> Any:
     for name, label in _labels(rep).items():
         d = rep["drift"][name]
         t, mean, p10, p90 = (_floats(d[k]) for k in ("t_s", "mean_m", "p10_m", "p90_m"))
-        shown = np.isfinite(t) & np.isfinite(mean)
-        if not shown.any():
-            skipped.append(f"{label} has no defined point, left out")
+        shown = _defined(label, t, mean, skipped)
+        if shown is None:
             continue
-        if not shown.all():
-            skipped.append(f"{label}: {int((~shown).sum())} of {len(t)} points left out")
         band = np.isfinite(t) & np.isfinite(p10) & np.isfinite(p90)
         ax.fill_between(t, p10, p90, where=band, color=colors[name], alpha=0.18, lw=0)
-        ax.plot(t[shown], mean[shown], color=colors[name], lw=1.2, label=label)
+        ax.plot(t, np.where(shown, mean, np.nan), color=colors[name], lw=1.2, label=label)  # a gap where undefined
     _skipped("drift", skipped)
     ax.set_xlabel("time since the outage began (s)")
     ax.set_ylabel("position error (m)")
@@ -436,12 +445,9 @@ def _worst(rep: dict[str, Any]) -> Any:
              *((name, label, colors[name], {"lw": 1.2, "marker": "o", "ms": 1.8}) for name, label in _labels(rep).items())]
     for name, label, color, style in lines:
         east, north = _floats(tracks[name]["east_m"]), _floats(tracks[name]["north_m"])
-        shown = np.isfinite(east) & np.isfinite(north)
-        if not shown.any():
-            skipped.append(f"{label} has no defined point, left out")
+        shown = _defined(label, east, north, skipped)
+        if shown is None:
             continue
-        if not shown.all():
-            skipped.append(f"{label}: {int((~shown).sum())} of {len(east)} points left out")
         ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, **style)
     _skipped("worst", skipped)
     ax.plot([0], [0], "k^", ms=4)
