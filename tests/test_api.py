@@ -64,8 +64,8 @@ def test_at_times_are_where_asked(tmp_path):
 
 
 def test_evaluate_by_event_builds_reports_per_manoeuvre():
-    by = iv.evaluate_by_event(["hard-brake", "sharp-cornering"], 10.0, ["hard-brake", "sharp-corner", "left-right"])
-    assert set(by) == {"hard-brake", "sharp-corner", "left-right"}
+    by = iv.evaluate_by_event(["hard-brake", "sharp-cornering"], 10.0, ["hard-brake", "sharp-cornering", "left-right"])
+    assert set(by) == {"hard-brake", "sharp-cornering", "left-right"}
     assert {s["drive"] for s in by["hard-brake"].to_dict()["sequences"]} == {"V-sim-hard-brake"}
     assert by["left-right"].estimators == ["ins", "idnn", "odo", "ekf"]
     assert by["hard-brake"].to_text().startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")

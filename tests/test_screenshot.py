@@ -107,14 +107,19 @@ def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_pa
 
 def test_outage_numbers_and_worst_of(recording, tmp_path):
     out = tmp_path / "shots"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "outage", "--outage", "3", "--outage", "7",
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "outage", "--outage-number", "3", "--outage-number", "7",
                    "--size", "400x300")
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["V-sim-sharp-cornering-outage-outage3.png", "V-sim-sharp-cornering-outage-outage7.png"]
-    for args, message in [(["--outage", "999"], "no outage 999 (the recording has 59)"), (["--outage", "10s"], "--outage-length"),
+    for args, message in [(["--outage-number", "999"], "no outage 999 (the recording has 59)"),
+                          (["--outage", "10s"], "to frame outage N give --outage-number N"),
                           (["--time", "worst", "--worst-of", "nope"], "choose one of")]:
         proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), *args)
         assert proc.returncode == 2 and message in proc.stderr and proc.stderr.count("\n") == 1, (args, proc.stderr)
+    # --outage is a length on every command; a bare number there keeps its old meaning, said as deprecated
+    old = run_cli("screenshot", str(recording), "-o", str(tmp_path / "y.png"), "--outage", "999")
+    assert old.returncode == 2 and "no outage 999" in old.stderr, old.stderr
+    assert "warning: --outage 999: outage numbers are --outage-number now" in old.stderr, old.stderr
 
 
 def test_worst_of_picks_the_outage_with_the_largest_final_error_of_that_estimator(recording):

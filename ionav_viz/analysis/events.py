@@ -23,7 +23,7 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
     circulating turn plus its opposite entry and exit flares). The event spans the segment and
     any turning segment of the other sign within 3 s on either side (the flares).
     Values: heading change (deg), radius (m). U-turns at that radius count too.
-``sharp-corner``
+``sharp-cornering``
     A turning segment of 70-115 deg within 8 s at a radius of at most 30 m, outside a roundabout.
     Values: heading change, radius, duration.
 ``left-right``
@@ -49,6 +49,7 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
 
 from __future__ import annotations
 
+import logging
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -60,8 +61,21 @@ from ..core.runs import run_ranges
 from ..core.units import G_MPS2
 from ..nav.outages import GNSS_OUTAGE  # a real loss of GNSS in the log, not a manoeuvre
 
-MANOEUVRE_TYPES = ("hard-brake", "roundabout", "sharp-corner", "left-right", "quick-accel", "cruise")
+log = logging.getLogger("ionav_viz")
+
+MANOEUVRE_TYPES = ("hard-brake", "roundabout", "sharp-cornering", "left-right", "quick-accel", "cruise")
 EVENT_TYPES = (*MANOEUVRE_TYPES, GNSS_OUTAGE)
+#: Names event types had before, each with its name now (the scenario's and the event's are one).
+RENAMED_TYPES = {"sharp-corner": "sharp-cornering"}
+
+
+def current_type_names(types: tuple[str, ...]) -> tuple[str, ...]:
+    """``types`` with each old name (:data:`RENAMED_TYPES`) replaced by its name now, said once as
+    deprecated."""
+    old = [t for t in types if t in RENAMED_TYPES]
+    for name in old:
+        log.warning("event type %s is %s now", name, RENAMED_TYPES[name])
+    return tuple(RENAMED_TYPES.get(t, t) for t in types)
 
 
 #: Plausible range of each threshold (values outside are refused before any work; smoothing
@@ -227,7 +241,7 @@ def detect_turn_events(s: Signals, th: EventThresholds) -> list[Event]:
     for tr in turns:
         if (th.sharp_min_turn_deg <= tr.turn_deg < th.roundabout_min_turn_deg and tr.t1 - tr.t0 <= th.sharp_max_s
                 and tr.radius_m <= th.sharp_max_radius_m and not in_roundabout(tr)):
-            out.append(Event("sharp-corner", tr.t0, tr.t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m, "duration_s": tr.t1 - tr.t0}))
+            out.append(Event("sharp-cornering", tr.t0, tr.t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m, "duration_s": tr.t1 - tr.t0}))
 
     big = [tr for tr in turns if tr.turn_deg >= th.left_right_min_turn_deg and not in_roundabout(tr)]
     series: list[_Turn] = []

@@ -105,9 +105,12 @@ def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | N
 
 
 def check_event_types(types: Sequence[str]) -> None:
+    from ..analysis.events import RENAMED_TYPES
+
     unknown = [t for t in types if t not in EVENT_TYPES]
     if unknown or not types:
-        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", f"choose from {', '.join(EVENT_TYPES)}", param="placement")
+        renamed = "; ".join(f"{t} is {RENAMED_TYPES[t]} now" for t in unknown if t in RENAMED_TYPES)
+        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", renamed or f"choose from {', '.join(EVENT_TYPES)}", param="placement")
 
 
 

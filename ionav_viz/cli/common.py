@@ -201,7 +201,9 @@ def placement_of(every: Optional[str], at: Optional[str], random_count: Optional
         chosen[0] if chosen else "", "--outage")
     with options_named(placement=option):  # the library checks the values; its errors name the option
         if on is not None:
-            kinds = split_list(on)
+            from ..analysis.events import current_type_names
+
+            kinds = current_type_names(split_list(on))
             return PlacementArgs(AroundEvents(kinds), option, kinds)
         if every is not None:
             return PlacementArgs(Every(duration_s(every, "--every")), option, None)

@@ -9,6 +9,7 @@ from typing import Any, Optional
 
 import typer
 
+from ..core.errors import InputError
 from . import common as c
 from .app import app, options_named
 
@@ -39,6 +40,8 @@ def evaluate(
     from ..analysis.tables import render_overview
     from ..core.json_out import plain_json
 
+    if as_json and markdown:
+        raise InputError("--json and --markdown: two output formats asked for", "give one of them")
     if outage is not None and "," in outage:
         _evaluate_lengths(outage, drives, scenario, plan, export, by_event, overview, external, as_json, markdown, quiet, placement, run, read)
         return

@@ -38,11 +38,11 @@ def events(
     every --threshold NAME=VALUE, with its default and range, is listed below.
     """
     from .. import api
-    from ..analysis.events import EventThresholds
+    from ..analysis.events import EventThresholds, current_type_names
     from ..core.json_out import dumps_json
 
     th = EventThresholds().with_overrides(list(thresholds or []))
-    kinds = c.split_list(types) if types else None
+    kinds = current_type_names(c.split_list(types)) if types else None
     if quality:
         rows = api.detector_quality(th, kinds)
         if as_json:
@@ -69,4 +69,4 @@ def events(
         print(f"{name}: {len(evs)} event(s)")
         for e in evs:
             values = ", ".join(f"{k} {v:.2f}" for k, v in e.values.items())
-            print(f"  {e.type:<13} {e.t0_s:8.1f} - {e.t1_s:8.1f} s   {values}")
+            print(f"  {e.type:<15} {e.t0_s:8.1f} - {e.t1_s:8.1f} s   {values}")

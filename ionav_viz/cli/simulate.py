@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 
+from ..core.errors import InputError
 from . import common as c
 from .app import app
 
@@ -31,8 +32,10 @@ def simulate(
         for path in api.simulate_bundled(bundled):
             print(path)
         return
-    if scenario is None or output is None:
-        raise typer.BadParameter("give a SCENARIO and -o FILE.csv (or --bundled DIR)")
+    if scenario is None:
+        raise InputError("no scenario to simulate", "give one, as in 'ionav-viz simulate motorway -o V-sim.csv' (or --bundled DIR for the bundled drives)")
+    if output is None:
+        raise InputError("no file to write", "give -o FILE.csv (an IO-VNBD CSV) or -o FILE.mcap (a 6-axis log with --imu)", param="output")
     with options_named(scenario="SCENARIO", gnss_losses="--gnss-loss", fleet="--fleet", imu="--imu", output="-o"):
         print(api.simulate(scenario, output, seed, c.duration_s(duration, "--duration"), fleet=fleet, ideal=ideal, gnss_losses=gnss_loss,
                            imu=imu))

@@ -95,7 +95,7 @@ def tile(windows: Windows, n: int) -> np.ndarray:
 
 
 def every(windows: Windows, n: int, period: int) -> np.ndarray:
-    """An ``n``-window outage every ``period`` windows (``period >= n``)."""
+    """An ``n``-window outage every ``period`` windows (``period >= n``; equal: tiled)."""
     if period < n:
         raise InputError(f"outage period {period} s is shorter than the outage ({n} s)", "choose a period at least as long as the outage", param="placement")
     starts = [np.arange(a, b - n + 1, period) for a, b in _segment_ranges(windows)]
@@ -194,7 +194,7 @@ class Tile:
 
 @dataclass(frozen=True)
 class Every:
-    """An outage every ``period_s`` seconds (whole seconds, at least the outage length)."""
+    """An outage every ``period_s`` seconds (whole seconds, longer than the outage: GNSS in between)."""
 
     period_s: float
     event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
@@ -204,6 +204,10 @@ class Every:
 
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         period = outage_windows(self.period_s, "outage period", "placement")
+        if period == n_windows:  # the promise of --every is GNSS in between
+            raise InputError(f"an outage every {period} s with {n_windows} s outages leaves no GNSS between them",
+                             f"give a longer period (e.g. every {n_windows + max(n_windows // 2, 5)} s), or no placement to tile the drive "
+                             "with back-to-back outages", param="placement")
         return OutagePlan(every(windows, n_windows, period), f"a {n_windows:g} s outage every {self.period_s:g} s",
                           excluded_by_truth(windows, n_windows, lambda w: every(w, n_windows, period)))
 

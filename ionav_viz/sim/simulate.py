@@ -266,7 +266,7 @@ def _plan_hard_brake(p: _Plan, rng: np.random.Generator, duration_s: float) -> N
         elif rng.random() < 0.5:
             start = p.duration_s
             p.turn(rng.choice([-1, 1]) * 90, rng.uniform(10, 15))
-            p.mark("sharp-corner", start)
+            p.mark("sharp-cornering", start)
 
 
 def _plan_sharp_cornering(p: _Plan, rng: np.random.Generator, duration_s: float) -> None:
@@ -278,7 +278,7 @@ def _plan_sharp_cornering(p: _Plan, rng: np.random.Generator, duration_s: float)
             p.speed_to(rng.uniform(4, 6), rng.uniform(1.5, 3.0))
             start = p.duration_s
             p.turn(rng.choice([-1, 1]) * rng.uniform(80, 100), rng.uniform(8, 15), ramp_s=0.8)
-            p.mark("sharp-corner", start)
+            p.mark("sharp-cornering", start)
             p.speed_to(rng.uniform(8, 12.5), rng.uniform(1.5, 2.5))
         else:  # successive left-right turns
             side = rng.choice([-1, 1])
@@ -331,7 +331,7 @@ def simulated_manoeuvres(scenario: str, seed: int, duration_s: float, gnss_losse
 
     ``gnss-outage``: the GNSS losses of a drive simulated with ``gnss_losses``.
 
-    ``hard-brake``, ``roundabout``, ``sharp-corner`` and ``left-right`` come from the plan's
+    ``hard-brake``, ``roundabout``, ``sharp-cornering`` and ``left-right`` come from the plan's
     pieces (those the end of the drive cut off are left out). ``quick-accel`` and ``cruise`` are
     properties of the motion rather than pieces, so they are found on the exact, noise-free truth
     (true speed and yaw rate at 10 Hz: no sensor errors, no road grade) by their definitions in

@@ -106,6 +106,11 @@ def source_kind(path: Path) -> str:
             return "kitti"
         if (error := missing_metadata(path)) is not None:
             raise error
+        drives = sorted({p.suffix.lower() for p in path.iterdir() if p.suffix.lower() in (".csv", ".mcap", ".bag") and p.is_file()})
+        if drives:  # a folder of drives: each is one drive
+            globs = " ".join(f"{path}/*{suffix}" for suffix in drives)
+            raise InputError(f"{path}: a folder of drives, not one drive (a ROS 2 bag folder or a KITTI raw drive)",
+                             f"give the drives themselves: {globs}")
         raise InputError(f"{path}: neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive (no oxts/)", _SUPPORTED)
     if suffix == ".csv":
         return "iovnbd"

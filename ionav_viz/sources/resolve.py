@@ -98,4 +98,6 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         candidates |= {p[0].stem for p in index_data_root(root.resolve()).values()}
     close = difflib.get_close_matches(spec, sorted(candidates), n=3, cutoff=0.6)
     hint = f"did you mean {', '.join(close)}?" if close else "give a file path, a bundled scenario (motorway, roundabout, quick-accel, hard-brake, sharp-cornering) or an IO-VNBD run name"
+    if path.suffix:  # it names a file (no run or scenario has a suffix but .csv, looked up above)
+        raise InputError(f"{spec}: no such file", hint if close else "check the path (relative to the current directory)")
     raise InputError(f"unknown drive {spec!r}", hint)
