@@ -16,7 +16,7 @@ from typing import Any, Optional
 import typer
 
 # --- options shared by several commands -----------------------------------------------------
-DataRoot = typer.Option(None, "--data-root", help="IO-VNBD checkout to find run names in (default: $IONAV_DATA).", show_default=False)
+DataRoot = typer.Option(None, "--data-root", help="Where IO-VNBD run names are found (default: $IONAV_DATA, else the per-user data directory that fetch fills; 'ionav-viz list' names it).", show_default=False)
 YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the yaw rate: auto (the source's convention, checked against the GNSS heading), cw or ccw positive.")
 ImuAxes = typer.Option(None, "--imu-axes", help="MCAP/ROS bags: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
 TruthTopic = typer.Option(None, "--truth-topic", help="MCAP/ROS bags: a reference trajectory to score against (NavSatFix, or Odometry/PoseStamped with --truth-origin); estimators get only the GNSS topic.",
