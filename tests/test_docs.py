@@ -6,6 +6,7 @@ Fast and in-process: commands are parsed (options, types, arity), never run.
 
 from __future__ import annotations
 
+import json
 import re
 import shlex
 from pathlib import Path
@@ -297,3 +298,16 @@ def test_everything_the_docs_call_on_the_package_is_exported():
         called |= set(re.findall(r"\biv\.([A-Za-z_]\w*)", doc.read_text(encoding="utf-8")))
     assert {"evaluate", "replay", "screenshot", "serve_web", "load_drive"} <= called
     assert sorted(name for name in called if not hasattr(ionav_viz, name)) == []
+
+
+def test_the_images_the_docs_show_carry_the_current_numbers():
+    """The hero image and the drift figure are made by docs/make_images.py, which records the
+    numbers they show in docs/images.json; a change of the code's numbers makes this fail until
+    the images are made again (an image showing old numbers was the README's hero once)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_images", ROOT / "docs" / "make_images.py")
+    make_images = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_images)
+    recorded = json.loads((ROOT / "docs" / "images.json").read_text())
+    assert recorded == make_images.current_numbers(), "run 'python docs/make_images.py' and commit the images"
