@@ -23,7 +23,7 @@ def run_cli(*args: str, env: dict | None = None, cwd: Path | None = None, timeou
     what is imported) uses :func:`run_cli_process`."""
     if os.environ.get("IONAV_TEST_SUBPROCESS") == "1":
         return run_cli_process(*args, env=env, cwd=cwd, timeout=timeout)
-    return _run_cli_here(list(args), env, cwd)
+    return _run_cli_here(list(args), env, cwd, timeout)
 
 
 def run_cli_process(*args: str, env: dict | None = None, cwd: Path | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
@@ -46,7 +46,7 @@ def _cli_env(env: dict | None) -> dict:
     return full_env
 
 
-def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None) -> subprocess.CompletedProcess:
+def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None, timeout: float) -> subprocess.CompletedProcess:
     import io
     import logging
     import signal
@@ -57,7 +57,7 @@ def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None) -> subpro
 
     saved_env, saved_cwd, saved_argv = dict(os.environ), os.getcwd(), sys.argv
     saved_streams = sys.stdin, sys.stdout, sys.stderr
-    saved_signals = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    saved_signals = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGALRM)}
     logger = logging.getLogger("ionav_viz")  # main() points it at stderr; library tests read it with caplog
     saved_logger = logger.handlers[:], logger.level, logger.propagate
     out, err = io.StringIO(), io.StringIO()
@@ -68,6 +68,12 @@ def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None) -> subpro
         os.chdir(cwd or REPO)
         sys.argv = ["ionav-viz", *args]
         sys.stdin, sys.stdout, sys.stderr = io.StringIO(""), out, err
+
+        def expired(signum, frame):  # as subprocess.run(timeout=) raises: a hang fails the test, not the suite
+            raise subprocess.TimeoutExpired(["ionav-viz", *args], timeout, out.getvalue(), err.getvalue())
+
+        signal.signal(signal.SIGALRM, expired)
+        signal.setitimer(signal.ITIMER_REAL, timeout)
         with warnings.catch_warnings():
             # a fresh interpreter's filters, printed to stderr as there (pytest records them instead)
             warnings.resetwarnings()
@@ -78,10 +84,13 @@ def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None) -> subpro
                 main()
             except SystemExit as exc:
                 code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+            except subprocess.TimeoutExpired:
+                raise
             except BaseException:  # what the interpreter would print before exiting with 1
                 traceback.print_exc(file=err)
                 code = 1
     finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
         sys.stdin, sys.stdout, sys.stderr = saved_streams
         sys.argv = saved_argv
         os.chdir(saved_cwd)
