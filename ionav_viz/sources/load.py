@@ -154,10 +154,7 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
         return read_kitti(path, yaw_sign=yaw_sign)
     from .message_log import read_log
 
-    return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic,
-                    gnss_velocity_topic=opts.gnss_velocity_topic, vehicle_speed_topic=opts.vehicle_speed_topic,
-                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign, imu_mount=opts.imu_mount,
-                    truth_topic=opts.truth_topic, truth_origin=opts.truth_origin)
+    return read_log(open_message_log(path, kind), opts, yaw_sign=yaw_sign)
 
 
 def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mcap: LogOptions | None = None) -> Drive:
