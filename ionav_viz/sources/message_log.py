@@ -67,7 +67,7 @@ from .imu_mount import parse_mount
 from .load import LogOptions
 from .plausibility import first_implausible, implausible
 from .reference import parse_origin, place_reference
-from .resample import ImuBins, assemble_drive, drop_strays, first_per_stamp
+from .resample import ImuBins, LogStreams, assemble_drive, drop_strays, first_per_stamp
 
 log = logging.getLogger("ionav_viz")
 
@@ -343,8 +343,8 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
     speeds, vehicle_speeds = (_in_stamp_order(path, what, samples, origin_s)
                               for what, samples in (("GNSS velocity", got.speed), ("vehicle speed", got.vehicle)))
     truth = _truth(got, origin, fixes, origin_s)
-    return assemble_drive(path, name or _default_name(path), got.imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s,
-                          vehicle_speed=vehicle_speeds, imu_mount=mount, reference=truth)
+    streams = LogStreams(got.imu, fixes, speeds, origin_s=origin_s, vehicle_speed=vehicle_speeds, reference=truth)
+    return assemble_drive(path, name or _default_name(path), streams, mapping, yaw_sign, imu_mount=mount)
 
 
 class _Messages:
