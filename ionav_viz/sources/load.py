@@ -138,12 +138,12 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
     opts = options or LogOptions()
     kind = source_kind(path)
     if kind in ("iovnbd", "kitti") and (opts.truth_topic or opts.truth_origin):
-        raise InputError(f"{path}: --truth-topic and --truth-origin choose a reference topic of an MCAP log or ROS bag",
+        raise InputError(f"{path}: a truth topic and its origin choose a reference topic of an MCAP log or ROS bag",
                          "leave them out: this file's GNSS is its truth", param="truth_topic" if opts.truth_topic else "truth_origin")
     if kind in ("iovnbd", "kitti") and (opts.imu_axes or opts.imu_mount):
         what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
-        raise InputError(f"{path}: {what}; --imu-axes and --imu-mount apply to MCAP logs and ROS bags",
-                         "leave them out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes" if opts.imu_axes else "imu_mount")
+        raise InputError(f"{path}: {what}; IMU axes and mount apply to MCAP logs and ROS bags",
+                         "leave it out (the yaw sign still chooses the yaw-rate sign)", param="imu_axes" if opts.imu_axes else "imu_mount")
     if kind == "iovnbd":
         from .iovnbd import read_iovnbd
 

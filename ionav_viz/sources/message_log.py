@@ -134,21 +134,22 @@ class MessageLog(Protocol):
         ...
 
 
-def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, option: str,
+def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, param: str,
           path: Path, required: bool) -> ChannelInfo | None:
+    """The channel named ``topic``, else the one of ``schemas`` (``param``: the argument that names it)."""
     if topic is not None:
         found = [c for c in channels if c.topic == topic]
         if not found:
-            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}")
+            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}", param=param)
         return found[0]
     found = [c for c in channels if c.schema in schemas]
     if len(found) > 1:
-        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", f"choose one with {option}")
+        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", "choose one", param=param)
     if not found:
         if not required:
             return None
         listing = ", ".join(f"{c.topic} [{c.schema}]" for c in channels) or "none"
-        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", f"choose one with {option}")
+        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", "choose one", param=param)
     return found[0]
 
 
@@ -169,15 +170,15 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
         raise InputError(f"{path}: no topics (an empty recording)", "record IMU and GNSS topics")
     for c in channels:
         c.role = ""
-    imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
-    reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "--truth-topic", path, False) if truth_topic else None
+    imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "imu_topic", path, True)
+    reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "truth_topic", path, False) if truth_topic else None
     if reference is not None and reference.schema not in REFERENCE_SCHEMAS:
         raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}",
-                         "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with --truth-origin), as --truth-topic",
+                         "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with its origin)",
                          param="truth_topic")
-    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
+    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "gnss_topic", path, True)
     if reference is not None and gnss is reference:
-        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "give the receiver's topic as --gnss-topic",
+        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "name the receiver's own topic",
                          param="truth_topic")
     named = {t for t in (gnss_velocity_topic, vehicle_speed_topic, truth_topic) if t not in (None, NO_TOPIC)}
     body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
@@ -185,16 +186,16 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     if gnss_velocity_topic == NO_TOPIC:  # speed and course from the fixes (a receiver's velocity not to be trusted)
         velocity = None
     elif gnss_velocity_topic is not None:
-        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "--gnss-velocity-topic", path, False)
+        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "gnss_velocity_topic", path, False)
         if velocity is not None and velocity.topic in body_twists:
             raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the receiver's velocity",
-                             f"give it as --vehicle-speed-topic {velocity.topic}", param="gnss_velocity_topic")
+                             f"give {velocity.topic} as the vehicle speed topic instead", param="gnss_velocity_topic")
     else:
-        velocity = _pick(world_twists, TWIST_SCHEMAS, None, "GNSS velocity", "--gnss-velocity-topic", path, False)
+        velocity = _pick(world_twists, TWIST_SCHEMAS, None, "GNSS velocity", "gnss_velocity_topic", path, False)
     if vehicle_speed_topic == NO_TOPIC:
         vehicle = None
     elif vehicle_speed_topic is not None:
-        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "--vehicle-speed-topic", path, False)
+        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "vehicle_speed_topic", path, False)
         if vehicle is not None and vehicle.schema not in SPEED_SCHEMAS:
             raise InputError(f"{path}: {vehicle.topic} is a {vehicle.schema}, not a vehicle speed",
                              "give a nav_msgs/Odometry or a TwistStamped in a body frame", param="vehicle_speed_topic")
@@ -393,7 +394,7 @@ class _Messages:
             fields = " and ".join(f"{name} ({n} message(s))" for name, n in sorted(self.not_provided.items()))
             if "IMU" not in self.last_t:
                 raise InputError(f"{self.path}: topic {self.sel.imu.topic} marks its {fields} 'not provided' (REP 145: covariance[0] = -1)",
-                                 "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw) with --imu-topic")
+                                 "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw)", param="imu_topic")
             log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: covariance[0] = -1)",
                         self.path, self.sel.imu.topic, fields)
         topic_of = {c.role: c.topic for c in self.sel.chosen}
@@ -510,7 +511,7 @@ def _truth(got: _Messages, origin: Any, fixes: np.ndarray, origin_s: float) -> n
     if sel.reference is not None:
         truth = _in_stamp_order(path, "reference", got.reference, origin_s)
         if truth is None or len(truth) < 2:
-            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another --truth-topic")
+            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another reference topic", param="truth_topic")
         truth = truth[np.concatenate([[True], np.diff(truth[:, 0]) > 0])]
         if sel.reference.schema not in GNSS_SCHEMAS:
             where = f"{path}: reference {sel.reference.topic} (frame {got.reference_frame[0] or 'unnamed'!r})"
@@ -518,8 +519,8 @@ def _truth(got: _Messages, origin: Any, fixes: np.ndarray, origin_s: float) -> n
             log.warning("%s: %s", where, how)
         return truth
     if origin is not None:
-        raise InputError(f"{path}: --truth-origin places a reference in a local frame, and no --truth-topic is given",
-                         "name the reference with --truth-topic, or leave --truth-origin out", param="truth_origin")
+        raise InputError(f"{path}: a truth origin places a reference in a local frame, and no truth topic is given",
+                         "name the reference topic, or leave the origin out", param="truth_origin")
     return None
 
 

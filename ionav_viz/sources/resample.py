@@ -340,7 +340,7 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
     if isinstance(imu_mount, np.ndarray):
         if unmeasured and not np.array_equal(np.abs(imu_mount), np.abs(imu_mount).round()):
             raise InputError(f"{path}: the IMU's {', '.join(unmeasured)} read one value over the whole log (not measured), "
-                             "so its vectors cannot be turned by a mount", "leave --imu-mount out (--imu-axes maps whole axes)",
+                             "so its vectors cannot be turned by a mount", "leave the mount out (the IMU axes map whole axes)",
                              param="imu_mount")
         matrix = imu_mount
     elif unmeasured:
@@ -357,10 +357,10 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
         angle = found.angle_deg
         if imu_mount != "auto" and angle > MAX_SILENT_DEG:
             permutation = nearest_axes(found.matrix @ mapping)
-            axes = f", or --imu-axes {permutation} (the nearest exact permutation)" if permutation else ""
+            axes = f", or map the IMU axes with {permutation} (the nearest exact permutation)" if permutation else ""
             raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount is estimated "
                              f"as {found.describe()}, {angle:.0f} deg from it",
-                             f"apply this estimate with --imu-mount auto, or give it as --imu-mount {format_mount(found.matrix)}{axes}",
+                             f"apply this estimate with the mount auto, or give it as {format_mount(found.matrix)}{axes}",
                              param="imu_mount")
         if imu_mount != "auto" and angle < MIN_APPLIED_DEG:
             return body

@@ -63,7 +63,7 @@ class RecordingInfo:
     def outage(self, number: int) -> OutageInfo:
         if not 1 <= number <= len(self.outages):
             raise InputError(f"{self.path}: no outage {number} (the recording has {len(self.outages)})",
-                             "choose an outage number from the replay's list, or --time worst", param="outages")
+                             "choose an outage number from the replay's list, or worst", param="outages")
         return self.outages[number - 1]
 
     def worst(self, estimator: str = BASELINE) -> OutageInfo:
