@@ -64,7 +64,7 @@ from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
 from .imu_frame import AXES, parse_imu_axes
 from .imu_mount import parse_mount
-from .load import LogOptions
+from .log_options import LogOptions
 from .plausibility import first_implausible, implausible
 from .reference import parse_origin, place_reference
 from .resample import ImuBins, LogStreams, assemble_drive, drop_strays, first_per_stamp
