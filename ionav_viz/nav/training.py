@@ -157,8 +157,24 @@ def train_models(
     description: str = "",
 ) -> IdnnModel:
     """Train both networks on ``drives`` with ``config``; returns the model with its metadata."""
-    with _torch_scratch():
+    with _torch_scratch(), _seeded_deterministic_torch(config.seed):
         return _train(drives, config, progress, description)
+
+
+@contextlib.contextmanager
+def _seeded_deterministic_torch(seed: int) -> Iterator[None]:
+    """torch's global random generator seeded with ``seed`` and its deterministic algorithms on,
+    within the block only: the caller's generator state and determinism setting are restored after."""
+    import torch
+
+    enabled, warn_only = torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled()
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        torch.use_deterministic_algorithms(True)
+        try:
+            yield
+        finally:
+            torch.use_deterministic_algorithms(enabled, warn_only=warn_only)
 
 
 @contextlib.contextmanager
@@ -177,8 +193,6 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
     import torch
 
     config.validate()
-    torch.manual_seed(config.seed)
-    torch.use_deterministic_algorithms(True)
     data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
     rng = np.random.default_rng(config.seed)
     val_mask = rng.random(len(data)) < 0.1
