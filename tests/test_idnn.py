@@ -12,7 +12,7 @@ from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import samples_dir
 from ionav_viz.nav.bias import SensorBias
 from ionav_viz.nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
-from ionav_viz.nav.training import fit_network, train_models, training_examples
+from ionav_viz.nav.training import FitSettings, fit_network, train_models, training_examples
 from ionav_viz.sources.iovnbd import read_iovnbd
 
 IDENTITY = MinMax(0.0, 1.0)
@@ -85,7 +85,7 @@ def test_training_feeds_noisy_gnss_displacement():
     x = np.zeros((len(data), 11))
     x[:, 0] = np.arange(len(data))  # tag each example to find it after shuffling
     x[:, 10] = data.prev_disp_m
-    fit_network(net, x, data.disp_m, lr=0.0, epochs=1, batch=256, seed=0, noise_col=10, noise_sd=0.5, progress=None, label="t")
+    fit_network(net, x, data.disp_m, FitSettings(lr=0.0, epochs=1, batch=256, seed=0, noise_col=10, noise_sd=0.5), label="t")
     seen = torch.cat(net.seen).numpy().astype(np.float64)
     example = np.rint(seen[:, 0]).astype(int)
     assert sorted(example) == list(range(len(data)))  # every example once per epoch
@@ -238,8 +238,7 @@ def test_learning_rate_falls_to_zero_over_the_tail():
 
     torch.optim.Adamax.step = spy
     try:
-        fit_network(net, x, y, lr=0.01, epochs=10, batch=10, seed=0, noise_col=None, noise_sd=0.0,
-                    progress=None, label="t", decay_tail=0.5)
+        fit_network(net, x, y, FitSettings(lr=0.01, epochs=10, batch=10, seed=0, decay_tail=0.5), label="t")
     finally:
         torch.optim.Adamax.step = real_step
     # 100 steps: constant for the first 50, then (100 - step) / 50 of the rate

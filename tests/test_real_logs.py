@@ -155,6 +155,6 @@ def test_a_reference_in_a_local_frame_is_placed_by_its_origin(tmp_path):
     placed = next(w for w in got["warnings"] if "--truth-origin auto" in w)
     assert abs(float(re.search(r"x axis ([+-][\d.]+) deg from east", placed).group(1)) - 30.0) < 0.2, placed
     proc = run_cli("evaluate", str(log), "--gnss-topic", "/gps/fix", "--truth-origin", "52.4,-1.5")
-    assert proc.returncode == 2 and "no --truth-topic" in proc.stderr, proc.stderr
+    assert proc.returncode == 2 and "error: --truth-origin: " in proc.stderr and "no truth topic" in proc.stderr, proc.stderr
     proc = run_cli("evaluate", str(log), "--truth-origin", "north")
     assert proc.returncode == 2 and "--truth-origin" in proc.stderr and "LAT,LON" in proc.stderr, proc.stderr

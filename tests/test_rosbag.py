@@ -238,7 +238,7 @@ def test_vehicle_speed_topics_are_told_from_gnss_velocity(tmp_path, drive, refer
     assert [e["name"] for e in json.loads(proc.stdout)["estimators"]] == ["ins", "idnn", "ekf"]
     # a body-frame twist is not the receiver's velocity
     proc = run_cli("evaluate", str(twist), "--gnss-velocity-topic", "/vehicle/twist")
-    assert proc.returncode == 2 and "is in a body frame" in proc.stderr and "--vehicle-speed-topic /vehicle/twist" in proc.stderr
+    assert proc.returncode == 2 and "is in a body frame" in proc.stderr and "give /vehicle/twist as the vehicle speed topic" in proc.stderr
 
 
 def test_the_earlier_speed_topic_is_the_gnss_velocity_topic():

@@ -116,9 +116,9 @@ def fetch(selection: RunSelection, data_root: str | Path | None = None, source: 
     try:
         root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise InputError(f"data root {root}: cannot create it ({exc.strerror})", "choose a writable --data-root") from None
+        raise InputError(f"data root {root}: cannot create it ({exc.strerror})", "choose a writable data root", param="data_root") from None
     if not os.access(root, os.W_OK | os.X_OK):
-        raise InputError(f"data root {root}: cannot write in it (permission denied)", "choose a writable --data-root")
+        raise InputError(f"data root {root}: cannot write in it (permission denied)", "choose a writable data root", param="data_root")
     cache = VerifiedCache(root)
     total = sum(e.size_bytes for e in entries)
     try:

@@ -72,7 +72,7 @@ class RunOptions:
                 log.warning("%s left out: it does not apply to %s%s", est.label, ", ".join(missing), f" (it needs {need})" if need else "")
         if not kept:
             raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
-                             "choose others with --estimators (ins always applies)", param="estimators")
+                             "choose others (ins always applies)", param="estimators")
         return kept
 
     def bias_of(self, read: ReadOptions) -> Callable[[Drive], SensorBias]:
@@ -139,7 +139,7 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
     if not hasattr(external, "items"):
         raise InputError(f"external={external!r} is not a mapping of names to trajectories", "e.g. external={'rl': 'rl.csv'}", param="external")
     if not isinstance(placement, FromPlan):
-        raise InputError("an external estimate is scored on the outages of the log it ran on", "give that log's plan (--plan NAME.outages.json)",
+        raise InputError("an external estimate is scored on the outages of the log it ran on", "score it on that log's plan (its NAME.outages.json)",
                          param="external")
     built = []
     for name, spec in external.items():

@@ -85,8 +85,8 @@ def outage_log(
         windows = make_windows(d)
     plan, _ = plan_outages(d, windows, placement, n, run)
     if plan.gnss_gaps and not len(plan.starts):
-        raise InputError(f"{d.name}: --on gnss-outage bridges the log's own GNSS losses; there is nothing to remove",
-                         "place synthetic outages (--every, --at, --random, --on a manoeuvre)", param="placement")
+        raise InputError(f"{d.name}: the gnss-outage placement bridges the log's own GNSS losses; there is nothing to remove",
+                         "place synthetic outages (every, at, random or on a manoeuvre)", param="placement")
     if not len(plan.starts):
         raise no_outage_fits([d], n, "")
     start_s = windows.t0_s[plan.starts]

@@ -34,7 +34,7 @@ def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float
         raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SIMULATED_SCENARIOS)}", param="scenario")
     if imu is not None:
         if fleet is not None or ideal or gnss_losses:
-            raise InputError("a simulated IMU log has its grade's sensors: no fleet, --ideal or GNSS losses", "leave them out", param="imu")
+            raise InputError("a simulated IMU log has its grade's sensors: no fleet, ideal sensors or GNSS losses", "leave them out", param="imu")
         return write_imu_log(output, scenario, seed, duration_s, imu)
     if gnss_losses < 0:
         raise InputError(f"{gnss_losses} GNSS losses: give 0 or more", param="gnss_losses")

@@ -28,7 +28,7 @@ def training_drives(paper: bool = False, data_root: str | Path | None = None) ->
 
     if paper:
         if _data_root(data_root) is None:
-            raise InputError("training on the paper's runs needs the IO-VNBD data", "pass --data-root DIR or set IONAV_DATA", param="data_root")
+            raise InputError("training on the paper's runs needs the IO-VNBD data", "give the data root, or set IONAV_DATA", param="data_root")
         drives = TrainingDrives(PAPER_TRAIN_RUNS)
         drives.description = "the paper's IO-VNBD training runs (Table 1)"
         return drives

@@ -226,13 +226,14 @@ QuietOpt = typer.Option(False, "--quiet", "-q", help="No progress bar and no sum
 
 def duration_s(text: str, option: str) -> float:
     """A duration option -> seconds; a bad one is a usage error naming the option."""
-    from ..core.durations import parse_duration_s
+    from ..core.durations import NotADuration, parse_duration_s
     from ..core.errors import InputError
 
     try:
         return parse_duration_s(text, option)
     except InputError as exc:
-        raise typer.BadParameter(f"{text!r} {'is not a duration; use e.g. 10s, 500ms, 1m' if 'not a duration' in exc.message else 'must be a positive duration'}", param_hint=option) from None
+        why = "is not a duration; use e.g. 10s, 500ms, 1m" if isinstance(exc, NotADuration) else "must be a positive duration"
+        raise typer.BadParameter(f"{text!r} {why}", param_hint=option) from None
 
 
 def durations_of(text: str, option: str) -> list[float]:

@@ -43,7 +43,11 @@ def evaluate(
     if as_json and markdown:
         raise InputError("--json and --markdown: two output formats asked for", "give one of them")
     if outage is not None and "," in outage:
-        _evaluate_lengths(outage, drives, scenario, plan, export, by_event, overview, external, as_json, markdown, quiet, placement, run, read)
+        for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),
+                              (overview or None, "--overview"), (external or None, "--external")):
+            if given:
+                raise typer.BadParameter(f"several outage lengths are evaluated on drives given by name, without {option}", param_hint="--outage")
+        _evaluate_lengths(outage, drives, placement, run, read, as_json, markdown, quiet)
         return
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)
     if scenario is not None and drives:
@@ -80,18 +84,14 @@ def evaluate(
     print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width()) for rep in reports.values()), end="")
 
 
-def _evaluate_lengths(outage: str, drives: Optional[list[str]], scenario: Optional[str], plan: Optional[Path], export: Optional[Path],
-                      by_event: bool, overview: bool, external: Optional[list[str]], as_json: bool, markdown: bool, quiet: bool,
-                      placement: c.PlacementArgs, run: Any, read: Any) -> None:
-    """``--outage 10s,30s,60s``: each length's report, then the error against outage length."""
+def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.PlacementArgs, run: Any, read: Any, as_json: bool,
+                      markdown: bool, quiet: bool) -> None:
+    """``--outage 10s,30s,60s``: each length's report, then the error against outage length (the
+    options it cannot take are refused by the caller)."""
     from .. import api
     from ..analysis.report import by_length, lengths_to_json
     from ..analysis.tables import render_lengths
 
-    for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),
-                          (overview or None, "--overview"), (external or None, "--external")):
-        if given:
-            raise typer.BadParameter(f"several outage lengths are evaluated on drives given by name, without {option}", param_hint="--outage")
     if not drives:
         raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
     lengths = c.durations_of(outage, "--outage")

@@ -431,7 +431,7 @@ def check_model_dir(directory: Path, overwrite: bool = False) -> Path:
     directory = Path(directory)
     if is_shipped_model_dir(directory):
         raise InputError(f"{directory}: this is the shipped IDNN model, which is never overwritten",
-                         "write the new model somewhere else and pass it with --model", param="output")
+                         "write the new model somewhere else, then choose it as the model", param="output")
     if directory.exists() and not directory.is_dir():
         raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
     if directory.exists() and not overwrite:

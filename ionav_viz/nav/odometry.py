@@ -85,7 +85,7 @@ class OdometryEstimator:
         found = vehicle_speed(inputs.drive)
         if found is None:
             raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and {why_no_vehicle_speed(inputs.drive)}",
-                             "leave odo out of --estimators for this drive", param="estimators")
+                             "leave odo out of the estimators for this drive", param="estimators")
         values, unit, source = found
         # a distance, never negative: the speed's magnitude (a log's signed wheel speeds or odometry
         # count reversing as distance too, as the reader does for a body twist)

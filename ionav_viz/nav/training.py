@@ -94,15 +94,30 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int,
     return TrainingSet(*(np.concatenate(p) for p in zip(*parts)))
 
 
-def fit_network(net, x: np.ndarray, y: np.ndarray, lr: float, epochs: int, batch: int, seed: int,
-         noise_col: int | None, noise_sd: float, progress: Progress | None, label: str,
-         decay_tail: float = 0.0) -> list[float]:
-    """Minimise L1 with Adamax; optional Gaussian noise on one (already normalised) input column.
+@dataclass(frozen=True)
+class FitSettings:
+    """How :func:`fit_network` trains one network.
 
-    The learning rate is constant, then falls linearly to zero over the last ``decay_tail``
-    fraction of the optimiser steps (0: constant throughout, as in the paper's Keras set-up).
+    The learning rate ``lr`` is constant, then falls linearly to zero over the last ``decay_tail``
+    fraction of the optimiser steps (0: constant throughout, as in the paper's Keras set-up);
+    ``noise_sd``: Gaussian noise added to the (already normalised) input column ``noise_col``.
     """
+
+    lr: float
+    epochs: int
+    batch: int
+    seed: int
+    noise_col: int | None = None
+    noise_sd: float = 0.0
+    decay_tail: float = 0.0
+
+
+def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, progress: Progress | None = None, label: str = "") -> list[float]:
+    """Minimise L1 with Adamax as ``fit`` says; returns the mean loss of each epoch."""
     import torch
+
+    lr, epochs, batch, seed = fit.lr, fit.epochs, fit.batch, fit.seed
+    noise_col, noise_sd, decay_tail = fit.noise_col, fit.noise_sd, fit.decay_tail
 
     gen = torch.Generator().manual_seed(seed)
     xt, yt = torch.from_numpy(x.astype(np.float32)), torch.from_numpy(y.astype(np.float32))
@@ -142,8 +157,24 @@ def train_models(
     description: str = "",
 ) -> IdnnModel:
     """Train both networks on ``drives`` with ``config``; returns the model with its metadata."""
-    with _torch_scratch():
+    with _torch_scratch(), _seeded_deterministic_torch(config.seed):
         return _train(drives, config, progress, description)
+
+
+@contextlib.contextmanager
+def _seeded_deterministic_torch(seed: int) -> Iterator[None]:
+    """torch's global random generator seeded with ``seed`` and its deterministic algorithms on,
+    within the block only: the caller's generator state and determinism setting are restored after."""
+    import torch
+
+    enabled, warn_only = torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled()
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        torch.use_deterministic_algorithms(True)
+        try:
+            yield
+        finally:
+            torch.use_deterministic_algorithms(enabled, warn_only=warn_only)
 
 
 @contextlib.contextmanager
@@ -162,8 +193,6 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
     import torch
 
     config.validate()
-    torch.manual_seed(config.seed)
-    torch.use_deterministic_algorithms(True)
     data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
     rng = np.random.default_rng(config.seed)
     val_mask = rng.random(len(data)) < 0.1
@@ -186,12 +215,12 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
     yaw_net = build_net(config.arch, config.n_steps_yaw, config.hidden, config.dropout, False,
                         norm.skip_terms(False) if config.residual else None)
     noise_sd = config.feedback_noise_m / (norm.disp.hi - norm.disp.lo)  # metres -> normalised units
-    disp_loss = fit_network(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), config.lr_disp, config.epochs_disp,
-                     config.batch_size, config.seed, config.n_steps_disp, noise_sd, progress, "displacement",
-                     config.lr_decay_tail)
-    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), config.lr_yaw,
-                    config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, progress, "orientation rate",
-                    config.lr_decay_tail)
+    disp_fit = FitSettings(config.lr_disp, config.epochs_disp, config.batch_size, config.seed, config.n_steps_disp, noise_sd,
+                           config.lr_decay_tail)
+    disp_loss = fit_network(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), disp_fit, progress, "displacement")
+    yaw_fit = FitSettings(config.lr_yaw, config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, config.lr_decay_tail)
+    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), yaw_fit, progress,
+                           "orientation rate")
 
     model = IdnnModel(config, norm, disp_net, yaw_net)
     with torch.no_grad():

@@ -413,83 +413,29 @@ def simulate_rows(
     scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None, gnss_losses: int = 0
 ) -> dict[str, np.ndarray]:
     """Raw IO-VNBD columns (file units, keyed by header name) of a synthetic drive, with
-    ``gnss_losses`` tunnel-like GNSS losses (:func:`gnss_loss_spans`)."""
-    from pyproj import Transformer
+    ``gnss_losses`` tunnel-like GNSS losses (:func:`gnss_loss_spans`).
 
+    One generator draws every random number in a fixed order (the truth's start heading and grade,
+    the sample times, the accelerometer, the gyro, the GNSS, then the housekeeping channels): the
+    helpers below are called in that order."""
     sensors = sensors if sensors is not None else SensorModel()
     truth = plan_truth(scenario, seed, duration_s)
     rng = np.random.default_rng([seed, 1000 + SIMULATED_SCENARIOS.index(scenario)])
-    dt = 1.0 / TRUTH_RATE_HZ
-
-    # Truth integration at 100 Hz (trapezoid): heading (compass, rad), distance, east/north.
-    v, k = truth.speed_mps, truth.curvature_1pm
-    yaw_rate = v * k
-    start_heading = rng.uniform(0, 2 * np.pi)
-    heading = start_heading - np.concatenate([[0.0], np.cumsum(0.5 * (yaw_rate[1:] + yaw_rate[:-1]) * dt)])
-    distance = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
-    ve, vn = v * np.sin(heading), v * np.cos(heading)
-    east = np.concatenate([[0.0], np.cumsum(0.5 * (ve[1:] + ve[:-1]) * dt)])
-    north = np.concatenate([[0.0], np.cumsum(0.5 * (vn[1:] + vn[:-1]) * dt)])
-    grade = grade_profile(rng, distance, sensors.grade_rms)
-    elevation = np.concatenate([[0.0], np.cumsum(0.5 * (grade[1:] + grade[:-1]) * np.diff(distance))])
-
-    # Sample times at 10 Hz with clock jitter and a few missing samples.
-    n_out = int(round(duration_s * OUTPUT_RATE_HZ)) + 1
-    t = np.arange(n_out) / OUTPUT_RATE_HZ
-    t[1:-1] += rng.uniform(-sensors.clock_jitter_s, sensors.clock_jitter_s, n_out - 2)
-    keep = rng.random(n_out) >= sensors.missing_sample_prob
-    keep[[0, -1]] = True
-    t = t[keep]
+    track = _integrate_truth(truth, rng, sensors)
+    t = _sample_times(rng, duration_s, sensors)
     n = len(t)
 
     def at(x: np.ndarray, times: np.ndarray = t) -> np.ndarray:
         return np.interp(times, truth.t_s, x)
 
-    v_s, a_s, g_s = at(v), at(truth.accel_mps2), at(grade)
+    v_s, a_s, g_s = at(truth.speed_mps), at(truth.accel_mps2), at(track.grade)
     moving = v_s > 0.05
-
-    # Accelerometer.
-    accel_offset = sensors.accel_offset_mps2 + rng.normal(0, 1) * sensors.accel_offset_spread_mps2
-    accel_walk = np.cumsum(rng.normal(0, sensors.accel_bias_walk_mps2_per_sqrt_s * math.sqrt(0.1), n))
-    accel_sigma = np.minimum(sensors.accel_noise_still_mps2 + sensors.accel_noise_per_mps * v_s, max(sensors.accel_noise_max_mps2, sensors.accel_noise_still_mps2))
-    f = a_s + G_MPS2 * np.sin(np.arctan(g_s)) + accel_offset + accel_walk + rng.normal(0, 1, n) * accel_sigma
-    accel_g = f / G_MPS2
-    if sensors.accel_quantum_g > 0:
-        accel_g = np.round(accel_g / sensors.accel_quantum_g) * sensors.accel_quantum_g
-
-    # Gyroscope (the file column is clockwise positive).
-    gyro_bias = sensors.gyro_bias_dps + rng.normal(0, 1) * sensors.gyro_bias_spread_dps
-    gyro_walk = np.cumsum(rng.normal(0, sensors.gyro_bias_walk_dps_per_sqrt_s * math.sqrt(0.1), n))
-    gyro_sigma = np.where(moving, sensors.gyro_noise_driving_dps, sensors.gyro_noise_still_dps)
-    r_meas_dps = (
-        (1 + sensors.gyro_scale_error) * np.degrees(at(yaw_rate, t - sensors.gyro_latency_s))
-        + gyro_bias + gyro_walk + rng.normal(0, 1, n) * gyro_sigma
-    )
-
-    # GNSS.
-    e_err = gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
-    n_err = gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
-    e_meas = at(east) + e_err + rng.normal(0, 1, n) * sensors.gnss_white_m
-    n_meas = at(north) + n_err + rng.normal(0, 1, n) * sensors.gnss_white_m
-    lat0 = rng.uniform(52.0, 53.0)
-    lon0 = rng.uniform(-2.2, -0.7)
-    to_wgs84 = Transformer.from_crs(f"+proj=aeqd +lat_0={lat0} +lon_0={lon0} +datum=WGS84", "EPSG:4326", always_xy=True)
-    lon, lat = to_wgs84.transform(e_meas, n_meas)
-    speed_kmh = np.maximum(v_s * 3.6 + rng.normal(0, 1, n) * sensors.gnss_speed_noise_kmh, 0.0)
-    speed_kmh[~moving] = np.abs(rng.normal(0, 1, (~moving).sum())) * sensors.gnss_speed_noise_kmh
-    course = np.degrees(at(np.unwrap(heading)))
-    course += rng.normal(0, 1, n) * sensors.gnss_heading_noise_deg_at_10mps * 10.0 / np.maximum(v_s, 1.0)
-    slow = v_s < 1.0
-    if slow.any():  # the receiver holds its last course while (nearly) standing still
-        idx = np.where(slow, 0, np.arange(n))
-        np.maximum.accumulate(idx, out=idx)
-        first_fast = int(np.argmax(~slow)) if (~slow).any() else 0
-        idx[: first_fast] = first_fast
-        course = course[idx]
-    course = np.mod(course, 360.0)
+    accel_g = _accelerometer_g(rng, sensors, v_s, a_s, g_s)
+    r_meas_dps = _gyro_dps(rng, sensors, at(track.yaw_rate_radps, t - sensors.gyro_latency_s), moving)
+    lat, lon, speed_kmh, course = _gnss_columns(rng, sensors, at(track.east_m), at(track.north_m), at(np.unwrap(track.heading_rad)), v_s)
 
     # CAN and housekeeping channels.
-    k_s = at(k)
+    k_s = at(truth.curvature_1pm)
     gear = np.select([v_s < 0.3, v_s < 4, v_s < 8, v_s < 12.5, v_s < 17], [0, 1, 2, 3, 4], 5)
     brake_psi = np.clip((-a_s - 0.5) * 150.0, 0.0, None)
     standing = np.convolve(~moving, np.ones(30), "same") >= 30
@@ -501,7 +447,7 @@ def simulate_rows(
         HEADER[3]: lon,
         HEADER[4]: speed_kmh,
         HEADER[5]: course,
-        HEADER[6]: 120.0 + at(elevation) + np.cumsum(rng.normal(0, 0.02, n)),
+        HEADER[6]: 120.0 + at(track.elevation_m) + np.cumsum(rng.normal(0, 0.02, n)),
         HEADER[7]: v_s * np.sin(np.arctan(g_s)) * 3.6,
         HEADER[8]: np.concatenate([[0.1], np.diff(t)]),
         HEADER[9]: np.degrees(np.arctan(2.5 * k_s)) * 15.0,
@@ -524,6 +470,100 @@ def simulate_rows(
     for t0, t1, kind in gnss_loss_spans(scenario, seed, duration_s, gnss_losses):
         _lose_gnss(rows, t, t0, t1, kind)
     return rows
+
+
+@dataclass(frozen=True)
+class _TruthTrack:
+    """The truth integrated at 100 Hz (trapezoid), on :class:`Truth`'s times."""
+
+    yaw_rate_radps: np.ndarray  # counter-clockwise positive
+    heading_rad: np.ndarray  # compass: clockwise from north
+    east_m: np.ndarray
+    north_m: np.ndarray
+    grade: np.ndarray  # rise over run
+    elevation_m: np.ndarray
+
+
+def _integrate_truth(truth: Truth, rng: np.random.Generator, sensors: SensorModel) -> _TruthTrack:
+    """Heading, position and elevation from the truth's speed and curvature (the start heading and
+    the road's grade drawn from ``rng``)."""
+    dt = 1.0 / TRUTH_RATE_HZ
+    v, k = truth.speed_mps, truth.curvature_1pm
+    yaw_rate = v * k
+    start_heading = rng.uniform(0, 2 * np.pi)
+    heading = start_heading - np.concatenate([[0.0], np.cumsum(0.5 * (yaw_rate[1:] + yaw_rate[:-1]) * dt)])
+    distance = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
+    ve, vn = v * np.sin(heading), v * np.cos(heading)
+    east = np.concatenate([[0.0], np.cumsum(0.5 * (ve[1:] + ve[:-1]) * dt)])
+    north = np.concatenate([[0.0], np.cumsum(0.5 * (vn[1:] + vn[:-1]) * dt)])
+    grade = grade_profile(rng, distance, sensors.grade_rms)
+    elevation = np.concatenate([[0.0], np.cumsum(0.5 * (grade[1:] + grade[:-1]) * np.diff(distance))])
+    return _TruthTrack(yaw_rate, heading, east, north, grade, elevation)
+
+
+def _sample_times(rng: np.random.Generator, duration_s: float, sensors: SensorModel) -> np.ndarray:
+    """Sample times at 10 Hz with clock jitter and a few missing samples (the first and last kept)."""
+    n_out = int(round(duration_s * OUTPUT_RATE_HZ)) + 1
+    t = np.arange(n_out) / OUTPUT_RATE_HZ
+    t[1:-1] += rng.uniform(-sensors.clock_jitter_s, sensors.clock_jitter_s, n_out - 2)
+    keep = rng.random(n_out) >= sensors.missing_sample_prob
+    keep[[0, -1]] = True
+    return t[keep]
+
+
+def _accelerometer_g(rng: np.random.Generator, sensors: SensorModel, v_s: np.ndarray, a_s: np.ndarray, g_s: np.ndarray) -> np.ndarray:
+    """The longitudinal accelerometer (g) at the sample times: acceleration and gravity along the
+    grade, offset, bias walk, speed-dependent noise, quantisation."""
+    n = len(v_s)
+    accel_offset = sensors.accel_offset_mps2 + rng.normal(0, 1) * sensors.accel_offset_spread_mps2
+    accel_walk = np.cumsum(rng.normal(0, sensors.accel_bias_walk_mps2_per_sqrt_s * math.sqrt(0.1), n))
+    accel_sigma = np.minimum(sensors.accel_noise_still_mps2 + sensors.accel_noise_per_mps * v_s, max(sensors.accel_noise_max_mps2, sensors.accel_noise_still_mps2))
+    f = a_s + G_MPS2 * np.sin(np.arctan(g_s)) + accel_offset + accel_walk + rng.normal(0, 1, n) * accel_sigma
+    accel_g = f / G_MPS2
+    if sensors.accel_quantum_g > 0:
+        accel_g = np.round(accel_g / sensors.accel_quantum_g) * sensors.accel_quantum_g
+    return accel_g
+
+
+def _gyro_dps(rng: np.random.Generator, sensors: SensorModel, yaw_rate_late_radps: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """The yaw-rate gyro (deg/s, counter-clockwise positive; the file column is clockwise positive)
+    from the true yaw rate at the sample times less its latency: scale error, bias, bias walk, noise."""
+    n = len(moving)
+    gyro_bias = sensors.gyro_bias_dps + rng.normal(0, 1) * sensors.gyro_bias_spread_dps
+    gyro_walk = np.cumsum(rng.normal(0, sensors.gyro_bias_walk_dps_per_sqrt_s * math.sqrt(0.1), n))
+    gyro_sigma = np.where(moving, sensors.gyro_noise_driving_dps, sensors.gyro_noise_still_dps)
+    return (1 + sensors.gyro_scale_error) * np.degrees(yaw_rate_late_radps) + gyro_bias + gyro_walk + rng.normal(0, 1, n) * gyro_sigma
+
+
+def _gnss_columns(rng: np.random.Generator, sensors: SensorModel, east_m: np.ndarray, north_m: np.ndarray, heading_rad_unwrapped: np.ndarray,
+                  v_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The receiver's latitude, longitude (deg), speed (km/h) and course (deg) from the true track at
+    the sample times: wandering and white position error about a random origin (latitude 52-53, longitude -2.2 to -0.7),
+    speed and course noise, the course held while (nearly) standing."""
+    from pyproj import Transformer
+
+    n = len(v_s)
+    moving = v_s > 0.05
+    e_err = gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
+    n_err = gauss_markov(rng, n, 0.1, sensors.gnss_wander_m, sensors.gnss_wander_tau_s or 1.0)
+    e_meas = east_m + e_err + rng.normal(0, 1, n) * sensors.gnss_white_m
+    n_meas = north_m + n_err + rng.normal(0, 1, n) * sensors.gnss_white_m
+    lat0 = rng.uniform(52.0, 53.0)
+    lon0 = rng.uniform(-2.2, -0.7)
+    to_wgs84 = Transformer.from_crs(f"+proj=aeqd +lat_0={lat0} +lon_0={lon0} +datum=WGS84", "EPSG:4326", always_xy=True)
+    lon, lat = to_wgs84.transform(e_meas, n_meas)
+    speed_kmh = np.maximum(v_s * 3.6 + rng.normal(0, 1, n) * sensors.gnss_speed_noise_kmh, 0.0)
+    speed_kmh[~moving] = np.abs(rng.normal(0, 1, (~moving).sum())) * sensors.gnss_speed_noise_kmh
+    course = np.degrees(heading_rad_unwrapped)
+    course += rng.normal(0, 1, n) * sensors.gnss_heading_noise_deg_at_10mps * 10.0 / np.maximum(v_s, 1.0)
+    slow = v_s < 1.0
+    if slow.any():  # the receiver holds its last course while (nearly) standing still
+        idx = np.where(slow, 0, np.arange(n))
+        np.maximum.accumulate(idx, out=idx)
+        first_fast = int(np.argmax(~slow)) if (~slow).any() else 0
+        idx[: first_fast] = first_fast
+        course = course[idx]
+    return lat, lon, speed_kmh, np.mod(course, 360.0)
 
 
 def can_speeds(rng: np.random.Generator, t: np.ndarray, truth: Truth, sensors: SensorModel, half_track_m: float,

@@ -15,6 +15,11 @@ MAX_CHUNK_BYTES = 256 * 2**20
 _HINT = "copy the file again, or re-record it"
 
 
+class InflatedPast(InputError):
+    """A chunk's data inflates past the size its header declares (or, with none declared, past
+    :data:`MAX_CHUNK_BYTES`)."""
+
+
 def check_declared(declared: int, where: str) -> None:
     """Refuse a chunk whose header declares more than :data:`MAX_CHUNK_BYTES` uncompressed.
     ``where`` names it in the message (``"FILE: the ROS 1 chunk at byte N"``)."""
@@ -30,10 +35,8 @@ def inflate(data: bytes, compression: str, declared: int | None, where: str) -> 
     if declared is None:
         try:
             return inflate(data, compression, MAX_CHUNK_BYTES, where)
-        except InputError as exc:
-            if "inflates past" not in exc.message:
-                raise
-            raise InputError(f"{where} inflates past {MAX_CHUNK_BYTES // 2**20} MiB, more than ionav-viz inflates (a damaged or "
+        except InflatedPast:
+            raise InflatedPast(f"{where} inflates past {MAX_CHUNK_BYTES // 2**20} MiB, more than ionav-viz inflates (a damaged or "
                              "crafted file: a compression bomb)", _HINT) from None
     check_declared(declared, where)
     if compression == "zstd":
@@ -45,7 +48,7 @@ def inflate(data: bytes, compression: str, declared: int | None, where: str) -> 
         stream = _decompressor(compression)
         out += stream.decompress(data, max_length=declared + 1 - len(out))
         if len(out) > declared:
-            raise InputError(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
+            raise InflatedPast(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
                              "a compression bomb)", _HINT)
         if not stream.eof:
             raise InputError(f"{where}: its {compression} data is cut short (a damaged file)", _HINT)
@@ -64,7 +67,7 @@ def _inflate_zstd(data: bytes, declared: int, where: str) -> bytes:
     except zstandard.ZstdError as exc:
         raise InputError(f"{where}: its zstd data is damaged ({exc})", _HINT) from None
     if len(out) > declared:
-        raise InputError(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
+        raise InflatedPast(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
                          "a compression bomb)", _HINT)
     return out
 
@@ -77,7 +80,7 @@ def _check_lz4_frame(data: bytes, room: int, where: str) -> None:
     except RuntimeError:
         raise InputError(f"{where}: its lz4 data is damaged", _HINT) from None
     if stated > room:
-        raise InputError(f"{where} inflates past the {room} bytes its header declares (a damaged or crafted file: "
+        raise InflatedPast(f"{where} inflates past the {room} bytes its header declares (a damaged or crafted file: "
                          "a compression bomb)", _HINT)
 
 

@@ -252,62 +252,12 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     2 GiB are refused. A last line cut off mid-way (a log that ended abruptly) is dropped with a
     warning.
     """
-    import pandas as pd
-
     path = Path(path)
     if yaw_sign not in YAW_SIGNS:
         raise InputError(f"unknown yaw sign {yaw_sign!r}", "use one of auto, cw, ccw")
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    if size > MAX_FILE_BYTES:
-        raise InputError(f"{path}: {size / 2**30:.1f} GiB is larger than the 2 GiB ionav-viz reads at once",
-                         "split the log into drives of a few hours (IO-VNBD's largest run is 27 MB)")
-    with open(path, "rb") as f:
-        head = f.read(4096)
-    if not head.strip(b" \t\r\n\xef\xbb\xbf\xff\xfe"):
-        raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header")
-    frame = by_label = encoding = None
-    n_fields = 0
-    for encoding in _encodings(path):
-        try:
-            by_label, frame, n_fields = _read_columns(path, encoding)
-            break
-        except UnicodeDecodeError:
-            continue
-        except pd.errors.EmptyDataError:
-            raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header") from None
-        except pd.errors.ParserError as exc:
-            raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})", "every row needs the header's columns") from None
-        except OSError as exc:
-            raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    if frame is None:
-        raise InputError(f"{path}: text in an unknown encoding")
-    cut = len(frame) > 0 and _last_line_is_cut(path, encoding, n_fields)
-    _check_field_counts(path, encoding, n_fields, len(frame), cut)
-    if cut:
-        log.warning("%s: the file ends mid-line; dropped its last row (%d)", path, len(frame) + 1)
-        frame = frame.iloc[:-1]
-    if len(frame) < 2:
-        raise InputError(f"{path}: fewer than 2 data rows", "a drive needs samples to replay")
-
-    values: dict[str, np.ndarray] = {}
-    file_units: dict[str, tuple[float, str]] = {}
-    required = [by_label[label] for label, _, req in _COLUMNS.values() if req]
-    for key, (label, units, req) in _COLUMNS.items():
-        header = by_label.get(label)
-        if header is None:
-            continue
-        factor = _factor(path, header, units)
-        file_units["yaw_rate_radps" if key == "yaw_rate_raw" else key] = (factor, _unit(header) or next(iter(units)))
-        numbers = frame[header].to_numpy(dtype=np.float64)
-        finite = np.isfinite(numbers)
-        if req and not finite.all():
-            _locate_bad_cell(path, encoding, required, required)
-        if not req and not finite.any():
-            continue  # an optional column left empty by the logger
-        values[key] = numbers * factor
+    _check_size(path)
+    by_label, frame, encoding = _read_frame(path)
+    values, file_units = _si_columns(path, frame, by_label, encoding)
 
     time_of_day = values.pop("time_of_day_s")
     t_s = _unwrap_midnight(time_of_day, path)
@@ -336,6 +286,75 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
         columns=values,
         start_stamp_s=float(time_of_day[0]),
     )
+
+
+def _check_size(path: Path) -> None:
+    """Refuse a file that cannot be read, is larger than :data:`MAX_FILE_BYTES` or holds nothing."""
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if size > MAX_FILE_BYTES:
+        raise InputError(f"{path}: {size / 2**30:.1f} GiB is larger than the 2 GiB ionav-viz reads at once",
+                         "split the log into drives of a few hours (IO-VNBD's largest run is 27 MB)")
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    if not head.strip(b" \t\r\n\xef\xbb\xbf\xff\xfe"):
+        raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header")
+
+
+def _read_frame(path: Path):
+    """The used columns as a data frame, in the first encoding that decodes the file: the header's
+    names by label, the frame (a last line cut off mid-way dropped) and the encoding."""
+    import pandas as pd
+
+    frame = by_label = encoding = None
+    n_fields = 0
+    for encoding in _encodings(path):
+        try:
+            by_label, frame, n_fields = _read_columns(path, encoding)
+            break
+        except UnicodeDecodeError:
+            continue
+        except pd.errors.EmptyDataError:
+            raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header") from None
+        except pd.errors.ParserError as exc:
+            raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})", "every row needs the header's columns") from None
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if frame is None:
+        raise InputError(f"{path}: text in an unknown encoding")
+    cut = len(frame) > 0 and _last_line_is_cut(path, encoding, n_fields)
+    _check_field_counts(path, encoding, n_fields, len(frame), cut)
+    if cut:
+        log.warning("%s: the file ends mid-line; dropped its last row (%d)", path, len(frame) + 1)
+        frame = frame.iloc[:-1]
+    if len(frame) < 2:
+        raise InputError(f"{path}: fewer than 2 data rows", "a drive needs samples to replay")
+    return by_label, frame, encoding
+
+
+def _si_columns(path: Path, frame, by_label: dict[str, str], encoding: str) -> tuple[dict[str, np.ndarray], dict[str, tuple[float, str]]]:
+    """Each known column in SI units (optional columns left empty by the logger left out; a
+    required one with a cell that is not a number is an error naming it), and the file's unit of
+    each (its factor to SI and its name)."""
+    values: dict[str, np.ndarray] = {}
+    file_units: dict[str, tuple[float, str]] = {}
+    required = [by_label[label] for label, _, req in _COLUMNS.values() if req]
+    for key, (label, units, req) in _COLUMNS.items():
+        header = by_label.get(label)
+        if header is None:
+            continue
+        factor = _factor(path, header, units)
+        file_units["yaw_rate_radps" if key == "yaw_rate_raw" else key] = (factor, _unit(header) or next(iter(units)))
+        numbers = frame[header].to_numpy(dtype=np.float64)
+        finite = np.isfinite(numbers)
+        if req and not finite.all():
+            _locate_bad_cell(path, encoding, required, required)
+        if not req and not finite.any():
+            continue  # an optional column left empty by the logger
+        values[key] = numbers * factor
+    return values, file_units
 
 
 def run_name_of(path: Path) -> str:

@@ -42,7 +42,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
 from .plausibility import first_implausible, implausible
-from .resample import ImuBins, assemble_drive, drop_strays
+from .resample import ImuBins, LogStreams, assemble_drive, drop_strays
 
 log = logging.getLogger("ionav_viz")
 
@@ -213,8 +213,8 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     course_deg = np.degrees(np.arctan2(col["ve"], col["vn"])) % 360.0
     speeds = np.column_stack([t, np.hypot(col["vn"], col["ve"]), course_deg])[locked]
     drive_name = name or (oxts.parent.name if oxts.name == "oxts" else oxts.name)
-    return assemble_drive(oxts, drive_name, imu, fixes, speeds, np.eye(3), yaw_sign,
-                          fix_columns={"n_satellites": col["numsats"][locked]}, origin_s=origin_ns // 1_000_000_000,
+    streams = LogStreams(imu, fixes, speeds, origin_s=origin_ns // 1_000_000_000, fix_columns={"n_satellites": col["numsats"][locked]})
+    return assemble_drive(oxts, drive_name, streams, np.eye(3), yaw_sign,
                           imu_mount=np.eye(3))  # OXTS gives its inertial data in the vehicle frame
 
 

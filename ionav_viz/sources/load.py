@@ -13,43 +13,10 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fault
 from ..core.timing import stage
+from .log_options import LogOptions
 from .resolve import data_root, resolve_drive
 
 log = logging.getLogger("ionav_viz")
-
-
-@dataclass(frozen=True)
-class LogOptions:
-    """How to read message logs (MCAP, ROS 1 and ROS 2 bags): topics (None: found by message
-    type), which time stamps to use and the IMU's axes."""
-
-    imu_topic: str | None = None
-    gnss_topic: str | None = None
-    #: the receiver's velocity (TwistStamped in a world frame): GNSS speed and course; "none": from the fixes
-    gnss_velocity_topic: str | None = None
-    stamps: str = "header"
-    imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
-    #: the vehicle's own speed (nav_msgs/Odometry, or TwistStamped in a body frame); "none" leaves it out
-    vehicle_speed_topic: str | None = None
-    #: deprecated: the earlier name of ``gnss_velocity_topic``
-    speed_topic: str | None = None
-    #: a reference trajectory (NavSatFix: post-processed GNSS/INS, RTK) beside the receiver: the truth
-    #: every score is measured against, while the estimators get only the GNSS topic
-    truth_topic: str | None = None
-    #: where a reference in a local frame (Odometry, PoseStamped) lies: "LAT,LON[,YAW]" (degrees; the frame's
-    #: origin, x axis YAW counter-clockwise from east) or "auto" (fitted to the receiver's fixes; sources.reference)
-    truth_origin: str | None = None
-    #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
-    #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu_mount)
-    imu_mount: str | None = None
-
-    def __post_init__(self) -> None:
-        if self.speed_topic is not None:
-            warnings.warn("LogOptions(speed_topic=...) is now gnss_velocity_topic (and vehicle_speed_topic for wheel or CAN "
-                          "odometry)", DeprecationWarning, stacklevel=3)
-            if self.gnss_velocity_topic is None:
-                object.__setattr__(self, "gnss_velocity_topic", self.speed_topic)
-            object.__setattr__(self, "speed_topic", None)
 
 
 @dataclass(frozen=True)
@@ -143,12 +110,12 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
     opts = options or LogOptions()
     kind = source_kind(path)
     if kind in ("iovnbd", "kitti") and (opts.truth_topic or opts.truth_origin):
-        raise InputError(f"{path}: --truth-topic and --truth-origin choose a reference topic of an MCAP log or ROS bag",
+        raise InputError(f"{path}: a truth topic and its origin choose a reference topic of an MCAP log or ROS bag",
                          "leave them out: this file's GNSS is its truth", param="truth_topic" if opts.truth_topic else "truth_origin")
     if kind in ("iovnbd", "kitti") and (opts.imu_axes or opts.imu_mount):
         what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
-        raise InputError(f"{path}: {what}; --imu-axes and --imu-mount apply to MCAP logs and ROS bags",
-                         "leave them out (--yaw-sign still chooses the yaw-rate sign)", param="imu_axes" if opts.imu_axes else "imu_mount")
+        raise InputError(f"{path}: {what}; IMU axes and mount apply to MCAP logs and ROS bags",
+                         "leave it out (the yaw sign still chooses the yaw-rate sign)", param="imu_axes" if opts.imu_axes else "imu_mount")
     if kind == "iovnbd":
         from .iovnbd import read_iovnbd
 
@@ -159,10 +126,7 @@ def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None =
         return read_kitti(path, yaw_sign=yaw_sign)
     from .message_log import read_log
 
-    return read_log(open_message_log(path, kind), imu_topic=opts.imu_topic, gnss_topic=opts.gnss_topic,
-                    gnss_velocity_topic=opts.gnss_velocity_topic, vehicle_speed_topic=opts.vehicle_speed_topic,
-                    stamps=opts.stamps, imu_axes=opts.imu_axes, yaw_sign=yaw_sign, imu_mount=opts.imu_mount,
-                    truth_topic=opts.truth_topic, truth_origin=opts.truth_origin)
+    return read_log(open_message_log(path, kind), opts, yaw_sign=yaw_sign)
 
 
 def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mcap: LogOptions | None = None) -> Drive:

@@ -219,6 +219,8 @@ def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str
               gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
               name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None) -> Drive:
     """Read an MCAP log into a drive on a 10 Hz grid (see :mod:`.message_log`)."""
-    return read_log(McapLog(path), imu_topic=imu_topic, gnss_topic=gnss_topic, gnss_velocity_topic=gnss_velocity_topic,
-                    vehicle_speed_topic=vehicle_speed_topic, stamps=stamps, name=name, imu_axes=imu_axes, yaw_sign=yaw_sign,
-                    imu_mount=imu_mount)
+    from .log_options import LogOptions
+
+    options = LogOptions(imu_topic=imu_topic, gnss_topic=gnss_topic, gnss_velocity_topic=gnss_velocity_topic,
+                         vehicle_speed_topic=vehicle_speed_topic, stamps=stamps, imu_axes=imu_axes, imu_mount=imu_mount)
+    return read_log(McapLog(path), options, name=name, yaw_sign=yaw_sign)

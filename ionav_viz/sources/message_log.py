@@ -64,9 +64,10 @@ from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
 from .imu_frame import AXES, parse_imu_axes
 from .imu_mount import parse_mount
+from .log_options import LogOptions
 from .plausibility import first_implausible, implausible
 from .reference import parse_origin, place_reference
-from .resample import ImuBins, assemble_drive, drop_strays, first_per_stamp
+from .resample import ImuBins, LogStreams, assemble_drive, drop_strays, first_per_stamp
 
 log = logging.getLogger("ionav_viz")
 
@@ -133,21 +134,22 @@ class MessageLog(Protocol):
         ...
 
 
-def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, option: str,
+def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, param: str,
           path: Path, required: bool) -> ChannelInfo | None:
+    """The channel named ``topic``, else the one of ``schemas`` (``param``: the argument that names it)."""
     if topic is not None:
         found = [c for c in channels if c.topic == topic]
         if not found:
-            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}")
+            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}", param=param)
         return found[0]
     found = [c for c in channels if c.schema in schemas]
     if len(found) > 1:
-        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", f"choose one with {option}")
+        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", "choose one", param=param)
     if not found:
         if not required:
             return None
         listing = ", ".join(f"{c.topic} [{c.schema}]" for c in channels) or "none"
-        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", f"choose one with {option}")
+        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", "choose one", param=param)
     return found[0]
 
 
@@ -168,15 +170,15 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
         raise InputError(f"{path}: no topics (an empty recording)", "record IMU and GNSS topics")
     for c in channels:
         c.role = ""
-    imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "--imu-topic", path, True)
-    reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "--truth-topic", path, False) if truth_topic else None
+    imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "imu_topic", path, True)
+    reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "truth_topic", path, False) if truth_topic else None
     if reference is not None and reference.schema not in REFERENCE_SCHEMAS:
         raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}",
-                         "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with --truth-origin), as --truth-topic",
+                         "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with its origin)",
                          param="truth_topic")
-    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "--gnss-topic", path, True)
+    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "gnss_topic", path, True)
     if reference is not None and gnss is reference:
-        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "give the receiver's topic as --gnss-topic",
+        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "name the receiver's own topic",
                          param="truth_topic")
     named = {t for t in (gnss_velocity_topic, vehicle_speed_topic, truth_topic) if t not in (None, NO_TOPIC)}
     body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
@@ -184,16 +186,16 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     if gnss_velocity_topic == NO_TOPIC:  # speed and course from the fixes (a receiver's velocity not to be trusted)
         velocity = None
     elif gnss_velocity_topic is not None:
-        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "--gnss-velocity-topic", path, False)
+        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "gnss_velocity_topic", path, False)
         if velocity is not None and velocity.topic in body_twists:
             raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the receiver's velocity",
-                             f"give it as --vehicle-speed-topic {velocity.topic}", param="gnss_velocity_topic")
+                             f"give {velocity.topic} as the vehicle speed topic instead", param="gnss_velocity_topic")
     else:
-        velocity = _pick(world_twists, TWIST_SCHEMAS, None, "GNSS velocity", "--gnss-velocity-topic", path, False)
+        velocity = _pick(world_twists, TWIST_SCHEMAS, None, "GNSS velocity", "gnss_velocity_topic", path, False)
     if vehicle_speed_topic == NO_TOPIC:
         vehicle = None
     elif vehicle_speed_topic is not None:
-        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "--vehicle-speed-topic", path, False)
+        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "vehicle_speed_topic", path, False)
         if vehicle is not None and vehicle.schema not in SPEED_SCHEMAS:
             raise InputError(f"{path}: {vehicle.topic} is a {vehicle.schema}, not a vehicle speed",
                              "give a nav_msgs/Odometry or a TwistStamped in a body frame", param="vehicle_speed_topic")
@@ -302,188 +304,224 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
         raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not usable JSON ({str(exc)[:80]})") from None
 
 
-def read_log(source: MessageLog, *, imu_topic: str | None = None, gnss_topic: str | None = None,
-             gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
-             name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None,
-             truth_topic: str | None = None, truth_origin: str | None = None) -> Drive:
+def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str | None = None, yaw_sign: str = "auto") -> Drive:
     """Read a message log into a drive on a 10 Hz grid (see the module docstring).
 
-    ``imu_axes`` maps the log's IMU axes to the body frame (``"x=-y,y=x,z=z"``, see
-    :mod:`.imu_frame`); ``imu_mount`` (``"auto"``, ``"roll=..,pitch=..,yaw=.."`` or
-    ``"quat=w,x,y,z"``, see :mod:`.imu_mount`) turns them further, after the axes; ``yaw_sign`` ``"cw"`` says the yaw axis turns clockwise positive, ``"ccw"``
-    (REP 103) that it does not, ``"auto"`` assumes REP 103 and checks it against the GNSS course.
-    ``truth_topic``: a reference trajectory, the drive's truth (NavSatFix, or Odometry/PoseStamped
-    in a local frame placed by ``truth_origin``: ``"auto"`` or ``"LAT,LON[,YAW]"``, see :mod:`.reference`).
+    ``options`` (:class:`~.load.LogOptions`; default: every topic found by message type, header
+    stamps) chooses the topics and stamps; its ``imu_axes`` maps the log's IMU axes to the body
+    frame (``"x=-y,y=x,z=z"``, see :mod:`.imu_frame`); its ``imu_mount`` (``"auto"``,
+    ``"roll=..,pitch=..,yaw=.."`` or ``"quat=w,x,y,z"``, see :mod:`.imu_mount`) turns them further,
+    after the axes; its ``truth_topic`` names a reference trajectory, the drive's truth (NavSatFix,
+    or Odometry/PoseStamped in a local frame placed by ``truth_origin``: ``"auto"`` or
+    ``"LAT,LON[,YAW]"``, see :mod:`.reference`). ``yaw_sign`` ``"cw"`` says the yaw axis turns
+    clockwise positive, ``"ccw"`` (REP 103) that it does not, ``"auto"`` assumes REP 103 and checks
+    it against the GNSS course.
     """
+    opts = options if options is not None else LogOptions()
     path = source.path
-    if stamps not in ("header", "log"):
-        raise InputError(f"stamps {stamps!r}: choose header or log", param="stamps")
+    if opts.stamps not in ("header", "log"):
+        raise InputError(f"stamps {opts.stamps!r}: choose header or log", param="stamps")
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
-    mapping = parse_imu_axes(imu_axes) if imu_axes else np.eye(3)
-    mount = parse_mount(imu_mount) if imu_mount else None
-    origin = parse_origin(truth_origin) if truth_origin else None
-    sel = select_channels(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, truth_topic=truth_topic)
+    mapping = parse_imu_axes(opts.imu_axes) if opts.imu_axes else np.eye(3)
+    mount = parse_mount(opts.imu_mount) if opts.imu_mount else None
+    origin = parse_origin(opts.truth_origin) if opts.truth_origin else None
+    sel = select_channels(source, opts.imu_topic, opts.gnss_topic, opts.gnss_velocity_topic, opts.vehicle_speed_topic,
+                          truth_topic=opts.truth_topic)
     if sel.reference is not None and sel.reference.schema not in GNSS_SCHEMAS and origin is None:
         place_reference(np.zeros((0, 3)), None, np.zeros((0, 3)), f"{path}: reference {sel.reference.topic} ({sel.reference.schema})")
-    roles = {c.topic: c.role for c in sel.chosen}
-    gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
-    speed: list[tuple[float, float, float]] = []  # GNSS velocity: t, speed m/s, course deg
-    vehicle: list[tuple[float, float]] = []  # vehicle speed: t, m/s
-    reference: list[tuple[float, float, float]] = []  # the reference trajectory: t, lat, lon (or x, y m in a local frame)
-    reference_frame: list[str] = []  # a local reference's frame_id
-    dropped_no_fix = 0
-    not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
-    last_t: dict[str, float] = {}  # per role, the previous message's stamp
-    backwards: dict[str, list] = {}  # per role: [count, first stamp, the stamp before it]
+    got = _Messages(path, sel, opts.stamps, mapping)
+    got.read(source)
+    got.warn_skipped()
+    if len(got.gnss) < 2:
+        without = f" ({got.dropped_no_fix} message(s) without a fix)" if got.dropped_no_fix else ""
+        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
+    if got.dropped_no_fix:
+        log.warning("%s: dropped %d GNSS message(s) without a fix", path, got.dropped_no_fix)
+    origin_s = float(got.origin_ns // 1_000_000_000)
+    fixes = first_per_stamp(path, np.asarray(got.gnss))
+    fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0], origin_s=origin_s)]
+    speeds, vehicle_speeds = (_in_stamp_order(path, what, samples, origin_s)
+                              for what, samples in (("GNSS velocity", got.speed), ("vehicle speed", got.vehicle)))
+    truth = _truth(got, origin, fixes, origin_s)
+    streams = LogStreams(got.imu, fixes, speeds, origin_s=origin_s, vehicle_speed=vehicle_speeds, reference=truth)
+    return assemble_drive(path, name or _default_name(path), streams, mapping, yaw_sign, imu_mount=mount)
 
-    def in_order(role: str, t: float) -> None:
+
+class _Messages:
+    """A log's messages read into samples per role (stamps in seconds after the first stamp's whole
+    second: float64 seconds since 1970 would round them to 0.24 us, and a drive's samples would no
+    longer fall on its grid), each value checked for plausibility as it is read."""
+
+    def __init__(self, path: Path, sel: Selection, stamps: str, mapping: np.ndarray) -> None:
+        self.path, self.sel, self.stamps, self.mapping = path, sel, stamps, mapping
+        self.gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
+        self.speed: list[tuple[float, float, float]] = []  # GNSS velocity: t, speed m/s, course deg
+        self.vehicle: list[tuple[float, float]] = []  # vehicle speed: t, m/s
+        self.reference: list[tuple[float, float, float]] = []  # the reference trajectory: t, lat, lon (or x, y m in a local frame)
+        self.reference_frame: list[str] = []  # a local reference's frame_id
+        self.dropped_no_fix = 0
+        self.not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
+        self.last_t: dict[str, float] = {}  # per role, the previous message's stamp
+        self.backwards: dict[str, list] = {}  # per role: [count, first stamp, the stamp before it]
+        self.origin_ns: int | None = None
+        self.imu = ImuBins(1.0 / GRID_RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=self._to_body)
+
+    def read(self, source: MessageLog) -> None:
+        """Every message of the chosen channels, each by its role's reader."""
+        sel = self.sel
+        roles = {c.topic: c.role for c in sel.chosen}
+        local_reference = sel.reference is not None and sel.reference.schema not in GNSS_SCHEMAS
+        readers = {"IMU": self._imu, "GNSS": self._gnss, "GNSS velocity": self._gnss_velocity,
+                   "reference (truth)": self._local_reference if local_reference else self._reference_fix}
+        try:
+            for topic, log_ns, msg in source.messages(sel.chosen):
+                role = roles[topic]
+                try:
+                    readers.get(role, self._vehicle_speed)(topic, log_ns, msg)
+                except (KeyError, AttributeError, TypeError, ValueError) as exc:
+                    raise InputError(f"{self.path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
+                                     f"expected the {role} field names of {({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}") from None
+        except InputError:
+            raise
+        except Exception as exc:
+            raise source.damaged(exc) from None
+
+    def warn_skipped(self) -> None:
+        """Say which IMU messages were skipped ('not provided') and which came out of stamp order;
+        refuse an IMU topic whose every message was skipped."""
+        if self.not_provided:
+            fields = " and ".join(f"{name} ({n} message(s))" for name, n in sorted(self.not_provided.items()))
+            if "IMU" not in self.last_t:
+                raise InputError(f"{self.path}: topic {self.sel.imu.topic} marks its {fields} 'not provided' (REP 145: covariance[0] = -1)",
+                                 "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw)", param="imu_topic")
+            log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: covariance[0] = -1)",
+                        self.path, self.sel.imu.topic, fields)
+        topic_of = {c.role: c.topic for c in self.sel.chosen}
+        for role, (n, first, before) in self.backwards.items():
+            log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s after %.3f s); "
+                        "used in stamp order", self.path, topic_of[role], n, self.absolute_s(first), self.absolute_s(before))
+
+    def _in_order(self, role: str, t: float) -> None:
         """Count messages stamped before the one received before them (used in stamp order)."""
-        if t < last_t.get(role, -math.inf):
-            seen = backwards.setdefault(role, [0, t, last_t[role]])
+        if t < self.last_t.get(role, -math.inf):
+            seen = self.backwards.setdefault(role, [0, t, self.last_t[role]])
             seen[0] += 1
-        last_t[role] = t
+        self.last_t[role] = t
 
-    # Stamps are kept as seconds after the first one's whole second: float64 seconds since 1970
-    # would round them to 0.24 us, and a drive's samples would no longer fall on its grid.
-    origin_ns: list[int] = []
+    def _seconds(self, ns: int) -> float:
+        if self.origin_ns is None:
+            self.origin_ns = ns - ns % 1_000_000_000
+        return (ns - self.origin_ns) * 1e-9
 
-    def seconds(ns: int) -> float:
-        if not origin_ns:
-            origin_ns.append(ns - ns % 1_000_000_000)
-        return (ns - origin_ns[0]) * 1e-9
-
-    def when(msg: Any, log_ns: int, *stamp_path: str) -> float:
-        if stamps == "log":
-            return seconds(log_ns)
+    def _when(self, msg: Any, log_ns: int, *stamp_path: str) -> float:
+        if self.stamps == "log":
+            return self._seconds(log_ns)
         try:
             ns = stamp_ns(get_field(msg, *stamp_path))
         except (KeyError, AttributeError, TypeError, ValueError, OverflowError):
-            return seconds(log_ns)
-        return seconds(ns) if ns > 0 else seconds(log_ns)
+            return self._seconds(log_ns)
+        return self._seconds(ns) if ns > 0 else self._seconds(log_ns)
 
-    def absolute_s(t: float) -> float:
-        return t + (origin_ns[0] // 1_000_000_000 if origin_ns else 0)
+    def absolute_s(self, t: float) -> float:
+        """A stamp as seconds since 1970."""
+        return t + (self.origin_ns // 1_000_000_000 if self.origin_ns is not None else 0)
 
-    def check(topic: str, t: float, field_name: str, column: str, value: float) -> None:
+    def _check(self, topic: str, t: float, field_name: str, column: str, value: float) -> None:
         reason = implausible(column, value)
         if reason:
-            raise InputError(f"{path}: topic {topic}, message stamped {absolute_s(t):.3f} s: {field_name} {reason}",
+            raise InputError(f"{self.path}: topic {topic}, message stamped {self.absolute_s(t):.3f} s: {field_name} {reason}",
                              "no car sensor produces that value: fix the log or choose another topic")
 
-    def to_body(data: np.ndarray) -> np.ndarray:
+    def _to_body(self, data: np.ndarray) -> np.ndarray:
         """A block of IMU samples as the log has them -> checked, in the body frame."""
         if (bad := _first_implausible_imu(data)) is not None:
             i, k = bad
-            check(sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1], float(data[i, k]))
-        return _imu_to_body(data, mapping)
+            self._check(self.sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1], float(data[i, k]))
+        return _imu_to_body(data, self.mapping)
 
-    imu = ImuBins(1.0 / GRID_RATE_HZ, keep_samples=sel.imu.count == sel.gnss.count, prepare=to_body)
+    def _imu(self, topic: str, log_ns: int, msg: Any) -> None:
+        t = self._when(msg, log_ns, "header", "stamp")
+        if missing := _not_provided(msg):
+            self.not_provided[missing] = self.not_provided.get(missing, 0) + 1
+            return
+        self._in_order("IMU", t)
+        lin, ang = get_field(msg, "linear_acceleration"), get_field(msg, "angular_velocity")
+        self.imu.add((t, *(float(get_field(lin, a)) for a in AXES), *(float(get_field(ang, a)) for a in AXES)))
 
-    try:
-        for topic, log_ns, msg in source.messages(sel.chosen):
-            role = roles[topic]
-            try:
-                if role == "IMU":
-                    t = when(msg, log_ns, "header", "stamp")
-                    if missing := _not_provided(msg):
-                        not_provided[missing] = not_provided.get(missing, 0) + 1
-                        continue
-                    in_order(role, t)
-                    lin, ang = get_field(msg, "linear_acceleration"), get_field(msg, "angular_velocity")
-                    imu.add((t, *(float(get_field(lin, a)) for a in AXES), *(float(get_field(ang, a)) for a in AXES)))
-                elif role == "GNSS":
-                    if sel.gnss.schema.startswith("foxglove"):
-                        t = when(msg, log_ns, "timestamp")
-                    else:
-                        t = when(msg, log_ns, "header", "stamp")
-                        if int(get_field(msg, "status", "status")) < 0:
-                            dropped_no_fix += 1
-                            continue
-                    lat, lon = float(get_field(msg, "latitude")), float(get_field(msg, "longitude"))
-                    if not (math.isfinite(lat) and math.isfinite(lon)):
-                        dropped_no_fix += 1  # drivers publish NaN positions when they have no fix
-                        continue
-                    check(sel.gnss.topic, t, "latitude", "lat_deg", lat)
-                    check(sel.gnss.topic, t, "longitude", "lon_deg", lon)
-                    alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
-                    in_order(role, t)
-                    gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
-                elif role == "reference (truth)" and sel.reference.schema not in GNSS_SCHEMAS:
-                    t = when(msg, log_ns, "header", "stamp")
-                    pose = get_field(msg, "pose", "pose") if sel.reference.schema not in POSE_SCHEMAS[:2] else get_field(msg, "pose")
-                    position = get_field(pose, "position")
-                    if not reference_frame:
-                        reference_frame.append(_frame_id(msg))
-                    in_order(role, t)
-                    reference.append((t, float(get_field(position, "x")), float(get_field(position, "y"))))
-                elif role == "reference (truth)":
-                    t = when(msg, log_ns, "header", "stamp")
-                    lat, lon = float(get_field(msg, "latitude")), float(get_field(msg, "longitude"))
-                    if int(get_field(msg, "status", "status")) < 0 or not (math.isfinite(lat) and math.isfinite(lon)):
-                        continue
-                    check(topic, t, "latitude", "lat_deg", lat)
-                    check(topic, t, "longitude", "lon_deg", lon)
-                    in_order(role, t)
-                    reference.append((t, lat, lon))
-                elif role == "GNSS velocity":
-                    t = when(msg, log_ns, "header", "stamp")
-                    lin = get_field(msg, "twist", "linear")
-                    v_east, v_north = float(get_field(lin, "x")), float(get_field(lin, "y"))  # as nmea_navsat_driver publishes it
-                    sample = (t, math.hypot(v_east, v_north), math.degrees(math.atan2(v_east, v_north)) % 360.0)
-                    check(topic, t, "speed", "speed_mps", sample[1])
-                    in_order(role, t)
-                    speed.append(sample)
-                else:
-                    t = when(msg, log_ns, "header", "stamp")
-                    twist = get_field(msg, "twist", "twist") if sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else get_field(msg, "twist")
-                    v = abs(float(get_field(twist, "linear", "x")))  # body-frame forward speed; reversing counts as distance
-                    check(topic, t, "linear.x", "speed_can_mps", v)
-                    in_order(role, t)
-                    vehicle.append((t, v))
-            except (KeyError, AttributeError, TypeError, ValueError) as exc:
-                raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
-                                 f"expected the {role} field names of {({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}") from None
-    except InputError:
-        raise
-    except Exception as exc:
-        raise source.damaged(exc) from None
+    def _gnss(self, topic: str, log_ns: int, msg: Any) -> None:
+        if self.sel.gnss.schema.startswith("foxglove"):
+            t = self._when(msg, log_ns, "timestamp")
+        else:
+            t = self._when(msg, log_ns, "header", "stamp")
+            if int(get_field(msg, "status", "status")) < 0:
+                self.dropped_no_fix += 1
+                return
+        lat, lon = float(get_field(msg, "latitude")), float(get_field(msg, "longitude"))
+        if not (math.isfinite(lat) and math.isfinite(lon)):
+            self.dropped_no_fix += 1  # drivers publish NaN positions when they have no fix
+            return
+        self._check(self.sel.gnss.topic, t, "latitude", "lat_deg", lat)
+        self._check(self.sel.gnss.topic, t, "longitude", "lon_deg", lon)
+        alt = msg.get("altitude", 0.0) if isinstance(msg, dict) else getattr(msg, "altitude", 0.0)
+        self._in_order("GNSS", t)
+        self.gnss.append((t, lat, lon, float(alt if alt is not None else math.nan), _horizontal_sigma_m(msg)))
 
-    if not_provided:
-        fields = " and ".join(f"{name} ({n} message(s))" for name, n in sorted(not_provided.items()))
-        if "IMU" not in last_t:
-            raise InputError(f"{path}: topic {sel.imu.topic} marks its {fields} 'not provided' (REP 145: covariance[0] = -1)",
-                             "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw) with --imu-topic")
-        log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: covariance[0] = -1)",
-                    path, sel.imu.topic, fields)
-    topic_of = {c.role: c.topic for c in sel.chosen}
-    for role, (n, first, before) in backwards.items():
-        log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s after %.3f s); "
-                    "used in stamp order", path, topic_of[role], n, absolute_s(first), absolute_s(before))
-    if len(gnss) < 2:
-        without = f" ({dropped_no_fix} message(s) without a fix)" if dropped_no_fix else ""
-        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
-    if dropped_no_fix:
-        log.warning("%s: dropped %d GNSS message(s) without a fix", path, dropped_no_fix)
-    origin_s = float(origin_ns[0] // 1_000_000_000)
-    fixes = first_per_stamp(path, np.asarray(gnss))
-    fixes = fixes[drop_strays(path, "GNSS", fixes[:, 0], origin_s=origin_s)]
-    speeds, vehicle_speeds = (_in_stamp_order(path, what, samples, origin_s) for what, samples in (("GNSS velocity", speed), ("vehicle speed", vehicle)))
-    truth = None
+    def _local_reference(self, topic: str, log_ns: int, msg: Any) -> None:
+        t = self._when(msg, log_ns, "header", "stamp")
+        pose = get_field(msg, "pose", "pose") if self.sel.reference.schema not in POSE_SCHEMAS[:2] else get_field(msg, "pose")
+        position = get_field(pose, "position")
+        if not self.reference_frame:
+            self.reference_frame.append(_frame_id(msg))
+        self._in_order("reference (truth)", t)
+        self.reference.append((t, float(get_field(position, "x")), float(get_field(position, "y"))))
+
+    def _reference_fix(self, topic: str, log_ns: int, msg: Any) -> None:
+        t = self._when(msg, log_ns, "header", "stamp")
+        lat, lon = float(get_field(msg, "latitude")), float(get_field(msg, "longitude"))
+        if int(get_field(msg, "status", "status")) < 0 or not (math.isfinite(lat) and math.isfinite(lon)):
+            return
+        self._check(topic, t, "latitude", "lat_deg", lat)
+        self._check(topic, t, "longitude", "lon_deg", lon)
+        self._in_order("reference (truth)", t)
+        self.reference.append((t, lat, lon))
+
+    def _gnss_velocity(self, topic: str, log_ns: int, msg: Any) -> None:
+        t = self._when(msg, log_ns, "header", "stamp")
+        lin = get_field(msg, "twist", "linear")
+        v_east, v_north = float(get_field(lin, "x")), float(get_field(lin, "y"))  # as nmea_navsat_driver publishes it
+        sample = (t, math.hypot(v_east, v_north), math.degrees(math.atan2(v_east, v_north)) % 360.0)
+        self._check(topic, t, "speed", "speed_mps", sample[1])
+        self._in_order("GNSS velocity", t)
+        self.speed.append(sample)
+
+    def _vehicle_speed(self, topic: str, log_ns: int, msg: Any) -> None:
+        t = self._when(msg, log_ns, "header", "stamp")
+        twist = get_field(msg, "twist", "twist") if self.sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else get_field(msg, "twist")
+        v = abs(float(get_field(twist, "linear", "x")))  # body-frame forward speed; reversing counts as distance
+        self._check(topic, t, "linear.x", "speed_can_mps", v)
+        self._in_order("vehicle speed", t)
+        self.vehicle.append((t, v))
+
+
+def _truth(got: _Messages, origin: Any, fixes: np.ndarray, origin_s: float) -> np.ndarray | None:
+    """The reference trajectory read, in stamp order and on the earth (a local one placed by
+    ``origin``), or None without a reference topic."""
+    path, sel = got.path, got.sel
     if sel.reference is not None:
-        truth = _in_stamp_order(path, "reference", reference, origin_s)
+        truth = _in_stamp_order(path, "reference", got.reference, origin_s)
         if truth is None or len(truth) < 2:
-            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another --truth-topic")
+            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another reference topic", param="truth_topic")
         truth = truth[np.concatenate([[True], np.diff(truth[:, 0]) > 0])]
         if sel.reference.schema not in GNSS_SCHEMAS:
-            where = f"{path}: reference {sel.reference.topic} (frame {reference_frame[0] or 'unnamed'!r})"
+            where = f"{path}: reference {sel.reference.topic} (frame {got.reference_frame[0] or 'unnamed'!r})"
             truth, how = place_reference(truth, origin, fixes, where)
             log.warning("%s: %s", where, how)
-    elif origin is not None:
-        raise InputError(f"{path}: --truth-origin places a reference in a local frame, and no --truth-topic is given",
-                         "name the reference with --truth-topic, or leave --truth-origin out", param="truth_origin")
-    return assemble_drive(path, name or _default_name(path), imu, fixes, speeds, mapping, yaw_sign, origin_s=origin_s,
-                          vehicle_speed=vehicle_speeds, imu_mount=mount, reference=truth)
+        return truth
+    if origin is not None:
+        raise InputError(f"{path}: a truth origin places a reference in a local frame, and no truth topic is given",
+                         "name the reference topic, or leave the origin out", param="truth_origin")
+    return None
 
 
 def _in_stamp_order(path: Path, what: str, samples: list, origin_s: float) -> np.ndarray | None:

@@ -55,7 +55,7 @@ def parse_origin(text: str) -> FrameOrigin | str:
         values = []
     if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values) or abs(values[0]) > 90 or abs(values[1]) > 180:
         raise InputError(f"truth origin {text!r} is not auto or LAT,LON[,YAW] in degrees",
-                         "e.g. --truth-origin 52.4089,-1.5104 (x east, y north) or --truth-origin auto", param="truth_origin")
+                         "e.g. 52.4089,-1.5104 (x east, y north) or auto", param="truth_origin")
     return FrameOrigin(*values)
 
 
@@ -68,7 +68,7 @@ def place_reference(local: np.ndarray, origin: FrameOrigin | str | None, fixes: 
     t, x, y = local[:, 0], local[:, 1], local[:, 2]
     if origin is None:
         raise InputError(f"{where}: the reference is in a local frame (metres), which needs its place on the earth",
-                         "give --truth-origin LAT,LON[,YAW] (the frame's origin; x east, y north by default) or --truth-origin auto "
+                         "give the frame's origin as LAT,LON[,YAW] (x east, y north by default) or auto "
                          "(fitted to the receiver's fixes)", param="truth_origin")
     if not (np.isfinite(x).all() and np.isfinite(y).all()) or max(np.abs(x).max(), np.abs(y).max()) > MAX_LOCAL_M:
         bad = int(np.argmax(~np.isfinite(x) | ~np.isfinite(y) | (np.abs(x) > MAX_LOCAL_M) | (np.abs(y) > MAX_LOCAL_M)))
@@ -92,8 +92,8 @@ def fit_origin(t: np.ndarray, x: np.ndarray, y: np.ndarray, fixes: np.ndarray, w
     inside = (fixes[:, 0] >= t[0]) & (fixes[:, 0] <= t[-1])
     f_t, f_lat, f_lon = fixes[inside, 0], fixes[inside, 1], fixes[inside, 2]
     if len(f_t) < MIN_FIXES:
-        raise InputError(f"{where}: only {len(f_t)} receiver fixes lie within the reference's time span; --truth-origin auto needs {MIN_FIXES}",
-                         "give the frame's origin with --truth-origin LAT,LON[,YAW]", param="truth_origin")
+        raise InputError(f"{where}: only {len(f_t)} receiver fixes lie within the reference's time span; placing it automatically needs {MIN_FIXES}",
+                         "give the frame's origin as LAT,LON[,YAW]", param="truth_origin")
     lat0, lon0 = float(f_lat[0]), float(f_lon[0])
     east, north = local_en_m(f_lat, f_lon, lat0, lon0)
     a = np.column_stack([np.interp(f_t, t, x), np.interp(f_t, t, y)])
@@ -101,8 +101,8 @@ def fit_origin(t: np.ndarray, x: np.ndarray, y: np.ndarray, fixes: np.ndarray, w
     a_mean, b_mean = a.mean(axis=0), b.mean(axis=0)
     ac, bc = a - a_mean, b - b_mean
     if np.sqrt((ac**2).sum(axis=1).mean()) < MIN_EXTENT_M / 2:
-        raise InputError(f"{where}: the reference moves too little for --truth-origin auto to find its rotation "
-                         f"(under {MIN_EXTENT_M:.0f} m across)", "give the frame's origin with --truth-origin LAT,LON[,YAW]", param="truth_origin")
+        raise InputError(f"{where}: the reference moves too little for its origin to be placed automatically "
+                         f"(under {MIN_EXTENT_M:.0f} m across)", "give the frame's origin as LAT,LON[,YAW]", param="truth_origin")
     yaw = math.atan2(float((ac[:, 0] * bc[:, 1] - ac[:, 1] * bc[:, 0]).sum()), float((ac * bc).sum()))
     c, s = math.cos(yaw), math.sin(yaw)
     rot = np.array([[c, -s], [s, c]])

@@ -164,26 +164,97 @@ def first_per_stamp(path: Path, fixes: np.ndarray) -> np.ndarray:
     return fixes[first]
 
 
-def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed: np.ndarray | None,
-                   mapping: np.ndarray, yaw_sign: str, fix_columns: dict[str, np.ndarray] | None = None,
-                   origin_s: float = 0.0, vehicle_speed: np.ndarray | None = None,
-                   imu_mount: np.ndarray | str | None = None, reference: np.ndarray | None = None) -> Drive:
-    """The drive on the grid from a log's streams (see the module docstring).
+@dataclass(frozen=True)
+class LogStreams:
+    """A log's streams as its reader collected them, times in s after ``origin_s`` (a whole second
+    since 1970, so that float64 keeps the stamps' nanoseconds).
 
     ``gnss``: fixes ``(t s, lat deg, lon deg, altitude m, sigma m or NaN)``, sorted, one per stamp;
-    ``speed``: ``(t s, speed m/s, course deg or NaN)`` sorted, or None; ``mapping``: the IMU axis
-    mapping already applied (for the frame check's hint); ``yaw_sign``: ``auto`` checks the yaw
-    sign against the GNSS course, ``cw`` flips it. Times are s after ``origin_s`` (a whole second since
-    1970, so that float64 keeps the stamps' nanoseconds). ``fix_columns``: more per-fix drive columns
-    (e.g. ``n_satellites``), each held from the last fix at every grid time. ``vehicle_speed``:
+    ``speed``: ``(t s, speed m/s, course deg or NaN)`` sorted, or None; ``vehicle_speed``:
     ``(t s, speed m/s)`` sorted, the vehicle's own speed (wheel or CAN odometry), or None: the
-    drive's ``speed_can_mps``, interpolated onto the grid. ``imu_mount``: a rotation (``body =
-    M @ imu``) to apply, ``"auto"`` to apply the one estimated from the log, or None to estimate
-    it and decide (:func:`_mounted`). ``reference``: ``(t s, lat deg, lon deg)`` sorted, a reference
-    trajectory: then it is the drive's position, speed and course (the truth), fitted like fixes,
-    and the receiver's go into :data:`~ionav_viz.core.drive.RECEIVER_COLUMNS`.
+    drive's ``speed_can_mps``, interpolated onto the grid; ``reference``: ``(t s, lat deg, lon deg)``
+    sorted, a reference trajectory: then it is the drive's position, speed and course (the truth),
+    fitted like fixes, and the receiver's go into :data:`~ionav_viz.core.drive.RECEIVER_COLUMNS`;
+    ``fix_columns``: more per-fix drive columns (e.g. ``n_satellites``), each held from the last fix
+    at every grid time.
     """
-    g_t, g_lat, g_lon, g_alt, g_sigma = gnss.T
+
+    imu: ImuBins
+    gnss: np.ndarray
+    speed: np.ndarray | None = None
+    origin_s: float = 0.0
+    vehicle_speed: np.ndarray | None = None
+    reference: np.ndarray | None = None
+    fix_columns: dict[str, np.ndarray] | None = None
+
+
+def assemble_drive(path: Path, name: str, streams: LogStreams, mapping: np.ndarray, yaw_sign: str,
+                   imu_mount: np.ndarray | str | None = None) -> Drive:
+    """The drive on the grid from a log's streams (see the module docstring and :class:`LogStreams`).
+
+    ``mapping``: the IMU axis mapping already applied (for the frame check's hint); ``yaw_sign``:
+    ``auto`` checks the yaw sign against the GNSS course, ``cw`` flips it. ``imu_mount``: a rotation
+    (``body = M @ imu``) to apply, ``"auto"`` to apply the one estimated from the log, or None to
+    estimate it and decide (:func:`_mounted`).
+    """
+    grid = _on_grid(path, streams)
+    t, body, measured = grid.t_s, grid.body, grid.measured
+    lat, lon = grid.lat_deg, grid.lon_deg
+    g_t, g_lat, g_lon = streams.gnss[:, 0], streams.gnss[:, 1], streams.gnss[:, 2]
+    v, course = _receiver_velocity(t, streams.speed)
+    fitted = v is None or course is None
+    if fitted:
+        # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
+        # (the per-window displacement of raw fixes would carry their white noise twice)
+        fit = fit_fixes(t, g_t, g_lat, g_lon)
+        v = fit.speed_mps if v is None else v
+        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t) if course is None else course
+        lat, lon = fit.lat_deg, fit.lon_deg
+    if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
+        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+    vehicle_speed = streams.vehicle_speed
+    wheels = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
+    body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels, measured)
+    flipped = False
+    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto", measured=measured):
+        flipped = not flipped
+    if flipped:  # the yaw check found a clockwise z: turned over like --yaw-sign cw
+        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+    columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
+               "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
+    columns |= dict(zip(IMU_COLUMNS, body.T, strict=True))  # the full IMU, body frame
+    if streams.reference is not None:
+        reference = streams.reference
+        truth = fit_fixes(t, reference[:, 0], reference[:, 1], reference[:, 2])
+        columns |= dict(zip(RECEIVER_COLUMNS, (lat, lon, v, course), strict=True))
+        columns |= {"lat_deg": truth.lat_deg, "lon_deg": truth.lon_deg, "speed_mps": truth.speed_mps,
+                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t)}
+    columns |= _fix_quality_columns(grid, fitted, streams)
+    origin_s = streams.origin_s
+    start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
+    return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
+                 start_time_of_day_s=start_of_day, columns=columns, start_stamp_s=origin_s + float(t[0]))
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """A log's IMU and fixes on the drive's sample times."""
+
+    t_s: np.ndarray
+    body: np.ndarray  # (n, 6): accelerations and turn rates, unmeasured axes at their constant value
+    measured: np.ndarray  # (6,): the axes that read more than one value over the log
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    alt_m: np.ndarray
+    sigma_m: np.ndarray
+    has_fix: np.ndarray  # False in a GNSS gap the IMU goes on through
+
+
+def _on_grid(path: Path, streams: LogStreams) -> _Grid:
+    """The IMU's samples as they are when IMU and GNSS share their stamps at the grid rate, else its
+    means per grid step within the fixes' span (fixes interpolated onto them)."""
+    imu = streams.imu
+    g_t, g_lat, g_lon, g_alt, g_sigma = streams.gnss.T
     samples = imu.kept_samples()
     same_stamps = samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t)
     if same_stamps and len(g_t) > 1 and float(np.median(np.diff(g_t))) >= 0.9 / GRID_RATE_HZ:
@@ -192,7 +263,7 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
         has_fix = np.ones(len(t), dtype=bool)
     else:
         t, body, count = imu.means()
-        keep = drop_strays(path, "IMU", t, count, origin_s=origin_s) & (t >= g_t[0]) & (t <= g_t[-1])
+        keep = drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0]) & (t <= g_t[-1])
         t, body = t[keep], body[keep]
         has_fix = _covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
@@ -205,7 +276,12 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
     measured = ~imu.constant_axes()
     body = body.copy()
     body[:, ~measured] = imu.low[~measured]
+    return _Grid(t, body, measured, lat, lon, alt, sigma, has_fix)
 
+
+def _receiver_velocity(t: np.ndarray, speed: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The receiver's speed (m/s) and course (deg) on the times ``t``, each None where the log has
+    none (the course held at a standstill)."""
     v = course = None
     if speed is not None and len(speed) >= 2:
         s_t, s_v, s_course = speed.T
@@ -217,47 +293,29 @@ def assemble_drive(path: Path, name: str, imu: ImuBins, gnss: np.ndarray, speed:
             held = hold_course_when_slow(s_course[has_course], s_v[has_course], MIN_COURSE_SPEED_MPS, s_t[has_course])
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(held)))
             course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS, t)
-    fitted = v is None or course is None
-    if fitted:
-        # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
-        # (the per-window displacement of raw fixes would carry their white noise twice)
-        fit = fit_fixes(t, g_t, g_lat, g_lon)
-        v = fit.speed_mps if v is None else v
-        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t) if course is None else course
-        lat, lon = fit.lat_deg, fit.lon_deg
-    if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
-        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
-    wheels = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
-    body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels, measured)
-    flipped = False
-    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto", measured=measured):
-        flipped = not flipped
-    if flipped:  # the yaw check found a clockwise z: turned over like --yaw-sign cw
-        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
-    columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
-               "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
-    columns |= dict(zip(IMU_COLUMNS, body.T, strict=True))  # the full IMU, body frame
-    if reference is not None:
-        truth = fit_fixes(t, reference[:, 0], reference[:, 1], reference[:, 2])
-        columns |= dict(zip(RECEIVER_COLUMNS, (lat, lon, v, course), strict=True))
-        columns |= {"lat_deg": truth.lat_deg, "lon_deg": truth.lon_deg, "speed_mps": truth.speed_mps,
-                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t)}
-    if first_implausible("height_m", alt) is None:
-        columns["height_m"] = alt
-    if len(sigma) and np.isfinite(sigma).all():  # the receiver's own accuracy, when every fix has one
-        columns["gnss_sigma_m"] = sigma
-    if not has_fix.all():
-        columns["gnss_fix"] = has_fix.astype(float)
+    return v, course
+
+
+def _fix_quality_columns(grid: _Grid, fitted: bool, streams: LogStreams) -> dict[str, np.ndarray]:
+    """The optional columns: height, the receiver's sigma, the fix flag, whether speed and course
+    were fitted, the vehicle's speed and the per-fix columns."""
+    t, columns = grid.t_s, {}
+    if first_implausible("height_m", grid.alt_m) is None:
+        columns["height_m"] = grid.alt_m
+    if len(grid.sigma_m) and np.isfinite(grid.sigma_m).all():  # the receiver's own accuracy, when every fix has one
+        columns["gnss_sigma_m"] = grid.sigma_m
+    if not grid.has_fix.all():
+        columns["gnss_fix"] = grid.has_fix.astype(float)
     if fitted:  # the receiver's speed and course are the positions' (Drive: gnss_speed_fitted)
         columns["gnss_speed_fitted"] = np.ones(len(t))
+    vehicle_speed = streams.vehicle_speed
     if vehicle_speed is not None and len(vehicle_speed) >= 2:
         columns["speed_can_mps"] = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1])
+    g_t = streams.gnss[:, 0]
     last_fix = np.clip(np.searchsorted(g_t, t, side="right") - 1, 0, len(g_t) - 1)
-    for column, values in (fix_columns or {}).items():
+    for column, values in (streams.fix_columns or {}).items():
         columns[column] = np.asarray(values, dtype=float)[last_fix]
-    start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
-    return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
-                 start_time_of_day_s=start_of_day, columns=columns, start_stamp_s=origin_s + float(t[0]))
+    return columns
 
 
 #: The IMU's axes in the body frame, as messages name them.
@@ -282,7 +340,7 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
     if isinstance(imu_mount, np.ndarray):
         if unmeasured and not np.array_equal(np.abs(imu_mount), np.abs(imu_mount).round()):
             raise InputError(f"{path}: the IMU's {', '.join(unmeasured)} read one value over the whole log (not measured), "
-                             "so its vectors cannot be turned by a mount", "leave --imu-mount out (--imu-axes maps whole axes)",
+                             "so its vectors cannot be turned by a mount", "leave the mount out (the IMU axes map whole axes)",
                              param="imu_mount")
         matrix = imu_mount
     elif unmeasured:
@@ -299,10 +357,10 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
         angle = found.angle_deg
         if imu_mount != "auto" and angle > MAX_SILENT_DEG:
             permutation = nearest_axes(found.matrix @ mapping)
-            axes = f", or --imu-axes {permutation} (the nearest exact permutation)" if permutation else ""
+            axes = f", or map the IMU axes with {permutation} (the nearest exact permutation)" if permutation else ""
             raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount is estimated "
                              f"as {found.describe()}, {angle:.0f} deg from it",
-                             f"apply this estimate with --imu-mount auto, or give it as --imu-mount {format_mount(found.matrix)}{axes}",
+                             f"apply this estimate with the mount auto, or give it as {format_mount(found.matrix)}{axes}",
                              param="imu_mount")
         if imu_mount != "auto" and angle < MIN_APPLIED_DEG:
             return body

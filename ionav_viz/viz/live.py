@@ -33,11 +33,11 @@ def _endpoint(url: str) -> tuple[str, int]:
     """(host, port) of a ``rerun+http://host:port/proxy`` URL; a bad URL is the user's input."""
     parsed = urlparse(url)
     if parsed.scheme not in ("rerun+http", "rerun+https", "rerun", "http", "https") or not parsed.hostname:
-        raise InputError(f"--connect {url}: not a Rerun viewer address", f"use e.g. {DEFAULT_CONNECT_URL}", param="connect")
+        raise InputError(f"{url}: not a Rerun viewer address", f"use e.g. {DEFAULT_CONNECT_URL}", param="connect")
     try:
         port = parsed.port or DEFAULT_GRPC_PORT
     except ValueError:
-        raise InputError(f"--connect {url}: the port is not a number", f"use e.g. {DEFAULT_CONNECT_URL}", param="connect") from None
+        raise InputError(f"{url}: the port is not a number", f"use e.g. {DEFAULT_CONNECT_URL}", param="connect") from None
     return parsed.hostname, port
 
 

@@ -113,10 +113,7 @@ def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray
 def log_result(rec, result: DriveResult, summary_md: str, progress=None, events: list | None = None) -> dict[str, int]:
     """Log everything about ``result`` to the recording stream ``rec`` (any sink: memory, a viewer,
     a server). Returns row counts per entity."""
-    import rerun as rr
-
-    drive, w, starts = result.drive, result.windows, result.starts
-    n_win = result.n_windows
+    drive = result.drive
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
     rec.send_blueprint(review_blueprint([short_label(e.label) for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable]))
@@ -136,14 +133,42 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     east, north = local_en_m(drive.lat_deg, drive.lon_deg, lat0, lon0)
     truth_ll = np.stack([drive.lat_deg, drive.lon_deg], axis=-1)
     truth_xy = screen_xy(east, north)
-    good_runs, bad_runs = truth_runs(drive.gnss_ok, usable)
     layers = Layers(rec, send, lat0, lon0, truth_ll, truth_xy, usable)
 
-    # Styling and static layers, once.
-    estimators = list(result.estimates)
     colors = {**estimator_colors(result.estimators), "gnss": GNSS_COLOR, "gyro": GYRO_COLOR}
     labels = {**{e.name: e.label for e in result.estimators}, "gnss": REFERENCE_LABEL if drive.has_reference else GNSS_LABEL,
               "gyro": GYRO_LABEL}
+    _log_series_styles(rec, list(result.estimates), colors, labels)
+    _log_static_layers(layers, drive, summary_md)
+    step("static layers")
+    _log_signals(layers, drive)
+    step("signals")
+    t_end, idx = _log_outage_states(send, result)
+    step("outages")
+    if events:
+        log_events(layers, events, drive)
+
+    starts = result.starts
+    if len(starts):
+        # every estimate's tracks in the local frame, (seq, win+1, 2): projected once
+        tracks_xy = {name: screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0)) for name, e in result.estimates.items()}
+        log_outage_frames(layers, result, tracks_xy)
+        t_win = t_end[idx].ravel()
+        t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
+        for name, est in result.estimates.items():
+            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
+            step(name)
+        log_drift(layers, result, colors, t_rows)
+    if result.bridged:
+        log_real_outages(layers, result, colors, labels)
+        step("real GNSS outages")
+    return rows
+
+
+def _log_series_styles(rec, estimators: list[str], colors: dict, labels: dict[str, str]) -> None:
+    """Each time series' colour, name and width, logged once as static."""
+    import rerun as rr
+
     for est in ["gyro", "gnss", *estimators]:
         rec.log(ent.yaw_rate(est), rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]), static=True)
     for est in ["gnss", *estimators]:
@@ -154,6 +179,15 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     rec.log(ent.ACCEL, rr.SeriesLines(colors=[GYRO_COLOR], names=["accelerometer"]), static=True)
     rec.log(ent.SPEED, rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS speed"]), static=True)
     rec.log(ent.GNSS_AVAILABLE, rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS available"]), static=True)
+
+
+def _log_static_layers(layers: Layers, drive, summary_md: str) -> None:
+    """The whole drive's truth (its bad stretches apart), the grid, the receiver's fixes beside a
+    reference, and the summary: static, once."""
+    import rerun as rr
+
+    rec, truth_ll, truth_xy, usable = layers.rec, layers.truth_ll, layers.truth_xy, layers.usable
+    good_runs, bad_runs = truth_runs(drive.gnss_ok, usable)
     # The truth is drawn wide underneath, the overview layers thin, the growing tracks wide on top.
     # The whole drive's truth is faint: the current outage's (``*/gnss/outage``) is drawn wide on top.
     rec.log(ent.truth(ent.MAP), rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in good_runs], colors=[faded(GNSS_COLOR, 0.6)],
@@ -168,27 +202,38 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
                                                   radii=rr.Radius.ui_points(1.5), draw_order=11), static=True)
     if drive.has_reference:  # the receiver's fixes the estimators were given, as small dots beside the truth
         rx_ll = np.column_stack([drive.columns["gnss_lat_deg"], drive.columns["gnss_lon_deg"]])
-        rx_east, rx_north = local_en_m(rx_ll[:, 0], rx_ll[:, 1], lat0, lon0)
+        rx_east, rx_north = local_en_m(rx_ll[:, 0], rx_ll[:, 1], layers.lat0, layers.lon0)
         rec.log(ent.receiver(ent.MAP), rr.GeoPoints(lat_lon=rx_ll[usable], colors=[RECEIVER_COLOR], radii=rr.Radius.ui_points(1.5)), static=True)
         rec.log(ent.receiver(ent.LOCAL), rr.Points2D(screen_xy(rx_east, rx_north)[usable], colors=[RECEIVER_COLOR],
                                                      radii=rr.Radius.ui_points(1.5), draw_order=9), static=True)
     rec.log(ent.SUMMARY, rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
-    step("static layers")
 
-    # Per-sample series.
+
+def _log_signals(layers: Layers, drive) -> None:
+    """Per-sample series: the truth's current position, the GNSS quality, the sensors and the speed."""
+    import rerun as rr
+
+    send, usable = layers.send, layers.usable
     t = drive.t_s
     tu, nu = t[usable], int(usable.sum())
-    send(ent.truth_position(ent.MAP), tu, rr.GeoPoints.columns(positions=truth_ll[usable], colors=np.tile(GNSS_COLOR, (nu, 1)), radii=np.full(nu, -6.0)))
-    send(ent.truth_position(ent.LOCAL), tu, rr.Points2D.columns(positions=truth_xy[usable], colors=np.tile(GNSS_COLOR, (nu, 1)), radii=np.full(nu, -6.0)))
+    send(ent.truth_position(ent.MAP), tu, rr.GeoPoints.columns(positions=layers.truth_ll[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
+                                                               radii=np.full(nu, -6.0)))
+    send(ent.truth_position(ent.LOCAL), tu, rr.Points2D.columns(positions=layers.truth_xy[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
+                                                                radii=np.full(nu, -6.0)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
     send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send(ent.SPEED, t, rr.Scalars.columns(scalars=drive.speed_mps))
-    step("signals")
 
-    # Per-window GNSS truth and outage state.
+
+def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarray]:
+    """Per window: the GNSS truth's displacement and yaw rate, GNSS availability and the outage
+    state. Returns each window's end time and the outage windows' indices (outage, window)."""
+    import rerun as rr
+
+    w, starts, n_win = result.windows, result.starts, result.n_windows
     t_end = w.t0_s + 1.0
     # windows without trustworthy truth are not drawn (NaN breaks the line: no spike to (0, 0))
     ok = w.truth_ok
@@ -208,51 +253,44 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         states[b.start : b.start + b.n_windows] = ent.real_outage_state(b.number, b.gap_t0_s, b.gap_t1_s)
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
     send(ent.GNSS_STATE, w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
-    step("outages")
-    if events:
-        log_events(layers, events, drive)
+    return t_end, idx
 
-    if len(starts):
-        # every estimate's tracks in the local frame, (seq, win+1, 2): projected once
-        tracks_xy = {name: screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0)) for name, e in result.estimates.items()}
-        log_outage_frames(layers, result, tracks_xy)
-        t_win = t_end[idx].ravel()
-        t_rows = _outage_times(w.t0_s[starts], t_win.reshape(len(starts), n_win))
-        for name, est in result.estimates.items():
-            color = colors[name]
-            ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
-            xy = tracks_xy[name]
-            n_rows = len(t_rows)
-            thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
-            # per outage the start point alone (clears the previous outage's track), then the
-            # strip of points 0..k at each window's end (rows as :func:`_outage_times`)
-            send(ent.live_track(ent.MAP, name), t_rows, rr.GeoLineStrings.columns(
-                line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
-            send(ent.live_track(ent.LOCAL, name), t_rows, rr.LineStrips2D.columns(
-                strips=columns.line_strips_2d(*columns.growing(xy)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
-                draw_order=np.full(n_rows, 30.0)))
-            rel = xy - xy[:, :1]
-            send(ent.live_track(ent.INSPECT, name), t_rows, rr.LineStrips2D.columns(
-                strips=columns.line_strips_2d(*columns.growing(rel)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
-                draw_order=np.full(n_rows, 30.0)))
-            # the estimate's current position: visible where tracks along the same road cover each other
-            send(ent.inspect_position(name), t_rows, rr.Points2D.columns(
-                positions=rel.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
-                draw_order=np.full(n_rows, 40.0)))
-            faint = faded(color)
-            rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
-            rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
-            series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
-            series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
-            for entity, values in series.items():
-                t_plot, v_plot = with_breaks(t_end[idx], values)
-                send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
-            step(name)
-        log_drift(layers, result, colors, t_rows)
-    if result.bridged:
-        log_real_outages(layers, result, colors, labels)
-        step("real GNSS outages")
-    return rows
+
+def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray,
+                  t_windows: np.ndarray) -> None:
+    """One estimator's tracks over the outages (growing, on the map, the local view and the
+    inspector; all of them faint), its current position, and its series per window (``t_windows``:
+    the end time of each outage window, (outage, window))."""
+    import rerun as rr
+
+    rec, send = layers.rec, layers.send
+    ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
+    n_rows = len(t_rows)
+    thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
+    # per outage the start point alone (clears the previous outage's track), then the
+    # strip of points 0..k at each window's end (rows as :func:`_outage_times`)
+    send(ent.live_track(ent.MAP, name), t_rows, rr.GeoLineStrings.columns(
+        line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
+    send(ent.live_track(ent.LOCAL, name), t_rows, rr.LineStrips2D.columns(
+        strips=columns.line_strips_2d(*columns.growing(xy)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+        draw_order=np.full(n_rows, 30.0)))
+    rel = xy - xy[:, :1]
+    send(ent.live_track(ent.INSPECT, name), t_rows, rr.LineStrips2D.columns(
+        strips=columns.line_strips_2d(*columns.growing(rel)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
+        draw_order=np.full(n_rows, 30.0)))
+    # the estimate's current position: visible where tracks along the same road cover each other
+    send(ent.inspect_position(name), t_rows, rr.Points2D.columns(
+        positions=rel.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
+        draw_order=np.full(n_rows, 40.0)))
+    faint = faded(color)
+    rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
+    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
+    w, starts, n_win = result.windows, result.starts, result.n_windows
+    series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
+    series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
+    for entity, values in series.items():
+        t_plot, v_plot = with_breaks(t_windows, values)
+        send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:

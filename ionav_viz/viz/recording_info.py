@@ -63,7 +63,7 @@ class RecordingInfo:
     def outage(self, number: int) -> OutageInfo:
         if not 1 <= number <= len(self.outages):
             raise InputError(f"{self.path}: no outage {number} (the recording has {len(self.outages)})",
-                             "choose an outage number from the replay's list, or --time worst", param="outages")
+                             "choose an outage number from the replay's list, or worst", param="outages")
         return self.outages[number - 1]
 
     def worst(self, estimator: str = BASELINE) -> OutageInfo:
@@ -136,6 +136,28 @@ def read_recording_info(path: Path) -> RecordingInfo:
 
 
 def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
+    scan = _scan_chunks(path, _chunks(path, readable))
+    if not scan.states:
+        raise InputError(f"{path}: not an ionav-viz replay recording (no /{ent.GNSS_STATE})", "make one with 'ionav-viz replay DRIVE'")
+    scan.states.sort()
+    spans = []
+    for i, (t, label) in enumerate(scan.states):
+        if ent.is_outage_state(label):
+            nxt = scan.states[i + 1][0] if i + 1 < len(scan.states) else scan.end_s
+            spans.append((float(t), float(nxt), label))
+    outages = _outages(spans, scan.errors, scan.drawn)
+    ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
+    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators)
+
+
+def _unreadable(path: Path, exc: Exception) -> InputError:
+    """The error for a file Rerun's reader cannot read (its errors are of various classes)."""
+    return InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                      "make one with 'ionav-viz replay DRIVE'")
+
+
+def _chunks(path: Path, readable: Path):
+    """The chunks of the recording at ``readable`` (``path`` as the user named it), as a stream."""
     import warnings
 
     from rerun.chunk import RrdReader
@@ -146,69 +168,84 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
             reader = RrdReader(readable)
             recordings = reader.recordings()
     except Exception as exc:  # the reader raises various errors for files that are not .rrd
-        raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
-                         "make one with 'ionav-viz replay DRIVE'") from None
+        raise _unreadable(path, exc) from None
     if not recordings:
         raise InputError(f"{path}: no recording inside", "make one with 'ionav-viz replay DRIVE'")
-    drive, end_s, states, track = path.stem, 0.0, [], []
-    estimators: dict[str, tuple[str, tuple[int, int, int]]] = {}
-    errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
-    drawn: dict[str, _Rows] = {}
     try:
-        chunks = reader.stream()
+        return reader.stream()
     except Exception as exc:
-        raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
-                         "make one with 'ionav-viz replay DRIVE'") from None
+        raise _unreadable(path, exc) from None
+
+
+@dataclass
+class _Scan:
+    """What one pass over a recording's chunks collects."""
+
+    drive: str
+    end_s: float = 0.0
+    states: list = field(default_factory=list)  # (time, GNSS state label)
+    track: list[np.ndarray] = field(default_factory=list)  # the truth's positions (lat, lon), per chunk
+    estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # label, colour
+    errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # position error (t, m) per chunk
+    drawn: dict[str, _Rows] = field(default_factory=dict)  # each outage frame's rows
+
+    def add(self, path: Path, chunk, entity: str) -> None:
+        """One chunk's share (``entity``: its path)."""
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        series = ent.parse_error_series(entity)
+        if chunk.is_static and series is not None and series[0] == "position_error_m":
+            self.estimators[series[1]] = _series_style(batch)
+            return
+        if entity == "/__properties":
+            for n in names:
+                if n.endswith(":name"):
+                    values = [v for v in batch.column(n).to_pylist() if v]
+                    self.drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else self.drive
+            return
+        if chunk.is_static or "time" not in names:
+            return
+        times = _times_of(batch)
+        if len(times):
+            self.end_s = max(self.end_s, float(times.max()))
+        if entity.strip("/") == ent.GNSS_STATE:
+            col = _column(path, entity, names, ":state")
+            self.states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
+        elif entity.strip("/") == ent.truth_position(ent.MAP):
+            col = _column(path, entity, names, ":positions")
+            self.track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
+        elif series is not None and series[0] == "position_error_m":
+            col = _column(path, entity, names, ":scalars")
+            self.errors.setdefault(series[1], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
+        elif ent.is_outage_frame(entity):
+            col = _column(path, entity, names, ":strips", ":line_strings")
+            self.drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
+
+
+def _scan_chunks(path: Path, chunks) -> _Scan:
+    """Every chunk read into a :class:`_Scan`; a chunk laid out otherwise than ionav-viz logs it is
+    an error naming its entity."""
+    scan = _Scan(path.stem)
     entity = ""
     try:
         for chunk in chunks:
             entity = ""  # reading the next chunk: a file cut off fails here
             entity = str(chunk.entity_path)
-            batch = chunk.to_record_batch()
-            names = batch.schema.names
-            series = ent.parse_error_series(entity)
-            if chunk.is_static and series is not None and series[0] == "position_error_m":
-                estimators[series[1]] = _series_style(batch)
-                continue
-            if entity == "/__properties":
-                for n in names:
-                    if n.endswith(":name"):
-                        values = [v for v in batch.column(n).to_pylist() if v]
-                        drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else drive
-                continue
-            if chunk.is_static or "time" not in names:
-                continue
-            times = _times_of(batch)
-            if len(times):
-                end_s = max(end_s, float(times.max()))
-            if entity.strip("/") == ent.GNSS_STATE:
-                col = _column(path, entity, names, ":state")
-                states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
-            elif entity.strip("/") == ent.truth_position(ent.MAP):
-                col = _column(path, entity, names, ":positions")
-                track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
-            elif series is not None and series[0] == "position_error_m":
-                col = _column(path, entity, names, ":scalars")
-                errors.setdefault(series[1], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
-            elif ent.is_outage_frame(entity):
-                col = _column(path, entity, names, ":strips", ":line_strings")
-                drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
+            scan.add(path, chunk, entity)
     except InputError:
         raise
     except Exception as exc:  # values of other types or shapes than ionav-viz logs (pyarrow's errors are not one class)
         if not entity:
-            raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
-                             "make one with 'ionav-viz replay DRIVE'") from None
+            raise _unreadable(path, exc) from None
         raise InputError(f"{path}: {entity} is not laid out as ionav-viz logs it ({type(exc).__name__}: {str(exc)[:120]})",
                          "replay the drive again with this version of ionav-viz") from None
-    if not states:
-        raise InputError(f"{path}: not an ionav-viz replay recording (no /{ent.GNSS_STATE})", "make one with 'ionav-viz replay DRIVE'")
-    states.sort()
-    spans = []
-    for i, (t, label) in enumerate(states):
-        if ent.is_outage_state(label):
-            nxt = states[i + 1][0] if i + 1 < len(states) else end_s
-            spans.append((float(t), float(nxt), label))
+    return scan
+
+
+def _outages(spans: list[tuple[float, float, str]], errors: dict[str, list[tuple[np.ndarray, np.ndarray]]],
+             drawn: dict[str, _Rows]) -> list[OutageInfo]:
+    """Each synthetic outage of ``spans``: every estimator's final position error and the tracks
+    drawn at its end (the log's own losses left out)."""
     finite = {}  # per estimator, its error samples in time order (without the NaN line breaks)
     for name, parts_ in errors.items():
         t, v = np.concatenate([p[0] for p in parts_]), np.concatenate([p[1] for p in parts_])
@@ -228,8 +265,7 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
         ll = np.concatenate(geo) if geo else np.zeros((0, 2))
         outages.append(OutageInfo(len(outages) + 1, start, end, final, np.concatenate(local) if local else np.zeros((0, 2)),
                                   ll[:, 0], ll[:, 1]))
-    ll = np.concatenate(track) if track else np.zeros((0, 2))
-    return RecordingInfo(path, drive, end_s, spans, outages, ll[:, 0], ll[:, 1], estimators)
+    return outages
 
 
 def _column(path: Path, entity: str, names: list[str], *suffixes: str) -> str:
@@ -278,7 +314,6 @@ def report_json(path: Path) -> str:
                         if values and values[0]:
                             return str(values[0][0] if isinstance(values[0], list) else values[0])
         except Exception as exc:
-            raise InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
-                             "make one with 'ionav-viz replay DRIVE'") from None
+            raise _unreadable(path, exc) from None
     raise InputError(f"{path}: the recording carries no report (made by an earlier ionav-viz?)", "replay the drive again, or give 'evaluate --json' output",
                      param="result")

@@ -1,0 +1,41 @@
+"""How message logs (MCAP, ROS 1 and ROS 2 bags) are read: :class:`LogOptions`, shared by the
+loader (:mod:`.load`, which the API re-exports) and the reader (:mod:`.message_log`)."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class LogOptions:
+    """How to read message logs (MCAP, ROS 1 and ROS 2 bags): topics (None: found by message
+    type), which time stamps to use and the IMU's axes."""
+
+    imu_topic: str | None = None
+    gnss_topic: str | None = None
+    #: the receiver's velocity (TwistStamped in a world frame): GNSS speed and course; "none": from the fixes
+    gnss_velocity_topic: str | None = None
+    stamps: str = "header"
+    imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
+    #: the vehicle's own speed (nav_msgs/Odometry, or TwistStamped in a body frame); "none" leaves it out
+    vehicle_speed_topic: str | None = None
+    #: deprecated: the earlier name of ``gnss_velocity_topic``
+    speed_topic: str | None = None
+    #: a reference trajectory (NavSatFix: post-processed GNSS/INS, RTK) beside the receiver: the truth
+    #: every score is measured against, while the estimators get only the GNSS topic
+    truth_topic: str | None = None
+    #: where a reference in a local frame (Odometry, PoseStamped) lies: "LAT,LON[,YAW]" (degrees; the frame's
+    #: origin, x axis YAW counter-clockwise from east) or "auto" (fitted to the receiver's fixes; sources.reference)
+    truth_origin: str | None = None
+    #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
+    #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu_mount)
+    imu_mount: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.speed_topic is not None:
+            warnings.warn("LogOptions(speed_topic=...) is now gnss_velocity_topic (and vehicle_speed_topic for wheel or CAN "
+                          "odometry)", DeprecationWarning, stacklevel=3)
+            if self.gnss_velocity_topic is None:
+                object.__setattr__(self, "gnss_velocity_topic", self.speed_topic)
+            object.__setattr__(self, "speed_topic", None)
