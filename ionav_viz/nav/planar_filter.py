@@ -62,8 +62,9 @@ from numba import njit
 
 from ..core.drive import Drive
 from ..core.geo import local_en_m
-from ..core.grid import GRID_RATE_HZ
-from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+from ..core.gnss_quality import position_sigma_m
+from ..core.grid import GRID_RATE_HZ, WINDOW_S
+from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
 E, N, V, PSI, BA, BG, K, S = range(8)
@@ -317,15 +318,13 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise, use_vehicle_sp
     course = np.deg2rad(np.concatenate([windows.heading0_deg, windows.heading1_deg[-1:]]))
     ok = windows.truth_ok
     good = np.concatenate([[ok[0]], ok[1:] | ok[:-1], [ok[-1]]])  # the fix ends or starts a good window
-    sigma = np.full(len(lat), noise.gnss_position_m)
-    if "gnss_sigma_m" in drive.columns:
-        t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + 1.0])
-        sigma = np.maximum(np.interp(t, drive.t_s, drive.columns["gnss_sigma_m"]), 0.3)
+    t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + WINDOW_S])
+    sigma = position_sigma_m(t, drive.t_s, drive.columns.get("gnss_sigma_m"), noise.gnss_position_m)
     vehicle = np.full(len(windows), np.nan)
     found = vehicle_speed(drive) if use_vehicle_speed else None
     if found is not None:
         values, unit, _ = found
-        per_s = values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0)
+        per_s = speed_in_mps(values, unit)
         steps = int(round(windows.rate_hz))
         vehicle = np.interp(windows.t0_s + steps / windows.rate_hz, drive.t_s, per_s)  # at each window's end
     return Measurements(e, n, speed, course, good, sigma, vehicle)

@@ -23,6 +23,7 @@ from ..core.errors import ToolFailure
 from ..core.fileio import utf8_alias
 from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
+from ..core.grid import WINDOW_S
 from ..core.runs import run_ranges
 from ..nav.protocol import short_label
 from . import columns
@@ -189,7 +190,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     step("signals")
 
     # Per-window GNSS truth and outage state.
-    t_end = w.t0_s + 1.0
+    t_end = w.t0_s + WINDOW_S
     # windows without trustworthy truth are not drawn (NaN breaks the line: no spike to (0, 0))
     ok = w.truth_ok
     send(ent.displacement("gnss"), t_end, rr.Scalars.columns(scalars=np.where(ok, w.gnss_disp_m, np.nan)))
