@@ -32,9 +32,10 @@ from ..core.drive import Drive, measured_imu
 from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodetic, geodetic_of_enu, normal_gravity_mps2
 from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
+from ..core.rotation import quat_of_euler
 from .protocol import Estimate, EstimatorInputs
 from .stillness import drive_still
-from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, quat_mul, run_filter
+from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
@@ -97,16 +98,13 @@ def boundaries(drive: Drive, windows: Windows) -> Boundaries:
 
 
 def _level_attitude(accel_mean: np.ndarray, heading_deg: float) -> np.ndarray:
-    """The quaternion (w, x, y, z) of ``C_b^n`` from the mean specific force (level) and the course (yaw)."""
+    """The quaternion (w, x, y, z) of ``C_b^n`` from the mean specific force (level) and the course
+    (yaw); angles as :mod:`ionav_viz.core.rotation` has them (pitch positive nose-down)."""
     fx, fy, fz = accel_mean
     roll = np.arctan2(fy, fz)
-    pitch = np.arctan2(fx, np.hypot(fy, fz))
+    pitch = -np.arctan2(fx, np.hypot(fy, fz))  # a nose up reads gravity's reaction forward: fx > 0
     yaw = np.pi / 2 - np.deg2rad(heading_deg)
-    # Rz(yaw) Ry(-pitch) Rx(roll) as a quaternion product
-    qz = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-    qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])
-    qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
-    return quat_mul(quat_mul(qz, qy), qx)
+    return quat_of_euler(roll, pitch, yaw)
 
 
 @dataclass

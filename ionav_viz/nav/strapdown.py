@@ -11,7 +11,9 @@ Frames and conventions
 Nominal state (20): ``p`` (3, m), ``v`` (3, m/s, in ``n``), ``q`` (4), gyro bias ``b_g`` (3,
 rad/s), accelerometer bias ``b_a`` (3, m/s^2), the vehicle speed's scale ``k`` (its reading over
 the true forward speed), the residual mount yaw and pitch ``psi_m``, ``theta_m`` (rad: how far the
-vehicle's forward axis lies from the IMU's x axis after the reader's mount correction) and the
+vehicle's forward axis lies from the IMU's x axis after the reader's mount correction; signed as
+:mod:`ionav_viz.core.rotation` has it: yaw positive where the IMU's x points left of the vehicle's
+forward axis, pitch positive where it points below it) and the
 gyro z scale error ``s_g`` (the gyro reads ``(1 + s_g)`` times the true rate about z).
 
 Mechanisation, per IMU sample step ``dt`` with the trapezoid mean of the two samples' rate and
@@ -75,6 +77,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from ..core import rotation
 
 #: A GNSS position component further than this many variances (a chi-square, 1 degree of freedom:
 #: 5 sigma) from the filter's prediction is a jump, not a fix (receivers jump by metres when they
@@ -148,33 +152,12 @@ class GinsNoise:
 
 
 # ---------------------------------------------------------------------------------------------
-# small rotation helpers (compiled)
+# the rotation helpers of :mod:`ionav_viz.core.rotation`, compiled
 
-
-@njit(cache=True)
-def quat_mul(a, b):  # pragma: no cover - compiled
-    """The Hamilton product ``a b`` of quaternions (w, x, y, z)."""
-    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
-
-
-@njit(cache=True)
-def _quat_of_rotvec(r):  # pragma: no cover - compiled
-    angle = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
-    if angle < 1e-12:
-        return np.array([1.0, 0.5 * r[0], 0.5 * r[1], 0.5 * r[2]])
-    s = math.sin(0.5 * angle) / angle
-    return np.array([math.cos(0.5 * angle), s * r[0], s * r[1], s * r[2]])
-
-
-@njit(cache=True)
-def _dcm(q):  # pragma: no cover - compiled
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+_quat_mul = njit(cache=True)(rotation.quat_mul)
+_quat_of_rotvec = njit(cache=True)(rotation.quat_of_rotvec)
+_dcm = njit(cache=True)(rotation.dcm_of_quat)
+_skew = njit(cache=True)(rotation.skew)
 
 
 @njit(cache=True)
@@ -240,11 +223,6 @@ def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, omega_ie, g0, radius, out):  # pra
 # the error-state filter (compiled)
 
 
-@njit(cache=True)
-def _cross_matrix(a):  # pragma: no cover - compiled
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
 # Plain loops for the 3 x 3 products: numba's ``@`` needs SciPy's BLAS, which is not a dependency.
 
 
@@ -267,7 +245,7 @@ def _tmul3(A, v):  # pragma: no cover - compiled
 @njit(cache=True)
 def _body_velocity_jacobian(C, v):  # pragma: no cover - compiled
     """``-C^T [v x]``: how the body-frame velocity ``C^T v`` moves with the attitude error ``phi``."""
-    X = _cross_matrix(v)
+    X = _skew(v)
     M = np.zeros((3, 3))
     for i in range(3):
         for j in range(3):
@@ -280,7 +258,7 @@ def _transition(C, fn, wz, T, D):  # pragma: no cover - compiled
     """``Phi - I`` for a window of ``T`` s into ``D`` (every entry it has is written; the rest stay
     zero): the series of ``exp(F T)`` to third order, whose only blocks are these (rows dp, dv,
     phi; columns dv, phi, db_g, db_a, ds_g)."""
-    Fx = _cross_matrix(fn)
+    Fx = _skew(fn)
     FxC = _mul3(Fx, C)
     cz = C[:, 2] * wz
     Fxcz = np.cross(fn, cz)
@@ -393,7 +371,7 @@ def _correct(x, dx):  # pragma: no cover - compiled
     x[THM] -= dx[DTHM]
     x[SG] -= dx[DSG]
     # C = (I + [phi x]) C_hat: the quaternion of the small rotation phi, on the left
-    q = quat_mul(_quat_of_rotvec(dx[PHI:PHI + 3]), x[QW:QW + 4].copy())
+    q = _quat_mul(_quat_of_rotvec(dx[PHI:PHI + 3]), x[QW:QW + 4].copy())
     x[QW:QW + 4] = q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     dx[:] = 0.0
 

@@ -4,7 +4,8 @@ log itself, given by the user, and applied at the reader.
 Convention: ``body = M @ imu`` for every specific-force and angular-rate vector, ``M`` a rotation
 (REP 103 body frame: x forward, y left, z up). The same matrix as ``--imu-axes`` (a signed
 permutation); a mount is any rotation. It is reported as the IMU's attitude in the body frame, in
-degrees, z-y-x: ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)``. So yaw +5 means the IMU's x axis points 5
+degrees, z-y-x: ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (the package's one convention,
+:mod:`ionav_viz.core.rotation`). So yaw +5 means the IMU's x axis points 5
 degrees to the left of forward, pitch +7 that it points 7 degrees down, roll +2 that its y axis is
 turned 2 degrees up (right-handed rotations about the body axes).
 
@@ -36,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.rotation import dcm_of_euler, dcm_of_quat, euler_of_dcm, skew
 from ..core.units import G_MPS2
 
 #: A mount further than this from the body frame (degrees, the rotation's angle) is "clearly not
@@ -58,20 +60,14 @@ GRAVITY_RANGE_MPS2 = (0.7 * G_MPS2, 1.3 * G_MPS2)
 
 
 def rotation_deg(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (degrees)."""
-    r, p, y = np.radians([roll, pitch, yaw])
-    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
-    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
-    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
-    return rz @ ry @ rx
+    """``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (degrees; :func:`ionav_viz.core.rotation.dcm_of_euler`)."""
+    return dcm_of_euler(*np.radians([roll, pitch, yaw]))
 
 
 def angles_deg(matrix: np.ndarray) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a rotation ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
-    pitch = -math.degrees(math.asin(float(np.clip(matrix[2, 0], -1.0, 1.0))))
-    roll = math.degrees(math.atan2(matrix[2, 1], matrix[2, 2]))
-    yaw = math.degrees(math.atan2(matrix[1, 0], matrix[0, 0]))
-    return roll, pitch, yaw
+    roll, pitch, yaw = euler_of_dcm(matrix)
+    return math.degrees(roll), math.degrees(pitch), math.degrees(yaw)
 
 
 def rotation_angle_deg(matrix: np.ndarray) -> float:
@@ -113,10 +109,7 @@ def parse_mount(text: str) -> np.ndarray | str:
         norm = math.sqrt(w * w + x * x + y * y + z * z)
         if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
             raise InputError(f"imu mount {text!r}: not a unit quaternion (norm {norm:.4g})", hint, param="imu_mount")
-        w, x, y, z = w / norm, x / norm, y / norm, z / norm
-        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        return dcm_of_quat((w / norm, x / norm, y / norm, z / norm))
     angles = {"roll": 0.0, "pitch": 0.0, "yaw": 0.0}
     for part in (p.strip() for p in text.split(",")):
         name, sep, value = part.partition("=")
@@ -163,7 +156,7 @@ def _onto_z(u: np.ndarray) -> np.ndarray:
     if s < 1e-12:
         return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])  # upside down: half a turn about x
     k = axis / s
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    kx = skew(k)
     return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
 
 
