@@ -44,7 +44,7 @@ window boundary, as scalar updates, their corrections fed back into the nominal 
 * odometer: the vehicle speed reads ``k`` times the forward velocity;
 * zero velocity where the IMU says the vehicle stands (:mod:`ionav_viz.nav.stillness`) and the
   filter's velocity agrees (a chi-square gate, ZUPT_GATE): velocity zero, and the mean gyro over
-  the last second is its bias plus the Earth's rate (ZARU).
+  the last second (the window's samples, at any rate) is its bias plus the Earth's rate (ZARU).
 
 Noise values are :class:`GinsNoise`; the sensors' white noise is measured on the drive itself.
 
@@ -494,9 +494,9 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
                 for i in range(9, N_ERR):
                     q_diag[i] = walk[i] * T
                 _propagate_covariance(P, D, q_diag, q_white_v * T * T / 2.0, scratch_a, scratch_b)
-            # the mean gyro reading over the last window, for the zero-rate update
+            # the mean gyro reading over the last window (its WINDOW_S second at any rate, both ends), for the zero-rate update
             gm[:] = 0.0
-            k0 = max(b_sample[b - 1], jb - 10)
+            k0 = b_sample[b - 1]
             for k in range(k0, jb + 1):
                 gm += gyr[k]
             gm /= jb + 1 - k0

@@ -11,9 +11,10 @@ turned 2 degrees up (right-handed rotations about the body axes).
 
 Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS speed and course:
 
-* **up** (roll and pitch): the mean specific force where the vehicle stands still (speed below
-  0.3 m/s for at least 5 s in all), else over the whole drive (where the car's accelerations
-  average out), is gravity: the rotation that takes it onto +z, the shortest one;
+* **up** (roll and pitch): the mean specific force over the whole drive, where the car's
+  accelerations average out, is gravity: the rotation that takes it onto +z, the shortest one;
+  then three times again from the mean with the estimated motion (below, turned into the IMU's
+  axes) taken out;
 * **yaw**: in that levelled frame, the horizontal specific force ``h`` (east of the IMU's x, say)
   follows the body's ``b = (dv/dt, v * omega)`` (forward: the speed's derivative, the wheels' speed
   where the log has one, else the GNSS's; left: speed times the turn rate, counter-clockwise, from
@@ -25,8 +26,8 @@ Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS spe
 * **uncertainty**: yaw's standard deviation from the residuals, from their sums over 30 s blocks
   (batch means: a road's camber tilts gravity into ``h`` for tens of seconds, so neighbouring
   seconds are not independent), never below ``sigma / sqrt(2 * sum |b|^2)`` of independent seconds;
-  roll and pitch's from the spread of the still samples (or, over a whole drive, 1 degree: a
-  road's grade and the car's accelerations do not quite average out).
+  roll and pitch's a fixed 1 degree each (a road's grade and the car's accelerations do not quite
+  average out over a drive; not measured from the data).
 """
 
 from __future__ import annotations
@@ -46,8 +47,6 @@ MAX_SILENT_DEG = 10.0
 #: A mount closer than this (degrees) is left alone: gravity cannot tell so small a tilt from an
 #: accelerometer bias (0.1 m/s^2 is 0.6 deg) or the road's grade where the car stood.
 MIN_APPLIED_DEG = 2.0
-#: Still: below this speed (m/s); at least this many seconds of it make the gravity estimate.
-STILL_MPS, MIN_STILL_S = 0.3, 5.0
 #: Yaw uses samples above this speed (m/s), and needs this much horizontal excitation
 #: (sum of |b|^2 over samples, (m/s^2)^2) to say anything.
 MOVING_MPS = 0.5

@@ -198,10 +198,10 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     available = np.ones(len(w))
     idx = starts[:, None] + np.arange(n_win)[None, :]
     available[idx.ravel()] = 0.0
+    for b in result.bridged:  # the log's own GNSS losses, bridged: no GNSS there either
+        available[b.start : b.start + b.n_windows] = 0.0
     t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
     send(ent.GNSS_AVAILABLE, t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
-    for b in result.bridged:
-        available[b.start : b.start + b.n_windows] = 0.0
     states = np.full(len(w), ent.GNSS_AVAILABLE_STATE, dtype=object)
     for i, k in enumerate(starts):
         states[k : k + n_win] = ent.outage_state(i + 1, w.t0_s[k], w.t0_s[k] + n_win)
