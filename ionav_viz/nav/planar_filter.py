@@ -220,11 +220,17 @@ def _update(x, P, H, z, h_x, r, wrap):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
-    """The vehicle speed ``z = k v``."""
+def _vehicle_row(x, H):  # pragma: no cover - compiled
+    """The vehicle speed's prediction ``k v`` from the state ``x``, and its row of H into ``H`` (8,)."""
     H[:] = 0.0
     H[V], H[K] = x[K], x[V]
-    _update(x, P, H, z, x[K] * x[V], r, False)
+    return x[K] * x[V]
+
+
+@njit(cache=True)
+def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
+    """The vehicle speed ``z = k v``."""
+    _update(x, P, H, z, _vehicle_row(x, H), r, False)
 
 
 @njit(cache=True)
@@ -292,6 +298,22 @@ def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_veh
                 _update(x, P, H, 0.0, x[V], r_still, False)
             x[V] = max(x[V], 0.0)
     return disp, yaw
+
+
+def propagate_window(x: np.ndarray, F: float, G: float, W: float, T: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """One window of the filter's propagation (see the module docstring) from the state ``x`` (8,):
+    the state after it, its Jacobian ``d x' / d x`` (8 x 8) as the covariance is propagated with,
+    the distance (m) and the mean yaw rate (rad/s, counter-clockwise)."""
+    out, J = np.array(x, dtype=float), np.zeros((N_STATES, N_STATES))
+    d, rate = _propagate(out, np.zeros((N_STATES, N_STATES)), float(F), float(G), float(W), float(T), np.zeros(N_STATES), J)
+    return out, J, float(d), float(rate)
+
+
+def vehicle_speed_model(x: np.ndarray) -> tuple[float, np.ndarray]:
+    """The vehicle speed as the filter predicts it from the state ``x`` (8,) (``k v``, m/s) and its
+    row of H (8,)."""
+    H = np.zeros(N_STATES)
+    return float(_vehicle_row(np.asarray(x, dtype=float), H)), H
 
 
 @dataclass

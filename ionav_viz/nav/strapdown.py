@@ -377,10 +377,9 @@ def _correct(x, dx):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
-    """A measurement of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (the body-frame velocity
-    ``vb = C^T v``, ``M = -C^T [v x]`` its attitude Jacobian); ``dz``: prediction minus measurement.
-    ``cols``/``H``: scratch of 7."""
+def _body_velocity_row(C, M, row, scale, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
+    """The row of H (its 7 nonzeros ``H`` at ``cols``) of a measurement of ``scale * (C^T v)[row] +
+    extra_h * state[extra_col]`` (``M = -C^T [v x]``: the body-frame velocity's attitude Jacobian)."""
     for j in range(3):
         cols[j] = DV + j
         H[j] = scale * C[j, row]
@@ -388,7 +387,26 @@ def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h
         H[3 + j] = scale * M[row, j]
     cols[6] = extra_col
     H[6] = extra_h
+
+
+@njit(cache=True)
+def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
+    """A measurement of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (the body-frame velocity
+    ``vb = C^T v``, ``M = -C^T [v x]`` its attitude Jacobian); ``dz``: prediction minus measurement.
+    ``cols``/``H``: scratch of 7."""
+    _body_velocity_row(C, M, row, scale, extra_col, extra_h, cols, H)
     _scalar_update(P, dx, H, cols, dz, r)
+
+
+@njit(cache=True)
+def _vehicle_velocity_rows(x, vb):  # pragma: no cover - compiled
+    """The NHC's two measurements and the odometer's, each ``(body axis, scale, prediction, extra
+    state, its H)`` for :func:`_body_velocity_update`: the vehicle frame's lateral ``vb_y + psi_m
+    vb_x`` and vertical ``vb_z - theta_m vb_x`` velocity (both measured zero), and the odometer's
+    ``k vb_x`` (``vb = C^T v``)."""
+    return ((1, 1.0, vb[1] + x[PSIM] * vb[0], DPSIM, vb[0]),
+            (2, 1.0, vb[2] - x[THM] * vb[0], DTHM, -vb[0]),
+            (0, x[KO], x[KO] * vb[0], DK, vb[0]))
 
 
 @njit(cache=True)
@@ -411,13 +429,14 @@ def _constraints(x, P, dx, nhc, r_lat, r_vert, odo, r_odo, still, r_zupt, gyro_m
     vb = _tmul3(C, v)
     M = _body_velocity_jacobian(C, v)
     cols, H = np.empty(7, dtype=np.int64), np.empty(7)
+    lat, vert, fwd = _vehicle_velocity_rows(x, vb)
     if nhc:
-        # vehicle lateral = vb_y + psi_m vb_x, vertical = vb_z - theta_m vb_x; both zero
-        _body_velocity_update(C, vb, M, dx, P, 1, 1.0, vb[1] + x[PSIM] * vb[0], r_lat, DPSIM, vb[0], cols, H)
-        _body_velocity_update(C, vb, M, dx, P, 2, 1.0, vb[2] - x[THM] * vb[0], r_vert, DTHM, -vb[0], cols, H)
+        # the vehicle frame's lateral and vertical velocity are zero
+        _body_velocity_update(C, vb, M, dx, P, lat[0], lat[1], lat[2], r_lat, lat[3], lat[4], cols, H)
+        _body_velocity_update(C, vb, M, dx, P, vert[0], vert[1], vert[2], r_vert, vert[3], vert[4], cols, H)
     if not math.isnan(odo):
         # the odometer reads k times the forward velocity
-        _body_velocity_update(C, vb, M, dx, P, 0, x[KO], x[KO] * vb[0] - odo, r_odo, DK, vb[0], cols, H)
+        _body_velocity_update(C, vb, M, dx, P, fwd[0], fwd[1], fwd[2] - odo, r_odo, fwd[3], fwd[4], cols, H)
 
 
 @njit(cache=True)
@@ -542,3 +561,29 @@ def propagate(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, x
     return _propagate_all(np.ascontiguousarray(t_s, dtype=float), np.ascontiguousarray(accel_mps2, dtype=float),
                           np.ascontiguousarray(gyro_radps, dtype=float), np.asarray(x0, dtype=float), earth_rate_enu_radps(lat0_deg),
                           normal_gravity_mps2(lat0_deg, height0_m), EARTH_MEAN_RADIUS_M)
+
+
+def transition_matrix(C: np.ndarray, fn_mps2: np.ndarray, wz_radps: float, T_s: float) -> np.ndarray:
+    """The error state's transition matrix ``Phi`` (19 x 19) over a window of ``T_s`` s, as the filter
+    propagates its covariance: the window's mean attitude ``C`` (``C_b^n``), mean specific force in
+    ``n`` (m/s^2) and corrected z rate (rad/s); see the module docstring."""
+    D = np.zeros((N_ERR, N_ERR))
+    _transition(np.ascontiguousarray(C, dtype=float), np.asarray(fn_mps2, dtype=float), float(wz_radps), float(T_s), D)
+    return np.eye(N_ERR) + D
+
+
+def vehicle_velocity_model(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The NHC's lateral and vertical measurements and the odometer's, as the filter predicts them
+    from the nominal state ``x`` (20,) (``(3,)``: vehicle-frame lateral and vertical velocity, m/s;
+    ``k`` times the forward velocity) and their rows of H over the error state ``(3, 19)``."""
+    x = np.asarray(x, dtype=float)
+    C = _dcm(x[QW:QW + 4])
+    v = np.ascontiguousarray(x[VX:VX + 3])
+    vb, M = _tmul3(C, v), _body_velocity_jacobian(C, v)
+    cols, row_h = np.empty(7, dtype=np.int64), np.empty(7)
+    z, H = np.zeros(3), np.zeros((3, N_ERR))
+    for i, (axis, scale, predicted, extra_col, extra_h) in enumerate(_vehicle_velocity_rows(x, vb)):
+        _body_velocity_row(C, M, axis, scale, extra_col, extra_h, cols, row_h)
+        z[i] = predicted
+        H[i, cols] = row_h
+    return z, H
