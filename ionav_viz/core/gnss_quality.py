@@ -101,8 +101,8 @@ def count_by_fault(masks: np.ndarray) -> dict[str, int]:
     return {name: n for name, n in counts.items() if n}
 
 
-#: The filters' GNSS position sigma (m) is the receiver's reported accuracy, never below this: a
-#: receiver's own figure is optimistic, and a filter trusting it to centimetres follows its noise.
+#: The filters' GNSS position sigma (m) is the receiver's reported accuracy, never below this (the
+#: planar ``ekf`` and ``gins`` alike; an RTK receiver's centimetres are not taken at their word).
 GNSS_SIGMA_FLOOR_M = 0.3
 
 
