@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 
 import ionav_viz as iv
+from ionav_viz.core.errors import InputError
+from ionav_viz.core.fileio import current_umask, staging_folder
 from ionav_viz.core.json_out import dumps_json, plain_json
 
 from .conftest import run_cli
@@ -424,3 +426,25 @@ def test_sigterm_while_drawing_leaves_the_folder_as_it_was(report, tmp_path, exi
     else:
         assert not out.exists()
     assert [p.name for p in tmp_path.iterdir()] == (["figs"] if existing else []), list(tmp_path.iterdir())
+
+
+def test_a_staging_folder_is_hidden_beside_its_output_and_gone_however_the_block_ends(tmp_path):
+    with staging_folder(tmp_path / "out") as stage:
+        assert stage.parent == tmp_path and stage.name.startswith(".out.")
+        assert stage.stat().st_mode & 0o777 == 0o777 & ~current_umask()  # an output's permissions, not mkdtemp's 0700
+        (stage / "half-written").write_text("x")
+    with pytest.raises(KeyboardInterrupt), staging_folder(tmp_path / "out") as stage:
+        (stage / "half-written").write_text("x")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_staging_folder_that_cannot_be_made_raises_what_the_caller_says(tmp_path, monkeypatch):
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("tempfile.mkdtemp", full)
+    with pytest.raises(InputError, match="No space left"), staging_folder(tmp_path / "out", refused=lambda exc: InputError(exc.strerror, "free some")):
+        pass
+    with pytest.raises(OSError, match="No space left"), staging_folder(tmp_path / "out"):
+        pass

@@ -12,6 +12,7 @@ import pytest
 import ionav_viz as iv
 from ionav_viz.analysis.events import detect_events
 from ionav_viz.sim.simulate import gnss_loss_spans, write_simulated_drive
+from ionav_viz.viz import entities as ent
 
 from .conftest import run_cli
 from .mcap_fixtures import write_fix_only
@@ -72,6 +73,12 @@ def test_replay_on_gnss_outage_reports_and_records_them(tmp_path):
     assert {"/map/ins/real_outages", "/local/idnn/real_outages", "/local/gnss_outages/end_fix"} <= static
     states = [s for _, s in rows["/gnss/state"]]
     assert sum("real GNSS outage" in str(s) for s in states) == 6
+    # GNSS available: 0 in every window whose state is an outage, the log's own losses too (row per window, and the last end)
+    state_t = np.array([t for t, _ in rows["/gnss/state"]])
+    state = [str(v[0]) for _, v in rows["/gnss/state"]]
+    available = rows["/gnss/available"][:-1]
+    in_force = [state[i] for i in np.searchsorted(state_t, [t for t, _ in available], side="right") - 1]
+    assert [v[0] == 0.0 for _, v in available] == [ent.is_outage_state(s) for s in in_force]
 
 
 def test_no_loss_to_bridge_is_one_line():

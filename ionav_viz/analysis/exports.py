@@ -106,27 +106,14 @@ def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndar
 def _tum_folder(res: Any, folder: Path) -> list[Path]:
     """A drive's TUM files, written into a hidden folder beside ``folder`` and put in its place
     at once (a folder of thousands of files: one atomic swap, not one per file)."""
-    import shutil
-    import tempfile
-
-    from ..core.fileio import current_umask, swap_in_directory
-    from ..core.signals import hold_signals
+    from ..core.fileio import staging_folder, swap_in_directory
 
     if len(res.starts) == 0:
         return []
     folder.parent.mkdir(parents=True, exist_ok=True)
-    release = hold_signals()
-    try:
-        stage = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    finally:
-        release()
-    try:
-        stage.chmod(0o777 & ~current_umask())  # mkdtemp makes it 0700; an output folder gets the usual permissions
+    with staging_folder(folder) as stage:
         names = _tum_files(res, stage)
         swap_in_directory(stage, folder)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
     return [folder / n for n in names]
 
 

@@ -68,13 +68,13 @@ def vehicle_speed_for_log(drive: Drive) -> tuple[np.ndarray, tuple[str, ...]] | 
     """The drive's vehicle speed as a log carries it (m/s per sample on ``/wheel/odom``) and the
     columns it stands for, or None. Wheel speeds at the nominal radius: odometry and the filter
     calibrate the scale against GNSS."""
-    from ..nav.vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+    from ..nav.vehicle_speed import speed_in_mps, vehicle_speed
 
     found = vehicle_speed(drive)
     if found is None:
         return None
     values, unit, described = found
-    return (values * NOMINAL_RADIUS_M if unit == "rad/s" else values), tuple(described.split(" and "))
+    return speed_in_mps(values, unit), tuple(described.split(" and "))
 
 
 def convert(drive: DriveLike, output: str | Path, read: ReadOptions | None = None) -> Converted:

@@ -81,6 +81,37 @@ def current_umask() -> int:
 
 
 @contextlib.contextmanager
+def staging_folder(beside: Path, parent: Path | None = None, *, refused: Any = None) -> Iterator[Path]:
+    """A new hidden folder ``.<name>.*`` beside ``beside`` (in ``parent``, default its folder) to
+    write an output into before it is moved into place; removed with whatever is left in it when
+    the block ends, however it ends (a folder renamed into place is gone already).
+
+    Made with stop signals held, which act only once its removal is armed (a signal cannot leave it
+    behind), with the usual permissions (``mkdtemp`` makes it 0700; renamed into place, it is the
+    output). ``refused``: turns the ``OSError`` of a folder that cannot be made into the exception
+    to raise (default: the ``OSError``)."""
+    import shutil
+
+    release = hold_signals()
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{beside.name}.", dir=beside.parent if parent is None else parent))
+    except OSError as exc:
+        release()
+        if refused is None:
+            raise
+        raise refused(exc) from None
+    except BaseException:
+        release()
+        raise
+    try:
+        release()  # a signal held since before mkdtemp acts here, inside the cleanup
+        stage.chmod(0o777 & ~current_umask())
+        yield stage
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+@contextlib.contextmanager
 def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` if the block succeeds.
 

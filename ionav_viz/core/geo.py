@@ -39,6 +39,15 @@ def geodetic_of_en_m(east_m: np.ndarray, north_m: np.ndarray, lat0_deg: float, l
 
 #: WGS84 Earth rotation rate (rad/s).
 EARTH_RATE_RADPS = 7.292115e-5
+#: WGS84 semi-major axis (m) and first eccentricity squared.
+WGS84_A_M, WGS84_E2 = 6_378_137.0, 6.694379990141317e-3
+
+
+def radii_of_curvature_m(lat_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The WGS84 radii of curvature (m) at ``lat_deg``: meridian (north-south) and prime vertical
+    (east-west; a parallel's radius is it times the latitude's cosine)."""
+    sin2 = np.sin(np.radians(lat_deg)) ** 2
+    return WGS84_A_M * (1 - WGS84_E2) / (1 - WGS84_E2 * sin2) ** 1.5, WGS84_A_M / np.sqrt(1 - WGS84_E2 * sin2)
 
 
 def normal_gravity_mps2(lat_deg: float, height_m: float = 0.0) -> float:

@@ -101,6 +101,20 @@ def count_by_fault(masks: np.ndarray) -> dict[str, int]:
     return {name: n for name, n in counts.items() if n}
 
 
+#: The filters' GNSS position sigma (m) is the receiver's reported accuracy, never below this (the
+#: planar ``ekf`` and ``gins`` alike; an RTK receiver's centimetres are not taken at their word).
+GNSS_SIGMA_FLOOR_M = 0.3
+
+
+def position_sigma_m(t_s: np.ndarray, drive_t_s: np.ndarray, reported_m: np.ndarray | None, default_m: float) -> np.ndarray:
+    """The GNSS position sigma (m) at times ``t_s`` for a filter: the receiver's reported accuracy
+    (``reported_m`` per drive sample at ``drive_t_s``, the drive's ``gnss_sigma_m``) interpolated,
+    never below GNSS_SIGMA_FLOOR_M; ``default_m`` everywhere when the drive has none."""
+    if reported_m is None:
+        return np.full(len(t_s), default_m)
+    return np.maximum(np.interp(t_s, drive_t_s, reported_m), GNSS_SIGMA_FLOOR_M)
+
+
 def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed_mps: np.ndarray,
                 n_satellites: np.ndarray | None = None, sigma_m: np.ndarray | None = None,
                 vehicle_speed_mps: np.ndarray | None = None, limits: GnssLimits = GnssLimits(),

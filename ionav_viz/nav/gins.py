@@ -30,11 +30,13 @@ import numpy as np
 
 from ..core.drive import Drive, measured_imu
 from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodetic, geodetic_of_enu, normal_gravity_mps2
-from ..core.grid import MIN_COURSE_SPEED_MPS
+from ..core.gnss_quality import position_sigma_m
+from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
+from ..core.rotation import quat_of_euler
 from .protocol import Estimate, EstimatorInputs
 from .stillness import drive_still
-from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, quat_mul, run_filter
-from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
+from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
 #: GNSS velocity updates the filter from this speed (m/s): below it the windows hold the course
@@ -81,7 +83,7 @@ def boundaries(drive: Drive, windows: Windows) -> Boundaries:
     nb = n + int(last.sum())
     t, lat, lon, course, speed = (np.zeros(nb) for _ in range(5))
     good, seg_start = np.zeros(nb, dtype=bool), np.zeros(nb, dtype=bool)
-    t[start_at], t[end_at] = windows.t0_s, windows.t0_s[last] + 1.0
+    t[start_at], t[end_at] = windows.t0_s, windows.t0_s[last] + WINDOW_S
     lat[start_at], lat[end_at] = windows.lat0_deg, windows.lat1_deg[last]
     lon[start_at], lon[end_at] = windows.lon0_deg, windows.lon1_deg[last]
     course[start_at], course[end_at] = windows.heading0_deg, windows.heading1_deg[last]
@@ -96,16 +98,13 @@ def boundaries(drive: Drive, windows: Windows) -> Boundaries:
 
 
 def _level_attitude(accel_mean: np.ndarray, heading_deg: float) -> np.ndarray:
-    """The quaternion (w, x, y, z) of ``C_b^n`` from the mean specific force (level) and the course (yaw)."""
+    """The quaternion (w, x, y, z) of ``C_b^n`` from the mean specific force (level) and the course
+    (yaw); angles as :mod:`ionav_viz.core.rotation` has them (pitch positive nose-down)."""
     fx, fy, fz = accel_mean
     roll = np.arctan2(fy, fz)
-    pitch = np.arctan2(fx, np.hypot(fy, fz))
+    pitch = -np.arctan2(fx, np.hypot(fy, fz))  # a nose up reads gravity's reaction forward: fx > 0
     yaw = np.pi / 2 - np.deg2rad(heading_deg)
-    # Rz(yaw) Ry(-pitch) Rx(roll) as a quaternion product
-    qz = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
-    qy = np.array([np.cos(-pitch / 2), 0.0, np.sin(-pitch / 2), 0.0])
-    qx = np.array([np.cos(roll / 2), np.sin(roll / 2), 0.0, 0.0])
-    return quat_mul(quat_mul(qz, qy), qx)
+    return quat_of_euler(roll, pitch, yaw)
 
 
 @dataclass
@@ -152,9 +151,7 @@ class GinsEstimator:
         h = np.interp(b.t_s, drive.t_s, height) if has_height else np.zeros(len(b.t_s))
         origin = (float(b.lat_deg[0]), float(b.lon_deg[0]), float(h[0]))
         pos = np.ascontiguousarray(enu_of_geodetic(b.lat_deg, b.lon_deg, h, *origin))
-        sigma = np.full(len(b.t_s), self.noise.gnss_position_m)
-        if "gnss_sigma_m" in drive.columns:
-            sigma = np.maximum(np.interp(b.t_s, drive.t_s, drive.columns["gnss_sigma_m"]), 0.3)
+        sigma = position_sigma_m(b.t_s, drive.t_s, drive.columns.get("gnss_sigma_m"), self.noise.gnss_position_m)
         course = np.deg2rad(b.course_deg)
         vel = np.ascontiguousarray(np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)]))
         vel_ok = b.gnss_ok & (b.speed_mps > GNSS_VELOCITY_MIN_SPEED_MPS)
@@ -162,7 +159,7 @@ class GinsEstimator:
         found = vehicle_speed(drive)
         if found is not None:
             values, unit, _ = found
-            odo = np.interp(b.t_s, drive.t_s, values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0))
+            odo = np.interp(b.t_s, drive.t_s, speed_in_mps(values, unit))
         still_s = drive_still(drive)
         # a boundary is still when every sample within half a second of it is
         k = np.searchsorted(drive.t_s, b.t_s - 0.5), np.searchsorted(drive.t_s, b.t_s + 0.5, side="right")

@@ -50,9 +50,8 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import check_regular_input, current_umask, read_json_bounded, swap_in_directory, write_failure
+from ..core.fileio import check_regular_input, read_json_bounded, staging_folder, swap_in_directory, write_failure
 from ..core.grid import GRID_STEP_S, WINDOW_S
-from ..core.signals import hold_signals
 from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
@@ -450,40 +449,31 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
     An existing ``directory`` is replaced only with ``overwrite``; the shipped model never.
     """
     import hashlib
-    import shutil
-    import tempfile
 
     from safetensors.torch import save
 
     directory = check_model_dir(directory, overwrite)
     parent = directory.parent if str(directory.parent) else Path(".")
-    release = hold_signals()  # until the cleanup of the temporary directory is armed
-    try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.", dir=parent))
-    except OSError as exc:
-        release()
-        raise InputError(f"{directory}: cannot write in {parent} ({exc.strerror})", "choose a writable directory", param="output") from None
-    try:
-        release()
-        checksums = {}
-        for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
-            data = save({k: v.detach().contiguous() for k, v in net.state_dict().items()})
-            (tmp / MODEL_FILES[key]).write_bytes(data)
-            checksums[MODEL_FILES[key]] = hashlib.sha256(data).hexdigest()
-        meta = dict(model.metadata)
-        meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict(),
-                    weights_sha256=checksums)
-        (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
-        tmp.chmod(0o777 & ~current_umask())
-        swap_in_directory(tmp, directory)
-    except OSError as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        if (failure := write_failure(directory, exc)) is not None:
-            raise failure from None
-        raise
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+
+    def refused(exc: OSError) -> InputError:
+        return InputError(f"{directory}: cannot write in {parent} ({exc.strerror})", "choose a writable directory", param="output")
+
+    with staging_folder(directory, parent, refused=refused) as tmp:
+        try:
+            checksums = {}
+            for key, net in (("displacement", model.disp_net), ("yaw_rate", model.yaw_net)):
+                data = save({k: v.detach().contiguous() for k, v in net.state_dict().items()})
+                (tmp / MODEL_FILES[key]).write_bytes(data)
+                checksums[MODEL_FILES[key]] = hashlib.sha256(data).hexdigest()
+            meta = dict(model.metadata)
+            meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict(),
+                        weights_sha256=checksums)
+            (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+            swap_in_directory(tmp, directory)
+        except OSError as exc:
+            if (failure := write_failure(directory, exc)) is not None:
+                raise failure from None
+            raise
 
 
 

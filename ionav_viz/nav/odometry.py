@@ -34,7 +34,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from .integrals import trapezoid_mean
 from .protocol import Estimate, EstimatorInputs
-from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed, why_no_vehicle_speed
+from .vehicle_speed import nominal_mps_per_unit, vehicle_speed, why_no_vehicle_speed
 from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
@@ -90,7 +90,7 @@ class OdometryEstimator:
         # a distance, never negative: the speed's magnitude (a log's signed wheel speeds or odometry
         # count reversing as distance too, as the reader does for a body twist)
         raw = window_distance(inputs.windows, inputs.drive, np.abs(values))
-        nominal = NOMINAL_RADIUS_M if unit == "rad/s" else 1.0
+        nominal = nominal_mps_per_unit(unit)
         scale = calibrated_scale(inputs.windows, raw, inputs.starts, nominal)
         disp = raw[inputs.window_index] * scale[:, None]
         yaw = trapezoid_mean(inputs.gyro_radps - inputs.bias.gyro_radps)

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.gnss_quality import fault_names
+from ..core.grid import WINDOW_S
 from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
@@ -117,7 +118,7 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
         if k < 0 or not valid_start(windows, k, n) or abs(windows.t0_s[k] - t) > 1.0:
             raise InputError(
                 f"start time {t:g} s: no {n} s outage fits there",
-                f"choose start times between 1 s and {max(0.0, windows.t0_s[-1] + 1 - n) if len(windows) else 0:g} s, away from gaps in the log",
+                f"choose start times between 1 s and {max(0.0, windows.t0_s[-1] + WINDOW_S - n) if len(windows) else 0:g} s, away from gaps in the log",
                 param="placement",
             )
         if starts and k < starts[-1] + n:

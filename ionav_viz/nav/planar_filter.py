@@ -62,8 +62,9 @@ from numba import njit
 
 from ..core.drive import Drive
 from ..core.geo import local_en_m
-from ..core.grid import GRID_RATE_HZ
-from .vehicle_speed import NOMINAL_RADIUS_M, vehicle_speed
+from ..core.gnss_quality import position_sigma_m
+from ..core.grid import GRID_RATE_HZ, WINDOW_S
+from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
 E, N, V, PSI, BA, BG, K, S = range(8)
@@ -219,11 +220,17 @@ def _update(x, P, H, z, h_x, r, wrap):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
-    """The vehicle speed ``z = k v``."""
+def _vehicle_row(x, H):  # pragma: no cover - compiled
+    """The vehicle speed's prediction ``k v`` from the state ``x``, and its row of H into ``H`` (8,)."""
     H[:] = 0.0
     H[V], H[K] = x[K], x[V]
-    _update(x, P, H, z, x[K] * x[V], r, False)
+    return x[K] * x[V]
+
+
+@njit(cache=True)
+def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
+    """The vehicle speed ``z = k v``."""
+    _update(x, P, H, z, _vehicle_row(x, H), r, False)
 
 
 @njit(cache=True)
@@ -293,6 +300,22 @@ def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_veh
     return disp, yaw
 
 
+def propagate_window(x: np.ndarray, F: float, G: float, W: float, T: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """One window of the filter's propagation (see the module docstring) from the state ``x`` (8,):
+    the state after it, its Jacobian ``d x' / d x`` (8 x 8) as the covariance is propagated with,
+    the distance (m) and the mean yaw rate (rad/s, counter-clockwise)."""
+    out, J = np.array(x, dtype=float), np.zeros((N_STATES, N_STATES))
+    d, rate = _propagate(out, np.zeros((N_STATES, N_STATES)), float(F), float(G), float(W), float(T), np.zeros(N_STATES), J)
+    return out, J, float(d), float(rate)
+
+
+def vehicle_speed_model(x: np.ndarray) -> tuple[float, np.ndarray]:
+    """The vehicle speed as the filter predicts it from the state ``x`` (8,) (``k v``, m/s) and its
+    row of H (8,)."""
+    H = np.zeros(N_STATES)
+    return float(_vehicle_row(np.asarray(x, dtype=float), H)), H
+
+
 @dataclass
 class Measurements:
     """GNSS at every window boundary (arrays of n_windows + 1, local metres), and the vehicle
@@ -317,15 +340,13 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise, use_vehicle_sp
     course = np.deg2rad(np.concatenate([windows.heading0_deg, windows.heading1_deg[-1:]]))
     ok = windows.truth_ok
     good = np.concatenate([[ok[0]], ok[1:] | ok[:-1], [ok[-1]]])  # the fix ends or starts a good window
-    sigma = np.full(len(lat), noise.gnss_position_m)
-    if "gnss_sigma_m" in drive.columns:
-        t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + 1.0])
-        sigma = np.maximum(np.interp(t, drive.t_s, drive.columns["gnss_sigma_m"]), 0.3)
+    t = np.concatenate([windows.t0_s, windows.t0_s[-1:] + WINDOW_S])
+    sigma = position_sigma_m(t, drive.t_s, drive.columns.get("gnss_sigma_m"), noise.gnss_position_m)
     vehicle = np.full(len(windows), np.nan)
     found = vehicle_speed(drive) if use_vehicle_speed else None
     if found is not None:
         values, unit, _ = found
-        per_s = values * (NOMINAL_RADIUS_M if unit == "rad/s" else 1.0)
+        per_s = speed_in_mps(values, unit)
         steps = int(round(windows.rate_hz))
         vehicle = np.interp(windows.t0_s + steps / windows.rate_hz, drive.t_s, per_s)  # at each window's end
     return Measurements(e, n, speed, course, good, sigma, vehicle)

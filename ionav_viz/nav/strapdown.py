@@ -11,7 +11,9 @@ Frames and conventions
 Nominal state (20): ``p`` (3, m), ``v`` (3, m/s, in ``n``), ``q`` (4), gyro bias ``b_g`` (3,
 rad/s), accelerometer bias ``b_a`` (3, m/s^2), the vehicle speed's scale ``k`` (its reading over
 the true forward speed), the residual mount yaw and pitch ``psi_m``, ``theta_m`` (rad: how far the
-vehicle's forward axis lies from the IMU's x axis after the reader's mount correction) and the
+vehicle's forward axis lies from the IMU's x axis after the reader's mount correction; signed as
+:mod:`ionav_viz.core.rotation` has it: yaw positive where the IMU's x points left of the vehicle's
+forward axis, pitch positive where it points below it) and the
 gyro z scale error ``s_g`` (the gyro reads ``(1 + s_g)`` times the true rate about z).
 
 Mechanisation, per IMU sample step ``dt`` with the trapezoid mean of the two samples' rate and
@@ -42,7 +44,7 @@ window boundary, as scalar updates, their corrections fed back into the nominal 
 * odometer: the vehicle speed reads ``k`` times the forward velocity;
 * zero velocity where the IMU says the vehicle stands (:mod:`ionav_viz.nav.stillness`) and the
   filter's velocity agrees (a chi-square gate, ZUPT_GATE): velocity zero, and the mean gyro over
-  the last second is its bias plus the Earth's rate (ZARU).
+  the last second (the window's samples, at any rate) is its bias plus the Earth's rate (ZARU).
 
 Noise values are :class:`GinsNoise`; the sensors' white noise is measured on the drive itself.
 
@@ -75,6 +77,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from ..core import rotation
 
 #: A GNSS position component further than this many variances (a chi-square, 1 degree of freedom:
 #: 5 sigma) from the filter's prediction is a jump, not a fix (receivers jump by metres when they
@@ -148,33 +152,12 @@ class GinsNoise:
 
 
 # ---------------------------------------------------------------------------------------------
-# small rotation helpers (compiled)
+# the rotation helpers of :mod:`ionav_viz.core.rotation`, compiled
 
-
-@njit(cache=True)
-def quat_mul(a, b):  # pragma: no cover - compiled
-    """The Hamilton product ``a b`` of quaternions (w, x, y, z)."""
-    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
-
-
-@njit(cache=True)
-def _quat_of_rotvec(r):  # pragma: no cover - compiled
-    angle = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
-    if angle < 1e-12:
-        return np.array([1.0, 0.5 * r[0], 0.5 * r[1], 0.5 * r[2]])
-    s = math.sin(0.5 * angle) / angle
-    return np.array([math.cos(0.5 * angle), s * r[0], s * r[1], s * r[2]])
-
-
-@njit(cache=True)
-def _dcm(q):  # pragma: no cover - compiled
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+_quat_mul = njit(cache=True)(rotation.quat_mul)
+_quat_of_rotvec = njit(cache=True)(rotation.quat_of_rotvec)
+_dcm = njit(cache=True)(rotation.dcm_of_quat)
+_skew = njit(cache=True)(rotation.skew)
 
 
 @njit(cache=True)
@@ -240,11 +223,6 @@ def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, omega_ie, g0, radius, out):  # pra
 # the error-state filter (compiled)
 
 
-@njit(cache=True)
-def _cross_matrix(a):  # pragma: no cover - compiled
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
 # Plain loops for the 3 x 3 products: numba's ``@`` needs SciPy's BLAS, which is not a dependency.
 
 
@@ -267,7 +245,7 @@ def _tmul3(A, v):  # pragma: no cover - compiled
 @njit(cache=True)
 def _body_velocity_jacobian(C, v):  # pragma: no cover - compiled
     """``-C^T [v x]``: how the body-frame velocity ``C^T v`` moves with the attitude error ``phi``."""
-    X = _cross_matrix(v)
+    X = _skew(v)
     M = np.zeros((3, 3))
     for i in range(3):
         for j in range(3):
@@ -280,7 +258,7 @@ def _transition(C, fn, wz, T, D):  # pragma: no cover - compiled
     """``Phi - I`` for a window of ``T`` s into ``D`` (every entry it has is written; the rest stay
     zero): the series of ``exp(F T)`` to third order, whose only blocks are these (rows dp, dv,
     phi; columns dv, phi, db_g, db_a, ds_g)."""
-    Fx = _cross_matrix(fn)
+    Fx = _skew(fn)
     FxC = _mul3(Fx, C)
     cz = C[:, 2] * wz
     Fxcz = np.cross(fn, cz)
@@ -393,16 +371,15 @@ def _correct(x, dx):  # pragma: no cover - compiled
     x[THM] -= dx[DTHM]
     x[SG] -= dx[DSG]
     # C = (I + [phi x]) C_hat: the quaternion of the small rotation phi, on the left
-    q = quat_mul(_quat_of_rotvec(dx[PHI:PHI + 3]), x[QW:QW + 4].copy())
+    q = _quat_mul(_quat_of_rotvec(dx[PHI:PHI + 3]), x[QW:QW + 4].copy())
     x[QW:QW + 4] = q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     dx[:] = 0.0
 
 
 @njit(cache=True)
-def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
-    """A measurement of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (the body-frame velocity
-    ``vb = C^T v``, ``M = -C^T [v x]`` its attitude Jacobian); ``dz``: prediction minus measurement.
-    ``cols``/``H``: scratch of 7."""
+def _body_velocity_row(C, M, row, scale, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
+    """The row of H (its 7 nonzeros ``H`` at ``cols``) of a measurement of ``scale * (C^T v)[row] +
+    extra_h * state[extra_col]`` (``M = -C^T [v x]``: the body-frame velocity's attitude Jacobian)."""
     for j in range(3):
         cols[j] = DV + j
         H[j] = scale * C[j, row]
@@ -410,7 +387,26 @@ def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h
         H[3 + j] = scale * M[row, j]
     cols[6] = extra_col
     H[6] = extra_h
+
+
+@njit(cache=True)
+def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
+    """A measurement of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (the body-frame velocity
+    ``vb = C^T v``, ``M = -C^T [v x]`` its attitude Jacobian); ``dz``: prediction minus measurement.
+    ``cols``/``H``: scratch of 7."""
+    _body_velocity_row(C, M, row, scale, extra_col, extra_h, cols, H)
     _scalar_update(P, dx, H, cols, dz, r)
+
+
+@njit(cache=True)
+def _vehicle_velocity_rows(x, vb):  # pragma: no cover - compiled
+    """The NHC's two measurements and the odometer's, each ``(body axis, scale, prediction, extra
+    state, its H)`` for :func:`_body_velocity_update`: the vehicle frame's lateral ``vb_y + psi_m
+    vb_x`` and vertical ``vb_z - theta_m vb_x`` velocity (both measured zero), and the odometer's
+    ``k vb_x`` (``vb = C^T v``)."""
+    return ((1, 1.0, vb[1] + x[PSIM] * vb[0], DPSIM, vb[0]),
+            (2, 1.0, vb[2] - x[THM] * vb[0], DTHM, -vb[0]),
+            (0, x[KO], x[KO] * vb[0], DK, vb[0]))
 
 
 @njit(cache=True)
@@ -433,13 +429,14 @@ def _constraints(x, P, dx, nhc, r_lat, r_vert, odo, r_odo, still, r_zupt, gyro_m
     vb = _tmul3(C, v)
     M = _body_velocity_jacobian(C, v)
     cols, H = np.empty(7, dtype=np.int64), np.empty(7)
+    lat, vert, fwd = _vehicle_velocity_rows(x, vb)
     if nhc:
-        # vehicle lateral = vb_y + psi_m vb_x, vertical = vb_z - theta_m vb_x; both zero
-        _body_velocity_update(C, vb, M, dx, P, 1, 1.0, vb[1] + x[PSIM] * vb[0], r_lat, DPSIM, vb[0], cols, H)
-        _body_velocity_update(C, vb, M, dx, P, 2, 1.0, vb[2] - x[THM] * vb[0], r_vert, DTHM, -vb[0], cols, H)
+        # the vehicle frame's lateral and vertical velocity are zero
+        _body_velocity_update(C, vb, M, dx, P, lat[0], lat[1], lat[2], r_lat, lat[3], lat[4], cols, H)
+        _body_velocity_update(C, vb, M, dx, P, vert[0], vert[1], vert[2], r_vert, vert[3], vert[4], cols, H)
     if not math.isnan(odo):
         # the odometer reads k times the forward velocity
-        _body_velocity_update(C, vb, M, dx, P, 0, x[KO], x[KO] * vb[0] - odo, r_odo, DK, vb[0], cols, H)
+        _body_velocity_update(C, vb, M, dx, P, fwd[0], fwd[1], fwd[2] - odo, r_odo, fwd[3], fwd[4], cols, H)
 
 
 @njit(cache=True)
@@ -516,9 +513,9 @@ def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, ha
                 for i in range(9, N_ERR):
                     q_diag[i] = walk[i] * T
                 _propagate_covariance(P, D, q_diag, q_white_v * T * T / 2.0, scratch_a, scratch_b)
-            # the mean gyro reading over the last window, for the zero-rate update
+            # the mean gyro reading over the last window (its WINDOW_S second at any rate, both ends), for the zero-rate update
             gm[:] = 0.0
-            k0 = max(b_sample[b - 1], jb - 10)
+            k0 = b_sample[b - 1]
             for k in range(k0, jb + 1):
                 gm += gyr[k]
             gm /= jb + 1 - k0
@@ -564,3 +561,29 @@ def propagate(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, x
     return _propagate_all(np.ascontiguousarray(t_s, dtype=float), np.ascontiguousarray(accel_mps2, dtype=float),
                           np.ascontiguousarray(gyro_radps, dtype=float), np.asarray(x0, dtype=float), earth_rate_enu_radps(lat0_deg),
                           normal_gravity_mps2(lat0_deg, height0_m), EARTH_MEAN_RADIUS_M)
+
+
+def transition_matrix(C: np.ndarray, fn_mps2: np.ndarray, wz_radps: float, T_s: float) -> np.ndarray:
+    """The error state's transition matrix ``Phi`` (19 x 19) over a window of ``T_s`` s, as the filter
+    propagates its covariance: the window's mean attitude ``C`` (``C_b^n``), mean specific force in
+    ``n`` (m/s^2) and corrected z rate (rad/s); see the module docstring."""
+    D = np.zeros((N_ERR, N_ERR))
+    _transition(np.ascontiguousarray(C, dtype=float), np.asarray(fn_mps2, dtype=float), float(wz_radps), float(T_s), D)
+    return np.eye(N_ERR) + D
+
+
+def vehicle_velocity_model(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The NHC's lateral and vertical measurements and the odometer's, as the filter predicts them
+    from the nominal state ``x`` (20,) (``(3,)``: vehicle-frame lateral and vertical velocity, m/s;
+    ``k`` times the forward velocity) and their rows of H over the error state ``(3, 19)``."""
+    x = np.asarray(x, dtype=float)
+    C = _dcm(x[QW:QW + 4])
+    v = np.ascontiguousarray(x[VX:VX + 3])
+    vb, M = _tmul3(C, v), _body_velocity_jacobian(C, v)
+    cols, row_h = np.empty(7, dtype=np.int64), np.empty(7)
+    z, H = np.zeros(3), np.zeros((3, N_ERR))
+    for i, (axis, scale, predicted, extra_col, extra_h) in enumerate(_vehicle_velocity_rows(x, vb)):
+        _body_velocity_row(C, M, axis, scale, extra_col, extra_h, cols, row_h)
+        z[i] = predicted
+        H[i, cols] = row_h
+    return z, H

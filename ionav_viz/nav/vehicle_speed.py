@@ -29,6 +29,18 @@ def vehicle_speed(drive: Drive) -> tuple[np.ndarray, str, str] | None:
     return None
 
 
+def nominal_mps_per_unit(unit: str) -> float:
+    """How many m/s one of ``unit`` is, nominally: a wheel speed (``"rad/s"``) at
+    NOMINAL_RADIUS_M, a speed (``"m/s"``) as it is."""
+    return NOMINAL_RADIUS_M if unit == "rad/s" else 1.0
+
+
+def speed_in_mps(values: np.ndarray, unit: str) -> np.ndarray:
+    """:func:`vehicle_speed`'s values in m/s (wheel speeds at the nominal radius: odometry and the
+    filters calibrate the scale against GNSS)."""
+    return values * nominal_mps_per_unit(unit)
+
+
 def why_no_vehicle_speed(drive: Drive) -> str:
     """Why :func:`vehicle_speed` found none, for messages."""
     present = [c for cols, _ in SOURCES for c in cols if c in drive.columns]

@@ -4,15 +4,17 @@ log itself, given by the user, and applied at the reader.
 Convention: ``body = M @ imu`` for every specific-force and angular-rate vector, ``M`` a rotation
 (REP 103 body frame: x forward, y left, z up). The same matrix as ``--imu-axes`` (a signed
 permutation); a mount is any rotation. It is reported as the IMU's attitude in the body frame, in
-degrees, z-y-x: ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)``. So yaw +5 means the IMU's x axis points 5
+degrees, z-y-x: ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (the package's one convention,
+:mod:`ionav_viz.core.rotation`). So yaw +5 means the IMU's x axis points 5
 degrees to the left of forward, pitch +7 that it points 7 degrees down, roll +2 that its y axis is
 turned 2 degrees up (right-handed rotations about the body axes).
 
 Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS speed and course:
 
-* **up** (roll and pitch): the mean specific force where the vehicle stands still (speed below
-  0.3 m/s for at least 5 s in all), else over the whole drive (where the car's accelerations
-  average out), is gravity: the rotation that takes it onto +z, the shortest one;
+* **up** (roll and pitch): the mean specific force over the whole drive, where the car's
+  accelerations average out, is gravity: the rotation that takes it onto +z, the shortest one;
+  then three times again from the mean with the estimated motion (below, turned into the IMU's
+  axes) taken out;
 * **yaw**: in that levelled frame, the horizontal specific force ``h`` (east of the IMU's x, say)
   follows the body's ``b = (dv/dt, v * omega)`` (forward: the speed's derivative, the wheels' speed
   where the log has one, else the GNSS's; left: speed times the turn rate, counter-clockwise, from
@@ -24,8 +26,8 @@ Estimate (:func:`estimate_mount`), from grid samples of the IMU and the GNSS spe
 * **uncertainty**: yaw's standard deviation from the residuals, from their sums over 30 s blocks
   (batch means: a road's camber tilts gravity into ``h`` for tens of seconds, so neighbouring
   seconds are not independent), never below ``sigma / sqrt(2 * sum |b|^2)`` of independent seconds;
-  roll and pitch's from the spread of the still samples (or, over a whole drive, 1 degree: a
-  road's grade and the car's accelerations do not quite average out).
+  roll and pitch's a fixed 1 degree each (a road's grade and the car's accelerations do not quite
+  average out over a drive; not measured from the data).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.rotation import dcm_of_euler, dcm_of_quat, euler_of_dcm, skew
 from ..core.units import G_MPS2
 
 #: A mount further than this from the body frame (degrees, the rotation's angle) is "clearly not
@@ -44,8 +47,6 @@ MAX_SILENT_DEG = 10.0
 #: A mount closer than this (degrees) is left alone: gravity cannot tell so small a tilt from an
 #: accelerometer bias (0.1 m/s^2 is 0.6 deg) or the road's grade where the car stood.
 MIN_APPLIED_DEG = 2.0
-#: Still: below this speed (m/s); at least this many seconds of it make the gravity estimate.
-STILL_MPS, MIN_STILL_S = 0.3, 5.0
 #: Yaw uses samples above this speed (m/s), and needs this much horizontal excitation
 #: (sum of |b|^2 over samples, (m/s^2)^2) to say anything.
 MOVING_MPS = 0.5
@@ -58,20 +59,14 @@ GRAVITY_RANGE_MPS2 = (0.7 * G_MPS2, 1.3 * G_MPS2)
 
 
 def rotation_deg(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (degrees)."""
-    r, p, y = np.radians([roll, pitch, yaw])
-    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
-    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
-    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
-    return rz @ ry @ rx
+    """``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (degrees; :func:`ionav_viz.core.rotation.dcm_of_euler`)."""
+    return dcm_of_euler(*np.radians([roll, pitch, yaw]))
 
 
 def angles_deg(matrix: np.ndarray) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees of a rotation ``M = Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
-    pitch = -math.degrees(math.asin(float(np.clip(matrix[2, 0], -1.0, 1.0))))
-    roll = math.degrees(math.atan2(matrix[2, 1], matrix[2, 2]))
-    yaw = math.degrees(math.atan2(matrix[1, 0], matrix[0, 0]))
-    return roll, pitch, yaw
+    roll, pitch, yaw = euler_of_dcm(matrix)
+    return math.degrees(roll), math.degrees(pitch), math.degrees(yaw)
 
 
 def rotation_angle_deg(matrix: np.ndarray) -> float:
@@ -113,10 +108,7 @@ def parse_mount(text: str) -> np.ndarray | str:
         norm = math.sqrt(w * w + x * x + y * y + z * z)
         if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
             raise InputError(f"imu mount {text!r}: not a unit quaternion (norm {norm:.4g})", hint, param="imu_mount")
-        w, x, y, z = w / norm, x / norm, y / norm, z / norm
-        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        return dcm_of_quat((w / norm, x / norm, y / norm, z / norm))
     angles = {"roll": 0.0, "pitch": 0.0, "yaw": 0.0}
     for part in (p.strip() for p in text.split(",")):
         name, sep, value = part.partition("=")
@@ -163,7 +155,7 @@ def _onto_z(u: np.ndarray) -> np.ndarray:
     if s < 1e-12:
         return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])  # upside down: half a turn about x
     k = axis / s
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    kx = skew(k)
     return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
 
 

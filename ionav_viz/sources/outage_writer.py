@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,7 +37,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..core.fileio import atomic_path, atomic_write_bytes, check_output_file
+from ..core.fileio import atomic_path, atomic_write_bytes, check_output_file, staging_folder
 
 log = logging.getLogger("ionav_viz")
 
@@ -154,19 +155,11 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
     return OutageLog(out, "mcap", removed, gnss_topics)
 
 
-def _staging(out: Path) -> Path:
-    """A new hidden folder beside ``out`` to write into (made with stop signals held)."""
-    import tempfile
-
-    from ..core.signals import hold_signals
-
+def _staging(out: Path) -> AbstractContextManager[Path]:
+    """A new hidden folder beside ``out`` to write into, removed afterwards (:func:`.staging_folder`)."""
     if not out.parent.is_dir():
         raise InputError(f"{out}: no folder {out.parent}", "create it first", param="output")
-    release = hold_signals()
-    try:
-        return Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    finally:
-        release()
+    return staging_folder(out)
 
 
 def _bag_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: Path,
@@ -174,15 +167,13 @@ def _bag_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: P
     """The drive's topics as ``convert`` writes them (:mod:`.mcap_writer`), as a ROS 1 bag or a ROS 2
     bag folder: the MCAP's CDR messages, standard ROS types, re-serialised for ROS 1."""
     import os
-    import shutil
 
     from mcap.reader import make_reader
     from rosbags.typesys import Stores, get_typestore
 
     if not ros1 and out.exists():
         raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name", param="output")
-    stage = _staging(out)
-    try:
+    with _staging(out) as stage:
         written = _mcap_from_drive(drive, outages, stage / "drive.mcap", vehicle_speed)
         if ros1:
             from rosbags.rosbag1 import Writer
@@ -205,14 +196,11 @@ def _bag_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: P
             os.replace(stage / out.name, out)
         else:
             (stage / out.name).rename(out)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return OutageLog(out, "ros1" if ros1 else "ros2", written.removed, written.removed_topics)
 
 
 def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
     import os
-    import shutil
 
     from .message_log import get_field, stamp_ns
     from .rosbag_reader import RosbagLog
@@ -230,16 +218,13 @@ def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, g
                 ns = log_ns
         return bool(inside(np.array([ns * 1e-9]), outages)[0])
 
-    stage = _staging(out)
-    try:
+    with _staging(out) as stage:
         staged = stage / out.name
         removed = log_.copy(staged, set(gnss_topics), inside_outage)
         if log_.ros1:
             os.replace(staged, out)
         else:
             staged.rename(out)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return OutageLog(out, "ros1" if log_.ros1 else "ros2", removed, gnss_topics)
 
 

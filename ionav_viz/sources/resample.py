@@ -32,6 +32,7 @@ import numpy as np
 
 from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
 from ..core.errors import InputError
+from ..core.geo import radii_of_curvature_m
 from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, hold_course_when_slow
 from ..core.units import wrap_360
 from .imu_frame import YAW_REVERSED, check_imu_frame
@@ -215,11 +216,8 @@ def assemble_drive(path: Path, name: str, streams: LogStreams, mapping: np.ndarr
     vehicle_speed = streams.vehicle_speed
     wheels = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
     body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels, measured)
-    flipped = False
     if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto", measured=measured):
-        flipped = not flipped
-    if flipped:  # the yaw check found a clockwise z: turned over like --yaw-sign cw
-        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])  # the yaw check found a clockwise z: turned over like --yaw-sign cw
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
     columns |= dict(zip(IMU_COLUMNS, body.T, strict=True))  # the full IMU, body frame
@@ -394,7 +392,6 @@ FIX_COURSE_MIN_SPEED_MPS = 2.0
 #: Shortest half-width (s) of the local fit that gives speed and course from fixes: the fix noise is
 #: averaged over at least 2 s of track, never divided by the time between two fixes.
 MIN_HALF_BASELINE_S = 1.0
-_WGS84_A_M, _WGS84_E2 = 6_378_137.0, 6.694379990141317e-3
 
 
 def fit_fixes(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndarray) -> FixFit:
@@ -490,9 +487,9 @@ def _local_fit(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndar
             coef = np.linalg.solve(normal, (design.transpose(0, 2, 1) @ y[:, :, None]))
             position[a : a + block] = values[lo] + coef[:, 0, 0]
             rate[a : a + block] = coef[:, 1, 0]  # deg/s
-        sin2 = np.sin(np.radians(g_lat[lo])) ** 2
-        vn[a : a + block] *= np.radians(_WGS84_A_M * (1 - _WGS84_E2) / (1 - _WGS84_E2 * sin2) ** 1.5)
-        ve[a : a + block] *= np.radians(_WGS84_A_M / np.sqrt(1 - _WGS84_E2 * sin2)) * np.cos(np.radians(g_lat[lo]))
+        meridian_m, prime_vertical_m = radii_of_curvature_m(g_lat[lo])
+        vn[a : a + block] *= np.radians(meridian_m)
+        ve[a : a + block] *= np.radians(prime_vertical_m) * np.cos(np.radians(g_lat[lo]))
     return lat, lon, ve, vn
 
 

@@ -30,8 +30,6 @@ import contextlib
 import logging
 import math
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -40,7 +38,7 @@ import numpy as np
 
 from ..analysis.drift import error_cdf
 from ..core.errors import InputError
-from ..core.fileio import check_output_folder, check_regular_input, current_umask, parse_json_bounded, read_json_bounded, write_failure
+from ..core.fileio import check_output_folder, check_regular_input, current_umask, parse_json_bounded, read_json_bounded, staging_folder, write_failure
 from ..core.signals import hold_signals
 from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors
 
@@ -223,15 +221,9 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
              "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
              "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "tight", "savefig.pad_inches": 0.02}
     made = [] if folder.is_dir() else _make_parents(parent, given)
-    release = hold_signals()  # a signal between mkdtemp and the try would leave the folder behind
     try:
-        try:
-            scratch = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=parent))
-        except OSError as exc:
-            raise _write_error(given, exc) from None
-        try:
-            release()  # a signal held since before mkdtemp acts here, inside the cleanup
-            os.chmod(scratch, 0o777 & ~current_umask())  # mkdtemp makes 0700; a folder of figures gets the usual permissions
+        # removed at the end: gone when moved in; otherwise nothing half-drawn stays
+        with staging_folder(folder, parent, refused=lambda exc: _write_error(given, exc)) as scratch:
             names = []
             with rc_context(style):
                 for name, draw in (("drift", _drift), ("cdf", _cdf), ("outages", _outages), ("worst", _worst)):
@@ -245,13 +237,10 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
                         os.chmod(target, 0o666 & ~current_umask())
                         names.append(target.name)
             _move_in(scratch, folder, names, given)
-        finally:
-            shutil.rmtree(scratch, ignore_errors=True)  # gone when moved in; otherwise nothing half-drawn stays
     except BaseException:
         for level in reversed(made):  # folders made for the output, still empty
             with contextlib.suppress(OSError):
                 level.rmdir()
-        release()  # when mkdtemp failed (else a no-op)
         raise
     return [given / name for name in names]
 

@@ -23,6 +23,7 @@ from ..core.errors import ToolFailure
 from ..core.fileio import utf8_alias
 from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
+from ..core.grid import WINDOW_S
 from ..core.runs import run_ranges
 from ..nav.protocol import short_label
 from . import columns
@@ -234,7 +235,7 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
     import rerun as rr
 
     w, starts, n_win = result.windows, result.starts, result.n_windows
-    t_end = w.t0_s + 1.0
+    t_end = w.t0_s + WINDOW_S
     # windows without trustworthy truth are not drawn (NaN breaks the line: no spike to (0, 0))
     ok = w.truth_ok
     send(ent.displacement("gnss"), t_end, rr.Scalars.columns(scalars=np.where(ok, w.gnss_disp_m, np.nan)))
@@ -242,10 +243,10 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
     available = np.ones(len(w))
     idx = starts[:, None] + np.arange(n_win)[None, :]
     available[idx.ravel()] = 0.0
+    for b in result.bridged:  # the log's own GNSS losses, bridged: no GNSS there either
+        available[b.start : b.start + b.n_windows] = 0.0
     t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
     send(ent.GNSS_AVAILABLE, t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
-    for b in result.bridged:
-        available[b.start : b.start + b.n_windows] = 0.0
     states = np.full(len(w), ent.GNSS_AVAILABLE_STATE, dtype=object)
     for i, k in enumerate(starts):
         states[k : k + n_win] = ent.outage_state(i + 1, w.t0_s[k], w.t0_s[k] + n_win)
