@@ -87,3 +87,47 @@ def test_outage_log_output_a_nameless_folder(tmp_path, short_csv, output):
     done = run_cli("outage-log", str(short_csv), "-q", "-o", output, cwd=tmp_path / "here")
     _one_line_error(done, "-o")
     assert list((tmp_path / "here").iterdir()) == []
+
+
+# --- huge and absurd inputs ---------------------------------------------------------------------
+@pytest.fixture(scope="session")
+def outaged5(tmp_path_factory, short_csv) -> Path:
+    """The short drive's plan: one 10 s outage at 20 s."""
+    import ionav_viz as iv
+
+    folder = tmp_path_factory.mktemp("outaged5")
+    iv.outage_log(short_csv, folder / "cut.mcap", 10.0, iv.At((20.0,)))
+    return folder / "cut.outages.json"
+
+
+@pytest.mark.parametrize("name", ["sparse.csv", "sparse.tum"])
+def test_external_sparse_trajectory_refused_by_its_first_bytes(tmp_path, short_csv, outaged5, name):
+    """A 1 GB sparse file as ``--external``: its first "line" (the whole file) was read into memory
+    and quoted in the message, more than a minute; now the NUL bytes at its start refuse it."""
+    sparse = tmp_path / name
+    with open(sparse, "wb") as f:
+        f.truncate(1 << 30)
+    done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(outaged5), "--external", f"m={sparse}", "--estimators", "ins")
+    _one_line_error(done, "--external", name, "binary")
+
+
+def test_external_header_only_csv_one_line(tmp_path, short_csv, outaged5):
+    """A trajectory CSV with its header and no rows printed numpy's UserWarning ("loadtxt: input
+    contained no data") and the source line on stderr before the error."""
+    empty = tmp_path / "empty.csv"
+    empty.write_text("time_s,lat_deg,lon_deg\n")
+    done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(outaged5), "--external", f"m={empty}", "--estimators", "ins")
+    _one_line_error(done, "empty.csv", "fewer than 2 poses")
+
+
+def test_simulate_absurd_gnss_loss_count_is_bounded(tmp_path):
+    """``simulate --gnss-loss 1000000`` drew 50 million candidate losses (a hang of minutes); the
+    draws are bounded by what fits in the drive."""
+    import time
+
+    from ionav_viz.sim.simulate import gnss_loss_spans
+
+    start = time.monotonic()
+    spans = gnss_loss_spans("roundabout", 0, 120.0, 1_000_000)
+    assert time.monotonic() - start < 2.0
+    assert 1 <= len(spans) <= 4

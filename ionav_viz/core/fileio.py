@@ -299,6 +299,26 @@ def check_regular_tree(folder: str | Path, param: str, *, hint: str | None = Non
     return folder
 
 
+#: The longest first line a line-based text input (a trajectory CSV's header, a TUM line) may have.
+TEXT_LINE_MAX_BYTES = 1 << 16
+
+
+def check_text_head(path: str | Path, param: str, *, hint: str, what: str = "a text file") -> None:
+    """Check the start of the text input ``path`` before parsing it line by line: no NUL byte (a
+    sparse or binary file: its first "line" is the whole file, read into memory and quoted in the
+    message) and a first line shorter than :data:`TEXT_LINE_MAX_BYTES`."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(TEXT_LINE_MAX_BYTES)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
+    nul = head.find(b"\x00")
+    if nul >= 0:
+        raise InputError(f"{path}: binary data (a NUL byte at byte {nul}), not {what}", hint, param=param)
+    if len(head) == TEXT_LINE_MAX_BYTES and b"\n" not in head:
+        raise InputError(f"{path}: line 1 is longer than {TEXT_LINE_MAX_BYTES} bytes, not {what}", hint, param=param)
+
+
 #: A JSON input's default limits: an outage plan or a report is kilobytes and a few levels deep.
 JSON_MAX_BYTES = 64 << 20
 JSON_MAX_DEPTH = 64
