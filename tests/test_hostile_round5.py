@@ -131,3 +131,31 @@ def test_simulate_absurd_gnss_loss_count_is_bounded(tmp_path):
     spans = gnss_loss_spans("roundabout", 0, 120.0, 1_000_000)
     assert time.monotonic() - start < 2.0
     assert 1 <= len(spans) <= 4
+
+
+# --- full disks and signals mid-write --------------------------------------------------------------
+def test_export_failing_part_way_leaves_the_folder_as_it_was(tmp_path, short_csv, monkeypatch):
+    """``evaluate --export ex`` under ``ulimit -f`` (or a full disk) failing at a later file left
+    ``outages.csv`` and the TUM tracks without ``tracks.gpx``, and a new export folder made but
+    empty when the first file failed; now the export is staged and moved in whole."""
+    import errno
+
+    from ionav_viz.analysis import exports
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(exports, "_gpx", full)
+    done = run_cli("evaluate", str(short_csv), "-q", "--export", "new/ex", "--estimators", "ins", cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    assert "tracks.gpx" in done.stderr and "Traceback" not in done.stderr
+    assert list(tmp_path.iterdir()) == []  # neither ex nor the new/ made for it
+
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "outages.csv").write_text("previous\n")
+    (old / "mine.txt").write_text("the user's\n")
+    done = run_cli("evaluate", str(short_csv), "-q", "--export", "old", "--estimators", "ins", cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    assert sorted(p.name for p in old.iterdir()) == ["mine.txt", "outages.csv"]
+    assert (old / "outages.csv").read_text() == "previous\n"
