@@ -28,7 +28,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import atomic_write_bytes, write_failure
+from ..core.fileio import write_failure
 from ..core.geo import local_en_m
 from ..core.json_out import dumps_json
 from .metrics import METRICS, truth_boundaries
@@ -39,31 +39,88 @@ OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estim
 
 def export_results(results: list[Any], folder: str | Path) -> list[Path]:
     """Write the exports of ``results`` (:class:`~ionav_viz.analysis.evaluate.DriveResult` s of one
-    report) into ``folder`` (made when missing, with its parents). Returns the files written."""
-    folder = Path(folder)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        if (failure := write_failure(folder, exc)) is not None:
-            raise failure from None
-        raise InputError(f"{folder}: cannot make the export folder ({exc.strerror or type(exc).__name__})", "choose a writable folder",
-                         param="export") from None
-    written = [_write(folder / "outages.csv", _outages_csv(results).encode())]
+    report) into ``folder`` (made when missing, with its parents). Returns the files written.
+
+    Everything is written into a hidden folder inside ``folder`` first and moved in when complete,
+    with stop signals held (each file renamed over its old version, each drive's ``tum/<drive>``
+    swapped whole): a full disk or a signal part-way left ``outages.csv`` without the tracks, and a
+    new export folder made but empty. Now ``folder`` is as it was, and a folder made here removed."""
+    import shutil
+    import tempfile
+
+    from ..core.fileio import check_output_folder, current_umask, made_folders, swap_in_directory
+    from ..core.signals import hold_signals
+
+    folder = check_output_folder(Path(folder), param="export")
+    with made_folders(folder):
+        release = hold_signals()  # a signal between mkdtemp and the try would leave the stage behind
+        try:
+            try:
+                stage = Path(tempfile.mkdtemp(prefix=".export.", dir=folder))
+            except OSError as exc:
+                raise _failure(folder, exc) from None
+            try:
+                release()  # a signal held since before mkdtemp acts here, inside the cleanup
+                files, drives = _write_all(results, stage, folder)
+                _move_in(stage, folder, files, drives, current_umask(), swap_in_directory, hold_signals)
+            finally:
+                shutil.rmtree(stage, ignore_errors=True)
+        finally:
+            release()
+    return [folder / f for f in files] + [folder / "tum" / d / f for d, names in drives.items() for f in names]
+
+
+def _failure(target: Path, exc: OSError) -> Exception:
+    return write_failure(target, exc) or InputError(f"{target}: cannot write the export ({exc.strerror or type(exc).__name__})",
+                                                    "choose a writable folder", param="export")
+
+
+def _write_all(results: list[Any], stage: Path, folder: Path) -> tuple[list[str], dict[str, list[str]]]:
+    """Every export file of ``results`` into ``stage``: the top-level files' names, and each drive's TUM files."""
+    drives: dict[str, list[str]] = {}
     features, gpx_tracks = [], []
-    for res in results:
-        written += _tum_folder(res, folder / "tum" / _safe(res.drive.name))
-        f, g = _tracks(res)
-        features += f
-        gpx_tracks += g
-    written.append(_write(folder / "tracks.geojson", dumps_json({"type": "FeatureCollection", "features": features}, indent=None).encode()))
-    written.append(_write(folder / "tracks.gpx", _gpx(gpx_tracks).encode()))
-    return written
+    name = "outages.csv"
+    try:
+        (stage / name).write_bytes(_outages_csv(results).encode())
+        for res in results:
+            if len(res.starts):
+                name = f"tum/{_safe(res.drive.name)}"
+                (stage / name).mkdir(parents=True)
+                drives[_safe(res.drive.name)] = _tum_files(res, stage / name)
+            f, g = _tracks(res)
+            features += f
+            gpx_tracks += g
+        name = "tracks.geojson"
+        (stage / name).write_bytes(dumps_json({"type": "FeatureCollection", "features": features}, indent=None).encode())
+        name = "tracks.gpx"
+        (stage / name).write_bytes(_gpx(gpx_tracks).encode())
+    except OSError as exc:
+        raise _failure(folder / name, exc) from None
+    return ["outages.csv", "tracks.geojson", "tracks.gpx"], drives
 
 
-def _write(path: Path, data: bytes) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, data)
-    return path
+def _move_in(stage: Path, folder: Path, files: list[str], drives: dict[str, list[str]], umask: int, swap_in_directory: Any,
+             hold_signals: Any) -> None:
+    import os
+
+    for path in stage.rglob("*"):  # written by open(): the usual permissions already; folders from mkdir too
+        os.chmod(path, (0o777 if path.is_dir() else 0o666) & ~umask)
+    release = hold_signals()
+    try:
+        for name in files:
+            if (folder / name).is_dir() or ((folder / name).exists() and not (folder / name).is_file()):
+                raise InputError(f"{folder / name}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another folder",
+                                 param="export")
+        if drives:
+            (folder / "tum").mkdir(exist_ok=True)
+        for name in files:
+            os.replace(stage / name, folder / name)
+        for drive in drives:
+            swap_in_directory(stage / "tum" / drive, folder / "tum" / drive)
+    except OSError as exc:
+        raise _failure(folder, exc) from None
+    finally:
+        release()  # a signal that came during the moves acts now, with the export complete
 
 
 def _safe(name: str) -> str:
@@ -101,20 +158,6 @@ def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndar
     rows = ["# timestamp x y z qx qy qz qw  (x east, y north m about the drive's first GNSS fix; ionav-viz)"]
     rows += [f"{ti:.6f} {x:.4f} {y:.4f} 0 0 0 {math.sin(a / 2):.9f} {math.cos(a / 2):.9f}" for ti, x, y, a in zip(t, east, north, yaw)]
     return "\n".join(rows) + "\n"
-
-
-def _tum_folder(res: Any, folder: Path) -> list[Path]:
-    """A drive's TUM files, written into a hidden folder beside ``folder`` and put in its place
-    at once (a folder of thousands of files: one atomic swap, not one per file)."""
-    from ..core.fileio import staging_folder, swap_in_directory
-
-    if len(res.starts) == 0:
-        return []
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    with staging_folder(folder) as stage:
-        names = _tum_files(res, stage)
-        swap_in_directory(stage, folder)
-    return [folder / n for n in names]
 
 
 def _tum_files(res: Any, folder: Path) -> list[str]:

@@ -62,6 +62,9 @@ def outage_log(
     from ..sources.outage_writer import write_outage_log
 
     out = Path(output)
+    if out.name in ("", ".", ".."):  # '.', '..', '/': an existing folder, and no name to derive the plan's from
+        raise InputError(f"{out}: exists; an outage log is a new file (.mcap, .bag, .csv) or a new folder (a ROS 2 bag)",
+                         "name a new one, e.g. -o cut.mcap", param="output")
     plan_file = plan_path_of(out)
     if out.suffix:
         check_output_file(out)

@@ -10,7 +10,7 @@ from ..analysis.evaluate import DriveResult, evaluate_drive
 from ..analysis.events import Event, detect_events
 from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.errors import InputError
-from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input
+from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input, refuse_output_onto_output
 from ..core.timing import stage
 from ..core.warnings_log import collecting_warnings
 from ..nav.outages import Placement
@@ -101,11 +101,12 @@ def replay(
     if export is not None:
         check_output_folder(Path(export), param="export")
         refuse_export_onto_inputs(export, inputs)
+        refuse_output_onto_output(out, export, param="export", replaced=["tum"])
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()
     with collecting_warnings() as warned:
-        replayed = _replay(drive, n, placement, out, run, read, progress, connect, warned)
+        replayed = _replay(drive, n, placement, out, run, read, progress, connect, warned, export)
     if export is not None:
         from ..analysis.exports import export_results
 
@@ -114,7 +115,7 @@ def replay(
 
 
 def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, run: RunOptions, read: ReadOptions,
-            progress: Progress | None, connect: str | None, warned: list[str]) -> ReplayResult:
+            progress: Progress | None, connect: str | None, warned: list[str], export: str | Path | None = None) -> ReplayResult:
     from ..core.fileio import atomic_path
     from ..viz import live
     from ..viz.recording import write_recording
@@ -133,6 +134,7 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
         raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {n:g} s outage", "use shorter outages", param="outage_s")
     default = out is None
     out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
+    refuse_output_onto_output(out, export, param="export", replaced=["tum"])  # the default name is known only now
     chosen = run.applying_to([d])
     result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
                             gnss_gaps=plan.gnss_gaps)

@@ -60,10 +60,11 @@ def replay(
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)
     if screenshot_dir is not None:  # checked before any work, as the other outputs are
         from ..api.options import input_paths
-        from ..core.fileio import check_output_folder, refuse_output_onto_input
+        from ..core.fileio import check_output_folder, refuse_output_onto_input, refuse_output_onto_output
 
-        with options_named(screenshot="--screenshot"):
+        with options_named(screenshot="--screenshot", output="-o", export="--export"):
             check_output_folder(screenshot_dir, param="screenshot")
+            refuse_output_onto_output(output, screenshot_dir, param="screenshot", folder_is="the screenshot folder")
             refuse_output_onto_input(screenshot_dir, input_paths(drive_spec, read, run=run, plan=chosen, external=c.externals_of(external)),
                                      param="screenshot")
     if open_viewer:

@@ -39,6 +39,7 @@ def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
     (never a directory, device node, FIFO or socket: those are not replaced). Returns ``target``."""
     target = Path(target)
     parent = target.parent if str(target.parent) else Path(".")
+    refuse_system_output(target)
     if create_parent and not parent.exists() and parent.parent.is_dir():
         if not os.access(parent.parent, os.W_OK | os.X_OK):
             raise InputError(f"{target}: cannot create {parent} in {parent.parent} (permission denied)", "choose a writable output directory",
@@ -56,10 +57,47 @@ def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
     return target
 
 
+#: Folders of the system's own special files: an output there (``-o /dev/stdout``, a link into
+#: ``/proc/self/fd``) would replace a system file, never write a user's (``/dev/shm`` is a user's tmpfs).
+_SYSTEM_DIRS = (Path("/dev"), Path("/proc"), Path("/sys"))
+_USER_DIRS_IN_SYSTEM = (Path("/dev/shm"),)
+
+
+def refuse_system_output(target: str | Path, param: str = "output") -> None:
+    """Refuse an output under ``/dev``, ``/proc`` or ``/sys``, as given or once links are resolved
+    (``-o /dev/stdout`` when standard output is a file passed every other check, and the rename
+    replaced the system's ``/dev/stdout`` link with a regular file), and a link loop."""
+    target = Path(target)
+    try:
+        os.stat(target)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise InputError(f"{target}: is a loop of symbolic links", "remove the link or choose another output", param=param) from None
+    for where in [*_link_chain(target), Path(os.path.realpath(target))]:
+        if any(where == d or d in where.parents for d in _SYSTEM_DIRS) and not any(
+                where == d or d in where.parents for d in _USER_DIRS_IN_SYSTEM):
+            shown = "" if where == Path(os.path.abspath(target)) else f" (a link to {where})"
+            raise InputError(f"{target}: is a system file{shown}, not an output ionav-viz writes",
+                             "name a regular file in a folder of yours (standard output is redirected by the shell, not named)", param=param)
+
+
+def _link_chain(path: Path) -> list[Path]:
+    """``path`` (absolute) and every path its symbolic links lead through, in order (at most 40)."""
+    chain = [Path(os.path.abspath(path))]
+    for _ in range(40):
+        try:
+            step = os.readlink(chain[-1])
+        except OSError:  # not a link (or gone): the chain ends
+            break
+        chain.append(Path(os.path.abspath(os.path.join(chain[-1].parent, step))))
+    return chain
+
+
 def check_output_folder(folder: Path, param: str = "output") -> Path:
     """Check, before any work, that ``folder`` is a directory or can be made (with its parents) in
     the nearest existing one, which must be writable. Returns ``folder``; nothing is created."""
     folder = Path(folder)
+    refuse_system_output(folder, param)
     if folder.exists():
         if not folder.is_dir():
             raise InputError(f"{folder}: exists and is not a folder", "choose a folder name", param=param)
@@ -292,6 +330,26 @@ def check_regular_tree(folder: str | Path, param: str, *, hint: str | None = Non
     return folder
 
 
+#: The longest first line a line-based text input (a trajectory CSV's header, a TUM line) may have.
+TEXT_LINE_MAX_BYTES = 1 << 16
+
+
+def check_text_head(path: str | Path, param: str, *, hint: str, what: str = "a text file") -> None:
+    """Check the start of the text input ``path`` before parsing it line by line: no NUL byte (a
+    sparse or binary file: its first "line" is the whole file, read into memory and quoted in the
+    message) and a first line shorter than :data:`TEXT_LINE_MAX_BYTES`."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(TEXT_LINE_MAX_BYTES)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
+    nul = head.find(b"\x00")
+    if nul >= 0:
+        raise InputError(f"{path}: binary data (a NUL byte at byte {nul}), not {what}", hint, param=param)
+    if len(head) == TEXT_LINE_MAX_BYTES and b"\n" not in head:
+        raise InputError(f"{path}: line 1 is longer than {TEXT_LINE_MAX_BYTES} bytes, not {what}", hint, param=param)
+
+
 #: A JSON input's default limits: an outage plan or a report is kilobytes and a few levels deep.
 JSON_MAX_BYTES = 64 << 20
 JSON_MAX_DEPTH = 64
@@ -416,6 +474,25 @@ def refuse_output_onto_input(output: str | Path | None, inputs: Iterable[str | P
             raise InputError(f"{out}: holds the input {inp}, and the output folder is replaced whole", hint, param=param)
         if inp_stat is not None and stat.S_ISDIR(inp_stat.st_mode) and inp_real in out_real.parents:
             raise InputError(f"{out}: is inside the input folder {inp}", hint, param=param)
+
+
+def refuse_output_onto_output(file: str | Path | None, folder: str | Path | None, *, param: str, file_is: str = "the recording",
+                              folder_is: str = "the export folder", replaced: Iterable[str] = ()) -> None:
+    """Refuse, before any work, two outputs of one command that collide: the file output ``file``
+    (``-o X.rrd``, ``file_is`` in messages) and the folder output ``folder`` (``--export``,
+    ``--screenshot``: ``folder_is``) the same path (the file was written, then the other output
+    failed on it), or ``file`` inside one of ``replaced``, the subfolders of ``folder`` that are
+    replaced whole (``--export``'s ``tum``: the file would be deleted). ``None`` skips the check."""
+    if file is None or folder is None:
+        return
+    file_real, folder_real = Path(os.path.realpath(file)), Path(os.path.realpath(folder))
+    hint = "give the two outputs different places"
+    if file_real == folder_real or file_real in folder_real.parents:
+        raise InputError(f"{folder}: is both {file_is} and {folder_is}" if file_real == folder_real else
+                         f"{folder}: {folder_is} would lie inside {file_is} {file}", hint, param=param)
+    for name in replaced:
+        if folder_real / name == file_real or folder_real / name in file_real.parents:
+            raise InputError(f"{file}: {file_is} would lie in {Path(folder) / name}, which {folder_is} replaces whole", hint, param=param)
 
 
 def _stat_or_none(path: Path) -> os.stat_result | None:

@@ -396,7 +396,8 @@ def gnss_loss_spans(scenario: str, seed: int, duration_s: float, count: int) -> 
     truth = plan_truth(scenario, seed, duration_s)
     rng = np.random.default_rng([seed, 2000 + SIMULATED_SCENARIOS.index(scenario)])  # its own stream: the rest of the drive is unchanged
     spans: list[tuple[float, float, str]] = []
-    for _ in range(50 * count):
+    room = max(1, int((duration_s - LOSS_CLEAR_S) // (LOSS_LENGTH_S[0] + LOSS_CLEAR_S)))  # the most that can fit
+    for _ in range(50 * min(count, room)):  # --gnss-loss 1000000 drew 50 M times (a hang) for the few that fit
         if len(spans) == count:
             break
         length = float(np.round(rng.uniform(*LOSS_LENGTH_S), 1))

@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import check_regular_input, check_regular_tree
+from ..core.fileio import check_regular_input, check_regular_tree, check_text_head
 from ..core.geo import M_PER_DEG
 
 #: A trajectory file larger than this is refused (a day at 100 Hz in CSV is about 300 MB).
@@ -74,6 +75,8 @@ def read_trajectory(spec: str | Path) -> Trajectory:
     suffix = path.suffix.lower()
     if path.is_file() and path.stat().st_size > MAX_BYTES:
         raise InputError(f"{path}: {path.stat().st_size} bytes is too large for a trajectory", _TRAJECTORY_HINT, param="external")
+    if suffix in (".tum", ".csv"):  # a 1 GB sparse file was read whole as its header and quoted in the message (a hang)
+        check_text_head(path, "external", hint=_TRAJECTORY_HINT, what="a trajectory")
     if suffix == ".tum":
         return _from_tum(path)
     if suffix == ".csv":
@@ -118,13 +121,15 @@ def _from_csv(path: Path) -> Trajectory:
     try:
         with open(path, encoding="utf-8") as f:
             header = [h.strip() for h in f.readline().split(",")]
-            data = np.loadtxt(f, delimiter=",", ndmin=2, usecols=(0, 1, 2)) if header else np.zeros((0, 3))
+            with warnings.catch_warnings():  # a header without rows: numpy's "input contained no data" warning on stderr
+                warnings.simplefilter("ignore", UserWarning)
+                data = np.loadtxt(f, delimiter=",", ndmin=2, usecols=(0, 1, 2)) if header else np.zeros((0, 3))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: not a trajectory CSV ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
                          param="external") from None
     names = tuple(header[:3])
     if names not in (("time_s", "lat_deg", "lon_deg"), ("time_s", "east_m", "north_m")):
-        raise InputError(f"{path}: header {','.join(header[:3])!r} is not time_s,lat_deg,lon_deg or time_s,east_m,north_m", _TRAJECTORY_HINT, param="external")
+        raise InputError(f"{path}: header {','.join(header[:3])[:80]!r} is not time_s,lat_deg,lon_deg or time_s,east_m,north_m", _TRAJECTORY_HINT, param="external")
     return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], names[1] == "east_m")
 
 

@@ -1,0 +1,161 @@
+"""Hostile inputs, round 5 (issue 45, points 3 and 4): what still broke after rounds 1-4, tried on
+every command as a careless or malicious user would. Each case states what happened before.
+
+Bad input -> exit code 2, one line on stderr starting ``error:`` that names the file, option or
+field with a hint, no traceback, and nothing written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from .conftest import run_cli
+
+
+@pytest.fixture(scope="session")
+def short_csv(tmp_path_factory) -> Path:
+    """A 60 s simulated roundabout drive (IO-VNBD CSV)."""
+    from ionav_viz.sim.simulate import write_simulated_drive
+
+    return write_simulated_drive(tmp_path_factory.mktemp("drives5") / "V-short.csv", "roundabout", seed=4, duration_s=60)
+
+
+def _one_line_error(done, *words: str) -> str:
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:"), done.stderr
+    assert "Traceback" not in done.stderr
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+# --- output equal to output, or to a system file ----------------------------------------------------
+def test_replay_output_and_export_the_same_path_refused_before_work(tmp_path, short_csv):
+    """``replay -o X.rrd --export X.rrd`` wrote the recording, then failed making the export folder
+    (exit 2 with X.rrd written)."""
+    done = run_cli("replay", str(short_csv), "-q", "-o", "X.rrd", "--export", "X.rrd", "--estimators", "ins", cwd=tmp_path)
+    _one_line_error(done, "--export", "X.rrd")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_replay_output_and_screenshot_the_same_path_refused_before_work(tmp_path, short_csv):
+    """``replay -o X.rrd --screenshot X.rrd`` wrote the recording, then the screenshot step called it
+    its own input ("is the input X.rrd"), exit 2 with X.rrd written."""
+    done = run_cli("replay", str(short_csv), "-q", "-o", "X.rrd", "--screenshot", "X.rrd", "--estimators", "ins", cwd=tmp_path)
+    _one_line_error(done, "--screenshot", "X.rrd")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_replay_output_inside_the_export_tum_folder_refused(tmp_path, short_csv):
+    """``-o ex/tum/X.rrd --export ex``: the export replaces ``ex/tum/<drive>`` whole."""
+    (tmp_path / "ex" / "tum").mkdir(parents=True)
+    done = run_cli("replay", str(short_csv), "-q", "-o", "ex/tum/X.rrd", "--export", "ex", "--estimators", "ins", cwd=tmp_path)
+    _one_line_error(done, "--export", "tum")
+    assert list((tmp_path / "ex" / "tum").iterdir()) == []
+
+
+def test_output_through_a_link_into_proc_refused(tmp_path):
+    """``simulate -o /dev/stdout`` with standard output a file passed every check, and the rename
+    replaced the system's ``/dev/stdout`` link with a regular file (as root). Tried here on a link
+    of our own into ``/proc/self/fd`` (a regular file behind it), which was replaced the same way."""
+    behind = tmp_path / "behind.txt"
+    with open(behind, "w") as keep_open:
+        link = tmp_path / "out.csv"
+        link.symlink_to(f"/proc/self/fd/{keep_open.fileno()}")
+        done = run_cli("simulate", "roundabout", "--duration", "30s", "-o", str(link))
+        _one_line_error(done, "out.csv", "system file")
+        assert link.is_symlink()
+    assert behind.stat().st_size == 0
+
+
+def test_output_a_symbolic_link_loop_refused(tmp_path):
+    """``simulate -o loop`` (a link loop) replaced the link with the drive, exit 0."""
+    (tmp_path / "a.csv").symlink_to("b.csv")
+    (tmp_path / "b.csv").symlink_to("a.csv")
+    done = run_cli("simulate", "roundabout", "--duration", "30s", "-o", "a.csv", cwd=tmp_path)
+    _one_line_error(done, "a.csv", "loop")
+    assert (tmp_path / "a.csv").is_symlink()
+
+
+@pytest.mark.parametrize("output", [".", "..", "/"])
+def test_outage_log_output_a_nameless_folder(tmp_path, short_csv, output):
+    """``outage-log D -o .`` was a ValueError traceback ("PosixPath('.') has an empty name")."""
+    (tmp_path / "here").mkdir()
+    done = run_cli("outage-log", str(short_csv), "-q", "-o", output, cwd=tmp_path / "here")
+    _one_line_error(done, "-o")
+    assert list((tmp_path / "here").iterdir()) == []
+
+
+# --- huge and absurd inputs ---------------------------------------------------------------------
+@pytest.fixture(scope="session")
+def outaged5(tmp_path_factory, short_csv) -> Path:
+    """The short drive's plan: one 10 s outage at 20 s."""
+    import ionav_viz as iv
+
+    folder = tmp_path_factory.mktemp("outaged5")
+    iv.outage_log(short_csv, folder / "cut.mcap", 10.0, iv.At((20.0,)))
+    return folder / "cut.outages.json"
+
+
+@pytest.mark.parametrize("name", ["sparse.csv", "sparse.tum"])
+def test_external_sparse_trajectory_refused_by_its_first_bytes(tmp_path, short_csv, outaged5, name):
+    """A 1 GB sparse file as ``--external``: its first "line" (the whole file) was read into memory
+    and quoted in the message, more than a minute; now the NUL bytes at its start refuse it."""
+    sparse = tmp_path / name
+    with open(sparse, "wb") as f:
+        f.truncate(1 << 30)
+    done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(outaged5), "--external", f"m={sparse}", "--estimators", "ins")
+    _one_line_error(done, "--external", name, "binary")
+
+
+def test_external_header_only_csv_one_line(tmp_path, short_csv, outaged5):
+    """A trajectory CSV with its header and no rows printed numpy's UserWarning ("loadtxt: input
+    contained no data") and the source line on stderr before the error."""
+    empty = tmp_path / "empty.csv"
+    empty.write_text("time_s,lat_deg,lon_deg\n")
+    done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(outaged5), "--external", f"m={empty}", "--estimators", "ins")
+    _one_line_error(done, "empty.csv", "fewer than 2 poses")
+
+
+def test_simulate_absurd_gnss_loss_count_is_bounded(tmp_path):
+    """``simulate --gnss-loss 1000000`` drew 50 million candidate losses (a hang of minutes); the
+    draws are bounded by what fits in the drive."""
+    import time
+
+    from ionav_viz.sim.simulate import gnss_loss_spans
+
+    start = time.monotonic()
+    spans = gnss_loss_spans("roundabout", 0, 120.0, 1_000_000)
+    assert time.monotonic() - start < 2.0
+    assert 1 <= len(spans) <= 4
+
+
+# --- full disks and signals mid-write --------------------------------------------------------------
+def test_export_failing_part_way_leaves_the_folder_as_it_was(tmp_path, short_csv, monkeypatch):
+    """``evaluate --export ex`` under ``ulimit -f`` (or a full disk) failing at a later file left
+    ``outages.csv`` and the TUM tracks without ``tracks.gpx``, and a new export folder made but
+    empty when the first file failed; now the export is staged and moved in whole."""
+    import errno
+
+    from ionav_viz.analysis import exports
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(exports, "_gpx", full)
+    done = run_cli("evaluate", str(short_csv), "-q", "--export", "new/ex", "--estimators", "ins", cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    assert "tracks.gpx" in done.stderr and "Traceback" not in done.stderr
+    assert list(tmp_path.iterdir()) == []  # neither ex nor the new/ made for it
+
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "outages.csv").write_text("previous\n")
+    (old / "mine.txt").write_text("the user's\n")
+    done = run_cli("evaluate", str(short_csv), "-q", "--export", "old", "--estimators", "ins", cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    assert sorted(p.name for p in old.iterdir()) == ["mine.txt", "outages.csv"]
+    assert (old / "outages.csv").read_text() == "previous\n"
