@@ -45,28 +45,13 @@ def export_results(results: list[Any], folder: str | Path) -> list[Path]:
     with stop signals held (each file renamed over its old version, each drive's ``tum/<drive>``
     swapped whole): a full disk or a signal part-way left ``outages.csv`` without the tracks, and a
     new export folder made but empty. Now ``folder`` is as it was, and a folder made here removed."""
-    import shutil
-    import tempfile
-
-    from ..core.fileio import check_output_folder, current_umask, made_folders, swap_in_directory
+    from ..core.fileio import check_output_folder, current_umask, made_folders, staging_folder, swap_in_directory
     from ..core.signals import hold_signals
 
     folder = check_output_folder(Path(folder), param="export")
-    with made_folders(folder):
-        release = hold_signals()  # a signal between mkdtemp and the try would leave the stage behind
-        try:
-            try:
-                stage = Path(tempfile.mkdtemp(prefix=".export.", dir=folder))
-            except OSError as exc:
-                raise _failure(folder, exc) from None
-            try:
-                release()  # a signal held since before mkdtemp acts here, inside the cleanup
-                files, drives = _write_all(results, stage, folder)
-                _move_in(stage, folder, files, drives, current_umask(), swap_in_directory, hold_signals)
-            finally:
-                shutil.rmtree(stage, ignore_errors=True)
-        finally:
-            release()
+    with made_folders(folder), staging_folder(folder / "export", folder, refused=lambda exc: _failure(folder, exc)) as stage:
+        files, drives = _write_all(results, stage, folder)
+        _move_in(stage, folder, files, drives, current_umask(), swap_in_directory, hold_signals)
     return [folder / f for f in files] + [folder / "tum" / d / f for d, names in drives.items() for f in names]
 
 
