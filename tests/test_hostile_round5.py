@@ -159,3 +159,52 @@ def test_export_failing_part_way_leaves_the_folder_as_it_was(tmp_path, short_csv
     assert done.returncode == 1, done.stderr
     assert sorted(p.name for p in old.iterdir()) == ["mine.txt", "outages.csv"]
     assert (old / "outages.csv").read_text() == "previous\n"
+
+
+# --- wrong units ------------------------------------------------------------------------------------
+@pytest.fixture(scope="session")
+def motorway_rows(tmp_path_factory) -> tuple[str, list[list[str]]]:
+    """A 90 s simulated roundabout drive's header line and rows (cells as written): it turns through every heading."""
+    from ionav_viz.sim.simulate import write_simulated_drive
+
+    path = write_simulated_drive(tmp_path_factory.mktemp("units5") / "V-rb.csv", "roundabout", seed=1, duration_s=90)
+    header, *rows = path.read_text().splitlines()
+    return header, [row.split(",") for row in rows]
+
+
+def _with_column(tmp_path: Path, motorway_rows, change) -> Path:
+    header, rows = motorway_rows
+    labels = [h.strip() for h in header.split(",")]
+    out = tmp_path / "V-units.csv"
+    lines = [header]
+    for row in rows:
+        row = list(row)
+        for label, fn in change.items():
+            k = labels.index(label)
+            row[k] = repr(fn(float(row[k])))
+        lines.append(",".join(row))
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"Velocity (km/hr)": lambda v: v / 3.6}, ["Velocity (km/hr)", "m/s where the header says km/h"]),
+    ({"Latitude (degrees)": lambda v: v * 3.141592653589793 / 180, "Longitude (degrees)": lambda v: v * 3.141592653589793 / 180},
+     ["the speed the positions give", "radians"]),
+    ({"Heading (degrees)": lambda v: v * 3.141592653589793 / 180}, ["Heading (degrees)", "radians"]),
+    ({"Time Since Start of Day (seconds)": lambda v: v * 1000}, ["milliseconds"]),
+], ids=["speed-in-mps", "positions-in-radians", "heading-in-radians", "time-in-ms"])
+def test_csv_columns_in_the_wrong_unit_are_named(tmp_path, motorway_rows, change, words):
+    """A speed written in m/s under the 'Velocity (km/hr)' header, latitude and longitude in
+    radians, or the heading in radians: every value within its limits, so the drive was scored
+    silently (exit 0, INS errors of a drive 3.6 or 57 times slower or turning wrong); now the
+    columns are checked against the speed and course the positions give."""
+    path = _with_column(tmp_path, motorway_rows, change)
+    done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
+    _one_line_error(done, "V-units.csv", "unit", *words)
+
+
+def test_csv_in_the_right_units_still_reads(tmp_path, motorway_rows):
+    path = _with_column(tmp_path, motorway_rows, {})
+    done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
+    assert done.returncode == 0, done.stderr

@@ -34,7 +34,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
 from .imu_frame import STRONG, heading_rate_ccw_radps, yaw_correlation
-from .plausibility import check_plausible
+from .plausibility import check_plausible, check_units_agree
 
 log = logging.getLogger("ionav_viz")
 
@@ -323,6 +323,7 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     names = {key: by_label[label].strip() for key, (label, _, _) in _COLUMNS.items() if label in by_label}
     names["yaw_rate_radps"] = names["yaw_rate_raw"]
     check_plausible(values, path, lambda i: f"row {line_of_row[i]}", names, file_units)
+    check_units_agree(values, t_s, path, names)
     raw_yaw = values.pop("yaw_rate_radps")
     values["yaw_rate_radps"] = _yaw_rate_ccw(raw_yaw, values, t_s, yaw_sign, path)
     values["heading_deg"] = wrap_360(values["heading_deg"])
