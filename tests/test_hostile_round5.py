@@ -208,3 +208,16 @@ def test_csv_in_the_right_units_still_reads(tmp_path, motorway_rows):
     path = _with_column(tmp_path, motorway_rows, {})
     done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
     assert done.returncode == 0, done.stderr
+
+
+# --- duplicated and conflicting -----------------------------------------------------------------
+def test_csv_column_named_twice_refused(tmp_path, short_csv):
+    """A header naming 'Latitude (degrees)' twice (the second in place of the steering angle) was
+    read silently (pandas renamed the second 'Latitude (degrees).1'; the first was used)."""
+    header, *rows = short_csv.read_text().splitlines()
+    names = header.split(",")
+    names[9] = names[2]
+    path = tmp_path / "V-twice.csv"
+    path.write_text("\n".join([",".join(names), *rows]) + "\n")
+    done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
+    _one_line_error(done, "V-twice.csv", "Latitude (degrees)", "twice", "columns 3 and 10")
