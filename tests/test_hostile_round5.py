@@ -221,3 +221,14 @@ def test_csv_column_named_twice_refused(tmp_path, short_csv):
     path.write_text("\n".join([",".join(names), *rows]) + "\n")
     done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
     _one_line_error(done, "V-twice.csv", "Latitude (degrees)", "twice", "columns 3 and 10")
+
+
+@pytest.mark.parametrize("command", [
+    ["evaluate", "{drive}", "-q", "--estimators", "ins", "--gnss-limit", "max_sigma_m=1", "--gnss-limit", "max_sigma_m=20"],
+    ["events", "{drive}", "--threshold", "hard_brake_g=0.4", "--threshold", "hard-brake-g=0.5"],
+])
+def test_an_override_given_twice_with_different_values_refused(short_csv, command):
+    """``--gnss-limit max_sigma_m=1 --gnss-limit max_sigma_m=20`` (or ``--threshold``): the last
+    one won silently; the same value twice is still fine."""
+    done = run_cli(*[c.format(drive=short_csv) for c in command])
+    _one_line_error(done, "given twice", "different values")
