@@ -232,3 +232,18 @@ def test_an_override_given_twice_with_different_values_refused(short_csv, comman
     one won silently; the same value twice is still fine."""
     done = run_cli(*[c.format(drive=short_csv) for c in command])
     _one_line_error(done, "given twice", "different values")
+
+
+# --- NaN, infinities and absurd values in files -------------------------------------------------------
+def test_plan_integer_beyond_float_range_refused(tmp_path, short_csv, outaged5):
+    """An integer of 401 digits as a plan's stamp (under Python's 4300-digit limit, so JSON read
+    it) was an OverflowError traceback when the plan turned it into seconds; ``1e400`` was refused
+    as infinity, so is the integer now."""
+    import json
+
+    plan = json.loads(outaged5.read_text())
+    plan["outages"][0]["start_stamp_s"] = 10**400
+    path = tmp_path / "big.outages.json"
+    path.write_text(json.dumps(plan))
+    done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(path), "--estimators", "ins")
+    _one_line_error(done, "--plan", "big.outages.json", "overflows")
