@@ -159,3 +159,91 @@ def test_export_failing_part_way_leaves_the_folder_as_it_was(tmp_path, short_csv
     assert done.returncode == 1, done.stderr
     assert sorted(p.name for p in old.iterdir()) == ["mine.txt", "outages.csv"]
     assert (old / "outages.csv").read_text() == "previous\n"
+
+
+# --- wrong units ------------------------------------------------------------------------------------
+@pytest.fixture(scope="session")
+def motorway_rows(tmp_path_factory) -> tuple[str, list[list[str]]]:
+    """A 90 s simulated roundabout drive's header line and rows (cells as written): it turns through every heading."""
+    from ionav_viz.sim.simulate import write_simulated_drive
+
+    path = write_simulated_drive(tmp_path_factory.mktemp("units5") / "V-rb.csv", "roundabout", seed=1, duration_s=90)
+    header, *rows = path.read_text().splitlines()
+    return header, [row.split(",") for row in rows]
+
+
+def _with_column(tmp_path: Path, motorway_rows, change) -> Path:
+    header, rows = motorway_rows
+    labels = [h.strip() for h in header.split(",")]
+    out = tmp_path / "V-units.csv"
+    lines = [header]
+    for row in rows:
+        row = list(row)
+        for label, fn in change.items():
+            k = labels.index(label)
+            row[k] = repr(fn(float(row[k])))
+        lines.append(",".join(row))
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"Velocity (km/hr)": lambda v: v / 3.6}, ["Velocity (km/hr)", "m/s where the header says km/h"]),
+    ({"Latitude (degrees)": lambda v: v * 3.141592653589793 / 180, "Longitude (degrees)": lambda v: v * 3.141592653589793 / 180},
+     ["the speed the positions give", "radians"]),
+    ({"Heading (degrees)": lambda v: v * 3.141592653589793 / 180}, ["Heading (degrees)", "radians"]),
+    ({"Time Since Start of Day (seconds)": lambda v: v * 1000}, ["milliseconds"]),
+], ids=["speed-in-mps", "positions-in-radians", "heading-in-radians", "time-in-ms"])
+def test_csv_columns_in_the_wrong_unit_are_named(tmp_path, motorway_rows, change, words):
+    """A speed written in m/s under the 'Velocity (km/hr)' header, latitude and longitude in
+    radians, or the heading in radians: every value within its limits, so the drive was scored
+    silently (exit 0, INS errors of a drive 3.6 or 57 times slower or turning wrong); now the
+    columns are checked against the speed and course the positions give."""
+    path = _with_column(tmp_path, motorway_rows, change)
+    done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
+    _one_line_error(done, "V-units.csv", "unit", *words)
+
+
+def test_csv_in_the_right_units_still_reads(tmp_path, motorway_rows):
+    path = _with_column(tmp_path, motorway_rows, {})
+    done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
+    assert done.returncode == 0, done.stderr
+
+
+# --- duplicated and conflicting -----------------------------------------------------------------
+def test_csv_column_named_twice_refused(tmp_path, short_csv):
+    """A header naming 'Latitude (degrees)' twice (the second in place of the steering angle) was
+    read silently (pandas renamed the second 'Latitude (degrees).1'; the first was used)."""
+    header, *rows = short_csv.read_text().splitlines()
+    names = header.split(",")
+    names[9] = names[2]
+    path = tmp_path / "V-twice.csv"
+    path.write_text("\n".join([",".join(names), *rows]) + "\n")
+    done = run_cli("evaluate", str(path), "-q", "--estimators", "ins")
+    _one_line_error(done, "V-twice.csv", "Latitude (degrees)", "twice", "columns 3 and 10")
+
+
+@pytest.mark.parametrize("command", [
+    ["evaluate", "{drive}", "-q", "--estimators", "ins", "--gnss-limit", "max_sigma_m=1", "--gnss-limit", "max_sigma_m=20"],
+    ["events", "{drive}", "--threshold", "hard_brake_g=0.4", "--threshold", "hard-brake-g=0.5"],
+])
+def test_an_override_given_twice_with_different_values_refused(short_csv, command):
+    """``--gnss-limit max_sigma_m=1 --gnss-limit max_sigma_m=20`` (or ``--threshold``): the last
+    one won silently; the same value twice is still fine."""
+    done = run_cli(*[c.format(drive=short_csv) for c in command])
+    _one_line_error(done, "given twice", "different values")
+
+
+# --- NaN, infinities and absurd values in files -------------------------------------------------------
+def test_plan_integer_beyond_float_range_refused(tmp_path, short_csv, outaged5):
+    """An integer of 401 digits as a plan's stamp (under Python's 4300-digit limit, so JSON read
+    it) was an OverflowError traceback when the plan turned it into seconds; ``1e400`` was refused
+    as infinity, so is the integer now."""
+    import json
+
+    plan = json.loads(outaged5.read_text())
+    plan["outages"][0]["start_stamp_s"] = 10**400
+    path = tmp_path / "big.outages.json"
+    path.write_text(json.dumps(plan))
+    done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(path), "--estimators", "ins")
+    _one_line_error(done, "--plan", "big.outages.json", "overflows")

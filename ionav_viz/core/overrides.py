@@ -40,5 +40,8 @@ def with_overrides(settings: T, pairs: list[str], ranges: dict[str, tuple[float,
             raise InputError(f"{what} {pair!r}: give two numbers LOW,HIGH with LOW <= HIGH", param=param)
         if not all(math.isfinite(v) and low <= v <= high for v in values):
             raise InputError(f"{what} {pair!r} is out of range", f"{name} takes values from {low:g} to {high:g}", param=param)
-        changes[name] = int(parsed) if isinstance(getattr(settings, name), int) and not wants_pair else parsed
+        value_of = int(parsed) if isinstance(getattr(settings, name), int) and not wants_pair else parsed
+        if name in changes and changes[name] != value_of:  # the last one won silently
+            raise InputError(f"{what} {name} given twice with different values ({changes[name]} and {value_of})", "give each once", param=param)
+        changes[name] = value_of
     return replace(settings, **changes)  # type: ignore[type-var]

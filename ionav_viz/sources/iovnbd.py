@@ -34,7 +34,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
 from .imu_frame import STRONG, heading_rate_ccw_radps, yaw_correlation
-from .plausibility import check_plausible
+from .plausibility import check_plausible, check_units_agree
 
 log = logging.getLogger("ionav_viz")
 
@@ -165,6 +165,7 @@ def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, in
     import pandas as pd
 
     header = pd.read_csv(path, encoding=encoding, nrows=0, skipinitialspace=True)
+    _refuse_repeated_columns(path, encoding)
     by_label: dict[str, str] = {}
     for name in header.columns:
         by_label.setdefault(_label(str(name)), name)
@@ -183,6 +184,23 @@ def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, in
         _locate_bad_cell(path, encoding, wanted, required=wanted)
         raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})") from None
     return by_label, frame, len(header.columns)
+
+
+def _refuse_repeated_columns(path: Path, encoding: str) -> None:
+    """A column ionav-viz reads named twice in the header (pandas renamed the second ``NAME.1`` and
+    the first was read silently, whichever held the data): refused, naming both."""
+    import csv
+
+    with open(path, encoding=encoding, newline="") as f:
+        names = next(csv.reader([f.readline(1 << 16)]), [])
+    used = {label for label, _, _ in _COLUMNS.values()}
+    seen: dict[str, int] = {}
+    for k, name in enumerate(names, start=1):
+        label = _label(name.strip())
+        if label in used and label in seen:
+            raise InputError(f"{path}: column {name.strip()!r} appears twice in the header (columns {seen[label]} and {k})",
+                             "keep one: ionav-viz cannot tell which holds the data")
+        seen.setdefault(label, k)
 
 
 def _check_field_counts(path: Path, encoding: str, n_fields: int, n_rows: int, cut_last: bool) -> None:
@@ -273,6 +291,7 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     names = {key: by_label[label].strip() for key, (label, _, _) in _COLUMNS.items() if label in by_label}
     names["yaw_rate_radps"] = names["yaw_rate_raw"]
     check_plausible(values, path, lambda i: f"row {line_of_row[i]}", names, file_units)
+    check_units_agree(values, t_s, path, names)
     raw_yaw = values.pop("yaw_rate_radps")
     values["yaw_rate_radps"] = _yaw_rate_ccw(raw_yaw, values, t_s, yaw_sign, path)
     values["heading_deg"] = wrap_360(values["heading_deg"])

@@ -103,3 +103,74 @@ def check_plausible(columns: dict[str, np.ndarray], path: object, where: Callabl
             reason = implausible(column, float(values[i]), (file_units or {}).get(column))
             raise InputError(f"{path}: {where(i)}, {(names or {}).get(column, column)}: {reason}",
                              "no car sensor produces that value: fix or delete the sample, or check the column's unit")
+
+
+#: Factors a speed column may read against the positions' ground speed when a unit is mixed up: (factor, hint).
+_SPEED_MIXUPS = ((1 / 3.6, "its values look like m/s where the header says km/h: fix the header's unit or the values"),
+                 (3.6, "its values look like km/h where the header says m/s: fix the header's unit or the values"),
+                 (0.44704 / (1 / 3.6), "its values look like mph where the header says km/h: fix the header's unit or the values"),
+                 (1 / 0.621371, "its values look like km/h where the header says mph: fix the header's unit or the values"),
+                 (1000.0, "the time stamps look like milliseconds: write the time in seconds"))
+#: A speed column and the positions' ground speed agree within this factor (median over moving seconds).
+SPEED_AGREEMENT = 1.6
+_MOVING_MPS = 3.0
+_MIN_MOVING_S = 20
+
+
+def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: object, names: dict[str, str] | None = None) -> None:
+    """Refuse a drive whose columns disagree by a unit's factor: a speed column (``speed_mps``,
+    ``speed_can_mps``) against the ground speed the positions give, and the heading against the
+    course they give, over the seconds the car moves (medians: GNSS losses and noise do not count).
+    Each value passed :func:`check_plausible`, so a unit mix-up within the limits went through
+    silently before (speed written in m/s under a km/h header, latitude and longitude in radians,
+    the heading in radians). Too few moving seconds: nothing is checked."""
+    from ..core.geo import M_PER_DEG
+
+    names = names or {}
+    if not {"lat_deg", "lon_deg"} <= values.keys() or len(t_s) < 3:
+        return
+    dt = float(np.median(np.diff(t_s)))
+    step = max(1, int(round(1.0 / dt))) if dt > 0 else 1
+    idx = np.arange(0, len(t_s), step)
+    lat, lon, t = values["lat_deg"][idx], values["lon_deg"][idx], t_s[idx]
+    d_north = np.diff(lat) * M_PER_DEG
+    d_east = np.diff(lon) * M_PER_DEG * np.cos(np.radians(lat[1:]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ground = np.hypot(d_north, d_east) / np.diff(t)
+    moved = (ground > 0) & np.isfinite(ground)  # a frozen fix (a GNSS loss) moves 0
+    hint_pos = "the positions look like radians: write latitude and longitude in degrees"
+    for column in ("speed_mps", "speed_can_mps"):
+        if column not in values:
+            continue
+        speed = 0.5 * (values[column][idx][1:] + values[column][idx][:-1])
+        use = moved & (speed > _MOVING_MPS)
+        if use.sum() < _MIN_MOVING_S:
+            continue
+        ratio = float(np.median(speed[use] / ground[use]))
+        if 1 / SPEED_AGREEMENT <= ratio <= SPEED_AGREEMENT:
+            continue
+        label = names.get(column, column)
+        likely = next((why for factor, why in _SPEED_MIXUPS if abs(math.log(ratio / factor)) < math.log(1.15)), None)
+        if ratio > 10 and np.nanmax(np.abs(lat)) <= math.pi / 2 and np.nanmax(np.abs(lon)) <= math.pi:  # 57 times, less cos(lat)
+            likely = None
+            hint = hint_pos
+        else:
+            hint = likely or "check the column's unit and the positions'"
+        raise InputError(f"{path}: {label} reads {ratio:.3g} times the speed the positions give (median over {int(use.sum())} moving "
+                         "seconds): a unit mixed up", hint)
+    if "heading_deg" not in values:
+        return
+    speed = values.get("speed_mps", np.full(len(t_s), np.inf))[idx][1:]
+    use = moved & (ground > _MOVING_MPS) & (speed > _MOVING_MPS)
+    if use.sum() < _MIN_MOVING_S:
+        return
+    course = np.degrees(np.arctan2(d_east, d_north))[use]
+    heading = values["heading_deg"][idx][1:][use]
+
+    def off(angle: np.ndarray) -> float:
+        return float(np.median(np.abs((angle - course + 180.0) % 360.0 - 180.0)))
+
+    if off(np.degrees(heading)) < 15.0 and off(heading) > max(20.0, 3 * off(np.degrees(heading))):
+        raise InputError(f"{path}: {names.get('heading_deg', 'heading_deg')} is off the course the positions give by "
+                         f"{off(heading):.0f} deg (median), and within {off(np.degrees(heading)):.0f} deg read as radians: a unit mixed up",
+                         "write the heading in degrees")
