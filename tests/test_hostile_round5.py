@@ -270,3 +270,13 @@ def test_info_on_a_named_pipe_names_it(tmp_path):
     os.mkfifo(tmp_path / "pipe.mcap")
     done = run_cli("info", "pipe.mcap", cwd=tmp_path)
     _one_line_error(done, "pipe.mcap", "named pipe")
+
+
+@pytest.mark.parametrize("command", [["list"], ["fetch", "V-Vw8", "--base-url", "http://127.0.0.1:9/"]])
+def test_a_data_root_that_is_a_file_refused(tmp_path, command):
+    """``list --data-root FILE`` listed every run as missing (exit 0); ``fetch`` said "cannot create
+    it (File exists)"."""
+    (tmp_path / "root.csv").write_text("x\n")
+    done = run_cli(*command, "--data-root", "root.csv", cwd=tmp_path)
+    _one_line_error(done, "root.csv", "not a folder")
+    assert (tmp_path / "root.csv").read_text() == "x\n"
