@@ -7,6 +7,7 @@ field with a hint, no traceback, and nothing written.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -247,3 +248,35 @@ def test_plan_integer_beyond_float_range_refused(tmp_path, short_csv, outaged5):
     path.write_text(json.dumps(plan))
     done = run_cli("evaluate", str(short_csv), "-q", "--plan", str(path), "--estimators", "ins")
     _one_line_error(done, "--plan", "big.outages.json", "overflows")
+
+
+# --- special files -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["dangling", "loop"])
+@pytest.mark.parametrize("command", ["replay", "info"])
+def test_a_dangling_link_or_loop_as_the_drive_is_named(tmp_path, kind, command):
+    """A dangling link as the drive was "unknown drive 'x.csv'" (taken for a run name) with a hint
+    at bundled scenarios, a link loop the same; ``info`` said "no such file or folder"."""
+    if kind == "dangling":
+        (tmp_path / "x.csv").symlink_to("gone.csv")
+    else:
+        (tmp_path / "x.csv").symlink_to("y.csv")
+        (tmp_path / "y.csv").symlink_to("x.csv")
+    done = run_cli(command, "x.csv", cwd=tmp_path)
+    _one_line_error(done, "x.csv", "gone.csv" if kind == "dangling" else "loop")
+
+
+def test_info_on_a_named_pipe_names_it(tmp_path):
+    """``info pipe.mcap`` said "empty file" (it did not hang, but named the wrong problem)."""
+    os.mkfifo(tmp_path / "pipe.mcap")
+    done = run_cli("info", "pipe.mcap", cwd=tmp_path)
+    _one_line_error(done, "pipe.mcap", "named pipe")
+
+
+@pytest.mark.parametrize("command", [["list"], ["fetch", "V-Vw8", "--base-url", "http://127.0.0.1:9/"]])
+def test_a_data_root_that_is_a_file_refused(tmp_path, command):
+    """``list --data-root FILE`` listed every run as missing (exit 0); ``fetch`` said "cannot create
+    it (File exists)"."""
+    (tmp_path / "root.csv").write_text("x\n")
+    done = run_cli(*command, "--data-root", "root.csv", cwd=tmp_path)
+    _one_line_error(done, "root.csv", "not a folder")
+    assert (tmp_path / "root.csv").read_text() == "x\n"

@@ -53,8 +53,14 @@ class DatasetSource:
 
 
 def fetch_root(data_root: str | Path | None = None) -> Path:
-    """Where fetch writes and list looks: ``data_root``, ``$IONAV_DATA``, else the per-user data directory."""
-    return configured_data_root(data_root) or default_data_root()
+    """Where fetch writes and list looks: ``data_root``, ``$IONAV_DATA``, else the per-user data directory.
+    One that exists must be a folder (``--data-root FILE`` listed every run as missing, exit 0, and
+    fetch said "cannot create it (File exists)")."""
+    root = configured_data_root(data_root) or default_data_root()
+    if root.exists() and not root.is_dir():
+        raise InputError(f"data root {root}: is not a folder", "give the folder that holds (or will hold) the IO-VNBD runs as --data-root",
+                         param="data_root")
+    return root
 
 
 def list_runs(data_root: str | Path | None = None, source: DatasetSource | None = None, verify: bool = False) -> list[dict[str, Any]]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Any, Optional
@@ -39,7 +40,10 @@ def info(
 ) -> None:
     """List a log's topics (type, messages) and which ones ionav-viz would read."""
     from ..sources.load import open_message_log, source_kind
+    from ..sources.resolve import resolve_drive
 
+    if os.path.lexists(path):  # a pipe (was "empty file"), a device, a dangling link or a loop: named as replay names them
+        resolve_drive(str(path), None)
     if not path.exists():
         raise InputError(f"{path}: no such file or folder")
     kind = source_kind(path)

@@ -11,6 +11,7 @@ tolerant of zero padding (``V-Vw8``, ``Vw8``, ``v-vw8.csv``, ``V-Vta01a``), pref
 from __future__ import annotations
 
 import difflib
+import errno
 import os
 from functools import lru_cache
 from pathlib import Path
@@ -71,6 +72,12 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         return path
     if path.exists():  # a named pipe would block the reader forever, a device could be endless
         return check_regular_input(path, "drive", hint="give the log's file or folder", folder_ok=True)
+    if path.is_symlink():  # a dangling link or a loop: "unknown drive" (a run name?) said nothing of the link
+        try:
+            os.stat(path)
+        except OSError as exc:
+            why = "a loop of symbolic links" if exc.errno == errno.ELOOP else f"a link to {os.readlink(path)}, which does not exist"
+            raise InputError(f"{spec}: is {why}", "give the log's file or folder") from None
     if path.suffix.lower() in (".mcap", ".bag", ".db3", ".yaml") or os.sep in spec or "/" in spec:  # a run name may end in .csv
         raise InputError(f"{spec}: no such file or folder")
     bundled = _bundled(spec)
