@@ -223,7 +223,7 @@ def test_external_estimates_that_cheat_or_fall_short_are_named(tmp_path):
         proc = run_cli("evaluate", "roundabout", "--plan", plan, "--estimators", "ins", *args)
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, (args, proc.stderr)
     proc = run_cli("evaluate", "roundabout", "--external", f"gnss={gnss}")
-    assert proc.returncode == 2 and "--plan" in proc.stderr, proc.stderr
+    assert proc.returncode == 2 and "that log's plan (its NAME.outages.json)" in proc.stderr, proc.stderr
 
 
 def _bag_messages(path):
