@@ -103,6 +103,14 @@ EARTH_MEAN_RADIUS_M = 6_371_000.0
 M_PER_DEG = 6_371_008.8 * np.pi / 180.0
 
 
+def steps_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """East and north (m) of each step between consecutive fixes (``len - 1`` of each), on a
+    sphere of the mean radius at the step's mean latitude: for step lengths and speeds, not positions."""
+    north = np.diff(lat_deg) * M_PER_DEG
+    east = np.diff(lon_deg) * M_PER_DEG * np.cos(np.deg2rad(0.5 * (lat_deg[1:] + lat_deg[:-1])))
+    return east, north
+
+
 def gravity_enu_mps2(enu_m: np.ndarray, gravity_mps2: float) -> np.ndarray:
     """Gravity (m/s^2, (n, 3)) at tangent-frame positions (m, (n, 3)): ``gravity_mps2`` towards the
     Earth's centre, which lies EARTH_MEAN_RADIUS_M below the origin; at the origin ``(0, 0, -g)``."""

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geo import M_PER_DEG
+from .geo import steps_en_m
 from .overrides import with_overrides
 from .runs import true_runs
 
@@ -136,8 +136,7 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
         return fault
 
     dt = np.diff(t_s)
-    north = np.diff(lat_deg) * M_PER_DEG
-    east = np.diff(lon_deg) * M_PER_DEG * np.cos(np.deg2rad(0.5 * (lat_deg[1:] + lat_deg[:-1])))
+    east, north = steps_en_m(lat_deg, lon_deg)
     step_m = np.hypot(north, east)
     speed = speed_mps if vehicle_speed_mps is None else np.maximum(speed_mps, vehicle_speed_mps)
     fault |= _frozen(t_s, step_m, speed, limits, accel_mps2)

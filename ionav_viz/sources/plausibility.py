@@ -124,7 +124,7 @@ def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: obje
     Each value passed :func:`check_plausible`, so a unit mix-up within the limits went through
     silently before (speed written in m/s under a km/h header, latitude and longitude in radians,
     the heading in radians). Too few moving seconds: nothing is checked."""
-    from ..core.geo import M_PER_DEG
+    from ..core.geo import steps_en_m
 
     names = names or {}
     if not {"lat_deg", "lon_deg"} <= values.keys() or len(t_s) < 3:
@@ -133,8 +133,7 @@ def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: obje
     step = max(1, int(round(1.0 / dt))) if dt > 0 else 1
     idx = np.arange(0, len(t_s), step)
     lat, lon, t = values["lat_deg"][idx], values["lon_deg"][idx], t_s[idx]
-    d_north = np.diff(lat) * M_PER_DEG
-    d_east = np.diff(lon) * M_PER_DEG * np.cos(np.radians(lat[1:]))
+    d_east, d_north = steps_en_m(lat, lon)
     with np.errstate(divide="ignore", invalid="ignore"):
         ground = np.hypot(d_north, d_east) / np.diff(t)
     moved = (ground > 0) & np.isfinite(ground)  # a frozen fix (a GNSS loss) moves 0

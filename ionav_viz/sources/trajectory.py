@@ -29,7 +29,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, check_regular_tree, check_text_head
-from ..core.geo import M_PER_DEG
+from ..core.geo import steps_en_m
 
 #: A trajectory file larger than this is refused (a day at 100 Hz in CSV is about 300 MB).
 MAX_BYTES = 2 << 30
@@ -101,8 +101,7 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
     t, a, b = t[order], a[order], b[order]
     repeated = np.diff(t) == 0
     if repeated.any():
-        apart_m = (np.hypot(np.diff(a), np.diff(b)) if local else
-                   np.hypot(np.diff(a), np.diff(b) * np.cos(np.radians(a[1:]))) * M_PER_DEG)
+        apart_m = np.hypot(np.diff(a), np.diff(b)) if local else np.hypot(*steps_en_m(a, b))
         conflict = repeated & (apart_m > SAME_POSE_M)
         if conflict.any():
             k = int(np.argmax(conflict))

@@ -62,8 +62,6 @@ def _outage_times(t0_s: np.ndarray, t_win: np.ndarray) -> np.ndarray:
     return np.concatenate([t0_s[:, None] + ent.OUTAGE_EPS_S, t_win], axis=1).ravel()
 
 
-
-
 def recording_id(result: DriveResult) -> str:
     """The recording's id: the same drive and outage length replayed again is the same recording."""
     return f"{result.drive.name}-{result.outage_s:g}s"
