@@ -45,13 +45,12 @@ def export_results(results: list[Any], folder: str | Path) -> list[Path]:
     with stop signals held (each file renamed over its old version, each drive's ``tum/<drive>``
     swapped whole): a full disk or a signal part-way left ``outages.csv`` without the tracks, and a
     new export folder made but empty. Now ``folder`` is as it was, and a folder made here removed."""
-    from ..core.fileio import check_output_folder, current_umask, made_folders, staging_folder, swap_in_directory
-    from ..core.signals import hold_signals
+    from ..core.fileio import check_output_folder, made_folders, staging_folder
 
     folder = check_output_folder(Path(folder), param="export")
     with made_folders(folder), staging_folder(folder / "export", folder, refused=lambda exc: _failure(folder, exc)) as stage:
         files, drives = _write_all(results, stage, folder)
-        _move_in(stage, folder, files, drives, current_umask(), swap_in_directory, hold_signals)
+        _move_in(stage, folder, files, drives)
     return [folder / f for f in files] + [folder / "tum" / d / f for d, names in drives.items() for f in names]
 
 
@@ -84,16 +83,18 @@ def _write_all(results: list[Any], stage: Path, folder: Path) -> tuple[list[str]
     return ["outages.csv", "tracks.geojson", "tracks.gpx"], drives
 
 
-def _move_in(stage: Path, folder: Path, files: list[str], drives: dict[str, list[str]], umask: int, swap_in_directory: Any,
-             hold_signals: Any) -> None:
+def _move_in(stage: Path, folder: Path, files: list[str], drives: dict[str, list[str]]) -> None:
+    """Move the staged files and each drive's ``tum/<drive>`` into ``folder``, with stop signals
+    held (staged by ``open`` and ``mkdir``: the usual permissions already)."""
     import os
 
-    for path in stage.rglob("*"):  # written by open(): the usual permissions already; folders from mkdir too
-        os.chmod(path, (0o777 if path.is_dir() else 0o666) & ~umask)
+    from ..core.fileio import swap_in_directory
+    from ..core.signals import hold_signals
+
     release = hold_signals()
     try:
         for name in files:
-            if (folder / name).is_dir() or ((folder / name).exists() and not (folder / name).is_file()):
+            if (folder / name).exists() and not (folder / name).is_file():
                 raise InputError(f"{folder / name}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another folder",
                                  param="export")
         if drives:
