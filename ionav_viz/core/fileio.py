@@ -357,19 +357,16 @@ JSON_MAX_DEPTH = 64
 _JSON_STRING = re.compile(rb'"(?:[^"\\]++|\\.)*+"')
 
 
-def _json_depth(data: bytes) -> tuple[int, int]:
-    """The deepest nesting of arrays and objects in ``data`` (strings skipped) and the offset, in
-    the bracket-only text, where it is first reached (0 for none)."""
+def _json_depth(data: bytes) -> int:
+    """The deepest nesting of arrays and objects in ``data`` (strings skipped; 0 for none)."""
     import numpy as np
 
     brackets = _JSON_STRING.sub(b"", data).translate(None, bytes(b for b in range(256) if b not in b"[]{}"))
     if not brackets:
-        return 0, 0
+        return 0
     step = np.full(256, -1, dtype=np.int32)
     step[list(b"[{")] = 1
-    depth = np.cumsum(step[np.frombuffer(brackets, dtype=np.uint8)], dtype=np.int32)
-    deepest = int(depth.argmax())
-    return int(depth[deepest]), deepest
+    return int(np.cumsum(step[np.frombuffer(brackets, dtype=np.uint8)], dtype=np.int32).max())
 
 
 def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES, max_depth: int = JSON_MAX_DEPTH,
@@ -415,7 +412,7 @@ def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_b
         data = data.encode("utf-8", "surrogatepass")
     if len(data) > max_bytes:
         raise InputError(f"{path}: {len(data)} bytes is too large for {what} (at most {max_bytes})", hint, param=param)
-    depth, _ = _json_depth(data)
+    depth = _json_depth(data)
     if depth > max_depth:
         raise InputError(f"{path}: nested {depth} levels deep; {what} nests at most {max_depth}", hint, param=param)
 

@@ -35,6 +35,11 @@ import numpy as np
 MAX_DEPTH = 48
 
 
+def is_finite_number(value: Any) -> bool:
+    """A JSON number that is finite (a boolean is not a number here)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
 def plain_json(value: Any, max_depth: int = MAX_DEPTH) -> Any:
     """``value`` as JSON's own types: dict (string keys), list, str, int, float (finite), bool or
     None (see the module docstring). ValueError for a value nested deeper than ``max_depth``

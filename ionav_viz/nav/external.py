@@ -69,7 +69,7 @@ class External:
         for i, row in enumerate(when):
             # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
             upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
-            nearest[i] = int(np.argmin(np.abs(t[:upto] - row[0]))) if upto else 0
+            nearest[i] = _nearest(t[:upto], row[0])
             t_i, lat_i, lon_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
                                                 float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
             if not _covers(t_i, row):
@@ -166,3 +166,10 @@ def _interpolated(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarr
         rate = (values[-1] - values[-2]) / (t[-1] - t[-2])
         out[late] = values[-1] + rate * (at[late] - t[-1])
     return out
+
+
+def _nearest(t: np.ndarray, at: float) -> int:
+    """Index of the stamp of ``t`` (sorted) nearest ``at``, the earlier on a tie; 0 when empty."""
+    k = int(np.searchsorted(t, at))
+    candidates = [c for c in (k - 1, k) if 0 <= c < len(t)]
+    return min(candidates, key=lambda c: (abs(t[c] - at), c)) if candidates else 0

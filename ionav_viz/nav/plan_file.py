@@ -13,13 +13,12 @@ The file is plain JSON (never a pickle), checked field by field when read.
 from __future__ import annotations
 
 import hashlib
-import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
-from ..core.json_out import dumps_json
+from ..core.json_out import dumps_json, is_finite_number
 
 PLAN_FORMAT = "ionav-viz outage plan"
 PLAN_VERSION = 1
@@ -84,9 +83,6 @@ def read_plan(path: str | Path) -> PlanFile:
     def bad(field: str, why: str) -> InputError:
         return InputError(f"{path}: field {field!r} {why}", _PLAN_HINT, param="plan")
 
-    def number(value: Any) -> bool:
-        return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
     if not isinstance(body, dict) or body.get("format") != PLAN_FORMAT:
         raise bad("format", f"is not {PLAN_FORMAT!r}")
     version = body.get("version")
@@ -97,7 +93,7 @@ def read_plan(path: str | Path) -> PlanFile:
         if not isinstance(body.get(field), kind):
             raise bad(field, f"is missing or not a {kind.__name__}")
     outage_s = body.get("outage_s")
-    if not number(outage_s) or outage_s <= 0:
+    if not is_finite_number(outage_s) or outage_s <= 0:
         raise bad("outage_s", "is not a positive number of seconds")
     if abs(outage_s - round(outage_s)) > 1e-9:
         raise bad("outage_s", f"({outage_s!r}) is not a whole number of seconds, as every outage is")
@@ -111,7 +107,7 @@ def read_plan(path: str | Path) -> PlanFile:
         if not isinstance(o, dict):
             raise wrong("outages", "is not an object with start_stamp_s, start_s, end_stamp_s and end_s")
         for field in ("start_stamp_s", "start_s", "end_stamp_s", "end_s"):
-            if (field in o or field.startswith("start")) and not number(o.get(field)):
+            if (field in o or field.startswith("start")) and not is_finite_number(o.get(field)):
                 raise wrong(field, f"is {'missing' if field not in o else repr(o[field])}, not a finite number of seconds")
         start, start_s = float(o["start_stamp_s"]), float(o["start_s"])
         for field, value in (("start_stamp_s", start), ("start_s", start_s)):

@@ -38,7 +38,8 @@ import numpy as np
 
 from ..analysis.drift import error_cdf
 from ..core.errors import InputError
-from ..core.fileio import check_output_folder, check_regular_input, current_umask, parse_json_bounded, read_json_bounded, staging_folder, write_failure
+from ..core.fileio import check_output_folder, check_regular_input, parse_json_bounded, read_json_bounded, staging_folder, write_failure
+from ..core.json_out import is_finite_number
 from ..core.signals import hold_signals
 from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors
 
@@ -94,7 +95,7 @@ def check_report(rep: Any, path: Path) -> None:
     if not _is_int(rep["n_sequences"]) or rep["n_sequences"] < 1:
         fail("n_sequences", f"{rep['n_sequences']!r} is not a count of outages (1 or more)")
     outage = rep["outage_s"]
-    if not _is_number(outage) or not 0 < outage <= MAX_REPORT_VALUE:
+    if not is_finite_number(outage) or not 0 < outage <= MAX_REPORT_VALUE:
         fail("outage_s", f"{outage!r} is not an outage length in seconds")
     ests = rep["estimators"]
     if not isinstance(ests, list) or not ests:
@@ -133,7 +134,7 @@ def check_report(rep: Any, path: Path) -> None:
     _need_text(tracks.get("drive"), "worst_tracks.drive", fail)
     if not _is_int(tracks.get("number")):
         fail("worst_tracks.number", f"{tracks.get('number')!r} is not an outage number")
-    if not _is_number(tracks.get("start_s")) or abs(tracks["start_s"]) > MAX_REPORT_VALUE:
+    if not is_finite_number(tracks.get("start_s")) or abs(tracks["start_s"]) > MAX_REPORT_VALUE:
         fail("worst_tracks.start_s", f"{tracks.get('start_s')!r} is not a time in seconds")
     for name in ("truth", *names):
         track = _need_object(tracks.get(name), f"worst_tracks.{name}", fail)
@@ -151,10 +152,6 @@ def _kind(value: Any) -> str:
 
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _need_text(value: Any, field: str, fail: Any) -> str:
@@ -184,7 +181,7 @@ def _need_numbers(values: Any, field: str, fail: Any) -> list[Any]:
 
 def _need_number(value: Any, field: str, fail: Any) -> None:
     """A number within MAX_REPORT_VALUE, or null (undefined)."""
-    if value is not None and not _is_number(value):
+    if value is not None and not is_finite_number(value):
         fail(field, f"{value!r} is not a number")
     if value is not None and abs(value) > MAX_REPORT_VALUE:
         fail(field, f"{value!r} is beyond any drive (at most {MAX_REPORT_VALUE:g} m or s)")
@@ -234,7 +231,6 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
                             fig.savefig(target, format=fmt, dpi=300)
                         except OSError as exc:
                             raise _write_error(given / target.name, exc) from None
-                        os.chmod(target, 0o666 & ~current_umask())
                         names.append(target.name)
             _move_in(scratch, folder, names, given)
     except BaseException:
