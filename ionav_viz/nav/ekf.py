@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .planar_filter import BA, BG, GRADE_LENGTH_M, EkfNoise, forward_states, increments, measurements, noise_arrays, outage_kernel
+from .planar_filter import BA, BG, EkfNoise, forward_pass, increments, measurements
 from .protocol import Estimate, EstimatorInputs
 
 
@@ -38,12 +38,9 @@ class EkfEstimator:
             noise = replace(noise, gnss_speed_mps=max(noise.gnss_speed_mps, noise.gnss_fitted_speed_mps),
                             gnss_course_rad_at_10mps=max(noise.gnss_course_rad_at_10mps, noise.gnss_fitted_course_rad_at_10mps))
         meas, inc = measurements(inputs.drive, w, noise), increments(w)
-        xs, Ps, slow = forward_states(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, noise)
-        q, _ = noise_arrays(noise, inc.T)
-        still_at_end = np.ascontiguousarray(inputs.still[..., -1])  # each window's last grid point: where its state ends
-        disp, yaw = outage_kernel(xs, Ps, slow, np.asarray(inputs.starts, dtype=np.int64), int(inputs.n_windows), inc.F, inc.G, inc.W,
-                                   float(inc.T), meas.vehicle, q, noise.vehicle_speed_mps**2, GRADE_LENGTH_M, still_at_end,
-                                   noise.still_speed_mps**2)
+        fp = forward_pass(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, noise, keep_log=True)
+        xs = fp.xs
+        disp, yaw = fp.outages(inputs.starts, inputs.n_windows, inputs.still[..., -1])  # each window's last grid point: where its state ends
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",

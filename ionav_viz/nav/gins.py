@@ -29,13 +29,14 @@ from typing import Any
 import numpy as np
 
 from ..core.drive import Drive, measured_imu
-from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, enu_of_geodetic, geodetic_of_enu, normal_gravity_mps2
+from ..core.geo import enu_of_geodetic, geodetic_of_enu
 from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..core.rotation import quat_of_euler
+from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs
 from .stillness import drive_still
-from .strapdown import BAX, BGX, KO, N_ERR, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, GinsNoise, run_filter
+from .strapdown import BAX, BGX, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
@@ -115,9 +116,13 @@ class GinsRun:
     bounds: Boundaries
     xs: np.ndarray
     Ps: np.ndarray
-    args: dict[str, Any]
+    inputs: FilterInputs
+    noise: FilterNoise
+    earth: Earth
+    switches: FilterSwitches
     origin: tuple[float, float, float]
     still: np.ndarray
+    log: UpdateLog
 
 
 class GinsEstimator:
@@ -170,16 +175,16 @@ class GinsEstimator:
         sigma_a = max(white_noise_per_sample(acc), self.noise.accel_white_floor_mps2)
         sigma_g = max(white_noise_per_sample(gyr), self.noise.gyro_white_floor_radps)
         walk, init = self.noise.arrays()
-        # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
-        r_vel = (self.noise.gnss_fitted_velocity_mps if drive.velocity_fitted else self.noise.gnss_velocity_mps) ** 2
-        lat0 = origin[0]
         n = self.noise
-        args = dict(t=np.ascontiguousarray(drive.t_s), acc=acc, gyr=gyr, b_sample=b.sample.astype(np.int64), b_start=b.segment_start,
-                    gnss_ok=b.gnss_ok, gnss_pos=pos, gnss_sigma=sigma, has_height=has_height, gnss_vel=vel, vel_ok=vel_ok, odo=odo,
-                    still=still, q_white_v=sigma_a**2 * dt, q_white_phi=sigma_g**2 * dt, walk=walk, r_vel=r_vel,
-                    r_lat=n.nhc_lateral_mps**2, r_vert=n.nhc_vertical_mps**2, r_odo=n.odometer_mps**2, r_zupt=n.zupt_mps**2,
-                    r_zaru=sigma_g**2, omega_ie=earth_rate_enu_radps(lat0), g0=normal_gravity_mps2(lat0, origin[2]),
-                    radius=EARTH_MEAN_RADIUS_M, use_nhc=self.nhc, use_odo=self.odometer and found is not None, use_zupt=self.zupt)
+        # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
+        r_vel = (n.gnss_fitted_velocity_mps if drive.velocity_fitted else n.gnss_velocity_mps) ** 2
+        inputs = FilterInputs(np.ascontiguousarray(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64), b.segment_start.astype(bool),
+                              b.gnss_ok.astype(bool), pos, np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
+                              still.astype(bool), bool(has_height))
+        noise = FilterNoise(sigma_a**2 * dt, sigma_g**2 * dt, walk, r_vel, n.nhc_lateral_mps**2, n.nhc_vertical_mps**2, n.odometer_mps**2,
+                            n.zupt_mps**2, sigma_g**2)
+        earth = earth_at(origin[0], origin[2])
+        switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt))
 
         x0 = np.zeros(N_NOMINAL)
         x0[PX:PX + 3] = pos[0]
@@ -191,18 +196,17 @@ class GinsEstimator:
         P0[0, 0] = P0[1, 1] = sigma[0] ** 2
         P0[2, 2] = (2.0 * sigma[0]) ** 2
         nb = len(b.t_s)
-        xs, Ps = np.zeros((nb, N_NOMINAL)), np.zeros((nb, N_ERR, N_ERR))
-        pos_out, turn_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
-        run_filter(**args, x0=x0, P0=P0, use_gnss=True, b_first=0, b_last=nb - 1, xs=xs, Ps=Ps, pos_out=pos_out, turn_out=turn_out,
-                   dist_out=dist_out)
+        out = filter_outputs(nb, keep_states=True)
+        run_filter(inputs, noise, earth, switches, x0, P0, 0, nb - 1, out)
+        xs = out.xs
         self._last = {"imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample",
                       "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
                       "accel_bias_mps2": _median_text(xs[:, BAX:BAX + 3]),
                       "mount_residual_deg": f"yaw {np.rad2deg(np.median(xs[:, PSIM])):+.2f}, pitch {np.rad2deg(np.median(xs[:, THM])):+.2f}",
                       "gyro_z_scale_error": f"{np.median(xs[:, SG]):+.4f}",
-                      "vehicle_speed": f"used, scale {np.median(xs[:, KO]):.4f}" if args["use_odo"] else "none",
+                      "vehicle_speed": f"used, scale {np.median(xs[:, KO]):.4f}" if switches.odometer else "none",
                       "still_s": f"{float(still_s.sum() * dt):.0f} s of the drive detected standing"}
-        return GinsRun(b, xs, Ps, args, origin, still)
+        return GinsRun(b, xs, out.Ps, inputs, noise, earth, switches, origin, still, out.log)
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         drive, n = inputs.drive, int(inputs.n_windows)
@@ -210,20 +214,18 @@ class GinsEstimator:
         if m == 0:
             return Estimate(np.zeros((0, n)), np.zeros((0, n)))
         r = self.run(drive, inputs.windows)
-        nb = len(r.bounds.t_s)
-        pos_out, turn_out, dist_out = np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb)
-        empty_x, empty_P = np.zeros((0, N_NOMINAL)), np.zeros((0, N_ERR, N_ERR))
+        out = filter_outputs(len(r.bounds.t_s), keep_states=False)
+        blind = r.switches._replace(gnss=False)
         positions = np.zeros((m, n + 1, 3))
         disp, yaw = np.zeros((m, n)), np.zeros((m, n))
         for o, k in enumerate(np.asarray(inputs.starts)):
             b0 = int(r.bounds.of_window[k])
-            run_filter(**r.args, x0=r.xs[b0], P0=r.Ps[b0], use_gnss=False, b_first=b0, b_last=b0 + n, xs=empty_x, Ps=empty_P,
-                       pos_out=pos_out, turn_out=turn_out, dist_out=dist_out)
+            run_filter(r.inputs, r.noise, r.earth, blind, r.xs[b0], r.Ps[b0], b0, b0 + n, out)
             span = slice(b0, b0 + n + 1)
-            positions[o] = pos_out[span]
-            disp[o] = np.diff(dist_out[span])
+            positions[o] = out.pos[span]
+            disp[o] = np.diff(out.dist[span])
             T = np.diff(r.bounds.t_s[span])
-            yaw[o] = np.diff(turn_out[span]) / T
+            yaw[o] = np.diff(out.turn[span]) / T
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
         return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1))
 

@@ -56,6 +56,7 @@ them in about 6 s and stores the result in ``__pycache__``). Its pass over a dri
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -64,6 +65,7 @@ from ..core.drive import Drive
 from ..core.geo import local_en_m
 from ..core.gnss_quality import position_sigma_m
 from ..core.grid import GRID_RATE_HZ, WINDOW_S
+from . import kalman
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
@@ -143,6 +145,48 @@ def noise_arrays(noise: EkfNoise, T: float) -> tuple[np.ndarray, np.ndarray]:
     return q, init
 
 
+class PlanarInputs(NamedTuple):
+    """What the filter runs on, per window boundary (n_windows + 1): GNSS position ``e``, ``n``
+    (local m), ``speed`` (m/s), ``course`` (rad, clockwise from north), ``good`` (a usable fix),
+    ``sigma`` (m); per window (n_windows): ``segment``, the vehicle speed at its end ``vehicle``
+    (m/s, NaN: none) and its increments ``F``, ``G``, ``W`` over ``T`` s (:class:`Increments`)."""
+
+    segment: np.ndarray
+    e: np.ndarray
+    n: np.ndarray
+    speed: np.ndarray
+    course: np.ndarray
+    good: np.ndarray
+    sigma: np.ndarray
+    vehicle: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    W: np.ndarray
+    T: float
+
+
+class PlanarModel(NamedTuple):
+    """The filter's noise as it uses it: process noise per window ``q`` (8,), initial standard
+    deviations ``init_sd`` (8,), the variances of the GNSS speed, the vehicle speed and a standstill's
+    zero speed ((m/s)^2), the GNSS course's sigma at 10 m/s (rad), the offset's slow part's
+    smoothing per window ``alpha`` and the road length a grade fades over (m)."""
+
+    q: np.ndarray
+    init_sd: np.ndarray
+    r_speed: float
+    r_vehicle: float
+    r_still: float
+    course_sd_at_10mps: float
+    alpha: float
+    grade_length_m: float
+
+
+#: The measurement slots of the forward pass's update log (:class:`ionav_viz.nav.kalman.UpdateLog`,
+#: a row per window: GNSS at its start, the vehicle speed at its end), in their units (m, m/s, rad, m/s).
+MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_speed", "gnss_course", "vehicle_speed")
+SLOT_VEHICLE = 4
+
+
 # The filter runs one small state per window, which numpy cannot batch along the drive: the
 # loops below are compiled by numba (cached on disk after the first run), about 50x faster
 # than the same numpy code per window (benchmarks/bench_replay.py).
@@ -198,86 +242,110 @@ def _product(A, B, out):  # pragma: no cover - compiled
             out[i, j] = acc
 
 
+# The measurements, one function each: each writes its row of H into the scratch ``H = (cols,
+# h)`` (its nonzeros) and returns ``(innovation, r, nnz)``: measured minus predicted, its variance
+# and the number of nonzeros; :func:`_apply` folds one in with the shared update.
+
+
 @njit(cache=True)
-def _update(x, P, H, z, h_x, r, wrap):  # pragma: no cover - compiled
-    """Scalar measurement ``z = h(x)`` (linearised ``H`` (8,)) with variance ``r``, in place;
-    angles (``wrap``) use the wrapped innovation."""
-    innov = z - h_x
-    if wrap:
-        innov = (innov + np.pi) % (2 * np.pi) - np.pi
-    PHt = np.zeros(N_STATES)
-    S = r
+def _state_row(H, col):  # pragma: no cover - compiled
+    H[0][0] = col
+    H[1][0] = 1.0
+
+
+@njit(cache=True)
+def gnss_state(x, col, z, r, H):  # pragma: no cover - compiled
+    """A GNSS measurement of a state directly: east or north (m), speed (m/s), or the course (rad,
+    its innovation wrapped to [-pi, pi))."""
+    _state_row(H, col)
+    innovation = z - x[col]
+    if col == PSI:
+        innovation = (innovation + np.pi) % (2 * np.pi) - np.pi
+    return innovation, r, 1
+
+
+@njit(cache=True)
+def vehicle_speed_meas(x, z, r, H):  # pragma: no cover - compiled
+    """The vehicle speed ``z = k v`` (m/s)."""
+    cols, h = H
+    cols[0], h[0] = V, x[K]
+    cols[1], h[1] = K, x[V]
+    return z - x[K] * x[V], r, 2
+
+
+@njit(cache=True)
+def standstill(x, r, H):  # pragma: no cover - compiled
+    """Standing: the speed is 0 m/s."""
+    _state_row(H, V)
+    return -x[V], r, 1
+
+
+@njit(cache=True)
+def _apply(P, x, H, meas, log, row, slot):  # pragma: no cover - compiled
+    """Fold ``meas = (innovation, r, nnz)`` with row ``H`` into ``x``, ``P`` (the shared Joseph-form
+    update; no gate) and keep it in ``log`` at ``(row, slot)``."""
+    innovation, r, nnz = meas
+    S, used = kalman.scalar_update(P, x, H[0], H[1], nnz, innovation, r, np.inf)
+    kalman.record(log, row, slot, innovation, S, used)
+
+
+@njit(cache=True)
+def _restart(x, P, inp, model, k, accel_offset, gyro_bias):  # pragma: no cover - compiled
+    """A segment starts at window ``k``: the state from its fix and the starting biases, with the
+    initial covariance; after a gap, what was learnt about the sensors is kept."""
+    prior_x, prior_P = x.copy(), P.copy()
+    x[:] = (inp.e[k], inp.n[k], inp.speed[k], inp.course[k], accel_offset, gyro_bias, 1.0, 0.0)
+    P[:, :] = 0.0
     for i in range(N_STATES):
-        for j in range(N_STATES):
-            PHt[i] += P[i, j] * H[j]
-        S += H[i] * PHt[i]
-    for i in range(N_STATES):
-        x[i] += PHt[i] / S * innov
-    for i in range(N_STATES):
-        for j in range(i + 1):
-            p = 0.5 * ((P[i, j] - PHt[i] / S * PHt[j]) + (P[j, i] - PHt[j] / S * PHt[i]))
-            P[i, j] = P[j, i] = p
+        P[i, i] = model.init_sd[i] ** 2
+    if k > 0:
+        x[BA:] = prior_x[BA:]
+        P[BA:, BA:] = prior_P[BA:, BA:]
 
 
 @njit(cache=True)
-def _vehicle_row(x, H):  # pragma: no cover - compiled
-    """The vehicle speed's prediction ``k v`` from the state ``x``, and its row of H into ``H`` (8,)."""
-    H[:] = 0.0
-    H[V], H[K] = x[K], x[V]
-    return x[K] * x[V]
-
-
-@njit(cache=True)
-def _update_vehicle(x, P, z, r, H):  # pragma: no cover - compiled
-    """The vehicle speed ``z = k v``."""
-    _update(x, P, H, z, _vehicle_row(x, H), r, False)
-
-
-@njit(cache=True)
-def _forward_kernel(segment, e, n, speed, course, good, sigma, vehicle, F, G, W, T, accel_offset, gyro_bias,
-                    q, init_sd, r_speed, course_sd_at_10mps, r_vehicle, alpha):  # pragma: no cover - compiled
-    nw = len(segment)
+def _forward_kernel(inp, model, accel_offset, gyro_bias, log):  # pragma: no cover - compiled
+    """The pass over the drive: at each window start its fix (position, speed, and the course when
+    faster than FILTER_COURSE_MIN_SPEED_MPS), then the window's propagation and the vehicle speed at
+    its end. Returns the states and covariances at the window starts (after their fix) and the
+    offset's slow part there."""
+    nw = len(inp.segment)
     xs, Ps, slow = np.zeros((nw, N_STATES)), np.zeros((nw, N_STATES, N_STATES)), np.zeros(nw)
     x, P = np.zeros(N_STATES), np.zeros((N_STATES, N_STATES))
-    J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
-    z, r = np.zeros(4), np.zeros(4)
+    J = np.zeros((N_STATES, N_STATES))
+    H = (np.zeros(2, dtype=np.int64), np.zeros(2))
     mean = accel_offset
     for k in range(nw):
-        if k == 0 or segment[k] != segment[k - 1]:
-            prior_x, prior_P = x.copy(), P.copy()
-            x[:] = (e[k], n[k], speed[k], course[k], accel_offset, gyro_bias, 1.0, 0.0)
-            P[:, :] = 0.0
-            for i in range(N_STATES):
-                P[i, i] = init_sd[i] ** 2
-            if k > 0:  # after a gap: keep what was learnt about the sensors
-                x[BA:] = prior_x[BA:]
-                P[BA:, BA:] = prior_P[BA:, BA:]
-        elif good[k]:
-            z[0], z[1], z[2], z[3] = e[k], n[k], speed[k], course[k]
-            r[0] = r[1] = sigma[k] ** 2
-            r[2] = r_speed
-            r[3] = (course_sd_at_10mps * 10.0 / max(speed[k], 1.0)) ** 2
-            for i in range(4 if speed[k] > FILTER_COURSE_MIN_SPEED_MPS else 3):  # course only when moving
-                H[:] = 0.0
-                H[i] = 1.0  # states E, N, V, PSI
-                _update(x, P, H, z[i], x[i], r[i], i == PSI)
+        if k == 0 or inp.segment[k] != inp.segment[k - 1]:
+            _restart(x, P, inp, model, k, accel_offset, gyro_bias)
+        elif inp.good[k]:
+            r_pos = inp.sigma[k] ** 2
+            _apply(P, x, H, gnss_state(x, E, inp.e[k], r_pos, H), log, k, E)
+            _apply(P, x, H, gnss_state(x, N, inp.n[k], r_pos, H), log, k, N)
+            _apply(P, x, H, gnss_state(x, V, inp.speed[k], model.r_speed, H), log, k, V)
+            if inp.speed[k] > FILTER_COURSE_MIN_SPEED_MPS:  # the course only when moving: its noise grows as 1/speed
+                r_course = (model.course_sd_at_10mps * 10.0 / max(inp.speed[k], 1.0)) ** 2
+                _apply(P, x, H, gnss_state(x, PSI, inp.course[k], r_course, H), log, k, PSI)
         xs[k], Ps[k] = x, P
-        mean += alpha * (x[BA] - mean)
+        mean += model.alpha * (x[BA] - mean)
         slow[k] = mean
-        _propagate(x, P, F[k], G[k], W[k], T, q, J)
-        if np.isfinite(vehicle[k]):
-            _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+        _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J)
+        if np.isfinite(inp.vehicle[k]):
+            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), log, k, SLOT_VEHICLE)
     return xs, Ps, slow
 
 
 @njit(cache=True)
-def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_vehicle, grade_length_m, still, r_still):  # pragma: no cover - compiled
-    """Every outage from the state at its start, without GNSS. ``still[o, j]``: the car stands at the
-    end of window ``j`` of outage ``o`` (the IMU shows it): a zero-speed update there, of variance
-    ``r_still``. The speed never goes below zero (a car's filter drives forward)."""
+def outage_kernel(forward, inp, model, starts, n_windows, still):  # pragma: no cover - compiled
+    """Every outage from the forward pass's state ``forward = (xs, Ps, slow)`` at its start, without
+    GNSS. ``still[o, j]``: the car stands at the end of window ``j`` of outage ``o`` (the IMU shows
+    it): a zero-speed update there. The speed never goes below zero (a car's filter drives forward)."""
+    xs, Ps, slow = forward
     m = len(starts)
     disp, yaw = np.zeros((m, n_windows)), np.zeros((m, n_windows))
-    J, H = np.zeros((N_STATES, N_STATES)), np.zeros(N_STATES)
+    J = np.zeros((N_STATES, N_STATES))
+    H = (np.zeros(2, dtype=np.int64), np.zeros(2))
+    nowhere = kalman.UpdateLog(np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int8))
     for o in range(m):
         k0 = starts[o]
         x, P = xs[k0].copy(), Ps[k0].copy()
@@ -286,16 +354,14 @@ def outage_kernel(xs, Ps, slow, starts, n_windows, F, G, W, T, vehicle, q, r_veh
         travelled = 0.0
         for j in range(n_windows):
             k = k0 + j
-            # the fast part of the offset is road grade: it fades over GRADE_LENGTH_M of road
-            x[BA] = base + grade0 * np.exp(-travelled / grade_length_m)
-            disp[o, j], yaw[o, j] = _propagate(x, P, F[k], G[k], W[k], T, q, J)
+            # the fast part of the offset is road grade: it fades over grade_length_m of road
+            x[BA] = base + grade0 * np.exp(-travelled / model.grade_length_m)
+            disp[o, j], yaw[o, j] = _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J)
             travelled += max(disp[o, j], 0.0)
-            if np.isfinite(vehicle[k]):
-                _update_vehicle(x, P, vehicle[k], r_vehicle, H)
+            if np.isfinite(inp.vehicle[k]):
+                _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), nowhere, 0, 0)
             if still[o, j]:
-                H[:] = 0.0
-                H[V] = 1.0
-                _update(x, P, H, 0.0, x[V], r_still, False)
+                _apply(P, x, H, standstill(x, model.r_still, H), nowhere, 0, 0)
             x[V] = max(x[V], 0.0)
     return disp, yaw
 
@@ -312,8 +378,11 @@ def propagate_window(x: np.ndarray, F: float, G: float, W: float, T: float) -> t
 def vehicle_speed_model(x: np.ndarray) -> tuple[float, np.ndarray]:
     """The vehicle speed as the filter predicts it from the state ``x`` (8,) (``k v``, m/s) and its
     row of H (8,)."""
-    H = np.zeros(N_STATES)
-    return float(_vehicle_row(np.asarray(x, dtype=float), H)), H
+    H = (np.zeros(2, dtype=np.int64), np.zeros(2))
+    innovation, _, nnz = vehicle_speed_meas(np.asarray(x, dtype=float), 0.0, 1.0, H)
+    row = np.zeros(N_STATES)
+    row[H[0][:nnz]] = H[1][:nnz]
+    return float(-innovation), row
 
 
 @dataclass
@@ -359,13 +428,56 @@ def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: floa
     return forward_states(windows, measurements(drive, windows, noise), increments(windows), accel_offset, gyro_bias, noise)
 
 
+def planar_inputs(windows: Windows, meas: Measurements, inc: Increments) -> PlanarInputs:
+    """The filter's typed inputs (numba-ready) from the windows, measurements and increments."""
+    f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
+    return PlanarInputs(np.ascontiguousarray(windows.segment, dtype=np.int64), f(meas.e), f(meas.n), f(meas.speed), f(meas.course),
+                        np.ascontiguousarray(meas.good, dtype=np.bool_), f(meas.sigma_m), f(meas.vehicle), f(inc.F), f(inc.G), f(inc.W),
+                        float(inc.T))
+
+
+def planar_model(noise: EkfNoise, T: float) -> PlanarModel:
+    """The filter's noise as its kernels use it, for windows of ``T`` s."""
+    q, init = noise_arrays(noise, T)
+    return PlanarModel(q, init, float(noise.gnss_speed_mps**2), float(noise.vehicle_speed_mps**2), float(noise.still_speed_mps**2),
+                       float(noise.gnss_course_rad_at_10mps), float(T / OFFSET_MEMORY_S), float(GRADE_LENGTH_M))
+
+
+@dataclass
+class ForwardPass:
+    """The filter's pass over a drive: states ``xs`` (n_windows, 8) and covariances ``Ps`` (n_windows,
+    8, 8) at the window starts, the offset's slow part there ``slow`` (m/s^2), the update ``log``
+    (a row per window, :data:`MEASUREMENTS`), and the inputs and model it ran with."""
+
+    xs: np.ndarray
+    Ps: np.ndarray
+    slow: np.ndarray
+    log: kalman.UpdateLog
+    inputs: PlanarInputs
+    model: PlanarModel
+
+    def outages(self, starts: np.ndarray, n_windows: int, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every outage from the state at its start (:func:`outage_kernel`): distance (m) and yaw
+        rate (rad/s, counter-clockwise) per window, ``(len(starts), n_windows)``."""
+        return outage_kernel((self.xs, self.Ps, self.slow), self.inputs, self.model, np.asarray(starts, dtype=np.int64), int(n_windows),
+                             np.ascontiguousarray(still, dtype=np.bool_))
+
+
+def forward_pass(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float, noise: EkfNoise,
+                 keep_log: bool = False) -> ForwardPass:
+    """The filter over the whole drive from the starting biases ``accel_offset`` (m/s^2) and
+    ``gyro_bias`` (rad/s); ``keep_log``: keep every update's innovation (:class:`ForwardPass`)."""
+    inputs, model = planar_inputs(windows, meas, inc), planar_model(noise, inc.T)
+    log = kalman.update_log(len(windows) if keep_log else 0, len(MEASUREMENTS))
+    xs, Ps, slow = _forward_kernel(inputs, model, float(accel_offset), float(gyro_bias), log)
+    return ForwardPass(xs, Ps, slow, log, inputs, model)
+
+
 def forward_states(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float,
-             noise: EkfNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    q, init = noise_arrays(noise, inc.T)
-    return _forward_kernel(np.ascontiguousarray(windows.segment, dtype=np.int64), meas.e, meas.n, meas.speed, meas.course,
-                           meas.good.astype(np.bool_), meas.sigma_m, meas.vehicle, inc.F, inc.G, inc.W, float(inc.T),
-                           float(accel_offset), float(gyro_bias), q, init, noise.gnss_speed_mps**2,
-                           float(noise.gnss_course_rad_at_10mps), noise.vehicle_speed_mps**2, inc.T / OFFSET_MEMORY_S)
+                   noise: EkfNoise) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`forward_pass`'s states, covariances and the offset's slow part."""
+    fp = forward_pass(windows, meas, inc, accel_offset, gyro_bias, noise)
+    return fp.xs, fp.Ps, fp.slow
 
 
 @dataclass

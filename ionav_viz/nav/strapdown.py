@@ -74,11 +74,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from ..core import rotation
+from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, normal_gravity_mps2
+from . import kalman
 
 #: A GNSS position component further than this many variances (a chi-square, 1 degree of freedom:
 #: 5 sigma) from the filter's prediction is a jump, not a fix (receivers jump by metres when they
@@ -95,6 +98,94 @@ N_NOMINAL = 20
 # error state layout
 DP, DV, PHI, DBG, DBA, DK, DPSIM, DTHM, DSG = 0, 3, 6, 9, 12, 15, 16, 17, 18
 N_ERR = 19
+
+#: The measurement slots of the filter's update log (:class:`ionav_viz.nav.kalman.UpdateLog`), in
+#: their units: GNSS position (m), GNSS velocity (m/s), ZUPT (m/s), ZARU (rad/s), NHC (m/s), odometer (m/s).
+MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_up", "gnss_velocity_east", "gnss_velocity_north", "zupt_east", "zupt_north",
+                "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer")
+SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER = 0, 3, 5, 8, 11, 12, 13
+
+
+class Earth(NamedTuple):
+    """The Earth at the drive's origin: its rate in ``n`` (rad/s, (3,)), gravity's magnitude (m/s^2)
+    and the radius gravity points from (m)."""
+
+    omega_ie: np.ndarray
+    g0: float
+    radius: float
+
+
+def earth_at(lat_deg: float, height_m: float = 0.0) -> Earth:
+    return Earth(np.ascontiguousarray(earth_rate_enu_radps(lat_deg), dtype=float), float(normal_gravity_mps2(lat_deg, height_m)),
+                 float(EARTH_MEAN_RADIUS_M))
+
+
+class FilterInputs(NamedTuple):
+    """What the filter runs on. IMU samples: ``t`` (s, (n,)), ``acc`` (body specific force, m/s^2,
+    (n, 3)), ``gyr`` (body rate, rad/s, (n, 3)). Per window boundary (nb,): ``b_sample`` (its
+    sample), ``b_start`` (it starts a segment), ``gnss_ok`` (a usable fix), ``gnss_pos`` (ENU m,
+    (nb, 3)), ``gnss_sigma`` (m), ``gnss_vel`` (east, north m/s, (nb, 2)), ``vel_ok`` (use the
+    velocity), ``odo`` (vehicle speed m/s, NaN: none), ``still`` (the IMU shows the car standing);
+    ``has_height``: the fixes' heights are measurements."""
+
+    t: np.ndarray
+    acc: np.ndarray
+    gyr: np.ndarray
+    b_sample: np.ndarray
+    b_start: np.ndarray
+    gnss_ok: np.ndarray
+    gnss_pos: np.ndarray
+    gnss_sigma: np.ndarray
+    gnss_vel: np.ndarray
+    vel_ok: np.ndarray
+    odo: np.ndarray
+    still: np.ndarray
+    has_height: bool
+
+
+class FilterNoise(NamedTuple):
+    """The filter's noise as it uses it: the white noise densities of velocity and attitude
+    (variance per second), the random walks per error state ``walk`` ((19,), variance per second)
+    and each measurement's variance (unit squared; ``r_zaru`` per gyro sample)."""
+
+    q_white_v: float
+    q_white_phi: float
+    walk: np.ndarray
+    r_vel: float
+    r_lat: float
+    r_vert: float
+    r_odo: float
+    r_zupt: float
+    r_zaru: float
+
+
+class FilterSwitches(NamedTuple):
+    """Which updates run: GNSS, the NHC, the odometer, ZUPT/ZARU."""
+
+    gnss: bool
+    nhc: bool
+    odometer: bool
+    zupt: bool
+
+
+class FilterOutputs(NamedTuple):
+    """Where :func:`run_filter` writes, per boundary: the state ``xs`` (nb, 20) and covariance ``Ps``
+    (nb, 19, 19) after its updates and the update ``log`` (each with 0 rows: kept nowhere), the
+    position ``pos`` (ENU m, (nb, 3)), the turn (rad) and distance (m) since the first boundary."""
+
+    xs: np.ndarray
+    Ps: np.ndarray
+    pos: np.ndarray
+    turn: np.ndarray
+    dist: np.ndarray
+    log: kalman.UpdateLog
+
+
+def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
+    """Outputs for ``nb`` boundaries, with the states and the update log or without."""
+    rows = nb if keep_states else 0
+    return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
+                         kalman.update_log(rows, len(MEASUREMENTS)))
 
 
 @dataclass(frozen=True)
@@ -161,10 +252,11 @@ _skew = njit(cache=True)(rotation.skew)
 
 
 @njit(cache=True)
-def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, omega_ie, g0, radius, out):  # pragma: no cover - compiled
-    """One step of ``dt`` (s) in place on the nominal state ``x``; returns the horizontal distance
-    (m) and writes the step's mean specific force in ``n`` (m/s^2) and corrected z rate (rad/s) into
-    ``out`` (4,). Scalar code: the pass over a drive allocates nothing per sample."""
+def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, earth, out):  # pragma: no cover - compiled
+    """One step of ``dt`` (s) in place on the nominal state ``x`` (:class:`Earth` ``earth``);
+    returns the horizontal distance (m) and writes the step's mean specific force in ``n`` (m/s^2)
+    and corrected z rate (rad/s) into ``out`` (4,). Scalar code: allocates nothing per sample."""
+    omega_ie, g0, radius = earth.omega_ie, earth.g0, earth.radius
     wx = 0.5 * (gyr0[0] + gyr1[0]) - x[BGX]
     wy = 0.5 * (gyr0[1] + gyr1[1]) - x[BGX + 1]
     wz = (0.5 * (gyr0[2] + gyr1[2]) - x[BGX + 2]) / (1.0 + x[SG])
@@ -305,60 +397,6 @@ def _propagate_covariance(P, D, q_diag, q_pv, A, B):  # pragma: no cover - compi
 
 
 @njit(cache=True)
-def _subtract_outer(P, PH, S):  # pragma: no cover - compiled
-    """``P <- P - PH PH^T / S`` row by row (contiguous; the product is symmetric, and the next
-    propagation symmetrises what rounding leaves)."""
-    n = P.shape[0]
-    for i in range(n):
-        k = PH[i] / S
-        for j in range(n):
-            P[i, j] -= k * PH[j]
-
-
-@njit(cache=True)
-def _scalar_update(P, dx, H, cols, dz, r):  # pragma: no cover - compiled
-    """A scalar measurement ``dz = H dx + noise`` (variance ``r``; H's nonzeros at ``cols``) folded
-    into the error estimate ``dx`` and covariance ``P`` in place (the standard form, kept symmetric)."""
-    n = P.shape[0]
-    PH = np.zeros(n)
-    for i in range(n):
-        acc = 0.0
-        for k in range(len(cols)):
-            acc += P[i, cols[k]] * H[k]
-        PH[i] = acc
-    S = r
-    pred = 0.0
-    for k in range(len(cols)):
-        S += H[k] * PH[cols[k]]
-        pred += H[k] * dx[cols[k]]
-    if S <= 0.0:
-        return
-    innov = dz - pred
-    for i in range(n):
-        dx[i] += PH[i] / S * innov
-    _subtract_outer(P, PH, S)
-
-
-@njit(cache=True)
-def _unit_update(P, dx, col, dz, r, gate=np.inf):  # pragma: no cover - compiled
-    """:func:`_scalar_update` for ``dz = dx[col] + noise`` (a state measured directly); a
-    measurement whose innovation is more than ``sqrt(gate)`` of its standard deviations away is
-    not used. Returns whether it was."""
-    n = P.shape[0]
-    S = P[col, col] + r
-    if S <= 0.0:
-        return False
-    innov = dz - dx[col]
-    if innov * innov > gate * S:
-        return False
-    PH = P[:, col].copy()
-    for i in range(n):
-        dx[i] += PH[i] / S * innov
-    _subtract_outer(P, PH, S)
-    return True
-
-
-@njit(cache=True)
 def _correct(x, dx):  # pragma: no cover - compiled
     """Feed the estimated errors back into the nominal state (``dx`` estimated minus true)."""
     for i in range(3):
@@ -376,178 +414,279 @@ def _correct(x, dx):  # pragma: no cover - compiled
     dx[:] = 0.0
 
 
+# ---------------------------------------------------------------------------------------------
+# The measurements, one function each. Each writes its row of H over the error state into the
+# scratch ``H = (cols, h)`` (its nonzeros) and returns ``(dz, r, nnz)``: the prediction from the
+# nominal state minus the measurement (the error state's measurement, ``dz = H dx + noise``), its
+# variance and the number of nonzeros. :func:`_apply` folds one in.
+
+
 @njit(cache=True)
-def _body_velocity_row(C, M, row, scale, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
-    """The row of H (its 7 nonzeros ``H`` at ``cols``) of a measurement of ``scale * (C^T v)[row] +
-    extra_h * state[extra_col]`` (``M = -C^T [v x]``: the body-frame velocity's attitude Jacobian)."""
+def _unit_row(H, col):  # pragma: no cover - compiled
+    H[0][0] = col
+    H[1][0] = 1.0
+
+
+@njit(cache=True)
+def gnss_position(x, pos, sigma, axis, H):  # pragma: no cover - compiled
+    """A GNSS position component (``axis`` 0 east, 1 north, 2 up; m), sigma ``sigma`` (twice it up)."""
+    _unit_row(H, DP + axis)
+    s = sigma if axis < 2 else 2.0 * sigma
+    return x[PX + axis] - pos[axis], s * s, 1
+
+
+@njit(cache=True)
+def gnss_velocity(x, vel, axis, r, H):  # pragma: no cover - compiled
+    """A GNSS horizontal velocity component (``axis`` 0 east, 1 north; m/s), variance ``r``."""
+    _unit_row(H, DV + axis)
+    return x[VX + axis] - vel[axis], r, 1
+
+
+@njit(cache=True)
+def zupt(x, axis, r, H):  # pragma: no cover - compiled
+    """Zero velocity: the navigation-frame velocity component ``axis`` is 0 m/s."""
+    _unit_row(H, DV + axis)
+    return x[VX + axis], r, 1
+
+
+@njit(cache=True)
+def zaru(x, C, omega_ie, gyro_mean, axis, r, H):  # pragma: no cover - compiled
+    """Zero angular rate: standing, the mean gyro reading about body ``axis`` (rad/s) is its bias
+    plus the Earth's rate (``C``: ``C_b^n``)."""
+    _unit_row(H, DBG + axis)
+    earth_b = C[0, axis] * omega_ie[0] + C[1, axis] * omega_ie[1] + C[2, axis] * omega_ie[2]
+    return x[BGX + axis] + earth_b - gyro_mean[axis], r, 1
+
+
+@njit(cache=True)
+def _body_velocity_row(C, M, row, scale, extra_col, extra_h, H):  # pragma: no cover - compiled
+    """The row of H (7 nonzeros) of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (``M =
+    -C^T [v x]``: the body-frame velocity's attitude Jacobian)."""
+    cols, h = H
     for j in range(3):
         cols[j] = DV + j
-        H[j] = scale * C[j, row]
+        h[j] = scale * C[j, row]
         cols[3 + j] = PHI + j
-        H[3 + j] = scale * M[row, j]
+        h[3 + j] = scale * M[row, j]
     cols[6] = extra_col
-    H[6] = extra_h
+    h[6] = extra_h
 
 
 @njit(cache=True)
-def _body_velocity_update(C, vb, M, dx, P, row, scale, dz, r, extra_col, extra_h, cols, H):  # pragma: no cover - compiled
-    """A measurement of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (the body-frame velocity
-    ``vb = C^T v``, ``M = -C^T [v x]`` its attitude Jacobian); ``dz``: prediction minus measurement.
-    ``cols``/``H``: scratch of 7."""
-    _body_velocity_row(C, M, row, scale, extra_col, extra_h, cols, H)
-    _scalar_update(P, dx, H, cols, dz, r)
+def nhc_lateral(x, C, M, vb, r, H):  # pragma: no cover - compiled
+    """The vehicle frame's lateral velocity ``vb_y + psi_m vb_x`` is 0 m/s (``vb = C^T v``, ``M``
+    its attitude Jacobian)."""
+    _body_velocity_row(C, M, 1, 1.0, DPSIM, vb[0], H)
+    return vb[1] + x[PSIM] * vb[0], r, 7
 
 
 @njit(cache=True)
-def _vehicle_velocity_rows(x, vb):  # pragma: no cover - compiled
-    """The NHC's two measurements and the odometer's, each ``(body axis, scale, prediction, extra
-    state, its H)`` for :func:`_body_velocity_update`: the vehicle frame's lateral ``vb_y + psi_m
-    vb_x`` and vertical ``vb_z - theta_m vb_x`` velocity (both measured zero), and the odometer's
-    ``k vb_x`` (``vb = C^T v``)."""
-    return ((1, 1.0, vb[1] + x[PSIM] * vb[0], DPSIM, vb[0]),
-            (2, 1.0, vb[2] - x[THM] * vb[0], DTHM, -vb[0]),
-            (0, x[KO], x[KO] * vb[0], DK, vb[0]))
+def nhc_vertical(x, C, M, vb, r, H):  # pragma: no cover - compiled
+    """The vehicle frame's vertical velocity ``vb_z - theta_m vb_x`` is 0 m/s."""
+    _body_velocity_row(C, M, 2, 1.0, DTHM, -vb[0], H)
+    return vb[2] - x[THM] * vb[0], r, 7
 
 
 @njit(cache=True)
-def _constraints(x, P, dx, nhc, r_lat, r_vert, odo, r_odo, still, r_zupt, gyro_mean, r_zaru, omega_ie):  # pragma: no cover - compiled
-    """The vehicle's constraints at a window boundary: NHC, odometer, and ZUPT/ZARU when still."""
-    C = _dcm(x[QW:QW + 4])
-    # the detector's "still" is checked against the filter's own velocity: a ZUPT more than
-    # ZUPT_GATE (chi-square, 3 dof, p = 0.001) away from it is a false detection, not a stop
-    gate = 0.0
-    for i in range(3):
-        gate += x[VX + i] ** 2 / (P[DV + i, DV + i] + r_zupt)
-    if still and gate < ZUPT_GATE:
-        for i in range(3):
-            _unit_update(P, dx, DV + i, x[VX + i], r_zupt)
-        earth_b = _tmul3(C, omega_ie)
-        for i in range(3):
-            _unit_update(P, dx, DBG + i, x[BGX + i] + earth_b[i] - gyro_mean[i], r_zaru)
-        return
-    v = x[VX:VX + 3]
-    vb = _tmul3(C, v)
-    M = _body_velocity_jacobian(C, v)
-    cols, H = np.empty(7, dtype=np.int64), np.empty(7)
-    lat, vert, fwd = _vehicle_velocity_rows(x, vb)
-    if nhc:
-        # the vehicle frame's lateral and vertical velocity are zero
-        _body_velocity_update(C, vb, M, dx, P, lat[0], lat[1], lat[2], r_lat, lat[3], lat[4], cols, H)
-        _body_velocity_update(C, vb, M, dx, P, vert[0], vert[1], vert[2], r_vert, vert[3], vert[4], cols, H)
-    if not math.isnan(odo):
-        # the odometer reads k times the forward velocity
-        _body_velocity_update(C, vb, M, dx, P, fwd[0], fwd[1], fwd[2] - odo, r_odo, fwd[3], fwd[4], cols, H)
+def odometer(x, C, M, vb, speed_mps, r, H):  # pragma: no cover - compiled
+    """The vehicle speed reads ``k`` times the forward velocity ``vb_x`` (m/s)."""
+    _body_velocity_row(C, M, 0, x[KO], DK, vb[0], H)
+    return x[KO] * vb[0] - speed_mps, r, 7
 
 
 @njit(cache=True)
-def _gnss(x, P, dx, pos, sigma, has_height, vel, vel_ok, r_vel, gate):  # pragma: no cover - compiled
-    """The GNSS updates of one boundary; returns whether its horizontal position was used."""
-    used = True
-    for i in range(3 if has_height else 2):
-        s = sigma if i < 2 else 2.0 * sigma
-        ok = _unit_update(P, dx, DP + i, x[PX + i] - pos[i], s * s, gate)
-        used = used and (ok or i == 2)
-    if vel_ok and used:
-        for i in range(2):
-            _unit_update(P, dx, DV + i, x[VX + i] - vel[i], r_vel)
+def _apply(P, dx, H, meas, gate, log, row, slot):  # pragma: no cover - compiled
+    """Fold the measurement ``meas = (dz, r, nnz)`` with row ``H`` into ``dx``, ``P`` (the shared
+    Joseph-form update), gated at ``gate`` (NIS), and keep it in ``log`` at ``(row, slot)`` (the
+    innovation as measured minus predicted). Returns whether it was used."""
+    cols, h = H
+    dz, r, nnz = meas
+    nu = dz
+    for k in range(nnz):
+        nu -= h[k] * dx[cols[k]]
+    S, used = kalman.scalar_update(P, dx, cols, h, nnz, nu, r, gate)
+    kalman.record(log, row, slot, -nu, S, used)
     return used
 
 
 @njit(cache=True)
-def run_filter(t, acc, gyr, b_sample, b_start, gnss_ok, gnss_pos, gnss_sigma, has_height, gnss_vel, vel_ok, odo, still,
-               x0, P0, q_white_v, q_white_phi, walk, r_vel, r_lat, r_vert, r_odo, r_zupt, r_zaru, omega_ie, g0, radius,
-               use_gnss, use_nhc, use_odo, use_zupt, b_first, b_last, xs, Ps, pos_out, turn_out, dist_out):  # pragma: no cover - compiled
-    """Run from boundary ``b_first`` to ``b_last`` (inclusive) from the state ``x0, P0`` at
-    ``b_first``'s sample, updating at every boundary after the first; stores the state after each
-    boundary's updates (``xs``/``Ps``, when non-empty), and per boundary the position (m), the turn
-    since ``b_first`` (rad, counter-clockwise: the corrected gyro integrated, so a window's yaw rate
-    is a rate, not the updates' corrections of the heading) and the distance since ``b_first`` (m).
+def standing_nis(x, P, r_zupt):  # pragma: no cover - compiled
+    """How far the filter's velocity is from zero, as a chi-square of 3 degrees of freedom."""
+    nis = 0.0
+    for i in range(3):
+        nis += x[VX + i] ** 2 / (P[DV + i, DV + i] + r_zupt)
+    return nis
 
-    ``b_start[b]``: boundary ``b`` starts a segment (the state restarts from GNSS there)."""
+
+# ---------------------------------------------------------------------------------------------
+# the filter's pass
+
+
+@njit(cache=True)
+def _restart_segment(x, P, P0, inputs, b):  # pragma: no cover - compiled
+    """A new segment at boundary ``b`` (after a gap in the log): position and velocity from GNSS
+    again, their covariance the initial one, what was learnt about the sensors kept."""
+    for i in range(3):
+        x[PX + i] = inputs.gnss_pos[b, i] if (i < 2 or inputs.has_height) else x[PX + i]
+    x[VX] = inputs.gnss_vel[b, 0]
+    x[VX + 1] = inputs.gnss_vel[b, 1]
+    x[VX + 2] = 0.0
+    for i in range(6):
+        for k in range(N_ERR):
+            P[i, k] = P[k, i] = 0.0
+    for i in range(6):
+        P[i, i] = P0[i, i]
+
+
+@njit(cache=True)
+def _propagate_window(x, P, inputs, noise, earth, j, jb, acc):  # pragma: no cover - compiled
+    """Mechanise the samples ``j`` to ``jb`` and propagate ``P`` over them; adds the distance (m)
+    and the turn against the Earth (rad) into ``acc`` (2,)."""
+    T = 0.0
+    fsum, step = np.zeros(3), np.zeros(4)
+    wz = 0.0
+    C0 = _dcm(x[QW:QW + 4])
+    t, omega_ie = inputs.t, earth.omega_ie
+    while j < jb:
+        dt = t[j + 1] - t[j]
+        acc[0] += _mechanise(x, inputs.acc[j], inputs.acc[j + 1], inputs.gyr[j], inputs.gyr[j + 1], dt, earth, step)
+        acc[1] += (step[3] - omega_ie[2]) * dt  # the turn against the Earth, about the body's z
+        for i in range(3):
+            fsum[i] += step[i] * dt
+        wz += step[3] * dt
+        T += dt
+        j += 1
+    if T > 0.0:
+        D, q_diag = np.zeros((N_ERR, N_ERR)), np.zeros(N_ERR)
+        Cm = 0.5 * (C0 + _dcm(x[QW:QW + 4]))
+        _transition(Cm, fsum / T, wz / T, T, D)
+        for i in range(3):
+            q_diag[DV + i] = noise.q_white_v * T
+            q_diag[PHI + i] = noise.q_white_phi * T
+            q_diag[DP + i] = noise.q_white_v * T**3 / 3.0
+        for i in range(9, N_ERR):
+            q_diag[i] = noise.walk[i] * T
+        _propagate_covariance(P, D, q_diag, noise.q_white_v * T * T / 2.0, np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)))
+
+
+@njit(cache=True)
+def _gnss_updates(x, P, dx, inputs, noise, b, gate, H, log):  # pragma: no cover - compiled
+    """Boundary ``b``'s fix: position (each component gated at ``gate``: a jump is not a fix), then,
+    at speed and only where the horizontal position was used, velocity. Returns whether the
+    horizontal position was used."""
+    used = True
+    for axis in range(3 if inputs.has_height else 2):
+        ok = _apply(P, dx, H, gnss_position(x, inputs.gnss_pos[b], inputs.gnss_sigma[b], axis, H), gate, log, b, SLOT_GNSS_POS + axis)
+        used = used and (ok or axis == 2)
+    if inputs.vel_ok[b] and used:
+        for axis in range(2):
+            _apply(P, dx, H, gnss_velocity(x, inputs.gnss_vel[b], axis, noise.r_vel, H), np.inf, log, b, SLOT_GNSS_VEL + axis)
+    return used
+
+
+@njit(cache=True)
+def _standing_updates(x, P, dx, noise, earth, gm, n_mean, H, log, b):  # pragma: no cover - compiled
+    """Standing: ZUPT on each velocity component, and ZARU on each gyro axis from the mean of
+    ``n_mean`` samples ``gm``."""
+    for axis in range(3):
+        _apply(P, dx, H, zupt(x, axis, noise.r_zupt, H), np.inf, log, b, SLOT_ZUPT + axis)
+    C = _dcm(x[QW:QW + 4])
+    for axis in range(3):
+        _apply(P, dx, H, zaru(x, C, earth.omega_ie, gm, axis, noise.r_zaru / n_mean, H), np.inf, log, b, SLOT_ZARU + axis)
+
+
+@njit(cache=True)
+def _moving_updates(x, P, dx, noise, sw, odo_mps, H, log, b):  # pragma: no cover - compiled
+    """Moving: the non-holonomic constraint (lateral and vertical) and the odometer (``odo_mps``,
+    NaN: none), all linearised at the same nominal state."""
+    C = _dcm(x[QW:QW + 4])
+    v = x[VX:VX + 3]
+    vb, M = _tmul3(C, v), _body_velocity_jacobian(C, v)
+    if sw.nhc:
+        _apply(P, dx, H, nhc_lateral(x, C, M, vb, noise.r_lat, H), np.inf, log, b, SLOT_NHC_LAT)
+        _apply(P, dx, H, nhc_vertical(x, C, M, vb, noise.r_vert, H), np.inf, log, b, SLOT_NHC_VERT)
+    if sw.odometer and not math.isnan(odo_mps):
+        _apply(P, dx, H, odometer(x, C, M, vb, odo_mps, noise.r_odo, H), np.inf, log, b, SLOT_ODOMETER)
+
+
+@njit(cache=True)
+def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragma: no cover - compiled
+    """Run from boundary ``b_first`` to ``b_last`` (inclusive) from the state ``x0, P0`` at
+    ``b_first``'s sample, updating at every boundary after the first (:class:`FilterInputs`,
+    :class:`FilterNoise`, :class:`Earth`, :class:`FilterSwitches`); writes into ``out``
+    (:class:`FilterOutputs`) the state after each boundary's updates (``xs``/``Ps``, when they have
+    rows), the update log (when it has rows), and per boundary the position (m), the turn since
+    ``b_first`` (rad, counter-clockwise: the corrected gyro integrated, so a window's yaw rate is a
+    rate, not the updates' corrections of the heading) and the distance since ``b_first`` (m).
+
+    At each boundary, in this order, every update folded into one error estimate and fed back once:
+
+    1. GNSS (with ``sw.gnss`` and a good fix): position, gated at GNSS_GATE, then velocity at speed.
+       After GNSS_REJECTS_MAX boundaries in a row whose fix was left out, the filter is the one that
+       is off: the next fix is taken whatever it says.
+    2. Standing (the detector says so, ``sw.zupt``, and the filter's velocity agrees within
+       ZUPT_GATE): ZUPT and ZARU, *instead of* the NHC and the odometer (at rest the zero velocity
+       says what they would, more strongly, and a wheel speed of 0 says nothing of its scale).
+       A stop the filter's velocity contradicts is logged as gated.
+    3. Moving: the NHC (``sw.nhc``) and the odometer (``sw.odometer``, where the drive has one).
+    """
     x = x0.copy()
     P = P0.copy()
     dx = np.zeros(N_ERR)
-    store = xs.shape[0] > 0
-    q_diag = np.zeros(N_ERR)
-    step, fsum, gm = np.zeros(4), np.zeros(3), np.zeros(3)
-    scratch_a, scratch_b, D = np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR))
-    dist = 0.0
-    turn = 0.0
+    H = (np.zeros(7, dtype=np.int64), np.zeros(7))
+    store = out.xs.shape[0] > 0
+    walked = np.zeros(2)  # distance (m) and turn (rad) since b_first
+    gm = np.zeros(3)
     rejected = 0
-    j = b_sample[b_first]
+    j = inputs.b_sample[b_first]
     for b in range(b_first, b_last + 1):
-        jb = b_sample[b]
-        if b > b_first and b_start[b]:  # a new segment: position and velocity from GNSS again
-            for i in range(3):
-                x[PX + i] = gnss_pos[b, i] if (i < 2 or has_height) else x[PX + i]
-            x[VX] = gnss_vel[b, 0]
-            x[VX + 1] = gnss_vel[b, 1]
-            x[VX + 2] = 0.0
-            for i in range(6):
-                for k in range(N_ERR):
-                    P[i, k] = P[k, i] = 0.0
-            for i in range(6):
-                P[i, i] = P0[i, i]
+        jb = inputs.b_sample[b]
+        if b > b_first and inputs.b_start[b]:
+            _restart_segment(x, P, P0, inputs, b)
             j = jb
         elif b > b_first:
-            T = 0.0
-            fsum[:] = 0.0
-            wz = 0.0
-            C0 = _dcm(x[QW:QW + 4])
-            while j < jb:
-                dt = t[j + 1] - t[j]
-                dist += _mechanise(x, acc[j], acc[j + 1], gyr[j], gyr[j + 1], dt, omega_ie, g0, radius, step)
-                turn += (step[3] - omega_ie[2]) * dt  # the turn against the Earth, about the body's z
-                for i in range(3):
-                    fsum[i] += step[i] * dt
-                wz += step[3] * dt
-                T += dt
-                j += 1
-            if T > 0.0:
-                Cm = 0.5 * (C0 + _dcm(x[QW:QW + 4]))
-                _transition(Cm, fsum / T, wz / T, T, D)
-                for i in range(3):
-                    q_diag[DV + i] = q_white_v * T
-                    q_diag[PHI + i] = q_white_phi * T
-                    q_diag[DP + i] = q_white_v * T**3 / 3.0
-                for i in range(9, N_ERR):
-                    q_diag[i] = walk[i] * T
-                _propagate_covariance(P, D, q_diag, q_white_v * T * T / 2.0, scratch_a, scratch_b)
-            # the mean gyro reading over the last window (its WINDOW_S second at any rate, both ends), for the zero-rate update
-            gm[:] = 0.0
-            k0 = b_sample[b - 1]
-            for k in range(k0, jb + 1):
-                gm += gyr[k]
-            gm /= jb + 1 - k0
-            if use_gnss and gnss_ok[b]:
-                # after GNSS_REJECTS_MAX fixes in a row left out, the filter is the one that is off: take the next
-                if _gnss(x, P, dx, gnss_pos[b], gnss_sigma[b], has_height, gnss_vel[b], vel_ok[b], r_vel,
-                         GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf):
+            _propagate_window(x, P, inputs, noise, earth, j, jb, walked)
+            j = jb
+            if sw.gnss and inputs.gnss_ok[b]:
+                if _gnss_updates(x, P, dx, inputs, noise, b, GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf, H, out.log):
                     rejected = 0
                 else:
                     rejected += 1
-            _constraints(x, P, dx, use_nhc, r_lat, r_vert, odo[b] if use_odo else np.nan, r_odo, use_zupt and still[b], r_zupt, gm,
-                         r_zaru / max(jb + 1 - k0, 1), omega_ie)
+            standing = sw.zupt and inputs.still[b]
+            if standing and standing_nis(x, P, noise.r_zupt) >= ZUPT_GATE:
+                standing = False  # the detector is wrong, or the filter is: a ZUPT would not be a small correction
+                for axis in range(3):
+                    kalman.record(out.log, b, SLOT_ZUPT + axis, -x[VX + axis], P[DV + axis, DV + axis] + noise.r_zupt, False)
+            if standing:
+                # the mean gyro reading over the last window (WINDOW_S, both ends, at any rate)
+                k0 = inputs.b_sample[b - 1]
+                gm[:] = 0.0
+                for k in range(k0, jb + 1):
+                    gm += inputs.gyr[k]
+                gm /= jb + 1 - k0
+                _standing_updates(x, P, dx, noise, earth, gm, max(jb + 1 - k0, 1), H, out.log, b)
+            else:
+                _moving_updates(x, P, dx, noise, sw, inputs.odo[b], H, out.log, b)
             _correct(x, dx)
         if store:
-            xs[b] = x
-            Ps[b] = P
+            out.xs[b] = x
+            out.Ps[b] = P
         for i in range(3):
-            pos_out[b, i] = x[PX + i]
-        turn_out[b] = turn
-        dist_out[b] = dist
+            out.pos[b, i] = x[PX + i]
+        out.dist[b] = walked[0]
+        out.turn[b] = walked[1]
     return x, P
 
 
 @njit(cache=True)
-def _propagate_all(t, acc, gyr, x0, omega_ie, g0, radius):  # pragma: no cover - compiled
+def _propagate_all(t, acc, gyr, x0, earth):  # pragma: no cover - compiled
     n = len(t)
     out = np.zeros((n, N_NOMINAL))
     step = np.zeros(4)
     x = x0.copy()
     out[0] = x
     for j in range(n - 1):
-        _mechanise(x, acc[j], acc[j + 1], gyr[j], gyr[j + 1], t[j + 1] - t[j], omega_ie, g0, radius, step)
+        _mechanise(x, acc[j], acc[j + 1], gyr[j], gyr[j + 1], t[j + 1] - t[j], earth, step)
         out[j + 1] = x
     return out
 
@@ -556,11 +695,8 @@ def propagate(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, x
     """The mechanisation alone (no filter): the nominal state (see the module docstring) at every
     sample ``(n, 20)`` from ``x0`` at the first, given body-frame specific force (m/s^2) and angular
     rate (rad/s) samples ``(n, 3)``, in the tangent frame of an origin at ``lat0_deg``, ``height0_m``."""
-    from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, normal_gravity_mps2
-
     return _propagate_all(np.ascontiguousarray(t_s, dtype=float), np.ascontiguousarray(accel_mps2, dtype=float),
-                          np.ascontiguousarray(gyro_radps, dtype=float), np.asarray(x0, dtype=float), earth_rate_enu_radps(lat0_deg),
-                          normal_gravity_mps2(lat0_deg, height0_m), EARTH_MEAN_RADIUS_M)
+                          np.ascontiguousarray(gyro_radps, dtype=float), np.asarray(x0, dtype=float), earth_at(lat0_deg, height0_m))
 
 
 def transition_matrix(C: np.ndarray, fn_mps2: np.ndarray, wz_radps: float, T_s: float) -> np.ndarray:
@@ -580,10 +716,38 @@ def vehicle_velocity_model(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     C = _dcm(x[QW:QW + 4])
     v = np.ascontiguousarray(x[VX:VX + 3])
     vb, M = _tmul3(C, v), _body_velocity_jacobian(C, v)
-    cols, row_h = np.empty(7, dtype=np.int64), np.empty(7)
-    z, H = np.zeros(3), np.zeros((3, N_ERR))
-    for i, (axis, scale, predicted, extra_col, extra_h) in enumerate(_vehicle_velocity_rows(x, vb)):
-        _body_velocity_row(C, M, axis, scale, extra_col, extra_h, cols, row_h)
-        z[i] = predicted
-        H[i, cols] = row_h
-    return z, H
+    z, rows = np.zeros(3), np.zeros((3, N_ERR))
+    for i, fn in enumerate((nhc_lateral, nhc_vertical, odometer)):
+        H = (np.zeros(7, dtype=np.int64), np.zeros(7))
+        args = (x, C, M, vb) + ((0.0,) if fn is odometer else ()) + (1.0, H)
+        dz, _, nnz = fn(*args)
+        z[i] = dz
+        rows[i, H[0][:nnz]] = H[1][:nnz]
+    return z, rows
+
+
+def measurement_model(name: str, x: np.ndarray, **given: Any) -> tuple[float, np.ndarray]:
+    """One measurement as the filter predicts it from the nominal state ``x`` (20,): its value
+    (prediction minus the measurement ``given``) and its row of H over the error state (19,), for
+    tests against the nonlinear model. ``name``: one of :data:`MEASUREMENTS`' kinds without the
+    axis (``gnss_position``, ``gnss_velocity``, ``zupt``, ``zaru``, ``nhc_lateral``,
+    ``nhc_vertical``, ``odometer``); ``given``: its arguments (``pos``, ``sigma``, ``vel``,
+    ``axis``, ``gyro_mean``, ``omega_ie``, ``speed_mps``)."""
+    x = np.ascontiguousarray(x, dtype=float)
+    C = _dcm(x[QW:QW + 4])
+    v = np.ascontiguousarray(x[VX:VX + 3])
+    vb, M = _tmul3(C, v), _body_velocity_jacobian(C, v)
+    H = (np.zeros(7, dtype=np.int64), np.zeros(7))
+    axis = int(given.get("axis", 0))
+    three = lambda key: np.ascontiguousarray(given.get(key, np.zeros(3)), dtype=float)  # noqa: E731
+    calls = {"gnss_position": lambda: gnss_position(x, three("pos"), float(given.get("sigma", 1.0)), axis, H),
+             "gnss_velocity": lambda: gnss_velocity(x, three("vel"), axis, 1.0, H),
+             "zupt": lambda: zupt(x, axis, 1.0, H),
+             "zaru": lambda: zaru(x, C, three("omega_ie"), three("gyro_mean"), axis, 1.0, H),
+             "nhc_lateral": lambda: nhc_lateral(x, C, M, vb, 1.0, H),
+             "nhc_vertical": lambda: nhc_vertical(x, C, M, vb, 1.0, H),
+             "odometer": lambda: odometer(x, C, M, vb, float(given.get("speed_mps", 0.0)), 1.0, H)}
+    dz, _, nnz = calls[name]()
+    row = np.zeros(N_ERR)
+    row[H[0][:nnz]] = H[1][:nnz]
+    return float(dz), row
