@@ -36,7 +36,7 @@ _EXPORTS = {
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
     "Estimate": "nav.protocol", "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol",
-    "EstimatorError": "nav.protocol",
+    "EstimatorError": "nav.protocol", "FilterHealth": "nav.protocol",
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
     "AroundEvents": "nav.outages",
@@ -101,5 +101,5 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .nav.bias import SensorBias
     from .nav.outages import AroundEvents, At, Every, Random, Tile
     from .nav.plan_file import FromPlan
-    from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs
+    from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs, FilterHealth
     from .sources.load import LogOptions, ReadOptions, load_drive

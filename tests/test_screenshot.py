@@ -228,7 +228,7 @@ def test_replay_with_screenshot_dir(tmp_path):
         pytest.skip("no renderer on this machine")
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in (tmp_path / "shots").iterdir()) == [
-        f"V-sim-motorway-{v}-worst.png" for v in ("all", "errors", "local", "map", "outage", "signals")]
+        f"V-sim-motorway-{v}-worst.png" for v in ("all", "errors", "health", "local", "map", "outage", "signals")]
 
 
 def test_bad_screenshot_inputs(tmp_path):

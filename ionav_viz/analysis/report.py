@@ -21,6 +21,7 @@ from ..core.json_out import dumps_json
 from ..nav.protocol import short_label
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
+from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise, truth_boundaries
 from .tables import truth_line
 
@@ -155,7 +156,9 @@ class Report:
         ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
         the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`),
         and ``worst_tracks``: the worst one's tracks in local metres (:meth:`outage_tracks`).
-        ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
+        ``filter_health``: per estimator that reports one (the filters), per measurement kind its
+        updates, gate rejections and mean NIS over the drives (:mod:`.health`; per drive under
+        ``drives``). ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
         ``"gnss"`` (the receiver's fixes are the truth) or ``"reference"`` (a reference trajectory
         beside them is; the estimators got only the receiver's). ``drift``: per estimator, the
         position error against seconds since the outage began (``t_s``, ``mean_m``, ``p10_m``,
@@ -181,7 +184,8 @@ class Report:
         distances = np.concatenate([r.gnss_distance_m for r in results])
         out: dict[str, Any] = {
             "drive": "+".join(r.drive.name for r in results),
-            "drives": [{"name": r.drive.name, "source": r.drive.source, "gnss_truth": r.truth_exclusions()} for r in results],
+            "drives": [{"name": r.drive.name, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
+                        **({"filter_health": h} if (h := _drive_health(r)) else {})} for r in results],
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
             "sequences": sequences,
@@ -214,6 +218,10 @@ class Report:
         if idnn is not None:
             out["model"] = idnn.get("info", {})
         out["truth"] = "reference" if any(r.drive.has_reference for r in results) else "gnss"
+        health = {est: pooled_health([d["filter_health"][est] for d in out["drives"] if est in d.get("filter_health", {})])
+                  for est in estimators}
+        if any(health.values()):
+            out["filter_health"] = {est: h for est, h in health.items() if h}
         out["warnings"] = list(self.warnings)
         self._dict = out
         return out
@@ -234,6 +242,11 @@ class Report:
         from .tables import render_markdown
 
         return render_markdown(self.to_dict(), self.title)
+
+
+def _drive_health(result: DriveResult) -> dict[str, Any]:
+    """Each estimator's filter health on one drive (:mod:`.health`), for those that report one."""
+    return {name: summarise_health(sol.health) for name, sol in result.estimates.items() if sol.health is not None}
 
 
 def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:

@@ -150,6 +150,7 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
                 bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    out += health_lines(rep)
     if rep.get("drift"):
         header, rows = drift_rows(rep)
         out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
@@ -157,6 +158,14 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         header, rows = worst_rows(rep)
         out += [f"{worst_title(rep)}:", *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]
     return "\n".join(_folded(line, width) for line in out) + "\n"
+
+
+def health_lines(rep: dict[str, Any]) -> list[str]:
+    """A line per filter of its health (:mod:`.health`), from the report's ``filter_health``."""
+    from .health import health_line
+
+    labels = {e["name"]: e["label"] for e in rep["estimators"]}
+    return [health_line(labels.get(est, est), summary) for est, summary in rep.get("filter_health", {}).items()]
 
 
 def _folded(line: str, width: int | None) -> str:

@@ -22,7 +22,7 @@ def screenshot(
     outage_numbers: Optional[list[str]] = typer.Option(None, "--outage-number", help="Outage numbers (as replay lists them): each framed and shown at its end. Repeatable."),
     outage: Optional[list[str]] = typer.Option(None, "--outage", help="Outage length of --scenario replays, e.g. 10s (default). A bare number N is --outage-number N (deprecated).", show_default=False),
     worst_of: str = typer.Option("ins", "--worst-of", help="The estimator whose final error picks --time worst (default: the paper's INS DR)."),
-    views: Optional[list[str]] = typer.Option(None, "--view", help="all (default), outage (the outage inspector), map, local, signals or errors. Repeatable."),
+    views: Optional[list[str]] = typer.Option(None, "--view", help="all (default), outage (the outage inspector), map, local, signals, errors or health (the filters' health). Repeatable."),
     size: str = typer.Option("1600x900", "--size", help="Image size WIDTHxHEIGHT in pixels."),
     scenario: Optional[str] = typer.Option(None, "--scenario", help="Replay and render a scenario's test drives ('all' for every scenario): bundled ones, or the paper's runs with a data root."),
     outage_length: Optional[str] = typer.Option(None, "--outage-length", help="Deprecated: --outage.", hidden=True),

@@ -34,9 +34,9 @@ from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..core.rotation import quat_of_euler
 from .kalman import UpdateLog
-from .protocol import Estimate, EstimatorInputs
+from .protocol import Estimate, EstimatorInputs, FilterHealth
 from .stillness import drive_still
-from .strapdown import BAX, BGX, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
+from .strapdown import BAX, BGX, KO, MEASUREMENTS, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
@@ -227,10 +227,19 @@ class GinsEstimator:
             T = np.diff(r.bounds.t_s[span])
             yaw[o] = np.diff(out.turn[span]) / T
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
-        return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1))
+        return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1), health=health_of(r))
 
     def describe(self) -> dict[str, Any]:
         return dict(self._last)
+
+
+#: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.MEASUREMENTS`).
+MEASUREMENT_KINDS = ("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2 + ("odometer",)
+
+
+def health_of(r: GinsRun) -> FilterHealth:
+    """The pass's update log as the estimate's :class:`~ionav_viz.nav.protocol.FilterHealth`."""
+    return FilterHealth(r.bounds.t_s, MEASUREMENTS, MEASUREMENT_KINDS, r.log.innovation, r.log.variance, r.log.status)
 
 
 def _median_text(values: np.ndarray) -> str:

@@ -53,6 +53,30 @@ class EstimatorError(InputError):
 
 
 @dataclass(frozen=True)
+class FilterHealth:
+    """What a filter's measurement updates saw over the drive (its pass with GNSS): per row (a
+    window boundary, at ``t_s``, s since the drive's first sample) and measurement slot (``slots``,
+    each of a ``kinds`` entry, e.g. ``"gnss_east"`` of ``"GNSS position"``), the innovation
+    (measured minus predicted, in the measurement's unit), its variance ``S`` (the unit squared)
+    and ``status`` (0 none, 1 used, 2 left out by the filter's gate): see
+    :mod:`ionav_viz.nav.kalman`. A consistent filter's normalised innovations squared
+    (``innovation**2 / variance``) average 1."""
+
+    t_s: np.ndarray
+    slots: tuple[str, ...]
+    kinds: tuple[str, ...]
+    innovation: np.ndarray
+    variance: np.ndarray
+    status: np.ndarray
+
+    def nis(self) -> np.ndarray:
+        """The normalised innovation squared per row and slot (NaN where nothing was measured)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = self.innovation**2 / self.variance
+        return np.where(self.status > 0, out, np.nan)
+
+
+@dataclass(frozen=True)
 class Estimate:
     """One estimator's output for every outage of a drive.
 
@@ -65,12 +89,15 @@ class Estimate:
             the final position error and the drawn track use them, not the track rebuilt from
             ``disp_m`` and ``yaw_rate_radps`` (an estimator that tracks positions itself, or an
             external trajectory).
+        health: optional, what the filter's updates saw over the drive (:class:`FilterHealth`),
+            for the reports' and the recording's filter health.
     """
 
     disp_m: np.ndarray
     yaw_rate_radps: np.ndarray
     lat_deg: np.ndarray | None = None
     lon_deg: np.ndarray | None = None
+    health: FilterHealth | None = None
 
 
 @dataclass
@@ -80,6 +107,7 @@ class Solution:
     disp_m: np.ndarray
     yaw_rate_radps: np.ndarray
     track: Track
+    health: FilterHealth | None = None
 
 
 @dataclass
@@ -274,7 +302,24 @@ def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
         course = np.asarray(inputs.course0_deg, dtype=float)[:, None] - np.concatenate(
             [np.zeros((inputs.n_outages, 1)), np.cumsum(np.rad2deg(yaw) * WINDOW_S, axis=1)], axis=1)
         track = Track(own[0], own[1], np.mod(course, 360.0))
-    return Solution(disp, yaw, track)
+    return Solution(disp, yaw, track, _checked_health(name, getattr(est, "health", None)))
+
+
+def _checked_health(name: str, health: Any) -> FilterHealth | None:
+    """An estimate's filter health, checked (None when it has none)."""
+    if health is None:
+        return None
+    hint = "give FilterHealth(t_s (rows,), slots, kinds, innovation, variance, status (rows, slots)) or none"
+    if not isinstance(health, FilterHealth):
+        raise EstimatorError(f"estimator {name!r}: health is {type(health).__name__}, not a FilterHealth", hint)
+    rows, slots = len(health.t_s), len(health.slots)
+    for field_name in ("innovation", "variance", "status"):
+        if np.shape(getattr(health, field_name)) != (rows, slots):
+            raise EstimatorError(f"estimator {name!r}: health.{field_name} has shape {np.shape(getattr(health, field_name))}, "
+                                 f"expected ({rows}, {slots})", hint)
+    if len(health.kinds) != slots:
+        raise EstimatorError(f"estimator {name!r}: health has {len(health.kinds)} kinds for {slots} slots", hint)
+    return health
 
 
 def _own_positions(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.ndarray, np.ndarray] | None:

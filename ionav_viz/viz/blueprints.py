@@ -16,8 +16,9 @@ from .recording_info import OutageInfo, RecordingInfo
 from .style import color_word
 
 #: Views a screenshot shows: the whole review layout, or one view (maximised) or column of plots.
-VIEWS = ("all", "outage", "map", "local", "signals", "errors")
-_ORIGINS = {"outage": ent.INSPECT, "map": ent.MAP, "local": ent.LOCAL, "signals": ent.DISPLACEMENTS, "errors": ent.error_group("position_error_m")}
+VIEWS = ("all", "outage", "map", "local", "signals", "errors", "health")
+_ORIGINS = {"outage": ent.INSPECT, "map": ent.MAP, "local": ent.LOCAL, "signals": ent.DISPLACEMENTS, "errors": ent.error_group("position_error_m"),
+            "health": ent.HEALTH}
 #: The review layout's three columns and their shares: tracks (the inspector above the local view
 #: and the map, side by side), signals, errors.
 COLUMN_SHARES = (4, 3, 3)
@@ -65,6 +66,7 @@ def blueprint(labels: list[str], zoom: float = 16.0):
         rrb.Tabs(
             rrb.TimeSeriesView(origin=ent.error_group("position_error_m"), name="2D position error (m)"),
             rrb.Spatial2DView(origin=ent.DRIFT, name="Drift: error (m) by s into the outage; mean, 10-90 %, current"),
+            rrb.TimeSeriesView(origin=ent.HEALTH, name="Filter health: NIS, 10 s mean (1 = consistent; x gated out)"),
             active_tab=0,
         ),
         rrb.Tabs(
@@ -193,7 +195,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     if view_key is None:
         raise InputError(f"the recording has no {view} view", "replay it again with this version of ionav-viz")
     viewport = bp.setdefault("/viewport", {}).setdefault("ViewportBlueprint", {})
-    if view in ("map", "local", "outage"):
+    if view in ("map", "local", "outage", "health"):
         viewport["maximized"] = view_key.rsplit("/", 1)[-1]
     else:  # keep only the column of plots that holds the target view
         # the viewer writes container contents as "view/<id>" or "/view/<id>"

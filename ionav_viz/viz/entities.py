@@ -48,6 +48,10 @@ DRIFT_TICKS = "drift/labels"
 INSPECT_GRID = "inspect/grid"
 INSPECT_SCALE = "inspect/scale"
 INSPECT_START = "inspect/start"
+#: The filters' health: per estimator that reports one and per measurement kind, its normalised
+#: innovations squared over the drive (``health/<est>/nis/<kind>``) and the updates its gate left out.
+HEALTH = "health"
+HEALTH_EXPECTED = "health/expected"
 
 
 def truth(view: str) -> str:
@@ -76,6 +80,21 @@ def outage_truth(view: str) -> str:
 def live_track(view: str, est: str) -> str:
     """The current outage's estimated track, growing each second (``inspect/<est>`` in the inspector)."""
     return f"{INSPECT}/{est}" if view == INSPECT else f"{view}/{est}/live"
+
+
+def kind_slug(kind: str) -> str:
+    """A measurement kind's path segment: ``"GNSS position"`` -> ``gnss_position``."""
+    return re.sub(r"[^a-z0-9]+", "_", kind.lower()).strip("_") or "other"
+
+
+def health_nis(est: str, kind: str) -> str:
+    """An estimator's normalised innovation squared of one kind of measurement, per boundary (its 10 s mean)."""
+    return f"{HEALTH}/{est}/nis/{kind_slug(kind)}"
+
+
+def health_gated(est: str, kind: str) -> str:
+    """The boundaries where the estimator's gate left that kind of measurement out (points)."""
+    return f"{HEALTH}/{est}/gated/{kind_slug(kind)}"
 
 
 def all_tracks(view: str, est: str) -> str:
@@ -199,6 +218,7 @@ PATTERNS = (
     *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),
     EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT,
     DRIFT_AXES, DRIFT_TICKS, drift_mean("<est>"), drift_band("<est>"), drift_current("<est>"),
+    f"{HEALTH}/<est>/nis/<kind>", f"{HEALTH}/<est>/gated/<kind>", HEALTH_EXPECTED,
 )
 
 
@@ -206,6 +226,7 @@ def pattern_of(path: str) -> str | None:
     """The entry of :data:`PATTERNS` a written path is an instance of, else None."""
     path = path.strip("/")
     for pattern in sorted(PATTERNS, key=lambda p: "<est>" in p):  # literal paths before the patterns with a name in them
-        if re.fullmatch(re.escape(pattern).replace(re.escape("<est>"), r"[a-z][a-z0-9_-]*"), path):
+        regex = re.escape(pattern).replace(re.escape("<est>"), r"[a-z][a-z0-9_-]*").replace(re.escape("<kind>"), r"[a-z0-9_]+")
+        if re.fullmatch(regex, path):
             return pattern
     return None

@@ -30,6 +30,7 @@ from . import columns
 from . import entities as ent
 from .blueprints import blueprint
 from .geometry import map_zoom, screen_xy
+from .health import log_health
 from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
 from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
 
@@ -161,6 +162,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     if result.bridged:
         log_real_outages(layers, result, colors, labels)
         step("real GNSS outages")
+    log_health(layers, result, labels)
     return rows
 
 
