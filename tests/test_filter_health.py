@@ -150,7 +150,7 @@ def test_gate_rejections_reach_the_recording(jumping_drive, tmp_path):
     _, jumped = jumping_drive
     out = tmp_path / "jump.rrd"
     iv.replay(jumped, 10.0, estimators=["gins"], output=out)
-    rows, static = read_rrd(out)
+    rows, _ = read_rrd(out)
     gated = rows["/health/gins/gated/gnss_position"]
     assert [round(t) for t, _ in gated] == [200, 201, 202]
     nis = rows["/health/gins/nis/gnss_position"]

@@ -14,7 +14,7 @@ import pytest
 
 import ionav_viz as iv
 from ionav_viz.core.errors import InputError
-from ionav_viz.sources.imu_frame import format_imu_axes, parse_imu_axes
+from ionav_viz.sources.imu.axes import format_imu_axes, parse_imu_axes
 from ionav_viz.sources.mcap_reader import read_mcap
 
 from .conftest import run_cli

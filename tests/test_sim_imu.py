@@ -15,7 +15,7 @@ from ionav_viz.core.drive import IMU_COLUMNS
 from ionav_viz.core.geo import wgs84
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, imu_drive, write_imu_log
-from ionav_viz.sources.imu_mount import parse_mount, rotation_angle_deg
+from ionav_viz.sources.imu.mount import parse_mount, rotation_angle_deg
 
 from .conftest import run_cli
 

@@ -83,7 +83,7 @@ def test_the_speed_fitted_to_fixes_is_no_noisier_at_the_ends_of_the_record_or_of
     through three fixes would have sqrt(9 + 16 + 1) / 2 sigma = 2.55 m/s, where one through seven
     has 0.68 m/s (the slope's entry of the inverse normal matrix of 1, t, t^2 / 2 at t = 0..6:
     0.4643, whose square root it is)."""
-    from ionav_viz.sources.resample import fit_fixes
+    from ionav_viz.sources.gnss_fixes import fit_fixes
 
     rng = np.random.default_rng(11)
     g_t = np.r_[np.arange(0.0, 16.0), np.arange(25.0, 41.0)]

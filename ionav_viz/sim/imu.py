@@ -58,7 +58,7 @@ from ..core.errors import InputError
 from ..core.fileio import check_output_file
 from ..core.geo import earth_rate_enu_radps, geodetic_of_enu, gravity_enu_mps2, normal_gravity_mps2
 from ..core.units import wrap_360
-from ..sources.imu_mount import rotation_deg
+from ..sources.imu.mount import rotation_deg
 from ..sources.iovnbd import HEADER
 from ..sources.mcap_writer import TRUTH_TOPIC, write_mcap
 from .simulate import SIMULATED_SCENARIOS, TRUTH_RATE_HZ, SensorModel, can_speeds, gauss_markov, grade_profile, plan_truth

@@ -33,7 +33,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
-from .imu_frame import STRONG, heading_rate_ccw_radps, yaw_correlation
+from .imu.axes import STRONG, heading_rate_ccw_radps, yaw_correlation
 from .plausibility import check_plausible, check_units_agree
 
 log = logging.getLogger("ionav_viz")

@@ -43,11 +43,11 @@ class ReadOptions:
         if self.log.stamps not in ("header", "log"):
             raise InputError(f"stamps {self.log.stamps!r}: choose header or log", param="stamps")
         if self.log.imu_axes is not None:
-            from .imu_frame import parse_imu_axes
+            from .imu.axes import parse_imu_axes
 
             parse_imu_axes(self.log.imu_axes)  # checked before any work; names imu_axes
         if self.log.imu_mount is not None:
-            from .imu_mount import parse_mount
+            from .imu.mount import parse_mount
 
             parse_mount(self.log.imu_mount)  # checked before any work; names imu_mount
         if self.log.truth_origin is not None:

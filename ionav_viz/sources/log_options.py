@@ -17,7 +17,7 @@ class LogOptions:
     #: the receiver's velocity (TwistStamped in a world frame): GNSS speed and course; "none": from the fixes
     gnss_velocity_topic: str | None = None
     stamps: str = "header"
-    imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu_frame)
+    imu_axes: str | None = None  # e.g. "x=-y,y=x,z=z": body x is the log's -y (see sources.imu.axes)
     #: the vehicle's own speed (nav_msgs/Odometry, or TwistStamped in a body frame); "none" leaves it out
     vehicle_speed_topic: str | None = None
     #: deprecated: the earlier name of ``gnss_velocity_topic``
@@ -29,7 +29,7 @@ class LogOptions:
     #: origin, x axis YAW counter-clockwise from east) or "auto" (fitted to the receiver's fixes; sources.reference)
     truth_origin: str | None = None
     #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
-    #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu_mount)
+    #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu.mount)
     imu_mount: str | None = None
 
     def __post_init__(self) -> None:

@@ -10,7 +10,7 @@ and ``--vehicle-speed-topic`` choose when there are several or none match):
   names. REP 103 body frame: x forward, y left, z up. ``linear_acceleration.x`` is the
   longitudinal specific force (m/s^2) and ``angular_velocity.z`` the yaw rate, counter-clockwise
   positive (rad/s): both are already the drive model's conventions (``--imu-axes`` maps another
-  mount, :mod:`.imu_frame` checks it). Messages marking their accelerations or rates "not
+  mount, :mod:`.imu.axes` checks it). Messages marking their accelerations or rates "not
   provided" (REP 145: ``covariance[0] = -1``) are skipped.
 * GNSS (ground truth): ``sensor_msgs/msg/NavSatFix`` (fixes with ``status.status < 0``, no fix,
   are dropped) or JSON ``foxglove.LocationFix`` (``timestamp``, ``latitude``, ``longitude``,
@@ -19,7 +19,7 @@ and ``--vehicle-speed-topic`` choose when there are several or none match):
 * GNSS velocity (optional): ``geometry_msgs/msg/TwistStamped`` in a world frame, as GNSS drivers
   publish it (nmea_navsat_driver's ``/vel``: ``linear.x`` east, ``linear.y`` north, m/s), gives
   the GNSS speed and course. Without it, speed and course come from the fixes
-  (:func:`.resample.fit_fixes`).
+  (:func:`.gnss_fixes.fit_fixes`).
 * Vehicle speed (optional): the vehicle's own speed, wheel or CAN odometry, as
   ``nav_msgs/msg/Odometry`` (``twist.twist.linear.x`` in the child body frame) or a
   ``TwistStamped`` whose ``frame_id`` is a body frame (``base_link``, ``base_footprint``, ``body``,
@@ -62,12 +62,13 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
-from .imu_frame import AXES, parse_imu_axes
-from .imu_mount import parse_mount
+from .gnss_fixes import first_per_stamp
+from .imu.axes import AXES, parse_imu_axes
+from .imu.mount import parse_mount
 from .log_options import LogOptions
 from .plausibility import first_implausible, implausible
 from .reference import parse_origin, place_reference
-from .resample import ImuBins, LogStreams, assemble_drive, drop_strays, first_per_stamp
+from .resample import ImuBins, LogStreams, assemble_drive, drop_strays
 
 log = logging.getLogger("ionav_viz")
 
@@ -309,7 +310,7 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
 
     ``options`` (:class:`~.load.LogOptions`; default: every topic found by message type, header
     stamps) chooses the topics and stamps; its ``imu_axes`` maps the log's IMU axes to the body
-    frame (``"x=-y,y=x,z=z"``, see :mod:`.imu_frame`); its ``imu_mount`` (``"auto"``,
+    frame (``"x=-y,y=x,z=z"``, see :mod:`.imu.axes`); its ``imu_mount`` (``"auto"``,
     ``"roll=..,pitch=..,yaw=.."`` or ``"quat=w,x,y,z"``, see :mod:`.imu_mount`) turns them further,
     after the axes; its ``truth_topic`` names a reference trajectory, the drive's truth (NavSatFix,
     or Odometry/PoseStamped in a local frame placed by ``truth_origin``: ``"auto"`` or

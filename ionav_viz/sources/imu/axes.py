@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.errors import InputError
-from ..core.units import G_MPS2
+from ...core.errors import InputError
+from ...core.units import G_MPS2
 
 AXES = "xyz"
 

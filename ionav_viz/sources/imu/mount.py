@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.errors import InputError
-from ..core.rotation import dcm_of_euler, dcm_of_quat, euler_of_dcm, skew
-from ..core.units import G_MPS2
+from ...core.errors import InputError
+from ...core.rotation import dcm_of_euler, dcm_of_quat, euler_of_dcm, skew
+from ...core.units import G_MPS2
 
 #: A mount further than this from the body frame (degrees, the rotation's angle) is "clearly not
 #: in the body frame": the run stops and shows the estimate instead of guessing.
@@ -76,7 +76,7 @@ def rotation_angle_deg(matrix: np.ndarray) -> float:
 
 def nearest_axes(matrix: np.ndarray, within_deg: float = 5.0) -> str | None:
     """The ``--imu-axes`` signed permutation within ``within_deg`` of a rotation, else None."""
-    from .imu_frame import format_imu_axes
+    from .axes import format_imu_axes
 
     perm = np.zeros((3, 3))
     for row in range(3):
