@@ -21,7 +21,7 @@ def test_evaluate_to_json_is_exactly_what_the_command_prints():
     assert proc.returncode == 0, proc.stderr
     report = iv.evaluate(["roundabout", "motorway"], outage_s=10.0)
     assert report.to_json() + "\n" == proc.stdout
-    assert report.n_outages == 2 * 59 and report.estimators == ["ins", "idnn", "odo", "ekf"]
+    assert report.n_outages == 2 * 57 and report.estimators == ["ins", "idnn", "odo", "ekf"]
     # text and Markdown renderings come from the same report
     assert report.to_text().startswith("V-sim-roundabout+V-sim-motorway, 10 s GNSS outages")
     assert "| **CRSE** | max |" in report.to_markdown()
@@ -38,7 +38,7 @@ def test_report_fields_agree_with_each_other():
 
 @pytest.mark.parametrize(
     ("placement", "n_outages"),
-    [(iv.At((12.0, 40.0)), 2), (iv.Every(150.0), 4), (iv.Random(3, seed=7), 3), (iv.Tile(), 59)],
+    [(iv.At((12.0, 40.0)), 2), (iv.Every(150.0), 4), (iv.Random(3, seed=7), 3), (iv.Tile(), 57)],
 )
 def test_replay_with_placements(tmp_path, placement, n_outages):
     result = iv.replay("hard-brake", 10.0, placement, estimators=["ins"], output=tmp_path / "x.rrd")

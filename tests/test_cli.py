@@ -32,8 +32,8 @@ def test_evaluate_json_schema():
         else:
             assert s["ins"]["final_error_pct"] is None
     assert rep["summary"]["ins"]["final_error_pct"]["mean"] == pytest.approx(sum(pcts) / len(pcts))
-    # 600 s drive, first window never starts an outage: (600 - 1) // 10 = 59 sequences
-    assert rep["n_sequences"] == len(rep["sequences"]) == 59
+    # 600 s drive, outages after the 30 s warm-up: (600 - 30) // 10 = 57 sequences
+    assert rep["n_sequences"] == len(rep["sequences"]) == 57
     starts = [s["start_s"] for s in rep["sequences"]]
     assert all(abs((b - a) - 10.0) < 1e-6 for a, b in zip(starts, starts[1:]))
 

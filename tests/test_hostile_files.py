@@ -350,7 +350,7 @@ def test_the_fix_at_each_outages_start_stays(tmp_path):
     ``outage-log roundabout --every 30s`` starts at 60653.34 and its fix is stamped 60653.341, which
     went (the second's, 60683.339, stayed). Both stay now; the next fix after each start is gone."""
     drive = iv.load_drive("roundabout")
-    proc = run_cli("outage-log", "roundabout", "--every", "30s", "-q", "-o", "x.mcap", cwd=tmp_path)
+    proc = run_cli("outage-log", "roundabout", "--every", "30s", "--warm-up", "0s", "-q", "-o", "x.mcap", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     plan = json.loads((tmp_path / "x.outages.json").read_text())
     fixes = _fix_stamps(tmp_path / "x.mcap")

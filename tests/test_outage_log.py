@@ -178,7 +178,7 @@ def test_an_external_filter_is_scored_exactly_as_the_same_plug_in(tmp_path):
     for a, b in zip(external["sequences"], plugin["sequences"], strict=True):
         for metric in ("crse_m", "cae_m", "final_position_error_m"):
             assert abs(a["ext"][metric] - b["cv"][metric]) < 1e-3, (metric, a["start_s"], a["ext"][metric], b["cv"][metric])
-        assert abs(a["ext"]["yaw_crse_radps"] - b["cv"]["yaw_crse_radps"]) < 1e-6
+        assert abs(a["ext"]["yaw_crse_radps"] - b["cv"]["yaw_crse_radps"]) < 1e-5  # the course from written positions: 0.0006 deg/s
         assert a["ins"] == b["ins"]
     assert "positions are the GNSS fixes" not in proc.stderr
 

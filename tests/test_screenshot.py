@@ -111,7 +111,7 @@ def test_outage_numbers_and_worst_of(recording, tmp_path):
                    "--size", "400x300")
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["V-sim-sharp-cornering-outage-outage3.png", "V-sim-sharp-cornering-outage-outage7.png"]
-    for args, message in [(["--outage-number", "999"], "no outage 999 (the recording has 59)"),
+    for args, message in [(["--outage-number", "999"], "no outage 999 (the recording has 57)"),
                           (["--outage", "10s"], "to frame outage N give --outage-number N"),
                           (["--time", "worst", "--worst-of", "nope"], "choose one of")]:
         proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), *args)

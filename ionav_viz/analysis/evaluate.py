@@ -55,6 +55,7 @@ class DriveResult:
         excluded_outages: how many outages the placement would have put on bad GNSS truth.
         bridged: the log's own GNSS losses every estimator was run through (``--on gnss-outage``),
             scored at the first good fix after each; ``unbridged``: losses that could not be.
+        placement: where the outages went, in words (the placement's plan, with its warm-up).
     """
 
     drive: Drive
@@ -68,6 +69,7 @@ class DriveResult:
     excluded_outages: int = 0
     bridged: list[BridgedOutage] = field(default_factory=list)
     unbridged: int = 0
+    placement: str = ""
 
     def __repr__(self) -> str:
         ests = ", ".join(e.name for e in self.estimators)
@@ -120,6 +122,7 @@ def evaluate_drive(
     windows: Windows | None = None,
     excluded_outages: int | None = None,
     gnss_gaps: Sequence[tuple[float, float]] = (),
+    placement: str = "",
 ) -> DriveResult:
     """Every one of ``estimators`` on the ``n_windows``-second outages ``starts`` (default: the
     paper's tiling) of ``drive``.
@@ -147,7 +150,7 @@ def evaluate_drive(
             solutions[est.name] = solve(est, inputs)
             s.detail = f"{len(starts)} outages of {n} s"
     metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
-    result = DriveResult(drive, windows, n, starts, bias, list(chosen), solutions, metrics, excluded_outages or 0)
+    result = DriveResult(drive, windows, n, starts, bias, list(chosen), solutions, metrics, excluded_outages or 0, placement=placement)
     if gnss_gaps:
         with stage(f"bridge {len(gnss_gaps)} GNSS outage(s) of {drive.name}"):
             result.bridged, result.unbridged = bridge_gnss_outages(drive, windows, gnss_gaps, chosen, bias)

@@ -156,6 +156,9 @@ class Report:
         ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
         the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`),
         and ``worst_tracks``: the worst one's tracks in local metres (:meth:`outage_tracks`).
+        Per drive (``drives``), where known: ``placement`` (where its outages went, with the
+        warm-up), ``imu`` (what the reader found of a log's IMU: rate, sample kind, clock offset,
+        mount; :class:`ionav_viz.core.imu.ImuCharacter`) and ``imu_text`` (the same in a line).
         ``filter_health``: per estimator that reports one (the filters), per measurement kind its
         updates, gate rejections and mean NIS over the drives (:mod:`.health`; per drive under
         ``drives``). ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
@@ -185,6 +188,8 @@ class Report:
         out: dict[str, Any] = {
             "drive": "+".join(r.drive.name for r in results),
             "drives": [{"name": r.drive.name, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
+                        **({"placement": r.placement} if r.placement else {}),
+                        **({"imu": r.drive.imu.to_dict(), "imu_text": r.drive.imu.describe()} if r.drive.imu is not None else {}),
                         **({"filter_health": h} if (h := _drive_health(r)) else {})} for r in results],
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
@@ -360,6 +365,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
     lines += [
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"- **Outages**: {placement}; {report.n_outages} outage(s)",
+        *([f"- **IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
         f"- **{truth_line(report.to_dict())}**",
         *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes (drawn as dots)"]
           if drive.has_reference else []),

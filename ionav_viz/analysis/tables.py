@@ -150,7 +150,7 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
                 bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    out += health_lines(rep)
+    out += drive_lines(rep) + health_lines(rep)
     if rep.get("drift"):
         header, rows = drift_rows(rep)
         out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
@@ -158,6 +158,16 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         header, rows = worst_rows(rep)
         out += [f"{worst_title(rep)}:", *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]
     return "\n".join(_folded(line, width) for line in out) + "\n"
+
+
+def drive_lines(rep: dict[str, Any], most: int = 4) -> list[str]:
+    """Where the outages went and what each drive's IMU is (for up to ``most`` drives; a fleet's
+    JSON has every one)."""
+    drives = rep.get("drives", [])
+    placements = {d["placement"] for d in drives if d.get("placement")}
+    out = [f"Outages: {p}" for p in sorted(placements)] if len(placements) <= 2 else []
+    out += [f"{d['name']}: {d['imu_text']}" for d in drives[:most] if d.get("imu_text")]
+    return out
 
 
 def health_lines(rep: dict[str, Any]) -> list[str]:

@@ -4,6 +4,7 @@ scenarios' test drives."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from ..analysis.evaluate import DriveResult, evaluate_drive
@@ -14,7 +15,7 @@ from ..core.errors import InputError
 from ..core.fileio import check_output_folder
 from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
-from ..nav.outages import GNSS_OUTAGE, AroundEvents, OutagePlan, Placement
+from ..nav.outages import GNSS_OUTAGE, AroundEvents, At, OutagePlan, Placement, Planned
 from ..nav.plan_file import FromPlan
 from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
@@ -71,7 +72,12 @@ def plan_outages(drive: Drive, windows: Windows, placement: Placement, n_windows
         placement = placement.for_drive(drive)
     if events is None and placement.event_types:
         events = detect_events(drive, run.thresholds)
-    return placement.plan(windows, n_windows, events or [], drive.source), events or []
+    explicit = isinstance(placement, (At, Planned))  # the outages are where the caller said
+    warm_up = 0.0 if explicit else float(run.warm_up_s)
+    plan = placement.plan(windows.after_warm_up(warm_up), n_windows, events or [], drive.source)
+    if warm_up > 0 and len(plan.starts):
+        plan = replace(plan, description=f"{plan.description}, after a {warm_up:g} s warm-up")
+    return plan, events or []
 
 
 
@@ -158,7 +164,7 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
                 log.warning("%s: too short for a single %g s outage; skipped", drive.name, n)
             continue
         results.append(evaluate_drive(drive, n, ests, bias=bias_of(drive), starts=plan.starts, windows=windows,
-                                      excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
+                                      excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps, placement=plan.description))
     if progress:
         progress("done", len(items), len(items))
     if not results:
@@ -232,6 +238,6 @@ def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[st
             except InputError:  # no room for an outage on this drive's events of that type, or no loss
                 continue
             per_type[kind].append(evaluate_drive(drive, n, ests, bias=bias, starts=plan.starts, windows=windows,
-                                                 excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps))
+                                                 excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps, placement=plan.description))
     return per_type
 

@@ -29,6 +29,10 @@ Progress = Callable[[str, int, int], None]
 DriveLike = Drive | str | Path
 
 
+#: GNSS time before the first outage (s): see RunOptions.warm_up_s.
+DEFAULT_WARM_UP_S = 30.0
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """How the estimators run, the same for every API function and command.
@@ -43,6 +47,11 @@ class RunOptions:
         bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
             default each drive's own stationary stretches.
         thresholds: the event detectors' thresholds (default :class:`EventThresholds`).
+        warm_up_s: GNSS time every estimator gets before the first outage (s): placements that
+            choose where outages go (tiled, every, random, on manoeuvres) leave it free at the
+            drive's start; outages at given times or from a plan are where they are said to be.
+            30 s: the filters' position and velocity settle within it on the logs measured
+            (``docs/method.md``, "Warm-up").
     """
 
     estimators: Sequence[str | Estimator] | None = None
@@ -51,6 +60,12 @@ class RunOptions:
     model: Any = None
     bias_from: DriveLike | SensorBias | None = None
     thresholds: EventThresholds = field(default_factory=EventThresholds)
+    warm_up_s: float = DEFAULT_WARM_UP_S
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s) and 0 <= self.warm_up_s <= 3600):
+            raise InputError(f"warm-up {self.warm_up_s!r} is not 0-3600 seconds", "give e.g. 30s, or 0s for outages from the drive's start",
+                             param="warm_up")
 
     def chosen(self) -> list[Estimator]:
         """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""

@@ -137,7 +137,7 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
     refuse_output_onto_output(out, export, param="export", replaced=["tum"])  # the default name is known only now
     chosen = run.applying_to([d])
     result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
-                            gnss_gaps=plan.gnss_gaps)
+                            gnss_gaps=plan.gnss_gaps, placement=plan.description)
     report = Report([result], warnings=warned)  # what was warned so far: reading, planning, estimating
     summary = _summary_markdown(result, report, plan.description)
     total = 5 + len(result.estimates)

@@ -33,6 +33,11 @@ GnssVelocityTopic = typer.Option(None, "--gnss-velocity-topic", "--speed-topic",
                                  show_default=False)
 VehicleSpeedTopic = typer.Option(None, "--vehicle-speed-topic", help="MCAP/ROS bags: the vehicle's speed (wheel or CAN odometry: Odometry, or TwistStamped in a body frame; default: the one such topic), or 'none'.",
                                  show_default=False)
+ImuTimeOffset = typer.Option(None, "--imu-time-offset", help="MCAP/ROS bags: the IMU's stamps minus the receiver's, seconds (e.g. 0.3) or auto (estimated; refused when unresolved). Default: applied when clearly off.",
+                             show_default=False)
+ImuSamples = typer.Option(None, "--imu-samples", help="MCAP/ROS bags: what an IMU sample below 50 Hz is: single (one instantaneous reading, as phones log; the default) or averaged (a mean over its interval).",
+                          show_default=False)
+WarmUp = typer.Option("30s", "--warm-up", help="GNSS time the filters get before the first outage (e.g. 30s, 0s); every estimator gets the same outages.")
 Stamps = typer.Option("header", "--stamps", help="MCAP/ROS bags: time stamps from message headers (header) or the recorder's receive time (log).")
 OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
 PlanOpt = typer.Option(None, "--plan", help="Exactly the outages of a plan file (NAME.outages.json, written by outage-log) instead of --every/--at/--random/--on.",
@@ -88,7 +93,8 @@ _SOURCE_OPTIONS = (
     ("gnss_topic", GnssTopic, Optional[str]), ("gnss_velocity_topic", GnssVelocityTopic, Optional[str]),
     ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("truth_topic", TruthTopic, Optional[str]),
     ("truth_origin", TruthOrigin, Optional[str]), ("stamps", Stamps, str),
-    ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
+    ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]), ("imu_time_offset", ImuTimeOffset, Optional[str]),
+    ("imu_samples", ImuSamples, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
 )
 
 
@@ -118,7 +124,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 
         log = LogOptions(v["imu_topic"], v["gnss_topic"], v["gnss_velocity_topic"], v["stamps"], v["imu_axes"],
                          vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"], truth_topic=v["truth_topic"],
-                         truth_origin=v["truth_origin"])
+                         truth_origin=v["truth_origin"], imu_time_offset=v["imu_time_offset"], imu_samples=v["imu_samples"])
         return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])))
 
     return _with_options(command, _SOURCE_OPTIONS, "read", build)
@@ -127,6 +133,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 _ESTIMATOR_OPTIONS = (
     ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
     ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]), ("thresholds", Thresholds, Optional[list[str]]),
+    ("warm_up", WarmUp, str),
 )
 
 
@@ -134,13 +141,13 @@ def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from`` and
     ``--threshold`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
     def build(v: dict[str, Any]) -> Any:
-        return run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"])
+        return run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"], v["warm_up"])
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 
 
 def run_options(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool = False, model: Optional[Path] = None,
-                bias_from: Optional[str] = None, threshold_pairs: Optional[list[str]] = None) -> Any:
+                bias_from: Optional[str] = None, threshold_pairs: Optional[list[str]] = None, warm_up: str = "30s") -> Any:
     """The :class:`~ionav_viz.api.RunOptions` the estimator options say (the library checks them)."""
     from ..analysis.events import EventThresholds
     from ..api import RunOptions
@@ -155,7 +162,8 @@ def run_options(names: Optional[str], plugins: Optional[list[str]], no_idnn: boo
             if not chosen and not plugins:
                 raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
     without = ("idnn",) if no_idnn and chosen is None else ()
-    return RunOptions(chosen, tuple(plugins or ()), without, model, bias_from, EventThresholds().with_overrides(list(threshold_pairs or [])))
+    return RunOptions(chosen, tuple(plugins or ()), without, model, bias_from, EventThresholds().with_overrides(list(threshold_pairs or [])),
+                      warm_up_s=duration_s(warm_up, "--warm-up", allow_zero=True))
 
 
 #: The options that place outages, shared by every command that places them.
@@ -224,15 +232,16 @@ def _start_times(text: str) -> list[float]:
 QuietOpt = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary on stderr.")
 
 
-def duration_s(text: str, option: str) -> float:
-    """A duration option -> seconds; a bad one is a usage error naming the option."""
+def duration_s(text: str, option: str, allow_zero: bool = False) -> float:
+    """A duration option -> seconds (``allow_zero``: 0 too); a bad one is a usage error naming the option."""
     from ..core.durations import NotADuration, parse_duration_s
     from ..core.errors import InputError
 
     try:
-        return parse_duration_s(text, option)
+        return parse_duration_s(text, option, allow_zero)
     except InputError as exc:
-        why = "is not a duration; use e.g. 10s, 500ms, 1m" if isinstance(exc, NotADuration) else "must be a positive duration"
+        why = "is not a duration; use e.g. 10s, 500ms, 1m" if isinstance(exc, NotADuration) else \
+            ("must be 0 or a positive duration" if allow_zero else "must be a positive duration")
         raise typer.BadParameter(f"{text!r} {why}", param_hint=option) from None
 
 

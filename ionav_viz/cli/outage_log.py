@@ -20,6 +20,7 @@ def outage_log(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
     output: Path = typer.Option(..., "-o", "--output", help="The outaged log: .mcap, .bag (ROS 1), a new folder (ROS 2 bag) or .csv (an IO-VNBD source); the plan goes beside it as NAME.outages.json."),
     outage: str = c.OutageOpt,
+    warm_up: str = c.WarmUp,
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     read: Any = None,  # ReadOptions (c.with_source_options)
@@ -28,8 +29,9 @@ def outage_log(
     from .. import api
 
     outage_s = c.duration_s(outage, "--outage")
-    with options_named(outage_s=f"--outage {outage}", placement=placement.option):
-        done = api.outage_log(drive_spec, output, outage_s, placement.placement, read=read)
+    with options_named(outage_s=f"--outage {outage}", placement=placement.option, warm_up=f"--warm-up {warm_up}"):
+        run = api.RunOptions(warm_up_s=c.duration_s(warm_up, "--warm-up", allow_zero=True))
+        done = api.outage_log(drive_spec, output, outage_s, placement.placement, run=run, read=read)
     plan = done.plan
     if not quiet:
         print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .imu import ImuCharacter
+
 REQUIRED_COLUMNS = (
     "t_s",
     "lat_deg",
@@ -87,6 +89,9 @@ class Drive:
         start_stamp_s: the source's own time stamp of the first sample (s): UNIX seconds for
             message logs and KITTI, the CSV's time since the start of the day for IO-VNBD (which
             carries no date); None: unknown (then :meth:`stamp_s` uses ``start_time_of_day_s``).
+        imu: what the reader found of a log's IMU (:class:`~ionav_viz.core.imu.ImuCharacter`:
+            rate, sample kind, clock offset, mount); None for sources that do not say (IO-VNBD
+            CSVs, drives built in code).
     """
 
     name: str
@@ -97,6 +102,7 @@ class Drive:
     gnss_fault: np.ndarray | None = field(default=None, repr=False)
     receiver_fault: np.ndarray | None = field(default=None, repr=False)
     start_stamp_s: float | None = None
+    imu: ImuCharacter | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         missing = [c for c in REQUIRED_COLUMNS if c not in self.columns]
@@ -179,7 +185,7 @@ class Drive:
         columns |= {"lat_deg": self.columns["gnss_lat_deg"], "lon_deg": self.columns["gnss_lon_deg"],
                     "speed_mps": self.columns["gnss_speed_mps"], "heading_deg": self.columns["gnss_heading_deg"]}
         return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, gnss_fault=self.receiver_fault,
-                     start_stamp_s=self.start_stamp_s)
+                     start_stamp_s=self.start_stamp_s, imu=self.imu)
 
     def stamp_s(self, t_s: np.ndarray | float) -> np.ndarray | float:
         """The source's own time stamp (s, see ``start_stamp_s``) of drive time ``t_s`` (s since the first sample)."""

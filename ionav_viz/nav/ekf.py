@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from .planar_filter import BA, BG, MEASUREMENTS, EkfNoise, forward_pass, increments, measurements
+from .planar_filter import BA, BG, PLANAR_MEASUREMENTS, EkfNoise, forward_pass, increments, measurements
 from .protocol import Estimate, EstimatorInputs, FilterHealth
 
-#: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.planar_filter.MEASUREMENTS`).
-MEASUREMENT_KINDS = ("GNSS position", "GNSS position", "GNSS speed", "GNSS course", "vehicle speed")
+#: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.planar_filter.PLANAR_MEASUREMENTS`).
+PLANAR_MEASUREMENT_KINDS = ("GNSS position", "GNSS position", "GNSS speed", "GNSS course", "vehicle speed")
 
 
 class EkfEstimator:
@@ -49,7 +49,7 @@ class EkfEstimator:
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",
                           "gyro_bias_radps": f"{np.median(start[:, BG]):+.5f}",
                           "vehicle_speed": "used" if np.isfinite(meas.vehicle).any() else "none"}
-        health = FilterHealth(w.t0_s, MEASUREMENTS, MEASUREMENT_KINDS, fp.log.innovation, fp.log.variance, fp.log.status)
+        health = FilterHealth(w.t0_s, PLANAR_MEASUREMENTS, PLANAR_MEASUREMENT_KINDS, fp.log.innovation, fp.log.variance, fp.log.status)
         return Estimate(np.maximum(disp, 0.0), yaw, health=health)
 
     def describe(self) -> dict[str, Any]:

@@ -14,8 +14,22 @@ Initial alignment, at the drive's first window boundary: level (roll and pitch) 
 specific force over the first second, heading from the GNSS course at speed (the windows hold
 the first course at speed through a standstill at the start), velocity from the GNSS speed and
 course (15 degrees of sigma: a course at walking pace is worth little), biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
-white noise (the filter's random walks) is measured on the drive: the robust spread of successive
-differences of each axis, the signal being smooth at 10 Hz.
+white noise (the filter's random walks) is measured on the drive where it stands
+(:func:`sensor_noise`; the whole drive when it hardly stands): the robust spread of successive
+differences of each axis, the grade's floors as a prior.
+
+The mechanisation is the data's (``mechanisation="auto"``): where the drive's IMU samples are single
+readings at a low rate (a phone's sensor events, :class:`ionav_viz.core.imu.ImuCharacter`), their x
+and y rates alias what the holder shakes, and integrating roll and pitch from them leaks gravity into
+the velocity within seconds (measured on a phone log: 24 % of the distance after 10 s against the
+INS DR's 17.5 %); then roll and pitch are held (the reduced mechanisation: yaw rate and specific
+force with the constraints), corrected by the updates only, and the report says so.
+
+The safeguards (:func:`ionav_viz.nav.strapdown.run_filter`): a fix the gate leaves out while it
+agrees with the fixes before it re-initialises position and velocity from GNSS instead of locking the
+fixes out; a stop the IMU shows for two boundaries is taken even when the filter's velocity
+disagrees, unless a fix at speed says the car moves. Each re-initialisation is in the filter's
+health (:class:`ionav_viz.nav.protocol.FilterHealth`), and so in the report.
 
 Drives with only the paper's two channels (IO-VNBD) are the planar ``ekf``'s: ``gins`` does not
 apply to them.
@@ -36,7 +50,7 @@ from ..core.rotation import quat_of_euler
 from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs, FilterHealth
 from .stillness import drive_still
-from .strapdown import BAX, BGX, KO, MEASUREMENTS, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
+from .strapdown import BAX, BGX, GINS_MEASUREMENTS, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
 
@@ -45,11 +59,36 @@ from .windows import Windows
 GNSS_VELOCITY_MIN_SPEED_MPS = MIN_COURSE_SPEED_MPS
 
 
-def white_noise_per_sample(x: np.ndarray, most: int = 20_000) -> float:
-    """The white noise (1 sigma per sample) of signals ``(n, 3)``: the robust spread (1.4826 MAD)
-    of successive differences over sqrt(2), the median over the axes (from at most ``most``
-    differences spread over the drive: a robust spread needs no more)."""
-    d = np.diff(x, axis=0)
+#: Standing still this long (s) in all, the sensors' noise is measured there; less, on the whole drive.
+MIN_STILL_FOR_NOISE_S = 20.0
+
+
+def sensor_noise(acc: np.ndarray, gyr: np.ndarray, still: np.ndarray, dt: float, noise: GinsNoise) -> tuple[float, float, str]:
+    """The sensors' white noise per sample (accelerometer m/s^2, gyro rad/s) and where it was
+    measured: on the samples where ``still`` (the sensor and the engine's shaking, not the car's
+    motion) when there are :data:`MIN_STILL_FOR_NOISE_S` of them, else on the whole drive; never
+    below the floors of ``noise`` (the grade's prior). The caller passes no stillness for single
+    readings: what the car shakes aliases into each of them, so the driving spread is what the
+    filter must take as noise (a phone: 0.1 deg/s standing, 0.5 driving; weighing it as the standing
+    one put 20 % of the distance on 10 s outages of a real phone log against 17.6 %)."""
+    standing = still[1:] & still[:-1]
+    if standing.sum() * dt >= MIN_STILL_FOR_NOISE_S:
+        # successive differences only within standing stretches
+        d_acc, d_gyr = np.diff(acc, axis=0)[standing], np.diff(gyr, axis=0)[standing]
+        where = f"measured over {standing.sum() * dt:.0f} s standing"
+    else:
+        d_acc, d_gyr = np.diff(acc, axis=0), np.diff(gyr, axis=0)
+        where = "measured on the whole drive (under 20 s standing)"
+    sigma_a = max(_spread(d_acc), noise.accel_white_floor_mps2)
+    sigma_g = max(_spread(d_gyr), noise.gyro_white_floor_radps)
+    return sigma_a, sigma_g, where
+
+
+def _spread(d: np.ndarray, most: int = 20_000) -> float:
+    """The white noise per sample from successive differences ``d`` (n, 3): 1.4826 MAD over sqrt(2),
+    the median over the axes."""
+    if not len(d):
+        return 0.0
     d = d[:: max(1, len(d) // most)]
     mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
     return float(np.median(1.4826 * mad / np.sqrt(2.0)))
@@ -98,6 +137,29 @@ def boundaries(drive: Drive, windows: Windows) -> Boundaries:
     return Boundaries(t, sample, seg_start, lat, lon, speed, course, good, start_at)
 
 
+#: A fix agrees with the one before it when the step between them is within this of what the
+#: speed says (m, plus the fixes' sigmas and a share of the step): as the GNSS jump check has it
+#: (:class:`ionav_viz.core.gnss_quality.GnssLimits`: ``jump_margin_m``, ``jump_speed_factor``).
+FIX_STEP_MARGIN_M = 3.0
+FIX_STEP_SHARE = 0.5
+
+
+def fix_steps(b: Boundaries, pos_m: np.ndarray, sigma_m: np.ndarray) -> np.ndarray:
+    """Per boundary, how its fix follows the one before (int8): 1 when both are good and the step
+    between them is what the speed says (no jump: the fixes can be believed over the filter,
+    :func:`~.strapdown.run_filter`'s safeguard), -1 when it is not (a jump), 0 when it cannot be
+    told (the first good fix after a gap or a segment's start)."""
+    out = np.zeros(len(b.t_s), dtype=np.int8)
+    if len(out) < 2:
+        return out
+    step = np.hypot(*np.diff(pos_m[:, :2], axis=0).T)
+    expected = 0.5 * (b.speed_mps[1:] + b.speed_mps[:-1]) * np.diff(b.t_s)
+    margin = FIX_STEP_MARGIN_M + 2.0 * (sigma_m[1:] + sigma_m[:-1]) + FIX_STEP_SHARE * expected
+    both = b.gnss_ok[1:] & b.gnss_ok[:-1] & ~b.segment_start[1:]
+    out[1:] = np.where(both, np.where(np.abs(step - expected) <= margin, 1, -1), 0)
+    return out
+
+
 def _level_attitude(accel_mean: np.ndarray, heading_deg: float) -> np.ndarray:
     """The quaternion (w, x, y, z) of ``C_b^n`` from the mean specific force (level) and the course
     (yaw); angles as :mod:`ionav_viz.core.rotation` has them (pitch positive nose-down)."""
@@ -133,9 +195,14 @@ class GinsEstimator:
     color = (235, 160, 0)  # amber: apart from odometry's purple and the ekf's cyan
     requires = "all six IMU axes, measured: a message log's or KITTI's IMU"
 
-    def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True) -> None:
+    def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True,
+                 mechanisation: str = "auto") -> None:
+        """``mechanisation``: ``"3d"``, ``"reduced"`` (roll and pitch held: yaw rate and specific
+        force with the constraints) or ``"auto"``: reduced where the drive's IMU samples are single
+        readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`)."""
         self.noise = noise or GinsNoise()
         self.nhc, self.zupt, self.odometer = nhc, zupt, odometer
+        self.mechanisation = mechanisation
         self._last: dict[str, Any] = {}
 
     def available(self) -> bool:
@@ -172,19 +239,21 @@ class GinsEstimator:
         still = (moving_count[k[1]] - moving_count[k[0]] == 0) & (k[1] > k[0])
 
         dt = float(np.median(np.diff(drive.t_s))) if len(drive) > 1 else 0.1
-        sigma_a = max(white_noise_per_sample(acc), self.noise.accel_white_floor_mps2)
-        sigma_g = max(white_noise_per_sample(gyr), self.noise.gyro_white_floor_radps)
+        reduced = self.mechanisation == "reduced" or (self.mechanisation == "auto" and drive.imu is not None and drive.imu.single_readings)
+        # single readings: what the car shakes aliases into every sample, so the driving spread is the
+        # noise the filter sees; averaged samples: the driving spread is the car's motion, the standing one the noise
+        sigma_a, sigma_g, noise_from = sensor_noise(acc, gyr, np.zeros_like(still_s) if reduced else still_s, dt, self.noise)
         walk, init = self.noise.arrays()
         n = self.noise
         # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
         r_vel = (n.gnss_fitted_velocity_mps if drive.velocity_fitted else n.gnss_velocity_mps) ** 2
         inputs = FilterInputs(np.ascontiguousarray(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64), b.segment_start.astype(bool),
                               b.gnss_ok.astype(bool), pos, np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
-                              still.astype(bool), bool(has_height))
+                              still.astype(bool), fix_steps(b, pos, sigma), bool(has_height))
         noise = FilterNoise(sigma_a**2 * dt, sigma_g**2 * dt, walk, r_vel, n.nhc_lateral_mps**2, n.nhc_vertical_mps**2, n.odometer_mps**2,
                             n.zupt_mps**2, sigma_g**2)
         earth = earth_at(origin[0], origin[2])
-        switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt))
+        switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt), reduced)
 
         x0 = np.zeros(N_NOMINAL)
         x0[PX:PX + 3] = pos[0]
@@ -199,7 +268,8 @@ class GinsEstimator:
         out = filter_outputs(nb, keep_states=True)
         run_filter(inputs, noise, earth, switches, x0, P0, 0, nb - 1, out)
         xs = out.xs
-        self._last = {"imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample",
+        self._last = {"mechanisation": _mechanisation_text(reduced, drive),
+                      "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample ({noise_from})",
                       "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
                       "accel_bias_mps2": _median_text(xs[:, BAX:BAX + 3]),
                       "mount_residual_deg": f"yaw {np.rad2deg(np.median(xs[:, PSIM])):+.2f}, pitch {np.rad2deg(np.median(xs[:, THM])):+.2f}",
@@ -233,13 +303,24 @@ class GinsEstimator:
         return dict(self._last)
 
 
-#: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.MEASUREMENTS`).
-MEASUREMENT_KINDS = ("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2 + ("odometer",)
+#: The safeguard's kind in the filter's health: re-initialisations from GNSS (see run_filter).
+REINITIALISED = "re-initialised from GNSS"
+#: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.GINS_MEASUREMENTS`).
+GINS_MEASUREMENT_KINDS = ("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2 + ("odometer",
+                     REINITIALISED)
 
 
 def health_of(r: GinsRun) -> FilterHealth:
     """The pass's update log as the estimate's :class:`~ionav_viz.nav.protocol.FilterHealth`."""
-    return FilterHealth(r.bounds.t_s, MEASUREMENTS, MEASUREMENT_KINDS, r.log.innovation, r.log.variance, r.log.status)
+    return FilterHealth(r.bounds.t_s, GINS_MEASUREMENTS, GINS_MEASUREMENT_KINDS, r.log.innovation, r.log.variance, r.log.status)
+
+
+def _mechanisation_text(reduced: bool, drive: Drive) -> str:
+    if not reduced:
+        return "3D strapdown"
+    why = f"the IMU's samples are single readings at {drive.imu.native_rate_hz:g} Hz" if drive.imu is not None and drive.imu.single_readings \
+        else "asked for"
+    return f"reduced: roll and pitch held, not integrated ({why}: their x and y rates alias what the holder shakes)"
 
 
 def _median_text(values: np.ndarray) -> str:

@@ -66,7 +66,8 @@ def _segment_ranges(windows: Windows) -> list[tuple[int, int]]:
     key = np.where(ok, seg, -1)
     starts = np.flatnonzero(ok & np.concatenate([[True], key[1:] != key[:-1]]))
     ends = np.flatnonzero(ok & np.concatenate([key[1:] != key[:-1], [True]])) + 1
-    return [(int(a) + 1, int(b)) for a, b in zip(starts, ends)]
+    # and none before the warm-up's end (Windows.after_warm_up)
+    return [(max(int(a) + 1, windows.first_start), int(b)) for a, b in zip(starts, ends) if max(int(a) + 1, windows.first_start) < b]
 
 
 def truth_faults_near(windows: Windows, start: int, n: int) -> int:

@@ -183,7 +183,7 @@ class PlanarModel(NamedTuple):
 
 #: The measurement slots of the forward pass's update log (:class:`ionav_viz.nav.kalman.UpdateLog`,
 #: a row per window: GNSS at its start, the vehicle speed at its end), in their units (m, m/s, rad, m/s).
-MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_speed", "gnss_course", "vehicle_speed")
+PLANAR_MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_speed", "gnss_course", "vehicle_speed")
 SLOT_VEHICLE = 4
 
 
@@ -447,7 +447,7 @@ def planar_model(noise: EkfNoise, T: float) -> PlanarModel:
 class ForwardPass:
     """The filter's pass over a drive: states ``xs`` (n_windows, 8) and covariances ``Ps`` (n_windows,
     8, 8) at the window starts, the offset's slow part there ``slow`` (m/s^2), the update ``log``
-    (a row per window, :data:`MEASUREMENTS`), and the inputs and model it ran with."""
+    (a row per window, :data:`PLANAR_MEASUREMENTS`), and the inputs and model it ran with."""
 
     xs: np.ndarray
     Ps: np.ndarray
@@ -468,7 +468,7 @@ def forward_pass(windows: Windows, meas: Measurements, inc: Increments, accel_of
     """The filter over the whole drive from the starting biases ``accel_offset`` (m/s^2) and
     ``gyro_bias`` (rad/s); ``keep_log``: keep every update's innovation (:class:`ForwardPass`)."""
     inputs, model = planar_inputs(windows, meas, inc), planar_model(noise, inc.T)
-    log = kalman.update_log(len(windows) if keep_log else 0, len(MEASUREMENTS))
+    log = kalman.update_log(len(windows) if keep_log else 0, len(PLANAR_MEASUREMENTS))
     xs, Ps, slow = _forward_kernel(inputs, model, float(accel_offset), float(gyro_bias), log)
     return ForwardPass(xs, Ps, slow, log, inputs, model)
 

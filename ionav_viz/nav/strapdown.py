@@ -101,9 +101,11 @@ N_ERR = 19
 
 #: The measurement slots of the filter's update log (:class:`ionav_viz.nav.kalman.UpdateLog`), in
 #: their units: GNSS position (m), GNSS velocity (m/s), ZUPT (m/s), ZARU (rad/s), NHC (m/s), odometer (m/s).
-MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_up", "gnss_velocity_east", "gnss_velocity_north", "zupt_east", "zupt_north",
-                "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer")
-SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER = 0, 3, 5, 8, 11, 12, 13
+#: The last slot is no measurement but the safeguard: a re-initialisation from GNSS (its
+#: "innovation" the horizontal distance from the filter's position to the fix, m).
+GINS_MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_up", "gnss_velocity_east", "gnss_velocity_north", "zupt_east", "zupt_north",
+                "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer", "reinitialised")
+SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER, SLOT_REINIT = 0, 3, 5, 8, 11, 12, 13, 14
 
 
 class Earth(NamedTuple):
@@ -126,7 +128,9 @@ class FilterInputs(NamedTuple):
     sample), ``b_start`` (it starts a segment), ``gnss_ok`` (a usable fix), ``gnss_pos`` (ENU m,
     (nb, 3)), ``gnss_sigma`` (m), ``gnss_vel`` (east, north m/s, (nb, 2)), ``vel_ok`` (use the
     velocity), ``odo`` (vehicle speed m/s, NaN: none), ``still`` (the IMU shows the car standing);
-    ``has_height``: the fixes' heights are measurements."""
+    ``fix_step``: 1 where the fix goes on from the one before it as the speed says (no jump: when it
+    disagrees with the filter, the filter is the one that is off), -1 where it jumps, 0 where it
+    cannot tell (the first fix after a gap); ``has_height``: the fixes' heights are measurements."""
 
     t: np.ndarray
     acc: np.ndarray
@@ -140,6 +144,7 @@ class FilterInputs(NamedTuple):
     vel_ok: np.ndarray
     odo: np.ndarray
     still: np.ndarray
+    fix_step: np.ndarray
     has_height: bool
 
 
@@ -160,12 +165,15 @@ class FilterNoise(NamedTuple):
 
 
 class FilterSwitches(NamedTuple):
-    """Which updates run: GNSS, the NHC, the odometer, ZUPT/ZARU."""
+    """Which updates run: GNSS, the NHC, the odometer, ZUPT/ZARU; and ``level_held``: the reduced
+    mechanisation (roll and pitch held, not integrated from the x and y rates) for IMUs whose samples
+    cannot carry a 3D attitude (single readings at a low rate)."""
 
     gnss: bool
     nhc: bool
     odometer: bool
     zupt: bool
+    level_held: bool = False
 
 
 class FilterOutputs(NamedTuple):
@@ -185,7 +193,7 @@ def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
     """Outputs for ``nb`` boundaries, with the states and the update log or without."""
     rows = nb if keep_states else 0
     return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
-                         kalman.update_log(rows, len(MEASUREMENTS)))
+                         kalman.update_log(rows, len(GINS_MEASUREMENTS)))
 
 
 @dataclass(frozen=True)
@@ -252,13 +260,15 @@ _skew = njit(cache=True)(rotation.skew)
 
 
 @njit(cache=True)
-def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, earth, out):  # pragma: no cover - compiled
+def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, earth, level_held, out):  # pragma: no cover - compiled
     """One step of ``dt`` (s) in place on the nominal state ``x`` (:class:`Earth` ``earth``);
     returns the horizontal distance (m) and writes the step's mean specific force in ``n`` (m/s^2)
-    and corrected z rate (rad/s) into ``out`` (4,). Scalar code: allocates nothing per sample."""
+    and corrected z rate (rad/s) into ``out`` (4,). ``level_held``: the reduced mechanisation, roll
+    and pitch not integrated (the x and y rates taken as zero; the filter's updates still correct
+    them). Scalar code: allocates nothing per sample."""
     omega_ie, g0, radius = earth.omega_ie, earth.g0, earth.radius
-    wx = 0.5 * (gyr0[0] + gyr1[0]) - x[BGX]
-    wy = 0.5 * (gyr0[1] + gyr1[1]) - x[BGX + 1]
+    wx = 0.0 if level_held else 0.5 * (gyr0[0] + gyr1[0]) - x[BGX]
+    wy = 0.0 if level_held else 0.5 * (gyr0[1] + gyr1[1]) - x[BGX + 1]
     wz = (0.5 * (gyr0[2] + gyr1[2]) - x[BGX + 2]) / (1.0 + x[SG])
     fx = 0.5 * (acc0[0] + acc1[0]) - x[BAX]
     fy = 0.5 * (acc0[1] + acc1[1]) - x[BAX + 1]
@@ -539,9 +549,22 @@ def _restart_segment(x, P, P0, inputs, b):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _propagate_window(x, P, inputs, noise, earth, j, jb, acc):  # pragma: no cover - compiled
-    """Mechanise the samples ``j`` to ``jb`` and propagate ``P`` over them; adds the distance (m)
-    and the turn against the Earth (rad) into ``acc`` (2,)."""
+def _reinitialise(x, P, P0, inputs, b, log):  # pragma: no cover - compiled
+    """The safeguard: the filter disagrees with a fix that agrees with the fixes before it, so the
+    filter is the one that is off: its position and velocity from GNSS again, with their initial
+    covariance and the heading's (a velocity that was wrong had turned it), the rest kept."""
+    offset = math.sqrt((x[PX] - inputs.gnss_pos[b, 0]) ** 2 + (x[PX + 1] - inputs.gnss_pos[b, 1]) ** 2)
+    _restart_segment(x, P, P0, inputs, b)
+    for k in range(N_ERR):
+        P[PHI + 2, k] = P[k, PHI + 2] = 0.0
+    P[PHI + 2, PHI + 2] = P0[PHI + 2, PHI + 2]
+    kalman.record(log, b, SLOT_REINIT, offset, 1.0, True)
+
+
+@njit(cache=True)
+def _propagate_window(x, P, inputs, noise, earth, level_held, j, jb, acc):  # pragma: no cover - compiled
+    """Mechanise the samples ``j`` to ``jb`` (``level_held``: the reduced mechanisation) and
+    propagate ``P`` over them; adds the distance (m) and the turn against the Earth (rad) into ``acc`` (2,)."""
     T = 0.0
     fsum, step = np.zeros(3), np.zeros(4)
     wz = 0.0
@@ -549,7 +572,7 @@ def _propagate_window(x, P, inputs, noise, earth, j, jb, acc):  # pragma: no cov
     t, omega_ie = inputs.t, earth.omega_ie
     while j < jb:
         dt = t[j + 1] - t[j]
-        acc[0] += _mechanise(x, inputs.acc[j], inputs.acc[j + 1], inputs.gyr[j], inputs.gyr[j + 1], dt, earth, step)
+        acc[0] += _mechanise(x, inputs.acc[j], inputs.acc[j + 1], inputs.gyr[j], inputs.gyr[j + 1], dt, earth, level_held, step)
         acc[1] += (step[3] - omega_ie[2]) * dt  # the turn against the Earth, about the body's z
         for i in range(3):
             fsum[i] += step[i] * dt
@@ -622,12 +645,17 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
     At each boundary, in this order, every update folded into one error estimate and fed back once:
 
     1. GNSS (with ``sw.gnss`` and a good fix): position, gated at GNSS_GATE, then velocity at speed.
-       After GNSS_REJECTS_MAX boundaries in a row whose fix was left out, the filter is the one that
-       is off: the next fix is taken whatever it says.
-    2. Standing (the detector says so, ``sw.zupt``, and the filter's velocity agrees within
-       ZUPT_GATE): ZUPT and ZARU, *instead of* the NHC and the odometer (at rest the zero velocity
-       says what they would, more strongly, and a wheel speed of 0 says nothing of its scale).
-       A stop the filter's velocity contradicts is logged as gated.
+       A fix the gate leaves out that goes on smoothly from the fixes before it (``fix_step`` 1:
+       no jump since the last fix the filter took) says the filter is off: the safeguard
+       re-initialises position and velocity from it (:func:`_reinitialise`, logged) instead of
+       shutting the fixes out. A jump is left out, and so are the fixes after it until one agrees
+       with the filter again; after GNSS_REJECTS_MAX boundaries in a row the next is taken whatever it says.
+    2. Standing (the detector says so, ``sw.zupt``): ZUPT and ZARU, *instead of* the NHC and the
+       odometer (at rest the zero velocity says what they would, more strongly, and a wheel speed
+       of 0 says nothing of its scale). Not where a fix at speed says the car moves; where the
+       filter's velocity is further than ZUPT_GATE from zero only after two still boundaries in a
+       row (then the filter is off: its velocity variance is widened to take the stop), else logged
+       as gated.
     3. Moving: the NHC (``sw.nhc``) and the odometer (``sw.odometer``, where the drive has one).
     """
     x = x0.copy()
@@ -637,7 +665,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
     store = out.xs.shape[0] > 0
     walked = np.zeros(2)  # distance (m) and turn (rad) since b_first
     gm = np.zeros(3)
-    rejected = 0
+    rejected, jumped = 0, False
     j = inputs.b_sample[b_first]
     for b in range(b_first, b_last + 1):
         jb = inputs.b_sample[b]
@@ -645,18 +673,32 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
             _restart_segment(x, P, P0, inputs, b)
             j = jb
         elif b > b_first:
-            _propagate_window(x, P, inputs, noise, earth, j, jb, walked)
+            _propagate_window(x, P, inputs, noise, earth, sw.level_held, j, jb, walked)
             j = jb
-            if sw.gnss and inputs.gnss_ok[b]:
+            gnss_here = sw.gnss and inputs.gnss_ok[b]
+            if gnss_here:
                 if _gnss_updates(x, P, dx, inputs, noise, b, GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf, H, out.log):
+                    rejected, jumped = 0, False
+                elif inputs.fix_step[b] > 0 and not jumped:
+                    # the fixes went on smoothly from the last one the filter took, and it disagrees: it is off
+                    _correct(x, dx)
+                    _reinitialise(x, P, P0, inputs, b, out.log)
                     rejected = 0
-                else:
+                else:  # a jump in the fixes (and the fixes after it until they come back to the filter), or a
+                    # first fix after a gap, which nothing confirms yet: left out
                     rejected += 1
+                    jumped = jumped or inputs.fix_step[b] < 0
             standing = sw.zupt and inputs.still[b]
-            if standing and standing_nis(x, P, noise.r_zupt) >= ZUPT_GATE:
-                standing = False  # the detector is wrong, or the filter is: a ZUPT would not be a small correction
-                for axis in range(3):
-                    kalman.record(out.log, b, SLOT_ZUPT + axis, -x[VX + axis], P[DV + axis, DV + axis] + noise.r_zupt, False)
+            moving_says_gnss = gnss_here and inputs.vel_ok[b]
+            if standing and (moving_says_gnss or standing_nis(x, P, noise.r_zupt) >= ZUPT_GATE):
+                if not moving_says_gnss and inputs.still[b - 1]:
+                    # still for two boundaries and no fix saying otherwise: the filter's velocity is the one that is off
+                    for axis in range(3):
+                        P[DV + axis, DV + axis] += x[VX + axis] ** 2
+                else:  # the detector is wrong, or the filter is: a ZUPT would not be a small correction
+                    standing = False
+                    for axis in range(3):
+                        kalman.record(out.log, b, SLOT_ZUPT + axis, -x[VX + axis], P[DV + axis, DV + axis] + noise.r_zupt, False)
             if standing:
                 # the mean gyro reading over the last window (WINDOW_S, both ends, at any rate)
                 k0 = inputs.b_sample[b - 1]
@@ -686,7 +728,7 @@ def _propagate_all(t, acc, gyr, x0, earth):  # pragma: no cover - compiled
     x = x0.copy()
     out[0] = x
     for j in range(n - 1):
-        _mechanise(x, acc[j], acc[j + 1], gyr[j], gyr[j + 1], t[j + 1] - t[j], earth, step)
+        _mechanise(x, acc[j], acc[j + 1], gyr[j], gyr[j + 1], t[j + 1] - t[j], earth, False, step)
         out[j + 1] = x
     return out
 
@@ -729,7 +771,7 @@ def vehicle_velocity_model(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def measurement_model(name: str, x: np.ndarray, **given: Any) -> tuple[float, np.ndarray]:
     """One measurement as the filter predicts it from the nominal state ``x`` (20,): its value
     (prediction minus the measurement ``given``) and its row of H over the error state (19,), for
-    tests against the nonlinear model. ``name``: one of :data:`MEASUREMENTS`' kinds without the
+    tests against the nonlinear model. ``name``: one of :data:`GINS_MEASUREMENTS`' kinds without the
     axis (``gnss_position``, ``gnss_velocity``, ``zupt``, ``zaru``, ``nhc_lateral``,
     ``nhc_vertical``, ``odometer``); ``given``: its arguments (``pos``, ``sigma``, ``vel``,
     ``axis``, ``gyro_mean``, ``omega_ie``, ``speed_mps``)."""

@@ -62,6 +62,8 @@ class Windows:
     accel_mps2: np.ndarray  # (n, steps + 1)
     gyro_radps: np.ndarray  # (n, steps + 1)
     truth_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = good truth
+    #: the first window an outage may start at: the filters' warm-up (:meth:`after_warm_up`)
+    first_start: int = 0
 
     def __post_init__(self) -> None:
         if self.truth_fault is None:
@@ -78,6 +80,13 @@ class Windows:
     def ignoring_truth(self) -> Windows:
         """The same windows with every one taken as good truth (to count what bad truth excluded)."""
         return replace(self, truth_fault=np.zeros(len(self), dtype=np.uint16))
+
+    def after_warm_up(self, warm_up_s: float) -> Windows:
+        """The same windows, outages placed only from ``warm_up_s`` after the drive's first window:
+        the filters have had that long with GNSS (every estimator gets the same outages)."""
+        if warm_up_s <= 0 or not len(self):
+            return replace(self, first_start=0)
+        return replace(self, first_start=int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6)))
 
     @property
     def steps(self) -> int:

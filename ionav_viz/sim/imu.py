@@ -37,7 +37,7 @@ Noise: two parts, because they integrate differently
     centimetres (and hundredths of a degree). Its integral is that motion, not a random walk, so it
     is simulated as the rate of change of a bounded Gauss-Markov motion (:func:`vibration`, 50 ms
     correlation) whose 10 Hz samples spread as the table says (the successive-difference spread
-    over sqrt(2), as the table and :func:`ionav_viz.nav.gins.white_noise_per_sample` measure).
+    over sqrt(2), as the table and :func:`ionav_viz.nav.gins.sensor_noise` measure).
     The sensor's own white noise is its datasheet random walk (``*_random_walk``), tens of times
     smaller per sample; it is what integrates. Drawn as white noise at the table's level, a MEMS
     gyro would walk at 2.9 deg/sqrt(h), twelve times SENSORS.md's 0.24.
@@ -98,6 +98,15 @@ class ImuGrade:
     vehicle_speed: bool
     grade_rms: float = 0.03
     camber_rms: float = 0.015
+    #: each sample one instantaneous reading (a phone's sensor event) instead of the mean over its
+    #: interval: what the car and the holder shake faster than half the rate aliases into it
+    single_readings: bool = False
+    #: the holder's wobble while driving: its pitch and roll rates' spread (deg/s, 1 sigma, a third
+    #: of it on yaw; a fifth standing), a resonance near ``holder_wobble_hz``
+    holder_wobble_dps: float = 0.0
+    holder_wobble_hz: float = 8.0
+    #: the IMU's stamps minus the receiver's for one instant (s; positive: the IMU is stamped late)
+    clock_offset_s: float = 0.0
 
 
 IMU_GRADES = {
@@ -112,7 +121,8 @@ IMU_GRADES = {
                       accel_scale=0.01, accel_vibration_still_mps2=0.25, accel_vibration_per_mps=0.015, accel_vibration_max_mps2=0.45, accel_random_walk_mps_rthr=0.3,
                       bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0, gnss_wander_m=2.5, gnss_tau_s=60.0,
                       gnss_white_m=0.5, gnss_reported_sigma_m=8.0, gnss_speed_noise_mps=0.3, clock_jitter_s=0.005,
-                      missing_sample_prob=0.01, vehicle_speed=False),
+                      missing_sample_prob=0.01, vehicle_speed=False, single_readings=True, holder_wobble_dps=1.6, holder_wobble_hz=8.0,
+                      clock_offset_s=0.04),
 }
 #: Where the simulated logs carry the reference truth (a NavSatFix, read with ``--truth-topic``).
 SIM_TRUTH_TOPIC = TRUTH_TOPIC
@@ -204,6 +214,29 @@ def vibration(rng: np.random.Generator, t_s: np.ndarray, sigma: np.ndarray) -> n
     return rate
 
 
+#: The wobble is drawn on this fine a time line (Hz) and read at the sample times: instantaneous.
+WOBBLE_RATE_HZ = 400.0
+
+
+def holder_wobble(rng: np.random.Generator, t_s: np.ndarray, sigma_radps: np.ndarray, freq_hz: float) -> np.ndarray:
+    """A holder's wobble on three axes (rad/s), read instantaneously at the sample times ``t_s``:
+    the rate of a lightly damped resonance (white noise shaped by a second-order response, damping
+    0.2, at ``freq_hz``) drawn at :data:`WOBBLE_RATE_HZ`, scaled per sample to ``sigma_radps`` ((n,) on
+    pitch and roll; a third of it on yaw). Sampled below twice ``freq_hz`` it aliases: successive
+    samples are nearly independent, as a phone's are on a dashboard holder."""
+    if len(t_s) < 2:
+        return np.zeros((len(t_s), 3))
+    h = 1.0 / WOBBLE_RATE_HZ
+    n = int(math.ceil((t_s[-1] - t_s[0]) / h)) + 2
+    # white noise shaped by the resonance's response |1 / (1 - (f/f0)^2 + 2 i zeta f/f0)| (numpy's FFT: no filter loop)
+    f = np.fft.rfftfreq(n, h) / freq_hz
+    response = 1.0 / np.abs(1.0 - f * f + 2j * 0.2 * f)
+    fine = np.fft.irfft(np.fft.rfft(rng.normal(0.0, 1.0, (n, 3)), axis=0) * response[:, None], n, axis=0)
+    fine /= fine.std(axis=0)
+    idx = np.clip(np.rint((t_s - t_s[0]) / h).astype(np.int64), 0, n - 1)
+    return fine[idx] * np.asarray(sigma_radps)[:, None] * np.array([1.0, 1.0, 1.0 / 3.0])
+
+
 @dataclass
 class ImuLog:
     """A simulated log: the drive at the IMU's rate (the reference truth as its positions, the
@@ -244,7 +277,12 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
 
     speed = at(m.speed_mps)
     mount = rotation_deg(*(np.array(g.mount_deg) + rng.normal(0.0, g.mount_spread_deg, 3)))
-    f_s, w_s = at(m.specific_force_mps2) @ mount, at(m.angular_rate_radps) @ mount  # sensor = mount^T body
+
+    def sensed(x: np.ndarray) -> np.ndarray:
+        """What the IMU stamped ``t`` sensed: at ``t - clock_offset_s`` on the receiver's time line."""
+        return np.column_stack([np.interp(t - g.clock_offset_s, m.t_s, x[:, k]) for k in range(x.shape[1])])
+
+    f_s, w_s = sensed(m.specific_force_mps2) @ mount, sensed(m.angular_rate_radps) @ mount  # sensor = mount^T body
     dt_mean = 1.0 / g.imu_rate_hz
 
     def wander(instability: float) -> np.ndarray:
@@ -259,6 +297,9 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
     gyro_bias, gyro_scale = np.deg2rad(rng.normal(0.0, g.gyro_bias_dps, 3)), rng.normal(0.0, g.gyro_scale, 3)
     gyro = ((1.0 + gyro_scale) * w_s + gyro_bias + np.deg2rad(wander(g.gyro_instability_dps)) + vibration(rng, t, gyro_vib)
             + rng.normal(0.0, gyro_white, (n, 3)))
+    if g.holder_wobble_dps > 0:
+        wobble_sd = np.deg2rad(g.holder_wobble_dps * (0.2 + 0.8 * moving))
+        gyro += holder_wobble(np.random.default_rng([seed, 8000 + SIMULATED_SCENARIOS.index(scenario)]), t, wobble_sd, g.holder_wobble_hz)
     accel_bias, accel_scale = rng.normal(0.0, g.accel_bias_mps2, 3), rng.normal(0.0, g.accel_scale, 3)
     accel = ((1.0 + accel_scale) * f_s + accel_bias + wander(g.accel_instability_mps2) + vibration(rng, t, accel_vib)
              + rng.normal(0.0, accel_white, (n, 3)))

@@ -41,6 +41,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
+from .imu.character import ImuSettings
 from .plausibility import first_implausible, implausible
 from .resample import ImuBins, LogStreams, assemble_drive, drop_strays
 
@@ -214,8 +215,8 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     speeds = np.column_stack([t, np.hypot(col["vn"], col["ve"]), course_deg])[locked]
     drive_name = name or (oxts.parent.name if oxts.name == "oxts" else oxts.name)
     streams = LogStreams(imu, fixes, speeds, origin_s=origin_ns // 1_000_000_000, fix_columns={"n_satellites": col["numsats"][locked]})
-    return assemble_drive(oxts, drive_name, streams, np.eye(3), yaw_sign,
-                          imu_mount=np.eye(3))  # OXTS gives its inertial data in the vehicle frame
+    # OXTS gives its inertial data in the vehicle frame, averaged at 10 Hz from its 100 Hz IMU
+    return assemble_drive(oxts, drive_name, streams, ImuSettings(np.eye(3), yaw_sign, np.eye(3), samples="averaged"))
 
 
 @dataclass(frozen=True)

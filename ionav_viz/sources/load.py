@@ -50,6 +50,11 @@ class ReadOptions:
             from .imu.mount import parse_mount
 
             parse_mount(self.log.imu_mount)  # checked before any work; names imu_mount
+        if self.log.imu_time_offset is not None or self.log.imu_samples is not None:
+            from .imu.character import check_samples, parse_time_offset
+
+            parse_time_offset(self.log.imu_time_offset)
+            check_samples(self.log.imu_samples)
         if self.log.truth_origin is not None:
             from .reference import parse_origin
 

@@ -31,6 +31,12 @@ class LogOptions:
     #: the IMU's mount (after ``imu_axes``): "auto" (estimated from the log), "roll=..,pitch=..,yaw=.."
     #: (degrees) or "quat=w,x,y,z"; None: estimated, applied when small, a stop when large (sources.imu.mount)
     imu_mount: str | None = None
+    #: the IMU's clock against the receiver's: "auto" (estimated, refused when it cannot be resolved) or seconds
+    #: (its stamps minus the receiver's, e.g. "0.3"); None: estimated, applied when clearly off (sources.imu.clock)
+    imu_time_offset: str | None = None
+    #: what each IMU sample is at a low rate: "single" (one instantaneous reading) or "averaged" (a mean or
+    #: increment over its interval); None: single below 50 Hz, the reader's means above (sources.imu.character)
+    imu_samples: str | None = None
 
     def __post_init__(self) -> None:
         if self.speed_topic is not None:

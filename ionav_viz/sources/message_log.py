@@ -64,6 +64,7 @@ from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
 from .gnss_fixes import first_per_stamp
 from .imu.axes import AXES, parse_imu_axes
+from .imu.character import ImuSettings, check_samples, parse_time_offset
 from .imu.mount import parse_mount
 from .log_options import LogOptions
 from .plausibility import first_implausible, implausible
@@ -311,7 +312,7 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
     ``options`` (:class:`~.load.LogOptions`; default: every topic found by message type, header
     stamps) chooses the topics and stamps; its ``imu_axes`` maps the log's IMU axes to the body
     frame (``"x=-y,y=x,z=z"``, see :mod:`.imu.axes`); its ``imu_mount`` (``"auto"``,
-    ``"roll=..,pitch=..,yaw=.."`` or ``"quat=w,x,y,z"``, see :mod:`.imu_mount`) turns them further,
+    ``"roll=..,pitch=..,yaw=.."`` or ``"quat=w,x,y,z"``, see :mod:`.imu.mount`) turns them further,
     after the axes; its ``truth_topic`` names a reference trajectory, the drive's truth (NavSatFix,
     or Odometry/PoseStamped in a local frame placed by ``truth_origin``: ``"auto"`` or
     ``"LAT,LON[,YAW]"``, see :mod:`.reference`). ``yaw_sign`` ``"cw"`` says the yaw axis turns
@@ -346,7 +347,8 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
                               for what, samples in (("GNSS velocity", got.speed), ("vehicle speed", got.vehicle)))
     truth = _truth(got, origin, fixes, origin_s)
     streams = LogStreams(got.imu, fixes, speeds, origin_s=origin_s, vehicle_speed=vehicle_speeds, reference=truth)
-    return assemble_drive(path, name or _default_name(path), streams, mapping, yaw_sign, imu_mount=mount)
+    settings = ImuSettings(mapping, yaw_sign, mount, parse_time_offset(opts.imu_time_offset), check_samples(opts.imu_samples))
+    return assemble_drive(path, name or _default_name(path), streams, settings)
 
 
 class _Messages:

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,8 +34,7 @@ from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ, hold_course_when_slow
 from .gnss_fixes import FIX_COURSE_MIN_SPEED_MPS, covered, fit_fixes, receiver_velocity
-from .imu.axes import YAW_REVERSED, check_imu_frame
-from .imu.mount import MAX_SILENT_DEG, MIN_APPLIED_DEG, estimate_mount, format_mount, nearest_axes
+from .imu.character import ImuSettings, character, clock_offset, orient
 from .plausibility import first_implausible
 
 log = logging.getLogger("ionav_viz")
@@ -173,35 +172,28 @@ class LogStreams:
     fix_columns: dict[str, np.ndarray] | None = None
 
 
-def assemble_drive(path: Path, name: str, streams: LogStreams, mapping: np.ndarray, yaw_sign: str,
-                   imu_mount: np.ndarray | str | None = None) -> Drive:
-    """The drive on the grid from a log's streams (see the module docstring and :class:`LogStreams`).
+def assemble_drive(path: Path, name: str, streams: LogStreams, settings: ImuSettings) -> Drive:
+    """The drive on the grid from a log's streams (see the module docstring and :class:`LogStreams`),
+    the IMU characterised (:mod:`.imu.character`: mount and axes, sample kind, clock offset) as
+    ``settings`` (what the user said) allow; the drive carries what was found (``Drive.imu``).
 
-    ``mapping``: the IMU axis mapping already applied (for the frame check's hint); ``yaw_sign``:
-    ``auto`` checks the yaw sign against the GNSS course, ``cw`` flips it. ``imu_mount``: a rotation
-    (``body = M @ imu``) to apply, ``"auto"`` to apply the one estimated from the log, or None to
-    estimate it and decide (:func:`_mounted`).
-    """
+    A clock offset to apply moves the IMU's samples to the receiver's time line, and the fixes are
+    put on them there: the grid is built again from the streams, the IMU turned as before."""
     grid = _on_grid(path, streams)
-    t, body, measured = grid.t_s, grid.body, grid.measured
-    lat, lon = grid.lat_deg, grid.lon_deg
-    g_t, g_lat, g_lon = streams.gnss[:, 0], streams.gnss[:, 1], streams.gnss[:, 2]
-    v, course = receiver_velocity(t, streams.speed)
-    fitted = v is None or course is None
-    if fitted:
-        # no velocity from the receiver: the fixes' local fit gives it, and smoothed positions
-        # (the per-window displacement of raw fixes would carry their white noise twice)
-        fit = fit_fixes(t, g_t, g_lat, g_lon)
-        v = fit.speed_mps if v is None else v
-        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t) if course is None else course
-        lat, lon = fit.lat_deg, fit.lon_deg
-    if yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y right: FRD): y and z turn over
+    v, course, lat, lon, fitted = _receiver_on(grid, streams)
+    body = grid.body
+    if settings.yaw_sign == "cw":  # a clockwise yaw axis is a z-down IMU (x forward, y left: FRD): y and z turn over
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
-    vehicle_speed = streams.vehicle_speed
-    wheels = np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
-    body = _mounted(path, t, body, v, course, imu_mount, mapping, wheels, measured)
-    if _imu_frame_reversed(path, t, body, v, course, mapping, check_yaw_sign=yaw_sign == "auto", measured=measured):
-        body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])  # the yaw check found a clockwise z: turned over like --yaw-sign cw
+    wheels = _vehicle_speed_on(grid.t_s, streams)
+    oriented = orient(path, grid.t_s, body, v, course, settings, wheels, grid.measured)
+    shift, found = clock_offset(path, grid.t_s, oriented.body, v, course, settings)
+    if shift != 0.0:
+        grid = _on_grid(path, streams, shift)
+        v, course, lat, lon, fitted = _receiver_on(grid, streams)
+        body = grid.body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0]) if settings.yaw_sign == "cw" else grid.body
+        oriented = replace(oriented, body=oriented.turn(body))
+    imu = character(grid.native_rate_hz, grid.readings_per_sample, oriented, shift, found, settings, v)
+    t, body = grid.t_s, oriented.body
     columns = {"t_s": t - float(t[0]), "lat_deg": lat, "lon_deg": lon, "speed_mps": v, "heading_deg": course,
                "accel_long_mps2": body[:, 0], "yaw_rate_radps": body[:, 5]}
     columns |= dict(zip(IMU_COLUMNS, body.T, strict=True))  # the full IMU, body frame
@@ -215,7 +207,28 @@ def assemble_drive(path: Path, name: str, streams: LogStreams, mapping: np.ndarr
     origin_s = streams.origin_s
     start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
     return Drive(name=name, source=str(path), rate_hz=round(1.0 / float(np.median(np.diff(t))), 1),
-                 start_time_of_day_s=start_of_day, columns=columns, start_stamp_s=origin_s + float(t[0]))
+                 start_time_of_day_s=start_of_day, columns=columns, start_stamp_s=origin_s + float(t[0]), imu=imu)
+
+
+def _receiver_on(grid: _Grid, streams: LogStreams) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The receiver's speed (m/s) and course (deg) on the grid, and the positions (deg): the
+    receiver's velocity where it has one, else fitted to the fixes (with smoothed positions: the
+    per-window displacement of raw fixes would carry their white noise twice); and whether fitted."""
+    t, lat, lon = grid.t_s, grid.lat_deg, grid.lon_deg
+    g_t, g_lat, g_lon = streams.gnss[:, 0], streams.gnss[:, 1], streams.gnss[:, 2]
+    v, course = receiver_velocity(t, streams.speed)
+    fitted = v is None or course is None
+    if fitted:
+        fit = fit_fixes(t, g_t, g_lat, g_lon)
+        v = fit.speed_mps if v is None else v
+        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t) if course is None else course
+        lat, lon = fit.lat_deg, fit.lon_deg
+    return v, course, lat, lon, fitted
+
+
+def _vehicle_speed_on(t: np.ndarray, streams: LogStreams) -> np.ndarray | None:
+    vehicle_speed = streams.vehicle_speed
+    return np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
 
 
 @dataclass(frozen=True)
@@ -230,11 +243,14 @@ class _Grid:
     alt_m: np.ndarray
     sigma_m: np.ndarray
     has_fix: np.ndarray  # False in a GNSS gap the IMU goes on through
+    native_rate_hz: float  # the IMU's readings per second
+    readings_per_sample: float  # readings the reader averaged into each sample (median)
 
 
-def _on_grid(path: Path, streams: LogStreams) -> _Grid:
+def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid:
     """The IMU's samples as they are when IMU and GNSS share their stamps at the grid rate, else its
-    means per grid step within the fixes' span (fixes interpolated onto them)."""
+    means per grid step within the fixes' span (fixes interpolated onto them). ``imu_shift_s``: the
+    IMU's clock offset (its stamps minus the receiver's): its samples are put at ``t - imu_shift_s``."""
     imu = streams.imu
     g_t, g_lat, g_lon, g_alt, g_sigma = streams.gnss.T
     samples = imu.kept_samples()
@@ -243,10 +259,13 @@ def _on_grid(path: Path, streams: LogStreams) -> _Grid:
         t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps at the grid rate: keep them
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
         has_fix = np.ones(len(t), dtype=bool)
+        readings = 1.0
     else:
         t, body, count = imu.means()
+        t = t - imu_shift_s
         keep = drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0]) & (t <= g_t[-1])
         t, body = t[keep], body[keep]
+        readings = float(np.median(count[keep])) if keep.any() else 1.0
         has_fix = covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
@@ -258,7 +277,8 @@ def _on_grid(path: Path, streams: LogStreams) -> _Grid:
     measured = ~imu.constant_axes()
     body = body.copy()
     body[:, ~measured] = imu.low[~measured]
-    return _Grid(t, body, measured, lat, lon, alt, sigma, has_fix)
+    step = float(np.median(np.diff(t)))
+    return _Grid(t, body, measured, lat, lon, alt, sigma, has_fix, readings / step if step > 0 else 0.0, readings)
 
 
 def _fix_quality_columns(grid: _Grid, fitted: bool, streams: LogStreams) -> dict[str, np.ndarray]:
@@ -283,71 +303,5 @@ def _fix_quality_columns(grid: _Grid, fitted: bool, streams: LogStreams) -> dict
     return columns
 
 
-#: The IMU's axes in the body frame, as messages name them.
-IMU_AXIS_NAMES = ("accel x", "accel y", "accel z", "gyro x", "gyro y", "gyro z")
-
-
-def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-             imu_mount: np.ndarray | str | None, mapping: np.ndarray, vehicle_speed_mps: np.ndarray | None = None,
-             measured: np.ndarray | None = None) -> np.ndarray:
-    """IMU samples ``(n, 6)`` turned into the body frame by the mount (see :mod:`.imu_mount`).
-
-    Given a rotation: applied. Otherwise estimated: with ``"auto"`` applied and reported; without,
-    below :data:`~.imu_mount.MIN_APPLIED_DEG` left alone (gravity cannot tell so small a tilt from
-    an accelerometer bias or a road's grade), up to :data:`~.imu_mount.MAX_SILENT_DEG` applied and
-    reported, beyond it a stop showing the estimate and the options.
-
-    ``measured``: per axis, whether the log measures it (default all). A mount turns whole vectors,
-    so with an axis not measured none is estimated (said at ``-v``; a warning with ``"auto"``) and a
-    given rotation other than a signed permutation of the axes is refused.
-    """
-    unmeasured = [] if measured is None else [name for name, ok in zip(IMU_AXIS_NAMES, measured, strict=True) if not ok]
-    if isinstance(imu_mount, np.ndarray):
-        if unmeasured and not np.array_equal(np.abs(imu_mount), np.abs(imu_mount).round()):
-            raise InputError(f"{path}: the IMU's {', '.join(unmeasured)} read one value over the whole log (not measured), "
-                             "so its vectors cannot be turned by a mount", "leave the mount out (the IMU axes map whole axes)",
-                             param="imu_mount")
-        matrix = imu_mount
-    elif unmeasured:
-        (log.warning if imu_mount == "auto" else log.info)(
-            "%s: the IMU's mount is not estimated: its %s read one value over the whole log (not measured); "
-            "its axes are used as they are", path, ", ".join(unmeasured))
-        return body
-    else:
-        found = estimate_mount(t, body[:, :3], speed_mps, course_deg, gyro_xyz=body[:, 3:6], vehicle_speed_mps=vehicle_speed_mps)
-        if found is None:
-            log.warning("%s: the IMU's mount cannot be estimated (gravity does not read 7-13 m/s^2 on average); "
-                        "its axes are used as they are", path)
-            return body
-        angle = found.angle_deg
-        if imu_mount != "auto" and angle > MAX_SILENT_DEG:
-            permutation = nearest_axes(found.matrix @ mapping)
-            axes = f", or map the IMU axes with {permutation} (the nearest exact permutation)" if permutation else ""
-            raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount is estimated "
-                             f"as {found.describe()}, {angle:.0f} deg from it",
-                             f"apply this estimate with the mount auto, or give it as {format_mount(found.matrix)}{axes}",
-                             param="imu_mount")
-        if imu_mount != "auto" and angle < MIN_APPLIED_DEG:
-            return body
-        matrix = found.matrix
-        log.warning("%s: applied the IMU mount estimated from the log: %s (%.1f deg from the body frame; "
-                    "--imu-mount %s gives it exactly)", path, found.describe(), angle, format_mount(matrix))
-    out = body.copy()
-    out[:, :3], out[:, 3:] = body[:, :3] @ matrix.T, body[:, 3:] @ matrix.T
-    return out
-
-
-def _imu_frame_reversed(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-                        mapping: np.ndarray, check_yaw_sign: bool, measured: np.ndarray | None = None) -> bool:
-    """Check the IMU's frame (:func:`.imu.axes.check_imu_frame`, on the ``measured`` axes), warn
-    once, and say whether the yaw rate must be flipped (only when ``check_yaw_sign``)."""
-    found = check_imu_frame(t, body[:, :3], body[:, 3:], speed_mps, course_deg, mapping, measured=measured)
-    problems = [p for p in found.problems if check_yaw_sign or not p.startswith(YAW_REVERSED)]
-    if problems:
-        fix = f"; map the axes with --imu-axes {found.suggestion}" if found.suggestion else ""
-        force = "; force the sign with --yaw-sign cw|ccw" if found.yaw_reversed and check_yaw_sign else ""
-        log.warning("%s: the IMU is not in the body frame ionav-viz expects (REP 103: x forward, z up): %s%s%s",
-                    path, "; ".join(problems), fix, force)
-    return found.yaw_reversed and check_yaw_sign
 
 

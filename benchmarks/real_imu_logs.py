@@ -1,0 +1,95 @@
+"""Every estimator on real 6-axis logs, in the shape of issue 41's table: final position error as a
+share of the distance driven (mean over tiled outages), IMU only, per log and outage length.
+
+Give your local copies of the logs (MCAP, ROS bags: what ``ionav-viz evaluate`` reads); nothing
+is downloaded and no data is committed. Where the logs came from and their measured statistics
+are in ``docs/real-imu-logs.md``; that page's table was made with this script::
+
+    python benchmarks/real_imu_logs.py LOG.mcap... [--truth-topic /truth/fix] [--max-sigma-m 13] [--json OUT]
+
+Logs with a reference trajectory (``--truth-topic``) are scored against it; the others against
+their receiver's fixes (then ``--max-sigma-m`` lets a phone's 5-10 m fixes count as truth).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+import ionav_viz as iv
+from ionav_viz.core.gnss_quality import GnssLimits
+
+ESTIMATORS = ("ins", "idnn", "ekf", "gins")
+
+
+def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma_m: float | None, extra: dict | None = None) -> dict:
+    """Per outage length: each estimator's mean final error (% of distance), the outage count, and
+    the run's warnings."""
+    log = iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=truth_topic, **(extra or {}))
+    limits = GnssLimits() if max_sigma_m is None else replace(GnssLimits(), max_sigma_m=max_sigma_m)
+    read = iv.ReadOptions(log=log, gnss_limits=limits)
+    out: dict = {"log": path.name, "lengths": {}}
+    for length, rep in iv.evaluate_lengths([str(path)], lengths, estimators=list(ESTIMATORS), read=read).items():
+        d = rep.to_dict()
+        cell = {"outages": d["n_sequences"]}
+        for est in d["estimators"]:
+            name = est["name"]
+            pct = [s[name]["final_error_pct"] for s in d["sequences"] if isinstance(s.get(name), dict)]
+            pct = [p for p in pct if p is not None and np.isfinite(p)]
+            cell[name] = float(np.mean(pct)) if pct else None
+        out["lengths"][f"{length:g}"] = cell
+        out["warnings"] = d.get("warnings", [])
+        out["filter_health"] = d.get("filter_health", {})
+    return out
+
+
+def row(result: dict) -> str:
+    cells = result["lengths"]
+
+    def pct(length: str, name: str) -> str:
+        value = cells.get(length, {}).get(name)
+        return "–" if value is None else f"{value:.1f} %"
+
+    ten = cells.get("10", {})
+    others = {k: v for k, v in ten.items() if k not in ("gins", "ins", "outages") and v is not None}
+    best = min(others, key=others.get) if others else None
+    best_text = f"{best} {others[best]:.1f} %" if best else "–"
+    return (f"| {result['log']} | {pct('10', 'gins')} | {pct('30', 'gins')} | {pct('60', 'gins')} | "
+            f"{pct('10', 'ins')} / {pct('30', 'ins')} | {best_text} | {ten.get('outages', 0)} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("logs", nargs="+", type=Path)
+    parser.add_argument("--lengths", default="10,30,60", help="outage lengths (s), comma-separated")
+    parser.add_argument("--truth-topic", help="a reference trajectory's topic (NavSatFix), when the logs carry one")
+    parser.add_argument("--max-sigma-m", type=float, help="GNSS limit max_sigma_m (fixes less accurate are not truth)")
+    parser.add_argument("--json", type=Path, help="also write every number as JSON here")
+    args = parser.parse_args()
+    lengths = [float(x) for x in args.lengths.split(",")]
+    print("| log | `gins` 10 s | 30 s | 60 s | INS DR 10 s / 30 s | best other at 10 s | outages (10 s) |")
+    print("|---|---|---|---|---|---|---|")
+    results = []
+    for path in args.logs:
+        start = time.perf_counter()
+        try:
+            result = measure(path, lengths, args.truth_topic, args.max_sigma_m)
+        except iv.InputError as exc:
+            print(f"| {path.name} | {exc} |||||", flush=True)
+            continue
+        result["seconds"] = round(time.perf_counter() - start, 1)
+        results.append(result)
+        print(row(result), flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1, default=float))
+    print(f"\n{sys.version.split()[0]}, ionav-viz {iv.__version__}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
