@@ -25,10 +25,9 @@ from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
 from ..core.grid import WINDOW_S
 from ..core.runs import run_ranges
-from ..nav.protocol import short_label
 from . import columns
 from . import entities as ent
-from .blueprints import blueprint
+from .blueprints import blueprint, plot_range
 from .geometry import map_zoom, screen_xy
 from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
 from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
@@ -103,10 +102,29 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     return rows
 
 
-def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray):
+def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray, y_ranges: dict | None = None):
     """The review layout for estimators ``labels``, its map zoomed to the track (``lat_deg``,
-    ``lon_deg``: the usable GNSS fixes)."""
-    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350))
+    ``lon_deg``: the usable GNSS fixes), its time plots' y axes set to ``y_ranges`` when given."""
+    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges)
+
+
+def y_ranges(result: DriveResult, errors: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[float, float]]:
+    """Each time plot's y range over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`);
+    ``errors``: each estimator's cumulative errors by metric."""
+    drive, w = result.drive, result.windows
+    ok = w.truth_ok
+    data = {
+        ent.DISPLACEMENTS: [w.gnss_disp_m[ok], *(e.disp_m for e in result.estimates.values())],
+        ent.YAW_RATES: [drive.yaw_rate_radps, w.gnss_yaw_rate_radps[ok], *(e.yaw_rate_radps for e in result.estimates.values())],
+        ent.ACCEL: [drive.accel_long_mps2],
+        **{ent.error_group(m): [e[m] for e in errors.values()] for m in ent.ERROR_METRICS},
+    }
+    out = {}
+    for origin, parts in data.items():
+        values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in parts]) if parts else np.zeros(0)
+        values = values[np.isfinite(values)]
+        out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)))
+    return out
 
 
 def log_result(rec, result: DriveResult, summary_md: str, progress=None, events: list | None = None) -> dict[str, int]:
@@ -115,7 +133,10 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     drive = result.drive
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
-    rec.send_blueprint(review_blueprint([short_label(e.label) for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable]))
+    w, starts, n_win = result.windows, result.starts, result.n_windows
+    errors = {name: cumulative_errors(w, starts, n_win, est) for name, est in result.estimates.items()}
+    rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable],
+                                        y_ranges(result, errors)))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
@@ -155,7 +176,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
         for name, est in result.estimates.items():
-            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
+            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx], errors[name])
             step(name)
         log_drift(layers, result, colors, t_rows)
     if result.bridged:
@@ -256,7 +277,7 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
 
 
 def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray,
-                  t_windows: np.ndarray) -> None:
+                  t_windows: np.ndarray, errors: dict[str, np.ndarray]) -> None:
     """One estimator's tracks over the outages (growing, on the map, the local view and the
     inspector; all of them faint), its current position, and its series per window (``t_windows``:
     the end time of each outage window, (outage, window))."""
@@ -284,9 +305,8 @@ def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy
     faint = faded(color)
     rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
     rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
-    w, starts, n_win = result.windows, result.starts, result.n_windows
     series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
-    series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
+    series.update({ent.error_series(m, name): v for m, v in errors.items()})
     for entity, values in series.items():
         t_plot, v_plot = with_breaks(t_windows, values)
         send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
