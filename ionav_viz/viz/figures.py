@@ -51,6 +51,11 @@ FORMATS = ("svg", "pdf", "png")
 #: Each figure's file name, how it is drawn and its width: one column each; the per-outage errors
 #: also across the page (``outages-wide``: room for every outage of a long drive or several drives).
 FIGURES = ("drift", "cdf", "outages", "outages-wide", "worst")
+#: matplotlib settings of every figure: the type sizes, no top and right spines, text kept as text
+#: in SVG and PDF, the figure saved at its own size.
+STYLE = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
+         "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
+         "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
 _WIDTHS = {"drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN}
 
 
@@ -217,18 +222,14 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
     for name in (f"{f}.{fmt}" for f in FIGURES for fmt in FORMATS):  # before drawing: what the moves would refuse
         _check_replaceable(folder / name, given / name)
     parent = folder if folder.is_dir() else folder.parent
-    style = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
-             "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
-             "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
     made = [] if folder.is_dir() else _make_parents(parent, given)
     try:
         # removed at the end: gone when moved in; otherwise nothing half-drawn stays
         with staging_folder(folder, parent, refused=lambda exc: _write_error(given, exc)) as scratch:
             names = []
-            with rc_context(style):
-                draws = {"drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst}
+            with rc_context(STYLE):
                 for name in FIGURES:
-                    fig = draws[name](rep, _WIDTHS[name])
+                    fig = figure(rep, name)
                     for fmt in FORMATS:
                         target = scratch / f"{name}.{fmt}"
                         try:
@@ -243,6 +244,18 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
                 level.rmdir()
         raise
     return [given / name for name in names]
+
+
+def figure(rep: dict[str, Any], name: str) -> Any:
+    """The matplotlib ``Figure`` of :data:`FIGURES` ``name`` for the checked report ``rep``, at its
+    width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
+    from matplotlib import rc_context
+
+    draws = {"drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst}
+    with rc_context(STYLE):
+        fig = draws[name](rep, _WIDTHS[name])
+        fig.canvas.draw()  # laid out with the style's sizes
+    return fig
 
 
 def _make_parents(parent: Path, folder: Path) -> list[Path]:
