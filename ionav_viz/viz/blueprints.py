@@ -64,14 +64,15 @@ PLOT_NAMES = {
 }
 
 
-def data_range(lo: float, hi: float, min_span: float, pad: bool = True) -> tuple[float, float]:
+def data_range(lo: float, hi: float, min_span: float, pad: bool = True, signed: bool = False) -> tuple[float, float]:
     """The y range a time plot of the recording shows for data from ``lo`` to ``hi``: widened to
-    ``min_span`` (a flat line is drawn in the middle of a readable range, with ticks) and by 5 %
+    ``min_span`` (a flat line is drawn in the middle of a readable range, with ticks; a magnitude's
+    range starts at zero unless ``signed``) and by 5 %
     each way. Screenshots round it to ticks for their plots' heights (:func:`axis_range`)."""
     lo, hi = (float(lo), float(hi)) if np.isfinite(lo) and np.isfinite(hi) else (0.0, 0.0)
     if hi - lo < min_span:
         mid = (lo + hi) / 2
-        lo, hi = (0.0, min_span) if lo >= 0 and mid - min_span / 2 < 0 else (mid - min_span / 2, mid + min_span / 2)
+        lo, hi = (0.0, min_span) if not signed and lo >= 0 and mid - min_span / 2 < 0 else (mid - min_span / 2, mid + min_span / 2)
     margin = 0.05 * (hi - lo) if pad else 0.0
     return (lo if lo == 0 else lo - margin), hi + margin
 
@@ -87,13 +88,13 @@ def plot_range(origin: str, lo: float, hi: float, pad: bool = True) -> tuple[flo
     """:func:`data_range` of the time plot ``origin`` for data from ``lo`` to ``hi``: from zero for
     magnitudes, at least :data:`MIN_Y_SPAN`; without ``pad``, not widened by 5 % (screenshots
     round to ticks and add their own margin)."""
-    a, b = data_range(lo if origin in SIGNED_PLOTS else min(lo, 0.0), hi, MIN_Y_SPAN[origin], pad)
-    return a, b
+    signed = origin in SIGNED_PLOTS
+    return data_range(lo if signed else min(lo, 0.0), hi, MIN_Y_SPAN[origin], pad, signed)
 
 
 #: Pixels between two labelled ticks of a time plot's y axis: the plots label a tick a power of ten
 #: apart only with about this much room (fewer pixels: only the coarser ticks get labels).
-TICK_PX = 20
+TICK_PX = 24
 
 
 def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
@@ -142,11 +143,11 @@ def plot_heights_px(size: tuple[int, int]) -> dict[str, float]:
     """The height in pixels of each time plot's drawing area in a screenshot of ``size`` (the
     review layout and the signals and errors columns share their rows)."""
     views_px = size[1] - TOP_BAND_PX
-    signals = dict(zip((ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL), SIGNAL_ROW_SHARES[1:]))
+    signals = dict(zip((ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL), SCREENSHOT_SIGNAL_SHARES[1:]))
     errors = dict(zip((ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("yaw_crse_radps")),
                       SCREENSHOT_ERROR_SHARES[:3]))
     errors[ent.error_group("cae_m")] = errors[ent.error_group("crse_m")]
-    out = {o: views_px * share / sum(SIGNAL_ROW_SHARES) for o, share in signals.items()}
+    out = {o: views_px * share / sum(SCREENSHOT_SIGNAL_SHARES) for o, share in signals.items()}
     out.update({o: views_px * share / sum(SCREENSHOT_ERROR_SHARES) for o, share in errors.items()})
     return {o: max(px - TITLE_BAR_PX - TIME_LABELS_PX, 20.0) for o, px in out.items()}
 
@@ -236,7 +237,10 @@ SIGNAL_ROW_SHARES = (2.8, 3, 3, 2)
 #: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs; in
 #: screenshots of the whole layout the summary gets more, so that it is never cut.
 ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
-SCREENSHOT_ERROR_SHARES = (2.3, 2.3, 1.9, 5.5)
+SCREENSHOT_ERROR_SHARES = (2.4, 2.4, 2.4, 4.8)
+#: The signal column's rows in screenshots: the acceleration's plot as high as it needs for three
+#: labelled ticks of a few m/s² at 1600x900 (the state timeline keeps room for its three rows).
+SCREENSHOT_SIGNAL_SHARES = (2.2, 2.8, 2.8, 3.2)
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
 #: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
@@ -312,14 +316,14 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             x0, x1, y0, y1 = frame.local_bounds
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
-    if view in ("all", "errors"):  # the layouts that show the summary: room for all of it
-        summary_key = next((k for k, vb in views.items() if vb.get("space_origin") == ent.OVERVIEW), None)
+    # the columns' rows in screenshots: room for the whole summary, and for the acceleration's ticks
+    for origin, shares in ((ent.OVERVIEW, SCREENSHOT_ERROR_SHARES), (ent.ACCEL, SCREENSHOT_SIGNAL_SHARES)):
+        held = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == origin), None)
         for value in bp.values():
             container = value.get("ContainerBlueprint", {})
-            tabs = [c.lstrip("/") for c in container.get("contents", [])]
-            if summary_key is not None and container.get("row_shares") and len(container["row_shares"]) == len(SCREENSHOT_ERROR_SHARES) \
-                    and any(_holds(bp, "/" + c, summary_key) for c in tabs):
-                container["row_shares"] = list(SCREENSHOT_ERROR_SHARES)
+            rows = [c.lstrip("/") for c in container.get("contents", [])]
+            if held is not None and len(container.get("row_shares") or []) == len(shares) and any(_holds(bp, "/" + c, held) for c in rows):
+                container["row_shares"] = list(shares)
     if view == "all":
         return bp
     target = _ORIGINS[view]
@@ -385,20 +389,21 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
         short_err = ", ".join(f"{lab} {e:.1f}" for lab, _n, e in errs)
         head = f"outage {o.number} ({o.span})"
         focus = [f"{head}, final error: {long_err}", f"{head}, final error: {mid_err}", f"{head}, final error (m): {short_err}",
-                 f"#{o.number} {o.span}, final (m): {short_err}", f"{head}, final errors in the key above", head]
+                 f"#{o.number} {o.span}, final (m): {short_err}", f"{head}, final errors in the key above"]
+        shortest = [head]
     else:
-        focus = [when]
+        focus, shortest = [when], []
     full = width_px if shot.view != "all" else None
     def w(origin: str) -> float:
         return full or width_px * column_fraction(origin)
     inspected = o or _outage_before(info, shot.t_s)
     inspect_head = f"outage {inspected.number} ({inspected.span})" if inspected else "no outage yet"
     titles = {
-        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus, w(ent.INSPECT)) if o else
+        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT)) if o else
         _fit([f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
               f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head], w(ent.INSPECT)),
         ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
-                    + ["Map" + (f", outage {o.number}" if o else "")], w(ent.MAP)),
+                    + shortest + ["Map" + (f", outage {o.number}" if o else "")], w(ent.MAP)),
         ent.LOCAL: _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
                       + [f"{info.drive}: east-north (m), {f}" for f in focus] + ["Drive: east-north (m)", "East-north (m)"], w(ent.LOCAL)),
         "/": _fit([f"{info.drive}, {when}", f"{info.drive}, t = {shot.t_s:.1f} s", f"t = {shot.t_s:.1f} s"], w("/")),
