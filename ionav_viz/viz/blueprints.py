@@ -237,10 +237,10 @@ SIGNAL_ROW_SHARES = (2.8, 3, 3, 2)
 #: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs; in
 #: screenshots of the whole layout the summary gets more, so that it is never cut.
 ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
-SCREENSHOT_ERROR_SHARES = (2.4, 2.4, 2.4, 4.8)
+SCREENSHOT_ERROR_SHARES = (2.3, 2.3, 2.3, 5.1)
 #: The signal column's rows in screenshots: the acceleration's plot as high as it needs for three
 #: labelled ticks of a few m/s² at 1600x900 (the state timeline keeps room for its three rows).
-SCREENSHOT_SIGNAL_SHARES = (2.2, 2.8, 2.8, 3.2)
+SCREENSHOT_SIGNAL_SHARES = (2.6, 2.8, 2.8, 2.8)
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
 #: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
