@@ -2,14 +2,19 @@
 default; imported here only, so other commands do not pay for it).
 
 From a report's JSON (``evaluate --json``, or the copy a recording carries): each figure is written
-as vector (SVG and PDF) and raster (PNG, 300 dpi), sized for one column of a two-column paper
-(3.5 in wide, 8 pt type), in the recording's colours and labels:
+as vector (SVG and PDF) and raster (PNG, 300 dpi), exactly one column of a two-column paper wide
+(3.5 in, 8 pt type; ``outages-wide`` the page, 7.16 in) whatever the number of drives, titles
+wrapped and legends below the axes, in the recording's colours and labels, each estimator with its
+own line style, hatch and marker too (readable in greyscale):
 
 * ``drift``: position error against seconds since the outage began, the mean per estimator with
-  its 10-90 % band;
+  its hatched and outlined 10-90 % band;
 * ``cdf``: the empirical distribution of the final position error;
-* ``outages``: the final position error of every outage, per estimator;
-* ``worst``: the worst outage's tracks and the truth, in metres about its start, with a scale bar.
+* ``outages`` and ``outages-wide``: the final position error of every outage, per estimator, the
+  drives separated and named;
+* ``worst``: the worst outage's tracks and the truth, in metres about its start: start and end
+  marked, arrows along the truth for the direction of travel, a north arrow apart from the tracks,
+  a scale bar.
 
 The report is read as bounded, strict JSON and checked field by field before anything is drawn
 (:func:`read_report`: one line naming the file and the field otherwise). A value a report leaves
