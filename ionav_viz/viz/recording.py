@@ -108,20 +108,20 @@ def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray
     return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges)
 
 
-def y_ranges(result: DriveResult, errors: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[float, float]]:
-    """Each time plot's y range over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`);
-    ``errors``: each estimator's cumulative errors by metric."""
+def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
+    """The signal plots' y ranges over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`:
+    a flat line still gets ticks). The error plots keep the viewer's own fit to what is shown: a
+    drive's worst outage would flatten every other one (screenshots set every plot's range)."""
     drive, w = result.drive, result.windows
     ok = w.truth_ok
     data = {
         ent.DISPLACEMENTS: [w.gnss_disp_m[ok], *(e.disp_m for e in result.estimates.values())],
         ent.YAW_RATES: [drive.yaw_rate_radps, w.gnss_yaw_rate_radps[ok], *(e.yaw_rate_radps for e in result.estimates.values())],
         ent.ACCEL: [drive.accel_long_mps2],
-        **{ent.error_group(m): [e[m] for e in errors.values()] for m in ent.ERROR_METRICS},
     }
     out = {}
     for origin, parts in data.items():
-        values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in parts]) if parts else np.zeros(0)
+        values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in parts])
         values = values[np.isfinite(values)]
         out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)))
     return out
@@ -133,10 +133,8 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     drive = result.drive
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
-    w, starts, n_win = result.windows, result.starts, result.n_windows
-    errors = {name: cumulative_errors(w, starts, n_win, est) for name, est in result.estimates.items()}
     rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable],
-                                        y_ranges(result, errors)))
+                                        y_ranges(result)))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
@@ -176,7 +174,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
         for name, est in result.estimates.items():
-            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx], errors[name])
+            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
             step(name)
         log_drift(layers, result, colors, t_rows)
     if result.bridged:
@@ -277,7 +275,7 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
 
 
 def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray,
-                  t_windows: np.ndarray, errors: dict[str, np.ndarray]) -> None:
+                  t_windows: np.ndarray) -> None:
     """One estimator's tracks over the outages (growing, on the map, the local view and the
     inspector; all of them faint), its current position, and its series per window (``t_windows``:
     the end time of each outage window, (outage, window))."""
@@ -305,8 +303,9 @@ def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy
     faint = faded(color)
     rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
     rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
+    w, starts, n_win = result.windows, result.starts, result.n_windows
     series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
-    series.update({ent.error_series(m, name): v for m, v in errors.items()})
+    series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
     for entity, values in series.items():
         t_plot, v_plot = with_breaks(t_windows, values)
         send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
