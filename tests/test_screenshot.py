@@ -441,3 +441,24 @@ def test_key_entries_and_y_ranges():
     assert flat == (-0.05, 0.05) and len(ticks(*flat, 150)[2]) >= 3
     assert plot_range("errors/position_error_m", 3.0, 9.0, pad=False)[0] == 0.0  # magnitudes from zero
     assert axis_range(0.0, 29.1, 58) == pytest.approx((-1.746, 30.846))  # too small for three labels: the data's own range
+
+
+def test_a_long_key_takes_two_lines_in_the_band(tmp_path):
+    """Six estimators with final errors and a long plug-in name at 1024 px: two lines of the key,
+    every colour in the band above the views, nothing drawn below it."""
+    from PIL import Image
+
+    from ionav_viz.viz.blueprints import TOP_BAND_PX, KeyEntry
+    from ionav_viz.viz.screenshot import draw_key
+
+    blank = np.full((576, 1024, 3), 13, dtype=np.uint8)
+    blank[TOP_BAND_PX] = 53  # the views' top border
+    png = tmp_path / "k.png"
+    Image.fromarray(blank).save(png)
+    colors = [(0, 170, 80), (230, 60, 50), (0, 170, 190), (40, 110, 240), (150, 60, 200), (235, 160, 0), (230, 140, 20)]
+    keys = [KeyEntry("line", c, f"estimator number {i} with a long name 12.3 m") for i, c in enumerate(colors)]
+    draw_key(png, keys, "outage 31, final error:")
+    img = _image(png)
+    for c in colors:
+        assert (np.abs(img[1:TOP_BAND_PX] - np.array(c)).max(axis=-1) <= 30).sum() > 5, c
+    assert (img[TOP_BAND_PX + 1:] == blank[TOP_BAND_PX + 1:]).all()

@@ -107,8 +107,7 @@ def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
         font = ImageFont.load_default(size=min(11, max(8, (band - 6) // 2 - 2)))
         head_w = font.getlength(head) + font.size if head else 0.0
         w = widths(font)
-        split = next((i for i in range(1, len(keys)) if head_w + sum(w[:i]) > room), len(keys))
-        split = max(1, split - 1) if head_w + sum(w[:split]) > room else split
+        split = max(1, max((i for i in range(len(keys) + 1) if head_w + sum(w[:i]) <= room), default=1))  # what fits the first line
         line_h = (band - 4) / 2
         if head:
             draw.text((10, 2), head, fill=KEY_TEXT_RGB, font=font)
