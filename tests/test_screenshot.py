@@ -147,7 +147,13 @@ def test_review_layout_titles_fit_their_views(recording, size):
     worst = info.worst()
     titles = titles_for(info, Shot("all", worst.end_s, "worst", worst), size[0])
     assert f"outage {worst.number}" in titles["inspect"] or f"#{worst.number}" in titles["inspect"]
-    assert all(f"{worst.final_error_m[e]:.1f}" in titles["inspect"] for e in COLORS if e != "gnss")
+    # each final error in the inspector's title, or (a narrow column) in the image's key, the title saying so
+    from ionav_viz.viz.blueprints import key_for
+
+    key = " ".join(k.text for k in key_for(info, Shot("all", worst.end_s, "worst", worst)))
+    shown = titles["inspect"] if "key" not in titles["inspect"] else key
+    assert all(f"{worst.final_error_m[e]:.1f}" in shown for e in COLORS if e != "gnss"), (titles["inspect"], key)
+    assert all(f"{label} " in shown for label, _rgb in info.estimators.values())  # by their labels
     for origin, title in titles.items():
         assert len(title) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= size[0] * column_fraction(origin), (origin, title)
 
@@ -301,7 +307,8 @@ def test_clean_review_images_with_the_whole_summary(recording, tmp_path, size):
     assert proc.returncode == 0, proc.stderr
     img = _image(out)
     h, w, _ = img.shape
-    assert (img[:28].max(axis=-1) > 80).sum() == 0, "the top panel (white 'Menu' text, badges) is drawn"  # only a dark border there
+    # above the views the colour key (issue 46.1), not the top panel: its green truth swatch, no badge
+    assert (np.abs(img[1:30] - np.array(GNSS_COLOR)).max(axis=-1) <= 40).sum() > 15, "no colour key above the views"
     badge_orange = (np.abs(img - np.array([255, 140, 40])).max(axis=-1) <= 40) & (img[..., 0] > 200) & (img[..., 2] < 90)
     assert badge_orange[: h // 10].sum() == 0
     # the summary sits at the bottom of the right-hand column: its last rows are empty background
@@ -331,10 +338,127 @@ def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
         "/view/ts": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.DISPLACEMENTS}},
     }
     online = focus_blueprint(bp, "all", {}, t_s=341.8, end_s=341.8)
-    assert online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"] == {"start": {"Absolute": 281_800_000_000}, "end": {"Absolute": 341_800_000_000}}
+    assert online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"] == {"start": {"Absolute": 281_800_000_000},
+                                                                     "end": {"Absolute": 345_800_000_000}}  # + room for the last label
     assert "/view/map" in online and all(online[p] == {k: {**v, "state": "Hidden"}} for p, (k, v) in
                                          {"/top_panel": ("PanelBlueprint", {}), "/time_panel": ("TimePanelBlueprint", {})}.items())
     offline = focus_blueprint(bp, "all", {}, map_tiles=False)
     assert "/view/map" not in offline and offline["/container/tracks"]["ContainerBlueprint"]["contents"] == ["/view/local"]
     maximised = focus_blueprint(bp, "map", {}, map_tiles=False)["/viewport"]["ViewportBlueprint"]["maximized"]
     assert maximised == "local"
+
+
+# --- issue 46.1: every view reads on its own --------------------------------------------------
+
+def _label_runs(img, y0, y1, x1=24, bright=100, rows_of_text=(6, 14)):
+    """Tick labels left of a plot between rows y0 and y1: runs of rows with light text in x < x1,
+    as tall as a line of text (labels 20-30 px apart are drawn faded, at about 120 of 255)."""
+    rows = np.nonzero(img[y0:y1, :x1].max(axis=(1, 2)) > bright)[0]
+    runs = []
+    for r in rows:
+        if runs and r - runs[-1][1] <= 1:
+            runs[-1][1] = r
+        else:
+            runs.append([r, r])
+    return [r for r in runs if rows_of_text[0] <= r[1] - r[0] + 1 <= rows_of_text[1]]
+
+
+def _plot_rows(size, shares, k):
+    """Rows (top, bottom) of the drawing area of the k-th row of a column of ``shares`` in a
+    screenshot of ``size`` (below the key band; without the title bar and the time labels)."""
+    from ionav_viz.viz.blueprints import TIME_LABELS_PX, TITLE_BAR_PX, TOP_BAND_PX
+
+    views_px = size[1] - TOP_BAND_PX
+    top = TOP_BAND_PX + views_px * sum(shares[:k]) / sum(shares)
+    bottom = TOP_BAND_PX + views_px * sum(shares[: k + 1]) / sum(shares)
+    return int(top + TITLE_BAR_PX), int(bottom - TIME_LABELS_PX)
+
+
+def test_views_read_on_their_own(recording, tmp_path):
+    """At 1600x900: the colour key in the band above the views names the truth and every
+    estimator in their colours (the band is not empty), no legend box over the curves, and every
+    time plot of the signals and errors columns has at least three labelled y ticks (a yaw rate
+    and an acceleration that showed a single '0'). At 1024x576 the key still fits, with every
+    colour, above the whole layout."""
+    from ionav_viz.viz.blueprints import SCREENSHOT_ERROR_SHARES, SCREENSHOT_SIGNAL_SHARES, TOP_BAND_PX
+
+    out = tmp_path / "big"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--time", "end", "--size", "1600x900")
+    assert proc.returncode == 0, proc.stderr
+    small = tmp_path / "small.png"
+    proc = run_cli("screenshot", str(recording), "-o", str(small), "--view", "all", "--time", "worst", "--size", "1024x576")
+    assert proc.returncode == 0, proc.stderr
+    signals, errors = (_image(out / f"V-sim-sharp-cornering-{v}-end.png") for v in ("signals", "errors"))
+    for img, drawn in ((signals, COLORS), (errors, {k: v for k, v in COLORS.items() if k != "gnss"}), (_image(small), COLORS)):
+        band = img[1:TOP_BAND_PX]
+        for name, rgb in drawn.items():
+            assert (np.abs(band - np.array(rgb)).max(axis=-1) <= 40).sum() > 15, f"{name} missing from the key"
+        assert (band.min(axis=-1) > 180).sum() > 200  # the names, as text
+    assert (np.abs(errors[1:TOP_BAND_PX] - np.array(GNSS_COLOR)).max(axis=-1) <= 40).sum() == 0  # the errors draw no truth line
+    for img, shares, rows in ((signals, SCREENSHOT_SIGNAL_SHARES, (1, 2, 3)), (errors, SCREENSHOT_ERROR_SHARES, (0, 1, 2))):
+        for k in rows:
+            y0, y1 = _plot_rows((1600, 900), shares, k)
+            labels = _label_runs(img, y0, y1)
+            assert len(labels) >= 3, (k, labels)
+            # no legend: no bright text inside the plot (the time cursor, a bright vertical line, aside)
+            area = img[y0:y1, 40:]
+            text = (area.min(axis=-1) >= 185) & (np.ptp(area, axis=-1) <= 12)
+            grey = (area.min(axis=-1) >= 140) & (np.ptp(area, axis=-1) <= 12)
+            for c in np.nonzero(grey.mean(axis=0) > 0.3)[0]:  # the time cursor (a grey line) and its bright head
+                text[:, max(c - 8, 0): c + 9] = False
+            assert text.sum() < 25, (k, int(text.sum()))
+
+
+def test_key_entries_and_y_ranges():
+    """What the key names per view (the truth where it is drawn, the markers where they are),
+    and y ranges: three ticks a power of ten apart with room for their labels, a flat line
+    included; the squeeze-avoiding fallback in a small plot."""
+    from ionav_viz.viz.blueprints import Shot, axis_range, key_for, plot_range
+    from ionav_viz.viz.recording_info import OutageInfo, RecordingInfo
+
+    info = RecordingInfo(path=None, drive="d", end_s=100.0, states=[], outages=[], lat_deg=np.zeros(0), lon_deg=np.zeros(0),
+                         estimators={"ins": ("INS DR", (230, 60, 50)), "ekf": ("GNSS-aided INS", (0, 170, 190))})
+    texts = {view: [k.text for k in key_for(info, Shot(view, 50.0, "x"))] for view in ("all", "errors", "local", "outage")}
+    assert texts["all"] == ["GNSS (truth)", "INS DR", "GNSS-aided INS", "gyro, accelerometer", "manoeuvre", "outage start"]
+    assert texts["errors"] == ["INS DR", "GNSS-aided INS"] and texts["local"][-2:] == ["manoeuvre", "outage start"]
+    assert texts["outage"][-1] == "start fix"
+    o = OutageInfo(3, 10.0, 20.0, {"ins": 12.34, "ekf": 1.0}, np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+    assert [k.text for k in key_for(info, Shot("outage", 20.0, "outage3", o))][1:3] == ["INS DR 12.3 m", "GNSS-aided INS 1.0 m"]
+
+    def ticks(lo, hi, px):
+        a, b = axis_range(lo, hi, px)
+        step = 10.0 ** np.floor(np.log10((b - a) / 2))  # labelled ticks inside, at the finest step that is
+        for s in (step / 10, step):
+            inside = np.arange(np.ceil(a / s), np.floor(b / s) + 1) * s
+            if px * s / (b - a) >= 20:
+                return a, b, inside
+        return a, b, np.zeros(0)
+
+    for lo, hi, px in [(-0.42, 0.61, 190), (-2.45, 2.55, 114), (0.0, 29.1, 120), (0.0, 0.22, 91), (0.0, 16.5, 100)]:
+        a, b, inside = ticks(lo, hi, px)
+        assert a <= lo and b >= hi and len(inside) >= 3, (lo, hi, px, a, b, inside)
+    flat = plot_range("signals/yaw_rate_radps", 0.0, 0.0, pad=False)
+    assert flat == (-0.05, 0.05) and len(ticks(*flat, 150)[2]) >= 3
+    assert plot_range("errors/position_error_m", 3.0, 9.0, pad=False)[0] == 0.0  # magnitudes from zero
+    assert axis_range(0.0, 29.1, 58) == pytest.approx((-1.746, 30.846))  # too small for three labels: the data's own range
+
+
+def test_a_long_key_takes_two_lines_in_the_band(tmp_path):
+    """Six estimators with final errors and a long plug-in name at 1024 px: two lines of the key,
+    every colour in the band above the views, nothing drawn below it."""
+    from PIL import Image
+
+    from ionav_viz.viz.blueprints import TOP_BAND_PX, KeyEntry
+    from ionav_viz.viz.screenshot import draw_key
+
+    blank = np.full((576, 1024, 3), 13, dtype=np.uint8)
+    blank[TOP_BAND_PX] = 53  # the views' top border
+    png = tmp_path / "k.png"
+    Image.fromarray(blank).save(png)
+    colors = [(0, 170, 80), (230, 60, 50), (0, 170, 190), (40, 110, 240), (150, 60, 200), (235, 160, 0), (230, 140, 20)]
+    keys = [KeyEntry("line", c, f"estimator number {i} with a long name 12.3 m") for i, c in enumerate(colors)]
+    draw_key(png, keys, "outage 31, final error:")
+    img = _image(png)
+    for c in colors:
+        assert (np.abs(img[1:TOP_BAND_PX] - np.array(c)).max(axis=-1) <= 30).sum() > 5, c
+    assert (img[TOP_BAND_PX + 1:] == blank[TOP_BAND_PX + 1:]).all()

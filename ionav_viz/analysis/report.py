@@ -18,7 +18,6 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
-from ..nav.protocol import short_label
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
@@ -321,17 +320,17 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
     """The summary's head as Markdown, short enough for a screenshot's summary tab (the
     recording's ``overview``): the run in a line, each estimator's means, the worst outage."""
     ests = report.estimators
-    short = {e.name: short_label(e.label) for e in result.estimators}
+    label = {e.name: e.label for e in result.estimators}
     mean = {e: report.summary[e] for e in ests}
     lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
              "| mean | final (m) | CRSE (m) | yaw (rad/s) |", "|---|---|---|---|",
-             *(f"| {short[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
+             *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
                f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
     worst = report.worst_outages(1)
     if worst:
         w = worst[0]
         lines += [f"**Worst** #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s, m): "
-                  + ", ".join(f"{short[e]} {w['final_error_m'][e]:.1f}" for e in ests), ""]
+                  + ", ".join(f"{label[e]} {w['final_error_m'][e]:.1f}" for e in ests), ""]
     if report.warnings:  # the Details tab beside this one lists them, with the run's parameters
         lines.append(f"**{len(report.warnings)} warning(s)**: see Details.")
     return "\n".join(lines) + "\n"
@@ -340,25 +339,25 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
     """A replay's parameters as Markdown (the recording's summary document)."""
     drive, bias = result.drive, result.bias
-    names = [short_label(e.label) for e in result.estimators]
+    names = [e.label for e in result.estimators]
     labels = " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else names[0]
     ests = report.estimators
-    short = {e.name: short_label(e.label) for e in result.estimators}
+    label = {e.name: e.label for e in result.estimators}
     mean = {e: report.summary[e] for e in ests}
     lines = [
         f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s",
         "",
         "| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
         "|---|---|---|---|",
-        *(f"| {short[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
+        *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
           f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
         "",
     ]
     worst = report.worst_outages()
     if worst:
-        lines += [f"**Worst outages** (by {short[report.worst_of]} final error, m):", ""]
+        lines += [f"**Worst outages** (by {label[report.worst_of]} final error, m):", ""]
         lines += [f"- #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                  + ", ".join(f"{short[e]} {w['final_error_m'][e]:.1f}" for e in ests) for w in worst]
+                  + ", ".join(f"{label[e]} {w['final_error_m'][e]:.1f}" for e in ests) for w in worst]
         lines.append("")
     if report.warnings:
         lines += ["**Warnings** (as printed when the run was made):", "", *(f"- {w}" for w in report.warnings), ""]

@@ -57,7 +57,7 @@ def table_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
 def improvement_lines(rep: dict[str, Any]) -> list[str]:
     labels = labels_of(rep)
     return [
-        f"{labels[est]} improvement over INS (mean): displacement CRSE {_fmt(imp['crse_m'], 1)} %, "
+        f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_fmt(imp['crse_m'], 1)} %, "
         f"orientation-rate CRSE {_fmt(imp['yaw_crse_radps'], 1)} %, final position error {_fmt(imp['final_position_error_m'], 1)} %"
         for est, imp in rep.get("improvement_pct", {}).items()
     ]

@@ -9,8 +9,8 @@ from ..core.timing import stage
 
 
 def figures(result: str | Path, output: str | Path) -> list[Path]:
-    """Draw the drift curve, the final-error CDF, the per-outage errors and the worst outage's
-    tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output)
+    """Draw the drift curve, the final-error CDF, the per-outage errors (one column and page-wide)
+    and the worst outage's tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output)
     into the folder ``output`` as SVG, PDF and PNG. Returns the files written.
 
     The report is checked field by field first (one :class:`InputError` naming the file and the

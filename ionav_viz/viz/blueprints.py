@@ -4,11 +4,13 @@ title widths."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ..core.errors import InputError
-from ..nav.protocol import short_label
 from ..nav.registry import BASELINE
 from . import entities as ent
 from .geometry import map_zoom, padded_bounds
@@ -39,41 +41,158 @@ LOCAL_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_SCALE}"]
 LOCAL_FRAMED_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_GRID_SCALE}"]
 
 
-def blueprint(labels: list[str], zoom: float = 16.0):
+#: The local view's name in the recording: what its overview markers are.
+LOCAL_NAME = "Drive: east-north (m); dots: manoeuvres yellow, outage starts grey"
+#: Tab titles, longest first: a screenshot takes the longest variant that fits its column (tabs
+#: share one bar, so each gets a share of it).
+TAB_TITLES = {
+    ent.error_group("position_error_m"): ("2D position error (m)", "Position error (m)", "Error (m)"),
+    ent.DRIFT: ("Drift: error (m) by s into the outage", "Drift (m by s)", "Drift"),
+    ent.HEALTH: ("Filter health: NIS, 10 s mean (1 = consistent)", "Filter NIS", "NIS"),
+    ent.error_group("crse_m"): ("Displacement CRSE (m)", "Disp. CRSE (m)", "CRSE (m)"),
+    ent.error_group("cae_m"): ("Displacement CAE (m)", "Disp. CAE (m)", "CAE (m)"),
+    ent.OVERVIEW: ("Summary",),
+    ent.SUMMARY: ("Details",),
+}
+#: Every time plot's y-axis name (unit included).
+PLOT_NAMES = {
+    ent.DISPLACEMENTS: "Displacement per second (m)",
+    ent.YAW_RATES: "Yaw rate (rad/s, CCW +)",
+    ent.ACCEL: "Longitudinal acceleration (m/s²)",
+    ent.error_group("position_error_m"): TAB_TITLES[ent.error_group("position_error_m")][0],
+    ent.error_group("crse_m"): TAB_TITLES[ent.error_group("crse_m")][0],
+    ent.error_group("cae_m"): TAB_TITLES[ent.error_group("cae_m")][0],
+    ent.error_group("yaw_crse_radps"): "Orientation-rate CRSE (rad/s)",
+}
+
+
+def data_range(lo: float, hi: float, min_span: float, pad: bool = True, signed: bool = False) -> tuple[float, float]:
+    """The y range a time plot of the recording shows for data from ``lo`` to ``hi``: widened to
+    ``min_span`` (a flat line is drawn in the middle of a readable range, with ticks; a magnitude's
+    range starts at zero unless ``signed``) and by 5 %
+    each way. Screenshots round it to ticks for their plots' heights (:func:`axis_range`)."""
+    lo, hi = (float(lo), float(hi)) if np.isfinite(lo) and np.isfinite(hi) else (0.0, 0.0)
+    if hi - lo < min_span:
+        mid = (lo + hi) / 2
+        lo, hi = (0.0, min_span) if not signed and lo >= 0 and mid - min_span / 2 < 0 else (mid - min_span / 2, mid + min_span / 2)
+    margin = 0.05 * (hi - lo) if pad else 0.0
+    return (lo if lo == 0 else lo - margin), hi + margin
+
+
+#: The least y span of each time plot (its unit): a flat line still gets three labelled ticks.
+MIN_Y_SPAN = {ent.DISPLACEMENTS: 1.0, ent.YAW_RATES: 0.1, ent.ACCEL: 1.0, ent.error_group("position_error_m"): 1.0,
+              ent.error_group("crse_m"): 1.0, ent.error_group("cae_m"): 1.0, ent.error_group("yaw_crse_radps"): 0.01}
+#: The plots of signed values (the others are magnitudes, drawn from zero).
+SIGNED_PLOTS = (ent.YAW_RATES, ent.ACCEL, ent.error_group("cae_m"))
+
+
+def plot_range(origin: str, lo: float, hi: float, pad: bool = True) -> tuple[float, float]:
+    """:func:`data_range` of the time plot ``origin`` for data from ``lo`` to ``hi``: from zero for
+    magnitudes, at least :data:`MIN_Y_SPAN`; without ``pad``, not widened by 5 % (screenshots
+    round to ticks and add their own margin)."""
+    signed = origin in SIGNED_PLOTS
+    return data_range(lo if signed else min(lo, 0.0), hi, MIN_Y_SPAN[origin], pad, signed)
+
+
+#: Pixels between two labelled ticks of a time plot's y axis: the plots label a tick a power of ten
+#: apart only with about this much room (fewer pixels: only the coarser ticks get labels).
+TICK_PX = 24
+
+
+def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
+    """A y range over ``lo``..``hi`` for a plot ``plot_px`` high, with at least three labelled
+    ticks: the plots tick a power of ten apart and label ticks at least :data:`TICK_PX` apart, so
+    the step is the finest power of ten that is labelled, and the range is widened to three ticks
+    of it when the data spans fewer. Where that would squeeze the data into less than
+    :data:`MIN_FILL` of the plot (a small plot), the data's own range is kept instead: readable on
+    the faint grid, with fewer labels. A margin of 6 % each way keeps the outer labels drawn."""
+
+    def framed(a: float, b: float) -> tuple[float, float]:
+        m = 0.06 * (b - a)
+        return a - m, b + m
+
+    k = math.floor(math.log10(max(hi - lo, 1e-12))) - 1
+    while True:
+        step = 10.0 ** k
+        first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+        a, b = lo, hi
+        if last - first < 2:  # fewer than three ticks inside: reach out to them
+            if lo >= 0:
+                a, b = min(lo, first * step), max(hi, (first + 2) * step)
+            elif hi <= 0:
+                a, b = min(lo, (last - 2) * step), max(hi, last * step)
+            else:
+                a, b = min(lo, -step), max(hi, step)
+        r0, r1 = framed(a, b)
+        if plot_px * step / (r1 - r0) >= TICK_PX:
+            break
+        k += 1
+    if (hi - lo) / (r1 - r0) < MIN_FILL:
+        return framed(lo, hi)
+    return r0, r1
+
+
+#: The least share of a plot's height its data fills (:func:`axis_range`).
+MIN_FILL = 0.35
+
+
+#: Above the views, the band the viewer keeps for its hidden top panel (screenshots draw the colour
+#: key there); each view's title bar, and a time plot's time-axis labels (pixels, measured on renders).
+TOP_BAND_PX, TITLE_BAR_PX, TIME_LABELS_PX = 36, 26, 20
+
+
+def plot_heights_px(size: tuple[int, int]) -> dict[str, float]:
+    """The height in pixels of each time plot's drawing area in a screenshot of ``size`` (the
+    review layout and the signals and errors columns share their rows)."""
+    views_px = size[1] - TOP_BAND_PX
+    signals = dict(zip((ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL), SCREENSHOT_SIGNAL_SHARES[1:]))
+    errors = dict(zip((ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("yaw_crse_radps")),
+                      SCREENSHOT_ERROR_SHARES[:3]))
+    errors[ent.error_group("cae_m")] = errors[ent.error_group("crse_m")]
+    out = {o: views_px * share / sum(SCREENSHOT_SIGNAL_SHARES) for o, share in signals.items()}
+    out.update({o: views_px * share / sum(SCREENSHOT_ERROR_SHARES) for o, share in errors.items()})
+    return {o: max(px - TITLE_BAR_PX - TIME_LABELS_PX, 20.0) for o, px in out.items()}
+
+
+def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[float, float]] | None = None):
     """The default review layout: the outage inspector above the whole-drive local and map views,
-    the signals, the errors and the summary."""
+    the signals, the errors and the summary; time plots with ``y_ranges`` (by origin) when given."""
     import rerun.blueprint as rrb
+
+    ranges = y_ranges or {}
+
+    def plot(origin: str, name: str | None = None, legend: bool = False):
+        return rrb.TimeSeriesView(origin=origin, name=name or PLOT_NAMES[origin],
+                                  axis_y=rrb.ScalarAxis(range=ranges[origin]) if origin in ranges else None,
+                                  plot_legend=None if legend else rrb.PlotLegend(visible=False))
 
     tracks = rrb.Vertical(
         rrb.Spatial2DView(origin=ent.INSPECT, name=INSPECTOR_NAME),
         rrb.Horizontal(
-            rrb.Spatial2DView(origin=ent.LOCAL, contents=LOCAL_CONTENTS, name="Drive: east-north (m)"),
+            rrb.Spatial2DView(origin=ent.LOCAL, contents=LOCAL_CONTENTS, name=LOCAL_NAME),
             rrb.MapView(origin=ent.MAP, name="Map", zoom=zoom),
         ),
         row_shares=[3, 2],
     )
     # Legends where the lines are first met (and the yaw rate's gyro); more would cover the data.
-    hidden = rrb.PlotLegend(visible=False)
+    # Screenshots hide them all and draw one colour key above the views instead.
     signals = rrb.Vertical(
         rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
                               name="GNSS, outages, manoeuvres"),
-        rrb.TimeSeriesView(origin=ent.DISPLACEMENTS, name="Displacement per second (m)"),
-        rrb.TimeSeriesView(origin=ent.YAW_RATES, name="Yaw rate (rad/s, CCW +; gyro grey)", plot_legend=hidden),
-        rrb.TimeSeriesView(origin=ent.ACCEL, name="Longitudinal acceleration (m/s²)", plot_legend=hidden),
-        row_shares=[2.8, 3, 3, 2],
+        plot(ent.DISPLACEMENTS, legend=True),
+        plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
+        plot(ent.ACCEL),
+        row_shares=list(SIGNAL_ROW_SHARES),
     )
     errors = rrb.Vertical(
         rrb.Tabs(
-            rrb.TimeSeriesView(origin=ent.error_group("position_error_m"), name="2D position error (m)"),
-            rrb.Spatial2DView(origin=ent.DRIFT, name="Drift: error (m) by s into the outage; mean, 10-90 %, current"),
-            rrb.TimeSeriesView(origin=ent.HEALTH, name="Filter health: NIS, 10 s mean (1 = consistent; x gated out)"),
+            plot(ent.error_group("position_error_m"), legend=True),
+            rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]),
+            rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]),
             active_tab=0,
         ),
-        rrb.Tabs(
-            rrb.TimeSeriesView(origin=ent.error_group("crse_m"), name="Displacement CRSE (m)", plot_legend=hidden),
-            rrb.TimeSeriesView(origin=ent.error_group("cae_m"), name="Displacement CAE (m)", plot_legend=hidden),
-        ),
-        rrb.TimeSeriesView(origin=ent.error_group("yaw_crse_radps"), name="Orientation-rate CRSE (rad/s)", plot_legend=hidden),
+        rrb.Tabs(plot(ent.error_group("crse_m")), plot(ent.error_group("cae_m"))),
+        plot(ent.error_group("yaw_crse_radps")),
         rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"), rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"),
                  active_tab=0),
         row_shares=list(ERROR_COLUMN_SHARES),
@@ -116,12 +235,20 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
     return Framing(zoom, bounds, entities)
 
 
+#: The signal column's rows: the state timeline, displacement, yaw rate, acceleration.
+SIGNAL_ROW_SHARES = (2.8, 3, 3, 2)
 #: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs; in
 #: screenshots of the whole layout the summary gets more, so that it is never cut.
 ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
-SCREENSHOT_ERROR_SHARES = (2.3, 2.3, 1.9, 5.5)
+SCREENSHOT_ERROR_SHARES = (2.3, 2.3, 2.3, 5.1)
+#: The signal column's rows in screenshots: the acceleration's plot as high as it needs for three
+#: labelled ticks of a few m/s² at 1600x900 (the state timeline keeps room for its three rows).
+SCREENSHOT_SIGNAL_SHARES = (2.6, 2.8, 2.8, 2.8)
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
+#: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
+#: on it, and was cut in half at the plot's edge.
+PLOT_MARGIN_S = 4.0
 #: The viewer's panels a screenshot hides (only the views are drawn: no menu, badges or timeline).
 HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint", "/selection_panel": "PanelBlueprint",
                  "/time_panel": "TimePanelBlueprint"}
@@ -137,7 +264,8 @@ def plot_window(t_s: float, end_s: float, width_s: float = PLOT_WINDOW_S) -> tup
 
 
 def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None,
-                    t_s: float | None = None, end_s: float | None = None, map_tiles: bool = True) -> dict[str, Any]:
+                    t_s: float | None = None, end_s: float | None = None, map_tiles: bool = True,
+                    size: tuple[int, int] | None = None, y_extents: dict[str, tuple[float, float]] | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
     origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
     with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`; without
@@ -147,12 +275,25 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     for key, archetype in HIDDEN_PANELS.items():
         bp[key] = {archetype: {**bp.get(key, {}).get(archetype, {}), "state": "Hidden"}}
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
+    heights = plot_heights_px(size) if size is not None else {}
+    y_extents = y_extents or {}
+    for key, vb in views.items():
+        if vb.get("class_identifier") != "TimeSeries":
+            continue
+        origin = vb.get("space_origin", "").strip("/")
+        # the image's colour key names every line (screenshot.draw_key): no legend over the curves; the
+        # filter health's series (each filter's kinds of measurement) are named by its own legend
+        visible = origin == ent.HEALTH and view == "health"
+        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}), "visible": visible}}
+        if origin in heights and origin in y_extents:  # ticks for this plot's height, over what it shows
+            y = bp.get(key + "/ScalarAxis", {}).get("ScalarAxis", {})
+            bp[key + "/ScalarAxis"] = {"ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
     if t_s is not None and end_s is not None:
         x0, x1 = plot_window(t_s, end_s)
         for key, vb in views.items():
-            if vb.get("class_identifier") == "TimeSeries":
+            if vb.get("class_identifier") == "TimeSeries":  # room on the right for the last tick's label
                 bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(x0 * 1e9))},
-                                                                     "end": {"Absolute": int(round(x1 * 1e9))}}}}
+                                                                     "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
     if not map_tiles:
         if view == "map":
             view = "local"
@@ -180,14 +321,14 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             x0, x1, y0, y1 = frame.local_bounds
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
-    if view in ("all", "errors"):  # the layouts that show the summary: room for all of it
-        summary_key = next((k for k, vb in views.items() if vb.get("space_origin") == ent.OVERVIEW), None)
+    # the columns' rows in screenshots: room for the whole summary, and for the acceleration's ticks
+    for origin, shares in ((ent.OVERVIEW, SCREENSHOT_ERROR_SHARES), (ent.ACCEL, SCREENSHOT_SIGNAL_SHARES)):
+        held = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == origin), None)
         for value in bp.values():
             container = value.get("ContainerBlueprint", {})
-            tabs = [c.lstrip("/") for c in container.get("contents", [])]
-            if summary_key is not None and container.get("row_shares") and len(container["row_shares"]) == len(SCREENSHOT_ERROR_SHARES) \
-                    and any(_holds(bp, "/" + c, summary_key) for c in tabs):
-                container["row_shares"] = list(SCREENSHOT_ERROR_SHARES)
+            rows = [c.lstrip("/") for c in container.get("contents", [])]
+            if held is not None and len(container.get("row_shares") or []) == len(shares) and any(_holds(bp, "/" + c, held) for c in rows):
+                container["row_shares"] = list(shares)
     if view == "all":
         return bp
     target = _ORIGINS[view]
@@ -239,41 +380,104 @@ def _fit(variants: list[str], width_px: float) -> str:
 
 def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]:
     """View titles that say drive, outage and time, and each estimator's final error on the framed
-    outage; shortened to fit each view's width (the maximised view has the whole image)."""
-    ests = sorted(info.estimators.items(), key=lambda kv: (kv[0] != BASELINE, kv[1][0]))  # as the plot legends
-    legend = ", ".join(["GNSS green"] + [f"{short_label(label)} {color_word(rgb)}" for _, (label, rgb) in ests])
+    outage; shortened to fit each view's width (the maximised view has the whole image). Every
+    estimator is named by its one label (as tables, legends and figures name it)."""
+    ests = ordered_estimators(info)
+    legend = ", ".join([f"{info.truth_label} green"] + [f"{label} {color_word(rgb)}" for _, (label, rgb) in ests])
     o = shot.outage
     state = info.state_at(shot.t_s)
     when = f"t = {shot.t_s:.1f} s" + (f", {state}" if state else ", GNSS available")
     if o is not None:
-        errs = [(short_label(label), name, o.final_error_m.get(name, float("nan"))) for name, (label, _rgb) in ests]
+        errs = [(label, name, o.final_error_m.get(name, float("nan"))) for name, (label, _rgb) in ests]
         long_err = ", ".join(f"{lab} ({color_word(info.estimators[n][1])}) {e:.1f} m" for lab, n, e in errs)
         mid_err = ", ".join(f"{lab} {e:.1f} m" for lab, _n, e in errs)
-        short_err = ", ".join(f"{n} {e:.1f}" for _lab, n, e in errs)
+        short_err = ", ".join(f"{lab} {e:.1f}" for lab, _n, e in errs)
         head = f"outage {o.number} ({o.span})"
         focus = [f"{head}, final error: {long_err}", f"{head}, final error: {mid_err}", f"{head}, final error (m): {short_err}",
-                 f"#{o.number} {o.span}, final: {short_err} m", f"outage {o.number}, final (m): {short_err}"]
+                 f"#{o.number} {o.span}, final (m): {short_err}", f"{head}, final errors in the key above"]
+        shortest = [head]
     else:
-        focus = [when]
+        focus, shortest = [when], []
     full = width_px if shot.view != "all" else None
     def w(origin: str) -> float:
         return full or width_px * column_fraction(origin)
     inspected = o or _outage_before(info, shot.t_s)
     inspect_head = f"outage {inspected.number} ({inspected.span})" if inspected else "no outage yet"
     titles = {
-        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus, w(ent.INSPECT)) if o else
+        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT)) if o else
         _fit([f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
               f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head], w(ent.INSPECT)),
         ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
-                    + ["Map" + (f", outage {o.number}" if o else "")], w(ent.MAP)),
+                    + shortest + ["Map" + (f", outage {o.number}" if o else "")], w(ent.MAP)),
         ent.LOCAL: _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
-                      + [f"{info.drive}: east-north (m), {f}" for f in focus] + ["Drive: east-north (m)"], w(ent.LOCAL)),
+                      + [f"{info.drive}: east-north (m), {f}" for f in focus] + ["Drive: east-north (m)", "East-north (m)"], w(ent.LOCAL)),
         "/": _fit([f"{info.drive}, {when}", f"{info.drive}, t = {shot.t_s:.1f} s", f"t = {shot.t_s:.1f} s"], w("/")),
-        ent.DISPLACEMENTS: _fit([f"{info.drive}: displacement per second (m), {when}", "Displacement per second (m)"], w(ent.DISPLACEMENTS)),
-        ent.error_group("position_error_m"): _fit([f"{info.drive}: 2D position error (m), {when}", "2D position error (m)"],
-                                                  w(ent.error_group("position_error_m"))),
+        ent.DISPLACEMENTS: _fit([f"{info.drive}: displacement per second (m), {when}", PLOT_NAMES[ent.DISPLACEMENTS], "Displacement (m)"],
+                                w(ent.DISPLACEMENTS)),
+        ent.YAW_RATES: _fit([f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey", PLOT_NAMES[ent.YAW_RATES], "Yaw rate (rad/s)"], w(ent.YAW_RATES)),
+        ent.ACCEL: _fit([f"{PLOT_NAMES[ent.ACCEL]}; accelerometer grey", PLOT_NAMES[ent.ACCEL], "Long. accel. (m/s²)"], w(ent.ACCEL)),
+        ent.error_group("yaw_crse_radps"): _fit([PLOT_NAMES[ent.error_group("yaw_crse_radps")], "Orientation-rate CRSE (rad/s)",
+                                                 "Yaw-rate CRSE (rad/s)"], w(ent.error_group("yaw_crse_radps"))),
     }
+    for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.HEALTH), (ent.error_group("crse_m"), ent.error_group("cae_m"))):
+        titles.update(_fit_tabs(tabs, w(tabs[0])))
+    if o is None and shot.view != "all":  # the time plots of a column: say when
+        titles[ent.error_group("position_error_m")] = _fit([f"{info.drive}: 2D position error (m), {when}",
+                                                            titles[ent.error_group("position_error_m")]], w(ent.error_group("position_error_m")))
     return titles
+
+
+#: What each tab takes beside its title text (icon and padding, measured on renders), and what the
+#: tab bar's own buttons take.
+TAB_EXTRA_PX, TAB_BAR_ICONS_PX = 36, 100
+
+
+def _fit_tabs(origins: tuple[str, ...], width_px: float) -> dict[str, str]:
+    """Titles of tabs sharing one bar: the longest level of :data:`TAB_TITLES` at which all fit."""
+    levels = max(len(TAB_TITLES[o]) for o in origins)
+    for level in range(levels):
+        chosen = {o: TAB_TITLES[o][min(level, len(TAB_TITLES[o]) - 1)] for o in origins}
+        needed = sum(len(t) * TITLE_PX_PER_CHAR + TAB_EXTRA_PX for t in chosen.values()) + TAB_BAR_ICONS_PX
+        if needed <= width_px:
+            return chosen
+    return chosen
+
+
+def ordered_estimators(info: RecordingInfo) -> list[tuple[str, tuple[str, tuple[int, int, int]]]]:
+    """The recording's estimators as (name, (label, colour)): the baseline first, then by label."""
+    return sorted(info.estimators.items(), key=lambda kv: (kv[0] != BASELINE, kv[1][0]))
+
+
+@dataclass(frozen=True)
+class KeyEntry:
+    """One item of a screenshot's colour key: a line or a dot of a colour, and what it is."""
+
+    mark: str  # "line" or "dot"
+    rgb: tuple[int, int, int]
+    text: str
+
+
+def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
+    """The colour key of a screenshot: every track or curve the shot draws, the truth first, with
+    each estimator's final error when the shot frames an outage; the overview's markers where the
+    shot shows them (the local view and map: manoeuvres and outage starts; the inspector: the
+    outage's start fix); the sensors' grey lines where the signals are shown."""
+    from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR
+
+    view = shot.view
+    if view == "health":  # per filter and kind of measurement: the plot's legend names them
+        return [KeyEntry("line", (90, 90, 90), "1: a consistent filter's mean NIS; crosses: fixes its gate left out")]
+    keys = [] if view == "errors" else [KeyEntry("line", GNSS_COLOR, info.truth_label)]
+    for name, (label, rgb) in ordered_estimators(info):
+        final = shot.outage.final_error_m.get(name) if shot.outage is not None else None
+        keys.append(KeyEntry("line", rgb, f"{label} {final:.1f} m" if final is not None and final == final else label))
+    if view in ("all", "signals"):
+        keys.append(KeyEntry("line", GYRO_COLOR, "gyro, accelerometer"))
+    if view in ("all", "local", "map"):
+        keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, "outage start")]
+    if view == "outage":
+        keys.append(KeyEntry("dot", OUTAGE_MARK_COLOR, "start fix"))
+    return keys
 
 
 def _outage_before(info: RecordingInfo, t_s: float) -> OutageInfo | None:

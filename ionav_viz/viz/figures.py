@@ -2,14 +2,19 @@
 default; imported here only, so other commands do not pay for it).
 
 From a report's JSON (``evaluate --json``, or the copy a recording carries): each figure is written
-as vector (SVG and PDF) and raster (PNG, 300 dpi), sized for one column of a two-column paper
-(3.5 in wide, 8 pt type), in the recording's colours and labels:
+as vector (SVG and PDF) and raster (PNG, 300 dpi), exactly one column of a two-column paper wide
+(3.5 in, 8 pt type; ``outages-wide`` the page, 7.16 in) whatever the number of drives, titles
+wrapped and legends below the axes, in the recording's colours and labels, each estimator with its
+own line style, hatch and marker too (readable in greyscale):
 
 * ``drift``: position error against seconds since the outage began, the mean per estimator with
-  its 10-90 % band;
+  its hatched and outlined 10-90 % band;
 * ``cdf``: the empirical distribution of the final position error;
-* ``outages``: the final position error of every outage, per estimator;
-* ``worst``: the worst outage's tracks and the truth, in metres about its start, with a scale bar.
+* ``outages`` and ``outages-wide``: the final position error of every outage, per estimator, the
+  drives separated and named;
+* ``worst``: the worst outage's tracks and the truth, in metres about its start: start and end
+  marked, arrows along the truth for the direction of travel, a north arrow apart from the tracks,
+  a scale bar.
 
 The report is read as bounded, strict JSON and checked field by field before anything is drawn
 (:func:`read_report`: one line naming the file and the field otherwise). A value a report leaves
@@ -45,10 +50,18 @@ from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors
 
 log = logging.getLogger("ionav_viz")
 
-#: One column of a two-column paper (inches), and the type size (pt).
-COLUMN_IN, FONT_PT = 3.5, 8
+#: One column of a two-column paper and its full width (inches), and the type size (pt).
+COLUMN_IN, PAGE_IN, FONT_PT = 3.5, 7.16, 8
 FORMATS = ("svg", "pdf", "png")
-FIGURES = ("drift", "cdf", "outages", "worst")
+#: Each figure's file name, how it is drawn and its width: one column each; the per-outage errors
+#: also across the page (``outages-wide``: room for every outage of a long drive or several drives).
+FIGURES = ("drift", "cdf", "outages", "outages-wide", "worst")
+#: matplotlib settings of every figure: the type sizes, no top and right spines, text kept as text
+#: in SVG and PDF, the figure saved at its own size.
+STYLE = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
+         "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
+         "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
+_WIDTHS = {"drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN}
 
 
 #: What a report's reader says to give instead of a bad one.
@@ -214,17 +227,14 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
     for name in (f"{f}.{fmt}" for f in FIGURES for fmt in FORMATS):  # before drawing: what the moves would refuse
         _check_replaceable(folder / name, given / name)
     parent = folder if folder.is_dir() else folder.parent
-    style = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
-             "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
-             "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "tight", "savefig.pad_inches": 0.02}
     made = [] if folder.is_dir() else _make_parents(parent, given)
     try:
         # removed at the end: gone when moved in; otherwise nothing half-drawn stays
         with staging_folder(folder, parent, refused=lambda exc: _write_error(given, exc)) as scratch:
             names = []
-            with rc_context(style):
-                for name, draw in (("drift", _drift), ("cdf", _cdf), ("outages", _outages), ("worst", _worst)):
-                    fig = draw(rep)
+            with rc_context(STYLE):
+                for name in FIGURES:
+                    fig = figure(rep, name)
                     for fmt in FORMATS:
                         target = scratch / f"{name}.{fmt}"
                         try:
@@ -239,6 +249,18 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
                 level.rmdir()
         raise
     return [given / name for name in names]
+
+
+def figure(rep: dict[str, Any], name: str) -> Any:
+    """The matplotlib ``Figure`` of :data:`FIGURES` ``name`` for the checked report ``rep``, at its
+    width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
+    from matplotlib import rc_context
+
+    draws = {"drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst}
+    with rc_context(STYLE):
+        fig = draws[name](rep, _WIDTHS[name])
+        fig.canvas.draw()  # laid out with the style's sizes
+    return fig
 
 
 def _make_parents(parent: Path, folder: Path) -> list[Path]:
@@ -290,13 +312,29 @@ def _check_replaceable(target: Path, shown: Path) -> None:
 
 
 def _new_figure(width_in: float, height_in: float) -> tuple[Any, Any]:
-    """A figure on its own Agg canvas, and its axes: no pyplot, no global state."""
+    """A figure on its own Agg canvas, and its axes: no pyplot, no global state. Laid out by
+    matplotlib's constrained layout inside exactly ``width_in`` x ``height_in`` (saved so: no
+    tight bounding box that would widen or narrow it), legends placed outside the axes."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width_in, height_in))
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.02, h_pad=0.02, wspace=0.0, hspace=0.0)
     FigureCanvasAgg(fig)
     return fig, fig.add_subplot()
+
+
+#: Per estimator (in the report's order), what tells it apart without colour: its line style, the
+#: hatching of its band, its marker (greyscale prints and colour-blind readers).
+LINE_STYLES = ("-", "--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)), (0, (1, 1)))
+HATCHES = ("////", "\\\\", "xxxx", "....", "++++", "oo")
+MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def _styled(rep: dict[str, Any]) -> list[tuple[str, str, Any, int]]:
+    """(name, label, colour, index) of each estimator: the index picks its line style, hatch and marker."""
+    colors = colors_of(rep)
+    return [(name, label, colors[name], i) for i, (name, label) in enumerate(_labels(rep).items())]
 
 
 def _labels(rep: dict[str, Any]) -> dict[str, str]:
@@ -307,14 +345,40 @@ def _title(rep: dict[str, Any]) -> str:
     return f"{rep['drive']}: {rep['n_sequences']} outages of {rep['outage_s']:g} s"
 
 
+def _set_title(ax: Any, text: str) -> None:
+    """``text`` as the figure's title (centred on the figure, so that it can use all its width),
+    broken into lines (after a word, or after a '+' between drive names) until every line fits
+    the figure's width."""
+    import textwrap
+
+    fig = ax.figure
+    room_px = fig.bbox.width * 0.96
+    renderer = fig.canvas.get_renderer()
+    for chars in range(len(text), 9, -2):
+        wrapped = "\n".join(textwrap.wrap(text.replace("+", "+ "), chars)).replace("+ ", "+")
+        title = fig.suptitle(wrapped, fontsize=FONT_PT)
+        if title.get_window_extent(renderer).width <= room_px:
+            return
+
+
 def _skipped(figure: str, what: list[str]) -> None:
     if what:
         log.warning("figures: %s: %s (undefined in the report, null)", figure, "; ".join(what))
 
 
-def _legend(ax: Any, **options: Any) -> None:
-    if ax.get_legend_handles_labels()[0]:  # nothing drawn: no empty legend (matplotlib warns)
-        ax.legend(frameon=False, **options)
+def _legend(fig: Any, ax: Any, width_in: float, entries: list[tuple[Any, str]] | None = None) -> None:
+    """The legend below the axes, outside them (nothing drawn: no legend), in as many columns as
+    fit ``width_in``; ``entries``: (handle, label) pairs instead of the labelled artists."""
+    from matplotlib.legend_handler import HandlerTuple
+
+    handles, labels = ([h for h, _ in entries], [t for _, t in entries]) if entries is not None else ax.get_legend_handles_labels()
+    if not handles:  # nothing drawn: no empty legend (matplotlib warns)
+        return
+    longest = max(len(t) for t in labels)
+    per_column_in = (longest * (FONT_PT - 1) * 0.55 + 30) / 72  # text, its line sample and the gap
+    ncols = max(1, min(len(labels), int(width_in // per_column_in)))
+    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, frameon=False, handlelength=2.4, columnspacing=1.2,
+               handler_map={tuple: HandlerTuple(ndivide=1)})
 
 
 def _defined(label: str, x: np.ndarray, y: np.ndarray, skipped: list[str]) -> np.ndarray | None:
@@ -329,26 +393,30 @@ def _defined(label: str, x: np.ndarray, y: np.ndarray, skipped: list[str]) -> np
     return shown
 
 
-def _drift(rep: dict[str, Any]) -> Any:
-    fig, ax = _new_figure(COLUMN_IN, 2.4)
-    colors = colors_of(rep)
-    skipped = []
-    for name, label in _labels(rep).items():
+def _drift(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    fig, ax = _new_figure(width_in, 2.9)
+    skipped: list[str] = []
+    handles: list[tuple[Any, str]] = []
+    for name, label, color, i in _styled(rep):
         d = rep["drift"][name]
         t, mean, p10, p90 = (_floats(d[k]) for k in ("t_s", "mean_m", "p10_m", "p90_m"))
         shown = _defined(label, t, mean, skipped)
         if shown is None:
             continue
         band = np.isfinite(t) & np.isfinite(p10) & np.isfinite(p90)
-        ax.fill_between(t, p10, p90, where=band, color=colors[name], alpha=0.18, lw=0)
-        ax.plot(t, np.where(shown, mean, np.nan), color=colors[name], lw=1.2, label=label)  # a gap where undefined
+        # each band hatched in its own pattern and outlined in its colour: overlapping bands stay
+        # apart (in greyscale too), where filled ones blended into one colour
+        patch = ax.fill_between(t, p10, p90, where=band, facecolor=(*color, 0.08), edgecolor=color, hatch=HATCHES[i % len(HATCHES)],
+                                lw=0.5)
+        [line] = ax.plot(t, np.where(shown, mean, np.nan), color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)])  # a gap where undefined
+        handles.append(((patch, line), label))  # the legend shows the band's hatching under the line
     _skipped("drift", skipped)
     ax.set_xlabel("time since the outage began (s)")
     ax.set_ylabel("position error (m)")
     ax.set_xlim(0, float(rep["outage_s"]))
     ax.set_ylim(bottom=0)
-    ax.set_title(f"{_title(rep)}; mean and 10-90 %")
-    _legend(ax, loc="upper left")
+    _set_title(ax, f"{_title(rep)}; mean (line) and 10-90 % band (hatched)")
+    _legend(fig, ax, width_in, handles)
     return fig
 
 
@@ -356,11 +424,10 @@ def _finals(rep: dict[str, Any], name: str) -> np.ndarray:
     return _floats([s[name]["final_position_error_m"] for s in rep["sequences"]])
 
 
-def _cdf(rep: dict[str, Any]) -> Any:
-    fig, ax = _new_figure(COLUMN_IN, 2.4)
-    colors = colors_of(rep)
+def _cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    fig, ax = _new_figure(width_in, 2.7)
     skipped = []
-    for name, label in _labels(rep).items():
+    for name, label, color, i in _styled(rep):
         finals = _finals(rep, name)
         v, share = error_cdf(finals)
         if not len(v):
@@ -369,31 +436,48 @@ def _cdf(rep: dict[str, Any]) -> Any:
         if len(v) < len(finals):
             skipped.append(f"{label}: {len(finals) - len(v)} of {len(finals)} outages left out")
         p50 = rep["final_error_percentiles"][name]["p50"]
-        ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=colors[name], lw=1.2,
+        ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
                 label=f"{label} (p50 {p50:.1f} m)" if p50 is not None else f"{label} (p50 n/a)")
     _skipped("cdf", skipped)
     ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
     ax.set_ylabel("share of outages")
     ax.set_ylim(0, 1.0)
     ax.set_xlim(left=0)
-    ax.set_title(_title(rep))
-    _legend(ax, loc="lower right")
+    _set_title(ax, _title(rep))
+    _legend(fig, ax, width_in)
     return fig
 
 
-#: Above this many outages the per-outage figure draws points, not bars (bars would be hairlines).
-MAX_BARS = 40
+#: Above this many outages per inch of axes the per-outage figure draws points, not bars (bars
+#: would be hairlines).
+MAX_BARS_PER_IN = 12
 
 
-def _outages(rep: dict[str, Any]) -> Any:
-    labels = _labels(rep)
+def _drive_runs(rep: dict[str, Any]) -> list[tuple[str, int, int]]:
+    """(drive, first, last outage number) of each run of consecutive outages of one drive."""
+    runs: list[tuple[str, int, int]] = []
+    for k, seq in enumerate(rep["sequences"], start=1):
+        drive = seq.get("drive") if isinstance(seq.get("drive"), str) else rep["drive"]
+        if runs and runs[-1][0] == drive:
+            runs[-1] = (drive, runs[-1][1], k)
+        else:
+            runs.append((drive, k, k))
+    return runs
+
+
+def _outages(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    import textwrap
+
+    from matplotlib.transforms import blended_transform_factory
+
+    styled = _styled(rep)
     n = len(rep["sequences"])
-    fig, ax = _new_figure(max(COLUMN_IN, min(7.16, 0.12 * n * len(labels))), 2.2)  # up to a full page width
-    colors = colors_of(rep)
-    width = 0.8 / len(labels)
+    fig, ax = _new_figure(width_in, 2.8)
+    bars = n * len(styled) <= MAX_BARS_PER_IN * (width_in - 0.6)
+    width = 0.8 / len(styled)
     x = np.arange(1, n + 1)
     skipped = []
-    for j, (name, label) in enumerate(labels.items()):
+    for name, label, color, j in styled:
         finals = _finals(rep, name)
         shown = np.isfinite(finals)
         if not shown.any():
@@ -402,49 +486,94 @@ def _outages(rep: dict[str, Any]) -> Any:
         if not shown.all():
             missing = x[~shown]
             skipped.append(f"{label}: outage(s) {', '.join(str(k) for k in missing[:5])}{' ...' if len(missing) > 5 else ''} left out")
-        if n <= MAX_BARS:
-            ax.bar(x[shown] - 0.4 + width * (j + 0.5), finals[shown], width, color=colors[name], label=label, lw=0)
+        if bars:
+            ax.bar(x[shown] - 0.4 + width * (j + 0.5), finals[shown], width, color=color, label=label, lw=0.4, edgecolor="black",
+                   hatch=HATCHES[j % len(HATCHES)] if len(styled) > 1 else None)
         else:
-            ax.plot(x[shown], finals[shown], ls="none", marker=".", ms=2.5, color=colors[name], label=label)
+            ax.plot(x[shown], finals[shown], ls="none", marker=MARKERS[j % len(MARKERS)], ms=2.4, mew=0.4, mfc="none" if j % 2 else color,
+                    color=color, label=label)
     _skipped("outages", skipped)
     ax.set_ylim(bottom=0)
-    ax.set_xlabel("outage")
+    ax.set_xlabel("outage (numbered through the drives)")
     ax.set_ylabel("final position error (m)")
     ax.set_xlim(0.4, n + 0.6)
-    if n > 30:
-        ax.set_xticks(x[:: max(1, n // 15)])
-    else:
-        ax.set_xticks(x)
-    ax.set_title(_title(rep))
-    _legend(ax, ncols=min(4, len(labels)), loc="upper left")
+    ticks = max(1, round(n / (4 * width_in)))  # about four labels per inch
+    ax.set_xticks(x[::ticks] if ticks > 1 else x)
+    runs = _drive_runs(rep)
+    if len(runs) > 1:  # drives apart: a line between them, each named above its outages
+        on_top = blended_transform_factory(ax.transData, ax.transAxes)
+        for k, (drive, first, last) in enumerate(runs):
+            if k:
+                ax.axvline(first - 0.5, color="0.35", lw=0.6, ls=(0, (3, 2)))
+            span_in = (last - first + 1) / n * (width_in - 0.6)
+            text = drive if len(drive) * (FONT_PT - 1.5) * 0.55 / 72 <= span_in else f"D{k + 1}"
+            ax.text((first + last) / 2, 1.01, text, transform=on_top, ha="center", va="bottom", fontsize=FONT_PT - 1.5, clip_on=False)
+        if any(len(d) * (FONT_PT - 1.5) * 0.55 / 72 > (last - first + 1) / n * (width_in - 0.6) for d, first, last in runs):
+            names = ", ".join(f"D{k + 1} {d}" for k, (d, _a, _b) in enumerate(runs))
+            ax.set_xlabel("\n".join(textwrap.wrap(f"outage; {names}", int(width_in * 14))))
+    title = f"{rep['n_sequences']} outages of {rep['outage_s']:g} s" if len(runs) > 1 else _title(rep)
+    _set_title(ax, f"final position error of each outage: {title}")
+    _legend(fig, ax, width_in)
     return fig
 
 
-def _worst(rep: dict[str, Any]) -> Any:
+def _worst(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     tracks = rep["worst_tracks"]
-    fig, ax = _new_figure(COLUMN_IN, COLUMN_IN * 0.8)
-    colors = colors_of(rep)
+    fig, ax = _new_figure(width_in, 3.7)
     truth_label = REFERENCE_LABEL if rep.get("truth") == "reference" else GNSS_LABEL
+    truth_color = tuple(c / 255 for c in GNSS_COLOR)
     skipped = []
-    lines = [("truth", truth_label, tuple(c / 255 for c in GNSS_COLOR), {"lw": 2.0}),
-             *((name, label, colors[name], {"lw": 1.2, "marker": "o", "ms": 1.8}) for name, label in _labels(rep).items())]
+    lines = [("truth", truth_label, truth_color, {"lw": 2.6, "alpha": 0.8, "solid_capstyle": "round"}),
+             *((name, label, color, {"lw": 1.1, "ls": LINE_STYLES[i % len(LINE_STYLES)]}) for name, label, color, i in _styled(rep))]
+    truth_xy = None
     for name, label, color, style in lines:
         east, north = _floats(tracks[name]["east_m"]), _floats(tracks[name]["north_m"])
         shown = _defined(label, east, north, skipped)
         if shown is None:
             continue
         ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, **style)
+        if name == "truth":
+            truth_xy = np.column_stack([east[shown], north[shown]])
+        else:  # where this estimate ended
+            last = np.flatnonzero(shown)[-1]
+            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none")
     _skipped("worst", skipped)
-    ax.plot([0], [0], "k^", ms=4)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xticks([])
     ax.set_yticks([])
     for side in ("left", "bottom"):
         ax.spines[side].set_visible(False)
+    ax.plot([0], [0], marker="o", ms=6, mfc="white", mec="black", mew=1.0, ls="none", label="start (last GNSS fix)", zorder=5)
+    if truth_xy is not None and len(truth_xy) > 1:
+        ax.plot(*truth_xy[-1], marker="s", ms=5.5, mfc="black", mec="black", ls="none", label="end (truth)", zorder=5)
+        _direction_arrows(ax, truth_xy, truth_color)
+    ax.margins(0.12)
+    _north_arrow(ax)
     _scale_bar(ax)
-    ax.set_title(f"worst outage: {tracks['drive']} #{tracks['number']}, {tracks['start_s']:g}-{tracks['start_s'] + rep['outage_s']:g} s")
-    _legend(ax, loc="best")
+    _set_title(ax, f"worst outage: {tracks['drive']} #{tracks['number']}, {tracks['start_s']:g}-"
+              f"{tracks['start_s'] + rep['outage_s']:g} s; arrows: direction of travel")
+    _legend(fig, ax, width_in)
     return fig
+
+
+def _direction_arrows(ax: Any, xy: np.ndarray, color: Any) -> None:
+    """Arrowheads along the truth track at a third and two thirds of its length, pointing the way
+    the vehicle drove."""
+    steps = np.hypot(*np.diff(xy, axis=0).T)
+    along = np.r_[0.0, np.cumsum(steps)]
+    if along[-1] <= 0:
+        return
+    for share in (1 / 3, 2 / 3):
+        k = int(np.clip(np.searchsorted(along, share * along[-1]), 1, len(xy) - 1))
+        ax.annotate("", xy=tuple(xy[k]), xytext=tuple(xy[k - 1]),
+                    arrowprops={"arrowstyle": "-|>,head_length=0.6,head_width=0.35", "color": "black", "lw": 0.8, "shrinkA": 0, "shrinkB": 0})
+
+
+def _north_arrow(ax: Any) -> None:
+    """A north arrow in the upper left corner of the axes, apart from the tracks (north is up: the
+    axes have equal scales)."""
+    ax.annotate("N", xy=(0.05, 0.97), xytext=(0.05, 0.82), xycoords="axes fraction", textcoords="axes fraction", ha="center",
+                va="top", fontsize=FONT_PT - 1, arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 0.9})
 
 
 def _scale_bar(ax: Any) -> None:

@@ -25,10 +25,9 @@ from ..core.geo import local_en_m
 from ..core.gnss_quality import GnssFault, fault_names
 from ..core.grid import WINDOW_S
 from ..core.runs import run_ranges
-from ..nav.protocol import short_label
 from . import columns
 from . import entities as ent
-from .blueprints import blueprint
+from .blueprints import blueprint, plot_range
 from .geometry import map_zoom, screen_xy
 from .health import log_health
 from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
@@ -104,10 +103,29 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     return rows
 
 
-def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray):
+def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray, y_ranges: dict | None = None):
     """The review layout for estimators ``labels``, its map zoomed to the track (``lat_deg``,
-    ``lon_deg``: the usable GNSS fixes)."""
-    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350))
+    ``lon_deg``: the usable GNSS fixes), its time plots' y axes set to ``y_ranges`` when given."""
+    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges)
+
+
+def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
+    """The signal plots' y ranges over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`:
+    a flat line still gets ticks). The error plots keep the viewer's own fit to what is shown: a
+    drive's worst outage would flatten every other one (screenshots set every plot's range)."""
+    drive, w = result.drive, result.windows
+    ok = w.truth_ok
+    data = {
+        ent.DISPLACEMENTS: [w.gnss_disp_m[ok], *(e.disp_m for e in result.estimates.values())],
+        ent.YAW_RATES: [drive.yaw_rate_radps, w.gnss_yaw_rate_radps[ok], *(e.yaw_rate_radps for e in result.estimates.values())],
+        ent.ACCEL: [drive.accel_long_mps2],
+    }
+    out = {}
+    for origin, parts in data.items():
+        values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in parts])
+        values = values[np.isfinite(values)]
+        out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)))
+    return out
 
 
 def log_result(rec, result: DriveResult, summary_md: str, progress=None, events: list | None = None) -> dict[str, int]:
@@ -116,7 +134,8 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     drive = result.drive
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
-    rec.send_blueprint(review_blueprint([short_label(e.label) for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable]))
+    rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable],
+                                        y_ranges(result)))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 

@@ -12,6 +12,10 @@ from ..core.errors import InputError
 from ..core.fileio import utf8_alias
 from ..nav.registry import BASELINE
 from . import entities as ent
+from .style import GNSS_LABEL
+
+#: The time plots whose lines a screenshot frames (its y axes): each an entity or a folder of them.
+PLOT_ORIGINS = (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL, *(ent.error_group(m) for m in ent.ERROR_METRICS))
 
 
 @dataclass
@@ -52,6 +56,15 @@ class RecordingInfo:
     lat_deg: np.ndarray  # the GNSS track
     lon_deg: np.ndarray
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
+    truth_label: str = GNSS_LABEL  # what the green track is: the GNSS fixes, or a reference beside them
+    plots: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # time plot origin -> (t s, value), every line
+
+    def y_extent(self, origin: str, t0_s: float, t1_s: float) -> tuple[float, float] | None:
+        """The least and greatest value the time plot ``origin`` draws between ``t0_s`` and
+        ``t1_s`` (every line of it), or None when it draws nothing there."""
+        t, v = self.plots.get(origin, (np.zeros(0), np.zeros(0)))
+        inside = v[(t >= t0_s) & (t <= t1_s) & np.isfinite(v)]
+        return (float(inside.min()), float(inside.max())) if len(inside) else None
 
     def state_at(self, t_s: float) -> str | None:
         """The outage label at ``t_s`` (the one ending there, when one ends as the next starts)."""
@@ -147,7 +160,8 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
             spans.append((float(t), float(nxt), label))
     outages = _outages(spans, scan.errors, scan.drawn)
     ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
-    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators)
+    plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])) for o, parts in scan.plots.items()}
+    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots)
 
 
 def _unreadable(path: Path, exc: Exception) -> InputError:
@@ -186,6 +200,8 @@ class _Scan:
     states: list = field(default_factory=list)  # (time, GNSS state label)
     track: list[np.ndarray] = field(default_factory=list)  # the truth's positions (lat, lon), per chunk
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # label, colour
+    truth_label: str = GNSS_LABEL
+    plots: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # plot origin -> (t, value) per chunk
     errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # position error (t, m) per chunk
     drawn: dict[str, _Rows] = field(default_factory=dict)  # each outage frame's rows
 
@@ -196,6 +212,9 @@ class _Scan:
         series = ent.parse_error_series(entity)
         if chunk.is_static and series is not None and series[0] == "position_error_m":
             self.estimators[series[1]] = _series_style(batch)
+            return
+        if chunk.is_static and entity.strip("/") == ent.displacement("gnss"):
+            self.truth_label = _series_style(batch)[0] or self.truth_label
             return
         if entity == "/__properties":
             for n in names:
@@ -214,10 +233,13 @@ class _Scan:
         elif entity.strip("/") == ent.truth_position(ent.MAP):
             col = _column(path, entity, names, ":positions")
             self.track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
-        elif series is not None and series[0] == "position_error_m":
-            col = _column(path, entity, names, ":scalars")
-            self.errors.setdefault(series[1], []).append((times, np.asarray(batch.column(col).flatten(), dtype=np.float64)))
-        elif ent.is_outage_frame(entity):
+        if entity.strip("/").startswith(PLOT_ORIGINS):  # a time plot's line: its values frame the plot's y axis
+            plot = next(o for o in PLOT_ORIGINS if entity.strip("/").startswith(o))
+            values = np.asarray(batch.column(_column(path, entity, names, ":scalars")).flatten(), dtype=np.float64)
+            self.plots.setdefault(plot, []).append((times, values))
+            if series is not None and series[0] == "position_error_m":
+                self.errors.setdefault(series[1], []).append((times, values))
+        if ent.is_outage_frame(entity):
             col = _column(path, entity, names, ":strips", ":line_strings")
             self.drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from ..core.errors import InputError
 from ..core.fileio import made_folders
 from ..nav.registry import BASELINE
-from .blueprints import VIEWS, Shot, focus_blueprint, framing, titles_for
+from .blueprints import MIN_Y_SPAN, PLOT_MARGIN_S, TOP_BAND_PX, VIEWS, KeyEntry, Shot, focus_blueprint, framing, key_for, plot_range, plot_window, titles_for
 from .recording_info import OutageInfo, RecordingInfo, read_recording_info
 from .viewer import HeadlessViewer, RendererMissing
 
@@ -39,7 +39,81 @@ def map_tiles_reachable(host: str = TILE_HOST, port: int = TILE_PORT, timeout_s:
     except OSError:
         return False
 
-__all__ = ["RendererMissing", "check_size", "parse_size", "render", "resolve_time"]
+__all__ = ["RendererMissing", "check_size", "draw_key", "parse_size", "render", "resolve_time"]
+
+#: The viewer keeps a band this high above the views where its top panel (hidden in screenshots)
+#: would be: the frameless window's title bar, which no blueprint setting removes. Screenshots draw
+#: their colour key into it (:func:`draw_key`), so it names every line instead of staying empty.
+KEY_BAND_PX = TOP_BAND_PX
+#: The viewer's background, and the key's text colour.
+BACKGROUND_RGB, KEY_TEXT_RGB = (13, 13, 13), (225, 225, 225)
+
+
+def key_head(shot: Shot) -> str:
+    """What the key's values are, before its entries: the framed outage's final errors."""
+    return f"outage {shot.outage.number}, final error:" if shot.outage is not None else ""
+
+
+def band_height(img) -> int:
+    """The rows of the empty band above the views (:data:`KEY_BAND_PX`, measured on the image: the
+    first row below the top edge that is not the band's background)."""
+    import numpy as np
+
+    rows = np.asarray(img.convert("RGB"))[:, 1:-1].astype(int)
+    for r in range(1, min(len(rows), 3 * KEY_BAND_PX)):
+        if np.abs(rows[r] - np.array(BACKGROUND_RGB)).max() > 6:
+            return r if r >= 16 else KEY_BAND_PX
+    return KEY_BAND_PX
+
+
+def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
+    """Draw the colour key of ``keys`` (a short line or a dot in each colour, and its name) into the
+    band above the views of the screenshot ``png``: one line, the type made smaller (down to 10 px)
+    until it fits the width, else two lines."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    img = Image.open(png).convert("RGB")
+    band = band_height(img)
+    draw = ImageDraw.Draw(img)
+    draw.rectangle([1, 1, img.width - 2, band - 1], fill=BACKGROUND_RGB)
+
+    def widths(font) -> list[float]:
+        swatch = font.size * 1.4
+        return [swatch + 5 + font.getlength(k.text) + font.size for k in keys]
+
+    def place(font, items: list[KeyEntry], y: float, x: float) -> None:
+        swatch = font.size * 1.4
+        mid = y + font.size * 0.55
+        for k in items:
+            if k.mark == "dot":
+                r = font.size * 0.32
+                draw.ellipse([x + swatch / 2 - r, mid - r, x + swatch / 2 + r, mid + r], fill=k.rgb)
+            else:
+                draw.line([x, mid, x + swatch, mid], fill=k.rgb, width=max(2, round(font.size / 5)))
+            draw.text((x + swatch + 5, y), k.text, fill=KEY_TEXT_RGB, font=font)
+            x += swatch + 5 + font.getlength(k.text) + font.size
+
+    room = img.width - 20
+    for size in (14, 13, 12, 11, 10):
+        font = ImageFont.load_default(size=size)
+        head_w = font.getlength(head) + font.size if head else 0.0
+        if head_w + sum(widths(font)) <= room:
+            y = (band - font.size) / 2 - 1
+            if head:
+                draw.text((10, y), head, fill=KEY_TEXT_RGB, font=font)
+            place(font, list(keys), y, 10 + head_w)
+            break
+    else:  # two lines, the head on the first
+        font = ImageFont.load_default(size=min(11, max(8, (band - 6) // 2 - 2)))
+        head_w = font.getlength(head) + font.size if head else 0.0
+        w = widths(font)
+        split = max(1, max((i for i in range(len(keys) + 1) if head_w + sum(w[:i]) <= room), default=1))  # what fits the first line
+        line_h = (band - 4) / 2
+        if head:
+            draw.text((10, 2), head, fill=KEY_TEXT_RGB, font=font)
+        place(font, list(keys[:split]), 2, 10 + head_w)
+        place(font, list(keys[split:]), 2 + line_h, 10)
+    img.save(png, format="PNG")
 
 
 def resolve_time(spec: str, info: RecordingInfo, worst_of: str = BASELINE) -> tuple[float, OutageInfo | None]:
@@ -132,12 +206,16 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
             viewer.open(info.path)
             for shot, path in zip(shots, paths):
                 frame = framing(info, shot.outage, size, shot.view)
+                x0, x1 = plot_window(shot.t_s, info.end_s)
+                extents = {o: plot_range(o, *e, pad=False) for o in MIN_Y_SPAN if (e := info.y_extent(o, x0, x1 + PLOT_MARGIN_S)) is not None}
                 try:
                     layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
-                                             t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles)
+                                             t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles, size=size,
+                                             y_extents=extents)
                 except InputError as exc:
                     raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
-                viewer.show(layout, shot.t_s, path)
+                keys, head = key_for(info, shot), key_head(shot)
+                viewer.show(layout, shot.t_s, path, finish=lambda png, keys=keys, head=head: draw_key(png, keys, head))
                 written.append(path)
                 if progress:
                     progress(path)

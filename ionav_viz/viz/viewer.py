@@ -20,6 +20,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -147,9 +148,9 @@ class HeadlessViewer:
         # every image starts from the recording's own layout (shots change titles, framing, maximised view)
         self.base_blueprint = self.call("get_blueprint").blueprint
 
-    def show(self, blueprint: dict[str, Any], t_s: float, out: Path) -> None:
+    def show(self, blueprint: dict[str, Any], t_s: float, out: Path, finish: Callable[[Path], None] | None = None) -> None:
         """Show the open recording with ``blueprint`` at ``t_s`` on the ``time`` timeline and save
-        the image to ``out`` (atomically)."""
+        the image to ``out`` (atomically; ``finish`` changes the image before it is moved in)."""
         self.call("set_blueprint", blueprint, of="recording")
         self.call("set_time", "time", duration=float(t_s), play_state="paused")
         time.sleep(self.settle_s)  # let the viewer render a few frames at the new time
@@ -157,6 +158,8 @@ class HeadlessViewer:
             self.call("save_screenshot", str(writable))
             if not tmp.is_file() or tmp.stat().st_size == 0:
                 raise RendererMissing(f"the viewer wrote no screenshot for {out}")
+            if finish is not None:
+                finish(tmp)
 
     def _stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
