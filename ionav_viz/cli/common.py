@@ -79,6 +79,8 @@ EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MO
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
 GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; names, defaults: 'GNSS quality' in docs/method.md).", show_default=False)
+SpanOpt = typer.Option(None, "--span", help="Only this stretch of each drive, START:END on the drive's own time, e.g. 0s:330s or 330s: (outages and training windows stay inside it).",
+                       show_default=False)
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 
@@ -89,6 +91,7 @@ _SOURCE_OPTIONS = (
     ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("truth_topic", TruthTopic, Optional[str]),
     ("truth_origin", TruthOrigin, Optional[str]), ("stamps", Stamps, str),
     ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
+    ("span", SpanOpt, Optional[str]),
 )
 
 
@@ -119,7 +122,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
         log = LogOptions(v["imu_topic"], v["gnss_topic"], v["gnss_velocity_topic"], v["stamps"], v["imu_axes"],
                          vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"], truth_topic=v["truth_topic"],
                          truth_origin=v["truth_origin"])
-        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])))
+        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])), span=v["span"])
 
     return _with_options(command, _SOURCE_OPTIONS, "read", build)
 
