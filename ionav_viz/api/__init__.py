@@ -25,7 +25,7 @@ from .outage_log import OutageLogResult, outage_log
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
-from .training import TrainingDrives, train, training_drives
+from .training import TrainingDrives, fine_tune_settings, train, training_drives
 
 __all__ = [
     "RECORDINGS_DIR",
@@ -39,7 +39,8 @@ __all__ = [
     "RunSelection",
     "ScenarioDrives",
     "Shots",
-    "TrainingDrives", "WebServing",
+    "TrainingDrives",
+    "WebServing",
     "convert",
     "detector_quality",
     "evaluate",
@@ -48,6 +49,7 @@ __all__ = [
     "fetch",
     "figures",
     "find_events",
+    "fine_tune_settings",
     "list_runs",
     "outage_log",
     "replay",

@@ -43,6 +43,8 @@ class RunOptions:
         bias_from: a stationary drive (or ready :class:`SensorBias`) for the sensor biases;
             default each drive's own stationary stretches.
         thresholds: the event detectors' thresholds (default :class:`EventThresholds`).
+        strict: refuse, instead of warning, when an outage lies in data the IDNN's model was
+            trained on (the same file by sha256, overlapping time; :mod:`ionav_viz.nav.provenance`).
     """
 
     estimators: Sequence[str | Estimator] | None = None
@@ -51,10 +53,17 @@ class RunOptions:
     model: Any = None
     bias_from: DriveLike | SensorBias | None = None
     thresholds: EventThresholds = field(default_factory=EventThresholds)
+    strict: bool = False
 
     def chosen(self) -> list[Estimator]:
         """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""
-        return resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
+        from ..nav.idnn import IdnnEstimator
+
+        chosen = resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
+        for est in chosen:
+            if isinstance(est, IdnnEstimator) and self.strict:
+                est.strict = True
+        return chosen
 
     def applying_to(self, drives: Sequence[Drive]) -> list[Estimator]:
         """The estimators that apply to every one of ``drives`` (one report compares them all on

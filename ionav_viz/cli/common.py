@@ -81,6 +81,7 @@ Thresholds = typer.Option(None, "--threshold", help="Override an event-detector 
 GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; names, defaults: 'GNSS quality' in docs/method.md).", show_default=False)
 SpanOpt = typer.Option(None, "--span", help="Only this stretch of each drive, START:END on the drive's own time, e.g. 0s:330s or 330s: (outages and training windows stay inside it).",
                        show_default=False)
+StrictOpt = typer.Option(False, "--strict", help="Refuse, instead of warning, when an outage lies in data the IDNN's model was trained on (same file by sha256, overlapping time).")
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 
@@ -130,6 +131,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 _ESTIMATOR_OPTIONS = (
     ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
     ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]), ("thresholds", Thresholds, Optional[list[str]]),
+    ("strict", StrictOpt, bool),
 )
 
 
@@ -137,7 +139,10 @@ def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from`` and
     ``--threshold`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
     def build(v: dict[str, Any]) -> Any:
-        return run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"])
+        from dataclasses import replace
+
+        run = run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"])
+        return replace(run, strict=v["strict"])
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 
