@@ -16,6 +16,7 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 
 
 from ..viz.live import WebServing
+from .cross_validate import CrossValidation, cross_validate
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
@@ -30,6 +31,7 @@ from .training import TrainingDrives, fine_tune_settings, train, training_drives
 __all__ = [
     "RECORDINGS_DIR",
     "Converted",
+    "CrossValidation",
     "DatasetSource",
     "DetectorQuality",
     "Outage",
@@ -42,6 +44,7 @@ __all__ = [
     "TrainingDrives",
     "WebServing",
     "convert",
+    "cross_validate",
     "detector_quality",
     "evaluate",
     "evaluate_by_event",
