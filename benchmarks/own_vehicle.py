@@ -104,7 +104,7 @@ def page(rows: list[dict], minutes: float) -> str:
         "\n".join(table(rows)),
         "",
         "Fine-tuning time: wall time of `train --from-model shipped` on the 5 minutes (calibrating "
-        "inputs with the GNSS-aided INS, then 30 epochs of each network).",
+        "inputs with the GNSS-aided INS, then 100 epochs of each network).",
     ]))
 
 

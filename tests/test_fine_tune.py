@@ -43,7 +43,7 @@ def test_fine_tuned_model_records_parent_span_checksum_and_imu(tuned):
     assert meta["input"] == {"channels": ["accel_long_mps2", "yaw_rate_radps"], "grid_rate_hz": 10.0, "imu_kind": "2-channel", "imu_rate_hz": 10.0}
     assert meta["parent"]["directory"] == "shipped" and meta["parent"]["weights_sha256"] == shipped["weights_sha256"]
     assert meta["normalisation"] == shipped["normalisation"]  # the parent's input normalisation is kept
-    assert meta["config"]["lr_schedule"] == "cosine" and meta["config"]["lr_disp"] == shipped["config"]["lr_disp"] / 4
+    assert meta["config"]["lr_schedule"] == "cosine" and meta["config"]["lr_disp"] == shipped["config"]["lr_disp"] / 2
 
 
 def test_outages_in_training_data_are_listed_and_refused_with_strict(tuned):
