@@ -47,6 +47,11 @@ def crse(report_json: str) -> dict[str, float]:
     return {name: stats["crse_m"]["mean"] for name, stats in summary.items() if isinstance(stats, dict) and "crse_m" in stats}
 
 
+def drift(report_json: str, name: str) -> dict[str, list[float]]:
+    """Position error against seconds since the outage began (mean, 10 and 90 %) of one estimator."""
+    return json.loads(report_json)["drift"][name]
+
+
 def measure(folder: Path, label: str, sensors: object, index: int, minutes: float) -> dict:
     seed = 1000 + 100 * index
     tune = [write_simulated_drive(folder / f"V-car{index}-tune-{sc}.csv", sc, seed + i, 120.0, sensors) for i, sc in enumerate(SCENARIOS)]
@@ -59,10 +64,36 @@ def measure(folder: Path, label: str, sensors: object, index: int, minutes: floa
     wall_s, cpu_s = time.perf_counter() - start, time.process_time() - cpu0
     row = {"car": label, "tune_wall_s": wall_s, "tune_cpu_s": cpu_s}
     for outage in (10, 30):
-        tuned = crse(iv.evaluate([str(p) for p in test], outage, estimators=["ins", "idnn"], run=iv.RunOptions(model=str(model), strict=True)).to_json())
-        shipped = crse(iv.evaluate([str(p) for p in test], outage, estimators=["idnn"], run=iv.RunOptions(strict=True)).to_json())
+        tuned_json = iv.evaluate([str(p) for p in test], outage, estimators=["ins", "idnn"], run=iv.RunOptions(model=str(model), strict=True)).to_json()
+        shipped_json = iv.evaluate([str(p) for p in test], outage, estimators=["idnn"], run=iv.RunOptions(strict=True)).to_json()
+        tuned, shipped = crse(tuned_json), crse(shipped_json)
         row[outage] = {"ins": tuned["ins"], "shipped": shipped["idnn"], "tuned": tuned["idnn"]}
+        if outage == 30:
+            row["drift"] = {"ins": drift(tuned_json, "ins"), "shipped": drift(shipped_json, "idnn"), "tuned": drift(tuned_json, "idnn")}
     return row
+
+
+def figure(rows: list[dict], path: Path) -> None:
+    """The 30 s drift curves (mean position error, 10-90 % band) of each car: INS DR, shipped and fine-tuned IDNN."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot as plt
+
+    fig, axes = plt.subplots(1, len(rows), figsize=(3.2 * len(rows), 3.0), sharey=True, constrained_layout=True)
+    styles = {"ins": ("INS DR", "0.45"), "shipped": ("shipped IDNN (before)", "tab:orange"), "tuned": ("fine-tuned IDNN (after)", "tab:blue")}
+    for ax, row in zip(axes, rows):
+        for key, (label, color) in styles.items():
+            d = row["drift"][key]
+            ax.plot(d["t_s"], d["mean_m"], color=color, label=label)
+            ax.fill_between(d["t_s"], d["p10_m"], d["p90_m"], color=color, alpha=0.15, linewidth=0)
+        ax.set_title(row["car"], fontsize=8)
+        ax.set_xlabel("s since the outage began")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("position error (m)")
+    axes[0].legend(fontsize=7, loc="upper left")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def gain(base: float, new: float) -> float:
@@ -105,6 +136,11 @@ def page(rows: list[dict], minutes: float) -> str:
         "",
         "Fine-tuning time: wall time of `train --from-model shipped` on the 5 minutes (calibrating "
         "inputs with the GNSS-aided INS, then 100 epochs of each network).",
+        "",
+        "Position error against seconds since the outage began, 30 s outages of the test drives (mean, "
+        "10-90 % band), before (shipped model) and after fine-tuning:",
+        "",
+        "![drift before and after fine-tuning](figure-own-vehicle.png)",
     ]))
 
 
@@ -122,6 +158,7 @@ def main() -> None:
             rows.append(measure(Path(tmp), label, sensors, index, args.minutes))
             print("\n".join(table(rows[-1:])[2:4]), flush=True)
     if args.write:
+        figure(rows, args.write.parent / "figure-own-vehicle.png")
         write_atomically(args.write, page(rows, args.minutes))
         print(args.write)
     else:
