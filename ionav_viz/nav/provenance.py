@@ -2,8 +2,10 @@
 
 A model's ``metadata.json`` records, per training drive, the file's sha256 and size and the stretch
 of the drive's own time it was trained on (``span_s``, after ``--span``), and for the whole model
-what its inputs were (:func:`input_record`: the two channels, the 10 Hz grid, the IMU kind and its
-sample rate). From those:
+what its inputs were (:func:`input_record`: the two channels, the 10 Hz grid, the IMU kind and the
+drive's sample rate as read: IO-VNBD and KITTI files at their own rate; message logs are binned to
+the 10 Hz grid as they are read, so a 100 Hz and a 10 Hz log both read as 10 Hz, and only their
+kind, 6-axis, tells them from a 2-channel file). From those:
 
 * :func:`check_inputs` refuses a drive whose IMU kind or sample rate is not the model's (a model
   fine-tuned on a 100 Hz phone, its samples averaged into the grid, is not a model of a 10 Hz
