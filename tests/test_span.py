@@ -65,3 +65,12 @@ def test_span_contains_both_ends():
     span = parse_span("0s:330s")
     assert span.contains(np.array([0.0, 330.0, 330.1])).tolist() == [True, True, False]
     assert str(parse_span("330s:")) == "330s:" and parse_span(":5m").end_s == 300.0
+
+
+def test_a_plan_made_on_a_span_is_read_on_the_same_span(tmp_path):
+    proc = run_cli("outage-log", "roundabout", "--span", "30s:95s", "-o", str(tmp_path / "o.mcap"))
+    assert proc.returncode == 0, proc.stderr
+    plan = str(tmp_path / "o.outages.json")
+    assert _starts(["--span", "30s:95s", "--plan", plan]) == _starts(["--span", "30s:95s"])
+    elsewhere = run_cli("evaluate", "roundabout", "--span", "100s:200s", "--plan", plan, "--estimators", "ins")
+    assert elsewhere.returncode == 2 and "outside the drive V-sim-roundabout (100" in elsewhere.stderr
