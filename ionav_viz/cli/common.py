@@ -136,8 +136,8 @@ _ESTIMATOR_OPTIONS = (
 
 
 def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from`` and
-    ``--threshold`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
+    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from``,
+    ``--threshold`` and ``--strict`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
     def build(v: dict[str, Any]) -> Any:
         from dataclasses import replace
 
