@@ -39,7 +39,7 @@ _EXPORTS = {
     "EstimatorError": "nav.protocol", "FilterHealth": "nav.protocol",
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
-    "AroundEvents": "nav.outages",
+    "AroundEvents": "nav.outages", "cross_validate": "api", "fine_tune_settings": "api",
     "EventThresholds": "analysis.events", "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
@@ -77,6 +77,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         Shots,
         WebServing,
         convert,
+        cross_validate,
         detector_quality,
         evaluate,
         evaluate_by_event,
@@ -84,6 +85,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         fetch,
         figures,
         find_events,
+        fine_tune_settings,
         list_runs,
         outage_log,
         replay,

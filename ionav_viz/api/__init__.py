@@ -16,6 +16,7 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 
 
 from ..viz.live import WebServing
+from .cross_validate import CrossValidation, cross_validate
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
@@ -25,11 +26,12 @@ from .outage_log import OutageLogResult, outage_log
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
-from .training import TrainingDrives, train, training_drives
+from .training import TrainingDrives, fine_tune_settings, train, training_drives
 
 __all__ = [
     "RECORDINGS_DIR",
     "Converted",
+    "CrossValidation",
     "DatasetSource",
     "DetectorQuality",
     "Outage",
@@ -39,8 +41,10 @@ __all__ = [
     "RunSelection",
     "ScenarioDrives",
     "Shots",
-    "TrainingDrives", "WebServing",
+    "TrainingDrives",
+    "WebServing",
     "convert",
+    "cross_validate",
     "detector_quality",
     "evaluate",
     "evaluate_by_event",
@@ -48,6 +52,7 @@ __all__ = [
     "fetch",
     "figures",
     "find_events",
+    "fine_tune_settings",
     "list_runs",
     "outage_log",
     "replay",

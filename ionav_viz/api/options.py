@@ -52,6 +52,8 @@ class RunOptions:
             drive's start; outages at given times or from a plan are where they are said to be.
             30 s: the filters' position and velocity settle within it on the logs measured
             (``docs/method.md``, "Warm-up").
+        strict: refuse, instead of warning, when an outage lies in data the IDNN's model was
+            trained on (the same file by sha256, overlapping time; :mod:`ionav_viz.nav.provenance`).
     """
 
     estimators: Sequence[str | Estimator] | None = None
@@ -61,6 +63,7 @@ class RunOptions:
     bias_from: DriveLike | SensorBias | None = None
     thresholds: EventThresholds = field(default_factory=EventThresholds)
     warm_up_s: float = DEFAULT_WARM_UP_S
+    strict: bool = False
 
     def __post_init__(self) -> None:
         if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s) and 0 <= self.warm_up_s <= 3600):
@@ -69,7 +72,13 @@ class RunOptions:
 
     def chosen(self) -> list[Estimator]:
         """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""
-        return resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
+        from ..nav.idnn import IdnnEstimator
+
+        chosen = resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
+        for est in chosen:
+            if isinstance(est, IdnnEstimator) and self.strict:
+                est.strict = True
+        return chosen
 
     def applying_to(self, drives: Sequence[Drive]) -> list[Estimator]:
         """The estimators that apply to every one of ``drives`` (one report compares them all on

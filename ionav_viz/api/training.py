@@ -47,6 +47,8 @@ def train(
     force: bool = False,
     progress: Progress | None = None,
     command: str = "ionav_viz.train",
+    from_model: Any = None,
+    device: str = "cpu",
 ) -> Any:
     """Train the IDNN's two networks and write them with their metadata to ``output`` (a model
     directory; an existing one is replaced only with ``force``, atomically).
@@ -55,13 +57,20 @@ def train(
     also gives the paper's runs);
     ``config``: an ``ionav_viz.nav.idnn.ModelConfig`` (default the shipped model's settings);
     ``bias_from``: a stationary drive for the sensor biases (default each drive's own);
-    ``command``: how it was trained, kept in the metadata. Returns the trained ``IdnnModel``.
+    ``command``: how it was trained, kept in the metadata;
+    ``from_model``: fine-tune this model (a model directory, ``"shipped"`` or an ``IdnnModel``)
+    instead of starting from random weights: its weights, input normalisation and architecture
+    are the start, ``config`` defaults to :func:`fine_tune_settings`, and the metadata records it
+    as the parent; ``read.span`` (``--span``) chooses the part of each drive to train on, recorded
+    per drive with the file's sha256; ``device``: where torch trains (``"cpu"``, ``"cuda"``).
+    Returns the trained ``IdnnModel``.
     """
     from ..nav.idnn import ModelConfig, check_model_dir, save_model
     from ..nav.training import train_models
 
     read = read if read is not None else ReadOptions()
-    config = config if config is not None else ModelConfig()
+    parent = parent_model(from_model) if from_model is not None else None
+    config = config if config is not None else (ModelConfig() if parent is None else fine_tune_settings(parent))
     config.validate()
     out = check_model_dir(Path(output), overwrite=force)  # before any work
     specs = training_drives() if drives is None else drives
@@ -70,8 +79,43 @@ def train(
     refuse_output_onto_input(out, input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
     stationary = load_drive(bias_from, read) if bias_from is not None else None
     loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
-    model = train_models(loaded, config, progress=progress, description=description)
+    model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device)
     model.metadata["training"]["command"] = command
     save_model(model, out, overwrite=force)
     return model
 
+
+
+def parent_model(from_model: Any) -> Any:
+    """The model to fine-tune: an ``IdnnModel``, a model directory, or ``"shipped"``."""
+    from ..nav.idnn import IdnnModel, default_model_dir, load_model
+
+    if isinstance(from_model, IdnnModel):
+        return from_model
+    if isinstance(from_model, str) and from_model == "shipped":
+        return load_model(default_model_dir())
+    if not isinstance(from_model, (str, Path)):
+        raise InputError(f"from_model={from_model!r} is not a model", "give a model directory or 'shipped'", param="from_model")
+    try:
+        return load_model(from_model)
+    except InputError as exc:
+        exc.param = "from_model"
+        raise
+
+
+def fine_tune_settings(parent: Any, epochs_disp: int | None = None, epochs_yaw: int | None = None, seed: int | None = None) -> Any:
+    """The ``ModelConfig`` for fine-tuning ``parent`` (a model, its directory or ``"shipped"``): its
+    architecture, lower learning rates with a cosine decay, fewer epochs
+    (:func:`ionav_viz.nav.training.fine_tune_config` says why)."""
+    from ..nav.training import fine_tune_config
+
+    return fine_tune_config(parent_model(parent).config, epochs_disp, epochs_yaw, seed)
+
+
+def training_device(device: str | None = None) -> str:
+    """``device``, or ``"cuda"`` when torch sees a GPU, else ``"cpu"``."""
+    if device is not None:
+        return device
+    import torch
+
+    return "cuda" if torch.cuda.is_available() else "cpu"

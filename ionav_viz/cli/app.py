@@ -77,6 +77,7 @@ OPTION_OF: Mapping[str, str] = MappingProxyType({
     "outages": "--outage", "worst_of": "--worst-of", "gnss_velocity_topic": "--gnss-velocity-topic",
     "vehicle_speed_topic": "--vehicle-speed-topic", "imu_mount": "--imu-mount", "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan", "external": "--external", "export": "--export",
     "imu_topic": "--imu-topic", "gnss_topic": "--gnss-topic", "connect": "--connect",
+    "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict",
 })
 
 

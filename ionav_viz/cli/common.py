@@ -84,6 +84,9 @@ EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MO
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
 GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; names, defaults: 'GNSS quality' in docs/method.md).", show_default=False)
+SpanOpt = typer.Option(None, "--span", help="Only this stretch of each drive, START:END on the drive's own time, e.g. 0s:330s or 330s: (outages and training windows stay inside it).",
+                       show_default=False)
+StrictOpt = typer.Option(False, "--strict", help="Refuse, instead of warning, when an outage lies in data the IDNN's model was trained on (same file by sha256, overlapping time).")
 ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
 
 
@@ -94,7 +97,7 @@ _SOURCE_OPTIONS = (
     ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("truth_topic", TruthTopic, Optional[str]),
     ("truth_origin", TruthOrigin, Optional[str]), ("stamps", Stamps, str),
     ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]), ("imu_time_offset", ImuTimeOffset, Optional[str]),
-    ("imu_samples", ImuSamples, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]),
+    ("imu_samples", ImuSamples, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]), ("span", SpanOpt, Optional[str]),
 )
 
 
@@ -125,7 +128,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
         log = LogOptions(v["imu_topic"], v["gnss_topic"], v["gnss_velocity_topic"], v["stamps"], v["imu_axes"],
                          vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"], truth_topic=v["truth_topic"],
                          truth_origin=v["truth_origin"], imu_time_offset=v["imu_time_offset"], imu_samples=v["imu_samples"])
-        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])))
+        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])), span=v["span"])
 
     return _with_options(command, _SOURCE_OPTIONS, "read", build)
 
@@ -133,15 +136,18 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 _ESTIMATOR_OPTIONS = (
     ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
     ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]), ("thresholds", Thresholds, Optional[list[str]]),
-    ("warm_up", WarmUp, str),
+    ("warm_up", WarmUp, str), ("strict", StrictOpt, bool),
 )
 
 
 def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from`` and
-    ``--threshold`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
+    """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from``,
+    ``--threshold`` and ``--strict`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
     def build(v: dict[str, Any]) -> Any:
-        return run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"], v["warm_up"])
+        from dataclasses import replace
+
+        run = run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"], v["warm_up"])
+        return replace(run, strict=v["strict"])
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 

@@ -39,8 +39,11 @@ def train(
     arch: str = typer.Option("idnn", "--arch", help="idnn (the paper's), mlp, rnn, gru or lstm (Section 3.3)."),
     steps: int = typer.Option(14, "--steps", help="Time steps (10 Hz samples) of acceleration per displacement input (Table 4; 10 = 1 s, 20 = 2 s; 14 as the shipped model)."),
     steps_yaw: int = typer.Option(10, "--steps-yaw", help="Time steps of gyro yaw rate per orientation-rate input (Table 3)."),
-    epochs_disp: int = typer.Option(40, "--epochs-disp", help="Epochs of the displacement model (Table 5: 40)."),
-    epochs_yaw: int = typer.Option(60, "--epochs-yaw", help="Epochs of the orientation-rate model (Table 5: 60)."),
+    epochs_disp: Optional[int] = typer.Option(None, "--epochs-disp", help="Epochs of the displacement model (default: Table 5's 40; 100 with --from-model).", show_default=False),
+    epochs_yaw: Optional[int] = typer.Option(None, "--epochs-yaw", help="Epochs of the orientation-rate model (default: Table 5's 60; 100 with --from-model).", show_default=False),
+    from_model: Optional[str] = typer.Option(None, "--from-model",
+                                              help="Fine-tune this model (a model directory, or 'shipped'): its weights and normalisation are the start; "
+                                                   "learning rates / 2, cosine decay (README, 'Your own vehicle').", show_default=False),
     feedback_noise: float = typer.Option(0.1, "--feedback-noise", help="Std (m) of the white noise on the fed-back GNSS displacement in training."),
     residual: bool = typer.Option(True, "--residual/--no-residual", help="Kinematic skip terms (docs/method.md, 'The IDNN'); --no-residual is the paper's plain net."),
     lr_decay_tail: float = typer.Option(0.3, "--lr-decay-tail", help="Fraction of the training over which the learning rate falls linearly to 0 at the end (0 = constant, as in the paper)."),
@@ -54,9 +57,19 @@ def train(
     from .. import api
     from ..nav.idnn import ModelConfig
 
-    config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp,
-                         epochs_yaw=epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
-                         lr_decay_tail=lr_decay_tail, inputs=inputs, seed=seed)
+    if from_model is not None:
+        defaults = ModelConfig()
+        given = [option for option, value, default in (("--arch", arch, defaults.arch), ("--steps", steps, defaults.n_steps_disp),
+                                                       ("--steps-yaw", steps_yaw, defaults.n_steps_yaw), ("--inputs", inputs, defaults.inputs),
+                                                       ("--no-residual", residual, defaults.residual),
+                                                       ("--lr-decay-tail", lr_decay_tail, defaults.lr_decay_tail)) if value != default]
+        if given:
+            raise typer.BadParameter(f"{given[0]} with --from-model: a fine-tuned model keeps its parent's architecture and schedule", param_hint=given[0])
+        config = api.fine_tune_settings(from_model, epochs_disp, epochs_yaw, seed)
+    else:
+        config = ModelConfig(arch=arch, n_steps_disp=steps, n_steps_yaw=steps_yaw, epochs_disp=epochs_disp or ModelConfig.epochs_disp,
+                             epochs_yaw=epochs_yaw or ModelConfig.epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
+                             lr_decay_tail=lr_decay_tail, inputs=inputs, seed=seed)
     specs = api.training_drives(paper=True, data_root=read.data_root) if paper_train else (list(drives) if drives else None)
     with c.progress(quiet) as bar:
         tasks: dict[str, Any] = {}
@@ -69,11 +82,13 @@ def train(
             bar.update(tasks[label], completed=done)
 
         model = api.train(output, specs, config, bias_from=bias_from, read=read, force=force, progress=progress,
-                          command=training_command(sys.argv[1:]))
+                          command=training_command(sys.argv[1:]), from_model=from_model)
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
     print(f"trained {arch} on {len(model.metadata['training']['drives'])} drive(s), {model.metadata['training']['n_examples']} windows; "
           f"trainable parameters: displacement {params['displacement']}, orientation rate {params['yaw_rate']}", file=sys.stderr)
+    if "parent" in model.metadata:
+        print(f"fine-tuned from {model.metadata['parent']['directory']}", file=sys.stderr)
     print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate {val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
     print(output)
 

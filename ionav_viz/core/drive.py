@@ -2,7 +2,9 @@
 
 Conventions (every reader converts to these; nothing downstream converts again):
 
-* Time ``t_s``: seconds since the first sample of the drive, strictly increasing.
+* Time ``t_s``: seconds since the first sample of the drive, strictly increasing. A drive read with
+  a span (``--span``, :class:`~ionav_viz.sources.load.ReadOptions`) keeps the whole log's clock: its
+  ``t_s`` starts where the span does.
   ``start_time_of_day_s`` is the UTC time of day of that first sample.
 * Position ``lat_deg``/``lon_deg``: WGS84 decimal degrees, east and north positive.
 * ``heading_deg``: GNSS course over ground, degrees clockwise from true north, in [0, 360).

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
+
+import numpy as np
 
 from .errors import InputError
 
@@ -30,3 +33,56 @@ def parse_duration_s(text: str | float, what: str = "duration", allow_zero: bool
     if not math.isfinite(seconds) or seconds < 0 or (seconds == 0 and not allow_zero):
         raise InputError(f"{what} {text!r} must be a positive duration")
     return seconds
+
+
+@dataclass(frozen=True)
+class Span:
+    """A stretch of a drive on the drive's own time (s since its first sample): ``start_s`` to
+    ``end_s`` (None: to the end), both included. ``str(span)`` is how it is typed (``0s:330s``)."""
+
+    start_s: float = 0.0
+    end_s: float | None = None
+
+    def __post_init__(self) -> None:
+        for name, value in (("start", self.start_s), ("end", self.end_s)):
+            if value is None and name == "end":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise InputError(f"span {name} {value!r} is not a time of at least 0 s", SPAN_HINT, param="span")
+        if self.end_s is not None and self.end_s <= self.start_s:
+            raise InputError(f"span {self}: its end is not after its start", SPAN_HINT, param="span")
+
+    def __str__(self) -> str:
+        return f"{self.start_s:g}s:" + ("" if self.end_s is None else f"{self.end_s:g}s")
+
+    def contains(self, t_s: np.ndarray) -> np.ndarray:
+        """Which times lie in the span (both ends included, to 1 µs: a 10 Hz sample on an end is in)."""
+        t_s = np.asarray(t_s, dtype=np.float64)
+        inside = t_s >= self.start_s - 1e-6
+        return inside if self.end_s is None else inside & (t_s <= self.end_s + 1e-6)
+
+
+SPAN_HINT = "give START:END on the drive's own time, e.g. 0s:330s, 330s: or :5m"
+
+
+def parse_span(value: str | Span | tuple | None) -> Span | None:
+    """``'0s:330s'``, ``'330s:'``, ``':5m'``, a ``(start_s, end_s)`` pair or a :class:`Span` -> a
+    :class:`Span` (None stays None); anything else is an :class:`InputError` naming ``span``."""
+    if value is None or isinstance(value, Span):
+        return value
+    if isinstance(value, (tuple, list)) and len(value) == 2:
+        start, end = value
+        return Span(0.0 if start is None else start, end)
+    if not isinstance(value, str) or value.count(":") != 1:
+        raise InputError(f"span {value!r} is not START:END", SPAN_HINT, param="span")
+    start_text, end_text = (part.strip() for part in value.split(":"))
+
+    def seconds(text: str) -> float:
+        if text.strip().lower() in ("0", "0s", "0.0", "0ms"):
+            return 0.0
+        try:
+            return parse_duration_s(text, "span")
+        except InputError:
+            raise InputError(f"span {value!r}: {text!r} is not a time", SPAN_HINT, param="span") from None
+
+    return Span(seconds(start_text) if start_text else 0.0, seconds(end_text) if end_text else None)

@@ -55,12 +55,14 @@ from ..core.grid import GRID_STEP_S, WINDOW_S
 from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
+from .provenance import check_inputs, trained_outages
 from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
 
 ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
 INPUTS = ("plain", "calibrated")
+LR_SCHEDULES = ("tail", "cosine")
 FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 
@@ -84,6 +86,7 @@ class ModelConfig:
     lr_decay_tail: float = 0.3
     inputs: str = "calibrated"  # the ekf's calibration at the outage start (the shipped model's); "plain": the paper's standstill biases
     seed: int = 0
+    lr_schedule: str = "tail"  # "tail": constant, then linear to 0 over lr_decay_tail; "cosine": cosine to 0 throughout (fine-tuning)
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -108,6 +111,8 @@ class ModelConfig:
             raise InputError(f"dropout {self.dropout} out of range", "use a dropout in [0, 1)", param="dropout")
         if self.inputs not in INPUTS:
             raise InputError(f"unknown inputs {self.inputs!r}", f"choose one of {', '.join(INPUTS)}", param="inputs")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise InputError(f"unknown learning-rate schedule {self.lr_schedule!r}", f"choose one of {', '.join(LR_SCHEDULES)}", param="lr_schedule")
         if not isinstance(self.residual, bool):
             raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
 
@@ -378,9 +383,11 @@ class IdnnEstimator:
     label = "IDNN"
     color = (40, 110, 240)
 
-    def __init__(self, model: IdnnModel | str | Path | None = None) -> None:
+    def __init__(self, model: IdnnModel | str | Path | None = None, strict: bool = False) -> None:
         self._model = model if isinstance(model, IdnnModel) else None
         self._directory = Path(model) if isinstance(model, (str, Path)) else None
+        #: refuse (instead of warn) when an outage lies in data the model was trained on
+        self.strict = strict
 
     def available(self) -> bool:
         """A model was given, or the shipped one exists."""
@@ -400,6 +407,9 @@ class IdnnEstimator:
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         model, cal = self.model, None
+        label = f"the IDNN model {model.directory or '(in memory)'}"
+        check_inputs(model.metadata, inputs.drive, label)
+        self._check_leakage(model, inputs, label)
         if model.config.inputs == "calibrated":
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
@@ -407,6 +417,24 @@ class IdnnEstimator:
 
     def describe(self) -> dict[str, Any]:
         return self.model.describe()
+
+    def _check_leakage(self, model: IdnnModel, inputs: EstimatorInputs, label: str) -> None:
+        """Warn (refuse when ``strict``) when outages lie in data ``model`` was trained on, naming them."""
+        starts = np.asarray(inputs.starts, dtype=int)
+        if len(starts) == 0:
+            return
+        t0 = inputs.windows.t0_s[starts]
+        intervals = np.column_stack([t0 - WINDOW_S, t0 + inputs.n_windows * WINDOW_S])  # the window before feeds the first input
+        inside = trained_outages(model.metadata, inputs.drive, intervals)
+        if not inside:
+            return
+        listed = ", ".join(f"{t0[i]:g}-{t0[i] + inputs.n_windows * WINDOW_S:g} s" for i in inside[:20]) + (" ..." if len(inside) > 20 else "")
+        text = (f"{inputs.drive.name}: {len(inside)} of {len(starts)} outages lie in data {label} was trained on "
+                f"(same file by sha256, overlapping time): {listed}")
+        if self.strict:
+            raise InputError(text, "evaluate on drives or spans the model never saw (--span), or leave out --strict to score them anyway",
+                             param="strict")
+        log.warning("%s; their IDNN scores flatter the model", text)
 
 
 def default_model_dir() -> Path:

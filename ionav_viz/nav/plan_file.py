@@ -180,14 +180,13 @@ class FromPlan:
             raise InputError(f"{self.path}: the plan was made on another file than {source} (its checksum differs)",
                              f"give the drive the plan was made on ({plan.source})", param="plan")
         times = tuple(round(float(s - drive.stamp_s(0.0)), 6) for s in plan.start_stamps_s)
-        duration = drive.duration_s
+        begin, end = (float(drive.t_s[0]), float(drive.t_s[-1])) if len(drive) else (0.0, 0.0)  # a --span keeps the drive's clock
         for i, t in enumerate(times):
-            if t < -PLAN_TOLERANCE_S or t + plan.outage_s > duration + PLAN_TOLERANCE_S:
+            if t < begin - PLAN_TOLERANCE_S or t + plan.outage_s > end + PLAN_TOLERANCE_S:
                 from ..core.units import stamp_unit_hint
 
-                first = float(drive.stamp_s(0.0))
-                units = stamp_unit_hint(plan.start_stamps_s, first, first + duration)
+                units = stamp_unit_hint(plan.start_stamps_s, float(drive.stamp_s(begin)), float(drive.stamp_s(end)))
                 raise InputError(f"{self.path}: outage {i + 1}: field 'start_stamp_s' ({plan.start_stamps_s[i]!r} s) puts it at {t:.3f}-"
-                                 f"{t + plan.outage_s:.3f} s, outside the drive {drive.name} (0-{duration:.3f} s)",
+                                 f"{t + plan.outage_s:.3f} s, outside the drive {drive.name} ({begin:g}-{end:.3f} s)",
                                  units or "give the drive and reading options the plan was made with", param="plan")
         return Planned(times, f"{len(times)} {plan.outage_s:g} s outages from {Path(self.path).name} ({plan.placement})", str(self.path))

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.drive import Drive
+from ..core.durations import Span, parse_span
 from ..core.errors import InputError
 from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fault
 from ..core.timing import stage
@@ -30,14 +31,20 @@ class ReadOptions:
             convention, checked against the GNSS course), ``"cw"`` or ``"ccw"``.
         log: topics, stamps and IMU axes of message logs (MCAP, ROS bags).
         gnss_limits: thresholds of the GNSS quality checks that mark untrustworthy fixes.
+        span: only this stretch of each drive, on the drive's own time (``"0s:330s"``, ``"330s:"``,
+            a ``(start_s, end_s)`` pair or a :class:`~ionav_viz.core.durations.Span`; default the
+            whole drive): the samples outside it are dropped as the drive is read, so outages,
+            training windows, biases and filters see nothing else; times keep the drive's clock.
     """
 
     data_root: str | Path | None = None
     yaw_sign: str = "auto"
     log: LogOptions = field(default_factory=LogOptions)
     gnss_limits: GnssLimits = field(default_factory=GnssLimits)
+    span: Span | str | tuple | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "span", parse_span(self.span))  # checked, and one type, before any work
         if self.yaw_sign not in ("auto", "cw", "ccw"):
             raise InputError(f"yaw sign {self.yaw_sign!r} is not auto, cw or ccw", "choose auto, cw or ccw", param="yaw_sign")
         if self.log.stamps not in ("header", "log"):
@@ -143,16 +150,34 @@ def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mca
     Every source gets the same GNSS quality checks (``read.gnss_limits``, see
     :mod:`ionav_viz.core.gnss_quality`). ``mcap``: the earlier name of ``read.log``, deprecated.
     """
-    if isinstance(spec, Drive):
-        return spec
     read = with_deprecated_log(read, mcap)
+    if isinstance(spec, Drive):
+        return spec if read.span is None else crop_to_span(spec, read.span)
     with stage(f"read {spec}") as s:
         path = resolve_drive(str(spec), data_root(read.data_root))
         drive = read_source(path, read.yaw_sign, read.log)
         check_rate(drive, path)
-        mark_gnss_quality(drive, read.gnss_limits)
+        mark_gnss_quality(drive, read.gnss_limits)  # on the whole drive: a span's first fixes are judged as in the whole
+        if read.span is not None:
+            drive = crop_to_span(drive, read.span)
         s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
     return drive
+
+
+def crop_to_span(drive: Drive, span: Span) -> Drive:
+    """The samples of ``drive`` inside ``span`` (both ends included), on the drive's own clock: the
+    first kept sample's ``t_s`` stays what it was (a span of a span is the same span). Fewer than two
+    samples inside is an :class:`InputError` naming the drive and its length."""
+    keep = span.contains(drive.t_s)
+    if int(keep.sum()) < 2:
+        length = f"{drive.t_s[0]:g}-{drive.t_s[-1]:g} s" if len(drive) else "empty"
+        raise InputError(f"{drive.source or drive.name}: span {span} holds no samples of this drive ({length})",
+                         "give a span inside the drive's own time", param="span")
+    if keep.all():
+        return drive
+    return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()},
+                 gnss_fault=drive.gnss_fault[keep], receiver_fault=None if drive.receiver_fault is None else drive.receiver_fault[keep],
+                 start_stamp_s=drive.start_stamp_s)
 
 
 def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> ReadOptions:

@@ -1,0 +1,169 @@
+"""The IDNN on a vehicle's own data: fine-tune the shipped model on 5 minutes of one car, test on its other drives.
+
+Per simulated car (cars of the simulator's "held-out" fleet, whose sensor and vehicle errors lie
+outside every range of the shipped model's training drives, and one car beyond even those):
+
+* five fine-tuning drives, one per scenario (seeds ``SEED``-``SEED+4``), of which only the first
+  minute each is used (``--span 0s:60s``): 5 minutes in all, as
+  ``ionav-viz train DRIVES --span 0s:60s --from-model shipped -o MODEL``;
+* five test drives of the same car, one per scenario, other seeds, ``--minutes`` long each, never
+  seen in training (``ionav-viz evaluate DRIVES --model MODEL --outage 10s``, with ``--strict``:
+  the leakage check would refuse an outage in training data);
+
+and compares the displacement CRSE (mean over the tiled outages of the five test drives) of the
+INS DR, the shipped IDNN and the fine-tuned IDNN at 10 s and 30 s outages. The fine-tuning time is
+the wall time of training on this machine (``nice -n 10``, one torch thread).
+
+Run: ``nice -n 10 python benchmarks/own_vehicle.py``; ``--write docs/results-own-vehicle.md``
+writes the Markdown page instead of printing the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from results_table import command_line, machine, wrap, write_atomically
+
+import ionav_viz as iv
+from ionav_viz.dataset.catalog import SCENARIOS
+from ionav_viz.sim.simulate import fleet_sensors, write_simulated_drive
+
+
+def cars() -> list[tuple[str, object]]:
+    """(label, sensors) of each car tried."""
+    beyond = replace(fleet_sensors("held-out", 873), accel_offset_mps2=0.55, gyro_bias_dps=-1.0, gyro_scale_error=0.05,
+                     gyro_latency_s=0.2)
+    return [(f"held-out car {s}", fleet_sensors("held-out", s)) for s in (870, 871, 872)] + [("beyond held-out (car 873, errors x1.4)", beyond)]
+
+
+def crse(report_json: str) -> dict[str, float]:
+    summary = json.loads(report_json)["summary"]
+    return {name: stats["crse_m"]["mean"] for name, stats in summary.items() if isinstance(stats, dict) and "crse_m" in stats}
+
+
+def drift(report_json: str, name: str) -> dict[str, list[float]]:
+    """Position error against seconds since the outage began (mean, 10 and 90 %) of one estimator."""
+    return json.loads(report_json)["drift"][name]
+
+
+def measure(folder: Path, label: str, sensors: object, index: int, minutes: float) -> dict:
+    seed = 1000 + 100 * index
+    tune = [write_simulated_drive(folder / f"V-car{index}-tune-{sc}.csv", sc, seed + i, 120.0, sensors) for i, sc in enumerate(SCENARIOS)]
+    test = [write_simulated_drive(folder / f"V-car{index}-test-{sc}.csv", sc, seed + 50 + i, 60.0 * minutes, sensors)
+            for i, sc in enumerate(SCENARIOS)]
+    model = folder / f"model-car{index}"
+    start = time.perf_counter()
+    cpu0 = time.process_time()
+    iv.train(model, [str(p) for p in tune], read=iv.ReadOptions(span="0s:60s"), from_model="shipped", command="benchmarks/own_vehicle.py")
+    wall_s, cpu_s = time.perf_counter() - start, time.process_time() - cpu0
+    row = {"car": label, "tune_wall_s": wall_s, "tune_cpu_s": cpu_s}
+    for outage in (10, 30):
+        tuned_json = iv.evaluate([str(p) for p in test], outage, estimators=["ins", "idnn"], run=iv.RunOptions(model=str(model), strict=True)).to_json()
+        shipped_json = iv.evaluate([str(p) for p in test], outage, estimators=["idnn"], run=iv.RunOptions(strict=True)).to_json()
+        tuned, shipped = crse(tuned_json), crse(shipped_json)
+        row[outage] = {"ins": tuned["ins"], "shipped": shipped["idnn"], "tuned": tuned["idnn"]}
+        if outage == 30:
+            row["drift"] = {"ins": drift(tuned_json, "ins"), "shipped": drift(shipped_json, "idnn"), "tuned": drift(tuned_json, "idnn")}
+    return row
+
+
+def figure(rows: list[dict], path: Path) -> None:
+    """The 30 s drift curves (mean position error, 10-90 % band) of each car: INS DR, shipped and fine-tuned IDNN."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import pyplot as plt
+
+    fig, axes = plt.subplots(1, len(rows), figsize=(3.2 * len(rows), 3.0), sharey=True, constrained_layout=True)
+    styles = {"ins": ("INS DR", "0.45"), "shipped": ("shipped IDNN (before)", "tab:orange"), "tuned": ("fine-tuned IDNN (after)", "tab:blue")}
+    for ax, row in zip(axes, rows):
+        for key, (label, color) in styles.items():
+            d = row["drift"][key]
+            ax.plot(d["t_s"], d["mean_m"], color=color, label=label)
+            ax.fill_between(d["t_s"], d["p10_m"], d["p90_m"], color=color, alpha=0.15, linewidth=0)
+        ax.set_title(row["car"], fontsize=8)
+        ax.set_xlabel("s since the outage began")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("position error (m)")
+    axes[0].legend(fontsize=7, loc="upper left")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def gain(base: float, new: float) -> float:
+    return 100.0 * (base - new) / base
+
+
+def table(rows: list[dict]) -> list[str]:
+    out = ["| Car | Outage | INS DR (m) | shipped IDNN (m) | fine-tuned IDNN (m) | fine-tuned vs INS DR | fine-tuned vs shipped | "
+           "shipped vs INS DR | fine-tuning time |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in rows:
+        for outage in (10, 30):
+            c = row[outage]
+            out.append(f"| {row['car']} | {outage} s | {c['ins']:.2f} | {c['shipped']:.2f} | {c['tuned']:.2f} | {gain(c['ins'], c['tuned']):+.0f} % | "
+                       f"{gain(c['shipped'], c['tuned']):+.0f} % | {gain(c['ins'], c['shipped']):+.0f} % | {row['tune_wall_s']:.0f} s |")
+    for outage in (10, 30):
+        mean = sum(gain(r[outage]["ins"], r[outage]["tuned"]) for r in rows) / len(rows)
+        mean_shipped = sum(gain(r[outage]["ins"], r[outage]["shipped"]) for r in rows) / len(rows)
+        out.append(f"| **mean of the cars' gains** | {outage} s | | | | **{mean:+.0f} %** | | {mean_shipped:+.0f} % | |")
+    return out
+
+
+def page(rows: list[dict], minutes: float) -> str:
+    day = datetime.datetime.now(datetime.UTC).date().isoformat()
+    return wrap("\n".join([
+        "# The IDNN on your own vehicle",
+        "",
+        f"Written by `{command_line()}` on a {machine()} machine ({day}, ionav-viz {iv.__version__}), "
+        "one torch thread at `nice -n 10`; do not edit by hand, run the command again.",
+        "",
+        "Each car is simulated with sensor and vehicle errors outside every range of the shipped model's "
+        "training drives (the simulator's held-out fleet, and one car beyond it). The shipped model is "
+        "fine-tuned on 5 minutes of the car (the first minute of one drive per scenario: "
+        "`ionav-viz train DRIVES --span 0s:60s --from-model shipped -o MODEL`), then tested on five other "
+        f"drives of the same car ({minutes:g} minutes each, one per scenario, never seen in training; "
+        "`ionav-viz evaluate DRIVES --model MODEL --outage 10s --strict`). Cells: displacement CRSE, mean "
+        "over the tiled outages of the five test drives; gains: how much lower (positive = better).",
+        "",
+        "\n".join(table(rows)),
+        "",
+        "Fine-tuning time: wall time of `train --from-model shipped` on the 5 minutes (calibrating "
+        "inputs with the GNSS-aided INS, then 100 epochs of each network).",
+        "",
+        "Position error against seconds since the outage began, 30 s outages of the test drives (mean, "
+        "10-90 % band), before (shipped model) and after fine-tuning:",
+        "",
+        "![drift before and after fine-tuning](figure-own-vehicle.png)",
+    ]))
+
+
+def main() -> None:
+    import torch
+
+    torch.set_num_threads(1)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=5.0, help="length of each test drive")
+    parser.add_argument("--write", type=Path, help="write the Markdown page here instead of printing the table")
+    args = parser.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="own-vehicle-") as tmp:
+        for index, (label, sensors) in enumerate(cars()):
+            rows.append(measure(Path(tmp), label, sensors, index, args.minutes))
+            print("\n".join(table(rows[-1:])[2:4]), flush=True)
+    if args.write:
+        figure(rows, args.write.parent / "figure-own-vehicle.png")
+        write_atomically(args.write, page(rows, args.minutes))
+        print(args.write)
+    else:
+        print("\n".join(table(rows)))
+
+
+if __name__ == "__main__":
+    main()

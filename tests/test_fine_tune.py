@@ -1,0 +1,80 @@
+"""train --from-model: fine-tuning, what the model records, and the checks that use it (input match, leakage)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import pytest
+
+from tests.conftest import REPO, run_cli
+
+pytestmark = pytest.mark.xdist_group("fine_tune")
+
+DRIVE = REPO / "ionav_viz" / "data" / "samples" / "V-sim-roundabout.csv"
+
+
+def _error_lines(stderr: str) -> list[str]:
+    """The error lines (warnings may come before); exactly one, and no traceback."""
+    assert "Traceback" not in stderr
+    lines = [line for line in stderr.splitlines() if line.startswith("error:")]
+    assert len(lines) == 1 and stderr.endswith(lines[0] + "\n")
+    return lines
+
+
+@pytest.fixture(scope="module")
+def tuned(tmp_path_factory):
+    model = tmp_path_factory.mktemp("tuned") / "model"
+    proc = run_cli("train", str(DRIVE), "--span", "0s:120s", "--from-model", "shipped", "--epochs-disp", "1", "--epochs-yaw", "1",
+                   "-q", "-o", str(model))
+    assert proc.returncode == 0, proc.stderr
+    assert "fine-tuned from shipped" in proc.stderr
+    return model
+
+
+def test_fine_tuned_model_records_parent_span_checksum_and_imu(tuned):
+    from ionav_viz.nav.idnn import default_model_dir
+
+    meta = json.loads((tuned / "metadata.json").read_text())
+    shipped = json.loads((default_model_dir() / "metadata.json").read_text())
+    record = meta["training"]["drives"][0]
+    assert record["sha256"] == hashlib.sha256(DRIVE.read_bytes()).hexdigest() and record["size_bytes"] == DRIVE.stat().st_size
+    assert record["span_s"] == pytest.approx([0.0, 120.0], abs=0.01)  # the first and last sample inside (1 ms clock jitter)
+    assert meta["input"] == {"channels": ["accel_long_mps2", "yaw_rate_radps"], "grid_rate_hz": 10.0, "imu_kind": "2-channel", "imu_rate_hz": 10.0}
+    assert meta["parent"]["directory"] == "shipped" and meta["parent"]["weights_sha256"] == shipped["weights_sha256"]
+    assert meta["normalisation"] == shipped["normalisation"]  # the parent's input normalisation is kept
+    assert meta["config"]["lr_schedule"] == "cosine" and meta["config"]["lr_disp"] == shipped["config"]["lr_disp"] / 2
+
+
+def test_outages_in_training_data_are_listed_and_refused_with_strict(tuned):
+    proc = run_cli("evaluate", str(DRIVE), "--span", "0s:200s", "--model", str(tuned), "--estimators", "ins,idnn", "--json")
+    assert proc.returncode == 0, proc.stderr
+    warned = [w for w in json.loads(proc.stdout)["warnings"] if "was trained on" in w]
+    # outages 1-11 .. 111-121 s touch the trained 0-120 s (the window before each included); 121-131 s does not
+    assert len(warned) == 1 and "12 of 19 outages" in warned[0] and "111-121 s" in warned[0] and "121-131 s" not in warned[0]
+    held_out = run_cli("evaluate", str(DRIVE), "--span", "120s:", "--model", str(tuned), "--estimators", "ins,idnn", "--strict")
+    assert held_out.returncode == 0 and "was trained on" not in held_out.stderr
+    strict = run_cli("evaluate", str(DRIVE), "--span", "0s:200s", "--model", str(tuned), "--estimators", "ins,idnn", "--strict")
+    assert strict.returncode == 2 and _error_lines(strict.stderr)[0].startswith("error: --strict:")
+
+
+def test_a_model_of_another_imu_rate_is_refused_in_one_line(tuned, tmp_path):
+    import shutil
+
+    other = tmp_path / "other"
+    shutil.copytree(tuned, other)
+    meta = json.loads((other / "metadata.json").read_text())
+    meta["input"]["imu_rate_hz"] = 100.0
+    (other / "metadata.json").write_text(json.dumps(meta))
+    proc = run_cli("evaluate", str(DRIVE), "--span", "120s:", "--model", str(other), "--estimators", "ins,idnn")
+    (error,) = _error_lines(proc.stderr)
+    assert proc.returncode == 2 and "samples at 10 Hz" in error and "100 Hz" in error
+    again = run_cli("train", str(DRIVE), "--from-model", str(other), "--epochs-disp", "1", "--epochs-yaw", "1", "-q", "-o", str(tmp_path / "m"))
+    assert again.returncode == 2 and "100 Hz" in again.stderr and "Traceback" not in again.stderr
+
+
+@pytest.mark.parametrize(("args", "words"), [(["--from-model", "no/such/model"], "--from-model"),
+                                              (["--from-model", "shipped", "--arch", "lstm"], "--arch with --from-model")])
+def test_bad_fine_tuning_options_are_one_line(tmp_path, args, words):
+    proc = run_cli("train", str(DRIVE), "--span", "0s:60s", *args, "-q", "-o", str(tmp_path / "m"))
+    assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr

@@ -1,0 +1,76 @@
+"""--span START:END: one stretch of each drive, on its own clock, for evaluate, replay, train and the API."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.conftest import run_cli
+
+
+def _starts(args: list[str]) -> list[float]:
+    proc = run_cli("evaluate", "roundabout", "--estimators", "ins", "--json", *args)
+    assert proc.returncode == 0, proc.stderr
+    return [s["start_s"] for s in json.loads(proc.stdout)["sequences"]]
+
+
+def test_outages_stay_inside_the_span_at_both_edges():
+    # window 30-31 s only feeds the IDNN's first input: the first outage starts at 31 s
+    assert _starts(["--span", "30s:95s"]) == [31.0, 41.0, 51.0, 61.0, 71.0, 81.0]  # 91-101 would cross 95 s: not placed
+    assert _starts(["--span", "30s:101s"])[-1] == 91.0  # ends exactly on the span's end: placed
+    assert min(_starts(["--span", "580s:"])) >= 581.0
+
+
+def test_span_in_the_api_is_the_same_value():
+    import ionav_viz as iv
+    from ionav_viz.sources.load import ReadOptions
+
+    report = iv.evaluate("roundabout", 10, estimators=["ins"], read=ReadOptions(span="30s:95s"))
+    assert [s["start_s"] for s in json.loads(report.to_json())["sequences"]] == _starts(["--span", "30s:95s"])
+    assert ReadOptions(span=(30.0, 95.0)).span == ReadOptions(span="30s:95s").span
+
+
+def test_training_windows_lie_inside_the_span():
+    from ionav_viz.nav.windows import make_windows
+    from ionav_viz.sources.load import ReadOptions, load_drive
+
+    drive = load_drive("roundabout", ReadOptions(span="30s:95s"))
+    again = load_drive(drive, ReadOptions(span="30s:95s"))  # a span of a span is the same span
+    assert drive.t_s[0] == pytest.approx(30.0) and drive.t_s[-1] == pytest.approx(95.0) and len(again) == len(drive)
+    for phase in range(10):
+        w = make_windows(drive, offset_s=phase / 10)
+        assert w.t0_s.min() >= 30.0 - 1e-9 and w.t0_s.max() + 1.0 <= 95.0 + 1e-9
+
+
+def test_replay_takes_the_span(tmp_path):
+    proc = run_cli("replay", "roundabout", "--span", "30s:95s", "--estimators", "ins", "-o", str(tmp_path / "r.rrd"))
+    assert proc.returncode == 0, proc.stderr
+    assert "81-91" in proc.stderr and "91-101" not in proc.stderr  # the worst outages, on the drive's own clock
+
+
+@pytest.mark.parametrize(("span", "words"), [("5s:3s", "end is not after its start"), ("5x:", "'5x' is not a time"),
+                                              ("30s", "is not START:END"), ("5000s:", "holds no samples")])
+def test_a_bad_span_is_one_line_naming_the_option(span, words):
+    proc = run_cli("evaluate", "roundabout", "--estimators", "ins", "--span", span)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: --span:") and words in proc.stderr and proc.stderr.count("\n") == 1
+    assert "Traceback" not in proc.stderr
+
+
+def test_span_contains_both_ends():
+    from ionav_viz.core.durations import parse_span
+
+    span = parse_span("0s:330s")
+    assert span.contains(np.array([0.0, 330.0, 330.1])).tolist() == [True, True, False]
+    assert str(parse_span("330s:")) == "330s:" and parse_span(":5m").end_s == 300.0
+
+
+def test_a_plan_made_on_a_span_is_read_on_the_same_span(tmp_path):
+    proc = run_cli("outage-log", "roundabout", "--span", "30s:95s", "-o", str(tmp_path / "o.mcap"))
+    assert proc.returncode == 0, proc.stderr
+    plan = str(tmp_path / "o.outages.json")
+    assert _starts(["--span", "30s:95s", "--plan", plan]) == _starts(["--span", "30s:95s"])
+    elsewhere = run_cli("evaluate", "roundabout", "--span", "100s:200s", "--plan", plan, "--estimators", "ins")
+    assert elsewhere.returncode == 2 and "outside the drive V-sim-roundabout (100" in elsewhere.stderr
