@@ -177,7 +177,7 @@ def crop_to_span(drive: Drive, span: Span) -> Drive:
         return drive
     return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()},
                  gnss_fault=drive.gnss_fault[keep], receiver_fault=None if drive.receiver_fault is None else drive.receiver_fault[keep],
-                 start_stamp_s=drive.start_stamp_s)
+                 start_stamp_s=drive.start_stamp_s, imu=drive.imu)
 
 
 def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> ReadOptions:
