@@ -47,7 +47,7 @@ def test_fine_tuned_model_records_parent_span_checksum_and_imu(tuned):
 
 
 def test_outages_in_training_data_are_listed_and_refused_with_strict(tuned):
-    proc = run_cli("evaluate", str(DRIVE), "--span", "0s:200s", "--model", str(tuned), "--estimators", "ins,idnn", "--json")
+    proc = run_cli("evaluate", str(DRIVE), "--span", "0s:200s", "--warm-up", "0s", "--model", str(tuned), "--estimators", "ins,idnn", "--json")
     assert proc.returncode == 0, proc.stderr
     warned = [w for w in json.loads(proc.stdout)["warnings"] if "was trained on" in w]
     # outages 1-11 .. 111-121 s touch the trained 0-120 s (the window before each included); 121-131 s does not

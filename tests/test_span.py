@@ -17,18 +17,20 @@ def _starts(args: list[str]) -> list[float]:
 
 
 def test_outages_stay_inside_the_span_at_both_edges():
-    # window 30-31 s only feeds the IDNN's first input: the first outage starts at 31 s
-    assert _starts(["--span", "30s:95s"]) == [31.0, 41.0, 51.0, 61.0, 71.0, 81.0]  # 91-101 would cross 95 s: not placed
-    assert _starts(["--span", "30s:101s"])[-1] == 91.0  # ends exactly on the span's end: placed
-    assert min(_starts(["--span", "580s:"])) >= 581.0
+    # without a warm-up, window 30-31 s only feeds the IDNN's first input: the first outage starts at 31 s
+    assert _starts(["--span", "30s:95s", "--warm-up", "0s"]) == [31.0, 41.0, 51.0, 61.0, 71.0, 81.0]  # 91-101 would cross 95 s: not placed
+    assert _starts(["--span", "30s:101s", "--warm-up", "0s"])[-1] == 91.0  # ends exactly on the span's end: placed
+    assert min(_starts(["--span", "580s:", "--warm-up", "0s"])) >= 581.0
+    # the warm-up counts from the span's start: the filters have had the span's first 30 s
+    assert _starts(["--span", "30s:95s"]) == [60.0, 70.0, 80.0]
 
 
 def test_span_in_the_api_is_the_same_value():
     import ionav_viz as iv
     from ionav_viz.sources.load import ReadOptions
 
-    report = iv.evaluate("roundabout", 10, estimators=["ins"], read=ReadOptions(span="30s:95s"))
-    assert [s["start_s"] for s in json.loads(report.to_json())["sequences"]] == _starts(["--span", "30s:95s"])
+    report = iv.evaluate("roundabout", 10, estimators=["ins"], read=ReadOptions(span="30s:95s"), run=iv.RunOptions(warm_up_s=0.0))
+    assert [s["start_s"] for s in json.loads(report.to_json())["sequences"]] == _starts(["--span", "30s:95s", "--warm-up", "0s"])
     assert ReadOptions(span=(30.0, 95.0)).span == ReadOptions(span="30s:95s").span
 
 
@@ -45,7 +47,7 @@ def test_training_windows_lie_inside_the_span():
 
 
 def test_replay_takes_the_span(tmp_path):
-    proc = run_cli("replay", "roundabout", "--span", "30s:95s", "--estimators", "ins", "-o", str(tmp_path / "r.rrd"))
+    proc = run_cli("replay", "roundabout", "--span", "30s:95s", "--warm-up", "0s", "--estimators", "ins", "-o", str(tmp_path / "r.rrd"))
     assert proc.returncode == 0, proc.stderr
     assert "81-91" in proc.stderr and "91-101" not in proc.stderr  # the worst outages, on the drive's own clock
 

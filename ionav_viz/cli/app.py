@@ -75,7 +75,9 @@ OPTION_OF: Mapping[str, str] = MappingProxyType({
     "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
     "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs", "outage_s": "--outage", "placement": "--on",
     "outages": "--outage", "worst_of": "--worst-of", "gnss_velocity_topic": "--gnss-velocity-topic",
-    "vehicle_speed_topic": "--vehicle-speed-topic", "imu_mount": "--imu-mount", "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan", "external": "--external", "export": "--export",
+    "vehicle_speed_topic": "--vehicle-speed-topic", "imu_mount": "--imu-mount",
+    "imu_time_offset": "--imu-time-offset", "imu_samples": "--imu-samples", "warm_up": "--warm-up",
+    "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan", "external": "--external", "export": "--export",
     "imu_topic": "--imu-topic", "gnss_topic": "--gnss-topic", "connect": "--connect",
     "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict",
 })

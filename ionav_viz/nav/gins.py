@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from ..core.drive import Drive, measured_imu
+from ..core.errors import InputError
 from ..core.geo import enu_of_geodetic, geodetic_of_enu
 from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
@@ -187,6 +188,10 @@ class GinsRun:
     log: UpdateLog
 
 
+#: ``GinsEstimator(mechanisation=...)``: from the IMU's samples, the full 3D strapdown, or roll and pitch held.
+MECHANISATIONS = ("auto", "3d", "reduced")
+
+
 class GinsEstimator:
     """The 3D GNSS/INS (see the module docstring)."""
 
@@ -201,6 +206,9 @@ class GinsEstimator:
         force with the constraints) or ``"auto"``: reduced where the drive's IMU samples are single
         readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`)."""
         self.noise = noise or GinsNoise()
+        if mechanisation not in MECHANISATIONS:
+            raise InputError(f"gins mechanisation {mechanisation!r} is not one of {', '.join(MECHANISATIONS)}",
+                             "choose auto (from the IMU's samples), 3d or reduced", param="mechanisation")
         self.nhc, self.zupt, self.odometer = nhc, zupt, odometer
         self.mechanisation = mechanisation
         self._last: dict[str, Any] = {}

@@ -107,6 +107,10 @@ class ImuGrade:
     holder_wobble_hz: float = 8.0
     #: the IMU's stamps minus the receiver's for one instant (s; positive: the IMU is stamped late)
     clock_offset_s: float = 0.0
+    #: a loose holder: the sensor tilts on it by this much per m/s^2 of horizontal specific force
+    #: (deg; pitch with the forward, roll with the lateral), settling with ``holder_flex_tau_s``
+    holder_flex_deg_per_mps2: float = 0.0
+    holder_flex_tau_s: float = 0.3
 
 
 IMU_GRADES = {
@@ -122,7 +126,7 @@ IMU_GRADES = {
                       bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0, gnss_wander_m=2.5, gnss_tau_s=60.0,
                       gnss_white_m=0.5, gnss_reported_sigma_m=8.0, gnss_speed_noise_mps=0.3, clock_jitter_s=0.005,
                       missing_sample_prob=0.01, vehicle_speed=False, single_readings=True, holder_wobble_dps=1.6, holder_wobble_hz=8.0,
-                      clock_offset_s=0.04),
+                      clock_offset_s=0.04, holder_flex_deg_per_mps2=0.4),
 }
 #: Where the simulated logs carry the reference truth (a NavSatFix, read with ``--truth-topic``).
 SIM_TRUTH_TOPIC = TRUTH_TOPIC
@@ -214,6 +218,34 @@ def vibration(rng: np.random.Generator, t_s: np.ndarray, sigma: np.ndarray) -> n
     return rate
 
 
+def flexed_holder(t_s: np.ndarray, f_b: np.ndarray, w_b: np.ndarray, mount: np.ndarray, deg_per_mps2: float,
+                  tau_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The sensor's specific force and rate (its axes) on a holder that tilts with the car's
+    horizontal specific force ``f_b`` (body frame, m/s^2): pitch ``deg_per_mps2`` per m/s^2 forward,
+    roll the same per m/s^2 lateral, each settling with time constant ``tau_s`` (a spring and a
+    damper). The tilt turns the mount (``body = mount @ flex @ sensor``) and its rate adds to the
+    body's (the sensor turns with the holder)."""
+    k = math.radians(deg_per_mps2)
+    target = np.column_stack([-k * f_b[:, 1], k * f_b[:, 0]])  # roll, pitch (nose-down positive) towards what the force pushes
+    tilt = np.zeros_like(target)
+    dt = np.diff(t_s, prepend=t_s[0])
+    alpha = 1.0 - np.exp(-dt / tau_s)
+    for i in range(1, len(t_s)):  # first order: tilt follows the target
+        tilt[i] = tilt[i - 1] + alpha[i] * (target[i] - tilt[i - 1])
+    roll, pitch = tilt[:, 0], tilt[:, 1]
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    # flex = Ry(pitch) @ Rx(roll), per sample; body = mount @ flex @ sensor, so sensor = flex^T mount^T body
+    flex = np.zeros((len(t_s), 3, 3))
+    flex[:, 0, 0], flex[:, 0, 1], flex[:, 0, 2] = cp, sp * sr, sp * cr
+    flex[:, 1, 1], flex[:, 1, 2] = cr, -sr
+    flex[:, 2, 0], flex[:, 2, 1], flex[:, 2, 2] = -sp, cp * sr, cp * cr
+    rate = np.column_stack([np.gradient(roll, t_s), np.gradient(pitch, t_s), np.zeros(len(t_s))])  # small angles: about the holder's x, y
+    f_m, w_m = f_b @ mount, w_b @ mount  # in the unflexed sensor axes
+    f_s = np.einsum("nji,nj->ni", flex, f_m)
+    w_s = np.einsum("nji,nj->ni", flex, w_m) + rate
+    return f_s, w_s
+
+
 #: The wobble is drawn on this fine a time line (Hz) and read at the sample times: instantaneous.
 WOBBLE_RATE_HZ = 400.0
 
@@ -282,7 +314,11 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
         """What the IMU stamped ``t`` sensed: at ``t - clock_offset_s`` on the receiver's time line."""
         return np.column_stack([np.interp(t - g.clock_offset_s, m.t_s, x[:, k]) for k in range(x.shape[1])])
 
-    f_s, w_s = sensed(m.specific_force_mps2) @ mount, sensed(m.angular_rate_radps) @ mount  # sensor = mount^T body
+    f_b, w_b = sensed(m.specific_force_mps2), sensed(m.angular_rate_radps)
+    if g.holder_flex_deg_per_mps2 > 0:  # a loose holder: the mount tilts with the car's accelerations
+        f_s, w_s = flexed_holder(t, f_b, w_b, mount, g.holder_flex_deg_per_mps2, g.holder_flex_tau_s)
+    else:
+        f_s, w_s = f_b @ mount, w_b @ mount  # sensor = mount^T body
     dt_mean = 1.0 / g.imu_rate_hz
 
     def wander(instability: float) -> np.ndarray:

@@ -1,0 +1,139 @@
+"""Measure what a log's IMU is, the same way on real and simulated logs (issue 41: the simulator
+must predict real consumer IMUs). Give your local copies of the logs; nothing is downloaded.
+
+Per log: the IMU's native rate and what the reader makes of its samples, the gyro's and the
+accelerometer's noise standing and driving (successive-sample spread, as SENSORS.md's table), the
+gyro's Allan deviation at 1 s standing (where 20 s of standstill allow it), the holder's wobble
+(pitch and roll rates' spread while driving), the gyro's vertical scale against the GNSS course,
+the clock offset against the receiver and the mount::
+
+    python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--json OUT]
+    python benchmarks/imu_character.py --simulated 300   # the simulator's phone and mems grades, 5 min each
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import ionav_viz as iv
+from ionav_viz.nav.stillness import drive_still
+from ionav_viz.sources.imu.clock import estimate_clock_offset
+
+
+def _spread(d: np.ndarray) -> float:
+    """Robust 1-sigma per sample of successive differences ``d``: 1.4826 MAD / sqrt(2)."""
+    if len(d) < 10:
+        return math.nan
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def allan_1s(x: np.ndarray, rate_hz: float) -> float:
+    """The Allan deviation at 1 s of samples ``x`` (one stretch)."""
+    n = int(round(rate_hz))
+    m = len(x) // n
+    if m < 10:
+        return math.nan
+    means = x[: m * n].reshape(m, n).mean(axis=1)
+    return float(math.sqrt(0.5 * np.mean(np.diff(means) ** 2)))
+
+
+def gyro_course_scale(drive, window_s: float = 10.0) -> float:
+    """The gyro's vertical scale against the GNSS course: over 10 s stretches at speed, the turn the
+    gyro integrates against the course's change, fitted through the origin on the stretches that
+    turn (integrals over seconds: the course's noise hardly counts, where a rate's would bias it)."""
+    t, speed = drive.t_s, drive.speed_mps
+    course = np.unwrap(np.deg2rad(drive.heading_deg))
+    turn = np.concatenate([[0.0], np.cumsum(0.5 * (drive.columns["gyro_z_radps"][1:] + drive.columns["gyro_z_radps"][:-1]) * np.diff(t))])
+    edges = np.arange(t[0], t[-1] - window_s, window_s)
+    i0, i1 = np.searchsorted(t, edges), np.searchsorted(t, edges + window_s)
+    fast = np.array([speed[a:b].min() > 5.0 if b > a else False for a, b in zip(i0, i1)])
+    g, c = (turn[i1] - turn[i0])[fast], -(course[i1] - course[i0])[fast]  # course is clockwise
+    use = np.abs(c) > np.deg2rad(20.0)
+    if use.sum() < 3:
+        return math.nan
+    return float((g[use] * c[use]).sum() / (c[use] * c[use]).sum())
+
+
+def measure(drive) -> dict:
+    imu = drive.imu
+    still = drive_still(drive)
+    both = still[1:] & still[:-1]
+    moving = (drive.speed_mps[1:] > 3.0) & (drive.speed_mps[:-1] > 3.0)
+    gz, ax = drive.columns["gyro_z_radps"], drive.columns["accel_x_mps2"]
+    out = {
+        "log": drive.name,
+        "native_rate_hz": imu.native_rate_hz if imu else drive.rate_hz,
+        "samples": (f"averaged ({imu.readings_per_sample:.0f} per sample)" if imu.sample_kind_source == "reader"
+                    else f"{imu.sample_kind} ({imu.sample_kind_source})") if imu else "?",
+        "duration_s": round(drive.duration_s, 1),
+        "standing_s": round(float(still.sum()) / drive.rate_hz, 1),
+        "gyro_standing_dps": math.degrees(_spread(np.diff(gz)[both])),
+        "gyro_driving_dps": math.degrees(_spread(np.diff(gz)[moving])),
+        "accel_standing_mps2": _spread(np.diff(ax)[both]),
+        "accel_driving_mps2": _spread(np.diff(ax)[moving]),
+        "wobble_dps": imu.wobble_dps if imu else math.nan,
+        "gyro_course_scale": gyro_course_scale(drive),
+    }
+    # Allan deviation at 1 s over the longest standing stretch
+    edges = np.diff(np.concatenate([[0], still.astype(int), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if len(starts):
+        i = int(np.argmax(ends - starts))
+        out["gyro_allan_1s_dps"] = math.degrees(allan_1s(gz[starts[i]:ends[i]], drive.rate_hz))
+    clock = estimate_clock_offset(drive.t_s, gz, drive.speed_mps, drive.heading_deg)
+    out["clock_offset_s"] = round(clock.offset_s, 3) if clock.resolved else None
+    out["clock_note"] = f"{clock.offset_s:+.3f} ± {clock.sigma_s:.3f} s" if clock.resolved else clock.reason
+    out["mount_deg"] = imu.mount_deg if imu else None
+    return out
+
+
+def row(m: dict) -> str:
+    def f(key: str, fmt: str = "{:.2f}") -> str:
+        v = m.get(key)
+        return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt.format(v)
+    return (f"| {m['log']} | {f('native_rate_hz', '{:g}')} Hz, {m['samples']} | {f('duration_s', '{:.0f}')} s ({f('standing_s', '{:.0f}')} s standing) | "
+            f"{f('gyro_standing_dps')} / {f('gyro_driving_dps')} | {f('accel_standing_mps2')} / {f('accel_driving_mps2')} | "
+            f"{f('gyro_allan_1s_dps', '{:.3f}')} | {f('wobble_dps', '{:.1f}')} | {f('gyro_course_scale', '{:.3f}')} | {m['clock_note']} |")
+
+
+HEADER = ("| log | IMU | length | gyro noise standing / driving (deg/s per sample) | accel noise standing / driving (m/s² per sample) | "
+          "gyro Allan dev. at 1 s standing (deg/s) | holder wobble (deg/s) | gyro z / GNSS course rate | clock offset |\n"
+          "|---|---|---|---|---|---|---|---|---|")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("logs", nargs="*", type=Path)
+    parser.add_argument("--truth-topic")
+    parser.add_argument("--gnss-topic")
+    parser.add_argument("--simulated", type=float, metavar="SECONDS", help="also measure the simulator's phone and mems logs of this length")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    print(HEADER)
+    results = []
+    read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", truth_topic=args.truth_topic, gnss_topic=args.gnss_topic, vehicle_speed_topic="none"))
+    drives = [iv.load_drive(str(p), read) for p in args.logs]
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.simulated:
+            from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
+
+            sim_read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none"))
+            for grade, scenario, seed in (("phone", "roundabout", 900), ("phone", "sharp-cornering", 901), ("mems", "roundabout", 910)):
+                path = write_imu_log(Path(tmp) / f"sim-{grade}-{scenario}.mcap", scenario, seed, args.simulated, grade)
+                drives.append(iv.load_drive(str(path), sim_read))
+        for drive in drives:
+            m = measure(drive)
+            results.append(m)
+            print(row(m), flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()
