@@ -1,0 +1,177 @@
+"""Where the work over many drives runs: in this process, in a pool of local processes, or on a
+Dask cluster, behind one function, :func:`run_each`.
+
+The seam is deliberately small: ``fn(item)`` maps one picklable item (a drive's name and the run's
+options) to a small picklable result (a drive's per-outage table, never the drive), and
+:func:`run_each` yields ``(index, result)`` as each finishes. The caller orders the results by
+index, so what it builds does not depend on the back-end or on the number of workers. Another
+back-end (Ray) is one more branch here; nothing in the analysis changes.
+
+A worker process that dies (killed, out of memory) loses the items it was running and the pool:
+those items are run again, once, each alone in a fresh process; an item whose process dies again
+comes back as a :class:`WorkerLost`. On Dask the scheduler does the same (``allowed-failures``,
+set to 1 for a ``local`` cluster) and a ``KilledWorker`` comes back as a :class:`WorkerLost`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..core.errors import InputError
+
+#: ``--cluster local``: a Dask ``LocalCluster`` on this machine, one single-threaded worker per process.
+LOCAL_CLUSTER = "local"
+
+
+@dataclass(frozen=True)
+class WorkerLost:
+    """An item whose worker process died twice (or that Dask gave up on): why, in one line."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Engine:
+    """How work is spread: ``workers`` processes on this machine (1: in this process), or a Dask
+    scheduler's address (``tcp://host:8786``) or ``"local"`` for a ``LocalCluster`` of ``workers``."""
+
+    workers: int = 1
+    cluster: str | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise InputError(f"{self.workers!r} workers: give a whole number of 1 or more", "e.g. --workers 2", param="workers")
+        if self.cluster is not None and not str(self.cluster).strip():
+            raise InputError("an empty cluster address", "give tcp://HOST:8786 or local", param="cluster")
+
+    @property
+    def backend(self) -> str:
+        """``serial``, ``processes`` or ``dask``."""
+        if self.cluster is not None:
+            return "dask"
+        return "serial" if self.workers == 1 else "processes"
+
+    def describe(self) -> str:
+        """One line for reports: ``4 processes``, ``in this process``, ``Dask at tcp://...``."""
+        if self.backend == "dask":
+            return f"Dask ({'a local cluster of ' + str(self.workers) + ' workers' if self.cluster == LOCAL_CLUSTER else self.cluster})"
+        return "in this process" if self.backend == "serial" else f"{self.workers} processes"
+
+
+def default_workers() -> int:
+    """Every core this process may use (``os.sched_getaffinity`` where there is one)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # macOS, Windows
+        return max(os.cpu_count() or 1, 1)
+
+
+def run_each(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Iterator[tuple[int, Any]]:
+    """``(index, fn(items[index]))`` for every item, in the order they finish (a
+    :class:`WorkerLost` instead of a result where the worker died twice). ``fn`` must be a
+    module-level function and items and results picklable for every back-end but ``serial``.
+    Closing the iterator early (``--fail-fast``) cancels what has not started."""
+    if not items:
+        return iter(())
+    if engine.backend == "serial":
+        return ((i, fn(item)) for i, item in enumerate(items))
+    if engine.backend == "processes":
+        return _processes(fn, items, min(engine.workers, len(items)))
+    return _dask(fn, items, engine)
+
+
+def _worker_start() -> None:
+    """In each worker process, before any work: one thread per library (the pool is the
+    parallelism; N workers x N threads would only fight over the cores)."""
+    for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
+
+
+def _context():
+    """Spawned workers: torch and numba start threads, and a fork after threads can deadlock."""
+    import multiprocessing
+
+    return multiprocessing.get_context("spawn")
+
+
+def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[tuple[int, Any]]:
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    lost: list[int] = []
+    pool = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_worker_start)
+    try:
+        futures = {pool.submit(fn, item): i for i, item in enumerate(items)}
+        for fut in as_completed(futures):
+            try:
+                value = fut.result()
+            except BrokenProcessPool:  # a worker died: every item not finished is lost with the pool
+                lost.append(futures[fut])
+                continue
+            yield futures[fut], value
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    yield from _retry_alone(fn, items, sorted(lost), workers)
+
+
+def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int], workers: int) -> Iterator[tuple[int, Any]]:
+    """Each lost item once more, alone in a fresh process (``workers`` at a time), so that the
+    item that kills its worker is told from those that only shared its pool."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    for first in range(0, len(lost), workers):
+        batch = lost[first : first + workers]
+        pools = [ProcessPoolExecutor(1, mp_context=_context(), initializer=_worker_start) for _ in batch]
+        try:
+            futures = {pool.submit(fn, items[i]): i for pool, i in zip(pools, batch)}
+            for fut in as_completed(futures):
+                try:
+                    yield futures[fut], fut.result()
+                except BrokenProcessPool:
+                    yield futures[fut], WorkerLost("its worker process died twice (killed, or out of memory); retried once")
+        finally:
+            for pool in pools:
+                pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Iterator[tuple[int, Any]]:
+    try:
+        import dask
+        from distributed import Client, LocalCluster, as_completed
+        from distributed.scheduler import KilledWorker
+    except ImportError:
+        raise InputError("--cluster needs Dask, which is not installed", 'pip install "ionav-viz[cluster]"', param="cluster") from None
+
+    cluster = None
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):  # a dying item is retried once (local cluster)
+        if engine.cluster == LOCAL_CLUSTER:
+            cluster = LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            address = cluster
+        else:
+            address = engine.cluster
+        try:
+            client = Client(address, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            if cluster is not None:
+                cluster.close()
+            raise InputError(f"no Dask scheduler answered at {engine.cluster} ({' '.join(str(exc).split())})",
+                             "start one ('dask scheduler', then 'dask worker ADDRESS'), or use --cluster local", param="cluster") from None
+    try:
+        client.run(_worker_start)
+        futures = client.map(fn, list(items), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for fut in as_completed(futures):
+            try:
+                value = fut.result()
+            except KilledWorker as exc:
+                value = WorkerLost(f"Dask gave up on it: its worker died ({' '.join(str(exc).split())[:200]})")
+            fut.release()  # the result is ours now; the cluster forgets it
+            yield index[fut.key], value
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,302 @@
+"""A fleet in one command: many drives evaluated each on its own, on every core or on a Dask
+cluster, one bad drive never sinking the others (:func:`evaluate_fleet`), from drives given as
+files, folders, globs or ``@list.txt`` files (:func:`expand_drives`), with a dry run that lists
+them with sizes and a time estimate (:func:`plan_fleet`)."""
+
+from __future__ import annotations
+
+import glob
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
+from ..core.errors import InputError
+from ..nav.outages import Placement
+from ..nav.protocol import Estimator
+from ..sources.load import ReadOptions
+from .engine import Engine, WorkerLost, default_workers, run_each
+from .options import Progress, RunOptions, check_event_types, options_of, placement_of, windows_of
+
+#: The exit code of ``evaluate`` when some drives failed and the others' results were printed.
+EXIT_SOME_FAILED = 3
+#: The file types a folder of drives is searched for (one drive each; ROS 2 and KITTI folders are
+#: drives themselves).
+DRIVE_SUFFIXES = (".csv", ".mcap", ".bag")
+#: The time estimate of a dry run: seconds per drive (reading, biases, model) and per MB of file,
+#: measured on our 2-core machine with simulated IO-VNBD CSV drives (benchmarks/bench_fleet.py).
+ESTIMATE_S_PER_DRIVE = 0.5
+ESTIMATE_S_PER_MB = 0.25
+
+
+@dataclass(frozen=True)
+class FleetDrive:
+    """One drive of a fleet: as given (``spec``: what a worker reads and the report names), and
+    its file's size in bytes (None: a name not resolved here, or a folder)."""
+
+    spec: str
+    size_bytes: int | None = None
+
+
+def expand_drives(specs: Sequence[str | Path]) -> list[FleetDrive]:
+    """The drives ``specs`` name, in order, each once: a file or a drive folder (ROS 2 bag, KITTI
+    raw) as it is; a folder of drives: its ``.csv``, ``.mcap`` and ``.bag`` files, sorted; a glob
+    (``logs/*.csv``): its matches, sorted; ``@list.txt``: the drives listed in it, one a line
+    (``#`` comments and blank lines ignored; relative paths from the list's folder); anything else
+    (a bundled sample or IO-VNBD run name) as it is. Paths are de-duplicated by the file they
+    reach. A list that cannot be read or a glob that matches nothing is an :class:`InputError`."""
+    out: dict[str, FleetDrive] = {}
+    for spec in specs:
+        for path in _expand_one(str(spec), depth=0):
+            key = _identity(path)
+            if key not in out:
+                out[key] = FleetDrive(path, _size_of(path))
+    return list(out.values())
+
+
+def _expand_one(spec: str, depth: int) -> list[str]:
+    if spec.startswith("@"):
+        return _from_list(Path(spec[1:]), depth)
+    path = Path(spec).expanduser()
+    if path.is_dir() and _is_folder_of_drives(path):
+        return sorted(str(p) for p in path.iterdir() if p.is_file() and p.suffix.lower() in DRIVE_SUFFIXES)
+    if not path.exists() and glob.has_magic(spec):
+        found = sorted(p for p in glob.glob(os.path.expanduser(spec), recursive=True)
+                       if Path(p).is_file() or (Path(p).is_dir() and not _is_folder_of_drives(Path(p))))
+        if not found:
+            raise InputError(f"{spec}: no file matches", "check the pattern (quote it so the shell leaves it to ionav-viz)")
+        return found
+    return [spec]
+
+
+def _from_list(path: Path, depth: int) -> list[str]:
+    if depth > 4:
+        raise InputError(f"@{path}: lists of drives nested more than 4 deep", "list the drives themselves")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"@{path}: no such list of drives", "give @FILE with one drive per line") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"@{path}: cannot be read as a list of drives ({type(exc).__name__})", "give a UTF-8 text file, one drive per line") from None
+    out: list[str] = []
+    for line in text.splitlines():
+        item = line.split("#", 1)[0].strip()
+        if not item:
+            continue
+        if item.startswith("@"):
+            out += _expand_one("@" + str(path.parent / Path(item[1:]).expanduser()), depth + 1)
+            continue
+        candidate = path.parent / Path(item).expanduser()  # an absolute path stays as it is
+        is_path = candidate.exists() or glob.has_magic(item) or "/" in item or os.sep in item
+        out += _expand_one(str(candidate) if is_path else item, depth + 1)  # else a sample or run name
+    return out
+
+
+def _is_folder_of_drives(path: Path) -> bool:
+    """A folder that is not one drive (no ROS 2 metadata, no KITTI oxts/) but holds drive files."""
+    from ..sources.kitti import oxts_folder
+
+    if (path / "metadata.yaml").is_file() or oxts_folder(path) is not None:
+        return False
+    try:
+        return any(p.is_file() and p.suffix.lower() in DRIVE_SUFFIXES for p in path.iterdir())
+    except OSError:
+        return False
+
+
+def _identity(spec: str) -> str:
+    path = Path(spec).expanduser()
+    try:
+        return str(path.resolve(strict=True)) if path.exists() else spec
+    except OSError:
+        return spec
+
+
+def _size_of(spec: str) -> int | None:
+    path = Path(spec).expanduser()
+    try:
+        if path.is_file():
+            return path.stat().st_size
+        if path.is_dir():
+            return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    except OSError:
+        return None
+    return None
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What every worker needs besides the drive: small and picklable."""
+
+    n_windows: int
+    placement: Placement
+    run: RunOptions
+    read: ReadOptions
+
+
+def evaluate_one(spec: str, job: _Job) -> DriveTable | DriveFailure:
+    """Evaluate one drive (in whichever process runs it): its compact table, or why it failed in
+    one line. The drive's arrays are released when this returns."""
+    from ..core.warnings_log import collecting_warnings
+    from ..nav.windows import make_windows
+    from ..sources.load import load_drive
+    from .evaluate import plan_outages
+
+    began = time.perf_counter()
+    with _quiet_log(), collecting_warnings() as warned:
+        try:
+            drive = load_drive(spec, job.read)
+            windows = make_windows(drive)
+            plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
+            if plan.too_short:
+                why = "no outage fits where the GNSS truth is good" if plan.excluded else "too short for a single outage"
+                return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began)
+            from ..analysis.evaluate import evaluate_drive
+
+            ests = job.run.applying_to([drive])
+            result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts, windows=windows,
+                                    excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
+            return drive_table(spec, result, list(warned), time.perf_counter() - began)
+        except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
+            return DriveFailure(spec, _one_line(exc).removeprefix(f"{spec}: "), time.perf_counter() - began)
+
+
+def _evaluate_item(item: tuple[str, _Job]) -> DriveTable | DriveFailure:
+    return evaluate_one(*item)
+
+
+def _one_line(exc: BaseException) -> str:
+    from ..core.errors import plain_text
+
+    text = " ".join(plain_text(str(exc)).split())
+    return text if isinstance(exc, InputError) else f"{type(exc).__name__}: {text or 'no message'}"
+
+
+class _quiet_log:
+    """While one drive is evaluated, ionav-viz's warnings go to its report, not to stderr (a
+    worker's stderr interleaves with the others'); restored after."""
+
+    def __enter__(self) -> None:
+        import logging
+
+        self.logger = logging.getLogger("ionav_viz")
+        self.saved = self.logger.handlers[:], self.logger.propagate
+        self.logger.handlers[:] = [logging.NullHandler()]
+        self.logger.propagate = False
+
+    def __exit__(self, *exc: Any) -> None:
+        self.logger.handlers[:], self.logger.propagate = self.saved
+
+
+def evaluate_fleet(
+    drives: Sequence[str | Path],
+    outage_s: float | None = None,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    workers: int | None = None,
+    cluster: str | None = None,
+    fail_fast: bool = False,
+    progress: Progress | None = None,
+    replay_options: str = "",
+) -> FleetReport:
+    """Evaluate every drive on its own, on ``workers`` processes (default: every core; 1: in this
+    process) or a Dask cluster (``cluster``: ``tcp://host:8786``, or ``"local"``), and pool the
+    results in the order the drives were given: the report is the same whatever the workers.
+
+    Args:
+        drives: paths, folders, globs, ``@list.txt`` files or names (:func:`expand_drives`); a
+            worker reads each drive itself, so on a cluster every path must be one the workers see.
+        outage_s, placement, estimators, run, read: as for :func:`ionav_viz.evaluate`; the
+            estimators are chosen per drive (the default ones that apply to it).
+        fail_fast: the first drive that fails raises its :class:`InputError` (the work not started
+            is cancelled) instead of being reported.
+        progress: ``progress(label, done, total)`` after each drive; the label says the outages
+            scored and the slowest drive so far.
+        replay_options: the options that replay a drive the same way, for the report's commands.
+
+    Returns:
+        a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
+        with its one-line reason, a drive too short for one outage in ``skipped``.
+    """
+    items = expand_drives(drives)
+    if not items:
+        raise InputError("no drive to evaluate", "give at least one drive")
+    placement = placement_of(placement, None)
+    n = windows_of(outage_s, placement)
+    run, read = options_of(run, estimators, read, None, None)
+    if placement.event_types:
+        check_event_types(placement.event_types)
+    run.chosen()  # plug-ins and the model are checked here, once, before any worker starts
+    engine = Engine(workers if workers is not None else default_workers(), cluster)
+    job = _Job(n, placement, run, read)
+    began = time.perf_counter()
+    done: dict[int, DriveTable | DriveFailure] = {}
+    outages, slowest = 0, ("", 0.0)
+    results = run_each(_evaluate_item, [(d.spec, job) for d in items], engine)
+    try:
+        for i, value in results:
+            if isinstance(value, WorkerLost):
+                value = DriveFailure(items[i].spec, value.reason)
+            done[i] = value
+            if fail_fast and isinstance(value, DriveFailure) and not value.reason.startswith("skipped"):
+                raise InputError(value.reason if value.reason.startswith(value.spec) else f"{value.spec}: {value.reason}",
+                                 "leave out --fail-fast to evaluate the other drives and report this one")
+            if isinstance(value, DriveTable):
+                outages += value.n_outages
+            if value.elapsed_s > slowest[1]:
+                slowest = (Path(value.spec).name, value.elapsed_s)
+            if progress:
+                progress(f"{len(done)}/{len(items)} drives, {outages} outages scored, slowest {slowest[0]} {slowest[1]:.1f} s",
+                         len(done), len(items))
+    finally:
+        close = getattr(results, "close", None)
+        if close is not None:
+            close()
+    ordered = [done[i] for i in range(len(items))]
+    return FleetReport(
+        drives=[v for v in ordered if isinstance(v, DriveTable)],
+        failures=[v for v in ordered if isinstance(v, DriveFailure) and not v.reason.startswith("skipped")],
+        skipped=[v for v in ordered if isinstance(v, DriveFailure) and v.reason.startswith("skipped")],
+        outage_s=float(n), replay_options=replay_options,
+        timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
+
+
+@dataclass(frozen=True)
+class FleetPlan:
+    """What a fleet run would do (``--dry-run``): the drives with their sizes, and the estimate."""
+
+    drives: list[FleetDrive]
+    workers: int
+    estimate_s: float
+
+    def to_text(self) -> str:
+        """One line per drive (size in MB), then the total and the time estimate."""
+        from ..analysis.tables import aligned
+
+        rows = [[d.spec, "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"] for d in self.drives]
+        total_mb = sum(d.size_bytes or 0 for d in self.drives) / 1e6
+        lines = aligned(["Drive", "MB"], rows, 1)
+        lines += ["", f"{len(self.drives)} drive(s), {total_mb:.1f} MB; about {self.estimate_s:.0f} s on {self.workers} worker(s) "
+                      "(a rough estimate from the file sizes)"]
+        return "\n".join(lines) + "\n"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"drives": [{"drive": d.spec, "size_bytes": d.size_bytes} for d in self.drives], "workers": self.workers,
+                "estimate_s": round(self.estimate_s, 1)}
+
+
+def plan_fleet(drives: Sequence[str | Path], workers: int | None = None) -> FleetPlan:
+    """The drives :func:`evaluate_fleet` would evaluate, with sizes and a rough time estimate on
+    ``workers`` (default every core): nothing is read but the file sizes."""
+    items = expand_drives(drives)
+    if not items:
+        raise InputError("no drive to evaluate", "give at least one drive")
+    n = Engine(workers if workers is not None else default_workers()).workers
+    work_s = sum(ESTIMATE_S_PER_DRIVE + ESTIMATE_S_PER_MB * (d.size_bytes or 0) / 1e6 for d in items)
+    return FleetPlan(items, n, work_s / min(n, len(items)))
