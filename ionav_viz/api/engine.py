@@ -154,7 +154,7 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
         else:
             address = engine.cluster
         try:
-            client = Client(address, timeout="10s")
+            client = Client(address, timeout=dask.config.get("distributed.comm.timeouts.connect"))
         except (OSError, TimeoutError) as exc:
             if cluster is not None:
                 cluster.close()
