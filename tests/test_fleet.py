@@ -170,3 +170,27 @@ def test_no_dask_scheduler_is_one_error_naming_the_option(fleet_dir):
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), pytest.raises(InputError) as err:
         evaluate_fleet([str(fleet_dir / "V-f0.csv")], 10, estimators=["ins"], cluster="tcp://127.0.0.1:9")
     assert err.value.param == "cluster" and "no Dask scheduler answered at tcp://127.0.0.1:9" in str(err.value)
+
+
+def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
+    """'replay A B C -o FOLDER': one recording per drive (a name given twice gets its own), the
+    paths on stdout in the order given, the scores those of 'evaluate', a bad drive exit code 3."""
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(fleet_dir / "V-f0.csv", other / "V-f0.csv")
+    out = tmp_path / "recs"
+    result = run_cli("replay", *_good(fleet_dir), str(other / "V-f0.csv"), str(fleet_dir / "V-bad.csv"), "--workers", "1", "-o", str(out),
+                     "--estimators", CHEAP)
+    assert result.returncode == 3, result.stderr
+    assert result.stdout.splitlines() == [str(out / n) for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd")]
+    assert all((out / n).stat().st_size > 0 for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
+    assert "V-bad.csv: missing column" in result.stderr
+    assert "Fleet: 5 drive(s), 4 evaluated, 1 failed" in result.stderr
+    from ionav_viz.api.fleet import evaluate_fleet, replay_fleet
+
+    replayed = replay_fleet(_good(fleet_dir)[:2], tmp_path / "api", 10, estimators=CHEAP.split(","), workers=1)
+    evaluated = evaluate_fleet(_good(fleet_dir)[:2], 10, estimators=CHEAP.split(","), workers=1)
+    assert _same(replayed.to_dict()["sequences"], evaluated.to_dict()["sequences"])
+    assert [r["recording"] for r in replayed.drive_rows()] == [str(tmp_path / "api" / n) for n in ("V-f0.rrd", "V-f1.rrd")]
+    refused = run_cli("replay", *_good(fleet_dir), "-o", str(tmp_path / "one.rrd"))
+    assert refused.returncode == 2 and "-o" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1

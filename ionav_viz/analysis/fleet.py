@@ -47,6 +47,7 @@ class DriveTable:
         truth: ``gnss`` or ``reference``.
         warnings: what was warned while this drive was read and evaluated (one line each).
         elapsed_s: wall time of this drive on its worker (not part of the results).
+        recording: the ``.rrd`` the drive was replayed into, if it was.
     """
 
     spec: str
@@ -64,6 +65,7 @@ class DriveTable:
     truth: str = "gnss"
     warnings: list[str] = field(default_factory=list)
     elapsed_s: float = 0.0
+    recording: str | None = None
 
     @property
     def n_outages(self) -> int:
@@ -76,7 +78,8 @@ class DriveTable:
         return summarise(self.metrics[estimator]["final_position_error_m"])["mean"]
 
 
-def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = None, elapsed_s: float = 0.0) -> DriveTable:
+def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = None, elapsed_s: float = 0.0,
+                recording: str | None = None) -> DriveTable:
     """The compact table of one drive's :class:`DriveResult` (its arrays are not kept)."""
     from ..core.geo import steps_en_m
 
@@ -90,7 +93,7 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
         metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
-        warnings=list(warnings or []), elapsed_s=float(elapsed_s))
+        warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording)
 
 
 @dataclass(frozen=True)
@@ -183,7 +186,8 @@ class FleetReport:
     def drive_rows(self) -> list[dict[str, Any]]:
         """One row per evaluated drive: ``drive``, ``spec``, ``source``, ``duration_s``,
         ``distance_m``, ``outages``, per estimator its ``mean_final_error_m`` and (not the INS DR)
-        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``."""
+        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``
+        and, when the drive was replayed, its ``recording``."""
         base = self.baseline
         rows = []
         for t in self.drives:
@@ -193,6 +197,8 @@ class FleetReport:
             if base is not None and base in means:
                 row["improvement_pct"] = {e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
             row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings)}
+            if t.recording is not None:
+                row["recording"] = t.recording
             rows.append(row)
         return rows
 

@@ -137,9 +137,10 @@ class _Job:
     read: ReadOptions
 
 
-def evaluate_one(spec: str, job: _Job) -> DriveTable | DriveFailure:
-    """Evaluate one drive (in whichever process runs it): its compact table, or why it failed in
-    one line. The drive's arrays are released when this returns."""
+def evaluate_one(spec: str, job: _Job, recording: str | None = None) -> DriveTable | DriveFailure:
+    """Evaluate one drive (in whichever process runs it), and with ``recording`` replay it into
+    that ``.rrd``: its compact table, or why it failed in one line. The drive's arrays are released
+    when this returns."""
     from ..core.warnings_log import collecting_warnings
     from ..nav.windows import make_windows
     from ..sources.load import load_drive
@@ -154,17 +155,22 @@ def evaluate_one(spec: str, job: _Job) -> DriveTable | DriveFailure:
             if plan.too_short:
                 why = "no outage fits where the GNSS truth is good" if plan.excluded else "too short for a single outage"
                 return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began)
-            from ..analysis.evaluate import evaluate_drive
+            if recording is not None:
+                from .replay import replay
 
-            ests = job.run.applying_to([drive])
-            result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts, windows=windows,
-                                    excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
-            return drive_table(spec, result, list(warned), time.perf_counter() - began)
+                result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
+            else:
+                from ..analysis.evaluate import evaluate_drive
+
+                ests = job.run.applying_to([drive])
+                result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts, windows=windows,
+                                        excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
+            return drive_table(spec, result, list(warned), time.perf_counter() - began, recording)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{spec}: "), time.perf_counter() - began)
 
 
-def _evaluate_item(item: tuple[str, _Job]) -> DriveTable | DriveFailure:
+def _run_item(item: tuple[str, _Job, str | None]) -> DriveTable | DriveFailure:
     return evaluate_one(*item)
 
 
@@ -225,6 +231,54 @@ def evaluate_fleet(
         with its one-line reason, a drive too short for one outage in ``skipped``.
     """
     items = expand_drives(drives)
+    job = _job_of(items, outage_s, placement, estimators, run, read)
+    return _run_fleet([(d.spec, job, None) for d in items], job, Engine(workers if workers is not None else default_workers(), cluster),
+                      fail_fast, progress, replay_options)
+
+
+def replay_fleet(
+    drives: Sequence[str | Path],
+    folder: str | Path = "recordings",
+    outage_s: float | None = None,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    workers: int | None = None,
+    cluster: str | None = None,
+    fail_fast: bool = False,
+    progress: Progress | None = None,
+    replay_options: str = "",
+) -> FleetReport:
+    """:func:`ionav_viz.replay` of every drive into ``folder`` (made when missing), one recording
+    each, ``<drive>.rrd`` (``<drive>-2.rrd``... for a name given twice), in parallel as
+    :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. On a
+    cluster, ``folder`` must be one every worker can write to."""
+    from ..core.fileio import check_output_folder
+
+    items = expand_drives(drives)
+    job = _job_of(items, outage_s, placement, estimators, run, read)
+    out = check_output_folder(Path(folder), param="output")
+    names: dict[str, int] = {}
+    work = []
+    for d in items:
+        name = _drive_name(d.spec)
+        names[name] = names.get(name, 0) + 1
+        work.append((d.spec, job, str(out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd"))))
+    out.mkdir(parents=True, exist_ok=True)
+    return _run_fleet(work, job, Engine(workers if workers is not None else default_workers(), cluster), fail_fast, progress, replay_options)
+
+
+def _drive_name(spec: str) -> str:
+    """The name a drive's recording gets: its file's stem (a folder's name, a sample's name)."""
+    path = Path(spec)
+    return (path.parent.name if path.name == "metadata.yaml" else path.stem) or "drive"
+
+
+def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placement | None, estimators: Sequence[str | Estimator] | None,
+            run: RunOptions | None, read: ReadOptions | None) -> _Job:
+    """The run's options, checked once, before any worker starts."""
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
     placement = placement_of(placement, None)
@@ -232,38 +286,41 @@ def evaluate_fleet(
     run, read = options_of(run, estimators, read, None, None)
     if placement.event_types:
         check_event_types(placement.event_types)
-    run.chosen()  # plug-ins and the model are checked here, once, before any worker starts
-    engine = Engine(workers if workers is not None else default_workers(), cluster)
-    job = _Job(n, placement, run, read)
+    run.chosen()  # plug-ins and the model are checked here, before any worker starts
+    return _Job(n, placement, run, read)
+
+
+def _run_fleet(work: list[tuple[str, _Job, str | None]], job: _Job, engine: Engine, fail_fast: bool, progress: Progress | None,
+               replay_options: str) -> FleetReport:
+    """Run every item on ``engine`` and pool the results in the order given."""
     began = time.perf_counter()
     done: dict[int, DriveTable | DriveFailure] = {}
     outages, slowest = 0, ("", 0.0)
-    results = run_each(_evaluate_item, [(d.spec, job) for d in items], engine)
+    results = run_each(_run_item, work, engine)
     try:
         for i, value in results:
             if isinstance(value, WorkerLost):
-                value = DriveFailure(items[i].spec, value.reason)
+                value = DriveFailure(work[i][0], value.reason)
             done[i] = value
             if fail_fast and isinstance(value, DriveFailure) and not value.reason.startswith("skipped"):
-                raise InputError(value.reason if value.reason.startswith(value.spec) else f"{value.spec}: {value.reason}",
-                                 "leave out --fail-fast to evaluate the other drives and report this one")
+                raise InputError(f"{value.spec}: {value.reason}", "leave out --fail-fast to evaluate the other drives and report this one")
             if isinstance(value, DriveTable):
                 outages += value.n_outages
             if value.elapsed_s > slowest[1]:
                 slowest = (Path(value.spec).name, value.elapsed_s)
             if progress:
-                progress(f"{len(done)}/{len(items)} drives, {outages} outages scored, slowest {slowest[0]} {slowest[1]:.1f} s",
-                         len(done), len(items))
+                progress(f"{len(done)}/{len(work)} drives, {outages} outages scored, slowest {slowest[0]} {slowest[1]:.1f} s",
+                         len(done), len(work))
     finally:
         close = getattr(results, "close", None)
         if close is not None:
             close()
-    ordered = [done[i] for i in range(len(items))]
+    ordered = [done[i] for i in range(len(work))]
     return FleetReport(
         drives=[v for v in ordered if isinstance(v, DriveTable)],
         failures=[v for v in ordered if isinstance(v, DriveFailure) and not v.reason.startswith("skipped")],
         skipped=[v for v in ordered if isinstance(v, DriveFailure) and v.reason.startswith("skipped")],
-        outage_s=float(n), replay_options=replay_options,
+        outage_s=float(job.n_windows), replay_options=replay_options,
         timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
 
 
