@@ -232,8 +232,8 @@ def evaluate_fleet(
     """
     items = expand_drives(drives)
     job = _job_of(items, outage_s, placement, estimators, run, read)
-    return _run_fleet([(d.spec, job, None) for d in items], job, Engine(workers if workers is not None else default_workers(), cluster),
-                      fail_fast, progress, replay_options)
+    return _run_fleet([(d.spec, job, None) for d in items], [d.size_bytes for d in items], job,
+                      Engine(workers if workers is not None else default_workers(), cluster), fail_fast, progress, replay_options)
 
 
 def replay_fleet(
@@ -267,7 +267,8 @@ def replay_fleet(
         names[name] = names.get(name, 0) + 1
         work.append((d.spec, job, str(out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd"))))
     out.mkdir(parents=True, exist_ok=True)
-    return _run_fleet(work, job, Engine(workers if workers is not None else default_workers(), cluster), fail_fast, progress, replay_options)
+    return _run_fleet(work, [d.size_bytes for d in items], job, Engine(workers if workers is not None else default_workers(), cluster),
+                      fail_fast, progress, replay_options)
 
 
 def _drive_name(spec: str) -> str:
@@ -290,15 +291,18 @@ def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placemen
     return _Job(n, placement, run, read)
 
 
-def _run_fleet(work: list[tuple[str, _Job, str | None]], job: _Job, engine: Engine, fail_fast: bool, progress: Progress | None,
-               replay_options: str) -> FleetReport:
-    """Run every item on ``engine`` and pool the results in the order given."""
+def _run_fleet(work: list[tuple[str, _Job, str | None]], sizes: list[int | None], job: _Job, engine: Engine, fail_fast: bool,
+               progress: Progress | None, replay_options: str) -> FleetReport:
+    """Run every item on ``engine``, the largest files first (so that no long drive starts last
+    while the other workers wait), and pool the results in the order given."""
     began = time.perf_counter()
     done: dict[int, DriveTable | DriveFailure] = {}
     outages, slowest = 0, ("", 0.0)
-    results = run_each(_run_item, work, engine)
+    order = sorted(range(len(work)), key=lambda i: (-(sizes[i] or 0), i))
+    results = run_each(_run_item, [work[i] for i in order], engine)
     try:
-        for i, value in results:
+        for j, value in results:
+            i = order[j]
             if isinstance(value, WorkerLost):
                 value = DriveFailure(work[i][0], value.reason)
             done[i] = value
