@@ -137,10 +137,11 @@ class _Job:
     read: ReadOptions
 
 
-def evaluate_one(spec: str, job: _Job, recording: str | None = None) -> DriveTable | DriveFailure:
+def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str | None = None) -> DriveTable | DriveFailure:
     """Evaluate one drive (in whichever process runs it), and with ``recording`` replay it into
-    that ``.rrd``: its compact table, or why it failed in one line. The drive's arrays are released
-    when this returns."""
+    that ``.rrd``: its compact table, or why it failed in one line. ``path``: where the worker reads
+    it (the absolute path of ``spec``, for workers in other folders). The drive's arrays are
+    released when this returns."""
     from ..core.warnings_log import collecting_warnings
     from ..nav.windows import make_windows
     from ..sources.load import load_drive
@@ -149,7 +150,7 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None) -> DriveTab
     began = time.perf_counter()
     with _quiet_log(), collecting_warnings() as warned:
         try:
-            drive = load_drive(spec, job.read)
+            drive = load_drive(path or spec, job.read)
             windows = make_windows(drive)
             plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
             if plan.too_short:
@@ -167,11 +168,18 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None) -> DriveTab
                                         excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
-            return DriveFailure(spec, _one_line(exc).removeprefix(f"{spec}: "), time.perf_counter() - began)
+            return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
 
 
-def _run_item(item: tuple[str, _Job, str | None]) -> DriveTable | DriveFailure:
+def _run_item(item: tuple[str, _Job, str | None, str | None]) -> DriveTable | DriveFailure:
     return evaluate_one(*item)
+
+
+def _absolute(spec: str) -> str | None:
+    """Where a worker reads ``spec``, whatever its working folder: the absolute path of a path
+    that exists here, else None (a name, read as it is)."""
+    local = Path(spec).expanduser()
+    return str(local.absolute()) if local.exists() else None
 
 
 def _one_line(exc: BaseException) -> str:
@@ -232,7 +240,7 @@ def evaluate_fleet(
     """
     items = expand_drives(drives)
     job = _job_of(items, outage_s, placement, estimators, run, read)
-    return _run_fleet([(d.spec, job, None) for d in items], [d.size_bytes for d in items], job,
+    return _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job,
                       Engine(workers if workers is not None else default_workers(), cluster), fail_fast, progress, replay_options)
 
 
@@ -265,7 +273,7 @@ def replay_fleet(
     for d in items:
         name = _drive_name(d.spec)
         names[name] = names.get(name, 0) + 1
-        work.append((d.spec, job, str(out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd"))))
+        work.append((d.spec, job, str((out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd")).absolute()), _absolute(d.spec)))
     out.mkdir(parents=True, exist_ok=True)
     return _run_fleet(work, [d.size_bytes for d in items], job, Engine(workers if workers is not None else default_workers(), cluster),
                       fail_fast, progress, replay_options)
@@ -291,7 +299,7 @@ def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placemen
     return _Job(n, placement, run, read)
 
 
-def _run_fleet(work: list[tuple[str, _Job, str | None]], sizes: list[int | None], job: _Job, engine: Engine, fail_fast: bool,
+def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list[int | None], job: _Job, engine: Engine, fail_fast: bool,
                progress: Progress | None, replay_options: str) -> FleetReport:
     """Run every item on ``engine``, the largest files first (so that no long drive starts last
     while the other workers wait), and pool the results in the order given."""
