@@ -49,7 +49,10 @@ def test_pooled_results_are_bit_for_bit_the_serial_run_and_one_report_over_the_d
     from ionav_viz.api.fleet import evaluate_fleet
 
     drives = _good(fleet_dir)
-    serial = evaluate_fleet(drives, 10, workers=1)
+    calls: list[tuple[str, int, int]] = []
+    serial = evaluate_fleet(drives, 10, workers=1, progress=lambda *call: calls.append(call))
+    assert [c[1:] for c in calls] == [(1, 3), (2, 3), (3, 3)]
+    assert calls[-1][0].startswith(f"3/3 drives, {serial.n_outages} outages scored, slowest V-f")
     pooled = evaluate_fleet([*drives, drives[0], str(fleet_dir / ".." / fleet_dir.name / "V-f1.csv")], 10, workers=2)  # the same drive twice: once
     assert [t.name for t in pooled.drives] == ["V-f0", "V-f1", "V-f2"]
     assert "idnn" in serial.estimators  # torch in the workers too

@@ -349,4 +349,9 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
         lines += [("- " if markdown else "") + (w if w.startswith(name) else f"{name}: {w}") for name, w in warned] + [""]
     if rep.timing.get("wall_s") is not None and not markdown:
         lines.append(f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time")
+    if width is not None:  # the tables fit already; prose lines (worst, failures, warnings) are wrapped
+        import textwrap
+
+        lines = [ln if len(ln) <= width else "\n".join(textwrap.wrap(ln, width, subsequent_indent="   ", break_on_hyphens=False))
+                 for ln in lines]
     return "\n".join(lines).rstrip("\n") + "\n"
