@@ -145,7 +145,7 @@ def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
                 break
             time.sleep(0.05)
         address = json.loads(info.read_text())["address"]
-        procs += [subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"],
+        procs += [subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
                                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
         drives = [*_good(fleet_dir), str(fleet_dir / "V-bad.csv")]
         on_cluster = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), cluster=address)
@@ -154,13 +154,10 @@ def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
         assert on_cluster.timing["engine"].startswith("Dask")
         assert len(on_cluster.failures) == 1
     finally:
-        for proc in reversed(procs):
-            proc.terminate()
+        for proc in reversed(procs):  # ours alone, and nothing of theirs to keep: no graceful close to wait for
+            proc.kill()
         for proc in procs:
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+            proc.wait(timeout=10)
 
 
 def test_no_dask_scheduler_is_one_error_naming_the_option(fleet_dir):
