@@ -127,6 +127,10 @@ def test_a_dying_worker_is_retried_once_then_reported():
     assert sorted(got) == list(range(5))
     assert [got[i] for i in (0, 1, 3, 4)] == [1, 4, 16, 9]
     assert isinstance(got[2], WorkerLost) and "died twice" in got[2].reason
+    from ionav_viz.core.errors import ToolFailure
+
+    with pytest.raises(ToolFailure, match="every worker process died before returning anything"):  # workers that cannot start
+        list(run_each(square_or_die, ["die", "die", "die"], Engine(workers=2)))
 
 
 def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):

@@ -114,28 +114,42 @@ def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> 
             yield futures[fut], value
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    yield from _retry_alone(fn, items, sorted(lost), workers)
+    yield from _retry_alone(fn, items, sorted(lost), workers, none_done=len(lost) == len(items))
 
 
-def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int], workers: int) -> Iterator[tuple[int, Any]]:
+def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int], workers: int, none_done: bool) -> Iterator[tuple[int, Any]]:
     """Each lost item once more, alone in a fresh process (``workers`` at a time), so that the
-    item that kills its worker is told from those that only shared its pool."""
+    item that kills its worker is told from those that only shared its pool. When no item had
+    come back at all and the whole first batch dies again, the workers cannot start here (a
+    ``spawn`` needs an importable main module: not ``python - < script``): a :class:`ToolFailure`."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
+
+    from ..core.errors import ToolFailure
 
     for first in range(0, len(lost), workers):
         batch = lost[first : first + workers]
         pools = [ProcessPoolExecutor(1, mp_context=_context(), initializer=_worker_start) for _ in batch]
+        died = []
         try:
             futures = {pool.submit(fn, items[i]): i for pool, i in zip(pools, batch)}
             for fut in as_completed(futures):
                 try:
-                    yield futures[fut], fut.result()
+                    value = fut.result()
                 except BrokenProcessPool:
-                    yield futures[fut], WorkerLost("its worker process died twice (killed, or out of memory); retried once")
+                    died.append(futures[fut])
+                    continue
+                none_done = False
+                yield futures[fut], value
         finally:
             for pool in pools:
                 pool.shutdown(wait=True, cancel_futures=True)
+        if none_done and len(died) == len(batch):
+            raise ToolFailure("every worker process died before returning anything: they cannot start here (run from a script "
+                              "file or the command line, not standard input), or every drive exhausts the memory; try --workers 1")
+        for i in sorted(died):
+            yield i, WorkerLost("its worker process died twice (killed, or out of memory); retried once")
+        none_done = False
 
 
 def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Iterator[tuple[int, Any]]:
