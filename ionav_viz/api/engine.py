@@ -86,15 +86,31 @@ def run_each(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> 
 def _worker_start() -> None:
     """In each worker process, before any work: one thread per library (the pool is the
     parallelism; N workers x N threads would only fight over the cores)."""
+    import sys
+
     for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ.setdefault(name, "1")
+    if "torch" in sys.modules:  # imported before the fork (the forkserver's preload): set, not only asked for
+        sys.modules["torch"].set_num_threads(1)
+
+
+#: What the forkserver imports once, before it forks the workers: each worker then starts with
+#: them loaded instead of importing them again (torch alone is about 1.5 s of CPU a process).
+PRELOAD = ("numpy", "pandas", "torch", "safetensors.torch", "numba", "ionav_viz.api.fleet", "ionav_viz.nav.idnn", "ionav_viz.nav.planar_filter")
 
 
 def _context():
-    """Spawned workers: torch and numba start threads, and a fork after threads can deadlock."""
+    """A ``forkserver`` where there is one (Linux, macOS), else ``spawn``: never a plain ``fork``
+    of this process, which may run threads (torch, numba, the progress bar), and a fork after
+    threads can deadlock. The forkserver is a fresh single-threaded process that imports
+    :data:`PRELOAD` once; the workers are forked from it."""
     import multiprocessing
 
-    return multiprocessing.get_context("spawn")
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(list(PRELOAD))
+    return context
 
 
 def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[tuple[int, Any]]:
@@ -121,7 +137,8 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
     """Each lost item once more, alone in a fresh process (``workers`` at a time), so that the
     item that kills its worker is told from those that only shared its pool. When no item had
     come back at all and the whole first batch dies again, the workers cannot start here (a
-    ``spawn`` needs an importable main module: not ``python - < script``): a :class:`ToolFailure`."""
+    ``spawn`` re-imports the main module: a script without ``if __name__ == "__main__":``, or
+    standard input): a :class:`ToolFailure`."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
@@ -145,8 +162,9 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
             for pool in pools:
                 pool.shutdown(wait=True, cancel_futures=True)
         if none_done and len(died) == len(batch):
-            raise ToolFailure("every worker process died before returning anything: they cannot start here (run from a script "
-                              "file or the command line, not standard input), or every drive exhausts the memory; try --workers 1")
+            raise ToolFailure("every worker process died before returning anything: they cannot start here (a script that starts "
+                              "them needs its work under 'if __name__ == \"__main__\":', and standard input cannot be re-imported), "
+                              "or every drive exhausts the memory; try --workers 1")
         for i in sorted(died):
             yield i, WorkerLost("its worker process died twice (killed, or out of memory); retried once")
         none_done = False
