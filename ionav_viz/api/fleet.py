@@ -26,10 +26,12 @@ EXIT_SOME_FAILED = 3
 #: The file types a folder of drives is searched for (one drive each; ROS 2 and KITTI folders are
 #: drives themselves).
 DRIVE_SUFFIXES = (".csv", ".mcap", ".bag")
-#: The time estimate of a dry run: seconds per drive (reading, biases, model) and per MB of file,
-#: measured on our 2-core machine with simulated IO-VNBD CSV drives (benchmarks/bench_fleet.py).
-ESTIMATE_S_PER_DRIVE = 0.5
-ESTIMATE_S_PER_MB = 0.25
+#: The time estimate of a dry run: a start (imports, the workers' start), then per drive a fixed
+#: part and a part per MB of file, measured on our 2-core machine with simulated IO-VNBD CSV drives
+#: and every built-in estimator (about 5.7 MB per hour of drive; benchmarks/bench_fleet.py).
+ESTIMATE_START_S = 3.0
+ESTIMATE_S_PER_DRIVE = 0.05
+ESTIMATE_S_PER_MB = 0.12
 
 
 @dataclass(frozen=True)
@@ -368,4 +370,4 @@ def plan_fleet(drives: Sequence[str | Path], workers: int | None = None) -> Flee
         raise InputError("no drive to evaluate", "give at least one drive")
     n = Engine(workers if workers is not None else default_workers()).workers
     work_s = sum(ESTIMATE_S_PER_DRIVE + ESTIMATE_S_PER_MB * (d.size_bytes or 0) / 1e6 for d in items)
-    return FleetPlan(items, n, work_s / min(n, len(items)))
+    return FleetPlan(items, n, ESTIMATE_START_S + work_s / min(n, len(items)))
