@@ -56,6 +56,10 @@ def test_pooled_results_are_bit_for_bit_the_serial_run_and_one_report_over_the_d
     pooled = evaluate_fleet([*drives, drives[0], str(fleet_dir / ".." / fleet_dir.name / "V-f1.csv")], 10, workers=2)  # the same drive twice: once
     assert [t.name for t in pooled.drives] == ["V-f0", "V-f1", "V-f2"]
     assert "idnn" in serial.estimators  # torch in the workers too
+    import pickle
+
+    for table in serial.drives:  # what comes back from a worker: the per-outage table, not the drive
+        assert len(pickle.dumps(table)) < Path(table.source).stat().st_size / 20
     assert _same(_results(pooled), _results(serial))  # bit for bit: the same JSON text
     one = iv.evaluate(drives, 10).to_dict()
     fleet = serial.to_dict()
