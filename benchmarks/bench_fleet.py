@@ -4,6 +4,7 @@
     python benchmarks/bench_fleet.py                        # 40 drives of 30 min (20 h), serial vs 2 workers
     python benchmarks/bench_fleet.py --drives 40 --minutes 30 --workers 2 --dask
     python benchmarks/bench_fleet.py --folder /tmp/fleet    # keep (and reuse) the simulated drives
+    python benchmarks/bench_fleet.py --runs 3               # the modes in turn, 3 times: medians (min-max)
 
 The fleet: ``--drives`` IO-VNBD CSV drives of ``--minutes`` each from ``ionav-viz simulate``,
 scenarios in turn (motorway, roundabout, quick-accel, hard-brake, sharp-cornering), seed = the
@@ -16,6 +17,8 @@ Each mode runs in a fresh process (``--child``), timed from the call of
 child and all its descendants: ``peak_total_MB`` is the largest sum of their resident sets,
 ``peak_process_MB`` the largest single process. Every mode's results (the report's JSON without
 its timings) must hash the same: the parallel runs are checked against the serial one, bit for bit.
+With ``--runs N`` the modes run in turn N times and the wall times are medians (min-max); memory is
+the largest of the runs.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -99,6 +103,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--dask", action="store_true", help="also a local Dask cluster of --workers workers (needs ionav-viz[cluster])")
     parser.add_argument("--folder", type=Path, help="where the simulated drives go (kept; default a temporary folder)")
+    parser.add_argument("--runs", type=int, default=1, help="run the modes in turn this many times; the figures are medians (min-max)")
     parser.add_argument("--child", nargs=4, metavar=("FOLDER", "PATTERN", "WORKERS", "CLUSTER"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -112,14 +117,22 @@ def main() -> None:
         modes = {"serial": ["1", "-"], f"--workers {args.workers}": [str(args.workers), "-"]}
         if args.dask:
             modes[f"--cluster local ({args.workers} workers)"] = [str(args.workers), "local"]
-        rows = {name: run_mode([str(folder), pattern, *mode]) for name, mode in modes.items()}
-    serial = rows["serial"]
-    print(f"fleet: {serial['drives']} drives, {serial['drive_hours']:.1f} drive-hours, {serial['outages']} outages of 10 s")
-    print(f"{'mode':<32}{'wall s':>8}{'drive-h/s':>11}{'speed-up':>10}{'peak total MB':>15}{'peak process MB':>17}  results")
-    for name, r in rows.items():
-        same = "same as serial" if r["results_sha256"] == serial["results_sha256"] else "DIFFERENT from serial"
-        print(f"{name:<32}{r['wall_s']:>8.1f}{r['drive_hours'] / r['wall_s']:>11.2f}{serial['wall_s'] / r['wall_s']:>9.2f}x"
-              f"{r['peak_total_MB']:>15.0f}{r['peak_process_MB']:>17.0f}  {same}")
+        runs: dict[str, list[dict]] = {name: [] for name in modes}
+        for _ in range(args.runs):  # in turn, so that a change of the machine's load touches every mode alike
+            for name, mode in modes.items():
+                runs[name].append(run_mode([str(folder), pattern, *mode]))
+    serial = runs["serial"][0]
+    print(f"fleet: {serial['drives']} drives, {serial['drive_hours']:.1f} drive-hours, {serial['outages']} outages of 10 s; "
+          f"{args.runs} run(s) of each mode in turn" + ("; medians (min-max)" if args.runs > 1 else ""))
+    print(f"{'mode':<30}{'wall s':>18}{'drive-h/s':>11}{'speed-up':>10}{'peak total MB':>15}{'peak process MB':>17}  results")
+    serial_wall = statistics.median(r["wall_s"] for r in runs["serial"])
+    for name, rs in runs.items():
+        walls = [r["wall_s"] for r in rs]
+        wall = statistics.median(walls)
+        spread = f" ({min(walls):.1f}-{max(walls):.1f})" if len(walls) > 1 else ""
+        same = "same as serial" if all(r["results_sha256"] == serial["results_sha256"] for r in rs) else "DIFFERENT from serial"
+        print(f"{name:<30}{f'{wall:.1f}{spread}':>18}{rs[0]['drive_hours'] / wall:>11.2f}{serial_wall / wall:>9.2f}x"
+              f"{max(r['peak_total_MB'] for r in rs):>15.0f}{max(r['peak_process_MB'] for r in rs):>17.0f}  {same}")
 
 
 if __name__ == "__main__":
