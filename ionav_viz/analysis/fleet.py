@@ -318,11 +318,14 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
         lines += table(header, rows, 1) + [""]
         lines += [heading("Per drive (mean final error, m" + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
         others = [e for e in ests if e != base]
-        header = ["Drive", "outages", "h", "km"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else []) + ["warnings"]
+        header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else [])
+                  + ["warnings"])
         rows = []
         for t, r in zip(rep.drives, rep.drive_rows()):
             means = r["mean_final_error_m"]
-            row = [t.name, str(t.n_outages), f"{t.duration_s / 3600:.2f}", f"{t.distance_m / 1000:.1f}"]
+            windows = t.gnss_truth.get("windows", 0)
+            bad_pct = 100.0 * t.gnss_truth.get("excluded_windows", 0) / windows if windows else float("nan")
+            row = [t.name, str(t.n_outages), f"{t.duration_s / 3600:.2f}", f"{t.distance_m / 1000:.1f}", _f(bad_pct, 1)]
             row += [_f(means.get(e, float("nan"))) for e in ests]
             if base:
                 row += [_f(r.get("improvement_pct", {}).get(e, float("nan")), 1) for e in others]

@@ -120,7 +120,13 @@ def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> 
     lost: list[int] = []
     pool = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_worker_start)
     try:
-        futures = {pool.submit(fn, item): i for i, item in enumerate(items)}
+        futures = {}
+        for i, item in enumerate(items):
+            try:
+                futures[pool.submit(fn, item)] = i
+            except BrokenProcessPool:  # a worker died already, while the items were being handed out
+                lost += range(i, len(items))
+                break
         for fut in as_completed(futures):
             try:
                 value = fut.result()
