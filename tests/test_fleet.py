@@ -111,6 +111,11 @@ def test_drives_from_lists_and_globs_once_each(fleet_dir, tmp_path):
     names = [Path(d["drive"]).name for d in plan["drives"]]
     assert names == ["V-f0.csv", "V-f1.csv", "V-f2.csv", "V-bad.csv"]
     assert all(d["size_bytes"] > 0 for d in plan["drives"]) and plan["estimate_s"] > 0 and plan["workers"] == 2
+    for day in ("day1", "day2"):  # a glob over folders of drives: their drives
+        (tmp_path / day).mkdir()
+        shutil.copy(fleet_dir / "V-f0.csv", tmp_path / day / f"V-{day}.csv")
+    days = json.loads(run_cli("evaluate", str(tmp_path / "day*"), "--dry-run", "--json").stdout)
+    assert [Path(d["drive"]).name for d in days["drives"]] == ["V-day1.csv", "V-day2.csv"]
     text = run_cli("evaluate", str(fleet_dir), "--dry-run")
     assert text.returncode == 0 and "4 drive(s)" in text.stdout and "MB" in text.stdout
     for args, fragment in (((f"@{tmp_path / 'none.txt'}",), "no such list of drives"), ((str(tmp_path / "*.mcap"),), "no file matches"),

@@ -26,6 +26,8 @@ EXIT_SOME_FAILED = 3
 #: The file types a folder of drives is searched for (one drive each; ROS 2 and KITTI folders are
 #: drives themselves).
 DRIVE_SUFFIXES = (".csv", ".mcap", ".bag")
+#: The largest ``@list.txt`` read (a million drives of 10-byte names): anything larger is not one.
+MAX_LIST_BYTES = 10 * 10**6
 #: The time estimate of a dry run: a start (imports, the workers' start), then per drive a fixed
 #: part and a part per MB of file, measured on our 2-core machine with simulated IO-VNBD CSV drives
 #: and every built-in estimator (about 5.7 MB per hour of drive; benchmarks/bench_fleet.py).
@@ -66,11 +68,10 @@ def _expand_one(spec: str, depth: int) -> list[str]:
     if path.is_dir() and _is_folder_of_drives(path):
         return sorted(str(p) for p in path.iterdir() if p.is_file() and p.suffix.lower() in DRIVE_SUFFIXES)
     if not path.exists() and glob.has_magic(spec):
-        found = sorted(p for p in glob.glob(os.path.expanduser(spec), recursive=True)
-                       if Path(p).is_file() or (Path(p).is_dir() and not _is_folder_of_drives(Path(p))))
+        found = sorted(glob.glob(os.path.expanduser(spec), recursive=True))
         if not found:
             raise InputError(f"{spec}: no file matches", "check the pattern (quote it so the shell leaves it to ionav-viz)")
-        return found
+        return [p for match in found for p in _expand_one(match, depth)]  # a folder of drives among them: its drives
     return [spec]
 
 
@@ -78,6 +79,9 @@ def _from_list(path: Path, depth: int) -> list[str]:
     if depth > 4:
         raise InputError(f"@{path}: lists of drives nested more than 4 deep", "list the drives themselves")
     try:
+        if path.is_file() and path.stat().st_size > MAX_LIST_BYTES:
+            raise InputError(f"@{path}: {path.stat().st_size / 1e6:.0f} MB is not a list of drives (at most {MAX_LIST_BYTES // 10**6} MB)",
+                             "give a text file with one drive per line")
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError(f"@{path}: no such list of drives", "give @FILE with one drive per line") from None
