@@ -160,6 +160,10 @@ def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
         address = json.loads(info.read_text())["address"]
         procs += [subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
                                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:  # both workers up before the work (and not forever)
+            client.wait_for_workers(2, timeout=60)
         drives = [*_good(fleet_dir), str(fleet_dir / "V-bad.csv")]
         on_cluster = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), cluster=address)
         serial = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), workers=1)
