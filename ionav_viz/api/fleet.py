@@ -165,16 +165,49 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
             if recording is not None:
                 from .replay import replay
 
-                result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
+                with _one_torch_thread(load=job.run.estimators is None or "idnn" in map(str, job.run.estimators)):
+                    result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
             else:
                 from ..analysis.evaluate import evaluate_drive
 
                 ests = job.run.applying_to([drive])
-                result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts, windows=windows,
-                                        excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
+                with _one_torch_thread(load=any(e.name == "idnn" for e in ests)):
+                    result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts,
+                                            windows=windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
+
+
+class _one_torch_thread:
+    """torch on one thread while a drive is evaluated, in this process as in a worker: a sum split
+    over another number of threads may round differently, and the fleet's numbers must not depend
+    on where a drive ran. Where torch is loaded already, or ``load`` (the IDNN may run: it will
+    load it); the previous setting is restored after."""
+
+    def __init__(self, load: bool = True) -> None:
+        self.load = load
+
+    def __enter__(self) -> None:
+        import sys
+
+        self.torch = sys.modules.get("torch")
+        if self.torch is None and self.load:
+            import importlib.util
+
+            if importlib.util.find_spec("torch") is None:
+                return
+            import torch
+
+            self.torch = torch
+        if self.torch is None:
+            return
+        self.saved = self.torch.get_num_threads()
+        self.torch.set_num_threads(1)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.torch is not None:
+            self.torch.set_num_threads(self.saved)
 
 
 def _run_item(item: tuple[str, _Job, str | None, str | None]) -> DriveTable | DriveFailure:
