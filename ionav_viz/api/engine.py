@@ -15,6 +15,7 @@ set to 1 for a ``local`` cluster) and a ``KilledWorker`` comes back as a :class:
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -83,15 +84,34 @@ def run_each(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> 
     return _dask(fn, items, engine)
 
 
+#: The variables that size the numerical libraries' thread pools, read when each library loads.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
 def _worker_start() -> None:
     """In each worker process, before any work: one thread per library (the pool is the
     parallelism; N workers x N threads would only fight over the cores)."""
     import sys
 
-    for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    for name in THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
     if "torch" in sys.modules:  # imported before the fork (the forkserver's preload): set, not only asked for
         sys.modules["torch"].set_num_threads(1)
+
+
+@contextlib.contextmanager
+def _one_thread_environment() -> Iterator[None]:
+    """While worker processes (or the forkserver) are started: :data:`THREAD_VARIABLES` at 1 where
+    unset, so that they load numpy's BLAS and the others with one thread (set later, in the
+    worker, they come after numpy's import and do nothing); this process's own setting is restored
+    after (its libraries read them when they loaded)."""
+    unset = [name for name in THREAD_VARIABLES if name not in os.environ]
+    os.environ.update(dict.fromkeys(unset, "1"))
+    try:
+        yield
+    finally:
+        for name in unset:
+            os.environ.pop(name, None)
 
 
 #: What the forkserver imports once, before it forks the workers: each worker then starts with
@@ -108,8 +128,12 @@ def _context():
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
+    from multiprocessing import forkserver
+
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(list(PRELOAD))
+    with _one_thread_environment():
+        forkserver.ensure_running()  # started now, with one thread per library (a no-op when it runs)
     return context
 
 
@@ -121,12 +145,13 @@ def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> 
     pool = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_worker_start)
     try:
         futures = {}
-        for i, item in enumerate(items):
-            try:
-                futures[pool.submit(fn, item)] = i
-            except BrokenProcessPool:  # a worker died already, while the items were being handed out
-                lost += range(i, len(items))
-                break
+        with _one_thread_environment():  # spawn's workers start here, at the first submits
+            for i, item in enumerate(items):
+                try:
+                    futures[pool.submit(fn, item)] = i
+                except BrokenProcessPool:  # a worker died already, while the items were being handed out
+                    lost += range(i, len(items))
+                    break
         for fut in as_completed(futures):
             try:
                 value = fut.result()
@@ -155,7 +180,8 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
         pools = [ProcessPoolExecutor(1, mp_context=_context(), initializer=_worker_start) for _ in batch]
         died = []
         try:
-            futures = {pool.submit(fn, items[i]): i for pool, i in zip(pools, batch)}
+            with _one_thread_environment():
+                futures = {pool.submit(fn, items[i]): i for pool, i in zip(pools, batch)}
             for fut in as_completed(futures):
                 try:
                     value = fut.result()
