@@ -213,7 +213,8 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
     cluster = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):  # a dying item is retried once (local cluster)
         if engine.cluster == LOCAL_CLUSTER:
-            cluster = LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            with _one_thread_environment():  # its worker processes start here
+                cluster = LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True, dashboard_address=None)
             address = cluster
         else:
             address = engine.cluster
