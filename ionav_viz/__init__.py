@@ -34,6 +34,7 @@ _EXPORTS = {
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
     "outage_log": "api", "figures": "api", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
+    "evaluate_fleet": "api", "replay_fleet": "api", "FleetReport": "analysis.fleet",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
     "Estimate": "nav.protocol", "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol",
     "EstimatorError": "nav.protocol", "FilterHealth": "nav.protocol",
@@ -66,6 +67,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports on first use
     from .analysis.evaluate import DriveResult
     from .analysis.events import Event, EventThresholds
+    from .analysis.fleet import FleetReport
     from .analysis.report import Report
     from .api import (
         DatasetSource,
@@ -81,6 +83,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         detector_quality,
         evaluate,
         evaluate_by_event,
+        evaluate_fleet,
         evaluate_lengths,
         fetch,
         figures,
@@ -89,6 +92,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         list_runs,
         outage_log,
         replay,
+        replay_fleet,
         replay_lengths,
         replay_scenario,
         scenario_drives,

@@ -33,10 +33,11 @@ def test_an_unknown_name_without_a_suffix_is_still_an_unknown_drive(tmp_path):
 
 
 def test_a_folder_of_drives_suggests_the_drives_themselves(tmp_path):
+    """Where one drive is read (events, outage-log); evaluate and replay take a folder of drives as a fleet (tests/test_fleet.py)."""
     folder = tmp_path / "drives"
     folder.mkdir()
     shutil.copy(SAMPLES / "V-sim-motorway.csv", folder)
-    one_line_error(run_cli("evaluate", str(folder), "--no-idnn"), "a folder of drives, not one drive", f"{folder}/*.csv")
+    one_line_error(run_cli("events", str(folder)), "a folder of drives, not one drive", f"{folder}/*.csv")
 
 
 def test_json_and_markdown_together_are_refused():

@@ -21,6 +21,7 @@ from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
 from .figures import figures
+from .fleet import evaluate_fleet, replay_fleet
 from .options import RunOptions
 from .outage_log import OutageLogResult, outage_log
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
@@ -48,6 +49,7 @@ __all__ = [
     "detector_quality",
     "evaluate",
     "evaluate_by_event",
+    "evaluate_fleet",
     "evaluate_lengths",
     "fetch",
     "figures",
@@ -56,6 +58,7 @@ __all__ = [
     "list_runs",
     "outage_log",
     "replay",
+    "replay_fleet",
     "replay_lengths",
     "replay_scenario",
     "scenario_drives",

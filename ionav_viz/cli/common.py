@@ -237,6 +237,14 @@ def _start_times(text: str) -> list[float]:
 
 QuietOpt = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary on stderr.")
 
+#: The options of a fleet run (many drives, each evaluated on its own; see api/fleet.py).
+WorkersOpt = typer.Option(None, "--workers", help="Run the drives in this many processes, each drive on its own (default: every core); "
+                          "one bad drive is reported, not fatal (exit code 3).", show_default=False)
+ClusterOpt = typer.Option(None, "--cluster", metavar="ADDRESS", help="Run the drives on a Dask cluster: its scheduler (tcp://HOST:8786) or 'local' "
+                          "(needs ionav-viz[cluster]; the workers read the drives from the same paths).", show_default=False)
+FailFastOpt = typer.Option(False, "--fail-fast", help="Many drives: stop at the first drive that fails, with its error (exit code 2).")
+DryRunOpt = typer.Option(False, "--dry-run", help="List the drives that would be evaluated, with sizes and a time estimate; read nothing.")
+
 
 def duration_s(text: str, option: str, allow_zero: bool = False) -> float:
     """A duration option -> seconds (``allow_zero``: 0 too); a bad one is a usage error naming the option."""

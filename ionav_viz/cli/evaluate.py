@@ -30,6 +30,10 @@ def evaluate(
     overview: bool = typer.Option(False, "--overview", help="One line per scenario (means and improvement) instead of full tables."),
     by_event: bool = typer.Option(False, "--by-event", help="Tables per manoeuvre type: one outage centred on each detected event, across all the drives (--on: the types to tabulate)."),
     quiet: bool = c.QuietOpt,
+    workers: Optional[int] = c.WorkersOpt,
+    cluster: Optional[str] = c.ClusterOpt,
+    fail_fast: bool = c.FailFastOpt,
+    dry_run: bool = c.DryRunOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
     read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
@@ -42,6 +46,14 @@ def evaluate(
 
     if as_json and markdown:
         raise InputError("--json and --markdown: two output formats asked for", "give one of them")
+    from . import fleet
+
+    if fleet.is_fleet_run(drives, workers, cluster, fail_fast, dry_run):  # many drives, each on its own (cli/fleet.py)
+        refused = {"--scenario": scenario, "--plan": plan, "--external": external, "--export": export, "--by-event": by_event,
+                   "--overview": overview, "--outage LENGTH,LENGTH": outage is not None and "," in outage}
+        fleet.evaluate_fleet(drives, outage, placement, run, read, workers=workers, cluster=cluster, fail_fast=fail_fast,
+                             dry_run=dry_run, as_json=as_json, markdown=markdown, quiet=quiet, refused=refused)
+        return
     if outage is not None and "," in outage:
         for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),
                               (overview or None, "--overview"), (external or None, "--external")):

@@ -18,7 +18,8 @@ from .app import app, log, options_named
 @c.with_estimator_options
 @c.with_placement_options
 def replay(
-    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario name or IO-VNBD run name."),
+    drive_specs: list[str] = typer.Argument(..., metavar="DRIVE...", help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario name or IO-VNBD run name; "
+                                             "several (a folder of drives, a glob, @list.txt): one recording each, in parallel, into the folder -o."),
     outage: Optional[str] = c.OutageOrPlanOpt,
     plan: Optional[Path] = c.PlanOpt,
     external: Optional[list[str]] = c.ExternalOpt,
@@ -35,9 +36,21 @@ def replay(
     run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
     read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
+    workers: Optional[int] = c.WorkersOpt,
+    cluster: Optional[str] = c.ClusterOpt,
+    fail_fast: bool = c.FailFastOpt,
 ) -> None:
     """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
     from .. import api
+    from . import fleet
+
+    if len(drive_specs) > 1 or fleet.is_fleet_run(drive_specs, workers, cluster, fail_fast, False):  # one recording per drive (cli/fleet.py)
+        refused = {"--plan": plan, "--external": external, "--export": export, "--open": open_viewer, "--connect": connect,
+                   "--serve-web": serve_web, "--screenshot": screenshot_dir, "--outage LENGTH,LENGTH": outage is not None and "," in outage}
+        fleet.replay_fleet(drive_specs, output, outage, placement, run, read, workers=workers, cluster=cluster, fail_fast=fail_fast,
+                           quiet=quiet, refused=refused)
+        return
+    drive_spec = drive_specs[0]
 
     if outage is not None and "," in outage:
         for given, option in ((plan, "--plan"), (external, "--external"), (open_viewer or None, "--open"), (connect, "--connect"),

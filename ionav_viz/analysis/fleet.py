@@ -1,0 +1,360 @@
+"""The fleet report: many drives evaluated one by one (in any order, on any worker), compared from
+their small per-outage tables, never from the drives themselves.
+
+A :class:`DriveTable` is everything the report needs of one evaluated drive: per outage its start,
+GNSS distance and every estimator's metrics, and per drive its length, distance, biases, GNSS truth
+exclusions and warnings (a few kB for a long drive). A :class:`DriveFailure` is a drive that could
+not be evaluated, with its one-line reason. A :class:`FleetReport` pools the tables in input
+order, so its numbers are the same whichever worker computed which drive; as JSON, text and
+Markdown it gives per-drive rows, the pooled summary per estimator, the worst drives and outages
+with the command that replays each, and the failures.
+"""
+
+from __future__ import annotations
+
+import shlex
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..core.json_out import dumps_json
+from ..nav.protocol import short_label
+from .drift import final_error_percentiles
+from .evaluate import DriveResult, improvement_pct, is_baseline
+from .metrics import METRICS, summarise
+from .report import IMPROVEMENT_METRICS
+
+#: How many drives and outages the fleet report ranks as the worst.
+FLEET_WORST_COUNT = 5
+
+
+@dataclass
+class DriveTable:
+    """One evaluated drive, compactly: what the fleet report is made of.
+
+    Attributes:
+        spec: the drive as it was given (a path, a bundled or run name): what replays it.
+        name, source: the drive's name and the file it was read from.
+        duration_s, distance_m: the drive's length in time and its GNSS (truth) distance.
+        outage_s: the length of each outage.
+        estimators: name and label of each estimator that ran, in report order.
+        start_s, gnss_distance_m: per outage, its start (s since the drive's first sample) and
+            the GNSS distance travelled during it (m).
+        metrics: per estimator, each of :data:`METRICS` per outage.
+        bias: the sensor biases the estimators were given (``accel_mps2``, ``gyro_radps``, ``source``).
+        gnss_truth: what the GNSS quality checks excluded (see ``DriveResult.truth_exclusions``).
+        truth: ``gnss`` or ``reference``.
+        warnings: what was warned while this drive was read and evaluated (one line each).
+        elapsed_s: wall time of this drive on its worker (not part of the results).
+        recording: the ``.rrd`` the drive was replayed into, if it was.
+    """
+
+    spec: str
+    name: str
+    source: str
+    duration_s: float
+    distance_m: float
+    outage_s: float
+    estimators: list[dict[str, str]]
+    start_s: np.ndarray
+    gnss_distance_m: np.ndarray
+    metrics: dict[str, dict[str, np.ndarray]]
+    bias: dict[str, Any]
+    gnss_truth: dict[str, Any]
+    truth: str = "gnss"
+    warnings: list[str] = field(default_factory=list)
+    elapsed_s: float = 0.0
+    recording: str | None = None
+
+    @property
+    def n_outages(self) -> int:
+        return len(self.start_s)
+
+    def mean_final_error_m(self, estimator: str) -> float:
+        """Mean final position error of ``estimator`` over this drive's outages (NaN: did not run)."""
+        if estimator not in self.metrics:
+            return float("nan")
+        return summarise(self.metrics[estimator]["final_position_error_m"])["mean"]
+
+
+def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = None, elapsed_s: float = 0.0,
+                recording: str | None = None) -> DriveTable:
+    """The compact table of one drive's :class:`DriveResult` (its arrays are not kept)."""
+    from ..core.geo import steps_en_m
+
+    drive = result.drive
+    east, north = steps_en_m(drive.lat_deg, drive.lon_deg)
+    return DriveTable(
+        spec=str(spec), name=drive.name, source=drive.source, duration_s=float(drive.duration_s),
+        distance_m=float(np.hypot(east, north).sum()), outage_s=result.outage_s,
+        estimators=[{"name": e.name, "label": e.label} for e in result.estimators],
+        start_s=np.asarray(result.outage_t0_s, dtype=float).copy(), gnss_distance_m=np.asarray(result.gnss_distance_m, dtype=float).copy(),
+        metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
+        bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},
+        gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
+        warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording)
+
+
+@dataclass(frozen=True)
+class DriveFailure:
+    """A drive that could not be evaluated: as it was given, and why (one line)."""
+
+    spec: str
+    reason: str
+    elapsed_s: float = 0.0
+
+
+@dataclass(repr=False)
+class FleetReport:
+    """Every drive of a fleet, each evaluated on its own, pooled.
+
+    Attributes:
+        drives: the evaluated drives, in the order they were given.
+        failures: the drives that could not be evaluated, in the order they were given.
+        outage_s: the outage length.
+        replay_options: the options that replay a drive with the same outages (``--outage 10s
+            --every 30s``), for the commands the report prints.
+        timing: how the run went (``wall_s``, ``engine``, per drive ``elapsed_s``): not results,
+            and the only part of :meth:`to_dict` that changes with the workers.
+        skipped: drives too short for one outage (or with none on good GNSS truth), with why.
+    """
+
+    drives: list[DriveTable]
+    failures: list[DriveFailure] = field(default_factory=list)
+    outage_s: float = 10.0
+    replay_options: str = ""
+    timing: dict[str, Any] = field(default_factory=dict)
+    skipped: list[DriveFailure] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return f"FleetReport({len(self.drives)} drive(s) evaluated, {len(self.failures)} failed, {self.n_outages} outage(s))"
+
+    @property
+    def n_outages(self) -> int:
+        return int(sum(t.n_outages for t in self.drives))
+
+    @property
+    def estimators(self) -> list[str]:
+        """Every estimator that ran on some drive, in the order they first appear."""
+        out: list[str] = []
+        for t in self.drives:
+            out += [e["name"] for e in t.estimators if e["name"] not in out]
+        return out
+
+    @property
+    def labels(self) -> dict[str, str]:
+        out: dict[str, str] = {}
+        for t in self.drives:
+            out |= {e["name"]: e["label"] for e in t.estimators if e["name"] not in out}
+        return out
+
+    @property
+    def baseline(self) -> str | None:
+        """The INS DR, when it ran: the estimator improvements are measured against."""
+        return next((e for e in self.estimators if is_baseline(e)), None)
+
+    @property
+    def worst_of(self) -> str | None:
+        """The estimator whose errors rank the worst drives and outages (the INS DR if it ran)."""
+        return self.baseline or (self.estimators[0] if self.estimators else None)
+
+    def metric(self, estimator: str, metric: str, drives: list[DriveTable] | None = None) -> np.ndarray:
+        """One metric of one estimator over every outage of the drives it ran on, in input order."""
+        tables = [t for t in (self.drives if drives is None else drives) if estimator in t.metrics]
+        return np.concatenate([t.metrics[estimator][metric] for t in tables]) if tables else np.zeros(0)
+
+    def pooled(self) -> dict[str, dict[str, Any]]:
+        """Per estimator over the fleet: ``drives``, ``outages``, ``summary`` (per metric ``max``,
+        ``min``, ``mean``, ``std``), ``final_error_percentiles`` and, for the others than the INS DR,
+        ``improvement_pct`` over it on the outages both ran on (the same numbers as one report over
+        all the drives when every drive ran every estimator)."""
+        out: dict[str, dict[str, Any]] = {}
+        base = self.baseline
+        for est in self.estimators:
+            ran = [t for t in self.drives if est in t.metrics]
+            entry: dict[str, Any] = {"drives": len(ran), "outages": int(sum(t.n_outages for t in ran)),
+                                     "summary": {m: summarise(self.metric(est, m)) for m in METRICS},
+                                     "final_error_percentiles": final_error_percentiles(self.metric(est, "final_position_error_m"))}
+            if base is not None and est != base:
+                both = [t for t in ran if base in t.metrics]
+                entry["improvement_pct"] = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"], summarise(self.metric(est, m, both))["mean"])
+                                            for m in IMPROVEMENT_METRICS}
+            out[est] = entry
+        return out
+
+    def drive_rows(self) -> list[dict[str, Any]]:
+        """One row per evaluated drive: ``drive``, ``spec``, ``source``, ``duration_s``,
+        ``distance_m``, ``outages``, per estimator its ``mean_final_error_m`` and (not the INS DR)
+        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``
+        and, when the drive was replayed, its ``recording``."""
+        base = self.baseline
+        rows = []
+        for t in self.drives:
+            means = {e: t.mean_final_error_m(e) for e in t.metrics}
+            row: dict[str, Any] = {"drive": t.name, "spec": t.spec, "source": t.source, "duration_s": t.duration_s,
+                                   "distance_m": t.distance_m, "outages": t.n_outages, "mean_final_error_m": means}
+            if base is not None and base in means:
+                row["improvement_pct"] = {e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
+            row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings)}
+            if t.recording is not None:
+                row["recording"] = t.recording
+            rows.append(row)
+        return rows
+
+    def command(self, spec: str) -> str:
+        """The command that replays one drive with the fleet's outages."""
+        return " ".join(["ionav-viz replay", shlex.quote(spec), self.replay_options or f"--outage {self.outage_s:g}s"]).strip()
+
+    def worst_drives(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
+        """The ``count`` drives with the largest mean final error of :attr:`worst_of`, worst
+        first: ``drive``, ``spec``, ``mean_final_error_m`` per estimator and ``command``."""
+        est = self.worst_of
+        ranked = [(t.mean_final_error_m(est), i, t) for i, t in enumerate(self.drives) if est is not None]
+        ranked = sorted([r for r in ranked if np.isfinite(r[0])], key=lambda r: (-r[0], r[1]))
+        return [{"drive": t.name, "spec": t.spec, "mean_final_error_m": {e: t.mean_final_error_m(e) for e in t.metrics},
+                 "command": self.command(t.spec)} for _, _, t in ranked[:count]]
+
+    def worst_outages(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
+        """The ``count`` outages with the largest final error of :attr:`worst_of`, worst first:
+        ``drive``, ``number`` (from 1 within its drive, the recording's "outage N"), ``start_s``,
+        ``end_s``, ``final_error_m`` per estimator and the ``command`` that replays its drive."""
+        est = self.worst_of
+        ranked = [(float(err), d, i, t) for d, t in enumerate(self.drives) if est in t.metrics
+                  for i, err in enumerate(t.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
+        ranked.sort(key=lambda r: (-r[0], r[1], r[2]))
+        return [{"drive": t.name, "number": i + 1, "start_s": round(float(t.start_s[i]), 3), "end_s": round(float(t.start_s[i] + t.outage_s), 3),
+                 "final_error_m": {e: float(t.metrics[e]["final_position_error_m"][i]) for e in t.metrics},
+                 "command": self.command(t.spec)} for _, _, i, t in ranked[:count]]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``evaluate --workers N --json`` object.
+
+        Keys: ``outage_s``; ``drives_given``, ``drives_evaluated``, ``drives_failed``,
+        ``drives_skipped``; ``n_outages``, ``duration_s`` and ``distance_m`` (over the evaluated
+        drives); ``estimators`` (name and label); ``pooled`` (:meth:`pooled`); ``drives``
+        (:meth:`drive_rows`); ``sequences`` (each outage: ``drive``, ``start_s``,
+        ``gnss_distance_m`` and per estimator its :data:`METRICS`); ``worst_of``, ``worst_drives``
+        and ``worst_outages`` (with the command that replays each); ``failures`` and ``skipped``
+        (``drive`` as given and its one-line ``reason``); ``timing`` (``wall_s``, ``engine``, per
+        drive ``elapsed_s``: the only key that changes from run to run). NaN is written as null.
+        """
+        sequences = []
+        for t in self.drives:
+            for i in range(t.n_outages):
+                entry: dict[str, Any] = {"drive": t.name, "start_s": round(float(t.start_s[i]), 3), "gnss_distance_m": float(t.gnss_distance_m[i])}
+                entry |= {e: {m: float(t.metrics[e][m][i]) for m in METRICS} for e in t.metrics}
+                sequences.append(entry)
+        timing = dict(self.timing)
+        timing["elapsed_s"] = {t.spec: round(t.elapsed_s, 3) for t in self.drives} | {f.spec: round(f.elapsed_s, 3) for f in self.failures}
+        return {
+            "outage_s": self.outage_s,
+            "drives_given": len(self.drives) + len(self.failures) + len(self.skipped),
+            "drives_evaluated": len(self.drives), "drives_failed": len(self.failures), "drives_skipped": len(self.skipped),
+            "n_outages": self.n_outages,
+            "duration_s": float(sum(t.duration_s for t in self.drives)), "distance_m": float(sum(t.distance_m for t in self.drives)),
+            "estimators": [{"name": e, "label": lab} for e, lab in self.labels.items()],
+            "pooled": self.pooled(),
+            "drives": self.drive_rows(),
+            "worst_of": self.worst_of,
+            "worst_drives": self.worst_drives(),
+            "worst_outages": self.worst_outages(),
+            "failures": [{"drive": f.spec, "reason": f.reason} for f in self.failures],
+            "skipped": [{"drive": f.spec, "reason": f.reason} for f in self.skipped],
+            "sequences": sequences,
+            "timing": timing,
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """:meth:`to_dict` as JSON (NaN as null)."""
+        return dumps_json(self.to_dict(), indent=indent)
+
+    def to_text(self, width: int | None = None) -> str:
+        """The report as plain text, its tables fitted into ``width`` columns (None: no limit)."""
+        return _render(self, markdown=False, width=width)
+
+    def to_markdown(self) -> str:
+        """The report as Markdown."""
+        return _render(self, markdown=True, width=None)
+
+
+def _f(x: float, decimals: int = 2) -> str:
+    return "-" if not np.isfinite(x) else f"{x:.{decimals}f}"
+
+
+def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
+    from .tables import aligned
+
+    def table(header: list[str], rows: list[list[str]], left: int) -> list[str]:
+        if markdown:
+            return ["| " + " | ".join(header) + " |", "|" + "|".join("---" if j < left else "---:" for j in range(len(header))) + "|",
+                    *("| " + " | ".join(r) + " |" for r in rows)]
+        return aligned(header, rows, left, width)
+
+    def heading(text: str) -> str:
+        return f"## {text}" if markdown else text
+
+    ests, labels, base = rep.estimators, rep.labels, rep.baseline
+    short = {e: short_label(labels[e]) for e in ests}
+    hours = sum(t.duration_s for t in rep.drives) / 3600.0
+    km = sum(t.distance_m for t in rep.drives) / 1000.0
+    given = len(rep.drives) + len(rep.failures) + len(rep.skipped)
+    lines = [("# " if markdown else "") + f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
+             + (f", {len(rep.failures)} failed" if rep.failures else "") + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
+             + f"; {rep.n_outages} outages of {rep.outage_s:g} s over {hours:.2f} h and {km:.1f} km", ""]
+    if rep.drives:
+        pooled = rep.pooled()
+        lines += [heading("Pooled over the fleet (mean over outages)"), ""]
+        header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + (["final vs INS %"] if base else [])
+        rows = []
+        for e in ests:
+            p = pooled[e]
+            s = p["summary"]
+            row = [labels[e], str(p["drives"]), str(p["outages"]), _f(s["final_position_error_m"]["mean"]),
+                   _f(p["final_error_percentiles"]["p90"]), _f(s["crse_m"]["mean"]), _f(s["yaw_crse_radps"]["mean"], 3)]
+            if base:
+                row.append(_f(p["improvement_pct"]["final_position_error_m"], 1) if "improvement_pct" in p else "")
+            rows.append(row)
+        lines += table(header, rows, 1) + [""]
+        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
+        others = [e for e in ests if e != base]
+        header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else [])
+                  + ["warnings"])
+        rows = []
+        for t, r in zip(rep.drives, rep.drive_rows()):
+            means = r["mean_final_error_m"]
+            windows = t.gnss_truth.get("windows", 0)
+            bad_pct = 100.0 * t.gnss_truth.get("excluded_windows", 0) / windows if windows else float("nan")
+            row = [t.name, str(t.n_outages), f"{t.duration_s / 3600:.2f}", f"{t.distance_m / 1000:.1f}", _f(bad_pct, 1)]
+            row += [_f(means.get(e, float("nan"))) for e in ests]
+            if base:
+                row += [_f(r.get("improvement_pct", {}).get(e, float("nan")), 1) for e in others]
+            rows.append(row + [str(len(t.warnings))])
+        lines += table(header, rows, 1) + [""]
+        worst = rep.worst_drives()
+        if worst:
+            lines += [heading(f"Worst drives (by {short[rep.worst_of]} mean final error)"), ""]
+            lines += [f"{k}. {w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: "
+                      + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
+        worst = rep.worst_outages()
+        if worst:
+            lines += [heading(f"Worst outages (by {short[rep.worst_of]} final error)"), ""]
+            lines += [f"{k}. {w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
+                      + ", ".join(f"{short[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items()) + "; replay: "
+                      + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
+    for title, items in (("Failed drives", rep.failures), ("Skipped drives", rep.skipped)):
+        if items:
+            lines += [heading(f"{title} ({len(items)})"), ""]
+            lines += [("- " if markdown else "") + f"{f.spec}: {f.reason}" for f in items] + [""]
+    warned = [(t.name, w) for t in rep.drives for w in t.warnings]
+    if warned:
+        lines += [heading(f"Warnings ({len(warned)})"), ""]
+        lines += [("- " if markdown else "") + (w if w.startswith(name) else f"{name}: {w}") for name, w in warned] + [""]
+    if rep.timing.get("wall_s") is not None and not markdown:
+        lines.append(f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time")
+    if width is not None:  # the tables fit already; prose lines (worst, failures, warnings) are wrapped
+        import textwrap
+
+        lines = [ln if len(ln) <= width else "\n".join(textwrap.wrap(ln, width, subsequent_indent="   ", break_on_hyphens=False))
+                 for ln in lines]
+    return "\n".join(lines).rstrip("\n") + "\n"

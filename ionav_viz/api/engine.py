@@ -1,0 +1,242 @@
+"""Where the work over many drives runs: in this process, in a pool of local processes, or on a
+Dask cluster, behind one function, :func:`run_each`.
+
+The seam is deliberately small: ``fn(item)`` maps one picklable item (a drive's name and the run's
+options) to a small picklable result (a drive's per-outage table, never the drive), and
+:func:`run_each` yields ``(index, result)`` as each finishes. The caller orders the results by
+index, so what it builds does not depend on the back-end or on the number of workers. Another
+back-end (Ray) is one more branch here; nothing in the analysis changes.
+
+A worker process that dies (killed, out of memory) loses the items it was running and the pool:
+those items are run again, once, each alone in a fresh process; an item whose process dies again
+comes back as a :class:`WorkerLost`. On Dask the scheduler does the same (``allowed-failures``,
+set to 1 for a ``local`` cluster) and a ``KilledWorker`` comes back as a :class:`WorkerLost`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..core.errors import InputError
+
+#: ``--cluster local``: a Dask ``LocalCluster`` on this machine, one single-threaded worker per process.
+LOCAL_CLUSTER = "local"
+
+
+@dataclass(frozen=True)
+class WorkerLost:
+    """An item whose worker process died twice (or that Dask gave up on): why, in one line."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Engine:
+    """How work is spread: ``workers`` processes on this machine (1: in this process), or a Dask
+    scheduler's address (``tcp://host:8786``) or ``"local"`` for a ``LocalCluster`` of ``workers``."""
+
+    workers: int = 1
+    cluster: str | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise InputError(f"{self.workers!r} workers: give a whole number of 1 or more", "e.g. --workers 2", param="workers")
+        if self.cluster is not None and not str(self.cluster).strip():
+            raise InputError("an empty cluster address", "give tcp://HOST:8786 or local", param="cluster")
+
+    @property
+    def backend(self) -> str:
+        """``serial``, ``processes`` or ``dask``."""
+        if self.cluster is not None:
+            return "dask"
+        return "serial" if self.workers == 1 else "processes"
+
+    def describe(self) -> str:
+        """One line for reports: ``4 processes``, ``in this process``, ``Dask at tcp://...``."""
+        if self.backend == "dask":
+            return f"Dask ({'a local cluster of ' + str(self.workers) + ' workers' if self.cluster == LOCAL_CLUSTER else self.cluster})"
+        return "in this process" if self.backend == "serial" else f"{self.workers} processes"
+
+
+def default_workers() -> int:
+    """Every core this process may use (``os.sched_getaffinity`` where there is one)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # macOS, Windows
+        return max(os.cpu_count() or 1, 1)
+
+
+def run_each(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Iterator[tuple[int, Any]]:
+    """``(index, fn(items[index]))`` for every item, in the order they finish (a
+    :class:`WorkerLost` instead of a result where the worker died twice). ``fn`` must be a
+    module-level function and items and results picklable for every back-end but ``serial``.
+    Closing the iterator early (``--fail-fast``) cancels what has not started."""
+    if not items:
+        return iter(())
+    if engine.backend == "serial":
+        return ((i, fn(item)) for i, item in enumerate(items))
+    if engine.backend == "processes":
+        return _processes(fn, items, min(engine.workers, len(items)))
+    return _dask(fn, items, engine)
+
+
+#: The variables that size the numerical libraries' thread pools, read when each library loads.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def _worker_start() -> None:
+    """In each worker process, before any work: one thread per library (the pool is the
+    parallelism; N workers x N threads would only fight over the cores)."""
+    import sys
+
+    for name in THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
+    if "torch" in sys.modules:  # imported before the fork (the forkserver's preload): set, not only asked for
+        sys.modules["torch"].set_num_threads(1)
+
+
+@contextlib.contextmanager
+def _one_thread_environment() -> Iterator[None]:
+    """While worker processes (or the forkserver) are started: :data:`THREAD_VARIABLES` at 1 where
+    unset, so that they load numpy's BLAS and the others with one thread (set later, in the
+    worker, they come after numpy's import and do nothing); this process's own setting is restored
+    after (its libraries read them when they loaded)."""
+    unset = [name for name in THREAD_VARIABLES if name not in os.environ]
+    os.environ.update(dict.fromkeys(unset, "1"))
+    try:
+        yield
+    finally:
+        for name in unset:
+            os.environ.pop(name, None)
+
+
+#: What the forkserver imports once, before it forks the workers: each worker then starts with
+#: them loaded instead of importing them again (torch alone is about 1.5 s of CPU a process).
+PRELOAD = ("numpy", "pandas", "torch", "safetensors.torch", "numba", "ionav_viz.api.fleet", "ionav_viz.nav.idnn", "ionav_viz.nav.planar_filter")
+
+
+def _context():
+    """A ``forkserver`` where there is one (Linux, macOS), else ``spawn``: never a plain ``fork``
+    of this process, which may run threads (torch, numba, the progress bar), and a fork after
+    threads can deadlock. The forkserver is a fresh single-threaded process that imports
+    :data:`PRELOAD` once; the workers are forked from it."""
+    import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    from multiprocessing import forkserver
+
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(list(PRELOAD))
+    with _one_thread_environment():
+        forkserver.ensure_running()  # started now, with one thread per library (a no-op when it runs)
+    return context
+
+
+def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[tuple[int, Any]]:
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    lost: list[int] = []
+    pool = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_worker_start)
+    try:
+        futures = {}
+        with _one_thread_environment():  # spawn's workers start here, at the first submits
+            for i, item in enumerate(items):
+                try:
+                    futures[pool.submit(fn, item)] = i
+                except BrokenProcessPool:  # a worker died already, while the items were being handed out
+                    lost += range(i, len(items))
+                    break
+        for fut in as_completed(futures):
+            try:
+                value = fut.result()
+            except BrokenProcessPool:  # a worker died: every item not finished is lost with the pool
+                lost.append(futures[fut])
+                continue
+            yield futures[fut], value
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    yield from _retry_alone(fn, items, sorted(lost), workers, none_done=len(lost) == len(items))
+
+
+def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int], workers: int, none_done: bool) -> Iterator[tuple[int, Any]]:
+    """Each lost item once more, alone in a fresh process (``workers`` at a time), so that the
+    item that kills its worker is told from those that only shared its pool. When no item had
+    come back at all and the whole first batch dies again, the workers cannot start here (a
+    ``spawn`` re-imports the main module: a script without ``if __name__ == "__main__":``, or
+    standard input): a :class:`ToolFailure`."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    from ..core.errors import ToolFailure
+
+    for first in range(0, len(lost), workers):
+        batch = lost[first : first + workers]
+        pools = [ProcessPoolExecutor(1, mp_context=_context(), initializer=_worker_start) for _ in batch]
+        died = []
+        try:
+            with _one_thread_environment():
+                futures = {pool.submit(fn, items[i]): i for pool, i in zip(pools, batch)}
+            for fut in as_completed(futures):
+                try:
+                    value = fut.result()
+                except BrokenProcessPool:
+                    died.append(futures[fut])
+                    continue
+                none_done = False
+                yield futures[fut], value
+        finally:
+            for pool in pools:
+                pool.shutdown(wait=True, cancel_futures=True)
+        if none_done and len(died) == len(batch):
+            raise ToolFailure("every worker process died before returning anything: they cannot start here (a script that starts "
+                              "them needs its work under 'if __name__ == \"__main__\":', and standard input cannot be re-imported), "
+                              "or every drive exhausts the memory; try --workers 1")
+        for i in sorted(died):
+            yield i, WorkerLost("its worker process died twice (killed, or out of memory); retried once")
+        none_done = False
+
+
+def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Iterator[tuple[int, Any]]:
+    try:
+        import dask
+        from distributed import Client, LocalCluster, as_completed
+        from distributed.scheduler import KilledWorker
+    except ImportError:
+        raise InputError("--cluster needs Dask, which is not installed", 'pip install "ionav-viz[cluster]"', param="cluster") from None
+
+    cluster = None
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):  # a dying item is retried once (local cluster)
+        if engine.cluster == LOCAL_CLUSTER:
+            with _one_thread_environment():  # its worker processes start here
+                cluster = LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            address = cluster
+        else:
+            address = engine.cluster
+        try:
+            client = Client(address, timeout=dask.config.get("distributed.comm.timeouts.connect"))
+        except (OSError, TimeoutError) as exc:
+            if cluster is not None:
+                cluster.close()
+            raise InputError(f"no Dask scheduler answered at {engine.cluster} ({' '.join(str(exc).split())})",
+                             "start one ('dask scheduler', then 'dask worker ADDRESS'), or use --cluster local", param="cluster") from None
+    try:
+        client.run(_worker_start)
+        futures = client.map(fn, list(items), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for fut in as_completed(futures):
+            try:
+                value = fut.result()
+            except KilledWorker as exc:
+                value = WorkerLost(f"Dask gave up on it: its worker died ({' '.join(str(exc).split())[:200]})")
+            fut.release()  # the result is ours now; the cluster forgets it
+            yield index[fut.key], value
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,410 @@
+"""A fleet in one command: many drives evaluated each on its own, on every core or on a Dask
+cluster, one bad drive never sinking the others (:func:`evaluate_fleet`), from drives given as
+files, folders, globs or ``@list.txt`` files (:func:`expand_drives`), with a dry run that lists
+them with sizes and a time estimate (:func:`plan_fleet`)."""
+
+from __future__ import annotations
+
+import glob
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
+from ..core.errors import InputError
+from ..nav.outages import Placement
+from ..nav.protocol import Estimator
+from ..sources.load import ReadOptions
+from .engine import Engine, WorkerLost, default_workers, run_each
+from .options import Progress, RunOptions, check_event_types, options_of, placement_of, windows_of
+
+#: The exit code of ``evaluate`` when some drives failed and the others' results were printed.
+EXIT_SOME_FAILED = 3
+#: The file types a folder of drives is searched for (one drive each; ROS 2 and KITTI folders are
+#: drives themselves).
+DRIVE_SUFFIXES = (".csv", ".mcap", ".bag")
+#: The largest ``@list.txt`` read (a million drives of 10-byte names): anything larger is not one.
+MAX_LIST_BYTES = 10 * 10**6
+#: The time estimate of a dry run: a start (imports, the workers' start), then per drive a fixed
+#: part and a part per MB of file, measured on our 2-core machine with simulated IO-VNBD CSV drives
+#: and every built-in estimator (about 5.7 MB per hour of drive; benchmarks/bench_fleet.py).
+ESTIMATE_START_S = 3.0
+ESTIMATE_S_PER_DRIVE = 0.05
+ESTIMATE_S_PER_MB = 0.12
+
+
+@dataclass(frozen=True)
+class FleetDrive:
+    """One drive of a fleet: as given (``spec``: what a worker reads and the report names), and
+    its file's size in bytes (None: a name not resolved here, or a folder)."""
+
+    spec: str
+    size_bytes: int | None = None
+
+
+def expand_drives(specs: Sequence[str | Path]) -> list[FleetDrive]:
+    """The drives ``specs`` name, in order, each once: a file or a drive folder (ROS 2 bag, KITTI
+    raw) as it is; a folder of drives: its ``.csv``, ``.mcap`` and ``.bag`` files, sorted; a glob
+    (``logs/*.csv``): its matches, sorted; ``@list.txt``: the drives listed in it, one a line
+    (``#`` comments and blank lines ignored; relative paths from the list's folder); anything else
+    (a bundled sample or IO-VNBD run name) as it is. Paths are de-duplicated by the file they
+    reach. A list that cannot be read or a glob that matches nothing is an :class:`InputError`."""
+    out: dict[str, FleetDrive] = {}
+    for spec in specs:
+        for path in _expand_one(str(spec), depth=0):
+            key = _identity(path)
+            if key not in out:
+                out[key] = FleetDrive(path, _size_of(path))
+    return list(out.values())
+
+
+def _expand_one(spec: str, depth: int) -> list[str]:
+    if spec.startswith("@"):
+        return _from_list(Path(spec[1:]), depth)
+    path = Path(spec).expanduser()
+    if path.is_dir() and _is_folder_of_drives(path):
+        return sorted(str(p) for p in path.iterdir() if p.is_file() and p.suffix.lower() in DRIVE_SUFFIXES)
+    if not path.exists() and glob.has_magic(spec):
+        found = sorted(glob.glob(os.path.expanduser(spec), recursive=True))
+        if not found:
+            raise InputError(f"{spec}: no file matches", "check the pattern (quote it so the shell leaves it to ionav-viz)")
+        return [p for match in found for p in _expand_one(match, depth)]  # a folder of drives among them: its drives
+    return [spec]
+
+
+def _from_list(path: Path, depth: int) -> list[str]:
+    if depth > 4:
+        raise InputError(f"@{path}: lists of drives nested more than 4 deep", "list the drives themselves")
+    try:
+        if path.is_file() and path.stat().st_size > MAX_LIST_BYTES:
+            raise InputError(f"@{path}: {path.stat().st_size / 1e6:.0f} MB is not a list of drives (at most {MAX_LIST_BYTES // 10**6} MB)",
+                             "give a text file with one drive per line")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"@{path}: no such list of drives", "give @FILE with one drive per line") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"@{path}: cannot be read as a list of drives ({type(exc).__name__})", "give a UTF-8 text file, one drive per line") from None
+    out: list[str] = []
+    for line in text.splitlines():
+        item = line.split("#", 1)[0].strip()
+        if not item:
+            continue
+        if item.startswith("@"):
+            out += _expand_one("@" + str(path.parent / Path(item[1:]).expanduser()), depth + 1)
+            continue
+        candidate = path.parent / Path(item).expanduser()  # an absolute path stays as it is
+        is_path = candidate.exists() or glob.has_magic(item) or "/" in item or os.sep in item
+        out += _expand_one(str(candidate) if is_path else item, depth + 1)  # else a sample or run name
+    return out
+
+
+def _is_folder_of_drives(path: Path) -> bool:
+    """A folder that is not one drive (no ROS 2 metadata, no KITTI oxts/) but holds drive files."""
+    from ..sources.kitti import oxts_folder
+
+    if (path / "metadata.yaml").is_file() or oxts_folder(path) is not None:
+        return False
+    try:
+        return any(p.is_file() and p.suffix.lower() in DRIVE_SUFFIXES for p in path.iterdir())
+    except OSError:
+        return False
+
+
+def _identity(spec: str) -> str:
+    path = Path(spec).expanduser()
+    try:
+        return str(path.resolve(strict=True)) if path.exists() else spec
+    except OSError:
+        return spec
+
+
+def _size_of(spec: str) -> int | None:
+    path = Path(spec).expanduser()
+    try:
+        if path.is_file():
+            return path.stat().st_size
+        if path.is_dir():
+            return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    except OSError:
+        return None
+    return None
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What every worker needs besides the drive: small and picklable."""
+
+    n_windows: int
+    placement: Placement
+    run: RunOptions
+    read: ReadOptions
+
+
+def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str | None = None) -> DriveTable | DriveFailure:
+    """Evaluate one drive (in whichever process runs it), and with ``recording`` replay it into
+    that ``.rrd``: its compact table, or why it failed in one line. ``path``: where the worker reads
+    it (the absolute path of ``spec``, for workers in other folders). The drive's arrays are
+    released when this returns."""
+    from ..core.warnings_log import collecting_warnings
+    from ..nav.windows import make_windows
+    from ..sources.load import load_drive
+    from .evaluate import plan_outages
+
+    began = time.perf_counter()
+    with _quiet_log(), collecting_warnings() as warned:
+        try:
+            drive = load_drive(path or spec, job.read)
+            windows = make_windows(drive)
+            plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
+            if plan.too_short:
+                why = "no outage fits where the GNSS truth is good" if plan.excluded else "too short for a single outage"
+                return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began)
+            if recording is not None:
+                from .replay import replay
+
+                with _one_torch_thread(load=job.run.estimators is None or "idnn" in map(str, job.run.estimators)):
+                    result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
+            else:
+                from ..analysis.evaluate import evaluate_drive
+
+                ests = job.run.applying_to([drive])
+                with _one_torch_thread(load=any(e.name == "idnn" for e in ests)):
+                    result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts,
+                                            windows=windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps)
+            return drive_table(spec, result, list(warned), time.perf_counter() - began, recording)
+        except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
+            return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
+
+
+class _one_torch_thread:
+    """torch on one thread while a drive is evaluated, in this process as in a worker: a sum split
+    over another number of threads may round differently, and the fleet's numbers must not depend
+    on where a drive ran. Where torch is loaded already, or ``load`` (the IDNN may run: it will
+    load it); the previous setting is restored after."""
+
+    def __init__(self, load: bool = True) -> None:
+        self.load = load
+
+    def __enter__(self) -> None:
+        import sys
+
+        self.torch = sys.modules.get("torch")
+        if self.torch is None and self.load:
+            import importlib.util
+
+            if importlib.util.find_spec("torch") is None:
+                return
+            import torch
+
+            self.torch = torch
+        if self.torch is None:
+            return
+        self.saved = self.torch.get_num_threads()
+        self.torch.set_num_threads(1)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.torch is not None:
+            self.torch.set_num_threads(self.saved)
+
+
+def _run_item(item: tuple[str, _Job, str | None, str | None]) -> DriveTable | DriveFailure:
+    return evaluate_one(*item)
+
+
+def _absolute(spec: str) -> str | None:
+    """Where a worker reads ``spec``, whatever its working folder: the absolute path of a path
+    that exists here, else None (a name, read as it is)."""
+    local = Path(spec).expanduser()
+    return str(local.absolute()) if local.exists() else None
+
+
+def _one_line(exc: BaseException) -> str:
+    from ..core.errors import plain_text
+
+    text = " ".join(plain_text(str(exc)).split())
+    return text if isinstance(exc, InputError) else f"{type(exc).__name__}: {text or 'no message'}"
+
+
+class _quiet_log:
+    """While one drive is evaluated, ionav-viz's warnings go to its report, not to stderr (a
+    worker's stderr interleaves with the others'); restored after."""
+
+    def __enter__(self) -> None:
+        import logging
+
+        self.logger = logging.getLogger("ionav_viz")
+        self.saved = self.logger.handlers[:], self.logger.propagate
+        self.logger.handlers[:] = [logging.NullHandler()]
+        self.logger.propagate = False
+
+    def __exit__(self, *exc: Any) -> None:
+        self.logger.handlers[:], self.logger.propagate = self.saved
+
+
+def evaluate_fleet(
+    drives: Sequence[str | Path],
+    outage_s: float | None = None,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    workers: int | None = None,
+    cluster: str | None = None,
+    fail_fast: bool = False,
+    progress: Progress | None = None,
+    replay_options: str = "",
+) -> FleetReport:
+    """Evaluate every drive on its own, on ``workers`` processes (default: every core; 1: in this
+    process) or a Dask cluster (``cluster``: ``tcp://host:8786``, or ``"local"``), and pool the
+    results in the order the drives were given: the report is the same whatever the workers.
+
+    Args:
+        drives: paths, folders, globs, ``@list.txt`` files or names (:func:`expand_drives`); a
+            worker reads each drive itself, so on a cluster every path must be one the workers see.
+        outage_s, placement, estimators, run, read: as for :func:`ionav_viz.evaluate`; the
+            estimators are chosen per drive (the default ones that apply to it).
+        fail_fast: the first drive that fails raises its :class:`InputError` (the work not started
+            is cancelled) instead of being reported.
+        progress: ``progress(label, done, total)`` after each drive; the label says the outages
+            scored and the slowest drive so far.
+        replay_options: the options that replay a drive the same way, for the report's commands.
+
+    Returns:
+        a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
+        with its one-line reason, a drive too short for one outage in ``skipped``.
+    """
+    items = expand_drives(drives)
+    job = _job_of(items, outage_s, placement, estimators, run, read)
+    return _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job,
+                      Engine(workers if workers is not None else default_workers(), cluster), fail_fast, progress, replay_options)
+
+
+def replay_fleet(
+    drives: Sequence[str | Path],
+    folder: str | Path = "recordings",
+    outage_s: float | None = None,
+    placement: Placement | None = None,
+    estimators: Sequence[str | Estimator] | None = None,
+    *,
+    run: RunOptions | None = None,
+    read: ReadOptions | None = None,
+    workers: int | None = None,
+    cluster: str | None = None,
+    fail_fast: bool = False,
+    progress: Progress | None = None,
+    replay_options: str = "",
+) -> FleetReport:
+    """:func:`ionav_viz.replay` of every drive into ``folder`` (made when missing), one recording
+    each, ``<drive>.rrd`` (``<drive>-2.rrd``... for a name given twice), in parallel as
+    :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. On a
+    cluster, ``folder`` must be one every worker can write to."""
+    from ..core.fileio import check_output_folder
+
+    items = expand_drives(drives)
+    job = _job_of(items, outage_s, placement, estimators, run, read)
+    out = check_output_folder(Path(folder), param="output")
+    names: dict[str, int] = {}
+    work = []
+    for d in items:
+        name = _drive_name(d.spec)
+        names[name] = names.get(name, 0) + 1
+        work.append((d.spec, job, str((out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd")).absolute()), _absolute(d.spec)))
+    out.mkdir(parents=True, exist_ok=True)
+    return _run_fleet(work, [d.size_bytes for d in items], job, Engine(workers if workers is not None else default_workers(), cluster),
+                      fail_fast, progress, replay_options)
+
+
+def _drive_name(spec: str) -> str:
+    """The name a drive's recording gets: its file's stem (a folder's name, a sample's name)."""
+    path = Path(spec)
+    return (path.parent.name if path.name == "metadata.yaml" else path.stem) or "drive"
+
+
+def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placement | None, estimators: Sequence[str | Estimator] | None,
+            run: RunOptions | None, read: ReadOptions | None) -> _Job:
+    """The run's options, checked once, before any worker starts."""
+    if not items:
+        raise InputError("no drive to evaluate", "give at least one drive")
+    placement = placement_of(placement, None)
+    n = windows_of(outage_s, placement)
+    run, read = options_of(run, estimators, read, None, None)
+    if placement.event_types:
+        check_event_types(placement.event_types)
+    run.chosen()  # plug-ins and the model are checked here, before any worker starts
+    return _Job(n, placement, run, read)
+
+
+def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list[int | None], job: _Job, engine: Engine, fail_fast: bool,
+               progress: Progress | None, replay_options: str) -> FleetReport:
+    """Run every item on ``engine``, the largest files first (so that no long drive starts last
+    while the other workers wait), and pool the results in the order given."""
+    began = time.perf_counter()
+    done: dict[int, DriveTable | DriveFailure] = {}
+    outages, slowest = 0, ("", 0.0)
+    order = sorted(range(len(work)), key=lambda i: (-(sizes[i] or 0), i))
+    results = run_each(_run_item, [work[i] for i in order], engine)
+    try:
+        for j, value in results:
+            i = order[j]
+            if isinstance(value, WorkerLost):
+                value = DriveFailure(work[i][0], value.reason)
+            done[i] = value
+            if fail_fast and isinstance(value, DriveFailure) and not value.reason.startswith("skipped"):
+                raise InputError(f"{value.spec}: {value.reason}", "leave out --fail-fast to evaluate the other drives and report this one")
+            if isinstance(value, DriveTable):
+                outages += value.n_outages
+            if value.elapsed_s > slowest[1]:
+                slowest = (Path(value.spec).name, value.elapsed_s)
+            if progress:
+                progress(f"{len(done)}/{len(work)} drives, {outages} outages scored, slowest {slowest[0]} {slowest[1]:.1f} s",
+                         len(done), len(work))
+    finally:
+        close = getattr(results, "close", None)
+        if close is not None:
+            close()
+    ordered = [done[i] for i in range(len(work))]
+    return FleetReport(
+        drives=[v for v in ordered if isinstance(v, DriveTable)],
+        failures=[v for v in ordered if isinstance(v, DriveFailure) and not v.reason.startswith("skipped")],
+        skipped=[v for v in ordered if isinstance(v, DriveFailure) and v.reason.startswith("skipped")],
+        outage_s=float(job.n_windows), replay_options=replay_options,
+        timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
+
+
+@dataclass(frozen=True)
+class FleetPlan:
+    """What a fleet run would do (``--dry-run``): the drives with their sizes, and the estimate."""
+
+    drives: list[FleetDrive]
+    workers: int
+    estimate_s: float
+
+    def to_text(self) -> str:
+        """One line per drive (size in MB), then the total and the time estimate."""
+        from ..analysis.tables import aligned
+
+        rows = [[d.spec, "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"] for d in self.drives]
+        total_mb = sum(d.size_bytes or 0 for d in self.drives) / 1e6
+        lines = aligned(["Drive", "MB"], rows, 1)
+        lines += ["", f"{len(self.drives)} drive(s), {total_mb:.1f} MB; about {self.estimate_s:.0f} s on {self.workers} worker(s) "
+                      "(a rough estimate from the file sizes)"]
+        return "\n".join(lines) + "\n"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"drives": [{"drive": d.spec, "size_bytes": d.size_bytes} for d in self.drives], "workers": self.workers,
+                "estimate_s": round(self.estimate_s, 1)}
+
+
+def plan_fleet(drives: Sequence[str | Path], workers: int | None = None) -> FleetPlan:
+    """The drives :func:`evaluate_fleet` would evaluate, with sizes and a rough time estimate on
+    ``workers`` (default every core): nothing is read but the file sizes."""
+    items = expand_drives(drives)
+    if not items:
+        raise InputError("no drive to evaluate", "give at least one drive")
+    n = Engine(workers if workers is not None else default_workers()).workers
+    work_s = sum(ESTIMATE_S_PER_DRIVE + ESTIMATE_S_PER_MB * (d.size_bytes or 0) / 1e6 for d in items)
+    return FleetPlan(items, n, ESTIMATE_START_S + work_s / min(n, len(items)))

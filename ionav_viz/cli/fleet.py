@@ -1,0 +1,113 @@
+"""``ionav-viz evaluate`` of a fleet (``--workers``, ``--cluster``, ``--fail-fast``, ``--dry-run``,
+or drives given as a folder of drives, a glob or ``@list.txt``): each drive on its own, in parallel,
+one bad drive reported rather than fatal. Not a command: :mod:`.evaluate` hands over to it."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+
+from . import common as c
+from .app import options_named
+
+
+def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool) -> bool:
+    """Whether ``evaluate`` runs as a fleet: a fleet option, or drives given as a list file, a glob
+    or a folder of drives (which one-drive evaluation refuses)."""
+    if workers is not None or cluster is not None or fail_fast or dry_run:
+        return True
+    from ..api.fleet import _is_folder_of_drives
+
+    for spec in drives or []:
+        path = Path(spec).expanduser()
+        if spec.startswith("@") or (not path.exists() and any(ch in spec for ch in "*?[")) or (path.is_dir() and _is_folder_of_drives(path)):
+            return True
+    return False
+
+
+def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
+                   workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool, as_json: bool, markdown: bool,
+                   quiet: bool, refused: dict[str, Any]) -> None:
+    """Evaluate the drives as a fleet and print its report; exit 3 when some drives failed
+    (:data:`ionav_viz.api.fleet.EXIT_SOME_FAILED`), 2 when none could be evaluated."""
+    from ..api import fleet
+    from ..core.json_out import dumps_json
+
+    for option, given in refused.items():
+        if given:
+            raise typer.BadParameter(f"a fleet run (--workers, --cluster, many drives) does not take {option} yet", param_hint=option)
+    if not drives:
+        raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
+    outage_s = c.duration_s(outage, "--outage") if outage is not None else None
+    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option):
+        if dry_run:
+            plan = fleet.plan_fleet(drives, workers)
+            print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
+            return
+        with c.progress(quiet) as bar:
+            report = fleet.evaluate_fleet(drives, outage_s, placement.placement, run=run, read=read, workers=workers, cluster=cluster,
+                                          fail_fast=fail_fast, progress=c.progress_callback(bar, "evaluating"),
+                                          replay_options=_replay_options(outage, placement, run))
+    if as_json:
+        print(report.to_json())
+    else:
+        print(report.to_markdown() if markdown else report.to_text(c.terminal_width()), end="")
+    _exit_for(report, quiet)
+
+
+def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any) -> str:
+    """The options that replay one drive of the fleet with the same outages and estimators."""
+    import shlex
+
+    parts = [f"--outage {outage or '10s'}"]
+    if placement.option != "--outage":
+        option, _, value = placement.option.partition(" ")
+        parts.append(f"{option} {shlex.quote(value)}")
+    if run is not None and run.estimators is not None:
+        parts.append("--estimators " + shlex.quote(",".join(str(e) for e in run.estimators)))
+    if run is not None and run.without:
+        parts.append("--no-idnn")
+    return " ".join(parts)
+
+
+def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
+                 workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool, refused: dict[str, Any]) -> None:
+    """Replay many drives, one recording each into the folder ``-o`` (default ``recordings``):
+    the recordings' paths on stdout, the fleet report on stderr; exit codes as for evaluate."""
+    from ..api import fleet
+
+    for option, given in refused.items():
+        if given:
+            raise typer.BadParameter(f"replaying many drives does not take {option} yet", param_hint=option)
+    if output is not None and output.suffix.lower() == ".rrd":
+        raise typer.BadParameter(f"{output}: many drives are replayed into a folder, one recording each", param_hint="-o")
+    outage_s = c.duration_s(outage, "--outage") if outage is not None else None
+    with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option), \
+            c.progress(quiet) as bar:
+        report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
+                                    read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
+                                    progress=c.progress_callback(bar, "replaying"), replay_options=_replay_options(outage, placement, run))
+    if not quiet:
+        print(report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
+    for table in report.drives:
+        print(table.recording)
+    _exit_for(report, quiet)
+
+
+def _exit_for(report: Any, quiet: bool) -> None:
+    """Exit 2 when no drive could be done (one line naming the first), 3 when some failed."""
+    from ..api import fleet
+    from ..core.errors import InputError
+
+    if not report.drives:
+        first = (report.failures or report.skipped)[0]
+        raise InputError(f"no drive could be evaluated: {len(report.failures) + len(report.skipped)} failed or skipped "
+                         f"(first: {first.spec}: {first.reason})", "see the report for each drive's reason")
+    if report.failures:
+        if not quiet:
+            print(f"{len(report.failures)} of {len(report.drives) + len(report.failures) + len(report.skipped)} drives failed "
+                  f"(exit code {fleet.EXIT_SOME_FAILED}); their reasons are in the report", file=sys.stderr)
+        raise typer.Exit(fleet.EXIT_SOME_FAILED)

@@ -1,0 +1,213 @@
+"""A fleet in one command (issue 42): many drives, each evaluated on its own, in parallel, one bad
+drive reported rather than fatal; inputs as folders, globs and @lists; the engine's back-ends."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO, run_cli
+
+pytestmark = pytest.mark.xdist_group("fleet")
+
+CHEAP = "ins,odo"  # estimators without torch, for the tests about plumbing rather than results
+
+
+@pytest.fixture(scope="module")
+def fleet_dir(tmp_path_factory) -> Path:
+    """Three simulated 2-minute drives and one unreadable CSV, in one folder."""
+    import ionav_viz as iv
+
+    folder = tmp_path_factory.mktemp("fleet")
+    for seed, scenario in enumerate(("motorway", "roundabout", "motorway")):
+        iv.simulate(scenario, folder / f"V-f{seed}.csv", seed=seed, duration_s=120.0)
+    (folder / "V-bad.csv").write_text("not,an,io-vnbd\n1,2,3\n")
+    return folder
+
+
+def _good(fleet_dir: Path) -> list[str]:
+    return [str(fleet_dir / f"V-f{i}.csv") for i in range(3)]
+
+
+def _results(report) -> dict:
+    out = report.to_dict()
+    out.pop("timing")  # wall times: the only part that changes from run to run
+    return out
+
+
+def test_pooled_results_are_bit_for_bit_the_serial_run_and_one_report_over_the_drives(fleet_dir):
+    """Two worker processes give exactly the serial fleet's numbers, and those are exactly what one
+    report over the same drives (plain 'evaluate A B C') gives: summary, improvement, every outage."""
+    import ionav_viz as iv
+    from ionav_viz.api.fleet import evaluate_fleet
+
+    drives = _good(fleet_dir)
+    calls: list[tuple[str, int, int]] = []
+    serial = evaluate_fleet(drives, 10, workers=1, progress=lambda *call: calls.append(call))
+    assert [c[1:] for c in calls] == [(1, 3), (2, 3), (3, 3)]
+    assert calls[-1][0].startswith(f"3/3 drives, {serial.n_outages} outages scored, slowest V-f")
+    pooled = evaluate_fleet([*drives, drives[0], str(fleet_dir / ".." / fleet_dir.name / "V-f1.csv")], 10, workers=2)  # the same drive twice: once
+    assert [t.name for t in pooled.drives] == ["V-f0", "V-f1", "V-f2"]
+    assert "idnn" in serial.estimators  # torch in the workers too
+    import pickle
+
+    for table in serial.drives:  # what comes back from a worker: the per-outage table, not the drive
+        assert len(pickle.dumps(table)) < Path(table.source).stat().st_size / 20
+    assert _same(_results(pooled), _results(serial))  # bit for bit: the same JSON text
+    one = iv.evaluate(drives, 10).to_dict()
+    fleet = serial.to_dict()
+    assert _same(fleet["sequences"], one["sequences"])
+    for est in serial.estimators:
+        assert _same(fleet["pooled"][est]["summary"], one["summary"][est])
+        if est != "ins":
+            assert _same(fleet["pooled"][est]["improvement_pct"], one["improvement_pct"][est])
+
+
+def _same(a, b) -> bool:
+    """Equal to the last bit (as JSON text: NaN equals NaN, 0.1 + 0.2 does not equal 0.3)."""
+    return json.dumps(a) == json.dumps(b)
+
+
+def test_a_bad_drive_is_reported_and_the_others_kept(fleet_dir):
+    """A folder of drives with one unreadable file: every other drive's results, the bad one's
+    one-line reason under its name in the text and the JSON, exit code 3; --fail-fast stops with
+    exit 2 and a one-line error naming the file."""
+    text = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP)
+    assert text.returncode == 3, text.stderr
+    assert "4 drive(s), 3 evaluated, 1 failed" in text.stdout
+    bad = str(fleet_dir / "V-bad.csv")
+    line = next(ln for ln in text.stdout.splitlines() if ln.startswith(bad))
+    assert "missing column" in line
+    assert "Traceback" not in text.stderr and "exit code 3" in text.stderr
+    as_json = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--json")
+    assert as_json.returncode == 3
+    report = json.loads(as_json.stdout)
+    assert [f["drive"] for f in report["failures"]] == [bad] and "missing column" in report["failures"][0]["reason"]
+    assert [d["drive"] for d in report["drives"]] == ["V-f0", "V-f1", "V-f2"]
+    assert report["worst_drives"][0]["command"].startswith("ionav-viz replay ")
+    fast = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--fail-fast")
+    assert fast.returncode == 2 and fast.stdout == ""
+    assert len(fast.stderr.strip().splitlines()) == 1 and bad in fast.stderr and "hint:" in fast.stderr
+
+
+def test_drives_from_lists_and_globs_once_each(fleet_dir, tmp_path):
+    """@list.txt (comments, blank lines, paths relative to the list, a nested list), globs and a
+    folder name the same drives once; --dry-run lists them with sizes and an estimate, reading
+    nothing; a missing list and a glob matching nothing are one-line errors with exit code 2."""
+    listed = tmp_path / "drives.txt"
+    rel = os.path.relpath(fleet_dir / "V-f0.csv", tmp_path)
+    (tmp_path / "more.txt").write_text(f"{fleet_dir / 'V-f1.csv'}\n")
+    listed.write_text(f"# my fleet\n{rel}\n\n{fleet_dir}/V-f0.csv  # the same drive again\n@more.txt\n")
+    dry = run_cli("evaluate", f"@{listed}", str(fleet_dir / "V-f*.csv"), str(fleet_dir), "--dry-run", "--workers", "2", "--json")
+    assert dry.returncode == 0, dry.stderr
+    plan = json.loads(dry.stdout)
+    names = [Path(d["drive"]).name for d in plan["drives"]]
+    assert names == ["V-f0.csv", "V-f1.csv", "V-f2.csv", "V-bad.csv"]
+    assert all(d["size_bytes"] > 0 for d in plan["drives"]) and plan["estimate_s"] > 0 and plan["workers"] == 2
+    for day in ("day1", "day2"):  # a glob over folders of drives: their drives
+        (tmp_path / day).mkdir()
+        shutil.copy(fleet_dir / "V-f0.csv", tmp_path / day / f"V-{day}.csv")
+    days = json.loads(run_cli("evaluate", str(tmp_path / "day*"), "--dry-run", "--json").stdout)
+    assert [Path(d["drive"]).name for d in days["drives"]] == ["V-day1.csv", "V-day2.csv"]
+    text = run_cli("evaluate", str(fleet_dir), "--dry-run")
+    assert text.returncode == 0 and "4 drive(s)" in text.stdout and "MB" in text.stdout
+    for args, fragment in (((f"@{tmp_path / 'none.txt'}",), "no such list of drives"), ((str(tmp_path / "*.mcap"),), "no file matches"),
+                           ((str(fleet_dir), "--workers", "0"), "--workers")):
+        bad = run_cli("evaluate", *args)
+        assert bad.returncode == 2, bad.stderr
+        assert len(bad.stderr.strip().splitlines()) == 1 and fragment in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_a_dying_worker_is_retried_once_then_reported():
+    """A worker process that dies (here: exits at once, as one the OOM killer ends) loses the pool;
+    the other items are run again and kept, the one that kills its worker twice is reported."""
+    from ionav_viz.api.engine import Engine, WorkerLost, run_each
+    from tests.fleet_helpers import square_or_die
+
+    items = ["a", "bb", "die", "cccc", "ddd"]
+    got = dict(run_each(square_or_die, items, Engine(workers=2)))
+    assert sorted(got) == list(range(5))
+    assert [got[i] for i in (0, 1, 3, 4)] == [1, 4, 16, 9]
+    assert isinstance(got[2], WorkerLost) and "died twice" in got[2].reason
+    from ionav_viz.core.errors import ToolFailure
+
+    with pytest.raises(ToolFailure, match="every worker process died before returning anything"):  # workers that cannot start
+        list(run_each(square_or_die, ["die", "die", "die"], Engine(workers=2)))
+
+
+def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
+    """A real Dask scheduler and two workers on 127.0.0.1 give exactly the serial results."""
+    pytest.importorskip("distributed")
+    from ionav_viz.api.fleet import evaluate_fleet
+
+    env = {**os.environ, "PYTHONPATH": str(REPO)}  # the workers import this checkout's ionav_viz
+    dask = shutil.which("dask", path=str(Path(sys.executable).parent)) or "dask"
+    info = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(info)],
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(200):
+            if info.exists() and info.stat().st_size:
+                break
+            time.sleep(0.05)
+        address = json.loads(info.read_text())["address"]
+        procs += [subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
+                                   env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:  # both workers up before the work (and not forever)
+            client.wait_for_workers(2, timeout=60)
+        drives = [*_good(fleet_dir), str(fleet_dir / "V-bad.csv")]
+        on_cluster = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), cluster=address)
+        serial = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), workers=1)
+        assert json.dumps(_results(on_cluster)) == json.dumps(_results(serial))
+        assert on_cluster.timing["engine"].startswith("Dask")
+        assert len(on_cluster.failures) == 1
+    finally:
+        for proc in reversed(procs):  # ours alone, and nothing of theirs to keep: no graceful close to wait for
+            proc.kill()
+        for proc in procs:
+            proc.wait(timeout=10)
+
+
+def test_no_dask_scheduler_is_one_error_naming_the_option(fleet_dir):
+    pytest.importorskip("distributed")
+    import dask
+
+    from ionav_viz.api.fleet import evaluate_fleet
+    from ionav_viz.core.errors import InputError
+
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), pytest.raises(InputError) as err:
+        evaluate_fleet([str(fleet_dir / "V-f0.csv")], 10, estimators=["ins"], cluster="tcp://127.0.0.1:9")
+    assert err.value.param == "cluster" and "no Dask scheduler answered at tcp://127.0.0.1:9" in str(err.value)
+
+
+def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
+    """'replay A B C -o FOLDER': one recording per drive (a name given twice gets its own), the
+    paths on stdout in the order given, the scores those of 'evaluate', a bad drive exit code 3."""
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(fleet_dir / "V-f0.csv", other / "V-f0.csv")
+    out = tmp_path / "recs"
+    result = run_cli("replay", *_good(fleet_dir), str(other / "V-f0.csv"), str(fleet_dir / "V-bad.csv"), "--workers", "1", "-o", str(out),
+                     "--estimators", CHEAP)
+    assert result.returncode == 3, result.stderr
+    assert result.stdout.splitlines() == [str(out / n) for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd")]
+    assert all((out / n).stat().st_size > 0 for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
+    assert "V-bad.csv: missing column" in result.stderr
+    assert "Fleet: 5 drive(s), 4 evaluated, 1 failed" in result.stderr
+    from ionav_viz.api.fleet import evaluate_fleet, replay_fleet
+
+    replayed = replay_fleet(_good(fleet_dir)[:2], tmp_path / "api", 10, estimators=CHEAP.split(","), workers=1)
+    evaluated = evaluate_fleet(_good(fleet_dir)[:2], 10, estimators=CHEAP.split(","), workers=1)
+    assert _same(replayed.to_dict()["sequences"], evaluated.to_dict()["sequences"])
+    assert [r["recording"] for r in replayed.drive_rows()] == [str(tmp_path / "api" / n) for n in ("V-f0.rrd", "V-f1.rrd")]
+    refused = run_cli("replay", *_good(fleet_dir), "-o", str(tmp_path / "one.rrd"))
+    assert refused.returncode == 2 and "-o" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1
