@@ -28,15 +28,21 @@ from ionav_viz.core.gnss_quality import GnssLimits
 ESTIMATORS = ("ins", "idnn", "ekf", "gins")
 
 
-def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma_m: float | None, extra: dict | None = None) -> dict:
+def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma_m: float | None, extra: dict | None = None,
+            warm_up_s: float = 30.0) -> dict:
     """Per outage length: each estimator's mean final error (% of distance), the outage count, and
     the run's warnings."""
     log = iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=truth_topic, **(extra or {}))
     limits = GnssLimits() if max_sigma_m is None else replace(GnssLimits(), max_sigma_m=max_sigma_m)
     read = iv.ReadOptions(log=log, gnss_limits=limits)
     out: dict = {"log": path.name, "lengths": {}}
-    for length, rep in iv.evaluate_lengths([str(path)], lengths, estimators=list(ESTIMATORS), read=read).items():
-        d = rep.to_dict()
+    run = iv.RunOptions(warm_up_s=warm_up_s)
+    for length in lengths:
+        try:
+            d = iv.evaluate([str(path)], length, estimators=list(ESTIMATORS), read=read, run=run).to_dict()
+        except iv.InputError as exc:  # e.g. no outage of that length fits the log
+            out["lengths"][f"{length:g}"] = {"outages": 0, "why": str(exc)}
+            continue
         cell = {"outages": d["n_sequences"]}
         for est in d["estimators"]:
             name = est["name"]
@@ -46,6 +52,7 @@ def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma
         out["lengths"][f"{length:g}"] = cell
         out["warnings"] = d.get("warnings", [])
         out["filter_health"] = d.get("filter_health", {})
+        out["imu"] = d["drives"][0].get("imu_text", "")
     return out
 
 
@@ -70,6 +77,8 @@ def main() -> None:
     parser.add_argument("--lengths", default="10,30,60", help="outage lengths (s), comma-separated")
     parser.add_argument("--truth-topic", help="a reference trajectory's topic (NavSatFix), when the logs carry one")
     parser.add_argument("--max-sigma-m", type=float, help="GNSS limit max_sigma_m (fixes less accurate are not truth)")
+    parser.add_argument("--gnss-topic", help="the receiver's topic, when the logs carry several")
+    parser.add_argument("--warm-up", type=float, default=30.0, help="GNSS time before the first outage (s)")
     parser.add_argument("--json", type=Path, help="also write every number as JSON here")
     args = parser.parse_args()
     lengths = [float(x) for x in args.lengths.split(",")]
@@ -79,7 +88,8 @@ def main() -> None:
     for path in args.logs:
         start = time.perf_counter()
         try:
-            result = measure(path, lengths, args.truth_topic, args.max_sigma_m)
+            result = measure(path, lengths, args.truth_topic, args.max_sigma_m, {"gnss_topic": args.gnss_topic} if args.gnss_topic else None,
+                             args.warm_up)
         except iv.InputError as exc:
             print(f"| {path.name} | {exc} |||||", flush=True)
             continue

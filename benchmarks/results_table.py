@@ -223,8 +223,27 @@ def wrap(markdown: str, width: int = 100) -> str:
     return "\n\n".join(out).replace("\u00a0", " ") + "\n"
 
 
+def real_rows(paths: list[Path], lengths: list[float]) -> str:
+    """The real logs measured by ``benchmarks/real_imu_logs.py --json`` (on the user's local copies),
+    in the overview's shape, for the page's "Real logs" section."""
+    import json
+
+    lines = ["| outage | " + " | ".join(r["log"].removesuffix(".mcap") for p in paths for r in json.loads(p.read_text())) + " |",
+             "|---|" + "---|" * sum(len(json.loads(p.read_text())) for p in paths)]
+    results = [r for p in paths for r in json.loads(p.read_text())]
+    for length in lengths:
+        cells = []
+        for r in results:
+            cell = r["lengths"].get(f"{length:g}", {})
+            ranked = sorted(((v, k) for k, v in cell.items() if k not in ("outages", "why") and v is not None))
+            cells.append("–" if not ranked else f"best {ranked[0][0]:.1f} % ({ranked[0][1]}), "
+                         + ", ".join(f"{k} {v:.1f}" for v, k in ranked[1:]))
+        lines.append(f"| {length:g} s | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float], minutes: float, seed_base: int,
-         model: str | None) -> str:
+         model: str | None, real: list[Path] | None = None) -> str:
     day = datetime.datetime.now(datetime.UTC).date().isoformat()
     model_text = f"the IDNN model in `{model}`" if model else "the shipped IDNN model"
     return wrap("\n".join([
@@ -233,7 +252,7 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         f"Written by `{command_line()}` on a {machine()} machine ({day}, ionav-viz {iv.__version__}, "
         f"{model_text}); do not edit by hand, run the command again.",
         "",
-        "Every built-in estimator on GNSS outages of " + ", ".join(f"{x:g}" for x in lengths) + " s tiling each drive, on "
+        "Every built-in estimator on GNSS outages of " + ", ".join(f"{x:g}" for x in lengths) + " s tiling each drive after a 30 s warm-up, on "
         "synthetic drives of five kinds: the **bundled** test drive of each scenario (`ionav-viz evaluate SCENARIO`); "
         "**held-out** drives, one per scenario from a car of the simulator's held-out fleet, whose sensor and vehicle errors "
         f"all lie outside the ranges of the training drives (`ionav-viz simulate SCENARIO --fleet held-out --seed SEED "
@@ -265,6 +284,18 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         "- Estimators: " + ", ".join(f"{label} (`{name}`)" for name, label in labels.items()) + "; "
         "described in [method.md](method.md) and [estimators.md](estimators.md).",
         "",
+        *([
+            "## Real logs",
+            "",
+            "Public real car logs with a phone or a dash device IMU, measured by `python benchmarks/real_imu_logs.py --json` on "
+            "local copies and read in with `--real-logs` (IMU only, final position error as a share of the distance driven, "
+            "mean over tiled outages after the warm-up). What they are, where they came from and the table before and after "
+            "the consumer-IMU work: [real-imu-logs.md](real-imu-logs.md). A prediction of the simulator holds where the two "
+            "rank the estimators alike: `gins` against the INS DR on the phone sets above and on these phones.",
+            "",
+            real_rows(real, lengths),
+            "",
+        ] if real else []),
     ]))
 
 
@@ -274,6 +305,8 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=10.0, help="length of each drive")
     parser.add_argument("--seed-base", type=int, default=800, help="seed of the first held-out drive")
     parser.add_argument("--lengths", default="10,30,60", help="outage lengths (s), comma-separated")
+    parser.add_argument("--real-logs", metavar="JSON", type=Path, nargs="*", default=[],
+                        help="results of benchmarks/real_imu_logs.py --json on real logs, tabled beside the simulated sets")
     parser.add_argument("--write", metavar="FILE", type=Path, help="write the complete Markdown page to FILE (atomically) instead of printing the tables")
     args = parser.parse_args()
     if args.write is not None and not args.write.parent.is_dir():
@@ -284,7 +317,7 @@ def main() -> None:
     if args.write is None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths), end="")
     else:
-        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model))
+        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, args.real_logs))
         print(args.write)
 
 

@@ -9,7 +9,8 @@
 Beyond the paper, two constraints a car obeys (the paper's drives hardly stop inside an outage;
 real urban ones stand 20-30 % of the time): the speed never goes below zero (dead reckoning on
 the longitudinal axis assumes forward driving; integrated through a stop, a biased accelerometer
-drove the car backwards at several m/s), and where the IMU shows the car standing
+drove the car backwards at several m/s), nor above the fastest a car goes (a log whose
+accelerometer runs away, as one with 5 Hz held readings did, still gives a car's track), and where the IMU shows the car standing
 (:mod:`ionav_viz.nav.stillness`) the speed and the yaw rate are zero (a zero-velocity update).
 
 The library rebuilds the 2D track from the last fix (:func:`ionav_viz.nav.track.rebuild_track`).
@@ -21,10 +22,13 @@ from typing import Any
 
 import numpy as np
 
+from ..sources.plausibility import LIMITS
 from .bias import SensorBias
 from .integrals import trapezoid_mean
 from .protocol import Estimate, EstimatorInputs
 
+#: The speed never goes above the fastest the readers accept of a car (m/s).
+MAX_SPEED_MPS = LIMITS["speed_mps"][1]
 #: A still step's change of speed in :func:`dead_reckon` (m/s): more than any speed an outage can
 #: integrate to, less than the running sum's precision would notice (1e-9 m/s after 600 stops).
 STOP_STEP_MPS = 1e4
@@ -55,6 +59,8 @@ def dead_reckon(accel_mps2: np.ndarray, gyro_radps: np.ndarray, speed0_mps: np.n
     dv = np.where(stop, -STOP_STEP_MPS, dv)
     s = np.concatenate([np.asarray(speed0_mps, dtype=np.float64).reshape(n_seq, 1), dv], axis=1).cumsum(axis=1)
     v = s - np.minimum(np.minimum.accumulate(s, axis=1), 0.0)
+    # nor above the fastest a car goes: a runaway integral on a broken log is still a car's output
+    v = np.minimum(v, MAX_SPEED_MPS)
     disp = (0.5 * (v[:, :-1] + v[:, 1:]) * h).reshape(n_seq, n_windows, steps).sum(axis=-1)
     return disp, trapezoid_mean(gyr)
 
