@@ -91,6 +91,9 @@ class Estimate:
             external trajectory).
         health: optional, what the filter's updates saw over the drive (:class:`FilterHealth`),
             for the reports' and the recording's filter health.
+        pos_cov_m2: optional, how sure the estimator is of its position: the east/north covariance
+            (m^2) at each window boundary, shape ``(n_outages, n_windows + 1, 2, 2)`` (the first at
+            the outage's start fix); checked finite, symmetric and positive semi-definite.
     """
 
     disp_m: np.ndarray
@@ -98,6 +101,7 @@ class Estimate:
     lat_deg: np.ndarray | None = None
     lon_deg: np.ndarray | None = None
     health: FilterHealth | None = None
+    pos_cov_m2: np.ndarray | None = None
 
 
 @dataclass
@@ -108,6 +112,7 @@ class Solution:
     yaw_rate_radps: np.ndarray
     track: Track
     health: FilterHealth | None = None
+    pos_cov_m2: np.ndarray | None = None
 
 
 @dataclass
@@ -302,7 +307,34 @@ def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
         course = np.asarray(inputs.course0_deg, dtype=float)[:, None] - np.concatenate(
             [np.zeros((inputs.n_outages, 1)), np.cumsum(np.rad2deg(yaw) * WINDOW_S, axis=1)], axis=1)
         track = Track(own[0], own[1], np.mod(course, 360.0))
-    return Solution(disp, yaw, track, _checked_health(name, getattr(est, "health", None)))
+    return Solution(disp, yaw, track, _checked_health(name, getattr(est, "health", None)),
+                    _checked_covariance(name, getattr(est, "pos_cov_m2", None), inputs.n_outages, inputs.n_windows))
+
+
+def _checked_covariance(name: str, cov: Any, n_outages: int, n_windows: int) -> np.ndarray | None:
+    """An estimate's position covariance, checked: shape, finite, symmetric, positive semi-definite."""
+    if cov is None:
+        return None
+    hint = "give pos_cov_m2 as east/north covariances (m^2) of shape (n_outages, n_windows + 1, 2, 2), or none"
+    try:
+        cov = np.asarray(cov, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not numeric", hint) from None
+    if cov.shape != (n_outages, n_windows + 1, 2, 2):
+        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 has shape {cov.shape}, expected ({n_outages}, {n_windows + 1}, 2, 2)", hint)
+    where = lambda mask: "outage {}, boundary {}".format(*(int(x) + (1, 0)[i] for i, x in enumerate(np.argwhere(mask)[0])))  # noqa: E731
+    bad = ~np.isfinite(cov).all(axis=(-1, -2))
+    if bad.any():
+        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not finite in {where(bad)}", hint)
+    scale = np.maximum(np.abs(cov).max(axis=(-1, -2)), 1e-12)
+    asym = np.abs(cov[..., 0, 1] - cov[..., 1, 0]) > 1e-9 * scale
+    if asym.any():
+        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not symmetric in {where(asym)}", hint)
+    a, b, c = cov[..., 0, 0], cov[..., 1, 1], cov[..., 0, 1]
+    negative = (a < -1e-9 * scale) | (b < -1e-9 * scale) | (a * b - c * c < -1e-9 * scale * scale)
+    if negative.any():
+        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not positive semi-definite in {where(negative)}", hint)
+    return cov
 
 
 def _checked_health(name: str, health: Any) -> FilterHealth | None:

@@ -77,3 +77,43 @@ def windows_of_track(lat_deg: np.ndarray, lon_deg: np.ndarray, heading0_deg: np.
         yaw[:, w] = -np.deg2rad(turn) / WINDOW_S
         direction = direction + turn
     return dist, yaw
+
+
+def track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray, var_disp_m2: np.ndarray,
+                     var_yaw_radps2: np.ndarray, var_heading0_rad2: np.ndarray | float = 0.0) -> np.ndarray:
+    """The east/north covariance (m^2) of a rebuilt track at every window boundary, shape
+    ``(n_sequences, n_windows + 1, 2, 2)`` (zero at the start fix), linearised about the track
+    :func:`rebuild_track` makes (flat-Earth steps: metres, not geodesics).
+
+    Each window's distance and yaw rate errors are independent, of variances ``var_disp_m2`` and
+    ``var_yaw_radps2`` (arrays as ``disp_m``); the course at the start has ``var_heading0_rad2``.
+    Position ``p_k = sum_{j<k} d_j u(psi_j)``, ``u(psi) = (sin psi, cos psi)`` (course clockwise),
+    ``psi_j = psi_0 - T (sum_{i<j} w_i + w_j / 2)``: a distance error moves along ``u_j``, a course
+    error ``dpsi`` moves every later step by ``d_j u'(psi_j) dpsi``."""
+    disp = np.asarray(disp_m, dtype=float)
+    yaw = np.asarray(yaw_rate_radps, dtype=float)
+    n_seq, n_win = disp.shape
+    T = WINDOW_S
+    turn = -yaw * T  # clockwise course change per window (rad)
+    psi0 = np.deg2rad(np.asarray(heading0_deg, dtype=float)).reshape(n_seq, 1)
+    before = np.concatenate([np.zeros((n_seq, 1)), np.cumsum(turn, axis=1)[:, :-1]], axis=1)
+    psi = psi0 + before + 0.5 * turn  # each window's mid course
+    u = np.stack([np.sin(psi), np.cos(psi)], axis=-1)  # (n, w, 2)
+    du = np.stack([np.cos(psi), -np.sin(psi)], axis=-1) * disp[..., None]  # d_j u'(psi_j)
+    cum_du = np.concatenate([np.zeros((n_seq, 1, 2)), np.cumsum(du, axis=1)], axis=1)  # sum over j < k of d_j u'_j
+    out = np.zeros((n_seq, n_win + 1, 2, 2))
+    var_d = np.broadcast_to(np.asarray(var_disp_m2, dtype=float), disp.shape)
+    var_w = np.broadcast_to(np.asarray(var_yaw_radps2, dtype=float), disp.shape)
+    # distance errors: sum_{j<k} var_d_j u_j u_j^T
+    dd = np.einsum("nw,nwa,nwb->nwab", var_d, u, u)
+    out[:, 1:] += np.cumsum(dd, axis=1)
+    # the initial course: moves every step so far together
+    v0 = np.broadcast_to(np.asarray(var_heading0_rad2, dtype=float), (n_seq,))
+    out += v0[:, None, None, None] * np.einsum("nka,nkb->nkab", cum_du, cum_du)
+    # the yaw rate of window i turns the course of window i by half a window's turn and of every later
+    # window by the whole: at boundary k, J_i = -T (d_i u'_i / 2 + sum_{i<j<k} d_j u'_j)
+    for k in range(1, n_win + 1):
+        later = cum_du[:, k:k + 1] - cum_du[:, 1:k + 1]  # sum over i < j < k, for each i < k: (n, k, 2)
+        J = -T * (0.5 * du[:, :k] + later)
+        out[:, k] += np.einsum("ni,nia,nib->nab", var_w[:, :k], J, J)
+    return out
