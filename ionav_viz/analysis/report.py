@@ -18,6 +18,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
+from .consistency import consistency
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
@@ -158,7 +159,9 @@ class Report:
         Per drive (``drives``), where known: ``placement`` (where its outages went, with the
         warm-up), ``imu`` (what the reader found of a log's IMU: rate, sample kind, clock offset,
         mount; :class:`ionav_viz.core.imu.ImuCharacter`) and ``imu_text`` (the same in a line).
-        ``filter_health``: per estimator that reports one (the filters), per measurement kind its
+        ``summary[NAME]["consistency"]``: for an estimator that gives a position covariance, how
+        honest it is: ``anees``, ``anees_band``, ``coverage_95``, ``error_over_sigma`` and a
+        ``verdict`` (:mod:`.consistency`). ``filter_health``: per estimator that reports one (the filters), per measurement kind its
         updates, gate rejections and mean NIS over the drives (:mod:`.health`; per drive under
         ``drives``). ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
         ``"gnss"`` (the receiver's fixes are the truth) or ``"reference"`` (a reference trajectory
@@ -193,7 +196,7 @@ class Report:
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
             "sequences": sequences,
-            "summary": self.summary,
+            "summary": self._summary_with_consistency(),
             "distance_m": {k: v for k, v in summarise(distances).items() if k != "std"},
             "bias": [
                 {"drive": r.drive.name, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps, "source": r.bias.source}
@@ -229,6 +232,20 @@ class Report:
         out["warnings"] = list(self.warnings)
         self._dict = out
         return out
+
+    @cached_property
+    def consistency(self) -> dict[str, dict[str, Any]]:
+        """Per estimator that gives a position covariance: how honest it is (:mod:`.consistency`)."""
+        out = {}
+        for est in self.estimators:
+            c = consistency(self.results, est)
+            if c is not None:
+                out[est] = c
+        return out
+
+    def _summary_with_consistency(self) -> dict[str, Any]:
+        return {est: ({**stats, "consistency": self.consistency[est]} if est in self.consistency else stats)
+                for est, stats in self.summary.items()}
 
     def to_json(self, indent: int | None = 2) -> str:
         """Exactly what ``ionav-viz evaluate --json`` prints for one group (NaN as null)."""

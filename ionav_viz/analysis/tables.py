@@ -150,7 +150,7 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
                 bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    out += drive_lines(rep) + health_lines(rep)
+    out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep)
     if rep.get("drift"):
         header, rows = drift_rows(rep)
         out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
@@ -168,6 +168,14 @@ def drive_lines(rep: dict[str, Any], most: int = 4) -> list[str]:
     out = [f"Outages: {p}" for p in sorted(placements)] if len(placements) <= 2 else []
     out += [f"{d['name']}: {d['imu_text']}" for d in drives[:most] if d.get("imu_text")]
     return out
+
+
+def consistency_lines(rep: dict[str, Any]) -> list[str]:
+    """A line per estimator that gives a position covariance: how honest it is (:mod:`.consistency`)."""
+    from .consistency import consistency_line
+
+    labels = {e["name"]: e["label"] for e in rep["estimators"]}
+    return [consistency_line(labels.get(est, est), s["consistency"]) for est, s in rep["summary"].items() if "consistency" in s]
 
 
 def health_lines(rep: dict[str, Any]) -> list[str]:

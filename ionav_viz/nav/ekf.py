@@ -43,14 +43,14 @@ class EkfEstimator:
         meas, inc = measurements(inputs.drive, w, noise), increments(w)
         fp = forward_pass(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, noise, keep_log=True)
         xs = fp.xs
-        disp, yaw = fp.outages(inputs.starts, inputs.n_windows, inputs.still[..., -1])  # each window's last grid point: where its state ends
+        disp, yaw, cov = fp.outages(inputs.starts, inputs.n_windows, inputs.still[..., -1])  # each window's last grid point: where its state ends
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",
                           "gyro_bias_radps": f"{np.median(start[:, BG]):+.5f}",
                           "vehicle_speed": "used" if np.isfinite(meas.vehicle).any() else "none"}
         health = FilterHealth(w.t0_s, PLANAR_MEASUREMENTS, PLANAR_MEASUREMENT_KINDS, fp.log.innovation, fp.log.variance, fp.log.status)
-        return Estimate(np.maximum(disp, 0.0), yaw, health=health)
+        return Estimate(np.maximum(disp, 0.0), yaw, health=health, pos_cov_m2=0.5 * (cov + np.swapaxes(cov, -1, -2)))
 
     def describe(self) -> dict[str, Any]:
         return dict(self._last)

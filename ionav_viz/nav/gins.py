@@ -295,17 +295,21 @@ class GinsEstimator:
         out = filter_outputs(len(r.bounds.t_s), keep_states=False)
         blind = r.switches._replace(gnss=False)
         positions = np.zeros((m, n + 1, 3))
+        cov = np.zeros((m, n + 1, 2, 2))
         disp, yaw = np.zeros((m, n)), np.zeros((m, n))
         for o, k in enumerate(np.asarray(inputs.starts)):
             b0 = int(r.bounds.of_window[k])
             run_filter(r.inputs, r.noise, r.earth, blind, r.xs[b0], r.Ps[b0], b0, b0 + n, out)
             span = slice(b0, b0 + n + 1)
             positions[o] = out.pos[span]
+            cov[o] = out.pos_cov[span]
             disp[o] = np.diff(out.dist[span])
             T = np.diff(r.bounds.t_s[span])
             yaw[o] = np.diff(out.turn[span]) / T
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
-        return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1), health=health_of(r))
+        # the filter's own position covariance through the outage (no GNSS), symmetrised
+        cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
+        return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1), health=health_of(r), pos_cov_m2=cov)
 
     def describe(self) -> dict[str, Any]:
         return dict(self._last)

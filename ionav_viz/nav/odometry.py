@@ -34,6 +34,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from .integrals import trapezoid_mean
 from .protocol import Estimate, EstimatorInputs
+from .track import systematic_track_covariance, track_covariance
 from .vehicle_speed import nominal_mps_per_unit, vehicle_speed, why_no_vehicle_speed
 from .windows import Windows
 
@@ -59,6 +60,28 @@ def calibrated_scale(windows: Windows, raw: np.ndarray, starts: np.ndarray, nomi
     first = np.searchsorted(windows.t0_s, windows.t0_s[starts] - CALIBRATION_S)
     g, w = gnss[starts] - gnss[first], wheel[starts] - wheel[first]
     return np.where(g >= MIN_CALIBRATION_M, g / np.where(w > 0, w, 1.0), nominal)
+
+
+#: How sure odometry is (1 sigma): its scale calibrated on GNSS (the fixes' error over the
+#: calibration's 100 m or more, and a tyre's change within minutes) or nominal (1-3 % off any
+#: nominal value: 3 %); the gyro's standstill bias (what a standstill of a few seconds leaves,
+#: 0.02 deg/s) and its white noise per 1 s window (0.05 deg/s); the GNSS course at the start
+#: (0.5 deg at 10 m/s, growing as 1/speed, as the planar filter takes it).
+ODO_SCALE_SIGMA_CALIBRATED = 0.005
+ODO_SCALE_SIGMA_NOMINAL = 0.03
+ODO_GYRO_BIAS_SIGMA_RADPS = np.deg2rad(0.02)
+ODO_GYRO_WHITE_RADPS = np.deg2rad(0.05)
+COURSE_SIGMA_RAD_AT_10MPS = np.deg2rad(0.5)
+
+
+def odometry_covariance(inputs: EstimatorInputs, disp_m: np.ndarray, yaw_rate_radps: np.ndarray, calibrated: np.ndarray) -> np.ndarray:
+    """Odometry's east/north position covariance (m^2) at every window boundary: its scale's and the
+    gyro bias's errors, which hold through an outage, the gyro's white noise per window and the GNSS
+    course at the start (the constants above)."""
+    scale_sigma = np.where(calibrated, ODO_SCALE_SIGMA_CALIBRATED, ODO_SCALE_SIGMA_NOMINAL)
+    course_sigma = COURSE_SIGMA_RAD_AT_10MPS * 10.0 / np.maximum(np.asarray(inputs.speed0_mps, dtype=float), 1.0)
+    return (track_covariance(inputs.course0_deg, disp_m, yaw_rate_radps, 0.0, ODO_GYRO_WHITE_RADPS**2, course_sigma**2)
+            + systematic_track_covariance(inputs.course0_deg, disp_m, yaw_rate_radps, scale_sigma, ODO_GYRO_BIAS_SIGMA_RADPS))
 
 
 class OdometryEstimator:
@@ -96,7 +119,7 @@ class OdometryEstimator:
         yaw = trapezoid_mean(inputs.gyro_radps - inputs.bias.gyro_radps)
         self._last = {"speed": f"{source} ({unit})", "scale": f"{'radius' if unit == 'rad/s' else 'factor'} "
                       f"{np.median(scale) if len(scale) else nominal:.4f}{' m' if unit == 'rad/s' else ''} (median, from GNSS before each outage)"}
-        return Estimate(disp, yaw)
+        return Estimate(disp, yaw, pos_cov_m2=odometry_covariance(inputs, disp, yaw, scale != nominal))
 
     def describe(self) -> dict[str, Any]:
         return dict(self._last)

@@ -339,16 +339,20 @@ def _forward_kernel(inp, model, accel_offset, gyro_bias, log):  # pragma: no cov
 def outage_kernel(forward, inp, model, starts, n_windows, still):  # pragma: no cover - compiled
     """Every outage from the forward pass's state ``forward = (xs, Ps, slow)`` at its start, without
     GNSS. ``still[o, j]``: the car stands at the end of window ``j`` of outage ``o`` (the IMU shows
-    it): a zero-speed update there. The speed never goes below zero (a car's filter drives forward)."""
+    it): a zero-speed update there. The speed never goes below zero (a car's filter drives forward).
+    Returns the distance (m) and yaw rate (rad/s) per window and the east/north covariance (m^2) at
+    every window boundary ``(m, n_windows + 1, 2, 2)``."""
     xs, Ps, slow = forward
     m = len(starts)
     disp, yaw = np.zeros((m, n_windows)), np.zeros((m, n_windows))
+    cov = np.zeros((m, n_windows + 1, 2, 2))
     J = np.zeros((N_STATES, N_STATES))
     H = (np.zeros(2, dtype=np.int64), np.zeros(2))
     nowhere = kalman.UpdateLog(np.zeros((0, 1)), np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int8))
     for o in range(m):
         k0 = starts[o]
         x, P = xs[k0].copy(), Ps[k0].copy()
+        cov[o, 0] = P[E:N + 1, E:N + 1]
         base = slow[k0]
         grade0 = x[BA] - base
         travelled = 0.0
@@ -363,7 +367,8 @@ def outage_kernel(forward, inp, model, starts, n_windows, still):  # pragma: no 
             if still[o, j]:
                 _apply(P, x, H, standstill(x, model.r_still, H), nowhere, 0, 0)
             x[V] = max(x[V], 0.0)
-    return disp, yaw
+            cov[o, j + 1] = P[E:N + 1, E:N + 1]
+    return disp, yaw, cov
 
 
 def propagate_window(x: np.ndarray, F: float, G: float, W: float, T: float) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -456,9 +461,10 @@ class ForwardPass:
     inputs: PlanarInputs
     model: PlanarModel
 
-    def outages(self, starts: np.ndarray, n_windows: int, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def outages(self, starts: np.ndarray, n_windows: int, still: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every outage from the state at its start (:func:`outage_kernel`): distance (m) and yaw
-        rate (rad/s, counter-clockwise) per window, ``(len(starts), n_windows)``."""
+        rate (rad/s, counter-clockwise) per window, ``(len(starts), n_windows)``, and the filter's
+        east/north position covariance (m^2) at every boundary, ``(len(starts), n_windows + 1, 2, 2)``."""
         return outage_kernel((self.xs, self.Ps, self.slow), self.inputs, self.model, np.asarray(starts, dtype=np.int64), int(n_windows),
                              np.ascontiguousarray(still, dtype=np.bool_))
 

@@ -179,7 +179,8 @@ class FilterSwitches(NamedTuple):
 class FilterOutputs(NamedTuple):
     """Where :func:`run_filter` writes, per boundary: the state ``xs`` (nb, 20) and covariance ``Ps``
     (nb, 19, 19) after its updates and the update ``log`` (each with 0 rows: kept nowhere), the
-    position ``pos`` (ENU m, (nb, 3)), the turn (rad) and distance (m) since the first boundary."""
+    position ``pos`` (ENU m, (nb, 3)) and its east/north covariance ``pos_cov`` (m^2, (nb, 2, 2)),
+    the turn (rad) and distance (m) since the first boundary."""
 
     xs: np.ndarray
     Ps: np.ndarray
@@ -187,13 +188,14 @@ class FilterOutputs(NamedTuple):
     turn: np.ndarray
     dist: np.ndarray
     log: kalman.UpdateLog
+    pos_cov: np.ndarray
 
 
 def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
     """Outputs for ``nb`` boundaries, with the states and the update log or without."""
     rows = nb if keep_states else 0
     return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
-                         kalman.update_log(rows, len(GINS_MEASUREMENTS)))
+                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)))
 
 
 @dataclass(frozen=True)
@@ -715,6 +717,9 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
             out.Ps[b] = P
         for i in range(3):
             out.pos[b, i] = x[PX + i]
+        for i in range(2):
+            for k in range(2):
+                out.pos_cov[b, i, k] = P[DP + i, DP + k]
         out.dist[b] = walked[0]
         out.turn[b] = walked[1]
     return x, P

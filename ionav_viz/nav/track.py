@@ -117,3 +117,27 @@ def track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radp
         J = -T * (0.5 * du[:, :k] + later)
         out[:, k] += np.einsum("ni,nia,nib->nab", var_w[:, :k], J, J)
     return out
+
+
+def systematic_track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray, scale_sigma: np.ndarray | float,
+                                gyro_bias_sigma_radps: np.ndarray | float) -> np.ndarray:
+    """The east/north covariance (m^2, ``(n_sequences, n_windows + 1, 2, 2)``) a rebuilt track gets
+    from two errors that hold through an outage: a relative scale error of every distance
+    (``scale_sigma``: the position error is that share of the position reached) and a yaw-rate bias
+    (``gyro_bias_sigma_radps``: window ``j``'s course is off by ``T (j + 1/2)`` times it), linearised
+    as :func:`track_covariance` is."""
+    disp = np.asarray(disp_m, dtype=float)
+    yaw = np.asarray(yaw_rate_radps, dtype=float)
+    n_seq, n_win = disp.shape
+    T = WINDOW_S
+    turn = -yaw * T
+    psi0 = np.deg2rad(np.asarray(heading0_deg, dtype=float)).reshape(n_seq, 1)
+    psi = psi0 + np.concatenate([np.zeros((n_seq, 1)), np.cumsum(turn, axis=1)[:, :-1]], axis=1) + 0.5 * turn
+    step = np.stack([np.sin(psi), np.cos(psi)], axis=-1) * disp[..., None]
+    reached = np.concatenate([np.zeros((n_seq, 1, 2)), np.cumsum(step, axis=1)], axis=1)
+    du = np.stack([np.cos(psi), -np.sin(psi)], axis=-1) * disp[..., None]
+    lever = -T * (np.arange(n_win) + 0.5)[None, :, None] * du
+    bias_dir = np.concatenate([np.zeros((n_seq, 1, 2)), np.cumsum(lever, axis=1)], axis=1)
+    s2 = np.broadcast_to(np.asarray(scale_sigma, dtype=float) ** 2, (n_seq,))[:, None, None, None]
+    b2 = np.broadcast_to(np.asarray(gyro_bias_sigma_radps, dtype=float) ** 2, (n_seq,))[:, None, None, None]
+    return s2 * np.einsum("nka,nkb->nkab", reached, reached) + b2 * np.einsum("nka,nkb->nkab", bias_dir, bias_dir)

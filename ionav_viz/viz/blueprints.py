@@ -48,6 +48,7 @@ LOCAL_NAME = "Drive: east-north (m); dots: manoeuvres yellow, outage starts grey
 TAB_TITLES = {
     ent.error_group("position_error_m"): ("2D position error (m)", "Position error (m)", "Error (m)"),
     ent.DRIFT: ("Drift: error (m) by s into the outage", "Drift (m by s)", "Drift"),
+    ent.UNCERTAINTY: ("Sigma vs error: 95 % radius (thin) and error (m)", "95 % radius vs error", "Sigma"),
     ent.HEALTH: ("Filter health: NIS, 10 s mean (1 = consistent)", "Filter NIS", "NIS"),
     ent.error_group("crse_m"): ("Displacement CRSE (m)", "Disp. CRSE (m)", "CRSE (m)"),
     ent.error_group("cae_m"): ("Displacement CAE (m)", "Disp. CAE (m)", "CAE (m)"),
@@ -188,6 +189,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
         rrb.Tabs(
             plot(ent.error_group("position_error_m"), legend=True),
             rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]),
+            rrb.TimeSeriesView(origin=ent.UNCERTAINTY, name=TAB_TITLES[ent.UNCERTAINTY][0]),
             rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]),
             active_tab=0,
         ),
@@ -419,7 +421,7 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
         ent.error_group("yaw_crse_radps"): _fit([PLOT_NAMES[ent.error_group("yaw_crse_radps")], "Orientation-rate CRSE (rad/s)",
                                                  "Yaw-rate CRSE (rad/s)"], w(ent.error_group("yaw_crse_radps"))),
     }
-    for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.HEALTH), (ent.error_group("crse_m"), ent.error_group("cae_m"))):
+    for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH), (ent.error_group("crse_m"), ent.error_group("cae_m"))):
         titles.update(_fit_tabs(tabs, w(tabs[0])))
     if o is None and shot.view != "all":  # the time plots of a column: say when
         titles[ent.error_group("position_error_m")] = _fit([f"{info.drive}: 2D position error (m), {when}",

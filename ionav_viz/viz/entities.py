@@ -82,6 +82,25 @@ def live_track(view: str, est: str) -> str:
     return f"{INSPECT}/{est}" if view == INSPECT else f"{view}/{est}/live"
 
 
+#: How sure each estimator is: its 95 % ellipse in the views and the sigma-vs-error plot.
+UNCERTAINTY = "uncertainty"
+
+
+def ellipse(view: str, est: str) -> str:
+    """The estimate's 95 % position ellipse at its current position (``map``, ``local``, ``inspect``)."""
+    return f"{INSPECT}/{est}/ellipse" if view == INSPECT else f"{view}/{est}/ellipse"
+
+
+def uncertainty_error(est: str) -> str:
+    """The estimate's position error (m) at each second of the outage, beside its ellipse's radius."""
+    return f"{UNCERTAINTY}/{est}/error"
+
+
+def uncertainty_radius(est: str) -> str:
+    """The largest radius (m) of the estimate's 95 % ellipse at each second of the outage."""
+    return f"{UNCERTAINTY}/{est}/radius95"
+
+
 def kind_slug(kind: str) -> str:
     """A measurement kind's path segment: ``"GNSS position"`` -> ``gnss_position``."""
     return re.sub(r"[^a-z0-9]+", "_", kind.lower()).strip("_") or "other"
@@ -219,6 +238,7 @@ PATTERNS = (
     EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT,
     DRIFT_AXES, DRIFT_TICKS, drift_mean("<est>"), drift_band("<est>"), drift_current("<est>"),
     f"{HEALTH}/<est>/nis/<kind>", f"{HEALTH}/<est>/gated/<kind>", HEALTH_EXPECTED,
+    *(ellipse(v, "<est>") for v in (*VIEWS_2D, INSPECT)), uncertainty_error("<est>"), uncertainty_radius("<est>"),
 )
 
 

@@ -32,6 +32,7 @@ from .geometry import map_zoom, screen_xy
 from .health import log_health
 from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
 from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
+from .uncertainty import log_uncertainty, log_uncertainty_styles
 
 APP_ID = "ionav-viz"
 #: Longest wait (s) for Rerun's file sink to write what was logged: a healthy disk writes a 12 h
@@ -174,8 +175,10 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         log_outage_frames(layers, result, tracks_xy)
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
+        log_uncertainty_styles(rec, result, colors, labels)
         for name, est in result.estimates.items():
             _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
+            log_uncertainty(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
             step(name)
         log_drift(layers, result, colors, t_rows)
     if result.bridged:

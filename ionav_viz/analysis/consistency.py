@@ -1,0 +1,125 @@
+"""Is an estimator's uncertainty honest? Its position covariance through each outage
+(:attr:`ionav_viz.nav.protocol.Estimate.pos_cov_m2`) against the errors it actually made.
+
+Per window boundary of every outage (the start fix left out), the normalised estimation error
+squared ``NEES = e^T (P + R) e`` (``e``: the estimate's east/north error against the truth, m;
+``P``: the estimator's covariance; ``R``: the truth's own noise, ``sigma^2 I`` with the receiver's
+reported sigma, at least :data:`~ionav_viz.core.gnss_quality.GNSS_SIGMA_FLOOR_M`, where the truth is
+the receiver's fixes, zero beside a reference trajectory). A consistent estimator's NEES averages 2
+(two degrees of freedom); we report it halved (ANEES per degree of freedom, 1 when honest, as
+OpenVINS's ``ov_eval``), with the chi-square 95 % band for that many samples (Wilson-Hilferty's
+approximation), although the boundaries of one outage are not independent, so the band is narrower
+than the truth of the matter. ``coverage_95``: the share of outages whose final error lies inside
+the 95 % ellipse (NEES at most 5.99; 95 % when honest). ``error_over_sigma``: at 10, 30 and 60 s
+into the outages, the rms error over the rms of the covariance's radius (``sqrt(trace P)``): 1 when
+honest, above it overconfident.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..core.geo import radii_of_curvature_m
+from ..core.gnss_quality import GNSS_SIGMA_FLOOR_M
+
+#: The 95 % point of a chi-square of two degrees of freedom.
+CHI2_2_95 = 5.991
+#: Seconds into the outages where the error/sigma ratio is reported.
+RATIO_AT_S = (10, 30, 60)
+
+
+def chi2_quantile(p: float, dof: float) -> float:
+    """The ``p`` quantile of a chi-square of ``dof`` degrees of freedom (Wilson-Hilferty: within
+    1 % from 10 degrees of freedom up)."""
+    # the standard normal quantile, by Acklam's rational approximation's central and tail pieces
+    z = _normal_quantile(p)
+    h = 2.0 / (9.0 * dof)
+    return dof * (1.0 - h + z * math.sqrt(h)) ** 3
+
+
+def _normal_quantile(p: float) -> float:
+    a = (-3.969683028665376e01, 2.209460984245205e02, -2.759285104469687e02, 1.383577518672690e02, -3.066479806614716e01, 2.506628277459239e00)
+    b = (-5.447609879822406e01, 1.615858368580409e02, -1.556989798598866e02, 6.680131188771972e01, -1.328068155288572e01)
+    c = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e00, -2.549732539343734e00, 4.374664141464968e00, 2.938163982698783e00)
+    d = (7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e00, 3.754408661907416e00)
+    if p < 0.02425:
+        q = math.sqrt(-2 * math.log(p))
+        return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1)
+    if p > 1 - 0.02425:
+        return -_normal_quantile(1 - p)
+    q = p - 0.5
+    r = q * q
+    return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1)
+
+
+def boundary_errors_m(result, name: str) -> np.ndarray:
+    """The estimate's east/north error (m) against the truth at every window boundary of every
+    outage, ``(n_outages, n_windows + 1, 2)``."""
+    w, starts, n = result.windows, np.asarray(result.starts), result.n_windows
+    idx = starts[:, None] + np.arange(n)[None, :]
+    lat_t = np.concatenate([w.lat0_deg[idx], w.lat1_deg[idx[:, -1:]]], axis=1)
+    lon_t = np.concatenate([w.lon0_deg[idx], w.lon1_deg[idx[:, -1:]]], axis=1)
+    track = result.estimates[name].track
+    meridian, prime = radii_of_curvature_m(lat_t)
+    north = np.radians(track.lat_deg - lat_t) * meridian
+    east = np.radians(track.lon_deg - lon_t) * prime * np.cos(np.radians(lat_t))
+    return np.stack([east, north], axis=-1)
+
+
+def truth_sigma_m(result) -> float:
+    """The truth's own noise (m, 1 sigma per axis): zero beside a reference, else the receiver's."""
+    drive = result.drive
+    if drive.has_reference:
+        return 0.0
+    reported = drive.columns.get("gnss_sigma_m")
+    sigma = float(np.nanmedian(reported)) if reported is not None and np.isfinite(reported).any() else GNSS_SIGMA_FLOOR_M
+    return max(sigma, GNSS_SIGMA_FLOOR_M)
+
+
+def outage_nees(result, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Per outage and boundary (the start left out): NEES (2 dof), the squared error (m^2) and the
+    covariance's trace (m^2); None when the estimator has no covariance."""
+    cov = result.estimates[name].pos_cov_m2
+    if cov is None or not len(result.starts):
+        return None
+    e = boundary_errors_m(result, name)[:, 1:]
+    P = cov[:, 1:] + truth_sigma_m(result) ** 2 * np.eye(2)
+    a, b, c = P[..., 0, 0], P[..., 1, 1], P[..., 0, 1]
+    det = np.maximum(a * b - c * c, 1e-12)
+    ex, ey = e[..., 0], e[..., 1]
+    nees = (b * ex * ex - 2 * c * ex * ey + a * ey * ey) / det
+    return nees, ex * ex + ey * ey, a + b
+
+
+def consistency(results: list, name: str) -> dict[str, Any] | None:
+    """The consistency of estimator ``name`` over the outages of ``results`` (see the module
+    docstring), or None when it gives no covariance."""
+    parts = [x for x in (outage_nees(r, name) for r in results) if x is not None]
+    if not parts:
+        return None
+    n_win = parts[0][0].shape[1]
+    nees = np.concatenate([p[0].ravel() for p in parts])
+    final = np.concatenate([p[0][:, -1] for p in parts])
+    anees = float(nees.mean() / 2.0)
+    dof = 2 * len(nees)
+    band = [chi2_quantile(0.025, dof) / dof, chi2_quantile(0.975, dof) / dof]
+    ratio = {}
+    for t in RATIO_AT_S:
+        if t <= n_win:
+            sq = np.concatenate([p[1][:, t - 1] for p in parts])
+            tr = np.concatenate([p[2][:, t - 1] for p in parts])
+            ratio[str(t)] = float(math.sqrt(sq.mean() / max(tr.mean(), 1e-12)))
+    verdict = "consistent" if band[0] <= anees <= band[1] else ("overconfident" if anees > band[1] else "underconfident")
+    return {"anees": anees, "anees_band": band, "coverage_95": float(100.0 * np.mean(final <= CHI2_2_95)), "error_over_sigma": ratio,
+            "n_samples": len(nees), "n_outages": len(final), "verdict": verdict}
+
+
+def consistency_line(label: str, c: dict[str, Any]) -> str:
+    """One line of the text report."""
+    ratios = ", ".join(f"{t} s {v:.2f}" for t, v in c["error_over_sigma"].items())
+    lo, hi = c["anees_band"]
+    return (f"{label} uncertainty: ANEES {c['anees']:.2f} (1 when honest; 95 % band {lo:.2f}-{hi:.2f}: {c['verdict']}), "
+            f"final errors inside the 95 % ellipse {c['coverage_95']:.0f} % (95 % when honest), rms error/sigma {ratios}")
