@@ -31,10 +31,14 @@ from ..core.errors import InputError
 from ..core.fileio import write_failure
 from ..core.geo import local_en_m
 from ..core.json_out import dumps_json
+from .consistency import CHI2_2_95, outage_nees
 from .metrics import METRICS, truth_boundaries
 
 #: The columns of ``outages.csv``: keys, then every metric (their names carry their units).
-OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS)
+#: ``final_nees`` and ``final_inside_95``: for an estimator that gives a position covariance, its
+#: final error's NEES (2 degrees of freedom) and whether it lies inside the 95 % ellipse (:mod:`.consistency`).
+OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS,
+                  "final_nees", "final_inside_95")
 
 
 def export_results(results: list[Any], folder: str | Path) -> list[Path]:
@@ -119,12 +123,15 @@ def _outages_csv(results: list[Any]) -> str:
     writer.writerow(OUTAGE_COLUMNS)
     for res in results:
         distance = res.gnss_distance_m
+        nees = {est.name: outage_nees(res, est.name) for est in res.estimators}
         for i, k in enumerate(res.starts):
             t0 = float(res.windows.t0_s[k])
             for est in res.estimators:
                 m = res.metrics[est.name]
+                final = nees[est.name][0][i, -1] if nees[est.name] is not None else math.nan
+                inside = "" if not math.isfinite(final) else str(int(final <= CHI2_2_95))
                 writer.writerow([res.drive.name, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}", f"{float(res.drive.stamp_s(t0)):.6f}",
-                                 est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS)])
+                                 est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS), _number(final), inside])
     return out.getvalue()
 
 

@@ -58,3 +58,14 @@ def _list_of_pairs(points: np.ndarray, offsets: np.ndarray, dtype, arrow_type):
     flat = pa.array(np.ascontiguousarray(points, dtype=dtype).ravel())
     pairs = pa.FixedSizeListArray.from_arrays(flat, type=arrow_type.value_type)
     return pa.ListArray.from_arrays(pa.array(np.asarray(offsets, dtype=np.int32)), pairs, type=arrow_type)
+
+
+def with_breaks(t_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-outage series (seq, win) flattened, with a NaN half a second after every outage that the
+    next one does not follow at once, so plots break the line instead of bridging the GNSS stretch."""
+    t, v = t_s.ravel(), np.asarray(values, dtype=np.float64).ravel()
+    if t_s.shape[0] < 2:
+        return t, v
+    gaps = np.flatnonzero(t_s[1:, 0] - t_s[:-1, -1] > 1.0 + 1e-6)  # outage i is followed by GNSS
+    at = (gaps + 1) * t_s.shape[1]
+    return np.insert(t, at, t_s[gaps, -1] + 0.5), np.insert(v, at, np.nan)

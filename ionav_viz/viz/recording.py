@@ -28,6 +28,7 @@ from ..core.runs import run_ranges
 from . import columns
 from . import entities as ent
 from .blueprints import blueprint, plot_range
+from .columns import with_breaks
 from .geometry import map_zoom, screen_xy
 from .health import log_health
 from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
@@ -45,17 +46,6 @@ def _times(t_s: np.ndarray, start_tod_s: float):
 
     t_s = np.asarray(t_s, dtype=np.float64)
     return [rr.TimeColumn("time", duration=t_s), rr.TimeColumn("time_of_day", duration=start_tod_s + t_s)]
-
-
-def with_breaks(t_s: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-outage series (seq, win) flattened, with a NaN half a second after every outage that the
-    next one does not follow at once, so plots break the line instead of bridging the GNSS stretch."""
-    t, v = t_s.ravel(), np.asarray(values, dtype=np.float64).ravel()
-    if t_s.shape[0] < 2:
-        return t, v
-    gaps = np.flatnonzero(t_s[1:, 0] - t_s[:-1, -1] > 1.0 + 1e-6)  # outage i is followed by GNSS
-    at = (gaps + 1) * t_s.shape[1]
-    return np.insert(t, at, t_s[gaps, -1] + 0.5), np.insert(v, at, np.nan)
 
 
 def _outage_times(t0_s: np.ndarray, t_win: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from ..analysis.consistency import CHI2_2_95, boundary_errors_m
 from ..core.geo import radii_of_curvature_m
 from . import columns
 from . import entities as ent
+from .columns import with_breaks
 from .geometry import screen_xy
 from .style import faded
 
@@ -59,8 +60,6 @@ def log_uncertainty(layers, result, name: str, est, color, xy: np.ndarray, t_row
     # sigma vs error, per window end (as the error series): the ellipse's largest radius, and the error
     radius = np.sqrt(CHI2_2_95 * np.linalg.eigvalsh(cov[:, 1:])[..., -1])
     error = np.hypot(*np.moveaxis(boundary_errors_m(result, name)[:, 1:], -1, 0))
-    from .recording import with_breaks
-
     for entity, values in ((ent.uncertainty_radius(name), radius), (ent.uncertainty_error(name), error)):
         t_plot, v_plot = with_breaks(t_windows, values)
         send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
