@@ -48,6 +48,8 @@ class DriveTable:
         warnings: what was warned while this drive was read and evaluated (one line each).
         elapsed_s: wall time of this drive on its worker (not part of the results).
         recording: the ``.rrd`` the drive was replayed into, if it was.
+        placement: where its outages went (with the warm-up); imu: what the reader found of a log's
+            IMU (rate, sample kind, clock offset, mount; ``ImuCharacter.to_dict`` and ``text``), or None.
     """
 
     spec: str
@@ -66,6 +68,8 @@ class DriveTable:
     warnings: list[str] = field(default_factory=list)
     elapsed_s: float = 0.0
     recording: str | None = None
+    placement: str = ""
+    imu: dict[str, Any] | None = None
 
     @property
     def n_outages(self) -> int:
@@ -93,7 +97,8 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
         metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
-        warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording)
+        warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
+        imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()})
 
 
 @dataclass(frozen=True)
@@ -186,7 +191,8 @@ class FleetReport:
     def drive_rows(self) -> list[dict[str, Any]]:
         """One row per evaluated drive: ``drive``, ``spec``, ``source``, ``duration_s``,
         ``distance_m``, ``outages``, per estimator its ``mean_final_error_m`` and (not the INS DR)
-        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``
+        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``,
+        where known ``placement`` and ``imu`` (the drive's mount and clock offset among it),
         and, when the drive was replayed, its ``recording``."""
         base = self.baseline
         rows = []
@@ -196,7 +202,8 @@ class FleetReport:
                                    "distance_m": t.distance_m, "outages": t.n_outages, "mean_final_error_m": means}
             if base is not None and base in means:
                 row["improvement_pct"] = {e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
-            row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings)}
+            row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
+                    **({"placement": t.placement} if t.placement else {}), **({"imu": t.imu} if t.imu else {})}
             if t.recording is not None:
                 row["recording"] = t.recording
             rows.append(row)
