@@ -97,7 +97,7 @@ def test_figures_from_a_recording_and_from_json(tmp_path):
     proc = run_cli("figures", str(rec), "-o", str(tmp_path / "figs"))
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in (tmp_path / "figs").iterdir()}
-    assert names == {f"{f}.{x}" for f in ("drift", "cdf", "outages", "outages-wide", "worst") for x in ("svg", "pdf", "png")}
+    assert names == {f"{f}.{x}" for f in ("drift", "cdf", "outages", "outages-wide", "worst", "calibration") for x in ("svg", "pdf", "png")}
     drift_svg = (tmp_path / "figs" / "drift.svg").read_text()
     assert all(label in drift_svg for label in ("INS DR", "Odometry", "GNSS-aided INS", "position error (m)"))
     assert "20 m" in (tmp_path / "figs" / "worst.svg").read_text() or " m</text>" in (tmp_path / "figs" / "worst.svg").read_text()

@@ -252,7 +252,7 @@ def test_an_outage_plan_with_numpy_values_is_plain_json():
 # ---------------------------------------------------------------------------------------------
 # figures: hostile reports, outputs that are files, signals and full disks while drawing
 
-FIGURE_FILES = {f"{f}.{x}" for f in ("drift", "cdf", "outages", "outages-wide", "worst") for x in ("svg", "pdf", "png")}
+FIGURE_FILES = {f"{f}.{x}" for f in ("drift", "cdf", "outages", "outages-wide", "worst", "calibration") for x in ("svg", "pdf", "png")}
 
 
 @pytest.fixture(scope="session")

@@ -12,7 +12,8 @@ approximation), although the boundaries of one outage are not independent, so th
 than the truth of the matter. ``coverage_95``: the share of outages whose final error lies inside
 the 95 % ellipse (NEES at most 5.99; 95 % when honest). ``error_over_sigma``: at 10, 30 and 60 s
 into the outages, the rms error over the rms of the covariance's radius (``sqrt(trace P)``): 1 when
-honest, above it overconfident.
+honest, above it overconfident; ``by_second``: both rms values at every second into the outages
+(the calibration figure's points).
 """
 
 from __future__ import annotations
@@ -113,8 +114,12 @@ def consistency(results: list, name: str) -> dict[str, Any] | None:
             tr = np.concatenate([p[2][:, t - 1] for p in parts])
             ratio[str(t)] = float(math.sqrt(sq.mean() / max(tr.mean(), 1e-12)))
     verdict = "consistent" if band[0] <= anees <= band[1] else ("overconfident" if anees > band[1] else "underconfident")
+    sq = np.concatenate([p[1] for p in parts])  # (outages, n_win)
+    tr = np.concatenate([p[2] for p in parts])
+    by_second = {"t_s": [float(t) for t in range(1, n_win + 1)], "rms_error_m": [float(v) for v in np.sqrt(sq.mean(axis=0))],
+                 "rms_sigma_m": [float(v) for v in np.sqrt(tr.mean(axis=0))]}
     return {"anees": anees, "anees_band": band, "coverage_95": float(100.0 * np.mean(final <= CHI2_2_95)), "error_over_sigma": ratio,
-            "n_samples": len(nees), "n_outages": len(final), "verdict": verdict}
+            "n_samples": len(nees), "n_outages": len(final), "verdict": verdict, "by_second": by_second}
 
 
 def consistency_line(label: str, c: dict[str, Any]) -> str:

@@ -55,13 +55,13 @@ COLUMN_IN, PAGE_IN, FONT_PT = 3.5, 7.16, 8
 FORMATS = ("svg", "pdf", "png")
 #: Each figure's file name, how it is drawn and its width: one column each; the per-outage errors
 #: also across the page (``outages-wide``: room for every outage of a long drive or several drives).
-FIGURES = ("drift", "cdf", "outages", "outages-wide", "worst")
+FIGURES = ("drift", "cdf", "outages", "outages-wide", "worst", "calibration")
 #: matplotlib settings of every figure: the type sizes, no top and right spines, text kept as text
 #: in SVG and PDF, the figure saved at its own size.
 STYLE = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
          "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
          "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
-_WIDTHS = {"drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN}
+_WIDTHS = {"drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN}
 
 
 #: What a report's reader says to give instead of a bad one.
@@ -256,7 +256,7 @@ def figure(rep: dict[str, Any], name: str) -> Any:
     width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
     from matplotlib import rc_context
 
-    draws = {"drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst}
+    draws = {"drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst, "calibration": _calibration}
     with rc_context(STYLE):
         fig = draws[name](rep, _WIDTHS[name])
         fig.canvas.draw()  # laid out with the style's sizes
@@ -416,6 +416,36 @@ def _drift(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     ax.set_xlim(0, float(rep["outage_s"]))
     ax.set_ylim(bottom=0)
     _set_title(ax, f"{_title(rep)}; mean (line) and 10-90 % band (hatched)")
+    _legend(fig, ax, width_in, handles)
+    return fig
+
+
+def _calibration(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    """Each estimator's predicted sigma (rms of ``sqrt(trace P)``) against its actual rms error, at
+    every second into the outages, with the ideal line: below it underconfident, above it overconfident."""
+    fig, ax = _new_figure(width_in, 2.9)
+    handles: list[tuple[Any, str]] = []
+    top = 0.0
+    for name, label, color, i in _styled(rep):
+        c = rep["summary"].get(name, {}).get("consistency") if isinstance(rep.get("summary"), dict) else None
+        if not isinstance(c, dict) or not isinstance(c.get("by_second"), dict):
+            [none] = ax.plot([], [], color=color, lw=1.0, ls=LINE_STYLES[i % len(LINE_STYLES)])
+            handles.append((none, f"{label}: gives no covariance"))
+            continue
+        sigma, error = _floats(c["by_second"]["rms_sigma_m"]), _floats(c["by_second"]["rms_error_m"])
+        [line] = ax.plot(sigma, error, color=color, lw=1.0, ls=LINE_STYLES[i % len(LINE_STYLES)], marker="o", ms=2.5)
+        handles.append((line, f"{label}: ANEES {c['anees']:.2f}, {c['coverage_95']:.0f} % in 95 %"))
+        top = max(top, float(np.nanmax(np.concatenate([sigma, error]))) if len(sigma) else 0.0)
+    top = top * 1.05 if top > 0 else 1.0
+    [ideal] = ax.plot([0, top], [0, top], color="0.4", lw=0.8, ls="--")
+    handles.append((ideal, "honest: error = sigma"))
+    if all(text.endswith("gives no covariance") for _, text in handles[:-1]):
+        ax.text(0.5, 0.5, "no estimator gave a position covariance", transform=ax.transAxes, ha="center", va="center")
+    ax.set_xlim(0, top)
+    ax.set_ylim(0, top)
+    ax.set_xlabel("predicted sigma, rms of sqrt(trace P) (m)")
+    ax.set_ylabel("actual rms position error (m)")
+    _set_title(ax, f"{_title(rep)}; uncertainty calibration, one point per second into the outages")
     _legend(fig, ax, width_in, handles)
     return fig
 
