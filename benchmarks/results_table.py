@@ -107,6 +107,8 @@ class Cell:
     outages: int = 0
     #: per drive of the set, each estimator's mean displacement CRSE (m)
     drive_crse: list[dict[str, float]] = field(default_factory=list)
+    #: per estimator that gives a covariance, its consistency over the set (analysis.consistency)
+    consistency: dict[str, dict] = field(default_factory=dict)
 
     def add(self, rep: dict) -> None:
         names = [e["name"] for e in rep["estimators"]]
@@ -122,6 +124,7 @@ class Cell:
                 self.crse.setdefault(name, []).append(m["crse_m"])
                 by_drive.setdefault(seq["drive"], {}).setdefault(name, []).append(m["crse_m"])
         self.outages += len(rep["sequences"])
+        self.consistency.update({n: rep["summary"][n]["consistency"] for n in names if "consistency" in rep["summary"].get(n, {})})
         self.drive_crse += [{"drive": name} | {n: float(np.mean(v)) for n, v in d.items()} for name, d in by_drive.items()]
 
     def mean(self, name: str, key: str) -> float | None:
@@ -242,6 +245,20 @@ def real_rows(paths: list[Path], lengths: list[float]) -> str:
     return "\n".join(lines)
 
 
+def consistency_table(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
+    """Per set and length, each estimator's share of final errors inside its 95 % ellipse and its ANEES."""
+    titles = set_titles()
+    names = [n for n in labels if any(n in c.consistency for c in cells.values())]
+    if not names:
+        return "No estimator gave a position covariance."
+    lines = ["| Drives | Outage | " + " | ".join(f"{labels[n]}: inside 95 % / ANEES" for n in names) + " |",
+             "|---|---:|" + "---:|" * len(names)]
+    for (key, length), cell in cells.items():
+        row = [f"{cell.consistency[n]['coverage_95']:.0f} % / {cell.consistency[n]['anees']:.2f}" if n in cell.consistency else "–" for n in names]
+        lines.append(f"| {titles[key]} | {length:g} s | " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
 def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float], minutes: float, seed_base: int,
          model: str | None, real: list[Path] | None = None) -> str:
     day = datetime.datetime.now(datetime.UTC).date().isoformat()
@@ -283,6 +300,14 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         "travelled in the window.",
         "- Estimators: " + ", ".join(f"{label} (`{name}`)" for name, label in labels.items()) + "; "
         "described in [method.md](method.md) and [estimators.md](estimators.md).",
+        "",
+        "## How honest each estimator's uncertainty is",
+        "",
+        "For the estimators that give a position covariance (`analysis/consistency.py`, [outputs.md](outputs.md#how-sure-each-estimator-is)): "
+        "the share of outages whose final error lies inside the estimator's 95 % ellipse (95 % when honest) and the average "
+        "NEES per degree of freedom (1 when honest; above: overconfident), pooled over each set.",
+        "",
+        consistency_table(labels, cells, lengths),
         "",
         *([
             "## Real logs",
