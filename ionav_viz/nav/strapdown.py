@@ -189,13 +189,14 @@ class FilterOutputs(NamedTuple):
     dist: np.ndarray
     log: kalman.UpdateLog
     pos_cov: np.ndarray
+    q_scale: np.ndarray
 
 
 def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
     """Outputs for ``nb`` boundaries, with the states and the update log or without."""
     rows = nb if keep_states else 0
     return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
-                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)))
+                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)), np.ones(nb))
 
 
 @dataclass(frozen=True)
@@ -564,7 +565,7 @@ def _reinitialise(x, P, P0, inputs, b, log):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _propagate_window(x, P, inputs, noise, earth, level_held, j, jb, acc):  # pragma: no cover - compiled
+def _propagate_window(x, P, inputs, noise, earth, level_held, q_scale, j, jb, acc):  # pragma: no cover - compiled
     """Mechanise the samples ``j`` to ``jb`` (``level_held``: the reduced mechanisation) and
     propagate ``P`` over them; adds the distance (m) and the turn against the Earth (rad) into ``acc`` (2,)."""
     T = 0.0
@@ -586,12 +587,12 @@ def _propagate_window(x, P, inputs, noise, earth, level_held, j, jb, acc):  # pr
         Cm = 0.5 * (C0 + _dcm(x[QW:QW + 4]))
         _transition(Cm, fsum / T, wz / T, T, D)
         for i in range(3):
-            q_diag[DV + i] = noise.q_white_v * T
-            q_diag[PHI + i] = noise.q_white_phi * T
-            q_diag[DP + i] = noise.q_white_v * T**3 / 3.0
+            q_diag[DV + i] = q_scale * noise.q_white_v * T
+            q_diag[PHI + i] = q_scale * noise.q_white_phi * T
+            q_diag[DP + i] = q_scale * noise.q_white_v * T**3 / 3.0
         for i in range(9, N_ERR):
             q_diag[i] = noise.walk[i] * T
-        _propagate_covariance(P, D, q_diag, noise.q_white_v * T * T / 2.0, np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)))
+        _propagate_covariance(P, D, q_diag, q_scale * noise.q_white_v * T * T / 2.0, np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)))
 
 
 @njit(cache=True)
@@ -634,8 +635,32 @@ def _moving_updates(x, P, dx, noise, sw, odo_mps, H, log, b):  # pragma: no cove
         _apply(P, dx, H, odometer(x, C, M, vb, odo_mps, noise.r_odo, H), np.inf, log, b, SLOT_ODOMETER)
 
 
+#: The consistency test (run_filter): the running mean of the GNSS position's NIS per scalar over
+#: about NIS_MEMORY boundaries; above NIS_HIGH the process noise is scaled up by the ratio (at most
+#: Q_SCALE_MAX times), below it eased back towards the model's.
+NIS_MEMORY = 10.0
+NIS_HIGH = 3.0
+Q_SCALE_MAX = 30.0
+
+
 @njit(cache=True)
-def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragma: no cover - compiled
+def _consistency_step(log, b, nis_mean, q_scale):  # pragma: no cover - compiled
+    """The running NIS from boundary ``b``'s horizontal GNSS position updates (used or gated) and
+    the process noise's scale it asks for."""
+    total, count = 0.0, 0
+    for slot in range(SLOT_GNSS_POS, SLOT_GNSS_POS + 2):
+        if log.status[b, slot] > 0 and log.variance[b, slot] > 0.0:
+            total += log.innovation[b, slot] ** 2 / log.variance[b, slot]
+            count += 1
+    if count == 0:
+        return nis_mean, q_scale
+    nis_mean += (total / count - nis_mean) / NIS_MEMORY
+    target = min(max(nis_mean / NIS_HIGH, 1.0), Q_SCALE_MAX)
+    return nis_mean, target
+
+
+@njit(cache=True)
+def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=1.0):  # pragma: no cover - compiled
     """Run from boundary ``b_first`` to ``b_last`` (inclusive) from the state ``x0, P0`` at
     ``b_first``'s sample, updating at every boundary after the first (:class:`FilterInputs`,
     :class:`FilterNoise`, :class:`Earth`, :class:`FilterSwitches`); writes into ``out``
@@ -668,6 +693,9 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
     walked = np.zeros(2)  # distance (m) and turn (rad) since b_first
     gm = np.zeros(3)
     rejected, jumped = 0, False
+    # the consistency test: a running mean of the GNSS position's NIS per scalar; persistently above
+    # NIS_HIGH, the white noise the filter assumes is too small for what it meets: scaled up
+    q_scale, nis_mean = q_scale0, 1.0
     j = inputs.b_sample[b_first]
     for b in range(b_first, b_last + 1):
         jb = inputs.b_sample[b]
@@ -675,7 +703,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
             _restart_segment(x, P, P0, inputs, b)
             j = jb
         elif b > b_first:
-            _propagate_window(x, P, inputs, noise, earth, sw.level_held, j, jb, walked)
+            _propagate_window(x, P, inputs, noise, earth, sw.level_held, q_scale, j, jb, walked)
             j = jb
             gnss_here = sw.gnss and inputs.gnss_ok[b]
             if gnss_here:
@@ -690,6 +718,8 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
                     # first fix after a gap, which nothing confirms yet: left out
                     rejected += 1
                     jumped = jumped or inputs.fix_step[b] < 0
+                if out.log.status.shape[0] > 0 and not jumped:
+                    nis_mean, q_scale = _consistency_step(out.log, b, nis_mean, q_scale)
             standing = sw.zupt and inputs.still[b]
             moving_says_gnss = gnss_here and inputs.vel_ok[b]
             if standing and (moving_says_gnss or standing_nis(x, P, noise.r_zupt) >= ZUPT_GATE):
@@ -715,6 +745,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out):  # pragm
         if store:
             out.xs[b] = x
             out.Ps[b] = P
+        out.q_scale[b] = q_scale
         for i in range(3):
             out.pos[b, i] = x[PX + i]
         for i in range(2):
