@@ -3,6 +3,7 @@ inside the estimate's 95 % ellipse, and the mean NEES (normalised estimation err
 a consistent 2D covariance), at each outage length.
 
     python benchmarks/idnn_uncertainty.py [--model DIR] [--minutes 10] [--seed-base 800] [--lengths 10,30]
+    python benchmarks/idnn_uncertainty.py --bundled      # the bundled test drives instead
 
 Drives: the held-out fleet of ``benchmarks/results_table.py`` (one per scenario, seed ``--seed-base``
 + scenario index; ``ionav-viz simulate SCENARIO --fleet held-out --seed SEED --duration 10m -o FILE``),
@@ -22,6 +23,7 @@ from results_table import held_out_drives
 
 import ionav_viz as iv
 from ionav_viz.core.geo import wgs84
+from ionav_viz.dataset.samples import SAMPLES, sample_path
 from ionav_viz.nav.idnn import IdnnEstimator
 from ionav_viz.nav.training import CHI2_2_95
 
@@ -43,12 +45,17 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--seed-base", type=int, default=800)
     parser.add_argument("--lengths", default="10,30")
+    parser.add_argument("--bundled", action="store_true", help="the bundled test drives (the training fleet's car) instead")
     args = parser.parse_args()
     logging.disable(logging.WARNING)
     lengths = [int(x) for x in args.lengths.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
-        drives = held_out_drives(Path(tmp), args.minutes, args.seed_base)
-        print(f"held-out drives: {len(drives)} of {args.minutes:g} min, seeds {args.seed_base}-{args.seed_base + len(drives) - 1}")
+        if args.bundled:
+            drives = {s.scenario: sample_path(s) for s in SAMPLES if s.role == "test"}
+            print(f"bundled test drives: {len(drives)}")
+        else:
+            drives = held_out_drives(Path(tmp), args.minutes, args.seed_base)
+            print(f"held-out drives: {len(drives)} of {args.minutes:g} min, seeds {args.seed_base}-{args.seed_base + len(drives) - 1}")
         print("outage_s  outages  inside_95%  mean_NEES  median_NEES")
         for length in lengths:
             q = []

@@ -18,6 +18,8 @@ from ionav_viz.nav.training import CHI2_2_95, OutageRuns, fit_uncertainty, nees
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sources.iovnbd import read_iovnbd
 
+from .conftest import run_cli
+
 #: The repository's shipped model (not the installed package data: this checkout's).
 SHIPPED = Path(__file__).resolve().parent.parent / "models" / "idnn"
 #: The shipped networks' checksums before the uncertainty was added: they must not change.
@@ -142,3 +144,25 @@ def _calibration(inputs):
     from ionav_viz.nav.planar_filter import calibration
 
     return calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
+
+
+def test_train_writes_the_uncertainty_or_says_why_not(tmp_path):
+    train = [str(samples_dir() / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2)]
+    proc = run_cli("train", *train, "-o", str(tmp_path / "m"), "-q", "--epochs-disp", "1", "--epochs-yaw", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert "uncertainty: the 95 % ellipse holds" in proc.stderr
+    model = load_model(tmp_path / "m")
+    assert isinstance(model.uncertainty, Uncertainty) and (tmp_path / "m" / UNCERTAINTY_FILE).is_file()
+
+
+def test_drives_too_short_for_the_fit_leave_a_model_without_uncertainty(tmp_path):
+    """One 150 s drive gives too few 60 s outages to fit seven parameters: the model gets none, says
+    so in its metadata, and saves and loads without one."""
+    from ionav_viz.nav.training import add_uncertainty
+
+    model = load_model(SHIPPED)
+    drive = read_iovnbd(samples_dir() / "V-sim-roundabout-train-1.csv")
+    add_uncertainty(model, [(drive, SensorBias(0.0, 0.0, "test", 0.0))])
+    assert model.uncertainty is None and "no uncertainty fitted" in model.metadata["uncertainty_skipped"]
+    save_model(model, tmp_path / "m")
+    assert load_model(tmp_path / "m").uncertainty is None and not (tmp_path / "m" / UNCERTAINTY_FILE).exists()
