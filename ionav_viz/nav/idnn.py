@@ -58,7 +58,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, read_json_bounded, staging_folder, swap_in_directory, write_failure
-from ..core.grid import GRID_STEP_S, WINDOW_S
+from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
 from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
@@ -289,9 +289,8 @@ def sample_history(samples: np.ndarray, idx: np.ndarray, n_steps: int) -> np.nda
 #: The GNSS course's error at the outage start, as a speed error across the direction of travel
 #: (m/s): sigma_course = this / speed. A VBOX-class receiver's course comes from its Doppler
 #: velocity, good to about 0.05 m/s (0.3 deg at 10 m/s, 0.1 deg at 30 m/s); below
-#: :data:`COURSE_MIN_SPEED_MPS` the course is held, and its error is taken at that speed.
+#: :data:`~ionav_viz.core.grid.MIN_COURSE_SPEED_MPS` the course is held, and its error is taken at that speed.
 COURSE_SPEED_SD_MPS = 0.05
-COURSE_MIN_SPEED_MPS = 1.0
 
 
 @dataclass
@@ -331,7 +330,7 @@ class Uncertainty:
                             yaw_rate_radps: np.ndarray) -> np.ndarray:
         """East/north covariance (m^2) at every window boundary, (n_outages, n_windows + 1, 2, 2)."""
         var_d, var_w = self.variances(disp_m, yaw_rate_radps)
-        var_course = (COURSE_SPEED_SD_MPS / np.maximum(np.asarray(speed0_mps, dtype=float), COURSE_MIN_SPEED_MPS)) ** 2
+        var_course = (COURSE_SPEED_SD_MPS / np.maximum(np.asarray(speed0_mps, dtype=float), MIN_COURSE_SPEED_MPS)) ** 2
         cov = track_covariance(course0_deg, disp_m, yaw_rate_radps, var_d, var_w, var_course)
         cov[:, 1:] += self.fix_var_m2 * np.eye(2)
         return cov
