@@ -48,7 +48,8 @@ def test_shipped_model_lives_once_in_the_repository_models_folder():
     from ionav_viz.dataset.samples import package_data
 
     assert default_model_dir() == REPO / "models" / "idnn"  # an editable install reads the checkout's models/
-    assert sorted(p.name for p in default_model_dir().iterdir()) == ["displacement.safetensors", "metadata.json", "yaw_rate.safetensors"]
+    assert sorted(p.name for p in default_model_dir().iterdir()) == ["displacement.safetensors", "metadata.json", "uncertainty.safetensors",
+                                                                    "yaw_rate.safetensors"]
     assert not package_data("models").exists()  # no second copy inside the package
 
 

@@ -85,6 +85,31 @@ def train(
     return model
 
 
+def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] | None = None, *, bias_from: DriveLike | None = None,
+                    read: ReadOptions | None = None, force: bool = False, command: str = "ionav_viz.fit_uncertainty") -> Any:
+    """Give a trained model (a model directory, ``"shipped"`` or an ``IdnnModel``) an uncertainty
+    (or a new one) without changing its networks, and write it to ``output`` (a model directory, as
+    :func:`train` writes it; its weight files are the model's, byte for byte).
+
+    ``drives``: the drives to fit it on (default the bundled synthetic training drives, which the
+    shipped model was trained on); see :func:`ionav_viz.nav.training.fit_uncertainty`. Returns the
+    model with its uncertainty."""
+    from ..nav.idnn import check_model_dir, save_model
+    from ..nav.training import add_uncertainty
+
+    read = read if read is not None else ReadOptions()
+    model = parent_model(model)
+    out = check_model_dir(Path(output), overwrite=force)
+    specs = training_drives() if drives is None else drives
+    refuse_output_onto_input(out, input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
+    stationary = load_drive(bias_from, read) if bias_from is not None else None
+    loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
+    add_uncertainty(model, loaded)
+    if model.uncertainty is not None:
+        model.metadata["uncertainty"]["command"] = command
+    save_model(model, out, overwrite=force)
+    return model
+
 
 def parent_model(from_model: Any) -> Any:
     """The model to fine-tune: an ``IdnnModel``, a model directory, or ``"shipped"``."""

@@ -90,6 +90,11 @@ def train(
     if "parent" in model.metadata:
         print(f"fine-tuned from {model.metadata['parent']['directory']}", file=sys.stderr)
     print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate {val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
+    if (unc := model.metadata.get("uncertainty")) is not None:
+        inside = ", ".join(f"{100 * v:.0f} % at {k}" for k, v in unc["coverage_95"].items())
+        print(f"uncertainty: the 95 % ellipse holds the training outages' position errors {inside}", file=sys.stderr)
+    else:
+        print(f"uncertainty: {model.metadata.get('uncertainty_skipped', 'not fitted')}", file=sys.stderr)
     print(output)
 
 

@@ -33,6 +33,13 @@ drift and is taken off (:meth:`IdnnModel.predict_displacement`). The paper's met
 its feedback input is the previous window's displacement, zero for a standing car, and its
 networks and their training are unchanged.
 
+Uncertainty (beyond the paper, optional: :class:`Uncertainty`): each window's displacement and
+yaw-rate variance as a function of what the networks predicted and how far into the outage the
+window lies, fitted after the networks by a Gaussian likelihood of the position errors of outages
+run as the estimator runs them (:func:`ionav_viz.nav.training.fit_uncertainty`), and propagated
+through the rebuilt track (:func:`ionav_viz.nav.track.track_covariance`) to the estimate's
+``pos_cov_m2``. A model without it (every model before it) estimates no covariance.
+
 Weights are stored as safetensors (no pickle is ever loaded) beside a ``metadata.json``.
 """
 
@@ -51,11 +58,12 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, read_json_bounded, staging_folder, swap_in_directory, write_failure
-from ..core.grid import GRID_STEP_S, WINDOW_S
+from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
 from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
 from .provenance import check_inputs, trained_outages
+from .track import track_covariance
 from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
@@ -65,6 +73,8 @@ INPUTS = ("plain", "calibrated")
 LR_SCHEDULES = ("tail", "cosine")
 FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
+#: The optional uncertainty model's file (:class:`Uncertainty`); metadata.json's ``uncertainty`` names it.
+UNCERTAINTY_FILE = "uncertainty.safetensors"
 
 
 @dataclass
@@ -276,6 +286,71 @@ def sample_history(samples: np.ndarray, idx: np.ndarray, n_steps: int) -> np.nda
     return np.concatenate([before, own], axis=-1)[..., 2 * steps - n_steps :]
 
 
+#: The GNSS course's error at the outage start, as a speed error across the direction of travel
+#: (m/s): sigma_course = this / speed. A VBOX-class receiver's course comes from its Doppler
+#: velocity, good to about 0.05 m/s (0.3 deg at 10 m/s, 0.1 deg at 30 m/s); below
+#: :data:`~ionav_viz.core.grid.MIN_COURSE_SPEED_MPS` the course is held, and its error is taken at that speed.
+COURSE_SPEED_SD_MPS = 0.05
+
+
+@dataclass
+class Uncertainty:
+    """How sure the IDNN is of each window, and so of its position through an outage.
+
+    A window's displacement variance (m^2) and yaw-rate variance ((rad/s)^2) are log-linear in
+    :meth:`features`: the window's place in the outage (``log j``, j = 1, 2, ...: errors compound,
+    the displacement network being fed its own output), the predicted displacement and the
+    predicted turn. They are the variances of independent per-window errors that
+    :func:`~ionav_viz.nav.track.track_covariance` propagates, fitted (with ``fix_var_m2``, the GNSS
+    fixes' own error at the start and the end, which the scoring truth also has) by the Gaussian
+    likelihood of the 2D position error at every window boundary of outages run as the estimator
+    runs them (:func:`ionav_viz.nav.training.fit_uncertainty`): the compounding is in the fit.
+    The course at the start has the GNSS course's error (:data:`COURSE_SPEED_SD_MPS`).
+    """
+
+    disp_coef: np.ndarray  # (3,) over features(...)[0]
+    yaw_coef: np.ndarray  # (3,) over features(...)[1]
+    fix_var_m2: float
+
+    @staticmethod
+    def features(disp_m: np.ndarray, yaw_rate_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The displacement and yaw-rate variances' features, each (..., n_windows, 3)."""
+        disp_m, yaw = np.asarray(disp_m, dtype=float), np.asarray(yaw_rate_radps, dtype=float)
+        log_j = np.broadcast_to(np.log(np.arange(1, disp_m.shape[-1] + 1, dtype=float)), disp_m.shape)
+        one = np.ones_like(disp_m)
+        speed = np.log1p(np.maximum(disp_m, 0.0) / WINDOW_S)  # log(1 + m/s)
+        return np.stack([one, log_j, speed], axis=-1), np.stack([one, log_j, 10.0 * np.abs(yaw)], axis=-1)
+
+    def variances(self, disp_m: np.ndarray, yaw_rate_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per window: displacement variance (m^2) and yaw-rate variance ((rad/s)^2)."""
+        fd, fy = self.features(disp_m, yaw_rate_radps)
+        return np.exp(np.clip(fd @ self.disp_coef, -30, 30)), np.exp(np.clip(fy @ self.yaw_coef, -30, 30))
+
+    def position_covariance(self, course0_deg: np.ndarray, speed0_mps: np.ndarray, disp_m: np.ndarray,
+                            yaw_rate_radps: np.ndarray) -> np.ndarray:
+        """East/north covariance (m^2) at every window boundary, (n_outages, n_windows + 1, 2, 2)."""
+        var_d, var_w = self.variances(disp_m, yaw_rate_radps)
+        var_course = (COURSE_SPEED_SD_MPS / np.maximum(np.asarray(speed0_mps, dtype=float), MIN_COURSE_SPEED_MPS)) ** 2
+        cov = track_covariance(course0_deg, disp_m, yaw_rate_radps, var_d, var_w, var_course)
+        cov[:, 1:] += self.fix_var_m2 * np.eye(2)
+        return cov
+
+    def to_tensors(self) -> dict[str, np.ndarray]:
+        return {"disp_coef": np.asarray(self.disp_coef, dtype=np.float64), "yaw_coef": np.asarray(self.yaw_coef, dtype=np.float64),
+                "fix_var_m2": np.asarray([self.fix_var_m2], dtype=np.float64)}
+
+    @classmethod
+    def from_tensors(cls, tensors: dict[str, np.ndarray]) -> Uncertainty:
+        """From its safetensors; shapes and finiteness checked (a ValueError names the tensor)."""
+        for name, size in (("disp_coef", 3), ("yaw_coef", 3), ("fix_var_m2", 1)):
+            t = tensors.get(name)
+            if t is None or t.shape != (size,) or not np.isfinite(t).all():
+                raise ValueError(f"{name}: expected {size} finite number(s), got {None if t is None else t.shape}")
+        if tensors["fix_var_m2"][0] < 0:
+            raise ValueError("fix_var_m2 is negative")
+        return cls(tensors["disp_coef"].astype(np.float64), tensors["yaw_coef"].astype(np.float64), float(tensors["fix_var_m2"][0]))
+
+
 @dataclass
 class IdnnModel:
     """A trained displacement model and orientation-rate model with their normalisation."""
@@ -286,6 +361,8 @@ class IdnnModel:
     yaw_net: Any
     metadata: dict[str, Any] = field(default_factory=dict)
     directory: str = ""
+    #: optional: the per-window uncertainty (:class:`Uncertainty`); without it no covariance
+    uncertainty: Uncertainty | None = None
 
     def _run(self, net, x: np.ndarray) -> np.ndarray:
         import torch
@@ -413,7 +490,10 @@ class IdnnEstimator:
         if model.config.inputs == "calibrated":
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
-        return Estimate(disp, yaw)
+        cov = None
+        if model.uncertainty is not None:
+            cov = model.uncertainty.position_covariance(inputs.course0_deg, inputs.speed0_mps, disp, yaw)
+        return Estimate(disp, yaw, pos_cov_m2=cov)
 
     def describe(self) -> dict[str, Any]:
         return self.model.describe()
@@ -494,6 +574,14 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
                 (tmp / MODEL_FILES[key]).write_bytes(data)
                 checksums[MODEL_FILES[key]] = hashlib.sha256(data).hexdigest()
             meta = dict(model.metadata)
+            meta.pop("uncertainty", None)
+            if model.uncertainty is not None:
+                from safetensors.numpy import save as save_arrays
+
+                data = save_arrays(model.uncertainty.to_tensors())
+                (tmp / UNCERTAINTY_FILE).write_bytes(data)
+                meta["uncertainty"] = {**model.metadata.get("uncertainty", {}), "file": UNCERTAINTY_FILE,
+                                       "sha256": hashlib.sha256(data).hexdigest()}
             meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict(),
                         weights_sha256=checksums)
             (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
@@ -580,4 +668,31 @@ def load_model(directory: str | Path) -> IdnnModel:
         net.load_state_dict(state)
         net.eval()
         nets[key] = net
-    return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory))
+    return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory), _load_uncertainty(directory, meta))
+
+
+def _load_uncertainty(directory: Path, meta: dict[str, Any]) -> Uncertainty | None:
+    """The model's optional :class:`Uncertainty` (None when its metadata has none: older models)."""
+    from safetensors import SafetensorError
+    from safetensors.numpy import load as load_arrays
+
+    info = meta.get("uncertainty")
+    if info is None:
+        return None
+    path = directory / UNCERTAINTY_FILE
+    hint = "retrain or restore the model"
+    if not isinstance(info, dict) or info.get("file") != UNCERTAINTY_FILE or not isinstance(info.get("sha256"), str):
+        raise InputError(f"{directory / 'metadata.json'}: the uncertainty entry does not name {UNCERTAINTY_FILE} with its sha256", hint)
+    try:
+        size = path.stat()
+        if not stat.S_ISREG(size.st_mode) or size.st_size > 2**20:
+            raise InputError(f"{path}: not a small regular file", hint)
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the model's uncertainty ({exc.strerror})", hint) from None
+    if hashlib.sha256(raw).hexdigest() != info["sha256"]:
+        raise InputError(f"{path}: sha256 differs from the one metadata.json records", hint)
+    try:
+        return Uncertainty.from_tensors(load_arrays(raw))
+    except (SafetensorError, ValueError, Exception) as exc:  # safetensors only: never a pickle
+        raise InputError(f"{path}: not a valid uncertainty file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", hint) from None

@@ -29,7 +29,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import WINDOW_S
 from .bias import SensorBias
-from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, count_parameters, sample_history
+from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, Uncertainty, build_net, count_parameters, sample_history
 from .planar_filter import calibration
 from .provenance import check_inputs, drive_record, input_record, seen_drives
 from .windows import make_windows
@@ -305,6 +305,34 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
     }
     if parent is not None:
         model.metadata["parent"] = parent_record(parent)
+    add_uncertainty(model, drives)
+    return model
+
+
+#: Fewer outages than this cannot fit the uncertainty's seven parameters: the model gets none.
+MIN_UNCERTAINTY_OUTAGES = 30
+
+
+def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]]) -> IdnnModel:
+    """Fit ``model``'s uncertainty on ``drives`` (:func:`fit_uncertainty`) and set it with its record in
+    the metadata; drives too short for :data:`MIN_UNCERTAINTY_OUTAGES` outages leave the model
+    without one (it then estimates no covariance), said in the metadata. The networks are unchanged."""
+    import logging
+
+    try:
+        runs = outage_runs(model, drives)
+    except InputError:
+        runs = None
+    if runs is None or len(runs) < MIN_UNCERTAINTY_OUTAGES:
+        found = 0 if runs is None else len(runs)
+        model.uncertainty = None
+        model.metadata["uncertainty_skipped"] = (f"{found} outages of {UNCERTAINTY_OUTAGE_WINDOWS} s in the training drives, "
+                                                 f"fewer than {MIN_UNCERTAINTY_OUTAGES}: no uncertainty fitted")
+        logging.getLogger("ionav_viz").warning("IDNN uncertainty not fitted: %s", model.metadata["uncertainty_skipped"])
+        return model
+    model.uncertainty, info = fit_uncertainty(model, drives, runs)
+    model.metadata.pop("uncertainty_skipped", None)
+    model.metadata["uncertainty"] = info
     return model
 
 
@@ -334,3 +362,115 @@ def _versions() -> dict[str, Any]:
     import torch
 
     return {"ionav_viz": version("ionav-viz"), "torch": torch.__version__, "numpy": numpy.__version__, "python": platform.python_version()}
+
+
+#: The uncertainty's fit (:func:`fit_uncertainty`): outages of this many windows, one starting every
+#: ``UNCERTAINTY_STRIDE_WINDOWS`` windows (overlapping), after the warm-up evaluations use.
+UNCERTAINTY_OUTAGE_WINDOWS = 60
+UNCERTAINTY_STRIDE_WINDOWS = 3
+UNCERTAINTY_WARM_UP_S = 30.0
+
+
+@dataclass
+class OutageRuns:
+    """Outages run as the estimator runs them: predicted displacement (m) and yaw rate (rad/s) per
+    window (n, w), GNSS course (deg) and speed (m/s) at each start (n,), and the position error
+    (estimate minus GNSS fix, east and north, m) at every boundary after the start (n, w, 2)."""
+
+    disp_m: np.ndarray
+    yaw_rate_radps: np.ndarray
+    course0_deg: np.ndarray
+    speed0_mps: np.ndarray
+    error_en_m: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.disp_m)
+
+
+def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_windows: int = UNCERTAINTY_OUTAGE_WINDOWS,
+                stride: int = UNCERTAINTY_STRIDE_WINDOWS) -> OutageRuns:
+    """Run ``model`` on overlapping ``n_windows`` outages of ``drives`` exactly as
+    :class:`~ionav_viz.nav.idnn.IdnnEstimator` runs them (calibration at the start, its own
+    displacement fed back, standing windows), and measure the rebuilt track against the fixes."""
+    from ..core.geo import wgs84
+    from .outages import valid_start
+    from .protocol import EstimatorInputs
+    from .track import rebuild_track
+
+    parts = []
+    for drive, bias in drives:
+        windows = make_windows(drive).after_warm_up(UNCERTAINTY_WARM_UP_S)
+        starts = np.array([k for k in range(windows.first_start, len(windows) - n_windows + 1, stride) if valid_start(windows, k, n_windows)],
+                          dtype=int)
+        if not len(starts):
+            continue
+        inputs = EstimatorInputs(drive, windows, starts, n_windows, bias)
+        cal = calibration(drive, windows, bias.accel_mps2, bias.gyro_radps) if model.config.inputs == "calibrated" else None
+        disp, yaw = model.predict(windows, starts, n_windows, bias, cal, inputs.still)
+        track = rebuild_track(inputs.lat0_deg, inputs.lon0_deg, inputs.course0_deg, disp, yaw)
+        idx = inputs.window_index
+        az, _, dist = wgs84().inv(windows.lon1_deg[idx], windows.lat1_deg[idx], track.lon_deg[:, 1:], track.lat_deg[:, 1:])
+        az, dist = np.deg2rad(np.asarray(az).reshape(idx.shape)), np.asarray(dist).reshape(idx.shape)
+        err = np.stack([dist * np.sin(az), dist * np.cos(az)], axis=-1)
+        parts.append((disp, yaw, np.asarray(inputs.course0_deg, dtype=float), np.asarray(inputs.speed0_mps, dtype=float), err))
+    if not parts:
+        raise InputError(f"no {n_windows} s outages fit in the training drives for the IDNN's uncertainty", "give longer drives")
+    return OutageRuns(*(np.concatenate(p) for p in zip(*parts)))
+
+
+def uncertainty_nll(unc: Uncertainty, runs: OutageRuns) -> float:
+    """Mean Gaussian negative log-likelihood (per boundary, constant dropped) of the runs' 2D position
+    errors under ``unc``'s covariance."""
+    cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps)[:, 1:]
+    a, b, c = cov[..., 0, 0], cov[..., 1, 1], cov[..., 0, 1]
+    det = np.maximum(a * b - c * c, 1e-300)
+    e, n = runs.error_en_m[..., 0], runs.error_en_m[..., 1]
+    nees = (b * e * e - 2 * c * e * n + a * n * n) / det
+    return float(np.mean(0.5 * (nees + np.log(det))))
+
+
+def nees(unc: Uncertainty, runs: OutageRuns) -> np.ndarray:
+    """Normalised estimation error squared at every boundary after the start (n, w)."""
+    cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps)[:, 1:]
+    return np.einsum("nwa,nwab,nwb->nw", runs.error_en_m, np.linalg.inv(cov), runs.error_en_m)
+
+
+def fit_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], runs: OutageRuns | None = None) -> tuple[Uncertainty, dict[str, Any]]:
+    """Fit ``model``'s :class:`~ionav_viz.nav.idnn.Uncertainty` on ``drives`` (its networks unchanged);
+    returns it and what the fit saw (for the metadata).
+
+    The outages are run as the estimator runs them (:func:`outage_runs`), so the per-window
+    variances absorb how errors compound through the fed-back displacement and the integrated
+    course; the seven parameters minimise the Gaussian negative log-likelihood of the 2D position
+    error at every boundary (:func:`uncertainty_nll`; L-BFGS from a fixed start, deterministic)."""
+    from scipy.optimize import minimize
+
+    runs = runs if runs is not None else outage_runs(model, drives)
+
+    def unpack(theta: np.ndarray) -> Uncertainty:
+        return Uncertainty(np.asarray(theta[0:3]), np.asarray(theta[3:6]), float(np.exp(theta[6])))
+
+    def loss(theta: np.ndarray) -> float:
+        value = uncertainty_nll(unpack(theta), runs)
+        return value if np.isfinite(value) else 1e12
+
+    # the start: about the shipped model's (a window's distance 0.2 m at first, growing; 3 mrad/s)
+    start = np.array([-3.0, 2.0, 0.0, -11.0, 0.0, 0.5, np.log(0.05)])
+    best = minimize(loss, start, method="L-BFGS-B", options={"maxiter": 500})
+    unc = unpack(best.x)
+    q = nees(unc, runs)
+    info = {
+        "description": "per-window displacement and yaw-rate variances, log-linear in (1, log j, predicted speed or turn); "
+                       "docs/method.md, 'The IDNN's uncertainty'",
+        "fitted_on": f"{len(runs)} outages of {runs.disp_m.shape[1]} s (one every {UNCERTAINTY_STRIDE_WINDOWS} s, after a "
+                     f"{UNCERTAINTY_WARM_UP_S:g} s warm-up) of the training drives, run as the estimator runs them",
+        "nll": float(best.fun),
+        "parameters": {"disp_coef": unc.disp_coef.tolist(), "yaw_coef": unc.yaw_coef.tolist(), "fix_var_m2": unc.fix_var_m2},
+        "mean_nees": {f"{k}s": float(np.mean(q[:, k - 1])) for k in (10, 30, 60) if k <= q.shape[1]},
+        "coverage_95": {f"{k}s": float(np.mean(q[:, k - 1] <= CHI2_2_95)) for k in (10, 30, 60) if k <= q.shape[1]},
+    }
+    return unc, info
+
+
+#: The 95 % quantile of the chi-square distribution with 2 degrees of freedom (-2 ln 0.05).
+CHI2_2_95 = -2.0 * math.log(0.05)
