@@ -25,9 +25,8 @@ import numpy as np
 
 from ..core.geo import radii_of_curvature_m
 from ..core.gnss_quality import GNSS_SIGMA_FLOOR_M
+from ..nav.kalman import CHI2_2_95
 
-#: The 95 % point of a chi-square of two degrees of freedom.
-CHI2_2_95 = 5.991
 #: Seconds into the outages where the error/sigma ratio is reported.
 RATIO_AT_S = (10, 30, 60)
 

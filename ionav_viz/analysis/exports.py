@@ -31,7 +31,8 @@ from ..core.errors import InputError
 from ..core.fileio import write_failure
 from ..core.geo import local_en_m
 from ..core.json_out import dumps_json
-from .consistency import CHI2_2_95, outage_nees
+from ..nav.kalman import CHI2_2_95
+from .consistency import outage_nees
 from .metrics import METRICS, truth_boundaries
 
 #: The columns of ``outages.csv``: keys, then every metric (their names carry their units).

@@ -22,10 +22,15 @@ the recording show and the safeguards read.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+
+#: The 95 % point of a chi-square of two degrees of freedom (``-2 ln 0.05``): a 2D error whose NEES
+#: is below it lies inside the 95 % ellipse of its covariance.
+CHI2_2_95 = -2.0 * math.log(0.05)
 
 #: ``UpdateLog.status``: no such measurement at this boundary
 NOT_MEASURED = 0

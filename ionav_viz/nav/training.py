@@ -30,6 +30,7 @@ from ..core.errors import InputError
 from ..core.grid import WINDOW_S
 from .bias import SensorBias
 from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, Uncertainty, build_net, count_parameters, sample_history
+from .kalman import CHI2_2_95
 from .planar_filter import calibration
 from .provenance import check_inputs, drive_record, input_record, seen_drives
 from .windows import make_windows
@@ -472,5 +473,3 @@ def fit_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], ru
     return unc, info
 
 
-#: The 95 % quantile of the chi-square distribution with 2 degrees of freedom (-2 ln 0.05).
-CHI2_2_95 = -2.0 * math.log(0.05)

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.consistency import CHI2_2_95, boundary_errors_m
+from ..analysis.consistency import boundary_errors_m
 from ..core.geo import radii_of_curvature_m
+from ..nav.kalman import CHI2_2_95
 from . import columns
 from . import entities as ent
 from .columns import with_breaks
