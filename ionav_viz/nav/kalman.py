@@ -56,18 +56,32 @@ def update_log(rows: int, slots: int) -> UpdateLog:
 
 
 @njit(cache=True)
+def unit_row(H, col):  # pragma: no cover - compiled
+    """Write into the scratch row ``H = (cols, h)`` a measurement of state ``col`` itself."""
+    H[0][0] = col
+    H[1][0] = 1.0
+
+
+@njit(cache=True)
+def _times_h(A, cols, h, nnz):  # pragma: no cover - compiled
+    """``A H^T`` for the sparse row ``H`` (``nnz`` values ``h`` at ``cols``)."""
+    out = np.zeros(A.shape[0])
+    for i in range(A.shape[0]):
+        acc = 0.0
+        for k in range(nnz):
+            acc += A[i, cols[k]] * h[k]
+        out[i] = acc
+    return out
+
+
+@njit(cache=True)
 def scalar_update(P, x, cols, h, nnz, innovation, r, gate):  # pragma: no cover - compiled
     """Fold one scalar measurement into the state ``x`` (or the error state) and covariance ``P``
     in place (see the module docstring); ``innovation``: measured minus predicted. Returns its
     variance ``S`` and whether it was used (not when ``S`` is not positive, or when
     ``innovation^2 / S > gate``)."""
     n = P.shape[0]
-    PH = np.zeros(n)
-    for i in range(n):
-        acc = 0.0
-        for k in range(nnz):
-            acc += P[i, cols[k]] * h[k]
-        PH[i] = acc
+    PH = _times_h(P, cols, h, nnz)
     S = r
     for k in range(nnz):
         S += h[k] * PH[cols[k]]
@@ -83,12 +97,7 @@ def scalar_update(P, x, cols, h, nnz, innovation, r, gate):  # pragma: no cover 
         for j in range(n):
             P[i, j] -= K[i] * PH[j]
     # ... times (I - K H)^T, plus K r K^T
-    APh = np.zeros(n)
-    for i in range(n):
-        acc = 0.0
-        for k in range(nnz):
-            acc += P[i, cols[k]] * h[k]
-        APh[i] = acc
+    APh = _times_h(P, cols, h, nnz)
     for i in range(n):
         for j in range(n):
             P[i, j] += (r * K[i] - APh[i]) * K[j]

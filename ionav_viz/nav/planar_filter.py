@@ -248,16 +248,10 @@ def _product(A, B, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _state_row(H, col):  # pragma: no cover - compiled
-    H[0][0] = col
-    H[1][0] = 1.0
-
-
-@njit(cache=True)
 def gnss_state(x, col, z, r, H):  # pragma: no cover - compiled
     """A GNSS measurement of a state directly: east or north (m), speed (m/s), or the course (rad,
     its innovation wrapped to [-pi, pi))."""
-    _state_row(H, col)
+    kalman.unit_row(H, col)
     innovation = z - x[col]
     if col == PSI:
         innovation = (innovation + np.pi) % (2 * np.pi) - np.pi
@@ -276,7 +270,7 @@ def vehicle_speed_meas(x, z, r, H):  # pragma: no cover - compiled
 @njit(cache=True)
 def standstill(x, r, H):  # pragma: no cover - compiled
     """Standing: the speed is 0 m/s."""
-    _state_row(H, V)
+    kalman.unit_row(H, V)
     return -x[V], r, 1
 
 

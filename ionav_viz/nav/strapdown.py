@@ -439,15 +439,9 @@ def _correct(x, dx):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _unit_row(H, col):  # pragma: no cover - compiled
-    H[0][0] = col
-    H[1][0] = 1.0
-
-
-@njit(cache=True)
 def gnss_position(x, pos, sigma, axis, H):  # pragma: no cover - compiled
     """A GNSS position component (``axis`` 0 east, 1 north, 2 up; m), sigma ``sigma`` (twice it up)."""
-    _unit_row(H, DP + axis)
+    kalman.unit_row(H, DP + axis)
     s = sigma if axis < 2 else 2.0 * sigma
     return x[PX + axis] - pos[axis], s * s, 1
 
@@ -455,14 +449,14 @@ def gnss_position(x, pos, sigma, axis, H):  # pragma: no cover - compiled
 @njit(cache=True)
 def gnss_velocity(x, vel, axis, r, H):  # pragma: no cover - compiled
     """A GNSS horizontal velocity component (``axis`` 0 east, 1 north; m/s), variance ``r``."""
-    _unit_row(H, DV + axis)
+    kalman.unit_row(H, DV + axis)
     return x[VX + axis] - vel[axis], r, 1
 
 
 @njit(cache=True)
 def zupt(x, axis, r, H):  # pragma: no cover - compiled
     """Zero velocity: the navigation-frame velocity component ``axis`` is 0 m/s."""
-    _unit_row(H, DV + axis)
+    kalman.unit_row(H, DV + axis)
     return x[VX + axis], r, 1
 
 
@@ -470,7 +464,7 @@ def zupt(x, axis, r, H):  # pragma: no cover - compiled
 def zaru(x, C, omega_ie, gyro_mean, axis, r, H):  # pragma: no cover - compiled
     """Zero angular rate: standing, the mean gyro reading about body ``axis`` (rad/s) is its bias
     plus the Earth's rate (``C``: ``C_b^n``)."""
-    _unit_row(H, DBG + axis)
+    kalman.unit_row(H, DBG + axis)
     earth_b = C[0, axis] * omega_ie[0] + C[1, axis] * omega_ie[1] + C[2, axis] * omega_ie[2]
     return x[BGX + axis] + earth_b - gyro_mean[axis], r, 1
 

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from ..core.drive import IMU_COLUMNS, Drive
 from ..core.errors import InputError
@@ -218,6 +219,16 @@ def vibration(rng: np.random.Generator, t_s: np.ndarray, sigma: np.ndarray) -> n
     return rate
 
 
+@njit(cache=True)
+def _first_order(target, alpha):  # pragma: no cover - compiled
+    """A first-order lag following ``target`` ``(n, k)`` with per-sample gains ``alpha`` (n,), from zero."""
+    out = np.zeros_like(target)
+    for i in range(1, target.shape[0]):
+        for k in range(target.shape[1]):
+            out[i, k] = out[i - 1, k] + alpha[i] * (target[i, k] - out[i - 1, k])
+    return out
+
+
 def flexed_holder(t_s: np.ndarray, f_b: np.ndarray, w_b: np.ndarray, mount: np.ndarray, deg_per_mps2: float,
                   tau_s: float) -> tuple[np.ndarray, np.ndarray]:
     """The sensor's specific force and rate (its axes) on a holder that tilts with the car's
@@ -227,11 +238,8 @@ def flexed_holder(t_s: np.ndarray, f_b: np.ndarray, w_b: np.ndarray, mount: np.n
     body's (the sensor turns with the holder)."""
     k = math.radians(deg_per_mps2)
     target = np.column_stack([-k * f_b[:, 1], k * f_b[:, 0]])  # roll, pitch (nose-down positive) towards what the force pushes
-    tilt = np.zeros_like(target)
-    dt = np.diff(t_s, prepend=t_s[0])
-    alpha = 1.0 - np.exp(-dt / tau_s)
-    for i in range(1, len(t_s)):  # first order: tilt follows the target
-        tilt[i] = tilt[i - 1] + alpha[i] * (target[i] - tilt[i - 1])
+    alpha = 1.0 - np.exp(-np.diff(t_s, prepend=t_s[0]) / tau_s)
+    tilt = _first_order(np.ascontiguousarray(target), alpha)
     roll, pitch = tilt[:, 0], tilt[:, 1]
     cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
     # flex = Ry(pitch) @ Rx(roll), per sample; body = mount @ flex @ sensor, so sensor = flex^T mount^T body
