@@ -105,3 +105,52 @@ def test_the_filters_and_odometry_say_how_sure_they_are(tmp_path):
         assert len(rows[f"/{view}/ekf/ellipse"]) == n * 11
     assert len(rows["/uncertainty/odo/radius95"]) >= n * 10
     assert "/local/ins/ellipse" not in rows
+
+
+def test_an_external_trajectory_carries_its_covariance(tmp_path):
+    """Issue 43.1: the CSV columns cov_ee_m2,cov_en_m2,cov_nn_m2 become the estimate's covariance,
+    linear in time between poses; a covariance that is not PSD, or only some of the columns, is
+    refused in one line naming the pose; a NavSatFix topic's position_covariance is read."""
+    from ionav_viz.sources.trajectory import read_trajectory
+
+    from .conftest import run_cli
+    from .mcap_fixtures import write_realistic
+
+    cut = tmp_path / "cut.mcap"
+    assert run_cli("outage-log", "roundabout", "--at", "20s,60s", "-o", str(cut)).returncode == 0
+    plan = tmp_path / "cut.outages.json"
+    drive = iv.load_drive("roundabout")
+    stamps = np.asarray(drive.stamp_s(drive.t_s))
+    rel = stamps - stamps[0]
+    # the variance grows by 0.5 m^2 per second of the drive: at a boundary t s after the start, 4 + 0.5 t
+    ee, en, nn = 4.0 + 0.5 * rel, np.full(len(rel), 1.0), np.full(len(rel), 9.0) + 0.5 * rel
+    traj = tmp_path / "withcov.csv"
+    np.savetxt(traj, np.column_stack([stamps, drive.lat_deg, drive.lon_deg, nn, ee, en]), delimiter=",",
+               header="time_s,lat_deg,lon_deg,cov_nn_m2,cov_ee_m2,cov_en_m2", comments="", fmt="%.9f")
+    rep = iv.evaluate("roundabout", plan=plan, estimators=["ins"], external={"ext": traj})
+    res = rep.results[0]
+    cov = res.estimates["ext"].pos_cov_m2
+    assert cov is not None and cov.shape == (2, res.n_windows + 1, 2, 2)
+    at = np.asarray(drive.stamp_s(res.windows.t0_s[np.asarray(res.starts)][:, None] + np.arange(res.n_windows + 1)[None, :])) - stamps[0]
+    # an end whose stamp lies a jittered millisecond past the last pose up to it holds that pose's (0.1 s earlier: 0.05 m^2 less)
+    assert np.allclose(cov[..., 0, 0], 4.0 + 0.5 * at, atol=0.051) and np.allclose(cov[..., 1, 1], 9.0 + 0.5 * at, atol=0.051)
+    assert np.allclose(cov[:, :-1, 0, 0], 4.0 + 0.5 * at[:, :-1], atol=1e-6)
+    assert np.allclose(cov[..., 0, 1], 1.0) and np.allclose(cov[..., 1, 0], 1.0)
+    assert rep.to_dict()["summary"]["ext"]["consistency"]["coverage_95"] == 100.0  # it is the truth: every error inside
+
+    bad = tmp_path / "bad.csv"  # en^2 = 16 > ee * nn = 4 * 1 on the third pose
+    bad.write_text("time_s,east_m,north_m,cov_ee_m2,cov_en_m2,cov_nn_m2\n0,0,0,1,0,1\n1,1,0,1,0,1\n2,2,0,4,4,1\n")
+    with pytest.raises(iv.InputError, match=r"pose 3 \(stamp 2.0\): covariance .* not positive semi-definite"):
+        read_trajectory(bad)
+    partial = tmp_path / "partial.csv"
+    partial.write_text("time_s,east_m,north_m,cov_ee_m2\n0,0,0,1\n1,1,0,1\n")
+    with pytest.raises(iv.InputError, match="cov_en_m2, cov_nn_m2 missing"):
+        read_trajectory(partial)
+    proc = run_cli("evaluate", "roundabout", "--plan", str(plan), "--estimators", "ins", "--external", f"x={bad}")
+    assert proc.returncode == 2 and "not positive semi-definite" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+    mcap = tmp_path / "real.mcap"  # a receiver reporting 2.0 m per axis: 4 m^2 on the diagonal
+    write_realistic(iv.load_drive("roundabout"), mcap, gnss_sigma_m=2.0, duration_s=30.0)
+    fixes = read_trajectory(f"{mcap}:/gps/fix")
+    assert fixes.cov_en_m2 is not None and np.allclose(fixes.cov_en_m2, [[4.0, 0.0], [0.0, 4.0]])
+    assert read_trajectory(f"{mcap}:/wheel/odom").cov_en_m2 is None  # -1 first: unknown

@@ -11,7 +11,11 @@ per-window distance and yaw rate come from those positions (:func:`.track.window
 its final position error from its own position at the outage's end. A trajectory that does not
 cover an outage is an error naming it (and, when its stamps look like milliseconds or another unit,
 saying so); one that equals the removed GNSS fixes inside the outages
-(it ran on the original log, or is the GNSS itself) is reported.
+(it ran on the original log, or is the GNSS itself) is reported. A trajectory that carries its
+east/north covariance (:attr:`~ionav_viz.sources.trajectory.Trajectory.cov_en_m2`) gives the
+estimate's :attr:`~ionav_viz.nav.protocol.Estimate.pos_cov_m2`, each entry linear in time between
+poses like the positions (a mix of positive semi-definite matrices is one), held after the last
+pose, and the next pose's at a start fix the trajectory was begun at.
 """
 
 from __future__ import annotations
@@ -65,13 +69,15 @@ class External:
             lat_all, lon_all = traj.lat_deg, traj.lon_deg
         lon_all = np.rad2deg(np.unwrap(np.deg2rad(lon_all)))
         lat, lon = np.empty_like(when), np.empty_like(when)
+        cov_all = traj.cov_en_m2
+        cov = None if cov_all is None else np.empty((*when.shape, 2, 2))
         nearest = np.zeros(len(when), dtype=int)  # per outage, the pose nearest its start
         for i, row in enumerate(when):
             # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
             upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
             nearest[i] = _nearest(t[:upto], row[0])
-            t_i, lat_i, lon_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
-                                                float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
+            t_i, lat_i, lon_i, k_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
+                                                     float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
             if not _covers(t_i, row):
                 first = float(drive.stamp_s(drive.t_s[0]))
                 units = stamp_unit_hint(t, first, float(drive.stamp_s(drive.t_s[-1])))
@@ -80,11 +86,14 @@ class External:
                     f"(stamps {row[0]:.3f}-{row[-1]:.3f} s; it spans {t[0]:.3f}-{t[-1]:.3f} s, poses at most {MAX_GAP_S:g} s apart needed)",
                     units or "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
             lat[i], lon[i] = (_interpolated(row, t_i, v) for v in (lat_i, lon_i))
+            if cov is not None:
+                c_i = cov_all[:upto] if k_i is None else np.insert(cov_all[:upto], k_i, cov_all[min(k_i, upto - 1)], axis=0)
+                cov[i] = _interpolated_cov(row, t_i, c_i)
         lon = (lon + 180.0) % 360.0 - 180.0
         self._check_start(inputs, nearest, lat_all, lon_all)
         self._report_leaks(inputs, when, lat, lon)
         disp, yaw = windows_of_track(lat, lon, inputs.course0_deg)
-        return Estimate(disp, yaw, lat_deg=lat, lon_deg=lon)
+        return Estimate(disp, yaw, lat_deg=lat, lon_deg=lon, pos_cov_m2=cov)
 
     def _check_start(self, inputs: EstimatorInputs, nearest: np.ndarray, lat_all: np.ndarray, lon_all: np.ndarray) -> None:
         """Refuse a trajectory whose pose nearest an outage's start lies more than
@@ -146,16 +155,16 @@ def _covers(t: np.ndarray, at: np.ndarray) -> bool:
 
 
 def _from_start_fix(start: float, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, lat0: float,
-                    lon0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    lon0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
     """The poses, begun at the outage's start fix (``lat0``, ``lon0``: the estimators' start state,
     the last fix the outaged log keeps) when the trajectory has none within :data:`MAX_GAP_S` at or
     before ``start`` but one within it after: an estimator that writes poses only inside the gaps
-    starts from that fix. Otherwise the poses as they are."""
+    starts from that fix. Otherwise the poses as they are. Last: where the start fix went in, or None."""
     k = int(np.searchsorted(t, start + 1e-6, side="right"))  # poses at or before the start
     if (k > 0 and start - t[k - 1] <= MAX_GAP_S) or k >= len(t) or t[k] - start > MAX_GAP_S:
-        return t, lat, lon
+        return t, lat, lon, None
     lon0 += 360.0 * round((lon[k] - lon0) / 360.0)  # on the trajectory's unwrapped longitudes
-    return np.insert(t, k, start), np.insert(lat, k, lat0), np.insert(lon, k, lon0)
+    return np.insert(t, k, start), np.insert(lat, k, lat0), np.insert(lon, k, lon0), k
 
 
 def _interpolated(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -166,6 +175,13 @@ def _interpolated(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarr
         rate = (values[-1] - values[-2]) / (t[-1] - t[-2])
         out[late] = values[-1] + rate * (at[late] - t[-1])
     return out
+
+
+def _interpolated_cov(at: np.ndarray, t: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Covariances ``(n, 2, 2)`` at ``at``: each entry linear in time between poses, the last one
+    held after the last pose (extrapolating a covariance could make it indefinite)."""
+    flat = cov.reshape(len(t), 4)
+    return np.stack([np.interp(at, t, flat[:, j]) for j in range(4)], axis=-1).reshape(len(at), 2, 2)
 
 
 def _nearest(t: np.ndarray, at: float) -> int:

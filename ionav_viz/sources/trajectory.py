@@ -10,8 +10,16 @@ drive's first GNSS fix (the first position the estimators are given), up ignored
   ``PoseWithCovarianceStamped`` in the local frame; stamped by the header (the log time when 0).
 * ``.tum``: evo's TUM format, one pose per line ``t x y z qx qy qz qw`` (``#`` comments), x and y
   in the local frame.
-* ``.csv``: a header ``time_s,lat_deg,lon_deg`` or ``time_s,east_m,north_m`` (further columns
-  ignored), one row per pose.
+* ``.csv``: a header ``time_s,lat_deg,lon_deg`` or ``time_s,east_m,north_m``, one row per pose;
+  further columns are ignored except the covariance below.
+
+How sure the estimator was (optional, :attr:`Trajectory.cov_en_m2`): the east/north position
+covariance (m^2) of each pose, from the CSV columns ``cov_ee_m2,cov_en_m2,cov_nn_m2`` (all three,
+anywhere after the first three), from ``PoseWithCovarianceStamped`` and ``Odometry`` (the x/y block
+of ``pose.covariance``, ROS's ENU local frame) or from ``NavSatFix`` (the east/north block of
+``position_covariance`` unless its type is 0, unknown). It must be finite and positive
+semi-definite on every pose that has one; a log whose messages all carry zeros (or -1 first,
+unknown) has none.
 
 Samples are sorted by stamp. Poses sharing a stamp are one pose written twice when within
 :data:`SAME_POSE_M` (kept once, with a warning); farther apart they conflict, and the trajectory is refused.
@@ -38,6 +46,9 @@ MAX_BYTES = 2 << 30
 SAME_POSE_M = 0.001
 log = logging.getLogger("ionav_viz")
 _TRAJECTORY_HINT = "write time_s,lat_deg,lon_deg (or time_s,east_m,north_m) CSV, a TUM file, or give LOG:TOPIC"
+#: The CSV columns of a pose's east/north covariance (m^2).
+COVARIANCE_COLUMNS = ("cov_ee_m2", "cov_en_m2", "cov_nn_m2")
+_COVARIANCE_HINT = "give each pose's east/north covariance (m^2) with cov_ee_m2 >= 0, cov_nn_m2 >= 0 and cov_en_m2^2 <= cov_ee_m2 * cov_nn_m2"
 
 
 @dataclass(frozen=True)
@@ -51,6 +62,8 @@ class Trajectory:
     lon_deg: np.ndarray | None = None
     east_m: np.ndarray | None = None
     north_m: np.ndarray | None = None
+    #: per pose, the east/north position covariance (m^2, ``(n, 2, 2)``), or None (none given)
+    cov_en_m2: np.ndarray | None = None
 
     @property
     def local(self) -> bool:
@@ -84,7 +97,8 @@ def read_trajectory(spec: str | Path) -> Trajectory:
     raise InputError(f"{path}: a trajectory is a .csv, a .tum or LOG:TOPIC", _TRAJECTORY_HINT, param="external")
 
 
-def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.ndarray, local: bool) -> Trajectory:
+def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.ndarray, local: bool,
+             cov: np.ndarray | None = None) -> Trajectory:
     t = np.asarray(stamps, dtype=float)
     if len(t) < 2:
         raise InputError(f"{path}: fewer than 2 poses", _TRAJECTORY_HINT, param="external")
@@ -97,8 +111,11 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
         i = int(np.argmax(bad))
         what = "east/north (m) beyond 2000 km of the local origin" if local else "latitude/longitude outside WGS84's range"
         raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): not finite, or {what}", _TRAJECTORY_HINT, param="external")
+    if cov is not None:
+        _check_covariance(path, t, cov)
     order = np.argsort(t, kind="stable")
     t, a, b = t[order], a[order], b[order]
+    cov = cov[order] if cov is not None else None
     repeated = np.diff(t) == 0
     if repeated.any():
         apart_m = np.hypot(np.diff(a), np.diff(b)) if local else np.hypot(*steps_en_m(a, b))
@@ -111,25 +128,51 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
         log.warning("%s: %d pose(s) repeat the stamp and position of another; each is kept once", path, int(repeated.sum()))
     keep = np.concatenate([[True], ~repeated])
     t, a, b = t[keep], a[keep], b[keep]
+    cov = cov[keep] if cov is not None else None
     if local:
-        return Trajectory(path, t, east_m=a, north_m=b)
-    return Trajectory(path, t, lat_deg=a, lon_deg=b)
+        return Trajectory(path, t, east_m=a, north_m=b, cov_en_m2=cov)
+    return Trajectory(path, t, lat_deg=a, lon_deg=b, cov_en_m2=cov)
+
+
+def _check_covariance(path: str, t: np.ndarray, cov: np.ndarray) -> None:
+    """Refuse a pose covariance that is not finite or not positive semi-definite (a one-line error
+    naming the first such pose)."""
+    ee, en, nn = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    tol = 1e-9 * np.maximum(np.abs(ee) + np.abs(nn), 1e-12)
+    bad = ~(np.isfinite(ee) & np.isfinite(en) & np.isfinite(nn)) | (ee < 0) | (nn < 0) | (en * en > ee * nn + tol)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): covariance ee={float(ee[i])!r}, en={float(en[i])!r}, "
+                         f"nn={float(nn[i])!r} m^2 is not finite or not positive semi-definite", _COVARIANCE_HINT, param="external")
+
+
+def covariance_en(ee: np.ndarray, en: np.ndarray, nn: np.ndarray) -> np.ndarray:
+    """East/north covariance matrices ``(n, 2, 2)`` from their three distinct entries (m^2)."""
+    return np.stack([np.stack([ee, en], axis=-1), np.stack([en, nn], axis=-1)], axis=-2).astype(float)
 
 
 def _from_csv(path: Path) -> Trajectory:
     try:
         with open(path, encoding="utf-8") as f:
             header = [h.strip() for h in f.readline().split(",")]
+            have = [c for c in COVARIANCE_COLUMNS if c in header]
+            if have and len(have) < len(COVARIANCE_COLUMNS):
+                raise InputError(f"{path}: covariance column(s) {', '.join(c for c in COVARIANCE_COLUMNS if c not in header)} missing beside "
+                                 f"{', '.join(have)}", "give all three of " + ",".join(COVARIANCE_COLUMNS) + ", or none", param="external")
+            cols = (0, 1, 2) + tuple(header.index(c) for c in have if header.index(c) > 2)
             with warnings.catch_warnings():  # a header without rows: numpy's "input contained no data" warning on stderr
                 warnings.simplefilter("ignore", UserWarning)
-                data = np.loadtxt(f, delimiter=",", ndmin=2, usecols=(0, 1, 2)) if header else np.zeros((0, 3))
+                data = np.loadtxt(f, delimiter=",", ndmin=2, usecols=cols) if header else np.zeros((0, len(cols)))
+    except InputError:
+        raise
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: not a trajectory CSV ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
                          param="external") from None
     names = tuple(header[:3])
     if names not in (("time_s", "lat_deg", "lon_deg"), ("time_s", "east_m", "north_m")):
         raise InputError(f"{path}: header {','.join(header[:3])[:80]!r} is not time_s,lat_deg,lon_deg or time_s,east_m,north_m", _TRAJECTORY_HINT, param="external")
-    return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], names[1] == "east_m")
+    cov = covariance_en(data[:, 3], data[:, 4], data[:, 5]) if data.shape[1] == 6 else None
+    return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], names[1] == "east_m", cov)
 
 
 def _from_tum(path: Path) -> Trajectory:
@@ -165,7 +208,7 @@ def _from_log(path: Path, topic: str) -> Trajectory:
     fixes = channel.schema in GNSS_SCHEMAS[:2]
     if not fixes and channel.schema not in ODOMETRY_SCHEMAS + POSE_SCHEMAS:
         raise InputError(f"{path}: {topic} is a {channel.schema}", "give a NavSatFix, Odometry or PoseStamped topic", param="external")
-    t, a, b = [], [], []
+    t, a, b, cov = [], [], [], []
     try:
         for _, log_ns, msg in log.messages([channel]):
             try:
@@ -179,15 +222,51 @@ def _from_log(path: Path, topic: str) -> Trajectory:
                 t.append(stamp)
                 a.append(float(get_field(msg, "latitude")))
                 b.append(float(get_field(msg, "longitude")))
+                cov.append(_fix_covariance(msg))
             else:
                 pose = get_field(msg, "pose") if channel.schema in POSE_SCHEMAS[:2] else get_field(msg, "pose", "pose")
                 t.append(stamp)
                 a.append(float(get_field(pose, "position", "x")))
                 b.append(float(get_field(pose, "position", "y")))
+                cov.append(None if channel.schema in POSE_SCHEMAS[:2] else _pose_covariance(get_field(msg, "pose", "covariance")))
     except InputError:
         raise
     except (KeyError, AttributeError, TypeError, ValueError) as exc:
         raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})", _TRAJECTORY_HINT, param="external") from None
     except Exception as exc:
         raise log.damaged(exc) from None
-    return _checked(f"{path}:{topic}", t, np.asarray(a), np.asarray(b), not fixes)
+    return _checked(f"{path}:{topic}", t, np.asarray(a), np.asarray(b), not fixes, _log_covariance(cov))
+
+
+def _fix_covariance(msg) -> tuple[float, float, float] | None:
+    """A NavSatFix's east/north covariance (m^2), None when its type is unknown (0) or absent."""
+    from .message_log import get_field
+
+    try:
+        if int(get_field(msg, "position_covariance_type")) <= 0:
+            return None
+        c = [float(v) for v in get_field(msg, "position_covariance")]
+    except (KeyError, AttributeError, TypeError, ValueError):
+        return None
+    return (c[0], c[1], c[4]) if len(c) == 9 else None
+
+
+def _pose_covariance(values) -> tuple[float, float, float] | None:
+    """The x/y (east/north) block of a 6 x 6 row-major pose covariance (m^2), None when all zero or
+    marked unknown (-1 first, ROS's convention)."""
+    try:
+        c = [float(v) for v in values]
+    except (TypeError, ValueError):
+        return None
+    if len(c) != 36 or not any(c) or c[0] == -1.0:
+        return None
+    return (c[0], c[1], c[7])
+
+
+def _log_covariance(entries: list) -> np.ndarray | None:
+    """The poses' covariances, or None when no message carried one; a pose without one among poses
+    with one is refused by the check as not finite (NaN)."""
+    if all(e is None for e in entries):
+        return None
+    rows = np.array([e if e is not None else (np.nan, np.nan, np.nan) for e in entries], dtype=float).reshape(-1, 3)
+    return covariance_en(rows[:, 0], rows[:, 1], rows[:, 2])
