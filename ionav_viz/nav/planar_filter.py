@@ -86,9 +86,13 @@ class EkfNoise:
 
     accel_white_mps2: float = 0.3
     gyro_white_radps: float = np.deg2rad(0.25)
-    accel_offset_walk_mps2: float = 0.1
+    #: the offset wanders as the road's grade changes (0.1-0.5 m/s^2 of gravity for tens of seconds,
+    #: SENSORS.md); 0.2 was chosen with scale_walk and turn_scale_sd for honesty (95 % of outage ends
+    #: inside the 95 % ellipse) on the simulated training fleet, never on the sets results.md reports
+    accel_offset_walk_mps2: float = 0.2
     gyro_bias_walk_radps: float = np.deg2rad(0.005)
-    scale_walk: float = 1e-4
+    #: the rolling radius changes with speed, load and slip (1-3 %, SENSORS.md)
+    scale_walk: float = 2e-3
     gyro_scale_walk: float = 1e-5
     gnss_position_m: float = 1.0
     gnss_speed_mps: float = 0.05
@@ -98,6 +102,12 @@ class EkfNoise:
     gnss_fitted_speed_mps: float = 0.5
     gnss_fitted_course_rad_at_10mps: float = np.deg2rad(2.0)
     vehicle_speed_mps: float = 0.15
+    #: the vehicle speed's error grows with the acceleration: CAN speed arrives 20-100 ms late and
+    #: wheels slip in hard braking and acceleration (SENSORS.md); sigma^2 += (this * |a|)^2
+    vehicle_speed_lag_s: float = 0.0
+    #: heading noise per radian turned in a window (gyro scale and latency the scale state does not
+    #: follow): the course's process noise gains (this * turn)^2
+    turn_scale_sd: float = 0.1
     still_speed_mps: float = 0.05
     init_position_m: float = 1.0
     init_speed_mps: float = 0.2
@@ -179,6 +189,8 @@ class PlanarModel(NamedTuple):
     course_sd_at_10mps: float
     alpha: float
     grade_length_m: float
+    vehicle_lag_s: float
+    turn_sd: float
 
 
 #: The measurement slots of the forward pass's update log (:class:`ionav_viz.nav.kalman.UpdateLog`,
@@ -193,9 +205,10 @@ SLOT_VEHICLE = 4
 
 
 @njit(cache=True)
-def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
+def _propagate(x, P, F, G, W, T, q, J, turn_sd=0.0):  # pragma: no cover - compiled
     """One window, in place: the state ``x`` (8,) and covariance ``P`` (8, 8); returns the
-    distance along the window (m) and its mean yaw rate (rad/s, CCW +). ``J`` is scratch."""
+    distance along the window (m) and its mean yaw rate (rad/s, CCW +). ``J`` is scratch;
+    ``turn_sd``: the course's noise per radian turned (:attr:`EkfNoise.turn_scale_sd`)."""
     v, psi, ba, bg, gain = x[V], x[PSI], x[BA], x[BG], 1.0 + x[S]
     turn = (W - bg * T) / gain  # counter-clockwise, rad
     mid = psi - 0.5 * turn
@@ -217,6 +230,7 @@ def _propagate(x, P, F, G, W, T, q, J):  # pragma: no cover - compiled
     J[V, BA] = -T
     J[PSI, BG], J[PSI, S] = -dturn_dbg, -dturn_ds
     _congruence(J, P, q)
+    P[PSI, PSI] += (turn_sd * turn) ** 2
     return d, turn / T
 
 
@@ -265,6 +279,12 @@ def vehicle_speed_meas(x, z, r, H):  # pragma: no cover - compiled
     cols[0], h[0] = V, x[K]
     cols[1], h[1] = K, x[V]
     return z - x[K] * x[V], r, 2
+
+
+@njit(cache=True)
+def _r_vehicle(model, F, T):  # pragma: no cover - compiled
+    """The vehicle speed's variance in a window whose speed changed by ``F`` (m/s) over ``T`` s."""
+    return model.r_vehicle + (model.vehicle_lag_s * F / T) ** 2
 
 
 @njit(cache=True)
@@ -323,9 +343,9 @@ def _forward_kernel(inp, model, accel_offset, gyro_bias, log):  # pragma: no cov
         xs[k], Ps[k] = x, P
         mean += model.alpha * (x[BA] - mean)
         slow[k] = mean
-        _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J)
+        _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J, model.turn_sd)
         if np.isfinite(inp.vehicle[k]):
-            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), log, k, SLOT_VEHICLE)
+            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], _r_vehicle(model, inp.F[k], inp.T), H), log, k, SLOT_VEHICLE)
     return xs, Ps, slow
 
 
@@ -354,10 +374,10 @@ def outage_kernel(forward, inp, model, starts, n_windows, still):  # pragma: no 
             k = k0 + j
             # the fast part of the offset is road grade: it fades over grade_length_m of road
             x[BA] = base + grade0 * np.exp(-travelled / model.grade_length_m)
-            disp[o, j], yaw[o, j] = _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J)
+            disp[o, j], yaw[o, j] = _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J, model.turn_sd)
             travelled += max(disp[o, j], 0.0)
             if np.isfinite(inp.vehicle[k]):
-                _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), nowhere, 0, 0)
+                _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], _r_vehicle(model, inp.F[k], inp.T), H), nowhere, 0, 0)
             if still[o, j]:
                 _apply(P, x, H, standstill(x, model.r_still, H), nowhere, 0, 0)
             x[V] = max(x[V], 0.0)
@@ -439,7 +459,8 @@ def planar_model(noise: EkfNoise, T: float) -> PlanarModel:
     """The filter's noise as its kernels use it, for windows of ``T`` s."""
     q, init = noise_arrays(noise, T)
     return PlanarModel(q, init, float(noise.gnss_speed_mps**2), float(noise.vehicle_speed_mps**2), float(noise.still_speed_mps**2),
-                       float(noise.gnss_course_rad_at_10mps), float(T / OFFSET_MEMORY_S), float(GRADE_LENGTH_M))
+                       float(noise.gnss_course_rad_at_10mps), float(T / OFFSET_MEMORY_S), float(GRADE_LENGTH_M),
+                       float(noise.vehicle_speed_lag_s), float(noise.turn_scale_sd))
 
 
 @dataclass
