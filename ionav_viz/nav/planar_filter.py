@@ -536,7 +536,9 @@ class SensorCalibration:
 #: less (0.05 m/s^2/sqrt(s)) than ``ekf``'s: a speed fitted to fixes (logs without a velocity
 #: topic) lags in hard braking, and the IDNN must get the same inputs from such a log as from a
 #: receiver's Doppler speed (measured: CRSE within 5 % between a CSV and its 5-10 Hz fix-only MCAP).
-CALIBRATION_NOISE = EkfNoise(gnss_speed_mps=0.3, accel_offset_walk_mps2=0.05)
+#: The scale walk and turn noise stay those the shipped IDNN was trained with (not ``ekf``'s honest
+#: outage values): its inputs must not move under it.
+CALIBRATION_NOISE = EkfNoise(gnss_speed_mps=0.3, accel_offset_walk_mps2=0.05, scale_walk=1e-4, turn_scale_sd=0.0)
 
 
 def calibration(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = CALIBRATION_NOISE) -> SensorCalibration:
