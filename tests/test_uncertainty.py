@@ -154,3 +154,38 @@ def test_an_external_trajectory_carries_its_covariance(tmp_path):
     fixes = read_trajectory(f"{mcap}:/gps/fix")
     assert fixes.cov_en_m2 is not None and np.allclose(fixes.cov_en_m2, [[4.0, 0.0], [0.0, 4.0]])
     assert read_trajectory(f"{mcap}:/wheel/odom").cov_en_m2 is None  # -1 first: unknown
+
+
+def test_the_history_scale_is_the_past_pseudo_outages_mean_nees_shrunk_toward_one():
+    """Issue 43.2/5: per outage, the mean NEES per dof of the pseudo-outages ended at or before its
+    start, with 3 pseudo-outages' weight on 1, never below 1. By hand: pseudo-outages ending at
+    windows 5, 10 and 20 with NEES 2, 4 and 1; outages starting at 0 (none before: 1), 10 (two:
+    (3 + 2 + 4) / 5 = 1.8) and 25 (all three: (3 + 7) / 6); a drive where it is underconfident stays at 1."""
+    from ionav_viz.nav.history_check import history_scale
+
+    scale = history_scale(np.array([10, 5, 20]), np.array([4.0, 2.0, 1.0]), np.array([0, 10, 25]))
+    assert np.allclose(scale, [1.0, 1.8, 10.0 / 6.0])
+    assert np.allclose(history_scale(np.array([5, 10]), np.array([0.1, 0.2]), np.array([12])), [1.0])
+
+
+def test_the_idnn_widens_its_covariance_where_its_history_shows_it_overconfident(tmp_path, monkeypatch):
+    """Issue 43.2/5: on a phone log (single readings on a shaking holder, unlike the model's training
+    drives) the IDNN's learned covariance alone is overconfident; scaled by its NEES on the GNSS before
+    each outage, more final errors fall inside its 95 % ellipse, the scale is reported, and the
+    estimates themselves do not change."""
+    from ionav_viz.analysis.consistency import consistency
+    from ionav_viz.nav import history_check
+    from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
+
+    path = write_imu_log(tmp_path / "phone.mcap", "roundabout", 905, 300.0, "phone")
+    read = iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto"))
+    drive = iv.load_drive(str(path), read)
+    scaled = iv.evaluate([drive], 10, estimators=["idnn"])
+    with monkeypatch.context() as m:
+        m.setattr(history_check, "PRIOR_OUTAGES", 1e12)  # the prior alone: the scale stays 1
+        learned = iv.evaluate([drive], 10, estimators=["idnn"])
+    a, b = consistency(learned.results, "idnn"), consistency(scaled.results, "idnn")
+    assert a["anees"] > 2.0 and b["anees"] < a["anees"] / 2 and b["coverage_95"] >= a["coverage_95"] + 20, (a, b)
+    assert np.array_equal(learned.results[0].estimates["idnn"].disp_m, scaled.results[0].estimates["idnn"].disp_m)
+    info = next(e for e in scaled.to_dict()["estimators"] if e["name"] == "idnn")["info"]
+    assert "pseudo-outages over the GNSS" in info["uncertainty_scale"]

@@ -59,10 +59,12 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, read_json_bounded, staging_folder, swap_in_directory, write_failure
 from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
+from . import history_check
 from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
 from .provenance import check_inputs, trained_outages
+from .stillness import still_on_grid
 from .track import track_covariance
 from .windows import Windows
 
@@ -491,12 +493,31 @@ class IdnnEstimator:
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
         cov = None
+        self._scale_note = ""
         if model.uncertainty is not None:
             cov = model.uncertainty.position_covariance(inputs.course0_deg, inputs.speed0_mps, disp, yaw)
+            cov = cov * self._history_scale(model, inputs, cal)[:, None, None, None]
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
+    def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None) -> np.ndarray:
+        """Per outage, how much to widen the learned covariance: the model's NEES on pseudo-outages
+        over the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
+        w, n = inputs.windows, inputs.n_windows
+        pseudo = history_check.pseudo_outages(w, n)
+        if not len(pseudo.starts) or not inputs.n_outages:
+            return np.ones(inputs.n_outages)
+        idx = pseudo.starts[:, None] + np.arange(n)[None, :]
+        disp, yaw = model.predict(w, pseudo.starts, n, inputs.bias, cal, still_on_grid(inputs.drive, w)[idx])
+        cov = model.uncertainty.position_covariance(w.heading0_deg[pseudo.starts], w.speed0_mps[pseudo.starts], disp, yaw)
+        nees = history_check.nees_per_dof(w, pseudo.starts, disp, yaw, cov)
+        scale = history_check.history_scale(pseudo.ends, nees, inputs.starts)
+        self._scale_note = (f"x{float(np.median(scale)):.2f} median, x{float(scale.max()):.2f} at most, from its NEES per degree of freedom "
+                            f"{float(nees.mean()):.2f} on {len(nees)} pseudo-outages over the GNSS")
+        return scale
+
     def describe(self) -> dict[str, Any]:
-        return self.model.describe()
+        note = getattr(self, "_scale_note", "")
+        return self.model.describe() | ({"uncertainty_scale": note} if note else {})
 
     def _check_leakage(self, model: IdnnModel, inputs: EstimatorInputs, label: str) -> None:
         """Warn (refuse when ``strict``) when outages lie in data ``model`` was trained on, naming them."""

@@ -1,0 +1,82 @@
+"""How far a learned covariance holds on this drive: the estimator's own NEES on the GNSS before each outage.
+
+A learned variance (the IDNN's, :class:`~ionav_viz.nav.idnn.Uncertainty`) is fitted on its training
+drives; on a drive unlike them (another IMU, a shaking phone holder) it is overconfident, and its
+inputs cannot tell it so. Before an outage the drive still has GNSS: the estimator is run on
+pseudo-outages of the outage's length tiled over the drive, and its normalised estimation error
+squared there (its 2D position error against the fixes, over its covariance, which already holds the
+fixes' own error) says by how much its covariance understates its error on this drive. Each outage's
+covariance is scaled by the mean NEES per degree of freedom of the pseudo-outages that ended at or
+before its start: only the past, as a vehicle would have it. The scale is never below 1 (the
+estimator is never made surer than it was trained to be) and is shrunk toward 1 with the weight of
+:data:`PRIOR_OUTAGES` pseudo-outages, so the first outages of a drive, with little history, move little.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.geo import radii_of_curvature_m
+from .track import rebuild_track
+from .windows import Windows
+
+#: The weight of the prior scale 1, in pseudo-outages.
+PRIOR_OUTAGES = 3.0
+
+
+@dataclass(frozen=True)
+class PseudoOutages:
+    """Stretches of ``n_windows`` windows with good GNSS truth throughout, tiled over the drive:
+    ``starts`` (window index of each first window) and ``ends`` (index of the window after each)."""
+
+    starts: np.ndarray
+    ends: np.ndarray
+    n_windows: int
+
+
+def pseudo_outages(windows: Windows, n_windows: int) -> PseudoOutages:
+    """Tiles of ``n_windows`` windows from the second window on, each inside one gap-free segment
+    with good truth in every window and in the window before (its GNSS displacement starts the
+    estimator)."""
+    n = len(windows.t0_s)
+    starts = np.arange(1, n - n_windows + 1, n_windows)
+    if not len(starts):
+        return PseudoOutages(starts, starts, n_windows)
+    idx = starts[:, None] + np.arange(-1, n_windows)[None, :]
+    good = (windows.truth_fault[idx] == 0).all(axis=1) & (windows.segment[idx] == windows.segment[idx[:, :1]]).all(axis=1)
+    starts = starts[good]
+    return PseudoOutages(starts, starts + n_windows, n_windows)
+
+
+def nees_per_dof(windows: Windows, starts: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray,
+                 cov_m2: np.ndarray) -> np.ndarray:
+    """Per pseudo-outage, the mean over its window boundaries (the start left out) of the NEES per
+    degree of freedom of the track rebuilt from ``disp_m``/``yaw_rate_radps`` (each ``(m, n)``)
+    against the fixes, with the covariance ``cov_m2`` ``(m, n + 1, 2, 2)`` (east/north, m^2)."""
+    if not len(starts):
+        return np.zeros(0)
+    n = disp_m.shape[1]
+    idx = starts[:, None] + np.arange(n)[None, :]
+    track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp_m, yaw_rate_radps)
+    lat_t = np.concatenate([windows.lat0_deg[idx], windows.lat1_deg[idx[:, -1:]]], axis=1)[:, 1:]
+    lon_t = np.concatenate([windows.lon0_deg[idx], windows.lon1_deg[idx[:, -1:]]], axis=1)[:, 1:]
+    meridian, prime = radii_of_curvature_m(lat_t)
+    north = np.radians(track.lat_deg[:, 1:] - lat_t) * meridian
+    east = np.radians(track.lon_deg[:, 1:] - lon_t) * prime * np.cos(np.radians(lat_t))
+    P = cov_m2[:, 1:]
+    a, b, c = P[..., 0, 0], P[..., 1, 1], P[..., 0, 1]
+    det = np.maximum(a * b - c * c, 1e-12)
+    nees = (b * east * east - 2 * c * east * north + a * north * north) / det
+    return nees.mean(axis=1) / 2.0
+
+
+def history_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:
+    """Per outage, the covariance's scale (see the module docstring) from the pseudo-outages that
+    ended (``pseudo_ends``, window index after their last) at or before its start."""
+    order = np.argsort(pseudo_ends, kind="stable")
+    ends, nees = pseudo_ends[order], pseudo_nees[order]
+    count = np.searchsorted(ends, np.asarray(outage_starts), side="right")
+    total = np.concatenate([[0.0], np.cumsum(nees)])[count]
+    return np.maximum((PRIOR_OUTAGES + total) / (PRIOR_OUTAGES + count), 1.0)
