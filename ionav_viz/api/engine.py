@@ -55,6 +55,14 @@ class Engine:
             return "dask"
         return "serial" if self.workers == 1 else "processes"
 
+    def start(self) -> Engine:
+        """Start the local workers' forkserver now (a no-op for the other back-ends), so that its
+        imports (torch, numba: about 2 s) run on another core while this process checks the run's
+        options and loads the model, instead of after it. Returns this engine."""
+        if self.backend == "processes":
+            _context()
+        return self
+
     def describe(self) -> str:
         """One line for reports: ``4 processes``, ``in this process``, ``Dask at tcp://...``."""
         if self.backend == "dask":

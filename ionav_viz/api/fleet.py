@@ -278,10 +278,11 @@ def evaluate_fleet(
         a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
         with its one-line reason, a drive too short for one outage in ``skipped``.
     """
+    engine = Engine(workers if workers is not None else default_workers(), cluster).start()
     items = expand_drives(drives)
     job = _job_of(items, outage_s, placement, estimators, run, read)
-    return _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job,
-                      Engine(workers if workers is not None else default_workers(), cluster), fail_fast, progress, replay_options)
+    return _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job, engine, fail_fast,
+                      progress, replay_options)
 
 
 def replay_fleet(
@@ -305,6 +306,7 @@ def replay_fleet(
     cluster, ``folder`` must be one every worker can write to."""
     from ..core.fileio import check_output_folder
 
+    engine = Engine(workers if workers is not None else default_workers(), cluster).start()
     items = expand_drives(drives)
     job = _job_of(items, outage_s, placement, estimators, run, read)
     out = check_output_folder(Path(folder), param="output")
@@ -315,8 +317,7 @@ def replay_fleet(
         names[name] = names.get(name, 0) + 1
         work.append((d.spec, job, str((out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd")).absolute()), _absolute(d.spec)))
     out.mkdir(parents=True, exist_ok=True)
-    return _run_fleet(work, [d.size_bytes for d in items], job, Engine(workers if workers is not None else default_workers(), cluster),
-                      fail_fast, progress, replay_options)
+    return _run_fleet(work, [d.size_bytes for d in items], job, engine, fail_fast, progress, replay_options)
 
 
 def _drive_name(spec: str) -> str:
