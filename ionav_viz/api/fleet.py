@@ -175,7 +175,7 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
                     result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts,
                                             windows=windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps,
                                             placement=plan.description)
-            return drive_table(spec, result, list(warned), time.perf_counter() - began, recording)
+            return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
 
