@@ -217,3 +217,60 @@ def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
     assert [r["recording"] for r in replayed.drive_rows()] == [str(tmp_path / "api" / n) for n in ("V-f0.rrd", "V-f1.rrd")]
     refused = run_cli("replay", *_good(fleet_dir), "-o", str(tmp_path / "one.rrd"))
     assert refused.returncode == 2 and "-o" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1
+
+
+def _texts_and_bars(path: Path) -> tuple[dict[str, str], dict[str, tuple[list, list]]]:
+    from rerun.chunk import RrdReader
+
+    texts, bars = {}, {}
+    for chunk in RrdReader(path).stream():
+        name, batch = str(chunk.entity_path), chunk.to_record_batch()
+        cols = batch.schema.names
+        if "TextDocument:text" in cols:
+            cell = batch.column("TextDocument:text").to_pylist()[0]
+            texts[name] = cell[0] if isinstance(cell, list) else cell
+        if "BarChart:values" in cols:
+            bars[name] = tuple(_numbers(batch.column(f"BarChart:{c}").to_pylist()[0]) for c in ("values", "abscissa"))
+    return texts, bars
+
+
+def _numbers(cell) -> list:
+    """A bar chart's tensor cell as read back (a tensor: its buffer) as a list of numbers."""
+    while isinstance(cell, list) and len(cell) == 1 and isinstance(cell[0], (dict, list)):
+        cell = cell[0]
+    return list(cell["buffer"]) if isinstance(cell, dict) else list(cell)
+
+
+def test_the_fleet_overview_recording_has_a_row_and_a_bar_per_drive(fleet_dir, tmp_path):
+    """--fleet-rrd: the table names every drive with its worst outage and the command that replays
+    it, the failed drive with its reason; per estimator one bar per drive, the drive's mean final
+    error (the mean of its outages' final errors in the JSON report), numbered as the table's rows."""
+    import numpy as np
+
+    out = tmp_path / "fleet.rrd"
+    proc = run_cli("evaluate", str(fleet_dir), "--estimators", CHEAP, "--workers", "1", "--json", "--fleet-rrd", str(out), "-q")
+    assert proc.returncode == 3, proc.stderr  # the bad drive
+    report = json.loads(proc.stdout)
+    texts, bars = _texts_and_bars(out)
+    table = texts["/fleet/drives"]
+    for k, name in enumerate(["V-f0", "V-f1", "V-f2"], 1):
+        errors = {est: [s[est]["final_position_error_m"] for s in report["sequences"] if s["drive"] == name] for est in ("ins", "odo")}
+        worst = int(np.argmax(errors["ins"])) + 1
+        assert f"| {k} | {name} | {len(errors['ins'])} | " in table
+        assert f"{k}. {name}, outage {worst}: `ionav-viz replay {fleet_dir / name}.csv --outage 10s --estimators ins,odo`" in table
+        for est in ("ins", "odo"):
+            values, abscissa = bars[f"/fleet/mean_final_error_m/{est}"]
+            assert values[k - 1] == pytest.approx(np.mean(errors[est]))
+            assert bars[f"/fleet/worst_final_error_m/{est}"][0][k - 1] == pytest.approx(max(errors[est]))
+            assert abscissa[k - 1] + 0.4 == pytest.approx(k)  # the bar centred on the row's number
+    assert "V-bad.csv:" in table and texts["/fleet/report"].startswith("# Fleet: 4 drive(s)")
+    assert not list(tmp_path.glob(".fleet.rrd.*"))  # written atomically: no temporary left
+    proc = run_cli("evaluate", str(fleet_dir / "V-f0.csv"), "--estimators", CHEAP, "--fleet-rrd", str(tmp_path / "f.txt"))
+    assert proc.returncode == 2 and "--fleet-rrd" in proc.stderr and ".rrd" in proc.stderr
+    proc = run_cli("screenshot", str(out), "-o", str(tmp_path / "fleet.png"), "--size", "800x450")
+    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    from PIL import Image
+
+    assert Image.open(tmp_path / "fleet.png").size == (800, 450)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..core.json_out import dumps_json
-from ..nav.protocol import short_label
+from ..nav.protocol import color_of, short_label
 from .consistency import RATIO_AT_S
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, improvement_pct, is_baseline
@@ -124,7 +124,7 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
     return DriveTable(
         spec=str(spec), name=drive.name, source=drive.source, duration_s=float(drive.duration_s),
         distance_m=float(np.hypot(east, north).sum()), outage_s=result.outage_s,
-        estimators=[{"name": e.name, "label": e.label} for e in result.estimators],
+        estimators=[{"name": e.name, "label": e.label, **({"color": list(c)} if (c := color_of(e)) else {})} for e in result.estimators],
         start_s=np.asarray(result.outage_t0_s, dtype=float).copy(), gnss_distance_m=np.asarray(result.gnss_distance_m, dtype=float).copy(),
         metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},

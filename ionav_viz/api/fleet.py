@@ -376,6 +376,21 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
         timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
 
 
+def write_fleet_recording(report: FleetReport, output: str | Path) -> Path:
+    """Write the fleet's overview recording (``evaluate --fleet-rrd FILE``,
+    :mod:`ionav_viz.viz.fleet`) to ``output``, atomically: a table of the drives with each one's
+    worst outage and the command that replays it, and bar charts per estimator. Returns its path."""
+    from ..core.fileio import atomic_path
+    from ..viz.fleet import write_fleet_recording as write
+
+    out = Path(output)
+    if out.suffix.lower() != ".rrd":
+        raise InputError(f"{out}: the fleet's recording is an .rrd file", "give a name ending in .rrd", param="fleet_rrd")
+    with atomic_path(out) as tmp:
+        write(report, tmp, target=out)
+    return out
+
+
 @dataclass(frozen=True)
 class FleetPlan:
     """What a fleet run would do (``--dry-run``): the drives with their sizes, and the estimate."""

@@ -30,8 +30,9 @@ def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: O
 
 def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
                    workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool, as_json: bool, markdown: bool,
-                   quiet: bool, refused: dict[str, Any]) -> None:
-    """Evaluate the drives as a fleet and print its report; exit 3 when some drives failed
+                   quiet: bool, refused: dict[str, Any], fleet_rrd: Optional[Path] = None) -> None:
+    """Evaluate the drives as a fleet and print its report (and with ``fleet_rrd`` write its
+    overview recording there); exit 3 when some drives failed
     (:data:`ionav_viz.api.fleet.EXIT_SOME_FAILED`), 2 when none could be evaluated."""
     from ..api import fleet
     from ..core.json_out import dumps_json
@@ -42,6 +43,7 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     if not drives:
         raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
+    _check_fleet_rrd(fleet_rrd, drives)
     with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option):
         if dry_run:
             plan = fleet.plan_fleet(drives, workers)
@@ -55,7 +57,32 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
         print(report.to_json())
     else:
         print(report.to_markdown() if markdown else report.to_text(c.terminal_width()), end="")
+    _write_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
+
+
+def _check_fleet_rrd(fleet_rrd: Optional[Path], drives: list[str]) -> None:
+    """Refuse a ``--fleet-rrd`` that is not an ``.rrd`` or cannot be written, or one of the drives, before any work."""
+    if fleet_rrd is None:
+        return
+    from ..core.fileio import check_output_file, refuse_output_onto_input
+
+    if fleet_rrd.suffix.lower() != ".rrd":
+        raise typer.BadParameter(f"{fleet_rrd}: the fleet's overview is an .rrd file", param_hint="--fleet-rrd")
+    with options_named(output="--fleet-rrd"):
+        check_output_file(fleet_rrd)
+        refuse_output_onto_input(fleet_rrd, [d for d in drives if not d.startswith("@")])
+
+
+def _write_fleet_rrd(report: Any, fleet_rrd: Optional[Path], quiet: bool) -> None:
+    if fleet_rrd is None or not report.drives:
+        return
+    from ..api import fleet
+
+    with options_named(output="--fleet-rrd", fleet_rrd="--fleet-rrd"):
+        fleet.write_fleet_recording(report, fleet_rrd)
+    if not quiet:
+        print(f"fleet overview: {fleet_rrd} (ionav-viz screenshot {fleet_rrd} -o fleet.png; rerun {fleet_rrd})", file=sys.stderr)
 
 
 def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any) -> str:
@@ -74,7 +101,8 @@ def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any)
 
 
 def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
-                 workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool, refused: dict[str, Any]) -> None:
+                 workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool, refused: dict[str, Any],
+                 fleet_rrd: Optional[Path] = None) -> None:
     """Replay many drives, one recording each into the folder ``-o`` (default ``recordings``):
     the recordings' paths on stdout, the fleet report on stderr; exit codes as for evaluate."""
     from ..api import fleet
@@ -85,6 +113,7 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
     if output is not None and output.suffix.lower() == ".rrd":
         raise typer.BadParameter(f"{output}: many drives are replayed into a folder, one recording each", param_hint="-o")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
+    _check_fleet_rrd(fleet_rrd, drives)
     with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option), \
             c.progress(quiet) as bar:
         report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
@@ -94,6 +123,7 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
         print(report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     for table in report.drives:
         print(table.recording)
+    _write_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
 
 

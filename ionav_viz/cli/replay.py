@@ -39,6 +39,7 @@ def replay(
     workers: Optional[int] = c.WorkersOpt,
     cluster: Optional[str] = c.ClusterOpt,
     fail_fast: bool = c.FailFastOpt,
+    fleet_rrd: Optional[Path] = c.FleetRrdOpt,
 ) -> None:
     """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
     from .. import api
@@ -48,8 +49,10 @@ def replay(
         refused = {"--plan": plan, "--external": external, "--export": export, "--open": open_viewer, "--connect": connect,
                    "--serve-web": serve_web, "--screenshot": screenshot_dir, "--outage LENGTH,LENGTH": outage is not None and "," in outage}
         fleet.replay_fleet(drive_specs, output, outage, placement, run, read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                           quiet=quiet, refused=refused)
+                           quiet=quiet, refused=refused, fleet_rrd=fleet_rrd)
         return
+    if fleet_rrd is not None:
+        raise typer.BadParameter("the fleet's overview is written when many drives are replayed", param_hint="--fleet-rrd")
     drive_spec = drive_specs[0]
 
     if outage is not None and "," in outage:
