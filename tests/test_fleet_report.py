@@ -96,3 +96,36 @@ def test_an_outage_is_labelled_by_the_manoeuvre_that_fills_most_of_it():
         "cruise", "cruise", "none", "roundabout", "sharp-cornering", "none"]
     # a tie: the type first in MANOEUVRE_TYPES (hard-brake before roundabout)
     assert outage_manoeuvres([Event("roundabout", 0.0, 5.0), Event("hard-brake", 5.0, 10.0)], np.array([0.0]), 10.0) == ["hard-brake"]
+
+
+def test_figures_of_a_fleet_box_per_estimator_and_pooled_cdf(report, tmp_path):
+    """'figures' of a fleet's JSON: the per-drive box plot (each drive's mean final error) and the
+    pooled CDF of every outage's final error, one column wide (3.5 in at 300 dpi)."""
+    from PIL import Image
+
+    from ionav_viz.viz.figures import figure, read_report
+    from tests.conftest import run_cli
+
+    src = tmp_path / "fleet.json"
+    src.write_text(report.to_json())
+    proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs"))
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == sorted(f"fleet-{f}.{x}" for f in ("box", "cdf") for x in ("pdf", "png", "svg"))
+    assert Image.open(tmp_path / "figs" / "fleet-cdf.png").size[0] == 1050
+    rep = read_report(src)
+    cdf = figure(rep, "fleet-cdf").axes[0]
+    steps = {line.get_label().split(" (")[0]: line.get_xdata()[1:] for line in cdf.get_lines()}
+    np.testing.assert_allclose(steps["INS DR"], [10, 20, 30, 40, 60])  # every outage of both drives, sorted
+    np.testing.assert_allclose(steps["Odometry"], [5, 5, 10, 15, 30])
+    assert "INS DR (p50 30.0 m, 2 drives)" in [line.get_label() for line in cdf.get_lines()]
+    box = figure(rep, "fleet-box").axes[0]
+    # the drives' means: INS 20 and 50, odometry 8.33 and 20; a box's median line is the median of its drives
+    medians = [line.get_ydata()[0] for line in box.get_lines() if len(line.get_xdata()) == 2 and line.get_linewidth() == 1.6]
+    assert medians == pytest.approx([35.0, (25 / 3 + 20) / 2])
+    points = [c.get_offsets()[:, 1] for c in box.collections if len(c.get_offsets())]
+    np.testing.assert_allclose(points[0], [20.0, 50.0])
+    bad = json.loads(report.to_json())
+    bad["sequences"][1]["ins"]["final_position_error_m"] = "far"
+    src.write_text(json.dumps(bad))
+    proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs2"))
+    assert proc.returncode == 2 and "sequences[1].ins.final_position_error_m" in proc.stderr and not (tmp_path / "figs2").exists()

@@ -187,6 +187,13 @@ class FleetReport:
             out |= {e["name"]: e["label"] for e in t.estimators if e["name"] not in out}
         return out
 
+    def _colors(self) -> dict[str, list[int]]:
+        """The estimators' own colours, where they have one (as their recordings draw them)."""
+        out: dict[str, list[int]] = {}
+        for t in self.drives:
+            out |= {e["name"]: list(e["color"]) for e in t.estimators if e.get("color") and e["name"] not in out}
+        return out
+
     @property
     def baseline(self) -> str | None:
         """The INS DR, when it ran: the estimator improvements are measured against."""
@@ -333,7 +340,7 @@ class FleetReport:
 
         Keys: ``outage_s``; ``drives_given``, ``drives_evaluated``, ``drives_failed``,
         ``drives_skipped``; ``n_outages``, ``duration_s`` and ``distance_m`` (over the evaluated
-        drives); ``estimators`` (name and label); ``pooled`` (:meth:`pooled`); ``drives``
+        drives); ``estimators`` (name, label and, where it has its own, ``color``); ``pooled`` (:meth:`pooled`); ``drives``
         (:meth:`drive_rows`); ``sequences`` (each outage: ``drive``, ``start_s``,
         ``gnss_distance_m`` and per estimator its :data:`METRICS`); ``worst_of``, ``worst_drives``
         and ``worst_outages`` (with the command that replays each); ``failures`` and ``skipped``
@@ -357,7 +364,7 @@ class FleetReport:
             "drives_evaluated": len(self.drives), "drives_failed": len(self.failures), "drives_skipped": len(self.skipped),
             "n_outages": self.n_outages,
             "duration_s": float(sum(t.duration_s for t in self.drives)), "distance_m": float(sum(t.distance_m for t in self.drives)),
-            "estimators": [{"name": e, "label": lab} for e, lab in self.labels.items()],
+            "estimators": [{"name": e, "label": lab, **({"color": c} if (c := self._colors().get(e)) else {})} for e, lab in self.labels.items()],
             "pooled": self.pooled(),
             "consistency": self.consistency(),
             "by_manoeuvre": self.by_manoeuvre(),
