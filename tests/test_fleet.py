@@ -203,9 +203,11 @@ def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
     shutil.copy(fleet_dir / "V-f0.csv", other / "V-f0.csv")
     out = tmp_path / "recs"
     result = run_cli("replay", *_good(fleet_dir), str(other / "V-f0.csv"), str(fleet_dir / "V-bad.csv"), "--workers", "1", "-o", str(out),
-                     "--estimators", CHEAP)
+                     "--estimators", CHEAP, "--fleet-rrd", str(out / "fleet.rrd"))
     assert result.returncode == 3, result.stderr
     assert result.stdout.splitlines() == [str(out / n) for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd")]
+    table = _texts_and_bars(out / "fleet.rrd")[0]["/fleet/drives"]  # the overview: each drive's recording one click away
+    assert all(f"its recording `{out / n}`" in table for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
     assert all((out / n).stat().st_size > 0 for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
     assert "V-bad.csv: missing column" in result.stderr
     assert "Fleet: 5 drive(s), 4 evaluated, 1 failed" in result.stderr
@@ -274,3 +276,38 @@ def test_the_fleet_overview_recording_has_a_row_and_a_bar_per_drive(fleet_dir, t
     from PIL import Image
 
     assert Image.open(tmp_path / "fleet.png").size == (800, 450)
+
+
+def _manifest_runs(folder: str) -> dict[str, int]:
+    """Independently of the catalog: the vehicle files the packaged manifest lists in one
+    ``<Group> (Driver X)`` folder, by file name, with the unsynchronised copy's size."""
+    rows = (REPO / "ionav_viz" / "data" / "iovnbd-manifest.tsv").read_text().splitlines()[1:]
+    out: dict[str, int] = {}
+    for path, _, size in (r.split("\t") for r in rows):
+        name = path.rsplit("/", 1)[-1]
+        if f"/{folder}/" in path and name.startswith("V-") and name.endswith(".csv") and path.startswith("Unsynchronised"):
+            out[name[:-4]] = int(size)
+    return out
+
+
+def test_iovnbd_run_selections_as_drives(fleet_dir, tmp_path):
+    """--runs GROUP|DRIVER|all: the dataset's runs of that group or driver, by name, once each
+    (a run also named as a drive too), with the manifest's sizes in a dry run; each read under the
+    data root, a run not there a failure with the fetch hint; an unknown selection one line."""
+    expected = _manifest_runs("Y (Driver D)")
+    assert sorted(expected) == ["V-Y1", "V-Y2"]
+    dry = run_cli("evaluate", "V-Y1", "--runs", "driver D", "--runs", "y", "--dry-run", "--json")
+    assert dry.returncode == 0, dry.stderr
+    assert {d["drive"]: d["size_bytes"] for d in json.loads(dry.stdout)["drives"]} == {"V-Y1": None, "V-Y2": expected["V-Y2"]}
+    every = json.loads(run_cli("evaluate", "--runs", "all", "--dry-run", "--json").stdout)["drives"]
+    assert {"V-Y1", "V-Y2", "V-M", "V-Vw12", "V-Vfb02d"} <= {d["drive"] for d in every} and len(every) == len({d["drive"] for d in every})
+    root = tmp_path / "iovnbd" / "Y (Driver D)" / "Y1"
+    root.mkdir(parents=True)
+    shutil.copy(fleet_dir / "V-f0.csv", root / "V-Y1.csv")
+    proc = run_cli("evaluate", "--runs", "D", "--data-root", str(tmp_path / "iovnbd"), "--estimators", CHEAP, "--workers", "1", "--json", "-q")
+    assert proc.returncode == 3, proc.stderr  # V-Y2 is not under the data root
+    report = json.loads(proc.stdout)
+    assert [d["drive"] for d in report["drives"]] == ["V-Y1"] and report["worst_drives"][0]["command"].endswith(f"--data-root {tmp_path / 'iovnbd'}")
+    assert [f["drive"] for f in report["failures"]] == ["V-Y2"] and "ionav-viz fetch V-Y2" in report["failures"][0]["reason"]
+    bad = run_cli("evaluate", "--runs", "Q")
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--runs Q" in bad.stderr and "Vta" in bad.stderr
