@@ -124,8 +124,13 @@ def test_figures_of_a_fleet_box_per_estimator_and_pooled_cdf(report, tmp_path):
     assert medians == pytest.approx([35.0, (25 / 3 + 20) / 2])
     points = [c.get_offsets()[:, 1] for c in box.collections if len(c.get_offsets())]
     np.testing.assert_allclose(points[0], [20.0, 50.0])
-    bad = json.loads(report.to_json())
-    bad["sequences"][1]["ins"]["final_position_error_m"] = "far"
-    src.write_text(json.dumps(bad))
-    proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs2"))
-    assert proc.returncode == 2 and "sequences[1].ins.final_position_error_m" in proc.stderr and not (tmp_path / "figs2").exists()
+    for value in ("far", None):  # a string; a missing error (not null: absent)
+        bad = json.loads(report.to_json())
+        if value is None:
+            del bad["sequences"][1]["ins"]["final_position_error_m"]
+        else:
+            bad["sequences"][1]["ins"]["final_position_error_m"] = value
+        src.write_text(json.dumps(bad))
+        proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs2"))
+        assert proc.returncode == 2 and "sequences[1].ins.final_position_error_m" in proc.stderr and not (tmp_path / "figs2").exists()
+        assert len(proc.stderr.strip().splitlines()) == 1

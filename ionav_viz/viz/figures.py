@@ -213,8 +213,10 @@ def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
         _need_text(_need_object(seq, f"sequences[{i}]", fail).get("drive"), f"sequences[{i}].drive", fail)
         for name in names:
             if name in seq:
-                _need_number(_need_object(seq[name], f"sequences[{i}].{name}", fail).get("final_position_error_m"),
-                             f"sequences[{i}].{name}.final_position_error_m", fail)
+                metrics = _need_object(seq[name], f"sequences[{i}].{name}", fail)
+                if "final_position_error_m" not in metrics:
+                    fail(f"sequences[{i}].{name}.final_position_error_m", "missing")
+                _need_number(metrics["final_position_error_m"], f"sequences[{i}].{name}.final_position_error_m", fail)
 
 
 def _kind(value: Any) -> str:
