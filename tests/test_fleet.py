@@ -311,3 +311,24 @@ def test_iovnbd_run_selections_as_drives(fleet_dir, tmp_path):
     assert [f["drive"] for f in report["failures"]] == ["V-Y2"] and "ionav-viz fetch V-Y2" in report["failures"][0]["reason"]
     bad = run_cli("evaluate", "--runs", "Q")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--runs Q" in bad.stderr and "Vta" in bad.stderr
+
+
+def test_the_error_into_an_outage_is_the_final_error_of_a_shorter_one(fleet_dir):
+    """by_length: 10 s into the 30 s outages, each estimator's error is the final error of the 10 s
+    outage from the same start (evaluated on its own), so the breakdown stands for the length."""
+    import numpy as np
+
+    from ionav_viz.api.fleet import evaluate_fleet
+
+    drives = _good(fleet_dir)
+    long, short = (evaluate_fleet(drives, n, estimators=["ins", "odo", "ekf"], workers=1) for n in (30, 10))
+    compared = 0
+    for t30, t10 in zip(long.drives, short.drives):
+        for est in ("ins", "odo", "ekf"):
+            for i, start in enumerate(t30.start_s):
+                same = np.flatnonzero(np.isclose(t10.start_s, start))
+                if len(same):
+                    assert t30.error_at_s[est]["10"][i] == pytest.approx(t10.metrics[est]["final_position_error_m"][same[0]], abs=1e-9)
+                    compared += 1
+    assert compared >= 9
+    assert long.by_length()["30"]["mean_error_m"] == {e: long.pooled()[e]["summary"]["final_position_error_m"]["mean"] for e in long.estimators}
