@@ -34,7 +34,7 @@ _EXPORTS = {
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
     "outage_log": "api", "figures": "api", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
-    "evaluate_fleet": "api", "replay_fleet": "api", "FleetReport": "analysis.fleet",
+    "evaluate_fleet": "api", "replay_fleet": "api", "write_fleet_recording": "api", "FleetReport": "analysis.fleet",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
     "Estimate": "nav.protocol", "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol",
     "EstimatorError": "nav.protocol", "FilterHealth": "nav.protocol",
@@ -101,6 +101,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         simulate,
         train,
         training_drives,
+        write_fleet_recording,
     )
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure

@@ -63,10 +63,15 @@ def test_pooled_results_are_bit_for_bit_the_serial_run_and_one_report_over_the_d
     assert _same(_results(pooled), _results(serial))  # bit for bit: the same JSON text
     one = iv.evaluate(drives, 10).to_dict()
     fleet = serial.to_dict()
-    assert _same(fleet["sequences"], one["sequences"])
+    assert _same([{k: v for k, v in s.items() if k != "manoeuvre"} for s in fleet["sequences"]], one["sequences"])
+    assert "roundabout" in serial.drives[1].manoeuvre and "cruise" in serial.drives[0].manoeuvre  # the simulated manoeuvres, found
+    assert sum(g["outages"] for g in fleet["by_manoeuvre"].values()) == serial.n_outages
+    assert set(fleet["consistency"]) == {est for est, s in one["summary"].items() if "consistency" in s} >= {"ekf", "odo"}
     for est in serial.estimators:
-        # the metrics' statistics (a report over the drives adds its estimators' consistency, which the fleet does not pool yet)
+        # the metrics' statistics; the consistency pooled from the compact tables is the report's (but its by-second curve)
         assert _same(fleet["pooled"][est]["summary"], {k: v for k, v in one["summary"][est].items() if k != "consistency"})
+        if est in fleet["consistency"]:
+            assert _same(fleet["consistency"][est], {k: v for k, v in one["summary"][est]["consistency"].items() if k != "by_second"})
         if est != "ins":
             assert _same(fleet["pooled"][est]["improvement_pct"], one["improvement_pct"][est])
 
@@ -198,9 +203,11 @@ def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
     shutil.copy(fleet_dir / "V-f0.csv", other / "V-f0.csv")
     out = tmp_path / "recs"
     result = run_cli("replay", *_good(fleet_dir), str(other / "V-f0.csv"), str(fleet_dir / "V-bad.csv"), "--workers", "1", "-o", str(out),
-                     "--estimators", CHEAP)
+                     "--estimators", CHEAP, "--fleet-rrd", str(out / "fleet.rrd"))
     assert result.returncode == 3, result.stderr
     assert result.stdout.splitlines() == [str(out / n) for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd")]
+    table = _texts_and_bars(out / "fleet.rrd")[0]["/fleet/drives"]  # the overview: each drive's recording one click away
+    assert all(f"its recording `{out / n}`" in table for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
     assert all((out / n).stat().st_size > 0 for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
     assert "V-bad.csv: missing column" in result.stderr
     assert "Fleet: 5 drive(s), 4 evaluated, 1 failed" in result.stderr
@@ -212,3 +219,116 @@ def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
     assert [r["recording"] for r in replayed.drive_rows()] == [str(tmp_path / "api" / n) for n in ("V-f0.rrd", "V-f1.rrd")]
     refused = run_cli("replay", *_good(fleet_dir), "-o", str(tmp_path / "one.rrd"))
     assert refused.returncode == 2 and "-o" in refused.stderr and len(refused.stderr.strip().splitlines()) == 1
+
+
+def _texts_and_bars(path: Path) -> tuple[dict[str, str], dict[str, tuple[list, list]]]:
+    from rerun.chunk import RrdReader
+
+    texts, bars = {}, {}
+    for chunk in RrdReader(path).stream():
+        name, batch = str(chunk.entity_path), chunk.to_record_batch()
+        cols = batch.schema.names
+        if "TextDocument:text" in cols:
+            cell = batch.column("TextDocument:text").to_pylist()[0]
+            texts[name] = cell[0] if isinstance(cell, list) else cell
+        if "BarChart:values" in cols:
+            bars[name] = tuple(_numbers(batch.column(f"BarChart:{c}").to_pylist()[0]) for c in ("values", "abscissa"))
+    return texts, bars
+
+
+def _numbers(cell) -> list:
+    """A bar chart's tensor cell as read back (a tensor: its buffer) as a list of numbers."""
+    while isinstance(cell, list) and len(cell) == 1 and isinstance(cell[0], (dict, list)):
+        cell = cell[0]
+    return list(cell["buffer"]) if isinstance(cell, dict) else list(cell)
+
+
+def test_the_fleet_overview_recording_has_a_row_and_a_bar_per_drive(fleet_dir, tmp_path):
+    """--fleet-rrd: the table names every drive with its worst outage and the command that replays
+    it, the failed drive with its reason; per estimator one bar per drive, the drive's mean final
+    error (the mean of its outages' final errors in the JSON report), numbered as the table's rows."""
+    import numpy as np
+
+    out = tmp_path / "fleet.rrd"
+    proc = run_cli("evaluate", str(fleet_dir), "--estimators", CHEAP, "--workers", "1", "--json", "--fleet-rrd", str(out), "-q")
+    assert proc.returncode == 3, proc.stderr  # the bad drive
+    report = json.loads(proc.stdout)
+    texts, bars = _texts_and_bars(out)
+    table = texts["/fleet/drives"]
+    for k, name in enumerate(["V-f0", "V-f1", "V-f2"], 1):
+        errors = {est: [s[est]["final_position_error_m"] for s in report["sequences"] if s["drive"] == name] for est in ("ins", "odo")}
+        worst = int(np.argmax(errors["ins"])) + 1
+        assert f"| {k} | {name} | {len(errors['ins'])} | " in table
+        assert f"{k}. {name}, outage {worst}: `ionav-viz replay {fleet_dir / name}.csv --outage 10s --estimators ins,odo`" in table
+        for est in ("ins", "odo"):
+            values, abscissa = bars[f"/fleet/mean_final_error_m/{est}"]
+            assert values[k - 1] == pytest.approx(np.mean(errors[est]))
+            assert bars[f"/fleet/worst_final_error_m/{est}"][0][k - 1] == pytest.approx(max(errors[est]))
+            assert abscissa[k - 1] + 0.4 == pytest.approx(k)  # the bar centred on the row's number
+    assert "V-bad.csv:" in table and texts["/fleet/report"].startswith("# Fleet: 4 drive(s)")
+    assert not list(tmp_path.glob(".fleet.rrd.*"))  # written atomically: no temporary left
+    proc = run_cli("evaluate", str(fleet_dir / "V-f0.csv"), "--estimators", CHEAP, "--fleet-rrd", str(tmp_path / "f.txt"))
+    assert proc.returncode == 2 and "--fleet-rrd" in proc.stderr and ".rrd" in proc.stderr
+    proc = run_cli("screenshot", str(out), "-o", str(tmp_path / "fleet.png"), "--size", "800x450")
+    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    from PIL import Image
+
+    assert Image.open(tmp_path / "fleet.png").size == (800, 450)
+
+
+def _manifest_runs(folder: str) -> dict[str, int]:
+    """Independently of the catalog: the vehicle files the packaged manifest lists in one
+    ``<Group> (Driver X)`` folder, by file name, with the unsynchronised copy's size."""
+    rows = (REPO / "ionav_viz" / "data" / "iovnbd-manifest.tsv").read_text().splitlines()[1:]
+    out: dict[str, int] = {}
+    for path, _, size in (r.split("\t") for r in rows):
+        name = path.rsplit("/", 1)[-1]
+        if f"/{folder}/" in path and name.startswith("V-") and name.endswith(".csv") and path.startswith("Unsynchronised"):
+            out[name[:-4]] = int(size)
+    return out
+
+
+def test_iovnbd_run_selections_as_drives(fleet_dir, tmp_path):
+    """--runs GROUP|DRIVER|all: the dataset's runs of that group or driver, by name, once each
+    (a run also named as a drive too), with the manifest's sizes in a dry run; each read under the
+    data root, a run not there a failure with the fetch hint; an unknown selection one line."""
+    expected = _manifest_runs("Y (Driver D)")
+    assert sorted(expected) == ["V-Y1", "V-Y2"]
+    dry = run_cli("evaluate", "V-Y1", "--runs", "driver D", "--runs", "y", "--dry-run", "--json")
+    assert dry.returncode == 0, dry.stderr
+    assert {d["drive"]: d["size_bytes"] for d in json.loads(dry.stdout)["drives"]} == {"V-Y1": None, "V-Y2": expected["V-Y2"]}
+    every = json.loads(run_cli("evaluate", "--runs", "all", "--dry-run", "--json").stdout)["drives"]
+    assert {"V-Y1", "V-Y2", "V-M", "V-Vw12", "V-Vfb02d"} <= {d["drive"] for d in every} and len(every) == len({d["drive"] for d in every})
+    root = tmp_path / "iovnbd" / "Y (Driver D)" / "Y1"
+    root.mkdir(parents=True)
+    shutil.copy(fleet_dir / "V-f0.csv", root / "V-Y1.csv")
+    proc = run_cli("evaluate", "--runs", "D", "--data-root", str(tmp_path / "iovnbd"), "--estimators", CHEAP, "--workers", "1", "--json", "-q")
+    assert proc.returncode == 3, proc.stderr  # V-Y2 is not under the data root
+    report = json.loads(proc.stdout)
+    assert [d["drive"] for d in report["drives"]] == ["V-Y1"] and report["worst_drives"][0]["command"].endswith(f"--data-root {tmp_path / 'iovnbd'}")
+    assert [f["drive"] for f in report["failures"]] == ["V-Y2"] and "ionav-viz fetch V-Y2" in report["failures"][0]["reason"]
+    bad = run_cli("evaluate", "--runs", "Q")
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--runs Q" in bad.stderr and "Vta" in bad.stderr
+
+
+def test_the_error_into_an_outage_is_the_final_error_of_a_shorter_one(fleet_dir):
+    """by_length: 10 s into the 30 s outages, each estimator's error is the final error of the 10 s
+    outage from the same start (evaluated on its own), so the breakdown stands for the length."""
+    import numpy as np
+
+    from ionav_viz.api.fleet import evaluate_fleet
+
+    drives = _good(fleet_dir)
+    long, short = (evaluate_fleet(drives, n, estimators=["ins", "odo", "ekf"], workers=1) for n in (30, 10))
+    compared = 0
+    for t30, t10 in zip(long.drives, short.drives):
+        for est in ("ins", "odo", "ekf"):
+            for i, start in enumerate(t30.start_s):
+                same = np.flatnonzero(np.isclose(t10.start_s, start))
+                if len(same):
+                    assert t30.error_at_s[est]["10"][i] == pytest.approx(t10.metrics[est]["final_position_error_m"][same[0]], abs=1e-9)
+                    compared += 1
+    assert compared >= 9
+    assert long.by_length()["30"]["mean_error_m"] == {e: long.pooled()[e]["summary"]["final_position_error_m"]["mean"] for e in long.estimators}

@@ -94,31 +94,66 @@ def outage_nees(result, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] 
     return nees, ex * ex + ey * ey, a + b
 
 
+def outage_consistency(result, name: str) -> dict[str, np.ndarray] | None:
+    """The compact per-outage values :func:`pooled_consistency` needs (what a fleet's per-drive
+    table keeps, :class:`ionav_viz.analysis.fleet.DriveTable`), or None without a covariance:
+    ``nees_mean`` (each outage's NEES averaged over its boundaries, the start left out),
+    ``final_nees`` and, at each second ``t`` of :data:`RATIO_AT_S` the outage reaches, the squared
+    error ``sq_error_m2_<t>`` and the covariance's trace ``trace_m2_<t>``."""
+    part = outage_nees(result, name)
+    return None if part is None else _compact(part)
+
+
+def _compact(part: tuple[np.ndarray, np.ndarray, np.ndarray]) -> dict[str, np.ndarray]:
+    nees, sq, tr = part
+    out = {"nees_mean": nees.mean(axis=1), "final_nees": nees[:, -1].copy()}
+    for t in RATIO_AT_S:
+        if t <= nees.shape[1]:
+            out[f"sq_error_m2_{t}"], out[f"trace_m2_{t}"] = sq[:, t - 1].copy(), tr[:, t - 1].copy()
+    return out
+
+
+def pooled_consistency(parts: list[dict[str, np.ndarray]], n_windows: int) -> dict[str, Any] | None:
+    """ANEES with its band and verdict, ``coverage_95``, ``error_over_sigma``, ``n_samples`` and
+    ``n_outages`` over the outages of ``parts`` (:func:`outage_consistency` of each drive, outages
+    of ``n_windows`` s), or None when there is none: the one place these are computed, for one
+    report's drives and for a fleet's tables alike."""
+    parts = [p for p in parts if len(p["nees_mean"])]
+    if not parts:
+        return None
+    nees_mean = np.concatenate([p["nees_mean"] for p in parts])
+    final = np.concatenate([p["final_nees"] for p in parts])
+    anees = float(nees_mean.mean() / 2.0)  # every outage has n_windows boundaries: the mean of the means is the mean
+    n_samples = len(nees_mean) * int(n_windows)
+    dof = 2 * n_samples
+    band = [chi2_quantile(0.025, dof) / dof, chi2_quantile(0.975, dof) / dof]
+    ratio = {}
+    for t in RATIO_AT_S:
+        if all(f"sq_error_m2_{t}" in p for p in parts):
+            sq = np.concatenate([p[f"sq_error_m2_{t}"] for p in parts])
+            tr = np.concatenate([p[f"trace_m2_{t}"] for p in parts])
+            ratio[str(t)] = float(math.sqrt(sq.mean() / max(tr.mean(), 1e-12)))
+    verdict = "consistent" if band[0] <= anees <= band[1] else ("overconfident" if anees > band[1] else "underconfident")
+    return {"anees": anees, "anees_band": band, "coverage_95": float(100.0 * np.mean(final <= CHI2_2_95)), "error_over_sigma": ratio,
+            "n_samples": n_samples, "n_outages": len(final), "verdict": verdict}
+
+
 def consistency(results: list, name: str) -> dict[str, Any] | None:
     """The consistency of estimator ``name`` over the outages of ``results`` (see the module
-    docstring), or None when it gives no covariance."""
+    docstring; :func:`pooled_consistency` of each drive's :func:`outage_consistency`, with
+    ``by_second``), or None when it gives no covariance."""
     parts = [x for x in (outage_nees(r, name) for r in results) if x is not None]
     if not parts:
         return None
     n_win = parts[0][0].shape[1]
-    nees = np.concatenate([p[0].ravel() for p in parts])
-    final = np.concatenate([p[0][:, -1] for p in parts])
-    anees = float(nees.mean() / 2.0)
-    dof = 2 * len(nees)
-    band = [chi2_quantile(0.025, dof) / dof, chi2_quantile(0.975, dof) / dof]
-    ratio = {}
-    for t in RATIO_AT_S:
-        if t <= n_win:
-            sq = np.concatenate([p[1][:, t - 1] for p in parts])
-            tr = np.concatenate([p[2][:, t - 1] for p in parts])
-            ratio[str(t)] = float(math.sqrt(sq.mean() / max(tr.mean(), 1e-12)))
-    verdict = "consistent" if band[0] <= anees <= band[1] else ("overconfident" if anees > band[1] else "underconfident")
+    out = pooled_consistency([_compact(p) for p in parts], n_win)
+    if out is None:
+        return None
     sq = np.concatenate([p[1] for p in parts])  # (outages, n_win)
     tr = np.concatenate([p[2] for p in parts])
-    by_second = {"t_s": [float(t) for t in range(1, n_win + 1)], "rms_error_m": [float(v) for v in np.sqrt(sq.mean(axis=0))],
-                 "rms_sigma_m": [float(v) for v in np.sqrt(tr.mean(axis=0))]}
-    return {"anees": anees, "anees_band": band, "coverage_95": float(100.0 * np.mean(final <= CHI2_2_95)), "error_over_sigma": ratio,
-            "n_samples": len(nees), "n_outages": len(final), "verdict": verdict, "by_second": by_second}
+    out["by_second"] = {"t_s": [float(t) for t in range(1, n_win + 1)], "rms_error_m": [float(v) for v in np.sqrt(sq.mean(axis=0))],
+                        "rms_sigma_m": [float(v) for v in np.sqrt(tr.mean(axis=0))]}
+    return out
 
 
 def consistency_line(label: str, c: dict[str, Any]) -> str:

@@ -328,6 +328,29 @@ def merge_overlapping(events: list[Event]) -> list[Event]:
     return sorted(out, key=lambda e: (e.t0_s, e.type))
 
 
+#: The manoeuvre label of an outage no detected manoeuvre overlaps (:func:`outage_manoeuvres`).
+NO_MANOEUVRE = "none"
+
+
+def outage_manoeuvres(events: list[Event], t0_s: np.ndarray, length_s: float) -> list[str]:
+    """The manoeuvre type of each outage starting at ``t0_s`` (s from the drive's start) and
+    lasting ``length_s``: of the ``events`` (:func:`detect_events` with the run's thresholds, as
+    ``evaluate --by-event`` finds the events it centres its outages on) the type of the one that
+    overlaps the outage longest (ties: in :data:`MANOEUVRE_TYPES` order), :data:`NO_MANOEUVRE`
+    when none overlaps it. Real GNSS losses are not manoeuvres and are left out."""
+    found = [e for e in events if e.type in MANOEUVRE_TYPES]
+    out = []
+    for t0 in np.asarray(t0_s, dtype=float):
+        t1 = t0 + length_s
+        best, best_overlap = NO_MANOEUVRE, 0.0
+        for e in sorted(found, key=lambda e: MANOEUVRE_TYPES.index(e.type)):
+            overlap = min(e.t1_s, t1) - max(e.t0_s, t0)
+            if overlap > best_overlap:
+                best, best_overlap = e.type, overlap
+        out.append(best)
+    return out
+
+
 def threshold_help() -> str:
     """Every threshold with its default and the range ``--threshold`` accepts, one per line."""
     lines = ["Thresholds (--threshold NAME=VALUE; default, accepted range):"]

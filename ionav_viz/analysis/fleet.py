@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from ..core.json_out import dumps_json
-from ..nav.protocol import short_label
+from ..nav.protocol import color_of, short_label
+from .consistency import RATIO_AT_S
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
@@ -50,6 +51,12 @@ class DriveTable:
         recording: the ``.rrd`` the drive was replayed into, if it was.
         placement: where its outages went (with the warm-up); imu: what the reader found of a log's
             IMU (rate, sample kind, clock offset, mount; ``ImuCharacter.to_dict`` and ``text``), or None.
+        manoeuvre: per outage, its manoeuvre type (:func:`ionav_viz.analysis.events.outage_manoeuvres`).
+        error_at_s: per estimator, per second ``"t"`` of :func:`length_points` before the outage's
+            end, the position error (m) of each outage that far into it (the end's is
+            ``final_position_error_m``).
+        consistency: per estimator that gives a covariance, its compact per-outage values
+            (:func:`ionav_viz.analysis.consistency.outage_consistency`).
     """
 
     spec: str
@@ -70,6 +77,9 @@ class DriveTable:
     recording: str | None = None
     placement: str = ""
     imu: dict[str, Any] | None = None
+    manoeuvre: list[str] = field(default_factory=list)
+    error_at_s: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    consistency: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
     @property
     def n_outages(self) -> int:
@@ -82,23 +92,46 @@ class DriveTable:
         return summarise(self.metrics[estimator]["final_position_error_m"])["mean"]
 
 
+def length_points(outage_s: float) -> list[int]:
+    """The seconds into an outage the fleet report breaks its errors down by: each of 10, 30 and
+    60 s (:data:`~ionav_viz.analysis.consistency.RATIO_AT_S`) shorter than the outage, and its end."""
+    n = int(round(outage_s))
+    return [t for t in RATIO_AT_S if t < n] + [n]
+
+
 def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = None, elapsed_s: float = 0.0,
-                recording: str | None = None) -> DriveTable:
-    """The compact table of one drive's :class:`DriveResult` (its arrays are not kept)."""
+                recording: str | None = None, thresholds: Any = None) -> DriveTable:
+    """The compact table of one drive's :class:`DriveResult` (its arrays are not kept);
+    ``thresholds``: the event detectors' (:class:`~ionav_viz.analysis.events.EventThresholds`),
+    which label each outage's manoeuvre."""
     from ..core.geo import steps_en_m
+    from .consistency import outage_consistency
+    from .events import MANOEUVRE_TYPES, detect_events, outage_manoeuvres
+    from .metrics import cumulative_errors
 
     drive = result.drive
+    early = [t for t in length_points(result.n_windows) if t < result.n_windows]
+    error_at: dict[str, dict[str, np.ndarray]] = {}
+    for est, sol in result.estimates.items():
+        if early and len(result.starts):
+            pos = cumulative_errors(result.windows, result.starts, result.n_windows, sol)["position_error_m"]
+            error_at[est] = {str(t): pos[:, t - 1].copy() for t in early}
+        else:
+            error_at[est] = {str(t): np.zeros(len(result.starts)) for t in early}
+    consistent = {est: c for est in result.estimates if (c := outage_consistency(result, est)) is not None}
+    events = detect_events(drive, thresholds, MANOEUVRE_TYPES) if len(result.starts) else []
     east, north = steps_en_m(drive.lat_deg, drive.lon_deg)
     return DriveTable(
         spec=str(spec), name=drive.name, source=drive.source, duration_s=float(drive.duration_s),
         distance_m=float(np.hypot(east, north).sum()), outage_s=result.outage_s,
-        estimators=[{"name": e.name, "label": e.label} for e in result.estimators],
+        estimators=[{"name": e.name, "label": e.label, **({"color": list(c)} if (c := color_of(e)) else {})} for e in result.estimators],
         start_s=np.asarray(result.outage_t0_s, dtype=float).copy(), gnss_distance_m=np.asarray(result.gnss_distance_m, dtype=float).copy(),
         metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
         warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
-        imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()})
+        imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()},
+        manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at, consistency=consistent)
 
 
 @dataclass(frozen=True)
@@ -154,6 +187,13 @@ class FleetReport:
             out |= {e["name"]: e["label"] for e in t.estimators if e["name"] not in out}
         return out
 
+    def _colors(self) -> dict[str, list[int]]:
+        """The estimators' own colours, where they have one (as their recordings draw them)."""
+        out: dict[str, list[int]] = {}
+        for t in self.drives:
+            out |= {e["name"]: list(e["color"]) for e in t.estimators if e.get("color") and e["name"] not in out}
+        return out
+
     @property
     def baseline(self) -> str | None:
         """The INS DR, when it ran: the estimator improvements are measured against."""
@@ -186,6 +226,67 @@ class FleetReport:
                 entry["improvement_pct"] = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"], summarise(self.metric(est, m, both))["mean"])
                                             for m in IMPROVEMENT_METRICS}
             out[est] = entry
+        return out
+
+    def _breakdown(self, keys: list[Any], mask_of: Any, value_of: Any) -> dict[str, dict[str, Any]]:
+        """Per key: ``outages`` and per estimator ``mean_error_m`` over the outages ``mask_of(table,
+        key)`` selects (of ``value_of(table, estimator, key)``), and for the others than the INS DR
+        ``improvement_pct`` of that mean over the INS DR's on the selected outages both ran on."""
+        base = self.baseline
+        empty = np.zeros(0)
+
+        def pooled(est: str, key: Any, tables: list[DriveTable]) -> np.ndarray:
+            return np.concatenate([value_of(t, est, key)[mask_of(t, key)] for t in tables]) if tables else empty
+
+        out: dict[str, dict[str, Any]] = {}
+        for key in keys:
+            entry: dict[str, Any] = {"outages": int(sum(mask_of(t, key).sum() for t in self.drives)), "mean_error_m": {}}
+            if base is not None:
+                entry["improvement_pct"] = {}
+            for est in self.estimators:
+                ran = [t for t in self.drives if est in t.metrics]
+                entry["mean_error_m"][est] = summarise(pooled(est, key, ran))["mean"]
+                if base is not None and est != base:
+                    both = [t for t in ran if base in t.metrics]
+                    entry["improvement_pct"][est] = improvement_pct(summarise(pooled(base, key, both))["mean"], summarise(pooled(est, key, both))["mean"])
+            out[str(key)] = entry
+        return out
+
+    def by_manoeuvre(self) -> dict[str, dict[str, Any]]:
+        """Per manoeuvre type the outages were labelled with (:attr:`DriveTable.manoeuvre`; the
+        types in :data:`~ionav_viz.analysis.events.MANOEUVRE_TYPES` order, then ``none``):
+        ``outages``, per estimator ``mean_error_m`` (the mean final position error) and, but for
+        the INS DR, ``improvement_pct`` of it over the INS DR's on those outages."""
+        from .events import MANOEUVRE_TYPES, NO_MANOEUVRE
+
+        found = {m for t in self.drives for m in t.manoeuvre}
+        keys = [k for k in (*MANOEUVRE_TYPES, NO_MANOEUVRE) if k in found]
+        return self._breakdown(keys, lambda t, k: np.asarray(t.manoeuvre, dtype=object) == k,
+                               lambda t, e, k: t.metrics[e]["final_position_error_m"])
+
+    def by_length(self) -> dict[str, dict[str, Any]]:
+        """Per second ``t`` of :func:`length_points` (10, 30, 60 s into the outages, and their end):
+        ``outages``, per estimator ``mean_error_m`` (the mean position error that far into the
+        outages: the final error an outage of ``t`` s from the same start would have, for an
+        estimator that does not look ahead) and, but for the INS DR, ``improvement_pct`` over it."""
+        end = int(round(self.outage_s))
+
+        def value_of(t: DriveTable, est: str, key: int) -> np.ndarray:
+            return t.metrics[est]["final_position_error_m"] if key == end else t.error_at_s[est][str(key)]
+
+        return self._breakdown(length_points(self.outage_s), lambda t, k: np.ones(t.n_outages, dtype=bool), value_of)
+
+    def consistency(self) -> dict[str, dict[str, Any]]:
+        """Per estimator that gives a position covariance, its consistency pooled over the fleet's
+        outages (:func:`ionav_viz.analysis.consistency.pooled_consistency` of the drives' compact
+        values): ANEES with its band and verdict, ``coverage_95``, ``error_over_sigma``."""
+        from .consistency import pooled_consistency
+
+        out = {}
+        for est in self.estimators:
+            parts = [t.consistency[est] for t in self.drives if est in t.consistency]
+            if parts and (c := pooled_consistency(parts, int(round(self.outage_s)))) is not None:
+                out[est] = c
         return out
 
     def drive_rows(self) -> list[dict[str, Any]]:
@@ -239,17 +340,20 @@ class FleetReport:
 
         Keys: ``outage_s``; ``drives_given``, ``drives_evaluated``, ``drives_failed``,
         ``drives_skipped``; ``n_outages``, ``duration_s`` and ``distance_m`` (over the evaluated
-        drives); ``estimators`` (name and label); ``pooled`` (:meth:`pooled`); ``drives``
+        drives); ``estimators`` (name, label and, where it has its own, ``color``); ``pooled`` (:meth:`pooled`); ``drives``
         (:meth:`drive_rows`); ``sequences`` (each outage: ``drive``, ``start_s``,
         ``gnss_distance_m`` and per estimator its :data:`METRICS`); ``worst_of``, ``worst_drives``
         and ``worst_outages`` (with the command that replays each); ``failures`` and ``skipped``
         (``drive`` as given and its one-line ``reason``); ``timing`` (``wall_s``, ``engine``, per
-        drive ``elapsed_s``: the only key that changes from run to run). NaN is written as null.
+        drive ``elapsed_s``: the only key that changes from run to run); ``consistency``
+        (:meth:`consistency`), ``by_manoeuvre`` (:meth:`by_manoeuvre`; each sequence has its
+        ``manoeuvre``) and ``by_length`` (:meth:`by_length`). NaN is written as null.
         """
         sequences = []
         for t in self.drives:
             for i in range(t.n_outages):
-                entry: dict[str, Any] = {"drive": t.name, "start_s": round(float(t.start_s[i]), 3), "gnss_distance_m": float(t.gnss_distance_m[i])}
+                entry: dict[str, Any] = {"drive": t.name, "start_s": round(float(t.start_s[i]), 3), "gnss_distance_m": float(t.gnss_distance_m[i]),
+                                         **({"manoeuvre": t.manoeuvre[i]} if t.manoeuvre else {})}
                 entry |= {e: {m: float(t.metrics[e][m][i]) for m in METRICS} for e in t.metrics}
                 sequences.append(entry)
         timing = dict(self.timing)
@@ -260,8 +364,11 @@ class FleetReport:
             "drives_evaluated": len(self.drives), "drives_failed": len(self.failures), "drives_skipped": len(self.skipped),
             "n_outages": self.n_outages,
             "duration_s": float(sum(t.duration_s for t in self.drives)), "distance_m": float(sum(t.distance_m for t in self.drives)),
-            "estimators": [{"name": e, "label": lab} for e, lab in self.labels.items()],
+            "estimators": [{"name": e, "label": lab, **({"color": c} if (c := self._colors().get(e)) else {})} for e, lab in self.labels.items()],
             "pooled": self.pooled(),
+            "consistency": self.consistency(),
+            "by_manoeuvre": self.by_manoeuvre(),
+            "by_length": self.by_length(),
             "drives": self.drive_rows(),
             "worst_of": self.worst_of,
             "worst_drives": self.worst_drives(),
@@ -323,8 +430,25 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                 row.append(_f(p["improvement_pct"]["final_position_error_m"], 1) if "improvement_pct" in p else "")
             rows.append(row)
         lines += table(header, rows, 1) + [""]
-        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
         others = [e for e in ests if e != base]
+        consistent = rep.consistency()
+        if consistent:
+            from .consistency import consistency_line
+
+            lines += [heading("How sure each estimator is (pooled over the fleet)"), ""]
+            lines += [("- " if markdown else "") + consistency_line(labels[e], c) for e, c in consistent.items()] + [""]
+        for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.by_manoeuvre()),
+                                     ("By time into the outage (mean position error, m", "Into outage", rep.by_length())):
+            lines += [heading(title + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
+            header = [first, "outages"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else [])
+            rows = []
+            for key, g in groups.items():
+                row = [key if first == "Manoeuvre" else f"{key} s", str(g["outages"])] + [_f(g["mean_error_m"][e]) for e in ests]
+                if base:
+                    row += [_f(g["improvement_pct"][e], 1) for e in others]
+                rows.append(row)
+            lines += table(header, rows, 1) + [""]
+        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
         header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else [])
                   + ["warnings"])
         rows = []

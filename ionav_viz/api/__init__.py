@@ -21,7 +21,7 @@ from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
 from .figures import figures
-from .fleet import evaluate_fleet, replay_fleet
+from .fleet import evaluate_fleet, replay_fleet, write_fleet_recording
 from .options import RunOptions
 from .outage_log import OutageLogResult, outage_log
 from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
@@ -59,6 +59,7 @@ __all__ = [
     "outage_log",
     "replay",
     "replay_fleet",
+    "write_fleet_recording",
     "replay_lengths",
     "replay_scenario",
     "scenario_drives",

@@ -77,6 +77,38 @@ def list_runs(data_root: str | Path | None = None, source: DatasetSource | None 
     return rows
 
 
+def runs_selected(selections: Sequence[str], source: DatasetSource | None = None) -> list[tuple[str, int]]:
+    """The IO-VNBD runs each of ``selections`` names (``evaluate --runs``), each once, in name
+    order, with its vehicle file's size in bytes (the file ``list`` shows): ``all``; a group of
+    the dataset's categorised tree (``Vta``, ``Vw``...: the folder ``<Group> (Driver X)``), or a
+    driver (``E``, ``driver E``), case-insensitive; a selection may list several, comma-separated.
+    An unknown one is an :class:`InputError` listing the groups and drivers."""
+    catalog = (source or DatasetSource()).catalog()
+    groups = sorted({r.group for r in catalog.values() if r.group}, key=str.lower)
+    drivers = sorted({r.driver for r in catalog.values() if r.driver})
+    chosen: dict[str, tuple[str, int]] = {}
+    for selection in selections:
+        for word in (w.strip() for w in str(selection).split(",")):
+            if not word:
+                continue
+            low = word.lower()
+            driver = low.removeprefix("driver").strip() if low.startswith("driver") else None
+            if low == "all":
+                hits = list(catalog.values())
+            elif driver is None and low in {g.lower() for g in groups}:
+                hits = [r for r in catalog.values() if r.group.lower() == low]
+            elif (driver or low) in {d.lower() for d in drivers}:
+                hits = [r for r in catalog.values() if r.driver.lower() == (driver or low)]
+            else:
+                raise InputError(f"--runs {word}: no such IO-VNBD group or driver",
+                                 f"give all, a group ({', '.join(groups)}) or a driver ({', '.join(drivers)}); see 'ionav-viz list'",
+                                 param="runs")
+            for run in hits:
+                entry = run.vehicle or run.vehicle_sync
+                chosen.setdefault(run.key, (run.name, entry.size_bytes))
+    return sorted(chosen.values(), key=lambda r: r[0].lower())
+
+
 def selected_files(selection: RunSelection, source: DatasetSource | None = None) -> list[Any]:
     """The manifest entries a selection names (checked: known runs, files the manifest has)."""
     catalog = (source or DatasetSource()).catalog()

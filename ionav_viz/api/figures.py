@@ -10,18 +10,19 @@ from ..core.timing import stage
 
 def figures(result: str | Path, output: str | Path) -> list[Path]:
     """Draw the drift curve, the final-error CDF, the per-outage errors (one column and page-wide)
-    and the worst outage's tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output)
+    and the worst outage's tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output;
+    a fleet's ``evaluate --workers N --json``: its per-drive box plot and pooled CDF instead)
     into the folder ``output`` as SVG, PDF and PNG. Returns the files written.
 
     The report is checked field by field first (one :class:`InputError` naming the file and the
     field); values it leaves undefined (null) are not drawn, each figure warning what it left out.
     The figures appear in ``output`` only when all are complete (drawn in a temporary folder beside
     it, or inside it when it exists); other files there are kept."""
-    from ..viz.figures import FIGURES, FORMATS, read_report, write_figures
+    from ..viz.figures import FIGURES, FLEET_FIGURES, FORMATS, read_report, write_figures
 
     check_output_folder(Path(output))  # before any work: -o naming a file is refused
     refuse_output_onto_input(output, [result])  # before reading: -o inside the input's folder, or the input itself
-    for name in (f"{f}.{fmt}" for f in FIGURES for fmt in FORMATS):  # the files it replaces (others there are kept)
+    for name in (f"{f}.{fmt}" for f in (*FIGURES, *FLEET_FIGURES) for fmt in FORMATS):  # the files it replaces (others there are kept)
         refuse_output_onto_input(Path(output) / name, [result])
     check_regular_input(result, "result", hint="give a .rrd written by replay or the output of 'evaluate --json'", missing_ok=True)
     rep = read_report(result)

@@ -45,19 +45,30 @@ class FleetDrive:
     size_bytes: int | None = None
 
 
-def expand_drives(specs: Sequence[str | Path]) -> list[FleetDrive]:
+def expand_drives(specs: Sequence[str | Path], runs: Sequence[str] = ()) -> list[FleetDrive]:
     """The drives ``specs`` name, in order, each once: a file or a drive folder (ROS 2 bag, KITTI
     raw) as it is; a folder of drives: its ``.csv``, ``.mcap`` and ``.bag`` files, sorted; a glob
     (``logs/*.csv``): its matches, sorted; ``@list.txt``: the drives listed in it, one a line
     (``#`` comments and blank lines ignored; relative paths from the list's folder); anything else
     (a bundled sample or IO-VNBD run name) as it is. Paths are de-duplicated by the file they
-    reach. A list that cannot be read or a glob that matches nothing is an :class:`InputError`."""
+    reach. A list that cannot be read or a glob that matches nothing is an :class:`InputError`.
+    ``runs``: IO-VNBD run selections (``all``, a group, a driver:
+    :func:`ionav_viz.api.datasets.runs_selected`), their runs after the drives given, by name (each
+    read under the data root), with the size the manifest gives."""
     out: dict[str, FleetDrive] = {}
     for spec in specs:
         for path in _expand_one(str(spec), depth=0):
             key = _identity(path)
             if key not in out:
                 out[key] = FleetDrive(path, _size_of(path))
+    if runs:
+        from ..dataset.catalog import run_key
+        from .datasets import runs_selected
+
+        given = {run_key(d.spec) for d in out.values() if not Path(d.spec).expanduser().exists()}  # runs named already
+        for name, size in runs_selected(runs):
+            if run_key(name) not in given:
+                out[name] = FleetDrive(name, size)
     return list(out.values())
 
 
@@ -175,7 +186,7 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
                     result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts,
                                             windows=windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps,
                                             placement=plan.description)
-            return drive_table(spec, result, list(warned), time.perf_counter() - began, recording)
+            return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
 
@@ -258,6 +269,7 @@ def evaluate_fleet(
     fail_fast: bool = False,
     progress: Progress | None = None,
     replay_options: str = "",
+    runs: Sequence[str] = (),
 ) -> FleetReport:
     """Evaluate every drive on its own, on ``workers`` processes (default: every core; 1: in this
     process) or a Dask cluster (``cluster``: ``tcp://host:8786``, or ``"local"``), and pool the
@@ -273,13 +285,14 @@ def evaluate_fleet(
         progress: ``progress(label, done, total)`` after each drive; the label says the outages
             scored and the slowest drive so far.
         replay_options: the options that replay a drive the same way, for the report's commands.
+        runs: IO-VNBD run selections added to the drives (``all``, a group, a driver; :func:`expand_drives`).
 
     Returns:
         a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
         with its one-line reason, a drive too short for one outage in ``skipped``.
     """
     engine = Engine(workers if workers is not None else default_workers(), cluster).start()
-    items = expand_drives(drives)
+    items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
     return _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job, engine, fail_fast,
                       progress, replay_options)
@@ -299,6 +312,7 @@ def replay_fleet(
     fail_fast: bool = False,
     progress: Progress | None = None,
     replay_options: str = "",
+    runs: Sequence[str] = (),
 ) -> FleetReport:
     """:func:`ionav_viz.replay` of every drive into ``folder`` (made when missing), one recording
     each, ``<drive>.rrd`` (``<drive>-2.rrd``... for a name given twice), in parallel as
@@ -307,7 +321,7 @@ def replay_fleet(
     from ..core.fileio import check_output_folder
 
     engine = Engine(workers if workers is not None else default_workers(), cluster).start()
-    items = expand_drives(drives)
+    items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
     out = check_output_folder(Path(folder), param="output")
     names: dict[str, int] = {}
@@ -377,6 +391,21 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
         timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
 
 
+def write_fleet_recording(report: FleetReport, output: str | Path) -> Path:
+    """Write the fleet's overview recording (``evaluate --fleet-rrd FILE``,
+    :mod:`ionav_viz.viz.fleet`) to ``output``, atomically: a table of the drives with each one's
+    worst outage and the command that replays it, and bar charts per estimator. Returns its path."""
+    from ..core.fileio import atomic_path
+    from ..viz.fleet import write_fleet_recording as write
+
+    out = Path(output)
+    if out.suffix.lower() != ".rrd":
+        raise InputError(f"{out}: the fleet's recording is an .rrd file", "give a name ending in .rrd", param="fleet_rrd")
+    with atomic_path(out) as tmp:
+        write(report, tmp, target=out)
+    return out
+
+
 @dataclass(frozen=True)
 class FleetPlan:
     """What a fleet run would do (``--dry-run``): the drives with their sizes, and the estimate."""
@@ -401,10 +430,11 @@ class FleetPlan:
                 "estimate_s": round(self.estimate_s, 1)}
 
 
-def plan_fleet(drives: Sequence[str | Path], workers: int | None = None) -> FleetPlan:
+def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: Sequence[str] = ()) -> FleetPlan:
     """The drives :func:`evaluate_fleet` would evaluate, with sizes and a rough time estimate on
-    ``workers`` (default every core): nothing is read but the file sizes."""
-    items = expand_drives(drives)
+    ``workers`` (default every core): nothing is read but the file sizes (an IO-VNBD run's: the
+    manifest's)."""
+    items = expand_drives(drives, runs)
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
     n = Engine(workers if workers is not None else default_workers()).workers

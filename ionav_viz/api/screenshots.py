@@ -43,7 +43,8 @@ def screenshot(
     """Render PNG screenshots of recordings with a private headless Rerun viewer.
 
     Args:
-        recordings: ``.rrd`` files written by :func:`replay`.
+        recordings: ``.rrd`` files written by :func:`replay`; a fleet overview (``evaluate --fleet-rrd``)
+            is one image of its own layout, whatever ``shots`` asks.
         output: a ``.png`` for one image, else a directory (or a ``.png`` whose stem prefixes the names).
         shots: which views at which times and outages, and the image size (default :class:`Shots`:
             the whole review layout at the end, 1600x900).
@@ -75,6 +76,20 @@ def screenshot(
     existing = next((p for p in [folder, *folder.parents] if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory", param="output")
+    from ..viz.fleet import is_fleet_recording, screenshot_fleet
+
+    fleets = [p for p in paths if is_fleet_recording(p)]
+    written = []
+    for rec in fleets:  # a fleet overview (evaluate --fleet-rrd): one image of its own layout, whatever the times and views
+        png = out if single or (out.suffix.lower() == ".png" and len(paths) == 1) else folder / f"{rec.stem}.png"
+        if png is not out:
+            png.parent.mkdir(parents=True, exist_ok=True)
+        written.append(screenshot_fleet(rec, png, (width, height), timeout_s))
+        if progress:
+            progress(png)
+    paths = [p for p in paths if p not in fleets]
+    if not paths:
+        return written
     spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in shots.times]
-    return render(paths, Path(output), spec, list(shots.views), (width, height), timeout_s=timeout_s, progress=progress,
+    return written + render(paths, Path(output), spec, list(shots.views), (width, height), timeout_s=timeout_s, progress=progress,
                   outages=[int(n) for n in shots.outages], worst_of=shots.worst_of)

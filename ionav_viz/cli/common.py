@@ -243,6 +243,12 @@ WorkersOpt = typer.Option(None, "--workers", help="Run the drives in this many p
 ClusterOpt = typer.Option(None, "--cluster", metavar="ADDRESS", help="Run the drives on a Dask cluster: its scheduler (tcp://HOST:8786) or 'local' "
                           "(needs ionav-viz[cluster]; the workers read the drives from the same paths).", show_default=False)
 FailFastOpt = typer.Option(False, "--fail-fast", help="Many drives: stop at the first drive that fails, with its error (exit code 2).")
+RunsOpt = typer.Option(None, "--runs", show_default=False,
+                       help="IO-VNBD runs as drives of a fleet: all, a group (Vta, Vtb, Vw, Vf, ...) or a driver (A-E, 'driver E'); "
+                            "comma-separated or repeated; read under --data-root (see 'ionav-viz list').")
+FleetRrdOpt = typer.Option(None, "--fleet-rrd", show_default=False,
+                           help="Also write the fleet's overview recording (a table of the drives with each one's worst outage and replay command, "
+                                "bar charts per estimator) to this .rrd; makes evaluate a fleet run.")
 DryRunOpt = typer.Option(False, "--dry-run", help="List the drives that would be evaluated, with sizes and a time estimate; read nothing.")
 
 

@@ -34,6 +34,8 @@ def evaluate(
     cluster: Optional[str] = c.ClusterOpt,
     fail_fast: bool = c.FailFastOpt,
     dry_run: bool = c.DryRunOpt,
+    fleet_rrd: Optional[Path] = c.FleetRrdOpt,
+    runs: Optional[list[str]] = c.RunsOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
     read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
@@ -48,11 +50,11 @@ def evaluate(
         raise InputError("--json and --markdown: two output formats asked for", "give one of them")
     from . import fleet
 
-    if fleet.is_fleet_run(drives, workers, cluster, fail_fast, dry_run):  # many drives, each on its own (cli/fleet.py)
+    if fleet_rrd is not None or fleet.is_fleet_run(drives, workers, cluster, fail_fast, dry_run, runs):  # many drives, each on its own (cli/fleet.py)
         refused = {"--scenario": scenario, "--plan": plan, "--external": external, "--export": export, "--by-event": by_event,
                    "--overview": overview, "--outage LENGTH,LENGTH": outage is not None and "," in outage}
         fleet.evaluate_fleet(drives, outage, placement, run, read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                             dry_run=dry_run, as_json=as_json, markdown=markdown, quiet=quiet, refused=refused)
+                             dry_run=dry_run, as_json=as_json, markdown=markdown, quiet=quiet, refused=refused, fleet_rrd=fleet_rrd, runs=runs)
         return
     if outage is not None and "," in outage:
         for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),

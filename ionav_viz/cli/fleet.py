@@ -14,10 +14,11 @@ from . import common as c
 from .app import options_named
 
 
-def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool) -> bool:
-    """Whether ``evaluate`` runs as a fleet: a fleet option, or drives given as a list file, a glob
-    or a folder of drives (which one-drive evaluation refuses)."""
-    if workers is not None or cluster is not None or fail_fast or dry_run:
+def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool,
+                 runs: Optional[list[str]] = None) -> bool:
+    """Whether ``evaluate`` runs as a fleet: a fleet option (``--runs`` among them), or drives given
+    as a list file, a glob or a folder of drives (which one-drive evaluation refuses)."""
+    if workers is not None or cluster is not None or fail_fast or dry_run or runs:
         return True
     from ..api.fleet import _is_folder_of_drives
 
@@ -30,8 +31,9 @@ def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: O
 
 def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
                    workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool, as_json: bool, markdown: bool,
-                   quiet: bool, refused: dict[str, Any]) -> None:
-    """Evaluate the drives as a fleet and print its report; exit 3 when some drives failed
+                   quiet: bool, refused: dict[str, Any], fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
+    """Evaluate the drives as a fleet and print its report (and with ``fleet_rrd`` write its
+    overview recording there); exit 3 when some drives failed
     (:data:`ionav_viz.api.fleet.EXIT_SOME_FAILED`), 2 when none could be evaluated."""
     from ..api import fleet
     from ..core.json_out import dumps_json
@@ -39,26 +41,55 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     for option, given in refused.items():
         if given:
             raise typer.BadParameter(f"a fleet run (--workers, --cluster, many drives) does not take {option} yet", param_hint=option)
-    if not drives:
-        raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
+    drives = list(drives or [])
+    if not drives and not runs:
+        raise typer.BadParameter("give at least one drive (or --runs)", param_hint="DRIVES")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
-    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option):
+    _check_fleet_rrd(fleet_rrd, drives)
+    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option, runs="--runs"):
         if dry_run:
-            plan = fleet.plan_fleet(drives, workers)
+            plan = fleet.plan_fleet(drives, workers, runs or ())
             print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
             return
         with c.progress(quiet) as bar:
             report = fleet.evaluate_fleet(drives, outage_s, placement.placement, run=run, read=read, workers=workers, cluster=cluster,
                                           fail_fast=fail_fast, progress=c.progress_callback(bar, "evaluating"),
-                                          replay_options=_replay_options(outage, placement, run))
+                                          replay_options=_replay_options(outage, placement, run, read), runs=runs or ())
     if as_json:
         print(report.to_json())
     else:
         print(report.to_markdown() if markdown else report.to_text(c.terminal_width()), end="")
+    _write_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
 
 
-def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any) -> str:
+def _check_fleet_rrd(fleet_rrd: Optional[Path], drives: list[str], folder: Optional[Path] = None) -> None:
+    """Refuse a ``--fleet-rrd`` that is not an ``.rrd`` or cannot be written, or one of the drives,
+    before any work (``folder``: replay's output folder, made by the run: the overview may go in it)."""
+    if fleet_rrd is None:
+        return
+    from ..core.fileio import check_output_file, refuse_output_onto_input
+
+    if fleet_rrd.suffix.lower() != ".rrd":
+        raise typer.BadParameter(f"{fleet_rrd}: the fleet's overview is an .rrd file", param_hint="--fleet-rrd")
+    with options_named(output="--fleet-rrd"):
+        if folder is None or fleet_rrd.parent.absolute() != folder.absolute() or folder.exists():
+            check_output_file(fleet_rrd)
+        refuse_output_onto_input(fleet_rrd, [d for d in drives if not d.startswith("@")])
+
+
+def _write_fleet_rrd(report: Any, fleet_rrd: Optional[Path], quiet: bool) -> None:
+    if fleet_rrd is None or not report.drives:
+        return
+    from ..api import fleet
+
+    with options_named(output="--fleet-rrd", fleet_rrd="--fleet-rrd"):
+        fleet.write_fleet_recording(report, fleet_rrd)
+    if not quiet:
+        print(f"fleet overview: {fleet_rrd} (ionav-viz screenshot {fleet_rrd} -o fleet.png; rerun {fleet_rrd})", file=sys.stderr)
+
+
+def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any = None) -> str:
     """The options that replay one drive of the fleet with the same outages and estimators."""
     import shlex
 
@@ -70,11 +101,14 @@ def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any)
         parts.append("--estimators " + shlex.quote(",".join(str(e) for e in run.estimators)))
     if run is not None and run.without:
         parts.append("--no-idnn")
+    if read is not None and getattr(read, "data_root", None) is not None:  # IO-VNBD run names are read there
+        parts.append("--data-root " + shlex.quote(str(read.data_root)))
     return " ".join(parts)
 
 
 def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
-                 workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool, refused: dict[str, Any]) -> None:
+                 workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool, refused: dict[str, Any],
+                 fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
     """Replay many drives, one recording each into the folder ``-o`` (default ``recordings``):
     the recordings' paths on stdout, the fleet report on stderr; exit codes as for evaluate."""
     from ..api import fleet
@@ -85,15 +119,19 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
     if output is not None and output.suffix.lower() == ".rrd":
         raise typer.BadParameter(f"{output}: many drives are replayed into a folder, one recording each", param_hint="-o")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
-    with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option), \
+    _check_fleet_rrd(fleet_rrd, drives, output if output is not None else Path("recordings"))
+    with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option,
+                       runs="--runs"), \
             c.progress(quiet) as bar:
         report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
                                     read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                                    progress=c.progress_callback(bar, "replaying"), replay_options=_replay_options(outage, placement, run))
+                                    progress=c.progress_callback(bar, "replaying"), replay_options=_replay_options(outage, placement, run, read),
+                                    runs=runs or ())
     if not quiet:
         print(report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     for table in report.drives:
         print(table.recording)
+    _write_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
 
 

@@ -18,7 +18,7 @@ from .app import app, log, options_named
 @c.with_estimator_options
 @c.with_placement_options
 def replay(
-    drive_specs: list[str] = typer.Argument(..., metavar="DRIVE...", help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario name or IO-VNBD run name; "
+    drive_specs: Optional[list[str]] = typer.Argument(None, metavar="DRIVE...", help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario name or IO-VNBD run name; "
                                              "several (a folder of drives, a glob, @list.txt): one recording each, in parallel, into the folder -o."),
     outage: Optional[str] = c.OutageOrPlanOpt,
     plan: Optional[Path] = c.PlanOpt,
@@ -39,17 +39,22 @@ def replay(
     workers: Optional[int] = c.WorkersOpt,
     cluster: Optional[str] = c.ClusterOpt,
     fail_fast: bool = c.FailFastOpt,
+    fleet_rrd: Optional[Path] = c.FleetRrdOpt,
+    runs: Optional[list[str]] = c.RunsOpt,
 ) -> None:
     """Replay a drive with GNSS outages, run the estimators side by side, and write a .rrd for review."""
     from .. import api
     from . import fleet
 
-    if len(drive_specs) > 1 or fleet.is_fleet_run(drive_specs, workers, cluster, fail_fast, False):  # one recording per drive (cli/fleet.py)
+    drive_specs = list(drive_specs or [])
+    if len(drive_specs) > 1 or fleet_rrd is not None or fleet.is_fleet_run(drive_specs, workers, cluster, fail_fast, False, runs):  # one recording per drive (cli/fleet.py)
         refused = {"--plan": plan, "--external": external, "--export": export, "--open": open_viewer, "--connect": connect,
                    "--serve-web": serve_web, "--screenshot": screenshot_dir, "--outage LENGTH,LENGTH": outage is not None and "," in outage}
         fleet.replay_fleet(drive_specs, output, outage, placement, run, read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                           quiet=quiet, refused=refused)
+                           quiet=quiet, refused=refused, fleet_rrd=fleet_rrd, runs=runs)
         return
+    if not drive_specs:
+        raise typer.BadParameter("give a drive (or many, or --runs)", param_hint="DRIVE...")
     drive_spec = drive_specs[0]
 
     if outage is not None and "," in outage:

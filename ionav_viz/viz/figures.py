@@ -16,6 +16,14 @@ own line style, hatch and marker too (readable in greyscale):
   marked, arrows along the truth for the direction of travel, a north arrow apart from the tracks,
   a scale bar.
 
+A fleet's report (``evaluate --workers N --json``, :class:`ionav_viz.analysis.fleet.FleetReport`)
+gets its own two figures instead (:data:`FLEET_FIGURES`), one column wide:
+
+* ``fleet-box``: per estimator, a box plot of the drives' mean final position errors (each drive
+  one point, drawn over its box): how much the drives differ;
+* ``fleet-cdf``: the empirical distribution of the final position error over every outage of the
+  fleet, per estimator (over the drives it ran on).
+
 The report is read as bounded, strict JSON and checked field by field before anything is drawn
 (:func:`read_report`: one line naming the file and the field otherwise). A value a report leaves
 undefined (``null``: the JSON writes NaN so) is not drawn: a gap in a curve or track, an outage
@@ -61,7 +69,9 @@ FIGURES = ("drift", "cdf", "outages", "outages-wide", "worst", "calibration")
 STYLE = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
          "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
          "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
-_WIDTHS = {"drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN}
+#: The figures of a fleet's report.
+FLEET_FIGURES = ("fleet-box", "fleet-cdf")
+_WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN}
 
 
 #: What a report's reader says to give instead of a bad one.
@@ -96,6 +106,9 @@ def check_report(rep: Any, path: Path) -> None:
     def fail(field: str, why: str) -> None:
         raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
 
+    if is_fleet_report(rep):
+        check_fleet_report(rep, path)
+        return
     if isinstance(rep, dict) and any(k in rep for k in ("scenarios", "by_event", "lengths")):
         raise InputError(f"{path}: holds several reports (--scenario, --by-event or several --outage lengths)",
                          "write one drive's report with 'ionav-viz evaluate DRIVE --json'", param="result")
@@ -159,6 +172,53 @@ def check_report(rep: Any, path: Path) -> None:
         _need_text(rep["truth"], "truth", fail)
 
 
+def is_fleet_report(rep: Any) -> bool:
+    """Whether ``rep`` is a fleet's report (``evaluate --workers N --json``)."""
+    return isinstance(rep, dict) and "drives_evaluated" in rep and "pooled" in rep
+
+
+def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
+    """That a fleet's report holds what its figures draw: the estimators (name, label, optional
+    colour), the evaluated drives' names and every outage's drive and final errors (a number or
+    null; an estimator may be missing on a drive it did not run on)."""
+
+    def fail(field: str, why: str) -> None:
+        raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
+
+    outage = rep.get("outage_s")
+    if not is_finite_number(outage) or not 0 < outage <= MAX_REPORT_VALUE:
+        fail("outage_s", f"{outage!r} is not an outage length in seconds")
+    ests = rep.get("estimators")
+    if not isinstance(ests, list) or not ests:
+        fail("estimators", "is not a list of estimators (no drive was evaluated?)")
+    names = []
+    for i, e in enumerate(ests):
+        if not isinstance(e, dict):
+            fail(f"estimators[{i}]", f"is a JSON {_kind(e)}, not an object")
+        for key in ("name", "label"):
+            _need_text(e.get(key), f"estimators[{i}].{key}", fail)
+        color = e.get("color")
+        if color is not None and not (isinstance(color, list) and len(color) == 3 and all(_is_int(c) and 0 <= c <= 255 for c in color)):
+            fail(f"estimators[{i}].color", f"{color!r} is not an RGB triple of 0-255 integers")
+        names.append(e["name"])
+    drives = rep.get("drives")
+    if not isinstance(drives, list) or not drives:
+        fail("drives", "is not a list of evaluated drives")
+    for i, d in enumerate(drives):
+        _need_text(_need_object(d, f"drives[{i}]", fail).get("drive"), f"drives[{i}].drive", fail)
+    sequences = rep.get("sequences")
+    if not isinstance(sequences, list) or not sequences:
+        fail("sequences", "is not a list of outages")
+    for i, seq in enumerate(sequences):
+        _need_text(_need_object(seq, f"sequences[{i}]", fail).get("drive"), f"sequences[{i}].drive", fail)
+        for name in names:
+            if name in seq:
+                metrics = _need_object(seq[name], f"sequences[{i}].{name}", fail)
+                if "final_position_error_m" not in metrics:
+                    fail(f"sequences[{i}].{name}.final_position_error_m", "missing")
+                _need_number(metrics["final_position_error_m"], f"sequences[{i}].{name}.final_position_error_m", fail)
+
+
 def _kind(value: Any) -> str:
     return {dict: "object", list: "array", str: "string", bool: "boolean", type(None): "null"}.get(type(value), "number")
 
@@ -212,7 +272,7 @@ def colors_of(rep: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
 
 
 def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
-    """Every figure of :data:`FIGURES` in every format of :data:`FORMATS`, into ``folder`` (made
+    """Every figure of :data:`FIGURES` (a fleet's report: :data:`FLEET_FIGURES`) in every format of :data:`FORMATS`, into ``folder`` (made
     when missing, with its parents). Returns the files.
 
     Drawn into a temporary folder, beside ``folder`` when that is new (then renamed to it), else
@@ -224,7 +284,8 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
 
     given = check_output_folder(Path(folder))  # as messages name it
     folder = Path(os.path.abspath(given))  # '.' and '..' by name
-    for name in (f"{f}.{fmt}" for f in FIGURES for fmt in FORMATS):  # before drawing: what the moves would refuse
+    drawn = FLEET_FIGURES if is_fleet_report(rep) else FIGURES
+    for name in (f"{f}.{fmt}" for f in drawn for fmt in FORMATS):  # before drawing: what the moves would refuse
         _check_replaceable(folder / name, given / name)
     parent = folder if folder.is_dir() else folder.parent
     made = [] if folder.is_dir() else _make_parents(parent, given)
@@ -233,7 +294,7 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
         with staging_folder(folder, parent, refused=lambda exc: _write_error(given, exc)) as scratch:
             names = []
             with rc_context(STYLE):
-                for name in FIGURES:
+                for name in drawn:
                     fig = figure(rep, name)
                     for fmt in FORMATS:
                         target = scratch / f"{name}.{fmt}"
@@ -252,11 +313,11 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
 
 
 def figure(rep: dict[str, Any], name: str) -> Any:
-    """The matplotlib ``Figure`` of :data:`FIGURES` ``name`` for the checked report ``rep``, at its
+    """The matplotlib ``Figure`` of :data:`FIGURES` (or :data:`FLEET_FIGURES`) ``name`` for the checked report ``rep``, at its
     width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
     from matplotlib import rc_context
 
-    draws = {"drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst, "calibration": _calibration}
+    draws = {"fleet-box": _fleet_box, "fleet-cdf": _fleet_cdf, "drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst, "calibration": _calibration}
     with rc_context(STYLE):
         fig = draws[name](rep, _WIDTHS[name])
         fig.canvas.draw()  # laid out with the style's sizes
@@ -619,3 +680,75 @@ def _scale_bar(ax: Any) -> None:
     right, bottom = x1 - 0.05 * (x1 - x0), y0 + 0.06 * (y1 - y0)
     ax.plot([right - length, right], [bottom, bottom], color="black", lw=1.5, solid_capstyle="butt")
     ax.text(right - length / 2, bottom + 0.02 * (y1 - y0), f"{length:g} m", ha="center", va="bottom", fontsize=FONT_PT - 1)
+
+
+def _fleet_finals(rep: dict[str, Any], name: str) -> dict[str, np.ndarray]:
+    """Per drive (in the report's order) the final errors of estimator ``name`` on its outages
+    (drives it did not run on left out)."""
+    out: dict[str, list[Any]] = {}
+    for seq in rep["sequences"]:
+        if name in seq:
+            out.setdefault(seq["drive"], []).append(seq[name]["final_position_error_m"])
+    return {d: _floats(v) for d, v in out.items()}
+
+
+def _fleet_title(rep: dict[str, Any]) -> str:
+    return f"Fleet of {len(rep['drives'])} drives: {len(rep['sequences'])} outages of {rep['outage_s']:g} s"
+
+
+def _fleet_box(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    """Per estimator a box of the drives' mean final errors, each drive a point over it."""
+    fig, ax = _new_figure(width_in, 2.7)
+    skipped: list[str] = []
+    rng = np.random.default_rng(0)  # the points' horizontal jitter: the same figure every time
+    shown = []
+    for name, label, color, i in _styled(rep):
+        means = np.array([np.nanmean(v) if np.isfinite(v).any() else np.nan for v in _fleet_finals(rep, name).values()])
+        defined = means[np.isfinite(means)]
+        if not len(defined):
+            skipped.append(f"{label} has no defined final error, left out")
+            continue
+        if len(defined) < len(means):
+            skipped.append(f"{label}: {len(means) - len(defined)} of {len(means)} drives left out")
+        k = len(shown) + 1
+        box = ax.boxplot([defined], positions=[k], widths=0.55, whis=(10, 90), showfliers=False, patch_artist=True,
+                         medianprops={"color": color, "lw": 1.6}, whiskerprops={"color": color}, capprops={"color": color},
+                         boxprops={"edgecolor": color, "facecolor": (*color, 0.15), "hatch": HATCHES[i % len(HATCHES)], "lw": 0.8})
+        del box
+        ax.scatter(k + rng.uniform(-0.16, 0.16, len(defined)), defined, s=7, color=color, marker=MARKERS[i % len(MARKERS)],
+                   lw=0, alpha=0.85, zorder=3)
+        shown.append(label)
+    _skipped("fleet-box", skipped)
+    ax.set_xticks(range(1, len(shown) + 1), shown, rotation=20 if len(shown) > 3 else 0, ha="right" if len(shown) > 3 else "center")
+    ax.set_ylabel(f"drive's mean final error after {rep['outage_s']:g} s (m)")
+    ax.set_ylim(bottom=0)
+    ax.set_xlim(0.4, len(shown) + 0.6)
+    _set_title(ax, _fleet_title(rep) + " (box: quartiles, whiskers 10-90 %; a point per drive)")
+    return fig
+
+
+def _fleet_cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    """The pooled distribution of the final errors of every outage, per estimator."""
+    fig, ax = _new_figure(width_in, 2.7)
+    skipped = []
+    for name, label, color, i in _styled(rep):
+        per_drive = _fleet_finals(rep, name)
+        finals = np.concatenate(list(per_drive.values())) if per_drive else np.zeros(0)
+        v, share = error_cdf(finals)
+        if not len(v):
+            skipped.append(f"{label} has no defined final error, left out")
+            continue
+        if len(v) < len(finals):
+            skipped.append(f"{label}: {len(finals) - len(v)} of {len(finals)} outages left out")
+        p50 = rep["pooled"].get(name, {}).get("final_error_percentiles", {}).get("p50") if isinstance(rep["pooled"], dict) else None
+        median = f"p50 {p50:.1f} m" if is_finite_number(p50) else "p50 n/a"
+        ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
+                label=f"{label} ({median}, {len(per_drive)} drives)")
+    _skipped("fleet-cdf", skipped)
+    ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
+    ax.set_ylabel("share of outages")
+    ax.set_ylim(0, 1.0)
+    ax.set_xlim(left=0)
+    _set_title(ax, _fleet_title(rep))
+    _legend(fig, ax, width_in)
+    return fig

@@ -148,11 +148,13 @@ class HeadlessViewer:
         # every image starts from the recording's own layout (shots change titles, framing, maximised view)
         self.base_blueprint = self.call("get_blueprint").blueprint
 
-    def show(self, blueprint: dict[str, Any], t_s: float, out: Path, finish: Callable[[Path], None] | None = None) -> None:
-        """Show the open recording with ``blueprint`` at ``t_s`` on the ``time`` timeline and save
-        the image to ``out`` (atomically; ``finish`` changes the image before it is moved in)."""
+    def show(self, blueprint: dict[str, Any], t_s: float | None, out: Path, finish: Callable[[Path], None] | None = None) -> None:
+        """Show the open recording with ``blueprint`` at ``t_s`` on the ``time`` timeline (None: a
+        recording without one, all static) and save the image to ``out`` (atomically; ``finish``
+        changes the image before it is moved in)."""
         self.call("set_blueprint", blueprint, of="recording")
-        self.call("set_time", "time", duration=float(t_s), play_state="paused")
+        if t_s is not None:
+            self.call("set_time", "time", duration=float(t_s), play_state="paused")
         time.sleep(self.settle_s)  # let the viewer render a few frames at the new time
         with atomic_path(out, suffix=".tmp.png") as tmp, utf8_alias(tmp) as writable:
             self.call("save_screenshot", str(writable))

@@ -1,0 +1,164 @@
+"""The fleet's overview recording (``evaluate --fleet-rrd FILE``): one ``.rrd`` that opens on a
+table of the fleet's drives (each drive a row: its outages, each estimator's mean final error and
+improvement over the INS DR, its worst outage and the command that replays it, and its recording
+when it was replayed) beside bar charts per estimator, one bar per drive in the table's order:
+the mean final error of each drive, and its worst outage's final error; a third tab holds the whole
+fleet report (Markdown). Everything is static: the recording has no timeline.
+
+Rerun has no box-plot archetype: the per-drive spread is in ``figures`` of the fleet (a box plot
+per estimator and the pooled CDF, :mod:`ionav_viz.viz.figures`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from ..analysis.fleet import DriveTable, FleetReport
+from ..core.errors import ToolFailure
+from ..core.fileio import utf8_alias
+from ..nav.protocol import short_label
+from .recording import APP_ID, FLUSH_TIMEOUT_S, _check_written
+from .style import estimator_colors
+
+#: Entity paths of the fleet recording.
+FLEET_TABLE = "fleet/drives"
+FLEET_REPORT = "fleet/report"
+MEAN_BARS = "fleet/mean_final_error_m"
+WORST_BARS = "fleet/worst_final_error_m"
+#: How a fleet overview's recording id starts (a replay's is its drive's name and outage length).
+FLEET_ID_PREFIX = "fleet overview: "
+#: Seconds the headless viewer waits before the overview's screenshot (its start-up notices fade).
+SCREENSHOT_SETTLE_S = 6.0
+#: Each drive's bar, centred on its number.
+BAR_WIDTH = 0.8
+
+
+def worst_outage(report: FleetReport, table: DriveTable) -> dict[str, Any] | None:
+    """The drive's outage with the largest final error of the report's :attr:`~FleetReport.worst_of`
+    (the INS DR if it ran): ``number`` (from 1, the replay's "outage N"), ``start_s``, ``end_s``,
+    ``final_error_m``; None when it has none."""
+    est = report.worst_of
+    if est is None or est not in table.metrics:
+        return None
+    err = table.metrics[est]["final_position_error_m"]
+    if not np.isfinite(err).any():
+        return None
+    i = int(np.nanargmax(err))
+    return {"number": i + 1, "start_s": float(table.start_s[i]), "end_s": float(table.start_s[i] + table.outage_s),
+            "final_error_m": float(err[i])}
+
+
+def drives_markdown(report: FleetReport) -> str:
+    """The overview's table: one row per drive, numbered as the bars; then the command that
+    replays each drive (its worst outage is the recording's "outage N") and its recording."""
+    from ..analysis.fleet import _f
+
+    ests, labels = report.estimators, report.labels
+    short = {e: short_label(labels[e]) for e in ests}
+    by = short[report.worst_of] if report.worst_of else ""
+    header = ["#", "drive", "outages"] + [f"{short[e]} m" for e in ests] + [f"worst outage ({by} m)"]
+    lines = [f"# Fleet: {len(report.drives)} drive(s), {report.n_outages} outages of {report.outage_s:g} s",
+             "", "Mean final position error per drive (the bars are numbered as the rows), and each drive's worst outage.", "",
+             "| " + " | ".join(header) + " |", "|" + "|".join("---" if j == 1 or j == len(header) - 1 else "---:" for j in range(len(header))) + "|"]
+    replays = []
+    for k, t in enumerate(report.drives, 1):
+        worst = worst_outage(report, t)
+        cells = [str(k), t.name, str(t.n_outages)] + [_f(t.mean_final_error_m(e)) for e in ests]
+        cells.append("-" if worst is None else f"outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s): {worst['final_error_m']:.1f}")
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+        where = f"; its recording `{t.recording}`" if t.recording else ""
+        replays.append(f"{k}. {t.name}" + (f", outage {worst['number']}" if worst else "") + f": `{report.command(t.spec)}`{where}")
+    lines += ["", "## Replay a drive", "", *replays]
+    if report.failures or report.skipped:
+        lines += ["", "## Not evaluated", "", *(f"- {f.spec}: {f.reason}" for f in [*report.failures, *report.skipped])]
+    return "\n".join(lines) + "\n"
+
+
+def fleet_blueprint(report: FleetReport) -> Any:
+    """The overview's layout: the table on the left; on the right, tabs of bar charts per
+    estimator (mean final error per drive; worst outage per drive) and the whole report."""
+    import rerun.blueprint as rrb
+
+    labels = report.labels
+
+    def bars(root: str, what: str) -> Any:
+        return rrb.Grid(*[rrb.BarChartView(origin=f"{root}/{e}", name=labels[e], plot_legend=rrb.PlotLegend(visible=False))
+                          for e in report.estimators], name=what)
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.TextDocumentView(origin=FLEET_TABLE, name="Drives"),
+            rrb.Tabs(bars(MEAN_BARS, "mean final error per drive (m)"), bars(WORST_BARS, "worst outage per drive (m)"),
+                     rrb.TextDocumentView(origin=FLEET_REPORT, name="Fleet report")),
+            column_shares=[3, 2]),
+        collapse_panels=True)
+
+
+def write_fleet_recording(report: FleetReport, path: Path, target: Path | None = None) -> dict[str, int]:
+    """Log the fleet's overview to the ``.rrd`` file ``path`` (the caller makes the write atomic:
+    ``path`` is then a temporary file, ``target`` the name for messages). Returns rows per entity."""
+    import rerun as rr
+
+    colors = estimator_colors([SimpleNamespace(**e) for e in _estimator_infos(report)])
+    rec = rr.RecordingStream(APP_ID, recording_id=f"{FLEET_ID_PREFIX}{len(report.drives)} drives, {report.outage_s:g} s outages")
+    rows: dict[str, int] = {}
+    try:
+        with utf8_alias(path) as writable:
+            rec.save(writable)
+        rec.send_blueprint(fleet_blueprint(report))
+        rec.log(FLEET_TABLE, rr.TextDocument(drives_markdown(report), media_type=rr.MediaType.MARKDOWN), static=True)
+        rec.log(FLEET_REPORT, rr.TextDocument(report.to_markdown(), media_type=rr.MediaType.MARKDOWN), static=True)
+        rows |= {FLEET_TABLE: 1, FLEET_REPORT: 1}
+        numbers = np.arange(1, len(report.drives) + 1, dtype=np.float64)
+        for e in report.estimators:
+            means = np.array([t.mean_final_error_m(e) for t in report.drives])
+            worst = np.array([np.nanmax(t.metrics[e]["final_position_error_m"]) if e in t.metrics and np.isfinite(t.metrics[e]["final_position_error_m"]).any()
+                              else np.nan for t in report.drives])
+            for root, values in ((MEAN_BARS, means), (WORST_BARS, worst)):
+                rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e], abscissa=numbers - BAR_WIDTH / 2,
+                                                   widths=np.full(len(numbers), BAR_WIDTH, dtype=np.float32)), static=True)
+                rows[f"{root}/{e}"] = 1
+        rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+    except RuntimeError as exc:  # the file sink's failures
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ToolFailure(f"{target or path}: write failed ({first}); is the disk full?") from None
+    finally:
+        rec.disconnect()
+    _check_written(path, target or path)
+    return rows
+
+
+def _estimator_infos(report: FleetReport) -> list[dict[str, Any]]:
+    """Name and, where the estimator has its own, colour of each estimator (as the replays colour it)."""
+    out: dict[str, dict[str, Any]] = {}
+    for t in report.drives:
+        for e in t.estimators:
+            out.setdefault(e["name"], {"name": e["name"], "color": e.get("color")})
+    return [out[e] for e in report.estimators]
+
+
+def is_fleet_recording(path: Path) -> bool:
+    """Whether the ``.rrd`` at ``path`` is a fleet overview (False for anything else, unreadable included)."""
+    from rerun.chunk import RrdReader
+
+    try:
+        with utf8_alias(Path(path)) as readable:
+            return any(str(r.recording_id).startswith(FLEET_ID_PREFIX) for r in RrdReader(readable).recordings())
+    except Exception:  # not a recording: the replay screenshot's checks say why
+        return False
+
+
+def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_s: float = 120.0) -> Path:
+    """A PNG of the fleet overview ``recording`` in its own layout, by the private headless viewer."""
+    import time
+
+    from .viewer import HeadlessViewer
+
+    with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
+        viewer.open(Path(recording))
+        time.sleep(SCREENSHOT_SETTLE_S)
+        viewer.show(viewer.base_blueprint, None, Path(out))
+    return Path(out)

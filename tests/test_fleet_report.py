@@ -1,0 +1,136 @@
+"""The fleet report's breakdowns (issue 42, point 3): by manoeuvre type, by time into the outage,
+and each estimator's consistency pooled over the fleet, from hand-made per-drive tables whose
+expected numbers are worked out here by hand; and the manoeuvre label of an outage."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ionav_viz.analysis.events import Event, outage_manoeuvres
+from ionav_viz.analysis.fleet import DriveTable, FleetReport
+
+
+def _table(name: str, ins: list[float], odo: list[float], manoeuvre: list[str], outage_s: float = 30.0,
+           at10: dict[str, list[float]] | None = None, cons: dict[str, list[float]] | None = None) -> DriveTable:
+    n = len(ins)
+    metrics = {est: {"final_position_error_m": np.asarray(v, dtype=float)} for est, v in (("ins", ins), ("odo", odo))}
+    for per in metrics.values():  # the other metrics: not looked at here
+        per |= {m: np.zeros(n) for m in ("crse_m", "cae_m", "aeps_m", "yaw_crse_radps", "yaw_cae_radps", "yaw_aeps_radps", "final_error_pct")}
+    return DriveTable(spec=f"{name}.csv", name=name, source=f"{name}.csv", duration_s=600.0, distance_m=1000.0, outage_s=outage_s,
+                      estimators=[{"name": "ins", "label": "INS DR"}, {"name": "odo", "label": "Odometry"}],
+                      start_s=30.0 + outage_s * np.arange(n), gnss_distance_m=np.full(n, 300.0), metrics=metrics,
+                      bias={}, gnss_truth={}, manoeuvre=manoeuvre,
+                      error_at_s={e: {"10": np.asarray(v, dtype=float)} for e, v in (at10 or {}).items()},
+                      consistency={"odo": {k: np.asarray(v, dtype=float) for k, v in cons.items()}} if cons else {})
+
+
+@pytest.fixture
+def report() -> FleetReport:
+    a = _table("A", [10.0, 20.0, 30.0], [5.0, 5.0, 15.0], ["cruise", "roundabout", "cruise"],
+               at10={"ins": [1.0, 2.0, 3.0], "odo": [1.0, 1.0, 1.0]},
+               cons={"nees_mean": [2.0, 4.0, 0.0], "final_nees": [1.0, 7.0, 0.5], "sq_error_m2_10": [1.0, 4.0, 9.0],
+                     "trace_m2_10": [2.0, 2.0, 2.0], "sq_error_m2_30": [16.0, 16.0, 16.0], "trace_m2_30": [4.0, 4.0, 4.0]})
+    b = _table("B", [40.0, 60.0], [10.0, 30.0], ["none", "cruise"], at10={"ins": [4.0, 5.0], "odo": [2.0, 2.0]},
+               cons={"nees_mean": [6.0, 2.0], "final_nees": [2.0, 9.0], "sq_error_m2_10": [1.0, 1.0],
+                     "trace_m2_10": [2.0, 2.0], "sq_error_m2_30": [16.0, 16.0], "trace_m2_30": [4.0, 4.0]})
+    return FleetReport([a, b], outage_s=30.0)
+
+
+def test_by_manoeuvre_means_and_improvement_per_type(report):
+    got = report.by_manoeuvre()
+    assert list(got) == ["roundabout", "cruise", "none"]  # the manoeuvre types' order, then none
+    # cruise: A's 1st and 3rd, B's 2nd: INS (10 + 30 + 60) / 3 = 33.33, odometry (5 + 15 + 30) / 3 = 16.67: 50 % better
+    assert got["cruise"]["outages"] == 3
+    assert got["cruise"]["mean_error_m"]["ins"] == pytest.approx(100 / 3)
+    assert got["cruise"]["mean_error_m"]["odo"] == pytest.approx(50 / 3)
+    assert got["cruise"]["improvement_pct"]["odo"] == pytest.approx(50.0)
+    assert got["roundabout"]["outages"] == 1 and got["roundabout"]["improvement_pct"]["odo"] == pytest.approx(75.0)  # 20 -> 5
+    assert got["none"]["mean_error_m"] == pytest.approx({"ins": 40.0, "odo": 10.0})
+
+
+def test_by_length_is_the_error_that_far_into_the_outages(report):
+    got = report.by_length()
+    assert list(got) == ["10", "30"]  # 10 s into 30 s outages, and their end
+    assert got["10"]["outages"] == 5
+    assert got["10"]["mean_error_m"]["ins"] == pytest.approx(3.0)  # (1 + 2 + 3 + 4 + 5) / 5
+    assert got["10"]["mean_error_m"]["odo"] == pytest.approx(7 / 5)
+    assert got["10"]["improvement_pct"]["odo"] == pytest.approx(100 * (3 - 1.4) / 3)
+    assert got["30"]["mean_error_m"]["ins"] == pytest.approx(32.0)  # the final errors: 160 / 5
+    assert got["30"]["improvement_pct"]["odo"] == pytest.approx(100 * (32 - 13) / 32)
+
+
+def test_consistency_is_pooled_over_the_fleets_outages(report):
+    got = report.consistency()
+    assert list(got) == ["odo"]  # the INS DR gave no covariance
+    c = got["odo"]
+    assert c["anees"] == pytest.approx((2 + 4 + 0 + 6 + 2) / 5 / 2)  # per degree of freedom: NEES / 2
+    assert c["n_outages"] == 5 and c["n_samples"] == 5 * 30
+    assert c["coverage_95"] == pytest.approx(60.0)  # 7 and 9 lie outside the 95 % ellipse (5.99)
+    assert c["error_over_sigma"]["10"] == pytest.approx(np.sqrt((1 + 4 + 9 + 1 + 1) / 5 / 2))
+    assert c["error_over_sigma"]["30"] == pytest.approx(2.0)
+    assert c["verdict"] == "overconfident"  # 1.4, above the band of 150 samples
+
+
+def test_the_breakdowns_in_text_markdown_and_json(report):
+    text = report.to_text(width=120)
+    assert "By manoeuvre" in text and "By time into the outage" in text and "Odometry uncertainty: ANEES 1.40" in text
+    row = next(ln for ln in text.splitlines() if ln.startswith("cruise"))
+    assert row.split() == ["cruise", "3", "33.33", "16.67", "50.0"]
+    md = report.to_markdown()
+    assert "## By manoeuvre" in md and "| roundabout | 1 | 20.00 | 5.00 | 75.0 |" in md and "| 10 s | 5 | 3.00 | 1.40 | 53.3 |" in md
+    out = json.loads(report.to_json())
+    assert out["by_manoeuvre"]["cruise"]["outages"] == 3 and out["by_length"]["30"]["mean_error_m"]["ins"] == 32.0
+    assert out["consistency"]["odo"]["coverage_95"] == 60.0
+    assert [s["manoeuvre"] for s in out["sequences"]] == ["cruise", "roundabout", "cruise", "none", "cruise"]
+
+
+def test_an_outage_is_labelled_by_the_manoeuvre_that_fills_most_of_it():
+    events = [Event("cruise", 0.0, 14.0), Event("hard-brake", 14.0, 17.0), Event("roundabout", 40.0, 48.0),
+              Event("sharp-cornering", 44.0, 52.0), Event("gnss-outage", 60.0, 80.0)]
+    # 0-10: cruise only; 10-20: cruise 4 s, hard brake 3 s; 20-30: nothing; 40-50: roundabout 8 s, corner 6 s;
+    # 42-52: 6 s and 8 s; 60-70: a real GNSS loss, not a manoeuvre
+    assert outage_manoeuvres(events, np.array([0.0, 10.0, 20.0, 40.0, 42.0, 60.0]), 10.0) == [
+        "cruise", "cruise", "none", "roundabout", "sharp-cornering", "none"]
+    # a tie: the type first in MANOEUVRE_TYPES (hard-brake before roundabout)
+    assert outage_manoeuvres([Event("roundabout", 0.0, 5.0), Event("hard-brake", 5.0, 10.0)], np.array([0.0]), 10.0) == ["hard-brake"]
+
+
+def test_figures_of_a_fleet_box_per_estimator_and_pooled_cdf(report, tmp_path):
+    """'figures' of a fleet's JSON: the per-drive box plot (each drive's mean final error) and the
+    pooled CDF of every outage's final error, one column wide (3.5 in at 300 dpi)."""
+    from PIL import Image
+
+    from ionav_viz.viz.figures import figure, read_report
+    from tests.conftest import run_cli
+
+    src = tmp_path / "fleet.json"
+    src.write_text(report.to_json())
+    proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs"))
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == sorted(f"fleet-{f}.{x}" for f in ("box", "cdf") for x in ("pdf", "png", "svg"))
+    assert Image.open(tmp_path / "figs" / "fleet-cdf.png").size[0] == 1050
+    rep = read_report(src)
+    cdf = figure(rep, "fleet-cdf").axes[0]
+    steps = {line.get_label().split(" (")[0]: line.get_xdata()[1:] for line in cdf.get_lines()}
+    np.testing.assert_allclose(steps["INS DR"], [10, 20, 30, 40, 60])  # every outage of both drives, sorted
+    np.testing.assert_allclose(steps["Odometry"], [5, 5, 10, 15, 30])
+    assert "INS DR (p50 30.0 m, 2 drives)" in [line.get_label() for line in cdf.get_lines()]
+    box = figure(rep, "fleet-box").axes[0]
+    # the drives' means: INS 20 and 50, odometry 8.33 and 20; a box's median line is the median of its drives
+    medians = [line.get_ydata()[0] for line in box.get_lines() if len(line.get_xdata()) == 2 and line.get_linewidth() == 1.6]
+    assert medians == pytest.approx([35.0, (25 / 3 + 20) / 2])
+    points = [c.get_offsets()[:, 1] for c in box.collections if len(c.get_offsets())]
+    np.testing.assert_allclose(points[0], [20.0, 50.0])
+    for value in ("far", None):  # a string; a missing error (not null: absent)
+        bad = json.loads(report.to_json())
+        if value is None:
+            del bad["sequences"][1]["ins"]["final_position_error_m"]
+        else:
+            bad["sequences"][1]["ins"]["final_position_error_m"] = value
+        src.write_text(json.dumps(bad))
+        proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs2"))
+        assert proc.returncode == 2 and "sequences[1].ins.final_position_error_m" in proc.stderr and not (tmp_path / "figs2").exists()
+        assert len(proc.stderr.strip().splitlines()) == 1
