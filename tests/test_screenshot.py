@@ -517,3 +517,34 @@ def test_a_long_key_takes_two_lines_in_the_band(tmp_path):
     for c in colors:
         assert (np.abs(img[1:TOP_BAND_PX] - np.array(c)).max(axis=-1) <= 30).sum() > 5, c
     assert (img[TOP_BAND_PX + 1:] == blank[TOP_BAND_PX + 1:]).all()
+
+
+def test_the_viewer_names_the_lines_in_a_key_not_in_legends(recording):
+    """Issue 46.1 in the viewer: no time plot of the signals and errors draws a legend over its
+    curves (only the sigma-vs-error and filter-health tabs keep theirs: they name series the key
+    does not); a key above the signals names the truth, every estimator, the sensors and the
+    ellipses by colour; screenshots leave that view out (they draw their own key)."""
+    from rerun.chunk import RrdReader
+
+    from ionav_viz.viz import entities as ent
+    from ionav_viz.viz.blueprints import blueprint
+    from ionav_viz.viz.recording_info import read_recording_info
+    from ionav_viz.viz.style import color_word
+
+    def views(c):
+        for x in c.contents:
+            yield from (views(x) if not hasattr(x, "origin") else [x])
+
+    shown = list(views(blueprint(["INS DR"]).root_container))
+    assert next(v.origin for v in shown if type(v).__name__ == "TextDocumentView") == ent.KEY
+    for v in shown:
+        if type(v).__name__ == "TimeSeriesView" and v.origin not in (ent.UNCERTAINTY, ent.HEALTH):
+            assert "visible=[False]" in str(v.properties.get("PlotLegend")), v.origin
+    texts = [chunk.to_record_batch().column(n).to_pylist()[0] for chunk in RrdReader(recording).stream()
+             if str(chunk.entity_path).strip("/") == ent.KEY for n in chunk.to_record_batch().schema.names if n.endswith(":text")]
+    assert len(texts) == 1
+    key = str(texts[0][0] if isinstance(texts[0], list) else texts[0])
+    info = read_recording_info(recording)
+    for label, rgb in [(info.truth_label, GNSS_COLOR), *info.estimators.values()]:
+        assert f"{label} {color_word(rgb)}" in key, (label, key)
+    assert "accelerometer grey" in key and "95 % ellipses" in key

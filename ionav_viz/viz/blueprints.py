@@ -199,10 +199,13 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
 
     ranges = y_ranges or {}
 
-    def plot(origin: str, name: str | None = None, legend: bool = False):
+    # No legend on the time plots: Rerun draws it inside the plot, in a corner, where the curves of
+    # a 60 s window pass sooner or later. The key above the signals names every line by its colour
+    # (screenshots draw theirs in the band above the views).
+    def plot(origin: str, name: str | None = None):
         return rrb.TimeSeriesView(origin=origin, name=name or PLOT_NAMES[origin],
                                   axis_y=rrb.ScalarAxis(range=ranges[origin]) if origin in ranges else None,
-                                  plot_legend=None if legend else rrb.PlotLegend(visible=False))
+                                  plot_legend=rrb.PlotLegend(visible=False))
 
     tracks = rrb.Vertical(
         rrb.Spatial2DView(origin=ent.INSPECT, name=INSPECTOR_NAME),
@@ -212,19 +215,18 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
         ),
         row_shares=[3, 2],
     )
-    # Legends where the lines are first met (and the yaw rate's gyro); more would cover the data.
-    # Screenshots hide them all and draw one colour key above the views instead.
     signals = rrb.Vertical(
+        rrb.TextDocumentView(origin=ent.KEY, name="Key", titlebar=False),
         rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
                               name="GNSS, outages, manoeuvres"),
-        plot(ent.DISPLACEMENTS, legend=True),
+        plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
         plot(ent.ACCEL),
         row_shares=list(SIGNAL_ROW_SHARES),
     )
     errors = rrb.Vertical(
         rrb.Tabs(
-            plot(ent.error_group("position_error_m"), legend=True),
+            plot(ent.error_group("position_error_m")),
             rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]),
             rrb.TimeSeriesView(origin=ent.UNCERTAINTY, name=TAB_TITLES[ent.UNCERTAINTY][0]),
             rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]),
@@ -274,8 +276,8 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
     return Framing(zoom, bounds, entities)
 
 
-#: The signal column's rows: the state timeline, displacement, yaw rate, acceleration.
-SIGNAL_ROW_SHARES = (2.8, 3, 3, 2)
+#: The signal column's rows: the colour key, the state timeline, displacement, yaw rate, acceleration.
+SIGNAL_ROW_SHARES = (1.1, 2.8, 3, 3, 2)
 #: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs
 #: (screenshots: :func:`shot_rows`).
 ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
@@ -358,20 +360,18 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             x0, x1, y0, y1 = frame.local_bounds
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
+    # the image's own colour key (screenshot.draw_key) takes the place of the viewer's key view
+    key_view = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == ent.KEY), None)
+    if key_view is not None:
+        _remove(bp, key_view)
+        views.pop(key_view)
     # the columns' rows in screenshots (pixels): the timeline's lanes, the whole summary, and the
     # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE
     rows = shot_rows(size or (1600, 900), n_estimators, warned)
     if not rows.yaw_crse:
         yaw_key = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == ent.error_group("yaw_crse_radps")), None)
         if yaw_key is not None:
-            for value in bp.values():
-                container = value.get("ContainerBlueprint")
-                if container and yaw_key.lstrip("/") in [c.lstrip("/") for c in container.get("contents", [])]:
-                    container["contents"] = [c for c in container["contents"] if c.lstrip("/") != yaw_key.lstrip("/")]
-                    container.pop("row_shares", None)
-                    if container.get("active_tab", "").lstrip("/") == yaw_key.lstrip("/"):
-                        container["active_tab"] = container["contents"][0] if container["contents"] else None
-            _drop(bp, yaw_key)
+            _remove(bp, yaw_key)
             views.pop(yaw_key)
     for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.ACCEL, rows.signals)):
         held = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == origin), None)
@@ -409,6 +409,19 @@ def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
     if key.lstrip("/") == view_key.lstrip("/"):
         return True
     return any(_holds(bp, "/" + c.lstrip("/"), view_key) for c in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []))
+
+
+def _remove(bp: dict[str, Any], view_key: str) -> None:
+    """Take the view ``view_key`` out of its container (its rows' shares are set again after) and
+    out of the blueprint."""
+    for value in bp.values():
+        container = value.get("ContainerBlueprint")
+        if container and view_key.lstrip("/") in [c.lstrip("/") for c in container.get("contents", [])]:
+            container["contents"] = [c for c in container["contents"] if c.lstrip("/") != view_key.lstrip("/")]
+            container.pop("row_shares", None)
+            if (container.get("active_tab") or "").lstrip("/") == view_key.lstrip("/"):
+                container["active_tab"] = container["contents"][0] if container["contents"] else None
+    _drop(bp, view_key)
 
 
 def _drop(bp: dict[str, Any], key: str) -> None:
