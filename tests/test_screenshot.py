@@ -470,6 +470,11 @@ def test_key_entries_and_y_ranges():
     for view in ("signals", "errors", "health"):
         assert "95 % ellipse" not in [k.text for k in key_for(info, Shot(view, 50.0, "x"))]
     info.outages = []
+    # the filter-health view: its lines in the key (the plot shows no legend), then the grey '1'
+    info.health = [("GNSS-aided INS: GNSS speed", (255, 127, 14)), ("GNSS-aided INS: GNSS course", (44, 160, 44))]
+    health = key_for(info, Shot("health", 50.0, "x"))
+    assert [k.text for k in health[:2]] == ["GNSS-aided INS: GNSS speed", "GNSS-aided INS: GNSS course"]
+    assert health[0].rgb == (255, 127, 14) and health[-1].text.startswith("1: a consistent")
     o = OutageInfo(3, 10.0, 20.0, {"ins": 12.34, "ekf": 1.0}, np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     assert [k.text for k in key_for(info, Shot("outage", 20.0, "outage3", o))][1:3] == ["INS DR 12.3 m", "GNSS-aided INS 1.0 m"]
 
@@ -548,3 +553,20 @@ def test_the_viewer_names_the_lines_in_a_key_not_in_legends(recording):
     for label, rgb in [(info.truth_label, GNSS_COLOR), *info.estimators.values()]:
         assert f"{label} {color_word(rgb)}" in key, (label, key)
     assert "accelerometer grey" in key and "95 % ellipses" in key
+
+
+def test_the_health_view_names_its_lines_in_the_key(recording, tmp_path):
+    """Issue 46.1: the filter-health view's legend covered its curves; its lines are named in the
+    key above the view (each filter's kinds of measurement, in their colours), none over the plot."""
+    from ionav_viz.viz.blueprints import TITLE_BAR_PX, TOP_BAND_PX
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    info = read_recording_info(recording)
+    assert info.health  # the GNSS-aided INS's kinds of measurement
+    out = tmp_path / "health.png"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "health", "--time", "end", "--size", "1024x576")
+    assert proc.returncode == 0, proc.stderr
+    img = _image(out)
+    for label, rgb in info.health:
+        assert (np.abs(img[1:TOP_BAND_PX] - np.array(rgb)).max(axis=-1) <= 30).sum() > 5, label
+    assert _no_legend(img, TOP_BAND_PX + TITLE_BAR_PX + 4, 576 - 24) < 25

@@ -320,10 +320,8 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
         if vb.get("class_identifier") != "TimeSeries":
             continue
         origin = vb.get("space_origin", "").strip("/")
-        # the image's colour key names every line (screenshot.draw_key): no legend over the curves; the
-        # filter health's series (each filter's kinds of measurement) are named by its own legend
-        visible = origin == ent.HEALTH and view == "health"
-        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}), "visible": visible}}
+        # the image's colour key names every line (screenshot.draw_key): no legend over the curves
+        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}), "visible": False}}
         if origin in heights and origin in y_extents:  # ticks for this plot's height, over what it shows
             y = bp.get(key + "/ScalarAxis", {}).get("ScalarAxis", {})
             bp[key + "/ScalarAxis"] = {"ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
@@ -531,8 +529,9 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR
 
     view = shot.view
-    if view == "health":  # per filter and kind of measurement: the plot's legend names them
-        return [KeyEntry("line", (90, 90, 90), "1: a consistent filter's mean NIS; crosses: fixes its gate left out")]
+    if view == "health":  # per filter and kind of measurement
+        return [KeyEntry("line", rgb, label) for label, rgb in info.health] + [
+            KeyEntry("line", (90, 90, 90), "1: a consistent filter's mean NIS; crosses: fixes its gate left out")]
     keys = [] if view == "errors" else [KeyEntry("line", GNSS_COLOR, info.truth_label)]
     for name, (label, rgb) in ordered_estimators(info):
         final = shot.outage.final_error_m.get(name) if shot.outage is not None else None

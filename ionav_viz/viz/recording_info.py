@@ -60,6 +60,7 @@ class RecordingInfo:
     plots: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # time plot origin -> (t s, value), every line
     ellipses: set[str] = field(default_factory=set)  # the estimators whose 95 % ellipses are drawn
     warned: bool = False  # whether the summary tab lists warnings (a line more)
+    health: list[tuple[str, tuple[int, int, int]]] = field(default_factory=list)  # the filter-health lines (label, colour)
 
     def y_extent(self, origin: str, t0_s: float, t1_s: float) -> tuple[float, float] | None:
         """The least and greatest value the time plot ``origin`` draws between ``t0_s`` and
@@ -164,7 +165,7 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
     plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])) for o, parts in scan.plots.items()}
     return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots,
-                         scan.ellipses, scan.warned)
+                         scan.ellipses, scan.warned, list(scan.health.values()))
 
 
 def _unreadable(path: Path, exc: Exception) -> InputError:
@@ -209,6 +210,7 @@ class _Scan:
     drawn: dict[str, _Rows] = field(default_factory=dict)  # each outage frame's rows
     ellipses: set[str] = field(default_factory=set)
     warned: bool = False
+    health: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # NIS line entity -> (label, colour)
 
     def add(self, path: Path, chunk, entity: str) -> None:
         """One chunk's share (``entity``: its path)."""
@@ -226,6 +228,9 @@ class _Scan:
                 if n.endswith(":name"):
                     values = [v for v in batch.column(n).to_pylist() if v]
                     self.drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else self.drive
+            return
+        if chunk.is_static and entity.strip("/").startswith(ent.HEALTH + "/") and "/nis/" in entity:
+            self.health[entity] = _series_style(batch)
             return
         if chunk.is_static and entity.strip("/") == ent.OVERVIEW:
             text = next((batch.column(n).to_pylist() for n in names if n.endswith(":text")), [])

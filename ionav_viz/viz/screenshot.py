@@ -50,8 +50,9 @@ BACKGROUND_RGB, KEY_TEXT_RGB = (13, 13, 13), (225, 225, 225)
 
 
 def key_head(shot: Shot) -> str:
-    """What the key's values are, before its entries: the framed outage's final errors."""
-    return f"outage {shot.outage.number}, final error:" if shot.outage is not None else ""
+    """What the key's values are, before its entries: the framed outage's final errors (the
+    filter-health view's key names its lines only)."""
+    return f"outage {shot.outage.number}, final error:" if shot.outage is not None and shot.view != "health" else ""
 
 
 def band_height(img) -> int:
