@@ -297,11 +297,12 @@ def test_a_missing_view_names_the_recording_and_leaves_no_folders(recording, tmp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["noview.rrd"]
 
 
-@pytest.mark.parametrize("size", ["1600x900", "1280x720"])
+@pytest.mark.parametrize("size", ["1600x900", "1280x720", "1024x576"])
 def test_clean_review_images_with_the_whole_summary(recording, tmp_path, size):
     """Issue 31.1: only the views: no menu, badges or timeline (the top rows are background, the
     orange of the 'Software rasterizer' and 'Docker' badges is nowhere), and the summary tab ends
-    above the image's bottom edge (its last line drawn, nothing cut) in the review layout."""
+    above the image's bottom edge (its last line drawn, nothing cut) in the review layout; issue
+    46.1: at 1024x576 too, and its table ends left of the image's right edge."""
     out = tmp_path / "all.png"
     proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "all", "--time", "end", "--size", size)
     assert proc.returncode == 0, proc.stderr
@@ -311,11 +312,16 @@ def test_clean_review_images_with_the_whole_summary(recording, tmp_path, size):
     assert (np.abs(img[1:30] - np.array(GNSS_COLOR)).max(axis=-1) <= 40).sum() > 15, "no colour key above the views"
     badge_orange = (np.abs(img - np.array([255, 140, 40])).max(axis=-1) <= 40) & (img[..., 0] > 200) & (img[..., 2] < 90)
     assert badge_orange[: h // 10].sum() == 0
-    # the summary sits at the bottom of the right-hand column: its last rows are empty background
-    corner = img[int(0.96 * h):, int(0.72 * w):]
-    assert (corner.max(axis=-1) > 80).sum() == 0, "the summary runs into the bottom edge"
-    text_rows = np.nonzero(np.ptp(img[int(0.6 * h):, int(0.72 * w):], axis=(1, 2)) > 60)[0]
-    assert len(text_rows) > 40  # there is a summary there, of several lines
+    # the summary sits at the bottom of the right-hand column: its last line ends above the rows
+    # where the view clips its text (a cut line runs into them), and nothing reaches the right edge
+    from ionav_viz.viz.blueprints import TITLE_BAR_PX, shot_rows
+
+    top = int(h - shot_rows((w, h), 4).errors[-1]) + TITLE_BAR_PX + 4  # below the summary's title bar (its icons)
+    text = img[top:, int(0.72 * w): w - 3].max(axis=-1) > 80
+    text_rows = np.nonzero(text.any(axis=1))[0] + top
+    assert text_rows.max() <= h - 18, f"the summary runs into the bottom edge (text down to row {text_rows.max()} of {h})"
+    assert not text[:, -12:].any(), "the summary's table runs into the right edge"
+    assert len(np.nonzero(np.ptp(img[int(0.6 * h):, int(0.72 * w):], axis=(1, 2)) > 60)[0]) > 40  # a summary of several lines
 
 
 def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
@@ -364,8 +370,9 @@ def _label_runs(img, y0, y1, x1=24, bright=100, rows_of_text=(6, 14)):
 
 
 def _plot_rows(size, shares, k):
-    """Rows (top, bottom) of the drawing area of the k-th row of a column of ``shares`` in a
-    screenshot of ``size`` (below the key band; without the title bar and the time labels)."""
+    """Rows (top, bottom) of the drawing area of the k-th row of a column of ``shares`` (pixels,
+    :func:`shot_rows`) in a screenshot of ``size`` (below the key band; without the title bar and
+    the time labels)."""
     from ionav_viz.viz.blueprints import TIME_LABELS_PX, TITLE_BAR_PX, TOP_BAND_PX
 
     views_px = size[1] - TOP_BAND_PX
@@ -374,13 +381,24 @@ def _plot_rows(size, shares, k):
     return int(top + TITLE_BAR_PX), int(bottom - TIME_LABELS_PX)
 
 
+def _no_legend(img, y0, y1):
+    """No legend box in the plot between rows y0 and y1: no bright text inside it (the time cursor,
+    a bright vertical line, aside)."""
+    area = img[y0:y1, 40:]
+    text = (area.min(axis=-1) >= 185) & (np.ptp(area, axis=-1) <= 12)
+    grey = (area.min(axis=-1) >= 140) & (np.ptp(area, axis=-1) <= 12)
+    for c in np.nonzero(grey.mean(axis=0) > 0.3)[0]:  # the time cursor (a grey line) and its bright head
+        text[:, max(c - 8, 0): c + 9] = False
+    return int(text.sum())
+
+
 def test_views_read_on_their_own(recording, tmp_path):
     """At 1600x900: the colour key in the band above the views names the truth and every
     estimator in their colours (the band is not empty), no legend box over the curves, and every
     time plot of the signals and errors columns has at least three labelled y ticks (a yaw rate
     and an acceleration that showed a single '0'). At 1024x576 the key still fits, with every
     colour, above the whole layout."""
-    from ionav_viz.viz.blueprints import SCREENSHOT_ERROR_SHARES, SCREENSHOT_SIGNAL_SHARES, TOP_BAND_PX
+    from ionav_viz.viz.blueprints import TOP_BAND_PX, shot_rows
 
     out = tmp_path / "big"
     proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--time", "end", "--size", "1600x900")
@@ -395,25 +413,46 @@ def test_views_read_on_their_own(recording, tmp_path):
             assert (np.abs(band - np.array(rgb)).max(axis=-1) <= 40).sum() > 15, f"{name} missing from the key"
         assert (band.min(axis=-1) > 180).sum() > 200  # the names, as text
     assert (np.abs(errors[1:TOP_BAND_PX] - np.array(GNSS_COLOR)).max(axis=-1) <= 40).sum() == 0  # the errors draw no truth line
-    for img, shares, rows in ((signals, SCREENSHOT_SIGNAL_SHARES, (1, 2, 3)), (errors, SCREENSHOT_ERROR_SHARES, (0, 1, 2))):
-        for k in rows:
+    rows = shot_rows((1600, 900), 4)
+    assert rows.yaw_crse  # three error plots at 1600x900
+    for img, shares, plots in ((signals, rows.signals, (1, 2, 3)), (errors, rows.errors, (0, 1, 2))):
+        for k in plots:
             y0, y1 = _plot_rows((1600, 900), shares, k)
             labels = _label_runs(img, y0, y1)
             assert len(labels) >= 3, (k, labels)
-            # no legend: no bright text inside the plot (the time cursor, a bright vertical line, aside)
-            area = img[y0:y1, 40:]
-            text = (area.min(axis=-1) >= 185) & (np.ptp(area, axis=-1) <= 12)
-            grey = (area.min(axis=-1) >= 140) & (np.ptp(area, axis=-1) <= 12)
-            for c in np.nonzero(grey.mean(axis=0) > 0.3)[0]:  # the time cursor (a grey line) and its bright head
-                text[:, max(c - 8, 0): c + 9] = False
-            assert text.sum() < 25, (k, int(text.sum()))
+            assert _no_legend(img, y0, y1) < 25, k
+
+
+@pytest.mark.parametrize("size", ["1280x720", "1024x576"])
+@pytest.mark.parametrize("time", ["end", "worst"])
+def test_small_images_label_every_plot(recording, tmp_path, size, time):
+    """Issue 46.1 at 1280x720 and 1024x576: every time plot of the signals and errors columns has
+    at least three labelled y ticks (the acceleration, and at 1024 the error plots, showed a single
+    '0'); a small image leaves out the orientation-rate CRSE rather than draw it too low for them."""
+    from ionav_viz.viz.blueprints import shot_rows
+    from ionav_viz.viz.screenshot import parse_size
+
+    w, h = parse_size(size)
+    out = tmp_path / "shots"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--time", time, "--size", size)
+    assert proc.returncode == 0, proc.stderr
+    rows = shot_rows((w, h), 4)
+    assert not rows.yaw_crse and len(rows.errors) == 3
+    for view, shares, plots in (("signals", rows.signals, (1, 2, 3)), ("errors", rows.errors, (0, 1))):
+        img = _image(out / f"V-sim-sharp-cornering-{view}-{time}.png")
+        assert img.shape[:2] == (h, w)
+        for k in plots:
+            y0, y1 = _plot_rows((w, h), shares, k)
+            labels = _label_runs(img, y0, y1)
+            assert len(labels) >= 3, (view, k, labels)
+            assert _no_legend(img, y0, y1) < 25, (view, k)
 
 
 def test_key_entries_and_y_ranges():
     """What the key names per view (the truth where it is drawn, the markers where they are),
     and y ranges: three ticks a power of ten apart with room for their labels, a flat line
     included; the squeeze-avoiding fallback in a small plot."""
-    from ionav_viz.viz.blueprints import Shot, axis_range, key_for, plot_range
+    from ionav_viz.viz.blueprints import ELLIPSE_KEY_COLOR, TICK_PX, KeyEntry, Shot, axis_range, key_for, plot_range
     from ionav_viz.viz.recording_info import OutageInfo, RecordingInfo
 
     info = RecordingInfo(path=None, drive="d", end_s=100.0, states=[], outages=[], lat_deg=np.zeros(0), lon_deg=np.zeros(0),
@@ -422,25 +461,46 @@ def test_key_entries_and_y_ranges():
     assert texts["all"] == ["GNSS (truth)", "INS DR", "GNSS-aided INS", "gyro, accelerometer", "manoeuvre", "outage start"]
     assert texts["errors"] == ["INS DR", "GNSS-aided INS"] and texts["local"][-2:] == ["manoeuvre", "outage start"]
     assert texts["outage"][-1] == "start fix"
+    # issue 43.4: the 95 % ellipses where the tracks are drawn, once an outage has begun
+    info.ellipses = {"ekf"}
+    info.outages = [OutageInfo(1, 10.0, 20.0, {"ins": 1.0, "ekf": 1.0}, np.zeros((0, 2)), np.zeros(0), np.zeros(0))]
+    for view in ("all", "local", "map", "outage"):
+        assert key_for(info, Shot(view, 50.0, "x"))[-1] == KeyEntry("ellipse", ELLIPSE_KEY_COLOR, "95 % ellipse"), view
+        assert "95 % ellipse" not in [k.text for k in key_for(info, Shot(view, 5.0, "x"))]  # before the first outage
+    for view in ("signals", "errors", "health"):
+        assert "95 % ellipse" not in [k.text for k in key_for(info, Shot(view, 50.0, "x"))]
+    info.outages = []
+    # the filter-health view: its lines in the key (the plot shows no legend), then the grey '1'
+    info.health = [("GNSS-aided INS: GNSS speed", (255, 127, 14)), ("GNSS-aided INS: GNSS course", (44, 160, 44))]
+    health = key_for(info, Shot("health", 50.0, "x"))
+    assert [k.text for k in health[:2]] == ["GNSS-aided INS: GNSS speed", "GNSS-aided INS: GNSS course"]
+    assert health[0].rgb == (255, 127, 14) and health[-1].text.startswith("1: a consistent")
     o = OutageInfo(3, 10.0, 20.0, {"ins": 12.34, "ekf": 1.0}, np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     assert [k.text for k in key_for(info, Shot("outage", 20.0, "outage3", o))][1:3] == ["INS DR 12.3 m", "GNSS-aided INS 1.0 m"]
 
     def ticks(lo, hi, px):
         a, b = axis_range(lo, hi, px)
         step = 10.0 ** np.floor(np.log10((b - a) / 2))  # labelled ticks inside, at the finest step that is
-        for s in (step / 10, step):
+        for s in (step / 10, step, step * 10):
             inside = np.arange(np.ceil(a / s), np.floor(b / s) + 1) * s
-            if px * s / (b - a) >= 20:
+            if px * s / (b - a) >= TICK_PX:
                 return a, b, inside
         return a, b, np.zeros(0)
 
-    for lo, hi, px in [(-0.42, 0.61, 190), (-2.45, 2.55, 114), (0.0, 29.1, 120), (0.0, 0.22, 91), (0.0, 16.5, 100)]:
+    # the plots' heights at 1024x576 (78 and 93 px) and 1280x720 (126 px) included: three labels
+    # whatever the data's span, the data filling as much of the plot as the labels allow
+    for lo, hi, px in [(-0.42, 0.61, 190), (-2.45, 2.55, 114), (0.0, 29.1, 120), (0.0, 0.22, 91), (0.0, 16.5, 100),
+                       (0.0, 7.32, 154), (0.0, 28.6, 93), (0.0, 36.97, 93), (-28.6, 6.44, 93), (-3.53, 3.04, 78),
+                       (-2.45, 2.55, 126), (0.0, 27.6, 78), (-0.02, 0.67, 78), (0.0, 0.06, 154)]:
         a, b, inside = ticks(lo, hi, px)
         assert a <= lo and b >= hi and len(inside) >= 3, (lo, hi, px, a, b, inside)
+        assert (hi - lo) / (b - a) > 0.1, (lo, hi, px)
+    assert ticks(-2.45, 2.55, 130)[1] < 3.5  # where a 1 m/s² step is labelled, the range is not widened to ±10
     flat = plot_range("signals/yaw_rate_radps", 0.0, 0.0, pad=False)
     assert flat == (-0.05, 0.05) and len(ticks(*flat, 150)[2]) >= 3
     assert plot_range("errors/position_error_m", 3.0, 9.0, pad=False)[0] == 0.0  # magnitudes from zero
-    assert axis_range(0.0, 29.1, 58) == pytest.approx((-1.746, 30.846))  # too small for three labels: the data's own range
+    a, b = axis_range(0.0, 29.1, 40)  # too small for three labels: the data's own range, its labels not cut
+    assert a < 0.0 and 29.1 < b < 40.0 and 7 / 40 <= -a / (b - a) < 0.25
 
 
 def test_a_long_key_takes_two_lines_in_the_band(tmp_path):
@@ -462,3 +522,51 @@ def test_a_long_key_takes_two_lines_in_the_band(tmp_path):
     for c in colors:
         assert (np.abs(img[1:TOP_BAND_PX] - np.array(c)).max(axis=-1) <= 30).sum() > 5, c
     assert (img[TOP_BAND_PX + 1:] == blank[TOP_BAND_PX + 1:]).all()
+
+
+def test_the_viewer_names_the_lines_in_a_key_not_in_legends(recording):
+    """Issue 46.1 in the viewer: no time plot of the signals and errors draws a legend over its
+    curves (only the sigma-vs-error and filter-health tabs keep theirs: they name series the key
+    does not); a key above the signals names the truth, every estimator, the sensors and the
+    ellipses by colour; screenshots leave that view out (they draw their own key)."""
+    from rerun.chunk import RrdReader
+
+    from ionav_viz.viz import entities as ent
+    from ionav_viz.viz.blueprints import blueprint
+    from ionav_viz.viz.recording_info import read_recording_info
+    from ionav_viz.viz.style import color_word
+
+    def views(c):
+        for x in c.contents:
+            yield from (views(x) if not hasattr(x, "origin") else [x])
+
+    shown = list(views(blueprint(["INS DR"]).root_container))
+    assert next(v.origin for v in shown if type(v).__name__ == "TextDocumentView") == ent.KEY
+    for v in shown:
+        if type(v).__name__ == "TimeSeriesView" and v.origin not in (ent.UNCERTAINTY, ent.HEALTH):
+            assert "visible=[False]" in str(v.properties.get("PlotLegend")), v.origin
+    texts = [chunk.to_record_batch().column(n).to_pylist()[0] for chunk in RrdReader(recording).stream()
+             if str(chunk.entity_path).strip("/") == ent.KEY for n in chunk.to_record_batch().schema.names if n.endswith(":text")]
+    assert len(texts) == 1
+    key = str(texts[0][0] if isinstance(texts[0], list) else texts[0])
+    info = read_recording_info(recording)
+    for label, rgb in [(info.truth_label, GNSS_COLOR), *info.estimators.values()]:
+        assert f"{label} {color_word(rgb)}" in key, (label, key)
+    assert "accelerometer grey" in key and "95 % ellipses" in key
+
+
+def test_the_health_view_names_its_lines_in_the_key(recording, tmp_path):
+    """Issue 46.1: the filter-health view's legend covered its curves; its lines are named in the
+    key above the view (each filter's kinds of measurement, in their colours), none over the plot."""
+    from ionav_viz.viz.blueprints import TITLE_BAR_PX, TOP_BAND_PX
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    info = read_recording_info(recording)
+    assert info.health  # the GNSS-aided INS's kinds of measurement
+    out = tmp_path / "health.png"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "health", "--time", "end", "--size", "1024x576")
+    assert proc.returncode == 0, proc.stderr
+    img = _image(out)
+    for label, rgb in info.health:
+        assert (np.abs(img[1:TOP_BAND_PX] - np.array(rgb)).max(axis=-1) <= 30).sum() > 5, label
+    assert _no_legend(img, TOP_BAND_PX + TITLE_BAR_PX + 4, 576 - 24) < 25

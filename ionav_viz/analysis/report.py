@@ -335,12 +335,14 @@ def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> 
 
 def overview_markdown(result: DriveResult, report: Report) -> str:
     """The summary's head as Markdown, short enough for a screenshot's summary tab (the
-    recording's ``overview``): the run in a line, each estimator's means, the worst outage."""
+    recording's ``overview``): the run in a line, each estimator's means, the worst outage. The
+    units sit beside the column names, not in brackets: the table fits a 1024-pixel image's
+    summary column."""
     ests = report.estimators
     label = {e.name: e.label for e in result.estimators}
     mean = {e: report.summary[e] for e in ests}
     lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
-             "| mean | final (m) | CRSE (m) | yaw (rad/s) |", "|---|---|---|---|",
+             "| mean | final m | CRSE m | yaw rad/s |", "|---|---|---|---|",
              *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
                f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
     worst = report.worst_outages(1)

@@ -41,6 +41,9 @@ LOCAL_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_SCALE}"]
 LOCAL_FRAMED_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_GRID_SCALE}"]
 
 
+#: The key's ellipse: an outline in a neutral light grey, as each estimator draws its own in its colour.
+ELLIPSE_KEY_COLOR = (200, 200, 200)
+
 #: The local view's name in the recording: what its overview markers are.
 LOCAL_NAME = "Drive: east-north (m); dots: manoeuvres yellow, outage starts grey"
 #: Tab titles, longest first: a screenshot takes the longest variant that fits its column (tabs
@@ -96,24 +99,29 @@ def plot_range(origin: str, lo: float, hi: float, pad: bool = True) -> tuple[flo
 
 
 #: Pixels between two labelled ticks of a time plot's y axis: the plots label a tick a power of ten
-#: apart only with about this much room (fewer pixels: only the coarser ticks get labels).
-TICK_PX = 24
+#: apart only with about this much room (fewer pixels: only the coarser ticks get labels; at 23 px
+#: they are drawn at about half the brightness of the others, 120 of 255, and read well).
+TICK_PX = 23
+#: Pixels above the top tick and below the bottom one: half a label's height, so that it is not cut.
+LABEL_MARGIN_PX = 7
 
 
 def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
     """A y range over ``lo``..``hi`` for a plot ``plot_px`` high, with at least three labelled
     ticks: the plots tick a power of ten apart and label ticks at least :data:`TICK_PX` apart, so
     the step is the finest power of ten that is labelled, and the range is widened to three ticks
-    of it when the data spans fewer. Where that would squeeze the data into less than
-    :data:`MIN_FILL` of the plot (a small plot), the data's own range is kept instead: readable on
-    the faint grid, with fewer labels. A margin of 6 % each way keeps the outer labels drawn."""
+    of it when the data spans fewer. Three labels come first: where only a coarse step is labelled,
+    the data fills less of the plot (the screenshot layout gives the plots the height that keeps
+    this rare, :func:`shot_rows`). A plot too small for three labels at any step (under about
+    2.3 :data:`TICK_PX`) keeps the data's own range. A margin of 6 % each way keeps the outer
+    labels drawn (at least :data:`LABEL_MARGIN_PX`)."""
 
     def framed(a: float, b: float) -> tuple[float, float]:
-        m = 0.06 * (b - a)
+        m = max(0.06, LABEL_MARGIN_PX / max(plot_px - 2 * LABEL_MARGIN_PX, 1.0)) * (b - a)
         return a - m, b + m
 
-    k = math.floor(math.log10(max(hi - lo, 1e-12))) - 1
-    while True:
+    k0 = math.floor(math.log10(max(hi - lo, 1e-12))) - 1
+    for k in range(k0, k0 + 4):  # from a tenth of the data's span to ten times it: coarser gains nothing
         step = 10.0 ** k
         first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
         a, b = lo, hi
@@ -126,15 +134,8 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
                 a, b = min(lo, -step), max(hi, step)
         r0, r1 = framed(a, b)
         if plot_px * step / (r1 - r0) >= TICK_PX:
-            break
-        k += 1
-    if (hi - lo) / (r1 - r0) < MIN_FILL:
-        return framed(lo, hi)
-    return r0, r1
-
-
-#: The least share of a plot's height its data fills (:func:`axis_range`).
-MIN_FILL = 0.35
+            return r0, r1
+    return framed(lo, hi)
 
 
 #: Above the views, the band the viewer keeps for its hidden top panel (screenshots draw the colour
@@ -142,16 +143,52 @@ MIN_FILL = 0.35
 TOP_BAND_PX, TITLE_BAR_PX, TIME_LABELS_PX = 36, 26, 20
 
 
-def plot_heights_px(size: tuple[int, int]) -> dict[str, float]:
+#: A screenshot's rows, in pixels of its views (below the key band): the state timeline keeps its
+#: three lanes, the summary its table and worst outage (a line more per estimator); the time plots
+#: share the rest of their column, each a drawing area at least :data:`MIN_PLOT_PX` high where it can.
+TIMELINE_PX = 166
+MIN_PLOT_PX = 110
+
+
+def summary_px(n_estimators: int, warned: bool = False) -> float:
+    """The summary tab's height in a screenshot: title, heading, table, the worst outage on two
+    lines and, when ``warned``, the line that points to the warnings (measured on renders)."""
+    return 170.0 + 23.0 * n_estimators + (22.0 if warned else 0.0)
+
+
+@dataclass(frozen=True)
+class ShotRows:
+    """The rows (pixels) of a screenshot's signals and errors columns."""
+
+    signals: tuple[float, ...]  # the state timeline, displacement, yaw rate, acceleration
+    errors: tuple[float, ...]  # position error, CRSE/CAE, the orientation-rate CRSE (unless dropped), the summary
+    yaw_crse: bool  # whether the orientation-rate CRSE is drawn
+
+
+def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False) -> ShotRows:
+    """The rows of a screenshot of ``size`` with ``n_estimators`` (:func:`summary_px`): in a small image the error column
+    leaves out its orientation-rate CRSE plot (the summary's table keeps its mean) rather than draw
+    three plots too low for three labelled y ticks."""
+    views = size[1] - TOP_BAND_PX
+    timeline = min(TIMELINE_PX, 0.31 * views)
+    signal = (views - timeline) / 3
+    summary = min(summary_px(n_estimators, warned), 0.5 * views)
+    three = (views - summary) / 3
+    yaw_crse = three - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX
+    plots = 3 if yaw_crse else 2
+    err = (views - summary) / plots
+    return ShotRows((timeline, signal, signal, signal), (err,) * plots + (summary,), yaw_crse)
+
+
+def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False) -> dict[str, float]:
     """The height in pixels of each time plot's drawing area in a screenshot of ``size`` (the
-    review layout and the signals and errors columns share their rows)."""
-    views_px = size[1] - TOP_BAND_PX
-    signals = dict(zip((ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL), SCREENSHOT_SIGNAL_SHARES[1:]))
-    errors = dict(zip((ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("yaw_crse_radps")),
-                      SCREENSHOT_ERROR_SHARES[:3]))
-    errors[ent.error_group("cae_m")] = errors[ent.error_group("crse_m")]
-    out = {o: views_px * share / sum(SCREENSHOT_SIGNAL_SHARES) for o, share in signals.items()}
-    out.update({o: views_px * share / sum(SCREENSHOT_ERROR_SHARES) for o, share in errors.items()})
+    review layout and the signals and errors columns share their rows); a plot the image leaves
+    out is not there."""
+    rows = shot_rows(size, n_estimators, warned)
+    out = {o: rows.signals[1] for o in (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL)}
+    out.update({o: rows.errors[0] for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))})
+    if rows.yaw_crse:
+        out[ent.error_group("yaw_crse_radps")] = rows.errors[2]
     return {o: max(px - TITLE_BAR_PX - TIME_LABELS_PX, 20.0) for o, px in out.items()}
 
 
@@ -162,10 +199,13 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
 
     ranges = y_ranges or {}
 
-    def plot(origin: str, name: str | None = None, legend: bool = False):
+    # No legend on the time plots: Rerun draws it inside the plot, in a corner, where the curves of
+    # a 60 s window pass sooner or later. The key above the signals names every line by its colour
+    # (screenshots draw theirs in the band above the views).
+    def plot(origin: str, name: str | None = None):
         return rrb.TimeSeriesView(origin=origin, name=name or PLOT_NAMES[origin],
                                   axis_y=rrb.ScalarAxis(range=ranges[origin]) if origin in ranges else None,
-                                  plot_legend=None if legend else rrb.PlotLegend(visible=False))
+                                  plot_legend=rrb.PlotLegend(visible=False))
 
     tracks = rrb.Vertical(
         rrb.Spatial2DView(origin=ent.INSPECT, name=INSPECTOR_NAME),
@@ -175,19 +215,18 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
         ),
         row_shares=[3, 2],
     )
-    # Legends where the lines are first met (and the yaw rate's gyro); more would cover the data.
-    # Screenshots hide them all and draw one colour key above the views instead.
     signals = rrb.Vertical(
+        rrb.TextDocumentView(origin=ent.KEY, name="Key", titlebar=False),
         rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
                               name="GNSS, outages, manoeuvres"),
-        plot(ent.DISPLACEMENTS, legend=True),
+        plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
         plot(ent.ACCEL),
         row_shares=list(SIGNAL_ROW_SHARES),
     )
     errors = rrb.Vertical(
         rrb.Tabs(
-            plot(ent.error_group("position_error_m"), legend=True),
+            plot(ent.error_group("position_error_m")),
             rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]),
             rrb.TimeSeriesView(origin=ent.UNCERTAINTY, name=TAB_TITLES[ent.UNCERTAINTY][0]),
             rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]),
@@ -237,15 +276,11 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
     return Framing(zoom, bounds, entities)
 
 
-#: The signal column's rows: the state timeline, displacement, yaw rate, acceleration.
-SIGNAL_ROW_SHARES = (2.8, 3, 3, 2)
-#: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs; in
-#: screenshots of the whole layout the summary gets more, so that it is never cut.
+#: The signal column's rows: the colour key, the state timeline, displacement, yaw rate, acceleration.
+SIGNAL_ROW_SHARES = (1.1, 2.8, 3, 3, 2)
+#: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs
+#: (screenshots: :func:`shot_rows`).
 ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
-SCREENSHOT_ERROR_SHARES = (2.3, 2.3, 2.3, 5.1)
-#: The signal column's rows in screenshots: the acceleration's plot as high as it needs for three
-#: labelled ticks of a few m/s² at 1600x900 (the state timeline keeps room for its three rows).
-SCREENSHOT_SIGNAL_SHARES = (2.6, 2.8, 2.8, 2.8)
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
 #: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
@@ -267,26 +302,26 @@ def plot_window(t_s: float, end_s: float, width_s: float = PLOT_WINDOW_S) -> tup
 
 def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None,
                     t_s: float | None = None, end_s: float | None = None, map_tiles: bool = True,
-                    size: tuple[int, int] | None = None, y_extents: dict[str, tuple[float, float]] | None = None) -> dict[str, Any]:
+                    size: tuple[int, int] | None = None, y_extents: dict[str, tuple[float, float]] | None = None,
+                    n_estimators: int = 4, warned: bool = False) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
     origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
     with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`; without
-    ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place."""
+    ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
+    the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``."""
     frame = frame or Framing()
     bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
     for key, archetype in HIDDEN_PANELS.items():
         bp[key] = {archetype: {**bp.get(key, {}).get(archetype, {}), "state": "Hidden"}}
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
-    heights = plot_heights_px(size) if size is not None else {}
+    heights = plot_heights_px(size, n_estimators, warned) if size is not None else {}
     y_extents = y_extents or {}
     for key, vb in views.items():
         if vb.get("class_identifier") != "TimeSeries":
             continue
         origin = vb.get("space_origin", "").strip("/")
-        # the image's colour key names every line (screenshot.draw_key): no legend over the curves; the
-        # filter health's series (each filter's kinds of measurement) are named by its own legend
-        visible = origin == ent.HEALTH and view == "health"
-        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}), "visible": visible}}
+        # the image's colour key names every line (screenshot.draw_key): no legend over the curves
+        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}), "visible": False}}
         if origin in heights and origin in y_extents:  # ticks for this plot's height, over what it shows
             y = bp.get(key + "/ScalarAxis", {}).get("ScalarAxis", {})
             bp[key + "/ScalarAxis"] = {"ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
@@ -323,13 +358,26 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             x0, x1, y0, y1 = frame.local_bounds
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
-    # the columns' rows in screenshots: room for the whole summary, and for the acceleration's ticks
-    for origin, shares in ((ent.OVERVIEW, SCREENSHOT_ERROR_SHARES), (ent.ACCEL, SCREENSHOT_SIGNAL_SHARES)):
+    # the image's own colour key (screenshot.draw_key) takes the place of the viewer's key view
+    key_view = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == ent.KEY), None)
+    if key_view is not None:
+        _remove(bp, key_view)
+        views.pop(key_view)
+    # the columns' rows in screenshots (pixels): the timeline's lanes, the whole summary, and the
+    # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE
+    rows = shot_rows(size or (1600, 900), n_estimators, warned)
+    if not rows.yaw_crse:
+        yaw_key = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == ent.error_group("yaw_crse_radps")), None)
+        if yaw_key is not None:
+            _remove(bp, yaw_key)
+            views.pop(yaw_key)
+    for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.ACCEL, rows.signals)):
         held = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == origin), None)
         for value in bp.values():
             container = value.get("ContainerBlueprint", {})
-            rows = [c.lstrip("/") for c in container.get("contents", [])]
-            if held is not None and len(container.get("row_shares") or []) == len(shares) and any(_holds(bp, "/" + c, held) for c in rows):
+            inside = [c.lstrip("/") for c in container.get("contents", [])]
+            if (held is not None and container.get("container_kind") == "Vertical" and len(inside) == len(shares)
+                    and any(_holds(bp, "/" + c, held) for c in inside)):
                 container["row_shares"] = list(shares)
     if view == "all":
         return bp
@@ -359,6 +407,19 @@ def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
     if key.lstrip("/") == view_key.lstrip("/"):
         return True
     return any(_holds(bp, "/" + c.lstrip("/"), view_key) for c in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []))
+
+
+def _remove(bp: dict[str, Any], view_key: str) -> None:
+    """Take the view ``view_key`` out of its container (its rows' shares are set again after) and
+    out of the blueprint."""
+    for value in bp.values():
+        container = value.get("ContainerBlueprint")
+        if container and view_key.lstrip("/") in [c.lstrip("/") for c in container.get("contents", [])]:
+            container["contents"] = [c for c in container["contents"] if c.lstrip("/") != view_key.lstrip("/")]
+            container.pop("row_shares", None)
+            if (container.get("active_tab") or "").lstrip("/") == view_key.lstrip("/"):
+                container["active_tab"] = container["contents"][0] if container["contents"] else None
+    _drop(bp, view_key)
 
 
 def _drop(bp: dict[str, Any], key: str) -> None:
@@ -454,7 +515,7 @@ def ordered_estimators(info: RecordingInfo) -> list[tuple[str, tuple[str, tuple[
 class KeyEntry:
     """One item of a screenshot's colour key: a line or a dot of a colour, and what it is."""
 
-    mark: str  # "line" or "dot"
+    mark: str  # "line", "dot" or "ellipse" (an outline)
     rgb: tuple[int, int, int]
     text: str
 
@@ -463,12 +524,14 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     """The colour key of a screenshot: every track or curve the shot draws, the truth first, with
     each estimator's final error when the shot frames an outage; the overview's markers where the
     shot shows them (the local view and map: manoeuvres and outage starts; the inspector: the
-    outage's start fix); the sensors' grey lines where the signals are shown."""
+    outage's start fix); the sensors' grey lines where the signals are shown; the estimators' 95 %
+    position ellipses where the tracks are shown and the recording draws them."""
     from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR
 
     view = shot.view
-    if view == "health":  # per filter and kind of measurement: the plot's legend names them
-        return [KeyEntry("line", (90, 90, 90), "1: a consistent filter's mean NIS; crosses: fixes its gate left out")]
+    if view == "health":  # per filter and kind of measurement
+        return [KeyEntry("line", rgb, label) for label, rgb in info.health] + [
+            KeyEntry("line", (90, 90, 90), "1: a consistent filter's mean NIS; crosses: fixes its gate left out")]
     keys = [] if view == "errors" else [KeyEntry("line", GNSS_COLOR, info.truth_label)]
     for name, (label, rgb) in ordered_estimators(info):
         final = shot.outage.final_error_m.get(name) if shot.outage is not None else None
@@ -479,6 +542,9 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
         keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, "outage start")]
     if view == "outage":
         keys.append(KeyEntry("dot", OUTAGE_MARK_COLOR, "start fix"))
+    # the estimators' 95 % ellipses (in their colours) around their positions, once an outage has begun
+    if view in ("all", "local", "map", "outage") and info.ellipses and (shot.outage or _outage_before(info, shot.t_s)):
+        keys.append(KeyEntry("ellipse", ELLIPSE_KEY_COLOR, "95 % ellipse"))
     return keys
 
 

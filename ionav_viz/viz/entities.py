@@ -31,6 +31,8 @@ SUMMARY = "summary"
 OVERVIEW = "overview"
 #: The run's report as ``evaluate --json`` prints it (plain text), for ``ionav-viz figures``.
 REPORT = "report"
+#: Markdown: which colour is which line, above the signals in the viewer (the plots show no legend).
+KEY = "key"
 ACCEL = "signals/accel_long_mps2"
 SPEED = "signals/speed_mps"
 YAW_RATES = "signals/yaw_rate_radps"
@@ -235,7 +237,7 @@ PATTERNS = (
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),
     *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),
-    EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT,
+    EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT, KEY,
     DRIFT_AXES, DRIFT_TICKS, drift_mean("<est>"), drift_band("<est>"), drift_current("<est>"),
     f"{HEALTH}/<est>/nis/<kind>", f"{HEALTH}/<est>/gated/<kind>", HEALTH_EXPECTED,
     *(ellipse(v, "<est>") for v in (*VIEWS_2D, INSPECT)), uncertainty_error("<est>"), uncertainty_radius("<est>"),

@@ -32,7 +32,7 @@ from .columns import with_breaks
 from .geometry import map_zoom, screen_xy
 from .health import log_health
 from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
-from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, estimator_colors, faded
+from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, color_word, estimator_colors, faded
 from .uncertainty import log_uncertainty, log_uncertainty_styles
 
 APP_ID = "ionav-viz"
@@ -119,9 +119,24 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
     return out
 
 
+def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> str:
+    """Which colour is which line, in words (the viewer's ``key`` above the signals; its plots
+    show no legend): the truth, each estimator (the baseline first), the sensors and, where an
+    estimator gives a covariance, its 95 % ellipses."""
+    from ..nav.registry import BASELINE
+
+    names = sorted(result.estimates, key=lambda n: (n != BASELINE, labels[n]))
+    items = [f"{labels[n]} {color_word(colors[n])}" for n in ("gnss", *names)] + [f"{GYRO_LABEL}, accelerometer grey"]
+    if any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
+        items.append("outlines: 95 % ellipses")
+    return " · ".join(items) + "\n"
+
+
 def log_result(rec, result: DriveResult, summary_md: str, progress=None, events: list | None = None) -> dict[str, int]:
     """Log everything about ``result`` to the recording stream ``rec`` (any sink: memory, a viewer,
     a server). Returns row counts per entity."""
+    import rerun as rr
+
     drive = result.drive
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
@@ -149,6 +164,8 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     labels = {**{e.name: e.label for e in result.estimators}, "gnss": REFERENCE_LABEL if drive.has_reference else GNSS_LABEL,
               "gyro": GYRO_LABEL}
     _log_series_styles(rec, list(result.estimates), colors, labels)
+    rec.log(ent.KEY, rr.TextDocument(key_markdown(result, colors, labels), media_type=rr.MediaType.MARKDOWN), static=True)
+    rows[ent.KEY] = 1
     _log_static_layers(layers, drive, summary_md)
     step("static layers")
     _log_signals(layers, drive)

@@ -58,6 +58,9 @@ class RecordingInfo:
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
     truth_label: str = GNSS_LABEL  # what the green track is: the GNSS fixes, or a reference beside them
     plots: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # time plot origin -> (t s, value), every line
+    ellipses: set[str] = field(default_factory=set)  # the estimators whose 95 % ellipses are drawn
+    warned: bool = False  # whether the summary tab lists warnings (a line more)
+    health: list[tuple[str, tuple[int, int, int]]] = field(default_factory=list)  # the filter-health lines (label, colour)
 
     def y_extent(self, origin: str, t0_s: float, t1_s: float) -> tuple[float, float] | None:
         """The least and greatest value the time plot ``origin`` draws between ``t0_s`` and
@@ -161,7 +164,8 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     outages = _outages(spans, scan.errors, scan.drawn)
     ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
     plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])) for o, parts in scan.plots.items()}
-    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots)
+    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots,
+                         scan.ellipses, scan.warned, list(scan.health.values()))
 
 
 def _unreadable(path: Path, exc: Exception) -> InputError:
@@ -204,6 +208,9 @@ class _Scan:
     plots: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # plot origin -> (t, value) per chunk
     errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # position error (t, m) per chunk
     drawn: dict[str, _Rows] = field(default_factory=dict)  # each outage frame's rows
+    ellipses: set[str] = field(default_factory=set)
+    warned: bool = False
+    health: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # NIS line entity -> (label, colour)
 
     def add(self, path: Path, chunk, entity: str) -> None:
         """One chunk's share (``entity``: its path)."""
@@ -222,8 +229,18 @@ class _Scan:
                     values = [v for v in batch.column(n).to_pylist() if v]
                     self.drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else self.drive
             return
+        if chunk.is_static and entity.strip("/").startswith(ent.HEALTH + "/") and "/nis/" in entity:
+            self.health[entity] = _series_style(batch)
+            return
+        if chunk.is_static and entity.strip("/") == ent.OVERVIEW:
+            text = next((batch.column(n).to_pylist() for n in names if n.endswith(":text")), [])
+            self.warned = any("warning(s)" in str(t) for t in text)
+            return
         if chunk.is_static or "time" not in names:
             return
+        parts = entity.strip("/").split("/")
+        if len(parts) == 3 and parts[2] == "ellipse" and parts[0] in (ent.LOCAL, ent.INSPECT, ent.MAP):
+            self.ellipses.add(parts[1])
         times = _times_of(batch)
         if len(times):
             self.end_s = max(self.end_s, float(times.max()))

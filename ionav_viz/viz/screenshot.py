@@ -50,8 +50,9 @@ BACKGROUND_RGB, KEY_TEXT_RGB = (13, 13, 13), (225, 225, 225)
 
 
 def key_head(shot: Shot) -> str:
-    """What the key's values are, before its entries: the framed outage's final errors."""
-    return f"outage {shot.outage.number}, final error:" if shot.outage is not None else ""
+    """What the key's values are, before its entries: the framed outage's final errors (the
+    filter-health view's key names its lines only)."""
+    return f"outage {shot.outage.number}, final error:" if shot.outage is not None and shot.view != "health" else ""
 
 
 def band_height(img) -> int:
@@ -88,6 +89,9 @@ def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
             if k.mark == "dot":
                 r = font.size * 0.32
                 draw.ellipse([x + swatch / 2 - r, mid - r, x + swatch / 2 + r, mid + r], fill=k.rgb)
+            elif k.mark == "ellipse":
+                rx, ry = swatch / 2, font.size * 0.4
+                draw.ellipse([x, mid - ry, x + 2 * rx, mid + ry], outline=k.rgb, width=max(1, round(font.size / 8)))
             else:
                 draw.line([x, mid, x + swatch, mid], fill=k.rgb, width=max(2, round(font.size / 5)))
             draw.text((x + swatch + 5, y), k.text, fill=KEY_TEXT_RGB, font=font)
@@ -211,7 +215,7 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
                 try:
                     layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
                                              t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles, size=size,
-                                             y_extents=extents)
+                                             y_extents=extents, n_estimators=len(info.estimators), warned=info.warned)
                 except InputError as exc:
                     raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
                 keys, head = key_for(info, shot), key_head(shot)
