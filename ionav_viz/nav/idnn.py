@@ -504,8 +504,7 @@ class IdnnEstimator:
         if len(starts) == 0:
             return
         t0 = inputs.windows.t0_s[starts]
-        intervals = np.column_stack([t0 - WINDOW_S, t0 + inputs.n_windows * WINDOW_S])  # the window before feeds the first input
-        inside = trained_outages(model.metadata, inputs.drive, intervals)
+        inside = np.flatnonzero(outages_in_training(model, inputs.drive, inputs.windows, starts, inputs.n_windows)).tolist()
         if not inside:
             return
         listed = ", ".join(f"{t0[i]:g}-{t0[i] + inputs.n_windows * WINDOW_S:g} s" for i in inside[:20]) + (" ..." if len(inside) > 20 else "")
@@ -515,6 +514,18 @@ class IdnnEstimator:
             raise InputError(text, "evaluate on drives or spans the model never saw (--span), or leave out --strict to score them anyway",
                              param="strict")
         log.warning("%s; their IDNN scores flatter the model", text)
+
+
+def outages_in_training(model: IdnnModel, drive: Any, windows: Windows, starts: np.ndarray, n_windows: int) -> np.ndarray:
+    """Per outage (``starts``: first window indices), whether it lies in data ``model`` (or its
+    parent) was trained on: the same file by sha256 and overlapping time, the window before the
+    outage included (it feeds the first input; :func:`ionav_viz.nav.provenance.trained_outages`)."""
+    starts = np.asarray(starts, dtype=int)
+    hit = np.zeros(len(starts), dtype=bool)
+    if len(starts):
+        t0 = windows.t0_s[starts]
+        hit[trained_outages(model.metadata, drive, np.column_stack([t0 - WINDOW_S, t0 + n_windows * WINDOW_S]))] = True
+    return hit
 
 
 def default_model_dir() -> Path:
