@@ -71,6 +71,7 @@ log = logging.getLogger("ionav_viz")
 ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
 INPUTS = ("plain", "calibrated")
 LR_SCHEDULES = ("tail", "cosine")
+KEEP_CHOICES = ("last", "best", "last-or-start")
 FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 #: The optional uncertainty model's file (:class:`Uncertainty`); metadata.json's ``uncertainty`` names it.
@@ -97,6 +98,10 @@ class ModelConfig:
     inputs: str = "calibrated"  # the ekf's calibration at the outage start (the shipped model's); "plain": the paper's standstill biases
     seed: int = 0
     lr_schedule: str = "tail"  # "tail": constant, then linear to 0 over lr_decay_tail; "cosine": cosine to 0 throughout (fine-tuning)
+    validation_tail: float = 0.0  # 0: a seeded random 10 % of the windows is the validation set; > 0: the last fraction of each drive, by time
+    keep: str = "last"  # which weights each network ends with: "last" epoch's; "best" epoch's on validation; "last-or-start": the last unless the start (a parent's) is better on validation
+    anchor: float = 0.0  # fine-tuning: loss + anchor * mean squared distance of the weights from the parent's (L2-SP)
+    validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -125,13 +130,17 @@ class ModelConfig:
             raise InputError(f"unknown learning-rate schedule {self.lr_schedule!r}", f"choose one of {', '.join(LR_SCHEDULES)}", param="lr_schedule")
         if not isinstance(self.residual, bool):
             raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
+        if self.keep not in KEEP_CHOICES:
+            raise InputError(f"unknown keep {self.keep!r}", f"choose one of {', '.join(KEEP_CHOICES)}", param="keep")
 
 
 #: Ranges of the integer and real hyperparameters (checked by :meth:`ModelConfig.validate`).
 _INT_LIMITS = {"n_steps_disp": (1, 20), "n_steps_yaw": (1, 20), "hidden": (1, 1024), "batch_size": (1, 65536),
-               "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1)}
+               "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1),
+               "validation_outage_s": (0, 600)}
 _FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0), "lr_yaw": (1e-9, 10.0),
-                 "lr_decay_tail": (0.0, 1.0)}
+                 "lr_decay_tail": (0.0, 1.0), "validation_tail": (0.0, 0.9),
+                 "anchor": (0.0, 1e6)}
 #: Largest weights file read (bytes): the biggest network of the allowed sizes is far smaller.
 MAX_WEIGHTS_BYTES = 256 * 2**20
 
