@@ -106,6 +106,7 @@ def test_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_p
     lines = [r.getMessage() for r in caplog.records if "did not beat the parent" in r.getMessage()]
     assert len(lines) == 2 and all("\n" not in line for line in lines)
     assert meta["validation"]["note"].startswith("one-window predictions on the last 20% of each drive")
+    assert meta["epoch_selection"]["displacement"]["validation"].startswith("displacement CRSE (m, mean) of 5 s outages")
 
 
 def test_a_fine_tuned_model_records_which_weights_it_kept(tmp_path):
