@@ -82,6 +82,35 @@ def command_line() -> str:
     return " ".join(["python", str(script), *sys.argv[1:]])
 
 
+#: docs/results.md's "Your own vehicle" section lies between these lines: benchmarks/own_vehicle.py
+#: writes it (:func:`replace_section`), and this script keeps it when it writes the page again.
+OWN_VEHICLE_BEGIN = "<!-- section written by benchmarks/own_vehicle.py --write: run it again, do not edit by hand -->"
+OWN_VEHICLE_END = "<!-- end of the section written by benchmarks/own_vehicle.py -->"
+
+
+def kept_section(path: Path, begin: str = OWN_VEHICLE_BEGIN, end: str = OWN_VEHICLE_END) -> str:
+    """The section of ``path`` from the ``begin`` line to the ``end`` line (both included), "" when none."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError:
+        return ""
+    a, b = text.find(begin), text.find(end)
+    return text[a : b + len(end)] + "\n" if 0 <= a < b else ""
+
+
+def replace_section(path: Path, section: str, begin: str = OWN_VEHICLE_BEGIN, end: str = OWN_VEHICLE_END) -> None:
+    """Put ``section`` (Markdown, without the marker lines) between ``begin`` and ``end`` in ``path``,
+    replacing what lay there, or at the end of the file when it has none (atomically)."""
+    text = Path(path).read_text(encoding="utf-8")
+    block = f"{begin}\n\n{section.strip()}\n\n{end}\n"
+    a, b = text.find(begin), text.find(end)
+    if 0 <= a < b:
+        text = text[:a] + block + text[b + len(end):].lstrip("\n")
+    else:
+        text = text.rstrip("\n") + "\n\n" + block
+    write_atomically(Path(path), text)
+
+
 def write_atomically(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` under a temporary name beside it and rename it when complete."""
     path = Path(path)
@@ -342,7 +371,9 @@ def main() -> None:
     if args.write is None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths), end="")
     else:
-        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, args.real_logs))
+        kept = kept_section(args.write)  # the own-vehicle section, written by benchmarks/own_vehicle.py
+        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, args.real_logs)
+                         + ("\n" + kept if kept else ""))
         print(args.write)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import hashlib
 import json
 
@@ -56,6 +57,28 @@ def test_outages_in_training_data_are_listed_and_refused_with_strict(tuned):
     assert held_out.returncode == 0 and "was trained on" not in held_out.stderr
     strict = run_cli("evaluate", str(DRIVE), "--span", "0s:200s", "--model", str(tuned), "--estimators", "ins,idnn", "--strict")
     assert strict.returncode == 2 and _error_lines(strict.stderr)[0].startswith("error: --strict:")
+
+
+def test_each_outage_says_whether_it_lies_in_training_data(tuned, tmp_path):
+    proc = run_cli("evaluate", str(DRIVE), "--span", "0s:200s", "--warm-up", "0s", "--model", str(tuned), "--estimators", "ins,idnn", "--json",
+                   "--export", str(tmp_path / "out"))
+    assert proc.returncode == 0, proc.stderr
+    sequences = json.loads(proc.stdout)["sequences"]
+    flagged = {s["start_s"]: s["in_training"] for s in sequences}
+    # trained on 0-120 s: the 111-121 s outage (its window before from 110 s) is inside, 121-131 s is not (it only touches 120 s)
+    assert flagged[111.0] is True and flagged[121.0] is False and flagged[1.0] is True
+    assert sum(flagged.values()) == 12 and len(flagged) == 19
+    rows = list(csv.DictReader((tmp_path / "out" / "outages.csv").open()))
+    by_start = {(r["start_s"], r["estimator"]): r["in_training"] for r in rows}
+    assert by_start[("111.000", "idnn")] == by_start[("111.000", "ins")] == "1"
+    assert by_start[("121.000", "idnn")] == by_start[("121.000", "ins")] == "0"
+
+
+def test_without_the_idnn_no_outage_is_said_to_be_in_training(tmp_path):
+    proc = run_cli("evaluate", str(DRIVE), "--span", "0s:60s", "--estimators", "ins", "--json", "--export", str(tmp_path / "out"))
+    assert proc.returncode == 0, proc.stderr
+    assert all("in_training" not in s for s in json.loads(proc.stdout)["sequences"])
+    assert {r["in_training"] for r in csv.DictReader((tmp_path / "out" / "outages.csv").open())} == {""}
 
 
 def test_a_model_of_another_imu_rate_is_refused_in_one_line(tuned, tmp_path):

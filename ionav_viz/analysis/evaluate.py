@@ -106,6 +106,21 @@ class DriveResult:
         """Start time of each outage (s since the drive's first sample)."""
         return self.windows.t0_s[self.starts]
 
+    @property
+    def in_training(self) -> np.ndarray | None:
+        """Per outage, whether it lies in data the IDNN's model (or its parent) was trained on (the
+        same file by sha256, overlapping time; :func:`ionav_viz.nav.idnn.outages_in_training`), or
+        None when no IDNN ran: its scores there flatter the model."""
+        from ..nav.idnn import IdnnEstimator, outages_in_training
+
+        models = [e.model for e in self.estimators if isinstance(e, IdnnEstimator)]
+        if not models:
+            return None
+        hit = np.zeros(len(self.starts), dtype=bool)
+        for model in models:
+            hit |= outages_in_training(model, self.drive, self.windows, self.starts, self.n_windows)
+        return hit
+
     def estimator_info(self) -> list[dict[str, Any]]:
         """Name, label, its own colour (RGB, when it has one) and description of every estimator (for reports)."""
         return [{"name": e.name, "label": e.label, **({"color": list(color)} if (color := color_of(e)) else {}),

@@ -38,8 +38,10 @@ from .metrics import METRICS, truth_boundaries
 #: The columns of ``outages.csv``: keys, then every metric (their names carry their units).
 #: ``final_nees`` and ``final_inside_95``: for an estimator that gives a position covariance, its
 #: final error's NEES (2 degrees of freedom) and whether it lies inside the 95 % ellipse (:mod:`.consistency`).
+#: ``in_training``: 1 when the outage lies in data the IDNN's model (or its parent) was trained on
+#: (same file by sha256, overlapping time), 0 when not, empty when no IDNN ran.
 OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS,
-                  "final_nees", "final_inside_95")
+                  "final_nees", "final_inside_95", "in_training")
 
 
 def export_results(results: list[Any], folder: str | Path) -> list[Path]:
@@ -125,14 +127,17 @@ def _outages_csv(results: list[Any]) -> str:
     for res in results:
         distance = res.gnss_distance_m
         nees = {est.name: outage_nees(res, est.name) for est in res.estimators}
+        trained = res.in_training
         for i, k in enumerate(res.starts):
             t0 = float(res.windows.t0_s[k])
+            in_training = "" if trained is None else str(int(trained[i]))
             for est in res.estimators:
                 m = res.metrics[est.name]
                 final = nees[est.name][0][i, -1] if nees[est.name] is not None else math.nan
                 inside = "" if not math.isfinite(final) else str(int(final <= CHI2_2_95))
                 writer.writerow([res.drive.name, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}", f"{float(res.drive.stamp_s(t0)):.6f}",
-                                 est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS), _number(final), inside])
+                                 est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS), _number(final), inside,
+                                 in_training])
     return out.getvalue()
 
 

@@ -144,8 +144,9 @@ class Report:
         """The ``evaluate --json`` object.
 
         Keys: ``drive`` (names joined with '+'), ``drives``, ``outage_s``, ``n_sequences``,
-        ``sequences`` (each: ``drive``, ``start_s``, ``gnss_distance_m`` and per estimator the
-        :data:`METRICS`), ``summary`` (per estimator and metric: ``max``, ``min``, ``mean``, ``std``),
+        ``sequences`` (each: ``drive``, ``start_s``, ``gnss_distance_m``, when the IDNN ran
+        ``in_training`` (whether the outage lies in data its model or the model's parent was trained
+        on: same file by sha256, overlapping time), and per estimator the :data:`METRICS`), ``summary`` (per estimator and metric: ``max``, ``min``, ``mean``, ``std``),
         ``distance_m`` (max/min/mean of the outages' GNSS distance), ``bias`` (per drive),
         ``estimators`` (name, label, info), ``improvement_pct`` (per estimator other than the INS
         DR, on the mean of CRSE, orientation-rate CRSE and final position error), ``gnss_truth``
@@ -177,12 +178,15 @@ class Report:
         sequences = []
         for res in results:
             dist = res.gnss_distance_m
+            trained = res.in_training
             for i, k in enumerate(res.starts):
                 entry: dict[str, Any] = {
                     "drive": res.drive.name,
                     "start_s": round(float(res.windows.t0_s[k]), 3),
                     "gnss_distance_m": float(dist[i]),
                 }
+                if trained is not None:
+                    entry["in_training"] = bool(trained[i])
                 for est in estimators:
                     entry[est] = {m: float(res.metrics[est][m][i]) for m in METRICS}
                 sequences.append(entry)

@@ -73,6 +73,7 @@ log = logging.getLogger("ionav_viz")
 ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
 INPUTS = ("plain", "calibrated")
 LR_SCHEDULES = ("tail", "cosine")
+KEEP_CHOICES = ("last", "best", "last-or-start")
 FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 #: The optional uncertainty model's file (:class:`Uncertainty`); metadata.json's ``uncertainty`` names it.
@@ -99,6 +100,10 @@ class ModelConfig:
     inputs: str = "calibrated"  # the ekf's calibration at the outage start (the shipped model's); "plain": the paper's standstill biases
     seed: int = 0
     lr_schedule: str = "tail"  # "tail": constant, then linear to 0 over lr_decay_tail; "cosine": cosine to 0 throughout (fine-tuning)
+    validation_tail: float = 0.0  # 0: a seeded random 10 % of the windows is the validation set; > 0: the last fraction of each drive, by time
+    keep: str = "last"  # which weights each network ends with: "last" epoch's; "best" epoch's on validation; "last-or-start": the last unless the start (a parent's) is better on validation
+    anchor: float = 0.0  # fine-tuning: loss + anchor * mean squared distance of the weights from the parent's (L2-SP)
+    validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -127,13 +132,17 @@ class ModelConfig:
             raise InputError(f"unknown learning-rate schedule {self.lr_schedule!r}", f"choose one of {', '.join(LR_SCHEDULES)}", param="lr_schedule")
         if not isinstance(self.residual, bool):
             raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
+        if self.keep not in KEEP_CHOICES:
+            raise InputError(f"unknown keep {self.keep!r}", f"choose one of {', '.join(KEEP_CHOICES)}", param="keep")
 
 
 #: Ranges of the integer and real hyperparameters (checked by :meth:`ModelConfig.validate`).
 _INT_LIMITS = {"n_steps_disp": (1, 20), "n_steps_yaw": (1, 20), "hidden": (1, 1024), "batch_size": (1, 65536),
-               "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1)}
+               "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1),
+               "validation_outage_s": (0, 600)}
 _FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0), "lr_yaw": (1e-9, 10.0),
-                 "lr_decay_tail": (0.0, 1.0)}
+                 "lr_decay_tail": (0.0, 1.0), "validation_tail": (0.0, 0.9),
+                 "anchor": (0.0, 1e6)}
 #: Largest weights file read (bytes): the biggest network of the allowed sizes is far smaller.
 MAX_WEIGHTS_BYTES = 256 * 2**20
 
@@ -525,8 +534,7 @@ class IdnnEstimator:
         if len(starts) == 0:
             return
         t0 = inputs.windows.t0_s[starts]
-        intervals = np.column_stack([t0 - WINDOW_S, t0 + inputs.n_windows * WINDOW_S])  # the window before feeds the first input
-        inside = trained_outages(model.metadata, inputs.drive, intervals)
+        inside = np.flatnonzero(outages_in_training(model, inputs.drive, inputs.windows, starts, inputs.n_windows)).tolist()
         if not inside:
             return
         listed = ", ".join(f"{t0[i]:g}-{t0[i] + inputs.n_windows * WINDOW_S:g} s" for i in inside[:20]) + (" ..." if len(inside) > 20 else "")
@@ -536,6 +544,18 @@ class IdnnEstimator:
             raise InputError(text, "evaluate on drives or spans the model never saw (--span), or leave out --strict to score them anyway",
                              param="strict")
         log.warning("%s; their IDNN scores flatter the model", text)
+
+
+def outages_in_training(model: IdnnModel, drive: Any, windows: Windows, starts: np.ndarray, n_windows: int) -> np.ndarray:
+    """Per outage (``starts``: first window indices), whether it lies in data ``model`` (or its
+    parent) was trained on: the same file by sha256 and overlapping time, the window before the
+    outage included (it feeds the first input; :func:`ionav_viz.nav.provenance.trained_outages`)."""
+    starts = np.asarray(starts, dtype=int)
+    hit = np.zeros(len(starts), dtype=bool)
+    if len(starts):
+        t0 = windows.t0_s[starts]
+        hit[trained_outages(model.metadata, drive, np.column_stack([t0 - WINDOW_S, t0 + n_windows * WINDOW_S]))] = True
+    return hit
 
 
 def default_model_dir() -> Path:
