@@ -570,3 +570,29 @@ def test_the_health_view_names_its_lines_in_the_key(recording, tmp_path):
     for label, rgb in info.health:
         assert (np.abs(img[1:TOP_BAND_PX] - np.array(rgb)).max(axis=-1) <= 30).sum() > 5, label
     assert _no_legend(img, TOP_BAND_PX + TITLE_BAR_PX + 4, 576 - 24) < 25
+
+
+def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
+    """Issue 46.1 (no clipped titles): the error column's four tabs need about 400 px at their
+    shortest titles ("Error (m)", "Drift", "Sigma", "NIS": 22 characters at 6.3 px, 36 px a tab and
+    100 px of buttons); at 1024 px the column has about 300, so an image keeps only the active tab;
+    at 1600 (about 470 px) all four stay, as does the two-tab CRSE/CAE bar at every size."""
+    from ionav_viz.viz import entities as ent
+    from ionav_viz.viz.blueprints import focus_blueprint
+
+    four = [ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH]
+    views = {f"/view/t{i}": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": o}} for i, o in enumerate(four)}
+    bp = {
+        "/viewport": {"ViewportBlueprint": {"root_container": "/container/root"}},
+        "/container/root": {"ContainerBlueprint": {"container_kind": "Vertical", "contents": ["/container/tabs", "/container/two"]}},
+        "/container/tabs": {"ContainerBlueprint": {"container_kind": "Tabs", "contents": list(views), "active_tab": "/view/t0"}},
+        "/container/two": {"ContainerBlueprint": {"container_kind": "Tabs", "contents": ["/view/crse", "/view/cae"], "active_tab": "/view/crse"}},
+        "/view/crse": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.error_group("crse_m")}},
+        "/view/cae": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.error_group("cae_m")}},
+        **views,
+    }
+    small = focus_blueprint(bp, "all", {}, size=(1024, 576))
+    assert small["/container/tabs"]["ContainerBlueprint"]["contents"] == ["/view/t0"] and "/view/t3" not in small
+    assert len(small["/container/two"]["ContainerBlueprint"]["contents"]) == 2
+    large = focus_blueprint(bp, "all", {}, size=(1600, 900))
+    assert large["/container/tabs"]["ContainerBlueprint"]["contents"] == list(views)
