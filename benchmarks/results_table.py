@@ -14,9 +14,10 @@ range the training drives were drawn from; ``ionav_viz.sim.simulate.FLEETS``). T
 6-axis logs (:mod:`ionav_viz.sim.imu`, written as MCAP and read back like a user's log, the mount
 estimated and applied, scored against the reference on ``/truth/fix``): a phone at 10 Hz in
 town (IMU only), a roof MEMS IMU at 100 Hz on hilly roads (grade 6 % rms; IMU only: its CAN speed
-left out) and the same car on the motorway with its CAN speed. ``ionav-viz simulate SCENARIO --imu
-phone --seed SEED --duration 10m -o FILE.mcap`` writes one (the hilly set uses a steeper grade
-than the CLI's).
+left out), the same car on the motorway with its CAN speed, and a dash device on the motorway (IMU
+only; the phone and dash grades measured against public real logs: docs/real-imu-logs.md).
+``ionav-viz simulate SCENARIO --imu phone --seed SEED --duration 10m -o FILE.mcap`` writes one (the
+hilly set uses a steeper grade than the CLI's).
 
 Outages tile each drive. Each cell is a mean over the outages of a set of drives: the final position
 error as a percentage of the distance driven in the outage, and the displacement CRSE (m).
@@ -50,6 +51,7 @@ IMU_SETS = (
     ("phone-urban", "phone IMU 10 Hz, urban", "phone", None, True, ("roundabout", "sharp-cornering", "hard-brake"), 900),
     ("mems-hills", "roof MEMS IMU 100 Hz, hills", "mems", 0.06, True, ("quick-accel", "roundabout", "hard-brake"), 910),
     ("highway-can", "highway, with CAN speed", "mems", None, False, ("motorway", "motorway"), 920),
+    ("dash-highway", "dash device IMU 104 Hz, highway", "dash", None, True, ("motorway", "motorway"), 940),
 )
 ESTIMATORS = ("ins", "idnn", "odo", "ekf", "gins")
 
@@ -280,10 +282,10 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         f"{model_text}); do not edit by hand, run the command again.",
         "",
         "Every built-in estimator on GNSS outages of " + ", ".join(f"{x:g}" for x in lengths) + " s tiling each drive after a 30 s warm-up, on "
-        "synthetic drives of five kinds: the **bundled** test drive of each scenario (`ionav-viz evaluate SCENARIO`); "
+        f"synthetic drives of {2 + len(IMU_SETS)} kinds: the **bundled** test drive of each scenario (`ionav-viz evaluate SCENARIO`); "
         "**held-out** drives, one per scenario from a car of the simulator's held-out fleet, whose sensor and vehicle errors "
         f"all lie outside the ranges of the training drives (`ionav-viz simulate SCENARIO --fleet held-out --seed SEED "
-        f"--duration {minutes:g}m -o FILE.csv`, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}); and three sets of "
+        f"--duration {minutes:g}m -o FILE.csv`, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}); and {len(IMU_SETS)} sets of "
         "**6-axis logs** as users record them, written as MCAP by the 6-axis simulator and read back like a user's log "
         "(`--imu-mount auto`: the IMU's mount estimated and applied; the receiver's fixes given to the estimators, the reference on "
         "`/truth/fix` scoring them): "
