@@ -14,9 +14,10 @@ range the training drives were drawn from; ``ionav_viz.sim.simulate.FLEETS``). T
 6-axis logs (:mod:`ionav_viz.sim.imu`, written as MCAP and read back like a user's log, the mount
 estimated and applied, scored against the reference on ``/truth/fix``): a phone at 10 Hz in
 town (IMU only), a roof MEMS IMU at 100 Hz on hilly roads (grade 6 % rms; IMU only: its CAN speed
-left out) and the same car on the motorway with its CAN speed. ``ionav-viz simulate SCENARIO --imu
-phone --seed SEED --duration 10m -o FILE.mcap`` writes one (the hilly set uses a steeper grade
-than the CLI's).
+left out), the same car on the motorway with its CAN speed, and a dash device on the motorway (IMU
+only; the phone and dash grades measured against public real logs: docs/real-imu-logs.md).
+``ionav-viz simulate SCENARIO --imu phone --seed SEED --duration 10m -o FILE.mcap`` writes one (the
+hilly set uses a steeper grade than the CLI's).
 
 Outages tile each drive. Each cell is a mean over the outages of a set of drives: the final position
 error as a percentage of the distance driven in the outage, and the displacement CRSE (m).
@@ -50,6 +51,7 @@ IMU_SETS = (
     ("phone-urban", "phone IMU 10 Hz, urban", "phone", None, True, ("roundabout", "sharp-cornering", "hard-brake"), 900),
     ("mems-hills", "roof MEMS IMU 100 Hz, hills", "mems", 0.06, True, ("quick-accel", "roundabout", "hard-brake"), 910),
     ("highway-can", "highway, with CAN speed", "mems", None, False, ("motorway", "motorway"), 920),
+    ("dash-highway", "dash device IMU 104 Hz, highway", "dash", None, True, ("motorway", "motorway"), 940),
 )
 ESTIMATORS = ("ins", "idnn", "odo", "ekf", "gins")
 
@@ -59,9 +61,11 @@ def held_out_drives(directory: Path, minutes: float, seed_base: int) -> dict[str
             for i, sc in enumerate(SCENARIOS)}
 
 
-def imu_logs(directory: Path, minutes: float) -> dict[str, list[Path]]:
+def imu_logs(directory: Path, minutes: float, sets: list[str] | None = None) -> dict[str, list[Path]]:
     out = {}
     for key, _, grade, steep, _, scenarios, seed in IMU_SETS:
+        if sets is not None and key not in sets:
+            continue
         g = IMU_GRADES[grade] if steep is None else replace(IMU_GRADES[grade], grade_rms=steep)
         out[key] = [write_imu_log(directory / f"{key}-{i}.mcap", sc, seed + i, 60.0 * minutes, g) for i, sc in enumerate(scenarios)]
     return out
@@ -161,8 +165,10 @@ class Cell:
         return float(np.mean(values)) if values else None
 
 
-def measure(model: str | None, minutes: float, seed_base: int, lengths: list[float]) -> tuple[dict[str, str], dict[tuple[str, float], Cell]]:
-    """Estimator labels by name, and per (set, outage length) the pooled outages."""
+def measure(model: str | None, minutes: float, seed_base: int, lengths: list[float],
+            sets: list[str] | None = None) -> tuple[dict[str, str], dict[tuple[str, float], Cell]]:
+    """Estimator labels by name, and per (set, outage length) the pooled outages (of ``sets`` only,
+    keys of :func:`set_titles`, when given)."""
     cells: dict[tuple[str, float], Cell] = {}
     labels: dict[str, str] = {}
     run = iv.RunOptions(model=model)
@@ -174,23 +180,29 @@ def measure(model: str | None, minutes: float, seed_base: int, lengths: list[flo
             cells.setdefault((key, length), Cell({}, {})).add(d)
 
     with tempfile.TemporaryDirectory() as tmp:
-        add("bundled", list(SCENARIOS))
-        add("held-out", [str(p) for p in held_out_drives(Path(tmp), minutes, seed_base).values()])
-        logs = imu_logs(Path(tmp), minutes)
+        if sets is None or "bundled" in sets:
+            add("bundled", list(SCENARIOS))
+        if sets is None or "held-out" in sets:
+            add("held-out", [str(p) for p in held_out_drives(Path(tmp), minutes, seed_base).values()])
+        logs = imu_logs(Path(tmp), minutes, sets)
         for key, _, _, _, imu_only, _, _ in IMU_SETS:
+            if key not in logs:
+                continue
             log_options = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none" if imu_only else None, imu_mount="auto")
             add(key, [str(p) for p in logs[key]], iv.ReadOptions(log=log_options))
     return {n: labels[n] for n in ESTIMATORS if n in labels}, cells
 
 
-def set_titles() -> dict[str, str]:
-    return {"bundled": "bundled test drives (IO-VNBD format)", "held-out": "held-out fleet (IO-VNBD format)"} | {
+def set_titles(cells: dict | None = None) -> dict[str, str]:
+    """The sets' titles by key (those measured in ``cells`` when given)."""
+    titles = {"bundled": "bundled test drives (IO-VNBD format)", "held-out": "held-out fleet (IO-VNBD format)"} | {
         key: title for key, title, *_ in IMU_SETS}
+    return titles if cells is None else {k: v for k, v in titles.items() if any(key == k for key, _ in cells)}
 
 
 def overview(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
     """The issue's shape: per outage length and set, the best estimator and the others (% of distance)."""
-    titles = set_titles()
+    titles = set_titles(cells)
     out = ["| outage | " + " | ".join(titles.values()) + " |", "|---|" + "---|" * len(titles)]
     for length in lengths:
         row = []
@@ -208,7 +220,7 @@ def overview(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengt
 
 def tables(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
     out = []
-    titles = set_titles()
+    titles = set_titles(cells)
     for key, heading, decimals in (("pct", "Final position error (% of the distance driven)", 1), ("crse", "Displacement CRSE (m)", 2)):
         out += [f"## {heading}", "", "| Drives | Outage | Outages | " + " | ".join(labels.values()) + " |",
                 "|---|---:|---:|" + "---:|" * len(labels)]
@@ -233,7 +245,7 @@ def comparisons(labels: dict[str, str], cells: dict[tuple[str, float], Cell], le
     for key, title, _, _, imu_only, _, _ in IMU_SETS:
         parts = []
         for length in lengths:
-            m = cells[(key, length)].mean("gins", "pct")
+            m = cells[(key, length)].mean("gins", "pct") if (key, length) in cells else None
             if m is not None:
                 parts.append(f"{m:.1f} % after {length:g} s")
         if parts:
@@ -276,7 +288,7 @@ def real_rows(paths: list[Path], lengths: list[float]) -> str:
 
 def consistency_table(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float]) -> str:
     """Per set and length, each estimator's share of final errors inside its 95 % ellipse and its ANEES."""
-    titles = set_titles()
+    titles = set_titles(cells)
     names = [n for n in labels if any(n in c.consistency for c in cells.values())]
     if not names:
         return "No estimator gave a position covariance."
@@ -299,10 +311,10 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         f"{model_text}); do not edit by hand, run the command again.",
         "",
         "Every built-in estimator on GNSS outages of " + ", ".join(f"{x:g}" for x in lengths) + " s tiling each drive after a 30 s warm-up, on "
-        "synthetic drives of five kinds: the **bundled** test drive of each scenario (`ionav-viz evaluate SCENARIO`); "
+        f"synthetic drives of {2 + len(IMU_SETS)} kinds: the **bundled** test drive of each scenario (`ionav-viz evaluate SCENARIO`); "
         "**held-out** drives, one per scenario from a car of the simulator's held-out fleet, whose sensor and vehicle errors "
         f"all lie outside the ranges of the training drives (`ionav-viz simulate SCENARIO --fleet held-out --seed SEED "
-        f"--duration {minutes:g}m -o FILE.csv`, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}); and three sets of "
+        f"--duration {minutes:g}m -o FILE.csv`, seeds {seed_base}-{seed_base + len(SCENARIOS) - 1}); and {len(IMU_SETS)} sets of "
         "**6-axis logs** as users record them, written as MCAP by the 6-axis simulator and read back like a user's log "
         "(`--imu-mount auto`: the IMU's mount estimated and applied; the receiver's fixes given to the estimators, the reference on "
         "`/truth/fix` scoring them): "
@@ -361,13 +373,20 @@ def main() -> None:
     parser.add_argument("--lengths", default="10,30,60", help="outage lengths (s), comma-separated")
     parser.add_argument("--real-logs", metavar="JSON", type=Path, nargs="*", default=[],
                         help="results of benchmarks/real_imu_logs.py --json on real logs, tabled beside the simulated sets")
+    parser.add_argument("--sets", help="only these sets, comma-separated (bundled, held-out, " + ", ".join(k for k, *_ in IMU_SETS)
+                        + "); not with --write")
     parser.add_argument("--write", metavar="FILE", type=Path, help="write the complete Markdown page to FILE (atomically) instead of printing the tables")
     args = parser.parse_args()
+    sets = args.sets.split(",") if args.sets else None
+    if sets is not None and args.write is not None:
+        parser.error("--sets: the page needs every set; print the tables instead")
+    if sets is not None and (unknown := set(sets) - set(set_titles())):
+        parser.error(f"--sets: unknown {', '.join(sorted(unknown))}; choose from {', '.join(set_titles())}")
     if args.write is not None and not args.write.parent.is_dir():
         parser.error(f"--write: folder {args.write.parent} does not exist")
     lengths = [float(x) for x in args.lengths.split(",")]
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
-    labels, cells = measure(args.model, args.minutes, args.seed_base, lengths)
+    labels, cells = measure(args.model, args.minutes, args.seed_base, lengths, sets)
     if args.write is None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths), end="")
     else:

@@ -37,6 +37,11 @@ def _white(x):
 # SENSORS.md, per 10 Hz sample: (standing, driving) ranges of the accelerometer (m/s^2) and gyro (deg/s) noise
 ACCEL_STANDING, ACCEL_DRIVING = (0.13, 0.28), (0.14, 0.45)
 GYRO_STANDING, GYRO_DRIVING = (0.05, 0.14), (0.1, 0.75)
+# A phone's own accelerometer standing, measured on the public real phone logs (docs/real-imu-logs.md:
+# cmu_04_02_trip1 0.02, cloudpose_iphonex_ds1 and cmu_03_26_trip1 0.04 m/s^2): SENSORS.md's standing
+# range is engine vibration through a car's own sensors; its consumer section says only standstill
+# measures a phone's
+PHONE_ACCEL_STANDING = (0.02, 0.04)
 
 
 @pytest.mark.parametrize("grade", ["mems", "phone"])
@@ -51,7 +56,8 @@ def test_the_simulated_imus_noise_and_biases_are_what_real_cars_show(grade):
     # noise on the forward axis and the yaw gyro, as SENSORS.md measured them (with 15 % slack)
     accel_still, accel_moving = _white(bins[standing][:, [0]])[0], _white(bins[driving][:, [0]])[0]
     gyro_still, gyro_moving = np.rad2deg(_white(bins[standing][:, [5]])[0]), np.rad2deg(_white(bins[driving][:, [5]])[0])
-    assert ACCEL_STANDING[0] * 0.85 < accel_still < ACCEL_STANDING[1] * 1.15, accel_still
+    accel_standing = ACCEL_STANDING if grade == "mems" else PHONE_ACCEL_STANDING
+    assert accel_standing[0] * 0.85 < accel_still < accel_standing[1] * 1.15, accel_still
     assert ACCEL_DRIVING[0] * 0.85 < accel_moving < ACCEL_DRIVING[1] * 1.15, accel_moving
     assert GYRO_STANDING[0] * 0.85 < gyro_still < GYRO_STANDING[1] * 1.15, gyro_still
     assert GYRO_DRIVING[0] * 0.85 < gyro_moving < GYRO_DRIVING[1] * 1.15, gyro_moving
@@ -120,8 +126,9 @@ def test_a_log_without_the_receivers_velocity_is_read_as_such_and_the_filters_we
     Doppler measurement: the drive says so (``speed_fitted``) and both filters weigh them as the
     fit's noise (it lags in hard braking). Measured on nine 10 min phone drives (seeds 930-938,
     hard-brake, roundabout and sharp-cornering in turn, 10 s outages after the 30 s warm-up): ekf
-    26.0 -> 15.4 % of distance (better on 9 of 9). For gins on the phone grade (single readings,
-    reduced mechanisation, a holder that tilts) the weighting no longer earns its place reliably
+    26.0 -> 15.4 % of distance (better on 9 of 9); with the phone grade measured against real phones
+    (issue 41, docs/real-imu-logs.md) 28.3 -> 18.5 % (9 of 9), this 5 min drive 22.2 -> 18.7 %.
+    For gins on the phone grade (single readings, reduced mechanisation, a holder that tilts) the weighting no longer earns its place reliably
     (7 of 9 before the holder's tilt was simulated; worse on the hard-brake drive after): checked
     here for the ekf only, gins only reads the flag (noted for re-tuning)."""
     from ionav_viz.core.drive import Drive
@@ -137,7 +144,7 @@ def test_a_log_without_the_receivers_velocity_is_read_as_such_and_the_filters_we
                           receiver_fault=drive.receiver_fault, start_stamp_s=drive.start_stamp_s, imu=drive.imu)
         flagged_pct, unflagged_pct = (iv.evaluate([d], 10.0, estimators=[estimator]).summary[estimator]["final_error_pct"]["mean"]
                                       for d in (drive, unflagged))
-        assert flagged_pct < 0.8 * unflagged_pct, (estimator, flagged_pct, unflagged_pct)
+        assert flagged_pct < 0.9 * unflagged_pct, (estimator, flagged_pct, unflagged_pct)
     proc = run_cli("evaluate", str(path), "--truth-topic", SIM_TRUTH_TOPIC, "--imu-mount", "auto", "--gnss-velocity-topic", "none",
                    "--estimators", "gins", "--json")
     assert proc.returncode == 0, proc.stderr
@@ -148,3 +155,32 @@ def test_a_log_without_the_receivers_velocity_is_read_as_such_and_the_filters_we
     assert "/gps/vel" not in written.topics and "gnss_speed_fitted" not in written.left_out
     again = iv.load_drive(tmp_path / "again.mcap", iv.ReadOptions(log=replace(log, gnss_velocity_topic=None)))
     assert again.speed_fitted.all()
+
+
+# Measured by benchmarks/imu_character.py on the public real logs of phones in dash holders
+# (docs/real-imu-logs.md; the data is not in the repository). The yaw gyro's standing noise per
+# 10 Hz sample (deg/s; successive-sample spread over sqrt 2 where the stillness detector says
+# standing): cmu_04_02_trip1 0.056, cmu_03_26_trip1 0.062, cloudpose_iphonex_ds1 0.067.
+REAL_PHONE_GYRO_STANDING_DPS = (0.056, 0.067)
+# The holder's wobble while driving (the reader's pitch- and roll-rate spread, deg/s):
+# cloudpose_iphonex_ds1 1.65, cmu_03_26_trip1 2.01, cmu_04_02_trip1 2.44, cmu_03_26_trip2 2.74.
+REAL_PHONE_WOBBLE_DPS = (1.65, 2.74)
+
+
+def test_the_simulated_phone_stands_and_wobbles_as_real_phones_do(tmp_path):
+    """Issue 41 point 6: the phone grade's log, written and read back like a user's, measured the
+    way the real logs were (the stillness detector's stands, the reader's wobble), not from the
+    grade's parameters, lies in the range the real phones span."""
+    from ionav_viz.nav.stillness import drive_still
+
+    path = write_imu_log(tmp_path / "phone.mcap", "hard-brake", 902, 300.0, "phone")
+    drive = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none")))
+    still = drive_still(drive)
+    both = still[1:] & still[:-1]
+    assert both.sum() > 150  # its stands: over 15 s
+    d = np.diff(drive.columns["gyro_z_radps"])[both]
+    standing = np.rad2deg(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+    low, high = REAL_PHONE_GYRO_STANDING_DPS
+    assert low <= standing <= high, standing
+    low, high = REAL_PHONE_WOBBLE_DPS
+    assert low <= drive.imu.wobble_dps <= high, drive.imu.wobble_dps

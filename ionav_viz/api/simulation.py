@@ -27,7 +27,7 @@ def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float
 
     ``fleet``: draw the car's sensor and vehicle errors from a fleet (``"training"``, ``"held-out"``);
     ``ideal``: perfect sensors and flat roads; ``gnss_losses``: tunnel-like GNSS losses to add.
-    ``imu``: instead, a logger's MCAP with a full 6-axis IMU of that grade (``"mems"``, ``"phone"``:
+    ``imu``: instead, a logger's MCAP with a full 6-axis IMU of that grade (``"mems"``, ``"phone"``, ``"dash"``:
     :mod:`ionav_viz.sim.imu`), its receiver, and the reference truth on ``/truth/fix``.
     """
     if scenario not in SIMULATED_SCENARIOS:

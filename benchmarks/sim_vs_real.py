@@ -1,0 +1,77 @@
+"""Does the simulator predict the ranking on real consumer IMUs (issue 41 point 6)? ``gins`` as
+shipped (its mechanisation chosen from the samples: roll and pitch held on single readings), ``gins``
+forced to the full 3D mechanisation, and the INS DR, on your local copies of real logs and on the
+simulator's phone and dash sets (benchmarks/results_table.py's drives): final position error as a
+share of the distance driven, mean over the outages tiled after the 30 s warm-up, IMU only::
+
+    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated] [--minutes 10]
+
+Read each real log with the options benchmarks/real_imu_logs.py takes for it (one kind per run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+import ionav_viz as iv
+from ionav_viz.core.gnss_quality import GnssLimits
+from ionav_viz.nav.gins import GinsEstimator
+from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
+
+#: (title, grade, scenarios, first seed): results_table.py's phone and dash sets
+SETS = (("simulated phone IMU 10 Hz, urban", "phone", ("roundabout", "sharp-cornering", "hard-brake"), 900),
+        ("simulated dash device IMU 104 Hz, highway", "dash", ("motorway", "motorway"), 940))
+
+
+def mean_pct(paths: list[str], estimator, name: str, length: float, read: iv.ReadOptions) -> float | None:
+    try:
+        rep = iv.evaluate(paths, length, estimators=[estimator], read=read).to_dict()
+    except iv.InputError:  # no outage of that length fits
+        return None
+    pct = [s[name]["final_error_pct"] for s in rep["sequences"] if isinstance(s.get(name), dict)]
+    pct = [p for p in pct if p is not None and np.isfinite(p)]
+    return float(np.mean(pct)) if pct else None
+
+
+def row(title: str, paths: list[str], read: iv.ReadOptions) -> str:
+    cells = []
+    for estimator, name in ((GinsEstimator(), "gins"), (GinsEstimator(mechanisation="3d"), "gins"), ("ins", "ins")):
+        values = [mean_pct(paths, estimator, name, length, read) for length in (10.0, 30.0)]
+        cells.append(" / ".join("–" if v is None else f"{v:.1f}" for v in values))
+    return f"| {title} | " + " | ".join(cells) + " |"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("logs", nargs="*", type=Path)
+    parser.add_argument("--truth-topic")
+    parser.add_argument("--gnss-topic")
+    parser.add_argument("--max-sigma-m", type=float)
+    parser.add_argument("--simulated", action="store_true", help="also the simulator's phone and dash sets")
+    parser.add_argument("--minutes", type=float, default=10.0, help="length of each simulated drive")
+    args = parser.parse_args()
+    logging.getLogger("ionav_viz").setLevel(logging.ERROR)
+    print("| log | `gins` 10 s / 30 s | `gins` in 3D 10 s / 30 s | INS DR 10 s / 30 s |\n|---|---|---|---|")
+    limits = GnssLimits() if args.max_sigma_m is None else replace(GnssLimits(), max_sigma_m=args.max_sigma_m)
+    read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=args.truth_topic, gnss_topic=args.gnss_topic),
+                          gnss_limits=limits)
+    for path in args.logs:
+        print(row(path.stem, [str(path)], read), flush=True)
+    if args.simulated:
+        sim_read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=SIM_TRUTH_TOPIC))
+        with tempfile.TemporaryDirectory() as tmp:
+            for title, grade, scenarios, seed in SETS:
+                if grade not in IMU_GRADES:
+                    continue
+                paths = [str(write_imu_log(Path(tmp) / f"{grade}-{i}.mcap", sc, seed + i, 60.0 * args.minutes, grade)) for i, sc in enumerate(scenarios)]
+                print(row(title, paths, sim_read), flush=True)
+
+
+if __name__ == "__main__":
+    main()
