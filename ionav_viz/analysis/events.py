@@ -338,16 +338,19 @@ def outage_manoeuvres(events: list[Event], t0_s: np.ndarray, length_s: float) ->
     ``evaluate --by-event`` finds the events it centres its outages on) the type of the one that
     overlaps the outage longest (ties: in :data:`MANOEUVRE_TYPES` order), :data:`NO_MANOEUVRE`
     when none overlaps it. Real GNSS losses are not manoeuvres and are left out."""
-    found = [e for e in events if e.type in MANOEUVRE_TYPES]
-    out = []
-    for t0 in np.asarray(t0_s, dtype=float):
-        t1 = t0 + length_s
-        best, best_overlap = NO_MANOEUVRE, 0.0
-        for e in sorted(found, key=lambda e: MANOEUVRE_TYPES.index(e.type)):
-            overlap = min(e.t1_s, t1) - max(e.t0_s, t0)
-            if overlap > best_overlap:
-                best, best_overlap = e.type, overlap
-        out.append(best)
+    found = sorted((e for e in events if e.type in MANOEUVRE_TYPES), key=lambda e: MANOEUVRE_TYPES.index(e.type))
+    t0 = np.asarray(t0_s, dtype=float)
+    if not found:
+        return [NO_MANOEUVRE] * len(t0)
+    e0, e1 = np.array([e.t0_s for e in found]), np.array([e.t1_s for e in found])
+    types = np.array([e.type for e in found] + [NO_MANOEUVRE], dtype=object)
+    out: list[str] = []
+    for first in range(0, len(t0), 2048):  # (outages x events) overlaps, a block of outages at a time
+        a = t0[first:first + 2048, None]
+        overlap = np.minimum(e1[None, :], a + length_s) - np.maximum(e0[None, :], a)
+        best = np.argmax(overlap, axis=1)  # the first of the longest: in MANOEUVRE_TYPES order
+        best[overlap[np.arange(len(a)), best] <= 0.0] = len(found)
+        out.extend(types[best].tolist())
     return out
 
 
