@@ -225,18 +225,23 @@ def detect_turn_events(s: Signals, th: EventThresholds) -> list[Event]:
     turns = turning_segments(s, th)
     out: list[Event] = []
     r_lo, r_hi = th.roundabout_radius_m
+    t0s, t1s = np.array([tr.t0 for tr in turns], dtype=float), np.array([tr.t1 for tr in turns], dtype=float)
+    signs = np.array([tr.sign for tr in turns])
     round_spans = []
     for tr in turns:
         if tr.turn_deg >= th.roundabout_min_turn_deg and r_lo <= tr.radius_m <= r_hi:
-            t0, t1 = tr.t0, tr.t1
-            for other in turns:  # entry and exit flares: the other way, just before and after
-                if other.sign != tr.sign and (0 <= tr.t0 - other.t1 <= th.flare_gap_s or 0 <= other.t0 - tr.t1 <= th.flare_gap_s):
-                    t0, t1 = min(t0, other.t0), max(t1, other.t1)
+            # entry and exit flares: the other way, just before and after
+            flare = (signs != tr.sign) & (((tr.t0 - t1s >= 0) & (tr.t0 - t1s <= th.flare_gap_s)) | ((t0s - tr.t1 >= 0) & (t0s - tr.t1 <= th.flare_gap_s)))
+            t0, t1 = min(tr.t0, float(t0s[flare].min(initial=np.inf))), max(tr.t1, float(t1s[flare].max(initial=-np.inf)))
             round_spans.append((t0, t1))
             out.append(Event("roundabout", t0, t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m}))
+    spans = np.array(round_spans, dtype=float).reshape(-1, 2)
+    # per turn: whether it overlaps a roundabout's span
+    inside = ((t0s[:, None] <= spans[None, :, 1]) & (t1s[:, None] >= spans[None, :, 0])).any(axis=1) if len(turns) else np.zeros(0, bool)
+    in_round = {id(tr): bool(v) for tr, v in zip(turns, inside)}
 
     def in_roundabout(tr: _Turn) -> bool:
-        return any(tr.t0 <= b and tr.t1 >= a for a, b in round_spans)
+        return in_round[id(tr)]
 
     for tr in turns:
         if (th.sharp_min_turn_deg <= tr.turn_deg < th.roundabout_min_turn_deg and tr.t1 - tr.t0 <= th.sharp_max_s
