@@ -52,6 +52,8 @@ class DriveTable:
         placement: where its outages went (with the warm-up); imu: what the reader found of a log's
             IMU (rate, sample kind, clock offset, mount; ``ImuCharacter.to_dict`` and ``text``), or None.
         manoeuvre: per outage, its manoeuvre type (:func:`ionav_viz.analysis.events.outage_manoeuvres`).
+        in_training: per outage, whether it lies in data the IDNN's model was trained on (as the
+            single-drive report's ``in_training``; None when no IDNN ran).
         error_at_s: per estimator, per second ``"t"`` of :func:`length_points` before the outage's
             end, the position error (m) of each outage that far into it (the end's is
             ``final_position_error_m``).
@@ -80,6 +82,8 @@ class DriveTable:
     manoeuvre: list[str] = field(default_factory=list)
     error_at_s: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     consistency: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    #: per outage, whether it lies in data the IDNN's model was trained on (None: no IDNN ran)
+    in_training: np.ndarray | None = None
 
     @property
     def n_outages(self) -> int:
@@ -131,7 +135,8 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
         warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
         imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()},
-        manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at, consistency=consistent)
+        manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at, consistency=consistent,
+        in_training=None if (trained := result.in_training) is None else np.asarray(trained, dtype=bool).copy())
 
 
 @dataclass(frozen=True)
@@ -353,6 +358,7 @@ class FleetReport:
         for t in self.drives:
             for i in range(t.n_outages):
                 entry: dict[str, Any] = {"drive": t.name, "start_s": round(float(t.start_s[i]), 3), "gnss_distance_m": float(t.gnss_distance_m[i]),
+                                         **({"in_training": bool(t.in_training[i])} if t.in_training is not None else {}),
                                          **({"manoeuvre": t.manoeuvre[i]} if t.manoeuvre else {})}
                 entry |= {e: {m: float(t.metrics[e][m][i]) for m in METRICS} for e in t.metrics}
                 sequences.append(entry)

@@ -123,8 +123,8 @@ def _one_thread_environment() -> Iterator[None]:
 
 
 #: What the forkserver imports once, before it forks the workers: each worker then starts with
-#: them loaded instead of importing them again (torch alone is about 1.5 s of CPU a process).
-PRELOAD = ("numpy", "pandas", "torch", "safetensors.torch", "numba", "ionav_viz.api.fleet", "ionav_viz.nav.idnn", "ionav_viz.nav.planar_filter")
+#: them loaded instead of importing them again (the IDNN runs in numpy: torch is not needed to evaluate).
+PRELOAD = ("numpy", "pandas", "safetensors.numpy", "numba", "ionav_viz.api.fleet", "ionav_viz.nav.idnn", "ionav_viz.nav.planar_filter")
 
 
 def _context():

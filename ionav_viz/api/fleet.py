@@ -176,19 +176,28 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
             if recording is not None:
                 from .replay import replay
 
-                with _one_torch_thread(load=job.run.estimators is None or "idnn" in map(str, job.run.estimators)):
+                with _one_torch_thread(load=_torch_idnn(job.run.applying_to([drive]))):
                     result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
             else:
                 from ..analysis.evaluate import evaluate_drive
 
                 ests = job.run.applying_to([drive])
-                with _one_torch_thread(load=any(e.name == "idnn" for e in ests)):
+                with _one_torch_thread(load=_torch_idnn(ests)):
                     result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts,
                                             windows=windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps,
                                             placement=plan.description)
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
+
+
+def _torch_idnn(estimators: list) -> bool:
+    """Whether an IDNN among ``estimators`` runs in torch (a recurrent model; the feed-forward ones
+    run in numpy, :class:`ionav_viz.nav.idnn.NumpyFeedForward`)."""
+    from ..nav.idnn import FEED_FORWARD_ARCHS
+
+    return any(e.name == "idnn" and getattr(getattr(e, "model", None), "config", None) is not None
+               and e.model.config.arch not in FEED_FORWARD_ARCHS for e in estimators)
 
 
 class _one_torch_thread:

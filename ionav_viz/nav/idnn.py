@@ -221,6 +221,55 @@ def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bo
     return Recurrent(cells[arch])
 
 
+#: The feed-forward architectures, run with numpy when loaded for inference (:class:`NumpyFeedForward`).
+FEED_FORWARD_ARCHS = ("idnn", "mlp")
+
+
+def feed_forward_shapes(arch: str, n_steps: int, hidden: int, feedback: bool) -> dict[str, tuple[int, ...]]:
+    """The weight names and shapes of :func:`build_net`'s feed-forward nets (torch's ``Linear``
+    layout: ``(out, in)``), without torch."""
+    n_in = (1 if arch == "mlp" else n_steps) + int(feedback)
+    return {"body.0.weight": (hidden, n_in), "body.0.bias": (hidden,), "body.3.weight": (hidden, hidden), "body.3.bias": (hidden,),
+            "body.6.weight": (1, hidden), "body.6.bias": (1,)}
+
+
+class NumpyFeedForward:
+    """:func:`build_net`'s feed-forward net for inference, in numpy float32: the same layers
+    (linear, ReLU, linear, ReLU, linear; dropout is off in inference) and kinematic skip term.
+    Evaluating and replaying then need no torch (about 1.2 s of import a process); training
+    gets torch modules (:meth:`state_dict` gives torch tensors to load into one)."""
+
+    def __init__(self, state: dict[str, np.ndarray], n_steps: int, feedback: bool, skip: tuple[float, float] | None,
+                 latest_only: bool) -> None:
+        self.state = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in state.items()}
+        self.n_steps, self.feedback, self.skip, self.latest_only = n_steps, feedback, skip, latest_only
+        self.weights = (kinematic_weights(n_steps) if feedback else np.full(n_steps, 1.0 / n_steps)).astype(np.float32)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Outputs ``(batch,)`` for normalised inputs ``(batch, n_steps [+ 1])``, float32."""
+        x = np.asarray(x, dtype=np.float32)
+        n, w = self.n_steps, self.state
+        skip: np.ndarray | float = 0.0
+        if self.skip is not None:
+            skip = np.float32(self.skip[0]) * (x[:, :n] @ self.weights) + np.float32(self.skip[1])
+            if self.feedback:
+                skip = skip + x[:, n]
+        if self.latest_only:
+            x = np.concatenate([x[:, n - 1:n], x[:, n:]], axis=1)
+        h = np.maximum(x @ w["body.0.weight"].T + w["body.0.bias"], 0.0)
+        h = np.maximum(h @ w["body.3.weight"].T + w["body.3.bias"], 0.0)
+        return (skip + (h @ w["body.6.weight"].T + w["body.6.bias"])[:, 0]).astype(np.float32)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The weights as torch tensors, as a torch module's ``state_dict`` (for training and saving)."""
+        import torch
+
+        return {k: torch.from_numpy(v.copy()) for k, v in self.state.items()}
+
+    def eval(self) -> NumpyFeedForward:
+        return self
+
+
 def count_parameters(net) -> int:
     """Trainable parameters of a torch module."""
     return int(sum(p.numel() for p in net.parameters() if p.requires_grad))
@@ -376,6 +425,8 @@ class IdnnModel:
     uncertainty: Uncertainty | None = None
 
     def _run(self, net, x: np.ndarray) -> np.ndarray:
+        if isinstance(net, NumpyFeedForward):
+            return net(x.astype(np.float32)).astype(np.float64)
         import torch
 
         with torch.no_grad():
@@ -637,7 +688,7 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 def load_model(directory: str | Path) -> IdnnModel:
     """Load a model directory; a missing, corrupted or mismatched model is an :class:`InputError`."""
     from safetensors import SafetensorError
-    from safetensors.torch import load
+    from safetensors.numpy import load as load_arrays
 
     directory = Path(directory)
     meta_path = directory / "metadata.json"
@@ -670,7 +721,13 @@ def load_model(directory: str | Path) -> IdnnModel:
         is_disp = key == "displacement"
         skip = norm.skip_terms(is_disp) if config.residual else None
         steps = config.n_steps_disp if is_disp else config.n_steps_yaw
-        net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
+        numpy_net = config.arch in FEED_FORWARD_ARCHS  # inference without torch (NumpyFeedForward)
+        if numpy_net:
+            net = None
+            expected = {k: (v, "float32") for k, v in feed_forward_shapes(config.arch, steps, config.hidden, is_disp).items()}
+        else:
+            net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
+            expected = {k: (tuple(v.shape), str(v.dtype).removeprefix("torch.")) for k, v in net.state_dict().items()}
         try:
             info = path.stat()
             if not stat.S_ISREG(info.st_mode):
@@ -678,36 +735,40 @@ def load_model(directory: str | Path) -> IdnnModel:
             if info.st_size > MAX_WEIGHTS_BYTES:
                 raise InputError(f"{path}: {info.st_size / 2**20:.0f} MiB, far more than any IDNN's weights", "retrain or restore the model")
             raw = path.read_bytes()
-            state = load(raw)
+            state = load_arrays(raw)  # numpy arrays; safetensors holds no code (pickles are never loaded)
         except OSError as exc:
             raise InputError(f"{path}: cannot read model weights ({exc.strerror})", "retrain or restore the model") from None
         except InputError:
             raise
         except (SafetensorError, ValueError, Exception) as exc:  # safetensors rejects anything else, pickles included
             raise InputError(f"{path}: not a safetensors weights file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", "weights must be safetensors; pickled files are never loaded") from None
-        expected = net.state_dict()
-        bad = [k for k in expected if k not in state or tuple(state[k].shape) != tuple(expected[k].shape)]
+        bad = [k for k in expected if k not in state or tuple(state[k].shape) != tuple(expected[k][0])]
         extra = [k for k in state if k not in expected]
         if bad or extra:
             first = (bad or extra)[0]
             got = tuple(state[first].shape) if first in state else "missing"
-            want = tuple(expected[first].shape) if first in expected else "unexpected"
+            want = tuple(expected[first][0]) if first in expected else "unexpected"
             raise InputError(
                 f"{path}: weights do not fit the {config.arch} architecture of metadata.json ({first}: {got} vs {want})",
                 "the weights and metadata come from different models; retrain",
             )
-        for name, tensor in state.items():
-            if tensor.dtype != expected[name].dtype:
-                raise InputError(f"{path}: {name} is {tensor.dtype}, expected {expected[name].dtype}", "retrain or restore the model")
-            if not bool(tensor.isfinite().all()):
+        for name, array in state.items():
+            if str(array.dtype) != expected[name][1]:
+                raise InputError(f"{path}: {name} is {array.dtype}, expected {expected[name][1]}", "retrain or restore the model")
+            if not bool(np.isfinite(array).all()):
                 raise InputError(f"{path}: {name} holds NaN or infinite weights", "retrain or restore the model")
         if digests.get(filename) != hashlib.sha256(raw).hexdigest():
             raise InputError(
                 f"{path}: sha256 differs from the one metadata.json records",
                 "the weights and metadata come from different models (or a file was changed); retrain or restore it",
             )
-        net.load_state_dict(state)
-        net.eval()
+        if numpy_net:
+            net = NumpyFeedForward(state, steps, is_disp, skip, latest_only=config.arch == "mlp")
+        else:
+            import torch
+
+            net.load_state_dict({k: torch.from_numpy(v.copy()) for k, v in state.items()})
+            net.eval()
         nets[key] = net
     return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory), _load_uncertainty(directory, meta))
 
