@@ -59,7 +59,6 @@ __all__ = [
     "outage_log",
     "replay",
     "replay_fleet",
-    "write_fleet_recording",
     "replay_lengths",
     "replay_scenario",
     "scenario_drives",
@@ -69,4 +68,5 @@ __all__ = [
     "simulate_bundled",
     "train",
     "training_drives",
+    "write_fleet_recording",
 ]
