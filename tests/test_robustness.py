@@ -537,7 +537,7 @@ def test_model_weights_that_cannot_be_right(model_copy, kind):
         else:
             state[name] = state[name].to(torch.int8)
         path.write_bytes(save(state))
-        fragment = "NaN or infinite" if kind == "nan" else "torch.int8"
+        fragment = "NaN or infinite" if kind == "nan" else "is int8, expected float32"
     elif kind == "fifo":
         path.unlink()
         os.mkfifo(path)
