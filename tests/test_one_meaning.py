@@ -72,3 +72,11 @@ def test_the_manoeuvre_has_the_scenarios_name_and_the_old_one_still_works():
     assert old.stderr.strip() == "warning: event type sharp-corner is sharp-cornering now"
     placed = run_cli("evaluate", "sharp-cornering", "--on", "sharp-corner", "--no-idnn", "--json")
     assert placed.returncode == 0 and "sharp-cornering now" in placed.stderr, placed.stderr
+
+
+def test_every_command_that_writes_takes_quiet(tmp_path):
+    """-q means the same on every command: simulate takes it too (it was 'No such option: -q') and
+    still prints the path it wrote, on stdout."""
+    out = tmp_path / "V-q.csv"
+    proc = run_cli("simulate", "motorway", "--duration", "20s", "-o", str(out), "-q")
+    assert proc.returncode == 0 and proc.stdout.strip() == str(out) and out.is_file(), proc.stderr
