@@ -674,7 +674,7 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
                 (tmp / UNCERTAINTY_FILE).write_bytes(data)
                 meta["uncertainty"] = {**model.metadata.get("uncertainty", {}), "file": UNCERTAINTY_FILE,
                                        "sha256": hashlib.sha256(data).hexdigest()}
-            meta.update(format_version=FORMAT_VERSION, config=asdict(model.config), normalisation=model.norm.to_dict(),
+            meta.update(format_version=FORMAT_VERSION, config=written_config(model.config), normalisation=model.norm.to_dict(),
                         weights_sha256=checksums)
             (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
             swap_in_directory(tmp, directory)
@@ -683,6 +683,17 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
                 raise failure from None
             raise
 
+
+
+#: Config fields later versions added: written only when not at their default, so that a model
+#: trained without them stays readable by the versions before them (which refuse unknown fields).
+LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s")
+
+
+def written_config(config: ModelConfig) -> dict[str, Any]:
+    """The config as metadata.json holds it (see :data:`LATER_CONFIG_FIELDS`)."""
+    default = ModelConfig()
+    return {k: v for k, v in asdict(config).items() if k not in LATER_CONFIG_FIELDS or v != getattr(default, k)}
 
 
 def load_model(directory: str | Path) -> IdnnModel:
