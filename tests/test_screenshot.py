@@ -464,9 +464,12 @@ def test_key_entries_and_y_ranges():
     # issue 43.4: the 95 % ellipses where the tracks are drawn, once an outage has begun
     info.ellipses = {"ekf"}
     info.outages = [OutageInfo(1, 10.0, 20.0, {"ins": 1.0, "ekf": 1.0}, np.zeros((0, 2)), np.zeros(0), np.zeros(0))]
-    for view in ("all", "local", "map", "outage"):
+    for view in ("all", "outage"):
         assert key_for(info, Shot(view, 50.0, "x"))[-1] == KeyEntry("ellipse", ELLIPSE_KEY_COLOR, "95 % ellipse"), view
         assert "95 % ellipse" not in [k.text for k in key_for(info, Shot(view, 5.0, "x"))]  # before the first outage
+    for view in ("local", "map"):  # the whole drive: ellipses of a few pixels are not named; framed on an outage, they are
+        assert "95 % ellipse" not in [k.text for k in key_for(info, Shot(view, 50.0, "x"))], view
+        assert key_for(info, Shot(view, 20.0, "x", info.outages[0]))[-1] == KeyEntry("ellipse", ELLIPSE_KEY_COLOR, "95 % ellipse"), view
     for view in ("signals", "errors", "health"):
         assert "95 % ellipse" not in [k.text for k in key_for(info, Shot(view, 50.0, "x"))]
     info.outages = []

@@ -567,8 +567,11 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
         keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, "outage start")]
     if view == "outage":
         keys.append(KeyEntry("dot", OUTAGE_MARK_COLOR, "start fix"))
-    # the estimators' 95 % ellipses (in their colours) around their positions, once an outage has begun
-    if view in ("all", "local", "map", "outage") and info.ellipses and (shot.outage or _outage_before(info, shot.t_s)):
+    # the estimators' 95 % ellipses (in their colours) around their positions, once an outage has begun;
+    # on a whole-drive local or map view they are a few pixels: named only where a view frames an outage
+    framed = shot.outage is not None
+    shown = framed or (view in ("all", "outage") and _outage_before(info, shot.t_s) is not None)
+    if view in ("all", "local", "map", "outage") and info.ellipses and shown:
         keys.append(KeyEntry("ellipse", ELLIPSE_KEY_COLOR, "95 % ellipse"))
     return keys
 
