@@ -44,11 +44,12 @@ def grid_strips(bounds: Bounds, step_m: float) -> list[np.ndarray]:
     return [np.array([[x, lo_y], [x, hi_y]]) for x in xs] + [np.array([[lo_x, y], [hi_x, y]]) for y in ys]
 
 
-def scale_bar(bounds: Bounds, step_m: float) -> np.ndarray:
-    """A bar one ``step_m`` long just above the bottom edge of ``bounds``, from its left corner (2
-    points): with bounds padded around the data (:func:`padded_bounds`), it stays off the tracks."""
+def scale_bar(bounds: Bounds, step_m: float, above: float = 0.05) -> np.ndarray:
+    """A bar one ``step_m`` long ``above`` of the height above the bottom edge of ``bounds``, from its
+    left corner (2 points): with bounds padded around the data (:func:`padded_bounds`), it stays off
+    the tracks, its label below it."""
     x0, _x1, y0, y1 = bounds
-    y = y1 - 0.05 * (y1 - y0)  # screen y grows downwards: the bottom is y1; room below for the label
+    y = y1 - above * (y1 - y0)  # screen y grows downwards: the bottom is y1
     return np.array([[x0, y], [x0 + step_m, y]])
 
 

@@ -109,7 +109,8 @@ def log_grid(rec, xy: np.ndarray) -> None:
     step = nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2]), lines=8)
     grid = grid_strips(bounds, step)
     rec.log(ent.LOCAL_GRID, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
-    rec.log(ent.LOCAL_GRID_SCALE, rr.LineStrips2D([scale_bar(bounds, step)], labels=[scale_label(step)], colors=[SCALE_COLOR],
+    # the whole drive's view is small in the review layout (200 px at 1024x576): room for the label below the bar
+    rec.log(ent.LOCAL_GRID_SCALE, rr.LineStrips2D([scale_bar(bounds, step, above=0.09)], labels=[scale_label(step)], colors=[SCALE_COLOR],
                                                 radii=rr.Radius.ui_points(2.0), draw_order=50), static=True)
 
 
