@@ -47,9 +47,34 @@ def plain_json(value: Any, max_depth: int = MAX_DEPTH) -> Any:
     return _plain(value, 0, set(), max_depth)
 
 
+#: A list of more objects than this is written one object to a line (see :func:`dumps_json`).
+ROWS_FROM = 20
+
+
 def dumps_json(value: Any, indent: int | None = 2) -> str:
-    """``json.dumps`` of :func:`plain_json` of ``value``: valid JSON whatever numpy or a plug-in gave."""
-    return json.dumps(plain_json(value), indent=indent, allow_nan=False)
+    """``json.dumps`` of :func:`plain_json` of ``value``: valid JSON whatever numpy or a plug-in gave.
+
+    Indented, objects and lists open one level a line, but a long list of objects (a report's
+    outages: more than :data:`ROWS_FROM`) one object to a line, and a list of plain values on one
+    line: Python's indenting encoder is pure Python (22 s for a 240-drive-hour fleet's 86,000
+    outages), the compact one is C, and a row per outage reads and diffs as well."""
+    plain = plain_json(value)
+    if indent is None:
+        return json.dumps(plain, allow_nan=False)
+    return _indented(plain, indent, 0, json.JSONEncoder(allow_nan=False, separators=(", ", ": ")))
+
+
+def _indented(value: Any, indent: int, level: int, row: json.JSONEncoder) -> str:
+    pad, end = " " * (indent * (level + 1)), " " * (indent * level)
+    if isinstance(value, dict) and value:
+        items = (f"{pad}{json.dumps(k)}: {_indented(v, indent, level + 1, row)}" for k, v in value.items())
+        return "{\n" + ",\n".join(items) + "\n" + end + "}"
+    if isinstance(value, list) and value:
+        if len(value) > ROWS_FROM and all(isinstance(v, dict) for v in value):
+            return "[\n" + ",\n".join(pad + row.encode(v) for v in value) + "\n" + end + "]"
+        if any(isinstance(v, (dict, list)) for v in value):
+            return "[\n" + ",\n".join(pad + _indented(v, indent, level + 1, row) for v in value) + "\n" + end + "]"
+    return row.encode(value)
 
 
 def _plain(value: Any, depth: int, path: set[int], max_depth: int = MAX_DEPTH) -> Any:
