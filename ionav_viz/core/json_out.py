@@ -56,8 +56,8 @@ def dumps_json(value: Any, indent: int | None = 2) -> str:
 
     Indented, objects and lists open one level a line, but a long list of objects (a report's
     outages: more than :data:`ROWS_FROM`) one object to a line, and a list of plain values on one
-    line: Python's indenting encoder is pure Python (22 s for a 240-drive-hour fleet's 86,000
-    outages), the compact one is C, and a row per outage reads and diffs as well."""
+    line: Python's indenting encoder is pure Python (4.6 s for a 240-drive-hour fleet's 86,000
+    outages, 2.8 s this way), the compact one is C, and a row per outage reads and diffs as well."""
     plain = plain_json(value)
     if indent is None:
         return json.dumps(plain, allow_nan=False)
