@@ -236,19 +236,16 @@ def detect_turn_events(s: Signals, th: EventThresholds) -> list[Event]:
             round_spans.append((t0, t1))
             out.append(Event("roundabout", t0, t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m}))
     spans = np.array(round_spans, dtype=float).reshape(-1, 2)
-    # per turn: whether it overlaps a roundabout's span
+    # the turns that overlap no roundabout's span
     inside = ((t0s[:, None] <= spans[None, :, 1]) & (t1s[:, None] >= spans[None, :, 0])).any(axis=1) if len(turns) else np.zeros(0, bool)
-    in_round = {id(tr): bool(v) for tr, v in zip(turns, inside)}
+    outside = [tr for tr, within in zip(turns, inside) if not within]
 
-    def in_roundabout(tr: _Turn) -> bool:
-        return in_round[id(tr)]
-
-    for tr in turns:
+    for tr in outside:
         if (th.sharp_min_turn_deg <= tr.turn_deg < th.roundabout_min_turn_deg and tr.t1 - tr.t0 <= th.sharp_max_s
-                and tr.radius_m <= th.sharp_max_radius_m and not in_roundabout(tr)):
+                and tr.radius_m <= th.sharp_max_radius_m):
             out.append(Event("sharp-cornering", tr.t0, tr.t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m, "duration_s": tr.t1 - tr.t0}))
 
-    big = [tr for tr in turns if tr.turn_deg >= th.left_right_min_turn_deg and not in_roundabout(tr)]
+    big = [tr for tr in outside if tr.turn_deg >= th.left_right_min_turn_deg]
     series: list[_Turn] = []
     for tr in big + [None]:
         if tr is not None and series and tr.sign != series[-1].sign and tr.t0 - series[-1].t1 <= th.left_right_gap_s:

@@ -406,16 +406,15 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
 def _single_tabs_where_narrow(bp: dict[str, Any], views: dict[str, Any], width_px: int, view: str) -> None:
     """Where a tab bar is too narrow for even its tabs' shortest titles (their ends would be cut),
     the image keeps only the active tab: it shows one tab anyway, and its title then has the bar."""
-    titled = {o.strip("/") for o in TAB_TITLES}
+    by_stripped = {o.strip("/"): o for o in TAB_TITLES}
     for value in list(bp.values()):
         container = value.get("ContainerBlueprint")
         if not container or container.get("container_kind") != "Tabs" or len(container.get("contents", [])) < 2:
             continue
         keys = ["/" + c.lstrip("/") for c in container["contents"]]
         origins = [bp.get(k, {}).get("ViewBlueprint", {}).get("space_origin", "").strip("/") for k in keys]
-        if not all(o in titled for o in origins):
+        if not all(o in by_stripped for o in origins):
             continue
-        by_stripped = {o.strip("/"): o for o in TAB_TITLES}
         width = width_px * (column_fraction(by_stripped[origins[0]]) if view == "all" else 1.0)
         shortest = {by_stripped[o]: TAB_TITLES[by_stripped[o]][-1] for o in origins}
         if sum(len(t) * TITLE_PX_PER_CHAR + TAB_EXTRA_PX for t in shortest.values()) + TAB_BAR_ICONS_PX <= width:

@@ -516,25 +516,36 @@ def _finals(rep: dict[str, Any], name: str) -> np.ndarray:
 
 
 def _cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    def legend(name: str, label: str) -> str:
+        p50 = rep["final_error_percentiles"][name]["p50"]
+        return f"{label} (p50 {p50:.1f} m)" if p50 is not None else f"{label} (p50 n/a)"
+
+    curves = [(name, label, color, i, _finals(rep, name)) for name, label, color, i in _styled(rep)]
+    return _cdf_figure(rep, "cdf", _title(rep), curves, legend, width_in)
+
+
+def _cdf_figure(rep: dict[str, Any], kind: str, title: str, curves: list[tuple[str, str, Any, int, np.ndarray]],
+                legend: Any, width_in: float) -> Any:
+    """The distribution of final errors, a step curve per estimator: ``curves`` of (name, label,
+    colour, style index, final errors (m)); ``legend(name, label)`` its legend entry; an estimator
+    without a defined final error is left out, saying so (``kind`` names the figure)."""
     fig, ax = _new_figure(width_in, 2.7)
     skipped = []
-    for name, label, color, i in _styled(rep):
-        finals = _finals(rep, name)
+    for name, label, color, i, finals in curves:
         v, share = error_cdf(finals)
         if not len(v):
             skipped.append(f"{label} has no defined final error, left out")
             continue
         if len(v) < len(finals):
             skipped.append(f"{label}: {len(finals) - len(v)} of {len(finals)} outages left out")
-        p50 = rep["final_error_percentiles"][name]["p50"]
         ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
-                label=f"{label} (p50 {p50:.1f} m)" if p50 is not None else f"{label} (p50 n/a)")
-    _skipped("cdf", skipped)
+                label=legend(name, label))
+    _skipped(kind, skipped)
     ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
     ax.set_ylabel("share of outages")
     ax.set_ylim(0, 1.0)
     ax.set_xlim(left=0)
-    _set_title(ax, _title(rep))
+    _set_title(ax, title)
     _legend(fig, ax, width_in)
     return fig
 
@@ -729,26 +740,13 @@ def _fleet_box(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
 
 def _fleet_cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     """The pooled distribution of the final errors of every outage, per estimator."""
-    fig, ax = _new_figure(width_in, 2.7)
-    skipped = []
-    for name, label, color, i in _styled(rep):
-        per_drive = _fleet_finals(rep, name)
-        finals = np.concatenate(list(per_drive.values())) if per_drive else np.zeros(0)
-        v, share = error_cdf(finals)
-        if not len(v):
-            skipped.append(f"{label} has no defined final error, left out")
-            continue
-        if len(v) < len(finals):
-            skipped.append(f"{label}: {len(finals) - len(v)} of {len(finals)} outages left out")
+    per_drive = {name: _fleet_finals(rep, name) for name, *_ in _styled(rep)}
+
+    def legend(name: str, label: str) -> str:
         p50 = rep["pooled"].get(name, {}).get("final_error_percentiles", {}).get("p50") if isinstance(rep["pooled"], dict) else None
         median = f"p50 {p50:.1f} m" if is_finite_number(p50) else "p50 n/a"
-        ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
-                label=f"{label} ({median}, {len(per_drive)} drives)")
-    _skipped("fleet-cdf", skipped)
-    ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
-    ax.set_ylabel("share of outages")
-    ax.set_ylim(0, 1.0)
-    ax.set_xlim(left=0)
-    _set_title(ax, _fleet_title(rep))
-    _legend(fig, ax, width_in)
-    return fig
+        return f"{label} ({median}, {len(per_drive[name])} drives)"
+
+    curves = [(name, label, color, i, np.concatenate(list(per_drive[name].values())) if per_drive[name] else np.zeros(0))
+              for name, label, color, i in _styled(rep)]
+    return _cdf_figure(rep, "fleet-cdf", _fleet_title(rep), curves, legend, width_in)

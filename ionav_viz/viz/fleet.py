@@ -17,10 +17,9 @@ from typing import Any
 import numpy as np
 
 from ..analysis.fleet import DriveTable, FleetReport
-from ..core.errors import ToolFailure
 from ..core.fileio import utf8_alias
 from ..nav.protocol import short_label
-from .recording import APP_ID, FLUSH_TIMEOUT_S, _check_written
+from .recording import APP_ID, streamed_to
 from .style import estimator_colors
 
 #: Entity paths of the fleet recording.
@@ -105,9 +104,7 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
     colors = estimator_colors([SimpleNamespace(**e) for e in _estimator_infos(report)])
     rec = rr.RecordingStream(APP_ID, recording_id=f"{FLEET_ID_PREFIX}{len(report.drives)} drives, {report.outage_s:g} s outages")
     rows: dict[str, int] = {}
-    try:
-        with utf8_alias(path) as writable:
-            rec.save(writable)
+    with streamed_to(rec, path, target):
         rec.send_blueprint(fleet_blueprint(report))
         rec.log(FLEET_TABLE, rr.TextDocument(drives_markdown(report), media_type=rr.MediaType.MARKDOWN), static=True)
         rec.log(FLEET_REPORT, rr.TextDocument(report.to_markdown(), media_type=rr.MediaType.MARKDOWN), static=True)
@@ -121,13 +118,6 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
                 rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e], abscissa=numbers - BAR_WIDTH / 2,
                                                    widths=np.full(len(numbers), BAR_WIDTH, dtype=np.float32)), static=True)
                 rows[f"{root}/{e}"] = 1
-        rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-    except RuntimeError as exc:  # the file sink's failures
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ToolFailure(f"{target or path}: write failed ({first}); is the disk full?") from None
-    finally:
-        rec.disconnect()
-    _check_written(path, target or path)
     return rows
 
 

@@ -13,6 +13,8 @@ them for users); the layout from :mod:`ionav_viz.viz.blueprints`.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -71,12 +73,7 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     import rerun as rr
 
     rec = rr.RecordingStream(APP_ID, recording_id=recording_id(result))
-    try:
-        # Rerun's file sink streams chunks to disk as they are batched: the recording never sits
-        # whole in memory (a 12 h drive's is 180 MB). A write that fails (disk full, file size
-        # limit) ends its writer thread, and the flush below then raises instead of waiting.
-        with utf8_alias(path) as writable:
-            rec.save(writable)
+    with streamed_to(rec, path, target):
         rows = log_result(rec, result, summary_md, progress, events)
         if overview_md is not None:
             rec.log(ent.OVERVIEW, rr.TextDocument(overview_md, media_type=rr.MediaType.MARKDOWN), static=True)
@@ -84,6 +81,20 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
         if report_json is not None:
             rec.log(ent.REPORT, rr.TextDocument(report_json, media_type=rr.MediaType.TEXT), static=True)
             rows[ent.REPORT] = 1
+    return rows
+
+
+@contextlib.contextmanager
+def streamed_to(rec, path: Path, target: Path | None = None) -> Iterator[None]:
+    """``rec`` streamed to the ``.rrd`` file ``path`` while the block logs to it, flushed and
+    checked after (``target``: the name for messages when ``path`` is a temporary file). Rerun's
+    file sink streams chunks to disk as they are batched: a recording never sits whole in memory
+    (a 12 h drive's is 180 MB). A write that fails (disk full, file size limit) ends its writer
+    thread, and the flush then raises instead of waiting: a :class:`ToolFailure` in one line."""
+    try:
+        with utf8_alias(path) as writable:
+            rec.save(writable)
+        yield
         rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
     except RuntimeError as exc:  # the file sink's failures (Rerun's bindings raise RuntimeError)
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -91,7 +102,6 @@ def write_recording(result: DriveResult, summary_md: str, path: Path, progress=N
     finally:
         rec.disconnect()
     _check_written(path, target or path)
-    return rows
 
 
 def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray, y_ranges: dict | None = None):
