@@ -75,8 +75,14 @@ def test_the_manoeuvre_has_the_scenarios_name_and_the_old_one_still_works():
 
 
 def test_every_command_that_writes_takes_quiet(tmp_path):
-    """-q means the same on every command: simulate takes it too (it was 'No such option: -q') and
-    still prints the path it wrote, on stdout."""
+    """-q means the same on every command that writes a file: simulate, convert and figures take it
+    too (each was 'No such option: -q'); the path written stays on stdout, convert's summary goes."""
     out = tmp_path / "V-q.csv"
     proc = run_cli("simulate", "motorway", "--duration", "20s", "-o", str(out), "-q")
     assert proc.returncode == 0 and proc.stdout.strip() == str(out) and out.is_file(), proc.stderr
+    proc = run_cli("convert", str(out), "-o", str(tmp_path / "q.mcap"), "-q")  # its summary goes; warnings and the path stay
+    assert proc.returncode == 0 and proc.stdout.strip() == str(tmp_path / "q.mcap") and "messages on" not in proc.stderr, proc.stderr
+    report = tmp_path / "r.json"
+    report.write_text(run_cli("evaluate", "hard-brake", "--estimators", "ins", "--json").stdout)
+    proc = run_cli("figures", str(report), "-o", str(tmp_path / "figs"), "-q")
+    assert proc.returncode == 0 and "files in" not in proc.stderr and str(tmp_path / "figs" / "drift.png") in proc.stdout, proc.stderr

@@ -20,12 +20,14 @@ def convert(
     drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
     output: Path = typer.Option(..., "-o", "--output", help="The .mcap file to write (ROS 2 cdr: Imu, NavSatFix, TwistStamped)."),
     read: Any = None,  # ReadOptions (c.with_source_options)
+    quiet: bool = c.QuietOpt,
 ) -> None:
     """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""
     from .. import api
 
     done = api.convert(drive_spec, output, read)
-    print(f"{done.messages} messages on {', '.join(done.topics)} ({done.samples} samples, {done.duration_s:.1f} s)", file=sys.stderr)
+    if not quiet:
+        print(f"{done.messages} messages on {', '.join(done.topics)} ({done.samples} samples, {done.duration_s:.1f} s)", file=sys.stderr)
     print(done.path)
 
 

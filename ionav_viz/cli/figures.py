@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from . import common as c
 from .app import app
 
 
@@ -14,11 +15,13 @@ from .app import app
 def figures(
     result: Path = typer.Argument(..., metavar="RESULT", help="A recording (.rrd) written by replay, or the output of 'evaluate --json' for one drive."),
     output: Path = typer.Option(..., "-o", "--output", help="The folder to write drift, cdf, outages and worst as SVG, PDF and PNG into (made when missing)."),
+    quiet: bool = c.QuietOpt,
 ) -> None:
     """Draw a run's drift curve, final-error CDF, per-outage errors and worst outage as publication figures."""
     from .. import api
 
     written = api.figures(result, output)
-    print(f"{len(written)} files in {output}", file=sys.stderr)
+    if not quiet:
+        print(f"{len(written)} files in {output}", file=sys.stderr)
     for path in written:
         print(path)
