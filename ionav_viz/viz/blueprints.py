@@ -291,6 +291,15 @@ HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBluep
                  "/time_panel": "TimePanelBlueprint"}
 
 
+def without_panels(blueprint: dict[str, Any]) -> dict[str, Any]:
+    """A copy of the viewer's ``blueprint`` dict with its panels (:data:`HIDDEN_PANELS`: menu,
+    badges, blueprint and selection panels, timeline) hidden: an image holds only the views."""
+    bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
+    for key, archetype in HIDDEN_PANELS.items():
+        bp[key] = {archetype: {**bp.get(key, {}).get(archetype, {}), "state": "Hidden"}}
+    return bp
+
+
 def plot_window(t_s: float, end_s: float, width_s: float = PLOT_WINDOW_S) -> tuple[float, float]:
     """The time plots' x range (s) for a shot at ``t_s`` of a drive ending at ``end_s``: ``width_s``
     centred on ``t_s``, shifted to lie inside ``[0, end_s]`` (the whole drive when it is shorter)."""
@@ -310,9 +319,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
     the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``."""
     frame = frame or Framing()
-    bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
-    for key, archetype in HIDDEN_PANELS.items():
-        bp[key] = {archetype: {**bp.get(key, {}).get(archetype, {}), "state": "Hidden"}}
+    bp = without_panels(blueprint)
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
     heights = plot_heights_px(size, n_estimators, warned) if size is not None else {}
     y_extents = y_extents or {}

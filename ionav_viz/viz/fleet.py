@@ -145,10 +145,11 @@ def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_
     """A PNG of the fleet overview ``recording`` in its own layout, by the private headless viewer."""
     import time
 
+    from .blueprints import without_panels
     from .viewer import HeadlessViewer
 
     with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
         viewer.open(Path(recording))
         time.sleep(SCREENSHOT_SETTLE_S)
-        viewer.show(viewer.base_blueprint, None, Path(out))
+        viewer.show(without_panels(viewer.base_blueprint), None, Path(out))
     return Path(out)
