@@ -166,3 +166,16 @@ def test_gins_aligns_at_the_first_usable_fix_not_on_the_cold_start_before_it(tmp
 
     assert final_pct(30.0, True) < final_pct(30.0, False)
     assert final_pct(60.0, True) < 0.5 * final_pct(60.0, False)
+
+
+def test_the_warm_up_is_gnss_time():
+    """A drive whose first 15 s of fixes are untrustworthy (a phone's cold start) gets its first
+    outage after 30 s of good GNSS, at 45 s, not at 30 s with 15 s of it."""
+    from ionav_viz.core.gnss_quality import GnssFault
+
+    drive = iv.load_drive("hard-brake")
+    cold = np.where(drive.t_s < 15.0, int(GnssFault.POOR_ACCURACY), 0).astype(np.uint16)
+    late = replace(drive, gnss_fault=drive.gnss_fault | cold)
+    rep = iv.evaluate([late], 10.0, estimators=["ins"]).to_dict()
+    assert min(s["start_s"] for s in rep["sequences"]) == pytest.approx(45.0, abs=0.6)
+    assert min(s["start_s"] for s in iv.evaluate([drive], 10.0, estimators=["ins"]).to_dict()["sequences"]) == pytest.approx(30.0, abs=0.6)
