@@ -89,7 +89,10 @@ class Windows:
         if warm_up_s <= 0 or not len(self):
             return replace(self, first_start=0)
         good_before = np.concatenate([[0], np.cumsum(self.truth_ok)])[:-1] * WINDOW_S  # GNSS time before each window
-        return replace(self, first_start=int(np.searchsorted(good_before, warm_up_s - 1e-6)))
+        first = int(np.searchsorted(good_before, warm_up_s - 1e-6))
+        if first >= len(self):  # never that much good GNSS: the drive's time, so that what is wrong is said (the GNSS, not the length)
+            first = int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6))
+        return replace(self, first_start=first)
 
     @property
     def steps(self) -> int:
