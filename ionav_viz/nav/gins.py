@@ -10,8 +10,8 @@ integral of the horizontal speed, never negative), the mean yaw rate (counter-cl
 corrected gyro's, so that the updates' corrections of the heading are not counted as turns), and its
 own positions at the window boundaries, which the metrics use.
 
-Initial alignment, at the drive's first window boundary: level (roll and pitch) from the mean
-specific force over the first second, heading from the GNSS course at speed (the windows hold
+Initial alignment, at the drive's first window boundary with a usable fix (:func:`alignment_boundary`): level (roll and pitch) from the mean
+specific force over the second after it, heading from the GNSS course at speed (the windows hold
 the first course at speed through a standstill at the start), velocity from the GNSS speed and
 course (15 degrees of sigma: a course at walking pace is worth little), biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
 white noise (the filter's random walks) is measured on the drive where it stands
@@ -148,6 +148,23 @@ FIX_STEP_MARGIN_M = 3.0
 FIX_STEP_SHARE = 0.5
 
 
+def alignment_boundary(b: Boundaries) -> int:
+    """Where the filter is aligned: the drive's first boundary with a usable fix in its first segment
+    (0 when the drive starts with one or has none there). The alignment's covariance (position at
+    the fix's sigma, 0.5 m/s, 15 deg of heading) is a promise only a fix the GNSS check trusts can
+    keep: phones start cold, with 9-15 s of fixes reported at 16-65 m and a speed and course held from
+    before. Aligned on those, the filter ran free through them (a real phone log: 9 -> 12.6 -> 2 m/s
+    while the car drove 9), the first good fix's correction, 27 m off through the cross-covariances of
+    that free run, went into the biases (gyro z 0.29 deg/s at the first outage, 0.03 over the drive),
+    and one 60 s outage ended at 19.0 % of the distance; aligned at the first good fix, 14.1 %. On the
+    same phone's logs held out from that diagnosis, 10 / 30 / 60 s: 51.5 / 141 / 210 -> 11.6 / 9.9 /
+    10.5 %, 9.8 / 22.6 / 24.3 -> 5.7 / 5.8 / 2.7 %, 8.5 / 16.7 / 28.7 -> 7.9 / 7.5 / 9.6 %
+    (docs/real-imu-logs.md); on a simulated dash device starting cold, 60 s outages 5.0 -> 1.3 %."""
+    first_segment_end = int(np.argmax(b.segment_start[1:])) + 1 if b.segment_start[1:].any() else len(b.t_s)
+    good = np.flatnonzero(b.gnss_ok[:first_segment_end])
+    return int(good[0]) if len(good) else 0
+
+
 def fix_steps(b: Boundaries, pos_m: np.ndarray, sigma_m: np.ndarray) -> np.ndarray:
     """Per boundary, how its fix follows the one before (int8): 1 when both are good and the step
     between them is what the speed says (no jump: the fixes can be believed over the filter,
@@ -267,18 +284,14 @@ class GinsEstimator:
         earth = earth_at(origin[0], origin[2])
         switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt), reduced)
 
-        x0 = np.zeros(N_NOMINAL)
-        x0[PX:PX + 3] = pos[0]
-        x0[VX:VX + 2] = vel[0]
-        j0 = b.sample[0]
-        x0[QW:QW + 4] = _level_attitude(acc[j0:j0 + max(int(round(1.0 / dt)), 1)].mean(axis=0), float(b.course_deg[0]))
-        x0[KO] = 1.0
-        P0 = np.diag(init**2)
-        P0[0, 0] = P0[1, 1] = sigma[0] ** 2
-        P0[2, 2] = (2.0 * sigma[0]) ** 2
         nb = len(b.t_s)
         out = filter_outputs(nb, keep_states=True)
-        run_filter(inputs, noise, earth, switches, x0, P0, 0, nb - 1, out)
+        aligned = alignment_boundary(b)
+        if aligned > 0:
+            # no usable fix before it: the boundaries before run free from an alignment on the unusable
+            # fixes (as the drive's start always was; only an outage placed there uses them)
+            run_filter(inputs, noise, earth, switches, *self._aligned(0, pos, vel, sigma, acc, b, dt, init), 0, aligned - 1, out)
+        run_filter(inputs, noise, earth, switches, *self._aligned(aligned, pos, vel, sigma, acc, b, dt, init), aligned, nb - 1, out)
         xs = out.xs
         self._last = {"mechanisation": _mechanisation_text(reduced, drive),
                       "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample ({noise_from})",
@@ -291,6 +304,21 @@ class GinsEstimator:
                       "process_noise_scale": f"x{float(np.max(out.q_scale)):.1f} at most, above x1 over {100.0 * float(np.mean(out.q_scale > 1.0)):.0f} % "
                                              "of the drive (the consistency test: the GNSS position's running NIS)"}
         return GinsRun(b, xs, out.Ps, inputs, noise, earth, switches, origin, still, out.log, out.q_scale.copy())
+
+    @staticmethod
+    def _aligned(k: int, pos: np.ndarray, vel: np.ndarray, sigma: np.ndarray, acc: np.ndarray, b: Boundaries, dt: float,
+                 init: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The initial state and covariance at boundary ``k`` (see the module docstring)."""
+        x0 = np.zeros(N_NOMINAL)
+        x0[PX:PX + 3] = pos[k]
+        x0[VX:VX + 2] = vel[k]
+        j0 = b.sample[k]
+        x0[QW:QW + 4] = _level_attitude(acc[j0:j0 + max(int(round(1.0 / dt)), 1)].mean(axis=0), float(b.course_deg[k]))
+        x0[KO] = 1.0
+        P0 = np.diag(init**2)
+        P0[0, 0] = P0[1, 1] = sigma[k] ** 2
+        P0[2, 2] = (2.0 * sigma[k]) ** 2
+        return x0, P0
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         drive, n = inputs.drive, int(inputs.n_windows)

@@ -82,11 +82,17 @@ class Windows:
         return replace(self, truth_fault=np.zeros(len(self), dtype=np.uint16))
 
     def after_warm_up(self, warm_up_s: float) -> Windows:
-        """The same windows, outages placed only from ``warm_up_s`` after the drive's first window:
-        the filters have had that long with GNSS (every estimator gets the same outages)."""
+        """The same windows, outages placed only after ``warm_up_s`` of windows with good GNSS: the
+        filters have had that long with GNSS (every estimator gets the same outages). Counted in
+        good windows, not from the drive's first: phones start cold, and on real phone logs the first
+        9-15 s of fixes were untrustworthy, so 30 s of drive gave the filters 15-21 s of GNSS."""
         if warm_up_s <= 0 or not len(self):
             return replace(self, first_start=0)
-        return replace(self, first_start=int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6)))
+        good_before = np.concatenate([[0], np.cumsum(self.truth_ok)])[:-1] * WINDOW_S  # GNSS time before each window
+        first = int(np.searchsorted(good_before, warm_up_s - 1e-6))
+        if first >= len(self):  # never that much good GNSS: the drive's time, so that what is wrong is said (the GNSS, not the length)
+            first = int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6))
+        return replace(self, first_start=first)
 
     @property
     def steps(self) -> int:
