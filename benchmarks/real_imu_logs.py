@@ -49,6 +49,8 @@ def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma
             pct = [s[name]["final_error_pct"] for s in d["sequences"] if isinstance(s.get(name), dict)]
             pct = [p for p in pct if p is not None and np.isfinite(p)]
             cell[name] = float(np.mean(pct)) if pct else None
+            if est.get("info", {}).get("arbiter"):  # what gins's history arbiter chose, per length
+                out.setdefault("arbiter", {})[f"{length:g}"] = est["info"]["arbiter"]
         out["lengths"][f"{length:g}"] = cell
         out["warnings"] = d.get("warnings", [])
         out["filter_health"] = d.get("filter_health", {})

@@ -51,9 +51,12 @@ from ..core.geo import enu_of_geodetic, geodetic_of_enu
 from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..core.rotation import quat_of_euler
+from . import history_check
+from .ins import dead_reckon
 from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs, FilterHealth
-from .stillness import drive_still
+from .stillness import drive_still, still_on_grid
+from .track import rebuild_track
 from .strapdown import BAX, BGX, GINS_MEASUREMENTS, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
@@ -222,16 +225,19 @@ class GinsEstimator:
     requires = "all six IMU axes, measured: a message log's or KITTI's IMU"
 
     def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True,
-                 mechanisation: str = "auto") -> None:
+                 mechanisation: str = "auto", arbiter: bool = True) -> None:
         """``mechanisation``: ``"3d"``, ``"reduced"`` (roll and pitch held: yaw rate and specific
         force with the constraints) or ``"auto"``: reduced where the drive's IMU samples are single
-        readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`)."""
+        readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`). ``arbiter``:
+        per outage, the propagation whose past pseudo-outages on this drive ended nearest the fixes
+        (:func:`arbitrate`); without it, the mechanisation's own on every outage."""
         self.noise = noise or GinsNoise()
         if mechanisation not in MECHANISATIONS:
             raise InputError(f"gins mechanisation {mechanisation!r} is not one of {', '.join(MECHANISATIONS)}",
                              "choose auto (from the IMU's samples), 3d or reduced", param="mechanisation")
         self.nhc, self.zupt, self.odometer = nhc, zupt, odometer
         self.mechanisation = mechanisation
+        self.arbiter = bool(arbiter)
         self._last: dict[str, Any] = {}
 
     def available(self) -> bool:
@@ -326,27 +332,125 @@ class GinsEstimator:
         if m == 0:
             return Estimate(np.zeros((0, n)), np.zeros((0, n)))
         r = self.run(drive, inputs.windows)
-        out = filter_outputs(len(r.bounds.t_s), keep_states=False)
         blind = r.switches._replace(gnss=False)
-        positions = np.zeros((m, n + 1, 3))
-        cov = np.zeros((m, n + 1, 2, 2))
-        disp, yaw = np.zeros((m, n)), np.zeros((m, n))
-        for o, k in enumerate(np.asarray(inputs.starts)):
-            b0 = int(r.bounds.of_window[k])
-            run_filter(r.inputs, r.noise, r.earth, blind, r.xs[b0], r.Ps[b0], b0, b0 + n, out, float(r.q_scale[b0]))
-            span = slice(b0, b0 + n + 1)
-            positions[o] = out.pos[span]
-            cov[o] = out.pos_cov[span]
-            disp[o] = np.diff(out.dist[span])
-            T = np.diff(r.bounds.t_s[span])
-            yaw[o] = np.diff(out.turn[span]) / T
+        b0s = r.bounds.of_window[np.asarray(inputs.starts)].astype(int)
+        positions, cov, disp, yaw = _propagate(r, blind, b0s, n)
+        if self.arbiter:
+            choice, note = arbitrate(r, inputs, blind)
+            self._last["arbiter"] = note
+            held = np.flatnonzero(choice == REDUCED)
+            if len(held):
+                p2, c2, d2, y2 = _propagate(r, blind._replace(level_held=True), b0s[held], n)
+                positions[held], cov[held], disp[held], yaw[held] = p2, c2, d2, y2
+            planar = np.flatnonzero(choice == PLANAR_DR)
+        else:
+            planar = np.zeros(0, dtype=int)
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
-        # the filter's own position covariance through the outage (no GNSS), symmetrised
+        lat, lon = lat.reshape(m, n + 1), lon.reshape(m, n + 1)
+        if len(planar):
+            # the INS DR's own propagation from the same start (its output, on these outages)
+            d, y = dead_reckon(inputs.accel_mps2[planar], inputs.gyro_radps[planar], inputs.speed0_mps[planar], inputs.bias,
+                               inputs.rate_hz, inputs.still[planar])
+            track = rebuild_track(inputs.lat0_deg[planar], inputs.lon0_deg[planar], inputs.course0_deg[planar], d, y)
+            disp[planar], yaw[planar], lat[planar], lon[planar] = d, y, track.lat_deg, track.lon_deg
+        # the filter's own position covariance through the outage (no GNSS), symmetrised; on the planar
+        # DR's outages the filter's (the DR has none of its own)
         cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
-        return Estimate(np.maximum(disp, 0.0), yaw, lat.reshape(m, n + 1), lon.reshape(m, n + 1), health=health_of(r), pos_cov_m2=cov)
+        return Estimate(np.maximum(disp, 0.0), yaw, lat, lon, health=health_of(r), pos_cov_m2=cov)
 
     def describe(self) -> dict[str, Any]:
         return dict(self._last)
+
+
+def _propagate(r: GinsRun, sw: FilterSwitches, b0s: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The filter run on without GNSS (switches ``sw``) for ``n`` windows from each boundary of
+    ``b0s``, from the pass's state there: positions (ENU m, ``(m, n + 1, 3)``), their east/north
+    covariance ``(m, n + 1, 2, 2)``, the distance and the mean yaw rate per window ``(m, n)``."""
+    m = len(b0s)
+    out = filter_outputs(len(r.bounds.t_s), keep_states=False)
+    positions, cov = np.zeros((m, n + 1, 3)), np.zeros((m, n + 1, 2, 2))
+    disp, yaw = np.zeros((m, n)), np.zeros((m, n))
+    for o, b0 in enumerate(b0s):
+        b0 = int(b0)
+        run_filter(r.inputs, r.noise, r.earth, sw, r.xs[b0], r.Ps[b0], b0, b0 + n, out, float(r.q_scale[b0]))
+        span = slice(b0, b0 + n + 1)
+        positions[o] = out.pos[span]
+        cov[o] = out.pos_cov[span]
+        disp[o] = np.diff(out.dist[span])
+        yaw[o] = np.diff(out.turn[span]) / np.diff(r.bounds.t_s[span])
+    return positions, cov, disp, yaw
+
+
+#: The arbiter's candidates (:func:`arbitrate`): the mechanisation's own propagation (the default),
+#: the reduced one (roll and pitch held; a candidate where the default is 3D), the planar DR.
+DEFAULT, REDUCED, PLANAR_DR = 0, 1, 2
+#: The prior the arbiter shrinks each alternative's record toward: it ends this many times as far
+#: from the fixes as the default does, with the weight of :data:`ARBITER_PRIOR_OUTAGES`
+#: pseudo-outages. On the simulated phone and dash sets the INS DR errs 2.2-6 times as far as
+#: ``gins`` (docs/real-imu-logs.md): 2 is the cautious end, so an alternative is taken only when this
+#: drive's own past says clearly otherwise.
+ARBITER_PRIOR_RATIO = 2.0
+#: The prior's weight in pseudo-outages, as :data:`ionav_viz.nav.history_check.PRIOR_OUTAGES`: with
+#: ``k`` past pseudo-outages an alternative must have ended on average ``1 - 3 / k`` as far from the
+#: fixes as the default (none before 4, 25 % nearer after 12, 10 % after 30).
+ARBITER_PRIOR_OUTAGES = history_check.PRIOR_OUTAGES
+_CANDIDATE_TEXT = {DEFAULT: "", REDUCED: "reduced (roll and pitch held)", PLANAR_DR: "planar DR (the INS DR's propagation)"}
+
+
+def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tuple[np.ndarray, str]:
+    """Per outage, which propagation ``gins`` uses (:data:`DEFAULT`, :data:`REDUCED`,
+    :data:`PLANAR_DR`), and the report's sentence on it.
+
+    Each candidate is run on pseudo-outages of the outage's length tiled over the drive's GNSS
+    (:func:`ionav_viz.nav.history_check.pseudo_outages`, from the filter's alignment on: the first ones
+    see a filter less converged than later, which the prior's caution answers) from the same start as the default (the pass's state there; the planar DR from the GNSS
+    speed and course, as the INS DR restarts). Each pseudo-outage's final horizontal distance from the
+    fix scores it. An outage gets the candidate with the least mean of the pseudo-outages that ended
+    at or before its start (only the past), each alternative's mean shrunk toward
+    :data:`ARBITER_PRIOR_RATIO` times the default's with the weight of :data:`ARBITER_PRIOR_OUTAGES`."""
+    w, n, m = inputs.windows, int(inputs.n_windows), inputs.n_outages
+    choice = np.full(m, DEFAULT)
+    pseudo = history_check.pseudo_outages(w, n)
+    # from the filter's alignment on (before it the pass ran free from fixes the GNSS check distrusts)
+    starts = pseudo.starts[r.bounds.of_window[pseudo.starts] >= alignment_boundary(r.bounds)]
+    if r.switches.level_held:
+        own, names = "reduced", (DEFAULT, PLANAR_DR)
+    else:
+        own, names = "3D", (DEFAULT, REDUCED, PLANAR_DR)
+    if not len(starts):
+        return choice, f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)"
+    ends = starts + n
+    b0s = r.bounds.of_window[starts].astype(int)
+    h0 = r.origin[2]
+    fix = enu_of_geodetic(w.lat1_deg[ends - 1], w.lon1_deg[ends - 1], np.full(len(ends), h0), *r.origin)[:, :2]
+    err = np.zeros((3, len(starts)))
+    err[DEFAULT] = np.hypot(*(_propagate(r, blind, b0s, n)[0][:, -1, :2] - fix).T)
+    if REDUCED in names:
+        err[REDUCED] = np.hypot(*(_propagate(r, blind._replace(level_held=True), b0s, n)[0][:, -1, :2] - fix).T)
+    idx = starts[:, None] + np.arange(n)[None, :]
+    d, y = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[starts], inputs.bias, w.rate_hz,
+                       still_on_grid(inputs.drive, w)[idx])
+    track = rebuild_track(w.lat0_deg[starts], w.lon0_deg[starts], w.heading0_deg[starts], d, y)
+    dr = enu_of_geodetic(track.lat_deg[:, -1], track.lon_deg[:, -1], np.full(len(ends), h0), *r.origin)[:, :2]
+    err[PLANAR_DR] = np.hypot(*(dr - fix).T)
+    # per outage, the sums over the pseudo-outages that ended at or before its start
+    count = np.searchsorted(ends, np.asarray(inputs.starts), side="right")  # ends ascend with starts
+    sums = np.concatenate([np.zeros((3, 1)), np.cumsum(err, axis=1)], axis=1)[:, count]
+    mean_default = sums[DEFAULT] / np.maximum(count, 1)
+    score = np.full((3, m), np.inf)
+    score[DEFAULT] = mean_default
+    for c in names[1:]:
+        score[c] = (ARBITER_PRIOR_OUTAGES * ARBITER_PRIOR_RATIO * mean_default + sums[c]) / (ARBITER_PRIOR_OUTAGES + count)
+    choice = np.where(count > 0, np.argmin(score, axis=0), DEFAULT)
+    parts = [f"{own} on {int(np.sum(choice == DEFAULT))} outages"]
+    for c in names[1:]:
+        on = choice == c
+        if on.any():
+            nearer = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[DEFAULT][on])), 1e-9)
+            parts.append(f"{_CANDIDATE_TEXT[c]} on {int(on.sum())} (its past pseudo-outages ended {100.0 * nearer:.0f} % nearer the fixes)")
+    means = ", ".join(f"{'default' if c == DEFAULT else _CANDIDATE_TEXT[c].split(' (')[0]} {float(err[c].mean()):.1f} m" for c in names)
+    return choice, (f"{', '.join(parts)}; chosen per outage from the {n} s pseudo-outages over the GNSS before it "
+                    f"({len(starts)} on the drive; mean final distance from the fix: {means})")
 
 
 #: The safeguard's kind in the filter's health: re-initialisations from GNSS (see run_filter).

@@ -1,0 +1,79 @@
+"""gins's history arbiter (:func:`ionav_viz.nav.gins.arbitrate`): per outage, the propagation whose
+pseudo-outages over the GNSS before it ended nearest the fixes, shrunk toward gins's own.
+
+* A good IMU (the simulated roof MEMS): its 3D strapdown ends pseudo-outages metres from the fixes
+  where a planar DR of a 10 Hz gyro and accelerometer ends tens of metres off (the INS DR's 15-30 %
+  of the distance against gins's 1-4 % in docs/results.md), and holding roll and pitch throws away
+  what a good gyro measures: the arbiter keeps the default on every outage and the output is the
+  arbiter-free filter's, bit for bit.
+* A log built to break the filter (single readings, a holder wobbling 2.5 times the phone grade's,
+  a clock 0.3 s off that the user said is 0), braking hard for 10 min: on 30 s outages the
+  reduced filter integrates the holder's tilt under braking into its speed, the planar DR's past
+  pseudo-outages end nearer the fixes, and once enough of them lie behind an outage the arbiter
+  takes the planar DR there. The outages before that keep gins's own, so gins ends nearer the INS
+  DR than without the arbiter, not yet at or below it (issue 41 point 7, a strict xfail).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import ionav_viz as iv
+from ionav_viz.nav.gins import GinsEstimator
+from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
+
+pytestmark = pytest.mark.xdist_group("consumer_imu")
+
+LOG = iv.LogOptions(imu_mount="auto", truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none")
+
+
+def _pct(rep, name: str) -> float:
+    return rep.summary[name]["final_error_pct"]["mean"]
+
+
+def test_on_a_good_imu_the_arbiter_keeps_gins_on_every_outage(tmp_path):
+    path = write_imu_log(tmp_path / "mems.mcap", "roundabout", 5, 300.0, "mems")
+    drive = iv.load_drive(path, iv.ReadOptions(log=LOG))
+    for length in (10.0, 30.0):
+        on, off = GinsEstimator(), GinsEstimator(arbiter=False)
+        a = iv.evaluate([drive], length, estimators=[on]).to_dict()
+        b = iv.evaluate([drive], length, estimators=[off]).to_dict()
+        n = len(a["sequences"])
+        assert on.describe()["arbiter"].startswith(f"3D on {n} outages;"), on.describe()["arbiter"]
+        assert "arbiter" not in off.describe()
+        ea = np.array([s["gins"]["final_position_error_m"] for s in a["sequences"]])
+        eb = np.array([s["gins"]["final_position_error_m"] for s in b["sequences"]])
+        np.testing.assert_array_equal(ea, eb)
+
+
+@pytest.fixture(scope="module")
+def loose_holder(tmp_path_factory):
+    grade = replace(IMU_GRADES["phone"], holder_wobble_dps=4.0, clock_offset_s=0.3)
+    path = write_imu_log(tmp_path_factory.mktemp("loose") / "loose.mcap", "hard-brake", 904, 600.0, grade)
+    drive = iv.load_drive(path, iv.ReadOptions(log=replace(LOG, imu_time_offset="0")))
+    on, off = GinsEstimator(), GinsEstimator(arbiter=False)
+    rep_on = iv.evaluate([drive], 30.0, estimators=["ins", on])
+    rep_off = iv.evaluate([drive], 30.0, estimators=[off])
+    return rep_on, rep_off, on.describe()["arbiter"]
+
+
+def test_on_a_log_built_to_break_the_filter_the_arbiter_takes_the_planar_dr_where_its_past_says_so(loose_holder):
+    rep_on, rep_off, note = loose_holder
+    ins, on, off = _pct(rep_on, "ins"), _pct(rep_on, "gins"), _pct(rep_off, "gins")
+    assert off > ins  # without it the filter loses to the INS DR here
+    assert "planar DR (the INS DR's propagation) on" in note, note
+    assert on < off, (on, off)
+    # the first outages have no past pseudo-outage of 30 s after the alignment: gins's own there
+    first_on = rep_on.to_dict()["sequences"][0]["gins"]["final_position_error_m"]
+    first_off = rep_off.to_dict()["sequences"][0]["gins"]["final_position_error_m"]
+    assert first_on == first_off
+
+
+@pytest.mark.xfail(strict=True, reason="issue 41 point 7, open: the arbiter needs past pseudo-outages; the outages before "
+                   "them keep gins's own, and gins ends this drive's 30 s outages at 19.8 % against the INS DR's 16.6 %")
+def test_on_a_log_built_to_break_the_filter_gins_with_the_arbiter_ends_at_or_below_the_ins_dr(loose_holder):
+    rep_on, _, _ = loose_holder
+    assert _pct(rep_on, "gins") <= _pct(rep_on, "ins")
