@@ -327,8 +327,8 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
     acceleration taken off) gained less where the guard kept it (880 +1/+3, 884 -4/-4 %) and lost
     882 -22/-20 % without the guard; only the output layer +0/+1 % at most; stronger pulls to the
     parent (100 x) shrank gains and losses alike (882 -8/-4 %); training only on windows whose
-    calibration is 30 s or 15 s into the drive (as an outage after the warm-up) lost more on 882,
-    883 and 886 (too few windows). What the first minute cannot give: the parent fine-tuned, no
+    calibration is 30 s or 15 s into the drive (as an outage after the warm-up) gained less or lost
+    more on 882, 883 and 886 (too few windows). What the first minute cannot give: the parent fine-tuned, no
     guard, on the second minute of each drive (60-120 s, 5 minutes too, all driving) beat it on
     all four cars tried (882, 886, 883, 880: +8/+9, +5/+6, +10/+12, +6/+10 %); on the first minute
     cars like 882 and 886 keep the parent's displacement network."""
