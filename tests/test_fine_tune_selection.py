@@ -100,11 +100,29 @@ def test_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_p
     shipped = default_model_dir()
     for name in ("displacement", "yaw_rate"):
         assert meta["epoch_selection"][name]["kept"] == "parent"
-        assert meta["epoch_selection"][name]["validation_loss_last"] > meta["epoch_selection"][name]["validation_loss_start"]
+        assert meta["epoch_selection"][name]["validation_loss_fine_tuned"] > meta["epoch_selection"][name]["validation_loss_parent"]
     weights = ("displacement.safetensors", "yaw_rate.safetensors")  # the uncertainty is fitted again
     assert all(_sha(tmp_path / "m" / f) == _sha(shipped / f) for f in weights)
     lines = [r.getMessage() for r in caplog.records if "did not beat the parent" in r.getMessage()]
     assert len(lines) == 2 and all("\n" not in line for line in lines)
+    assert meta["validation"]["note"].startswith("one-window predictions with the last 20% of each drive (by time) left out")
+    assert meta["epoch_selection"]["validation"].startswith("the last 20% of each drive (by time) left out: the displacement CRSE (m, mean) of 5 s outages")
+    assert [f["left_out"] for f in meta["epoch_selection"]["folds"]] == [[0.8, 1.0]]
+
+
+def test_without_validation_folds_the_tail_trained_fit_is_kept(tmp_path):
+    import dataclasses
+
+    import ionav_viz as iv
+    from ionav_viz.api.training import fine_tune_settings
+
+    config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), validation_folds=0)
+    config.lr_disp = config.lr_yaw = 10.0
+    iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
+    for name in ("displacement", "yaw_rate"):
+        assert meta["epoch_selection"][name]["kept"] == "parent"
+        assert meta["epoch_selection"][name]["validation_loss_last"] > meta["epoch_selection"][name]["validation_loss_start"]
     assert meta["validation"]["note"].startswith("one-window predictions on the last 20% of each drive")
     assert meta["epoch_selection"]["displacement"]["validation"].startswith("displacement CRSE (m, mean) of 5 s outages")
 
@@ -116,7 +134,88 @@ def test_a_fine_tuned_model_records_which_weights_it_kept(tmp_path):
     model = iv.train(tmp_path / "m", [str(DRIVE)], fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2),
                      read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
     sel = model.metadata["epoch_selection"]
-    assert model.config.keep == "last-or-start" and model.config.validation_tail == pytest.approx(0.2)
+    assert model.config.validation_folds == 1 and model.config.validation_tail == pytest.approx(0.2)
     for name in ("displacement", "yaw_rate"):
-        assert sel[name]["kept"] in ("parent", "epoch 2 of 2")
-        assert sel[name]["validation_loss_kept"] == min(sel[name]["validation_loss_start"], sel[name]["validation_loss_last"])
+        beat = sel[name]["validation_loss_fine_tuned"] < sel[name]["validation_loss_parent"]
+        assert sel[name]["kept"] == ("fine-tuned on every window" if beat else "parent")
+    # the model kept was fitted on every window, the tail too
+    assert model.metadata["training"]["n_validation"] == 0
+
+
+def test_block_split_leaves_out_a_stretch_of_time_of_each_drive():
+    # two drives of 60 s and 30 s, windows starting every second; the block from 40 % to 60 %: 24-36 s and 12-18 s
+    t = np.concatenate([np.arange(60.0), np.arange(30.0)])
+    length = np.concatenate([np.full(60, 60.0), np.full(30, 30.0)])
+    zeros = np.zeros(90)
+    data = TrainingSet(zeros[:, None], zeros, zeros, zeros[:, None], zeros, t, length)
+    outside, inside = data.block_split(0.4, 0.6)
+    long, short = length == 60, length == 30
+    # inside: the window and the one before it in the block; outside: neither touches it
+    assert set(t[inside & long]) == set(range(25, 36)) and set(t[inside & short]) == set(range(13, 18))
+    assert set(t[~outside & long]) == set(range(24, 37)) and set(t[~outside & short]) == set(range(12, 19))
+    assert not (outside & inside).any()
+    # the whole drive as the block: nothing outside it
+    assert not data.block_split(0.0, 1.0)[0].any()
+
+
+def test_outage_cases_lie_in_their_block_after_the_warm_up():
+    from ionav_viz.api.training import parent_model
+    from ionav_viz.nav.bias import resolve_bias
+    from ionav_viz.nav.training import outage_cases
+    from ionav_viz.sources.load import ReadOptions, load_drive
+
+    drive = load_drive(str(DRIVE), ReadOptions(span="0s:120s"))
+    config = parent_model("shipped").config
+    t0 = float(drive.t_s[0])
+    for block, warm_up, first in (((0.5, 0.75), 30.0, 60.0), ((0.0, 0.25), 0.0, 0.0), ((0.0, 0.5), 40.0, 40.0)):
+        cases = outage_cases([(drive, resolve_bias(drive, None))], config, 5, warm_up_s=warm_up, block=block)
+        assert cases
+        for w, starts, *_ in cases:
+            # the window before each outage starts in the block, after the warm-up; the last window ends in the block
+            assert (w.t0_s[starts - 1] - t0 >= first - 1e-6).all()
+            assert (w.t0_s[starts + 4] + 1.0 - t0 <= 120.0 * block[1] + 1e-6).all()
+
+
+def _cross_validated(tmp_path, lr: float | None = None):
+    import dataclasses
+
+    import ionav_viz as iv
+    from ionav_viz.api.training import fine_tune_settings
+
+    config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), validation_folds=4)
+    if lr is not None:
+        config.lr_disp = config.lr_yaw = lr
+    model = iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    return model, json.loads((tmp_path / "m" / "metadata.json").read_text())
+
+
+def test_cross_validated_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_path, caplog):
+    from ionav_viz.nav.idnn import default_model_dir
+
+    # a learning rate 2,500 times the parent's wrecks both networks in the first steps, in every fold
+    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+        _, meta = _cross_validated(tmp_path, lr=10.0)
+    sel = meta["epoch_selection"]
+    for name in ("displacement", "yaw_rate"):
+        assert sel[name]["kept"] == "parent" and sel[name]["validation_loss_fine_tuned"] > sel[name]["validation_loss_parent"]
+    weights = ("displacement.safetensors", "yaw_rate.safetensors")
+    assert all(_sha(tmp_path / "m" / f) == _sha(default_model_dir() / f) for f in weights)
+    lines = [r.getMessage() for r in caplog.records if "did not beat the parent on time it did not see" in r.getMessage()]
+    assert len(lines) == 2 and all("\n" not in line for line in lines)
+    # four 30 s blocks: outages only in those after the 30 s warm-up; every block scores the orientation rate
+    assert [f["left_out"] for f in sel["folds"]] == [[0.0, 0.25], [0.25, 0.5], [0.5, 0.75], [0.75, 1.0]]
+    assert sel["folds"][0]["n_outages"] == 0 and all(f["n_outages"] > 0 for f in sel["folds"][1:])
+    assert all(f["n_windows"] > 0 for f in sel["folds"])
+    assert meta["config"]["validation_folds"] == 4
+
+
+def test_cross_validated_fine_tuning_keeps_what_beat_the_parent_trained_on_every_window(tmp_path):
+    model, meta = _cross_validated(tmp_path)
+    sel = meta["epoch_selection"]
+    for name in ("displacement", "yaw_rate"):
+        beat = sel[name]["validation_loss_fine_tuned"] < sel[name]["validation_loss_parent"]
+        assert sel[name]["kept"] == ("fine-tuned on every window" if beat else "parent")
+        assert sel[name]["n_validation"] > 0
+    # the final fit saw every window: none held out
+    assert meta["training"]["n_validation"] == 0 and meta["validation"]["note"].startswith("one-window predictions with each of 4 blocks of each drive (by time) left out in turn")
+    assert meta["validation"]["disp_mae_m"] > 0 and model.config.validation_folds == 4

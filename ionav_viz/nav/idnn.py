@@ -104,6 +104,7 @@ class ModelConfig:
     keep: str = "last"  # which weights each network ends with: "last" epoch's; "best" epoch's on validation; "last-or-start": the last unless the start (a parent's) is better on validation
     anchor: float = 0.0  # fine-tuning: loss + anchor * mean squared distance of the weights from the parent's (L2-SP)
     validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
+    validation_folds: int = 0  # fine-tuning: 1: the tail decides, then refit on every window; k > 1: k time blocks left out in turn decide; 0: the tail-trained fit is kept
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -139,7 +140,7 @@ class ModelConfig:
 #: Ranges of the integer and real hyperparameters (checked by :meth:`ModelConfig.validate`).
 _INT_LIMITS = {"n_steps_disp": (1, 20), "n_steps_yaw": (1, 20), "hidden": (1, 1024), "batch_size": (1, 65536),
                "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1),
-               "validation_outage_s": (0, 600)}
+               "validation_outage_s": (0, 600), "validation_folds": (0, 100)}
 _FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0), "lr_yaw": (1e-9, 10.0),
                  "lr_decay_tail": (0.0, 1.0), "validation_tail": (0.0, 0.9),
                  "anchor": (0.0, 1e6)}
@@ -687,7 +688,7 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 
 #: Config fields later versions added: written only when not at their default, so that a model
 #: trained without them stays readable by the versions before them (which refuse unknown fields).
-LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s")
+LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds")
 
 
 def written_config(config: ModelConfig) -> dict[str, Any]:
