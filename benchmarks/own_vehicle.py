@@ -58,14 +58,14 @@ def drift(report_json: str, name: str) -> dict[str, list[float]]:
     return json.loads(report_json)["drift"][name]
 
 
-def measure(folder: Path, label: str, sensors: object, index: int, minutes: float, seed: int) -> dict:
+def measure(folder: Path, label: str, sensors: object, index: int, minutes: float, seed: int, span: str = "0s:60s") -> dict:
     tune = [write_simulated_drive(folder / f"V-car{index}-tune-{sc}.csv", sc, seed + i, 120.0, sensors) for i, sc in enumerate(SCENARIOS)]
     test = [write_simulated_drive(folder / f"V-car{index}-test-{sc}.csv", sc, seed + 50 + i, 60.0 * minutes, sensors)
             for i, sc in enumerate(SCENARIOS)]
     model = folder / f"model-car{index}"
     start = time.perf_counter()
     cpu0 = time.process_time()
-    iv.train(model, [str(p) for p in tune], read=iv.ReadOptions(span="0s:60s"), from_model="shipped", command="benchmarks/own_vehicle.py")
+    iv.train(model, [str(p) for p in tune], read=iv.ReadOptions(span=span), from_model="shipped", command="benchmarks/own_vehicle.py")
     wall_s, cpu_s = time.perf_counter() - start, time.process_time() - cpu0
     row = {"car": label, "tune_wall_s": wall_s, "tune_cpu_s": cpu_s}
     for outage in (10, 30):
@@ -177,6 +177,7 @@ def main() -> None:
     torch.set_num_threads(1)
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=5.0, help="length of each test drive")
+    parser.add_argument("--tune-span", default="0s:60s", help="the minute of each 2-minute fine-tuning drive trained on")
     parser.add_argument("--write", type=Path, help="write the Markdown page here instead of printing the table")
     parser.add_argument("--cars", default=",".join(map(str, REPORTED_CARS)),
                         help=f"held-out car seeds, the last made worse (choose settings on {','.join(map(str, TUNING_CARS))}, never on the reported ones)")
@@ -189,7 +190,7 @@ def main() -> None:
         for index, (label, sensors) in enumerate(cars(seeds)):
             # the drives' seeds: the reported cars' as ever; the tuning cars drive other roads too
             seed = 1000 + 100 * index + (0 if seeds == REPORTED_CARS else 5000)
-            rows.append(measure(Path(tmp), label, sensors, index, args.minutes, seed))
+            rows.append(measure(Path(tmp), label, sensors, index, args.minutes, seed, args.tune_span))
             print("\n".join(table(rows[-1:])[2:4]), flush=True)
     if args.write:
         figure(rows, args.write.parent / "figure-own-vehicle.png")
