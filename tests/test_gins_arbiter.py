@@ -77,3 +77,21 @@ def test_on_a_log_built_to_break_the_filter_the_arbiter_takes_the_planar_dr_wher
 def test_on_a_log_built_to_break_the_filter_gins_with_the_arbiter_ends_at_or_below_the_ins_dr(loose_holder):
     rep_on, _, _ = loose_holder
     assert _pct(rep_on, "gins") <= _pct(rep_on, "ins")
+
+
+def test_a_long_outage_with_little_history_of_its_length_is_judged_on_the_10_s_pseudo_outages(tmp_path):
+    """A 3-minute drive holds at most two 60 s pseudo-outages before any outage (too few to switch
+    on under the prior), but a dozen of 10 s: the arbiter judges its 60 s outages on those and says
+    so. Here (a holder phone going round, where gins's own propagation ends 10 s pseudo-outages
+    nearer the fixes than the planar DR) they keep gins's own, bit for bit."""
+    grade = replace(IMU_GRADES["phone"], holder_wobble_dps=4.0)
+    drive = iv.load_drive(write_imu_log(tmp_path / "round.mcap", "roundabout", 905, 180.0, grade), iv.ReadOptions(log=LOG))
+    on, off = GinsEstimator(), GinsEstimator(arbiter=False)
+    a = iv.evaluate([drive], 60.0, estimators=[on]).to_dict()
+    b = iv.evaluate([drive], 60.0, estimators=[off]).to_dict()
+    n = len(a["sequences"])
+    assert n >= 2
+    assert f"{n} outages with fewer than 4 behind them judged on the 10 s ones" in on.describe()["arbiter"], on.describe()["arbiter"]
+    assert on.describe()["arbiter"].startswith(f"reduced on {n} outages;")
+    np.testing.assert_array_equal([s["gins"]["final_position_error_m"] for s in a["sequences"]],
+                                  [s["gins"]["final_position_error_m"] for s in b["sequences"]])

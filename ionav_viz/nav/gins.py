@@ -397,28 +397,71 @@ ARBITER_PRIOR_OUTAGES = history_check.PRIOR_OUTAGES
 _CANDIDATE_TEXT = {DEFAULT: "", REDUCED: "reduced (roll and pitch held)", PLANAR_DR: "planar DR (the INS DR's propagation)"}
 
 
+#: The shorter horizon (windows) whose pseudo-outages speak for a longer outage that has fewer than
+#: :data:`ARBITER_ENOUGH` of its own length behind it (:func:`arbitrate`).
+ARBITER_SHORT_WINDOWS = 10
+#: The pseudo-outages of an outage's own length it takes to be judged on them: under the prior
+#: (:data:`ARBITER_PRIOR_OUTAGES` at :data:`ARBITER_PRIOR_RATIO`), fewer than 4 can never switch.
+ARBITER_ENOUGH = 4
+
+
 def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tuple[np.ndarray, str]:
     """Per outage, which propagation ``gins`` uses (:data:`DEFAULT`, :data:`REDUCED`,
     :data:`PLANAR_DR`), and the report's sentence on it.
 
     Each candidate is run on pseudo-outages of the outage's length tiled over the drive's GNSS
     (:func:`ionav_viz.nav.history_check.pseudo_outages`, from the filter's alignment on: the first ones
-    see a filter less converged than later, which the prior's caution answers) from the same start as the default (the pass's state there; the planar DR from the GNSS
-    speed and course, as the INS DR restarts). Each pseudo-outage's final horizontal distance from the
-    fix scores it. An outage gets the candidate with the least mean of the pseudo-outages that ended
-    at or before its start (only the past), each alternative's mean shrunk toward
-    :data:`ARBITER_PRIOR_RATIO` times the default's with the weight of :data:`ARBITER_PRIOR_OUTAGES`."""
-    w, n, m = inputs.windows, int(inputs.n_windows), inputs.n_outages
-    choice = np.full(m, DEFAULT)
+    see a filter less converged than later, which the prior's caution answers) from the same start as
+    the default (the pass's state there; the planar DR from the GNSS speed and course, as the INS DR
+    restarts). Each pseudo-outage's final horizontal distance from the fix scores it. An outage gets
+    the candidate with the least mean of the pseudo-outages that ended at or before its start (only
+    the past), each alternative's mean shrunk toward :data:`ARBITER_PRIOR_RATIO` times the default's
+    with the weight of :data:`ARBITER_PRIOR_OUTAGES`. An outage longer than
+    :data:`ARBITER_SHORT_WINDOWS` with fewer than :data:`ARBITER_ENOUGH` pseudo-outages of its own
+    length behind it (a drive of a few minutes, a 30 or 60 s outage) is judged on the
+    :data:`ARBITER_SHORT_WINDOWS` s ones instead: which propagation holds on this drive shows after
+    10 s already, and a 2-minute drive has a dozen of those."""
+    n, m = int(inputs.n_windows), inputs.n_outages
+    names = (DEFAULT, PLANAR_DR) if r.switches.level_held else (DEFAULT, REDUCED, PLANAR_DR)
+    own = "reduced" if r.switches.level_held else "3D"
+    record = _record(r, inputs, blind, n, names)
+    short = _record(r, inputs, blind, ARBITER_SHORT_WINDOWS, names) if n > ARBITER_SHORT_WINDOWS else None
+    if record is None and short is None:
+        return np.full(m, DEFAULT), f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)"
+    if record is None:  # not one of its own length: the short ones speak for every outage
+        record = (np.full(m, DEFAULT), np.zeros((3, m)), np.zeros(m, dtype=int), np.zeros((3, 0)))
+    choice, sums, count, err = record
+    horizon = np.full(m, n)
+    if short is not None:
+        use = count < ARBITER_ENOUGH
+        choice, sums = np.where(use, short[0], choice), np.where(use, short[1], sums)
+        horizon[use] = ARBITER_SHORT_WINDOWS
+    parts = [f"{own} on {int(np.sum(choice == DEFAULT))} outages"]
+    for c in names[1:]:
+        on = choice == c
+        if on.any():
+            nearer = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[DEFAULT][on])), 1e-9)
+            parts.append(f"{_CANDIDATE_TEXT[c]} on {int(on.sum())} (its past pseudo-outages ended {100.0 * nearer:.0f} % nearer the fixes)")
+    means = ", ".join(f"{'default' if c == DEFAULT else _CANDIDATE_TEXT[c].split(' (')[0]} {float(err[c].mean()):.1f} m" for c in names) \
+        if err.shape[1] else "none of this length"
+    shorter = int(np.sum(horizon < n))
+    return choice, (f"{', '.join(parts)}; chosen per outage from the {n} s pseudo-outages over the GNSS before it "
+                    f"({err.shape[1]} on the drive; mean final distance from the fix: {means})"
+                    + (f"; {shorter} outages with fewer than {ARBITER_ENOUGH} behind them judged on the "
+                       f"{ARBITER_SHORT_WINDOWS} s ones" if shorter else ""))
+
+
+def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
+            names: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """:func:`arbitrate`'s choice per outage from the pseudo-outages of ``n`` windows: the choice,
+    each candidate's summed final distance (m) over the pseudo-outages behind each outage ``(3, m)``,
+    their count per outage and every pseudo-outage's distance ``(3, k)``; None where none fits."""
+    w, m = inputs.windows, inputs.n_outages
     pseudo = history_check.pseudo_outages(w, n)
     # from the filter's alignment on (before it the pass ran free from fixes the GNSS check distrusts)
     starts = pseudo.starts[r.bounds.of_window[pseudo.starts] >= alignment_boundary(r.bounds)]
-    if r.switches.level_held:
-        own, names = "reduced", (DEFAULT, PLANAR_DR)
-    else:
-        own, names = "3D", (DEFAULT, REDUCED, PLANAR_DR)
     if not len(starts):
-        return choice, f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)"
+        return None
     ends = starts + n
     b0s = r.bounds.of_window[starts].astype(int)
     h0 = r.origin[2]
@@ -442,15 +485,7 @@ def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tup
     for c in names[1:]:
         score[c] = (ARBITER_PRIOR_OUTAGES * ARBITER_PRIOR_RATIO * mean_default + sums[c]) / (ARBITER_PRIOR_OUTAGES + count)
     choice = np.where(count > 0, np.argmin(score, axis=0), DEFAULT)
-    parts = [f"{own} on {int(np.sum(choice == DEFAULT))} outages"]
-    for c in names[1:]:
-        on = choice == c
-        if on.any():
-            nearer = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[DEFAULT][on])), 1e-9)
-            parts.append(f"{_CANDIDATE_TEXT[c]} on {int(on.sum())} (its past pseudo-outages ended {100.0 * nearer:.0f} % nearer the fixes)")
-    means = ", ".join(f"{'default' if c == DEFAULT else _CANDIDATE_TEXT[c].split(' (')[0]} {float(err[c].mean()):.1f} m" for c in names)
-    return choice, (f"{', '.join(parts)}; chosen per outage from the {n} s pseudo-outages over the GNSS before it "
-                    f"({len(starts)} on the drive; mean final distance from the fix: {means})")
+    return choice, sums, count, err
 
 
 #: The safeguard's kind in the filter's health: re-initialisations from GNSS (see run_filter).
