@@ -55,7 +55,7 @@ from . import history_check
 from .ins import dead_reckon
 from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs, FilterHealth
-from .stillness import drive_still, still_on_grid
+from .stillness import drive_still
 from .strapdown import BAX, BGX, GINS_MEASUREMENTS, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
 from .track import rebuild_track
 from .vehicle_speed import speed_in_mps, vehicle_speed
@@ -347,11 +347,8 @@ class GinsEstimator:
             planar = np.zeros(0, dtype=int)
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
         lat, lon = lat.reshape(m, n + 1), lon.reshape(m, n + 1)
-        if len(planar):
-            # the INS DR's own propagation from the same start (its output, on these outages)
-            d, y = dead_reckon(inputs.accel_mps2[planar], inputs.gyro_radps[planar], inputs.speed0_mps[planar], inputs.bias,
-                               inputs.rate_hz, inputs.still[planar])
-            track = rebuild_track(inputs.lat0_deg[planar], inputs.lon0_deg[planar], inputs.course0_deg[planar], d, y)
+        if len(planar):  # the INS DR's own propagation from the same start (its output, on these outages)
+            d, y, track = _planar_dr(inputs, inputs.starts[planar], n)
             disp[planar], yaw[planar], lat[planar], lon[planar] = d, y, track.lat_deg, track.lon_deg
         # the filter's own position covariance through the outage (no GNSS), symmetrised; on the planar
         # DR's outages the filter's (the DR has none of its own)
@@ -379,6 +376,16 @@ def _propagate(r: GinsRun, sw: FilterSwitches, b0s: np.ndarray, n: int) -> tuple
         disp[o] = np.diff(out.dist[span])
         yaw[o] = np.diff(out.turn[span]) / np.diff(r.bounds.t_s[span])
     return positions, cov, disp, yaw
+
+
+def _planar_dr(inputs: EstimatorInputs, starts: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, Any]:
+    """The INS DR's propagation (:func:`ionav_viz.nav.ins.dead_reckon`) for ``n`` windows from each
+    window of ``starts``, restarted from the GNSS speed and course there: distance and yaw rate per
+    window ``(m, n)`` and the rebuilt track."""
+    w = inputs.windows
+    idx = starts[:, None] + np.arange(n)[None, :]
+    d, y = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[starts], inputs.bias, w.rate_hz, inputs.still_grid[idx])
+    return d, y, rebuild_track(w.lat0_deg[starts], w.lon0_deg[starts], w.heading0_deg[starts], d, y)
 
 
 #: The arbiter's candidates (:func:`arbitrate`): the mechanisation's own propagation (the default),
@@ -470,10 +477,7 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     err[DEFAULT] = np.hypot(*(_propagate(r, blind, b0s, n)[0][:, -1, :2] - fix).T)
     if REDUCED in names:
         err[REDUCED] = np.hypot(*(_propagate(r, blind._replace(level_held=True), b0s, n)[0][:, -1, :2] - fix).T)
-    idx = starts[:, None] + np.arange(n)[None, :]
-    d, y = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[starts], inputs.bias, w.rate_hz,
-                       still_on_grid(inputs.drive, w)[idx])
-    track = rebuild_track(w.lat0_deg[starts], w.lon0_deg[starts], w.heading0_deg[starts], d, y)
+    track = _planar_dr(inputs, starts, n)[2]
     dr = enu_of_geodetic(track.lat_deg[:, -1], track.lon_deg[:, -1], np.full(len(ends), h0), *r.origin)[:, :2]
     err[PLANAR_DR] = np.hypot(*(dr - fix).T)
     # per outage, the sums over the pseudo-outages that ended at or before its start

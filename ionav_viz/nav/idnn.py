@@ -64,7 +64,6 @@ from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
 from .provenance import check_inputs, trained_outages
-from .stillness import still_on_grid
 from .track import track_covariance
 from .windows import Windows
 
@@ -568,7 +567,7 @@ class IdnnEstimator:
         if not len(pseudo.starts) or not inputs.n_outages:
             return np.ones(inputs.n_outages)
         idx = pseudo.starts[:, None] + np.arange(n)[None, :]
-        disp, yaw = model.predict(w, pseudo.starts, n, inputs.bias, cal, still_on_grid(inputs.drive, w)[idx])
+        disp, yaw = model.predict(w, pseudo.starts, n, inputs.bias, cal, inputs.still_grid[idx])
         cov = model.uncertainty.position_covariance(w.heading0_deg[pseudo.starts], w.speed0_mps[pseudo.starts], disp, yaw)
         nees = history_check.nees_per_dof(w, pseudo.starts, disp, yaw, cov)
         scale = history_check.history_scale(pseudo.ends, nees, inputs.starts)

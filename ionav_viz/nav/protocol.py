@@ -136,7 +136,9 @@ class EstimatorInputs:
     both ends (a window's last sample is the next window's first): ``accel_mps2`` (longitudinal
     specific force, forward positive) and ``gyro_radps`` (yaw rate, counter-clockwise positive);
     and ``still``, the same shape: where the IMU shows the car standing
-    (:func:`ionav_viz.nav.stillness.still_on_grid`), for zero-velocity updates.
+    (:func:`ionav_viz.nav.stillness.still_on_grid`), for zero-velocity updates; ``still_grid``, the
+    same for every window of the drive ``(n_windows_of_drive, samples)`` (for work over the GNSS
+    before the outages, e.g. :mod:`ionav_viz.nav.history_check`'s pseudo-outages).
     """
 
     drive: Drive
@@ -153,6 +155,7 @@ class EstimatorInputs:
     accel_mps2: np.ndarray = field(init=False, repr=False)
     gyro_radps: np.ndarray = field(init=False, repr=False)
     still: np.ndarray = field(init=False, repr=False)
+    still_grid: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.starts = np.asarray(self.starts, dtype=int)
@@ -166,14 +169,15 @@ class EstimatorInputs:
         self.prev_gnss_disp_m = w.gnss_disp_m[k - 1] if len(k) else np.zeros(0)
         self.accel_mps2 = w.accel_mps2[idx]
         self.gyro_radps = w.gyro_radps[idx]
-        self.still = still_on_grid(self.drive, w)[idx] if len(k) else np.zeros(idx.shape + (w.steps + 1,), dtype=bool)
+        self.still_grid = still_on_grid(self.drive, w)
+        self.still = self.still_grid[idx] if len(k) else np.zeros(idx.shape + (w.steps + 1,), dtype=bool)
         # every estimator sees the same data: none can change what the others (or the metrics) see
         self.drive = replace(self.drive, columns={k: _read_only(v) for k, v in self.drive.columns.items()},
                              gnss_fault=None if self.drive.gnss_fault is None else _read_only(self.drive.gnss_fault))
         self.windows = replace(self.windows, **{f.name: _read_only(getattr(self.windows, f.name)) for f in fields(self.windows)
                                                 if isinstance(getattr(self.windows, f.name), np.ndarray)})
         for name in ("starts", "t0_s", "speed0_mps", "course0_deg", "lat0_deg", "lon0_deg", "prev_gnss_disp_m", "accel_mps2", "gyro_radps",
-                     "still"):
+                     "still", "still_grid"):
             setattr(self, name, _read_only(getattr(self, name)))
 
     @property
