@@ -192,7 +192,8 @@ class FleetReport:
             out |= {e["name"]: e["label"] for e in t.estimators if e["name"] not in out}
         return out
 
-    def _colors(self) -> dict[str, list[int]]:
+    @property
+    def colors(self) -> dict[str, list[int]]:
         """The estimators' own colours, where they have one (as their recordings draw them)."""
         out: dict[str, list[int]] = {}
         for t in self.drives:
@@ -362,7 +363,7 @@ class FleetReport:
                                          **({"manoeuvre": t.manoeuvre[i]} if t.manoeuvre else {})}
                 entry |= {e: {m: float(t.metrics[e][m][i]) for m in METRICS} for e in t.metrics}
                 sequences.append(entry)
-        timing = dict(self.timing)
+        timing, colors = dict(self.timing), self.colors
         timing["elapsed_s"] = {t.spec: round(t.elapsed_s, 3) for t in self.drives} | {f.spec: round(f.elapsed_s, 3) for f in self.failures}
         return {
             "outage_s": self.outage_s,
@@ -370,7 +371,7 @@ class FleetReport:
             "drives_evaluated": len(self.drives), "drives_failed": len(self.failures), "drives_skipped": len(self.skipped),
             "n_outages": self.n_outages,
             "duration_s": float(sum(t.duration_s for t in self.drives)), "distance_m": float(sum(t.distance_m for t in self.drives)),
-            "estimators": [{"name": e, "label": lab, **({"color": c} if (c := self._colors().get(e)) else {})} for e, lab in self.labels.items()],
+            "estimators": [{"name": e, "label": lab, **({"color": colors[e]} if e in colors else {})} for e, lab in self.labels.items()],
             "pooled": self.pooled(),
             "consistency": self.consistency(),
             "by_manoeuvre": self.by_manoeuvre(),

@@ -722,10 +722,9 @@ def _fleet_box(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
         if len(defined) < len(means):
             skipped.append(f"{label}: {len(means) - len(defined)} of {len(means)} drives left out")
         k = len(shown) + 1
-        box = ax.boxplot([defined], positions=[k], widths=0.55, whis=(10, 90), showfliers=False, patch_artist=True,
-                         medianprops={"color": color, "lw": 1.6}, whiskerprops={"color": color}, capprops={"color": color},
-                         boxprops={"edgecolor": color, "facecolor": (*color, 0.15), "hatch": HATCHES[i % len(HATCHES)], "lw": 0.8})
-        del box
+        ax.boxplot([defined], positions=[k], widths=0.55, whis=(10, 90), showfliers=False, patch_artist=True,
+                   medianprops={"color": color, "lw": 1.6}, whiskerprops={"color": color}, capprops={"color": color},
+                   boxprops={"edgecolor": color, "facecolor": (*color, 0.15), "hatch": HATCHES[i % len(HATCHES)], "lw": 0.8})
         ax.scatter(k + rng.uniform(-0.16, 0.16, len(defined)), defined, s=7, color=color, marker=MARKERS[i % len(MARKERS)],
                    lw=0, alpha=0.85, zorder=3)
         shown.append(label)

@@ -101,7 +101,8 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
     ``path`` is then a temporary file, ``target`` the name for messages). Returns rows per entity."""
     import rerun as rr
 
-    colors = estimator_colors([SimpleNamespace(**e) for e in _estimator_infos(report)])
+    own = report.colors
+    colors = estimator_colors([SimpleNamespace(name=e, color=own.get(e)) for e in report.estimators])
     rec = rr.RecordingStream(APP_ID, recording_id=f"{FLEET_ID_PREFIX}{len(report.drives)} drives, {report.outage_s:g} s outages")
     rows: dict[str, int] = {}
     with streamed_to(rec, path, target):
@@ -119,15 +120,6 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
                                                    widths=np.full(len(numbers), BAR_WIDTH, dtype=np.float32)), static=True)
                 rows[f"{root}/{e}"] = 1
     return rows
-
-
-def _estimator_infos(report: FleetReport) -> list[dict[str, Any]]:
-    """Name and, where the estimator has its own, colour of each estimator (as the replays colour it)."""
-    out: dict[str, dict[str, Any]] = {}
-    for t in report.drives:
-        for e in t.estimators:
-            out.setdefault(e["name"], {"name": e["name"], "color": e.get("color")})
-    return [out[e] for e in report.estimators]
 
 
 def is_fleet_recording(path: Path) -> bool:
