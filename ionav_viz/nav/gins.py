@@ -480,9 +480,7 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     track = _planar_dr(inputs, starts, n)[2]
     dr = enu_of_geodetic(track.lat_deg[:, -1], track.lon_deg[:, -1], np.full(len(ends), h0), *r.origin)[:, :2]
     err[PLANAR_DR] = np.hypot(*(dr - fix).T)
-    # per outage, the sums over the pseudo-outages that ended at or before its start
-    count = np.searchsorted(ends, np.asarray(inputs.starts), side="right")  # ends ascend with starts
-    sums = np.concatenate([np.zeros((3, 1)), np.cumsum(err, axis=1)], axis=1)[:, count]
+    sums, count = history_check.past_sums(ends, err, inputs.starts)
     mean_default = sums[DEFAULT] / np.maximum(count, 1)
     score = np.full((3, m), np.inf)
     score[DEFAULT] = mean_default

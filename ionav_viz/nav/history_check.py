@@ -75,8 +75,16 @@ def nees_per_dof(windows: Windows, starts: np.ndarray, disp_m: np.ndarray, yaw_r
 def history_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:
     """Per outage, the covariance's scale (see the module docstring) from the pseudo-outages that
     ended (``pseudo_ends``, window index after their last) at or before its start."""
-    order = np.argsort(pseudo_ends, kind="stable")
-    ends, nees = pseudo_ends[order], pseudo_nees[order]
-    count = np.searchsorted(ends, np.asarray(outage_starts), side="right")
-    total = np.concatenate([[0.0], np.cumsum(nees)])[count]
+    total, count = past_sums(pseudo_ends, pseudo_nees, outage_starts)
     return np.maximum((PRIOR_OUTAGES + total) / (PRIOR_OUTAGES + count), 1.0)
+
+
+def past_sums(pseudo_ends: np.ndarray, values: np.ndarray, outage_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per outage, the sum of ``values`` (along their last axis, one per pseudo-outage) over the
+    pseudo-outages that ended (``pseudo_ends``, window index after their last) at or before its
+    start, and how many those are: only the past, as a vehicle would have it."""
+    order = np.argsort(pseudo_ends, kind="stable")
+    count = np.searchsorted(pseudo_ends[order], np.asarray(outage_starts), side="right")
+    v = np.asarray(values)[..., order]
+    total = np.concatenate([np.zeros(v.shape[:-1] + (1,)), np.cumsum(v, axis=-1)], axis=-1)[..., count]
+    return total, count

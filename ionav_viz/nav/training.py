@@ -59,8 +59,7 @@ class TrainingSet:
         """(train, validation) masks holding out the last ``tail`` of each drive by time: validation
         windows, and the window before each (its feedback input and longer history), lie wholly in the
         tail; training windows end before it (a window across the cut is in neither)."""
-        cut = (1.0 - tail) * self.drive_s
-        return self.t_s + WINDOW_S <= cut + 1e-9, self.t_s - WINDOW_S >= cut - 1e-9
+        return self.block_split(1.0 - tail, 1.0)
 
     def block_split(self, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
         """(outside, inside) masks for the block from ``lo`` to ``hi`` (fractions) of each drive by time:
