@@ -30,7 +30,9 @@ the GNSS position's running NIS stays above 3 (the filter meets more than its mo
 30 times, carried into each outage; measured on the real phone logs: 17.5 -> 16.9 % after 10 s on
 one, 43.4 -> 41.3 % on the other, the 100 Hz logs unchanged); a fix the gate leaves out while it
 agrees with the fixes before it re-initialises position and velocity from GNSS instead of locking the
-fixes out; a stop the IMU shows for two boundaries is taken even when the filter's velocity
+fixes out, and the heading from the GNSS course where the two are more than 30 degrees and three
+of the course's sigmas apart (a phone's GNSS gap can end with the course turned against the gyro:
+on one real log the next outage ended at 105 % of the distance with the old heading, 8 % with the course's); a stop the IMU shows for two boundaries is taken even when the filter's velocity
 disagrees, unless a fix at speed says the car moves. Each re-initialisation is in the filter's
 health (:class:`ionav_viz.nav.protocol.FilterHealth`), and so in the report.
 

@@ -549,13 +549,43 @@ def _restart_segment(x, P, P0, inputs, b):  # pragma: no cover - compiled
         P[i, i] = P0[i, i]
 
 
+#: The heading error from which a re-initialisation sets the heading from the GNSS course
+#: (:func:`_heading_from_course`): beyond it the filter's small-angle error model cannot bring the
+#: heading back; below it the filter's heading (the gyro's, with the mount's yaw residual) is better
+#: than one course from a phone's fixes.
+HEADING_REALIGN_RAD = math.radians(30.0)
+
+
 @njit(cache=True)
-def _reinitialise(x, P, P0, inputs, b, log):  # pragma: no cover - compiled
+def _heading_from_course(x, v_east, v_north, r_vel):  # pragma: no cover - compiled
+    """Turn the attitude about the vertical (roll and pitch kept) so that the vehicle's forward
+    axis (the body x axis turned by the mount's yaw residual, as the NHC has it) points along the
+    horizontal velocity ``(v_east, v_north)`` (m/s, variance ``r_vel`` m^2/s^2 per axis), where the
+    two differ by more than :data:`HEADING_REALIGN_RAD` and by more than three sigmas of the course."""
+    C = _dcm(x[QW:QW + 4])
+    c, s = math.cos(x[PSIM]), -math.sin(x[PSIM])
+    now = math.atan2(C[1, 0] * c + C[1, 1] * s, C[0, 0] * c + C[0, 1] * s)
+    turn = math.atan2(v_north, v_east) - now
+    turn = math.atan2(math.sin(turn), math.cos(turn))
+    course_sigma = math.atan2(math.sqrt(r_vel), math.hypot(v_east, v_north))
+    if abs(turn) < max(HEADING_REALIGN_RAD, 3.0 * course_sigma):
+        return
+    q = _quat_mul(_quat_of_rotvec(np.array([0.0, 0.0, turn])), x[QW:QW + 4].copy())
+    x[QW:QW + 4] = q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+
+
+@njit(cache=True)
+def _reinitialise(x, P, P0, inputs, r_vel, b, log):  # pragma: no cover - compiled
     """The safeguard: the filter disagrees with a fix that agrees with the fixes before it, so the
     filter is the one that is off: its position and velocity from GNSS again, with their initial
-    covariance and the heading's (a velocity that was wrong had turned it), the rest kept."""
+    covariance and the heading's (a velocity that was wrong had turned it), the rest kept. At speed
+    the heading is set from the GNSS course too, as the alignment does (:func:`_heading_from_course`):
+    the covariance alone cannot bring back a heading tens of degrees off, which a phone's GNSS gap
+    leaves where its course comes back turned against the gyro."""
     offset = math.sqrt((x[PX] - inputs.gnss_pos[b, 0]) ** 2 + (x[PX + 1] - inputs.gnss_pos[b, 1]) ** 2)
     _restart_segment(x, P, P0, inputs, b)
+    if inputs.vel_ok[b]:
+        _heading_from_course(x, inputs.gnss_vel[b, 0], inputs.gnss_vel[b, 1], r_vel)
     for k in range(N_ERR):
         P[PHI + 2, k] = P[k, PHI + 2] = 0.0
     P[PHI + 2, PHI + 2] = P0[PHI + 2, PHI + 2]
@@ -672,7 +702,8 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
     1. GNSS (with ``sw.gnss`` and a good fix): position, gated at GNSS_GATE, then velocity at speed.
        A fix the gate leaves out that goes on smoothly from the fixes before it (``fix_step`` 1:
        no jump since the last fix the filter took) says the filter is off: the safeguard
-       re-initialises position and velocity from it (:func:`_reinitialise`, logged) instead of
+       re-initialises position and velocity from it (and the heading from its course, where far
+       off: :func:`_heading_from_course`) (:func:`_reinitialise`, logged) instead of
        shutting the fixes out. A jump is left out, and so are the fixes after it until one agrees
        with the filter again; after GNSS_REJECTS_MAX boundaries in a row the next is taken whatever it says.
     2. Standing (the detector says so, ``sw.zupt``): ZUPT and ZARU, *instead of* the NHC and the
@@ -710,7 +741,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
                 elif inputs.fix_step[b] > 0 and not jumped:
                     # the fixes went on smoothly from the last one the filter took, and it disagrees: it is off
                     _correct(x, dx)
-                    _reinitialise(x, P, P0, inputs, b, out.log)
+                    _reinitialise(x, P, P0, inputs, noise.r_vel, b, out.log)
                     rejected = 0
                 else:  # a jump in the fixes (and the fixes after it until they come back to the filter), or a
                     # first fix after a gap, which nothing confirms yet: left out
