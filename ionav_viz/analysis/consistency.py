@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.covariance import nees_en
 from ..core.geo import radii_of_curvature_m
 from ..core.gnss_quality import GNSS_SIGMA_FLOOR_M
 from ..nav.kalman import CHI2_2_95
@@ -87,11 +88,8 @@ def outage_nees(result, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] 
         return None
     e = boundary_errors_m(result, name)[:, 1:]
     P = cov[:, 1:] + truth_sigma_m(result) ** 2 * np.eye(2)
-    a, b, c = P[..., 0, 0], P[..., 1, 1], P[..., 0, 1]
-    det = np.maximum(a * b - c * c, 1e-12)
     ex, ey = e[..., 0], e[..., 1]
-    nees = (b * ex * ex - 2 * c * ex * ey + a * ey * ey) / det
-    return nees, ex * ex + ey * ey, a + b
+    return nees_en(e, P), ex * ex + ey * ey, P[..., 0, 0] + P[..., 1, 1]
 
 
 def outage_consistency(result, name: str) -> dict[str, np.ndarray] | None:

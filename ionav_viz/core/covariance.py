@@ -1,4 +1,4 @@
-"""East/north position covariances: built from their entries and checked.
+"""East/north position covariances: built from their entries, checked, and the NEES of errors under them.
 
 A covariance here is an array ``(..., 2, 2)`` of 2 x 2 matrices, east then north, in m^2 (an
 estimate's :attr:`~ionav_viz.nav.protocol.Estimate.pos_cov_m2`, an external trajectory's
@@ -37,3 +37,24 @@ def covariance_faults(cov_m2: np.ndarray) -> dict[str, np.ndarray]:
     return {"not finite": ~finite,
             "not symmetric": np.abs(c - cov[..., 1, 0]) > tol,
             "not positive semi-definite": (a < -tol) | (b < -tol) | (a * b - c * c < -tol * scale)}
+
+
+#: The smallest determinant (m^4) the NEES divides by: a covariance thinner than about 1 mm along
+#: either axis counts as that thin.
+NEES_MIN_DET_M4 = 1e-12
+
+
+def determinant_en(cov_m2: np.ndarray, min_det_m4: float = NEES_MIN_DET_M4) -> np.ndarray:
+    """The determinant (m^4) of each matrix of ``cov_m2`` ``(..., 2, 2)`` (m^2), at least ``min_det_m4``."""
+    a, b, c = cov_m2[..., 0, 0], cov_m2[..., 1, 1], cov_m2[..., 0, 1]
+    return np.maximum(a * b - c * c, min_det_m4)
+
+
+def nees_en(error_en_m: np.ndarray, cov_m2: np.ndarray, min_det_m4: float = NEES_MIN_DET_M4) -> np.ndarray:
+    """The normalised estimation error squared ``e^T P^-1 e`` (2 degrees of freedom; 2 on average
+    when ``P`` is honest) of east/north errors ``error_en_m`` ``(..., 2)`` (m) under their
+    covariances ``cov_m2`` ``(..., 2, 2)`` (m^2), with the 2 x 2 inverse written out and the
+    determinant at least ``min_det_m4`` (m^4; :func:`determinant_en`)."""
+    a, b, c = cov_m2[..., 0, 0], cov_m2[..., 1, 1], cov_m2[..., 0, 1]
+    east, north = error_en_m[..., 0], error_en_m[..., 1]
+    return (b * east * east - 2 * c * east * north + a * north * north) / determinant_en(cov_m2, min_det_m4)

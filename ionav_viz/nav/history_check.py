@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.covariance import nees_en
 from ..core.geo import radii_of_curvature_m
 from .track import rebuild_track
 from .windows import Windows
@@ -65,11 +66,7 @@ def nees_per_dof(windows: Windows, starts: np.ndarray, disp_m: np.ndarray, yaw_r
     meridian, prime = radii_of_curvature_m(lat_t)
     north = np.radians(track.lat_deg[:, 1:] - lat_t) * meridian
     east = np.radians(track.lon_deg[:, 1:] - lon_t) * prime * np.cos(np.radians(lat_t))
-    P = cov_m2[:, 1:]
-    a, b, c = P[..., 0, 0], P[..., 1, 1], P[..., 0, 1]
-    det = np.maximum(a * b - c * c, 1e-12)
-    nees = (b * east * east - 2 * c * east * north + a * north * north) / det
-    return nees.mean(axis=1) / 2.0
+    return nees_en(np.stack([east, north], axis=-1), cov_m2[:, 1:]).mean(axis=1) / 2.0
 
 
 def history_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:
