@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from ..core.covariance import nees_en
-from ..core.geo import radii_of_curvature_m
 from ..core.gnss_quality import GNSS_SIGMA_FLOOR_M
 from ..nav.kalman import CHI2_2_95
+from ..nav.track import boundary_errors_en_m
 
 #: Seconds into the outages where the error/sigma ratio is reported.
 RATIO_AT_S = (10, 30, 60)
@@ -59,15 +59,8 @@ def _normal_quantile(p: float) -> float:
 def boundary_errors_m(result, name: str) -> np.ndarray:
     """The estimate's east/north error (m) against the truth at every window boundary of every
     outage, ``(n_outages, n_windows + 1, 2)``."""
-    w, starts, n = result.windows, np.asarray(result.starts), result.n_windows
-    idx = starts[:, None] + np.arange(n)[None, :]
-    lat_t = np.concatenate([w.lat0_deg[idx], w.lat1_deg[idx[:, -1:]]], axis=1)
-    lon_t = np.concatenate([w.lon0_deg[idx], w.lon1_deg[idx[:, -1:]]], axis=1)
     track = result.estimates[name].track
-    meridian, prime = radii_of_curvature_m(lat_t)
-    north = np.radians(track.lat_deg - lat_t) * meridian
-    east = np.radians(track.lon_deg - lon_t) * prime * np.cos(np.radians(lat_t))
-    return np.stack([east, north], axis=-1)
+    return boundary_errors_en_m(result.windows, np.asarray(result.starts), result.n_windows, track.lat_deg, track.lon_deg)
 
 
 def truth_sigma_m(result) -> float:
