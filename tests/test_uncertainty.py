@@ -156,6 +156,27 @@ def test_an_external_trajectory_carries_its_covariance(tmp_path):
     assert read_trajectory(f"{mcap}:/wheel/odom").cov_en_m2 is None  # -1 first: unknown
 
 
+@pytest.mark.parametrize("sigma_m", [1e-4, 1.0, 1e4])
+def test_a_trajectory_covariance_is_checked_alike_at_every_size(tmp_path, sigma_m):
+    """A rank-one covariance (sure across the track, ``sigma_m`` along it at 60 degrees from north),
+    PSD but for float64 rounding of its determinant (m^4), is accepted; the same with a correlation
+    of 1.01 is refused. The tolerance is relative to the matrix's size: it once compared an m^2
+    tolerance with m^4, refusing the first at 10 km and accepting the second at 0.1 mm."""
+    from ionav_viz.sources.trajectory import read_trajectory
+
+    s, c = np.sin(np.deg2rad(60.0)), np.cos(np.deg2rad(60.0))
+    ee, en, nn = (float(x) for x in ((sigma_m * s) ** 2, sigma_m * sigma_m * s * c, (sigma_m * c) ** 2))
+    for name, corr in (("rank_one", 1.0), ("beyond_one", 1.01)):
+        path = tmp_path / f"{name}.csv"
+        rows = [f"{t},{t},0,{ee!r},{en * corr!r},{nn!r}" for t in range(3)]
+        path.write_text("time_s,east_m,north_m,cov_ee_m2,cov_en_m2,cov_nn_m2\n" + "\n".join(rows) + "\n")
+        if corr == 1.0:
+            assert np.array_equal(read_trajectory(path).cov_en_m2, np.tile([[ee, en], [en, nn]], (3, 1, 1)))
+        else:
+            with pytest.raises(iv.InputError, match=r"pose 1 \(stamp 0.0\): covariance .* not positive semi-definite"):
+                read_trajectory(path)
+
+
 def test_the_history_scale_is_the_past_pseudo_outages_mean_nees_shrunk_toward_one():
     """Issue 43.2/5: per outage, the mean NEES per dof of the pseudo-outages ended at or before its
     start, with 3 pseudo-outages' weight on 1, never below 1. By hand: pseudo-outages ending at

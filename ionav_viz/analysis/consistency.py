@@ -23,9 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from ..core.geo import radii_of_curvature_m
+from ..core.covariance import nees_en
 from ..core.gnss_quality import GNSS_SIGMA_FLOOR_M
 from ..nav.kalman import CHI2_2_95
+from ..nav.track import boundary_errors_en_m
 
 #: Seconds into the outages where the error/sigma ratio is reported.
 RATIO_AT_S = (10, 30, 60)
@@ -58,15 +59,8 @@ def _normal_quantile(p: float) -> float:
 def boundary_errors_m(result, name: str) -> np.ndarray:
     """The estimate's east/north error (m) against the truth at every window boundary of every
     outage, ``(n_outages, n_windows + 1, 2)``."""
-    w, starts, n = result.windows, np.asarray(result.starts), result.n_windows
-    idx = starts[:, None] + np.arange(n)[None, :]
-    lat_t = np.concatenate([w.lat0_deg[idx], w.lat1_deg[idx[:, -1:]]], axis=1)
-    lon_t = np.concatenate([w.lon0_deg[idx], w.lon1_deg[idx[:, -1:]]], axis=1)
     track = result.estimates[name].track
-    meridian, prime = radii_of_curvature_m(lat_t)
-    north = np.radians(track.lat_deg - lat_t) * meridian
-    east = np.radians(track.lon_deg - lon_t) * prime * np.cos(np.radians(lat_t))
-    return np.stack([east, north], axis=-1)
+    return boundary_errors_en_m(result.windows, np.asarray(result.starts), result.n_windows, track.lat_deg, track.lon_deg)
 
 
 def truth_sigma_m(result) -> float:
@@ -87,11 +81,8 @@ def outage_nees(result, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] 
         return None
     e = boundary_errors_m(result, name)[:, 1:]
     P = cov[:, 1:] + truth_sigma_m(result) ** 2 * np.eye(2)
-    a, b, c = P[..., 0, 0], P[..., 1, 1], P[..., 0, 1]
-    det = np.maximum(a * b - c * c, 1e-12)
     ex, ey = e[..., 0], e[..., 1]
-    nees = (b * ex * ex - 2 * c * ex * ey + a * ey * ey) / det
-    return nees, ex * ex + ey * ey, a + b
+    return nees_en(e, P), ex * ex + ey * ey, P[..., 0, 0] + P[..., 1, 1]
 
 
 def outage_consistency(result, name: str) -> dict[str, np.ndarray] | None:

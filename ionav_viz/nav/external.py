@@ -76,8 +76,8 @@ class External:
             # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
             upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
             nearest[i] = _nearest(t[:upto], row[0])
-            t_i, lat_i, lon_i, k_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
-                                                     float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
+            t_i, lat_i, lon_i, cov_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto], None if cov is None else cov_all[:upto],
+                                                       float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
             if not _covers(t_i, row):
                 first = float(drive.stamp_s(drive.t_s[0]))
                 units = stamp_unit_hint(t, first, float(drive.stamp_s(drive.t_s[-1])))
@@ -87,8 +87,7 @@ class External:
                     units or "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
             lat[i], lon[i] = (_interpolated(row, t_i, v) for v in (lat_i, lon_i))
             if cov is not None:
-                c_i = cov_all[:upto] if k_i is None else np.insert(cov_all[:upto], k_i, cov_all[min(k_i, upto - 1)], axis=0)
-                cov[i] = _interpolated_cov(row, t_i, c_i)
+                cov[i] = _interpolated_cov(row, t_i, cov_i)
         lon = (lon + 180.0) % 360.0 - 180.0
         self._check_start(inputs, nearest, lat_all, lon_all)
         self._report_leaks(inputs, when, lat, lon)
@@ -154,17 +153,19 @@ def _covers(t: np.ndarray, at: np.ndarray) -> bool:
     return bool(np.all(on | ((before <= MAX_GAP_S) & (after <= MAX_GAP_S))))
 
 
-def _from_start_fix(start: float, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, lat0: float,
-                    lon0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
-    """The poses, begun at the outage's start fix (``lat0``, ``lon0``: the estimators' start state,
-    the last fix the outaged log keeps) when the trajectory has none within :data:`MAX_GAP_S` at or
-    before ``start`` but one within it after: an estimator that writes poses only inside the gaps
-    starts from that fix. Otherwise the poses as they are. Last: where the start fix went in, or None."""
+def _from_start_fix(start: float, t: np.ndarray, lat: np.ndarray, lon: np.ndarray, cov: np.ndarray | None, lat0: float,
+                    lon0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The poses (stamps, latitudes, longitudes and, unless None, covariances ``(n, 2, 2)`` in m^2),
+    begun at the outage's start fix (``lat0``, ``lon0``: the estimators' start state, the last fix
+    the outaged log keeps; its covariance the next pose's) when the trajectory has none within
+    :data:`MAX_GAP_S` at or before ``start`` but one within it after: an estimator that writes poses
+    only inside the gaps starts from that fix. Otherwise the poses as they are."""
     k = int(np.searchsorted(t, start + 1e-6, side="right"))  # poses at or before the start
     if (k > 0 and start - t[k - 1] <= MAX_GAP_S) or k >= len(t) or t[k] - start > MAX_GAP_S:
-        return t, lat, lon, None
+        return t, lat, lon, cov
     lon0 += 360.0 * round((lon[k] - lon0) / 360.0)  # on the trajectory's unwrapped longitudes
-    return np.insert(t, k, start), np.insert(lat, k, lat0), np.insert(lon, k, lon0), k
+    cov = None if cov is None else np.insert(cov, k, cov[k], axis=0)
+    return np.insert(t, k, start), np.insert(lat, k, lat0), np.insert(lon, k, lon0), cov
 
 
 def _interpolated(at: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:

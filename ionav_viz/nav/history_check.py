@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.geo import radii_of_curvature_m
-from .track import rebuild_track
+from ..core.covariance import nees_en
+from .track import boundary_errors_en_m, rebuild_track
 from .windows import Windows
 
 #: The weight of the prior scale 1, in pseudo-outages.
@@ -57,19 +57,9 @@ def nees_per_dof(windows: Windows, starts: np.ndarray, disp_m: np.ndarray, yaw_r
     against the fixes, with the covariance ``cov_m2`` ``(m, n + 1, 2, 2)`` (east/north, m^2)."""
     if not len(starts):
         return np.zeros(0)
-    n = disp_m.shape[1]
-    idx = starts[:, None] + np.arange(n)[None, :]
     track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp_m, yaw_rate_radps)
-    lat_t = np.concatenate([windows.lat0_deg[idx], windows.lat1_deg[idx[:, -1:]]], axis=1)[:, 1:]
-    lon_t = np.concatenate([windows.lon0_deg[idx], windows.lon1_deg[idx[:, -1:]]], axis=1)[:, 1:]
-    meridian, prime = radii_of_curvature_m(lat_t)
-    north = np.radians(track.lat_deg[:, 1:] - lat_t) * meridian
-    east = np.radians(track.lon_deg[:, 1:] - lon_t) * prime * np.cos(np.radians(lat_t))
-    P = cov_m2[:, 1:]
-    a, b, c = P[..., 0, 0], P[..., 1, 1], P[..., 0, 1]
-    det = np.maximum(a * b - c * c, 1e-12)
-    nees = (b * east * east - 2 * c * east * north + a * north * north) / det
-    return nees.mean(axis=1) / 2.0
+    error = boundary_errors_en_m(windows, starts, disp_m.shape[1], track.lat_deg, track.lon_deg)[:, 1:]
+    return nees_en(error, cov_m2[:, 1:]).mean(axis=1) / 2.0
 
 
 def history_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:

@@ -102,9 +102,6 @@ class EkfNoise:
     gnss_fitted_speed_mps: float = 0.5
     gnss_fitted_course_rad_at_10mps: float = np.deg2rad(2.0)
     vehicle_speed_mps: float = 0.15
-    #: the vehicle speed's error grows with the acceleration: CAN speed arrives 20-100 ms late and
-    #: wheels slip in hard braking and acceleration (SENSORS.md); sigma^2 += (this * |a|)^2
-    vehicle_speed_lag_s: float = 0.0
     #: heading noise per radian turned in a window (gyro scale and latency the scale state does not
     #: follow): the course's process noise gains (this * turn)^2
     turn_scale_sd: float = 0.1
@@ -189,7 +186,6 @@ class PlanarModel(NamedTuple):
     course_sd_at_10mps: float
     alpha: float
     grade_length_m: float
-    vehicle_lag_s: float
     turn_sd: float
 
 
@@ -282,12 +278,6 @@ def vehicle_speed_meas(x, z, r, H):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _r_vehicle(model, F, T):  # pragma: no cover - compiled
-    """The vehicle speed's variance in a window whose speed changed by ``F`` (m/s) over ``T`` s."""
-    return model.r_vehicle + (model.vehicle_lag_s * F / T) ** 2
-
-
-@njit(cache=True)
 def standstill(x, r, H):  # pragma: no cover - compiled
     """Standing: the speed is 0 m/s."""
     kalman.unit_row(H, V)
@@ -345,7 +335,7 @@ def _forward_kernel(inp, model, accel_offset, gyro_bias, log):  # pragma: no cov
         slow[k] = mean
         _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J, model.turn_sd)
         if np.isfinite(inp.vehicle[k]):
-            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], _r_vehicle(model, inp.F[k], inp.T), H), log, k, SLOT_VEHICLE)
+            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), log, k, SLOT_VEHICLE)
     return xs, Ps, slow
 
 
@@ -377,7 +367,7 @@ def outage_kernel(forward, inp, model, starts, n_windows, still):  # pragma: no 
             disp[o, j], yaw[o, j] = _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J, model.turn_sd)
             travelled += max(disp[o, j], 0.0)
             if np.isfinite(inp.vehicle[k]):
-                _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], _r_vehicle(model, inp.F[k], inp.T), H), nowhere, 0, 0)
+                _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), nowhere, 0, 0)
             if still[o, j]:
                 _apply(P, x, H, standstill(x, model.r_still, H), nowhere, 0, 0)
             x[V] = max(x[V], 0.0)
@@ -460,7 +450,7 @@ def planar_model(noise: EkfNoise, T: float) -> PlanarModel:
     q, init = noise_arrays(noise, T)
     return PlanarModel(q, init, float(noise.gnss_speed_mps**2), float(noise.vehicle_speed_mps**2), float(noise.still_speed_mps**2),
                        float(noise.gnss_course_rad_at_10mps), float(T / OFFSET_MEMORY_S), float(GRADE_LENGTH_M),
-                       float(noise.vehicle_speed_lag_s), float(noise.turn_scale_sd))
+                       float(noise.turn_scale_sd))
 
 
 @dataclass

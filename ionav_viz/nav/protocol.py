@@ -35,6 +35,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from ..core.covariance import covariance_faults
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import WINDOW_S
@@ -316,7 +317,8 @@ def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
 
 
 def _checked_covariance(name: str, cov: Any, n_outages: int, n_windows: int) -> np.ndarray | None:
-    """An estimate's position covariance, checked: shape, finite, symmetric, positive semi-definite."""
+    """An estimate's position covariance, checked: shape, then finite, symmetric and positive
+    semi-definite (:func:`~ionav_viz.core.covariance.covariance_faults`)."""
     if cov is None:
         return None
     hint = "give pos_cov_m2 as east/north covariances (m^2) of shape (n_outages, n_windows + 1, 2, 2), or none"
@@ -326,18 +328,10 @@ def _checked_covariance(name: str, cov: Any, n_outages: int, n_windows: int) -> 
         raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not numeric", hint) from None
     if cov.shape != (n_outages, n_windows + 1, 2, 2):
         raise EstimatorError(f"estimator {name!r}: pos_cov_m2 has shape {cov.shape}, expected ({n_outages}, {n_windows + 1}, 2, 2)", hint)
-    where = lambda mask: "outage {}, boundary {}".format(*(int(x) + (1, 0)[i] for i, x in enumerate(np.argwhere(mask)[0])))  # noqa: E731
-    bad = ~np.isfinite(cov).all(axis=(-1, -2))
-    if bad.any():
-        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not finite in {where(bad)}", hint)
-    scale = np.maximum(np.abs(cov).max(axis=(-1, -2)), 1e-12)
-    asym = np.abs(cov[..., 0, 1] - cov[..., 1, 0]) > 1e-9 * scale
-    if asym.any():
-        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not symmetric in {where(asym)}", hint)
-    a, b, c = cov[..., 0, 0], cov[..., 1, 1], cov[..., 0, 1]
-    negative = (a < -1e-9 * scale) | (b < -1e-9 * scale) | (a * b - c * c < -1e-9 * scale * scale)
-    if negative.any():
-        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not positive semi-definite in {where(negative)}", hint)
+    for fault, mask in covariance_faults(cov).items():
+        if mask.any():
+            outage, boundary = (int(x) for x in np.argwhere(mask)[0])
+            raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is {fault} in outage {outage + 1}, boundary {boundary}", hint)
     return cov
 
 

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.geo import wgs84
+from ..core.geo import radii_of_curvature_m, wgs84
 from ..core.grid import WINDOW_S
+from .windows import Windows
 
 
 @dataclass
@@ -141,3 +142,17 @@ def systematic_track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, ya
     s2 = np.broadcast_to(np.asarray(scale_sigma, dtype=float) ** 2, (n_seq,))[:, None, None, None]
     b2 = np.broadcast_to(np.asarray(gyro_bias_sigma_radps, dtype=float) ** 2, (n_seq,))[:, None, None, None]
     return s2 * np.einsum("nka,nkb->nkab", reached, reached) + b2 * np.einsum("nka,nkb->nkab", bias_dir, bias_dir)
+
+
+def boundary_errors_en_m(windows: Windows, starts: np.ndarray, n_windows: int, lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+    """The east/north error (m) of positions ``lat_deg``/``lon_deg`` ``(m, n_windows + 1)`` (WGS84
+    degrees) against the windows' fixes at the boundaries of the sequences starting at windows
+    ``starts`` (m,): ``(m, n_windows + 1, 2)``, the first at the start fix; metres along the
+    ellipsoid's radii of curvature at the fix."""
+    idx = starts[:, None] + np.arange(n_windows)[None, :]
+    lat_t = np.concatenate([windows.lat0_deg[idx], windows.lat1_deg[idx[:, -1:]]], axis=1)
+    lon_t = np.concatenate([windows.lon0_deg[idx], windows.lon1_deg[idx[:, -1:]]], axis=1)
+    meridian, prime = radii_of_curvature_m(lat_t)
+    north = np.radians(lat_deg - lat_t) * meridian
+    east = np.radians(lon_deg - lon_t) * prime * np.cos(np.radians(lat_t))
+    return np.stack([east, north], axis=-1)

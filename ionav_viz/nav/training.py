@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.covariance import determinant_en, nees_en
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import WINDOW_S
@@ -743,15 +744,17 @@ def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_wind
     return OutageRuns(*(np.concatenate(p) for p in zip(*parts)))
 
 
+#: The likelihood's floor on the covariance's determinant (m^4): far below the NEES's
+#: (:data:`~ionav_viz.core.covariance.NEES_MIN_DET_M4`), it only keeps the logarithm finite.
+NLL_MIN_DET_M4 = 1e-300
+
+
 def uncertainty_nll(unc: Uncertainty, runs: OutageRuns) -> float:
     """Mean Gaussian negative log-likelihood (per boundary, constant dropped) of the runs' 2D position
     errors under ``unc``'s covariance."""
     cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps)[:, 1:]
-    a, b, c = cov[..., 0, 0], cov[..., 1, 1], cov[..., 0, 1]
-    det = np.maximum(a * b - c * c, 1e-300)
-    e, n = runs.error_en_m[..., 0], runs.error_en_m[..., 1]
-    nees = (b * e * e - 2 * c * e * n + a * n * n) / det
-    return float(np.mean(0.5 * (nees + np.log(det))))
+    nees = nees_en(runs.error_en_m, cov, NLL_MIN_DET_M4)
+    return float(np.mean(0.5 * (nees + np.log(determinant_en(cov, NLL_MIN_DET_M4)))))
 
 
 def nees(unc: Uncertainty, runs: OutageRuns) -> np.ndarray:

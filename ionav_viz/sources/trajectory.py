@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.covariance import covariance_en, covariance_faults
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, check_regular_tree, check_text_head
 from ..core.geo import steps_en_m
@@ -135,20 +136,16 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
 
 
 def _check_covariance(path: str, t: np.ndarray, cov: np.ndarray) -> None:
-    """Refuse a pose covariance that is not finite or not positive semi-definite (a one-line error
-    naming the first such pose)."""
-    ee, en, nn = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-    tol = 1e-9 * np.maximum(np.abs(ee) + np.abs(nn), 1e-12)
-    bad = ~(np.isfinite(ee) & np.isfinite(en) & np.isfinite(nn)) | (ee < 0) | (nn < 0) | (en * en > ee * nn + tol)
+    """Refuse a pose covariance that is not finite or not positive semi-definite
+    (:func:`~ionav_viz.core.covariance.covariance_faults`): a one-line error naming the first such pose."""
+    faults = covariance_faults(cov)
+    bad = np.logical_or.reduce(list(faults.values()))
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): covariance ee={float(ee[i])!r}, en={float(en[i])!r}, "
-                         f"nn={float(nn[i])!r} m^2 is not finite or not positive semi-definite", _COVARIANCE_HINT, param="external")
-
-
-def covariance_en(ee: np.ndarray, en: np.ndarray, nn: np.ndarray) -> np.ndarray:
-    """East/north covariance matrices ``(n, 2, 2)`` from their three distinct entries (m^2)."""
-    return np.stack([np.stack([ee, en], axis=-1), np.stack([en, nn], axis=-1)], axis=-2).astype(float)
+        fault = next(f for f, mask in faults.items() if mask[i])
+        ee, en, nn = (float(x) for x in cov[i, (0, 0, 1), (0, 1, 1)])
+        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): covariance ee={ee!r}, en={en!r}, nn={nn!r} m^2 is {fault}",
+                         _COVARIANCE_HINT, param="external")
 
 
 def _from_csv(path: Path) -> Trajectory:

@@ -341,18 +341,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     if not map_tiles:
         if view == "map":
             view = "local"
-        map_key = next((k for k, vb in views.items() if vb.get("space_origin") == ent.MAP), None)
-        if map_key is not None:
-            ref = map_key.lstrip("/")
-            for value in bp.values():
-                container = value.get("ContainerBlueprint")
-                if container and ref in [c.lstrip("/") for c in container.get("contents", [])]:
-                    keep = [c for c in container["contents"] if c.lstrip("/") != ref]
-                    container["contents"] = keep
-                    container.pop("col_shares", None)
-                    container.pop("row_shares", None)
-            _drop(bp, map_key)
-            views.pop(map_key)
+        _remove(bp, views, _view_key(views, ent.MAP))
     for key, vb in views.items():
         origin = vb.get("space_origin", "")
         if origin in titles:
@@ -366,21 +355,15 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             bp[key + "/VisualBounds2D"] = {"VisualBounds2D": {"range": {"x_range": [x0, x1], "y_range": [y0, y1]}}}
             bp[key + "/ViewContents"] = {"ViewContents": {"query": LOCAL_FRAMED_CONTENTS}}
     # the image's own colour key (screenshot.draw_key) takes the place of the viewer's key view
-    key_view = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == ent.KEY), None)
-    if key_view is not None:
-        _remove(bp, key_view)
-        views.pop(key_view)
+    _remove(bp, views, _view_key(views, ent.KEY))
     _single_tabs_where_narrow(bp, views, (size or (1600, 900))[0], view)
     # the columns' rows in screenshots (pixels): the timeline's lanes, the whole summary, and the
     # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE
     rows = shot_rows(size or (1600, 900), n_estimators, warned)
     if not rows.yaw_crse:
-        yaw_key = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == ent.error_group("yaw_crse_radps")), None)
-        if yaw_key is not None:
-            _remove(bp, yaw_key)
-            views.pop(yaw_key)
+        _remove(bp, views, _view_key(views, ent.error_group("yaw_crse_radps")))
     for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.ACCEL, rows.signals)):
-        held = next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == origin), None)
+        held = _view_key(views, origin)
         for value in bp.values():
             container = value.get("ContainerBlueprint", {})
             inside = [c.lstrip("/") for c in container.get("contents", [])]
@@ -390,7 +373,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     if view == "all":
         return bp
     target = _ORIGINS[view]
-    view_key = next((k for k, vb in views.items() if vb.get("space_origin") == target), None)
+    view_key = _view_key(views, target)
     if view_key is None:
         raise InputError(f"the recording has no {view} view", "replay it again with this version of ionav-viz")
     viewport = bp.setdefault("/viewport", {}).setdefault("ViewportBlueprint", {})
@@ -429,8 +412,7 @@ def _single_tabs_where_narrow(bp: dict[str, Any], views: dict[str, Any], width_p
         active = (container.get("active_tab") or container["contents"][0]).lstrip("/")
         for k in keys:
             if k.lstrip("/") != active:
-                _remove(bp, k)
-                views.pop(k, None)
+                _remove(bp, views, k)
 
 
 def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
@@ -440,17 +422,29 @@ def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
     return any(_holds(bp, "/" + c.lstrip("/"), view_key) for c in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []))
 
 
-def _remove(bp: dict[str, Any], view_key: str) -> None:
-    """Take the view ``view_key`` out of its container (its rows' shares are set again after) and
-    out of the blueprint."""
+def _view_key(views: dict[str, Any], origin: str) -> str | None:
+    """The key of the first of ``views`` (key -> ViewBlueprint) whose space origin is ``origin``
+    (slashes at either end aside: the viewer writes ``map``, the timeline's ``/``), or None."""
+    return next((k for k, vb in views.items() if vb.get("space_origin", "").strip("/") == origin.strip("/")), None)
+
+
+def _remove(bp: dict[str, Any], views: dict[str, Any], view_key: str | None) -> None:
+    """Take the view ``view_key`` (None: nothing) out of its container, whose shares no longer fit
+    its contents (the rows' are set again after), out of ``views`` and out of the blueprint; a tab
+    bar whose active tab it was shows its first tab."""
+    if view_key is None:
+        return
+    ref = view_key.lstrip("/")
     for value in bp.values():
         container = value.get("ContainerBlueprint")
-        if container and view_key.lstrip("/") in [c.lstrip("/") for c in container.get("contents", [])]:
-            container["contents"] = [c for c in container["contents"] if c.lstrip("/") != view_key.lstrip("/")]
+        if container and ref in [c.lstrip("/") for c in container.get("contents", [])]:
+            container["contents"] = [c for c in container["contents"] if c.lstrip("/") != ref]
+            container.pop("col_shares", None)
             container.pop("row_shares", None)
-            if (container.get("active_tab") or "").lstrip("/") == view_key.lstrip("/"):
+            if (container.get("active_tab") or "").lstrip("/") == ref:
                 container["active_tab"] = container["contents"][0] if container["contents"] else None
     _drop(bp, view_key)
+    views.pop(view_key, None)
 
 
 def _drop(bp: dict[str, Any], key: str) -> None:
