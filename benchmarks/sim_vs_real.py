@@ -4,9 +4,12 @@ forced to the full 3D mechanisation (without the history arbiter, which could ha
 simulator's phone and dash sets (benchmarks/results_table.py's drives): final position error as a
 share of the distance driven, mean over the outages tiled after the 30 s warm-up, IMU only::
 
-    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated] [--minutes 10]
+    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated [--scored-on-fixes]] [--minutes 10]
 
 Read each real log with the options benchmarks/real_imu_logs.py takes for it (one kind per run).
+The simulated sets are scored against their reference trajectory; with ``--scored-on-fixes``
+against their receiver's fixes, as the real logs without a reference are (``--max-sigma-m 13``):
+the same measurement on both.
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ import ionav_viz as iv
 from ionav_viz.core.gnss_quality import GnssLimits
 from ionav_viz.nav.gins import GinsEstimator
 from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
+from ionav_viz.sources.mcap_writer import TOPICS
+
+SIM_GNSS_TOPIC = TOPICS["fix"]
 
 #: (title, grade, scenarios, first seed): results_table.py's phone and dash sets
 SETS = (("simulated phone IMU 10 Hz, urban", "phone", ("roundabout", "sharp-cornering", "hard-brake"), 900),
@@ -55,6 +61,8 @@ def main() -> None:
     parser.add_argument("--max-sigma-m", type=float)
     parser.add_argument("--simulated", action="store_true", help="also the simulator's phone and dash sets")
     parser.add_argument("--minutes", type=float, default=10.0, help="length of each simulated drive")
+    parser.add_argument("--scored-on-fixes", action="store_true",
+                        help="score the simulated sets against their receiver's fixes (max sigma 13 m), as the real logs without a reference")
     args = parser.parse_args()
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     print("| log | `gins` 10 s / 30 s | `gins` in 3D 10 s / 30 s | INS DR 10 s / 30 s |\n|---|---|---|---|")
@@ -64,13 +72,17 @@ def main() -> None:
     for path in args.logs:
         print(row(path.stem, [str(path)], read), flush=True)
     if args.simulated:
-        sim_read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=SIM_TRUTH_TOPIC))
+        if args.scored_on_fixes:
+            sim_read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", gnss_topic=SIM_GNSS_TOPIC),
+                                      gnss_limits=replace(GnssLimits(), max_sigma_m=13.0))
+        else:
+            sim_read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=SIM_TRUTH_TOPIC))
         with tempfile.TemporaryDirectory() as tmp:
             for title, grade, scenarios, seed in SETS:
                 if grade not in IMU_GRADES:
                     continue
                 paths = [str(write_imu_log(Path(tmp) / f"{grade}-{i}.mcap", sc, seed + i, 60.0 * args.minutes, grade)) for i, sc in enumerate(scenarios)]
-                print(row(title, paths, sim_read), flush=True)
+                print(row(title + (", scored on its fixes" if args.scored_on_fixes else ""), paths, sim_read), flush=True)
 
 
 if __name__ == "__main__":
