@@ -258,3 +258,24 @@ def test_shipped_model_beats_dead_reckoning_on_the_bundled_test_drive(scenario):
     assert len(result.starts) == 59
     assert idnn["crse_m"].mean() < ins["crse_m"].mean()
     assert idnn["yaw_crse_radps"].mean() < ins["yaw_crse_radps"].mean()
+
+
+@pytest.mark.parametrize("arch", ["idnn", "mlp"])
+@pytest.mark.parametrize("feedback", [True, False])
+@pytest.mark.parametrize("skip", [None, (0.7, -0.2)])
+def test_the_numpy_inference_net_computes_what_the_torch_net_does(arch, feedback, skip):
+    """Evaluation runs the feed-forward nets in numpy (no torch import); training makes them in
+    torch. With the same weights both give the same outputs, the displacement net's fed-back input
+    and the kinematic skip term included."""
+    from ionav_viz.nav.idnn import NumpyFeedForward
+
+    torch.manual_seed(3)
+    n_steps = 10
+    net = build_net(arch, n_steps, 16, 0.2, feedback, skip).eval()  # eval: dropout off, as in inference
+    state = {k: v.detach().numpy() for k, v in net.state_dict().items()}
+    numpy_net = NumpyFeedForward(state, n_steps, feedback, skip, latest_only=arch == "mlp")
+    x = np.random.default_rng(3).uniform(-1.0, 2.0, (64, n_steps + int(feedback))).astype(np.float32)
+    with torch.no_grad():
+        expected = net(torch.from_numpy(x)).numpy()
+    np.testing.assert_allclose(numpy_net(x), expected, rtol=1e-5, atol=1e-5)
+    assert np.ptp(expected) > 0.01  # the inputs reach the output
