@@ -150,7 +150,7 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
                 bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep)
+    out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep)
     if rep.get("drift"):
         header, rows = drift_rows(rep)
         out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
@@ -184,6 +184,15 @@ def health_lines(rep: dict[str, Any]) -> list[str]:
 
     labels = {e["name"]: e["label"] for e in rep["estimators"]}
     return [health_line(labels.get(est, est), summary) for est, summary in rep.get("filter_health", {}).items()]
+
+
+def arbiter_lines(rep: dict[str, Any]) -> list[str]:
+    """On one drive, a line per estimator that chose its propagation per outage (``gins``'s history
+    arbiter, :func:`ionav_viz.nav.gins.arbitrate`): what it chose and why. An estimator describes
+    the last drive it ran on, so a report of several drives leaves it to each drive's own run."""
+    if len(rep.get("drives", [])) != 1:
+        return []
+    return [f"{e['label']} propagation: {e['info']['arbiter']}" for e in rep["estimators"] if e.get("info", {}).get("arbiter")]
 
 
 def _folded(line: str, width: int | None) -> str:
