@@ -211,3 +211,40 @@ def test_a_heading_turned_off_in_a_gnss_gap_is_set_from_the_course_again(tmp_pat
     ins_pct = iv.evaluate([lost], 10.0, after, estimators=["ins"]).summary["ins"]["final_error_pct"]["mean"]
     assert gins_pct < ins_pct, (a, gins_pct, ins_pct)
     assert gins_pct < 10.0, (a, gins_pct)
+
+
+@pytest.mark.parametrize("lag_s", [0.5, 1.2])
+def test_a_receiver_speed_lag_is_recovered_from_a_known_shift(lag_s):
+    """The IMU's forward acceleration and a receiver speed that is its integral ``lag_s`` later (a
+    1 Hz receiver interpolated onto the 10 Hz grid, with noise): the lag comes back within 50 ms."""
+    from ionav_viz.nav.gnss_lag import estimate_speed_lag
+
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 300.0, 0.1)
+    accel = np.convolve(rng.normal(0.0, 1.0, len(t)), np.ones(30) / 30.0 * 3.0, mode="same")  # smooth, ~0.5 m/s^2
+    speed = 12.0 + np.cumsum(accel) * 0.1
+    speed -= np.minimum(speed.min() - 6.0, 0.0)  # at speed throughout
+    late = np.interp(t - lag_s, t, speed)
+    epochs = t[::10]
+    received = np.interp(t, epochs, np.interp(epochs, t, late) + rng.normal(0.0, 0.05, len(epochs)))
+    found = estimate_speed_lag(t, received, accel + rng.normal(0.0, 0.05, len(t)) + 0.2)  # an offset: a bias
+    assert found.resolved and found.used
+    assert found.lag_s == pytest.approx(lag_s, abs=0.05)
+    # a receiver early against the IMU is the IMU's clock, not this: not searched, left alone
+    early = np.interp(t, epochs, np.interp(epochs + 0.8, t, speed))
+    assert not estimate_speed_lag(t, early, accel).used
+
+
+def test_a_lagging_receiver_speed_is_found_and_gins_weighs_it_for_what_it_is(tmp_path):
+    """A MEMS log whose receiver reports the speed 0.8 s late, as a phone's location service does:
+    the lag is found from the log, and ``gins``, widening its velocity updates by the lag times the
+    acceleration, ends its outages nearer the truth than taking the late speed at 0.3 m/s."""
+    grade = replace(IMU_GRADES["mems"], gnss_speed_lag_s=0.8)
+    drive = iv.load_drive(write_imu_log(tmp_path / "late.mcap", "sharp-cornering", 21, 300.0, grade), iv.ReadOptions(log=LOG))
+    for length in (10.0, 30.0):
+        on, off = GinsEstimator(), GinsEstimator(speed_lag=False)
+        with_lag, without = _final_pct(drive, on, length), _final_pct(drive, off, length)
+        assert with_lag < 0.85 * without, (length, with_lag, without)
+    found = on.describe()["gnss_speed_lag"]
+    assert found.startswith("0.7") or found.startswith("0.8"), found
+    assert "widened" in found and off.describe()["gnss_speed_lag"] == "not resolved (turned off)"

@@ -54,6 +54,7 @@ from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..core.rotation import quat_of_euler
 from . import history_check
+from .gnss_lag import SpeedLag, estimate_speed_lag, lag_velocity_error_mps
 from .ins import dead_reckon
 from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs, FilterHealth
@@ -227,7 +228,7 @@ class GinsEstimator:
     requires = "all six IMU axes, measured: a message log's or KITTI's IMU"
 
     def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True,
-                 mechanisation: str = "auto", arbiter: bool = True) -> None:
+                 mechanisation: str = "auto", arbiter: bool = True, speed_lag: bool = True) -> None:
         """``mechanisation``: ``"3d"``, ``"reduced"`` (roll and pitch held: yaw rate and specific
         force with the constraints) or ``"auto"``: reduced where the drive's IMU samples are single
         readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`). ``arbiter``:
@@ -240,6 +241,7 @@ class GinsEstimator:
         self.nhc, self.zupt, self.odometer = nhc, zupt, odometer
         self.mechanisation = mechanisation
         self.arbiter = bool(arbiter)
+        self.speed_lag = bool(speed_lag)
         self._last: dict[str, Any] = {}
 
     def available(self) -> bool:
@@ -262,7 +264,13 @@ class GinsEstimator:
         pos = np.ascontiguousarray(enu_of_geodetic(b.lat_deg, b.lon_deg, h, *origin))
         sigma = position_sigma_m(b.t_s, drive.t_s, drive.columns.get("gnss_sigma_m"), self.noise.gnss_position_m)
         course = np.deg2rad(b.course_deg)
-        vel = np.ascontiguousarray(np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)]))
+        vel = np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)])
+        lag = self._speed_lag(drive, acc)
+        vel_var = np.zeros(len(b.t_s))
+        if lag.used:  # a location service's smoothed speed: its velocity updates widened by what the lag makes of it
+            c = drive.columns
+            vel_var = lag_velocity_error_mps(drive.t_s, c["speed_mps"], acc[:, 0], gyr[:, 2], lag.lag_s)[b.sample] ** 2
+        vel = np.ascontiguousarray(vel)
         vel_ok = b.gnss_ok & (b.speed_mps > GNSS_VELOCITY_MIN_SPEED_MPS)
         odo = np.full(len(b.t_s), np.nan)
         found = vehicle_speed(drive)
@@ -286,7 +294,7 @@ class GinsEstimator:
         r_vel = (n.gnss_fitted_velocity_mps if drive.velocity_fitted else n.gnss_velocity_mps) ** 2
         inputs = FilterInputs(np.ascontiguousarray(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64), b.segment_start.astype(bool),
                               b.gnss_ok.astype(bool), pos, np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
-                              still.astype(bool), fix_steps(b, pos, sigma), bool(has_height))
+                              still.astype(bool), fix_steps(b, pos, sigma), bool(has_height), np.ascontiguousarray(vel_var, dtype=float))
         noise = FilterNoise(sigma_a**2 * dt, sigma_g**2 * dt, walk, r_vel, n.nhc_lateral_mps**2, n.nhc_vertical_mps**2, n.odometer_mps**2,
                             n.zupt_mps**2, sigma_g**2)
         earth = earth_at(origin[0], origin[2])
@@ -301,7 +309,7 @@ class GinsEstimator:
             run_filter(inputs, noise, earth, switches, *self._aligned(0, pos, vel, sigma, acc, b, dt, init), 0, aligned - 1, out)
         run_filter(inputs, noise, earth, switches, *self._aligned(aligned, pos, vel, sigma, acc, b, dt, init), aligned, nb - 1, out)
         xs = out.xs
-        self._last = {"mechanisation": _mechanisation_text(reduced, drive),
+        self._last = {"mechanisation": _mechanisation_text(reduced, drive), "gnss_speed_lag": lag.describe(),
                       "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample ({noise_from})",
                       "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
                       "accel_bias_mps2": _median_text(xs[:, BAX:BAX + 3]),
@@ -312,6 +320,15 @@ class GinsEstimator:
                       "process_noise_scale": f"x{float(np.max(out.q_scale)):.1f} at most, above x1 over {100.0 * float(np.mean(out.q_scale > 1.0)):.0f} % "
                                              "of the drive (the consistency test: the GNSS position's running NIS)"}
         return GinsRun(b, xs, out.Ps, inputs, noise, earth, switches, origin, still, out.log, out.q_scale.copy())
+
+    def _speed_lag(self, drive: Drive, acc: np.ndarray) -> SpeedLag:
+        """How late the receiver's speed is against the IMU (:mod:`.gnss_lag`); a speed fitted to
+        the fixes is the positions', of their epochs."""
+        if drive.velocity_fitted or not self.speed_lag:
+            lag = SpeedLag(0.0, 0.0, 0.0, False, "the speed is fitted to the fixes" if drive.velocity_fitted else "turned off")
+        else:
+            lag = estimate_speed_lag(drive.t_s, drive.columns["speed_mps"], acc[:, 0], drive.gnss_fault == 0)
+        return lag
 
     @staticmethod
     def _aligned(k: int, pos: np.ndarray, vel: np.ndarray, sigma: np.ndarray, acc: np.ndarray, b: Boundaries, dt: float,

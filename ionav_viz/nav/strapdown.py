@@ -130,7 +130,9 @@ class FilterInputs(NamedTuple):
     velocity), ``odo`` (vehicle speed m/s, NaN: none), ``still`` (the IMU shows the car standing);
     ``fix_step``: 1 where the fix goes on from the one before it as the speed says (no jump: when it
     disagrees with the filter, the filter is the one that is off), -1 where it jumps, 0 where it
-    cannot tell (the first fix after a gap); ``has_height``: the fixes' heights are measurements."""
+    cannot tell (the first fix after a gap); ``has_height``: the fixes' heights are measurements;
+    ``vel_var``: per boundary, variance (m²/s²) the GNSS velocity has beyond the model's (a lagging
+    receiver's in an acceleration: :mod:`ionav_viz.nav.gnss_lag`)."""
 
     t: np.ndarray
     acc: np.ndarray
@@ -146,6 +148,7 @@ class FilterInputs(NamedTuple):
     still: np.ndarray
     fix_step: np.ndarray
     has_height: bool
+    vel_var: np.ndarray
 
 
 class FilterNoise(NamedTuple):
@@ -180,7 +183,8 @@ class FilterOutputs(NamedTuple):
     """Where :func:`run_filter` writes, per boundary: the state ``xs`` (nb, 20) and covariance ``Ps``
     (nb, 19, 19) after its updates and the update ``log`` (each with 0 rows: kept nowhere), the
     position ``pos`` (ENU m, (nb, 3)) and its east/north covariance ``pos_cov`` (m^2, (nb, 2, 2)),
-    the turn (rad) and distance (m) since the first boundary."""
+    the turn (rad) and distance (m) since the first boundary, the process noise's scale ``q_scale``
+    and the GNSS velocity's sigma ``vel_sigma`` (m/s) the filter used (:func:`_gnss_updates`)."""
 
     xs: np.ndarray
     Ps: np.ndarray
@@ -190,13 +194,15 @@ class FilterOutputs(NamedTuple):
     log: kalman.UpdateLog
     pos_cov: np.ndarray
     q_scale: np.ndarray
+    vel_sigma: np.ndarray
 
 
 def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
     """Outputs for ``nb`` boundaries, with the states and the update log or without."""
     rows = nb if keep_states else 0
     return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
-                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)), np.ones(nb))
+                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)), np.ones(nb),
+                         np.zeros(nb))
 
 
 @dataclass(frozen=True)
@@ -624,18 +630,49 @@ def _propagate_window(x, P, inputs, noise, earth, level_held, q_scale, j, jb, ac
 
 
 @njit(cache=True)
-def _gnss_updates(x, P, dx, inputs, noise, b, gate, H, log):  # pragma: no cover - compiled
+def _gnss_updates(x, P, dx, inputs, noise, b, gate, H, log, vel_r):  # pragma: no cover - compiled
     """Boundary ``b``'s fix: position (each component gated at ``gate``: a jump is not a fix), then,
     at speed and only where the horizontal position was used, velocity. Returns whether the
-    horizontal position was used."""
+    horizontal position was used.
+
+    The velocity's variance is the larger of the model's (``noise.r_vel``) and the one its own
+    innovations show (covariance matching, Mohamed and Schwarz 1999: the running mean of the
+    squared innovation less the filter's share of it, ``H P H'``, over about
+    :data:`VEL_R_MEMORY` scalars, kept in ``vel_r[0]``): a phone's receiver reports a speed that
+    lags the car by 0.5-1 s (iOS; measured against the IMU on the real logs), not the 0.3 m/s white
+    noise a receiver's Doppler has, and held to 0.3 m/s it pulls the filter's velocity, biases and
+    pitch after it."""
     used = True
     for axis in range(3 if inputs.has_height else 2):
         ok = _apply(P, dx, H, gnss_position(x, inputs.gnss_pos[b], inputs.gnss_sigma[b], axis, H), gate, log, b, SLOT_GNSS_POS + axis)
         used = used and (ok or axis == 2)
     if inputs.vel_ok[b] and used:
+        r_vel = max(noise.r_vel, vel_r[0]) + inputs.vel_var[b]
         for axis in range(2):
-            _apply(P, dx, H, gnss_velocity(x, inputs.gnss_vel[b], axis, noise.r_vel, H), np.inf, log, b, SLOT_GNSS_VEL + axis)
+            meas = gnss_velocity(x, inputs.gnss_vel[b], axis, r_vel, H)
+            nu, hph = _innovation(P, dx, H, meas)
+            _apply(P, dx, H, meas, np.inf, log, b, SLOT_GNSS_VEL + axis)
+            vel_r[0] += (nu * nu - hph - inputs.vel_var[b] - vel_r[0]) / VEL_R_MEMORY
     return used
+
+
+#: The GNSS velocity's own variance (:func:`_gnss_updates`) is a running mean over about this many
+#: scalar innovations (two a fix: 10 s of 1 Hz fixes).
+VEL_R_MEMORY = 20.0
+
+
+@njit(cache=True)
+def _innovation(P, dx, H, meas):  # pragma: no cover - compiled
+    """The innovation of ``meas = (dz, r, nnz)`` with row ``H`` against the error estimate ``dx``
+    so far, and the filter's share of its variance ``H P H'``."""
+    cols, h = H
+    dz, _, nnz = meas
+    nu, hph = dz, 0.0
+    for k in range(nnz):
+        nu -= h[k] * dx[cols[k]]
+        for m in range(nnz):
+            hph += h[k] * h[m] * P[cols[k], cols[m]]
+    return nu, hph
 
 
 @njit(cache=True)
@@ -725,6 +762,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
     # the consistency test: a running mean of the GNSS position's NIS per scalar; persistently above
     # NIS_HIGH, the white noise the filter assumes is too small for what it meets: scaled up
     q_scale, nis_mean = q_scale0, 1.0
+    vel_r = np.full(1, noise.r_vel)  # the GNSS velocity's variance its innovations show (_gnss_updates)
     j = inputs.b_sample[b_first]
     for b in range(b_first, b_last + 1):
         jb = inputs.b_sample[b]
@@ -736,7 +774,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
             j = jb
             gnss_here = sw.gnss and inputs.gnss_ok[b]
             if gnss_here:
-                if _gnss_updates(x, P, dx, inputs, noise, b, GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf, H, out.log):
+                if _gnss_updates(x, P, dx, inputs, noise, b, GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf, H, out.log, vel_r):
                     rejected, jumped = 0, False
                 elif inputs.fix_step[b] > 0 and not jumped:
                     # the fixes went on smoothly from the last one the filter took, and it disagrees: it is off
@@ -775,6 +813,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
             out.xs[b] = x
             out.Ps[b] = P
         out.q_scale[b] = q_scale
+        out.vel_sigma[b] = math.sqrt(max(noise.r_vel, vel_r[0]))
         for i in range(3):
             out.pos[b, i] = x[PX + i]
         for i in range(2):

@@ -117,6 +117,12 @@ class ImuGrade:
     holder_wobble_still_share: float = 0.2
     #: the IMU's stamps minus the receiver's for one instant (s; positive: the IMU is stamped late)
     clock_offset_s: float = 0.0
+    #: the receiver's speed is the car's this long ago (s): a phone's location service smooths it
+    #: (0.5-1.0 s on six of the seven real iPhone logs, 1.6 s on a car data logger's,
+    #: docs/real-imu-logs.md), where a GNSS chip's Doppler speed is of its epoch. Its course and
+    #: positions are left of their epoch (on the real logs the course lags the gyro by 0.1-0.4 s, far
+    #: less than the speed; the steps between fixes are too noisy to show a lag)
+    gnss_speed_lag_s: float = 0.0
     #: a loose holder: the sensor tilts on it by this much per m/s^2 of horizontal specific force
     #: (deg; pitch with the forward, roll with the lateral), settling with ``holder_flex_tau_s``
     holder_flex_deg_per_mps2: float = 0.0
@@ -407,8 +413,12 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
     noisy = position + wander * np.array([1.0, 1.0, 2.0]) + rng.normal(0.0, g.gnss_white_m, (n, 3))
     g_lat, g_lon, g_height = geodetic_of_enu(noisy, *m.origin)
     vel = at(m.velocity_mps)
-    v_e = vel[:, 0] + rng.normal(0.0, g.gnss_speed_noise_mps, n)
-    v_n = vel[:, 1] + rng.normal(0.0, g.gnss_speed_noise_mps, n)
+    rx_vel = vel[:, :2]
+    if g.gnss_speed_lag_s > 0:  # the receiver's speed is the car's a while ago, along the course of now
+        late = np.hypot(*(np.interp(t - g.gnss_speed_lag_s, m.t_s, m.velocity_mps[:, k]) for k in range(2)))
+        rx_vel = rx_vel * (late / np.maximum(np.hypot(vel[:, 0], vel[:, 1]), 1e-9))[:, None]
+    v_e = rx_vel[:, 0] + rng.normal(0.0, g.gnss_speed_noise_mps, n)
+    v_n = rx_vel[:, 1] + rng.normal(0.0, g.gnss_speed_noise_mps, n)
     g_speed = np.hypot(v_e, v_n)
     g_course = wrap_360(np.degrees(np.arctan2(v_e, v_n)))
     course = wrap_360(np.degrees(np.arctan2(vel[:, 0], vel[:, 1])))
