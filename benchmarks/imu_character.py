@@ -8,7 +8,8 @@ gyro's Allan deviation at 1 s standing (where 20 s of standstill allow it), the 
 how much the forward accelerometer's offset from the GNSS acceleration wanders within 10 s (what an
 outage's dead reckoning must carry: road grade, a holder tilting with the car's acceleration, bias
 wander), the stamps' jitter and gaps,
-the clock offset against the receiver and the mount::
+the clock offset against the receiver, how late the receiver's speed is against the IMU
+(:mod:`ionav_viz.nav.gnss_lag`) and the mount::
 
     python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--json OUT]
     python benchmarks/imu_character.py --simulated 300   # the simulator's phone and mems grades, 5 min each
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import ionav_viz as iv
+from ionav_viz.nav.gnss_lag import speed_lag_of
 from ionav_viz.nav.stillness import drive_still
 from ionav_viz.sources.imu.clock import estimate_clock_offset
 
@@ -156,6 +158,9 @@ def measure(drive, path: Path | None = None) -> dict:
     out["clock_offset_s"] = round(clock.offset_s, 3) if clock.resolved else None
     out["clock_note"] = f"{clock.offset_s:+.3f} ± {clock.sigma_s:.3f} s" if clock.resolved else clock.reason
     out["mount_deg"] = imu.mount_deg if imu else None
+    lag = speed_lag_of(drive.as_received())
+    out["speed_lag_s"] = round(lag.lag_s, 2) if lag.resolved else None
+    out["speed_lag_note"] = f"{lag.lag_s:.2f} s ({lag.peak:.2f})" if lag.resolved else lag.reason
     return out
 
 
@@ -166,13 +171,13 @@ def row(m: dict) -> str:
     return (f"| {m['log']} | {f('native_rate_hz', '{:g}')} Hz, {m['samples']} | {f('duration_s', '{:.0f}')} s ({f('standing_s', '{:.0f}')} s standing) | "
             f"{f('gyro_standing_dps')} / {f('gyro_driving_dps')} | {f('accel_standing_mps2')} / {f('accel_driving_mps2')} | "
             f"{f('gyro_allan_1s_dps', '{:.3f}')} | {f('wobble_standing_dps')} / {f('wobble_dps', '{:.1f}')} | {f('gyro_course_scale', '{:.3f}')} | {f('accel_wander_mps2')} | "
-            f"{f('jitter_ms', '{:.3f}')} ms, {f('gaps', '{:.2%}')} | {m['clock_note']} |")
+            f"{f('jitter_ms', '{:.3f}')} ms, {f('gaps', '{:.2%}')} | {m['clock_note']} | {m['speed_lag_note']} |")
 
 
 HEADER = ("| log | IMU | length | gyro noise standing / driving (deg/s per sample) | accel noise standing / driving (m/s² per sample) | "
           "gyro Allan dev. at 1 s standing (deg/s) | holder wobble standing / driving (deg/s) | gyro z / GNSS course | accel x offset wander in 10 s (m/s²) | "
-          "period spread p1-p99, gaps | clock offset |\n"
-          "|---|---|---|---|---|---|---|---|---|---|---|")
+          "period spread p1-p99, gaps | clock offset | receiver speed behind the IMU (correlation) |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 #: The simulated logs ``--simulated`` measures: (grade, scenario, seed); the seeds of

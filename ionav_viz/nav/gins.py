@@ -54,7 +54,7 @@ from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..core.rotation import quat_of_euler
 from . import history_check
-from .gnss_lag import SpeedLag, estimate_speed_lag, lag_velocity_error_mps
+from .gnss_lag import SpeedLag, lag_velocity_error_mps, speed_lag_of
 from .ins import dead_reckon
 from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs, FilterHealth
@@ -233,7 +233,10 @@ class GinsEstimator:
         force with the constraints) or ``"auto"``: reduced where the drive's IMU samples are single
         readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`). ``arbiter``:
         per outage, the propagation whose past pseudo-outages on this drive ended nearest the fixes
-        (:func:`arbitrate`); without it, the mechanisation's own on every outage."""
+        (:func:`arbitrate`); without it, the mechanisation's own on every outage. ``speed_lag``: find how
+        late the receiver's speed is against the IMU and widen the velocity updates by what that lag
+        makes of it in an acceleration (:mod:`ionav_viz.nav.gnss_lag`); without it, the receiver's
+        velocity is taken as of its epoch."""
         self.noise = noise or GinsNoise()
         if mechanisation not in MECHANISATIONS:
             raise InputError(f"gins mechanisation {mechanisation!r} is not one of {', '.join(MECHANISATIONS)}",
@@ -265,7 +268,7 @@ class GinsEstimator:
         sigma = position_sigma_m(b.t_s, drive.t_s, drive.columns.get("gnss_sigma_m"), self.noise.gnss_position_m)
         course = np.deg2rad(b.course_deg)
         vel = np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)])
-        lag = self._speed_lag(drive, acc)
+        lag = self._speed_lag(drive)
         vel_var = np.zeros(len(b.t_s))
         if lag.used:  # a location service's smoothed speed: its velocity updates widened by what the lag makes of it
             c = drive.columns
@@ -321,14 +324,9 @@ class GinsEstimator:
                                              "of the drive (the consistency test: the GNSS position's running NIS)"}
         return GinsRun(b, xs, out.Ps, inputs, noise, earth, switches, origin, still, out.log, out.q_scale.copy())
 
-    def _speed_lag(self, drive: Drive, acc: np.ndarray) -> SpeedLag:
-        """How late the receiver's speed is against the IMU (:mod:`.gnss_lag`); a speed fitted to
-        the fixes is the positions', of their epochs."""
-        if drive.velocity_fitted or not self.speed_lag:
-            lag = SpeedLag(0.0, 0.0, 0.0, False, "the speed is fitted to the fixes" if drive.velocity_fitted else "turned off")
-        else:
-            lag = estimate_speed_lag(drive.t_s, drive.columns["speed_mps"], acc[:, 0], drive.gnss_fault == 0)
-        return lag
+    def _speed_lag(self, drive: Drive) -> SpeedLag:
+        """How late the receiver's speed is against the IMU (:mod:`.gnss_lag`)."""
+        return speed_lag_of(drive) if self.speed_lag else SpeedLag(0.0, 0.0, 0.0, False, "turned off")
 
     @staticmethod
     def _aligned(k: int, pos: np.ndarray, vel: np.ndarray, sigma: np.ndarray, acc: np.ndarray, b: Boundaries, dt: float,

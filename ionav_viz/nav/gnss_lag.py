@@ -31,6 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.drive import Drive
+from ..core.gnss_quality import GnssFault
+
 #: Lags searched (s): a location service's smoothing, not an unsynchronised clock.
 MAX_LAG_S = 2.0
 #: The search's step (s) before the parabola refines it.
@@ -44,6 +47,9 @@ MIN_PEAK = 0.5
 MIN_DRIVING_S = 60.0
 #: Lags under this (s) are left alone: at 1 m/s² they are under 0.2 m/s, within a receiver's noise.
 USE_ABOVE_S = 0.2
+#: The fix faults that break a speed's time series (a gap, a frozen or jumping receiver); a coarse
+#: fix's speed (few satellites, a poor reported accuracy: a phone's 6-8 m) still shows when it changed.
+SPEED_FAULTS = GnssFault.NO_FIX | GnssFault.NEAR_ZERO | GnssFault.FROZEN | GnssFault.JUMP
 #: The forward accelerometer's offset from the receiver's speed rate is its mean over this (s, trailing).
 OFFSET_WINDOW_S = 30.0
 
@@ -79,6 +85,17 @@ def _smooth(x: np.ndarray, n: int) -> np.ndarray:
     i = np.arange(len(x))
     lo, hi = np.maximum(i - n // 2, 0), np.minimum(i - n // 2 + n, len(x))
     return (c[hi] - c[lo]) / (hi - lo)
+
+
+def speed_lag_of(drive: Drive) -> SpeedLag:
+    """:func:`estimate_speed_lag` on a drive as its receiver saw it (:meth:`Drive.as_received`:
+    its speed, the IMU's ``accel_x_mps2``); a speed fitted to the fixes is the positions', of their
+    epochs: not estimated."""
+    if drive.velocity_fitted:
+        return SpeedLag(0.0, 0.0, 0.0, False, "the speed is fitted to the fixes")
+    if "accel_x_mps2" not in drive.columns:
+        return SpeedLag(0.0, 0.0, 0.0, False, "no forward accelerometer")
+    return estimate_speed_lag(drive.t_s, drive.speed_mps, drive.columns["accel_x_mps2"], (drive.gnss_fault & SPEED_FAULTS) == 0)
 
 
 def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: np.ndarray, usable: np.ndarray | None = None) -> SpeedLag:
