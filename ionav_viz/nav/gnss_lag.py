@@ -13,7 +13,7 @@ against the IMU's forward specific force, both smoothed over 1 s alike; the lag 
 up (normalised cross-correlation, 0 to :data:`MAX_LAG_S` in 50 ms steps, a parabola through the
 peak). Only a lag of the receiver behind the IMU is searched: a receiver early against the IMU is
 the IMU's clock (:mod:`ionav_viz.sources.imu.clock`). It is *resolved* when the peak correlation is
-clear (:data:`MIN_PEAK`) over enough driving (:data:`MIN_DRIVING_S`), and used when above
+clear (:data:`LAG_MIN_PEAK`) over enough driving (:data:`MIN_DRIVING_S`), and used when above
 :data:`USE_ABOVE_S`.
 
 What the lag does to the velocity (:func:`lag_velocity_error_mps`): it is off by the lag times the
@@ -37,13 +37,13 @@ from ..core.gnss_quality import GnssFault
 #: Lags searched (s): a location service's smoothing, not an unsynchronised clock.
 MAX_LAG_S = 2.0
 #: The search's step (s) before the parabola refines it.
-STEP_S = 0.05
+LAG_STEP_S = 0.05
 #: Samples at least this fast (m/s) count.
-MIN_SPEED_MPS = 5.0
+LAG_MIN_SPEED_MPS = 5.0
 #: Both signals are smoothed over this (s) before they are compared (a 1 Hz receiver's interval).
-SMOOTH_S = 1.0
+LAG_SMOOTH_S = 1.0
 #: Resolved: a peak correlation of at least this over at least this much driving at speed (s).
-MIN_PEAK = 0.5
+LAG_MIN_PEAK = 0.5
 MIN_DRIVING_S = 60.0
 #: Lags under this (s) are left alone: at 1 m/s² they are under 0.2 m/s, within a receiver's noise.
 USE_ABOVE_S = 0.2
@@ -106,19 +106,19 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
     if len(t) < 10:
         return SpeedLag(0.0, 0.0, 0.0, False, "too short")
     dt = float(np.median(np.diff(t)))
-    n = max(int(round(SMOOTH_S / dt)), 1)
+    n = max(int(round(LAG_SMOOTH_S / dt)), 1)
     rate = _smooth(np.gradient(np.asarray(speed_mps, dtype=float), t), n)
     accel = _smooth(np.asarray(accel_fwd_mps2, dtype=float), n)
-    ok = np.asarray(speed_mps) >= MIN_SPEED_MPS
+    ok = np.asarray(speed_mps) >= LAG_MIN_SPEED_MPS
     if usable is not None:
         ok &= np.asarray(usable, dtype=bool)
     driving_s = float(ok.sum() * dt)
     if driving_s < MIN_DRIVING_S:
         return SpeedLag(0.0, 0.0, driving_s, False, f"too little driving at speed ({driving_s:.0f} s; {MIN_DRIVING_S:.0f} needed)")
-    steps = np.arange(0, int(round(MAX_LAG_S / STEP_S)) + 1)
+    steps = np.arange(0, int(round(MAX_LAG_S / LAG_STEP_S)) + 1)
     corr = np.full(len(steps), -np.inf)
     for k, step in enumerate(steps):
-        shift = int(round(step * STEP_S / dt))  # the IMU's sample `shift` earlier lines up with the receiver's now
+        shift = int(round(step * LAG_STEP_S / dt))  # the IMU's sample `shift` earlier lines up with the receiver's now
         if shift >= len(t) - 10:
             break
         a, r, m = accel[: len(t) - shift], rate[shift:], ok[shift:] & ok[: len(t) - shift]
@@ -128,14 +128,14 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
         den = float(np.sqrt((a * a).sum() * (r * r).sum()))
         corr[k] = float((a * r).sum() / den) if den > 0 else -np.inf
     best = int(np.argmax(corr))
-    lag = float(best * STEP_S)
+    lag = float(best * LAG_STEP_S)
     if 0 < best < len(steps) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
         y0, y1, y2 = corr[best - 1], corr[best], corr[best + 1]
         den = y0 - 2.0 * y1 + y2
         if den < 0:
-            lag += STEP_S * 0.5 * (y0 - y2) / den
+            lag += LAG_STEP_S * 0.5 * (y0 - y2) / den
     peak = float(corr[best])
-    if peak < MIN_PEAK:
+    if peak < LAG_MIN_PEAK:
         return SpeedLag(lag, peak, driving_s, False, f"the receiver's speed and the IMU agree poorly (correlation {peak:.2f})")
     return SpeedLag(lag, peak, driving_s, True)
 
@@ -147,7 +147,7 @@ def lag_velocity_error_mps(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps
     ``yaw_rate_radps`` counter-clockwise positive, its sign immaterial here)."""
     t = np.asarray(t_s, dtype=float)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.1
-    n = max(int(round(SMOOTH_S / dt)), 1)
+    n = max(int(round(LAG_SMOOTH_S / dt)), 1)
     speed = np.asarray(speed_mps, dtype=float)
     rate = _smooth(np.gradient(speed, t), n)
     accel = _smooth(np.asarray(accel_fwd_mps2, dtype=float), n)
