@@ -339,7 +339,10 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
        (+3/+5 and +1/+3 %) but not on the tail, which had kept the parent. With 7 (the benchmark):
        +9/+13, +10/+10, 0/0, +3/+4 % (880-883) and +7/+9, +11/+11, 0/0, +2/+3 % (884-887): never
        worse than the parent, the same where every layer was kept, more on the two cars beyond the
-       fleet; about 30 s instead of 17 s a car where the second try runs.
+       fleet; about 30 s instead of 17 s a car where the second try runs. Then, once, the reported
+       cars 870-873: +11/+11, +14/+13, +3/+2 (first layer kept; was 0/0), 0/0 % (both tries
+       rejected on the car beyond the fleet), mean gain over the INS DR +56 / +40.3 % (was +56 /
+       +39.8 %).
 
     Tried on 880-887 and not taken (fine-tuned minus shipped at 10 / 30 s): deciding by blocked
     cross-validation instead (5 time blocks of each drive left out in turn, outages scored after a
