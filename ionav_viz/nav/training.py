@@ -376,7 +376,9 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
     into the drive, as an outage after the warm-up finds them, instead of 0-9 s before the window
     (no guard, 880-883: +9.9/+13.4, +10.2/+10.3, -3.4/-2.4, +2.5/+3.7 %, the same decisions); as
     they stand at the end of the minute (hindsight): 882 -1.1/-0.6 %, but the tail then took 883,
-    which lost -2.1/-2.3 %."""
+    which lost -2.1/-2.3 %. After 7 was chosen, 7 with the 30 s calibration (the benchmark, 880-887):
+    +10/+13, +10/+10, 0/0, +3/+4, +7/+9, +11/+10, 0/0, +1/+2 %, the same decisions, no more gained
+    (884, 885 and 887 a little less)."""
     import dataclasses
 
     return dataclasses.replace(parent, lr_disp=parent.lr_disp / FINE_TUNE_LR_DIVISOR, lr_yaw=parent.lr_yaw / FINE_TUNE_LR_DIVISOR,
