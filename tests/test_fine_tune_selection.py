@@ -99,15 +99,19 @@ def test_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_p
     meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
     shipped = default_model_dir()
     for name in ("displacement", "yaw_rate"):
-        assert meta["epoch_selection"][name]["kept"] == "parent"
-        assert meta["epoch_selection"][name]["validation_loss_fine_tuned"] > meta["epoch_selection"][name]["validation_loss_parent"]
+        sel = meta["epoch_selection"][name]
+        assert sel["kept"] == "parent" and sel["layers"] is None
+        # every layer tried, then the first layer alone: both worse than the parent
+        assert [t["layers"] for t in sel["tried"]] == ["all", "first"]
+        assert all(t["validation_loss_fine_tuned"] > sel["validation_loss_parent"] for t in sel["tried"])
     weights = ("displacement.safetensors", "yaw_rate.safetensors")  # the uncertainty is fitted again
     assert all(_sha(tmp_path / "m" / f) == _sha(shipped / f) for f in weights)
     lines = [r.getMessage() for r in caplog.records if "did not beat the parent" in r.getMessage()]
-    assert len(lines) == 2 and all("\n" not in line for line in lines)
+    assert len(lines) == 2 and all("\n" not in line and "(first layer)" in line for line in lines)
     assert meta["validation"]["note"].startswith("one-window predictions with the last 20% of each drive (by time) left out")
     assert meta["epoch_selection"]["validation"].startswith("the last 20% of each drive (by time) left out: the displacement CRSE (m, mean) of 5 s outages")
-    assert [f["left_out"] for f in meta["epoch_selection"]["folds"]] == [[0.8, 1.0]]
+    assert [(f["left_out"], f["layers"]) for f in meta["epoch_selection"]["folds"]] == [([0.8, 1.0], "all"), ([0.8, 1.0], "first")]
+    assert meta["config"]["tune_layers"] == "all,first"
 
 
 def test_without_validation_folds_the_tail_trained_fit_is_kept(tmp_path):
@@ -136,8 +140,11 @@ def test_a_fine_tuned_model_records_which_weights_it_kept(tmp_path):
     sel = model.metadata["epoch_selection"]
     assert model.config.validation_folds == 1 and model.config.validation_tail == pytest.approx(0.2)
     for name in ("displacement", "yaw_rate"):
-        beat = sel[name]["validation_loss_fine_tuned"] < sel[name]["validation_loss_parent"]
-        assert sel[name]["kept"] == ("fine-tuned on every window" if beat else "parent")
+        # the first try that beat the parent is kept: every layer, else the first layer alone, else the parent
+        beat = [t["layers"] for t in sel[name]["tried"] if t["validation_loss_fine_tuned"] < sel[name]["validation_loss_parent"]]
+        assert [t["layers"] for t in sel[name]["tried"]] == ["all", "first"][: 1 if beat[:1] == ["all"] else 2]
+        assert sel[name]["layers"] == (beat[0] if beat else None)
+        assert sel[name]["kept"] == {"all": "fine-tuned on every window", "first": "first layer fine-tuned on every window"}.get(sel[name]["layers"], "parent")
     # the model kept was fitted on every window, the tail too
     assert model.metadata["training"]["n_validation"] == 0
 
@@ -203,9 +210,11 @@ def test_cross_validated_fine_tuning_that_only_harms_keeps_the_parents_weights_a
     lines = [r.getMessage() for r in caplog.records if "did not beat the parent on time it did not see" in r.getMessage()]
     assert len(lines) == 2 and all("\n" not in line for line in lines)
     # four 30 s blocks: outages only in those after the 30 s warm-up; every block scores the orientation rate
-    assert [f["left_out"] for f in sel["folds"]] == [[0.0, 0.25], [0.25, 0.5], [0.5, 0.75], [0.75, 1.0]]
-    assert sel["folds"][0]["n_outages"] == 0 and all(f["n_outages"] > 0 for f in sel["folds"][1:])
-    assert all(f["n_windows"] > 0 for f in sel["folds"])
+    for layers in ("all", "first"):  # every layer, then the first alone: each try left out every block
+        folds = [f for f in sel["folds"] if f["layers"] == layers]
+        assert [f["left_out"] for f in folds] == [[0.0, 0.25], [0.25, 0.5], [0.5, 0.75], [0.75, 1.0]]
+        assert folds[0]["n_outages"] == 0 and all(f["n_outages"] > 0 for f in folds[1:])
+    assert len(sel["folds"]) == 8 and all(f["n_windows"] > 0 for f in sel["folds"])
     assert meta["config"]["validation_folds"] == 4
 
 
@@ -213,9 +222,42 @@ def test_cross_validated_fine_tuning_keeps_what_beat_the_parent_trained_on_every
     model, meta = _cross_validated(tmp_path)
     sel = meta["epoch_selection"]
     for name in ("displacement", "yaw_rate"):
-        beat = sel[name]["validation_loss_fine_tuned"] < sel[name]["validation_loss_parent"]
-        assert sel[name]["kept"] == ("fine-tuned on every window" if beat else "parent")
+        beat = [t["layers"] for t in sel[name]["tried"] if t["validation_loss_fine_tuned"] < sel[name]["validation_loss_parent"]]
+        assert sel[name]["layers"] == (beat[0] if beat else None)
+        assert sel[name]["kept"] == {"all": "fine-tuned on every window", "first": "first layer fine-tuned on every window"}.get(sel[name]["layers"], "parent")
         assert sel[name]["n_validation"] > 0
     # the final fit saw every window: none held out
     assert meta["training"]["n_validation"] == 0 and meta["validation"]["note"].startswith("one-window predictions with each of 4 blocks of each drive (by time) left out in turn")
     assert meta["validation"]["disp_mae_m"] > 0 and model.config.validation_folds == 4
+
+
+def test_fine_tuning_the_first_layer_leaves_the_other_layers_as_they_were():
+    from ionav_viz.nav.idnn import build_net
+
+    torch.manual_seed(0)
+    net = build_net("idnn", 4, 8, 0.0, True, None)
+    start = {k: v.clone() for k, v in net.state_dict().items()}
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(64, 5))
+    fit_network(net, x, x.sum(axis=1), FitSettings(lr=0.01, epochs=3, batch=16, seed=0, layers="first"))
+    moved = {k for k, v in net.state_dict().items() if not torch.equal(v, start[k])}
+    assert moved == {"body.0.weight", "body.0.bias"}
+
+
+def test_first_layer_fine_tuning_changes_only_the_first_layer_of_a_kept_network(tmp_path):
+    import dataclasses
+
+    import ionav_viz as iv
+    from ionav_viz.api.training import fine_tune_settings
+    from ionav_viz.nav.idnn import default_model_dir, load_model
+
+    config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), tune_layers="first")
+    model = iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    tuned, shipped = load_model(tmp_path / "m"), load_model(default_model_dir())
+    for name, attr in (("displacement", "disp_net"), ("yaw_rate", "yaw_net")):
+        sel = model.metadata["epoch_selection"][name]
+        assert "tried" not in sel  # one try only
+        a, b = getattr(tuned, attr).state_dict(), getattr(shipped, attr).state_dict()
+        moved = {k for k in a if not torch.equal(a[k], b[k])}
+        assert moved == (set() if sel["kept"] == "parent" else {"body.0.weight", "body.0.bias"})
+        assert sel["kept"] in ("parent", "first layer fine-tuned on every window")

@@ -73,6 +73,7 @@ ARCHS = ("idnn", "mlp", "rnn", "gru", "lstm")
 INPUTS = ("plain", "calibrated")
 LR_SCHEDULES = ("tail", "cosine")
 KEEP_CHOICES = ("last", "best", "last-or-start")
+TUNE_LAYERS_CHOICES = ("all", "first", "all,first")
 FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 #: The optional uncertainty model's file (:class:`Uncertainty`); metadata.json's ``uncertainty`` names it.
@@ -104,6 +105,7 @@ class ModelConfig:
     anchor: float = 0.0  # fine-tuning: loss + anchor * mean squared distance of the weights from the parent's (L2-SP)
     validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
     validation_folds: int = 0  # fine-tuning: 1: the tail decides, then refit on every window; k > 1: k time blocks left out in turn decide; 0: the tail-trained fit is kept
+    tune_layers: str = "all"  # fine-tuning trains "all" layers, or the "first" only; "all,first" (with validation_folds): the first only for a network validation keeps from all
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -132,6 +134,8 @@ class ModelConfig:
             raise InputError(f"unknown learning-rate schedule {self.lr_schedule!r}", f"choose one of {', '.join(LR_SCHEDULES)}", param="lr_schedule")
         if not isinstance(self.residual, bool):
             raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
+        if self.tune_layers not in TUNE_LAYERS_CHOICES:
+            raise InputError(f"unknown tune_layers {self.tune_layers!r}", f"choose one of {', '.join(TUNE_LAYERS_CHOICES)}", param="tune_layers")
         if self.keep not in KEEP_CHOICES:
             raise InputError(f"unknown keep {self.keep!r}", f"choose one of {', '.join(KEEP_CHOICES)}", param="keep")
 
@@ -687,7 +691,7 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 
 #: Config fields later versions added: written only when not at their default, so that a model
 #: trained without them stays readable by the versions before them (which refuse unknown fields).
-LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds")
+LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds", "tune_layers")
 
 
 def written_config(config: ModelConfig) -> dict[str, Any]:
