@@ -249,3 +249,5 @@ def test_a_lagging_receiver_speed_is_found_and_gins_weighs_it_for_what_it_is(tmp
     found = on.describe()["gnss_speed_lag"]
     assert found.startswith("0.7") or found.startswith("0.8"), found
     assert "widened" in found and off.describe()["gnss_speed_lag"] == "not resolved (turned off)"
+    text = iv.evaluate([drive], 10.0, estimators=["gins"]).to_text()  # and the report says so
+    assert f"GNSS/INS 3D receiver speed: {found}" in text
