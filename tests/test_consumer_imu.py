@@ -251,3 +251,17 @@ def test_a_lagging_receiver_speed_is_found_and_gins_weighs_it_for_what_it_is(tmp
     assert "widened" in found and off.describe()["gnss_speed_lag"] == "not resolved (turned off)"
     text = iv.evaluate([drive], 10.0, estimators=["gins"]).to_text()  # and the report says so
     assert f"GNSS/INS 3D receiver speed: {found}" in text
+
+
+def test_a_gap_in_the_receiver_speed_neither_breaks_nor_biases_the_lag():
+    from ionav_viz.nav.gnss_lag import estimate_speed_lag, lag_velocity_error_mps
+
+    t = np.arange(0.0, 200.0, 0.1)
+    accel = np.sin(t / 3.0)  # m/s^2
+    speed = np.interp(t - 0.7, t, 12.0 + np.cumsum(accel) * 0.1)
+    holed = speed.copy()
+    holed[500:520] = np.nan  # 2 s without a speed
+    whole, with_gap = estimate_speed_lag(t, speed, accel), estimate_speed_lag(t, holed, accel)
+    assert with_gap.resolved and with_gap.lag_s == pytest.approx(whole.lag_s, abs=0.01) == pytest.approx(0.7, abs=0.05)
+    error = lag_velocity_error_mps(t, holed, accel, np.zeros_like(t), 0.7)
+    assert np.isfinite(error).all() and error[1000:1100].max() == pytest.approx(0.7, rel=0.1)  # 0.7 s x 1 m/s^2 at the peaks

@@ -107,9 +107,12 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
         return SpeedLag(0.0, 0.0, 0.0, False, "too short")
     dt = float(np.median(np.diff(t)))
     n = max(int(round(LAG_SMOOTH_S / dt)), 1)
-    rate = _smooth(np.gradient(np.asarray(speed_mps, dtype=float), t), n)
-    accel = _smooth(np.asarray(accel_fwd_mps2, dtype=float), n)
-    ok = np.asarray(speed_mps) >= LAG_MIN_SPEED_MPS
+    speed, accel_in = np.asarray(speed_mps, dtype=float), np.asarray(accel_fwd_mps2, dtype=float)
+    finite = np.isfinite(speed) & np.isfinite(accel_in)
+    rate = _smooth(np.gradient(np.where(finite, speed, 0.0), t), n)
+    accel = _smooth(np.where(finite, accel_in, 0.0), n)
+    # samples whose smoothing reached a gap are left out
+    ok = (np.where(finite, speed, 0.0) >= LAG_MIN_SPEED_MPS) & (_smooth((~finite).astype(float), n + 2) == 0)
     if usable is not None:
         ok &= np.asarray(usable, dtype=bool)
     driving_s = float(ok.sum() * dt)
@@ -126,7 +129,8 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
             continue
         a, r = a[m] - a[m].mean(), r[m] - r[m].mean()
         den = float(np.sqrt((a * a).sum() * (r * r).sum()))
-        corr[k] = float((a * r).sum() / den) if den > 0 else -np.inf
+        value = float((a * r).sum() / den) if den > 0 else -np.inf
+        corr[k] = value if np.isfinite(value) else -np.inf
     best = int(np.argmax(corr))
     lag = float(best * LAG_STEP_S)
     if 0 < best < len(steps) - 1 and np.isfinite(corr[best - 1]) and np.isfinite(corr[best + 1]):
@@ -136,8 +140,8 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
             lag += LAG_STEP_S * 0.5 * (y0 - y2) / den
     peak = float(corr[best])
     if peak < LAG_MIN_PEAK:
-        return SpeedLag(lag, peak, driving_s, False, f"the receiver's speed and the IMU agree poorly (correlation {peak:.2f})")
-    return SpeedLag(lag, peak, driving_s, True)
+        return SpeedLag(float(lag), peak, driving_s, False, f"the receiver's speed and the IMU agree poorly (correlation {peak:.2f})")
+    return SpeedLag(float(lag), peak, driving_s, True)
 
 
 def lag_velocity_error_mps(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: np.ndarray, yaw_rate_radps: np.ndarray,
@@ -153,9 +157,10 @@ def lag_velocity_error_mps(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps
     accel = _smooth(np.asarray(accel_fwd_mps2, dtype=float), n)
     # the offset over the trailing window: the receiver's rate lags, but over 30 s it averages alike
     w = max(int(round(OFFSET_WINDOW_S / dt)), 1)
-    c = np.concatenate([[0.0], np.cumsum(accel - rate)])
+    c = np.concatenate([[0.0], np.cumsum(np.nan_to_num(accel - rate))])
     i = np.arange(len(t))
     lo = np.maximum(i + 1 - w, 0)
     forward = accel - (c[i + 1] - c[lo]) / (i + 1 - lo)
     lateral = speed * _smooth(np.asarray(yaw_rate_radps, dtype=float), n)
-    return lag_s * np.hypot(forward, lateral)
+    error = lag_s * np.hypot(forward, lateral)
+    return np.where(np.isfinite(error), error, 0.0)  # a gap in a column: nothing known to add
