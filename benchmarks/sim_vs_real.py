@@ -4,7 +4,7 @@ forced to the full 3D mechanisation (without the history arbiter, which could ha
 simulator's phone and dash sets (benchmarks/results_table.py's drives): final position error as a
 share of the distance driven, mean over the outages tiled after the 30 s warm-up, IMU only::
 
-    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated [--scored-on-fixes]] [--minutes 10]
+    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated [--scored-on-fixes] [--per-drive]] [--minutes 10]
 
 Read each real log with the options benchmarks/real_imu_logs.py takes for it (one kind per run).
 The simulated sets are scored against their reference trajectory; with ``--scored-on-fixes``
@@ -53,6 +53,15 @@ def row(title: str, paths: list[str], read: iv.ReadOptions) -> str:
     return f"| {title} | " + " | ".join(cells) + " |"
 
 
+def drive_row(title: str, path: str, read: iv.ReadOptions) -> str:
+    """``gins`` against the INS DR on one drive at 10, 30 and 60 s (bold: ``gins`` above)."""
+    cells = []
+    for length in (10.0, 30.0, 60.0):
+        g, n = mean_pct([path], GinsEstimator(), "gins", length, read), mean_pct([path], "ins", "ins", length, read)
+        cells.append("–" if g is None or n is None else (f"**{g:.1f}** / {n:.1f}" if g > n else f"{g:.1f} / {n:.1f}"))
+    return f"| {title} | " + " | ".join(cells) + " |"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("logs", nargs="*", type=Path)
@@ -61,16 +70,21 @@ def main() -> None:
     parser.add_argument("--max-sigma-m", type=float)
     parser.add_argument("--simulated", action="store_true", help="also the simulator's phone and dash sets")
     parser.add_argument("--minutes", type=float, default=10.0, help="length of each simulated drive")
+    parser.add_argument("--per-drive", action="store_true",
+                        help="gins against the INS DR per drive (each log, each simulated drive) at 10, 30 and 60 s instead of the pooled rows")
     parser.add_argument("--scored-on-fixes", action="store_true",
                         help="score the simulated sets against their receiver's fixes (max sigma 13 m), as the real logs without a reference")
     args = parser.parse_args()
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
-    print("| log | `gins` 10 s / 30 s | `gins` in 3D 10 s / 30 s | INS DR 10 s / 30 s |\n|---|---|---|---|")
+    if args.per_drive:
+        print("| drive | `gins` / INS DR 10 s | 30 s | 60 s |\n|---|---|---|---|")
+    else:
+        print("| log | `gins` 10 s / 30 s | `gins` in 3D 10 s / 30 s | INS DR 10 s / 30 s |\n|---|---|---|---|")
     limits = GnssLimits() if args.max_sigma_m is None else replace(GnssLimits(), max_sigma_m=args.max_sigma_m)
     read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=args.truth_topic, gnss_topic=args.gnss_topic),
                           gnss_limits=limits)
     for path in args.logs:
-        print(row(path.stem, [str(path)], read), flush=True)
+        print(drive_row(path.stem, str(path), read) if args.per_drive else row(path.stem, [str(path)], read), flush=True)
     if args.simulated:
         if args.scored_on_fixes:
             sim_read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", gnss_topic=SIM_GNSS_TOPIC),
@@ -82,6 +96,10 @@ def main() -> None:
                 if grade not in IMU_GRADES:
                     continue
                 paths = [str(write_imu_log(Path(tmp) / f"{grade}-{i}.mcap", sc, seed + i, 60.0 * args.minutes, grade)) for i, sc in enumerate(scenarios)]
+                if args.per_drive:
+                    for i, (path, scenario) in enumerate(zip(paths, scenarios, strict=True)):
+                        print(drive_row(f"{title}: {scenario}, seed {seed + i}", path, sim_read), flush=True)
+                    continue
                 print(row(title + (", scored on its fixes" if args.scored_on_fixes else ""), paths, sim_read), flush=True)
 
 
