@@ -412,7 +412,10 @@ DEFAULT, REDUCED, PLANAR_DR = 0, 1, 2
 #: from the fixes as the default does, with the weight of :data:`ARBITER_PRIOR_OUTAGES`
 #: pseudo-outages. On the simulated phone and dash sets the INS DR errs 2.2-6 times as far as
 #: ``gins`` (docs/real-imu-logs.md): 2 is the cautious end, so an alternative is taken only when this
-#: drive's own past says clearly otherwise.
+#: drive's own past says clearly otherwise. Since the simulated phone's receiver reports its speed
+#: late (2026-11-26) its set's INS DR errs 1.4-2.3 times as far; the prior at 1.4 was tried on the
+#: real logs and lost (cloudpose 12.9 / 10.5 / 6.0 -> 15.2 / 17.0 / 18.9 % after 10 / 30 / 60 s;
+#: held-out cells above the INS DR 7 -> 8), so it stays at 2.
 ARBITER_PRIOR_RATIO = 2.0
 #: The prior's weight in pseudo-outages, as :data:`ionav_viz.nav.history_check.PRIOR_OUTAGES`: with
 #: ``k`` past pseudo-outages an alternative must have ended on average ``1 - 3 / k`` as far from the
