@@ -9,7 +9,7 @@ how much the forward accelerometer's offset from the GNSS acceleration wanders w
 outage's dead reckoning must carry: road grade, a holder tilting with the car's acceleration, bias
 wander), the stamps' jitter and gaps,
 the clock offset against the receiver, how late the receiver's speed is against the IMU
-(:mod:`ionav_viz.nav.gnss_lag`) and the mount::
+(:mod:`ionav_viz.core.gnss_lag`) and the mount::
 
     python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--json OUT]
     python benchmarks/imu_character.py --simulated 300   # the simulator's phone and mems grades, 5 min each
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import ionav_viz as iv
-from ionav_viz.nav.gnss_lag import speed_lag_of
+from ionav_viz.core.gnss_lag import speed_lag_of
 from ionav_viz.nav.stillness import drive_still
 from ionav_viz.sources.imu.clock import estimate_clock_offset
 

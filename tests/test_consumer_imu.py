@@ -218,7 +218,7 @@ def test_a_heading_turned_off_in_a_gnss_gap_is_set_from_the_course_again(tmp_pat
 def test_a_receiver_speed_lag_is_recovered_from_a_known_shift(lag_s):
     """The IMU's forward acceleration and a receiver speed that is its integral ``lag_s`` later (a
     1 Hz receiver interpolated onto the 10 Hz grid, with noise): the lag comes back within 50 ms."""
-    from ionav_viz.nav.gnss_lag import estimate_speed_lag
+    from ionav_viz.core.gnss_lag import estimate_speed_lag
 
     rng = np.random.default_rng(7)
     t = np.arange(0.0, 300.0, 0.1)
@@ -248,13 +248,14 @@ def test_a_lagging_receiver_speed_is_found_and_gins_weighs_it_for_what_it_is(tmp
         assert with_lag < 0.85 * without, (length, with_lag, without)
     found = on.describe()["gnss_speed_lag"]
     assert found.startswith("0.7") or found.startswith("0.8"), found
-    assert "widened" in found and off.describe()["gnss_speed_lag"] == "not resolved (turned off)"
-    text = iv.evaluate([drive], 10.0, estimators=["gins"]).to_text()  # and the report says so
-    assert f"GNSS/INS 3D receiver speed: {found}" in text
+    assert "widened" in found and off.describe()["gnss_speed_lag"] == "not weighed (turned off)"
+    assert drive.imu.speed_lag_used and any(f"receiver speed {x}" in drive.imu.describe() for x in ("0.7", "0.8"))  # the drive's line
+    text = iv.evaluate([drive], 10.0, estimators=["gins"]).to_text()  # and the report's line on the drive says so
+    assert f"{drive.name}: {drive.imu.describe()}" in text and "receiver speed 0." in text
 
 
 def test_a_gap_in_the_receiver_speed_neither_breaks_nor_biases_the_lag():
-    from ionav_viz.nav.gnss_lag import estimate_speed_lag, lag_velocity_error_mps
+    from ionav_viz.core.gnss_lag import estimate_speed_lag, lag_velocity_error_mps
 
     t = np.arange(0.0, 200.0, 0.1)
     accel = np.sin(t / 3.0)  # m/s^2

@@ -188,19 +188,11 @@ def health_lines(rep: dict[str, Any]) -> list[str]:
 
 def arbiter_lines(rep: dict[str, Any]) -> list[str]:
     """On one drive, a line per estimator that chose its propagation per outage (``gins``'s history
-    arbiter, :func:`ionav_viz.nav.gins.arbitrate`): what it chose and why; and one where it found
-    the receiver's speed late against the IMU (:mod:`ionav_viz.nav.gnss_lag`). An estimator describes
+    arbiter, :func:`ionav_viz.nav.gins.arbitrate`): what it chose and why. An estimator describes
     the last drive it ran on, so a report of several drives leaves it to each drive's own run."""
     if len(rep.get("drives", [])) != 1:
         return []
-    out = []
-    for e in rep["estimators"]:
-        info = e.get("info", {})
-        if info.get("gnss_speed_lag", "")[:1].isdigit():  # found (nav.gnss_lag): what the filter made of it
-            out.append(f"{e['label']} receiver speed: {info['gnss_speed_lag']}")
-        if info.get("arbiter"):
-            out.append(f"{e['label']} propagation: {info['arbiter']}")
-    return out
+    return [f"{e['label']} propagation: {e['info']['arbiter']}" for e in rep["estimators"] if e.get("info", {}).get("arbiter")]
 
 
 def _folded(line: str, width: int | None) -> str:

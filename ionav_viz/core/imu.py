@@ -35,6 +35,9 @@ class ImuCharacter:
             uncertainties; ``mount_applied``.
         wobble_dps: the spread of the pitch and roll rates' successive samples while driving
             (deg/s per sample): how much the holder shakes, as the samples see it.
+        speed_lag_s: how late the receiver's speed is against the IMU (s, :mod:`ionav_viz.core.gnss_lag`);
+            ``speed_lag_used``: resolved and large enough for ``gins`` to weigh it;
+            ``speed_lag_note``: the estimate in words, or why there is none.
     """
 
     native_rate_hz: float
@@ -49,6 +52,9 @@ class ImuCharacter:
     mount_sigma_deg: tuple[float, float, float] | None = None
     mount_applied: bool = False
     wobble_dps: float = math.nan
+    speed_lag_s: float = 0.0
+    speed_lag_used: bool = False
+    speed_lag_note: str = ""
 
     @property
     def single_readings(self) -> bool:
@@ -56,7 +62,8 @@ class ImuCharacter:
 
     def describe(self) -> str:
         """One line for reports: ``IMU 10 Hz, single readings (assumed), clock +0.30 s ± 0.01
-        (applied), mount roll +1.0, pitch -0.5, yaw +8.2 deg (applied), holder wobble 2.7 deg/s``."""
+        (applied), mount roll +1.0, pitch -0.5, yaw +8.2 deg (applied), holder wobble 2.7 deg/s, receiver
+        speed 0.70 s late``."""
         kind = (f"averaged ({self.readings_per_sample:.0f} readings per sample)" if self.sample_kind_source == "reader"
                 else f"{'single readings' if self.single_readings else 'averages'} ({self.sample_kind_source})")
         parts = [f"IMU {self.native_rate_hz:.0f} Hz, {kind}"]
@@ -70,6 +77,8 @@ class ImuCharacter:
             parts.append(f"mount roll {roll:+.1f}, pitch {pitch:+.1f}, yaw {yaw:+.1f} deg ({'applied' if self.mount_applied else 'not applied'})")
         if math.isfinite(self.wobble_dps):
             parts.append(f"holder wobble {self.wobble_dps:.1f} deg/s")
+        if self.speed_lag_used:
+            parts.append(f"receiver speed {self.speed_lag_s:.2f} s late")
         return ", ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:

@@ -50,11 +50,11 @@ import numpy as np
 from ..core.drive import Drive, measured_imu
 from ..core.errors import InputError
 from ..core.geo import enu_of_geodetic, geodetic_of_enu
+from ..core.gnss_lag import lag_velocity_error_mps
 from ..core.gnss_quality import position_sigma_m
 from ..core.grid import MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..core.rotation import quat_of_euler
 from . import history_check
-from .gnss_lag import SpeedLag, lag_velocity_error_mps, speed_lag_of
 from .ins import dead_reckon
 from .kalman import UpdateLog
 from .protocol import Estimate, EstimatorInputs, FilterHealth
@@ -233,10 +233,10 @@ class GinsEstimator:
         force with the constraints) or ``"auto"``: reduced where the drive's IMU samples are single
         readings at a low rate (:attr:`ionav_viz.core.imu.ImuCharacter.single_readings`). ``arbiter``:
         per outage, the propagation whose past pseudo-outages on this drive ended nearest the fixes
-        (:func:`arbitrate`); without it, the mechanisation's own on every outage. ``speed_lag``: find how
-        late the receiver's speed is against the IMU and widen the velocity updates by what that lag
-        makes of it in an acceleration (:mod:`ionav_viz.nav.gnss_lag`); without it, the receiver's
-        velocity is taken as of its epoch."""
+        (:func:`arbitrate`); without it, the mechanisation's own on every outage. ``speed_lag``: where the
+        reader found the receiver's speed late against the IMU (``drive.imu.speed_lag_s``,
+        :mod:`ionav_viz.core.gnss_lag`), widen the velocity updates by what that lag makes of it in an
+        acceleration; without it, the receiver's velocity is taken as of its epoch."""
         self.noise = noise or GinsNoise()
         if mechanisation not in MECHANISATIONS:
             raise InputError(f"gins mechanisation {mechanisation!r} is not one of {', '.join(MECHANISATIONS)}",
@@ -268,11 +268,10 @@ class GinsEstimator:
         sigma = position_sigma_m(b.t_s, drive.t_s, drive.columns.get("gnss_sigma_m"), self.noise.gnss_position_m)
         course = np.deg2rad(b.course_deg)
         vel = np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)])
-        lag = self._speed_lag(drive)
+        lag_s, lag_text = self._speed_lag(drive)
         vel_var = np.zeros(len(b.t_s))
-        if lag.used:  # a location service's smoothed speed: its velocity updates widened by what the lag makes of it
-            c = drive.columns
-            vel_var = lag_velocity_error_mps(drive.t_s, c["speed_mps"], acc[:, 0], gyr[:, 2], lag.lag_s)[b.sample] ** 2
+        if lag_s > 0.0:  # a location service's smoothed speed: its velocity updates widened by what the lag makes of it
+            vel_var = lag_velocity_error_mps(drive.t_s, drive.columns["speed_mps"], acc[:, 0], gyr[:, 2], lag_s)[b.sample] ** 2
         vel = np.ascontiguousarray(vel)
         vel_ok = b.gnss_ok & (b.speed_mps > GNSS_VELOCITY_MIN_SPEED_MPS)
         odo = np.full(len(b.t_s), np.nan)
@@ -312,7 +311,7 @@ class GinsEstimator:
             run_filter(inputs, noise, earth, switches, *self._aligned(0, pos, vel, sigma, acc, b, dt, init), 0, aligned - 1, out)
         run_filter(inputs, noise, earth, switches, *self._aligned(aligned, pos, vel, sigma, acc, b, dt, init), aligned, nb - 1, out)
         xs = out.xs
-        self._last = {"mechanisation": _mechanisation_text(reduced, drive), "gnss_speed_lag": lag.describe(),
+        self._last = {"mechanisation": _mechanisation_text(reduced, drive), "gnss_speed_lag": lag_text,
                       "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample ({noise_from})",
                       "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
                       "accel_bias_mps2": _median_text(xs[:, BAX:BAX + 3]),
@@ -324,9 +323,17 @@ class GinsEstimator:
                                              "of the drive (the consistency test: the GNSS position's running NIS)"}
         return GinsRun(b, xs, out.Ps, inputs, noise, earth, switches, origin, still, out.log, out.q_scale.copy())
 
-    def _speed_lag(self, drive: Drive) -> SpeedLag:
-        """How late the receiver's speed is against the IMU (:mod:`.gnss_lag`)."""
-        return speed_lag_of(drive) if self.speed_lag else SpeedLag(0.0, 0.0, 0.0, False, "turned off")
+    def _speed_lag(self, drive: Drive) -> tuple[float, str]:
+        """How late the receiver's speed is against the IMU, as the reader found it
+        (``ImuCharacter.speed_lag_s``; 0: not weighed), and the report's words on it."""
+        imu = drive.imu
+        if not self.speed_lag:
+            return 0.0, "not weighed (turned off)"
+        if imu is None or not imu.speed_lag_note:
+            return 0.0, "not estimated (the drive carries no IMU character)"
+        if not imu.speed_lag_used:
+            return 0.0, imu.speed_lag_note
+        return imu.speed_lag_s, f"{imu.speed_lag_note}; velocity updates widened by the lag times the acceleration"
 
     @staticmethod
     def _aligned(k: int, pos: np.ndarray, vel: np.ndarray, sigma: np.ndarray, acc: np.ndarray, b: Boundaries, dt: float,

@@ -132,7 +132,7 @@ class FilterInputs(NamedTuple):
     disagrees with the filter, the filter is the one that is off), -1 where it jumps, 0 where it
     cannot tell (the first fix after a gap); ``has_height``: the fixes' heights are measurements;
     ``vel_var``: per boundary, variance (m²/s²) the GNSS velocity has beyond the model's (a lagging
-    receiver's in an acceleration: :mod:`ionav_viz.nav.gnss_lag`)."""
+    receiver's in an acceleration: :mod:`ionav_viz.core.gnss_lag`)."""
 
     t: np.ndarray
     acc: np.ndarray

@@ -156,7 +156,7 @@ IMU_GRADES = {
     #   0.03 % of them doubled (all logs; SENSORS.md: 0.099-0.101 s, "occasional" doubled periods).
     #   The receiver's speed 0.5-1.0 s behind the IMU's forward acceleration on six of the seven
     #   meszdav iPhone logs (0.48, 0.48, 0.63, 0.73, 0.98, 1.02 s; the seventh 0.0), 1.6 s on
-    #   cloudpose's car logger (nav.gnss_lag, docs/real-imu-logs.md): 0.7 s, their median.
+    #   cloudpose's car logger (core.gnss_lag, docs/real-imu-logs.md): 0.7 s, their median.
     #   Not resolved on any real log, so kept as assumptions: the holder's tilt under acceleration
     #   (0.4 deg per m/s^2), the clock offset (40 ms, SENSORS.md's "under 0.1 s"), the biases.
     #   Left as it was: the roads' grade (3 % rms). The forward accelerometer's offset from the GNSS

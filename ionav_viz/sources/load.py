@@ -9,9 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.drive import Drive
+from ..core.drive import Drive, measured_imu
 from ..core.durations import Span, parse_span
 from ..core.errors import InputError
+from ..core.gnss_lag import speed_lag_of
 from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fault
 from ..core.timing import stage
 from .log_options import LogOptions
@@ -158,6 +159,7 @@ def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mca
         drive = read_source(path, read.yaw_sign, read.log)
         check_rate(drive, path)
         mark_gnss_quality(drive, read.gnss_limits)  # on the whole drive: a span's first fixes are judged as in the whole
+        mark_speed_lag(drive)  # on the whole drive too
         if read.span is not None:
             drive = crop_to_span(drive, read.span)
         s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
@@ -216,6 +218,18 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
         log.warning(
             "%s: %d of %d GNSS samples are not trustworthy truth (%s); windows touching them are not scored",
             drive.source, int(bad.sum()), len(drive), reasons)
+
+
+def mark_speed_lag(drive: Drive) -> None:
+    """Keep in ``drive.imu`` how late the receiver's speed is against the IMU
+    (:mod:`ionav_viz.core.gnss_lag`), and say it where it is large enough to weigh."""
+    if drive.imu is None or measured_imu(drive) is None:
+        return
+    lag = speed_lag_of(drive.as_received())
+    drive.imu = replace(drive.imu, speed_lag_s=lag.lag_s if lag.resolved else 0.0, speed_lag_used=lag.used, speed_lag_note=lag.describe())
+    if lag.used:
+        log.warning("%s: the receiver's speed is %.2f s behind the IMU's acceleration (correlation %.2f): a location service's "
+                    "smoothing; gins weighs the receiver's velocity for it", drive.source, lag.lag_s, lag.peak)
 
 
 #: Slowest sample rate a drive may have (Hz): the estimators work on 1 s windows of 10 Hz samples,

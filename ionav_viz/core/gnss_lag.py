@@ -1,6 +1,9 @@
 """How late a receiver's speed is against the IMU, and the velocity it stood for.
 
-A phone's location service reports a speed smoothed over the last second or two: on seven real
+The reader estimates it on every log with a measured IMU and its own receiver speed
+(:func:`speed_lag_of`, kept in :class:`ionav_viz.core.imu.ImuCharacter` and said in its line), and
+``gins`` weighs the receiver's velocity for it. A phone's location service reports a speed smoothed
+over the last second or two: on seven real
 iPhone logs (docs/real-imu-logs.md) the receiver's speed changes 0.5-1.0 s after the IMU's forward
 acceleration says the car's did (1.5 s on a car data logger's), where a GNSS chip's Doppler speed is
 of its epoch (the simulated receivers, the dash device: under 0.2 s). A filter that takes such a
@@ -31,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.drive import Drive
-from ..core.gnss_quality import GnssFault
+from .drive import Drive
+from .gnss_quality import GnssFault
 
 #: Lags searched (s): a location service's smoothing, not an unsynchronised clock.
 MAX_LAG_S = 2.0
@@ -71,10 +74,10 @@ class SpeedLag:
         return self.resolved and self.lag_s > USE_ABOVE_S
 
     def describe(self) -> str:
+        """The estimate in words: ``0.98 s behind the IMU (correlation 0.77)``, or why there is none."""
         if not self.resolved:
             return f"not resolved ({self.reason})"
-        verb = "its velocity updates widened by the lag times the acceleration" if self.used else f"left alone (under {USE_ABOVE_S:g} s)"
-        return f"{self.lag_s:.2f} s behind the IMU (correlation {self.peak:.2f}), {verb}"
+        return f"{self.lag_s:.2f} s behind the IMU (correlation {self.peak:.2f})" + ("" if self.used else f", under {USE_ABOVE_S:g} s: left alone")
 
 
 def _smooth(x: np.ndarray, n: int) -> np.ndarray:
