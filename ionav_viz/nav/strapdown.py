@@ -183,8 +183,7 @@ class FilterOutputs(NamedTuple):
     """Where :func:`run_filter` writes, per boundary: the state ``xs`` (nb, 20) and covariance ``Ps``
     (nb, 19, 19) after its updates and the update ``log`` (each with 0 rows: kept nowhere), the
     position ``pos`` (ENU m, (nb, 3)) and its east/north covariance ``pos_cov`` (m^2, (nb, 2, 2)),
-    the turn (rad) and distance (m) since the first boundary, the process noise's scale ``q_scale``
-    and the GNSS velocity's sigma ``vel_sigma`` (m/s) the filter used (:func:`_gnss_updates`)."""
+    the turn (rad) and distance (m) since the first boundary, and the process noise's scale ``q_scale``."""
 
     xs: np.ndarray
     Ps: np.ndarray
@@ -194,15 +193,13 @@ class FilterOutputs(NamedTuple):
     log: kalman.UpdateLog
     pos_cov: np.ndarray
     q_scale: np.ndarray
-    vel_sigma: np.ndarray
 
 
 def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
     """Outputs for ``nb`` boundaries, with the states and the update log or without."""
     rows = nb if keep_states else 0
     return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
-                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)), np.ones(nb),
-                         np.zeros(nb))
+                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)), np.ones(nb))
 
 
 @dataclass(frozen=True)
@@ -813,7 +810,6 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
             out.xs[b] = x
             out.Ps[b] = P
         out.q_scale[b] = q_scale
-        out.vel_sigma[b] = math.sqrt(max(noise.r_vel, vel_r[0]))
         for i in range(3):
             out.pos[b, i] = x[PX + i]
         for i in range(2):
