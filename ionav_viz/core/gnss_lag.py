@@ -1,4 +1,4 @@
-"""How late a receiver's speed is against the IMU, and the velocity it stood for.
+"""How late a receiver's speed is against the IMU, and what that lag makes of its velocity.
 
 The reader estimates it on every log with a measured IMU and its own receiver speed
 (:func:`speed_lag_of`, kept in :class:`ionav_viz.core.imu.ImuCharacter` and said in its line), and
@@ -36,6 +36,7 @@ import numpy as np
 
 from .drive import Drive
 from .gnss_quality import GnssFault
+from .moving import moving_mean
 
 #: Lags searched (s): a location service's smoothing, not an unsynchronised clock.
 MAX_LAG_S = 2.0
@@ -70,7 +71,7 @@ class SpeedLag:
 
     @property
     def used(self) -> bool:
-        """Whether the filter shifts the receiver's velocity by it."""
+        """Whether ``gins`` weighs the receiver's velocity for it (resolved, and above :data:`USE_ABOVE_S`)."""
         return self.resolved and self.lag_s > USE_ABOVE_S
 
     def describe(self) -> str:
@@ -81,13 +82,8 @@ class SpeedLag:
 
 
 def _smooth(x: np.ndarray, n: int) -> np.ndarray:
-    """A centred moving mean over ``n`` samples (edges: the available ones)."""
-    if n <= 1:
-        return x.astype(float)
-    c = np.concatenate([[0.0], np.cumsum(x, dtype=float)])
-    i = np.arange(len(x))
-    lo, hi = np.maximum(i - n // 2, 0), np.minimum(i - n // 2 + n, len(x))
-    return (c[hi] - c[lo]) / (hi - lo)
+    """:func:`ionav_viz.core.moving.moving_mean` of one signal, as a 1D array."""
+    return moving_mean(x, n)[:, 0]
 
 
 def speed_lag_of(drive: Drive) -> SpeedLag:

@@ -50,6 +50,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.drive import Drive, measured_imu
+from ..core.moving import as_columns, moving_mean
 from ..core.runs import keep_runs, true_runs
 from .bias import stationary_mask
 from .windows import Windows
@@ -69,29 +70,9 @@ MIN_REFERENCE_S = 3.0
 MIN_RATE_TOLERANCE_RADPS = np.deg2rad(0.1)
 
 
-def _columns(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, dtype=float)
-    return x[:, None] if x.ndim == 1 else x
-
-
-def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred moving mean over ``n`` samples along the first axis (shorter windows at the ends)."""
-    x = _columns(x)
-    m = len(x)
-    c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-    out = np.empty((m, x.shape[1]))
-    first, last = n // 2, m - n + n // 2  # samples whose whole window lies inside: slices, no gather
-    if last >= first:
-        out[first:last + 1] = (c[n:] - c[:m - n + 1]) / n
-    edges = np.r_[0:min(first, m), max(last + 1, 0):m]
-    lo, hi = np.clip(edges - n // 2, 0, m), np.clip(edges - n // 2 + n, 0, m)
-    out[edges] = (c[hi] - c[lo]) / (hi - lo)[:, None]
-    return out
-
-
 def moving_spread(x: np.ndarray, n: int) -> np.ndarray:
     """Centred moving standard deviation over ``n`` samples, the root mean square over the columns (n,)."""
-    x = _columns(x)
+    x = as_columns(x)
     mean = moving_mean(x, n)
     var = np.maximum(moving_mean(x * x, n) - mean * mean, 0.0)
     return np.sqrt(var.mean(axis=1))
@@ -121,7 +102,7 @@ def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarra
     if ref.sum() * dt < MIN_REFERENCE_S:
         return np.zeros(n, dtype=bool)
     w = max(MIN_WINDOW_SAMPLES, int(round(STILL_WINDOW_S / dt)))
-    acc, gyr = _columns(accel_mps2), _columns(gyro_radps)
+    acc, gyr = as_columns(accel_mps2), as_columns(gyro_radps)
     spread_a, spread_g = moving_spread(acc, w), moving_spread(gyr, w)
     level_a, level_g = float(np.median(spread_a[ref])), float(np.median(spread_g[ref]))
     bias = np.median(gyr[ref], axis=0)
