@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 import ionav_viz as iv
-from ionav_viz.core.gnss_lag import speed_lag_of
 from ionav_viz.nav.stillness import drive_still
 from ionav_viz.sources.imu.clock import estimate_clock_offset
 
@@ -158,9 +157,9 @@ def measure(drive, path: Path | None = None) -> dict:
     out["clock_offset_s"] = round(clock.offset_s, 3) if clock.resolved else None
     out["clock_note"] = f"{clock.offset_s:+.3f} ± {clock.sigma_s:.3f} s" if clock.resolved else clock.reason
     out["mount_deg"] = imu.mount_deg if imu else None
-    lag = speed_lag_of(drive.as_received())
-    out["speed_lag_s"] = round(lag.lag_s, 2) if lag.resolved else None
-    out["speed_lag_note"] = f"{lag.lag_s:.2f} s ({lag.peak:.2f})" if lag.resolved else lag.reason
+    # what the reader found (core.gnss_lag, on the whole log)
+    out["speed_lag_s"] = round(imu.speed_lag_s, 2) if imu and imu.speed_lag_note[:1].isdigit() else None
+    out["speed_lag_note"] = imu.speed_lag_note if imu else "–"
     return out
 
 
