@@ -35,14 +35,24 @@ SETS = (("simulated phone IMU 10 Hz, urban", "phone", ("roundabout", "sharp-corn
         ("simulated dash device IMU 104 Hz, highway", "dash", ("motorway", "motorway"), 940))
 
 
-def mean_pct(paths: list[str], estimator, name: str, length: float, read: iv.ReadOptions) -> float | None:
+def mean_pcts(paths: list[str], estimators: list, length: float, read: iv.ReadOptions) -> dict[str, float | None]:
+    """Each estimator's mean final error (% of distance) over the drives' outages of ``length`` s,
+    from one evaluation (None: no outage of that length fits, or none scored)."""
+    names = [e if isinstance(e, str) else e.name for e in estimators]
     try:
-        rep = iv.evaluate(paths, length, estimators=[estimator], read=read).to_dict()
+        rep = iv.evaluate(paths, length, estimators=list(estimators), read=read).to_dict()
     except iv.InputError:  # no outage of that length fits
-        return None
-    pct = [s[name]["final_error_pct"] for s in rep["sequences"] if isinstance(s.get(name), dict)]
-    pct = [p for p in pct if p is not None and np.isfinite(p)]
-    return float(np.mean(pct)) if pct else None
+        return dict.fromkeys(names)
+    out: dict[str, float | None] = {}
+    for name in names:
+        pct = [s[name]["final_error_pct"] for s in rep["sequences"] if isinstance(s.get(name), dict)]
+        pct = [p for p in pct if p is not None and np.isfinite(p)]
+        out[name] = float(np.mean(pct)) if pct else None
+    return out
+
+
+def mean_pct(paths: list[str], estimator, name: str, length: float, read: iv.ReadOptions) -> float | None:
+    return mean_pcts(paths, [estimator], length, read)[name]
 
 
 def row(title: str, paths: list[str], read: iv.ReadOptions) -> str:
@@ -57,7 +67,8 @@ def drive_row(title: str, path: str, read: iv.ReadOptions) -> str:
     """``gins`` against the INS DR on one drive at 10, 30 and 60 s (bold: ``gins`` above)."""
     cells = []
     for length in (10.0, 30.0, 60.0):
-        g, n = mean_pct([path], GinsEstimator(), "gins", length, read), mean_pct([path], "ins", "ins", length, read)
+        both = mean_pcts([path], [GinsEstimator(), "ins"], length, read)  # one evaluation: the same outages
+        g, n = both["gins"], both["ins"]
         cells.append("–" if g is None or n is None else (f"**{g:.1f}** / {n:.1f}" if g > n else f"{g:.1f} / {n:.1f}"))
     return f"| {title} | " + " | ".join(cells) + " |"
 
@@ -98,7 +109,8 @@ def main() -> None:
                 paths = [str(write_imu_log(Path(tmp) / f"{grade}-{i}.mcap", sc, seed + i, 60.0 * args.minutes, grade)) for i, sc in enumerate(scenarios)]
                 if args.per_drive:
                     for i, (path, scenario) in enumerate(zip(paths, scenarios, strict=True)):
-                        print(drive_row(f"{title}: {scenario}, seed {seed + i}", path, sim_read), flush=True)
+                        scored = ", scored on its fixes" if args.scored_on_fixes else ""
+                        print(drive_row(f"{title}: {scenario}, seed {seed + i}{scored}", path, sim_read), flush=True)
                     continue
                 print(row(title + (", scored on its fixes" if args.scored_on_fixes else ""), paths, sim_read), flush=True)
 
