@@ -71,6 +71,7 @@ POS = np.array([118.0, -41.0, 2.5])
 VEL = np.array([8.7, 4.2])
 GYRO_MEAN = np.deg2rad([0.04, -0.07, 0.12])
 OMEGA = np.array([0.0, 4.5e-5, 5.7e-5])
+FORCE = np.array([0.41, -0.17, 9.79])  # a standing car's mean specific force, nose up on a grade (m/s^2)
 MEASUREMENTS = {
     "GNSS east": ("gnss_position", {"pos": POS, "axis": 0}),
     "GNSS north": ("gnss_position", {"pos": POS, "axis": 1}),
@@ -82,6 +83,7 @@ MEASUREMENTS = {
     "NHC lateral": ("nhc_lateral", {}),
     "NHC vertical": ("nhc_vertical", {}),
     "odometer": ("odometer", {"speed_mps": 9.5}),
+    **{f"level {a}": ("level", {"axis": i, "specific_force": FORCE}) for i, a in enumerate("xy")},
 }
 
 
@@ -118,6 +120,11 @@ def test_each_measurement_predicts_the_quantity_it_measures():
     assert got == pytest.approx(x[sd.BGX + 1] + earth_b[1] - GYRO_MEAN[1])
     assert sd.measurement_model("nhc_lateral", x)[0] == pytest.approx(vb[1])  # zero residual mount
     assert sd.measurement_model("odometer", x, speed_mps=9.5)[0] == pytest.approx(x[sd.KO] * vb[0] - 9.5)
+    # standing, the accelerometer reads gravity's reaction (up, |FORCE|) in the body frame plus its bias
+    up_b = C.T @ np.array([0.0, 0.0, np.linalg.norm(FORCE)])
+    for axis in (0, 1):
+        got = sd.measurement_model("level", x, axis=axis, specific_force=FORCE)[0]
+        assert got == pytest.approx(up_b[axis] + x[sd.BAX + axis] - FORCE[axis])
 
 
 @pytest.fixture(scope="module")

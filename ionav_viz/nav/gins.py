@@ -298,7 +298,7 @@ class GinsEstimator:
                               b.gnss_ok.astype(bool), pos, np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
                               still.astype(bool), fix_steps(b, pos, sigma), bool(has_height), np.ascontiguousarray(vel_var, dtype=float))
         noise = FilterNoise(sigma_a**2 * dt, sigma_g**2 * dt, walk, r_vel, n.nhc_lateral_mps**2, n.nhc_vertical_mps**2, n.odometer_mps**2,
-                            n.zupt_mps**2, sigma_g**2)
+                            n.zupt_mps**2, sigma_g**2, n.level_mps2**2)
         earth = earth_at(origin[0], origin[2])
         switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt), reduced)
 
@@ -521,7 +521,7 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
 REINITIALISED = "re-initialised from GNSS"
 #: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.GINS_MEASUREMENTS`).
 GINS_MEASUREMENT_KINDS = ("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2 + ("odometer",
-                     REINITIALISED)
+                     "level", "level", REINITIALISED)
 
 
 def health_of(r: GinsRun) -> FilterHealth:

@@ -43,8 +43,13 @@ window boundary, as scalar updates, their corrections fed back into the nominal 
   noise for slip and road roughness; the residual mount angles turn body into vehicle frame;
 * odometer: the vehicle speed reads ``k`` times the forward velocity;
 * zero velocity where the IMU says the vehicle stands (:mod:`ionav_viz.nav.stillness`) and the
-  filter's velocity agrees (a chi-square gate, ZUPT_GATE): velocity zero, and the mean gyro over
-  the last second (the window's samples, at any rate) is its bias plus the Earth's rate (ZARU).
+  filter's velocity agrees (a chi-square gate, ZUPT_GATE): velocity zero, the mean gyro over
+  the last second (the window's samples, at any rate) is its bias plus the Earth's rate (ZARU),
+  and the mean specific force's forward and lateral components are gravity's reaction through the
+  attitude plus the accelerometer's bias (the level: standing, the accelerometer measures roll and
+  pitch with the bias directly, where the ZUPT sees them only through the velocity they integrate
+  to; at the stop after hard braking the ZUPT alone left the filter's forward offset 0.2 m/s² off
+  what the standing accelerometer read, and the outage that began there ran on it).
 
 Noise values are :class:`GinsNoise`; the sensors' white noise is measured on the drive itself.
 
@@ -100,12 +105,13 @@ DP, DV, PHI, DBG, DBA, DK, DPSIM, DTHM, DSG = 0, 3, 6, 9, 12, 15, 16, 17, 18
 N_ERR = 19
 
 #: The measurement slots of the filter's update log (:class:`ionav_viz.nav.kalman.UpdateLog`), in
-#: their units: GNSS position (m), GNSS velocity (m/s), ZUPT (m/s), ZARU (rad/s), NHC (m/s), odometer (m/s).
+#: their units: GNSS position (m), GNSS velocity (m/s), ZUPT (m/s), ZARU (rad/s), NHC (m/s), odometer (m/s),
+#: level (m/s^2).
 #: The last slot is no measurement but the safeguard: a re-initialisation from GNSS (its
 #: "innovation" the horizontal distance from the filter's position to the fix, m).
 GINS_MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_up", "gnss_velocity_east", "gnss_velocity_north", "zupt_east", "zupt_north",
-                "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer", "reinitialised")
-SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER, SLOT_REINIT = 0, 3, 5, 8, 11, 12, 13, 14
+                "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer", "level_x", "level_y", "reinitialised")
+SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER, SLOT_LEVEL, SLOT_REINIT = 0, 3, 5, 8, 11, 12, 13, 14, 16
 
 
 class Earth(NamedTuple):
@@ -165,6 +171,7 @@ class FilterNoise(NamedTuple):
     r_odo: float
     r_zupt: float
     r_zaru: float
+    r_level: float
 
 
 class FilterSwitches(NamedTuple):
@@ -229,6 +236,10 @@ class GinsNoise:
     #: the errors the same (1.67 / 1.68 % and 0.62 / 0.61 % of the distance)
     odometer_mps: float = 0.3
     zupt_mps: float = 0.02
+    #: the level update's noise (0: none): a standing car's mean specific force over a second holds,
+    #: beyond the sensor's averaged noise, the car settling on its springs after a stop and the
+    #: engine's shake through a holder, a few cm/s^2; 0.05 m/s^2 is 0.3 deg of roll or pitch
+    level_mps2: float = 0.05
     init_velocity_mps: float = 0.5
     init_level_rad: float = np.deg2rad(2.0)
     init_heading_rad: float = np.deg2rad(15.0)
@@ -473,6 +484,23 @@ def zaru(x, C, omega_ie, gyro_mean, axis, r, H):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def level(x, C, f_mean, axis, r, H):  # pragma: no cover - compiled
+    """Standing: the mean specific force over the last window along body ``axis`` (0 x, 1 y; m/s^2)
+    is gravity's reaction seen through the attitude plus the accelerometer's bias, ``(C^T (0, 0, g))[axis]
+    + b_a[axis]`` (``g``: the measured z mean stands in for its magnitude)."""
+    g = math.sqrt(f_mean[0] ** 2 + f_mean[1] ** 2 + f_mean[2] ** 2)
+    u = np.array([0.0, 0.0, g])
+    M = _body_velocity_jacobian(C, u)
+    cols, h = H
+    for j in range(3):
+        cols[j] = PHI + j
+        h[j] = M[axis, j]
+    cols[3] = DBA + axis
+    h[3] = 1.0
+    return C[2, axis] * g + x[BAX + axis] - f_mean[axis], r, 4
+
+
+@njit(cache=True)
 def _body_velocity_row(C, M, row, scale, extra_col, extra_h, H):  # pragma: no cover - compiled
     """The row of H (7 nonzeros) of ``scale * (C^T v)[row] + extra_h * state[extra_col]`` (``M =
     -C^T [v x]``: the body-frame velocity's attitude Jacobian)."""
@@ -673,14 +701,17 @@ def _innovation(P, dx, H, meas):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _standing_updates(x, P, dx, noise, earth, gm, n_mean, H, log, b):  # pragma: no cover - compiled
-    """Standing: ZUPT on each velocity component, and ZARU on each gyro axis from the mean of
-    ``n_mean`` samples ``gm``."""
+def _standing_updates(x, P, dx, noise, earth, gm, fm, n_mean, H, log, b):  # pragma: no cover - compiled
+    """Standing: ZUPT on each velocity component, ZARU on each gyro axis from the mean of
+    ``n_mean`` samples ``gm``, and the level from the mean specific force ``fm``."""
     for axis in range(3):
         _apply(P, dx, H, zupt(x, axis, noise.r_zupt, H), np.inf, log, b, SLOT_ZUPT + axis)
     C = _dcm(x[QW:QW + 4])
     for axis in range(3):
         _apply(P, dx, H, zaru(x, C, earth.omega_ie, gm, axis, noise.r_zaru / n_mean, H), np.inf, log, b, SLOT_ZARU + axis)
+    if noise.r_level > 0.0:
+        for axis in range(2):
+            _apply(P, dx, H, level(x, C, fm, axis, noise.r_level, H), np.inf, log, b, SLOT_LEVEL + axis)
 
 
 @njit(cache=True)
@@ -740,7 +771,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
        off: :func:`_heading_from_course`) (:func:`_reinitialise`, logged) instead of
        shutting the fixes out. A jump is left out, and so are the fixes after it until one agrees
        with the filter again; after GNSS_REJECTS_MAX boundaries in a row the next is taken whatever it says.
-    2. Standing (the detector says so, ``sw.zupt``): ZUPT and ZARU, *instead of* the NHC and the
+    2. Standing (the detector says so, ``sw.zupt``): ZUPT, ZARU and the level, *instead of* the NHC and the
        odometer (at rest the zero velocity says what they would, more strongly, and a wheel speed
        of 0 says nothing of its scale). Not where a fix at speed says the car moves; where the
        filter's velocity is further than ZUPT_GATE from zero only after two still boundaries in a
@@ -755,6 +786,7 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
     store = out.xs.shape[0] > 0
     walked = np.zeros(2)  # distance (m) and turn (rad) since b_first
     gm = np.zeros(3)
+    fm = np.zeros(3)
     rejected, jumped = 0, False
     # the consistency test: a running mean of the GNSS position's NIS per scalar; persistently above
     # NIS_HIGH, the white noise the filter assumes is too small for what it meets: scaled up
@@ -799,10 +831,13 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
                 # the mean gyro reading over the last window (WINDOW_S, both ends, at any rate)
                 k0 = inputs.b_sample[b - 1]
                 gm[:] = 0.0
+                fm[:] = 0.0
                 for k in range(k0, jb + 1):
                     gm += inputs.gyr[k]
+                    fm += inputs.acc[k]
                 gm /= jb + 1 - k0
-                _standing_updates(x, P, dx, noise, earth, gm, max(jb + 1 - k0, 1), H, out.log, b)
+                fm /= jb + 1 - k0
+                _standing_updates(x, P, dx, noise, earth, gm, fm, max(jb + 1 - k0, 1), H, out.log, b)
             else:
                 _moving_updates(x, P, dx, noise, sw, inputs.odo[b], H, out.log, b)
             _correct(x, dx)
@@ -873,8 +908,8 @@ def measurement_model(name: str, x: np.ndarray, **given: Any) -> tuple[float, np
     (prediction minus the measurement ``given``) and its row of H over the error state (19,), for
     tests against the nonlinear model. ``name``: one of :data:`GINS_MEASUREMENTS`' kinds without the
     axis (``gnss_position``, ``gnss_velocity``, ``zupt``, ``zaru``, ``nhc_lateral``,
-    ``nhc_vertical``, ``odometer``); ``given``: its arguments (``pos``, ``sigma``, ``vel``,
-    ``axis``, ``gyro_mean``, ``omega_ie``, ``speed_mps``)."""
+    ``nhc_vertical``, ``odometer``, ``level``); ``given``: its arguments (``pos``, ``sigma``, ``vel``,
+    ``axis``, ``gyro_mean``, ``omega_ie``, ``speed_mps``, ``specific_force``)."""
     x = np.ascontiguousarray(x, dtype=float)
     C = _dcm(x[QW:QW + 4])
     v = np.ascontiguousarray(x[VX:VX + 3])
@@ -888,7 +923,8 @@ def measurement_model(name: str, x: np.ndarray, **given: Any) -> tuple[float, np
              "zaru": lambda: zaru(x, C, three("omega_ie"), three("gyro_mean"), axis, 1.0, H),
              "nhc_lateral": lambda: nhc_lateral(x, C, M, vb, 1.0, H),
              "nhc_vertical": lambda: nhc_vertical(x, C, M, vb, 1.0, H),
-             "odometer": lambda: odometer(x, C, M, vb, float(given.get("speed_mps", 0.0)), 1.0, H)}
+             "odometer": lambda: odometer(x, C, M, vb, float(given.get("speed_mps", 0.0)), 1.0, H),
+             "level": lambda: level(x, C, three("specific_force"), axis, 1.0, H)}
     dz, _, nnz = calls[name]()
     row = np.zeros(N_ERR)
     row[H[0][:nnz]] = H[1][:nnz]
