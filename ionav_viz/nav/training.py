@@ -234,6 +234,12 @@ def in_first_layer(name: str) -> bool:
     return name.startswith("body.0.") or (name.startswith("rnn.") and name.endswith("_l0"))
 
 
+def displacement_inputs(norm: Normalisation, s: TrainingSet) -> np.ndarray:
+    """The displacement network's normalised inputs for the examples ``s``: each window's
+    acceleration history, then the previous window's GNSS displacement (the feedback input)."""
+    return np.concatenate([norm.accel.scale(s.accel_mps2), norm.disp.scale(s.prev_disp_m)[:, None]], axis=1)
+
+
 def train_models(
     drives: list[tuple[Drive, SensorBias]],
     config: ModelConfig,
@@ -487,9 +493,6 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
         yaw=rate_scale,
     )
 
-    def disp_inputs(s: TrainingSet) -> np.ndarray:
-        return np.concatenate([norm.accel.scale(s.accel_mps2), norm.disp.scale(s.prev_disp_m)[:, None]], axis=1)
-
     disp_net = build_net(config.arch, config.n_steps_disp, config.hidden, config.dropout, True,
                          norm.skip_terms(True) if config.residual else None)
     yaw_net = build_net(config.arch, config.n_steps_yaw, config.hidden, config.dropout, False,
@@ -498,16 +501,18 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
         disp_net.load_state_dict(parent.disp_net.state_dict())
         yaw_net.load_state_dict(parent.yaw_net.state_dict())
     noise_sd = config.feedback_noise_m / (norm.disp.hi - norm.disp.lo)  # metres -> normalised units
-    layers = config.tune_layers.split(",")[0] if parent is not None else "all"  # a fallback needs validation_folds
+    # Only the first try runs here: the retries of "all,first" (the first layer alone where validation keeps the parent
+    # from every layer) are made by _fine_tune_cross_validated, so without validation_folds they are skipped, unsaid.
+    layers = config.tune_layers.split(",")[0] if parent is not None else "all"
     disp_fit = FitSettings(config.lr_disp, config.epochs_disp, config.batch_size, config.seed, config.n_steps_disp, noise_sd,
                            config.lr_decay_tail, config.lr_schedule, device, config.keep, config.anchor, layers)
     selection: dict[str, dict[str, Any]] = {"displacement": {}, "yaw_rate": {}}
-    disp_val: Any = (disp_inputs(val), norm.disp.scale(val.disp_m)) if config.keep != "last" else None
+    disp_val: Any = (displacement_inputs(norm, val), norm.disp.scale(val.disp_m)) if config.keep != "last" else None
     if disp_val is not None and config.validation_outage_s > 0 and config.validation_tail > 0 and device == "cpu":
         score = outage_validation(drives, config, config.validation_tail, config.validation_outage_s)
         if score is not None:
             disp_val = lambda: score(IdnnModel(config, norm, disp_net, yaw_net))  # noqa: E731
-    disp_loss = fit_network(disp_net, disp_inputs(train), norm.disp.scale(train.disp_m), disp_fit, progress, "displacement",
+    disp_loss = fit_network(disp_net, displacement_inputs(norm, train), norm.disp.scale(train.disp_m), disp_fit, progress, "displacement",
                             disp_val, selection["displacement"])
     if callable(disp_val):
         selection["displacement"]["validation"] = (f"displacement CRSE (m, mean) of {config.validation_outage_s} s outages starting every "
@@ -520,7 +525,7 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
 
     model = IdnnModel(config, norm, disp_net, yaw_net)
     with torch.no_grad():
-        val_disp = norm.disp.unscale(model._run(disp_net, disp_inputs(val))) if len(val) else np.zeros(0)
+        val_disp = norm.disp.unscale(model._run(disp_net, displacement_inputs(norm, val))) if len(val) else np.zeros(0)
         val_yaw = model.predict_yaw_rate(val.gyro_radps) if len(val) else np.zeros(0)
     model.metadata = {
         "training": {
@@ -661,16 +666,16 @@ def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelCo
         model = _train(drives, inner, fold_progress, description, parent, device, hold_out=block, uncertainty=False)
         record: dict[str, Any] = {"left_out": [round(block[0], 4), round(block[1], 4)], "n_outages": sum(len(c[1]) for c in cases),
                                   "n_windows": len(ex)}
+        yaw_radps = {who: m.predict_yaw_rate(ex.gyro_radps) for who, m in (("parent", parent), ("fine-tuned", model))}
         for who, m in (("parent", parent), ("fine-tuned", model)):
             disp_err = _outage_errors(m, cases)
-            yaw_err = np.abs(norm.yaw.scale(m.predict_yaw_rate(ex.gyro_radps)) - norm.yaw.scale(ex.yaw_rate_radps))
+            yaw_err = np.abs(norm.yaw.scale(yaw_radps[who]) - norm.yaw.scale(ex.yaw_rate_radps))
             pooled["displacement"][who].append(disp_err)
             pooled["yaw_rate"][who].append(yaw_err)
             record[who] = {"displacement": float(np.mean(disp_err)) if len(disp_err) else None,
                            "yaw_rate": float(np.mean(yaw_err)) if len(yaw_err) else None}
-        x = np.concatenate([norm.accel.scale(ex.accel_mps2), norm.disp.scale(ex.prev_disp_m)[:, None]], axis=1)
-        one_window["disp_m"].append(np.abs(norm.disp.unscale(model._run(model.disp_net, x)) - ex.disp_m))
-        one_window["yaw_rate_radps"].append(np.abs(model.predict_yaw_rate(ex.gyro_radps) - ex.yaw_rate_radps))
+        one_window["disp_m"].append(np.abs(norm.disp.unscale(model._run(model.disp_net, displacement_inputs(norm, ex))) - ex.disp_m))
+        one_window["yaw_rate_radps"].append(np.abs(yaw_radps["fine-tuned"] - ex.yaw_rate_radps))
         folds.append(record)
     final_progress = None if progress is None else (lambda label, done, total: progress(f"{label} (every window)", done, total))
     model = _train(drives, inner, final_progress, description, parent, device, hold_out=False, uncertainty=False)
@@ -694,7 +699,7 @@ def outage_validation(drives: list[tuple[Drive, SensorBias]], config: ModelConfi
     ``tail`` of each drive, at ten grid phases: the mean displacement CRSE (m), run as the estimator
     runs them (its own displacement fed back, calibrated at the start, standing windows). None when
     no such outage fits."""
-    cases = outage_cases(drives, config, n, tail=tail)
+    cases = outage_cases(drives, config, n, block=(1.0 - tail, 1.0))
     if not cases:
         return None
 
@@ -704,11 +709,11 @@ def outage_validation(drives: list[tuple[Drive, SensorBias]], config: ModelConfi
     return score
 
 
-def outage_cases(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n: int, tail: float = 1.0, warm_up_s: float = 0.0,
+def outage_cases(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n: int, warm_up_s: float = 0.0,
                   block: tuple[float, float] = (0.0, 1.0)) -> list[tuple]:
     """The ``n``-window outages :func:`outage_validation` runs: at ten grid phases, each with the
-    window before it in the last ``tail`` of its drive and not before ``warm_up_s`` into it, and all
-    of it (that window too) in the ``block`` (fractions of the drive by time)."""
+    window before it not before ``warm_up_s`` into its drive, and all of it (that window too) in the
+    ``block`` (fractions of the drive by time; the last ``tail`` of each drive: ``(1 - tail, 1)``)."""
     from .outages import valid_start
     from .protocol import EstimatorInputs
 
@@ -716,7 +721,7 @@ def outage_cases(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n:
     for drive, bias in drives:
         t_first = float(drive.t_s[0])
         length = float(drive.t_s[-1]) - t_first + 1.0 / drive.rate_hz
-        cut = t_first + max((1.0 - tail) * length, warm_up_s, block[0] * length)
+        cut = t_first + max(warm_up_s, block[0] * length)
         end = t_first + block[1] * length
         for phase in range(10):
             w = make_windows(drive, offset_s=phase / 10.0)
