@@ -406,7 +406,7 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
     883, 886 and 887, in the tail and in the first 80 % alike, and a = 1.02 loses on the test drives
     (882, 883, 886: -1.5/-1.4, -1.5/-1.6, -1.3/-1.5 %), so a scale fitted on the minute's outages
     would pass the tail and lose. With an offset of the increment too (an integrated drift, what
-    the estimator's drift removal takes off), unguarded, 880-883: -0.6/+0.1, +1.1/+3.5,
+    the estimator's drift removal takes off), fitted on the first 80 %, unguarded, 880-883: -0.6/+0.1, +1.1/+3.5,
     -14.1/-11.5, -4.5/-2.3 %. The scale fitted on the kept networks instead (every window,
     unguarded): 883 +4.6/+6.1 and 887 +3.2/+4.6 % (first layer kept: +3.1/+4.1 and +1.8/+2.7); on
     880, 881, 884 and 885 (every layer kept) within 0.2 points of the kept model's. Training only the output layer (a third try, or alone):
