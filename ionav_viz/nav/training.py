@@ -363,7 +363,10 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
     more on 882, 883 and 886 (too few windows). What the first minute cannot give: the parent fine-tuned, no
     guard, on the second minute of each drive (60-120 s, 5 minutes too, all driving) beat it on
     all four cars tried (882, 886, 883, 880: +8/+9, +5/+6, +10/+12, +6/+10 %); on the first minute
-    cars like 882 and 886 keep the parent's displacement network.
+    cars like 882 and 886 keep the parent's displacement network. With the guard on the second minute
+    (``own_vehicle.py --tune-span 60s:120s``, 2026-11-26) the tail kept the parent on other cars instead:
+    880-887 +0/+3, +4/+4, +13/+14, 0/0, 0/0, +2/+1, +11/+11, 0/0 % (the first minute: +9/+13, +10/+10,
+    0/0, +3/+4, +7/+9, +11/+11, 0/0, +2/+3 %): the cars beyond the fleet (883, 887) gained nothing.
 
     Tried on 880-887 for 7 and not taken (fine-tuned minus shipped at 10 / 30 s, the harness
     measuring each variant's networks on the benchmark's test drives; the tail's decisions as in
