@@ -71,11 +71,14 @@ def run_mode(args: list[str], sample_memory: bool = False) -> dict:
     """Run one mode in a child process; with ``sample_memory``, sample its process tree's memory
     (and leave the wall time out: the sampling takes CPU from the run)."""
     proc = subprocess.Popen([sys.executable, __file__, "--child", *args], stdout=subprocess.PIPE, text=True)
-    if not sample_memory:
-        out, _ = proc.communicate()
+
+    def figures_of(out: str) -> dict:
         if proc.returncode != 0:
             raise SystemExit(f"bench_fleet: {' '.join(args)} exited with {proc.returncode}")
         return json.loads(out.strip().splitlines()[-1])
+
+    if not sample_memory:
+        return figures_of(proc.communicate()[0])
     import psutil
 
     peak_total, peak_one = 0, 0
@@ -98,10 +101,7 @@ def run_mode(args: list[str], sample_memory: bool = False) -> dict:
     out, _ = proc.communicate()
     stop.set()
     thread.join()
-    if proc.returncode != 0:
-        raise SystemExit(f"bench_fleet: {' '.join(args)} exited with {proc.returncode}")
-    figures = json.loads(out.strip().splitlines()[-1])
-    return figures | {"peak_total_MB": peak_total / 1e6, "peak_process_MB": peak_one / 1e6}
+    return figures_of(out) | {"peak_total_MB": peak_total / 1e6, "peak_process_MB": peak_one / 1e6}
 
 
 def main() -> None:

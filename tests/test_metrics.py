@@ -3,6 +3,7 @@ import math
 import numpy as np
 import pytest
 
+import ionav_viz as iv
 from ionav_viz.analysis.metrics import aeps, cae, crse, final_error_pct, summarise
 
 
@@ -36,3 +37,23 @@ def test_final_error_as_a_percentage_of_distance_driven():
     # the summary is over the outages where it is defined
     assert summarise(pct) == pytest.approx({"max": 5.0, "min": 2.0, "mean": 3.5, "std": 1.5})
     assert all(math.isnan(v) for v in summarise(np.array([np.nan])).values())
+
+
+def test_an_outages_tracks_end_where_its_final_error_says_and_a_wrong_number_is_refused():
+    """``EvaluationReport.outage_tracks`` (the figures' worst outage): every line starts on the local
+    plane about the truth at the outage's start, and the estimate's last point lies the outage's
+    final position error from the truth's (computed here from the two end points)."""
+    rep = iv.evaluate("hard-brake", 10.0, estimators=["ins"])
+    seqs = rep.to_dict()["sequences"]
+    name = seqs[0]["drive"]
+    for number in (1, len(seqs)):
+        tracks = rep.outage_tracks(name, number)
+        truth, est = tracks["truth"], tracks["ins"]
+        assert truth["east_m"][0] == 0.0 and truth["north_m"][0] == 0.0 and len(truth["east_m"]) == 11
+        end_m = np.hypot(est["east_m"][-1] - truth["east_m"][-1], est["north_m"][-1] - truth["north_m"][-1])
+        assert end_m == pytest.approx(seqs[number - 1]["ins"]["final_position_error_m"], abs=0.01)
+    for bad in (0, len(seqs) + 1):
+        with pytest.raises(iv.InputError, match=f"no outage {bad}"):
+            rep.outage_tracks(name, bad)
+    with pytest.raises(iv.InputError, match="no evaluated drive"):
+        rep.outage_tracks("elsewhere", 1)

@@ -128,7 +128,12 @@ class Report:
         local plane about the truth at the outage's start (for figures with a scale bar)."""
         from ..core.geo import local_en_m
 
-        res = next(r for r in self.results if r.drive.name == drive)
+        res = next((r for r in self.results if r.drive.name == drive), None)
+        if res is None:
+            raise InputError(f"no evaluated drive is named {drive!r}", hint="one of: " + ", ".join(r.drive.name for r in self.results),
+                             param="drive")
+        if not 1 <= number <= len(res.starts):
+            raise InputError(f"drive {drive} has no outage {number}", hint=f"outages are numbered 1 to {len(res.starts)}", param="number")
         i = number - 1
         lat, lon, _ = truth_boundaries(res.windows, res.starts[i : i + 1], res.n_windows)
         lat0, lon0 = float(lat[0, 0]), float(lon[0, 0])

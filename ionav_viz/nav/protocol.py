@@ -171,7 +171,7 @@ class EstimatorInputs:
         self.accel_mps2 = w.accel_mps2[idx]
         self.gyro_radps = w.gyro_radps[idx]
         self.still_grid = still_on_grid(self.drive, w)
-        self.still = self.still_grid[idx] if len(k) else np.zeros(idx.shape + (w.steps + 1,), dtype=bool)
+        self.still = self.still_grid[idx]
         # every estimator sees the same data: none can change what the others (or the metrics) see
         self.drive = replace(self.drive, columns={k: _read_only(v) for k, v in self.drive.columns.items()},
                              gnss_fault=None if self.drive.gnss_fault is None else _read_only(self.drive.gnss_fault))
