@@ -9,9 +9,9 @@ how much the forward accelerometer's offset from the GNSS acceleration wanders w
 outage's dead reckoning must carry: road grade, a holder tilting with the car's acceleration, bias
 wander), the stamps' jitter and gaps,
 the clock offset against the receiver, how late the receiver's speed is against the IMU
-(:mod:`ionav_viz.core.gnss_lag`) and the mount::
+(:mod:`ionav_viz.core.gnss_lag`), the receiver's losses (its cold start and its gaps) and the mount::
 
-    python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--json OUT]
+    python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--max-sigma-m 13] [--json OUT]
     python benchmarks/imu_character.py --simulated 300   # the simulator's phone and mems grades, 5 min each
 """
 
@@ -21,11 +21,13 @@ import argparse
 import json
 import math
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 import ionav_viz as iv
+from ionav_viz.core.gnss_quality import GnssLimits
 from ionav_viz.nav.stillness import drive_still
 from ionav_viz.sources.imu.clock import estimate_clock_offset
 
@@ -103,6 +105,24 @@ def accel_wander(drive, window_s: float = 10.0) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))))
 
 
+def receiver_gaps(drive, min_s: float = 2.0) -> dict:
+    """The receiver's losses: stretches of at least ``min_s`` s without a fix the reader trusts
+    (``receiver_fault``, or ``gnss_fault`` where the receiver is also the truth). The one at the
+    start (a cold start, before the first trusted fix) is kept apart: its length (s); the others
+    per 10 minutes of the drive after it, and their median and longest (s)."""
+    t = drive.t_s
+    fault = drive.receiver_fault if drive.receiver_fault is not None else drive.gnss_fault
+    bad = np.asarray(fault) != 0
+    edges = np.diff(np.concatenate([[0], bad.astype(int), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    lengths = t[np.minimum(ends, len(t) - 1)] - t[starts]
+    cold = float(lengths[0]) if len(starts) and starts[0] == 0 else 0.0
+    later = lengths[(starts > 0) & (lengths >= min_s)]
+    after_s = float(t[-1] - t[0]) - cold
+    return {"cold_start_s": round(cold, 1), "gaps_per_10min": float(len(later) / after_s * 600.0) if after_s > 0 else math.nan,
+            "gap_median_s": float(np.median(later)) if len(later) else math.nan, "gap_max_s": float(later.max()) if len(later) else math.nan}
+
+
 def stamp_jitter(path: Path | None, topic: str = "/imu/data") -> tuple[float, float, float]:
     """The IMU's native sample periods from an MCAP's message times: the median period (s), the
     spread between the 1st and 99th percentile periods (ms) and the share of periods over 1.5 times
@@ -147,6 +167,7 @@ def measure(drive, path: Path | None = None) -> dict:
         "accel_wander_mps2": accel_wander(drive),
     }
     out["period_s"], out["jitter_ms"], out["gaps"] = stamp_jitter(path)
+    out |= receiver_gaps(drive)
     # Allan deviation at 1 s over the longest standing stretch
     edges = np.diff(np.concatenate([[0], still.astype(int), [0]]))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
@@ -170,13 +191,15 @@ def row(m: dict) -> str:
     return (f"| {m['log']} | {f('native_rate_hz', '{:g}')} Hz, {m['samples']} | {f('duration_s', '{:.0f}')} s ({f('standing_s', '{:.0f}')} s standing) | "
             f"{f('gyro_standing_dps')} / {f('gyro_driving_dps')} | {f('accel_standing_mps2')} / {f('accel_driving_mps2')} | "
             f"{f('gyro_allan_1s_dps', '{:.3f}')} | {f('wobble_standing_dps')} / {f('wobble_dps', '{:.1f}')} | {f('gyro_course_scale', '{:.3f}')} | {f('accel_wander_mps2')} | "
-            f"{f('jitter_ms', '{:.3f}')} ms, {f('gaps', '{:.2%}')} | {m['clock_note']} | {m['speed_lag_note']} |")
+            f"{f('jitter_ms', '{:.3f}')} ms, {f('gaps', '{:.2%}')} | {m['clock_note']} | {m['speed_lag_note']} | "
+            f"{f('cold_start_s', '{:.0f}')} s; {f('gaps_per_10min', '{:.1f}')} per 10 min, median {f('gap_median_s', '{:.0f}')} s, longest {f('gap_max_s', '{:.0f}')} s |")
 
 
 HEADER = ("| log | IMU | length | gyro noise standing / driving (deg/s per sample) | accel noise standing / driving (m/s² per sample) | "
           "gyro Allan dev. at 1 s standing (deg/s) | holder wobble standing / driving (deg/s) | gyro z / GNSS course | accel x offset wander in 10 s (m/s²) | "
-          "period spread p1-p99, gaps | clock offset | receiver speed behind the IMU (correlation) |\n"
-          "|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "period spread p1-p99, gaps | clock offset | receiver speed behind the IMU (correlation) | "
+          "receiver without a trusted fix: cold start; gaps of 2 s or more after it |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 #: The simulated logs ``--simulated`` measures: (grade, scenario, seed); the seeds of
@@ -191,11 +214,14 @@ def main() -> None:
     parser.add_argument("--truth-topic")
     parser.add_argument("--gnss-topic")
     parser.add_argument("--simulated", type=float, metavar="SECONDS", help="also measure the simulator's phone and mems logs of this length")
+    parser.add_argument("--max-sigma-m", type=float, help="trust fixes reporting up to this accuracy (m; a phone's 6-8 m need 13), as real_imu_logs.py")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     print(HEADER)
     results = []
-    read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", truth_topic=args.truth_topic, gnss_topic=args.gnss_topic, vehicle_speed_topic="none"))
+    limits = GnssLimits() if args.max_sigma_m is None else replace(GnssLimits(), max_sigma_m=args.max_sigma_m)
+    read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", truth_topic=args.truth_topic, gnss_topic=args.gnss_topic, vehicle_speed_topic="none"),
+                          gnss_limits=limits)
     drives = [(iv.load_drive(str(p), read), p) for p in args.logs]
     with tempfile.TemporaryDirectory() as tmp:
         if args.simulated:
