@@ -184,3 +184,31 @@ def test_the_simulated_phone_stands_and_wobbles_as_real_phones_do(tmp_path):
     assert low <= standing <= high, standing
     low, high = REAL_PHONE_WOBBLE_DPS
     assert low <= drive.imu.wobble_dps <= high, drive.imu.wobble_dps
+
+
+def test_a_phone_receiver_loses_the_sky_as_the_real_phones_did(tmp_path):
+    """The phone grade's receiver loses every fix 2.8 times per 10 minutes for 2-30 s (log-uniform:
+    median sqrt(2 x 30) = 7.7 s), as the real phones' own receivers did (docs/real-imu-logs.md);
+    a written log reads back with those stretches untrusted, and nothing else is lost."""
+    from ionav_viz.sim.imu import IMU_GRADES, receiver_losses
+    from ionav_viz.sim.simulate import SIMULATED_SCENARIOS
+
+    t = np.arange(0.0, 100 * 3600.0, 1.0)
+    lost = receiver_losses(np.random.default_rng(3), t, IMU_GRADES["phone"])
+    edges = np.diff(np.concatenate([[0], lost.astype(int), [0]]))
+    lengths = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)  # s, at 1 Hz
+    # overlapping (or, at 1 Hz, touching) losses merge: stretches of a Poisson process of rate lam
+    # with mean length E[L] come at lam exp(-lam (E[L] + 1 s)); log-uniform E[L] = (30 - 2) / ln 15
+    lam, mean_length_s = 2.8 / 600.0, 28.0 / np.log(15.0)
+    expected = lam * len(t) * np.exp(-lam * (mean_length_s + 1.0))
+    assert abs(len(lengths) - expected) < 4.0 * np.sqrt(expected), (len(lengths), expected)
+    assert lengths.min() >= 1 and np.median(lengths) == pytest.approx(7.7, abs=1.0)
+    assert not receiver_losses(np.random.default_rng(3), t, IMU_GRADES["mems"]).any()
+
+    path = write_imu_log(tmp_path / "p.mcap", "roundabout", 900, 600.0, "phone")
+    drive = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, imu_mount="auto", vehicle_speed_topic="none")))
+    want = receiver_losses(np.random.default_rng([900, 10000 + SIMULATED_SCENARIOS.index("roundabout")]), drive.t_s, IMU_GRADES["phone"])
+    assert want.any()
+    untrusted = drive.receiver_fault != 0
+    assert untrusted[want].mean() > 0.9  # each loss is a stretch without a trusted fix
+    assert untrusted[~want].mean() < 0.02  # and little else is
