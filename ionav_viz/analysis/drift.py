@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 
 from ..core.geo import wgs84
-from .metrics import truth_boundaries
 
 #: The percentiles of the final position error a report gives (``final_error_percentiles``).
 FINAL_PERCENTILES = (50, 90, 95)
@@ -27,7 +26,7 @@ def boundary_errors_m(result: Any, estimator: str) -> np.ndarray:
     track = result.estimates[estimator].track
     if len(result.starts) == 0:
         return np.zeros((0, result.n_windows + 1))
-    truth_lat, truth_lon, _ = truth_boundaries(result.windows, result.starts, result.n_windows)
+    truth_lat, truth_lon, _ = result.windows.boundary_fixes(result.starts, result.n_windows)
     _, _, dist = wgs84().inv(track.lon_deg.ravel(), track.lat_deg.ravel(), truth_lon.ravel(), truth_lat.ravel())
     return np.asarray(dist, dtype=float).reshape(truth_lat.shape)
 

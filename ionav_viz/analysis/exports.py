@@ -33,7 +33,7 @@ from ..core.geo import local_en_m
 from ..core.json_out import dumps_json
 from ..nav.kalman import CHI2_2_95
 from .consistency import outage_nees
-from .metrics import METRICS, truth_boundaries
+from .metrics import METRICS
 
 #: The columns of ``outages.csv``: keys, then every metric (their names carry their units).
 #: ``final_nees`` and ``final_inside_95``: for an estimator that gives a position covariance, its
@@ -149,7 +149,7 @@ def _boundaries(res: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     """Per outage: stamps (s), truth latitude, longitude and course at the window boundaries."""
     w, starts, n = res.windows, np.asarray(res.starts, dtype=int), res.n_windows
     t = np.asarray(res.drive.stamp_s(w.t0_s[starts][:, None] + np.arange(n + 1)[None, :]), dtype=float)
-    return (t, *truth_boundaries(w, starts, n))
+    return (t, *w.boundary_fixes(starts, n))
 
 
 def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray) -> str:

@@ -59,16 +59,6 @@ def truth_for(windows: Windows, starts: np.ndarray, n_windows: int) -> tuple[np.
     return windows.gnss_disp_m[idx], windows.gnss_yaw_rate_radps[idx]
 
 
-def truth_boundaries(windows: Windows, starts: np.ndarray, n_windows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The truth's latitude, longitude (deg) and course (deg, clockwise from north) at every window
-    boundary of every outage, its start first: (seq, win + 1), as the estimators' tracks."""
-    starts = np.asarray(starts, dtype=int)
-    idx = starts[:, None] + np.arange(n_windows)[None, :]
-    return tuple(np.concatenate([at0[starts][:, None], at1[idx]], axis=1)  # type: ignore[return-value]
-                 for at0, at1 in ((windows.lat0_deg, windows.lat1_deg), (windows.lon0_deg, windows.lon1_deg),
-                                  (windows.heading0_deg, windows.heading1_deg)))
-
-
 def sequence_metrics(windows: Windows, starts: np.ndarray, n_windows: int, est: Solution) -> dict[str, np.ndarray]:
     """All :data:`METRICS` for each sequence: arrays of shape (n_sequences,)."""
     disp_true, yaw_true = truth_for(windows, starts, n_windows)

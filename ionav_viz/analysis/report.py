@@ -22,7 +22,7 @@ from .consistency import consistency
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
-from .metrics import METRICS, summarise, truth_boundaries
+from .metrics import METRICS, summarise
 from .tables import truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
@@ -135,7 +135,7 @@ class Report:
         if not 1 <= number <= len(res.starts):
             raise InputError(f"drive {drive} has no outage {number}", hint=f"outages are numbered 1 to {len(res.starts)}", param="number")
         i = number - 1
-        lat, lon, _ = truth_boundaries(res.windows, res.starts[i : i + 1], res.n_windows)
+        lat, lon, _ = res.windows.boundary_fixes(res.starts[i : i + 1], res.n_windows)
         lat0, lon0 = float(lat[0, 0]), float(lon[0, 0])
         lines = {"truth": (lat[0], lon[0])}
         lines |= {e: (res.estimates[e].track.lat_deg[i], res.estimates[e].track.lon_deg[i]) for e in self.estimators}

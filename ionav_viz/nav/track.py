@@ -149,9 +149,7 @@ def boundary_errors_en_m(windows: Windows, starts: np.ndarray, n_windows: int, l
     degrees) against the windows' fixes at the boundaries of the sequences starting at windows
     ``starts`` (m,): ``(m, n_windows + 1, 2)``, the first at the start fix; metres along the
     ellipsoid's radii of curvature at the fix."""
-    idx = starts[:, None] + np.arange(n_windows)[None, :]
-    lat_t = np.concatenate([windows.lat0_deg[idx], windows.lat1_deg[idx[:, -1:]]], axis=1)
-    lon_t = np.concatenate([windows.lon0_deg[idx], windows.lon1_deg[idx[:, -1:]]], axis=1)
+    lat_t, lon_t, _ = windows.boundary_fixes(starts, n_windows)
     meridian, prime = radii_of_curvature_m(lat_t)
     north = np.radians(lat_deg - lat_t) * meridian
     east = np.radians(lon_deg - lon_t) * prime * np.cos(np.radians(lat_t))

@@ -94,6 +94,15 @@ class Windows:
             first = int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6))
         return replace(self, first_start=first)
 
+    def boundary_fixes(self, starts: np.ndarray, n_windows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fixes' latitude, longitude (deg) and course (deg, clockwise from north) at every
+        window boundary of the ``n_windows``-window sequences starting at windows ``starts``, the
+        start first: each ``(len(starts), n_windows + 1)``, as the estimators' tracks."""
+        starts = np.asarray(starts, dtype=int)
+        idx = starts[:, None] + np.arange(n_windows)[None, :]
+        return tuple(np.concatenate([at0[starts][:, None], at1[idx]], axis=1)  # type: ignore[return-value]
+                     for at0, at1 in ((self.lat0_deg, self.lat1_deg), (self.lon0_deg, self.lon1_deg), (self.heading0_deg, self.heading1_deg)))
+
     @property
     def steps(self) -> int:
         """Samples per window (10 at 10 Hz)."""
