@@ -28,6 +28,7 @@ import numpy as np
 
 import ionav_viz as iv
 from ionav_viz.core.gnss_quality import GnssLimits
+from ionav_viz.core.runs import true_runs
 from ionav_viz.nav.stillness import drive_still
 from ionav_viz.sources.imu.clock import estimate_clock_offset
 
@@ -113,8 +114,7 @@ def receiver_gaps(drive, min_s: float = 2.0) -> dict:
     t = drive.t_s
     fault = drive.receiver_fault if drive.receiver_fault is not None else drive.gnss_fault
     bad = np.asarray(fault) != 0
-    edges = np.diff(np.concatenate([[0], bad.astype(int), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    starts, ends = true_runs(bad)
     lengths = t[np.minimum(ends, len(t) - 1)] - t[starts]
     cold = float(lengths[0]) if len(starts) and starts[0] == 0 else 0.0
     later = lengths[(starts > 0) & (lengths >= min_s)]
@@ -169,8 +169,7 @@ def measure(drive, path: Path | None = None) -> dict:
     out["period_s"], out["jitter_ms"], out["gaps"] = stamp_jitter(path)
     out |= receiver_gaps(drive)
     # Allan deviation at 1 s over the longest standing stretch
-    edges = np.diff(np.concatenate([[0], still.astype(int), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    starts, ends = true_runs(still)
     if len(starts):
         i = int(np.argmax(ends - starts))
         out["gyro_allan_1s_dps"] = math.degrees(allan_1s(gz[starts[i]:ends[i]], drive.rate_hz))

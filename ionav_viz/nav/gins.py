@@ -267,12 +267,11 @@ class GinsEstimator:
         pos = np.ascontiguousarray(enu_of_geodetic(b.lat_deg, b.lon_deg, h, *origin))
         sigma = position_sigma_m(b.t_s, drive.t_s, drive.columns.get("gnss_sigma_m"), self.noise.gnss_position_m)
         course = np.deg2rad(b.course_deg)
-        vel = np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)])
+        vel = np.ascontiguousarray(np.column_stack([b.speed_mps * np.sin(course), b.speed_mps * np.cos(course)]))
         lag_s, lag_text = self._speed_lag(drive)
         vel_var = np.zeros(len(b.t_s))
         if lag_s > 0.0:  # a location service's smoothed speed: its velocity updates widened by what the lag makes of it
             vel_var = lag_velocity_error_mps(drive.t_s, drive.columns["speed_mps"], acc[:, 0], gyr[:, 2], lag_s)[b.sample] ** 2
-        vel = np.ascontiguousarray(vel)
         vel_ok = b.gnss_ok & (b.speed_mps > GNSS_VELOCITY_MIN_SPEED_MPS)
         odo = np.full(len(b.t_s), np.nan)
         found = vehicle_speed(drive)

@@ -487,17 +487,14 @@ def zaru(x, C, omega_ie, gyro_mean, axis, r, H):  # pragma: no cover - compiled
 def level(x, C, f_mean, axis, r, H):  # pragma: no cover - compiled
     """Standing: the mean specific force over the last window along body ``axis`` (0 x, 1 y; m/s^2)
     is gravity's reaction seen through the attitude plus the accelerometer's bias, ``(C^T (0, 0, g))[axis]
-    + b_a[axis]`` (``g``: the measured z mean stands in for its magnitude)."""
+    + b_a[axis]`` (``g``: the mean specific force's magnitude). Its attitude row is
+    :func:`_body_velocity_jacobian`'s ``-C^T [u x]`` for ``u = (0, 0, g)``, written out."""
     g = math.sqrt(f_mean[0] ** 2 + f_mean[1] ** 2 + f_mean[2] ** 2)
-    u = np.array([0.0, 0.0, g])
-    M = _body_velocity_jacobian(C, u)
     cols, h = H
-    for j in range(3):
-        cols[j] = PHI + j
-        h[j] = M[axis, j]
-    cols[3] = DBA + axis
-    h[3] = 1.0
-    return C[2, axis] * g + x[BAX + axis] - f_mean[axis], r, 4
+    cols[0], h[0] = PHI, -g * C[1, axis]
+    cols[1], h[1] = PHI + 1, g * C[0, axis]
+    cols[2], h[2] = DBA + axis, 1.0
+    return C[2, axis] * g + x[BAX + axis] - f_mean[axis], r, 3
 
 
 @njit(cache=True)
@@ -540,7 +537,8 @@ def odometer(x, C, M, vb, speed_mps, r, H):  # pragma: no cover - compiled
 def _apply(P, dx, H, meas, gate, log, row, slot):  # pragma: no cover - compiled
     """Fold the measurement ``meas = (dz, r, nnz)`` with row ``H`` into ``dx``, ``P`` (the shared
     Joseph-form update), gated at ``gate`` (NIS), and keep it in ``log`` at ``(row, slot)`` (the
-    innovation as measured minus predicted). Returns whether it was used."""
+    innovation as measured minus predicted). Returns whether it was used, the innovation (predicted
+    minus measured, against ``dx`` before the update) and its variance ``S``."""
     cols, h = H
     dz, r, nnz = meas
     nu = dz
@@ -548,7 +546,7 @@ def _apply(P, dx, H, meas, gate, log, row, slot):  # pragma: no cover - compiled
         nu -= h[k] * dx[cols[k]]
     S, used = kalman.scalar_update(P, dx, cols, h, nnz, nu, r, gate)
     kalman.record(log, row, slot, -nu, S, used)
-    return used
+    return used, nu, S
 
 
 @njit(cache=True)
@@ -662,42 +660,27 @@ def _gnss_updates(x, P, dx, inputs, noise, b, gate, H, log, vel_r):  # pragma: n
 
     The velocity's variance is the larger of the model's (``noise.r_vel``) and the one its own
     innovations show (covariance matching, Mohamed and Schwarz 1999: the running mean of the
-    squared innovation less the filter's share of it, ``H P H'``, over about
+    squared innovation less the filter's share of its variance, ``H P H'``, over about
     :data:`VEL_R_MEMORY` scalars, kept in ``vel_r[0]``): a phone's receiver reports a speed that
     lags the car by 0.5-1 s (iOS; measured against the IMU on the real logs), not the 0.3 m/s white
     noise a receiver's Doppler has, and held to 0.3 m/s it pulls the filter's velocity, biases and
     pitch after it."""
     used = True
     for axis in range(3 if inputs.has_height else 2):
-        ok = _apply(P, dx, H, gnss_position(x, inputs.gnss_pos[b], inputs.gnss_sigma[b], axis, H), gate, log, b, SLOT_GNSS_POS + axis)
+        ok = _apply(P, dx, H, gnss_position(x, inputs.gnss_pos[b], inputs.gnss_sigma[b], axis, H), gate, log, b, SLOT_GNSS_POS + axis)[0]
         used = used and (ok or axis == 2)
     if inputs.vel_ok[b] and used:
         r_vel = max(noise.r_vel, vel_r[0]) + inputs.vel_var[b]
         for axis in range(2):
-            meas = gnss_velocity(x, inputs.gnss_vel[b], axis, r_vel, H)
-            nu, hph = _innovation(P, dx, H, meas)
-            _apply(P, dx, H, meas, np.inf, log, b, SLOT_GNSS_VEL + axis)
-            vel_r[0] += (nu * nu - hph - inputs.vel_var[b] - vel_r[0]) / VEL_R_MEMORY
+            _, nu, S = _apply(P, dx, H, gnss_velocity(x, inputs.gnss_vel[b], axis, r_vel, H), np.inf, log, b, SLOT_GNSS_VEL + axis)
+            # the filter's share of S is S - r_vel
+            vel_r[0] += (nu * nu - (S - r_vel) - inputs.vel_var[b] - vel_r[0]) / VEL_R_MEMORY
     return used
 
 
 #: The GNSS velocity's own variance (:func:`_gnss_updates`) is a running mean over about this many
 #: scalar innovations (two a fix: 10 s of 1 Hz fixes).
 VEL_R_MEMORY = 20.0
-
-
-@njit(cache=True)
-def _innovation(P, dx, H, meas):  # pragma: no cover - compiled
-    """The innovation of ``meas = (dz, r, nnz)`` with row ``H`` against the error estimate ``dx``
-    so far, and the filter's share of its variance ``H P H'``."""
-    cols, h = H
-    dz, _, nnz = meas
-    nu, hph = dz, 0.0
-    for k in range(nnz):
-        nu -= h[k] * dx[cols[k]]
-        for m in range(nnz):
-            hph += h[k] * h[m] * P[cols[k], cols[m]]
-    return nu, hph
 
 
 @njit(cache=True)

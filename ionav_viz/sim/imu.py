@@ -123,10 +123,8 @@ class ImuGrade:
     #: positions are left of their epoch (on the real logs the course lags the gyro by 0.1-0.4 s, far
     #: less than the speed; the steps between fixes are too noisy to show a lag)
     gnss_speed_lag_s: float = 0.0
-    #: the receiver losing the sky (no fix at all, as a phone's own receiver in a city): a cold start
-    #: of this many seconds before its first fix, then losses at this rate (per 10 minutes, Poisson),
-    #: each ``gnss_loss_s`` long (s, log-uniform between the two)
-    gnss_cold_start_s: float = 0.0
+    #: the receiver losing the sky (no fix at all, as a phone's own receiver in a city): losses at
+    #: this rate (per 10 minutes, Poisson), each ``gnss_loss_s`` long (s, log-uniform between the two)
     gnss_losses_per_10min: float = 0.0
     gnss_loss_s: tuple[float, float] = (2.0, 20.0)
     #: a loose holder: the sensor tilts on it by this much per m/s^2 of horizontal specific force
@@ -167,7 +165,7 @@ IMU_GRADES = {
     #   cold for 0-14 s (median 8 s) and then lose the sky 0-9.0 times per 10 min (median 2.8) for
     #   2-53 s (their medians 3-10 s): 2.8 losses per 10 min of 2-30 s (log-uniform: median 7.7 s).
     #   A real cold start gives fixes the quality check does not trust (wandering, 16-65 m reported),
-    #   not none, so it is left out here (tests/test_consumer_imu.py builds one). How the fixes come
+    #   not none, so it is not drawn here (tests/test_consumer_imu.py builds one). How the fixes come
     #   back (SENSORS.md: jumping by metres before settling) is not measured: as good as before.
     #   Not resolved on any real log, so kept as assumptions: the holder's tilt under acceleration
     #   (0.4 deg per m/s^2), the clock offset (40 ms, SENSORS.md's "under 0.1 s"), the biases.
@@ -458,14 +456,14 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
 
 
 def receiver_losses(rng: np.random.Generator, t_s: np.ndarray, g: ImuGrade) -> np.ndarray:
-    """Where the receiver of grade ``g`` gives no fix (True), at the times ``t_s`` (s): its cold
-    start and its losses (see :class:`ImuGrade`), drawn from ``rng``."""
-    lost = t_s < t_s[0] + g.gnss_cold_start_s
-    span_s = float(t_s[-1] - t_s[0]) - g.gnss_cold_start_s
+    """Where the receiver of grade ``g`` gives no fix (True), at the times ``t_s`` (s): its losses
+    (see :class:`ImuGrade`), drawn from ``rng``."""
+    lost = np.zeros(len(t_s), dtype=bool)
+    span_s = float(t_s[-1] - t_s[0])
     if g.gnss_losses_per_10min <= 0.0 or span_s <= 0.0:
         return lost
     n = rng.poisson(g.gnss_losses_per_10min * span_s / 600.0)
-    starts = t_s[0] + g.gnss_cold_start_s + rng.uniform(0.0, span_s, n)
+    starts = t_s[0] + rng.uniform(0.0, span_s, n)
     lengths = np.exp(rng.uniform(*np.log(g.gnss_loss_s), n))
     for a, length in zip(starts, lengths, strict=True):
         lost |= (t_s >= a) & (t_s < a + length)
