@@ -228,3 +228,77 @@ def test_mcap_covariance_gives_poor_accuracy(tmp_path):
     bad_t = drive.t_s[(drive.gnss_fault & GnssFault.POOR_ACCURACY) != 0]
     # fixes 20-29 at 2 Hz: 10-15 s after the first fix (interpolated neighbours included)
     assert bad_t.min() > 9.4 and bad_t.max() < 15.1 and len(bad_t) >= 45
+
+
+# --- a receiver beside a reference: no outage starts where it has no fix ---------------------------
+
+@pytest.fixture(scope="module")
+def receiver_lost(tmp_path_factory):
+    """A phone whose receiver loses the sky about every 30 s (the grade's 2.8 per 10 min made 20)
+    for 2-30 s, beside a reference that never does."""
+    from dataclasses import replace
+
+    import ionav_viz as iv
+    from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
+
+    grade = replace(IMU_GRADES["phone"], gnss_losses_per_10min=20.0)
+    path = write_imu_log(tmp_path_factory.mktemp("rx") / "rx.mcap", "roundabout", 906, 240.0, grade)
+    read = iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, imu_mount="auto", vehicle_speed_topic="none"))
+    return path, iv.load_drive(path, read), read
+
+
+def test_no_outage_starts_where_the_receiver_beside_a_reference_has_no_fix(receiver_lost):
+    """Estimators start from the receiver's state at an outage's start; inside a loss that state is
+    a fix interpolated across the loss (tens of metres off a curve, the course of before), so no
+    outage starts there: each starts one second (the IDNN's first input) after good receiver fixes,
+    its INS DR track from a real fix, and the tiling goes on after the loss."""
+    import ionav_viz as iv
+    from ionav_viz.core.geo import wgs84
+
+    _, drive, _ = receiver_lost
+    t, lost = drive.t_s, drive.receiver_fault != 0
+    assert lost.any() and not drive.gnss_fault.any()
+    rep = iv.evaluate([drive], 10.0, estimators=["ins"])
+    d = rep.to_dict()
+    starts = np.array([s["start_s"] for s in d["sequences"]])
+    # the window before each start, and the samples its ends are interpolated from (0.1 s grid)
+    for t0 in starts:
+        assert not lost[(t >= t0 - 1.0 - 0.1) & (t <= t0 + 0.1)].any(), t0
+    # the INS DR starts from the receiver's fix: metres from the reference, as the phone's fixes are
+    res = rep.results[0]
+    track = res.estimates["ins"].track
+    k = np.searchsorted(t, starts)
+    _, _, start_error_m = wgs84().inv(track.lon_deg[:, 0], track.lat_deg[:, 0], drive.lon_deg[k], drive.lat_deg[k])
+    assert start_error_m.max() < 15.0, start_error_m.max()
+    # after every loss with room for an outage, one starts within 2 s of the first allowed start,
+    # unless the loss lies inside an outage (then the tiling simply went on)
+    edges = np.diff(np.concatenate([[0], lost.astype(int), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        first = t[b - 1] + 1.0
+        inside = ((starts <= t[a]) & (starts + 10.0 >= t[b - 1])).any()
+        if first > 30.0 and first + 12.0 < t[-1] and not inside:
+            assert ((starts >= first - 0.1) & (starts <= first + 2.0)).any() or ((starts < first) & (starts + 10.0 > first)).any(), \
+                (t[a], t[b - 1], starts)
+    truth = d["gnss_truth"]
+    assert truth["excluded_windows"] == 0 and truth["receiver_lost_windows"] > 0 and truth["excluded_outages"] > 0
+    assert f"the receiver without a fix to trust in {truth['receiver_lost_windows']} windows" in rep.to_text()
+
+
+def test_an_outage_asked_for_where_the_receiver_has_no_fix_is_refused_and_the_recording_shows_the_losses(receiver_lost, tmp_path):
+    path, drive, _ = receiver_lost
+    t, lost = drive.t_s, drive.receiver_fault != 0
+    edges = np.diff(np.concatenate([[0], lost.astype(int), [0]]))
+    a, b = next((a, b) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True) if 40.0 < t[a] and t[b - 1] - t[a] > 3.0)
+    at = round(float(t[a]) + 2.0)
+    args = ("--truth-topic", "/truth/fix", "--imu-mount", "auto", "--vehicle-speed-topic", "none", "--no-idnn")
+    proc = run_cli("replay", str(path), *args, "--at", str(at), "-o", str(tmp_path / "x.rrd"))
+    assert proc.returncode == 2
+    assert f"start time {at} s: the receiver has no trustworthy fix to start that outage from (no-fix)" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+    out = tmp_path / "r.rrd"
+    proc = run_cli("replay", str(path), *args, "-q", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    rows, _ = read_rrd(out)
+    states = [(round(time, 1), s[0]) for time, s in rows["/gnss/receiver"]]
+    assert {s for _, s in states} == {"fix", "lost: no-fix"}
+    assert (round(float(t[a]), 1), "lost: no-fix") in states

@@ -84,10 +84,13 @@ class DriveResult:
 
     def truth_exclusions(self) -> dict[str, Any]:
         """What the GNSS quality checks excluded: ``windows`` (all), ``excluded_windows`` (bad
-        truth), ``excluded_by_reason`` (windows per fault name) and ``excluded_outages``."""
+        truth), ``excluded_by_reason`` (windows per fault name), ``receiver_lost_windows`` (beside
+        a reference: windows where the estimators' receiver had no fix to trust, none of which
+        starts an outage) and ``excluded_outages`` (not placed for either)."""
         fault = self.windows.truth_fault
         bad = fault != 0
         return {"windows": len(fault), "excluded_windows": int(bad.sum()), "excluded_by_reason": count_by_fault(fault[bad]),
+                "receiver_lost_windows": int(np.count_nonzero(self.windows.receiver_fault)),
                 "excluded_outages": int(self.excluded_outages)}
 
     @property

@@ -285,7 +285,8 @@ def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:
         for name, n in p["excluded_by_reason"].items():
             reasons[name] = reasons.get(name, 0) + n
     return {"windows": sum(p["windows"] for p in parts), "excluded_windows": sum(p["excluded_windows"] for p in parts),
-            "excluded_by_reason": reasons, "excluded_outages": sum(p["excluded_outages"] for p in parts)}
+            "excluded_by_reason": reasons, "receiver_lost_windows": sum(p.get("receiver_lost_windows", 0) for p in parts),
+            "excluded_outages": sum(p["excluded_outages"] for p in parts)}
 
 
 def combined(reports: Mapping[Any, Report]) -> Report:

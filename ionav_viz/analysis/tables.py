@@ -68,11 +68,16 @@ def truth_line(rep: dict[str, Any]) -> str:
     truth = rep.get("gnss_truth")
     if not truth:
         return ""
-    if not truth["excluded_windows"]:
+    lost = truth.get("receiver_lost_windows", 0)
+    if not truth["excluded_windows"] and not lost:
         return f"GNSS truth: all {truth['windows']} windows trustworthy, none excluded"
-    reasons = ", ".join(f"{name} {n}" for name, n in truth["excluded_by_reason"].items())
-    return (f"GNSS truth: {truth['excluded_windows']} of {truth['windows']} windows excluded ({reasons}); "
-            f"{truth['excluded_outages']} outage(s) not placed there")
+    if truth["excluded_windows"]:
+        reasons = ", ".join(f"{name} {n}" for name, n in truth["excluded_by_reason"].items())
+        head = f"GNSS truth: {truth['excluded_windows']} of {truth['windows']} windows excluded ({reasons})"
+    else:
+        head = f"GNSS truth: all {truth['windows']} windows trustworthy"
+    receiver = f"; the receiver without a fix to trust in {lost} windows (no outage starts there)" if lost else ""
+    return f"{head}{receiver}; {truth['excluded_outages']} outage(s) not placed there"
 
 
 def title_of(rep: dict[str, Any], scenario: str | None = None) -> str:

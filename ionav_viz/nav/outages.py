@@ -6,7 +6,11 @@ one gap-free segment, and window ``k-1`` must exist in that segment too: the IDN
 window is fed the GNSS displacement of the second before the outage (the paper's Figure 2).
 So the first window of each segment never starts an outage. The same holds for bad GNSS truth
 (:attr:`Windows.truth_ok`): every window of an outage, and the one before it, must have good
-truth, so a stretch of bad fixes splits a segment as a gap does.
+truth, so a stretch of bad fixes splits a segment as a gap does. Where the estimators' receiver is
+not the truth (a reference beside it), the window before the start must also have good receiver
+fixes (:attr:`Windows.receiver_ok`): inside a loss of the receiver there is no fix to start from, and
+an outage is not placed there (a placement that walks the drive moves on to the first start after
+the loss).
 
 Placements are values (:class:`Tile`, :class:`Every`, :class:`At`, :class:`Random`, :class:`Planned`,
 :class:`AroundEvents`), each planning its own outages (``plan(windows, n_windows, events, source)
@@ -75,20 +79,33 @@ def truth_faults_near(windows: Windows, start: int, n: int) -> int:
     return int(np.bitwise_or.reduce(windows.truth_fault[max(start - 1, 0) : start + n])) if len(windows) else 0
 
 
+def receiver_faults_before(windows: Windows, start: int) -> int:
+    """Fault bits of the receiver's fixes the estimators would start an outage at ``start`` from
+    (the window before it)."""
+    return int(windows.receiver_fault[start - 1]) if 1 <= start <= len(windows) else 0
+
+
+def _starts_ok(windows: Windows) -> np.ndarray:
+    """Per window, whether the receiver gives an outage starting there a fix to start from."""
+    return np.concatenate([[False], windows.receiver_ok[:-1]]) if len(windows) else np.zeros(0, dtype=bool)
+
+
 def excluded_by_truth(windows: Windows, n: int, place: Callable[[Windows], np.ndarray]) -> int:
-    """How many outages ``place`` would have put where the GNSS truth is bad."""
-    if windows.truth_ok.all():
+    """How many outages ``place`` would have put where the GNSS truth is bad or the receiver had no
+    fix at their start."""
+    if windows.truth_ok.all() and windows.receiver_ok.all():
         return 0
     try:
         starts = place(windows.ignoring_truth())
     except InputError:
         return 0
-    return sum(1 for k in starts if truth_faults_near(windows, int(k), n))
+    return sum(1 for k in starts if truth_faults_near(windows, int(k), n) or receiver_faults_before(windows, int(k)))
 
 
 def valid_start(windows: Windows, start: int, n: int) -> bool:
     """Whether an ``n``-window outage can start at window ``start``."""
-    return any(a <= start and start + n <= b for a, b in _segment_ranges(windows))
+    return bool(_starts_ok(windows)[start]) and any(a <= start and start + n <= b for a, b in _segment_ranges(windows)) \
+        if 0 <= start < len(windows) else False
 
 
 def tile(windows: Windows, n: int) -> np.ndarray:
@@ -100,8 +117,17 @@ def every(windows: Windows, n: int, period: int) -> np.ndarray:
     """An ``n``-window outage every ``period`` windows (``period >= n``; equal: tiled)."""
     if period < n:
         raise InputError(f"outage period {period} s is shorter than the outage ({n} s)", "choose a period at least as long as the outage", param="placement")
-    starts = [np.arange(a, b - n + 1, period) for a, b in _segment_ranges(windows)]
-    return np.concatenate(starts).astype(int) if starts else np.zeros(0, dtype=int)
+    ok = _starts_ok(windows)
+    starts: list[int] = []
+    for a, b in _segment_ranges(windows):
+        k = a
+        while k + n <= b:
+            if ok[k]:
+                starts.append(k)
+                k += period
+            else:  # the receiver has no fix here: the next start after its loss
+                k += 1
+    return np.asarray(starts, dtype=int)
 
 
 def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
@@ -109,11 +135,19 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
     starts = []
     for t in sorted(times_s):
         k = int(np.argmin(np.abs(windows.t0_s - t))) if len(windows) else -1
-        faults = truth_faults_near(windows, k, n) if k >= 0 and abs(windows.t0_s[k] - t) <= 1.0 else 0
+        near = k >= 0 and abs(windows.t0_s[k] - t) <= 1.0
+        faults = truth_faults_near(windows, k, n) if near else 0
         if faults and valid_start(windows.ignoring_truth(), k, n):
             raise InputError(
                 f"start time {t:g} s: the GNSS truth of that {n} s outage is not trustworthy ({', '.join(fault_names(faults))})",
                 "choose a time where the fixes are good (the recording's gnss/quality timeline shows them)",
+                param="placement",
+            )
+        lost = receiver_faults_before(windows, k) if near else 0
+        if lost and valid_start(windows.ignoring_truth(), k, n):
+            raise InputError(
+                f"start time {t:g} s: the receiver has no trustworthy fix to start that outage from ({', '.join(fault_names(lost))})",
+                "choose a time where the receiver has fixes (the recording's gnss/receiver timeline shows them)",
                 param="placement",
             )
         if k < 0 or not valid_start(windows, k, n) or abs(windows.t0_s[k] - t) > 1.0:
@@ -132,6 +166,7 @@ def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
     """``count`` non-overlapping ``n``-window outages drawn uniformly (seeded; :class:`Random` checks both)."""
     rng = np.random.default_rng(seed)
     candidates = np.concatenate([np.arange(a, b - n + 1) for a, b in _segment_ranges(windows)] or [np.zeros(0, int)])
+    candidates = candidates[_starts_ok(windows)[candidates]]
     chosen: list[int] = []
     for k in rng.permutation(candidates):
         if all(abs(int(k) - c) >= n for c in chosen):

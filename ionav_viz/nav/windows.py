@@ -23,6 +23,11 @@ i.e. ``[t0, t0 + 1 s]``. Per window:
 * ``truth_fault``: the GNSS fault bits (:mod:`ionav_viz.core.gnss_quality`) of every sample the
   window touches (its boundaries are interpolated from); a window with any is not a ground-truth
   window: no outage covers it or starts right after it, and it is never scored.
+* ``receiver_fault``: where the drive has a reference beside its receiver
+  (:attr:`Drive.has_reference <ionav_viz.core.drive.Drive.has_reference>`), the same bits of the
+  receiver's fixes, the GNSS the estimators are given. An outage starts from the receiver's state at
+  its start: no outage starts right after a window whose receiver fixes are faulty (inside a loss
+  of the receiver there is no fix to start from, only one interpolated across the loss).
 """
 
 from __future__ import annotations
@@ -62,12 +67,15 @@ class Windows:
     accel_mps2: np.ndarray  # (n, steps + 1)
     gyro_radps: np.ndarray  # (n, steps + 1)
     truth_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = good truth
+    receiver_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = a fix to start from
     #: the first window an outage may start at: the filters' warm-up (:meth:`after_warm_up`)
     first_start: int = 0
 
     def __post_init__(self) -> None:
         if self.truth_fault is None:
             self.truth_fault = np.zeros(len(self.t0_s), dtype=np.uint16)
+        if self.receiver_fault is None:
+            self.receiver_fault = np.zeros(len(self.t0_s), dtype=np.uint16)
 
     def __len__(self) -> int:
         return len(self.t0_s)
@@ -77,9 +85,16 @@ class Windows:
         """Whether each window's boundary fixes are trustworthy ground truth."""
         return self.truth_fault == 0
 
+    @property
+    def receiver_ok(self) -> np.ndarray:
+        """Whether each window's boundary fixes of the receiver (the estimators' GNSS) are good."""
+        return self.receiver_fault == 0
+
     def ignoring_truth(self) -> Windows:
-        """The same windows with every one taken as good truth (to count what bad truth excluded)."""
-        return replace(self, truth_fault=np.zeros(len(self), dtype=np.uint16))
+        """The same windows with every one taken as good truth and good receiver fixes (to count
+        what bad truth and the receiver's losses excluded)."""
+        good = np.zeros(len(self), dtype=np.uint16)
+        return replace(self, truth_fault=good, receiver_fault=good)
 
     def after_warm_up(self, warm_up_s: float) -> Windows:
         """The same windows, outages placed only after ``warm_up_s`` of windows with good GNSS: the
@@ -164,7 +179,8 @@ def make_windows(
     steps = int(round(rate_hz * WINDOW_S))
     heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps, drive.t_s)
     heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad")}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad", "rx")}
+    receiver_fault = drive.receiver_fault if drive.has_reference and drive.receiver_fault is not None else None
     n_windows = []
     for seg_id, (i0, i1) in enumerate(segments(drive.t_s, max_gap_s)):
         t = drive.t_s[i0:i1]
@@ -183,6 +199,8 @@ def make_windows(
         parts["hdg"].append(on_grid(heading_unwrapped)[::steps])
         parts["spd"].append(on_grid(drive.speed_mps)[::steps])
         parts["bad"].append(faults_between(t, drive.gnss_fault[i0:i1], grid[:-1:steps], grid[steps::steps]))
+        if receiver_fault is not None:
+            parts["rx"].append(faults_between(t, receiver_fault[i0:i1], grid[:-1:steps], grid[steps::steps]))
         acc = imu_on_grid(t, drive.accel_long_mps2[i0:i1], grid)
         gyr = imu_on_grid(t, drive.yaw_rate_radps[i0:i1], grid)
         # Window w uses grid points steps*w .. steps*w + steps (shared boundary points).
@@ -223,4 +241,5 @@ def make_windows(
         accel_mps2=np.concatenate(parts["acc"]),
         gyro_radps=np.concatenate(parts["gyr"]),
         truth_fault=np.concatenate(parts["bad"]),
+        receiver_fault=np.concatenate(parts["rx"]) if parts["rx"] else None,
     )

@@ -263,6 +263,10 @@ def _log_signals(layers: Layers, drive) -> None:
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
     send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
+    if drive.has_reference and drive.receiver_fault is not None:  # the estimators' GNSS, beside the truth
+        lost = _receiver_states(drive.receiver_fault)
+        change = np.concatenate([[True], lost[1:] != lost[:-1]])
+        send(ent.GNSS_RECEIVER, t[change], rr.StateChange.columns(state=[str(q) for q in lost[change]]))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send(ent.SPEED, t, rr.Scalars.columns(scalars=drive.speed_mps))
@@ -355,6 +359,14 @@ def _quality_states(fault: np.ndarray) -> np.ndarray:
     states = np.full(len(fault), ent.GOOD_TRUTH_STATE, dtype=object)
     for mask in np.unique(fault[fault != 0]):
         states[fault == mask] = ent.bad_truth_state(fault_names(int(mask)))
+    return states
+
+
+def _receiver_states(fault: np.ndarray) -> np.ndarray:
+    """Per sample "fix" or why the receiver has none to trust ("lost: no-fix")."""
+    states = np.full(len(fault), ent.RECEIVER_FIX_STATE, dtype=object)
+    for mask in np.unique(fault[fault != 0]):
+        states[fault == mask] = ent.receiver_state(fault_names(int(mask)))
     return states
 
 
