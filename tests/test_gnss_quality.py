@@ -288,7 +288,7 @@ def test_an_outage_asked_for_where_the_receiver_has_no_fix_is_refused_and_the_re
     path, drive, _ = receiver_lost
     t, lost = drive.t_s, drive.receiver_fault != 0
     edges = np.diff(np.concatenate([[0], lost.astype(int), [0]]))
-    a, b = next((a, b) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True) if 40.0 < t[a] and t[b - 1] - t[a] > 3.0)
+    a = next(a for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True) if t[a] > 40.0 and t[b - 1] - t[a] > 3.0)
     at = round(float(t[a]) + 2.0)
     args = ("--truth-topic", "/truth/fix", "--imu-mount", "auto", "--vehicle-speed-topic", "none", "--no-idnn")
     proc = run_cli("replay", str(path), *args, "--at", str(at), "-o", str(tmp_path / "x.rrd"))
