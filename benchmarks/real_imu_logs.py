@@ -73,7 +73,7 @@ def row(result: dict) -> str:
         return "–" if value is None else f"{value:.1f} %"
 
     ten = cells.get("10", {})
-    others = {k: v for k, v in ten.items() if k not in ("gins", "ins", "outages") and v is not None}
+    others = {k: v for k, v in ten.items() if k not in ("gins", "ins", "outages", "why") and v is not None}
     best = min(others, key=others.get) if others else None
     best_text = f"{best} {others[best]:.1f} %" if best else "–"
     return (f"| {result['log']} | {pct('10', 'gins')} | {pct('30', 'gins')} | {pct('60', 'gins')} | "
