@@ -17,16 +17,19 @@ import tempfile
 import time
 from pathlib import Path
 
+from _cli import add_debug, existing_folder, run
+
 import ionav_viz as iv
 from ionav_viz.analysis.exports import export_results
 from ionav_viz.sim.simulate import write_simulated_drive
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--hours", type=float, default=3.5)
     parser.add_argument("--dir", default=None, help="where to write (default: the system's temporary folder); e.g. /dev/shm to leave the disk out")
     args = parser.parse_args()
+    existing_folder(args.dir, "--dir")
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         folder = Path(tmp)
         csv = write_simulated_drive(folder / "V-long.csv", "motorway", seed=7, duration_s=args.hours * 3600.0)
@@ -49,4 +52,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

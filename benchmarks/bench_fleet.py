@@ -36,6 +36,8 @@ import threading
 import time
 from pathlib import Path
 
+from _cli import add_debug, output_folder, run
+
 SCENARIOS = ("motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering")
 
 
@@ -105,7 +107,7 @@ def run_mode(args: list[str], sample_memory: bool = False) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--drives", type=int, default=40)
     parser.add_argument("--minutes", type=float, default=30.0)
     parser.add_argument("--workers", type=int, default=2)
@@ -118,6 +120,7 @@ def main() -> None:
         folder, pattern, workers, cluster = args.child
         child(Path(folder), pattern, int(workers), None if cluster == "-" else cluster)
         return
+    output_folder(args.folder, "--folder")
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.folder or Path(tmp)
         make_fleet(folder, args.drives, args.minutes)
@@ -145,4 +148,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

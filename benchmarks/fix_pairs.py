@@ -2,15 +2,18 @@
 Doppler speed) and as a ROS 2 MCAP with NavSatFix only at 1, 5, 10 and 20 Hz (0.15 m white fix
 noise, 1e-7 deg rounding, 2 % duplicated fixes, +-4 ms jitter; tests/mcap_fixtures.write_fix_only).
 
-    python benchmarks/fix_pairs.py [SCENARIO ...]
+    python benchmarks/fix_pairs.py [SCENARIO ...] [--debug]
 
 Prints per pair: the RMS of the per-window GNSS yaw rate against the logger's course, the INS and
 IDNN mean displacement CRSE (CSV -> MCAP), the INS orientation-rate CRSE and the event counts
-that differ. The README's table "Logs without a velocity topic" comes from it.
+that differ. The README's table "Logs without a velocity topic" comes from it. A SCENARIO is a
+bundled drive's name or an IO-VNBD CSV file; one that is neither stops it before any work (one
+line naming it, exit code 2).
 """
 
 from __future__ import annotations
 
+import argparse
 import logging
 import sys
 import tempfile
@@ -18,6 +21,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, check_logs, run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
@@ -30,7 +34,7 @@ from tests.mcap_fixtures import write_fix_only
 DEFAULT = ("V-sim-motorway", "V-sim-roundabout", "V-sim-quick-accel", "V-sim-hard-brake", "V-sim-sharp-cornering")
 
 
-def main(scenarios: list[str]) -> None:
+def measure(scenarios: list[str]) -> None:
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     print(f"{'drive':22s} {'Hz':>3s} {'yaw RMS':>8s} {'INS CRSE m':>18s} {'IDNN CRSE m':>18s} {'INS yaw CRSE':>20s}  events differing")
     with tempfile.TemporaryDirectory() as tmp:
@@ -56,5 +60,14 @@ def main(scenarios: list[str]) -> None:
                 print(f"{scenario:22s} {hz:3d} {rms:8.4f} {cells[0]:>18s} {cells[1]:>18s} {cells[2]:>20s}  {differ or '-'}", flush=True)
 
 
+def main() -> None:
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
+    parser.add_argument("scenarios", nargs="*", default=list(DEFAULT), metavar="SCENARIO",
+                        help="bundled drives or IO-VNBD CSV files (default: the five bundled test drives)")
+    args = parser.parse_args()
+    check_logs(args.scenarios)
+    measure(args.scenarios)
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:] or list(DEFAULT))
+    run(main)

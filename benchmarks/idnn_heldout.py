@@ -25,6 +25,7 @@ import json
 import tempfile
 from pathlib import Path
 
+from _cli import add_debug, output_file, run
 from results_table import command_line, held_out_drives, machine, wrap, write_atomically  # the same held-out cars as docs/results.md
 
 import ionav_viz as iv
@@ -91,14 +92,13 @@ def page(rows: list[tuple[str, str, list[tuple[float, float]]]], seeds: list[int
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--seeds", type=int, nargs="*", default=[1, 2, 3], help="training seeds to retrain with")
     parser.add_argument("--minutes", type=float, default=10.0, help="length of each held-out drive")
     parser.add_argument("--seed-base", type=int, default=800, help="seed of the first held-out drive")
     parser.add_argument("--write", metavar="FILE", type=Path, help="write the complete Markdown page to FILE (atomically) instead of printing")
     args = parser.parse_args()
-    if args.write is not None and not args.write.parent.is_dir():
-        parser.error(f"--write: folder {args.write.parent} does not exist")
+    output_file(args.write, "--write")
 
     shipped = load_model(default_model_dir())
     hyper = json.loads((default_model_dir() / "metadata.json").read_text())["config"]
@@ -127,4 +127,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

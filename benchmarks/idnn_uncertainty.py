@@ -19,6 +19,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, check_model, run
 from results_table import held_out_drives
 
 import ionav_viz as iv
@@ -40,13 +41,14 @@ def final_nees(result) -> np.ndarray:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--model", default=None, help="model directory (default: the shipped model)")
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--seed-base", type=int, default=800)
     parser.add_argument("--lengths", default="10,30")
     parser.add_argument("--bundled", action="store_true", help="the bundled test drives (the training fleet's car) instead")
     args = parser.parse_args()
+    check_model(args.model)
     logging.disable(logging.WARNING)
     lengths = [int(x) for x in args.lengths.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
@@ -68,4 +70,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -11,8 +11,11 @@ wander), the stamps' jitter and gaps,
 the clock offset against the receiver, how late the receiver's speed is against the IMU
 (:mod:`ionav_viz.core.gnss_lag`), the receiver's losses (its cold start and its gaps) and the mount::
 
-    python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--max-sigma-m 13] [--json OUT]
+    python benchmarks/imu_character.py LOG.mcap... [--truth-topic /truth/fix] [--gnss-topic T] [--max-sigma-m 13] [--json OUT] [--debug]
     python benchmarks/imu_character.py --simulated 300   # the simulator's phone and mems grades, 5 min each
+
+A log that is missing or cannot be read, or a ``--json`` that cannot be written, stops it before
+any measurement: one line naming the file, exit code 2 (``--debug``: the traceback).
 """
 
 from __future__ import annotations
@@ -25,8 +28,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, check_logs, output_file, run
 
 import ionav_viz as iv
+from ionav_viz.core.fileio import atomic_write_bytes
 from ionav_viz.core.gnss_quality import GnssLimits
 from ionav_viz.core.runs import true_runs
 from ionav_viz.nav.stillness import drive_still
@@ -208,7 +213,7 @@ SIMULATED = (("phone", "roundabout", 900), ("phone", "sharp-cornering", 901), ("
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("logs", nargs="*", type=Path)
     parser.add_argument("--truth-topic")
     parser.add_argument("--gnss-topic")
@@ -216,12 +221,14 @@ def main() -> None:
     parser.add_argument("--max-sigma-m", type=float, help="trust fixes reporting up to this accuracy (m; a phone's 6-8 m need 13), as real_imu_logs.py")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    print(HEADER)
+    check_logs(args.logs)
+    output_file(args.json, "--json", inputs=args.logs)
     results = []
     limits = GnssLimits() if args.max_sigma_m is None else replace(GnssLimits(), max_sigma_m=args.max_sigma_m)
     read = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", truth_topic=args.truth_topic, gnss_topic=args.gnss_topic, vehicle_speed_topic="none"),
                           gnss_limits=limits)
-    drives = [(iv.load_drive(str(p), read), p) for p in args.logs]
+    drives = [(iv.load_drive(str(p), read), p) for p in args.logs]  # every log read before the table starts
+    print(HEADER)
     with tempfile.TemporaryDirectory() as tmp:
         if args.simulated:
             from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
@@ -235,8 +242,8 @@ def main() -> None:
             results.append(m)
             print(row(m), flush=True)
     if args.json:
-        args.json.write_text(json.dumps(results, indent=1, default=float))
+        atomic_write_bytes(args.json, json.dumps(results, indent=1, default=float).encode())
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

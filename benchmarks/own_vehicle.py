@@ -29,6 +29,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, output_file, run
 from results_table import command_line, machine, replace_section, wrap, write_atomically
 
 import ionav_viz as iv
@@ -180,7 +181,7 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(1)
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--minutes", type=float, default=5.0, help="length of each test drive")
     parser.add_argument("--tune-span", default="0s:60s", help="the minute of each 2-minute fine-tuning drive trained on")
     parser.add_argument("--write", type=Path, help="write the Markdown page here instead of printing the table")
@@ -190,6 +191,7 @@ def main() -> None:
     seeds = tuple(int(s) for s in args.cars.split(","))
     if args.write and seeds != REPORTED_CARS:
         parser.error("--write reports the cars in REPORTED_CARS only")
+    output_file(args.write, "--write")  # before the hour of training: a folder that is not there is one line, exit code 2
     rows = []
     with tempfile.TemporaryDirectory(prefix="own-vehicle-") as tmp:
         for index, (label, sensors) in enumerate(cars(seeds)):
@@ -209,4 +211,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -5,10 +5,14 @@ Give your local copies of the logs (MCAP, ROS bags: what ``ionav-viz evaluate`` 
 is downloaded and no data is committed. Where the logs came from and their measured statistics
 are in ``docs/real-imu-logs.md``; that page's table was made with this script::
 
-    python benchmarks/real_imu_logs.py LOG.mcap... [--truth-topic /truth/fix] [--max-sigma-m 13] [--json OUT]
+    python benchmarks/real_imu_logs.py LOG.mcap... [--truth-topic /truth/fix] [--max-sigma-m 13] [--json OUT] [--debug]
 
 Logs with a reference trajectory (``--truth-topic``) are scored against it; the others against
 their receiver's fixes (then ``--max-sigma-m`` lets a phone's 5-10 m fixes count as truth).
+
+A missing log or output folder stops the script before any work (one line, exit code 2); a log its
+reader cannot read gets a row saying why, the other logs are measured (and written to ``--json``),
+and the script ends with that log's error and exit code 2.
 """
 
 from __future__ import annotations
@@ -21,8 +25,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, check_logs, output_file, raise_if_unreadable, run
 
 import ionav_viz as iv
+from ionav_viz.core.fileio import atomic_write_bytes
 from ionav_viz.core.gnss_quality import GnssLimits
 
 ESTIMATORS = ("ins", "idnn", "ekf", "gins")
@@ -41,6 +47,7 @@ def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma
         try:
             d = iv.evaluate([str(path)], length, estimators=list(ESTIMATORS), read=read, run=run).to_dict()
         except iv.InputError as exc:  # e.g. no outage of that length fits the log
+            raise_if_unreadable([path], read)  # not when the log itself cannot be read: its reader's error
             out["lengths"][f"{length:g}"] = {"outages": 0, "why": str(exc)}
             continue
         cell = {"outages": d["n_sequences"]}
@@ -66,7 +73,7 @@ def row(result: dict) -> str:
         return "–" if value is None else f"{value:.1f} %"
 
     ten = cells.get("10", {})
-    others = {k: v for k, v in ten.items() if k not in ("gins", "ins", "outages") and v is not None}
+    others = {k: v for k, v in ten.items() if k not in ("gins", "ins", "outages", "why") and v is not None}
     best = min(others, key=others.get) if others else None
     best_text = f"{best} {others[best]:.1f} %" if best else "–"
     return (f"| {result['log']} | {pct('10', 'gins')} | {pct('30', 'gins')} | {pct('60', 'gins')} | "
@@ -74,7 +81,7 @@ def row(result: dict) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("logs", nargs="+", type=Path)
     parser.add_argument("--lengths", default="10,30,60", help="outage lengths (s), comma-separated")
     parser.add_argument("--truth-topic", help="a reference trajectory's topic (NavSatFix), when the logs carry one")
@@ -83,10 +90,12 @@ def main() -> None:
     parser.add_argument("--warm-up", type=float, default=30.0, help="GNSS time before the first outage (s)")
     parser.add_argument("--json", type=Path, help="also write every number as JSON here")
     args = parser.parse_args()
+    check_logs(args.logs)
+    output_file(args.json, "--json", inputs=args.logs)
     lengths = [float(x) for x in args.lengths.split(",")]
     print("| log | `gins` 10 s | 30 s | 60 s | INS DR 10 s / 30 s | best other at 10 s | outages (10 s) |")
     print("|---|---|---|---|---|---|---|")
-    results = []
+    results, unread = [], []
     for path in args.logs:
         start = time.perf_counter()
         try:
@@ -94,14 +103,19 @@ def main() -> None:
                              args.warm_up)
         except iv.InputError as exc:
             print(f"| {path.name} | {exc} |||||", flush=True)
+            unread.append(exc)
             continue
         result["seconds"] = round(time.perf_counter() - start, 1)
         results.append(result)
         print(row(result), flush=True)
     if args.json:
-        args.json.write_text(json.dumps(results, indent=1, default=float))
+        atomic_write_bytes(args.json, json.dumps(results, indent=1, default=float).encode())
     print(f"\n{sys.version.split()[0]}, ionav-viz {iv.__version__}", file=sys.stderr)
+    if unread:
+        first = unread[0]
+        raise iv.InputError(first.message if len(unread) == 1 else f"{len(unread)} of {len(args.logs)} logs could not be measured; first {first.message}",
+                            first.hint)
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

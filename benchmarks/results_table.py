@@ -22,7 +22,9 @@ hilly set uses a steeper grade than the CLI's).
 Outages tile each drive. Each cell is a mean over the outages of a set of drives: the final position
 error as a percentage of the distance driven in the outage, and the displacement CRSE (m).
 ``--write FILE`` writes a complete Markdown page atomically: under a temporary name beside FILE,
-renamed when complete.
+renamed when complete. ``--real-logs``, ``--model`` and ``--write`` are checked before any
+measurement: a missing or malformed file is one line naming it (and the entry and field), exit
+code 2 (``--debug``: the traceback).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, check_model, named, output_file, read_json, run
 
 import ionav_viz as iv
 from ionav_viz.dataset.catalog import SCENARIOS
@@ -267,14 +270,40 @@ def wrap(markdown: str, width: int = 100) -> str:
     return "\n\n".join(out).replace("\u00a0", " ") + "\n"
 
 
-def real_rows(paths: list[Path], lengths: list[float]) -> str:
-    """The real logs measured by ``benchmarks/real_imu_logs.py --json`` (on the user's local copies),
-    in the overview's shape, for the page's "Real logs" section."""
-    import json
+REAL_LOGS_HINT = "give the file 'python benchmarks/real_imu_logs.py LOG... --json FILE' writes"
 
-    lines = ["| outage | " + " | ".join(r["log"].removesuffix(".mcap") for p in paths for r in json.loads(p.read_text())) + " |",
-             "|---|" + "---|" * sum(len(json.loads(p.read_text())) for p in paths)]
-    results = [r for p in paths for r in json.loads(p.read_text())]
+
+def read_real_logs(paths: list[Path]) -> list[dict]:
+    """The results in the ``benchmarks/real_imu_logs.py --json`` files ``paths``, in order, checked
+    (before any measurement): per file a list of one object per log, its ``log`` name and per
+    outage length an object of counts and numbers (null where none), its ``why`` text aside."""
+    results = []
+    with named("--real-logs"):
+        for path in paths:
+            data = read_json(path, "--real-logs", what="the results of benchmarks/real_imu_logs.py --json", hint=REAL_LOGS_HINT)
+            if not isinstance(data, list) or not data:
+                what = "an empty list" if isinstance(data, list) else "a JSON " + {dict: "object", str: "string", bool: "true or false",
+                                                                                   type(None): "null"}.get(type(data), "number")
+                raise iv.InputError(f"{path}: {what}, not a list of logs' results", REAL_LOGS_HINT)
+            for i, result in enumerate(data, 1):
+                if not isinstance(result, dict) or not isinstance(result.get("log"), str) or not isinstance(result.get("lengths"), dict):
+                    raise iv.InputError(f"{path}: entry {i} is not a log's results (a 'log' name and a 'lengths' object)", REAL_LOGS_HINT)
+                for length, cell in result["lengths"].items():
+                    where = f"{path}: entry {i} ({result['log']}): lengths[{length!r}]"
+                    if not isinstance(cell, dict):
+                        raise iv.InputError(f"{where} is {cell!r}, not an object", REAL_LOGS_HINT)
+                    for key, value in cell.items():
+                        if key != "why" and value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                                                   or not np.isfinite(value)):
+                            raise iv.InputError(f"{where}[{key!r}] is {value!r}, not a number", REAL_LOGS_HINT)
+            results += data
+    return results
+
+
+def real_rows(results: list[dict], lengths: list[float]) -> str:
+    """The real logs measured by ``benchmarks/real_imu_logs.py --json`` (on the user's local copies;
+    :func:`read_real_logs`), in the overview's shape, for the page's "Real logs" section."""
+    lines = ["| outage | " + " | ".join(r["log"].removesuffix(".mcap") for r in results) + " |", "|---|" + "---|" * len(results)]
     for length in lengths:
         cells = []
         for r in results:
@@ -301,7 +330,7 @@ def consistency_table(labels: dict[str, str], cells: dict[tuple[str, float], Cel
 
 
 def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float], minutes: float, seed_base: int,
-         model: str | None, real: list[Path] | None = None) -> str:
+         model: str | None, real: list[dict] | None = None) -> str:
     day = datetime.datetime.now(datetime.UTC).date().isoformat()
     model_text = f"the IDNN model in `{model}`" if model else "the shipped IDNN model"
     return wrap("\n".join([
@@ -370,7 +399,7 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--model", help="IDNN model directory (default: the shipped one)")
     parser.add_argument("--minutes", type=float, default=10.0, help="length of each drive")
     parser.add_argument("--seed-base", type=int, default=800, help="seed of the first held-out drive")
@@ -386,8 +415,9 @@ def main() -> None:
         parser.error("--sets: the page needs every set; print the tables instead")
     if sets is not None and (unknown := set(sets) - set(set_titles())):
         parser.error(f"--sets: unknown {', '.join(sorted(unknown))}; choose from {', '.join(set_titles())}")
-    if args.write is not None and not args.write.parent.is_dir():
-        parser.error(f"--write: folder {args.write.parent} does not exist")
+    output_file(args.write, "--write")
+    real = read_real_logs(args.real_logs)
+    check_model(args.model)
     lengths = [float(x) for x in args.lengths.split(",")]
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     labels, cells = measure(args.model, args.minutes, args.seed_base, lengths, sets)
@@ -395,10 +425,10 @@ def main() -> None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths), end="")
     else:
         kept = kept_section(args.write)  # the own-vehicle section, written by benchmarks/own_vehicle.py
-        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, args.real_logs)
+        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, real)
                          + ("\n" + kept if kept else ""))
         print(args.write)
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

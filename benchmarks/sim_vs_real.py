@@ -4,12 +4,15 @@ forced to the full 3D mechanisation (without the history arbiter, which could ha
 simulator's phone and dash sets (benchmarks/results_table.py's drives): final position error as a
 share of the distance driven, mean over the outages tiled after the 30 s warm-up, IMU only::
 
-    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated [--scored-on-fixes] [--per-drive]] [--minutes 10]
+    python benchmarks/sim_vs_real.py [LOG.mcap...] [--truth-topic T] [--gnss-topic T] [--max-sigma-m 13] [--simulated [--scored-on-fixes] [--per-drive]] [--minutes 10] [--debug]
 
 Read each real log with the options benchmarks/real_imu_logs.py takes for it (one kind per run).
 The simulated sets are scored against their reference trajectory; with ``--scored-on-fixes``
 against their receiver's fixes, as the real logs without a reference are (``--max-sigma-m 13``):
 the same measurement on both.
+
+A missing log stops it before any work, a log its reader cannot read when it is reached: one line
+naming the file, exit code 2 (``--debug``: the traceback).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, check_logs, raise_if_unreadable, run
 
 import ionav_viz as iv
 from ionav_viz.core.gnss_quality import GnssLimits
@@ -42,6 +46,7 @@ def mean_pcts(paths: list[str], estimators: list, length: float, read: iv.ReadOp
     try:
         rep = iv.evaluate(paths, length, estimators=list(estimators), read=read).to_dict()
     except iv.InputError:  # no outage of that length fits
+        raise_if_unreadable(paths, read)  # not when a log cannot be read at all: its reader's error
         return dict.fromkeys(names)
     out: dict[str, float | None] = {}
     for name in names:
@@ -74,7 +79,7 @@ def drive_row(title: str, path: str, read: iv.ReadOptions) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("logs", nargs="*", type=Path)
     parser.add_argument("--truth-topic")
     parser.add_argument("--gnss-topic")
@@ -86,6 +91,7 @@ def main() -> None:
     parser.add_argument("--scored-on-fixes", action="store_true",
                         help="score the simulated sets against their receiver's fixes (max sigma 13 m), as the real logs without a reference")
     args = parser.parse_args()
+    check_logs(args.logs)
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     if args.per_drive:
         print("| drive | `gins` / INS DR 10 s | 30 s | 60 s |\n|---|---|---|---|")
@@ -116,4 +122,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -22,6 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _cli import add_debug, check_logs, run
+
 
 def rss_mb() -> float:
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -78,11 +80,12 @@ def soak_in_process(runs: int, drive: str, out: Path) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = add_debug(argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter))
     parser.add_argument("--runs", type=int, default=100)
-    parser.add_argument("--drive", default="roundabout")
+    parser.add_argument("--drive", default="roundabout", help="a bundled scenario or a log's file or folder")
     parser.add_argument("--in-process", action="store_true", help="replay inside this process instead of one process per run")
     args = parser.parse_args()
+    check_logs([args.drive], "--drive")
 
     processes_before, temp_before = our_processes(), temp_entries()
     with tempfile.TemporaryDirectory(prefix="soak-") as out_dir:
@@ -97,4 +100,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

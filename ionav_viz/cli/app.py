@@ -124,6 +124,15 @@ def one_line(text: str) -> str:
     return " ".join(text.split()) if "\n" in text or "\r" in text else text
 
 
+def input_error_line(exc: InputError, options: Mapping[str, str] = OPTION_OF) -> str:
+    """The one line an :class:`InputError` is printed as (exit code 2): ``error: OPTION: message
+    (hint: ...)``, the option the error's ``option`` names, else the one ``options`` maps its
+    ``param`` to (a script with options of its own gives its own map, or none)."""
+    option = exc.option or options.get(exc.param or "")
+    text = f"{option}: {exc}" if option and not exc.message.startswith(option) else str(exc)
+    return f"error: {one_line(text)}"
+
+
 def _silence_stdout() -> None:
     """Point standard output at /dev/null (Python's advice for a closed pipe: exit quietly)."""
     import os
@@ -159,9 +168,7 @@ def main() -> None:
     except InputError as exc:
         if debug:
             raise
-        option = exc.option or OPTION_OF.get(exc.param or "")
-        text = f"{option}: {exc}" if option and not exc.message.startswith(option) else str(exc)
-        print(f"error: {one_line(text)}", file=sys.stderr)
+        print(input_error_line(exc), file=sys.stderr)
         sys.exit(2)
     except ToolFailure as exc:
         if debug:
