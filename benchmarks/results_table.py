@@ -256,6 +256,27 @@ def comparisons(labels: dict[str, str], cells: dict[tuple[str, float], Cell], le
     return "\n".join(lines)
 
 
+def phone_ratio_sentence(cells: dict, real: list[dict], length: float = 10.0) -> str:
+    """"; on the simulated phone set `gins` ends at R of the INS DR's error after 10 s, on these
+    real phones at A-B of it", measured: the simulated set's pooled means and each real phone log's
+    (a log with "phone" or a meszdav/cmu name: the dash device is another grade); "" without them."""
+    cell = cells.get(("phone-urban", length))
+    if cell is None:
+        return ""
+    g, i = cell.mean("gins", "pct"), cell.mean("ins", "pct")
+    if g is None or not i:
+        return ""
+    text = f"; on the simulated phone set `gins` ends at {g / i:.2f} of the INS DR's error after {length:g} s"
+    ratios = []
+    for r in real:
+        c = r.get("lengths", {}).get(f"{length:g}", {})
+        if any(k in str(r.get("log", "")) for k in ("iphone", "meszdav", "cmu_")) and c.get("gins") and c.get("ins"):
+            ratios.append(c["gins"] / c["ins"])
+    if ratios:
+        text += f", on these real phones at {min(ratios):.2f}-{max(ratios):.2f} of it"
+    return text
+
+
 def wrap(markdown: str, width: int = 100) -> str:
     """Prose paragraphs and bullets wrapped at ``width`` columns; headings and tables as they are."""
     out = []
@@ -389,8 +410,7 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
             "rank the estimators alike: `gins` against the INS DR on the phone sets above and on these phones. Seven more "
             "logs, held out (no constant fitted to them; one rule of gins's arbiter and its heading re-set written after seeing "
             "them), are tabled there: on them `gins` is above the INS DR in 7 cells of 21 (3 of them on one 3-minute drive), "
-            "which the simulated sets do not predict; on the simulated phone set `gins` ends at 0.71 of the INS DR's error "
-            "after 10 s, on these real phones at 0.53-0.93 of it.",
+            "which the simulated sets do not predict" + phone_ratio_sentence(cells, real) + ".",
             "",
             real_rows(real, lengths),
             "",
