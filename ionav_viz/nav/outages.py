@@ -147,7 +147,7 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
         if lost and valid_start(windows.ignoring_truth(), k, n):
             raise InputError(
                 f"start time {t:g} s: the receiver has no trustworthy fix to start that outage from ({', '.join(fault_names(lost))})",
-                "choose a time where the receiver has fixes (the recording's gnss/receiver timeline shows them)",
+                "choose a time where the receiver has fixes (the recording's gnss/state timeline shows where it lost them)",
                 param="placement",
             )
         if k < 0 or not valid_start(windows, k, n) or abs(windows.t0_s[k] - t) > 1.0:

@@ -217,7 +217,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     )
     signals = rrb.Vertical(
         rrb.TextDocumentView(origin=ent.KEY, name="Key", titlebar=False),
-        rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.GNSS_RECEIVER, ent.EVENTS_STATE],
+        rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
                               name="GNSS, outages, manoeuvres"),
         plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),

@@ -24,8 +24,6 @@ OUTAGE_EPS_S = 1e-3
 
 GNSS_STATE = "gnss/state"
 GNSS_QUALITY = "gnss/quality"
-#: The receiver's own fixes beside a reference (what the estimators are given): ``fix`` or ``lost: no-fix``.
-GNSS_RECEIVER = "gnss/receiver"
 GNSS_AVAILABLE = "gnss/available"
 EVENTS_STATE = "events/state"
 SUMMARY = "summary"
@@ -223,13 +221,10 @@ def bad_truth_state(fault_names: list[str]) -> str:
     return "bad: " + ", ".join(fault_names)
 
 
-def receiver_state(fault_names: list[str]) -> str:
-    """``gnss/receiver`` of a sample without a trusted fix of the receiver (``fix`` where it has one)."""
-    return "lost: " + ", ".join(fault_names) if fault_names else RECEIVER_FIX_STATE
-
-
-#: ``gnss/receiver`` where the receiver has a trusted fix.
-RECEIVER_FIX_STATE = "fix"
+def receiver_lost_state(fault_names: list[str]) -> str:
+    """``gnss/state`` of a window where the receiver beside a reference (the estimators' GNSS) has
+    no fix to trust, outside the outages: ``receiver lost: no-fix``."""
+    return "receiver lost: " + ", ".join(fault_names)
 
 
 def event_state(event_type: str, number: int) -> str:
@@ -244,7 +239,7 @@ PATTERNS = (
     *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
     *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
     inspect_position("<est>"), INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
-    GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, GNSS_RECEIVER, ACCEL, SPEED,
+    GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),
     *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),

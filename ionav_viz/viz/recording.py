@@ -263,10 +263,6 @@ def _log_signals(layers: Layers, drive) -> None:
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
     send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
-    if drive.has_reference and drive.receiver_fault is not None:  # the estimators' GNSS, beside the truth
-        lost = _receiver_states(drive.receiver_fault)
-        change = np.concatenate([[True], lost[1:] != lost[:-1]])
-        send(ent.GNSS_RECEIVER, t[change], rr.StateChange.columns(state=[str(q) for q in lost[change]]))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send(ent.SPEED, t, rr.Scalars.columns(scalars=drive.speed_mps))
@@ -274,7 +270,7 @@ def _log_signals(layers: Layers, drive) -> None:
 
 def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarray]:
     """Per window: the GNSS truth's displacement and yaw rate, GNSS availability and the outage
-    state. Returns each window's end time and the outage windows' indices (outage, window)."""
+    state (where a receiver beside a reference has lost the sky outside the outages, that too). Returns each window's end time and the outage windows' indices (outage, window)."""
     import rerun as rr
 
     w, starts, n_win = result.windows, result.starts, result.n_windows
@@ -291,6 +287,8 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
     t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
     send(ent.GNSS_AVAILABLE, t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
     states = np.full(len(w), ent.GNSS_AVAILABLE_STATE, dtype=object)
+    for mask in np.unique(w.receiver_fault[w.receiver_fault != 0]):  # beside a reference: the estimators' GNSS lost
+        states[w.receiver_fault == mask] = ent.receiver_lost_state(fault_names(int(mask)))
     for i, k in enumerate(starts):
         states[k : k + n_win] = ent.outage_state(i + 1, w.t0_s[k], w.t0_s[k] + n_win)
     for b in result.bridged:
@@ -359,14 +357,6 @@ def _quality_states(fault: np.ndarray) -> np.ndarray:
     states = np.full(len(fault), ent.GOOD_TRUTH_STATE, dtype=object)
     for mask in np.unique(fault[fault != 0]):
         states[fault == mask] = ent.bad_truth_state(fault_names(int(mask)))
-    return states
-
-
-def _receiver_states(fault: np.ndarray) -> np.ndarray:
-    """Per sample "fix" or why the receiver has none to trust ("lost: no-fix")."""
-    states = np.full(len(fault), ent.RECEIVER_FIX_STATE, dtype=object)
-    for mask in np.unique(fault[fault != 0]):
-        states[fault == mask] = ent.receiver_state(fault_names(int(mask)))
     return states
 
 

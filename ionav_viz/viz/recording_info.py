@@ -51,7 +51,7 @@ class RecordingInfo:
     path: Path
     drive: str
     end_s: float
-    states: list[tuple[float, float, str]]  # (start s, end s, label) of every outage state, real ones too
+    states: list[tuple[float, float, str]]  # (start s, end s, label) of every outage state, real ones too, and receiver losses
     outages: list[OutageInfo]
     lat_deg: np.ndarray  # the GNSS track
     lon_deg: np.ndarray
@@ -158,7 +158,7 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     scan.states.sort()
     spans = []
     for i, (t, label) in enumerate(scan.states):
-        if ent.is_outage_state(label):
+        if label != ent.GNSS_AVAILABLE_STATE:  # outages, and where a receiver beside a reference lost the sky
             nxt = scan.states[i + 1][0] if i + 1 < len(scan.states) else scan.end_s
             spans.append((float(t), float(nxt), label))
     outages = _outages(spans, scan.errors, scan.drawn)
