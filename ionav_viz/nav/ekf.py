@@ -3,7 +3,10 @@
 The filter, its equations and noise values are :mod:`ionav_viz.nav.planar_filter`: it runs over
 the drive with GNSS, and each outage goes on from its state at the outage start without GNSS,
 with a zero-speed update where the IMU shows the car standing (:mod:`ionav_viz.nav.stillness`)
-and its speed never below zero.
+and its speed never below zero. Its position covariance through an outage is the filter's, widened
+where the filter's own past on this drive says it is too sure: its NEES on pseudo-outages over the
+GNSS before each outage (:mod:`ionav_viz.nav.history_check`, as the IDNN's learned one; on the
+simulated phones its noise model, written for a car's IMU, made it 4-7 times too sure).
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from . import history_check
 from .planar_filter import BA, BG, PLANAR_MEASUREMENTS, EkfNoise, forward_pass, increments, measurements
 from .protocol import Estimate, EstimatorInputs, FilterHealth
 
@@ -44,6 +48,7 @@ class EkfEstimator:
         fp = forward_pass(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, noise, keep_log=True)
         xs = fp.xs
         disp, yaw, cov = fp.outages(inputs.starts, inputs.n_windows, inputs.still[..., -1])  # each window's last grid point: where its state ends
+        cov = cov * self._history_scale(fp, inputs)[:, None, None, None]
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",
@@ -52,5 +57,22 @@ class EkfEstimator:
         health = FilterHealth(w.t0_s, PLANAR_MEASUREMENTS, PLANAR_MEASUREMENT_KINDS, fp.log.innovation, fp.log.variance, fp.log.status)
         return Estimate(np.maximum(disp, 0.0), yaw, health=health, pos_cov_m2=0.5 * (cov + np.swapaxes(cov, -1, -2)))
 
+    def _history_scale(self, fp, inputs: EstimatorInputs) -> np.ndarray:
+        """Per outage, how much to widen the filter's covariance: its NEES on pseudo-outages over
+        the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
+        w, n = inputs.windows, inputs.n_windows
+        pseudo = history_check.pseudo_outages(w, n)
+        self._scale_note = ""
+        if not len(pseudo.starts) or not inputs.n_outages:
+            return np.ones(inputs.n_outages)
+        idx = pseudo.starts[:, None] + np.arange(n)[None, :]
+        disp, yaw, cov = fp.outages(pseudo.starts, n, inputs.still_grid[idx][..., -1])
+        nees = history_check.nees_per_dof(w, pseudo.starts, np.maximum(disp, 0.0), yaw, 0.5 * (cov + np.swapaxes(cov, -1, -2)))
+        scale = history_check.history_scale(pseudo.ends, nees, inputs.starts)
+        self._scale_note = (f"x{float(np.median(scale)):.2f} median, x{float(scale.max()):.2f} at most, from its NEES per "
+                                           f"degree of freedom {float(nees.mean()):.2f} on {len(nees)} pseudo-outages over the GNSS")
+        return scale
+
     def describe(self) -> dict[str, Any]:
-        return dict(self._last)
+        note = getattr(self, "_scale_note", "")
+        return dict(self._last) | ({"uncertainty_scale": note} if note else {})
