@@ -42,28 +42,13 @@ def run(main: Callable[[], Any]) -> None:
     debug = "--debug" in sys.argv[1:]
     try:
         main()
-    except InputError as exc:
-        if debug:
-            raise
-        from ionav_viz.cli.app import input_error_line
+    except (InputError, ToolFailure, OSError) as exc:
+        from ionav_viz.cli.app import failure_exit_code
 
-        print(input_error_line(exc, {}), file=sys.stderr)  # {}: the script's options are named by named(), not by the CLI's map
-        sys.exit(2)
-    except ToolFailure as exc:
-        if debug:
+        # {}: the script's options are named by named(), not by the CLI's map
+        if debug or (code := failure_exit_code(exc, {})) is None:
             raise
-        from ionav_viz.cli.app import one_line
-
-        print(f"error: {one_line(str(exc))}", file=sys.stderr)
-        sys.exit(1)
-    except OSError as exc:
-        from ionav_viz.cli.app import one_line
-        from ionav_viz.core.fileio import write_failure
-
-        if debug or (failure := write_failure(exc.filename or "standard output", exc)) is None:
-            raise
-        print(f"error: {one_line(str(failure))}", file=sys.stderr)
-        sys.exit(1)
+        sys.exit(code)
 
 
 @contextmanager

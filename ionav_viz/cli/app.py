@@ -133,6 +133,29 @@ def input_error_line(exc: InputError, options: Mapping[str, str] = OPTION_OF) ->
     return f"error: {one_line(text)}"
 
 
+def failure_exit_code(exc: BaseException, options: Mapping[str, str] = OPTION_OF) -> int | None:
+    """Print the one line of an error the command line reports without a traceback and return its
+    exit code: an :class:`InputError` 2 (:func:`input_error_line`, ``options`` naming the options),
+    a :class:`ToolFailure` or a write that found no room 1; None for any other error (re-raise it).
+    The benchmark scripts share it (benchmarks/_cli.py)."""
+    if isinstance(exc, InputError):
+        print(input_error_line(exc, options), file=sys.stderr)
+        return 2
+    if isinstance(exc, ToolFailure):
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
+        return 1
+    if isinstance(exc, OSError):
+        from ..core.fileio import write_failure
+
+        failure = write_failure(exc.filename or "standard output", exc)
+        if failure is None:
+            return None
+        _silence_stdout()  # what is still buffered would fail again at exit, with a second message
+        print(f"error: {one_line(str(failure))}", file=sys.stderr)
+        return 1
+    return None
+
+
 def _silence_stdout() -> None:
     """Point standard output at /dev/null (Python's advice for a closed pipe: exit quietly)."""
     import os
@@ -165,24 +188,10 @@ def main() -> None:
     except Terminated as exc:
         print(f"terminated ({exc})", file=sys.stderr)
         sys.exit(exc.exit_code)
-    except InputError as exc:
-        if debug:
+    except (InputError, ToolFailure, OSError) as exc:
+        if debug or (code := failure_exit_code(exc)) is None:
             raise
-        print(input_error_line(exc), file=sys.stderr)
-        sys.exit(2)
-    except ToolFailure as exc:
-        if debug:
-            raise
-        print(f"error: {one_line(str(exc))}", file=sys.stderr)
-        sys.exit(1)
-    except OSError as exc:
-        from ..core.fileio import write_failure
-
-        if debug or (failure := write_failure(exc.filename or "standard output", exc)) is None:
-            raise
-        _silence_stdout()  # what is still buffered would fail again at exit, with a second message
-        print(f"error: {one_line(str(failure))}", file=sys.stderr)
-        sys.exit(1)
+        sys.exit(code)
     except Exception as exc:
         # typer's (click's) usage errors: one line too, with the command's --help as the hint
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code") and not debug:
