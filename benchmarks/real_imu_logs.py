@@ -110,11 +110,11 @@ def main() -> None:
         print(row(result), flush=True)
     if args.json:
         atomic_write_bytes(args.json, json.dumps(results, indent=1, default=float).encode())
-    print(f"\n{sys.version.split()[0]}, ionav-viz {iv.__version__}", file=sys.stderr)
     if unread:
         first = unread[0]
         raise iv.InputError(first.message if len(unread) == 1 else f"{len(unread)} of {len(args.logs)} logs could not be measured; first {first.message}",
                             first.hint)
+    print(f"\n{sys.version.split()[0]}, ionav-viz {iv.__version__}", file=sys.stderr)
 
 
 if __name__ == "__main__":

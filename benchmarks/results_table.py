@@ -259,7 +259,8 @@ def comparisons(labels: dict[str, str], cells: dict[tuple[str, float], Cell], le
 def phone_ratio_sentence(cells: dict, real: list[dict], length: float = 10.0) -> str:
     """"; on the simulated phone set `gins` ends at R of the INS DR's error after 10 s, on these
     real phones at A-B of it", measured: the simulated set's pooled means and each real phone log's
-    (a log with "phone" or a meszdav/cmu name: the dash device is another grade); "" without them."""
+    (a log named after the public phone logs tried, iphone, meszdav or cmu: the dash device is another
+    grade); "" without them."""
     cell = cells.get(("phone-urban", length))
     if cell is None:
         return ""

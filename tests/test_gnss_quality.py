@@ -303,3 +303,70 @@ def test_an_outage_asked_for_where_the_receiver_has_no_fix_is_refused_and_the_re
     lost_at = [time for time, s in states if s == "receiver lost: no-fix"]
     assert lost_at  # where no outage covers the loss, from a window that touches it
     assert all(lost[(t >= x - 0.1) & (t <= x + 1.1)].any() for x in lost_at), lost_at
+
+
+def test_the_receivers_own_losses_are_bridged_and_scored_against_the_reference(receiver_lost):
+    """Beside a reference, ``--on gnss-outage`` bridges the receiver's own losses (the GNSS the
+    estimators are given), each from a receiver fix, and scores them against the reference; before,
+    it looked for losses of the reference and found none."""
+    import ionav_viz as iv
+
+    _, drive, _ = receiver_lost
+    t, lost = drive.t_s, drive.receiver_fault != 0
+    edges = np.diff(np.concatenate([[0], lost.astype(int), [0]]))
+    want = [(float(t[a - 1]), float(t[b])) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True)
+            if a > 0 and b < len(t) and t[b] - t[a - 1] >= 2.0]  # from the last good fix to the first after, by hand
+    rep = iv.evaluate([drive], 10, placement=iv.AroundEvents(("gnss-outage",)), estimators=["ins"])
+    g = rep.to_dict()["gnss_outages"]
+    got = [(b["gap_start_s"], b["gap_end_s"]) for b in g["bridged"]]
+    assert len(got) >= 2 and len(got) + g["not_bridged"] == len(want)
+    assert all(any(abs(a0 - w0) < 0.05 and abs(a1 - w1) < 0.05 for w0, w1 in want) for a0, a1 in got), (got, want)
+    for b in g["bridged"]:
+        t0 = b["outage_start_s"]
+        assert not lost[(t >= t0 - 1.1) & (t <= t0 + 0.1)].any()  # from a receiver fix
+        assert t0 <= b["gap_start_s"] and t0 + b["outage_s"] >= b["gap_end_s"]  # through the whole loss
+        assert 0.0 < b["final_error_m"]["ins"] < b["span_m"]
+
+
+def _windows(n: int, receiver_lost: slice | None = None):
+    """``n`` one-second windows of one segment with good truth, the receiver lost over ``receiver_lost``."""
+    from ionav_viz.nav.windows import Windows
+
+    z = np.zeros(n)
+    rx = np.zeros(n, dtype=np.uint16)
+    if receiver_lost is not None:
+        rx[receiver_lost] = GnssFault.NO_FIX
+    return Windows(10.0, np.arange(n, dtype=float), np.zeros(n, dtype=int), z, z, z, z, z, z, z, z, z, np.zeros((n, 11)),
+                   np.zeros((n, 11)), receiver_fault=rx)
+
+
+def test_every_placement_starts_only_after_a_window_with_receiver_fixes():
+    """Windows 25-28 without a receiver fix: by hand, an outage may start at any window but 26-29
+    (each needs the window before it good; window 25 may start, its predecessor is good)."""
+    import ionav_viz as iv
+    from ionav_viz.core.errors import InputError
+    from ionav_viz.nav import outages
+
+    clean, w = _windows(100), _windows(100, slice(25, 29))
+    assert list(outages.tile(clean, 10)) == list(range(1, 91, 10))
+    assert list(outages.tile(w, 10)) == [1, 11, 21, 31, 41, 51, 61, 71, 81]  # 21 covers the loss; on from 31
+    assert list(outages.every(w, 10, 15)) == [1, 16, 31, 46, 61, 76]
+    assert list(outages.every(_windows(100, slice(14, 17)), 10, 15)) == [1, 18, 33, 48, 63, 78]  # 16, 17 wait for 18
+    assert not set(outages.random(w, 10, 6, seed=1)) & {26, 27, 28, 29}
+    assert [outages.valid_start(w, k, 10) for k in (25, 26, 29, 30)] == [True, False, False, True]
+    with pytest.raises(InputError, match="start time 27 s: the receiver has no trustworthy fix to start that outage from"):
+        outages.at(w, [27.0], 10)
+    with pytest.raises(InputError, match=r"outage 1 \(27.000 s after the drive's start\): the receiver has no trustworthy fix"):
+        iv.nav.outages.Planned((27.0,), "a plan").plan(w, 10)
+    # a loss over windows 30-32 where a tile would start at 31: the tiling starts at 34 instead, and
+    # the one outage that could not start as tiled is counted
+    w = _windows(100, slice(30, 33))
+    assert list(outages.tile(w, 10)) == [1, 11, 21, 34, 44, 54, 64, 74, 84]
+    assert outages.excluded_by_truth(w, 10, lambda x: outages.tile(x, 10)) == 1
+
+
+def test_the_warm_up_counts_the_receivers_fixes_beside_a_reference():
+    """The filters warm up on the GNSS they are given: a receiver that starts 10 s cold beside a
+    reference gives them 30 s of fixes only at 40 s (by hand: windows 10-39)."""
+    assert _windows(100).after_warm_up(30.0).first_start == 30
+    assert _windows(100, slice(0, 10)).after_warm_up(30.0).first_start == 40

@@ -23,7 +23,7 @@ from ..nav.bias import SensorBias
 from ..nav.outages import bridging
 from ..nav.protocol import Estimator, EstimatorInputs, solve
 from ..nav.track import Track
-from ..nav.windows import Windows
+from ..nav.windows import Windows, make_windows
 
 
 @dataclass
@@ -63,8 +63,12 @@ class BridgedOutage:
 def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[float, float]], estimators: Sequence[Estimator],
                         bias: SensorBias) -> tuple[list[BridgedOutage], int]:
     """Every estimator through each GNSS gap ``(last good fix s, first good fix s)``; returns the
-    bridged outages and how many gaps could not be bridged (a data gap, an end of the drive)."""
+    bridged outages and how many gaps could not be bridged (a data gap, an end of the drive). The
+    estimators are given the receiver's fixes (:meth:`~ionav_viz.core.drive.Drive.as_received`) and
+    scored against ``windows``, the truth (a reference where the drive has one)."""
     geod = wgs84()
+    received = drive.as_received()
+    given = windows if received is drive else make_windows(received)
     placed = bridging(windows, gaps)
     out: list[BridgedOutage] = []
     for number, (i, k, n) in enumerate(placed, start=1):
@@ -74,7 +78,7 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
                                  k, n, float(windows.lat0_deg[end]), float(windows.lon0_deg[end]), float(span)))
     for n in sorted({b.n_windows for b in out}):  # one batch per outage length
         group = [b for b in out if b.n_windows == n]
-        inputs = EstimatorInputs(drive, windows, np.asarray([b.start for b in group], dtype=int), n, bias)
+        inputs = EstimatorInputs(received, given, np.asarray([b.start for b in group], dtype=int), n, bias)
         for est in estimators:
             track = solve(est, inputs).track
             _, _, err = geod.inv(track.lon_deg[:, -1], track.lat_deg[:, -1], [b.end_lon_deg for b in group], [b.end_lat_deg for b in group])

@@ -52,7 +52,8 @@ class DriveResult:
         estimates: per estimator name, its :class:`~ionav_viz.nav.protocol.Solution` (per-window
             displacement and yaw rate, and the rebuilt track).
         metrics: per estimator name, each of :data:`METRICS` as an array (n_outages,).
-        excluded_outages: how many outages the placement would have put on bad GNSS truth.
+        excluded_outages: how many outages the placement would have put on bad GNSS truth, or
+            right after a window where a receiver beside a reference had no fix to trust.
         bridged: the log's own GNSS losses every estimator was run through (``--on gnss-outage``),
             scored at the first good fix after each; ``unbridged``: losses that could not be.
         placement: where the outages went, in words (the placement's plan, with its warm-up).
@@ -85,8 +86,8 @@ class DriveResult:
     def truth_exclusions(self) -> dict[str, Any]:
         """What the GNSS quality checks excluded: ``windows`` (all), ``excluded_windows`` (bad
         truth), ``excluded_by_reason`` (windows per fault name), ``receiver_lost_windows`` (beside
-        a reference: windows where the estimators' receiver had no fix to trust, none of which
-        starts an outage) and ``excluded_outages`` (not placed for either)."""
+        a reference: windows where the estimators' receiver had no fix to trust, right after which
+        no outage starts) and ``excluded_outages`` (not placed for either)."""
         fault = self.windows.truth_fault
         bad = fault != 0
         return {"windows": len(fault), "excluded_windows": int(bad.sum()), "excluded_by_reason": count_by_fault(fault[bad]),

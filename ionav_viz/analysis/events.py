@@ -39,7 +39,8 @@ by the heading change. Definitions (thresholds in :class:`EventThresholds`, all 
     (:mod:`ionav_viz.core.gnss_quality`: no fix, frozen, at (0, 0), ...) lasting at least
     ``gnss_outage_min_s`` (2 s) from the last good fix to the first good fix after it; the event
     spans those two fixes. Values: length (s), bad samples. The other detectors see nothing inside
-    bad GNSS (their speed is the GNSS speed).
+    bad GNSS (their speed is the GNSS speed). Beside a reference (``--truth-topic``) it is the
+    receiver's loss, the GNSS the estimators are given: bridged, it is scored against the reference.
 ``cruise``
     Straight-line cruising, the motorway reference: speed at least 15 m/s, ``|a| <= 0.5 m/s^2``
     (``a`` further smoothed over ``cruise_smooth_s``, 3 s: steady on average, so the speed noise of
@@ -289,8 +290,9 @@ def detect_cruise(s: Signals, th: EventThresholds) -> list[Event]:
 
 def detect_gnss_outages(drive: Drive, th: EventThresholds) -> list[Event]:
     """Stretches of bad GNSS lasting ``gnss_outage_min_s`` or more, from the last good fix before
-    to the first good fix after (a stretch reaching an end of the drive has no such fix: left out)."""
-    bad = ~drive.gnss_ok
+    to the first good fix after (a stretch reaching an end of the drive has no such fix: left out).
+    Beside a reference, the receiver's fixes (:meth:`~ionav_viz.core.drive.Drive.as_received`)."""
+    bad = ~drive.as_received().gnss_ok
     out = []
     for i0, i1 in run_ranges(bad):
         if i0 == 0 or i1 >= len(drive):

@@ -76,7 +76,7 @@ def truth_line(rep: dict[str, Any]) -> str:
         head = f"GNSS truth: {truth['excluded_windows']} of {truth['windows']} windows excluded ({reasons})"
     else:
         head = f"GNSS truth: all {truth['windows']} windows trustworthy"
-    receiver = f"; the receiver without a fix to trust in {lost} windows (no outage starts there)" if lost else ""
+    receiver = f"; the receiver without a fix to trust in {lost} windows (no outage starts right after one)" if lost else ""
     return f"{head}{receiver}; {truth['excluded_outages']} outage(s) not placed there"
 
 

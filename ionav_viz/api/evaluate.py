@@ -159,7 +159,7 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
         plan, _ = plan_outages(drive, windows, placement, n, run)
         if plan.too_short:
             if plan.excluded:
-                log.warning("%s: no %g s outage fits where the GNSS truth is good; skipped", drive.name, n)
+                log.warning("%s: no %g s outage fits where the GNSS truth and the receiver's fixes are good; skipped", drive.name, n)
             else:
                 log.warning("%s: too short for a single %g s outage; skipped", drive.name, n)
             continue

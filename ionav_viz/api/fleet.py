@@ -171,7 +171,7 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
             windows = make_windows(drive)
             plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
             if plan.too_short:
-                why = "no outage fits where the GNSS truth is good" if plan.excluded else "too short for a single outage"
+                why = "no outage fits where the GNSS truth and the receiver's fixes are good" if plan.excluded else "too short for a single outage"
                 return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began)
             if recording is not None:
                 from .replay import replay

@@ -268,7 +268,9 @@ def no_outage_fits(drives: Sequence[Drive], n_windows: int, where: str) -> Input
     of the GNSS is marked untrustworthy, that says so and why (shorter outages would not help)."""
     from ..core.gnss_quality import count_by_fault
 
-    faults = np.concatenate([d.gnss_fault for d in drives]) if drives else np.zeros(0, dtype=np.uint16)
+    # beside a reference the receiver's fixes count too: an outage starts from them
+    faults = np.concatenate([d.gnss_fault | (d.receiver_fault if d.has_reference and d.receiver_fault is not None else 0)
+                             for d in drives]) if drives else np.zeros(0, dtype=np.uint16)
     bad = float(np.mean(faults != 0)) if len(faults) else 0.0
     if bad >= POOR_GNSS_SHARE:
         counts = sorted(count_by_fault(faults).items(), key=lambda kv: -kv[1])

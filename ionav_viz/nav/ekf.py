@@ -6,7 +6,7 @@ with a zero-speed update where the IMU shows the car standing (:mod:`ionav_viz.n
 and its speed never below zero. Its position covariance through an outage is the filter's, widened
 where the filter's own past on this drive says it is too sure: its NEES on pseudo-outages over the
 GNSS before each outage (:mod:`ionav_viz.nav.history_check`, as the IDNN's learned one; on the
-simulated phones its noise model, written for a car's IMU, made it 4-7 times too sure).
+simulated phones its noise model, written for a car's IMU, left it 3-5 times too sure).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ class EkfEstimator:
     def __init__(self, noise: EkfNoise | None = None) -> None:
         self.noise = noise or EkfNoise()
         self._last: dict[str, Any] = {}
+        self._scale_note = ""
 
     def available(self) -> bool:
         return True
@@ -60,19 +61,14 @@ class EkfEstimator:
     def _history_scale(self, fp, inputs: EstimatorInputs) -> np.ndarray:
         """Per outage, how much to widen the filter's covariance: its NEES on pseudo-outages over
         the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
-        w, n = inputs.windows, inputs.n_windows
-        pseudo = history_check.pseudo_outages(w, n)
-        self._scale_note = ""
-        if not len(pseudo.starts) or not inputs.n_outages:
-            return np.ones(inputs.n_outages)
-        idx = pseudo.starts[:, None] + np.arange(n)[None, :]
-        disp, yaw, cov = fp.outages(pseudo.starts, n, inputs.still_grid[idx][..., -1])
-        nees = history_check.nees_per_dof(w, pseudo.starts, np.maximum(disp, 0.0), yaw, 0.5 * (cov + np.swapaxes(cov, -1, -2)))
-        scale = history_check.history_scale(pseudo.ends, nees, inputs.starts)
-        self._scale_note = (f"x{float(np.median(scale)):.2f} median, x{float(scale.max()):.2f} at most, from its NEES per "
-                                           f"degree of freedom {float(nees.mean()):.2f} on {len(nees)} pseudo-outages over the GNSS")
+        n = inputs.n_windows
+
+        def run(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            disp, yaw, cov = fp.outages(starts, n, inputs.still_grid[starts[:, None] + np.arange(n)[None, :]][..., -1])
+            return np.maximum(disp, 0.0), yaw, 0.5 * (cov + np.swapaxes(cov, -1, -2))  # as the estimate: solve rebuilds its track so
+
+        scale, self._scale_note = history_check.covariance_scale(inputs.windows, n, inputs.starts, run)
         return scale
 
     def describe(self) -> dict[str, Any]:
-        note = getattr(self, "_scale_note", "")
-        return dict(self._last) | ({"uncertainty_scale": note} if note else {})
+        return dict(self._last) | ({"uncertainty_scale": self._scale_note} if self._scale_note else {})

@@ -567,16 +567,13 @@ class IdnnEstimator:
         """Per outage, how much to widen the learned covariance: the model's NEES on pseudo-outages
         over the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
         w, n = inputs.windows, inputs.n_windows
-        pseudo = history_check.pseudo_outages(w, n)
-        if not len(pseudo.starts) or not inputs.n_outages:
-            return np.ones(inputs.n_outages)
-        idx = pseudo.starts[:, None] + np.arange(n)[None, :]
-        disp, yaw = model.predict(w, pseudo.starts, n, inputs.bias, cal, inputs.still_grid[idx])
-        cov = model.uncertainty.position_covariance(w.heading0_deg[pseudo.starts], w.speed0_mps[pseudo.starts], disp, yaw)
-        nees = history_check.nees_per_dof(w, pseudo.starts, disp, yaw, cov)
-        scale = history_check.history_scale(pseudo.ends, nees, inputs.starts)
-        self._scale_note = (f"x{float(np.median(scale)):.2f} median, x{float(scale.max()):.2f} at most, from its NEES per degree of freedom "
-                            f"{float(nees.mean()):.2f} on {len(nees)} pseudo-outages over the GNSS")
+
+        def run(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            idx = starts[:, None] + np.arange(n)[None, :]
+            disp, yaw = model.predict(w, starts, n, inputs.bias, cal, inputs.still_grid[idx])
+            return disp, yaw, model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
+
+        scale, self._scale_note = history_check.covariance_scale(w, n, inputs.starts, run)
         return scale
 
     def describe(self) -> dict[str, Any]:

@@ -204,7 +204,8 @@ class OutagePlan:
     Attributes:
         starts: first window of each synthetic outage (sorted indices into the windows).
         description: the placement in words, for reports and recordings.
-        excluded: how many outages the placement would have put where the GNSS truth is bad.
+        excluded: how many outages the placement would have put where the GNSS truth is bad, or
+            right after a window where a receiver beside a reference had no fix to trust.
         gnss_gaps: the log's own GNSS losses to bridge, ``(last good fix s, first good fix s)``.
         too_short: no outage fits the drive, and the placement skips such a drive (the tiling
             of a report over several drives) instead of failing.
@@ -321,7 +322,7 @@ class AroundEvents:
         spans = [(e.t0_s, e.t1_s) for e in targets]
         starts, used = around(windows, spans, n_windows)
         if len(used) < len(targets):
-            log.warning("%s%d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, or on bad GNSS truth)",
+            log.warning("%s%d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, on bad GNSS truth, or right after the receiver lost the sky)",
                         where, len(targets) - len(used), len(targets), "/".join(kinds))
         if len(starts) == 0:
             raise InputError(f"{where}no {' or '.join(kinds)} event with room for a {n_windows:g} s outage", f"see 'ionav-viz events {source}'")
@@ -346,7 +347,12 @@ class Planned:
         starts: list[int] = []
         for i, t in enumerate(self.times_s):
             k = int(np.argmin(np.abs(windows.t0_s - t))) if len(windows) else -1
-            if k < 0 or abs(windows.t0_s[k] - t) > 1e-3 or not valid_start(windows, k, n_windows):
+            on_boundary = k >= 0 and abs(windows.t0_s[k] - t) <= 1e-3
+            if on_boundary and (lost := receiver_faults_before(windows, k)) and valid_start(windows.ignoring_truth(), k, n_windows):
+                raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start): the receiver has no trustworthy fix "
+                                 f"to start it from ({', '.join(fault_names(lost))})",
+                                 "plan outages where the receiver has fixes (outage-log places them so)", param="plan")
+            if not on_boundary or not valid_start(windows, k, n_windows):
                 raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start) does not fit this drive's windows",
                                  "give the drive and reading options the plan was made with", param="plan")
             if starts and k < starts[-1] + n_windows:
@@ -363,15 +369,17 @@ def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: i
     ``(gap index, start window, windows)`` of the outage that starts at the window boundary at or
     before the last good fix (the window before it has good truth, for the IDNN's first input)
     and ends at the first boundary at or after the first good fix whose next window has good truth
-    (its start is the only truth there is). Gaps without such windows in one gap-free segment
-    (a data gap, an end of the drive) get none."""
+    (its start is the only truth there is). Beside a reference the window before the start needs
+    the receiver's fixes too (the estimators start from them). Gaps without such windows in one
+    gap-free segment (a data gap, an end of the drive) get none."""
     out = []
     t0 = windows.t0_s
+    start_ok = windows.truth_ok & windows.receiver_ok
     for i, (last_good, first_good) in enumerate(gaps):
         k = int(np.searchsorted(t0, last_good + 1e-6, side="right")) - 1
-        while k >= 2 and not windows.truth_ok[k - 1] and t0[k] > last_good - max_extra:
+        while k >= 2 and not start_ok[k - 1] and t0[k] > last_good - max_extra:
             k -= 1  # the window before touches the loss (its end is interpolated from a bad sample)
-        if k < 1 or not windows.truth_ok[k - 1] or windows.segment[k - 1] != windows.segment[k]:
+        if k < 1 or not start_ok[k - 1] or windows.segment[k - 1] != windows.segment[k]:
             continue
         shortest = max(1, int(np.ceil(first_good - t0[k] - 1e-6)))
         for n in range(shortest, shortest + max_extra + 1):

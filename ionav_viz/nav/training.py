@@ -727,7 +727,7 @@ def outage_cases(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n:
         cut = t_first + max(warm_up_s, block[0] * length)
         end = t_first + block[1] * length
         for phase in range(10):
-            w = make_windows(drive, offset_s=phase / 10.0)
+            w = make_windows(drive, offset_s=phase / 10.0).ignoring_receiver()  # the model runs on the truth's GNSS here
             starts = np.array([k for k in range(1, len(w) - n + 1) if w.t0_s[k - 1] >= cut - 1e-9
                                and (block[1] >= 1.0 or w.t0_s[k + n - 1] + WINDOW_S <= end + 1e-9) and w.segment[k - 1] == w.segment[k]
                                and valid_start(w, k, n) and w.truth_ok[k - 1 : k + n].all()], dtype=int)
@@ -859,7 +859,7 @@ def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_wind
 
     parts = []
     for drive, bias in drives:
-        windows = make_windows(drive).after_warm_up(UNCERTAINTY_WARM_UP_S)
+        windows = make_windows(drive).ignoring_receiver().after_warm_up(UNCERTAINTY_WARM_UP_S)  # the truth's GNSS, as training's
         starts = np.array([k for k in range(windows.first_start, len(windows) - n_windows + 1, stride) if valid_start(windows, k, n_windows)],
                           dtype=int)
         if not len(starts):

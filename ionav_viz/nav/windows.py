@@ -67,7 +67,7 @@ class Windows:
     accel_mps2: np.ndarray  # (n, steps + 1)
     gyro_radps: np.ndarray  # (n, steps + 1)
     truth_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = good truth
-    receiver_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = a fix to start from
+    receiver_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = its receiver fixes are good (the next window may start an outage)
     #: the first window an outage may start at: the filters' warm-up (:meth:`after_warm_up`)
     first_start: int = 0
 
@@ -90,6 +90,10 @@ class Windows:
         """Whether each window's boundary fixes of the receiver (the estimators' GNSS) are good."""
         return self.receiver_fault == 0
 
+    def ignoring_receiver(self) -> Windows:
+        """The same windows without a receiver's faults: for work on the truth's own GNSS (training)."""
+        return replace(self, receiver_fault=np.zeros(len(self), dtype=np.uint16))
+
     def ignoring_truth(self) -> Windows:
         """The same windows with every one taken as good truth and good receiver fixes (to count
         what bad truth and the receiver's losses excluded)."""
@@ -103,7 +107,8 @@ class Windows:
         9-15 s of fixes were untrustworthy, so 30 s of drive gave the filters 15-21 s of GNSS."""
         if warm_up_s <= 0 or not len(self):
             return replace(self, first_start=0)
-        good_before = np.concatenate([[0], np.cumsum(self.truth_ok)])[:-1] * WINDOW_S  # GNSS time before each window
+        good = self.truth_ok & self.receiver_ok  # beside a reference, the filters had only the receiver's fixes
+        good_before = np.concatenate([[0], np.cumsum(good)])[:-1] * WINDOW_S  # GNSS time before each window
         first = int(np.searchsorted(good_before, warm_up_s - 1e-6))
         if first >= len(self):  # never that much good GNSS: the drive's time, so that what is wrong is said (the GNSS, not the length)
             first = int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6))

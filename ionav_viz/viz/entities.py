@@ -223,8 +223,9 @@ def bad_truth_state(fault_names: list[str]) -> str:
 
 def receiver_lost_state(fault_names: list[str]) -> str:
     """``gnss/state`` of a window where the receiver beside a reference (the estimators' GNSS) has
-    no fix to trust, outside the outages: ``receiver lost: no-fix``."""
-    return "receiver lost: " + ", ".join(fault_names)
+    no fix to trust, outside the outages: ``receiver lost: no-fix`` (a loss of the sky),
+    ``receiver untrusted: poor-accuracy, jump`` (fixes there, none trustworthy)."""
+    return ("receiver lost: " if fault_names == ["no-fix"] else "receiver untrusted: ") + ", ".join(fault_names)
 
 
 def event_state(event_type: str, number: int) -> str:

@@ -70,7 +70,8 @@ class RecordingInfo:
         return (float(inside.min()), float(inside.max())) if len(inside) else None
 
     def state_at(self, t_s: float) -> str | None:
-        """The outage label at ``t_s`` (the one ending there, when one ends as the next starts)."""
+        """The ``gnss/state`` label at ``t_s`` other than GNSS: an outage (the one ending there, when
+        one ends as the next starts) or a receiver's loss beside a reference; None with GNSS."""
         for start, end, label in self.states:
             if start <= t_s <= end + 1e-6:
                 return label
