@@ -42,6 +42,11 @@ def run(main: Callable[[], Any]) -> None:
     debug = "--debug" in sys.argv[1:]
     try:
         main()
+    except KeyboardInterrupt:  # as ionav-viz: one word, exit code 130 (what was being written is a temporary file)
+        if debug:
+            raise
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)
     except (InputError, ToolFailure, OSError) as exc:
         from ionav_viz.cli.app import failure_exit_code
 
@@ -49,6 +54,19 @@ def run(main: Callable[[], Any]) -> None:
         if debug or (code := failure_exit_code(exc, {})) is None:
             raise
         sys.exit(code)
+
+
+def lengths_s(text: str, option: str = "--lengths") -> list[float]:
+    """Outage lengths as the scripts take them, comma-separated: ``10,30,60`` or ``10s,1m`` (whole
+    seconds, each a duration the command line takes); a bad one is an :class:`InputError` naming it."""
+    from ionav_viz.core.durations import parse_duration_s
+
+    with named(option):
+        out = [parse_duration_s(x, "outage length") for x in str(text).split(",")]
+        for x in out:
+            if x != round(x):
+                raise InputError(f"outage length {x:g} s is not a whole number of seconds", "give lengths like 10,30,60")
+    return out
 
 
 @contextmanager

@@ -20,6 +20,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from _cli import add_debug, lengths_s, run
 
 import ionav_viz as iv
 from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
@@ -29,7 +30,7 @@ ESTIMATORS = ("ins", "ekf", "gins")
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--grade", choices=sorted(IMU_GRADES), default="phone")
     parser.add_argument("--first-seed", type=int, default=930)
     parser.add_argument("--drives", type=int, default=9)
@@ -37,7 +38,7 @@ def main() -> None:
     parser.add_argument("--lengths", default="10,30", help="outage lengths (s), comma-separated")
     parser.add_argument("--without-velocity", action="store_true", help="read the logs with --gnss-velocity-topic none (a log of fixes only)")
     args = parser.parse_args()
-    lengths = [float(x) for x in args.lengths.split(",")]
+    lengths = lengths_s(args.lengths)
     seeds = range(args.first_seed, args.first_seed + args.drives)
     log = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto",
                         gnss_velocity_topic="none" if args.without_velocity else None)
@@ -61,4 +62,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

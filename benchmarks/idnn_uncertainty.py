@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from _cli import add_debug, check_model, run
+from _cli import add_debug, check_model, lengths_s, run
 from results_table import held_out_drives
 
 import ionav_viz as iv
@@ -50,7 +50,7 @@ def main() -> None:
     args = parser.parse_args()
     check_model(args.model)
     logging.disable(logging.WARNING)
-    lengths = [int(x) for x in args.lengths.split(",")]
+    lengths = [int(x) for x in lengths_s(args.lengths)]
     with tempfile.TemporaryDirectory() as tmp:
         if args.bundled:
             drives = {s.scenario: sample_path(s) for s in SAMPLES if s.role == "test"}

@@ -25,7 +25,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from _cli import add_debug, check_logs, output_file, raise_if_unreadable, run
+from _cli import add_debug, check_logs, lengths_s, output_file, raise_if_unreadable, run
 
 import ionav_viz as iv
 from ionav_viz.core.fileio import atomic_write_bytes
@@ -92,7 +92,7 @@ def main() -> None:
     args = parser.parse_args()
     check_logs(args.logs)
     output_file(args.json, "--json", inputs=args.logs)
-    lengths = [float(x) for x in args.lengths.split(",")]
+    lengths = lengths_s(args.lengths)
     print("| log | `gins` 10 s | 30 s | 60 s | INS DR 10 s / 30 s | best other at 10 s | outages (10 s) |")
     print("|---|---|---|---|---|---|---|")
     results, unread = [], []

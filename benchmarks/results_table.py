@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from _cli import add_debug, check_model, named, output_file, read_json, run
+from _cli import add_debug, check_model, lengths_s, named, output_file, read_json, run
 
 import ionav_viz as iv
 from ionav_viz.dataset.catalog import SCENARIOS
@@ -439,7 +439,7 @@ def main() -> None:
     output_file(args.write, "--write")
     real = read_real_logs(args.real_logs)
     check_model(args.model)
-    lengths = [float(x) for x in args.lengths.split(",")]
+    lengths = lengths_s(args.lengths)
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     labels, cells = measure(args.model, args.minutes, args.seed_base, lengths, sets)
     if args.write is None:

@@ -68,3 +68,10 @@ def test_an_output_in_a_missing_folder_is_refused_before_any_work(files):
 def test_debug_shows_the_traceback(files):
     proc = run_script("results_table.py", "--real-logs", "missing.json", "--debug", cwd=files)
     assert proc.returncode != 0 and "Traceback" in proc.stderr and "InputError: missing.json: no such file" in proc.stderr
+
+
+def test_a_bad_outage_length_is_one_line_naming_it(files):
+    line = assert_one_line_error(run_script("results_table.py", "--lengths", "10,abc", cwd=files), "--lengths", "'abc'")
+    assert "is not a duration" in line
+    assert_one_line_error(run_script("results_table.py", "--lengths", "10.5", cwd=files), "--lengths", "10.5 s is not a whole number")
+    assert {p.name for p in files.iterdir()} == {"bad.json", "shape.json", "garbage.mcap", "folder"}  # nothing written
