@@ -108,3 +108,20 @@ def test_evaluate_on_gnss_outage_json():
     rep = json.loads(proc.stdout)
     assert rep["n_sequences"] == 0 and len(rep["gnss_outages"]["bridged"]) == 6 and rep["gnss_outages"]["not_bridged"] == 0
     assert set(rep["gnss_outages"]["final_error_m"]) == {"ins", "idnn", "odo", "ekf"}
+
+
+def test_the_summary_of_a_replay_through_real_losses_only_says_what_they_gave():
+    """A run through the log's own losses alone has no synthetic outage: its summary (the recording's
+    summary and overview tabs) shows the real ones' mean final errors and the worst, not a table of
+    NaN for outages that were never run."""
+    from ionav_viz.analysis.report import overview_markdown, run_summary_markdown
+
+    rep = iv.evaluate(["V-sim-motorway-tunnels"], 10.0, iv.AroundEvents(("gnss-outage",)), estimators=["ins", "idnn"])
+    result = rep.results[0]
+    bridged = rep.to_dict()["gnss_outages"]["bridged"]
+    ins_mean = np.mean([b["final_error_m"]["ins"] for b in bridged])
+    worst = max(bridged, key=lambda b: b["final_error_m"]["ins"])
+    for text in (overview_markdown(result, rep), run_summary_markdown(result, rep, "the log's own losses")):
+        assert "nan" not in text.lower(), text
+        assert f"**Real GNSS outages**: {len(bridged)} (" in text and f"mean m: INS DR {ins_mean:.1f}, IDNN" in text, text
+        assert f"#{worst['number']} ({worst['gap_start_s']:.0f}-{worst['gap_end_s']:.0f} s, m): INS DR {worst['final_error_m']['ins']:.1f}" in text

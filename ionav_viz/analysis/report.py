@@ -343,6 +343,23 @@ def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> 
                        "by_length": by_length(reports)}, indent=indent)
 
 
+def _real_outage_lines(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[str]:
+    """Markdown lines on the log's own GNSS losses the estimators bridged (``--on gnss-outage``):
+    each estimator's mean final error over them and the ``worst`` worst of them (by the first
+    estimator's error, the INS DR where it ran); none without any."""
+    bridged = result.bridged
+    if not bridged:
+        return []
+    mean = {e: float(np.mean([b.final_error_m[e] for b in bridged])) for e in ests}
+    by = ests[0]
+    lines = [f"**Real GNSS outages**: {len(bridged)} ({sum(b.gap_s for b in bridged):.0f} s without GNSS), "
+             f"final error from the last good fix, mean m: " + ", ".join(f"{label[e]} {mean[e]:.1f}" for e in ests), ""]
+    for b in sorted(bridged, key=lambda b: -b.final_error_m[by])[:worst]:
+        lines += [f"{'**Worst real**' if worst == 1 else '-'} #{b.number} ({b.gap_t0_s:.0f}-{b.gap_t1_s:.0f} s, m): "
+                  + ", ".join(f"{label[e]} {b.final_error_m[e]:.1f}" for e in ests), ""]
+    return lines
+
+
 def overview_markdown(result: DriveResult, report: Report) -> str:
     """The summary's head as Markdown, short enough for a screenshot's summary tab (the
     recording's ``overview``): the run in a line, each estimator's means, the worst outage. The
@@ -351,10 +368,15 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
     ests = report.estimators
     label = {e.name: e.label for e in result.estimators}
     mean = {e: report.summary[e] for e in ests}
-    lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
-             "| mean | final m | CRSE m | yaw rad/s |", "|---|---|---|---|",
-             *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
-               f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
+    if report.n_outages:
+        lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
+                 "| mean | final m | CRSE m | yaw rad/s |", "|---|---|---|---|",
+                 *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
+                   f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
+    else:  # only the log's own losses: no table of synthetic outages to fill with nothing
+        lines = [f"**{result.drive.name}**", ""]
+    # the worst real one where there is room: the screenshot's summary tab holds one worst line
+    lines += _real_outage_lines(result, label, ests, worst=0 if report.n_outages else 1)
     worst = report.worst_outages(1)
     if worst:
         w = worst[0]
@@ -376,11 +398,12 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
     lines = [
         f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s",
         "",
-        "| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
-        "|---|---|---|---|",
-        *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
-          f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
-        "",
+        *(["| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
+           "|---|---|---|---|",
+           *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
+             f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
+           ""] if report.n_outages else []),
+        *_real_outage_lines(result, label, ests, worst=3),
     ]
     worst = report.worst_outages()
     if worst:
