@@ -46,6 +46,7 @@ from _cli import add_debug, check_model, lengths_s, named, output_file, read_jso
 
 import ionav_viz as iv
 from ionav_viz.dataset.catalog import SCENARIOS
+from ionav_viz.nav.outages import GNSS_OUTAGE
 from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
 from ionav_viz.sim.simulate import fleet_sensors, write_simulated_drive
 
@@ -194,6 +195,39 @@ def measure(model: str | None, minutes: float, seed_base: int, lengths: list[flo
             log_options = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none" if imu_only else None, imu_mount="auto")
             add(key, [str(p) for p in logs[key]], iv.ReadOptions(log=log_options))
     return {n: labels[n] for n in ESTIMATORS if n in labels}, cells
+
+
+def receiver_losses(model: str | None, minutes: float, key: str = "phone-urban") -> dict | None:
+    """The set ``key``'s drives (as :func:`imu_logs` writes them) through their receiver's own losses
+    of the sky (``--on gnss-outage`` beside the reference: each from the last receiver fix before it,
+    scored against the reference at the first after it): the losses (``gap_s``, ``span_m``) and every
+    estimator's final error (m) on each; None when the set's receiver never loses the sky."""
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = [str(p) for p in imu_logs(Path(tmp), minutes, [key])[key]]
+        read = iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto"))
+        try:
+            rep = iv.evaluate(paths, 10.0, iv.AroundEvents((GNSS_OUTAGE,)), estimators=list(ESTIMATORS), run=iv.RunOptions(model=model), read=read)
+        except iv.InputError:  # no loss on any drive
+            return None
+    d = rep.to_dict()
+    bridged = d.get("gnss_outages", {}).get("bridged", [])
+    if not bridged:
+        return None
+    names = [e["name"] for e in d["estimators"]]
+    return {"labels": {e["name"]: e["label"] for e in d["estimators"]}, "gap_s": [b["gap_s"] for b in bridged],
+            "span_m": [b["span_m"] for b in bridged], "final_error_m": {n: [b["final_error_m"][n] for b in bridged] for n in names},
+            "drives": len(paths)}
+
+
+def receiver_loss_table(losses: dict) -> str:
+    """:func:`receiver_losses` as Markdown: per estimator the mean and largest final error (m) and
+    the summed error as a share of the summed straight-line span (the loss's own "distance")."""
+    span = float(np.sum(losses["span_m"]))
+    rows = ["| estimator | mean final error (m) | largest (m) | summed error / summed span |", "|---|---:|---:|---:|"]
+    for name, errs in losses["final_error_m"].items():
+        e = np.asarray(errs)
+        rows.append(f"| {losses['labels'][name]} | {e.mean():.1f} | {e.max():.1f} | {100.0 * e.sum() / span:.1f} % |")
+    return "\n".join(rows)
 
 
 def set_titles(cells: dict | None = None) -> dict[str, str]:
@@ -352,7 +386,7 @@ def consistency_table(labels: dict[str, str], cells: dict[tuple[str, float], Cel
 
 
 def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float], minutes: float, seed_base: int,
-         model: str | None, real: list[dict] | None = None) -> str:
+         model: str | None, real: list[dict] | None = None, losses: dict | None = None) -> str:
     day = datetime.datetime.now(datetime.UTC).date().isoformat()
     model_text = f"the IDNN model in `{model}`" if model else "the shipped IDNN model"
     return wrap("\n".join([
@@ -402,6 +436,19 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         consistency_table(labels, cells, lengths),
         "",
         *([
+            "## Through the phone's own receiver losses",
+            "",
+            f"The phone set's receiver loses the sky as the real phones' did (2.8 times per 10 min for 2-30 s, "
+            f"[real-imu-logs.md](real-imu-logs.md)): {len(losses['gap_s'])} losses of {min(losses['gap_s']):.0f}-"
+            f"{max(losses['gap_s']):.0f} s (median {np.median(losses['gap_s']):.0f} s) on its {losses['drives']} drives. Every "
+            "estimator bridges each from the last receiver fix before it and is scored against the reference at the "
+            "first fix after it (`ionav-viz evaluate LOG --truth-topic /truth/fix --on gnss-outage`); the straight-line "
+            "span from start to end stands in for the distance driven.",
+            "",
+            receiver_loss_table(losses),
+            "",
+        ] if losses else []),
+        *([
             "## Real logs",
             "",
             "Public real car logs with a phone or a dash device IMU, measured by `python benchmarks/real_imu_logs.py --json` on "
@@ -442,11 +489,13 @@ def main() -> None:
     lengths = lengths_s(args.lengths)
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     labels, cells = measure(args.model, args.minutes, args.seed_base, lengths, sets)
+    losses = receiver_losses(args.model, args.minutes) if sets is None or "phone-urban" in sets else None
     if args.write is None:
-        print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths), end="")
+        print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths)
+              + ("\n\n" + receiver_loss_table(losses) if losses else ""), end="")
     else:
         kept = kept_section(args.write)  # the own-vehicle section, written by benchmarks/own_vehicle.py
-        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, real)
+        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, real, losses)
                          + ("\n" + kept if kept else ""))
         print(args.write)
 
