@@ -98,6 +98,12 @@ def test_a_bad_drive_is_reported_and_the_others_kept(fleet_dir):
     assert [f["drive"] for f in report["failures"]] == [bad] and "missing column" in report["failures"][0]["reason"]
     assert [d["drive"] for d in report["drives"]] == ["V-f0", "V-f1", "V-f2"]
     assert report["worst_drives"][0]["command"].startswith("ionav-viz replay ")
+    # the command that replays a drive reads and scores it as the fleet did: every option but the fleet's own
+    read = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--warm-up", "10s", "--gnss-limit", "max_sigma_m=13",
+                   "--json", "-q")
+    command = json.loads(read.stdout)["worst_outages"][0]["command"]
+    assert command.startswith("ionav-viz replay ") and command.endswith(f"--outage 10s --estimators {CHEAP} --warm-up 10s --gnss-limit max_sigma_m=13")
+    assert not any(w in command.split() for w in ("--workers", "--json", "-q")), command
     fast = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--fail-fast")
     assert fast.returncode == 2 and fast.stdout == ""
     assert len(fast.stderr.strip().splitlines()) == 1 and bad in fast.stderr and "hint:" in fast.stderr
@@ -307,7 +313,7 @@ def test_iovnbd_run_selections_as_drives(fleet_dir, tmp_path):
     proc = run_cli("evaluate", "--runs", "D", "--data-root", str(tmp_path / "iovnbd"), "--estimators", CHEAP, "--workers", "1", "--json", "-q")
     assert proc.returncode == 3, proc.stderr  # V-Y2 is not under the data root
     report = json.loads(proc.stdout)
-    assert [d["drive"] for d in report["drives"]] == ["V-Y1"] and report["worst_drives"][0]["command"].endswith(f"--data-root {tmp_path / 'iovnbd'}")
+    assert [d["drive"] for d in report["drives"]] == ["V-Y1"] and f"--data-root {tmp_path / 'iovnbd'}" in report["worst_drives"][0]["command"]
     assert [f["drive"] for f in report["failures"]] == ["V-Y2"] and "ionav-viz fetch V-Y2" in report["failures"][0]["reason"]
     bad = run_cli("evaluate", "--runs", "Q")
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--runs Q" in bad.stderr and "Vta" in bad.stderr

@@ -89,10 +89,43 @@ def _write_fleet_rrd(report: Any, fleet_rrd: Optional[Path], quiet: bool) -> Non
         print(f"fleet overview: {fleet_rrd} (ionav-viz screenshot {fleet_rrd} -o fleet.png; rerun {fleet_rrd})", file=sys.stderr)
 
 
+#: Options of a fleet run that say where its report goes, how loudly, or how the fleet runs: not
+#: part of how one drive is read, estimated and scored, so not in the command that replays it.
+_NOT_REPLAYED = frozenset(("--workers", "--cluster", "--fail-fast", "--dry-run", "--fleet-rrd", "--json", "--markdown", "--overview",
+                           "--quiet", "-q", "--debug", "--export", "--by-event", "--runs", "-o", "--output", "--open", "--connect",
+                           "--screenshot", "--force"))
+
+
 def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any = None) -> str:
-    """The options that replay one drive of the fleet with the same outages and estimators."""
+    """The options that replay one drive of the fleet the same way: every option the command was
+    given (how drives are read, the estimators, the placement, the warm-up, ...) but the fleet's own
+    and where its output goes; from the command line as typed, else from what was parsed."""
     import shlex
 
+    import typer.main
+
+    from .app import app
+
+    words = sys.argv[1:]
+    commands = getattr(typer.main.get_command(app), "commands", {})
+    command = next((w for w in words if w in ("evaluate", "replay") and w in commands), None)
+    if command is not None:
+        takes_value = {opt: not (getattr(p, "is_flag", False) or getattr(p, "count", False)) for p in commands[command].params
+                       if p.param_type_name == "option" for opt in (*p.opts, *p.secondary_opts)}
+        kept, i, rest = [], 0, words[words.index(command) + 1:]
+        while i < len(rest):
+            word = rest[i]
+            name = word.split("=", 1)[0]
+            value_follows = name in takes_value and takes_value[name] and "=" not in word
+            if name.startswith("-") and name in takes_value:
+                if name not in _NOT_REPLAYED:
+                    kept += [word, rest[i + 1]] if value_follows and i + 1 < len(rest) else [word]
+                i += 2 if value_follows else 1
+                continue
+            i += 1  # a drive: the command names its own
+        if not any(w.split("=", 1)[0] == "--outage" for w in kept):
+            kept = ["--outage", outage or "10s", *kept]
+        return " ".join(shlex.quote(w) for w in kept)
     parts = [f"--outage {outage or '10s'}"]
     if placement.option != "--outage":
         option, _, value = placement.option.partition(" ")
