@@ -599,3 +599,20 @@ def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
     assert len(small["/container/two"]["ContainerBlueprint"]["contents"]) == 2
     large = focus_blueprint(bp, "all", {}, size=(1600, 900))
     assert large["/container/tabs"]["ContainerBlueprint"]["contents"] == list(views)
+
+
+def test_a_recording_through_real_losses_alone_says_where_they_are_drawn(tmp_path):
+    """The inspector frames synthetic outages only: in a replay through the log's own losses alone
+    its title says so and points at the views that draw them, instead of 'no outage yet'."""
+    from ionav_viz.viz.blueprints import TITLE_ICONS_PX, TITLE_PX_PER_CHAR, Shot, column_fraction, titles_for
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    out = tmp_path / "tunnels.rrd"
+    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "-q", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    info = read_recording_info(out)
+    assert info.outages == []
+    for width in (1600, 1024):
+        titles = titles_for(info, Shot("all", 300.0, "300s", None), width)
+        assert titles["inspect"].startswith(("V-sim-motorway-tunnels: no synthetic outage", "no synthetic outage")), titles["inspect"]
+        assert len(titles["inspect"]) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= width * column_fraction("inspect")

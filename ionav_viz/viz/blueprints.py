@@ -491,10 +491,15 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
         return full or width_px * column_fraction(origin)
     inspected = o or _outage_before(info, shot.t_s)
     inspect_head = f"outage {inspected.number} ({inspected.span})" if inspected else "no outage yet"
+    if not info.outages:  # a run through the log's own losses alone: the inspector shows synthetic outages only
+        inspect_titles = [f"{info.drive}: no synthetic outage; the real GNSS outages are in the map and east-north views",
+                          "no synthetic outage; the real ones: map and east-north views", "no synthetic outage"]
+    else:
+        inspect_titles = [f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
+                          f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head]
     titles = {
         ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT)) if o else
-        _fit([f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
-              f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head], w(ent.INSPECT)),
+        _fit(inspect_titles, w(ent.INSPECT)),
         ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
                     + shortest + ["Map" + (f", outage {o.number}" if o else "")], w(ent.MAP)),
         ent.LOCAL: _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
