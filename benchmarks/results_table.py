@@ -170,11 +170,13 @@ class Cell:
 
 
 def measure(model: str | None, minutes: float, seed_base: int, lengths: list[float],
-            sets: list[str] | None = None) -> tuple[dict[str, str], dict[tuple[str, float], Cell]]:
-    """Estimator labels by name, and per (set, outage length) the pooled outages (of ``sets`` only,
-    keys of :func:`set_titles`, when given)."""
+            sets: list[str] | None = None) -> tuple[dict[str, str], dict[tuple[str, float], Cell], dict | None]:
+    """Estimator labels by name, per (set, outage length) the pooled outages (of ``sets`` only,
+    keys of :func:`set_titles`, when given), and the phone set through its receiver's own losses
+    (:func:`receiver_losses`; None without the phone set)."""
     cells: dict[tuple[str, float], Cell] = {}
     labels: dict[str, str] = {}
+    losses = None
     run = iv.RunOptions(model=model)
 
     def add(key: str, drives: list, read: iv.ReadOptions | None = None) -> None:
@@ -194,21 +196,20 @@ def measure(model: str | None, minutes: float, seed_base: int, lengths: list[flo
                 continue
             log_options = iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none" if imu_only else None, imu_mount="auto")
             add(key, [str(p) for p in logs[key]], iv.ReadOptions(log=log_options))
-    return {n: labels[n] for n in ESTIMATORS if n in labels}, cells
+            if key == "phone-urban":
+                losses = receiver_losses([str(p) for p in logs[key]], run, iv.ReadOptions(log=log_options))
+    return {n: labels[n] for n in ESTIMATORS if n in labels}, cells, losses
 
 
-def receiver_losses(model: str | None, minutes: float, key: str = "phone-urban") -> dict | None:
-    """The set ``key``'s drives (as :func:`imu_logs` writes them) through their receiver's own losses
-    of the sky (``--on gnss-outage`` beside the reference: each from the last receiver fix before it,
-    scored against the reference at the first after it): the losses (``gap_s``, ``span_m``) and every
-    estimator's final error (m) on each; None when the set's receiver never loses the sky."""
-    with tempfile.TemporaryDirectory() as tmp:
-        paths = [str(p) for p in imu_logs(Path(tmp), minutes, [key])[key]]
-        read = iv.ReadOptions(log=iv.LogOptions(truth_topic=SIM_TRUTH_TOPIC, vehicle_speed_topic="none", imu_mount="auto"))
-        try:
-            rep = iv.evaluate(paths, 10.0, iv.AroundEvents((GNSS_OUTAGE,)), estimators=list(ESTIMATORS), run=iv.RunOptions(model=model), read=read)
-        except iv.InputError:  # no loss on any drive
-            return None
+def receiver_losses(paths: list[str], run: iv.RunOptions, read: iv.ReadOptions) -> dict | None:
+    """A set's logs ``paths`` through their receiver's own losses of the sky (``--on gnss-outage``
+    beside the reference: each from the last receiver fix before it, scored against the reference at
+    the first after it): the losses (``gap_s``, ``span_m``) and every estimator's final error (m) on
+    each; None when the receiver never loses the sky."""
+    try:
+        rep = iv.evaluate(paths, 10.0, iv.AroundEvents((GNSS_OUTAGE,)), estimators=list(ESTIMATORS), run=run, read=read)
+    except iv.InputError:  # no loss on any drive
+        return None
     d = rep.to_dict()
     bridged = d.get("gnss_outages", {}).get("bridged", [])
     if not bridged:
@@ -488,8 +489,7 @@ def main() -> None:
     check_model(args.model)
     lengths = lengths_s(args.lengths)
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
-    labels, cells = measure(args.model, args.minutes, args.seed_base, lengths, sets)
-    losses = receiver_losses(args.model, args.minutes) if sets is None or "phone-urban" in sets else None
+    labels, cells, losses = measure(args.model, args.minutes, args.seed_base, lengths, sets)
     if args.write is None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths)
               + ("\n\n" + receiver_loss_table(losses) if losses else ""), end="")

@@ -270,7 +270,8 @@ def _log_signals(layers: Layers, drive) -> None:
 
 def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarray]:
     """Per window: the GNSS truth's displacement and yaw rate, GNSS availability and the outage
-    state (where a receiver beside a reference has lost the sky outside the outages, that too). Returns each window's end time and the outage windows' indices (outage, window)."""
+    state (and, beside a reference, where the receiver lost the sky outside the outages). Returns
+    each window's end time and the outage windows' indices (outage, window)."""
     import rerun as rr
 
     w, starts, n_win = result.windows, result.starts, result.n_windows
