@@ -616,3 +616,71 @@ def test_a_recording_through_real_losses_alone_says_where_they_are_drawn(tmp_pat
         titles = titles_for(info, Shot("all", 300.0, "300s", None), width)
         assert titles["inspect"].startswith(("V-sim-motorway-tunnels: no synthetic outage", "no synthetic outage")), titles["inspect"]
         assert len(titles["inspect"]) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= width * column_fraction("inspect")
+
+
+@pytest.fixture(scope="module")
+def real_losses(tmp_path_factory):
+    """A replay through the bundled tunnel drive's own six losses alone, and its JSON report."""
+    import json
+
+    folder = tmp_path_factory.mktemp("real")
+    out = folder / "tunnels.rrd"
+    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins,odo", "-q", "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    rep = run_cli("evaluate", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins,odo", "--json")
+    assert rep.returncode == 0, rep.stderr
+    return out, json.loads(rep.stdout)["gnss_outages"]["bridged"]
+
+
+def test_a_recording_through_real_losses_alone_frames_them_by_number_and_as_the_worst(real_losses):
+    """Read back from the .rrd alone: each real loss with every estimator's final error (as the
+    report scored it), its tracks and the first fix after it to frame, the worst and each number;
+    titles and key name it as a real GNSS outage."""
+    from ionav_viz.core.errors import InputError
+    from ionav_viz.viz.blueprints import Shot, framing, titles_for
+    from ionav_viz.viz.recording_info import read_recording_info
+    from ionav_viz.viz.screenshot import key_head
+
+    out, bridged = real_losses
+    info = read_recording_info(out)
+    assert info.outages == [] and len(info.real_outages) == len(bridged) == 6
+    for o, b in zip(info.real_outages, bridged):
+        assert o.real and o.number == b["number"]
+        for name in ("ins", "odo"):
+            assert o.final_error_m[name] == pytest.approx(b["final_error_m"][name], abs=1e-3)
+        # both estimators' tracks (one point per window boundary), the first good fix after it, and in
+        # the local view its scale bar (2 points)
+        assert len(o.lat_deg) == 2 * (b["outage_s"] + 1) + 1 and len(o.local_points) == len(o.lat_deg) + 2
+        assert f"({b['gap_start_s']:.1f}-{b['gap_end_s']:.1f} s)" in o.head
+    worst = max(bridged, key=lambda b: b["final_error_m"]["ins"])
+    assert info.worst("ins").number == worst["number"]
+    assert info.outage(2) is info.real_outages[1]
+    with pytest.raises(InputError, match=r"no real GNSS outage 7 \(the recording has 6\)"):
+        info.outage(7)
+    o = info.worst("ins")
+    shot = Shot("local", o.end_s, "worst", o)
+    titles = titles_for(info, shot, 1600)
+    assert f"real GNSS outage {o.number} (" in titles["local"], titles["local"]
+    assert titles["inspect"].startswith("V-sim-motorway-tunnels: no synthetic outage")  # the inspector does not draw real losses
+    assert key_head(shot) == f"real GNSS outage {o.number}, final error:"
+    # framed on its own tracks (the drive spans 7 km; one loss at motorway speed a few hundred metres)
+    frame = framing(info, o, (1600, 900), "local")
+    x0, x1, y0, y1 = frame.local_bounds
+    assert max(x1 - x0, y1 - y0) < 1000.0 and frame.map_entities == ["map/gnss_outages/current"]
+
+
+def test_a_screenshot_of_a_replay_through_real_losses_alone_frames_the_worst(real_losses, tmp_path):
+    """'worst' in a recording without synthetic outages is the real loss with the largest final
+    error of the INS DR: the local view zooms on it (its track spans much of the image, where the
+    whole drive's view draws all six small). replay --screenshot failed here before."""
+    out, _ = real_losses
+    framed, whole = tmp_path / "worst.png", tmp_path / "end.png"
+    for png, when in ((framed, "worst"), (whole, "end")):
+        proc = run_cli("screenshot", str(out), "-o", str(png), "--time", when, "--view", "local", "--size", "800x450")
+        if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+            pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+        assert proc.returncode == 0, proc.stderr
+    # its INS DR track: one long line across the image (measured 380 px wide, 2475 px of its colour)
+    # where the whole drive draws six short ones (285 px of it in all)
+    assert _extent_of(framed, COLORS["ins"])[0] > 0.3 * 800
+    assert _pixels_near(framed, COLORS["ins"], 30) > 4 * _pixels_near(whole, COLORS["ins"], 30)

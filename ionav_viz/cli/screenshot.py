@@ -19,7 +19,8 @@ def screenshot(
     recordings: Optional[list[Path]] = typer.Argument(None, metavar="[REC.rrd]...", help="Recordings made by 'ionav-viz replay'."),
     output: Path = typer.Option(..., "-o", "--output", help="OUT.png for one image, else a directory (or OUT.png whose name is used as a prefix)."),
     times: Optional[list[str]] = typer.Option(None, "--time", help="Times to show: e.g. 35s, 'end' (default) or 'worst' (the end of the outage with the largest final position error of --worst-of, framed). Repeatable."),
-    outage_numbers: Optional[list[str]] = typer.Option(None, "--outage-number", help="Outage numbers (as replay lists them): each framed and shown at its end. Repeatable."),
+    outage_numbers: Optional[list[str]] = typer.Option(None, "--outage-number", help="Outage numbers (as replay lists them; in a replay through the "
+                                                       "log's own GNSS losses alone, its real losses): each framed and shown at its end. Repeatable."),
     outage: Optional[list[str]] = typer.Option(None, "--outage", help="Outage length of --scenario replays, e.g. 10s (default). A bare number N is --outage-number N (deprecated).", show_default=False),
     worst_of: str = typer.Option("ins", "--worst-of", help="The estimator whose final error picks --time worst (default: the paper's INS DR)."),
     views: Optional[list[str]] = typer.Option(None, "--view", help="all (default), outage (the outage inspector), map, local, signals, errors or health (the filters' health). Repeatable."),

@@ -272,6 +272,8 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
         return Framing(zoom)
     zoom = map_zoom(outage.lat_deg, outage.lon_deg, 0.6 * map_px) if len(outage.lat_deg) else None
     bounds = padded_bounds(outage.local_points, margin=0.12) if len(outage.local_points) else None
+    if outage.real:  # the log's own loss: its tracks and the fixes around it, drawn from its start on
+        return Framing(zoom, bounds, [ent.REAL_OUTAGE_CURRENT])
     entities = [ent.outage_truth(ent.MAP), ent.MAP_CONTEXT, *(ent.live_track(ent.MAP, name) for name in info.estimators)]
     return Framing(zoom, bounds, entities)
 
@@ -480,16 +482,16 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
         long_err = ", ".join(f"{lab} ({color_word(info.estimators[n][1])}) {e:.1f} m" for lab, n, e in errs)
         mid_err = ", ".join(f"{lab} {e:.1f} m" for lab, _n, e in errs)
         short_err = ", ".join(f"{lab} {e:.1f}" for lab, _n, e in errs)
-        head = f"outage {o.number} ({o.span})"
+        head = o.head
         focus = [f"{head}, final error: {long_err}", f"{head}, final error: {mid_err}", f"{head}, final error (m): {short_err}",
-                 f"#{o.number} {o.span}, final (m): {short_err}", f"{head}, final errors in the key above"]
+                 f"{'real ' if o.real else ''}#{o.number} {o.span}, final (m): {short_err}", f"{head}, final errors in the key above"]
         shortest = [head]
     else:
         focus, shortest = [when], []
     full = width_px if shot.view != "all" else None
     def w(origin: str) -> float:
         return full or width_px * column_fraction(origin)
-    inspected = o or _outage_before(info, shot.t_s)
+    inspected = o if o is not None and not o.real else _outage_before(info, shot.t_s)
     inspect_head = f"outage {inspected.number} ({inspected.span})" if inspected else "no outage yet"
     if not info.outages:  # a run through the log's own losses alone: the inspector shows synthetic outages only
         inspect_titles = [f"{info.drive}: no synthetic outage; the real GNSS outages are in the map and east-north views",
@@ -498,10 +500,10 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
         inspect_titles = [f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
                           f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head]
     titles = {
-        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT)) if o else
-        _fit(inspect_titles, w(ent.INSPECT)),
+        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT))
+        if o is not None and not o.real else _fit(inspect_titles, w(ent.INSPECT)),
         ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
-                    + shortest + ["Map" + (f", outage {o.number}" if o else "")], w(ent.MAP)),
+                    + shortest + ["Map" + (f", {o.name}" if o else "")], w(ent.MAP)),
         ent.LOCAL: _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
                       + [f"{info.drive}: east-north (m), {f}" for f in focus] + ["Drive: east-north (m)", "East-north (m)"], w(ent.LOCAL)),
         "/": _fit([f"{info.drive}, {when}", f"{info.drive}, t = {shot.t_s:.1f} s", f"t = {shot.t_s:.1f} s"], w("/")),
@@ -569,7 +571,8 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     if view in ("all", "signals"):
         keys.append(KeyEntry("line", GYRO_COLOR, "gyro, accelerometer"))
     if view in ("all", "local", "map"):
-        keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, "outage start")]
+        marks = ["outage start"] * bool(info.outages or not info.real_outages) + ["first fix after a real loss"] * bool(info.real_outages)
+        keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, ", ".join(marks))]
     if view == "outage":
         keys.append(KeyEntry("dot", OUTAGE_MARK_COLOR, "start fix"))
     # the estimators' 95 % ellipses (in their colours) around their positions, once an outage has begun;

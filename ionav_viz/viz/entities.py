@@ -149,6 +149,11 @@ def end_fixes(view: str) -> str:
     return f"{view}/gnss_outages/end_fix"
 
 
+#: The map's current real GNSS outage: from each real loss's start on, its estimated tracks and the
+#: fixes just around it (what a screenshot framed on it shows on the map, so the map centres there).
+REAL_OUTAGE_CURRENT = "map/gnss_outages/current"
+
+
 def event_points(view: str) -> str:
     return f"{view}/events"
 
@@ -193,6 +198,7 @@ GNSS_AVAILABLE_STATE = "GNSS"
 GOOD_TRUTH_STATE = "good"
 NO_EVENT_STATE = "none"
 _OUTAGE = re.compile(r"^outage (\d+) \(")
+_REAL_OUTAGE = re.compile(r"^real GNSS outage (\d+) \(")
 
 
 def outage_state(number: int, t0_s: float, t1_s: float) -> str:
@@ -208,6 +214,12 @@ def real_outage_state(number: int, t0_s: float, t1_s: float) -> str:
 def parse_outage_state(label: str) -> int | None:
     """The synthetic outage's number of a ``gnss/state`` label, else None (GNSS, real losses)."""
     found = _OUTAGE.match(label)
+    return int(found.group(1)) if found else None
+
+
+def parse_real_outage_state(label: str) -> int | None:
+    """The real GNSS outage's number of a ``gnss/state`` label (:func:`real_outage_state`), else None."""
+    found = _REAL_OUTAGE.match(label)
     return int(found.group(1)) if found else None
 
 
@@ -243,7 +255,7 @@ PATTERNS = (
     GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),
-    *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), real_outage_errors("<est>"),
+    *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), REAL_OUTAGE_CURRENT, real_outage_errors("<est>"),
     EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT, KEY,
     DRIFT_AXES, DRIFT_TICKS, drift_mean("<est>"), drift_band("<est>"), drift_current("<est>"),
     f"{HEALTH}/<est>/nis/<kind>", f"{HEALTH}/<est>/gated/<kind>", HEALTH_EXPECTED,

@@ -126,6 +126,7 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
     rec.log(ent.end_fixes(ent.LOCAL), rr.Points2D(layers.xy(end_ll[:, 0], end_ll[:, 1]),
                                                       colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
     t1 = np.array([b.t1_s for b in bridged])
+    _log_current_real_outage(layers, result, colors)
     for est in result.estimators:
         name, color = est.name, colors[est.name]
         ll = [np.stack([b.tracks[name].lat_deg[0], b.tracks[name].lon_deg[0]], axis=-1) for b in bridged]
@@ -137,6 +138,35 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
         entity = ent.real_outage_errors(name)
         rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
         send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
+
+
+def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict) -> None:
+    """:data:`~ionav_viz.viz.entities.REAL_OUTAGE_CURRENT`: from each real loss's start on, the good
+    fixes :data:`CONTEXT_S` before and after it (faint) and every estimator's track through it."""
+    import rerun as rr
+
+    bridged, t = result.bridged, result.drive.t_s
+    ti = np.flatnonzero(layers.usable)
+    rows, rgb, bars, steps = [], [], [], []
+    for b in bridged:
+        before = ti[(t[ti] >= b.gap_t0_s - CONTEXT_S) & (t[ti] <= b.gap_t0_s)]
+        after = ti[(t[ti] >= b.gap_t1_s) & (t[ti] <= b.gap_t1_s + CONTEXT_S)]
+        tracks = [np.stack([b.tracks[e.name].lat_deg[0], b.tracks[e.name].lon_deg[0]], axis=-1) for e in result.estimators]
+        rows.append([layers.truth_ll[before], layers.truth_ll[after], *tracks])
+        rgb += [faded(GNSS_COLOR), faded(GNSS_COLOR)] + [colors[e.name] for e in result.estimators]
+        # the local view's scale bar for it, as a synthetic outage's (log_outage_frames)
+        bounds = padded_bounds(layers.xy(*np.concatenate([*tracks, [[b.end_lat_deg, b.end_lon_deg]]]).T))
+        steps.append(nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2])))
+        bars.append(scale_bar(bounds, steps[-1]))
+    flat = [s for strips in rows for s in strips]
+    n, t_rows = len(flat), np.array([b.t0_s for b in bridged]) + ent.OUTAGE_EPS_S
+    layers.send(ent.REAL_OUTAGE_CURRENT, t_rows, rr.GeoLineStrings.columns(
+        line_strings=columns.geo_line_strings(*columns.ragged(flat)), colors=np.asarray(rgb), radii=np.full(n, rr.Radius.ui_points(3.0))).partition(
+            [len(strips) for strips in rows]))
+    m = len(bridged)
+    layers.send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
+        strips=columns.line_strips_2d(*columns.ragged(bars)), labels=[scale_label(st) for st in steps],
+        colors=np.tile(SCALE_COLOR, (m, 1)), radii=np.full(m, rr.Radius.ui_points(2.0)), draw_order=np.full(m, 50.0)))
 
 
 def log_events(layers: Layers, events: list, drive) -> None:

@@ -23,12 +23,15 @@ class OutageInfo:
     """One outage of a recording, as drawn: where it is and how each estimator ended it.
 
     Attributes:
-        number: 1-based, as in the recording's ``gnss/state`` ("outage 3 (20-30 s)").
+        number: 1-based, as in the recording's ``gnss/state`` ("outage 3 (20-30 s)", or for one of
+            the log's own losses "real GNSS outage 2 (118.0-132.7 s)").
         start_s, end_s: its span on the ``time`` timeline (s).
         final_error_m: per estimator name, the 2D position error at the outage's end (m).
         local_points: truth, every estimate and the outage's scale bar in the local view's screen
             frame (m), for framing.
         lat_deg, lon_deg: the same on the map.
+        real: one of the log's own GNSS losses (``replay --on gnss-outage``), not a synthetic outage.
+        label: its ``gnss/state`` label (a real loss's span is from its last to its first good fix).
     """
 
     number: int
@@ -38,10 +41,22 @@ class OutageInfo:
     local_points: np.ndarray
     lat_deg: np.ndarray
     lon_deg: np.ndarray
+    real: bool = False
+    label: str = ""
 
     @property
     def span(self) -> str:
         return f"{self.start_s:.0f}-{self.end_s:.0f} s"
+
+    @property
+    def name(self) -> str:
+        """``outage 3`` or ``real GNSS outage 2``."""
+        return f"real GNSS outage {self.number}" if self.real else f"outage {self.number}"
+
+    @property
+    def head(self) -> str:
+        """Its name and span: ``outage 3 (20-30 s)``, ``real GNSS outage 2 (118.0-132.7 s)``."""
+        return self.label if self.real and self.label else f"{self.name} ({self.span})"
 
 
 @dataclass
@@ -52,7 +67,7 @@ class RecordingInfo:
     drive: str
     end_s: float
     states: list[tuple[float, float, str]]  # (start s, end s, label) of every outage state, real ones too, and receiver losses
-    outages: list[OutageInfo]
+    outages: list[OutageInfo]  # the synthetic outages
     lat_deg: np.ndarray  # the GNSS track
     lon_deg: np.ndarray
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
@@ -61,6 +76,13 @@ class RecordingInfo:
     ellipses: set[str] = field(default_factory=set)  # the estimators whose 95 % ellipses are drawn
     warned: bool = False  # whether the summary tab lists warnings (a line more)
     health: list[tuple[str, tuple[int, int, int]]] = field(default_factory=list)  # the filter-health lines (label, colour)
+    real_outages: list[OutageInfo] = field(default_factory=list)  # the log's own GNSS losses, bridged (replay --on gnss-outage)
+
+    @property
+    def framed(self) -> list[OutageInfo]:
+        """The outages a screenshot frames by number or as the worst: the synthetic ones; in a
+        recording through the log's own losses alone, those."""
+        return self.outages or self.real_outages
 
     def y_extent(self, origin: str, t0_s: float, t1_s: float) -> tuple[float, float] | None:
         """The least and greatest value the time plot ``origin`` draws between ``t0_s`` and
@@ -78,17 +100,20 @@ class RecordingInfo:
         return None
 
     def outage(self, number: int) -> OutageInfo:
-        if not 1 <= number <= len(self.outages):
-            raise InputError(f"{self.path}: no outage {number} (the recording has {len(self.outages)})",
+        """Outage ``number`` (1-based) of :attr:`framed`: a synthetic one, or in a recording through
+        the log's own losses alone, real GNSS outage ``number``."""
+        kind = "outage" if self.outages or not self.real_outages else "real GNSS outage"
+        if not 1 <= number <= len(self.framed):
+            raise InputError(f"{self.path}: no {kind} {number} (the recording has {len(self.framed)})",
                              "choose an outage number from the replay's list, or worst", param="outages")
-        return self.outages[number - 1]
+        return self.framed[number - 1]
 
     def worst(self, estimator: str = BASELINE) -> OutageInfo:
-        """The outage with the largest final position error of ``estimator``."""
+        """The outage of :attr:`framed` with the largest final position error of ``estimator``."""
         if estimator not in self.estimators:
             raise InputError(f"{self.path}: no estimator {estimator!r} in the recording",
                              f"choose one of {', '.join(self.estimators) or 'none'}", param="worst_of")
-        scored = [o for o in self.outages if np.isfinite(o.final_error_m.get(estimator, np.nan))]
+        scored = [o for o in self.framed if np.isfinite(o.final_error_m.get(estimator, np.nan))]
         if not scored:
             raise InputError(f"{self.path}: 'worst' needs outages with {estimator} errors in the recording",
                              "replay with outages first", param="times")
@@ -166,7 +191,7 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
     plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])) for o, parts in scan.plots.items()}
     return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots,
-                         scan.ellipses, scan.warned, list(scan.health.values()))
+                         scan.ellipses, scan.warned, list(scan.health.values()), _real_outages(spans, scan))
 
 
 def _unreadable(path: Path, exc: Exception) -> InputError:
@@ -212,6 +237,9 @@ class _Scan:
     ellipses: set[str] = field(default_factory=set)
     warned: bool = False
     health: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # NIS line entity -> (label, colour)
+    real_errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # real losses' final errors (t, m)
+    real_tracks: dict[tuple[str, str], list[np.ndarray]] = field(default_factory=dict)  # (view, est) -> a track per real loss
+    end_fixes: dict[str, np.ndarray] = field(default_factory=dict)  # view -> the first good fix after each real loss
 
     def add(self, path: Path, chunk, entity: str) -> None:
         """One chunk's share (``entity``: its path)."""
@@ -237,9 +265,16 @@ class _Scan:
             text = next((batch.column(n).to_pylist() for n in names if n.endswith(":text")), [])
             self.warned = any("warning(s)" in str(t) for t in text)
             return
+        parts = entity.strip("/").split("/")
+        if chunk.is_static and len(parts) == 3 and parts[0] in (ent.LOCAL, ent.MAP):
+            if entity.strip("/") == ent.real_outage_tracks(parts[0], parts[1]):
+                self.real_tracks[(parts[0], parts[1])] = _strips(batch, _column(path, entity, names, ":strips", ":line_strings"))
+            elif entity.strip("/") == ent.end_fixes(parts[0]):
+                self.end_fixes[parts[0]] = np.asarray(batch.column(_column(path, entity, names, ":positions")).flatten().flatten(),
+                                                      dtype=np.float64).reshape(-1, 2)
+            return
         if chunk.is_static or "time" not in names:
             return
-        parts = entity.strip("/").split("/")
         if len(parts) == 3 and parts[2] == "ellipse" and parts[0] in (ent.LOCAL, ent.INSPECT, ent.MAP):
             self.ellipses.add(parts[1])
         times = _times_of(batch)
@@ -257,6 +292,8 @@ class _Scan:
             self.plots.setdefault(plot, []).append((times, values))
             if series is not None and series[0] == "position_error_m":
                 self.errors.setdefault(series[1], []).append((times, values))
+            elif len(parts) == 4 and entity.strip("/") == ent.real_outage_errors(parts[3]):
+                self.real_errors.setdefault(parts[3], []).append((times, values))
         if ent.is_outage_frame(entity):
             col = _column(path, entity, names, ":strips", ":line_strings")
             self.drawn.setdefault(entity.strip("/"), _Rows()).add(batch, col)
@@ -286,12 +323,7 @@ def _outages(spans: list[tuple[float, float, str]], errors: dict[str, list[tuple
              drawn: dict[str, _Rows]) -> list[OutageInfo]:
     """Each synthetic outage of ``spans``: every estimator's final position error and the tracks
     drawn at its end (the log's own losses left out)."""
-    finite = {}  # per estimator, its error samples in time order (without the NaN line breaks)
-    for name, parts_ in errors.items():
-        t, v = np.concatenate([p[0] for p in parts_]), np.concatenate([p[1] for p in parts_])
-        order = np.argsort(t, kind="stable")
-        keep = order[np.isfinite(v[order])]
-        finite[name] = (t[keep], v[keep])
+    finite = {name: _in_time_order(parts_) for name, parts_ in errors.items()}
     outages = []
     for start, end, label in spans:
         if ent.parse_outage_state(label) is None:
@@ -306,6 +338,52 @@ def _outages(spans: list[tuple[float, float, str]], errors: dict[str, list[tuple
         outages.append(OutageInfo(len(outages) + 1, start, end, final, np.concatenate(local) if local else np.zeros((0, 2)),
                                   ll[:, 0], ll[:, 1]))
     return outages
+
+
+def _real_outages(spans: list[tuple[float, float, str]], scan: _Scan) -> list[OutageInfo]:
+    """Each of the log's own GNSS losses of ``spans`` (``replay --on gnss-outage``): every
+    estimator's final position error and its track through the loss, with the first good fix after it."""
+    finite = {name: _in_time_order(parts_) for name, parts_ in scan.real_errors.items()}
+    outages = []
+    for start, end, label in spans:
+        number = ent.parse_real_outage_state(label)
+        if number is None or (outages and outages[-1].number == number):
+            continue
+        final = {}
+        for name, (t, v) in finite.items():
+            k = _last_in(t, start, end)
+            final[name] = float(v[k]) if k is not None else float("nan")
+        drawn = {}
+        for view in (ent.LOCAL, ent.MAP):
+            tracks = [strips[number - 1] for (v, _), strips in scan.real_tracks.items() if v == view and len(strips) >= number]
+            ends = scan.end_fixes.get(view, np.zeros((0, 2)))
+            bar = [rows.last_in(start, end) for key, rows in scan.drawn.items() if key == ent.LOCAL_SCALE and view == ent.LOCAL]
+            drawn[view] = np.concatenate([*tracks, ends[number - 1 : number], *bar, np.zeros((0, 2))])
+        outages.append(OutageInfo(number, start, end, final, drawn[ent.LOCAL], drawn[ent.MAP][:, 0], drawn[ent.MAP][:, 1],
+                                  real=True, label=label))
+    return outages
+
+
+def _in_time_order(parts_: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """A series' (t, value) chunks joined in time order, without its NaN line breaks."""
+    t, v = np.concatenate([p[0] for p in parts_]), np.concatenate([p[1] for p in parts_])
+    order = np.argsort(t, kind="stable")
+    keep = order[np.isfinite(v[order])]
+    return t[keep], v[keep]
+
+
+def _strips(batch, column: str) -> list[np.ndarray]:
+    """The strips of a static list<list<[2]>> column's last row, each ``(n_i, 2)``."""
+    import pyarrow as pa
+
+    col = batch.column(column)
+
+    if isinstance(col, pa.ChunkedArray):
+        col = col.combine_chunks()
+    row = col[len(col) - 1].values  # the row's strips
+    off = np.asarray(row.offsets)
+    flat = np.asarray(row.flatten().flatten(), dtype=np.float64).reshape(-1, 2)
+    return [flat[off[i] - off[0]:off[i + 1] - off[0]] for i in range(len(off) - 1)]
 
 
 def _column(path: Path, entity: str, names: list[str], *suffixes: str) -> str:

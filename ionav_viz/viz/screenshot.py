@@ -52,7 +52,7 @@ BACKGROUND_RGB, KEY_TEXT_RGB = (13, 13, 13), (225, 225, 225)
 def key_head(shot: Shot) -> str:
     """What the key's values are, before its entries: the framed outage's final errors (the
     filter-health view's key names its lines only)."""
-    return f"outage {shot.outage.number}, final error:" if shot.outage is not None and shot.view != "health" else ""
+    return f"{shot.outage.name}, final error:" if shot.outage is not None and shot.view != "health" else ""
 
 
 def band_height(img) -> int:
@@ -195,7 +195,7 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
             shots += [Shot(view, t, key if key in ("worst", "end") else f"{t:06.1f}s", outage) for view in views]
         for number in outages:
             o = info.outage(int(number))
-            shots += [Shot(view, o.end_s, f"outage{o.number}", o) for view in views]
+            shots += [Shot(view, o.end_s, f"{'real-' if o.real else ''}outage{o.number}", o) for view in views]
         paths = output_paths(out, info.drive, [(s.view, s.label) for s in shots], len(infos) == 1)
         plans.append((info, shots, paths))
     folder = None
