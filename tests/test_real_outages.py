@@ -125,3 +125,19 @@ def test_the_summary_of_a_replay_through_real_losses_only_says_what_they_gave():
         assert "nan" not in text.lower(), text
         assert f"**Real GNSS outages**: {len(bridged)} (" in text and f"mean m: INS DR {ins_mean:.1f}, IDNN" in text, text
         assert f"#{worst['number']} ({worst['gap_start_s']:.0f}-{worst['gap_end_s']:.0f} s, m): INS DR {worst['final_error_m']['ins']:.1f}" in text
+
+
+def test_the_distance_driven_leaves_out_fixes_without_a_fix(pair, tmp_path):
+    """A receiver that writes zeros while it has no fix put (0, 0) into the drive: the fleet table
+    counted the way to the equator and back (23,458 km for a 5-minute drive). The distance runs over
+    the trustworthy fixes only, straight across each loss: within 1 % of the clean drive's GNSS
+    speed integrated over time (an independent measure; the losses are on a motorway)."""
+    clean, lossy, _ = pair
+    drive = iv.load_drive(str(clean))
+    integrated = float(np.sum(0.5 * (drive.speed_mps[1:] + drive.speed_mps[:-1]) * np.diff(drive.t_s)))
+    assert iv.load_drive(str(lossy)).distance_m == pytest.approx(integrated, rel=0.01)
+    assert drive.distance_m == pytest.approx(integrated, rel=0.01)
+    proc = run_cli("evaluate", str(lossy), str(clean), "--estimators", "ins", "--fleet-rrd", str(tmp_path / "fleet.rrd"), "--json")
+    assert proc.returncode == 0, proc.stderr
+    drives = {d["drive"]: d for d in json.loads(proc.stdout)["drives"]}
+    assert drives["V-lossy"]["distance_m"] == pytest.approx(integrated, rel=0.01)

@@ -37,7 +37,7 @@ class DriveTable:
     Attributes:
         spec: the drive as it was given (a path, a bundled or run name): what replays it.
         name, source: the drive's name and the file it was read from.
-        duration_s, distance_m: the drive's length in time and its GNSS (truth) distance.
+        duration_s, distance_m: the drive's length in time and its GNSS (truth) distance (:attr:`~ionav_viz.core.drive.Drive.distance_m`).
         outage_s: the length of each outage.
         estimators: name and label of each estimator that ran, in report order.
         start_s, gnss_distance_m: per outage, its start (s since the drive's first sample) and
@@ -108,7 +108,6 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
     """The compact table of one drive's :class:`DriveResult` (its arrays are not kept);
     ``thresholds``: the event detectors' (:class:`~ionav_viz.analysis.events.EventThresholds`),
     which label each outage's manoeuvre."""
-    from ..core.geo import steps_en_m
     from .consistency import outage_consistency
     from .events import MANOEUVRE_TYPES, detect_events, outage_manoeuvres
     from .metrics import cumulative_errors
@@ -124,10 +123,9 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
             error_at[est] = {str(t): np.zeros(len(result.starts)) for t in early}
     consistent = {est: c for est in result.estimates if (c := outage_consistency(result, est)) is not None}
     events = detect_events(drive, thresholds, MANOEUVRE_TYPES) if len(result.starts) else []
-    east, north = steps_en_m(drive.lat_deg, drive.lon_deg)
     return DriveTable(
         spec=str(spec), name=drive.name, source=drive.source, duration_s=float(drive.duration_s),
-        distance_m=float(np.hypot(east, north).sum()), outage_s=result.outage_s,
+        distance_m=drive.distance_m, outage_s=result.outage_s,
         estimators=[{"name": e.name, "label": e.label, **({"color": list(c)} if (c := color_of(e)) else {})} for e in result.estimators],
         start_s=np.asarray(result.outage_t0_s, dtype=float).copy(), gnss_distance_m=np.asarray(result.gnss_distance_m, dtype=float).copy(),
         metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},

@@ -198,6 +198,19 @@ class Drive:
     def duration_s(self) -> float:
         return float(self.t_s[-1] - self.t_s[0]) if len(self) else 0.0
 
+    @property
+    def distance_m(self) -> float:
+        """The distance driven (m): the steps between consecutive trustworthy fixes (:attr:`gnss_ok`;
+        a straight line across each stretch without one), 0 with fewer than two. Not over every
+        fix: a receiver that reports (0, 0) without a fix would add twice the way to the equator."""
+        from .geo import steps_en_m
+
+        ok = self.gnss_ok
+        if ok.sum() < 2:
+            return 0.0
+        east, north = steps_en_m(self.lat_deg[ok], self.lon_deg[ok])
+        return float(np.hypot(east, north).sum())
+
 
 def measured_imu(drive: Drive) -> tuple[np.ndarray, np.ndarray] | None:
     """The drive's full IMU as ``(accel (n, 3) m/s^2, gyro (n, 3) rad/s)`` in the body frame, or None
