@@ -338,3 +338,34 @@ def test_the_error_into_an_outage_is_the_final_error_of_a_shorter_one(fleet_dir)
                     compared += 1
     assert compared >= 9
     assert long.by_length()["30"]["mean_error_m"] == {e: long.pooled()[e]["summary"]["final_position_error_m"]["mean"] for e in long.estimators}
+
+
+def test_a_fleet_through_the_logs_own_losses_reports_them(tmp_path):
+    """``--on gnss-outage`` over a fleet: each drive's own GNSS losses, bridged, pooled and per drive
+    (before, the fleet report said "0 outages" and nothing of them). Pooled means and counts
+    against each drive evaluated on its own through its losses."""
+    import numpy as np
+
+    import ionav_viz as iv
+
+    drives = [str(iv.simulate(sc, tmp_path / f"V-loss{i}.csv", seed=10 + i, duration_s=240.0, gnss_losses=3)) for i, sc in
+              enumerate(("motorway", "roundabout"))]
+    single = []
+    for d in drives:
+        proc = run_cli("evaluate", d, "--on", "gnss-outage", "--estimators", CHEAP, "--json")
+        assert proc.returncode == 0, proc.stderr
+        single.append(json.loads(proc.stdout)["gnss_outages"]["bridged"])
+    proc = run_cli("evaluate", *drives, "--on", "gnss-outage", "--estimators", CHEAP, "--workers", "2", "--json")
+    assert proc.returncode == 0, proc.stderr
+    real = json.loads(proc.stdout)["real_outages"]
+    every = [b for drive in single for b in drive]
+    assert real["n"] == len(every) >= 4
+    for est in ("ins", "odo"):
+        errors = [b["final_error_m"][est] for b in every]
+        assert real["pooled"][est]["losses"] == len(every)
+        assert real["pooled"][est]["mean_final_error_m"] == pytest.approx(np.mean(errors), abs=1e-3)
+        assert real["pooled"][est]["worst"]["final_error_m"] == pytest.approx(max(errors), abs=1e-3)
+    assert [d["losses"] for d in real["drives"]] == [len(s) for s in single]
+    text = run_cli("evaluate", *drives, "--on", "gnss-outage", "--estimators", CHEAP, "--workers", "2").stdout
+    assert f"; {len(every)} of the logs' own GNSS losses bridged over" in text and "Through the logs' own GNSS losses" in text
+    assert "Pooled over the fleet" not in text  # no synthetic outage: no table of dashes

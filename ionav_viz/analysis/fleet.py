@@ -59,6 +59,9 @@ class DriveTable:
             ``final_position_error_m``).
         consistency: per estimator that gives a covariance, its compact per-outage values
             (:func:`ionav_viz.analysis.consistency.outage_consistency`).
+        real_outages: the log's own GNSS losses, bridged (``--on gnss-outage``): each
+            :meth:`ionav_viz.analysis.bridging.BridgedOutage.to_dict` (``number``, ``gap_s``,
+            ``final_error_m`` per estimator, ...).
     """
 
     spec: str
@@ -84,6 +87,7 @@ class DriveTable:
     consistency: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     #: per outage, whether it lies in data the IDNN's model was trained on (None: no IDNN ran)
     in_training: np.ndarray | None = None
+    real_outages: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def n_outages(self) -> int:
@@ -131,6 +135,7 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
         metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
+        real_outages=[b.to_dict() for b in result.bridged],
         warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
         imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()},
         manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at, consistency=consistent,
@@ -314,6 +319,35 @@ class FleetReport:
             rows.append(row)
         return rows
 
+    @property
+    def n_real_outages(self) -> int:
+        return int(sum(len(t.real_outages) for t in self.drives))
+
+    def real_outages(self) -> dict[str, Any]:
+        """The drives' own GNSS losses bridged (``--on gnss-outage``): ``n``; per estimator over
+        the fleet ``drives``, ``losses``, ``mean_final_error_m``, ``p90_final_error_m`` and the
+        ``worst`` (``drive``, ``number``, ``final_error_m``); ``drives`` (per drive with losses:
+        ``drive``, ``losses``, ``gap_s`` in all and per estimator ``mean_final_error_m``); ``losses``
+        (each, with its ``drive``)."""
+        losses = [{"drive": t.name, **b} for t in self.drives for b in t.real_outages]
+        pooled: dict[str, dict[str, Any]] = {}
+        for est in self.estimators:
+            mine = [b for b in losses if est in b["final_error_m"]]
+            if not mine:
+                continue
+            err = np.array([b["final_error_m"][est] for b in mine], dtype=float)
+            k = int(np.nanargmax(err)) if np.isfinite(err).any() else 0
+            pooled[est] = {"drives": len({b["drive"] for b in mine}), "losses": len(mine), "mean_final_error_m": summarise(err)["mean"],
+                           "p90_final_error_m": final_error_percentiles(err)["p90"],
+                           "worst": {"drive": mine[k]["drive"], "number": mine[k]["number"], "final_error_m": float(err[k])}}
+        drives = []
+        for t in self.drives:
+            if t.real_outages:
+                ests = [e for e in self.estimators if e in t.real_outages[0]["final_error_m"]]
+                drives.append({"drive": t.name, "losses": len(t.real_outages), "gap_s": float(sum(b["gap_s"] for b in t.real_outages)),
+                               "mean_final_error_m": {e: float(np.mean([b["final_error_m"][e] for b in t.real_outages])) for e in ests}})
+        return {"n": len(losses), "pooled": pooled, "drives": drives, "losses": losses}
+
     def command(self, spec: str) -> str:
         """The command that replays one drive with the fleet's outages."""
         return " ".join(["ionav-viz replay", shlex.quote(spec), self.replay_options or f"--outage {self.outage_s:g}s"]).strip()
@@ -351,7 +385,8 @@ class FleetReport:
         (``drive`` as given and its one-line ``reason``); ``timing`` (``wall_s``, ``engine``, per
         drive ``elapsed_s``: the only key that changes from run to run); ``consistency``
         (:meth:`consistency`), ``by_manoeuvre`` (:meth:`by_manoeuvre`; each sequence has its
-        ``manoeuvre``) and ``by_length`` (:meth:`by_length`). NaN is written as null.
+        ``manoeuvre``) and ``by_length`` (:meth:`by_length`); ``real_outages`` (:meth:`real_outages`:
+        the drives' own GNSS losses, bridged). NaN is written as null.
         """
         sequences = []
         for t in self.drives:
@@ -374,6 +409,7 @@ class FleetReport:
             "consistency": self.consistency(),
             "by_manoeuvre": self.by_manoeuvre(),
             "by_length": self.by_length(),
+            "real_outages": self.real_outages(),
             "drives": self.drive_rows(),
             "worst_of": self.worst_of,
             "worst_drives": self.worst_drives(),
@@ -395,6 +431,22 @@ class FleetReport:
     def to_markdown(self) -> str:
         """The report as Markdown."""
         return _render(self, markdown=True, width=None)
+
+
+def _real_outage_lines(rep: FleetReport, table: Any, heading: Any, markdown: bool) -> list[str]:
+    """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_outages`)."""
+    real, labels = rep.real_outages(), rep.labels
+    gaps = [b["gap_s"] for b in real["losses"]]
+    lines = [heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s without a fix; "
+                     "final error from the last good fix to the first after, m)"), ""]
+    rows = [[labels[e], str(p["drives"]), str(p["losses"]), _f(p["mean_final_error_m"]), _f(p["p90_final_error_m"]),
+             f"{_f(p['worst']['final_error_m'], 1)} ({p['worst']['drive']} #{p['worst']['number']})"] for e, p in real["pooled"].items()]
+    lines += table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1) + [""]
+    ests = list(real["pooled"])
+    rows = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"] + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
+            for d in real["drives"]]
+    lines += table(["Drive", "losses", "without fix s"] + [short_label(labels[e]) for e in ests], rows, 1) + [""]
+    return lines
 
 
 def _f(x: float, decimals: int = 2) -> str:
@@ -420,8 +472,12 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
     given = len(rep.drives) + len(rep.failures) + len(rep.skipped)
     lines = [("# " if markdown else "") + f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
              + (f", {len(rep.failures)} failed" if rep.failures else "") + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
-             + f"; {rep.n_outages} outages of {rep.outage_s:g} s over {hours:.2f} h and {km:.1f} km", ""]
-    if rep.drives:
+             + (f"; {rep.n_outages} outages of {rep.outage_s:g} s" if rep.n_outages or not rep.n_real_outages else "")
+             + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
+             + f" over {hours:.2f} h and {km:.1f} km", ""]
+    if rep.n_real_outages:
+        lines += _real_outage_lines(rep, table, heading, markdown)
+    if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
         lines += [heading("Pooled over the fleet (mean over outages)"), ""]
         header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + (["final vs INS %"] if base else [])
