@@ -366,6 +366,17 @@ def test_a_fleet_through_the_logs_own_losses_reports_them(tmp_path):
         assert real["pooled"][est]["mean_final_error_m"] == pytest.approx(np.mean(errors), abs=1e-3)
         assert real["pooled"][est]["worst"]["final_error_m"] == pytest.approx(max(errors), abs=1e-3)
     assert [d["losses"] for d in real["drives"]] == [len(s) for s in single]
-    text = run_cli("evaluate", *drives, "--on", "gnss-outage", "--estimators", CHEAP, "--workers", "2").stdout
+    out = tmp_path / "fleet.rrd"
+    text = run_cli("evaluate", *drives, "--on", "gnss-outage", "--estimators", CHEAP, "--workers", "2", "--fleet-rrd", str(out)).stdout
     assert f"; {len(every)} of the logs' own GNSS losses bridged over" in text and "Through the logs' own GNSS losses" in text
     assert "Pooled over the fleet" not in text  # no synthetic outage: no table of dashes
+    # the overview recording: a row and a bar per drive of its losses (it had only dashes and empty bars)
+    texts, bars = _texts_and_bars(out)
+    for k, losses in enumerate(single, 1):
+        errors = {est: [b["final_error_m"][est] for b in losses] for est in ("ins", "odo")}
+        worst = losses[int(np.argmax(errors["ins"]))]["number"]
+        assert f"{k}. V-loss{k - 1}, real GNSS outage {worst}: `ionav-viz replay" in texts["/fleet/drives"]
+        assert f"| {k} | V-loss{k - 1} | {len(losses)} | " in texts["/fleet/drives"]
+        for est in ("ins", "odo"):
+            assert bars[f"/fleet/mean_final_error_m/{est}"][0][k - 1] == pytest.approx(np.mean(errors[est]), abs=1e-3)
+            assert bars[f"/fleet/worst_final_error_m/{est}"][0][k - 1] == pytest.approx(max(errors[est]), abs=1e-3)

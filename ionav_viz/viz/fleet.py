@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.fleet import DriveTable, FleetReport
+from ..analysis.metrics import summarise
 from ..core.fileio import utf8_alias
 from ..nav.protocol import short_label
 from .recording import APP_ID, streamed_to
@@ -35,19 +36,36 @@ SCREENSHOT_SETTLE_S = 6.0
 BAR_WIDTH = 0.8
 
 
+def through_real_losses(report: FleetReport) -> bool:
+    """Whether the fleet ran through its logs' own GNSS losses alone (``--on gnss-outage``): then
+    the overview's rows and bars are of those, not of synthetic outages (it has none)."""
+    return report.n_outages == 0 and report.n_real_outages > 0
+
+
+def final_errors_m(report: FleetReport, table: DriveTable, estimator: str) -> np.ndarray:
+    """The drive's final position errors (m) of ``estimator``: over its synthetic outages, or over
+    its own GNSS losses in a fleet through them alone (:func:`through_real_losses`)."""
+    if through_real_losses(report):
+        return np.array([b["final_error_m"][estimator] for b in table.real_outages if estimator in b["final_error_m"]], dtype=float)
+    return table.metrics[estimator]["final_position_error_m"] if estimator in table.metrics else np.zeros(0)
+
+
 def worst_outage(report: FleetReport, table: DriveTable) -> dict[str, Any] | None:
     """The drive's outage with the largest final error of the report's :attr:`~FleetReport.worst_of`
-    (the INS DR if it ran): ``number`` (from 1, the replay's "outage N"), ``start_s``, ``end_s``,
-    ``final_error_m``; None when it has none."""
+    (the INS DR if it ran): ``number`` (from 1, the replay's "outage N"), ``name`` (how the
+    replay names it: "outage 3 (20-30 s)", or in a fleet through the logs' own losses "real GNSS
+    outage 2 (118-133 s)"), ``final_error_m``; None when it has none."""
     est = report.worst_of
-    if est is None or est not in table.metrics:
-        return None
-    err = table.metrics[est]["final_position_error_m"]
+    err = final_errors_m(report, table, est) if est is not None else np.zeros(0)
     if not np.isfinite(err).any():
         return None
     i = int(np.nanargmax(err))
-    return {"number": i + 1, "start_s": float(table.start_s[i]), "end_s": float(table.start_s[i] + table.outage_s),
-            "final_error_m": float(err[i])}
+    if through_real_losses(report):
+        b = table.real_outages[i]
+        return {"number": b["number"], "name": f"real GNSS outage {b['number']} ({b['gap_start_s']:.0f}-{b['gap_end_s']:.0f} s)",
+                "final_error_m": float(err[i])}
+    t0 = float(table.start_s[i])
+    return {"number": i + 1, "name": f"outage {i + 1} ({t0:.0f}-{t0 + table.outage_s:.0f} s)", "final_error_m": float(err[i])}
 
 
 def drives_markdown(report: FleetReport) -> str:
@@ -58,18 +76,21 @@ def drives_markdown(report: FleetReport) -> str:
     ests, labels = report.estimators, report.labels
     short = {e: short_label(labels[e]) for e in ests}
     by = short[report.worst_of] if report.worst_of else ""
-    header = ["#", "drive", "outages"] + [f"{short[e]} m" for e in ests] + [f"worst outage ({by} m)"]
-    lines = [f"# Fleet: {len(report.drives)} drive(s), {report.n_outages} outages of {report.outage_s:g} s",
-             "", "Mean final position error per drive (the bars are numbered as the rows), and each drive's worst outage.", "",
+    real = through_real_losses(report)
+    header = ["#", "drive", "losses" if real else "outages"] + [f"{short[e]} m" for e in ests] + [f"worst {'loss' if real else 'outage'} ({by} m)"]
+    title = (f"{report.n_real_outages} of the logs' own GNSS losses, bridged" if real else f"{report.n_outages} outages of {report.outage_s:g} s")
+    lines = [f"# Fleet: {len(report.drives)} drive(s), {title}",
+             "", f"Mean final position error per drive (the bars are numbered as the rows), and each drive's worst {'loss' if real else 'outage'}.", "",
              "| " + " | ".join(header) + " |", "|" + "|".join("---" if j == 1 or j == len(header) - 1 else "---:" for j in range(len(header))) + "|"]
     replays = []
     for k, t in enumerate(report.drives, 1):
         worst = worst_outage(report, t)
-        cells = [str(k), t.name, str(t.n_outages)] + [_f(t.mean_final_error_m(e)) for e in ests]
-        cells.append("-" if worst is None else f"outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s): {worst['final_error_m']:.1f}")
+        count = len(t.real_outages) if real else t.n_outages
+        cells = [str(k), t.name, str(count)] + [_f(summarise(final_errors_m(report, t, e))["mean"]) for e in ests]
+        cells.append("-" if worst is None else f"{worst['name']}: {worst['final_error_m']:.1f}")
         lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
         where = f"; its recording `{t.recording}`" if t.recording else ""
-        replays.append(f"{k}. {t.name}" + (f", outage {worst['number']}" if worst else "") + f": `{report.command(t.spec)}`{where}")
+        replays.append(f"{k}. {t.name}" + (f", {worst['name'].split(' (')[0]}" if worst else "") + f": `{report.command(t.spec)}`{where}")
     lines += ["", "## Replay a drive", "", *replays]
     if report.failures or report.skipped:
         lines += ["", "## Not evaluated", "", *(f"- {f.spec}: {f.reason}" for f in [*report.failures, *report.skipped])]
@@ -112,9 +133,9 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
         rows |= {FLEET_TABLE: 1, FLEET_REPORT: 1}
         numbers = np.arange(1, len(report.drives) + 1, dtype=np.float64)
         for e in report.estimators:
-            means = np.array([t.mean_final_error_m(e) for t in report.drives])
-            worst = np.array([np.nanmax(t.metrics[e]["final_position_error_m"]) if e in t.metrics and np.isfinite(t.metrics[e]["final_position_error_m"]).any()
-                              else np.nan for t in report.drives])
+            errors = [final_errors_m(report, t, e) for t in report.drives]
+            means = np.array([summarise(err)["mean"] for err in errors])
+            worst = np.array([np.nanmax(err) if np.isfinite(err).any() else np.nan for err in errors])
             for root, values in ((MEAN_BARS, means), (WORST_BARS, worst)):
                 rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e], abscissa=numbers - BAR_WIDTH / 2,
                                                    widths=np.full(len(numbers), BAR_WIDTH, dtype=np.float32)), static=True)
