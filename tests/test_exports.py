@@ -54,7 +54,7 @@ def test_the_outage_table_geojson_and_gpx_hold_every_outage(exported):
     geo = json.loads((folder / "tracks.geojson").read_text())
     kinds = [f["properties"]["kind"] for f in geo["features"]]
     assert kinds.count("truth") == 1 and kinds.count("estimate") == 3 * got["n_sequences"]
-    lon, lat = geo["features"][0]["geometry"]["coordinates"][0]
+    lon, lat = geo["features"][0]["geometry"]["coordinates"][0][0]
     drive = iv.load_drive("roundabout")
     assert (lat, lon) == pytest.approx((drive.lat_deg[0], drive.lon_deg[0]), abs=1e-8)  # GeoJSON: longitude first
     gpx = ET.parse(folder / "tracks.gpx").getroot()
@@ -152,3 +152,37 @@ def test_an_export_folder_that_cannot_be_made_stops_before_any_work(tmp_path):
     proc = run_cli("replay", "hard-brake", "--no-idnn", "-o", str(tmp_path / "r.rrd"), "--export", str(tmp_path / "taken" / "ex"), "-q")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "--export" in proc.stderr, proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]  # no recording written
+
+
+def test_exports_through_the_logs_own_losses_leave_untrusted_fixes_out_and_list_the_losses(tmp_path):
+    """The bundled tunnel drive's receiver writes zeros or freezes in its six losses: the truth
+    track broke to (0, 0) in QGIS (21 points of 599). Now its stretches of trustworthy fixes only,
+    one GPX segment each; and with --on gnss-outage real_outages.csv lists each loss per estimator
+    as the report does, and the tracks hold the estimates through them (before: an empty table)."""
+    import ionav_viz as iv
+
+    folder = tmp_path / "ex"
+    proc = run_cli("evaluate", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins,odo", "--json", "--export", str(folder))
+    assert proc.returncode == 0, proc.stderr
+    bridged = json.loads(proc.stdout)["gnss_outages"]["bridged"]
+    drive = iv.load_drive("V-sim-motorway-tunnels")
+    good = {(round(float(a), 8), round(float(b), 8)) for a, b in zip(drive.lat_deg[drive.gnss_ok], drive.lon_deg[drive.gnss_ok])}
+    geo = json.loads((folder / "tracks.geojson").read_text())
+    truth = next(f for f in geo["features"] if f["properties"]["kind"] == "truth")["geometry"]
+    assert truth["type"] == "MultiLineString" and len(truth["coordinates"]) >= len(bridged) + 1
+    assert all((lat, lon) in good for line in truth["coordinates"] for lon, lat in line)  # no (0, 0), no frozen fix
+    real = [f for f in geo["features"] if f["properties"]["kind"] == "real-outage"]
+    assert len(real) == 2 * len(bridged)
+    with open(folder / "real_outages.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 * len(bridged)
+    for row in rows:
+        b = bridged[int(row["outage"]) - 1]
+        assert float(row["final_position_error_m"]) == pytest.approx(b["final_error_m"][row["estimator"]], abs=1e-3)
+        assert float(row["gap_s"]) == pytest.approx(b["gap_s"], abs=0.006)  # the JSON rounds to 0.01 s
+    gpx = ET.parse(folder / "tracks.gpx").getroot()
+    ns = {"g": "http://www.topografix.com/GPX/1/1"}
+    trk = gpx.findall("g:trk", ns)
+    assert len(trk[0].findall("g:trkseg", ns)) == len(truth["coordinates"]) and len(trk) == 1 + 2 * len(bridged)
+    points = [(float(p.get("lat")), float(p.get("lon"))) for p in trk[0].iter("{http://www.topografix.com/GPX/1/1}trkpt")]
+    assert min(abs(lat) for lat, _ in points) > 1.0

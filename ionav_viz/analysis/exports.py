@@ -11,9 +11,14 @@ Files written into ``DIR`` (each atomically, an existing one of the same name re
   north in metres on the azimuthal equidistant plane about the drive's first GNSS fix (the local
   frame ``--external`` reads too), z 0; the orientation is the course (yaw about up, from east,
   counter-clockwise). ``evo_ape tum outage-001-truth.tum outage-001-ins.tum`` reads them as they are.
-* ``tracks.geojson`` (RFC 7946, WGS84 longitude/latitude): each drive's truth and every outage's
-  estimated tracks as LineStrings with their drive, outage, estimator and final error.
-* ``tracks.gpx`` (GPX 1.1): the same tracks, one ``trk`` each, for Google Earth, QGIS or a phone.
+* ``real_outages.csv``, with ``--on gnss-outage``: one row per loss of the log's own GNSS and
+  estimator, its span and the final error from the last good fix to the first after it.
+* ``tracks.geojson`` (RFC 7946, WGS84 longitude/latitude): each drive's truth (a MultiLineString
+  of its trustworthy fixes, broken where it has none: a receiver without a fix writes (0, 0) or
+  freezes) and every outage's estimated tracks as LineStrings with their drive, outage, estimator
+  and final error, the log's own losses' too (``kind`` ``real-outage``).
+* ``tracks.gpx`` (GPX 1.1): the same tracks, one ``trk`` each (the truth's stretches as its
+  ``trkseg`` s), for Google Earth, QGIS or a phone.
 """
 
 from __future__ import annotations
@@ -42,6 +47,11 @@ from .metrics import METRICS
 #: (same file by sha256, overlapping time), 0 when not, empty when no IDNN ran.
 OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS,
                   "final_nees", "final_inside_95", "in_training")
+#: The columns of ``real_outages.csv`` (``--on gnss-outage``): each loss of the log's own GNSS,
+#: bridged from its last good fix (``gap_start_s``) and scored at the first good one after it
+#: (``gap_end_s``); the estimators ran on the windows from ``outage_start_s`` for ``outage_s``.
+REAL_OUTAGE_COLUMNS = ("drive", "outage", "gap_start_s", "gap_end_s", "gap_s", "outage_start_s", "outage_s", "span_m", "estimator", "label",
+                       "final_position_error_m")
 
 
 def export_results(results: list[Any], folder: str | Path) -> list[Path]:
@@ -81,13 +91,17 @@ def _write_all(results: list[Any], stage: Path, folder: Path) -> tuple[list[str]
             f, g = _tracks(res)
             features += f
             gpx_tracks += g
+        real = any(res.bridged for res in results)
+        if real:
+            name = "real_outages.csv"
+            (stage / name).write_bytes(_real_outages_csv(results).encode())
         name = "tracks.geojson"
         (stage / name).write_bytes(dumps_json({"type": "FeatureCollection", "features": features}, indent=None).encode())
         name = "tracks.gpx"
         (stage / name).write_bytes(_gpx(gpx_tracks).encode())
     except OSError as exc:
         raise _failure(folder / name, exc) from None
-    return ["outages.csv", "tracks.geojson", "tracks.gpx"], drives
+    return ["outages.csv", *(["real_outages.csv"] if real else []), "tracks.geojson", "tracks.gpx"], drives
 
 
 def _move_in(stage: Path, folder: Path, files: list[str], drives: dict[str, list[str]]) -> None:
@@ -141,6 +155,19 @@ def _outages_csv(results: list[Any]) -> str:
     return out.getvalue()
 
 
+def _real_outages_csv(results: list[Any]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(REAL_OUTAGE_COLUMNS)
+    for res in results:
+        labels = {est.name: est.label for est in res.estimators}
+        for b in res.bridged:
+            for name, err in b.final_error_m.items():
+                writer.writerow([res.drive.name, b.number, f"{b.gap_t0_s:.3f}", f"{b.gap_t1_s:.3f}", f"{b.gap_s:.3f}", f"{b.t0_s:.3f}",
+                                 b.n_windows, f"{b.span_m:.4f}", name, labels.get(name, name), _number(err)])
+    return out.getvalue()
+
+
 def _number(x: float) -> str:
     return "" if not math.isfinite(float(x)) else repr(float(x))
 
@@ -178,13 +205,13 @@ def _tum_files(res: Any, folder: Path) -> list[str]:
     return out
 
 
-def _tracks(res: Any) -> tuple[list[dict[str, Any]], list[tuple[str, np.ndarray, np.ndarray]]]:
+def _tracks(res: Any) -> tuple[list[dict[str, Any]], list[tuple[str, list[np.ndarray], list[np.ndarray]]]]:
     """GeoJSON features and GPX tracks ``(name, lat, lon)`` of one drive: its truth, and every outage's estimates."""
     d = res.drive
-    step = max(1, int(round(d.rate_hz)))  # the truth at about 1 Hz keeps the files small
-    features = [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(d.lat_deg[::step], d.lon_deg[::step])},
+    stretches = truth_stretches(d.gnss_ok, max(1, int(round(d.rate_hz))))  # the truth at about 1 Hz keeps the files small
+    features = [{"type": "Feature", "geometry": {"type": "MultiLineString", "coordinates": [_coords(d.lat_deg[k], d.lon_deg[k]) for k in stretches]},
                  "properties": {"drive": d.name, "kind": "truth"}}]
-    gpx = [(f"{d.name} truth", d.lat_deg[::step], d.lon_deg[::step])]
+    gpx = [(f"{d.name} truth", [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches])]
     for i, k in enumerate(res.starts):
         for est in res.estimators:
             track = res.estimates[est.name].track
@@ -193,19 +220,46 @@ def _tracks(res: Any) -> tuple[list[dict[str, Any]], list[tuple[str, np.ndarray,
                              "properties": {"drive": d.name, "kind": "estimate", "outage": i + 1, "start_s": round(float(res.windows.t0_s[k]), 3),
                                             "estimator": est.name, "label": est.label,
                                             "final_position_error_m": final if math.isfinite(final) else None}})
-            gpx.append((f"{d.name} outage {i + 1} {est.label}", track.lat_deg[i], track.lon_deg[i]))
+            gpx.append((f"{d.name} outage {i + 1} {est.label}", [track.lat_deg[i]], [track.lon_deg[i]]))
+    for b in res.bridged:  # the log's own GNSS losses (--on gnss-outage)
+        for est in res.estimators:
+            track = b.tracks[est.name]
+            final = float(b.final_error_m[est.name])
+            features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[0], track.lon_deg[0])},
+                             "properties": {"drive": d.name, "kind": "real-outage", "outage": b.number, "start_s": round(b.gap_t0_s, 3),
+                                            "estimator": est.name, "label": est.label,
+                                            "final_position_error_m": final if math.isfinite(final) else None}})
+            gpx.append((f"{d.name} real GNSS outage {b.number} {est.label}", [track.lat_deg[0]], [track.lon_deg[0]]))
     return features, gpx
+
+
+def truth_stretches(ok: np.ndarray, step: int) -> list[np.ndarray]:
+    """The sample indices of the truth tracks: every ``step``-th trustworthy fix (``ok``), in
+    stretches broken wherever an untrusted one lies between two (the last good fix of each
+    stretch kept, so a stretch ends where the fixes stop)."""
+    good = np.flatnonzero(ok)
+    if not len(good):
+        return []
+    bad_before = np.cumsum(~np.asarray(ok, dtype=bool))[good]  # untrusted samples up to each good one
+    cuts = np.flatnonzero(np.diff(bad_before)) + 1
+    out = []
+    for run in np.split(good, cuts):
+        keep = run[::step]
+        out.append(keep if keep[-1] == run[-1] else np.append(keep, run[-1]))
+    return out
 
 
 def _coords(lat: np.ndarray, lon: np.ndarray) -> list[list[float]]:
     return [[round(float(x), 8), round(float(y), 8)] for y, x in zip(lat, lon)]
 
 
-def _gpx(tracks: list[tuple[str, np.ndarray, np.ndarray]]) -> str:
+def _gpx(tracks: list[tuple[str, list[np.ndarray], list[np.ndarray]]]) -> str:
+    """GPX 1.1 of ``tracks``: each ``(name, lat per segment, lon per segment)`` one ``trk``."""
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            '<gpx version="1.1" creator="ionav-viz" xmlns="http://www.topografix.com/GPX/1/1">']
-    for name, lat, lon in tracks:
-        points = "".join(f'<trkpt lat="{float(y):.8f}" lon="{float(x):.8f}"/>' for y, x in zip(lat, lon))
-        out.append(f"<trk><name>{escape(name)}</name><trkseg>{points}</trkseg></trk>")
+    for name, lats, lons in tracks:
+        segments = "".join("<trkseg>" + "".join(f'<trkpt lat="{float(y):.8f}" lon="{float(x):.8f}"/>' for y, x in zip(lat, lon)) + "</trkseg>"
+                           for lat, lon in zip(lats, lons))
+        out.append(f"<trk><name>{escape(name)}</name>{segments}</trk>")
     out.append("</gpx>")
     return "\n".join(out) + "\n"
