@@ -210,6 +210,9 @@ def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
     "args, fragments",
     [
         (["--outage", "10m"], ["--outage 10m", "too short", "shorter outages"]),
+        # the outage fits the drive, not after the warm-up: the warm-up is named, not the outage
+        (["--warm-up", "3600s"], ["--warm-up", "too short for a 10 s outage after the 3600 s warm-up", "a shorter warm-up"]),
+        (["--span", "0s:35s"], ["--warm-up", "after the 30 s warm-up (35.0 s in the span 0s:35s)", "or a longer span"]),
         (["--outage", "0"], ["--outage", "positive"]),
         (["--outage=-10s"], ["--outage", "not a duration"]),
         (["--outage", "2.5s"], ["whole number of seconds"]),

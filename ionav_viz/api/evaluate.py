@@ -21,7 +21,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, name_of, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, windows_of, with_externals
+from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, name_of, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, too_short, windows_of, with_externals
 
 
 class ScenarioDrives(dict):
@@ -160,14 +160,17 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
         if plan.too_short:
             if plan.excluded:
                 log.warning("%s: no %g s outage fits where the GNSS truth and the receiver's fixes are good; skipped", drive.name, n)
-            else:
-                log.warning("%s: too short for a single %g s outage; skipped", drive.name, n)
+            elif len(loaded) > 1:  # one drive alone: the error says it
+                short = too_short(drive, n, run, read)
+                log.warning("%s; skipped (%s)", short.message, short.hint)
             continue
         results.append(evaluate_drive(drive, n, ests, bias=bias_of(drive), starts=plan.starts, windows=windows,
                                       excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps, placement=plan.description))
     if progress:
         progress("done", len(items), len(items))
     if not results:
+        if len(loaded) == 1 and not plan.excluded:
+            raise too_short(loaded[0], n, run, read)
         raise no_outage_fits(loaded, n, ", ".join(name_of(d) for d in items))
     return results
 

@@ -263,6 +263,19 @@ def name_of(item: DriveLike) -> str:
 POOR_GNSS_SHARE = 0.5
 
 
+def too_short(drive: Drive, n_windows: int, run: RunOptions, read: Any = None) -> InputError:
+    """Why no ``n_windows`` s outage fits in ``drive`` (neither placed nor excluded for bad GNSS):
+    its length, the span it was cut to and the warm-up before the first outage, and what to change;
+    the option blamed is the warm-up when the outage alone would fit, else the outage length."""
+    span = getattr(read, "span", None)
+    warm = float(run.warm_up_s)
+    what = (f"{drive.source or drive.name}: too short for a {n_windows:g} s outage" + (f" after the {warm:g} s warm-up" if warm > 0 else "")
+            + f" ({drive.duration_s:.1f} s" + (f" in the span {span}" if span is not None else "") + ")")
+    warm_up_blamed = warm > 0 and drive.duration_s >= n_windows + 1  # the outage alone would fit (after its start fix)
+    fixes = ["shorter outages"] + (["a shorter warm-up"] if warm_up_blamed else []) + (["a longer span"] if span is not None else [])
+    return InputError(what, "use " + ", or ".join(fixes), param="warm_up" if warm_up_blamed else "outage_s")
+
+
 def no_outage_fits(drives: Sequence[Drive], n_windows: int, where: str) -> InputError:
     """The error for ``where`` (drives or a file) when no outage of ``n_windows`` s fits: when most
     of the GNSS is marked untrustworthy, that says so and why (shorter outages would not help)."""

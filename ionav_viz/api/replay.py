@@ -19,7 +19,7 @@ from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, windows_of, with_externals
+from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, too_short, windows_of, with_externals
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -131,7 +131,7 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
     if len(plan.starts) == 0 and not plan.gnss_gaps:
         if plan.excluded:
             raise no_outage_fits([d], n, d.source)
-        raise InputError(f"{d.source}: drive too short ({d.duration_s:.1f} s) for a {n:g} s outage", "use shorter outages", param="outage_s")
+        raise too_short(d, n, run, read)
     default = out is None
     out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
     refuse_output_onto_output(out, export, param="export", replaced=["tum"])  # the default name is known only now
