@@ -147,6 +147,21 @@ def test_several_outage_lengths_replayed_into_one_recording_each(tmp_path):
     assert bad.returncode == 2 and "--open" in bad.stderr
 
 
+def test_a_length_the_drive_has_no_room_for_is_left_out_and_said(tmp_path):
+    """--outage 10s,700s on a 600 s drive: the 10 s results, and one warning for 700 s (before, the
+    whole run failed, and replay had already written the 10 s recording); none fits: one error,
+    nothing written."""
+    proc = run_cli("evaluate", "hard-brake", "--outage", "10s,700s", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert list(json.loads(proc.stdout)["lengths"]) == ["10"]
+    assert "too short for a 700 s outage" in proc.stderr and "that length is left out" in proc.stderr
+    proc = run_cli("replay", "hard-brake", "--outage", "10s,700s", "--estimators", "ins", "-q", "-o", str(tmp_path / "hb.rrd"))
+    assert proc.returncode == 0 and proc.stdout.split() == [str(tmp_path / "hb-10s.rrd")], proc.stderr
+    proc = run_cli("replay", "hard-brake", "--outage", "700s,800s", "--estimators", "ins", "-q", "-o", str(tmp_path / "no.rrd"))
+    assert proc.returncode == 2 and "too short for a 700 s outage" in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hb-10s.rrd"]
+
+
 def test_an_export_folder_that_cannot_be_made_stops_before_any_work(tmp_path):
     (tmp_path / "taken").write_text("a file")
     proc = run_cli("replay", "hard-brake", "--no-idnn", "-o", str(tmp_path / "r.rrd"), "--export", str(tmp_path / "taken" / "ex"), "-q")

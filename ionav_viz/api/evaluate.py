@@ -187,12 +187,26 @@ def evaluate_lengths(
     truth: str | None = None,
 ) -> dict[float, Report]:
     """:func:`evaluate` for each outage length of ``lengths_s`` on the same drives and placement:
-    ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them)."""
+    ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them). A
+    length no drive has room for is left out with a warning when another fits; when none fits, the
+    shortest one's error."""
     lengths = lengths_of(lengths_s)
     _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     loaded = [load_drive(d, read) for d in items]  # read once, used for every length
-    return {length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress) for length in lengths}
+    reports, refused = {}, []
+    for length in lengths:
+        try:
+            reports[length] = evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress)
+        except InputError as exc:
+            if exc.param not in ("outage_s", "warm_up"):  # not a matter of this length
+                raise
+            refused.append(exc)
+    if not reports:
+        raise refused[0]
+    for exc in refused:
+        log.warning("%s; that length is left out (%s)", exc.message, exc.hint)
+    return reports
 
 
 def evaluate_by_event(

@@ -176,17 +176,28 @@ def replay_lengths(
     """:func:`replay` for each outage length of ``lengths_s`` (increasing) on the same drive and
     placement: one recording per length, ``OUTPUT-<length>s.rrd`` (default
     ``recordings/<drive>-<length>s.rrd``), and with ``export`` one folder ``EXPORT/<length>s`` each.
-    ``analysis.report.by_length`` of their reports gives the error against outage length."""
+    ``analysis.report.by_length`` of their reports gives the error against outage length. A length
+    the drive has no room for is left out with a warning (nothing written for it) when another
+    fits; when none fits, the shortest one's error, and nothing is written."""
     lengths = lengths_of(lengths_s)
     if output is not None and Path(output).suffix.lower() != ".rrd":
         raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     d = load_drive(drive, read)  # read once, replayed for every length
-    out = []
+    out, refused = [], []
     for length in lengths:
         name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
         target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
-        out.append(replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
-                          export=None if export is None else Path(export) / f"{length:g}s"))
+        try:
+            out.append(replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
+                              export=None if export is None else Path(export) / f"{length:g}s"))
+        except InputError as exc:  # refused before anything of this length is written
+            if exc.param not in ("outage_s", "warm_up"):
+                raise
+            refused.append(exc)
+    if not out:
+        raise refused[0]
+    for exc in refused:
+        log.warning("%s; that length is left out (%s)", exc.message, exc.hint)
     return out
 
 
