@@ -207,17 +207,21 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
                                        accel_mps2=drive.accel_long_mps2)
         bad_input = receiver_fault != 0
         if bad_input.any():
-            log.warning("%s: %d of %d samples of the receiver's GNSS are not trustworthy (%s); the filters do not use them",
-                        drive.source, int(bad_input.sum()), len(drive),
-                        ", ".join(f"{name} {n}" for name, n in count_by_fault(receiver_fault).items()))
+            log.warning("%s: the receiver's GNSS is not trustworthy in %s; the filters do not use it there",
+                        drive.source, _time_share(drive, receiver_fault))
     else:
         drive.gnss_fault = receiver_fault
-    bad = ~drive.gnss_ok
-    if bad.any():
-        reasons = ", ".join(f"{name} {n}" for name, n in count_by_fault(drive.gnss_fault).items())
-        log.warning(
-            "%s: %d of %d GNSS samples are not trustworthy truth (%s); windows touching them are not scored",
-            drive.source, int(bad.sum()), len(drive), reasons)
+    if not drive.gnss_ok.all():
+        log.warning("%s: no trustworthy GNSS truth in %s; windows touching it are not scored", drive.source, _time_share(drive, drive.gnss_fault))
+
+
+def _time_share(drive: Drive, fault: np.ndarray) -> str:
+    """``'88.5 of 108.0 s (no-fix 60.2 s, poor-accuracy 30.1 s)'``: how long ``fault`` marks, in
+    seconds of the drive's samples (a log's fixes come at 1-10 Hz, its samples at the IMU's grid:
+    counted in samples, 885 of 1080 read as ten times the 109 fixes)."""
+    dt_s = 1.0 / drive.rate_hz
+    reasons = ", ".join(f"{name} {n * dt_s:.1f} s" for name, n in count_by_fault(fault).items())
+    return f"{np.count_nonzero(fault) * dt_s:.1f} of {len(drive) * dt_s:.1f} s ({reasons})"
 
 
 def mark_speed_lag(drive: Drive) -> None:
