@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..nav.protocol import FilterHealth
+from ..nav.protocol import SAFEGUARD_KINDS, FilterHealth
 
 #: The 99 % point of a chi-square of one degree of freedom: a scalar NIS above it is a 1 % event.
 NIS_99 = 6.635
@@ -40,6 +40,10 @@ def summarise_health(health: FilterHealth) -> dict[str, dict[str, Any]]:
     for kind in dict.fromkeys(health.kinds):
         cols = [i for i, k in enumerate(health.kinds) if k == kind]
         st = status[:, cols]
+        if kind in SAFEGUARD_KINDS:  # its acts: how often, never a NIS
+            out[kind] = {"updates": int((st > 0).any(axis=1).sum()), "gated": 0, "longest_gated_s": 0.0, "mean_nis": float("nan"),
+                         "nis_above_99_pct": float("nan"), "n_nis": 0}
+            continue
         used = nis[:, cols][st == 1]
         gated = (st == 2).any(axis=1)
         out[kind] = {"updates": int((st > 0).any(axis=1).sum()), "gated": int(gated.sum()),
@@ -80,6 +84,8 @@ def health_line(label: str, summary: dict[str, dict[str, Any]]) -> str:
         if s["gated"]:
             parts.append(f"{kind} used at {s['updates'] - s['gated']} of {s['updates']} boundaries "
                          f"({s['gated']} gated out, longest {s['longest_gated_s']:g} s)")
-    nis = ", ".join(f"{kind} {s['mean_nis']:.2f}" for kind, s in summary.items() if s["n_nis"])
+    nis = ", ".join(f"{kind} {s['mean_nis']:.2f}" for kind, s in summary.items() if s["n_nis"] and kind not in SAFEGUARD_KINDS)
     gated = "; ".join(parts) if parts else "no measurement gated out"
+    gated += "".join(f"; {kind} at {s['updates']} boundar{'y' if s['updates'] == 1 else 'ies'}" for kind, s in summary.items()
+                     if kind in SAFEGUARD_KINDS and s["updates"])
     return f"{label} health: {gated}; mean NIS (1 expected): {nis or 'no updates'}"

@@ -57,7 +57,7 @@ from ..core.rotation import quat_of_euler
 from . import history_check
 from .ins import dead_reckon
 from .kalman import UpdateLog
-from .protocol import Estimate, EstimatorInputs, FilterHealth
+from .protocol import REINITIALISED, Estimate, EstimatorInputs, FilterHealth
 from .stillness import drive_still
 from .strapdown import BAX, BGX, GINS_MEASUREMENTS, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
 from .track import rebuild_track
@@ -516,8 +516,6 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     return choice, sums, count, err
 
 
-#: The safeguard's kind in the filter's health: re-initialisations from GNSS (see run_filter).
-REINITIALISED = "re-initialised from GNSS"
 #: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.GINS_MEASUREMENTS`).
 GINS_MEASUREMENT_KINDS = ("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2 + ("odometer",
                      "level", "level", REINITIALISED)

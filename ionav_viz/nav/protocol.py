@@ -53,6 +53,13 @@ class EstimatorError(InputError):
     """An estimator plug-in that cannot be loaded or returned unusable output."""
 
 
+#: The kind a filter logs a safeguard's act under in its :class:`FilterHealth` (gins: re-initialised
+#: from GNSS instead of gating the fixes out): its "innovation" is how far off the filter was, not
+#: a measurement's, so it counts as acts, never in a mean NIS.
+REINITIALISED = "re-initialised from GNSS"
+SAFEGUARD_KINDS = frozenset({REINITIALISED})
+
+
 @dataclass(frozen=True)
 class FilterHealth:
     """What a filter's measurement updates saw over the drive (its pass with GNSS): per row (a

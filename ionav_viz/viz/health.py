@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..analysis.evaluate import DriveResult
+from ..nav.protocol import SAFEGUARD_KINDS
 from . import entities as ent
 
 #: The running mean's length (s): single NIS values scatter over two decades (a chi-square).
@@ -44,6 +45,8 @@ def log_health(layers, result: DriveResult, labels: dict[str, str]) -> None:
         nis, status = health.nis(), np.asarray(health.status)
         t = np.asarray(health.t_s, dtype=float)
         for kind in dict.fromkeys(health.kinds):
+            if kind in SAFEGUARD_KINDS:  # acts, not a measurement: no NIS to draw (the summary counts them)
+                continue
             cols = [j for j, k in enumerate(health.kinds) if k == kind]
             used = (status[:, cols] == 1) & np.isfinite(nis[:, cols])
             if not used.any():
