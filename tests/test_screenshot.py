@@ -663,6 +663,7 @@ def test_a_recording_through_real_losses_alone_frames_them_by_number_and_as_the_
     assert f"real GNSS outage {o.number} (" in titles["local"], titles["local"]
     assert titles["inspect"].startswith("V-sim-motorway-tunnels: no synthetic outage")  # the inspector does not draw real losses
     assert key_head(shot) == f"real GNSS outage {o.number}, final error:"
+    assert titles["errors/yaw_crse_radps"].endswith("none here")  # the CRSE is of synthetic outages: said, not an empty plot
     # framed on its own tracks (the drive spans 7 km; one loss at motorway speed a few hundred metres)
     frame = framing(info, o, (1600, 900), "local")
     x0, x1, y0, y1 = frame.local_bounds
@@ -684,3 +685,18 @@ def test_a_screenshot_of_a_replay_through_real_losses_alone_frames_the_worst(rea
     # where the whole drive draws six short ones (285 px of it in all)
     assert _extent_of(framed, COLORS["ins"])[0] > 0.3 * 800
     assert _pixels_near(framed, COLORS["ins"], 30) > 4 * _pixels_near(whole, COLORS["ins"], 30)
+
+
+def test_replay_through_real_losses_alone_with_screenshots(tmp_path):
+    """replay --on gnss-outage --screenshot: every view at the worst real loss, but the outage
+    inspector, which frames synthetic outages (its image was blank), and a line saying so (before
+    this, the replay failed at 'worst')."""
+    shots = tmp_path / "shots"
+    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "-o", str(tmp_path / "t.rrd"),
+                   "--screenshot", str(shots))
+    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    assert "no image of the outage inspector" in proc.stderr
+    assert sorted(p.name for p in shots.iterdir()) == sorted(f"V-sim-motorway-tunnels-{v}-worst.png"
+                                                             for v in ("all", "map", "local", "signals", "errors", "health"))

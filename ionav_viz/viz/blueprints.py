@@ -516,6 +516,12 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
     }
     for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH), (ent.error_group("crse_m"), ent.error_group("cae_m"))):
         titles.update(_fit_tabs(tabs, w(tabs[0])))
+    if not info.outages:  # the CRSE and CAE are of synthetic outages: empty in a run through the log's own losses alone
+        for group, share in (("crse_m", 0.6), ("cae_m", 0.4), ("yaw_crse_radps", 1.0)):  # the two tabs share one bar
+            name = titles[ent.error_group(group)]
+            short = name.replace("Displacement ", "").replace("Orientation-rate ", "")
+            titles[ent.error_group(group)] = _fit([f"{name}: synthetic outages only, none here", f"{name}: none here", f"{short}: none here", name],
+                                                  w(ent.error_group(group)) * share)
     if o is None and shot.view != "all":  # the time plots of a column: say when
         titles[ent.error_group("position_error_m")] = _fit([f"{info.drive}: 2D position error (m), {when}",
                                                             titles[ent.error_group("position_error_m")]], w(ent.error_group("position_error_m")))
