@@ -282,6 +282,9 @@ def test_the_fleet_overview_recording_has_a_row_and_a_bar_per_drive(fleet_dir, t
     from PIL import Image
 
     assert Image.open(tmp_path / "fleet.png").size == (800, 450)
+    assert "do not apply" not in proc.stderr
+    proc = run_cli("screenshot", str(out), "-o", str(tmp_path / "again.png"), "--size", "800x450", "--view", "local", "--time", "worst")
+    assert proc.returncode == 0 and "a fleet overview is one image of its own layout" in proc.stderr, proc.stderr  # not silently ignored
 
 
 def _manifest_runs(folder: str) -> dict[str, int]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -9,6 +10,8 @@ from pathlib import Path
 
 from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_regular_input, refuse_output_onto_input
+
+log = logging.getLogger("ionav_viz")
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,9 @@ def screenshot(
     from ..viz.fleet import is_fleet_recording, screenshot_fleet
 
     fleets = [p for p in paths if is_fleet_recording(p)]
+    if fleets and (tuple(shots.times) != ("end",) or tuple(shots.views) != ("all",) or shots.outages):
+        log.warning("%s: a fleet overview is one image of its own layout: the times, views and outage numbers asked do not apply to it",
+                    ", ".join(str(p) for p in fleets))
     written = []
     for rec in fleets:  # a fleet overview (evaluate --fleet-rrd): one image of its own layout, whatever the times and views
         png = out if single or (out.suffix.lower() == ".png" and len(paths) == 1) else folder / f"{rec.stem}.png"
