@@ -383,3 +383,14 @@ def test_a_fleet_through_the_logs_own_losses_reports_them(tmp_path):
         for est in ("ins", "odo"):
             assert bars[f"/fleet/mean_final_error_m/{est}"][0][k - 1] == pytest.approx(np.mean(errors[est]), abs=1e-3)
             assert bars[f"/fleet/worst_final_error_m/{est}"][0][k - 1] == pytest.approx(max(errors[est]), abs=1e-3)
+
+
+def test_a_replay_fleet_where_every_drive_fails_leaves_no_folder_behind(tmp_path):
+    """Every drive unreadable: the run fails (exit 2) and the output folders it made for the
+    recordings are gone again (they were left empty)."""
+    bad = tmp_path / "logs"
+    bad.mkdir()
+    (bad / "V-a.csv").write_text("not,a,drive\n1,2,3\n")
+    proc = run_cli("replay", str(bad), "--workers", "1", "--estimators", CHEAP, "-o", str(tmp_path / "recs" / "fleet"))
+    assert proc.returncode == 2, proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]

@@ -5,6 +5,7 @@ them with sizes and a time estimate (:func:`plan_fleet`)."""
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import os
 import time
@@ -339,8 +340,17 @@ def replay_fleet(
         name = _drive_name(d.spec)
         names[name] = names.get(name, 0) + 1
         work.append((d.spec, job, str((out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd")).absolute()), _absolute(d.spec)))
+    made = [level for level in [*reversed(out.parents), out] if not level.exists()]
     out.mkdir(parents=True, exist_ok=True)
-    return _run_fleet(work, [d.size_bytes for d in items], job, engine, fail_fast, progress, replay_options)
+    report = None
+    try:
+        report = _run_fleet(work, [d.size_bytes for d in items], job, engine, fail_fast, progress, replay_options)
+        return report
+    finally:
+        if report is None or not report.drives:  # no recording written: the folders made for them go again (if still empty)
+            for level in reversed(made):
+                with contextlib.suppress(OSError):
+                    level.rmdir()
 
 
 def _drive_name(spec: str) -> str:
