@@ -81,3 +81,15 @@ def test_aligned_wraps_headers_then_splits_columns_into_blocks():
     alone = aligned(["Key", "x", "y"], [["a", "1.00", "2.00"], ["b", "3.00", ""]], 1, width=9)  # one value column per block
     assert [line.split() for line in alone if line.startswith("b")] == [["b", "3.00"]]  # row b has no y: left out of its block
     assert numbers("\n".join(blocks)) == numbers("\n".join(full))
+
+
+def test_markdown_says_every_line_the_text_report_says():
+    """--markdown dropped the placement, the uncertainty and the filter-health lines; every prose
+    line of the text report is now a paragraph of the Markdown."""
+    args = ["evaluate", "roundabout", "--every", "60s", "--estimators", "ins,ekf"]
+    text, md = run_cli(*args).stdout, run_cli(*args, "--markdown").stdout
+    prose = [ln for ln in text.splitlines() if ln.startswith(("Outages:", "GNSS-aided INS uncertainty:", "GNSS-aided INS health:", "GNSS truth:"))]
+    assert len(prose) == 4
+    paragraphs = md.split("\n\n")
+    for line in prose:
+        assert line in paragraphs, line

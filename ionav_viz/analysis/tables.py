@@ -131,7 +131,10 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
         lines += [f"**{rep['drive']}: the log's own GNSS outages** (truth: the first good fix after each)", "",
                   "| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
         lines += [bridged_line(rep)]
-    extra = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    # the same lines as the text report, each a paragraph of its own
+    said = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
+    said += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep)
+    extra = [line for text in said for line in ("", text)][1:] if said else []
     if rep.get("drift"):
         header, rows = drift_rows(rep)
         extra += ["", f"**{DRIFT_TITLE}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
