@@ -289,7 +289,7 @@ def test_model_pickle_payload_does_not_execute(model_copy, tmp_path):
 def test_output_directory_missing_or_a_file(tmp_path):
     assert_input_error(run_cli("replay", "hard-brake", "-q", "--no-idnn", "-o", str(tmp_path / "no" / "x.rrd")), "does not exist")
     (tmp_path / "file").write_text("x")
-    assert_input_error(run_cli("replay", "hard-brake", "-q", "--no-idnn", "-o", str(tmp_path / "file" / "x.rrd")), "does not exist")
+    assert_input_error(run_cli("replay", "hard-brake", "-q", "--no-idnn", "-o", str(tmp_path / "file" / "x.rrd")), f"{tmp_path / 'file'} is a file, not a folder")
 
 
 def test_existing_output_is_replaced_only_by_a_complete_file(tmp_path):

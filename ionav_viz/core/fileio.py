@@ -46,6 +46,9 @@ def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
                              param="output")
         return target
     if not parent.is_dir():
+        blocking = next((p for p in [parent, *parent.parents] if p.exists()), None)
+        if blocking is not None and not blocking.is_dir():  # a file where a folder of the path should be
+            raise InputError(f"{target}: {blocking} is a file, not a folder", "choose another output", param="output")
         raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another output", param="output")
     if target.is_dir():
         raise InputError(f"{target}: is a directory", "name a file inside it", param="output")
