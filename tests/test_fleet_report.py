@@ -134,3 +134,24 @@ def test_figures_of_a_fleet_box_per_estimator_and_pooled_cdf(report, tmp_path):
         proc = run_cli("figures", str(src), "-o", str(tmp_path / "figs2"))
         assert proc.returncode == 2 and "sequences[1].ins.final_position_error_m" in proc.stderr and not (tmp_path / "figs2").exists()
         assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_fleet_box_whiskers_are_the_drives_10th_and_90th_percentiles(tmp_path):
+    """The caption says 'whiskers 10-90 %': they end at the 10th and 90th percentiles of the drives'
+    means, not at the farthest drive inside them (matplotlib's whis=(10, 90), which with five drives
+    put them on the box's edges)."""
+    from ionav_viz.viz.figures import figure, read_report
+
+    ins = [10.0, 20.0, 30.0, 40.0, 100.0]  # one outage per drive: its final error is the drive's mean
+    tables = [_table(name, [e], [e / 10], ["cruise"], at10={"ins": [e / 3], "odo": [e / 30]}) for name, e in zip("ABCDE", ins, strict=True)]
+    src = tmp_path / "fleet.json"
+    src.write_text(FleetReport(tables, outage_s=30.0).to_json())
+    box = figure(read_report(src), "fleet-box").axes[0]
+    assert "whiskers 10-90 %" in box.figure.get_suptitle().replace("\n", " ")
+    # linear interpolation between the sorted means: p10 at rank 0.4 (10 + 0.4 x 10 = 14 m), p90 at
+    # rank 3.6 (40 + 0.6 x 60 = 76 m); the box is the quartiles, 20 and 40 m
+    whiskers = {k: sorted(tuple(line.get_ydata()) for line in box.get_lines()
+                          if list(line.get_xdata()) == [k, k]) for k in (1, 2)}
+    assert whiskers[1] == [pytest.approx((20.0, 14.0)), pytest.approx((40.0, 76.0))]
+    assert whiskers[2] == [pytest.approx((2.0, 1.4)), pytest.approx((4.0, 7.6))]
+    np.testing.assert_allclose([w[1] for w in whiskers[1]], np.percentile(ins, [10, 90]))

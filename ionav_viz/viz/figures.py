@@ -708,7 +708,10 @@ def _fleet_title(rep: dict[str, Any]) -> str:
 
 
 def _fleet_box(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
-    """Per estimator a box of the drives' mean final errors, each drive a point over it."""
+    """Per estimator a box of the drives' mean final errors (quartiles, median, whiskers at the 10th
+    and 90th percentiles), each drive a point over it."""
+    from matplotlib import cbook
+
     fig, ax = _new_figure(width_in, 2.7)
     skipped: list[str] = []
     rng = np.random.default_rng(0)  # the points' horizontal jitter: the same figure every time
@@ -722,7 +725,11 @@ def _fleet_box(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
         if len(defined) < len(means):
             skipped.append(f"{label}: {len(means) - len(defined)} of {len(means)} drives left out")
         k = len(shown) + 1
-        ax.boxplot([defined], positions=[k], widths=0.55, whis=(10, 90), showfliers=False, patch_artist=True,
+        # the whiskers at the 10th and 90th percentiles themselves: boxplot(whis=(10, 90)) draws them at
+        # the farthest drive inside those, which with a few drives is the box's own edge
+        stats = cbook.boxplot_stats(defined)[0]
+        stats["whislo"], stats["whishi"] = np.percentile(defined, [10, 90])
+        ax.bxp([stats], positions=[k], widths=0.55, showfliers=False, patch_artist=True,
                    medianprops={"color": color, "lw": 1.6}, whiskerprops={"color": color}, capprops={"color": color},
                    boxprops={"edgecolor": color, "facecolor": (*color, 0.15), "hatch": HATCHES[i % len(HATCHES)], "lw": 0.8})
         ax.scatter(k + rng.uniform(-0.16, 0.16, len(defined)), defined, s=7, color=color, marker=MARKERS[i % len(MARKERS)],
