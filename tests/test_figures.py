@@ -131,3 +131,42 @@ def test_bands_and_lines_are_told_apart_without_colour():
     for band in bands:
         grey = float(np.dot(band.get_edgecolor()[0][:3], [0.299, 0.587, 0.114]))
         assert grey < 0.75
+
+
+def test_a_run_through_the_logs_own_losses_alone_is_refused_saying_so(tmp_path):
+    """A replay or evaluate through the log's own GNSS losses alone (--on gnss-outage) has no
+    synthetic outage to draw: one line saying so, with the option that makes them (it said 'drift:
+    missing (... or one made by an earlier ionav-viz)'). The bundled tunnels drive loses GNSS 6 times."""
+    from tests.conftest import run_cli
+
+    rec, report = tmp_path / "tunnels.rrd", tmp_path / "tunnels.json"
+    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "-o", str(rec), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    proc = run_cli("evaluate", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    report.write_text(proc.stdout)
+    for given in (rec, report):
+        proc = run_cli("figures", str(given), "-o", str(tmp_path / "figs"))
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+        assert proc.stderr.startswith(f"error: {given}: this run has no synthetic outages, only the log's own GNSS losses, 6 bridged")
+        assert "--outage 10s, without --on gnss-outage" in proc.stderr and "earlier ionav-viz" not in proc.stderr
+        assert not (tmp_path / "figs").exists()
+
+
+def test_a_fleet_overview_recording_is_refused_naming_the_fleets_json(tmp_path):
+    """'figures fleet.rrd' (evaluate --fleet-rrd) said the recording 'carries no report (made by an
+    earlier ionav-viz?)': it is a fleet overview, and the figures take the fleet's --json."""
+    from ionav_viz.sim.simulate import write_simulated_drive
+    from tests.conftest import run_cli
+
+    drives = [str(write_simulated_drive(tmp_path / f"V-{s}.csv", "motorway", seed=s, duration_s=60)) for s in (1, 2)]
+    proc = run_cli("evaluate", *drives, "--estimators", "ins", "--fleet-rrd", str(tmp_path / "fleet.rrd"), "--json")
+    assert proc.returncode == 0, proc.stderr
+    (tmp_path / "fleet.json").write_text(proc.stdout)
+    proc = run_cli("figures", str(tmp_path / "fleet.rrd"), "-o", str(tmp_path / "figs"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith(f"error: {tmp_path / 'fleet.rrd'}: a fleet overview (evaluate --fleet-rrd)")
+    assert "'ionav-viz evaluate DRIVES --json > fleet.json', then 'figures fleet.json'" in proc.stderr
+    assert "earlier ionav-viz" not in proc.stderr
+    proc = run_cli("figures", str(tmp_path / "fleet.json"), "-o", str(tmp_path / "figs"))  # as the hint says
+    assert proc.returncode == 0 and (tmp_path / "figs" / "fleet-box.png").exists(), proc.stderr

@@ -114,6 +114,9 @@ def check_report(rep: Any, path: Path) -> None:
                          "write one drive's report with 'ionav-viz evaluate DRIVE --json'", param="result")
     if not isinstance(rep, dict):
         raise InputError(f"{path}: a JSON {_kind(rep)}, not a report (an object)", REPORT_HINT, param="result")
+    if not rep.get("sequences") and isinstance(rep.get("gnss_outages"), dict):
+        bridged = rep["gnss_outages"].get("bridged")
+        _refuse_real_losses_only(path, len(bridged) if isinstance(bridged, list) else None, "drive")
     for key in ("drive", "n_sequences", "outage_s", "estimators", "sequences", "drift", "final_error_percentiles", "worst_tracks"):
         if key not in rep:
             fail(key, "missing (not a report with outages and drift curves, or one made by an earlier ionav-viz)")
@@ -185,6 +188,9 @@ def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
     def fail(field: str, why: str) -> None:
         raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
 
+    real = rep.get("real_outages")
+    if not rep.get("sequences") and isinstance(real, dict) and _is_int(real.get("n")) and real["n"] > 0:
+        _refuse_real_losses_only(path, real["n"], "drives")
     outage = rep.get("outage_s")
     if not is_finite_number(outage) or not 0 < outage <= MAX_REPORT_VALUE:
         fail("outage_s", f"{outage!r} is not an outage length in seconds")
@@ -217,6 +223,15 @@ def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
                 if "final_position_error_m" not in metrics:
                     fail(f"sequences[{i}].{name}.final_position_error_m", "missing")
                 _need_number(metrics["final_position_error_m"], f"sequences[{i}].{name}.final_position_error_m", fail)
+
+
+def _refuse_real_losses_only(path: Path, bridged: int | None, drives: str) -> None:
+    """The error for a run through the log's own GNSS losses alone (``--on gnss-outage``): nothing
+    the figures draw (they draw synthetic outages: drift curves, per-outage errors, the worst one)."""
+    losses = f", {bridged} bridged" if bridged is not None else ", bridged"
+    raise InputError(f"{path}: this run has no synthetic outages, only the log's own GNSS losses{losses} "
+                     "(--on gnss-outage); the figures draw synthetic outages",
+                     f"replay or evaluate the {drives} with synthetic ones: --outage 10s, without --on gnss-outage", param="result")
 
 
 def _kind(value: Any) -> str:

@@ -433,5 +433,11 @@ def report_json(path: Path) -> str:
                             return str(values[0][0] if isinstance(values[0], list) else values[0])
         except Exception as exc:
             raise _unreadable(path, exc) from None
+    from .fleet import is_fleet_recording
+
+    if is_fleet_recording(path):
+        raise InputError(f"{path}: a fleet overview (evaluate --fleet-rrd), which carries no report for the figures",
+                         "figures takes the fleet's report instead: 'ionav-viz evaluate DRIVES --json > fleet.json', then 'figures fleet.json'",
+                         param="result")
     raise InputError(f"{path}: the recording carries no report (made by an earlier ionav-viz?)", "replay the drive again, or give 'evaluate --json' output",
                      param="result")
