@@ -25,6 +25,11 @@ def test_folds_by_time_blocks_of_one_drive_are_disjoint_and_reported():
         assert fold["test"][0] not in fold["train"] and len(fold["train"]) == 2 and fold["n_outages"] > 0
     spread = result["summary"]["idnn_crse_m"]
     assert spread["min"] <= spread["mean"] <= spread["max"] and spread["sd"] >= 0
+    # the summary's improvement is that of the mean CRSEs (as the text's mean row shows it), each from the folds
+    ins = sum(f["crse_m"]["ins"] for f in result["folds"]) / 3
+    idnn = sum(f["crse_m"]["idnn"] for f in result["folds"]) / 3
+    assert result["summary"]["idnn_improvement_pct"] == pytest.approx(100 * (ins - idnn) / ins)
+    assert result["summary"]["idnn_improvement_pct_by_fold"]["max"] == max(f["improvement_pct"] for f in result["folds"])
     again = json.loads(run_cli("cross-validate", "roundabout", "--folds", "3", "--span", "0s:150s", *TINY, "--json").stdout)
     assert [f["crse_m"] for f in again["folds"]] == [f["crse_m"] for f in result["folds"]]  # seeded: the same models
 
@@ -44,3 +49,20 @@ def test_folds_by_drive_and_the_device_is_said():
 def test_bad_folds_are_one_line(args, words):
     proc = run_cli("cross-validate", *args, *TINY)
     assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_the_mean_rows_improvement_is_that_of_its_own_columns():
+    """The mean row printed the mean of the folds' percentages (-75 % here) beside mean CRSEs whose
+    improvement is +25 %: the row now agrees with its columns; the folds' spread is said apart."""
+    from ionav_viz.api import CrossValidation
+    from ionav_viz.api.cross_validate import Fold
+
+    folds = [Fold(0, ["b"], ["a"], 10, {"ins": 2.0, "idnn": 6.0}, -200.0, 1.0),  # 2 -> 6 m: -200 %
+             Fold(1, ["a"], ["b"], 12, {"ins": 18.0, "idnn": 9.0}, 50.0, 1.0)]  # 18 -> 9 m: +50 %
+    result = CrossValidation(folds, "drive", 10.0, "cpu", "from random weights")
+    mean_row = next(line for line in result.to_text().splitlines() if line.startswith("mean"))
+    assert mean_row.split() == ["mean", "22", "10.00", "7.50", "+25.0%"]  # (10 - 7.5) / 10
+    assert "IDNN vs INS DR sd 176.8 points (min -200.0 %, max +50.0 %)" in result.to_text()  # sqrt(2) x 125
+    summary = json.loads(result.to_json())["summary"]
+    assert summary["idnn_improvement_pct"] == pytest.approx(25.0)
+    assert summary["idnn_improvement_pct_by_fold"] == pytest.approx({"mean": -75.0, "sd": 125 * 2**0.5, "min": -200.0, "max": 50.0})
