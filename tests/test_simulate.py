@@ -47,3 +47,39 @@ def test_format_is_the_real_one(tmp_path):
 def test_scenarios_have_their_defining_motion(scenario, check):
     sample = next(s for s in SAMPLES if s.scenario == scenario)
     assert check(read_iovnbd(samples_dir() / sample.file))
+
+
+def _losses_in(path) -> int:
+    """Stretches of rows with no GNS satellite in a written CSV (the logger's own mark of a loss)."""
+    import csv
+
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    none = np.array([float(r[0]) == 0 for r in rows[1:]])
+    return int(np.sum(none[1:] & ~none[:-1]) + none[0])
+
+
+@pytest.mark.parametrize(("duration", "asked", "room"), [("20s", 5, 0), ("2m", 3, 4)])
+def test_fewer_gnss_losses_than_asked_is_said_with_the_room(tmp_path, duration, asked, room):
+    """--gnss-loss 5 on a 20 s drive wrote none, silently (and 3 on 2 minutes, 2). One warning line
+    says how many were written and how many the drive has room for: each loss 3-15 s, 20 s from the
+    ends and from each other, so (D - 20 s) / (3 s + 20 s) at most: 0 in 20 s, 4 in 120 s."""
+    out = tmp_path / "V-lossy.csv"
+    proc = run_cli("simulate", "motorway", "--duration", duration, "--gnss-loss", str(asked), "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    written = _losses_in(out)
+    assert written < asked and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith(f"warning: motorway drive of {120 if duration == '2m' else 20} s: wrote {written} of the {asked} GNSS losses")
+    assert f"room for at most {room}," in proc.stderr and "--duration" in proc.stderr
+    proc = run_cli("simulate", "motorway", "--duration", "10m", "--gnss-loss", "3", "-o", str(tmp_path / "V-fits.csv"))
+    assert proc.returncode == 0 and proc.stderr == "" and _losses_in(tmp_path / "V-fits.csv") == 3
+
+
+def test_the_api_warns_too(tmp_path, caplog):
+    import logging
+
+    import ionav_viz as iv
+
+    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+        iv.simulate("motorway", tmp_path / "V-short.csv", duration_s=20.0, gnss_losses=5)
+    assert [r.getMessage().split(" (")[0] for r in caplog.records] == ["motorway drive of 20 s: wrote 0 of the 5 GNSS losses asked for"]

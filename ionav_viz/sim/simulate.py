@@ -56,6 +56,7 @@ Output is byte-identical for a given scenario, seed and duration.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -69,6 +70,8 @@ from ..core.grid import GRID_RATE_HZ
 from ..core.units import G_MPS2
 from ..dataset.catalog import SCENARIOS as PAPER_SCENARIOS
 from ..sources.iovnbd import HEADER, write_iovnbd
+
+log = logging.getLogger("ionav_viz")
 
 #: The paper's hard-brake threshold (Section 2), as the event detector has it by default.
 HARD_BRAKE_G = EventThresholds().hard_brake_g
@@ -383,6 +386,12 @@ LOSS_MIN_SPEED_MPS = 5.0
 LOSS_CLEAR_S = 20.0
 
 
+def gnss_loss_room(duration_s: float) -> int:
+    """The most GNSS losses a drive of ``duration_s`` can hold: each at least LOSS_LENGTH_S[0] long,
+    LOSS_CLEAR_S from the drive's ends and from each other."""
+    return max(0, int((duration_s - LOSS_CLEAR_S) // (LOSS_LENGTH_S[0] + LOSS_CLEAR_S)))
+
+
 def gnss_loss_spans(scenario: str, seed: int, duration_s: float, count: int) -> list[tuple[float, float, str]]:
     """Where a drive of ``simulate_rows(..., gnss_losses=count)`` loses GNSS: ``(start s, end s,
     kind)``, sorted. Kinds alternate between ``frozen`` (the logger repeats its last fix, speed and
@@ -396,8 +405,7 @@ def gnss_loss_spans(scenario: str, seed: int, duration_s: float, count: int) -> 
     truth = plan_truth(scenario, seed, duration_s)
     rng = np.random.default_rng([seed, 2000 + SIMULATED_SCENARIOS.index(scenario)])  # its own stream: the rest of the drive is unchanged
     spans: list[tuple[float, float, str]] = []
-    room = max(1, int((duration_s - LOSS_CLEAR_S) // (LOSS_LENGTH_S[0] + LOSS_CLEAR_S)))  # the most that can fit
-    for _ in range(50 * min(count, room)):  # --gnss-loss 1000000 drew 50 M times (a hang) for the few that fit
+    for _ in range(50 * min(count, max(1, gnss_loss_room(duration_s)))):  # --gnss-loss 1000000 drew 50 M times (a hang) for the few that fit
         if len(spans) == count:
             break
         length = float(np.round(rng.uniform(*LOSS_LENGTH_S), 1))
@@ -468,7 +476,13 @@ def simulate_rows(
         HEADER[27]: np.full(n, round(rng.uniform(4, 20))),
         HEADER[28]: np.clip(a_s * 30 + v_s * 0.8, 0, 100) * moving,
     }
-    for t0, t1, kind in gnss_loss_spans(scenario, seed, duration_s, gnss_losses):
+    spans = gnss_loss_spans(scenario, seed, duration_s, gnss_losses)
+    if len(spans) < gnss_losses:
+        log.warning("%s drive of %g s: wrote %d of the %d GNSS losses asked for (each %g-%g s, begun at %g m/s or more, "
+                    "%g s from the drive's ends and each other: room for at most %d, placed at random); a longer drive (--duration) fits more",
+                    scenario, duration_s, len(spans), gnss_losses, *LOSS_LENGTH_S, LOSS_MIN_SPEED_MPS, LOSS_CLEAR_S,
+                    gnss_loss_room(duration_s))
+    for t0, t1, kind in spans:
         _lose_gnss(rows, t, t0, t1, kind)
     return rows
 
