@@ -85,7 +85,11 @@ def train(
                           command=training_command(sys.argv[1:]), from_model=from_model)
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
-    print(f"trained {arch} on {len(model.metadata['training']['drives'])} drive(s), {model.metadata['training']['n_examples']} windows; "
+    from ..core.grid import WINDOW_S
+    from ..nav.training import EXAMPLE_STEP_S
+
+    print(f"trained {arch} on {len(model.metadata['training']['drives'])} drive(s), {model.metadata['training']['n_examples']} "
+          f"training examples ({WINDOW_S:g} s windows every {EXAMPLE_STEP_S:g} s); "
           f"trainable parameters: displacement {params['displacement']}, orientation rate {params['yaw_rate']}", file=sys.stderr)
     if "parent" in model.metadata:
         print(f"fine-tuned from {model.metadata['parent']['directory']}", file=sys.stderr)

@@ -79,9 +79,14 @@ class TrainingSet:
 CALIBRATION_LAG_WINDOWS = 10
 
 
+#: Training examples are windows of WINDOW_S starting every EXAMPLE_STEP_S (the grid's offsets), overlapping.
+EXAMPLE_STEP_S = 0.1
+
+
 def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int, n_steps_yaw: int, phases: int = 10,
                       inputs: str = "plain", seed: int = 0) -> TrainingSet:
-    """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets.
+    """All training windows of ``drives`` (each with its sensor biases) at ``phases`` grid offsets
+    EXAMPLE_STEP_S apart.
 
     ``inputs="plain"`` corrects the samples with the standstill biases (the paper's); ``"calibrated"``
     with the GNSS-aided INS's calibration (:func:`ionav_viz.nav.planar_filter.calibration`) of a window a seeded
@@ -91,7 +96,7 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int,
     parts: list[tuple[np.ndarray, ...]] = []
     for drive, bias in drives:
         for phase in range(phases):
-            w = make_windows(drive, offset_s=phase / 10.0)
+            w = make_windows(drive, offset_s=phase / 10.0)  # EXAMPLE_STEP_S apart
             if len(w) < 2:
                 continue
             # the previous window (feedback input, and history beyond 10 steps) is in the same segment,
@@ -786,8 +791,9 @@ def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]]) ->
     if runs is None or len(runs) < MIN_UNCERTAINTY_OUTAGES:
         found = 0 if runs is None else len(runs)
         model.uncertainty = None
-        model.metadata["uncertainty_skipped"] = (f"{found} outages of {UNCERTAINTY_OUTAGE_WINDOWS} s in the training drives, "
-                                                 f"fewer than {MIN_UNCERTAINTY_OUTAGES}: no uncertainty fitted")
+        model.metadata["uncertainty_skipped"] = (f"{found} overlapping outages of {UNCERTAINTY_OUTAGE_WINDOWS * WINDOW_S:g} s (one every "
+                                                 f"{UNCERTAINTY_STRIDE_WINDOWS * WINDOW_S:g} s, after a {UNCERTAINTY_WARM_UP_S:g} s warm-up) "
+                                                 f"in the training drives, fewer than {MIN_UNCERTAINTY_OUTAGES}: no uncertainty fitted")
         logging.getLogger("ionav_viz").warning("IDNN uncertainty not fitted: %s", model.metadata["uncertainty_skipped"])
         return model
     model.uncertainty, info = fit_uncertainty(model, drives, runs)
