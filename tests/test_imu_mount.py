@@ -67,8 +67,8 @@ def test_metrics_after_auto_are_the_level_logs(body, tmp_path):
     proc = run_cli("evaluate", str(tmp_path / "backwards.mcap"), "--no-idnn")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert "its mount is estimated as roll" in proc.stderr and re.search(r"yaw [+-]1(79\.\d|80\.0) ±", proc.stderr), proc.stderr
-    assert proc.stderr.startswith("error: --imu-mount: ") and "with the mount auto" in proc.stderr
-    assert "map the IMU axes with x=-x,y=-y,z=z" in proc.stderr
+    assert proc.stderr.startswith("error: --imu-mount: ") and "apply this estimate with --imu-mount auto," in proc.stderr
+    assert "map the IMU axes with --imu-axes x=-x,y=-y,z=z" in proc.stderr
     auto = iv.evaluate(tmp_path / "backwards.mcap", estimators=["ins", "ekf"], read=iv.ReadOptions(log=iv.LogOptions(imu_mount="auto")))
     got = json.loads(auto.to_json())
     assert any("applied the IMU mount estimated from the log: roll" in w for w in got["warnings"])

@@ -34,6 +34,13 @@ def test_info_shows_each_topics_use(log):
                     "/wheel/odom": "vehicle speed"}, proc.stdout
     proc = run_cli("evaluate", str(log))  # two NavSatFix topics: the user says which is the receiver
     assert proc.returncode == 2 and "several GNSS topics (/gps/fix, /reference/fix)" in proc.stderr and "--gnss-topic" in proc.stderr
+    # info says why in its own line, naming the options (the hint said 'choose one'); either one resolves it
+    proc = run_cli("info", str(log))
+    assert proc.returncode == 0 and proc.stderr == (
+        f"cannot replay as is: {log}: several GNSS topics (/gps/fix, /reference/fix) "
+        "(hint: name the receiver's with --gnss-topic, or the reference (truth) with --truth-topic)\n"), proc.stderr
+    proc = run_cli("info", str(log), "--truth-topic", "/reference/fix")
+    assert proc.returncode == 0 and proc.stderr == "" and "reference (truth)" in proc.stdout
 
 
 def test_a_real_cars_log_is_read_as_recorded(log):

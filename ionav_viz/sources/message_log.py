@@ -145,13 +145,17 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
             raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}", param=param)
         return found[0]
     found = [c for c in channels if c.schema in schemas]
+    option = "--" + param.replace("_", "-")
     if len(found) > 1:
-        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", "choose one", param=param)
+        hint = f"choose one with {option}"
+        if param == "gnss_topic":  # one of them is often the reference
+            hint = "name the receiver's with --gnss-topic, or the reference (truth) with --truth-topic"
+        raise InputError(f"{path}: several {what} topics ({', '.join(c.topic for c in found)})", hint, param=param)
     if not found:
         if not required:
             return None
         listing = ", ".join(f"{c.topic} [{c.schema}]" for c in channels) or "none"
-        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", "choose one", param=param)
+        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", f"choose one with {option}", param=param)
     return found[0]
 
 

@@ -195,10 +195,10 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
     angle = found.angle_deg
     if imu_mount != "auto" and angle > MAX_SILENT_DEG:
         permutation = nearest_axes(found.matrix @ settings.mapping)
-        axes = f", or map the IMU axes with {permutation} (the nearest exact permutation)" if permutation else ""
+        axes = f", or map the IMU axes with --imu-axes {permutation} (the nearest exact permutation)" if permutation else ""
         raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount is estimated "
                          f"as {found.describe()}, {angle:.0f} deg from it",
-                         f"apply this estimate with the mount auto, or give it as {format_mount(found.matrix)}{axes}",
+                         f"apply this estimate with --imu-mount auto, or give it as --imu-mount {format_mount(found.matrix)}{axes}",
                          param="imu_mount")
     if imu_mount != "auto" and angle < MIN_APPLIED_DEG:
         return None, found
