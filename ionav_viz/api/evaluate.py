@@ -13,7 +13,7 @@ from ..analysis.report import Report
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder
-from ..core.warnings_log import collecting_warnings
+from ..core.warnings_log import collecting_warnings, printing_once
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from ..nav.outages import GNSS_OUTAGE, AroundEvents, At, OutagePlan, Placement, Planned
 from ..nav.plan_file import FromPlan
@@ -195,13 +195,14 @@ def evaluate_lengths(
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     loaded = [load_drive(d, read) for d in items]  # read once, used for every length
     reports, refused = {}, []
-    for length in lengths:
-        try:
-            reports[length] = evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress)
-        except InputError as exc:
-            if exc.param not in ("outage_s", "warm_up"):  # not a matter of this length
-                raise
-            refused.append(exc)
+    with printing_once():  # what each length warns again of the same drives (no stationary stretch, ...) is printed once
+        for length in lengths:
+            try:
+                reports[length] = evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress)
+            except InputError as exc:
+                if exc.param not in ("outage_s", "warm_up"):  # not a matter of this length
+                    raise
+                refused.append(exc)
     if not reports:
         raise refused[0]
     for exc in refused:

@@ -37,3 +37,36 @@ def collecting_warnings() -> Iterator[list[str]]:
         yield collector.messages
     finally:
         logger.removeHandler(collector)
+
+
+class _Once(logging.Filter):
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        try:
+            message = record.getMessage()
+        except Exception:  # left to the handler to report
+            return True
+        if message in self.seen:
+            return False
+        self.seen.add(message)
+        return True
+
+
+@contextlib.contextmanager
+def printing_once() -> Iterator[None]:
+    """Within the block, a message the ionav-viz logger's handlers (the command line's stderr) have
+    already printed is not printed again: a drive evaluated once per outage length warns once, in
+    order. Handlers added inside the block (:func:`collecting_warnings`: each report's own
+    warnings) still get every message."""
+    once = _Once()
+    handlers = list(logging.getLogger(LOGGER).handlers)
+    for handler in handlers:
+        handler.addFilter(once)
+    try:
+        yield
+    finally:
+        for handler in handlers:
+            handler.removeFilter(once)
