@@ -143,12 +143,14 @@ def test_screenshot_scenario_takes_the_placement(tmp_path):
     assert wrong.returncode == 2 and "--scenario" in wrong.stderr, wrong.stderr
 
 
-def test_several_outage_lengths_warn_once_of_the_same_drive():
-    """--outage 10s,30s evaluates the drive once per length: 'no stationary stretch' was printed
-    twice. Printed once; each length's report still carries it in its warnings."""
+def test_several_outage_lengths_warn_once_of_the_same_drive(tmp_path):
+    """--outage 10s,30s evaluates (or replays) the drive once per length: 'no stationary stretch'
+    was printed twice. Printed once; each length's report still carries it in its warnings."""
     proc = run_cli("evaluate", "motorway", "--span", "30s:150s", "--outage", "10s,30s", "--estimators", "ins", "--json")
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.count("no stationary stretch of 3 s") == 1 and proc.stderr.count("\n") == 1, proc.stderr
     lengths = json.loads(proc.stdout)["lengths"]
     assert list(lengths) == ["10", "30"]
     assert all(any("no stationary stretch of 3 s" in w for w in rep["warnings"]) for rep in lengths.values())
+    proc = run_cli("replay", "motorway", "--span", "30s:150s", "--outage", "10s,30s", "--estimators", "ins", "-q", "-o", str(tmp_path / "m.rrd"))
+    assert proc.returncode == 0 and proc.stderr.count("no stationary stretch of 3 s") == 1, proc.stderr

@@ -12,7 +12,7 @@ from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input, refuse_output_onto_output
 from ..core.timing import stage
-from ..core.warnings_log import collecting_warnings
+from ..core.warnings_log import collecting_warnings, printing_once
 from ..nav.outages import Placement
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
@@ -184,16 +184,17 @@ def replay_lengths(
         raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     d = load_drive(drive, read)  # read once, replayed for every length
     out, refused = [], []
-    for length in lengths:
-        name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
-        target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
-        try:
-            out.append(replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
-                              export=None if export is None else Path(export) / f"{length:g}s"))
-        except InputError as exc:  # refused before anything of this length is written
-            if exc.param not in ("outage_s", "warm_up"):
-                raise
-            refused.append(exc)
+    with printing_once():  # what each length warns again of the same drive is printed once (each recording keeps it)
+        for length in lengths:
+            name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
+            target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
+            try:
+                out.append(replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
+                                  export=None if export is None else Path(export) / f"{length:g}s"))
+            except InputError as exc:  # refused before anything of this length is written
+                if exc.param not in ("outage_s", "warm_up"):
+                    raise
+                refused.append(exc)
     if not out:
         raise refused[0]
     for exc in refused:
