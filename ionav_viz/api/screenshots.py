@@ -79,7 +79,8 @@ def screenshot(
     existing = next((p for p in [folder, *folder.parents] if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory", param="output")
-    from ..viz.fleet import is_fleet_recording, screenshot_fleet
+    from ..viz.fleet import screenshot_fleet
+    from ..viz.recording_info import is_fleet_recording
 
     fleets = [p for p in paths if is_fleet_recording(p)]
     if fleets and (tuple(shots.times) != ("end",) or tuple(shots.views) != ("all",) or shots.outages):

@@ -18,9 +18,9 @@ import numpy as np
 
 from ..analysis.fleet import DriveTable, FleetReport
 from ..analysis.metrics import summarise
-from ..core.fileio import utf8_alias
 from ..nav.protocol import short_label
 from .recording import APP_ID, streamed_to
+from .recording_info import FLEET_ID_PREFIX
 from .style import estimator_colors
 
 #: Entity paths of the fleet recording.
@@ -28,8 +28,6 @@ FLEET_TABLE = "fleet/drives"
 FLEET_REPORT = "fleet/report"
 MEAN_BARS = "fleet/mean_final_error_m"
 WORST_BARS = "fleet/worst_final_error_m"
-#: How a fleet overview's recording id starts (a replay's is its drive's name and outage length).
-FLEET_ID_PREFIX = "fleet overview: "
 #: Seconds the headless viewer waits before the overview's screenshot (its start-up notices fade).
 SCREENSHOT_SETTLE_S = 6.0
 #: Each drive's bar, centred on its number.
@@ -141,17 +139,6 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
                                                    widths=np.full(len(numbers), BAR_WIDTH, dtype=np.float32)), static=True)
                 rows[f"{root}/{e}"] = 1
     return rows
-
-
-def is_fleet_recording(path: Path) -> bool:
-    """Whether the ``.rrd`` at ``path`` is a fleet overview (False for anything else, unreadable included)."""
-    from rerun.chunk import RrdReader
-
-    try:
-        with utf8_alias(Path(path)) as readable:
-            return any(str(r.recording_id).startswith(FLEET_ID_PREFIX) for r in RrdReader(readable).recordings())
-    except Exception:  # not a recording: the replay screenshot's checks say why
-        return False
 
 
 def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_s: float = 120.0) -> Path:

@@ -433,11 +433,25 @@ def report_json(path: Path) -> str:
                             return str(values[0][0] if isinstance(values[0], list) else values[0])
         except Exception as exc:
             raise _unreadable(path, exc) from None
-    from .fleet import is_fleet_recording
-
     if is_fleet_recording(path):
         raise InputError(f"{path}: a fleet overview (evaluate --fleet-rrd), which carries no report for the figures",
                          "figures takes the fleet's report instead: 'ionav-viz evaluate DRIVES --json > fleet.json', then 'figures fleet.json'",
                          param="result")
     raise InputError(f"{path}: the recording carries no report (made by an earlier ionav-viz?)", "replay the drive again, or give 'evaluate --json' output",
                      param="result")
+
+
+#: How a fleet overview's recording id starts (a replay's is its drive's name and outage length;
+#: :mod:`ionav_viz.viz.fleet` writes it).
+FLEET_ID_PREFIX = "fleet overview: "
+
+
+def is_fleet_recording(path: Path) -> bool:
+    """Whether the ``.rrd`` at ``path`` is a fleet overview (False for anything else, unreadable included)."""
+    from rerun.chunk import RrdReader
+
+    try:
+        with utf8_alias(Path(path)) as readable:
+            return any(str(r.recording_id).startswith(FLEET_ID_PREFIX) for r in RrdReader(readable).recordings())
+    except Exception:  # not a recording: the replay screenshot's checks say why
+        return False
