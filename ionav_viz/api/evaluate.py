@@ -13,7 +13,7 @@ from ..analysis.report import Report
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder
-from ..core.warnings_log import collecting_warnings, printing_once
+from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from ..nav.outages import GNSS_OUTAGE, AroundEvents, At, OutagePlan, Placement, Planned
 from ..nav.plan_file import FromPlan
@@ -21,7 +21,24 @@ from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, name_of, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, too_short, windows_of, with_externals
+from .options import (
+    DriveLike,
+    Progress,
+    RunOptions,
+    check_event_types,
+    each_length,
+    input_paths,
+    lengths_of,
+    log,
+    name_of,
+    no_outage_fits,
+    options_of,
+    placement_of,
+    refuse_export_onto_inputs,
+    too_short,
+    windows_of,
+    with_externals,
+)
 
 
 class ScenarioDrives(dict):
@@ -194,20 +211,7 @@ def evaluate_lengths(
     _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     loaded = [load_drive(d, read) for d in items]  # read once, used for every length
-    reports, refused = {}, []
-    with printing_once():  # what each length warns again of the same drives (no stationary stretch, ...) is printed once
-        for length in lengths:
-            try:
-                reports[length] = evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress)
-            except InputError as exc:
-                if exc.param not in ("outage_s", "warm_up"):  # not a matter of this length
-                    raise
-                refused.append(exc)
-    if not reports:
-        raise refused[0]
-    for exc in refused:
-        log.warning("%s; that length is left out (%s)", exc.message, exc.hint)
-    return reports
+    return dict(each_length(lengths, lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress)))
 
 
 def evaluate_by_event(

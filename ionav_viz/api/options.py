@@ -263,6 +263,29 @@ def name_of(item: DriveLike) -> str:
 POOR_GNSS_SHARE = 0.5
 
 
+def each_length(lengths: Sequence[float], one: Callable[[float], Any]) -> list[tuple[float, Any]]:
+    """``(length, one(length))`` for each outage length, each warning the lengths repeat (of the same
+    drives) printed once; a length the drives have no room for (``one`` refuses it on the outage or
+    the warm-up, before writing anything) is left out with a warning when another fits; when none
+    fits, the first one's error."""
+    from ..core.warnings_log import printing_once
+
+    done, refused = [], []
+    with printing_once():
+        for length in lengths:
+            try:
+                done.append((length, one(length)))
+            except InputError as exc:
+                if exc.param not in ("outage_s", "warm_up"):  # not a matter of this length
+                    raise
+                refused.append(exc)
+    if not done:
+        raise refused[0]
+    for exc in refused:
+        log.warning("%s; that length is left out (%s)", exc.message, exc.hint)
+    return done
+
+
 def too_short(drive: Drive, n_windows: int, run: RunOptions, read: Any = None) -> InputError:
     """Why no ``n_windows`` s outage fits in ``drive`` (neither placed nor excluded for bad GNSS):
     its length, the span it was cut to and the warm-up before the first outage, and what to change;

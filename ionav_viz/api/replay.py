@@ -12,14 +12,30 @@ from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input, refuse_output_onto_output
 from ..core.timing import stage
-from ..core.warnings_log import collecting_warnings, printing_once
+from ..core.warnings_log import collecting_warnings
 from ..nav.outages import Placement
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import plan_outages, scenario_drives
-from .options import DriveLike, Progress, RunOptions, check_event_types, input_paths, lengths_of, log, no_outage_fits, options_of, placement_of, refuse_export_onto_inputs, too_short, windows_of, with_externals
+from .options import (
+    DriveLike,
+    Progress,
+    RunOptions,
+    check_event_types,
+    each_length,
+    input_paths,
+    lengths_of,
+    log,
+    no_outage_fits,
+    options_of,
+    placement_of,
+    refuse_export_onto_inputs,
+    too_short,
+    windows_of,
+    with_externals,
+)
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -183,23 +199,14 @@ def replay_lengths(
     if output is not None and Path(output).suffix.lower() != ".rrd":
         raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     d = load_drive(drive, read)  # read once, replayed for every length
-    out, refused = [], []
-    with printing_once():  # what each length warns again of the same drive is printed once (each recording keeps it)
-        for length in lengths:
-            name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
-            target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
-            try:
-                out.append(replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
-                                  export=None if export is None else Path(export) / f"{length:g}s"))
-            except InputError as exc:  # refused before anything of this length is written
-                if exc.param not in ("outage_s", "warm_up"):
-                    raise
-                refused.append(exc)
-    if not out:
-        raise refused[0]
-    for exc in refused:
-        log.warning("%s; that length is left out (%s)", exc.message, exc.hint)
-    return out
+
+    def one(length: float) -> ReplayResult:
+        name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
+        target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
+        return replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
+                      export=None if export is None else Path(export) / f"{length:g}s")
+
+    return [result for _, result in each_length(lengths, one)]
 
 
 def replay_scenario(scenario: str, folder: str | Path, outage_s: float = 10.0, placement: Placement | None = None, *,
