@@ -122,7 +122,8 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
 
     own = report.colors
     colors = estimator_colors([SimpleNamespace(name=e, color=own.get(e)) for e in report.estimators])
-    rec = rr.RecordingStream(APP_ID, recording_id=f"{FLEET_ID_PREFIX}{len(report.drives)} drives, {report.outage_s:g} s outages")
+    what = "their own GNSS losses" if through_real_losses(report) else f"{report.outage_s:g} s outages"
+    rec = rr.RecordingStream(APP_ID, recording_id=f"{FLEET_ID_PREFIX}{len(report.drives)} drives, {what}")
     rows: dict[str, int] = {}
     with streamed_to(rec, path, target):
         rec.send_blueprint(fleet_blueprint(report))
@@ -145,11 +146,19 @@ def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_
     """A PNG of the fleet overview ``recording`` in its own layout, by the private headless viewer."""
     import time
 
+    from rerun.chunk import RrdReader
+
+    from ..core.fileio import utf8_alias
     from .blueprints import without_panels
+    from .screenshot import draw_key
     from .viewer import HeadlessViewer
 
+    with utf8_alias(Path(recording)) as readable:
+        ids = [str(r.recording_id) for r in RrdReader(readable).recordings()]
+    title = next((i for i in ids if i.startswith(FLEET_ID_PREFIX)), FLEET_ID_PREFIX)
     with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
         viewer.open(Path(recording))
         time.sleep(SCREENSHOT_SETTLE_S)
-        viewer.show(without_panels(viewer.base_blueprint), None, Path(out))
+        # the band above the views (the viewer's title bar) says what the image is, as a replay's key does
+        viewer.show(without_panels(viewer.base_blueprint), None, Path(out), finish=lambda png: draw_key(png, [], title[0].upper() + title[1:]))
     return Path(out)
