@@ -358,9 +358,12 @@ def test_a_fleet_through_the_logs_own_losses_reports_them(tmp_path):
         proc = run_cli("evaluate", d, "--on", "gnss-outage", "--estimators", CHEAP, "--json")
         assert proc.returncode == 0, proc.stderr
         single.append(json.loads(proc.stdout)["gnss_outages"]["bridged"])
-    proc = run_cli("evaluate", *drives, "--on", "gnss-outage", "--estimators", CHEAP, "--workers", "2", "--json")
+    clean = str(iv.simulate("motorway", tmp_path / "V-clean.csv", seed=12, duration_s=120.0))  # no loss: nothing to bridge, not a failure
+    proc = run_cli("evaluate", *drives, clean, "--on", "gnss-outage", "--estimators", CHEAP, "--workers", "2", "--json")
     assert proc.returncode == 0, proc.stderr
-    real = json.loads(proc.stdout)["real_outages"]
+    got = json.loads(proc.stdout)
+    assert got["drives_failed"] == 0 and [s["drive"] for s in got["skipped"]] == [clean], got["skipped"]
+    real = got["real_outages"]
     every = [b for drive in single for b in drive]
     assert real["n"] == len(every) >= 4
     for est in ("ins", "odo"):

@@ -16,7 +16,7 @@ from typing import Any
 
 from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
 from ..core.errors import InputError
-from ..nav.outages import Placement
+from ..nav.outages import GNSS_OUTAGE, Placement
 from ..nav.protocol import Estimator
 from ..sources.load import ReadOptions
 from .engine import Engine, WorkerLost, default_workers, run_each
@@ -170,7 +170,13 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
         try:
             drive = load_drive(path or spec, job.read)
             windows = make_windows(drive)
-            plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
+            try:
+                plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
+            except InputError as exc:
+                if tuple(job.placement.event_types) != (GNSS_OUTAGE,):
+                    raise
+                # through the logs' own losses: a drive without one has nothing to bridge, it has not failed
+                return DriveFailure(spec, f"skipped: {exc.message}", time.perf_counter() - began)
             if plan.too_short:
                 why = "no outage fits where the GNSS truth and the receiver's fixes are good" if plan.excluded else "too short for a single outage"
                 return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began)
