@@ -141,3 +141,30 @@ def test_the_distance_driven_leaves_out_fixes_without_a_fix(pair, tmp_path):
     assert proc.returncode == 0, proc.stderr
     drives = {d["drive"]: d for d in json.loads(proc.stdout)["drives"]}
     assert drives["V-lossy"]["distance_m"] == pytest.approx(integrated, rel=0.01)
+
+
+def test_a_loss_whose_next_fix_lies_out_of_reach_is_not_bridged(pair):
+    """A phone's first fix after a loss can land a kilometre off (meszdav q3_02: 1017 m after 11.9 s,
+    85 m/s): scored against it every estimator 'erred' by that kilometre. A loss whose fixes either
+    side lie further apart than the car could drive in it (from the faster of its speeds there,
+    accelerating at 3 m/s^2 throughout, 30 m for the fixes' errors) is not bridged; the others are."""
+    from dataclasses import replace
+
+    from ionav_viz.nav.outages import bridging
+    from ionav_viz.nav.windows import make_windows
+
+    _, lossy, _ = pair
+    drive = iv.load_drive(str(lossy))
+    windows = make_windows(drive)
+    gaps = [(e.t0_s, e.t1_s) for e in detect_events(drive) if e.type == "gnss-outage"]
+    placed = bridging(windows, gaps)
+    assert len(placed) == LOSSES
+    _, k, n = placed[0]
+    seconds = float(windows.t0_s[k + n] - windows.t0_s[k])
+    reach_m = (max(windows.speed0_mps[k], windows.speed0_mps[k + n]) + 1.5 * seconds) * seconds + 30.0
+    for moved_m, kept in ((reach_m - 40.0, LOSSES), (reach_m + 200.0, LOSSES - 1)):
+        # the first good fix after the first loss put due north of the one before it, moved_m away
+        # (a degree of latitude is 111.2 km)
+        lat, lon = windows.lat0_deg.copy(), windows.lon0_deg.copy()
+        lat[k + n], lon[k + n] = lat[k] + moved_m / 111_195.0, lon[k]
+        assert len(bridging(replace(windows, lat0_deg=lat, lon0_deg=lon), gaps)) == kept, (moved_m, reach_m)

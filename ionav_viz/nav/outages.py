@@ -364,6 +364,26 @@ class Planned:
 Placement = Tile | Every | At | Random | AroundEvents | Planned
 
 
+#: A real loss is bridged only when the fixes either side of it lie no further apart than the car
+#: could drive in it: at the faster of its speeds there, accelerating at this rate (m/s^2, a car's
+#: strong acceleration) all the way, plus :data:`BRIDGE_FIX_SLACK_M` for the two fixes' own errors.
+#: A phone's first fix after a loss can land a kilometre off (a real log: 1017 m after 11.9 s, 85 m/s):
+#: scored against it, every estimator "erred" by that kilometre.
+BRIDGE_MAX_ACCEL_MPS2 = 3.0
+BRIDGE_FIX_SLACK_M = 30.0
+
+
+def reachable(windows: Windows, k: int, end: int) -> bool:
+    """Whether the truth at window boundary ``end`` lies within reach of the car from boundary ``k``
+    (:data:`BRIDGE_MAX_ACCEL_MPS2`): the straight line between the two fixes against the speeds there."""
+    from ..core.geo import steps_en_m
+
+    seconds = float(windows.t0_s[end] - windows.t0_s[k])
+    east, north = steps_en_m(np.array([windows.lat0_deg[k], windows.lat0_deg[end]]), np.array([windows.lon0_deg[k], windows.lon0_deg[end]]))
+    speed = float(np.nanmax([windows.speed0_mps[k], windows.speed0_mps[end], 0.0]))
+    return float(np.hypot(east[0], north[0])) <= (speed + 0.5 * BRIDGE_MAX_ACCEL_MPS2 * seconds) * seconds + BRIDGE_FIX_SLACK_M
+
+
 def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> list[tuple[int, int, int]]:
     """Outages through the log's own GNSS gaps: for each gap ``(last good fix s, first good fix s)``,
     ``(gap index, start window, windows)`` of the outage that starts at the window boundary at or
@@ -371,7 +391,8 @@ def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: i
     and ends at the first boundary at or after the first good fix whose next window has good truth
     (its start is the only truth there is). Beside a reference the window before the start needs
     the receiver's fixes too (the estimators start from them). Gaps without such windows in one
-    gap-free segment (a data gap, an end of the drive) get none."""
+    gap-free segment (a data gap, an end of the drive) get none, and so do gaps whose fixes either
+    side lie further apart than the car could drive in them (:func:`reachable`)."""
     out = []
     t0 = windows.t0_s
     start_ok = windows.truth_ok & windows.receiver_ok
@@ -387,6 +408,7 @@ def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: i
             if end >= len(windows) or windows.segment[end] != windows.segment[k]:
                 break
             if windows.truth_ok[end]:
-                out.append((i, k, n))
+                if reachable(windows, k, end):
+                    out.append((i, k, n))
                 break
     return out
