@@ -601,9 +601,9 @@ def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
     assert large["/container/tabs"]["ContainerBlueprint"]["contents"] == list(views)
 
 
-def test_a_recording_through_real_losses_alone_says_where_they_are_drawn(tmp_path):
-    """The inspector frames synthetic outages only: in a replay through the log's own losses alone
-    its title says so and points at the views that draw them, instead of 'no outage yet'."""
+def test_a_recording_through_real_losses_alone_inspects_the_last_one(tmp_path):
+    """In a replay through the log's own losses alone the inspector shows the last loss begun (its
+    title names it), as it shows the last synthetic outage; before the first, 'no outage yet'."""
     from ionav_viz.viz.blueprints import TITLE_ICONS_PX, TITLE_PX_PER_CHAR, Shot, column_fraction, titles_for
     from ionav_viz.viz.recording_info import read_recording_info
 
@@ -611,11 +611,13 @@ def test_a_recording_through_real_losses_alone_says_where_they_are_drawn(tmp_pat
     proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "-q", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
     info = read_recording_info(out)
-    assert info.outages == []
+    assert info.outages == [] and info.real_outages
+    last = max((o for o in info.real_outages if o.start_s < 300.0), key=lambda o: o.start_s)
     for width in (1600, 1024):
         titles = titles_for(info, Shot("all", 300.0, "300s", None), width)
-        assert titles["inspect"].startswith(("V-sim-motorway-tunnels: no synthetic outage", "no synthetic outage")), titles["inspect"]
+        assert f"real GNSS outage {last.number} (" in titles["inspect"], titles["inspect"]
         assert len(titles["inspect"]) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX <= width * column_fraction("inspect")
+    assert "no outage yet" in titles_for(info, Shot("all", 1.0, "1s", None), 1600)["inspect"]
 
 
 @pytest.fixture(scope="module")
@@ -661,7 +663,7 @@ def test_a_recording_through_real_losses_alone_frames_them_by_number_and_as_the_
     shot = Shot("local", o.end_s, "worst", o)
     titles = titles_for(info, shot, 1600)
     assert f"real GNSS outage {o.number} (" in titles["local"], titles["local"]
-    assert titles["inspect"].startswith("V-sim-motorway-tunnels: no synthetic outage")  # the inspector does not draw real losses
+    assert titles["inspect"].startswith(f"V-sim-motorway-tunnels: real GNSS outage {o.number} (")  # the inspector draws it too
     assert key_head(shot) == f"real GNSS outage {o.number}, final error:"
     assert titles["errors/yaw_crse_radps"].endswith("none here")  # the CRSE is of synthetic outages: said, not an empty plot
     # framed on its own tracks (the drive spans 7 km; one loss at motorway speed a few hundred metres)
@@ -688,15 +690,17 @@ def test_a_screenshot_of_a_replay_through_real_losses_alone_frames_the_worst(rea
 
 
 def test_replay_through_real_losses_alone_with_screenshots(tmp_path):
-    """replay --on gnss-outage --screenshot: every view at the worst real loss, but the outage
-    inspector, which frames synthetic outages (its image was blank), and a line saying so (before
-    this, the replay failed at 'worst')."""
+    """replay --on gnss-outage --screenshot: every view at the worst real loss, the inspector too
+    (the loss in metres from its start fix: the INS DR's colour there; before this, the replay
+    failed at 'worst', then the inspector's image was blank)."""
     shots = tmp_path / "shots"
     proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "-o", str(tmp_path / "t.rrd"),
                    "--screenshot", str(shots))
     if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
         pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
     assert proc.returncode == 0, proc.stderr
-    assert "no image of the outage inspector" in proc.stderr
     assert sorted(p.name for p in shots.iterdir()) == sorted(f"V-sim-motorway-tunnels-{v}-worst.png"
-                                                             for v in ("all", "map", "local", "signals", "errors", "health"))
+                                                             for v in ("all", "outage", "map", "local", "signals", "errors", "health"))
+    # the inspector draws the loss: the INS DR's track and the fixes around it, tens of pixels long at least
+    inspector = shots / "V-sim-motorway-tunnels-outage-worst.png"
+    assert _extent_of(inspector, COLORS["ins"])[0] > 200 and _pixels_near(inspector, GNSS_COLOR, 30) > 500

@@ -102,13 +102,7 @@ def replay(
     if screenshot_dir is not None:
         from ..viz.blueprints import VIEWS
 
-        views = list(VIEWS)
-        if result.report.n_outages == 0:  # through the log's own losses alone: the inspector frames synthetic outages only
-            views.remove("outage")
-            if not quiet:
-                print("--screenshot: no image of the outage inspector (it frames synthetic outages; this replay ran through the log's "
-                      "own GNSS losses alone)", file=sys.stderr)
-        api.screenshot([result.path], screenshot_dir, api.Shots(times=["worst"], views=views), progress=print)
+        api.screenshot([result.path], screenshot_dir, api.Shots(times=["worst"], views=list(VIEWS)), progress=print)
     if connect is not None and not quiet:
         print(f"streamed to the viewer at {connect}", file=sys.stderr)
     if open_viewer:

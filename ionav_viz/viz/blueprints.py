@@ -491,17 +491,13 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
     full = width_px if shot.view != "all" else None
     def w(origin: str) -> float:
         return full or width_px * column_fraction(origin)
-    inspected = o if o is not None and not o.real else _outage_before(info, shot.t_s)
-    inspect_head = f"outage {inspected.number} ({inspected.span})" if inspected else "no outage yet"
-    if not info.outages:  # a run through the log's own losses alone: the inspector shows synthetic outages only
-        inspect_titles = [f"{info.drive}: no synthetic outage; the real GNSS outages are in the map and east-north views",
-                          "no synthetic outage; the real ones: map and east-north views", "no synthetic outage"]
-    else:
-        inspect_titles = [f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
-                          f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head]
+    inspected = o or _outage_before(info, shot.t_s)
+    inspect_head = inspected.head if inspected else "no outage yet"
+    inspect_titles = [f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
+                      f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head]
     titles = {
-        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT))
-        if o is not None and not o.real else _fit(inspect_titles, w(ent.INSPECT)),
+        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT)) if o else
+        _fit(inspect_titles, w(ent.INSPECT)),
         ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
                     + shortest + ["Map" + (f", {o.name}" if o else "")], w(ent.MAP)),
         ent.LOCAL: _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
@@ -591,8 +587,9 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
 
 
 def _outage_before(info: RecordingInfo, t_s: float) -> OutageInfo | None:
-    """The outage the inspector shows at ``t_s``: the one under way, else the last one before."""
-    started = [o for o in info.outages if o.start_s + ent.OUTAGE_EPS_S <= t_s + 1e-9]
-    return started[-1] if started else None
+    """The outage the inspector shows at ``t_s``: the one under way, else the last one begun
+    before, synthetic or one of the log's own losses."""
+    started = [o for o in info.outages + info.real_outages if o.start_s + ent.OUTAGE_EPS_S <= t_s + 1e-9]
+    return max(started, key=lambda o: o.start_s) if started else None
 
 

@@ -160,6 +160,7 @@ def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict) 
         bars.append(scale_bar(bounds, steps[-1]))
     flat = [s for strips in rows for s in strips]
     n, t_rows = len(flat), np.array([b.t0_s for b in bridged]) + ent.OUTAGE_EPS_S
+    _log_real_outages_inspected(layers, result, colors, t_rows)
     layers.send(ent.REAL_OUTAGE_CURRENT, t_rows, rr.GeoLineStrings.columns(
         line_strings=columns.geo_line_strings(*columns.ragged(flat)), colors=np.asarray(rgb), radii=np.full(n, rr.Radius.ui_points(3.0))).partition(
             [len(strips) for strips in rows]))
@@ -167,6 +168,54 @@ def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict) 
     layers.send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged(bars)), labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (m, 1)), radii=np.full(m, rr.Radius.ui_points(2.0)), draw_order=np.full(m, 50.0)))
+
+
+def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndarray) -> None:
+    """The outage inspector from each real loss's start (rows ``t_rows``) on, as for a synthetic
+    outage (:func:`log_outage_frames`): in metres from its start fix, the good fixes
+    :data:`CONTEXT_S` before it and from the first good fix after it, every estimator's whole track
+    through it, a grid and a scale bar; a synthetic outage's current positions and ellipses cleared."""
+    import rerun as rr
+
+    bridged, t, send = result.bridged, result.drive.t_s, layers.send
+    ti = np.flatnonzero(layers.usable)
+    m = len(bridged)
+    truth, tracks, grids, bars, steps = [], {e.name: [] for e in result.estimators}, [], [], []
+    for b in bridged:
+        start = layers.xy(*np.array([[b.tracks[result.estimators[0].name].lat_deg[0, 0]], [b.tracks[result.estimators[0].name].lon_deg[0, 0]]]))[0]
+        # the fixes up to the start fix and on from the end fix (the outage runs from and to window boundaries)
+        before = ti[(t[ti] >= b.t0_s - CONTEXT_S) & (t[ti] < b.t0_s)]
+        after = ti[(t[ti] > b.t1_s) & (t[ti] <= b.t1_s + CONTEXT_S)]
+        end = layers.xy(np.array([b.end_lat_deg]), np.array([b.end_lon_deg]))
+        truth.append([np.concatenate([layers.truth_xy[before] - start, np.zeros((1, 2))]), np.concatenate([end, layers.truth_xy[after]]) - start])
+        for e in result.estimators:
+            tracks[e.name].append(layers.xy(b.tracks[e.name].lat_deg[0], b.tracks[e.name].lon_deg[0]) - start)
+        bounds = padded_bounds(np.concatenate([*truth[-1], *(tr[-1] for tr in tracks.values()), np.zeros((1, 2))]))
+        steps.append(nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2])))
+        grids.append(grid_strips(bounds, steps[-1]))
+        bars.append(scale_bar(bounds, steps[-1]))
+    wide = rr.Radius.ui_points(4.5)
+    send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
+        strips=columns.line_strips_2d(*columns.ragged([s for pair in truth for s in pair])), colors=np.tile(GNSS_COLOR, (2 * m, 1)),
+        radii=np.full(2 * m, wide), draw_order=np.full(2 * m, 12.0)).partition(np.full(m, 2)))
+    for e in result.estimators:
+        send(ent.live_track(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
+            strips=columns.line_strips_2d(*columns.ragged(tracks[e.name])), colors=np.tile(colors[e.name], (m, 1)),
+            radii=np.full(m, rr.Radius.ui_points(3.0)), draw_order=np.full(m, 30.0)))
+        if len(result.starts):  # a synthetic outage's current position and ellipse, drawn there before: emptied
+            send(ent.inspect_position(e.name), t_rows, rr.Points2D.columns(positions=np.zeros((0, 2))).partition(np.zeros(m, dtype=int)))
+            if result.estimates[e.name].pos_cov_m2 is not None:
+                send(ent.ellipse(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
+                    strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))).partition(np.zeros(m, dtype=int)))
+    count = sum(map(len, grids))
+    send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
+        strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (count, 1)),
+        radii=np.full(count, rr.Radius.ui_points(0.8)), draw_order=np.full(count, 1.0)).partition([len(g) for g in grids]))
+    send(ent.INSPECT_SCALE, t_rows, rr.LineStrips2D.columns(
+        strips=columns.line_strips_2d(*columns.ragged(bars)), labels=[scale_label(st) for st in steps],
+        colors=np.tile(SCALE_COLOR, (m, 1)), radii=np.full(m, rr.Radius.ui_points(2.0)), draw_order=np.full(m, 50.0)))
+    layers.rec.log(ent.INSPECT_START, rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
+                   static=True)
 
 
 def log_events(layers: Layers, events: list, drive) -> None:
