@@ -116,7 +116,9 @@ def log_grid(rec, xy: np.ndarray) -> None:
 
 def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: dict) -> None:
     """The log's own GNSS outages: each estimator's track through them (wide, on top), the first
-    good fix after each (the truth that scores them) and each final error on the error timeline."""
+    good fix after each (the truth that scores them) and each final error on the error timeline;
+    from each loss's start on, what frames it (:func:`_log_current_real_outage`) and the inspector
+    (:func:`_log_real_outages_inspected`)."""
     import rerun as rr
 
     rec, send = layers.rec, layers.send
@@ -126,70 +128,75 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
     rec.log(ent.end_fixes(ent.LOCAL), rr.Points2D(layers.xy(end_ll[:, 0], end_ll[:, 1]),
                                                       colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
     t1 = np.array([b.t1_s for b in bridged])
-    _log_current_real_outage(layers, result, colors)
+    # every estimator's track through each loss, on the map and in the local frame (one projection per estimator)
+    tracks_ll, tracks_xy = {}, {}
     for est in result.estimators:
         name, color = est.name, colors[est.name]
         ll = [np.stack([b.tracks[name].lat_deg[0], b.tracks[name].lon_deg[0]], axis=-1) for b in bridged]
-        xy = layers.xy(*np.concatenate(ll).T)  # one projection for every track
-        ends = np.cumsum([len(x) for x in ll])[:-1]
+        tracks_ll[name], tracks_xy[name] = ll, np.split(layers.xy(*np.concatenate(ll).T), np.cumsum([len(x) for x in ll])[:-1])
         rec.log(ent.real_outage_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=ll, colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
-        rec.log(ent.real_outage_tracks(ent.LOCAL, name), rr.LineStrips2D(np.split(xy, ends), colors=[color], radii=rr.Radius.ui_points(3.0),
+        rec.log(ent.real_outage_tracks(ent.LOCAL, name), rr.LineStrips2D(tracks_xy[name], colors=[color], radii=rr.Radius.ui_points(3.0),
                                                               draw_order=30), static=True)
         entity = ent.real_outage_errors(name)
         rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
         send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
+    t_rows = np.array([b.t0_s for b in bridged]) + ent.OUTAGE_EPS_S
+    _log_current_real_outage(layers, result, colors, tracks_ll, tracks_xy, t_rows)
+    _log_real_outages_inspected(layers, result, colors, tracks_xy, t_rows)
 
 
-def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict) -> None:
-    """:data:`~ionav_viz.viz.entities.REAL_OUTAGE_CURRENT`: from each real loss's start on, the good
-    fixes :data:`CONTEXT_S` before and after it (faint) and every estimator's track through it."""
+def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict, tracks_ll: dict[str, list[np.ndarray]],
+                             tracks_xy: dict[str, list[np.ndarray]], t_rows: np.ndarray) -> None:
+    """:data:`~ionav_viz.viz.entities.REAL_OUTAGE_CURRENT` (rows ``t_rows``, each loss's start): the
+    good fixes :data:`CONTEXT_S` before and after it (faint) and every estimator's track through it
+    (``tracks_ll``, per estimator one (lat, lon) array per loss); the local view's scale bar for it,
+    as a synthetic outage's (:func:`log_outage_frames`), from the tracks in the local frame ``tracks_xy``."""
     import rerun as rr
 
     bridged, t = result.bridged, result.drive.t_s
     ti = np.flatnonzero(layers.usable)
     rows, rgb, bars, steps = [], [], [], []
-    for b in bridged:
+    for i, b in enumerate(bridged):
         before = ti[(t[ti] >= b.gap_t0_s - CONTEXT_S) & (t[ti] <= b.gap_t0_s)]
         after = ti[(t[ti] >= b.gap_t1_s) & (t[ti] <= b.gap_t1_s + CONTEXT_S)]
-        tracks = [np.stack([b.tracks[e.name].lat_deg[0], b.tracks[e.name].lon_deg[0]], axis=-1) for e in result.estimators]
-        rows.append([layers.truth_ll[before], layers.truth_ll[after], *tracks])
+        rows.append([layers.truth_ll[before], layers.truth_ll[after], *(tracks_ll[e.name][i] for e in result.estimators)])
         rgb += [faded(GNSS_COLOR), faded(GNSS_COLOR)] + [colors[e.name] for e in result.estimators]
-        # the local view's scale bar for it, as a synthetic outage's (log_outage_frames)
-        bounds = padded_bounds(layers.xy(*np.concatenate([*tracks, [[b.end_lat_deg, b.end_lon_deg]]]).T))
+        end = layers.xy(np.array([b.end_lat_deg]), np.array([b.end_lon_deg]))
+        bounds = padded_bounds(np.concatenate([*(tracks_xy[e.name][i] for e in result.estimators), end]))
         steps.append(nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2])))
         bars.append(scale_bar(bounds, steps[-1]))
     flat = [s for strips in rows for s in strips]
-    n, t_rows = len(flat), np.array([b.t0_s for b in bridged]) + ent.OUTAGE_EPS_S
-    _log_real_outages_inspected(layers, result, colors, t_rows)
+    n, m = len(flat), len(bridged)
     layers.send(ent.REAL_OUTAGE_CURRENT, t_rows, rr.GeoLineStrings.columns(
         line_strings=columns.geo_line_strings(*columns.ragged(flat)), colors=np.asarray(rgb), radii=np.full(n, rr.Radius.ui_points(3.0))).partition(
             [len(strips) for strips in rows]))
-    m = len(bridged)
     layers.send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged(bars)), labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (m, 1)), radii=np.full(m, rr.Radius.ui_points(2.0)), draw_order=np.full(m, 50.0)))
 
 
-def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndarray) -> None:
+def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dict, tracks_xy: dict[str, list[np.ndarray]],
+                                t_rows: np.ndarray) -> None:
     """The outage inspector from each real loss's start (rows ``t_rows``) on, as for a synthetic
-    outage (:func:`log_outage_frames`): in metres from its start fix, the good fixes
-    :data:`CONTEXT_S` before it and from the first good fix after it, every estimator's whole track
-    through it, a grid and a scale bar; a synthetic outage's current positions and ellipses cleared."""
+    outage (:func:`log_outage_frames`): in metres from its start fix (where the tracks ``tracks_xy``
+    start), the good fixes :data:`CONTEXT_S` before it and from the first good fix after it, every
+    estimator's whole track through it, a grid and a scale bar; a synthetic outage's current
+    positions and ellipses cleared."""
     import rerun as rr
 
     bridged, t, send = result.bridged, result.drive.t_s, layers.send
     ti = np.flatnonzero(layers.usable)
     m = len(bridged)
     truth, tracks, grids, bars, steps = [], {e.name: [] for e in result.estimators}, [], [], []
-    for b in bridged:
-        start = layers.xy(*np.array([[b.tracks[result.estimators[0].name].lat_deg[0, 0]], [b.tracks[result.estimators[0].name].lon_deg[0, 0]]]))[0]
+    for i, b in enumerate(bridged):
+        start = tracks_xy[result.estimators[0].name][i][0]  # every track starts on the start fix
         # the fixes up to the start fix and on from the end fix (the outage runs from and to window boundaries)
         before = ti[(t[ti] >= b.t0_s - CONTEXT_S) & (t[ti] < b.t0_s)]
         after = ti[(t[ti] > b.t1_s) & (t[ti] <= b.t1_s + CONTEXT_S)]
         end = layers.xy(np.array([b.end_lat_deg]), np.array([b.end_lon_deg]))
         truth.append([np.concatenate([layers.truth_xy[before] - start, np.zeros((1, 2))]), np.concatenate([end, layers.truth_xy[after]]) - start])
         for e in result.estimators:
-            tracks[e.name].append(layers.xy(b.tracks[e.name].lat_deg[0], b.tracks[e.name].lon_deg[0]) - start)
+            tracks[e.name].append(tracks_xy[e.name][i] - start)
         bounds = padded_bounds(np.concatenate([*truth[-1], *(tr[-1] for tr in tracks.values()), np.zeros((1, 2))]))
         steps.append(nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2])))
         grids.append(grid_strips(bounds, steps[-1]))
