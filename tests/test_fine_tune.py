@@ -37,13 +37,14 @@ def tuned(tmp_path_factory):
 def test_the_summary_says_what_its_counts_are(tuned):
     """'1481 windows' for 150 s read as 1 s windows; '21 outages of 60 s' in 150 s did not say they
     overlap. The counts say what they count: the examples are 1 s windows starting every 0.1 s, and
-    the uncertainty's outages start every 3 s after a 30 s warm-up: the span's samples end at
-    119.999 s, 119 whole windows, so the last 60 s outage starts by 59 s: 30, 33, ..., 57, 10 of them."""
+    the uncertainty's outages start every 3 s after a 30 s warm-up: the span's last sample is
+    stamped 119.999 s, on the 120 s end (1 ms clock jitter), 120 whole windows, so the last 60 s
+    outage starts at 60 s: 30, 33, ..., 60, 11 of them."""
     stderr = (tuned.parent / "stderr.txt").read_text()
     n = json.loads((tuned / "metadata.json").read_text())["training"]["n_examples"]
     assert f"trained idnn on 1 drive(s), {n} training examples (1 s windows every 0.1 s); trainable parameters" in stderr
     assert 1000 < n <= 1200  # about 10 a second over 120 s, less the validation tail
-    assert ("uncertainty: 10 overlapping outages of 60 s (one every 3 s, after a 30 s warm-up) in the training drives, "
+    assert ("uncertainty: 11 overlapping outages of 60 s (one every 3 s, after a 30 s warm-up) in the training drives, "
             "fewer than 30: no uncertainty fitted") in stderr
 
 

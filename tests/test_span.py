@@ -75,4 +75,22 @@ def test_a_plan_made_on_a_span_is_read_on_the_same_span(tmp_path):
     plan = str(tmp_path / "o.outages.json")
     assert _starts(["--span", "30s:95s", "--plan", plan]) == _starts(["--span", "30s:95s"])
     elsewhere = run_cli("evaluate", "roundabout", "--span", "100s:200s", "--plan", plan, "--estimators", "ins")
-    assert elsewhere.returncode == 2 and "outside the drive V-sim-roundabout (100" in elsewhere.stderr
+    assert elsewhere.returncode == 2 and "outside the drive V-sim-roundabout (99.999-199.999 s)" in elsewhere.stderr  # the samples stamped on the ends
+
+
+def test_spans_that_meet_tile_the_drive_on_its_own_grid():
+    """The bundled drives are stamped as IO-VNBD is, in whole milliseconds with a millisecond of jitter
+    (the roundabout's 100 s sample is stamped 99.999 s): a span's end is still on that sample, and
+    the windows of 0s:100s and 100s:200s are exactly those of 0s:200s (100 + 100, on the same 0.1 s
+    grid: the second span's first window starts at 100 s, not 100.1 s)."""
+    from ionav_viz.nav.windows import make_windows
+    from ionav_viz.sources.load import ReadOptions, load_drive
+
+    whole = load_drive("roundabout")
+    assert np.any(np.abs(whole.t_s - 99.999) < 1e-9) and not np.any(np.abs(whole.t_s - 100.0) < 1e-9)
+    halves = [make_windows(load_drive("roundabout", ReadOptions(span=s))) for s in ("0s:100s", "100s:200s")]
+    assert [len(w) for w in halves] == [100, 100]
+    both = make_windows(load_drive("roundabout", ReadOptions(span="0s:200s")))
+    np.testing.assert_allclose(np.concatenate([w.t0_s for w in halves]), both.t0_s, atol=1e-9)
+    np.testing.assert_allclose(both.t0_s, np.arange(200.0), atol=1e-9)
+    assert _starts(["--span", "100s:200s", "--warm-up", "0s"])[0] == 101.0

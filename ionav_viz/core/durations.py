@@ -55,11 +55,12 @@ class Span:
     def __str__(self) -> str:
         return f"{self.start_s:g}s:" + ("" if self.end_s is None else f"{self.end_s:g}s")
 
-    def contains(self, t_s: np.ndarray) -> np.ndarray:
-        """Which times lie in the span (both ends included, to 1 µs: a 10 Hz sample on an end is in)."""
+    def contains(self, t_s: np.ndarray, tolerance_s: float = 1e-6) -> np.ndarray:
+        """Which times lie in the span (both ends included, to ``tolerance_s``: a sample stamped a
+        millisecond off an end is on it with :func:`ionav_viz.core.grid.stamp_tolerance_s`)."""
         t_s = np.asarray(t_s, dtype=np.float64)
-        inside = t_s >= self.start_s - 1e-6
-        return inside if self.end_s is None else inside & (t_s <= self.end_s + 1e-6)
+        inside = t_s >= self.start_s - tolerance_s
+        return inside if self.end_s is None else inside & (t_s <= self.end_s + tolerance_s)
 
 
 SPAN_HINT = "give START:END on the drive's own time, e.g. 0s:330s, 330s: or :5m"

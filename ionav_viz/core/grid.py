@@ -16,6 +16,18 @@ GRID_RATE_HZ = 10.0
 GRID_STEP_S = 1.0 / GRID_RATE_HZ
 #: Length (s) of one estimator window: the estimators predict once per window (the paper's 1 s).
 WINDOW_S = 1.0
+#: How far (s) a sample's stamp may lie from a time it stands for: IO-VNBD stamps are whole
+#: milliseconds with a millisecond of jitter (the 100 s sample of a 10 Hz drive is stamped 99.999 s),
+#: so a span's end or a window's grid point within this of a sample is on it. Capped at a quarter of
+#: the sampling period (:func:`stamp_tolerance_s`): a sample is never mistaken for its neighbour.
+STAMP_TOLERANCE_S = 0.005
+
+
+def stamp_tolerance_s(rate_hz: float) -> float:
+    """:data:`STAMP_TOLERANCE_S`, at most a quarter of a sample period at ``rate_hz`` (Hz)."""
+    return min(STAMP_TOLERANCE_S, 0.25 / rate_hz) if rate_hz > 0 else STAMP_TOLERANCE_S
+
+
 #: Below this GNSS speed (m/s) the course over ground is noise: the last course at speed is held.
 MIN_COURSE_SPEED_MPS = 1.0
 #: A stretch above that speed counts only when it lasts this long (s): a standing receiver's speed

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.geo import wgs84
-from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, WINDOW_S, hold_course_when_slow
+from ..core.grid import GRID_RATE_HZ, MIN_COURSE_SPEED_MPS, WINDOW_S, hold_course_when_slow, stamp_tolerance_s
 from ..core.units import wrap_360
 
 __all__ = ["Windows", "faults_between", "hold_course_when_slow", "imu_on_grid", "make_windows", "segments"]
@@ -169,6 +169,12 @@ def segments(t_s: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
+def _on_step(t_s: float, rate_hz: float, tolerance_s: float) -> float:
+    """``t_s`` (s), or the grid step (a multiple of ``1 / rate_hz``) within ``tolerance_s`` of it."""
+    step = round(t_s * rate_hz) / rate_hz
+    return step if abs(step - t_s) <= tolerance_s else t_s
+
+
 def make_windows(
     drive: Drive,
     rate_hz: float = GRID_RATE_HZ,
@@ -182,6 +188,7 @@ def make_windows(
     to see each second of a drive at every phase).
     """
     steps = int(round(rate_hz * WINDOW_S))
+    tolerance = stamp_tolerance_s(drive.rate_hz)
     heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps, drive.t_s)
     heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad", "rx")}
@@ -189,10 +196,13 @@ def make_windows(
     n_windows = []
     for seg_id, (i0, i1) in enumerate(segments(drive.t_s, max_gap_s)):
         t = drive.t_s[i0:i1]
-        n_win = int(np.floor((t[-1] - t[0] - offset_s) * rate_hz + 1e-6)) // steps
+        # a first stamp a millisecond off the grid's step (IO-VNBD: 99.999 s for 100 s) starts the grid
+        # on the step, as the whole drive's grid has it; a last one as far short of a window's end ends it
+        t_first = _on_step(t[0], rate_hz, tolerance)
+        n_win = int(np.floor((t[-1] - t_first - offset_s + tolerance) * rate_hz)) // steps
         if n_win < 1:
             continue
-        grid = t[0] + offset_s + np.arange(n_win * steps + 1) / rate_hz
+        grid = t_first + offset_s + np.arange(n_win * steps + 1) / rate_hz
 
         def on_grid(x: np.ndarray, grid=grid, t=t, i0=i0, i1=i1) -> np.ndarray:
             return np.interp(grid, t, x[i0:i1])

@@ -14,6 +14,7 @@ from ..core.durations import Span, parse_span
 from ..core.errors import InputError
 from ..core.gnss_lag import speed_lag_of
 from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fault
+from ..core.grid import stamp_tolerance_s
 from ..core.timing import stage
 from .log_options import LogOptions
 from .resolve import data_root, resolve_drive
@@ -167,10 +168,12 @@ def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mca
 
 
 def crop_to_span(drive: Drive, span: Span) -> Drive:
-    """The samples of ``drive`` inside ``span`` (both ends included), on the drive's own clock: the
-    first kept sample's ``t_s`` stays what it was (a span of a span is the same span). Fewer than two
-    samples inside is an :class:`InputError` naming the drive and its length."""
-    keep = span.contains(drive.t_s)
+    """The samples of ``drive`` inside ``span`` (both ends included, a sample stamped within
+    :func:`~ionav_viz.core.grid.stamp_tolerance_s` of an end on it: IO-VNBD's 100 s sample may be
+    stamped 99.999 s), on the drive's own clock: the first kept sample's ``t_s`` stays what it was
+    (a span of a span is the same span). Fewer than two samples inside is an :class:`InputError`
+    naming the drive and its length."""
+    keep = span.contains(drive.t_s, stamp_tolerance_s(drive.rate_hz))
     if int(keep.sum()) < 2:
         length = f"{drive.t_s[0]:g}-{drive.t_s[-1]:g} s" if len(drive) else "empty"
         raise InputError(f"{drive.source or drive.name}: span {span} holds no samples of this drive ({length})",
