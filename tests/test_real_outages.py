@@ -150,7 +150,7 @@ def test_a_loss_whose_next_fix_lies_out_of_reach_is_not_bridged(pair):
     accelerating at 3 m/s^2 throughout, 30 m for the fixes' errors) is not bridged; the others are."""
     from dataclasses import replace
 
-    from ionav_viz.nav.outages import bridging
+    from ionav_viz.nav.outages import OUT_OF_REACH, bridging, unbridged
     from ionav_viz.nav.windows import make_windows
 
     _, lossy, _ = pair
@@ -167,4 +167,20 @@ def test_a_loss_whose_next_fix_lies_out_of_reach_is_not_bridged(pair):
         # (a degree of latitude is 111.2 km)
         lat, lon = windows.lat0_deg.copy(), windows.lon0_deg.copy()
         lat[k + n], lon[k + n] = lat[k] + moved_m / 111_195.0, lon[k]
-        assert len(bridging(replace(windows, lat0_deg=lat, lon0_deg=lon), gaps)) == kept, (moved_m, reach_m)
+        moved = replace(windows, lat0_deg=lat, lon0_deg=lon)
+        assert len(bridging(moved, gaps)) == kept, (moved_m, reach_m)
+        assert unbridged(moved, gaps) == ({} if kept == LOSSES else {OUT_OF_REACH: 1})
+
+
+def test_the_report_says_why_a_loss_was_not_bridged(pair):
+    """A loss the drive (here: its span) ends right after cannot be bridged (its first good fix is
+    there, but no window from it to score at): the report counts it and says why, in the JSON and
+    the text."""
+    from ionav_viz.nav.outages import DRIVE_END
+
+    _, lossy, spans = pair
+    t0, t1, _ = spans[-1]
+    report = iv.evaluate([str(lossy)], 10.0, iv.AroundEvents(("gnss-outage",)), read=iv.ReadOptions(span=f"0s:{t1 + 0.5:.1f}s"))
+    g = report.to_dict()["gnss_outages"]
+    assert len(g["bridged"]) == LOSSES - 1 and g["not_bridged"] == 1 and g["not_bridged_by_reason"] == {DRIVE_END: 1}
+    assert f"; 1 outage(s) not bridged (1 with {DRIVE_END})" in report.to_text()

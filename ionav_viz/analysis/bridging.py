@@ -20,7 +20,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.geo import wgs84
 from ..nav.bias import SensorBias
-from ..nav.outages import bridging
+from ..nav.outages import bridging, unbridged
 from ..nav.protocol import Estimator, EstimatorInputs, solve
 from ..nav.track import Track
 from ..nav.windows import Windows, make_windows
@@ -61,9 +61,9 @@ class BridgedOutage:
 
 
 def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[float, float]], estimators: Sequence[Estimator],
-                        bias: SensorBias) -> tuple[list[BridgedOutage], int]:
+                        bias: SensorBias) -> tuple[list[BridgedOutage], dict[str, int]]:
     """Every estimator through each GNSS gap ``(last good fix s, first good fix s)``; returns the
-    bridged outages and how many gaps could not be bridged (a data gap, an end of the drive). The
+    bridged outages and how many gaps could not be bridged, per reason (:func:`~ionav_viz.nav.outages.unbridged`). The
     estimators are given the receiver's fixes (:meth:`~ionav_viz.core.drive.Drive.as_received`) and
     scored against ``windows``, the truth (a reference where the drive has one)."""
     geod = wgs84()
@@ -85,4 +85,4 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
             for j, b in enumerate(group):
                 b.final_error_m[est.name] = float(np.atleast_1d(err)[j])
                 b.tracks[est.name] = Track(track.lat_deg[j : j + 1], track.lon_deg[j : j + 1], track.heading_deg[j : j + 1])
-    return out, len(gaps) - len(placed)
+    return out, unbridged(windows, gaps)

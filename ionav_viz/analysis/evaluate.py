@@ -55,7 +55,7 @@ class DriveResult:
         excluded_outages: how many outages the placement would have put on bad GNSS truth, or
             right after a window where a receiver beside a reference had no fix to trust.
         bridged: the log's own GNSS losses every estimator was run through (``--on gnss-outage``),
-            scored at the first good fix after each; ``unbridged``: losses that could not be.
+            scored at the first good fix after each; ``unbridged``: how many losses could not be, per reason.
         placement: where the outages went, in words (the placement's plan, with its warm-up).
     """
 
@@ -69,7 +69,7 @@ class DriveResult:
     metrics: dict[str, dict[str, np.ndarray]]
     excluded_outages: int = 0
     bridged: list[BridgedOutage] = field(default_factory=list)
-    unbridged: int = 0
+    unbridged: dict[str, int] = field(default_factory=dict)
     placement: str = ""
 
     def __repr__(self) -> str:

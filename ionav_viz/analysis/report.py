@@ -227,7 +227,8 @@ class Report:
         if bridged or any(r.unbridged for r in results):
             out["gnss_outages"] = {
                 "bridged": [{"drive": name, **b.to_dict()} for name, b in bridged],
-                "not_bridged": sum(r.unbridged for r in results),
+                "not_bridged": sum(sum(r.unbridged.values()) for r in results),
+                "not_bridged_by_reason": _summed_counts([r.unbridged for r in results]),
                 "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged])) for est in estimators},
             }
         idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
@@ -279,11 +280,17 @@ def _drive_health(result: DriveResult) -> dict[str, Any]:
     return {name: summarise_health(sol.health) for name, sol in result.estimates.items() if sol.health is not None}
 
 
+def _summed_counts(parts: list[dict[str, int]]) -> dict[str, int]:
+    """Counts per name, summed over ``parts`` (names in the order first met)."""
+    total: dict[str, int] = {}
+    for part in parts:
+        for name, n in part.items():
+            total[name] = total.get(name, 0) + n
+    return total
+
+
 def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:
-    reasons: dict[str, int] = {}
-    for p in parts:
-        for name, n in p["excluded_by_reason"].items():
-            reasons[name] = reasons.get(name, 0) + n
+    reasons = _summed_counts([p["excluded_by_reason"] for p in parts])
     return {"windows": sum(p["windows"] for p in parts), "excluded_windows": sum(p["excluded_windows"] for p in parts),
             "excluded_by_reason": reasons, "receiver_lost_windows": sum(p.get("receiver_lost_windows", 0) for p in parts),
             "excluded_outages": sum(p["excluded_outages"] for p in parts)}

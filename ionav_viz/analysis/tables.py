@@ -277,8 +277,9 @@ def bridged_line(rep: dict[str, Any]) -> str:
     g = rep["gnss_outages"]
     labels = labels_of(rep)
     means = ", ".join(f"{labels[e]} {_fmt(g['final_error_m'][e]['mean'], 2)} m" for e in labels)
-    missed = (f"; {g['not_bridged']} outage(s) not bridged (a gap in the log, an end of the drive, or fixes either side further apart "
-              "than the car could drive in the gap)") if g["not_bridged"] else ""
+    why = g.get("not_bridged_by_reason") or {}
+    reasons = ", ".join(f"{n} with {reason}" for reason, n in why.items())
+    missed = f"; {g['not_bridged']} outage(s) not bridged" + (f" ({reasons})" if reasons else "") if g["not_bridged"] else ""
     return f"Mean final position error over {len(g['bridged'])} real GNSS outage(s): {means}{missed}"
 
 

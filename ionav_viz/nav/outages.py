@@ -384,6 +384,14 @@ def reachable(windows: Windows, k: int, end: int) -> bool:
     return float(np.hypot(east[0], north[0])) <= (speed + 0.5 * BRIDGE_MAX_ACCEL_MPS2 * seconds) * seconds + BRIDGE_FIX_SLACK_M
 
 
+#: Why a GNSS loss of the log could not be bridged (:func:`unbridged`), as the reports say it (after "N with").
+NO_FIX_BEFORE = "no trustworthy fix just before it"
+DATA_GAP = "a gap in the log's samples in it"
+DRIVE_END = "the drive's end in it or right after"
+NO_FIX_AFTER = "no trustworthy fix within 3 s after it"
+OUT_OF_REACH = "fixes either side further apart than the car could drive in it"
+
+
 def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> list[tuple[int, int, int]]:
     """Outages through the log's own GNSS gaps: for each gap ``(last good fix s, first good fix s)``,
     ``(gap index, start window, windows)`` of the outage that starts at the window boundary at or
@@ -392,23 +400,37 @@ def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: i
     (its start is the only truth there is). Beside a reference the window before the start needs
     the receiver's fixes too (the estimators start from them). Gaps without such windows in one
     gap-free segment (a data gap, an end of the drive) get none, and so do gaps whose fixes either
-    side lie further apart than the car could drive in them (:func:`reachable`)."""
-    out = []
+    side lie further apart than the car could drive in them (:func:`reachable`); :func:`unbridged`
+    says which and why."""
+    placed = (_bridge(windows, last_good, first_good, max_extra) for last_good, first_good in gaps)
+    return [(i, *got) for i, got in enumerate(placed) if isinstance(got, tuple)]
+
+
+def unbridged(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> dict[str, int]:
+    """How many of ``gaps`` :func:`bridging` leaves out, per reason (:data:`NO_FIX_BEFORE`,
+    :data:`DATA_GAP`, :data:`DRIVE_END`, :data:`NO_FIX_AFTER`, :data:`OUT_OF_REACH`)."""
+    reasons = [got for last_good, first_good in gaps if isinstance(got := _bridge(windows, last_good, first_good, max_extra), str)]
+    return {reason: reasons.count(reason) for reason in dict.fromkeys(reasons)}
+
+
+def _bridge(windows: Windows, last_good: float, first_good: float, max_extra: int) -> tuple[int, int] | str:
+    """:func:`bridging`'s ``(start window, windows)`` for one gap, or why there is none."""
     t0 = windows.t0_s
     start_ok = windows.truth_ok & windows.receiver_ok
-    for i, (last_good, first_good) in enumerate(gaps):
-        k = int(np.searchsorted(t0, last_good + 1e-6, side="right")) - 1
-        while k >= 2 and not start_ok[k - 1] and t0[k] > last_good - max_extra:
-            k -= 1  # the window before touches the loss (its end is interpolated from a bad sample)
-        if k < 1 or not start_ok[k - 1] or windows.segment[k - 1] != windows.segment[k]:
-            continue
-        shortest = max(1, int(np.ceil(first_good - t0[k] - 1e-6)))
-        for n in range(shortest, shortest + max_extra + 1):
-            end = k + n
-            if end >= len(windows) or windows.segment[end] != windows.segment[k]:
-                break
-            if windows.truth_ok[end]:
-                if reachable(windows, k, end):
-                    out.append((i, k, n))
-                break
-    return out
+    k = int(np.searchsorted(t0, last_good + 1e-6, side="right")) - 1
+    while k >= 2 and not start_ok[k - 1] and t0[k] > last_good - max_extra:
+        k -= 1  # the window before touches the loss (its end is interpolated from a bad sample)
+    if k < 1 or not start_ok[k - 1]:
+        return NO_FIX_BEFORE
+    if windows.segment[k - 1] != windows.segment[k]:
+        return DATA_GAP
+    shortest = max(1, int(np.ceil(first_good - t0[k] - 1e-6)))
+    for n in range(shortest, shortest + max_extra + 1):
+        end = k + n
+        if end >= len(windows):
+            return DRIVE_END
+        if windows.segment[end] != windows.segment[k]:
+            return DATA_GAP
+        if windows.truth_ok[end]:
+            return (k, n) if reachable(windows, k, end) else OUT_OF_REACH
+    return NO_FIX_AFTER
