@@ -145,9 +145,10 @@ def test_a_dying_worker_is_retried_once_then_reported():
 
     items = ["a", "bb", "die", "cccc", "ddd"]
     got = dict(run_each(square_or_die, items, Engine(workers=2)))
-    assert sorted(got) == list(range(5))
-    assert [got[i] for i in (0, 1, 3, 4)] == [1, 4, 16, 9]
-    assert isinstance(got[2], WorkerLost) and "died twice" in got[2].reason
+    # it failed once in six full-suite runs under load, cause unknown: say what came back
+    assert sorted(got) == list(range(5)), got
+    assert [got[i] for i in (0, 1, 3, 4)] == [1, 4, 16, 9], got
+    assert isinstance(got[2], WorkerLost) and "died twice" in got[2].reason, got
     from ionav_viz.core.errors import ToolFailure
 
     with pytest.raises(ToolFailure, match="every worker process died before returning anything"):  # workers that cannot start
