@@ -66,3 +66,19 @@ def test_the_mean_rows_improvement_is_that_of_its_own_columns():
     summary = json.loads(result.to_json())["summary"]
     assert summary["idnn_improvement_pct"] == pytest.approx(25.0)
     assert summary["idnn_improvement_pct_by_fold"] == pytest.approx({"mean": -75.0, "sd": 125 * 2**0.5, "min": -200.0, "max": 50.0})
+
+
+def test_every_folds_output_is_checked_before_any_training(tmp_path):
+    """-o with fold-3 taken trained and wrote fold-1 and fold-2, then failed on fold-3 with a hint at
+    a --force cross-validate has not; a file as -o was "FILE does not exist". Both are refused before
+    any training now, nothing written."""
+    out = tmp_path / "folds"
+    (out / "fold-3").mkdir(parents=True)
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
+    proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:80s", *TINY, "-o", str(out))
+    assert proc.returncode == 2 and "fold-3: exists already" in proc.stderr and "--force" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["fold-3"]
+    a_file = tmp_path / "models.txt"
+    a_file.write_text("")
+    proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:80s", *TINY, "-o", str(a_file))
+    assert proc.returncode == 2 and "models.txt: is not a directory" in proc.stderr and "Traceback" not in proc.stderr

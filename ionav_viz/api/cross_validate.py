@@ -135,9 +135,14 @@ def cross_validate(
     config.validate()
     out_dir = Path(output) if output is not None else None
     if out_dir is not None:
-        check_model_dir(out_dir / "fold-1", overwrite=False)
         if not out_dir.is_dir():
-            raise InputError(f"{out_dir}: not a directory", "create it first", param="output")
+            what = "is not a directory" if out_dir.exists() else "does not exist"
+            raise InputError(f"{out_dir}: {what}", "give an existing folder for the folds' models (fold-1, fold-2, ...)", param="output")
+        for i in range(folds):  # every fold's directory before any training, not fold-1 alone
+            fold_dir = out_dir / f"fold-{i + 1}"
+            if fold_dir.exists() or fold_dir.is_symlink():
+                raise InputError(f"{fold_dir}: exists already", "give an empty folder, or remove the earlier folds' models from it", param="output")
+            check_model_dir(fold_dir, overwrite=False)
     device = training_device(device)
     loaded = [load_drive(item, read) for item in items]
     by = "time" if len(loaded) == 1 else "drive"
