@@ -226,6 +226,22 @@ def test_external_estimates_that_cheat_or_fall_short_are_named(tmp_path):
     assert proc.returncode == 2 and "that log's plan (its NAME.outages.json)" in proc.stderr, proc.stderr
 
 
+def test_an_external_named_in_estimators_runs_once(tmp_path):
+    """--estimators ins,mine with --external mine=... was "unknown estimator 'mine'" (exit 2): the
+    external's name is one of the estimators now, run once; alone it is the only one."""
+    cut = tmp_path / "cut.mcap"
+    assert run_cli("outage-log", "roundabout", "--at", "20s,60s", "-o", str(cut)).returncode == 0
+    plan = str(tmp_path / "cut.outages.json")
+    drive = iv.load_drive("roundabout")
+    mine = tmp_path / "mine.csv"
+    np.savetxt(mine, np.column_stack([drive.stamp_s(drive.t_s), drive.lat_deg + 1e-5, drive.lon_deg]), delimiter=",",
+               header="time_s,lat_deg,lon_deg", comments="", fmt="%.9f")
+    for names, expected in [("ins,mine", ["ins", "mine"]), ("mine", ["mine"])]:
+        proc = run_cli("evaluate", "roundabout", "--plan", plan, "--external", f"mine={mine}", "--estimators", names, "--json")
+        assert proc.returncode == 0, proc.stderr
+        assert [e["name"] for e in json.loads(proc.stdout)["estimators"]] == expected
+
+
 def _bag_messages(path):
     """Every message of a ROS bag read with rosbags itself: (topic, log time ns, raw bytes)."""
     from rosbags.highlevel import AnyReader

@@ -170,7 +170,11 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
         est = External(str(name), read_trajectory(spec))
         validate(est, f"--external {name}")
         built.append(est)
-    return replace(run, plugins=tuple(run.plugins) + tuple(built))
+    names = {est.name for est in built} - set(BUILTIN)
+    estimators = run.estimators
+    if estimators is not None:  # --estimators ins,mine with --external mine=...: 'mine' is the external, run once
+        estimators = [e for e in estimators if not (isinstance(e, str) and e.strip() in names)]
+    return replace(run, estimators=estimators, plugins=tuple(run.plugins) + tuple(built))
 
 
 def input_paths(drives: Any, read: ReadOptions | None = None, *, run: RunOptions | None = None, plan: Any = None,
