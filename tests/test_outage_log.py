@@ -131,6 +131,15 @@ def test_plans_and_outage_logs_refuse_what_does_not_fit(tmp_path):
         iv.evaluate("roundabout", plan=tmp_path / "bad.json")
 
 
+def test_an_outage_log_of_a_drive_too_short_names_it_and_what_to_change(tmp_path):
+    """outage-log of a drive with no room for an outage said "no 10 s outage fits in  " (no name,
+    no length, no word of the warm-up); it now says what replay and evaluate say."""
+    proc = run_cli("outage-log", "roundabout", "--span", "0s:35s", "-o", str(tmp_path / "cut.mcap"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "V-sim-roundabout" in proc.stderr and "too short for a 10 s outage after the 30 s warm-up (35.0 s in the span 0s:35s)" in proc.stderr
+    assert "a shorter warm-up" in proc.stderr and list(tmp_path.iterdir()) == []
+
+
 class ConstantVelocity:
     """tests/external/constant_velocity.py as a plug-in: from the last fix at or before each
     outage's start, along its course at its speed (its own positions at the window boundaries)."""
