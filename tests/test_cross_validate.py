@@ -82,3 +82,25 @@ def test_every_folds_output_is_checked_before_any_training(tmp_path):
     a_file.write_text("")
     proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:80s", *TINY, "-o", str(a_file))
     assert proc.returncode == 2 and "models.txt: is not a directory" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_cross_validation_stopped_midway_leaves_no_folds_behind(tmp_path):
+    """Stopped (Ctrl-C, SIGTERM) or failed after fold 1 was written, cross-validate left fold-1 in
+    the output folder, and the same command run again was refused on it; the folds this run wrote
+    are removed now, the folder as it was."""
+    import ionav_viz as iv
+
+    out = tmp_path / "folds"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+
+    def progress(label, done, total):
+        if label.startswith("fold 2/"):
+            raise KeyboardInterrupt
+
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
+    from ionav_viz.nav.idnn import ModelConfig
+
+    with pytest.raises(KeyboardInterrupt):
+        iv.cross_validate(drives, 3, config=ModelConfig(epochs_disp=1, epochs_yaw=1), read=iv.ReadOptions(span="0s:80s"), output=out, progress=progress)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]

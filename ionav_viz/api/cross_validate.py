@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -20,6 +21,7 @@ from typing import Any
 from ..core.drive import Drive
 from ..core.durations import Span
 from ..core.errors import InputError
+from ..core.signals import hold_signals
 from ..sources.load import ReadOptions, crop_to_span, load_drive
 from .options import DriveLike, Progress, RunOptions
 
@@ -151,29 +153,40 @@ def cross_validate(
     bias_of = run.bias_of(read)
     results = []
     warned: list[str] = []
-    for i, (train_set, test_set) in enumerate(splits):
-        def step(label: str, done: int, total: int, i: int = i) -> None:
-            if progress:
-                progress(f"fold {i + 1}/{folds}: training {label}", done, total)
+    written: list[Path] = []  # the folds' models this run wrote: removed when it fails or is stopped
+    try:
+        for i, (train_set, test_set) in enumerate(splits):
+            def step(label: str, done: int, total: int, i: int = i) -> None:
+                if progress:
+                    progress(f"fold {i + 1}/{folds}: training {label}", done, total)
 
-        started = time.perf_counter()
-        model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
-                             parent=parent, device=device)
-        train_s = time.perf_counter() - started
-        if out_dir is not None:
-            model.metadata["training"]["command"] = "ionav_viz.cross_validate"
-            save_model(model, out_dir / f"fold-{i + 1}")
-        if progress:
-            progress(f"fold {i + 1}/{folds}: testing", 0, 1)
-        report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
-                          read=replace(read, span=None))
-        data = json.loads(report.to_json())
-        warned += [w for w in data.get("warnings", []) if w not in warned]
-        crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
-        results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
-                            100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
-        if progress:
-            progress(f"fold {i + 1}/{folds}: done", 1, 1)
+            started = time.perf_counter()
+            model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
+                                 parent=parent, device=device)
+            train_s = time.perf_counter() - started
+            if out_dir is not None:
+                model.metadata["training"]["command"] = "ionav_viz.cross_validate"
+                written.append(out_dir / f"fold-{i + 1}")  # before: a signal as save_model returns leaves it listed
+                save_model(model, out_dir / f"fold-{i + 1}")
+            if progress:
+                progress(f"fold {i + 1}/{folds}: testing", 0, 1)
+            report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
+                              read=replace(read, span=None))
+            data = json.loads(report.to_json())
+            warned += [w for w in data.get("warnings", []) if w not in warned]
+            crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
+            results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
+                                100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
+            if progress:
+                progress(f"fold {i + 1}/{folds}: done", 1, 1)
+    except BaseException:
+        release = hold_signals()
+        try:
+            for folder in written:
+                shutil.rmtree(folder, ignore_errors=True)
+        finally:
+            release()
+        raise
     training = "from random weights" if parent is None else f"fine-tuning {model.metadata['parent']['directory']}"
     return CrossValidation(results, by, float(outage_s), device, training, warned)
 
