@@ -104,3 +104,15 @@ def test_a_cross_validation_stopped_midway_leaves_no_folds_behind(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         iv.cross_validate(drives, 3, config=ModelConfig(epochs_disp=1, epochs_yaw=1), read=iv.ReadOptions(span="0s:80s"), output=out, progress=progress)
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
+def test_folds_tested_on_the_parents_training_drives_are_refused_for_what_they_are():
+    """--from-model shipped on the shipped model's own training drives stopped with "--strict: ...
+    data the IDNN model (in memory) was trained on (hint: ... leave out --strict)": cross-validate
+    has no --strict. The refusal names the fold, the parent and --from-model now."""
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2)]
+    proc = run_cli("cross-validate", *drives, "--folds", "2", "--span", "0s:80s", "--from-model", "shipped", *TINY)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    error = proc.stderr.strip().splitlines()[-1]
+    assert error.startswith("error: --from-model: fold 1: V-sim-roundabout-train-1: 4 of 4 outages lie in data fold 1's model"), error
+    assert "--strict" not in error and "(in memory)" not in error and "leave out --from-model" in error

@@ -170,8 +170,13 @@ def cross_validate(
                 save_model(model, out_dir / f"fold-{i + 1}")
             if progress:
                 progress(f"fold {i + 1}/{folds}: testing", 0, 1)
-            report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
-                              read=replace(read, span=None))
+            try:
+                report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
+                                  read=replace(read, span=None))
+            except InputError as exc:
+                if exc.param != "strict":
+                    raise
+                raise _leak(exc, i, parent, model) from None
             data = json.loads(report.to_json())
             warned += [w for w in data.get("warnings", []) if w not in warned]
             crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
@@ -189,6 +194,20 @@ def cross_validate(
         raise
     training = "from random weights" if parent is None else f"fine-tuning {model.metadata['parent']['directory']}"
     return CrossValidation(results, by, float(outage_s), device, training, warned)
+
+
+def _leak(exc: InputError, i: int, parent: Any, model: Any) -> InputError:
+    """The leakage check's refusal of fold ``i``'s test outages (always strict here) said for
+    cross-validate: which fold, the model fine-tuned from which parent, and what to change (the
+    message blamed a --strict the command does not have, and a model "(in memory)")."""
+    if parent is not None:
+        name = model.metadata.get("parent", {}).get("directory", "the parent model")
+        name = "the shipped model" if name == "shipped" else name
+        text = exc.message.replace("the IDNN model (in memory)", f"fold {i + 1}'s model (fine-tuned from {name}) or its parent")
+        return InputError(f"fold {i + 1}: {text}", f"cross-validate on drives {name} was not trained on, or from random weights (leave out --from-model)",
+                          param="from_model")
+    text = exc.message.replace("the IDNN model (in memory)", f"fold {i + 1}'s model")
+    return InputError(f"fold {i + 1}: {text}", "give each drive once: the same file twice puts it in training and test", param="drives")
 
 
 def _fine_tune(parent: Any) -> Any:
