@@ -705,9 +705,15 @@ def load_model(directory: str | Path) -> IdnnModel:
     directory = Path(directory)
     meta_path = directory / "metadata.json"
     check_regular_input(directory, "model", hint="give a model directory written by 'ionav-viz train'", folder_ok=True, missing_ok=True)
+    if directory.is_file():  # its metadata.json, a weights file: was "DIR/metadata.json/metadata.json: cannot read it (Not a directory)"
+        raise InputError(f"{directory}: a file; a model is the directory holding metadata.json and the weights", f"give its directory ({directory.parent})",
+                         param="model")
     check_regular_input(meta_path, "model", hint="retrain or restore the model", missing_ok=True)
     if not meta_path.is_file():
-        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' and give that directory", param="model")
+        folds = sorted(p.name for p in directory.glob("fold-*") if (p / "metadata.json").is_file()) if directory.is_dir() else []
+        hint = (f"it holds cross-validate's fold models ({', '.join(folds[:3])}{' ...' if len(folds) > 3 else ''}): give one of them" if folds
+                else "train one with 'ionav-viz train -o DIR' and give that directory")
+        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", hint, param="model")
     # bounded in size (16 MiB) and depth: nested brackets were a RecursionError traceback
     meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model", what="a model's metadata",
                              allow_nan=True)  # json.dumps wrote them (a NaN validation score); the fields are checked below
