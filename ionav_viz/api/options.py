@@ -104,8 +104,21 @@ class RunOptions:
         if isinstance(self.bias_from, SensorBias):
             fixed = self.bias_from
             return lambda drive: fixed
-        stationary = load_drive(self.bias_from, read) if self.bias_from is not None else None
+        stationary = load_stationary(self.bias_from, read)
         return lambda drive: resolve_bias(drive, stationary)
+
+
+def load_stationary(bias_from: DriveLike | None, read: ReadOptions | None) -> Drive | None:
+    """The stationary drive ``bias_from`` for the sensor biases (None: none given); a file it cannot
+    be read from is said as ``bias_from``'s (--bias-from), not as one of the drives'."""
+    if bias_from is None:
+        return None
+    try:
+        return load_drive(bias_from, read)
+    except InputError as exc:
+        if exc.param is None:
+            exc.param = "bias_from"
+        raise
 
 
 def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | None, read: ReadOptions | None,
