@@ -57,6 +57,9 @@ def train(
     from .. import api
     from ..nav.idnn import ModelConfig
 
+    if paper_train and drives:  # the drives were dropped silently for the paper's runs
+        raise typer.BadParameter(f"--paper-train trains on the paper's runs, and {len(drives)} drive(s) were given too: give one or the other",
+                                 param_hint="--paper-train")
     if from_model is not None:
         defaults = ModelConfig()
         given = [option for option, value, default in (("--arch", arch, defaults.arch), ("--steps", steps, defaults.n_steps_disp),
