@@ -78,6 +78,8 @@ FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 #: The optional uncertainty model's file (:class:`Uncertainty`); metadata.json's ``uncertainty`` names it.
 UNCERTAINTY_FILE = "uncertainty.safetensors"
+#: What a model directory holds: replacing one (``overwrite``, ``--force``) deletes only these.
+MODEL_DIR_FILES = frozenset({"metadata.json", *MODEL_FILES.values(), UNCERTAINTY_FILE})
 
 
 @dataclass
@@ -636,6 +638,12 @@ def check_model_dir(directory: Path, overwrite: bool = False) -> Path:
         raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
     if directory.exists() and not overwrite:
         raise InputError(f"{directory}: exists already", "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
+    if directory.is_dir():  # replaced whole: --force on a folder of other files deleted them with it
+        foreign = sorted(p.name for p in directory.iterdir() if p.name not in MODEL_DIR_FILES)
+        if foreign:
+            more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
+            raise InputError(f"{directory}: holds {foreign[0]!r}{more}, not a model's file; replacing the model would delete them",
+                             "choose another directory, or move them out first", param="output")
     parent = directory.parent if str(directory.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(f"{directory}: {parent} does not exist", "create it first", param="output")
