@@ -278,6 +278,9 @@ def test_an_external_named_in_estimators_runs_once(tmp_path):
         proc = run_cli("evaluate", "roundabout", "--plan", plan, "--external", f"mine={mine}", "--estimators", names, "--json")
         assert proc.returncode == 0, proc.stderr
         assert [e["name"] for e in json.loads(proc.stdout)["estimators"]] == expected
+    # an external named as a built-in: with --estimators odo it ran as 'ins', the INS DR every improvement is measured against
+    proc = run_cli("evaluate", "roundabout", "--plan", plan, "--external", f"ins={mine}", "--estimators", "odo")
+    assert proc.returncode == 2 and "--external ins: 'ins' is a built-in estimator's name" in proc.stderr and "improvement" not in proc.stderr
 
 
 def _bag_messages(path):

@@ -180,6 +180,9 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
                          param="external")
     built = []
     for name, spec in external.items():
+        if str(name) in BUILTIN:  # an external 'ins' became the baseline every improvement is measured against
+            raise InputError(f"--external {name}: {name!r} is a built-in estimator's name", f"name the trajectory otherwise, e.g. my-{name}={spec}",
+                             param="external")
         est = External(str(name), read_trajectory(spec))
         validate(est, f"--external {name}")
         built.append(est)
