@@ -45,7 +45,9 @@ def test_folds_by_drive_and_the_device_is_said():
 
 @pytest.mark.parametrize(("args", "words"), [(["roundabout", "--folds", "1"], "--folds: 1 folds: need at least 2"),
                                               (["roundabout", "motorway", "--folds", "3"], "--folds: 2 drives for 3 folds"),
-                                              (["roundabout", "--span", "0s:60s", "--folds", "3"], "too short for 3 time blocks")])
+                                              (["roundabout", "--span", "0s:60s", "--folds", "3"], "too short for 3 time blocks"),
+                                              # 36 s blocks: fold 1 was trained, then its test failed on a --warm-up the command has not
+                                              (["roundabout", "--span", "0s:180s", "--folds", "5"], "too short for 5 time blocks of 40 s or more")])
 def test_bad_folds_are_one_line(args, words):
     proc = run_cli("cross-validate", *args, *TINY)
     assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr

@@ -148,7 +148,7 @@ def cross_validate(
     device = training_device(device)
     loaded = [load_drive(item, read) for item in items]
     by = "time" if len(loaded) == 1 else "drive"
-    splits = _time_blocks(loaded[0], folds) if by == "time" else [
+    splits = _time_blocks(loaded[0], folds, float(run.warm_up_s) + float(outage_s)) if by == "time" else [
         ([d for j, d in enumerate(loaded) if j % folds != i], [d for j, d in enumerate(loaded) if j % folds == i]) for i in range(folds)]
     bias_of = run.bias_of(read)
     results = []
@@ -220,17 +220,19 @@ def _label(drive: Drive) -> str:
     return f"{drive.name} {drive.t_s[0]:.0f}-{drive.t_s[-1]:.0f}s"
 
 
-def _time_blocks(drive: Drive, folds: int) -> list[tuple[list[Drive], list[Drive]]]:
-    """K contiguous blocks of equal length of one drive: per fold (the other blocks, [block i])."""
+def _time_blocks(drive: Drive, folds: int, need_s: float = 30.0) -> list[tuple[list[Drive], list[Drive]]]:
+    """K contiguous blocks of equal length of one drive: per fold (the other blocks, [block i]).
+    Each must last ``need_s`` (the warm-up and one outage, 30 s at least), or no outage is tested in it."""
     t0, t1 = float(drive.t_s[0]), float(drive.t_s[-1])
     edges = [t0 + (t1 - t0) * k / folds for k in range(folds + 1)]
     try:
         blocks = [crop_to_span(drive, Span(edges[k], edges[k + 1])) for k in range(folds)]
     except InputError:
         blocks = []
-    if len(blocks) < folds or min(b.duration_s for b in blocks) < 30.0:
-        raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of 30 s or more",
-                         "give fewer folds or a longer drive", param="folds")
+    need_s = max(30.0, need_s)
+    if len(blocks) < folds or min(b.duration_s for b in blocks) < need_s - 1e-6:
+        raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of {need_s:g} s or more "
+                         "(each tests an outage after the warm-up)", "give fewer folds, shorter outages or a longer drive", param="folds")
     return [([b for j, b in enumerate(blocks) if j != i], [blocks[i]]) for i in range(folds)]
 
 
