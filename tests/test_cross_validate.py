@@ -118,3 +118,12 @@ def test_folds_tested_on_the_parents_training_drives_are_refused_for_what_they_a
     error = proc.stderr.strip().splitlines()[-1]
     assert error.startswith("error: --from-model: fold 1: V-sim-roundabout-train-1: 4 of 4 outages lie in data fold 1's model"), error
     assert "--strict" not in error and "(in memory)" not in error and "leave out --from-model" in error
+
+
+def test_a_drive_too_short_to_test_on_is_refused_before_any_training():
+    """By drive, a 35 s drive was trained on in the other folds, then its own fold failed on
+    '--warm-up: ... use a shorter warm-up' (cross-validate has no --warm-up); said first now."""
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
+    proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:35s", *TINY)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert "V-sim-roundabout-train-1.csv: 35 s is too short to test on" in proc.stderr and "--warm-up" not in proc.stderr

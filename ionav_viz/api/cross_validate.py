@@ -148,7 +148,13 @@ def cross_validate(
     device = training_device(device)
     loaded = [load_drive(item, read) for item in items]
     by = "time" if len(loaded) == 1 else "drive"
-    splits = _time_blocks(loaded[0], folds, float(run.warm_up_s) + float(outage_s)) if by == "time" else [
+    need_s = float(run.warm_up_s) + float(outage_s)  # every fold's test drive needs the warm-up and an outage
+    short = [d for d in loaded if d.duration_s < need_s - 1e-6] if by == "drive" else []
+    if short:
+        raise InputError(f"{short[0].source or short[0].name}: {short[0].duration_s:.0f} s is too short to test on: a fold tests its outages "
+                         f"after the {float(run.warm_up_s):g} s warm-up ({need_s:g} s with {float(outage_s):g} s outages)",
+                         "leave it out, give longer drives or shorter outages (--outage)", param="drives")
+    splits = _time_blocks(loaded[0], folds, need_s) if by == "time" else [
         ([d for j, d in enumerate(loaded) if j % folds != i], [d for j, d in enumerate(loaded) if j % folds == i]) for i in range(folds)]
     bias_of = run.bias_of(read)
     results = []
