@@ -154,3 +154,11 @@ def test_several_outage_lengths_warn_once_of_the_same_drive(tmp_path):
     assert all(any("no stationary stretch of 3 s" in w for w in rep["warnings"]) for rep in lengths.values())
     proc = run_cli("replay", "motorway", "--span", "30s:150s", "--outage", "10s,30s", "--estimators", "ins", "-q", "-o", str(tmp_path / "m.rrd"))
     assert proc.returncode == 0 and proc.stderr.count("no stationary stretch of 3 s") == 1, proc.stderr
+
+
+def test_several_outage_lengths_with_an_option_they_do_not_go_with_say_so():
+    """'several outage lengths are evaluated on drives given by name, without --export' read as if
+    a file path were wrong; it names the lengths and what to do now."""
+    proc = run_cli("evaluate", "roundabout", "--outage", "10s,30s", "--export", "ex")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "10s,30s: several outage lengths do not go with --export: give one length with it, or leave --export out" in proc.stderr

@@ -292,3 +292,22 @@ def test_a_re_initialisation_is_counted_as_the_safeguard_acting_not_as_a_nis(tmp
     line = next(ln for ln in rep.to_text().splitlines() if ln.startswith("GNSS/INS 3D health"))
     assert f"re-initialised from GNSS at {acts['updates']} boundar" in line
     assert "re-initialised" not in line.split("mean NIS")[1], line
+
+
+def test_a_log_whose_imu_and_gnss_share_stamps_applies_the_offset_it_says(tmp_path, caplog):
+    """A converted IO-VNBD drive (IMU and fixes on the same stamps) read back said "moved them" for
+    a +0.1 s offset it found, and nothing moved: the shared stamps were kept, so --imu-time-offset
+    0.3 gave the metrics of 0 as well. One logger's stamps are one clock: the offset found is not
+    applied (nor said to be) unless asked for, and one given moves the IMU."""
+    import logging
+
+    log = tmp_path / "rb.mcap"
+    iv.convert("roundabout", log)
+    with caplog.at_level(logging.WARNING):
+        plain = iv.load_drive(log)
+    assert "moved them" not in caplog.text and not plain.imu.clock_offset_applied
+    direct = iv.evaluate("roundabout", estimators=["ins"]).summary["ins"]["crse_m"]["mean"]
+    assert iv.evaluate([plain], estimators=["ins"]).summary["ins"]["crse_m"]["mean"] == pytest.approx(direct, rel=1e-6)
+    given = iv.load_drive(log, iv.ReadOptions(log=iv.LogOptions(imu_time_offset="0.3")))
+    assert given.imu.clock_offset_applied and given.imu.clock_offset_s == 0.3
+    assert iv.evaluate([given], estimators=["ins"]).summary["ins"]["yaw_crse_radps"]["mean"] > 1.2 * iv.evaluate([plain], estimators=["ins"]).summary["ins"]["yaw_crse_radps"]["mean"]

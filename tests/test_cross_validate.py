@@ -45,7 +45,9 @@ def test_folds_by_drive_and_the_device_is_said():
 
 @pytest.mark.parametrize(("args", "words"), [(["roundabout", "--folds", "1"], "--folds: 1 folds: need at least 2"),
                                               (["roundabout", "motorway", "--folds", "3"], "--folds: 2 drives for 3 folds"),
-                                              (["roundabout", "--span", "0s:60s", "--folds", "3"], "too short for 3 time blocks")])
+                                              (["roundabout", "--span", "0s:60s", "--folds", "3"], "too short for 3 time blocks"),
+                                              # 36 s blocks: fold 1 was trained, then its test failed on a --warm-up the command has not
+                                              (["roundabout", "--span", "0s:180s", "--folds", "5"], "too short for 5 time blocks of 40 s or more")])
 def test_bad_folds_are_one_line(args, words):
     proc = run_cli("cross-validate", *args, *TINY)
     assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr
@@ -66,3 +68,62 @@ def test_the_mean_rows_improvement_is_that_of_its_own_columns():
     summary = json.loads(result.to_json())["summary"]
     assert summary["idnn_improvement_pct"] == pytest.approx(25.0)
     assert summary["idnn_improvement_pct_by_fold"] == pytest.approx({"mean": -75.0, "sd": 125 * 2**0.5, "min": -200.0, "max": 50.0})
+
+
+def test_every_folds_output_is_checked_before_any_training(tmp_path):
+    """-o with fold-3 taken trained and wrote fold-1 and fold-2, then failed on fold-3 with a hint at
+    a --force cross-validate has not; a file as -o was "FILE does not exist". Both are refused before
+    any training now, nothing written."""
+    out = tmp_path / "folds"
+    (out / "fold-3").mkdir(parents=True)
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
+    proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:80s", *TINY, "-o", str(out))
+    assert proc.returncode == 2 and "fold-3: exists already" in proc.stderr and "--force" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["fold-3"]
+    a_file = tmp_path / "models.txt"
+    a_file.write_text("")
+    proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:80s", *TINY, "-o", str(a_file))
+    assert proc.returncode == 2 and "models.txt: is not a directory" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_cross_validation_stopped_midway_leaves_no_folds_behind(tmp_path):
+    """Stopped (Ctrl-C, SIGTERM) or failed after fold 1 was written, cross-validate left fold-1 in
+    the output folder, and the same command run again was refused on it; the folds this run wrote
+    are removed now, the folder as it was."""
+    import ionav_viz as iv
+
+    out = tmp_path / "folds"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+
+    def progress(label, done, total):
+        if label.startswith("fold 2/"):
+            raise KeyboardInterrupt
+
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
+    from ionav_viz.nav.idnn import ModelConfig
+
+    with pytest.raises(KeyboardInterrupt):
+        iv.cross_validate(drives, 3, config=ModelConfig(epochs_disp=1, epochs_yaw=1), read=iv.ReadOptions(span="0s:80s"), output=out, progress=progress)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+
+
+def test_folds_tested_on_the_parents_training_drives_are_refused_for_what_they_are():
+    """--from-model shipped on the shipped model's own training drives stopped with "--strict: ...
+    data the IDNN model (in memory) was trained on (hint: ... leave out --strict)": cross-validate
+    has no --strict. The refusal names the fold, the parent and --from-model now."""
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2)]
+    proc = run_cli("cross-validate", *drives, "--folds", "2", "--span", "0s:80s", "--from-model", "shipped", *TINY)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    error = proc.stderr.strip().splitlines()[-1]
+    assert error.startswith("error: --from-model: fold 1: V-sim-roundabout-train-1: 4 of 4 outages lie in data fold 1's model"), error
+    assert "--strict" not in error and "(in memory)" not in error and "leave out --from-model" in error
+
+
+def test_a_drive_too_short_to_test_on_is_refused_before_any_training():
+    """By drive, a 35 s drive was trained on in the other folds, then its own fold failed on
+    '--warm-up: ... use a shorter warm-up' (cross-validate has no --warm-up); said first now."""
+    drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
+    proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:35s", *TINY)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert "V-sim-roundabout-train-1.csv: 35 s is too short to test on" in proc.stderr and "--warm-up" not in proc.stderr

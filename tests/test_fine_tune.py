@@ -112,7 +112,12 @@ def test_a_model_of_another_imu_rate_is_refused_in_one_line(tuned, tmp_path):
 
 
 @pytest.mark.parametrize(("args", "words"), [(["--from-model", "no/such/model"], "--from-model"),
-                                              (["--from-model", "shipped", "--arch", "lstm"], "--arch with --from-model")])
+                                              (["--from-model", "shipped", "--arch", "lstm"], "--arch with --from-model"),
+                                              # was taken and silently ignored (the parent's 0.1 m trained, and recorded)
+                                              (["--from-model", "shipped", "--feedback-noise", "0.5"], "--feedback-noise with --from-model"),
+                                              # the drive was dropped silently for the paper's runs
+                                              (["--paper-train"], "--paper-train trains on the paper's runs, and 1 drive(s) were given too")])
 def test_bad_fine_tuning_options_are_one_line(tmp_path, args, words):
     proc = run_cli("train", str(DRIVE), "--span", "0s:60s", *args, "-q", "-o", str(tmp_path / "m"))
     assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "m").exists()

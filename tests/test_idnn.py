@@ -145,6 +145,23 @@ def test_missing_model(tmp_path):
         load_model(tmp_path / "nothing")
 
 
+def test_a_models_file_or_a_folder_of_folds_is_named_as_such(saved, tmp_path):
+    """--model DIR/metadata.json was "DIR/metadata.json/metadata.json: cannot read it (Not a
+    directory)", and cross-validate's output folder "metadata.json missing" with a hint to train
+    one; now the file is named and its folder suggested, and the folds are pointed at."""
+    with pytest.raises(InputError, match=r"metadata.json: a file; a model is the directory") as err:
+        load_model(saved / "metadata.json")
+    assert err.value.hint == f"give its directory ({saved})"
+    folds = tmp_path / "cv"
+    folds.mkdir()
+    import shutil
+
+    shutil.copytree(saved, folds / "fold-1")
+    with pytest.raises(InputError, match=r"metadata.json missing") as err:
+        load_model(folds)
+    assert "cross-validate's fold models (fold-1): give one of them" in err.value.hint
+
+
 def test_corrupted_metadata(saved):
     (saved / "metadata.json").write_text("{not json")
     with pytest.raises(InputError, match="not valid JSON"):

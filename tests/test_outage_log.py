@@ -131,6 +131,44 @@ def test_plans_and_outage_logs_refuse_what_does_not_fit(tmp_path):
         iv.evaluate("roundabout", plan=tmp_path / "bad.json")
 
 
+def test_an_outage_log_of_a_drive_too_short_names_it_and_what_to_change(tmp_path):
+    """outage-log of a drive with no room for an outage said "no 10 s outage fits in  " (no name,
+    no length, no word of the warm-up); it now says what replay and evaluate say."""
+    proc = run_cli("outage-log", "roundabout", "--span", "0s:35s", "-o", str(tmp_path / "cut.mcap"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "V-sim-roundabout" in proc.stderr and "too short for a 10 s outage after the 30 s warm-up (35.0 s in the span 0s:35s)" in proc.stderr
+    assert "a shorter warm-up" in proc.stderr and list(tmp_path.iterdir()) == []
+
+
+def test_an_external_estimate_across_midnight_is_scored(tmp_path):
+    """An IO-VNBD drive across midnight: its plan's stamps run on past 86,400 s, while a filter on
+    the outaged CSV writes the log's own time of day, 0 again after midnight. Every outage after
+    midnight was "does not cover outage N" (it spans 0-86399.9 s); those poses are a day on now."""
+    drive = tmp_path / "V-midnight.csv"
+    iv.simulate("roundabout", tmp_path / "V-day.csv", seed=1, duration_s=120.0)
+    lines = (tmp_path / "V-day.csv").read_text().splitlines()
+    first = float(lines[1].split(",")[1])
+    rows = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        of_day = round(86400.0 - 50.0 + float(cells[1]) - first, 3)
+        cells[1] = f"{of_day - 86400.0 if of_day >= 86400.0 else of_day:.3f}"
+        rows.append(",".join(cells))
+    drive.write_text("\n".join(rows) + "\n")
+    cut = tmp_path / "cut.csv"
+    assert run_cli("outage-log", str(drive), "--every", "30s", "-o", str(cut)).returncode == 0
+    stamps = [line.split(",")[1] for line in cut.read_text().splitlines()[1:]]  # the outaged log's own clock
+    truth = iv.load_drive(drive)
+    mine = tmp_path / "mine.csv"  # the truth 1e-5 deg (1.11 m) north
+    mine.write_text("time_s,lat_deg,lon_deg\n" + "".join(f"{t},{la + 1e-5:.9f},{lo:.9f}\n" for t, la, lo in zip(stamps, truth.lat_deg, truth.lon_deg)))
+    proc = run_cli("evaluate", str(drive), "--plan", str(tmp_path / "cut.outages.json"), "--external", f"mine={mine}", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    sequences = json.loads(proc.stdout)["sequences"]
+    assert [s["start_s"] for s in sequences] == [30.0, 60.0, 90.0]  # midnight at 50 s
+    # 1.11 m, give or take the CSV's stamps jittering about the 10 Hz grid the truth is on
+    assert all(abs(s["mine"]["final_position_error_m"] - 1.11) < 0.15 for s in sequences), [s["mine"]["final_position_error_m"] for s in sequences]
+
+
 class ConstantVelocity:
     """tests/external/constant_velocity.py as a plug-in: from the last fix at or before each
     outage's start, along its course at its speed (its own positions at the window boundaries)."""
@@ -224,6 +262,25 @@ def test_external_estimates_that_cheat_or_fall_short_are_named(tmp_path):
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, (args, proc.stderr)
     proc = run_cli("evaluate", "roundabout", "--external", f"gnss={gnss}")
     assert proc.returncode == 2 and "that log's plan (its NAME.outages.json)" in proc.stderr, proc.stderr
+
+
+def test_an_external_named_in_estimators_runs_once(tmp_path):
+    """--estimators ins,mine with --external mine=... was "unknown estimator 'mine'" (exit 2): the
+    external's name is one of the estimators now, run once; alone it is the only one."""
+    cut = tmp_path / "cut.mcap"
+    assert run_cli("outage-log", "roundabout", "--at", "20s,60s", "-o", str(cut)).returncode == 0
+    plan = str(tmp_path / "cut.outages.json")
+    drive = iv.load_drive("roundabout")
+    mine = tmp_path / "mine.csv"
+    np.savetxt(mine, np.column_stack([drive.stamp_s(drive.t_s), drive.lat_deg + 1e-5, drive.lon_deg]), delimiter=",",
+               header="time_s,lat_deg,lon_deg", comments="", fmt="%.9f")
+    for names, expected in [("ins,mine", ["ins", "mine"]), ("mine", ["mine"])]:
+        proc = run_cli("evaluate", "roundabout", "--plan", plan, "--external", f"mine={mine}", "--estimators", names, "--json")
+        assert proc.returncode == 0, proc.stderr
+        assert [e["name"] for e in json.loads(proc.stdout)["estimators"]] == expected
+    # an external named as a built-in: with --estimators odo it ran as 'ins', the INS DR every improvement is measured against
+    proc = run_cli("evaluate", "roundabout", "--plan", plan, "--external", f"ins={mine}", "--estimators", "odo")
+    assert proc.returncode == 2 and "--external ins: 'ins' is a built-in estimator's name" in proc.stderr and "improvement" not in proc.stderr
 
 
 def _bag_messages(path):

@@ -240,3 +240,21 @@ def test_a_plugin_cannot_change_what_the_others_see():
     with pytest.raises(EstimatorError, match="read-only"):
         iv.evaluate([drive], 10.0, iv.Every(60.0), [toy_estimators.WritesInputs(), "ins"])
     np.testing.assert_array_equal(drive.lat_deg, before)
+
+
+def test_a_plugin_named_as_a_built_in_is_refused():
+    """A plug-in named 'ins', run without the INS DR, was taken as the INS DR: 'Odometry
+    improvement over INS DR' was measured against the plug-in. A built-in's name is refused."""
+
+    class Fake:
+        name, label = "ins", "Fake"
+
+        def estimate(self, inputs):
+            disp = np.repeat(inputs.speed0_mps[:, None], inputs.n_windows, axis=1)
+            return iv.Estimate(disp_m=disp, yaw_rate_radps=np.zeros_like(disp))
+
+    with pytest.raises(EstimatorError, match=r"estimator 'ins' \(Fake\): that is a built-in estimator's name"):
+        resolve(["odo"], plugins=[Fake()])
+    with pytest.raises(EstimatorError, match="built-in estimator's name"):
+        iv.evaluate("roundabout", estimators=["odo", Fake()])
+    assert [e.name for e in resolve(["ins", "odo"])] == ["ins", "odo"]  # the built-ins themselves

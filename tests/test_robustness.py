@@ -931,3 +931,35 @@ def test_a_ros2_message_compression_bomb_is_refused_before_it_fills_memory(tmp_p
     assert proc.returncode == 2 and message.count("\n") == 0 and "Traceback" not in proc.stderr, proc.stderr
     assert "a compressed message of the ROS 2 bag inflates past 256 MiB" in message and "compression bomb" in message, message
     assert peak_mib < 600, f"peak memory {peak_mib} MiB"
+
+
+@pytest.mark.parametrize("command", [["evaluate", "roundabout", "--estimators", "ins"], ["train", "roundabout", "--span", "0s:40s", "-o", "MODEL"]])
+def test_a_bad_bias_drive_is_named_as_bias_from(tmp_path, command):
+    """A --bias-from file that cannot be read was said as if it were the drive ('error: x.csv: row
+    ..., column ...'), with many drives not saying which option named it; it is --bias-from's now."""
+    bad = tmp_path / "V-still.csv"
+    lines = (samples_dir() / "V-sim-stationary.csv").read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[1] = "soon"
+    bad.write_text("\n".join([*lines[:5], ",".join(cells), *lines[6:]]) + "\n")
+    args = [str(tmp_path / "m") if a == "MODEL" else a for a in command]
+    assert_input_error(run_cli(*args, "--bias-from", str(bad), "-q"), "error: --bias-from: ", "V-still.csv: row 6")
+    assert_input_error(run_cli(*args, "--bias-from", str(tmp_path / "none.csv"), "-q"), "error: --bias-from: ", "none.csv: no such file")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["V-still.csv"]
+
+
+def test_force_never_replaces_a_folder_of_other_files(tmp_path):
+    """train -o FOLDER --force replaced FOLDER whole: a folder of the user's own files (a thesis, a
+    subfolder) was deleted without a word. Only a folder of a model's files is replaced now."""
+    folder = tmp_path / "results"
+    (folder / "figs").mkdir(parents=True)
+    (folder / "thesis.tex").write_text("precious")
+    proc = run_cli("train", "roundabout", "--span", "0s:40s", "--epochs-disp", "1", "--epochs-yaw", "1", "-q", "-o", str(folder), "--force")
+    assert_input_error(proc, "error: -o: ", "results: holds 'figs' and 1 more, not a model's file")
+    assert (folder / "thesis.tex").read_text() == "precious" and (folder / "figs").is_dir()
+    (folder / "thesis.tex").unlink()
+    (folder / "figs").rmdir()
+    proc = run_cli("train", "roundabout", "--span", "0s:40s", "--epochs-disp", "1", "--epochs-yaw", "1", "-q", "-o", str(folder), "--force")
+    assert proc.returncode == 0 and (folder / "metadata.json").is_file(), proc.stderr  # an empty folder, then a model: replaced
+    proc = run_cli("train", "roundabout", "--span", "0s:40s", "--epochs-disp", "1", "--epochs-yaw", "1", "-q", "-o", str(folder), "--force")
+    assert proc.returncode == 0, proc.stderr

@@ -83,3 +83,12 @@ def test_the_api_warns_too(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="ionav_viz"):
         iv.simulate("motorway", tmp_path / "V-short.csv", duration_s=20.0, gnss_losses=5)
     assert [r.getMessage().split(" (")[0] for r in caplog.records] == ["motorway drive of 20 s: wrote 0 of the 5 GNSS losses asked for"]
+
+
+@pytest.mark.parametrize(("name", "hint"), [("x.mcap", "--imu mems|phone|dash"), ("x.txt", "V-drive.csv"), ("x", "V-drive.csv")])
+def test_a_drive_is_written_only_as_a_csv(tmp_path, name, hint):
+    """simulate without --imu wrote its IO-VNBD CSV text under any name: -o x.mcap gave a '.mcap'
+    no reader takes ("no MCAP magic"), -o x.txt one replay refuses by its type. Refused now, nothing written."""
+    proc = run_cli("simulate", "roundabout", "--duration", "20s", "-o", str(tmp_path / name))
+    assert proc.returncode == 2 and "a simulated drive is an IO-VNBD CSV file (.csv)" in proc.stderr and hint in proc.stderr, proc.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -20,6 +21,7 @@ from typing import Any
 from ..core.drive import Drive
 from ..core.durations import Span
 from ..core.errors import InputError
+from ..core.signals import hold_signals
 from ..sources.load import ReadOptions, crop_to_span, load_drive
 from .options import DriveLike, Progress, RunOptions
 
@@ -135,42 +137,83 @@ def cross_validate(
     config.validate()
     out_dir = Path(output) if output is not None else None
     if out_dir is not None:
-        check_model_dir(out_dir / "fold-1", overwrite=False)
         if not out_dir.is_dir():
-            raise InputError(f"{out_dir}: not a directory", "create it first", param="output")
+            what = "is not a directory" if out_dir.exists() else "does not exist"
+            raise InputError(f"{out_dir}: {what}", "give an existing folder for the folds' models (fold-1, fold-2, ...)", param="output")
+        for i in range(folds):  # every fold's directory before any training, not fold-1 alone
+            fold_dir = out_dir / f"fold-{i + 1}"
+            if fold_dir.exists() or fold_dir.is_symlink():
+                raise InputError(f"{fold_dir}: exists already", "give an empty folder, or remove the earlier folds' models from it", param="output")
+            check_model_dir(fold_dir, overwrite=False)
     device = training_device(device)
     loaded = [load_drive(item, read) for item in items]
     by = "time" if len(loaded) == 1 else "drive"
-    splits = _time_blocks(loaded[0], folds) if by == "time" else [
+    need_s = float(run.warm_up_s) + float(outage_s)  # every fold's test drive needs the warm-up and an outage
+    short = [d for d in loaded if d.duration_s < need_s - 1e-6] if by == "drive" else []
+    if short:
+        raise InputError(f"{short[0].source or short[0].name}: {short[0].duration_s:.0f} s is too short to test on: a fold tests its outages "
+                         f"after the {float(run.warm_up_s):g} s warm-up ({need_s:g} s with {float(outage_s):g} s outages)",
+                         "leave it out, give longer drives or shorter outages (--outage)", param="drives")
+    splits = _time_blocks(loaded[0], folds, need_s) if by == "time" else [
         ([d for j, d in enumerate(loaded) if j % folds != i], [d for j, d in enumerate(loaded) if j % folds == i]) for i in range(folds)]
     bias_of = run.bias_of(read)
     results = []
     warned: list[str] = []
-    for i, (train_set, test_set) in enumerate(splits):
-        def step(label: str, done: int, total: int, i: int = i) -> None:
-            if progress:
-                progress(f"fold {i + 1}/{folds}: training {label}", done, total)
+    written: list[Path] = []  # the folds' models this run wrote: removed when it fails or is stopped
+    try:
+        for i, (train_set, test_set) in enumerate(splits):
+            def step(label: str, done: int, total: int, i: int = i) -> None:
+                if progress:
+                    progress(f"fold {i + 1}/{folds}: training {label}", done, total)
 
-        started = time.perf_counter()
-        model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
-                             parent=parent, device=device)
-        train_s = time.perf_counter() - started
-        if out_dir is not None:
-            model.metadata["training"]["command"] = "ionav_viz.cross_validate"
-            save_model(model, out_dir / f"fold-{i + 1}")
-        if progress:
-            progress(f"fold {i + 1}/{folds}: testing", 0, 1)
-        report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
-                          read=replace(read, span=None))
-        data = json.loads(report.to_json())
-        warned += [w for w in data.get("warnings", []) if w not in warned]
-        crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
-        results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
-                            100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
-        if progress:
-            progress(f"fold {i + 1}/{folds}: done", 1, 1)
+            started = time.perf_counter()
+            model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
+                                 parent=parent, device=device)
+            train_s = time.perf_counter() - started
+            if out_dir is not None:
+                model.metadata["training"]["command"] = "ionav_viz.cross_validate"
+                written.append(out_dir / f"fold-{i + 1}")  # before: a signal as save_model returns leaves it listed
+                save_model(model, out_dir / f"fold-{i + 1}")
+            if progress:
+                progress(f"fold {i + 1}/{folds}: testing", 0, 1)
+            try:
+                report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
+                                  read=replace(read, span=None))
+            except InputError as exc:
+                if exc.param != "strict":
+                    raise
+                raise _leak(exc, i, parent, model) from None
+            data = json.loads(report.to_json())
+            warned += [w for w in data.get("warnings", []) if w not in warned]
+            crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
+            results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
+                                100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
+            if progress:
+                progress(f"fold {i + 1}/{folds}: done", 1, 1)
+    except BaseException:
+        release = hold_signals()
+        try:
+            for folder in written:
+                shutil.rmtree(folder, ignore_errors=True)
+        finally:
+            release()
+        raise
     training = "from random weights" if parent is None else f"fine-tuning {model.metadata['parent']['directory']}"
     return CrossValidation(results, by, float(outage_s), device, training, warned)
+
+
+def _leak(exc: InputError, i: int, parent: Any, model: Any) -> InputError:
+    """The leakage check's refusal of fold ``i``'s test outages (always strict here) said for
+    cross-validate: which fold, the model fine-tuned from which parent, and what to change (the
+    message blamed a --strict the command does not have, and a model "(in memory)")."""
+    if parent is not None:
+        name = model.metadata.get("parent", {}).get("directory", "the parent model")
+        name = "the shipped model" if name == "shipped" else name
+        text = exc.message.replace("the IDNN model (in memory)", f"fold {i + 1}'s model (fine-tuned from {name}) or its parent")
+        return InputError(f"fold {i + 1}: {text}", f"cross-validate on drives {name} was not trained on, or from random weights (leave out --from-model)",
+                          param="from_model")
+    text = exc.message.replace("the IDNN model (in memory)", f"fold {i + 1}'s model")
+    return InputError(f"fold {i + 1}: {text}", "give each drive once: the same file twice puts it in training and test", param="drives")
 
 
 def _fine_tune(parent: Any) -> Any:
@@ -183,17 +226,19 @@ def _label(drive: Drive) -> str:
     return f"{drive.name} {drive.t_s[0]:.0f}-{drive.t_s[-1]:.0f}s"
 
 
-def _time_blocks(drive: Drive, folds: int) -> list[tuple[list[Drive], list[Drive]]]:
-    """K contiguous blocks of equal length of one drive: per fold (the other blocks, [block i])."""
+def _time_blocks(drive: Drive, folds: int, need_s: float = 30.0) -> list[tuple[list[Drive], list[Drive]]]:
+    """K contiguous blocks of equal length of one drive: per fold (the other blocks, [block i]).
+    Each must last ``need_s`` (the warm-up and one outage, 30 s at least), or no outage is tested in it."""
     t0, t1 = float(drive.t_s[0]), float(drive.t_s[-1])
     edges = [t0 + (t1 - t0) * k / folds for k in range(folds + 1)]
     try:
         blocks = [crop_to_span(drive, Span(edges[k], edges[k + 1])) for k in range(folds)]
     except InputError:
         blocks = []
-    if len(blocks) < folds or min(b.duration_s for b in blocks) < 30.0:
-        raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of 30 s or more",
-                         "give fewer folds or a longer drive", param="folds")
+    need_s = max(30.0, need_s)
+    if len(blocks) < folds or min(b.duration_s for b in blocks) < need_s - 1e-6:
+        raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of {need_s:g} s or more "
+                         "(each tests an outage after the warm-up)", "give fewer folds, shorter outages or a longer drive", param="folds")
     return [([b for j, b in enumerate(blocks) if j != i], [blocks[i]]) for i in range(folds)]
 
 

@@ -104,8 +104,21 @@ class RunOptions:
         if isinstance(self.bias_from, SensorBias):
             fixed = self.bias_from
             return lambda drive: fixed
-        stationary = load_drive(self.bias_from, read) if self.bias_from is not None else None
+        stationary = load_stationary(self.bias_from, read)
         return lambda drive: resolve_bias(drive, stationary)
+
+
+def load_stationary(bias_from: DriveLike | None, read: ReadOptions | None) -> Drive | None:
+    """The stationary drive ``bias_from`` for the sensor biases (None: none given); a file it cannot
+    be read from is said as ``bias_from``'s (--bias-from), not as one of the drives'."""
+    if bias_from is None:
+        return None
+    try:
+        return load_drive(bias_from, read)
+    except InputError as exc:
+        if exc.param is None:
+            exc.param = "bias_from"
+        raise
 
 
 def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | None, read: ReadOptions | None,
@@ -167,10 +180,17 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
                          param="external")
     built = []
     for name, spec in external.items():
+        if str(name) in BUILTIN:  # an external 'ins' became the baseline every improvement is measured against
+            raise InputError(f"--external {name}: {name!r} is a built-in estimator's name", f"name the trajectory otherwise, e.g. my-{name}={spec}",
+                             param="external")
         est = External(str(name), read_trajectory(spec))
         validate(est, f"--external {name}")
         built.append(est)
-    return replace(run, plugins=tuple(run.plugins) + tuple(built))
+    names = {est.name for est in built} - set(BUILTIN)
+    estimators = run.estimators
+    if estimators is not None:  # --estimators ins,mine with --external mine=...: 'mine' is the external, run once
+        estimators = [e for e in estimators if not (isinstance(e, str) and e.strip() in names)]
+    return replace(run, estimators=estimators, plugins=tuple(run.plugins) + tuple(built))
 
 
 def input_paths(drives: Any, read: ReadOptions | None = None, *, run: RunOptions | None = None, plan: Any = None,

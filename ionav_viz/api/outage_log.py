@@ -16,7 +16,7 @@ from ..nav.plan_file import FromPlan, PlanFile, checksum
 from ..nav.windows import make_windows
 from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
 from .evaluate import plan_outages
-from .options import DriveLike, RunOptions, check_event_types, input_paths, no_outage_fits, options_of, placement_of, windows_of
+from .options import DriveLike, RunOptions, check_event_types, input_paths, no_outage_fits, options_of, placement_of, too_short, windows_of
 from .simulation import vehicle_speed_for_log
 
 
@@ -91,7 +91,9 @@ def outage_log(
         raise InputError(f"{d.name}: the gnss-outage placement bridges the log's own GNSS losses; there is nothing to remove",
                          "place synthetic outages (every, at, random or on a manoeuvre)", param="placement")
     if not len(plan.starts):
-        raise no_outage_fits([d], n, "")
+        if plan.excluded:
+            raise no_outage_fits([d], n, d.source)
+        raise too_short(d, n, run, read)
     start_s = windows.t0_s[plan.starts]
     stamps = [float(s) for s in d.stamp_s(start_s)]
     outages = [(a, a + n) for a in stamps]

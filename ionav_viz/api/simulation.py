@@ -36,6 +36,10 @@ def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float
         if fleet is not None or ideal or gnss_losses:
             raise InputError("a simulated IMU log has its grade's sensors: no fleet, ideal sensors or GNSS losses", "leave them out", param="imu")
         return write_imu_log(output, scenario, seed, duration_s, imu)
+    if Path(output).suffix.lower() != ".csv":  # -o x.mcap wrote the CSV's text under that name, which no reader takes
+        hint = "choose a name like V-drive.csv, or give --imu mems|phone|dash for a 6-axis MCAP log" if Path(output).suffix.lower() == ".mcap" else \
+            "choose a name like V-drive.csv"
+        raise InputError(f"{output}: a simulated drive is an IO-VNBD CSV file (.csv)", hint, param="output")
     if gnss_losses < 0:
         raise InputError(f"{gnss_losses} GNSS losses: give 0 or more", param="gnss_losses")
     if fleet is not None and fleet not in FLEETS:

@@ -11,7 +11,7 @@ from ..core.fileio import refuse_output_onto_input
 from ..nav.bias import resolve_bias
 from ..sources.load import ReadOptions, load_drive
 from ..sources.resolve import data_root as _data_root
-from .options import DriveLike, Progress, input_paths
+from .options import DriveLike, Progress, input_paths, load_stationary
 
 
 class TrainingDrives(list):
@@ -72,12 +72,12 @@ def train(
     parent = parent_model(from_model) if from_model is not None else None
     config = config if config is not None else (ModelConfig() if parent is None else fine_tune_settings(parent))
     config.validate()
-    out = check_model_dir(Path(output), overwrite=force)  # before any work
     specs = training_drives() if drives is None else drives
     description = getattr(specs, "description", TrainingDrives.description)
-    # the model folder is replaced whole: no training drive may lie in it
-    refuse_output_onto_input(out, input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
-    stationary = load_drive(bias_from, read) if bias_from is not None else None
+    # the model folder is replaced whole: no training drive may lie in it (said before its other files)
+    refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
+    out = check_model_dir(Path(output), overwrite=force)  # before any work
+    stationary = load_stationary(bias_from, read)
     loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
     model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device)
     model.metadata["training"]["command"] = command
@@ -99,10 +99,10 @@ def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] 
 
     read = read if read is not None else ReadOptions()
     model = parent_model(model)
-    out = check_model_dir(Path(output), overwrite=force)
     specs = training_drives() if drives is None else drives
-    refuse_output_onto_input(out, input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
-    stationary = load_drive(bias_from, read) if bias_from is not None else None
+    refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
+    out = check_model_dir(Path(output), overwrite=force)
+    stationary = load_stationary(bias_from, read)
     loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
     add_uncertainty(model, loaded)
     if model.uncertainty is not None:

@@ -60,7 +60,8 @@ def evaluate(
         for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),
                               (overview or None, "--overview"), (external or None, "--external")):
             if given:
-                raise typer.BadParameter(f"several outage lengths are evaluated on drives given by name, without {option}", param_hint="--outage")
+                raise typer.BadParameter(f"{outage}: several outage lengths do not go with {option}: give one length with it, or leave {option} out",
+                                         param_hint="--outage")
         _evaluate_lengths(outage, drives, placement, run, read, as_json, markdown, quiet)
         return
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)

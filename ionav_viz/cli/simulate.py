@@ -15,7 +15,7 @@ from .app import app
 @app.command()
 def simulate(
     scenario: Optional[str] = typer.Argument(None, help="motorway, roundabout, quick-accel, hard-brake, sharp-cornering or stationary."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The V-*.csv file to write."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The V-*.csv file to write (with --imu: the .mcap)."),
     seed: int = typer.Option(0, "--seed", help="Random seed; the same seed gives the same bytes."),
     duration: str = typer.Option("120s", "--duration", help="Length of the drive, e.g. 120s or 5m."),
     ideal: bool = typer.Option(False, "--ideal", help="Perfect sensors and flat roads (for checks)."),

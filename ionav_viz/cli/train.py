@@ -57,12 +57,16 @@ def train(
     from .. import api
     from ..nav.idnn import ModelConfig
 
+    if paper_train and drives:  # the drives were dropped silently for the paper's runs
+        raise typer.BadParameter(f"--paper-train trains on the paper's runs, and {len(drives)} drive(s) were given too: give one or the other",
+                                 param_hint="--paper-train")
     if from_model is not None:
         defaults = ModelConfig()
         given = [option for option, value, default in (("--arch", arch, defaults.arch), ("--steps", steps, defaults.n_steps_disp),
                                                        ("--steps-yaw", steps_yaw, defaults.n_steps_yaw), ("--inputs", inputs, defaults.inputs),
                                                        ("--no-residual", residual, defaults.residual),
-                                                       ("--lr-decay-tail", lr_decay_tail, defaults.lr_decay_tail)) if value != default]
+                                                       ("--lr-decay-tail", lr_decay_tail, defaults.lr_decay_tail),
+                                                       ("--feedback-noise", feedback_noise, defaults.feedback_noise_m)) if value != default]
         if given:
             raise typer.BadParameter(f"{given[0]} with --from-model: a fine-tuned model keeps its parent's architecture and schedule", param_hint=given[0])
         config = api.fine_tune_settings(from_model, epochs_disp, epochs_yaw, seed)

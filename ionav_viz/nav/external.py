@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -40,6 +41,30 @@ LEAK_M = 0.01
 #: The pose nearest an outage's start may lie at most this far (m) from the start fix the estimator
 #: was given; farther, its positions are in other units or on another origin.
 MAX_START_OFFSET_M = 1000.0
+
+
+#: A day (s): an IO-VNBD log's clock, the time of day, starts again at 0 after midnight.
+DAY_S = 86400.0
+
+
+def _past_midnight(drive: Any, t: np.ndarray, *columns: Any) -> tuple[Any, ...]:
+    """The order of the trajectory's poses, its stamps ``t`` (sorted) and its ``columns`` on the drive's clock. An IO-VNBD
+    drive's clock is the time of day run on past 86,400 s when the drive crosses midnight (as its
+    plan's stamps are), while a trajectory written on the outaged log's own stamps starts the new
+    day at 0: its poses after midnight were sorted before the drive's start. They are moved on by
+    a day and the poses sorted again; on any other clock, or before midnight, nothing changes."""
+    same = np.arange(len(t))
+    if not len(drive) or not len(t):
+        return (same, t, *columns)
+    first, last = float(drive.stamp_s(drive.t_s[0])), float(drive.stamp_s(drive.t_s[-1]))
+    if not first < DAY_S < last:  # not a time of day run past midnight (UNIX stamps are 1e9 s and more)
+        return (same, t, *columns)
+    wrapped = (t < first - MAX_GAP_S) & (t <= last - DAY_S + MAX_GAP_S)
+    if not wrapped.any():
+        return (same, t, *columns)
+    t = np.where(wrapped, t + DAY_S, t)
+    order = np.argsort(t, kind="stable")
+    return (order, t[order], *(None if c is None else np.asarray(c)[order] for c in columns))
 
 
 @dataclass
@@ -61,15 +86,14 @@ class External:
         drive, traj, n = inputs.drive, self.trajectory, inputs.n_windows
         offsets = np.arange(n + 1, dtype=float)
         when = np.asarray(drive.stamp_s(inputs.t0_s[:, None] + offsets[None, :]), dtype=float)
-        t = traj.stamps_s
         if traj.local:
             lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
             lat_all, lon_all = geodetic_of_en_m(traj.east_m, traj.north_m, lat0, lon0)
         else:
             lat_all, lon_all = traj.lat_deg, traj.lon_deg
+        order, t, lat_all, lon_all, cov_all = _past_midnight(drive, traj.stamps_s, lat_all, lon_all, traj.cov_en_m2)
         lon_all = np.rad2deg(np.unwrap(np.deg2rad(lon_all)))
         lat, lon = np.empty_like(when), np.empty_like(when)
-        cov_all = traj.cov_en_m2
         cov = None if cov_all is None else np.empty((*when.shape, 2, 2))
         nearest = np.zeros(len(when), dtype=int)  # per outage, the pose nearest its start
         for i, row in enumerate(when):
@@ -89,12 +113,12 @@ class External:
             if cov is not None:
                 cov[i] = _interpolated_cov(row, t_i, cov_i)
         lon = (lon + 180.0) % 360.0 - 180.0
-        self._check_start(inputs, nearest, lat_all, lon_all)
+        self._check_start(inputs, nearest, lat_all, lon_all, order)
         self._report_leaks(inputs, when, lat, lon)
         disp, yaw = windows_of_track(lat, lon, inputs.course0_deg)
         return Estimate(disp, yaw, lat_deg=lat, lon_deg=lon, pos_cov_m2=cov)
 
-    def _check_start(self, inputs: EstimatorInputs, nearest: np.ndarray, lat_all: np.ndarray, lon_all: np.ndarray) -> None:
+    def _check_start(self, inputs: EstimatorInputs, nearest: np.ndarray, lat_all: np.ndarray, lon_all: np.ndarray, order: np.ndarray) -> None:
         """Refuse a trajectory whose pose nearest an outage's start lies more than
         :data:`MAX_START_OFFSET_M` from the start fix it was given: positions in other units
         (radians, kilometres), latitude and longitude swapped, or another local origin; the hint
@@ -107,7 +131,7 @@ class External:
         if not (dist > MAX_START_OFFSET_M).any():
             return
         i = int(np.argmax(dist > MAX_START_OFFSET_M))
-        j, traj = int(nearest[i]), self.trajectory
+        j, traj = int(order[nearest[i]]), self.trajectory  # the pose as the file has it
         lat0, lon0 = float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i])
         if traj.local:
             e, n = float(traj.east_m[j]), float(traj.north_m[j])

@@ -78,6 +78,8 @@ FORMAT_VERSION = 2
 MODEL_FILES = {"displacement": "displacement.safetensors", "yaw_rate": "yaw_rate.safetensors"}
 #: The optional uncertainty model's file (:class:`Uncertainty`); metadata.json's ``uncertainty`` names it.
 UNCERTAINTY_FILE = "uncertainty.safetensors"
+#: What a model directory holds: replacing one (``overwrite``, ``--force``) deletes only these.
+MODEL_DIR_FILES = frozenset({"metadata.json", *MODEL_FILES.values(), UNCERTAINTY_FILE})
 
 
 @dataclass
@@ -636,6 +638,12 @@ def check_model_dir(directory: Path, overwrite: bool = False) -> Path:
         raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
     if directory.exists() and not overwrite:
         raise InputError(f"{directory}: exists already", "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
+    if directory.is_dir():  # replaced whole: --force on a folder of other files deleted them with it
+        foreign = sorted(p.name for p in directory.iterdir() if p.name not in MODEL_DIR_FILES)
+        if foreign:
+            more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
+            raise InputError(f"{directory}: holds {foreign[0]!r}{more}, not a model's file; replacing the model would delete them",
+                             "choose another directory, or move them out first", param="output")
     parent = directory.parent if str(directory.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(f"{directory}: {parent} does not exist", "create it first", param="output")
@@ -705,9 +713,15 @@ def load_model(directory: str | Path) -> IdnnModel:
     directory = Path(directory)
     meta_path = directory / "metadata.json"
     check_regular_input(directory, "model", hint="give a model directory written by 'ionav-viz train'", folder_ok=True, missing_ok=True)
+    if directory.is_file():  # its metadata.json, a weights file: was "DIR/metadata.json/metadata.json: cannot read it (Not a directory)"
+        raise InputError(f"{directory}: a file; a model is the directory holding metadata.json and the weights", f"give its directory ({directory.parent})",
+                         param="model")
     check_regular_input(meta_path, "model", hint="retrain or restore the model", missing_ok=True)
     if not meta_path.is_file():
-        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", "train one with 'ionav-viz train -o DIR' and give that directory", param="model")
+        folds = sorted(p.name for p in directory.glob("fold-*") if (p / "metadata.json").is_file()) if directory.is_dir() else []
+        hint = (f"it holds cross-validate's fold models ({', '.join(folds[:3])}{' ...' if len(folds) > 3 else ''}): give one of them" if folds
+                else "train one with 'ionav-viz train -o DIR' and give that directory")
+        raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", hint, param="model")
     # bounded in size (16 MiB) and depth: nested brackets were a RecursionError traceback
     meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model", what="a model's metadata",
                              allow_nan=True)  # json.dumps wrote them (a NaN validation score); the fields are checked below

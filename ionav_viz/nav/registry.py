@@ -186,6 +186,10 @@ def resolve(
         except EstimatorError as exc:
             exc.param = "plugins"  # the command line's --estimator
             raise
+    for est in chosen:  # a plug-in named 'ins' without the INS DR became the baseline every improvement is measured against
+        if est.name in BUILTIN and not isinstance(est, type(builtin(est.name))):
+            raise EstimatorError(f"estimator {est.name!r} ({type(est).__name__}): that is a built-in estimator's name",
+                                 "give the plug-in a name of its own (its name attribute)")
     seen: dict[str, Estimator] = {}
     for est in chosen:
         if est.name in seen:

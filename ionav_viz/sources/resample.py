@@ -186,7 +186,7 @@ def assemble_drive(path: Path, name: str, streams: LogStreams, settings: ImuSett
         body = body * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
     wheels = _vehicle_speed_on(grid.t_s, streams)
     oriented = orient(path, grid.t_s, body, v, course, settings, wheels, grid.measured)
-    shift, found = clock_offset(path, grid.t_s, oriented.body, v, course, settings)
+    shift, found = clock_offset(path, grid.t_s, oriented.body, v, course, settings, one_clock=_shares_stamps(streams))
     if shift != 0.0:
         grid = _on_grid(path, streams, shift)
         v, course, lat, lon, fitted = _receiver_on(grid, streams)
@@ -254,8 +254,7 @@ def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid
     imu = streams.imu
     g_t, g_lat, g_lon, g_alt, g_sigma = streams.gnss.T
     samples = imu.kept_samples()
-    same_stamps = samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t)
-    if same_stamps and len(g_t) > 1 and float(np.median(np.diff(g_t))) >= 0.9 / GRID_RATE_HZ:
+    if _shares_stamps(streams) and imu_shift_s == 0.0:  # (a shift moves the IMU off the fixes' stamps: the general way)
         t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps at the grid rate: keep them
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
         has_fix = np.ones(len(t), dtype=bool)
@@ -279,6 +278,13 @@ def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid
     body[:, ~measured] = imu.low[~measured]
     step = float(np.median(np.diff(t)))
     return _Grid(t, body, measured, lat, lon, alt, sigma, has_fix, readings / step if step > 0 else 0.0, readings)
+
+
+def _shares_stamps(streams: LogStreams) -> bool:
+    """Whether the IMU's samples and the fixes share every stamp, at the grid rate or slower."""
+    samples, g_t = streams.imu.kept_samples(), streams.gnss[:, 0]
+    same = samples is not None and len(samples) == len(g_t) and np.array_equal(samples[:, 0], g_t)
+    return bool(same and len(g_t) > 1 and float(np.median(np.diff(g_t))) >= 0.9 / GRID_RATE_HZ)
 
 
 def _fix_quality_columns(grid: _Grid, fitted: bool, streams: LogStreams) -> dict[str, np.ndarray]:

@@ -130,8 +130,12 @@ def orient(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, c
 
 
 def clock_offset(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-                 settings: ImuSettings) -> tuple[float, ClockOffset | None]:
-    """The offset to move the IMU's samples by (s; 0: none) and the estimate behind it (None when given)."""
+                 settings: ImuSettings, one_clock: bool = False) -> tuple[float, ClockOffset | None]:
+    """The offset to move the IMU's samples by (s; 0: none) and the estimate behind it (None when given).
+
+    ``one_clock``: IMU and GNSS share every stamp (one logger's rows, as ``convert`` writes an
+    IO-VNBD drive): an offset found there is the receiver's own lag, not a clock's, and is applied
+    only when asked for (``auto`` or seconds)."""
     if isinstance(settings.time_offset, float):
         return settings.time_offset, None
     found = estimate_clock_offset(t, body[:, 5], speed_mps, course_deg)
@@ -139,6 +143,11 @@ def clock_offset(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndar
         raise InputError(f"{path}: the IMU's clock offset against the receiver cannot be resolved: {found.reason}",
                          "give it in seconds (the IMU's stamps minus the receiver's, e.g. 0.3), or leave the option out",
                          param="imu_time_offset")
+    if one_clock and settings.time_offset is None:
+        if found.resolved and should_apply(found):
+            log.info("%s: IMU and GNSS share their stamps (one clock): the %+.3f s found between them is not applied "
+                     "(--imu-time-offset %.3f applies it)", path, found.offset_s, found.offset_s)
+        return 0.0, found
     if found.resolved and should_apply(found):
         log.warning("%s: the IMU's stamps are %+.3f s (± %.3f) off the receiver's: moved them (the IMU time offset "
                     "%.3f gives it exactly)", path, found.offset_s, found.sigma_s, found.offset_s)
