@@ -157,8 +157,21 @@ def test_several_outage_lengths_warn_once_of_the_same_drive(tmp_path):
 
 
 def test_several_outage_lengths_with_an_option_they_do_not_go_with_say_so():
-    """'several outage lengths are evaluated on drives given by name, without --export' read as if
+    """'several outage lengths are evaluated on drives given by name, without --plan' read as if
     a file path were wrong; it names the lengths and what to do now."""
-    proc = run_cli("evaluate", "roundabout", "--outage", "10s,30s", "--export", "ex")
+    proc = run_cli("evaluate", "roundabout", "--outage", "10s,30s", "--plan", "p.json")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert "10s,30s: several outage lengths do not go with --export: give one length with it, or leave --export out" in proc.stderr
+    assert "10s,30s: several outage lengths do not go with --plan: give one length with it, or leave --plan out" in proc.stderr
+
+
+def test_several_outage_lengths_export_a_folder_each_as_replay_does(tmp_path):
+    """evaluate --outage 10s,30s --export was refused while replay with the same options wrote
+    EXPORT/10s and EXPORT/30s; evaluate writes them too, each the export of that length alone."""
+    args = ("evaluate", "roundabout", "--span", "0s:120s", "--estimators", "ins", "-q")
+    proc = run_cli(*args, "--outage", "10s,30s", "--export", str(tmp_path / "both"))
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "both").iterdir()) == ["10s", "30s"]
+    for length in ("10s", "30s"):
+        alone = run_cli(*args, "--outage", length, "--export", str(tmp_path / length))
+        assert alone.returncode == 0, alone.stderr
+        assert (tmp_path / "both" / length / "outages.csv").read_text() == (tmp_path / length / "outages.csv").read_text()

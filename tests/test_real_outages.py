@@ -179,7 +179,7 @@ def test_the_report_says_why_a_loss_was_not_bridged(pair):
     from ionav_viz.nav.outages import DRIVE_END
 
     _, lossy, spans = pair
-    t0, t1, _ = spans[-1]
+    _, t1, _ = spans[-1]
     report = iv.evaluate([str(lossy)], 10.0, iv.AroundEvents(("gnss-outage",)), read=iv.ReadOptions(span=f"0s:{t1 + 0.5:.1f}s"))
     g = report.to_dict()["gnss_outages"]
     assert len(g["bridged"]) == LOSSES - 1 and g["not_bridged"] == 1 and g["not_bridged_by_reason"] == {DRIVE_END: 1}

@@ -202,16 +202,22 @@ def evaluate_lengths(
     read: ReadOptions | None = None,
     progress: Progress | None = None,
     truth: str | None = None,
+    export: str | Path | None = None,
 ) -> dict[float, Report]:
     """:func:`evaluate` for each outage length of ``lengths_s`` on the same drives and placement:
-    ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them). A
-    length no drive has room for is left out with a warning when another fits; when none fits, the
-    shortest one's error."""
+    ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them), and with
+    ``export`` one folder ``EXPORT/<length>s`` each (as :func:`~ionav_viz.api.replay.replay_lengths`
+    writes them). A length no drive has room for is left out with a warning (nothing exported for
+    it) when another fits; when none fits, the shortest one's error, and nothing is written."""
     lengths = lengths_of(lengths_s)
     _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
+    if export is not None:  # checked before any work, as evaluate checks it
+        check_output_folder(Path(export), param="export")
+        refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement))
     loaded = [load_drive(d, read) for d in items]  # read once, used for every length
-    return dict(each_length(lengths, lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress)))
+    return dict(each_length(lengths, lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress,
+                                                             export=None if export is None else Path(export) / f"{length:g}s")))
 
 
 def evaluate_by_event(

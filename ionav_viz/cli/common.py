@@ -79,7 +79,8 @@ def outage_and_placement(outage: Optional[str], plan: Optional[Path], placement:
     return length, FromPlan(plan)
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
 NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
-EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, odo, ekf, gins, installed plug-ins or --external names (default: every built-in that applies).", show_default=False)
+EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, odo, ekf, gins, installed plug-ins "
+                             "or --external names (default: every built-in that applies).", show_default=False)
 EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Your own estimator' in the README.", show_default=False)
 BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
 Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)

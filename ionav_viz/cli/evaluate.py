@@ -57,12 +57,12 @@ def evaluate(
                              dry_run=dry_run, as_json=as_json, markdown=markdown, quiet=quiet, refused=refused, fleet_rrd=fleet_rrd, runs=runs)
         return
     if outage is not None and "," in outage:
-        for given, option in ((scenario, "--scenario"), (plan, "--plan"), (export, "--export"), (by_event or None, "--by-event"),
+        for given, option in ((scenario, "--scenario"), (plan, "--plan"), (by_event or None, "--by-event"),
                               (overview or None, "--overview"), (external or None, "--external")):
             if given:
                 raise typer.BadParameter(f"{outage}: several outage lengths do not go with {option}: give one length with it, or leave {option} out",
                                          param_hint="--outage")
-        _evaluate_lengths(outage, drives, placement, run, read, as_json, markdown, quiet)
+        _evaluate_lengths(outage, drives, placement, run, read, as_json, markdown, quiet, export)
         return
     outage_s, chosen = c.outage_and_placement(outage, plan, placement)
     if scenario is not None and drives:
@@ -100,9 +100,9 @@ def evaluate(
 
 
 def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.PlacementArgs, run: Any, read: Any, as_json: bool,
-                      markdown: bool, quiet: bool) -> None:
+                      markdown: bool, quiet: bool, export: Optional[Path]) -> None:
     """``--outage 10s,30s,60s``: each length's report, then the error against outage length (the
-    options it cannot take are refused by the caller)."""
+    options it cannot take are refused by the caller); ``--export DIR`` writes ``DIR/<length>s``."""
     from .. import api
     from ..analysis.report import by_length, lengths_to_json
     from ..analysis.tables import render_lengths
@@ -111,7 +111,8 @@ def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.Pla
         raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
     lengths = c.durations_of(outage, "--outage")
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
-        reports = api.evaluate_lengths(drives, lengths, placement.placement, run=run, read=read, progress=c.progress_callback(bar, "evaluating"))
+        reports = api.evaluate_lengths(drives, lengths, placement.placement, run=run, read=read, progress=c.progress_callback(bar, "evaluating"),
+                                       export=export)
     if as_json:
         print(lengths_to_json(reports))
         return
