@@ -134,6 +134,8 @@ def _factor(path: Path, header: str, units: dict[str, float]) -> float:
 #: Files above this size are refused rather than risking memory (IO-VNBD's largest run is 27 MB).
 MAX_FILE_BYTES = 2 * 1024**3
 _BOMS = (b"\xff\xfe", b"\xfe\xff")
+#: Logs ionav-viz reads, known by their first bytes: an MCAP or a ROS 1 bag renamed .csv is named as such.
+_LOG_MAGICS = ((b"\x89MCAP0\r\n", "an MCAP log", ".mcap"), (b"#ROSBAG V2.0\n", "a ROS 1 bag", ".bag"))
 
 
 def _encodings(path: Path) -> list[str]:
@@ -142,6 +144,10 @@ def _encodings(path: Path) -> list[str]:
         head = f.read(65536)
     if head.startswith(_BOMS):
         return ["utf-16"]
+    for magic, what, suffix in _LOG_MAGICS:
+        if head.startswith(magic):
+            raise InputError(f"{path}: {what}, named {path.suffix or 'without a suffix'}, not a CSV file",
+                             f"rename it to {path.with_suffix(suffix).name} (ionav-viz reads a log by its suffix)")
     if b"\x00" in head:
         raise InputError(f"{path}: binary data, not a CSV text file", "pass an IO-VNBD V-*.csv file")
     return ["utf-8-sig", "cp1252", "latin-1"]
