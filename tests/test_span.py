@@ -52,6 +52,22 @@ def test_replay_takes_the_span(tmp_path):
     assert "81-91" in proc.stderr and "91-101" not in proc.stderr  # the worst outages, on the drive's own clock
 
 
+def test_two_spans_of_a_drive_replay_into_two_default_recordings(tmp_path):
+    """'replay D --span 0s:60s' then 'replay D --span 60s:' both wrote recordings/D.rrd, the second
+    over the first; the default name carries the span now, as it carries the outage length."""
+    import ionav_viz as iv
+
+    drive = iv.simulate("roundabout", tmp_path / "V-d.csv", seed=2, duration_s=120.0)
+    paths = []
+    for span in ("0s:60s", "60s:", None):
+        proc = run_cli("replay", str(drive), *(["--span", span] if span else []), "--warm-up", "0s", "--estimators", "ins", "-q", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        paths.append(proc.stdout.strip())
+    assert paths == ["recordings/V-d-0s-60s.rrd", "recordings/V-d-60s-end.rrd", "recordings/V-d.rrd"]
+    assert all((tmp_path / p).is_file() for p in paths)
+    proc = run_cli("replay", str(drive), "--span", "0s:60s", "--outage", "10s,20s", "--warm-up", "0s", "--estimators", "ins", "-q", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["recordings/V-d-0s-60s-10s.rrd", "recordings/V-d-0s-60s-20s.rrd"]
 @pytest.mark.parametrize(("span", "words"), [("5s:3s", "end is not after its start"), ("5x:", "'5x' is not a time"),
                                               ("30s", "is not START:END"), ("5000s:", "holds no samples")])
 def test_a_bad_span_is_one_line_naming_the_option(span, words):
