@@ -292,6 +292,7 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     if len(t_s) < 2:
         raise InputError(f"{path}: fewer than 2 rows with distinct time stamps", "check the 'Time Since Start of Day' column")
 
+    _warn_time_gaps(t_s - t_s[0], line_of_row, path)
     _fix_degrees(values, path)
     values["yaw_rate_radps"] = values.pop("yaw_rate_raw")  # the limits do not depend on the sign
     names = {key: by_label[label].strip() for key, (label, _, _) in _COLUMNS.items() if label in by_label}
@@ -408,6 +409,24 @@ def _drop_repeated_times(t_s: np.ndarray, path: Path) -> np.ndarray:
         first = int(np.flatnonzero(~keep)[0])
         log.warning("%s: dropped %d row(s) repeating the previous time stamp (first at row %d)", path, dropped, first + 2)
     return keep
+
+
+#: A hole in the time stamps longer than this splits the drive: no 1 s window spans it (the
+#: windows' ``max_gap_s``, :func:`ionav_viz.nav.windows.make_windows`).
+GAP_S = 1.0
+
+
+def _warn_time_gaps(t_s: np.ndarray, line_of_row: np.ndarray, path: Path) -> None:
+    """Say where rows are missing for more than :data:`GAP_S` (a logger that stopped), on the
+    drive's own clock with the file's rows on either side: no window or outage spans a gap."""
+    dt = np.diff(t_s)
+    gaps = np.flatnonzero(dt > max(GAP_S, 2.0 * float(np.median(dt))))  # a log of 1 Hz or less is refused for its rate
+    if not gaps.size:
+        return
+    said = [f"{dt[i]:.1f} s from {t_s[i]:.1f} s (row {line_of_row[i]}) to {t_s[i + 1]:.1f} s (row {line_of_row[i + 1]})" for i in gaps[:3]]
+    more = f" and {gaps.size - 3} more" if gaps.size > 3 else ""
+    log.warning("%s: no rows for %s%s; no window or outage spans %s (the stretches either side are evaluated apart)",
+                path, "; ".join(said), more, "the gap" if gaps.size == 1 else "a gap")
 
 
 def _fix_degrees(values: dict[str, np.ndarray], path: Path) -> None:
