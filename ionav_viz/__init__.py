@@ -40,7 +40,7 @@ _EXPORTS = {
     "EstimatorError": "nav.protocol", "FilterHealth": "nav.protocol",
     "SensorBias": "nav.bias",
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
-    "AroundEvents": "nav.outages", "cross_validate": "api", "fine_tune_settings": "api",
+    "AroundEvents": "nav.outages", "cross_validate": "api", "fine_tune_settings": "api", "ModelConfig": "nav.idnn",
     "EventThresholds": "analysis.events", "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
@@ -106,6 +106,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
     from .nav.bias import SensorBias
+    from .nav.idnn import ModelConfig
     from .nav.outages import AroundEvents, At, Every, Random, Tile
     from .nav.plan_file import FromPlan
     from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs, FilterHealth

@@ -37,8 +37,9 @@ def sample_times(rate_hz, duration_s, rng, jitter_s=0.002):
 
 
 def write_ros2(path, duration_s=30.0, imu_hz=100, gnss_hz=5, seed=0, no_fix_times=(), extra_imu_topic=False,
-               latency_s=0.03, compression=None):
-    """IMU at ``imu_hz`` and NavSatFix at ``gnss_hz`` with jittered header stamps; log time = stamp + latency."""
+               latency_s=0.03, compression=None, imu_until_s=None):
+    """IMU at ``imu_hz`` and NavSatFix at ``gnss_hz`` with jittered header stamps; log time = stamp + latency;
+    ``imu_until_s``: the IMU stops then (the fixes go on)."""
     from mcap.writer import CompressionType
     from mcap_ros2.writer import Writer
 
@@ -50,6 +51,8 @@ def write_ros2(path, duration_s=30.0, imu_hz=100, gnss_hz=5, seed=0, no_fix_time
         fix_schema = w.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"])
         events = []
         for t in sample_times(imu_hz, duration_s, rng):
+            if imu_until_s is not None and t > imu_until_s:
+                continue
             msg = {"header": {"stamp": _stamp(T0_S + t), "frame_id": "base_link"},
                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
                    "angular_velocity": {"x": 0.0, "y": 0.0, "z": YAW_RATE_RADPS}, "angular_velocity_covariance": [0.0] * 9,

@@ -109,6 +109,14 @@ def test_the_package_exports_a_typed_api():
     assert {"Estimate", "EstimatorInputs", "Report", "ReplayResult", "Tile", "Every", "At", "Random", "AroundEvents"} <= set(dir(iv))
 
 
+def test_the_training_settings_are_exported_for_train_and_cross_validate():
+    # iv.train(config=...) and iv.cross_validate(config=...) take a ModelConfig: it is part of the API
+    assert "ModelConfig" in iv.__all__ and "ModelConfig" in dir(iv)
+    config = iv.ModelConfig(epochs_disp=2, epochs_yaw=2, seed=1)
+    config.validate()
+    assert isinstance(iv.fine_tune_settings("shipped"), iv.ModelConfig)
+
+
 def test_help_does_not_import_the_heavy_libraries():
     import subprocess
     import sys

@@ -128,3 +128,12 @@ def test_a_drive_too_short_to_test_on_is_refused_before_any_training():
     proc = run_cli("cross-validate", *drives, "--folds", "3", "--span", "0s:35s", *TINY)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert "V-sim-roundabout-train-1.csv: 35 s is too short to test on" in proc.stderr and "--warm-up" not in proc.stderr
+
+
+def test_a_warning_every_fold_repeats_is_said_once():
+    """Each fold trained and tested on the same drive's blocks, and warned again each time: 'no
+    stationary stretch' 4 times and 'IDNN uncertainty not fitted' twice for 2 folds of the motorway."""
+    proc = run_cli("cross-validate", "motorway", "--folds", "2", "--span", "0s:100s", "--epochs-disp", "1", "--epochs-yaw", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("no stationary stretch of 3 s") == 1, proc.stderr
+    assert proc.stderr.count("IDNN uncertainty not fitted") == 1, proc.stderr

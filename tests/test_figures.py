@@ -170,3 +170,19 @@ def test_a_fleet_overview_recording_is_refused_naming_the_fleets_json(tmp_path):
     assert "earlier ionav-viz" not in proc.stderr
     proc = run_cli("figures", str(tmp_path / "fleet.json"), "-o", str(tmp_path / "figs"))  # as the hint says
     assert proc.returncode == 0 and (tmp_path / "figs" / "fleet-box.png").exists(), proc.stderr
+
+
+def test_a_cross_validation_report_is_named_for_what_it_is(tmp_path):
+    """'figures cv.json' on cross-validate --json said "drive: missing (not a report with outages ...)":
+    it now says the file is a cross-validation report and what figures takes."""
+    from ionav_viz.api import CrossValidation
+    from ionav_viz.api.cross_validate import Fold
+    from tests.conftest import run_cli
+
+    folds = [Fold(0, ["b"], ["a"], 10, {"ins": 2.0, "idnn": 1.5}, 25.0, 1.0), Fold(1, ["a"], ["b"], 12, {"ins": 3.0, "idnn": 2.0}, 33.3, 1.0)]
+    given = tmp_path / "cv.json"
+    given.write_text(CrossValidation(folds, "drive", 10.0, "cpu", "from random weights").to_json())
+    proc = run_cli("figures", str(given), "-o", str(tmp_path / "figs"))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"{given}: a cross-validation report" in proc.stderr and "evaluate DRIVE --json" in proc.stderr
+    assert "drive: missing" not in proc.stderr and not (tmp_path / "figs").exists()

@@ -398,3 +398,16 @@ def test_a_replay_fleet_where_every_drive_fails_leaves_no_folder_behind(tmp_path
     proc = run_cli("replay", str(bad), "--workers", "1", "--estimators", CHEAP, "-o", str(tmp_path / "recs" / "fleet"))
     assert proc.returncode == 2, proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["logs"]
+
+
+@pytest.mark.parametrize("command", ["evaluate", "replay"])
+def test_a_bad_bias_from_stops_the_fleet_before_any_drive(fleet_dir, tmp_path, command):
+    """'evaluate a.csv b.csv --workers 2 --bias-from bad.csv' failed every drive on the same
+    --bias-from, in a fleet report; it is one line and exit 2 now, before any work."""
+    out = ["-o", str(tmp_path / "recs")] if command == "replay" else []
+    for bias, words in ((fleet_dir / "V-bad.csv", "missing column"), (tmp_path / "V-none.csv", "no such file")):
+        proc = run_cli(command, *_good(fleet_dir)[:2], "--workers", "2", "--estimators", CHEAP, "--bias-from", str(bias), *out)
+        lines = [line for line in proc.stderr.splitlines() if line.strip()]
+        assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+        assert lines[0].startswith(f"error: --bias-from: {bias}: ") and words in lines[0], lines[0]
+        assert not (tmp_path / "recs").exists()

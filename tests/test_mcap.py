@@ -65,6 +65,18 @@ def test_gnss_without_fix_is_dropped(tmp_path, caplog):
     _check_straight_line(drive, longest_gnss_gap_s=0.6)
 
 
+def test_an_imu_that_stops_early_is_said(tmp_path):
+    """An IMU that stops 20 s into 60 s of fixes cut the drive to 20 s with no word ('too short
+    (20.0 s)' was all evaluate said); the cut is said now, with both lengths."""
+    path = fx.write_ros2(tmp_path / "cut.mcap", duration_s=60.0, imu_until_s=20.0)
+    proc = run_cli("evaluate", str(path), "--estimators", "ins")
+    assert proc.returncode == 2, proc.stderr
+    said = f"{path}: the IMU covers only 19.9 of the 59.8 s of GNSS fixes (it stops 39.8 s before the last fix)"
+    assert said in proc.stderr and "too short" in proc.stderr, proc.stderr
+    proc = run_cli("evaluate", str(fx.write_ros2(tmp_path / "whole.mcap", duration_s=60.0)), "--estimators", "ins", "--json")
+    assert proc.returncode == 0 and "the IMU covers only" not in proc.stderr, proc.stderr
+
+
 def test_several_imu_topics_need_a_choice(tmp_path):
     path = fx.write_ros2(tmp_path / "two.mcap", extra_imu_topic=True)
     with pytest.raises(InputError, match=r"several IMU topics") as raised:

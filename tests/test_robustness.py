@@ -88,6 +88,9 @@ def same_metrics(a: dict, b: dict) -> None:
         ("time going backwards -> row", lambda p: write(p, ROWS[:50] + [ROWS[52], ROWS[51]] + ROWS[53:]),
          ["row 53", "time goes backwards"]),
         ("binary garbage", lambda p: p.write_bytes(bytes(range(256)) * 200) or p, ["binary data"]),
+        ("an MCAP log named .csv -> said, with the name to give it",
+         lambda p: p.write_bytes(b"\x89MCAP0\r\n" + bytes(range(256)) * 20) or p, ["an MCAP log, named .csv", "V-bad.mcap"]),
+        ("a ROS 1 bag named .csv -> said", lambda p: p.write_bytes(b"#ROSBAG V2.0\n" + bytes(4096)) or p, ["a ROS 1 bag, named .csv"]),
         ("a row with more fields than the header", lambda p: write(p, ROWS[:5] + [ROWS[5] + ",1,2"] + ROWS[6:]),
          ["line 7 has 31 fields, the header has 29"]),
         ("a row a field short, the next a field long (right total) -> the short one named",
@@ -175,12 +178,17 @@ def test_file_cut_mid_line_drops_the_last_row(tmp_path):
 
 
 def test_30_s_dropout_splits_the_drive(tmp_path):
-    """Input: 30 s of rows missing. Expected: no outage spans the gap; evaluation still runs."""
+    """Input: 30 s of rows missing. Expected: no outage spans the gap; evaluation still runs; the
+    gap is said (where, how long, and that nothing spans it), which it was not, even with -v."""
     t0 = float(ROWS[0].split(",")[1])
     times = np.array([float(r.split(",")[1]) - t0 for r in ROWS])
     kept = [r for r, t in zip(ROWS, times) if not 40.0 <= t < 70.0]
-    proc = evaluate(write(tmp_path / "V-gap.csv", kept))
+    path = write(tmp_path / "V-gap.csv", kept)
+    proc = evaluate(path)
     assert proc.returncode == 0, proc.stderr
+    said = f"{path}: no rows for 30.2 s from 39.8 s (row 400) to 70.0 s (row 401); no window or outage spans the gap"
+    assert proc.stderr.count(said) == 1, proc.stderr
+    assert any(w.startswith(said) for w in json.loads(proc.stdout)["warnings"])
     for seq in json.loads(proc.stdout)["sequences"]:
         assert seq["start_s"] + 10 <= 40.0 + 1e-6 or seq["start_s"] >= 70.0 - 1e-6
 

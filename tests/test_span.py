@@ -52,6 +52,22 @@ def test_replay_takes_the_span(tmp_path):
     assert "81-91" in proc.stderr and "91-101" not in proc.stderr  # the worst outages, on the drive's own clock
 
 
+def test_two_spans_of_a_drive_replay_into_two_default_recordings(tmp_path):
+    """'replay D --span 0s:60s' then 'replay D --span 60s:' both wrote recordings/D.rrd, the second
+    over the first; the default name carries the span now, as it carries the outage length."""
+    import ionav_viz as iv
+
+    drive = iv.simulate("roundabout", tmp_path / "V-d.csv", seed=2, duration_s=120.0)
+    paths = []
+    for span in ("0s:60s", "60s:", None):
+        proc = run_cli("replay", str(drive), *(["--span", span] if span else []), "--warm-up", "0s", "--estimators", "ins", "-q", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        paths.append(proc.stdout.strip())
+    assert paths == ["recordings/V-d-0s-60s.rrd", "recordings/V-d-60s-end.rrd", "recordings/V-d.rrd"]
+    assert all((tmp_path / p).is_file() for p in paths)
+    proc = run_cli("replay", str(drive), "--span", "0s:60s", "--outage", "10s,20s", "--warm-up", "0s", "--estimators", "ins", "-q", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["recordings/V-d-0s-60s-10s.rrd", "recordings/V-d-0s-60s-20s.rrd"]
 @pytest.mark.parametrize(("span", "words"), [("5s:3s", "end is not after its start"), ("5x:", "'5x' is not a time"),
                                               ("30s", "is not START:END"), ("5000s:", "holds no samples")])
 def test_a_bad_span_is_one_line_naming_the_option(span, words):
@@ -94,3 +110,22 @@ def test_spans_that_meet_tile_the_drive_on_its_own_grid():
     np.testing.assert_allclose(np.concatenate([w.t0_s for w in halves]), both.t0_s, atol=1e-9)
     np.testing.assert_allclose(both.t0_s, np.arange(200.0), atol=1e-9)
     assert _starts(["--span", "100s:200s", "--warm-up", "0s"])[0] == 101.0
+
+
+def test_a_span_past_the_drives_end_is_said_with_the_span_read(tmp_path):
+    """'--span 0s:1000s' on a 180 s drive was taken silently; it is said once now, with the drive's
+    end and the span read, and the model records the span it was trained on."""
+    import ionav_viz as iv
+
+    drive = iv.simulate("roundabout", tmp_path / "V-r180.csv", seed=2, duration_s=180.0)
+    proc = run_cli("evaluate", str(drive), "--estimators", "ins", "--span", "0s:1000s", "--json")
+    assert proc.returncode == 0, proc.stderr
+    said = f"{drive}: span 0s:1000s runs past the drive's end (its samples end at 180 s): 0s:180s is read"
+    assert proc.stderr.count(said) == 1, proc.stderr
+    assert said in json.loads(proc.stdout)["warnings"]
+    assert "runs past" not in run_cli("evaluate", str(drive), "--estimators", "ins", "--span", "0s:180s", "--json").stderr
+    proc = run_cli("train", str(drive), "--span", "60s:1000s", "--epochs-disp", "1", "--epochs-yaw", "1", "-o", str(tmp_path / "m"))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("span 60s:1000s runs past the drive's end (its samples end at 180 s): 60s:180s is read") == 1, proc.stderr
+    meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
+    assert meta["training"]["drives"][0]["span_s"] == pytest.approx([60.0, 180.0], abs=0.01)

@@ -115,6 +115,7 @@ def cross_validate(
     """
     import time
 
+    from ..core.warnings_log import printing_once
     from ..nav.idnn import ModelConfig, check_model_dir, save_model
     from ..nav.training import train_models
     from .evaluate import evaluate
@@ -160,44 +161,45 @@ def cross_validate(
     results = []
     warned: list[str] = []
     written: list[Path] = []  # the folds' models this run wrote: removed when it fails or is stopped
-    try:
-        for i, (train_set, test_set) in enumerate(splits):
-            def step(label: str, done: int, total: int, i: int = i) -> None:
-                if progress:
-                    progress(f"fold {i + 1}/{folds}: training {label}", done, total)
-
-            started = time.perf_counter()
-            model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
-                                 parent=parent, device=device)
-            train_s = time.perf_counter() - started
-            if out_dir is not None:
-                model.metadata["training"]["command"] = "ionav_viz.cross_validate"
-                written.append(out_dir / f"fold-{i + 1}")  # before: a signal as save_model returns leaves it listed
-                save_model(model, out_dir / f"fold-{i + 1}")
-            if progress:
-                progress(f"fold {i + 1}/{folds}: testing", 0, 1)
-            try:
-                report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
-                                  read=replace(read, span=None))
-            except InputError as exc:
-                if exc.param != "strict":
-                    raise
-                raise _leak(exc, i, parent, model) from None
-            data = json.loads(report.to_json())
-            warned += [w for w in data.get("warnings", []) if w not in warned]
-            crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
-            results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
-                                100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
-            if progress:
-                progress(f"fold {i + 1}/{folds}: done", 1, 1)
-    except BaseException:
-        release = hold_signals()
+    with printing_once():  # a warning each fold repeats (the drive's biases, the uncertainty not fitted) is said once
         try:
-            for folder in written:
-                shutil.rmtree(folder, ignore_errors=True)
-        finally:
-            release()
-        raise
+            for i, (train_set, test_set) in enumerate(splits):
+                def step(label: str, done: int, total: int, i: int = i) -> None:
+                    if progress:
+                        progress(f"fold {i + 1}/{folds}: training {label}", done, total)
+
+                started = time.perf_counter()
+                model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
+                                     parent=parent, device=device)
+                train_s = time.perf_counter() - started
+                if out_dir is not None:
+                    model.metadata["training"]["command"] = "ionav_viz.cross_validate"
+                    written.append(out_dir / f"fold-{i + 1}")  # before: a signal as save_model returns leaves it listed
+                    save_model(model, out_dir / f"fold-{i + 1}")
+                if progress:
+                    progress(f"fold {i + 1}/{folds}: testing", 0, 1)
+                try:
+                    report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
+                                      read=replace(read, span=None))
+                except InputError as exc:
+                    if exc.param != "strict":
+                        raise
+                    raise _leak(exc, i, parent, model) from None
+                data = json.loads(report.to_json())
+                warned += [w for w in data.get("warnings", []) if w not in warned]
+                crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
+                results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
+                                    100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
+                if progress:
+                    progress(f"fold {i + 1}/{folds}: done", 1, 1)
+        except BaseException:
+            release = hold_signals()
+            try:
+                for folder in written:
+                    shutil.rmtree(folder, ignore_errors=True)
+            finally:
+                release()
+            raise
     training = "from random weights" if parent is None else f"fine-tuning {model.metadata['parent']['directory']}"
     return CrossValidation(results, by, float(outage_s), device, training, warned)
 

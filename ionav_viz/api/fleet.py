@@ -16,11 +16,12 @@ from typing import Any
 
 from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
 from ..core.errors import InputError
+from ..nav.bias import SensorBias, resolve_bias
 from ..nav.outages import GNSS_OUTAGE, Placement
 from ..nav.protocol import Estimator
 from ..sources.load import ReadOptions
 from .engine import Engine, WorkerLost, default_workers, run_each
-from .options import Progress, RunOptions, check_event_types, options_of, placement_of, windows_of
+from .options import Progress, RunOptions, check_event_types, load_stationary, options_of, placement_of, windows_of
 
 #: The exit code of ``evaluate`` when some drives failed and the others' results were printed.
 EXIT_SOME_FAILED = 3
@@ -376,6 +377,9 @@ def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placemen
     if placement.event_types:
         check_event_types(placement.event_types)
     run.chosen()  # plug-ins and the model are checked here, before any worker starts
+    if run.bias_from is not None and not isinstance(run.bias_from, SensorBias):
+        stationary = load_stationary(run.bias_from, read)  # --bias-from too: a file that cannot be read, or does not stand
+        resolve_bias(stationary, stationary)  # still, is the run's one error, not every drive's failure
     return _Job(n, placement, run, read)
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from ..analysis.evaluate import DriveResult, evaluate_drive
 from ..analysis.events import Event, detect_events
 from ..analysis.report import Report, overview_markdown, run_summary_markdown
+from ..core.durations import Span
 from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input, refuse_output_onto_output
 from ..core.timing import stage
@@ -39,6 +40,14 @@ from .options import (
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
+
+
+def default_stem(name: str, span: Span | None) -> str:
+    """The default recording's name before ``.rrd``: the drive's name, and with ``--span`` the
+    span (``<drive>-0s-60s``, ``<drive>-60s-end``), so that two spans of a drive are two files."""
+    if span is None:
+        return name
+    return f"{name}-{span.start_s:g}s-" + ("end" if span.end_s is None else f"{span.end_s:g}s")
 
 
 @dataclass(frozen=True)
@@ -91,7 +100,8 @@ def replay(
         drive, outage_s, placement, estimators, run, read, truth, plan, external, export: as for :func:`evaluate`
             (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
         output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
-            directory, the folder made when missing); an existing file is replaced atomically,
+            directory, the folder made when missing; with ``read.span``, ``<drive>-0s-60s.rrd`` or
+            ``<drive>-60s-end.rrd``: :func:`default_stem`); an existing file is replaced atomically,
             nothing is left behind on failure.
         progress: called as the recording is built.
         connect: also stream the recording to the Rerun viewer at this gRPC address (e.g.
@@ -149,7 +159,8 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
             raise no_outage_fits([d], n, d.source)
         raise too_short(d, n, run, read)
     default = out is None
-    out = check_output_file(Path(RECORDINGS_DIR, f"{d.name}.rrd") if default else out, create_parent=default)  # before the work
+    out = check_output_file(Path(RECORDINGS_DIR, f"{default_stem(d.name, read.span)}.rrd") if default else out,
+                            create_parent=default)  # before the work
     refuse_output_onto_output(out, export, param="export", replaced=["tum"])  # the default name is known only now
     chosen = run.applying_to([d])
     result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
@@ -201,7 +212,7 @@ def replay_lengths(
     d = load_drive(drive, read)  # read once, replayed for every length
 
     def one(length: float) -> ReplayResult:
-        name = f"{Path(output).stem if output is not None else d.name}-{length:g}s.rrd"
+        name = f"{Path(output).stem if output is not None else default_stem(d.name, read.span if read is not None else None)}-{length:g}s.rrd"
         target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
         return replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
                       export=None if export is None else Path(export) / f"{length:g}s")

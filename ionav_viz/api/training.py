@@ -55,7 +55,7 @@ def train(
 
     ``drives``: default the bundled synthetic training drives (:func:`training_drives`, which
     also gives the paper's runs);
-    ``config``: an ``ionav_viz.nav.idnn.ModelConfig`` (default the shipped model's settings);
+    ``config``: an ``ionav_viz.ModelConfig`` (default the shipped model's settings);
     ``bias_from``: a stationary drive for the sensor biases (default each drive's own);
     ``command``: how it was trained, kept in the metadata;
     ``from_model``: fine-tune this model (a model directory, ``"shipped"`` or an ``IdnnModel``)

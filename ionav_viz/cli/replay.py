@@ -24,7 +24,8 @@ def replay(
     plan: Optional[Path] = c.PlanOpt,
     external: Optional[list[str]] = c.ExternalOpt,
     export: Optional[Path] = c.ExportOpt,
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd in the current directory, made when missing; an existing file is replaced)."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd in the current directory, made when missing; "
+                                                  "with --span recordings/<drive>-0s-60s.rrd or <drive>-60s-end.rrd; an existing file is replaced)."),
     open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards (needs a display)."),
     connect: Optional[str] = typer.Option(None, "--connect", metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
     serve_web: bool = typer.Option(False, "--serve-web", help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),

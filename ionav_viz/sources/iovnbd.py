@@ -134,6 +134,8 @@ def _factor(path: Path, header: str, units: dict[str, float]) -> float:
 #: Files above this size are refused rather than risking memory (IO-VNBD's largest run is 27 MB).
 MAX_FILE_BYTES = 2 * 1024**3
 _BOMS = (b"\xff\xfe", b"\xfe\xff")
+#: Logs ionav-viz reads, known by their first bytes: an MCAP or a ROS 1 bag renamed .csv is named as such.
+_LOG_MAGICS = ((b"\x89MCAP0\r\n", "an MCAP log", ".mcap"), (b"#ROSBAG V2.0\n", "a ROS 1 bag", ".bag"))
 
 
 def _encodings(path: Path) -> list[str]:
@@ -142,6 +144,10 @@ def _encodings(path: Path) -> list[str]:
         head = f.read(65536)
     if head.startswith(_BOMS):
         return ["utf-16"]
+    for magic, what, suffix in _LOG_MAGICS:
+        if head.startswith(magic):
+            raise InputError(f"{path}: {what}, named {path.suffix or 'without a suffix'}, not a CSV file",
+                             f"rename it to {path.with_suffix(suffix).name} (ionav-viz reads a log by its suffix)")
     if b"\x00" in head:
         raise InputError(f"{path}: binary data, not a CSV text file", "pass an IO-VNBD V-*.csv file")
     return ["utf-8-sig", "cp1252", "latin-1"]
@@ -286,6 +292,7 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     if len(t_s) < 2:
         raise InputError(f"{path}: fewer than 2 rows with distinct time stamps", "check the 'Time Since Start of Day' column")
 
+    _warn_time_gaps(t_s - t_s[0], line_of_row, path)
     _fix_degrees(values, path)
     values["yaw_rate_radps"] = values.pop("yaw_rate_raw")  # the limits do not depend on the sign
     names = {key: by_label[label].strip() for key, (label, _, _) in _COLUMNS.items() if label in by_label}
@@ -402,6 +409,24 @@ def _drop_repeated_times(t_s: np.ndarray, path: Path) -> np.ndarray:
         first = int(np.flatnonzero(~keep)[0])
         log.warning("%s: dropped %d row(s) repeating the previous time stamp (first at row %d)", path, dropped, first + 2)
     return keep
+
+
+#: A hole in the time stamps longer than this splits the drive: no 1 s window spans it (the
+#: windows' ``max_gap_s``, :func:`ionav_viz.nav.windows.make_windows`).
+GAP_S = 1.0
+
+
+def _warn_time_gaps(t_s: np.ndarray, line_of_row: np.ndarray, path: Path) -> None:
+    """Say where rows are missing for more than :data:`GAP_S` (a logger that stopped), on the
+    drive's own clock with the file's rows on either side: no window or outage spans a gap."""
+    dt = np.diff(t_s)
+    gaps = np.flatnonzero(dt > max(GAP_S, 2.0 * float(np.median(dt))))  # a log of 1 Hz or less is refused for its rate
+    if not gaps.size:
+        return
+    said = [f"{dt[i]:.1f} s from {t_s[i]:.1f} s (row {line_of_row[i]}) to {t_s[i + 1]:.1f} s (row {line_of_row[i + 1]})" for i in gaps[:3]]
+    more = f" and {gaps.size - 3} more" if gaps.size > 3 else ""
+    log.warning("%s: no rows for %s%s; no window or outage spans %s (the stretches either side are evaluated apart)",
+                path, "; ".join(said), more, "the gap" if gaps.size == 1 else "a gap")
 
 
 def _fix_degrees(values: dict[str, np.ndarray], path: Path) -> None:

@@ -178,6 +178,10 @@ def crop_to_span(drive: Drive, span: Span) -> Drive:
         length = f"{drive.t_s[0]:g}-{drive.t_s[-1]:g} s" if len(drive) else "empty"
         raise InputError(f"{drive.source or drive.name}: span {span} holds no samples of this drive ({length})",
                          "give a span inside the drive's own time", param="span")
+    end_s = float(drive.t_s[-1])
+    if span.end_s is not None and span.end_s > end_s + max(1.0, 1.0 / drive.rate_hz):  # a span's last sample may be a step short
+        log.warning("%s: span %s runs past the drive's end (its samples end at %g s): %s is read",
+                    drive.source or drive.name, span, end_s, Span(span.start_s, end_s) if end_s > span.start_s else span)
     if keep.all():
         return drive
     return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()},

@@ -264,6 +264,8 @@ def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid
         t = t - imu_shift_s
         keep = drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0]) & (t <= g_t[-1])
         t, body = t[keep], body[keep]
+        if imu_shift_s == 0.0 and len(t) >= 2:
+            _warn_imu_short_of_fixes(path, t, g_t)
         readings = float(np.median(count[keep])) if keep.any() else 1.0
         has_fix = covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
@@ -278,6 +280,23 @@ def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid
     body[:, ~measured] = imu.low[~measured]
     step = float(np.median(np.diff(t)))
     return _Grid(t, body, measured, lat, lon, alt, sigma, has_fix, readings / step if step > 0 else 0.0, readings)
+
+
+#: The IMU may start or stop this long inside the fixes' span before it is said (the drive is read
+#: only where both are, so the fixes beyond the IMU are silently left out).
+IMU_SHORT_S = 2.0
+
+
+def _warn_imu_short_of_fixes(path: Path, t: np.ndarray, g_t: np.ndarray) -> None:
+    """Say when the IMU covers only part of the fixes' span (it started late or stopped early, e.g.
+    a driver that crashed): the drive is cut to where both are, shorter than the log looks."""
+    late_s, early_s = float(t[0] - g_t[0]), float(g_t[-1] - t[-1])
+    if late_s + early_s <= IMU_SHORT_S:
+        return
+    where = " and ".join(x for x in (f"starts {late_s:.1f} s after the first fix" if late_s > 0.5 else "",
+                                     f"stops {early_s:.1f} s before the last fix" if early_s > 0.5 else "") if x)
+    log.warning("%s: the IMU covers only %.1f of the %.1f s of GNSS fixes (it %s); the drive is read where both are",
+                path, float(t[-1] - t[0]), float(g_t[-1] - g_t[0]), where)
 
 
 def _shares_stamps(streams: LogStreams) -> bool:

@@ -114,6 +114,11 @@ def check_report(rep: Any, path: Path) -> None:
                          "write one drive's report with 'ionav-viz evaluate DRIVE --json'", param="result")
     if not isinstance(rep, dict):
         raise InputError(f"{path}: a JSON {_kind(rep)}, not a report (an object)", REPORT_HINT, param="result")
+    if isinstance(rep.get("folds"), list) and "by" in rep and "drive" not in rep:
+        raise InputError(f"{path}: a cross-validation report (cross-validate --json: each fold's CRSE), with no outages or "
+                         "drift curves to draw", "figures takes one drive's 'ionav-viz evaluate DRIVE --json' (e.g. with "
+                         "--model on a fold's model from cross-validate -o), a fleet's, or a recording from 'ionav-viz replay'",
+                         param="result")
     if not rep.get("sequences") and isinstance(rep.get("gnss_outages"), dict):
         bridged = rep["gnss_outages"].get("bridged")
         _refuse_real_losses_only(path, len(bridged) if isinstance(bridged, list) else None, "drive")
