@@ -56,6 +56,12 @@ class HeadlessViewer:
 
     #: Seconds to let the viewer draw after a change of blueprint and time, before the screenshot.
     settle_s = 0.4
+    #: No screenshot before this many seconds after the viewer answered: at its start it shows two
+    #: notification toasts over the top right of the window ("Listening for gRPC connections on ...",
+    #: "Software rasterizer detected"), which no option or command turns off. Measured on this 2-core
+    #: machine, idle and with three busy processes alike, they are gone 1.6-1.8 s after the start; a
+    #: shot after 1.2 s (a CI run, 2026-11-26) carried one over the map view.
+    toasts_gone_s = 2.5
 
     def __init__(self, width: int, height: int, timeout_s: float = 60.0) -> None:
         self.width, self.height, self.timeout_s = width, height, timeout_s
@@ -64,6 +70,7 @@ class HeadlessViewer:
         self.log_path = Path(self._dir.name) / "viewer.log"
         self.proc: subprocess.Popen | None = None
         self.client: Any = None
+        self._answered = 0.0  # when the viewer first answered (time.monotonic())
         self._old_handlers: dict[int, Any] = {}
 
     def __enter__(self) -> HeadlessViewer:
@@ -100,6 +107,7 @@ class HeadlessViewer:
                 try:
                     self.client = client_cls.connect(url)
                     self.client.get_state()
+                    self._answered = time.monotonic()
                     return
                 except Exception:
                     time.sleep(0.2)
@@ -155,7 +163,7 @@ class HeadlessViewer:
         self.call("set_blueprint", blueprint, of="recording")
         if t_s is not None:
             self.call("set_time", "time", duration=float(t_s), play_state="paused")
-        time.sleep(self.settle_s)  # let the viewer render a few frames at the new time
+        time.sleep(max(self.settle_s, self.toasts_gone_s - (time.monotonic() - self._answered)))  # let it draw at the new time
         with atomic_path(out, suffix=".tmp.png") as tmp, utf8_alias(tmp) as writable:
             self.call("save_screenshot", str(writable))
             if not tmp.is_file() or tmp.stat().st_size == 0:
