@@ -68,6 +68,15 @@ def test_two_spans_of_a_drive_replay_into_two_default_recordings(tmp_path):
     proc = run_cli("replay", str(drive), "--span", "0s:60s", "--outage", "10s,20s", "--warm-up", "0s", "--estimators", "ins", "-q", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ["recordings/V-d-0s-60s-10s.rrd", "recordings/V-d-0s-60s-20s.rrd"]
+    # a fleet names its recordings the same way (it wrote both spans to <drive>.rrd, the second over the first)
+    for span in ("0s:60s", "60s:"):
+        proc = run_cli("replay", str(drive), "roundabout", "--workers", "1", "--span", span, "--warm-up", "0s", "--estimators", "ins", "-q",
+                       "-o", str(tmp_path / "fleet"))
+        assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "fleet").iterdir()) == ["V-d-0s-60s.rrd", "V-d-60s-end.rrd", "roundabout-0s-60s.rrd",
+                                                                       "roundabout-60s-end.rrd"]
+
+
 @pytest.mark.parametrize(("span", "words"), [("5s:3s", "end is not after its start"), ("5x:", "'5x' is not a time"),
                                               ("30s", "is not START:END"), ("5000s:", "holds no samples")])
 def test_a_bad_span_is_one_line_naming_the_option(span, words):

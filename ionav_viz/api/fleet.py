@@ -22,6 +22,7 @@ from ..nav.protocol import Estimator
 from ..sources.load import ReadOptions
 from .engine import Engine, WorkerLost, default_workers, run_each
 from .options import Progress, RunOptions, check_event_types, load_stationary, options_of, placement_of, windows_of
+from .replay import default_stem
 
 #: The exit code of ``evaluate`` when some drives failed and the others' results were printed.
 EXIT_SOME_FAILED = 3
@@ -332,7 +333,8 @@ def replay_fleet(
     runs: Sequence[str] = (),
 ) -> FleetReport:
     """:func:`ionav_viz.replay` of every drive into ``folder`` (made when missing), one recording
-    each, ``<drive>.rrd`` (``<drive>-2.rrd``... for a name given twice), in parallel as
+    each, ``<drive>.rrd`` (``<drive>-2.rrd``... for a name given twice; with ``read.span`` the span
+    too, ``<drive>-0s-60s.rrd``, as :func:`ionav_viz.api.replay.default_stem` names it), in parallel as
     :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. On a
     cluster, ``folder`` must be one every worker can write to."""
     from ..core.fileio import check_output_folder
@@ -344,7 +346,7 @@ def replay_fleet(
     names: dict[str, int] = {}
     work = []
     for d in items:
-        name = _drive_name(d.spec)
+        name = default_stem(_drive_name(d.spec), read.span if read is not None else None)
         names[name] = names.get(name, 0) + 1
         work.append((d.spec, job, str((out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd")).absolute()), _absolute(d.spec)))
     made = [level for level in [*reversed(out.parents), out] if not level.exists()]
