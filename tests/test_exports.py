@@ -201,3 +201,43 @@ def test_exports_through_the_logs_own_losses_leave_untrusted_fixes_out_and_list_
     assert len(trk[0].findall("g:trkseg", ns)) == len(truth["coordinates"]) and len(trk) == 1 + 2 * len(bridged)
     points = [(float(p.get("lat")), float(p.get("lon"))) for p in trk[0].iter("{http://www.topografix.com/GPX/1/1}trkpt")]
     assert min(abs(lat) for lat, _ in points) > 1.0
+
+
+def test_the_local_frame_is_about_the_first_trustworthy_fix(tmp_path):
+    """A receiver without a fix yet writes (0, 0): the TUM tracks were about that point, on the
+    equator, 5,800 km from the drive (x -57006 m, y 5841111 m), where the azimuthal equidistant plane
+    is 15 % off scale. Their frame, and the one an external trajectory in local metres is read in, is
+    about the first trustworthy fix now, which the header names; a trajectory written in that frame
+    (the exported truth) is read back onto the truth."""
+    import ionav_viz as iv
+
+    drive = tmp_path / "V-late-fix.csv"
+    iv.simulate("roundabout", tmp_path / "V-day.csv", seed=3, duration_s=120.0)
+    lines = (tmp_path / "V-day.csv").read_text().splitlines()
+    rows = [lines[0]]
+    for k, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        if k < 50:  # the first 5 s: no satellites, no fix
+            cells[0], cells[2], cells[3] = "0", "0", "0"
+        rows.append(",".join(cells))
+    drive.write_text("\n".join(rows) + "\n")
+    loaded = iv.load_drive(drive)
+    first = int(np.flatnonzero(loaded.gnss_ok)[0])
+    assert first >= 50 and loaded.lat_deg[0] == 0.0
+    assert run_cli("outage-log", str(drive), "--every", "30s", "-o", str(tmp_path / "cut.csv")).returncode == 0
+    plan = str(tmp_path / "cut.outages.json")
+    proc = run_cli("evaluate", str(drive), "--plan", plan, "--estimators", "ins", "--export", str(tmp_path / "ex"), "-q")
+    assert proc.returncode == 0, proc.stderr
+    files = sorted((tmp_path / "ex" / "tum" / "V-late-fix").glob("outage-*-truth.tum"))
+    assert files
+    header = files[0].read_text().splitlines()[0]
+    assert f"lat {loaded.lat_deg[first]:.8f} lon {loaded.lon_deg[first]:.8f} deg" in header, header
+    poses = np.array([[float(x) for x in line.split()] for f in files for line in f.read_text().splitlines()[1:]])
+    assert np.abs(poses[:, 1:3]).max() < 5000.0  # metres about the drive, not about (0, 0)
+    mine = tmp_path / "mine.tum"
+    _, keep = np.unique(poses[:, 0], return_index=True)
+    mine.write_text("".join(" ".join(f"{v:.9f}" for v in row) + "\n" for row in poses[keep]))
+    proc = run_cli("evaluate", str(drive), "--plan", plan, "--external", f"mine={mine}", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    errors = [s["mine"]["final_position_error_m"] for s in json.loads(proc.stdout)["sequences"]]
+    assert errors and max(errors) < 0.01, errors

@@ -8,7 +8,7 @@ Files written into ``DIR`` (each atomically, an existing one of the same name re
   track and the truth in evo's TUM format (``timestamp x y z qx qy qz qw``), one pose per second
   from the outage's start to its end. Timestamps are the source's own clock (UNIX seconds for
   message logs, the time of day for IO-VNBD; :meth:`~ionav_viz.core.drive.Drive.stamp_s`); x east and y
-  north in metres on the azimuthal equidistant plane about the drive's first GNSS fix (the local
+  north in metres on the azimuthal equidistant plane about the drive's first trustworthy GNSS fix (the local
   frame ``--external`` reads too), z 0; the orientation is the course (yaw about up, from east,
   counter-clockwise). ``evo_ape tum outage-001-truth.tum outage-001-ins.tum`` reads them as they are.
 * ``real_outages.csv``, with ``--on gnss-outage``: one row per loss of the log's own GNSS and
@@ -179,9 +179,10 @@ def _boundaries(res: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     return (t, *w.boundary_fixes(starts, n))
 
 
-def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray) -> str:
+def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray, origin: tuple[float, float]) -> str:
     yaw = np.radians(90.0 - course_deg)  # ENU yaw: from east, counter-clockwise
-    rows = ["# timestamp x y z qx qy qz qw  (x east, y north m about the drive's first GNSS fix; ionav-viz)"]
+    rows = [f"# timestamp x y z qx qy qz qw  (x east, y north m about the drive's first trustworthy GNSS fix, "
+            f"lat {origin[0]:.8f} lon {origin[1]:.8f} deg; ionav-viz)"]
     rows += [f"{ti:.6f} {x:.4f} {y:.4f} 0 0 0 {math.sin(a / 2):.9f} {math.cos(a / 2):.9f}" for ti, x, y, a in zip(t, east, north, yaw)]
     return "\n".join(rows) + "\n"
 
@@ -189,7 +190,7 @@ def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndar
 def _tum_files(res: Any, folder: Path) -> list[str]:
     """Write the TUM files of every outage into ``folder`` (plain writes: the caller swaps it in); their names."""
     received = res.drive.as_received()
-    lat0, lon0 = float(received.lat_deg[0]), float(received.lon_deg[0])
+    lat0, lon0 = received.local_origin_deg
     t, lat, lon, heading = _boundaries(res)
     # one projection per track set (a projection is set up per call: thousands of outages add up)
     local = {"truth": (*local_en_m(lat, lon, lat0, lon0), heading)}
@@ -200,7 +201,7 @@ def _tum_files(res: Any, folder: Path) -> list[str]:
     for i in range(len(res.starts)):
         for name, (east, north, course) in local.items():
             file = f"outage-{i + 1:03d}-{name}.tum"
-            (folder / file).write_text(_tum(t[i], east[i], north[i], course[i]))
+            (folder / file).write_text(_tum(t[i], east[i], north[i], course[i], (lat0, lon0)))
             out.append(file)
     return out
 

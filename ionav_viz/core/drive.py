@@ -160,6 +160,16 @@ class Drive:
         return self.gnss_fault == 0
 
     @property
+    def local_origin_deg(self) -> tuple[float, float]:
+        """``(lat_deg, lon_deg)`` of the drive's first trustworthy GNSS fix (the first sample's where
+        none is): the origin of the local east/north frame that exports and external trajectories
+        use. Not the first sample's: a receiver without a fix yet writes (0, 0), which put the frame
+        at the equator, 5,800 km from a drive in England, where the plane is 15 % off scale."""
+        ok = np.flatnonzero(self.gnss_ok)
+        i = int(ok[0]) if len(ok) else 0
+        return float(self.lat_deg[i]), float(self.lon_deg[i])
+
+    @property
     def speed_fitted(self) -> np.ndarray:
         """Whether each sample's receiver speed and course were fitted to the fixes (the source gave
         no velocity; ``gnss_speed_fitted``), not measured: bool per sample."""

@@ -87,8 +87,7 @@ class External:
         offsets = np.arange(n + 1, dtype=float)
         when = np.asarray(drive.stamp_s(inputs.t0_s[:, None] + offsets[None, :]), dtype=float)
         if traj.local:
-            lat0, lon0 = float(drive.lat_deg[0]), float(drive.lon_deg[0])
-            lat_all, lon_all = geodetic_of_en_m(traj.east_m, traj.north_m, lat0, lon0)
+            lat_all, lon_all = geodetic_of_en_m(traj.east_m, traj.north_m, *drive.local_origin_deg)
         else:
             lat_all, lon_all = traj.lat_deg, traj.lon_deg
         order, t, lat_all, lon_all, cov_all = _past_midnight(drive, traj.stamps_s, lat_all, lon_all, traj.cov_en_m2)
@@ -135,7 +134,7 @@ class External:
         lat0, lon0 = float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i])
         if traj.local:
             e, n = float(traj.east_m[j]), float(traj.north_m[j])
-            origin = float(inputs.drive.lat_deg[0]), float(inputs.drive.lon_deg[0])
+            origin = inputs.drive.local_origin_deg
             candidates = [("kilometres", *geodetic_of_en_m(e * 1e3, n * 1e3, *origin)), ("x north and y east", *geodetic_of_en_m(n, e, *origin)),
                           ("latitude and longitude in degrees", e, n)]
         else:

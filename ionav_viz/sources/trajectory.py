@@ -3,7 +3,7 @@
 Stamps are on the clock of the outaged log the estimator ran on (:mod:`ionav_viz.nav.plan_file`:
 UNIX seconds for message logs, the time of day for IO-VNBD). Positions are WGS84 degrees, or
 metres in the **local frame**: east (x) and north (y) on the azimuthal equidistant plane about the
-drive's first GNSS fix (the first position the estimators are given), up ignored. Formats:
+drive's first trustworthy GNSS fix (``Drive.local_origin_deg``), up ignored. Formats:
 
 * ``PATH:TOPIC`` of an MCAP file or a ROS bag: ``sensor_msgs/NavSatFix`` (latitude, longitude;
   no-fix messages skipped), or ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or
