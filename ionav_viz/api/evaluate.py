@@ -209,7 +209,7 @@ def evaluate_lengths(
     ``export`` one folder ``EXPORT/<length>s`` each (as :func:`~ionav_viz.api.replay.replay_lengths`
     writes them). A length no drive has room for is left out with a warning (nothing exported for
     it) when another fits; when none fits, the shortest one's error, and nothing is written."""
-    lengths = lengths_of(lengths_s)
+    lengths = lengths_of(lengths_s, placement)
     _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     if export is not None:  # checked before any work, as evaluate checks it
