@@ -236,8 +236,12 @@ def test_a_recording_stopped_at_a_record_boundary_is_read(tmp_path, caplog):
     assert any("no footer" in r.getMessage() for r in caplog.records)
     inside = tmp_path / "inside.mcap"
     inside.write_bytes(good.read_bytes()[: data_end - 100])
-    with pytest.raises(InputError, match="cut off inside a record"):
+    with pytest.raises(InputError, match="cut off inside a record") as raised:
         read_mcap(inside)
+    # where the file stops being whole, not "at byte <that> of <size>" as if the cut were there
+    size = data_end - 100
+    last_whole_end = max(pos for pos, _ in _top_level_records(good) if pos < size)  # where the cut record starts
+    assert f"(cut off inside a record; the last whole record ends at byte {last_whole_end} of {size})" in str(raised.value)
 
 
 def test_warnings_reach_the_json_and_the_recording(tmp_path):
