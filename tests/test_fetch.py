@@ -227,3 +227,20 @@ def test_a_broken_server_is_one_line_and_leaves_nothing(manifest, tmp_path, resp
     left = list(root.rglob("*")) if root.exists() else []
     assert all(p.is_dir() or p.name.endswith(".csv.part") for p in left), left
     assert all(any(p.iterdir()) for p in left if p.is_dir())
+
+
+def test_no_network_names_the_host_and_what_to_do(manifest, tmp_path):
+    """Input: nothing listening at the base URL (as offline). Expected: exit 1, one line naming the
+    file and the host, with a hint; nothing left behind."""
+    import socket
+
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    root = tmp_path / "data"
+    proc = run_cli("fetch", "V-Vw8", "--data-root", str(root), "--base-url", f"http://127.0.0.1:{port}/repo", "--manifest", str(manifest),
+                   "--timeout", "2s", "-q")
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "V-Vw8.csv: download failed after 3 attempts from 127.0.0.1" in proc.stderr, proc.stderr
+    assert "(hint: check the network connection, or give a mirror with --base-url" in proc.stderr, proc.stderr
+    assert not root.exists() or not any(p.is_file() for p in root.rglob("*"))

@@ -107,6 +107,8 @@ def test_a_bad_drive_is_reported_and_the_others_kept(fleet_dir):
     fast = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--fail-fast")
     assert fast.returncode == 2 and fast.stdout == ""
     assert len(fast.stderr.strip().splitlines()) == 1 and bad in fast.stderr and "hint:" in fast.stderr
+    # one hint: the drive's own, then --fail-fast's (not two "(hint: ...)" in a row)
+    assert fast.stderr.count("(hint: ") == 1 and "docs/formats.md); or leave out --fail-fast" in fast.stderr, fast.stderr
 
 
 def test_drives_from_lists_and_globs_once_each(fleet_dir, tmp_path):

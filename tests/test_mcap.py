@@ -236,8 +236,12 @@ def test_a_recording_stopped_at_a_record_boundary_is_read(tmp_path, caplog):
     assert any("no footer" in r.getMessage() for r in caplog.records)
     inside = tmp_path / "inside.mcap"
     inside.write_bytes(good.read_bytes()[: data_end - 100])
-    with pytest.raises(InputError, match="cut off inside a record"):
+    with pytest.raises(InputError, match="cut off inside a record") as raised:
         read_mcap(inside)
+    # where the file stops being whole, not "at byte <that> of <size>" as if the cut were there
+    size = data_end - 100
+    last_whole_end = max(pos for pos, _ in _top_level_records(good) if pos < size)  # where the cut record starts
+    assert f"(cut off inside a record; the last whole record ends at byte {last_whole_end} of {size})" in str(raised.value)
 
 
 def test_warnings_reach_the_json_and_the_recording(tmp_path):
@@ -293,3 +297,23 @@ def test_the_full_imu_is_kept_in_the_body_frame(tmp_path):
     back = read_mcap(out)
     for column in IMU_COLUMNS:
         np.testing.assert_allclose(back.columns[column], turned.columns[column], atol=1e-9, err_msg=column)
+
+
+def test_topic_options_are_ignored_for_csv_drives_said_once(tmp_path):
+    """A fleet of CSV drives and an MCAP log: --gnss-topic and --truth-topic choose the log's topics
+    and are ignored for the CSV drives, in one warning (--truth-topic was refused for them while
+    --gnss-topic was silently ignored)."""
+    log = fx.write_ros2(tmp_path / "log.mcap", duration_s=40.0, extra_imu_topic=True)
+    proc = run_cli("evaluate", "roundabout", "motorway", str(log), "--imu-topic", "/imu", "--gnss-topic", "/fix",
+                   "--estimators", "ins", "--warm-up", "0s", "--overview")
+    assert proc.returncode == 0, proc.stderr
+    said = "--imu-topic, --gnss-topic apply to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives"
+    assert proc.stderr.count(said) == 1, proc.stderr
+    assert all(name in proc.stdout for name in ("roundabout", "motorway", "log")), proc.stdout
+    proc = run_cli("evaluate", "roundabout", "--truth-topic", "/reference/fix", "--estimators", "ins", "--overview")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("--truth-topic applies to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1
+    # and the report keeps it, as it keeps every warning stderr said
+    proc = run_cli("evaluate", "roundabout", "motorway", "--truth-topic", "/reference/fix", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["warnings"].count("--truth-topic applies to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1

@@ -86,6 +86,18 @@ def test_no_loss_to_bridge_is_one_line():
     assert proc.returncode == 2 and "no GNSS outage of 2 s or more" in proc.stderr and "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("command", ["evaluate", "replay"])
+def test_several_lengths_through_the_logs_own_losses_alone_are_refused(tmp_path, command):
+    """Each real loss has its own length: --outage 10s,30s gave empty (nan) tables and twin recordings."""
+    out = tmp_path / "r.rrd"
+    args = ("-o", str(out)) if command == "replay" else ()
+    proc = run_cli(command, "V-sim-motorway-tunnels", "--on", "gnss-outage", "--outage", "10s,30s", "--no-idnn", *args)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "--outage 10s,30s: several outage lengths, but the log's own GNSS outages" in proc.stderr, proc.stderr
+    assert "hint:" in proc.stderr and "nan" not in proc.stdout
+    assert not list(tmp_path.iterdir())
+
+
 def test_mcap_gap_keeps_the_imu_and_is_bridged(tmp_path, caplog):
     csv = iv.load_drive("V-sim-motorway")
     path = write_fix_only(csv, tmp_path / "tunnel.mcap", 10, white_m=0.0, duplicate_share=0.0, no_fix_spans=[(200.0, 208.0)])

@@ -116,6 +116,20 @@ def small(drive):
     return bf.carried(drive, 300)
 
 
+@pytest.mark.parametrize("option, topic, message, hint", [
+    ("--imu-topic", "/gps/fix", "/gps/fix is a sensor_msgs/msg/NavSatFix, not IMU", "IMU topics: /imu/data"),
+    ("--gnss-topic", "/imu/data", "/imu/data is a sensor_msgs/msg/Imu, not GNSS", "GNSS topics: /gps/fix"),
+    ("--gnss-velocity-topic", "/imu/data", "/imu/data is a sensor_msgs/msg/Imu, not GNSS velocity", "GNSS velocity topics: /gps/vel"),
+])
+def test_a_topic_of_another_type_is_refused(tmp_path, small, option, topic, message, hint):
+    """A named topic of a standard type of another role is refused up front, naming both and the fitting topics."""
+    bag = bf.write_ros1(small, tmp_path / "d.bag")
+    proc = run_cli("evaluate", str(bag), "--no-idnn", option, topic)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"error: {option}: " in proc.stderr and "d.bag" in proc.stderr, proc.stderr
+    assert message in proc.stderr and hint in proc.stderr and "AttributeError" not in proc.stderr, proc.stderr
+
+
 def test_truncated_ros1_bag(tmp_path, small):
     good = bf.write_ros1(small, tmp_path / "good.bag")
     cut = tmp_path / "cut.bag"

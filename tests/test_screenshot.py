@@ -122,6 +122,18 @@ def test_outage_numbers_and_worst_of(recording, tmp_path):
     assert "warning: --outage 999: outage numbers are --outage-number now" in old.stderr, old.stderr
 
 
+def test_a_time_that_is_no_duration_names_time(recording, tmp_path):
+    """--time -5s said "time '-5s' is not a duration (hint: use e.g. 10s, 500ms, 1m)": no option, and
+    not that worst and end are times too; 0ms was refused while 0s was taken."""
+    for bad in ("-5s", "ten"):
+        proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), "--time", bad)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+        assert proc.stderr.startswith(f"error: --time: time '{bad}' is not a duration") and "'worst' or 'end'" in proc.stderr, proc.stderr
+    assert not (tmp_path / "x.png").exists()
+    proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "zero.png"), "--time", "0ms", "--view", "local", "--size", "400x300")
+    assert proc.returncode == 0 and (tmp_path / "zero.png").is_file(), proc.stderr
+
+
 def test_worst_of_picks_the_outage_with_the_largest_final_error_of_that_estimator(recording):
     """Against the final errors read back from the recording's error series, independently."""
     from ionav_viz.viz.recording_info import read_recording_info

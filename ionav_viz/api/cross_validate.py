@@ -22,7 +22,7 @@ from ..core.drive import Drive
 from ..core.durations import Span
 from ..core.errors import InputError
 from ..core.signals import hold_signals
-from ..sources.load import ReadOptions, crop_to_span, load_drive
+from ..sources.load import ReadOptions, crop_to_span, load_drives
 from .options import DriveLike, Progress, RunOptions
 
 
@@ -147,7 +147,7 @@ def cross_validate(
                 raise InputError(f"{fold_dir}: exists already", "give an empty folder, or remove the earlier folds' models from it", param="output")
             check_model_dir(fold_dir, overwrite=False)
     device = training_device(device)
-    loaded = [load_drive(item, read) for item in items]
+    loaded = load_drives(items, read)
     by = "time" if len(loaded) == 1 else "drive"
     need_s = float(run.warm_up_s) + float(outage_s)  # every fold's test drive needs the warm-up and an outage
     short = [d for d in loaded if d.duration_s < need_s - 1e-6] if by == "drive" else []

@@ -19,7 +19,7 @@ from ..nav.outages import GNSS_OUTAGE, AroundEvents, At, OutagePlan, Placement, 
 from ..nav.plan_file import FromPlan
 from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
-from ..sources.load import LogOptions, ReadOptions, load_drive
+from ..sources.load import LogOptions, ReadOptions, load_drives
 from ..sources.resolve import data_root as _data_root
 from .options import (
     DriveLike,
@@ -166,7 +166,7 @@ def evaluate(
 def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: RunOptions, read: ReadOptions,
                    progress: Progress | None) -> list[DriveResult]:
     bias_of = run.bias_of(read)
-    loaded = [load_drive(item, read) for item in items]
+    loaded = load_drives(items, read)
     ests = run.applying_to(loaded)
     results = []
     for i, drive in enumerate(loaded):
@@ -209,13 +209,13 @@ def evaluate_lengths(
     ``export`` one folder ``EXPORT/<length>s`` each (as :func:`~ionav_viz.api.replay.replay_lengths`
     writes them). A length no drive has room for is left out with a warning (nothing exported for
     it) when another fits; when none fits, the shortest one's error, and nothing is written."""
-    lengths = lengths_of(lengths_s)
+    lengths = lengths_of(lengths_s, placement)
     _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     if export is not None:  # checked before any work, as evaluate checks it
         check_output_folder(Path(export), param="export")
         refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement))
-    loaded = [load_drive(d, read) for d in items]  # read once, used for every length
+    loaded = load_drives(items, read)  # read once, used for every length
     return dict(each_length(lengths, lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress,
                                                              export=None if export is None else Path(export) / f"{length:g}s")))
 
@@ -252,7 +252,7 @@ def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[st
                             read: ReadOptions) -> dict[str, list[DriveResult]]:
     bias_of = run.bias_of(read)
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
-    loaded = [load_drive(item, read) for item in drives]
+    loaded = load_drives(drives, read)
     ests = run.applying_to(loaded)
     for drive in loaded:
         windows = make_windows(drive)

@@ -401,7 +401,9 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
                 value = DriveFailure(work[i][0], value.reason)
             done[i] = value
             if fail_fast and isinstance(value, DriveFailure) and not value.reason.startswith("skipped"):
-                raise InputError(f"{value.spec}: {value.reason}", "leave out --fail-fast to evaluate the other drives and report this one")
+                reason, _, hint = value.reason.partition(" (hint: ")  # the drive's own hint, then --fail-fast's: one hint
+                other = "leave out --fail-fast to evaluate the other drives and report this one"
+                raise InputError(f"{value.spec}: {reason}", f"{hint[:-1]}; or {other}" if hint.endswith(")") else other)
             if isinstance(value, DriveTable):
                 outages += value.n_outages
             if value.elapsed_s > slowest[1]:

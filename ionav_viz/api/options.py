@@ -245,11 +245,18 @@ def refuse_export_onto_inputs(export: str | Path, inputs: Sequence[Path]) -> Non
     refuse_output_onto_input(folder / "tum", inputs, param="export", output_is_folder=True)
 
 
-def lengths_of(lengths_s: Sequence[float]) -> list[float]:
-    """Several outage lengths (s), increasing and distinct, each checked before any work."""
+def lengths_of(lengths_s: Sequence[float], placement: object = None) -> list[float]:
+    """Several outage lengths (s), increasing and distinct, each checked before any work; refused
+    with only the log's own GNSS losses as the ``placement``: each loss has its own length."""
+    from ..nav.outages import GNSS_OUTAGE
+
     lengths = sorted({float(x) for x in lengths_s})
     if not lengths:
         raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
+    if len(lengths) > 1 and tuple(getattr(placement, "event_types", ())) == (GNSS_OUTAGE,):
+        raise InputError("several outage lengths, but the log's own GNSS outages (gnss-outage) each have their own length",
+                         "leave out the outage lengths, or place synthetic outages too (e.g. --on gnss-outage,hard-brake)",
+                         param="outage_s")
     for length in lengths:
         windows_of(length)
     return lengths

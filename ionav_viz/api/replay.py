@@ -206,7 +206,7 @@ def replay_lengths(
     ``analysis.report.by_length`` of their reports gives the error against outage length. A length
     the drive has no room for is left out with a warning (nothing written for it) when another
     fits; when none fits, the shortest one's error, and nothing is written."""
-    lengths = lengths_of(lengths_s)
+    lengths = lengths_of(lengths_s, placement)
     if output is not None and Path(output).suffix.lower() != ".rrd":
         raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
     d = load_drive(drive, read)  # read once, replayed for every length

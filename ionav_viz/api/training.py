@@ -9,7 +9,7 @@ from typing import Any
 from ..core.errors import InputError
 from ..core.fileio import refuse_output_onto_input
 from ..nav.bias import resolve_bias
-from ..sources.load import ReadOptions, load_drive
+from ..sources.load import ReadOptions, load_drives
 from ..sources.resolve import data_root as _data_root
 from .options import DriveLike, Progress, input_paths, load_stationary
 
@@ -78,7 +78,7 @@ def train(
     refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
     out = check_model_dir(Path(output), overwrite=force)  # before any work
     stationary = load_stationary(bias_from, read)
-    loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
+    loaded = [(d, resolve_bias(d, stationary)) for d in load_drives(specs, read)]
     model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device)
     model.metadata["training"]["command"] = command
     save_model(model, out, overwrite=force)
@@ -103,7 +103,7 @@ def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] 
     refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
     out = check_model_dir(Path(output), overwrite=force)
     stationary = load_stationary(bias_from, read)
-    loaded = [(d, resolve_bias(d, stationary)) for d in (load_drive(spec, read) for spec in specs)]
+    loaded = [(d, resolve_bias(d, stationary)) for d in load_drives(specs, read)]
     add_uncertainty(model, loaded)
     if model.uncertainty is not None:
         model.metadata["uncertainty"]["command"] = command

@@ -61,12 +61,11 @@ def printing_once() -> Iterator[None]:
     already printed is not printed again: a drive evaluated once per outage length warns once, in
     order. Handlers added inside the block (:func:`collecting_warnings`: each report's own
     warnings) still get every message."""
-    once = _Once()
-    handlers = list(logging.getLogger(LOGGER).handlers)
-    for handler in handlers:
+    handlers = [(handler, _Once()) for handler in logging.getLogger(LOGGER).handlers]  # one each: a filter shared
+    for handler, once in handlers:  # would keep a message from every handler after the first (a report's collector)
         handler.addFilter(once)
     try:
         yield
     finally:
-        for handler in handlers:
+        for handler, once in handlers:
             handler.removeFilter(once)

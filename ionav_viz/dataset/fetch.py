@@ -194,7 +194,9 @@ def _fetch_into(entry: ManifestEntry, root: Path, target: Path, url_base: str, t
             if attempt >= retries:
                 reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
                 reason = " ".join(str(reason).split())[:200]  # one line, even when quoting a server's reply
-                raise FetchError(f"{entry.path}: download failed after {attempt} attempts ({reason})") from None
+                host = urllib.parse.urlsplit(url).hostname or url_base
+                raise FetchError(f"{entry.path}: download failed after {attempt} attempts from {host} ({reason}) (hint: check the "
+                                 "network connection, or give a mirror with --base-url; fetch again to resume)") from None
             time.sleep(min(2.0 ** (attempt - 1) * 0.2, 5.0))
             resumed = True
     size = part.stat().st_size

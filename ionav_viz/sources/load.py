@@ -119,13 +119,20 @@ def open_message_log(path: Path, kind: str | None = None):
     return None
 
 
+#: The options that choose a message log's topics (command-line name, LogOptions field).
+_TOPIC_OPTIONS = (("--imu-topic", "imu_topic"), ("--gnss-topic", "gnss_topic"), ("--gnss-velocity-topic", "gnss_velocity_topic"),
+                  ("--vehicle-speed-topic", "vehicle_speed_topic"), ("--truth-topic", "truth_topic"), ("--truth-origin", "truth_origin"))
+
+
 def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None = None) -> Drive:
     """Read a path into a drive with the reader its kind needs (no GNSS quality marked yet)."""
     opts = options or LogOptions()
     kind = source_kind(path)
-    if kind in ("iovnbd", "kitti") and (opts.truth_topic or opts.truth_origin):
-        raise InputError(f"{path}: a truth topic and its origin choose a reference topic of an MCAP log or ROS bag",
-                         "leave them out: this file's GNSS is its truth", param="truth_topic" if opts.truth_topic else "truth_origin")
+    if kind in ("iovnbd", "kitti") and (named := [o for o, v in _TOPIC_OPTIONS if getattr(opts, v) is not None]):
+        # a topic option applies to message logs only: ignored for this drive (a fleet may mix them), said once
+        what = "IO-VNBD CSV" if kind == "iovnbd" else "KITTI raw"
+        log.warning("%s %s to message logs (MCAP, ROS bags) only: ignored for %s drives", ", ".join(named),
+                    "applies" if len(named) == 1 else "apply", what)
     if kind in ("iovnbd", "kitti") and (opts.imu_axes or opts.imu_mount):
         what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
         raise InputError(f"{path}: {what}; IMU axes and mount apply to MCAP logs and ROS bags",
@@ -165,6 +172,15 @@ def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mca
             drive = crop_to_span(drive, read.span)
         s.detail = f"{drive.name}, {len(drive)} samples, {drive.duration_s:.1f} s"
     return drive
+
+
+def load_drives(specs, read: ReadOptions | None = None) -> list[Drive]:
+    """:func:`load_drive` of each of ``specs``, a warning they repeat (an option that applies to
+    other drives' formats) printed once."""
+    from ..core.warnings_log import printing_once
+
+    with printing_once():
+        return [load_drive(spec, read) for spec in specs]
 
 
 def crop_to_span(drive: Drive, span: Span) -> Drive:

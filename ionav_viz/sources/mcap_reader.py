@@ -63,7 +63,7 @@ def _check_framing(path: Path) -> str:
     end = _last_record_end(path, size)
     if end == size and end > len(MAGIC):
         return "unterminated"
-    raise InputError(f"{path}: truncated MCAP file (cut off inside a record, at byte {end} of {size})",
+    raise InputError(f"{path}: truncated MCAP file (cut off inside a record; the last whole record ends at byte {end} of {size})",
                      "repair it with 'mcap recover', then replay the result")
 
 

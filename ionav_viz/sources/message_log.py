@@ -159,6 +159,23 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
     return found[0]
 
 
+#: ROS packages whose message types ionav-viz knows: a topic of one of them named for a role whose
+#: type it is not (``--imu-topic /gps/fix``) is a mistake; a vendor's own type is read by field names.
+_STANDARD_PACKAGES = ("sensor_msgs", "geometry_msgs", "nav_msgs", "std_msgs", "foxglove", "foxglove_msgs", "tf2_msgs")
+
+
+def _check_named(channel: ChannelInfo | None, channels: list[ChannelInfo], schemas: tuple[str, ...], what: str, param: str,
+                 path: Path) -> None:
+    """Refuse a topic named for ``what`` whose standard message type is another one."""
+    if channel is None or channel.schema in schemas:
+        return
+    if channel.schema.split("/")[0].split(".")[0] not in _STANDARD_PACKAGES:
+        return
+    fitting = [c.topic for c in channels if c.schema in schemas]
+    hint = f"{what} topics: {', '.join(fitting)}" if fitting else f"the log has no {what} topic ({schemas[0]})"
+    raise InputError(f"{path}: {channel.topic} is a {channel.schema}, not {what} ({schemas[0]})", hint, param=param)
+
+
 def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic: str | None = None,
                     gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None,
                     channels: list[ChannelInfo] | None = None, truth_topic: str | None = None) -> Selection:
@@ -177,12 +194,16 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     for c in channels:
         c.role = ""
     imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "imu_topic", path, True)
+    if imu_topic is not None:
+        _check_named(imu, channels, IMU_SCHEMAS, "IMU", "imu_topic", path)
     reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "truth_topic", path, False) if truth_topic else None
     if reference is not None and reference.schema not in REFERENCE_SCHEMAS:
         raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}",
                          "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with its origin)",
                          param="truth_topic")
     gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "gnss_topic", path, True)
+    if gnss_topic is not None:
+        _check_named(gnss, channels, GNSS_SCHEMAS, "GNSS", "gnss_topic", path)
     if reference is not None and gnss is reference:
         raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "name the receiver's own topic",
                          param="truth_topic")
@@ -193,6 +214,7 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
         velocity = None
     elif gnss_velocity_topic is not None:
         velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "gnss_velocity_topic", path, False)
+        _check_named(velocity, channels, TWIST_SCHEMAS, "GNSS velocity", "gnss_velocity_topic", path)
         if velocity is not None and velocity.topic in body_twists:
             raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the receiver's velocity",
                              f"give {velocity.topic} as the vehicle speed topic instead", param="gnss_velocity_topic")

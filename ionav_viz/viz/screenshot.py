@@ -133,7 +133,10 @@ def resolve_time(spec: str, info: RecordingInfo, worst_of: str = BASELINE) -> tu
         return worst.end_s, worst
     if key in ("0", "0s"):
         return 0.0, None
-    t = parse_duration_s(spec, "time")
+    try:
+        t = parse_duration_s(spec, "time", allow_zero=True)
+    except InputError as exc:  # named --time on the command line, with what else it takes
+        raise InputError(exc.message, "give a time into the drive (35s, 500ms, 1m), 'worst' or 'end'", param="times") from None
     if t > info.end_s + 1e-6:
         raise InputError(f"time {spec}: after the end of the recording ({info.end_s:.1f} s)", "choose a time within the drive, 'worst' or 'end'", param="times")
     return t, None
