@@ -132,6 +132,15 @@ def test_drives_from_lists_and_globs_once_each(fleet_dir, tmp_path):
     assert [Path(d["drive"]).name for d in days["drives"]] == ["V-day1.csv", "V-day2.csv"]
     text = run_cli("evaluate", str(fleet_dir), "--dry-run")
     assert text.returncode == 0 and "4 drive(s)" in text.stdout and "MB" in text.stdout
+    # a drive that is not there is said missing (it was listed with size "-", as a bundled name is)
+    gone = str(tmp_path / "gone.mcap")
+    dry = run_cli("evaluate", "roundabout", gone, "--dry-run")
+    assert dry.returncode == 0, dry.stderr
+    rows = {line.split()[0]: line.split()[1] for line in dry.stdout.splitlines()[2:4]}
+    assert rows == {"roundabout": "-", gone: "missing"}, dry.stdout
+    assert f"not found, the run would report it failed: {gone}: no such file or folder" in dry.stdout
+    listed = json.loads(run_cli("evaluate", "roundabout", gone, "--dry-run", "--json").stdout)["drives"]
+    assert ["missing" in d for d in listed] == [False, True]
     for args, fragment in (((f"@{tmp_path / 'none.txt'}",), "no such list of drives"), ((str(tmp_path / "*.mcap"),), "no file matches"),
                            ((str(fleet_dir), "--workers", "0"), "--workers")):
         bad = run_cli("evaluate", *args)

@@ -10,7 +10,7 @@ import glob
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -446,30 +446,44 @@ class FleetPlan:
     drives: list[FleetDrive]
     workers: int
     estimate_s: float
+    #: per drive that cannot be found (no such file, an unknown name): why, as the run would say it
+    missing: dict[str, str] = field(default_factory=dict)
 
     def to_text(self) -> str:
-        """One line per drive (size in MB), then the total and the time estimate."""
+        """One line per drive (size in MB, or "missing"), then the total and the time estimate."""
         from ..analysis.tables import aligned
 
-        rows = [[d.spec, "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"] for d in self.drives]
+        rows = [[d.spec, "missing" if d.spec in self.missing else "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"]
+                for d in self.drives]
         total_mb = sum(d.size_bytes or 0 for d in self.drives) / 1e6
         lines = aligned(["Drive", "MB"], rows, 1)
         lines += ["", f"{len(self.drives)} drive(s), {total_mb:.1f} MB; about {self.estimate_s:.0f} s on {self.workers} worker(s) "
                       "(a rough estimate from the file sizes)"]
+        lines += [f"not found, the run would report it failed: {why}" for why in self.missing.values()]
         return "\n".join(lines) + "\n"
 
     def to_dict(self) -> dict[str, Any]:
-        return {"drives": [{"drive": d.spec, "size_bytes": d.size_bytes} for d in self.drives], "workers": self.workers,
-                "estimate_s": round(self.estimate_s, 1)}
+        return {"drives": [{"drive": d.spec, "size_bytes": d.size_bytes, **({"missing": self.missing[d.spec]} if d.spec in self.missing else {})}
+                           for d in self.drives], "workers": self.workers, "estimate_s": round(self.estimate_s, 1)}
 
 
-def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: Sequence[str] = ()) -> FleetPlan:
+def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: Sequence[str] = (), root: str | Path | None = None) -> FleetPlan:
     """The drives :func:`evaluate_fleet` would evaluate, with sizes and a rough time estimate on
     ``workers`` (default every core): nothing is read but the file sizes (an IO-VNBD run's: the
-    manifest's)."""
+    manifest's). A drive that cannot be found (under ``root``, the data root, for a run name) is
+    said missing."""
+    from ..sources.resolve import data_root, resolve_drive
+
     items = expand_drives(drives, runs)
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
     n = Engine(workers if workers is not None else default_workers()).workers
     work_s = sum(ESTIMATE_S_PER_DRIVE + ESTIMATE_S_PER_MB * (d.size_bytes or 0) / 1e6 for d in items)
-    return FleetPlan(items, n, ESTIMATE_START_S + work_s / min(n, len(items)))
+    missing = {}
+    for d in items:
+        if d.size_bytes is None:  # a name, or nothing at all
+            try:
+                resolve_drive(d.spec, data_root(root))
+            except InputError as exc:
+                missing[d.spec] = str(exc)
+    return FleetPlan(items, n, ESTIMATE_START_S + work_s / min(n, len(items)), missing)

@@ -48,7 +48,7 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     _check_fleet_rrd(fleet_rrd, drives)
     with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option, runs="--runs"):
         if dry_run:
-            plan = fleet.plan_fleet(drives, workers, runs or ())
+            plan = fleet.plan_fleet(drives, workers, runs or (), root=read.data_root)
             print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
             return
         with c.progress(quiet) as bar:
