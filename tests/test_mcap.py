@@ -310,6 +310,11 @@ def test_topic_options_are_ignored_for_csv_drives_said_once(tmp_path):
     said = "--imu-topic, --gnss-topic apply to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives"
     assert proc.stderr.count(said) == 1, proc.stderr
     assert all(name in proc.stdout for name in ("roundabout", "motorway", "log")), proc.stdout
+    # the IMU's options too: --imu-mount auto reads the log's mount, the CSV drives ignore it (it refused the run)
+    proc = run_cli("evaluate", "roundabout", str(log), "--imu-topic", "/imu", "--imu-mount", "auto", "--imu-time-offset", "0",
+                   "--estimators", "ins", "--warm-up", "0s", "--overview")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("--imu-topic, --imu-mount, --imu-time-offset apply to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1
     proc = run_cli("evaluate", "roundabout", "--truth-topic", "/reference/fix", "--estimators", "ins", "--overview")
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.count("--truth-topic applies to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1

@@ -119,24 +119,23 @@ def open_message_log(path: Path, kind: str | None = None):
     return None
 
 
-#: The options that choose a message log's topics (command-line name, LogOptions field).
-_TOPIC_OPTIONS = (("--imu-topic", "imu_topic"), ("--gnss-topic", "gnss_topic"), ("--gnss-velocity-topic", "gnss_velocity_topic"),
-                  ("--vehicle-speed-topic", "vehicle_speed_topic"), ("--truth-topic", "truth_topic"), ("--truth-origin", "truth_origin"))
+#: The options of message logs alone (command-line name, LogOptions field): their topics, and how
+#: their IMU is read (axes, mount, clock, sample kind). ``stamps`` has a default, so it is not here.
+_LOG_ONLY_OPTIONS = (("--imu-topic", "imu_topic"), ("--gnss-topic", "gnss_topic"), ("--gnss-velocity-topic", "gnss_velocity_topic"),
+                     ("--vehicle-speed-topic", "vehicle_speed_topic"), ("--truth-topic", "truth_topic"), ("--truth-origin", "truth_origin"),
+                     ("--imu-axes", "imu_axes"), ("--imu-mount", "imu_mount"), ("--imu-time-offset", "imu_time_offset"),
+                     ("--imu-samples", "imu_samples"))
 
 
 def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None = None) -> Drive:
     """Read a path into a drive with the reader its kind needs (no GNSS quality marked yet)."""
     opts = options or LogOptions()
     kind = source_kind(path)
-    if kind in ("iovnbd", "kitti") and (named := [o for o, v in _TOPIC_OPTIONS if getattr(opts, v) is not None]):
-        # a topic option applies to message logs only: ignored for this drive (a fleet may mix them), said once
+    if kind in ("iovnbd", "kitti") and (named := [o for o, v in _LOG_ONLY_OPTIONS if getattr(opts, v) is not None]):
+        # an option of message logs only: ignored for this drive (a fleet may mix them), said once
         what = "IO-VNBD CSV" if kind == "iovnbd" else "KITTI raw"
         log.warning("%s %s to message logs (MCAP, ROS bags) only: ignored for %s drives", ", ".join(named),
                     "applies" if len(named) == 1 else "apply", what)
-    if kind in ("iovnbd", "kitti") and (opts.imu_axes or opts.imu_mount):
-        what = "an IO-VNBD file has one accelerometer and one gyro axis" if kind == "iovnbd" else "KITTI's OXTS gives its inertial data in the vehicle frame"
-        raise InputError(f"{path}: {what}; IMU axes and mount apply to MCAP logs and ROS bags",
-                         "leave it out (the yaw sign still chooses the yaw-rate sign)", param="imu_axes" if opts.imu_axes else "imu_mount")
     if kind == "iovnbd":
         from .iovnbd import read_iovnbd
 
