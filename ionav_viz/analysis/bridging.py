@@ -20,7 +20,7 @@ import numpy as np
 from ..core.drive import Drive
 from ..core.geo import wgs84
 from ..nav.bias import SensorBias
-from ..nav.outages import bridging, unbridged
+from ..nav.outages import bridge_each, placed_of, reasons_of
 from ..nav.protocol import Estimator, EstimatorInputs, solve
 from ..nav.track import Track
 from ..nav.windows import Windows, make_windows
@@ -69,7 +69,8 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
     geod = wgs84()
     received = drive.as_received()
     given = windows if received is drive else make_windows(received)
-    placed = bridging(windows, gaps)
+    each = bridge_each(windows, gaps)  # one pass: what is bridged, and why the rest is not
+    placed = placed_of(each)
     out: list[BridgedOutage] = []
     for number, (i, k, n) in enumerate(placed, start=1):
         end = k + n
@@ -85,4 +86,4 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
             for j, b in enumerate(group):
                 b.final_error_m[est.name] = float(np.atleast_1d(err)[j])
                 b.tracks[est.name] = Track(track.lat_deg[j : j + 1], track.lon_deg[j : j + 1], track.heading_deg[j : j + 1])
-    return out, unbridged(windows, gaps)
+    return out, reasons_of(each)

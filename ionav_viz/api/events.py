@@ -9,8 +9,7 @@ from pathlib import Path
 from ..analysis.events import EVENT_TYPES, Event, EventThresholds, detect_events
 from ..core.drive import Drive
 from ..core.errors import InputError
-from ..core.warnings_log import printing_once
-from ..sources.load import ReadOptions, load_drive
+from ..sources.load import ReadOptions, load_drive, load_drives
 from .options import DriveLike, check_event_types
 
 
@@ -24,10 +23,8 @@ def find_events(drives: Sequence[DriveLike] | DriveLike, types: Sequence[str] | 
     if not items:
         raise InputError("no drive to look at", "give at least one drive")
     found = {}
-    with printing_once():  # a warning each drive repeats is said once
-        for item in items:
-            drive = load_drive(item, read)
-            found[drive.name] = detect_events(drive, thresholds or EventThresholds(), kinds)
+    for drive in load_drives(items, read):  # a warning each drive repeats is said once
+        found[drive.name] = detect_events(drive, thresholds or EventThresholds(), kinds)
     return found
 
 

@@ -401,22 +401,36 @@ def bridging(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: i
     the receiver's fixes too (the estimators start from them). Gaps without such windows in one
     gap-free segment (a data gap, an end of the drive) get none, and so do gaps whose fixes either
     side lie further apart than the car could drive in them (:func:`reachable`); :func:`unbridged`
-    says which and why."""
-    placed = (_bridge(windows, last_good, first_good, max_extra) for last_good, first_good in gaps)
-    return [(i, *got) for i, got in enumerate(placed) if isinstance(got, tuple)]
+    says which and why (:func:`bridge_each` gives both at once)."""
+    return placed_of(bridge_each(windows, gaps, max_extra))
 
 
 def unbridged(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> dict[str, int]:
     """How many of ``gaps`` :func:`bridging` leaves out, per reason (:data:`NO_FIX_BEFORE`,
     :data:`DATA_GAP`, :data:`DRIVE_END`, :data:`NO_FIX_AFTER`, :data:`OUT_OF_REACH`)."""
-    reasons = [got for last_good, first_good in gaps if isinstance(got := _bridge(windows, last_good, first_good, max_extra), str)]
+    return reasons_of(bridge_each(windows, gaps, max_extra))
+
+
+def bridge_each(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> list[tuple[int, int] | str]:
+    """Per gap, :func:`bridging`'s ``(start window, windows)``, or why there is none."""
+    start_ok = windows.truth_ok & windows.receiver_ok
+    return [_bridge(windows, start_ok, last_good, first_good, max_extra) for last_good, first_good in gaps]
+
+
+def placed_of(each: Sequence[tuple[int, int] | str]) -> list[tuple[int, int, int]]:
+    """``(gap index, start window, windows)`` of the gaps :func:`bridge_each` bridged."""
+    return [(i, *got) for i, got in enumerate(each) if isinstance(got, tuple)]
+
+
+def reasons_of(each: Sequence[tuple[int, int] | str]) -> dict[str, int]:
+    """How many gaps :func:`bridge_each` left out, per reason (in the order first met)."""
+    reasons = [got for got in each if isinstance(got, str)]
     return {reason: reasons.count(reason) for reason in dict.fromkeys(reasons)}
 
 
-def _bridge(windows: Windows, last_good: float, first_good: float, max_extra: int) -> tuple[int, int] | str:
+def _bridge(windows: Windows, start_ok: np.ndarray, last_good: float, first_good: float, max_extra: int) -> tuple[int, int] | str:
     """:func:`bridging`'s ``(start window, windows)`` for one gap, or why there is none."""
     t0 = windows.t0_s
-    start_ok = windows.truth_ok & windows.receiver_ok
     k = int(np.searchsorted(t0, last_good + 1e-6, side="right")) - 1
     while k >= 2 and not start_ok[k - 1] and t0[k] > last_good - max_extra:
         k -= 1  # the window before touches the loss (its end is interpolated from a bad sample)

@@ -34,7 +34,9 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
 from .imu.axes import STRONG, heading_rate_ccw_radps, yaw_correlation
+from .mcap_reader import MAGIC as MCAP_MAGIC
 from .plausibility import check_plausible, check_units_agree
+from .rosbag_reader import ROS1_MAGIC
 
 log = logging.getLogger("ionav_viz")
 
@@ -135,7 +137,7 @@ def _factor(path: Path, header: str, units: dict[str, float]) -> float:
 MAX_FILE_BYTES = 2 * 1024**3
 _BOMS = (b"\xff\xfe", b"\xfe\xff")
 #: Logs ionav-viz reads, known by their first bytes: an MCAP or a ROS 1 bag renamed .csv is named as such.
-_LOG_MAGICS = ((b"\x89MCAP0\r\n", "an MCAP log", ".mcap"), (b"#ROSBAG V2.0\n", "a ROS 1 bag", ".bag"))
+_LOG_MAGICS = ((MCAP_MAGIC, "an MCAP log", ".mcap"), (ROS1_MAGIC, "a ROS 1 bag", ".bag"))
 
 
 def _encodings(path: Path) -> list[str]:
