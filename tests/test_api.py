@@ -34,6 +34,17 @@ def test_report_fields_agree_with_each_other():
     assert report.summary["ins"]["crse_m"]["mean"] == pytest.approx(crse.mean())
     assert report.summary["ins"]["crse_m"]["std"] == pytest.approx(crse.std())  # population std, as the paper
     assert report.improvement_pct == {}  # nothing to compare with the INS
+    assert report.improvement_ci95_pct == {}
+
+
+def test_each_improvement_carries_a_95_percent_interval_in_the_json_and_the_text():
+    report = iv.evaluate("hard-brake", 10.0, estimators=["ins", "odo"])
+    (lo, hi), point = report.improvement_ci95_pct["odo"]["final_position_error_m"], report.improvement_pct["odo"]["final_position_error_m"]
+    assert lo < point < hi
+    assert report.to_dict()["improvement_ci95_pct"]["odo"]["crse_m"] == report.improvement_ci95_pct["odo"]["crse_m"]
+    assert f"final position error {point:.1f} % (95 % interval {lo:.1f} to {hi:.1f} %)" in report.to_text()
+    again = iv.evaluate("hard-brake", 10.0, estimators=["ins", "odo"])
+    assert again.improvement_ci95_pct == report.improvement_ci95_pct  # seeded: the same on every run
 
 
 @pytest.mark.parametrize(

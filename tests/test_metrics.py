@@ -57,3 +57,34 @@ def test_an_outages_tracks_end_where_its_final_error_says_and_a_wrong_number_is_
             rep.outage_tracks(name, bad)
     with pytest.raises(iv.InputError, match="no evaluated drive"):
         rep.outage_tracks("elsewhere", 1)
+
+
+def test_improvement_interval_of_a_constant_ratio_is_that_ratio():
+    # a candidate at 0.3 times the baseline on every outage: every resample's improvement is 70 %
+    from ionav_viz.analysis.evaluate import improvement_ci95_pct
+
+    base = np.array([4.0, 9.0, 1.5, 20.0, 7.0])
+    lo, hi = improvement_ci95_pct(base, 0.3 * base)
+    assert lo == pytest.approx(70.0) and hi == pytest.approx(70.0)
+
+
+def test_improvement_interval_matches_normal_theory_on_many_outages():
+    # baseline 10 m on every outage, candidate N(6, 2) m: improvement 100 (1 - mean / 10), whose
+    # standard error is 100 * sd / (10 sqrt(n)); the 95 % interval is about +-1.96 of it
+    from ionav_viz.analysis.evaluate import improvement_ci95_pct
+
+    n = 400
+    cand = np.random.default_rng(7).normal(6.0, 2.0, n)
+    lo, hi = improvement_ci95_pct(np.full(n, 10.0), cand)
+    centre = 100.0 * (1.0 - cand.mean() / 10.0)
+    half = 1.96 * 100.0 * cand.std(ddof=1) / (10.0 * np.sqrt(n))
+    assert lo == pytest.approx(centre - half, abs=0.15 * half)
+    assert hi == pytest.approx(centre + half, abs=0.15 * half)
+
+
+def test_improvement_interval_leaves_out_outages_either_misses_and_needs_two():
+    from ionav_viz.analysis.evaluate import improvement_ci95_pct
+
+    lo, hi = improvement_ci95_pct(np.array([10.0, np.nan, 10.0]), np.array([5.0, 1.0, 5.0]))
+    assert (lo, hi) == pytest.approx((50.0, 50.0))
+    assert np.isnan(improvement_ci95_pct(np.array([10.0, np.nan]), np.array([5.0, 1.0]))).all()

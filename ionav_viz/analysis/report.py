@@ -20,7 +20,7 @@ from ..core.errors import InputError
 from ..core.json_out import dumps_json
 from .consistency import consistency
 from .drift import final_error_percentiles, report_drift
-from .evaluate import DriveResult, improvement_pct, is_baseline
+from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise
 from .tables import truth_line
@@ -104,6 +104,16 @@ class Report:
             for est in names if est != base
         }
 
+    @cached_property
+    def improvement_ci95_pct(self) -> dict[str, dict[str, list[float]]]:
+        """:attr:`improvement_pct`'s 95 % intervals, ``[low, high]`` per estimator and metric: a paired
+        bootstrap over the outages (:func:`~ionav_viz.analysis.evaluate.improvement_ci95_pct`)."""
+        base = next((n for n in self.estimators if is_baseline(n)), None)
+        if base is None:
+            return {}
+        return {est: {m: list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m))) for m in IMPROVEMENT_METRICS}
+                for est in self.estimators if est != base}
+
     @property
     def worst_of(self) -> str:
         """The estimator whose final position error ranks the worst outages: the INS DR if it ran."""
@@ -154,7 +164,8 @@ class Report:
         on: same file by sha256, overlapping time), and per estimator the :data:`METRICS`), ``summary`` (per estimator and metric: ``max``, ``min``, ``mean``, ``std``),
         ``distance_m`` (max/min/mean of the outages' GNSS distance), ``bias`` (per drive),
         ``estimators`` (name, label, info), ``improvement_pct`` (per estimator other than the INS
-        DR, on the mean of CRSE, orientation-rate CRSE and final position error), ``gnss_truth``
+        DR, on the mean of CRSE, orientation-rate CRSE and final position error), ``improvement_ci95_pct``
+        (each of those as a 95 % interval ``[low, high]``: a paired bootstrap over the outages), ``gnss_truth``
         (windows in all, windows excluded for bad GNSS truth, by reason, and outages not placed
         there; per drive under ``drives``) and ``model`` (the IDNN's, when it ran). With the log's own
         GNSS losses bridged (``--on gnss-outage``), ``gnss_outages``: ``bridged`` (each with its
@@ -216,6 +227,7 @@ class Report:
         }
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
+            out["improvement_ci95_pct"] = self.improvement_ci95_pct
         if sequences:
             out["drift"] = report_drift(results, estimators)
             out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m")) for e in estimators}

@@ -55,10 +55,20 @@ def table_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
 
 
 def improvement_lines(rep: dict[str, Any]) -> list[str]:
+    """One line per estimator: its improvement over the INS DR, the final position error's with its
+    95 % interval (``improvement_ci95_pct``) where the report has one."""
     labels = labels_of(rep)
+    ci = rep.get("improvement_ci95_pct", {})
+
+    def interval(est: str) -> str:
+        lo, hi = ci.get(est, {}).get("final_position_error_m", (None, None))
+        if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+            return ""
+        return f" (95 % interval {_fmt(lo, 1)} to {_fmt(hi, 1)} %)"
+
     return [
         f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_fmt(imp['crse_m'], 1)} %, "
-        f"orientation-rate CRSE {_fmt(imp['yaw_crse_radps'], 1)} %, final position error {_fmt(imp['final_position_error_m'], 1)} %"
+        f"orientation-rate CRSE {_fmt(imp['yaw_crse_radps'], 1)} %, final position error {_fmt(imp['final_position_error_m'], 1)} %{interval(est)}"
         for est, imp in rep.get("improvement_pct", {}).items()
     ]
 
