@@ -28,6 +28,7 @@ import numpy as np
 from _cli import add_debug, check_logs, lengths_s, output_file, raise_if_unreadable, run
 
 import ionav_viz as iv
+from ionav_viz.analysis.evaluate import paired_bootstrap_means
 from ionav_viz.core.fileio import atomic_write_bytes
 from ionav_viz.core.gnss_quality import GnssLimits
 
@@ -51,18 +52,50 @@ def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma
             out["lengths"][f"{length:g}"] = {"outages": 0, "why": str(exc)}
             continue
         cell = {"outages": d["n_sequences"]}
+        per_outage = {}
         for est in d["estimators"]:
             name = est["name"]
-            pct = [s[name]["final_error_pct"] for s in d["sequences"] if isinstance(s.get(name), dict)]
-            pct = [p for p in pct if p is not None and np.isfinite(p)]
-            cell[name] = float(np.mean(pct)) if pct else None
+            per_outage[name] = np.array([s[name]["final_error_pct"] if isinstance(s.get(name), dict) and s[name]["final_error_pct"] is not None
+                                         else np.nan for s in d["sequences"]], dtype=float)
+            pct = per_outage[name][np.isfinite(per_outage[name])]
+            cell[name] = float(np.mean(pct)) if len(pct) else None
             if est.get("info", {}).get("arbiter"):  # what gins's history arbiter chose, per length
                 out.setdefault("arbiter", {})[f"{length:g}"] = est["info"]["arbiter"]
+        if "gins" in per_outage and "ins" in per_outage:
+            cell["gins_minus_ins_points"] = gap_points(per_outage["ins"], per_outage["gins"])
         out["lengths"][f"{length:g}"] = cell
         out["warnings"] = d.get("warnings", [])
         out["filter_health"] = d.get("filter_health", {})
         out["imu"] = d["drives"][0].get("imu_text", "")
     return out
+
+
+def gap_points(ins_pct: np.ndarray, gins_pct: np.ndarray) -> list[float] | None:
+    """``gins``'s mean final error minus the INS DR's, in points of the distance driven, on the
+    outages both scored, with its 95 % interval from a paired bootstrap over those outages
+    (:func:`ionav_viz.analysis.evaluate.paired_bootstrap_means`): ``[mean, low, high]``; None
+    below two such outages."""
+    both = np.isfinite(ins_pct) & np.isfinite(gins_pct)
+    if both.sum() < 2:
+        return None
+    m_ins, m_gins = paired_bootstrap_means(ins_pct, gins_pct)
+    lo, hi = np.percentile(m_gins - m_ins, [2.5, 97.5])
+    return [float(gins_pct[both].mean() - ins_pct[both].mean()), float(lo), float(hi)]
+
+
+def gap_row(result: dict, lengths: list[str]) -> str:
+    """The second table's row: per length, gins minus the INS DR with its interval, and whether
+    gins is above it beyond the outages' spread (the interval above 0)."""
+    cells = []
+    for length in lengths:
+        gap = result["lengths"].get(length, {}).get("gins_minus_ins_points")
+        if gap is None:
+            cells.append("–")
+            continue
+        mean, lo, hi = gap
+        verdict = "above" if lo > 0 else "below" if hi < 0 else "cannot tell"
+        cells.append(f"{mean:+.1f} [{lo:+.1f}, {hi:+.1f}] {verdict}")
+    return f"| {result['log']} | " + " | ".join(cells) + " |"
 
 
 def row(result: dict) -> str:
@@ -73,7 +106,7 @@ def row(result: dict) -> str:
         return "–" if value is None else f"{value:.1f} %"
 
     ten = cells.get("10", {})
-    others = {k: v for k, v in ten.items() if k not in ("gins", "ins", "outages", "why") and v is not None}
+    others = {k: v for k, v in ten.items() if k in ESTIMATORS and k not in ("gins", "ins") and v is not None}
     best = min(others, key=others.get) if others else None
     best_text = f"{best} {others[best]:.1f} %" if best else "–"
     return (f"| {result['log']} | {pct('10', 'gins')} | {pct('30', 'gins')} | {pct('60', 'gins')} | "
@@ -108,6 +141,13 @@ def main() -> None:
         result["seconds"] = round(time.perf_counter() - start, 1)
         results.append(result)
         print(row(result), flush=True)
+    if results:
+        keys = [f"{length:g}" for length in lengths]
+        print("\n`gins` minus the INS DR, points of the distance driven, mean [95 % interval, paired bootstrap over the outages]:\n")
+        print("| log | " + " | ".join(f"{k} s" for k in keys) + " |")
+        print("|---|" + "---|" * len(keys))
+        for result in results:
+            print(gap_row(result, keys))
     if args.json:
         atomic_write_bytes(args.json, json.dumps(results, indent=1, default=float).encode())
     if unread:

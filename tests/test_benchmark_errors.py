@@ -75,3 +75,21 @@ def test_a_bad_outage_length_is_one_line_naming_it(files):
     assert "is not a duration" in line
     assert_one_line_error(run_script("results_table.py", "--lengths", "10.5", cwd=files), "--lengths", "10.5 s is not a whole number")
     assert {p.name for p in files.iterdir()} == {"bad.json", "shape.json", "garbage.mcap", "folder"}  # nothing written
+
+
+def test_real_imu_logs_says_whether_gins_is_above_the_ins_dr_beyond_the_outages_spread(tmp_path):
+    """The second table: gins minus the INS DR per length, its mean the difference of the first
+    table's means (every outage scored by both), inside its own bootstrap interval."""
+    import json
+
+    from ionav_viz.sim.imu import write_imu_log
+
+    write_imu_log(tmp_path / "phone.mcap", "roundabout", 11, 150.0, "phone")
+    proc = run_script("real_imu_logs.py", "phone.mcap", "--truth-topic", "/truth/fix", "--lengths", "10", "--json", "out.json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    cell = json.loads((tmp_path / "out.json").read_text())[0]["lengths"]["10"]
+    mean, lo, hi = cell["gins_minus_ins_points"]
+    assert mean == pytest.approx(cell["gins"] - cell["ins"])
+    assert lo <= mean <= hi
+    verdict = "above" if lo > 0 else "below" if hi < 0 else "cannot tell"
+    assert f"| phone.mcap | {mean:+.1f} [{lo:+.1f}, {hi:+.1f}] {verdict} |" in proc.stdout
