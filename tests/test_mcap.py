@@ -318,6 +318,13 @@ def test_topic_options_are_ignored_for_csv_drives_said_once(tmp_path):
     proc = run_cli("evaluate", "roundabout", "--truth-topic", "/reference/fix", "--estimators", "ins", "--overview")
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.count("--truth-topic applies to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1
+    # --stamps has a default: the default says nothing, another value is said (it was silently ignored)
+    proc = run_cli("evaluate", "roundabout", "--stamps", "log", "--estimators", "ins", "--overview")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("--stamps applies to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1
+    assert "--stamps" not in run_cli("evaluate", "roundabout", "--stamps", "header", "--estimators", "ins", "--overview").stderr
+    proc = run_cli("evaluate", "roundabout", "--truth-topic", "/reference/fix", "--estimators", "ins", "--overview")
+    assert proc.stderr.count("--truth-topic applies to message logs (MCAP, ROS bags) only: ignored for IO-VNBD CSV drives") == 1
     # and the report keeps it, as it keeps every warning stderr said
     proc = run_cli("evaluate", "roundabout", "motorway", "--truth-topic", "/reference/fix", "--estimators", "ins", "--json")
     assert proc.returncode == 0, proc.stderr

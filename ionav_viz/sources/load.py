@@ -120,18 +120,25 @@ def open_message_log(path: Path, kind: str | None = None):
 
 
 #: The options of message logs alone (command-line name, LogOptions field): their topics, and how
-#: their IMU is read (axes, mount, clock, sample kind). ``stamps`` has a default, so it is not here.
+#: their IMU is read (axes, mount, clock, sample kind). ``stamps`` has a default: it counts when it is
+#: not that (:func:`_log_only_options_given`).
 _LOG_ONLY_OPTIONS = (("--imu-topic", "imu_topic"), ("--gnss-topic", "gnss_topic"), ("--gnss-velocity-topic", "gnss_velocity_topic"),
                      ("--vehicle-speed-topic", "vehicle_speed_topic"), ("--truth-topic", "truth_topic"), ("--truth-origin", "truth_origin"),
                      ("--imu-axes", "imu_axes"), ("--imu-mount", "imu_mount"), ("--imu-time-offset", "imu_time_offset"),
                      ("--imu-samples", "imu_samples"))
 
 
+def _log_only_options_given(opts: LogOptions) -> list[str]:
+    """The message-log options ``opts`` sets, by their command-line names."""
+    named = [o for o, v in _LOG_ONLY_OPTIONS if getattr(opts, v) is not None]
+    return named + (["--stamps"] if opts.stamps != LogOptions.stamps else [])
+
+
 def read_source(path: Path, yaw_sign: str = "auto", options: LogOptions | None = None) -> Drive:
     """Read a path into a drive with the reader its kind needs (no GNSS quality marked yet)."""
     opts = options or LogOptions()
     kind = source_kind(path)
-    if kind in ("iovnbd", "kitti") and (named := [o for o, v in _LOG_ONLY_OPTIONS if getattr(opts, v) is not None]):
+    if kind in ("iovnbd", "kitti") and (named := _log_only_options_given(opts)):
         # an option of message logs only: ignored for this drive (a fleet may mix them), said once
         what = "IO-VNBD CSV" if kind == "iovnbd" else "KITTI raw"
         log.warning("%s %s to message logs (MCAP, ROS bags) only: ignored for %s drives", ", ".join(named),
