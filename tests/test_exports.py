@@ -241,3 +241,30 @@ def test_the_local_frame_is_about_the_first_trustworthy_fix(tmp_path):
     assert proc.returncode == 0, proc.stderr
     errors = [s["mine"]["final_position_error_m"] for s in json.loads(proc.stdout)["sequences"]]
     assert errors and max(errors) < 0.01, errors
+
+
+def test_a_span_keeps_its_drives_local_frame(tmp_path):
+    """A span kept the drive's clock but took its own frame, about the span's first fix: the TUM
+    exports of the whole drive and of a span laid the same outage metres apart, and an external
+    estimator's trajectory in local metres, made on the whole outaged log (``outage-log --span``
+    writes the whole log, GNSS cut in the span's outages alone), was read about the wrong point. The
+    span's frame is the whole drive's now."""
+    iv.simulate("roundabout", tmp_path / "V-day.csv", seed=3, duration_s=120.0)
+    drive = str(tmp_path / "V-day.csv")
+    assert run_cli("outage-log", drive, "--span", "60s:120s", "--every", "20s", "--warm-up", "0s", "-o", str(tmp_path / "cut.csv")).returncode == 0
+    plan = str(tmp_path / "cut.outages.json")
+    for name, extra in (("whole", []), ("span", ["--span", "60s:120s"])):
+        proc = run_cli("evaluate", drive, "--plan", plan, "--estimators", "ins", "--export", str(tmp_path / name), "-q", *extra)
+        assert proc.returncode == 0, proc.stderr
+    whole = sorted((tmp_path / "whole" / "tum" / "V-day").glob("*-truth.tum"))
+    span = sorted((tmp_path / "span" / "tum" / "V-day").glob("*-truth.tum"))
+    assert len(span) >= 2 and [f.name for f in whole] == [f.name for f in span]
+    for a, b in zip(whole, span):  # the same origin, the same x and y at the same stamps
+        assert a.read_text() == b.read_text()
+    mine = tmp_path / "mine.tum"
+    poses = {line.split()[0]: line for f in whole for line in f.read_text().splitlines()[1:]}
+    mine.write_text("".join(line + "\n" for line in sorted(poses.values(), key=lambda line: float(line.split()[0]))))
+    proc = run_cli("evaluate", drive, "--span", "60s:120s", "--plan", plan, "--external", f"mine={mine}", "--estimators", "ins", "--json")
+    assert proc.returncode == 0, proc.stderr
+    errors = [s["mine"]["final_position_error_m"] for s in json.loads(proc.stdout)["sequences"]]
+    assert errors and max(errors) < 0.01, errors

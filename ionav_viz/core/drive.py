@@ -94,6 +94,9 @@ class Drive:
         imu: what the reader found of a log's IMU (:class:`~ionav_viz.core.imu.ImuCharacter`:
             rate, sample kind, clock offset, mount); None for sources that do not say (IO-VNBD
             CSVs, drives built in code).
+        frame_origin_deg: ``(lat_deg, lon_deg)`` of the local east/north frame when it is not this
+            drive's own (:attr:`local_origin_deg`): a span (``--span``) keeps its whole drive's frame,
+            as it keeps its clock. None: the drive's own.
     """
 
     name: str
@@ -105,6 +108,7 @@ class Drive:
     receiver_fault: np.ndarray | None = field(default=None, repr=False)
     start_stamp_s: float | None = None
     imu: ImuCharacter | None = field(default=None, repr=False)
+    frame_origin_deg: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         missing = [c for c in REQUIRED_COLUMNS if c not in self.columns]
@@ -164,10 +168,16 @@ class Drive:
         """``(lat_deg, lon_deg)`` of the drive's first trustworthy GNSS fix (the first sample's where
         none is): the origin of the local east/north frame that exports and external trajectories
         use. Not the first sample's: a receiver without a fix yet writes (0, 0), which put the frame
-        at the equator, 5,800 km from a drive in England, where the plane is 15 % off scale."""
-        ok = np.flatnonzero(self.gnss_ok)
+        at the equator, 5,800 km from a drive in England, where the plane is 15 % off scale.
+        The receiver's fix where a reference is beside it (:meth:`as_received`: the estimators' and
+        the exports' frame). A span of a drive keeps the whole drive's (``frame_origin_deg``), so
+        the exports of two spans, and an estimate made on the whole log, share one frame."""
+        if self.frame_origin_deg is not None:
+            return self.frame_origin_deg
+        received = self.as_received()
+        ok = np.flatnonzero(received.gnss_ok)
         i = int(ok[0]) if len(ok) else 0
-        return float(self.lat_deg[i]), float(self.lon_deg[i])
+        return float(received.lat_deg[i]), float(received.lon_deg[i])
 
     @property
     def speed_fitted(self) -> np.ndarray:
@@ -197,7 +207,7 @@ class Drive:
         columns |= {"lat_deg": self.columns["gnss_lat_deg"], "lon_deg": self.columns["gnss_lon_deg"],
                     "speed_mps": self.columns["gnss_speed_mps"], "heading_deg": self.columns["gnss_heading_deg"]}
         return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, gnss_fault=self.receiver_fault,
-                     start_stamp_s=self.start_stamp_s, imu=self.imu)
+                     start_stamp_s=self.start_stamp_s, imu=self.imu, frame_origin_deg=self.frame_origin_deg)
 
     def stamp_s(self, t_s: np.ndarray | float) -> np.ndarray | float:
         """The source's own time stamp (s, see ``start_stamp_s``) of drive time ``t_s`` (s since the first sample)."""

@@ -193,8 +193,8 @@ def crop_to_span(drive: Drive, span: Span) -> Drive:
     """The samples of ``drive`` inside ``span`` (both ends included, a sample stamped within
     :func:`~ionav_viz.core.grid.stamp_tolerance_s` of an end on it: IO-VNBD's 100 s sample may be
     stamped 99.999 s), on the drive's own clock: the first kept sample's ``t_s`` stays what it was
-    (a span of a span is the same span). Fewer than two samples inside is an :class:`InputError`
-    naming the drive and its length."""
+    (a span of a span is the same span), and in its local frame (``Drive.frame_origin_deg``).
+    Fewer than two samples inside is an :class:`InputError` naming the drive and its length."""
     keep = span.contains(drive.t_s, stamp_tolerance_s(drive.rate_hz))
     if int(keep.sum()) < 2:
         length = f"{drive.t_s[0]:g}-{drive.t_s[-1]:g} s" if len(drive) else "empty"
@@ -208,7 +208,7 @@ def crop_to_span(drive: Drive, span: Span) -> Drive:
         return drive
     return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()},
                  gnss_fault=drive.gnss_fault[keep], receiver_fault=None if drive.receiver_fault is None else drive.receiver_fault[keep],
-                 start_stamp_s=drive.start_stamp_s, imu=drive.imu)
+                 start_stamp_s=drive.start_stamp_s, imu=drive.imu, frame_origin_deg=drive.local_origin_deg)
 
 
 def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> ReadOptions:
