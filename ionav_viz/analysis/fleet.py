@@ -144,11 +144,15 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
 
 @dataclass(frozen=True)
 class DriveFailure:
-    """A drive that could not be evaluated: as it was given, and why (one line)."""
+    """A drive that could not be evaluated: as it was given, and why (one line, with its hint).
+    ``hint``: the error's own hint, apart (empty when it had none). ``skipped``: it did not fail,
+    it had nothing to score (too short for an outage; no loss of its own to bridge)."""
 
     spec: str
     reason: str
     elapsed_s: float = 0.0
+    hint: str = ""
+    skipped: bool = False
 
 
 @dataclass(repr=False)

@@ -178,10 +178,10 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
                 if tuple(job.placement.event_types) != (GNSS_OUTAGE,):
                     raise
                 # through the logs' own losses: a drive without one has nothing to bridge, it has not failed
-                return DriveFailure(spec, f"skipped: {exc.message}", time.perf_counter() - began)
+                return DriveFailure(spec, f"skipped: {exc.message}", time.perf_counter() - began, skipped=True)
             if plan.too_short:
                 why = "no outage fits where the GNSS truth and the receiver's fixes are good" if plan.excluded else "too short for a single outage"
-                return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began)
+                return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began, skipped=True)
             if recording is not None:
                 from .replay import replay
 
@@ -197,7 +197,8 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
                                             placement=plan.description)
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
-            return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began)
+            return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began,
+                                hint=(exc.hint or "") if isinstance(exc, InputError) else "")
 
 
 def _torch_idnn(estimators: list) -> bool:
@@ -400,10 +401,10 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
             if isinstance(value, WorkerLost):
                 value = DriveFailure(work[i][0], value.reason)
             done[i] = value
-            if fail_fast and isinstance(value, DriveFailure) and not value.reason.startswith("skipped"):
-                reason, _, hint = value.reason.partition(" (hint: ")  # the drive's own hint, then --fail-fast's: one hint
+            if fail_fast and isinstance(value, DriveFailure) and not value.skipped:
+                reason = value.reason.removesuffix(f" (hint: {value.hint})") if value.hint else value.reason
                 other = "leave out --fail-fast to evaluate the other drives and report this one"
-                raise InputError(f"{value.spec}: {reason}", f"{hint[:-1]}; or {other}" if hint.endswith(")") else other)
+                raise InputError(f"{value.spec}: {reason}", f"{value.hint}; or {other}" if value.hint else other)  # one hint
             if isinstance(value, DriveTable):
                 outages += value.n_outages
             if value.elapsed_s > slowest[1]:
@@ -418,8 +419,8 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
     ordered = [done[i] for i in range(len(work))]
     return FleetReport(
         drives=[v for v in ordered if isinstance(v, DriveTable)],
-        failures=[v for v in ordered if isinstance(v, DriveFailure) and not v.reason.startswith("skipped")],
-        skipped=[v for v in ordered if isinstance(v, DriveFailure) and v.reason.startswith("skipped")],
+        failures=[v for v in ordered if isinstance(v, DriveFailure) and not v.skipped],
+        skipped=[v for v in ordered if isinstance(v, DriveFailure) and v.skipped],
         outage_s=float(job.n_windows), replay_options=replay_options,
         timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
 
