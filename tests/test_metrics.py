@@ -88,3 +88,16 @@ def test_improvement_interval_leaves_out_outages_either_misses_and_needs_two():
     lo, hi = improvement_ci95_pct(np.array([10.0, np.nan, 10.0]), np.array([5.0, 1.0, 5.0]))
     assert (lo, hi) == pytest.approx((50.0, 50.0))
     assert np.isnan(improvement_ci95_pct(np.array([10.0, np.nan]), np.array([5.0, 1.0]))).all()
+
+
+def test_improvement_interval_of_a_large_fleet_is_the_normal_approximation_of_the_bootstrap():
+    # above BOOTSTRAP_MAX_OUTAGES the delta method stands in for the bootstrap: the two agree
+    from ionav_viz.analysis.evaluate import BOOTSTRAP_MAX_OUTAGES, improvement_ci95_pct, paired_bootstrap_means
+
+    rng = np.random.default_rng(1)
+    n = BOOTSTRAP_MAX_OUTAGES + 1
+    base = rng.gamma(2.0, 5.0, n)
+    cand = 0.5 * base + rng.gamma(2.0, 2.0, n)
+    mb, mc = paired_bootstrap_means(base, cand)
+    boot = np.percentile(100.0 * (mb - mc) / mb, [2.5, 97.5])
+    np.testing.assert_allclose(improvement_ci95_pct(base, cand), boot, atol=0.15)
