@@ -155,3 +155,14 @@ def test_fleet_box_whiskers_are_the_drives_10th_and_90th_percentiles(tmp_path):
     assert whiskers[1] == [pytest.approx((20.0, 14.0)), pytest.approx((40.0, 76.0))]
     assert whiskers[2] == [pytest.approx((2.0, 1.4)), pytest.approx((4.0, 7.6))]
     np.testing.assert_allclose([w[1] for w in whiskers[1]], np.percentile(ins, [10, 90]))
+
+
+def test_the_pooled_improvement_carries_an_interval_with_the_drives_resampled(report):
+    # A: INS 60 m over its outages, odometry 25; B: 100 and 40. Pooled 1 - 65/160 = 59.4 %; drawing
+    # two drives: AA 1 - 50/120 = 58.3 %, AB 59.4 %, BB 1 - 80/200 = 60.0 %: the interval 58.3 to 60.0
+    pooled = report.pooled()["odo"]
+    assert pooled["improvement_pct"]["final_position_error_m"] == pytest.approx(100.0 * (1 - 65 / 160))
+    assert pooled["improvement_ci95_pct"]["final_position_error_m"] == pytest.approx([100.0 * (1 - 50 / 120), 60.0])
+    row = next(ln for ln in report.to_text(width=160).splitlines() if ln.startswith("Odometry "))
+    assert row.split()[-4:] == ["59.4", "58.3", "to", "60.0"]
+    assert json.loads(report.to_json())["pooled"]["odo"]["improvement_ci95_pct"]["final_position_error_m"] == pytest.approx([58.333, 60.0], abs=1e-3)

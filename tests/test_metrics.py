@@ -101,3 +101,16 @@ def test_improvement_interval_of_a_large_fleet_is_the_normal_approximation_of_th
     mb, mc = paired_bootstrap_means(base, cand)
     boot = np.percentile(100.0 * (mb - mc) / mb, [2.5, 97.5])
     np.testing.assert_allclose(improvement_ci95_pct(base, cand), boot, atol=0.15)
+
+
+def test_a_fleets_improvement_interval_resamples_whole_drives():
+    # drive A: the candidate halves the baseline, drive B: no gain. Drawing two drives with
+    # replacement: AA 50 % (p 1/4), AB or BA 25 % (p 1/2), BB 0 % (p 1/4), so the 2.5 and 97.5
+    # percentiles are 0 and 50; the outages' own spread inside a drive does not enter
+    from ionav_viz.analysis.evaluate import clustered_improvement_ci95_pct
+
+    lo, hi = clustered_improvement_ci95_pct([np.array([4.0, 6.0]), np.array([3.0, 7.0])], [np.array([1.0, 4.0]), np.array([3.0, 7.0])])
+    assert (lo, hi) == pytest.approx((0.0, 50.0))
+    # one drive scored (the other's outages all NaN): its outages are resampled
+    lo, hi = clustered_improvement_ci95_pct([np.array([10.0, 10.0, 10.0]), np.array([np.nan])], [np.array([5.0, 5.0, 5.0]), np.array([1.0])])
+    assert (lo, hi) == pytest.approx((50.0, 50.0))

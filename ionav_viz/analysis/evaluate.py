@@ -28,8 +28,8 @@ from ..nav.windows import Windows, make_windows
 from .bridging import BridgedOutage, bridge_gnss_outages
 from .metrics import METRICS, sequence_metrics, truth_for
 
-__all__ = ["METRICS", "DriveResult", "OutageTruth", "evaluate_drive", "improvement_ci95_pct", "improvement_pct", "paired_bootstrap_means",
-           "resolve_bias"]
+__all__ = ["METRICS", "DriveResult", "OutageTruth", "clustered_improvement_ci95_pct", "evaluate_drive", "improvement_ci95_pct", "improvement_pct",
+           "paired_bootstrap_means", "resolve_bias"]
 
 
 @dataclass(frozen=True)
@@ -243,6 +243,34 @@ def _improvement_ci95_normal(b: np.ndarray, c: np.ndarray) -> tuple[float, float
     r = float(c.mean()) / mean_b
     sd = float(np.std(c - r * b, ddof=1)) / (np.sqrt(len(b)) * abs(mean_b))
     return float(100.0 * (1.0 - r - 1.96 * sd)), float(100.0 * (1.0 - r + 1.96 * sd))
+
+
+def clustered_improvement_ci95_pct(baseline: Sequence[np.ndarray], candidate: Sequence[np.ndarray]) -> tuple[float, float]:
+    """:func:`improvement_ci95_pct` over a fleet, its drives resampled rather than its outages: one
+    array per drive each (per outage values; outages where either is NaN left out), each resample
+    a draw of whole drives with replacement, its improvement that of the drawn outages' means. A
+    drive's outages share its road, car and sensors, so the drives are the independent units; with
+    fewer than two drives scored, the outages are resampled instead."""
+    sums_b, sums_c, both_b, both_c = [], [], [], []
+    for b, c in zip(baseline, candidate):
+        b, c = np.asarray(b, dtype=np.float64), np.asarray(c, dtype=np.float64)
+        ok = np.isfinite(b) & np.isfinite(c)
+        if ok.any():
+            sums_b.append(float(b[ok].sum()))
+            sums_c.append(float(c[ok].sum()))
+            both_b.append(b[ok])
+            both_c.append(c[ok])
+    if len(sums_b) < 2:
+        return improvement_ci95_pct(np.concatenate(both_b) if both_b else np.zeros(0), np.concatenate(both_c) if both_c else np.zeros(0))
+    sb, sc = np.array(sums_b), np.array(sums_c)
+    idx = np.random.default_rng(0).integers(0, len(sb), (BOOTSTRAP_RESAMPLES, len(sb)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        imp = 100.0 * (1.0 - sc[idx].sum(axis=1) / sb[idx].sum(axis=1))
+    imp = imp[np.isfinite(imp)]
+    if not len(imp):
+        return float("nan"), float("nan")
+    lo, hi = np.percentile(imp, [2.5, 97.5])
+    return float(lo), float(hi)
 
 
 def is_baseline(name: str) -> bool:

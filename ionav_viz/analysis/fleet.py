@@ -12,6 +12,7 @@ with the command that replays each, and the failures.
 
 from __future__ import annotations
 
+import math
 import shlex
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,7 +23,7 @@ from ..core.json_out import dumps_json
 from ..nav.protocol import color_of, short_label
 from .consistency import RATIO_AT_S
 from .drift import final_error_percentiles
-from .evaluate import DriveResult, improvement_pct, is_baseline
+from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
 from .report import IMPROVEMENT_METRICS
 
@@ -226,7 +227,9 @@ class FleetReport:
         """Per estimator over the fleet: ``drives``, ``outages``, ``summary`` (per metric ``max``,
         ``min``, ``mean``, ``std``), ``final_error_percentiles`` and, for the others than the INS DR,
         ``improvement_pct`` over it on the outages both ran on (the same numbers as one report over
-        all the drives when every drive ran every estimator)."""
+        all the drives when every drive ran every estimator) and ``improvement_ci95_pct``, each as a
+        95 % interval ``[low, high]`` with the drives resampled
+        (:func:`~ionav_viz.analysis.evaluate.clustered_improvement_ci95_pct`)."""
         out: dict[str, dict[str, Any]] = {}
         base = self.baseline
         for est in self.estimators:
@@ -238,6 +241,8 @@ class FleetReport:
                 both = [t for t in ran if base in t.metrics]
                 entry["improvement_pct"] = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"], summarise(self.metric(est, m, both))["mean"])
                                             for m in IMPROVEMENT_METRICS}
+                entry["improvement_ci95_pct"] = {m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both], [t.metrics[est][m] for t in both]))
+                                                 for m in IMPROVEMENT_METRICS}
             out[est] = entry
         return out
 
@@ -484,7 +489,7 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
         lines += [heading("Pooled over the fleet (mean over outages)"), ""]
-        header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + (["final vs INS %"] if base else [])
+        header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + (["final vs INS %", "95 % interval"] if base else [])
         rows = []
         for e in ests:
             p = pooled[e]
@@ -493,6 +498,8 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                    _f(p["final_error_percentiles"]["p90"]), _f(s["crse_m"]["mean"]), _f(s["yaw_crse_radps"]["mean"], 3)]
             if base:
                 row.append(_f(p["improvement_pct"]["final_position_error_m"], 1) if "improvement_pct" in p else "")
+                lo, hi = p.get("improvement_ci95_pct", {}).get("final_position_error_m", (float("nan"), float("nan")))
+                row.append(f"{_f(lo, 1)} to {_f(hi, 1)}" if math.isfinite(lo) and math.isfinite(hi) else "")
             rows.append(row)
         lines += table(header, rows, 1) + [""]
         others = [e for e in ests if e != base]
