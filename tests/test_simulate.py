@@ -92,3 +92,13 @@ def test_a_drive_is_written_only_as_a_csv(tmp_path, name, hint):
     proc = run_cli("simulate", "roundabout", "--duration", "20s", "-o", str(tmp_path / name))
     assert proc.returncode == 2 and "a simulated drive is an IO-VNBD CSV file (.csv)" in proc.stderr and hint in proc.stderr, proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("duration", "rows"), [("500ms", 6), ("2s", 21)])
+def test_a_drive_under_3_s_is_written(tmp_path, duration, rows):
+    """'simulate roundabout --duration 2s' stopped with a ValueError traceback and exit code 1 (the
+    standing flag's 3 s window was longer than the drive); now the short CSV is written and reads."""
+    out = tmp_path / "V-short.csv"
+    proc = run_cli("simulate", "roundabout", "--duration", duration, "-o", str(out))
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert len(read_iovnbd(out).t_s) == rows
