@@ -221,6 +221,12 @@ def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
         # the outage fits the drive, not after the warm-up: the warm-up is named, not the outage
         (["--warm-up", "3600s"], ["--warm-up", "too short for a 10 s outage after the 3600 s warm-up", "a shorter warm-up"]),
         (["--span", "0s:35s"], ["--warm-up", "after the 30 s warm-up (35.0 s in the span 0s:35s)", "or a longer span"]),
+        # shorter outages alone would not do either: the warm-up is longer than the span
+        (["--span", "0s:5s"], ["--outage 10s", "after the 30 s warm-up (5.0 s in the span 0s:5s)",
+                               "use shorter outages and a shorter warm-up, or a longer span"]),
+        # no outage fits a 1 s stretch at all: shorter outages cannot help
+        (["--span", "0s:1s", "--warm-up", "0s", "--outage", "1s"], ["--outage 1s", "too short for a 1 s outage (1.0 s in the span 0s:1s)",
+                                                                   "use a longer drive (the shortest outage, 1 s, needs 2 s of it), or a longer span"]),
         (["--outage", "0"], ["--outage", "positive"]),
         (["--outage=-10s"], ["--outage", "not a duration"]),
         (["--outage", "2.5s"], ["whole number of seconds"]),
