@@ -415,6 +415,51 @@ def test_stop_signals_clean_up_and_exit_128_plus_the_signal(tmp_path, command, s
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("read", [1, 2])
+def test_ctrl_c_while_a_csv_is_read_stops_the_read(monkeypatch, read):
+    """Input: Ctrl-C while pandas reads a CSV drive (its header, read 1, or its columns, read 2).
+    'convert long.csv -o x.mcap' stopped by Ctrl-C about a second in said 'long.csv: not a
+    readable CSV (Error tokenizing data. C error: Calling read(nbytes) on source failed...)' with
+    exit code 2: pandas' C parser turns the KeyboardInterrupt raised inside its read() into a
+    ParserError. Expected: the KeyboardInterrupt itself (the command line's 'interrupted', 130).
+
+    Deterministic: the real parser reads a file object that sends a real SIGINT to the process
+    from its first read()."""
+    import io
+    import os
+    import signal
+
+    import pandas.io.common
+
+    import ionav_viz as iv
+
+    opened, probes = [], []
+
+    class SignalOnRead(io.TextIOWrapper):
+        def read(self, size=-1):
+            os.kill(os.getpid(), signal.SIGINT)
+            return super().read(size)
+
+    def open_probe(file, mode="r", **kwargs):  # as pandas opens a path it reads as text
+        opened.append(file)
+        if len(opened) != read:
+            return open(file, mode, **kwargs)
+        probes.append(SignalOnRead(open(file, "rb"), encoding=kwargs["encoding"], errors=kwargs["errors"], newline=kwargs["newline"]))  # noqa: SIM115 (pandas closes it, or the finally below)
+        return probes[-1]
+
+    monkeypatch.setattr(pandas.io.common, "open", open_probe, raising=False)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            iv.load_drive(SOURCE)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the reader's own handler is gone
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        for probe in probes:
+            probe.close()  # pandas leaves the file it was reading open when interrupted
+    assert len(opened) == read
+
+
 def test_sighup_during_screenshot_stops_the_viewer(tmp_path):
     """Input: SIGHUP while the headless viewer renders. Expected: exit 129, no viewer left, no scratch folder."""
 
