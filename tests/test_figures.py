@@ -186,3 +186,18 @@ def test_a_cross_validation_report_is_named_for_what_it_is(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert f"{given}: a cross-validation report" in proc.stderr and "evaluate DRIVE --json" in proc.stderr
     assert "drive: missing" not in proc.stderr and not (tmp_path / "figs").exists()
+
+
+def test_the_help_names_every_figure_written_and_what_it_reads():
+    """'figures --help' said it writes 'drift, cdf, outages and worst' (not outages-wide nor
+    calibration, nor a fleet's two) and reads 'evaluate --json' of one drive only (several drives and
+    a fleet's report draw too)."""
+    from ionav_viz.viz.figures import FLEET_FIGURES
+
+    from .conftest import run_cli
+
+    proc = run_cli("figures", "--help", env={"COLUMNS": "1000"})
+    assert proc.returncode == 0
+    text = " ".join(proc.stdout.split())
+    assert all(f" {name} " in text or f" {name}," in text or f" {name})" in text for name in (*FIGURES, *FLEET_FIGURES)), text
+    assert "for one drive" not in text and "a fleet's too" in text
