@@ -233,6 +233,8 @@ def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
         (["--at", "20s,25s"], ["--at 20s,25s", "start time 25 s", "overlaps"]),
         (["--every", "5s"], ["shorter than the outage"]),
         (["--random", "50"], ["--random 50", "only"]),
+        # an empty --on was "no GNSS outage of 2 s or more in this drive"
+        (["--on", ""], ["--on", "name event types like hard-brake,roundabout"]),
     ],
 )
 def test_bad_outage_settings(tmp_path, args, fragments):

@@ -66,6 +66,10 @@ class RunOptions:
     strict: bool = False
 
     def __post_init__(self) -> None:
+        for name in ("estimators", "plugins", "without"):  # estimators="ins" was "unknown estimator 'i'"
+            value = getattr(self, name)
+            if isinstance(value, (str, bytes)):
+                raise InputError(f"{name}={value!r} is not a sequence of estimators", f"give a list, e.g. {name}=['ins']", param=name)
         if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s) and 0 <= self.warm_up_s <= 3600):
             raise InputError(f"warm-up {self.warm_up_s!r} is not 0-3600 seconds", "give e.g. 30s, or 0s for outages from the drive's start",
                              param="warm_up")

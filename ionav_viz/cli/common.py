@@ -219,6 +219,8 @@ def placement_of(every: Optional[str], at: Optional[str], random_count: Optional
             from ..analysis.events import current_type_names
 
             kinds = current_type_names(split_list(on))
+            if not kinds:
+                raise typer.BadParameter(f"{on!r}: name event types like hard-brake,roundabout", param_hint="--on")
             return PlacementArgs(AroundEvents(kinds), option, kinds)
         if every is not None:
             return PlacementArgs(Every(duration_s(every, "--every")), option, None)
