@@ -170,3 +170,15 @@ def test_sequences_of_any_kind_still_place_outages():
     at = iv.At(np.array([12.0, 40.0]))
     assert at.times_s == (12.0, 40.0) and iv.AroundEvents(["hard-brake"]).types == ("hard-brake",)
     assert len(iv.evaluate("roundabout", 10.0, at, estimators=["ins"]).metric("ins", "crse_m")) == 2
+
+
+def test_a_metric_the_report_does_not_hold_names_the_choices():
+    """report.metric("idnn", "crse_m") on a report without the IDNN was a bare KeyError: 'idnn' (a
+    typo in the metric, KeyError: 'crse'); now an InputError naming what the report holds."""
+    report = iv.evaluate("roundabout", 10.0, estimators=["ins", "odo"])
+    with pytest.raises(iv.InputError, match=r"no estimator 'idnn' in this report \(hint: choose from ins, odo\)") as info:
+        report.metric("idnn", "crse_m")
+    assert info.value.param == "estimator"
+    with pytest.raises(iv.InputError, match=r"unknown metric 'crse' \(hint: choose from crse_m, cae_m, ") as info:
+        report.metric("ins", "crse")
+    assert info.value.param == "metric" and len(report.metric("odo", "crse_m")) == len(report.metric("ins", "final_error_pct"))

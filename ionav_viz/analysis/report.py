@@ -84,7 +84,13 @@ class Report:
         return int(sum(len(r.starts) for r in self.results))
 
     def metric(self, estimator: str, metric: str) -> np.ndarray:
-        """One metric of one estimator for every outage of every drive, shape (n_sequences,)."""
+        """One metric of one estimator for every outage of every drive, shape (n_sequences,); an
+        estimator the report does not hold or a metric not of :data:`METRICS` is an InputError
+        naming the choices (a bare ``KeyError: 'idnn'`` otherwise)."""
+        if estimator not in self.estimators:
+            raise InputError(f"no estimator {estimator!r} in this report", f"choose from {', '.join(self.estimators) or '(none)'}", param="estimator")
+        if metric not in METRICS:
+            raise InputError(f"unknown metric {metric!r}", f"choose from {', '.join(METRICS)}", param="metric")
         return np.concatenate([r.metrics[estimator][metric] for r in self.results])
 
     @cached_property
