@@ -169,6 +169,7 @@ def signals_of(drive: Drive, th: EventThresholds) -> Signals:
 
     t = drive.t_s
     grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / GRID_RATE_HZ)
+    grid = grid[grid >= t[0] - 1e-9]  # a --span's drive starts later on its own clock: nothing before it is seen
     k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
     good = drive.gnss_ok
     valid = ((t[k] - t[k - 1]) <= 1.0) & good[k] & good[k - 1]  # nothing is seen inside bad GNSS
