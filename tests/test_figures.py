@@ -201,3 +201,19 @@ def test_the_help_names_every_figure_written_and_what_it_reads():
     text = " ".join(proc.stdout.split())
     assert all(f" {name} " in text or f" {name}," in text or f" {name})" in text for name in (*FIGURES, *FLEET_FIGURES)), text
     assert "for one drive" not in text and "a fleet's too" in text
+
+
+def test_the_api_draws_what_replay_and_evaluate_return(tmp_path):
+    """iv.figures(result, folder), as docs/outputs.md writes it, was a TypeError ('expected str,
+    bytes or os.PathLike object, not ReplayResult') naming no argument, and so was a Report. Both draw
+    now, the same pictures as the recording's file; anything else is an InputError naming result."""
+    import ionav_viz as iv
+
+    result = iv.replay("hard-brake", 10.0, iv.Every(60.0), estimators=["ins", "odo"], output=tmp_path / "hb.rrd")
+    from_file = iv.figures(result, tmp_path / "replayed")  # its recording, read back
+    drawn = iv.figures(result.report, tmp_path / "report")
+    assert [p.name for p in drawn] == [p.name for p in from_file]
+    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(drawn, from_file) if a.suffix == ".png")
+    with pytest.raises(iv.InputError, match="result of type int: not a recording, a report or its file") as info:
+        iv.figures(42, tmp_path / "none")
+    assert info.value.param == "result" and not (tmp_path / "none").exists()
