@@ -128,3 +128,13 @@ def test_overlapping_detections_of_one_type_are_listed_once():
     assert event.values["radius_m"] == pytest.approx(16.0, rel=0.1)  # 8 m/s / 0.5 rad/s
     assert type(event.t0_s) is float and all(type(v) is float for v in event.values.values())
     assert "np.float64" not in repr(event)
+
+
+def test_a_lone_type_string_is_refused_saying_so():
+    """iv.find_events("roundabout", types="roundabout") said "unknown event type(s) r, o, u, n, d,
+    a, b, o, u, t": the string was taken letter by letter."""
+    import ionav_viz as iv
+
+    with pytest.raises(iv.InputError, match=r"types='roundabout' is not a sequence of event types \(hint: give a list, e.g. types=\['roundabout'\]\)"):
+        iv.find_events("roundabout", types="roundabout")
+    assert {e.type for e in iv.find_events("roundabout", types=["roundabout"])["V-sim-roundabout"]} == {"roundabout"}
