@@ -93,3 +93,15 @@ def test_markdown_says_every_line_the_text_report_says():
     paragraphs = md.split("\n\n")
     for line in prose:
         assert line in paragraphs, line
+
+
+@pytest.mark.parametrize("form", ["text", "markdown"])
+def test_an_undefined_value_is_a_dash_not_nan(form):
+    """On the stationary drive (under 10 m driven per outage, so the final error as a % of the
+    distance is undefined, null in the JSON) the tables printed 'nan' in four rows; they print '-'
+    as the fleet's tables do."""
+    proc = run_cli("evaluate", "stationary", "--estimators", "ins", *(["--markdown"] if form == "markdown" else []), env={"COLUMNS": "200"})
+    assert proc.returncode == 0, proc.stderr
+    assert "nan" not in proc.stdout.lower(), proc.stdout
+    row = next(line for line in proc.stdout.splitlines() if "Final error, % of distance" in line)
+    assert row.replace("|", " ").split()[-1] == "-", row
