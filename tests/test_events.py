@@ -138,3 +138,20 @@ def test_a_lone_type_string_is_refused_saying_so():
     with pytest.raises(iv.InputError, match=r"types='roundabout' is not a sequence of event types \(hint: give a list, e.g. types=\['roundabout'\]\)"):
         iv.find_events("roundabout", types="roundabout")
     assert {e.type for e in iv.find_events("roundabout", types=["roundabout"])["V-sim-roundabout"]} == {"roundabout"}
+
+
+def test_two_drives_of_one_name_are_both_listed(tmp_path):
+    """'events a/V-x.csv b/V-x.csv' listed one 'V-x' (the second drive's events under the shared
+    name, the first's gone without a word), and 'evaluate ... --overview' one row for both; each is
+    now keyed by its file when names collide (one file given twice stays one entry, by name)."""
+    for folder, scenario in (("a", "roundabout"), ("b", "hard-brake")):
+        (tmp_path / folder).mkdir()
+        assert run_cli("simulate", scenario, "--duration", "60s", "--seed", "1", "-o", str(tmp_path / folder / "V-x.csv")).returncode == 0
+    proc = run_cli("events", "a/V-x.csv", "b/V-x.csv", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)
+    assert list(found) == ["a/V-x.csv", "b/V-x.csv"] and found["a/V-x.csv"] != found["b/V-x.csv"]
+    overview = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--overview", "--estimators", "ins", "--warm-up", "0s", cwd=tmp_path)
+    assert overview.returncode == 0, overview.stderr
+    assert [line.split()[0] for line in overview.stdout.splitlines()[1:]] == ["a/V-x.csv", "b/V-x.csv", "total"], overview.stdout
+    assert list(json.loads(run_cli("events", "roundabout", "roundabout", "--json").stdout)) == ["V-sim-roundabout"]

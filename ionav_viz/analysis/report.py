@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
 from .consistency import consistency
@@ -327,8 +328,8 @@ def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> d
         if by_group:
             rows[str(group)] = rep
             continue
-        for res in rep.results:
-            rows[f"{group}: {res.drive.name}" if group else res.drive.name] = Report([res], res.drive.name)
+        for res, label in zip(rep.results, drive_labels([r.drive for r in rep.results])):  # two drives of one name: by their files
+            rows[f"{group}: {label}" if group else label] = Report([res], res.drive.name)
     rows["total"] = combined(reports)
     return rows
 
