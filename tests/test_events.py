@@ -155,3 +155,16 @@ def test_two_drives_of_one_name_are_both_listed(tmp_path):
     assert overview.returncode == 0, overview.stderr
     assert [line.split()[0] for line in overview.stdout.splitlines()[1:]] == ["a/V-x.csv", "b/V-x.csv", "total"], overview.stdout
     assert list(json.loads(run_cli("events", "roundabout", "roundabout", "--json").stdout)) == ["V-sim-roundabout"]
+
+
+def test_counts_are_whole_numbers_in_the_json_and_the_text(tmp_path):
+    """A left-right series' 'turns' and a GNSS loss's 'bad_samples' are counts: they were
+    'turns 2.00' and 'bad_samples 115.00' in the text, 2.0 and 115.0 in the JSON."""
+    lossy = tmp_path / "V-lossy.csv"
+    assert run_cli("simulate", "motorway", "--duration", "90s", "--gnss-loss", "1", "-o", str(lossy)).returncode == 0
+    for drive, kind, count in ((str(lossy), "gnss-outage", "bad_samples"), ("sharp-cornering", "left-right", "turns")):
+        found = json.loads(run_cli("events", drive, "--type", kind, "--json").stdout)
+        values = [e[count] for evs in found.values() for e in evs]
+        assert values and all(type(v) is int and v > 0 for v in values), found
+        text = run_cli("events", drive, "--type", kind).stdout
+        assert f"{count} {values[0]}," in text or text.rstrip().endswith(f"{count} {values[0]}"), text

@@ -68,5 +68,5 @@ def events(
     for name, evs in found.items():
         print(f"{name}: {len(evs)} event(s)")
         for e in evs:
-            values = ", ".join(f"{k} {v:.2f}" for k, v in e.values.items())
+            values = ", ".join(f"{k} {v}" if isinstance(v, int) else f"{k} {v:.2f}" for k, v in e.values.items())  # a count: 115, not 115.00
             print(f"  {e.type:<15} {e.t0_s:8.1f} - {e.t1_s:8.1f} s   {values}")
