@@ -168,3 +168,14 @@ def test_counts_are_whole_numbers_in_the_json_and_the_text(tmp_path):
         assert values and all(type(v) is int and v > 0 for v in values), found
         text = run_cli("events", drive, "--type", kind).stdout
         assert f"{count} {values[0]}," in text or text.rstrip().endswith(f"{count} {values[0]}"), text
+
+
+def test_the_help_names_every_event_type():
+    """'events --help' (and the command list) said it finds '... quick acceleration changes and
+    cruising', not the log's GNSS losses it lists too, and --type named no type to choose from."""
+    from ionav_viz.analysis.events import EVENT_TYPES
+
+    text = " ".join(run_cli("events", "--help", env={"COLUMNS": "1000"}).stdout.split())
+    assert "cruising and the log's GNSS losses" in text
+    assert "comma-separated: " + ", ".join(EVENT_TYPES) + "." in text
+    assert "cruising and the log's GNSS losses" in " ".join(run_cli("--help", env={"COLUMNS": "1000"}).stdout.split())

@@ -27,12 +27,12 @@ class _EventsCommand(TyperCommand):
 def events(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
-    types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated."),
+    types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated: hard-brake, roundabout, sharp-cornering, left-right, quick-accel, cruise, gnss-outage."),
     quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),
     thresholds: Optional[list[str]] = c.Thresholds,
     read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
 ) -> None:
-    """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes and cruising.
+    """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes, cruising and the log's GNSS losses.
 
     Definitions: docs/method.md ('Manoeuvres') and the docstring of ionav_viz/analysis/events.py;
     every --threshold NAME=VALUE, with its default and range, is listed below.
