@@ -102,3 +102,14 @@ def test_a_drive_under_3_s_is_written(tmp_path, duration, rows):
     proc = run_cli("simulate", "roundabout", "--duration", duration, "-o", str(out))
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     assert len(read_iovnbd(out).t_s) == rows
+
+
+@pytest.mark.parametrize("losses", [1.5, "2", True, -1])
+def test_gnss_losses_are_a_whole_number(tmp_path, losses):
+    """iv.simulate(..., gnss_losses=1.5) wrote one loss and warned 'wrote 1 of the 1 GNSS losses
+    asked for'; "2" was a TypeError. Refused now, naming the argument, nothing written."""
+    import ionav_viz as iv
+
+    with pytest.raises(iv.InputError, match=r"GNSS losses: give a whole number, 0 or more") as info:
+        iv.simulate("motorway", tmp_path / "V-x.csv", duration_s=60.0, gnss_losses=losses)
+    assert info.value.param == "gnss_losses" and list(tmp_path.iterdir()) == []
