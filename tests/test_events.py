@@ -179,3 +179,13 @@ def test_the_help_names_every_event_type():
     assert "cruising and the log's GNSS losses" in text
     assert "comma-separated: " + ", ".join(EVENT_TYPES) + "." in text
     assert "cruising and the log's GNSS losses" in " ".join(run_cli("--help", env={"COLUMNS": "1000"}).stdout.split())
+
+
+def test_quality_is_aligned_and_refuses_drives_it_would_not_read():
+    """'events --quality roundabout' printed the bundled drives' quality and read no roundabout (exit
+    0); and the sharp-cornering row stood two columns right of the others."""
+    proc = run_cli("events", "--quality", "roundabout")
+    assert proc.returncode == 2 and proc.stdout == "" and "--quality measures the detectors on the bundled synthetic drives, not on roundabout" in proc.stderr
+    lines = run_cli("events", "--quality").stdout.splitlines()
+    ends = {len(line) for line in lines[1:]}
+    assert len(ends) == 1 and all(line.index(" %") == lines[1].index(" %") for line in lines[1:]), lines

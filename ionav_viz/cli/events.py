@@ -44,6 +44,9 @@ def events(
     th = EventThresholds().with_overrides(list(thresholds or []))
     kinds = current_type_names(c.split_list(types)) if types else None
     if quality:
+        if drives:  # were read by no one: the quality is measured on the bundled drives, where every manoeuvre is known
+            raise typer.BadParameter(f"--quality measures the detectors on the bundled synthetic drives, not on {' '.join(drives)}",
+                                     param_hint="DRIVES")
         rows = api.detector_quality(th, kinds)
         if as_json:
             from ..dataset.samples import SAMPLES
@@ -52,11 +55,12 @@ def events(
                 k: {"known": q.known, "recalled": q.recalled, "found": q.found, "precise": q.precise, "recall": q.recall, "precision": q.precision}
                 for k, q in rows.items()}}))
             return
-        print(f"{'event':<13} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
+        w = max(len("event"), *(len(k) for k in rows))  # sharp-cornering is wider than 13
+        print(f"{'event':<{w}} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
         for k, q in rows.items():
             rec = f"{100 * q.recall:.0f} %" if q.recall is not None else "-"
             prec = f"{100 * q.precision:.0f} %" if q.precision is not None else "-"
-            print(f"{k:<13} {q.known:>5} {q.found:>5}  {rec:>7}  {prec:>9}")
+            print(f"{k:<{w}} {q.known:>5} {q.found:>5}  {rec:>7}  {prec:>9}")
         return
     if not drives:
         raise typer.BadParameter("give at least one drive (or --quality)", param_hint="DRIVES")
