@@ -113,3 +113,13 @@ def test_gnss_losses_are_a_whole_number(tmp_path, losses):
     with pytest.raises(iv.InputError, match=r"GNSS losses: give a whole number, 0 or more") as info:
         iv.simulate("motorway", tmp_path / "V-x.csv", duration_s=60.0, gnss_losses=losses)
     assert info.value.param == "gnss_losses" and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("args", "named"), [(["roundabout", "-o", "x.csv"], "SCENARIO, -o"), (["--seed", "5", "--duration", "10s"], "--seed, --duration")])
+def test_bundled_refuses_the_options_it_would_ignore(tmp_path, args, named):
+    """'simulate --bundled DIR --seed 5 --duration 10s' (or with a scenario and -o) wrote the 47
+    bundled samples with their own seeds and lengths, ignoring the options without a word."""
+    proc = run_cli("simulate", "--bundled", "bund", *args, cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    assert proc.stderr == f"error: --bundled regenerates every bundled sample as it is shipped, so {named} would be ignored (hint: leave them out, or simulate one drive without --bundled)\n"
+    assert list(tmp_path.iterdir()) == []
