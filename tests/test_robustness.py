@@ -219,7 +219,7 @@ def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
     [
         (["--outage", "10m"], ["--outage 10m", "too short", "shorter outages"]),
         # the outage fits the drive, not after the warm-up: the warm-up is named, not the outage
-        (["--warm-up", "3600s"], ["--warm-up", "too short for a 10 s outage after the 3600 s warm-up", "a shorter warm-up"]),
+        (["--warm-up", "3600s"], ["--warm-up", "too short for a 10 s outage after the 3600 s warm-up", "(hint: use a shorter warm-up)"]),
         (["--span", "0s:35s"], ["--warm-up", "after the 30 s warm-up (35.0 s in the span 0s:35s)", "or a longer span"]),
         # shorter outages alone would not do either: the warm-up is longer than the span
         (["--span", "0s:5s"], ["--outage 10s", "after the 30 s warm-up (5.0 s in the span 0s:5s)",
