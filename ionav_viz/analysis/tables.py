@@ -16,8 +16,9 @@ _BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps
 
 def _fmt(x: float, decimals: int = 2) -> str:
     """A table cell: ``-`` where the report leaves the value undefined (None, NaN: e.g. the final
-    error as a % of under 10 m driven), as the fleet's tables write it, not ``nan``."""
-    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{decimals}f}"
+    error as a % of under 10 m driven), as the fleet's tables write it, not ``nan``; a value that
+    rounds to zero is ``0.000``, not ``-0.000``."""
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, decimals) + 0.0:.{decimals}f}"  # no "-0.000"
 
 
 def _pct(x: float) -> str:
