@@ -144,3 +144,41 @@ def test_arguments_of_the_wrong_type_are_input_errors_naming_the_argument(call):
     with pytest.raises(iv.InputError) as info:
         call()
     assert info.value.param in ("outage_s", "placement")
+
+
+@pytest.mark.parametrize(
+    ("call", "param", "said"),
+    [
+        # "'float' object is not iterable", a numpy UFuncTypeError, and a report of no outage at all
+        (lambda: iv.At(12.0), "placement", "outage start times 12.0: not a sequence of seconds"),
+        (lambda: iv.At(("12",)), "placement", "outage start time '12' is not a number of seconds"),
+        (lambda: iv.evaluate("roundabout", 10.0, iv.At(()), estimators=["ins"]), "placement", "outage start times (): not a sequence"),
+        # "unknown event type(s) h, a, r, d, -, b, r, a, k, e", and "no GNSS outage of 2 s or more in this drive"
+        (lambda: iv.AroundEvents("hard-brake"), "placement", "event types 'hard-brake': not a sequence of names"),
+        (lambda: iv.evaluate("hard-brake", 10.0, iv.AroundEvents(()), estimators=["ins"]), "placement", "event types (): not a sequence"),
+        # "unknown estimator 'i'"
+        (lambda: iv.evaluate("roundabout", 10.0, estimators="ins"), "estimators", "estimators='ins' is not a sequence of estimators"),
+    ],
+)
+def test_a_lone_value_where_a_sequence_goes_is_refused_saying_so(call, param, said):
+    with pytest.raises(iv.InputError) as info:
+        call()
+    assert info.value.param == param and said in str(info.value), str(info.value)
+
+
+def test_sequences_of_any_kind_still_place_outages():
+    at = iv.At(np.array([12.0, 40.0]))
+    assert at.times_s == (12.0, 40.0) and iv.AroundEvents(["hard-brake"]).types == ("hard-brake",)
+    assert len(iv.evaluate("roundabout", 10.0, at, estimators=["ins"]).metric("ins", "crse_m")) == 2
+
+
+def test_a_metric_the_report_does_not_hold_names_the_choices():
+    """report.metric("idnn", "crse_m") on a report without the IDNN was a bare KeyError: 'idnn' (a
+    typo in the metric, KeyError: 'crse'); now an InputError naming what the report holds."""
+    report = iv.evaluate("roundabout", 10.0, estimators=["ins", "odo"])
+    with pytest.raises(iv.InputError, match=r"no estimator 'idnn' in this report \(hint: choose from ins, odo\)") as info:
+        report.metric("idnn", "crse_m")
+    assert info.value.param == "estimator"
+    with pytest.raises(iv.InputError, match=r"unknown metric 'crse' \(hint: choose from crse_m, cae_m, ") as info:
+        report.metric("ins", "crse")
+    assert info.value.param == "metric" and len(report.metric("odo", "crse_m")) == len(report.metric("ins", "final_error_pct"))

@@ -62,6 +62,17 @@ def test_train_refuses_bad_hyperparameters_before_any_work(tmp_path, args, optio
     assert not out.exists()
 
 
+@pytest.mark.parametrize("steps", ["-1", "0", "21"])
+def test_architectures_takes_the_time_steps_a_model_may_have(steps):
+    """'architectures --steps -1' was a ValueError traceback (exit 1), and --steps 0 or 1000 printed
+    a table of networks no model may have (train takes 1-20); refused now as train refuses them."""
+    proc = run_cli("architectures", "--steps", steps)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    assert proc.stderr == f"error: --steps: {steps} time steps (n_steps_disp) out of range (hint: use 1 to 20 time steps (2 s at 10 Hz))\n"
+    table = run_cli("architectures", "--steps", "20")
+    assert table.returncode == 0 and table.stdout.splitlines()[1].split() == ["8", "257", "105", "242", "706", "938"]
+
+
 def test_worst_outages_in_json_text_and_replay(tmp_path):
     """``worst``: the three outages with the largest INS DR final error, found here from the JSON's
     own sequences; the text table and replay's output list the same three."""

@@ -128,3 +128,64 @@ def test_overlapping_detections_of_one_type_are_listed_once():
     assert event.values["radius_m"] == pytest.approx(16.0, rel=0.1)  # 8 m/s / 0.5 rad/s
     assert type(event.t0_s) is float and all(type(v) is float for v in event.values.values())
     assert "np.float64" not in repr(event)
+
+
+def test_a_lone_type_string_is_refused_saying_so():
+    """iv.find_events("roundabout", types="roundabout") said "unknown event type(s) r, o, u, n, d,
+    a, b, o, u, t": the string was taken letter by letter."""
+    import ionav_viz as iv
+
+    with pytest.raises(iv.InputError, match=r"types='roundabout' is not a sequence of event types \(hint: give a list, e.g. types=\['roundabout'\]\)"):
+        iv.find_events("roundabout", types="roundabout")
+    assert {e.type for e in iv.find_events("roundabout", types=["roundabout"])["V-sim-roundabout"]} == {"roundabout"}
+
+
+def test_two_drives_of_one_name_are_both_listed(tmp_path):
+    """'events a/V-x.csv b/V-x.csv' listed one 'V-x' (the second drive's events under the shared
+    name, the first's gone without a word), and 'evaluate ... --overview' one row for both; each is
+    now keyed by its file when names collide (one file given twice stays one entry, by name)."""
+    for folder, scenario in (("a", "roundabout"), ("b", "hard-brake")):
+        (tmp_path / folder).mkdir()
+        assert run_cli("simulate", scenario, "--duration", "60s", "--seed", "1", "-o", str(tmp_path / folder / "V-x.csv")).returncode == 0
+    proc = run_cli("events", "a/V-x.csv", "b/V-x.csv", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)
+    assert list(found) == ["a/V-x.csv", "b/V-x.csv"] and found["a/V-x.csv"] != found["b/V-x.csv"]
+    overview = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--overview", "--estimators", "ins", "--warm-up", "0s", cwd=tmp_path)
+    assert overview.returncode == 0, overview.stderr
+    assert [line.split()[0] for line in overview.stdout.splitlines()[1:]] == ["a/V-x.csv", "b/V-x.csv", "total"], overview.stdout
+    assert list(json.loads(run_cli("events", "roundabout", "roundabout", "--json").stdout)) == ["V-sim-roundabout"]
+
+
+def test_counts_are_whole_numbers_in_the_json_and_the_text(tmp_path):
+    """A left-right series' 'turns' and a GNSS loss's 'bad_samples' are counts: they were
+    'turns 2.00' and 'bad_samples 115.00' in the text, 2.0 and 115.0 in the JSON."""
+    lossy = tmp_path / "V-lossy.csv"
+    assert run_cli("simulate", "motorway", "--duration", "90s", "--gnss-loss", "1", "-o", str(lossy)).returncode == 0
+    for drive, kind, count in ((str(lossy), "gnss-outage", "bad_samples"), ("sharp-cornering", "left-right", "turns")):
+        found = json.loads(run_cli("events", drive, "--type", kind, "--json").stdout)
+        values = [e[count] for evs in found.values() for e in evs]
+        assert values and all(type(v) is int and v > 0 for v in values), found
+        text = run_cli("events", drive, "--type", kind).stdout
+        assert f"{count} {values[0]}," in text or text.rstrip().endswith(f"{count} {values[0]}"), text
+
+
+def test_the_help_names_every_event_type():
+    """'events --help' (and the command list) said it finds '... quick acceleration changes and
+    cruising', not the log's GNSS losses it lists too, and --type named no type to choose from."""
+    from ionav_viz.analysis.events import EVENT_TYPES
+
+    text = " ".join(run_cli("events", "--help", env={"COLUMNS": "1000"}).stdout.split())
+    assert "cruising and the log's GNSS losses" in text
+    assert "comma-separated: " + ", ".join(EVENT_TYPES) + "." in text
+    assert "cruising and the log's GNSS losses" in " ".join(run_cli("--help", env={"COLUMNS": "1000"}).stdout.split())
+
+
+def test_quality_is_aligned_and_refuses_drives_it_would_not_read():
+    """'events --quality roundabout' printed the bundled drives' quality and read no roundabout (exit
+    0); and the sharp-cornering row stood two columns right of the others."""
+    proc = run_cli("events", "--quality", "roundabout")
+    assert proc.returncode == 2 and proc.stdout == "" and "--quality measures the detectors on the bundled synthetic drives, not on roundabout" in proc.stderr
+    lines = run_cli("events", "--quality").stdout.splitlines()
+    ends = {len(line) for line in lines[1:]}
+    assert len(ends) == 1 and all(line.index(" %") == lines[1].index(" %") for line in lines[1:]), lines

@@ -186,3 +186,34 @@ def test_a_cross_validation_report_is_named_for_what_it_is(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert f"{given}: a cross-validation report" in proc.stderr and "evaluate DRIVE --json" in proc.stderr
     assert "drive: missing" not in proc.stderr and not (tmp_path / "figs").exists()
+
+
+def test_the_help_names_every_figure_written_and_what_it_reads():
+    """'figures --help' said it writes 'drift, cdf, outages and worst' (not outages-wide nor
+    calibration, nor a fleet's two) and reads 'evaluate --json' of one drive only (several drives and
+    a fleet's report draw too)."""
+    from ionav_viz.viz.figures import FLEET_FIGURES
+
+    from .conftest import run_cli
+
+    proc = run_cli("figures", "--help", env={"COLUMNS": "1000"})
+    assert proc.returncode == 0
+    text = " ".join(proc.stdout.split())
+    assert all(f" {name} " in text or f" {name}," in text or f" {name})" in text for name in (*FIGURES, *FLEET_FIGURES)), text
+    assert "for one drive" not in text and "a fleet's too" in text
+
+
+def test_the_api_draws_what_replay_and_evaluate_return(tmp_path):
+    """iv.figures(result, folder), as docs/outputs.md writes it, was a TypeError ('expected str,
+    bytes or os.PathLike object, not ReplayResult') naming no argument, and so was a Report. Both draw
+    now, the same pictures as the recording's file; anything else is an InputError naming result."""
+    import ionav_viz as iv
+
+    result = iv.replay("hard-brake", 10.0, iv.Every(60.0), estimators=["ins", "odo"], output=tmp_path / "hb.rrd")
+    from_file = iv.figures(result, tmp_path / "replayed")  # its recording, read back
+    drawn = iv.figures(result.report, tmp_path / "report")
+    assert [p.name for p in drawn] == [p.name for p in from_file]
+    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(drawn, from_file) if a.suffix == ".png")
+    with pytest.raises(iv.InputError, match="result of type int: not a recording, a report or its file") as info:
+        iv.figures(42, tmp_path / "none")
+    assert info.value.param == "result" and not (tmp_path / "none").exists()

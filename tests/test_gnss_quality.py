@@ -121,6 +121,22 @@ def test_thresholds_can_be_overridden(faulty):
     assert bad.returncode == 2 and "--gnss-limit: GNSS limit 'frozen_min_s=-1' is out of range" in bad.stderr
 
 
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        # int() cut 4.5 satellites to 4 and the run went on: a count takes whole numbers only
+        (["--gnss-limit", "min_satellites=4.5"], "--gnss-limit: GNSS limit 'min_satellites=4.5': '4.5' is not a whole number (hint: min_satellites is a count"),
+        # a known name without its value was an "unknown GNSS limit"
+        (["--gnss-limit", "max_sigma_m"], "--gnss-limit: GNSS limit 'max_sigma_m': no value (hint: give it as max_sigma_m=VALUE)"),
+        (["--threshold", "hard_brake_g="], "--threshold: threshold 'hard_brake_g=': no value (hint: give it as hard_brake_g=VALUE)"),
+    ],
+)
+def test_an_override_is_taken_as_given_or_refused_for_what_it_lacks(args, said):
+    proc = run_cli("events", "roundabout", *args)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and said in proc.stderr, proc.stderr
+    assert GnssLimits().with_overrides(["min_satellites=5.0"]).min_satellites == 5  # a whole number written as a decimal is one
+
+
 def test_no_false_exclusions_on_any_bundled_drive():
     from ionav_viz import load_drive
 

@@ -265,6 +265,19 @@ def test_a_dangling_link_or_loop_as_the_drive_is_named(tmp_path, kind, command):
     _one_line_error(done, "x.csv", "gone.csv" if kind == "dangling" else "loop")
 
 
+@pytest.mark.parametrize(
+    "command",
+    [["evaluate", "gone.mcap"], ["replay", "logs/gone.bag"], ["convert", "gone.db3", "-o", "x.mcap"], ["info", "gone.mcap"], ["info", "roundabout"]],
+)
+def test_a_missing_log_is_named_with_a_hint(tmp_path, command):
+    """A log that is not there was 'gone.mcap: no such file or folder' and nothing more (a missing
+    CSV had 'check the path'); ``info roundabout`` the same, without saying that info takes a log,
+    not a drive's name."""
+    line = _one_line_error(run_cli(*command, cwd=tmp_path), ": no such file or folder (hint: check the path (relative to the current directory)")
+    assert command[0] != "info" or "info takes a log's file or folder, not a drive's name" in line
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_info_on_a_named_pipe_names_it(tmp_path):
     """``info pipe.mcap`` said "empty file" (it did not hang, but named the wrong problem)."""
     os.mkfifo(tmp_path / "pipe.mcap")

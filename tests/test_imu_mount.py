@@ -165,3 +165,14 @@ def test_the_reported_yaw_uncertainty_covers_the_error_on_cambered_roads():
         yaw_error = angles_deg(est.matrix)[2] - angles_deg(log.mount)[2]
         ratios.append(abs(yaw_error) / est.sigma_deg[2])
     assert max(ratios) < 2.5, np.round(ratios, 2)
+
+
+def test_an_angle_under_a_twentieth_of_a_degree_reads_zero_not_minus_zero():
+    """A simulated MEMS log's estimated mount read 'roll -0.0 ± 0.6' and '--imu-mount roll=-0.0,...
+    gives it exactly' (-0.04 deg rounded): no negative zero now, in the report or the option text."""
+    from ionav_viz.sources.imu.mount import MountEstimate
+
+    m = rotation_deg(-0.04, 0.03, -2.0)
+    assert format_mount(m) == "roll=0.0,pitch=0.0,yaw=-2.0"
+    said = MountEstimate(m, (0.6, 0.6, 1.0), "the mean over the drive", True).describe()
+    assert said == "roll +0.0 ± 0.6, pitch +0.0 ± 0.6, yaw -2.0 ± 1.0 deg (up from the mean over the drive)"

@@ -334,3 +334,22 @@ def test_a_csv_drive_becomes_a_bag_of_the_kind_asked_for(tmp_path, name):
     assert topics == {"/imu/data", "/gps/fix", "/gps/vel", "/wheel/odom"}
     np.testing.assert_allclose(stamps, expected, atol=1e-6)
     np.testing.assert_allclose([m.latitude for m in fixes], drive.lat_deg[[not _inside(s, plan) for s in drive.start_stamp_s + drive.t_s]])
+
+
+def test_the_printed_evaluate_command_runs_as_printed(tmp_path):
+    """outage-log printed 'ionav-viz evaluate DRIVE --plan cut phone.outages.json ...': a plan path
+    with a space unquoted, and none of the source options the log was read with (a phone log cut with
+    --truth-topic then failed with 'several GNSS topics'). The command is now quoted and carries them."""
+    import shlex
+
+    out = tmp_path / "cut rb.mcap"
+    proc = run_cli("outage-log", "roundabout", "--every", "60s", "--span", "0s:300s", "--gnss-limit", "max_sigma_m=13", "--yaw-sign", "cw",
+                   "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    said = proc.stderr.splitlines()[-1].split(": ", 1)[1]
+    argv = shlex.split(said)
+    assert argv[:3] == ["ionav-viz", "evaluate", "roundabout"] and argv[-2:] == ["--external", "NAME=TRAJECTORY"]
+    assert argv[argv.index("--plan") + 1] == str(tmp_path / "cut rb.outages.json")
+    assert {"--span": "0s:300s", "--gnss-limit": "max_sigma_m=13", "--yaw-sign": "cw"}.items() <= dict(zip(argv[3:-2:2], argv[4:-2:2])).items()
+    done = run_cli(*argv[1:-2], "--estimators", "ins", "--json")
+    assert done.returncode == 0 and json.loads(done.stdout)["n_sequences"] == 5, done.stderr

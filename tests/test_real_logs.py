@@ -165,3 +165,17 @@ def test_a_reference_in_a_local_frame_is_placed_by_its_origin(tmp_path):
     assert proc.returncode == 2 and "error: --truth-origin: " in proc.stderr and "no truth topic" in proc.stderr, proc.stderr
     proc = run_cli("evaluate", str(log), "--truth-origin", "north")
     assert proc.returncode == 2 and "--truth-origin" in proc.stderr and "LAT,LON" in proc.stderr, proc.stderr
+
+
+def test_a_truth_origin_beside_a_navsatfix_reference_is_said_ignored(tmp_path):
+    """--truth-origin places a reference in a local frame; with a NavSatFix reference it was dropped
+    without a word ('convert phone.mcap --truth-topic /truth/fix --truth-origin 52,-1'). One warning
+    says so; the reference is read as without it."""
+    drive = iv.load_drive("hard-brake")
+    log = write_realistic(drive, tmp_path / "car.mcap", duration_s=60.0)
+    proc = run_cli("convert", str(log), "--gnss-topic", "/gps/fix", "--truth-topic", "/reference/fix", "--truth-origin", "52.4,-1.5",
+                   "-o", str(tmp_path / "out.mcap"))
+    assert proc.returncode == 0, proc.stderr
+    said = [line for line in proc.stderr.splitlines() if "truth origin" in line]
+    assert said == [f"warning: {log}: the truth origin is ignored: the reference /reference/fix is sensor_msgs/msg/NavSatFix, "
+                    "in latitude and longitude already"], proc.stderr

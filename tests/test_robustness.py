@@ -219,14 +219,22 @@ def test_5_and_20_hz_logs(tmp_path, reference, rate_hz):
     [
         (["--outage", "10m"], ["--outage 10m", "too short", "shorter outages"]),
         # the outage fits the drive, not after the warm-up: the warm-up is named, not the outage
-        (["--warm-up", "3600s"], ["--warm-up", "too short for a 10 s outage after the 3600 s warm-up", "a shorter warm-up"]),
+        (["--warm-up", "3600s"], ["--warm-up", "too short for a 10 s outage after the 3600 s warm-up", "(hint: use a shorter warm-up)"]),
         (["--span", "0s:35s"], ["--warm-up", "after the 30 s warm-up (35.0 s in the span 0s:35s)", "or a longer span"]),
+        # shorter outages alone would not do either: the warm-up is longer than the span
+        (["--span", "0s:5s"], ["--outage 10s", "after the 30 s warm-up (5.0 s in the span 0s:5s)",
+                               "use shorter outages and a shorter warm-up, or a longer span"]),
+        # no outage fits a 1 s stretch at all: shorter outages cannot help
+        (["--span", "0s:1s", "--warm-up", "0s", "--outage", "1s"], ["--outage 1s", "too short for a 1 s outage (1.0 s in the span 0s:1s)",
+                                                                   "use a longer drive (the shortest outage, 1 s, needs 2 s of it), or a longer span"]),
         (["--outage", "0"], ["--outage", "positive"]),
         (["--outage=-10s"], ["--outage", "not a duration"]),
         (["--outage", "2.5s"], ["whole number of seconds"]),
         (["--at", "20s,25s"], ["--at 20s,25s", "start time 25 s", "overlaps"]),
         (["--every", "5s"], ["shorter than the outage"]),
         (["--random", "50"], ["--random 50", "only"]),
+        # an empty --on was "no GNSS outage of 2 s or more in this drive"
+        (["--on", ""], ["--on", "name event types like hard-brake,roundabout"]),
     ],
 )
 def test_bad_outage_settings(tmp_path, args, fragments):
@@ -407,6 +415,51 @@ def test_stop_signals_clean_up_and_exit_128_plus_the_signal(tmp_path, command, s
     assert proc.returncode == code, proc.stderr
     assert proc.stderr.strip() == word and "Traceback" not in proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("read", [1, 2])
+def test_ctrl_c_while_a_csv_is_read_stops_the_read(monkeypatch, read):
+    """Input: Ctrl-C while pandas reads a CSV drive (its header, read 1, or its columns, read 2).
+    'convert long.csv -o x.mcap' stopped by Ctrl-C about a second in said 'long.csv: not a
+    readable CSV (Error tokenizing data. C error: Calling read(nbytes) on source failed...)' with
+    exit code 2: pandas' C parser turns the KeyboardInterrupt raised inside its read() into a
+    ParserError. Expected: the KeyboardInterrupt itself (the command line's 'interrupted', 130).
+
+    Deterministic: the real parser reads a file object that sends a real SIGINT to the process
+    from its first read()."""
+    import io
+    import os
+    import signal
+
+    import pandas.io.common
+
+    import ionav_viz as iv
+
+    opened, probes = [], []
+
+    class SignalOnRead(io.TextIOWrapper):
+        def read(self, size=-1):
+            os.kill(os.getpid(), signal.SIGINT)
+            return super().read(size)
+
+    def open_probe(file, mode="r", **kwargs):  # as pandas opens a path it reads as text
+        opened.append(file)
+        if len(opened) != read:
+            return open(file, mode, **kwargs)
+        probes.append(SignalOnRead(open(file, "rb"), encoding=kwargs["encoding"], errors=kwargs["errors"], newline=kwargs["newline"]))  # noqa: SIM115 (pandas closes it, or the finally below)
+        return probes[-1]
+
+    monkeypatch.setattr(pandas.io.common, "open", open_probe, raising=False)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            iv.load_drive(SOURCE)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the reader's own handler is gone
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        for probe in probes:
+            probe.close()  # pandas leaves the file it was reading open when interrupted
+    assert len(opened) == read
 
 
 def test_sighup_during_screenshot_stops_the_viewer(tmp_path):

@@ -92,3 +92,34 @@ def test_a_drive_is_written_only_as_a_csv(tmp_path, name, hint):
     proc = run_cli("simulate", "roundabout", "--duration", "20s", "-o", str(tmp_path / name))
     assert proc.returncode == 2 and "a simulated drive is an IO-VNBD CSV file (.csv)" in proc.stderr and hint in proc.stderr, proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("duration", "rows"), [("500ms", 6), ("2s", 21)])
+def test_a_drive_under_3_s_is_written(tmp_path, duration, rows):
+    """'simulate roundabout --duration 2s' stopped with a ValueError traceback and exit code 1 (the
+    standing flag's 3 s window was longer than the drive); now the short CSV is written and reads."""
+    out = tmp_path / "V-short.csv"
+    proc = run_cli("simulate", "roundabout", "--duration", duration, "-o", str(out))
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert len(read_iovnbd(out).t_s) == rows
+
+
+@pytest.mark.parametrize("losses", [1.5, "2", True, -1])
+def test_gnss_losses_are_a_whole_number(tmp_path, losses):
+    """iv.simulate(..., gnss_losses=1.5) wrote one loss and warned 'wrote 1 of the 1 GNSS losses
+    asked for'; "2" was a TypeError. Refused now, naming the argument, nothing written."""
+    import ionav_viz as iv
+
+    with pytest.raises(iv.InputError, match=r"GNSS losses: give a whole number, 0 or more") as info:
+        iv.simulate("motorway", tmp_path / "V-x.csv", duration_s=60.0, gnss_losses=losses)
+    assert info.value.param == "gnss_losses" and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("args", "named"), [(["roundabout", "-o", "x.csv"], "SCENARIO, -o"), (["--seed", "5", "--duration", "10s"], "--seed, --duration")])
+def test_bundled_refuses_the_options_it_would_ignore(tmp_path, args, named):
+    """'simulate --bundled DIR --seed 5 --duration 10s' (or with a scenario and -o) wrote the 47
+    bundled samples with their own seeds and lengths, ignoring the options without a word."""
+    proc = run_cli("simulate", "--bundled", "bund", *args, cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stderr
+    assert proc.stderr == f"error: --bundled regenerates every bundled sample as it is shipped, so {named} would be ignored (hint: leave them out, or simulate one drive without --bundled)\n"
+    assert list(tmp_path.iterdir()) == []

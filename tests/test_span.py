@@ -138,3 +138,15 @@ def test_a_span_past_the_drives_end_is_said_with_the_span_read(tmp_path):
     assert proc.stderr.count("span 60s:1000s runs past the drive's end (its samples end at 180 s): 60s:180s is read") == 1, proc.stderr
     meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
     assert meta["training"]["drives"][0]["span_s"] == pytest.approx([60.0, 180.0], abs=0.01)
+
+
+def test_events_of_a_span_lie_inside_it():
+    """'events roundabout --span 500s:' found a roundabout from 0.0 to 509.9 s turning 9780 degrees:
+    the detectors' 10 Hz grid began at 0 s whatever the span, and the samples before it were the
+    span's first, held (a constant yaw rate for 500 s). Every event now lies inside the span, and a
+    roundabout turns as a roundabout does."""
+    proc = run_cli("events", "roundabout", "--span", "500s:", "--json")
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)["V-sim-roundabout"]
+    assert found and all(500.0 <= e["start_s"] <= e["end_s"] <= 600.0 for e in found), found
+    assert max(e["turn_deg"] for e in found if e["type"] == "roundabout") < 400.0

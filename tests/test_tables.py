@@ -93,3 +93,23 @@ def test_markdown_says_every_line_the_text_report_says():
     paragraphs = md.split("\n\n")
     for line in prose:
         assert line in paragraphs, line
+
+
+@pytest.mark.parametrize("form", ["text", "markdown"])
+def test_an_undefined_value_is_a_dash_not_nan(form):
+    """On the stationary drive (under 10 m driven per outage, so the final error as a % of the
+    distance is undefined, null in the JSON) the tables printed 'nan' in four rows; they print '-'
+    as the fleet's tables do."""
+    proc = run_cli("evaluate", "stationary", "--estimators", "ins", *(["--markdown"] if form == "markdown" else []), env={"COLUMNS": "200"})
+    assert proc.returncode == 0, proc.stderr
+    assert "nan" not in proc.stdout.lower(), proc.stdout
+    row = next(line for line in proc.stdout.splitlines() if "Final error, % of distance" in line)
+    assert row.replace("|", " ").split()[-1] == "-", row
+
+
+def test_a_value_that_rounds_to_zero_has_no_sign():
+    """The stationary drive's mean orientation-rate CAE printed '-0.000' (a mean of -0.0001 rad/s)."""
+    proc = run_cli("evaluate", "stationary", "--estimators", "ins", env={"COLUMNS": "200"})
+    assert proc.returncode == 0, proc.stderr
+    assert not re.search(r"(?<![\d.])-0\.0+(?![\d])", proc.stdout), proc.stdout
+    assert re.search(r"^ +μ +\d+\.\d\d +0\.000$", proc.stdout, re.M), proc.stdout  # the CAE's mean, as it is printed now

@@ -11,6 +11,8 @@ propagated, measured for honesty and drawn.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -216,3 +218,14 @@ def test_an_estimator_widens_its_covariance_where_its_history_shows_it_overconfi
     assert np.array_equal(own.results[0].estimates[name].disp_m, scaled.results[0].estimates[name].disp_m)
     info = next(e for e in scaled.to_dict()["estimators"] if e["name"] == name)["info"]
     assert "pseudo-outages over the GNSS" in info["uncertainty_scale"]
+
+
+def test_outages_under_10_s_give_no_dangling_error_over_sigma():
+    """'evaluate roundabout --outage 5s' ended each uncertainty line with 'rms error/sigma ' and
+    nothing after it (the ratio is taken at 10, 30 and 60 s, which a 5 s outage never reaches); the
+    clause is left out then, and stays where the outages reach 10 s."""
+    short = iv.evaluate("roundabout", 5.0, estimators=["ins", "odo"]).to_text()
+    line = next(x for x in short.splitlines() if x.startswith("Odometry uncertainty:"))
+    assert "rms error/sigma" not in line and line.endswith("(95 % when honest)"), line
+    ten = iv.evaluate("roundabout", 10.0, estimators=["ins", "odo"]).to_text()
+    assert re.search(r"^Odometry uncertainty: .*, rms error/sigma 10 s \d+\.\d\d$", ten, re.M), ten

@@ -129,18 +129,18 @@ class Event:
     type: str
     t0_s: float
     t1_s: float
-    values: dict[str, float] = field(default_factory=dict)
+    values: dict[str, float | int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         # plain floats (not numpy scalars), times to the microsecond: the 10 Hz grid's sums carry
-        # rounding noise (28.700000000000003) that says nothing
+        # rounding noise (28.700000000000003) that says nothing; a count (turns, bad samples) a plain int
         self.t0_s = round(float(self.t0_s), 6)
         self.t1_s = round(float(self.t1_s), 6)
-        self.values = {k: float(v) for k, v in self.values.items()}
+        self.values = {k: int(v) if isinstance(v, (int, np.integer)) and not isinstance(v, bool) else float(v) for k, v in self.values.items()}
 
     def to_dict(self) -> dict:
         return {"type": self.type, "start_s": round(self.t0_s, 2), "end_s": round(self.t1_s, 2),
-                **{k: round(float(v), 3) for k, v in self.values.items()}}
+                **{k: v if isinstance(v, int) else round(float(v), 3) for k, v in self.values.items()}}  # counts stay whole
 
 
 @dataclass
@@ -169,6 +169,7 @@ def signals_of(drive: Drive, th: EventThresholds) -> Signals:
 
     t = drive.t_s
     grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / GRID_RATE_HZ)
+    grid = grid[grid >= t[0] - 1e-9]  # a --span's drive starts later on its own clock: nothing before it is seen
     k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
     good = drive.gnss_ok
     valid = ((t[k] - t[k - 1]) <= 1.0) & good[k] & good[k - 1]  # nothing is seen inside bad GNSS
@@ -299,7 +300,7 @@ def detect_gnss_outages(drive: Drive, th: EventThresholds) -> list[Event]:
             continue
         t0, t1 = float(drive.t_s[i0 - 1]), float(drive.t_s[i1])
         if t1 - t0 >= th.gnss_outage_min_s:
-            out.append(Event(GNSS_OUTAGE, t0, t1, {"length_s": t1 - t0, "bad_samples": float(i1 - i0)}))
+            out.append(Event(GNSS_OUTAGE, t0, t1, {"length_s": t1 - t0, "bad_samples": int(i1 - i0)}))
     return out
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
 from .consistency import consistency
@@ -84,7 +85,13 @@ class Report:
         return int(sum(len(r.starts) for r in self.results))
 
     def metric(self, estimator: str, metric: str) -> np.ndarray:
-        """One metric of one estimator for every outage of every drive, shape (n_sequences,)."""
+        """One metric of one estimator for every outage of every drive, shape (n_sequences,); an
+        estimator the report does not hold or a metric not of :data:`METRICS` is an InputError
+        naming the choices (a bare ``KeyError: 'idnn'`` otherwise)."""
+        if estimator not in self.estimators:
+            raise InputError(f"no estimator {estimator!r} in this report", f"choose from {', '.join(self.estimators) or '(none)'}", param="estimator")
+        if metric not in METRICS:
+            raise InputError(f"unknown metric {metric!r}", f"choose from {', '.join(METRICS)}", param="metric")
         return np.concatenate([r.metrics[estimator][metric] for r in self.results])
 
     @cached_property
@@ -321,8 +328,8 @@ def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> d
         if by_group:
             rows[str(group)] = rep
             continue
-        for res in rep.results:
-            rows[f"{group}: {res.drive.name}" if group else res.drive.name] = Report([res], res.drive.name)
+        for res, label in zip(rep.results, drive_labels([r.drive for r in rep.results])):  # two drives of one name: by their files
+            rows[f"{group}: {label}" if group else label] = Report([res], res.drive.name)
     rows["total"] = combined(reports)
     return rows
 

@@ -15,7 +15,14 @@ _BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps
 
 
 def _fmt(x: float, decimals: int = 2) -> str:
-    return "nan" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{decimals}f}"
+    """A table cell: ``-`` where the report leaves the value undefined (None, NaN: e.g. the final
+    error as a % of under 10 m driven), as the fleet's tables write it, not ``nan``; a value that
+    rounds to zero is ``0.000``, not ``-0.000``."""
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, decimals) + 0.0:.{decimals}f}"  # no "-0.000"
+
+
+def _pct(x: float) -> str:
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.1f} %"
 
 
 def labels_of(rep: dict[str, Any]) -> dict[str, str]:
@@ -67,8 +74,8 @@ def improvement_lines(rep: dict[str, Any]) -> list[str]:
         return f" (95 % interval {_fmt(lo, 1)} to {_fmt(hi, 1)} %)"
 
     return [
-        f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_fmt(imp['crse_m'], 1)} %, "
-        f"orientation-rate CRSE {_fmt(imp['yaw_crse_radps'], 1)} %, final position error {_fmt(imp['final_position_error_m'], 1)} %{interval(est)}"
+        f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_pct(imp['crse_m'])}, "
+        f"orientation-rate CRSE {_pct(imp['yaw_crse_radps'])}, final position error {_pct(imp['final_position_error_m'])}{interval(est)}"
         for est, imp in rep.get("improvement_pct", {}).items()
     ]
 

@@ -2,25 +2,43 @@
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
+from typing import Any
 
+from ..core.errors import InputError
 from ..core.fileio import check_output_folder, check_regular_input, refuse_output_onto_input
 from ..core.timing import stage
 
 
-def figures(result: str | Path, output: str | Path) -> list[Path]:
+def figures(result: Any, output: str | Path) -> list[Path]:
     """Draw the drift curve, the final-error CDF, the per-outage errors (one column and page-wide)
     and the worst outage's tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output;
     a fleet's ``evaluate --workers N --json``: its per-drive box plot and pooled CDF instead)
-    into the folder ``output`` as SVG, PDF and PNG. Returns the files written.
+    into the folder ``output`` as SVG, PDF and PNG; ``result`` may also be what :func:`replay`
+    returned (its recording is read) or a :class:`~ionav_viz.analysis.report.Report` from
+    :func:`evaluate`. Returns the files written.
 
     The report is checked field by field first (one :class:`InputError` naming the file and the
     field); values it leaves undefined (null) are not drawn, each figure warning what it left out.
     The figures appear in ``output`` only when all are complete (drawn in a temporary folder beside
     it, or inside it when it exists); other files there are kept."""
-    from ..viz.figures import FIGURES, FLEET_FIGURES, FORMATS, read_report, write_figures
+    from ..analysis.report import Report
+    from ..viz.figures import FIGURES, FLEET_FIGURES, FORMATS, check_report, read_report, write_figures
+    from .replay import ReplayResult
 
+    if isinstance(result, ReplayResult):  # iv.figures(iv.replay(...), folder) was a TypeError naming no argument
+        result = result.path
     check_output_folder(Path(output))  # before any work: -o naming a file is refused
+    if isinstance(result, Report):
+        rep = json.loads(result.to_json())  # exactly what 'evaluate --json' writes
+        check_report(rep, Path("report"))
+        with stage("figures of the report"):
+            return write_figures(rep, output)
+    if not isinstance(result, (str, os.PathLike)):
+        raise InputError(f"result of type {type(result).__name__}: not a recording, a report or its file",
+                         "give what replay or evaluate returned, a .rrd, or the output of 'evaluate --json'", param="result")
     refuse_output_onto_input(output, [result])  # before reading: -o inside the input's folder, or the input itself
     for name in (f"{f}.{fmt}" for f in (*FIGURES, *FLEET_FIGURES) for fmt in FORMATS):  # the files it replaces (others there are kept)
         refuse_output_onto_input(Path(output) / name, [result])

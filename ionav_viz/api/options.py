@@ -66,6 +66,10 @@ class RunOptions:
     strict: bool = False
 
     def __post_init__(self) -> None:
+        for name in ("estimators", "plugins", "without"):  # estimators="ins" was "unknown estimator 'i'"
+            value = getattr(self, name)
+            if isinstance(value, (str, bytes)):
+                raise InputError(f"{name}={value!r} is not a sequence of estimators", f"give a list, e.g. {name}=['ins']", param=name)
         if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s) and 0 <= self.warm_up_s <= 3600):
             raise InputError(f"warm-up {self.warm_up_s!r} is not 0-3600 seconds", "give e.g. 30s, or 0s for outages from the drive's start",
                              param="warm_up")
@@ -316,13 +320,24 @@ def each_length(lengths: Sequence[float], one: Callable[[float], Any]) -> list[t
 def too_short(drive: Drive, n_windows: int, run: RunOptions, read: Any = None) -> InputError:
     """Why no ``n_windows`` s outage fits in ``drive`` (neither placed nor excluded for bad GNSS):
     its length, the span it was cut to and the warm-up before the first outage, and what to change;
-    the option blamed is the warm-up when the outage alone would fit, else the outage length."""
+    the option blamed is the warm-up when the outage alone would fit, else the outage length; the
+    hint names only what can help (shorter outages not when not even a 1 s one fits after the
+    warm-up)."""
     span = getattr(read, "span", None)
     warm = float(run.warm_up_s)
     what = (f"{drive.source or drive.name}: too short for a {n_windows:g} s outage" + (f" after the {warm:g} s warm-up" if warm > 0 else "")
             + f" ({drive.duration_s:.1f} s" + (f" in the span {span}" if span is not None else "") + ")")
     warm_up_blamed = warm > 0 and drive.duration_s >= n_windows + 1  # the outage alone would fit (after its start fix)
-    fixes = ["shorter outages"] + (["a shorter warm-up"] if warm_up_blamed else []) + (["a longer span"] if span is not None else [])
+    shortest_fits = drive.duration_s >= max(warm, 1.0) + 1  # a 1 s outage after the warm-up: shorter outages can help
+    if drive.duration_s < 2.0:  # no outage at all: the shortest needs its start fix's second and its own
+        fixes = ["a longer drive (the shortest outage, 1 s, needs 2 s of it)"]
+    elif warm_up_blamed:
+        fixes = (["shorter outages"] if shortest_fits else []) + ["a shorter warm-up"]
+    elif warm > 0 and not shortest_fits:
+        fixes = ["shorter outages and a shorter warm-up"]
+    else:
+        fixes = ["shorter outages"]
+    fixes += ["a longer span"] if span is not None else []
     return InputError(what, "use " + ", or ".join(fixes), param="warm_up" if warm_up_blamed else "outage_s")
 
 

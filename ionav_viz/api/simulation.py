@@ -4,6 +4,7 @@ drive (``ionav-viz convert``)."""
 from __future__ import annotations
 
 import logging
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,8 +41,8 @@ def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float
         hint = "choose a name like V-drive.csv, or give --imu mems|phone|dash for a 6-axis MCAP log" if Path(output).suffix.lower() == ".mcap" else \
             "choose a name like V-drive.csv"
         raise InputError(f"{output}: a simulated drive is an IO-VNBD CSV file (.csv)", hint, param="output")
-    if gnss_losses < 0:
-        raise InputError(f"{gnss_losses} GNSS losses: give 0 or more", param="gnss_losses")
+    if isinstance(gnss_losses, bool) or not isinstance(gnss_losses, numbers.Integral) or gnss_losses < 0:  # 1.5 was 1, silently
+        raise InputError(f"{gnss_losses!r} GNSS losses: give a whole number, 0 or more", param="gnss_losses")
     if fleet is not None and fleet not in FLEETS:
         raise InputError(f"unknown fleet {fleet!r}", f"choose one of {', '.join(FLEETS)}", param="fleet")
     if fleet is not None and ideal:

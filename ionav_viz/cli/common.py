@@ -134,6 +134,25 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     return _with_options(command, _SOURCE_OPTIONS, "read", build)
 
 
+def source_args(read: Any) -> list[str]:
+    """The source options ``read`` (a ReadOptions built by :func:`with_source_options`) holds, as
+    command-line arguments, those at their defaults left out: what a printed next command needs to
+    read the drive as this one did."""
+    from dataclasses import fields
+
+    from ..core.gnss_quality import GnssLimits
+
+    values = {"data_root_opt": read.data_root, "yaw_sign": read.yaw_sign, "span": None if read.span is None else str(read.span),
+              "gnss_limit": [f"{f.name}={getattr(read.gnss_limits, f.name):g}" for f in fields(GnssLimits)
+                             if getattr(read.gnss_limits, f.name) != getattr(GnssLimits(), f.name)] or None}
+    args: list[str] = []
+    for name, option, _ in _SOURCE_OPTIONS:
+        value = values[name] if name in values else getattr(read.log, name)
+        if value is not None and value != option.default:
+            args += [x for v in (value if isinstance(value, list) else [value]) for x in (option.param_decls[0], str(v))]
+    return args
+
+
 _ESTIMATOR_OPTIONS = (
     ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
     ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]), ("thresholds", Thresholds, Optional[list[str]]),
@@ -219,6 +238,8 @@ def placement_of(every: Optional[str], at: Optional[str], random_count: Optional
             from ..analysis.events import current_type_names
 
             kinds = current_type_names(split_list(on))
+            if not kinds:
+                raise typer.BadParameter(f"{on!r}: name event types like hard-brake,roundabout", param_hint="--on")
             return PlacementArgs(AroundEvents(kinds), option, kinds)
         if every is not None:
             return PlacementArgs(Every(duration_s(every, "--every")), option, None)

@@ -47,7 +47,7 @@ def info(
     if os.path.lexists(path):  # a pipe (was "empty file"), a device, a dangling link or a loop: named as replay names them
         resolve_drive(str(path), None)
     if not path.exists():
-        raise InputError(f"{path}: no such file or folder")
+        raise InputError(f"{path}: no such file or folder", "check the path (relative to the current directory); info takes a log's file or folder, not a drive's name")
     kind = source_kind(path)
     if kind == "kitti":
         _info_kitti(path)

@@ -27,12 +27,12 @@ class _EventsCommand(TyperCommand):
 def events(
     drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
-    types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated."),
+    types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated: hard-brake, roundabout, sharp-cornering, left-right, quick-accel, cruise, gnss-outage."),
     quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),
     thresholds: Optional[list[str]] = c.Thresholds,
     read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
 ) -> None:
-    """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes and cruising.
+    """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes, cruising and the log's GNSS losses.
 
     Definitions: docs/method.md ('Manoeuvres') and the docstring of ionav_viz/analysis/events.py;
     every --threshold NAME=VALUE, with its default and range, is listed below.
@@ -44,6 +44,9 @@ def events(
     th = EventThresholds().with_overrides(list(thresholds or []))
     kinds = current_type_names(c.split_list(types)) if types else None
     if quality:
+        if drives:  # were read by no one: the quality is measured on the bundled drives, where every manoeuvre is known
+            raise typer.BadParameter(f"--quality measures the detectors on the bundled synthetic drives, not on {' '.join(drives)}",
+                                     param_hint="DRIVES")
         rows = api.detector_quality(th, kinds)
         if as_json:
             from ..dataset.samples import SAMPLES
@@ -52,11 +55,12 @@ def events(
                 k: {"known": q.known, "recalled": q.recalled, "found": q.found, "precise": q.precise, "recall": q.recall, "precision": q.precision}
                 for k, q in rows.items()}}))
             return
-        print(f"{'event':<13} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
+        w = max(len("event"), *(len(k) for k in rows))  # sharp-cornering is wider than 13
+        print(f"{'event':<{w}} {'known':>5} {'found':>5}  {'recall':>7}  {'precision':>9}   (bundled synthetic drives)")
         for k, q in rows.items():
             rec = f"{100 * q.recall:.0f} %" if q.recall is not None else "-"
             prec = f"{100 * q.precision:.0f} %" if q.precision is not None else "-"
-            print(f"{k:<13} {q.known:>5} {q.found:>5}  {rec:>7}  {prec:>9}")
+            print(f"{k:<{w}} {q.known:>5} {q.found:>5}  {rec:>7}  {prec:>9}")
         return
     if not drives:
         raise typer.BadParameter("give at least one drive (or --quality)", param_hint="DRIVES")
@@ -68,5 +72,5 @@ def events(
     for name, evs in found.items():
         print(f"{name}: {len(evs)} event(s)")
         for e in evs:
-            values = ", ".join(f"{k} {v:.2f}" for k, v in e.values.items())
+            values = ", ".join(f"{k} {v}" if isinstance(v, int) else f"{k} {v:.2f}" for k, v in e.values.items())  # a count: 115, not 115.00
             print(f"  {e.type:<15} {e.t0_s:8.1f} - {e.t1_s:8.1f} s   {values}")

@@ -13,11 +13,12 @@ from .app import app
 
 @app.command()
 def figures(
-    result: Path = typer.Argument(..., metavar="RESULT", help="A recording (.rrd) written by replay, or the output of 'evaluate --json' for one drive."),
-    output: Path = typer.Option(..., "-o", "--output", help="The folder to write drift, cdf, outages and worst as SVG, PDF and PNG into (made when missing)."),
+    result: Path = typer.Argument(..., metavar="RESULT", help="A recording (.rrd) written by replay, or the output of 'evaluate --json' (one outage length; a fleet's too)."),
+    output: Path = typer.Option(..., "-o", "--output", help="The folder to write drift, cdf, outages, outages-wide, worst and calibration (a fleet's: fleet-box and fleet-cdf) "
+                                "as SVG, PDF and PNG into (made when missing)."),
     quiet: bool = c.QuietOpt,
 ) -> None:
-    """Draw a run's drift curve, final-error CDF, per-outage errors and worst outage as publication figures."""
+    """Draw a run's drift curve, final-error CDF, per-outage errors, worst outage and uncertainty calibration as publication figures."""
     from .. import api
 
     written = api.figures(result, output)

@@ -3,6 +3,7 @@ outside ionav-viz, and the plan that scores what it comes back with (``evaluate 
 
 from __future__ import annotations
 
+import shlex
 import sys
 from pathlib import Path
 from typing import Any
@@ -36,7 +37,7 @@ def outage_log(
     if not quiet:
         print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "
               f"from {', '.join(plan.removed_topics)}", file=sys.stderr)
-        print(f"score what your estimator writes on it: ionav-viz evaluate {drive_spec} --plan {done.plan_path} --external NAME=TRAJECTORY",
-              file=sys.stderr)
+        evaluate = shlex.join(["ionav-viz", "evaluate", drive_spec, *c.source_args(read), "--plan", str(done.plan_path)])
+        print(f"score what your estimator writes on it: {evaluate} --external NAME=TRAJECTORY", file=sys.stderr)
     print(done.path)
     print(done.plan_path)

@@ -30,6 +30,12 @@ def simulate(
     from .app import options_named
 
     if bundled is not None:
+        given = [name for name, value, default in (("SCENARIO", scenario, None), ("-o", output, None), ("--seed", seed, 0), ("--duration", duration, "120s"),
+                                                   ("--ideal", ideal, False), ("--fleet", fleet, None), ("--gnss-loss", gnss_loss, 0), ("--imu", imu, None))
+                 if value != default]
+        if given:  # each was ignored without a word: the bundled samples have their own scenarios, seeds and lengths
+            raise InputError(f"--bundled regenerates every bundled sample as it is shipped, so {', '.join(given)} would be ignored",
+                             "leave them out, or simulate one drive without --bundled", param="bundled")
         for path in api.simulate_bundled(bundled):
             print(path)
         return

@@ -108,11 +108,12 @@ def train(
 
 @app.command()
 def architectures(
-    steps: int = typer.Option(10, "--steps", help="Time steps per input."),
+    steps: int = typer.Option(10, "--steps", help="Time steps (10 Hz samples) per input, 1-20."),
 ) -> None:
     """Trainable parameters of each network per hidden width, laid out like the paper's Table 2."""
-    from ..nav.idnn import ARCHS, build_net, count_parameters
+    from ..nav.idnn import ARCHS, ModelConfig, build_net, count_parameters
 
+    ModelConfig(n_steps_disp=steps).validate()  # the time steps a model may have (1-20), as train checks them
     widths = (8, 16, 32, 64, 128, 192, 256, 320)
     print("hidden units  " + "  ".join(f"{a.upper():>8}" for a in ARCHS) + "   (displacement model, with feedback input)")
     for width in widths:

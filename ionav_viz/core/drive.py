@@ -239,3 +239,13 @@ def measured_imu(drive: Drive) -> tuple[np.ndarray, np.ndarray] | None:
     if not all(c in drive.columns and np.ptp(drive.columns[c]) > 0 for c in IMU_COLUMNS):
         return None
     return (np.column_stack([drive.columns[c] for c in IMU_COLUMNS[:3]]), np.column_stack([drive.columns[c] for c in IMU_COLUMNS[3:]]))
+
+
+def drive_labels(drives: list[Drive]) -> list[str]:
+    """A label per drive for a table or a JSON key: its name, or its file where another of
+    ``drives`` has the same name (``a/V-x.csv`` and ``b/V-x.csv`` are both ``V-x``: keyed by name
+    alone, one replaced the other); one file given twice keeps one label."""
+    sources: dict[str, set[str]] = {}
+    for d in drives:
+        sources.setdefault(d.name, set()).add(str(d.source))
+    return [d.name if len(sources[d.name]) == 1 else str(d.source or d.name) for d in drives]

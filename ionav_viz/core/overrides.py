@@ -26,8 +26,10 @@ def with_overrides(settings: T, pairs: list[str], ranges: dict[str, tuple[float,
     for pair in pairs:
         name, _, value = pair.partition("=")
         name = name.strip().replace("-", "_")
-        if name not in known or not value.strip():
+        if name not in known:
             raise InputError(f"unknown {what} {pair!r}", f"choose from {', '.join(known)}, as NAME=VALUE", param=param)
+        if not value.strip():
+            raise InputError(f"{what} {pair!r}: no value", f"give it as {name}=VALUE", param=param)
         wants_pair = isinstance(getattr(settings, name), tuple)
         try:
             parsed = tuple(float(v) for v in value.split(",")) if wants_pair else float(value)
@@ -40,7 +42,10 @@ def with_overrides(settings: T, pairs: list[str], ranges: dict[str, tuple[float,
             raise InputError(f"{what} {pair!r}: give two numbers LOW,HIGH with LOW <= HIGH", param=param)
         if not all(math.isfinite(v) and low <= v <= high for v in values):
             raise InputError(f"{what} {pair!r} is out of range", f"{name} takes values from {low:g} to {high:g}", param=param)
-        value_of = int(parsed) if isinstance(getattr(settings, name), int) and not wants_pair else parsed
+        whole = isinstance(getattr(settings, name), int) and not wants_pair
+        if whole and parsed != int(parsed):  # int() cut 4.5 satellites to 4 silently
+            raise InputError(f"{what} {pair!r}: {value!r} is not a whole number", f"{name} is a count, e.g. {name}={math.ceil(parsed)}", param=param)
+        value_of = int(parsed) if whole else parsed
         if name in changes and changes[name] != value_of:  # the last one won silently
             raise InputError(f"{what} {name} given twice with different values ({changes[name]} and {value_of})", "give each once", param=param)
         changes[name] = value_of

@@ -11,7 +11,7 @@ import contextlib
 import os
 import signal
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 #: The signals that stop a command; SIGINT is Python's KeyboardInterrupt.
@@ -73,3 +73,44 @@ def hold_signals() -> Callable[[], None]:
                 os.kill(os.getpid(), signum)  # the default action, as if never held
 
     return release
+
+
+
+@contextlib.contextmanager
+def signals_surfaced() -> Iterator[None]:
+    """Keep SIGINT, SIGTERM and SIGHUP stopping a call into a library that swallows the exception
+    their handler raises: pandas' C parser turns a ``KeyboardInterrupt`` raised inside its
+    ``read()`` into a ``ParserError`` ("Calling read(nbytes) on source failed"), so Ctrl-C while
+    a CSV was read said the file was not a readable CSV (exit code 2). While the block runs, the
+    exception each such handler raises is kept; when the block ends with another ``Exception`` or
+    with none, the kept one is raised again (``KeyboardInterrupt`` or :class:`Terminated`). A
+    handler is never run twice. Outside the main thread this does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    raised: list[BaseException] = []
+    previous: dict[int, Any] = {}
+    for sig in (signal.SIGINT, *STOP_SIGNALS):
+        handler = signal.getsignal(sig)
+        if callable(handler):  # SIG_DFL ends the process and SIG_IGN does nothing: neither is swallowed
+
+            def keeping(signum: int, frame: Any, handler: Callable[[int, Any], Any] = handler) -> None:
+                try:
+                    handler(signum, frame)
+                except BaseException as exc:
+                    raised.append(exc)
+                    raise
+
+            previous[sig] = signal.signal(sig, keeping)
+    try:
+        yield
+    except Exception:
+        if raised:
+            raise raised[0] from None
+        raise
+    else:
+        if raised:
+            raise raised[0]
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import logging
 import numbers
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -257,6 +257,17 @@ class At:
     times_s: tuple[float, ...]
     event_types: ClassVar[tuple[str, ...]] = ()  # the events the plan needs detected: none
 
+    def __post_init__(self) -> None:
+        # At(12.0) was "'float' object is not iterable", At(("12",)) a numpy type error, At(()) a report of no outage
+        times = self.times_s
+        if isinstance(times, (str, bytes)) or not isinstance(times, Iterable) or not (times := tuple(times)):
+            raise InputError(f"outage start times {self.times_s!r}: not a sequence of seconds", "give at least one, e.g. At((12.0, 40.0)) or At((12.0,))",
+                             param="placement")
+        object.__setattr__(self, "times_s", times)  # a tuple, whatever sequence was given
+        for t in times:
+            if isinstance(t, bool) or not isinstance(t, numbers.Real):
+                raise InputError(f"outage start time {t!r} is not a number of seconds", "give seconds as numbers, e.g. At((12.0, 40.0))", param="placement")
+
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         times = list(self.times_s)
         return OutagePlan(at(windows, times, n_windows), f"{n_windows:g} s outages at {', '.join(f'{x:g} s' for x in self.times_s)}",
@@ -303,6 +314,16 @@ class AroundEvents:
     """
 
     types: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        # AroundEvents("hard-brake") was "unknown event type(s) h, a, r, d, ..."; AroundEvents(())
+        # (and --on "") "no GNSS outage of 2 s or more in this drive"
+        types = self.types
+        if (isinstance(types, (str, bytes)) or not isinstance(types, Iterable) or not (types := tuple(types))
+                or not all(isinstance(t, str) for t in types)):
+            raise InputError(f"event types {self.types!r}: not a sequence of names", "give at least one, e.g. AroundEvents(('hard-brake', 'roundabout'))",
+                             param="placement")
+        object.__setattr__(self, "types", types)  # a tuple, whatever sequence was given
 
     @property
     def event_types(self) -> tuple[str, ...]:

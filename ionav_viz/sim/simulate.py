@@ -447,7 +447,7 @@ def simulate_rows(
     k_s = at(truth.curvature_1pm)
     gear = np.select([v_s < 0.3, v_s < 4, v_s < 8, v_s < 12.5, v_s < 17], [0, 1, 2, 3, 4], 5)
     brake_psi = np.clip((-a_s - 0.5) * 150.0, 0.0, None)
-    standing = np.convolve(~moving, np.ones(30), "same") >= 30
+    standing = np.convolve(~moving, np.ones(30), "same")[:n] >= 30  # "same" is max(n, 30) long: a drive under 3 s never stands
     half_track_m, wheel_radius_m = 0.75, 0.3
     rows = {
         HEADER[0]: np.clip(np.round(11 + np.cumsum(rng.integers(-1, 2, n)) * 0.05), 6, 16),

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..core.signals import signals_surfaced
 from ..core.units import DEG_TO_RAD, G_MPS2, KMH_TO_MPS, wrap_360
 from .imu.axes import STRONG, heading_rate_ccw_radps, yaw_correlation
 from .mcap_reader import MAGIC as MCAP_MAGIC
@@ -167,12 +168,20 @@ def _last_line_is_cut(path: Path, encoding: str, n_fields: int) -> bool:
     return 0 < len(last.split(",")) < n_fields
 
 
+def _read_csv(path: Path, **options):
+    """``pandas.read_csv``, stopped by Ctrl-C, SIGTERM and SIGHUP as everything else is: its C
+    parser turns the signal's exception inside ``read()`` into a ``ParserError`` otherwise, which
+    read as a file that is not a CSV (:func:`~ionav_viz.core.signals.signals_surfaced`)."""
+    import pandas as pd
+
+    with signals_surfaced():
+        return pd.read_csv(path, **options)
+
+
 def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, int]:
     """Header labels -> header names, the needed columns as float64 (pandas C parser), and the
     number of header fields."""
-    import pandas as pd
-
-    header = pd.read_csv(path, encoding=encoding, nrows=0, skipinitialspace=True)
+    header = _read_csv(path, encoding=encoding, nrows=0, skipinitialspace=True)
     _refuse_repeated_columns(path, encoding)
     by_label: dict[str, str] = {}
     for name in header.columns:
@@ -185,7 +194,7 @@ def _read_columns(path: Path, encoding: str) -> tuple[dict[str, str], object, in
         )
     wanted = [by_label[label] for label, _, _ in _COLUMNS.values() if label in by_label]
     try:
-        frame = pd.read_csv(path, encoding=encoding, usecols=wanted, skipinitialspace=True, dtype=np.float64)
+        frame = _read_csv(path, encoding=encoding, usecols=wanted, skipinitialspace=True, dtype=np.float64)
     except ValueError as exc:
         if isinstance(exc, UnicodeDecodeError):
             raise
@@ -258,7 +267,7 @@ def _locate_bad_cell(path: Path, encoding: str, columns: list[str], required: li
     """Raise an InputError naming the first cell of ``required`` that is not a finite number."""
     import pandas as pd
 
-    cells = pd.read_csv(path, encoding=encoding, usecols=columns, skipinitialspace=True, dtype=str, keep_default_na=False)
+    cells = _read_csv(path, encoding=encoding, usecols=columns, skipinitialspace=True, dtype=str, keep_default_na=False)
     for name in required:
         text = cells[name].fillna("").str.strip()
         numbers = pd.to_numeric(text, errors="coerce").to_numpy(dtype=np.float64)

@@ -546,6 +546,9 @@ def _truth(got: _Messages, origin: Any, fixes: np.ndarray, origin_s: float) -> n
             where = f"{path}: reference {sel.reference.topic} (frame {got.reference_frame[0] or 'unnamed'!r})"
             truth, how = place_reference(truth, origin, fixes, where)
             log.warning("%s: %s", where, how)
+        elif origin is not None:  # was silently ignored
+            log.warning("%s: the truth origin is ignored: the reference %s is %s, in latitude and longitude already", path,
+                        sel.reference.topic, sel.reference.schema)
         return truth
     if origin is not None:
         raise InputError(f"{path}: a truth origin places a reference in a local frame, and no truth topic is given",

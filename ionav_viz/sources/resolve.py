@@ -79,7 +79,7 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
             why = "a loop of symbolic links" if exc.errno == errno.ELOOP else f"a link to {os.readlink(path)}, which does not exist"
             raise InputError(f"{spec}: is {why}", "give the log's file or folder") from None
     if path.suffix.lower() in (".mcap", ".bag", ".db3", ".yaml") or os.sep in spec or "/" in spec:  # a run name may end in .csv
-        raise InputError(f"{spec}: no such file or folder")
+        raise InputError(f"{spec}: no such file or folder", "check the path (relative to the current directory)")
     bundled = _bundled(spec)
     if bundled is not None:
         if not bundled.is_file():

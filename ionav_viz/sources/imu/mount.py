@@ -89,8 +89,13 @@ def nearest_axes(matrix: np.ndarray, within_deg: float = 5.0) -> str | None:
 
 def format_mount(matrix: np.ndarray) -> str:
     """``roll=2.0,pitch=-7.0,yaw=5.0``: what ``--imu-mount`` takes back."""
-    roll, pitch, yaw = angles_deg(matrix)
+    roll, pitch, yaw = (_tenths(a) for a in angles_deg(matrix))
     return f"roll={roll:.1f},pitch={pitch:.1f},yaw={yaw:.1f}"
+
+
+def _tenths(deg: float) -> float:
+    """``deg`` rounded to 0.1 with no negative zero: -0.04 deg read 'roll -0.0' and 'roll=-0.0'."""
+    return round(deg, 1) + 0.0
 
 
 def parse_mount(text: str) -> np.ndarray | str:
@@ -141,7 +146,7 @@ class MountEstimate:
         return rotation_angle_deg(self.matrix)
 
     def describe(self) -> str:
-        roll, pitch, yaw = self.angles_deg
+        roll, pitch, yaw = (_tenths(a) for a in self.angles_deg)
         s_roll, s_pitch, s_yaw = self.sigma_deg
         yaw_text = f"yaw {yaw:+.1f} ± {s_yaw:.1f}" if self.yaw_known else "yaw unknown (too little motion)"
         return f"roll {roll:+.1f} ± {s_roll:.1f}, pitch {pitch:+.1f} ± {s_pitch:.1f}, {yaw_text} deg (up from {self.up_from})"
