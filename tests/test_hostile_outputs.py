@@ -466,3 +466,28 @@ def test_long_lists_of_objects_are_written_a_row_each():
     assert len(rows) == 25 and rows[3] == '    {"drive": "V", "start_s": 3.0, "ins": {"crse_m": 1.5}},'
     assert '  "curve": [0.5, 1.5, null]' in lines and '      "a": 1' in lines  # a short list of objects stays indented
     assert json.loads(text) == json.loads(dumps_json(value, indent=None))
+
+
+@pytest.mark.parametrize("command", [
+    ["simulate", "roundabout", "-o", "{pkg}/data/samples/V-sim-new.csv"],
+    ["replay", "roundabout", "--estimators", "ins", "-o", "{pkg}/data/new.rrd"],
+    ["evaluate", "roundabout", "--estimators", "ins", "--export", "{pkg}/data/exported"],
+])
+def test_the_installed_package_is_never_written_to(command, tmp_path):
+    """docs/robustness.md: the installed package is read-only package data. 'simulate -o' onto a
+    bundled drive's path replaced the shipped drive with exit code 0 (a tour found it)."""
+    pkg = Path(iv.__file__).resolve().parent
+    args = [a.format(pkg=pkg) for a in command]
+    target = Path(args[-1])
+    try:
+        proc = run_cli(*args, cwd=tmp_path)
+        assert proc.returncode == 2, proc.stderr
+        assert "is inside the installed ionav-viz package" in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+        assert not target.exists()
+    finally:  # never leave a written file in the package, even when the check fails
+        if target.is_file():
+            target.unlink()
+        elif target.is_dir():
+            import shutil
+
+            shutil.rmtree(target)

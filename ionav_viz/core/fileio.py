@@ -66,16 +66,27 @@ _SYSTEM_DIRS = (Path("/dev"), Path("/proc"), Path("/sys"))
 _USER_DIRS_IN_SYSTEM = (Path("/dev/shm"),)
 
 
+#: The installed package: its shipped drives and manifest are read-only package data (only
+#: ``simulate --bundled`` regenerates the samples, and it writes where it is told without this check).
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+
+
 def refuse_system_output(target: str | Path, param: str = "output") -> None:
     """Refuse an output under ``/dev``, ``/proc`` or ``/sys``, as given or once links are resolved
     (``-o /dev/stdout`` when standard output is a file passed every other check, and the rename
-    replaced the system's ``/dev/stdout`` link with a regular file), and a link loop."""
+    replaced the system's ``/dev/stdout`` link with a regular file), a link loop, and an output
+    inside the installed package (:data:`PACKAGE_DIR`: ``simulate -o`` onto a bundled drive replaced
+    it)."""
     target = Path(target)
     try:
         os.stat(target)
     except OSError as exc:
         if exc.errno == errno.ELOOP:
             raise InputError(f"{target}: is a loop of symbolic links", "remove the link or choose another output", param=param) from None
+    real = Path(os.path.realpath(target))
+    if real == PACKAGE_DIR or PACKAGE_DIR in real.parents:
+        raise InputError(f"{target}: is inside the installed ionav-viz package ({PACKAGE_DIR}), whose bundled drives and data are read-only",
+                         "write it in a folder of yours", param=param)
     for where in [*_link_chain(target), Path(os.path.realpath(target))]:
         if any(where == d or d in where.parents for d in _SYSTEM_DIRS) and not any(
                 where == d or d in where.parents for d in _USER_DIRS_IN_SYSTEM):
