@@ -133,6 +133,21 @@ def test_bands_and_lines_are_told_apart_without_colour():
         assert grey < 0.75
 
 
+def test_every_cdf_curve_reaches_all_outages_clear_of_the_frame():
+    """A dashed curve's last step up to 1 ended at the largest error, on the axes' top edge, and
+    could fall in a dash gap: it read as stopping at 0.98 (a tour found it). Every curve now runs on
+    at 1 to the right edge, and 1 lies below the top of the axes."""
+    ax = figure(ONE, "cdf").axes[0]
+    lines = ax.get_lines()
+    assert len(lines) == len(ESTIMATORS)
+    right = ax.get_xlim()[1]
+    finals = [max(seq[name]["final_position_error_m"] for seq in ONE["sequences"]) for name, _l, _c in ESTIMATORS]
+    for line, largest in zip(lines, finals):
+        x, y = line.get_xdata(), line.get_ydata()
+        assert y[-1] == 1.0 and y[-2] == 1.0 and x[-2] == pytest.approx(largest) and x[-1] == right > largest
+    assert ax.get_ylim()[1] > 1.0
+
+
 def test_a_run_through_the_logs_own_losses_alone_is_refused_saying_so(tmp_path):
     """A replay or evaluate through the log's own GNSS losses alone (--on gnss-outage) has no
     synthetic outage to draw: one line saying so, with the option that makes them (it said 'drift:

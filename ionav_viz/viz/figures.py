@@ -551,6 +551,7 @@ def _cdf_figure(rep: dict[str, Any], kind: str, title: str, curves: list[tuple[s
     without a defined final error is left out, saying so (``kind`` names the figure)."""
     fig, ax = _new_figure(width_in, 2.7)
     skipped = []
+    drawn = []
     for name, label, color, i, finals in curves:
         v, share = error_cdf(finals)
         if not len(v):
@@ -558,13 +559,18 @@ def _cdf_figure(rep: dict[str, Any], kind: str, title: str, curves: list[tuple[s
             continue
         if len(v) < len(finals):
             skipped.append(f"{label}: {len(finals) - len(v)} of {len(finals)} outages left out")
-        ax.step(np.r_[0.0, v], np.r_[0.0, share], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
+        drawn.append((name, label, color, i, v, share))
+    # every curve runs on at 1 to the right edge: a dashed curve's last step up could fall in a dash
+    # gap at the axes' top, and read as stopping short of all outages (0.98)
+    right = 1.05 * max((float(d[4][-1]) for d in drawn), default=1.0) or 1.0
+    for name, label, color, i, v, share in drawn:
+        ax.step(np.r_[0.0, v, right], np.r_[0.0, share, 1.0], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
                 label=legend(name, label))
     _skipped(kind, skipped)
     ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
     ax.set_ylabel("share of outages")
-    ax.set_ylim(0, 1.0)
-    ax.set_xlim(left=0)
+    ax.set_ylim(0, 1.03)  # the top step clear of the frame
+    ax.set_xlim(0, right)
     _set_title(ax, title)
     _legend(fig, ax, width_in)
     return fig
