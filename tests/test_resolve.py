@@ -69,3 +69,28 @@ def test_cli_uses_ionav_data(fake_root):
     proc = run_cli("evaluate", "Vw8", "--no-idnn", "--json", env={"IONAV_DATA": str(fake_root)})
     assert proc.returncode == 0, proc.stderr
     assert '"drive": "V-Vw8"' in proc.stdout
+
+
+def test_a_run_whose_file_is_not_the_published_size_is_read_with_a_warning(fake_root, caplog):
+    """The fake root's V-Vw8.csv is a copy of a bundled drive, not the published run: 'list' calls
+    it a mismatch, and evaluate read it as V-Vw8 without a word (a tour found it). It is read, with a
+    warning naming both sizes; the published size is taken as is."""
+    import logging
+
+    from ionav_viz.dataset.catalog import vehicle_runs
+
+    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+        path = resolve_drive("V-Vw8", fake_root)
+    published = sorted({e.size_bytes for e in vehicle_runs()["vw8"]}) if "vw8" in vehicle_runs() else None
+    assert published, sorted(vehicle_runs())[:5]
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and f"is {path.stat().st_size} bytes, not the size of the published run's file" in said[0], said
+    assert "ionav-viz fetch V-Vw8" in said[0]
+    path.write_bytes(b"x" * published[0])  # the published size: nothing said
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+        resolve_drive("V-Vw8", fake_root)
+    assert not caplog.records
+    proc = run_cli("list", "--data-root", str(fake_root))
+    assert proc.returncode == 0, proc.stderr
+    assert "mismatch = the size or sha256 differs from the manifest's" in proc.stdout and "missing = not under the data root" in proc.stdout

@@ -33,6 +33,18 @@ def list_runs(
     print(f"{'run'.ljust(width)}  group  driver  {'size':>9}  {'local':<8}  role in the paper")
     for r in rows:
         print(f"{r['name'].ljust(width)}  {r['group']:<5}  {r['driver']:<6}  {r['size_bytes'] / 1e6:>7.2f}MB  {r['status']:<8}  {r['role']}")
+    shown = {r["status"] for r in rows}
+    said = [text for status, text in _STATUS_TEXT if status in shown]
+    if said:
+        print("\nlocal: " + "; ".join(said))
+
+
+#: What each local status of ``list`` means, in the order said under the table.
+_STATUS_TEXT = (("verified", "verified = size and sha256 match the dataset's manifest"),
+                ("present", "present = the size matches, the sha256 not checked yet (--verify)"),
+                ("mismatch", "mismatch = the size or sha256 differs from the manifest's: an edited copy, another version or a damaged "
+                             "download ('ionav-viz fetch NAME' replaces it)"),
+                ("missing", "missing = not under the data root ('ionav-viz fetch NAME')"))
 
 
 @app.command()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import difflib
 import errno
+import logging
 import os
 from functools import lru_cache
 from pathlib import Path
@@ -20,6 +21,8 @@ from ..core.errors import InputError
 from ..core.fileio import check_regular_input, check_regular_tree
 from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
 from ..dataset.samples import SAMPLES, by_scenario, sample_path
+
+log = logging.getLogger("ionav_viz")
 
 
 def data_root(option: str | Path | None) -> Path | None:
@@ -63,6 +66,18 @@ def _bundled(spec: str) -> Path | None:
     return None
 
 
+def _warn_if_not_published(spec: str, path: Path, key: str) -> None:
+    """Warn when the file a run name found under the data root has the size of none of that run's
+    files in the dataset's manifest (``ionav-viz list`` calls it a mismatch): an edited copy, another
+    version or a damaged download is read as the run, and its results would be taken for the
+    published run's. Only the size: a sha256 of a large file is ``list --verify``'s to take."""
+    sizes = sorted({e.size_bytes for e in vehicle_runs().get(key, [])})
+    if sizes and path.stat().st_size not in sizes:
+        log.warning("%s: %s is %d bytes, not the size of the published run's file (%s bytes in the dataset's manifest): an edited "
+                    "copy, another version or a damaged download ('ionav-viz fetch %s' gets the published one)",
+                    spec, path, path.stat().st_size, " or ".join(str(n) for n in sizes), spec)
+
+
 def resolve_drive(spec: str, root: Path | None) -> Path:
     """Path of the drive ``spec`` names (see module docstring), or an :class:`InputError`."""
     path = Path(spec).expanduser()
@@ -89,6 +104,7 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
     if root is not None:
         found = index_data_root(root.resolve()).get(key)
         if found:
+            _warn_if_not_published(spec, found[0], key)
             return found[0]
     known = vehicle_runs()
     role = paper_role(spec)
