@@ -93,4 +93,16 @@ def test_a_run_whose_file_is_not_the_published_size_is_read_with_a_warning(fake_
     assert not caplog.records
     proc = run_cli("list", "--data-root", str(fake_root))
     assert proc.returncode == 0, proc.stderr
-    assert "mismatch = the size or sha256 differs from the manifest's" in proc.stdout and "missing = not under the data root" in proc.stdout
+    assert "mismatch = the size or sha256 differs from the manifest's" in proc.stdout and "missing = no V-*.csv of the run under the data root" in proc.stdout
+
+
+def test_list_sees_a_run_where_evaluate_finds_it(tmp_path):
+    """A data root laid out flat (V-Vw8.csv at its top, not at the manifest's path): evaluate read
+    it as V-Vw8 while list said it was missing."""
+    import json
+
+    shutil.copy(samples_dir() / "V-sim-motorway.csv", tmp_path / "V-Vw8.csv")
+    proc = run_cli("list", "--data-root", str(tmp_path), "--json")
+    assert proc.returncode == 0, proc.stderr
+    [row] = [r for r in json.loads(proc.stdout)["runs"] if r["name"] == "V-Vw8"]
+    assert row["status"] == "mismatch" and row["local_path"] == str(tmp_path / "V-Vw8.csv")

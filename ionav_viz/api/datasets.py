@@ -66,14 +66,27 @@ def fetch_root(data_root: str | Path | None = None) -> Path:
 def list_runs(data_root: str | Path | None = None, source: DatasetSource | None = None, verify: bool = False) -> list[dict[str, Any]]:
     """Every IO-VNBD run: name, group, driver, role in the paper, size, path and local status
     (``verify``: check the sha256 of present files not verified before)."""
+    from ..sources.resolve import index_data_root
+
     root = fetch_root(data_root)
     cache = VerifiedCache(root)
+    # a run's V-*.csv anywhere under the root, by name: what 'evaluate NAME' reads (the root may be a copy laid out otherwise)
+    elsewhere = index_data_root(root.resolve()) if root.is_dir() else {}
     rows = []
     for run in (source or DatasetSource()).catalog().values():
         entry = run.vehicle or run.vehicle_sync
-        status = cache.status(entry, safe_target(root, entry.path), check=verify) if root.is_dir() else "missing"
+        status, local = "missing", None
+        if root.is_dir():
+            target = safe_target(root, entry.path)
+            if target.is_file():
+                status, local = cache.status(entry, target, check=verify), target
+            elif run.key in elsewhere:
+                local = elsewhere[run.key][0]
+                statuses = [cache.status(e, local, check=verify) for e in (run.vehicle, run.vehicle_sync) if e is not None]
+                status = next((st for st in ("verified", "present") if st in statuses), "mismatch")
         rows.append({"name": run.name, "group": run.group, "driver": run.driver, "role": paper_role(run.name) or "",
-                     "size_bytes": entry.size_bytes, "path": entry.path, "status": status})
+                     "size_bytes": entry.size_bytes, "path": entry.path, "status": status,
+                     **({"local_path": str(local)} if local is not None else {})})
     return rows
 
 

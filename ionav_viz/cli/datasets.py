@@ -43,8 +43,8 @@ def list_runs(
 _STATUS_TEXT = (("verified", "verified = size and sha256 match the dataset's manifest"),
                 ("present", "present = the size matches, the sha256 not checked yet (--verify)"),
                 ("mismatch", "mismatch = the size or sha256 differs from the manifest's: an edited copy, another version or a damaged "
-                             "download ('ionav-viz fetch NAME' replaces it)"),
-                ("missing", "missing = not under the data root ('ionav-viz fetch NAME')"))
+                             "download ('ionav-viz fetch NAME' gets the published one)"),
+                ("missing", "missing = no V-*.csv of the run under the data root ('ionav-viz fetch NAME')"))
 
 
 @app.command()
