@@ -268,3 +268,28 @@ def test_a_span_keeps_its_drives_local_frame(tmp_path):
     assert proc.returncode == 0, proc.stderr
     errors = [s["mine"]["final_position_error_m"] for s in json.loads(proc.stdout)["sequences"]]
     assert errors and max(errors) < 0.01, errors
+
+
+def test_two_drives_of_one_name_are_told_apart_in_the_report_and_the_export(tmp_path):
+    """a/V-x.csv and b/V-x.csv are both drive V-x: the JSON's sequences, worst outages and drives
+    named both V-x (the worst outage's tracks came from whichever was first), and --export stopped
+    with 'tum/V-x: cannot write the export (File exists)' (a tour found the JSON's). Both are named
+    by their files now, in the report and the export alike."""
+    import shutil
+
+    from ionav_viz.dataset.samples import samples_dir
+
+    for folder, sample in (("a", "V-sim-roundabout.csv"), ("b", "V-sim-motorway.csv")):
+        (tmp_path / folder).mkdir()
+        shutil.copy(samples_dir() / sample, tmp_path / folder / "V-x.csv")
+    proc = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--estimators", "ins", "--export", "ex", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert [d["name"] for d in rep["drives"]] == ["a/V-x.csv", "b/V-x.csv"]
+    assert {s["drive"] for s in rep["sequences"]} == {"a/V-x.csv", "b/V-x.csv"}
+    report = iv.evaluate([str(tmp_path / "a" / "V-x.csv"), str(tmp_path / "b" / "V-x.csv")], 10.0, estimators=["ins"])
+    [a_label, b_label] = report.drive_labels
+    assert report.outage_tracks(b_label, 1)["start_s"] == report.to_dict()["sequences"][len(report.results[0].starts)]["start_s"]
+    assert sorted(p.name for p in (tmp_path / "ex" / "tum").iterdir()) == ["a_V-x.csv", "b_V-x.csv"]
+    with open(tmp_path / "ex" / "outages.csv") as f:
+        assert {row["drive"] for row in csv.DictReader(f)} == {"a/V-x.csv", "b/V-x.csv"}

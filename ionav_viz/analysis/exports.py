@@ -32,6 +32,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.fileio import write_failure
 from ..core.geo import local_en_m
@@ -81,20 +82,21 @@ def _write_all(results: list[Any], stage: Path, folder: Path) -> tuple[list[str]
     drives: dict[str, list[str]] = {}
     features, gpx_tracks = [], []
     name = "outages.csv"
+    labels = drive_labels([r.drive for r in results])  # two drives of one name (a/V-x.csv, b/V-x.csv): by their files
     try:
-        (stage / name).write_bytes(_outages_csv(results).encode())
-        for res in results:
+        (stage / name).write_bytes(_outages_csv(results, labels).encode())
+        for res, label in zip(results, labels):
             if len(res.starts):
-                name = f"tum/{_safe(res.drive.name)}"
+                name = f"tum/{_safe(label)}"
                 (stage / name).mkdir(parents=True)
-                drives[_safe(res.drive.name)] = _tum_files(res, stage / name)
-            f, g = _tracks(res)
+                drives[_safe(label)] = _tum_files(res, stage / name)
+            f, g = _tracks(res, label)
             features += f
             gpx_tracks += g
         real = any(res.bridged for res in results)
         if real:
             name = "real_outages.csv"
-            (stage / name).write_bytes(_real_outages_csv(results).encode())
+            (stage / name).write_bytes(_real_outages_csv(results, labels).encode())
         name = "tracks.geojson"
         (stage / name).write_bytes(dumps_json({"type": "FeatureCollection", "features": features}, indent=None).encode())
         name = "tracks.gpx"
@@ -134,11 +136,11 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "drive"
 
 
-def _outages_csv(results: list[Any]) -> str:
+def _outages_csv(results: list[Any], labels: list[str]) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(OUTAGE_COLUMNS)
-    for res in results:
+    for res, label in zip(results, labels):
         distance = res.gnss_distance_m
         nees = {est.name: outage_nees(res, est.name) for est in res.estimators}
         trained = res.in_training
@@ -149,21 +151,21 @@ def _outages_csv(results: list[Any]) -> str:
                 m = res.metrics[est.name]
                 final = nees[est.name][0][i, -1] if nees[est.name] is not None else math.nan
                 inside = "" if not math.isfinite(final) else str(int(final <= CHI2_2_95))
-                writer.writerow([res.drive.name, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}", f"{float(res.drive.stamp_s(t0)):.6f}",
+                writer.writerow([label, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}", f"{float(res.drive.stamp_s(t0)):.6f}",
                                  est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS), _number(final), inside,
                                  in_training])
     return out.getvalue()
 
 
-def _real_outages_csv(results: list[Any]) -> str:
+def _real_outages_csv(results: list[Any], labels: list[str]) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(REAL_OUTAGE_COLUMNS)
-    for res in results:
+    for res, label in zip(results, labels):
         labels = {est.name: est.label for est in res.estimators}
         for b in res.bridged:
             for name, err in b.final_error_m.items():
-                writer.writerow([res.drive.name, b.number, f"{b.gap_t0_s:.3f}", f"{b.gap_t1_s:.3f}", f"{b.gap_s:.3f}", f"{b.t0_s:.3f}",
+                writer.writerow([label, b.number, f"{b.gap_t0_s:.3f}", f"{b.gap_t1_s:.3f}", f"{b.gap_s:.3f}", f"{b.t0_s:.3f}",
                                  b.n_windows, f"{b.span_m:.4f}", name, labels.get(name, name), _number(err)])
     return out.getvalue()
 
@@ -206,31 +208,31 @@ def _tum_files(res: Any, folder: Path) -> list[str]:
     return out
 
 
-def _tracks(res: Any) -> tuple[list[dict[str, Any]], list[tuple[str, list[np.ndarray], list[np.ndarray]]]]:
-    """GeoJSON features and GPX tracks ``(name, lat, lon)`` of one drive: its truth, and every outage's estimates."""
+def _tracks(res: Any, label: str) -> tuple[list[dict[str, Any]], list[tuple[str, list[np.ndarray], list[np.ndarray]]]]:
+    """GeoJSON features and GPX tracks ``(name, lat, lon)`` of one drive (named ``label``): its truth, and every outage's estimates."""
     d = res.drive
     stretches = truth_stretches(d.gnss_ok, max(1, int(round(d.rate_hz))))  # the truth at about 1 Hz keeps the files small
     features = [{"type": "Feature", "geometry": {"type": "MultiLineString", "coordinates": [_coords(d.lat_deg[k], d.lon_deg[k]) for k in stretches]},
-                 "properties": {"drive": d.name, "kind": "truth"}}]
-    gpx = [(f"{d.name} truth", [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches])]
+                 "properties": {"drive": label, "kind": "truth"}}]
+    gpx = [(f"{label} truth", [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches])]
     for i, k in enumerate(res.starts):
         for est in res.estimators:
             track = res.estimates[est.name].track
             final = float(res.metrics[est.name]["final_position_error_m"][i])
             features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[i], track.lon_deg[i])},
-                             "properties": {"drive": d.name, "kind": "estimate", "outage": i + 1, "start_s": round(float(res.windows.t0_s[k]), 3),
+                             "properties": {"drive": label, "kind": "estimate", "outage": i + 1, "start_s": round(float(res.windows.t0_s[k]), 3),
                                             "estimator": est.name, "label": est.label,
                                             "final_position_error_m": final if math.isfinite(final) else None}})
-            gpx.append((f"{d.name} outage {i + 1} {est.label}", [track.lat_deg[i]], [track.lon_deg[i]]))
+            gpx.append((f"{label} outage {i + 1} {est.label}", [track.lat_deg[i]], [track.lon_deg[i]]))
     for b in res.bridged:  # the log's own GNSS losses (--on gnss-outage)
         for est in res.estimators:
             track = b.tracks[est.name]
             final = float(b.final_error_m[est.name])
             features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[0], track.lon_deg[0])},
-                             "properties": {"drive": d.name, "kind": "real-outage", "outage": b.number, "start_s": round(b.gap_t0_s, 3),
+                             "properties": {"drive": label, "kind": "real-outage", "outage": b.number, "start_s": round(b.gap_t0_s, 3),
                                             "estimator": est.name, "label": est.label,
                                             "final_position_error_m": final if math.isfinite(final) else None}})
-            gpx.append((f"{d.name} real GNSS outage {b.number} {est.label}", [track.lat_deg[0]], [track.lon_deg[0]]))
+            gpx.append((f"{label} real GNSS outage {b.number} {est.label}", [track.lat_deg[0]], [track.lon_deg[0]]))
     return features, gpx
 
 

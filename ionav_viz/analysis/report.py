@@ -95,6 +95,15 @@ class Report:
         return np.concatenate([r.metrics[estimator][metric] for r in self.results])
 
     @cached_property
+    def drive_labels(self) -> list[str]:
+        """Each result's drive as the report names it: its name, or its file where two drives of the
+        report share a name (``a/V-x.csv`` and ``b/V-x.csv``; :func:`ionav_viz.core.drive.drive_labels`)."""
+        return drive_labels([r.drive for r in self.results])
+
+    def _label(self, result: DriveResult) -> str:
+        return self.drive_labels[next(i for i, r in enumerate(self.results) if r is result)]
+
+    @cached_property
     def summary(self) -> dict[str, dict[str, dict[str, float]]]:
         """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages."""
         return {est: {m: summarise(self.metric(est, m)) for m in METRICS} for est in self.estimators}
@@ -134,7 +143,7 @@ class Report:
         ranked = [(float(err), r, i) for r in self.results for i, err in enumerate(r.metrics[est]["final_position_error_m"])
                   if np.isfinite(err)]
         ranked.sort(key=lambda x: -x[0])
-        return [{"drive": r.drive.name, "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
+        return [{"drive": self._label(r), "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
                  "end_s": round(float(r.outage_t0_s[i] + r.n_windows), 3),
                  "final_error_m": {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators}}
                 for _err, r, i in ranked[:count]]
@@ -145,10 +154,9 @@ class Report:
         local plane about the truth at the outage's start (for figures with a scale bar)."""
         from ..core.geo import local_en_m
 
-        res = next((r for r in self.results if r.drive.name == drive), None)
+        res = next((r for r, label in zip(self.results, self.drive_labels) if label == drive), None)
         if res is None:
-            raise InputError(f"no evaluated drive is named {drive!r}", hint="one of: " + ", ".join(r.drive.name for r in self.results),
-                             param="drive")
+            raise InputError(f"no evaluated drive is named {drive!r}", hint="one of: " + ", ".join(self.drive_labels), param="drive")
         if not 1 <= number <= len(res.starts):
             raise InputError(f"drive {drive} has no outage {number}", hint=f"outages are numbered 1 to {len(res.starts)}", param="number")
         i = number - 1
@@ -199,12 +207,12 @@ class Report:
             return self._dict
         results, estimators = self.results, self.estimators
         sequences = []
-        for res in results:
+        for res, label in zip(results, self.drive_labels):
             dist = res.gnss_distance_m
             trained = res.in_training
             for i, k in enumerate(res.starts):
                 entry: dict[str, Any] = {
-                    "drive": res.drive.name,
+                    "drive": label,
                     "start_s": round(float(res.windows.t0_s[k]), 3),
                     "gnss_distance_m": float(dist[i]),
                 }
@@ -216,18 +224,18 @@ class Report:
         distances = np.concatenate([r.gnss_distance_m for r in results])
         out: dict[str, Any] = {
             "drive": "+".join(r.drive.name for r in results),
-            "drives": [{"name": r.drive.name, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
+            "drives": [{"name": label, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
                         **({"placement": r.placement} if r.placement else {}),
                         **({"imu": r.drive.imu.to_dict(), "imu_text": r.drive.imu.describe()} if r.drive.imu is not None else {}),
-                        **({"filter_health": h} if (h := _drive_health(r)) else {})} for r in results],
+                        **({"filter_health": h} if (h := _drive_health(r)) else {})} for r, label in zip(results, self.drive_labels)],
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
             "sequences": sequences,
             "summary": self._summary_with_consistency(),
             "distance_m": {k: v for k, v in summarise(distances).items() if k != "std"},
             "bias": [
-                {"drive": r.drive.name, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps, "source": r.bias.source}
-                for r in results
+                {"drive": label, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps, "source": r.bias.source}
+                for r, label in zip(results, self.drive_labels)
             ],
             "estimators": results[0].estimator_info(),
             "gnss_truth": _sum_truth([r.truth_exclusions() for r in results]),
@@ -242,7 +250,7 @@ class Report:
         out["worst"] = self.worst_outages()
         if out["worst"]:
             out["worst_tracks"] = self.outage_tracks(out["worst"][0]["drive"], out["worst"][0]["number"])
-        bridged = [(r.drive.name, b) for r in results for b in r.bridged]
+        bridged = [(label, b) for r, label in zip(results, self.drive_labels) for b in r.bridged]
         if bridged or any(r.unbridged for r in results):
             out["gnss_outages"] = {
                 "bridged": [{"drive": name, **b.to_dict()} for name, b in bridged],
