@@ -189,3 +189,19 @@ def test_quality_is_aligned_and_refuses_drives_it_would_not_read():
     lines = run_cli("events", "--quality").stdout.splitlines()
     ends = {len(line) for line in lines[1:]}
     assert len(ends) == 1 and all(line.index(" %") == lines[1].index(" %") for line in lines[1:]), lines
+
+
+def test_an_events_times_and_length_agree_in_the_json():
+    """start_s and end_s were rounded to 0.01 s and length_s to 0.001 s: a GNSS loss ending at the
+    sample stamped 65.899 s read end 65.9, length 9.799 (a tour found it). The JSON's times are the
+    drive's own sample stamps, to the millisecond they are written with."""
+    import ionav_viz as iv
+
+    drive = iv.load_drive("V-sim-motorway-tunnels")
+    events = iv.find_events(drive, ["gnss-outage"])[drive.name]
+    assert events
+    for e in events:
+        d = e.to_dict()
+        for key in ("start_s", "end_s"):
+            assert np.min(np.abs(drive.t_s - d[key])) < 1e-6, (key, d)
+        assert d["end_s"] - d["start_s"] == pytest.approx(d["length_s"], abs=1e-6)

@@ -139,7 +139,7 @@ class Event:
         self.values = {k: int(v) if isinstance(v, (int, np.integer)) and not isinstance(v, bool) else float(v) for k, v in self.values.items()}
 
     def to_dict(self) -> dict:
-        return {"type": self.type, "start_s": round(self.t0_s, 2), "end_s": round(self.t1_s, 2),
+        return {"type": self.type, "start_s": round(self.t0_s, 3), "end_s": round(self.t1_s, 3),
                 **{k: v if isinstance(v, int) else round(float(v), 3) for k, v in self.values.items()}}  # counts stay whole
 
 
