@@ -491,3 +491,20 @@ def test_the_installed_package_is_never_written_to(command, tmp_path):
             import shutil
 
             shutil.rmtree(target)
+
+
+def test_simulate_bundled_alone_may_write_into_the_package(monkeypatch):
+    """The refusal of outputs inside the package stopped 'simulate --bundled ionav_viz/data/samples',
+    the one way the bundled samples are regenerated, blaming an -o never given (a review found it):
+    its writes pass package_ok; every other output check refuses the same path."""
+    from ionav_viz.api import simulation
+    from ionav_viz.core.fileio import PACKAGE_DIR, check_output_file
+
+    target = PACKAGE_DIR / "data" / "samples" / "V-sim-roundabout.csv"
+    assert check_output_file(target, package_ok=True) == target
+    with pytest.raises(InputError, match="inside the installed ionav-viz package"):
+        check_output_file(target)
+    seen = []  # what each sample's write would be given (nothing is written here)
+    monkeypatch.setattr(simulation, "write_simulated_drive", lambda path, *a, **k: seen.append(k.get("package_ok")) or Path(path))
+    simulation.simulate_bundled(PACKAGE_DIR / "data" / "samples")
+    assert seen and all(seen)

@@ -55,7 +55,8 @@ def simulate_bundled(folder: str | Path) -> list[Path]:
     """Regenerate every bundled sample drive into ``folder`` (made when missing)."""
     Path(folder).mkdir(parents=True, exist_ok=True)
     return [write_simulated_drive(Path(folder) / s.file, s.scenario, s.seed, s.duration_s,
-                                  fleet_sensors(s.fleet, s.seed) if s.fleet else None, gnss_losses=s.gnss_losses) for s in SAMPLES]
+                                  fleet_sensors(s.fleet, s.seed) if s.fleet else None, gnss_losses=s.gnss_losses, package_ok=True)
+            for s in SAMPLES]
 
 
 @dataclass(frozen=True)

@@ -33,13 +33,14 @@ def write_failure(target: str | Path, exc: OSError) -> ToolFailure | None:
     return ToolFailure(f"{target}: write failed ({exc.strerror}); {why}")
 
 
-def check_output_file(target: Path, *, create_parent: bool = False) -> Path:
+def check_output_file(target: Path, *, create_parent: bool = False, package_ok: bool = False) -> Path:
     """Check, before any work, that ``target`` can be written as a file: its folder exists (or,
     with ``create_parent``, can be made in an existing folder), and it is absent or a regular file
-    (never a directory, device node, FIFO or socket: those are not replaced). Returns ``target``."""
+    (never a directory, device node, FIFO or socket: those are not replaced). ``package_ok``: it may
+    lie inside the installed package (``simulate --bundled`` alone). Returns ``target``."""
     target = Path(target)
     parent = target.parent if str(target.parent) else Path(".")
-    refuse_system_output(target)
+    refuse_system_output(target, package_ok=package_ok)
     if create_parent and not parent.exists() and parent.parent.is_dir():
         if not os.access(parent.parent, os.W_OK | os.X_OK):
             raise InputError(f"{target}: cannot create {parent} in {parent.parent} (permission denied)", "choose a writable output directory",
@@ -67,16 +68,16 @@ _USER_DIRS_IN_SYSTEM = (Path("/dev/shm"),)
 
 
 #: The installed package: its shipped drives and manifest are read-only package data (only
-#: ``simulate --bundled`` regenerates the samples, and it writes where it is told without this check).
+#: ``simulate --bundled`` regenerates the samples, where it is told: ``package_ok``).
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 
-def refuse_system_output(target: str | Path, param: str = "output") -> None:
+def refuse_system_output(target: str | Path, param: str = "output", *, package_ok: bool = False) -> None:
     """Refuse an output under ``/dev``, ``/proc`` or ``/sys``, as given or once links are resolved
     (``-o /dev/stdout`` when standard output is a file passed every other check, and the rename
     replaced the system's ``/dev/stdout`` link with a regular file), a link loop, and an output
     inside the installed package (:data:`PACKAGE_DIR`: ``simulate -o`` onto a bundled drive replaced
-    it)."""
+    it) unless ``package_ok``."""
     target = Path(target)
     try:
         os.stat(target)
@@ -84,7 +85,7 @@ def refuse_system_output(target: str | Path, param: str = "output") -> None:
         if exc.errno == errno.ELOOP:
             raise InputError(f"{target}: is a loop of symbolic links", "remove the link or choose another output", param=param) from None
     real = Path(os.path.realpath(target))
-    if real == PACKAGE_DIR or PACKAGE_DIR in real.parents:
+    if not package_ok and (real == PACKAGE_DIR or PACKAGE_DIR in real.parents):
         raise InputError(f"{target}: is inside the installed ionav-viz package ({PACKAGE_DIR}), whose bundled drives and data are read-only",
                          "write it in a folder of yours", param=param)
     for where in [*_link_chain(target), Path(os.path.realpath(target))]:

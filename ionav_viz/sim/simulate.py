@@ -631,10 +631,11 @@ DECIMALS = dict(
 
 def write_simulated_drive(
     path: str | Path, scenario: str, seed: int = 0, duration_s: float = 120.0, sensors: SensorModel | None = None,
-    gnss_losses: int = 0,
+    gnss_losses: int = 0, *, package_ok: bool = False,
 ) -> Path:
-    """Simulate a drive and write it as an IO-VNBD ``V-*.csv`` (atomically). Returns the path."""
-    path = check_output_file(Path(path))
+    """Simulate a drive and write it as an IO-VNBD ``V-*.csv`` (atomically). Returns the path.
+    ``package_ok``: it may be written inside the installed package (the bundled samples, regenerated)."""
+    path = check_output_file(Path(path), package_ok=package_ok)
     rows = simulate_rows(scenario, seed, duration_s, sensors, gnss_losses)
     write_iovnbd(path, rows, DECIMALS)
     return path
