@@ -104,13 +104,34 @@ def test_improvement_interval_of_a_large_fleet_is_the_normal_approximation_of_th
 
 
 def test_a_fleets_improvement_interval_resamples_whole_drives():
-    # drive A: the candidate halves the baseline, drive B: no gain. Drawing two drives with
-    # replacement: AA 50 % (p 1/4), AB or BA 25 % (p 1/2), BB 0 % (p 1/4), so the 2.5 and 97.5
-    # percentiles are 0 and 50; the outages' own spread inside a drive does not enter
-    from ionav_viz.analysis.evaluate import clustered_improvement_ci95_pct
+    # ten drives or more: the drives are resampled, not their outages. An independent bootstrap
+    # written here (its own generator: the percentiles agree within their sampling noise)
+    from ionav_viz.analysis.evaluate import FEW_DRIVES, clustered_improvement_ci95_pct
 
-    lo, hi = clustered_improvement_ci95_pct([np.array([4.0, 6.0]), np.array([3.0, 7.0])], [np.array([1.0, 4.0]), np.array([3.0, 7.0])])
-    assert (lo, hi) == pytest.approx((0.0, 50.0))
+    rng = np.random.default_rng(3)
+    base = [rng.uniform(5.0, 15.0, 4) for _ in range(FEW_DRIVES + 2)]
+    cand = [b * rng.uniform(0.2, 0.8) for b in base]  # one ratio per drive: no spread inside a drive
+    lo, hi = clustered_improvement_ci95_pct(base, cand)
+    sb, sc = np.array([b.sum() for b in base]), np.array([c.sum() for c in cand])
+    draws = np.random.default_rng(99).integers(0, len(sb), (20000, len(sb)))
+    mine = np.percentile(100.0 * (1.0 - sc[draws].sum(axis=1) / sb[draws].sum(axis=1)), [2.5, 97.5])
+    assert (lo, hi) == pytest.approx(tuple(mine), abs=1.0)
+    assert hi - lo > 10.0  # the drives' ratios differ: wide, though every drive's outages agree exactly
+
+
+def test_with_few_drives_a_fleets_interval_spans_at_least_the_outages():
+    # drive A: the candidate halves the baseline, drive B: no gain. Drawing two drives with
+    # replacement: AA 50 % (p 1/4), AB or BA 25 % (p 1/2), BB 0 % (p 1/4), so the drives' 2.5 and
+    # 97.5 percentiles are 0 and 50; with two drives the interval spans the outages' as well
+    from ionav_viz.analysis.evaluate import clustered_improvement_ci95_pct, improvement_ci95_pct
+
+    base, cand = [np.array([4.0, 6.0]), np.array([3.0, 7.0])], [np.array([1.0, 4.0]), np.array([3.0, 7.0])]
+    lo_o, hi_o = improvement_ci95_pct(np.concatenate(base), np.concatenate(cand))
+    assert clustered_improvement_ci95_pct(base, cand) == pytest.approx((min(0.0, lo_o), max(50.0, hi_o)))
+    # two drives with the same ratio (90 %) but outages that vary: not a zero-width interval (a review found it)
+    base, cand = [np.array([1.0, 9.0]), np.array([10.0])], [np.array([0.9, 0.1]), np.array([1.0])]
+    lo, hi = clustered_improvement_ci95_pct(base, cand)
+    assert (lo, hi) == pytest.approx(improvement_ci95_pct(np.array([1.0, 9.0, 10.0]), np.array([0.9, 0.1, 1.0]))) and hi - lo > 50.0
     # one drive scored (the other's outages all NaN): its outages are resampled
     lo, hi = clustered_improvement_ci95_pct([np.array([10.0, 10.0, 10.0]), np.array([np.nan])], [np.array([5.0, 5.0, 5.0]), np.array([1.0])])
     assert (lo, hi) == pytest.approx((50.0, 50.0))
