@@ -150,3 +150,26 @@ def test_events_of_a_span_lie_inside_it():
     found = json.loads(proc.stdout)["V-sim-roundabout"]
     assert found and all(500.0 <= e["start_s"] <= e["end_s"] <= 600.0 for e in found), found
     assert max(e["turn_deg"] for e in found if e["type"] == "roundabout") < 400.0
+
+
+def test_events_of_a_span_shorter_than_the_detectors_grid_are_none():
+    """A span of a drive stamped off the 10 Hz grid (IO-VNBD's stamps jitter) that held under two
+    grid points stopped events with an IndexError (a review found it); it has no manoeuvre to see."""
+    from ionav_viz.analysis.events import detect_events
+    from ionav_viz.core.durations import Span
+    from ionav_viz.sources.load import crop_to_span, load_drive
+
+    drive = load_drive("roundabout")
+    drive.columns["t_s"] = drive.columns["t_s"] + 0.05
+    for end in (100.2, 100.3, 101.0):
+        assert detect_events(crop_to_span(drive, Span(100.0, end))) == []
+
+
+def test_a_span_prints_as_the_option_that_gives_it_back():
+    """A span printed with 6 digits (3600.125s as 3600.12s, 1234567.5s as 1.23457e+06s, which
+    --span refuses), so outage-log's printed next command read another span (a review found it)."""
+    from ionav_viz.core.durations import Span, parse_span
+
+    for span in (Span(0.0, 60.0), Span(3600.125, 7200.0625), Span(1234567.5, None)):
+        assert parse_span(str(span)) == span
+    assert str(Span(0.0, 60.0)) == "0s:60s"

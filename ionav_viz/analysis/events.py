@@ -309,6 +309,8 @@ def detect_events(drive: Drive, thresholds: EventThresholds | None = None, types
     th = thresholds or EventThresholds()
     if len(drive) < 2:
         return []
+    if drive.t_s[-1] - drive.t_s[0] < 2.0 / GRID_RATE_HZ:  # fewer than two steps of the 10 Hz grid: no manoeuvre to see
+        return merge_overlapping([e for e in detect_gnss_outages(drive, th) if e.type in types])
     s = signals_of(drive, th)
     found = (detect_hard_brakes(s, th) + detect_turn_events(s, th) + detect_quick_accel(s, th) + detect_cruise(s, th)
              + detect_gnss_outages(drive, th))

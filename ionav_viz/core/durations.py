@@ -53,7 +53,8 @@ class Span:
             raise InputError(f"span {self}: its end is not after its start", SPAN_HINT, param="span")
 
     def __str__(self) -> str:
-        return f"{self.start_s:g}s:" + ("" if self.end_s is None else f"{self.end_s:g}s")
+        # 12 digits: what --span takes back (':g' kept 6: 3600.125s printed as 3600.12s, 1234567s as 1.23457e+06s)
+        return f"{self.start_s:.12g}s:" + ("" if self.end_s is None else f"{self.end_s:.12g}s")
 
     def contains(self, t_s: np.ndarray, tolerance_s: float = 1e-6) -> np.ndarray:
         """Which times lie in the span (both ends included, to ``tolerance_s``: a sample stamped a
