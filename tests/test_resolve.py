@@ -106,3 +106,17 @@ def test_list_sees_a_run_where_evaluate_finds_it(tmp_path):
     assert proc.returncode == 0, proc.stderr
     [row] = [r for r in json.loads(proc.stdout)["runs"] if r["name"] == "V-Vw8"]
     assert row["status"] == "mismatch" and row["local_path"] == str(tmp_path / "V-Vw8.csv")
+
+
+def test_a_run_file_gone_since_the_root_was_indexed_is_not_found(tmp_path):
+    """The data root's index is cached per process: a file deleted after it was indexed gave a raw
+    FileNotFoundError, and list still showed it (a review found it)."""
+    from ionav_viz.api.datasets import list_runs
+
+    shutil.copy(samples_dir() / "V-sim-motorway.csv", tmp_path / "V-Vw8.csv")
+    assert resolve_drive("V-Vw8", tmp_path) == tmp_path / "V-Vw8.csv"
+    (tmp_path / "V-Vw8.csv").unlink()
+    with pytest.raises(InputError, match="it is not under the data root"):
+        resolve_drive("V-Vw8", tmp_path)
+    [row] = [r for r in list_runs(tmp_path) if r["name"] == "V-Vw8"]
+    assert row["status"] == "missing" and "local_path" not in row

@@ -70,8 +70,7 @@ def list_runs(data_root: str | Path | None = None, source: DatasetSource | None 
 
     root = fetch_root(data_root)
     cache = VerifiedCache(root)
-    # a run's V-*.csv anywhere under the root, by name: what 'evaluate NAME' reads (the root may be a copy laid out otherwise)
-    elsewhere = index_data_root(root.resolve()) if root.is_dir() else {}
+    elsewhere: dict[str, list[Path]] | None = None
     rows = []
     for run in (source or DatasetSource()).catalog().values():
         entry = run.vehicle or run.vehicle_sync
@@ -80,14 +79,24 @@ def list_runs(data_root: str | Path | None = None, source: DatasetSource | None 
             target = safe_target(root, entry.path)
             if target.is_file():
                 status, local = cache.status(entry, target, check=verify), target
-            elif run.key in elsewhere:
-                local = elsewhere[run.key][0]
+            else:
+                if elsewhere is None:  # a run's V-*.csv anywhere under the root, by name: what 'evaluate NAME' reads (a copy laid out otherwise)
+                    index_data_root.cache_clear()  # the files as they are now, not as an earlier call of this process saw them
+                    elsewhere = index_data_root(root.resolve())
+                found = [p for p in elsewhere.get(run.key, []) if p.is_file()]
+                if not found:
+                    rows.append(_run_row(run, entry, "missing", None))
+                    continue
+                local = found[0]
                 statuses = [cache.status(e, local, check=verify) for e in (run.vehicle, run.vehicle_sync) if e is not None]
                 status = next((st for st in ("verified", "present") if st in statuses), "mismatch")
-        rows.append({"name": run.name, "group": run.group, "driver": run.driver, "role": paper_role(run.name) or "",
-                     "size_bytes": entry.size_bytes, "path": entry.path, "status": status,
-                     **({"local_path": str(local)} if local is not None else {})})
+        rows.append(_run_row(run, entry, status, local))
     return rows
+
+
+def _run_row(run: Any, entry: Any, status: str, local: Path | None) -> dict[str, Any]:
+    return {"name": run.name, "group": run.group, "driver": run.driver, "role": paper_role(run.name) or "", "size_bytes": entry.size_bytes,
+            "path": entry.path, "status": status, **({"local_path": str(local)} if local is not None else {})}
 
 
 def runs_selected(selections: Sequence[str], source: DatasetSource | None = None) -> list[tuple[str, int]]:

@@ -72,10 +72,14 @@ def _warn_if_not_published(spec: str, path: Path, key: str) -> None:
     version or a damaged download is read as the run, and its results would be taken for the
     published run's. Only the size: a sha256 of a large file is ``list --verify``'s to take."""
     sizes = sorted({e.size_bytes for e in vehicle_runs().get(key, [])})
-    if sizes and path.stat().st_size not in sizes:
+    try:
+        size = path.stat().st_size
+    except OSError:  # gone since the data root was indexed: its reader names it
+        return
+    if sizes and size not in sizes:
         log.warning("%s: %s is %d bytes, not the size of the published run's file (%s bytes in the dataset's manifest): an edited "
                     "copy, another version or a damaged download ('ionav-viz fetch %s' gets the published one)",
-                    spec, path, path.stat().st_size, " or ".join(str(n) for n in sizes), spec)
+                    spec, path, size, " or ".join(str(n) for n in sizes), spec)
 
 
 def resolve_drive(spec: str, root: Path | None) -> Path:
@@ -102,7 +106,7 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         return bundled
     key = run_key(spec)
     if root is not None:
-        found = index_data_root(root.resolve()).get(key)
+        found = [p for p in index_data_root(root.resolve()).get(key, []) if p.is_file()]  # the index is cached: a file may be gone since
         if found:
             _warn_if_not_published(spec, found[0], key)
             return found[0]
