@@ -422,3 +422,13 @@ def test_a_bad_bias_from_stops_the_fleet_before_any_drive(fleet_dir, tmp_path, c
         assert proc.returncode == 2 and len(lines) == 1, proc.stderr
         assert lines[0].startswith(f"error: --bias-from: {bias}: ") and words in lines[0], lines[0]
         assert not (tmp_path / "recs").exists()
+
+
+def test_fail_fast_says_a_drives_hint_of_several_lines_once(tmp_path):
+    """A plug-in's hint of two lines was collapsed in the drive's reason but not in its hint, so
+    --fail-fast's line carried it twice (a review found it)."""
+    plugin = f"{REPO / 'tests' / 'plugins' / 'toy_estimators.py'}:HintRaises"
+    proc = run_cli("evaluate", "roundabout", "motorway", "--workers", "1", "--estimators", "ins", "--estimator", plugin,
+                   "--fail-fast", "--warm-up", "0s", cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("(hint: ") == 1 and proc.stderr.count("run my-calibrate first") == 1, proc.stderr

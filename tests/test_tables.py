@@ -113,3 +113,14 @@ def test_a_value_that_rounds_to_zero_has_no_sign():
     assert proc.returncode == 0, proc.stderr
     assert not re.search(r"(?<![\d.])-0\.0+(?![\d])", proc.stdout), proc.stdout
     assert re.search(r"^ +μ +\d+\.\d\d +0\.000$", proc.stdout, re.M), proc.stdout  # the CAE's mean, as it is printed now
+
+
+def test_an_improvement_that_rounds_to_zero_has_no_sign():
+    """An improvement of -0.04 % printed '-0.0 %' beside its interval's '0.0' (a review found it)."""
+    from ionav_viz.analysis.tables import improvement_lines
+
+    rep = {"estimators": [{"name": "ins", "label": "INS DR"}, {"name": "odo", "label": "Odometry"}],
+           "improvement_pct": {"odo": {"crse_m": -0.04, "yaw_crse_radps": 0.0, "final_position_error_m": -0.04}},
+           "improvement_ci95_pct": {"odo": {"final_position_error_m": [-0.04, 0.03]}}}
+    [line] = improvement_lines(rep)
+    assert "-0.0" not in line and "displacement CRSE 0.0 %" in line and "final position error 0.0 % (95 % interval 0.0 to 0.0 %)" in line, line

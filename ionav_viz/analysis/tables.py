@@ -22,7 +22,7 @@ def _fmt(x: float, decimals: int = 2) -> str:
 
 
 def _pct(x: float) -> str:
-    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.1f} %"
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, 1) + 0.0:.1f} %"  # no "-0.0 %"
 
 
 def labels_of(rep: dict[str, Any]) -> dict[str, str]:

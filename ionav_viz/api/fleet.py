@@ -198,7 +198,7 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began,
-                                hint=(exc.hint or "") if isinstance(exc, InputError) else "")
+                                hint=" ".join((exc.hint or "").split()) if isinstance(exc, InputError) else "")  # as the reason's one line has it
 
 
 def _torch_idnn(estimators: list) -> bool:

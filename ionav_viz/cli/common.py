@@ -143,7 +143,7 @@ def source_args(read: Any) -> list[str]:
     from ..core.gnss_quality import GnssLimits
 
     values = {"data_root_opt": read.data_root, "yaw_sign": read.yaw_sign, "span": None if read.span is None else str(read.span),
-              "gnss_limit": [f"{f.name}={getattr(read.gnss_limits, f.name):g}" for f in fields(GnssLimits)
+              "gnss_limit": [f"{f.name}={getattr(read.gnss_limits, f.name):.12g}" for f in fields(GnssLimits)
                              if getattr(read.gnss_limits, f.name) != getattr(GnssLimits(), f.name)] or None}
     args: list[str] = []
     for name, option, _ in _SOURCE_OPTIONS:

@@ -93,3 +93,14 @@ class DescribesAList(ConstantSpeed):
 
     def describe(self):
         return ["not", "a", "dict"]
+
+
+class HintRaises(ConstantSpeed):
+    """Refuses the drive with a hint of two lines, as a plug-in may write one."""
+
+    name = "hint-raises"
+
+    def estimate(self, inputs):
+        from ionav_viz import InputError
+
+        raise InputError("my filter needs a calibration", "calibrate it:\n   run my-calibrate  first")
