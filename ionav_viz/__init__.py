@@ -42,6 +42,7 @@ _EXPORTS = {
     "Tile": "nav.outages", "Every": "nav.outages", "At": "nav.outages", "Random": "nav.outages",
     "AroundEvents": "nav.outages", "cross_validate": "api", "fine_tune_settings": "api", "ModelConfig": "nav.idnn",
     "EventThresholds": "analysis.events", "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
+    "GnssLimits": "core.gnss_quality",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
@@ -105,6 +106,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     )
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
+    from .core.gnss_quality import GnssLimits
     from .nav.bias import SensorBias
     from .nav.idnn import ModelConfig
     from .nav.outages import AroundEvents, At, Every, Random, Tile

@@ -182,3 +182,23 @@ def test_a_metric_the_report_does_not_hold_names_the_choices():
     with pytest.raises(iv.InputError, match=r"unknown metric 'crse' \(hint: choose from crse_m, cae_m, ") as info:
         report.metric("ins", "crse")
     assert info.value.param == "metric" and len(report.metric("odo", "crse_m")) == len(report.metric("ins", "final_error_pct"))
+
+
+@pytest.mark.parametrize(("call", "param"), [
+    (lambda tmp: iv.convert("roundabout", tmp / "x.mcap", read="x"), "read"),
+    (lambda tmp: iv.outage_log("roundabout", tmp / "cut.csv", read="x"), "read"),
+    (lambda tmp: iv.evaluate("roundabout", 10.0, run="x"), "run"),
+    (lambda tmp: iv.evaluate_fleet(["roundabout", "motorway"], 10.0, read="x"), "read"),
+    (lambda tmp: iv.cross_validate(["roundabout", "motorway"], 2, output=tmp, run="x"), "run"),
+    (lambda tmp: iv.screenshot([tmp / "r.rrd"], tmp / "shots", shots="x"), "shots"),
+    (lambda tmp: iv.find_events("roundabout", thresholds=iv.EventThresholds(hard_brake_g=-1)), "thresholds"),
+    (lambda tmp: iv.load_drive("roundabout", iv.ReadOptions(gnss_limits=iv.GnssLimits(max_sigma_m=0.0))), "gnss_limits"),
+])
+def test_options_of_the_wrong_kind_or_out_of_range_are_input_errors_naming_them(call, param, tmp_path):
+    """iv.convert(read="x") and evaluate(run="x") were AttributeErrors naming no argument, and
+    EventThresholds(hard_brake_g=-1) was taken (only --threshold checked the ranges): a tour found them."""
+    (tmp_path / "r.rrd").write_bytes(b"")
+    with pytest.raises(iv.InputError) as info:
+        call(tmp_path)
+    assert info.value.param == param, (info.value.param, str(info.value))
+    assert not (tmp_path / "x.mcap").exists() and not (tmp_path / "cut.csv").exists()

@@ -57,7 +57,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.grid import GRID_RATE_HZ
-from ..core.overrides import with_overrides
+from ..core.overrides import check_ranges, with_overrides
 from ..core.runs import run_ranges
 from ..core.units import G_MPS2
 from ..nav.outages import GNSS_OUTAGE  # a real loss of GNSS in the log, not a manoeuvre
@@ -116,6 +116,9 @@ class EventThresholds:
     cruise_min_s: float = 10.0
     cruise_smooth_s: float = 3.0
     gnss_outage_min_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        check_ranges(self, THRESHOLD_LIMITS, "threshold", "thresholds")
 
     def with_overrides(self, pairs: list[str]) -> EventThresholds:
         """``['hard_brake_g=0.4', ...]`` -> a copy with those thresholds changed."""

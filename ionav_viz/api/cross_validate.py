@@ -23,7 +23,7 @@ from ..core.durations import Span
 from ..core.errors import InputError
 from ..core.signals import hold_signals
 from ..sources.load import ReadOptions, crop_to_span, load_drives
-from .options import DriveLike, Progress, RunOptions
+from .options import DriveLike, Progress, RunOptions, options_of
 
 
 @dataclass
@@ -131,8 +131,7 @@ def cross_validate(
     if 1 < len(items) < folds:
         raise InputError(f"{len(items)} drives for {folds} folds by drive", f"give at least {folds} drives, or one drive (folds by time blocks)",
                          param="folds")
-    read = read if read is not None else ReadOptions()
-    run = run if run is not None else RunOptions()
+    run, read = options_of(run, None, read, None)  # checked: run="x" was an AttributeError
     parent = parent_model(from_model) if from_model is not None else None
     config = config if config is not None else (ModelConfig() if parent is None else _fine_tune(parent))
     config.validate()

@@ -129,6 +129,8 @@ def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | N
              mcap: LogOptions | None, truth: str | None = None) -> tuple[RunOptions, ReadOptions]:
     """The run and read options of a call: ``estimators`` is a shortcut for ``run.estimators``,
     ``truth`` for ``read.log.truth_topic``."""
+    if run is not None and not isinstance(run, RunOptions):  # run="x" was an AttributeError naming no argument
+        raise InputError(f"run={run!r} is not a RunOptions", "give run=iv.RunOptions(...), or leave it out", param="run")
     run = run if run is not None else RunOptions()
     if estimators is not None:
         if run.estimators is not None:
@@ -204,9 +206,10 @@ def input_paths(drives: Any, read: ReadOptions | None = None, *, run: RunOptions
     :func:`~ionav_viz.core.fileio.refuse_output_onto_input` before any work. A name that does not
     resolve is left out (its reader says why later)."""
     from ..nav.plan_file import FromPlan
+    from ..sources.load import with_deprecated_log
     from ..sources.resolve import data_root, resolve_drive
 
-    read = read if read is not None else ReadOptions()
+    read = with_deprecated_log(read, None)  # read="x" is refused naming it, as load_drive refuses it
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives or [])
     if run is not None and isinstance(run.bias_from, (Drive, str, Path)):
         items.append(run.bias_from)

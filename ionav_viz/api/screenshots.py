@@ -67,6 +67,8 @@ def screenshot(
         if not rec.is_file():
             raise InputError(f"{rec}: no such recording", "make one with 'ionav-viz replay DRIVE'")
     refuse_output_onto_input(output, paths)
+    if shots is not None and not isinstance(shots, Shots):
+        raise InputError(f"shots={shots!r} is not a Shots", "give shots=iv.Shots(...), or leave it out", param="shots")
     shots = shots if shots is not None else Shots()
     width, height = check_size(*(int(x) for x in shots.size))
     out = Path(output)

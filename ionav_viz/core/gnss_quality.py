@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geo import steps_en_m
-from .overrides import with_overrides
+from .overrides import check_ranges, with_overrides
 from .runs import true_runs
 
 
@@ -77,6 +77,9 @@ class GnssLimits:
     moving_mps: float = 1.0
     jump_speed_factor: float = 1.5
     jump_margin_m: float = 3.0
+
+    def __post_init__(self) -> None:
+        check_ranges(self, _LIMIT_RANGES, "GNSS limit", "gnss_limits")
 
     def with_overrides(self, pairs: list[str]) -> GnssLimits:
         """``['jump_margin_m=5', ...]`` -> a copy with those limits changed, each checked against its range."""

@@ -50,3 +50,21 @@ def with_overrides(settings: T, pairs: list[str], ranges: dict[str, tuple[float,
             raise InputError(f"{what} {name} given twice with different values ({changes[name]} and {value_of})", "give each once", param=param)
         changes[name] = value_of
     return replace(settings, **changes)  # type: ignore[type-var]
+
+
+def check_ranges(settings: object, ranges: dict[str, tuple[float, float]], what: str, param: str) -> None:
+    """Refuse ``settings`` (a dataclass of thresholds) built with a value outside its range, as
+    :func:`with_overrides` refuses one given as ``NAME=VALUE``: ``EventThresholds(hard_brake_g=-1)``
+    was taken, and every hard brake found."""
+    for f in fields(settings):  # type: ignore[arg-type]
+        if f.name not in ranges:
+            continue
+        value = getattr(settings, f.name)
+        values = value if isinstance(value, tuple) else (value,)
+        low, high = ranges[f.name]
+        ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and low <= v <= high for v in values)
+        if isinstance(value, tuple):
+            ok = ok and len(value) == 2 and value[0] <= value[1]
+        if not ok:
+            raise InputError(f"{what} {f.name}={value!r} is out of range", f"{f.name} takes values from {low:g} to {high:g}"
+                             + (" as (LOW, HIGH), LOW <= HIGH" if isinstance(value, tuple) else ""), param=param)

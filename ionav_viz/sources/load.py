@@ -213,6 +213,8 @@ def crop_to_span(drive: Drive, span: Span) -> Drive:
 
 def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> ReadOptions:
     """``read`` (default :class:`ReadOptions`), with the deprecated ``mcap=`` keyword as its ``log``."""
+    if read is not None and not isinstance(read, ReadOptions):  # read="x" was an AttributeError naming no argument
+        raise InputError(f"read={read!r} is not a ReadOptions", "give read=iv.ReadOptions(...), or leave it out", param="read")
     read = read if read is not None else ReadOptions()
     if mcap is None:
         return read
