@@ -78,3 +78,11 @@ def test_labels_and_paths_parse_back():
     assert ent.is_outage_frame("/" + ent.live_track(ent.LOCAL, "idnn")) and not ent.is_outage_frame(ent.all_tracks(ent.LOCAL, "idnn"))
     assert ent.pattern_of(ent.live_track(ent.INSPECT, "const")) == "inspect/<est>"
     assert ent.pattern_of(ent.INSPECT_GRID) == ent.INSPECT_GRID  # a literal path before a pattern it also fits
+
+
+def test_the_receivers_fixes_beside_a_reference_are_a_known_documented_path():
+    """Tour 51: a log read with --truth-topic draws the receiver's own fixes at map/gnss_receiver and
+    local/gnss_receiver; neither was in PATTERNS (pattern_of gave None) nor in the docs' table."""
+    for view in (ent.MAP, ent.LOCAL):
+        assert ent.pattern_of("/" + ent.receiver(view)) == ent.receiver(view)
+        assert ent.receiver(view) in documented()

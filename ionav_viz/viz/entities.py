@@ -248,7 +248,7 @@ def event_state(event_type: str, number: int) -> str:
 #: Every path a recording can hold, with ``<est>`` for an estimator's name: what
 #: ``docs/recording.md`` documents (a test checks both ways).
 PATTERNS = (
-    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), truth_position(MAP), truth_position(LOCAL),
+    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), receiver(MAP), receiver(LOCAL), truth_position(MAP), truth_position(LOCAL),
     *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
     *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
     inspect_position("<est>"), INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
