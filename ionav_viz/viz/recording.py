@@ -132,12 +132,13 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
 def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> str:
     """Which colour is which line, in words (the viewer's ``key`` above the signals; its plots
     show no legend): the truth, each estimator (the baseline first), the sensors and, where an
-    estimator gives a covariance, its 95 % ellipses."""
+    estimator gives a covariance, its 95 % ellipses (drawn in synthetic outages only: a run through
+    the log's own GNSS losses alone has none)."""
     from ..nav.registry import BASELINE
 
     names = sorted(result.estimates, key=lambda n: (n != BASELINE, labels[n]))
     items = [f"{labels[n]} {color_word(colors[n])}" for n in ("gnss", *names)] + [f"{GYRO_LABEL}, accelerometer grey"]
-    if any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
+    if len(result.starts) and any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
         items.append("outlines: 95 % ellipses")
     return " · ".join(items) + "\n"
 
