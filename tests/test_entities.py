@@ -65,8 +65,9 @@ def test_every_written_path_is_one_the_module_builds(written):
     assert len(written) > 60
     assert sorted(p for p in written if ent.pattern_of(p) is None) == []
     used = {ent.pattern_of(p) for p in written}
-    # drawn only where fixes are bad but usable, and where a filter's gate left a fix out
-    assert set(ent.PATTERNS) - used <= {ent.truth_bad(ent.MAP), ent.truth_bad(ent.LOCAL), f"{ent.HEALTH}/<est>/gated/<kind>"}, set(ent.PATTERNS) - used
+    # drawn only where fixes are bad but usable, where a filter's gate left a fix out, and beside a reference (--truth-topic)
+    assert set(ent.PATTERNS) - used <= {ent.truth_bad(ent.MAP), ent.truth_bad(ent.LOCAL), f"{ent.HEALTH}/<est>/gated/<kind>",
+                                        ent.receiver(ent.MAP), ent.receiver(ent.LOCAL)}, set(ent.PATTERNS) - used
 
 
 def test_labels_and_paths_parse_back():
