@@ -202,3 +202,21 @@ def test_the_whole_drives_scale_bar_lies_clear_of_the_track(tmp_path):
              & (truth[:, 1] >= y - 0.03 * height) & (truth[:, 1] <= y + 0.09 * height))
     assert int(under.sum()) == 0
     assert grid[:, 0].min() <= x0 < x1 <= grid[:, 0].max() and grid[:, 1].min() <= y <= grid[:, 1].max()
+
+
+def test_the_inspector_shows_where_the_truth_was_when_each_estimate_was_where_it_is(tmp_path):
+    """Tour 51: the inspector drew the outage's whole truth from its start and each estimate growing,
+    with a dot at each estimate's current position but none on the truth: scrubbing inside an outage
+    showed no drift so far. inspect/gnss/position is the truth at the same instants; at every
+    window's end the distance between the two dots is the recorded position error."""
+    out = tmp_path / "r.rrd"
+    proc = run_cli("replay", "roundabout", "--every", "60s", "--estimators", "ins,odo", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    rows, _ = read_rrd(out)
+    for est in ("ins", "odo"):
+        truth, estimate = rows["/inspect/gnss/position"], rows[f"/inspect/{est}/position"]
+        assert [t for t, _ in truth] == [t for t, _ in estimate] and len(truth) > 20
+        error = {round(t, 3): v[0] for t, v in rows[f"/errors/position_error_m/{est}"] if np.isfinite(v[0])}
+        gaps = [(np.hypot(*np.subtract(a[0], b[0])), error[round(t, 3)]) for (t, a), (_, b) in zip(truth, estimate) if round(t, 3) in error]
+        assert len(gaps) >= 0.9 * len(truth)
+        np.testing.assert_allclose(*np.array(gaps).T, atol=1e-3)

@@ -216,6 +216,8 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
             if result.estimates[e.name].pos_cov_m2 is not None:
                 send(ent.ellipse(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
                     strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))).partition(np.zeros(m, dtype=int)))
+    if len(result.starts):  # the truth's position at a synthetic outage's instants, likewise
+        send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(positions=np.zeros((0, 2))).partition(np.zeros(m, dtype=int)))
     count = sum(map(len, grids))
     send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (count, 1)),
