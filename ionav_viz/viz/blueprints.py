@@ -566,10 +566,10 @@ class KeyEntry:
 def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     """The colour key of a screenshot: every track or curve the shot draws, the truth first, with
     each estimator's final error when the shot frames an outage; the overview's markers where the
-    shot shows them (the local view and map: manoeuvres and outage starts; the inspector: the
-    outage's start fix); the sensors' grey lines where the signals are shown; the estimators' 95 %
+    shot shows them (the local view and map: manoeuvres and outage starts, and beside a reference
+    the receiver's own fixes; the inspector: the outage's start fix); the sensors' grey lines where the signals are shown; the estimators' 95 %
     position ellipses where the tracks are shown and the recording draws them."""
-    from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR
+    from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR, RECEIVER_COLOR
 
     view = shot.view
     if view == "health":  # per filter and kind of measurement
@@ -581,6 +581,8 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
         keys.append(KeyEntry("line", rgb, f"{label} {final:.1f} m" if final is not None and final == final else label))
     if view in ("all", "signals"):
         keys.append(KeyEntry("line", GYRO_COLOR, "gyro, accelerometer"))
+    if view in ("all", "local", "map") and info.receiver:  # beside a reference: the fixes the estimators were given
+        keys.append(KeyEntry("dot", RECEIVER_COLOR, "receiver fixes"))
     if view in ("all", "local", "map"):
         marks = ["outage start"] * bool(info.outages or not info.real_outages) + ["first fix after a real loss"] * bool(info.real_outages)
         keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, ", ".join(marks))]

@@ -138,6 +138,8 @@ def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> s
 
     names = sorted(result.estimates, key=lambda n: (n != BASELINE, labels[n]))
     items = [f"{labels[n]} {color_word(colors[n])}" for n in ("gnss", *names)] + [f"{GYRO_LABEL}, accelerometer grey"]
+    if result.drive.has_reference:  # the receiver's own fixes beside the reference (the truth)
+        items.append("receiver fixes pale green dots")
     if len(result.starts) and any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
         items.append("outlines: 95 % ellipses")
     return " · ".join(items) + "\n"
