@@ -65,8 +65,9 @@ def test_every_written_path_is_one_the_module_builds(written):
     assert len(written) > 60
     assert sorted(p for p in written if ent.pattern_of(p) is None) == []
     used = {ent.pattern_of(p) for p in written}
-    # drawn only where fixes are bad but usable, and where a filter's gate left a fix out
-    assert set(ent.PATTERNS) - used <= {ent.truth_bad(ent.MAP), ent.truth_bad(ent.LOCAL), f"{ent.HEALTH}/<est>/gated/<kind>"}, set(ent.PATTERNS) - used
+    # drawn only where fixes are bad but usable, where a filter's gate left a fix out, and beside a reference (--truth-topic)
+    assert set(ent.PATTERNS) - used <= {ent.truth_bad(ent.MAP), ent.truth_bad(ent.LOCAL), f"{ent.HEALTH}/<est>/gated/<kind>",
+                                        ent.receiver(ent.MAP), ent.receiver(ent.LOCAL)}, set(ent.PATTERNS) - used
 
 
 def test_labels_and_paths_parse_back():
@@ -78,3 +79,11 @@ def test_labels_and_paths_parse_back():
     assert ent.is_outage_frame("/" + ent.live_track(ent.LOCAL, "idnn")) and not ent.is_outage_frame(ent.all_tracks(ent.LOCAL, "idnn"))
     assert ent.pattern_of(ent.live_track(ent.INSPECT, "const")) == "inspect/<est>"
     assert ent.pattern_of(ent.INSPECT_GRID) == ent.INSPECT_GRID  # a literal path before a pattern it also fits
+
+
+def test_the_receivers_fixes_beside_a_reference_are_a_known_documented_path():
+    """Tour 51: a log read with --truth-topic draws the receiver's own fixes at map/gnss_receiver and
+    local/gnss_receiver; neither was in PATTERNS (pattern_of gave None) nor in the docs' table."""
+    for view in (ent.MAP, ent.LOCAL):
+        assert ent.pattern_of("/" + ent.receiver(view)) == ent.receiver(view)
+        assert ent.receiver(view) in documented()

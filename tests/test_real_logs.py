@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -116,6 +117,17 @@ def test_a_reference_beside_the_receiver_is_the_truth(log, tmp_path):
     replayed = iv.replay(log, output=tmp_path / "r.rrd", estimators=["ins"], read=read)
     entities = {str(c.entity_path) for c in RrdReader(replayed.path).stream()}
     assert {"/map/gnss_receiver", "/local/gnss_receiver", "/map/gnss"} <= entities  # both drawn
+    # tour 51: the receiver's dots (a dotted line beside the reference where the receiver lags) were in
+    # no key; the viewer's key and a screenshot's name them where the local view or the map is shown
+    from ionav_viz.viz.blueprints import Shot, key_for
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    key = " ".join(str(v) for c in RrdReader(replayed.path).stream() if str(c.entity_path) == "/key"
+                   for col in c.to_record_batch().columns for v in col.to_pylist())
+    assert "receiver fixes pale green dots" in key and "reference (truth) green" in key, key
+    info = read_recording_info(Path(replayed.path))
+    for view, named in (("all", True), ("local", True), ("map", True), ("signals", False), ("outage", False)):
+        assert ("receiver fixes" in [k.text for k in key_for(info, Shot(view, 50.0, "x"))]) is named, view
     assert "a reference trajectory beside the receiver" in summary_of(replayed.path)
 
 

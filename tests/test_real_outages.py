@@ -79,6 +79,13 @@ def test_replay_on_gnss_outage_reports_and_records_them(tmp_path):
     available = rows["/gnss/available"][:-1]
     in_force = [state[i] for i in np.searchsorted(state_t, [t for t, _ in available], side="right") - 1]
     assert [v[0] == 0.0 for _, v in available] == [ent.is_outage_state(s) for s in in_force]
+    # tour 51: no 95 % ellipse is drawn through a real loss, and the key named them even so
+    assert not any(p.endswith("/ellipse") for p in [*rows, *static])
+    from rerun.chunk import RrdReader
+
+    key = " ".join(str(v) for c in RrdReader(out).stream() if str(c.entity_path).strip("/") == ent.KEY
+                   for n in c.to_record_batch().schema.names if n.endswith(":text") for v in c.to_record_batch().column(n).to_pylist())
+    assert "GNSS-aided INS cyan" in key and "ellipse" not in key, key
 
 
 def test_no_loss_to_bridge_is_one_line():

@@ -180,3 +180,43 @@ def test_the_recording_draws_the_drift_curve_of_its_report(tmp_path):
         mean = np.asarray(drift[est]["mean_m"])
         scale = y[-1] / mean[-1]  # metres per plot unit: one for both estimators
         assert np.allclose(y, mean * scale, atol=1e-3) and 100.0 / scale >= max(drift[e]["p90_m"][-1] for e in drift)
+
+
+def test_the_whole_drives_scale_bar_lies_clear_of_the_track(tmp_path):
+    """Tour 51: the local view's grid hugs the drive and its scale bar sat in the bottom-left corner
+    whatever lay there: on the roundabout's 60-200 s the bar and its label covered a roundabout (90
+    fixes under them). It now goes to a corner the track leaves free, inside the grid."""
+    out = tmp_path / "span.rrd"
+    proc = run_cli("replay", "roundabout", "--span", "60s:200s", "--every", "30s", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    from rerun.chunk import RrdReader
+
+    strips = {str(c.entity_path): c.to_record_batch().column("LineStrips2D:strips").to_pylist()[0] for c in RrdReader(out).stream()
+              if str(c.entity_path) in ("/local/gnss", "/local/grid", "/local/grid/scale")}
+    truth = np.concatenate([np.array(s) for s in strips["/local/gnss"]])
+    grid = np.concatenate([np.array(s) for s in strips["/local/grid"]])
+    (x0, y), (x1, _) = np.array(strips["/local/grid/scale"][0])
+    height = np.ptp(grid[:, 1])
+    # the bar, its label below it, half a step either side
+    under = ((truth[:, 0] >= x0 - (x1 - x0) / 2) & (truth[:, 0] <= x1 + (x1 - x0) / 2)
+             & (truth[:, 1] >= y - 0.03 * height) & (truth[:, 1] <= y + 0.09 * height))
+    assert int(under.sum()) == 0
+    assert grid[:, 0].min() <= x0 < x1 <= grid[:, 0].max() and grid[:, 1].min() <= y <= grid[:, 1].max()
+
+
+def test_the_inspector_shows_where_the_truth_was_when_each_estimate_was_where_it_is(tmp_path):
+    """Tour 51: the inspector drew the outage's whole truth from its start and each estimate growing,
+    with a dot at each estimate's current position but none on the truth: scrubbing inside an outage
+    showed no drift so far. inspect/gnss/position is the truth at the same instants; at every
+    window's end the distance between the two dots is the recorded position error."""
+    out = tmp_path / "r.rrd"
+    proc = run_cli("replay", "roundabout", "--every", "60s", "--estimators", "ins,odo", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    rows, _ = read_rrd(out)
+    for est in ("ins", "odo"):
+        truth, estimate = rows["/inspect/gnss/position"], rows[f"/inspect/{est}/position"]
+        assert [t for t, _ in truth] == [t for t, _ in estimate] and len(truth) > 20
+        error = {round(t, 3): v[0] for t, v in rows[f"/errors/position_error_m/{est}"] if np.isfinite(v[0])}
+        gaps = [(np.hypot(*np.subtract(a[0], b[0])), error[round(t, 3)]) for (t, a), (_, b) in zip(truth, estimate) if round(t, 3) in error]
+        assert len(gaps) >= 0.9 * len(truth)
+        np.testing.assert_allclose(*np.array(gaps).T, atol=1e-3)

@@ -85,7 +85,7 @@ def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_pa
     """Events and outage starts carry names, but only in hover text. A label is drawn in its marker's
     colour: with labels turned on, the event colour covered 8,548 pixels of this local view (the bound
     is 3,770); by default it stays within the markers. No white text over the tracks either (the local view's scale bar,
-    bottom left, is white and shows that the count sees white drawing)."""
+    in a bottom corner the track leaves free, the right one on this drive, is white and shows that the count sees white drawing)."""
     from ionav_viz.viz.style import EVENT_COLOR
 
     n_events = _static_points(recording, "/local/events")
@@ -100,6 +100,7 @@ def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_pa
         white = img.min(axis=-1) >= 200
         corner = np.zeros_like(white)
         corner[-int(0.25 * white.shape[0]):, : int(0.3 * white.shape[1])] = True
+        corner[-int(0.25 * white.shape[0]):, -int(0.3 * white.shape[1]):] = True
         assert int(white[~corner].sum()) < 10, view
         if view == "local":
             assert int(white[corner].sum()) > 20  # the scale bar and its label
@@ -716,3 +717,20 @@ def test_replay_through_real_losses_alone_with_screenshots(tmp_path):
     # the inspector draws the loss: the INS DR's track and the fixes around it, tens of pixels long at least
     inspector = shots / "V-sim-motorway-tunnels-outage-worst.png"
     assert _extent_of(inspector, COLORS["ins"])[0] > 200 and _pixels_near(inspector, GNSS_COLOR, 30) > 500
+
+
+def test_no_labelled_tick_sits_at_a_plots_edge():
+    """Tour 51: the range was framed around the data alone, so a tick just beyond it fell in the
+    margin at the plot's edge and its label was cut (a real loss's errors up to 2.79 m in a 88 px
+    plot: the '3' half drawn at the top, 1 px from the edge). The outermost labelled ticks now
+    lie half a label's height inside."""
+    from ionav_viz.viz.blueprints import LABEL_MARGIN_PX, TICK_PX, axis_range
+
+    for lo, hi, px in [(0.0, 2.79, 88), (0.0, 28.6, 93), (0.0, 36.97, 93), (-28.6, 6.44, 93), (-3.53, 3.04, 78),
+                       (0.0, 7.32, 154), (-0.42, 0.61, 190), (0.0, 0.22, 91), (0.0, 16.5, 100), (0.0, 29.1, 120)]:
+        a, b = axis_range(lo, hi, px)
+        step = next(10.0 ** k for k in range(-6, 6) if px * 10.0 ** k / (b - a) >= TICK_PX)  # the finest labelled
+        ticks = np.arange(np.ceil(a / step - 1e-9), np.floor(b / step + 1e-9) + 1) * step
+        assert a <= lo and b >= hi and len(ticks) >= 3, (lo, hi, px, a, b)
+        to_edge_px = min(ticks[0] - a, b - ticks[-1]) * px / (b - a)
+        assert to_edge_px >= LABEL_MARGIN_PX - 0.01, (lo, hi, px, a, b, ticks, to_edge_px)

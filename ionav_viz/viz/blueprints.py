@@ -114,11 +114,20 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
     the data fills less of the plot (the screenshot layout gives the plots the height that keeps
     this rare, :func:`shot_rows`). A plot too small for three labels at any step (under about
     2.3 :data:`TICK_PX`) keeps the data's own range. A margin of 6 % each way keeps the outer
-    labels drawn (at least :data:`LABEL_MARGIN_PX`)."""
+    labels drawn (at least :data:`LABEL_MARGIN_PX`, beyond the data and beyond the outermost
+    labelled ticks)."""
 
     def framed(a: float, b: float) -> tuple[float, float]:
         m = max(0.06, LABEL_MARGIN_PX / max(plot_px - 2 * LABEL_MARGIN_PX, 1.0)) * (b - a)
         return a - m, b + m
+
+    def clear(r0: float, r1: float, step: float) -> tuple[float, float]:
+        # a tick the margin takes in (just beyond the data) would sit at the edge, its label cut: push the
+        # edge out to half a label beyond the outermost ticks (a few rounds: the push changes the scale)
+        for _ in range(4):
+            m = LABEL_MARGIN_PX * (r1 - r0) / plot_px
+            r0, r1 = min(r0, math.ceil(r0 / step - 1e-9) * step - m), max(r1, math.floor(r1 / step + 1e-9) * step + m)
+        return r0, r1
 
     k0 = math.floor(math.log10(max(hi - lo, 1e-12))) - 1
     for k in range(k0, k0 + 4):  # from a tenth of the data's span to ten times it: coarser gains nothing
@@ -132,7 +141,7 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
                 a, b = min(lo, (last - 2) * step), max(hi, last * step)
             else:
                 a, b = min(lo, -step), max(hi, step)
-        r0, r1 = framed(a, b)
+        r0, r1 = clear(*framed(a, b), step)
         if plot_px * step / (r1 - r0) >= TICK_PX:
             return r0, r1
     return framed(lo, hi)
@@ -557,10 +566,10 @@ class KeyEntry:
 def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     """The colour key of a screenshot: every track or curve the shot draws, the truth first, with
     each estimator's final error when the shot frames an outage; the overview's markers where the
-    shot shows them (the local view and map: manoeuvres and outage starts; the inspector: the
-    outage's start fix); the sensors' grey lines where the signals are shown; the estimators' 95 %
+    shot shows them (the local view and map: manoeuvres and outage starts, and beside a reference
+    the receiver's own fixes; the inspector: the outage's start fix); the sensors' grey lines where the signals are shown; the estimators' 95 %
     position ellipses where the tracks are shown and the recording draws them."""
-    from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR
+    from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR, RECEIVER_COLOR
 
     view = shot.view
     if view == "health":  # per filter and kind of measurement
@@ -572,6 +581,8 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
         keys.append(KeyEntry("line", rgb, f"{label} {final:.1f} m" if final is not None and final == final else label))
     if view in ("all", "signals"):
         keys.append(KeyEntry("line", GYRO_COLOR, "gyro, accelerometer"))
+    if view in ("all", "local", "map") and info.receiver:  # beside a reference: the fixes the estimators were given
+        keys.append(KeyEntry("dot", RECEIVER_COLOR, "receiver fixes"))
     if view in ("all", "local", "map"):
         marks = ["outage start"] * bool(info.outages or not info.real_outages) + ["first fix after a real loss"] * bool(info.real_outages)
         keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, ", ".join(marks))]

@@ -145,6 +145,10 @@ def inspect_position(est: str) -> str:
     return f"{INSPECT}/{est}/position"
 
 
+#: The truth's position in the inspector at the same instants as the estimates' (``inspect/<est>/position``).
+INSPECT_TRUTH_POSITION = f"{INSPECT}/gnss/position"
+
+
 def end_fixes(view: str) -> str:
     return f"{view}/gnss_outages/end_fix"
 
@@ -248,10 +252,10 @@ def event_state(event_type: str, number: int) -> str:
 #: Every path a recording can hold, with ``<est>`` for an estimator's name: what
 #: ``docs/recording.md`` documents (a test checks both ways).
 PATTERNS = (
-    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), truth_position(MAP), truth_position(LOCAL),
+    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), receiver(MAP), receiver(LOCAL), truth_position(MAP), truth_position(LOCAL),
     *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
     *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
-    inspect_position("<est>"), INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
+    inspect_position("<est>"), INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
     GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),

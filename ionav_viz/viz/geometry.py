@@ -53,6 +53,31 @@ def scale_bar(bounds: Bounds, step_m: float, above: float = 0.05) -> np.ndarray:
     return np.array([[x0, y], [x0 + step_m, y]])
 
 
+def scale_bar_clear_of(bounds: Bounds, step_m: float, points: np.ndarray, above: float = 0.09) -> tuple[np.ndarray, Bounds]:
+    """A scale bar (as :func:`scale_bar`) that neither it nor its label covers ``points``, and the
+    bounds that hold it: in the bottom-left corner of ``bounds``, else the bottom-right, the
+    top-left, the top-right, else in a band grown below the points (bounds tightly around a drive
+    leave the corners to its track)."""
+    x0, x1, y0, y1 = bounds
+    height = y1 - y0
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+
+    def clear(bar: np.ndarray) -> bool:  # the bar, its label below it (about as wide), and half a step either side
+        (a, y), (b, _) = bar
+        pad = 0.5 * step_m
+        return not ((pts[:, 0] >= a - pad) & (pts[:, 0] <= b + pad) & (pts[:, 1] >= y - 0.03 * height)
+                    & (pts[:, 1] <= y + above * height)).any()
+
+    right = x1 - x0 - step_m
+    for dx, y in ((0.0, y1 - above * height), (right, y1 - above * height), (0.0, y0 + 0.03 * height), (right, y0 + 0.03 * height)):
+        bar = np.array([[x0 + dx, y], [x0 + dx + step_m, y]])
+        if clear(bar):
+            return bar, bounds
+    grown = (x0, x1, y0, y1 + (above + 0.04) * height)  # the bar 0.04 of the height below the lowest point
+    return np.array([[x0, y1 + 0.04 * height], [x0 + step_m, y1 + 0.04 * height]]), grown
+
+
 def scale_label(step_m: float) -> str:
     """``'20 m'``, ``'1 km'``."""
     return f"{step_m / 1000:g} km" if step_m >= 1000 else f"{step_m:g} m"

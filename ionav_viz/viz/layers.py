@@ -14,7 +14,7 @@ from ..analysis.evaluate import DriveResult
 from ..core.geo import local_en_m
 from . import columns
 from . import entities as ent
-from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_label, screen_xy
+from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_bar_clear_of, scale_label, screen_xy
 from .style import EVENT_COLOR, GNSS_COLOR, GRID_COLOR, OUTAGE_MARK_COLOR, SCALE_COLOR, faded
 
 #: Seconds of GNSS track before and after an outage drawn faintly around it on the map.
@@ -107,10 +107,12 @@ def log_grid(rec, xy: np.ndarray) -> None:
 
     bounds = padded_bounds(xy, margin=0.02)
     step = nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2]), lines=8)
+    # the whole drive's view is small in the review layout (200 px at 1024x576): room for the label below the bar;
+    # the bounds hug the drive, so the bar goes to a corner the track leaves free (else below it)
+    bar, bounds = scale_bar_clear_of(bounds, step, xy, above=0.09)
     grid = grid_strips(bounds, step)
     rec.log(ent.LOCAL_GRID, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
-    # the whole drive's view is small in the review layout (200 px at 1024x576): room for the label below the bar
-    rec.log(ent.LOCAL_GRID_SCALE, rr.LineStrips2D([scale_bar(bounds, step, above=0.09)], labels=[scale_label(step)], colors=[SCALE_COLOR],
+    rec.log(ent.LOCAL_GRID_SCALE, rr.LineStrips2D([bar], labels=[scale_label(step)], colors=[SCALE_COLOR],
                                                 radii=rr.Radius.ui_points(2.0), draw_order=50), static=True)
 
 
@@ -214,6 +216,8 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
             if result.estimates[e.name].pos_cov_m2 is not None:
                 send(ent.ellipse(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
                     strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))).partition(np.zeros(m, dtype=int)))
+    if len(result.starts):  # the truth's position at a synthetic outage's instants, likewise
+        send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(positions=np.zeros((0, 2))).partition(np.zeros(m, dtype=int)))
     count = sum(map(len, grids))
     send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (count, 1)),

@@ -132,12 +132,15 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
 def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> str:
     """Which colour is which line, in words (the viewer's ``key`` above the signals; its plots
     show no legend): the truth, each estimator (the baseline first), the sensors and, where an
-    estimator gives a covariance, its 95 % ellipses."""
+    estimator gives a covariance, its 95 % ellipses (drawn in synthetic outages only: a run through
+    the log's own GNSS losses alone has none)."""
     from ..nav.registry import BASELINE
 
     names = sorted(result.estimates, key=lambda n: (n != BASELINE, labels[n]))
     items = [f"{labels[n]} {color_word(colors[n])}" for n in ("gnss", *names)] + [f"{GYRO_LABEL}, accelerometer grey"]
-    if any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
+    if result.drive.has_reference:  # the receiver's own fixes beside the reference (the truth)
+        items.append("receiver fixes pale green dots")
+    if len(result.starts) and any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
         items.append("outlines: 95 % ellipses")
     return " · ".join(items) + "\n"
 
@@ -197,6 +200,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
             _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
             log_uncertainty(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
             step(name)
+        _log_truth_position(layers, result, t_rows)
         log_drift(layers, result, colors, t_rows)
     if result.bridged:
         log_real_outages(layers, result, colors, labels)
@@ -334,6 +338,23 @@ def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy
     for entity, values in series.items():
         t_plot, v_plot = with_breaks(t_windows, values)
         send(entity, t_plot, rr.Scalars.columns(scalars=v_plot))
+
+
+def _log_truth_position(layers: Layers, result: DriveResult, t_rows: np.ndarray) -> None:
+    """The truth's position in the inspector at the rows of the estimates' current positions (each
+    outage's start, then each window's end): where the car was when each estimate's dot was, so
+    scrubbing inside an outage shows its drift so far (the inspector's truth is the whole outage's)."""
+    import rerun as rr
+
+    w, starts, n_win = result.windows, result.starts, result.n_windows
+    idx = starts[:, None] + np.arange(n_win)[None, :]
+    lat = np.concatenate([w.lat0_deg[idx], w.lat1_deg[idx[:, -1:]]], axis=1)  # (outage, window boundary)
+    lon = np.concatenate([w.lon0_deg[idx], w.lon1_deg[idx[:, -1:]]], axis=1)
+    xy = layers.xy(lat.ravel(), lon.ravel()).reshape(len(starts), n_win + 1, 2)
+    n_rows = len(t_rows)
+    layers.send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(
+        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
+        draw_order=np.full(n_rows, 35.0)))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:

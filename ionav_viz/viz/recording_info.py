@@ -77,6 +77,7 @@ class RecordingInfo:
     warned: bool = False  # whether the summary tab lists warnings (a line more)
     health: list[tuple[str, tuple[int, int, int]]] = field(default_factory=list)  # the filter-health lines (label, colour)
     real_outages: list[OutageInfo] = field(default_factory=list)  # the log's own GNSS losses, bridged (replay --on gnss-outage)
+    receiver: bool = False  # whether the receiver's own fixes are drawn beside a reference (--truth-topic)
 
     @property
     def framed(self) -> list[OutageInfo]:
@@ -191,7 +192,7 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
     plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])) for o, parts in scan.plots.items()}
     return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots,
-                         scan.ellipses, scan.warned, list(scan.health.values()), _real_outages(spans, scan))
+                         scan.ellipses, scan.warned, list(scan.health.values()), _real_outages(spans, scan), scan.receiver)
 
 
 def _unreadable(path: Path, exc: Exception) -> InputError:
@@ -240,6 +241,7 @@ class _Scan:
     real_errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # real losses' final errors (t, m)
     real_tracks: dict[tuple[str, str], list[np.ndarray]] = field(default_factory=dict)  # (view, est) -> a track per real loss
     end_fixes: dict[str, np.ndarray] = field(default_factory=dict)  # view -> the first good fix after each real loss
+    receiver: bool = False
 
     def add(self, path: Path, chunk, entity: str) -> None:
         """One chunk's share (``entity``: its path)."""
@@ -251,6 +253,9 @@ class _Scan:
             return
         if chunk.is_static and entity.strip("/") == ent.displacement("gnss"):
             self.truth_label = _series_style(batch)[0] or self.truth_label
+            return
+        if entity.strip("/") == ent.receiver(ent.LOCAL):
+            self.receiver = True
             return
         if entity == "/__properties":
             for n in names:
