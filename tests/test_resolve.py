@@ -78,9 +78,11 @@ def test_a_run_whose_file_is_not_the_published_size_is_read_with_a_warning(fake_
     import logging
 
     from ionav_viz.dataset.catalog import vehicle_runs
+    from ionav_viz.sources.resolve import warn_if_not_published
 
     with caplog.at_level(logging.WARNING, logger="ionav_viz"):
         path = resolve_drive("V-Vw8", fake_root)
+        warn_if_not_published("V-Vw8", path)  # as the reader does, once per drive it reads
     published = sorted({e.size_bytes for e in vehicle_runs()["vw8"]}) if "vw8" in vehicle_runs() else None
     assert published, sorted(vehicle_runs())[:5]
     said = [r.getMessage() for r in caplog.records]
@@ -89,7 +91,7 @@ def test_a_run_whose_file_is_not_the_published_size_is_read_with_a_warning(fake_
     path.write_bytes(b"x" * published[0])  # the published size: nothing said
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="ionav_viz"):
-        resolve_drive("V-Vw8", fake_root)
+        warn_if_not_published("V-Vw8", resolve_drive("V-Vw8", fake_root))
     assert not caplog.records
     proc = run_cli("list", "--data-root", str(fake_root))
     assert proc.returncode == 0, proc.stderr
@@ -120,3 +122,11 @@ def test_a_run_file_gone_since_the_root_was_indexed_is_not_found(tmp_path):
         resolve_drive("V-Vw8", tmp_path)
     [row] = [r for r in list_runs(tmp_path) if r["name"] == "V-Vw8"]
     assert row["status"] == "missing" and "local_path" not in row
+
+
+def test_a_run_not_at_its_published_size_is_warned_once_per_run(fake_root, tmp_path):
+    """The check ran in the resolver, which the output checks call too: 'evaluate V-Vw8 --export'
+    and 'replay V-Vw8 -o' said it twice. The reader says it, once."""
+    proc = run_cli("evaluate", "V-Vw8", "--estimators", "ins", "--export", str(tmp_path / "ex"), "-q", env={"IONAV_DATA": str(fake_root)})
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("not the size of the published run's file") == 1, proc.stderr

@@ -75,7 +75,6 @@ def hold_signals() -> Callable[[], None]:
     return release
 
 
-
 @contextlib.contextmanager
 def signals_surfaced() -> Iterator[None]:
     """Keep SIGINT, SIGTERM and SIGHUP stopping a call into a library that swallows the exception

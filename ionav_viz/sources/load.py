@@ -17,7 +17,7 @@ from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fau
 from ..core.grid import stamp_tolerance_s
 from ..core.timing import stage
 from .log_options import LogOptions
-from .resolve import data_root, resolve_drive
+from .resolve import data_root, resolve_drive, warn_if_not_published
 
 log = logging.getLogger("ionav_viz")
 
@@ -170,6 +170,7 @@ def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mca
         return spec if read.span is None else crop_to_span(spec, read.span)
     with stage(f"read {spec}") as s:
         path = resolve_drive(str(spec), data_root(read.data_root))
+        warn_if_not_published(str(spec), path)
         drive = read_source(path, read.yaw_sign, read.log)
         check_rate(drive, path)
         mark_gnss_quality(drive, read.gnss_limits)  # on the whole drive: a span's first fixes are judged as in the whole

@@ -66,15 +66,19 @@ def _bundled(spec: str) -> Path | None:
     return None
 
 
-def _warn_if_not_published(spec: str, path: Path, key: str) -> None:
-    """Warn when the file a run name found under the data root has the size of none of that run's
-    files in the dataset's manifest (``ionav-viz list`` calls it a mismatch): an edited copy, another
-    version or a damaged download is read as the run, and its results would be taken for the
-    published run's. Only the size: a sha256 of a large file is ``list --verify``'s to take."""
-    sizes = sorted({e.size_bytes for e in vehicle_runs().get(key, [])})
+def warn_if_not_published(spec: str, path: Path) -> None:
+    """Warn when a run name (``spec``, not a file's path) found a file under the data root (``path``)
+    with the size of none of that run's files in the dataset's manifest (``ionav-viz list`` calls it
+    a mismatch): an edited copy, another version or a damaged download is read as the run, and its
+    results would be taken for the published run's. Only the size: a sha256 of a large file is
+    ``list --verify``'s to take. Called by the reader, once per drive read (not by
+    :func:`resolve_drive`, which also serves the output checks and ``--dry-run``)."""
+    if Path(spec).expanduser().exists():  # a path the user gave: their file, whatever its size
+        return
+    sizes = sorted({e.size_bytes for e in vehicle_runs().get(run_key(spec), [])})
     try:
         size = path.stat().st_size
-    except OSError:  # gone since the data root was indexed: its reader names it
+    except OSError:  # gone since: its reader names it
         return
     if sizes and size not in sizes:
         log.warning("%s: %s is %d bytes, not the size of the published run's file (%s bytes in the dataset's manifest): an edited "
@@ -108,7 +112,6 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
     if root is not None:
         found = [p for p in index_data_root(root.resolve()).get(key, []) if p.is_file()]  # the index is cached: a file may be gone since
         if found:
-            _warn_if_not_published(spec, found[0], key)
             return found[0]
     known = vehicle_runs()
     role = paper_role(spec)
