@@ -52,11 +52,9 @@ def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma
             out["lengths"][f"{length:g}"] = {"outages": 0, "why": str(exc)}
             continue
         cell = {"outages": d["n_sequences"]}
-        per_outage = {}
+        per_outage = outage_pcts_of(d, [est["name"] for est in d["estimators"]])
         for est in d["estimators"]:
             name = est["name"]
-            per_outage[name] = np.array([s[name]["final_error_pct"] if isinstance(s.get(name), dict) and s[name]["final_error_pct"] is not None
-                                         else np.nan for s in d["sequences"]], dtype=float)
             pct = per_outage[name][np.isfinite(per_outage[name])]
             cell[name] = float(np.mean(pct)) if len(pct) else None
             if est.get("info", {}).get("arbiter"):  # what gins's history arbiter chose, per length
@@ -68,6 +66,13 @@ def measure(path: Path, lengths: list[float], truth_topic: str | None, max_sigma
         out["filter_health"] = d.get("filter_health", {})
         out["imu"] = d["drives"][0].get("imu_text", "")
     return out
+
+
+def outage_pcts_of(report: dict, names: list[str]) -> dict[str, np.ndarray]:
+    """Per estimator of ``names``, its final error (% of distance) on each outage of ``report`` (an
+    ``evaluate --json`` object), NaN where it is not scored."""
+    return {name: np.array([s[name]["final_error_pct"] if isinstance(s.get(name), dict) and s[name]["final_error_pct"] is not None
+                            else np.nan for s in report["sequences"]], dtype=float) for name in names}
 
 
 def gap_points(ins_pct: np.ndarray, gins_pct: np.ndarray) -> list[float] | None:

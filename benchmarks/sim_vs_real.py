@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from _cli import add_debug, check_logs, raise_if_unreadable, run
-from real_imu_logs import gap_points
+from real_imu_logs import gap_points, outage_pcts_of
 
 import ionav_viz as iv
 from ionav_viz.core.gnss_quality import GnssLimits
@@ -49,8 +49,7 @@ def outage_pcts(paths: list[str], estimators: list, length: float, read: iv.Read
     except iv.InputError:  # no outage of that length fits
         raise_if_unreadable(paths, read)  # not when a log cannot be read at all: its reader's error
         return {name: np.zeros(0) for name in names}
-    return {name: np.array([s[name]["final_error_pct"] if isinstance(s.get(name), dict) and s[name]["final_error_pct"] is not None
-                            else np.nan for s in rep["sequences"]], dtype=float) for name in names}
+    return outage_pcts_of(rep, names)
 
 
 def mean_pcts(paths: list[str], estimators: list, length: float, read: iv.ReadOptions) -> dict[str, float | None]:

@@ -226,13 +226,18 @@ def improvement_ci95_pct(baseline: np.ndarray, candidate: np.ndarray) -> tuple[f
         return float("nan"), float("nan")
     if int(both.sum()) > BOOTSTRAP_MAX_OUTAGES:
         return _improvement_ci95_normal(b[both], c[both])
-    mb, mc = paired_bootstrap_means(b[both], c[both])
+    mb, mc = paired_bootstrap_means(b, c)
     with np.errstate(divide="ignore", invalid="ignore"):
-        imp = 100.0 * (mb - mc) / mb
-    imp = imp[np.isfinite(imp)]
-    if not len(imp):
+        return _ci95(100.0 * (mb - mc) / mb)
+
+
+def _ci95(resampled: np.ndarray) -> tuple[float, float]:
+    """The 2.5 and 97.5 percentiles of a bootstrap's resampled statistic (its undefined draws, a
+    zero baseline, left out); NaN when none is defined."""
+    v = resampled[np.isfinite(resampled)]
+    if not len(v):
         return float("nan"), float("nan")
-    lo, hi = np.percentile(imp, [2.5, 97.5])
+    lo, hi = np.percentile(v, [2.5, 97.5])
     return float(lo), float(hi)
 
 
@@ -275,12 +280,8 @@ def clustered_improvement_ci95_pct(baseline: Sequence[np.ndarray], candidate: Se
     sb, sc = np.array(sums_b), np.array(sums_c)
     idx = np.random.default_rng(0).integers(0, len(sb), (BOOTSTRAP_RESAMPLES, len(sb)))
     with np.errstate(divide="ignore", invalid="ignore"):
-        imp = 100.0 * (1.0 - sc[idx].sum(axis=1) / sb[idx].sum(axis=1))
-    imp = imp[np.isfinite(imp)]
-    if not len(imp):
-        return float("nan"), float("nan")
-    lo, hi = (float(x) for x in np.percentile(imp, [2.5, 97.5]))
-    if len(sb) < FEW_DRIVES and all(np.isfinite(outages)):
+        lo, hi = _ci95(100.0 * (1.0 - sc[idx].sum(axis=1) / sb[idx].sum(axis=1)))
+    if len(sb) < FEW_DRIVES and all(np.isfinite(outages)) and np.isfinite(lo):
         lo, hi = min(lo, outages[0]), max(hi, outages[1])
     return lo, hi
 

@@ -100,9 +100,6 @@ class Report:
         report share a name (``a/V-x.csv`` and ``b/V-x.csv``; :func:`ionav_viz.core.drive.drive_labels`)."""
         return drive_labels([r.drive for r in self.results])
 
-    def _label(self, result: DriveResult) -> str:
-        return self.drive_labels[next(i for i, r in enumerate(self.results) if r is result)]
-
     @cached_property
     def summary(self) -> dict[str, dict[str, dict[str, float]]]:
         """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages."""
@@ -140,13 +137,13 @@ class Report:
         :attr:`worst_of`), worst first: ``drive``, ``number`` (1-based within its drive, as the
         recording's "outage N"), ``start_s``, ``end_s`` and ``final_error_m`` per estimator."""
         est = estimator or self.worst_of
-        ranked = [(float(err), r, i) for r in self.results for i, err in enumerate(r.metrics[est]["final_position_error_m"])
-                  if np.isfinite(err)]
+        ranked = [(float(err), r, label, i) for r, label in zip(self.results, self.drive_labels)
+                  for i, err in enumerate(r.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
         ranked.sort(key=lambda x: -x[0])
-        return [{"drive": self._label(r), "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
+        return [{"drive": label, "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
                  "end_s": round(float(r.outage_t0_s[i] + r.n_windows), 3),
                  "final_error_m": {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators}}
-                for _err, r, i in ranked[:count]]
+                for _err, r, label, i in ranked[:count]]
 
     def outage_tracks(self, drive: str, number: int) -> dict[str, Any]:
         """One outage's tracks at its window boundaries: ``drive``, ``number``, ``start_s``, and
