@@ -75,7 +75,7 @@ _WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "
 
 
 #: What a report's reader says to give instead of a bad one.
-REPORT_HINT = "give the output of 'ionav-viz evaluate --json' for one drive, or a recording written by 'ionav-viz replay'"
+REPORT_HINT = "give the output of 'ionav-viz evaluate --json' (one outage length; a fleet's too), or a recording written by 'ionav-viz replay'"
 #: Numbers a report may hold (metres, seconds): beyond this none comes from a drive (the earth's
 #: circumference is 4e7 m, twelve hours 4.3e4 s), and the axes and scale bar could not be drawn.
 MAX_REPORT_VALUE = 1e9
