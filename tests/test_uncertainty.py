@@ -229,3 +229,38 @@ def test_outages_under_10_s_give_no_dangling_error_over_sigma():
     assert "rms error/sigma" not in line and line.endswith("(95 % when honest)"), line
     ten = iv.evaluate("roundabout", 10.0, estimators=["ins", "odo"]).to_text()
     assert re.search(r"^Odometry uncertainty: .*, rms error/sigma 10 s \d+\.\d\d$", ten, re.M), ten
+
+
+def test_the_log_scale_recovers_a_known_scale_both_ways():
+    """Issue 59.5: NEES per dof of an honest 2D covariance is exponential of mean 1; of a covariance
+    ``s`` times too narrow, exponential of mean ``s``. The geometric-mean estimator recovers ``s``
+    (drawn independently here with numpy's exponential) above and below 1, and the prior of 3
+    pseudo-outages shrinks its log: by hand, one pseudo-outage of NEES exp(-gamma) * 8 gives
+    exp(ln 8 / 4) = 8 ** 0.25."""
+    from ionav_viz.nav.history_check import EULER_GAMMA, log_scale
+
+    rng = np.random.default_rng(5)
+    for s in (0.1, 1.0, 6.0):
+        nees = rng.exponential(s, 4000)
+        scale = log_scale(np.arange(1, 4001), nees, np.array([4001]))
+        assert abs(scale[0] / s - 1.0) < 0.06, (s, scale)
+    one = log_scale(np.array([5]), np.array([np.exp(-EULER_GAMMA) * 8.0]), np.array([0, 5]))
+    assert np.allclose(one, [1.0, 8.0 ** 0.25])
+
+
+def test_gins_weighs_its_mechanisation_by_the_noise_it_drives_through():
+    """Issue 59.3: a roof IMU stands quiet (0.02 m/s^2 per sample) and drives through the road's
+    vibration (0.17): the filter's noise is the whole drive's spread, not the standstill's (which
+    made it trust its mechanisation through the vibration: 2.2 -> 4.4 % after 10 s on a real roof
+    log). A quarter of the drive standing (urban drives stand 20-30 %): the robust spread of the
+    mixture is the driving one's order, four times the standing 0.02 and more."""
+    from ionav_viz.nav.gins import sensor_noise
+    from ionav_viz.nav.strapdown import GinsNoise
+
+    rng = np.random.default_rng(2)
+    quiet, shaking = rng.normal(0, 0.02, (1500, 3)), rng.normal(0, 0.17, (4500, 3))
+    acc = np.concatenate([quiet, shaking])
+    gyr = acc / 17.0
+    sigma_a, sigma_g, where = sensor_noise(acc, gyr, GinsNoise())
+    assert 0.08 < sigma_a < 0.17 and "whole drive" in where
+    assert 0.08 / 17.0 < sigma_g < 0.17 / 17.0

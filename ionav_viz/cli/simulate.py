@@ -22,7 +22,8 @@ def simulate(
     bundled: Optional[Path] = typer.Option(None, "--bundled", help="Regenerate every bundled sample into this directory instead."),
     fleet: Optional[str] = typer.Option(None, "--fleet", help="Draw the car's sensor and vehicle errors from a fleet: training (the bundled training drives') or held-out (outside every training range)."),
     gnss_loss: int = typer.Option(0, "--gnss-loss", help="Add this many tunnel-like GNSS losses (3-15 s while driving: satellites 0, the fix frozen or zeros)."),
-    imu: Optional[str] = typer.Option(None, "--imu", help="Write a 6-axis logger MCAP instead: mems (100 Hz, 10 Hz GNSS, CAN speed), phone (10 Hz, 1 Hz GPS), dash (104 Hz, 10 Hz GNSS); truth on /truth/fix."),
+    imu: Optional[str] = typer.Option(None, "--imu", help="Write a 6-axis logger MCAP instead: mems (100 Hz, 10 Hz GNSS, CAN speed), "
+                                      "phone (10 Hz, 1 Hz GPS), dash (104 Hz, 10 Hz GNSS), roof (100 Hz, 4 Hz RTK); truth on /truth/fix."),
     quiet: bool = c.QuietOpt,  # accepted as every command accepts it: simulate writes nothing to stderr but errors
 ) -> None:
     """Write a synthetic drive in the exact IO-VNBD V-*.csv format (or, with --imu, a 6-axis MCAP log)."""

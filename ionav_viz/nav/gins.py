@@ -14,9 +14,9 @@ Initial alignment, at the drive's first window boundary with a usable fix (:func
 specific force over the second after it, heading from the GNSS course at speed (the windows hold
 the first course at speed through a standstill at the start), velocity from the GNSS speed and
 course (15 degrees of sigma: a course at walking pace is worth little), biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
-white noise (the filter's random walks) is measured on the drive where it stands
-(:func:`sensor_noise`; the whole drive when it hardly stands): the robust spread of successive
-differences of each axis, the grade's floors as a prior.
+white noise (the filter's random walks) is measured on the whole drive, driving included
+(:func:`sensor_noise`): the robust spread of successive differences of each axis, the grade's
+floors as a prior.
 
 The mechanisation is the data's (``mechanisation="auto"``): where the drive's IMU samples are single
 readings at a low rate (a phone's sensor events, :class:`ionav_viz.core.imu.ImuCharacter`), their x
@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.covariance import nees_en
 from ..core.drive import Drive, measured_imu
 from ..core.errors import InputError
 from ..core.geo import enu_of_geodetic, geodetic_of_enu
@@ -69,29 +70,20 @@ from .windows import Windows
 GNSS_VELOCITY_MIN_SPEED_MPS = MIN_COURSE_SPEED_MPS
 
 
-#: Standing still this long (s) in all, the sensors' noise is measured there; less, on the whole drive.
-MIN_STILL_FOR_NOISE_S = 20.0
+def sensor_noise(acc: np.ndarray, gyr: np.ndarray, noise: GinsNoise) -> tuple[float, float, str]:
+    """The white noise per sample (accelerometer m/s^2, gyro rad/s) the filter propagates with, and
+    where it was measured: the successive-sample spread over the whole drive, driving included,
+    never below the floors of ``noise`` (the grade's prior).
 
-
-def sensor_noise(acc: np.ndarray, gyr: np.ndarray, still: np.ndarray, dt: float, noise: GinsNoise) -> tuple[float, float, str]:
-    """The sensors' white noise per sample (accelerometer m/s^2, gyro rad/s) and where it was
-    measured: on the samples where ``still`` (the sensor and the engine's shaking, not the car's
-    motion) when there are :data:`MIN_STILL_FOR_NOISE_S` of them, else on the whole drive; never
-    below the floors of ``noise`` (the grade's prior). The caller passes no stillness for single
-    readings: what the car shakes aliases into each of them, so the driving spread is what the
-    filter must take as noise (a phone: 0.1 deg/s standing, 0.5 driving; weighing it as the standing
-    one put 20 % of the distance on 10 s outages of a real phone log against 17.6 %)."""
-    standing = still[1:] & still[:-1]
-    if standing.sum() * dt >= MIN_STILL_FOR_NOISE_S:
-        # successive differences only within standing stretches
-        d_acc, d_gyr = np.diff(acc, axis=0)[standing], np.diff(gyr, axis=0)[standing]
-        where = f"measured over {standing.sum() * dt:.0f} s standing"
-    else:
-        d_acc, d_gyr = np.diff(acc, axis=0), np.diff(gyr, axis=0)
-        where = "measured on the whole drive (under 20 s standing)"
+    The whole drive, not its stands: what the engine and the road shake into each sample while
+    driving is noise to a filter that integrates through it, whatever the IMU's kind of samples.
+    A standstill measures the sensor alone, which can lie an order of magnitude below the driving
+    spread (a roof MEMS IMU: 0.02 against 0.17 m/s^2), and weighing the mechanisation by it makes
+    the filter overconfident in it (docs/real-imu-logs.md, issue 59)."""
+    d_acc, d_gyr = np.diff(acc, axis=0), np.diff(gyr, axis=0)
     sigma_a = max(_spread(d_acc), noise.accel_white_floor_mps2)
     sigma_g = max(_spread(d_gyr), noise.gyro_white_floor_radps)
-    return sigma_a, sigma_g, where
+    return sigma_a, sigma_g, "measured on the whole drive"
 
 
 def _spread(d: np.ndarray, most: int = 20_000) -> float:
@@ -286,9 +278,7 @@ class GinsEstimator:
 
         dt = float(np.median(np.diff(drive.t_s))) if len(drive) > 1 else 0.1
         reduced = self.mechanisation == "reduced" or (self.mechanisation == "auto" and drive.imu is not None and drive.imu.single_readings)
-        # single readings: what the car shakes aliases into every sample, so the driving spread is the
-        # noise the filter sees; averaged samples: the driving spread is the car's motion, the standing one the noise
-        sigma_a, sigma_g, noise_from = sensor_noise(acc, gyr, np.zeros_like(still_s) if reduced else still_s, dt, self.noise)
+        sigma_a, sigma_g, noise_from = sensor_noise(acc, gyr, self.noise)
         walk, init = self.noise.arrays()
         n = self.noise
         # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
@@ -359,8 +349,12 @@ class GinsEstimator:
         b0s = r.bounds.of_window[np.asarray(inputs.starts)].astype(int)
         positions, cov, disp, yaw = _propagate(r, blind, b0s, n)
         if self.arbiter:
-            choice, note = arbitrate(r, inputs, blind)
+            choice, note, cov_scale = arbitrate(r, inputs, blind)
             self._last["arbiter"] = note
+            self._last["covariance_scale"] = (f"x{float(np.median(cov_scale)):.2f} median ({float(cov_scale.min()):.2f}-"
+                                              f"{float(cov_scale.max()):.2f}) on its growth through the outage, from the final NEES "
+                                              "on the same pseudo-outages")
+            cov = cov[:, :1] + cov_scale[:, None, None, None] * (cov - cov[:, :1])  # the growth scaled
             held = np.flatnonzero(choice == REDUCED)
             if len(held):
                 p2, c2, d2, y2 = _propagate(r, blind._replace(level_held=True), b0s[held], n)
@@ -438,9 +432,11 @@ ARBITER_SHORT_WINDOWS = 10
 ARBITER_ENOUGH = 4
 
 
-def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tuple[np.ndarray, str]:
+def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tuple[np.ndarray, str, np.ndarray]:
     """Per outage, which propagation ``gins`` uses (:data:`DEFAULT`, :data:`REDUCED`,
-    :data:`PLANAR_DR`), and the report's sentence on it.
+    :data:`PLANAR_DR`), the report's sentence on it, and the scale of what its position covariance
+    grows by through the outage, from the same pseudo-outages of the outage's own length (1 where
+    none lies behind it).
 
     Each candidate is run on pseudo-outages of the outage's length tiled over the drive's GNSS
     (:func:`ionav_viz.nav.history_check.pseudo_outages`, from the filter's alignment on: the first ones
@@ -460,10 +456,11 @@ def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tup
     record = _record(r, inputs, blind, n, names)
     short = _record(r, inputs, blind, ARBITER_SHORT_WINDOWS, names) if n > ARBITER_SHORT_WINDOWS else None
     if record is None and short is None:
-        return np.full(m, DEFAULT), f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)"
+        return (np.full(m, DEFAULT), f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)",
+                np.ones(m))
     if record is None:  # not one of its own length: the short ones speak for every outage
-        record = (np.full(m, DEFAULT), np.zeros((3, m)), np.zeros(m, dtype=int), np.zeros((3, 0)))
-    choice, sums, count, err = record
+        record = (np.full(m, DEFAULT), np.zeros((3, m)), np.zeros(m, dtype=int), np.zeros((3, 0)), np.ones(m))
+    choice, sums, count, err, cov_scale = record
     horizon = np.full(m, n)
     if short is not None:
         use = count < ARBITER_ENOUGH
@@ -481,14 +478,16 @@ def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tup
     return choice, (f"{', '.join(parts)}; chosen per outage from the {n} s pseudo-outages over the GNSS before it "
                     f"({err.shape[1]} on the drive; mean final distance from the fix: {means})"
                     + (f"; {shorter} outages with fewer than {ARBITER_ENOUGH} behind them judged on the "
-                       f"{ARBITER_SHORT_WINDOWS} s ones" if shorter else ""))
+                       f"{ARBITER_SHORT_WINDOWS} s ones" if shorter else "")), cov_scale
 
 
 def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
-            names: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+            names: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """:func:`arbitrate`'s choice per outage from the pseudo-outages of ``n`` windows: the choice,
     each candidate's summed final distance (m) over the pseudo-outages behind each outage ``(3, m)``,
-    their count per outage and every pseudo-outage's distance ``(3, k)``; None where none fits."""
+    their count per outage, every pseudo-outage's distance ``(3, k)``, and per outage the scale of
+    the default propagation's covariance growth its past pseudo-outages call for
+    (:func:`ionav_viz.nav.history_check.log_scale`); None where none fits."""
     w, m = inputs.windows, inputs.n_outages
     pseudo = history_check.pseudo_outages(w, n)
     # from the filter's alignment on (before it the pass ran free from fixes the GNSS check distrusts)
@@ -500,7 +499,12 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     h0 = r.origin[2]
     fix = enu_of_geodetic(w.lat1_deg[ends - 1], w.lon1_deg[ends - 1], np.full(len(ends), h0), *r.origin)[:, :2]
     err = np.zeros((3, len(starts)))
-    err[DEFAULT] = np.hypot(*(_propagate(r, blind, b0s, n)[0][:, -1, :2] - fix).T)
+    pos, cov = _propagate(r, blind, b0s, n)[:2]
+    err[DEFAULT] = np.hypot(*(pos[:, -1, :2] - fix).T)
+    # what the covariance grew by against how far the track drifted from the fixes: the start's own
+    # uncertainty is the fixes' (a receiver's slow wander the filter follows), which the fixes at the
+    # end share and so cannot measure
+    nees = nees_en(pos[:, -1, :2] - fix, cov[:, -1] - cov[:, 0]) / 2.0
     if REDUCED in names:
         err[REDUCED] = np.hypot(*(_propagate(r, blind._replace(level_held=True), b0s, n)[0][:, -1, :2] - fix).T)
     track = _planar_dr(inputs, starts, n)[2]
@@ -513,7 +517,7 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     for c in names[1:]:
         score[c] = (ARBITER_PRIOR_OUTAGES * ARBITER_PRIOR_RATIO * mean_default + sums[c]) / (ARBITER_PRIOR_OUTAGES + count)
     choice = np.where(count > 0, np.argmin(score, axis=0), DEFAULT)
-    return choice, sums, count, err
+    return choice, sums, count, err, history_check.log_scale(ends, nees, inputs.starts)
 
 
 #: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.GINS_MEASUREMENTS`).

@@ -109,3 +109,21 @@ def past_sums(pseudo_ends: np.ndarray, values: np.ndarray, outage_starts: np.nda
     v = np.asarray(values)[..., order]
     total = np.concatenate([np.zeros(v.shape[:-1] + (1,)), np.cumsum(v, axis=-1)], axis=-1)[..., count]
     return total, count
+
+
+#: Euler's constant: minus the mean log of an honest NEES per degree of freedom of 2 dimensions
+#: (an exponential variable of mean 1, whose log has mean ``-EULER_GAMMA``).
+EULER_GAMMA = 0.5772156649015329
+
+
+def log_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:
+    """Per outage, the scale of a covariance that is too wide or too narrow on this drive, from the
+    NEES per degree of freedom (2 dimensions) of pseudo-outages that ended (``pseudo_ends``, window
+    index after their last) at or before its start: ``exp(mean log NEES + gamma)``, the scale under
+    which their NEES would be honest (:data:`EULER_GAMMA`), its log shrunk toward 0 with the weight of
+    :data:`PRIOR_OUTAGES`. Both ways, unlike :func:`history_scale`: a filter's model can be wider
+    than the drive asks (a good IMU weighed with the road's vibration) as well as narrower. The mean
+    of logs, not of the NEES, so that one pseudo-outage with a jump in the fixes does not set it."""
+    logs = np.log(np.maximum(np.asarray(pseudo_nees, dtype=float), 1e-12)) + EULER_GAMMA
+    total, count = past_sums(np.asarray(pseudo_ends), logs, outage_starts)
+    return np.exp(total / (PRIOR_OUTAGES + count))
