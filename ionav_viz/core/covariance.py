@@ -58,3 +58,17 @@ def nees_en(error_en_m: np.ndarray, cov_m2: np.ndarray, min_det_m4: float = NEES
     a, b, c = cov_m2[..., 0, 0], cov_m2[..., 1, 1], cov_m2[..., 0, 1]
     east, north = error_en_m[..., 0], error_en_m[..., 1]
     return (b * east * east - 2 * c * east * north + a * north * north) / determinant_en(cov_m2, min_det_m4)
+
+
+def growth_en(cov_m2: np.ndarray) -> np.ndarray:
+    """What each outage's east/north covariance ``(m, n + 1, 2, 2)`` (m^2) grew by since its start
+    (boundary 0), its negative part left out (a filter's constraints can narrow it along one axis):
+    positive semi-definite, so the start's covariance plus any multiple of it is one too."""
+    values, vectors = np.linalg.eigh(cov_m2 - cov_m2[:, :1])
+    return (vectors * np.maximum(values, 0.0)[..., None, :]) @ np.swapaxes(vectors, -1, -2)
+
+
+def scale_growth(cov_m2: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Each outage's covariance with what it grew by through the outage scaled by ``scale`` ``(m,)``
+    (:func:`growth_en`); the start's own covariance as it was."""
+    return cov_m2[:, :1] + np.asarray(scale, dtype=float)[:, None, None, None] * growth_en(cov_m2)

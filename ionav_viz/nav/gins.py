@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.covariance import nees_en
+from ..core.covariance import growth_en, nees_en, scale_growth
 from ..core.drive import Drive, measured_imu
 from ..core.errors import InputError
 from ..core.geo import enu_of_geodetic, geodetic_of_enu
@@ -354,7 +354,7 @@ class GinsEstimator:
             self._last["covariance_scale"] = (f"x{float(np.median(cov_scale)):.2f} median ({float(cov_scale.min()):.2f}-"
                                               f"{float(cov_scale.max()):.2f}) on its growth through the outage, from the final NEES "
                                               "on the same pseudo-outages")
-            cov = cov[:, :1] + cov_scale[:, None, None, None] * (cov - cov[:, :1])  # the growth scaled
+            cov = scale_growth(cov, cov_scale)
             held = np.flatnonzero(choice == REDUCED)
             if len(held):
                 p2, c2, d2, y2 = _propagate(r, blind._replace(level_held=True), b0s[held], n)
@@ -504,7 +504,7 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     # what the covariance grew by against how far the track drifted from the fixes: the start's own
     # uncertainty is the fixes' (a receiver's slow wander the filter follows), which the fixes at the
     # end share and so cannot measure
-    nees = nees_en(pos[:, -1, :2] - fix, cov[:, -1] - cov[:, 0]) / 2.0
+    nees = nees_en(pos[:, -1, :2] - fix, growth_en(cov)[:, -1]) / 2.0
     if REDUCED in names:
         err[REDUCED] = np.hypot(*(_propagate(r, blind._replace(level_held=True), b0s, n)[0][:, -1, :2] - fix).T)
     track = _planar_dr(inputs, starts, n)[2]

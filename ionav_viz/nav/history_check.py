@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.covariance import nees_en
+from ..core.covariance import growth_en, nees_en
 from .track import boundary_errors_en_m, rebuild_track
 from .windows import Windows
 
@@ -127,3 +127,28 @@ def log_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: n
     logs = np.log(np.maximum(np.asarray(pseudo_nees, dtype=float), 1e-12)) + EULER_GAMMA
     total, count = past_sums(np.asarray(pseudo_ends), logs, outage_starts)
     return np.exp(total / (PRIOR_OUTAGES + count))
+
+
+def growth_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray,
+                 run: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, str]:
+    """Per outage of ``n_windows`` windows at ``outage_starts``, the scale of what a filter's position
+    covariance grows by through it (:func:`ionav_viz.core.covariance.scale_growth`), both ways
+    (:func:`log_scale`), from the final NEES of that growth on pseudo-outages over the GNSS before it,
+    and a sentence saying what was found ("" when no pseudo-outage fits). ``run`` as
+    :func:`covariance_scale`'s. The growth, not the whole: the start's covariance is the fixes' own
+    (a receiver's slow wander the filter follows), which the fix at a pseudo-outage's end shares and
+    so cannot measure."""
+    outage_starts = np.asarray(outage_starts, dtype=int)
+    pseudo = pseudo_outages(windows, n_windows)
+    starts = pseudo.starts
+    if len(starts) and len(outage_starts):
+        starts = starts[starts + n_windows <= outage_starts.max()]
+    if not len(starts) or not len(outage_starts):
+        return np.ones(len(outage_starts)), ""
+    disp, yaw, cov = run(starts)
+    track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp, yaw)
+    error = boundary_errors_en_m(windows, starts, n_windows, track.lat_deg, track.lon_deg)[:, -1]
+    nees = nees_en(error, growth_en(cov)[:, -1]) / 2.0
+    scale = log_scale(starts + n_windows, nees, outage_starts)
+    return scale, (f"x{float(np.median(scale)):.2f} median ({float(scale.min()):.2f}-{float(scale.max()):.2f}) on its growth "
+                   f"through the outage, from its final NEES on {len(nees)} pseudo-outages over the GNSS")

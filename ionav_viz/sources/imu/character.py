@@ -154,6 +154,9 @@ def clock_offset(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndar
         return found.offset_s, found
     if not found.resolved:
         log.info("%s: the IMU's clock offset against the receiver is not resolved (%s); none applied", path, found.reason)
+    else:
+        log.info("%s: the IMU's stamps are %+.3f s (± %.3f) off the receiver's course, within what a course lags by: "
+                 "none applied (--imu-time-offset %.3f applies it)", path, found.offset_s, found.sigma_s, found.offset_s)
     return 0.0, found
 
 
