@@ -60,9 +60,9 @@ def markdown(corpus: dict, results: dict[str, dict]) -> str:
     """The page's corpus section: the logs, then the table and gins against the INS DR."""
     lines = [f"Measured by `python benchmarks/real_corpus.py --write-docs docs/real-imu-logs.md` ({platform.machine()}, "
              f"Python {platform.python_version()}, ionav-viz {iv.__version__}); do not edit by hand.", "",
-             "| log | grade | device | licence | seconds to measure |", "|---|---|---|---|---|"]
+             "| log | file (tests/data/real) | IMU and receiver | seconds to measure |", "|---|---|---|---|"]
     for name, entry in sorted(corpus["logs"].items()):
-        lines.append(f"| {name} | {entry['grade']} | {entry.get('device', '')} | {entry['licence']} | {results[name].get('seconds', '')} |")
+        lines.append(f"| {name} | `{entry['file']}` | {entry['grade']} | {results[name].get('seconds', '')} |")
     lines += ["", "Final position error as a share of the distance driven, IMU only, mean over the outages tiled after the "
               "30 s warm-up:", "", "| log | `gins` 10 s | 30 s | 60 s | INS DR 10 s / 30 s | best other at 10 s | outages (10 s) |",
               "|---|---|---|---|---|---|---|"]

@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime
+import json
 import logging
 import os
 import re
@@ -357,6 +358,35 @@ def read_real_logs(paths: list[Path]) -> list[dict]:
     return results
 
 
+def agreement_lines(real: list[dict], cells: dict) -> list[str]:
+    """Per real log with a simulated set of its grade (``simulated_set``), whether the two rank
+    ``gins`` against the INS DR alike after 10 s."""
+    lines = []
+    for r in real:
+        key = r.get("simulated_set")
+        cell, sim = r["lengths"].get("10", {}), cells.get((key, 10.0))
+        if not key or sim is None or cell.get("gins") is None or cell.get("ins") is None:
+            continue
+        if not sim.pct.get("gins") or not sim.pct.get("ins"):
+            continue
+        sim_gins, sim_ins = float(np.mean(sim.pct["gins"])), float(np.mean(sim.pct["ins"]))
+        agree = (cell["gins"] < cell["ins"]) == (sim_gins < sim_ins)
+        lines.append(f"- {r['log']}: `gins` {cell['gins']:.1f} % against the INS DR's {cell['ins']:.1f} % after 10 s; the simulated "
+                     f"{set_titles().get(key, key)} set {sim_gins:.1f} against {sim_ins:.1f} %: "
+                     + ("they agree." if agree else "**they disagree**."))
+    return lines
+
+
+def corpus_results(lengths: list[float]) -> list[dict]:
+    """Every log of the test suite's corpus measured as ``benchmarks/real_corpus.py`` does, each
+    with its ``simulated_set``."""
+    from real_corpus import CORPUS_FILE, measure_entry
+
+    corpus = json.loads(CORPUS_FILE.read_text())
+    return [measure_entry(entry, lengths) | {"log": name, "simulated_set": entry.get("simulated_set")}
+            for name, entry in sorted(corpus["logs"].items())]
+
+
 def real_rows(results: list[dict], lengths: list[float]) -> str:
     """The real logs measured by ``benchmarks/real_imu_logs.py --json`` (on the user's local copies;
     :func:`read_real_logs`), in the overview's shape, for the page's "Real logs" section."""
@@ -411,6 +441,20 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
         "The 3D GNSS/INS (`gins`) needs all six IMU axes: IO-VNBD files carry two, so it does not run on the first two "
         "sets (–); odometry needs a vehicle speed.",
         "",
+        *([
+            "## Real logs first",
+            "",
+            "The public real logs of the test suite's corpus ([tests/data/real](../tests/data/real/README.md), measured by "
+            "`--corpus`) and any local copies of others (`--real-logs`): IMU only, final position error as a share of the "
+            "distance driven, mean over the outages tiled after the warm-up. They are the yardstick; the simulated sets "
+            "below are a prediction, which holds where the simulated set of the same IMU grade ranks `gins` against the "
+            "INS DR alike:",
+            "",
+            real_rows(real, lengths),
+            "",
+            *agreement_lines(real, cells),
+            "",
+        ] if real else []),
         "## Final position error as a share of the distance driven, mean over outages",
         "",
         overview(labels, cells, lengths),
@@ -449,21 +493,6 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
             receiver_loss_table(losses),
             "",
         ] if losses else []),
-        *([
-            "## Real logs",
-            "",
-            "Public real car logs with a phone or a dash device IMU, measured by `python benchmarks/real_imu_logs.py --json` on "
-            "local copies and read in with `--real-logs` (IMU only, final position error as a share of the distance driven, "
-            "mean over tiled outages after the warm-up). What they are, where they came from and the table before and after "
-            "the consumer-IMU work: [real-imu-logs.md](real-imu-logs.md). A prediction of the simulator holds where the two "
-            "rank the estimators alike: `gins` against the INS DR on the phone sets above and on these phones. Seven more "
-            "logs, held out (no constant fitted to them; one rule of gins's arbiter and its heading re-set written after seeing "
-            "them), are tabled there: on them `gins` is above the INS DR in 7 cells of 21 (3 of them on one 3-minute drive), "
-            "which the simulated sets do not predict" + phone_ratio_sentence(cells, real) + ".",
-            "",
-            real_rows(real, lengths),
-            "",
-        ] if real else []),
     ]))
 
 
@@ -477,6 +506,7 @@ def main() -> None:
                         help="results of benchmarks/real_imu_logs.py --json on real logs, tabled beside the simulated sets")
     parser.add_argument("--sets", help="only these sets, comma-separated (bundled, held-out, " + ", ".join(k for k, *_ in IMU_SETS)
                         + "); not with --write")
+    parser.add_argument("--corpus", action="store_true", help="measure the public real logs of tests/data/real and table them first")
     parser.add_argument("--write", metavar="FILE", type=Path, help="write the complete Markdown page to FILE (atomically) instead of printing the tables")
     args = parser.parse_args()
     sets = args.sets.split(",") if args.sets else None
@@ -490,6 +520,8 @@ def main() -> None:
     lengths = lengths_s(args.lengths)
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     labels, cells, losses = measure(args.model, args.minutes, args.seed_base, lengths, sets)
+    if args.corpus:
+        real = corpus_results(lengths) + real
     if args.write is None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths)
               + ("\n\n" + receiver_loss_table(losses) if losses else ""), end="")
