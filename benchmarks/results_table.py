@@ -351,8 +351,9 @@ def read_real_logs(paths: list[Path]) -> list[dict]:
                     if not isinstance(cell, dict):
                         raise iv.InputError(f"{where} is {cell!r}, not an object", REAL_LOGS_HINT)
                     for key, value in cell.items():
-                        if key != "why" and value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
-                                                                   or not np.isfinite(value)):
+                        values = value if key == "gins_minus_ins_points" and isinstance(value, list) else [value]
+                        if key != "why" and value is not None and any(isinstance(v, bool) or not isinstance(v, (int, float))
+                                                                      or not np.isfinite(v) for v in values):
                             raise iv.InputError(f"{where}[{key!r}] is {value!r}, not a number", REAL_LOGS_HINT)
             results += data
     return results
@@ -395,7 +396,7 @@ def real_rows(results: list[dict], lengths: list[float]) -> str:
         cells = []
         for r in results:
             cell = r["lengths"].get(f"{length:g}", {})
-            ranked = sorted(((v, k) for k, v in cell.items() if k not in ("outages", "why") and v is not None))
+            ranked = sorted((v, k) for k, v in cell.items() if k not in ("outages", "why") and isinstance(v, (int, float)))
             cells.append("–" if not ranked else f"best {ranked[0][0]:.1f} % ({ranked[0][1]}), "
                          + ", ".join(f"{k} {v:.1f}" for v, k in ranked[1:]))
         lines.append(f"| {length:g} s | " + " | ".join(cells) + " |")

@@ -93,3 +93,18 @@ def test_real_imu_logs_says_whether_gins_is_above_the_ins_dr_beyond_the_outages_
     assert lo <= mean <= hi
     verdict = "above" if lo > 0 else "below" if hi < 0 else "cannot tell"
     assert f"| phone.mcap | {mean:+.1f} [{lo:+.1f}, {hi:+.1f}] {verdict} |" in proc.stdout
+
+
+def test_results_table_takes_what_real_imu_logs_writes(tmp_path, monkeypatch):
+    """real_imu_logs.py --json writes each length's gins-minus-INS-DR gap as [mean, low, high];
+    results_table.py --real-logs refused it as 'not a number', and its real rows ranked the list
+    against the estimators' numbers (a TypeError)."""
+    import json
+
+    monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
+    import results_table
+
+    cell = {"outages": 12, "ins": 18.0, "gins": 2.0, "idnn": None, "gins_minus_ins_points": [-16.0, -21.0, -11.8]}
+    (tmp_path / "r.json").write_text(json.dumps([{"log": "roof", "lengths": {"10": cell}}]))
+    real = results_table.read_real_logs([tmp_path / "r.json"])
+    assert "best 2.0 % (gins), ins 18.0" in results_table.real_rows(real, [10.0])
