@@ -478,7 +478,7 @@ def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: S
     items = expand_drives(drives, runs)
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
-    n = Engine(workers if workers is not None else default_workers()).workers
+    n = Engine(workers if workers is not None else default_workers()).pool_size(len(items))
     work_s = sum(ESTIMATE_S_PER_DRIVE + ESTIMATE_S_PER_MB * (d.size_bytes or 0) / 1e6 for d in items)
     missing = {}
     for d in items:

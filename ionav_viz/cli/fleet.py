@@ -47,6 +47,7 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
     _check_fleet_rrd(fleet_rrd, drives)
     with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option, runs="--runs"):
+        _note_pool(workers, cluster, quiet)
         if dry_run:
             plan = fleet.plan_fleet(drives, workers, runs or (), root=read.data_root)
             print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
@@ -61,6 +62,18 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
         print(report.to_markdown() if markdown else report.to_text(c.terminal_width()), end="")
     _write_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
+
+
+def _note_pool(workers: Optional[int], cluster: Optional[str], quiet: bool) -> None:
+    """``note: ...`` on stderr when ``--workers`` asks for more processes than this process may use
+    cores: the pool is capped there (:meth:`ionav_viz.api.engine.Engine.pool_size`)."""
+    if workers is None or quiet:
+        return
+    from ..api.engine import Engine
+
+    note = Engine(workers, cluster).capped_note()
+    if note is not None:
+        print(f"note: {note}", file=sys.stderr)
 
 
 def _check_fleet_rrd(fleet_rrd: Optional[Path], drives: list[str], folder: Optional[Path] = None) -> None:
@@ -154,12 +167,13 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
     _check_fleet_rrd(fleet_rrd, drives, output if output is not None else Path("recordings"))
     with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option,
-                       runs="--runs"), \
-            c.progress(quiet) as bar:
-        report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
-                                    read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                                    progress=c.progress_callback(bar, "replaying"), replay_options=_replay_options(outage, placement, run, read),
-                                    runs=runs or ())
+                       runs="--runs"):
+        _note_pool(workers, cluster, quiet)
+        with c.progress(quiet) as bar:
+            report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
+                                        read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
+                                        progress=c.progress_callback(bar, "replaying"),
+                                        replay_options=_replay_options(outage, placement, run, read), runs=runs or ())
     if not quiet:
         print(report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     for table in report.drives:

@@ -1,0 +1,148 @@
+"""Hostile inputs on fleets, round 6 (issue 60, part A): outputs that replaced one another or an
+input, workers left half-written files behind on a signal, pools larger than the cores, outputs
+inside the installed package, and windows that moved with a nanosecond of clock offset. Each case
+states what happened before.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO, run_cli
+
+pytestmark = pytest.mark.xdist_group("fleet")
+
+
+def _simulate(path: Path, scenario: str = "roundabout", seed: int = 0, duration_s: float = 60.0) -> Path:
+    from ionav_viz.sim.simulate import write_simulated_drive
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_simulated_drive(path, scenario, seed=seed, duration_s=duration_s)
+
+
+def _one_line_error(done, *words: str) -> str:
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:"), done.stderr
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+# --- the pool: sized by the cores, one thread per library --------------------------------------------
+def test_workers_beyond_the_cores_start_no_more_processes_than_cores():
+    """``--workers 100000`` over 40 drives on 2 cores had started 17 processes and more when it
+    was stopped: the pool followed the drives, not the cores."""
+    from ionav_viz.api.engine import Engine, default_workers, run_each
+    from tests.fleet_helpers import worker_pid
+
+    engine = Engine(workers=100000)
+    assert engine.pool_size(40) == min(default_workers(), 40)
+    pids = {pid for _, pid in run_each(worker_pid, [str(i) for i in range(40)], engine)}
+    assert 1 <= len(pids) <= default_workers(), pids
+    assert os.getpid() not in pids  # asked for workers: they are processes of their own, even on one core
+    assert Engine(workers=100000).describe() == f"{default_workers()} processes"
+
+
+def test_workers_beyond_the_cores_is_said_in_one_note(tmp_path):
+    from ionav_viz.api.engine import default_workers
+
+    for i in range(3):
+        _simulate(tmp_path / "drives" / f"V-n{i}.csv", seed=i, duration_s=40.0)
+    done = run_cli("evaluate", str(tmp_path / "drives"), "--workers", "100000", "--estimators", "ins", "--json")
+    assert done.returncode == 0, done.stderr
+    notes = [line for line in done.stderr.splitlines() if line.startswith("note:")]
+    assert notes == [f"note: --workers 100000: {default_workers()} worker process(es), the cores this process may use "
+                     "(more would only share them)"], done.stderr
+    assert json.loads(done.stdout)["timing"]["engine"] == f"{default_workers()} processes"
+    quiet = run_cli("evaluate", str(tmp_path / "drives"), "--workers", "100000", "--estimators", "ins", "-q")
+    assert quiet.returncode == 0 and "note:" not in quiet.stderr, quiet.stderr
+    dry = run_cli("evaluate", str(tmp_path / "drives"), "--workers", "100000", "--dry-run", "-q")
+    assert f"on {min(default_workers(), 3)} worker(s)" in dry.stdout, dry.stdout
+
+
+def test_each_worker_runs_its_numerical_libraries_on_one_thread():
+    from ionav_viz.api.engine import Engine, run_each
+    from tests.fleet_helpers import thread_settings
+
+    for _, settings in run_each(thread_settings, ["a", "b", "c"], Engine(workers=2)):
+        assert settings.pop("torch", 1) == 1
+        assert set(settings.values()) == {"1"}, settings
+
+
+# --- a stop signal to the whole process group --------------------------------------------------------
+@pytest.fixture(scope="module")
+def long_drives(tmp_path_factory) -> Path:
+    """Four simulated motorway drives of 10 minutes: each recording takes long enough to write that
+    a signal finds the workers writing."""
+    folder = tmp_path_factory.mktemp("long")
+    for i in range(4):
+        _simulate(folder / f"V-b{i}.csv", "motorway", seed=i, duration_s=600.0)
+    return folder
+
+
+def _group_alive(pgid: int) -> list[str]:
+    """The processes of group ``pgid`` still running (zombies awaiting their reaper left out)."""
+    alive = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            alive.append(entry)
+    return alive
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
+def test_a_stop_signal_to_the_process_group_leaves_no_partial_recording(long_drives, tmp_path, signame):
+    """SIGTERM to the process group during ``replay DIR --workers 2 -o recs`` (as systemd or a batch
+    scheduler sends it) left ``.V-b1.rrd.*.tmp`` files of up to 14 MB: the workers had no handler
+    and died where they were. Now each worker stops its drive as the command does (its temporary
+    file removed), and the command exits 143 (130 for Ctrl-C's SIGINT)."""
+    recs = tmp_path / "recs"
+    proc = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", "replay", str(long_drives), "--workers", "2", "-o", str(recs),
+                             "--estimators", "ins", "-q"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        while proc.poll() is None and not any(size > 0 for size in _temporary_sizes(recs)):
+            time.sleep(0.02)  # a recording is being written
+        assert proc.poll() is None, proc.communicate()
+        os.killpg(proc.pid, getattr(signal, signame))
+        _, err = proc.communicate()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == {"SIGTERM": 143, "SIGINT": 130}[signame], err
+    assert err.strip() in ("terminated (SIGTERM)", "interrupted"), err
+    while _group_alive(proc.pid):  # the workers end by themselves; a hang would be the suite's timeout, not a wall clock here
+        time.sleep(0.05)
+    left = sorted(p.name for p in recs.iterdir()) if recs.exists() else []
+    assert not [name for name in left if not name.endswith(".rrd")], left
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    for name in left:  # a recording there is complete (its drive finished before the signal)
+        assert read_recording_info(recs / name).outages, name
+
+
+def _temporary_sizes(folder: Path) -> list[int]:
+    """The sizes of the temporary files in ``folder`` (none while it does not exist)."""
+    sizes = []
+    for path in folder.glob(".*.tmp") if folder.is_dir() else []:
+        try:
+            sizes.append(path.stat().st_size)
+        except OSError:  # renamed into place meanwhile
+            continue
+    return sizes
