@@ -146,3 +146,32 @@ def _temporary_sizes(folder: Path) -> list[int]:
         except OSError:  # renamed into place meanwhile
             continue
     return sizes
+
+
+# --- outputs inside the installed package --------------------------------------------------------------
+def test_train_into_the_installed_package_refused_before_any_work(tmp_path):
+    """``train DRIVE -o <package>/models/mine`` exited 0 and wrote a model inside the installed
+    package: train checked its model directory with its own check (never the shipped model), not
+    the one every other output goes through."""
+    import shutil
+
+    from ionav_viz.core.fileio import PACKAGE_DIR
+
+    drive = _simulate(tmp_path / "V-t.csv", duration_s=60.0)
+    target = PACKAGE_DIR / "mine-round6"
+    try:
+        done = run_cli("train", str(drive), "-o", str(target), "-q")
+        _one_line_error(done, "-o", str(target), "installed ionav-viz package")
+        assert not target.exists()
+    finally:
+        shutil.rmtree(target, ignore_errors=True)  # what the command wrote before the fix
+
+
+def test_a_model_directory_beside_the_shipped_model_is_refused():
+    """The shipped model's package (``ionav_viz.models``; the repository's ``models/`` in an editable
+    install, ``<package>/models`` in a wheel) is the installed package too."""
+    from ionav_viz.core.errors import InputError
+    from ionav_viz.nav.idnn import check_model_dir, default_model_dir
+
+    with pytest.raises(InputError, match="installed ionav-viz package"):
+        check_model_dir(default_model_dir().parent / "mine")
