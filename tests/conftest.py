@@ -63,8 +63,9 @@ def _run_cli_here(args: list[str], env: dict | None, cwd: Path | None, timeout: 
     out, err = io.StringIO(), io.StringIO()
     code = 0
     try:
+        run_env = _cli_env(env)  # before the clear: a subprocess inherits this process's environment
         os.environ.clear()
-        os.environ.update(_cli_env(env))
+        os.environ.update(run_env)
         os.chdir(cwd or REPO)
         sys.argv = ["ionav-viz", *args]
         sys.stdin, sys.stdout, sys.stderr = io.StringIO(""), out, err
