@@ -175,3 +175,81 @@ def test_a_model_directory_beside_the_shipped_model_is_refused():
 
     with pytest.raises(InputError, match="installed ionav-viz package"):
         check_model_dir(default_model_dir().parent / "mine")
+
+
+# --- no output replaces another output of the run, or an input ------------------------------------------
+@pytest.fixture(scope="module")
+def same_names(tmp_path_factory) -> Path:
+    """``a/V-x.csv`` (40 s), ``b/V-x.csv`` (50 s) and ``c/V-x-2.csv`` (60 s): two drives of one name,
+    and a third whose own name is the one a numbered copy would take."""
+    root = tmp_path_factory.mktemp("same-names")
+    for folder, name, seconds in (("a", "V-x", 40.0), ("b", "V-x", 50.0), ("c", "V-x-2", 60.0)):
+        _simulate(root / folder / f"{name}.csv", seed=int(seconds), duration_s=seconds)
+    return root
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_two_drives_of_one_name_get_their_own_recordings(same_names, tmp_path, workers):
+    """``replay a/V-x.csv b/V-x.csv c/V-x-2.csv --workers 2 -o out`` exited 0 with two recordings
+    and printed ``out/V-x-2.rrd`` twice: b's numbered copy was c's own name, and whichever worker
+    finished last kept the file. Names are now planned before any work, the same for every
+    ``--workers``, and the renamed drive is said."""
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    done = run_cli("replay", "a/V-x.csv", "b/V-x.csv", "c/V-x-2.csv", "--workers", workers, "-o", str(tmp_path / "out"),
+                   "--estimators", "ins", "-q", cwd=same_names)
+    assert done.returncode == 0, done.stderr
+    printed = done.stdout.split()
+    assert printed == [str(tmp_path / "out" / f"{name}.rrd") for name in ("V-x", "V-x-3", "V-x-2")], done.stdout
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["V-x-2.rrd", "V-x-3.rrd", "V-x.rrd"]
+    assert [round(read_recording_info(Path(p)).end_s, -1) for p in printed] == [40.0, 50.0, 60.0]  # each drive its own file
+    said = [line for line in done.stderr.splitlines() if line.startswith("warning:")]
+    assert said == [f"warning: b/V-x.csv: recorded as {tmp_path / 'out' / 'V-x-3.rrd'}, as another output of this run has the "
+                    "drive's name"], done.stderr
+
+
+def test_recording_names_are_distinct_without_case_and_keep_each_drives_own_name(tmp_path):
+    """The one place that names a fleet's outputs: every recording its own file (compared without
+    case, as macOS and Windows compare them), a drive's own name kept by it, the rest numbered."""
+    from ionav_viz.api.fleet import FleetDrive, plan_outputs
+
+    cases = {
+        ("a/V-x", "b/V-x", "c/V-x-2"): ["V-x", "V-x-3", "V-x-2"],
+        ("c/V-x-2", "a/V-x", "b/V-x", "d/V-x-2"): ["V-x-2", "V-x", "V-x-3", "V-x-2-2"],
+        ("a/V-X", "b/V-x", "c/v-x"): ["V-X", "V-x-2", "v-x-3"],
+        ("a/r", "b/r", "c/r", "d/r-3"): ["r", "r-2", "r-4", "r-3"],
+    }
+    for stems, expected in cases.items():
+        items = [FleetDrive(f"{stem}.csv") for stem in stems]
+        planned = plan_outputs(items, folder=tmp_path / "out")
+        assert [Path(r).stem for r in planned.recordings] == expected, stems
+        assert planned.recordings == plan_outputs(items, folder=tmp_path / "out").recordings  # decided by the order given alone
+    taken = plan_outputs([FleetDrive("a/Fleet.csv")], folder=tmp_path / "out", fleet_rrd=tmp_path / "out" / "fleet.rrd")
+    assert [Path(r).name for r in taken.recordings] == ["Fleet-2.rrd"]  # the overview's name, but for case: taken too
+
+
+def test_the_fleet_overview_onto_a_drives_recording_refused_before_any_work(same_names, tmp_path):
+    """``replay a/V-x.csv a/V-y.csv -o out --fleet-rrd out/V-x.rrd`` replaced V-x's recording with the
+    fleet overview, and still named it as V-x's."""
+    done = run_cli("replay", "a/V-x.csv", "c/V-x-2.csv", "-o", str(tmp_path / "out"), "--fleet-rrd", str(tmp_path / "out" / "V-x.rrd"),
+                   "--estimators", "ins", "-q", cwd=same_names)
+    _one_line_error(done, "--fleet-rrd", "V-x.rrd", "a/V-x.csv")
+    assert not (tmp_path / "out").exists()
+    (tmp_path / "out").mkdir()
+    again = run_cli("replay", "a/V-x.csv", "c/V-x-2.csv", "-o", "out", "--fleet-rrd", "out/../out/V-x-2.rrd", "--estimators", "ins", "-q",
+                    cwd=tmp_path)
+    assert again.returncode == 2  # the drive paths are not found from here: refused before them all the same
+    _one_line_error(again, "--fleet-rrd")
+
+
+def test_outputs_onto_an_input_list_refused_before_any_work(same_names, tmp_path):
+    """A list of drives is an input: neither the overview nor a recording may replace it."""
+    (tmp_path / "out").mkdir()
+    listing = tmp_path / "out" / "V-x.rrd"
+    listing.write_text(f"{same_names / 'a' / 'V-x.csv'}\n")
+    done = run_cli("replay", f"@{listing}", str(same_names / "c" / "V-x-2.csv"), "-o", str(tmp_path / "out"), "-q")
+    _one_line_error(done, "-o", "V-x.rrd", "input")
+    overview = run_cli("evaluate", f"@{listing}", "--fleet-rrd", str(listing), "-q")
+    _one_line_error(overview, "--fleet-rrd", "input")
+    assert listing.read_text() == f"{same_names / 'a' / 'V-x.csv'}\n"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["V-x.rrd"]
