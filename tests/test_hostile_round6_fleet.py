@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import REPO, run_cli
+from tests.conftest import HANG_S, REPO, run_cli
 
 pytestmark = pytest.mark.xdist_group("fleet")
 
@@ -127,8 +127,10 @@ def test_a_stop_signal_to_the_process_group_leaves_no_partial_recording(long_dri
             proc.communicate()
     assert proc.returncode == {"SIGTERM": 143, "SIGINT": 130}[signame], err
     assert err.strip() in ("terminated (SIGTERM)", "interrupted"), err
-    while _group_alive(proc.pid):  # the workers end by themselves; a hang would be the suite's timeout, not a wall clock here
+    guard = time.monotonic() + HANG_S  # the workers end by themselves: polled, not timed (a hang guard only)
+    while _group_alive(proc.pid) and time.monotonic() < guard:
         time.sleep(0.05)
+    assert not _group_alive(proc.pid), "a process of the command's group was left running"
     left = sorted(p.name for p in recs.iterdir()) if recs.exists() else []
     assert not [name for name in left if not name.endswith(".rrd")], left
     from ionav_viz.viz.recording_info import read_recording_info
@@ -253,3 +255,44 @@ def test_outputs_onto_an_input_list_refused_before_any_work(same_names, tmp_path
     _one_line_error(overview, "--fleet-rrd", "input")
     assert listing.read_text() == f"{same_names / 'a' / 'V-x.csv'}\n"
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["V-x.rrd"]
+
+
+# --- a clock offset far below the sample period moves nothing -------------------------------------------
+@pytest.fixture(scope="module")
+def offset_logs(tmp_path_factory) -> dict[str, Path]:
+    """A simulated 2 min MEMS log (100 Hz IMU, 10 Hz GNSS, its first IMU sample on the first fix's
+    stamp) and a converted IO-VNBD drive (IMU and fixes on the same stamps)."""
+    import ionav_viz as iv
+    from ionav_viz.sim.imu import IMU_GRADES, write_imu_log
+
+    folder = tmp_path_factory.mktemp("offsets")
+    mems = write_imu_log(folder / "mems.mcap", "roundabout", 5, 120.0, IMU_GRADES["mems"])
+    converted = folder / "converted.mcap"
+    iv.convert(_simulate(folder / "V-c.csv", seed=5, duration_s=90.0), converted)
+    return {"mems": mems, "converted": converted}
+
+
+def _sequences(log: Path, offset: str) -> list[dict]:
+    from ionav_viz.sim.imu import SIM_TRUTH_TOPIC
+
+    truth = ["--truth-topic", SIM_TRUTH_TOPIC] if log.name == "mems.mcap" else []
+    done = run_cli("evaluate", str(log), *truth, "--imu-time-offset", offset, "--estimators", "ins", "--json")
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)["sequences"]
+
+
+@pytest.mark.parametrize("log", ["mems", "converted"])
+def test_a_nanosecond_of_imu_time_offset_gives_the_results_of_none(offset_logs, log):
+    """``--imu-time-offset 1e-9`` moved the INS DR's mean CRSE by 2 % (one outage by 9.8 %): the
+    grid's first time was the first fix's stamp, so any positive offset put it outside the fixes'
+    span, the drive lost its first sample and every window moved by a sample; and a log whose IMU
+    and fixes share their stamps was binned another way as soon as any offset was given."""
+    from tests.conftest import assert_same_sequences
+
+    none = _sequences(offset_logs[log], "0")
+    for tiny in ("1e-9", "-1e-9"):
+        assert_same_sequences(none, _sequences(offset_logs[log], tiny), ["ins"], rel=1e-6, abs=1e-6)
+    real = _sequences(offset_logs[log], "0.05")  # half a grid step: the samples do move against the fixes
+    same_outages = [(a["ins"]["final_position_error_m"], b["ins"]["final_position_error_m"])
+                    for a, b in zip(none, real) if a["start_s"] == b["start_s"]]
+    assert same_outages and any(abs(a - b) > 1e-3 for a, b in same_outages), same_outages
