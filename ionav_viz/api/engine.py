@@ -142,16 +142,24 @@ def _worker_start() -> None:
             signal.signal(sig, _worker_signal)
 
 
-#: Whether this worker process is running an item (:func:`_in_worker`).
+#: Whether this worker process is running an item (:func:`_in_worker`), and whether a stop signal
+#: has stopped it already (its cleanup runs).
 _running_item = False
+_stopping = False
 
 
 def _worker_signal(signum: int, frame: Any) -> None:
     """A worker's handler of SIGINT, SIGTERM and SIGHUP: while it runs an item, the item stops
     as the command stops (``KeyboardInterrupt``, :class:`~ionav_viz.core.signals.Terminated`), so
-    that its ``finally`` blocks remove what it had begun to write; idle, it dies by the signal."""
+    that its ``finally`` blocks remove what it had begun to write; idle, it dies by the signal. A
+    signal after the first (Ctrl-C to the group, then the parent's SIGTERM) is let go: raised
+    inside the first one's cleanup, it would cut it short and leave the temporary file."""
+    global _stopping
     if not _running_item:
         _die_by(signum)
+    if _stopping:
+        return
+    _stopping = True
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
     from ..core.signals import Terminated
