@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from tests.conftest import REPO
+from tests.conftest import HANG_S, REPO
 
 
 def run_script(script: str, *args: str, cwd) -> subprocess.CompletedProcess:
@@ -18,7 +18,7 @@ def run_script(script: str, *args: str, cwd) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
     env.pop("IONAV_DATA", None)
     return subprocess.run([sys.executable, str(REPO / "benchmarks" / script), *args], capture_output=True, text=True, env=env, cwd=cwd,
-                          timeout=60)
+                          timeout=HANG_S)
 
 
 def assert_one_line_error(proc: subprocess.CompletedProcess, *named: str) -> str:

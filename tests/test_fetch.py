@@ -145,9 +145,7 @@ def test_names_with_spaces_and_parentheses(server, manifest, tmp_path):
 )
 def test_failures_are_one_line_and_leave_nothing(server, manifest, tmp_path, name, message):
     root = tmp_path / "data"
-    start = time.monotonic()
     proc = fetch(server, manifest, root, name)
-    assert time.monotonic() - start < 30
     assert proc.returncode == 1, proc.stderr
     assert message in proc.stderr and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
     assert not root.exists()  # a failed first download leaves no (empty) data root behind

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import REPO, run_cli
+from tests.conftest import HANG_S, REPO, run_cli
 
 pytestmark = pytest.mark.xdist_group("fleet")
 
@@ -177,17 +177,15 @@ def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
     procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(info)],
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
-        for _ in range(200):
-            if info.exists() and info.stat().st_size:
-                break
+        while not (info.exists() and info.stat().st_size) and procs[0].poll() is None:  # the scheduler has written its address
             time.sleep(0.05)
         address = json.loads(info.read_text())["address"]
         procs += [subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
                                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
         from distributed import Client
 
-        with Client(address, timeout="30s") as client:  # both workers up before the work (and not forever)
-            client.wait_for_workers(2, timeout=60)
+        with Client(address, timeout=f"{HANG_S:.0f}s") as client:  # both workers up before the work (a hang guard only)
+            client.wait_for_workers(2, timeout=HANG_S)
         drives = [*_good(fleet_dir), str(fleet_dir / "V-bad.csv")]
         on_cluster = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), cluster=address)
         serial = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), workers=1)
@@ -198,7 +196,7 @@ def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
         for proc in reversed(procs):  # ours alone, and nothing of theirs to keep: no graceful close to wait for
             proc.kill()
         for proc in procs:
-            proc.wait(timeout=10)
+            proc.wait(timeout=HANG_S)
 
 
 def test_no_dask_scheduler_is_one_error_naming_the_option(fleet_dir):

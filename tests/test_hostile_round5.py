@@ -121,17 +121,35 @@ def test_external_header_only_csv_one_line(tmp_path, short_csv, outaged5):
     _one_line_error(done, "empty.csv", "fewer than 2 poses")
 
 
-def test_simulate_absurd_gnss_loss_count_is_bounded(tmp_path):
+def test_simulate_absurd_gnss_loss_count_is_bounded(monkeypatch):
     """``simulate --gnss-loss 1000000`` drew 50 million candidate losses (a hang of minutes); the
-    draws are bounded by what fits in the drive."""
-    import time
+    draws are bounded by what fits in the drive: counted here, not timed."""
+    import numpy as np
 
-    from ionav_viz.sim.simulate import gnss_loss_spans
+    from ionav_viz.sim import simulate
 
-    start = time.monotonic()
-    spans = gnss_loss_spans("roundabout", 0, 120.0, 1_000_000)
-    assert time.monotonic() - start < 2.0
+    draws = []
+    real_rng = np.random.default_rng
+
+    class Counting:
+        def __init__(self, *args):
+            self.rng = real_rng(*args)
+
+        def uniform(self, *args, **kwargs):
+            draws.append(1)
+            if len(draws) > 100_000:  # unbounded: stop here rather than draw for minutes
+                raise AssertionError("more than 100,000 draws")
+            return self.rng.uniform(*args, **kwargs)
+
+        def __getattr__(self, name):
+            return getattr(self.rng, name)
+
+    monkeypatch.setattr(simulate.np.random, "default_rng", Counting)
+    simulate.gnss_loss_spans("roundabout", 0, 120.0, 1)
+    one = len(draws)  # the drive's own draws, and a loss's
+    spans = simulate.gnss_loss_spans("roundabout", 0, 120.0, 1_000_000)
     assert 1 <= len(spans) <= 4
+    assert len(draws) - one <= one + 2 * 50 * simulate.gnss_loss_room(120.0), len(draws)  # two draws a candidate, 50 a loss that fits
 
 
 # --- full disks and signals mid-write --------------------------------------------------------------

@@ -12,7 +12,7 @@ import pytest
 from ionav_viz import InputError, ToolFailure
 from ionav_viz.nav.idnn import default_model_dir, load_model, save_model
 
-from .conftest import REPO, run_cli
+from .conftest import HANG_S, REPO, run_cli
 
 
 def test_replay_writes_into_recordings_in_the_current_directory(tmp_path):
@@ -38,7 +38,7 @@ def test_a_failed_replay_leaves_no_recordings_folder(tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
 
     full = subprocess.run([sys.executable, "-m", "ionav_viz.cli", "replay", "hard-brake", "--no-idnn", "-q"], cwd=tmp_path,
-                          capture_output=True, text=True, preexec_fn=small_files, timeout=300,
+                          capture_output=True, text=True, preexec_fn=small_files, timeout=HANG_S,
                           env={**os.environ, "PYTHONPATH": str(REPO)})
     assert full.returncode == 1 and "write failed" in full.stderr, full.stderr
     assert list(tmp_path.iterdir()) == []

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import REPO, run_cli
+from .conftest import HANG_S, REPO, run_cli
 
 ARGS = ("replay", "hard-brake", "--estimators", "ins,odo", "--every", "60s", "-q")
 
@@ -34,8 +34,8 @@ def _url(viewer) -> str:
     return f"rerun+http://127.0.0.1:{viewer.proc.args[viewer.proc.args.index('--port') + 1]}/proxy"
 
 
-def _wait_for_recording(viewer, recording_id: str, timeout_s: float = 30.0):
-    deadline = time.monotonic() + timeout_s
+def _wait_for_recording(viewer, recording_id: str, timeout_s: float = HANG_S):
+    deadline = time.monotonic() + timeout_s  # a hang guard: the loop ends when the viewer has it
     while time.monotonic() < deadline:
         state = viewer.call("get_state")
         found = [r for r in state.recordings if r.store_id.endswith(":" + recording_id)]
@@ -107,13 +107,12 @@ def test_connect_to_something_that_is_not_a_viewer_fails_before_the_work(tmp_pat
     server = _Swallower(greeting)
     out = tmp_path / "x.rrd"
     try:
-        start = time.monotonic()
-        proc = run_cli(*ARGS, "-o", str(out), "--connect", f"rerun+http://127.0.0.1:{server.port}/proxy", timeout=60)
+        proc = run_cli(*ARGS, "-o", str(out), "--connect", f"rerun+http://127.0.0.1:{server.port}/proxy", timeout=HANG_S)
     finally:
         server.close()
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
     assert "does not answer as a Rerun viewer" in proc.stderr and "Traceback" not in proc.stderr
-    assert not out.exists() and time.monotonic() - start < 30
+    assert not out.exists()
 
 
 def test_a_viewer_that_stops_reading_is_dropped_in_bounded_time(tmp_path):
@@ -126,10 +125,8 @@ def test_a_viewer_that_stops_reading_is_dropped_in_bounded_time(tmp_path):
     assert run_cli(*ARGS, "-o", str(rrd)).returncode == 0
     server = _Swallower(bytes(3) + b"\x04" + bytes(5))  # an HTTP/2 SETTINGS frame, then silence
     try:
-        start = time.monotonic()
         with pytest.raises(ToolFailure, match="did not take the recording within 2 s; the stream was dropped"):
             live.send_recording(rrd, f"rerun+http://127.0.0.1:{server.port}/proxy", timeout_s=2)
-        assert time.monotonic() - start < 20
     finally:
         server.close()
     assert rrd.is_file()
@@ -159,13 +156,13 @@ def test_serve_web_serves_the_viewer_and_the_recording(viewer, tmp_path):
         line = proc.stdout.readline()
         assert saved.strip() == str(tmp_path / "hb.rrd") and (tmp_path / "hb.rrd").is_file(), saved
         assert line.startswith("serving the recording: open http://127.0.0.1:") and f":{web_port}/" in line, line
-        page = urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=20).read().decode()
+        page = urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=HANG_S).read().decode()
         assert "<html" in page.lower()
         viewer.call("open", f"rerun+http://127.0.0.1:{grpc_port}/proxy")
         _wait_for_recording(viewer, "V-sim-hard-brake-10s")
     finally:
         proc.send_signal(signal.SIGINT)
-        code = proc.wait(timeout=20)
+        code = proc.wait(timeout=HANG_S)
     assert code == 130 and "Traceback" not in proc.stderr.read()
 
 
@@ -218,7 +215,7 @@ def test_serve_web_listens_on_this_machine_only_unless_told(tmp_path, bind):
         assert _listening(grpc_port) == expected and _listening(web_port) == expected
     finally:
         proc.send_signal(signal.SIGINT)
-        code = proc.wait(timeout=20)
+        code = proc.wait(timeout=HANG_S)
     err = proc.stderr.read()
     assert code == 130 and "Traceback" not in err
     assert ("reachable from every network" in err) == (bind is not None), err

@@ -15,7 +15,7 @@ import pytest
 import ionav_viz as iv
 from ionav_viz.sources.outage_writer import STAMP_TOL_S
 
-from .conftest import run_cli
+from .conftest import HANG_S, run_cli
 from .mcap_fixtures import write_realistic
 
 
@@ -205,7 +205,7 @@ def test_an_external_filter_is_scored_exactly_as_the_same_plug_in(tmp_path):
     assert run_cli("outage-log", "roundabout", "--every", "40s", "-o", str(cut)).returncode == 0
     plan = tmp_path / "cut.outages.json"
     script = Path(__file__).parent / "external" / "constant_velocity.py"
-    subprocess.run([sys.executable, str(script), str(cut), str(tmp_path / "cv.csv")], check=True, timeout=300)
+    subprocess.run([sys.executable, str(script), str(cut), str(tmp_path / "cv.csv")], check=True, timeout=HANG_S)
 
     proc = run_cli("evaluate", "roundabout", "--plan", str(plan), "--external", f"ext={tmp_path / 'cv.csv'}", "--estimators", "ins", "--json")
     assert proc.returncode == 0, proc.stderr

@@ -12,7 +12,7 @@ import ionav_viz as iv
 from ionav_viz.nav.protocol import EstimatorError
 from ionav_viz.nav.registry import resolve
 
-from .conftest import run_cli
+from .conftest import HANG_S, run_cli
 from .test_replay import read_rrd
 
 PLUGINS = Path(__file__).resolve().parent / "plugins"
@@ -154,7 +154,7 @@ def _run_script(*args: str, cwd: Path):
     import subprocess
 
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "IONAV_DATA")}
-    return subprocess.run([str(_console_script()), *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=300)
+    return subprocess.run([str(_console_script()), *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=HANG_S)
 
 
 @pytest.mark.parametrize("spec", ["myest:ConstantSpeed", "./myest.py:ConstantSpeed", "sub/myest.py:ConstantSpeed"])

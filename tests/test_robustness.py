@@ -13,7 +13,6 @@ import resource
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +21,7 @@ import pytest
 from ionav_viz.dataset.samples import samples_dir
 from ionav_viz.sources.iovnbd import HEADER
 
-from .conftest import REPO, assert_same_sequences, run_cli
+from .conftest import HANG_S, REPO, assert_same_sequences, run_cli
 
 SOURCE = samples_dir() / "V-sim-hard-brake.csv"
 LINES = SOURCE.read_text().splitlines()
@@ -131,9 +130,7 @@ def test_very_large_file_is_refused_not_read(tmp_path):
     path = tmp_path / "V-huge.csv"
     with open(path, "wb") as f:
         f.truncate(3 * 2**30)
-    start = time.monotonic()
-    assert_input_error(evaluate(path), "larger than the 2 GiB")
-    assert time.monotonic() - start < 20
+    assert_input_error(evaluate(path), "larger than the 2 GiB")  # refused by its size: read, it would take minutes and 3 GiB
 
 
 @pytest.mark.parametrize(
@@ -333,7 +330,7 @@ def test_disk_full(tmp_path, command):
     out = tmp_path / f"out{suffix}"
     out.write_bytes(b"previous")
     proc = subprocess.run([sys.executable, "-m", "ionav_viz.cli", *command, "-o", str(out)], cwd=REPO, capture_output=True,
-                          text=True, preexec_fn=_limited_file_size(20_000), timeout=120)
+                          text=True, preexec_fn=_limited_file_size(20_000), timeout=HANG_S)
     assert proc.returncode in (1, 2), proc.stderr
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
@@ -366,7 +363,7 @@ def test_ctrl_c_in_the_middle_of_a_replay(tmp_path, stage):
         from ionav_viz.cli import main
         main()
     """)
-    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=HANG_S)
     assert proc.returncode == 130, proc.stderr
     assert "interrupted" in proc.stderr and "Traceback" not in proc.stderr
     assert list(tmp_path.iterdir()) == []
@@ -392,7 +389,7 @@ def _interrupted_child(argv: list[str], signum: int, private_tmp: Path | None = 
         main()
     """)
     env = None if private_tmp is None else {**__import__("os").environ, "TMPDIR": str(private_tmp)}
-    return subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120, env=env)
+    return subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=HANG_S, env=env)
 
 
 @pytest.mark.parametrize(
@@ -483,7 +480,7 @@ def test_sighup_during_screenshot_stops_the_viewer(tmp_path):
         from ionav_viz.cli import main
         main()
     """)
-    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=180,
+    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=HANG_S,
                           env={**__import__("os").environ, "TMPDIR": str(private_tmp)})
     if proc.returncode == 1 and "mesa" in proc.stderr and not __import__("os").environ.get("CI"):
         pytest.skip("no renderer on this machine")
@@ -523,9 +520,8 @@ def test_output_that_is_not_a_regular_file_is_never_replaced(tmp_path, command, 
 def test_train_output_that_is_a_file_is_refused_before_training(tmp_path):
     target = tmp_path / "model"
     target.write_text("not a model")
-    start = time.monotonic()
     assert_input_error(run_cli("train", "-o", str(target), "--force"), "not a directory")
-    assert time.monotonic() - start < 20 and target.read_text() == "not a model"
+    assert target.read_text() == "not a model"
 
 
 def test_unwritable_output_directory_is_one_line(tmp_path, monkeypatch):
@@ -610,9 +606,7 @@ def test_model_weights_that_cannot_be_right(model_copy, kind):
         path.unlink()
         path.symlink_to("/dev/zero")
         fragment = "not a regular file"
-    start = time.monotonic()
-    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy), timeout=60), "yaw_rate.safetensors", fragment)
-    assert time.monotonic() - start < 30
+    assert_input_error(run_cli("evaluate", "hard-brake", "--model", str(model_copy), timeout=HANG_S), "yaw_rate.safetensors", fragment)
 
 
 def test_training_options_that_would_make_a_nan_model(tmp_path):
@@ -639,10 +633,8 @@ def test_training_options_that_would_make_a_nan_model(tmp_path):
     ],
 )
 def test_options_are_checked_before_any_work(tmp_path, args, fragments):
-    start = time.monotonic()
     proc = run_cli(*[a.replace("{tmp}", str(tmp_path)) for a in args])
     assert_input_error(proc, *fragments)
-    assert time.monotonic() - start < 30
     assert list(tmp_path.iterdir()) == []  # nothing written, no data root created
 
 
@@ -771,7 +763,7 @@ def _boot_stamp(k, i, msg):
 def test_mcap_repeated_missing_or_stray_stamps(tmp_path, mcap_reference, case, tamper, warning, exact):
     path = _mcap(tmp_path, "odd", tamper)
     proc = subprocess.run([sys.executable, "-m", "ionav_viz.cli", "evaluate", str(path), "--no-idnn", "--json", "--outage", "5s"],
-                          cwd=REPO, capture_output=True, text=True, timeout=120,
+                          cwd=REPO, capture_output=True, text=True, timeout=HANG_S,
                           preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30)))
     assert proc.returncode == 0, proc.stderr
     assert warning in proc.stderr
@@ -811,7 +803,7 @@ def _peak_memory_run(path: Path) -> tuple[subprocess.CompletedProcess, str, int]
              "try:\n    main()\nfinally:\n"
              "    status = open('/proc/self/status').read().split('VmHWM:')[1]\n"
              "    print(int(status.split()[0]), file=sys.stderr)\n")
-    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", child], cwd=REPO, capture_output=True, text=True, timeout=HANG_S)
     *lines, peak_kib = proc.stderr.splitlines()
     return proc, "\n".join(lines), int(peak_kib) // 1024
 
@@ -930,13 +922,13 @@ def test_a_file_size_limit_is_one_line(tmp_path, command):
     # the limit, so that the limited run's only large writes are the command's own output
     warm = subprocess.run([sys.executable, "-m", "ionav_viz.cli", *command, *(["-o", str(tmp_path.parent / f"{tmp_path.name}-warm")]
                                                                            if command[0] == "train" else [])],
-                          cwd=REPO, capture_output=True, text=True, timeout=300)
+                          cwd=REPO, capture_output=True, text=True, timeout=HANG_S)
     assert warm.returncode == 0, warm.stderr
     if command[0] == "train":
         command = [*command, "-o", str(tmp_path / "model")]
     with open(out, "wb") as stdout:
         proc = subprocess.run([sys.executable, "-m", "ionav_viz.cli", *command], cwd=REPO, stdout=stdout, stderr=subprocess.PIPE,
-                              text=True, timeout=300, preexec_fn=_file_size_limit(4))
+                              text=True, timeout=HANG_S, preexec_fn=_file_size_limit(4))
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
     assert "write failed (File too large); a file size limit was reached" in proc.stderr
     named = "standard output" if command[0] == "evaluate" else str(tmp_path / "model")
@@ -952,7 +944,7 @@ def test_output_names_that_are_not_utf8(tmp_path):
 
     def run(*args):  # the path on stdout is not UTF-8 either
         return subprocess.run([sys.executable, "-m", "ionav_viz.cli", *args], cwd=REPO, capture_output=True, text=True,
-                              errors="surrogateescape", timeout=300)
+                              errors="surrogateescape", timeout=HANG_S)
 
     folder = os.fsencode(tmp_path)
     rrd = os.fsdecode(folder + b"/out\xff.rrd")

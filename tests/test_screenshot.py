@@ -3,7 +3,6 @@
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -14,7 +13,7 @@ from ionav_viz.nav.ins import InsEstimator
 from ionav_viz.nav.odometry import OdometryEstimator
 from ionav_viz.viz.style import GNSS_COLOR
 
-from .conftest import REPO, run_cli
+from .conftest import HANG_S, REPO, run_cli
 
 # the module's generated fixtures are built once, on one worker (pytest-xdist's --dist loadgroup)
 pytestmark = pytest.mark.xdist_group("screenshot")
@@ -218,7 +217,7 @@ def test_two_runs_in_parallel(recording, tmp_path):
              "--view", "local", "--size", "600x400"] for i in range(2)]
     env = {**os.environ, "TMPDIR": str(private_tmp)}
     procs = [subprocess.Popen(c, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env) for c in cmds]
-    results = [p.communicate(timeout=180) for p in procs]
+    results = [p.communicate(timeout=HANG_S) for p in procs]
     assert all(p.returncode == 0 for p in procs), results
     assert (tmp_path / "p0.png").is_file() and (tmp_path / "p1.png").is_file()
     assert list(private_tmp.iterdir()) == []  # the viewers' scratch folders are gone too
@@ -230,9 +229,7 @@ def test_missing_renderer_is_a_clear_error_and_leaves_no_viewer(recording, tmp_p
     private_tmp.mkdir()
     env = {"TMPDIR": str(private_tmp), "VK_ICD_FILENAMES": str(tmp_path / "none.json"), "LIBGL_ALWAYS_SOFTWARE": "0", "MESA_LOADER_DRIVER_OVERRIDE": "none",
            "GALLIUM_DRIVER": "none", "WGPU_BACKEND": "vulkan"}
-    start = time.monotonic()
-    proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), "--size", "400x300", env=env, timeout=120)
-    assert time.monotonic() - start < 90
+    proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), "--size", "400x300", env=env, timeout=HANG_S)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "mesa-vulkan-drivers" in proc.stderr and "Traceback" not in proc.stderr
     assert proc.stderr.count("\n") == 1  # one line; the viewer's own output stays out of the terminal

@@ -28,7 +28,7 @@ from ionav_viz.nav.ins import InsEstimator
 from ionav_viz.nav.odometry import OdometryEstimator
 from ionav_viz.viz.style import GNSS_COLOR
 
-from .conftest import REPO
+from .conftest import HANG_S, REPO
 
 ARGS = ("replay", "hard-brake", "--estimators", "ins,odo", "--every", "60s", "-q")
 WINDOW_PX = (1280, 720)
@@ -40,7 +40,7 @@ TOP_BAR_PX, TIME_PANEL_PX = 40, 40
 #: track (in the outage inspector) and the INS's red (its end marker at least). Measured on a
 #: rendered page: about 2,400, 1,760 and 80.
 MIN_PIXELS = {"gnss": (GNSS_COLOR, 1000), "odo": (OdometryEstimator.color, 500), "ins": (InsEstimator.color, 30)}
-RENDER_TIMEOUT_S = 90.0  # ~10-20 s on an idle 2-core machine; bounded for a loaded one
+RENDER_TIMEOUT_S = HANG_S  # a hang guard: the loop ends when the page is drawn (~10-20 s on an idle 2-core machine)
 #: What Rerun's web viewer (rerun-sdk 0.41) asks of other hosts, as the README's --serve-web
 #: paragraph lists them: fonts, map tiles, Rerun's release and examples lists, its usage events.
 DOCUMENTED_HOSTS = {"fonts.googleapis.com", "tile.openstreetmap.org", "api.github.com", "app.rerun.io", "tel.rerun.io"}
@@ -128,7 +128,7 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
     home = tmp_path / "home"  # Rerun's analytics.json lives under the user's config folder
     env = {**os.environ, "HOME": str(home), "XDG_CONFIG_HOME": str(home / ".config"), "XDG_DATA_HOME": str(home / ".local" / "share")}
     env.pop("IONAV_DATA", None)
-    optout = subprocess.run([rerun_executable(), "analytics", "disable"], env=env, capture_output=True, text=True, timeout=60)
+    optout = subprocess.run([rerun_executable(), "analytics", "disable"], env=env, capture_output=True, text=True, timeout=HANG_S)
     config = home / ".config" / "rerun" / "analytics.json"
     assert optout.returncode == 0 and config.is_file(), optout.stderr
     config_before = config.read_bytes()
@@ -149,7 +149,7 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
         url = re.search(r"open (http://127\.0\.0\.1:\d+/\S*)", line)
         assert url and f":{web_port}/" in url.group(1), line
         driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
-        driver.set_page_load_timeout(60)
+        driver.set_page_load_timeout(HANG_S)
         driver.get(url.group(1))
         deadline = time.monotonic() + RENDER_TIMEOUT_S
         while True:  # a screenshot waits for the next frame: seconds apart while the viewer loads
@@ -166,7 +166,7 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
             driver.quit()
         server.send_signal(signal.SIGINT)
         try:
-            code = server.wait(timeout=30)
+            code = server.wait(timeout=HANG_S)
         except subprocess.TimeoutExpired:
             server.kill()
             code = server.wait()

@@ -11,12 +11,20 @@ A worker process that dies (killed, out of memory) loses the items it was runnin
 those items are run again, once, each alone in a fresh process; an item whose process dies again
 comes back as a :class:`WorkerLost`. On Dask the scheduler does the same (``allowed-failures``,
 set to 1 for a ``local`` cluster) and a ``KilledWorker`` comes back as a :class:`WorkerLost`.
+
+A local pool has at most as many processes as this process may use cores (:func:`default_workers`)
+and items (:meth:`Engine.pool_size`). A worker that gets SIGTERM, SIGHUP or SIGINT (the process
+group killed by a scheduler, Ctrl-C on a terminal, or the worker alone) stops its item as the
+command would, so its ``finally`` blocks remove its partial outputs, then dies by that signal; when
+the caller stops early (an exception, a signal, the iterator closed), the workers still running are
+sent SIGTERM and so stop the same way.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import signal
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -48,6 +56,22 @@ class Engine:
         if self.cluster is not None and not str(self.cluster).strip():
             raise InputError("an empty cluster address", "give tcp://HOST:8786 or local", param="cluster")
 
+    def pool_size(self, n_items: int | None = None) -> int:
+        """The processes a local pool (or a ``local`` Dask cluster) starts: ``workers``, but at most
+        the cores this process may use (:func:`default_workers`; more only fight over them) and
+        ``n_items``. A remote cluster's size is its own: ``workers``."""
+        if self.cluster is not None and self.cluster != LOCAL_CLUSTER:
+            return self.workers
+        return max(1, min(self.workers, default_workers(), n_items if n_items is not None else self.workers))
+
+    def capped_note(self) -> str | None:
+        """One line saying that the pool is smaller than the ``workers`` asked for, because this
+        process may use fewer cores; None when it is not."""
+        size = self.pool_size()
+        if self.backend == "serial" or size == self.workers:
+            return None
+        return f"--workers {self.workers}: {size} worker process(es), the cores this process may use (more would only share them)"
+
     @property
     def backend(self) -> str:
         """``serial``, ``processes`` or ``dask``."""
@@ -66,12 +90,16 @@ class Engine:
     def describe(self) -> str:
         """One line for reports: ``4 processes``, ``in this process``, ``Dask at tcp://...``."""
         if self.backend == "dask":
-            return f"Dask ({'a local cluster of ' + str(self.workers) + ' workers' if self.cluster == LOCAL_CLUSTER else self.cluster})"
-        return "in this process" if self.backend == "serial" else f"{self.workers} processes"
+            return f"Dask ({'a local cluster of ' + str(self.pool_size()) + ' workers' if self.cluster == LOCAL_CLUSTER else self.cluster})"
+        return "in this process" if self.backend == "serial" else f"{self.pool_size()} processes"
 
 
 def default_workers() -> int:
-    """Every core this process may use (``os.sched_getaffinity`` where there is one)."""
+    """Every core this process may use (``os.process_cpu_count`` where there is one, Python 3.13;
+    else ``os.sched_getaffinity``, else every core)."""
+    counted = getattr(os, "process_cpu_count", None)
+    if counted is not None:
+        return max(counted() or 1, 1)
     try:
         return max(len(os.sched_getaffinity(0)), 1)
     except AttributeError:  # macOS, Windows
@@ -82,13 +110,13 @@ def run_each(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> 
     """``(index, fn(items[index]))`` for every item, in the order they finish (a
     :class:`WorkerLost` instead of a result where the worker died twice). ``fn`` must be a
     module-level function and items and results picklable for every back-end but ``serial``.
-    Closing the iterator early (``--fail-fast``) cancels what has not started."""
+    Closing the iterator early (``--fail-fast``) cancels what has not started and stops what runs."""
     if not items:
         return iter(())
     if engine.backend == "serial":
         return ((i, fn(item)) for i, item in enumerate(items))
     if engine.backend == "processes":
-        return _processes(fn, items, min(engine.workers, len(items)))
+        return _processes(fn, items, engine.pool_size(len(items)))
     return _dask(fn, items, engine)
 
 
@@ -98,13 +126,82 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"
 
 def _worker_start() -> None:
     """In each worker process, before any work: one thread per library (the pool is the
-    parallelism; N workers x N threads would only fight over the cores)."""
+    parallelism; N workers x N threads would only fight over the cores), and the stop signals'
+    handler (:func:`_worker_signal`; in a local pool's workers, whose main thread runs the items)."""
     import sys
+    import threading
 
     for name in THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
     if "torch" in sys.modules:  # imported before the fork (the forkserver's preload): set, not only asked for
         sys.modules["torch"].set_num_threads(1)
+    if threading.current_thread() is threading.main_thread():  # not in a Dask worker's thread: Dask handles its own
+        from ..core.signals import STOP_SIGNALS
+
+        for sig in (signal.SIGINT, *STOP_SIGNALS):
+            signal.signal(sig, _worker_signal)
+
+
+#: Whether this worker process is running an item (:func:`_in_worker`), and whether a stop signal
+#: has stopped it already (its cleanup runs).
+_running_item = False
+_stopping = False
+
+
+def _worker_signal(signum: int, frame: Any) -> None:
+    """A worker's handler of SIGINT, SIGTERM and SIGHUP: while it runs an item, the item stops
+    as the command stops (``KeyboardInterrupt``, :class:`~ionav_viz.core.signals.Terminated`), so
+    that its ``finally`` blocks remove what it had begun to write; idle, it dies by the signal. A
+    signal after the first (Ctrl-C to the group, then the parent's SIGTERM) is let go: raised
+    inside the first one's cleanup, it would cut it short and leave the temporary file."""
+    global _stopping
+    if not _running_item:
+        _die_by(signum)
+    if _stopping:
+        return
+    _stopping = True
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    from ..core.signals import Terminated
+
+    raise Terminated(signum)
+
+
+def _die_by(signum: int) -> None:
+    """End this process by ``signum``'s default action, as if it had no handler: its parent sees a
+    worker killed by that signal."""
+    signal.signal(signum, signal.SIG_DFL)
+    os.kill(os.getpid(), signum)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, [signum])  # delivered by now, unless it was blocked
+    os._exit(128 + signum)  # not reached
+
+
+def _in_worker(fn: Callable[[Any], Any], item: Any) -> Any:
+    """``fn(item)`` in a worker process; a stop signal that came meanwhile (the item has cleaned
+    up) ends the process by that signal rather than the item alone: the pool's other items do
+    not start in a process that was told to stop."""
+    from ..core.signals import Terminated
+
+    global _running_item
+    _running_item = True
+    try:
+        return fn(item)
+    except KeyboardInterrupt:
+        _die_by(signal.SIGINT)
+    except Terminated as exc:
+        _die_by(exc.signum)
+    finally:
+        _running_item = False
+
+
+def _stop_workers(pool: Any) -> None:
+    """SIGTERM to the pool's worker processes still alive: each stops its item, removing what it
+    had begun to write (:func:`_worker_signal`), and dies. ``ProcessPoolExecutor`` has no public
+    list of its processes; its ``_processes`` is read defensively."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(OSError, ValueError, AttributeError):  # gone already, or closed
+            if process.is_alive():
+                process.terminate()
 
 
 @contextlib.contextmanager
@@ -151,12 +248,13 @@ def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> 
 
     lost: list[int] = []
     pool = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_worker_start)
+    complete = False
     try:
         futures = {}
         with _one_thread_environment():  # spawn's workers start here, at the first submits
             for i, item in enumerate(items):
                 try:
-                    futures[pool.submit(fn, item)] = i
+                    futures[pool.submit(_in_worker, fn, item)] = i
                 except BrokenProcessPool:  # a worker died already, while the items were being handed out
                     lost += range(i, len(items))
                     break
@@ -167,7 +265,10 @@ def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> 
                 lost.append(futures[fut])
                 continue
             yield futures[fut], value
+        complete = True
     finally:
+        if not complete:  # stopped early (an exception, a signal, the caller closed the iterator): so do the workers
+            _stop_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
     yield from _retry_alone(fn, items, sorted(lost), workers, none_done=len(lost) == len(items))
 
@@ -187,9 +288,10 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
         batch = lost[first : first + workers]
         pools = [ProcessPoolExecutor(1, mp_context=_context(), initializer=_worker_start) for _ in batch]
         died = []
+        complete = False
         try:
             with _one_thread_environment():
-                futures = {pool.submit(fn, items[i]): i for pool, i in zip(pools, batch)}
+                futures = {pool.submit(_in_worker, fn, items[i]): i for pool, i in zip(pools, batch)}
             for fut in as_completed(futures):
                 try:
                     value = fut.result()
@@ -198,8 +300,11 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
                     continue
                 none_done = False
                 yield futures[fut], value
+            complete = True
         finally:
             for pool in pools:
+                if not complete:
+                    _stop_workers(pool)
                 pool.shutdown(wait=True, cancel_futures=True)
         if none_done and len(died) == len(batch):
             raise ToolFailure("every worker process died before returning anything: they cannot start here (a script that starts "
@@ -222,7 +327,7 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):  # a dying item is retried once (local cluster)
         if engine.cluster == LOCAL_CLUSTER:
             with _one_thread_environment():  # its worker processes start here
-                cluster = LocalCluster(n_workers=engine.workers, threads_per_worker=1, processes=True, dashboard_address=None)
+                cluster = LocalCluster(n_workers=engine.pool_size(len(items)), threads_per_worker=1, processes=True, dashboard_address=None)
             address = cluster
         else:
             address = engine.cluster

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import logging
 import os
 import time
 from collections.abc import Sequence
@@ -23,6 +24,8 @@ from ..sources.load import ReadOptions
 from .engine import Engine, WorkerLost, default_workers, run_each
 from .options import Progress, RunOptions, check_event_types, load_stationary, options_of, placement_of, windows_of
 from .replay import default_stem
+
+log = logging.getLogger("ionav_viz")
 
 #: The exit code of ``evaluate`` when some drives failed and the others' results were printed.
 EXIT_SOME_FAILED = 3
@@ -289,6 +292,7 @@ def evaluate_fleet(
     progress: Progress | None = None,
     replay_options: str = "",
     runs: Sequence[str] = (),
+    fleet_rrd: str | Path | None = None,
 ) -> FleetReport:
     """Evaluate every drive on its own, on ``workers`` processes (default: every core; 1: in this
     process) or a Dask cluster (``cluster``: ``tcp://host:8786``, or ``"local"``), and pool the
@@ -305,6 +309,9 @@ def evaluate_fleet(
             scored and the slowest drive so far.
         replay_options: the options that replay a drive the same way, for the report's commands.
         runs: IO-VNBD run selections added to the drives (``all``, a group, a driver; :func:`expand_drives`).
+        fleet_rrd: where to write the fleet's overview recording (:func:`write_fleet_recording`)
+            when some drive was evaluated; checked with the run's other outputs before any work
+            (:func:`plan_outputs`).
 
     Returns:
         a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
@@ -313,8 +320,12 @@ def evaluate_fleet(
     engine = Engine(workers if workers is not None else default_workers(), cluster).start()
     items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
-    return _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job, engine, fail_fast,
-                      progress, replay_options)
+    outputs = plan_outputs(items, fleet_rrd=fleet_rrd, inputs=fleet_inputs(drives, items, job.run))
+    report = _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job, engine, fail_fast,
+                        progress, replay_options)
+    if outputs.fleet_rrd is not None and report.drives:
+        _write_overview(report, outputs.fleet_rrd)
+    return report
 
 
 def replay_fleet(
@@ -332,35 +343,141 @@ def replay_fleet(
     progress: Progress | None = None,
     replay_options: str = "",
     runs: Sequence[str] = (),
+    fleet_rrd: str | Path | None = None,
 ) -> FleetReport:
     """:func:`ionav_viz.replay` of every drive into ``folder`` (made when missing), one recording
-    each, ``<drive>.rrd`` (``<drive>-2.rrd``... for a name given twice; with ``read.span`` the span
-    too, ``<drive>-0s-60s.rrd``, as :func:`ionav_viz.api.replay.default_stem` names it), in parallel as
-    :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. On a
-    cluster, ``folder`` must be one every worker can write to."""
-    from ..core.fileio import check_output_folder
-
+    each, ``<drive>.rrd`` (with ``read.span`` the span too, ``<drive>-0s-60s.rrd``, as
+    :func:`ionav_viz.api.replay.default_stem` names it; a name another drive's recording has taken
+    gets the first free ``-2``, ``-3``...: :func:`plan_outputs`), in parallel as
+    :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. With
+    ``fleet_rrd``, the fleet's overview recording too. On a cluster, ``folder`` must be one every
+    worker can write to."""
     engine = Engine(workers if workers is not None else default_workers(), cluster).start()
     items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
-    out = check_output_folder(Path(folder), param="output")
-    names: dict[str, int] = {}
-    work = []
-    for d in items:
-        name = default_stem(_drive_name(d.spec), read.span if read is not None else None)
-        names[name] = names.get(name, 0) + 1
-        work.append((d.spec, job, str((out / (f"{name}.rrd" if names[name] == 1 else f"{name}-{names[name]}.rrd")).absolute()), _absolute(d.spec)))
+    out = Path(folder)
+    outputs = plan_outputs(items, folder=out, span=job.read.span, fleet_rrd=fleet_rrd, inputs=fleet_inputs(drives, items, job.run))
+    for spec, recording in outputs.renamed.items():
+        log.warning("%s: recorded as %s, as another output of this run has the drive's name", spec, recording)
+    work = [(d.spec, job, recording, _absolute(d.spec)) for d, recording in zip(items, outputs.recordings)]
     made = [level for level in [*reversed(out.parents), out] if not level.exists()]
     out.mkdir(parents=True, exist_ok=True)
     report = None
     try:
         report = _run_fleet(work, [d.size_bytes for d in items], job, engine, fail_fast, progress, replay_options)
+        if outputs.fleet_rrd is not None and report.drives:
+            _write_overview(report, outputs.fleet_rrd)
         return report
     finally:
         if report is None or not report.drives:  # no recording written: the folders made for them go again (if still empty)
             for level in reversed(made):
                 with contextlib.suppress(OSError):
                     level.rmdir()
+
+
+@dataclass(frozen=True)
+class FleetOutputs:
+    """Every file a fleet run writes, planned before any work (:func:`plan_outputs`): no two are
+    one file and none is one of the run's inputs, whichever worker writes it and when."""
+
+    #: per drive, in the order given: the absolute path of its recording (None: not replayed)
+    recordings: list[str | None]
+    #: the fleet's overview recording, if asked for
+    fleet_rrd: Path | None = None
+    #: the drives whose recording is not ``<drive>.rrd``, as another drive's recording (or the
+    #: overview) has that name: drive as given -> its recording
+    renamed: dict[str, str] = field(default_factory=dict)
+
+
+def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = None, span: Any = None, fleet_rrd: str | Path | None = None,
+                 inputs: Sequence[str | Path] = ()) -> FleetOutputs:
+    """The one place that names a fleet run's outputs, before any work: with ``folder`` (replay),
+    one recording per drive there, ``<drive>.rrd`` as :func:`ionav_viz.api.replay.default_stem`
+    names it (``span``: ``--span``); and the overview recording ``fleet_rrd``.
+
+    Names are decided here, in the order the drives were given, so serial runs, any number of
+    workers and a cluster write the same files: a drive whose name is taken already (by an
+    earlier drive of that name, compared without case, or by the overview) gets the first of
+    ``<drive>-2``, ``<drive>-3``... that no drive and no output has, so ``a/V-x b/V-x c/V-x-2``
+    write ``V-x``, ``V-x-3`` and ``V-x-2``. Refused with an :class:`InputError` (``param``
+    ``fleet_rrd`` or ``output``): an overview that is not an ``.rrd``, cannot be written, is one of
+    the drives' recordings or an input; a recording that is one of ``inputs`` (the drives, list
+    files, a model, plug-ins: :func:`fleet_inputs`); a folder inside an input folder."""
+    from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input
+
+    out = Path(folder) if folder is not None else None
+    if out is not None:
+        check_output_folder(out, param="output")
+        refuse_output_onto_input(out, inputs)  # not inside a drive that is a folder (a ROS 2 bag, a KITTI drive)
+    overview = Path(fleet_rrd) if fleet_rrd is not None else None
+    overview_name = None
+    if overview is not None:
+        if overview.suffix.lower() != ".rrd":
+            raise InputError(f"{overview}: the fleet's overview is an .rrd file", "give a name ending in .rrd", param="fleet_rrd")
+        in_folder = out is not None and os.path.realpath(overview.parent if str(overview.parent) else ".") == os.path.realpath(out)
+        if not in_folder or out.exists():  # else its folder is made by the run, checked as the recordings' folder
+            try:
+                check_output_file(overview)
+            except InputError as exc:
+                exc.param = "fleet_rrd"
+                raise
+        refuse_output_onto_input(overview, inputs, param="fleet_rrd")
+        overview_name = overview.name if in_folder else None
+    if out is None:
+        return FleetOutputs([None] * len(items), overview)
+    stems = [default_stem(_drive_name(d.spec), span) for d in items]
+    if overview_name is not None:
+        for d, stem in zip(items, stems):
+            if f"{stem}.rrd" == overview_name:
+                raise InputError(f"{overview}: is the recording of the drive {d.spec}, which the overview would replace",
+                                 "give the overview another name (e.g. fleet.rrd) or another folder", param="fleet_rrd")
+    reserved = {s.casefold() for s in stems}
+    taken = {overview_name.casefold().removesuffix(".rrd")} if overview_name is not None else set()
+    recordings, renamed = [], {}
+    for d, stem in zip(items, stems):
+        name, n = stem, 1
+        while name.casefold() in taken or (name != stem and name.casefold() in reserved):  # another drive's own name: it keeps it
+            n += 1
+            name = f"{stem}-{n}"
+        taken.add(name.casefold())
+        recording = str((out / f"{name}.rrd").absolute())
+        if name != stem:
+            renamed[d.spec] = recording
+        recordings.append(recording)
+    _refuse_onto_inputs(recordings, inputs)
+    return FleetOutputs(recordings, overview, renamed)
+
+
+def _refuse_onto_inputs(outputs: Sequence[str], inputs: Sequence[str | Path]) -> None:
+    """:func:`~ionav_viz.core.fileio.refuse_output_onto_input` for many outputs at once: each input
+    resolved and stat'ed once (a fleet has thousands of drives and recordings)."""
+    real, ids = {}, {}
+    for given in inputs:
+        real[os.path.realpath(given)] = given
+        with contextlib.suppress(OSError):
+            info = os.stat(given)
+            ids[(info.st_dev, info.st_ino)] = given
+    for output in outputs:
+        hit = real.get(os.path.realpath(output))
+        if hit is None:
+            with contextlib.suppress(OSError):
+                info = os.stat(output)
+                hit = ids.get((info.st_dev, info.st_ino))
+        if hit is not None:
+            raise InputError(f"{output}: a drive's recording would replace the input {hit}",
+                             "choose another output folder; ionav-viz never writes over its input", param="output")
+
+
+def fleet_inputs(specs: Sequence[str | Path], items: Sequence[FleetDrive], run: RunOptions | None = None) -> list[str]:
+    """The files and folders a fleet run reads, for :func:`plan_outputs`: its drives (as
+    :func:`expand_drives` found them), the ``@list`` files given, and the run's model, plug-ins and
+    ``--bias-from`` drive."""
+    from .options import input_paths
+
+    paths = [d.spec for d in items if Path(d.spec).expanduser().exists()]
+    paths += [str(spec)[1:] for spec in specs if str(spec).startswith("@")]
+    paths += [str(p) for p in input_paths([], None, run=run)] if run is not None else []
+    return paths
 
 
 def _drive_name(spec: str) -> str:
@@ -425,6 +542,16 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
         timing={"wall_s": round(time.perf_counter() - began, 3), "engine": engine.describe()})
 
 
+def _write_overview(report: FleetReport, path: Path) -> None:
+    """:func:`write_fleet_recording` as a run's ``fleet_rrd``: its errors name that argument."""
+    try:
+        write_fleet_recording(report, path)
+    except InputError as exc:
+        if exc.param == "output":
+            exc.param = "fleet_rrd"
+        raise
+
+
 def write_fleet_recording(report: FleetReport, output: str | Path) -> Path:
     """Write the fleet's overview recording (``evaluate --fleet-rrd FILE``,
     :mod:`ionav_viz.viz.fleet`) to ``output``, atomically: a table of the drives with each one's
@@ -468,17 +595,19 @@ class FleetPlan:
                            for d in self.drives], "workers": self.workers, "estimate_s": round(self.estimate_s, 1)}
 
 
-def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: Sequence[str] = (), root: str | Path | None = None) -> FleetPlan:
+def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: Sequence[str] = (), root: str | Path | None = None,
+               fleet_rrd: str | Path | None = None) -> FleetPlan:
     """The drives :func:`evaluate_fleet` would evaluate, with sizes and a rough time estimate on
     ``workers`` (default every core): nothing is read but the file sizes (an IO-VNBD run's: the
     manifest's). A drive that cannot be found (under ``root``, the data root, for a run name) is
-    said missing."""
+    said missing. ``fleet_rrd`` is checked as the run would check it (:func:`plan_outputs`)."""
     from ..sources.resolve import data_root, resolve_drive
 
     items = expand_drives(drives, runs)
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
-    n = Engine(workers if workers is not None else default_workers()).workers
+    plan_outputs(items, fleet_rrd=fleet_rrd, inputs=fleet_inputs(drives, items))
+    n = Engine(workers if workers is not None else default_workers()).pool_size(len(items))
     work_s = sum(ESTIMATE_S_PER_DRIVE + ESTIMATE_S_PER_MB * (d.size_bytes or 0) / 1e6 for d in items)
     missing = {}
     for d in items:

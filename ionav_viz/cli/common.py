@@ -260,7 +260,8 @@ def _start_times(text: str) -> list[float]:
 QuietOpt = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary on stderr.")
 
 #: The options of a fleet run (many drives, each evaluated on its own; see api/fleet.py).
-WorkersOpt = typer.Option(None, "--workers", help="Run the drives in this many processes, each drive on its own (default: every core); "
+WorkersOpt = typer.Option(None, "--workers", help="Run the drives in this many processes, each drive on its own (default, and at most: every core this "
+                          "process may use); "
                           "one bad drive is reported, not fatal (exit code 3).", show_default=False)
 ClusterOpt = typer.Option(None, "--cluster", metavar="ADDRESS", help="Run the drives on a Dask cluster: its scheduler (tcp://HOST:8786) or 'local' "
                           "(needs ionav-viz[cluster]; the workers read the drives from the same paths).", show_default=False)

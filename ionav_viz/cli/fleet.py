@@ -45,47 +45,40 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     if not drives and not runs:
         raise typer.BadParameter("give at least one drive (or --runs)", param_hint="DRIVES")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
-    _check_fleet_rrd(fleet_rrd, drives)
-    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option, runs="--runs"):
+    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option, runs="--runs",
+                       fleet_rrd="--fleet-rrd"):
+        _note_pool(workers, cluster, quiet)
         if dry_run:
-            plan = fleet.plan_fleet(drives, workers, runs or (), root=read.data_root)
+            plan = fleet.plan_fleet(drives, workers, runs or (), root=read.data_root, fleet_rrd=fleet_rrd)
             print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
             return
         with c.progress(quiet) as bar:
             report = fleet.evaluate_fleet(drives, outage_s, placement.placement, run=run, read=read, workers=workers, cluster=cluster,
                                           fail_fast=fail_fast, progress=c.progress_callback(bar, "evaluating"),
-                                          replay_options=_replay_options(outage, placement, run, read), runs=runs or ())
+                                          replay_options=_replay_options(outage, placement, run, read), runs=runs or (), fleet_rrd=fleet_rrd)
     if as_json:
         print(report.to_json())
     else:
         print(report.to_markdown() if markdown else report.to_text(c.terminal_width()), end="")
-    _write_fleet_rrd(report, fleet_rrd, quiet)
+    _said_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
 
 
-def _check_fleet_rrd(fleet_rrd: Optional[Path], drives: list[str], folder: Optional[Path] = None) -> None:
-    """Refuse a ``--fleet-rrd`` that is not an ``.rrd`` or cannot be written, or one of the drives,
-    before any work (``folder``: replay's output folder, made by the run: the overview may go in it)."""
-    if fleet_rrd is None:
+def _note_pool(workers: Optional[int], cluster: Optional[str], quiet: bool) -> None:
+    """``note: ...`` on stderr when ``--workers`` asks for more processes than this process may use
+    cores: the pool is capped there (:meth:`ionav_viz.api.engine.Engine.pool_size`)."""
+    if workers is None or quiet:
         return
-    from ..core.fileio import check_output_file, refuse_output_onto_input
+    from ..api.engine import Engine
 
-    if fleet_rrd.suffix.lower() != ".rrd":
-        raise typer.BadParameter(f"{fleet_rrd}: the fleet's overview is an .rrd file", param_hint="--fleet-rrd")
-    with options_named(output="--fleet-rrd"):
-        if folder is None or fleet_rrd.parent.absolute() != folder.absolute() or folder.exists():
-            check_output_file(fleet_rrd)
-        refuse_output_onto_input(fleet_rrd, [d for d in drives if not d.startswith("@")])
+    note = Engine(workers, cluster).capped_note()
+    if note is not None:
+        print(f"note: {note}", file=sys.stderr)
 
 
-def _write_fleet_rrd(report: Any, fleet_rrd: Optional[Path], quiet: bool) -> None:
-    if fleet_rrd is None or not report.drives:
-        return
-    from ..api import fleet
-
-    with options_named(output="--fleet-rrd", fleet_rrd="--fleet-rrd"):
-        fleet.write_fleet_recording(report, fleet_rrd)
-    if not quiet:
+def _said_fleet_rrd(report: Any, fleet_rrd: Optional[Path], quiet: bool) -> None:
+    """Where the overview recording went (written by the run when some drive was done)."""
+    if fleet_rrd is not None and report.drives and not quiet:
         print(f"fleet overview: {fleet_rrd} (ionav-viz screenshot {fleet_rrd} -o fleet.png; rerun {fleet_rrd})", file=sys.stderr)
 
 
@@ -152,19 +145,20 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
     if output is not None and output.suffix.lower() == ".rrd":
         raise typer.BadParameter(f"{output}: many drives are replayed into a folder, one recording each", param_hint="-o")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
-    _check_fleet_rrd(fleet_rrd, drives, output if output is not None else Path("recordings"))
     with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option,
-                       runs="--runs"), \
-            c.progress(quiet) as bar:
-        report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
-                                    read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                                    progress=c.progress_callback(bar, "replaying"), replay_options=_replay_options(outage, placement, run, read),
-                                    runs=runs or ())
+                       runs="--runs", fleet_rrd="--fleet-rrd"):
+        _note_pool(workers, cluster, quiet)
+        with c.progress(quiet) as bar:
+            report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
+                                        read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
+                                        progress=c.progress_callback(bar, "replaying"),
+                                        replay_options=_replay_options(outage, placement, run, read), runs=runs or (),
+                                        fleet_rrd=fleet_rrd)
     if not quiet:
         print(report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     for table in report.drives:
         print(table.recording)
-    _write_fleet_rrd(report, fleet_rrd, quiet)
+    _said_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
 
 

@@ -72,11 +72,29 @@ _USER_DIRS_IN_SYSTEM = (Path("/dev/shm"),)
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 
+def package_dirs() -> list[Path]:
+    """The installed package's folders: :data:`PACKAGE_DIR`, and the shipped model's package
+    ``ionav_viz.models`` where it lies elsewhere (an editable install maps it to the repository's
+    ``models/``; a wheel puts it inside :data:`PACKAGE_DIR`)."""
+    import importlib.util
+
+    dirs = [PACKAGE_DIR]
+    try:
+        spec = importlib.util.find_spec("ionav_viz.models")
+    except (ImportError, ValueError):
+        spec = None
+    for location in (spec.submodule_search_locations or []) if spec is not None else []:
+        where = Path(location).resolve()
+        if where != PACKAGE_DIR and PACKAGE_DIR not in where.parents:
+            dirs.append(where)
+    return dirs
+
+
 def refuse_system_output(target: str | Path, param: str = "output", *, package_ok: bool = False) -> None:
     """Refuse an output under ``/dev``, ``/proc`` or ``/sys``, as given or once links are resolved
     (``-o /dev/stdout`` when standard output is a file passed every other check, and the rename
     replaced the system's ``/dev/stdout`` link with a regular file), a link loop, and an output
-    inside the installed package (:data:`PACKAGE_DIR`: ``simulate -o`` onto a bundled drive replaced
+    inside the installed package (:func:`package_dirs`: ``simulate -o`` onto a bundled drive replaced
     it) unless ``package_ok``."""
     target = Path(target)
     try:
@@ -85,9 +103,10 @@ def refuse_system_output(target: str | Path, param: str = "output", *, package_o
         if exc.errno == errno.ELOOP:
             raise InputError(f"{target}: is a loop of symbolic links", "remove the link or choose another output", param=param) from None
     real = Path(os.path.realpath(target))
-    if not package_ok and (real == PACKAGE_DIR or PACKAGE_DIR in real.parents):
-        raise InputError(f"{target}: is inside the installed ionav-viz package ({PACKAGE_DIR}), whose bundled drives and data are read-only",
-                         "write it in a folder of yours", param=param)
+    inside = next((d for d in package_dirs() if real == d or d in real.parents), None) if not package_ok else None
+    if inside is not None:
+        raise InputError(f"{target}: is inside the installed ionav-viz package ({inside}), whose shipped model, bundled drives and "
+                         "data are read-only", "write it in a folder of yours", param=param)
     for where in [*_link_chain(target), Path(os.path.realpath(target))]:
         if any(where == d or d in where.parents for d in _SYSTEM_DIRS) and not any(
                 where == d or d in where.parents for d in _USER_DIRS_IN_SYSTEM):

@@ -23,6 +23,12 @@ WINDOW_S = 1.0
 STAMP_TOLERANCE_S = 0.005
 
 
+#: Stamps this close (s) are one instant: far below any sample period (a 1 kHz IMU's is 1 ms) and far
+#: above the rounding of stamps in seconds, so a clock offset or a rounding this small moves no sample
+#: across a bound (``--imu-time-offset 1e-9`` gives the results of none).
+SAME_INSTANT_S = 1e-6
+
+
 def stamp_tolerance_s(rate_hz: float) -> float:
     """:data:`STAMP_TOLERANCE_S`, at most a quarter of a sample period at ``rate_hz`` (Hz)."""
     return min(STAMP_TOLERANCE_S, 0.25 / rate_hz) if rate_hz > 0 else STAMP_TOLERANCE_S

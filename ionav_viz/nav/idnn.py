@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import check_regular_input, read_json_bounded, staging_folder, swap_in_directory, write_failure
+from ..core.fileio import check_regular_input, read_json_bounded, refuse_system_output, staging_folder, swap_in_directory, write_failure
 from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
 from . import history_check
 from .bias import SensorBias
@@ -629,11 +629,14 @@ def is_shipped_model_dir(directory: Path) -> bool:
 
 def check_model_dir(directory: Path, overwrite: bool = False) -> Path:
     """Check, before any training, that a model can be written as ``directory``: never the shipped
-    model, an existing directory only with ``overwrite``, and its parent must exist."""
+    model nor anywhere else in the installed package or a system folder
+    (:func:`~ionav_viz.core.fileio.refuse_system_output`), an existing directory only with
+    ``overwrite``, and its parent must exist."""
     directory = Path(directory)
     if is_shipped_model_dir(directory):
         raise InputError(f"{directory}: this is the shipped IDNN model, which is never overwritten",
                          "write the new model somewhere else, then choose it as the model", param="output")
+    refuse_system_output(directory)
     if directory.exists() and not directory.is_dir():
         raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
     if directory.exists() and not overwrite:

@@ -161,11 +161,11 @@ def _local_fit(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndar
     return lat, lon, ve, vn
 
 
-def covered(t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
-    """Grid times inside the GNSS record and not inside a GNSS gap: a gap is longer than
-    MAX_GNSS_GAP_S and than 1.5 of the receiver's usual intervals (a jittered 1 Hz receiver's
-    1.004 s between fixes is its rate, not a gap)."""
-    inside = (t >= g_t[0]) & (t <= g_t[-1])
+def covered(t: np.ndarray, g_t: np.ndarray, tolerance_s: float = 0.0) -> np.ndarray:
+    """Grid times inside the GNSS record (or within ``tolerance_s`` of its ends) and not inside a
+    GNSS gap: a gap is longer than MAX_GNSS_GAP_S and than 1.5 of the receiver's usual intervals (a
+    jittered 1 Hz receiver's 1.004 s between fixes is its rate, not a gap)."""
+    inside = (t >= g_t[0] - tolerance_s) & (t <= g_t[-1] + tolerance_s)
     k = np.clip(np.searchsorted(g_t, t), 1, len(g_t) - 1)
     gap = g_t[k] - g_t[k - 1]
     usual = float(np.median(np.diff(g_t))) if len(g_t) > 1 else 0.0

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
 from ..core.errors import InputError
-from ..core.grid import GRID_RATE_HZ, hold_course_when_slow
+from ..core.grid import GRID_RATE_HZ, SAME_INSTANT_S, hold_course_when_slow
 from .gnss_fixes import FIX_COURSE_MIN_SPEED_MPS, covered, fit_fixes, receiver_velocity
 from .imu.character import ImuSettings, character, clock_offset, orient
 from .plausibility import first_implausible
@@ -249,25 +249,35 @@ class _Grid:
 
 def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid:
     """The IMU's samples as they are when IMU and GNSS share their stamps at the grid rate, else its
-    means per grid step within the fixes' span (fixes interpolated onto them). ``imu_shift_s``: the
-    IMU's clock offset (its stamps minus the receiver's): its samples are put at ``t - imu_shift_s``."""
+    means per grid step, within the fixes' span (fixes interpolated onto them). ``imu_shift_s``: the
+    IMU's clock offset (its stamps minus the receiver's): its samples are put at ``t - imu_shift_s``.
+
+    A sample within :data:`~ionav_viz.core.grid.SAME_INSTANT_S` of the fixes' span is in it: a shift
+    far below the sample period (``--imu-time-offset 1e-9``) moves no sample in or out, so the drive
+    starts on the same sample and its windows and outages are those of no shift."""
     imu = streams.imu
     g_t, g_lat, g_lon, g_alt, g_sigma = streams.gnss.T
+    tolerance_s = SAME_INSTANT_S
     samples = imu.kept_samples()
-    if _shares_stamps(streams) and imu_shift_s == 0.0:  # (a shift moves the IMU off the fixes' stamps: the general way)
-        t, body = samples[:, 0], samples[:, 1:]  # IMU and GNSS share their stamps at the grid rate: keep them
+    if _shares_stamps(streams):  # IMU and GNSS share their stamps at the grid rate: the samples stay as they are
+        t, body = samples[:, 0] - imu_shift_s, samples[:, 1:]
         lat, lon, alt, sigma = g_lat, g_lon, g_alt, g_sigma
         has_fix = np.ones(len(t), dtype=bool)
+        if imu_shift_s != 0.0:  # moved off the fixes' stamps: the fixes are interpolated onto them
+            keep = (t >= g_t[0] - tolerance_s) & (t <= g_t[-1] + tolerance_s)
+            t, body = t[keep], body[keep]
+            has_fix = covered(t, g_t, tolerance_s)
+            lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
         readings = 1.0
     else:
         t, body, count = imu.means()
         t = t - imu_shift_s
-        keep = drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0]) & (t <= g_t[-1])
+        keep = drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0] - tolerance_s) & (t <= g_t[-1] + tolerance_s)
         t, body = t[keep], body[keep]
         if imu_shift_s == 0.0 and len(t) >= 2:
             _warn_imu_short_of_fixes(path, t, g_t)
         readings = float(np.median(count[keep])) if keep.any() else 1.0
-        has_fix = covered(t, g_t)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
+        has_fix = covered(t, g_t, tolerance_s)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
         raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
