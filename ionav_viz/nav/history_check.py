@@ -66,6 +66,15 @@ def nees_per_dof(windows: Windows, starts: np.ndarray, disp_m: np.ndarray, yaw_r
     return nees_en(error, cov_m2[:, 1:]).mean(axis=1) / 2.0
 
 
+def pseudo_starts_before(windows: Windows, n_windows: int, outage_starts: np.ndarray) -> np.ndarray:
+    """The first windows of the pseudo-outages of ``n_windows`` (:func:`pseudo_outages`) that end
+    before the last of ``outage_starts``: the only ones any outage can learn from (none without outages)."""
+    starts = pseudo_outages(windows, n_windows).starts
+    if not len(outage_starts):
+        return starts[:0]
+    return starts[starts + n_windows <= np.max(outage_starts)]
+
+
 def covariance_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray,
                      run: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, str]:
     """Per outage of ``n_windows`` windows at ``outage_starts``, the scale of an estimator's position
@@ -80,11 +89,8 @@ def covariance_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray
     a simulated phone drive lost the only history they had (ANEES after 10 s 2.8 -> 11.0; its
     outages at 30-50 s NEES 65-153)."""
     outage_starts = np.asarray(outage_starts, dtype=int)
-    pseudo = pseudo_outages(windows, n_windows)
-    starts = pseudo.starts
-    if len(starts) and len(outage_starts):
-        starts = starts[starts + n_windows <= outage_starts.max()]
-    if not len(starts) or not len(outage_starts):
+    starts = pseudo_starts_before(windows, n_windows, outage_starts)
+    if not len(starts):
         return np.ones(len(outage_starts)), ""
     disp, yaw, cov = run(starts)
     nees = nees_per_dof(windows, starts, disp, yaw, cov)
@@ -139,11 +145,8 @@ def growth_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray,
     (a receiver's slow wander the filter follows), which the fix at a pseudo-outage's end shares and
     so cannot measure."""
     outage_starts = np.asarray(outage_starts, dtype=int)
-    pseudo = pseudo_outages(windows, n_windows)
-    starts = pseudo.starts
-    if len(starts) and len(outage_starts):
-        starts = starts[starts + n_windows <= outage_starts.max()]
-    if not len(starts) or not len(outage_starts):
+    starts = pseudo_starts_before(windows, n_windows, outage_starts)
+    if not len(starts):
         return np.ones(len(outage_starts)), ""
     disp, yaw, cov = run(starts)
     track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp, yaw)
