@@ -9,12 +9,17 @@ field with a hint, no traceback, nothing written; nothing hangs, nothing grows w
 
 from __future__ import annotations
 
+import contextlib
 import json
+import socket
+import threading
 from pathlib import Path
 
 import pytest
 
-from .conftest import run_cli
+import ionav_viz as iv
+
+from .conftest import run_cli, run_cli_process
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +47,61 @@ def _dry_run(*args: str, cwd: Path) -> list[str]:
     done = run_cli("evaluate", *args, "--dry-run", "--json", cwd=cwd)
     assert done.returncode == 0, done.stderr
     return [d["drive"] for d in json.loads(done.stdout)["drives"]]
+
+
+# --- 3. --cluster -------------------------------------------------------------------------------
+@pytest.mark.parametrize("address", ["http://scheduler:8786", "ftp://x", "tcp://127.0.0.1:notaport", "tcp://[::1",
+                                     "tcp://host", "tcp://host:70000", "tcp://host:1/path", "\x1b[2J:1"])
+def test_a_malformed_cluster_address_is_one_line(drives, address):
+    """Dask's parser raised ValueError tracebacks (exit code 1) for these; now one line naming
+    --cluster with the forms it takes, before any work."""
+    done = run_cli("evaluate", str(drives / "V-a.csv"), "--estimators", "ins", "--cluster", address)
+    line = _one_line_error(done, "--cluster", "tcp://scheduler:8786")
+    assert "\x1b" not in line
+
+
+@contextlib.contextmanager
+def _silent_port():
+    """A local port that accepts connections and never answers (a stuck or foreign service)."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    taken: list[socket.socket] = []
+    stop = threading.Event()
+
+    def accept() -> None:
+        server.settimeout(0.1)
+        while not stop.is_set():
+            with contextlib.suppress(OSError):
+                taken.append(server.accept()[0])
+
+    thread = threading.Thread(target=accept, daemon=True)
+    thread.start()
+    try:
+        yield server.getsockname()[1]
+    finally:
+        stop.set()
+        thread.join()
+        for conn in taken:
+            conn.close()
+        server.close()
+
+
+def test_an_unresponsive_scheduler_is_one_line_within_the_connect_timeout(drives):
+    """A port that accepts and never answers held the client past Dask's connect timeout (80 s and
+    more: its greeting's reply has no timeout); now the greeting is bounded by
+    ``distributed.comm.timeouts.connect`` (made short here) and the run stops in one line."""
+    pytest.importorskip("distributed")
+    with _silent_port() as port:
+        short = {"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"}  # Dask's own setting, read as it starts
+        address = f"tcp://127.0.0.1:{port}"
+        done = run_cli_process("evaluate", str(drives / "V-a.csv"), "--estimators", "ins", "--cluster", address, env=short)
+        _one_line_error(done, "--cluster", f"no Dask scheduler answered at {address}")
+        import dask
+
+        with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), pytest.raises(iv.InputError) as err:
+            iv.evaluate_fleet([str(drives / "V-a.csv")], estimators=["ins"], cluster=address)
+        assert err.value.param == "cluster"
 
 
 # --- 6. names from a file are printed escaped ---------------------------------------------------
