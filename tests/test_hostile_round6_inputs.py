@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import socket
 import threading
 from pathlib import Path
@@ -20,6 +21,7 @@ import pytest
 import ionav_viz as iv
 
 from .conftest import run_cli, run_cli_process
+from .test_hostile_files import fifo_unblocked
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +49,53 @@ def _dry_run(*args: str, cwd: Path) -> list[str]:
     done = run_cli("evaluate", *args, "--dry-run", "--json", cwd=cwd)
     assert done.returncode == 0, done.stderr
     return [d["drive"] for d in json.loads(done.stdout)["drives"]]
+
+
+# --- 1. every way of naming drives is bounded ---------------------------------------------------
+def test_a_list_file_that_is_a_pipe_or_a_device_is_refused(tmp_path):
+    """``@fifo.txt`` blocked forever on the open; ``@/dev/zero`` read 2.7 GB, then a MemoryError
+    (``/dev/null`` here, which was read as an empty list: "no drive to evaluate")."""
+    with fifo_unblocked(tmp_path / "fifo.txt"):
+        _one_line_error(run_cli("evaluate", "@fifo.txt", "--dry-run", cwd=tmp_path), "@fifo.txt", "named pipe")
+    _one_line_error(run_cli("evaluate", "@/dev/null", "--dry-run", cwd=tmp_path), "@/dev/null", "character device")
+
+
+def test_a_list_file_over_the_limit_says_the_limit(tmp_path):
+    """A list is read with a size limit, said when exceeded (a sparse file: nothing is read)."""
+    from ionav_viz.api.fleet import MAX_LIST_BYTES
+
+    with open(tmp_path / "huge.txt", "wb") as f:
+        f.truncate(MAX_LIST_BYTES + 1)
+    done = run_cli("evaluate", "@huge.txt", "--dry-run", cwd=tmp_path)
+    _one_line_error(done, "@huge.txt", f"at most {MAX_LIST_BYTES}")
+
+
+def test_a_list_that_includes_itself_is_read_once(tmp_path, drives):
+    """A list naming itself (or another list twice) was read again at every level, until "nested
+    more than 4 deep" (three such lines: 3^5 reads; a thousand: a hang); each list is read once now."""
+    (tmp_path / "self.txt").write_text(f"@self.txt\n@self.txt\n{drives / 'V-a.csv'}\n@self.txt\n")
+    assert _dry_run("@self.txt", cwd=tmp_path) == [str(drives / "V-a.csv")]
+
+
+def test_a_recursive_glob_does_not_follow_a_link_loop(tmp_path, drives):
+    """``'logs/**/*.csv'`` over ``logs/a -> .`` followed the link 40 levels deep (and two such links
+    made it endless): '**' does not enter links to folders, as bash's globstar."""
+    logs = tmp_path / "logs"
+    (logs / "sub").mkdir(parents=True)
+    os.link(drives / "V-a.csv", logs / "V-a.csv")
+    os.link(drives / "V-b.csv", logs / "sub" / "V-b.csv")
+    (logs / "a").symlink_to(".")
+    (logs / "sub" / "up").symlink_to("..")
+    assert _dry_run("logs/**/*.csv", cwd=tmp_path) == ["logs/V-a.csv", "logs/sub/V-b.csv"]
+    assert _dry_run("logs", cwd=tmp_path) == ["logs/V-a.csv"]  # a folder: its own drives, not those below
+
+
+def test_a_hard_link_and_its_file_are_one_drive(tmp_path, drives):
+    """Drives are compared by the file they reach: a hard link was a second drive."""
+    os.link(drives / "V-a.csv", tmp_path / "same.csv")
+    (tmp_path / "soft.csv").symlink_to(drives / "V-a.csv")
+    assert _dry_run(str(drives / "V-a.csv"), "same.csv", "soft.csv", str(drives / "V-b.csv"), cwd=tmp_path) == [
+        str(drives / "V-a.csv"), str(drives / "V-b.csv")]
 
 
 # --- 3. --cluster -------------------------------------------------------------------------------
@@ -102,6 +151,37 @@ def test_an_unresponsive_scheduler_is_one_line_within_the_connect_timeout(drives
         with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), pytest.raises(iv.InputError) as err:
             iv.evaluate_fleet([str(drives / "V-a.csv")], estimators=["ins"], cluster=address)
         assert err.value.param == "cluster"
+
+
+# --- 4. the fleet API's arguments ---------------------------------------------------------------
+@pytest.mark.parametrize(("kwargs", "param"), [
+    ({"cluster": 5}, "cluster"), ({"cluster": ["local"]}, "cluster"), ({"cluster": "tcp://[::1"}, "cluster"),
+    ({"drives": None}, "drives"), ({"drives": 5}, "drives"), ({"drives": ["x", 5]}, "drives"), ({"runs": 5}, "runs"),
+    ({"placement": 5}, "placement"), ({"estimators": 5}, "estimators"), ({"progress": 5}, "progress"),
+    ({"replay_options": 5}, "replay_options"),
+])
+def test_the_fleet_api_names_a_bad_argument(drives, kwargs, param):
+    """Each was a TypeError (or an AttributeError) naming no argument; now an InputError naming it."""
+    call = {"drives": [str(drives / "V-a.csv")], "estimators": ["ins"], "workers": 1, **kwargs}
+    with pytest.raises(iv.InputError) as err:
+        iv.evaluate_fleet(**call)
+    assert err.value.param == param, err.value
+
+
+def test_one_path_given_to_the_fleet_api_is_one_drive_or_folder(drives, tmp_path):
+    """``evaluate_fleet("/path/fleet")`` iterated the string's characters into 17 failed "drives"."""
+    report = iv.evaluate_fleet(str(drives), estimators=["ins"], workers=1)
+    assert [Path(t.spec).name for t in report.drives] == ["V-a.csv", "V-b.csv"] and not report.failures
+    from ionav_viz.api.fleet import plan_fleet
+
+    assert [Path(d.spec).name for d in plan_fleet(drives / "V-b.csv").drives] == ["V-b.csv"]
+    for call, param in ((lambda: iv.replay_fleet(str(drives), folder=5), "output"),
+                        (lambda: iv.replay_fleet(None), "drives"),
+                        (lambda: iv.write_fleet_recording({"drives": []}, tmp_path / "f.rrd"), "report")):
+        with pytest.raises(iv.InputError) as err:
+            call()
+        assert err.value.param == param
+    assert list(tmp_path.iterdir()) == []
 
 
 # --- 6. names from a file are printed escaped ---------------------------------------------------
