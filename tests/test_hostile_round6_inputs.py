@@ -98,6 +98,23 @@ def test_a_hard_link_and_its_file_are_one_drive(tmp_path, drives):
         str(drives / "V-a.csv"), str(drives / "V-b.csv")]
 
 
+# --- 2. cross-validate --folds ------------------------------------------------------------------
+def test_cross_validate_folds_beyond_the_drive_are_refused_before_any_allocation(tmp_path):
+    """``--folds 99999999999999999999`` on one drive built the blocks' edges first (2.3 GB, then a
+    MemoryError); the count is checked against what the drive holds first, in one line (the device
+    line came before it, a second line)."""
+    from ionav_viz.sim.simulate import write_simulated_drive
+
+    drive = write_simulated_drive(tmp_path / "V-long.csv", "roundabout", seed=3, duration_s=200)
+    done = run_cli("cross-validate", str(drive), "--folds", "1000", cwd=tmp_path)
+    line = _one_line_error(done, "--folds", "at most 5 folds")
+    assert "1000 time blocks" in line
+    (tmp_path / "out").mkdir()
+    done = run_cli("cross-validate", str(drive), "--folds", "99999999999999999999", "-o", "out", cwd=tmp_path)
+    _one_line_error(done, "--folds")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
 # --- 3. --cluster -------------------------------------------------------------------------------
 @pytest.mark.parametrize("address", ["http://scheduler:8786", "ftp://x", "tcp://127.0.0.1:notaport", "tcp://[::1",
                                      "tcp://host", "tcp://host:70000", "tcp://host:1/path", "\x1b[2J:1"])
