@@ -201,6 +201,30 @@ def test_one_path_given_to_the_fleet_api_is_one_drive_or_folder(drives, tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+# --- 5. figures of an inconsistent fleet report -------------------------------------------------
+@pytest.fixture(scope="module")
+def fleet_json(drives) -> dict:
+    done = run_cli("evaluate", str(drives / "V-a.csv"), str(drives / "V-b.csv"), "--workers", "1",
+                   "--estimators", "ins", "--json", "-q")
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_figures_refuse_a_fleet_report_whose_pooled_entry_is_a_number(tmp_path, fleet_json):
+    """A pooled entry that is a number was an AttributeError in the CDF's legend."""
+    (tmp_path / "r.json").write_text(json.dumps({**fleet_json, "pooled": {**fleet_json["pooled"], "ins": 5}}))
+    _one_line_error(run_cli("figures", "r.json", "-o", "figs", cwd=tmp_path), "r.json", "pooled.ins")
+    assert not (tmp_path / "figs").exists()
+
+
+def test_figures_refuse_a_fleet_report_whose_outages_name_drives_it_does_not_list(tmp_path, fleet_json):
+    """Outages of a drive the report does not list were drawn as a drive of the box plot."""
+    (tmp_path / "r.json").write_text(json.dumps({**fleet_json, "drives": fleet_json["drives"][:1]}))
+    done = run_cli("figures", "r.json", "-o", "figs", cwd=tmp_path)
+    _one_line_error(done, "r.json", "'V-b' is not among the report's drives")
+    assert not (tmp_path / "figs").exists()
+
+
 # --- 6. names from a file are printed escaped ---------------------------------------------------
 def test_info_and_errors_escape_names_from_the_file(tmp_path):
     """``info`` printed topic and schema names raw: an ESC sequence cleared the screen, a newline
