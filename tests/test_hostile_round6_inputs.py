@@ -16,6 +16,7 @@ import socket
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import ionav_viz as iv
@@ -247,3 +248,20 @@ def test_info_and_errors_escape_names_from_the_file(tmp_path):
     assert not any(line.startswith("error:") for line in (done.stdout + done.stderr).splitlines())
     line = _one_line_error(run_cli("replay", str(log), "-o", str(tmp_path / "r.rrd")), "evil.mcap")
     assert "\x1b" not in line and "\\x1b[2J" in line
+
+
+# --- 7. a covariance beyond any position --------------------------------------------------------
+def test_a_huge_covariance_is_refused_without_numpy_warnings(tmp_path):
+    """Covariance columns of 1e300 m^2 printed numpy's overflow warnings with their source lines and
+    were scored; refused at the reader now, naming the pose."""
+    assert run_cli("outage-log", "roundabout", "--at", "20s,60s", "-o", str(tmp_path / "cut.mcap")).returncode == 0
+    drive = iv.load_drive("roundabout")
+    stamps = np.asarray(drive.stamp_s(drive.t_s))
+    n = len(stamps)
+    huge = np.full(n, 1e300)
+    np.savetxt(tmp_path / "huge.csv", np.column_stack([stamps, drive.lat_deg, drive.lon_deg, huge, np.zeros(n), huge]),
+               delimiter=",", header="time_s,lat_deg,lon_deg,cov_ee_m2,cov_en_m2,cov_nn_m2", comments="", fmt="%.9g")
+    done = run_cli("evaluate", "roundabout", "--plan", str(tmp_path / "cut.outages.json"), "--estimators", "ins",
+                   "--external", "x=huge.csv", cwd=tmp_path)
+    _one_line_error(done, "--external", "huge.csv: pose 1", "beyond any position")
+    assert "RuntimeWarning" not in done.stderr
