@@ -265,3 +265,11 @@ def test_a_huge_covariance_is_refused_without_numpy_warnings(tmp_path):
                    "--external", "x=huge.csv", cwd=tmp_path)
     _one_line_error(done, "--external", "huge.csv: pose 1", "beyond any position")
     assert "RuntimeWarning" not in done.stderr
+
+
+# --- 9. events --quality with a span ------------------------------------------------------------
+@pytest.mark.parametrize("option", [("--span", "0s:5s"), ("--yaw-sign", "cw")])
+def test_events_quality_refuses_reading_options_it_would_ignore(option):
+    """``events --quality --span 0s:5s`` measured the detectors on the whole bundled drives,
+    ignoring the span silently: --quality reads them whole and as they are, so it refuses them."""
+    _one_line_error(run_cli("events", "--quality", *option), option[0], "bundled synthetic drives whole")
