@@ -273,3 +273,16 @@ def test_events_quality_refuses_reading_options_it_would_ignore(option):
     """``events --quality --span 0s:5s`` measured the detectors on the whole bundled drives,
     ignoring the span silently: --quality reads them whole and as they are, so it refuses them."""
     _one_line_error(run_cli("events", "--quality", *option), option[0], "bundled synthetic drives whole")
+
+
+# --- 10. a truncated recording ------------------------------------------------------------------
+def test_screenshot_of_a_truncated_recording_is_our_one_line_only(tmp_path, drives):
+    """Rerun's own "no footer/manifest" RerunWarning and its source line came above our error (a
+    fresh process: in this one, pytest records the warnings instead of letting them reach stderr)."""
+    done = run_cli("replay", str(drives / "V-a.csv"), "--estimators", "ins", "-q", "-o", str(tmp_path / "r.rrd"))
+    assert done.returncode == 0, done.stderr
+    whole = (tmp_path / "r.rrd").read_bytes()
+    (tmp_path / "cut.rrd").write_bytes(whole[: len(whole) // 4])
+    done = run_cli_process("screenshot", "cut.rrd", "-o", "s.png", cwd=tmp_path)
+    _one_line_error(done, "cut.rrd", "not a readable Rerun recording")
+    assert not (tmp_path / "s.png").exists()
