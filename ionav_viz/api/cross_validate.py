@@ -10,8 +10,10 @@ leakage check strict: an outage in that fold's training data is an error, never 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import re
 import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -140,12 +142,12 @@ def cross_validate(
         if not out_dir.is_dir():
             what = "is not a directory" if out_dir.exists() else "does not exist"
             raise InputError(f"{out_dir}: {what}", "give an existing folder for the folds' models (fold-1, fold-2, ...)", param="output")
-        for i in range(folds):  # every fold's directory before any training, not fold-1 alone
-            fold_dir = out_dir / f"fold-{i + 1}"
-            if fold_dir.exists() or fold_dir.is_symlink():
-                raise InputError(f"{fold_dir}: exists already", "give an empty folder, or remove the earlier folds' models from it", param="output")
-            check_model_dir(fold_dir, overwrite=False)
-    device = training_device(device)
+        numbers = (re.fullmatch(r"fold-([1-9][0-9]*)", p.name) for p in out_dir.iterdir())
+        taken = sorted(n for m in numbers if m and (n := int(m.group(1))) <= folds)
+        if taken:  # every fold's directory before any training, not fold-1 alone (listed: --folds may be huge)
+            raise InputError(f"{out_dir / f'fold-{taken[0]}'}: exists already",
+                             "give an empty folder, or remove the earlier folds' models from it", param="output")
+        check_model_dir(out_dir / "fold-1", overwrite=False)  # the same checks for every fold's directory beside it
     loaded = load_drives(items, read)
     by = "time" if len(loaded) == 1 else "drive"
     need_s = float(run.warm_up_s) + float(outage_s)  # every fold's test drive needs the warm-up and an outage
@@ -156,6 +158,7 @@ def cross_validate(
                          "leave it out, give longer drives or shorter outages (--outage)", param="drives")
     splits = _time_blocks(loaded[0], folds, need_s) if by == "time" else [
         ([d for j, d in enumerate(loaded) if j % folds != i], [d for j, d in enumerate(loaded) if j % folds == i]) for i in range(folds)]
+    device = training_device(device)  # after the folds are checked: said before an error, it was a second line
     bias_of = run.bias_of(read)
     results = []
     warned: list[str] = []
@@ -231,15 +234,19 @@ def _time_blocks(drive: Drive, folds: int, need_s: float = 30.0) -> list[tuple[l
     """K contiguous blocks of equal length of one drive: per fold (the other blocks, [block i]).
     Each must last ``need_s`` (the warm-up and one outage, 30 s at least), or no outage is tested in it."""
     t0, t1 = float(drive.t_s[0]), float(drive.t_s[-1])
-    edges = [t0 + (t1 - t0) * k / folds for k in range(folds + 1)]
-    try:
-        blocks = [crop_to_span(drive, Span(edges[k], edges[k + 1])) for k in range(folds)]
-    except InputError:
-        blocks = []
     need_s = max(30.0, need_s)
+    blocks = []
+    if folds <= (t1 - t0) / need_s + 1e-6:  # checked before the blocks are made: --folds 10**20 was a MemoryError
+        edges = [t0 + (t1 - t0) * k / folds for k in range(folds + 1)]
+        with contextlib.suppress(InputError):
+            blocks = [crop_to_span(drive, Span(edges[k], edges[k + 1])) for k in range(folds)]
     if len(blocks) < folds or min(b.duration_s for b in blocks) < need_s - 1e-6:
+        fit = int((t1 - t0) / need_s + 1e-6)
         raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of {need_s:g} s or more "
-                         "(each tests an outage after the warm-up)", "give fewer folds, shorter outages or a longer drive", param="folds")
+                         "(each tests an outage after the warm-up)",
+                         f"give at most {fit} folds, shorter outages or a longer drive" if fit >= 2
+                         else "give shorter outages or a longer drive",
+                         param="folds")
     return [([b for j, b in enumerate(blocks) if j != i], [blocks[i]]) for i in range(folds)]
 
 

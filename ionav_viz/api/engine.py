@@ -53,8 +53,8 @@ class Engine:
     def __post_init__(self) -> None:
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise InputError(f"{self.workers!r} workers: give a whole number of 1 or more", "e.g. --workers 2", param="workers")
-        if self.cluster is not None and not str(self.cluster).strip():
-            raise InputError("an empty cluster address", "give tcp://HOST:8786 or local", param="cluster")
+        if self.cluster is not None:
+            check_cluster_address(self.cluster)
 
     def pool_size(self, n_items: int | None = None) -> int:
         """The processes a local pool (or a ``local`` Dask cluster) starts: ``workers``, but at most
@@ -92,6 +92,46 @@ class Engine:
         if self.backend == "dask":
             return f"Dask ({'a local cluster of ' + str(self.pool_size()) + ' workers' if self.cluster == LOCAL_CLUSTER else self.cluster})"
         return "in this process" if self.backend == "serial" else f"{self.pool_size()} processes"
+
+
+#: The schemes of a Dask scheduler's address that reach another process (``distributed.comm``'s backends).
+CLUSTER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+#: What ``--cluster`` takes, for its errors.
+CLUSTER_FORMS = ("give local, HOST:PORT or SCHEME://HOST:PORT (SCHEME tcp, tls, ws, wss or ucx), "
+                 "e.g. tcp://scheduler:8786")
+
+
+def check_cluster_address(address: object) -> str:
+    """``address`` if it is ``local`` or a Dask scheduler's address, ``[SCHEME://]HOST:PORT``
+    (:data:`CLUSTER_SCHEMES`, ``tcp`` when none; an IPv6 host in brackets, ``[::1]:8786``; a port
+    1-65535); else an :class:`InputError` for ``cluster`` (Dask's own parser raised a ValueError
+    traceback, or a TypeError for a number)."""
+    from urllib.parse import urlsplit
+
+    from ..core.errors import printable
+
+    if not isinstance(address, str):
+        raise InputError(f"cluster={address!r} is not an address", CLUSTER_FORMS, param="cluster")
+    shown = printable(address)
+    if not address.strip():
+        raise InputError("an empty cluster address", CLUSTER_FORMS, param="cluster")
+    if address == LOCAL_CLUSTER:
+        return address
+    scheme, sep, _ = address.partition("://")
+    if sep and scheme.lower() not in CLUSTER_SCHEMES:
+        raise InputError(f"{shown}: a Dask scheduler's address does not start with {printable(scheme)}://",
+                         CLUSTER_FORMS, param="cluster")
+    try:
+        parts = urlsplit(address if sep else f"tcp://{address}")
+        port = parts.port
+    except ValueError as exc:  # an unclosed IPv6 bracket, a port that is not a number or beyond 65535
+        raise InputError(f"{shown}: not a scheduler's address ({exc})", CLUSTER_FORMS, param="cluster") from None
+    if not parts.hostname or parts.username is not None or parts.path or parts.query or parts.fragment:
+        raise InputError(f"{shown}: not a scheduler's address (HOST:PORT, nothing else)", CLUSTER_FORMS,
+                         param="cluster")
+    if port is None or not 0 < port < 65536:
+        raise InputError(f"{shown}: no port (1-65535)", CLUSTER_FORMS, param="cluster")
+    return address
 
 
 def default_workers() -> int:
@@ -315,9 +355,32 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
         none_done = False
 
 
+def _greet_scheduler(address: str, timeout_s: float) -> None:
+    """Connect to the scheduler at ``address`` and exchange Dask's greeting, all within
+    ``timeout_s``, then hang up: Dask's own ``Client`` bounds the connection by its timeout but
+    waits for the greeting's reply without one, so a port that accepts and never answers held it
+    for as long as the peer kept the connection open. A TimeoutError when nothing answers in time."""
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def greet() -> None:
+        comm = await connect(address, timeout=timeout_s, **Security().get_connection_args("client"))
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(greet(), timeout_s))
+    except (OSError, TimeoutError, ValueError):
+        raise
+    except Exception as exc:  # something else answered: a frame of absurd length (MemoryError), a hang-up mid-frame
+        raise OSError(f"what answered is not a Dask scheduler ({type(exc).__name__})") from None
+
+
 def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Iterator[tuple[int, Any]]:
     try:
         import dask
+        from dask.utils import parse_timedelta
         from distributed import Client, LocalCluster, as_completed
         from distributed.scheduler import KilledWorker
     except ImportError:
@@ -331,12 +394,17 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
             address = cluster
         else:
             address = engine.cluster
+        timeout_s = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), "s")
         try:
-            client = Client(address, timeout=dask.config.get("distributed.comm.timeouts.connect"))
-        except (OSError, TimeoutError) as exc:
+            if cluster is None:
+                _greet_scheduler(engine.cluster, timeout_s)
+            client = Client(address, timeout=timeout_s)
+        except (OSError, TimeoutError, ValueError) as exc:
             if cluster is not None:
                 cluster.close()
-            raise InputError(f"no Dask scheduler answered at {engine.cluster} ({' '.join(str(exc).split())})",
+            why = " ".join(str(exc).split())
+            why = f" ({why})" if why else f" within {timeout_s:g} s (Dask's distributed.comm.timeouts.connect)"
+            raise InputError(f"no Dask scheduler answered at {engine.cluster}{why}",
                              "start one ('dask scheduler', then 'dask worker ADDRESS'), or use --cluster local", param="cluster") from None
     try:
         client.run(_worker_start)

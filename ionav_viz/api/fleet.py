@@ -10,13 +10,14 @@ import glob
 import logging
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
 from ..core.errors import InputError
+from ..core.fileio import read_bytes_bounded
 from ..nav.bias import SensorBias, resolve_bias
 from ..nav.outages import GNSS_OUTAGE, Placement
 from ..nav.protocol import Estimator
@@ -32,8 +33,8 @@ EXIT_SOME_FAILED = 3
 #: The file types a folder of drives is searched for (one drive each; ROS 2 and KITTI folders are
 #: drives themselves).
 DRIVE_SUFFIXES = (".csv", ".mcap", ".bag")
-#: The largest ``@list.txt`` read (a million drives of 10-byte names): anything larger is not one.
-MAX_LIST_BYTES = 10 * 10**6
+#: The largest ``@list.txt`` read (16 MiB: 200,000 drives of 80-byte paths): anything larger is not one.
+MAX_LIST_BYTES = 16 << 20
 #: The time estimate of a dry run: a start (imports, the workers' start), then per drive a fixed
 #: part and a part per MB of file, measured on our 2-core machine with simulated IO-VNBD CSV drives
 #: and every built-in estimator (about 5.7 MB per hour of drive; benchmarks/bench_fleet.py).
@@ -51,19 +52,25 @@ class FleetDrive:
     size_bytes: int | None = None
 
 
-def expand_drives(specs: Sequence[str | Path], runs: Sequence[str] = ()) -> list[FleetDrive]:
+def expand_drives(specs: Sequence[str | Path] | str | Path, runs: Sequence[str] | str = ()) -> list[FleetDrive]:
     """The drives ``specs`` name, in order, each once: a file or a drive folder (ROS 2 bag, KITTI
     raw) as it is; a folder of drives: its ``.csv``, ``.mcap`` and ``.bag`` files, sorted; a glob
-    (``logs/*.csv``): its matches, sorted; ``@list.txt``: the drives listed in it, one a line
-    (``#`` comments and blank lines ignored; relative paths from the list's folder); anything else
-    (a bundled sample or IO-VNBD run name) as it is. Paths are de-duplicated by the file they
-    reach. A list that cannot be read or a glob that matches nothing is an :class:`InputError`.
+    (``logs/*.csv``, ``logs/**/*.mcap``): its matches, sorted, ``**`` not descending into symbolic
+    links to folders (as bash's globstar; a link loop cannot make it endless); ``@list.txt``: the
+    drives listed in it, one a line (``#`` comments and blank lines ignored; relative paths from the
+    list's folder; a regular file of at most :data:`MAX_LIST_BYTES`, each list read once); anything
+    else (a bundled sample or IO-VNBD run name) as it is. ``specs`` may be one of these alone. Paths
+    are de-duplicated by the file they reach (its device and inode: a symbolic or hard link and its
+    file are one drive). A list that cannot be read, is a pipe or a device, or a glob that matches
+    nothing is an :class:`InputError`.
     ``runs``: IO-VNBD run selections (``all``, a group, a driver:
     :func:`ionav_viz.api.datasets.runs_selected`), their runs after the drives given, by name (each
     read under the data root), with the size the manifest gives."""
-    out: dict[str, FleetDrive] = {}
+    specs, runs = _drive_specs(specs, runs)
+    out: dict[Any, FleetDrive] = {}
+    lists_read: set[Any] = set()
     for spec in specs:
-        for path in _expand_one(str(spec), depth=0):
+        for path in _expand_one(str(spec), depth=0, lists_read=lists_read):
             key = _identity(path)
             if key not in out:
                 out[key] = FleetDrive(path, _size_of(path))
@@ -78,43 +85,100 @@ def expand_drives(specs: Sequence[str | Path], runs: Sequence[str] = ()) -> list
     return list(out.values())
 
 
-def _expand_one(spec: str, depth: int) -> list[str]:
+#: What the API's ``drives`` takes, for its errors.
+_DRIVES_HINT = "give a drive, a folder, a glob or '@list.txt' (a str or Path), or a list of them"
+
+
+def _drive_specs(specs: Any, runs: Any) -> tuple[list[str | Path], list[str]]:
+    """``drives`` and ``runs`` of a fleet call as lists, checked: one str or Path is one drive,
+    folder, glob or list (not its characters, each a "drive"); anything else but a sequence of them
+    is an :class:`InputError` naming the argument."""
+    runs = [runs] if isinstance(runs, str) else [] if runs is None else runs
+    if isinstance(runs, bytes) or not isinstance(runs, Iterable) or not all(isinstance(r, str) for r in runs):
+        raise InputError(f"runs={runs!r}: not IO-VNBD run selections", "give a list of names, e.g. runs=['Vta']",
+                         param="runs")
+    runs = list(runs)
+    if specs is None and runs:
+        return [], runs
+    if isinstance(specs, (str, os.PathLike)):
+        return [specs], runs
+    if isinstance(specs, bytes) or not isinstance(specs, Iterable):
+        raise InputError(f"drives={specs!r}: not a drive or a list of drives", _DRIVES_HINT, param="drives")
+    specs = list(specs)
+    for i, spec in enumerate(specs):
+        if not isinstance(spec, (str, os.PathLike)):
+            raise InputError(f"drives[{i}]={spec!r}: not a drive's path or name", _DRIVES_HINT, param="drives")
+    return specs, runs
+
+
+def _expand_one(spec: str, depth: int, lists_read: set[Any]) -> list[str]:
     if spec.startswith("@"):
-        return _from_list(Path(spec[1:]), depth)
+        return _from_list(Path(spec[1:]), depth, lists_read)
     path = Path(spec).expanduser()
     if path.is_dir() and _is_folder_of_drives(path):
         return sorted(str(p) for p in path.iterdir() if p.is_file() and p.suffix.lower() in DRIVE_SUFFIXES)
     if not path.exists() and glob.has_magic(spec):
-        found = sorted(glob.glob(os.path.expanduser(spec), recursive=True))
+        found = sorted(set(_glob(os.path.expanduser(spec))))
         if not found:
             raise InputError(f"{spec}: no file matches", "check the pattern (quote it so the shell leaves it to ionav-viz)")
-        return [p for match in found for p in _expand_one(match, depth)]  # a folder of drives among them: its drives
+        # a folder of drives among them: its drives
+        return [p for match in found for p in _expand_one(match, depth, lists_read)]
     return [spec]
 
 
-def _from_list(path: Path, depth: int) -> list[str]:
+def _glob(pattern: str) -> Iterator[str]:
+    """``glob.glob(pattern, recursive=True)``, but a ``**`` component does not descend into symbolic
+    links to folders (as bash's globstar, and pathlib): a link loop (``logs/a -> .``) made the glob
+    follow it 40 levels deep, and two of them made it endless. A folder named before the ``**``
+    (``linked/**/*.csv``) is followed."""
+    parts = pattern.split(os.sep)
+    if "**" not in parts:
+        yield from glob.iglob(pattern)
+        return
+    k = parts.index("**")
+    head, rest = (os.sep.join(parts[:k]) if parts[:k] != [""] else os.sep), os.sep.join(parts[k + 1:])
+    for base in glob.iglob(head) if glob.has_magic(head) else [head]:
+        top = base or os.curdir
+        if not os.path.isdir(top):
+            continue
+        for folder, subfolders, files in os.walk(top):  # a link to a folder is listed, never entered
+            subfolders[:] = [d for d in subfolders if not d.startswith(".")]  # hidden ones left out, as by glob's '**'
+            rel = os.path.relpath(folder, top)
+            here = base if rel == os.curdir else os.path.join(base, rel)
+            if rest:
+                yield from _glob(os.path.join(glob.escape(here), rest) if here else rest)
+            else:
+                yield from (os.path.join(here, name) for name in (*subfolders, *files) if not name.startswith("."))
+
+
+def _from_list(path: Path, depth: int, lists_read: set[Any]) -> list[str]:
     if depth > 4:
         raise InputError(f"@{path}: lists of drives nested more than 4 deep", "list the drives themselves")
-    try:
-        if path.is_file() and path.stat().st_size > MAX_LIST_BYTES:
-            raise InputError(f"@{path}: {path.stat().st_size / 1e6:.0f} MB is not a list of drives (at most {MAX_LIST_BYTES // 10**6} MB)",
-                             "give a text file with one drive per line")
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
+    hint = "give a UTF-8 text file, one drive per line"
+    if not path.exists() and not path.is_symlink():
         raise InputError(f"@{path}: no such list of drives", "give @FILE with one drive per line") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"@{path}: cannot be read as a list of drives ({type(exc).__name__})", "give a UTF-8 text file, one drive per line") from None
+    key = _identity(str(path))
+    if key in lists_read:  # listed again (or including itself): its drives are in already
+        return []
+    try:
+        data = read_bytes_bounded(path, param="drives", max_bytes=MAX_LIST_BYTES, hint=hint, what="a list of drives")
+        text = data.decode("utf-8")
+    except InputError as exc:  # a pipe, a device, a socket, too large: said as the list it is
+        raise InputError(f"@{exc.message}", exc.hint, param="drives") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"@{path}: not UTF-8 text (byte {exc.start})", hint, param="drives") from None
+    lists_read.add(key)
     out: list[str] = []
     for line in text.splitlines():
         item = line.split("#", 1)[0].strip()
         if not item:
             continue
         if item.startswith("@"):
-            out += _expand_one("@" + str(path.parent / Path(item[1:]).expanduser()), depth + 1)
+            out += _expand_one("@" + str(path.parent / Path(item[1:]).expanduser()), depth + 1, lists_read)
             continue
         candidate = path.parent / Path(item).expanduser()  # an absolute path stays as it is
         is_path = candidate.exists() or glob.has_magic(item) or "/" in item or os.sep in item
-        out += _expand_one(str(candidate) if is_path else item, depth + 1)  # else a sample or run name
+        out += _expand_one(str(candidate) if is_path else item, depth + 1, lists_read)  # else a sample or run name
     return out
 
 
@@ -130,12 +194,14 @@ def _is_folder_of_drives(path: Path) -> bool:
         return False
 
 
-def _identity(spec: str) -> str:
-    path = Path(spec).expanduser()
+def _identity(spec: str) -> Any:
+    """What tells two drives apart: the file a path reaches (device and inode, so that a symbolic
+    or a hard link and its file are one), else the name as given."""
     try:
-        return str(path.resolve(strict=True)) if path.exists() else spec
-    except OSError:
+        info = os.stat(Path(spec).expanduser())
+    except (OSError, ValueError):
         return spec
+    return (info.st_dev, info.st_ino)
 
 
 def _size_of(spec: str) -> int | None:
@@ -279,7 +345,7 @@ class _quiet_log:
 
 
 def evaluate_fleet(
-    drives: Sequence[str | Path],
+    drives: Sequence[str | Path] | str | Path,
     outage_s: float | None = None,
     placement: Placement | None = None,
     estimators: Sequence[str | Estimator] | None = None,
@@ -299,8 +365,9 @@ def evaluate_fleet(
     results in the order the drives were given: the report is the same whatever the workers.
 
     Args:
-        drives: paths, folders, globs, ``@list.txt`` files or names (:func:`expand_drives`); a
-            worker reads each drive itself, so on a cluster every path must be one the workers see.
+        drives: paths, folders, globs, ``@list.txt`` files or names (:func:`expand_drives`), or one
+            of them alone (a str or Path: one drive, folder, glob or list); a worker reads each
+            drive itself, so on a cluster every path must be one the workers see.
         outage_s, placement, estimators, run, read: as for :func:`ionav_viz.evaluate`; the
             estimators are chosen per drive (the default ones that apply to it).
         fail_fast: the first drive that fails raises its :class:`InputError` (the work not started
@@ -317,6 +384,7 @@ def evaluate_fleet(
         a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
         with its one-line reason, a drive too short for one outage in ``skipped``.
     """
+    _check_callables(progress, replay_options)
     engine = Engine(workers if workers is not None else default_workers(), cluster).start()
     items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
@@ -329,7 +397,7 @@ def evaluate_fleet(
 
 
 def replay_fleet(
-    drives: Sequence[str | Path],
+    drives: Sequence[str | Path] | str | Path,
     folder: str | Path = "recordings",
     outage_s: float | None = None,
     placement: Placement | None = None,
@@ -352,6 +420,10 @@ def replay_fleet(
     :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. With
     ``fleet_rrd``, the fleet's overview recording too. On a cluster, ``folder`` must be one every
     worker can write to."""
+    _check_callables(progress, replay_options)
+    if not isinstance(folder, (str, os.PathLike)):
+        raise InputError(f"folder={folder!r} is not a folder's path",
+                         "give the folder the recordings go into, e.g. 'recordings'", param="output")
     engine = Engine(workers if workers is not None else default_workers(), cluster).start()
     items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
@@ -480,6 +552,17 @@ def fleet_inputs(specs: Sequence[str | Path], items: Sequence[FleetDrive], run: 
     return paths
 
 
+def _check_callables(progress: Any, replay_options: Any) -> None:
+    """``progress`` a callable or None and ``replay_options`` a string, before any work (a number
+    was a TypeError after the first drive, or a report that printed it as the options)."""
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress={progress!r} is not callable", "give a function progress(label, done, total)",
+                         param="progress")
+    if not isinstance(replay_options, str):
+        raise InputError(f"replay_options={replay_options!r} is not a string",
+                         "give the options as one string, e.g. '--outage 10s'", param="replay_options")
+
+
 def _drive_name(spec: str) -> str:
     """The name a drive's recording gets: its file's stem (a folder's name, a sample's name)."""
     path = Path(spec)
@@ -559,6 +642,11 @@ def write_fleet_recording(report: FleetReport, output: str | Path) -> Path:
     from ..core.fileio import atomic_path
     from ..viz.fleet import write_fleet_recording as write
 
+    if not isinstance(report, FleetReport):
+        raise InputError(f"report of type {type(report).__name__}: not a fleet's report",
+                         "give what evaluate_fleet or replay_fleet returned", param="report")
+    if not isinstance(output, (str, os.PathLike)):
+        raise InputError(f"output={output!r} is not a file's path", "give a name ending in .rrd", param="fleet_rrd")
     out = Path(output)
     if out.suffix.lower() != ".rrd":
         raise InputError(f"{out}: the fleet's recording is an .rrd file", "give a name ending in .rrd", param="fleet_rrd")
@@ -595,14 +683,17 @@ class FleetPlan:
                            for d in self.drives], "workers": self.workers, "estimate_s": round(self.estimate_s, 1)}
 
 
-def plan_fleet(drives: Sequence[str | Path], workers: int | None = None, runs: Sequence[str] = (), root: str | Path | None = None,
-               fleet_rrd: str | Path | None = None) -> FleetPlan:
+def plan_fleet(drives: Sequence[str | Path] | str | Path, workers: int | None = None, runs: Sequence[str] = (),
+               root: str | Path | None = None, fleet_rrd: str | Path | None = None) -> FleetPlan:
     """The drives :func:`evaluate_fleet` would evaluate, with sizes and a rough time estimate on
     ``workers`` (default every core): nothing is read but the file sizes (an IO-VNBD run's: the
     manifest's). A drive that cannot be found (under ``root``, the data root, for a run name) is
     said missing. ``fleet_rrd`` is checked as the run would check it (:func:`plan_outputs`)."""
     from ..sources.resolve import data_root, resolve_drive
 
+    if root is not None and not isinstance(root, (str, os.PathLike)):
+        raise InputError(f"root={root!r} is not a folder's path", "give the data root's folder, or None",
+                         param="data_root")
     items = expand_drives(drives, runs)
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 
@@ -68,7 +68,7 @@ class RunOptions:
     def __post_init__(self) -> None:
         for name in ("estimators", "plugins", "without"):  # estimators="ins" was "unknown estimator 'i'"
             value = getattr(self, name)
-            if isinstance(value, (str, bytes)):
+            if isinstance(value, (str, bytes)) or (value is not None and not isinstance(value, Iterable)):  # 5 too
                 raise InputError(f"{name}={value!r} is not a sequence of estimators", f"give a list, e.g. {name}=['ins']", param=name)
         if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s) and 0 <= self.warm_up_s <= 3600):
             raise InputError(f"warm-up {self.warm_up_s!r} is not 0-3600 seconds", "give e.g. 30s, or 0s for outages from the drive's start",
@@ -159,13 +159,17 @@ def check_event_types(types: Sequence[str]) -> None:
 
 def placement_of(placement: Any, plan: str | Path | None) -> Any:
     """The placement of a call: ``plan`` (a plan file) or ``placement``, default :class:`Tile`."""
-    from ..nav.outages import Tile
+    from ..nav.outages import Placement, Tile
     from ..nav.plan_file import FromPlan
 
     if plan is not None:
         if placement is not None:
             raise InputError("outages given twice (a plan and a placement)", "give a plan or a placement, not both", param="plan")
         return FromPlan(plan)
+    if placement is not None and not isinstance(placement, (*get_args(Placement), FromPlan)):  # 5 was an AttributeError
+        raise InputError(f"placement={placement!r} is not a placement",
+                         "give iv.Tile(), iv.Every(30.0), iv.At([...]), iv.Random(n), iv.AroundEvents([...]) "
+                         "or a plan (plan=FILE), or leave it out", param="placement")
     return placement or Tile()
 
 

@@ -34,7 +34,7 @@ class _StderrHandler(logging.Handler):
         from ..core.errors import plain_text
 
         prefix = "warning: " if record.levelno >= logging.WARNING else ""
-        print(prefix + plain_text(record.getMessage()), file=sys.stderr)
+        print(prefix + one_line(plain_text(record.getMessage())), file=sys.stderr)
 
 
 def _setup_logging(verbose: bool = False) -> None:
@@ -120,8 +120,13 @@ def optional_values(argv: list[str]) -> list[str]:
 
 
 def one_line(text: str) -> str:
-    """Errors are one line: line breaks (e.g. from a server's reply quoted in a message) become spaces."""
-    return " ".join(text.split()) if "\n" in text or "\r" in text else text
+    """Errors are one line: line breaks (e.g. from a server's reply quoted in a message) become
+    spaces, and what else a terminal would act on (ESC, a topic name's control characters quoted
+    from a file) is escaped (:func:`~ionav_viz.core.errors.printable`): no message clears the
+    screen or forges a line of its own."""
+    from ..core.errors import printable
+
+    return printable(" ".join(text.split()) if "\n" in text or "\r" in text else text)
 
 
 def input_error_line(exc: InputError, options: Mapping[str, str] = OPTION_OF) -> str:
@@ -197,7 +202,7 @@ def main() -> None:
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code") and not debug:
             ctx = getattr(exc, "ctx", None)
             command = ctx.command_path.replace("python -m ionav_viz.cli", "ionav-viz") if ctx is not None else "ionav-viz"
-            print(f"error: {exc.format_message()} (hint: see '{command} --help')", file=sys.stderr)
+            print(f"error: {one_line(exc.format_message())} (hint: see '{command} --help')", file=sys.stderr)
             sys.exit(exc.exit_code)
         raise
 

@@ -9,7 +9,7 @@ from typing import Any, Optional
 
 import typer
 
-from ..core.errors import InputError
+from ..core.errors import InputError, printable
 from . import common as c
 from .app import app
 
@@ -58,14 +58,16 @@ def info(
     from ..sources.message_log import describe_log
 
     found = describe_log(source, imu_topic, gnss_topic, gnss_velocity_topic, vehicle_speed_topic, truth_topic)
-    rows = [(ch.topic, str(ch.count), ch.encoding, ch.schema, ch.role or "-") for ch in found.channels]
+    # names come from the file: escaped, so that none can clear the screen or forge a line (an 'error:' one)
+    rows = [(printable(ch.topic), str(ch.count), printable(ch.encoding), printable(ch.schema), ch.role or "-")
+            for ch in found.channels]
     header = ("topic", "messages", "encoding", "type", "use")
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     for row in [header, *rows]:
         cells = [row[0].ljust(widths[0]), row[1].rjust(widths[1]), row[2].ljust(widths[2]), row[3].ljust(widths[3]), row[4]]
         print("  ".join(cells).rstrip())
     if found.problem:
-        print(f"cannot replay as is: {found.problem}", file=sys.stderr)
+        print(f"cannot replay as is: {printable(found.problem)}", file=sys.stderr)
 
 
 def _info_kitti(path: Path) -> None:
@@ -73,6 +75,6 @@ def _info_kitti(path: Path) -> None:
 
     d = describe_kitti(path)
     statuses = ", ".join(f"{n} x navstat {s}{' (locked)' if s == NAVSTAT_LOCKED else ''}" for s, n in sorted(d.navstat_counts.items()))
-    print(f"KITTI raw OXTS: {d.oxts}")
+    print(f"KITTI raw OXTS: {printable(str(d.oxts))}")
     print(f"{d.packets} packets over {d.duration_s:.1f} s ({d.rate_hz:.1f} Hz): {statuses}")
     print("used: lat/lon/alt and vn/ve as truth, af and wu as inertial inputs, navstat as quality, pos_accuracy as sigma, numsats")

@@ -41,11 +41,20 @@ def cross_validate(
     else:
         config = ModelConfig(epochs_disp=epochs_disp or ModelConfig.epochs_disp, epochs_yaw=epochs_yaw or ModelConfig.epochs_yaw, seed=seed)
     device = training_device()
-    if not quiet:
-        print(f"training on {_device_text(device)}", file=sys.stderr)
     with c.progress(quiet) as bar:
+        advance, said = c.progress_callback(bar, "cross-validating"), []
+
+        def step(text: str, done: int, total: int) -> None:
+            if not said and not quiet:  # once the folds are checked (said before their error, it was a second line)
+                said.append(f"training on {_device_text(device)}")
+                if bar is not None:
+                    bar.console.print(said[0], markup=False, highlight=False)
+                else:
+                    print(said[0], file=sys.stderr)
+            advance(text, done, total)
+
         result = run_folds(drives, folds, outage_s, config=config, from_model=from_model, read=read, run=api.RunOptions(bias_from=bias_from),
-                           output=output, device=device, progress=c.progress_callback(bar, "cross-validating"))
+                           output=output, device=device, progress=step)
     print(result.to_json() if as_json else result.to_text())
 
 

@@ -47,6 +47,11 @@ def events(
         if drives:  # were read by no one: the quality is measured on the bundled drives, where every manoeuvre is known
             raise typer.BadParameter(f"--quality measures the detectors on the bundled synthetic drives, not on {' '.join(drives)}",
                                      param_hint="DRIVES")
+        given = c.source_args(read)
+        if given:  # read by no one either: the bundled drives are read whole and as they are, every manoeuvre known
+            raise typer.BadParameter(f"--quality measures the detectors on the bundled synthetic drives whole, "
+                                     f"as they are; it does not take {' '.join(given)} "
+                                     "(leave it out, or find events on your drive with it)", param_hint=given[0])
         rows = api.detector_quality(th, kinds)
         if as_json:
             from ..dataset.samples import SAMPLES

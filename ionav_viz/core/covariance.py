@@ -17,6 +17,10 @@ import numpy as np
 COVARIANCE_RTOL = 1e-9
 #: The smallest ``s`` the tolerance is taken relative to (m^2): an all-zero matrix is accepted.
 COVARIANCE_SCALE_FLOOR_M2 = 1e-12
+#: The largest entry a position covariance may have (m^2): a sigma of 10^8 m, over twice the
+#: earth's circumference, says nothing a smaller one does not, and products of larger entries (the
+#: determinant, the NEES) overflow float64: 1e300 printed numpy's overflow warnings.
+COVARIANCE_MAX_M2 = 1e16
 
 
 def covariance_en(ee: np.ndarray, en: np.ndarray, nn: np.ndarray) -> np.ndarray:
@@ -26,15 +30,18 @@ def covariance_en(ee: np.ndarray, en: np.ndarray, nn: np.ndarray) -> np.ndarray:
 
 def covariance_faults(cov_m2: np.ndarray) -> dict[str, np.ndarray]:
     """What is wrong with each matrix of ``cov_m2`` ``(..., 2, 2)`` (m^2), as boolean masks of shape
-    ``(...)`` in the order a check reports them: ``"not finite"``, ``"not symmetric"`` and ``"not
-    positive semi-definite"``, each up to :data:`COVARIANCE_RTOL` (a matrix that is not finite is in
-    the first mask only)."""
+    ``(...)`` in the order a check reports them: ``"not finite"``, ``"beyond any position (an entry
+    over 1e+16 m^2)"`` (:data:`COVARIANCE_MAX_M2`), ``"not symmetric"`` and ``"not positive
+    semi-definite"``, each up to :data:`COVARIANCE_RTOL` (a matrix is in the first of its faults'
+    masks only; nothing overflows)."""
     finite = np.isfinite(cov_m2).all(axis=(-1, -2))
-    cov = np.where(finite[..., None, None], cov_m2, 0.0)
+    huge = finite & ~(np.abs(np.where(finite[..., None, None], cov_m2, 0.0)) <= COVARIANCE_MAX_M2).all(axis=(-1, -2))
+    cov = np.where((finite & ~huge)[..., None, None], cov_m2, 0.0)
     scale = np.maximum(np.abs(cov).max(axis=(-1, -2)), COVARIANCE_SCALE_FLOOR_M2)
     tol = COVARIANCE_RTOL * scale
     a, b, c = cov[..., 0, 0], cov[..., 1, 1], cov[..., 0, 1]
     return {"not finite": ~finite,
+            f"beyond any position (an entry over {COVARIANCE_MAX_M2:g} m^2)": huge,
             "not symmetric": np.abs(c - cov[..., 1, 0]) > tol,
             "not positive semi-definite": (a < -tol) | (b < -tol) | (a * b - c * c < -tol * scale)}
 

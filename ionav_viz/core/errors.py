@@ -29,6 +29,17 @@ def plain_text(text: str) -> str:
     return _NUMPY_REPR.sub(lambda m: m.group(1) if m.group(1) is not None else m.group(2), text) if "np." in text else text
 
 
+def printable(text: str) -> str:
+    """``text`` safe to print on a terminal: every character that is not printable (control
+    characters such as ESC, which starts a terminal's commands, line breaks, tabs, Unicode format
+    and separator characters such as a right-to-left override) escaped as Python's ``repr`` writes
+    it (``\\x1b``, ``\\n``, ``\\u202e``), for text that comes from a file's content or a user's
+    argument: it can neither clear the screen nor forge a line of its own."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
+
+
 class InputError(Exception):
     """Bad user input: a file, row, column, option or model that cannot be used.
 

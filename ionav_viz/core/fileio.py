@@ -403,20 +403,13 @@ def _json_depth(data: bytes) -> int:
     return int(np.cumsum(step[np.frombuffer(brackets, dtype=np.uint8)], dtype=np.int32).max())
 
 
-def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES, max_depth: int = JSON_MAX_DEPTH,
-                      hint: str | None = None, what: str = "a JSON file", allow_nan: bool = False) -> Any:
-    """The JSON value in the file ``path``, read safely: a regular file (checked before opening,
-    and again on the opened file), at most ``max_bytes`` long, nested at most ``max_depth``
-    arrays/objects deep, UTF-8, strict JSON (no NaN or Infinity, no number that overflows to
-    infinity; ``allow_nan`` takes them, as Python's ``json.dumps`` writes them, for a file whose
-    reader checks its numbers field by field) and no key given twice in one object (JSON would keep
-    the last silently).
-
-    Anything else is one :class:`InputError` for ``param`` naming ``path`` and what is wrong
-    (``what`` names the expected content in messages, ``hint`` says what to give instead); never a
-    RecursionError or a hang."""
+def read_bytes_bounded(path: str | Path, *, param: str, max_bytes: int, hint: str, what: str) -> bytes:
+    """The bytes of the file ``path``, read safely: a regular file (checked before opening, and again
+    on the opened file: a named pipe would block, a device never end) of at most ``max_bytes``
+    (checked by its size before reading, and by what was read: a file that grows while read).
+    Anything else is one :class:`InputError` for ``param`` naming ``path``, the limit and ``what``
+    the file should hold."""
     path = Path(path)
-    hint = hint or f"give {what}"
     check_regular_input(path, param, hint=hint)
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
@@ -434,6 +427,24 @@ def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX
             raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
     if len(data) > max_bytes:  # grew while read
         raise InputError(f"{path}: more than {max_bytes} bytes is too large for {what}", hint, param=param)
+    return data
+
+
+def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES, max_depth: int = JSON_MAX_DEPTH,
+                      hint: str | None = None, what: str = "a JSON file", allow_nan: bool = False) -> Any:
+    """The JSON value in the file ``path``, read safely: a regular file (checked before opening,
+    and again on the opened file), at most ``max_bytes`` long, nested at most ``max_depth``
+    arrays/objects deep, UTF-8, strict JSON (no NaN or Infinity, no number that overflows to
+    infinity; ``allow_nan`` takes them, as Python's ``json.dumps`` writes them, for a file whose
+    reader checks its numbers field by field) and no key given twice in one object (JSON would keep
+    the last silently).
+
+    Anything else is one :class:`InputError` for ``param`` naming ``path`` and what is wrong
+    (``what`` names the expected content in messages, ``hint`` says what to give instead); never a
+    RecursionError or a hang."""
+    path = Path(path)
+    hint = hint or f"give {what}"
+    data = read_bytes_bounded(path, param=param, max_bytes=max_bytes, hint=hint, what=what)
     return parse_json_bounded(data, path, param=param, max_bytes=max_bytes, max_depth=max_depth, hint=hint, what=what, allow_nan=allow_nan)
 
 

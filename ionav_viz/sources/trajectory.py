@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.covariance import covariance_en, covariance_faults
+from ..core.covariance import COVARIANCE_MAX_M2, covariance_en, covariance_faults
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, check_regular_tree, check_text_head
 from ..core.geo import steps_en_m
@@ -49,7 +49,8 @@ log = logging.getLogger("ionav_viz")
 _TRAJECTORY_HINT = "write time_s,lat_deg,lon_deg (or time_s,east_m,north_m) CSV, a TUM file, or give LOG:TOPIC"
 #: The CSV columns of a pose's east/north covariance (m^2).
 COVARIANCE_COLUMNS = ("cov_ee_m2", "cov_en_m2", "cov_nn_m2")
-_COVARIANCE_HINT = "give each pose's east/north covariance (m^2) with cov_ee_m2 >= 0, cov_nn_m2 >= 0 and cov_en_m2^2 <= cov_ee_m2 * cov_nn_m2"
+_COVARIANCE_HINT = ("give each pose's east/north covariance (m^2) with cov_ee_m2 >= 0, cov_nn_m2 >= 0 and "
+                    f"cov_en_m2^2 <= cov_ee_m2 * cov_nn_m2, each at most {COVARIANCE_MAX_M2:g}")
 
 
 @dataclass(frozen=True)

@@ -187,8 +187,10 @@ def is_fleet_report(rep: Any) -> bool:
 
 def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
     """That a fleet's report holds what its figures draw: the estimators (name, label, optional
-    colour), the evaluated drives' names and every outage's drive and final errors (a number or
-    null; an estimator may be missing on a drive it did not run on)."""
+    colour), the evaluated drives' names, each estimator's pooled median (an object per estimator,
+    its ``p50`` a number or null), and every outage's drive (one of the drives listed) and final
+    errors (a number or null; an estimator may be missing on a drive it did not run on). The one
+    check of a fleet report's structure: the figures read it without checking again."""
 
     def fail(field: str, why: str) -> None:
         raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
@@ -215,13 +217,21 @@ def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
     drives = rep.get("drives")
     if not isinstance(drives, list) or not drives:
         fail("drives", "is not a list of evaluated drives")
-    for i, d in enumerate(drives):
-        _need_text(_need_object(d, f"drives[{i}]", fail).get("drive"), f"drives[{i}].drive", fail)
+    listed = {_need_text(_need_object(d, f"drives[{i}]", fail).get("drive"), f"drives[{i}].drive", fail)
+              for i, d in enumerate(drives)}
+    pooled = _need_object(rep.get("pooled"), "pooled", fail)
+    for name, entry in pooled.items():  # the CDF's legend gives each estimator's pooled median
+        percentiles = _need_object(entry, f"pooled.{name}", fail).get("final_error_percentiles")
+        if percentiles is not None:
+            _need_number(_need_object(percentiles, f"pooled.{name}.final_error_percentiles", fail).get("p50"),
+                         f"pooled.{name}.final_error_percentiles.p50", fail)
     sequences = rep.get("sequences")
     if not isinstance(sequences, list) or not sequences:
         fail("sequences", "is not a list of outages")
     for i, seq in enumerate(sequences):
-        _need_text(_need_object(seq, f"sequences[{i}]", fail).get("drive"), f"sequences[{i}].drive", fail)
+        drive = _need_text(_need_object(seq, f"sequences[{i}]", fail).get("drive"), f"sequences[{i}].drive", fail)
+        if drive not in listed:  # the box plot would draw a drive the report does not have: the report is not one run's
+            fail(f"sequences[{i}].drive", f"{drive!r} is not among the report's drives (outages and drives disagree)")
         for name in names:
             if name in seq:
                 metrics = _need_object(seq[name], f"sequences[{i}].{name}", fail)
@@ -775,7 +785,7 @@ def _fleet_cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     per_drive = {name: _fleet_finals(rep, name) for name, *_ in _styled(rep)}
 
     def legend(name: str, label: str) -> str:
-        p50 = rep["pooled"].get(name, {}).get("final_error_percentiles", {}).get("p50") if isinstance(rep["pooled"], dict) else None
+        p50 = ((rep["pooled"].get(name) or {}).get("final_error_percentiles") or {}).get("p50")  # checked when read
         median = f"p50 {p50:.1f} m" if is_finite_number(p50) else "p50 n/a"
         return f"{label} ({median}, {len(per_drive[name])} drives)"
 

@@ -20,7 +20,7 @@ from ..analysis.fleet import DriveTable, FleetReport
 from ..analysis.metrics import summarise
 from ..nav.protocol import short_label
 from .recording import APP_ID, streamed_to
-from .recording_info import FLEET_ID_PREFIX
+from .recording_info import FLEET_ID_PREFIX, rrd_reader
 from .style import estimator_colors
 
 #: Entity paths of the fleet recording.
@@ -146,15 +146,13 @@ def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_
     """A PNG of the fleet overview ``recording`` in its own layout, by the private headless viewer."""
     import time
 
-    from rerun.chunk import RrdReader
-
     from ..core.fileio import utf8_alias
     from .blueprints import without_panels
     from .screenshot import draw_key
     from .viewer import HeadlessViewer
 
     with utf8_alias(Path(recording)) as readable:
-        ids = [str(r.recording_id) for r in RrdReader(readable).recordings()]
+        ids = [str(r.recording_id) for r in rrd_reader(readable).recordings()]
     title = next((i for i in ids if i.startswith(FLEET_ID_PREFIX)), FLEET_ID_PREFIX)
     with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
         viewer.open(Path(recording))

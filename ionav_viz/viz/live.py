@@ -125,15 +125,14 @@ def stream_file(url: str, path: str, timeout_s: float) -> None:
     ``url``. Chunks are read and sent synchronously (``log_file_from_path`` would load the file in
     the background, racing the flush and the exit)."""
     import rerun as rr
-    from rerun.chunk import RrdReader
 
     from ..core.fileio import utf8_alias
     from .recording import review_blueprint
-    from .recording_info import read_recording_info
+    from .recording_info import read_recording_info, rrd_reader
 
     info = read_recording_info(Path(path))
     with utf8_alias(Path(path)) as readable:
-        reader = RrdReader(readable)
+        reader = rrd_reader(readable)
         [store] = reader.recordings()
         rec = rr.RecordingStream(store.application_id, recording_id=store.recording_id)
         rec.connect_grpc(url)

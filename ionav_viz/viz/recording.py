@@ -392,11 +392,11 @@ def usable_fixes(fault: np.ndarray) -> np.ndarray:
 
 def _check_written(path: Path, target: Path) -> None:
     """Read the file's footer back: a sink that failed silently must not pass as a recording."""
-    from rerun.chunk import RrdReader
+    from .recording_info import rrd_reader
 
     try:
         with utf8_alias(path) as readable:
-            ok = len(RrdReader(readable).recordings()) == 1
+            ok = len(rrd_reader(readable).recordings()) == 1
     except Exception as exc:  # the reader's errors are not one class
         raise ToolFailure(f"{target}: the written recording does not read back ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); is the disk full?") from None
     if not ok:

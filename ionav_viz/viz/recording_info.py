@@ -201,16 +201,29 @@ def _unreadable(path: Path, exc: Exception) -> InputError:
                       "make one with 'ionav-viz replay DRIVE'")
 
 
-def _chunks(path: Path, readable: Path):
-    """The chunks of the recording at ``readable`` (``path`` as the user named it), as a stream."""
+def rrd_reader(readable: Path):
+    """Rerun's reader (``rerun.chunk.RrdReader``) of the ``.rrd`` at ``readable``, Rerun's own
+    Python warnings silenced: a file without a footer (cut off, or an old one) is read by scanning,
+    with a RerunWarning and its source line printed above our one-line error, which says what is
+    wrong with the file. Every recording ionav-viz reads is opened here. (Rerun's native log is
+    off unless ``-v`` or ``--debug``: ``RUST_LOG``, :func:`ionav_viz.cli.app._setup_logging`.)"""
     import warnings
 
     from rerun.chunk import RrdReader
 
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return RrdReader(readable)
+
+
+def _chunks(path: Path, readable: Path):
+    """The chunks of the recording at ``readable`` (``path`` as the user named it), as a stream."""
+    import warnings
+
     try:
         with warnings.catch_warnings():  # a file without a footer (cut off, or an old one) is read by scanning
             warnings.simplefilter("ignore")
-            reader = RrdReader(readable)
+            reader = rrd_reader(readable)
             recordings = reader.recordings()
     except Exception as exc:  # the reader raises various errors for files that are not .rrd
         raise _unreadable(path, exc) from None
@@ -422,12 +435,10 @@ def report_json(path: Path) -> str:
     with utf8_alias(path) as readable:
         import warnings
 
-        from rerun.chunk import RrdReader
-
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                for chunk in RrdReader(readable).stream():
+                for chunk in rrd_reader(readable).stream():
                     if str(chunk.entity_path).strip("/") != ent.REPORT:
                         continue
                     batch = chunk.to_record_batch()
@@ -453,10 +464,8 @@ FLEET_ID_PREFIX = "fleet overview: "
 
 def is_fleet_recording(path: Path) -> bool:
     """Whether the ``.rrd`` at ``path`` is a fleet overview (False for anything else, unreadable included)."""
-    from rerun.chunk import RrdReader
-
     try:
         with utf8_alias(Path(path)) as readable:
-            return any(str(r.recording_id).startswith(FLEET_ID_PREFIX) for r in RrdReader(readable).recordings())
+            return any(str(r.recording_id).startswith(FLEET_ID_PREFIX) for r in rrd_reader(readable).recordings())
     except Exception:  # not a recording: the replay screenshot's checks say why
         return False
