@@ -540,11 +540,14 @@ def _refuse_onto_inputs(outputs: Sequence[str], inputs: Sequence[str | Path]) ->
                              "choose another output folder; ionav-viz never writes over its input", param="output")
 
 
-def fleet_inputs(specs: Sequence[str | Path], items: Sequence[FleetDrive], run: RunOptions | None = None) -> list[str]:
+def fleet_inputs(specs: Sequence[str | Path] | str | Path | None, items: Sequence[FleetDrive],
+                 run: RunOptions | None = None) -> list[str]:
     """The files and folders a fleet run reads, for :func:`plan_outputs`: its drives (as
-    :func:`expand_drives` found them), the ``@list`` files given, and the run's model, plug-ins and
-    ``--bias-from`` drive."""
+    :func:`expand_drives` found them), the ``@list`` files given (``specs`` as the fleet call took
+    them, checked by then), and the run's model, plug-ins and ``--bias-from`` drive."""
     from .options import input_paths
+
+    specs = [] if specs is None else _drive_specs(specs, [])[0]
 
     paths = [d.spec for d in items if Path(d.spec).expanduser().exists()]
     paths += [str(spec)[1:] for spec in specs if str(spec).startswith("@")]
