@@ -124,6 +124,18 @@ def assert_same_sequences(reference: list[dict], got: list[dict], estimators, re
                     assert b[est][key] == pytest.approx(value, rel=rel, abs=abs), (est, key)
 
 
+def one_line_error(done: subprocess.CompletedProcess, *words: str) -> str:
+    """Bad input as the CLI promises it: exit code 2, one line on stderr starting ``error:`` that
+    holds each of ``words``, no traceback. Returns the line."""
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:"), done.stderr
+    assert "Traceback" not in done.stderr
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
 def expect_one_line_error(path: Path, *messages: str) -> None:
     """``ionav-viz evaluate PATH`` fails on bad input: exit 2, one line, no traceback, naming ``messages``."""
     proc = run_cli("evaluate", str(path), "--no-idnn")

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from .conftest import one_line_error as _one_line_error
 from .conftest import run_cli
 
 
@@ -21,16 +22,6 @@ def short_csv(tmp_path_factory) -> Path:
     from ionav_viz.sim.simulate import write_simulated_drive
 
     return write_simulated_drive(tmp_path_factory.mktemp("drives5") / "V-short.csv", "roundabout", seed=4, duration_s=60)
-
-
-def _one_line_error(done, *words: str) -> str:
-    assert done.returncode == 2, (done.returncode, done.stderr)
-    lines = [line for line in done.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error:"), done.stderr
-    assert "Traceback" not in done.stderr
-    for word in words:
-        assert word in lines[0], lines[0]
-    return lines[0]
 
 
 # --- output equal to output, or to a system file ----------------------------------------------------

@@ -21,6 +21,7 @@ import pytest
 
 import ionav_viz as iv
 
+from .conftest import one_line_error as _one_line_error
 from .conftest import run_cli, run_cli_process
 from .test_hostile_files import fifo_unblocked
 
@@ -34,16 +35,6 @@ def drives(tmp_path_factory) -> Path:
     for name, seed in (("V-a", 1), ("V-b", 2)):
         write_simulated_drive(folder / f"{name}.csv", "roundabout", seed=seed, duration_s=60)
     return folder
-
-
-def _one_line_error(done, *words: str) -> str:
-    assert done.returncode == 2, (done.returncode, done.stderr)
-    lines = [line for line in done.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error:"), done.stderr
-    assert "Traceback" not in done.stderr
-    for word in words:
-        assert word in lines[0], lines[0]
-    return lines[0]
 
 
 def _dry_run(*args: str, cwd: Path) -> list[str]:
