@@ -74,12 +74,21 @@ def markdown(corpus: dict, results: dict[str, dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_docs(page: Path, section: str) -> None:
-    text = page.read_text(encoding="utf-8")
+def check_page(page: Path) -> str:
+    """The page's text, refused (before any measurement) without the two marker lines."""
+    try:
+        text = page.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{page}: cannot be read ({exc.__class__.__name__})", "give the docs page to regenerate",
+                         param="--write-docs") from None
     if START not in text or END not in text:
         raise InputError(f"{page}: no '{START}' ... '{END}' lines to write the corpus section between",
                          "add the two lines where the section belongs", param="--write-docs")
-    head, rest = text.split(START, 1)
+    return text
+
+
+def write_docs(page: Path, section: str) -> None:
+    head, rest = check_page(page).split(START, 1)
     tail = rest.split(END, 1)[1]
     atomic_write_bytes(page, (head + START + "\n" + section + END + tail).encode())
 
@@ -99,6 +108,8 @@ def main() -> None:
                          param="--only")
     if args.json_dir and not args.json_dir.is_dir():
         raise InputError(f"--json-dir: {args.json_dir} is not a folder", "create it first", param="--json-dir")
+    if args.write_docs:
+        check_page(args.write_docs)
     print("| log | `gins` 10 s | 30 s | 60 s | INS DR 10 s / 30 s | best other at 10 s | outages (10 s) |")
     print("|---|---|---|---|---|---|---|")
     results = {}
