@@ -354,12 +354,12 @@ class GinsEstimator:
             self._last["covariance_scale"] = (f"x{float(np.median(cov_scale)):.2f} median ({float(cov_scale.min()):.2f}-"
                                               f"{float(cov_scale.max()):.2f}) on its growth through the outage, from the final NEES "
                                               "on the same pseudo-outages")
-            cov = scale_growth(cov, cov_scale)
             held = np.flatnonzero(choice == REDUCED)
             if len(held):
                 p2, c2, d2, y2 = _propagate(r, blind._replace(level_held=True), b0s[held], n)
                 positions[held], cov[held], disp[held], yaw[held] = p2, c2, d2, y2
             planar = np.flatnonzero(choice == PLANAR_DR)
+            cov = scale_growth(cov, cov_scale)  # after the reduced propagation's outages took their own
         else:
             planar = np.zeros(0, dtype=int)
         lat, lon, _ = geodetic_of_enu(positions.reshape(-1, 3), *r.origin)
