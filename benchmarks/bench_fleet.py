@@ -5,6 +5,12 @@
     python benchmarks/bench_fleet.py --drives 40 --minutes 30 --workers 2 --dask
     python benchmarks/bench_fleet.py --folder /tmp/fleet    # keep (and reuse) the simulated drives
     python benchmarks/bench_fleet.py --runs 3               # the modes in turn, 3 times: medians (min-max)
+    python benchmarks/bench_fleet.py --cli --drives 48 --minutes 45 --runs 5   # the whole command, as a user runs it
+
+With ``--cli`` the whole ``ionav-viz evaluate FOLDER --workers N -q`` process is timed against
+``--workers 1`` (start-up, imports, the report's text included), the two in turn ``--runs`` times;
+the ratio is taken pair by pair and its median printed with its spread, so that a change of the
+machine's load during the call touches both sides of each pair alike.
 
 The fleet: ``--drives`` IO-VNBD CSV drives of ``--minutes`` each from ``ionav-viz simulate``,
 scenarios in turn (motorway, roundabout, quick-accel, hard-brake, sharp-cornering), seed = the
@@ -106,6 +112,31 @@ def run_mode(args: list[str], sample_memory: bool = False) -> dict:
     return figures_of(out) | {"peak_total_MB": peak_total / 1e6, "peak_process_MB": peak_one / 1e6}
 
 
+def cli_pairs(drives: str, workers: int, runs: int) -> None:
+    """Time ``ionav-viz evaluate DRIVES --workers N -q`` against ``--workers 1``, whole processes,
+    in turn (one warm-up pair first, not counted); print medians (min-max) and the paired ratio."""
+    import shutil
+
+    exe = shutil.which("ionav-viz") or sys.exit("bench_fleet: ionav-viz is not on PATH (install the package)")
+
+    def wall(n: int) -> float:
+        began = time.perf_counter()
+        subprocess.run([exe, "evaluate", drives, "--workers", str(n), "-q"], stdout=subprocess.DEVNULL, check=True)
+        return time.perf_counter() - began
+
+    wall(workers), wall(1)  # warm-up: the file cache, compiled bytecode
+    pairs = [(wall(workers), wall(1)) for _ in range(runs)]
+    ratios = [a / b for a, b in pairs]
+
+    def figure(values: list[float], digits: int) -> str:
+        return f"{statistics.median(values):.{digits}f} ({min(values):.{digits}f}-{max(values):.{digits}f})"
+
+    print(f"ionav-viz evaluate {drives} -q, {runs} pair(s) in turn; medians (min-max)")
+    print(f"  --workers {workers}: {figure([a for a, _ in pairs], 1)} s")
+    print(f"  --workers 1: {figure([b for _, b in pairs], 1)} s")
+    print(f"  ratio, pair by pair: {figure(ratios, 2)}")
+
+
 def main() -> None:
     parser = add_debug(argparse.ArgumentParser(description=__doc__.splitlines()[0]))
     parser.add_argument("--drives", type=int, default=40)
@@ -114,6 +145,7 @@ def main() -> None:
     parser.add_argument("--dask", action="store_true", help="also a local Dask cluster of --workers workers (needs ionav-viz[cluster])")
     parser.add_argument("--folder", type=Path, help="where the simulated drives go (kept; default a temporary folder)")
     parser.add_argument("--runs", type=int, default=1, help="run the modes in turn this many times; the figures are medians (min-max)")
+    parser.add_argument("--cli", action="store_true", help="time the whole command (--workers N against --workers 1, in turn) instead of the call")
     parser.add_argument("--child", nargs=4, metavar=("FOLDER", "PATTERN", "WORKERS", "CLUSTER"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -125,6 +157,9 @@ def main() -> None:
         folder = args.folder or Path(tmp)
         make_fleet(folder, args.drives, args.minutes)
         pattern = f"V-fleet*-{args.minutes:g}min.csv"
+        if args.cli:
+            cli_pairs(str(folder / pattern), args.workers, max(1, args.runs))
+            return
         modes = {"serial": ["1", "-"], f"--workers {args.workers}": [str(args.workers), "-"]}
         if args.dask:
             modes[f"--cluster local ({args.workers} workers)"] = [str(args.workers), "local"]

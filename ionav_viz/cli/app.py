@@ -170,6 +170,39 @@ def _silence_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
 
 
+#: Suffixes of the files a folder of drives holds (a guess made before the options are parsed).
+_DRIVE_SUFFIXES = (".csv", ".mcap", ".bag")
+
+
+def runs_worker_processes(args: list[str]) -> bool:
+    """Whether ``ionav-viz ARGS`` will likely evaluate or replay drives on local worker processes:
+    ``--workers N`` (N of 2 or more), or, without ``--workers``, a folder of two or more drive files
+    (a fleet on every core). A guess from the words alone, before the options are parsed: a wrong
+    one only starts the workers' forkserver, which does nothing and exits with this process."""
+    import os
+
+    command = next((i for i, word in enumerate(args) if not word.startswith("-")), None)
+    if command is None or args[command] not in ("evaluate", "replay"):
+        return False
+    rest = args[command + 1:]
+    if any(word in ("--help", "--dry-run", "--cluster") or word.startswith("--cluster=") for word in rest):
+        return False
+    for i, word in enumerate(rest):
+        if word == "--workers" or word.startswith("--workers="):
+            value = word.removeprefix("--workers=") if "=" in word else (rest[i + 1] if i + 1 < len(rest) else "")
+            return value.isdigit() and int(value) >= 2
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    for word in rest if cores > 1 else ():
+        if not word.startswith("-") and os.path.isdir(word):
+            with contextlib.suppress(OSError), os.scandir(word) as entries:
+                found = 0
+                for entry in entries:  # stops at the second drive: a huge folder is not read through
+                    found += entry.name.lower().endswith(_DRIVE_SUFFIXES)
+                    if found == 2:
+                        return True
+    return False
+
+
 def main() -> None:
     """Console entry point: one-line errors with exit code 2, 1 for the environment, 130 on Ctrl-C,
     143 on SIGTERM and 129 on SIGHUP (after cleaning up)."""
@@ -178,6 +211,10 @@ def main() -> None:
     args = optional_values(root_options_first(sys.argv[1:]))
     debug = "--debug" in args
     raise_on_stop_signals()  # SIGTERM and SIGHUP clean up like Ctrl-C
+    if runs_worker_processes(args):
+        from ..core.processes import worker_context
+
+        worker_context()  # the workers' imports run on another core while this process imports its own
     try:
         code = app(args=args, standalone_mode=False)
         # Without standalone mode, typer returns exit codes (130 for Ctrl-C) instead of exiting.
