@@ -153,6 +153,10 @@ def parse(argv: list[str]) -> tuple[str, dict]:
     address), down to the command's own options, without running it."""
     group = typer.main.get_command(app)
     args = optional_values(root_options_first(list(argv)))
+    args = [a for a in args if a != "--print-config"]  # read before the command's options (cli/config.py), as is --config FILE
+    while "--config" in args:
+        at = args.index("--config")
+        args = args[:at] + args[at + 2:]
     ctx = group.make_context("ionav-viz", args)
     protected = getattr(ctx, "_protected_args", None)
     if protected is None:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core import run_config
 from ..core.json_out import dumps_json
 from ..nav.protocol import color_of, short_label
 from .consistency import RATIO_AT_S
@@ -177,6 +178,8 @@ class FleetReport:
     replay_options: str = ""
     timing: dict[str, Any] = field(default_factory=dict)
     skipped: list[DriveFailure] = field(default_factory=list)
+    #: the configuration of the command that made it (:attr:`ionav_viz.analysis.report.Report.config`)
+    config: dict[str, Any] | None = field(default_factory=run_config.current)
 
     def __repr__(self) -> str:
         return f"FleetReport({len(self.drives)} drive(s) evaluated, {len(self.failures)} failed, {self.n_outages} outage(s))"
@@ -391,7 +394,8 @@ class FleetReport:
         (:meth:`drive_rows`); ``sequences`` (each outage: ``drive``, ``start_s``,
         ``gnss_distance_m`` and per estimator its :data:`METRICS`); ``worst_of``, ``worst_drives``
         and ``worst_outages`` (with the command that replays each); ``failures`` and ``skipped``
-        (``drive`` as given and its one-line ``reason``); ``timing`` (``wall_s``, ``engine``, per
+        (``drive`` as given and its one-line ``reason``); ``config`` (the command's configuration, as
+        :class:`~ionav_viz.analysis.report.Report` has it); ``timing`` (``wall_s``, ``engine``, per
         drive ``elapsed_s``: the only key that changes from run to run); ``consistency``
         (:meth:`consistency`), ``by_manoeuvre`` (:meth:`by_manoeuvre`; each sequence has its
         ``manoeuvre``) and ``by_length`` (:meth:`by_length`); ``real_outages`` (:meth:`real_outages`:
@@ -426,6 +430,7 @@ class FleetReport:
             "failures": [{"drive": f.spec, "reason": f.reason} for f in self.failures],
             "skipped": [{"drive": f.spec, "reason": f.reason} for f in self.skipped],
             "sequences": sequences,
+            **({"config": dict(self.config)} if self.config is not None else {}),
             "timing": timing,
         }
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core import run_config
 from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
@@ -41,11 +42,14 @@ class Report:
         title: the group's name (a scenario or manoeuvre type), or None.
         warnings: what the run warned about while reading the drives and running the estimators
             (one line each), so that a report read later says it too.
+        config: the configuration of the command that made it, as an experiment file holds it
+            (default: the running command's, :mod:`ionav_viz.core.run_config`; None from a script).
     """
 
     results: list[DriveResult]
     title: str | None = None
     warnings: list[str] = field(default_factory=list)
+    config: dict[str, Any] | None = field(default_factory=run_config.current)
     _dict: dict[str, Any] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -198,6 +202,8 @@ class Report:
         position error against seconds since the outage began (``t_s``, ``mean_m``, ``p10_m``,
         ``p90_m`` over the outages; :mod:`.drift`); ``final_error_percentiles``: per estimator the
         ``p50``, ``p90``, ``p95`` and ``max`` of the final position error (m).
+        ``config``: the configuration of the command that made the report, as an experiment file
+        holds it (``command``, its arguments and options; absent from a script's reports).
         NaN is kept here; :meth:`to_json` writes it as null (:mod:`ionav_viz.core.json_out`).
         """
         if self._dict is not None:
@@ -264,6 +270,8 @@ class Report:
         if any(health.values()):
             out["filter_health"] = {est: h for est, h in health.items() if h}
         out["warnings"] = list(self.warnings)
+        if self.config is not None:
+            out["config"] = dict(self.config)
         self._dict = out
         return out
 

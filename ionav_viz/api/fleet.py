@@ -224,6 +224,8 @@ class _Job:
     placement: Placement
     run: RunOptions
     read: ReadOptions
+    #: the running command's configuration, for the reports and recordings workers write (other processes)
+    config: dict[str, Any] | None = None
 
 
 def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str | None = None) -> DriveTable | DriveFailure:
@@ -231,13 +233,14 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
     that ``.rrd``: its compact table, or why it failed in one line. ``path``: where the worker reads
     it (the absolute path of ``spec``, for workers in other folders). The drive's arrays are
     released when this returns."""
+    from ..core import run_config
     from ..core.warnings_log import collecting_warnings
     from ..nav.windows import make_windows
     from ..sources.load import load_drive
     from .evaluate import plan_outages
 
     began = time.perf_counter()
-    with _quiet_log(), collecting_warnings() as warned:
+    with _quiet_log(), collecting_warnings() as warned, run_config.running(job.config):
         try:
             drive = load_drive(path or spec, job.read)
             windows = make_windows(drive)
@@ -586,7 +589,9 @@ def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placemen
     if run.bias_from is not None and not isinstance(run.bias_from, SensorBias):
         stationary = load_stationary(run.bias_from, read)  # --bias-from too: a file that cannot be read, or does not stand
         resolve_bias(stationary, stationary)  # still, is the run's one error, not every drive's failure
-    return _Job(n, placement, run, read)
+    from ..core import run_config
+
+    return _Job(n, placement, run, read, run_config.current())
 
 
 def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list[int | None], job: _Job, engine: Engine, fail_fast: bool,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -133,9 +134,12 @@ def input_error_line(exc: InputError, options: Mapping[str, str] = OPTION_OF) ->
     """The one line an :class:`InputError` is printed as (exit code 2): ``error: OPTION: message
     (hint: ...)``, the option the error's ``option`` names, else the one ``options`` maps its
     ``param`` to (a script with options of its own gives its own map, or none)."""
+    from .config import origin_of
+
     option = exc.option or options.get(exc.param or "")
     text = f"{option}: {exc}" if option and not exc.message.startswith(option) else str(exc)
-    return f"error: {one_line(text)}"
+    origin = origin_of(option)
+    return f"error: {one_line(f'{origin}: {text}' if origin else text)}"
 
 
 def failure_exit_code(exc: BaseException, options: Mapping[str, str] = OPTION_OF) -> int | None:
@@ -203,6 +207,28 @@ def runs_worker_processes(args: list[str]) -> bool:
     return False
 
 
+def _run(args: list[str]) -> object:
+    """Run the command line ``args``: experiment files read in (``run FILE``, ``--config FILE``), or
+    with ``--print-config`` the effective configuration printed instead; the configuration is
+    embedded in every report and recording the command writes (:mod:`ionav_viz.core.run_config`)."""
+    from ..core import run_config
+    from . import config
+
+    config.forget()
+    if any(word in (config.CONFIG_OPTION, config.PRINT_CONFIG_OPTION) or word.startswith(config.CONFIG_OPTION + "=") for word in args) \
+            or "run" in args:
+        args = config.expand(args)
+        if config.PRINT_CONFIG_OPTION in args and "--help" not in args:
+            config.print_config(args)
+            return 0
+    if runs_worker_processes(args):
+        from ..core.processes import worker_context
+
+        worker_context()  # the workers' imports run on another core while this process imports its own
+    with run_config.running(config.effective_config(args)):
+        return app(args=args, standalone_mode=False)
+
+
 def main() -> None:
     """Console entry point: one-line errors with exit code 2, 1 for the environment, 130 on Ctrl-C,
     143 on SIGTERM and 129 on SIGHUP (after cleaning up)."""
@@ -211,12 +237,8 @@ def main() -> None:
     args = optional_values(root_options_first(sys.argv[1:]))
     debug = "--debug" in args
     raise_on_stop_signals()  # SIGTERM and SIGHUP clean up like Ctrl-C
-    if runs_worker_processes(args):
-        from ..core.processes import worker_context
-
-        worker_context()  # the workers' imports run on another core while this process imports its own
     try:
-        code = app(args=args, standalone_mode=False)
+        code = _run(args)
         # Without standalone mode, typer returns exit codes (130 for Ctrl-C) instead of exiting.
         if isinstance(code, int) and not isinstance(code, bool):
             if code == 130:
@@ -239,7 +261,12 @@ def main() -> None:
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code") and not debug:
             ctx = getattr(exc, "ctx", None)
             command = ctx.command_path.replace("python -m ionav_viz.cli", "ionav-viz") if ctx is not None else "ionav-viz"
-            print(f"error: {one_line(exc.format_message())} (hint: see '{command} --help')", file=sys.stderr)
+            message = one_line(exc.format_message())
+            from .config import origin_of
+
+            named = re.search(r"(--[A-Za-z0-9-]+)", message)
+            origin = origin_of(named.group(1) if named else None)
+            print(f"error: {origin + ': ' if origin else ''}{message} (hint: see '{command} --help')", file=sys.stderr)
             sys.exit(exc.exit_code)
         raise
 
