@@ -25,8 +25,8 @@ def test_run_gives_what_the_same_flags_give(tmp_path):
     by_flags = run_cli("evaluate", "roundabout", "--outage", "10s", "--estimators", "ins,odo", "--warm-up", "20s", "--json", "-q")
     assert by_file.returncode == 0 == by_flags.returncode, by_file.stderr
     a, b = json.loads(by_file.stdout), json.loads(by_flags.stdout)
-    assert a["config"] == b["config"] == {"command": "evaluate", "drives": ["roundabout"], "outage": "10s", "json": True, "quiet": True,
-                                          "estimators": "ins,odo", "warm-up": "20s"}
+    assert a["config"] == b["config"] == {"command": "evaluate", "drives": ["roundabout"], "outage": "10s", "json": True,
+                                          "estimators": "ins,odo", "warm-up": "20s"}  # not -q: how it runs, not what
     assert a["summary"] == b["summary"] and [e["name"] for e in a["estimators"]] == ["ins", "odo"]
 
 
@@ -72,3 +72,18 @@ def test_bad_paths_and_uses(tmp_path):
     one_line_error(run_cli("evaluate", "roundabout", "--config"), "--config needs a file")
     exp = write(tmp_path, 'command = "replay"\n')
     one_line_error(run_cli("evaluate", "roundabout", "--config", str(exp)), "for 'replay', not 'evaluate'")
+
+
+def test_a_fleet_report_is_the_same_whatever_the_workers(tmp_path):
+    import ionav_viz as iv
+
+    for seed in (1, 2):
+        iv.simulate("roundabout", tmp_path / f"V-w{seed}.csv", seed=seed, duration_s=90.0)
+    one = run_cli("evaluate", str(tmp_path), "--workers", "1", "--estimators", "ins", "--json", "-q")
+    two = run_cli("evaluate", str(tmp_path), "--workers", "2", "--estimators", "ins", "--json", "-q")
+    a, b = json.loads(one.stdout), json.loads(two.stdout)
+    for report in (a, b):
+        report.pop("timing")
+    assert a == b and a["config"] == {"command": "evaluate", "drives": [str(tmp_path)], "json": True, "estimators": "ins"}
+    printed = run_cli("evaluate", str(tmp_path), "--workers", "2", "--print-config")
+    assert "workers = 2" in printed.stdout  # printed, so that the file reruns it the same way

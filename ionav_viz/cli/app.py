@@ -225,7 +225,7 @@ def _run(args: list[str]) -> object:
         from ..core.processes import worker_context
 
         worker_context()  # the workers' imports run on another core while this process imports its own
-    with run_config.running(config.effective_config(args)):
+    with run_config.running(config.effective_config(args, carried=True)):
         return app(args=args, standalone_mode=False)
 
 

@@ -39,6 +39,10 @@ COMMAND_KEY, ARGUMENTS_KEY = "command", "arguments"
 MAX_CONFIG_BYTES = 1_000_000
 #: Options that say how loudly a command runs, never part of its configuration.
 NOT_CONFIGURATION = frozenset(("--help", CONFIG_OPTION, PRINT_CONFIG_OPTION))
+#: Options that say where and how loudly the work runs, not what it computes: printed by
+#: ``--print-config`` and taken from files, but left out of the configuration a report carries, so
+#: that a fleet's report is byte for byte the same whatever the workers.
+HOW_IT_RUNS = frozenset(("--workers", "--cluster", "--quiet", "--fail-fast"))
 
 
 @dataclass(frozen=True)
@@ -318,10 +322,11 @@ def origin_of(option: str | None) -> str | None:
 # --- the effective configuration -------------------------------------------------------------------------
 
 
-def effective_config(argv: list[str]) -> dict[str, Any] | None:
+def effective_config(argv: list[str], *, carried: bool = False) -> dict[str, Any] | None:
     """The configuration ``argv`` (a command line, experiment files read in) runs with: ``command``,
     its arguments under the argument's name, and each option given (at a value other than its
-    default), by its long name without ``--``. None for a command line that runs no command."""
+    default), by its long name without ``--``; ``carried``: the part a report carries (without
+    :data:`HOW_IT_RUNS`). None for a command line that runs no command."""
     import click
 
     at = next((i for i, word in enumerate(argv) if not word.startswith("-")), None)
@@ -346,7 +351,7 @@ def effective_config(argv: list[str]) -> dict[str, Any] | None:
             out[argument_key(param)] = [str(v) for v in (value if isinstance(value, (list, tuple)) else [value])]
             continue
         long = next((o for o in param.opts if o.startswith("--")), param.opts[0])
-        if long in NOT_CONFIGURATION:
+        if long in NOT_CONFIGURATION or (carried and long in HOW_IT_RUNS):
             continue
         if value == param.default and not getattr(param, "multiple", False):
             continue

@@ -24,5 +24,5 @@ def run(
     from . import config
 
     words = config.expand(["run", str(file), *ctx.args])  # reached when main() did not read it first (the API's app())
-    with run_config.running(config.effective_config(words)):
+    with run_config.running(config.effective_config(words, carried=True)):
         app(args=words, standalone_mode=False)
