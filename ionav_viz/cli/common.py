@@ -338,3 +338,17 @@ def progress_callback(bar, label: str):
         bar.update(task[0], completed=done, total=total, description=text)
 
     return update
+
+
+# --- --help: the options most runs need first, the rest in named panels ------------------------------
+#: panel -> its options; every other option stays in the first panel ("Options").
+HELP_PANELS = {
+    "Reading logs (MCAP, ROS bags, data root)": (DataRoot, YawSign, ImuAxes, TruthTopic, TruthOrigin, ImuMount, ImuTopic, GnssTopic,
+                                                 GnssVelocityTopic, VehicleSpeedTopic, ImuTimeOffset, ImuSamples, Stamps, GnssLimitOpt),
+    "Estimators: models, biases, plug-ins": (ModelOpt, NoIdnnOpt, EstimatorOpt, BiasFromOpt, Thresholds, StrictOpt),
+    "Where outages go": (PlanOpt, ExternalOpt, EveryOpt, AtOpt, RandomOpt, SeedOpt, OnOpt),
+    "Many drives (fleets)": (WorkersOpt, ClusterOpt, FailFastOpt, RunsOpt, FleetRrdOpt, DryRunOpt),
+}
+for _panel, _options in HELP_PANELS.items():
+    for _option in _options:
+        _option.rich_help_panel = _panel

@@ -12,6 +12,8 @@ from ..viz.live import DEFAULT_CONNECT_URL, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 from . import common as c
 from .app import app, log, options_named
 
+#: The --help panel of the options that show the recording.
+VIEWING = "Viewing it (viewer, browser)"
 
 @app.command()
 @c.with_source_options
@@ -26,12 +28,13 @@ def replay(
     export: Optional[Path] = c.ExportOpt,
     output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd in the current directory, made when missing; "
                                                   "with --span recordings/<drive>-0s-60s.rrd or <drive>-60s-end.rrd; an existing file is replaced)."),
-    open_viewer: bool = typer.Option(False, "--open", help="Open the Rerun viewer on the recording afterwards (needs a display)."),
-    connect: Optional[str] = typer.Option(None, "--connect", metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
-    serve_web: bool = typer.Option(False, "--serve-web", help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),
-    grpc_port: int = typer.Option(DEFAULT_GRPC_PORT, "--grpc-port", help="--serve-web: the port of the recording's gRPC server."),
-    web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", help="--serve-web: the port of the web viewer."),
-    bind: str = typer.Option("127.0.0.1", "--bind", metavar="ADDRESS", help="--serve-web: the address to listen on (default: this machine only; 0.0.0.0 opens the recording to every network the machine is on)."),
+    open_viewer: bool = typer.Option(False, "--open", rich_help_panel=VIEWING, help="Open the Rerun viewer on the recording afterwards (needs a display)."),
+    connect: Optional[str] = typer.Option(None, "--connect", rich_help_panel=VIEWING, metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
+    serve_web: bool = typer.Option(False, "--serve-web", rich_help_panel=VIEWING, help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),
+    grpc_port: int = typer.Option(DEFAULT_GRPC_PORT, "--grpc-port", rich_help_panel=VIEWING, help="--serve-web: the port of the recording's gRPC server."),
+    web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", rich_help_panel=VIEWING, help="--serve-web: the port of the web viewer."),
+    bind: str = typer.Option("127.0.0.1", "--bind", rich_help_panel=VIEWING, metavar="ADDRESS",
+                      help="--serve-web: the address to listen on (default: this machine only; 0.0.0.0 opens the recording to every network the machine is on)."),
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
