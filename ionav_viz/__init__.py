@@ -9,7 +9,7 @@ The public API (see "Python API" in the README, and docs/ for the reference)::
     report = iv.evaluate([drive], outage_s=10.0, estimators=["ins", "idnn"])
     result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd",
                        run=iv.RunOptions(bias_from="stationary"), read=iv.ReadOptions(yaw_sign="auto"))
-    iv.screenshot([result.path], "shots/", times=["worst"])
+    iv.screenshot([result.path], "shots/", iv.Shots(times=["worst"]))
 
 Data flows one way through the subpackages (a test enforces it):
 

@@ -1,6 +1,6 @@
 """The synthetic drives bundled with the package (``ionav_viz/data/samples/``) and how they were generated.
 
-Each is a ``V-*.csv`` written by :mod:`ionav_viz.simulate`; regenerating one with the same
+Each is a ``V-*.csv`` written by :func:`ionav_viz.api.simulation.simulate` (``iv.simulate``); regenerating one with the same
 scenario, seed and duration gives the same bytes (``ionav-viz simulate --bundled DIR``
 regenerates them all). The test drive of each scenario is addressable by the scenario name
 wherever a drive is expected (``ionav-viz evaluate roundabout``).
