@@ -19,7 +19,10 @@ N_WIN = 10
 def test_evaluate_to_json_is_exactly_what_the_command_prints():
     proc = run_cli("evaluate", "roundabout", "motorway", "--json")
     assert proc.returncode == 0, proc.stderr
-    report = iv.evaluate(["roundabout", "motorway"], outage_s=10.0)
+    from ionav_viz.core import run_config
+
+    with run_config.running({"command": "evaluate", "drives": ["roundabout", "motorway"], "json": True}):  # what the command carries
+        report = iv.evaluate(["roundabout", "motorway"], outage_s=10.0)
     assert report.to_json() + "\n" == proc.stdout
     assert report.n_outages == 2 * 57 and report.estimators == ["ins", "idnn", "odo", "ekf"]
     # text and Markdown renderings come from the same report

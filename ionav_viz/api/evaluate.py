@@ -4,21 +4,20 @@ scenarios' test drives."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from pathlib import Path
 
-from ..analysis.evaluate import DriveResult, evaluate_drive
-from ..analysis.events import MANOEUVRE_TYPES, Event, detect_events
+from ..analysis.evaluate import DriveResult
+from ..analysis.events import MANOEUVRE_TYPES, detect_events
 from ..analysis.report import Report
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder
 from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
-from ..nav.outages import GNSS_OUTAGE, AroundEvents, At, OutagePlan, Placement, Planned
+from ..nav.outages import GNSS_OUTAGE, AroundEvents, Placement
 from ..nav.plan_file import FromPlan
 from ..nav.protocol import Estimator
-from ..nav.windows import Windows, make_windows
+from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drives
 from ..sources.resolve import data_root as _data_root
 from .options import (
@@ -39,6 +38,7 @@ from .options import (
     windows_of,
     with_externals,
 )
+from .pipeline import plan_drive, score
 
 
 class ScenarioDrives(dict):
@@ -76,25 +76,6 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
         parts.append(f"{', '.join(bundled)}: the bundled synthetic test drives ({why})")
     out.source = "; ".join(parts)
     return out
-
-
-
-def plan_outages(drive: Drive, windows: Windows, placement: Placement, n_windows: int, run: RunOptions,
-          events: list[Event] | None = None) -> tuple[OutagePlan, list[Event]]:
-    """The placement's plan for one drive, with the events it was planned on (detected when the
-    placement needs them and they were not given)."""
-    from ..nav.plan_file import FromPlan
-
-    if isinstance(placement, FromPlan):
-        placement = placement.for_drive(drive)
-    if events is None and placement.event_types:
-        events = detect_events(drive, run.thresholds)
-    explicit = isinstance(placement, (At, Planned))  # the outages are where the caller said
-    warm_up = 0.0 if explicit else float(run.warm_up_s)
-    plan = placement.plan(windows.after_warm_up(warm_up), n_windows, events or [], drive.source)
-    if warm_up > 0 and len(plan.starts):
-        plan = replace(plan, description=f"{plan.description}, after a {warm_up:g} s warm-up")
-    return plan, events or []
 
 
 
@@ -172,8 +153,8 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
     for i, drive in enumerate(loaded):
         if progress:
             progress(drive.name, i, len(items))
-        windows = make_windows(drive)
-        plan, _ = plan_outages(drive, windows, placement, n, run)
+        planned = plan_drive(drive, placement, n, run)
+        plan = planned.plan
         if plan.too_short:
             if plan.excluded:
                 log.warning("%s: no %g s outage fits where the GNSS truth and the receiver's fixes are good; skipped", drive.name, n)
@@ -181,8 +162,7 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
                 short = too_short(drive, n, run, read)
                 log.warning("%s; skipped (%s)", short.message, short.hint)
             continue
-        results.append(evaluate_drive(drive, n, ests, bias=bias_of(drive), starts=plan.starts, windows=windows,
-                                      excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps, placement=plan.description))
+        results.append(score(planned, ests, bias_of(drive)))
     if progress:
         progress("done", len(items), len(items))
     if not results:
@@ -262,10 +242,9 @@ def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[st
             if kind != GNSS_OUTAGE and not any(e.type == kind for e in found):
                 continue
             try:
-                plan, _ = plan_outages(drive, windows, AroundEvents((kind,)), n, run, found)
+                planned = plan_drive(drive, AroundEvents((kind,)), n, run, found, windows)
             except InputError:  # no room for an outage on this drive's events of that type, or no loss
                 continue
-            per_type[kind].append(evaluate_drive(drive, n, ests, bias=bias, starts=plan.starts, windows=windows,
-                                                 excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps, placement=plan.description))
+            per_type[kind].append(score(planned, ests, bias))
     return per_type
 

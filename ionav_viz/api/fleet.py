@@ -235,22 +235,21 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
     released when this returns."""
     from ..core import run_config
     from ..core.warnings_log import collecting_warnings
-    from ..nav.windows import make_windows
     from ..sources.load import load_drive
-    from .evaluate import plan_outages
+    from .pipeline import plan_drive, score
 
     began = time.perf_counter()
     with _quiet_log(), collecting_warnings() as warned, run_config.running(job.config):
         try:
             drive = load_drive(path or spec, job.read)
-            windows = make_windows(drive)
             try:
-                plan, _ = plan_outages(drive, windows, job.placement, job.n_windows, job.run)
+                planned = plan_drive(drive, job.placement, job.n_windows, job.run)
             except InputError as exc:
                 if tuple(job.placement.event_types) != (GNSS_OUTAGE,):
                     raise
                 # through the logs' own losses: a drive without one has nothing to bridge, it has not failed
                 return DriveFailure(spec, f"skipped: {exc.message}", time.perf_counter() - began, skipped=True)
+            plan = planned.plan
             if plan.too_short:
                 why = "no outage fits where the GNSS truth and the receiver's fixes are good" if plan.excluded else "too short for a single outage"
                 return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began, skipped=True)
@@ -260,13 +259,9 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
                 with _one_torch_thread(load=_torch_idnn(job.run.applying_to([drive]))):
                     result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
             else:
-                from ..analysis.evaluate import evaluate_drive
-
                 ests = job.run.applying_to([drive])
                 with _one_torch_thread(load=_torch_idnn(ests)):
-                    result = evaluate_drive(drive, job.n_windows, ests, bias=job.run.bias_of(job.read)(drive), starts=plan.starts,
-                                            windows=windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps,
-                                            placement=plan.description)
+                    result = score(planned, ests, job.run.bias_of(job.read)(drive))
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
             return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began,

@@ -15,8 +15,8 @@ from ..nav.outages import Placement
 from ..nav.plan_file import FromPlan, PlanFile, checksum
 from ..nav.windows import make_windows
 from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
-from .evaluate import plan_outages
 from .options import DriveLike, RunOptions, check_event_types, input_paths, no_outage_fits, options_of, placement_of, too_short, windows_of
+from .pipeline import plan_outages
 from .simulation import vehicle_speed_for_log
 
 

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..analysis.evaluate import DriveResult, evaluate_drive
+from ..analysis.evaluate import DriveResult
 from ..analysis.events import Event, detect_events
 from ..analysis.report import Report, overview_markdown, run_summary_markdown
 from ..core.durations import Span
@@ -19,7 +19,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
-from .evaluate import plan_outages, scenario_drives
+from .evaluate import scenario_drives
 from .options import (
     DriveLike,
     Progress,
@@ -37,6 +37,7 @@ from .options import (
     windows_of,
     with_externals,
 )
+from .pipeline import plan_drive, score
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -153,7 +154,8 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
     with stage("manoeuvres") as s:
         events = detect_events(d, run.thresholds)
         s.detail = f"{len(events)} detected"
-    plan, _ = plan_outages(d, windows, placement, n, run, events)
+    planned = plan_drive(d, placement, n, run, events, windows)
+    plan = planned.plan
     if len(plan.starts) == 0 and not plan.gnss_gaps:
         if plan.excluded:
             raise no_outage_fits([d], n, d.source)
@@ -163,8 +165,7 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
                             create_parent=default)  # before the work
     refuse_output_onto_output(out, export, param="export", replaced=["tum"])  # the default name is known only now
     chosen = run.applying_to([d])
-    result = evaluate_drive(d, n, chosen, bias=run.bias_of(read)(d), starts=plan.starts, windows=windows, excluded_outages=plan.excluded,
-                            gnss_gaps=plan.gnss_gaps, placement=plan.description)
+    result = score(planned, chosen, run.bias_of(read)(d))
     report = Report([result], warnings=warned)  # what was warned so far: reading, planning, estimating
     summary = _summary_markdown(result, report, plan.description)
     total = 5 + len(result.estimates)
