@@ -49,25 +49,8 @@ class ReadOptions:
         object.__setattr__(self, "span", parse_span(self.span))  # checked, and one type, before any work
         if self.yaw_sign not in ("auto", "cw", "ccw"):
             raise InputError(f"yaw sign {self.yaw_sign!r} is not auto, cw or ccw", "choose auto, cw or ccw", param="yaw_sign")
-        if self.log.stamps not in ("header", "log"):
-            raise InputError(f"stamps {self.log.stamps!r}: choose header or log", param="stamps")
-        if self.log.imu_axes is not None:
-            from .imu.axes import parse_imu_axes
-
-            parse_imu_axes(self.log.imu_axes)  # checked before any work; names imu_axes
-        if self.log.imu_mount is not None:
-            from .imu.mount import parse_mount
-
-            parse_mount(self.log.imu_mount)  # checked before any work; names imu_mount
-        if self.log.imu_time_offset is not None or self.log.imu_samples is not None:
-            from .imu.character import check_samples, parse_time_offset
-
-            parse_time_offset(self.log.imu_time_offset)
-            check_samples(self.log.imu_samples)
-        if self.log.truth_origin is not None:
-            from .reference import parse_origin
-
-            parse_origin(self.log.truth_origin)
+        # the log options' text (stamps, axes, mount, clock offset, samples, origin) was checked, and
+        # parsed, when the LogOptions was made (sources/log_options.py)
 
 _SUPPORTED = ("ionav-viz reads IO-VNBD V-*.csv files, MCAP (.mcap) logs, ROS 1 .bag files, ROS 2 bag folders "
               "(or their metadata.yaml / .db3) and KITTI raw drive folders")

@@ -1,10 +1,45 @@
 """How message logs (MCAP, ROS 1 and ROS 2 bags) are read: :class:`LogOptions`, shared by the
-loader (:mod:`.load`, which the API re-exports) and the reader (:mod:`.message_log`)."""
+loader (:mod:`.load`, which the API re-exports) and the reader (:mod:`.message_log`).
+
+The options that take the command line's syntax (``imu_axes``, ``imu_mount``, ``imu_time_offset``,
+``imu_samples``, ``truth_origin``) are parsed once, when a :class:`LogOptions` is made, into typed
+values (:attr:`LogOptions.parsed`); nothing downstream parses their text again.
+"""
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.errors import InputError
+from .imu.axes import parse_imu_axes
+from .imu.character import check_samples, parse_time_offset
+from .imu.mount import parse_mount
+from .reference import FrameOrigin, parse_origin
+
+
+@dataclass(frozen=True)
+class ParsedLogOptions:
+    """The typed values of a :class:`LogOptions`' text options.
+
+    Attributes:
+        axes: the 3x3 matrix taking the log's IMU axes to the body frame (identity: as logged).
+        mount: the IMU's mount after the axes: a 3x3 rotation body <- IMU, ``"auto"`` (estimated
+            and applied), or None (estimated; applied when small, a stop when large).
+        time_offset_s: the IMU's stamps minus the receiver's (s), ``"auto"``, or None (estimated,
+            applied when clearly off).
+        samples: ``"single"``, ``"averaged"`` or None (by the rate).
+        origin: where a local-frame reference lies (a :class:`~.reference.FrameOrigin`), ``"auto"``
+            (fitted to the fixes), or None (none given).
+    """
+
+    axes: np.ndarray
+    mount: np.ndarray | str | None = None
+    time_offset_s: float | str | None = None
+    samples: str | None = None
+    origin: FrameOrigin | str | None = None
 
 
 @dataclass(frozen=True)
@@ -37,6 +72,8 @@ class LogOptions:
     #: what each IMU sample is at a low rate: "single" (one instantaneous reading) or "averaged" (a mean or
     #: increment over its interval); None: single below 50 Hz, the reader's means above (sources.imu.character)
     imu_samples: str | None = None
+    #: the text options above, parsed (made here; see :class:`ParsedLogOptions`)
+    parsed: ParsedLogOptions = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.speed_topic is not None:
@@ -45,3 +82,11 @@ class LogOptions:
             if self.gnss_velocity_topic is None:
                 object.__setattr__(self, "gnss_velocity_topic", self.speed_topic)
             object.__setattr__(self, "speed_topic", None)
+        if self.stamps not in ("header", "log"):
+            raise InputError(f"stamps {self.stamps!r}: choose header or log", param="stamps")
+        object.__setattr__(self, "parsed", ParsedLogOptions(
+            axes=parse_imu_axes(self.imu_axes) if self.imu_axes else np.eye(3),
+            mount=parse_mount(self.imu_mount) if self.imu_mount else None,
+            time_offset_s=parse_time_offset(self.imu_time_offset),
+            samples=check_samples(self.imu_samples),
+            origin=parse_origin(self.truth_origin) if self.truth_origin else None))

@@ -63,12 +63,11 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import GRID_RATE_HZ
 from .gnss_fixes import first_per_stamp
-from .imu.axes import AXES, parse_imu_axes
-from .imu.character import ImuSettings, check_samples, parse_time_offset
-from .imu.mount import parse_mount
+from .imu.axes import AXES
+from .imu.character import ImuSettings
 from .log_options import LogOptions
 from .plausibility import first_implausible, implausible
-from .reference import parse_origin, place_reference
+from .reference import place_reference
 from .resample import ImuBins, LogStreams, assemble_drive, drop_strays
 
 log = logging.getLogger("ionav_viz")
@@ -347,13 +346,9 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
     """
     opts = options if options is not None else LogOptions()
     path = source.path
-    if opts.stamps not in ("header", "log"):
-        raise InputError(f"stamps {opts.stamps!r}: choose header or log", param="stamps")
     if yaw_sign not in ("auto", "cw", "ccw"):
         raise InputError(f"yaw sign {yaw_sign!r} is not auto, cw or ccw", param="yaw_sign")
-    mapping = parse_imu_axes(opts.imu_axes) if opts.imu_axes else np.eye(3)
-    mount = parse_mount(opts.imu_mount) if opts.imu_mount else None
-    origin = parse_origin(opts.truth_origin) if opts.truth_origin else None
+    mapping, mount, origin = opts.parsed.axes, opts.parsed.mount, opts.parsed.origin
     sel = select_channels(source, opts.imu_topic, opts.gnss_topic, opts.gnss_velocity_topic, opts.vehicle_speed_topic,
                           truth_topic=opts.truth_topic)
     if sel.reference is not None and sel.reference.schema not in GNSS_SCHEMAS and origin is None:
@@ -373,7 +368,7 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
                               for what, samples in (("GNSS velocity", got.speed), ("vehicle speed", got.vehicle)))
     truth = _truth(got, origin, fixes, origin_s)
     streams = LogStreams(got.imu, fixes, speeds, origin_s=origin_s, vehicle_speed=vehicle_speeds, reference=truth)
-    settings = ImuSettings(mapping, yaw_sign, mount, parse_time_offset(opts.imu_time_offset), check_samples(opts.imu_samples))
+    settings = ImuSettings(mapping, yaw_sign, mount, opts.parsed.time_offset_s, opts.parsed.samples)
     return assemble_drive(path, name or _default_name(path), streams, settings)
 
 
