@@ -32,7 +32,7 @@ _EXPORTS = {
     "training_drives": "api", "replay_scenario": "api", "simulate": "api", "convert": "api", "fetch": "api", "list_runs": "api",
     "RunSelection": "api", "DatasetSource": "api", "WebServing": "api", "evaluate_by_event": "api", "evaluate_lengths": "api", "replay_lengths": "api", "replay": "api", "screenshot": "api",
     "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api", "RunOptions": "api", "Shots": "api",
-    "outage_log": "api", "figures": "api", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
+    "outage_log": "api", "figures": "api", "compare": "api", "Comparison": "analysis.compare", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate",
     "evaluate_fleet": "api", "replay_fleet": "api", "write_fleet_recording": "api", "FleetReport": "analysis.fleet",
     "Drive": "core.drive", "InputError": "core.errors", "ToolFailure": "core.errors",
@@ -66,6 +66,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports on first use
+    from .analysis.compare import Comparison
     from .analysis.evaluate import DriveResult
     from .analysis.events import Event, EventThresholds
     from .analysis.fleet import FleetReport
@@ -79,6 +80,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         RunSelection,
         Shots,
         WebServing,
+        compare,
         convert,
         cross_validate,
         detector_quality,

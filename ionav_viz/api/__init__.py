@@ -16,6 +16,7 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
 
 
 from ..viz.live import WebServing
+from .compare import compare
 from .cross_validate import CrossValidation, cross_validate
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
 from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
@@ -44,6 +45,7 @@ __all__ = [
     "Shots",
     "TrainingDrives",
     "WebServing",
+    "compare",
     "convert",
     "cross_validate",
     "detector_quality",

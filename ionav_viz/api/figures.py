@@ -15,7 +15,8 @@ from ..core.timing import stage
 def figures(result: Any, output: str | Path) -> list[Path]:
     """Draw the drift curve, the final-error CDF, the per-outage errors (one column and page-wide)
     and the worst outage's tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output;
-    a fleet's ``evaluate --workers N --json``: its per-drive box plot and pooled CDF instead)
+    a fleet's ``evaluate --workers N --json``: its per-drive box plot and pooled CDF instead; several
+    outage lengths, ``evaluate --outage 10s,30s --json``: the error against outage length instead)
     into the folder ``output`` as SVG, PDF and PNG; ``result`` may also be what :func:`replay`
     returned (its recording is read) or a :class:`~ionav_viz.analysis.report.Report` from
     :func:`evaluate`. Returns the files written.
@@ -25,7 +26,7 @@ def figures(result: Any, output: str | Path) -> list[Path]:
     The figures appear in ``output`` only when all are complete (drawn in a temporary folder beside
     it, or inside it when it exists); other files there are kept."""
     from ..analysis.report import Report
-    from ..viz.figures import FIGURES, FLEET_FIGURES, FORMATS, check_report, read_report, write_figures
+    from ..viz.figures import FIGURES, FLEET_FIGURES, FORMATS, LENGTH_FIGURES, check_report, read_report, write_figures
     from .replay import ReplayResult
 
     if isinstance(result, ReplayResult):  # iv.figures(iv.replay(...), folder) was a TypeError naming no argument
@@ -40,7 +41,7 @@ def figures(result: Any, output: str | Path) -> list[Path]:
         raise InputError(f"result of type {type(result).__name__}: not a recording, a report or its file",
                          "give what replay or evaluate returned, a .rrd, or the output of 'evaluate --json'", param="result")
     refuse_output_onto_input(output, [result])  # before reading: -o inside the input's folder, or the input itself
-    for name in (f"{f}.{fmt}" for f in (*FIGURES, *FLEET_FIGURES) for fmt in FORMATS):  # the files it replaces (others there are kept)
+    for name in (f"{f}.{fmt}" for f in (*FIGURES, *FLEET_FIGURES, *LENGTH_FIGURES) for fmt in FORMATS):  # the files it replaces (others there are kept)
         refuse_output_onto_input(Path(output) / name, [result])
     check_regular_input(result, "result", hint="give a .rrd written by replay or the output of 'evaluate --json'", missing_ok=True)
     rep = read_report(result)

@@ -71,7 +71,10 @@ STYLE = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT
          "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
 #: The figures of a fleet's report.
 FLEET_FIGURES = ("fleet-box", "fleet-cdf")
-_WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN}
+#: The figure of a report of several outage lengths (``evaluate --outage 10s,30s --json``).
+LENGTH_FIGURES = ("lengths",)
+_WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN,
+           "lengths": COLUMN_IN}
 
 
 #: What a report's reader says to give instead of a bad one.
@@ -108,6 +111,9 @@ def check_report(rep: Any, path: Path) -> None:
 
     if is_fleet_report(rep):
         check_fleet_report(rep, path)
+        return
+    if is_lengths_report(rep):
+        check_lengths_report(rep, path)
         return
     if isinstance(rep, dict) and any(k in rep for k in ("scenarios", "by_event", "lengths")):
         raise InputError(f"{path}: holds several reports (--scenario, --by-event or several --outage lengths)",
@@ -314,7 +320,7 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
 
     given = check_output_folder(Path(folder))  # as messages name it
     folder = Path(os.path.abspath(given))  # '.' and '..' by name
-    drawn = FLEET_FIGURES if is_fleet_report(rep) else FIGURES
+    drawn = FLEET_FIGURES if is_fleet_report(rep) else LENGTH_FIGURES if is_lengths_report(rep) else FIGURES
     for name in (f"{f}.{fmt}" for f in drawn for fmt in FORMATS):  # before drawing: what the moves would refuse
         _check_replaceable(folder / name, given / name)
     parent = folder if folder.is_dir() else folder.parent
@@ -347,7 +353,8 @@ def figure(rep: dict[str, Any], name: str) -> Any:
     width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
     from matplotlib import rc_context
 
-    draws = {"fleet-box": _fleet_box, "fleet-cdf": _fleet_cdf, "drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst, "calibration": _calibration}
+    draws = {"fleet-box": _fleet_box, "fleet-cdf": _fleet_cdf, "drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst, "calibration": _calibration,
+             "lengths": _lengths}
     with rc_context(STYLE):
         fig = draws[name](rep, _WIDTHS[name])
         fig.canvas.draw()  # laid out with the style's sizes
@@ -792,3 +799,98 @@ def _fleet_cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     curves = [(name, label, color, i, np.concatenate(list(per_drive[name].values())) if per_drive[name] else np.zeros(0))
               for name, label, color, i in _styled(rep)]
     return _cdf_figure(rep, "fleet-cdf", _fleet_title(rep), curves, legend, width_in)
+
+
+def is_lengths_report(rep: Any) -> bool:
+    """Whether ``rep`` is a report of several outage lengths (``evaluate --outage 10s,30s --json``)."""
+    return isinstance(rep, dict) and isinstance(rep.get("lengths"), dict) and "by_length" in rep
+
+
+def check_lengths_report(rep: dict[str, Any], path: Path) -> None:
+    """That a report of several outage lengths holds what its figure draws: the first length's
+    drive and estimators (name, label, optional colour), and per estimator ``by_length``'s outage
+    lengths (positive), outage counts, mean and 90th percentile final errors and mean final error as
+    a share of the distance (numbers or null), all of one length."""
+
+    def fail(field: str, why: str) -> None:
+        raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
+
+    if not rep["lengths"]:
+        fail("lengths", "holds no report")
+    key, first = next(iter(rep["lengths"].items()))
+    first = _need_object(first, f"lengths.{key}", fail)
+    _need_text(first.get("drive"), f"lengths.{key}.drive", fail)
+    ests = first.get("estimators")
+    if not isinstance(ests, list) or not ests:
+        fail(f"lengths.{key}.estimators", "is not a list of estimators")
+    by_length = _need_object(rep["by_length"], "by_length", fail)
+    for i, e in enumerate(ests):
+        where = f"lengths.{key}.estimators[{i}]"
+        for field in ("name", "label"):
+            _need_text(_need_object(e, where, fail).get(field), f"{where}.{field}", fail)
+        color = e.get("color")
+        rgb = isinstance(color, list) and len(color) == 3 and all(_is_int(c) and 0 <= c <= 255 for c in color)
+        if color is not None and not rgb:
+            fail(f"{where}.color", f"{color!r} is not an RGB triple of 0-255 integers")
+        rows = _need_object(by_length.get(e["name"]), f"by_length.{e['name']}", fail)
+        sizes = {}
+        for field in ("outage_s", "n_outages", "final_position_error_m", "final_error_p90_m", "final_error_pct"):
+            sizes[field] = len(_need_numbers(rows.get(field), f"by_length.{e['name']}.{field}", fail))
+        if len(set(sizes.values())) != 1 or not sizes["outage_s"]:
+            fail(f"by_length.{e['name']}", "outage_s, n_outages and the errors differ in length, or are empty ("
+                 + ", ".join(f"{k} {n}" for k, n in sizes.items()) + ")")
+        for k, length in enumerate(rows["outage_s"]):
+            if length is None or not 0 < length <= MAX_REPORT_VALUE:
+                fail(f"by_length.{e['name']}.outage_s[{k}]", f"{length!r} is not an outage length in seconds")
+        for k, count in enumerate(rows["n_outages"]):
+            if not _is_int(count) or count < 0:
+                fail(f"by_length.{e['name']}.n_outages[{k}]", f"{count!r} is not a count of outages")
+
+
+def _lengths(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
+    """Error against outage length: per estimator the mean final position error (filled markers)
+    and its 90th percentile (hollow), and below it the mean final error as a share of the distance
+    driven, at each length."""
+    from matplotlib.lines import Line2D
+
+    first = next(iter(rep["lengths"].values()))
+    info = {"estimators": first["estimators"]}
+    styled = _styled(info)
+    fig, top = _new_figure(width_in, 3.9)
+    fig.delaxes(top)
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
+    skipped: list[str] = []
+    handles: list[tuple[Any, str]] = []
+    lengths = np.array([])
+    for name, label, color, i in styled:
+        rows = rep["by_length"][name]
+        x = _floats(rows["outage_s"])
+        lengths = np.union1d(lengths, x)
+        style = {"color": color, "ls": LINE_STYLES[i % len(LINE_STYLES)], "marker": MARKERS[i % len(MARKERS)]}
+        mean, p90 = _floats(rows["final_position_error_m"]), _floats(rows["final_error_p90_m"])
+        pct = _floats(rows["final_error_pct"])
+        shown = _defined(label, x, mean, skipped)
+        if shown is None:
+            continue
+        [line] = top.plot(x[shown], mean[shown], lw=1.2, ms=4, **style)
+        high = np.isfinite(p90)
+        top.plot(x[high], p90[high], lw=0.6, ms=4, mfc="white", alpha=0.9, **style)
+        defined = np.isfinite(pct)
+        bottom.plot(x[defined], pct[defined], lw=1.2, ms=4, **style)
+        handles.append((line, label))
+    _skipped("lengths", skipped)
+    handles.append((Line2D([], [], color="0.3", marker="o", ls="none", ms=4), "mean"))
+    handles.append((Line2D([], [], color="0.3", marker="o", mfc="white", ls="none", ms=4), "90th percentile"))
+    top.set_ylabel("final position error (m)")
+    bottom.set_ylabel("final error (% of distance)")
+    bottom.set_xlabel("outage length (s)")
+    for ax in (top, bottom):
+        ax.set_ylim(bottom=0)
+    if len(lengths):
+        bottom.set_xticks(lengths, [f"{x:g}" for x in lengths])
+        bottom.set_xlim(0.0, 1.06 * lengths[-1])  # from zero: how the error grows with the length
+    counts = rep["by_length"][styled[0][0]]
+    per = ", ".join(f"{n} of {x:g} s" for x, n in zip(counts["outage_s"], counts["n_outages"]))
+    _set_title(top, f"{first['drive']}: error against outage length ({per} outages)")
+    _legend(fig, bottom, width_in, handles)
+    return fig
