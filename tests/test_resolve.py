@@ -6,7 +6,7 @@ from ionav_viz.core.errors import InputError
 from ionav_viz.dataset.samples import samples_dir
 from ionav_viz.sources.resolve import resolve_drive
 
-from .conftest import run_cli
+from .conftest import one_line_error, run_cli
 
 UNSYNC = "Unsynchronised V and S Dataset/Categorised IOVNB (V) Dataset/V Dataset"
 SYNC = "Synchronised V abd S datasets/Categorised IOVNB Dataset"
@@ -58,6 +58,20 @@ def test_paper_run_without_data_root_says_what_it_is():
     with pytest.raises(InputError) as err:
         resolve_drive("V-Vw8", None)
     assert "sharp-cornering test run" in str(err.value) and "--data-root" in str(err.value)
+
+
+@pytest.mark.parametrize(("run", "stand_in"), [("V-Vw8", "sharp-cornering"), ("Vta11", "roundabout"), ("V-Vw12", "motorway"),
+                                             ("V-Vw1", "stationary")])
+def test_a_missing_paper_run_names_its_bundled_stand_in(tmp_path, run, stand_in):
+    # issue 63: 'replay V-Vw8' without the run said how to fetch it, never that a bundled drive stands in for it
+    (tmp_path / "data").mkdir()
+    line = one_line_error(run_cli("replay", run, "-o", str(tmp_path / "x.rrd"), env={"IONAV_DATA": str(tmp_path / "data")}),
+                          run, f"ionav-viz fetch {run}", f"its bundled stand-in is {stand_in}, a simulated")
+    assert "an IO-VNBD run of the real IO-VNBD" not in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]
+    with pytest.raises(InputError, match="V-Vw9 is a run of the real IO-VNBD dataset") as err:  # no stand-in for a run the paper does not use
+        resolve_drive("V-Vw9", None)
+    assert "stand-in" not in str(err.value)
 
 
 def test_unknown_name_suggests_close_matches(fake_root):
