@@ -70,15 +70,15 @@ def address(sample: Sample) -> str:
 
 
 def what_it_is(sample: Sample) -> str:
-    """What a bundled drive is, in a few words: ``a simulated 10-minute roundabout test drive``."""
-    minutes = f"{sample.duration_s / 60:g}-minute"
+    """What a bundled drive is, in a few words: ``simulated 10-min roundabout test drive``."""
+    minutes = f"{sample.duration_s / 60:g}-min"
     if sample.role == "test":
-        return f"a simulated {minutes} {sample.scenario} test drive"
+        return f"simulated {minutes} {sample.scenario} test drive"
     if sample.role == "bias":
-        return f"a simulated {minutes} standstill, for the sensor biases"
+        return f"simulated {minutes} standstill, for the sensor biases"
     if sample.role == "losses":
-        return f"a simulated {minutes} {sample.scenario} drive with {sample.gnss_losses} real GNSS losses (--on gnss-outage)"
-    return f"a simulated {minutes} {sample.scenario} training drive"
+        return f"simulated {minutes} {sample.scenario} drive, {sample.gnss_losses} tunnels (--on gnss-outage)"
+    return f"simulated {minutes} {sample.scenario} training drive"
 
 
 def stand_in(run: str) -> Sample | None:

@@ -119,7 +119,7 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         what = f"{spec} is {role}" if role else f"{spec} is a run"
         where = f"it is not under the data root {root}" if root else "no data root is set"
         sample = stand_in(spec)
-        bundled_one = f"; its bundled stand-in is {address(sample)}, {what_it_is(sample)}" if sample else ""
+        bundled_one = f"; its bundled stand-in is {address(sample)} ({what_it_is(sample)})" if sample else ""
         raise InputError(
             f"{what} of the real IO-VNBD dataset, and {where}",
             f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a copy{bundled_one}",
