@@ -157,10 +157,18 @@ def evaluate(
         results = _evaluate_each(items, n, placement, run, read, progress)
     report = Report(results, warnings=warned)
     if export is not None:
-        from ..analysis.exports import export_results
-
-        export_results(results, export)
+        write_exports(results, export)
     return report
+
+
+def write_exports(results: Sequence[DriveResult], export: str | Path) -> None:
+    """``export=``: :func:`~ionav_viz.analysis.exports.export_results`, the tracks in the colours
+    the recording draws them (:mod:`ionav_viz.viz.style`)."""
+    from ..analysis.exports import export_results
+    from ..viz.style import GNSS_COLOR, estimator_colors
+
+    estimators = list({est.name: est for res in results for est in res.estimators}.values())
+    export_results(list(results), export, colors=estimator_colors(estimators), truth_color=GNSS_COLOR)
 
 
 def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: RunOptions, read: ReadOptions,
