@@ -151,7 +151,8 @@ def test_two_drives_of_one_name_are_both_listed(tmp_path):
     assert proc.returncode == 0, proc.stderr
     found = json.loads(proc.stdout)
     assert list(found) == ["a/V-x.csv", "b/V-x.csv"] and found["a/V-x.csv"] != found["b/V-x.csv"]
-    overview = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--overview", "--estimators", "ins", "--warm-up", "0s", cwd=tmp_path)
+    overview = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--overview", "--estimators", "ins", "--warm-up", "0s", cwd=tmp_path,
+                       env={"COLUMNS": "1000"})  # wide enough for one row per drive
     assert overview.returncode == 0, overview.stderr
     assert [line.split()[0] for line in overview.stdout.splitlines()[1:]] == ["a/V-x.csv", "b/V-x.csv", "total"], overview.stdout
     assert list(json.loads(run_cli("events", "roundabout", "roundabout", "--json").stdout)) == ["V-sim-roundabout"]
