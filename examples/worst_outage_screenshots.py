@@ -19,6 +19,15 @@ import ionav_viz as iv
 from ionav_viz.dataset.catalog import SCENARIOS
 
 
+def worst_line(scenario: str, report: iv.Report, png: Path) -> str:
+    """One line of the batch: the scenario's worst outage (by the INS DR's final position error)
+    and each estimator's final error there, named as every output names it ("INS DR", "IDNN")."""
+    worst = report.worst_outages(1)[0]
+    errors = ", ".join(f"{report.labels[name]} {err:.1f} m" for name, err in worst["final_error_m"].items())
+    return (f"{scenario}: outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s), "
+            f"final error {errors} -> {png}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("output", type=Path, help="directory for the PNGs")
@@ -31,13 +40,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="worst-") as tmp:
         for scenario in SCENARIOS:
             result = iv.replay(scenario, outage_s=10.0, output=Path(tmp) / f"{scenario}.rrd")
-            worst = result.report.worst_outages(1)[0]  # by the INS DR's final position error
-            errors = ", ".join(f"{name} {err:.1f} m" for name, err in worst["final_error_m"].items())
-            # 'worst' frames the same outage: its tracks fill the view, its errors are in the title
+            # 'worst' frames the outage worst_line names: its tracks fill the view, its errors are in the title
             [png] = iv.screenshot([result.path], args.output / f"{scenario}-worst.png",
                                   iv.Shots(times=["worst"], views=[args.view], size=(width, height)))
-            print(f"{scenario}: outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s), "
-                  f"final error {errors} -> {png}")
+            print(worst_line(scenario, result.report, png))
+
 
 if __name__ == "__main__":
     main()

@@ -205,3 +205,20 @@ def test_options_of_the_wrong_kind_or_out_of_range_are_input_errors_naming_them(
         call(tmp_path)
     assert info.value.param == param, (info.value.param, str(info.value))
     assert not (tmp_path / "x.mcap").exists() and not (tmp_path / "cut.csv").exists()
+
+
+def test_the_worst_outage_example_prints_display_names():
+    # issue 63: examples/worst_outage_screenshots.py printed the internal names ("ins 27.0 m, idnn 15.8 m")
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parent.parent / "examples" / "worst_outage_screenshots.py"
+    spec = importlib.util.spec_from_file_location("worst_outage_screenshots", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    report = iv.evaluate("hard-brake", 10.0, estimators=["ins", "odo"])
+    worst = report.worst_outages(1)[0]
+    line = example.worst_line("hard-brake", report, Path("shots/hard-brake-worst.png"))
+    assert line == (f"hard-brake: outage {worst['number']} ({worst['start_s']:.0f}-{worst['end_s']:.0f} s), final error "
+                    f"INS DR {worst['final_error_m']['ins']:.1f} m, Odometry {worst['final_error_m']['odo']:.1f} m "
+                    "-> shots/hard-brake-worst.png")

@@ -151,7 +151,8 @@ def test_two_drives_of_one_name_are_both_listed(tmp_path):
     assert proc.returncode == 0, proc.stderr
     found = json.loads(proc.stdout)
     assert list(found) == ["a/V-x.csv", "b/V-x.csv"] and found["a/V-x.csv"] != found["b/V-x.csv"]
-    overview = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--overview", "--estimators", "ins", "--warm-up", "0s", cwd=tmp_path)
+    overview = run_cli("evaluate", "a/V-x.csv", "b/V-x.csv", "--overview", "--estimators", "ins", "--warm-up", "0s", cwd=tmp_path,
+                       env={"COLUMNS": "1000"})  # wide enough for one row per drive
     assert overview.returncode == 0, overview.stderr
     assert [line.split()[0] for line in overview.stdout.splitlines()[1:]] == ["a/V-x.csv", "b/V-x.csv", "total"], overview.stdout
     assert list(json.loads(run_cli("events", "roundabout", "roundabout", "--json").stdout)) == ["V-sim-roundabout"]
@@ -205,3 +206,22 @@ def test_an_events_times_and_length_agree_in_the_json():
         for key in ("start_s", "end_s"):
             assert np.min(np.abs(drive.t_s - d[key])) < 1e-6, (key, d)
         assert d["end_s"] - d["start_s"] == pytest.approx(d["length_s"], abs=1e-6)
+
+
+def test_by_event_says_a_type_without_events_in_every_format():
+    # issue 63: --on hard-brake,quick-accel on the hard-brake drive printed hard-brake's tables and
+    # nothing of quick-accel, as if it had not been asked for
+    args = ("evaluate", "hard-brake", "--by-event", "--on", "hard-brake,quick-accel", "--estimators", "ins")
+    text = run_cli(*args)
+    assert text.returncode == 0, text.stderr
+    assert text.stdout.startswith("hard-brake: V-sim-hard-brake, 10 s GNSS outages")
+    assert text.stdout.splitlines()[-1] == "quick-accel: 0 events"
+    markdown = run_cli(*args, "--markdown")
+    assert markdown.stdout.splitlines()[-1] == "**quick-accel: 0 events**"
+    overview = run_cli(*args, "--overview")
+    assert overview.stdout.splitlines()[-1] == "quick-accel: 0 events"
+    out = json.loads(run_cli(*args, "--json").stdout)
+    assert list(out["by_event"]) == ["hard-brake"] and out["events"] == {"hard-brake": 20, "quick-accel": 0}
+    by = iv.evaluate_by_event(["hard-brake"], 10.0, ["hard-brake", "quick-accel"], ["ins"])
+    assert list(by) == ["hard-brake"] and by.events == {"hard-brake": 20, "quick-accel": 0}
+    assert by.without_outage_lines() == ["quick-accel: 0 events"]

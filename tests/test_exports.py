@@ -293,3 +293,68 @@ def test_two_drives_of_one_name_are_told_apart_in_the_report_and_the_export(tmp_
     assert sorted(p.name for p in (tmp_path / "ex" / "tum").iterdir()) == ["a_V-x.csv", "b_V-x.csv"]
     with open(tmp_path / "ex" / "outages.csv") as f:
         assert {row["drive"] for row in csv.DictReader(f)} == {"a/V-x.csv", "b/V-x.csv"}
+
+
+GPX_NS = "{http://www.topografix.com/GPX/1/1}"
+
+
+def _gpx_times(trk) -> list:
+    """The times of a GPX track's points, each checked to be ISO 8601 in UTC."""
+    from datetime import datetime, timedelta
+
+    points = list(trk.iter(f"{GPX_NS}trkpt"))
+    texts = [p.find(f"{GPX_NS}time").text for p in points]  # every point has one (None: AttributeError)
+    assert all(t.endswith("Z") for t in texts), texts[:3]
+    times = [datetime.fromisoformat(t) for t in texts]
+    assert all(t.utcoffset() == timedelta(0) for t in times)
+    tags = [child.tag.removeprefix(GPX_NS) for child in trk]  # GPX 1.1's order: name, desc, then the segments
+    assert tags[:1] == ["name"] and tags[1 + (tags[1:2] == ["desc"]):] == ["trkseg"] * tags.count("trkseg") > []
+    assert [p.tag for p in points[0]] == [f"{GPX_NS}time"]
+    return times
+
+
+def test_gpx_points_carry_their_utc_times_from_the_drives_clock(exported):
+    # issue 63: the GPX tracks had no <time>; an IO-VNBD clock is a time of day, without a date
+    from datetime import UTC, datetime, timedelta
+
+    _, got, folder = exported
+    drive = iv.load_drive("roundabout")
+    trks = ET.parse(folder / "tracks.gpx").getroot().findall(f"{GPX_NS}trk")
+    epoch = datetime(1970, 1, 1, tzinfo=UTC)
+    for trk in trks:
+        times = _gpx_times(trk)
+        assert all(b > a for a, b in zip(times, times[1:])), trk.find(f"{GPX_NS}name").text  # increasing, segments too
+        assert "carries no date" in trk.find(f"{GPX_NS}desc").text
+    truth = _gpx_times(trks[0])
+    assert truth[0] == epoch + timedelta(seconds=round(float(drive.stamp_s(drive.t_s[drive.gnss_ok][0])), 3))
+    for i, seq in enumerate(got["sequences"]):  # each outage's tracks: 1 s apart from its start, on the drive's clock
+        times = _gpx_times(trks[1 + 3 * i])
+        assert times[0] == epoch + timedelta(seconds=round(float(drive.stamp_s(seq["start_s"])), 3))
+        assert [(b - a).total_seconds() for a, b in zip(times, times[1:])] == [1.0] * int(got["outage_s"])
+
+
+def test_gpx_times_of_a_dated_log_are_its_instants(tmp_path):
+    from dataclasses import replace
+    from datetime import UTC, datetime
+
+    drive = replace(iv.load_drive("roundabout"), start_stamp_s=1_700_000_000.25)  # UNIX time, as a message log's
+    iv.evaluate([drive], 10.0, iv.At((100.0,)), estimators=["ins"], export=tmp_path / "ex")
+    trks = ET.parse(tmp_path / "ex" / "tracks.gpx").getroot().findall(f"{GPX_NS}trk")
+    assert all(trk.find(f"{GPX_NS}desc") is None for trk in trks)  # nothing to say: the times are the log's own
+    assert _gpx_times(trks[1])[0] == datetime.fromtimestamp(1_700_000_100.25, UTC)
+    assert _gpx_times(trks[1])[0].isoformat() == "2023-11-14T22:15:00.250000+00:00"
+
+
+def test_geojson_features_carry_simplestyle_properties_in_the_recordings_colours(exported):
+    # issue 63: the GeoJSON had no style: every track drew in one default colour
+    from ionav_viz.viz.style import GNSS_COLOR, estimator_colors
+
+    report, _, folder = exported
+    colors = estimator_colors(report.results[0].estimators)
+    for feature in json.loads((folder / "tracks.geojson").read_text())["features"]:
+        p = feature["properties"]
+        rgb = GNSS_COLOR if p["kind"] == "truth" else colors[p["estimator"]]
+        assert p["stroke"] == p["marker-color"] == "#{:02x}{:02x}{:02x}".format(*rgb)
+        assert p["stroke-width"] > 0 and 0 < p["stroke-opacity"] <= 1 and p["title"].startswith("V-sim-roundabout ")
+        if p["kind"] == "estimate":
+            assert p["title"] == f"V-sim-roundabout outage {p['outage']} {p['label']}, final error {p['final_position_error_m']:.1f} m"

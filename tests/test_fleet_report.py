@@ -5,6 +5,7 @@ expected numbers are worked out here by hand; and the manoeuvre label of an outa
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -171,3 +172,10 @@ def test_the_pooled_improvement_carries_an_interval_with_the_drives_resampled(re
     row = next(ln for ln in report.to_text(width=160).splitlines() if ln.startswith("Odometry "))
     assert row.split()[-4:] == ["59.4", f"{expected[0]:.1f}", "to", f"{expected[1]:.1f}"]
     assert json.loads(report.to_json())["pooled"]["odo"]["improvement_ci95_pct"]["final_position_error_m"] == pytest.approx(expected, abs=1e-6)
+
+
+def test_the_report_names_each_estimator_by_its_display_name(report):
+    # issue 63: the fleet report said "INS" (headers, worst outages) where every other output says "INS DR"
+    for out in (report.to_text(width=120), report.to_markdown()):
+        assert "INS DR" in out and not re.search(r"\bINS\b(?! DR)", out), out
+    assert "Manoeuvre   outages  INS DR  Odometry  Odometry %" in report.to_text(width=120)

@@ -309,7 +309,7 @@ HOSTILE_REPORTS = {
     "nested brackets": (lambda path: path.write_text("[" * 100_000 + "]" * 100_000), "nested 100000 levels deep"),
     "huge": (lambda path: os.truncate(path.write_bytes(b"") or path, 100 << 20), "104857600 bytes is too large for a report"),
     "an array": (lambda path: path.write_text("[1, 2]"), "a JSON array, not a report"),
-    "several reports": (lambda path: path.write_text('{"scenarios": {}}'), "holds several reports"),
+    "several reports": (lambda path: path.write_text('{"scenarios": {}}'), "holds one report per scenario"),
 }
 HOSTILE_FIELDS = {
     "drift not numbers": (lambda rep: rep["drift"]["ins"]["mean_m"].__setitem__(2, "x"), "drift.ins.mean_m[2]: 'x' is not a number"),
@@ -507,3 +507,15 @@ def test_simulate_bundled_alone_may_write_into_the_package(monkeypatch):
     monkeypatch.setattr(simulation, "write_simulated_drive", lambda path, *a, **k: seen.append(k.get("package_ok")) or Path(path))
     simulation.simulate_bundled(PACKAGE_DIR / "data" / "samples")
     assert seen and all(seen)
+
+
+@pytest.mark.parametrize(("key", "holds"), [("scenarios", "one report per scenario (evaluate --scenario)"),
+                                            ("by_event", "one report per manoeuvre type (evaluate --by-event)")])
+def test_several_reports_are_refused_saying_what_figures_takes(tmp_path, key, holds):
+    # issue 63: the hint said "write one drive's report", though one report of several drives is drawn
+    bad = tmp_path / "several.json"
+    bad.write_text(json.dumps({key: {}, "worst": []}))
+    proc = run_cli("figures", str(bad), "-o", str(tmp_path / "figs"))
+    _one_line_error(proc, str(bad), holds, "one drive or several, one outage length")
+    assert "one drive's" not in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [bad.name]

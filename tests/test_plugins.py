@@ -58,7 +58,7 @@ def test_cli_json_tables_and_recording_show_the_plugin(tmp_path):
     assert text.returncode == 0, text.stderr
     assert "Constant speed (m)" in text.stdout and "Constant speed improvement over INS" in text.stdout
     assert "IDNN" not in text.stdout
-    overview = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--estimator", spec, env=ENV)
+    overview = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--estimator", spec, env={**ENV, "COLUMNS": "1000"})  # one row per drive
     assert "Constant speed (m)" in overview.stdout and overview.stdout.count("Δ %") == 8  # IDNN, odometry, EKF and const, two blocks
 
     out = tmp_path / "r.rrd"

@@ -1,3 +1,4 @@
+import json
 import shutil
 
 import pytest
@@ -6,7 +7,7 @@ from ionav_viz.core.errors import InputError
 from ionav_viz.dataset.samples import samples_dir
 from ionav_viz.sources.resolve import resolve_drive
 
-from .conftest import run_cli
+from .conftest import one_line_error, run_cli
 
 UNSYNC = "Unsynchronised V and S Dataset/Categorised IOVNB (V) Dataset/V Dataset"
 SYNC = "Synchronised V abd S datasets/Categorised IOVNB Dataset"
@@ -60,6 +61,20 @@ def test_paper_run_without_data_root_says_what_it_is():
     assert "sharp-cornering test run" in str(err.value) and "--data-root" in str(err.value)
 
 
+@pytest.mark.parametrize(("run", "stand_in"), [("V-Vw8", "sharp-cornering"), ("Vta11", "roundabout"), ("V-Vw12", "motorway"),
+                                             ("V-Vw1", "stationary")])
+def test_a_missing_paper_run_names_its_bundled_stand_in(tmp_path, run, stand_in):
+    # issue 63: 'replay V-Vw8' without the run said how to fetch it, never that a bundled drive stands in for it
+    (tmp_path / "data").mkdir()
+    line = one_line_error(run_cli("replay", run, "-o", str(tmp_path / "x.rrd"), env={"IONAV_DATA": str(tmp_path / "data")}),
+                          run, f"ionav-viz fetch {run}", f"its bundled stand-in is {stand_in} (simulated")
+    assert "an IO-VNBD run of the real IO-VNBD" not in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]
+    with pytest.raises(InputError, match="V-Vw9 is a run of the real IO-VNBD dataset") as err:  # no stand-in for a run the paper does not use
+        resolve_drive("V-Vw9", None)
+    assert "stand-in" not in str(err.value)
+
+
 def test_unknown_name_suggests_close_matches(fake_root):
     with pytest.raises(InputError, match=r"did you mean.*V-Vw8"):
         resolve_drive("V-Vw88", fake_root)
@@ -95,7 +110,32 @@ def test_a_run_whose_file_is_not_the_published_size_is_read_with_a_warning(fake_
     assert not caplog.records
     proc = run_cli("list", "--data-root", str(fake_root))
     assert proc.returncode == 0, proc.stderr
-    assert "mismatch = the size or sha256 differs from the manifest's" in proc.stdout and "missing = no V-*.csv of the run under the data root" in proc.stdout
+    assert "mismatch = the size or sha256 differs from the manifest's" in proc.stdout
+    assert "missing = no V-*.csv of the run under the data root" in run_cli("list", "--all", "--data-root", str(fake_root)).stdout
+
+
+def test_list_shows_the_bundled_drives_first_and_counts_the_missing_runs(fake_root):
+    # issue 63: 'list' showed 90 IO-VNBD runs, all missing, and never the drives that come with the package
+    from ionav_viz.api.datasets import list_runs
+
+    runs = list_runs(fake_root)
+    here = [r["name"] for r in runs if r["status"] != "missing"]
+    proc = run_cli("list", "--data-root", str(fake_root))
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("Bundled drives") and lines[1].split()[:4] == ["name", "stands", "in", "for"]
+    rows = {ln.split()[0]: ln for ln in lines[2:lines.index("")]}
+    assert list(rows)[:5] == ["motorway", "roundabout", "quick-accel", "hard-brake", "sharp-cornering"]
+    assert "V-Vw6, V-Vw7, V-Vw8" in rows["sharp-cornering"] and rows["sharp-cornering"].endswith("simulated 10-min sharp-cornering test drive")
+    assert "V-sim-motorway-tunnels" in rows and "V-Vw1" in rows["stationary"]
+    assert sorted(here) == ["V-Vta11", "V-Vta1a", "V-Vw8"] and all(any(ln.startswith(f"{n} ") for ln in lines) for n in here)
+    assert not any(ln.startswith("V-Vw12 ") for ln in lines)  # a missing run: counted, not listed
+    assert f"{len(runs) - 3} missing (" in proc.stdout and "'ionav-viz list --all'" in proc.stdout
+    assert max(len(ln) for ln in rows.values()) <= 120 and len(lines) < 30
+    every = run_cli("list", "--all", "--data-root", str(fake_root)).stdout.splitlines()
+    assert {ln.split()[0] for ln in every if ln.startswith("V-") and " missing " in ln} == {r["name"] for r in runs if r["status"] == "missing"}
+    listing = json.loads(run_cli("list", "--json", "--data-root", str(fake_root)).stdout)
+    assert len(listing["runs"]) == len(runs) and listing["bundled"][4]["stands_in_for"] == ["V-Vw6", "V-Vw7", "V-Vw8"]
 
 
 def test_list_sees_a_run_where_evaluate_finds_it(tmp_path):

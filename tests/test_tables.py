@@ -26,9 +26,9 @@ def widest(text: str) -> int:
 
 @pytest.fixture(scope="module")
 def full_tables():
-    """The tables with no width limit (piped, no COLUMNS): one line per row, as scripts read them."""
-    evaluate = run_cli("evaluate", "roundabout", "--every", "60s", "-q")
-    overview = run_cli("evaluate", "--scenario", "all", "--overview", "-q")
+    """The tables at a width they all fit (COLUMNS=1000): one line per row."""
+    evaluate = run_cli("evaluate", "roundabout", "--every", "60s", "-q", env={"COLUMNS": "1000"})
+    overview = run_cli("evaluate", "--scenario", "all", "--overview", "-q", env={"COLUMNS": "1000"})
     assert evaluate.returncode == 0 and overview.returncode == 0, evaluate.stderr + overview.stderr
     assert widest(overview.stdout) > 300 and widest(evaluate.stdout) > 150  # otherwise nothing below is tested
     return evaluate.stdout, overview.stdout
@@ -87,7 +87,7 @@ def test_markdown_says_every_line_the_text_report_says():
     """--markdown dropped the placement, the uncertainty and the filter-health lines; every prose
     line of the text report is now a paragraph of the Markdown."""
     args = ["evaluate", "roundabout", "--every", "60s", "--estimators", "ins,ekf"]
-    text, md = run_cli(*args).stdout, run_cli(*args, "--markdown").stdout
+    text, md = run_cli(*args, env={"COLUMNS": "1000"}).stdout, run_cli(*args, "--markdown").stdout  # prose lines unfolded
     prose = [ln for ln in text.splitlines() if ln.startswith(("Outages:", "GNSS-aided INS uncertainty:", "GNSS-aided INS health:", "GNSS truth:"))]
     assert len(prose) == 4
     paragraphs = md.split("\n\n")
@@ -124,3 +124,18 @@ def test_an_improvement_that_rounds_to_zero_has_no_sign():
            "improvement_ci95_pct": {"odo": {"final_position_error_m": [-0.04, 0.03]}}}
     [line] = improvement_lines(rep)
     assert "-0.0" not in line and "displacement CRSE 0.0 %" in line and "final position error 0.0 % (95 % interval 0.0 to 0.0 %)" in line, line
+
+
+def test_piped_text_fits_a_default_width_unless_columns_says_otherwise():
+    # issue 63: piped without COLUMNS, tables and prose ran to their full width (430 characters for an overview)
+    from ionav_viz.cli.common import PIPED_WIDTH
+
+    args = ("evaluate", "hard-brake", "--estimators", "ins,odo,ekf", "--every", "60s", "-q")
+    piped = run_cli(*args)
+    assert piped.returncode == 0, piped.stderr
+    assert PIPED_WIDTH == 120 and max(map(len, piped.stdout.splitlines())) <= PIPED_WIDTH
+    wide = run_cli(*args, env={"COLUMNS": "400"})
+    assert max(map(len, wide.stdout.splitlines())) > PIPED_WIDTH  # COLUMNS still says how wide
+    assert "GNSS-aided INS improvement over INS DR (mean)" in wide.stdout
+    narrow = run_cli(*args, env={"COLUMNS": "80"})
+    assert max(map(len, narrow.stdout.splitlines())) <= 80

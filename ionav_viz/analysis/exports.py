@@ -16,9 +16,12 @@ Files written into ``DIR`` (each atomically, an existing one of the same name re
 * ``tracks.geojson`` (RFC 7946, WGS84 longitude/latitude): each drive's truth (a MultiLineString
   of its trustworthy fixes, broken where it has none: a receiver without a fix writes (0, 0) or
   freezes) and every outage's estimated tracks as LineStrings with their drive, outage, estimator
-  and final error, the log's own losses' too (``kind`` ``real-outage``).
+  and final error, the log's own losses' too (``kind`` ``real-outage``); each feature styled as
+  simplestyle-spec 1.1 has it (``stroke``, ``stroke-width``, ``stroke-opacity``, ``marker-color``,
+  ``title``), in the colours the recording draws them.
 * ``tracks.gpx`` (GPX 1.1): the same tracks, one ``trk`` each (the truth's stretches as its
-  ``trkseg`` s), for Google Earth, QGIS or a phone.
+  ``trkseg`` s), for Google Earth, QGIS or a phone; each ``trkpt`` has its ``time`` in UTC (ISO 8601,
+  ms) from the drive's clock (:func:`gpx_times`).
 """
 
 from __future__ import annotations
@@ -55,9 +58,16 @@ REAL_OUTAGE_COLUMNS = ("drive", "outage", "gap_start_s", "gap_end_s", "gap_s", "
                        "final_position_error_m")
 
 
-def export_results(results: list[Any], folder: str | Path) -> list[Path]:
+#: A clock whose first stamp is this far past 1970-01-01 (s) is UNIX time, dated: a time of day,
+#: even run past midnight, never gets there.
+DATED_AFTER_S = 2 * 86400.0
+
+
+def export_results(results: list[Any], folder: str | Path, *, colors: dict[str, tuple[int, int, int]],
+                   truth_color: tuple[int, int, int]) -> list[Path]:
     """Write the exports of ``results`` (:class:`~ionav_viz.analysis.evaluate.DriveResult` s of one
     report) into ``folder`` (made when missing, with its parents). Returns the files written.
+    ``colors``: RGB per estimator name, ``truth_color`` the truth's, for the tracks' styles.
 
     Everything is written into a hidden folder inside ``folder`` first and moved in when complete,
     with stop signals held (each file renamed over its old version, each drive's ``tum/<drive>``
@@ -67,7 +77,7 @@ def export_results(results: list[Any], folder: str | Path) -> list[Path]:
 
     folder = check_output_folder(Path(folder), param="export")
     with made_folders(folder), staging_folder(folder / "export", folder, refused=lambda exc: _failure(folder, exc)) as stage:
-        files, drives = _write_all(results, stage, folder)
+        files, drives = _write_all(results, stage, folder, {**colors, None: truth_color})
         _move_in(stage, folder, files, drives)
     return [folder / f for f in files] + [folder / "tum" / d / f for d, names in drives.items() for f in names]
 
@@ -77,7 +87,7 @@ def _failure(target: Path, exc: OSError) -> Exception:
                                                     "choose a writable folder", param="export")
 
 
-def _write_all(results: list[Any], stage: Path, folder: Path) -> tuple[list[str], dict[str, list[str]]]:
+def _write_all(results: list[Any], stage: Path, folder: Path, colors: dict[Any, tuple[int, int, int]]) -> tuple[list[str], dict[str, list[str]]]:
     """Every export file of ``results`` into ``stage``: the top-level files' names, and each drive's TUM files."""
     drives: dict[str, list[str]] = {}
     features, gpx_tracks = [], []
@@ -90,7 +100,7 @@ def _write_all(results: list[Any], stage: Path, folder: Path) -> tuple[list[str]
                 name = f"tum/{_safe(label)}"
                 (stage / name).mkdir(parents=True)
                 drives[_safe(label)] = _tum_files(res, stage / name)
-            f, g = _tracks(res, label)
+            f, g = _tracks(res, label, colors)
             features += f
             gpx_tracks += g
         real = any(res.bridged for res in results)
@@ -208,32 +218,69 @@ def _tum_files(res: Any, folder: Path) -> list[str]:
     return out
 
 
-def _tracks(res: Any, label: str) -> tuple[list[dict[str, Any]], list[tuple[str, list[np.ndarray], list[np.ndarray]]]]:
-    """GeoJSON features and GPX tracks ``(name, lat, lon)`` of one drive (named ``label``): its truth, and every outage's estimates."""
+#: One GPX ``trk``: its name, a description (or ""), and per segment the latitudes, longitudes and stamps (s).
+GpxTrack = tuple[str, str, list[np.ndarray], list[np.ndarray], list[np.ndarray]]
+
+
+def _tracks(res: Any, label: str, colors: dict[Any, tuple[int, int, int]]) -> tuple[list[dict[str, Any]], list[GpxTrack]]:
+    """GeoJSON features and GPX tracks of one drive (named ``label``): its truth, and every outage's
+    estimates; ``colors`` per estimator name, the truth's under None."""
     d = res.drive
+    desc = "" if _dated(d) else UNDATED_DESC
     stretches = truth_stretches(d.gnss_ok, max(1, int(round(d.rate_hz))))  # the truth at about 1 Hz keeps the files small
     features = [{"type": "Feature", "geometry": {"type": "MultiLineString", "coordinates": [_coords(d.lat_deg[k], d.lon_deg[k]) for k in stretches]},
-                 "properties": {"drive": label, "kind": "truth"}}]
-    gpx = [(f"{label} truth", [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches])]
+                 "properties": {"drive": label, "kind": "truth", **_style(f"{label} truth", colors[None], TRUTH_WIDTH_PX)}}]
+    gpx = [(f"{label} truth", desc, [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches], [d.stamp_s(d.t_s[k]) for k in stretches])]
     for i, k in enumerate(res.starts):
+        stamps = d.stamp_s(res.windows.t0_s[k] + np.arange(res.n_windows + 1))  # the tracks are at the window boundaries
         for est in res.estimators:
             track = res.estimates[est.name].track
             final = float(res.metrics[est.name]["final_position_error_m"][i])
+            title = f"{label} outage {i + 1} {est.label}" + (f", final error {final:.1f} m" if math.isfinite(final) else "")
             features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[i], track.lon_deg[i])},
                              "properties": {"drive": label, "kind": "estimate", "outage": i + 1, "start_s": round(float(res.windows.t0_s[k]), 3),
                                             "estimator": est.name, "label": est.label,
-                                            "final_position_error_m": final if math.isfinite(final) else None}})
-            gpx.append((f"{label} outage {i + 1} {est.label}", [track.lat_deg[i]], [track.lon_deg[i]]))
+                                            "final_position_error_m": final if math.isfinite(final) else None,
+                                            **_style(title, colors[est.name], ESTIMATE_WIDTH_PX)}})
+            gpx.append((f"{label} outage {i + 1} {est.label}", desc, [track.lat_deg[i]], [track.lon_deg[i]], [stamps]))
     for b in res.bridged:  # the log's own GNSS losses (--on gnss-outage)
+        stamps = d.stamp_s(b.t0_s + np.arange(b.n_windows + 1))
         for est in res.estimators:
             track = b.tracks[est.name]
             final = float(b.final_error_m[est.name])
+            title = f"{label} real GNSS outage {b.number} {est.label}" + (f", final error {final:.1f} m" if math.isfinite(final) else "")
             features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[0], track.lon_deg[0])},
                              "properties": {"drive": label, "kind": "real-outage", "outage": b.number, "start_s": round(b.gap_t0_s, 3),
                                             "estimator": est.name, "label": est.label,
-                                            "final_position_error_m": final if math.isfinite(final) else None}})
-            gpx.append((f"{label} real GNSS outage {b.number} {est.label}", [track.lat_deg[0]], [track.lon_deg[0]]))
+                                            "final_position_error_m": final if math.isfinite(final) else None,
+                                            **_style(title, colors[est.name], ESTIMATE_WIDTH_PX)}})
+            gpx.append((f"{label} real GNSS outage {b.number} {est.label}", desc, [track.lat_deg[0]], [track.lon_deg[0]], [stamps]))
     return features, gpx
+
+
+#: Line widths of the GeoJSON styles (px): the truth under the estimates, a little wider.
+TRUTH_WIDTH_PX, ESTIMATE_WIDTH_PX = 4, 2
+#: What a GPX track of a drive whose clock has no date says of its times (:func:`gpx_times`).
+UNDATED_DESC = "times: the log's time of day (UTC) on 1970-01-01; the log carries no date"
+
+
+def _style(title: str, rgb: tuple[int, int, int], width_px: int) -> dict[str, Any]:
+    """A feature's simplestyle-spec 1.1 properties: its line and marker in ``rgb``, and its title."""
+    color = "#{:02x}{:02x}{:02x}".format(*(int(c) for c in rgb))
+    return {"title": title, "stroke": color, "stroke-width": width_px, "stroke-opacity": 1.0, "marker-color": color}
+
+
+def _dated(drive: Any) -> bool:
+    """Whether the drive's clock is UNIX time (message logs, KITTI), not a time of day (IO-VNBD)."""
+    return drive.start_stamp_s is not None and float(drive.start_stamp_s) >= DATED_AFTER_S
+
+
+def gpx_times(stamps_s: np.ndarray) -> list[str]:
+    """GPX ``time`` values (UTC, ISO 8601 to the millisecond) of a drive's stamps (:meth:`~ionav_viz.core.drive.Drive.stamp_s`):
+    UNIX seconds are their instant; a time of day (an IO-VNBD log carries no date) is that time on
+    1970-01-01 (past midnight, the 2nd), the date unknown, and the track's ``desc`` says so."""
+    ms = np.round(np.asarray(stamps_s, dtype=float) * 1000.0).astype(np.int64).astype("datetime64[ms]")
+    return [f"{t}Z" for t in np.datetime_as_string(ms, unit="ms")]
 
 
 def truth_stretches(ok: np.ndarray, step: int) -> list[np.ndarray]:
@@ -256,13 +303,14 @@ def _coords(lat: np.ndarray, lon: np.ndarray) -> list[list[float]]:
     return [[round(float(x), 8), round(float(y), 8)] for y, x in zip(lat, lon)]
 
 
-def _gpx(tracks: list[tuple[str, list[np.ndarray], list[np.ndarray]]]) -> str:
-    """GPX 1.1 of ``tracks``: each ``(name, lat per segment, lon per segment)`` one ``trk``."""
+def _gpx(tracks: list[GpxTrack]) -> str:
+    """GPX 1.1 of ``tracks``: each ``(name, desc, lat, lon and stamps per segment)`` one ``trk``."""
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            '<gpx version="1.1" creator="ionav-viz" xmlns="http://www.topografix.com/GPX/1/1">']
-    for name, lats, lons in tracks:
-        segments = "".join("<trkseg>" + "".join(f'<trkpt lat="{float(y):.8f}" lon="{float(x):.8f}"/>' for y, x in zip(lat, lon)) + "</trkseg>"
-                           for lat, lon in zip(lats, lons))
-        out.append(f"<trk><name>{escape(name)}</name>{segments}</trk>")
+    for name, desc, lats, lons, stamps in tracks:
+        segments = "".join("<trkseg>" + "".join(f'<trkpt lat="{float(y):.8f}" lon="{float(x):.8f}"><time>{t}</time></trkpt>'
+                                                for y, x, t in zip(lat, lon, gpx_times(stamp))) + "</trkseg>"
+                           for lat, lon, stamp in zip(lats, lons, stamps))
+        out.append(f"<trk><name>{escape(name)}</name>" + (f"<desc>{escape(desc)}</desc>" if desc else "") + f"{segments}</trk>")
     out.append("</gpx>")
     return "\n".join(out) + "\n"

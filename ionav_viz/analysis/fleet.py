@@ -21,7 +21,7 @@ import numpy as np
 
 from ..core import run_config
 from ..core.json_out import dumps_json
-from ..nav.protocol import color_of, short_label
+from ..nav.protocol import color_of
 from .consistency import RATIO_AT_S
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
@@ -459,7 +459,7 @@ def _real_outage_lines(rep: FleetReport, table: Any, heading: Any, markdown: boo
     ests = list(real["pooled"])
     rows = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"] + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
             for d in real["drives"]]
-    lines += table(["Drive", "losses", "without fix s"] + [short_label(labels[e]) for e in ests], rows, 1) + [""]
+    lines += table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], rows, 1) + [""]
     return lines
 
 
@@ -480,7 +480,6 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
         return f"## {text}" if markdown else text
 
     ests, labels, base = rep.estimators, rep.labels, rep.baseline
-    short = {e: short_label(labels[e]) for e in ests}
     hours = sum(t.duration_s for t in rep.drives) / 3600.0
     km = sum(t.distance_m for t in rep.drives) / 1000.0
     given = len(rep.drives) + len(rep.failures) + len(rep.skipped)
@@ -494,7 +493,7 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
         lines += [heading("Pooled over the fleet (mean over outages)"), ""]
-        header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + (["final vs INS %", "95 % interval"] if base else [])
+        header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + ([f"final vs {labels[base]} %", "95 % interval"] if base else [])
         rows = []
         for e in ests:
             p = pooled[e]
@@ -516,8 +515,8 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
             lines += [("- " if markdown else "") + consistency_line(labels[e], c) for e, c in consistent.items()] + [""]
         for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.by_manoeuvre()),
                                      ("By time into the outage (mean position error, m", "Into outage", rep.by_length())):
-            lines += [heading(title + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
-            header = [first, "outages"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else [])
+            lines += [heading(title + (f"; improvement over {labels[base]}, %" if base else "") + ")"), ""]
+            header = [first, "outages"] + [labels[e] for e in ests] + ([f"{labels[e]} %" for e in others] if base else [])
             rows = []
             for key, g in groups.items():
                 row = [key if first == "Manoeuvre" else f"{key} s", str(g["outages"])] + [_f(g["mean_error_m"][e]) for e in ests]
@@ -525,8 +524,8 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                     row += [_f(g["improvement_pct"][e], 1) for e in others]
                 rows.append(row)
             lines += table(header, rows, 1) + [""]
-        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {short[base]}, %" if base else "") + ")"), ""]
-        header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [short[e] for e in ests] + ([f"{short[e]} %" for e in others] if base else [])
+        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {labels[base]}, %" if base else "") + ")"), ""]
+        header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests] + ([f"{labels[e]} %" for e in others] if base else [])
                   + ["warnings"])
         rows = []
         for t, r in zip(rep.drives, rep.drive_rows()):
@@ -541,14 +540,14 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
         lines += table(header, rows, 1) + [""]
         worst = rep.worst_drives()
         if worst:
-            lines += [heading(f"Worst drives (by {short[rep.worst_of]} mean final error)"), ""]
+            lines += [heading(f"Worst drives (by {labels[rep.worst_of]} mean final error)"), ""]
             lines += [f"{k}. {w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: "
                       + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
         worst = rep.worst_outages()
         if worst:
-            lines += [heading(f"Worst outages (by {short[rep.worst_of]} final error)"), ""]
+            lines += [heading(f"Worst outages (by {labels[rep.worst_of]} final error)"), ""]
             lines += [f"{k}. {w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                      + ", ".join(f"{short[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items()) + "; replay: "
+                      + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items()) + "; replay: "
                       + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
     for title, items in (("Failed drives", rep.failures), ("Skipped drives", rep.skipped)):
         if items:

@@ -347,11 +347,31 @@ def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> d
     return rows
 
 
+class EventReports(dict):
+    """Reports by manoeuvre type (a ``dict``: ``evaluate --by-event``), in the order the types were
+    asked for; a type that got no outage has no report. ``events``: how many events of each type
+    asked for were found across the drives, 0 included; ``outage_s``: the outages' length."""
+
+    def __init__(self, reports: Mapping[str, Report], events: Mapping[str, int], outage_s: float) -> None:
+        super().__init__(reports)
+        self.events, self.outage_s = dict(events), float(outage_s)
+
+    def without_outage_lines(self) -> list[str]:
+        """One line per type asked for that got no outage: ``quick-accel: 0 events``, or
+        ``roundabout: 2 events, none with room for a 10 s outage``."""
+        return [f"{kind}: 0 events" if not n else
+                f"{kind}: {n} event{'s' if n != 1 else ''}, none with room for a {self.outage_s:g} s outage"
+                for kind, n in self.events.items() if kind not in self]
+
+
 def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", indent: int | None = 2) -> str:
     """Several groups as one JSON object ``{key: {group: report}, "worst": [...]}`` (``evaluate
-    --scenario all --json``); ``worst`` ranks the outages of every group together."""
+    --scenario all --json``); ``worst`` ranks the outages of every group together. Reports by
+    manoeuvre type (:class:`EventReports`) add ``events``: how many of each type asked for were
+    found, 0 included (a type with none, or none with room for an outage, has no report)."""
     total = combined(reports)
-    return dumps_json({key: {g: r.to_dict() for g, r in reports.items()}, "worst_of": total.worst_of,
+    events = {"events": reports.events} if isinstance(reports, EventReports) else {}
+    return dumps_json({key: {g: r.to_dict() for g, r in reports.items()}, **events, "worst_of": total.worst_of,
                        "worst": total.worst_outages()}, indent=indent)
 
 

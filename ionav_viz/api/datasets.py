@@ -94,6 +94,19 @@ def list_runs(data_root: str | Path | None = None, source: DatasetSource | None 
     return rows
 
 
+def bundled_drives() -> list[dict[str, Any]]:
+    """The drives bundled with the package, test drives first: ``name`` (what to give wherever a
+    drive is expected), ``file``, ``role`` (test, losses, bias or train), ``what`` (a few words) and
+    ``stands_in_for`` (the IO-VNBD runs of the paper it replaces when they are not here)."""
+    from ..dataset.samples import SAMPLES, address, stand_in, what_it_is
+
+    catalog = runs(manifest())
+    order = {"test": 0, "losses": 1, "bias": 2, "train": 3}
+    return [{"name": address(s), "file": s.file, "role": s.role, "what": what_it_is(s),
+             "stands_in_for": [r.name for r in catalog.values() if stand_in(r.name) == s]}
+            for s in sorted(SAMPLES, key=lambda s: order.get(s.role, len(order)))]
+
+
 def _run_row(run: Any, entry: Any, status: str, local: Path | None) -> dict[str, Any]:
     return {"name": run.name, "group": run.group, "driver": run.driver, "role": paper_role(run.name) or "", "size_bytes": entry.size_bytes,
             "path": entry.path, "status": status, **({"local_path": str(local)} if local is not None else {})}

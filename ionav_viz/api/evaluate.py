@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..analysis.evaluate import DriveResult
 from ..analysis.events import MANOEUVRE_TYPES, detect_events
-from ..analysis.report import Report
+from ..analysis.report import EventReports, Report
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder
@@ -138,10 +138,18 @@ def evaluate(
         results = _evaluate_each(items, n, placement, run, read, progress)
     report = Report(results, warnings=warned)
     if export is not None:
-        from ..analysis.exports import export_results
-
-        export_results(results, export)
+        write_exports(results, export)
     return report
+
+
+def write_exports(results: Sequence[DriveResult], export: str | Path) -> None:
+    """``export=``: :func:`~ionav_viz.analysis.exports.export_results`, the tracks in the colours
+    the recording draws them (:mod:`ionav_viz.viz.style`)."""
+    from ..analysis.exports import export_results
+    from ..viz.style import GNSS_COLOR, estimator_colors
+
+    estimators = list({est.name: est for res in results for est in res.estimators}.values())
+    export_results(list(results), export, colors=estimator_colors(estimators), truth_color=GNSS_COLOR)
 
 
 def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: RunOptions, read: ReadOptions,
@@ -210,18 +218,20 @@ def evaluate_by_event(
     read: ReadOptions | None = None,
     mcap: LogOptions | None = None,
     truth: str | None = None,
-) -> dict[str, Report]:
+) -> EventReports:
     """One report per manoeuvre type: an outage centred on each detected event, across ``drives``
     (``types`` default: every manoeuvre type; ``gnss-outage``: the log's own losses, bridged).
-    The other arguments as for :func:`evaluate`."""
+    A type with no event, or none with room for an outage, has no report; the result's ``events``
+    counts each type's events (:class:`~ionav_viz.analysis.report.EventReports`). The other
+    arguments as for :func:`evaluate`."""
     kinds = tuple(types) if types else MANOEUVRE_TYPES
     check_event_types(kinds)
     n = windows_of(outage_s)
     run, read = options_of(run, estimators, read, mcap, truth)
     run.chosen()
     with collecting_warnings() as warned:
-        per_type = _evaluate_by_event_each(drives, n, kinds, run, read)
-    reports = {kind: Report(results, kind, warnings=warned) for kind, results in per_type.items() if results}
+        per_type, counts = _evaluate_by_event_each(drives, n, kinds, run, read)
+    reports = EventReports({kind: Report(results, kind, warnings=warned) for kind, results in per_type.items() if results}, counts, n)
     if not reports:
         raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in {', '.join(name_of(d) for d in drives)}",
                          "see 'ionav-viz events DRIVE'")
@@ -229,9 +239,11 @@ def evaluate_by_event(
 
 
 def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[str, ...], run: RunOptions,
-                            read: ReadOptions) -> dict[str, list[DriveResult]]:
+                            read: ReadOptions) -> tuple[dict[str, list[DriveResult]], dict[str, int]]:
+    """Each type's drive results and how many events of it were found across the drives."""
     bias_of = run.bias_of(read)
     per_type: dict[str, list[DriveResult]] = {k: [] for k in kinds}
+    counts = dict.fromkeys(kinds, 0)
     loaded = load_drives(drives, read)
     ests = run.applying_to(loaded)
     for drive in loaded:
@@ -239,6 +251,7 @@ def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[st
         bias = bias_of(drive)
         found = detect_events(drive, run.thresholds, kinds)
         for kind in kinds:
+            counts[kind] += sum(e.type == kind for e in found)
             if kind != GNSS_OUTAGE and not any(e.type == kind for e in found):
                 continue
             try:
@@ -246,5 +259,5 @@ def _evaluate_by_event_each(drives: Sequence[DriveLike], n: int, kinds: tuple[st
             except InputError:  # no room for an outage on this drive's events of that type, or no loss
                 continue
             per_type[kind].append(score(planned, ests, bias))
-    return per_type
+    return per_type, counts
 

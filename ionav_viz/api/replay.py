@@ -19,7 +19,7 @@ from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive
 from ..viz.live import WebServing
-from .evaluate import scenario_drives
+from .evaluate import scenario_drives, write_exports
 from .options import (
     DriveLike,
     Progress,
@@ -135,9 +135,7 @@ def replay(
     with collecting_warnings() as warned:
         replayed = _replay(drive, n, placement, out, run, read, progress, connect, warned, export)
     if export is not None:
-        from ..analysis.exports import export_results
-
-        export_results(replayed.report.results, export)
+        write_exports(replayed.report.results, export)
     return replayed
 
 

@@ -16,27 +16,49 @@ from .app import app
 def list_runs(
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
     verify: bool = typer.Option(False, "--verify", help="Check the sha256 of present files not verified before (slow for big files)."),
+    all_runs: bool = typer.Option(False, "--all", help="List every IO-VNBD run, the missing ones too (default: those here, and a count of the rest)."),
     data_root_opt: Optional[Path] = typer.Option(None, "--data-root", help="Data root (default: $IONAV_DATA, else the per-user data directory).", show_default=False),
     manifest_opt: Optional[Path] = c.ManifestOpt,
 ) -> None:
-    """List the IO-VNBD runs: group, driver, role in the paper, size, and whether present locally."""
-    from ..api.datasets import DatasetSource, fetch_root, list_runs
+    """List the drives bundled with ionav-viz, then the IO-VNBD runs: group, driver, role in the paper, size, and whether present locally."""
+    from ..api.datasets import DatasetSource, bundled_drives, fetch_root, list_runs
     from ..core.json_out import dumps_json
 
     root = fetch_root(data_root_opt)
     rows = list_runs(root, DatasetSource(manifest=manifest_opt), verify)
+    bundled = bundled_drives()
     if as_json:
-        print(dumps_json({"data_root": root, "runs": rows}))
+        print(dumps_json({"bundled": bundled, "data_root": root, "runs": rows}))
         return
-    width = max(len(r["name"]) for r in rows) if rows else 4
-    print(f"data root: {root}")
-    print(f"{'run'.ljust(width)}  group  driver  {'size':>9}  {'local':<8}  role in the paper")
-    for r in rows:
-        print(f"{r['name'].ljust(width)}  {r['group']:<5}  {r['driver']:<6}  {r['size_bytes'] / 1e6:>7.2f}MB  {r['status']:<8}  {r['role']}")
-    shown = {r["status"] for r in rows}
-    said = [text for status, text in _STATUS_TEXT if status in shown]
+    _print_bundled(bundled)
+    shown = rows if all_runs else [r for r in rows if r["status"] != "missing"]
+    missing = [r for r in rows if r["status"] == "missing"]
+    print(f"\nIO-VNBD runs (the real dataset) under the data root {root}: {len(rows) - len(missing)} of {len(rows)} here")
+    if shown:
+        width = max(len(r["name"]) for r in shown)
+        print(f"{'run'.ljust(width)}  group  driver  {'size':>9}  {'local':<8}  role in the paper")
+        for r in shown:
+            print(f"{r['name'].ljust(width)}  {r['group']:<5}  {r['driver']:<6}  {r['size_bytes'] / 1e6:>7.2f}MB  {r['status']:<8}  {r['role']}")
+    said = [text for status, text in _STATUS_TEXT if status in {r["status"] for r in shown}]
     if said:
         print("\nlocal: " + "; ".join(said))
+    if missing and not all_runs:
+        print(f"{len(missing)} missing ({sum(r['size_bytes'] for r in missing) / 1e6:.0f} MB), each listed by 'ionav-viz list --all'; "
+              "get one with 'ionav-viz fetch NAME',\nthe paper's test runs with 'ionav-viz fetch --paper-test'")
+
+
+def _print_bundled(bundled: list[dict]) -> None:
+    """The bundled drives, one line each (the training drives counted in one line)."""
+    listed = [b for b in bundled if b["role"] != "train"]
+    width = max(len(b["name"]) for b in listed)
+    stands = max(len(", ".join(b["stands_in_for"])) for b in listed)
+    print("Bundled drives: give the name wherever a drive goes ('ionav-viz replay roundabout')")
+    print(f"{'name'.ljust(width)}  {'stands in for'.ljust(stands)}  what")
+    for b in listed:
+        print(f"{b['name'].ljust(width)}  {', '.join(b['stands_in_for']).ljust(stands)}  {b['what']}")
+    train = [b for b in bundled if b["role"] == "train"]
+    if train:
+        print(f"and {len(train)} simulated training drives (V-sim-SCENARIO-train-N), what 'ionav-viz train' trains on by default")
 
 
 #: What each local status of ``list`` means, in the order said under the table.

@@ -91,12 +91,14 @@ def evaluate(
         else:
             print(reports_to_json(reports, "by_event" if by_event else "scenarios"))
         return
+    # a type asked for that got no outage: one line, as its report's title would be (its count is in the JSON)
+    none_here = "".join(f"\n**{line}**\n" if markdown else f"\n{line}\n" for line in reports.without_outage_lines()) if by_event else ""
     if overview:
         rows = overview_reports(reports, by_event)
         dicts = {group: plain_json(rep.to_dict()) for group, rep in rows.items()}
-        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()), end="")
+        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()) + none_here, end="")
         return
-    print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width()) for rep in reports.values()), end="")
+    print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width()) for rep in reports.values()) + none_here, end="")
 
 
 def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.PlacementArgs, run: Any, read: Any, as_json: bool,

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from .catalog import SCENARIOS
+from .catalog import BIAS_RUN, PAPER_TEST_RUNS, SCENARIOS, run_key
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,39 @@ def package_data(*parts: str) -> Path:
     a real directory; nothing is ever written there.
     """
     return Path(str(resources.files("ionav_viz").joinpath("data", *parts)))
+
+
+def address(sample: Sample) -> str:
+    """The name a bundled drive is given by wherever a drive is expected: its scenario for a test
+    drive (``roundabout``), ``stationary``, else its file's stem (``V-sim-motorway-tunnels``)."""
+    if sample.role == "test":
+        return sample.scenario
+    return "stationary" if sample.role == "bias" else Path(sample.file).stem
+
+
+def what_it_is(sample: Sample) -> str:
+    """What a bundled drive is, in a few words: ``simulated 10-min roundabout test drive``."""
+    minutes = f"{sample.duration_s / 60:g}-min"
+    if sample.role == "test":
+        return f"simulated {minutes} {sample.scenario} test drive"
+    if sample.role == "bias":
+        return f"simulated {minutes} standstill, for the sensor biases"
+    if sample.role == "losses":
+        return f"simulated {minutes} {sample.scenario} drive, {sample.gnss_losses} tunnels (--on gnss-outage)"
+    return f"simulated {minutes} {sample.scenario} training drive"
+
+
+def stand_in(run: str) -> Sample | None:
+    """The bundled drive that stands in for an IO-VNBD run the paper uses: the scenario's test drive
+    for one of its test runs (``V-Vw8`` -> ``sharp-cornering``), the standstill for the bias run;
+    None for any other run."""
+    key = run_key(run)
+    for scenario, runs in PAPER_TEST_RUNS.items():
+        if key in {run_key(r) for r in runs}:
+            return next((s for s in by_scenario(scenario)), None)
+    if key == run_key(BIAS_RUN):
+        return next((s for s in SAMPLES if s.role == "bias"), None)
+    return None
 
 
 def by_scenario(scenario: str, role: str = "test") -> list[Sample]:

@@ -244,11 +244,6 @@ class OptionalMembers(Protocol):
     def available(self) -> bool: ...
 
 
-def short_label(label: str) -> str:
-    """``'INS DR'`` -> ``'INS'``: titles and legends that list estimators name them briefly."""
-    return label.removesuffix(" DR")
-
-
 def _member(estimator: Estimator, member: str, default: Any, *args: Any) -> Any:
     """Call an optional member of a plug-in; one it has that raises is the plug-in's error."""
     fn = getattr(estimator, member, None)

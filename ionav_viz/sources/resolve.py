@@ -20,7 +20,7 @@ from pathlib import Path
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, check_regular_tree
 from ..dataset.catalog import DATASET_URL, paper_role, run_key, vehicle_runs
-from ..dataset.samples import SAMPLES, by_scenario, sample_path
+from ..dataset.samples import SAMPLES, address, by_scenario, sample_path, stand_in, what_it_is
 
 log = logging.getLogger("ionav_viz")
 
@@ -116,11 +116,13 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
     known = vehicle_runs()
     role = paper_role(spec)
     if key in known or role:
-        what = f"{spec} is {role}" if role else f"{spec} is an IO-VNBD run"
+        what = f"{spec} is {role}" if role else f"{spec} is a run"
         where = f"it is not under the data root {root}" if root else "no data root is set"
+        sample = stand_in(spec)
+        bundled_one = f"; its bundled stand-in is {address(sample)} ({what_it_is(sample)})" if sample else ""
         raise InputError(
             f"{what} of the real IO-VNBD dataset, and {where}",
-            f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a copy",
+            f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a copy{bundled_one}",
         )
     candidates = {s.scenario for s in SAMPLES if s.role == "test"} | {Path(s.file).stem for s in SAMPLES}
     candidates |= {f"V-{k}" for k in known}

@@ -79,6 +79,10 @@ _WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "
 
 #: What a report's reader says to give instead of a bad one.
 REPORT_HINT = "give the output of 'ionav-viz evaluate --json' (one outage length; a fleet's too), or a recording written by 'ionav-viz replay'"
+#: The JSON of several reports, which figures does not draw: its key, and what it holds.
+SEVERAL_REPORTS = {"scenarios": "one report per scenario (evaluate --scenario)",
+                   "by_event": "one report per manoeuvre type (evaluate --by-event)",
+                   "lengths": "one report per outage length (evaluate --outage 10s,30s)"}
 #: Numbers a report may hold (metres, seconds): beyond this none comes from a drive (the earth's
 #: circumference is 4e7 m, twelve hours 4.3e4 s), and the axes and scale bar could not be drawn.
 MAX_REPORT_VALUE = 1e9
@@ -115,9 +119,11 @@ def check_report(rep: Any, path: Path) -> None:
     if is_lengths_report(rep):
         check_lengths_report(rep, path)
         return
-    if isinstance(rep, dict) and any(k in rep for k in ("scenarios", "by_event", "lengths")):
-        raise InputError(f"{path}: holds several reports (--scenario, --by-event or several --outage lengths)",
-                         "write one drive's report with 'ionav-viz evaluate DRIVE --json'", param="result")
+    several = [what for key, what in SEVERAL_REPORTS.items() if isinstance(rep, dict) and key in rep]
+    if several:
+        raise InputError(f"{path}: holds {several[0]}, and figures draws one report",
+                         "give 'ionav-viz evaluate DRIVE... --json' (one drive or several, one outage length or several; --on TYPE "
+                         "for one manoeuvre type), a fleet's, or a recording written by 'ionav-viz replay'", param="result")
     if not isinstance(rep, dict):
         raise InputError(f"{path}: a JSON {_kind(rep)}, not a report (an object)", REPORT_HINT, param="result")
     if isinstance(rep.get("folds"), list) and "by" in rep and "drive" not in rep:

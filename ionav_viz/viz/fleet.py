@@ -18,7 +18,6 @@ import numpy as np
 
 from ..analysis.fleet import DriveTable, FleetReport
 from ..analysis.metrics import summarise
-from ..nav.protocol import short_label
 from .recording import APP_ID, streamed_to
 from .recording_info import FLEET_ID_PREFIX, rrd_reader
 from .style import estimator_colors
@@ -72,10 +71,9 @@ def drives_markdown(report: FleetReport) -> str:
     from ..analysis.fleet import _f
 
     ests, labels = report.estimators, report.labels
-    short = {e: short_label(labels[e]) for e in ests}
-    by = short[report.worst_of] if report.worst_of else ""
+    by = labels[report.worst_of] if report.worst_of else ""
     real = through_real_losses(report)
-    header = ["#", "drive", "losses" if real else "outages"] + [f"{short[e]} m" for e in ests] + [f"worst {'loss' if real else 'outage'} ({by} m)"]
+    header = ["#", "drive", "losses" if real else "outages"] + [f"{labels[e]} m" for e in ests] + [f"worst {'loss' if real else 'outage'} ({by} m)"]
     title = (f"{report.n_real_outages} of the logs' own GNSS losses, bridged" if real else f"{report.n_outages} outages of {report.outage_s:g} s")
     lines = [f"# Fleet: {len(report.drives)} drive(s), {title}",
              "", f"Mean final position error per drive (the bars are numbered as the rows), and each drive's worst {'loss' if real else 'outage'}.", "",
