@@ -21,23 +21,20 @@ floors as a prior.
 The mechanisation is the data's (``mechanisation="auto"``): where the drive's IMU samples are single
 readings at a low rate (a phone's sensor events, :class:`ionav_viz.core.imu.ImuCharacter`), their x
 and y rates alias what the holder shakes, and integrating roll and pitch from them leaks gravity into
-the velocity within seconds (measured on a phone log: 24 % of the distance after 10 s against the
-INS DR's 17.5 %); then roll and pitch are held (the reduced mechanisation: yaw rate and specific
+the velocity within seconds; then roll and pitch are held (the reduced mechanisation: yaw rate and specific
 force with the constraints), corrected by the updates only, and the report says so.
 
 The safeguards (:func:`ionav_viz.nav.strapdown.run_filter`): the process noise is scaled up while
 the GNSS position's running NIS stays above 3 (the filter meets more than its model says; at most
-30 times, carried into each outage; measured on the real phone logs: 17.5 -> 16.9 % after 10 s on
-one, 43.4 -> 41.3 % on the other, the 100 Hz logs unchanged); a fix the gate leaves out while it
+30 times, carried into each outage); a fix the gate leaves out while it
 agrees with the fixes before it re-initialises position and velocity from GNSS instead of locking the
 fixes out, and the heading from the GNSS course where the two are more than 30 degrees and three
-of the course's sigmas apart (a phone's GNSS gap can end with the course turned against the gyro:
-on one real log the next outage ended at 105 % of the distance with the old heading, 8 % with the course's); a stop the IMU shows for two boundaries is taken even when the filter's velocity
+of the course's sigmas apart (a phone's GNSS gap can end with the course turned against the gyro); a stop the IMU shows for two boundaries is taken even when the filter's velocity
 disagrees, unless a fix at speed says the car moves. Each re-initialisation is in the filter's
 health (:class:`ionav_viz.nav.protocol.FilterHealth`), and so in the report.
 
 Drives with only the paper's two channels (IO-VNBD) are the planar ``ekf``'s: ``gins`` does not
-apply to them.
+apply to them. The measurements behind these choices: docs/gins-design.md.
 """
 
 from __future__ import annotations
@@ -150,14 +147,9 @@ def alignment_boundary(b: Boundaries) -> int:
     """Where the filter is aligned: the drive's first boundary with a usable fix in its first segment
     (0 when the drive starts with one or has none there). The alignment's covariance (position at
     the fix's sigma, 0.5 m/s, 15 deg of heading) is a promise only a fix the GNSS check trusts can
-    keep: phones start cold, with 9-15 s of fixes reported at 16-65 m and a speed and course held from
-    before. Aligned on those, the filter ran free through them (a real phone log: 9 -> 12.6 -> 2 m/s
-    while the car drove 9), the first good fix's correction, 27 m off through the cross-covariances of
-    that free run, went into the biases (gyro z 0.29 deg/s at the first outage, 0.03 over the drive),
-    and one 60 s outage ended at 19.0 % of the distance; aligned at the first good fix, 14.1 %. On the
-    same phone's logs held out from that diagnosis, 10 / 30 / 60 s: 51.5 / 141 / 210 -> 11.6 / 9.9 /
-    10.5 %, 9.8 / 22.6 / 24.3 -> 5.7 / 5.8 / 2.7 %, 8.5 / 16.7 / 28.7 -> 7.9 / 7.5 / 9.6 %
-    (docs/real-imu-logs.md); on a simulated dash device starting cold, 60 s outages 5.0 -> 1.3 %."""
+    keep: phones start cold, with seconds of fixes reported tens of metres off and a speed and course
+    held from before; aligned on those, the filter runs free through them and the first good fix's
+    correction goes into the biases (docs/gins-design.md, "Alignment")."""
     first_segment_end = int(np.argmax(b.segment_start[1:])) + 1 if b.segment_start[1:].any() else len(b.t_s)
     good = np.flatnonzero(b.gnss_ok[:first_segment_end])
     return int(good[0]) if len(good) else 0
@@ -412,10 +404,7 @@ DEFAULT, REDUCED, PLANAR_DR = 0, 1, 2
 #: from the fixes as the default does, with the weight of :data:`ARBITER_PRIOR_OUTAGES`
 #: pseudo-outages. On the simulated phone and dash sets the INS DR errs 2.2-6 times as far as
 #: ``gins`` (docs/real-imu-logs.md): 2 is the cautious end, so an alternative is taken only when this
-#: drive's own past says clearly otherwise. Since the simulated phone's receiver reports its speed
-#: late (2026-11-26) its set's INS DR errs 1.4-2.3 times as far; the prior at 1.4 was tried on the
-#: real logs and lost (cloudpose 12.9 / 10.5 / 6.0 -> 15.2 / 17.0 / 18.9 % after 10 / 30 / 60 s;
-#: held-out cells above the INS DR 7 -> 8), so it stays at 2.
+#: drive's own past says clearly otherwise (docs/gins-design.md, "The arbiter's prior").
 ARBITER_PRIOR_RATIO = 2.0
 #: The prior's weight in pseudo-outages, as :data:`ionav_viz.nav.history_check.PRIOR_OUTAGES`: with
 #: ``k`` past pseudo-outages an alternative must have ended on average ``1 - 3 / k`` as far from the
