@@ -693,10 +693,37 @@ def test_a_screenshot_of_a_replay_through_real_losses_alone_frames_the_worst(rea
         if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
             pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
         assert proc.returncode == 0, proc.stderr
-    # its INS DR track: one long line across the image (measured 380 px wide, 2475 px of its colour)
-    # where the whole drive draws six short ones (285 px of it in all)
-    assert _extent_of(framed, COLORS["ins"])[0] > 0.3 * 800
-    assert _pixels_near(framed, COLORS["ins"], 30) > 4 * _pixels_near(whole, COLORS["ins"], 30)
+    # its tracks: one long line across the image where the whole drive draws six short ones (the
+    # odometry's, the closer estimate there, drawn over the INS DR's)
+    assert _extent_of(framed, COLORS["odo"])[0] > 0.3 * 800
+    assert _pixels_near(framed, COLORS["odo"], 30) > 4 * _pixels_near(whole, COLORS["odo"], 30)
+
+
+#: The band above the views (the key) and a view's title bar, in pixels of a screenshot: not the view.
+BAND_AND_TITLE_PX = 66
+
+
+def _view_pixels_near(path, rgb, tol=30):
+    """Pixels of colour ``rgb`` in the views of a screenshot (below its key band and the title bar)."""
+    return int((np.abs(_image(path)[BAND_AND_TITLE_PX:] - np.array(rgb)).max(axis=-1) <= tol).sum())
+
+
+@pytest.mark.parametrize("view", ["outage", "local"])
+def test_every_estimate_and_the_truth_end_are_seen_where_tracks_lie_on_one_road(real_losses, tmp_path, view):
+    """Issue 63: on the tunnel drive's worst loss (a straight road) the odometry's track covered the
+    INS DR's, whose 17.7 m error could only be read in the key: every estimate is drawn in the
+    order of its error (the worst underneath) and ends in a dot, over a wider green dot at the
+    truth's end. Each colour is in the view itself, not only in the key (measured in the inspector
+    and the local view: INS DR 32 and 36 px, odometry 1,190 and 2,500 px, green 880 and 27 px (the
+    ring: the local view draws the drive's truth faint); the INS DR 0 before)."""
+    out, _ = real_losses
+    png = tmp_path / f"{view}.png"
+    proc = run_cli("screenshot", str(out), "-o", str(png), "--time", "worst", "--view", view, "--size", "800x450")
+    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("ins", "odo", "gnss"):
+        assert _view_pixels_near(png, COLORS[name]) > 15, (name, {n: _view_pixels_near(png, COLORS[n]) for n in ("ins", "odo", "gnss")})
 
 
 def test_replay_through_real_losses_alone_with_screenshots(tmp_path):

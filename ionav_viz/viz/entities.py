@@ -145,6 +145,11 @@ def inspect_position(est: str) -> str:
     return f"{INSPECT}/{est}/position"
 
 
+def local_position(est: str) -> str:
+    """The estimate's current position in the local view (its end point once the outage is over), a dot."""
+    return f"{LOCAL}/{est}/position"
+
+
 #: The truth's position in the inspector at the same instants as the estimates' (``inspect/<est>/position``).
 INSPECT_TRUTH_POSITION = f"{INSPECT}/gnss/position"
 
@@ -255,7 +260,7 @@ PATTERNS = (
     truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), receiver(MAP), receiver(LOCAL), truth_position(MAP), truth_position(LOCAL),
     *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
     *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
-    inspect_position("<est>"), INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
+    inspect_position("<est>"), local_position("<est>"), INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
     GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),

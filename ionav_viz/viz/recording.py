@@ -33,8 +33,8 @@ from .blueprints import blueprint, plot_range
 from .columns import with_breaks
 from .geometry import map_zoom, screen_xy
 from .health import log_health
-from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
-from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, color_word, estimator_colors, faded
+from .layers import END_DOT_PT, END_ORDER, TRACK_ORDER, TRUTH_DOT_PT, TRUTH_END_ORDER, Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
+from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, color_word, estimator_colors, faded, stacking
 from .uncertainty import log_uncertainty, log_uncertainty_styles
 
 APP_ID = "ionav-viz"
@@ -196,8 +196,9 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
         log_uncertainty_styles(rec, result, colors, labels)
+        stack = outage_stacking(result)
         for name, est in result.estimates.items():
-            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
+            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx], stack[name])
             log_uncertainty(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
             step(name)
         _log_truth_position(layers, result, t_rows)
@@ -263,7 +264,7 @@ def _log_signals(layers: Layers, drive) -> None:
     send(ent.truth_position(ent.MAP), tu, rr.GeoPoints.columns(positions=layers.truth_ll[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
                                                                radii=np.full(nu, -6.0)))
     send(ent.truth_position(ent.LOCAL), tu, rr.Points2D.columns(positions=layers.truth_xy[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
-                                                                radii=np.full(nu, -6.0)))
+                                                                radii=np.full(nu, -TRUTH_DOT_PT), draw_order=np.full(nu, TRUTH_END_ORDER)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
     send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
@@ -303,16 +304,28 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
     return t_end, idx
 
 
+def outage_stacking(result: DriveResult) -> dict[str, np.ndarray]:
+    """Each estimator's place in the draw order of each synthetic outage (:func:`~ionav_viz.viz.style.stacking`
+    of its final position errors): the outage's worst estimate drawn underneath, its best on top."""
+    from ..analysis.drift import boundary_errors_m
+
+    return stacking({name: boundary_errors_m(result, name)[:, -1] for name in result.estimates})
+
+
+
+
 def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray,
-                  t_windows: np.ndarray) -> None:
+                  t_windows: np.ndarray, stack: np.ndarray) -> None:
     """One estimator's tracks over the outages (growing, on the map, the local view and the
     inspector; all of them faint), its current position, and its series per window (``t_windows``:
-    the end time of each outage window, (outage, window))."""
+    the end time of each outage window, (outage, window)); ``stack``: its place in each outage's
+    draw order (:func:`outage_stacking`)."""
     import rerun as rr
 
     rec, send = layers.rec, layers.send
     ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
     n_rows = len(t_rows)
+    order = np.repeat(stack, xy.shape[1])  # per row: each outage's rows (its start, then each window's end)
     thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
     # per outage the start point alone (clears the previous outage's track), then the
     # strip of points 0..k at each window's end (rows as :func:`_outage_times`)
@@ -320,18 +333,20 @@ def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy
         line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
     send(ent.live_track(ent.LOCAL, name), t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.growing(xy)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
-        draw_order=np.full(n_rows, 30.0)))
+        draw_order=TRACK_ORDER + order))
     rel = xy - xy[:, :1]
     send(ent.live_track(ent.INSPECT, name), t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.growing(rel)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
-        draw_order=np.full(n_rows, 30.0)))
+        draw_order=TRACK_ORDER + order))
     # the estimate's current position: visible where tracks along the same road cover each other
-    send(ent.inspect_position(name), t_rows, rr.Points2D.columns(
-        positions=rel.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
-        draw_order=np.full(n_rows, 40.0)))
+    for entity, points in ((ent.inspect_position(name), rel), (ent.local_position(name), xy)):
+        send(entity, t_rows, rr.Points2D.columns(
+            positions=points.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(END_DOT_PT)),
+            draw_order=END_ORDER + order))
     faint = faded(color)
     rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
-    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
+    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin,
+                                                             draw_order=20 + float(np.mean(stack))), static=True)
     w, starts, n_win = result.windows, result.starts, result.n_windows
     series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
     series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
@@ -353,8 +368,8 @@ def _log_truth_position(layers: Layers, result: DriveResult, t_rows: np.ndarray)
     xy = layers.xy(lat.ravel(), lon.ravel()).reshape(len(starts), n_win + 1, 2)
     n_rows = len(t_rows)
     layers.send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(
-        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
-        draw_order=np.full(n_rows, 35.0)))
+        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(TRUTH_DOT_PT)),
+        draw_order=np.full(n_rows, TRUTH_END_ORDER)))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:

@@ -67,3 +67,21 @@ def color_word(rgb: tuple[int, int, int]) -> str:
 def faded(color: tuple[int, int, int], keep: float = 0.45) -> tuple[int, int, int]:
     """``color`` mixed into the viewer's dark background: the faint overview layers."""
     return tuple(int(round(keep * c + (1 - keep) * 18)) for c in color)  # type: ignore[return-value]
+
+
+def stacking(errors_m: dict[str, Any]) -> dict[str, Any]:
+    """Where each estimator's marks go in a stack of draw orders, per outage: ``errors_m`` maps each
+    estimator to its final errors (one per outage, or one value); the result maps it to offsets in
+    ``[0, 1)`` of the same shape, the largest error lowest (0, drawn first, underneath) and the
+    smallest highest, so a close estimate is drawn over a far one and never hidden by it (a far
+    one still shows where it leaves the others). An undefined error counts as the largest."""
+    import numpy as np
+
+    names = list(errors_m)
+    if not names:
+        return {}
+    err = np.stack([np.nan_to_num(np.asarray(errors_m[n], dtype=float), nan=np.inf) for n in names])  # (est, ...)
+    order = np.argsort(-err, axis=0, kind="stable")  # worst first
+    rank = np.empty_like(order)
+    np.put_along_axis(rank, order, np.arange(len(names)).reshape((-1,) + (1,) * (err.ndim - 1)) * np.ones_like(order), axis=0)
+    return {n: rank[i] / len(names) for i, n in enumerate(names)}
