@@ -39,7 +39,8 @@ TOP_BAR_PX, TIME_PANEL_PX = 40, 40
 #: Least pixels of each colour in the left column: the truth's green track, the odometry's pink
 #: track (in the outage inspector), the INS DR's vermillion (its end dot at least) and the scale
 #: bars' grey (white before, lost on the light theme's white). Measured on rendered pages (light,
-#: dark): about (420, 460), (290, 310), (180, 200) and (90, 90).
+#: dark): about (2,450-3,040, 2,600-3,220), (1,150-1,670, 1,160-1,760), (39-93, 39-180) and
+#: (2,400, 700-770): on the light theme the grid lines' antialiased edges are of that grey too.
 MIN_PIXELS = {"gnss": (GNSS_COLOR, 200), "odo": (OdometryEstimator.color, 150), "ins": (InsEstimator.color, 30),
               "scale": (SCALE_COLOR, 40)}
 #: The page in the browser's light and dark colour scheme (the viewer follows it).
