@@ -275,12 +275,14 @@ def test_the_fleet_overview_recording_has_a_row_and_a_bar_per_drive(fleet_dir, t
         errors = {est: [s[est]["final_position_error_m"] for s in report["sequences"] if s["drive"] == name] for est in ("ins", "odo")}
         worst = int(np.argmax(errors["ins"])) + 1
         assert f"| {k} | {name} | {len(errors['ins'])} | " in table
-        assert f"{k}. {name}, outage {worst}: `ionav-viz replay {fleet_dir / name}.csv --outage 10s --estimators ins,odo`" in table
-        for est in ("ins", "odo"):
+        assert (f"{k}. {name}, outage {worst} (" in table and f"`ionav-viz replay {fleet_dir / name}.csv --outage 10s --estimators ins,odo "
+                f"-o {name}.rrd && ionav-viz screenshot {name}.rrd --outage-number {worst} -o {name}-outage{worst}.png`" in table)
+        for j, est in enumerate(("ins", "odo")):
             values, abscissa = bars[f"/fleet/mean_final_error_m/{est}"]
             assert values[k - 1] == pytest.approx(np.mean(errors[est]))
             assert bars[f"/fleet/worst_final_error_m/{est}"][0][k - 1] == pytest.approx(max(errors[est]))
-            assert abscissa[k - 1] + 0.4 == pytest.approx(k)  # the bar centred on the row's number
+            # one chart per metric, every estimator's bar side by side in a group centred on the row's number
+            assert abscissa[k - 1] == pytest.approx(k - 0.4 + 0.4 * j)
     assert "V-bad.csv:" in table and texts["/fleet/report"].startswith("# Fleet: 4 drive(s)")
     assert not list(tmp_path.glob(".fleet.rrd.*"))  # written atomically: no temporary left
     proc = run_cli("evaluate", str(fleet_dir / "V-f0.csv"), "--estimators", CHEAP, "--fleet-rrd", str(tmp_path / "f.txt"))
@@ -295,6 +297,37 @@ def test_the_fleet_overview_recording_has_a_row_and_a_bar_per_drive(fleet_dir, t
     assert "do not apply" not in proc.stderr
     proc = run_cli("screenshot", str(out), "-o", str(tmp_path / "again.png"), "--size", "800x450", "--view", "local", "--time", "worst")
     assert proc.returncode == 0 and "a fleet overview is one image of its own layout" in proc.stderr, proc.stderr  # not silently ignored
+
+
+def test_the_command_the_fleet_overview_lists_shows_the_outage_it_names(fleet_dir, tmp_path):
+    """Issue 63: the overview listed 'ionav-viz replay DRIVE --outage 10s' beside "outage 10", and
+    nothing opened outage 10. Each listed command, run as given, makes the drive's recording and
+    renders that outage framed: the recording's outage of that number has the final error the
+    table gives, and the image is written."""
+    import re
+    import shlex
+
+    from ionav_viz.viz.recording_info import read_recording_info
+
+    out = tmp_path / "fleet.rrd"
+    drive = str(fleet_dir / "V-f1.csv")
+    proc = run_cli("evaluate", drive, "--estimators", "ins,odo", "--workers", "1", "--fleet-rrd", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    table = _texts_and_bars(out)[0]["/fleet/drives"]
+    row = re.search(r"^1\. V-f1, outage (\d+) \([^)]*\): `([^`]*)`", table, re.M)
+    assert row, table
+    number, command = int(row.group(1)), row.group(2)
+    named_error = float(re.search(r"\| outage \d+ \([^)]*\): ([0-9.]+) \|", table).group(1))
+    for step in command.split(" && "):
+        argv = shlex.split(step)
+        assert argv[0] == "ionav-viz"
+        done = run_cli(*argv[1:], cwd=tmp_path)
+        if done.returncode == 1 and "mesa-vulkan-drivers" in done.stderr and not os.environ.get("CI"):
+            pytest.skip(f"no renderer on this machine: {done.stderr.strip()}")
+        assert done.returncode == 0, (step, done.stderr)
+    outage = read_recording_info(tmp_path / "V-f1.rrd").outage(number)
+    assert outage.number == number and outage.final_error_m["ins"] == pytest.approx(named_error, abs=0.05)
+    assert (tmp_path / f"V-f1-outage{number}.png").stat().st_size > 0
 
 
 def _manifest_runs(folder: str) -> dict[str, int]:
@@ -391,7 +424,8 @@ def test_a_fleet_through_the_logs_own_losses_reports_them(tmp_path):
     for k, losses in enumerate(single, 1):
         errors = {est: [b["final_error_m"][est] for b in losses] for est in ("ins", "odo")}
         worst = losses[int(np.argmax(errors["ins"]))]["number"]
-        assert f"{k}. V-loss{k - 1}, real GNSS outage {worst}: `ionav-viz replay" in texts["/fleet/drives"]
+        assert f"{k}. V-loss{k - 1}, real GNSS outage {worst} (" in texts["/fleet/drives"]
+        assert f" -o V-loss{k - 1}.rrd && ionav-viz screenshot V-loss{k - 1}.rrd --outage-number {worst} -o " in texts["/fleet/drives"]
         assert f"| {k} | V-loss{k - 1} | {len(losses)} | " in texts["/fleet/drives"]
         for est in ("ins", "odo"):
             assert bars[f"/fleet/mean_final_error_m/{est}"][0][k - 1] == pytest.approx(np.mean(errors[est]), abs=1e-3)

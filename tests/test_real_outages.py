@@ -85,7 +85,7 @@ def test_replay_on_gnss_outage_reports_and_records_them(tmp_path):
 
     key = " ".join(str(v) for c in RrdReader(out).stream() if str(c.entity_path).strip("/") == ent.KEY
                    for n in c.to_record_batch().schema.names if n.endswith(":text") for v in c.to_record_batch().column(n).to_pylist())
-    assert "GNSS-aided INS cyan" in key and "ellipse" not in key, key
+    assert "GNSS-aided INS sky blue" in key and "ellipse" not in key, key
 
 
 def test_no_loss_to_bridge_is_one_line():

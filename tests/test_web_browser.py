@@ -26,7 +26,7 @@ import pytest
 
 from ionav_viz.nav.ins import InsEstimator
 from ionav_viz.nav.odometry import OdometryEstimator
-from ionav_viz.viz.style import GNSS_COLOR
+from ionav_viz.viz.style import GNSS_COLOR, SCALE_COLOR
 
 from .conftest import HANG_S, REPO
 
@@ -36,10 +36,15 @@ WINDOW_PX = (1280, 720)
 #: width, and the web viewer's top bar and time panel (pixels) left out of it.
 LEFT_COLUMN = 0.4
 TOP_BAR_PX, TIME_PANEL_PX = 40, 40
-#: Least pixels of each colour in the left column: the truth's green track, the odometry's purple
-#: track (in the outage inspector) and the INS's red (its end marker at least). Measured on a
-#: rendered page: about 2,400, 1,760 and 80.
-MIN_PIXELS = {"gnss": (GNSS_COLOR, 1000), "odo": (OdometryEstimator.color, 500), "ins": (InsEstimator.color, 30)}
+#: Least pixels of each colour in the left column: the truth's green track, the odometry's pink
+#: track (in the outage inspector), the INS DR's vermillion (its end dot at least) and the scale
+#: bars' grey (white before, lost on the light theme's white). Measured on rendered pages (light,
+#: dark): about (2,450-3,040, 2,600-3,220), (1,150-1,670, 1,160-1,760), (39-93, 39-180) and
+#: (2,400, 700-770): on the light theme the grid lines' antialiased edges are of that grey too.
+MIN_PIXELS = {"gnss": (GNSS_COLOR, 200), "odo": (OdometryEstimator.color, 150), "ins": (InsEstimator.color, 30),
+              "scale": (SCALE_COLOR, 40)}
+#: The page in the browser's light and dark colour scheme (the viewer follows it).
+THEMES = ("light", "dark")
 RENDER_TIMEOUT_S = HANG_S  # a hang guard: the loop ends when the page is drawn (~10-20 s on an idle 2-core machine)
 #: What Rerun's web viewer (rerun-sdk 0.41) asks of other hosts, as the README's --serve-web
 #: paragraph lists them: fonts, map tiles, Rerun's release and examples lists, its usage events.
@@ -88,7 +93,8 @@ def _counts(png: bytes) -> dict[str, int]:
 
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
     left = img[TOP_BAR_PX : img.shape[0] - TIME_PANEL_PX, : int(LEFT_COLUMN * img.shape[1])]
-    return {name: int((np.abs(left - np.array(rgb)).max(axis=-1) <= 30).sum()) for name, (rgb, _) in MIN_PIXELS.items()}
+    return {name: int((np.abs(left - np.array(rgb)).max(axis=-1) <= (12 if name == "scale" else 30)).sum())
+            for name, (rgb, _) in MIN_PIXELS.items()}
 
 
 def _requested_hosts(driver) -> set[str]:
@@ -117,8 +123,9 @@ def _processes_with(fragment: str) -> list[str]:
 
 
 def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
-    """The page ``replay --serve-web`` prints shows the recording: the truth's green and both
-    estimators' colours in the left column (outage inspector, drive, map). The user's Rerun
+    """The page ``replay --serve-web`` prints shows the recording, in the browser's light and dark
+    colour schemes: the truth's green, both estimators' colours and the scale bars' grey in the
+    left column (outage inspector, drive, map). The user's Rerun
     analytics setting (disabled here) is left as it was; the page asks no host beyond the
     README's list. Browser, driver and server are gone afterwards."""
     from ionav_viz.viz.viewer import free_port, rerun_executable
@@ -136,34 +143,38 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
     queued_before = sorted(queued.iterdir()) if queued.is_dir() else []
 
     grpc_port, web_port = free_port(), free_port()
-    out, shot, profile = tmp_path / "hb.rrd", tmp_path / "browser.png", tmp_path / "profile"
+    out, profile = tmp_path / "hb.rrd", tmp_path / "profile"
     start = time.monotonic()
     server = subprocess.Popen([sys.executable, "-m", "ionav_viz.cli", *ARGS, "-o", str(out), "--serve-web",
                                "--grpc-port", str(grpc_port), "--web-port", str(web_port)],
                               cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    driver = None
-    counts: dict[str, int] = {}
+    counts: dict[str, dict[str, int]] = {}
+    hosts: set[str] = set()
+    severe: list[str] = []
     try:
         assert server.stdout.readline().strip() == str(out)
         line = server.stdout.readline()
         url = re.search(r"open (http://127\.0\.0\.1:\d+/\S*)", line)
         assert url and f":{web_port}/" in url.group(1), line
-        driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
-        driver.set_page_load_timeout(HANG_S)
-        driver.get(url.group(1))
-        deadline = time.monotonic() + RENDER_TIMEOUT_S
-        while True:  # a screenshot waits for the next frame: seconds apart while the viewer loads
-            png = driver.get_screenshot_as_png()
-            counts = _counts(png)
-            if all(counts[name] >= least for name, (_, least) in MIN_PIXELS.items()) or time.monotonic() > deadline:
-                break
-            time.sleep(0.5)
-        shot.write_bytes(png)
-        hosts = _requested_hosts(driver) - {f"127.0.0.1:{web_port}", f"127.0.0.1:{grpc_port}"}
-        severe = [entry["message"] for entry in driver.get_log("browser") if "ERR_NAME_NOT_RESOLVED" not in entry["message"]]
+        for theme in THEMES:
+            driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
+            try:
+                driver.execute_cdp_cmd("Emulation.setEmulatedMedia", {"features": [{"name": "prefers-color-scheme", "value": theme}]})
+                driver.set_page_load_timeout(HANG_S)
+                driver.get(url.group(1))
+                deadline = time.monotonic() + RENDER_TIMEOUT_S
+                while True:  # a screenshot waits for the next frame: seconds apart while the viewer loads
+                    png = driver.get_screenshot_as_png()
+                    counts[theme] = _counts(png)
+                    if all(counts[theme][name] >= least for name, (_, least) in MIN_PIXELS.items()) or time.monotonic() > deadline:
+                        break
+                    time.sleep(0.5)
+                (tmp_path / f"browser-{theme}.png").write_bytes(png)
+                hosts |= _requested_hosts(driver) - {f"127.0.0.1:{web_port}", f"127.0.0.1:{grpc_port}"}
+                severe += [entry["message"] for entry in driver.get_log("browser") if "ERR_NAME_NOT_RESOLVED" not in entry["message"]]
+            finally:
+                driver.quit()
     finally:
-        if driver is not None:
-            driver.quit()
         server.send_signal(signal.SIGINT)
         try:
             code = server.wait(timeout=HANG_S)
@@ -171,9 +182,10 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
             server.kill()
             code = server.wait()
     elapsed_s = time.monotonic() - start
-    for name, (_, least) in MIN_PIXELS.items():
-        assert counts[name] >= least, (f"{name}: {counts[name]} pixels of its colour after {elapsed_s:.0f} s (see {shot}; "
-                                       f"console: {severe[-3:]})")
+    for theme in THEMES:
+        for name, (_, least) in MIN_PIXELS.items():
+            assert counts[theme][name] >= least, (f"{theme} theme, {name}: {counts[theme][name]} pixels of its colour after {elapsed_s:.0f} s "
+                                                  f"(see {tmp_path / f'browser-{theme}.png'}; console: {severe[-3:]})")
     assert hosts <= DOCUMENTED_HOSTS, f"the page asked hosts the README does not name: {sorted(hosts - DOCUMENTED_HOSTS)}"
     assert "tel.rerun.io" in hosts  # the README says the page sends usage events, opt-out or not
     assert code == 130 and "Traceback" not in server.stderr.read()

@@ -104,9 +104,13 @@ def replay(
         print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     print(result.path)
     if screenshot_dir is not None:
-        from ..viz.blueprints import VIEWS
+        from ..viz.blueprints import VIEWS, shown_views
+        from ..viz.recording_info import read_recording_info
 
-        api.screenshot([result.path], screenshot_dir, api.Shots(times=["worst"], views=list(VIEWS)), progress=print)
+        # every view the recording has data for (the filter health only where an estimator reports one)
+        has_health = "health" in shown_views(read_recording_info(result.path))
+        views = [v for v in VIEWS if v != "health" or has_health]
+        api.screenshot([result.path], screenshot_dir, api.Shots(times=["worst"], views=views), progress=print)
     if connect is not None and not quiet:
         print(f"streamed to the viewer at {connect}", file=sys.stderr)
     if open_viewer:

@@ -30,7 +30,7 @@ class EkfEstimator:
 
     name = "ekf"
     label = "GNSS-aided INS"
-    color = (0, 170, 190)
+    color = (86, 180, 233)  # Okabe-Ito sky blue
 
     def __init__(self, noise: EkfNoise | None = None) -> None:
         self.noise = noise or EkfNoise()

@@ -208,7 +208,7 @@ class GinsEstimator:
 
     name = "gins"
     label = "GNSS/INS 3D"
-    color = (235, 160, 0)  # amber: apart from odometry's purple and the ekf's cyan
+    color = (230, 159, 0)  # Okabe-Ito orange
     requires = "all six IMU axes, measured: a message log's or KITTI's IMU"
 
     def __init__(self, noise: GinsNoise | None = None, *, nhc: bool = True, zupt: bool = True, odometer: bool = True,

@@ -526,7 +526,7 @@ class IdnnEstimator:
 
     name = "idnn"
     label = "IDNN"
-    color = (40, 110, 240)
+    color = (0, 114, 178)  # Okabe-Ito blue
 
     def __init__(self, model: IdnnModel | str | Path | None = None, strict: bool = False) -> None:
         self._model = model if isinstance(model, IdnnModel) else None

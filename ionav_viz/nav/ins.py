@@ -70,7 +70,7 @@ class InsEstimator:
 
     name = "ins"
     label = "INS DR"
-    color = (230, 60, 50)
+    color = (213, 94, 0)  # Okabe-Ito vermillion (viz/style.py: the tracks' colour-blind-safe palette)
 
     def available(self) -> bool:
         return True

@@ -89,7 +89,7 @@ class OdometryEstimator:
 
     name = "odo"
     label = "Odometry"
-    color = (150, 60, 200)
+    color = (204, 121, 167)  # Okabe-Ito reddish purple ("pink")
     requires = "a vehicle speed: wheel speeds, CAN speed or wheel odometry"
 
     def __init__(self) -> None:

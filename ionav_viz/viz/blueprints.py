@@ -45,7 +45,19 @@ LOCAL_FRAMED_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_GRID_SCALE}"]
 ELLIPSE_KEY_COLOR = (200, 200, 200)
 
 #: The local view's name in the recording: what its overview markers are.
-LOCAL_NAME = "Drive: east-north (m); dots: manoeuvres yellow, outage starts grey"
+LOCAL_NAME = "Drive: east-north (m); dots: manoeuvres pale yellow, outage starts grey"
+#: Views of the review layout that only some recordings have data for (:func:`blueprint`'s ``shown``).
+OPTIONAL_VIEWS = (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH, ent.error_group("crse_m"))
+def shown_views(info: RecordingInfo) -> frozenset[str]:
+    """Which of :data:`OPTIONAL_VIEWS` the recording ``info`` has data for."""
+    synthetic = bool(info.outages)
+    shown = {ent.DRIFT: synthetic, ent.error_group("crse_m"): synthetic, ent.HEALTH: bool(info.health),
+             ent.UNCERTAINTY: synthetic and info.ellipses}
+    return frozenset(k for k, v in shown.items() if v)
+
+
+#: The timeline the viewer opens on: seconds into the drive (the recording also has ``time_of_day``).
+DEFAULT_TIMELINE = "time"
 #: Tab titles, longest first: a screenshot takes the longest variant that fits its column (tabs
 #: share one bar, so each gets a share of it).
 TAB_TITLES = {
@@ -174,14 +186,17 @@ class ShotRows:
     yaw_crse: bool  # whether the orientation-rate CRSE is drawn
 
 
-def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False) -> ShotRows:
+def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False, synthetic: bool = True) -> ShotRows:
     """The rows of a screenshot of ``size`` with ``n_estimators`` (:func:`summary_px`): in a small image the error column
     leaves out its orientation-rate CRSE plot (the summary's table keeps its mean) rather than draw
-    three plots too low for three labelled y ticks."""
+    three plots too low for three labelled y ticks; without ``synthetic`` outages (a run through the
+    log's own losses alone) it has the position error alone above the summary."""
     views = size[1] - TOP_BAND_PX
     timeline = min(TIMELINE_PX, 0.31 * views)
     signal = (views - timeline) / 3
     summary = min(summary_px(n_estimators, warned), 0.5 * views)
+    if not synthetic:
+        return ShotRows((timeline, signal, signal, signal), (views - summary, summary), False)
     three = (views - summary) / 3
     yaw_crse = three - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX
     plots = 3 if yaw_crse else 2
@@ -189,11 +204,11 @@ def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False
     return ShotRows((timeline, signal, signal, signal), (err,) * plots + (summary,), yaw_crse)
 
 
-def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False) -> dict[str, float]:
+def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False, synthetic: bool = True) -> dict[str, float]:
     """The height in pixels of each time plot's drawing area in a screenshot of ``size`` (the
     review layout and the signals and errors columns share their rows); a plot the image leaves
     out is not there."""
-    rows = shot_rows(size, n_estimators, warned)
+    rows = shot_rows(size, n_estimators, warned, synthetic)
     out = {o: rows.signals[1] for o in (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL)}
     out.update({o: rows.errors[0] for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))})
     if rows.yaw_crse:
@@ -201,12 +216,17 @@ def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool =
     return {o: max(px - TITLE_BAR_PX - TIME_LABELS_PX, 20.0) for o, px in out.items()}
 
 
-def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[float, float]] | None = None):
+def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[float, float]] | None = None,
+              shown: frozenset[str] | None = None):
     """The default review layout: the outage inspector above the whole-drive local and map views,
-    the signals, the errors and the summary; time plots with ``y_ranges`` (by origin) when given."""
+    the signals, the errors and the summary; time plots with ``y_ranges`` (by origin) when given.
+    ``shown``: which of :data:`OPTIONAL_VIEWS` hold data (None: all); the others are left out, so
+    that no view opens empty (a run through the log's own losses alone has no CRSE, CAE or drift;
+    one without a filter's covariance or health no sigma or NIS tab)."""
     import rerun.blueprint as rrb
 
     ranges = y_ranges or {}
+    has = (lambda origin: True) if shown is None else (lambda origin: origin in shown)
 
     # No legend on the time plots: Rerun draws it inside the plot, in a corner, where the curves of
     # a 60 s window pass sooner or later. The key above the signals names every line by its colour
@@ -233,21 +253,25 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
         plot(ent.ACCEL),
         row_shares=list(SIGNAL_ROW_SHARES),
     )
-    errors = rrb.Vertical(
-        rrb.Tabs(
-            plot(ent.error_group("position_error_m")),
-            rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]),
-            rrb.TimeSeriesView(origin=ent.UNCERTAINTY, name=TAB_TITLES[ent.UNCERTAINTY][0]),
-            rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]),
-            active_tab=0,
-        ),
-        rrb.Tabs(plot(ent.error_group("crse_m")), plot(ent.error_group("cae_m"))),
-        plot(ent.error_group("yaw_crse_radps")),
-        rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"), rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"),
-                 active_tab=0),
-        row_shares=list(ERROR_COLUMN_SHARES),
-    )
-    return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=list(COLUMN_SHARES)), collapse_panels=True)
+    error_tabs = [plot(ent.error_group("position_error_m"))]
+    if has(ent.DRIFT):
+        error_tabs.append(rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]))
+    if has(ent.UNCERTAINTY):
+        error_tabs.append(rrb.TimeSeriesView(origin=ent.UNCERTAINTY, name=TAB_TITLES[ent.UNCERTAINTY][0]))
+    if has(ent.HEALTH):
+        error_tabs.append(rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]))
+    rows = [rrb.Tabs(*error_tabs, active_tab=0) if len(error_tabs) > 1 else error_tabs[0]]
+    shares = [ERROR_COLUMN_SHARES[0]]
+    if has(ent.error_group("crse_m")):  # the CRSE, CAE and orientation-rate CRSE are of synthetic outages
+        rows += [rrb.Tabs(plot(ent.error_group("crse_m")), plot(ent.error_group("cae_m"))), plot(ent.error_group("yaw_crse_radps"))]
+        shares += list(ERROR_COLUMN_SHARES[1:3])
+    rows.append(rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"), rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"),
+                         active_tab=0))
+    shares.append(ERROR_COLUMN_SHARES[3])
+    errors = rrb.Vertical(*rows, row_shares=shares)
+    # the viewer opens on the first timeline it meets, time_of_day (axes at "+17h 30s"): time into the drive instead
+    return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=list(COLUMN_SHARES)),
+                         rrb.TimePanel(timeline=DEFAULT_TIMELINE, state="collapsed"), collapse_panels=True)
 
 
 @dataclass
@@ -288,12 +312,14 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
 
 
 #: The signal column's rows: the colour key, the state timeline, displacement, yaw rate, acceleration.
-SIGNAL_ROW_SHARES = (1.1, 2.8, 3, 3, 2)
+SIGNAL_ROW_SHARES = (1.6, 2.8, 3, 3, 2)
 #: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs
 #: (screenshots: :func:`shot_rows`).
 ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
+#: The time plots' tick step (s) at a screenshot's window (the viewer's choice, measured on renders).
+PLOT_TICK_S = 10.0
 #: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
 #: on it, and was cut in half at the plot's edge.
 PLOT_MARGIN_S = 4.0
@@ -306,6 +332,10 @@ def without_panels(blueprint: dict[str, Any]) -> dict[str, Any]:
     """A copy of the viewer's ``blueprint`` dict with its panels (:data:`HIDDEN_PANELS`: menu,
     badges, blueprint and selection panels, timeline) hidden: an image holds only the views."""
     bp = {k: {a: dict(f) for a, f in v.items()} for k, v in blueprint.items()}
+    for value in bp.values():  # the viewer writes a container of one as "contents": "view/<id>"
+        container = value.get("ContainerBlueprint")
+        if container and isinstance(container.get("contents"), str):
+            container["contents"] = [container["contents"]]
     for key, archetype in HIDDEN_PANELS.items():
         bp[key] = {archetype: {**bp.get(key, {}).get(archetype, {}), "state": "Hidden"}}
     return bp
@@ -313,26 +343,38 @@ def without_panels(blueprint: dict[str, Any]) -> dict[str, Any]:
 
 def plot_window(t_s: float, end_s: float, width_s: float = PLOT_WINDOW_S) -> tuple[float, float]:
     """The time plots' x range (s) for a shot at ``t_s`` of a drive ending at ``end_s``: ``width_s``
-    centred on ``t_s``, shifted to lie inside ``[0, end_s]`` (the whole drive when it is shorter)."""
+    centred on ``t_s``, shifted to lie inside ``[0, end_s]`` (the whole drive when it is shorter),
+    its start moved back to a whole :data:`PLOT_TICK_S` (the plots label a tick just before their
+    start at their left edge, cut: "m" of "+6m")."""
     if end_s <= width_s:
         return 0.0, max(end_s, 1.0)
     start = min(max(t_s - width_s / 2, 0.0), end_s - width_s)
-    return start, start + width_s
+    return math.floor(start / PLOT_TICK_S + 1e-9) * PLOT_TICK_S, start + width_s
 
 
 def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None,
                     t_s: float | None = None, end_s: float | None = None, map_tiles: bool = True,
                     size: tuple[int, int] | None = None, y_extents: dict[str, tuple[float, float]] | None = None,
-                    n_estimators: int = 4, warned: bool = False) -> dict[str, Any]:
+                    n_estimators: int = 4, warned: bool = False, shown: frozenset[str] | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
     origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
     with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`; without
     ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
-    the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``."""
+    the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``;
+    of :data:`OPTIONAL_VIEWS`, only those ``shown`` (None: all; a recording made before they were
+    left out of its own layout still holds them, empty)."""
     frame = frame or Framing()
     bp = without_panels(blueprint)
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
-    heights = plot_heights_px(size, n_estimators, warned) if size is not None else {}
+    synthetic = shown is None or ent.error_group("crse_m") in shown
+    if shown is not None:
+        empty = [o for o in OPTIONAL_VIEWS if o not in shown]
+        if not synthetic:
+            empty += [ent.error_group("cae_m"), ent.error_group("yaw_crse_radps")]
+        for origin in empty:
+            _remove(bp, views, _view_key(views, origin))
+        _remove_empty_containers(bp)
+    heights = plot_heights_px(size, n_estimators, warned, synthetic) if size is not None else {}
     y_extents = y_extents or {}
     for key, vb in views.items():
         if vb.get("class_identifier") != "TimeSeries":
@@ -370,7 +412,7 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     _single_tabs_where_narrow(bp, views, (size or (1600, 900))[0], view)
     # the columns' rows in screenshots (pixels): the timeline's lanes, the whole summary, and the
     # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE
-    rows = shot_rows(size or (1600, 900), n_estimators, warned)
+    rows = shot_rows(size or (1600, 900), n_estimators, warned, synthetic)
     if not rows.yaw_crse:
         _remove(bp, views, _view_key(views, ent.error_group("yaw_crse_radps")))
     for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.ACCEL, rows.signals)):
@@ -424,6 +466,23 @@ def _single_tabs_where_narrow(bp: dict[str, Any], views: dict[str, Any], width_p
         for k in keys:
             if k.lstrip("/") != active:
                 _remove(bp, views, k)
+
+
+def _remove_empty_containers(bp: dict[str, Any]) -> None:
+    """Take every container left without contents out of its parent and out of the blueprint."""
+    while True:
+        empty = [k for k, v in bp.items() if "ContainerBlueprint" in v and not v["ContainerBlueprint"].get("contents")]
+        if not empty:
+            return
+        for key in empty:
+            ref = key.lstrip("/")
+            for value in bp.values():
+                container = value.get("ContainerBlueprint")
+                if container and ref in [c.lstrip("/") for c in container.get("contents", [])]:
+                    container["contents"] = [c for c in container["contents"] if c.lstrip("/") != ref]
+                    container.pop("col_shares", None)
+                    container.pop("row_shares", None)
+            _drop(bp, key)
 
 
 def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
@@ -521,12 +580,6 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
     }
     for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH), (ent.error_group("crse_m"), ent.error_group("cae_m"))):
         titles.update(_fit_tabs(tabs, w(tabs[0])))
-    if not info.outages:  # the CRSE and CAE are of synthetic outages: empty in a run through the log's own losses alone
-        for group, share in (("crse_m", 0.6), ("cae_m", 0.4), ("yaw_crse_radps", 1.0)):  # the two tabs share one bar
-            name = titles[ent.error_group(group)]
-            short = name.replace("Displacement ", "").replace("Orientation-rate ", "")
-            titles[ent.error_group(group)] = _fit([f"{name}: synthetic outages only, none here", f"{name}: none here", f"{short}: none here", name],
-                                                  w(ent.error_group(group)) * share)
     if o is None and shot.view != "all":  # the time plots of a column: say when
         titles[ent.error_group("position_error_m")] = _fit([f"{info.drive}: 2D position error (m), {when}",
                                                             titles[ent.error_group("position_error_m")]], w(ent.error_group("position_error_m")))

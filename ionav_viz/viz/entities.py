@@ -145,6 +145,11 @@ def inspect_position(est: str) -> str:
     return f"{INSPECT}/{est}/position"
 
 
+def local_position(est: str) -> str:
+    """The estimate's current position in the local view (its end point once the outage is over), a dot."""
+    return f"{LOCAL}/{est}/position"
+
+
 #: The truth's position in the inspector at the same instants as the estimates' (``inspect/<est>/position``).
 INSPECT_TRUTH_POSITION = f"{INSPECT}/gnss/position"
 
@@ -249,13 +254,37 @@ def event_state(event_type: str, number: int) -> str:
     return f"{event_type} #{number}"
 
 
+#: The manoeuvre lane's short names of event types (its full state, ``hard-brake #3``, in the hover text).
+EVENT_SHORT = {"hard-brake": "brake", "quick-accel": "accel", "roundabout": "round", "sharp-cornering": "corner",
+               "left-right": "L-R", "cruise": "cruise", "gnss-outage": "no GNSS"}
+
+
+def state_label(state: str) -> str:
+    """What a state's lane shows (the viewer's state timeline cuts a label at its lane's end: a
+    10 s outage in a 60 s window is about 50 px wide in a 1024 px review): ``#3`` for outage 3,
+    ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` for ``hard-brake #3``, blank for no
+    event. The whole state stays the value (hover text, and what screenshots read back)."""
+    if (n := parse_outage_state(state)) is not None:
+        return f"#{n}"
+    if (n := parse_real_outage_state(state)) is not None:
+        return f"real #{n}"
+    if state.startswith("bad: "):
+        return "bad"
+    if state.startswith(("receiver lost", "receiver untrusted")):
+        return "rx lost" if state.startswith("receiver lost") else "rx bad"
+    if state == NO_EVENT_STATE:
+        return " "  # blank (an empty label falls back to the state's own "none", cut in short gaps)
+    kind, sep, _number = state.rpartition(" #")
+    return EVENT_SHORT.get(kind, kind) if sep else state
+
+
 #: Every path a recording can hold, with ``<est>`` for an estimator's name: what
 #: ``docs/recording.md`` documents (a test checks both ways).
 PATTERNS = (
     truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), receiver(MAP), receiver(LOCAL), truth_position(MAP), truth_position(LOCAL),
     *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
     *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
-    inspect_position("<est>"), INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
+    inspect_position("<est>"), local_position("<est>"), INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
     GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
     *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),

@@ -54,7 +54,7 @@ from ..core.errors import InputError
 from ..core.fileio import check_output_folder, check_regular_input, parse_json_bounded, read_json_bounded, staging_folder, write_failure
 from ..core.json_out import is_finite_number
 from ..core.signals import hold_signals
-from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors
+from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors, stacking
 
 log = logging.getLogger("ionav_viz")
 
@@ -668,6 +668,16 @@ def _outages(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     return fig
 
 
+def _end_gap_m(tracks: dict[str, Any], name: str) -> float:
+    """How far (m) the worst outage's track of ``name`` ends from the truth's end (NaN if undefined)."""
+    ends = []
+    for who in (name, "truth"):
+        east, north = _floats(tracks[who]["east_m"]), _floats(tracks[who]["north_m"])
+        ok = np.flatnonzero(np.isfinite(east) & np.isfinite(north))
+        ends.append((east[ok[-1]], north[ok[-1]]) if len(ok) else (np.nan, np.nan))
+    return float(np.hypot(ends[0][0] - ends[1][0], ends[0][1] - ends[1][1]))
+
+
 def _worst(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     tracks = rep["worst_tracks"]
     fig, ax = _new_figure(width_in, 3.7)
@@ -677,17 +687,19 @@ def _worst(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     lines = [("truth", truth_label, truth_color, {"lw": 2.6, "alpha": 0.8, "solid_capstyle": "round"}),
              *((name, label, color, {"lw": 1.1, "ls": LINE_STYLES[i % len(LINE_STYLES)]}) for name, label, color, i in _styled(rep))]
     truth_xy = None
+    stack = stacking({name: _end_gap_m(tracks, name) for name, *_ in lines[1:]})  # the worst estimate underneath, the best on top
     for name, label, color, style in lines:
         east, north = _floats(tracks[name]["east_m"]), _floats(tracks[name]["north_m"])
         shown = _defined(label, east, north, skipped)
         if shown is None:
             continue
-        ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, **style)
+        z = 2.0 + stack.get(name, 0.0)
+        ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, zorder=z, **style)
         if name == "truth":
             truth_xy = np.column_stack([east[shown], north[shown]])
         else:  # where this estimate ended
             last = np.flatnonzero(shown)[-1]
-            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none")
+            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none", zorder=z + 1)
     _skipped("worst", skipped)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xticks([])

@@ -1,9 +1,10 @@
 """The fleet's overview recording (``evaluate --fleet-rrd FILE``): one ``.rrd`` that opens on a
-table of the fleet's drives (each drive a row: its outages, each estimator's mean final error and
-improvement over the INS DR, its worst outage and the command that replays it, and its recording
-when it was replayed) beside bar charts per estimator, one bar per drive in the table's order:
-the mean final error of each drive, and its worst outage's final error; a third tab holds the whole
-fleet report (Markdown). Everything is static: the recording has no timeline.
+table of the fleet's drives (each drive a row: its outages, each estimator's mean final error, its
+worst outage and the command that renders it, and its recording when it was replayed; a second tab
+holds the whole fleet report, Markdown) above two bar charts side by side, each drive a group of
+bars (one per estimator, in its colour) numbered as the table's rows, all on one y scale: the mean
+final error of each drive, and its worst outage's final error. Everything is static: the
+recording has no timeline.
 
 Rerun has no box-plot archetype: the per-drive spread is in ``figures`` of the fleet (a box plot
 per estimator and the pooled CDF, :mod:`ionav_viz.viz.figures`)."""
@@ -65,9 +66,34 @@ def worst_outage(report: FleetReport, table: DriveTable) -> dict[str, Any] | Non
     return {"number": i + 1, "name": f"outage {i + 1} ({t0:.0f}-{t0 + table.outage_s:.0f} s)", "final_error_m": float(err[i])}
 
 
-def drives_markdown(report: FleetReport) -> str:
+def open_command(report: FleetReport, table: DriveTable, worst: dict[str, Any]) -> str:
+    """The command that shows the drive's worst outage (``worst``, :func:`worst_outage`): replay
+    the drive with the fleet's outages into ``<drive>.rrd`` (unless it was replayed: its
+    recording), then render that outage, framed, by its number (``screenshot --outage-number``:
+    the replay's "outage N", or in a fleet through the logs' own losses its real loss N)."""
+    import shlex
+
+    from .screenshot import safe_stem
+
+    stem = safe_stem(table.name)
+    rrd = table.recording or f"{stem}.rrd"
+    replay = [] if table.recording else [f"{report.command(table.spec)} -o {shlex.quote(rrd)}"]
+    number = worst["number"]
+    png = f"{stem}-outage{number}.png"
+    shot = f"ionav-viz screenshot {shlex.quote(rrd)} --outage-number {number} -o {shlex.quote(png)}"
+    return " && ".join([*replay, shot])
+
+
+def key_line(report: FleetReport, colors: dict[str, tuple[int, int, int]]) -> str:
+    """Which colour is which estimator's bars, in words."""
+    from .style import color_word
+
+    return "Bars: " + ", ".join(f"{report.labels[e]} {color_word(colors[e])}" for e in report.estimators) + "."
+
+
+def drives_markdown(report: FleetReport, colors: dict[str, tuple[int, int, int]] | None = None) -> str:
     """The overview's table: one row per drive, numbered as the bars; then the command that
-    replays each drive (its worst outage is the recording's "outage N") and its recording."""
+    shows each drive's worst outage (:func:`open_command`) and its recording."""
     from ..analysis.fleet import _f
 
     ests, labels = report.estimators, report.labels
@@ -75,8 +101,10 @@ def drives_markdown(report: FleetReport) -> str:
     real = through_real_losses(report)
     header = ["#", "drive", "losses" if real else "outages"] + [f"{labels[e]} m" for e in ests] + [f"worst {'loss' if real else 'outage'} ({by} m)"]
     title = (f"{report.n_real_outages} of the logs' own GNSS losses, bridged" if real else f"{report.n_outages} outages of {report.outage_s:g} s")
+    what = "loss" if real else "outage"
     lines = [f"# Fleet: {len(report.drives)} drive(s), {title}",
-             "", f"Mean final position error per drive (the bars are numbered as the rows), and each drive's worst {'loss' if real else 'outage'}.", "",
+             "", f"Mean final position error per drive (the bars are numbered as the rows), and each drive's worst {what}."
+             + (f" {key_line(report, colors)}" if colors else ""), "",
              "| " + " | ".join(header) + " |", "|" + "|".join("---" if j == 1 or j == len(header) - 1 else "---:" for j in range(len(header))) + "|"]
     replays = []
     for k, t in enumerate(report.drives, 1):
@@ -86,30 +114,41 @@ def drives_markdown(report: FleetReport) -> str:
         cells.append("-" if worst is None else f"{worst['name']}: {worst['final_error_m']:.1f}")
         lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
         where = f"; its recording `{t.recording}`" if t.recording else ""
-        replays.append(f"{k}. {t.name}" + (f", {worst['name'].split(' (')[0]}" if worst else "") + f": `{report.command(t.spec)}`{where}")
-    lines += ["", "## Replay a drive", "", *replays]
+        if worst is None:
+            replays.append(f"{k}. {t.name}: `{report.command(t.spec)}`{where}")
+        else:
+            replays.append(f"{k}. {t.name}, {worst['name']}: `{open_command(report, t, worst)}`{where}")
+    lines += ["", f"## See a drive's worst {what}", "",
+              f"Each command renders the {what} it names, framed (in the viewer, `rerun <drive>.rrd`: the inspector shows it from its start on).",
+              "", *replays]
     if report.failures or report.skipped:
         lines += ["", "## Not evaluated", "", *(f"- {f.spec}: {f.reason}" for f in [*report.failures, *report.skipped])]
     return "\n".join(lines) + "\n"
 
 
+def bar_abscissa(numbers: np.ndarray, j: int, n_estimators: int) -> np.ndarray:
+    """Where estimator ``j`` of ``n_estimators`` puts its bars' left edges: side by side in a group
+    of :data:`BAR_WIDTH` centred on each drive's number (one chart, one y scale for all)."""
+    width = BAR_WIDTH / n_estimators
+    return numbers - BAR_WIDTH / 2 + j * width
+
+
 def fleet_blueprint(report: FleetReport) -> Any:
-    """The overview's layout: the table on the left; on the right, tabs of bar charts per
-    estimator (mean final error per drive; worst outage per drive) and the whole report."""
+    """The overview's layout: above, tabs of the drives' table (with the commands that show each
+    drive's worst outage) and the whole report; below, side by side, one bar chart of each drive's
+    mean final error and one of its worst outage's, every estimator's bars grouped by drive on
+    one y scale (an estimator's bars are comparable with another's)."""
     import rerun.blueprint as rrb
 
-    labels = report.labels
-
-    def bars(root: str, what: str) -> Any:
-        return rrb.Grid(*[rrb.BarChartView(origin=f"{root}/{e}", name=labels[e], plot_legend=rrb.PlotLegend(visible=False))
-                          for e in report.estimators], name=what)
-
+    what = "loss" if through_real_losses(report) else "outage"
     return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.TextDocumentView(origin=FLEET_TABLE, name="Drives"),
-            rrb.Tabs(bars(MEAN_BARS, "mean final error per drive (m)"), bars(WORST_BARS, "worst outage per drive (m)"),
-                     rrb.TextDocumentView(origin=FLEET_REPORT, name="Fleet report")),
-            column_shares=[3, 2]),
+        rrb.Vertical(
+            rrb.Tabs(rrb.TextDocumentView(origin=FLEET_TABLE, name="Drives"), rrb.TextDocumentView(origin=FLEET_REPORT, name="Fleet report")),
+            rrb.Horizontal(
+                rrb.BarChartView(origin=MEAN_BARS, name="Mean final error per drive (m)", plot_legend=rrb.PlotLegend(visible=False)),
+                rrb.BarChartView(origin=WORST_BARS, name=f"Worst {what}'s final error per drive (m)", plot_legend=rrb.PlotLegend(visible=False)),
+            ),
+            row_shares=[4, 5]),
         collapse_panels=True)
 
 
@@ -125,17 +164,18 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
     rows: dict[str, int] = {}
     with streamed_to(rec, path, target):
         rec.send_blueprint(fleet_blueprint(report))
-        rec.log(FLEET_TABLE, rr.TextDocument(drives_markdown(report), media_type=rr.MediaType.MARKDOWN), static=True)
+        rec.log(FLEET_TABLE, rr.TextDocument(drives_markdown(report, colors), media_type=rr.MediaType.MARKDOWN), static=True)
         rec.log(FLEET_REPORT, rr.TextDocument(report.to_markdown(), media_type=rr.MediaType.MARKDOWN), static=True)
         rows |= {FLEET_TABLE: 1, FLEET_REPORT: 1}
         numbers = np.arange(1, len(report.drives) + 1, dtype=np.float64)
-        for e in report.estimators:
+        n_est = len(report.estimators)
+        for j, e in enumerate(report.estimators):
             errors = [final_errors_m(report, t, e) for t in report.drives]
             means = np.array([summarise(err)["mean"] for err in errors])
             worst = np.array([np.nanmax(err) if np.isfinite(err).any() else np.nan for err in errors])
             for root, values in ((MEAN_BARS, means), (WORST_BARS, worst)):
-                rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e], abscissa=numbers - BAR_WIDTH / 2,
-                                                   widths=np.full(len(numbers), BAR_WIDTH, dtype=np.float32)), static=True)
+                rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e], abscissa=bar_abscissa(numbers, j, n_est),
+                                                   widths=np.full(len(numbers), BAR_WIDTH / n_est, dtype=np.float32)), static=True)
                 rows[f"{root}/{e}"] = 1
     return rows
 

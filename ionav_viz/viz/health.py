@@ -10,13 +10,14 @@ import numpy as np
 from ..analysis.evaluate import DriveResult
 from ..nav.protocol import SAFEGUARD_KINDS
 from . import entities as ent
+from .style import TOL_MUTED
 
 #: The running mean's length (s): single NIS values scatter over two decades (a chi-square).
 NIS_MEAN_S = 10.0
-#: Colours of the series, one each, in order (estimators, then the kinds each lists): apart from one another.
-SERIES_COLORS = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189), (140, 86, 75), (227, 119, 194), (188, 189, 34),
-                 (23, 190, 207), (127, 127, 127), (174, 199, 232), (255, 187, 120), (152, 223, 138))
-GATED_COLOR = (220, 40, 40)
+#: Colours of the series, one each, in order (estimators, then the kinds each lists): Paul Tol's
+#: muted scheme, never the estimators' own (a measurement kind is no estimator); the gated marks its rose.
+SERIES_COLORS = tuple(TOL_MUTED[n] for n in ("sand", "purple", "teal", "olive", "cyan", "wine", "dark green", "indigo"))
+GATED_COLOR = TOL_MUTED["rose"]
 
 
 def running_mean(t_s: np.ndarray, values: np.ndarray, length_s: float) -> np.ndarray:
@@ -31,8 +32,9 @@ def running_mean(t_s: np.ndarray, values: np.ndarray, length_s: float) -> np.nda
         return np.where(n > 0, (csum[last] - csum[first]) / np.maximum(n, 1), np.nan)
 
 
-def log_health(layers, result: DriveResult, labels: dict[str, str]) -> None:
-    """Every filter's health (see the module docstring), static styles and per-boundary series."""
+def log_health(layers, result: DriveResult, labels: dict[str, str]) -> bool:
+    """Every filter's health (see the module docstring), static styles and per-boundary series;
+    whether there was any to log."""
     import rerun as rr
 
     rec, send = layers.rec, layers.send
@@ -72,3 +74,4 @@ def log_health(layers, result: DriveResult, labels: dict[str, str]) -> None:
         rec.log(ent.HEALTH_EXPECTED, rr.SeriesLines(colors=[(90, 90, 90)], names=["1: consistent"], widths=[1.0]), static=True)
         t_all = result.drive.t_s
         send(ent.HEALTH_EXPECTED, np.array([t_all[0], t_all[-1]]), rr.Scalars.columns(scalars=np.ones(2)))
+    return logged

@@ -15,7 +15,33 @@ from ..core.geo import local_en_m
 from . import columns
 from . import entities as ent
 from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_bar_clear_of, scale_label, screen_xy
-from .style import EVENT_COLOR, GNSS_COLOR, GRID_COLOR, OUTAGE_MARK_COLOR, SCALE_COLOR, faded
+from .style import EVENT_COLOR, EVENT_STATE_COLORS, GNSS_COLOR, GRID_COLOR, OUTAGE_MARK_COLOR, SCALE_COLOR, STATE_COLORS, faded, stacking
+
+#: Draw orders of the 2D views' marks: an estimator's mark adds its place in the stack of the
+#: outage (:func:`~ionav_viz.viz.style.stacking`, in [0, 1)) to its kind's: tracks, then the truth's
+#: end (a wide dot: a ring around an estimate's end on it), then the estimates' ends.
+TRACK_ORDER, TRUTH_END_ORDER, END_ORDER = 30.0, 35.0, 40.0
+#: Sizes (ui points) of the estimates' end dots and of the truth's, a ring around theirs.
+END_DOT_PT, TRUTH_DOT_PT = 5.0, 8.5
+#: The current outage's tracks (radius, ui points): the best estimate's, and what each one below it
+#: in the stack adds, so that tracks along one line show as nested bands, each a rim of its colour.
+TRACK_PT, RIM_PT = 2.0, 0.7
+#: The current outage's truth, underneath: wider than five stacked tracks.
+TRUTH_TRACK_PT = 5.5
+
+
+def track_radii_pt(stack: np.ndarray, n_estimators: int) -> np.ndarray:
+    """Radii (ui points, as Rerun takes them: negative) of tracks at places ``stack`` in the draw
+    order (:func:`~ionav_viz.viz.style.stacking`: 0 the worst, underneath): the best :data:`TRACK_PT`,
+    each one below it :data:`RIM_PT` wider, so a track wholly under others still shows its rim."""
+    below = (n_estimators - 1) - np.rint(np.asarray(stack, dtype=float) * n_estimators)
+    return -(TRACK_PT + RIM_PT * below)
+
+
+def real_stacking(result: DriveResult) -> dict[str, np.ndarray]:
+    """Each estimator's place in the draw order of each of the log's own GNSS losses
+    (:func:`~ionav_viz.viz.style.stacking` of its final errors there)."""
+    return stacking({e.name: np.array([b.final_error_m.get(e.name, np.nan) for b in result.bridged]) for e in result.estimators})
 
 #: Seconds of GNSS track before and after an outage drawn faintly around it on the map.
 CONTEXT_S = 3.0
@@ -39,6 +65,31 @@ class Layers:
     def xy(self, lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
         """Positions in the local view's screen frame (m)."""
         return screen_xy(*local_en_m(lat_deg, lon_deg, self.lat0, self.lon0))
+
+
+def state_color(state: str) -> tuple[int, int, int]:
+    """A state lane's colour (:data:`~ionav_viz.viz.style.STATE_COLORS`): never an estimator's."""
+    if (n := ent.parse_outage_state(state)) is not None:
+        return STATE_COLORS["outage" if n % 2 else "outage alt"]
+    if ent.parse_real_outage_state(state) is not None:
+        return STATE_COLORS["real outage"]
+    if state.startswith("receiver "):
+        return STATE_COLORS["receiver"]
+    if state.startswith("bad: "):
+        return STATE_COLORS["bad"]
+    if state in (ent.GNSS_AVAILABLE_STATE, ent.GOOD_TRUTH_STATE, ent.NO_EVENT_STATE):
+        return STATE_COLORS[{ent.GNSS_AVAILABLE_STATE: "GNSS", ent.GOOD_TRUTH_STATE: "good", ent.NO_EVENT_STATE: "none"}[state]]
+    return EVENT_STATE_COLORS.get(state.rpartition(" #")[0], EVENT_COLOR)
+
+
+def log_state_styles(rec, entity: str, states: list[str]) -> None:
+    """Each state of the lane ``entity``: its short label (:func:`~ionav_viz.viz.entities.state_label`)
+    and colour (:func:`state_color`), static."""
+    import rerun as rr
+
+    values = list(dict.fromkeys(states))
+    rec.log(entity, rr.StateConfiguration(values=values, labels=[ent.state_label(v) for v in values],
+                                          colors=[state_color(v) for v in values]), static=True)
 
 
 def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, np.ndarray]) -> None:
@@ -65,7 +116,7 @@ def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, 
     cb = np.searchsorted(drive.t_s[ti], t0 + n_win + CONTEXT_S, side="right")
     truth = [np.concatenate([start_xy[k : k + 1], truth_xy[ti[i:j]], end_xy[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
     truth_geo = [np.concatenate([start_ll[k : k + 1], truth_ll[ti[i:j]], end_ll[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
-    wide = rr.Radius.ui_points(4.5)
+    wide = rr.Radius.ui_points(TRUTH_TRACK_PT)
     send(ent.outage_truth(ent.LOCAL), t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged(truth)), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
     send(ent.outage_truth(ent.MAP), t_rows, rr.GeoLineStrings.columns(
@@ -132,13 +183,15 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
     t1 = np.array([b.t1_s for b in bridged])
     # every estimator's track through each loss, on the map and in the local frame (one projection per estimator)
     tracks_ll, tracks_xy = {}, {}
+    stack = real_stacking(result)
     for est in result.estimators:
         name, color = est.name, colors[est.name]
         ll = [np.stack([b.tracks[name].lat_deg[0], b.tracks[name].lon_deg[0]], axis=-1) for b in bridged]
         tracks_ll[name], tracks_xy[name] = ll, np.split(layers.xy(*np.concatenate(ll).T), np.cumsum([len(x) for x in ll])[:-1])
         rec.log(ent.real_outage_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=ll, colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
-        rec.log(ent.real_outage_tracks(ent.LOCAL, name), rr.LineStrips2D(tracks_xy[name], colors=[color], radii=rr.Radius.ui_points(3.0),
-                                                              draw_order=30), static=True)
+        rec.log(ent.real_outage_tracks(ent.LOCAL, name), rr.LineStrips2D(
+            tracks_xy[name], colors=[color], draw_order=TRACK_ORDER + float(np.mean(stack[name])),
+            radii=track_radii_pt(stack[name], len(result.estimators))), static=True)
         entity = ent.real_outage_errors(name)
         rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
         send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
@@ -203,21 +256,30 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
         steps.append(nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2])))
         grids.append(grid_strips(bounds, steps[-1]))
         bars.append(scale_bar(bounds, steps[-1]))
-    wide = rr.Radius.ui_points(4.5)
+    wide = rr.Radius.ui_points(TRUTH_TRACK_PT)
     send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged([s for pair in truth for s in pair])), colors=np.tile(GNSS_COLOR, (2 * m, 1)),
         radii=np.full(2 * m, wide), draw_order=np.full(2 * m, 12.0)).partition(np.full(m, 2)))
+    stack = real_stacking(result)
     for e in result.estimators:
+        color = np.tile(colors[e.name], (m, 1))
         send(ent.live_track(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
-            strips=columns.line_strips_2d(*columns.ragged(tracks[e.name])), colors=np.tile(colors[e.name], (m, 1)),
-            radii=np.full(m, rr.Radius.ui_points(3.0)), draw_order=np.full(m, 30.0)))
-        if len(result.starts):  # a synthetic outage's current position and ellipse, drawn there before: emptied
-            send(ent.inspect_position(e.name), t_rows, rr.Points2D.columns(positions=np.zeros((0, 2))).partition(np.zeros(m, dtype=int)))
-            if result.estimates[e.name].pos_cov_m2 is not None:
-                send(ent.ellipse(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
-                    strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))).partition(np.zeros(m, dtype=int)))
-    if len(result.starts):  # the truth's position at a synthetic outage's instants, likewise
-        send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(positions=np.zeros((0, 2))).partition(np.zeros(m, dtype=int)))
+            strips=columns.line_strips_2d(*columns.ragged(tracks[e.name])), colors=color,
+            radii=track_radii_pt(stack[e.name], len(result.estimators)), draw_order=TRACK_ORDER + stack[e.name]))
+        # each estimate's end, a dot: where tracks along one road cover each other, how far each went
+        ends = np.array([tr[-1] for tr in tracks[e.name]])
+        send(ent.inspect_position(e.name), t_rows, rr.Points2D.columns(
+            positions=ends, colors=color, radii=np.full(m, rr.Radius.ui_points(END_DOT_PT)), draw_order=END_ORDER + stack[e.name]))
+        send(ent.local_position(e.name), t_rows, rr.Points2D.columns(
+            positions=np.array([tracks_xy[e.name][i][-1] for i in range(m)]), colors=color, radii=np.full(m, rr.Radius.ui_points(END_DOT_PT)),
+            draw_order=END_ORDER + stack[e.name]))
+        if len(result.starts) and result.estimates[e.name].pos_cov_m2 is not None:  # a synthetic outage's ellipse, drawn before: emptied
+            send(ent.ellipse(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
+                strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))).partition(np.zeros(m, dtype=int)))
+    # the truth's end (the first good fix after the loss), a wide dot under the estimates' ends
+    send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(
+        positions=np.array([pair[1][0] for pair in truth]), colors=np.tile(GNSS_COLOR, (m, 1)),
+        radii=np.full(m, rr.Radius.ui_points(TRUTH_DOT_PT)), draw_order=np.full(m, TRUTH_END_ORDER)))
     count = sum(map(len, grids))
     send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (count, 1)),
@@ -242,6 +304,7 @@ def log_events(layers: Layers, events: list, drive) -> None:
         times += [e.t0_s, e.t1_s]
         states += [ent.event_state(e.type, i + 1), ent.NO_EVENT_STATE]
     order = np.argsort(times, kind="stable")
+    log_state_styles(rec, ent.EVENTS_STATE, states)
     send(ent.EVENTS_STATE, np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
     # a loss's middle lies between its good fixes (``usable``), not at (0, 0)

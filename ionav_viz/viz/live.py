@@ -127,6 +127,7 @@ def stream_file(url: str, path: str, timeout_s: float) -> None:
     import rerun as rr
 
     from ..core.fileio import utf8_alias
+    from .blueprints import shown_views
     from .recording import review_blueprint
     from .recording_info import read_recording_info, rrd_reader
 
@@ -136,7 +137,8 @@ def stream_file(url: str, path: str, timeout_s: float) -> None:
         [store] = reader.recordings()
         rec = rr.RecordingStream(store.application_id, recording_id=store.recording_id)
         rec.connect_grpc(url)
-        rec.send_blueprint(review_blueprint([label for label, _ in info.estimators.values()], info.lat_deg, info.lon_deg))
+        rec.send_blueprint(review_blueprint([label for label, _ in info.estimators.values()], info.lat_deg, info.lon_deg,
+                                            shown=shown_views(info)))
         rec.send_chunks(reader.stream(store=store))
     rec.flush(timeout_sec=timeout_s)
     rec.disconnect()

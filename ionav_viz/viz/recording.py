@@ -33,8 +33,8 @@ from .blueprints import blueprint, plot_range
 from .columns import with_breaks
 from .geometry import map_zoom, screen_xy
 from .health import log_health
-from .layers import Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages
-from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, color_word, estimator_colors, faded
+from .layers import END_DOT_PT, END_ORDER, TRACK_ORDER, TRUTH_DOT_PT, TRUTH_END_ORDER, Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages, log_state_styles, track_radii_pt
+from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, color_word, estimator_colors, faded, stacking
 from .uncertainty import log_uncertainty, log_uncertainty_styles
 
 APP_ID = "ionav-viz"
@@ -104,10 +104,12 @@ def streamed_to(rec, path: Path, target: Path | None = None) -> Iterator[None]:
     _check_written(path, target or path)
 
 
-def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray, y_ranges: dict | None = None):
+def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray, y_ranges: dict | None = None,
+                     shown: frozenset[str] | None = None):
     """The review layout for estimators ``labels``, its map zoomed to the track (``lat_deg``,
-    ``lon_deg``: the usable GNSS fixes), its time plots' y axes set to ``y_ranges`` when given."""
-    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges)
+    ``lon_deg``: the usable GNSS fixes), its time plots' y axes set to ``y_ranges`` when given,
+    with the optional views ``shown`` (:func:`~ionav_viz.viz.blueprints.blueprint`)."""
+    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges, shown)
 
 
 def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
@@ -153,8 +155,6 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     drive = result.drive
     tod = drive.start_time_of_day_s
     usable = usable_fixes(drive.gnss_fault)
-    rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable],
-                                        y_ranges(result)))
     rec.send_recording_name(drive.name)
     rows: dict[str, int] = {}
 
@@ -183,7 +183,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     step("static layers")
     _log_signals(layers, drive)
     step("signals")
-    t_end, idx = _log_outage_states(send, result)
+    t_end, idx = _log_outage_states(rec, send, result)
     step("outages")
     if events:
         log_events(layers, events, drive)
@@ -196,8 +196,9 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
         log_uncertainty_styles(rec, result, colors, labels)
+        stack = outage_stacking(result)
         for name, est in result.estimates.items():
-            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
+            _log_estimate(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx], stack[name])
             log_uncertainty(layers, result, name, est, colors[name], tracks_xy[name], t_rows, t_end[idx])
             step(name)
         _log_truth_position(layers, result, t_rows)
@@ -205,7 +206,13 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     if result.bridged:
         log_real_outages(layers, result, colors, labels)
         step("real GNSS outages")
-    log_health(layers, result, labels)
+    health = log_health(layers, result, labels)
+    # sent last: the layout shows only the views that got data (no empty CRSE plots in a run through real losses alone)
+    synthetic = len(starts) > 0
+    shown = {ent.DRIFT: synthetic, ent.error_group("crse_m"): synthetic, ent.HEALTH: health,
+             ent.UNCERTAINTY: synthetic and any(e.pos_cov_m2 is not None for e in result.estimates.values())}
+    rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable],
+                                        y_ranges(result), frozenset(k for k, v in shown.items() if v)))
     return rows
 
 
@@ -263,16 +270,17 @@ def _log_signals(layers: Layers, drive) -> None:
     send(ent.truth_position(ent.MAP), tu, rr.GeoPoints.columns(positions=layers.truth_ll[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
                                                                radii=np.full(nu, -6.0)))
     send(ent.truth_position(ent.LOCAL), tu, rr.Points2D.columns(positions=layers.truth_xy[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
-                                                                radii=np.full(nu, -6.0)))
+                                                                radii=np.full(nu, -TRUTH_DOT_PT), draw_order=np.full(nu, TRUTH_END_ORDER)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
+    log_state_styles(layers.rec, ent.GNSS_QUALITY, [str(q) for q in quality[change]])
     send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send(ent.SPEED, t, rr.Scalars.columns(scalars=drive.speed_mps))
 
 
-def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarray]:
+def _log_outage_states(rec, send, result: DriveResult) -> tuple[np.ndarray, np.ndarray]:
     """Per window: the GNSS truth's displacement and yaw rate, GNSS availability and the outage
     state (and, beside a reference, where the receiver lost the sky outside the outages). Returns
     each window's end time and the outage windows' indices (outage, window)."""
@@ -299,39 +307,56 @@ def _log_outage_states(send, result: DriveResult) -> tuple[np.ndarray, np.ndarra
     for b in result.bridged:
         states[b.start : b.start + b.n_windows] = ent.real_outage_state(b.number, b.gap_t0_s, b.gap_t1_s)
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
+    log_state_styles(rec, ent.GNSS_STATE, [str(s) for s in states[change]])
     send(ent.GNSS_STATE, w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
     return t_end, idx
 
 
+def outage_stacking(result: DriveResult) -> dict[str, np.ndarray]:
+    """Each estimator's place in the draw order of each synthetic outage (:func:`~ionav_viz.viz.style.stacking`
+    of its final position errors): the outage's worst estimate drawn underneath, its best on top."""
+    from ..analysis.drift import boundary_errors_m
+
+    return stacking({name: boundary_errors_m(result, name)[:, -1] for name in result.estimates})
+
+
+
+
 def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray,
-                  t_windows: np.ndarray) -> None:
+                  t_windows: np.ndarray, stack: np.ndarray) -> None:
     """One estimator's tracks over the outages (growing, on the map, the local view and the
     inspector; all of them faint), its current position, and its series per window (``t_windows``:
-    the end time of each outage window, (outage, window))."""
+    the end time of each outage window, (outage, window)); ``stack``: its place in each outage's
+    draw order (:func:`outage_stacking`)."""
     import rerun as rr
 
     rec, send = layers.rec, layers.send
     ll = np.stack([est.track.lat_deg, est.track.lon_deg], axis=-1)  # (seq, win+1, 2)
     n_rows = len(t_rows)
+    order = np.repeat(stack, xy.shape[1])  # per row: each outage's rows (its start, then each window's end)
     thin, wide = rr.Radius.ui_points(1.2), rr.Radius.ui_points(3.0)
     # per outage the start point alone (clears the previous outage's track), then the
     # strip of points 0..k at each window's end (rows as :func:`_outage_times`)
     send(ent.live_track(ent.MAP, name), t_rows, rr.GeoLineStrings.columns(
         line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
+    # stacked by the outage's errors: the worst underneath and widest, so that each track shows a rim of its colour
+    radii = track_radii_pt(order, len(result.estimates))
     send(ent.live_track(ent.LOCAL, name), t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.growing(xy)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
-        draw_order=np.full(n_rows, 30.0)))
+        strips=columns.line_strips_2d(*columns.growing(xy)), colors=np.tile(color, (n_rows, 1)), radii=radii,
+        draw_order=TRACK_ORDER + order))
     rel = xy - xy[:, :1]
     send(ent.live_track(ent.INSPECT, name), t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.growing(rel)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide),
-        draw_order=np.full(n_rows, 30.0)))
+        strips=columns.line_strips_2d(*columns.growing(rel)), colors=np.tile(color, (n_rows, 1)), radii=radii,
+        draw_order=TRACK_ORDER + order))
     # the estimate's current position: visible where tracks along the same road cover each other
-    send(ent.inspect_position(name), t_rows, rr.Points2D.columns(
-        positions=rel.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
-        draw_order=np.full(n_rows, 40.0)))
+    for entity, points in ((ent.inspect_position(name), rel), (ent.local_position(name), xy)):
+        send(entity, t_rows, rr.Points2D.columns(
+            positions=points.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(END_DOT_PT)),
+            draw_order=END_ORDER + order))
     faint = faded(color)
     rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
-    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin, draw_order=20), static=True)
+    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin,
+                                                             draw_order=20 + float(np.mean(stack))), static=True)
     w, starts, n_win = result.windows, result.starts, result.n_windows
     series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
     series.update({ent.error_series(m, name): v for m, v in cumulative_errors(w, starts, n_win, est).items()})
@@ -353,8 +378,8 @@ def _log_truth_position(layers: Layers, result: DriveResult, t_rows: np.ndarray)
     xy = layers.xy(lat.ravel(), lon.ravel()).reshape(len(starts), n_win + 1, 2)
     n_rows = len(t_rows)
     layers.send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(
-        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(6.0)),
-        draw_order=np.full(n_rows, 35.0)))
+        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(TRUTH_DOT_PT)),
+        draw_order=np.full(n_rows, TRUTH_END_ORDER)))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:

@@ -20,7 +20,7 @@ from pathlib import Path
 from ..core.errors import InputError
 from ..core.fileio import made_folders
 from ..nav.registry import BASELINE
-from .blueprints import MIN_Y_SPAN, PLOT_MARGIN_S, TOP_BAND_PX, VIEWS, KeyEntry, Shot, focus_blueprint, framing, key_for, plot_range, plot_window, titles_for
+from .blueprints import MIN_Y_SPAN, PLOT_MARGIN_S, TOP_BAND_PX, VIEWS, KeyEntry, Shot, focus_blueprint, framing, key_for, plot_range, plot_window, shown_views, titles_for
 from .recording_info import OutageInfo, RecordingInfo, read_recording_info
 from .viewer import HeadlessViewer, RendererMissing
 
@@ -191,6 +191,9 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
     plans = []
     infos = [read_recording_info(p) for p in recordings]
     for info in infos:
+        if "health" in views and not info.health:
+            raise InputError(f"{info.path}: no filter health to show (no estimator of this run reports one)",
+                             "the GNSS-aided filters (ekf, gins) do; or choose another --view", param="views")
         shots = []
         for spec in times:
             t, outage = resolve_time(spec, info, worst_of)
@@ -218,7 +221,8 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
                 try:
                     layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
                                              t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles, size=size,
-                                             y_extents=extents, n_estimators=len(info.estimators), warned=info.warned)
+                                             y_extents=extents, n_estimators=len(info.estimators), warned=info.warned,
+                                             shown=shown_views(info))
                 except InputError as exc:
                     raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
                 keys, head = key_for(info, shot), key_head(shot)
