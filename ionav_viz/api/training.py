@@ -48,7 +48,8 @@ def train(
     progress: Progress | None = None,
     command: str = "ionav_viz.train",
     from_model: Any = None,
-    device: str = "cpu",
+    device: str | None = None,
+    on_epoch: Any = None,
 ) -> Any:
     """Train the IDNN's two networks and write them with their metadata to ``output`` (a model
     directory; an existing one is replaced only with ``force``, atomically).
@@ -62,13 +63,18 @@ def train(
     instead of starting from random weights: its weights, input normalisation and architecture
     are the start, ``config`` defaults to :func:`fine_tune_settings`, and the metadata records it
     as the parent; ``read.span`` (``--span``) chooses the part of each drive to train on, recorded
-    per drive with the file's sha256; ``device``: where torch trains (``"cpu"``, ``"cuda"``).
+    per drive with the file's sha256; ``device``: where torch trains (``"cpu"``, ``"cuda"``;
+    default a GPU when torch sees one: :func:`training_device`; deterministic for a seed on the
+    CPU); ``progress(label, epoch, epochs)`` and ``on_epoch(status)``
+    (an ``ionav_viz.nav.training.EpochStatus``: the fit, its epoch, training and validation loss,
+    optimiser steps done and planned, time elapsed and left) are called after every epoch.
     Returns the trained ``IdnnModel``.
     """
     from ..nav.idnn import ModelConfig, check_model_dir, save_model
     from ..nav.training import train_models
 
     read = read if read is not None else ReadOptions()
+    device = training_device(device)
     parent = parent_model(from_model) if from_model is not None else None
     config = config if config is not None else (ModelConfig() if parent is None else fine_tune_settings(parent))
     config.validate()
@@ -79,7 +85,7 @@ def train(
     out = check_model_dir(Path(output), overwrite=force)  # before any work
     stationary = load_stationary(bias_from, read)
     loaded = [(d, resolve_bias(d, stationary)) for d in load_drives(specs, read)]
-    model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device)
+    model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device, on_epoch=on_epoch)
     model.metadata["training"]["command"] = command
     save_model(model, out, overwrite=force)
     return model
@@ -137,10 +143,20 @@ def fine_tune_settings(parent: Any, epochs_disp: int | None = None, epochs_yaw: 
     return fine_tune_config(parent_model(parent).config, epochs_disp, epochs_yaw, seed)
 
 
+#: The devices training takes (``"auto"``: a GPU when torch sees one, else the CPU).
+DEVICES = ("auto", "cpu", "cuda")
+
+
 def training_device(device: str | None = None) -> str:
-    """``device``, or ``"cuda"`` when torch sees a GPU, else ``"cpu"``."""
-    if device is not None:
+    """Where training runs: ``device`` (``"cpu"`` or ``"cuda"``), or with None or ``"auto"``
+    ``"cuda"`` when torch sees a GPU, else ``"cpu"``. ``"cuda"`` without a GPU torch can use, or
+    another name, is an ``InputError``."""
+    if device is not None and device not in DEVICES:
+        raise InputError(f"unknown device {device!r}", f"choose one of {', '.join(DEVICES)}", param="device")
+    if device == "cpu":
         return device
     import torch
 
+    if device == "cuda" and not torch.cuda.is_available():
+        raise InputError("device 'cuda': torch sees no GPU here", "train on the CPU (device 'cpu' or 'auto')", param="device")
     return "cuda" if torch.cuda.is_available() else "cpu"

@@ -80,7 +80,7 @@ OPTION_OF: Mapping[str, str] = MappingProxyType({
     "imu_time_offset": "--imu-time-offset", "imu_samples": "--imu-samples", "warm_up": "--warm-up",
     "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan", "external": "--external", "export": "--export",
     "imu_topic": "--imu-topic", "gnss_topic": "--gnss-topic", "connect": "--connect",
-    "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict",
+    "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict", "device": "--device",
 })
 
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Optional
 
@@ -29,6 +32,53 @@ def training_command(argv: list[str]) -> str:
     return " ".join(words)
 
 
+#: Without a terminal, a line of training progress at most this often (s).
+PLAIN_PROGRESS_EVERY_S = 5.0
+
+
+def progress_line(status: Any) -> str:
+    """One line of training progress: the fit, its epoch, its loss, time elapsed and left."""
+    val = f", validation {status.validation_loss:.4g}" if status.validation_loss is not None else ""
+    return (f"training: {status.label}, epoch {status.epoch}/{status.epochs}, loss {status.loss:.4g}{val}; "
+            f"{status.elapsed_s:.0f} s elapsed, about {status.left_s:.0f} s left")
+
+
+@contextlib.contextmanager
+def training_progress(quiet: bool, stream: Any = None) -> Iterator[Optional[Callable[[Any], None]]]:
+    """An ``on_epoch`` callback for :func:`ionav_viz.train`: on a terminal a bar of the whole
+    training (optimiser steps done of those planned) with the fit, its epoch and loss, time elapsed
+    and left; otherwise a plain line (:func:`progress_line`) at most every
+    :data:`PLAIN_PROGRESS_EVERY_S` seconds; None when ``quiet``."""
+    stream = stream or sys.stderr
+    if quiet:
+        yield None
+        return
+    if not stream.isatty():
+        last = [time.monotonic()]
+
+        def plain(status: Any) -> None:
+            now = time.monotonic()
+            if now - last[0] >= PLAIN_PROGRESS_EVERY_S:
+                last[0] = now
+                print(progress_line(status), file=stream, flush=True)
+
+        yield plain
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("epoch {task.fields[epoch]}"),
+               TextColumn("loss {task.fields[loss]}"), TimeElapsedColumn(), TextColumn("{task.fields[left]}"))
+    with Progress(*columns, console=Console(file=stream), transient=True) as bar:
+        task = bar.add_task("training", total=None, epoch="", loss="", left="")
+
+        def update(status: Any) -> None:
+            bar.update(task, description=f"training {status.label}", completed=status.steps_done, total=status.steps_planned,
+                       epoch=f"{status.epoch}/{status.epochs}", loss=f"{status.loss:.4g}", left=f"about {status.left_s:.0f} s left")
+
+        yield update
+
+
 @app.command()
 @c.with_source_options
 def train(
@@ -49,7 +99,9 @@ def train(
     lr_decay_tail: float = typer.Option(0.3, "--lr-decay-tail", help="Fraction of the training over which the learning rate falls linearly to 0 at the end (0 = constant, as in the paper)."),
     inputs: str = typer.Option("calibrated", "--inputs", help="calibrated (shipped): samples corrected by the GNSS-aided INS at the outage start; plain: by the standstill biases (the paper)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress (a bar on a terminal, else a line every few seconds)."),
+    device: str = typer.Option("auto", "--device", help="auto: a GPU when torch sees one, else the CPU; cpu; cuda. "
+                                                        "Deterministic for a seed on the CPU."),
     bias_from: Optional[str] = c.BiasFromOpt,
     read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
 ) -> None:
@@ -75,18 +127,9 @@ def train(
                              epochs_yaw=epochs_yaw or ModelConfig.epochs_yaw, feedback_noise_m=feedback_noise, residual=residual,
                              lr_decay_tail=lr_decay_tail, inputs=inputs, seed=seed)
     specs = api.training_drives(paper=True, data_root=read.data_root) if paper_train else (list(drives) if drives else None)
-    with c.progress(quiet) as bar:
-        tasks: dict[str, Any] = {}
-
-        def progress(label: str, done: int, total: int) -> None:
-            if bar is None:
-                return
-            if label not in tasks:
-                tasks[label] = bar.add_task(f"training {label}", total=total)
-            bar.update(tasks[label], completed=done)
-
-        model = api.train(output, specs, config, bias_from=bias_from, read=read, force=force, progress=progress,
-                          command=training_command(sys.argv[1:]), from_model=from_model)
+    with training_progress(quiet) as on_epoch:
+        model = api.train(output, specs, config, bias_from=bias_from, read=read, force=force, on_epoch=on_epoch,
+                          command=training_command(sys.argv[1:]), from_model=from_model, device=device)
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
     from ..core.grid import WINDOW_S

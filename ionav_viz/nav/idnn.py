@@ -64,7 +64,7 @@ from .bias import SensorBias
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
 from .provenance import check_inputs, trained_outages
-from .track import track_covariance
+from .track import TrackCovariance
 from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
@@ -184,39 +184,47 @@ def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bo
 
     weights = torch.from_numpy((kinematic_weights(n_steps) if feedback else np.full(n_steps, 1.0 / n_steps)).astype(np.float32))
 
-    def skip_of(x: torch.Tensor) -> torch.Tensor | float:
+    def skip_of(x: torch.Tensor, w: torch.Tensor) -> torch.Tensor | float:
         if skip is None:
             return 0.0
-        term = skip[0] * (x[:, :n_steps] @ weights) + skip[1]
+        term = skip[0] * (x[:, :n_steps] @ w) + skip[1]
         return term + x[:, n_steps] if feedback else term
 
     class FeedForward(nn.Module):
         def __init__(self, n_in: int, latest_only: bool) -> None:
             super().__init__()
             self.latest_only = latest_only
+            self.dropout = dropout
+            self.register_buffer("skip_weights", weights, persistent=False)  # moves with the net (to a GPU), not a weight
             self.body = nn.Sequential(
                 nn.Linear(n_in, hidden), nn.ReLU(), nn.Dropout(dropout),
                 nn.Linear(hidden, hidden), nn.ReLU(), nn.Dropout(dropout),
                 nn.Linear(hidden, 1),
             )  # fmt: skip
 
+        def skip_term(self, x: torch.Tensor) -> torch.Tensor | float:
+            """The kinematic skip term of the inputs ``x`` (0 without ``skip``)."""
+            return skip_of(x, self.skip_weights)
+
+        def trunk_input(self, x: torch.Tensor) -> torch.Tensor:
+            """What the layers take of the inputs ``x`` (the latest sample and the feedback for ``mlp``)."""
+            return torch.cat([x[:, n_steps - 1 : n_steps], x[:, n_steps:]], dim=1) if self.latest_only else x
+
         def forward(self, x: torch.Tensor) -> torch.Tensor:
-            skip = skip_of(x)
-            if self.latest_only:
-                x = torch.cat([x[:, n_steps - 1 : n_steps], x[:, n_steps:]], dim=1)
-            return skip + self.body(x).squeeze(-1)
+            return self.skip_term(x) + self.body(self.trunk_input(x)).squeeze(-1)
 
     class Recurrent(nn.Module):
         def __init__(self, cell: type[nn.Module]) -> None:
             super().__init__()
             self.rnn = cell(1, hidden, num_layers=2, batch_first=True, dropout=dropout)
+            self.register_buffer("skip_weights", weights, persistent=False)
             self.head = nn.Sequential(nn.Dropout(dropout), nn.Linear(hidden + int(feedback), 1))
 
         def forward(self, x: torch.Tensor) -> torch.Tensor:
             seq = x[:, :n_steps].unsqueeze(-1)
             out, _ = self.rnn(seq)
             last = torch.cat([out[:, -1, :], x[:, n_steps:]], dim=1)
-            return skip_of(x) + self.head(last).squeeze(-1)
+            return skip_of(x, self.skip_weights) + self.head(last).squeeze(-1)
 
     n_in = n_steps + int(feedback)
     if arch == "idnn":
@@ -393,11 +401,13 @@ class Uncertainty:
         return np.exp(np.clip(fd @ self.disp_coef, -30, 30)), np.exp(np.clip(fy @ self.yaw_coef, -30, 30))
 
     def position_covariance(self, course0_deg: np.ndarray, speed0_mps: np.ndarray, disp_m: np.ndarray,
-                            yaw_rate_radps: np.ndarray) -> np.ndarray:
-        """East/north covariance (m^2) at every window boundary, (n_outages, n_windows + 1, 2, 2)."""
+                            yaw_rate_radps: np.ndarray, tracks: TrackCovariance | None = None) -> np.ndarray:
+        """East/north covariance (m^2) at every window boundary, (n_outages, n_windows + 1, 2, 2);
+        ``tracks``: these outages' :class:`~ionav_viz.nav.track.TrackCovariance`, when the caller has it."""
         var_d, var_w = self.variances(disp_m, yaw_rate_radps)
         var_course = (COURSE_SPEED_SD_MPS / np.maximum(np.asarray(speed0_mps, dtype=float), MIN_COURSE_SPEED_MPS)) ** 2
-        cov = track_covariance(course0_deg, disp_m, yaw_rate_radps, var_d, var_w, var_course)
+        tracks = tracks if tracks is not None else TrackCovariance(course0_deg, disp_m, yaw_rate_radps)
+        cov = tracks(var_d, var_w, var_course)
         cov[:, 1:] += self.fix_var_m2 * np.eye(2)
         return cov
 

@@ -90,34 +90,60 @@ def track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radp
     ``var_yaw_radps2`` (arrays as ``disp_m``); the course at the start has ``var_heading0_rad2``.
     Position ``p_k = sum_{j<k} d_j u(psi_j)``, ``u(psi) = (sin psi, cos psi)`` (course clockwise),
     ``psi_j = psi_0 - T (sum_{i<j} w_i + w_j / 2)``: a distance error moves along ``u_j``, a course
-    error ``dpsi`` moves every later step by ``d_j u'(psi_j) dpsi``."""
-    disp = np.asarray(disp_m, dtype=float)
-    yaw = np.asarray(yaw_rate_radps, dtype=float)
-    n_seq, n_win = disp.shape
-    T = WINDOW_S
-    turn = -yaw * T  # clockwise course change per window (rad)
-    psi0 = np.deg2rad(np.asarray(heading0_deg, dtype=float)).reshape(n_seq, 1)
-    before = np.concatenate([np.zeros((n_seq, 1)), np.cumsum(turn, axis=1)[:, :-1]], axis=1)
-    psi = psi0 + before + 0.5 * turn  # each window's mid course
-    u = np.stack([np.sin(psi), np.cos(psi)], axis=-1)  # (n, w, 2)
-    du = np.stack([np.cos(psi), -np.sin(psi)], axis=-1) * disp[..., None]  # d_j u'(psi_j)
-    cum_du = np.concatenate([np.zeros((n_seq, 1, 2)), np.cumsum(du, axis=1)], axis=1)  # sum over j < k of d_j u'_j
-    out = np.zeros((n_seq, n_win + 1, 2, 2))
-    var_d = np.broadcast_to(np.asarray(var_disp_m2, dtype=float), disp.shape)
-    var_w = np.broadcast_to(np.asarray(var_yaw_radps2, dtype=float), disp.shape)
-    # distance errors: sum_{j<k} var_d_j u_j u_j^T
-    dd = np.einsum("nw,nwa,nwb->nwab", var_d, u, u)
-    out[:, 1:] += np.cumsum(dd, axis=1)
-    # the initial course: moves every step so far together
-    v0 = np.broadcast_to(np.asarray(var_heading0_rad2, dtype=float), (n_seq,))
-    out += v0[:, None, None, None] * np.einsum("nka,nkb->nkab", cum_du, cum_du)
-    # the yaw rate of window i turns the course of window i by half a window's turn and of every later
-    # window by the whole: at boundary k, J_i = -T (d_i u'_i / 2 + sum_{i<j<k} d_j u'_j)
-    for k in range(1, n_win + 1):
-        later = cum_du[:, k:k + 1] - cum_du[:, 1:k + 1]  # sum over i < j < k, for each i < k: (n, k, 2)
-        J = -T * (0.5 * du[:, :k] + later)
-        out[:, k] += np.einsum("ni,nia,nib->nab", var_w[:, :k], J, J)
-    return out
+    error ``dpsi`` moves every later step by ``d_j u'(psi_j) dpsi`` (:class:`TrackCovariance`)."""
+    return TrackCovariance(heading0_deg, disp_m, yaw_rate_radps)(var_disp_m2, var_yaw_radps2, var_heading0_rad2)
+
+
+class TrackCovariance:
+    """:func:`track_covariance` of one set of rebuilt tracks, for any variances: the track's
+    geometry is worked out once (a fit that tries many variances on the same tracks pays it once),
+    and each call costs a few cumulative sums, linear in the windows.
+
+    The yaw rate of window ``i`` turns the course of window ``i`` by half a window's turn and of
+    every later window by the whole: at boundary ``k > i`` it moves the position by
+    ``J_i(k) dw_i``, ``J_i(k) = -T (d_i u'_i / 2 + sum_{i<j<k} d_j u'_j) = -T (a_i + c_k)`` with
+    ``c_k = sum_{j<k} d_j u'_j`` and ``a_i = d_i u'_i / 2 - c_{i+1}``, so
+    ``sum_{i<k} var_i J_i J_i^T = T^2 (S2_k + S1_k c_k^T + c_k S1_k^T + S0_k c_k c_k^T)`` with the
+    cumulative sums ``S0_k = sum_{i<k} var_i``, ``S1_k = sum_{i<k} var_i a_i`` and
+    ``S2_k = sum_{i<k} var_i a_i a_i^T``."""
+
+    def __init__(self, heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray) -> None:
+        disp = np.asarray(disp_m, dtype=float)
+        yaw = np.asarray(yaw_rate_radps, dtype=float)
+        n_seq = disp.shape[0]
+        self.shape = disp.shape
+        turn = -yaw * WINDOW_S  # clockwise course change per window (rad)
+        psi0 = np.deg2rad(np.asarray(heading0_deg, dtype=float)).reshape(n_seq, 1)
+        before = np.concatenate([np.zeros((n_seq, 1)), np.cumsum(turn, axis=1)[:, :-1]], axis=1)
+        psi = psi0 + before + 0.5 * turn  # each window's mid course
+        u = np.stack([np.sin(psi), np.cos(psi)], axis=-1)  # (n, w, 2)
+        du = np.stack([np.cos(psi), -np.sin(psi)], axis=-1) * disp[..., None]  # d_j u'(psi_j)
+        c = np.concatenate([np.zeros((n_seq, 1, 2)), np.cumsum(du, axis=1)], axis=1)  # c_k: sum over j < k of d_j u'_j
+        a = 0.5 * du - c[:, 1:]  # a_i
+        self.uu = u[..., :, None] * u[..., None, :]  # (n, w, 2, 2)
+        self.aa = a[..., :, None] * a[..., None, :]
+        self.a, self.c = a, c
+        self.cc = c[..., :, None] * c[..., None, :]  # (n, w + 1, 2, 2)
+
+    def __call__(self, var_disp_m2: np.ndarray, var_yaw_radps2: np.ndarray, var_heading0_rad2: np.ndarray | float = 0.0) -> np.ndarray:
+        """The covariance (m^2, ``(n_sequences, n_windows + 1, 2, 2)``) for these variances (as :func:`track_covariance`)."""
+        n_seq, n_win = self.shape
+        var_d = np.broadcast_to(np.asarray(var_disp_m2, dtype=float), self.shape)
+        var_w = np.broadcast_to(np.asarray(var_yaw_radps2, dtype=float), self.shape)
+        v0 = np.broadcast_to(np.asarray(var_heading0_rad2, dtype=float), (n_seq,))
+        out = np.zeros((n_seq, n_win + 1, 2, 2))
+        # distance errors: sum_{j<k} var_d_j u_j u_j^T
+        out[:, 1:] = np.cumsum(var_d[..., None, None] * self.uu, axis=1)
+        # the initial course: moves every step so far together
+        out += v0[:, None, None, None] * self.cc
+        # the yaw rates (the class's docstring)
+        s0 = np.cumsum(var_w, axis=1)
+        s1 = np.cumsum(var_w[..., None] * self.a, axis=1)
+        s2 = np.cumsum(var_w[..., None, None] * self.aa, axis=1)
+        c = self.c[:, 1:]
+        cross = s1[..., :, None] * c[..., None, :]
+        out[:, 1:] += WINDOW_S**2 * (s2 + cross + np.swapaxes(cross, -1, -2) + s0[..., None, None] * self.cc[:, 1:])
+        return out
 
 
 def systematic_track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray, scale_sigma: np.ndarray | float,

@@ -18,8 +18,9 @@ import contextlib
 import math
 import platform
 import tempfile
+import time
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,9 +35,85 @@ from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, Uncertainty, bu
 from .kalman import CHI2_2_95
 from .planar_filter import calibration
 from .provenance import check_inputs, drive_record, input_record, seen_drives
+from .track import TrackCovariance
 from .windows import make_windows
 
 Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class EpochStatus:
+    """An epoch of training done, for a progress display (:func:`train_models`'s ``on_epoch``).
+
+    ``label``: the network and the fit, as the ``progress(label, done, total)`` callback gets it
+    (``"displacement (every window)"``); ``epoch`` of ``epochs``; ``loss``: the epoch's mean
+    training loss (L1, normalised units); ``validation_loss``: the fit's validation score after
+    the epoch, where it has one; ``steps_done`` and ``steps_planned``: optimiser steps of the whole
+    training, done and planned so far (fine-tuning plans its first-layer retry when it starts it);
+    ``elapsed_s``: since the training began; ``left_s``: the steps planned and not done at the
+    pace of the steps so far (the work between fits, such as validation and the uncertainty's fit
+    at the end, is not in it)."""
+
+    label: str
+    epoch: int
+    epochs: int
+    loss: float
+    validation_loss: float | None
+    steps_done: int
+    steps_planned: int
+    elapsed_s: float
+    left_s: float
+
+
+class TrainingMeter:
+    """Counts a training's optimiser steps against its plan and tells ``progress`` (label, epoch,
+    epochs) and ``on_epoch`` (:class:`EpochStatus`) after every epoch. :meth:`within` gives the
+    meter of a part of the training, whose labels end with its ``suffix``."""
+
+    def __init__(self, progress: Progress | None = None, on_epoch: Callable[[EpochStatus], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.progress, self.on_epoch, self.clock = progress, on_epoch, clock
+        self.start_s = clock()
+        self.steps_done = 0
+        self.steps_planned = 0
+        self.stepping_s = 0.0
+
+    def within(self, suffix: str) -> _ScopedMeter:
+        """This meter (the same counts) for a part of the training: its labels end with ``suffix``."""
+        return _ScopedMeter(self, (suffix,))
+
+    def plan(self, steps: int) -> None:
+        """``steps`` more optimiser steps to come."""
+        self.steps_planned += int(steps)
+
+    def epoch(self, label: str, epoch: int, epochs: int, loss: float, validation_loss: float | None, steps: int, seconds: float) -> None:
+        """An epoch of ``steps`` optimiser steps, taking ``seconds``, done by the fit ``label``."""
+        self.steps_done += int(steps)
+        self.steps_planned = max(self.steps_planned, self.steps_done)
+        self.stepping_s += seconds
+        if self.progress is not None:
+            self.progress(label, epoch, epochs)
+        if self.on_epoch is not None:
+            left_s = self.stepping_s / self.steps_done * (self.steps_planned - self.steps_done)
+            self.on_epoch(EpochStatus(label, epoch, epochs, loss, validation_loss, self.steps_done, self.steps_planned,
+                                      self.clock() - self.start_s, left_s))
+
+
+class _ScopedMeter:
+    """A :class:`TrainingMeter` seen from a part of the training: the same counts, its labels
+    extended by the parts' suffixes (innermost first, as ``"displacement (block 1/1 left out) (all layers)"``)."""
+
+    def __init__(self, meter: TrainingMeter, suffixes: tuple[str, ...]) -> None:
+        self.meter, self.suffixes = meter, suffixes
+
+    def within(self, suffix: str) -> _ScopedMeter:
+        return _ScopedMeter(self.meter, (suffix, *self.suffixes))
+
+    def plan(self, steps: int) -> None:
+        self.meter.plan(steps)
+
+    def epoch(self, label: str, epoch: int, epochs: int, loss: float, validation_loss: float | None, steps: int, seconds: float) -> None:
+        self.meter.epoch(label + "".join(self.suffixes), epoch, epochs, loss, validation_loss, steps, seconds)
 
 
 @dataclass
@@ -143,7 +220,7 @@ class FitSettings:
     layers: str = "all"  # the parameters trained: "all", or "first": the first layer's only (the others stay as they start)
 
 
-def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, progress: Progress | None = None, label: str = "",
+def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, meter: TrainingMeter | None = None, label: str = "",
                 validation: tuple[np.ndarray, np.ndarray] | Callable[[], float] | None = None,
                 selection: dict[str, Any] | None = None) -> list[float]:
     """Minimise L1 with Adamax as ``fit`` says; returns the mean loss of each epoch.
@@ -153,7 +230,12 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, progress: P
     training (epoch 0: the starting weights, a parent's when fine-tuning) and after every epoch; as
     ``fit.keep`` says, the network ends with the weights of the epoch of least validation loss, the
     starting ones unless an epoch beats them (``"best"``), or the last epoch's unless the starting
-    ones are better (``"last-or-start"``). ``selection`` (a dict) receives what was kept."""
+    ones are better (``"last-or-start"``). ``selection`` (a dict) receives what was kept. ``meter``
+    is told of every epoch, as ``label``.
+
+    The feed-forward networks (``idnn``, ``mlp``) take their gradients from :class:`_FeedForwardSteps`,
+    which computes what autograd computes, in the same operations, without its bookkeeping (a
+    step of these small networks is mostly overhead: about 4 x faster); the recurrent ones from autograd."""
     import torch
 
     lr, epochs, batch, seed = fit.lr, fit.epochs, fit.batch, fit.seed
@@ -163,17 +245,19 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, progress: P
     device = torch.device(fit.device)
     net.to(device)
     xt, yt = torch.from_numpy(x.astype(np.float32)).to(device), torch.from_numpy(y.astype(np.float32)).to(device)
-    opt = torch.optim.Adamax([p for name, p in net.named_parameters() if fit.layers == "all" or in_first_layer(name)], lr=lr)
-    total_steps = epochs * ((len(xt) + batch - 1) // batch)
+    steps_per_epoch = (len(xt) + batch - 1) // batch
+    total_steps = epochs * steps_per_epoch
     tail_steps = decay_tail * total_steps
     if fit.schedule == "cosine":
-        schedule = torch.optim.lr_scheduler.LambdaLR(opt, lambda step: 0.5 * (1.0 + math.cos(math.pi * min(step, total_steps) / total_steps)))
+        def lr_factor(step: int) -> float:
+            return 0.5 * (1.0 + math.cos(math.pi * min(step, total_steps) / total_steps))
     else:
-        schedule = torch.optim.lr_scheduler.LambdaLR(
-            opt, lambda step: 1.0 if tail_steps <= 0 else min(1.0, max(0.0, (total_steps - step) / tail_steps)))
+        def lr_factor(step: int) -> float:
+            return 1.0 if tail_steps <= 0 else min(1.0, max(0.0, (total_steps - step) / tail_steps))
+    trained = [p for name, p in net.named_parameters() if fit.layers == "all" or in_first_layer(name)]
+    steps: _FeedForwardSteps | _AutogradSteps = (_FeedForwardSteps(net, trained, fit.anchor) if _FeedForwardSteps.fits(net)
+                                                 else _AutogradSteps(net, trained, fit.anchor, lr, lr_factor))
     loss_fn = torch.nn.L1Loss()
-    start_params = [p.detach().clone() for p in net.parameters()] if fit.anchor > 0 else []
-    n_params = sum(p.numel() for p in start_params)
     history = []
     val_history: list[float] = []
     best_state = None
@@ -193,30 +277,34 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, progress: P
         if fit.keep != "last":
             best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
     net.train()
-    for epoch in range(epochs):
-        order = torch.randperm(len(xt), generator=gen)
-        total = 0.0
-        for i in range(0, len(xt), batch):
-            sel = order[i : i + batch].to(device)
-            xb = xt[sel].clone()
-            if noise_col is not None and noise_sd > 0:
-                xb[:, noise_col] += (torch.randn(len(sel), generator=gen) * noise_sd).to(device)
-            opt.zero_grad()
-            loss = loss_fn(net(xb), yt[sel])
-            objective = loss
-            if start_params:
-                objective = loss + fit.anchor * sum(((p - p0) ** 2).sum() for p, p0 in zip(net.parameters(), start_params)) / n_params
-            objective.backward()
-            opt.step()
-            schedule.step()
-            total += float(loss.detach()) * len(sel)
-        history.append(total / len(xt))
-        if val_history:
-            val_history.append(val_loss())
-            if fit.keep == "best" and val_history[-1] < min(val_history[:-1]):
-                best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
-        if progress:
-            progress(label, epoch + 1, epochs)
+    step = 0
+    try:
+        for epoch in range(epochs):
+            epoch_start_s = time.monotonic()
+            order = torch.randperm(len(xt), generator=gen)
+            losses = torch.empty(steps_per_epoch, device=device)  # read once an epoch: no wait on a GPU every step
+            sizes = []
+            for i in range(0, len(xt), batch):
+                sel = order[i : i + batch].to(device)
+                xb = xt[sel]  # a copy: the noise below leaves xt as it is
+                if noise_col is not None and noise_sd > 0:
+                    xb[:, noise_col] += (torch.randn(len(sel), generator=gen) * noise_sd).to(device)
+                losses[len(sizes)] = steps.step(xb, yt[sel], lr * lr_factor(step))
+                sizes.append(len(sel))
+                step += 1
+            total = 0.0
+            for value, size in zip(losses.tolist(), sizes):
+                total += value * size
+            history.append(total / len(xt))
+            if val_history:
+                val_history.append(val_loss())
+                if fit.keep == "best" and val_history[-1] < min(val_history[:-1]):
+                    best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
+            if meter is not None:
+                meter.epoch(label, epoch + 1, epochs, history[-1], val_history[-1] if val_history else None, steps_per_epoch,
+                            time.monotonic() - epoch_start_s)
+    finally:
+        steps.close()
     kept = epochs
     if best_state is not None:
         # argmin: the first of equal losses, the start's on a tie
@@ -231,6 +319,144 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, progress: P
                           "validation_loss_best_trained": min(val_history[1:]) if len(val_history) > 1 else None, "best_epoch": int(np.argmin(val_history)),
                           "kept_epoch": kept, "epochs": epochs, "keep": fit.keep})
     return history
+
+
+class _AutogradSteps:
+    """Optimiser steps of any network: autograd's gradients, torch's Adamax, the learning rate set
+    each step; the loss adds ``anchor`` x the mean squared distance of the weights from the
+    starting ones (L2-SP)."""
+
+    def __init__(self, net, trained: list, anchor: float, lr: float, lr_factor: Callable[[int], float]) -> None:
+        import torch
+
+        self.net, self.anchor = net, anchor
+        self.opt = torch.optim.Adamax(trained, lr=lr)
+        self.schedule = torch.optim.lr_scheduler.LambdaLR(self.opt, lr_factor)
+        self.start = [p.detach().clone() for p in net.parameters()] if anchor > 0 else []
+        self.n_params = sum(p.numel() for p in self.start)
+        self.loss_fn = torch.nn.L1Loss()
+
+    def step(self, xb, yb, lr: float):
+        """One step on the batch (the learning rate is the schedule's, ``lr`` says the same); returns its L1 loss."""
+        self.opt.zero_grad()
+        loss = self.loss_fn(self.net(xb), yb)
+        objective = loss
+        if self.start:
+            objective = loss + self.anchor * sum(((p - p0) ** 2).sum() for p, p0 in zip(self.net.parameters(), self.start)) / self.n_params
+        objective.backward()
+        self.opt.step()
+        self.schedule.step()
+        return loss.detach()
+
+    def close(self) -> None:
+        pass
+
+
+class _FeedForwardSteps:
+    """Optimiser steps of :func:`~ionav_viz.nav.idnn.build_net`'s feed-forward networks, their
+    gradients written out: the same operations as autograd's backward pass through the
+    network (linear, ReLU, dropout, linear, ReLU, dropout, linear, plus the skip term), the L1 loss
+    and the L2-SP pull (``anchor``), and the same Adamax update as ``torch.optim.Adamax``, on one
+    flat vector of the weights (the network's parameters are views into it while it trains).
+    Dropout draws its masks from torch's global generator, as ``nn.Dropout`` does, in the same order."""
+
+    BETA1, BETA2, EPS = 0.9, 0.999, 1e-8
+
+    @staticmethod
+    def fits(net) -> bool:
+        return hasattr(net, "trunk_input") and hasattr(net, "body")
+
+    def __init__(self, net, trained: list, anchor: float) -> None:
+        import torch
+
+        self.net, self.anchor = net, anchor
+        params = list(net.parameters())
+        self.params = params
+        self.flat = torch.cat([p.detach().reshape(-1) for p in params])
+        self.grad = torch.zeros_like(self.flat)
+        views, grads, offset = [], [], 0
+        for p in params:
+            views.append(self.flat[offset : offset + p.numel()].view_as(p))
+            grads.append(self.grad[offset : offset + p.numel()].view_as(p))
+            offset += p.numel()
+        for p, v in zip(params, views):
+            p.data = v  # the network reads the weights being trained (validation, a kept epoch's copy)
+        self.w1, self.b1, self.w2, self.b2, self.w3, self.b3 = views
+        self.gw1, self.gb1, self.gw2, self.gb2, self.gw3, self.gb3 = grads
+        # the trained weights are a prefix of the flat vector: every layer, or the first layer's two tensors
+        ids = {id(p) for p in trained}
+        n_trained = 0
+        for p in params:
+            if id(p) not in ids:
+                break
+            n_trained += p.numel()
+        if sum(p.numel() for p in trained) != n_trained:
+            raise ValueError("the trained parameters must lead the network's")
+        self.n_trained = n_trained
+        self.start = self.flat.clone() if anchor > 0 else None
+        if anchor > 0:  # as autograd scales the pull: (1 / n_params) * anchor, in float32
+            self.pull = (torch.ones((), device=self.flat.device) / self.flat.numel()) * anchor
+        self.exp_avg = torch.zeros(n_trained, device=self.flat.device)
+        self.exp_inf = torch.zeros(n_trained, device=self.flat.device)
+        self.n_steps = 0
+        self.p = float(net.dropout)
+
+    def _mask(self, like):
+        import torch
+
+        if self.p <= 0:
+            return None
+        return torch.empty_like(like).bernoulli_(1 - self.p).div_(1 - self.p)
+
+    def step(self, xb, yb, lr: float):
+        import torch
+
+        net = self.net
+        skip = net.skip_term(xb)
+        x = net.trunk_input(xb)
+        z1 = torch.addmm(self.b1, x, self.w1.t())
+        a1 = torch.relu(z1)
+        m1 = self._mask(a1)
+        d1 = a1 * m1 if m1 is not None else a1
+        z2 = torch.addmm(self.b2, d1, self.w2.t())
+        a2 = torch.relu(z2)
+        m2 = self._mask(a2)
+        d2 = a2 * m2 if m2 is not None else a2
+        out = skip + torch.addmm(self.b3, d2, self.w3.t()).squeeze(-1)
+        diff = out - yb
+        loss = diff.abs().mean()
+        # backward: mean, abs, the last layer, dropout, ReLU, ... as autograd's formulas
+        g = (torch.full_like(diff, 1.0) / diff.numel() * diff.sgn()).unsqueeze(-1)
+        torch.mm(g.t(), d2, out=self.gw3)
+        torch.sum(g, 0, out=self.gb3)
+        g = g.mm(self.w3)
+        if m2 is not None:
+            g = g * m2
+        g = torch.ops.aten.threshold_backward(g, a2, 0)
+        torch.mm(g.t(), d1, out=self.gw2)
+        torch.sum(g, 0, out=self.gb2)
+        g = g.mm(self.w2)
+        if m1 is not None:
+            g = g * m1
+        g = torch.ops.aten.threshold_backward(g, a1, 0)
+        torch.mm(g.t(), x, out=self.gw1)
+        torch.sum(g, 0, out=self.gb1)
+        n = self.n_trained
+        grad, param = self.grad[:n], self.flat[:n]
+        if self.start is not None:
+            grad.add_(self.pull * (2.0 * (param - self.start[:n])))
+        # Adamax, as torch.optim.Adamax's single-tensor update
+        self.n_steps += 1
+        self.exp_avg.lerp_(grad, 1 - self.BETA1)
+        torch.maximum(self.exp_inf.mul_(self.BETA2), grad.abs().add_(self.EPS), out=self.exp_inf)
+        bias_correction = 1 - self.BETA1 ** float(np.float32(self.n_steps))
+        param.addcdiv_(self.exp_avg, self.exp_inf, value=-(lr / bias_correction))
+        return loss.detach()
+
+    def close(self) -> None:
+        """Give each parameter its own storage again (as a network's are when saved)."""
+        for p in self.params:
+            p.data = p.data.clone()
 
 
 def in_first_layer(name: str) -> bool:
@@ -252,15 +478,37 @@ def train_models(
     description: str = "",
     parent: IdnnModel | None = None,
     device: str = "cpu",
+    on_epoch: Callable[[EpochStatus], None] | None = None,
 ) -> IdnnModel:
     """Train both networks on ``drives`` with ``config``; returns the model with its metadata.
 
     ``parent``: fine-tune that model: its weights are the start, its input normalisation and
     architecture are kept (``config`` gives the learning rates, epochs and schedule: see
     :func:`fine_tune_config`). ``device``: where torch trains (``"cuda"`` when it sees a GPU;
-    deterministic for a seed on the CPU only)."""
-    with _torch_scratch(), _seeded_deterministic_torch(config.seed):
-        return _train(drives, config, progress, description, parent, device)
+    deterministic for a seed on the CPU only). ``progress(label, epoch, epochs)`` and
+    ``on_epoch(status)`` (:class:`EpochStatus`: losses, steps done and planned, time) are called
+    after every epoch of every fit.
+
+    On the CPU torch works with one thread within the call (restored after): these networks are
+    small, and a second thread only waits on the first (on a busy 2-core machine a step took 16 x
+    as long with two); the weights are the same either way."""
+    meter = TrainingMeter(progress, on_epoch) if progress is not None or on_epoch is not None else None
+    with _torch_scratch(), _seeded_deterministic_torch(config.seed, device == "cpu"), _torch_threads(1 if device == "cpu" else None):
+        return _train(drives, config, meter, description, parent, device)
+
+
+@contextlib.contextmanager
+def _torch_threads(n: int | None) -> Iterator[None]:
+    """torch's intra-op threads set to ``n`` within the block (None: left as they are), restored after."""
+    import torch
+
+    before = torch.get_num_threads()
+    if n is not None:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 #: Fine-tuning from a trained model (:func:`fine_tune_config`): the parent's learning rates divided by
@@ -435,19 +683,23 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
 
 
 @contextlib.contextmanager
-def _seeded_deterministic_torch(seed: int) -> Iterator[None]:
-    """torch's global random generator seeded with ``seed`` and its deterministic algorithms on,
-    within the block only: the caller's generator state and determinism setting are restored after."""
+def _seeded_deterministic_torch(seed: int, deterministic: bool = True) -> Iterator[None]:
+    """torch's global random generator seeded with ``seed`` and (``deterministic``: on the CPU) its
+    deterministic algorithms on, within the block only: the caller's generator state and determinism
+    setting are restored after. On a GPU they stay as they were: cuBLAS refuses to run under them
+    unless the process set ``CUBLAS_WORKSPACE_CONFIG`` before it started."""
     import torch
 
-    enabled, warn_only = torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled()
+    # the debug mode is the same switch as use_deterministic_algorithms, without its import of torch's compiler (~2 s)
+    mode = torch.get_deterministic_debug_mode()
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
-        torch.use_deterministic_algorithms(True)
+        if deterministic:
+            torch.set_deterministic_debug_mode("error")
         try:
             yield
         finally:
-            torch.use_deterministic_algorithms(enabled, warn_only=warn_only)
+            torch.set_deterministic_debug_mode(mode)
 
 
 @contextlib.contextmanager
@@ -462,22 +714,32 @@ def _torch_scratch() -> Iterator[None]:
             tempfile.tempdir = before
 
 
-def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress: Progress | None, description: str,
-           parent: IdnnModel | None = None, device: str = "cpu", hold_out: bool | tuple[float, float] = True, uncertainty: bool = True) -> IdnnModel:
+def fit_steps(config: ModelConfig, n_examples: int) -> int:
+    """Optimiser steps of training both networks on ``n_examples`` examples with ``config``."""
+    per_epoch = -(-n_examples // config.batch_size)
+    return (config.epochs_disp + config.epochs_yaw) * per_epoch
+
+
+def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None, description: str,
+           parent: IdnnModel | None = None, device: str = "cpu", hold_out: bool | tuple[float, float] = True, uncertainty: bool = True,
+           data: TrainingSet | None = None, planned: bool = False) -> IdnnModel:
     """Train (or fine-tune from ``parent``) both networks; ``hold_out=False``: on every window,
     ``(lo, hi)``: on every window outside that block of each drive (:meth:`TrainingSet.block_split`),
-    either with no validation data (``config.keep`` must be ``"last"``); ``uncertainty=False``: fit none."""
+    either with no validation data (``config.keep`` must be ``"last"``); ``uncertainty=False``: fit none.
+    ``data``: the drives' :func:`training_examples` when the caller has them already; ``planned``:
+    the ``meter`` was told of this call's steps already."""
     import torch
 
     config.validate()
     if parent is not None and hold_out is True and config.validation_folds > 0:
-        return _fine_tune_cross_validated(drives, config, progress, description, parent, device)
+        return _fine_tune_cross_validated(drives, config, meter, description, parent, device)
     inputs = input_record([d for d, _ in drives])  # one IMU kind and rate
     if parent is not None:
         _check_fits_parent(config, parent)
         for drive, _ in drives:
             check_inputs(parent.metadata, drive, f"the parent model {parent.directory}")
-    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
+    if data is None:
+        data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
     if hold_out is not True:
         train = data.subset(data.block_split(*hold_out)[0]) if hold_out else data
         val = data.subset(np.zeros(len(data), dtype=bool))
@@ -520,14 +782,16 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
         score = outage_validation(drives, config, config.validation_tail, config.validation_outage_s)
         if score is not None:
             disp_val = lambda: score(IdnnModel(config, norm, disp_net, yaw_net))  # noqa: E731
-    disp_loss = fit_network(disp_net, displacement_inputs(norm, train), norm.disp.scale(train.disp_m), disp_fit, progress, "displacement",
+    if meter is not None and not planned:
+        meter.plan(fit_steps(config, len(train)))
+    disp_loss = fit_network(disp_net, displacement_inputs(norm, train), norm.disp.scale(train.disp_m), disp_fit, meter, "displacement",
                             disp_val, selection["displacement"])
     if callable(disp_val):
         selection["displacement"]["validation"] = (f"displacement CRSE (m, mean) of {config.validation_outage_s} s outages starting every "
                                                    "0.1 s in the tail, the network's own displacement fed back")
     yaw_fit = FitSettings(config.lr_yaw, config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, config.lr_decay_tail,
                           config.lr_schedule, device, config.keep, config.anchor, layers)
-    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), yaw_fit, progress,
+    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), yaw_fit, meter,
                            "orientation rate", (norm.gyro.scale(val.gyro_radps), norm.yaw.scale(val.yaw_rate_radps)) if config.keep != "last" else None,
                            selection["yaw_rate"])
 
@@ -569,8 +833,8 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress
 CROSS_VALIDATION_WARM_UP_S = 30.0
 
 
-def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress: Progress | None, description: str,
-                               parent: IdnnModel, device: str) -> IdnnModel:
+def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None,
+                               description: str, parent: IdnnModel, device: str) -> IdnnModel:
     """Fine-tune ``parent`` on every window of ``drives``, keeping each network's fine-tuned weights
     only when fine-tuning beats the parent on data it did not see (``config.validation_folds``).
 
@@ -608,12 +872,14 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     tried: dict[str, list[dict[str, Any]]] = {name: [] for name in nets}
     model: IdnnModel | None = None
     stages = config.tune_layers.split(",")
+    # the same windows and validation outages for every try (each try's are the same draws of the same seed)
+    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
+    cases: dict[tuple[float, float], list[tuple]] = {}
     for layers in stages:
         torch.manual_seed(config.seed)  # each try as if it were the only one
         stage = dataclasses.replace(config, tune_layers=layers)
-        stage_progress = progress if progress is None or len(stages) == 1 else (
-            lambda label, done, total, what=layers: progress(f"{label} ({what} layers)", done, total))
-        final, folds, scores, n_validation = _validated_fine_tune(drives, stage, stage_progress, description, parent, device, where)
+        stage_meter = meter if meter is None or len(stages) == 1 else meter.within(f" ({layers} layers)")
+        final, folds, scores, n_validation = _validated_fine_tune(drives, stage, stage_meter, description, parent, device, where, data, cases)
         selection["folds"] += [{**f, "layers": layers} if len(stages) > 1 else f for f in folds]
         if model is None:
             model = final
@@ -650,28 +916,34 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     return model
 
 
-def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, progress: Progress | None, description: str,
-                         parent: IdnnModel, device: str, where: str) -> tuple[IdnnModel, list[dict[str, Any]], dict[str, dict[str, float]], dict[str, int]]:
+def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None,
+                         description: str, parent: IdnnModel, device: str, where: str, data: TrainingSet,
+                         cases_of: dict[tuple[float, float], list[tuple]]) -> tuple[IdnnModel, list[dict[str, Any]], dict[str, dict[str, float]], dict[str, int]]:
     """One try of :func:`_fine_tune_cross_validated`: the parent fine-tuned (the layers
     ``config.tune_layers`` says) on every window, the fold records, and each network's pooled scores
-    (``"parent"``, ``"fine-tuned"``) and number of validation values."""
+    (``"parent"``, ``"fine-tuned"``) and number of validation values. ``data``: the drives'
+    :func:`training_examples`; ``cases_of``: the validation outages of each block left out, kept
+    across tries (filled here)."""
     import dataclasses
 
     k = config.validation_folds
     inner = dataclasses.replace(config, validation_folds=0, validation_tail=0.0, keep="last")
     norm = parent.norm
-    data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
     pooled: dict[str, dict[str, list[np.ndarray]]] = {name: {"parent": [], "fine-tuned": []} for name in ("displacement", "yaw_rate")}
     one_window: dict[str, list[np.ndarray]] = {"disp_m": [], "yaw_rate_radps": []}
     folds = []
     blocks = [(fold / k, (fold + 1) / k) for fold in range(k)] if k > 1 else [(1.0 - config.validation_tail, 1.0)]
-    for fold, block in enumerate(blocks):
-        cases = outage_cases(drives, config, config.validation_outage_s, warm_up_s=CROSS_VALIDATION_WARM_UP_S, block=block)
+    for block in blocks:
+        if block not in cases_of:
+            cases_of[block] = outage_cases(drives, config, config.validation_outage_s, warm_up_s=CROSS_VALIDATION_WARM_UP_S, block=block)
+    used = [(fold, block) for fold, block in enumerate(blocks) if cases_of[block] or data.block_split(*block)[1].any()]
+    if meter is not None:  # every fit of this try, before the first: the time left is the try's
+        meter.plan(sum(fit_steps(inner, int(data.block_split(*block)[0].sum())) for _, block in used) + fit_steps(inner, len(data)))
+    for fold, block in used:
+        cases = cases_of[block]
         ex = data.subset(data.block_split(*block)[1])
-        if not cases and not len(ex):
-            continue
-        fold_progress = None if progress is None else (lambda label, done, total, f=fold: progress(f"{label} (block {f + 1}/{len(blocks)} left out)", done, total))
-        model = _train(drives, inner, fold_progress, description, parent, device, hold_out=block, uncertainty=False)
+        fold_meter = None if meter is None else meter.within(f" (block {fold + 1}/{len(blocks)} left out)")
+        model = _train(drives, inner, fold_meter, description, parent, device, hold_out=block, uncertainty=False, data=data, planned=True)
         record: dict[str, Any] = {"left_out": [round(block[0], 4), round(block[1], 4)], "n_outages": sum(len(c[1]) for c in cases),
                                   "n_windows": len(ex)}
         yaw_radps = {who: m.predict_yaw_rate(ex.gyro_radps) for who, m in (("parent", parent), ("fine-tuned", model))}
@@ -685,8 +957,8 @@ def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelCo
         one_window["disp_m"].append(np.abs(norm.disp.unscale(model._run(model.disp_net, displacement_inputs(norm, ex))) - ex.disp_m))
         one_window["yaw_rate_radps"].append(np.abs(yaw_radps["fine-tuned"] - ex.yaw_rate_radps))
         folds.append(record)
-    final_progress = None if progress is None else (lambda label, done, total: progress(f"{label} (every window)", done, total))
-    model = _train(drives, inner, final_progress, description, parent, device, hold_out=False, uncertainty=False)
+    final_meter = None if meter is None else meter.within(" (every window)")
+    model = _train(drives, inner, final_meter, description, parent, device, hold_out=False, uncertainty=False, data=data, planned=True)
     held = {key: np.concatenate(v) if v else np.zeros(0) for key, v in one_window.items()}
     model.metadata["validation"] = {
         "disp_mae_m": float(np.mean(held["disp_m"])) if len(held["disp_m"]) else None,
@@ -848,9 +1120,16 @@ class OutageRuns:
     course0_deg: np.ndarray
     speed0_mps: np.ndarray
     error_en_m: np.ndarray
+    _tracks: TrackCovariance | None = field(default=None, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.disp_m)
+
+    def tracks(self) -> TrackCovariance:
+        """The runs' :class:`~ionav_viz.nav.track.TrackCovariance` (worked out once)."""
+        if self._tracks is None:
+            self._tracks = TrackCovariance(self.course0_deg, self.disp_m, self.yaw_rate_radps)
+        return self._tracks
 
 
 def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_windows: int = UNCERTAINTY_OUTAGE_WINDOWS,
@@ -892,7 +1171,7 @@ NLL_MIN_DET_M4 = 1e-300
 def uncertainty_nll(unc: Uncertainty, runs: OutageRuns) -> float:
     """Mean Gaussian negative log-likelihood (per boundary, constant dropped) of the runs' 2D position
     errors under ``unc``'s covariance."""
-    cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps)[:, 1:]
+    cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps, runs.tracks())[:, 1:]
     nees = nees_en(runs.error_en_m, cov, NLL_MIN_DET_M4)
     return float(np.mean(0.5 * (nees + np.log(determinant_en(cov, NLL_MIN_DET_M4)))))
 
