@@ -211,21 +211,24 @@ def _run(args: list[str]) -> object:
     """Run the command line ``args``: experiment files read in (``run FILE``, ``--config FILE``), or
     with ``--print-config`` the effective configuration printed instead; the configuration is
     embedded in every report and recording the command writes (:mod:`ionav_viz.core.run_config`)."""
+    import typer.main
+
     from ..core import run_config
     from . import config
 
+    group = typer.main.get_command(app)
     config.forget()
     if any(word in (config.CONFIG_OPTION, config.PRINT_CONFIG_OPTION) or word.startswith(config.CONFIG_OPTION + "=") for word in args) \
             or "run" in args:
-        args = config.expand(args)
+        args = config.expand(args, group)
         if config.PRINT_CONFIG_OPTION in args and "--help" not in args:
-            config.print_config(args)
+            config.print_config(args, group)
             return 0
     if runs_worker_processes(args):
         from ..core.processes import worker_context
 
         worker_context()  # the workers' imports run on another core while this process imports its own
-    with run_config.running(config.effective_config(args, carried=True)):
+    with run_config.running(config.effective_config(args, group, carried=True)):
         return app(args=args, standalone_mode=False)
 
 

@@ -125,13 +125,10 @@ def _key_lines(text: str, table: dict[str, Any]) -> dict[str, int]:
 # --- a command's options, as click sees them -----------------------------------------------------------
 
 
-def command_of(name: str) -> Any:
-    """The click command of ``ionav-viz NAME``; InputError naming the commands when there is none."""
-    import typer.main
-
-    from .app import app
-
-    commands = getattr(typer.main.get_command(app), "commands", {})
+def command_of(group: Any, name: str) -> Any:
+    """The click command ``NAME`` of ``group`` (``ionav-viz``'s, as click sees it); InputError naming
+    the commands when there is none."""
+    commands = getattr(group, "commands", {})
     if name not in commands or name == "run":
         choices = ", ".join(sorted(c for c in commands if c != "run"))
         raise InputError(f"unknown command {name!r}", f"choose one of {choices}", param="config")
@@ -255,7 +252,7 @@ def split_words(command: Any, words: list[str]) -> tuple[list[str], list[str]]:
     return opts, args
 
 
-def expand(argv: list[str]) -> list[str]:
+def expand(argv: list[str], group: Any) -> list[str]:
     """``argv`` with experiment files read in: ``run FILE [WORDS]`` becomes ``COMMAND <file's
     options> [WORDS]``, and ``COMMAND ... --config FILE ...`` puts the file's options before the
     command line's (so those win) and its arguments where the command line gives none. Other
@@ -291,7 +288,7 @@ def expand(argv: list[str]) -> list[str]:
         config = read_config(path)
     if config is None:
         return argv
-    command = command_of(name)
+    command = command_of(group, name)
     words, arguments = config_words(config, command)
     opts, args = split_words(command, before + after)
     _CONFIG_IN_USE.append(config)
@@ -322,7 +319,7 @@ def origin_of(option: str | None) -> str | None:
 # --- the effective configuration -------------------------------------------------------------------------
 
 
-def effective_config(argv: list[str], *, carried: bool = False) -> dict[str, Any] | None:
+def effective_config(argv: list[str], group: Any, *, carried: bool = False) -> dict[str, Any] | None:
     """The configuration ``argv`` (a command line, experiment files read in) runs with: ``command``,
     its arguments under the argument's name, and each option given (at a value other than its
     default), by its long name without ``--``; ``carried``: the part a report carries (without
@@ -333,7 +330,7 @@ def effective_config(argv: list[str], *, carried: bool = False) -> dict[str, Any
     if at is None or argv[at] in ("run", "help"):
         return None
     try:
-        command = command_of(argv[at])
+        command = command_of(group, argv[at])
     except InputError:
         return None
     words = [w for w in argv[at + 1:] if w != PRINT_CONFIG_OPTION]
@@ -388,9 +385,9 @@ def to_toml(config: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def print_config(argv: list[str]) -> None:
-    """Write the effective configuration of ``argv`` to standard output (``--print-config``)."""
-    config = effective_config(argv)
+def print_config(argv: list[str], group: Any) -> None:
+    """Write the effective configuration of ``argv`` (commands of ``group``) to standard output (``--print-config``)."""
+    config = effective_config(argv, group)
     if config is None:
         raise InputError(f"{PRINT_CONFIG_OPTION} needs a command", f"e.g. ionav-viz evaluate V-Vw8 --outage 30s {PRINT_CONFIG_OPTION}",
                          param="config")

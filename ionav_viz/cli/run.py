@@ -20,9 +20,12 @@ def run(
     Every command also takes --config FILE (the file's options, the command line's win) and
     --print-config (print the effective configuration and exit). See 'Experiment files' in the README.
     """
+    import typer.main
+
     from ..core import run_config
     from . import config
 
-    words = config.expand(["run", str(file), *ctx.args])  # reached when main() did not read it first (the API's app())
-    with run_config.running(config.effective_config(words, carried=True)):
+    group = typer.main.get_command(app)
+    words = config.expand(["run", str(file), *ctx.args], group)  # reached when main() did not read it first (the API's app())
+    with run_config.running(config.effective_config(words, group, carried=True)):
         app(args=words, standalone_mode=False)
