@@ -114,7 +114,7 @@ def test_a_terminal_gets_a_bar_with_the_epoch_loss_and_time_left():
     with train_cli.training_progress(False, stream) as update:
         update(EpochStatus("displacement (every window)", 7, 100, 0.0123, None, 70, 1000, 3.0, 40.0))
     shown = stream.getvalue()
-    assert "training displacement (every window)" in shown and "epoch 7/100" in shown and "loss 0.0123" in shown
+    assert "displacement (every window)" in shown and "epoch 7/100" in shown and "loss 0.0123" in shown
     assert "about 40 s left" in shown
     with train_cli.training_progress(True, stream) as update:
         assert update is None

@@ -488,6 +488,9 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, {model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
             lines.append(f"- **Training data**: {model_info['training_data']}")
+        for name, note in (model_info.get("domain") or {}).items():
+            lines.append(f"- **IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
+                         f"(sigma widened x{note['sigma_scale_median']:.2f} median, x{note['sigma_scale_max']:.2f} at most)")
     else:
         lines.append("- **IDNN model**: none")
     for est in result.estimators:

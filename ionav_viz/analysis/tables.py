@@ -150,7 +150,7 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
         lines += [bridged_line(rep)]
     # the same lines as the text report, each a paragraph of its own
     said = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    said += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep)
+    said += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
     extra = [line for text in said for line in ("", text)][1:] if said else []
     if rep.get("drift"):
         header, rows = drift_rows(rep)
@@ -175,7 +175,7 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
                 bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep)
+    out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
     if rep.get("drift"):
         header, rows = drift_rows(rep)
         out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
@@ -218,6 +218,18 @@ def arbiter_lines(rep: dict[str, Any]) -> list[str]:
     if len(rep.get("drives", [])) != 1:
         return []
     return [f"{e['label']} propagation: {e['info']['arbiter']}" for e in rep["estimators"] if e.get("info", {}).get("arbiter")]
+
+
+def domain_lines(rep: dict[str, Any]) -> list[str]:
+    """A line per drive whose inputs lie outside what the IDNN's model was trained on (the
+    estimator's ``domain`` description, :func:`ionav_viz.nav.domain.outside`): what, and how much its
+    uncertainty was widened."""
+    out = []
+    for e in rep["estimators"]:
+        for drive, note in (e.get("info", {}).get("domain") or {}).items():
+            out.append(f"{e['label']} out of its training domain on {drive}: {'; '.join(note['outside'])} "
+                       f"(sigma widened x{note['sigma_scale_median']:.2f} median, x{note['sigma_scale_max']:.2f} at most)")
+    return out
 
 
 def _folded(line: str, width: int | None) -> str:

@@ -67,13 +67,13 @@ def training_progress(quiet: bool, stream: Any = None) -> Iterator[Optional[Call
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("epoch {task.fields[epoch]}"),
+    columns = (BarColumn(bar_width=16), TextColumn("{task.description}"), TextColumn("epoch {task.fields[epoch]}"),
                TextColumn("loss {task.fields[loss]}"), TimeElapsedColumn(), TextColumn("{task.fields[left]}"))
     with Progress(*columns, console=Console(file=stream), transient=True) as bar:
-        task = bar.add_task("training", total=None, epoch="", loss="", left="")
+        task = bar.add_task("training", total=None, epoch="", loss="", left="")  # the description: the fit being trained
 
         def update(status: Any) -> None:
-            bar.update(task, description=f"training {status.label}", completed=status.steps_done, total=status.steps_planned,
+            bar.update(task, description=status.label, completed=status.steps_done, total=status.steps_planned,
                        epoch=f"{status.epoch}/{status.epochs}", loss=f"{status.loss:.4g}", left=f"about {status.left_s:.0f} s left")
 
         yield update

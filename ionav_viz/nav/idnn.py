@@ -61,6 +61,7 @@ from ..core.fileio import check_regular_input, read_json_bounded, refuse_system_
 from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
 from . import history_check
 from .bias import SensorBias
+from .domain import Domain, outside, sigma_scale
 from .planar_filter import SensorCalibration, calibration
 from .protocol import Estimate, EstimatorInputs
 from .provenance import check_inputs, trained_outages
@@ -440,6 +441,13 @@ class IdnnModel:
     #: optional: the per-window uncertainty (:class:`Uncertainty`); without it no covariance
     uncertainty: Uncertainty | None = None
 
+    @property
+    def domain(self) -> Domain | None:
+        """What its training inputs were (:class:`~ionav_viz.nav.domain.Domain`, the metadata's
+        ``domain``), None for a model without the record (older ones)."""
+        record = self.metadata.get("domain")
+        return Domain.from_dict(record) if record is not None else None
+
     def _run(self, net, x: np.ndarray) -> np.ndarray:
         if isinstance(net, NumpyFeedForward):
             return net(x.astype(np.float32)).astype(np.float64)
@@ -543,6 +551,8 @@ class IdnnEstimator:
         self._directory = Path(model) if isinstance(model, (str, Path)) else None
         #: refuse (instead of warn) when an outage lies in data the model was trained on
         self.strict = strict
+        #: per drive name, how its inputs lay outside the model's domain (for reports)
+        self._domain_notes: dict[str, dict[str, Any]] = {}
 
     def available(self) -> bool:
         """A model was given, or the shipped one exists."""
@@ -570,27 +580,57 @@ class IdnnEstimator:
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
         cov = None
         self._scale_note = ""
+        widen = self._check_domain(model, inputs, label, disp)
         if model.uncertainty is not None:
             cov = model.uncertainty.position_covariance(inputs.course0_deg, inputs.speed0_mps, disp, yaw)
-            cov = cov * self._history_scale(model, inputs, cal)[:, None, None, None]
+            cov = cov * (widen(inputs.accel_mps2, inputs.gyro_radps, disp) ** 2 * self._history_scale(model, inputs, cal, widen))[:, None, None, None]
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
-    def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None) -> np.ndarray:
-        """Per outage, how much to widen the learned covariance: the model's NEES on pseudo-outages
-        over the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
+    def _check_domain(self, model: IdnnModel, inputs: EstimatorInputs, label: str, disp_m: np.ndarray):
+        """Warn when the drive's inputs lie outside what ``model`` was trained on
+        (:func:`~ionav_viz.nav.domain.outside`), naming what, and return the factor on each outage's
+        position sigma, ``widen(accel, gyro, disp)`` (:func:`~ionav_viz.nav.domain.sigma_scale`: 1
+        for a model without a domain record, or inside it)."""
+        domain = model.domain
+        drive, bias = inputs.drive, inputs.bias
+        if domain is None:
+            return lambda accel, gyro, disp: np.ones(len(disp))
+        found = outside(domain, drive, bias)
+
+        def widen(accel: np.ndarray, gyro: np.ndarray, disp: np.ndarray) -> np.ndarray:
+            return sigma_scale(domain, found, np.asarray(accel) - bias.accel_mps2, np.asarray(gyro) - bias.gyro_radps,
+                               np.asarray(disp) / WINDOW_S)
+
+        self._domain_notes.pop(drive.name, None)
+        if found:
+            scale = widen(inputs.accel_mps2, inputs.gyro_radps, disp_m) if len(disp_m) else np.ones(1)
+            what = "; ".join(o.text for o in found)
+            note = {"outside": [o.text for o in found], "sigma_scale_median": float(np.median(scale)), "sigma_scale_max": float(np.max(scale))}
+            self._domain_notes[drive.name] = note
+            widened = f"its uncertainty widened (sigma x{note['sigma_scale_median']:.2f} median, x{note['sigma_scale_max']:.2f} at most)" \
+                if model.uncertainty is not None else "it has no uncertainty to widen"
+            which = "the shipped model" if model.directory and is_shipped_model_dir(Path(model.directory)) else f"the model {model.directory or '(in memory)'}"
+            log.warning("%s: IDNN: inputs outside what %s was trained on: %s; %s", drive.name, which, what, widened)
+        return widen
+
+    def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None, widen) -> np.ndarray:
+        """Per outage, how much to widen the learned covariance (``widen``-ed out of the model's
+        domain): the model's NEES on pseudo-outages over the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
         w, n = inputs.windows, inputs.n_windows
 
         def run(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             idx = starts[:, None] + np.arange(n)[None, :]
             disp, yaw = model.predict(w, starts, n, inputs.bias, cal, inputs.still_grid[idx])
-            return disp, yaw, model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
+            cov = model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
+            return disp, yaw, cov * (widen(w.accel_mps2[idx], w.gyro_radps[idx], disp) ** 2)[:, None, None, None]
 
         scale, self._scale_note = history_check.covariance_scale(w, n, inputs.starts, run)
         return scale
 
     def describe(self) -> dict[str, Any]:
         note = getattr(self, "_scale_note", "")
-        return self.model.describe() | ({"uncertainty_scale": note} if note else {})
+        return self.model.describe() | ({"uncertainty_scale": note} if note else {}) | (
+            {"domain": dict(self._domain_notes)} if self._domain_notes else {})
 
     def _check_leakage(self, model: IdnnModel, inputs: EstimatorInputs, label: str) -> None:
         """Warn (refuse when ``strict``) when outages lie in data ``model`` was trained on, naming them."""
@@ -809,6 +849,11 @@ def load_model(directory: str | Path) -> IdnnModel:
             net.load_state_dict({k: torch.from_numpy(v.copy()) for k, v in state.items()})
             net.eval()
         nets[key] = net
+    if meta.get("domain") is not None:
+        try:
+            Domain.from_dict(meta["domain"])
+        except ValueError as exc:
+            raise InputError(f"{meta_path}: {exc}", "the metadata is damaged; retrain or restore the model", param="model") from None
     return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory), _load_uncertainty(directory, meta))
 
 

@@ -31,6 +31,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import WINDOW_S
 from .bias import SensorBias
+from .domain import Domain, domain_of
 from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, Uncertainty, build_net, count_parameters, sample_history
 from .kalman import CHI2_2_95
 from .planar_filter import calibration
@@ -494,7 +495,19 @@ def train_models(
     as long with two); the weights are the same either way."""
     meter = TrainingMeter(progress, on_epoch) if progress is not None or on_epoch is not None else None
     with _torch_scratch(), _seeded_deterministic_torch(config.seed, device == "cpu"), _torch_threads(1 if device == "cpu" else None):
-        return _train(drives, config, meter, description, parent, device)
+        model = _train(drives, config, meter, description, parent, device)
+    model.metadata["domain"] = training_domain(drives, parent).to_dict()
+    return model
+
+
+def training_domain(drives: list[tuple[Drive, SensorBias]], parent: IdnnModel | None = None) -> Domain:
+    """The domain of a model trained on ``drives`` (:func:`~ionav_viz.nav.domain.domain_of`), joined
+    with a fine-tuned model's ``parent``'s where it has one, said in its note."""
+    parent_domain = parent.domain if parent is not None else None
+    note = f"the inputs of its {len(drives)} training drive(s)"
+    if parent is not None:
+        note += " and its parent's" if parent_domain is not None else " (its parent has no domain record: its inputs are not in it)"
+    return domain_of(drives, parent_domain, note)
 
 
 @contextlib.contextmanager
