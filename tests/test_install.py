@@ -203,7 +203,8 @@ def test_open_without_a_display_says_what_to_do_instead(tmp_path):
 def test_scenario_says_which_drives_it_uses(tmp_path):
     empty_root = tmp_path / "IO-VNBD"
     empty_root.mkdir()
-    proc = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--no-idnn", "--data-root", str(empty_root))
+    proc = run_cli("evaluate", "--scenario", "roundabout", "--overview", "--no-idnn", "--data-root", str(empty_root),
+                   env={"COLUMNS": "1000"})  # wide enough for the overview's one line per scenario (piped: 120 columns, transposed)
     assert proc.returncode == 0, proc.stderr
     assert "roundabout: the bundled synthetic test drives (the paper's runs are not all under" in proc.stderr
     assert proc.stdout.splitlines()[1].startswith("roundabout")
