@@ -324,8 +324,6 @@ def effective_config(argv: list[str], group: Any, *, carried: bool = False) -> d
     its arguments under the argument's name, and each option given (at a value other than its
     default), by its long name without ``--``; ``carried``: the part a report carries (without
     :data:`HOW_IT_RUNS`). None for a command line that runs no command."""
-    import click
-
     at = next((i for i, word in enumerate(argv) if not word.startswith("-")), None)
     if at is None or argv[at] in ("run", "help"):
         return None
@@ -336,7 +334,7 @@ def effective_config(argv: list[str], group: Any, *, carried: bool = False) -> d
     words = [w for w in argv[at + 1:] if w != PRINT_CONFIG_OPTION]
     try:
         ctx = command.make_context(argv[at], words, resilient_parsing=True)
-    except click.ClickException:
+    except Exception:  # a command line click cannot parse even resiliently: no configuration (the command says why)
         return None
     out: dict[str, Any] = {COMMAND_KEY: command.name}
     for param in command.params:
