@@ -602,7 +602,7 @@ class IdnnEstimator:
                                np.asarray(disp) / WINDOW_S)
 
         self._domain_notes.pop(drive.name, None)
-        if found:
+        if any(o.widens for o in found):  # a sensor only quieter than any trained on is no reason to doubt the model
             scale = widen(inputs.accel_mps2, inputs.gyro_radps, disp_m) if len(disp_m) else np.ones(1)
             what = "; ".join(o.text for o in found)
             note = {"outside": [o.text for o in found], "sigma_scale_median": float(np.median(scale)), "sigma_scale_max": float(np.max(scale))}
