@@ -10,6 +10,23 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+#: The variables that size the numerical libraries' thread pools (OpenMP: torch's intra-op threads).
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+def pytest_configure(config) -> None:
+    """Each pytest-xdist worker is one core's worth of tests (``-n 2`` on 2 cores): its torch, and
+    every process it starts, runs one thread, as the fleet's worker processes do. Two workers whose
+    torch ran a thread per core each (four threads on two cores) spent most of their CPU waiting on
+    each other in every small network's step. A variable the user set is kept; ``-n 0`` is untouched."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    for name in THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
+    if "torch" in sys.modules:  # imported before this hook: its pool is already sized
+        sys.modules["torch"].set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
+
+
 #: A guard against a hang, never a limit on a slow run: a run that takes this long is stuck (a loaded
 #: machine makes a test slower, never 30 times slower). Tests time nothing else.
 HANG_S = 1800.0

@@ -111,7 +111,7 @@ def test_replay_and_train_accept_mcap(tmp_path):
     assert run_cli("convert", "roundabout", "-o", str(mcap)).returncode == 0
     proc = run_cli("replay", str(mcap), "-o", str(tmp_path / "r.rrd"), "-q")
     assert proc.returncode == 0, proc.stderr
-    proc = run_cli("train", str(mcap), "-o", str(tmp_path / "m"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")
+    proc = run_cli("train", str(mcap), "--span", "0s:120s", "-o", str(tmp_path / "m"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")
     assert proc.returncode == 0, proc.stderr
     assert json.loads((tmp_path / "m" / "metadata.json").read_text())["training"]["drives"][0]["file"] == "r.mcap"
 

@@ -100,7 +100,7 @@ def test_every_command_takes_a_bag(tmp_path, drive):
     for args in (("replay", str(bag), "-o", str(tmp_path / "r.rrd"), "-q"),
                  ("events", str(folder / "metadata.yaml")),
                  ("convert", str(folder), "-o", str(tmp_path / "c.mcap")),
-                 ("train", str(bag), "-o", str(tmp_path / "m"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")):
+                 ("train", str(bag), "--span", "0s:120s", "-o", str(tmp_path / "m"), "--epochs-disp", "1", "--epochs-yaw", "1", "-q")):
         proc = run_cli(*args)
         assert proc.returncode == 0, (args, proc.stderr)
     assert (tmp_path / "r.rrd").stat().st_size > 100_000
