@@ -7,6 +7,7 @@ import json
 import pytest
 
 from tests.conftest import REPO, run_cli
+from tests.test_report_schema import documented_keys
 
 pytestmark = pytest.mark.xdist_group("cross_validate")
 
@@ -14,11 +15,21 @@ SAMPLES = REPO / "ionav_viz" / "data" / "samples"
 TINY = ("--epochs-disp", "1", "--epochs-yaw", "1", "-q")
 
 
+def documented_keys_of_folds() -> set[str]:
+    """The fold keys docs/report-schema.md names in the ``folds`` row."""
+    import re
+
+    row = next(line for line in (REPO / "docs" / "report-schema.md").read_text().splitlines() if line.startswith("| `folds` |"))
+    return set(re.findall(r"`([a-z_0-9]+)`", row.split("|")[2]))
+
+
 def test_folds_by_time_blocks_of_one_drive_are_disjoint_and_reported():
     proc = run_cli("cross-validate", "roundabout", "--folds", "3", "--span", "0s:150s", *TINY, "--json")
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout)
     assert result["by"] == "time" and result["device"] == "cpu" and len(result["folds"]) == 3
+    assert result["schema"] == "ionav-viz/cross-validation/1" and set(result) <= documented_keys("cross-validation")
+    assert set(result["folds"][0]) <= documented_keys_of_folds()
     tests = [f["test"][0] for f in result["folds"]]
     assert tests == ["V-sim-roundabout 0-50s", "V-sim-roundabout 50-100s", "V-sim-roundabout 100-150s"]
     for fold in result["folds"]:

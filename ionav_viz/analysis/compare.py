@@ -37,6 +37,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.json_out import dumps_json, is_finite_number
 from .metrics import METRICS
+from .schema import schema_of, tagged
 from .tables import aligned
 
 #: What each metric is called in tables and figures, with its unit.
@@ -124,6 +125,8 @@ def run_from_report(rep: Any, label: str, source: str) -> Run:
 
     if not isinstance(rep, dict):
         fail("", f"a JSON {_kind(rep)}, not a report (an object)")
+    if schema_of(rep, source, "runs", RUN_HINT) == "comparison":
+        fail("", "a comparison (compare --json), not a run's report")
     if isinstance(rep.get("folds"), list) and "drive" not in rep:
         fail("", "a cross-validation report (cross-validate --json), with no outages to pair")
     parts: list[tuple[str, str, Any, Any]] = []  # (group, where, report, its outage length)
@@ -492,22 +495,13 @@ class Comparison:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``compare --json`` object.
-
-        Keys: ``runs`` (each: ``label``, ``file``, ``kind``), ``baseline`` (the first run's label),
-        ``n_outages``, ``drives``, ``outage_s`` (the lengths), ``groups`` (where the reports had
-        scenario or manoeuvre groups), ``interval`` (``method``: paired Student t over the outages,
-        ``level`` 0.95), ``metrics`` (those the tables show; the first ranks ``most_changed``),
-        ``estimators`` (name, label, colour where given, ``runs``: the labels of the runs that have
-        it), ``stats`` (estimator -> metric -> run -> :data:`STATISTICS`, every metric),
-        ``changes`` (estimator -> metric -> later run -> :func:`paired_change`, every metric) and
-        ``most_changed`` (estimator -> later run -> :meth:`most_changed`). NaN is kept here;
-        :meth:`to_json` writes it as null."""
+        """The ``compare --json`` object, kind ``comparison`` of docs/report-schema.md (every key there).
+        NaN is kept here; :meth:`to_json` writes it as null."""
         if self._dict is not None:
             return self._dict
         base = self.baseline
         keys = base.outages
-        out: dict[str, Any] = {
+        out: dict[str, Any] = tagged("comparison", {
             "runs": [{"label": r.label, "file": r.source, "kind": r.kind} for r in self.runs],
             "baseline": base.label,
             "n_outages": self.n_outages,
@@ -525,7 +519,7 @@ class Comparison:
             "most_changed": {
                 e: {r: self.most_changed(e, r) for r in per[self.metrics[0]]} for e, per in self.changes.items()
             },
-        }
+        })
         self._dict = out
         return out
 

@@ -27,6 +27,7 @@ from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
 from .report import IMPROVEMENT_METRICS
+from .schema import tagged
 
 #: How many drives and outages the fleet report ranks as the worst.
 FLEET_WORST_COUNT = 5
@@ -386,21 +387,8 @@ class FleetReport:
                  "command": self.command(t.spec)} for _, _, i, t in ranked[:count]]
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``evaluate --workers N --json`` object.
-
-        Keys: ``outage_s``; ``drives_given``, ``drives_evaluated``, ``drives_failed``,
-        ``drives_skipped``; ``n_outages``, ``duration_s`` and ``distance_m`` (over the evaluated
-        drives); ``estimators`` (name, label and, where it has its own, ``color``); ``pooled`` (:meth:`pooled`); ``drives``
-        (:meth:`drive_rows`); ``sequences`` (each outage: ``drive``, ``start_s``,
-        ``gnss_distance_m`` and per estimator its :data:`METRICS`); ``worst_of``, ``worst_drives``
-        and ``worst_outages`` (with the command that replays each); ``failures`` and ``skipped``
-        (``drive`` as given and its one-line ``reason``); ``config`` (the command's configuration, as
-        :class:`~ionav_viz.analysis.report.Report` has it); ``timing`` (``wall_s``, ``engine``, per
-        drive ``elapsed_s``: the only key that changes from run to run); ``consistency``
-        (:meth:`consistency`), ``by_manoeuvre`` (:meth:`by_manoeuvre`; each sequence has its
-        ``manoeuvre``) and ``by_length`` (:meth:`by_length`); ``real_outages`` (:meth:`real_outages`:
-        the drives' own GNSS losses, bridged). NaN is written as null.
-        """
+        """The fleet's ``evaluate --json`` object, kind ``fleet`` of docs/report-schema.md (every key
+        there); ``timing`` is the only key that changes from run to run. NaN is written as null."""
         sequences = []
         for t in self.drives:
             for i in range(t.n_outages):
@@ -411,7 +399,7 @@ class FleetReport:
                 sequences.append(entry)
         timing, colors = dict(self.timing), self.colors
         timing["elapsed_s"] = {t.spec: round(t.elapsed_s, 3) for t in self.drives} | {f.spec: round(f.elapsed_s, 3) for f in self.failures}
-        return {
+        return tagged("fleet", {
             "outage_s": self.outage_s,
             "drives_given": len(self.drives) + len(self.failures) + len(self.skipped),
             "drives_evaluated": len(self.drives), "drives_failed": len(self.failures), "drives_skipped": len(self.skipped),
@@ -432,7 +420,7 @@ class FleetReport:
             "sequences": sequences,
             **({"config": dict(self.config)} if self.config is not None else {}),
             "timing": timing,
-        }
+        })
 
     def to_json(self, indent: int | None = 2) -> str:
         """:meth:`to_dict` as JSON (NaN as null)."""
@@ -447,7 +435,7 @@ class FleetReport:
         return _render(self, markdown=True, width=None)
 
 
-def _real_outage_lines(rep: FleetReport, table: Any, heading: Any, markdown: bool) -> list[str]:
+def _own_losses_section(rep: FleetReport, table: Any, heading: Any, markdown: bool) -> list[str]:
     """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_outages`)."""
     real, labels = rep.real_outages(), rep.labels
     gaps = [b["gap_s"] for b in real["losses"]]
@@ -489,7 +477,7 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
              + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
              + f" over {hours:.2f} h and {km:.1f} km", ""]
     if rep.n_real_outages:
-        lines += _real_outage_lines(rep, table, heading, markdown)
+        lines += _own_losses_section(rep, table, heading, markdown)
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
         lines += [heading("Pooled over the fleet (mean over outages)"), ""]

@@ -25,6 +25,7 @@ from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise
+from .schema import tagged
 from .tables import truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
@@ -172,40 +173,8 @@ class Report:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``evaluate --json`` object.
-
-        Keys: ``drive`` (names joined with '+'), ``drives``, ``outage_s``, ``n_sequences``,
-        ``sequences`` (each: ``drive``, ``start_s``, ``gnss_distance_m``, when the IDNN ran
-        ``in_training`` (whether the outage lies in data its model or the model's parent was trained
-        on: same file by sha256, overlapping time), and per estimator the :data:`METRICS`), ``summary`` (per estimator and metric: ``max``, ``min``, ``mean``, ``std``),
-        ``distance_m`` (max/min/mean of the outages' GNSS distance), ``bias`` (per drive),
-        ``estimators`` (name, label, info), ``improvement_pct`` (per estimator other than the INS
-        DR, on the mean of CRSE, orientation-rate CRSE and final position error), ``improvement_ci95_pct``
-        (each of those as a 95 % interval ``[low, high]``: a paired bootstrap over the outages), ``gnss_truth``
-        (windows in all, windows excluded for bad GNSS truth, by reason, and outages not placed
-        there; per drive under ``drives``) and ``model`` (the IDNN's, when it ran). With the log's own
-        GNSS losses bridged (``--on gnss-outage``), ``gnss_outages``: ``bridged`` (each with its
-        ``drive``, gap, outage and ``final_error_m`` per estimator), ``not_bridged`` and
-        ``final_error_m`` (per estimator: max, min, mean, std). ``worst``: the three outages with
-        the largest final position error of the INS DR (``worst_of``; see :meth:`worst_outages`),
-        and ``worst_tracks``: the worst one's tracks in local metres (:meth:`outage_tracks`).
-        Per drive (``drives``), where known: ``placement`` (where its outages went, with the
-        warm-up), ``imu`` (what the reader found of a log's IMU: rate, sample kind, clock offset,
-        mount; :class:`ionav_viz.core.imu.ImuCharacter`) and ``imu_text`` (the same in a line).
-        ``summary[NAME]["consistency"]``: for an estimator that gives a position covariance, how
-        honest it is: ``anees``, ``anees_band``, ``coverage_95``, ``error_over_sigma`` and a
-        ``verdict`` (:mod:`.consistency`). ``filter_health``: per estimator that reports one (the filters), per measurement kind its
-        updates, gate rejections and mean NIS over the drives (:mod:`.health`; per drive under
-        ``drives``). ``warnings``: what the run warned about (one line each; see :attr:`warnings`). ``truth``:
-        ``"gnss"`` (the receiver's fixes are the truth) or ``"reference"`` (a reference trajectory
-        beside them is; the estimators got only the receiver's). ``drift``: per estimator, the
-        position error against seconds since the outage began (``t_s``, ``mean_m``, ``p10_m``,
-        ``p90_m`` over the outages; :mod:`.drift`); ``final_error_percentiles``: per estimator the
-        ``p50``, ``p90``, ``p95`` and ``max`` of the final position error (m).
-        ``config``: the configuration of the command that made the report, as an experiment file
-        holds it (``command``, its arguments and options; absent from a script's reports).
-        NaN is kept here; :meth:`to_json` writes it as null (:mod:`ionav_viz.core.json_out`).
-        """
+        """The ``evaluate --json`` object, kind ``report`` of docs/report-schema.md (every key there).
+        NaN is kept here; :meth:`to_json` writes it as null (:mod:`ionav_viz.core.json_out`)."""
         if self._dict is not None:
             return self._dict
         results, estimators = self.results, self.estimators
@@ -225,7 +194,7 @@ class Report:
                     entry[est] = {m: float(res.metrics[est][m][i]) for m in METRICS}
                 sequences.append(entry)
         distances = np.concatenate([r.gnss_distance_m for r in results])
-        out: dict[str, Any] = {
+        out: dict[str, Any] = tagged("report", {
             "drive": "+".join(r.drive.name for r in results),
             "drives": [{"name": label, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
                         **({"placement": r.placement} if r.placement else {}),
@@ -242,7 +211,7 @@ class Report:
             ],
             "estimators": results[0].estimator_info(),
             "gnss_truth": _sum_truth([r.truth_exclusions() for r in results]),
-        }
+        })
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
             out["improvement_ci95_pct"] = self.improvement_ci95_pct
@@ -371,8 +340,8 @@ def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", inden
     found, 0 included (a type with none, or none with room for an outage, has no report)."""
     total = combined(reports)
     events = {"events": reports.events} if isinstance(reports, EventReports) else {}
-    return dumps_json({key: {g: r.to_dict() for g, r in reports.items()}, **events, "worst_of": total.worst_of,
-                       "worst": total.worst_outages()}, indent=indent)
+    return dumps_json(tagged(key, {key: {g: r.to_dict() for g, r in reports.items()}, **events, "worst_of": total.worst_of,
+                                   "worst": total.worst_outages()}), indent=indent)
 
 
 def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
@@ -398,11 +367,11 @@ def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
 def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> str:
     """Several outage lengths as one JSON object: ``lengths`` (each length's report, keyed by its
     seconds) and ``by_length`` (:func:`by_length`)."""
-    return dumps_json({"lengths": {f"{k:g}": r.to_dict() for k, r in sorted(reports.items())},
-                       "by_length": by_length(reports)}, indent=indent)
+    return dumps_json(tagged("lengths", {"lengths": {f"{k:g}": r.to_dict() for k, r in sorted(reports.items())},
+                                         "by_length": by_length(reports)}), indent=indent)
 
 
-def _real_outage_lines(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[str]:
+def _bridged_loss_lines(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[str]:
     """Markdown lines on the log's own GNSS losses the estimators bridged (``--on gnss-outage``):
     each estimator's mean final error over them and the ``worst`` worst of them (by the first
     estimator's error, the INS DR where it ran); none without any."""
@@ -435,7 +404,7 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
     else:  # only the log's own losses: no table of synthetic outages to fill with nothing
         lines = [f"**{result.drive.name}**", ""]
     # the worst real one where there is room: the screenshot's summary tab holds one worst line
-    lines += _real_outage_lines(result, label, ests, worst=0 if report.n_outages else 1)
+    lines += _bridged_loss_lines(result, label, ests, worst=0 if report.n_outages else 1)
     worst = report.worst_outages(1)
     if worst:
         w = worst[0]
@@ -462,7 +431,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
            *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
              f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
            ""] if report.n_outages else []),
-        *_real_outage_lines(result, label, ests, worst=3),
+        *_bridged_loss_lines(result, label, ests, worst=3),
     ]
     worst = report.worst_outages()
     if worst:

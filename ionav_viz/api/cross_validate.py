@@ -72,8 +72,12 @@ class CrossValidation:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        return {"by": self.by, "folds": [vars(f) for f in self.folds], "outage_s": self.outage_s, "device": self.device,
-                "training": self.training, "summary": self.summary(), "warnings": list(self.warnings)}
+        """The ``cross-validate --json`` object (docs/report-schema.md)."""
+        from ..analysis.schema import tagged
+
+        return tagged("cross-validation", {"by": self.by, "folds": [vars(f) for f in self.folds], "outage_s": self.outage_s,
+                                           "device": self.device, "training": self.training, "summary": self.summary(),
+                                           "warnings": list(self.warnings)})
 
     def to_json(self, indent: int | None = 2) -> str:
         return json.dumps(self.to_dict(), indent=indent, allow_nan=False)

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.drift import error_cdf
+from ..analysis.schema import schema_of
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder, check_regular_input, parse_json_bounded, read_json_bounded, staging_folder, write_failure
 from ..core.json_out import is_finite_number
@@ -113,6 +114,9 @@ def check_report(rep: Any, path: Path) -> None:
     def fail(field: str, why: str) -> None:
         raise InputError(f"{path}: {field}: {why}", REPORT_HINT, param="result")
 
+    if schema_of(rep, path, "result", REPORT_HINT) == "comparison":
+        raise InputError(f"{path}: a comparison of runs (compare --json), not a report", "draw it with "
+                         "'ionav-viz compare A.json B.json --figure OUT.png'", param="result")
     if is_fleet_report(rep):
         check_fleet_report(rep, path)
         return

@@ -1,0 +1,84 @@
+"""The reports' JSON names its kind and layout version (``schema``), every key it writes is in
+docs/report-schema.md, and the readers refuse a newer version in one line while reading old reports."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+import ionav_viz as iv
+from ionav_viz.analysis.report import lengths_to_json, reports_to_json
+from tests.conftest import REPO, run_cli
+
+DOC = REPO / "docs" / "report-schema.md"
+
+
+def documented_keys(kind: str) -> set[str]:
+    """The top-level keys docs/report-schema.md lists for ``kind``: the backticked names in the
+    first column of the table under the kind's heading (for ``lengths``, ``scenarios`` and
+    ``by_event``: the names in their row of the shared table)."""
+    text = DOC.read_text()
+    if kind in ("lengths", "scenarios", "by_event"):
+        row = re.findall(rf"^\| `{kind}` \| (.*)$", text, re.M)[-1]  # the first table says who writes it
+        return {"schema", *re.findall(r"`([a-z_0-9]+)`", row)}
+    section = re.search(rf"^## `{re.escape(kind)}`.*?$(.*?)(?=^## |\Z)", text, re.M | re.S).group(1)
+    keys = set()
+    for line in section.splitlines():
+        if line.startswith("| `"):
+            keys |= set(re.findall(r"`([a-z_0-9]+)`", line.split("|")[1]))
+    return keys
+
+
+@pytest.fixture(scope="module")
+def report():
+    return iv.evaluate(["roundabout"], 10.0)
+
+
+def test_a_drive_report_names_its_kind_first_and_documents_every_key(report):
+    doc = report.to_dict()
+    assert next(iter(doc)) == "schema" and doc["schema"] == "ionav-viz/report/1"
+    assert set(doc) - documented_keys("report") == set()
+
+
+def test_several_reports_and_a_fleet_name_their_kinds_and_document_every_key(report):
+    lengths = json.loads(lengths_to_json(iv.evaluate_lengths(["roundabout"], [10, 30])))
+    by_event = json.loads(reports_to_json(iv.evaluate_by_event(["roundabout"], 10.0), key="by_event"))
+    fleet = iv.evaluate_fleet(["roundabout", "hard-brake"], 10.0, workers=1).to_dict()
+    for kind, doc in (("lengths", lengths), ("by_event", by_event), ("fleet", fleet)):
+        assert doc["schema"] == f"ionav-viz/{kind}/1"
+        assert set(doc) - documented_keys(kind) == set(), kind
+    assert lengths["lengths"]["10"]["schema"] == "ionav-viz/report/1"  # each part is a report
+
+
+def test_a_comparison_names_its_kind_and_documents_every_key(tmp_path, report):
+    a = tmp_path / "a.json"
+    a.write_text(report.to_json())
+    doc = json.loads(run_cli("compare", str(a), str(a), "--json").stdout)
+    assert doc["schema"] == "ionav-viz/comparison/1"
+    assert set(doc) - documented_keys("comparison") == set()
+
+
+@pytest.mark.parametrize("command", ["figures", "compare"])
+def test_a_newer_version_is_refused_in_one_line_and_an_old_report_read(tmp_path, report, command):
+    doc = report.to_dict()
+    old = {k: v for k, v in doc.items() if k != "schema"}  # as reports were written before the schema key
+    (tmp_path / "new.json").write_text(json.dumps({**doc, "schema": "ionav-viz/report/2"}, default=float))
+    (tmp_path / "old.json").write_text(json.dumps(old, default=float).replace("NaN", "null"))
+    (tmp_path / "a.json").write_text(report.to_json())
+    out = ["-o", str(tmp_path / "figs")] if command == "figures" else [str(tmp_path / "a.json")]
+    newer = run_cli(command, str(tmp_path / "new.json"), *out)
+    assert newer.returncode == 2 and newer.stderr.count("\n") == 1
+    assert "new.json: written by a newer ionav-viz (ionav-viz/report/2; this one reads version 1)" in newer.stderr
+    older = run_cli(command, str(tmp_path / "old.json"), *out)
+    assert older.returncode == 0, older.stderr
+
+
+def test_a_comparison_is_not_taken_for_a_report(tmp_path, report):
+    (tmp_path / "a.json").write_text(report.to_json())
+    comparison = tmp_path / "c.json"
+    comparison.write_text(run_cli("compare", str(tmp_path / "a.json"), str(tmp_path / "a.json"), "--json").stdout)
+    for args in (("figures", str(comparison), "-o", str(tmp_path / "f")), ("compare", str(comparison), str(tmp_path / "a.json"))):
+        proc = run_cli(*args)
+        assert proc.returncode == 2 and "a comparison" in proc.stderr and proc.stderr.count("\n") == 1
