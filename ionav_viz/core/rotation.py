@@ -65,6 +65,25 @@ def dcm_of_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
+def dcm_of_euler_series(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """:func:`dcm_of_euler` of each sample of three equally long arrays (rad): ``(n, 3, 3)``."""
+    return axis_rotations(2, yaw) @ axis_rotations(1, pitch) @ axis_rotations(0, roll)
+
+
+def axis_rotations(axis: int, angle: np.ndarray) -> np.ndarray:
+    """Right-handed rotation matrices ``(n, 3, 3)`` about a frame axis (0 x, 1 y, 2 z) by each
+    ``angle`` (rad): ``Rx``, ``Ry`` and ``Rz`` of :func:`dcm_of_euler`."""
+    c, s = np.cos(angle), np.sin(angle)
+    m = np.zeros((len(angle), 3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    m[:, axis, axis] = 1.0
+    m[:, i, i] = c
+    m[:, j, j] = c
+    m[:, i, j] = -s
+    m[:, j, i] = s
+    return m
+
+
 def euler_of_dcm(matrix: np.ndarray) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in rad of a rotation ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``: the inverse of
     :func:`dcm_of_euler` (pitch within +-90 degrees)."""

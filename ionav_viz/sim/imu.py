@@ -67,6 +67,7 @@ from ..core.drive import IMU_COLUMNS, Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_file
 from ..core.geo import earth_rate_enu_radps, geodetic_of_enu, gravity_enu_mps2, normal_gravity_mps2
+from ..core.rotation import dcm_of_euler_series
 from ..core.units import wrap_360
 from ..sources.imu.mount import rotation_deg
 from ..sources.iovnbd import HEADER
@@ -230,19 +231,6 @@ class Motion3d:
     origin: tuple[float, float, float]
 
 
-def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) about a frame axis (0 x, 1 y, 2 z) by ``angle`` (rad)."""
-    c, s = np.cos(angle), np.sin(angle)
-    m = np.zeros((len(angle), 3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m[:, axis, axis] = 1.0
-    m[:, i, i] = c
-    m[:, j, j] = c
-    m[:, i, j] = -s
-    m[:, j, i] = s
-    return m
-
-
 def _cumtrapz(x: np.ndarray, dt: float) -> np.ndarray:
     return np.concatenate([np.zeros((1, *x.shape[1:])), np.cumsum(0.5 * (x[1:] + x[:-1]) * dt, axis=0)])
 
@@ -255,13 +243,14 @@ def motion_3d(scenario: str, seed: int, duration_s: float, grade_rms: float, cam
     t, v, a = truth.t_s, truth.speed_mps, truth.accel_mps2
     distance = _cumtrapz(v, dt)
     alpha = rng.uniform(-np.pi, np.pi) + _cumtrapz(v * truth.curvature_1pm, dt)
-    pitch = np.arctan(grade_profile(rng, distance, grade_rms))
+    # pitch in the package's sense (core/rotation.py: positive nose-down), so a climb is negative
+    pitch = -np.arctan(grade_profile(rng, distance, grade_rms))
     roll = np.arctan(grade_profile(rng, distance, camber_rms))
     origin = (float(rng.uniform(52.0, 53.0)), float(rng.uniform(-2.2, -0.7)), float(rng.uniform(50.0, 150.0)))
-    C = _rot(2, alpha) @ _rot(1, -pitch) @ _rot(0, roll)
-    # body rates of C = Rz(alpha) Ry(beta) Rx(roll), beta = -pitch (the Euler-angle kinematics)
-    da, db, dr = np.gradient(alpha, dt), np.gradient(-pitch, dt), np.gradient(roll, dt)
-    sb, cb, sr, cr = np.sin(-pitch), np.cos(-pitch), np.sin(roll), np.cos(roll)
+    C = dcm_of_euler_series(roll, pitch, alpha)
+    # body rates of C = Rz(alpha) Ry(pitch) Rx(roll) (the Euler-angle kinematics)
+    da, db, dr = np.gradient(alpha, dt), np.gradient(pitch, dt), np.gradient(roll, dt)
+    sb, cb, sr, cr = np.sin(pitch), np.cos(pitch), np.sin(roll), np.cos(roll)
     w_nb = np.column_stack([dr - sb * da, cr * db + sr * cb * da, -sr * db + cr * cb * da])
     velocity = v[:, None] * C[:, :, 0]
     position = _cumtrapz(velocity, dt)
