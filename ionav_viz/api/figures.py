@@ -5,14 +5,18 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder, check_regular_input, refuse_output_onto_input
 from ..core.timing import stage
 
+if TYPE_CHECKING:
+    from ..analysis.report import Report
+    from .replay import ReplayResult
 
-def figures(result: Any, output: str | Path) -> list[Path]:
+
+def figures(result: ReplayResult | Report | str | os.PathLike[str], output: str | Path) -> list[Path]:
     """Draw the drift curve, the final-error CDF, the per-outage errors (one column and page-wide)
     and the worst outage's tracks of ``result`` (a recording written by :func:`replay`, or ``evaluate --json`` output;
     a fleet's ``evaluate --workers N --json``: its per-drive box plot and pooled CDF instead; several

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
+from ..core.durations import Span
 from ..core.errors import InputError
 from ..core.fileio import read_bytes_bounded
 from ..nav.bias import SensorBias, resolve_bias
@@ -459,7 +460,7 @@ class FleetOutputs:
     renamed: dict[str, str] = field(default_factory=dict)
 
 
-def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = None, span: Any = None, fleet_rrd: str | Path | None = None,
+def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = None, span: Span | None = None, fleet_rrd: str | Path | None = None,
                  inputs: Sequence[str | Path] = ()) -> FleetOutputs:
     """The one place that names a fleet run's outputs, before any work: with ``folder`` (replay),
     one recording per drive there, ``<drive>.rrd`` as :func:`ionav_viz.api.replay.default_stem`

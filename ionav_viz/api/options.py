@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, get_args
+from typing import TYPE_CHECKING, Any, get_args
 
 import numpy as np
 
@@ -21,6 +21,10 @@ from ..nav.protocol import Estimator, applies
 from ..nav.registry import BUILTIN
 from ..nav.registry import resolve as resolve_estimators
 from ..sources.load import LogOptions, ReadOptions, load_drive, with_deprecated_log
+
+if TYPE_CHECKING:
+    from ..nav.outages import Placement
+    from ..nav.plan_file import FromPlan
 
 log = logging.getLogger("ionav_viz")
 
@@ -157,7 +161,7 @@ def check_event_types(types: Sequence[str]) -> None:
 
 
 
-def placement_of(placement: Any, plan: str | Path | None) -> Any:
+def placement_of(placement: Placement | FromPlan | None, plan: str | Path | None) -> Placement | FromPlan:
     """The placement of a call: ``plan`` (a plan file) or ``placement``, default :class:`Tile`."""
     from ..nav.outages import Placement, Tile
     from ..nav.plan_file import FromPlan
@@ -173,7 +177,7 @@ def placement_of(placement: Any, plan: str | Path | None) -> Any:
     return placement or Tile()
 
 
-def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions:
+def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None, placement: Placement | FromPlan) -> RunOptions:
     """``run`` with the external estimates (``{name: trajectory}``, see :mod:`ionav_viz.nav.external`)
     added to its plug-ins; they need the plan of the outaged log they were made on."""
     from ..nav.external import External
@@ -203,8 +207,8 @@ def with_externals(run: RunOptions, external: Any, placement: Any) -> RunOptions
     return replace(run, estimators=estimators, plugins=tuple(run.plugins) + tuple(built))
 
 
-def input_paths(drives: Any, read: ReadOptions | None = None, *, run: RunOptions | None = None, plan: Any = None,
-                external: Any = None) -> list[Path]:
+def input_paths(drives: Sequence[DriveLike] | DriveLike | None, read: ReadOptions | None = None, *, run: RunOptions | None = None,
+                plan: str | Path | Placement | FromPlan | None = None, external: Mapping[str, str | Path] | None = None) -> list[Path]:
     """The files and folders a call reads: its drives (resolved as :func:`load_drive` resolves them),
     a plan file, external trajectories, a bias drive, a model directory and plug-in files; for
     :func:`~ionav_viz.core.fileio.refuse_output_onto_input` before any work. A name that does not
@@ -324,7 +328,7 @@ def each_length(lengths: Sequence[float], one: Callable[[float], Any]) -> list[t
     return done
 
 
-def too_short(drive: Drive, n_windows: int, run: RunOptions, read: Any = None) -> InputError:
+def too_short(drive: Drive, n_windows: int, run: RunOptions, read: ReadOptions | None = None) -> InputError:
     """Why no ``n_windows`` s outage fits in ``drive`` (neither placed nor excluded for bad GNSS):
     its length, the span it was cut to and the warm-up before the first outage, and what to change;
     the option blamed is the warm-up when the outage alone would fit, else the outage length; the
