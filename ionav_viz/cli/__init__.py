@@ -8,8 +8,8 @@ from importlib import import_module
 
 from .app import app, main
 
-for _command in ("simulate", "evaluate", "train", "replay", "screenshot", "figures", "compare", "convert", "outage_log", "datasets", "events",
-                 "cross_validate", "run"):
+for _command in ("simulate", "evaluate", "train", "replay", "screenshot", "figures", "compare", "convert", "outage_log",
+                 "datasets", "events", "cross_validate", "run"):
     import_module(f".{_command}", __name__)
 
 __all__ = ["app", "main"]

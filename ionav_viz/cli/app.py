@@ -26,7 +26,8 @@ app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    help="Replay drives, inject GNSS outages, and compare INS dead reckoning, the IDNN and your own estimators in Rerun.",
+    help="Replay drives, inject GNSS outages, and compare INS dead reckoning, the IDNN and your own "
+         "estimators in Rerun.",
 )
 log = logging.getLogger("ionav_viz")
 
@@ -61,7 +62,8 @@ def _print_version(value: bool) -> None:
 def _root(
     debug: bool = typer.Option(False, "--debug", help="Show full tracebacks on errors."),
     verbose: bool = typer.Option(False, "--verbose", "-v", help="Say more about what is read and assumed."),
-    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True, help="Print the version and exit."),
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
 ) -> None:
     _setup_logging(verbose)
 
@@ -71,16 +73,18 @@ def _root(
 #: depends on its own arguments (``--outage 7s``) with :func:`options_named`.
 OPTION_OF: Mapping[str, str] = MappingProxyType({
     "data_root": "--data-root", "stamps": "--stamps", "model": "--model", "bias_from": "--bias-from",
-    "thresholds": "--threshold", "gnss_limits": "--gnss-limit", "imu_axes": "--imu-axes", "times": "--time", "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign",
-    "estimators": "--estimators", "plugins": "--estimator", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
-    "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o", "base_url": "--base-url",
-    "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs", "outage_s": "--outage", "placement": "--on",
-    "outages": "--outage", "worst_of": "--worst-of", "gnss_velocity_topic": "--gnss-velocity-topic",
-    "vehicle_speed_topic": "--vehicle-speed-topic", "imu_mount": "--imu-mount",
-    "imu_time_offset": "--imu-time-offset", "imu_samples": "--imu-samples", "warm_up": "--warm-up",
-    "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan", "external": "--external", "export": "--export",
-    "imu_topic": "--imu-topic", "gnss_topic": "--gnss-topic", "connect": "--connect",
-    "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict", "device": "--device",
+    "thresholds": "--threshold", "gnss_limits": "--gnss-limit", "imu_axes": "--imu-axes", "times": "--time",
+    "size": "--size", "views": "--view", "yaw_sign": "--yaw-sign", "estimators": "--estimators",
+    "plugins": "--estimator", "arch": "--arch", "n_steps_disp": "--steps", "n_steps_yaw": "--steps-yaw",
+    "feedback_noise_m": "--feedback-noise", "lr_decay_tail": "--lr-decay-tail", "output": "-o",
+    "base_url": "--base-url", "duration_s": "--duration", "seed": "--seed", "inputs": "--inputs",
+    "outage_s": "--outage", "placement": "--on", "outages": "--outage", "worst_of": "--worst-of",
+    "gnss_velocity_topic": "--gnss-velocity-topic", "vehicle_speed_topic": "--vehicle-speed-topic",
+    "imu_mount": "--imu-mount", "imu_time_offset": "--imu-time-offset", "imu_samples": "--imu-samples",
+    "warm_up": "--warm-up", "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan",
+    "external": "--external", "export": "--export", "imu_topic": "--imu-topic", "gnss_topic": "--gnss-topic",
+    "connect": "--connect", "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict",
+    "device": "--device",
 })
 
 
@@ -218,7 +222,8 @@ def _run(args: list[str]) -> object:
 
     group = typer.main.get_command(app)
     config.forget()
-    if any(word in (config.CONFIG_OPTION, config.PRINT_CONFIG_OPTION) or word.startswith(config.CONFIG_OPTION + "=") for word in args) \
+    if any(word in (config.CONFIG_OPTION, config.PRINT_CONFIG_OPTION) or word.startswith(config.CONFIG_OPTION + "=")
+           for word in args) \
             or "run" in args:
         args = config.expand(args, group)
         if config.PRINT_CONFIG_OPTION in args and "--help" not in args:
@@ -263,7 +268,8 @@ def main() -> None:
         # typer's (click's) usage errors: one line too, with the command's --help as the hint
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code") and not debug:
             ctx = getattr(exc, "ctx", None)
-            command = ctx.command_path.replace("python -m ionav_viz.cli", "ionav-viz") if ctx is not None else "ionav-viz"
+            command = (ctx.command_path.replace("python -m ionav_viz.cli", "ionav-viz")
+                       if ctx is not None else "ionav-viz")
             message = one_line(exc.format_message())
             from .config import origin_of
 

@@ -16,36 +16,65 @@ from typing import Any, Optional
 import typer
 
 # --- options shared by several commands -----------------------------------------------------
-DataRoot = typer.Option(None, "--data-root", help="Where IO-VNBD run names are found (default: $IONAV_DATA, else the per-user data directory that fetch fills; 'ionav-viz list' names it).", show_default=False)
-YawSign = typer.Option("auto", "--yaw-sign", help="Sign of the yaw rate: auto (the source's convention, checked against the GNSS heading), cw or ccw positive.")
-ImuAxes = typer.Option(None, "--imu-axes", help="MCAP/ROS bags: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. x=-y,y=x,z=z.", show_default=False)
-TruthTopic = typer.Option(None, "--truth-topic", help="MCAP/ROS bags: a reference trajectory to score against (NavSatFix, or Odometry/PoseStamped with --truth-origin); estimators get only the GNSS topic.",
+DataRoot = typer.Option(None, "--data-root",
+                        help="Where IO-VNBD run names are found (default: $IONAV_DATA, else the per-user data "
+                             "directory that fetch fills; 'ionav-viz list' names it).", show_default=False)
+YawSign = typer.Option("auto", "--yaw-sign",
+                       help="Sign of the yaw rate: auto (the source's convention, checked against the GNSS heading), "
+                            "cw or ccw positive.")
+ImuAxes = typer.Option(None, "--imu-axes",
+                       help="MCAP/ROS bags: map the log's IMU axes to the body frame (x forward, y left, z up), e.g. "
+                            "x=-y,y=x,z=z.", show_default=False)
+TruthTopic = typer.Option(None, "--truth-topic",
+                          help="MCAP/ROS bags: a reference trajectory to score against (NavSatFix, or "
+                               "Odometry/PoseStamped with --truth-origin); estimators get only the GNSS topic.",
                           show_default=False)
-TruthOrigin = typer.Option(None, "--truth-origin", help="Where a local-frame reference lies: LAT,LON[,YAW] (its origin; x axis YAW deg from east) or auto (fitted to the GNSS fixes).",
-                           show_default=False)
-ImuMount = typer.Option(None, "--imu-mount", help="MCAP/ROS bags: the IMU's mount, after --imu-axes: auto (estimated from the log), roll=2,pitch=-7,yaw=5 (degrees) or quat=w,x,y,z.",
+TruthOrigin = typer.Option(None, "--truth-origin",
+                           help="Where a local-frame reference lies: LAT,LON[,YAW] (its origin; x axis YAW deg from "
+                                "east) or auto (fitted to the GNSS fixes).", show_default=False)
+ImuMount = typer.Option(None, "--imu-mount",
+                        help="MCAP/ROS bags: the IMU's mount, after --imu-axes: auto (estimated from the log), "
+                             "roll=2,pitch=-7,yaw=5 (degrees) or quat=w,x,y,z.", show_default=False)
+ImuTopic = typer.Option(None, "--imu-topic",
+                        help="MCAP/ROS bags: the IMU topic (default: the one sensor_msgs/msg/Imu topic).",
                         show_default=False)
-ImuTopic = typer.Option(None, "--imu-topic", help="MCAP/ROS bags: the IMU topic (default: the one sensor_msgs/msg/Imu topic).", show_default=False)
-GnssTopic = typer.Option(None, "--gnss-topic", help="MCAP/ROS bags: the GNSS topic (default: the one NavSatFix or LocationFix topic).", show_default=False)
+GnssTopic = typer.Option(None, "--gnss-topic",
+                         help="MCAP/ROS bags: the GNSS topic (default: the one NavSatFix or LocationFix topic).",
+                         show_default=False)
 GnssVelocityTopic = typer.Option(None, "--gnss-velocity-topic", "--speed-topic",
-                                 help="MCAP/ROS bags: the receiver's velocity (TwistStamped, world frame): GNSS speed and course "
-                                      "(default: the one such topic), or 'none' (from the fixes).",
+                                 help="MCAP/ROS bags: the receiver's velocity (TwistStamped, world frame): GNSS "
+                                      "speed and course (default: the one such topic), or 'none' (from the fixes).",
                                  show_default=False)
-VehicleSpeedTopic = typer.Option(None, "--vehicle-speed-topic", help="MCAP/ROS bags: the vehicle's speed (wheel or CAN odometry: Odometry, or TwistStamped in a body frame; default: the one such topic), or 'none'.",
+VehicleSpeedTopic = typer.Option(None, "--vehicle-speed-topic",
+                                 help="MCAP/ROS bags: the vehicle's speed (wheel or CAN odometry: Odometry, or "
+                                      "TwistStamped in a body frame; default: the one such topic), or 'none'.",
                                  show_default=False)
-ImuTimeOffset = typer.Option(None, "--imu-time-offset", help="MCAP/ROS bags: the IMU's stamps minus the receiver's, seconds (e.g. 0.3) or auto (estimated; refused when unresolved). Default: applied when clearly off.",
+ImuTimeOffset = typer.Option(None, "--imu-time-offset",
+                             help="MCAP/ROS bags: the IMU's stamps minus the receiver's, seconds (e.g. 0.3) or auto "
+                                  "(estimated; refused when unresolved). Default: applied when clearly off.",
                              show_default=False)
-ImuSamples = typer.Option(None, "--imu-samples", help="MCAP/ROS bags: what an IMU sample below 50 Hz is: single (one instantaneous reading, as phones log; the default) or averaged (a mean over its interval).",
+ImuSamples = typer.Option(None, "--imu-samples",
+                          help="MCAP/ROS bags: what an IMU sample below 50 Hz is: single (one instantaneous reading, "
+                               "as phones log; the default) or averaged (a mean over its interval).",
                           show_default=False)
-WarmUp = typer.Option("30s", "--warm-up", help="GNSS time the filters get before the first outage (e.g. 30s, 0s); every estimator gets the same outages.")
-Stamps = typer.Option("header", "--stamps", help="MCAP/ROS bags: time stamps from message headers (header) or the recorder's receive time (log).")
+WarmUp = typer.Option("30s", "--warm-up",
+                      help="GNSS time the filters get before the first outage (e.g. 30s, 0s); every estimator gets the "
+                           "same outages.")
+Stamps = typer.Option("header", "--stamps",
+                      help="MCAP/ROS bags: time stamps from message headers (header) or the recorder's "
+                           "receive time (log).")
 OutageOpt = typer.Option("10s", "--outage", help="Length of each GNSS outage (whole seconds).")
-PlanOpt = typer.Option(None, "--plan", help="Exactly the outages of a plan file (NAME.outages.json, written by outage-log) instead of --every/--at/--random/--on.",
-                       show_default=False)
+PlanOpt = typer.Option(None, "--plan",
+                       help="Exactly the outages of a plan file (NAME.outages.json, written by outage-log) instead of "
+                            "--every/--at/--random/--on.", show_default=False)
 
 
-ExportOpt = typer.Option(None, "--export", help="Also write outages.csv, evo's TUM tracks per outage and GeoJSON/GPX tracks into this folder.", show_default=False)
-ExternalOpt = typer.Option(None, "--external", help="NAME=TRAJECTORY: an estimate made outside ionav-viz on the plan's outaged log (.csv, .tum or LOG:TOPIC), scored like the built-ins (repeatable; needs --plan).",
+ExportOpt = typer.Option(None, "--export",
+                         help="Also write outages.csv, evo's TUM tracks per outage and GeoJSON/GPX tracks into "
+                              "this folder.", show_default=False)
+ExternalOpt = typer.Option(None, "--external",
+                           help="NAME=TRAJECTORY: an estimate made outside ionav-viz on the plan's outaged log (.csv, "
+                                ".tum or LOG:TOPIC), scored like the built-ins (repeatable; needs --plan).",
                            show_default=False)
 
 
@@ -63,10 +92,13 @@ def externals_of(values: Optional[list[str]]) -> dict[str, str]:
 
 
 #: ``--outage`` of the commands that also take ``--plan`` (not given: 10 s, or the plan's length).
-OutageOrPlanOpt = typer.Option(None, "--outage", help="Length of each GNSS outage (whole seconds; default 10s, or the plan's).", show_default=False)
+OutageOrPlanOpt = typer.Option(None, "--outage",
+                               help="Length of each GNSS outage (whole seconds; default 10s, or the plan's).",
+                               show_default=False)
 
 
-def outage_and_placement(outage: Optional[str], plan: Optional[Path], placement: PlacementArgs) -> tuple[Optional[float], Any]:
+def outage_and_placement(outage: Optional[str], plan: Optional[Path],
+                         placement: PlacementArgs) -> tuple[Optional[float], Any]:
     """The outage length and placement of a command with ``--plan``: with a plan, its length unless
     --outage is given (the library checks they agree) and its outages (no other placement)."""
     length = duration_s(outage, "--outage") if outage is not None else None
@@ -79,16 +111,31 @@ def outage_and_placement(outage: Optional[str], plan: Optional[Path], placement:
     return length, FromPlan(plan)
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
 NoIdnnOpt = typer.Option(False, "--no-idnn", help="Without the IDNN (same as leaving idnn out of --estimators).")
-EstimatorsOpt = typer.Option(None, "--estimators", help="Which estimators run, comma-separated: ins, idnn, odo, ekf, gins, installed plug-ins "
-                             "or --external names (default: every built-in that applies).", show_default=False)
-EstimatorOpt = typer.Option(None, "--estimator", help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See 'Your own estimator' in the README.", show_default=False)
-BiasFromOpt = typer.Option(None, "--bias-from", help="Stationary drive for sensor biases (default: the drive's own stationary stretches).", show_default=False)
-Thresholds = typer.Option(None, "--threshold", help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see 'ionav-viz events --help').", show_default=False)
-GnssLimitOpt = typer.Option(None, "--gnss-limit", help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; names, defaults: 'GNSS quality' in docs/method.md).", show_default=False)
-SpanOpt = typer.Option(None, "--span", help="Only this stretch of each drive, START:END on the drive's own time, e.g. 0s:330s or 330s: (outages and training windows stay inside it).",
-                       show_default=False)
-StrictOpt = typer.Option(False, "--strict", help="Refuse, instead of warning, when an outage lies in data the IDNN's model was trained on (same file by sha256, overlapping time).")
-ManifestOpt = typer.Option(None, "--manifest", help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one (mirrors, tests).", show_default=False)
+EstimatorsOpt = typer.Option(None, "--estimators",
+                             help="Which estimators run, comma-separated: ins, idnn, odo, ekf, gins, "
+                                  "installed plug-ins or --external names (default: every built-in that applies).",
+                             show_default=False)
+EstimatorOpt = typer.Option(None, "--estimator",
+                            help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See "
+                                 "'Your own estimator' in the README.", show_default=False)
+BiasFromOpt = typer.Option(None, "--bias-from",
+                           help="Stationary drive for sensor biases (default: the drive's own stationary stretches).",
+                           show_default=False)
+Thresholds = typer.Option(None, "--threshold",
+                          help="Override an event-detector threshold, e.g. hard_brake_g=0.4 (repeatable; see "
+                               "'ionav-viz events --help').", show_default=False)
+GnssLimitOpt = typer.Option(None, "--gnss-limit",
+                            help="Override a GNSS quality threshold, e.g. jump_margin_m=5 (repeatable; names, "
+                                 "defaults: 'GNSS quality' in docs/method.md).", show_default=False)
+SpanOpt = typer.Option(None, "--span",
+                       help="Only this stretch of each drive, START:END on the drive's own time, e.g. 0s:330s or 330s: "
+                            "(outages and training windows stay inside it).", show_default=False)
+StrictOpt = typer.Option(False, "--strict",
+                         help="Refuse, instead of warning, when an outage lies in data the IDNN's model was trained on "
+                              "(same file by sha256, overlapping time).")
+ManifestOpt = typer.Option(None, "--manifest",
+                           help="A manifest TSV (path, sha256, size_bytes) to use instead of the packaged one "
+                                "(mirrors, tests).", show_default=False)
 
 
 #: The options that say how drives are found and read: (parameter, typer option, type).
@@ -97,17 +144,20 @@ _SOURCE_OPTIONS = (
     ("gnss_topic", GnssTopic, Optional[str]), ("gnss_velocity_topic", GnssVelocityTopic, Optional[str]),
     ("vehicle_speed_topic", VehicleSpeedTopic, Optional[str]), ("truth_topic", TruthTopic, Optional[str]),
     ("truth_origin", TruthOrigin, Optional[str]), ("stamps", Stamps, str),
-    ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]), ("imu_time_offset", ImuTimeOffset, Optional[str]),
-    ("imu_samples", ImuSamples, Optional[str]), ("gnss_limit", GnssLimitOpt, Optional[list[str]]), ("span", SpanOpt, Optional[str]),
+    ("imu_axes", ImuAxes, Optional[str]), ("imu_mount", ImuMount, Optional[str]),
+    ("imu_time_offset", ImuTimeOffset, Optional[str]), ("imu_samples", ImuSamples, Optional[str]),
+    ("gnss_limit", GnssLimitOpt, Optional[list[str]]), ("span", SpanOpt, Optional[str]),
 )
 
 
-def _with_options(command: Callable[..., Any], options: tuple, argument: str, build: Callable[[dict[str, Any]], Any]) -> Callable[..., Any]:
+def _with_options(command: Callable[..., Any], options: tuple, argument: str,
+                  build: Callable[[dict[str, Any]], Any]) -> Callable[..., Any]:
     """Add ``options`` ((parameter, typer option, type), ...) to ``command``'s signature, where typer
     reads them, and pass them to it built into one value, as the parameter ``argument``."""
     signature = inspect.signature(command)
     params = [p for name, p in signature.parameters.items() if name != argument]
-    params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind) for name, option, kind in options]
+    params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
+               for name, option, kind in options]
 
     @functools.wraps(command)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -115,7 +165,8 @@ def _with_options(command: Callable[..., Any], options: tuple, argument: str, bu
         return command(*args, **kwargs)
 
     wrapper.__signature__ = signature.replace(parameters=params)  # type: ignore[attr-defined]
-    wrapper.__annotations__ = {k: v for k, v in command.__annotations__.items() if k != argument} | {n: t for n, _, t in options}
+    wrapper.__annotations__ = ({k: v for k, v in command.__annotations__.items() if k != argument}
+                               | {n: t for n, _, t in options})
     return wrapper
 
 
@@ -127,9 +178,11 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
         from ..sources.load import LogOptions, ReadOptions
 
         log = LogOptions(v["imu_topic"], v["gnss_topic"], v["gnss_velocity_topic"], v["stamps"], v["imu_axes"],
-                         vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"], truth_topic=v["truth_topic"],
-                         truth_origin=v["truth_origin"], imu_time_offset=v["imu_time_offset"], imu_samples=v["imu_samples"])
-        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log, GnssLimits().with_overrides(list(v["gnss_limit"] or [])), span=v["span"])
+                         vehicle_speed_topic=v["vehicle_speed_topic"], imu_mount=v["imu_mount"],
+                         truth_topic=v["truth_topic"], truth_origin=v["truth_origin"],
+                         imu_time_offset=v["imu_time_offset"], imu_samples=v["imu_samples"])
+        return ReadOptions(v["data_root_opt"], v["yaw_sign"], log,
+                           GnssLimits().with_overrides(list(v["gnss_limit"] or [])), span=v["span"])
 
     return _with_options(command, _SOURCE_OPTIONS, "read", build)
 
@@ -142,38 +195,43 @@ def source_args(read: Any) -> list[str]:
 
     from ..core.gnss_quality import GnssLimits
 
-    values = {"data_root_opt": read.data_root, "yaw_sign": read.yaw_sign, "span": None if read.span is None else str(read.span),
+    values = {"data_root_opt": read.data_root, "yaw_sign": read.yaw_sign,
+              "span": None if read.span is None else str(read.span),
               "gnss_limit": [f"{f.name}={getattr(read.gnss_limits, f.name):.12g}" for f in fields(GnssLimits)
                              if getattr(read.gnss_limits, f.name) != getattr(GnssLimits(), f.name)] or None}
     args: list[str] = []
     for name, option, _ in _SOURCE_OPTIONS:
         value = values[name] if name in values else getattr(read.log, name)
         if value is not None and value != option.default:
-            args += [x for v in (value if isinstance(value, list) else [value]) for x in (option.param_decls[0], str(v))]
+            args += [x for v in (value if isinstance(value, list) else [value])
+                     for x in (option.param_decls[0], str(v))]
     return args
 
 
 _ESTIMATOR_OPTIONS = (
-    ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]), ("model", ModelOpt, Optional[Path]),
-    ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]), ("thresholds", Thresholds, Optional[list[str]]),
-    ("warm_up", WarmUp, str), ("strict", StrictOpt, bool),
+    ("estimator_names", EstimatorsOpt, Optional[str]), ("plugins", EstimatorOpt, Optional[list[str]]),
+    ("model", ModelOpt, Optional[Path]), ("no_idnn", NoIdnnOpt, bool), ("bias_from", BiasFromOpt, Optional[str]),
+    ("thresholds", Thresholds, Optional[list[str]]), ("warm_up", WarmUp, str), ("strict", StrictOpt, bool),
 )
 
 
 def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from``,
-    ``--threshold`` and ``--strict`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions`` argument."""
+    ``--threshold`` and ``--strict`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions``
+    argument."""
     def build(v: dict[str, Any]) -> Any:
         from dataclasses import replace
 
-        run = run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"], v["warm_up"])
+        run = run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"],
+                          v["warm_up"])
         return replace(run, strict=v["strict"])
 
     return _with_options(command, _ESTIMATOR_OPTIONS, "run", build)
 
 
 def run_options(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool = False, model: Optional[Path] = None,
-                bias_from: Optional[str] = None, threshold_pairs: Optional[list[str]] = None, warm_up: str = "30s") -> Any:
+                bias_from: Optional[str] = None, threshold_pairs: Optional[list[str]] = None,
+                warm_up: str = "30s") -> Any:
     """The :class:`~ionav_viz.api.RunOptions` the estimator options say (the library checks them)."""
     from ..analysis.events import EventThresholds
     from ..api import RunOptions
@@ -182,22 +240,28 @@ def run_options(names: Optional[str], plugins: Optional[list[str]], no_idnn: boo
     if names is not None:
         chosen = [n.strip() for n in names.split(",") if n.strip()]
         if not chosen:
-            raise typer.BadParameter(f"{names!r}: name at least one estimator, e.g. ins,idnn", param_hint="--estimators")
+            raise typer.BadParameter(f"{names!r}: name at least one estimator, e.g. ins,idnn",
+                                     param_hint="--estimators")
         if no_idnn:
             chosen = [n for n in chosen if n != "idnn"]
             if not chosen and not plugins:
                 raise typer.BadParameter("--no-idnn leaves no estimator", param_hint="--estimators")
     without = ("idnn",) if no_idnn and chosen is None else ()
-    return RunOptions(chosen, tuple(plugins or ()), without, model, bias_from, EventThresholds().with_overrides(list(threshold_pairs or [])),
+    return RunOptions(chosen, tuple(plugins or ()), without, model, bias_from,
+                      EventThresholds().with_overrides(list(threshold_pairs or [])),
                       warm_up_s=duration_s(warm_up, "--warm-up", allow_zero=True))
 
 
 #: The options that place outages, shared by every command that places them.
-EveryOpt = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s.", show_default=False)
+EveryOpt = typer.Option(None, "--every", help="Start an outage every PERIOD (GNSS available in between), e.g. 30s.",
+                        show_default=False)
 AtOpt = typer.Option(None, "--at", help="Start outages at these times, e.g. 12s,40s.", show_default=False)
-RandomOpt = typer.Option(None, "--random", help="Draw N non-overlapping outages at random (with --seed).", show_default=False)
+RandomOpt = typer.Option(None, "--random", help="Draw N non-overlapping outages at random (with --seed).",
+                         show_default=False)
 SeedOpt = typer.Option(0, "--seed", help="Seed for --random.")
-OnOpt = typer.Option(None, "--on", help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout; gnss-outage: the log's own losses (see 'ionav-viz events').", show_default=False)
+OnOpt = typer.Option(None, "--on",
+                     help="One outage centred on each detected event of these types, e.g. hard-brake,roundabout; "
+                          "gnss-outage: the log's own losses (see 'ionav-viz events').", show_default=False)
 
 _PLACEMENT_OPTIONS = (
     ("every", EveryOpt, Optional[str]), ("at", AtOpt, Optional[str]), ("random_count", RandomOpt, Optional[int]),
@@ -223,16 +287,18 @@ def with_placement_options(command: Callable[..., Any]) -> Callable[..., Any]:
     return _with_options(command, _PLACEMENT_OPTIONS, "placement", build)
 
 
-def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int, on: Optional[str]) -> PlacementArgs:
+def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int,
+                 on: Optional[str]) -> PlacementArgs:
     """The outage placement the options choose (at most one of them; the library checks its values)."""
     from ..nav.outages import AroundEvents, At, Every, Random, Tile
     from .app import options_named
 
-    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on)) if v is not None]
+    chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on))
+              if v is not None]
     if len(chosen) > 1:
         raise typer.BadParameter(f"choose one outage placement, not {' and '.join(chosen)}")
-    option = {"--every": f"--every {every}", "--at": f"--at {at}", "--random": f"--random {random_count}", "--on": f"--on {on}"}.get(
-        chosen[0] if chosen else "", "--outage")
+    option = {"--every": f"--every {every}", "--at": f"--at {at}", "--random": f"--random {random_count}",
+              "--on": f"--on {on}"}.get(chosen[0] if chosen else "", "--outage")
     with options_named(placement=option):  # the library checks the values; its errors name the option
         if on is not None:
             from ..analysis.events import current_type_names
@@ -260,19 +326,25 @@ def _start_times(text: str) -> list[float]:
 QuietOpt = typer.Option(False, "--quiet", "-q", help="No progress bar and no summary on stderr.")
 
 #: The options of a fleet run (many drives, each evaluated on its own; see api/fleet.py).
-WorkersOpt = typer.Option(None, "--workers", help="Run the drives in this many processes, each drive on its own (default, and at most: every core this "
-                          "process may use); "
-                          "one bad drive is reported, not fatal (exit code 3).", show_default=False)
-ClusterOpt = typer.Option(None, "--cluster", metavar="ADDRESS", help="Run the drives on a Dask cluster: its scheduler (tcp://HOST:8786) or 'local' "
-                          "(needs ionav-viz[cluster]; the workers read the drives from the same paths).", show_default=False)
-FailFastOpt = typer.Option(False, "--fail-fast", help="Many drives: stop at the first drive that fails, with its error (exit code 2).")
+WorkersOpt = typer.Option(None, "--workers",
+                          help="Run the drives in this many processes, each drive on its own (default, and at most: "
+                               "every core this process may use); one bad drive is reported, not fatal (exit code 3).",
+                          show_default=False)
+ClusterOpt = typer.Option(None, "--cluster", metavar="ADDRESS",
+                          help="Run the drives on a Dask cluster: its scheduler (tcp://HOST:8786) or 'local' "
+                               "(needs ionav-viz[cluster]; the workers read the drives from the same paths).",
+                          show_default=False)
+FailFastOpt = typer.Option(False, "--fail-fast",
+                           help="Many drives: stop at the first drive that fails, with its error (exit code 2).")
 RunsOpt = typer.Option(None, "--runs", show_default=False,
-                       help="IO-VNBD runs as drives of a fleet: all, a group (Vta, Vtb, Vw, Vf, ...) or a driver (A-E, 'driver E'); "
-                            "comma-separated or repeated; read under --data-root (see 'ionav-viz list').")
+                       help="IO-VNBD runs as drives of a fleet: all, a group (Vta, Vtb, Vw, Vf, ...) or a driver (A-E, "
+                            "'driver E'); comma-separated or repeated; read under --data-root (see 'ionav-viz list').")
 FleetRrdOpt = typer.Option(None, "--fleet-rrd", show_default=False,
-                           help="Also write the fleet's overview recording (a table of the drives with each one's worst outage and replay command, "
-                                "bar charts per estimator) to this .rrd; makes evaluate a fleet run.")
-DryRunOpt = typer.Option(False, "--dry-run", help="List the drives that would be evaluated, with sizes and a time estimate; read nothing.")
+                           help="Also write the fleet's overview recording (a table of the drives with each one's "
+                                "worst outage and replay command, bar charts per estimator) to this .rrd; makes "
+                                "evaluate a fleet run.")
+DryRunOpt = typer.Option(False, "--dry-run",
+                         help="List the drives that would be evaluated, with sizes and a time estimate; read nothing.")
 
 
 def duration_s(text: str, option: str, allow_zero: bool = False) -> float:
@@ -348,8 +420,9 @@ def progress_callback(bar, label: str):
 # --- --help: the options most runs need first, the rest in named panels ------------------------------
 #: panel -> its options; every other option stays in the first panel ("Options").
 HELP_PANELS = {
-    "Reading logs (MCAP, ROS bags, data root)": (DataRoot, YawSign, ImuAxes, TruthTopic, TruthOrigin, ImuMount, ImuTopic, GnssTopic,
-                                                 GnssVelocityTopic, VehicleSpeedTopic, ImuTimeOffset, ImuSamples, Stamps, GnssLimitOpt),
+    "Reading logs (MCAP, ROS bags, data root)": (DataRoot, YawSign, ImuAxes, TruthTopic, TruthOrigin, ImuMount,
+                                                 ImuTopic, GnssTopic, GnssVelocityTopic, VehicleSpeedTopic,
+                                                 ImuTimeOffset, ImuSamples, Stamps, GnssLimitOpt),
     "Estimators: models, biases, plug-ins": (ModelOpt, NoIdnnOpt, EstimatorOpt, BiasFromOpt, Thresholds, StrictOpt),
     "Where outages go": (PlanOpt, ExternalOpt, EveryOpt, AtOpt, RandomOpt, SeedOpt, OnOpt),
     "Many drives (fleets)": (WorkersOpt, ClusterOpt, FailFastOpt, RunsOpt, FleetRrdOpt, DryRunOpt),

@@ -73,17 +73,20 @@ def read_config(path: str | Path) -> ConfigFile:
     except IsADirectoryError:
         raise InputError(f"{path}: is a folder, not an experiment file", "give a .toml file", param="config") from None
     except OSError as exc:
-        raise InputError(f"{path}: cannot read the experiment file ({exc.strerror or exc})", "check the path", param="config") from None
+        raise InputError(f"{path}: cannot read the experiment file ({exc.strerror or exc})", "check the path",
+                         param="config") from None
     if len(data) > MAX_CONFIG_BYTES:
-        raise InputError(f"{path}: larger than {MAX_CONFIG_BYTES // 1_000_000} MB: not an experiment file", "give a .toml file",
-                         param="config")
+        raise InputError(f"{path}: larger than {MAX_CONFIG_BYTES // 1_000_000} MB: not an experiment file",
+                         "give a .toml file", param="config")
     try:
         text = data.decode("utf-8")
         table = tomllib.loads(text)
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text: not an experiment file", "give a .toml file", param="config") from None
+        raise InputError(f"{path}: not UTF-8 text: not an experiment file", "give a .toml file",
+                         param="config") from None
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}", "see 'Experiment files' in the README for the form", param="config") from None
+        raise InputError(f"{path}: not valid TOML: {exc}", "see 'Experiment files' in the README for the form",
+                         param="config") from None
     lines = _key_lines(text, table)
     command = table.pop(COMMAND_KEY, None)
     if command is not None and not isinstance(command, str):
@@ -93,7 +96,8 @@ def read_config(path: str | Path) -> ConfigFile:
     for key, value in table.items():
         if isinstance(value, dict):
             raise InputError(f"{path} line {lines.get(key, '?')}: [{key}] is a table; options are top-level keys",
-                             f"write the options of [{key}] at the top of the file, e.g. outage = \"10s\"", param="config")
+                             f"write the options of [{key}] at the top of the file, e.g. outage = \"10s\"",
+                             param="config")
     return ConfigFile(path, command, arguments, table, lines)
 
 
@@ -169,8 +173,8 @@ def config_words(config: ConfigFile, command: Any) -> tuple[list[str], list[str]
         option = "--" + key.replace("_", "-")
         param = options.get(option)
         if param is None or option in NOT_CONFIGURATION:
-            raise InputError(f"{config.where(key)}: '{command.name}' has no option {option}", _closest(option, options, command.name),
-                             param="config")
+            raise InputError(f"{config.where(key)}: '{command.name}' has no option {option}",
+                             _closest(option, options, command.name), param="config")
         words += _option_words(config, key, option, param, value)
     return words, arguments
 
@@ -178,7 +182,8 @@ def config_words(config: ConfigFile, command: Any) -> tuple[list[str], list[str]
 def _argument_values(config: ConfigFile, key: str, value: Any) -> list[str]:
     items = value if isinstance(value, list) else [value]
     if not all(isinstance(v, (str, int, float)) and not isinstance(v, bool) for v in items):
-        raise InputError(f"{config.where(key)}: {value!r} is not a list of names", f'e.g. {key} = ["V-Vw8", "drives/"]', param="config")
+        raise InputError(f"{config.where(key)}: {value!r} is not a list of names", f'e.g. {key} = ["V-Vw8", "drives/"]',
+                         param="config")
     return [str(v) for v in items]
 
 
@@ -187,7 +192,8 @@ def _option_words(config: ConfigFile, key: str, option: str, param: Any, value: 
     list elsewhere comma-joined."""
     if getattr(param, "is_flag", False) or getattr(param, "count", False):
         if not isinstance(value, bool):
-            raise InputError(f"{config.where(key)}: {option} is a flag: give true or false, not {value!r}", f"{key} = true", param="config")
+            raise InputError(f"{config.where(key)}: {option} is a flag: give true or false, not {value!r}",
+                             f"{key} = true", param="config")
         if option in param.secondary_opts:  # no-idnn = true where the flag reads --idnn/--no-idnn
             value = not value
         if value:
@@ -204,7 +210,8 @@ def _option_words(config: ConfigFile, key: str, option: str, param: Any, value: 
 
 
 def _is_scalar(value: Any) -> bool:
-    return isinstance(value, (str, int, float, bool, date, datetime, time)) and not (isinstance(value, float) and not math.isfinite(value))
+    return isinstance(value, (str, int, float, bool, date, datetime, time)) and not (isinstance(value, float) and
+                                                                                     not math.isfinite(value))
 
 
 def _text(value: Any) -> str:
@@ -221,7 +228,8 @@ def _closest(option: str, options: dict[str, Any], command: str) -> str:
     import difflib
 
     close = difflib.get_close_matches(option, [o for o in options if o not in NOT_CONFIGURATION], n=1)
-    return f"did you mean {close[0].removeprefix('--')}?" if close else f"see 'ionav-viz {command} --help' for its options"
+    return (f"did you mean {close[0].removeprefix('--')}?"
+            if close else f"see 'ionav-viz {command} --help' for its options")
 
 
 # --- the command line, with a file -----------------------------------------------------------------------
@@ -231,8 +239,10 @@ def split_words(command: Any, words: list[str]) -> tuple[list[str], list[str]]:
     """A command's words as (options with their values, arguments), by the command's own options
     (``--`` ends the options)."""
     options = _options_of(command)
-    short = {opt: p for p in command.params if p.param_type_name == "option" for opt in p.opts if not opt.startswith("--")}
-    takes_value = {o: not (getattr(p, "is_flag", False) or getattr(p, "count", False)) for o, p in {**options, **short}.items()}
+    short = {opt: p for p in command.params if p.param_type_name == "option" for opt in p.opts
+             if not opt.startswith("--")}
+    takes_value = {o: not (getattr(p, "is_flag", False) or getattr(p, "count", False))
+                   for o, p in {**options, **short}.items()}
     opts, args, i = [], [], 0
     while i < len(words):
         word = words[i]
@@ -267,8 +277,8 @@ def expand(argv: list[str], group: Any) -> list[str]:
             return argv  # 'run --help', or no file: the run command says what it takes
         config, rest = read_config(rest[0]), rest[1:]
         if config.command is None:
-            raise InputError(f"{config.path}: no command = \"...\" line: which command does it run?", 'add e.g. command = "evaluate"',
-                             param="config")
+            raise InputError(f"{config.path}: no command = \"...\" line: which command does it run?",
+                             'add e.g. command = "evaluate"', param="config")
         name = config.command
     if "--" in rest:
         cut = rest.index("--")
@@ -279,7 +289,8 @@ def expand(argv: list[str], group: Any) -> list[str]:
         i = next(i for i, w in enumerate(before) if w == CONFIG_OPTION or w.startswith(CONFIG_OPTION + "="))
         if before[i] == CONFIG_OPTION:
             if i + 1 >= len(before):
-                raise InputError(f"{CONFIG_OPTION} needs a file", f"e.g. {CONFIG_OPTION} experiment.toml", param="config")
+                raise InputError(f"{CONFIG_OPTION} needs a file", f"e.g. {CONFIG_OPTION} experiment.toml",
+                                 param="config")
             path, before = before[i + 1], before[:i] + before[i + 2:]
         else:
             path, before = before[i].split("=", 1)[1], before[:i] + before[i + 1:]
@@ -378,7 +389,8 @@ def to_toml(config: dict[str, Any]) -> str:
     def key(k: str) -> str:
         return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
 
-    lines = ["# ionav-viz experiment file: 'ionav-viz run FILE' runs it; 'ionav-viz COMMAND --config FILE' takes its options"]
+    lines = ["# ionav-viz experiment file: 'ionav-viz run FILE' runs it; 'ionav-viz COMMAND --config FILE' "
+             "takes its options"]
     lines += [f"{key(k)} = {value(v)}" for k, v in config.items()]
     return "\n".join(lines) + "\n"
 
@@ -387,6 +399,6 @@ def print_config(argv: list[str], group: Any) -> None:
     """Write the effective configuration of ``argv`` (commands of ``group``) to standard output (``--print-config``)."""
     config = effective_config(argv, group)
     if config is None:
-        raise InputError(f"{PRINT_CONFIG_OPTION} needs a command", f"e.g. ionav-viz evaluate V-Vw8 --outage 30s {PRINT_CONFIG_OPTION}",
-                         param="config")
+        raise InputError(f"{PRINT_CONFIG_OPTION} needs a command",
+                         f"e.g. ionav-viz evaluate V-Vw8 --outage 30s {PRINT_CONFIG_OPTION}", param="config")
     sys.stdout.write(to_toml(config))

@@ -15,19 +15,30 @@ from .app import app
 @app.command("cross-validate")
 @c.with_source_options
 def cross_validate(
-    drives: list[str] = typer.Argument(..., help="Drives of one vehicle: K or more (folds by drive), or one long drive (folds by time blocks)."),
+    drives: list[str] = typer.Argument(...,
+                                       help="Drives of one vehicle: K or more (folds by drive), or one long drive "
+                                            "(folds by time blocks)."),
     folds: int = typer.Option(5, "--folds", help="Number of folds (models trained)."),
     outage: str = c.OutageOpt,
-    from_model: Optional[str] = typer.Option(None, "--from-model", help="Fine-tune this model in every fold (a model directory, or 'shipped') instead of training from random weights.",
+    from_model: Optional[str] = typer.Option(None, "--from-model",
+                                             help="Fine-tune this model in every fold (a model directory, or "
+                                                  "'shipped') instead of training from random weights.",
                                              show_default=False),
-    epochs_disp: Optional[int] = typer.Option(None, "--epochs-disp", help="Epochs of the displacement model (default: 40; 100 with --from-model).", show_default=False),
-    epochs_yaw: Optional[int] = typer.Option(None, "--epochs-yaw", help="Epochs of the orientation-rate model (default: 60; 100 with --from-model).", show_default=False),
+    epochs_disp: Optional[int] = typer.Option(None, "--epochs-disp",
+                                              help="Epochs of the displacement model (default: 40; 100 with "
+                                                   "--from-model).", show_default=False),
+    epochs_yaw: Optional[int] = typer.Option(None, "--epochs-yaw",
+                                             help="Epochs of the orientation-rate model (default: 60; 100 with "
+                                                  "--from-model).", show_default=False),
     seed: int = typer.Option(0, "--seed", help="Random seed of the training (deterministic on the CPU)."),
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="An existing folder to write each fold's model into (fold-1, fold-2, ...).", show_default=False),
+    output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                          help="An existing folder to write each fold's model into (fold-1, "
+                                               "fold-2, ...).", show_default=False),
     bias_from: Optional[str] = c.BiasFromOpt,
     as_json: bool = typer.Option(False, "--json", help="Print the folds and their spread as JSON."),
     quiet: bool = c.QuietOpt,
-    read: Any = None,  # ReadOptions: --span, --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
+    # ReadOptions: --span, --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
+    read: Any = None,
 ) -> None:
     """Train K models, each tested on drives (or time blocks of one drive) it never saw; each fold's test metrics and their spread."""
     from .. import api
@@ -39,7 +50,8 @@ def cross_validate(
     if from_model is not None:
         config = api.fine_tune_settings(from_model, epochs_disp, epochs_yaw, seed)
     else:
-        config = ModelConfig(epochs_disp=epochs_disp or ModelConfig.epochs_disp, epochs_yaw=epochs_yaw or ModelConfig.epochs_yaw, seed=seed)
+        config = ModelConfig(epochs_disp=epochs_disp or ModelConfig.epochs_disp, epochs_yaw=epochs_yaw or
+                             ModelConfig.epochs_yaw, seed=seed)
     device = training_device()
     with c.progress(quiet) as bar:
         advance, said = c.progress_callback(bar, "cross-validating"), []
@@ -53,8 +65,8 @@ def cross_validate(
                     print(said[0], file=sys.stderr)
             advance(text, done, total)
 
-        result = run_folds(drives, folds, outage_s, config=config, from_model=from_model, read=read, run=api.RunOptions(bias_from=bias_from),
-                           output=output, device=device, progress=step)
+        result = run_folds(drives, folds, outage_s, config=config, from_model=from_model, read=read,
+                           run=api.RunOptions(bias_from=bias_from), output=output, device=device, progress=step)
     print(result.to_json() if as_json else result.to_text())
 
 

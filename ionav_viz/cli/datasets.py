@@ -15,9 +15,14 @@ from .app import app
 @app.command("list")
 def list_runs(
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
-    verify: bool = typer.Option(False, "--verify", help="Check the sha256 of present files not verified before (slow for big files)."),
-    all_runs: bool = typer.Option(False, "--all", help="List every IO-VNBD run, the missing ones too (default: those here, and a count of the rest)."),
-    data_root_opt: Optional[Path] = typer.Option(None, "--data-root", help="Data root (default: $IONAV_DATA, else the per-user data directory).", show_default=False),
+    verify: bool = typer.Option(False, "--verify",
+                                help="Check the sha256 of present files not verified before (slow for big files)."),
+    all_runs: bool = typer.Option(False, "--all",
+                                  help="List every IO-VNBD run, the missing ones too (default: those here, and a count "
+                                       "of the rest)."),
+    data_root_opt: Optional[Path] = typer.Option(None, "--data-root",
+                                                 help="Data root (default: $IONAV_DATA, else the per-user "
+                                                      "data directory).", show_default=False),
     manifest_opt: Optional[Path] = c.ManifestOpt,
 ) -> None:
     """List the drives bundled with ionav-viz, then the IO-VNBD runs: group, driver, role in the paper, size, and whether present locally."""
@@ -33,18 +38,21 @@ def list_runs(
     _print_bundled(bundled)
     shown = rows if all_runs else [r for r in rows if r["status"] != "missing"]
     missing = [r for r in rows if r["status"] == "missing"]
-    print(f"\nIO-VNBD runs (the real dataset) under the data root {root}: {len(rows) - len(missing)} of {len(rows)} here")
+    print(f"\nIO-VNBD runs (the real dataset) under the data root {root}: {len(rows) - len(missing)} of "
+          f"{len(rows)} here")
     if shown:
         width = max(len(r["name"]) for r in shown)
         print(f"{'run'.ljust(width)}  group  driver  {'size':>9}  {'local':<8}  role in the paper")
         for r in shown:
-            print(f"{r['name'].ljust(width)}  {r['group']:<5}  {r['driver']:<6}  {r['size_bytes'] / 1e6:>7.2f}MB  {r['status']:<8}  {r['role']}")
+            print(f"{r['name'].ljust(width)}  {r['group']:<5}  {r['driver']:<6}  {r['size_bytes'] / 1e6:>7.2f}MB  "
+                  f"{r['status']:<8}  {r['role']}")
     said = [text for status, text in _STATUS_TEXT if status in {r["status"] for r in shown}]
     if said:
         print("\nlocal: " + "; ".join(said))
     if missing and not all_runs:
-        print(f"{len(missing)} missing ({sum(r['size_bytes'] for r in missing) / 1e6:.0f} MB), each listed by 'ionav-viz list --all'; "
-              "get one with 'ionav-viz fetch NAME',\nthe paper's test runs with 'ionav-viz fetch --paper-test'")
+        print(f"{len(missing)} missing ({sum(r['size_bytes'] for r in missing) / 1e6:.0f} MB), each listed by "
+              "'ionav-viz list --all'; get one with 'ionav-viz fetch NAME',\nthe paper's test runs with 'ionav-viz "
+              "fetch --paper-test'")
 
 
 def _print_bundled(bundled: list[dict]) -> None:
@@ -58,14 +66,16 @@ def _print_bundled(bundled: list[dict]) -> None:
         print(f"{b['name'].ljust(width)}  {', '.join(b['stands_in_for']).ljust(stands)}  {b['what']}")
     train = [b for b in bundled if b["role"] == "train"]
     if train:
-        print(f"and {len(train)} simulated training drives (V-sim-SCENARIO-train-N), what 'ionav-viz train' trains on by default")
+        print(f"and {len(train)} simulated training drives (V-sim-SCENARIO-train-N), what 'ionav-viz train' trains "
+              "on by default")
 
 
 #: What each local status of ``list`` means, in the order said under the table.
 _STATUS_TEXT = (("verified", "verified = size and sha256 match the dataset's manifest"),
                 ("present", "present = the size matches, the sha256 not checked yet (--verify)"),
-                ("mismatch", "mismatch = the size or sha256 differs from the manifest's: an edited copy, another version or a damaged "
-                             "download ('ionav-viz fetch NAME' gets the published one)"),
+                ("mismatch",
+                 "mismatch = the size or sha256 differs from the manifest's: an edited copy, another version "
+                 "or a damaged download ('ionav-viz fetch NAME' gets the published one)"),
                 ("missing", "missing = no V-*.csv of the run under the data root ('ionav-viz fetch NAME')"))
 
 
@@ -75,10 +85,15 @@ def fetch(
     scenario: Optional[str] = typer.Option(None, "--scenario", help="The paper's test runs of a scenario, or all."),
     paper_test: bool = typer.Option(False, "--paper-test", help="All the paper's test runs (Tables 6-7)."),
     paper_train: bool = typer.Option(False, "--paper-train", help="All the paper's training runs (Table 1)."),
-    synchronised: bool = typer.Option(False, "--synchronised", help="The synchronised copy instead of the complete (unsynchronised) run."),
+    synchronised: bool = typer.Option(False, "--synchronised",
+                                      help="The synchronised copy instead of the complete (unsynchronised) run."),
     phone: bool = typer.Option(False, "--phone", help="Also the phone's S- file of each run."),
-    data_root_opt: Optional[Path] = typer.Option(None, "--data-root", help="Where to put the files (default: $IONAV_DATA, else the per-user data directory).", show_default=False),
-    base_url_opt: Optional[str] = typer.Option(None, "--base-url", help="Repository root URL to download from (default: $IONAV_BASE_URL, else the dataset's Git LFS media URL)."),
+    data_root_opt: Optional[Path] = typer.Option(None, "--data-root",
+                                                 help="Where to put the files (default: $IONAV_DATA, else the per-user "
+                                                      "data directory).", show_default=False),
+    base_url_opt: Optional[str] = typer.Option(None, "--base-url",
+                                               help="Repository root URL to download from (default: $IONAV_BASE_URL, "
+                                                    "else the dataset's Git LFS media URL)."),
     timeout: str = typer.Option("30s", "--timeout", help="Give up on a connection that stalls this long."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
     manifest_opt: Optional[Path] = c.ManifestOpt,

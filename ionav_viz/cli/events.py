@@ -25,12 +25,19 @@ class _EventsCommand(TyperCommand):
 @app.command(cls=_EventsCommand)
 @c.with_source_options
 def events(
-    drives: Optional[list[str]] = typer.Argument(None, help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
+    drives: Optional[list[str]] = typer.Argument(None,
+                                                 help="Drives: files or folders (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 "
+                                                      "bag, KITTI raw), bundled scenario names or IO-VNBD run names."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON for scripts."),
-    types: Optional[str] = typer.Option(None, "--type", help="Only these event types, comma-separated: hard-brake, roundabout, sharp-cornering, left-right, quick-accel, cruise, gnss-outage."),
-    quality: bool = typer.Option(False, "--quality", help="Measure each detector's recall and precision on the bundled synthetic drives, where the simulator knows every manoeuvre."),
+    types: Optional[str] = typer.Option(None, "--type",
+                                        help="Only these event types, comma-separated: hard-brake, roundabout, "
+                                             "sharp-cornering, left-right, quick-accel, cruise, gnss-outage."),
+    quality: bool = typer.Option(False, "--quality",
+                                 help="Measure each detector's recall and precision on the bundled synthetic drives, "
+                                      "where the simulator knows every manoeuvre."),
     thresholds: Optional[list[str]] = c.Thresholds,
-    read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
+    # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
+    read: Any = None,
 ) -> None:
     """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes, cruising and the log's GNSS losses.
 
@@ -45,7 +52,8 @@ def events(
     kinds = current_type_names(c.split_list(types)) if types else None
     if quality:
         if drives:  # were read by no one: the quality is measured on the bundled drives, where every manoeuvre is known
-            raise typer.BadParameter(f"--quality measures the detectors on the bundled synthetic drives, not on {' '.join(drives)}",
+            raise typer.BadParameter("--quality measures the detectors on the bundled synthetic drives, not on "
+                                     f"{' '.join(drives)}",
                                      param_hint="DRIVES")
         given = c.source_args(read)
         if given:  # read by no one either: the bundled drives are read whole and as they are, every manoeuvre known
@@ -57,7 +65,8 @@ def events(
             from ..dataset.samples import SAMPLES
 
             print(dumps_json({"drives": [s.file for s in SAMPLES], "detectors": {
-                k: {"known": q.known, "recalled": q.recalled, "found": q.found, "precise": q.precise, "recall": q.recall, "precision": q.precision}
+                k: {"known": q.known, "recalled": q.recalled, "found": q.found, "precise": q.precise,
+                    "recall": q.recall, "precision": q.precision}
                 for k, q in rows.items()}}))
             return
         w = max(len("event"), *(len(k) for k in rows))  # sharp-cornering is wider than 13
@@ -77,5 +86,6 @@ def events(
     for name, evs in found.items():
         print(f"{name}: {len(evs)} event(s)")
         for e in evs:
-            values = ", ".join(f"{k} {v}" if isinstance(v, int) else f"{k} {v:.2f}" for k, v in e.values.items())  # a count: 115, not 115.00
+            # a count: 115, not 115.00
+            values = ", ".join(f"{k} {v}" if isinstance(v, int) else f"{k} {v:.2f}" for k, v in e.values.items())
             print(f"  {e.type:<15} {e.t0_s:8.1f} - {e.t1_s:8.1f} s   {values}")

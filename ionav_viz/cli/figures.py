@@ -13,10 +13,13 @@ from .app import app
 
 @app.command()
 def figures(
-    result: Path = typer.Argument(..., metavar="RESULT", help="A recording (.rrd) written by replay, or the output of 'evaluate --json' (a fleet's too, or several --outage lengths: their error against length)."),
-    output: Path = typer.Option(..., "-o", "--output", help="The folder to write drift, cdf, outages, outages-wide, worst and calibration "
-                                "(a fleet's: fleet-box and fleet-cdf), or lengths (a report of several outage lengths) "
-                                "as SVG, PDF and PNG into (made when missing)."),
+    result: Path = typer.Argument(..., metavar="RESULT",
+                                  help="A recording (.rrd) written by replay, or the output of 'evaluate --json' (a "
+                                       "fleet's too, or several --outage lengths: their error against length)."),
+    output: Path = typer.Option(..., "-o", "--output",
+                                help="The folder to write drift, cdf, outages, outages-wide, worst and calibration "
+                                     "(a fleet's: fleet-box and fleet-cdf), or lengths (a report of several "
+                                     "outage lengths) as SVG, PDF and PNG into (made when missing)."),
     quiet: bool = c.QuietOpt,
 ) -> None:
     """Draw a run's drift curve, final-error CDF, per-outage errors, worst outage and uncertainty calibration as publication figures."""

@@ -14,8 +14,8 @@ from . import common as c
 from .app import options_named
 
 
-def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool,
-                 runs: Optional[list[str]] = None) -> bool:
+def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: Optional[str], fail_fast: bool,
+                 dry_run: bool, runs: Optional[list[str]] = None) -> bool:
     """Whether ``evaluate`` runs as a fleet: a fleet option (``--runs`` among them), or drives given
     as a list file, a glob or a folder of drives (which one-drive evaluation refuses)."""
     if workers is not None or cluster is not None or fail_fast or dry_run or runs:
@@ -24,14 +24,16 @@ def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: O
 
     for spec in drives or []:
         path = Path(spec).expanduser()
-        if spec.startswith("@") or (not path.exists() and any(ch in spec for ch in "*?[")) or (path.is_dir() and _is_folder_of_drives(path)):
+        if (spec.startswith("@") or (not path.exists() and any(ch in spec for ch in "*?["))
+                or (path.is_dir() and _is_folder_of_drives(path))):
             return True
     return False
 
 
-def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
-                   workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool, as_json: bool, markdown: bool,
-                   quiet: bool, refused: dict[str, Any], fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
+def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any,
+                   *, workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool, as_json: bool,
+                   markdown: bool, quiet: bool, refused: dict[str, Any], fleet_rrd: Optional[Path] = None,
+                   runs: Optional[list[str]] = None) -> None:
     """Evaluate the drives as a fleet and print its report (and with ``fleet_rrd`` write its
     overview recording there); exit 3 when some drives failed
     (:data:`ionav_viz.api.fleet.EXIT_SOME_FAILED`), 2 when none could be evaluated."""
@@ -40,22 +42,25 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
 
     for option, given in refused.items():
         if given:
-            raise typer.BadParameter(f"a fleet run (--workers, --cluster, many drives) does not take {option} yet", param_hint=option)
+            raise typer.BadParameter(f"a fleet run (--workers, --cluster, many drives) does not take {option} yet",
+                                     param_hint=option)
     drives = list(drives or [])
     if not drives and not runs:
         raise typer.BadParameter("give at least one drive (or --runs)", param_hint="DRIVES")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
-    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}", placement=placement.option, runs="--runs",
-                       fleet_rrd="--fleet-rrd"):
+    with options_named(workers="--workers", cluster="--cluster", outage_s=f"--outage {outage or '10s'}",
+                       placement=placement.option, runs="--runs", fleet_rrd="--fleet-rrd"):
         _note_pool(workers, cluster, quiet)
         if dry_run:
             plan = fleet.plan_fleet(drives, workers, runs or (), root=read.data_root, fleet_rrd=fleet_rrd)
             print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
             return
         with c.progress(quiet) as bar:
-            report = fleet.evaluate_fleet(drives, outage_s, placement.placement, run=run, read=read, workers=workers, cluster=cluster,
-                                          fail_fast=fail_fast, progress=c.progress_callback(bar, "evaluating"),
-                                          replay_options=_replay_options(outage, placement, run, read), runs=runs or (), fleet_rrd=fleet_rrd)
+            report = fleet.evaluate_fleet(drives, outage_s, placement.placement, run=run, read=read, workers=workers,
+                                          cluster=cluster, fail_fast=fail_fast,
+                                          progress=c.progress_callback(bar, "evaluating"),
+                                          replay_options=_replay_options(outage, placement, run, read), runs=runs or (),
+                                          fleet_rrd=fleet_rrd)
     if as_json:
         print(report.to_json())
     else:
@@ -79,14 +84,15 @@ def _note_pool(workers: Optional[int], cluster: Optional[str], quiet: bool) -> N
 def _said_fleet_rrd(report: Any, fleet_rrd: Optional[Path], quiet: bool) -> None:
     """Where the overview recording went (written by the run when some drive was done)."""
     if fleet_rrd is not None and report.drives and not quiet:
-        print(f"fleet overview: {fleet_rrd} (ionav-viz screenshot {fleet_rrd} -o fleet.png; rerun {fleet_rrd})", file=sys.stderr)
+        print(f"fleet overview: {fleet_rrd} (ionav-viz screenshot {fleet_rrd} -o fleet.png; rerun {fleet_rrd})",
+              file=sys.stderr)
 
 
 #: Options of a fleet run that say where its report goes, how loudly, or how the fleet runs: not
 #: part of how one drive is read, estimated and scored, so not in the command that replays it.
-_NOT_REPLAYED = frozenset(("--workers", "--cluster", "--fail-fast", "--dry-run", "--fleet-rrd", "--json", "--markdown", "--overview",
-                           "--quiet", "-q", "--debug", "--export", "--by-event", "--runs", "-o", "--output", "--open", "--connect",
-                           "--screenshot", "--force"))
+_NOT_REPLAYED = frozenset(("--workers", "--cluster", "--fail-fast", "--dry-run", "--fleet-rrd", "--json", "--markdown",
+                           "--overview", "--quiet", "-q", "--debug", "--export", "--by-event", "--runs", "-o",
+                           "--output", "--open", "--connect", "--screenshot", "--force"))
 
 
 def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any = None) -> str:
@@ -103,7 +109,8 @@ def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any,
     commands = getattr(typer.main.get_command(app), "commands", {})
     command = next((w for w in words if w in ("evaluate", "replay") and w in commands), None)
     if command is not None:
-        takes_value = {opt: not (getattr(p, "is_flag", False) or getattr(p, "count", False)) for p in commands[command].params
+        takes_value = {opt: not (getattr(p, "is_flag", False) or getattr(p, "count", False))
+                       for p in commands[command].params
                        if p.param_type_name == "option" for opt in (*p.opts, *p.secondary_opts)}
         kept, i, rest = [], 0, words[words.index(command) + 1:]
         while i < len(rest):
@@ -132,9 +139,9 @@ def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any,
     return " ".join(parts)
 
 
-def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any, *,
-                 workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool, refused: dict[str, Any],
-                 fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
+def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs, run: Any,
+                 read: Any, *, workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool,
+                 refused: dict[str, Any], fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
     """Replay many drives, one recording each into the folder ``-o`` (default ``recordings``):
     the recordings' paths on stdout, the fleet report on stderr; exit codes as for evaluate."""
     from ..api import fleet
@@ -143,15 +150,16 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
         if given:
             raise typer.BadParameter(f"replaying many drives does not take {option} yet", param_hint=option)
     if output is not None and output.suffix.lower() == ".rrd":
-        raise typer.BadParameter(f"{output}: many drives are replayed into a folder, one recording each", param_hint="-o")
+        raise typer.BadParameter(f"{output}: many drives are replayed into a folder, one recording each",
+                                 param_hint="-o")
     outage_s = c.duration_s(outage, "--outage") if outage is not None else None
-    with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}", placement=placement.option,
-                       runs="--runs", fleet_rrd="--fleet-rrd"):
+    with options_named(workers="--workers", cluster="--cluster", output="-o", outage_s=f"--outage {outage or '10s'}",
+                       placement=placement.option, runs="--runs", fleet_rrd="--fleet-rrd"):
         _note_pool(workers, cluster, quiet)
         with c.progress(quiet) as bar:
-            report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s, placement.placement, run=run,
-                                        read=read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                                        progress=c.progress_callback(bar, "replaying"),
+            report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s,
+                                        placement.placement, run=run, read=read, workers=workers, cluster=cluster,
+                                        fail_fast=fail_fast, progress=c.progress_callback(bar, "replaying"),
                                         replay_options=_replay_options(outage, placement, run, read), runs=runs or (),
                                         fleet_rrd=fleet_rrd)
     if not quiet:
@@ -173,6 +181,7 @@ def _exit_for(report: Any, quiet: bool) -> None:
                          f"(first: {first.spec}: {first.reason})", "see the report for each drive's reason")
     if report.failures:
         if not quiet:
-            print(f"{len(report.failures)} of {len(report.drives) + len(report.failures) + len(report.skipped)} drives failed "
-                  f"(exit code {fleet.EXIT_SOME_FAILED}); their reasons are in the report", file=sys.stderr)
+            print(f"{len(report.failures)} of {len(report.drives) + len(report.failures) + len(report.skipped)} "
+                  f"drives failed (exit code {fleet.EXIT_SOME_FAILED}); their reasons are in the report",
+                  file=sys.stderr)
         raise typer.Exit(fleet.EXIT_SOME_FAILED)

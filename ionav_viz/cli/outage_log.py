@@ -18,8 +18,12 @@ from .app import app, options_named
 @c.with_source_options
 @c.with_placement_options
 def outage_log(
-    drive_spec: str = typer.Argument(..., metavar="DRIVE", help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, bundled scenario or run name."),
-    output: Path = typer.Option(..., "-o", "--output", help="The outaged log: .mcap, .bag (ROS 1), a new folder (ROS 2 bag) or .csv (an IO-VNBD source); the plan goes beside it as NAME.outages.json."),
+    drive_spec: str = typer.Argument(..., metavar="DRIVE",
+                                     help="A drive: IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag folder, KITTI raw folder, "
+                                          "bundled scenario or run name."),
+    output: Path = typer.Option(..., "-o", "--output",
+                                help="The outaged log: .mcap, .bag (ROS 1), a new folder (ROS 2 bag) or .csv (an "
+                                     "IO-VNBD source); the plan goes beside it as NAME.outages.json."),
     outage: str = c.OutageOpt,
     warm_up: str = c.WarmUp,
     quiet: bool = c.QuietOpt,
@@ -35,9 +39,10 @@ def outage_log(
         done = api.outage_log(drive_spec, output, outage_s, placement.placement, run=run, read=read)
     plan = done.plan
     if not quiet:
-        print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS message(s) removed "
-              f"from {', '.join(plan.removed_topics)}", file=sys.stderr)
-        evaluate = shlex.join(["ionav-viz", "evaluate", drive_spec, *c.source_args(read), "--plan", str(done.plan_path)])
+        print(f"{len(plan.start_stamps_s)} outage(s) of {plan.outage_s:g} s ({plan.placement}); {done.removed} GNSS "
+              f"message(s) removed from {', '.join(plan.removed_topics)}", file=sys.stderr)
+        evaluate = shlex.join(["ionav-viz", "evaluate", drive_spec, *c.source_args(read), "--plan",
+                               str(done.plan_path)])
         print(f"score what your estimator writes on it: {evaluate} --external NAME=TRAJECTORY", file=sys.stderr)
     print(done.path)
     print(done.plan_path)

@@ -20,26 +20,44 @@ VIEWING = "Viewing it (viewer, browser)"
 @c.with_estimator_options
 @c.with_placement_options
 def replay(
-    drive_specs: Optional[list[str]] = typer.Argument(None, metavar="DRIVE...", help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 bag, KITTI raw), bundled scenario name or IO-VNBD run name; "
-                                             "several (a folder of drives, a glob, @list.txt): one recording each, in parallel, into the folder -o."),
+    drive_specs: Optional[list[str]] = typer.Argument(None, metavar="DRIVE...",
+                                                      help="A file or folder (IO-VNBD CSV, MCAP, ROS 1 .bag, ROS 2 "
+                                                           "bag, KITTI raw), bundled scenario name or IO-VNBD run "
+                                                           "name; several (a folder of drives, a glob, @list.txt): one "
+                                                           "recording each, in parallel, into the folder -o."),
     outage: Optional[str] = c.OutageOrPlanOpt,
     plan: Optional[Path] = c.PlanOpt,
     external: Optional[list[str]] = c.ExternalOpt,
     export: Optional[Path] = c.ExportOpt,
-    output: Optional[Path] = typer.Option(None, "-o", "--output", help="The .rrd file to write (default: recordings/<drive>.rrd in the current directory, made when missing; "
-                                                  "with --span recordings/<drive>-0s-60s.rrd or <drive>-60s-end.rrd; an existing file is replaced)."),
-    open_viewer: bool = typer.Option(False, "--open", rich_help_panel=VIEWING, help="Open the Rerun viewer on the recording afterwards (needs a display)."),
-    connect: Optional[str] = typer.Option(None, "--connect", rich_help_panel=VIEWING, metavar="[URL]", help=f"Also stream the recording to a running Rerun viewer (default {DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
-    serve_web: bool = typer.Option(False, "--serve-web", rich_help_panel=VIEWING, help="Serve the recording to a browser (Rerun's web viewer) and print its address; runs until Ctrl-C."),
-    grpc_port: int = typer.Option(DEFAULT_GRPC_PORT, "--grpc-port", rich_help_panel=VIEWING, help="--serve-web: the port of the recording's gRPC server."),
-    web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", rich_help_panel=VIEWING, help="--serve-web: the port of the web viewer."),
+    output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                          help="The .rrd file to write (default: recordings/<drive>.rrd in the current "
+                                               "directory, made when missing; with --span "
+                                               "recordings/<drive>-0s-60s.rrd or <drive>-60s-end.rrd; an existing file "
+                                               "is replaced)."),
+    open_viewer: bool = typer.Option(False, "--open", rich_help_panel=VIEWING,
+                                     help="Open the Rerun viewer on the recording afterwards (needs a display)."),
+    connect: Optional[str] = typer.Option(None, "--connect", rich_help_panel=VIEWING, metavar="[URL]",
+                                          help="Also stream the recording to a running Rerun viewer (default "
+                                               f"{DEFAULT_CONNECT_URL}, where 'rerun' listens)."),
+    serve_web: bool = typer.Option(False, "--serve-web", rich_help_panel=VIEWING,
+                                   help="Serve the recording to a browser (Rerun's web viewer) and print its address; "
+                                        "runs until Ctrl-C."),
+    grpc_port: int = typer.Option(DEFAULT_GRPC_PORT, "--grpc-port", rich_help_panel=VIEWING,
+                                  help="--serve-web: the port of the recording's gRPC server."),
+    web_port: int = typer.Option(DEFAULT_WEB_PORT, "--web-port", rich_help_panel=VIEWING,
+                                 help="--serve-web: the port of the web viewer."),
     bind: str = typer.Option("127.0.0.1", "--bind", rich_help_panel=VIEWING, metavar="ADDRESS",
-                      help="--serve-web: the address to listen on (default: this machine only; 0.0.0.0 opens the recording to every network the machine is on)."),
+                      help="--serve-web: the address to listen on (default: this machine only; 0.0.0.0 opens the "
+                           "recording to every network the machine is on)."),
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
-    run: Any = None,  # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
-    read: Any = None,  # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
-    screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot", help="Also render review images (every view, at the worst outage) into this directory."),
+    # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
+    run: Any = None,
+    # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
+    read: Any = None,
+    screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot",
+                                                  help="Also render review images (every view, at the worst outage) "
+                                                       "into this directory."),
     workers: Optional[int] = c.WorkersOpt,
     cluster: Optional[str] = c.ClusterOpt,
     fail_fast: bool = c.FailFastOpt,
@@ -51,31 +69,37 @@ def replay(
     from . import fleet
 
     drive_specs = list(drive_specs or [])
-    if len(drive_specs) > 1 or fleet_rrd is not None or fleet.is_fleet_run(drive_specs, workers, cluster, fail_fast, False, runs):  # one recording per drive (cli/fleet.py)
-        refused = {"--plan": plan, "--external": external, "--export": export, "--open": open_viewer, "--connect": connect,
-                   "--serve-web": serve_web, "--screenshot": screenshot_dir, "--outage LENGTH,LENGTH": outage is not None and "," in outage}
-        fleet.replay_fleet(drive_specs, output, outage, placement, run, read, workers=workers, cluster=cluster, fail_fast=fail_fast,
-                           quiet=quiet, refused=refused, fleet_rrd=fleet_rrd, runs=runs)
+    if len(drive_specs) > 1 or fleet_rrd is not None or fleet.is_fleet_run(drive_specs, workers, cluster, fail_fast,
+                                                                           # one recording per drive (cli/fleet.py)
+                                                                           False, runs):
+        refused = {"--plan": plan, "--external": external, "--export": export, "--open": open_viewer,
+                   "--connect": connect, "--serve-web": serve_web, "--screenshot": screenshot_dir,
+                   "--outage LENGTH,LENGTH": outage is not None and "," in outage}
+        fleet.replay_fleet(drive_specs, output, outage, placement, run, read, workers=workers, cluster=cluster,
+                           fail_fast=fail_fast, quiet=quiet, refused=refused, fleet_rrd=fleet_rrd, runs=runs)
         return
     if not drive_specs:
         raise typer.BadParameter("give a drive (or many, or --runs)", param_hint="DRIVE...")
     drive_spec = drive_specs[0]
 
     if outage is not None and "," in outage:
-        for given, option in ((plan, "--plan"), (external, "--external"), (open_viewer or None, "--open"), (connect, "--connect"),
-                              (serve_web or None, "--serve-web"), (screenshot_dir, "--screenshot")):
+        for given, option in ((plan, "--plan"), (external, "--external"), (open_viewer or None, "--open"),
+                              (connect, "--connect"), (serve_web or None, "--serve-web"),
+                              (screenshot_dir, "--screenshot")):
             if given:
-                raise typer.BadParameter(f"several outage lengths write one recording each, without {option}", param_hint="--outage")
+                raise typer.BadParameter(f"several outage lengths write one recording each, without {option}",
+                                         param_hint="--outage")
         lengths = c.durations_of(outage, "--outage")
         with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
-            results = api.replay_lengths(drive_spec, lengths, placement.placement, output=output, run=run, read=read, export=export,
-                                         progress=c.progress_callback(bar, "writing"))
+            results = api.replay_lengths(drive_spec, lengths, placement.placement, output=output, run=run, read=read,
+                                         export=export, progress=c.progress_callback(bar, "writing"))
         if not quiet:
             from ..analysis.report import by_length
             from ..analysis.tables import render_lengths
 
             reports = {r.report.results[0].outage_s: r.report for r in results}
-            print(render_lengths(by_length(reports), results[0].report.labels, width=c.terminal_width(sys.stderr)), end="", file=sys.stderr)
+            print(render_lengths(by_length(reports), results[0].report.labels, width=c.terminal_width(sys.stderr)),
+                  end="", file=sys.stderr)
         for r in results:
             print(r.path)
         return
@@ -87,8 +111,9 @@ def replay(
         with options_named(screenshot="--screenshot", output="-o", export="--export"):
             check_output_folder(screenshot_dir, param="screenshot")
             refuse_output_onto_output(output, screenshot_dir, param="screenshot", folder_is="the screenshot folder")
-            refuse_output_onto_input(screenshot_dir, input_paths(drive_spec, read, run=run, plan=chosen, external=c.externals_of(external)),
-                                     param="screenshot")
+            refuse_output_onto_input(screenshot_dir,
+                                     input_paths(drive_spec, read, run=run, plan=chosen,
+                                                 external=c.externals_of(external)), param="screenshot")
     if open_viewer:
         _check_display()
     serving = None
@@ -96,9 +121,12 @@ def replay(
         with options_named(grpc_port="--grpc-port", web_port="--web-port", bind="--bind"):
             serving = api.WebServing(grpc_port, web_port, bind)  # checked before any work
         if serving.public:
-            log.warning("--bind %s: the served recording (the drive's positions) is reachable from every network this machine is on", bind)
-    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage or '10s'}", placement="--plan" if plan else placement.option):
-        result = api.replay(drive_spec, outage_s, chosen, external=c.externals_of(external), export=export, output=output, run=run, read=read, connect=connect,
+            log.warning("--bind %s: the served recording (the drive's positions) is reachable from every network this "
+                        "machine is on", bind)
+    with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage or '10s'}",
+                                                 placement="--plan" if plan else placement.option):
+        result = api.replay(drive_spec, outage_s, chosen, external=c.externals_of(external), export=export,
+                            output=output, run=run, read=read, connect=connect,
                             progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
@@ -125,7 +153,8 @@ def _serve(server) -> None:
     import time
 
     with server:
-        print(f"serving the recording: open {server.web_url} in a browser (gRPC: {server.grpc_url}); Ctrl-C to stop", flush=True)
+        print(f"serving the recording: open {server.web_url} in a browser (gRPC: {server.grpc_url}); Ctrl-C to stop",
+              flush=True)
         while True:
             time.sleep(3600)
 
@@ -136,8 +165,8 @@ def _check_display() -> None:
     from ..core.errors import ToolFailure
 
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ToolFailure("--open: no display here (DISPLAY and WAYLAND_DISPLAY are unset); use --serve-web to view the "
-                          "recording in a browser, or 'ionav-viz screenshot' for images")
+        raise ToolFailure("--open: no display here (DISPLAY and WAYLAND_DISPLAY are unset); use --serve-web "
+                          "to view the recording in a browser, or 'ionav-viz screenshot' for images")
 
 
 def _open_viewer(path: Path) -> None:
@@ -148,7 +177,8 @@ def _open_viewer(path: Path) -> None:
 
     exe = shutil.which("rerun")
     if exe is None:
-        raise ToolFailure(f"--open: the 'rerun' viewer command is not on PATH; open {path} with the Rerun viewer yourself")
+        raise ToolFailure(f"--open: the 'rerun' viewer command is not on PATH; open {path} with the Rerun "
+                          "viewer yourself")
     subprocess.Popen([exe, str(path)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
 
 

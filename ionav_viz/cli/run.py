@@ -26,6 +26,7 @@ def run(
     from . import config
 
     group = typer.main.get_command(app)
-    words = config.expand(["run", str(file), *ctx.args], group)  # reached when main() did not read it first (the API's app())
+    # reached when main() did not read it first (the API's app())
+    words = config.expand(["run", str(file), *ctx.args], group)
     with run_config.running(config.effective_config(words, group, carried=True)):
         app(args=words, standalone_mode=False)

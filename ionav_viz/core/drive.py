@@ -206,7 +206,8 @@ class Drive:
         columns = {k: v for k, v in self.columns.items() if k not in RECEIVER_COLUMNS}
         columns |= {"lat_deg": self.columns["gnss_lat_deg"], "lon_deg": self.columns["gnss_lon_deg"],
                     "speed_mps": self.columns["gnss_speed_mps"], "heading_deg": self.columns["gnss_heading_deg"]}
-        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns, gnss_fault=self.receiver_fault,
+        return Drive(self.name, self.source, self.rate_hz, self.start_time_of_day_s, columns,
+                     gnss_fault=self.receiver_fault,
                      start_stamp_s=self.start_stamp_s, imu=self.imu, frame_origin_deg=self.frame_origin_deg)
 
     def stamp_s(self, t_s: np.ndarray | float) -> np.ndarray | float:
@@ -238,7 +239,8 @@ def measured_imu(drive: Drive) -> tuple[np.ndarray, np.ndarray] | None:
     MCAP converted from a two-channel drive carries a level IMU, gravity on z and zeros)."""
     if not all(c in drive.columns and np.ptp(drive.columns[c]) > 0 for c in IMU_COLUMNS):
         return None
-    return (np.column_stack([drive.columns[c] for c in IMU_COLUMNS[:3]]), np.column_stack([drive.columns[c] for c in IMU_COLUMNS[3:]]))
+    return (np.column_stack([drive.columns[c] for c in IMU_COLUMNS[:3]]),
+            np.column_stack([drive.columns[c] for c in IMU_COLUMNS[3:]]))
 
 
 def drive_labels(drives: list[Drive]) -> list[str]:

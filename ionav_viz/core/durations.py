@@ -15,7 +15,8 @@ class NotADuration(InputError):
     """The text is not a duration at all (``'ten'``), as against one that is not positive (``'0s'``)."""
 
 
-_DURATION = re.compile(r"^\s*(?:(\d+(?:\.\d+)?)h)?\s*(?:(\d+(?:\.\d+)?)m(?!s))?\s*(?:(\d+(?:\.\d+)?)s)?\s*(?:(\d+(?:\.\d+)?)ms)?\s*$")
+_DURATION = re.compile(r"^\s*(?:(\d+(?:\.\d+)?)h)?\s*(?:(\d+(?:\.\d+)?)m(?!s))?"
+                       r"\s*(?:(\d+(?:\.\d+)?)s)?\s*(?:(\d+(?:\.\d+)?)ms)?\s*$")
 
 
 def parse_duration_s(text: str | float, what: str = "duration", allow_zero: bool = False) -> float:

@@ -26,7 +26,8 @@ def plain(value: Any) -> Any:
 def plain_text(text: str) -> str:
     """``text`` with numpy's scalar reprs as plain numbers (``stamp np.float64(60648.34)`` ->
     ``stamp 60648.34``): the one place every message passes (errors here, warnings in their handlers)."""
-    return _NUMPY_REPR.sub(lambda m: m.group(1) if m.group(1) is not None else m.group(2), text) if "np." in text else text
+    return (_NUMPY_REPR.sub(lambda m: m.group(1) if m.group(1) is not None else m.group(2), text)
+            if "np." in text else text)
 
 
 def printable(text: str) -> str:

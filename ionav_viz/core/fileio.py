@@ -29,7 +29,8 @@ def write_failure(target: str | Path, exc: OSError) -> ToolFailure | None:
     if exc.errno not in _WRITE_FAILURES:
         return None
     why = {errno.EFBIG: "a file size limit was reached ('ulimit -f', or the file system's largest file)",
-           errno.EROFS: "the file system is read-only", errno.EIO: "the device failed"}.get(exc.errno, "is the disk full?")
+           errno.EROFS: "the file system is read-only",
+           errno.EIO: "the device failed"}.get(exc.errno, "is the disk full?")
     return ToolFailure(f"{target}: write failed ({exc.strerror}); {why}")
 
 
@@ -43,21 +44,25 @@ def check_output_file(target: Path, *, create_parent: bool = False, package_ok: 
     refuse_system_output(target, package_ok=package_ok)
     if create_parent and not parent.exists() and parent.parent.is_dir():
         if not os.access(parent.parent, os.W_OK | os.X_OK):
-            raise InputError(f"{target}: cannot create {parent} in {parent.parent} (permission denied)", "choose a writable output directory",
+            raise InputError(f"{target}: cannot create {parent} in {parent.parent} (permission denied)",
+                             "choose a writable output directory",
                              param="output")
         return target
     if not parent.is_dir():
         blocking = next((p for p in [parent, *parent.parents] if p.exists()), None)
         if blocking is not None and not blocking.is_dir():  # a file where a folder of the path should be
             raise InputError(f"{target}: {blocking} is a file, not a folder", "choose another output", param="output")
-        raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another output", param="output")
+        raise InputError(f"{target}: output directory {parent} does not exist", "create it or choose another output",
+                         param="output")
     if target.is_dir():
         raise InputError(f"{target}: is a directory", "name a file inside it", param="output")
     if target.exists() and not target.is_file():  # a link to a regular file, or a dangling one, is fine
-        raise InputError(f"{target}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another output",
+        raise InputError(f"{target}: exists and is not a regular file",
+                         "ionav-viz only ever replaces regular files; choose another output",
                          param="output")
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{target}: cannot write in {parent} (permission denied)", "choose a writable output directory", param="output")
+        raise InputError(f"{target}: cannot write in {parent} (permission denied)",
+                         "choose a writable output directory", param="output")
     return target
 
 
@@ -101,18 +106,20 @@ def refuse_system_output(target: str | Path, param: str = "output", *, package_o
         os.stat(target)
     except OSError as exc:
         if exc.errno == errno.ELOOP:
-            raise InputError(f"{target}: is a loop of symbolic links", "remove the link or choose another output", param=param) from None
+            raise InputError(f"{target}: is a loop of symbolic links", "remove the link or choose another output",
+                             param=param) from None
     real = Path(os.path.realpath(target))
     inside = next((d for d in package_dirs() if real == d or d in real.parents), None) if not package_ok else None
     if inside is not None:
-        raise InputError(f"{target}: is inside the installed ionav-viz package ({inside}), whose shipped model, bundled drives and "
-                         "data are read-only", "write it in a folder of yours", param=param)
+        raise InputError(f"{target}: is inside the installed ionav-viz package ({inside}), whose shipped model, "
+                         "bundled drives and data are read-only", "write it in a folder of yours", param=param)
     for where in [*_link_chain(target), Path(os.path.realpath(target))]:
         if any(where == d or d in where.parents for d in _SYSTEM_DIRS) and not any(
                 where == d or d in where.parents for d in _USER_DIRS_IN_SYSTEM):
             shown = "" if where == Path(os.path.abspath(target)) else f" (a link to {where})"
             raise InputError(f"{target}: is a system file{shown}, not an output ionav-viz writes",
-                             "name a regular file in a folder of yours (standard output is redirected by the shell, not named)", param=param)
+                             "name a regular file in a folder of yours (standard output is redirected by the shell, "
+                             "not named)", param=param)
 
 
 def _link_chain(path: Path) -> list[Path]:
@@ -141,7 +148,8 @@ def check_output_folder(folder: Path, param: str = "output") -> Path:
         if not existing.is_dir():
             raise InputError(f"{folder}: {existing} is not a folder", "choose a folder name", param=param)
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(f"{folder}: cannot write in {existing} (permission denied)", "choose a writable folder", param=param)
+        raise InputError(f"{folder}: cannot write in {existing} (permission denied)", "choose a writable folder",
+                         param=param)
     return folder
 
 
@@ -207,7 +215,8 @@ def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = Fal
     except OSError as exc:
         _remove_if_empty(parent, made_parent)
         release()
-        raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable output", param="output") from None
+        raise InputError(f"{target}: cannot write in {parent} ({exc.strerror})", "choose a writable output",
+                         param="output") from None
     tmp = Path(tmp_name)
     try:
         release()  # a signal held back since before mkstemp is delivered here, inside the cleanup
@@ -221,7 +230,8 @@ def atomic_path(target: Path, suffix: str = ".tmp", *, create_parent: bool = Fal
         if (failure := write_failure(target, exc)) is not None:
             raise failure from None
         if exc.errno in (errno.EACCES, errno.EPERM, errno.EISDIR):
-            raise InputError(f"{target}: cannot write it ({exc.strerror})", "choose another output", param="output") from None
+            raise InputError(f"{target}: cannot write it ({exc.strerror})", "choose another output",
+                             param="output") from None
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -294,7 +304,8 @@ def made_folders(folder: Path | None) -> Iterator[None]:
                 try:
                     level.mkdir()
                 except OSError as exc:
-                    raise InputError(f"{folder}: cannot create {level} ({exc.strerror})", "choose a writable output folder",
+                    raise InputError(f"{folder}: cannot create {level} ({exc.strerror})",
+                                     "choose a writable output folder",
                                      param="output") from None
                 made.append(level)
         yield
@@ -331,14 +342,16 @@ def check_regular_input(path: str | Path, param: str, *, hint: str | None = None
     except OSError as exc:
         raise InputError(f"{path}: cannot read it ({exc.strerror})", hint, param=param) from None
     if (kind := _special_kind(mode)) is not None:
-        raise InputError(f"{path}: is {kind}, not a regular file", f"{hint}; ionav-viz reads no pipes or devices (save the data to a file first)",
+        raise InputError(f"{path}: is {kind}, not a regular file",
+                         f"{hint}; ionav-viz reads no pipes or devices (save the data to a file first)",
                          param=param)
     if stat.S_ISDIR(mode) and not folder_ok:
         raise InputError(f"{path}: is a folder", hint, param=param)
     return path
 
 
-def check_regular_tree(folder: str | Path, param: str, *, hint: str | None = None, max_depth: int = 3, max_entries: int = 200_000) -> Path:
+def check_regular_tree(folder: str | Path, param: str, *, hint: str | None = None, max_depth: int = 3,
+                       max_entries: int = 200_000) -> Path:
     """:func:`check_regular_input` for the files a reader opens inside an input folder (a ROS 2
     bag's ``metadata.yaml`` and ``.db3``, a KITTI drive's OXTS text files): no named pipe, device
     or socket within ``max_depth`` levels (the first ``max_entries`` entries; directory listings only,
@@ -359,7 +372,8 @@ def check_regular_tree(folder: str | Path, param: str, *, hint: str | None = Non
                 if entry.is_dir():
                     below.append(entry.path)
                 elif not entry.is_file():
-                    check_regular_input(entry.path, param, hint=hint, missing_ok=True)  # a dangling link is the reader's to name
+                    # a dangling link is the reader's to name
+                    check_regular_input(entry.path, param, hint=hint, missing_ok=True)
         level = below
     return folder
 
@@ -420,7 +434,8 @@ def read_bytes_bounded(path: str | Path, *, param: str, max_bytes: int, hint: st
         if not stat.S_ISREG(info.st_mode):  # replaced since the check above
             raise InputError(f"{path}: is not a regular file", hint, param=param)
         if info.st_size > max_bytes:
-            raise InputError(f"{path}: {info.st_size} bytes is too large for {what} (at most {max_bytes})", hint, param=param)
+            raise InputError(f"{path}: {info.st_size} bytes is too large for {what} (at most {max_bytes})", hint,
+                             param=param)
         try:
             data = stream.read(max_bytes + 1)
         except OSError as exc:
@@ -445,11 +460,13 @@ def read_json_bounded(path: str | Path, *, param: str, max_bytes: int = JSON_MAX
     path = Path(path)
     hint = hint or f"give {what}"
     data = read_bytes_bounded(path, param=param, max_bytes=max_bytes, hint=hint, what=what)
-    return parse_json_bounded(data, path, param=param, max_bytes=max_bytes, max_depth=max_depth, hint=hint, what=what, allow_nan=allow_nan)
+    return parse_json_bounded(data, path, param=param, max_bytes=max_bytes, max_depth=max_depth, hint=hint, what=what,
+                              allow_nan=allow_nan)
 
 
 def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_bytes: int = JSON_MAX_BYTES,
-                       max_depth: int = JSON_MAX_DEPTH, hint: str | None = None, what: str = "a JSON file", allow_nan: bool = False) -> Any:
+                       max_depth: int = JSON_MAX_DEPTH, hint: str | None = None, what: str = "a JSON file",
+                       allow_nan: bool = False) -> Any:
     """:func:`read_json_bounded`'s checks on JSON already in memory (``data``; ``path`` names where
     it came from in messages, e.g. the recording that carried it): size, depth, strict JSON."""
     hint = hint or f"give {what}"
@@ -472,7 +489,8 @@ def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_b
 
     def whole(token: str) -> int:
         value = int(token)
-        if abs(value) > 2**1023 * 2:  # as a float it overflows: 1e400 was refused, 10**400 written out a traceback downstream
+        # as a float it overflows: 1e400 was refused, 10**400 written out a traceback downstream
+        if abs(value) > 2**1023 * 2:
             raise ValueError(f"the integer {token[:20]}... ({len(token)} digits) overflows to infinity")
         return value
 
@@ -485,12 +503,14 @@ def parse_json_bounded(data: bytes | str, path: str | Path, *, param: str, max_b
         return body
 
     try:
-        return json.loads(data.decode("utf-8"), parse_constant=None if allow_nan else constant, parse_float=float if allow_nan else finite,
+        return json.loads(data.decode("utf-8"), parse_constant=None if allow_nan else constant,
+                          parse_float=float if allow_nan else finite,
                           parse_int=int if allow_nan else whole, object_pairs_hook=no_duplicates)
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not UTF-8 text (byte {exc.start})", hint, param=param) from None
     except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON (line {exc.lineno} column {exc.colno}: {exc.msg})", hint, param=param) from None
+        raise InputError(f"{path}: not valid JSON (line {exc.lineno} column {exc.colno}: {exc.msg})", hint,
+                         param=param) from None
     except (ValueError, RecursionError) as exc:  # our checks above; an integer of over 4300 digits
         why = "a number has over 4300 digits" if "4300" in str(exc) else str(exc).splitlines()[0]
         raise InputError(f"{path}: not usable JSON ({why})", hint, param=param) from None
@@ -514,17 +534,21 @@ def refuse_output_onto_input(output: str | Path | None, inputs: Iterable[str | P
         inp_real = Path(os.path.realpath(inp))
         inp_stat = _stat_or_none(inp)
         hint = "choose another output; ionav-viz never writes over its input"
-        if out_real == inp_real or (out_stat is not None and inp_stat is not None and os.path.samestat(out_stat, inp_stat)):
-            how = ("is another name (a hard link) of" if out_real != inp_real else "is a link to" if os.path.islink(out) else "is")
+        if out_real == inp_real or (out_stat is not None and inp_stat is not None and
+                                    os.path.samestat(out_stat, inp_stat)):
+            how = ("is another name (a hard link) of" if out_real != inp_real
+                   else "is a link to" if os.path.islink(out) else "is")
             what = f"the input {inp}" + (" (a link to it)" if os.path.islink(inp) and not os.path.islink(out) else "")
             raise InputError(f"{out}: {how} {what}", hint, param=param)
         if output_is_folder and out_real in inp_real.parents:
-            raise InputError(f"{out}: holds the input {inp}, and the output folder is replaced whole", hint, param=param)
+            raise InputError(f"{out}: holds the input {inp}, and the output folder is replaced whole", hint,
+                             param=param)
         if inp_stat is not None and stat.S_ISDIR(inp_stat.st_mode) and inp_real in out_real.parents:
             raise InputError(f"{out}: is inside the input folder {inp}", hint, param=param)
 
 
-def refuse_output_onto_output(file: str | Path | None, folder: str | Path | None, *, param: str, file_is: str = "the recording",
+def refuse_output_onto_output(file: str | Path | None, folder: str | Path | None, *, param: str,
+                              file_is: str = "the recording",
                               folder_is: str = "the export folder", replaced: Iterable[str] = ()) -> None:
     """Refuse, before any work, two outputs of one command that collide: the file output ``file``
     (``-o X.rrd``, ``file_is`` in messages) and the folder output ``folder`` (``--export``,
@@ -540,7 +564,8 @@ def refuse_output_onto_output(file: str | Path | None, folder: str | Path | None
                          f"{folder}: {folder_is} would lie inside {file_is} {file}", hint, param=param)
     for name in replaced:
         if folder_real / name == file_real or folder_real / name in file_real.parents:
-            raise InputError(f"{file}: {file_is} would lie in {Path(folder) / name}, which {folder_is} replaces whole", hint, param=param)
+            raise InputError(f"{file}: {file_is} would lie in {Path(folder) / name}, which {folder_is} replaces whole",
+                             hint, param=param)
 
 
 def _stat_or_none(path: Path) -> os.stat_result | None:

@@ -17,23 +17,28 @@ def wgs84() -> Any:
     return Geod(ellps="WGS84")
 
 
-def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float,
+               lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """East and north (m) of positions relative to an origin (azimuthal equidistant projection:
     true distances from the origin, and local scale within 1e-4 over 100 km)."""
     from pyproj import Transformer
 
-    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
+    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84",
+                                    always_xy=True)
     east, north = to_local.transform(np.asarray(lon_deg), np.asarray(lat_deg))
     return np.asarray(east), np.asarray(north)
 
 
-def geodetic_of_en_m(east_m: np.ndarray, north_m: np.ndarray, lat0_deg: float, lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def geodetic_of_en_m(east_m: np.ndarray, north_m: np.ndarray, lat0_deg: float,
+                     lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Latitude and longitude (deg) of east and north offsets (m) from an origin: the inverse of
     :func:`local_en_m` (the same azimuthal equidistant projection)."""
     from pyproj import Transformer
 
-    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84", always_xy=True)
-    lon, lat = to_local.transform(np.asarray(east_m, dtype=float), np.asarray(north_m, dtype=float), direction="INVERSE")
+    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84",
+                                    always_xy=True)
+    lon, lat = to_local.transform(np.asarray(east_m, dtype=float), np.asarray(north_m, dtype=float),
+                                  direction="INVERSE")
     return np.asarray(lat), np.asarray(lon)
 
 
@@ -71,12 +76,14 @@ def enu_of_geodetic(lat_deg: np.ndarray, lon_deg: np.ndarray, height_m: np.ndarr
     from pyproj import Transformer
 
     to_ecef = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
-    x, y, z = to_ecef.transform(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float), np.asarray(height_m, dtype=float))
+    x, y, z = to_ecef.transform(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float),
+                                np.asarray(height_m, dtype=float))
     x0, y0, z0 = to_ecef.transform(lon0_deg, lat0_deg, height0_m)
     return (np.column_stack([x - x0, y - y0, z - z0])) @ _ecef_to_enu(lat0_deg, lon0_deg).T
 
 
-def geodetic_of_enu(enu_m: np.ndarray, lat0_deg: float, lon0_deg: float, height0_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def geodetic_of_enu(enu_m: np.ndarray, lat0_deg: float, lon0_deg: float,
+                    height0_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Latitude, longitude (deg) and height (m) of tangent-frame positions: the inverse of :func:`enu_of_geodetic`."""
     from pyproj import Transformer
 

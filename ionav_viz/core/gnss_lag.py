@@ -78,7 +78,8 @@ class SpeedLag:
         """The estimate in words: ``0.98 s behind the IMU (correlation 0.77)``, or why there is none."""
         if not self.resolved:
             return f"not resolved ({self.reason})"
-        return f"{self.lag_s:.2f} s behind the IMU (correlation {self.peak:.2f})" + ("" if self.used else f", under {USE_ABOVE_S:g} s: left alone")
+        return (f"{self.lag_s:.2f} s behind the IMU (correlation {self.peak:.2f})"
+                + ("" if self.used else f", under {USE_ABOVE_S:g} s: left alone"))
 
 
 def _smooth(x: np.ndarray, n: int) -> np.ndarray:
@@ -94,10 +95,12 @@ def speed_lag_of(drive: Drive) -> SpeedLag:
         return SpeedLag(0.0, 0.0, 0.0, False, "the speed is fitted to the fixes")
     if "accel_x_mps2" not in drive.columns:
         return SpeedLag(0.0, 0.0, 0.0, False, "no forward accelerometer")
-    return estimate_speed_lag(drive.t_s, drive.speed_mps, drive.columns["accel_x_mps2"], (drive.gnss_fault & SPEED_FAULTS) == 0)
+    return estimate_speed_lag(drive.t_s, drive.speed_mps, drive.columns["accel_x_mps2"],
+                              (drive.gnss_fault & SPEED_FAULTS) == 0)
 
 
-def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: np.ndarray, usable: np.ndarray | None = None) -> SpeedLag:
+def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: np.ndarray,
+                       usable: np.ndarray | None = None) -> SpeedLag:
     """How late the receiver's speed ``speed_mps`` (on the drive's grid ``t_s``, s) is against the
     IMU's forward specific force ``accel_fwd_mps2`` (m/s², the vehicle frame's x); ``usable``: the
     samples whose fix is trusted (default all)."""
@@ -116,7 +119,8 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
         ok &= np.asarray(usable, dtype=bool)
     driving_s = float(ok.sum() * dt)
     if driving_s < MIN_DRIVING_S:
-        return SpeedLag(0.0, 0.0, driving_s, False, f"too little driving at speed ({driving_s:.0f} s; {MIN_DRIVING_S:.0f} needed)")
+        return SpeedLag(0.0, 0.0, driving_s, False,
+                        f"too little driving at speed ({driving_s:.0f} s; {MIN_DRIVING_S:.0f} needed)")
     steps = np.arange(0, int(round(MAX_LAG_S / LAG_STEP_S)) + 1)
     corr = np.full(len(steps), -np.inf)
     for k, step in enumerate(steps):
@@ -139,11 +143,13 @@ def estimate_speed_lag(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: n
             lag += LAG_STEP_S * 0.5 * (y0 - y2) / den
     peak = float(corr[best])
     if peak < LAG_MIN_PEAK:
-        return SpeedLag(float(lag), peak, driving_s, False, f"the receiver's speed and the IMU agree poorly (correlation {peak:.2f})")
+        return SpeedLag(float(lag), peak, driving_s, False,
+                        f"the receiver's speed and the IMU agree poorly (correlation {peak:.2f})")
     return SpeedLag(float(lag), peak, driving_s, True)
 
 
-def lag_velocity_error_mps(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: np.ndarray, yaw_rate_radps: np.ndarray,
+def lag_velocity_error_mps(t_s: np.ndarray, speed_mps: np.ndarray, accel_fwd_mps2: np.ndarray,
+                           yaw_rate_radps: np.ndarray,
                            lag_s: float) -> np.ndarray:
     """How far (m/s) a receiver velocity ``lag_s`` late is from the car's, per sample of the grid
     ``t_s``: the lag times the car's horizontal acceleration (see the module docstring;

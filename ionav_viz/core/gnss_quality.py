@@ -109,7 +109,8 @@ def count_by_fault(masks: np.ndarray) -> dict[str, int]:
 GNSS_SIGMA_FLOOR_M = 0.3
 
 
-def position_sigma_m(t_s: np.ndarray, drive_t_s: np.ndarray, reported_m: np.ndarray | None, default_m: float) -> np.ndarray:
+def position_sigma_m(t_s: np.ndarray, drive_t_s: np.ndarray, reported_m: np.ndarray | None,
+                     default_m: float) -> np.ndarray:
     """The GNSS position sigma (m) at times ``t_s`` for a filter: the receiver's reported accuracy
     (``reported_m`` per drive sample at ``drive_t_s``, the drive's ``gnss_sigma_m``) interpolated,
     never below GNSS_SIGMA_FLOOR_M; ``default_m`` everywhere when the drive has none."""
@@ -134,7 +135,8 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
         fault[(n_satellites > 0) & (n_satellites < limits.min_satellites)] |= np.uint16(GnssFault.FEW_SATELLITES)
     if sigma_m is not None:
         fault[sigma_m > limits.max_sigma_m] |= np.uint16(GnssFault.POOR_ACCURACY)
-    fault[(np.abs(lat_deg) < limits.near_zero_deg) & (np.abs(lon_deg) < limits.near_zero_deg)] |= np.uint16(GnssFault.NEAR_ZERO)
+    fault[(np.abs(lat_deg) < limits.near_zero_deg)
+          & (np.abs(lon_deg) < limits.near_zero_deg)] |= np.uint16(GnssFault.NEAR_ZERO)
     if n < 2:
         return fault
 
@@ -160,7 +162,8 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
 
 
 
-def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: GnssLimits, accel_mps2: np.ndarray | None = None) -> np.ndarray:
+def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: GnssLimits,
+            accel_mps2: np.ndarray | None = None) -> np.ndarray:
     """FROZEN on samples repeating the previous position for >= frozen_min_s while moving."""
     fault = np.zeros(len(t_s), dtype=np.uint16)
     same = step_m < 1e-3
@@ -179,6 +182,7 @@ def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: Gnss
         lowest = np.minimum.reduceat(dv, np.column_stack([first, last + 1]).ravel())[::2] - dv[first]
         moving |= (speed[before] >= limits.moving_mps) & (speed[before] + lowest >= limits.moving_mps)
     held = (t_s[last] - t_s[first] >= limits.frozen_min_s) & moving
-    run_of = np.cumsum(np.bincount(first[held] + 1, minlength=len(t_s) + 1) - np.bincount(last[held] + 1, minlength=len(t_s) + 1))
+    run_of = np.cumsum(np.bincount(first[held] + 1, minlength=len(t_s) + 1)
+                       - np.bincount(last[held] + 1, minlength=len(t_s) + 1))
     fault[run_of[: len(t_s)] > 0] = np.uint16(GnssFault.FROZEN)
     return fault

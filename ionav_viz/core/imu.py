@@ -69,12 +69,14 @@ class ImuCharacter:
         parts = [f"IMU {self.native_rate_hz:.0f} Hz, {kind}"]
         if math.isfinite(self.clock_offset_sigma_s) or self.clock_offset_applied:
             sigma = f" ± {self.clock_offset_sigma_s:.2f}" if math.isfinite(self.clock_offset_sigma_s) else ""
-            parts.append(f"clock {self.clock_offset_s:+.2f} s{sigma} ({'applied' if self.clock_offset_applied else 'not applied'})")
+            parts.append(f"clock {self.clock_offset_s:+.2f} s{sigma} "
+                         f"({'applied' if self.clock_offset_applied else 'not applied'})")
         elif self.clock_offset_note:
             parts.append(f"clock offset not resolved ({self.clock_offset_note})")
         if self.mount_deg is not None:
             roll, pitch, yaw = self.mount_deg
-            parts.append(f"mount roll {roll:+.1f}, pitch {pitch:+.1f}, yaw {yaw:+.1f} deg ({'applied' if self.mount_applied else 'not applied'})")
+            parts.append(f"mount roll {roll:+.1f}, pitch {pitch:+.1f}, yaw {yaw:+.1f} deg "
+                         f"({'applied' if self.mount_applied else 'not applied'})")
         if math.isfinite(self.wobble_dps):
             parts.append(f"holder wobble {self.wobble_dps:.1f} deg/s")
         if self.speed_lag_used:

@@ -41,13 +41,16 @@ def with_overrides(settings: T, pairs: list[str], ranges: dict[str, tuple[float,
         if wants_pair and (len(values) != 2 or values[0] > values[1]):
             raise InputError(f"{what} {pair!r}: give two numbers LOW,HIGH with LOW <= HIGH", param=param)
         if not all(math.isfinite(v) and low <= v <= high for v in values):
-            raise InputError(f"{what} {pair!r} is out of range", f"{name} takes values from {low:g} to {high:g}", param=param)
+            raise InputError(f"{what} {pair!r} is out of range", f"{name} takes values from {low:g} to {high:g}",
+                             param=param)
         whole = isinstance(getattr(settings, name), int) and not wants_pair
         if whole and parsed != int(parsed):  # int() cut 4.5 satellites to 4 silently
-            raise InputError(f"{what} {pair!r}: {value!r} is not a whole number", f"{name} is a count, e.g. {name}={math.ceil(parsed)}", param=param)
+            raise InputError(f"{what} {pair!r}: {value!r} is not a whole number",
+                             f"{name} is a count, e.g. {name}={math.ceil(parsed)}", param=param)
         value_of = int(parsed) if whole else parsed
         if name in changes and changes[name] != value_of:  # the last one won silently
-            raise InputError(f"{what} {name} given twice with different values ({changes[name]} and {value_of})", "give each once", param=param)
+            raise InputError(f"{what} {name} given twice with different values ({changes[name]} and {value_of})",
+                             "give each once", param=param)
         changes[name] = value_of
     return replace(settings, **changes)  # type: ignore[type-var]
 
@@ -62,9 +65,11 @@ def check_ranges(settings: object, ranges: dict[str, tuple[float, float]], what:
         value = getattr(settings, f.name)
         values = value if isinstance(value, tuple) else (value,)
         low, high = ranges[f.name]
-        ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and low <= v <= high for v in values)
+        ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and low <= v <= high
+                 for v in values)
         if isinstance(value, tuple):
             ok = ok and len(value) == 2 and value[0] <= value[1]
         if not ok:
-            raise InputError(f"{what} {f.name}={value!r} is out of range", f"{f.name} takes values from {low:g} to {high:g}"
+            raise InputError(f"{what} {f.name}={value!r} is out of range",
+                             f"{f.name} takes values from {low:g} to {high:g}"
                              + (" as (LOW, HIGH), LOW <= HIGH" if isinstance(value, tuple) else ""), param=param)

@@ -40,7 +40,8 @@ def stamp_unit_hint(stamps_s, first_s: float, last_s: float) -> str | None:
         return None
     for factor, name in _STAMP_UNITS:
         if on_clock(lo * factor, hi * factor):
-            return f"its stamps look like {name} ({lo:.15g}-{hi:.15g}; divided by {1 / factor:.0f} they fall on the log's clock): write seconds"
+            return (f"its stamps look like {name} ({lo:.15g}-{hi:.15g}; divided by {1 / factor:.0f} they fall on the "
+                    "log's clock): write seconds")
     if first_s > span + margin and -margin <= lo and hi <= span + margin:
         return (f"its stamps look like seconds since the drive's start ({lo:.15g}-{hi:.15g}); the log's clock runs "
                 f"{first_s:.15g}-{last_s:.15g} s: add the drive's first stamp")

@@ -66,7 +66,8 @@ def base_url(option: str | None) -> str:
         parts = urllib.parse.urlsplit(url)
         parts.port  # noqa: B018  (raises ValueError for a bad port)
     except ValueError as exc:
-        raise InputError(f"base URL {url!r} is not a valid URL ({exc})", "give e.g. https://host/path", param="base_url") from None
+        raise InputError(f"base URL {url!r} is not a valid URL ({exc})", "give e.g. https://host/path",
+                         param="base_url") from None
     if parts.scheme not in ("http", "https") or not parts.netloc:
         raise InputError(f"base URL {url!r} is not an http(s) URL", "give e.g. https://host/path", param="base_url")
     return url
@@ -78,16 +79,19 @@ def safe_target(root: Path, repo_path: str) -> Path:
     parts = pure.parts
     if (not repo_path or pure.is_absolute() or repo_path.startswith(("/", "\\")) or "\\" in repo_path
             or any(p in ("", ".", "..") for p in parts) or ":" in parts[0] or "\x00" in repo_path):
-        raise InputError(f"manifest path {repo_path!r} is unsafe (absolute, '..' or a drive letter)", "only relative paths inside the data root are fetched")
+        raise InputError(f"manifest path {repo_path!r} is unsafe (absolute, '..' or a drive letter)",
+                         "only relative paths inside the data root are fetched")
     root_resolved = root.resolve()
     current = root
     for part in parts:
         current = current / part
         if current.is_symlink():
-            raise InputError(f"{current}: a symlink inside the data root; refusing to write through it", "remove the link")
+            raise InputError(f"{current}: a symlink inside the data root; refusing to write through it",
+                             "remove the link")
     target = root_resolved.joinpath(*parts)
     if root_resolved not in target.resolve().parents:
-        raise InputError(f"manifest path {repo_path!r} leaves the data root", "only relative paths inside the data root are fetched")
+        raise InputError(f"manifest path {repo_path!r} leaves the data root",
+                         "only relative paths inside the data root are fetched")
     return target
 
 
@@ -108,7 +112,8 @@ class VerifiedCache:
 
         self.path = root / VERIFIED_CACHE
         try:  # a cache: one that is missing, damaged, a pipe or nested deep is empty
-            data = read_json_bounded(self.path, param="data_root", what="the verified-files cache") if self.path.exists() else {}
+            data = (read_json_bounded(self.path, param="data_root", what="the verified-files cache")
+                    if self.path.exists() else {})
         except InputError:
             data = {}
         self.data = data if isinstance(data, dict) else {}
@@ -190,23 +195,27 @@ def _fetch_into(entry: ManifestEntry, root: Path, target: Path, url_base: str, t
             break
         except FetchError:
             raise
-        except (_Retry, urllib.error.URLError, http.client.HTTPException, TimeoutError, ConnectionError, OSError) as exc:
+        except (_Retry, urllib.error.URLError, http.client.HTTPException, TimeoutError, ConnectionError,
+                OSError) as exc:
             if attempt >= retries:
                 reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
                 reason = " ".join(str(reason).split())[:200]  # one line, even when quoting a server's reply
                 host = urllib.parse.urlsplit(url).hostname or url_base
-                raise FetchError(f"{entry.path}: download failed after {attempt} attempts from {host} ({reason}) (hint: check the "
-                                 "network connection, or give a mirror with --base-url; fetch again to resume)") from None
+                raise FetchError(f"{entry.path}: download failed after {attempt} attempts from {host} ({reason}) "
+                                 "(hint: check the network connection, or give a mirror with --base-url; fetch "
+                                 "again to resume)") from None
             time.sleep(min(2.0 ** (attempt - 1) * 0.2, 5.0))
             resumed = True
     size = part.stat().st_size
     if size != entry.size_bytes:
         part.unlink()
-        raise FetchError(f"{entry.path}: got {size} bytes, the manifest says {entry.size_bytes}; removed the partial file")
+        raise FetchError(f"{entry.path}: got {size} bytes, the manifest says {entry.size_bytes}; removed the "
+                         "partial file")
     digest = sha256_of(part)
     if digest != entry.sha256:
         part.unlink()
-        raise FetchError(f"{entry.path}: sha256 {digest[:12]}... does not match the manifest's {entry.sha256[:12]}...; removed the download")
+        raise FetchError(f"{entry.path}: sha256 {digest[:12]}... does not match the manifest's {entry.sha256[:12]}...; "
+                         "removed the download")
     os.replace(part, target)
     cache.remember(entry, target)
     return FetchResult(entry, target, "resumed" if resumed else "downloaded")
@@ -219,7 +228,9 @@ def _download(url: str, part: Path, entry: ManifestEntry, timeout_s: float, prog
         have = 0
     if have == entry.size_bytes:
         return
-    request = urllib.request.Request(url, headers={"User-Agent": "ionav-viz", **({"Range": f"bytes={have}-"} if have else {})})
+    request = urllib.request.Request(url,
+                                     headers={"User-Agent": "ionav-viz",
+                                              **({"Range": f"bytes={have}-"} if have else {})})
     try:
         response = urllib.request.urlopen(request, timeout=timeout_s)
     except urllib.error.HTTPError as exc:

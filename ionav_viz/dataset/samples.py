@@ -1,7 +1,7 @@
 """The synthetic drives bundled with the package (``ionav_viz/data/samples/``) and how they were generated.
 
-Each is a ``V-*.csv`` written by :func:`ionav_viz.api.simulation.simulate` (``iv.simulate``); regenerating one with the same
-scenario, seed and duration gives the same bytes (``ionav-viz simulate --bundled DIR``
+Each is a ``V-*.csv`` written by :func:`ionav_viz.api.simulation.simulate` (``iv.simulate``); regenerating one with the
+same scenario, seed and duration gives the same bytes (``ionav-viz simulate --bundled DIR``
 regenerates them all). The test drive of each scenario is addressable by the scenario name
 wherever a drive is expected (``ionav-viz evaluate roundabout``).
 """

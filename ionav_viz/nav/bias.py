@@ -33,7 +33,8 @@ class SensorBias:
         return cls(0.0, 0.0, "none (no stationary data)", 0.0)
 
 
-def stationary_mask(drive: Drive, max_speed_mps: float = 0.3, edge_s: float = 1.0, speed_mps: np.ndarray | None = None) -> np.ndarray:
+def stationary_mask(drive: Drive, max_speed_mps: float = 0.3, edge_s: float = 1.0,
+                    speed_mps: np.ndarray | None = None) -> np.ndarray:
     """Samples where the car stands still, at least ``edge_s`` away from moving samples.
 
     Standing still: GNSS speed below ``max_speed_mps`` (above the receiver's speed noise). Only

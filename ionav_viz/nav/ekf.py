@@ -45,18 +45,21 @@ class EkfEstimator:
         noise = self.noise
         if inputs.drive.velocity_fitted:  # no receiver velocity: the fixes' fit is noisier
             noise = replace(noise, gnss_speed_mps=max(noise.gnss_speed_mps, noise.gnss_fitted_speed_mps),
-                            gnss_course_rad_at_10mps=max(noise.gnss_course_rad_at_10mps, noise.gnss_fitted_course_rad_at_10mps))
+                            gnss_course_rad_at_10mps=max(noise.gnss_course_rad_at_10mps,
+                                                         noise.gnss_fitted_course_rad_at_10mps))
         meas, inc = measurements(inputs.drive, w, noise), increments(w)
         fp = forward_pass(w, meas, inc, inputs.bias.accel_mps2, inputs.bias.gyro_radps, noise, keep_log=True)
         xs = fp.xs
-        disp, yaw, cov = fp.outages(inputs.starts, inputs.n_windows, inputs.still[..., -1])  # each window's last grid point: where its state ends
+        # each window's last grid point: where its state ends
+        disp, yaw, cov = fp.outages(inputs.starts, inputs.n_windows, inputs.still[..., -1])
         cov = scale_growth(cov, self._history_scale(fp, inputs))
         if len(inputs.starts):
             start = xs[inputs.starts]
             self._last = {"accel_offset_mps2": f"{np.median(start[:, BA]):+.3f} (median at the outage starts)",
                           "gyro_bias_radps": f"{np.median(start[:, BG]):+.5f}",
                           "vehicle_speed": "used" if np.isfinite(meas.vehicle).any() else "none"}
-        health = FilterHealth(w.t0_s, PLANAR_MEASUREMENTS, PLANAR_MEASUREMENT_KINDS, fp.log.innovation, fp.log.variance, fp.log.status)
+        health = FilterHealth(w.t0_s, PLANAR_MEASUREMENTS, PLANAR_MEASUREMENT_KINDS, fp.log.innovation, fp.log.variance,
+                              fp.log.status)
         return Estimate(np.maximum(disp, 0.0), yaw, health=health, pos_cov_m2=0.5 * (cov + np.swapaxes(cov, -1, -2)))
 
     def _history_scale(self, fp, inputs: EstimatorInputs) -> np.ndarray:
@@ -68,7 +71,8 @@ class EkfEstimator:
 
         def run(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             disp, yaw, cov = fp.outages(starts, n, inputs.still_grid[starts[:, None] + np.arange(n)[None, :]][..., -1])
-            return np.maximum(disp, 0.0), yaw, 0.5 * (cov + np.swapaxes(cov, -1, -2))  # as the estimate: solve rebuilds its track so
+            # as the estimate: solve rebuilds its track so
+            return np.maximum(disp, 0.0), yaw, 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
         scale, self._scale_note = history_check.growth_scale(inputs.windows, n, inputs.starts, run)
         return scale

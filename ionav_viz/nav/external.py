@@ -48,8 +48,8 @@ DAY_S = 86400.0
 
 
 def _past_midnight(drive: Any, t: np.ndarray, *columns: Any) -> tuple[Any, ...]:
-    """The order of the trajectory's poses, its stamps ``t`` (sorted) and its ``columns`` on the drive's clock. An IO-VNBD
-    drive's clock is the time of day run on past 86,400 s when the drive crosses midnight (as its
+    """The order of the trajectory's poses, its stamps ``t`` (sorted) and its ``columns`` on the drive's clock. An
+    IO-VNBD drive's clock is the time of day run on past 86,400 s when the drive crosses midnight (as its
     plan's stamps are), while a trajectory written on the outaged log's own stamps starts the new
     day at 0: its poses after midnight were sorted before the drive's start. They are moved on by
     a day and the poses sorted again; on any other clock, or before midnight, nothing changes."""
@@ -99,15 +99,19 @@ class External:
             # only poses up to the outage's end: nothing the estimator wrote after the GNSS came back
             upto = int(np.searchsorted(t, row[-1] + 1e-6, side="right"))
             nearest[i] = _nearest(t[:upto], row[0])
-            t_i, lat_i, lon_i, cov_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto], None if cov is None else cov_all[:upto],
+            t_i, lat_i, lon_i, cov_i = _from_start_fix(row[0], t[:upto], lat_all[:upto], lon_all[:upto],
+                                                       None if cov is None else cov_all[:upto],
                                                        float(inputs.lat0_deg[i]), float(inputs.lon0_deg[i]))
             if not _covers(t_i, row):
                 first = float(drive.stamp_s(drive.t_s[0]))
                 units = stamp_unit_hint(t, first, float(drive.stamp_s(drive.t_s[-1])))
                 raise EstimatorError(
                     f"external {self.name!r} ({traj.source}): its trajectory does not cover outage {i + 1} "
-                    f"(stamps {row[0]:.3f}-{row[-1]:.3f} s; it spans {t[0]:.3f}-{t[-1]:.3f} s, poses at most {MAX_GAP_S:g} s apart needed)",
-                    units or "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator outside ionav-viz')")
+                    f"(stamps {row[0]:.3f}-{row[-1]:.3f} s; it spans {t[0]:.3f}-{t[-1]:.3f} s, poses at most "
+                    f"{MAX_GAP_S:g} s apart needed)",
+                    units or
+                    "run the estimator over the whole outaged log, and write stamps on its clock (see 'An estimator "
+                    "outside ionav-viz')")
             lat[i], lon[i] = (_interpolated(row, t_i, v) for v in (lat_i, lon_i))
             if cov is not None:
                 cov[i] = _interpolated_cov(row, t_i, cov_i)
@@ -117,7 +121,8 @@ class External:
         disp, yaw = windows_of_track(lat, lon, inputs.course0_deg)
         return Estimate(disp, yaw, lat_deg=lat, lon_deg=lon, pos_cov_m2=cov)
 
-    def _check_start(self, inputs: EstimatorInputs, nearest: np.ndarray, lat_all: np.ndarray, lon_all: np.ndarray, order: np.ndarray) -> None:
+    def _check_start(self, inputs: EstimatorInputs, nearest: np.ndarray, lat_all: np.ndarray, lon_all: np.ndarray,
+                     order: np.ndarray) -> None:
         """Refuse a trajectory whose pose nearest an outage's start lies more than
         :data:`MAX_START_OFFSET_M` from the start fix it was given: positions in other units
         (radians, kilometres), latitude and longitude swapped, or another local origin; the hint
@@ -135,17 +140,20 @@ class External:
         if traj.local:
             e, n = float(traj.east_m[j]), float(traj.north_m[j])
             origin = inputs.drive.local_origin_deg
-            candidates = [("kilometres", *geodetic_of_en_m(e * 1e3, n * 1e3, *origin)), ("x north and y east", *geodetic_of_en_m(n, e, *origin)),
+            candidates = [("kilometres", *geodetic_of_en_m(e * 1e3, n * 1e3, *origin)),
+                          ("x north and y east", *geodetic_of_en_m(n, e, *origin)),
                           ("latitude and longitude in degrees", e, n)]
         else:
             a, b = float(traj.lat_deg[j]), float(traj.lon_deg[j])
             candidates = [("radians", np.degrees(a), np.degrees(b)), ("longitude first, then latitude", b, a)]
         likely = next((label for label, la, lo in candidates if abs(float(la)) <= 90
                        and geod.inv(float(lo), float(la), lon0, lat0)[2] <= MAX_START_OFFSET_M), None)
-        what = "time_s,east_m,north_m (metres about the drive's first fix)" if traj.local else "time_s,lat_deg,lon_deg (WGS84 degrees)"
+        what = ("time_s,east_m,north_m (metres about the drive's first fix)"
+                if traj.local else "time_s,lat_deg,lon_deg (WGS84 degrees)")
         raise EstimatorError(
-            f"external {self.name!r} ({traj.source}): at outage {i + 1}'s start its pose lies {dist[i] / 1000:.4g} km from the start fix "
-            f"it was given ({lat0:.6f}, {lon0:.6f}); at most {MAX_START_OFFSET_M / 1000:g} km is an estimate",
+            f"external {self.name!r} ({traj.source}): at outage {i + 1}'s start its pose lies {dist[i] / 1000:.4g} km "
+            f"from the start fix it was given ({lat0:.6f}, {lon0:.6f}); at most {MAX_START_OFFSET_M / 1000:g} km "
+            "is an estimate",
             (f"its positions look like {likely}: " if likely else "") + f"write {what}")
 
     def _report_leaks(self, inputs: EstimatorInputs, when: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> None:
@@ -159,8 +167,9 @@ class External:
         _, _, dist = wgs84().inv(lon[:, 1:-1].ravel(), lat[:, 1:-1].ravel(), g_lon.ravel(), g_lat.ravel())
         on_fixes = (np.asarray(dist).reshape(inner.shape) < LEAK_M).mean(axis=1) > 0.5
         if on_fixes.any():
-            log.warning("external %s: inside %d of %d outage(s) its positions are the GNSS fixes the outaged log lacks (within %g m): "
-                        "it ran on the original log, or is the GNSS itself; its scores are not an outage's",
+            log.warning("external %s: inside %d of %d outage(s) its positions are the GNSS fixes the outaged log lacks "
+                        "(within %g m): it ran on the original log, or is the GNSS itself; its scores are "
+                        "not an outage's",
                         self.name, int(on_fixes.sum()), len(on_fixes), LEAK_M)
 
 

@@ -10,12 +10,12 @@ integral of the horizontal speed, never negative), the mean yaw rate (counter-cl
 corrected gyro's, so that the updates' corrections of the heading are not counted as turns), and its
 own positions at the window boundaries, which the metrics use.
 
-Initial alignment, at the drive's first window boundary with a usable fix (:func:`alignment_boundary`): level (roll and pitch) from the mean
-specific force over the second after it, heading from the GNSS course at speed (the windows hold
+Initial alignment, at the drive's first window boundary with a usable fix (:func:`alignment_boundary`): level (roll and
+pitch) from the mean specific force over the second after it, heading from the GNSS course at speed (the windows hold
 the first course at speed through a standstill at the start), velocity from the GNSS speed and
-course (15 degrees of sigma: a course at walking pace is worth little), biases zero with sigmas wide enough for a phone (0.5 deg/s, 0.3 m/s^2). The sensors'
-white noise (the filter's random walks) is measured on the whole drive, driving included
-(:func:`sensor_noise`): the robust spread of successive differences of each axis, the grade's
+course (15 degrees of sigma: a course at walking pace is worth little), biases zero with sigmas wide enough for a phone
+(0.5 deg/s, 0.3 m/s^2). The sensors' white noise (the filter's random walks) is measured on the whole drive, driving
+included (:func:`sensor_noise`): the robust spread of successive differences of each axis, the grade's
 floors as a prior.
 
 The mechanisation is the data's (``mechanisation="auto"``): where the drive's IMU samples are single
@@ -29,9 +29,9 @@ the GNSS position's running NIS stays above 3 (the filter meets more than its mo
 30 times, carried into each outage); a fix the gate leaves out while it
 agrees with the fixes before it re-initialises position and velocity from GNSS instead of locking the
 fixes out, and the heading from the GNSS course where the two are more than 30 degrees and three
-of the course's sigmas apart (a phone's GNSS gap can end with the course turned against the gyro); a stop the IMU shows for two boundaries is taken even when the filter's velocity
-disagrees, unless a fix at speed says the car moves. Each re-initialisation is in the filter's
-health (:class:`ionav_viz.nav.protocol.FilterHealth`), and so in the report.
+of the course's sigmas apart (a phone's GNSS gap can end with the course turned against the gyro); a stop the IMU shows
+for two boundaries is taken even when the filter's velocity disagrees, unless a fix at speed says the car moves. Each
+re-initialisation is in the filter's health (:class:`ionav_viz.nav.protocol.FilterHealth`), and so in the report.
 
 Drives with only the paper's two channels (IO-VNBD) are the planar ``ekf``'s: ``gins`` does not
 apply to them. The measurements behind these choices: docs/gins-design.md.
@@ -255,7 +255,8 @@ class GinsEstimator:
         lag_s, lag_text = self._speed_lag(drive)
         vel_var = np.zeros(len(b.t_s))
         if lag_s > 0.0:  # a location service's smoothed speed: its velocity updates widened by what the lag makes of it
-            vel_var = lag_velocity_error_mps(drive.t_s, drive.columns["speed_mps"], acc[:, 0], gyr[:, 2], lag_s)[b.sample] ** 2
+            vel_var = lag_velocity_error_mps(drive.t_s, drive.columns["speed_mps"], acc[:, 0], gyr[:, 2],
+                                             lag_s)[b.sample] ** 2
         vel_ok = b.gnss_ok & (b.speed_mps > GNSS_VELOCITY_MIN_SPEED_MPS)
         odo = np.full(len(b.t_s), np.nan)
         found = vehicle_speed(drive)
@@ -269,19 +270,23 @@ class GinsEstimator:
         still = (moving_count[k[1]] - moving_count[k[0]] == 0) & (k[1] > k[0])
 
         dt = float(np.median(np.diff(drive.t_s))) if len(drive) > 1 else 0.1
-        reduced = self.mechanisation == "reduced" or (self.mechanisation == "auto" and drive.imu is not None and drive.imu.single_readings)
+        reduced = self.mechanisation == "reduced" or (self.mechanisation == "auto" and drive.imu is not None and
+                                                      drive.imu.single_readings)
         sigma_a, sigma_g, noise_from = sensor_noise(acc, gyr, self.noise)
         walk, init = self.noise.arrays()
         n = self.noise
         # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
         r_vel = (n.gnss_fitted_velocity_mps if drive.velocity_fitted else n.gnss_velocity_mps) ** 2
-        inputs = FilterInputs(np.ascontiguousarray(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64), b.segment_start.astype(bool),
-                              b.gnss_ok.astype(bool), pos, np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
-                              still.astype(bool), fix_steps(b, pos, sigma), bool(has_height), np.ascontiguousarray(vel_var, dtype=float))
-        noise = FilterNoise(sigma_a**2 * dt, sigma_g**2 * dt, walk, r_vel, n.nhc_lateral_mps**2, n.nhc_vertical_mps**2, n.odometer_mps**2,
-                            n.zupt_mps**2, sigma_g**2, n.level_mps2**2)
+        inputs = FilterInputs(np.ascontiguousarray(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64),
+                              b.segment_start.astype(bool), b.gnss_ok.astype(bool), pos,
+                              np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
+                              still.astype(bool), fix_steps(b, pos, sigma), bool(has_height),
+                              np.ascontiguousarray(vel_var, dtype=float))
+        noise = FilterNoise(sigma_a**2 * dt, sigma_g**2 * dt, walk, r_vel, n.nhc_lateral_mps**2, n.nhc_vertical_mps**2,
+                            n.odometer_mps**2, n.zupt_mps**2, sigma_g**2, n.level_mps2**2)
         earth = earth_at(origin[0], origin[2])
-        switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt), reduced)
+        switches = FilterSwitches(True, bool(self.nhc), bool(self.odometer and found is not None), bool(self.zupt),
+                                  reduced)
 
         nb = len(b.t_s)
         out = filter_outputs(nb, keep_states=True)
@@ -289,19 +294,24 @@ class GinsEstimator:
         if aligned > 0:
             # no usable fix before it: the boundaries before run free from an alignment on the unusable
             # fixes (as the drive's start always was; only an outage placed there uses them)
-            run_filter(inputs, noise, earth, switches, *self._aligned(0, pos, vel, sigma, acc, b, dt, init), 0, aligned - 1, out)
-        run_filter(inputs, noise, earth, switches, *self._aligned(aligned, pos, vel, sigma, acc, b, dt, init), aligned, nb - 1, out)
+            run_filter(inputs, noise, earth, switches, *self._aligned(0, pos, vel, sigma, acc, b, dt, init), 0,
+                       aligned - 1, out)
+        run_filter(inputs, noise, earth, switches, *self._aligned(aligned, pos, vel, sigma, acc, b, dt, init), aligned,
+                   nb - 1, out)
         xs = out.xs
         self._last = {"mechanisation": _mechanisation_text(reduced, drive), "gnss_speed_lag": lag_text,
-                      "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample ({noise_from})",
+                      "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample "
+                                         f"({noise_from})",
                       "gyro_bias_dps": _median_text(np.rad2deg(xs[:, BGX:BGX + 3])),
                       "accel_bias_mps2": _median_text(xs[:, BAX:BAX + 3]),
-                      "mount_residual_deg": f"yaw {np.rad2deg(np.median(xs[:, PSIM])):+.2f}, pitch {np.rad2deg(np.median(xs[:, THM])):+.2f}",
+                      "mount_residual_deg": f"yaw {np.rad2deg(np.median(xs[:, PSIM])):+.2f}, pitch "
+                                            f"{np.rad2deg(np.median(xs[:, THM])):+.2f}",
                       "gyro_z_scale_error": f"{np.median(xs[:, SG]):+.4f}",
                       "vehicle_speed": f"used, scale {np.median(xs[:, KO]):.4f}" if switches.odometer else "none",
                       "still_s": f"{float(still_s.sum() * dt):.0f} s of the drive detected standing",
-                      "process_noise_scale": f"x{float(np.max(out.q_scale)):.1f} at most, above x1 over {100.0 * float(np.mean(out.q_scale > 1.0)):.0f} % "
-                                             "of the drive (the consistency test: the GNSS position's running NIS)"}
+                      "process_noise_scale": f"x{float(np.max(out.q_scale)):.1f} at most, above x1 over "
+                                             f"{100.0 * float(np.mean(out.q_scale > 1.0)):.0f} % of the drive (the "
+                                             "consistency test: the GNSS position's running NIS)"}
         return GinsRun(b, xs, out.Ps, inputs, noise, earth, switches, origin, still, out.log, out.q_scale.copy())
 
     def _speed_lag(self, drive: Drive) -> tuple[float, str]:
@@ -343,9 +353,10 @@ class GinsEstimator:
         if self.arbiter:
             choice, note, cov_scale = arbitrate(r, inputs, blind)
             self._last["arbiter"] = note
-            self._last["covariance_scale"] = (f"x{float(np.median(cov_scale)):.2f} median ({float(cov_scale.min()):.2f}-"
-                                              f"{float(cov_scale.max()):.2f}) on its growth through the outage, from the final NEES "
-                                              "on the same pseudo-outages")
+            self._last["covariance_scale"] = (f"x{float(np.median(cov_scale)):.2f} median "
+                                              f"({float(cov_scale.min()):.2f}-{float(cov_scale.max()):.2f}) on its "
+                                              "growth through the outage, from the final NEES on the same "
+                                              "pseudo-outages")
             held = np.flatnonzero(choice == REDUCED)
             if len(held):
                 p2, c2, d2, y2 = _propagate(r, blind._replace(level_held=True), b0s[held], n)
@@ -368,7 +379,8 @@ class GinsEstimator:
         return dict(self._last)
 
 
-def _propagate(r: GinsRun, sw: FilterSwitches, b0s: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _propagate(r: GinsRun, sw: FilterSwitches, b0s: np.ndarray,
+               n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The filter run on without GNSS (switches ``sw``) for ``n`` windows from each boundary of
     ``b0s``, from the pass's state there: positions (ENU m, ``(m, n + 1, 3)``), their east/north
     covariance ``(m, n + 1, 2, 2)``, the distance and the mean yaw rate per window ``(m, n)``."""
@@ -393,7 +405,8 @@ def _planar_dr(inputs: EstimatorInputs, starts: np.ndarray, n: int) -> tuple[np.
     window ``(m, n)`` and the rebuilt track."""
     w = inputs.windows
     idx = starts[:, None] + np.arange(n)[None, :]
-    d, y = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[starts], inputs.bias, w.rate_hz, inputs.still_grid[idx])
+    d, y = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[starts], inputs.bias, w.rate_hz,
+                       inputs.still_grid[idx])
     return d, y, rebuild_track(w.lat0_deg[starts], w.lon0_deg[starts], w.heading0_deg[starts], d, y)
 
 
@@ -410,7 +423,8 @@ ARBITER_PRIOR_RATIO = 2.0
 #: ``k`` past pseudo-outages an alternative must have ended on average ``1 - 3 / k`` as far from the
 #: fixes as the default (none before 4, 25 % nearer after 12, 10 % after 30).
 ARBITER_PRIOR_OUTAGES = history_check.PRIOR_OUTAGES
-_CANDIDATE_TEXT = {DEFAULT: "", REDUCED: "reduced (roll and pitch held)", PLANAR_DR: "planar DR (the INS DR's propagation)"}
+_CANDIDATE_TEXT = {DEFAULT: "", REDUCED: "reduced (roll and pitch held)",
+                   PLANAR_DR: "planar DR (the INS DR's propagation)"}
 
 
 #: The shorter horizon (windows) whose pseudo-outages speak for a longer outage that has fewer than
@@ -445,7 +459,8 @@ def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tup
     record = _record(r, inputs, blind, n, names)
     short = _record(r, inputs, blind, ARBITER_SHORT_WINDOWS, names) if n > ARBITER_SHORT_WINDOWS else None
     if record is None and short is None:
-        return (np.full(m, DEFAULT), f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)",
+        return (np.full(m, DEFAULT),
+                f"{own} on all {m} outages (no pseudo-outage of {n} s over the GNSS before them to compare with)",
                 np.ones(m))
     if record is None:  # not one of its own length: the short ones speak for every outage
         record = (np.full(m, DEFAULT), np.zeros((3, m)), np.zeros(m, dtype=int), np.zeros((3, 0)), np.ones(m))
@@ -460,8 +475,10 @@ def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tup
         on = choice == c
         if on.any():
             nearer = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[DEFAULT][on])), 1e-9)
-            parts.append(f"{_CANDIDATE_TEXT[c]} on {int(on.sum())} (its past pseudo-outages ended {100.0 * nearer:.0f} % nearer the fixes)")
-    means = ", ".join(f"{'default' if c == DEFAULT else _CANDIDATE_TEXT[c].split(' (')[0]} {float(err[c].mean()):.1f} m" for c in names) \
+            parts.append(f"{_CANDIDATE_TEXT[c]} on {int(on.sum())} (its past pseudo-outages ended {100.0 * nearer:.0f} "
+                         "% nearer the fixes)")
+    means = ", ".join(f"{'default' if c == DEFAULT else _CANDIDATE_TEXT[c].split(' (')[0]} {float(err[c].mean()):.1f} m"
+                      for c in names) \
         if err.shape[1] else "none of this length"
     shorter = int(np.sum(horizon < n))
     return choice, (f"{', '.join(parts)}; chosen per outage from the {n} s pseudo-outages over the GNSS before it "
@@ -504,26 +521,28 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     score = np.full((3, m), np.inf)
     score[DEFAULT] = mean_default
     for c in names[1:]:
-        score[c] = (ARBITER_PRIOR_OUTAGES * ARBITER_PRIOR_RATIO * mean_default + sums[c]) / (ARBITER_PRIOR_OUTAGES + count)
+        score[c] = ((ARBITER_PRIOR_OUTAGES * ARBITER_PRIOR_RATIO * mean_default + sums[c])
+                    / (ARBITER_PRIOR_OUTAGES + count))
     choice = np.where(count > 0, np.argmin(score, axis=0), DEFAULT)
     return choice, sums, count, err, history_check.log_scale(ends, nees, inputs.starts)
 
 
 #: The kind of each of the filter's measurement slots (:data:`ionav_viz.nav.strapdown.GINS_MEASUREMENTS`).
-GINS_MEASUREMENT_KINDS = ("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2 + ("odometer",
-                     "level", "level", REINITIALISED)
+GINS_MEASUREMENT_KINDS = (("GNSS position",) * 3 + ("GNSS velocity",) * 2 + ("ZUPT",) * 3 + ("ZARU",) * 3 + ("NHC",) * 2
+                          + ("odometer", "level", "level", REINITIALISED))
 
 
 def health_of(r: GinsRun) -> FilterHealth:
     """The pass's update log as the estimate's :class:`~ionav_viz.nav.protocol.FilterHealth`."""
-    return FilterHealth(r.bounds.t_s, GINS_MEASUREMENTS, GINS_MEASUREMENT_KINDS, r.log.innovation, r.log.variance, r.log.status)
+    return FilterHealth(r.bounds.t_s, GINS_MEASUREMENTS, GINS_MEASUREMENT_KINDS, r.log.innovation, r.log.variance,
+                        r.log.status)
 
 
 def _mechanisation_text(reduced: bool, drive: Drive) -> str:
     if not reduced:
         return "3D strapdown"
-    why = f"the IMU's samples are single readings at {drive.imu.native_rate_hz:g} Hz" if drive.imu is not None and drive.imu.single_readings \
-        else "asked for"
+    why = f"the IMU's samples are single readings at {drive.imu.native_rate_hz:g} Hz" \
+        if drive.imu is not None and drive.imu.single_readings else "asked for"
     return f"reduced: roll and pitch held, not integrated ({why}: their x and y rates alias what the holder shakes)"
 
 

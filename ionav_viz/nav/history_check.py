@@ -49,7 +49,8 @@ def pseudo_outages(windows: Windows, n_windows: int) -> PseudoOutages:
     if not len(starts):
         return PseudoOutages(starts, starts, n_windows)
     idx = starts[:, None] + np.arange(-1, n_windows)[None, :]
-    good = (windows.truth_fault[idx] == 0).all(axis=1) & (windows.segment[idx] == windows.segment[idx[:, :1]]).all(axis=1)
+    good = ((windows.truth_fault[idx] == 0).all(axis=1)
+            & (windows.segment[idx] == windows.segment[idx[:, :1]]).all(axis=1))
     starts = starts[good]
     return PseudoOutages(starts, starts + n_windows, n_windows)
 
@@ -61,7 +62,8 @@ def nees_per_dof(windows: Windows, starts: np.ndarray, disp_m: np.ndarray, yaw_r
     against the fixes, with the covariance ``cov_m2`` ``(m, n + 1, 2, 2)`` (east/north, m^2)."""
     if not len(starts):
         return np.zeros(0)
-    track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp_m, yaw_rate_radps)
+    track = rebuild_track(windows.lat0_deg[starts], windows.lon0_deg[starts], windows.heading0_deg[starts], disp_m,
+                          yaw_rate_radps)
     error = boundary_errors_en_m(windows, starts, disp_m.shape[1], track.lat_deg, track.lon_deg)[:, 1:]
     return nees_en(error, cov_m2[:, 1:]).mean(axis=1) / 2.0
 
@@ -95,8 +97,8 @@ def covariance_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray
     disp, yaw, cov = run(starts)
     nees = nees_per_dof(windows, starts, disp, yaw, cov)
     scale = history_scale(starts + n_windows, nees, outage_starts)
-    return scale, (f"x{float(np.median(scale)):.2f} median, x{float(scale.max()):.2f} at most, from its NEES per degree of freedom "
-                   f"{float(nees.mean()):.2f} on {len(nees)} pseudo-outages over the GNSS")
+    return scale, (f"x{float(np.median(scale)):.2f} median, x{float(scale.max()):.2f} at most, from its NEES per "
+                   f"degree of freedom {float(nees.mean()):.2f} on {len(nees)} pseudo-outages over the GNSS")
 
 
 def history_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:
@@ -153,5 +155,5 @@ def growth_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray,
     error = boundary_errors_en_m(windows, starts, n_windows, track.lat_deg, track.lon_deg)[:, -1]
     nees = nees_en(error, growth_en(cov)[:, -1]) / 2.0
     scale = log_scale(starts + n_windows, nees, outage_starts)
-    return scale, (f"x{float(np.median(scale)):.2f} median ({float(scale.min()):.2f}-{float(scale.max()):.2f}) on its growth "
-                   f"through the outage, from its final NEES on {len(nees)} pseudo-outages over the GNSS")
+    return scale, (f"x{float(np.median(scale)):.2f} median ({float(scale.min()):.2f}-{float(scale.max()):.2f}) "
+                   f"on its growth through the outage, from its final NEES on {len(nees)} pseudo-outages over the GNSS")

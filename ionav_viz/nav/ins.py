@@ -10,8 +10,8 @@ Beyond the paper, two constraints a car obeys (the paper's drives hardly stop in
 real urban ones stand 20-30 % of the time): the speed never goes below zero (dead reckoning on
 the longitudinal axis assumes forward driving; integrated through a stop, a biased accelerometer
 drove the car backwards at several m/s), nor above the fastest a car goes (a log whose
-accelerometer runs away, as one with 5 Hz held readings did, still gives a car's track), and where the IMU shows the car standing
-(:mod:`ionav_viz.nav.stillness`) the speed and the yaw rate are zero (a zero-velocity update).
+accelerometer runs away, as one with 5 Hz held readings did, still gives a car's track), and where the IMU shows the car
+standing (:mod:`ionav_viz.nav.stillness`) the speed and the yaw rate are zero (a zero-velocity update).
 
 The library rebuilds the 2D track from the last fix (:func:`ionav_viz.nav.track.rebuild_track`).
 """
@@ -76,7 +76,8 @@ class InsEstimator:
         return True
 
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
-        disp, yaw = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias, inputs.rate_hz, inputs.still)
+        disp, yaw = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias, inputs.rate_hz,
+                                inputs.still)
         return Estimate(disp, yaw)
 
     def describe(self) -> dict[str, Any]:

@@ -52,7 +52,8 @@ class UpdateLog(NamedTuple):
 
 def update_log(rows: int, slots: int) -> UpdateLog:
     """An empty record of ``rows`` boundaries by ``slots`` measurements (NaN where none)."""
-    return UpdateLog(np.full((rows, slots), np.nan), np.full((rows, slots), np.nan), np.zeros((rows, slots), dtype=np.int8))
+    return UpdateLog(np.full((rows, slots), np.nan), np.full((rows, slots), np.nan),
+                     np.zeros((rows, slots), dtype=np.int8))
 
 
 @njit(cache=True)
@@ -117,7 +118,8 @@ def record(log, row, slot, innovation, variance, used):  # pragma: no cover - co
     log.status[row, slot] = 1 if used else 2
 
 
-def update(P: np.ndarray, x: np.ndarray, H: np.ndarray, innovation: float, r: float, gate: float = np.inf) -> tuple[float, bool]:
+def update(P: np.ndarray, x: np.ndarray, H: np.ndarray, innovation: float, r: float,
+           gate: float = np.inf) -> tuple[float, bool]:
     """:func:`scalar_update` with a dense row ``H`` (for tests and Python callers)."""
     H = np.asarray(H, dtype=float)
     cols = np.flatnonzero(H).astype(np.int64)

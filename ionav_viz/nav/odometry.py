@@ -19,8 +19,8 @@ the wheel speeds too).
 * Yaw rate: the gyro minus its standstill bias, averaged per window (as the INS).
 
 The drive must have a usable vehicle speed: a column that is missing, not finite, all zero or
-constant is not one (:func:`ionav_viz.nav.vehicle_speed.vehicle_speed`). The estimator then does not apply (it is left out
-of the default set, said once at ``-v``) and choosing it explicitly is an error.
+constant is not one (:func:`ionav_viz.nav.vehicle_speed.vehicle_speed`). The estimator then does not apply (it is left
+out of the default set, said once at ``-v``) and choosing it explicitly is an error.
 """
 
 from __future__ import annotations
@@ -74,14 +74,16 @@ ODO_GYRO_WHITE_RADPS = np.deg2rad(0.05)
 COURSE_SIGMA_RAD_AT_10MPS = np.deg2rad(0.5)
 
 
-def odometry_covariance(inputs: EstimatorInputs, disp_m: np.ndarray, yaw_rate_radps: np.ndarray, calibrated: np.ndarray) -> np.ndarray:
+def odometry_covariance(inputs: EstimatorInputs, disp_m: np.ndarray, yaw_rate_radps: np.ndarray,
+                        calibrated: np.ndarray) -> np.ndarray:
     """Odometry's east/north position covariance (m^2) at every window boundary: its scale's and the
     gyro bias's errors, which hold through an outage, the gyro's white noise per window and the GNSS
     course at the start (the constants above)."""
     scale_sigma = np.where(calibrated, ODO_SCALE_SIGMA_CALIBRATED, ODO_SCALE_SIGMA_NOMINAL)
     course_sigma = COURSE_SIGMA_RAD_AT_10MPS * 10.0 / np.maximum(np.asarray(inputs.speed0_mps, dtype=float), 1.0)
     return (track_covariance(inputs.course0_deg, disp_m, yaw_rate_radps, 0.0, ODO_GYRO_WHITE_RADPS**2, course_sigma**2)
-            + systematic_track_covariance(inputs.course0_deg, disp_m, yaw_rate_radps, scale_sigma, ODO_GYRO_BIAS_SIGMA_RADPS))
+            + systematic_track_covariance(inputs.course0_deg, disp_m, yaw_rate_radps, scale_sigma,
+                                          ODO_GYRO_BIAS_SIGMA_RADPS))
 
 
 class OdometryEstimator:
@@ -107,7 +109,8 @@ class OdometryEstimator:
     def estimate(self, inputs: EstimatorInputs) -> Estimate:
         found = vehicle_speed(inputs.drive)
         if found is None:
-            raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and {why_no_vehicle_speed(inputs.drive)}",
+            raise InputError(f"{inputs.drive.source}: odometry needs a vehicle speed, and "
+                             f"{why_no_vehicle_speed(inputs.drive)}",
                              "leave odo out of the estimators for this drive", param="estimators")
         values, unit, source = found
         # a distance, never negative: the speed's magnitude (a log's signed wheel speeds or odometry
@@ -118,7 +121,8 @@ class OdometryEstimator:
         disp = raw[inputs.window_index] * scale[:, None]
         yaw = trapezoid_mean(inputs.gyro_radps - inputs.bias.gyro_radps)
         self._last = {"speed": f"{source} ({unit})", "scale": f"{'radius' if unit == 'rad/s' else 'factor'} "
-                      f"{np.median(scale) if len(scale) else nominal:.4f}{' m' if unit == 'rad/s' else ''} (median, from GNSS before each outage)"}
+                      f"{np.median(scale) if len(scale) else nominal:.4f}{' m' if unit == 'rad/s' else ''} (median, "
+                      "from GNSS before each outage)"}
         return Estimate(disp, yaw, pos_cov_m2=odometry_covariance(inputs, disp, yaw, scale != nominal))
 
     def describe(self) -> dict[str, Any]:

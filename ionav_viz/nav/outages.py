@@ -49,7 +49,8 @@ log = logging.getLogger("ionav_viz")
 def outage_windows(outage_s: float, what: str = "outage length", param: str = "outage_s") -> int:
     """Outage length (s) -> number of 1-second windows; must be a positive whole number."""
     if isinstance(outage_s, bool) or not isinstance(outage_s, numbers.Real):
-        raise InputError(f"{what} {outage_s!r} is not a number of seconds", "give seconds as a number, e.g. 10.0", param=param)
+        raise InputError(f"{what} {outage_s!r} is not a number of seconds", "give seconds as a number, e.g. 10.0",
+                         param=param)
     if not np.isfinite(outage_s) or outage_s <= 0 or abs(outage_s - round(outage_s)) > 1e-9:
         raise InputError(
             f"{what} {outage_s:g} s is not a positive whole number of seconds",
@@ -71,7 +72,8 @@ def _segment_ranges(windows: Windows) -> list[tuple[int, int]]:
     starts = np.flatnonzero(ok & np.concatenate([[True], key[1:] != key[:-1]]))
     ends = np.flatnonzero(ok & np.concatenate([key[1:] != key[:-1], [True]])) + 1
     # and none before the warm-up's end (Windows.after_warm_up)
-    return [(max(int(a) + 1, windows.first_start), int(b)) for a, b in zip(starts, ends) if max(int(a) + 1, windows.first_start) < b]
+    return [(max(int(a) + 1, windows.first_start), int(b)) for a, b in zip(starts, ends)
+            if max(int(a) + 1, windows.first_start) < b]
 
 
 def truth_faults_near(windows: Windows, start: int, n: int) -> int:
@@ -104,7 +106,8 @@ def excluded_by_truth(windows: Windows, n: int, place: Callable[[Windows], np.nd
 
 def valid_start(windows: Windows, start: int, n: int) -> bool:
     """Whether an ``n``-window outage can start at window ``start``."""
-    return bool(_starts_ok(windows)[start]) and any(a <= start and start + n <= b for a, b in _segment_ranges(windows)) \
+    return bool(_starts_ok(windows)[start]) and any(a <= start and start + n <= b
+                                                    for a, b in _segment_ranges(windows)) \
         if 0 <= start < len(windows) else False
 
 
@@ -116,7 +119,8 @@ def tile(windows: Windows, n: int) -> np.ndarray:
 def every(windows: Windows, n: int, period: int) -> np.ndarray:
     """An ``n``-window outage every ``period`` windows (``period >= n``; equal: tiled)."""
     if period < n:
-        raise InputError(f"outage period {period} s is shorter than the outage ({n} s)", "choose a period at least as long as the outage", param="placement")
+        raise InputError(f"outage period {period} s is shorter than the outage ({n} s)",
+                         "choose a period at least as long as the outage", param="placement")
     ok = _starts_ok(windows)
     starts: list[int] = []
     for a, b in _segment_ranges(windows):
@@ -139,25 +143,30 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
         faults = truth_faults_near(windows, k, n) if near else 0
         if faults and valid_start(windows.ignoring_truth(), k, n):
             raise InputError(
-                f"start time {t:g} s: the GNSS truth of that {n} s outage is not trustworthy ({', '.join(fault_names(faults))})",
+                f"start time {t:g} s: the GNSS truth of that {n} s outage is not trustworthy "
+                f"({', '.join(fault_names(faults))})",
                 "choose a time where the fixes are good (the recording's gnss/quality timeline shows them)",
                 param="placement",
             )
         lost = receiver_faults_before(windows, k) if near else 0
         if lost and valid_start(windows.ignoring_truth(), k, n):
             raise InputError(
-                f"start time {t:g} s: the receiver has no trustworthy fix to start that outage from ({', '.join(fault_names(lost))})",
-                "choose a time where the receiver has fixes (the recording's gnss/state timeline shows where it lost them)",
+                f"start time {t:g} s: the receiver has no trustworthy fix to start that outage from "
+                f"({', '.join(fault_names(lost))})",
+                "choose a time where the receiver has fixes (the recording's gnss/state timeline shows where "
+                "it lost them)",
                 param="placement",
             )
         if k < 0 or not valid_start(windows, k, n) or abs(windows.t0_s[k] - t) > 1.0:
             raise InputError(
                 f"start time {t:g} s: no {n} s outage fits there",
-                f"choose start times between 1 s and {max(0.0, windows.t0_s[-1] + WINDOW_S - n) if len(windows) else 0:g} s, away from gaps in the log",
+                "choose start times between 1 s and "
+                f"{max(0.0, windows.t0_s[-1] + WINDOW_S - n) if len(windows) else 0:g} s, away from gaps in the log",
                 param="placement",
             )
         if starts and k < starts[-1] + n:
-            raise InputError(f"start time {t:g} s overlaps the outage before it", f"space the times at least {n} s apart", param="placement")
+            raise InputError(f"start time {t:g} s overlaps the outage before it",
+                             f"space the times at least {n} s apart", param="placement")
         starts.append(k)
     return np.asarray(starts, dtype=int)
 
@@ -174,7 +183,8 @@ def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
             if len(chosen) == count:
                 break
     if len(chosen) < count:
-        raise InputError(f"{count} random outages: only {len(chosen)} non-overlapping {n} s outages fit in this drive", param="placement")
+        raise InputError(f"{count} random outages: only {len(chosen)} non-overlapping {n} s outages fit in this drive",
+                         param="placement")
     return np.sort(np.asarray(chosen, dtype=int))
 
 
@@ -187,7 +197,8 @@ def around(windows: Windows, intervals: list[tuple[float, float]], n: int) -> tu
         first = t0 - (n - length) / 2.0 if length <= n - 1.0 else t0 - 1.0
         k = int(np.argmin(np.abs(windows.t0_s - first))) if len(windows) else -1
         for candidate in (k, k + 1, k - 1):
-            if 0 <= candidate < len(windows) and valid_start(windows, candidate, n) and (not starts or candidate >= starts[-1] + n):
+            if (0 <= candidate < len(windows) and valid_start(windows, candidate, n)
+                    and (not starts or candidate >= starts[-1] + n)):
                 starts.append(candidate)
                 used.append(i)
                 break
@@ -227,7 +238,8 @@ class Tile:
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         starts = tile(windows, n_windows)
         return OutagePlan(starts, f"consecutive {n_windows:g} s outages (the paper's protocol)",
-                          excluded_by_truth(windows, n_windows, lambda w: tile(w, n_windows)), too_short=len(starts) == 0)
+                          excluded_by_truth(windows, n_windows, lambda w: tile(w, n_windows)),
+                          too_short=len(starts) == 0)
 
 
 @dataclass(frozen=True)
@@ -244,8 +256,8 @@ class Every:
         period = outage_windows(self.period_s, "outage period", "placement")
         if period == n_windows:  # the promise of --every is GNSS in between
             raise InputError(f"an outage every {period} s with {n_windows} s outages leaves no GNSS between them",
-                             f"give a longer period (e.g. every {n_windows + max(n_windows // 2, 5)} s), or no placement to tile the drive "
-                             "with back-to-back outages", param="placement")
+                             f"give a longer period (e.g. every {n_windows + max(n_windows // 2, 5)} s), or no "
+                             "placement to tile the drive with back-to-back outages", param="placement")
         return OutagePlan(every(windows, n_windows, period), f"a {n_windows:g} s outage every {self.period_s:g} s",
                           excluded_by_truth(windows, n_windows, lambda w: every(w, n_windows, period)))
 
@@ -261,16 +273,18 @@ class At:
         # At(12.0) was "'float' object is not iterable", At(("12",)) a numpy type error, At(()) a report of no outage
         times = self.times_s
         if isinstance(times, (str, bytes)) or not isinstance(times, Iterable) or not (times := tuple(times)):
-            raise InputError(f"outage start times {self.times_s!r}: not a sequence of seconds", "give at least one, e.g. At((12.0, 40.0)) or At((12.0,))",
-                             param="placement")
+            raise InputError(f"outage start times {self.times_s!r}: not a sequence of seconds",
+                             "give at least one, e.g. At((12.0, 40.0)) or At((12.0,))", param="placement")
         object.__setattr__(self, "times_s", times)  # a tuple, whatever sequence was given
         for t in times:
             if isinstance(t, bool) or not isinstance(t, numbers.Real):
-                raise InputError(f"outage start time {t!r} is not a number of seconds", "give seconds as numbers, e.g. At((12.0, 40.0))", param="placement")
+                raise InputError(f"outage start time {t!r} is not a number of seconds",
+                                 "give seconds as numbers, e.g. At((12.0, 40.0))", param="placement")
 
     def plan(self, windows: Windows, n_windows: int, events: Sequence[Any] = (), source: str = "") -> OutagePlan:
         times = list(self.times_s)
-        return OutagePlan(at(windows, times, n_windows), f"{n_windows:g} s outages at {', '.join(f'{x:g} s' for x in self.times_s)}",
+        return OutagePlan(at(windows, times, n_windows),
+                          f"{n_windows:g} s outages at {', '.join(f'{x:g} s' for x in self.times_s)}",
                           excluded_by_truth(windows, n_windows, lambda w: at(w, times, n_windows)))
 
 
@@ -321,8 +335,8 @@ class AroundEvents:
         types = self.types
         if (isinstance(types, (str, bytes)) or not isinstance(types, Iterable) or not (types := tuple(types))
                 or not all(isinstance(t, str) for t in types)):
-            raise InputError(f"event types {self.types!r}: not a sequence of names", "give at least one, e.g. AroundEvents(('hard-brake', 'roundabout'))",
-                             param="placement")
+            raise InputError(f"event types {self.types!r}: not a sequence of names",
+                             "give at least one, e.g. AroundEvents(('hard-brake', 'roundabout'))", param="placement")
         object.__setattr__(self, "types", types)  # a tuple, whatever sequence was given
 
     @property
@@ -337,20 +351,26 @@ class AroundEvents:
         bridged = f"the log's own {len(gaps)} GNSS outage(s)"
         if not kinds:
             if not gaps:
-                raise InputError(f"{where}no GNSS outage of 2 s or more in this drive", f"see 'ionav-viz events {source}'")
-            return OutagePlan(np.zeros(0, dtype=int), f"every estimator through {bridged}, from the last good fix", 0, gaps)
+                raise InputError(f"{where}no GNSS outage of 2 s or more in this drive",
+                                 f"see 'ionav-viz events {source}'")
+            return OutagePlan(np.zeros(0, dtype=int), f"every estimator through {bridged}, from the last good fix", 0,
+                              gaps)
         targets = [e for e in events if e.type in kinds]
         spans = [(e.t0_s, e.t1_s) for e in targets]
         starts, used = around(windows, spans, n_windows)
         if len(used) < len(targets):
-            log.warning("%s%d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, on bad GNSS truth, or right after the receiver lost the sky)",
+            log.warning("%s%d of %d %s event(s) got no outage (overlapping another, too near a gap or an end, on bad "
+                        "GNSS truth, or right after the receiver lost the sky)",
                         where, len(targets) - len(used), len(targets), "/".join(kinds))
         if len(starts) == 0:
-            raise InputError(f"{where}no {' or '.join(kinds)} event with room for a {n_windows:g} s outage", f"see 'ionav-viz events {source}'")
-        description = f"one {n_windows:g} s outage centred on each {', '.join(kinds)} event ({len(used)} of {len(targets)})"
+            raise InputError(f"{where}no {' or '.join(kinds)} event with room for a {n_windows:g} s outage",
+                             f"see 'ionav-viz events {source}'")
+        description = (f"one {n_windows:g} s outage centred on each {', '.join(kinds)} event "
+                       f"({len(used)} of {len(targets)})")
         if gaps:
             description += f"; and {bridged}"
-        return OutagePlan(starts, description, excluded_by_truth(windows, n_windows, lambda w: around(w, spans, n_windows)[0]), gaps)
+        return OutagePlan(starts, description,
+                          excluded_by_truth(windows, n_windows, lambda w: around(w, spans, n_windows)[0]), gaps)
 
 
 @dataclass(frozen=True)
@@ -369,15 +389,18 @@ class Planned:
         for i, t in enumerate(self.times_s):
             k = int(np.argmin(np.abs(windows.t0_s - t))) if len(windows) else -1
             on_boundary = k >= 0 and abs(windows.t0_s[k] - t) <= 1e-3
-            if on_boundary and (lost := receiver_faults_before(windows, k)) and valid_start(windows.ignoring_truth(), k, n_windows):
-                raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start): the receiver has no trustworthy fix "
-                                 f"to start it from ({', '.join(fault_names(lost))})",
+            if (on_boundary and (lost := receiver_faults_before(windows, k))
+                    and valid_start(windows.ignoring_truth(), k, n_windows)):
+                raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start): the receiver has "
+                                 f"no trustworthy fix to start it from ({', '.join(fault_names(lost))})",
                                  "plan outages where the receiver has fixes (outage-log places them so)", param="plan")
             if not on_boundary or not valid_start(windows, k, n_windows):
-                raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start) does not fit this drive's windows",
+                raise InputError(f"{self.where}: outage {i + 1} ({t:.3f} s after the drive's start) does not fit this "
+                                 "drive's windows",
                                  "give the drive and reading options the plan was made with", param="plan")
             if starts and k < starts[-1] + n_windows:
-                raise InputError(f"{self.where}: outage {i + 1} overlaps the one before it", "write the plan again with outage-log", param="plan")
+                raise InputError(f"{self.where}: outage {i + 1} overlaps the one before it",
+                                 "write the plan again with outage-log", param="plan")
             starts.append(k)
         return OutagePlan(np.asarray(starts, dtype=int), self.description)
 
@@ -400,9 +423,11 @@ def reachable(windows: Windows, k: int, end: int) -> bool:
     from ..core.geo import steps_en_m
 
     seconds = float(windows.t0_s[end] - windows.t0_s[k])
-    east, north = steps_en_m(np.array([windows.lat0_deg[k], windows.lat0_deg[end]]), np.array([windows.lon0_deg[k], windows.lon0_deg[end]]))
+    east, north = steps_en_m(np.array([windows.lat0_deg[k], windows.lat0_deg[end]]),
+                             np.array([windows.lon0_deg[k], windows.lon0_deg[end]]))
     speed = float(np.nanmax([windows.speed0_mps[k], windows.speed0_mps[end], 0.0]))
-    return float(np.hypot(east[0], north[0])) <= (speed + 0.5 * BRIDGE_MAX_ACCEL_MPS2 * seconds) * seconds + BRIDGE_FIX_SLACK_M
+    return (float(np.hypot(east[0], north[0]))
+            <= (speed + 0.5 * BRIDGE_MAX_ACCEL_MPS2 * seconds) * seconds + BRIDGE_FIX_SLACK_M)
 
 
 #: Why a GNSS loss of the log could not be bridged (:func:`unbridged`), as the reports say it (after "N with").
@@ -432,7 +457,8 @@ def unbridged(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: 
     return reasons_of(bridge_each(windows, gaps, max_extra))
 
 
-def bridge_each(windows: Windows, gaps: Sequence[tuple[float, float]], max_extra: int = 3) -> list[tuple[int, int] | str]:
+def bridge_each(windows: Windows, gaps: Sequence[tuple[float, float]],
+                max_extra: int = 3) -> list[tuple[int, int] | str]:
     """Per gap, :func:`bridging`'s ``(start window, windows)``, or why there is none."""
     start_ok = windows.truth_ok & windows.receiver_ok
     return [_bridge(windows, start_ok, last_good, first_good, max_extra) for last_good, first_good in gaps]
@@ -449,7 +475,8 @@ def reasons_of(each: Sequence[tuple[int, int] | str]) -> dict[str, int]:
     return {reason: reasons.count(reason) for reason in dict.fromkeys(reasons)}
 
 
-def _bridge(windows: Windows, start_ok: np.ndarray, last_good: float, first_good: float, max_extra: int) -> tuple[int, int] | str:
+def _bridge(windows: Windows, start_ok: np.ndarray, last_good: float, first_good: float,
+            max_extra: int) -> tuple[int, int] | str:
     """:func:`bridging`'s ``(start window, windows)`` for one gap, or why there is none."""
     t0 = windows.t0_s
     k = int(np.searchsorted(t0, last_good + 1e-6, side="right")) - 1

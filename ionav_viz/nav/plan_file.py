@@ -51,7 +51,8 @@ class PlanFile:
 
     def to_json(self) -> str:
         body = {"format": PLAN_FORMAT, "version": PLAN_VERSION, **asdict(self)}
-        body["outages"] = [{"start_stamp_s": a, "end_stamp_s": a + self.outage_s, "start_s": b, "end_s": b + self.outage_s}
+        body["outages"] = [{"start_stamp_s": a, "end_stamp_s": a + self.outage_s, "start_s": b,
+                            "end_s": b + self.outage_s}
                            for a, b in zip(self.start_stamps_s, self.start_s, strict=True)]
         del body["start_stamps_s"], body["start_s"]
         return dumps_json(body) + "\n"  # numpy values in the placement's options, NaN: plain JSON
@@ -78,7 +79,8 @@ def read_plan(path: str | Path) -> PlanFile:
     path = Path(path)
     if not path.exists() and not path.is_symlink():
         raise InputError(f"{path}: no such plan file", _PLAN_HINT, param="plan")
-    body = read_json_bounded(path, param="plan", max_bytes=PLAN_MAX_BYTES, max_depth=PLAN_MAX_DEPTH, hint=_PLAN_HINT, what="an outage plan")
+    body = read_json_bounded(path, param="plan", max_bytes=PLAN_MAX_BYTES, max_depth=PLAN_MAX_DEPTH, hint=_PLAN_HINT,
+                             what="an outage plan")
 
     def bad(field: str, why: str) -> InputError:
         return InputError(f"{path}: field {field!r} {why}", _PLAN_HINT, param="plan")
@@ -108,7 +110,8 @@ def read_plan(path: str | Path) -> PlanFile:
             raise wrong("outages", "is not an object with start_stamp_s, start_s, end_stamp_s and end_s")
         for field in ("start_stamp_s", "start_s", "end_stamp_s", "end_s"):
             if (field in o or field.startswith("start")) and not is_finite_number(o.get(field)):
-                raise wrong(field, f"is {'missing' if field not in o else repr(o[field])}, not a finite number of seconds")
+                raise wrong(field,
+                            f"is {'missing' if field not in o else repr(o[field])}, not a finite number of seconds")
         start, start_s = float(o["start_stamp_s"]), float(o["start_s"])
         for field, value in (("start_stamp_s", start), ("start_s", start_s)):
             if value < 0:
@@ -118,11 +121,16 @@ def read_plan(path: str | Path) -> PlanFile:
                 continue
             end = float(o[field])
             if end <= begin:
-                raise wrong(field, f"({end!r} s) is not after its {label} ({begin!r} s): the outage ends before it starts")
+                raise wrong(field,
+                            f"({end!r} s) is not after its {label} ({begin!r} s): the outage ends before it starts")
             if abs(end - begin - outage_s) > PLAN_TOLERANCE_S:
-                raise wrong(field, f"({end!r} s) is {end - begin:.6g} s after its {label}, and the plan's outage_s is {outage_s!r} s")
+                raise wrong(field,
+                            f"({end!r} s) is {end - begin:.6g} s after its {label}, and the plan's outage_s is "
+                            f"{outage_s!r} s")
         if starts and abs((start - start_s) - (starts[0] - starts_s[0])) > PLAN_TOLERANCE_S:
-            raise wrong("start_stamp_s", f"({start!r} s) and start_s ({start_s!r} s) disagree with outage 1's: the stamps are on another clock")
+            raise wrong("start_stamp_s",
+                        f"({start!r} s) and start_s ({start_s!r} s) disagree with outage 1's: the stamps are on "
+                        "another clock")
         if starts:
             gap = start_s - starts_s[-1]
             if abs(gap) <= PLAN_TOLERANCE_S:
@@ -130,7 +138,9 @@ def read_plan(path: str | Path) -> PlanFile:
             if gap < 0:
                 raise wrong("start_s", f"({start_s!r} s) is before outage {i}'s: outages are listed in time order")
             if gap < outage_s - PLAN_TOLERANCE_S:
-                raise wrong("start_s", f"({start_s!r} s) is inside outage {i} ({starts_s[-1]!r}-{starts_s[-1] + outage_s!r} s): outages may not overlap")
+                raise wrong("start_s",
+                            f"({start_s!r} s) is inside outage {i} ({starts_s[-1]!r}-{starts_s[-1] + outage_s!r} s): "
+                            "outages may not overlap")
         starts.append(start)
         starts_s.append(start_s)
     removed = body.get("removed_topics", [])
@@ -180,13 +190,17 @@ class FromPlan:
             raise InputError(f"{self.path}: the plan was made on another file than {source} (its checksum differs)",
                              f"give the drive the plan was made on ({plan.source})", param="plan")
         times = tuple(round(float(s - drive.stamp_s(0.0)), 6) for s in plan.start_stamps_s)
-        begin, end = (float(drive.t_s[0]), float(drive.t_s[-1])) if len(drive) else (0.0, 0.0)  # a --span keeps the drive's clock
+        begin, end = ((float(drive.t_s[0]), float(drive.t_s[-1]))
+                      if len(drive) else (0.0, 0.0))  # a --span keeps the drive's clock
         for i, t in enumerate(times):
             if t < begin - PLAN_TOLERANCE_S or t + plan.outage_s > end + PLAN_TOLERANCE_S:
                 from ..core.units import stamp_unit_hint
 
                 units = stamp_unit_hint(plan.start_stamps_s, float(drive.stamp_s(begin)), float(drive.stamp_s(end)))
-                raise InputError(f"{self.path}: outage {i + 1}: field 'start_stamp_s' ({plan.start_stamps_s[i]!r} s) puts it at {t:.3f}-"
-                                 f"{t + plan.outage_s:.3f} s, outside the drive {drive.name} ({begin:g}-{end:.3f} s)",
+                raise InputError(f"{self.path}: outage {i + 1}: field 'start_stamp_s' ({plan.start_stamps_s[i]!r} s) "
+                                 f"puts it at {t:.3f}-{t + plan.outage_s:.3f} s, outside the drive {drive.name} "
+                                 f"({begin:g}-{end:.3f} s)",
                                  units or "give the drive and reading options the plan was made with", param="plan")
-        return Planned(times, f"{len(times)} {plan.outage_s:g} s outages from {Path(self.path).name} ({plan.placement})", str(self.path))
+        return Planned(times,
+                       f"{len(times)} {plan.outage_s:g} s outages from {Path(self.path).name} ({plan.placement})",
+                       str(self.path))

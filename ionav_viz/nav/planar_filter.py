@@ -130,7 +130,8 @@ def increments(windows: Windows) -> Increments:
     h = 1.0 / windows.rate_hz
     acc, gyr = windows.accel_mps2, windows.gyro_radps
     dv = 0.5 * (acc[:, 1:] + acc[:, :-1]) * h  # per step
-    v_rel = np.concatenate([np.zeros((len(acc), 1)), np.cumsum(dv, axis=1)], axis=1)  # speed gained since the window start
+    # speed gained since the window start
+    v_rel = np.concatenate([np.zeros((len(acc), 1)), np.cumsum(dv, axis=1)], axis=1)
     G = (0.5 * (v_rel[:, 1:] + v_rel[:, :-1]) * h).sum(axis=1)
     W = (0.5 * (gyr[:, 1:] + gyr[:, :-1]) * h).sum(axis=1)
     return Increments(dv.sum(axis=1), G, W, h * (acc.shape[1] - 1))
@@ -375,12 +376,14 @@ def outage_kernel(forward, inp, model, starts, n_windows, still):  # pragma: no 
     return disp, yaw, cov
 
 
-def propagate_window(x: np.ndarray, F: float, G: float, W: float, T: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+def propagate_window(x: np.ndarray, F: float, G: float, W: float,
+                     T: float) -> tuple[np.ndarray, np.ndarray, float, float]:
     """One window of the filter's propagation (see the module docstring) from the state ``x`` (8,):
     the state after it, its Jacobian ``d x' / d x`` (8 x 8) as the covariance is propagated with,
     the distance (m) and the mean yaw rate (rad/s, counter-clockwise)."""
     out, J = np.array(x, dtype=float), np.zeros((N_STATES, N_STATES))
-    d, rate = _propagate(out, np.zeros((N_STATES, N_STATES)), float(F), float(G), float(W), float(T), np.zeros(N_STATES), J)
+    d, rate = _propagate(out, np.zeros((N_STATES, N_STATES)), float(F), float(G), float(W), float(T),
+                         np.zeros(N_STATES), J)
     return out, J, float(d), float(rate)
 
 
@@ -430,27 +433,29 @@ def measurements(drive: Drive, windows: Windows, noise: EkfNoise, use_vehicle_sp
     return Measurements(e, n, speed, course, good, sigma, vehicle)
 
 
-def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = EkfNoise()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float,
+            noise: EkfNoise = EkfNoise()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The filter over the whole drive: its state and covariance at the start of every window,
     having used the GNSS of earlier boundaries only (shapes (n_windows, 8) and (n_windows, 8, 8)),
     and the offset's slow part there (its mean over the last ~OFFSET_MEMORY_S, (n_windows,))."""
-    return forward_states(windows, measurements(drive, windows, noise), increments(windows), accel_offset, gyro_bias, noise)
+    return forward_states(windows, measurements(drive, windows, noise), increments(windows), accel_offset, gyro_bias,
+                          noise)
 
 
 def planar_inputs(windows: Windows, meas: Measurements, inc: Increments) -> PlanarInputs:
     """The filter's typed inputs (numba-ready) from the windows, measurements and increments."""
     f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
-    return PlanarInputs(np.ascontiguousarray(windows.segment, dtype=np.int64), f(meas.e), f(meas.n), f(meas.speed), f(meas.course),
-                        np.ascontiguousarray(meas.good, dtype=np.bool_), f(meas.sigma_m), f(meas.vehicle), f(inc.F), f(inc.G), f(inc.W),
-                        float(inc.T))
+    return PlanarInputs(np.ascontiguousarray(windows.segment, dtype=np.int64), f(meas.e), f(meas.n), f(meas.speed),
+                        f(meas.course), np.ascontiguousarray(meas.good, dtype=np.bool_), f(meas.sigma_m),
+                        f(meas.vehicle), f(inc.F), f(inc.G), f(inc.W), float(inc.T))
 
 
 def planar_model(noise: EkfNoise, T: float) -> PlanarModel:
     """The filter's noise as its kernels use it, for windows of ``T`` s."""
     q, init = noise_arrays(noise, T)
-    return PlanarModel(q, init, float(noise.gnss_speed_mps**2), float(noise.vehicle_speed_mps**2), float(noise.still_speed_mps**2),
-                       float(noise.gnss_course_rad_at_10mps), float(T / OFFSET_MEMORY_S), float(GRADE_LENGTH_M),
-                       float(noise.turn_scale_sd))
+    return PlanarModel(q, init, float(noise.gnss_speed_mps**2), float(noise.vehicle_speed_mps**2),
+                       float(noise.still_speed_mps**2), float(noise.gnss_course_rad_at_10mps),
+                       float(T / OFFSET_MEMORY_S), float(GRADE_LENGTH_M), float(noise.turn_scale_sd))
 
 
 @dataclass
@@ -466,16 +471,17 @@ class ForwardPass:
     inputs: PlanarInputs
     model: PlanarModel
 
-    def outages(self, starts: np.ndarray, n_windows: int, still: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def outages(self, starts: np.ndarray, n_windows: int,
+                still: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every outage from the state at its start (:func:`outage_kernel`): distance (m) and yaw
         rate (rad/s, counter-clockwise) per window, ``(len(starts), n_windows)``, and the filter's
         east/north position covariance (m^2) at every boundary, ``(len(starts), n_windows + 1, 2, 2)``."""
-        return outage_kernel((self.xs, self.Ps, self.slow), self.inputs, self.model, np.asarray(starts, dtype=np.int64), int(n_windows),
-                             np.ascontiguousarray(still, dtype=np.bool_))
+        return outage_kernel((self.xs, self.Ps, self.slow), self.inputs, self.model, np.asarray(starts, dtype=np.int64),
+                             int(n_windows), np.ascontiguousarray(still, dtype=np.bool_))
 
 
-def forward_pass(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float, noise: EkfNoise,
-                 keep_log: bool = False) -> ForwardPass:
+def forward_pass(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float,
+                 noise: EkfNoise, keep_log: bool = False) -> ForwardPass:
     """The filter over the whole drive from the starting biases ``accel_offset`` (m/s^2) and
     ``gyro_bias`` (rad/s); ``keep_log``: keep every update's innovation (:class:`ForwardPass`)."""
     inputs, model = planar_inputs(windows, meas, inc), planar_model(noise, inc.T)
@@ -531,7 +537,8 @@ class SensorCalibration:
 CALIBRATION_NOISE = EkfNoise(gnss_speed_mps=0.3, accel_offset_walk_mps2=0.05, scale_walk=1e-4, turn_scale_sd=0.0)
 
 
-def calibration(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float, noise: EkfNoise = CALIBRATION_NOISE) -> SensorCalibration:
+def calibration(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: float,
+                noise: EkfNoise = CALIBRATION_NOISE) -> SensorCalibration:
     """The filter's sensor calibration at every window start (see :class:`SensorCalibration`),
     started from the standstill biases ``accel_offset`` (m/s^2) and ``gyro_bias`` (rad/s).
 

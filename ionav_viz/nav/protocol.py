@@ -182,10 +182,11 @@ class EstimatorInputs:
         # every estimator sees the same data: none can change what the others (or the metrics) see
         self.drive = replace(self.drive, columns={k: _read_only(v) for k, v in self.drive.columns.items()},
                              gnss_fault=None if self.drive.gnss_fault is None else _read_only(self.drive.gnss_fault))
-        self.windows = replace(self.windows, **{f.name: _read_only(getattr(self.windows, f.name)) for f in fields(self.windows)
+        self.windows = replace(self.windows, **{f.name: _read_only(getattr(self.windows, f.name))
+                                                for f in fields(self.windows)
                                                 if isinstance(getattr(self.windows, f.name), np.ndarray)})
-        for name in ("starts", "t0_s", "speed0_mps", "course0_deg", "lat0_deg", "lon0_deg", "prev_gnss_disp_m", "accel_mps2", "gyro_radps",
-                     "still", "still_grid"):
+        for name in ("starts", "t0_s", "speed0_mps", "course0_deg", "lat0_deg", "lon0_deg", "prev_gnss_disp_m",
+                     "accel_mps2", "gyro_radps", "still", "still_grid"):
             setattr(self, name, _read_only(getattr(self, name)))
 
     @property
@@ -303,7 +304,8 @@ def solve(estimator: Estimator, inputs: EstimatorInputs) -> Solution:
         raise
     except Exception as exc:
         raise EstimatorError(
-            f"estimator {name!r} failed: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": "),
+            f"estimator {name!r} failed: {type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": "),
             "fix the plug-in (run with --debug for the traceback)",
         ) from exc
     disp, yaw = _checked(name, est, inputs.n_outages, inputs.n_windows)
@@ -329,11 +331,13 @@ def _checked_covariance(name: str, cov: Any, n_outages: int, n_windows: int) -> 
     except (TypeError, ValueError):
         raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is not numeric", hint) from None
     if cov.shape != (n_outages, n_windows + 1, 2, 2):
-        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 has shape {cov.shape}, expected ({n_outages}, {n_windows + 1}, 2, 2)", hint)
+        raise EstimatorError(f"estimator {name!r}: pos_cov_m2 has shape {cov.shape}, expected ({n_outages}, "
+                             f"{n_windows + 1}, 2, 2)", hint)
     for fault, mask in covariance_faults(cov).items():
         if mask.any():
             outage, boundary = (int(x) for x in np.argwhere(mask)[0])
-            raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is {fault} in outage {outage + 1}, boundary {boundary}", hint)
+            raise EstimatorError(f"estimator {name!r}: pos_cov_m2 is {fault} in outage {outage + 1}, "
+                                 f"boundary {boundary}", hint)
     return cov
 
 
@@ -347,8 +351,8 @@ def _checked_health(name: str, health: Any) -> FilterHealth | None:
     rows, slots = len(health.t_s), len(health.slots)
     for field_name in ("innovation", "variance", "status"):
         if np.shape(getattr(health, field_name)) != (rows, slots):
-            raise EstimatorError(f"estimator {name!r}: health.{field_name} has shape {np.shape(getattr(health, field_name))}, "
-                                 f"expected ({rows}, {slots})", hint)
+            raise EstimatorError(f"estimator {name!r}: health.{field_name} has shape "
+                                 f"{np.shape(getattr(health, field_name))}, expected ({rows}, {slots})", hint)
     if len(health.kinds) != slots:
         raise EstimatorError(f"estimator {name!r}: health has {len(health.kinds)} kinds for {slots} slots", hint)
     return health
@@ -366,11 +370,13 @@ def _own_positions(name: str, est: Any, n_outages: int, n_windows: int) -> tuple
         raise EstimatorError(f"estimator {name!r}: lat_deg/lon_deg are not numeric", hint) from None
     for field_name, values, limit in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
         if values.shape != (n_outages, n_windows + 1):
-            raise EstimatorError(f"estimator {name!r}: {field_name} has shape {values.shape}, expected ({n_outages}, {n_windows + 1})", hint)
+            raise EstimatorError(f"estimator {name!r}: {field_name} has shape {values.shape}, expected ({n_outages}, "
+                                 f"{n_windows + 1})", hint)
         bad = ~np.isfinite(values) | (np.abs(values) > limit)
         if bad.any():
             i, j = (int(x) for x in np.argwhere(bad)[0])
-            raise EstimatorError(f"estimator {name!r}: {field_name} is {values[i, j]} in outage {i + 1}, boundary {j}", hint)
+            raise EstimatorError(f"estimator {name!r}: {field_name} is {values[i, j]} in outage {i + 1}, boundary {j}",
+                                 hint)
     return lat, lon
 
 
@@ -380,7 +386,8 @@ ESTIMATE_LIMITS = {"disp_m": LIMITS["speed_mps"][1] * WINDOW_S, "yaw_rate_radps"
 
 
 def _checked(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.ndarray, np.ndarray]:
-    hint = "estimate() must return Estimate(disp_m=..., yaw_rate_radps=...) with finite arrays of shape (n_outages, n_windows)"
+    hint = ("estimate() must return Estimate(disp_m=..., yaw_rate_radps=...) with finite arrays of shape "
+            "(n_outages, n_windows)")
     if not hasattr(est, "disp_m") or not hasattr(est, "yaw_rate_radps"):
         raise EstimatorError(f"estimator {name!r} returned {type(est).__name__}, not an Estimate", hint)
     out = []
@@ -409,8 +416,9 @@ def _checked(name: str, est: Any, n_outages: int, n_windows: int) -> tuple[np.nd
         if beyond.any():
             i, j = (int(x) for x in np.argwhere(beyond)[0])
             raise EstimatorError(
-                f"estimator {name!r}: {field_name} is {values[i, j]:.6g} in outage {i + 1}, window {j + 1}, beyond what a car does "
-                f"in 1 s (|{field_name}| <= {limit:.4g})", "check the plug-in's units (m per 1 s window, rad/s)")
+                f"estimator {name!r}: {field_name} is {values[i, j]:.6g} in outage {i + 1}, window {j + 1}, beyond "
+                f"what a car does in 1 s (|{field_name}| <= {limit:.4g})",
+                "check the plug-in's units (m per 1 s window, rad/s)")
         out.append(values)
     return out[0], out[1]
 

@@ -65,8 +65,9 @@ def drive_record(drive: Drive) -> dict[str, Any]:
     """What a model's metadata keeps of one training drive: its file, checksum and size, the time
     trained on (s on the drive's own clock), its IMU kind and rate."""
     size = os.path.getsize(drive.source) if drive.source and os.path.isfile(drive.source) else None
-    return {"name": drive.name, "file": Path(drive.source).name, "sha256": file_sha256(drive.source), "size_bytes": size,
-            "span_s": [float(drive.t_s[0]), float(drive.t_s[-1])], "imu_kind": imu_kind(drive), "imu_rate_hz": float(drive.rate_hz)}
+    return {"name": drive.name, "file": Path(drive.source).name, "sha256": file_sha256(drive.source),
+            "size_bytes": size, "span_s": [float(drive.t_s[0]), float(drive.t_s[-1])], "imu_kind": imu_kind(drive),
+            "imu_rate_hz": float(drive.rate_hz)}
 
 
 def input_record(drives: Sequence[Drive]) -> dict[str, Any]:
@@ -76,7 +77,8 @@ def input_record(drives: Sequence[Drive]) -> dict[str, Any]:
     rates = sorted({float(d.rate_hz) for d in drives})
     if len(kinds) > 1 or (rates and rates[-1] > rates[0] * (1 + RATE_TOLERANCE)):
         listed = ", ".join(f"{d.name} ({imu_kind(d)}, {d.rate_hz:g} Hz)" for d in drives)
-        raise InputError(f"the training drives mix IMUs: {listed}", "train one model per IMU kind and sample rate", param="drives")
+        raise InputError(f"the training drives mix IMUs: {listed}", "train one model per IMU kind and sample rate",
+                         param="drives")
     return {"channels": list(CHANNELS), "grid_rate_hz": GRID_RATE_HZ, "imu_kind": kinds.pop(), "imu_rate_hz": rates[0]}
 
 
@@ -87,18 +89,22 @@ def check_inputs(metadata: dict[str, Any], drive: Drive, model: str = "the model
     if not isinstance(record, dict):
         return  # the shipped model and older ones: trained across IMUs, or not recorded
     where = f"{drive.source or drive.name}"
-    hint = "evaluate it on drives of the IMU it was trained on, or fine-tune the shipped model on this one (train --from-model shipped)"
+    hint = ("evaluate it on drives of the IMU it was trained on, or fine-tune the shipped model on this one "
+            "(train --from-model shipped)")
     grid = record.get("grid_rate_hz")
     if grid != GRID_RATE_HZ:
-        raise InputError(f"{model} takes {grid} Hz inputs and this version puts drives on a {GRID_RATE_HZ:g} Hz grid", "retrain it", param="model")
+        raise InputError(f"{model} takes {grid} Hz inputs and this version puts drives on a {GRID_RATE_HZ:g} Hz grid",
+                         "retrain it", param="model")
     missing = [c for c in record.get("channels", []) if c not in drive.columns]
     if missing:
         raise InputError(f"{where}: has no {', '.join(missing)}, an input of {model}", hint, param="model")
     kind, rate = record.get("imu_kind"), record.get("imu_rate_hz")
     if kind != imu_kind(drive):
-        raise InputError(f"{where}: a {imu_kind(drive)} IMU, and {model} was trained on a {kind} IMU", hint, param="model")
+        raise InputError(f"{where}: a {imu_kind(drive)} IMU, and {model} was trained on a {kind} IMU", hint,
+                         param="model")
     if isinstance(rate, (int, float)) and rate > 0 and abs(drive.rate_hz - rate) > RATE_TOLERANCE * rate:
-        raise InputError(f"{where}: samples at {drive.rate_hz:g} Hz, and {model} was trained on {rate:g} Hz samples", hint, param="model")
+        raise InputError(f"{where}: samples at {drive.rate_hz:g} Hz, and {model} was trained on {rate:g} Hz samples",
+                         hint, param="model")
 
 
 def seen_drives(metadata: dict[str, Any]) -> list[dict[str, Any]]:
@@ -132,7 +138,8 @@ def trained_outages(metadata: dict[str, Any], drive: Drive, intervals_s: np.ndar
         if r["sha256"] != sha:
             continue
         span = r.get("span_s")
-        spans.append((float(span[0]), float(span[1])) if isinstance(span, list) and len(span) == 2 else (-np.inf, np.inf))
+        spans.append((float(span[0]), float(span[1])) if isinstance(span, list) and
+                     len(span) == 2 else (-np.inf, np.inf))
     if not spans:
         return []
     intervals = np.asarray(intervals_s, dtype=np.float64).reshape(-1, 2)

@@ -76,14 +76,16 @@ def load_plugin(spec: str) -> Estimator:
         raise
     except Exception as exc:
         raise EstimatorError(
-            f"estimator {spec!r}: cannot import {module_spec} ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})",
+            f"estimator {spec!r}: cannot import {module_spec} ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''})",
             "give a module importable from the current directory or installed, or a path like ./myest.py",
         ) from exc
     factory = module
     for part in attr.split("."):
         factory = getattr(factory, part, None)
         if factory is None:
-            raise EstimatorError(f"estimator {spec!r}: {module_spec} has no {attr}", "name a class or a no-argument factory")
+            raise EstimatorError(f"estimator {spec!r}: {module_spec} has no {attr}",
+                                 "name a class or a no-argument factory")
     return _instantiate(factory, spec)
 
 
@@ -117,12 +119,12 @@ def _import_file(path_text: str) -> Any:
 
     path = Path(path_text).expanduser()
     if path.suffix != ".py":
-        raise EstimatorError(f"estimator file {path_text!r} is not a .py file", "give a Python file, e.g. ./myest.py:ConstantSpeed",
-                             param="estimators")
+        raise EstimatorError(f"estimator file {path_text!r} is not a .py file",
+                             "give a Python file, e.g. ./myest.py:ConstantSpeed", param="estimators")
     check_regular_input(path, "estimators", hint="give a Python file, e.g. ./myest.py:ConstantSpeed", missing_ok=True)
     if not path.is_file():
-        raise EstimatorError(f"estimator file {path_text}: no such file", "check the path (relative to the current directory)",
-                             param="estimators")
+        raise EstimatorError(f"estimator file {path_text}: no such file",
+                             "check the path (relative to the current directory)", param="estimators")
     path = path.resolve()
     stem = re.sub(r"\W", "_", path.stem)
     name = f"ionav_viz_plugin_{stem}_{zlib.crc32(str(path).encode()):08x}"  # one module per file
@@ -150,7 +152,8 @@ def _instantiate(factory: Any, origin: str) -> Estimator:
         obj = factory if is_instance or not callable(factory) else factory()
     except Exception as exc:
         raise EstimatorError(
-            f"estimator {origin!r}: creating it failed ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})",
+            f"estimator {origin!r}: creating it failed ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''})",
             "NAME must be a class or a factory that takes no arguments",
         ) from exc
     return validate(obj, origin)
@@ -173,7 +176,8 @@ def resolve(
     explicit = names is not None
     unknown = [w for w in without if w not in BUILTIN]
     if unknown:
-        raise EstimatorError(f"cannot leave out {', '.join(map(repr, unknown))}: not a built-in estimator", f"built-ins: {', '.join(BUILTIN)}")
+        raise EstimatorError(f"cannot leave out {', '.join(map(repr, unknown))}: not a built-in estimator",
+                             f"built-ins: {', '.join(BUILTIN)}")
     defaults = [n for n in BUILTIN if n not in without]
     chosen: list[Estimator] = []
     for item in list(defaults if names is None else names):
@@ -186,7 +190,8 @@ def resolve(
         except EstimatorError as exc:
             exc.param = "plugins"  # the command line's --estimator
             raise
-    for est in chosen:  # a plug-in named 'ins' without the INS DR became the baseline every improvement is measured against
+    # a plug-in named 'ins' without the INS DR became the baseline every improvement is measured against
+    for est in chosen:
         if est.name in BUILTIN and not isinstance(est, type(builtin(est.name))):
             raise EstimatorError(f"estimator {est.name!r} ({type(est).__name__}): that is a built-in estimator's name",
                                  "give the plug-in a name of its own (its name attribute)")
@@ -208,7 +213,8 @@ def _one(item: str | Estimator, model: Any, explicit: bool) -> Estimator | None:
     est = _named(item, model, explicit)
     plugin = est is not None and not (isinstance(item, str) and item.strip() in BUILTIN)
     if plugin and not available(est):
-        raise EstimatorError(f"estimator {est.name!r} is not available here (its available() says so)", "leave it out, or fix what it needs")
+        raise EstimatorError(f"estimator {est.name!r} is not available here (its available() says so)",
+                             "leave it out, or fix what it needs")
     return est
 
 

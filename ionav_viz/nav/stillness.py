@@ -86,7 +86,8 @@ def _drop_short(mask: np.ndarray, min_len: int) -> np.ndarray:
     return keep_runs(mask, ends - starts >= min_len)
 
 
-def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, reference_still: np.ndarray | None = None) -> np.ndarray:
+def still_samples(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray,
+                  reference_still: np.ndarray | None = None) -> np.ndarray:
     """Whether the vehicle stands still at each sample (see the module docstring).
 
     ``accel_mps2``/``gyro_radps``: as measured (gravity and biases in), shape ``(n,)`` (one axis,

@@ -109,9 +109,11 @@ N_ERR = 19
 #: level (m/s^2).
 #: The last slot is no measurement but the safeguard: a re-initialisation from GNSS (its
 #: "innovation" the horizontal distance from the filter's position to the fix, m).
-GINS_MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_up", "gnss_velocity_east", "gnss_velocity_north", "zupt_east", "zupt_north",
-                "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer", "level_x", "level_y", "reinitialised")
-SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER, SLOT_LEVEL, SLOT_REINIT = 0, 3, 5, 8, 11, 12, 13, 14, 16
+GINS_MEASUREMENTS = ("gnss_east", "gnss_north", "gnss_up", "gnss_velocity_east", "gnss_velocity_north", "zupt_east",
+                     "zupt_north", "zupt_up", "zaru_x", "zaru_y", "zaru_z", "nhc_lateral", "nhc_vertical", "odometer",
+                     "level_x", "level_y", "reinitialised")
+(SLOT_GNSS_POS, SLOT_GNSS_VEL, SLOT_ZUPT, SLOT_ZARU, SLOT_NHC_LAT, SLOT_NHC_VERT, SLOT_ODOMETER, SLOT_LEVEL,
+ SLOT_REINIT) = 0, 3, 5, 8, 11, 12, 13, 14, 16
 
 
 class Earth(NamedTuple):
@@ -124,8 +126,8 @@ class Earth(NamedTuple):
 
 
 def earth_at(lat_deg: float, height_m: float = 0.0) -> Earth:
-    return Earth(np.ascontiguousarray(earth_rate_enu_radps(lat_deg), dtype=float), float(normal_gravity_mps2(lat_deg, height_m)),
-                 float(EARTH_MEAN_RADIUS_M))
+    return Earth(np.ascontiguousarray(earth_rate_enu_radps(lat_deg), dtype=float),
+                 float(normal_gravity_mps2(lat_deg, height_m)), float(EARTH_MEAN_RADIUS_M))
 
 
 class FilterInputs(NamedTuple):
@@ -205,8 +207,9 @@ class FilterOutputs(NamedTuple):
 def filter_outputs(nb: int, keep_states: bool) -> FilterOutputs:
     """Outputs for ``nb`` boundaries, with the states and the update log or without."""
     rows = nb if keep_states else 0
-    return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb), np.zeros(nb),
-                         kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)), np.ones(nb))
+    return FilterOutputs(np.zeros((rows, N_NOMINAL)), np.zeros((rows, N_ERR, N_ERR)), np.zeros((nb, 3)), np.zeros(nb),
+                         np.zeros(nb), kalman.update_log(rows, len(GINS_MEASUREMENTS)), np.zeros((nb, 2, 2)),
+                         np.ones(nb))
 
 
 @dataclass(frozen=True)
@@ -311,7 +314,8 @@ def _mechanise(x, acc0, acc1, gyr0, gyr1, dt, earth, level_held, out):  # pragma
     nz = 2 * (qx * qz - qw * qy) * bx + 2 * (qy * qz + qw * qx) * by + (1 - 2 * (qx * qx + qy * qy)) * bz
     ox, oy, oz = omega_ie[0], omega_ie[1], omega_ie[2]
     # the frame turns with the Earth during the step: the middle of it
-    nx, ny, nz = nx - 0.5 * dt * (oy * nz - oz * ny), ny - 0.5 * dt * (oz * nx - ox * nz), nz - 0.5 * dt * (ox * ny - oy * nx)
+    nx, ny, nz = (nx - 0.5 * dt * (oy * nz - oz * ny), ny - 0.5 * dt * (oz * nx - ox * nz),
+                  nz - 0.5 * dt * (ox * ny - oy * nx))
     vx, vy, vz = x[VX], x[VX + 1], x[VX + 2]
     # gravity towards the Earth's centre, and the Coriolis acceleration
     rx, ry, rz = x[PX], x[PX + 1], x[PX + 2] + radius
@@ -632,7 +636,8 @@ def _propagate_window(x, P, inputs, noise, earth, level_held, q_scale, j, jb, ac
     t, omega_ie = inputs.t, earth.omega_ie
     while j < jb:
         dt = t[j + 1] - t[j]
-        acc[0] += _mechanise(x, inputs.acc[j], inputs.acc[j + 1], inputs.gyr[j], inputs.gyr[j + 1], dt, earth, level_held, step)
+        acc[0] += _mechanise(x, inputs.acc[j], inputs.acc[j + 1], inputs.gyr[j], inputs.gyr[j + 1], dt, earth,
+                             level_held, step)
         acc[1] += (step[3] - omega_ie[2]) * dt  # the turn against the Earth, about the body's z
         for i in range(3):
             fsum[i] += step[i] * dt
@@ -649,7 +654,8 @@ def _propagate_window(x, P, inputs, noise, earth, level_held, q_scale, j, jb, ac
             q_diag[DP + i] = q_scale * noise.q_white_v * T**3 / 3.0
         for i in range(9, N_ERR):
             q_diag[i] = noise.walk[i] * T
-        _propagate_covariance(P, D, q_diag, q_scale * noise.q_white_v * T * T / 2.0, np.zeros((N_ERR, N_ERR)), np.zeros((N_ERR, N_ERR)))
+        _propagate_covariance(P, D, q_diag, q_scale * noise.q_white_v * T * T / 2.0, np.zeros((N_ERR, N_ERR)),
+                              np.zeros((N_ERR, N_ERR)))
 
 
 @njit(cache=True)
@@ -667,12 +673,14 @@ def _gnss_updates(x, P, dx, inputs, noise, b, gate, H, log, vel_r):  # pragma: n
     pitch after it."""
     used = True
     for axis in range(3 if inputs.has_height else 2):
-        ok = _apply(P, dx, H, gnss_position(x, inputs.gnss_pos[b], inputs.gnss_sigma[b], axis, H), gate, log, b, SLOT_GNSS_POS + axis)[0]
+        ok = _apply(P, dx, H, gnss_position(x, inputs.gnss_pos[b], inputs.gnss_sigma[b], axis, H), gate, log, b,
+                    SLOT_GNSS_POS + axis)[0]
         used = used and (ok or axis == 2)
     if inputs.vel_ok[b] and used:
         r_vel = max(noise.r_vel, vel_r[0]) + inputs.vel_var[b]
         for axis in range(2):
-            _, nu, S = _apply(P, dx, H, gnss_velocity(x, inputs.gnss_vel[b], axis, r_vel, H), np.inf, log, b, SLOT_GNSS_VEL + axis)
+            _, nu, S = _apply(P, dx, H, gnss_velocity(x, inputs.gnss_vel[b], axis, r_vel, H), np.inf, log, b,
+                              SLOT_GNSS_VEL + axis)
             # the filter's share of S is S - r_vel
             vel_r[0] += (nu * nu - (S - r_vel) - inputs.vel_var[b] - vel_r[0]) / VEL_R_MEMORY
     return used
@@ -691,7 +699,8 @@ def _standing_updates(x, P, dx, noise, earth, gm, fm, n_mean, H, log, b):  # pra
         _apply(P, dx, H, zupt(x, axis, noise.r_zupt, H), np.inf, log, b, SLOT_ZUPT + axis)
     C = _dcm(x[QW:QW + 4])
     for axis in range(3):
-        _apply(P, dx, H, zaru(x, C, earth.omega_ie, gm, axis, noise.r_zaru / n_mean, H), np.inf, log, b, SLOT_ZARU + axis)
+        _apply(P, dx, H, zaru(x, C, earth.omega_ie, gm, axis, noise.r_zaru / n_mean, H), np.inf, log, b,
+               SLOT_ZARU + axis)
     if noise.r_level > 0.0:
         for axis in range(2):
             _apply(P, dx, H, level(x, C, fm, axis, noise.r_level, H), np.inf, log, b, SLOT_LEVEL + axis)
@@ -786,7 +795,8 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
             j = jb
             gnss_here = sw.gnss and inputs.gnss_ok[b]
             if gnss_here:
-                if _gnss_updates(x, P, dx, inputs, noise, b, GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf, H, out.log, vel_r):
+                if _gnss_updates(x, P, dx, inputs, noise, b, GNSS_GATE if rejected < GNSS_REJECTS_MAX else np.inf, H,
+                                 out.log, vel_r):
                     rejected, jumped = 0, False
                 elif inputs.fix_step[b] > 0 and not jumped:
                     # the fixes went on smoothly from the last one the filter took, and it disagrees: it is off
@@ -809,7 +819,8 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
                 else:  # the detector is wrong, or the filter is: a ZUPT would not be a small correction
                     standing = False
                     for axis in range(3):
-                        kalman.record(out.log, b, SLOT_ZUPT + axis, -x[VX + axis], P[DV + axis, DV + axis] + noise.r_zupt, False)
+                        kalman.record(out.log, b, SLOT_ZUPT + axis, -x[VX + axis],
+                                      P[DV + axis, DV + axis] + noise.r_zupt, False)
             if standing:
                 # the mean gyro reading over the last window (WINDOW_S, both ends, at any rate)
                 k0 = inputs.b_sample[b - 1]
@@ -851,12 +862,14 @@ def _propagate_all(t, acc, gyr, x0, earth):  # pragma: no cover - compiled
     return out
 
 
-def propagate(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, x0: np.ndarray, lat0_deg: float, height0_m: float = 0.0) -> np.ndarray:
+def propagate(t_s: np.ndarray, accel_mps2: np.ndarray, gyro_radps: np.ndarray, x0: np.ndarray, lat0_deg: float,
+              height0_m: float = 0.0) -> np.ndarray:
     """The mechanisation alone (no filter): the nominal state (see the module docstring) at every
     sample ``(n, 20)`` from ``x0`` at the first, given body-frame specific force (m/s^2) and angular
     rate (rad/s) samples ``(n, 3)``, in the tangent frame of an origin at ``lat0_deg``, ``height0_m``."""
     return _propagate_all(np.ascontiguousarray(t_s, dtype=float), np.ascontiguousarray(accel_mps2, dtype=float),
-                          np.ascontiguousarray(gyro_radps, dtype=float), np.asarray(x0, dtype=float), earth_at(lat0_deg, height0_m))
+                          np.ascontiguousarray(gyro_radps, dtype=float), np.asarray(x0, dtype=float),
+                          earth_at(lat0_deg, height0_m))
 
 
 def transition_matrix(C: np.ndarray, fn_mps2: np.ndarray, wz_radps: float, T_s: float) -> np.ndarray:

@@ -53,7 +53,8 @@ def rebuild_track(
 MIN_COURSE_DISTANCE_M = 0.05
 
 
-def windows_of_track(lat_deg: np.ndarray, lon_deg: np.ndarray, heading0_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def windows_of_track(lat_deg: np.ndarray, lon_deg: np.ndarray,
+                     heading0_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per-window distance (m) and yaw rate (rad/s, counter-clockwise) of positions at window
     boundaries ``(n_sequences, n_windows + 1)``: what :func:`rebuild_track` takes, from a track.
 
@@ -125,8 +126,10 @@ class TrackCovariance:
         self.a, self.c = a, c
         self.cc = c[..., :, None] * c[..., None, :]  # (n, w + 1, 2, 2)
 
-    def __call__(self, var_disp_m2: np.ndarray, var_yaw_radps2: np.ndarray, var_heading0_rad2: np.ndarray | float = 0.0) -> np.ndarray:
-        """The covariance (m^2, ``(n_sequences, n_windows + 1, 2, 2)``) for these variances (as :func:`track_covariance`)."""
+    def __call__(self, var_disp_m2: np.ndarray, var_yaw_radps2: np.ndarray,
+                 var_heading0_rad2: np.ndarray | float = 0.0) -> np.ndarray:
+        """The covariance (m^2, ``(n_sequences, n_windows + 1, 2, 2)``) for these variances (as
+        :func:`track_covariance`)."""
         n_seq, n_win = self.shape
         var_d = np.broadcast_to(np.asarray(var_disp_m2, dtype=float), self.shape)
         var_w = np.broadcast_to(np.asarray(var_yaw_radps2, dtype=float), self.shape)
@@ -146,7 +149,8 @@ class TrackCovariance:
         return out
 
 
-def systematic_track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray, scale_sigma: np.ndarray | float,
+def systematic_track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, yaw_rate_radps: np.ndarray,
+                                scale_sigma: np.ndarray | float,
                                 gyro_bias_sigma_radps: np.ndarray | float) -> np.ndarray:
     """The east/north covariance (m^2, ``(n_sequences, n_windows + 1, 2, 2)``) a rebuilt track gets
     from two errors that hold through an outage: a relative scale error of every distance
@@ -170,7 +174,8 @@ def systematic_track_covariance(heading0_deg: np.ndarray, disp_m: np.ndarray, ya
     return s2 * np.einsum("nka,nkb->nkab", reached, reached) + b2 * np.einsum("nka,nkb->nkab", bias_dir, bias_dir)
 
 
-def boundary_errors_en_m(windows: Windows, starts: np.ndarray, n_windows: int, lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+def boundary_errors_en_m(windows: Windows, starts: np.ndarray, n_windows: int, lat_deg: np.ndarray,
+                         lon_deg: np.ndarray) -> np.ndarray:
     """The east/north error (m) of positions ``lat_deg``/``lon_deg`` ``(m, n_windows + 1)`` (WGS84
     degrees) against the windows' fixes at the boundaries of the sequences starting at windows
     ``starts`` (m,): ``(m, n_windows + 1, 2)``, the first at the start fix; metres along the

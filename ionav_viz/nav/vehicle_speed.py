@@ -46,4 +46,5 @@ def why_no_vehicle_speed(drive: Drive) -> str:
     present = [c for cols, _ in SOURCES for c in cols if c in drive.columns]
     if not present:
         return "no wheel speeds or vehicle speed"
-    return f"its {', '.join(present)} {'is' if len(present) == 1 else 'are'} not usable (non-finite, all zero or constant)"
+    return (f"its {', '.join(present)} {'is' if len(present) == 1 else 'are'} not usable "
+            "(non-finite, all zero or constant)")

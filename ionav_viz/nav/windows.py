@@ -67,7 +67,8 @@ class Windows:
     accel_mps2: np.ndarray  # (n, steps + 1)
     gyro_radps: np.ndarray  # (n, steps + 1)
     truth_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = good truth
-    receiver_fault: np.ndarray = field(default=None)  # type: ignore[assignment]  # (n,) uint16, 0 = its receiver fixes are good (the next window may start an outage)
+    # (n,) uint16, 0 = its receiver fixes are good (the next window may start an outage)
+    receiver_fault: np.ndarray = field(default=None)  # type: ignore[assignment]
     #: the first window an outage may start at: the filters' warm-up (:meth:`after_warm_up`)
     first_start: int = 0
 
@@ -110,7 +111,8 @@ class Windows:
         good = self.truth_ok & self.receiver_ok  # beside a reference, the filters had only the receiver's fixes
         good_before = np.concatenate([[0], np.cumsum(good)])[:-1] * WINDOW_S  # GNSS time before each window
         first = int(np.searchsorted(good_before, warm_up_s - 1e-6))
-        if first >= len(self):  # never that much good GNSS: the drive's time, so that what is wrong is said (the GNSS, not the length)
+        # never that much good GNSS: the drive's time, so that what is wrong is said (the GNSS, not the length)
+        if first >= len(self):
             first = int(np.searchsorted(self.t0_s, self.t0_s[0] + warm_up_s - 1e-6))
         return replace(self, first_start=first)
 
@@ -121,7 +123,8 @@ class Windows:
         starts = np.asarray(starts, dtype=int)
         idx = starts[:, None] + np.arange(n_windows)[None, :]
         return tuple(np.concatenate([at0[starts][:, None], at1[idx]], axis=1)  # type: ignore[return-value]
-                     for at0, at1 in ((self.lat0_deg, self.lat1_deg), (self.lon0_deg, self.lon1_deg), (self.heading0_deg, self.heading1_deg)))
+                     for at0, at1 in ((self.lat0_deg, self.lat1_deg), (self.lon0_deg, self.lon1_deg),
+                                      (self.heading0_deg, self.heading1_deg)))
 
     @property
     def steps(self) -> int:
@@ -191,7 +194,8 @@ def make_windows(
     tolerance = stamp_tolerance_s(drive.rate_hz)
     heading = hold_course_when_slow(drive.heading_deg, drive.speed_mps, min_course_speed_mps, drive.t_s)
     heading_unwrapped = np.rad2deg(np.unwrap(np.deg2rad(heading)))
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad", "rx")}
+    parts: dict[str, list[np.ndarray]] = {k: []
+                                          for k in ("t", "seg", "lat", "lon", "hdg", "spd", "acc", "gyr", "bad", "rx")}
     receiver_fault = drive.receiver_fault if drive.has_reference and drive.receiver_fault is not None else None
     n_windows = []
     for seg_id, (i0, i1) in enumerate(segments(drive.t_s, max_gap_s)):

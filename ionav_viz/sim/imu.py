@@ -144,10 +144,12 @@ class ImuGrade:
 
 IMU_GRADES = {
     "mems": ImuGrade("mems", 100.0, 10.0, gyro_bias_dps=50.0 / 3600.0, gyro_instability_dps=0.005, gyro_scale=0.003,
-                     gyro_vibration_still_dps=0.06, gyro_vibration_driving_dps=0.15, gyro_random_walk_dps_rthr=0.24, accel_bias_mps2=0.05, accel_instability_mps2=0.01,
-                     accel_scale=0.003, accel_vibration_still_mps2=0.13, accel_vibration_per_mps=0.008, accel_vibration_max_mps2=0.3, accel_random_walk_mps_rthr=0.24,
-                     bias_tau_s=600.0, mount_deg=(0.5, -0.7, 2.2), mount_spread_deg=0.3, gnss_wander_m=1.2, gnss_tau_s=30.0,
-                     gnss_white_m=0.1, gnss_reported_sigma_m=1.5, gnss_speed_noise_mps=0.05, clock_jitter_s=0.0005,
+                     gyro_vibration_still_dps=0.06, gyro_vibration_driving_dps=0.15, gyro_random_walk_dps_rthr=0.24,
+                     accel_bias_mps2=0.05, accel_instability_mps2=0.01, accel_scale=0.003,
+                     accel_vibration_still_mps2=0.13, accel_vibration_per_mps=0.008, accel_vibration_max_mps2=0.3,
+                     accel_random_walk_mps_rthr=0.24, bias_tau_s=600.0, mount_deg=(0.5, -0.7, 2.2),
+                     mount_spread_deg=0.3, gnss_wander_m=1.2, gnss_tau_s=30.0, gnss_white_m=0.1,
+                     gnss_reported_sigma_m=1.5, gnss_speed_noise_mps=0.05, clock_jitter_s=0.0005,
                      missing_sample_prob=0.0, vehicle_speed=True),
     # The phone and the dash device as public real logs show them, measured the same way on both
     # sides by benchmarks/imu_character.py (docs/real-imu-logs.md; the real logs: cloudpose_iphonex_ds1
@@ -180,12 +182,14 @@ IMU_GRADES = {
     #   cannot tell grade from a holder's tilt or bias wander, and the INS DR then errs by 26 % of the
     #   distance after 10 s against the real phone's 18.6 % (docs/real-imu-logs.md).
     "phone": ImuGrade("phone", 10.0, 1.0, gyro_bias_dps=0.3, gyro_instability_dps=0.02, gyro_scale=0.01,
-                      gyro_vibration_still_dps=0.025, gyro_vibration_driving_dps=0.5, gyro_random_walk_dps_rthr=0.8, accel_bias_mps2=0.15, accel_instability_mps2=0.02,
-                      accel_scale=0.01, accel_vibration_still_mps2=0.03, accel_vibration_per_mps=0.05, accel_vibration_max_mps2=0.45, accel_random_walk_mps_rthr=0.3,
-                      bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0, gnss_wander_m=2.5, gnss_tau_s=60.0,
-                      gnss_white_m=0.5, gnss_reported_sigma_m=8.0, gnss_speed_noise_mps=0.3, clock_jitter_s=1e-5,
-                      missing_sample_prob=0.0003, vehicle_speed=False, single_readings=True, holder_wobble_dps=2.0, holder_wobble_hz=8.0,
-                      holder_wobble_still_share=0.04, clock_offset_s=0.04, holder_flex_deg_per_mps2=0.4, gyro_sway_dps=0.06, gyro_sway_tau_s=1.0,
+                      gyro_vibration_still_dps=0.025, gyro_vibration_driving_dps=0.5, gyro_random_walk_dps_rthr=0.8,
+                      accel_bias_mps2=0.15, accel_instability_mps2=0.02, accel_scale=0.01,
+                      accel_vibration_still_mps2=0.03, accel_vibration_per_mps=0.05, accel_vibration_max_mps2=0.45,
+                      accel_random_walk_mps_rthr=0.3, bias_tau_s=300.0, mount_deg=(0.5, 1.0, 8.0), mount_spread_deg=1.0,
+                      gnss_wander_m=2.5, gnss_tau_s=60.0, gnss_white_m=0.5, gnss_reported_sigma_m=8.0,
+                      gnss_speed_noise_mps=0.3, clock_jitter_s=1e-5, missing_sample_prob=0.0003, vehicle_speed=False,
+                      single_readings=True, holder_wobble_dps=2.0, holder_wobble_hz=8.0, holder_wobble_still_share=0.04,
+                      clock_offset_s=0.04, holder_flex_deg_per_mps2=0.4, gyro_sway_dps=0.06, gyro_sway_tau_s=1.0,
                       gnss_speed_lag_s=0.7, gnss_losses_per_10min=2.8, gnss_loss_s=(2.0, 30.0)),
     # comma2k19_example1 (60 s, no stand): 104 Hz averaged by the reader, gyro 0.07-0.10 deg/s and
     # accelerometer 0.15 m/s^2 per 10 Hz sample driving, wobble 0.5 deg/s (pitch and roll; little on
@@ -193,10 +197,11 @@ IMU_GRADES = {
     # mount roll 0.7, pitch 3.8, yaw -0.8 deg, a u-blox at 10 Hz. A phone-class IMU (the EON is a
     # phone): biases, random walks and standing noise the phone's.
     "dash": ImuGrade("dash", 104.0, 10.0, gyro_bias_dps=0.3, gyro_instability_dps=0.02, gyro_scale=0.01,
-                     gyro_vibration_still_dps=0.05, gyro_vibration_driving_dps=0.05, gyro_random_walk_dps_rthr=0.8, accel_bias_mps2=0.15,
-                     accel_instability_mps2=0.02, accel_scale=0.01, accel_vibration_still_mps2=0.03, accel_vibration_per_mps=0.005,
-                     accel_vibration_max_mps2=0.2, accel_random_walk_mps_rthr=0.3, bias_tau_s=300.0, mount_deg=(0.7, 3.8, -0.8),
-                     mount_spread_deg=1.0, gnss_wander_m=1.2, gnss_tau_s=30.0, gnss_white_m=0.1, gnss_reported_sigma_m=1.5,
+                     gyro_vibration_still_dps=0.05, gyro_vibration_driving_dps=0.05, gyro_random_walk_dps_rthr=0.8,
+                     accel_bias_mps2=0.15, accel_instability_mps2=0.02, accel_scale=0.01,
+                     accel_vibration_still_mps2=0.03, accel_vibration_per_mps=0.005, accel_vibration_max_mps2=0.2,
+                     accel_random_walk_mps_rthr=0.3, bias_tau_s=300.0, mount_deg=(0.7, 3.8, -0.8), mount_spread_deg=1.0,
+                     gnss_wander_m=1.2, gnss_tau_s=30.0, gnss_white_m=0.1, gnss_reported_sigma_m=1.5,
                      gnss_speed_noise_mps=0.05, clock_jitter_s=1e-5, missing_sample_prob=0.0, vehicle_speed=False,
                      holder_wobble_dps=1.0, holder_wobble_hz=8.0, holder_wobble_yaw_share=0.1),
 }
@@ -207,9 +212,9 @@ IMU_GRADES = {
 # rest is the mems grade's. What it is for: a filter that weighs its mechanisation by the standstill
 # noise trusts it through the vibration (the regression of issue 59, 2.2 -> 4.4 % after 10 s there).
 IMU_GRADES["roof"] = replace(IMU_GRADES["mems"], name="roof", gnss_rate_hz=4.0, gyro_vibration_still_dps=0.03,
-                             gyro_vibration_driving_dps=0.57, accel_vibration_still_mps2=0.02, accel_vibration_per_mps=0.012,
-                             accel_vibration_max_mps2=0.17, gnss_wander_m=0.02, gnss_white_m=0.01, gnss_reported_sigma_m=0.03,
-                             gnss_speed_noise_mps=0.02)
+                             gyro_vibration_driving_dps=0.57, accel_vibration_still_mps2=0.02,
+                             accel_vibration_per_mps=0.012, accel_vibration_max_mps2=0.17, gnss_wander_m=0.02,
+                             gnss_white_m=0.01, gnss_reported_sigma_m=0.03, gnss_speed_noise_mps=0.02)
 
 #: Where the simulated logs carry the reference truth (a NavSatFix, read with ``--truth-topic``).
 SIM_TRUTH_TOPIC = TRUTH_TOPIC
@@ -283,7 +288,8 @@ def vibration(rng: np.random.Generator, t_s: np.ndarray, sigma: np.ndarray) -> n
     dt = float(np.mean(np.diff(t_s))) if n > 1 else TABLE_INTERVAL_S
     rho = math.exp(-TABLE_INTERVAL_S / VIBRATION_TAU_S)
     scale = np.asarray(sigma, dtype=float) * TABLE_INTERVAL_S / math.sqrt((1.0 - rho) * (3.0 - rho))
-    motion = np.column_stack([gauss_markov(rng, n, dt, 1.0, VIBRATION_TAU_S) for _ in range(3)]) * np.broadcast_to(scale, (n,))[:, None]
+    motion = (np.column_stack([gauss_markov(rng, n, dt, 1.0, VIBRATION_TAU_S) for _ in range(3)])
+              * np.broadcast_to(scale, (n,))[:, None])
     rate = np.zeros_like(motion)
     rate[1:] = np.diff(motion, axis=0) / np.diff(t_s)[:, None]
     return rate
@@ -307,7 +313,8 @@ def flexed_holder(t_s: np.ndarray, f_b: np.ndarray, w_b: np.ndarray, mount: np.n
     damper). The tilt turns the mount (``body = mount @ flex @ sensor``) and its rate adds to the
     body's (the sensor turns with the holder)."""
     k = math.radians(deg_per_mps2)
-    target = np.column_stack([-k * f_b[:, 1], k * f_b[:, 0]])  # roll, pitch (nose-down positive) towards what the force pushes
+    # roll, pitch (nose-down positive) towards what the force pushes
+    target = np.column_stack([-k * f_b[:, 1], k * f_b[:, 0]])
     alpha = 1.0 - np.exp(-np.diff(t_s, prepend=t_s[0]) / tau_s)
     tilt = _first_order(np.ascontiguousarray(target), alpha)
     roll, pitch = tilt[:, 0], tilt[:, 1]
@@ -317,7 +324,8 @@ def flexed_holder(t_s: np.ndarray, f_b: np.ndarray, w_b: np.ndarray, mount: np.n
     flex[:, 0, 0], flex[:, 0, 1], flex[:, 0, 2] = cp, sp * sr, sp * cr
     flex[:, 1, 1], flex[:, 1, 2] = cr, -sr
     flex[:, 2, 0], flex[:, 2, 1], flex[:, 2, 2] = -sp, cp * sr, cp * cr
-    rate = np.column_stack([np.gradient(roll, t_s), np.gradient(pitch, t_s), np.zeros(len(t_s))])  # small angles: about the holder's x, y
+    # small angles: about the holder's x, y
+    rate = np.column_stack([np.gradient(roll, t_s), np.gradient(pitch, t_s), np.zeros(len(t_s))])
     f_m, w_m = f_b @ mount, w_b @ mount  # in the unflexed sensor axes
     f_s = np.einsum("nji,nj->ni", flex, f_m)
     w_s = np.einsum("nji,nj->ni", flex, w_m) + rate
@@ -384,7 +392,8 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
     n = len(t)
 
     def at(x: np.ndarray) -> np.ndarray:
-        return np.column_stack([np.interp(t, m.t_s, x[:, k]) for k in range(x.shape[1])]) if x.ndim == 2 else np.interp(t, m.t_s, x)
+        return (np.column_stack([np.interp(t, m.t_s, x[:, k]) for k in range(x.shape[1])]) if x.ndim == 2
+                else np.interp(t, m.t_s, x))
 
     speed = at(m.speed_mps)
     mount = rotation_deg(*(np.array(g.mount_deg) + rng.normal(0.0, g.mount_spread_deg, 3)))
@@ -405,20 +414,24 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
 
     # the road's vibration starts with the wheels rolling (a ramp to 0.1 m/s, so its motion has no jump)
     moving = np.clip(speed / 0.1, 0.0, 1.0)
-    gyro_vib = np.deg2rad(g.gyro_vibration_still_dps + moving * (g.gyro_vibration_driving_dps - g.gyro_vibration_still_dps))
-    accel_vib = np.minimum(g.accel_vibration_still_mps2 + g.accel_vibration_per_mps * speed, max(g.accel_vibration_max_mps2, g.accel_vibration_still_mps2))
+    gyro_vib = np.deg2rad(g.gyro_vibration_still_dps
+                          + moving * (g.gyro_vibration_driving_dps - g.gyro_vibration_still_dps))
+    accel_vib = np.minimum(g.accel_vibration_still_mps2 + g.accel_vibration_per_mps * speed,
+                           max(g.accel_vibration_max_mps2, g.accel_vibration_still_mps2))
     white = math.sqrt(g.imu_rate_hz) / 60.0  # a random walk per sqrt(h) -> 1 sigma per sample
     gyro_white, accel_white = np.deg2rad(g.gyro_random_walk_dps_rthr) * white, g.accel_random_walk_mps_rthr * white
     gyro_bias, gyro_scale = np.deg2rad(rng.normal(0.0, g.gyro_bias_dps, 3)), rng.normal(0.0, g.gyro_scale, 3)
-    gyro = ((1.0 + gyro_scale) * w_s + gyro_bias + np.deg2rad(wander(g.gyro_instability_dps)) + vibration(rng, t, gyro_vib)
-            + rng.normal(0.0, gyro_white, (n, 3)))
+    gyro = ((1.0 + gyro_scale) * w_s + gyro_bias + np.deg2rad(wander(g.gyro_instability_dps))
+            + vibration(rng, t, gyro_vib) + rng.normal(0.0, gyro_white, (n, 3)))
     if g.holder_wobble_dps > 0:
-        wobble_sd = np.deg2rad(g.holder_wobble_dps * (g.holder_wobble_still_share + (1.0 - g.holder_wobble_still_share) * moving))
-        gyro += holder_wobble(np.random.default_rng([seed, 8000 + SIMULATED_SCENARIOS.index(scenario)]), t, wobble_sd, g.holder_wobble_hz,
-                              g.holder_wobble_yaw_share)
+        wobble_sd = np.deg2rad(g.holder_wobble_dps
+                               * (g.holder_wobble_still_share + (1.0 - g.holder_wobble_still_share) * moving))
+        gyro += holder_wobble(np.random.default_rng([seed, 8000 + SIMULATED_SCENARIOS.index(scenario)]), t, wobble_sd,
+                              g.holder_wobble_hz, g.holder_wobble_yaw_share)
     if g.gyro_sway_dps > 0:
         sway_rng = np.random.default_rng([seed, 9000 + SIMULATED_SCENARIOS.index(scenario)])
-        gyro += np.deg2rad(np.column_stack([gauss_markov(sway_rng, n, dt_mean, g.gyro_sway_dps, g.gyro_sway_tau_s) for _ in range(3)]))
+        gyro += np.deg2rad(np.column_stack([gauss_markov(sway_rng, n, dt_mean, g.gyro_sway_dps, g.gyro_sway_tau_s)
+                                            for _ in range(3)]))
     accel_bias, accel_scale = rng.normal(0.0, g.accel_bias_mps2, 3), rng.normal(0.0, g.accel_scale, 3)
     accel = ((1.0 + accel_scale) * f_s + accel_bias + wander(g.accel_instability_mps2) + vibration(rng, t, accel_vib)
              + rng.normal(0.0, accel_white, (n, 3)))
@@ -444,14 +457,14 @@ def imu_drive(scenario: str, seed: int = 0, duration_s: float = 300.0, grade: st
     fix[np.concatenate([[True], np.diff(epochs) > 0])] = True  # the first row at or after each receiver epoch
     fix &= ~receiver_losses(np.random.default_rng([seed, 10000 + SIMULATED_SCENARIOS.index(scenario)]), t, g)
 
-    columns = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "speed_mps": np.hypot(vel[:, 0], vel[:, 1]), "heading_deg": course,
-               "accel_long_mps2": accel[:, 0], "yaw_rate_radps": gyro[:, 2], "height_m": g_height,
-               "gnss_sigma_m": np.full(n, g.gnss_reported_sigma_m), "gnss_lat_deg": g_lat, "gnss_lon_deg": g_lon,
-               "gnss_speed_mps": g_speed, "gnss_heading_deg": g_course}
+    columns = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "speed_mps": np.hypot(vel[:, 0], vel[:, 1]),
+               "heading_deg": course, "accel_long_mps2": accel[:, 0], "yaw_rate_radps": gyro[:, 2],
+               "height_m": g_height, "gnss_sigma_m": np.full(n, g.gnss_reported_sigma_m), "gnss_lat_deg": g_lat,
+               "gnss_lon_deg": g_lon, "gnss_speed_mps": g_speed, "gnss_heading_deg": g_course}
     columns |= dict(zip(IMU_COLUMNS, np.column_stack([accel, gyro]).T, strict=True))
     if g.vehicle_speed:
-        can = can_speeds(np.random.default_rng([seed, 7000 + SIMULATED_SCENARIOS.index(scenario)]), t, plan_truth(scenario, seed, duration_s),
-                         SensorModel(), 0.75, 0.3)
+        can = can_speeds(np.random.default_rng([seed, 7000 + SIMULATED_SCENARIOS.index(scenario)]), t,
+                         plan_truth(scenario, seed, duration_s), SensorModel(), 0.75, 0.3)
         columns["speed_can_mps"] = can[HEADER[15]] / 3.6  # the indicated speed, km/h
     name = f"sim-{g.name}-{scenario}-{seed}"
     drive = Drive(name, name, g.imu_rate_hz, 0.0, columns, start_stamp_s=1_700_000_000.0 + 86400.0 * seed)
@@ -473,14 +486,16 @@ def receiver_losses(rng: np.random.Generator, t_s: np.ndarray, g: ImuGrade) -> n
     return lost
 
 
-def write_imu_log(path: str | Path, scenario: str, seed: int = 0, duration_s: float = 300.0, grade: str | ImuGrade = "mems") -> Path:
+def write_imu_log(path: str | Path, scenario: str, seed: int = 0, duration_s: float = 300.0,
+                  grade: str | ImuGrade = "mems") -> Path:
     """Simulate a log of ``grade`` and write it as a ROS 2 MCAP (atomically): ``/imu/data`` at the
     IMU's rate (its own mounted axes), ``/gps/fix`` and ``/gps/vel`` at the receiver's epochs, the
     reference truth on :data:`SIM_TRUTH_TOPIC`, and ``/wheel/odom`` where the grade has a vehicle
     speed. Read it with ``--truth-topic /truth/fix``."""
     path = check_output_file(Path(path))
     if path.suffix.lower() != ".mcap":
-        raise InputError(f"{path}: a simulated IMU log is an MCAP file", "choose a name like drive.mcap", param="output")
+        raise InputError(f"{path}: a simulated IMU log is an MCAP file", "choose a name like drive.mcap",
+                         param="output")
     log = imu_drive(scenario, seed, duration_s, grade)
     speed = log.drive.columns.get("speed_can_mps")
     write_mcap(log.drive, path, speed, ("speed_can_mps",) if speed is not None else (), omit_gnss=~log.fix)

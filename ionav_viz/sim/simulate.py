@@ -319,7 +319,8 @@ def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
     if not duration_s > 0:
         raise InputError(f"duration must be positive, got {duration_s} s", param="duration_s")
     if duration_s > MAX_DURATION_S:
-        raise InputError(f"duration {duration_s / 3600:g} h is longer than the {MAX_DURATION_S / 3600:g} h the simulator allows",
+        raise InputError(f"duration {duration_s / 3600:g} h is longer than the {MAX_DURATION_S / 3600:g} h the "
+                         "simulator allows",
                          "simulate several shorter drives", param="duration_s")
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise InputError(f"seed {seed!r} must be a whole number >= 0", param="seed")
@@ -329,7 +330,8 @@ def plan_truth(scenario: str, seed: int, duration_s: float) -> Truth:
     return plan.truth(duration_s)
 
 
-def simulated_manoeuvres(scenario: str, seed: int, duration_s: float, gnss_losses: int = 0) -> list[tuple[str, float, float]]:
+def simulated_manoeuvres(scenario: str, seed: int, duration_s: float,
+                         gnss_losses: int = 0) -> list[tuple[str, float, float]]:
     """Where the simulator put each manoeuvre: (type, start s, end s), times as in the CSV.
 
     ``gnss-outage``: the GNSS losses of a drive simulated with ``gnss_losses``.
@@ -403,13 +405,16 @@ def gnss_loss_spans(scenario: str, seed: int, duration_s: float, count: int) -> 
     if count == 0:
         return []
     truth = plan_truth(scenario, seed, duration_s)
-    rng = np.random.default_rng([seed, 2000 + SIMULATED_SCENARIOS.index(scenario)])  # its own stream: the rest of the drive is unchanged
+    # its own stream: the rest of the drive is unchanged
+    rng = np.random.default_rng([seed, 2000 + SIMULATED_SCENARIOS.index(scenario)])
     spans: list[tuple[float, float, str]] = []
-    for _ in range(50 * min(count, max(1, gnss_loss_room(duration_s)))):  # --gnss-loss 1000000 drew 50 M times (a hang) for the few that fit
+    # --gnss-loss 1000000 drew 50 M times (a hang) for the few that fit
+    for _ in range(50 * min(count, max(1, gnss_loss_room(duration_s)))):
         if len(spans) == count:
             break
         length = float(np.round(rng.uniform(*LOSS_LENGTH_S), 1))
-        t0 = float(np.round(rng.uniform(LOSS_CLEAR_S, duration_s - LOSS_CLEAR_S - length), 1)) if duration_s > 2 * LOSS_CLEAR_S + length else -1.0
+        t0 = (float(np.round(rng.uniform(LOSS_CLEAR_S, duration_s - LOSS_CLEAR_S - length), 1))
+              if duration_s > 2 * LOSS_CLEAR_S + length else -1.0)
         if t0 < 0 or np.interp(t0, truth.t_s, truth.speed_mps) < LOSS_MIN_SPEED_MPS:
             continue
         if all(t0 >= b + LOSS_CLEAR_S or t0 + length + LOSS_CLEAR_S <= a for a, b, _ in spans):
@@ -441,13 +446,15 @@ def simulate_rows(
     moving = v_s > 0.05
     accel_g = _accelerometer_g(rng, sensors, v_s, a_s, g_s)
     r_meas_dps = _gyro_dps(rng, sensors, at(track.yaw_rate_radps, t - sensors.gyro_latency_s), moving)
-    lat, lon, speed_kmh, course = _gnss_columns(rng, sensors, at(track.east_m), at(track.north_m), at(np.unwrap(track.heading_rad)), v_s)
+    lat, lon, speed_kmh, course = _gnss_columns(rng, sensors, at(track.east_m), at(track.north_m),
+                                                at(np.unwrap(track.heading_rad)), v_s)
 
     # CAN and housekeeping channels.
     k_s = at(truth.curvature_1pm)
     gear = np.select([v_s < 0.3, v_s < 4, v_s < 8, v_s < 12.5, v_s < 17], [0, 1, 2, 3, 4], 5)
     brake_psi = np.clip((-a_s - 0.5) * 150.0, 0.0, None)
-    standing = np.convolve(~moving, np.ones(30), "same")[:n] >= 30  # "same" is max(n, 30) long: a drive under 3 s never stands
+    # "same" is max(n, 30) long: a drive under 3 s never stands
+    standing = np.convolve(~moving, np.ones(30), "same")[:n] >= 30
     half_track_m, wheel_radius_m = 0.75, 0.3
     rows = {
         HEADER[0]: np.clip(np.round(11 + np.cumsum(rng.integers(-1, 2, n)) * 0.05), 6, 16),
@@ -460,7 +467,8 @@ def simulate_rows(
         HEADER[7]: v_s * np.sin(np.arctan(g_s)) * 3.6,
         HEADER[8]: np.concatenate([[0.1], np.diff(t)]),
         HEADER[9]: np.degrees(np.arctan(2.5 * k_s)) * 15.0,
-        **can_speeds(np.random.default_rng([seed, 3000 + SIMULATED_SCENARIOS.index(scenario)]), t, truth, sensors, half_track_m, wheel_radius_m),
+        **can_speeds(np.random.default_rng([seed, 3000 + SIMULATED_SCENARIOS.index(scenario)]), t, truth, sensors,
+                     half_track_m, wheel_radius_m),
         HEADER[14]: -r_meas_dps,
         HEADER[16]: accel_g,
         HEADER[17]: (v_s * v_s * k_s + rng.normal(0, 1, n) * 0.1 * (sensors.accel_noise_still_mps2 > 0)) / G_MPS2,
@@ -478,8 +486,9 @@ def simulate_rows(
     }
     spans = gnss_loss_spans(scenario, seed, duration_s, gnss_losses)
     if len(spans) < gnss_losses:
-        log.warning("%s drive of %g s: wrote %d of the %d GNSS losses asked for (each %g-%g s, begun at %g m/s or more, "
-                    "%g s from the drive's ends and each other: room for at most %d, placed at random); a longer drive (--duration) fits more",
+        log.warning("%s drive of %g s: wrote %d of the %d GNSS losses asked for (each %g-%g s, begun at %g "
+                    "m/s or more, %g s from the drive's ends and each other: room for at most %d, placed at random); a "
+                    "longer drive (--duration) fits more",
                     scenario, duration_s, len(spans), gnss_losses, *LOSS_LENGTH_S, LOSS_MIN_SPEED_MPS, LOSS_CLEAR_S,
                     gnss_loss_room(duration_s))
     for t0, t1, kind in spans:
@@ -526,13 +535,15 @@ def _sample_times(rng: np.random.Generator, duration_s: float, sensors: SensorMo
     return t[keep]
 
 
-def _accelerometer_g(rng: np.random.Generator, sensors: SensorModel, v_s: np.ndarray, a_s: np.ndarray, g_s: np.ndarray) -> np.ndarray:
+def _accelerometer_g(rng: np.random.Generator, sensors: SensorModel, v_s: np.ndarray, a_s: np.ndarray,
+                     g_s: np.ndarray) -> np.ndarray:
     """The longitudinal accelerometer (g) at the sample times: acceleration and gravity along the
     grade, offset, bias walk, speed-dependent noise, quantisation."""
     n = len(v_s)
     accel_offset = sensors.accel_offset_mps2 + rng.normal(0, 1) * sensors.accel_offset_spread_mps2
     accel_walk = np.cumsum(rng.normal(0, sensors.accel_bias_walk_mps2_per_sqrt_s * math.sqrt(0.1), n))
-    accel_sigma = np.minimum(sensors.accel_noise_still_mps2 + sensors.accel_noise_per_mps * v_s, max(sensors.accel_noise_max_mps2, sensors.accel_noise_still_mps2))
+    accel_sigma = np.minimum(sensors.accel_noise_still_mps2 + sensors.accel_noise_per_mps * v_s,
+                             max(sensors.accel_noise_max_mps2, sensors.accel_noise_still_mps2))
     f = a_s + G_MPS2 * np.sin(np.arctan(g_s)) + accel_offset + accel_walk + rng.normal(0, 1, n) * accel_sigma
     accel_g = f / G_MPS2
     if sensors.accel_quantum_g > 0:
@@ -540,17 +551,20 @@ def _accelerometer_g(rng: np.random.Generator, sensors: SensorModel, v_s: np.nda
     return accel_g
 
 
-def _gyro_dps(rng: np.random.Generator, sensors: SensorModel, yaw_rate_late_radps: np.ndarray, moving: np.ndarray) -> np.ndarray:
+def _gyro_dps(rng: np.random.Generator, sensors: SensorModel, yaw_rate_late_radps: np.ndarray,
+              moving: np.ndarray) -> np.ndarray:
     """The yaw-rate gyro (deg/s, counter-clockwise positive; the file column is clockwise positive)
     from the true yaw rate at the sample times less its latency: scale error, bias, bias walk, noise."""
     n = len(moving)
     gyro_bias = sensors.gyro_bias_dps + rng.normal(0, 1) * sensors.gyro_bias_spread_dps
     gyro_walk = np.cumsum(rng.normal(0, sensors.gyro_bias_walk_dps_per_sqrt_s * math.sqrt(0.1), n))
     gyro_sigma = np.where(moving, sensors.gyro_noise_driving_dps, sensors.gyro_noise_still_dps)
-    return (1 + sensors.gyro_scale_error) * np.degrees(yaw_rate_late_radps) + gyro_bias + gyro_walk + rng.normal(0, 1, n) * gyro_sigma
+    return ((1 + sensors.gyro_scale_error) * np.degrees(yaw_rate_late_radps) + gyro_bias + gyro_walk
+            + rng.normal(0, 1, n) * gyro_sigma)
 
 
-def _gnss_columns(rng: np.random.Generator, sensors: SensorModel, east_m: np.ndarray, north_m: np.ndarray, heading_rad_unwrapped: np.ndarray,
+def _gnss_columns(rng: np.random.Generator, sensors: SensorModel, east_m: np.ndarray, north_m: np.ndarray,
+                  heading_rad_unwrapped: np.ndarray,
                   v_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The receiver's latitude, longitude (deg), speed (km/h) and course (deg) from the true track at
     the sample times: wandering and white position error about a random origin (latitude 52-53, longitude -2.2 to -0.7),
@@ -673,14 +687,18 @@ def fleet_sensors(fleet: str, seed: int) -> SensorModel:
     if fleet not in FLEETS:
         raise InputError(f"unknown fleet {fleet!r}", f"choose one of {', '.join(FLEETS)}")
     rng = np.random.default_rng([seed, 4000])
-    draw = {name: rng.uniform(lo, hi) * (rng.choice([-1.0, 1.0]) if signed else 1.0) for name, (lo, hi, signed) in FLEETS[fleet].items()}
+    draw = {name: rng.uniform(lo, hi) * (rng.choice([-1.0, 1.0]) if signed else 1.0)
+            for name, (lo, hi, signed) in FLEETS[fleet].items()}
     base = SensorModel()
     noise = draw.pop("noise_factor")
     radius = abs(draw.pop("wheel_radius_error"))
     return replace(base, **draw, accel_offset_spread_mps2=0.0, gyro_bias_spread_dps=0.0,
-                   accel_noise_still_mps2=base.accel_noise_still_mps2 * noise, accel_noise_per_mps=base.accel_noise_per_mps * noise,
-                   accel_noise_max_mps2=base.accel_noise_max_mps2 * noise, gyro_noise_still_dps=base.gyro_noise_still_dps * noise,
-                   gyro_noise_driving_dps=base.gyro_noise_driving_dps * noise, wheel_radius_error_min=radius, wheel_radius_error_max=radius)
+                   accel_noise_still_mps2=base.accel_noise_still_mps2 * noise,
+                   accel_noise_per_mps=base.accel_noise_per_mps * noise,
+                   accel_noise_max_mps2=base.accel_noise_max_mps2 * noise,
+                   gyro_noise_still_dps=base.gyro_noise_still_dps * noise,
+                   gyro_noise_driving_dps=base.gyro_noise_driving_dps * noise, wheel_radius_error_min=radius,
+                   wheel_radius_error_max=radius)
 
 
 def ideal_sensors_with(**changes: float) -> SensorModel:

@@ -48,7 +48,8 @@ def receiver_velocity(t: np.ndarray, speed: np.ndarray | None) -> tuple[np.ndarr
             # fix by fix before interpolating (a row between a standing and a moving fix would mix them)
             held = hold_course_when_slow(s_course[has_course], s_v[has_course], MIN_COURSE_SPEED_MPS, s_t[has_course])
             unwrapped = np.rad2deg(np.unwrap(np.deg2rad(held)))
-            course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS, t)
+            course = hold_course_when_slow(wrap_360(np.interp(t, s_t[has_course], unwrapped)), v, MIN_COURSE_SPEED_MPS,
+                                           t)
     return v, course
 
 
@@ -138,7 +139,8 @@ def _local_fit(t: np.ndarray, g_t: np.ndarray, g_lat: np.ndarray, g_lon: np.ndar
         at = np.searchsorted(g_t, tb)
         # the fixes within h, and at least the last at or before t and the first at or after it
         # (across a wider gap: the chord; a fix at t is its own, not one across the gap before it)
-        lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"), np.clip(np.searchsorted(g_t, tb, side="right") - 1, 0, None))
+        lo = np.minimum(np.searchsorted(g_t, tb - h, side="left"),
+                        np.clip(np.searchsorted(g_t, tb, side="right") - 1, 0, None))
         hi = np.maximum(np.searchsorted(g_t, tb + h, side="right"), np.minimum(at + 1, len(g_t)))
         lo = np.maximum(np.minimum(lo, hi - need), 0)  # enough fixes for the polynomial, at the ends too
         hi = np.minimum(np.maximum(hi, lo + need), len(g_t))

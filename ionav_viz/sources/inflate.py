@@ -24,8 +24,8 @@ def check_declared(declared: int, where: str) -> None:
     """Refuse a chunk whose header declares more than :data:`MAX_CHUNK_BYTES` uncompressed.
     ``where`` names it in the message (``"FILE: the ROS 1 chunk at byte N"``)."""
     if declared > MAX_CHUNK_BYTES:
-        raise InputError(f"{where} declares {declared / 2**20:.0f} MiB of messages, more than the {MAX_CHUNK_BYTES // 2**20} MiB "
-                         "ionav-viz inflates (a damaged or crafted file)", _HINT)
+        raise InputError(f"{where} declares {declared / 2**20:.0f} MiB of messages, more than the "
+                         f"{MAX_CHUNK_BYTES // 2**20} MiB ionav-viz inflates (a damaged or crafted file)", _HINT)
 
 
 def inflate(data: bytes, compression: str, declared: int | None, where: str) -> bytes:
@@ -36,8 +36,8 @@ def inflate(data: bytes, compression: str, declared: int | None, where: str) -> 
         try:
             return inflate(data, compression, MAX_CHUNK_BYTES, where)
         except InflatedPast:
-            raise InflatedPast(f"{where} inflates past {MAX_CHUNK_BYTES // 2**20} MiB, more than ionav-viz inflates (a damaged or "
-                             "crafted file: a compression bomb)", _HINT) from None
+            raise InflatedPast(f"{where} inflates past {MAX_CHUNK_BYTES // 2**20} MiB, more than ionav-viz inflates "
+                               "(a damaged or crafted file: a compression bomb)", _HINT) from None
     check_declared(declared, where)
     if compression == "zstd":
         return _inflate_zstd(data, declared, where)
@@ -48,8 +48,8 @@ def inflate(data: bytes, compression: str, declared: int | None, where: str) -> 
         stream = _decompressor(compression)
         out += stream.decompress(data, max_length=declared + 1 - len(out))
         if len(out) > declared:
-            raise InflatedPast(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
-                             "a compression bomb)", _HINT)
+            raise InflatedPast(f"{where} inflates past the {declared} bytes its header declares (a damaged or "
+                               "crafted file: a compression bomb)", _HINT)
         if not stream.eof:
             raise InputError(f"{where}: its {compression} data is cut short (a damaged file)", _HINT)
         data = stream.unused_data
@@ -67,8 +67,8 @@ def _inflate_zstd(data: bytes, declared: int, where: str) -> bytes:
     except zstandard.ZstdError as exc:
         raise InputError(f"{where}: its zstd data is damaged ({exc})", _HINT) from None
     if len(out) > declared:
-        raise InflatedPast(f"{where} inflates past the {declared} bytes its header declares (a damaged or crafted file: "
-                         "a compression bomb)", _HINT)
+        raise InflatedPast(f"{where} inflates past the {declared} bytes its header declares (a damaged or "
+                           "crafted file: a compression bomb)", _HINT)
     return out
 
 

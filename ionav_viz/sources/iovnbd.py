@@ -215,7 +215,8 @@ def _refuse_repeated_columns(path: Path, encoding: str) -> None:
     for k, name in enumerate(names, start=1):
         label = _label(name.strip())
         if label in used and label in seen:
-            raise InputError(f"{path}: column {name.strip()!r} appears twice in the header (columns {seen[label]} and {k})",
+            raise InputError(f"{path}: column {name.strip()!r} appears twice in the header (columns "
+                             f"{seen[label]} and {k})",
                              "keep one: ionav-viz cannot tell which holds the data")
         seen.setdefault(label, k)
 
@@ -274,7 +275,10 @@ def _locate_bad_cell(path: Path, encoding: str, columns: list[str], required: li
         bad = np.flatnonzero(~np.isfinite(numbers))
         if bad.size:
             row, cell = int(bad[0]), text.iloc[int(bad[0])]
-            what = "empty cell" if cell == "" else (f"not a finite number ({cell!r})" if cell.lower() in ("nan", "inf", "-inf", "+inf", "infinity", "-infinity") else f"non-numeric value {cell!r}")
+            what = ("empty cell" if cell == ""
+                    else (f"not a finite number ({cell!r})"
+                          if cell.lower() in ("nan", "inf", "-inf", "+inf", "infinity", "-infinity")
+                          else f"non-numeric value {cell!r}"))
             raise InputError(f"{path}: row {row + 2}, column {name.strip()!r}: {what}", "fix or delete that row")
 
 
@@ -301,7 +305,8 @@ def read_iovnbd(path: str | Path, *, name: str | None = None, yaw_sign: str = "a
     values = {k: v[keep] for k, v in values.items()}
     line_of_row = np.flatnonzero(keep) + 2
     if len(t_s) < 2:
-        raise InputError(f"{path}: fewer than 2 rows with distinct time stamps", "check the 'Time Since Start of Day' column")
+        raise InputError(f"{path}: fewer than 2 rows with distinct time stamps",
+                         "check the 'Time Since Start of Day' column")
 
     _warn_time_gaps(t_s - t_s[0], line_of_row, path)
     _fix_degrees(values, path)
@@ -356,7 +361,8 @@ def _read_frame(path: Path):
         except pd.errors.EmptyDataError:
             raise InputError(f"{path}: empty file", "an IO-VNBD V-*.csv starts with the 29-column header") from None
         except pd.errors.ParserError as exc:
-            raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})", "every row needs the header's columns") from None
+            raise InputError(f"{path}: not a readable CSV ({_first_line(exc)})",
+                             "every row needs the header's columns") from None
         except OSError as exc:
             raise InputError(f"{path}: cannot read ({exc.strerror})") from None
     if frame is None:
@@ -371,7 +377,8 @@ def _read_frame(path: Path):
     return by_label, frame, encoding
 
 
-def _si_columns(path: Path, frame, by_label: dict[str, str], encoding: str) -> tuple[dict[str, np.ndarray], dict[str, tuple[float, str]]]:
+def _si_columns(path: Path, frame, by_label: dict[str, str],
+                encoding: str) -> tuple[dict[str, np.ndarray], dict[str, tuple[float, str]]]:
     """Each known column in SI units (optional columns left empty by the logger left out; a
     required one with a cell that is not a number is an error naming it), and the file's unit of
     each (its factor to SI and its name)."""
@@ -418,7 +425,8 @@ def _drop_repeated_times(t_s: np.ndarray, path: Path) -> np.ndarray:
     dropped = int((~keep).sum())
     if dropped:
         first = int(np.flatnonzero(~keep)[0])
-        log.warning("%s: dropped %d row(s) repeating the previous time stamp (first at row %d)", path, dropped, first + 2)
+        log.warning("%s: dropped %d row(s) repeating the previous time stamp (first at row %d)", path, dropped,
+                    first + 2)
     return keep
 
 
@@ -434,7 +442,8 @@ def _warn_time_gaps(t_s: np.ndarray, line_of_row: np.ndarray, path: Path) -> Non
     gaps = np.flatnonzero(dt > max(GAP_S, 2.0 * float(np.median(dt))))  # a log of 1 Hz or less is refused for its rate
     if not gaps.size:
         return
-    said = [f"{dt[i]:.1f} s from {t_s[i]:.1f} s (row {line_of_row[i]}) to {t_s[i + 1]:.1f} s (row {line_of_row[i + 1]})" for i in gaps[:3]]
+    said = [f"{dt[i]:.1f} s from {t_s[i]:.1f} s (row {line_of_row[i]}) to {t_s[i + 1]:.1f} s (row {line_of_row[i + 1]})"
+            for i in gaps[:3]]
     more = f" and {gaps.size - 3} more" if gaps.size > 3 else ""
     log.warning("%s: no rows for %s%s; no window or outage spans %s (the stretches either side are evaluated apart)",
                 path, "; ".join(said), more, "the gap" if gaps.size == 1 else "a gap")

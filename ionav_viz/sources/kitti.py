@@ -48,7 +48,8 @@ from .resample import ImuBins, LogStreams, assemble_drive, drop_strays
 log = logging.getLogger("ionav_viz")
 
 FIELDS = ("lat", "lon", "alt", "roll", "pitch", "yaw", "vn", "ve", "vf", "vl", "vu", "ax", "ay", "az", "af", "al", "au",
-          "wx", "wy", "wz", "wf", "wl", "wu", "pos_accuracy", "vel_accuracy", "navstat", "numsats", "posmode", "velmode", "orimode")
+          "wx", "wy", "wz", "wf", "wl", "wu", "pos_accuracy", "vel_accuracy", "navstat", "numsats", "posmode",
+          "velmode", "orimode")
 COLUMN = {name: i for i, name in enumerate(FIELDS)}
 #: The OXTS navigation status of a locked (GNSS-aided, real-time) solution.
 NAVSTAT_LOCKED = 4
@@ -56,8 +57,8 @@ NAVSTAT_LOCKED = 4
 #: Every field the reader uses is checked (a column without limits must still be a finite number).
 _CHECKED = {"lat": "lat_deg", "lon": "lon_deg", "alt": "height_m", "af": "accel_long_mps2", "al": "accel_long_mps2",
             "au": "accel_long_mps2", "wf": "yaw_rate_radps", "wl": "yaw_rate_radps", "wu": "yaw_rate_radps",
-            **{v: "velocity_mps" for v in ("vn", "ve", "vf", "vl", "vu")}, "pos_accuracy": "gnss_sigma_m", "numsats": "n_satellites",
-            "navstat": "navstat"}
+            **{v: "velocity_mps" for v in ("vn", "ve", "vf", "vl", "vu")}, "pos_accuracy": "gnss_sigma_m",
+            "numsats": "n_satellites", "navstat": "navstat"}
 
 
 def oxts_folder(path: Path) -> Path | None:
@@ -74,7 +75,8 @@ def _oxts_of(path: Path) -> Path:
     """:func:`oxts_folder`, or the error saying what a KITTI drive folder holds."""
     oxts = oxts_folder(path)
     if oxts is None:
-        raise InputError(f"{path}: no oxts folder (oxts/timestamps.txt and oxts/data/)", "give a KITTI raw drive folder (…_sync or …_extract) with its oxts data")
+        raise InputError(f"{path}: no oxts folder (oxts/timestamps.txt and oxts/data/)",
+                         "give a KITTI raw drive folder (…_sync or …_extract) with its oxts data")
     return oxts
 
 
@@ -100,17 +102,20 @@ def read_stamps_ns(path: Path, n_packets: int | None = None) -> np.ndarray:
         lines.pop()
     for i, line in enumerate(lines):
         if not line:
-            raise InputError(f"{path}: line {i + 1} is empty", "each line is one packet's stamp (YYYY-MM-DD HH:MM:SS.fffffffff); extract the drive again")
+            raise InputError(f"{path}: line {i + 1} is empty",
+                             "each line is one packet's stamp (YYYY-MM-DD HH:MM:SS.fffffffff); extract the drive again")
     try:
         coarse = np.array(lines, dtype="datetime64[us]")  # a range of ±290,000 years: no overflow
     except ValueError:
         bad = next(i for i, line in enumerate(lines) if not _is_stamp(line))
-        raise InputError(f"{path}: line {bad + 1} is not a stamp ({lines[bad][:40]!r})", "expected YYYY-MM-DD HH:MM:SS.fffffffff; extract the drive again") from None
+        raise InputError(f"{path}: line {bad + 1} is not a stamp ({lines[bad][:40]!r})",
+                         "expected YYYY-MM-DD HH:MM:SS.fffffffff; extract the drive again") from None
     years = coarse.astype("datetime64[Y]").astype(np.int64) + 1970
     outside = (years < STAMP_YEARS[0]) | (years >= STAMP_YEARS[1])
     if outside.any():
         bad = int(np.argmax(outside))
-        raise InputError(f"{path}: line {bad + 1}: the stamp {lines[bad][:40]!r} is not in the years {STAMP_YEARS[0]}-{STAMP_YEARS[1] - 1}",
+        raise InputError(f"{path}: line {bad + 1}: the stamp {lines[bad][:40]!r} is not in the years "
+                         f"{STAMP_YEARS[0]}-{STAMP_YEARS[1] - 1}",
                          "the file is damaged; extract the drive again")
     return np.array(lines, dtype="datetime64[ns]").astype(np.int64)
 
@@ -127,9 +132,13 @@ def read_packets(oxts: Path) -> tuple[np.ndarray, np.ndarray]:
     """``(stamps ns since 1970, packets (n, 30))`` of a KITTI ``oxts`` folder, or an error naming the file."""
     stamps_file, data = oxts / "timestamps.txt", oxts / "data"
     if not stamps_file.is_file():
-        raise InputError(f"{stamps_file}: missing", "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the drive's zip again")
+        raise InputError(f"{stamps_file}: missing",
+                         "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the "
+                         "drive's zip again")
     if not data.is_dir():
-        raise InputError(f"{data}: missing", "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the drive's zip again")
+        raise InputError(f"{data}: missing",
+                         "a KITTI raw drive's oxts folder holds timestamps.txt and data/; extract the "
+                         "drive's zip again")
     files = sorted(p for p in data.iterdir() if p.suffix == ".txt")
     if folder := next((p for p in files if not p.is_file()), None):
         raise InputError(f"{folder}: not a packet file (a folder or a special file)", "extract the drive's zip again")
@@ -137,7 +146,8 @@ def read_packets(oxts: Path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(f"{data}: no packet files (0000000000.txt, ...)", "extract the drive's zip again")
     for i, f in enumerate(files):
         if f.stem != f"{i:010d}":
-            raise InputError(f"{data / f'{i:010d}.txt'}: missing (the packets are numbered from 0000000000.txt without gaps)",
+            raise InputError(f"{data / f'{i:010d}.txt'}: missing (the packets are numbered from 0000000000.txt "
+                             "without gaps)",
                              "extract the drive's zip again")
     t = read_stamps_ns(stamps_file, len(files))
     if len(files) != len(t):
@@ -150,13 +160,15 @@ def read_packets(oxts: Path) -> tuple[np.ndarray, np.ndarray]:
                              "the file is damaged; extract the drive's zip again")
         values = f.read_text(errors="replace").split()
         if len(values) != len(FIELDS):
-            raise InputError(f"{f}: {len(values)} values, an OXTS packet has {len(FIELDS)}", "the file is damaged; extract the drive's zip again")
+            raise InputError(f"{f}: {len(values)} values, an OXTS packet has {len(FIELDS)}",
+                             "the file is damaged; extract the drive's zip again")
         rows.append(values)
     try:
         packets = np.array(rows, dtype=float)
     except ValueError:
         i = next(i for i, r in enumerate(rows) if not all(_is_number(v) for v in r))
-        raise InputError(f"{files[i]}: not all values are numbers", "the file is damaged; extract the drive's zip again") from None
+        raise InputError(f"{files[i]}: not all values are numbers",
+                         "the file is damaged; extract the drive's zip again") from None
     return t, packets
 
 
@@ -192,8 +204,9 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     line, t, p = np.flatnonzero(keep) + 1, t[keep], p[keep]
     if (back := np.diff(t) < 0).any():  # packets are numbered in the order they were sampled
         i = int(np.argmax(back)) + 1
-        raise InputError(f"{oxts / 'timestamps.txt'}: line {line[i]}: time goes backwards ({t[i - 1]:.3f} s -> {t[i]:.3f} s after the first "
-                         f"whole second) between packets {line[i - 1] - 1:010d} and {line[i] - 1:010d}",
+        raise InputError(f"{oxts / 'timestamps.txt'}: line {line[i]}: time goes backwards ({t[i - 1]:.3f} s -> "
+                         f"{t[i]:.3f} s after the first whole second) between packets {line[i - 1] - 1:010d} and "
+                         f"{line[i] - 1:010d}",
                          "the stamps and packets are out of step: extract the drive's zip again")
     first = np.concatenate([[True], np.diff(t) > 0])
     if not first.all():
@@ -202,7 +215,8 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     col = {k: p[:, i] for k, i in COLUMN.items()}
     locked = col["navstat"] == NAVSTAT_LOCKED
     if locked.sum() < 2:
-        raise InputError(f"{oxts}: fewer than 2 packets with a locked navigation solution (navstat {NAVSTAT_LOCKED}) of {len(t)}",
+        raise InputError(f"{oxts}: fewer than 2 packets with a locked navigation solution (navstat "
+                         f"{NAVSTAT_LOCKED}) of {len(t)}",
                          "the drive needs GNSS-aided truth; this one never locked")
     if not locked.all():
         log.warning("%s: %d of %d OXTS packets are not locked (navstat != %d); their positions are not truth",
@@ -214,7 +228,8 @@ def read_kitti(path: str | Path, *, name: str | None = None, yaw_sign: str = "au
     course_deg = np.degrees(np.arctan2(col["ve"], col["vn"])) % 360.0
     speeds = np.column_stack([t, np.hypot(col["vn"], col["ve"]), course_deg])[locked]
     drive_name = name or (oxts.parent.name if oxts.name == "oxts" else oxts.name)
-    streams = LogStreams(imu, fixes, speeds, origin_s=origin_ns // 1_000_000_000, fix_columns={"n_satellites": col["numsats"][locked]})
+    streams = LogStreams(imu, fixes, speeds, origin_s=origin_ns // 1_000_000_000,
+                         fix_columns={"n_satellites": col["numsats"][locked]})
     # OXTS gives its inertial data in the vehicle frame, averaged at 10 Hz from its 100 Hz IMU
     return assemble_drive(oxts, drive_name, streams, ImuSettings(np.eye(3), yaw_sign, np.eye(3), samples="averaged"))
 

@@ -48,7 +48,8 @@ class ReadOptions:
     def __post_init__(self) -> None:
         object.__setattr__(self, "span", parse_span(self.span))  # checked, and one type, before any work
         if self.yaw_sign not in ("auto", "cw", "ccw"):
-            raise InputError(f"yaw sign {self.yaw_sign!r} is not auto, cw or ccw", "choose auto, cw or ccw", param="yaw_sign")
+            raise InputError(f"yaw sign {self.yaw_sign!r} is not auto, cw or ccw", "choose auto, cw or ccw",
+                             param="yaw_sign")
         # the log options' text (stamps, axes, mount, clock offset, samples, origin) was checked, and
         # parsed, when the LogOptions was made (sources/log_options.py)
 
@@ -70,12 +71,14 @@ def source_kind(path: Path) -> str:
             return "kitti"
         if (error := missing_metadata(path)) is not None:
             raise error
-        drives = sorted({p.suffix.lower() for p in path.iterdir() if p.suffix.lower() in (".csv", ".mcap", ".bag") and p.is_file()})
+        drives = sorted({p.suffix.lower() for p in path.iterdir() if p.suffix.lower() in (".csv", ".mcap", ".bag") and
+                         p.is_file()})
         if drives:  # a folder of drives: each is one drive
             globs = " ".join(f"{path}/*{suffix}" for suffix in drives)
             raise InputError(f"{path}: a folder of drives, not one drive (a ROS 2 bag folder or a KITTI raw drive)",
                              f"give the drives themselves: {globs}")
-        raise InputError(f"{path}: neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive (no oxts/)", _SUPPORTED)
+        raise InputError(f"{path}: neither a ROS 2 bag folder (no metadata.yaml) nor a KITTI raw drive (no oxts/)",
+                         _SUPPORTED)
     if suffix == ".csv":
         return "iovnbd"
     if suffix == ".mcap":
@@ -105,9 +108,10 @@ def open_message_log(path: Path, kind: str | None = None):
 #: The options of message logs alone (command-line name, LogOptions field): their topics, and how
 #: their IMU is read (axes, mount, clock, sample kind). ``stamps`` has a default: it counts when it is
 #: not that (:func:`_log_only_options_given`).
-_LOG_ONLY_OPTIONS = (("--imu-topic", "imu_topic"), ("--gnss-topic", "gnss_topic"), ("--gnss-velocity-topic", "gnss_velocity_topic"),
-                     ("--vehicle-speed-topic", "vehicle_speed_topic"), ("--truth-topic", "truth_topic"), ("--truth-origin", "truth_origin"),
-                     ("--imu-axes", "imu_axes"), ("--imu-mount", "imu_mount"), ("--imu-time-offset", "imu_time_offset"),
+_LOG_ONLY_OPTIONS = (("--imu-topic", "imu_topic"), ("--gnss-topic", "gnss_topic"),
+                     ("--gnss-velocity-topic", "gnss_velocity_topic"), ("--vehicle-speed-topic", "vehicle_speed_topic"),
+                     ("--truth-topic", "truth_topic"), ("--truth-origin", "truth_origin"), ("--imu-axes", "imu_axes"),
+                     ("--imu-mount", "imu_mount"), ("--imu-time-offset", "imu_time_offset"),
                      ("--imu-samples", "imu_samples"))
 
 
@@ -156,7 +160,8 @@ def load_drive(spec: Drive | str | Path, read: ReadOptions | None = None, *, mca
         warn_if_not_published(str(spec), path)
         drive = read_source(path, read.yaw_sign, read.log)
         check_rate(drive, path)
-        mark_gnss_quality(drive, read.gnss_limits)  # on the whole drive: a span's first fixes are judged as in the whole
+        # on the whole drive: a span's first fixes are judged as in the whole
+        mark_gnss_quality(drive, read.gnss_limits)
         mark_speed_lag(drive)  # on the whole drive too
         if read.span is not None:
             drive = crop_to_span(drive, read.span)
@@ -185,20 +190,24 @@ def crop_to_span(drive: Drive, span: Span) -> Drive:
         raise InputError(f"{drive.source or drive.name}: span {span} holds no samples of this drive ({length})",
                          "give a span inside the drive's own time", param="span")
     end_s = float(drive.t_s[-1])
-    if span.end_s is not None and span.end_s > end_s + max(1.0, 1.0 / drive.rate_hz):  # a span's last sample may be a step short
+    # a span's last sample may be a step short
+    if span.end_s is not None and span.end_s > end_s + max(1.0, 1.0 / drive.rate_hz):
         log.warning("%s: span %s runs past the drive's end (its samples end at %g s): %s is read",
-                    drive.source or drive.name, span, end_s, Span(span.start_s, end_s) if end_s > span.start_s else span)
+                    drive.source or drive.name, span, end_s,
+                    Span(span.start_s, end_s) if end_s > span.start_s else span)
     if keep.all():
         return drive
-    return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s, {k: v[keep] for k, v in drive.columns.items()},
-                 gnss_fault=drive.gnss_fault[keep], receiver_fault=None if drive.receiver_fault is None else drive.receiver_fault[keep],
+    return Drive(drive.name, drive.source, drive.rate_hz, drive.start_time_of_day_s,
+                 {k: v[keep] for k, v in drive.columns.items()}, gnss_fault=drive.gnss_fault[keep],
+                 receiver_fault=None if drive.receiver_fault is None else drive.receiver_fault[keep],
                  start_stamp_s=drive.start_stamp_s, imu=drive.imu, frame_origin_deg=drive.local_origin_deg)
 
 
 def with_deprecated_log(read: ReadOptions | None, mcap: LogOptions | None) -> ReadOptions:
     """``read`` (default :class:`ReadOptions`), with the deprecated ``mcap=`` keyword as its ``log``."""
     if read is not None and not isinstance(read, ReadOptions):  # read="x" was an AttributeError naming no argument
-        raise InputError(f"read={read!r} is not a ReadOptions", "give read=iv.ReadOptions(...), or leave it out", param="read")
+        raise InputError(f"read={read!r} is not a ReadOptions", "give read=iv.ReadOptions(...), or leave it out",
+                         param="read")
     read = read if read is not None else ReadOptions()
     if mcap is None:
         return read
@@ -210,8 +219,8 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
     """Set ``drive.gnss_fault`` from the GNSS quality checks and say once what was found."""
     cols = drive.columns
     received = drive.as_received()  # the receiver's own fixes, sigma and gaps
-    receiver_fault = assess_gnss(drive.t_s, received.lat_deg, received.lon_deg, received.speed_mps, cols.get("n_satellites"),
-                                 cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
+    receiver_fault = assess_gnss(drive.t_s, received.lat_deg, received.lon_deg, received.speed_mps,
+                                 cols.get("n_satellites"), cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
                                  has_fix=cols.get("gnss_fix"), accel_mps2=drive.accel_long_mps2)
     if drive.has_reference:  # the truth is the reference: its own continuity checks only
         # beside a reference the fixes are only the filters' input, weighted by their reported
@@ -227,7 +236,8 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
     else:
         drive.gnss_fault = receiver_fault
     if not drive.gnss_ok.all():
-        log.warning("%s: no trustworthy GNSS truth in %s; windows touching it are not scored", drive.source, _time_share(drive, drive.gnss_fault))
+        log.warning("%s: no trustworthy GNSS truth in %s; windows touching it are not scored", drive.source,
+                    _time_share(drive, drive.gnss_fault))
 
 
 def _time_share(drive: Drive, fault: np.ndarray) -> str:
@@ -245,10 +255,12 @@ def mark_speed_lag(drive: Drive) -> None:
     if drive.imu is None or measured_imu(drive) is None:
         return
     lag = speed_lag_of(drive.as_received())
-    drive.imu = replace(drive.imu, speed_lag_s=lag.lag_s if lag.resolved else 0.0, speed_lag_used=lag.used, speed_lag_note=lag.describe())
+    drive.imu = replace(drive.imu, speed_lag_s=lag.lag_s if lag.resolved else 0.0, speed_lag_used=lag.used,
+                        speed_lag_note=lag.describe())
     if lag.used:
-        log.warning("%s: the receiver's speed is %.2f s behind the IMU's acceleration (correlation %.2f): a location service's "
-                    "smoothing; gins weighs the receiver's velocity for it", drive.source, lag.lag_s, lag.peak)
+        log.warning("%s: the receiver's speed is %.2f s behind the IMU's acceleration (correlation %.2f): a "
+                    "location service's smoothing; gins weighs the receiver's velocity for it", drive.source, lag.lag_s,
+                    lag.peak)
 
 
 #: Slowest sample rate a drive may have (Hz): the estimators work on 1 s windows of 10 Hz samples,
@@ -263,6 +275,7 @@ def check_rate(drive: Drive, path: Path) -> Drive:
     if len(drive) > 1:
         dt = float(np.median(np.diff(drive.t_s)))
         if dt > 1.0 / MIN_RATE_HZ:
-            raise InputError(f"{path}: samples are {dt:.2f} s apart ({1 / dt:.2g} Hz); ionav-viz needs at least {MIN_RATE_HZ:g} Hz",
+            raise InputError(f"{path}: samples are {dt:.2f} s apart ({1 / dt:.2g} Hz); ionav-viz needs at least "
+                             f"{MIN_RATE_HZ:g} Hz",
                              "the estimators use 1 s windows of 10 Hz samples: use the log's full-rate file")
     return drive

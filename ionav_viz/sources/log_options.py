@@ -77,8 +77,8 @@ class LogOptions:
 
     def __post_init__(self) -> None:
         if self.speed_topic is not None:
-            warnings.warn("LogOptions(speed_topic=...) is now gnss_velocity_topic (and vehicle_speed_topic for wheel or CAN "
-                          "odometry)", DeprecationWarning, stacklevel=3)
+            warnings.warn("LogOptions(speed_topic=...) is now gnss_velocity_topic (and vehicle_speed_topic for "
+                          "wheel or CAN odometry)", DeprecationWarning, stacklevel=3)
             if self.gnss_velocity_topic is None:
                 object.__setattr__(self, "gnss_velocity_topic", self.speed_topic)
             object.__setattr__(self, "speed_topic", None)

@@ -57,13 +57,15 @@ def _check_framing(path: Path) -> str:
         f.seek(max(0, size - len(MAGIC)))
         tail = f.read(len(MAGIC))
     if head != MAGIC:
-        raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)", "ionav-viz reads .mcap logs and IO-VNBD .csv files")
+        raise InputError(f"{path}: not an MCAP file (no MCAP magic at the start)",
+                         "ionav-viz reads .mcap logs and IO-VNBD .csv files")
     if tail == MAGIC and size >= 2 * len(MAGIC):
         return "complete"
     end = _last_record_end(path, size)
     if end == size and end > len(MAGIC):
         return "unterminated"
-    raise InputError(f"{path}: truncated MCAP file (cut off inside a record; the last whole record ends at byte {end} of {size})",
+    raise InputError(f"{path}: truncated MCAP file (cut off inside a record; the last whole record ends at byte "
+                     f"{end} of {size})",
                      "repair it with 'mcap recover', then replay the result")
 
 
@@ -100,7 +102,8 @@ def list_channels(path: Path) -> list[ChannelInfo]:
         out = []
         for cid, ch in sorted(summary.channels.items()):
             schema = summary.schemas.get(ch.schema_id)
-            out.append(ChannelInfo(ch.topic, schema.name if schema else "", ch.message_encoding, int(counts.get(cid, 0))))
+            out.append(ChannelInfo(ch.topic, schema.name if schema else "", ch.message_encoding,
+                                   int(counts.get(cid, 0))))
         return out
     why = {"unterminated": "no footer (the recorder stopped without closing the file)"}.get(
         framing, "no summary section" if summary is None else "no message statistics")
@@ -166,7 +169,8 @@ class McapLog:
                     if channel.id not in decoders:
                         decoder = factory.decoder_for(channel.message_encoding, schema)
                         if decoder is None:
-                            raise InputError(f"{path}: topic {channel.topic}: cannot decode {channel.message_encoding} with schema encoding {schema.encoding if schema else None!r}")
+                            raise InputError(f"{path}: topic {channel.topic}: cannot decode {channel.message_encoding} "
+                                             f"with schema encoding {schema.encoding if schema else None!r}")
                         decoders[channel.id] = decoder
                     decoded = decoders[channel.id](message.data)
                 yield channel.topic, message.log_time, decoded
@@ -205,7 +209,8 @@ def _bounded_chunks(path: Path) -> Iterator[None]:
         where = f"{path}: the MCAP chunk of messages from log time {chunk.message_start_time} ns"
         check_declared(chunk.uncompressed_size, where)
         if chunk.compression == "lz4":
-            chunk = dataclasses.replace(chunk, compression="", data=inflate(chunk.data, "lz4", chunk.uncompressed_size, where))
+            chunk = dataclasses.replace(chunk, compression="",
+                                        data=inflate(chunk.data, "lz4", chunk.uncompressed_size, where))
         return real(chunk, validate_crc)
 
     stream_reader.get_chunk_data_stream = bounded
@@ -217,7 +222,8 @@ def _bounded_chunks(path: Path) -> Iterator[None]:
 
 def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
               gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
-              name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto", imu_mount: str | None = None) -> Drive:
+              name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto",
+              imu_mount: str | None = None) -> Drive:
     """Read an MCAP log into a drive on a 10 Hz grid (see :mod:`.message_log`)."""
     from .log_options import LogOptions
 

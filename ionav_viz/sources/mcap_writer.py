@@ -123,14 +123,16 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
         if not np.isfinite(values).all():  # the reader refuses it: the log would not read back
             k = int(np.flatnonzero(~np.isfinite(values))[0])
             field = f"{'linear_acceleration' if axis < 3 else 'angular_velocity'}.{'xyz'[axis % 3]}"
-            raise InputError(f"{drive.name}: {field} at {float(drive.t_s[k]):.2f} s is not a finite number ({float(values[k])})",
+            raise InputError(f"{drive.name}: {field} at {float(drive.t_s[k]):.2f} s is not a finite number "
+                             f"({float(values[k])})",
                              "fix the drive's IMU columns: a log with it would not read back", param="drive")
     ax, ay, az, gx, gy, gz = (imu_axes[c] for c in IMU_COLUMNS)
     zeros9 = [0.0] * 9
     unknown_orientation = [-1.0] + [0.0] * 8
     unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
     # a speed fitted to the fixes is no receiver's velocity: written as one it would read back as measured
-    keys = ["imu", "fix"] + ([] if drive.velocity_fitted else ["vel"]) + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else [])
+    keys = (["imu", "fix"] + ([] if drive.velocity_fitted else ["vel"])
+            + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else []))
     count = 0
     with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
         writer = Writer(stream)
@@ -153,7 +155,8 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
                     "latitude": float(received.lat_deg[i]),
                     "longitude": float(received.lon_deg[i]),
                     "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
-                    "position_covariance": zeros9 if sigma is None else [float(sigma[i]) ** 2 if k in (0, 4, 8) else 0.0 for k in range(9)],
+                    "position_covariance": zeros9 if sigma is None else [float(sigma[i]) ** 2 if k in (0, 4, 8) else 0.0
+                                                                         for k in range(9)],
                     "position_covariance_type": 0 if sigma is None else 2,
                 },
                 "vel": {
@@ -164,12 +167,13 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
             }
             if drive.has_reference:
                 msgs["truth"] = {"header": _header(stamp, "truth"), "status": {"status": 0, "service": 1},
-                                 "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]), "altitude": 0.0,
-                                 "position_covariance": zeros9, "position_covariance_type": 0}
+                                 "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]),
+                                 "altitude": 0.0, "position_covariance": zeros9, "position_covariance_type": 0}
             if vehicle_speed_mps is not None:
                 msgs["odom"] = {
                     "header": _header(stamp, "odom"), "child_frame_id": "base_link",
-                    "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                    "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
+                                      "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                              "covariance": unknown_pose},
                     "twist": {"twist": {"linear": {"x": float(vehicle_speed_mps[i]), "y": 0.0, "z": 0.0},
                                         "angular": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])}},

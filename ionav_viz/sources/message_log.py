@@ -73,7 +73,8 @@ from .resample import ImuBins, LogStreams, assemble_drive, drop_strays
 log = logging.getLogger("ionav_viz")
 
 IMU_SCHEMAS = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
-GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.LocationFix", "foxglove_msgs/msg/LocationFix")
+GNSS_SCHEMAS = ("sensor_msgs/msg/NavSatFix", "sensor_msgs/NavSatFix", "foxglove.LocationFix",
+                "foxglove_msgs/msg/LocationFix")
 TWIST_SCHEMAS = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/TwistStamped")
 ODOMETRY_SCHEMAS = ("nav_msgs/msg/Odometry", "nav_msgs/Odometry")
 SPEED_SCHEMAS = TWIST_SCHEMAS + ODOMETRY_SCHEMAS
@@ -111,7 +112,8 @@ class Selection:
 
     @property
     def chosen(self) -> list[ChannelInfo]:
-        return [c for c in (self.imu, self.gnss, self.gnss_velocity, self.vehicle_speed, self.reference) if c is not None]
+        return [c for c in (self.imu, self.gnss, self.gnss_velocity, self.vehicle_speed, self.reference)
+                if c is not None]
 
 
 class MessageLog(Protocol):
@@ -141,7 +143,8 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
     if topic is not None:
         found = [c for c in channels if c.topic == topic]
         if not found:
-            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}", param=param)
+            raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in channels) or 'none'}",
+                             param=param)
         return found[0]
     found = [c for c in channels if c.schema in schemas]
     option = "--" + param.replace("_", "-")
@@ -154,7 +157,8 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
         if not required:
             return None
         listing = ", ".join(f"{c.topic} [{c.schema}]" for c in channels) or "none"
-        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", f"choose one with {option}", param=param)
+        raise InputError(f"{path}: no {what} topic ({schemas[0]}); topics: {listing}", f"choose one with {option}",
+                         param=param)
     return found[0]
 
 
@@ -163,8 +167,8 @@ def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | No
 _STANDARD_PACKAGES = ("sensor_msgs", "geometry_msgs", "nav_msgs", "std_msgs", "foxglove", "foxglove_msgs", "tf2_msgs")
 
 
-def _check_named(channel: ChannelInfo | None, channels: list[ChannelInfo], schemas: tuple[str, ...], what: str, param: str,
-                 path: Path) -> None:
+def _check_named(channel: ChannelInfo | None, channels: list[ChannelInfo], schemas: tuple[str, ...], what: str,
+                 param: str, path: Path) -> None:
     """Refuse a topic named for ``what`` whose standard message type is another one."""
     if channel is None or channel.schema in schemas:
         return
@@ -195,49 +199,58 @@ def select_channels(source: MessageLog, imu_topic: str | None = None, gnss_topic
     imu = _pick(channels, IMU_SCHEMAS, imu_topic, "IMU", "imu_topic", path, True)
     if imu_topic is not None:
         _check_named(imu, channels, IMU_SCHEMAS, "IMU", "imu_topic", path)
-    reference = _pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "truth_topic", path, False) if truth_topic else None
+    reference = (_pick(channels, GNSS_SCHEMAS, truth_topic, "reference", "truth_topic", path, False)
+                 if truth_topic else None)
     if reference is not None and reference.schema not in REFERENCE_SCHEMAS:
         raise InputError(f"{path}: the reference {reference.topic} is a {reference.schema}",
                          "give a NavSatFix, or an Odometry or PoseStamped in a local world frame (with its origin)",
                          param="truth_topic")
-    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "gnss_topic", path, True)
+    gnss = _pick([c for c in channels if c is not reference], GNSS_SCHEMAS, gnss_topic, "GNSS", "gnss_topic", path,
+                 True)
     if gnss_topic is not None:
         _check_named(gnss, channels, GNSS_SCHEMAS, "GNSS", "gnss_topic", path)
     if reference is not None and gnss is reference:
-        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference", "name the receiver's own topic",
-                         param="truth_topic")
+        raise InputError(f"{path}: {gnss.topic} cannot be both the receiver and the reference",
+                         "name the receiver's own topic", param="truth_topic")
     named = {t for t in (gnss_velocity_topic, vehicle_speed_topic, truth_topic) if t not in (None, NO_TOPIC)}
     body_twists = {c.topic for c in channels if c.schema in TWIST_SCHEMAS and c.count and _in_body_frame(source, c)}
-    world_twists = [c for c in channels if c.schema in TWIST_SCHEMAS and c.topic not in body_twists and c.topic not in named]
+    world_twists = [c for c in channels if c.schema in TWIST_SCHEMAS and c.topic not in body_twists and
+                    c.topic not in named]
     if gnss_velocity_topic == NO_TOPIC:  # speed and course from the fixes (a receiver's velocity not to be trusted)
         velocity = None
     elif gnss_velocity_topic is not None:
-        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "gnss_velocity_topic", path, False)
+        velocity = _pick(channels, TWIST_SCHEMAS, gnss_velocity_topic, "GNSS velocity", "gnss_velocity_topic", path,
+                         False)
         _check_named(velocity, channels, TWIST_SCHEMAS, "GNSS velocity", "gnss_velocity_topic", path)
         if velocity is not None and velocity.topic in body_twists:
-            raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the receiver's velocity",
+            raise InputError(f"{path}: {velocity.topic} is in a body frame: the vehicle's speed, not the "
+                             "receiver's velocity",
                              f"give {velocity.topic} as the vehicle speed topic instead", param="gnss_velocity_topic")
     else:
         velocity = _pick(world_twists, TWIST_SCHEMAS, None, "GNSS velocity", "gnss_velocity_topic", path, False)
     if vehicle_speed_topic == NO_TOPIC:
         vehicle = None
     elif vehicle_speed_topic is not None:
-        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "vehicle_speed_topic", path, False)
+        vehicle = _pick(channels, SPEED_SCHEMAS, vehicle_speed_topic, "vehicle speed", "vehicle_speed_topic", path,
+                        False)
         if vehicle is not None and vehicle.schema not in SPEED_SCHEMAS:
             raise InputError(f"{path}: {vehicle.topic} is a {vehicle.schema}, not a vehicle speed",
                              "give a nav_msgs/Odometry or a TwistStamped in a body frame", param="vehicle_speed_topic")
     else:
-        found = [c for c in channels if (c.schema in ODOMETRY_SCHEMAS or c.topic in body_twists) and c.count and c.topic not in named]
+        found = [c for c in channels if (c.schema in ODOMETRY_SCHEMAS or c.topic in body_twists) and c.count and
+                 c.topic not in named]
         vehicle = found[0] if len(found) == 1 else None
         if len(found) > 1:
             log.warning("%s: several vehicle speed topics (%s); none is used: choose one with --vehicle-speed-topic",
                         path, ", ".join(c.topic for c in found))
-    for role, ch in (("IMU", imu), ("GNSS", gnss), ("GNSS velocity", velocity), ("vehicle speed", vehicle), ("reference (truth)", reference)):
+    for role, ch in (("IMU", imu), ("GNSS", gnss), ("GNSS velocity", velocity), ("vehicle speed", vehicle),
+                     ("reference (truth)", reference)):
         if ch is None:
             continue
         ch.role = role
         if ch.encoding not in source.encodings:
-            raise InputError(f"{path}: {role} topic {ch.topic} has message encoding {ch.encoding!r}", f"ionav-viz reads {' and '.join(source.encodings)} messages from this format")
+            raise InputError(f"{path}: {role} topic {ch.topic} has message encoding {ch.encoding!r}",
+                             f"ionav-viz reads {' and '.join(source.encodings)} messages from this format")
         if ch.count == 0:
             raise InputError(f"{path}: {role} topic {ch.topic} has no messages", "record some, or choose another topic")
     return Selection(imu, gnss, velocity, vehicle, channels, reference)
@@ -323,15 +336,19 @@ def decode_json(path: Path, topic: str, data: bytes, log_time_ns: int) -> Any:
     try:
         return json.loads(data)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not valid JSON ({exc})") from None
+        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not valid "
+                         f"JSON ({exc})") from None
     except RecursionError:  # brackets nested thousands deep (a message is bounded in size by its chunk)
-        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} nests too deep to be a sensor message",
+        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} nests too deep to be a "
+                         "sensor message",
                          "the log is damaged or crafted; record it again") from None
     except ValueError as exc:  # an integer of over 4300 digits
-        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not usable JSON ({str(exc)[:80]})") from None
+        raise InputError(f"{path}: topic {topic}: message at log time {log_time_ns} is not usable JSON "
+                         f"({str(exc)[:80]})") from None
 
 
-def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str | None = None, yaw_sign: str = "auto") -> Drive:
+def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str | None = None,
+             yaw_sign: str = "auto") -> Drive:
     """Read a message log into a drive on a 10 Hz grid (see the module docstring).
 
     ``options`` (:class:`~.load.LogOptions`; default: every topic found by message type, header
@@ -352,13 +369,15 @@ def read_log(source: MessageLog, options: LogOptions | None = None, *, name: str
     sel = select_channels(source, opts.imu_topic, opts.gnss_topic, opts.gnss_velocity_topic, opts.vehicle_speed_topic,
                           truth_topic=opts.truth_topic)
     if sel.reference is not None and sel.reference.schema not in GNSS_SCHEMAS and origin is None:
-        place_reference(np.zeros((0, 3)), None, np.zeros((0, 3)), f"{path}: reference {sel.reference.topic} ({sel.reference.schema})")
+        place_reference(np.zeros((0, 3)), None, np.zeros((0, 3)),
+                        f"{path}: reference {sel.reference.topic} ({sel.reference.schema})")
     got = _Messages(path, sel, opts.stamps, mapping)
     got.read(source)
     got.warn_skipped()
     if len(got.gnss) < 2:
         without = f" ({got.dropped_no_fix} message(s) without a fix)" if got.dropped_no_fix else ""
-        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}", "the drive needs GNSS ground truth")
+        raise InputError(f"{path}: fewer than 2 GNSS fixes on {sel.gnss.topic}{without}",
+                         "the drive needs GNSS ground truth")
     if got.dropped_no_fix:
         log.warning("%s: dropped %d GNSS message(s) without a fix", path, got.dropped_no_fix)
     origin_s = float(got.origin_ns // 1_000_000_000)
@@ -382,7 +401,8 @@ class _Messages:
         self.gnss: list[tuple[float, float, float, float, float]] = []  # t, lat, lon, altitude, sigma (nan: unknown)
         self.speed: list[tuple[float, float, float]] = []  # GNSS velocity: t, speed m/s, course deg
         self.vehicle: list[tuple[float, float]] = []  # vehicle speed: t, m/s
-        self.reference: list[tuple[float, float, float]] = []  # the reference trajectory: t, lat, lon (or x, y m in a local frame)
+        # the reference trajectory: t, lat, lon (or x, y m in a local frame)
+        self.reference: list[tuple[float, float, float]] = []
         self.reference_frame: list[str] = []  # a local reference's frame_id
         self.dropped_no_fix = 0
         self.not_provided: dict[str, int] = {}  # IMU messages marking a field "not provided" (REP 145), per field
@@ -405,7 +425,9 @@ class _Messages:
                     readers.get(role, self._vehicle_speed)(topic, log_ns, msg)
                 except (KeyError, AttributeError, TypeError, ValueError) as exc:
                     raise InputError(f"{self.path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
-                                     f"expected the {role} field names of {({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}") from None
+                                     f"expected the {role} field names of "
+                                     f"{({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}"
+                                     ) from None
         except InputError:
             raise
         except Exception as exc:
@@ -417,14 +439,18 @@ class _Messages:
         if self.not_provided:
             fields = " and ".join(f"{name} ({n} message(s))" for name, n in sorted(self.not_provided.items()))
             if "IMU" not in self.last_t:
-                raise InputError(f"{self.path}: topic {self.sel.imu.topic} marks its {fields} 'not provided' (REP 145: covariance[0] = -1)",
-                                 "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. /imu/data_raw)", param="imu_topic")
-            log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: covariance[0] = -1)",
+                raise InputError(f"{self.path}: topic {self.sel.imu.topic} marks its {fields} 'not provided' (REP 145: "
+                                 "covariance[0] = -1)",
+                                 "ionav-viz needs accelerations and turn rates: choose the IMU's raw topic (e.g. "
+                                 "/imu/data_raw)", param="imu_topic")
+            log.warning("%s: topic %s: skipped the messages marking their %s 'not provided' (REP 145: "
+                        "covariance[0] = -1)",
                         self.path, self.sel.imu.topic, fields)
         topic_of = {c.role: c.topic for c in self.sel.chosen}
         for role, (n, first, before) in self.backwards.items():
-            log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s after %.3f s); "
-                        "used in stamp order", self.path, topic_of[role], n, self.absolute_s(first), self.absolute_s(before))
+            log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s "
+                        "after %.3f s); used in stamp order", self.path, topic_of[role], n, self.absolute_s(first),
+                        self.absolute_s(before))
 
     def _in_order(self, role: str, t: float) -> None:
         """Count messages stamped before the one received before them (used in stamp order)."""
@@ -454,14 +480,16 @@ class _Messages:
     def _check(self, topic: str, t: float, field_name: str, column: str, value: float) -> None:
         reason = implausible(column, value)
         if reason:
-            raise InputError(f"{self.path}: topic {topic}, message stamped {self.absolute_s(t):.3f} s: {field_name} {reason}",
+            raise InputError(f"{self.path}: topic {topic}, message stamped {self.absolute_s(t):.3f} s: "
+                             f"{field_name} {reason}",
                              "no car sensor produces that value: fix the log or choose another topic")
 
     def _to_body(self, data: np.ndarray) -> np.ndarray:
         """A block of IMU samples as the log has them -> checked, in the body frame."""
         if (bad := _first_implausible_imu(data)) is not None:
             i, k = bad
-            self._check(self.sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1], float(data[i, k]))
+            self._check(self.sel.imu.topic, float(data[i, 0]), _IMU_FIELDS[k - 1], _IMU_COLUMNS[k - 1],
+                        float(data[i, k]))
         return _imu_to_body(data, self.mapping)
 
     def _imu(self, topic: str, log_ns: int, msg: Any) -> None:
@@ -493,7 +521,8 @@ class _Messages:
 
     def _local_reference(self, topic: str, log_ns: int, msg: Any) -> None:
         t = self._when(msg, log_ns, "header", "stamp")
-        pose = get_field(msg, "pose", "pose") if self.sel.reference.schema not in POSE_SCHEMAS[:2] else get_field(msg, "pose")
+        pose = (get_field(msg, "pose", "pose")
+                if self.sel.reference.schema not in POSE_SCHEMAS[:2] else get_field(msg, "pose"))
         position = get_field(pose, "position")
         if not self.reference_frame:
             self.reference_frame.append(_frame_id(msg))
@@ -521,7 +550,8 @@ class _Messages:
 
     def _vehicle_speed(self, topic: str, log_ns: int, msg: Any) -> None:
         t = self._when(msg, log_ns, "header", "stamp")
-        twist = get_field(msg, "twist", "twist") if self.sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else get_field(msg, "twist")
+        twist = (get_field(msg, "twist", "twist")
+                 if self.sel.vehicle_speed.schema in ODOMETRY_SCHEMAS else get_field(msg, "twist"))
         v = abs(float(get_field(twist, "linear", "x")))  # body-frame forward speed; reversing counts as distance
         self._check(topic, t, "linear.x", "speed_can_mps", v)
         self._in_order("vehicle speed", t)
@@ -535,15 +565,16 @@ def _truth(got: _Messages, origin: Any, fixes: np.ndarray, origin_s: float) -> n
     if sel.reference is not None:
         truth = _in_stamp_order(path, "reference", got.reference, origin_s)
         if truth is None or len(truth) < 2:
-            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}", "choose another reference topic", param="truth_topic")
+            raise InputError(f"{path}: fewer than 2 positions on the reference {sel.reference.topic}",
+                             "choose another reference topic", param="truth_topic")
         truth = truth[np.concatenate([[True], np.diff(truth[:, 0]) > 0])]
         if sel.reference.schema not in GNSS_SCHEMAS:
             where = f"{path}: reference {sel.reference.topic} (frame {got.reference_frame[0] or 'unnamed'!r})"
             truth, how = place_reference(truth, origin, fixes, where)
             log.warning("%s: %s", where, how)
         elif origin is not None:  # was silently ignored
-            log.warning("%s: the truth origin is ignored: the reference %s is %s, in latitude and longitude already", path,
-                        sel.reference.topic, sel.reference.schema)
+            log.warning("%s: the truth origin is ignored: the reference %s is %s, in latitude and longitude already",
+                        path, sel.reference.topic, sel.reference.schema)
         return truth
     if origin is not None:
         raise InputError(f"{path}: a truth origin places a reference in a local frame, and no truth topic is given",
@@ -589,7 +620,8 @@ def _first_implausible_imu(data: np.ndarray) -> tuple[int, int] | None:
     """(row, column) of the first implausible value in a block of IMU samples (columns 1-6), in
     the order a message is checked (accelerometer then gyro, x then y then z), or None."""
     order = (1, 4, 2, 5, 3, 6)
-    firsts = [(i, n, k) for n, k in enumerate(order) if (i := first_implausible(_IMU_COLUMNS[k - 1], data[:, k])) is not None]
+    firsts = [(i, n, k) for n, k in enumerate(order)
+              if (i := first_implausible(_IMU_COLUMNS[k - 1], data[:, k])) is not None]
     if not firsts:
         return None
     row, _, column = min(firsts)

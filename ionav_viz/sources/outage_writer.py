@@ -89,11 +89,13 @@ def write_outage_log(drive: Drive, source: Path, kind: str, outages: Sequence[tu
         return _bag_from_drive(drive, outages, out, vehicle_speed, ros1=True)
     if suffix == ".csv":
         if kind != "iovnbd":
-            raise InputError(f"{out}: a CSV outage log is an IO-VNBD file, and {source} is not one", "write .mcap instead", param="output")
+            raise InputError(f"{out}: a CSV outage log is an IO-VNBD file, and {source} is not one",
+                             "write .mcap instead", param="output")
         return _iovnbd(source, outages, out)
     if suffix != ".mcap":
         raise InputError(f"{out}: unsupported outage-log format {suffix}",
-                         "write .mcap (any source), .bag (a ROS 1 bag), a folder (a ROS 2 bag) or .csv (an IO-VNBD source)", param="output")
+                         "write .mcap (any source), .bag (a ROS 1 bag), a folder (a ROS 2 bag) or .csv (an "
+                         "IO-VNBD source)", param="output")
     if kind == "mcap":
         return _mcap_copy(source, outages, out, tuple(gnss_topics), stamps)
     return _mcap_from_drive(drive, outages, out, vehicle_speed)
@@ -110,7 +112,8 @@ def _mcap_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: 
     return OutageLog(out, "mcap", int(lost.sum()) * 2, (TOPICS["fix"], TOPICS["vel"]))
 
 
-def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
+def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...],
+               stamps: str) -> OutageLog:
     from mcap.writer import Writer
     from mcap_ros2.decoder import DecoderFactory
 
@@ -133,7 +136,8 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
                 decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
             msg = decoders[channel.id](message.data)
         try:
-            ns = stamp_ns(get_field(msg, "timestamp") if schema is not None and schema.name.startswith("foxglove") else get_field(msg, "header", "stamp"))
+            ns = stamp_ns(get_field(msg, "timestamp") if schema is not None and
+                          schema.name.startswith("foxglove") else get_field(msg, "header", "stamp"))
         except (KeyError, AttributeError, TypeError, ValueError):
             ns = 0
         return (ns if ns > 0 else message.log_time) * 1e-9
@@ -149,8 +153,10 @@ def _mcap_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, 
                 schema_ids[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
             if channel.id not in channel_ids:
                 channel_ids[channel.id] = writer.register_channel(channel.topic, channel.message_encoding,
-                                                                  schema_ids.get(channel.schema_id, 0), dict(channel.metadata))
-            writer.add_message(channel_ids[channel.id], message.log_time, message.data, message.publish_time, message.sequence)
+                                                                  schema_ids.get(channel.schema_id, 0),
+                                                                  dict(channel.metadata))
+            writer.add_message(channel_ids[channel.id], message.log_time, message.data, message.publish_time,
+                               message.sequence)
         writer.finish()
     return OutageLog(out, "mcap", removed, gnss_topics)
 
@@ -172,7 +178,8 @@ def _bag_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: P
     from rosbags.typesys import Stores, get_typestore
 
     if not ros1 and out.exists():
-        raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name", param="output")
+        raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name",
+                         param="output")
     with _staging(out) as stage:
         written = _mcap_from_drive(drive, outages, stage / "drive.mcap", vehicle_speed)
         if ros1:
@@ -199,7 +206,8 @@ def _bag_from_drive(drive: Drive, outages: Sequence[tuple[float, float]], out: P
     return OutageLog(out, "ros1" if ros1 else "ros2", written.removed, written.removed_topics)
 
 
-def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...], stamps: str) -> OutageLog:
+def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, gnss_topics: tuple[str, ...],
+              stamps: str) -> OutageLog:
     import os
 
     from .message_log import get_field, stamp_ns
@@ -207,7 +215,8 @@ def _bag_copy(source: Path, outages: Sequence[tuple[float, float]], out: Path, g
 
     log_ = RosbagLog(source)
     if not log_.ros1 and out.exists():
-        raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name", param="output")
+        raise InputError(f"{out}: exists; a ROS 2 outage log is a new folder", "remove it or choose another name",
+                         param="output")
 
     def inside_outage(log_ns: int, msg: Any) -> bool:
         ns = log_ns

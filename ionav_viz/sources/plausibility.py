@@ -90,7 +90,8 @@ def implausible(column: str, value: float, file_unit: tuple[float, str] | None =
 
 
 def check_plausible(columns: dict[str, np.ndarray], path: object, where: Callable[[int], str],
-                    names: dict[str, str] | None = None, file_units: dict[str, tuple[float, str]] | None = None) -> None:
+                    names: dict[str, str] | None = None,
+                    file_units: dict[str, tuple[float, str]] | None = None) -> None:
     """Raise :class:`InputError` for the first implausible value of any column with limits.
 
     ``where(i)`` says where sample ``i`` is in the file ("row 57", "t = 12.3 s"); ``names`` maps a
@@ -108,8 +109,10 @@ def check_plausible(columns: dict[str, np.ndarray], path: object, where: Callabl
 #: Factors a speed column may read against the positions' ground speed when a unit is mixed up: (factor, hint).
 _SPEED_MIXUPS = ((1 / 3.6, "its values look like m/s where the header says km/h: fix the header's unit or the values"),
                  (3.6, "its values look like km/h where the header says m/s: fix the header's unit or the values"),
-                 (0.44704 / (1 / 3.6), "its values look like mph where the header says km/h: fix the header's unit or the values"),
-                 (1 / 0.621371, "its values look like km/h where the header says mph: fix the header's unit or the values"),
+                 (0.44704 / (1 / 3.6),
+                  "its values look like mph where the header says km/h: fix the header's unit or the values"),
+                 (1 / 0.621371,
+                  "its values look like km/h where the header says mph: fix the header's unit or the values"),
                  (1000.0, "the time stamps look like milliseconds: write the time in seconds"))
 #: A speed column and the positions' ground speed agree within this factor (median over moving seconds).
 SPEED_AGREEMENT = 1.6
@@ -117,7 +120,8 @@ _MOVING_MPS = 3.0
 _MIN_MOVING_S = 20
 
 
-def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: object, names: dict[str, str] | None = None) -> None:
+def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: object,
+                      names: dict[str, str] | None = None) -> None:
     """Refuse a drive whose columns disagree by a unit's factor: a speed column (``speed_mps``,
     ``speed_can_mps``) against the ground speed the positions give, and the heading against the
     course they give, over the seconds the car moves (medians: GNSS losses and noise do not count).
@@ -150,13 +154,14 @@ def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: obje
             continue
         label = names.get(column, column)
         likely = next((why for factor, why in _SPEED_MIXUPS if abs(math.log(ratio / factor)) < math.log(1.15)), None)
-        if ratio > 10 and np.nanmax(np.abs(lat)) <= math.pi / 2 and np.nanmax(np.abs(lon)) <= math.pi:  # 57 times, less cos(lat)
+        # 57 times, less cos(lat)
+        if ratio > 10 and np.nanmax(np.abs(lat)) <= math.pi / 2 and np.nanmax(np.abs(lon)) <= math.pi:
             likely = None
             hint = hint_pos
         else:
             hint = likely or "check the column's unit and the positions'"
-        raise InputError(f"{path}: {label} reads {ratio:.3g} times the speed the positions give (median over {int(use.sum())} moving "
-                         "seconds): a unit mixed up", hint)
+        raise InputError(f"{path}: {label} reads {ratio:.3g} times the speed the positions give (median over "
+                         f"{int(use.sum())} moving seconds): a unit mixed up", hint)
     if "heading_deg" not in values:
         return
     speed = values.get("speed_mps", np.full(len(t_s), np.inf))[idx][1:]
@@ -171,5 +176,6 @@ def check_units_agree(values: dict[str, np.ndarray], t_s: np.ndarray, path: obje
 
     if off(np.degrees(heading)) < 15.0 and off(heading) > max(20.0, 3 * off(np.degrees(heading))):
         raise InputError(f"{path}: {names.get('heading_deg', 'heading_deg')} is off the course the positions give by "
-                         f"{off(heading):.0f} deg (median), and within {off(np.degrees(heading)):.0f} deg read as radians: a unit mixed up",
+                         f"{off(heading):.0f} deg (median), and within {off(np.degrees(heading)):.0f} deg read as "
+                         "radians: a unit mixed up",
                          "write the heading in degrees")

@@ -87,7 +87,8 @@ class ImuBins:
         bins = np.rint((data[:, 0] - self.origin) / self.dt).astype(np.int64)
         self.parts.append(_sum_by_bin(bins, np.column_stack([data[:, 1:], np.ones(len(data))])))
         if len(self.parts) > 64:
-            self.parts = [_sum_by_bin(np.concatenate([b for b, _ in self.parts]), np.concatenate([v for _, v in self.parts]))]
+            self.parts = [_sum_by_bin(np.concatenate([b for b, _ in self.parts]),
+                                      np.concatenate([v for _, v in self.parts]))]
 
     def means(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Grid times (s) of non-empty bins, the mean values per bin (n, 6), samples per bin."""
@@ -137,14 +138,16 @@ def _main_span(t: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     return group == int(np.argmax(size))
 
 
-def drop_strays(path: Path, what: str, t: np.ndarray, weights: np.ndarray | None = None, origin_s: float = 0.0) -> np.ndarray:
+def drop_strays(path: Path, what: str, t: np.ndarray, weights: np.ndarray | None = None,
+                origin_s: float = 0.0) -> np.ndarray:
     """Mask of ``t`` (sorted; s after ``origin_s``) to keep, warning once about stray stamps."""
     keep = _main_span(t, weights)
     if not keep.all():
         n = int((weights[~keep] if weights is not None else (~keep)).sum())
         log.warning("%s: dropped %d %s sample(s) stamped more than %g s away from the rest of the log "
                     "(e.g. %.3f s against %.3f-%.3f s): a clock not yet synchronised?",
-                    path, n, what, MAX_STAMP_JUMP_S, origin_s + float(t[~keep][0]), origin_s + float(t[keep][0]), origin_s + float(t[keep][-1]))
+                    path, n, what, MAX_STAMP_JUMP_S, origin_s + float(t[~keep][0]), origin_s + float(t[keep][0]),
+                    origin_s + float(t[keep][-1]))
     return keep
 
 
@@ -202,7 +205,8 @@ def assemble_drive(path: Path, name: str, streams: LogStreams, settings: ImuSett
         truth = fit_fixes(t, reference[:, 0], reference[:, 1], reference[:, 2])
         columns |= dict(zip(RECEIVER_COLUMNS, (lat, lon, v, course), strict=True))
         columns |= {"lat_deg": truth.lat_deg, "lon_deg": truth.lon_deg, "speed_mps": truth.speed_mps,
-                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t)}
+                    "heading_deg": hold_course_when_slow(truth.course_deg, truth.speed_mps, FIX_COURSE_MIN_SPEED_MPS,
+                                                         t)}
     columns |= _fix_quality_columns(grid, fitted, streams)
     origin_s = streams.origin_s
     start_of_day = (origin_s % 86400.0 + float(t[0])) % 86400.0
@@ -221,14 +225,16 @@ def _receiver_on(grid: _Grid, streams: LogStreams) -> tuple[np.ndarray, np.ndarr
     if fitted:
         fit = fit_fixes(t, g_t, g_lat, g_lon)
         v = fit.speed_mps if v is None else v
-        course = hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t) if course is None else course
+        course = (hold_course_when_slow(fit.course_deg, fit.speed_mps, FIX_COURSE_MIN_SPEED_MPS, t)
+                  if course is None else course)
         lat, lon = fit.lat_deg, fit.lon_deg
     return v, course, lat, lon, fitted
 
 
 def _vehicle_speed_on(t: np.ndarray, streams: LogStreams) -> np.ndarray | None:
     vehicle_speed = streams.vehicle_speed
-    return np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1]) if vehicle_speed is not None and len(vehicle_speed) >= 2 else None
+    return (np.interp(t, vehicle_speed[:, 0], vehicle_speed[:, 1])
+            if vehicle_speed is not None and len(vehicle_speed) >= 2 else None)
 
 
 @dataclass(frozen=True)
@@ -272,7 +278,8 @@ def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid
     else:
         t, body, count = imu.means()
         t = t - imu_shift_s
-        keep = drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0] - tolerance_s) & (t <= g_t[-1] + tolerance_s)
+        keep = (drop_strays(path, "IMU", t, count, origin_s=streams.origin_s) & (t >= g_t[0] - tolerance_s)
+                & (t <= g_t[-1] + tolerance_s))
         t, body = t[keep], body[keep]
         if imu_shift_s == 0.0 and len(t) >= 2:
             _warn_imu_short_of_fixes(path, t, g_t)
@@ -280,7 +287,8 @@ def _on_grid(path: Path, streams: LogStreams, imu_shift_s: float = 0.0) -> _Grid
         has_fix = covered(t, g_t, tolerance_s)  # the IMU goes on through a GNSS gap: no-fix samples, not a gap
         lat, lon, alt, sigma = (np.interp(t, g_t, x) for x in (g_lat, g_lon, g_alt, g_sigma))
     if len(t) < 2:
-        raise InputError(f"{path}: IMU and GNSS do not overlap in time", "check the topics and the choice of stamps (header or log)", param="stamps")
+        raise InputError(f"{path}: IMU and GNSS do not overlap in time",
+                         "check the topics and the choice of stamps (header or log)", param="stamps")
     # an axis that reads one value over the whole log is not measured (a two-channel log written as
     # sensor_msgs/Imu: zeros and a constant gravity): no mount is estimated from it, no axis check
     # uses it, and it keeps its exact value (a mean per bin could round it), so that

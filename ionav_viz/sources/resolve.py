@@ -1,7 +1,7 @@
 """Finding a drive from what a user types: a path, a bundled scenario name or an IO-VNBD run name.
 
-Order: (1) an existing file or folder (a ROS 2 bag, a KITTI drive); (2) a bundled sample: a scenario name (``roundabout``) means
-its bundled test drive, ``stationary`` the bundled stationary drive, and bundled file names work
+Order: (1) an existing file or folder (a ROS 2 bag, a KITTI drive); (2) a bundled sample: a scenario name
+(``roundabout``) means its bundled test drive, ``stationary`` the bundled stationary drive, and bundled file names work
 too (``V-sim-roundabout``); (3) a run name
 looked up under the data root (``--data-root`` or ``$IONAV_DATA``), case-insensitively and
 tolerant of zero padding (``V-Vw8``, ``Vw8``, ``v-vw8.csv``, ``V-Vta01a``), preferring the
@@ -35,13 +35,15 @@ def data_root(option: str | Path | None) -> Path | None:
         default = default_data_root()
         return default if default.is_dir() else None
     if not root.is_dir():
-        raise InputError(f"data root {root} is not a directory", "give the IO-VNBD checkout (or set IONAV_DATA to it)", param="data_root")
+        raise InputError(f"data root {root} is not a directory", "give the IO-VNBD checkout (or set IONAV_DATA to it)",
+                         param="data_root")
     return root
 
 
 def _preference(path: Path) -> tuple:
     text = str(path).lower()
-    return (0 if "unsynchronised" in text else 1, 0 if "/categorised" in text.replace("\\", "/") else 1, len(text), text)
+    return (0 if "unsynchronised" in text else 1, 0 if "/categorised" in text.replace("\\", "/") else 1, len(text),
+            text)
 
 
 @lru_cache(maxsize=8)
@@ -81,8 +83,9 @@ def warn_if_not_published(spec: str, path: Path) -> None:
     except OSError:  # gone since: its reader names it
         return
     if sizes and size not in sizes:
-        log.warning("%s: %s is %d bytes, not the size of the published run's file (%s bytes in the dataset's manifest): an edited "
-                    "copy, another version or a damaged download ('ionav-viz fetch %s' gets the published one)",
+        log.warning("%s: %s is %d bytes, not the size of the published run's file (%s bytes in the dataset's "
+                    "manifest): an edited copy, another version or a damaged download ('ionav-viz fetch %s' gets the "
+                    "published one)",
                     spec, path, size, " or ".join(str(n) for n in sizes), spec)
 
 
@@ -99,18 +102,22 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         try:
             os.stat(path)
         except OSError as exc:
-            why = "a loop of symbolic links" if exc.errno == errno.ELOOP else f"a link to {os.readlink(path)}, which does not exist"
+            why = ("a loop of symbolic links"
+                   if exc.errno == errno.ELOOP else f"a link to {os.readlink(path)}, which does not exist")
             raise InputError(f"{spec}: is {why}", "give the log's file or folder") from None
-    if path.suffix.lower() in (".mcap", ".bag", ".db3", ".yaml") or os.sep in spec or "/" in spec:  # a run name may end in .csv
+    # a run name may end in .csv
+    if path.suffix.lower() in (".mcap", ".bag", ".db3", ".yaml") or os.sep in spec or "/" in spec:
         raise InputError(f"{spec}: no such file or folder", "check the path (relative to the current directory)")
     bundled = _bundled(spec)
     if bundled is not None:
         if not bundled.is_file():
-            raise InputError(f"bundled sample {bundled} is missing", "reinstall ionav-viz; the package ships it under ionav_viz/data/samples")
+            raise InputError(f"bundled sample {bundled} is missing",
+                             "reinstall ionav-viz; the package ships it under ionav_viz/data/samples")
         return bundled
     key = run_key(spec)
     if root is not None:
-        found = [p for p in index_data_root(root.resolve()).get(key, []) if p.is_file()]  # the index is cached: a file may be gone since
+        # the index is cached: a file may be gone since
+        found = [p for p in index_data_root(root.resolve()).get(key, []) if p.is_file()]
         if found:
             return found[0]
     known = vehicle_runs()
@@ -122,14 +129,19 @@ def resolve_drive(spec: str, root: Path | None) -> Path:
         bundled_one = f"; its bundled stand-in is {address(sample)} ({what_it_is(sample)})" if sample else ""
         raise InputError(
             f"{what} of the real IO-VNBD dataset, and {where}",
-            f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a copy{bundled_one}",
+            f"get it with 'ionav-viz fetch {spec}' (from {DATASET_URL}), or pass --data-root DIR / set IONAV_DATA to a "
+            f"copy{bundled_one}",
         )
     candidates = {s.scenario for s in SAMPLES if s.role == "test"} | {Path(s.file).stem for s in SAMPLES}
     candidates |= {f"V-{k}" for k in known}
     if root is not None:
         candidates |= {p[0].stem for p in index_data_root(root.resolve()).values()}
     close = difflib.get_close_matches(spec, sorted(candidates), n=3, cutoff=0.6)
-    hint = f"did you mean {', '.join(close)}?" if close else "give a file path, a bundled scenario (motorway, roundabout, quick-accel, hard-brake, sharp-cornering) or an IO-VNBD run name"
+    hint = (f"did you mean {', '.join(close)}?"
+            if close
+            else "give a file path, a bundled scenario (motorway, roundabout, quick-accel, hard-brake, "
+                 "sharp-cornering) or an IO-VNBD run name")
     if path.suffix:  # it names a file (no run or scenario has a suffix but .csv, looked up above)
-        raise InputError(f"{spec}: no such file", hint if close else "check the path (relative to the current directory)")
+        raise InputError(f"{spec}: no such file",
+                         hint if close else "check the path (relative to the current directory)")
     raise InputError(f"unknown drive {spec!r}", hint)

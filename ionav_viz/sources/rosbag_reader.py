@@ -91,8 +91,10 @@ class RosbagLog:
         text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         if "files are missing" in text:
             missing = ", ".join(Path(m).name for m in re.findall(r"'([^']+)'", text)) or text
-            return InputError(f"{self._target / 'metadata.yaml'}: lists storage files that are not in the folder ({missing})",
-                              "copy the whole bag folder, or run 'ros2 bag reindex DIR' to describe the files that are there")
+            return InputError(f"{self._target / 'metadata.yaml'}: lists storage files that are not in the "
+                              f"folder ({missing})",
+                              "copy the whole bag folder, or run 'ros2 bag reindex DIR' to describe the files "
+                              "that are there")
         if "metadata" in text.lower() or "yaml" in text.lower():
             return InputError(f"{self._target / 'metadata.yaml'}: unreadable bag metadata ({text})",
                               "recreate it with 'ros2 bag reindex DIR' (ROS 2)")
@@ -113,9 +115,10 @@ class RosbagLog:
                 try:
                     msg = decoders[connection.id](raw)
                 except Exception as exc:
-                    raise InputError(f"{self.path}: topic {connection.topic}: a message at log time {time_ns} does not match its "
-                                     f"definition of {connection.msgtype} ({type(exc).__name__}: {exc})",
-                                     "the bag's message definition is not the one the messages were written with; re-record, or choose another topic") from None
+                    raise InputError(f"{self.path}: topic {connection.topic}: a message at log time {time_ns} does "
+                                     f"not match its definition of {connection.msgtype} ({type(exc).__name__}: {exc})",
+                                     "the bag's message definition is not the one the messages were written with; "
+                                     "re-record, or choose another topic") from None
                 yield connection.topic, int(time_ns), msg
 
     def copy(self, out: Path, topics: set[str], drop: Any) -> int:
@@ -139,7 +142,8 @@ class RosbagLog:
                         ids[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest,
                                                           callerid=c.ext.callerid, latching=c.ext.latching)
                     else:
-                        ids[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data or None, rihs01=c.digest or None,
+                        ids[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data or None,
+                                                          rihs01=c.digest or None,
                                                           serialization_format=c.ext.serialization_format,
                                                           offered_qos_profiles=c.ext.offered_qos_profiles)
                 for connection, time_ns, raw in reader.messages():
@@ -166,7 +170,8 @@ def missing_metadata(folder: Path) -> InputError | None:
     storage = sorted(p.name for p in folder.iterdir() if p.name.endswith((".db3", ".mcap", ".db3.zstd", ".mcap.zstd")))
     if not storage:
         return None
-    return InputError(f"{folder}: a folder without metadata.yaml is not a ROS 2 bag (it holds {', '.join(storage[:3])})",
+    return InputError(f"{folder}: a folder without metadata.yaml is not a ROS 2 bag (it holds "
+                      f"{', '.join(storage[:3])})",
                       "recreate the metadata with 'ros2 bag reindex DIR' (ROS 2), or give one of its .db3 files")
 
 
@@ -190,8 +195,9 @@ def _typestore(path: Path, connection: Any, ros1: bool) -> Any:
     if msgdef.format == MessageDefinitionFormat.NONE or not msgdef.data.strip():
         store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
         if msgtype not in store.fielddefs:
-            raise InputError(f"{path}: topic {connection.topic}: the bag has no definition of its message type {msgtype}, "
-                             "and it is not a standard ROS message", "record with ROS 2 Iron or later (bags then carry definitions), or choose another topic")
+            raise InputError(f"{path}: topic {connection.topic}: the bag has no definition of its message "
+                             f"type {msgtype}, and it is not a standard ROS message",
+                             "record with ROS 2 Iron or later (bags then carry definitions), or choose another topic")
         return store
     try:
         if msgdef.format == MessageDefinitionFormat.MSG:
@@ -207,7 +213,8 @@ def _typestore(path: Path, connection: Any, ros1: bool) -> Any:
         store.get_msgdef(msgtype)  # every field's type is defined
     except Exception as exc:
         text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise InputError(f"{path}: topic {connection.topic}: the bag's definition of {msgtype} cannot be read ({type(exc).__name__}: {text})",
+        raise InputError(f"{path}: topic {connection.topic}: the bag's definition of {msgtype} cannot be read "
+                         f"({type(exc).__name__}: {text})",
                          "re-record the topic, or choose another one") from None
     return store
 
@@ -219,18 +226,23 @@ def _check_ros1_framing(path: Path) -> None:
         magic = f.read(len(ROS1_MAGIC))
         if magic != ROS1_MAGIC:
             if magic.startswith(b"#ROSBAG V"):
-                raise InputError(f"{path}: ROS bag version {magic[9:].strip().decode(errors='replace')} is not supported",
+                raise InputError(f"{path}: ROS bag version {magic[9:].strip().decode(errors='replace')} is "
+                                 "not supported",
                                  "ionav-viz reads ROS 1 bags of format 2.0 (ROS 1 Groovy and later)")
-            raise InputError(f"{path}: not a ROS 1 bag (no '#ROSBAG V2.0' magic at the start)", "ionav-viz reads .bag files written by 'rosbag record'")
+            raise InputError(f"{path}: not a ROS 1 bag (no '#ROSBAG V2.0' magic at the start)",
+                             "ionav-viz reads .bag files written by 'rosbag record'")
         index_pos = _bag_header_index_pos(f)
     if index_pos is None:
-        raise InputError(f"{path}: truncated ROS 1 bag (its header is incomplete, {size} bytes)", "copy the file again whole")
+        raise InputError(f"{path}: truncated ROS 1 bag (its header is incomplete, {size} bytes)",
+                         "copy the file again whole")
     if index_pos == 0:
         raise InputError(f"{path}: the ROS 1 bag has no index (a recording that did not finish)",
                          "run 'rosbag reindex' on it (ROS 1), then read it again")
     if index_pos >= size:
-        raise InputError(f"{path}: truncated ROS 1 bag (its index should start at byte {index_pos}, the file has {size} bytes)",
-                         "copy the file again whole, or recover the messages before the cut with 'rosbag reindex' (ROS 1)")
+        raise InputError(f"{path}: truncated ROS 1 bag (its index should start at byte {index_pos}, the file has "
+                         f"{size} bytes)",
+                         "copy the file again whole, or recover the messages before the cut with 'rosbag "
+                         "reindex' (ROS 1)")
 
 
 def _bag_header_index_pos(f: Any) -> int | None:
@@ -286,7 +298,8 @@ def _bounded_ros2_chunks(path: Path) -> Iterator[None]:
     chunk, message = f"{path}: an MCAP chunk of the ROS 2 bag", f"{path}: a compressed message of the ROS 2 bag"
     for compression in ("lz4", "zstd"):
         table[compression] = lambda data, size, c=compression: inflate(data, c, size, chunk)
-    bag_reader.zstd = types.SimpleNamespace(open=real_zstd.open, decompress=lambda data: inflate(data, "zstd", None, message))
+    bag_reader.zstd = types.SimpleNamespace(open=real_zstd.open,
+                                            decompress=lambda data: inflate(data, "zstd", None, message))
     try:
         yield
     finally:

@@ -82,14 +82,16 @@ def read_trajectory(spec: str | Path) -> Trajectory:
         path = Path(head)
     if not path.exists():
         raise InputError(f"{path}: no such trajectory file", _TRAJECTORY_HINT, param="external")
-    check_regular_input(path, "external", hint=_TRAJECTORY_HINT, folder_ok=topic is not None)  # a named pipe hung the reader
+    # a named pipe hung the reader
+    check_regular_input(path, "external", hint=_TRAJECTORY_HINT, folder_ok=topic is not None)
     if path.is_dir():
         check_regular_tree(path, "external", hint=_TRAJECTORY_HINT)  # a ROS 2 bag's files
     if topic is not None:
         return _from_log(path, topic)
     suffix = path.suffix.lower()
     if path.is_file() and path.stat().st_size > MAX_BYTES:
-        raise InputError(f"{path}: {path.stat().st_size} bytes is too large for a trajectory", _TRAJECTORY_HINT, param="external")
+        raise InputError(f"{path}: {path.stat().st_size} bytes is too large for a trajectory", _TRAJECTORY_HINT,
+                         param="external")
     if suffix in (".tum", ".csv"):  # a 1 GB sparse file was read whole as its header and quoted in the message (a hang)
         check_text_head(path, "external", hint=_TRAJECTORY_HINT, what="a trajectory")
     if suffix == ".tum":
@@ -111,8 +113,10 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
         bad |= (np.abs(a) > 2e6) | (np.abs(b) > 2e6)
     if bad.any():
         i = int(np.argmax(bad))
-        what = "east/north (m) beyond 2000 km of the local origin" if local else "latitude/longitude outside WGS84's range"
-        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): not finite, or {what}", _TRAJECTORY_HINT, param="external")
+        what = ("east/north (m) beyond 2000 km of the local origin"
+                if local else "latitude/longitude outside WGS84's range")
+        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): not finite, or {what}", _TRAJECTORY_HINT,
+                         param="external")
     if cov is not None:
         _check_covariance(path, t, cov)
     order = np.argsort(t, kind="stable")
@@ -125,9 +129,12 @@ def _checked(path: str, stamps: list[float] | np.ndarray, a: np.ndarray, b: np.n
         if conflict.any():
             k = int(np.argmax(conflict))
             i, j = sorted((int(order[k]), int(order[k + 1])))
-            raise InputError(f"{path}: poses {i + 1} and {j + 1} share the stamp {float(t[k])!r} s and lie {float(apart_m[k]):.4g} m apart",
-                             "write one pose per stamp: two positions at one instant cannot both be the estimate", param="external")
-        log.warning("%s: %d pose(s) repeat the stamp and position of another; each is kept once", path, int(repeated.sum()))
+            raise InputError(f"{path}: poses {i + 1} and {j + 1} share the stamp {float(t[k])!r} s and lie "
+                             f"{float(apart_m[k]):.4g} m apart",
+                             "write one pose per stamp: two positions at one instant cannot both be the estimate",
+                             param="external")
+        log.warning("%s: %d pose(s) repeat the stamp and position of another; each is kept once", path,
+                    int(repeated.sum()))
     keep = np.concatenate([[True], ~repeated])
     t, a, b = t[keep], a[keep], b[keep]
     cov = cov[keep] if cov is not None else None
@@ -145,7 +152,8 @@ def _check_covariance(path: str, t: np.ndarray, cov: np.ndarray) -> None:
         i = int(np.argmax(bad))
         fault = next(f for f, mask in faults.items() if mask[i])
         ee, en, nn = (float(x) for x in cov[i, (0, 0, 1), (0, 1, 1)])
-        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): covariance ee={ee!r}, en={en!r}, nn={nn!r} m^2 is {fault}",
+        raise InputError(f"{path}: pose {i + 1} (stamp {float(t[i])!r}): covariance ee={ee!r}, en={en!r}, nn={nn!r} "
+                         f"m^2 is {fault}",
                          _COVARIANCE_HINT, param="external")
 
 
@@ -155,20 +163,25 @@ def _from_csv(path: Path) -> Trajectory:
             header = [h.strip() for h in f.readline().split(",")]
             have = [c for c in COVARIANCE_COLUMNS if c in header]
             if have and len(have) < len(COVARIANCE_COLUMNS):
-                raise InputError(f"{path}: covariance column(s) {', '.join(c for c in COVARIANCE_COLUMNS if c not in header)} missing beside "
-                                 f"{', '.join(have)}", "give all three of " + ",".join(COVARIANCE_COLUMNS) + ", or none", param="external")
+                raise InputError(f"{path}: covariance column(s) "
+                                 f"{', '.join(c for c in COVARIANCE_COLUMNS if c not in header)} missing beside "
+                                 f"{', '.join(have)}",
+                                 "give all three of " + ",".join(COVARIANCE_COLUMNS) + ", or none", param="external")
             cols = (0, 1, 2) + tuple(header.index(c) for c in have if header.index(c) > 2)
-            with warnings.catch_warnings():  # a header without rows: numpy's "input contained no data" warning on stderr
+            # a header without rows: numpy's "input contained no data" warning on stderr
+            with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)
                 data = np.loadtxt(f, delimiter=",", ndmin=2, usecols=cols) if header else np.zeros((0, len(cols)))
     except InputError:
         raise
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{path}: not a trajectory CSV ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
+        raise InputError(f"{path}: not a trajectory CSV ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
                          param="external") from None
     names = tuple(header[:3])
     if names not in (("time_s", "lat_deg", "lon_deg"), ("time_s", "east_m", "north_m")):
-        raise InputError(f"{path}: header {','.join(header[:3])[:80]!r} is not time_s,lat_deg,lon_deg or time_s,east_m,north_m", _TRAJECTORY_HINT, param="external")
+        raise InputError(f"{path}: header {','.join(header[:3])[:80]!r} is not time_s,lat_deg,lon_deg or "
+                         "time_s,east_m,north_m", _TRAJECTORY_HINT, param="external")
     cov = covariance_en(data[:, 3], data[:, 4], data[:, 5]) if data.shape[1] == 6 else None
     return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], names[1] == "east_m", cov)
 
@@ -183,10 +196,12 @@ def _from_tum(path: Path) -> Trajectory:
                     continue
                 cells = line.split()
                 if len(cells) != 8:
-                    raise InputError(f"{path}: line {n} has {len(cells)} values, TUM has 8 (t x y z qx qy qz qw)", _TRAJECTORY_HINT, param="external")
+                    raise InputError(f"{path}: line {n} has {len(cells)} values, TUM has 8 (t x y z qx qy qz qw)",
+                                     _TRAJECTORY_HINT, param="external")
                 rows.append([float(c) for c in cells[:3]])
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{path}: not a TUM trajectory ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
+        raise InputError(f"{path}: not a TUM trajectory ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else ''})", _TRAJECTORY_HINT,
                          param="external") from None
     data = np.asarray(rows, dtype=float).reshape(-1, 3)
     return _checked(str(path), data[:, 0], data[:, 1], data[:, 2], True)
@@ -201,11 +216,13 @@ def _from_log(path: Path, topic: str) -> Trajectory:
         raise InputError(f"{path}: LOG:TOPIC needs an MCAP file or a ROS bag", _TRAJECTORY_HINT, param="external")
     found = [c for c in log.channels() if c.topic == topic]
     if not found:
-        raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in log.channels())}", param="external")
+        raise InputError(f"{path}: no topic {topic!r}", f"topics: {', '.join(c.topic for c in log.channels())}",
+                         param="external")
     channel = found[0]
     fixes = channel.schema in GNSS_SCHEMAS[:2]
     if not fixes and channel.schema not in ODOMETRY_SCHEMAS + POSE_SCHEMAS:
-        raise InputError(f"{path}: {topic} is a {channel.schema}", "give a NavSatFix, Odometry or PoseStamped topic", param="external")
+        raise InputError(f"{path}: {topic} is a {channel.schema}", "give a NavSatFix, Odometry or PoseStamped topic",
+                         param="external")
     t, a, b, cov = [], [], [], []
     try:
         for _, log_ns, msg in log.messages([channel]):
@@ -226,11 +243,13 @@ def _from_log(path: Path, topic: str) -> Trajectory:
                 t.append(stamp)
                 a.append(float(get_field(pose, "position", "x")))
                 b.append(float(get_field(pose, "position", "y")))
-                cov.append(None if channel.schema in POSE_SCHEMAS[:2] else _pose_covariance(get_field(msg, "pose", "covariance")))
+                cov.append(None if channel.schema in POSE_SCHEMAS[:2]
+                           else _pose_covariance(get_field(msg, "pose", "covariance")))
     except InputError:
         raise
     except (KeyError, AttributeError, TypeError, ValueError) as exc:
-        raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})", _TRAJECTORY_HINT, param="external") from None
+        raise InputError(f"{path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
+                         _TRAJECTORY_HINT, param="external") from None
     except Exception as exc:
         raise log.damaged(exc) from None
     return _checked(f"{path}:{topic}", t, np.asarray(a), np.asarray(b), not fixes, _log_covariance(cov))

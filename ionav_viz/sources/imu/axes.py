@@ -56,14 +56,17 @@ def parse_imu_axes(text: str) -> np.ndarray:
         if not sep or body not in AXES or axis not in AXES or len(source) - len(axis) > 1:
             raise InputError(f"imu axes {text!r}: {part!r} is not AXIS=[-]AXIS", hint, param="imu_axes")
         if body in seen_body or axis in seen_log:
-            raise InputError(f"imu axes {text!r}: {body if body in seen_body else axis!r} is used twice", hint, param="imu_axes")
+            raise InputError(f"imu axes {text!r}: {body if body in seen_body else axis!r} is used twice", hint,
+                             param="imu_axes")
         seen_body.add(body)
         seen_log.add(axis)
         matrix[AXES.index(body), AXES.index(axis)] = sign
     if len(seen_body) != 3:
-        raise InputError(f"imu axes {text!r}: {', '.join(a for a in AXES if a not in seen_body)} not given", hint, param="imu_axes")
+        raise InputError(f"imu axes {text!r}: {', '.join(a for a in AXES if a not in seen_body)} not given", hint,
+                         param="imu_axes")
     if np.linalg.det(matrix) < 0:
-        raise InputError(f"imu axes {text!r} mirror the IMU (a left-handed frame)", "flip the sign of one axis: a rigid mount only rotates", param="imu_axes")
+        raise InputError(f"imu axes {text!r} mirror the IMU (a left-handed frame)",
+                         "flip the sign of one axis: a rigid mount only rotates", param="imu_axes")
     return matrix
 
 
@@ -109,7 +112,8 @@ class FrameCheck:
 
 
 def check_imu_frame(t_s: np.ndarray, accel_xyz: np.ndarray, gyro_xyz: np.ndarray, speed_mps: np.ndarray,
-                    heading_deg: np.ndarray, mapping: np.ndarray | None = None, measured: np.ndarray | None = None) -> FrameCheck:
+                    heading_deg: np.ndarray, mapping: np.ndarray | None = None,
+                    measured: np.ndarray | None = None) -> FrameCheck:
     """Check body-frame IMU samples (``(n, 3)`` arrays, m/s^2 and rad/s, on the times ``t_s``)
     against gravity and the GNSS speed and course (see the module docstring). ``mapping`` is the
     ``--imu-axes`` matrix already applied (the suggestion is given in the log's axes). ``measured``:
@@ -125,7 +129,8 @@ def check_imu_frame(t_s: np.ndarray, accel_xyz: np.ndarray, gyro_xyz: np.ndarray
     g_sign = 1.0 if mean_f[g_axis] > 0 else -1.0
     gravity_known = abs(mean_f[g_axis]) > 0.5 * G_MPS2
     if gravity_known and (g_axis, g_sign) != (2, 1.0):
-        problems.append(f"gravity reads on {'-' if g_sign < 0 else '+'}{AXES[g_axis]} ({mean_f[g_axis]:+.1f} m/s^2), not +z")
+        problems.append(f"gravity reads on {'-' if g_sign < 0 else '+'}{AXES[g_axis]} ({mean_f[g_axis]:+.1f} "
+                        "m/s^2), not +z")
 
     # yaw: the gyro axis that follows the GNSS course
     gnss_rate = heading_rate_ccw_radps(t_s, heading_deg, speed_mps)
@@ -137,7 +142,8 @@ def check_imu_frame(t_s: np.ndarray, accel_xyz: np.ndarray, gyro_xyz: np.ndarray
         if abs(yaw_corr[best]) >= STRONG:
             yaw_axis, yaw_sign = best, (1.0 if yaw_corr[best] > 0 else -1.0)
             if best != 2:
-                problems.append(f"the turn rate is on the gyro's {AXES[best]} axis (correlation {yaw_corr[best]:+.2f} with the GNSS course, z {yaw_corr[2]:+.2f})")
+                problems.append(f"the turn rate is on the gyro's {AXES[best]} axis (correlation {yaw_corr[best]:+.2f} "
+                                f"with the GNSS course, z {yaw_corr[2]:+.2f})")
             elif yaw_sign < 0:
                 yaw_reversed = True
                 problems.append(f"{YAW_REVERSED} (correlation {yaw_corr[2]:+.2f} with the GNSS course): flipped it")
@@ -147,12 +153,14 @@ def check_imu_frame(t_s: np.ndarray, accel_xyz: np.ndarray, gyro_xyz: np.ndarray
     fwd_axis = fwd_sign = None
     if moving.sum() >= MIN_SAMPLES and len(t_s) > 2:
         gnss_accel = _smooth(np.gradient(speed_mps, t_s))
-        corr = [(_corr(_smooth(accel_xyz[:, k])[moving], gnss_accel[moving]) if k != g_axis or not gravity_known else 0.0) for k in range(3)]
+        corr = [(_corr(_smooth(accel_xyz[:, k])[moving], gnss_accel[moving]) if k != g_axis or
+                 not gravity_known else 0.0) for k in range(3)]
         best = int(np.argmax(np.abs(corr)))
         if abs(corr[best]) >= STRONG:
             fwd_axis, fwd_sign = best, (1.0 if corr[best] > 0 else -1.0)
             if (best, fwd_sign) != (0, 1.0):
-                problems.append(f"forward acceleration reads on {'-' if fwd_sign < 0 else '+'}{AXES[best]} (correlation {corr[best]:+.2f} with the GNSS speed), not +x")
+                problems.append(f"forward acceleration reads on {'-' if fwd_sign < 0 else '+'}{AXES[best]} "
+                                f"(correlation {corr[best]:+.2f} with the GNSS speed), not +x")
 
     suggestion = None
     up = (g_axis, g_sign) if gravity_known else ((yaw_axis, yaw_sign) if yaw_axis is not None else None)

@@ -72,7 +72,8 @@ def check_samples(text: str | None) -> str | None:
     if text is None or text in SAMPLE_KINDS:
         return text
     raise InputError(f"IMU sample kind {text!r} is not single or averaged",
-                     "give single (each sample one instantaneous reading, as phones log them) or averaged (a mean or increment over its interval)",
+                     "give single (each sample one instantaneous reading, as phones log them) or averaged (a mean or "
+                     "increment over its interval)",
                      param="imu_samples")
 
 
@@ -117,15 +118,17 @@ class Oriented:
         return out * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0]) if self.flipped else out
 
 
-def orient(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray, settings: ImuSettings,
-           vehicle_speed_mps: np.ndarray | None, measured: np.ndarray) -> Oriented:
+def orient(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
+           settings: ImuSettings, vehicle_speed_mps: np.ndarray | None, measured: np.ndarray) -> Oriented:
     """The mount (:func:`_mounted`) and the frame check (:func:`_frame_reversed`)."""
     matrix, estimate = _mounted(path, t, body, speed_mps, course_deg, settings, vehicle_speed_mps, measured)
     mounted = body if matrix is None else Oriented(body, matrix, False, None, None).turn(body)
     flipped = _frame_reversed(path, t, mounted, speed_mps, course_deg, settings, measured)
     shown = matrix if matrix is not None else (estimate.matrix if estimate is not None else None)
-    sigma = tuple(float(s) for s in estimate.sigma_deg) if estimate is not None and hasattr(estimate, "sigma_deg") else None
-    out = Oriented(body, matrix, flipped, angles_deg(shown) if shown is not None else None, sigma)  # type: ignore[arg-type]
+    sigma = (tuple(float(s) for s in estimate.sigma_deg)
+             if estimate is not None and hasattr(estimate, "sigma_deg") else None)
+    out = Oriented(body, matrix, flipped, angles_deg(shown) if shown is not None else None,
+                   sigma)  # type: ignore[arg-type]
     return Oriented(out.turn(body), matrix, flipped, out.mount_deg, sigma)
 
 
@@ -141,7 +144,8 @@ def clock_offset(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndar
     found = estimate_clock_offset(t, body[:, 5], speed_mps, course_deg)
     if settings.time_offset == "auto" and not found.resolved:
         raise InputError(f"{path}: the IMU's clock offset against the receiver cannot be resolved: {found.reason}",
-                         "give it in seconds (the IMU's stamps minus the receiver's, e.g. 0.3), or leave the option out",
+                         "give it in seconds (the IMU's stamps minus the receiver's, e.g. 0.3), or leave "
+                         "the option out",
                          param="imu_time_offset")
     if one_clock and settings.time_offset is None:
         if found.resolved and should_apply(found):
@@ -153,10 +157,12 @@ def clock_offset(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndar
                     "%.3f gives it exactly)", path, found.offset_s, found.sigma_s, found.offset_s)
         return found.offset_s, found
     if not found.resolved:
-        log.info("%s: the IMU's clock offset against the receiver is not resolved (%s); none applied", path, found.reason)
+        log.info("%s: the IMU's clock offset against the receiver is not resolved (%s); none applied", path,
+                 found.reason)
     else:
         log.info("%s: the IMU's stamps are %+.3f s (± %.3f) off the receiver's course, within what a course lags by: "
-                 "none applied (--imu-time-offset %.3f applies it)", path, found.offset_s, found.sigma_s, found.offset_s)
+                 "none applied (--imu-time-offset %.3f applies it)", path, found.offset_s, found.sigma_s,
+                 found.offset_s)
     return 0.0, found
 
 
@@ -165,17 +171,21 @@ def character(rate_hz: float, readings: float, oriented: Oriented, applied_offse
     """The :class:`~ionav_viz.core.imu.ImuCharacter` of what was found and applied."""
     kind, source = sample_kind(readings, settings.samples)
     if offset is None:  # given
-        clock = dict(clock_offset_s=applied_offset_s, clock_offset_sigma_s=0.0, clock_offset_applied=True, clock_offset_note="given")
+        clock = dict(clock_offset_s=applied_offset_s, clock_offset_sigma_s=0.0, clock_offset_applied=True,
+                     clock_offset_note="given")
     else:
-        clock = dict(clock_offset_s=offset.offset_s, clock_offset_sigma_s=offset.sigma_s if offset.resolved else math.inf,
-                     clock_offset_applied=applied_offset_s != 0.0, clock_offset_note="estimated" if offset.resolved else offset.reason)
-    return ImuCharacter(native_rate_hz=round(rate_hz, 1), readings_per_sample=round(readings, 1), sample_kind=kind, sample_kind_source=source,
-                        mount_deg=oriented.mount_deg, mount_sigma_deg=oriented.mount_sigma_deg, mount_applied=oriented.mount is not None,
+        clock = dict(clock_offset_s=offset.offset_s,
+                     clock_offset_sigma_s=offset.sigma_s if offset.resolved else math.inf,
+                     clock_offset_applied=applied_offset_s != 0.0,
+                     clock_offset_note="estimated" if offset.resolved else offset.reason)
+    return ImuCharacter(native_rate_hz=round(rate_hz, 1), readings_per_sample=round(readings, 1), sample_kind=kind,
+                        sample_kind_source=source, mount_deg=oriented.mount_deg,
+                        mount_sigma_deg=oriented.mount_sigma_deg, mount_applied=oriented.mount is not None,
                         wobble_dps=wobble_dps(oriented.body, speed_mps), **clock)
 
 
-def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray, settings: ImuSettings,
-             vehicle_speed_mps: np.ndarray | None, measured: np.ndarray):
+def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
+             settings: ImuSettings, vehicle_speed_mps: np.ndarray | None, measured: np.ndarray):
     """The mount to apply (None: none) and the estimate (None when given or not estimated).
 
     Given a rotation: applied. Otherwise estimated: with ``"auto"`` applied and reported; without,
@@ -190,16 +200,17 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
     unmeasured = [name for name, ok in zip(IMU_AXIS_NAMES, measured, strict=True) if not ok]
     if isinstance(imu_mount, np.ndarray):
         if unmeasured and not np.array_equal(np.abs(imu_mount), np.abs(imu_mount).round()):
-            raise InputError(f"{path}: the IMU's {', '.join(unmeasured)} read one value over the whole log (not measured), "
-                             "so its vectors cannot be turned by a mount", "leave the mount out (the IMU axes map whole axes)",
-                             param="imu_mount")
+            raise InputError(f"{path}: the IMU's {', '.join(unmeasured)} read one value over the whole log "
+                             "(not measured), so its vectors cannot be turned by a mount",
+                             "leave the mount out (the IMU axes map whole axes)", param="imu_mount")
         return imu_mount, None
     if unmeasured:
         (log.warning if imu_mount == "auto" else log.info)(
             "%s: the IMU's mount is not estimated: its %s read one value over the whole log (not measured); "
             "its axes are used as they are", path, ", ".join(unmeasured))
         return None, None
-    found = estimate_mount(t, body[:, :3], speed_mps, course_deg, gyro_xyz=body[:, 3:6], vehicle_speed_mps=vehicle_speed_mps)
+    found = estimate_mount(t, body[:, :3], speed_mps, course_deg, gyro_xyz=body[:, 3:6],
+                           vehicle_speed_mps=vehicle_speed_mps)
     if found is None:
         log.warning("%s: the IMU's mount cannot be estimated (gravity does not read 7-13 m/s^2 on average); "
                     "its axes are used as they are", path)
@@ -207,10 +218,12 @@ def _mounted(path: Path, t: np.ndarray, body: np.ndarray, speed_mps: np.ndarray,
     angle = found.angle_deg
     if imu_mount != "auto" and angle > MAX_SILENT_DEG:
         permutation = nearest_axes(found.matrix @ settings.mapping)
-        axes = f", or map the IMU axes with --imu-axes {permutation} (the nearest exact permutation)" if permutation else ""
-        raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount is estimated "
-                         f"as {found.describe()}, {angle:.0f} deg from it",
-                         f"apply this estimate with --imu-mount auto, or give it as --imu-mount {format_mount(found.matrix)}{axes}",
+        axes = (f", or map the IMU axes with --imu-axes {permutation} (the nearest exact permutation)"
+                if permutation else "")
+        raise InputError(f"{path}: the IMU is not in the body frame (REP 103: x forward, y left, z up): its mount "
+                         f"is estimated as {found.describe()}, {angle:.0f} deg from it",
+                         "apply this estimate with --imu-mount auto, or give it as --imu-mount "
+                         f"{format_mount(found.matrix)}{axes}",
                          param="imu_mount")
     if imu_mount != "auto" and angle < MIN_APPLIED_DEG:
         return None, found

@@ -76,8 +76,10 @@ def _course_rate_ccw_radps(t_s: np.ndarray, course_deg: np.ndarray) -> np.ndarra
     return -np.gradient(unwrapped, t_s)
 
 
-def _best_lag(t: np.ndarray, gyro: np.ndarray, rate: np.ndarray, use: np.ndarray, lags: np.ndarray) -> tuple[float, float]:
-    """The lag (s) maximising the correlation of ``gyro(t + lag)`` with ``rate(t)`` over ``use``, refined by a parabola; and that peak."""
+def _best_lag(t: np.ndarray, gyro: np.ndarray, rate: np.ndarray, use: np.ndarray,
+              lags: np.ndarray) -> tuple[float, float]:
+    """The lag (s) maximising the correlation of ``gyro(t + lag)`` with ``rate(t)`` over ``use``, refined by a parabola;
+    and that peak."""
     r = rate[use] - rate[use].mean()
     scores = np.empty(len(lags))
     for i, lag in enumerate(lags):
@@ -95,7 +97,8 @@ def _best_lag(t: np.ndarray, gyro: np.ndarray, rate: np.ndarray, use: np.ndarray
     return lag, float(scores[k])
 
 
-def estimate_clock_offset(t_s: np.ndarray, gyro_z_radps: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray) -> ClockOffset:
+def estimate_clock_offset(t_s: np.ndarray, gyro_z_radps: np.ndarray, speed_mps: np.ndarray,
+                          course_deg: np.ndarray) -> ClockOffset:
     """The IMU's clock offset from the body-frame vertical rate ``gyro_z_radps`` (counter-clockwise,
     the IMU levelled by its mount) and the receiver's speed and course, all on the times ``t_s``
     (the IMU's stamps); see the module docstring."""
@@ -111,7 +114,8 @@ def estimate_clock_offset(t_s: np.ndarray, gyro_z_radps: np.ndarray, speed_mps: 
     use[:margin], use[-margin:] = False, False
     turn = float(np.abs(rate[use]).sum() * dt)
     if use.sum() < 10 * n or turn < MIN_TURN_RAD:
-        return ClockOffset(0.0, math.inf, 0.0, turn, False, f"too little turning at speed ({math.degrees(turn):.0f} deg; "
+        return ClockOffset(0.0, math.inf, 0.0, turn, False,
+                           f"too little turning at speed ({math.degrees(turn):.0f} deg; "
                                                              f"{math.degrees(MIN_TURN_RAD):.0f} needed)")
     lags = np.arange(-MAX_OFFSET_S, MAX_OFFSET_S + STEP_S / 2, STEP_S)
     offset, peak = _best_lag(t, gyro, rate, use, lags)
@@ -126,9 +130,11 @@ def estimate_clock_offset(t_s: np.ndarray, gyro_z_radps: np.ndarray, speed_mps: 
             blocks.append(_best_lag(t, gyro, rate, part, near)[0])
     sigma = float(np.std(blocks, ddof=1) / math.sqrt(len(blocks))) if len(blocks) >= 3 else math.inf
     if peak < MIN_PEAK:
-        return ClockOffset(offset, sigma, peak, turn, False, f"gyro and GNSS course agree poorly (correlation {peak:.2f})")
+        return ClockOffset(offset, sigma, peak, turn, False,
+                           f"gyro and GNSS course agree poorly (correlation {peak:.2f})")
     if not sigma <= MAX_SIGMA_S:
-        why = "too few stretches of turning to check it" if not math.isfinite(sigma) else f"its uncertainty is {1000 * sigma:.0f} ms"
+        why = ("too few stretches of turning to check it"
+               if not math.isfinite(sigma) else f"its uncertainty is {1000 * sigma:.0f} ms")
         return ClockOffset(offset, sigma, peak, turn, False, why)
     return ClockOffset(offset, sigma, peak, turn, True)
 

@@ -122,7 +122,8 @@ def parse_mount(text: str) -> np.ndarray | str:
         except ValueError:
             number = math.nan
         if not sep or name.strip() not in angles or not math.isfinite(number) or abs(number) > 360:
-            raise InputError(f"imu mount {text!r}: {part!r} is not roll=, pitch= or yaw= degrees", hint, param="imu_mount")
+            raise InputError(f"imu mount {text!r}: {part!r} is not roll=, pitch= or yaw= degrees", hint,
+                             param="imu_mount")
         angles[name.strip()] = number
     return rotation_deg(angles["roll"], angles["pitch"], angles["yaw"])
 
@@ -149,7 +150,8 @@ class MountEstimate:
         roll, pitch, yaw = (_tenths(a) for a in self.angles_deg)
         s_roll, s_pitch, s_yaw = self.sigma_deg
         yaw_text = f"yaw {yaw:+.1f} ± {s_yaw:.1f}" if self.yaw_known else "yaw unknown (too little motion)"
-        return f"roll {roll:+.1f} ± {s_roll:.1f}, pitch {pitch:+.1f} ± {s_pitch:.1f}, {yaw_text} deg (up from {self.up_from})"
+        return (f"roll {roll:+.1f} ± {s_roll:.1f}, pitch {pitch:+.1f} ± {s_pitch:.1f}, {yaw_text} deg "
+                f"(up from {self.up_from})")
 
 
 def _onto_z(u: np.ndarray) -> np.ndarray:
@@ -173,7 +175,8 @@ MIN_LEVEL_SIGMA_DEG = 0.2
 
 
 def estimate_mount(t_s: np.ndarray, accel_xyz: np.ndarray, speed_mps: np.ndarray, course_deg: np.ndarray,
-                   gyro_xyz: np.ndarray | None = None, vehicle_speed_mps: np.ndarray | None = None) -> MountEstimate | None:
+                   gyro_xyz: np.ndarray | None = None,
+                   vehicle_speed_mps: np.ndarray | None = None) -> MountEstimate | None:
     """The mount from grid samples (``accel_xyz`` ``(n, 3)`` m/s^2 in the IMU's axes; GNSS speed,
     course clockwise from north), or None when gravity cannot be told (see the module docstring).
 
@@ -213,7 +216,8 @@ def estimate_mount(t_s: np.ndarray, accel_xyz: np.ndarray, speed_mps: np.ndarray
     return MountEstimate(matrix, (s_roll, s_pitch, s_yaw), up_from, yaw_known)
 
 
-def _level_sigmas_deg(accel_xyz: np.ndarray, motion: np.ndarray, matrix: np.ndarray, g: float, n_smooth: int) -> tuple[float, float]:
+def _level_sigmas_deg(accel_xyz: np.ndarray, motion: np.ndarray, matrix: np.ndarray, g: float,
+                      n_smooth: int) -> tuple[float, float]:
     """Roll and pitch uncertainties (degrees): the error of the mean residual's lateral and forward
     components (what is left of the body-frame specific force less the motion and gravity), from its
     sums over YAW_BLOCK_S blocks (batch means), over gravity; never below MIN_LEVEL_SIGMA_DEG."""
