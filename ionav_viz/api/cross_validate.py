@@ -75,25 +75,28 @@ class CrossValidation:
         """The ``cross-validate --json`` object (docs/report-schema.md)."""
         from ..analysis.schema import tagged
 
-        return tagged("cross-validation", {"by": self.by, "folds": [vars(f) for f in self.folds], "outage_s": self.outage_s,
-                                           "device": self.device, "training": self.training, "summary": self.summary(),
-                                           "warnings": list(self.warnings)})
+        return tagged("cross-validation", {"by": self.by, "folds": [vars(f) for f in self.folds],
+                                           "outage_s": self.outage_s, "device": self.device, "training": self.training,
+                                           "summary": self.summary(), "warnings": list(self.warnings)})
 
     def to_json(self, indent: int | None = 2) -> str:
         return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
 
     def to_text(self) -> str:
-        rows = [f"{len(self.folds)}-fold cross-validation by {self.by}, {self.outage_s:g} s outages, {self.training}, trained on {self.device}",
-                f"{'fold':>4}  {'outages':>7}  {'INS DR CRSE (m)':>15}  {'IDNN CRSE (m)':>13}  {'IDNN vs INS DR':>14}  {'training':>8}  test"]
+        rows = [f"{len(self.folds)}-fold cross-validation by {self.by}, {self.outage_s:g} s outages, {self.training}, "
+                f"trained on {self.device}",
+                f"{'fold':>4}  {'outages':>7}  {'INS DR CRSE (m)':>15}  {'IDNN CRSE (m)':>13}  {'IDNN vs INS DR':>14}  "
+                f"{'training':>8}  test"]
         for f in self.folds:
-            rows.append(f"{f.index + 1:>4}  {f.n_outages:>7}  {f.crse_m['ins']:>15.2f}  {f.crse_m['idnn']:>13.2f}  {f.improvement_pct:>+13.1f}%  "
-                        f"{f.train_s:>7.1f}s  {', '.join(f.test)}")
+            rows.append(f"{f.index + 1:>4}  {f.n_outages:>7}  {f.crse_m['ins']:>15.2f}  {f.crse_m['idnn']:>13.2f}  "
+                        f"{f.improvement_pct:>+13.1f}%  {f.train_s:>7.1f}s  {', '.join(f.test)}")
         s = self.summary()
         ins, idnn, gain = s["ins_crse_m"], s["idnn_crse_m"], s["idnn_improvement_pct_by_fold"]
-        rows.append(f"{'mean':>4}  {sum(f.n_outages for f in self.folds):>7}  {ins['mean']:>15.2f}  {idnn['mean']:>13.2f}  "
-                    f"{s['idnn_improvement_pct']:>+13.1f}%")
-        rows.append(f"spread over folds: IDNN CRSE sd {idnn['sd']:.2f} m (min {idnn['min']:.2f}, max {idnn['max']:.2f}); "
-                    f"IDNN vs INS DR sd {gain['sd']:.1f} points (min {gain['min']:+.1f} %, max {gain['max']:+.1f} %)")
+        rows.append(f"{'mean':>4}  {sum(f.n_outages for f in self.folds):>7}  {ins['mean']:>15.2f}  "
+                    f"{idnn['mean']:>13.2f}  {s['idnn_improvement_pct']:>+13.1f}%")
+        rows.append(f"spread over folds: IDNN CRSE sd {idnn['sd']:.2f} m (min {idnn['min']:.2f}, max "
+                    f"{idnn['max']:.2f}); IDNN vs INS DR sd {gain['sd']:.1f} points (min {gain['min']:+.1f} %, max "
+                    f"{gain['max']:+.1f} %)")
         return "\n".join(rows)
 
 
@@ -133,10 +136,11 @@ def cross_validate(
     windows_of(outage_s)
     items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
     if not items:
-        raise InputError("no drive to cross-validate", "give one long drive (folds by time) or at least as many drives as folds")
+        raise InputError("no drive to cross-validate",
+                         "give one long drive (folds by time) or at least as many drives as folds")
     if 1 < len(items) < folds:
-        raise InputError(f"{len(items)} drives for {folds} folds by drive", f"give at least {folds} drives, or one drive (folds by time blocks)",
-                         param="folds")
+        raise InputError(f"{len(items)} drives for {folds} folds by drive",
+                         f"give at least {folds} drives, or one drive (folds by time blocks)", param="folds")
     run, read = options_of(run, None, read, None)  # checked: run="x" was an AttributeError
     parent = parent_model(from_model) if from_model is not None else None
     config = config if config is not None else (ModelConfig() if parent is None else _fine_tune(parent))
@@ -145,7 +149,8 @@ def cross_validate(
     if out_dir is not None:
         if not out_dir.is_dir():
             what = "is not a directory" if out_dir.exists() else "does not exist"
-            raise InputError(f"{out_dir}: {what}", "give an existing folder for the folds' models (fold-1, fold-2, ...)", param="output")
+            raise InputError(f"{out_dir}: {what}",
+                             "give an existing folder for the folds' models (fold-1, fold-2, ...)", param="output")
         numbers = (re.fullmatch(r"fold-([1-9][0-9]*)", p.name) for p in out_dir.iterdir())
         taken = sorted(n for m in numbers if m and (n := int(m.group(1))) <= folds)
         if taken:  # every fold's directory before any training, not fold-1 alone (listed: --folds may be huge)
@@ -157,11 +162,13 @@ def cross_validate(
     need_s = float(run.warm_up_s) + float(outage_s)  # every fold's test drive needs the warm-up and an outage
     short = [d for d in loaded if d.duration_s < need_s - 1e-6] if by == "drive" else []
     if short:
-        raise InputError(f"{short[0].source or short[0].name}: {short[0].duration_s:.0f} s is too short to test on: a fold tests its outages "
-                         f"after the {float(run.warm_up_s):g} s warm-up ({need_s:g} s with {float(outage_s):g} s outages)",
+        raise InputError(f"{short[0].source or short[0].name}: {short[0].duration_s:.0f} s is too short to test on: a "
+                         f"fold tests its outages after the {float(run.warm_up_s):g} s warm-up ({need_s:g} s with "
+                         f"{float(outage_s):g} s outages)",
                          "leave it out, give longer drives or shorter outages (--outage)", param="drives")
     splits = _time_blocks(loaded[0], folds, need_s) if by == "time" else [
-        ([d for j, d in enumerate(loaded) if j % folds != i], [d for j, d in enumerate(loaded) if j % folds == i]) for i in range(folds)]
+        ([d for j, d in enumerate(loaded) if j % folds != i], [d for j, d in enumerate(loaded) if j % folds == i])
+        for i in range(folds)]
     device = training_device(device)  # after the folds are checked: said before an error, it was a second line
     bias_of = run.bias_of(read)
     results = []
@@ -175,8 +182,9 @@ def cross_validate(
                         progress(f"fold {i + 1}/{folds}: training {label}", done, total)
 
                 started = time.perf_counter()
-                model = train_models([(d, bias_of(d)) for d in train_set], config, step, f"cross-validation fold {i + 1} of {folds} (by {by})",
-                                     parent=parent, device=device)
+                model = train_models([(d, bias_of(d)) for d in train_set], config, step,
+                                     f"cross-validation fold {i + 1} of {folds} (by {by})", parent=parent,
+                                     device=device)
                 train_s = time.perf_counter() - started
                 if out_dir is not None:
                     model.metadata["training"]["command"] = "ionav_viz.cross_validate"
@@ -185,8 +193,9 @@ def cross_validate(
                 if progress:
                     progress(f"fold {i + 1}/{folds}: testing", 0, 1)
                 try:
-                    report = evaluate(test_set, outage_s, estimators=["ins", "idnn"], run=replace(run, estimators=None, plugins=(), without=(), model=model, strict=True),
-                                      read=replace(read, span=None))
+                    report = evaluate(test_set, outage_s, estimators=["ins", "idnn"],
+                                      run=replace(run, estimators=None, plugins=(), without=(), model=model,
+                                                  strict=True), read=replace(read, span=None))
                 except InputError as exc:
                     if exc.param != "strict":
                         raise
@@ -194,8 +203,9 @@ def cross_validate(
                 data = json.loads(report.to_json())
                 warned += [w for w in data.get("warnings", []) if w not in warned]
                 crse = {name: data["summary"][name]["crse_m"]["mean"] for name in ("ins", "idnn")}
-                results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set], int(data["n_sequences"]), crse,
-                                    100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"], train_s))
+                results.append(Fold(i, [_label(d) for d in train_set], [_label(d) for d in test_set],
+                                    int(data["n_sequences"]), crse, 100.0 * (crse["ins"] - crse["idnn"]) / crse["ins"],
+                                    train_s))
                 if progress:
                     progress(f"fold {i + 1}/{folds}: done", 1, 1)
         except BaseException:
@@ -217,11 +227,14 @@ def _leak(exc: InputError, i: int, parent: Any, model: Any) -> InputError:
     if parent is not None:
         name = model.metadata.get("parent", {}).get("directory", "the parent model")
         name = "the shipped model" if name == "shipped" else name
-        text = exc.message.replace("the IDNN model (in memory)", f"fold {i + 1}'s model (fine-tuned from {name}) or its parent")
-        return InputError(f"fold {i + 1}: {text}", f"cross-validate on drives {name} was not trained on, or from random weights (leave out --from-model)",
-                          param="from_model")
+        text = exc.message.replace("the IDNN model (in memory)",
+                                   f"fold {i + 1}'s model (fine-tuned from {name}) or its parent")
+        return InputError(f"fold {i + 1}: {text}",
+                          f"cross-validate on drives {name} was not trained on, or from random weights (leave out "
+                          "--from-model)", param="from_model")
     text = exc.message.replace("the IDNN model (in memory)", f"fold {i + 1}'s model")
-    return InputError(f"fold {i + 1}: {text}", "give each drive once: the same file twice puts it in training and test", param="drives")
+    return InputError(f"fold {i + 1}: {text}", "give each drive once: the same file twice puts it in training and test",
+                      param="drives")
 
 
 def _fine_tune(parent: Any) -> Any:
@@ -246,8 +259,8 @@ def _time_blocks(drive: Drive, folds: int, need_s: float = 30.0) -> list[tuple[l
             blocks = [crop_to_span(drive, Span(edges[k], edges[k + 1])) for k in range(folds)]
     if len(blocks) < folds or min(b.duration_s for b in blocks) < need_s - 1e-6:
         fit = int((t1 - t0) / need_s + 1e-6)
-        raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of {need_s:g} s or more "
-                         "(each tests an outage after the warm-up)",
+        raise InputError(f"{drive.source or drive.name}: {t1 - t0:.0f} s is too short for {folds} time blocks of "
+                         f"{need_s:g} s or more (each tests an outage after the warm-up)",
                          f"give at most {fit} folds, shorter outages or a longer drive" if fit >= 2
                          else "give shorter outages or a longer drive",
                          param="folds")

@@ -45,7 +45,8 @@ class DatasetSource:
         """The runs of the manifest, by key."""
         if self.manifest is None:
             return runs(manifest())
-        check_regular_input(self.manifest, "manifest", hint="give a manifest TSV (path, sha256, size_bytes)", missing_ok=True)
+        check_regular_input(self.manifest, "manifest", hint="give a manifest TSV (path, sha256, size_bytes)",
+                            missing_ok=True)
         try:
             return runs(parse_manifest(Path(self.manifest).read_text(encoding="utf-8"), str(self.manifest)))
         except OSError as exc:
@@ -58,12 +59,13 @@ def fetch_root(data_root: str | Path | None = None) -> Path:
     fetch said "cannot create it (File exists)")."""
     root = configured_data_root(data_root) or default_data_root()
     if root.exists() and not root.is_dir():
-        raise InputError(f"data root {root}: is not a folder", "give the folder that holds (or will hold) the IO-VNBD runs as --data-root",
-                         param="data_root")
+        raise InputError(f"data root {root}: is not a folder",
+                         "give the folder that holds (or will hold) the IO-VNBD runs as --data-root", param="data_root")
     return root
 
 
-def list_runs(data_root: str | Path | None = None, source: DatasetSource | None = None, verify: bool = False) -> list[dict[str, Any]]:
+def list_runs(data_root: str | Path | None = None, source: DatasetSource | None = None,
+              verify: bool = False) -> list[dict[str, Any]]:
     """Every IO-VNBD run: name, group, driver, role in the paper, size, path and local status
     (``verify``: check the sha256 of present files not verified before)."""
     from ..sources.resolve import index_data_root
@@ -80,15 +82,19 @@ def list_runs(data_root: str | Path | None = None, source: DatasetSource | None 
             if target.is_file():
                 status, local = cache.status(entry, target, check=verify), target
             else:
-                if elsewhere is None:  # a run's V-*.csv anywhere under the root, by name: what 'evaluate NAME' reads (a copy laid out otherwise)
-                    index_data_root.cache_clear()  # the files as they are now, not as an earlier call of this process saw them
+                # a run's V-*.csv anywhere under the root, by name: what 'evaluate NAME' reads (a copy laid out
+                # otherwise)
+                if elsewhere is None:
+                    # the files as they are now, not as an earlier call of this process saw them
+                    index_data_root.cache_clear()
                     elsewhere = index_data_root(root.resolve())
                 found = [p for p in elsewhere.get(run.key, []) if p.is_file()]
                 if not found:
                     rows.append(_run_row(run, entry, "missing", None))
                     continue
                 local = found[0]
-                statuses = [cache.status(e, local, check=verify) for e in (run.vehicle, run.vehicle_sync) if e is not None]
+                statuses = [cache.status(e, local, check=verify) for e in (run.vehicle, run.vehicle_sync)
+                            if e is not None]
                 status = next((st for st in ("verified", "present") if st in statuses), "mismatch")
         rows.append(_run_row(run, entry, status, local))
     return rows
@@ -108,8 +114,9 @@ def bundled_drives() -> list[dict[str, Any]]:
 
 
 def _run_row(run: Any, entry: Any, status: str, local: Path | None) -> dict[str, Any]:
-    return {"name": run.name, "group": run.group, "driver": run.driver, "role": paper_role(run.name) or "", "size_bytes": entry.size_bytes,
-            "path": entry.path, "status": status, **({"local_path": str(local)} if local is not None else {})}
+    return {"name": run.name, "group": run.group, "driver": run.driver, "role": paper_role(run.name) or "",
+            "size_bytes": entry.size_bytes, "path": entry.path, "status": status,
+            **({"local_path": str(local)} if local is not None else {})}
 
 
 def runs_selected(selections: Sequence[str], source: DatasetSource | None = None) -> list[tuple[str, int]]:
@@ -136,7 +143,8 @@ def runs_selected(selections: Sequence[str], source: DatasetSource | None = None
                 hits = [r for r in catalog.values() if r.driver.lower() == (driver or low)]
             else:
                 raise InputError(f"--runs {word}: no such IO-VNBD group or driver",
-                                 f"give all, a group ({', '.join(groups)}) or a driver ({', '.join(drivers)}); see 'ionav-viz list'",
+                                 f"give all, a group ({', '.join(groups)}) or a driver ({', '.join(drivers)}); see "
+                                 "'ionav-viz list'",
                                  param="runs")
             for run in hits:
                 entry = run.vehicle or run.vehicle_sync
@@ -150,20 +158,23 @@ def selected_files(selection: RunSelection, source: DatasetSource | None = None)
     wanted = list(selection.names)
     if selection.scenario is not None:
         if selection.scenario != "all" and selection.scenario not in PAPER_TEST_RUNS:
-            raise InputError(f"unknown scenario {selection.scenario!r}", f"choose {', '.join(PAPER_TEST_RUNS)} or all", param="scenario")
+            raise InputError(f"unknown scenario {selection.scenario!r}", f"choose {', '.join(PAPER_TEST_RUNS)} or all",
+                             param="scenario")
         wanted += [r for s, rs in PAPER_TEST_RUNS.items() if selection.scenario in ("all", s) for r in rs]
     if selection.paper_test:
         wanted += [r for rs in PAPER_TEST_RUNS.values() for r in rs]
     if selection.paper_train:
         wanted += list(PAPER_TRAIN_RUNS)
     if not wanted:
-        raise InputError("no run to fetch", "name runs, or choose a scenario, the paper's test runs or its training runs", param="names")
+        raise InputError("no run to fetch",
+                         "name runs, or choose a scenario, the paper's test runs or its training runs", param="names")
     entries = []
     for name in dict.fromkeys(wanted):
         run = catalog.get(run_key(name))
         if run is None:
             close = difflib.get_close_matches(name, [r.name for r in catalog.values()], n=3)
-            raise InputError(f"unknown IO-VNBD run {name!r}", f"did you mean {', '.join(close)}?" if close else "see 'ionav-viz list'")
+            raise InputError(f"unknown IO-VNBD run {name!r}",
+                             f"did you mean {', '.join(close)}?" if close else "see 'ionav-viz list'")
         files = [run.vehicle_sync if selection.synchronised else run.vehicle or run.vehicle_sync]
         if selection.phone:
             files.append((run.phone_sync if selection.synchronised else run.phone) or run.phone_sync or run.phone)
@@ -189,9 +200,11 @@ def fetch(selection: RunSelection, data_root: str | Path | None = None, source: 
     try:
         root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise InputError(f"data root {root}: cannot create it ({exc.strerror})", "choose a writable data root", param="data_root") from None
+        raise InputError(f"data root {root}: cannot create it ({exc.strerror})", "choose a writable data root",
+                         param="data_root") from None
     if not os.access(root, os.W_OK | os.X_OK):
-        raise InputError(f"data root {root}: cannot write in it (permission denied)", "choose a writable data root", param="data_root")
+        raise InputError(f"data root {root}: cannot write in it (permission denied)", "choose a writable data root",
+                         param="data_root")
     cache = VerifiedCache(root)
     total = sum(e.size_bytes for e in entries)
     try:

@@ -53,7 +53,8 @@ class Engine:
 
     def __post_init__(self) -> None:
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
-            raise InputError(f"{self.workers!r} workers: give a whole number of 1 or more", "e.g. --workers 2", param="workers")
+            raise InputError(f"{self.workers!r} workers: give a whole number of 1 or more", "e.g. --workers 2",
+                             param="workers")
         if self.cluster is not None:
             check_cluster_address(self.cluster)
 
@@ -71,7 +72,8 @@ class Engine:
         size = self.pool_size()
         if self.backend == "serial" or size == self.workers:
             return None
-        return f"--workers {self.workers}: {size} worker process(es), the cores this process may use (more would only share them)"
+        return (f"--workers {self.workers}: {size} worker process(es), the cores this process may use "
+                "(more would only share them)")
 
     @property
     def backend(self) -> str:
@@ -272,7 +274,8 @@ def _processes(fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> 
     yield from _retry_alone(fn, items, sorted(lost), workers, none_done=len(lost) == len(items))
 
 
-def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int], workers: int, none_done: bool) -> Iterator[tuple[int, Any]]:
+def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int], workers: int,
+                 none_done: bool) -> Iterator[tuple[int, Any]]:
     """Each lost item once more, alone in a fresh process (``workers`` at a time), so that the
     item that kills its worker is told from those that only shared its pool. When no item had
     come back at all and the whole first batch dies again, the workers cannot start here (a
@@ -306,9 +309,9 @@ def _retry_alone(fn: Callable[[Any], Any], items: Sequence[Any], lost: list[int]
                     _stop_workers(pool)
                 pool.shutdown(wait=True, cancel_futures=True)
         if none_done and len(died) == len(batch):
-            raise ToolFailure("every worker process died before returning anything: they cannot start here (a script that starts "
-                              "them needs its work under 'if __name__ == \"__main__\":', and standard input cannot be re-imported), "
-                              "or every drive exhausts the memory; try --workers 1")
+            raise ToolFailure("every worker process died before returning anything: they cannot start here (a script "
+                              "that starts them needs its work under 'if __name__ == \"__main__\":', and standard "
+                              "input cannot be re-imported), or every drive exhausts the memory; try --workers 1")
         for i in sorted(died):
             yield i, WorkerLost("its worker process died twice (killed, or out of memory); retried once")
         none_done = False
@@ -343,13 +346,15 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
         from distributed import Client, LocalCluster, as_completed
         from distributed.scheduler import KilledWorker
     except ImportError:
-        raise InputError("--cluster needs Dask, which is not installed", 'pip install "ionav-viz[cluster]"', param="cluster") from None
+        raise InputError("--cluster needs Dask, which is not installed", 'pip install "ionav-viz[cluster]"',
+                         param="cluster") from None
 
     cluster = None
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):  # a dying item is retried once (local cluster)
         if engine.cluster == LOCAL_CLUSTER:
             with one_thread_environment():  # its worker processes start here
-                cluster = LocalCluster(n_workers=engine.pool_size(len(items)), threads_per_worker=1, processes=True, dashboard_address=None)
+                cluster = LocalCluster(n_workers=engine.pool_size(len(items)), threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
             address = cluster
         else:
             address = engine.cluster
@@ -364,7 +369,8 @@ def _dask(fn: Callable[[Any], Any], items: Sequence[Any], engine: Engine) -> Ite
             why = " ".join(str(exc).split())
             why = f" ({why})" if why else f" within {timeout_s:g} s (Dask's distributed.comm.timeouts.connect)"
             raise InputError(f"no Dask scheduler answered at {engine.cluster}{why}",
-                             "start one ('dask scheduler', then 'dask worker ADDRESS'), or use --cluster local", param="cluster") from None
+                             "start one ('dask scheduler', then 'dask worker ADDRESS'), or use --cluster local",
+                             param="cluster") from None
     try:
         client.run(_worker_start)
         futures = client.map(fn, list(items), pure=False)

@@ -72,7 +72,8 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
     if paper:
         parts.append(f"{', '.join(paper)}: the paper's IO-VNBD test runs under {root}")
     if bundled:
-        why = f"the paper's runs are not all under {root}; 'ionav-viz fetch --scenario NAME' gets them" if root else "no IO-VNBD data root"
+        why = (f"the paper's runs are not all under {root}; 'ionav-viz fetch --scenario NAME' gets them"
+               if root else "no IO-VNBD data root")
         parts.append(f"{', '.join(bundled)}: the bundled synthetic test drives ({why})")
     out.source = "; ".join(parts)
     return out
@@ -125,7 +126,8 @@ def evaluate(
     placement = placement_of(placement, plan)
     n = windows_of(outage_s, placement)  # checked before any drive is read
     if isinstance(placement, FromPlan) and len(items) != 1:
-        raise InputError(f"a plan is made for one drive, and {len(items)} are given", "evaluate the plan's drive alone", param="plan")
+        raise InputError(f"a plan is made for one drive, and {len(items)} are given", "evaluate the plan's drive alone",
+                         param="plan")
     run, read = options_of(run, estimators, read, mcap, truth)
     run = with_externals(run, external, placement)
     if export is not None:
@@ -165,7 +167,8 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
         plan = planned.plan
         if plan.too_short:
             if plan.excluded:
-                log.warning("%s: no %g s outage fits where the GNSS truth and the receiver's fixes are good; skipped", drive.name, n)
+                log.warning("%s: no %g s outage fits where the GNSS truth and the receiver's fixes are good; skipped",
+                            drive.name, n)
             elif len(loaded) > 1:  # one drive alone: the error says it
                 short = too_short(drive, n, run, read)
                 log.warning("%s; skipped (%s)", short.message, short.hint)
@@ -204,8 +207,10 @@ def evaluate_lengths(
         check_output_folder(Path(export), param="export")
         refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement))
     loaded = load_drives(items, read)  # read once, used for every length
-    return dict(each_length(lengths, lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read, progress=progress,
-                                                             export=None if export is None else Path(export) / f"{length:g}s")))
+    return dict(each_length(lengths,
+                            lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read,
+                                                    progress=progress,
+                                                    export=None if export is None else Path(export) / f"{length:g}s")))
 
 
 def evaluate_by_event(
@@ -231,9 +236,11 @@ def evaluate_by_event(
     run.chosen()
     with collecting_warnings() as warned:
         per_type, counts = _evaluate_by_event_each(drives, n, kinds, run, read)
-    reports = EventReports({kind: Report(results, kind, warnings=warned) for kind, results in per_type.items() if results}, counts, n)
+    reports = EventReports({kind: Report(results, kind, warnings=warned) for kind, results in per_type.items()
+                            if results}, counts, n)
     if not reports:
-        raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in {', '.join(name_of(d) for d in drives)}",
+        raise InputError(f"no {', '.join(kinds)} event with room for a {n:g} s outage in "
+                         f"{', '.join(name_of(d) for d in drives)}",
                          "see 'ionav-viz events DRIVE'")
     return reports
 

@@ -13,8 +13,8 @@ from ..sources.load import ReadOptions, load_drive, load_drives
 from .options import DriveLike, check_event_types
 
 
-def find_events(drives: Sequence[DriveLike] | DriveLike, types: Sequence[str] | None = None, *, thresholds: EventThresholds | None = None,
-                read: ReadOptions | None = None) -> dict[str, list[Event]]:
+def find_events(drives: Sequence[DriveLike] | DriveLike, types: Sequence[str] | None = None, *,
+                thresholds: EventThresholds | None = None, read: ReadOptions | None = None) -> dict[str, list[Event]]:
     """The detected events of each drive (by drive name; by its file where two drives share a
     name), of ``types`` (default every type), in time order; overlapping detections of one type
     are one event (``ionav-viz events``)."""
@@ -23,14 +23,16 @@ def find_events(drives: Sequence[DriveLike] | DriveLike, types: Sequence[str] | 
     if not items:
         raise InputError("no drive to look at", "give at least one drive")
     drives_read = load_drives(items, read)  # a warning each drive repeats is said once
-    return {label: detect_events(drive, thresholds or EventThresholds(), kinds) for label, drive in zip(drive_labels(drives_read), drives_read)}
+    return {label: detect_events(drive, thresholds or EventThresholds(), kinds)
+            for label, drive in zip(drive_labels(drives_read), drives_read)}
 
 
 def _kinds(types: Sequence[str] | None) -> tuple[str, ...]:
     """The event types asked for (default every type), checked: a lone string was taken letter by
     letter ("unknown event type(s) r, o, u, n, d, ...")."""
     if isinstance(types, (str, bytes)):
-        raise InputError(f"types={types!r} is not a sequence of event types", f"give a list, e.g. types=[{types!r}]", param="types")
+        raise InputError(f"types={types!r} is not a sequence of event types", f"give a list, e.g. types=[{types!r}]",
+                         param="types")
     kinds = tuple(types) if types else EVENT_TYPES
     check_event_types(kinds)
     return kinds
@@ -54,7 +56,8 @@ class DetectorQuality:
         return self.precise / self.found if self.found else None
 
 
-def detector_quality(thresholds: EventThresholds | None = None, types: Sequence[str] | None = None) -> dict[str, DetectorQuality]:
+def detector_quality(thresholds: EventThresholds | None = None,
+                     types: Sequence[str] | None = None) -> dict[str, DetectorQuality]:
     """Each detector's recall and precision on the bundled synthetic drives, where the simulator
     knows every manoeuvre it drove (``ionav-viz events --quality``)."""
     from ..analysis.events import score

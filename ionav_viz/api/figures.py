@@ -43,11 +43,14 @@ def figures(result: ReplayResult | Report | str | os.PathLike[str], output: str 
             return write_figures(rep, output)
     if not isinstance(result, (str, os.PathLike)):
         raise InputError(f"result of type {type(result).__name__}: not a recording, a report or its file",
-                         "give what replay or evaluate returned, a .rrd, or the output of 'evaluate --json'", param="result")
+                         "give what replay or evaluate returned, a .rrd, or the output of 'evaluate --json'",
+                         param="result")
     refuse_output_onto_input(output, [result])  # before reading: -o inside the input's folder, or the input itself
-    for name in (f"{f}.{fmt}" for f in (*FIGURES, *FLEET_FIGURES, *LENGTH_FIGURES) for fmt in FORMATS):  # the files it replaces (others there are kept)
+    # the files it replaces (others there are kept)
+    for name in (f"{f}.{fmt}" for f in (*FIGURES, *FLEET_FIGURES, *LENGTH_FIGURES) for fmt in FORMATS):
         refuse_output_onto_input(Path(output) / name, [result])
-    check_regular_input(result, "result", hint="give a .rrd written by replay or the output of 'evaluate --json'", missing_ok=True)
+    check_regular_input(result, "result", hint="give a .rrd written by replay or the output of 'evaluate --json'",
+                        missing_ok=True)
     rep = read_report(result)
     with stage(f"figures of {Path(result).name}"):
         return write_figures(rep, output)

@@ -121,7 +121,8 @@ def _expand_one(spec: str, depth: int, lists_read: set[Any]) -> list[str]:
     if not path.exists() and glob.has_magic(spec):
         found = sorted(set(_glob(os.path.expanduser(spec))))
         if not found:
-            raise InputError(f"{spec}: no file matches", "check the pattern (quote it so the shell leaves it to ionav-viz)")
+            raise InputError(f"{spec}: no file matches",
+                             "check the pattern (quote it so the shell leaves it to ionav-viz)")
         # a folder of drives among them: its drives
         return [p for match in found for p in _expand_one(match, depth, lists_read)]
     return [spec]
@@ -229,7 +230,8 @@ class _Job:
     config: dict[str, Any] | None = None
 
 
-def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str | None = None) -> DriveTable | DriveFailure:
+def evaluate_one(spec: str, job: _Job, recording: str | None = None,
+                 path: str | None = None) -> DriveTable | DriveFailure:
     """Evaluate one drive (in whichever process runs it), and with ``recording`` replay it into
     that ``.rrd``: its compact table, or why it failed in one line. ``path``: where the worker reads
     it (the absolute path of ``spec``, for workers in other folders). The drive's arrays are
@@ -252,21 +254,26 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None, path: str |
                 return DriveFailure(spec, f"skipped: {exc.message}", time.perf_counter() - began, skipped=True)
             plan = planned.plan
             if plan.too_short:
-                why = "no outage fits where the GNSS truth and the receiver's fixes are good" if plan.excluded else "too short for a single outage"
-                return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began, skipped=True)
+                why = ("no outage fits where the GNSS truth and the receiver's fixes are good"
+                       if plan.excluded else "too short for a single outage")
+                return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began,
+                                    skipped=True)
             if recording is not None:
                 from .replay import replay
 
                 with _one_torch_thread(load=_torch_idnn(job.run.applying_to([drive]))):
-                    result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run, read=job.read).result
+                    result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run,
+                                    read=job.read).result
             else:
                 ests = job.run.applying_to([drive])
                 with _one_torch_thread(load=_torch_idnn(ests)):
                     result = score(planned, ests, job.run.bias_of(job.read)(drive))
             return drive_table(spec, result, list(warned), time.perf_counter() - began, recording, job.run.thresholds)
         except Exception as exc:  # any drive's failure is its own: reported, the fleet goes on
-            return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "), time.perf_counter() - began,
-                                hint=" ".join((exc.hint or "").split()) if isinstance(exc, InputError) else "")  # as the reason's one line has it
+            return DriveFailure(spec, _one_line(exc).removeprefix(f"{path or spec}: ").removeprefix(f"{spec}: "),
+                                time.perf_counter() - began,
+                                # as the reason's one line has it
+                                hint=" ".join((exc.hint or "").split()) if isinstance(exc, InputError) else "")
 
 
 def _torch_idnn(estimators: list) -> bool:
@@ -388,8 +395,8 @@ def evaluate_fleet(
     items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
     outputs = plan_outputs(items, fleet_rrd=fleet_rrd, inputs=fleet_inputs(drives, items, job.run))
-    report = _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job, engine, fail_fast,
-                        progress, replay_options)
+    report = _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job,
+                        engine, fail_fast, progress, replay_options)
     if outputs.fleet_rrd is not None and report.drives:
         _write_overview(report, outputs.fleet_rrd)
     return report
@@ -427,7 +434,8 @@ def replay_fleet(
     items = expand_drives(drives, runs)
     job = _job_of(items, outage_s, placement, estimators, run, read)
     out = Path(folder)
-    outputs = plan_outputs(items, folder=out, span=job.read.span, fleet_rrd=fleet_rrd, inputs=fleet_inputs(drives, items, job.run))
+    outputs = plan_outputs(items, folder=out, span=job.read.span, fleet_rrd=fleet_rrd,
+                           inputs=fleet_inputs(drives, items, job.run))
     for spec, recording in outputs.renamed.items():
         log.warning("%s: recorded as %s, as another output of this run has the drive's name", spec, recording)
     work = [(d.spec, job, recording, _absolute(d.spec)) for d, recording in zip(items, outputs.recordings)]
@@ -440,7 +448,8 @@ def replay_fleet(
             _write_overview(report, outputs.fleet_rrd)
         return report
     finally:
-        if report is None or not report.drives:  # no recording written: the folders made for them go again (if still empty)
+        # no recording written: the folders made for them go again (if still empty)
+        if report is None or not report.drives:
             for level in reversed(made):
                 with contextlib.suppress(OSError):
                     level.rmdir()
@@ -460,8 +469,8 @@ class FleetOutputs:
     renamed: dict[str, str] = field(default_factory=dict)
 
 
-def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = None, span: Span | None = None, fleet_rrd: str | Path | None = None,
-                 inputs: Sequence[str | Path] = ()) -> FleetOutputs:
+def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = None, span: Span | None = None,
+                 fleet_rrd: str | Path | None = None, inputs: Sequence[str | Path] = ()) -> FleetOutputs:
     """The one place that names a fleet run's outputs, before any work: with ``folder`` (replay),
     one recording per drive there, ``<drive>.rrd`` as :func:`ionav_viz.api.replay.default_stem`
     names it (``span``: ``--span``); and the overview recording ``fleet_rrd``.
@@ -484,8 +493,10 @@ def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = Non
     overview_name = None
     if overview is not None:
         if overview.suffix.lower() != ".rrd":
-            raise InputError(f"{overview}: the fleet's overview is an .rrd file", "give a name ending in .rrd", param="fleet_rrd")
-        in_folder = out is not None and os.path.realpath(overview.parent if str(overview.parent) else ".") == os.path.realpath(out)
+            raise InputError(f"{overview}: the fleet's overview is an .rrd file", "give a name ending in .rrd",
+                             param="fleet_rrd")
+        in_folder = out is not None and (os.path.realpath(overview.parent if str(overview.parent) else ".")
+                                         == os.path.realpath(out))
         if not in_folder or out.exists():  # else its folder is made by the run, checked as the recordings' folder
             try:
                 check_output_file(overview)
@@ -500,14 +511,16 @@ def plan_outputs(items: Sequence[FleetDrive], *, folder: str | Path | None = Non
     if overview_name is not None:
         for d, stem in zip(items, stems):
             if f"{stem}.rrd" == overview_name:
-                raise InputError(f"{overview}: is the recording of the drive {d.spec}, which the overview would replace",
+                raise InputError(f"{overview}: is the recording of the drive {d.spec}, which the overview "
+                                 "would replace",
                                  "give the overview another name (e.g. fleet.rrd) or another folder", param="fleet_rrd")
     reserved = {s.casefold() for s in stems}
     taken = {overview_name.casefold().removesuffix(".rrd")} if overview_name is not None else set()
     recordings, renamed = [], {}
     for d, stem in zip(items, stems):
         name, n = stem, 1
-        while name.casefold() in taken or (name != stem and name.casefold() in reserved):  # another drive's own name: it keeps it
+        # another drive's own name: it keeps it
+        while name.casefold() in taken or (name != stem and name.casefold() in reserved):
             n += 1
             name = f"{stem}-{n}"
         taken.add(name.casefold())
@@ -571,8 +584,8 @@ def _drive_name(spec: str) -> str:
     return (path.parent.name if path.name == "metadata.yaml" else path.stem) or "drive"
 
 
-def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placement | None, estimators: Sequence[str | Estimator] | None,
-            run: RunOptions | None, read: ReadOptions | None) -> _Job:
+def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placement | None,
+            estimators: Sequence[str | Estimator] | None, run: RunOptions | None, read: ReadOptions | None) -> _Job:
     """The run's options, checked once, before any worker starts."""
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
@@ -583,15 +596,16 @@ def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placemen
         check_event_types(placement.event_types)
     run.chosen()  # plug-ins and the model are checked here, before any worker starts
     if run.bias_from is not None and not isinstance(run.bias_from, SensorBias):
-        stationary = load_stationary(run.bias_from, read)  # --bias-from too: a file that cannot be read, or does not stand
+        # --bias-from too: a file that cannot be read, or does not stand
+        stationary = load_stationary(run.bias_from, read)
         resolve_bias(stationary, stationary)  # still, is the run's one error, not every drive's failure
     from ..core import run_config
 
     return _Job(n, placement, run, read, run_config.current())
 
 
-def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list[int | None], job: _Job, engine: Engine, fail_fast: bool,
-               progress: Progress | None, replay_options: str) -> FleetReport:
+def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list[int | None], job: _Job, engine: Engine,
+               fail_fast: bool, progress: Progress | None, replay_options: str) -> FleetReport:
     """Run every item on ``engine``, the largest files first (so that no long drive starts last
     while the other workers wait), and pool the results in the order given."""
     began = time.perf_counter()
@@ -608,13 +622,15 @@ def _run_fleet(work: list[tuple[str, _Job, str | None, str | None]], sizes: list
             if fail_fast and isinstance(value, DriveFailure) and not value.skipped:
                 reason = value.reason.removesuffix(f" (hint: {value.hint})") if value.hint else value.reason
                 other = "leave out --fail-fast to evaluate the other drives and report this one"
-                raise InputError(f"{value.spec}: {reason}", f"{value.hint}; or {other}" if value.hint else other)  # one hint
+                # one hint
+                raise InputError(f"{value.spec}: {reason}", f"{value.hint}; or {other}" if value.hint else other)
             if isinstance(value, DriveTable):
                 outages += value.n_outages
             if value.elapsed_s > slowest[1]:
                 slowest = (Path(value.spec).name, value.elapsed_s)
             if progress:
-                progress(f"{len(done)}/{len(work)} drives, {outages} outages scored, slowest {slowest[0]} {slowest[1]:.1f} s",
+                progress(f"{len(done)}/{len(work)} drives, {outages} outages scored, slowest {slowest[0]} "
+                         f"{slowest[1]:.1f} s",
                          len(done), len(work))
     finally:
         close = getattr(results, "close", None)
@@ -653,7 +669,8 @@ def write_fleet_recording(report: FleetReport, output: str | Path) -> Path:
         raise InputError(f"output={output!r} is not a file's path", "give a name ending in .rrd", param="fleet_rrd")
     out = Path(output)
     if out.suffix.lower() != ".rrd":
-        raise InputError(f"{out}: the fleet's recording is an .rrd file", "give a name ending in .rrd", param="fleet_rrd")
+        raise InputError(f"{out}: the fleet's recording is an .rrd file", "give a name ending in .rrd",
+                         param="fleet_rrd")
     with atomic_path(out) as tmp:
         write(report, tmp, target=out)
     return out
@@ -673,17 +690,20 @@ class FleetPlan:
         """One line per drive (size in MB, or "missing"), then the total and the time estimate."""
         from ..analysis.tables import aligned
 
-        rows = [[d.spec, "missing" if d.spec in self.missing else "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"]
+        rows = [[d.spec,
+                 "missing" if d.spec in self.missing else "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"]
                 for d in self.drives]
         total_mb = sum(d.size_bytes or 0 for d in self.drives) / 1e6
         lines = aligned(["Drive", "MB"], rows, 1)
-        lines += ["", f"{len(self.drives)} drive(s), {total_mb:.1f} MB; about {self.estimate_s:.0f} s on {self.workers} worker(s) "
-                      "(a rough estimate from the file sizes)"]
+        lines += ["",
+                  f"{len(self.drives)} drive(s), {total_mb:.1f} MB; about {self.estimate_s:.0f} s on "
+                  f"{self.workers} worker(s) (a rough estimate from the file sizes)"]
         lines += [f"not found, the run would report it failed: {why}" for why in self.missing.values()]
         return "\n".join(lines) + "\n"
 
     def to_dict(self) -> dict[str, Any]:
-        return {"drives": [{"drive": d.spec, "size_bytes": d.size_bytes, **({"missing": self.missing[d.spec]} if d.spec in self.missing else {})}
+        return {"drives": [{"drive": d.spec, "size_bytes": d.size_bytes,
+                            **({"missing": self.missing[d.spec]} if d.spec in self.missing else {})}
                            for d in self.drives], "workers": self.workers, "estimate_s": round(self.estimate_s, 1)}
 
 

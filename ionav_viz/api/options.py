@@ -73,10 +73,12 @@ class RunOptions:
         for name in ("estimators", "plugins", "without"):  # estimators="ins" was "unknown estimator 'i'"
             value = getattr(self, name)
             if isinstance(value, (str, bytes)) or (value is not None and not isinstance(value, Iterable)):  # 5 too
-                raise InputError(f"{name}={value!r} is not a sequence of estimators", f"give a list, e.g. {name}=['ins']", param=name)
-        if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s) and 0 <= self.warm_up_s <= 3600):
-            raise InputError(f"warm-up {self.warm_up_s!r} is not 0-3600 seconds", "give e.g. 30s, or 0s for outages from the drive's start",
-                             param="warm_up")
+                raise InputError(f"{name}={value!r} is not a sequence of estimators",
+                                 f"give a list, e.g. {name}=['ins']", param=name)
+        if not (isinstance(self.warm_up_s, (int, float)) and math.isfinite(self.warm_up_s)
+                and 0 <= self.warm_up_s <= 3600):
+            raise InputError(f"warm-up {self.warm_up_s!r} is not 0-3600 seconds",
+                             "give e.g. 30s, or 0s for outages from the drive's start", param="warm_up")
 
     def chosen(self) -> list[Estimator]:
         """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""
@@ -101,9 +103,11 @@ class RunOptions:
                 kept.append(est)
             elif est.name not in defaults:
                 need = getattr(est, "requires", "")
-                log.warning("%s left out: it does not apply to %s%s", est.label, ", ".join(missing), f" (it needs {need})" if need else "")
+                log.warning("%s left out: it does not apply to %s%s", est.label, ", ".join(missing),
+                            f" (it needs {need})" if need else "")
         if not kept:
-            raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to {', '.join(d.name for d in drives)}",
+            raise InputError(f"none of the chosen estimators ({', '.join(e.name for e in chosen)}) applies to "
+                             f"{', '.join(d.name for d in drives)}",
                              "choose others (ins always applies)", param="estimators")
         return kept
 
@@ -134,18 +138,22 @@ def options_of(run: RunOptions | None, estimators: Sequence[str | Estimator] | N
     """The run and read options of a call: ``estimators`` is a shortcut for ``run.estimators``,
     ``truth`` for ``read.log.truth_topic``."""
     if run is not None and not isinstance(run, RunOptions):  # run="x" was an AttributeError naming no argument
-        raise InputError(f"run={run!r} is not a RunOptions", "give run=iv.RunOptions(...), or leave it out", param="run")
+        raise InputError(f"run={run!r} is not a RunOptions", "give run=iv.RunOptions(...), or leave it out",
+                         param="run")
     run = run if run is not None else RunOptions()
     if estimators is not None:
         if run.estimators is not None:
-            raise InputError("estimators given twice (as estimators= and in run=)", "give them once", param="estimators")
+            raise InputError("estimators given twice (as estimators= and in run=)", "give them once",
+                             param="estimators")
         run = replace(run, estimators=estimators)
     read = with_deprecated_log(read, mcap)
     if truth is not None:
         if not isinstance(truth, str) or not truth:
-            raise InputError(f"truth={truth!r} is not a topic name", "give the reference's topic, e.g. truth='/reference/fix'", param="truth")
+            raise InputError(f"truth={truth!r} is not a topic name",
+                             "give the reference's topic, e.g. truth='/reference/fix'", param="truth")
         if read.log.truth_topic not in (None, truth):
-            raise InputError("the reference given twice (as truth= and in read.log.truth_topic)", "give it once", param="truth")
+            raise InputError("the reference given twice (as truth= and in read.log.truth_topic)", "give it once",
+                             param="truth")
         read = replace(read, log=replace(read.log, truth_topic=truth))
     return run, read
 
@@ -157,7 +165,8 @@ def check_event_types(types: Sequence[str]) -> None:
     unknown = [t for t in types if t not in EVENT_TYPES]
     if unknown or not types:
         renamed = "; ".join(f"{t} is {RENAMED_TYPES[t]} now" for t in unknown if t in RENAMED_TYPES)
-        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}", renamed or f"choose from {', '.join(EVENT_TYPES)}", param="placement")
+        raise InputError(f"unknown event type(s) {', '.join(unknown) or '(none)'}",
+                         renamed or f"choose from {', '.join(EVENT_TYPES)}", param="placement")
 
 
 
@@ -168,7 +177,8 @@ def placement_of(placement: Placement | FromPlan | None, plan: str | Path | None
 
     if plan is not None:
         if placement is not None:
-            raise InputError("outages given twice (a plan and a placement)", "give a plan or a placement, not both", param="plan")
+            raise InputError("outages given twice (a plan and a placement)", "give a plan or a placement, not both",
+                             param="plan")
         return FromPlan(plan)
     if placement is not None and not isinstance(placement, (*get_args(Placement), FromPlan)):  # 5 was an AttributeError
         raise InputError(f"placement={placement!r} is not a placement",
@@ -177,7 +187,8 @@ def placement_of(placement: Placement | FromPlan | None, plan: str | Path | None
     return placement or Tile()
 
 
-def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None, placement: Placement | FromPlan) -> RunOptions:
+def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None,
+                   placement: Placement | FromPlan) -> RunOptions:
     """``run`` with the external estimates (``{name: trajectory}``, see :mod:`ionav_viz.nav.external`)
     added to its plug-ins; they need the plan of the outaged log they were made on."""
     from ..nav.external import External
@@ -188,15 +199,16 @@ def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None, p
     if not external:
         return run
     if not hasattr(external, "items"):
-        raise InputError(f"external={external!r} is not a mapping of names to trajectories", "e.g. external={'rl': 'rl.csv'}", param="external")
+        raise InputError(f"external={external!r} is not a mapping of names to trajectories",
+                         "e.g. external={'rl': 'rl.csv'}", param="external")
     if not isinstance(placement, FromPlan):
-        raise InputError("an external estimate is scored on the outages of the log it ran on", "score it on that log's plan (its NAME.outages.json)",
-                         param="external")
+        raise InputError("an external estimate is scored on the outages of the log it ran on",
+                         "score it on that log's plan (its NAME.outages.json)", param="external")
     built = []
     for name, spec in external.items():
         if str(name) in BUILTIN:  # an external 'ins' became the baseline every improvement is measured against
-            raise InputError(f"--external {name}: {name!r} is a built-in estimator's name", f"name the trajectory otherwise, e.g. my-{name}={spec}",
-                             param="external")
+            raise InputError(f"--external {name}: {name!r} is a built-in estimator's name",
+                             f"name the trajectory otherwise, e.g. my-{name}={spec}", param="external")
         est = External(str(name), read_trajectory(spec))
         validate(est, f"--external {name}")
         built.append(est)
@@ -207,8 +219,9 @@ def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None, p
     return replace(run, estimators=estimators, plugins=tuple(run.plugins) + tuple(built))
 
 
-def input_paths(drives: Sequence[DriveLike] | DriveLike | None, read: ReadOptions | None = None, *, run: RunOptions | None = None,
-                plan: str | Path | Placement | FromPlan | None = None, external: Mapping[str, str | Path] | None = None) -> list[Path]:
+def input_paths(drives: Sequence[DriveLike] | DriveLike | None, read: ReadOptions | None = None, *,
+                run: RunOptions | None = None, plan: str | Path | Placement | FromPlan | None = None,
+                external: Mapping[str, str | Path] | None = None) -> list[Path]:
     """The files and folders a call reads: its drives (resolved as :func:`load_drive` resolves them),
     a plan file, external trajectories, a bias drive, a model directory and plug-in files; for
     :func:`~ionav_viz.core.fileio.refuse_output_onto_input` before any work. A name that does not
@@ -224,7 +237,8 @@ def input_paths(drives: Sequence[DriveLike] | DriveLike | None, read: ReadOption
     out: list[Path] = []
     for item in items:
         if isinstance(item, Drive):
-            if item.source and Path(item.source).exists():  # a drive built in memory names a file it may not have come from
+            # a drive built in memory names a file it may not have come from
+            if item.source and Path(item.source).exists():
                 out.append(Path(item.source))
             continue
         try:
@@ -269,8 +283,10 @@ def lengths_of(lengths_s: Sequence[float], placement: object = None) -> list[flo
     if not lengths:
         raise InputError("no outage length given", "give one or more, e.g. 10, 30, 60", param="outage_s")
     if len(lengths) > 1 and tuple(getattr(placement, "event_types", ())) == (GNSS_OUTAGE,):
-        raise InputError("several outage lengths, but the log's own GNSS outages (gnss-outage) each have their own length",
-                         "leave out the outage lengths, or place synthetic outages too (e.g. --on gnss-outage,hard-brake)",
+        raise InputError("several outage lengths, but the log's own GNSS outages (gnss-outage) each have "
+                         "their own length",
+                         "leave out the outage lengths, or place synthetic outages too (e.g. --on "
+                         "gnss-outage,hard-brake)",
                          param="outage_s")
     for length in lengths:
         windows_of(length)
@@ -336,7 +352,8 @@ def too_short(drive: Drive, n_windows: int, run: RunOptions, read: ReadOptions |
     warm-up)."""
     span = getattr(read, "span", None)
     warm = float(run.warm_up_s)
-    what = (f"{drive.source or drive.name}: too short for a {n_windows:g} s outage" + (f" after the {warm:g} s warm-up" if warm > 0 else "")
+    what = (f"{drive.source or drive.name}: too short for a {n_windows:g} s outage"
+            + (f" after the {warm:g} s warm-up" if warm > 0 else "")
             + f" ({drive.duration_s:.1f} s" + (f" in the span {span}" if span is not None else "") + ")")
     warm_up_blamed = warm > 0 and drive.duration_s >= n_windows + 1  # the outage alone would fit (after its start fix)
     shortest_fits = drive.duration_s >= max(warm, 1.0) + 1  # a 1 s outage after the warm-up: shorter outages can help
@@ -358,22 +375,24 @@ def no_outage_fits(drives: Sequence[Drive], n_windows: int, where: str) -> Input
     from ..core.gnss_quality import count_by_fault
 
     # beside a reference the receiver's fixes count too: an outage starts from them
-    faults = np.concatenate([d.gnss_fault | (d.receiver_fault if d.has_reference and d.receiver_fault is not None else 0)
+    faults = np.concatenate([d.gnss_fault | (d.receiver_fault if d.has_reference and d.receiver_fault is not None
+                                             else 0)
                              for d in drives]) if drives else np.zeros(0, dtype=np.uint16)
     bad = float(np.mean(faults != 0)) if len(faults) else 0.0
     if bad >= POOR_GNSS_SHARE:
         counts = sorted(count_by_fault(faults).items(), key=lambda kv: -kv[1])
         reasons = ", ".join(f"{name} {n / len(faults):.0%}" for name, n in counts)
-        hint = ("shorter outages will not help: check the receiver's fixes (the recording's GNSS quality view), or loosen the checks "
-                "with --gnss-limit (docs/method.md, GNSS quality)")
+        hint = ("shorter outages will not help: check the receiver's fixes (the recording's GNSS quality view), or "
+                "loosen the checks with --gnss-limit (docs/method.md, GNSS quality)")
         sigmas = [d.columns["gnss_sigma_m"] for d in drives if "gnss_sigma_m" in d.columns]
         if counts[0][0] == "poor-accuracy" and sigmas:
             sigma = np.concatenate(sigmas)
             sigma = sigma[np.isfinite(sigma)]
             if len(sigma):  # a phone reports ~8 m: name the limit that scores against fixes that coarse
                 hint = (f"shorter outages will not help: the receiver reports {np.median(sigma):.1f} m (median); "
-                        f"--gnss-limit max_sigma_m={math.ceil(np.percentile(sigma, 90))} scores against fixes that coarse, "
-                        "or --truth-topic names a reference to score against (docs/method.md, GNSS quality)")
-        return InputError(f"no {n_windows:g} s outage fits on good GNSS truth in {where}: the GNSS is untrustworthy in {bad:.0%} of the "
-                          f"samples ({reasons})", hint, param="outage_s")
+                        f"--gnss-limit max_sigma_m={math.ceil(np.percentile(sigma, 90))} scores against fixes "
+                        "that coarse, or --truth-topic names a reference to score against (docs/method.md, "
+                        "GNSS quality)")
+        return InputError(f"no {n_windows:g} s outage fits on good GNSS truth in {where}: the GNSS is untrustworthy in "
+                          f"{bad:.0%} of the samples ({reasons})", hint, param="outage_s")
     return InputError(f"no {n_windows:g} s outage fits in {where}", "use shorter outages", param="outage_s")

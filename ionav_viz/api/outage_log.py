@@ -30,8 +30,8 @@ class OutageLogResult:
     removed: int
 
     def __repr__(self) -> str:
-        return (f"OutageLogResult({str(self.path)!r}, plan {str(self.plan_path)!r}: {len(self.plan.start_stamps_s)} outage(s) of "
-                f"{self.plan.outage_s:g} s, {self.removed} GNSS message(s) removed)")
+        return (f"OutageLogResult({str(self.path)!r}, plan {str(self.plan_path)!r}: {len(self.plan.start_stamps_s)} "
+                f"outage(s) of {self.plan.outage_s:g} s, {self.removed} GNSS message(s) removed)")
 
 
 def plan_path_of(output: Path) -> Path:
@@ -63,19 +63,22 @@ def outage_log(
 
     out = Path(output)
     if out.name in ("", ".", ".."):  # '.', '..', '/': an existing folder, and no name to derive the plan's from
-        raise InputError(f"{out}: exists; an outage log is a new file (.mcap, .bag, .csv) or a new folder (a ROS 2 bag)",
+        raise InputError(f"{out}: exists; an outage log is a new file (.mcap, .bag, .csv) or a new folder "
+                         "(a ROS 2 bag)",
                          "name a new one, e.g. -o cut.mcap", param="output")
     plan_file = plan_path_of(out)
     if out.suffix:
         check_output_file(out)
     check_output_file(plan_file)
     if not isinstance(drive, (str, Path)):
-        raise InputError(f"outage_log needs the drive's file, not a {type(drive).__name__}", "give its path or name", param="drive")
+        raise InputError(f"outage_log needs the drive's file, not a {type(drive).__name__}", "give its path or name",
+                         param="drive")
     sources = input_paths(drive, read)
     refuse_output_onto_input(out, sources)  # an outaged log written over its source would lose it
     refuse_output_onto_input(plan_file, sources)
     if isinstance(placement, FromPlan):
-        raise InputError("outage_log places outages itself", "give a placement (Tile, Every, At, Random, AroundEvents)", param="placement")
+        raise InputError("outage_log places outages itself", "give a placement (Tile, Every, At, Random, AroundEvents)",
+                         param="placement")
     placement = placement_of(placement, None)
     n = windows_of(outage_s, placement)
     run, read = options_of(run, None, read, None)
@@ -88,7 +91,8 @@ def outage_log(
         windows = make_windows(d)
     plan, _ = plan_outages(d, windows, placement, n, run)
     if plan.gnss_gaps and not len(plan.starts):
-        raise InputError(f"{d.name}: the gnss-outage placement bridges the log's own GNSS losses; there is nothing to remove",
+        raise InputError(f"{d.name}: the gnss-outage placement bridges the log's own GNSS losses; there is "
+                         "nothing to remove",
                          "place synthetic outages (every, at, random or on a manoeuvre)", param="placement")
     if not len(plan.starts):
         if plan.excluded:
@@ -99,8 +103,9 @@ def outage_log(
     outages = [(a, a + n) for a in stamps]
     gnss_topics: tuple[str, ...] = ()
     if kind in ("mcap", "ros1", "ros2"):
-        sel = select_channels(open_message_log(source, kind), read.log.imu_topic, read.log.gnss_topic, read.log.gnss_velocity_topic,
-                              read.log.vehicle_speed_topic, truth_topic=read.log.truth_topic)
+        sel = select_channels(open_message_log(source, kind), read.log.imu_topic, read.log.gnss_topic,
+                              read.log.gnss_velocity_topic, read.log.vehicle_speed_topic,
+                              truth_topic=read.log.truth_topic)
         gnss_topics = tuple(c.topic for c in (sel.gnss, sel.gnss_velocity) if c is not None)
     clock = ("IO-VNBD time since the start of the day (s)" if kind == "iovnbd"
              else f"UNIX time (s), the messages' {'log times' if read.log.stamps == 'log' else 'header stamps'}")
@@ -115,7 +120,8 @@ def outage_log(
         previous = _link_aside(out)
         release()
         with stage(f"write {out.name}"):
-            written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps, vehicle_speed_for_log(d.as_received()))
+            written = write_outage_log(d, source, kind, outages, out, gnss_topics, read.log.stamps,
+                                       vehicle_speed_for_log(d.as_received()))
         result = PlanFile(str(source), checksum(source), d.name, float(n), plan.description, options, tuple(stamps),
                           tuple(float(s) for s in start_s), clock, written.removed_topics)
         with atomic_path(plan_file) as tmp:

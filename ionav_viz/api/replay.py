@@ -73,8 +73,8 @@ class ReplayResult:
     events: list[Event] = field(default_factory=list)
 
     def __repr__(self) -> str:
-        return (f"ReplayResult({str(self.path)!r}\n  drive: {self.result.drive.name}, {len(self.outages)} outage(s): {self.placement}\n"
-                f"  {self.report.summary_line()}\n)")
+        return (f"ReplayResult({str(self.path)!r}\n  drive: {self.result.drive.name}, {len(self.outages)} outage(s): "
+                f"{self.placement}\n  {self.report.summary_line()}\n)")
 
 
 
@@ -140,7 +140,8 @@ def replay(
 
 
 def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, run: RunOptions, read: ReadOptions,
-            progress: Progress | None, connect: str | None, warned: list[str], export: str | Path | None = None) -> ReplayResult:
+            progress: Progress | None, connect: str | None, warned: list[str],
+            export: str | Path | None = None) -> ReplayResult:
     from ..core.fileio import atomic_path
     from ..viz import live
     from ..viz.recording import write_recording
@@ -175,13 +176,14 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
             progress(f"{out.name}: {label}", done[0], total)
 
     with stage(f"write {out}") as s, atomic_path(out, create_parent=default) as tmp:
-        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events, report_json=report.to_json(indent=None),
-                               overview_md=overview_markdown(result, report))
+        rows = write_recording(result, summary, tmp, progress=advance, target=out, events=events,
+                               report_json=report.to_json(indent=None), overview_md=overview_markdown(result, report))
         s.detail = f"{len(rows)} entities, {sum(rows.values())} rows"
     if connect is not None:
         with stage(f"stream to {connect}"):
             live.send_recording(out, connect)
-    outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k)) for i, k in enumerate(plan.starts)]
+    outages = [Outage(i + 1, float(windows.t0_s[k]), float(windows.t0_s[k] + n), int(k))
+               for i, k in enumerate(plan.starts)]
     return ReplayResult(out, report, outages, plan.description, result, events)
 
 
@@ -226,7 +228,8 @@ def replay_scenario(scenario: str, folder: str | Path, outage_s: float = 10.0, p
     read = read if read is not None else ReadOptions()
     groups = scenario_drives(scenario, read.data_root)
     log.info("drives: %s", groups.source)
-    return [replay(spec, outage_s, placement, output=Path(folder) / f"{group}-{Path(spec).stem}.rrd", run=run, read=read).path
+    return [replay(spec, outage_s, placement, output=Path(folder) / f"{group}-{Path(spec).stem}.rrd", run=run,
+                   read=read).path
             for group, specs in groups.items() for spec in specs]
 
 def _summary_markdown(result: DriveResult, report: Report, description: str) -> str:

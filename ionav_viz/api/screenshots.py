@@ -72,24 +72,29 @@ def screenshot(
     shots = shots if shots is not None else Shots()
     width, height = check_size(*(int(x) for x in shots.size))
     out = Path(output)
-    single = out.suffix.lower() == ".png" and len(paths) == 1 and (len(shots.times) + len(shots.outages)) * len(shots.views) == 1
+    single = (out.suffix.lower() == ".png" and len(paths) == 1
+              and (len(shots.times) + len(shots.outages)) * len(shots.views) == 1)
     if single:
         check_output_file(out)
     elif out.suffix.lower() != ".png" and out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a directory", "several images go into a directory: name one", param="output")
+        raise InputError(f"{out}: exists and is not a directory", "several images go into a directory: name one",
+                         param="output")
     folder = out if out.suffix.lower() != ".png" else out.parent
     existing = next((p for p in [folder, *folder.parents] if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory", param="output")
+        raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory",
+                         param="output")
     from ..viz.fleet import screenshot_fleet
     from ..viz.recording_info import is_fleet_recording
 
     fleets = [p for p in paths if is_fleet_recording(p)]
     if fleets and (tuple(shots.times) != ("end",) or tuple(shots.views) != ("all",) or shots.outages):
-        log.warning("%s: a fleet overview is one image of its own layout: the times, views and outage numbers asked do not apply to it",
+        log.warning("%s: a fleet overview is one image of its own layout: the times, views and outage numbers asked do "
+                    "not apply to it",
                     ", ".join(str(p) for p in fleets))
     written = []
-    for rec in fleets:  # a fleet overview (evaluate --fleet-rrd): one image of its own layout, whatever the times and views
+    # a fleet overview (evaluate --fleet-rrd): one image of its own layout, whatever the times and views
+    for rec in fleets:
         png = out if single or (out.suffix.lower() == ".png" and len(paths) == 1) else folder / f"{rec.stem}.png"
         if png is not out:
             png.parent.mkdir(parents=True, exist_ok=True)
@@ -100,5 +105,5 @@ def screenshot(
     if not paths:
         return written
     spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in shots.times]
-    return written + render(paths, Path(output), spec, list(shots.views), (width, height), timeout_s=timeout_s, progress=progress,
-                  outages=[int(n) for n in shots.outages], worst_of=shots.worst_of)
+    return written + render(paths, Path(output), spec, list(shots.views), (width, height), timeout_s=timeout_s,
+                            progress=progress, outages=[int(n) for n in shots.outages], worst_of=shots.worst_of)

@@ -32,16 +32,19 @@ def simulate(scenario: str, output: str | Path, seed: int = 0, duration_s: float
     :mod:`ionav_viz.sim.imu`), its receiver, and the reference truth on ``/truth/fix``.
     """
     if scenario not in SIMULATED_SCENARIOS:
-        raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SIMULATED_SCENARIOS)}", param="scenario")
+        raise InputError(f"unknown scenario {scenario!r}", f"choose one of {', '.join(SIMULATED_SCENARIOS)}",
+                         param="scenario")
     if imu is not None:
         if fleet is not None or ideal or gnss_losses:
-            raise InputError("a simulated IMU log has its grade's sensors: no fleet, ideal sensors or GNSS losses", "leave them out", param="imu")
+            raise InputError("a simulated IMU log has its grade's sensors: no fleet, ideal sensors or GNSS losses",
+                             "leave them out", param="imu")
         return write_imu_log(output, scenario, seed, duration_s, imu)
     if Path(output).suffix.lower() != ".csv":  # -o x.mcap wrote the CSV's text under that name, which no reader takes
-        hint = "choose a name like V-drive.csv, or give --imu mems|phone|dash for a 6-axis MCAP log" if Path(output).suffix.lower() == ".mcap" else \
-            "choose a name like V-drive.csv"
+        hint = ("choose a name like V-drive.csv, or give --imu mems|phone|dash for a 6-axis MCAP log"
+                if Path(output).suffix.lower() == ".mcap" else "choose a name like V-drive.csv")
         raise InputError(f"{output}: a simulated drive is an IO-VNBD CSV file (.csv)", hint, param="output")
-    if isinstance(gnss_losses, bool) or not isinstance(gnss_losses, numbers.Integral) or gnss_losses < 0:  # 1.5 was 1, silently
+    # 1.5 was 1, silently
+    if isinstance(gnss_losses, bool) or not isinstance(gnss_losses, numbers.Integral) or gnss_losses < 0:
         raise InputError(f"{gnss_losses!r} GNSS losses: give a whole number, 0 or more", param="gnss_losses")
     if fleet is not None and fleet not in FLEETS:
         raise InputError(f"unknown fleet {fleet!r}", f"choose one of {', '.join(FLEETS)}", param="fleet")
@@ -55,7 +58,8 @@ def simulate_bundled(folder: str | Path) -> list[Path]:
     """Regenerate every bundled sample drive into ``folder`` (made when missing)."""
     Path(folder).mkdir(parents=True, exist_ok=True)
     return [write_simulated_drive(Path(folder) / s.file, s.scenario, s.seed, s.duration_s,
-                                  fleet_sensors(s.fleet, s.seed) if s.fleet else None, gnss_losses=s.gnss_losses, package_ok=True)
+                                  fleet_sensors(s.fleet, s.seed) if s.fleet else None, gnss_losses=s.gnss_losses,
+                                  package_ok=True)
             for s in SAMPLES]
 
 

@@ -28,12 +28,14 @@ def training_drives(paper: bool = False, data_root: str | Path | None = None) ->
 
     if paper:
         if _data_root(data_root) is None:
-            raise InputError("training on the paper's runs needs the IO-VNBD data", "give the data root, or set IONAV_DATA", param="data_root")
+            raise InputError("training on the paper's runs needs the IO-VNBD data",
+                             "give the data root, or set IONAV_DATA", param="data_root")
         drives = TrainingDrives(PAPER_TRAIN_RUNS)
         drives.description = "the paper's IO-VNBD training runs (Table 1)"
         return drives
     drives = TrainingDrives(str(sample_path(s)) for s in SAMPLES if s.role == "train")
-    drives.description = "the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), not real data"
+    drives.description = ("the bundled synthetic training drives (ionav_viz/data/samples/V-sim-*-train-*.csv), "
+                          "not real data")
     return drives
 
 
@@ -81,18 +83,21 @@ def train(
     specs = training_drives() if drives is None else drives
     description = getattr(specs, "description", TrainingDrives.description)
     # the model folder is replaced whole: no training drive may lie in it (said before its other files)
-    refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
+    refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read),
+                             output_is_folder=True)
     out = check_model_dir(Path(output), overwrite=force)  # before any work
     stationary = load_stationary(bias_from, read)
     loaded = [(d, resolve_bias(d, stationary)) for d in load_drives(specs, read)]
-    model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device, on_epoch=on_epoch)
+    model = train_models(loaded, config, progress=progress, description=description, parent=parent, device=device,
+                         on_epoch=on_epoch)
     model.metadata["training"]["command"] = command
     save_model(model, out, overwrite=force)
     return model
 
 
-def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] | None = None, *, bias_from: DriveLike | None = None,
-                    read: ReadOptions | None = None, force: bool = False, command: str = "ionav_viz.fit_uncertainty") -> Any:
+def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] | None = None, *,
+                    bias_from: DriveLike | None = None, read: ReadOptions | None = None, force: bool = False,
+                    command: str = "ionav_viz.fit_uncertainty") -> Any:
     """Give a trained model (a model directory, ``"shipped"`` or an ``IdnnModel``) an uncertainty
     (or a new one) without changing its networks, and write it to ``output`` (a model directory, as
     :func:`train` writes it; its weight files are the model's, byte for byte).
@@ -106,7 +111,8 @@ def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] 
     read = read if read is not None else ReadOptions()
     model = parent_model(model)
     specs = training_drives() if drives is None else drives
-    refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read), output_is_folder=True)
+    refuse_output_onto_input(Path(output), input_paths([*specs, *([bias_from] if bias_from is not None else [])], read),
+                             output_is_folder=True)
     out = check_model_dir(Path(output), overwrite=force)
     stationary = load_stationary(bias_from, read)
     loaded = [(d, resolve_bias(d, stationary)) for d in load_drives(specs, read)]
@@ -126,7 +132,8 @@ def parent_model(from_model: Any) -> Any:
     if isinstance(from_model, str) and from_model == "shipped":
         return load_model(default_model_dir())
     if not isinstance(from_model, (str, Path)):
-        raise InputError(f"from_model={from_model!r} is not a model", "give a model directory or 'shipped'", param="from_model")
+        raise InputError(f"from_model={from_model!r} is not a model", "give a model directory or 'shipped'",
+                         param="from_model")
     try:
         return load_model(from_model)
     except InputError as exc:
@@ -134,7 +141,8 @@ def parent_model(from_model: Any) -> Any:
         raise
 
 
-def fine_tune_settings(parent: Any, epochs_disp: int | None = None, epochs_yaw: int | None = None, seed: int | None = None) -> Any:
+def fine_tune_settings(parent: Any, epochs_disp: int | None = None, epochs_yaw: int | None = None,
+                       seed: int | None = None) -> Any:
     """The ``ModelConfig`` for fine-tuning ``parent`` (a model, its directory or ``"shipped"``): its
     architecture, lower learning rates with a cosine decay, fewer epochs
     (:func:`ionav_viz.nav.training.fine_tune_config` says why)."""
@@ -158,5 +166,6 @@ def training_device(device: str | None = None) -> str:
     import torch
 
     if device == "cuda" and not torch.cuda.is_available():
-        raise InputError("device 'cuda': torch sees no GPU here", "train on the CPU (device 'cpu' or 'auto')", param="device")
+        raise InputError("device 'cuda': torch sees no GPU here", "train on the CPU (device 'cpu' or 'auto')",
+                         param="device")
     return "cuda" if torch.cuda.is_available() else "cpu"
