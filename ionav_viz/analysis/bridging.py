@@ -57,10 +57,12 @@ class BridgedOutage:
     def to_dict(self) -> dict[str, Any]:
         return {"number": self.number, "gap_start_s": round(self.gap_t0_s, 2), "gap_end_s": round(self.gap_t1_s, 2),
                 "gap_s": round(self.gap_s, 2), "outage_start_s": round(self.t0_s, 2), "outage_s": self.n_windows,
-                "span_m": round(self.span_m, 2), "final_error_m": {k: round(v, 3) for k, v in self.final_error_m.items()}}
+                "span_m": round(self.span_m, 2),
+                "final_error_m": {k: round(v, 3) for k, v in self.final_error_m.items()}}
 
 
-def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[float, float]], estimators: Sequence[Estimator],
+def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[float, float]],
+                        estimators: Sequence[Estimator],
                         bias: SensorBias) -> tuple[list[BridgedOutage], dict[str, int]]:
     """Every estimator through each GNSS gap ``(last good fix s, first good fix s)``; returns the
     bridged outages and how many gaps could not be bridged, per reason (:func:`~ionav_viz.nav.outages.unbridged`). The
@@ -75,15 +77,18 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
     for number, (i, k, n) in enumerate(placed, start=1):
         end = k + n
         _, _, span = geod.inv(windows.lon0_deg[k], windows.lat0_deg[k], windows.lon0_deg[end], windows.lat0_deg[end])
-        out.append(BridgedOutage(number, float(gaps[i][0]), float(gaps[i][1]), float(windows.t0_s[k]), float(windows.t0_s[end]),
-                                 k, n, float(windows.lat0_deg[end]), float(windows.lon0_deg[end]), float(span)))
+        out.append(BridgedOutage(number, float(gaps[i][0]), float(gaps[i][1]), float(windows.t0_s[k]),
+                                 float(windows.t0_s[end]), k, n, float(windows.lat0_deg[end]),
+                                 float(windows.lon0_deg[end]), float(span)))
     for n in sorted({b.n_windows for b in out}):  # one batch per outage length
         group = [b for b in out if b.n_windows == n]
         inputs = EstimatorInputs(received, given, np.asarray([b.start for b in group], dtype=int), n, bias)
         for est in estimators:
             track = solve(est, inputs).track
-            _, _, err = geod.inv(track.lon_deg[:, -1], track.lat_deg[:, -1], [b.end_lon_deg for b in group], [b.end_lat_deg for b in group])
+            _, _, err = geod.inv(track.lon_deg[:, -1], track.lat_deg[:, -1], [b.end_lon_deg for b in group],
+                                 [b.end_lat_deg for b in group])
             for j, b in enumerate(group):
                 b.final_error_m[est.name] = float(np.atleast_1d(err)[j])
-                b.tracks[est.name] = Track(track.lat_deg[j : j + 1], track.lon_deg[j : j + 1], track.heading_deg[j : j + 1])
+                b.tracks[est.name] = Track(track.lat_deg[j : j + 1], track.lon_deg[j : j + 1],
+                                           track.heading_deg[j : j + 1])
     return out, reasons_of(each)

@@ -42,25 +42,31 @@ def chi2_quantile(p: float, dof: float) -> float:
 
 
 def _normal_quantile(p: float) -> float:
-    a = (-3.969683028665376e01, 2.209460984245205e02, -2.759285104469687e02, 1.383577518672690e02, -3.066479806614716e01, 2.506628277459239e00)
-    b = (-5.447609879822406e01, 1.615858368580409e02, -1.556989798598866e02, 6.680131188771972e01, -1.328068155288572e01)
-    c = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e00, -2.549732539343734e00, 4.374664141464968e00, 2.938163982698783e00)
+    a = (-3.969683028665376e01, 2.209460984245205e02, -2.759285104469687e02, 1.383577518672690e02,
+         -3.066479806614716e01, 2.506628277459239e00)
+    b = (-5.447609879822406e01, 1.615858368580409e02, -1.556989798598866e02, 6.680131188771972e01,
+         -1.328068155288572e01)
+    c = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e00, -2.549732539343734e00,
+         4.374664141464968e00, 2.938163982698783e00)
     d = (7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e00, 3.754408661907416e00)
     if p < 0.02425:
         q = math.sqrt(-2 * math.log(p))
-        return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1)
+        return ((((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5])
+                / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1))
     if p > 1 - 0.02425:
         return -_normal_quantile(1 - p)
     q = p - 0.5
     r = q * q
-    return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1)
+    return ((((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q
+            / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1))
 
 
 def boundary_errors_m(result, name: str) -> np.ndarray:
     """The estimate's east/north error (m) against the truth at every window boundary of every
     outage, ``(n_outages, n_windows + 1, 2)``."""
     track = result.estimates[name].track
-    return boundary_errors_en_m(result.windows, np.asarray(result.starts), result.n_windows, track.lat_deg, track.lon_deg)
+    return boundary_errors_en_m(result.windows, np.asarray(result.starts), result.n_windows, track.lat_deg,
+                                track.lon_deg)
 
 
 def truth_sigma_m(result) -> float:
@@ -69,7 +75,8 @@ def truth_sigma_m(result) -> float:
     if drive.has_reference:
         return 0.0
     reported = drive.columns.get("gnss_sigma_m")
-    sigma = float(np.nanmedian(reported)) if reported is not None and np.isfinite(reported).any() else GNSS_SIGMA_FLOOR_M
+    sigma = (float(np.nanmedian(reported))
+             if reported is not None and np.isfinite(reported).any() else GNSS_SIGMA_FLOOR_M)
     return max(sigma, GNSS_SIGMA_FLOOR_M)
 
 
@@ -124,9 +131,10 @@ def pooled_consistency(parts: list[dict[str, np.ndarray]], n_windows: int) -> di
             sq = np.concatenate([p[f"sq_error_m2_{t}"] for p in parts])
             tr = np.concatenate([p[f"trace_m2_{t}"] for p in parts])
             ratio[str(t)] = float(math.sqrt(sq.mean() / max(tr.mean(), 1e-12)))
-    verdict = "consistent" if band[0] <= anees <= band[1] else ("overconfident" if anees > band[1] else "underconfident")
-    return {"anees": anees, "anees_band": band, "coverage_95": float(100.0 * np.mean(final <= CHI2_2_95)), "error_over_sigma": ratio,
-            "n_samples": n_samples, "n_outages": len(final), "verdict": verdict}
+    verdict = ("consistent" if band[0] <= anees <= band[1]
+               else ("overconfident" if anees > band[1] else "underconfident"))
+    return {"anees": anees, "anees_band": band, "coverage_95": float(100.0 * np.mean(final <= CHI2_2_95)),
+            "error_over_sigma": ratio, "n_samples": n_samples, "n_outages": len(final), "verdict": verdict}
 
 
 def consistency(results: list, name: str) -> dict[str, Any] | None:
@@ -142,7 +150,8 @@ def consistency(results: list, name: str) -> dict[str, Any] | None:
         return None
     sq = np.concatenate([p[1] for p in parts])  # (outages, n_win)
     tr = np.concatenate([p[2] for p in parts])
-    out["by_second"] = {"t_s": [float(t) for t in range(1, n_win + 1)], "rms_error_m": [float(v) for v in np.sqrt(sq.mean(axis=0))],
+    out["by_second"] = {"t_s": [float(t) for t in range(1, n_win + 1)],
+                        "rms_error_m": [float(v) for v in np.sqrt(sq.mean(axis=0))],
                         "rms_sigma_m": [float(v) for v in np.sqrt(tr.mean(axis=0))]}
     return out
 
@@ -152,5 +161,6 @@ def consistency_line(label: str, c: dict[str, Any]) -> str:
     the outages reach (none in outages under 10 s)."""
     ratios = ", ".join(f"{t} s {v:.2f}" for t, v in c["error_over_sigma"].items())
     lo, hi = c["anees_band"]
-    return (f"{label} uncertainty: ANEES {c['anees']:.2f} (1 when honest; 95 % band {lo:.2f}-{hi:.2f}: {c['verdict']}), "
-            f"final errors inside the 95 % ellipse {c['coverage_95']:.0f} % (95 % when honest)" + (f", rms error/sigma {ratios}" if ratios else ""))
+    return (f"{label} uncertainty: ANEES {c['anees']:.2f} (1 when honest; 95 % band {lo:.2f}-{hi:.2f}: "
+            f"{c['verdict']}), final errors inside the 95 % ellipse {c['coverage_95']:.0f} % (95 % "
+            "when honest)" + (f", rms error/sigma {ratios}" if ratios else ""))

@@ -39,7 +39,8 @@ def drift_curve(errors_m: np.ndarray) -> dict[str, list[float]]:
         nan = [float("nan")] * n_b
         return {"t_s": [float(k) for k in range(n_b)], "mean_m": nan, "p10_m": nan, "p90_m": nan}
     p10, p90 = np.percentile(errors_m, [10, 90], axis=0)
-    return {"t_s": [float(k) for k in range(n_b)], "mean_m": errors_m.mean(axis=0).tolist(), "p10_m": p10.tolist(), "p90_m": p90.tolist()}
+    return {"t_s": [float(k) for k in range(n_b)], "mean_m": errors_m.mean(axis=0).tolist(), "p10_m": p10.tolist(),
+            "p90_m": p90.tolist()}
 
 
 def final_error_percentiles(final_m: np.ndarray) -> dict[str, float]:

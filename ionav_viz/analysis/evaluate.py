@@ -28,8 +28,8 @@ from ..nav.windows import Windows, make_windows
 from .bridging import BridgedOutage, bridge_gnss_outages
 from .metrics import METRICS, sequence_metrics, truth_for
 
-__all__ = ["METRICS", "DriveResult", "OutageTruth", "clustered_improvement_ci95_pct", "evaluate_drive", "improvement_ci95_pct", "improvement_pct",
-           "paired_bootstrap_means", "resolve_bias"]
+__all__ = ["METRICS", "DriveResult", "OutageTruth", "clustered_improvement_ci95_pct", "evaluate_drive",
+           "improvement_ci95_pct", "improvement_pct", "paired_bootstrap_means", "resolve_bias"]
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,8 @@ class DriveResult:
     def __repr__(self) -> str:
         ests = ", ".join(e.name for e in self.estimators)
         bridged = f", {len(self.bridged)} real GNSS outage(s) bridged" if self.bridged else ""
-        return f"DriveResult(drive={self.drive.name!r}, {len(self.starts)} outage(s) of {self.outage_s:g} s{bridged}, estimators: {ests})"
+        return (f"DriveResult(drive={self.drive.name!r}, {len(self.starts)} outage(s) of {self.outage_s:g} s{bridged}, "
+                f"estimators: {ests})")
 
     @property
     def truth(self) -> OutageTruth:
@@ -91,7 +92,8 @@ class DriveResult:
         no outage starts) and ``excluded_outages`` (not placed for either)."""
         fault = self.windows.truth_fault
         bad = fault != 0
-        return {"windows": len(fault), "excluded_windows": int(bad.sum()), "excluded_by_reason": count_by_fault(fault[bad]),
+        return {"windows": len(fault), "excluded_windows": int(bad.sum()),
+                "excluded_by_reason": count_by_fault(fault[bad]),
                 "receiver_lost_windows": int(np.count_nonzero(self.windows.receiver_fault)),
                 "excluded_outages": int(self.excluded_outages)}
 
@@ -170,7 +172,8 @@ def evaluate_drive(
             solutions[est.name] = solve(est, inputs)
             s.detail = f"{len(starts)} outages of {n} s"
     metrics = {name: sequence_metrics(windows, starts, n, sol) for name, sol in solutions.items()}
-    result = DriveResult(drive, windows, n, starts, bias, list(chosen), solutions, metrics, excluded_outages or 0, placement=placement)
+    result = DriveResult(drive, windows, n, starts, bias, list(chosen), solutions, metrics, excluded_outages or 0,
+                         placement=placement)
     if gnss_gaps:
         with stage(f"bridge {len(gnss_gaps)} GNSS outage(s) of {drive.name}"):
             result.bridged, result.unbridged = bridge_gnss_outages(drive, windows, gnss_gaps, chosen, bias)
@@ -210,7 +213,8 @@ def paired_bootstrap_means(baseline: np.ndarray, candidate: np.ndarray, resample
     step = max(1, 4_000_000 // len(b))  # resamples per chunk: a fleet's outages stay within tens of MB
     for i in range(0, resamples, step):
         idx = rng.integers(0, len(b), (min(step, resamples - i), len(b)))
-        mb[i:i + len(idx)], mc[i:i + len(idx)] = np.take(b, idx).mean(axis=1), np.take(c, idx).mean(axis=1)  # take: 3x fancy indexing's speed
+        # take: 3x fancy indexing's speed
+        mb[i:i + len(idx)], mc[i:i + len(idx)] = np.take(b, idx).mean(axis=1), np.take(c, idx).mean(axis=1)
     return mb, mc
 
 
@@ -256,7 +260,8 @@ def _improvement_ci95_normal(b: np.ndarray, c: np.ndarray) -> tuple[float, float
 FEW_DRIVES = 10
 
 
-def clustered_improvement_ci95_pct(baseline: Sequence[np.ndarray], candidate: Sequence[np.ndarray]) -> tuple[float, float]:
+def clustered_improvement_ci95_pct(baseline: Sequence[np.ndarray],
+                                   candidate: Sequence[np.ndarray]) -> tuple[float, float]:
     """:func:`improvement_ci95_pct` over a fleet, its drives resampled rather than its outages: one
     array per drive each (per outage values; outages where either is NaN left out), each resample
     a draw of whole drives with replacement, its improvement that of the drawn outages' means. A
@@ -274,8 +279,10 @@ def clustered_improvement_ci95_pct(baseline: Sequence[np.ndarray], candidate: Se
             sums_c.append(float(c[ok].sum()))
             both_b.append(b[ok])
             both_c.append(c[ok])
-    if len(sums_b) < FEW_DRIVES:  # the outages' interval is needed (and, over many outages, costly: not computed otherwise)
-        outages = improvement_ci95_pct(np.concatenate(both_b) if both_b else np.zeros(0), np.concatenate(both_c) if both_c else np.zeros(0))
+    # the outages' interval is needed (and, over many outages, costly: not computed otherwise)
+    if len(sums_b) < FEW_DRIVES:
+        outages = improvement_ci95_pct(np.concatenate(both_b) if both_b else np.zeros(0),
+                                       np.concatenate(both_c) if both_c else np.zeros(0))
         if len(sums_b) < 2:
             return outages
     sb, sc = np.array(sums_b), np.array(sums_c)

@@ -82,12 +82,13 @@ def current_type_names(types: tuple[str, ...]) -> tuple[str, ...]:
 #: Plausible range of each threshold (values outside are refused before any work; smoothing
 #: windows are bounded so the filters stay small). Units are in the names.
 THRESHOLD_LIMITS = {
-    "accel_smooth_s": (0.1, 10.0), "yaw_smooth_s": (0.1, 10.0), "hard_brake_g": (0.05, 2.0), "brake_onset_g": (0.0, 2.0),
-    "turn_rate_radps": (0.001, 2.0), "roundabout_min_turn_deg": (0.0, 1080.0), "roundabout_radius_m": (1.0, 1000.0),
-    "flare_gap_s": (0.0, 60.0), "sharp_min_turn_deg": (0.0, 360.0), "sharp_max_s": (0.5, 120.0), "sharp_max_radius_m": (1.0, 1000.0),
-    "left_right_min_turn_deg": (0.0, 360.0), "left_right_gap_s": (0.0, 60.0), "quick_accel_peak_mps2": (0.05, 20.0),
-    "quick_accel_window_s": (0.5, 60.0), "cruise_min_speed_mps": (0.0, 100.0), "cruise_max_accel_mps2": (0.0, 20.0),
-    "cruise_max_yaw_radps": (0.0, 2.0), "cruise_min_s": (1.0, 3600.0), "cruise_smooth_s": (0.1, 30.0), "gnss_outage_min_s": (0.1, 3600.0),
+    "accel_smooth_s": (0.1, 10.0), "yaw_smooth_s": (0.1, 10.0), "hard_brake_g": (0.05, 2.0),
+    "brake_onset_g": (0.0, 2.0), "turn_rate_radps": (0.001, 2.0), "roundabout_min_turn_deg": (0.0, 1080.0),
+    "roundabout_radius_m": (1.0, 1000.0), "flare_gap_s": (0.0, 60.0), "sharp_min_turn_deg": (0.0, 360.0),
+    "sharp_max_s": (0.5, 120.0), "sharp_max_radius_m": (1.0, 1000.0), "left_right_min_turn_deg": (0.0, 360.0),
+    "left_right_gap_s": (0.0, 60.0), "quick_accel_peak_mps2": (0.05, 20.0), "quick_accel_window_s": (0.5, 60.0),
+    "cruise_min_speed_mps": (0.0, 100.0), "cruise_max_accel_mps2": (0.0, 20.0), "cruise_max_yaw_radps": (0.0, 2.0),
+    "cruise_min_s": (1.0, 3600.0), "cruise_smooth_s": (0.1, 30.0), "gnss_outage_min_s": (0.1, 3600.0),
 }  # fmt: skip
 
 
@@ -139,11 +140,13 @@ class Event:
         # rounding noise (28.700000000000003) that says nothing; a count (turns, bad samples) a plain int
         self.t0_s = round(float(self.t0_s), 6)
         self.t1_s = round(float(self.t1_s), 6)
-        self.values = {k: int(v) if isinstance(v, (int, np.integer)) and not isinstance(v, bool) else float(v) for k, v in self.values.items()}
+        self.values = {k: int(v) if isinstance(v, (int, np.integer)) and not isinstance(v, bool) else float(v)
+                       for k, v in self.values.items()}
 
     def to_dict(self) -> dict:
         return {"type": self.type, "start_s": round(self.t0_s, 3), "end_s": round(self.t1_s, 3),
-                **{k: v if isinstance(v, int) else round(float(v), 3) for k, v in self.values.items()}}  # counts stay whole
+                # counts stay whole
+                **{k: v if isinstance(v, int) else round(float(v), 3) for k, v in self.values.items()}}
 
 
 @dataclass
@@ -186,7 +189,8 @@ def smoothed_signals(t_s: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.
                      th: EventThresholds) -> Signals:
     """Signals on a 10 Hz grid: acceleration from the smoothed speed, smoothed yaw rate."""
     yaw = _smooth(yaw_rate_radps, th.yaw_smooth_s, GRID_RATE_HZ)
-    accel = _smooth(np.gradient(_smooth(speed_mps, th.accel_smooth_s, GRID_RATE_HZ), t_s), th.accel_smooth_s, GRID_RATE_HZ)
+    accel = _smooth(np.gradient(_smooth(speed_mps, th.accel_smooth_s, GRID_RATE_HZ), t_s), th.accel_smooth_s,
+                    GRID_RATE_HZ)
     return Signals(t_s, speed_mps, accel, yaw, valid)
 
 
@@ -197,7 +201,8 @@ def detect_hard_brakes(s: Signals, th: EventThresholds) -> list[Event]:
         peak = float(s.accel_mps2[i0:i1].min())
         if peak <= -th.hard_brake_g * G_MPS2:
             out.append(Event("hard-brake", s.t_s[i0], s.t_s[i1 - 1], {
-                "peak_decel_g": -peak / G_MPS2, "speed_before_mps": s.speed_mps[i0], "speed_after_mps": s.speed_mps[i1 - 1]}))
+                "peak_decel_g": -peak / G_MPS2, "speed_before_mps": s.speed_mps[i0],
+                "speed_after_mps": s.speed_mps[i1 - 1]}))
     return out
 
 
@@ -236,19 +241,23 @@ def detect_turn_events(s: Signals, th: EventThresholds) -> list[Event]:
     for tr in turns:
         if tr.turn_deg >= th.roundabout_min_turn_deg and r_lo <= tr.radius_m <= r_hi:
             # entry and exit flares: the other way, just before and after
-            flare = (signs != tr.sign) & (((tr.t0 - t1s >= 0) & (tr.t0 - t1s <= th.flare_gap_s)) | ((t0s - tr.t1 >= 0) & (t0s - tr.t1 <= th.flare_gap_s)))
-            t0, t1 = min(tr.t0, float(t0s[flare].min(initial=np.inf))), max(tr.t1, float(t1s[flare].max(initial=-np.inf)))
+            flare = (signs != tr.sign) & (((tr.t0 - t1s >= 0) & (tr.t0 - t1s <= th.flare_gap_s))
+                                          | ((t0s - tr.t1 >= 0) & (t0s - tr.t1 <= th.flare_gap_s)))
+            t0, t1 = (min(tr.t0, float(t0s[flare].min(initial=np.inf))),
+                      max(tr.t1, float(t1s[flare].max(initial=-np.inf))))
             round_spans.append((t0, t1))
             out.append(Event("roundabout", t0, t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m}))
     spans = np.array(round_spans, dtype=float).reshape(-1, 2)
     # the turns that overlap no roundabout's span
-    inside = ((t0s[:, None] <= spans[None, :, 1]) & (t1s[:, None] >= spans[None, :, 0])).any(axis=1) if len(turns) else np.zeros(0, bool)
+    inside = (((t0s[:, None] <= spans[None, :, 1]) & (t1s[:, None] >= spans[None, :, 0])).any(axis=1)
+              if len(turns) else np.zeros(0, bool))
     outside = [tr for tr, within in zip(turns, inside) if not within]
 
     for tr in outside:
         if (th.sharp_min_turn_deg <= tr.turn_deg < th.roundabout_min_turn_deg and tr.t1 - tr.t0 <= th.sharp_max_s
                 and tr.radius_m <= th.sharp_max_radius_m):
-            out.append(Event("sharp-cornering", tr.t0, tr.t1, {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m, "duration_s": tr.t1 - tr.t0}))
+            out.append(Event("sharp-cornering", tr.t0, tr.t1,
+                             {"turn_deg": tr.turn_deg, "radius_m": tr.radius_m, "duration_s": tr.t1 - tr.t0}))
 
     big = [tr for tr in outside if tr.turn_deg >= th.left_right_min_turn_deg]
     series: list[_Turn] = []
@@ -307,7 +316,8 @@ def detect_gnss_outages(drive: Drive, th: EventThresholds) -> list[Event]:
     return out
 
 
-def detect_events(drive: Drive, thresholds: EventThresholds | None = None, types: tuple[str, ...] = EVENT_TYPES) -> list[Event]:
+def detect_events(drive: Drive, thresholds: EventThresholds | None = None,
+                  types: tuple[str, ...] = EVENT_TYPES) -> list[Event]:
     """Every manoeuvre of the requested ``types`` in ``drive``, in time order."""
     th = thresholds or EventThresholds()
     if len(drive) < 2:
@@ -397,7 +407,8 @@ class DetectorScore:
         return self.precise / self.n_found if self.n_found else float("nan")
 
 
-def score(truth: list[tuple[str, float, float]], found: list[Event], end_s: float, edge_s: float = 1.0) -> dict[str, DetectorScore]:
+def score(truth: list[tuple[str, float, float]], found: list[Event], end_s: float,
+          edge_s: float = 1.0) -> dict[str, DetectorScore]:
     """Match detections to known manoeuvres of the same type by overlapping intervals.
 
     A known manoeuvre is recalled when a detection overlaps it; a detection is precise when it

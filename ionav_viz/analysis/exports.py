@@ -1,7 +1,8 @@
 """Results in the forms other tools read (``--export DIR``): a per-outage metrics table, tracks for
 evo, and tracks for GIS tools.
 
-Files written into ``DIR`` (each atomically, an existing one of the same name replaced; a drive's ``tum`` folder replaced as a whole):
+Files written into ``DIR`` (each atomically, an existing one of the same name replaced; a drive's ``tum`` folder
+replaced as a whole):
 
 * ``outages.csv``: one row per outage and estimator, every metric, units in the column names.
 * ``tum/<drive>/outage-NNN-<estimator>.tum`` and ``outage-NNN-truth.tum``: each outage's estimated
@@ -49,13 +50,13 @@ from .metrics import METRICS
 #: final error's NEES (2 degrees of freedom) and whether it lies inside the 95 % ellipse (:mod:`.consistency`).
 #: ``in_training``: 1 when the outage lies in data the IDNN's model (or its parent) was trained on
 #: (same file by sha256, overlapping time), 0 when not, empty when no IDNN ran.
-OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m", *METRICS,
-                  "final_nees", "final_inside_95", "in_training")
+OUTAGE_COLUMNS = ("drive", "outage", "start_s", "end_s", "start_stamp_s", "estimator", "label", "gnss_distance_m",
+                  *METRICS, "final_nees", "final_inside_95", "in_training")
 #: The columns of ``real_outages.csv`` (``--on gnss-outage``): each loss of the log's own GNSS,
 #: bridged from its last good fix (``gap_start_s``) and scored at the first good one after it
 #: (``gap_end_s``); the estimators ran on the windows from ``outage_start_s`` for ``outage_s``.
-REAL_OUTAGE_COLUMNS = ("drive", "outage", "gap_start_s", "gap_end_s", "gap_s", "outage_start_s", "outage_s", "span_m", "estimator", "label",
-                       "final_position_error_m")
+REAL_OUTAGE_COLUMNS = ("drive", "outage", "gap_start_s", "gap_end_s", "gap_s", "outage_start_s", "outage_s", "span_m",
+                       "estimator", "label", "final_position_error_m")
 
 
 #: A clock whose first stamp is this far past 1970-01-01 (s) is UNIX time, dated: a time of day,
@@ -76,18 +77,21 @@ def export_results(results: list[Any], folder: str | Path, *, colors: dict[str, 
     from ..core.fileio import check_output_folder, made_folders, staging_folder
 
     folder = check_output_folder(Path(folder), param="export")
-    with made_folders(folder), staging_folder(folder / "export", folder, refused=lambda exc: _failure(folder, exc)) as stage:
+    with made_folders(folder), staging_folder(folder / "export", folder,
+                                              refused=lambda exc: _failure(folder, exc)) as stage:
         files, drives = _write_all(results, stage, folder, {**colors, None: truth_color})
         _move_in(stage, folder, files, drives)
     return [folder / f for f in files] + [folder / "tum" / d / f for d, names in drives.items() for f in names]
 
 
 def _failure(target: Path, exc: OSError) -> Exception:
-    return write_failure(target, exc) or InputError(f"{target}: cannot write the export ({exc.strerror or type(exc).__name__})",
+    return write_failure(target, exc) or InputError(f"{target}: cannot write the export "
+                                                    f"({exc.strerror or type(exc).__name__})",
                                                     "choose a writable folder", param="export")
 
 
-def _write_all(results: list[Any], stage: Path, folder: Path, colors: dict[Any, tuple[int, int, int]]) -> tuple[list[str], dict[str, list[str]]]:
+def _write_all(results: list[Any], stage: Path, folder: Path,
+               colors: dict[Any, tuple[int, int, int]]) -> tuple[list[str], dict[str, list[str]]]:
     """Every export file of ``results`` into ``stage``: the top-level files' names, and each drive's TUM files."""
     drives: dict[str, list[str]] = {}
     features, gpx_tracks = [], []
@@ -108,7 +112,8 @@ def _write_all(results: list[Any], stage: Path, folder: Path, colors: dict[Any, 
             name = "real_outages.csv"
             (stage / name).write_bytes(_real_outages_csv(results, labels).encode())
         name = "tracks.geojson"
-        (stage / name).write_bytes(dumps_json({"type": "FeatureCollection", "features": features}, indent=None).encode())
+        (stage / name).write_bytes(dumps_json({"type": "FeatureCollection", "features": features},
+                                              indent=None).encode())
         name = "tracks.gpx"
         (stage / name).write_bytes(_gpx(gpx_tracks).encode())
     except OSError as exc:
@@ -128,7 +133,8 @@ def _move_in(stage: Path, folder: Path, files: list[str], drives: dict[str, list
     try:
         for name in files:
             if (folder / name).exists() and not (folder / name).is_file():
-                raise InputError(f"{folder / name}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another folder",
+                raise InputError(f"{folder / name}: exists and is not a regular file",
+                                 "ionav-viz only ever replaces regular files; choose another folder",
                                  param="export")
         if drives:
             (folder / "tum").mkdir(exist_ok=True)
@@ -161,9 +167,9 @@ def _outages_csv(results: list[Any], labels: list[str]) -> str:
                 m = res.metrics[est.name]
                 final = nees[est.name][0][i, -1] if nees[est.name] is not None else math.nan
                 inside = "" if not math.isfinite(final) else str(int(final <= CHI2_2_95))
-                writer.writerow([label, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}", f"{float(res.drive.stamp_s(t0)):.6f}",
-                                 est.name, est.label, f"{distance[i]:.4f}", *(_number(m[name][i]) for name in METRICS), _number(final), inside,
-                                 in_training])
+                writer.writerow([label, i + 1, f"{t0:.3f}", f"{t0 + res.n_windows:.3f}",
+                                 f"{float(res.drive.stamp_s(t0)):.6f}", est.name, est.label, f"{distance[i]:.4f}",
+                                 *(_number(m[name][i]) for name in METRICS), _number(final), inside, in_training])
     return out.getvalue()
 
 
@@ -175,8 +181,9 @@ def _real_outages_csv(results: list[Any], labels: list[str]) -> str:
         labels = {est.name: est.label for est in res.estimators}
         for b in res.bridged:
             for name, err in b.final_error_m.items():
-                writer.writerow([label, b.number, f"{b.gap_t0_s:.3f}", f"{b.gap_t1_s:.3f}", f"{b.gap_s:.3f}", f"{b.t0_s:.3f}",
-                                 b.n_windows, f"{b.span_m:.4f}", name, labels.get(name, name), _number(err)])
+                writer.writerow([label, b.number, f"{b.gap_t0_s:.3f}", f"{b.gap_t1_s:.3f}", f"{b.gap_s:.3f}",
+                                 f"{b.t0_s:.3f}", b.n_windows, f"{b.span_m:.4f}", name, labels.get(name, name),
+                                 _number(err)])
     return out.getvalue()
 
 
@@ -191,11 +198,13 @@ def _boundaries(res: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     return (t, *w.boundary_fixes(starts, n))
 
 
-def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray, origin: tuple[float, float]) -> str:
+def _tum(t: np.ndarray, east: np.ndarray, north: np.ndarray, course_deg: np.ndarray,
+         origin: tuple[float, float]) -> str:
     yaw = np.radians(90.0 - course_deg)  # ENU yaw: from east, counter-clockwise
     rows = [f"# timestamp x y z qx qy qz qw  (x east, y north m about the drive's first trustworthy GNSS fix, "
             f"lat {origin[0]:.8f} lon {origin[1]:.8f} deg; ionav-viz)"]
-    rows += [f"{ti:.6f} {x:.4f} {y:.4f} 0 0 0 {math.sin(a / 2):.9f} {math.cos(a / 2):.9f}" for ti, x, y, a in zip(t, east, north, yaw)]
+    rows += [f"{ti:.6f} {x:.4f} {y:.4f} 0 0 0 {math.sin(a / 2):.9f} {math.cos(a / 2):.9f}"
+             for ti, x, y, a in zip(t, east, north, yaw)]
     return "\n".join(rows) + "\n"
 
 
@@ -222,23 +231,34 @@ def _tum_files(res: Any, folder: Path) -> list[str]:
 GpxTrack = tuple[str, str, list[np.ndarray], list[np.ndarray], list[np.ndarray]]
 
 
-def _tracks(res: Any, label: str, colors: dict[Any, tuple[int, int, int]]) -> tuple[list[dict[str, Any]], list[GpxTrack]]:
+def _tracks(res: Any, label: str,
+            colors: dict[Any, tuple[int, int, int]]) -> tuple[list[dict[str, Any]], list[GpxTrack]]:
     """GeoJSON features and GPX tracks of one drive (named ``label``): its truth, and every outage's
     estimates; ``colors`` per estimator name, the truth's under None."""
     d = res.drive
     desc = "" if _dated(d) else UNDATED_DESC
-    stretches = truth_stretches(d.gnss_ok, max(1, int(round(d.rate_hz))))  # the truth at about 1 Hz keeps the files small
-    features = [{"type": "Feature", "geometry": {"type": "MultiLineString", "coordinates": [_coords(d.lat_deg[k], d.lon_deg[k]) for k in stretches]},
-                 "properties": {"drive": label, "kind": "truth", **_style(f"{label} truth", colors[None], TRUTH_WIDTH_PX)}}]
-    gpx = [(f"{label} truth", desc, [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches], [d.stamp_s(d.t_s[k]) for k in stretches])]
+    # the truth at about 1 Hz keeps the files small
+    stretches = truth_stretches(d.gnss_ok, max(1, int(round(d.rate_hz))))
+    features = [{"type": "Feature",
+                 "geometry": {"type": "MultiLineString",
+                              "coordinates": [_coords(d.lat_deg[k], d.lon_deg[k]) for k in stretches]},
+                 "properties": {"drive": label, "kind": "truth",
+                                **_style(f"{label} truth", colors[None], TRUTH_WIDTH_PX)}}]
+    gpx = [(f"{label} truth", desc, [d.lat_deg[k] for k in stretches], [d.lon_deg[k] for k in stretches],
+            [d.stamp_s(d.t_s[k]) for k in stretches])]
     for i, k in enumerate(res.starts):
-        stamps = d.stamp_s(res.windows.t0_s[k] + np.arange(res.n_windows + 1))  # the tracks are at the window boundaries
+        # the tracks are at the window boundaries
+        stamps = d.stamp_s(res.windows.t0_s[k] + np.arange(res.n_windows + 1))
         for est in res.estimators:
             track = res.estimates[est.name].track
             final = float(res.metrics[est.name]["final_position_error_m"][i])
-            title = f"{label} outage {i + 1} {est.label}" + (f", final error {final:.1f} m" if math.isfinite(final) else "")
-            features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[i], track.lon_deg[i])},
-                             "properties": {"drive": label, "kind": "estimate", "outage": i + 1, "start_s": round(float(res.windows.t0_s[k]), 3),
+            title = (f"{label} outage {i + 1} {est.label}"
+                     + (f", final error {final:.1f} m" if math.isfinite(final) else ""))
+            features.append({"type": "Feature",
+                             "geometry": {"type": "LineString",
+                                          "coordinates": _coords(track.lat_deg[i], track.lon_deg[i])},
+                             "properties": {"drive": label, "kind": "estimate", "outage": i + 1,
+                                            "start_s": round(float(res.windows.t0_s[k]), 3),
                                             "estimator": est.name, "label": est.label,
                                             "final_position_error_m": final if math.isfinite(final) else None,
                                             **_style(title, colors[est.name], ESTIMATE_WIDTH_PX)}})
@@ -248,13 +268,18 @@ def _tracks(res: Any, label: str, colors: dict[Any, tuple[int, int, int]]) -> tu
         for est in res.estimators:
             track = b.tracks[est.name]
             final = float(b.final_error_m[est.name])
-            title = f"{label} real GNSS outage {b.number} {est.label}" + (f", final error {final:.1f} m" if math.isfinite(final) else "")
-            features.append({"type": "Feature", "geometry": {"type": "LineString", "coordinates": _coords(track.lat_deg[0], track.lon_deg[0])},
-                             "properties": {"drive": label, "kind": "real-outage", "outage": b.number, "start_s": round(b.gap_t0_s, 3),
+            title = (f"{label} real GNSS outage {b.number} {est.label}"
+                     + (f", final error {final:.1f} m" if math.isfinite(final) else ""))
+            features.append({"type": "Feature",
+                             "geometry": {"type": "LineString",
+                                          "coordinates": _coords(track.lat_deg[0], track.lon_deg[0])},
+                             "properties": {"drive": label, "kind": "real-outage", "outage": b.number,
+                                            "start_s": round(b.gap_t0_s, 3),
                                             "estimator": est.name, "label": est.label,
                                             "final_position_error_m": final if math.isfinite(final) else None,
                                             **_style(title, colors[est.name], ESTIMATE_WIDTH_PX)}})
-            gpx.append((f"{label} real GNSS outage {b.number} {est.label}", desc, [track.lat_deg[0]], [track.lon_deg[0]], [stamps]))
+            gpx.append((f"{label} real GNSS outage {b.number} {est.label}", desc, [track.lat_deg[0]],
+                        [track.lon_deg[0]], [stamps]))
     return features, gpx
 
 
@@ -276,9 +301,9 @@ def _dated(drive: Any) -> bool:
 
 
 def gpx_times(stamps_s: np.ndarray) -> list[str]:
-    """GPX ``time`` values (UTC, ISO 8601 to the millisecond) of a drive's stamps (:meth:`~ionav_viz.core.drive.Drive.stamp_s`):
-    UNIX seconds are their instant; a time of day (an IO-VNBD log carries no date) is that time on
-    1970-01-01 (past midnight, the 2nd), the date unknown, and the track's ``desc`` says so."""
+    """GPX ``time`` values (UTC, ISO 8601 to the millisecond) of a drive's stamps
+    (:meth:`~ionav_viz.core.drive.Drive.stamp_s`): UNIX seconds are their instant; a time of day (an IO-VNBD log carries
+    no date) is that time on 1970-01-01 (past midnight, the 2nd), the date unknown, and the track's ``desc`` says so."""
     ms = np.round(np.asarray(stamps_s, dtype=float) * 1000.0).astype(np.int64).astype("datetime64[ms]")
     return [f"{t}Z" for t in np.datetime_as_string(ms, unit="ms")]
 
@@ -308,9 +333,11 @@ def _gpx(tracks: list[GpxTrack]) -> str:
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            '<gpx version="1.1" creator="ionav-viz" xmlns="http://www.topografix.com/GPX/1/1">']
     for name, desc, lats, lons, stamps in tracks:
-        segments = "".join("<trkseg>" + "".join(f'<trkpt lat="{float(y):.8f}" lon="{float(x):.8f}"><time>{t}</time></trkpt>'
+        segments = "".join("<trkseg>" + "".join(f'<trkpt lat="{float(y):.8f}" '
+                                                f'lon="{float(x):.8f}"><time>{t}</time></trkpt>'
                                                 for y, x, t in zip(lat, lon, gpx_times(stamp))) + "</trkseg>"
                            for lat, lon, stamp in zip(lats, lons, stamps))
-        out.append(f"<trk><name>{escape(name)}</name>" + (f"<desc>{escape(desc)}</desc>" if desc else "") + f"{segments}</trk>")
+        out.append(f"<trk><name>{escape(name)}</name>" + (f"<desc>{escape(desc)}</desc>" if desc else "")
+                   + f"{segments}</trk>")
     out.append("</gpx>")
     return "\n".join(out) + "\n"

@@ -40,7 +40,8 @@ class DriveTable:
     Attributes:
         spec: the drive as it was given (a path, a bundled or run name): what replays it.
         name, source: the drive's name and the file it was read from.
-        duration_s, distance_m: the drive's length in time and its GNSS (truth) distance (:attr:`~ionav_viz.core.drive.Drive.distance_m`).
+        duration_s, distance_m: the drive's length in time and its GNSS (truth) distance
+            (:attr:`~ionav_viz.core.drive.Drive.distance_m`).
         outage_s: the length of each outage.
         estimators: name and label of each estimator that ran, in report order.
         start_s, gnss_distance_m: per outage, its start (s since the drive's first sample) and
@@ -133,15 +134,20 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
     return DriveTable(
         spec=str(spec), name=drive.name, source=drive.source, duration_s=float(drive.duration_s),
         distance_m=drive.distance_m, outage_s=result.outage_s,
-        estimators=[{"name": e.name, "label": e.label, **({"color": list(c)} if (c := color_of(e)) else {})} for e in result.estimators],
-        start_s=np.asarray(result.outage_t0_s, dtype=float).copy(), gnss_distance_m=np.asarray(result.gnss_distance_m, dtype=float).copy(),
-        metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()} for est, per in result.metrics.items()},
-        bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps), "source": str(result.bias.source)},
+        estimators=[{"name": e.name, "label": e.label, **({"color": list(c)} if (c := color_of(e)) else {})}
+                    for e in result.estimators],
+        start_s=np.asarray(result.outage_t0_s, dtype=float).copy(),
+        gnss_distance_m=np.asarray(result.gnss_distance_m, dtype=float).copy(),
+        metrics={est: {m: np.asarray(v, dtype=float).copy() for m, v in per.items()}
+                 for est, per in result.metrics.items()},
+        bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps),
+              "source": str(result.bias.source)},
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
         real_outages=[b.to_dict() for b in result.bridged],
         warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
         imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()},
-        manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at, consistency=consistent,
+        manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at,
+        consistency=consistent,
         in_training=None if (trained := result.in_training) is None else np.asarray(trained, dtype=bool).copy())
 
 
@@ -183,7 +189,8 @@ class FleetReport:
     config: dict[str, Any] | None = field(default_factory=run_config.current)
 
     def __repr__(self) -> str:
-        return f"FleetReport({len(self.drives)} drive(s) evaluated, {len(self.failures)} failed, {self.n_outages} outage(s))"
+        return (f"FleetReport({len(self.drives)} drive(s) evaluated, {len(self.failures)} failed, "
+                f"{self.n_outages} outage(s))")
 
     @property
     def n_outages(self) -> int:
@@ -240,13 +247,17 @@ class FleetReport:
             ran = [t for t in self.drives if est in t.metrics]
             entry: dict[str, Any] = {"drives": len(ran), "outages": int(sum(t.n_outages for t in ran)),
                                      "summary": {m: summarise(self.metric(est, m)) for m in METRICS},
-                                     "final_error_percentiles": final_error_percentiles(self.metric(est, "final_position_error_m"))}
+                                     "final_error_percentiles": final_error_percentiles(
+                                         self.metric(est, "final_position_error_m"))}
             if base is not None and est != base:
                 both = [t for t in ran if base in t.metrics]
-                entry["improvement_pct"] = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"], summarise(self.metric(est, m, both))["mean"])
+                entry["improvement_pct"] = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"],
+                                                               summarise(self.metric(est, m, both))["mean"])
                                             for m in IMPROVEMENT_METRICS}
-                entry["improvement_ci95_pct"] = {m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both], [t.metrics[est][m] for t in both]))
-                                                 for m in IMPROVEMENT_METRICS}
+                entry["improvement_ci95_pct"] = {
+                    m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
+                                                           [t.metrics[est][m] for t in both]))
+                    for m in IMPROVEMENT_METRICS}
             out[est] = entry
         return out
 
@@ -262,7 +273,8 @@ class FleetReport:
 
         out: dict[str, dict[str, Any]] = {}
         for key in keys:
-            entry: dict[str, Any] = {"outages": int(sum(mask_of(t, key).sum() for t in self.drives)), "mean_error_m": {}}
+            entry: dict[str, Any] = {"outages": int(sum(mask_of(t, key).sum() for t in self.drives)),
+                                     "mean_error_m": {}}
             if base is not None:
                 entry["improvement_pct"] = {}
             for est in self.estimators:
@@ -270,7 +282,8 @@ class FleetReport:
                 entry["mean_error_m"][est] = summarise(pooled(est, key, ran))["mean"]
                 if base is not None and est != base:
                     both = [t for t in ran if base in t.metrics]
-                    entry["improvement_pct"][est] = improvement_pct(summarise(pooled(base, key, both))["mean"], summarise(pooled(est, key, both))["mean"])
+                    entry["improvement_pct"][est] = improvement_pct(summarise(pooled(base, key, both))["mean"],
+                                                                    summarise(pooled(est, key, both))["mean"])
             out[str(key)] = entry
         return out
 
@@ -350,20 +363,25 @@ class FleetReport:
                 continue
             err = np.array([b["final_error_m"][est] for b in mine], dtype=float)
             k = int(np.nanargmax(err)) if np.isfinite(err).any() else 0
-            pooled[est] = {"drives": len({b["drive"] for b in mine}), "losses": len(mine), "mean_final_error_m": summarise(err)["mean"],
+            pooled[est] = {"drives": len({b["drive"] for b in mine}), "losses": len(mine),
+                           "mean_final_error_m": summarise(err)["mean"],
                            "p90_final_error_m": final_error_percentiles(err)["p90"],
-                           "worst": {"drive": mine[k]["drive"], "number": mine[k]["number"], "final_error_m": float(err[k])}}
+                           "worst": {"drive": mine[k]["drive"], "number": mine[k]["number"],
+                                     "final_error_m": float(err[k])}}
         drives = []
         for t in self.drives:
             if t.real_outages:
                 ests = [e for e in self.estimators if e in t.real_outages[0]["final_error_m"]]
-                drives.append({"drive": t.name, "losses": len(t.real_outages), "gap_s": float(sum(b["gap_s"] for b in t.real_outages)),
-                               "mean_final_error_m": {e: float(np.mean([b["final_error_m"][e] for b in t.real_outages])) for e in ests}})
+                drives.append({"drive": t.name, "losses": len(t.real_outages),
+                               "gap_s": float(sum(b["gap_s"] for b in t.real_outages)),
+                               "mean_final_error_m": {e: float(np.mean([b["final_error_m"][e] for b in t.real_outages]))
+                                                      for e in ests}})
         return {"n": len(losses), "pooled": pooled, "drives": drives, "losses": losses}
 
     def command(self, spec: str) -> str:
         """The command that replays one drive with the fleet's outages."""
-        return " ".join(["ionav-viz replay", shlex.quote(spec), self.replay_options or f"--outage {self.outage_s:g}s"]).strip()
+        return " ".join(["ionav-viz replay", shlex.quote(spec),
+                         self.replay_options or f"--outage {self.outage_s:g}s"]).strip()
 
     def worst_drives(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
         """The ``count`` drives with the largest mean final error of :attr:`worst_of`, worst
@@ -382,7 +400,8 @@ class FleetReport:
         ranked = [(float(err), d, i, t) for d, t in enumerate(self.drives) if est in t.metrics
                   for i, err in enumerate(t.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
         ranked.sort(key=lambda r: (-r[0], r[1], r[2]))
-        return [{"drive": t.name, "number": i + 1, "start_s": round(float(t.start_s[i]), 3), "end_s": round(float(t.start_s[i] + t.outage_s), 3),
+        return [{"drive": t.name, "number": i + 1, "start_s": round(float(t.start_s[i]), 3),
+                 "end_s": round(float(t.start_s[i] + t.outage_s), 3),
                  "final_error_m": {e: float(t.metrics[e]["final_position_error_m"][i]) for e in t.metrics},
                  "command": self.command(t.spec)} for _, _, i, t in ranked[:count]]
 
@@ -392,20 +411,26 @@ class FleetReport:
         sequences = []
         for t in self.drives:
             for i in range(t.n_outages):
-                entry: dict[str, Any] = {"drive": t.name, "start_s": round(float(t.start_s[i]), 3), "gnss_distance_m": float(t.gnss_distance_m[i]),
-                                         **({"in_training": bool(t.in_training[i])} if t.in_training is not None else {}),
+                entry: dict[str, Any] = {"drive": t.name, "start_s": round(float(t.start_s[i]), 3),
+                                         "gnss_distance_m": float(t.gnss_distance_m[i]),
+                                         **({"in_training": bool(t.in_training[i])}
+                                            if t.in_training is not None else {}),
                                          **({"manoeuvre": t.manoeuvre[i]} if t.manoeuvre else {})}
                 entry |= {e: {m: float(t.metrics[e][m][i]) for m in METRICS} for e in t.metrics}
                 sequences.append(entry)
         timing, colors = dict(self.timing), self.colors
-        timing["elapsed_s"] = {t.spec: round(t.elapsed_s, 3) for t in self.drives} | {f.spec: round(f.elapsed_s, 3) for f in self.failures}
+        timing["elapsed_s"] = ({t.spec: round(t.elapsed_s, 3) for t in self.drives}
+                               | {f.spec: round(f.elapsed_s, 3) for f in self.failures})
         return tagged("fleet", {
             "outage_s": self.outage_s,
             "drives_given": len(self.drives) + len(self.failures) + len(self.skipped),
-            "drives_evaluated": len(self.drives), "drives_failed": len(self.failures), "drives_skipped": len(self.skipped),
+            "drives_evaluated": len(self.drives), "drives_failed": len(self.failures),
+            "drives_skipped": len(self.skipped),
             "n_outages": self.n_outages,
-            "duration_s": float(sum(t.duration_s for t in self.drives)), "distance_m": float(sum(t.distance_m for t in self.drives)),
-            "estimators": [{"name": e, "label": lab, **({"color": colors[e]} if e in colors else {})} for e, lab in self.labels.items()],
+            "duration_s": float(sum(t.duration_s for t in self.drives)),
+            "distance_m": float(sum(t.distance_m for t in self.drives)),
+            "estimators": [{"name": e, "label": lab, **({"color": colors[e]} if e in colors else {})}
+                           for e, lab in self.labels.items()],
             "pooled": self.pooled(),
             "consistency": self.consistency(),
             "by_manoeuvre": self.by_manoeuvre(),
@@ -439,13 +464,15 @@ def _own_losses_section(rep: FleetReport, table: Any, heading: Any, markdown: bo
     """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_outages`)."""
     real, labels = rep.real_outages(), rep.labels
     gaps = [b["gap_s"] for b in real["losses"]]
-    lines = [heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s without a fix; "
-                     "final error from the last good fix to the first after, m)"), ""]
+    lines = [heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s "
+                     "without a fix; final error from the last good fix to the first after, m)"), ""]
     rows = [[labels[e], str(p["drives"]), str(p["losses"]), _f(p["mean_final_error_m"]), _f(p["p90_final_error_m"]),
-             f"{_f(p['worst']['final_error_m'], 1)} ({p['worst']['drive']} #{p['worst']['number']})"] for e, p in real["pooled"].items()]
+             f"{_f(p['worst']['final_error_m'], 1)} ({p['worst']['drive']} #{p['worst']['number']})"]
+            for e, p in real["pooled"].items()]
     lines += table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1) + [""]
     ests = list(real["pooled"])
-    rows = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"] + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
+    rows = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"]
+            + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
             for d in real["drives"]]
     lines += table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], rows, 1) + [""]
     return lines
@@ -460,7 +487,8 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
 
     def table(header: list[str], rows: list[list[str]], left: int) -> list[str]:
         if markdown:
-            return ["| " + " | ".join(header) + " |", "|" + "|".join("---" if j < left else "---:" for j in range(len(header))) + "|",
+            return ["| " + " | ".join(header) + " |",
+                    "|" + "|".join("---" if j < left else "---:" for j in range(len(header))) + "|",
                     *("| " + " | ".join(r) + " |" for r in rows)]
         return aligned(header, rows, left, width)
 
@@ -472,7 +500,8 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
     km = sum(t.distance_m for t in rep.drives) / 1000.0
     given = len(rep.drives) + len(rep.failures) + len(rep.skipped)
     lines = [("# " if markdown else "") + f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
-             + (f", {len(rep.failures)} failed" if rep.failures else "") + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
+             + (f", {len(rep.failures)} failed" if rep.failures else "")
+             + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
              + (f"; {rep.n_outages} outages of {rep.outage_s:g} s" if rep.n_outages or not rep.n_real_outages else "")
              + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
              + f" over {hours:.2f} h and {km:.1f} km", ""]
@@ -481,7 +510,8 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
         lines += [heading("Pooled over the fleet (mean over outages)"), ""]
-        header = ["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"] + ([f"final vs {labels[base]} %", "95 % interval"] if base else [])
+        header = (["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"]
+                  + ([f"final vs {labels[base]} %", "95 % interval"] if base else []))
         rows = []
         for e in ests:
             p = pooled[e]
@@ -502,19 +532,23 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
             lines += [heading("How sure each estimator is (pooled over the fleet)"), ""]
             lines += [("- " if markdown else "") + consistency_line(labels[e], c) for e, c in consistent.items()] + [""]
         for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.by_manoeuvre()),
-                                     ("By time into the outage (mean position error, m", "Into outage", rep.by_length())):
+                                     ("By time into the outage (mean position error, m", "Into outage",
+                                      rep.by_length())):
             lines += [heading(title + (f"; improvement over {labels[base]}, %" if base else "") + ")"), ""]
-            header = [first, "outages"] + [labels[e] for e in ests] + ([f"{labels[e]} %" for e in others] if base else [])
+            header = ([first, "outages"] + [labels[e] for e in ests]
+                      + ([f"{labels[e]} %" for e in others] if base else []))
             rows = []
             for key, g in groups.items():
-                row = [key if first == "Manoeuvre" else f"{key} s", str(g["outages"])] + [_f(g["mean_error_m"][e]) for e in ests]
+                row = ([key if first == "Manoeuvre" else f"{key} s", str(g["outages"])]
+                       + [_f(g["mean_error_m"][e]) for e in ests])
                 if base:
                     row += [_f(g["improvement_pct"][e], 1) for e in others]
                 rows.append(row)
             lines += table(header, rows, 1) + [""]
-        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {labels[base]}, %" if base else "") + ")"), ""]
-        header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests] + ([f"{labels[e]} %" for e in others] if base else [])
-                  + ["warnings"])
+        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {labels[base]}, %" if base else "")
+                          + ")"), ""]
+        header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests]
+                  + ([f"{labels[e]} %" for e in others] if base else []) + ["warnings"])
         rows = []
         for t, r in zip(rep.drives, rep.drive_rows()):
             means = r["mean_final_error_m"]
@@ -544,12 +578,14 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
     warned = [(t.name, w) for t in rep.drives for w in t.warnings]
     if warned:
         lines += [heading(f"Warnings ({len(warned)})"), ""]
-        lines += [("- " if markdown else "") + (w if w.startswith(name) else f"{name}: {w}") for name, w in warned] + [""]
+        lines += [("- " if markdown else "") + (w if w.startswith(name) else f"{name}: {w}")
+                  for name, w in warned] + [""]
     if rep.timing.get("wall_s") is not None and not markdown:
         lines.append(f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time")
     if width is not None:  # the tables fit already; prose lines (worst, failures, warnings) are wrapped
         import textwrap
 
-        lines = [ln if len(ln) <= width else "\n".join(textwrap.wrap(ln, width, subsequent_indent="   ", break_on_hyphens=False))
+        lines = [ln if len(ln) <= width else "\n".join(textwrap.wrap(ln, width, subsequent_indent="   ",
+                                                                     break_on_hyphens=False))
                  for ln in lines]
     return "\n".join(lines).rstrip("\n") + "\n"

@@ -41,8 +41,8 @@ def summarise_health(health: FilterHealth) -> dict[str, dict[str, Any]]:
         cols = [i for i, k in enumerate(health.kinds) if k == kind]
         st = status[:, cols]
         if kind in SAFEGUARD_KINDS:  # its acts: how often, never a NIS
-            out[kind] = {"updates": int((st > 0).any(axis=1).sum()), "gated": 0, "longest_gated_s": 0.0, "mean_nis": float("nan"),
-                         "nis_above_99_pct": float("nan"), "n_nis": 0}
+            out[kind] = {"updates": int((st > 0).any(axis=1).sum()), "gated": 0, "longest_gated_s": 0.0,
+                         "mean_nis": float("nan"), "nis_above_99_pct": float("nan"), "n_nis": 0}
             continue
         used = nis[:, cols][st == 1]
         gated = (st == 2).any(axis=1)
@@ -60,7 +60,9 @@ def pooled_health(summaries: list[dict[str, dict[str, Any]]]) -> dict[str, dict[
     out: dict[str, dict[str, Any]] = {}
     for summary in summaries:
         for kind, s in summary.items():
-            p = out.setdefault(kind, {"updates": 0, "gated": 0, "longest_gated_s": 0.0, "_nis": 0.0, "_above": 0.0, "n_nis": 0})
+            p = out.setdefault(kind,
+                               {"updates": 0, "gated": 0, "longest_gated_s": 0.0, "_nis": 0.0, "_above": 0.0,
+                                "n_nis": 0})
             p["updates"] += s["updates"]
             p["gated"] += s["gated"]
             p["longest_gated_s"] = max(p["longest_gated_s"], s["longest_gated_s"])
@@ -72,7 +74,8 @@ def pooled_health(summaries: list[dict[str, dict[str, Any]]]) -> dict[str, dict[
         total, nis, above = p["n_nis"], p.pop("_nis"), p.pop("_above")
         p["mean_nis"] = nis / total if total else float("nan")
         p["nis_above_99_pct"] = above / total if total else float("nan")
-    return {k: {key: p[key] for key in ("updates", "gated", "longest_gated_s", "mean_nis", "nis_above_99_pct", "n_nis")} for k, p in out.items()}
+    return {k: {key: p[key] for key in ("updates", "gated", "longest_gated_s", "mean_nis", "nis_above_99_pct", "n_nis")}
+            for k, p in out.items()}
 
 
 def health_line(label: str, summary: dict[str, dict[str, Any]]) -> str:
@@ -84,8 +87,9 @@ def health_line(label: str, summary: dict[str, dict[str, Any]]) -> str:
         if s["gated"]:
             parts.append(f"{kind} used at {s['updates'] - s['gated']} of {s['updates']} boundaries "
                          f"({s['gated']} gated out, longest {s['longest_gated_s']:g} s)")
-    nis = ", ".join(f"{kind} {s['mean_nis']:.2f}" for kind, s in summary.items() if s["n_nis"] and kind not in SAFEGUARD_KINDS)
+    nis = ", ".join(f"{kind} {s['mean_nis']:.2f}" for kind, s in summary.items()
+                    if s["n_nis"] and kind not in SAFEGUARD_KINDS)
     gated = "; ".join(parts) if parts else "no measurement gated out"
-    gated += "".join(f"; {kind} at {s['updates']} boundar{'y' if s['updates'] == 1 else 'ies'}" for kind, s in summary.items()
-                     if kind in SAFEGUARD_KINDS and s["updates"])
+    gated += "".join(f"; {kind} at {s['updates']} boundar{'y' if s['updates'] == 1 else 'ies'}"
+                     for kind, s in summary.items() if kind in SAFEGUARD_KINDS and s["updates"])
     return f"{label} health: {gated}; mean NIS (1 expected): {nis or 'no updates'}"

@@ -102,7 +102,8 @@ def cumulative_errors(windows: Windows, starts: np.ndarray, n_windows: int, est:
     e_yaw = yaw_true - est.yaw_rate_radps
     idx = np.asarray(starts)[:, None] + np.arange(n_windows)[None, :]
     if idx.size:
-        _, _, pos = wgs84().inv(est.track.lon_deg[:, 1:], est.track.lat_deg[:, 1:], windows.lon1_deg[idx], windows.lat1_deg[idx])
+        _, _, pos = wgs84().inv(est.track.lon_deg[:, 1:], est.track.lat_deg[:, 1:], windows.lon1_deg[idx],
+                                windows.lat1_deg[idx])
     else:
         pos = np.zeros(idx.shape)
     return {

@@ -64,7 +64,8 @@ class Report:
     def __repr__(self) -> str:
         drives = ", ".join(r.drive.name for r in self.results)
         title = f"{self.title!r}, " if self.title else ""
-        return f"Report({title}{len(self.results)} drive(s): {drives}; {self.n_outages} outage(s); {self.summary_line()})"
+        return (f"Report({title}{len(self.results)} drive(s): {drives}; {self.n_outages} outage(s); "
+                f"{self.summary_line()})")
 
     def summary_line(self) -> str:
         """Each estimator's mean final position error, in one line (``"mean final error: INS DR 8.17 m, ..."``)."""
@@ -94,7 +95,8 @@ class Report:
         estimator the report does not hold or a metric not of :data:`METRICS` is an InputError
         naming the choices (a bare ``KeyError: 'idnn'`` otherwise)."""
         if estimator not in self.estimators:
-            raise InputError(f"no estimator {estimator!r} in this report", f"choose from {', '.join(self.estimators) or '(none)'}", param="estimator")
+            raise InputError(f"no estimator {estimator!r} in this report",
+                             f"choose from {', '.join(self.estimators) or '(none)'}", param="estimator")
         if metric not in METRICS:
             raise InputError(f"unknown metric {metric!r}", f"choose from {', '.join(METRICS)}", param="metric")
         return np.concatenate([r.metrics[estimator][metric] for r in self.results])
@@ -118,7 +120,8 @@ class Report:
         if base is None:
             return {}
         return {
-            est: {m: improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"]) for m in IMPROVEMENT_METRICS}
+            est: {m: improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"])
+                  for m in IMPROVEMENT_METRICS}
             for est in names if est != base
         }
 
@@ -129,7 +132,8 @@ class Report:
         base = next((n for n in self.estimators if is_baseline(n)), None)
         if base is None:
             return {}
-        return {est: {m: list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m))) for m in IMPROVEMENT_METRICS}
+        return {est: {m: list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m)))
+                      for m in IMPROVEMENT_METRICS}
                 for est in self.estimators if est != base}
 
     @property
@@ -158,15 +162,18 @@ class Report:
 
         res = next((r for r, label in zip(self.results, self.drive_labels) if label == drive), None)
         if res is None:
-            raise InputError(f"no evaluated drive is named {drive!r}", hint="one of: " + ", ".join(self.drive_labels), param="drive")
+            raise InputError(f"no evaluated drive is named {drive!r}", hint="one of: " + ", ".join(self.drive_labels),
+                             param="drive")
         if not 1 <= number <= len(res.starts):
-            raise InputError(f"drive {drive} has no outage {number}", hint=f"outages are numbered 1 to {len(res.starts)}", param="number")
+            raise InputError(f"drive {drive} has no outage {number}",
+                             hint=f"outages are numbered 1 to {len(res.starts)}", param="number")
         i = number - 1
         lat, lon, _ = res.windows.boundary_fixes(res.starts[i : i + 1], res.n_windows)
         lat0, lon0 = float(lat[0, 0]), float(lon[0, 0])
         lines = {"truth": (lat[0], lon[0])}
         lines |= {e: (res.estimates[e].track.lat_deg[i], res.estimates[e].track.lon_deg[i]) for e in self.estimators}
-        out: dict[str, Any] = {"drive": drive, "number": number, "start_s": round(float(res.windows.t0_s[res.starts[i]]), 3)}
+        out: dict[str, Any] = {"drive": drive, "number": number,
+                               "start_s": round(float(res.windows.t0_s[res.starts[i]]), 3)}
         for name, (lat, lon) in lines.items():
             east, north = local_en_m(lat, lon, lat0, lon0)
             out[name] = {"east_m": np.round(east, 4).tolist(), "north_m": np.round(north, 4).tolist()}
@@ -198,15 +205,18 @@ class Report:
             "drive": "+".join(r.drive.name for r in results),
             "drives": [{"name": label, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
                         **({"placement": r.placement} if r.placement else {}),
-                        **({"imu": r.drive.imu.to_dict(), "imu_text": r.drive.imu.describe()} if r.drive.imu is not None else {}),
-                        **({"filter_health": h} if (h := _drive_health(r)) else {})} for r, label in zip(results, self.drive_labels)],
+                        **({"imu": r.drive.imu.to_dict(),
+                            "imu_text": r.drive.imu.describe()} if r.drive.imu is not None else {}),
+                        **({"filter_health": h} if (h := _drive_health(r)) else {})}
+                       for r, label in zip(results, self.drive_labels)],
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
             "sequences": sequences,
             "summary": self._summary_with_consistency(),
             "distance_m": {k: v for k, v in summarise(distances).items() if k != "std"},
             "bias": [
-                {"drive": label, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps, "source": r.bias.source}
+                {"drive": label, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps,
+                 "source": r.bias.source}
                 for r, label in zip(results, self.drive_labels)
             ],
             "estimators": results[0].estimator_info(),
@@ -217,7 +227,8 @@ class Report:
             out["improvement_ci95_pct"] = self.improvement_ci95_pct
         if sequences:
             out["drift"] = report_drift(results, estimators)
-            out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m")) for e in estimators}
+            out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m"))
+                                              for e in estimators}
         out["worst_of"] = self.worst_of
         out["worst"] = self.worst_outages()
         if out["worst"]:
@@ -228,13 +239,15 @@ class Report:
                 "bridged": [{"drive": name, **b.to_dict()} for name, b in bridged],
                 "not_bridged": sum(sum(r.unbridged.values()) for r in results),
                 "not_bridged_by_reason": _summed_counts([r.unbridged for r in results]),
-                "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged])) for est in estimators},
+                "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged]))
+                                  for est in estimators},
             }
         idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
         if idnn is not None:
             out["model"] = idnn.get("info", {})
         out["truth"] = "reference" if any(r.drive.has_reference for r in results) else "gnss"
-        health = {est: pooled_health([d["filter_health"][est] for d in out["drives"] if est in d.get("filter_health", {})])
+        health = {est: pooled_health([d["filter_health"][est] for d in out["drives"]
+                                      if est in d.get("filter_health", {})])
                   for est in estimators}
         if any(health.values()):
             out["filter_health"] = {est: h for est, h in health.items() if h}
@@ -293,7 +306,8 @@ def _summed_counts(parts: list[dict[str, int]]) -> dict[str, int]:
 def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:
     reasons = _summed_counts([p["excluded_by_reason"] for p in parts])
     return {"windows": sum(p["windows"] for p in parts), "excluded_windows": sum(p["excluded_windows"] for p in parts),
-            "excluded_by_reason": reasons, "receiver_lost_windows": sum(p.get("receiver_lost_windows", 0) for p in parts),
+            "excluded_by_reason": reasons,
+            "receiver_lost_windows": sum(p.get("receiver_lost_windows", 0) for p in parts),
             "excluded_outages": sum(p["excluded_outages"] for p in parts)}
 
 
@@ -310,7 +324,8 @@ def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> d
         if by_group:
             rows[str(group)] = rep
             continue
-        for res, label in zip(rep.results, drive_labels([r.drive for r in rep.results])):  # two drives of one name: by their files
+        # two drives of one name: by their files
+        for res, label in zip(rep.results, drive_labels([r.drive for r in rep.results])):
             rows[f"{group}: {label}" if group else label] = Report([res], res.drive.name)
     rows["total"] = combined(reports)
     return rows
@@ -340,8 +355,8 @@ def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", inden
     found, 0 included (a type with none, or none with room for an outage, has no report)."""
     total = combined(reports)
     events = {"events": reports.events} if isinstance(reports, EventReports) else {}
-    return dumps_json(tagged(key, {key: {g: r.to_dict() for g, r in reports.items()}, **events, "worst_of": total.worst_of,
-                                   "worst": total.worst_outages()}), indent=indent)
+    return dumps_json(tagged(key, {key: {g: r.to_dict() for g, r in reports.items()}, **events,
+                                   "worst_of": total.worst_of, "worst": total.worst_outages()}), indent=indent)
 
 
 def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
@@ -352,8 +367,9 @@ def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
     names = reports[lengths[0]].estimators
     out: dict[str, Any] = {}
     for est in names:
-        rows: dict[str, list[float]] = {"outage_s": [float(x) for x in lengths], "n_outages": [], "final_position_error_m": [],
-                                        "final_error_pct": [], "crse_m": [], "final_error_p90_m": []}
+        rows: dict[str, list[float]] = {"outage_s": [float(x) for x in lengths], "n_outages": [],
+                                        "final_position_error_m": [], "final_error_pct": [], "crse_m": [],
+                                        "final_error_p90_m": []}
         for length in lengths:
             rep = reports[length]
             rows["n_outages"].append(rep.n_outages)
@@ -399,8 +415,8 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
     if report.n_outages:
         lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
                  "| mean | final m | CRSE m | yaw rad/s |", "|---|---|---|---|",
-                 *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
-                   f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
+                 *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | "
+                   f"{mean[e]['crse_m']['mean']:.2f} | {mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
     else:  # only the log's own losses: no table of synthetic outages to fill with nothing
         lines = [f"**{result.drive.name}**", ""]
     # the worst real one where there is room: the screenshot's summary tab holds one worst line
@@ -446,25 +462,30 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         f"- **Outages**: {placement}; {report.n_outages} outage(s)",
         *([f"- **IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
         f"- **{truth_line(report.to_dict())}**",
-        *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes (drawn as dots)"]
+        *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
+           "(drawn as dots)"]
           if drive.has_reference else []),
-        f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from {bias.source}",
+        f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from "
+        f"{bias.source}",
     ]
     info = {e["name"]: e.get("info", {}) for e in result.estimator_info()}
     if "idnn" in info:
         model_info = info["idnn"]
         trained = ", ".join(d["name"] for d in model_info.get("trained_on", [])) or "unknown"
-        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, {model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
+        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, "
+                     f"{model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
             lines.append(f"- **Training data**: {model_info['training_data']}")
         for name, note in (model_info.get("domain") or {}).items():
             lines.append(f"- **IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
-                         f"(sigma widened x{note['sigma_scale_median']:.2f} median, x{note['sigma_scale_max']:.2f} at most)")
+                         f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
+                         f"x{note['sigma_scale_max']:.2f} at most)")
     else:
         lines.append("- **IDNN model**: none")
     for est in result.estimators:
         if est.name not in ("ins", "idnn"):
             extra = ", ".join(f"{k}: {v}" for k, v in info.get(est.name, {}).items())
-            lines.append(f"- **{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`" + (f" ({extra})" if extra else ""))
+            lines.append(f"- **{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`"
+                         + (f" ({extra})" if extra else ""))
     lines.append("- **Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
     return "\n".join(lines) + "\n"

@@ -42,11 +42,13 @@ def schema_of(doc: Any, source: object, param: str, hint: str) -> str | None:
     tag = doc["schema"]
     parts = tag.split("/") if isinstance(tag, str) else []
     if len(parts) != 3 or parts[0] != "ionav-viz" or not parts[2].isdigit():
-        raise InputError(f"{source}: schema: {tag!r} is not an ionav-viz report's (ionav-viz/KIND/VERSION)", hint, param=param)
+        raise InputError(f"{source}: schema: {tag!r} is not an ionav-viz report's (ionav-viz/KIND/VERSION)", hint,
+                         param=param)
     kind, version = parts[1], int(parts[2])
     if kind not in KINDS:
         raise InputError(f"{source}: schema: unknown kind {kind!r}", f"known: {', '.join(KINDS)}; {hint}", param=param)
     if version > SCHEMA_VERSION:
         raise InputError(f"{source}: written by a newer ionav-viz ({tag}; this one reads version {SCHEMA_VERSION})",
-                         "upgrade ionav-viz ('pip install -U ionav-viz'), or write the report again with this one", param=param)
+                         "upgrade ionav-viz ('pip install -U ionav-viz'), or write the report again with this one",
+                         param=param)
     return kind

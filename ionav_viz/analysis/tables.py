@@ -11,18 +11,22 @@ import textwrap
 from typing import Any
 
 _STATS = (("max", "max"), ("min", "min"), ("mean", "μ"), ("std", "σ"))
-_BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps"), ("AEPS (/s)", "aeps_m", "yaw_aeps_radps"))
+_BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps"),
+           ("AEPS (/s)", "aeps_m", "yaw_aeps_radps"))
 
 
 def _fmt(x: float, decimals: int = 2) -> str:
     """A table cell: ``-`` where the report leaves the value undefined (None, NaN: e.g. the final
     error as a % of under 10 m driven), as the fleet's tables write it, not ``nan``; a value that
     rounds to zero is ``0.000``, not ``-0.000``."""
-    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, decimals) + 0.0:.{decimals}f}"  # no "-0.000"
+    # no "-0.000"
+    return ("-" if x is None or (isinstance(x, float) and math.isnan(x))
+            else f"{round(x, decimals) + 0.0:.{decimals}f}")
 
 
 def _pct(x: float) -> str:
-    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, 1) + 0.0:.1f} %"  # no "-0.0 %"
+    # no "-0.0 %"
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, 1) + 0.0:.1f} %"
 
 
 def labels_of(rep: dict[str, Any]) -> dict[str, str]:
@@ -56,7 +60,8 @@ def table_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
         row += [_fmt(rep["summary"][e]["final_error_pct"][stat], 1) for e in ests] + [""] * len(ests)
         rows.append(row)
     for i, (stat, label) in enumerate(_STATS[:3]):
-        rows.append(["Total distance (m)" if i == 0 else "", label, _fmt(rep["distance_m"][stat])] + [""] * (2 * len(ests) - 1))
+        rows.append(["Total distance (m)" if i == 0 else "", label,
+                     _fmt(rep["distance_m"][stat])] + [""] * (2 * len(ests) - 1))
     rows.append(["Number of sequences", "", str(rep["n_sequences"])] + [""] * (2 * len(ests) - 1))
     return header, rows
 
@@ -75,7 +80,8 @@ def improvement_lines(rep: dict[str, Any]) -> list[str]:
 
     return [
         f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_pct(imp['crse_m'])}, "
-        f"orientation-rate CRSE {_pct(imp['yaw_crse_radps'])}, final position error {_pct(imp['final_position_error_m'])}{interval(est)}"
+        f"orientation-rate CRSE {_pct(imp['yaw_crse_radps'])}, final position error "
+        f"{_pct(imp['final_position_error_m'])}{interval(est)}"
         for est, imp in rep.get("improvement_pct", {}).items()
     ]
 
@@ -93,7 +99,8 @@ def truth_line(rep: dict[str, Any]) -> str:
         head = f"GNSS truth: {truth['excluded_windows']} of {truth['windows']} windows excluded ({reasons})"
     else:
         head = f"GNSS truth: all {truth['windows']} windows trustworthy"
-    receiver = f"; the receiver without a fix to trust in {lost} windows (no outage starts right after one)" if lost else ""
+    receiver = (f"; the receiver without a fix to trust in {lost} windows (no outage starts right after one)"
+                if lost else "")
     return f"{head}{receiver}; {truth['excluded_outages']} outage(s) not placed there"
 
 
@@ -123,7 +130,8 @@ def drift_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     rows = []
     for e, label in labels.items():
         d, pct = rep["drift"][e], rep["final_error_percentiles"][e]
-        rows.append([label, *(f"{_fmt(d['mean_m'][k], 1)} [{_fmt(d['p10_m'][k], 1)}-{_fmt(d['p90_m'][k], 1)}]" for k in picks),
+        rows.append([label,
+                     *(f"{_fmt(d['mean_m'][k], 1)} [{_fmt(d['p10_m'][k], 1)}-{_fmt(d['p90_m'][k], 1)}]" for k in picks),
                      *(_fmt(pct[q], 1) for q in ("p50", "p90", "p95", "max"))])
     return header, rows
 
@@ -146,7 +154,8 @@ def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
     if "gnss_outages" in rep:
         header, rows = bridged_rows(rep)
         lines += [f"**{rep['drive']}: the log's own GNSS outages** (truth: the first good fix after each)", "",
-                  "| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
+                  "| " + " | ".join(header) + " |",
+                  "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
         lines += [bridged_line(rep)]
     # the same lines as the text report, each a paragraph of its own
     said = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
@@ -172,8 +181,8 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out = [title_of(rep, scenario), *aligned(header, rows, 2, width)]
     if "gnss_outages" in rep:
         header, rows = bridged_rows(rep)
-        out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)", *aligned(header, rows, 1, width),
-                bridged_line(rep)]
+        out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)",
+                *aligned(header, rows, 1, width), bridged_line(rep)]
     out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
     out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
     if rep.get("drift"):
@@ -181,7 +190,8 @@ def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | N
         out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
     if rep.get("worst"):
         header, rows = worst_rows(rep)
-        out += [f"{worst_title(rep)}:", *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]
+        out += [f"{worst_title(rep)}:",
+                *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]
     return "\n".join(_folded(line, width) for line in out) + "\n"
 
 
@@ -200,7 +210,8 @@ def consistency_lines(rep: dict[str, Any]) -> list[str]:
     from .consistency import consistency_line
 
     labels = {e["name"]: e["label"] for e in rep["estimators"]}
-    return [consistency_line(labels.get(est, est), s["consistency"]) for est, s in rep["summary"].items() if "consistency" in s]
+    return [consistency_line(labels.get(est, est), s["consistency"]) for est, s in rep["summary"].items()
+            if "consistency" in s]
 
 
 def health_lines(rep: dict[str, Any]) -> list[str]:
@@ -217,7 +228,8 @@ def arbiter_lines(rep: dict[str, Any]) -> list[str]:
     the last drive it ran on, so a report of several drives leaves it to each drive's own run."""
     if len(rep.get("drives", [])) != 1:
         return []
-    return [f"{e['label']} propagation: {e['info']['arbiter']}" for e in rep["estimators"] if e.get("info", {}).get("arbiter")]
+    return [f"{e['label']} propagation: {e['info']['arbiter']}" for e in rep["estimators"]
+            if e.get("info", {}).get("arbiter")]
 
 
 def domain_lines(rep: dict[str, Any]) -> list[str]:
@@ -228,7 +240,8 @@ def domain_lines(rep: dict[str, Any]) -> list[str]:
     for e in rep["estimators"]:
         for drive, note in (e.get("info", {}).get("domain") or {}).items():
             out.append(f"{e['label']} out of its training domain on {drive}: {'; '.join(note['outside'])} "
-                       f"(sigma widened x{note['sigma_scale_median']:.2f} median, x{note['sigma_scale_max']:.2f} at most)")
+                       f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
+                       f"x{note['sigma_scale_max']:.2f} at most)")
     return out
 
 
@@ -275,7 +288,8 @@ def aligned(header: list[str], rows: list[list[str]], left: int, width: int | No
 def _wrapped_header(header: list[str], rows: list[list[str]], n_lines: int) -> list[list[str]]:
     """Header cells wrapped onto about ``n_lines`` lines (a column never narrower than its values or
     its longest word), bottom-aligned: one list of cells per header line."""
-    widths = [max([len(r[j]) for r in rows] + [len(w) for w in h.split()] + [-(-len(h) // n_lines)]) for j, h in enumerate(header)]
+    widths = [max([len(r[j]) for r in rows] + [len(w) for w in h.split()] + [-(-len(h) // n_lines)])
+              for j, h in enumerate(header)]
     wrapped = [textwrap.wrap(h, widths[j], break_on_hyphens=False) or [""] for j, h in enumerate(header)]
     depth = max(map(len, wrapped))
     padded = [[""] * (depth - len(w)) + w for w in wrapped]
@@ -296,8 +310,9 @@ def bridged_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     several = len({b["drive"] for b in rep["gnss_outages"]["bridged"]}) > 1
     header = ["#", *(["Drive"] if several else []), "Gap (s)", "From (s)", "Outage (s)", "Span (m)"]
     header += [f"{labels[e]} final err. (m)" for e in labels]
-    rows = [[str(b["number"]), *([b["drive"]] if several else []), f"{b['gap_s']:.1f}", f"{b['gap_start_s']:.1f}", str(b["outage_s"]),
-             f"{b['span_m']:.0f}", *(_fmt(b["final_error_m"][e], 2) for e in labels)] for b in rep["gnss_outages"]["bridged"]]
+    rows = [[str(b["number"]), *([b["drive"]] if several else []), f"{b['gap_s']:.1f}", f"{b['gap_start_s']:.1f}",
+             str(b["outage_s"]), f"{b['span_m']:.0f}", *(_fmt(b["final_error_m"][e], 2) for e in labels)]
+            for b in rep["gnss_outages"]["bridged"]]
     return header, rows
 
 
@@ -308,7 +323,8 @@ def bridged_line(rep: dict[str, Any]) -> str:
     means = ", ".join(f"{labels[e]} {_fmt(g['final_error_m'][e]['mean'], 2)} m" for e in labels)
     why = g.get("not_bridged_by_reason") or {}
     reasons = ", ".join(f"{n} with {reason}" for reason, n in why.items())
-    missed = f"; {g['not_bridged']} outage(s) not bridged" + (f" ({reasons})" if reasons else "") if g["not_bridged"] else ""
+    missed = (f"; {g['not_bridged']} outage(s) not bridged" + (f" ({reasons})" if reasons else "")
+              if g["not_bridged"] else "")
     return f"Mean final position error over {len(g['bridged'])} real GNSS outage(s): {means}{missed}"
 
 
@@ -319,7 +335,8 @@ def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -
     labels = labels_of(first)
     names = [n for n in labels if n == "ins"] + [n for n in labels if n != "ins"]
     blocks = (("Disp. CRSE μ", "crse_m", "m", 2, True), ("Yaw CRSE μ", "yaw_crse_radps", "rad/s", 3, True),
-              ("Final pos. err. μ", "final_position_error_m", "m", 2, False), ("Final err. μ", "final_error_pct", "% of distance", 1, False))
+              ("Final pos. err. μ", "final_position_error_m", "m", 2, False),
+              ("Final err. μ", "final_error_pct", "% of distance", 1, False))
     header = [label, "Sequences"]
     for title, _key, unit, _d, delta in blocks:
         for i, est in enumerate(names):
@@ -339,29 +356,34 @@ def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -
     return header, rows
 
 
-def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: str = "Scenario", width: int | None = None) -> str:
+def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: str = "Scenario",
+                    width: int | None = None) -> str:
     """The overview table; Δ % is an estimator's improvement over the INS DR (positive = better).
 
     As text wider than ``width`` it is transposed: one column per group, one row per metric and
     estimator (and split into blocks of groups if that is still too wide)."""
     header, rows = overview_rows(reports, label)
     if markdown:
-        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
+        lines = (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+                 + ["| " + " | ".join(r) + " |" for r in rows])
         return "\n".join(lines) + "\n"
     widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
-    lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths))) for r in [header] + rows]
+    lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths)))
+             for r in [header] + rows]
     if width is not None and max(map(len, lines)) > width:
         lines = aligned(*overview_transposed(reports, label), 2, width)
     return "\n".join(lines) + "\n"
 
 
-def overview_transposed(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
+def overview_transposed(reports: dict[Any, dict[str, Any]],
+                        label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
     """The overview with one column per group: rows are (metric, estimator) and each candidate's
     improvement over the INS DR (``Δ %``) under it."""
     header, rows = overview_rows(reports, label)
     first = next(iter(reports.values()))
     labels = labels_of(first)
-    out_header = ["Metric", "Estimator", *(r[0].split(": ")[0] for r in rows)]  # "motorway: V-sim-motorway" -> its group
+    # "motorway: V-sim-motorway" -> its group
+    out_header = ["Metric", "Estimator", *(r[0].split(": ")[0] for r in rows)]
     out_rows = [["Sequences", "", *(r[1] for r in rows)]]
     metric = ""
     for j in range(2, len(header)):
@@ -378,12 +400,15 @@ def overview_transposed(reports: dict[Any, dict[str, Any]], label: str = "Scenar
     return out_header, out_rows
 
 
-def render_lengths(summary: dict[str, Any], labels: dict[str, str], markdown: bool = False, width: int | None = None) -> str:
+def render_lengths(summary: dict[str, Any], labels: dict[str, str], markdown: bool = False,
+                   width: int | None = None) -> str:
     """Error against outage length: per estimator and length, the mean final position error (m)
     with its share of the distance (%), and the mean displacement CRSE (m)."""
     first = next(iter(summary.values()))
-    header = ["Estimator", *(f"{x:g} s final (m, %)" for x in first["outage_s"]), *(f"{x:g} s CRSE (m)" for x in first["outage_s"])]
-    rows = [[labels.get(e, e), *(f"{_fmt(m, 2)} ({_fmt(p, 1)} %)" for m, p in zip(r["final_position_error_m"], r["final_error_pct"])),
+    header = ["Estimator", *(f"{x:g} s final (m, %)" for x in first["outage_s"]),
+              *(f"{x:g} s CRSE (m)" for x in first["outage_s"])]
+    rows = [[labels.get(e, e),
+             *(f"{_fmt(m, 2)} ({_fmt(p, 1)} %)" for m, p in zip(r["final_position_error_m"], r["final_error_pct"])),
              *(_fmt(c, 2) for c in r["crse_m"])] for e, r in summary.items()]
     title = "Error against outage length (mean over each length's outages; " + ", ".join(
         f"{x:g} s: {n}" for x, n in zip(first["outage_s"], first["n_outages"])) + " outages)"
