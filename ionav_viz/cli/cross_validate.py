@@ -40,7 +40,7 @@ def cross_validate(
     # ReadOptions: --span, --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
     read: Any = None,
 ) -> None:
-    """Train K models, each tested on drives (or time blocks of one drive) it never saw; each fold's test metrics and their spread."""
+    """Train K models, each tested on drives (or time blocks of one drive) it never saw; per-fold metrics and spread."""
     from .. import api
     from ..api.cross_validate import cross_validate as run_folds
     from ..api.training import training_device

@@ -25,7 +25,7 @@ def list_runs(
                                                       "data directory).", show_default=False),
     manifest_opt: Optional[Path] = c.ManifestOpt,
 ) -> None:
-    """List the drives bundled with ionav-viz, then the IO-VNBD runs: group, driver, role in the paper, size, and whether present locally."""
+    """List the bundled drives, then the IO-VNBD runs: group, driver, paper role, size, and whether present locally."""
     from ..api.datasets import DatasetSource, bundled_drives, fetch_root, list_runs
     from ..core.json_out import dumps_json
 

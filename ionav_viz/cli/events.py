@@ -39,7 +39,7 @@ def events(
     # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
     read: Any = None,
 ) -> None:
-    """Find hard brakes, roundabouts, sharp corners, left-right turns, quick acceleration changes, cruising and the log's GNSS losses.
+    """Find hard brakes, roundabouts, sharp/left-right turns, acceleration swings, cruising and the log's GNSS losses.
 
     Definitions: docs/method.md ('Manoeuvres') and the docstring of ionav_viz/analysis/events.py;
     every --threshold NAME=VALUE, with its default and range, is listed below.

@@ -22,7 +22,7 @@ def figures(
                                      "outage lengths) as SVG, PDF and PNG into (made when missing)."),
     quiet: bool = c.QuietOpt,
 ) -> None:
-    """Draw a run's drift curve, final-error CDF, per-outage errors, worst outage and uncertainty calibration as publication figures."""
+    """Draw a run's publication figures: drift, error CDF, per-outage errors, worst outage, uncertainty calibration."""
     from .. import api
 
     written = api.figures(result, output)

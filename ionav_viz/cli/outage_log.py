@@ -30,7 +30,7 @@ def outage_log(
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     read: Any = None,  # ReadOptions (c.with_source_options)
 ) -> None:
-    """Write a drive's log without GNSS inside the outages replay/evaluate would place, and the plan to score an estimate made on it."""
+    """Write a drive's log without GNSS in the outages evaluate would place, and the plan to score an estimate on it."""
     from .. import api
 
     outage_s = c.duration_s(outage, "--outage")

@@ -15,7 +15,7 @@ def run(
     file: Path = typer.Argument(..., help="An experiment file (.toml): command = \"...\", its drives and options. "
                                 "Options after FILE override the file's."),
 ) -> None:
-    """Run an experiment file: the command it names with its options ('ionav-viz COMMAND ... --print-config' writes one).
+    """Run an experiment file: the command it names with its options ('ionav-viz COMMAND --print-config' writes one).
 
     Every command also takes --config FILE (the file's options, the command line's win) and
     --print-config (print the effective configuration and exit). See 'Experiment files' in the README.
