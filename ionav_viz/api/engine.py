@@ -93,7 +93,8 @@ class Engine:
     def describe(self) -> str:
         """One line for reports: ``4 processes``, ``in this process``, ``Dask at tcp://...``."""
         if self.backend == "dask":
-            return f"Dask ({'a local cluster of ' + str(self.pool_size()) + ' workers' if self.cluster == LOCAL_CLUSTER else self.cluster})"
+            where = f"a local cluster of {self.pool_size()} workers" if self.cluster == LOCAL_CLUSTER else self.cluster
+            return f"Dask ({where})"
         return "in this process" if self.backend == "serial" else f"{self.pool_size()} processes"
 
 
