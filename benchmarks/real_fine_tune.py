@@ -26,8 +26,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import datetime
 import json
 import math
+import os
 import platform
 import sys
 import tempfile
@@ -111,7 +113,7 @@ def measure(name: str, entry: dict, config_overrides: dict, folder: Path, fracti
             "mean_m": {"ins": float(ins.mean()), "parent": float(shipped.mean()), "fine_tuned": float(fine.mean())} if len(starts) else {},
             "fine_tuned_minus_ins_m": interval(ins, fine), "fine_tuned_minus_parent_m": interval(shipped, fine),
             "kept": kept_of(model.metadata), "fine_tune_wall_s": round(wall_s, 1), "fine_tune_cpu_s": round(cpu_s, 1),
-            "n_examples": model.metadata["training"]["n_examples"]}
+            "n_examples": model.metadata["training"]["n_examples"], "ins_blend": model.metadata["epoch_selection"].get("ins_blend")}
 
 
 def verdict(result: dict) -> str:
@@ -142,8 +144,8 @@ def row(r: dict) -> str:
 
 def markdown(results: list[dict], argv: list[str]) -> str:
     command = " ".join(["python benchmarks/real_fine_tune.py", *argv])
-    lines = [f"Measured by `{command}` ({platform.machine()}, {platform.system()}, Python {platform.python_version()}, "
-             f"ionav-viz {iv.__version__}); do not edit by hand. Displacement CRSE per 10 s outage, mean over the outages of "
+    lines = [f"Measured by `{command}` on {datetime.date.today().isoformat()} ({os.cpu_count()} cores, {platform.machine()}, "
+             f"trained on the CPU, Python {platform.python_version()}, ionav-viz {iv.__version__}); do not edit by hand. Displacement CRSE per 10 s outage, mean over the outages of "
              "the second half; differences: mean [95 % interval, paired bootstrap over the outages].", "",
              HEADER, "|---|---|---|---|---|---|---|---|---|---|---|"]
     return "\n".join(lines + [row(r) for r in results]) + "\n"
