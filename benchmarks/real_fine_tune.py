@@ -56,7 +56,11 @@ def read_options(entry: dict, span: str | None = None) -> iv.ReadOptions:
     log = dict(entry.get("log", {}))
     truth = log.pop("truth_topic", None)
     options = iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", truth_topic=truth, **log)
-    limits = GnssLimits() if entry.get("max_sigma_m") is None else dataclasses.replace(GnssLimits(), max_sigma_m=entry["max_sigma_m"])
+    limits = (
+        GnssLimits()
+        if entry.get("max_sigma_m") is None
+        else dataclasses.replace(GnssLimits(), max_sigma_m=entry["max_sigma_m"])
+    )
     return iv.ReadOptions(log=options, gnss_limits=limits, span=span)
 
 
@@ -95,25 +99,51 @@ def measure(name: str, entry: dict, config_overrides: dict, folder: Path, fracti
     if config_overrides:
         config = dataclasses.replace(config, **config_overrides)
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    model = iv.train(folder / name, [str(path)], config, read=read_options(entry, f"0s:{split_s:g}s"), from_model="shipped",
-                     command=f"benchmarks/real_fine_tune.py ({name})")
+    model = iv.train(
+        folder / name,
+        [str(path)],
+        config,
+        read=read_options(entry, f"0s:{split_s:g}s"),
+        from_model="shipped",
+        command=f"benchmarks/real_fine_tune.py ({name})",
+    )
     wall_s, cpu_s = time.perf_counter() - wall0, time.process_time() - cpu0
     run_opts = {"warm_up_s": split_s + 1.0}  # the window before the first outage starts after the training span
     read = read_options(entry)
-    parent = iv.evaluate([str(path)], OUTAGE_S, estimators=["ins", "idnn"], read=read, run=iv.RunOptions(**run_opts)).to_dict()
-    tuned = iv.evaluate([str(path)], OUTAGE_S, estimators=["idnn"], read=read,
-                        run=iv.RunOptions(model=str(folder / name), strict=True, **run_opts)).to_dict()
+    parent = iv.evaluate(
+        [str(path)], OUTAGE_S, estimators=["ins", "idnn"], read=read, run=iv.RunOptions(**run_opts)
+    ).to_dict()
+    tuned = iv.evaluate(
+        [str(path)],
+        OUTAGE_S,
+        estimators=["idnn"],
+        read=read,
+        run=iv.RunOptions(model=str(folder / name), strict=True, **run_opts),
+    ).to_dict()
     starts, ins = crse_per_outage(parent, "ins")
     _, shipped = crse_per_outage(parent, "idnn")
     tuned_starts, fine = crse_per_outage(tuned, "idnn")
     if tuned_starts != starts:
         raise RuntimeError(f"{name}: the two evaluations placed different outages")
-    return {"log": name, "grade": entry["grade"], "length_s": round(length_s, 1), "split_s": split_s, "outages": len(starts),
-            "start_s": starts, "crse_m": {"ins": ins.tolist(), "parent": shipped.tolist(), "fine_tuned": fine.tolist()},
-            "mean_m": {"ins": float(ins.mean()), "parent": float(shipped.mean()), "fine_tuned": float(fine.mean())} if len(starts) else {},
-            "fine_tuned_minus_ins_m": interval(ins, fine), "fine_tuned_minus_parent_m": interval(shipped, fine),
-            "kept": kept_of(model.metadata), "fine_tune_wall_s": round(wall_s, 1), "fine_tune_cpu_s": round(cpu_s, 1),
-            "n_examples": model.metadata["training"]["n_examples"], "ins_blend": model.metadata["epoch_selection"].get("ins_blend")}
+    return {
+        "log": name,
+        "grade": entry["grade"],
+        "length_s": round(length_s, 1),
+        "split_s": split_s,
+        "outages": len(starts),
+        "start_s": starts,
+        "crse_m": {"ins": ins.tolist(), "parent": shipped.tolist(), "fine_tuned": fine.tolist()},
+        "mean_m": {"ins": float(ins.mean()), "parent": float(shipped.mean()), "fine_tuned": float(fine.mean())}
+        if len(starts)
+        else {},
+        "fine_tuned_minus_ins_m": interval(ins, fine),
+        "fine_tuned_minus_parent_m": interval(shipped, fine),
+        "kept": kept_of(model.metadata),
+        "fine_tune_wall_s": round(wall_s, 1),
+        "fine_tune_cpu_s": round(cpu_s, 1),
+        "n_examples": model.metadata["training"]["n_examples"],
+        "ins_blend": model.metadata["epoch_selection"].get("ins_blend"),
+    }
 
 
 def verdict(result: dict) -> str:
@@ -123,31 +153,44 @@ def verdict(result: dict) -> str:
     below_ins = result["mean_m"]["fine_tuned"] < result["mean_m"]["ins"]
     gap = result["fine_tuned_minus_parent_m"]
     above_parent = gap is not None and gap[1] > 0
-    return "holds" if below_ins and not above_parent else ", ".join(
-        ([] if below_ins else ["not below the INS DR"]) + (["above its parent"] if above_parent else []))
+    return (
+        "holds"
+        if below_ins and not above_parent
+        else ", ".join(([] if below_ins else ["not below the INS DR"]) + (["above its parent"] if above_parent else []))
+    )
 
 
 def _gap(gap: list[float] | None) -> str:
     return "–" if gap is None else f"{gap[0]:+.2f} [{gap[1]:+.2f}, {gap[2]:+.2f}]"
 
 
-HEADER = ("| log | split (s) | outages | INS DR (m) | parent (m) | fine-tuned (m) | fine-tuned - INS DR (m) | fine-tuned - parent (m) "
-          "| criterion | fine-tuning kept | fine-tuning wall / CPU (s) |")
+HEADER = (
+    "| log | split (s) | outages | INS DR (m) | parent (m) | fine-tuned (m) | fine-tuned - INS DR (m) "
+    "| fine-tuned - parent (m) | criterion | fine-tuning kept | fine-tuning wall / CPU (s) |"
+)
 
 
 def row(r: dict) -> str:
     m = r["mean_m"]
     means = " | ".join(f"{m[k]:.2f}" if m else "–" for k in ("ins", "parent", "fine_tuned"))
-    return (f"| {r['log']} | {r['split_s']:g} of {r['length_s']:g} | {r['outages']} | {means} | {_gap(r['fine_tuned_minus_ins_m'])} | "
-            f"{_gap(r['fine_tuned_minus_parent_m'])} | {verdict(r)} | {r['kept']} | {r['fine_tune_wall_s']} / {r['fine_tune_cpu_s']} |")
+    gaps = f"{_gap(r['fine_tuned_minus_ins_m'])} | {_gap(r['fine_tuned_minus_parent_m'])}"
+    return (
+        f"| {r['log']} | {r['split_s']:g} of {r['length_s']:g} | {r['outages']} | {means} | {gaps} | {verdict(r)} | "
+        f"{r['kept']} | {r['fine_tune_wall_s']} / {r['fine_tune_cpu_s']} |"
+    )
 
 
 def markdown(results: list[dict], argv: list[str]) -> str:
     command = " ".join(["python benchmarks/real_fine_tune.py", *argv])
-    lines = [f"Measured by `{command}` on {datetime.date.today().isoformat()} ({os.cpu_count()} cores, {platform.machine()}, "
-             f"trained on the CPU, Python {platform.python_version()}, ionav-viz {iv.__version__}); do not edit by hand. Displacement CRSE per 10 s outage, mean over the outages of "
-             "the second half; differences: mean [95 % interval, paired bootstrap over the outages].", "",
-             HEADER, "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"Measured by `{command}` on {datetime.date.today().isoformat()} ({os.cpu_count()} cores, "
+        f"{platform.machine()}, trained on the CPU, Python {platform.python_version()}, ionav-viz {iv.__version__}); "
+        "do not edit by hand. Displacement CRSE per 10 s outage, mean over the outages of the second half; "
+        "differences: mean [95 % interval, paired bootstrap over the outages].",
+        "",
+        HEADER,
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     return "\n".join(lines + [row(r) for r in results]) + "\n"
 
 
@@ -155,21 +198,34 @@ def check_page(page: Path) -> str:
     try:
         text = page.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{page}: cannot be read ({exc.__class__.__name__})", "give the docs page to regenerate", param="--write-docs") from None
+        raise InputError(
+            f"{page}: cannot be read ({exc.__class__.__name__})",
+            "give the docs page to regenerate",
+            param="--write-docs",
+        ) from None
     if START not in text or END not in text:
-        raise InputError(f"{page}: no '{START}' ... '{END}' lines to write the fine-tuning section between",
-                         "add the two lines where the section belongs", param="--write-docs")
+        raise InputError(
+            f"{page}: no '{START}' ... '{END}' lines to write the fine-tuning section between",
+            "add the two lines where the section belongs",
+            param="--write-docs",
+        )
     return text
 
 
 def overrides(items: list[str]) -> dict:
     """``--set NAME=VALUE`` as fine-tuning config fields, each value of its field's type."""
-    fields = {f.name: type(getattr(iv.fine_tune_settings("shipped"), f.name)) for f in dataclasses.fields(iv.ModelConfig)}
+    fields = {
+        f.name: type(getattr(iv.fine_tune_settings("shipped"), f.name)) for f in dataclasses.fields(iv.ModelConfig)
+    }
     out = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or key not in fields:
-            raise InputError(f"--set {item}: not NAME=VALUE with a ModelConfig field", f"choose from {', '.join(sorted(fields))}", param="--set")
+            raise InputError(
+                f"--set {item}: not NAME=VALUE with a ModelConfig field",
+                f"choose from {', '.join(sorted(fields))}",
+                param="--set",
+            )
         kind = fields[key]
         try:
             out[key] = (value.lower() in ("1", "true", "yes")) if kind is bool else kind(value)
@@ -183,20 +239,33 @@ def main() -> None:
     parser.add_argument("--only", help="only these logs of the corpus, comma-separated")
     parser.add_argument("--json", type=Path, help="also write every number (per outage too) as JSON here")
     parser.add_argument("--write-docs", type=Path, metavar="PAGE", help="regenerate the page's fine-tuning section")
-    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="a fine-tuning setting (ModelConfig field) changed")
-    parser.add_argument("--fraction", type=float, default=0.5, help="the share of each log fine-tuned on (default: the first half)")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a fine-tuning setting (ModelConfig field) changed",
+    )
+    parser.add_argument(
+        "--fraction", type=float, default=0.5, help="the share of each log fine-tuned on (default: the first half)"
+    )
     args = parser.parse_args()
     corpus = json.loads(CORPUS_FILE.read_text())
     names = sorted(corpus["logs"]) if not args.only else [n.strip() for n in args.only.split(",")]
     unknown = [n for n in names if n not in corpus["logs"]]
     if unknown:
-        raise InputError(f"--only: {', '.join(unknown)} not in {CORPUS_FILE}", f"choose from {', '.join(sorted(corpus['logs']))}", param="--only")
+        raise InputError(
+            f"--only: {', '.join(unknown)} not in {CORPUS_FILE}",
+            f"choose from {', '.join(sorted(corpus['logs']))}",
+            param="--only",
+        )
     if not 0.1 <= args.fraction <= 0.9:
         raise InputError(f"--fraction {args.fraction:g} out of range", "give 0.1 to 0.9", param="--fraction")
     output_file(args.json, "--json")
     if args.write_docs:
         check_page(args.write_docs)
     config_overrides = overrides(args.set)
+    dataclasses.replace(iv.fine_tune_settings("shipped"), **config_overrides).validate()  # before any work
     print(HEADER)
     print("|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
     results = []
@@ -209,7 +278,10 @@ def main() -> None:
         atomic_write_bytes(args.json, json.dumps(results, indent=1).encode())
     if args.write_docs:
         head, rest = check_page(args.write_docs).split(START, 1)
-        atomic_write_bytes(args.write_docs, (head + START + "\n" + markdown(results, sys.argv[1:]) + END + rest.split(END, 1)[1]).encode())
+        atomic_write_bytes(
+            args.write_docs,
+            (head + START + "\n" + markdown(results, sys.argv[1:]) + END + rest.split(END, 1)[1]).encode(),
+        )
     print(f"\n{sys.version.split()[0]}, ionav-viz {iv.__version__}", file=sys.stderr)
 
 

@@ -30,7 +30,11 @@ def read_options(entry: dict, span: str | None = None) -> iv.ReadOptions:
     """The corpus entry's read options (IMU only, the mount estimated), over ``span``."""
     log = dict(entry.get("log", {}))
     options = iv.LogOptions(imu_mount="auto", vehicle_speed_topic="none", **log)
-    limits = GnssLimits() if entry.get("max_sigma_m") is None else dataclasses.replace(GnssLimits(), max_sigma_m=entry["max_sigma_m"])
+    limits = (
+        GnssLimits()
+        if entry.get("max_sigma_m") is None
+        else dataclasses.replace(GnssLimits(), max_sigma_m=entry["max_sigma_m"])
+    )
     return iv.ReadOptions(log=options, gnss_limits=limits, span=span)
 
 
@@ -50,7 +54,9 @@ def fine_tuned_on_first_half(log: str, folder: Path) -> tuple[np.ndarray, np.nda
     model = iv.train(folder / "m", [path], config, read=read_options(entry, f"0s:{split_s:g}s"), from_model="shipped")
     run = {"warm_up_s": split_s + 1.0}  # the window before the first outage lies after the training span
     parent = iv.evaluate([drive], 10, estimators=["ins", "idnn"], run=iv.RunOptions(**run))
-    tuned = iv.evaluate([drive], 10, estimators=["idnn"], run=iv.RunOptions(model=str(folder / "m"), strict=True, **run))
+    tuned = iv.evaluate(
+        [drive], 10, estimators=["idnn"], run=iv.RunOptions(model=str(folder / "m"), strict=True, **run)
+    )
     starts, ins = crse(parent, "ins")
     tuned_starts, fine = crse(tuned, "idnn")
     assert tuned_starts == starts and len(starts) >= 2
@@ -83,8 +89,15 @@ LOGS = sorted(CORPUS["logs"])
 SHORT = {"dash_comma2k19"}
 
 
-@pytest.mark.parametrize("log", [pytest.param(log, marks=pytest.mark.xfail(strict=True, reason="29 s of drive validates nothing"))
-                                 if log in SHORT else log for log in LOGS])
+@pytest.mark.parametrize(
+    "log",
+    [
+        pytest.param(log, marks=pytest.mark.xfail(strict=True, reason="29 s of drive validates nothing"))
+        if log in SHORT
+        else log
+        for log in LOGS
+    ],
+)
 def test_fine_tuned_on_the_first_half_beats_the_ins_dr_and_never_its_parent_on_the_second(log, tuned):
     ins, parent, fine, _ = tuned(log)
     assert fine.mean() < ins.mean(), f"{log}: fine-tuned {fine.mean():.2f} m, INS DR {ins.mean():.2f} m"
@@ -96,7 +109,9 @@ def test_the_phone_takes_the_ins_drs_displacement_where_its_first_half_shows_it_
     its first half says so too, and fine-tuning blends the INS DR's displacement in."""
     ins, parent, _, meta = tuned("phone_flat_meszdav")
     record = meta["epoch_selection"]["ins_blend"]
-    assert parent.mean() > ins.mean() and 0 < record["kept"] < 1 and meta["hyperparameters"]["ins_blend"] == record["kept"]
+    assert (
+        parent.mean() > ins.mean() and 0 < record["kept"] < 1 and meta["hyperparameters"]["ins_blend"] == record["kept"]
+    )
     assert record["last_block_m"][f"{record['kept']:g}"] <= record["last_block_m"]["0"]
 
 
@@ -110,6 +125,8 @@ def test_a_model_taking_all_of_the_ins_drs_displacement_is_the_ins_dr(tmp_path):
     save_model(model, tmp_path / "m")
     report = iv.evaluate([drive], 10, estimators=["ins", "idnn"], run=iv.RunOptions(model=str(tmp_path / "m")))
     assert np.array_equal(crse(report, "idnn")[1], crse(report, "ins")[1])
+    info = {e["name"]: e.get("info", {}) for e in report.to_dict()["estimators"]}
+    assert info["idnn"]["ins_blend"] == 1.0  # the report says what the model's displacement is
     assert json.loads((tmp_path / "m" / "metadata.json").read_text())["config"]["ins_blend"] == 1.0
 
 
@@ -117,5 +134,9 @@ def test_where_the_parent_beats_the_ins_dr_on_the_first_half_no_share_is_taken(t
     """The roof log: the INS DR loses to the parent on the first half's outages; the model stays the network."""
     *_, meta = tuned("roof_mems_rtk")
     record = meta["epoch_selection"]["ins_blend"]
-    assert record["kept"] == 0 and record["mean_m"]["1"] > record["mean_m"]["0"] and meta["hyperparameters"]["ins_blend"] == 0
+    assert (
+        record["kept"] == 0
+        and record["mean_m"]["1"] > record["mean_m"]["0"]
+        and meta["hyperparameters"]["ins_blend"] == 0
+    )
     assert len(record["n_outages"]) == 5 and sum(record["n_outages"]) > 0

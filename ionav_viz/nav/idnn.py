@@ -111,7 +111,9 @@ class ModelConfig:
     validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
     validation_folds: int = 0  # fine-tuning: 1: the tail decides, then refit on every window; k > 1: k time blocks left out in turn decide; 0: the tail-trained fit is kept
     tune_layers: str = "all"  # fine-tuning trains "all" layers, or the "first" only; "all,first" (with validation_folds): the first only for a network validation keeps from all
-    ins_blend: float = 0.0  # prediction: this share of each window's displacement is the INS DR's, the rest the network's (fine-tuning chooses it)
+    # prediction: this share of each window's displacement is the INS DR's, the rest the network's
+    # (fine-tuning chooses it)
+    ins_blend: float = 0.0
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -532,12 +534,14 @@ class IdnnModel:
         if self.config.ins_blend > 0:
             from .ins import dead_reckon
 
-            ins_m, _ = dead_reckon(windows.accel_mps2[idx], windows.gyro_radps[idx], windows.speed0_mps[starts], bias, windows.rate_hz, still)
+            ins_m, _ = dead_reckon(windows.accel_mps2[idx], windows.gyro_radps[idx], windows.speed0_mps[starts], bias,
+                                   windows.rate_hz, still)
             disp = (1.0 - self.config.ins_blend) * disp + self.config.ins_blend * ins_m
         return disp, yaw
 
     def describe(self) -> dict[str, Any]:
-        """What the recording and reports say about the model."""
+        """What the recording and reports say about the model (``ins_blend``: only a model that takes
+        a share of the INS DR's displacement)."""
         return {
             "directory": self.directory,
             "arch": self.config.arch,
@@ -546,7 +550,7 @@ class IdnnModel:
             "inputs": self.config.inputs,
             "trained_on": self.metadata.get("training", {}).get("drives", []),
             "training_data": self.metadata.get("training", {}).get("description", ""),
-        }
+        } | ({"ins_blend": self.config.ins_blend} if self.config.ins_blend > 0 else {})
 
 
 class IdnnEstimator:
@@ -763,7 +767,8 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 
 #: Config fields later versions added: written only when not at their default, so that a model
 #: trained without them stays readable by the versions before them (which refuse unknown fields).
-LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds", "tune_layers", "ins_blend")
+LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds", "tune_layers",
+                       "ins_blend")
 
 
 def written_config(config: ModelConfig) -> dict[str, Any]:

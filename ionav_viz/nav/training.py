@@ -887,8 +887,8 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     config = dataclasses.replace(config, ins_blend=blend)
     parent = dataclasses.replace(parent, config=dataclasses.replace(parent.config, ins_blend=blend))
     if blend != blend_record["parent"]:
-        logging.getLogger("ionav_viz").info("fine-tuning: the displacement takes %.0f %% of the INS DR's (%s)", 100 * blend,
-                                            blend_record["validation"])
+        logging.getLogger("ionav_viz").info("fine-tuning: the displacement takes %.0f %% of the INS DR's (%s)",
+                                            100 * blend, blend_record["validation"])
     k = config.validation_folds
     where = f"each of {k} blocks of each drive (by time) left out in turn" if k > 1 else f"the last {config.validation_tail:.0%} of each drive (by time) left out"
     what = (f"{where}: the displacement CRSE (m, mean) of {config.validation_outage_s} s "
@@ -1037,19 +1037,23 @@ def outage_cases_by_block(drives: list[tuple[Drive, SensorBias]], config: ModelC
         length = float(drive.t_s[-1]) - t_first + 1.0 / drive.rate_hz
         for phase in range(10):
             w = make_windows(drive, offset_s=phase / 10.0).ignoring_receiver()  # the model runs on the truth's GNSS here
-            ok = np.array([k for k in range(1, len(w) - n + 1) if w.segment[k - 1] == w.segment[k] and valid_start(w, k, n)
+            ok = np.array([k for k in range(1, len(w) - n + 1)
+                           if w.segment[k - 1] == w.segment[k] and valid_start(w, k, n)
                            and w.truth_ok[k - 1 : k + n].all()], dtype=int)
             cal = None
             for i, block in enumerate(blocks):
                 cut = t_first + max(warm_up_s, block[0] * length)
                 end = t_first + block[1] * length
-                starts = ok[(w.t0_s[ok - 1] >= cut - 1e-9) & ((block[1] >= 1.0) | (w.t0_s[ok + n - 1] + WINDOW_S <= end + 1e-9))] if len(ok) else ok
+                ends_in = (block[1] >= 1.0) | (w.t0_s[ok + n - 1] + WINDOW_S <= end + 1e-9)
+                inside = (w.t0_s[ok - 1] >= cut - 1e-9) & ends_in
+                starts = ok[inside] if len(ok) else ok
                 if not len(starts):
                     continue
                 inputs = EstimatorInputs(drive, w, starts, n, bias)
                 if cal is None and config.inputs == "calibrated":
                     cal = calibration(drive, w, bias.accel_mps2, bias.gyro_radps)
-                out[i].append((w, starts, bias, cal, inputs.still, w.gnss_disp_m[starts[:, None] + np.arange(n)[None, :]]))
+                truth = w.gnss_disp_m[starts[:, None] + np.arange(n)[None, :]]
+                out[i].append((w, starts, bias, cal, inputs.still, truth))
     return out
 
 
@@ -1084,15 +1088,16 @@ def choose_ins_blend(drives: list[tuple[Drive, SensorBias]], config: ModelConfig
     by_block = outage_cases_by_block(drives, config, outage_s, CROSS_VALIDATION_WARM_UP_S, blocks)
     record: dict[str, Any] = {
         "validation": (f"displacement CRSE (m, mean) of {outage_s} s outages starting every 0.1 s from "
-                       f"{CROSS_VALIDATION_WARM_UP_S:g} s into each drive, in {k} time blocks of each drive, the parent's "
-                       "network blended with the INS DR (1: the INS DR alone); the parent's share kept unless the INS DR beats "
-                       "it over all blocks and in the last, then the share of least CRSE of those no worse than the parent's "
-                       "in the last block"),
+                       f"{CROSS_VALIDATION_WARM_UP_S:g} s into each drive, in {k} time blocks of each drive, the "
+                       "parent's network blended with the INS DR (1: the INS DR alone); the parent's share kept unless "
+                       "the INS DR beats it over all blocks and in the last, then the share of least CRSE of those no "
+                       "worse than the parent's in the last block"),
         "parent": base}
     errors: dict[float, list[np.ndarray]] = {b: [] for b in candidates}
     for cases in by_block:
         for b in candidates:
-            errors[b].append(_outage_errors(dataclasses.replace(parent, config=dataclasses.replace(parent.config, ins_blend=b)), cases))
+            blended = dataclasses.replace(parent, config=dataclasses.replace(parent.config, ins_blend=b))
+            errors[b].append(_outage_errors(blended, cases))
     record["n_outages"] = [int(len(e)) for e in errors[base]]
     last = max((i for i, e in enumerate(errors[base]) if len(e)), default=None)
     if last is None:
@@ -1100,7 +1105,8 @@ def choose_ins_blend(drives: list[tuple[Drive, SensorBias]], config: ModelConfig
         return base, record
     pooled = {b: float(np.mean(np.concatenate(errors[b]))) for b in candidates}
     in_last = {b: float(np.mean(errors[b][last])) for b in candidates}
-    record.update(mean_m={f"{b:g}": pooled[b] for b in candidates}, last_block_m={f"{b:g}": in_last[b] for b in candidates})
+    record.update(mean_m={f"{b:g}": pooled[b] for b in candidates},
+                  last_block_m={f"{b:g}": in_last[b] for b in candidates})
     choice = base
     if pooled[1.0] < pooled[base] and in_last[1.0] < in_last[base]:
         eligible = [b for b in {base, *blends} if in_last[b] <= in_last[base]]
