@@ -140,6 +140,13 @@ def train(
           f"trainable parameters: displacement {params['displacement']}, orientation rate {params['yaw_rate']}", file=sys.stderr)
     if "parent" in model.metadata:
         print(f"fine-tuned from {model.metadata['parent']['directory']}", file=sys.stderr)
+        blend = model.metadata.get("epoch_selection", {}).get("ins_blend")
+        if blend is not None and blend["kept"] != blend["parent"]:
+            means, kept, before = blend["mean_m"], blend["kept"], blend["parent"]
+            print(f"displacement: {100 * kept:.0f} % the INS DR's, {100 * (1 - kept):.0f} % the network's "
+                  "(displacement CRSE of the "
+                  f"drive's own outages: the INS DR {means['1']:.2f} m, the parent {means[f'{before:g}']:.2f} m, "
+                  f"the blend {means[f'{kept:g}']:.2f} m)", file=sys.stderr)
     print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate {val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
     if (unc := model.metadata.get("uncertainty")) is not None:
         inside = ", ".join(f"{100 * v:.0f} % at {k}" for k, v in unc["coverage_95"].items())

@@ -31,7 +31,9 @@ no turn and feeds back zero. And a car without acceleration keeps its speed: wha
 network predicts for the window with no acceleration, beyond the fed-back displacement, is its
 drift and is taken off (:meth:`IdnnModel.predict_displacement`). The paper's method allows both:
 its feedback input is the previous window's displacement, zero for a standing car, and its
-networks and their training are unchanged.
+networks and their training are unchanged. A model may blend the INS DR's displacement into its
+own (``ins_blend``, :meth:`IdnnModel.predict`): fine-tuning chooses the share on the car's own
+drive (:func:`ionav_viz.nav.training.choose_ins_blend`); the shipped model has none.
 
 Uncertainty (beyond the paper, optional: :class:`Uncertainty`): each window's displacement and
 yaw-rate variance as a function of what the networks predicted and how far into the outage the
@@ -109,6 +111,9 @@ class ModelConfig:
     validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
     validation_folds: int = 0  # fine-tuning: 1: the tail decides, then refit on every window; k > 1: k time blocks left out in turn decide; 0: the tail-trained fit is kept
     tune_layers: str = "all"  # fine-tuning trains "all" layers, or the "first" only; "all,first" (with validation_folds): the first only for a network validation keeps from all
+    # prediction: this share of each window's displacement is the INS DR's, the rest the network's
+    # (fine-tuning chooses it)
+    ins_blend: float = 0.0
 
     def validate(self) -> None:
         """Check types and ranges; errors name the field (``param``) so the command line can name its
@@ -149,7 +154,7 @@ _INT_LIMITS = {"n_steps_disp": (1, 20), "n_steps_yaw": (1, 20), "hidden": (1, 10
                "validation_outage_s": (0, 600), "validation_folds": (0, 100)}
 _FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0), "lr_yaw": (1e-9, 10.0),
                  "lr_decay_tail": (0.0, 1.0), "validation_tail": (0.0, 0.9),
-                 "anchor": (0.0, 1e6)}
+                 "anchor": (0.0, 1e6), "ins_blend": (0.0, 1.0)}
 #: Largest weights file read (bytes): the biggest network of the allowed sizes is far smaller.
 MAX_WEIGHTS_BYTES = 256 * 2**20
 
@@ -500,7 +505,12 @@ class IdnnModel:
         Inputs are corrected with the standstill ``bias`` (``inputs="plain"``, the paper's) or with
         the filter's ``calibration`` at each outage start (``inputs="calibrated"``, required then).
         ``still`` (n_outages, n_windows, steps + 1): where the IMU shows the car standing; a window
-        standing throughout has no displacement and no turn (see :meth:`predict_displacement`)."""
+        standing throughout has no displacement and no turn (see :meth:`predict_displacement`).
+
+        With ``config.ins_blend`` = b > 0, each window's displacement is (1 - b) x the network's + b x
+        the INS DR's (:func:`~ionav_viz.nav.ins.dead_reckon` on the same samples, ``bias`` and
+        ``still``, from the GNSS speed at each start): b = 1 is the INS DR's displacement exactly.
+        The yaw rate is the network's."""
         starts = np.asarray(starts, dtype=int)
         idx = starts[:, None] + np.arange(n_windows)[None, :]
         if len(starts) == 0:
@@ -520,10 +530,18 @@ class IdnnModel:
         yaw = self.predict_yaw_rate(gyro)
         if standing is not None:
             yaw = np.where(standing, 0.0, yaw)
-        return self.predict_displacement(accel, windows.gnss_disp_m[starts - 1], standing), yaw
+        disp = self.predict_displacement(accel, windows.gnss_disp_m[starts - 1], standing)
+        if self.config.ins_blend > 0:
+            from .ins import dead_reckon
+
+            ins_m, _ = dead_reckon(windows.accel_mps2[idx], windows.gyro_radps[idx], windows.speed0_mps[starts], bias,
+                                   windows.rate_hz, still)
+            disp = (1.0 - self.config.ins_blend) * disp + self.config.ins_blend * ins_m
+        return disp, yaw
 
     def describe(self) -> dict[str, Any]:
-        """What the recording and reports say about the model."""
+        """What the recording and reports say about the model (``ins_blend``: only a model that takes
+        a share of the INS DR's displacement)."""
         return {
             "directory": self.directory,
             "arch": self.config.arch,
@@ -532,7 +550,7 @@ class IdnnModel:
             "inputs": self.config.inputs,
             "trained_on": self.metadata.get("training", {}).get("drives", []),
             "training_data": self.metadata.get("training", {}).get("description", ""),
-        }
+        } | ({"ins_blend": self.config.ins_blend} if self.config.ins_blend > 0 else {})
 
 
 class IdnnEstimator:
@@ -749,7 +767,8 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
 
 #: Config fields later versions added: written only when not at their default, so that a model
 #: trained without them stays readable by the versions before them (which refuse unknown fields).
-LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds", "tune_layers")
+LATER_CONFIG_FIELDS = ("validation_tail", "keep", "anchor", "validation_outage_s", "validation_folds", "tune_layers",
+                       "ins_blend")
 
 
 def written_config(config: ModelConfig) -> dict[str, Any]:

@@ -616,6 +616,11 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
        cars 870-873: +11/+11, +14/+13, +3/+2 (first layer kept; was 0/0), 0/0 % (both tries
        rejected on the car beyond the fleet), mean gain over the INS DR +56 / +40.3 % (was +56 /
        +39.8 %).
+    8. before all of it, the share of the INS DR's displacement the model takes (``ins_blend``) is
+       chosen on the parent (:func:`choose_ins_blend`): none unless the INS DR beats the parent on the
+       drives' own 10 s outages (issue 62: a real phone's); none of the cars 870-873 and 880-887 takes
+       one. The rule and what it does on the real logs: docs/real-imu-logs.md, "Fine-tuned on the
+       car's own first half".
 
     Tried on 880-887 and not taken (fine-tuned minus shipped at 10 / 30 s): deciding by blocked
     cross-validation instead (5 time blocks of each drive left out in turn, outages scored after a
@@ -868,18 +873,28 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     and a network whose fine-tuning that did not beat the parent is tried again with its first layer
     alone trained (the rest the parent's), decided the same way (each try from the same seed); a
     network no try beats keeps the parent's weights (said in one line and in the metadata's
-    ``epoch_selection``, with the layers each network kept)."""
+    ``epoch_selection``, with the layers each network kept).
+
+    First of all, the share of the INS DR's displacement the model takes (``ins_blend``) is chosen
+    on the parent (:func:`choose_ins_blend`, recorded as ``epoch_selection["ins_blend"]``); the
+    parent and every fine-tuned network are then scored, and the model kept, with that blend."""
     import dataclasses
     import logging
 
     import torch
 
+    blend, blend_record = choose_ins_blend(drives, config, parent)
+    config = dataclasses.replace(config, ins_blend=blend)
+    parent = dataclasses.replace(parent, config=dataclasses.replace(parent.config, ins_blend=blend))
+    if blend != blend_record["parent"]:
+        logging.getLogger("ionav_viz").info("fine-tuning: the displacement takes %.0f %% of the INS DR's (%s)",
+                                            100 * blend, blend_record["validation"])
     k = config.validation_folds
     where = f"each of {k} blocks of each drive (by time) left out in turn" if k > 1 else f"the last {config.validation_tail:.0%} of each drive (by time) left out"
     what = (f"{where}: the displacement CRSE (m, mean) of {config.validation_outage_s} s "
             f"outages in it starting every 0.1 s from {CROSS_VALIDATION_WARM_UP_S:g} s into the drive, the network's own displacement fed back, "
             "and the orientation rate's one-window L1 loss (normalised), of the parent and of the parent fine-tuned outside the block")
-    selection: dict[str, Any] = {"validation": what, "folds": []}
+    selection: dict[str, Any] = {"validation": what, "folds": [], "ins_blend": blend_record}
     nets = {"displacement": ("disp_net", parent.disp_net), "yaw_rate": ("yaw_net", parent.yaw_net)}
     undecided = list(nets)
     tried: dict[str, list[dict[str, Any]]] = {name: [] for name in nets}
@@ -1007,26 +1022,97 @@ def outage_cases(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n:
     """The ``n``-window outages :func:`outage_validation` runs: at ten grid phases, each with the
     window before it not before ``warm_up_s`` into its drive, and all of it (that window too) in the
     ``block`` (fractions of the drive by time; the last ``tail`` of each drive: ``(1 - tail, 1)``)."""
+    return outage_cases_by_block(drives, config, n, warm_up_s, [block])[0]
+
+
+def outage_cases_by_block(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n: int, warm_up_s: float,
+                          blocks: list[tuple[float, float]]) -> list[list[tuple]]:
+    """:func:`outage_cases` of each of ``blocks``, the windows and the calibration worked out once."""
     from .outages import valid_start
     from .protocol import EstimatorInputs
 
-    cases = []
+    out: list[list[tuple]] = [[] for _ in blocks]
     for drive, bias in drives:
         t_first = float(drive.t_s[0])
         length = float(drive.t_s[-1]) - t_first + 1.0 / drive.rate_hz
-        cut = t_first + max(warm_up_s, block[0] * length)
-        end = t_first + block[1] * length
         for phase in range(10):
             w = make_windows(drive, offset_s=phase / 10.0).ignoring_receiver()  # the model runs on the truth's GNSS here
-            starts = np.array([k for k in range(1, len(w) - n + 1) if w.t0_s[k - 1] >= cut - 1e-9
-                               and (block[1] >= 1.0 or w.t0_s[k + n - 1] + WINDOW_S <= end + 1e-9) and w.segment[k - 1] == w.segment[k]
-                               and valid_start(w, k, n) and w.truth_ok[k - 1 : k + n].all()], dtype=int)
-            if not len(starts):
-                continue
-            inputs = EstimatorInputs(drive, w, starts, n, bias)
-            cal = calibration(drive, w, bias.accel_mps2, bias.gyro_radps) if config.inputs == "calibrated" else None
-            cases.append((w, starts, bias, cal, inputs.still, w.gnss_disp_m[starts[:, None] + np.arange(n)[None, :]]))
-    return cases
+            ok = np.array([k for k in range(1, len(w) - n + 1)
+                           if w.segment[k - 1] == w.segment[k] and valid_start(w, k, n)
+                           and w.truth_ok[k - 1 : k + n].all()], dtype=int)
+            cal = None
+            for i, block in enumerate(blocks):
+                cut = t_first + max(warm_up_s, block[0] * length)
+                end = t_first + block[1] * length
+                ends_in = (block[1] >= 1.0) | (w.t0_s[ok + n - 1] + WINDOW_S <= end + 1e-9)
+                inside = (w.t0_s[ok - 1] >= cut - 1e-9) & ends_in
+                starts = ok[inside] if len(ok) else ok
+                if not len(starts):
+                    continue
+                inputs = EstimatorInputs(drive, w, starts, n, bias)
+                if cal is None and config.inputs == "calibrated":
+                    cal = calibration(drive, w, bias.accel_mps2, bias.gyro_radps)
+                truth = w.gnss_disp_m[starts[:, None] + np.arange(n)[None, :]]
+                out[i].append((w, starts, bias, cal, inputs.still, truth))
+    return out
+
+
+#: Fine-tuning's share of the INS DR's displacement in the model's (:func:`choose_ins_blend`): the
+#: shares it may keep (at most 3/4: the network keeps a say), the time blocks of each drive they are
+#: scored in (the last is the tail that decides between parent and fine-tuned networks,
+#: :data:`FINE_TUNE_VALIDATION_TAIL`) and the outages they are scored on (s).
+FINE_TUNE_INS_BLENDS = (0.0, 0.25, 0.5, 0.75)
+FINE_TUNE_BLEND_BLOCKS = 5
+FINE_TUNE_BLEND_OUTAGE_S = 10
+
+
+def choose_ins_blend(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, parent: IdnnModel,
+                     blends: tuple[float, ...] = FINE_TUNE_INS_BLENDS, k: int = FINE_TUNE_BLEND_BLOCKS,
+                     outage_s: int = FINE_TUNE_BLEND_OUTAGE_S) -> tuple[float, dict[str, Any]]:
+    """The share of the INS DR's displacement (``ModelConfig.ins_blend``) ``parent`` is given on
+    ``drives``, and the record of the choice.
+
+    The parent's own share, each of ``blends`` and the INS DR alone (share 1) are scored on the
+    drives' ``outage_s`` s outages starting every 0.1 s from :data:`CROSS_VALIDATION_WARM_UP_S`
+    into each drive (the displacement CRSE, the network's own output fed back, as the estimator
+    runs them), in ``k`` time blocks of each drive. The parent has never seen these drives, so
+    every block is data it did not see. The parent's own share is kept unless the INS DR beats it
+    on this car: over all the blocks and in the last one (the stretch nearest the outages the model
+    will bridge). Then the share of least mean CRSE over all the blocks is kept, among those no
+    worse than the parent's own in the last block. No outage fitting: the parent's own."""
+    import dataclasses
+
+    base = parent.config.ins_blend
+    candidates = sorted({base, *blends, 1.0})
+    blocks = [(i / k, (i + 1) / k) for i in range(k)]
+    by_block = outage_cases_by_block(drives, config, outage_s, CROSS_VALIDATION_WARM_UP_S, blocks)
+    record: dict[str, Any] = {
+        "validation": (f"displacement CRSE (m, mean) of {outage_s} s outages starting every 0.1 s from "
+                       f"{CROSS_VALIDATION_WARM_UP_S:g} s into each drive, in {k} time blocks of each drive, the "
+                       "parent's network blended with the INS DR (1: the INS DR alone); the parent's share kept unless "
+                       "the INS DR beats it over all blocks and in the last, then the share of least CRSE of those no "
+                       "worse than the parent's in the last block"),
+        "parent": base}
+    errors: dict[float, list[np.ndarray]] = {b: [] for b in candidates}
+    for cases in by_block:
+        for b in candidates:
+            blended = dataclasses.replace(parent, config=dataclasses.replace(parent.config, ins_blend=b))
+            errors[b].append(_outage_errors(blended, cases))
+    record["n_outages"] = [int(len(e)) for e in errors[base]]
+    last = max((i for i, e in enumerate(errors[base]) if len(e)), default=None)
+    if last is None:
+        record.update(kept=base, note=f"no {outage_s} s validation outage fits: the parent's share is kept")
+        return base, record
+    pooled = {b: float(np.mean(np.concatenate(errors[b]))) for b in candidates}
+    in_last = {b: float(np.mean(errors[b][last])) for b in candidates}
+    record.update(mean_m={f"{b:g}": pooled[b] for b in candidates},
+                  last_block_m={f"{b:g}": in_last[b] for b in candidates})
+    choice = base
+    if pooled[1.0] < pooled[base] and in_last[1.0] < in_last[base]:
+        eligible = [b for b in {base, *blends} if in_last[b] <= in_last[base]]
+        choice = min(eligible, key=lambda b: (pooled[b], abs(b - base)))
+    record["kept"] = choice
+    return choice, record
 
 
 def _outage_errors(model: IdnnModel, cases: list[tuple]) -> np.ndarray:
