@@ -541,155 +541,16 @@ FINE_TUNE_LAYERS = "all,first"
 
 
 def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs_yaw: int | None = None, seed: int | None = None) -> ModelConfig:
-    """The settings for fine-tuning ``parent`` on a few minutes of one vehicle's drives.
-
-    The architecture, input steps and inputs stay the parent's (its weights and normalisation must
-    fit). Why this schedule: the parent already sits in a good minimum for the general problem, and
-    five minutes give only about 2,700 windows of one car (the parent had 53,000), so
-
-    1. the learning rates are the parent's / 2: steps the size of the first training's throw away
-       part of what the parent learnt from 40 drives before the little new data can replace it (at
-       the parent's rates the fine-tuned model lost to the shipped one on some held-out cars);
-    2. a cosine decay to zero over the whole run, instead of the parent's constant rate and linear
-       tail: the early steps move to the new car's offsets and timing, the late ones are small, so
-       the result does not hang on the last few batches (the displacement network's constant offset
-       is integrated by the feedback loop);
-    3. batches of 64 and 100 epochs of both networks: about 4,000 optimiser steps, half the parent's
-       (53,000 windows in 40 epochs of 256), enough to converge on this little data in seconds on
-       two cores; 30 epochs of 256 converged less, and 200 epochs gained nothing more;
-    4. the last 20 % of each drive (by time, never shuffled: neighbouring windows are nearly the same
-       example) is held out for validation, and each network keeps its fine-tuned weights only when
-       they beat the parent's there (``keep="last-or-start"``), else the parent's, said in one line
-       and in the metadata's ``epoch_selection``. The displacement network is scored as the
-       benchmark scores it: the displacement CRSE of 5 s outages starting every 0.1 s in the tail,
-       its own output fed back (:func:`outage_validation`; 10 s outages fit too rarely in 12 s);
-       the orientation-rate network by its one-window L1 loss (it has no feedback). Without it,
-       fine-tuning on all five minutes made a tuning car's displacement worse on its other drives
-       (car 882: -7 % and -4 % displacement CRSE at 10 and 30 s);
-    5. the loss adds 10 x the mean squared distance of the weights from the parent's (L2-SP): a
-       pull back to what 40 drives taught, so a few minutes move the weights only as far as the new
-       car needs.
-
-    Chosen on held-out cars 880-887 (``python benchmarks/own_vehicle.py --cars 880,881,882,883``
-    and ``--cars 884,885,886,887``; 883 and 887 with errors x1.4), never on the cars 870-873 the
-    benchmark reports. Fine-tuned minus shipped, displacement CRSE at 10 / 30 s, cars 880, 881,
-    882, 883: without 4 and 5 +13/+17, +12/+13, -7/-4, +5/+8 %; the parent's rates / 6 instead of
-    / 2 +11/+15, +11/+11, -6/-5, +5/+5 %; 5 alone +8/+12, +10/+10, -3/-1, +6/+8 % (at 30 x:
-    -1/0 % on 882); 4 with the one-window loss for both networks, keeping the best epoch instead of
-    last-or-parent +10/+12, +1/-1, 0/0, -10/-11 % (early epochs picked badly); 4 so, alone +7/+8,
-    0/0, 0/0, 0/0 % (it kept the parent where fine-tuning had helped); so with 5 +7/+9, +9/+11, 0/0,
-    0/0 %, and on 884-887 +2/+3, +10/+11, 0/0, 0/0 %; 4 with 10 s outages in the last 30 % and 5 0/0,
-    +5/+5, -10/-2, 0/0 %; 4 as above (5 s outages, last 20 %) and 5: +8/+10, +9/+10, 0/0, 0/0 %, and
-    on 884-887 +5/+5, +9/+11, 0/0, 0/0 %: never worse than the parent on the eight cars, and the
-    most gained of those that never were. The price: where validation cannot tell, the car keeps the
-    parent's displacement network (+0 %), and the cars beyond the fleet (x1.4) kept it every time.
-    Said openly: the one-window variant of 4 with 5 was run once on the reported cars (+8/+6,
-    0/0, 0/0, -10/-4 %) before cars 884-887 were added and the outage-scored variant tried; the
-    choice between the two was then made on 880-887 alone.
-
-    6. the tail decides, then every window trains (``validation_folds=1``,
-       :func:`_fine_tune_cross_validated`): the validation above compares the parent with the model
-       fine-tuned on the first 80 % of each drive; a network that wins there is then fine-tuned again,
-       with the same settings, on all of each drive, and that fit is kept. The tail held out was the
-       part of each drive's first minute most like the drives it is used on (the car cruising, the
-       filter's calibration settled after the standstill start and the launch): fine-tuning on
-       every window of the first minute, no guard, gained on cars 880 and 883 +8/+12 and +6/+8 %
-       where the first 80 % gained +7/+9 and +2/+4 % (and lost less on 882 and 886: -3/-1.5 and -5/-4
-       instead of -13/-5 and -18/-9 %). Cars 880-887, fine-tuned minus shipped at 10 / 30 s: with
-       6 +9/+13, +10/+10, 0/0, 0/0 % (880-883) and +7/+9, +11/+11, 0/0, 0/0 % (884-887), against
-       +8/+10, +9/+10, 0/0, 0/0 and +5/+5, +9/+11, 0/0, 0/0 % without: the same decisions, more gained
-       on every car fine-tuned, none worse; about 17 s instead of 13 s a car on this machine.
-    7. a network whose fine-tuning of every layer the tail rejects is fine-tuned again with its
-       first layer alone trained, the others the parent's (``tune_layers="all,first"``), and kept
-       when that beats the parent on the tail (decided and refitted as in 6): surgical fine-tuning
-       (Lee et al. 2023, "Surgical fine-tuning improves adaptation to distribution shifts": a shift
-       of the inputs, here a car's sensors, is best met in the first layer). It moves the network
-       far less, so it gains less where every layer gains (alone, no guard, cars 880-887:
-       +3.5/+6.4, +1.7/+1.8, -1.3/+0.7, +3.1/+4.1, +2.4/+5.0, +1.7/+1.6, -2.9/-1.1, +1.8/+2.7 %;
-       at 4 x the learning rate no more), but the tail tells its losses from its gains: it rejected
-       it on 882 and 886, where fine-tuning loses whatever is trained, and took it on the cars
-       beyond the fleet, 883 and 887, where fine-tuning every layer gains on the test drives
-       (+3/+5 and +1/+3 %) but not on the tail, which had kept the parent. With 7 (the benchmark):
-       +9/+13, +10/+10, 0/0, +3/+4 % (880-883) and +7/+9, +11/+11, 0/0, +2/+3 % (884-887): never
-       worse than the parent, the same where every layer was kept, more on the two cars beyond the
-       fleet; about 30 s instead of 17 s a car where the second try runs. Then, once, the reported
-       cars 870-873: +11/+11, +14/+13, +3/+2 (first layer kept; was 0/0), 0/0 % (both tries
-       rejected on the car beyond the fleet), mean gain over the INS DR +56 / +40.3 % (was +56 /
-       +39.8 %).
-    8. before all of it, the share of the INS DR's displacement the model takes (``ins_blend``) is
-       chosen on the parent (:func:`choose_ins_blend`): none unless the INS DR beats the parent on the
-       drives' own 10 s outages (issue 62: a real phone's); none of the cars 870-873 and 880-887 takes
-       one. The rule and what it does on the real logs: docs/real-imu-logs.md, "Fine-tuned on the
-       car's own first half".
-
-    Tried on 880-887 and not taken (fine-tuned minus shipped at 10 / 30 s): deciding by blocked
-    cross-validation instead (5 time blocks of each drive left out in turn, outages scored after a
-    30 s warm-up) kept the parent on 880 too (0/0 %) and cost 45 s; by leaving out each drive in
-    turn (each a scenario the others lack) kept the parent on seven of eight cars; training the
-    displacement network on the displacement the estimator takes from it (its output for zero
-    acceleration taken off) gained less where the guard kept it (880 +1/+3, 884 -4/-4 %) and lost
-    882 -22/-20 % without the guard; only the output layer +0/+1 % at most; stronger pulls to the
-    parent (100 x) shrank gains and losses alike (882 -8/-4 %); training only on windows whose
-    calibration is 30 s or 15 s into the drive (as an outage after the warm-up) gained less or lost
-    more on 882, 883 and 886 (too few windows). What the first minute cannot give: the parent fine-tuned, no
-    guard, on the second minute of each drive (60-120 s, 5 minutes too, all driving) beat it on
-    all four cars tried (882, 886, 883, 880: +8/+9, +5/+6, +10/+12, +6/+10 %); on the first minute
-    cars like 882 and 886 keep the parent's displacement network. With the guard on the second minute
-    (``own_vehicle.py --tune-span 60s:120s``, 2026-11-26) the tail kept the parent on other cars instead:
-    880-887 +0/+3, +4/+4, +13/+14, 0/0, 0/0, +2/+1, +11/+11, 0/0 % (the first minute: +9/+13, +10/+10,
-    0/0, +3/+4, +7/+9, +11/+11, 0/0, +2/+3 %): the cars beyond the fleet (883, 887) gained nothing.
-
-    Tried on 880-887 for 7 and not taken (fine-tuned minus shipped at 10 / 30 s, the harness
-    measuring each variant's networks on the benchmark's test drives; the tail's decisions as in
-    6 unless said): weight-space interpolation (WiSE-FT, Wortsman et al. 2022), parent + alpha x
-    (fine-tuned - parent): the test CRSE moves almost linearly with alpha on every car, no alpha
-    between beats both ends (880, alpha 0.25, 0.5, 0.75, 1: +2.6/+3.2, +5.2/+6.5, +7.5/+9.8,
-    +9.2/+13.0 %; 882: -0.7/-0.3, -2.6/-1.7, -4.4/-3.7, -5.6/-5.6 %; 887: +1.5/+1.6, +1.7/+2.4,
-    +1.7/+2.9, +1.4/+3.2 %); alpha chosen per network on the tail from {0, 0.25, 0.5, 0.75, 1}
-    took 0.75 on 881 and 885 (+8.5/+8.2 and +8.9/+8.5 instead of +10/+10 and +11/+11 %) and 0 on
-    882, 883, 886 and 887, as before; alpha 0.5 fixed, no guard, lost on 882 and 886 (-2.6/-1.7,
-    -3.8/-2.5 %). Averaging the outputs of the parent and the fine-tuned network (an ensemble, no
-    guard) behaved as alpha 0.5: +5.5/+7.3, +5.6/+5.1, -1.8/-2.0, +2.0/+2.7 % on 880-883. Leaving
-    out the windows where the IMU shows the car standing (the estimator never runs the networks
-    there; no guard: +9.3/+12.7, +10.3/+10.7, -4.8/-3.6, +4.1/+5.7, +7.1/+9.5, +10.5/+10.5,
-    -5.1/-3.9, +0.0/-0.3 %): losses smaller, the same decisions. Calibrating each training
-    window's inputs with the filter's slow parts (offset, gyro bias and scale) as they stand 30 s
-    into the drive, as an outage after the warm-up finds them, instead of 0-9 s before the window
-    (no guard, 880-883: +9.9/+13.4, +10.2/+10.3, -3.4/-2.4, +2.5/+3.7 %, the same decisions); as
-    they stand at the end of the minute (hindsight): 882 -1.1/-0.6 %, but the tail then took 883,
-    which lost -2.1/-2.3 %. After 7 was chosen, 7 with the 30 s calibration (the benchmark, 880-887):
-    +10/+13, +10/+10, 0/0, +3/+4, +7/+9, +11/+10, 0/0, +1/+2 %, the same decisions, no more gained
-    (884, 885 and 887 a little less).
-
-    Tried on 880-887 for the cars where the tail rejects both tries (882 and 886 here; 873 of the
-    reported cars, issue 44) and not taken: nothing below changes a decision of the tail on them.
-    An output calibration of the displacement network in closed form (a linear probe, one
-    parameter): an offset of its output cancels in the estimator, which takes off its output for
-    no acceleration (:meth:`~ionav_viz.nav.idnn.IdnnModel.predict_displacement`), so only a scale
-    ``a`` of the increment (the output less that for no acceleration) acts. It cannot be written in
-    the weights or the normalisation (the kinematic skip term passes the physical acceleration
-    whatever the scaling): it would need a new model field. Fitted by least squares through the
-    origin, the GNSS increment of each window against the parent's, on the first 80 % of each
-    drive's minute: a = 0.968, 0.981, 0.988, 0.954 (880-883), 0.978, 0.980, 0.994, 0.956 (884-887);
-    unguarded, fitted on every window, it gained on the test drives of every car: +0.4/+3.7,
-    +0.3/+0.5, +0.7/+0.9, +2.5/+3.0, -0.0/+2.6, +0.3/+0.5, +0.3/+0.4, +2.3/+2.7 %; but the tail
-    (parent against scaled parent, 5 s outages) took it on 880 and 884 only (3.984 against 3.928,
-    3.585 against 3.550 m, where every layer is kept anyway) and rejected it on 882 (2.190 against
-    2.224), 886 (2.039 against 2.059), 883 (2.765 against 2.942) and 887 (2.672 against 2.850). The
-    first minute's 5 s outages want the other way: their CRSE is least at a = 1.02-1.04 on 882,
-    883, 886 and 887, in the tail and in the first 80 % alike, and a = 1.02 loses on the test drives
-    (882, 883, 886: -1.5/-1.4, -1.5/-1.6, -1.3/-1.5 %), so a scale fitted on the minute's outages
-    would pass the tail and lose. With an offset of the increment too (an integrated drift, what
-    the estimator's drift removal takes off), fitted on the first 80 %, unguarded, 880-883: -0.6/+0.1, +1.1/+3.5,
-    -14.1/-11.5, -4.5/-2.3 %. The scale fitted on the kept networks instead (every window,
-    unguarded): 883 +4.6/+6.1 and 887 +3.2/+4.6 % (first layer kept: +3.1/+4.1 and +1.8/+2.7); on
-    880, 881, 884 and 885 (every layer kept) within 0.2 points of the kept model's. Training only the output layer (a third try, or alone):
-    alone, the tail kept it on 880, 881, 884 and 885 (+7.7/+10.2, +4.2/+4.2, +3.2/+4.9, +4.3/+4.2
-    %, less than every layer) and rejected it on 882, 883, 886 and 887 (2.190 against 2.286, 2.765
-    against 2.800, 2.039 against 2.146, 2.672 against 2.712 m), so after the first layer it would
-    only cost time. Fine-tuning the input normalisation only was not run: with the skip term
-    computed from the same scaling, a new accelerometer scaling is an affine change of the first
-    layer's acceleration inputs, within what the first-layer try already fits."""
+    """The settings for fine-tuning ``parent`` on a few minutes of one vehicle's drives: the
+    parent's architecture, input steps and inputs (its weights and normalisation must fit); learning
+    rates the parent's / :data:`FINE_TUNE_LR_DIVISOR` with a cosine decay to zero; batches of
+    :data:`FINE_TUNE_BATCH` for ``epochs_disp`` / ``epochs_yaw`` (default :data:`FINE_TUNE_EPOCHS`);
+    an L2 pull to the parent's weights (:data:`FINE_TUNE_ANCHOR`); the last
+    :data:`FINE_TUNE_VALIDATION_TAIL` of each drive held out to decide, per network, between the
+    parent and the fine-tuned weights (every layer, then the first layer alone), the winner refitted
+    on all of each drive. The share of the INS DR's displacement blended in (``ins_blend``) is chosen
+    apart, on the training span (:data:`FINE_TUNE_INS_BLENDS`). ``seed``: default the parent's. Why each
+    choice, and what was tried and not taken: docs/fine-tuning.md."""
     import dataclasses
 
     return dataclasses.replace(parent, lr_disp=parent.lr_disp / FINE_TUNE_LR_DIVISOR, lr_yaw=parent.lr_yaw / FINE_TUNE_LR_DIVISOR,
