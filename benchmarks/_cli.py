@@ -165,7 +165,7 @@ def output_folder(path: str | Path | None, option: str) -> Path | None:
 def check_model(path: str | Path | None, option: str = "--model") -> None:
     """Load the IDNN model directory ``path`` (None: the shipped one, not checked) before any
     work, as the estimators will: a missing or damaged model is the library's error, named ``option``."""
-    from ionav_viz.nav.idnn import load_model
+    from ionav_viz.learning.idnn import load_model
 
     if path is not None:
         with named(option):

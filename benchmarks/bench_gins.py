@@ -25,9 +25,9 @@ import numpy as np
 
 from ionav_viz.core.drive import IMU_COLUMNS, Drive
 from ionav_viz.core.grid import GRID_RATE_HZ, GRID_STEP_S
+from ionav_viz.experiment.outages import tile
 from ionav_viz.nav.bias import SensorBias
 from ionav_viz.nav.gins import GinsEstimator
-from ionav_viz.nav.outages import tile
 from ionav_viz.nav.protocol import EstimatorInputs
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sim.imu import imu_drive

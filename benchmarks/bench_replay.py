@@ -37,8 +37,8 @@ def one_run(csv: Path, out: Path) -> dict:
     import rerun  # noqa: F401
     import torch  # noqa: F401
 
+    import ionav_viz.learning.idnn
     import ionav_viz.nav.gins
-    import ionav_viz.nav.idnn
     import ionav_viz.viz.recording  # noqa: F401
     from ionav_viz.api.replay import replay
 

@@ -32,9 +32,9 @@ import ionav_viz as iv
 from ionav_viz.analysis.evaluate import evaluate_drive, improvement_pct, resolve_bias
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import SAMPLES, sample_path
-from ionav_viz.nav.idnn import ModelConfig, default_model_dir, load_model
-from ionav_viz.nav.registry import resolve
-from ionav_viz.nav.training import train_models
+from ionav_viz.experiment.registry import resolve
+from ionav_viz.learning.idnn import ModelConfig, default_model_dir, load_model
+from ionav_viz.learning.training import train_models
 from ionav_viz.sources.iovnbd import read_iovnbd
 
 

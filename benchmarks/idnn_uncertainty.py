@@ -25,8 +25,8 @@ from results_table import held_out_drives
 import ionav_viz as iv
 from ionav_viz.core.geo import wgs84
 from ionav_viz.dataset.samples import SAMPLES, sample_path
-from ionav_viz.nav.idnn import IdnnEstimator
-from ionav_viz.nav.training import CHI2_2_95
+from ionav_viz.learning.idnn import IdnnEstimator
+from ionav_viz.learning.training import CHI2_2_95
 
 
 def final_nees(result) -> np.ndarray:

@@ -149,7 +149,7 @@ def page(rows: list[dict], minutes: float) -> str:
         "pulled towards the parent's weights; the last 20 % validates, and a network whose fine-tuned weights do not beat "
         "the parent's there is fine-tuned again with its first layer alone trained, and keeps the parent's weights when that does "
         "not beat them either; one that does is fine-tuned again (those layers) on the whole minute: "
-        "`fine_tune_config` in `ionav_viz/nav/training.py`; the time is longer where the first layer is tried). "
+        "`fine_tune_config` in `ionav_viz/learning/training.py`; the time is longer where the first layer is tried). "
         "A fine-tuned IDNN equal to the shipped one (+0 %) is a car whose displacement network kept the parent's weights "
         "(the displacement CRSE depends on that network only).",
         "",

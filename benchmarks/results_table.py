@@ -47,7 +47,7 @@ from _cli import add_debug, check_model, lengths_s, named, output_file, read_jso
 
 import ionav_viz as iv
 from ionav_viz.dataset.catalog import SCENARIOS
-from ionav_viz.nav.outages import GNSS_OUTAGE
+from ionav_viz.experiment.outages import GNSS_OUTAGE
 from ionav_viz.sim.imu import IMU_GRADES, SIM_TRUTH_TOPIC, write_imu_log
 from ionav_viz.sim.simulate import fleet_sensors, write_simulated_drive
 

@@ -14,7 +14,8 @@ The public API (see "Python API" in the README, and docs/ for the reference)::
 Data flows one way through the subpackages (a test enforces it):
 
     core (drive model, errors, grid)  <-  dataset (catalog, samples, fetch)  <-  sources (readers)
-    <-  nav (windows, outages, INS, IDNN, estimator plug-ins)  <-  analysis (metrics, events,
+    <-  nav (windows, kernels, INS DR, filters, estimator plug-ins)  <-  learning (the IDNN)
+    <-  experiment (outage placement, the estimators' registry)  <-  analysis (metrics, events,
     reports)  <-  sim  <-  viz (recordings, screenshots)  <-  api  <-  cli
 
 Names are imported lazily, so ``import ionav_viz`` (and ``ionav-viz --help``) stays fast.
@@ -34,14 +35,14 @@ _EXPORTS = {
     "evaluate_by_event": "api", "evaluate_lengths": "api", "replay_lengths": "api", "replay": "api",
     "screenshot": "api", "scenario_drives": "api", "serve_web": "api", "ReplayResult": "api", "Outage": "api",
     "RunOptions": "api", "Shots": "api", "outage_log": "api", "figures": "api", "compare": "api",
-    "Comparison": "analysis.compare", "OutageLogResult": "api", "FromPlan": "nav.plan_file",
+    "Comparison": "analysis.compare", "OutageLogResult": "api", "FromPlan": "experiment.plan_file",
     "Report": "analysis.report", "DriveResult": "analysis.evaluate", "evaluate_fleet": "api", "replay_fleet": "api",
     "write_fleet_recording": "api", "FleetReport": "analysis.fleet", "Drive": "core.drive",
     "InputError": "core.errors", "ToolFailure": "core.errors", "Estimate": "nav.protocol",
     "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol", "EstimatorError": "nav.protocol",
-    "FilterHealth": "nav.protocol", "SensorBias": "nav.bias", "Tile": "nav.outages", "Every": "nav.outages",
-    "At": "nav.outages", "Random": "nav.outages", "AroundEvents": "nav.outages", "cross_validate": "api",
-    "fine_tune_settings": "api", "ModelConfig": "nav.idnn", "EventThresholds": "analysis.events",
+    "FilterHealth": "nav.protocol", "SensorBias": "nav.bias", "Tile": "experiment.outages", "Every": "experiment.outages",
+    "At": "experiment.outages", "Random": "experiment.outages", "AroundEvents": "experiment.outages", "cross_validate": "api",
+    "fine_tune_settings": "api", "ModelConfig": "learning.idnn", "EventThresholds": "analysis.events",
     "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
     "GnssLimits": "core.gnss_quality",
 }  # fmt: skip
@@ -110,9 +111,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .core.drive import Drive
     from .core.errors import InputError, ToolFailure
     from .core.gnss_quality import GnssLimits
+    from .experiment.outages import AroundEvents, At, Every, Random, Tile
+    from .experiment.plan_file import FromPlan
+    from .learning.idnn import ModelConfig
     from .nav.bias import SensorBias
-    from .nav.idnn import ModelConfig
-    from .nav.outages import AroundEvents, At, Every, Random, Tile
-    from .nav.plan_file import FromPlan
     from .nav.protocol import Estimate, Estimator, EstimatorError, EstimatorInputs, FilterHealth
     from .sources.load import LogOptions, ReadOptions, load_drive

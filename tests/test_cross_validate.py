@@ -112,7 +112,7 @@ def test_a_cross_validation_stopped_midway_leaves_no_folds_behind(tmp_path):
             raise KeyboardInterrupt
 
     drives = [str(SAMPLES / f"V-sim-roundabout-train-{i}.csv") for i in (1, 2, 3)]
-    from ionav_viz.nav.idnn import ModelConfig
+    from ionav_viz.learning.idnn import ModelConfig
 
     with pytest.raises(KeyboardInterrupt):
         iv.cross_validate(drives, 3, config=ModelConfig(epochs_disp=1, epochs_yaw=1), read=iv.ReadOptions(span="0s:80s"), output=out, progress=progress)

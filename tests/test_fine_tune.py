@@ -49,7 +49,7 @@ def test_the_summary_says_what_its_counts_are(tuned):
 
 
 def test_fine_tuned_model_records_parent_span_checksum_and_imu(tuned):
-    from ionav_viz.nav.idnn import default_model_dir
+    from ionav_viz.learning.idnn import default_model_dir
 
     meta = json.loads((tuned / "metadata.json").read_text())
     shipped = json.loads((default_model_dir() / "metadata.json").read_text())

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from ionav_viz.nav.training import FitSettings, TrainingSet, fit_network
+from ionav_viz.learning.training import FitSettings, TrainingSet, fit_network
 from tests.conftest import REPO
 
 pytestmark = pytest.mark.xdist_group("fine_tune")
@@ -89,7 +89,7 @@ def _sha(path) -> str:
 def test_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_path, caplog):
     import ionav_viz as iv
     from ionav_viz.api.training import fine_tune_settings
-    from ionav_viz.nav.idnn import default_model_dir
+    from ionav_viz.learning.idnn import default_model_dir
 
     # a learning rate 2,500 times the parent's wrecks both networks in the first steps
     config = fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2)
@@ -167,8 +167,8 @@ def test_block_split_leaves_out_a_stretch_of_time_of_each_drive():
 
 def test_outage_cases_lie_in_their_block_after_the_warm_up():
     from ionav_viz.api.training import parent_model
+    from ionav_viz.learning.training import outage_cases
     from ionav_viz.nav.bias import resolve_bias
-    from ionav_viz.nav.training import outage_cases
     from ionav_viz.sources.load import ReadOptions, load_drive
 
     drive = load_drive(str(DRIVE), ReadOptions(span="0s:120s"))
@@ -197,7 +197,7 @@ def _cross_validated(tmp_path, lr: float | None = None):
 
 
 def test_cross_validated_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_path, caplog):
-    from ionav_viz.nav.idnn import default_model_dir
+    from ionav_viz.learning.idnn import default_model_dir
 
     # a learning rate 2,500 times the parent's wrecks both networks in the first steps, in every fold
     with caplog.at_level(logging.WARNING, logger="ionav_viz"):
@@ -232,7 +232,7 @@ def test_cross_validated_fine_tuning_keeps_what_beat_the_parent_trained_on_every
 
 
 def test_fine_tuning_the_first_layer_leaves_the_other_layers_as_they_were():
-    from ionav_viz.nav.idnn import build_net
+    from ionav_viz.learning.idnn import build_net
 
     torch.manual_seed(0)
     net = build_net("idnn", 4, 8, 0.0, True, None)
@@ -249,7 +249,7 @@ def test_first_layer_fine_tuning_changes_only_the_first_layer_of_a_kept_network(
 
     import ionav_viz as iv
     from ionav_viz.api.training import fine_tune_settings
-    from ionav_viz.nav.idnn import default_model_dir, load_model
+    from ionav_viz.learning.idnn import default_model_dir, load_model
 
     config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), tune_layers="first")
     model = iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")

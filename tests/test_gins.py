@@ -14,9 +14,9 @@ import ionav_viz as iv
 from ionav_viz.core.drive import IMU_COLUMNS, Drive
 from ionav_viz.core.geo import earth_rate_enu_radps, geodetic_of_enu, gravity_enu_mps2, normal_gravity_mps2
 from ionav_viz.core.units import wrap_360
+from ionav_viz.experiment.outages import tile
 from ionav_viz.nav.bias import SensorBias
 from ionav_viz.nav.gins import GinsEstimator
-from ionav_viz.nav.outages import tile
 from ionav_viz.nav.protocol import EstimatorInputs
 from ionav_viz.nav.strapdown import BAX, BGX, KO, N_NOMINAL, QW, SG, VX, propagate
 from ionav_viz.nav.windows import make_windows

@@ -362,7 +362,7 @@ def test_every_placement_starts_only_after_a_window_with_receiver_fixes():
     (each needs the window before it good; window 25 may start, its predecessor is good)."""
     import ionav_viz as iv
     from ionav_viz.core.errors import InputError
-    from ionav_viz.nav import outages
+    from ionav_viz.experiment import outages
 
     clean, w = _windows(100), _windows(100, slice(25, 29))
     assert list(outages.tile(clean, 10)) == list(range(1, 91, 10))
@@ -374,7 +374,7 @@ def test_every_placement_starts_only_after_a_window_with_receiver_fixes():
     with pytest.raises(InputError, match="start time 27 s: the receiver has no trustworthy fix to start that outage from"):
         outages.at(w, [27.0], 10)
     with pytest.raises(InputError, match=r"outage 1 \(27.000 s after the drive's start\): the receiver has no trustworthy fix"):
-        iv.nav.outages.Planned((27.0,), "a plan").plan(w, 10)
+        iv.experiment.outages.Planned((27.0,), "a plan").plan(w, 10)
     # a loss over windows 30-32 where a tile would start at 31: the tiling starts at 34 instead, and
     # the one outage that could not start as tiled is counted
     w = _windows(100, slice(30, 33))

@@ -184,7 +184,7 @@ def test_plan_files_are_bounded_strict_json(tmp_path, short_csv):
     NaN, a number that overflows to infinity or a key given twice were read as given (JSON keeps the
     last of two keys). Each is now one line naming the file."""
     from ionav_viz.core.fileio import read_json_bounded
-    from ionav_viz.nav.plan_file import PLAN_MAX_BYTES
+    from ionav_viz.experiment.plan_file import PLAN_MAX_BYTES
 
     (tmp_path / "deep.json").write_text("[" * 200_000 + "]" * 200_000)
     with open(tmp_path / "huge.json", "wb") as f:  # sparse: its size alone refuses it

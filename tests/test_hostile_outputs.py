@@ -240,7 +240,7 @@ def test_stationary_drive_has_undefined_metrics():
 
 
 def test_an_outage_plan_with_numpy_values_is_plain_json():
-    from ionav_viz.nav.plan_file import PlanFile
+    from ionav_viz.experiment.plan_file import PlanFile
 
     plan = PlanFile(source="x.mcap", source_sha256="0" * 64, drive="x", outage_s=np.float64(10.0), placement="every 30 s",
                     placement_options={"every_s": np.float64(30.0), "seed": np.int64(3), "at": np.array([1.0, np.nan])},

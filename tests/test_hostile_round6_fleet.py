@@ -173,7 +173,7 @@ def test_a_model_directory_beside_the_shipped_model_is_refused():
     """The shipped model's package (``ionav_viz.models``; the repository's ``models/`` in an editable
     install, ``<package>/models`` in a wheel) is the installed package too."""
     from ionav_viz.core.errors import InputError
-    from ionav_viz.nav.idnn import check_model_dir, default_model_dir
+    from ionav_viz.learning.idnn import check_model_dir, default_model_dir
 
     with pytest.raises(InputError, match="installed ionav-viz package"):
         check_model_dir(default_model_dir().parent / "mine")

@@ -10,9 +10,9 @@ import torch
 from ionav_viz.core.errors import InputError
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import samples_dir
+from ionav_viz.learning.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
+from ionav_viz.learning.training import FitSettings, fit_network, train_models, training_examples
 from ionav_viz.nav.bias import SensorBias
-from ionav_viz.nav.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
-from ionav_viz.nav.training import FitSettings, fit_network, train_models, training_examples
 from ionav_viz.sources.iovnbd import read_iovnbd
 
 IDENTITY = MinMax(0.0, 1.0)
@@ -267,8 +267,8 @@ def test_learning_rate_falls_to_zero_over_the_tail():
 def test_shipped_model_beats_dead_reckoning_on_the_bundled_test_drive(scenario):
     # the issue's acceptance point: lower mean displacement CRSE and mean orientation-rate CRSE
     from ionav_viz.analysis.evaluate import evaluate_drive
-    from ionav_viz.nav.idnn import default_model_dir
-    from ionav_viz.nav.registry import resolve
+    from ionav_viz.experiment.registry import resolve
+    from ionav_viz.learning.idnn import default_model_dir
 
     result = evaluate_drive(read_iovnbd(samples_dir() / f"V-sim-{scenario}.csv"), 10, resolve(["ins", "idnn"], model=load_model(default_model_dir())))
     ins, idnn = result.metrics["ins"], result.metrics["idnn"]
@@ -284,7 +284,7 @@ def test_the_numpy_inference_net_computes_what_the_torch_net_does(arch, feedback
     """Evaluation runs the feed-forward nets in numpy (no torch import); training makes them in
     torch. With the same weights both give the same outputs, the displacement net's fed-back input
     and the kinematic skip term included."""
-    from ionav_viz.nav.idnn import NumpyFeedForward
+    from ionav_viz.learning.idnn import NumpyFeedForward
 
     torch.manual_seed(3)
     n_steps = 10

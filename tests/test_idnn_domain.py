@@ -11,10 +11,10 @@ import shutil
 import pytest
 
 from ionav_viz.api.training import training_drives
+from ionav_viz.learning.domain import Domain
+from ionav_viz.learning.idnn import default_model_dir
+from ionav_viz.learning.training import training_domain
 from ionav_viz.nav.bias import resolve_bias
-from ionav_viz.nav.domain import Domain
-from ionav_viz.nav.idnn import default_model_dir
-from ionav_viz.nav.training import training_domain
 from ionav_viz.sources.load import ReadOptions, load_drives
 from tests.conftest import REPO, run_cli
 from tests.test_real_logs import summary_of

@@ -11,10 +11,10 @@ import pytest
 
 from ionav_viz.core.errors import InputError
 from ionav_viz.dataset.samples import samples_dir
+from ionav_viz.learning.idnn import UNCERTAINTY_FILE, IdnnEstimator, Uncertainty, load_model, save_model
+from ionav_viz.learning.training import CHI2_2_95, OutageRuns, fit_uncertainty, nees
 from ionav_viz.nav.bias import SensorBias
-from ionav_viz.nav.idnn import UNCERTAINTY_FILE, IdnnEstimator, Uncertainty, load_model, save_model
 from ionav_viz.nav.protocol import EstimatorInputs, solve
-from ionav_viz.nav.training import CHI2_2_95, OutageRuns, fit_uncertainty, nees
 from ionav_viz.nav.windows import make_windows
 from ionav_viz.sources.iovnbd import read_iovnbd
 
@@ -158,7 +158,7 @@ def test_train_writes_the_uncertainty_or_says_why_not(tmp_path):
 def test_drives_too_short_for_the_fit_leave_a_model_without_uncertainty(tmp_path):
     """One 150 s drive gives too few 60 s outages to fit seven parameters: the model gets none, says
     so in its metadata, and saves and loads without one."""
-    from ionav_viz.nav.training import add_uncertainty
+    from ionav_viz.learning.training import add_uncertainty
 
     model = load_model(SHIPPED)
     drive = read_iovnbd(samples_dir() / "V-sim-roundabout-train-1.csv")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from ionav_viz import InputError, ToolFailure
-from ionav_viz.nav.idnn import default_model_dir, load_model, save_model
+from ionav_viz.learning.idnn import default_model_dir, load_model, save_model
 
 from .conftest import HANG_S, REPO, run_cli
 
@@ -84,7 +84,7 @@ def test_force_replaces_a_model_atomically(tmp_path, shipped_copy, monkeypatch):
     before = {p.name: p.read_bytes() for p in shipped_copy.iterdir()}
 
     # a save that fails half-way (after the first weights file) leaves the old model as it was
-    import ionav_viz.nav.idnn as idnn
+    import ionav_viz.learning.idnn as idnn
 
     real_save = __import__("safetensors.torch", fromlist=["save"]).save
     calls = []
@@ -118,7 +118,7 @@ def test_a_stop_signal_at_any_step_of_a_forced_save_keeps_one_complete_model(tmp
     import signal
     import tempfile
 
-    import ionav_viz.nav.idnn as idnn
+    import ionav_viz.learning.idnn as idnn
     from ionav_viz.core.signals import Terminated, raise_terminated
 
     old_meta = (shipped_copy / "metadata.json").read_bytes()

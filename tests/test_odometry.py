@@ -9,9 +9,9 @@ import pytest
 
 import ionav_viz as iv
 from ionav_viz.core.drive import Drive
+from ionav_viz.experiment.outages import tile
 from ionav_viz.nav.bias import SensorBias
 from ionav_viz.nav.odometry import OdometryEstimator
-from ionav_viz.nav.outages import tile
 from ionav_viz.nav.protocol import EstimatorInputs
 from ionav_viz.nav.vehicle_speed import vehicle_speed
 from ionav_viz.nav.windows import make_windows

@@ -5,9 +5,9 @@ estimator got pink beside the INS DR's red and the odometry's purple, the GNSS-q
 
 from types import SimpleNamespace
 
+from ionav_viz.learning.idnn import IdnnEstimator
 from ionav_viz.nav.ekf import EkfEstimator
 from ionav_viz.nav.gins import GinsEstimator
-from ionav_viz.nav.idnn import IdnnEstimator
 from ionav_viz.nav.ins import InsEstimator
 from ionav_viz.nav.odometry import OdometryEstimator
 from ionav_viz.viz import entities as ent

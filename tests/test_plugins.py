@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import ionav_viz as iv
+from ionav_viz.experiment.registry import resolve
 from ionav_viz.nav.protocol import EstimatorError
-from ionav_viz.nav.registry import resolve
 
 from .conftest import HANG_S, run_cli
 from .test_replay import read_rrd
@@ -77,7 +77,7 @@ def test_cli_json_tables_and_recording_show_the_plugin(tmp_path):
 def test_a_plugin_gets_its_own_colour_and_legend():
     import toy_estimators
 
-    from ionav_viz.nav.registry import resolve
+    from ionav_viz.experiment.registry import resolve
     from ionav_viz.viz.style import GNSS_COLOR, estimator_colors
 
     ests = resolve(["ins", "idnn", toy_estimators.ConstantSpeed()])

@@ -106,7 +106,7 @@ def test_metric_invariants(err):
 @SETTINGS
 @given(n=st.integers(1, 12), pick=st.integers(0, 10**6))
 def test_errors_are_zero_when_the_estimate_is_the_truth(n, pick):
-    from ionav_viz.nav.outages import every
+    from ionav_viz.experiment.outages import every
     from ionav_viz.nav.windows import make_windows
     from ionav_viz.sources.load import load_drive
 

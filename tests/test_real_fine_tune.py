@@ -116,7 +116,7 @@ def test_the_phone_takes_the_ins_drs_displacement_where_its_first_half_shows_it_
 
 
 def test_a_model_taking_all_of_the_ins_drs_displacement_is_the_ins_dr(tmp_path):
-    from ionav_viz.nav.idnn import default_model_dir, load_model, save_model
+    from ionav_viz.learning.idnn import default_model_dir, load_model, save_model
 
     entry = CORPUS["logs"]["roof_mems_rtk"]
     drive = iv.load_drive(str(CORPUS_DIR / entry["file"]), read_options(entry, "0s:120s"))

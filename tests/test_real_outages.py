@@ -169,7 +169,7 @@ def test_a_loss_whose_next_fix_lies_out_of_reach_is_not_bridged(pair):
     accelerating at 3 m/s^2 throughout, 30 m for the fixes' errors) is not bridged; the others are."""
     from dataclasses import replace
 
-    from ionav_viz.nav.outages import OUT_OF_REACH, bridging, unbridged
+    from ionav_viz.experiment.outages import OUT_OF_REACH, bridging, unbridged
     from ionav_viz.nav.windows import make_windows
 
     _, lossy, _ = pair
@@ -195,7 +195,7 @@ def test_the_report_says_why_a_loss_was_not_bridged(pair):
     """A loss the drive (here: its span) ends right after cannot be bridged (its first good fix is
     there, but no window from it to score at): the report counts it and says why, in the JSON and
     the text."""
-    from ionav_viz.nav.outages import DRIVE_END
+    from ionav_viz.experiment.outages import DRIVE_END
 
     _, lossy, spans = pair
     _, t1, _ = spans[-1]

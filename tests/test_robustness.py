@@ -264,7 +264,7 @@ def test_outage_starting_while_standing_still(tmp_path):
 def model_copy(tmp_path):
     import shutil
 
-    from ionav_viz.nav.idnn import default_model_dir
+    from ionav_viz.learning.idnn import default_model_dir
 
     target = tmp_path / "model"
     shutil.copytree(default_model_dir(), target)

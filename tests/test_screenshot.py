@@ -7,8 +7,8 @@ import sys
 import numpy as np
 import pytest
 
+from ionav_viz.learning.idnn import IdnnEstimator
 from ionav_viz.nav.ekf import EkfEstimator
-from ionav_viz.nav.idnn import IdnnEstimator
 from ionav_viz.nav.ins import InsEstimator
 from ionav_viz.nav.odometry import OdometryEstimator
 from ionav_viz.viz.style import GNSS_COLOR

@@ -14,8 +14,8 @@ import torch
 
 import ionav_viz as iv
 from ionav_viz.cli import train as train_cli
-from ionav_viz.nav.idnn import build_net
-from ionav_viz.nav.training import EpochStatus, FitSettings, fit_network
+from ionav_viz.learning.idnn import build_net
+from ionav_viz.learning.training import EpochStatus, FitSettings, fit_network
 from tests.conftest import REPO, run_cli
 
 pytestmark = pytest.mark.xdist_group("fine_tune")

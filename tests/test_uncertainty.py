@@ -203,8 +203,8 @@ def test_an_estimator_widens_its_covariance_where_its_history_shows_it_overconfi
     least halves, more final errors fall inside its 95 % ellipse, the scale is reported, and the
     estimates themselves do not change."""
     from ionav_viz.analysis.consistency import consistency
+    from ionav_viz.learning.idnn import IdnnModel
     from ionav_viz.nav import history_check
-    from ionav_viz.nav.idnn import IdnnModel
     from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
 
     # the history check alone: the model's widening out of its training domain (tests/test_idnn_domain.py) left out

@@ -2,7 +2,7 @@
 
 A synthetic outage has truth in every window; a real one (a tunnel, a bridge, an urban canyon: the
 ``gnss-outage`` events of :mod:`ionav_viz.analysis.events`) has none inside. Every estimator is run
-through each loss from the last good fix (:func:`ionav_viz.nav.outages.bridging` places the
+through each loss from the last good fix (:func:`ionav_viz.experiment.outages.bridging` places the
 outage on the 1-second windows), and the only truth there is, the first good fix after the
 loss, scores it: the geodesic distance between the estimator's position and that fix at the end
 of the outage (``final_error_m``). The paper's per-window metrics (CRSE, CAE, AEPS) do not exist
@@ -19,8 +19,8 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.geo import wgs84
+from ..experiment.outages import bridge_each, placed_of, reasons_of
 from ..nav.bias import SensorBias
-from ..nav.outages import bridge_each, placed_of, reasons_of
 from ..nav.protocol import Estimator, EstimatorInputs, solve
 from ..nav.track import Track
 from ..nav.windows import Windows, make_windows
@@ -65,7 +65,7 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
                         estimators: Sequence[Estimator],
                         bias: SensorBias) -> tuple[list[BridgedOutage], dict[str, int]]:
     """Every estimator through each GNSS gap ``(last good fix s, first good fix s)``; returns the
-    bridged outages and how many gaps could not be bridged, per reason (:func:`~ionav_viz.nav.outages.unbridged`). The
+    bridged outages and how many gaps could not be bridged, per reason (:func:`~ionav_viz.experiment.outages.unbridged`). The
     estimators are given the receiver's fixes (:meth:`~ionav_viz.core.drive.Drive.as_received`) and
     scored against ``windows``, the truth (a reference where the drive has one)."""
     geod = wgs84()

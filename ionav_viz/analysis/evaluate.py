@@ -19,11 +19,11 @@ from ..core.drive import Drive
 from ..core.gnss_quality import count_by_fault
 from ..core.grid import WINDOW_S
 from ..core.timing import stage
+from ..experiment.outages import excluded_by_truth, tile
+from ..experiment.registry import BASELINE
+from ..experiment.registry import resolve as resolve_estimators
 from ..nav.bias import SensorBias, resolve_bias
-from ..nav.outages import excluded_by_truth, tile
 from ..nav.protocol import Estimator, EstimatorInputs, Solution, color_of, describe, solve
-from ..nav.registry import BASELINE
-from ..nav.registry import resolve as resolve_estimators
 from ..nav.windows import Windows, make_windows
 from .bridging import BridgedOutage, bridge_gnss_outages
 from .metrics import METRICS, sequence_metrics, truth_for
@@ -116,9 +116,9 @@ class DriveResult:
     @property
     def in_training(self) -> np.ndarray | None:
         """Per outage, whether it lies in data the IDNN's model (or its parent) was trained on (the
-        same file by sha256, overlapping time; :func:`ionav_viz.nav.idnn.outages_in_training`), or
+        same file by sha256, overlapping time; :func:`ionav_viz.learning.idnn.outages_in_training`), or
         None when no IDNN ran: its scores there flatter the model."""
-        from ..nav.idnn import IdnnEstimator, outages_in_training
+        from ..learning.idnn import IdnnEstimator, outages_in_training
 
         models = [e.model for e in self.estimators if isinstance(e, IdnnEstimator)]
         if not models:
@@ -149,7 +149,7 @@ def evaluate_drive(
     """Every one of ``estimators`` on the ``n_windows``-second outages ``starts`` (default: the
     paper's tiling) of ``drive``.
 
-    ``estimators``: names or objects (see :func:`ionav_viz.nav.registry.resolve`). ``bias``:
+    ``estimators``: names or objects (see :func:`ionav_viz.experiment.registry.resolve`). ``bias``:
     default from the drive's own stationary stretches. ``excluded_outages``: how many outages the
     caller's placement lost to bad GNSS truth (counted here for the default tiling).
     ``gnss_gaps``: the log's own GNSS losses ``(last good fix s, first good fix s)`` to bridge as

@@ -60,7 +60,7 @@ from ..core.grid import GRID_RATE_HZ
 from ..core.overrides import check_ranges, with_overrides
 from ..core.runs import run_ranges
 from ..core.units import G_MPS2
-from ..nav.outages import GNSS_OUTAGE  # a real loss of GNSS in the log, not a manoeuvre
+from ..experiment.outages import GNSS_OUTAGE  # a real loss of GNSS in the log, not a manoeuvre
 
 log = logging.getLogger("ionav_viz")
 

@@ -234,7 +234,7 @@ def arbiter_lines(rep: dict[str, Any]) -> list[str]:
 
 def domain_lines(rep: dict[str, Any]) -> list[str]:
     """A line per drive whose inputs lie outside what the IDNN's model was trained on (the
-    estimator's ``domain`` description, :func:`ionav_viz.nav.domain.outside`): what, and how much its
+    estimator's ``domain`` description, :func:`ionav_viz.learning.domain.outside`): what, and how much its
     uncertainty was widened."""
     out = []
     for e in rep["estimators"]:

@@ -125,8 +125,8 @@ def cross_validate(
     import time
 
     from ..core.warnings_log import printing_once
-    from ..nav.idnn import ModelConfig, check_model_dir, save_model
-    from ..nav.training import train_models
+    from ..learning.idnn import ModelConfig, check_model_dir, save_model
+    from ..learning.training import train_models
     from .evaluate import evaluate
     from .options import windows_of
     from .training import parent_model, training_device
@@ -238,7 +238,7 @@ def _leak(exc: InputError, i: int, parent: Any, model: Any) -> InputError:
 
 
 def _fine_tune(parent: Any) -> Any:
-    from ..nav.training import fine_tune_config
+    from ..learning.training import fine_tune_config
 
     return fine_tune_config(parent.config)
 

@@ -14,8 +14,8 @@ from ..core.errors import InputError
 from ..core.fileio import check_output_folder
 from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
-from ..nav.outages import GNSS_OUTAGE, AroundEvents, Placement
-from ..nav.plan_file import FromPlan
+from ..experiment.outages import GNSS_OUTAGE, AroundEvents, Placement
+from ..experiment.plan_file import FromPlan
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drives

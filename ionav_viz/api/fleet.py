@@ -19,8 +19,8 @@ from ..analysis.fleet import DriveFailure, DriveTable, FleetReport, drive_table
 from ..core.durations import Span
 from ..core.errors import InputError
 from ..core.fileio import read_bytes_bounded
+from ..experiment.outages import GNSS_OUTAGE, Placement
 from ..nav.bias import SensorBias, resolve_bias
-from ..nav.outages import GNSS_OUTAGE, Placement
 from ..nav.protocol import Estimator
 from ..sources.load import ReadOptions
 from .engine import Engine, WorkerLost, default_workers, run_each
@@ -278,8 +278,8 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None,
 
 def _torch_idnn(estimators: list) -> bool:
     """Whether an IDNN among ``estimators`` runs in torch (a recurrent model; the feed-forward ones
-    run in numpy, :class:`ionav_viz.nav.idnn.NumpyFeedForward`)."""
-    from ..nav.idnn import FEED_FORWARD_ARCHS
+    run in numpy, :class:`ionav_viz.learning.idnn.NumpyFeedForward`)."""
+    from ..learning.idnn import FEED_FORWARD_ARCHS
 
     return any(e.name == "idnn" and getattr(getattr(e, "model", None), "config", None) is not None
                and e.model.config.arch not in FEED_FORWARD_ARCHS for e in estimators)

@@ -15,16 +15,16 @@ import numpy as np
 from ..analysis.events import EVENT_TYPES, EventThresholds
 from ..core.drive import Drive
 from ..core.errors import InputError
+from ..experiment.outages import outage_windows
+from ..experiment.registry import BUILTIN
+from ..experiment.registry import resolve as resolve_estimators
 from ..nav.bias import SensorBias, resolve_bias
-from ..nav.outages import outage_windows
 from ..nav.protocol import Estimator, applies
-from ..nav.registry import BUILTIN
-from ..nav.registry import resolve as resolve_estimators
 from ..sources.load import LogOptions, ReadOptions, load_drive, with_deprecated_log
 
 if TYPE_CHECKING:
-    from ..nav.outages import Placement
-    from ..nav.plan_file import FromPlan
+    from ..experiment.outages import Placement
+    from ..experiment.plan_file import FromPlan
 
 log = logging.getLogger("ionav_viz")
 
@@ -57,7 +57,7 @@ class RunOptions:
             30 s: the filters' position and velocity settle within it on the logs measured
             (``docs/method.md``, "Warm-up").
         strict: refuse, instead of warning, when an outage lies in data the IDNN's model was
-            trained on (the same file by sha256, overlapping time; :mod:`ionav_viz.nav.provenance`).
+            trained on (the same file by sha256, overlapping time; :mod:`ionav_viz.learning.provenance`).
     """
 
     estimators: Sequence[str | Estimator] | None = None
@@ -82,7 +82,7 @@ class RunOptions:
 
     def chosen(self) -> list[Estimator]:
         """The estimators, resolved (plug-ins loaded) and checked: before any drive is read."""
-        from ..nav.idnn import IdnnEstimator
+        from ..learning.idnn import IdnnEstimator
 
         chosen = resolve_estimators(self.estimators, plugins=self.plugins, without=self.without, model=self.model)
         for est in chosen:
@@ -172,8 +172,8 @@ def check_event_types(types: Sequence[str]) -> None:
 
 def placement_of(placement: Placement | FromPlan | None, plan: str | Path | None) -> Placement | FromPlan:
     """The placement of a call: ``plan`` (a plan file) or ``placement``, default :class:`Tile`."""
-    from ..nav.outages import Placement, Tile
-    from ..nav.plan_file import FromPlan
+    from ..experiment.outages import Placement, Tile
+    from ..experiment.plan_file import FromPlan
 
     if plan is not None:
         if placement is not None:
@@ -191,8 +191,8 @@ def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None,
                    placement: Placement | FromPlan) -> RunOptions:
     """``run`` with the external estimates (``{name: trajectory}``, see :mod:`ionav_viz.nav.external`)
     added to its plug-ins; they need the plan of the outaged log they were made on."""
+    from ..experiment.plan_file import FromPlan
     from ..nav.external import External
-    from ..nav.plan_file import FromPlan
     from ..nav.protocol import validate
     from ..sources.trajectory import read_trajectory
 
@@ -226,7 +226,7 @@ def input_paths(drives: Sequence[DriveLike] | DriveLike | None, read: ReadOption
     a plan file, external trajectories, a bias drive, a model directory and plug-in files; for
     :func:`~ionav_viz.core.fileio.refuse_output_onto_input` before any work. A name that does not
     resolve is left out (its reader says why later)."""
-    from ..nav.plan_file import FromPlan
+    from ..experiment.plan_file import FromPlan
     from ..sources.load import with_deprecated_log
     from ..sources.resolve import data_root, resolve_drive
 
@@ -277,7 +277,7 @@ def refuse_export_onto_inputs(export: str | Path, inputs: Sequence[Path]) -> Non
 def lengths_of(lengths_s: Sequence[float], placement: object = None) -> list[float]:
     """Several outage lengths (s), increasing and distinct, each checked before any work; refused
     with only the log's own GNSS losses as the ``placement``: each loss has its own length."""
-    from ..nav.outages import GNSS_OUTAGE
+    from ..experiment.outages import GNSS_OUTAGE
 
     lengths = sorted({float(x) for x in lengths_s})
     if not lengths:
@@ -300,7 +300,7 @@ DEFAULT_OUTAGE_S = 10.0
 def windows_of(outage_s: float | None, placement: object = None) -> int:
     """The one place seconds become windows: the outage length (whole seconds; None: a plan file's
     length, else :data:`DEFAULT_OUTAGE_S`) as windows. A plan file's placement fixes the length."""
-    from ..nav.plan_file import FromPlan
+    from ..experiment.plan_file import FromPlan
 
     if isinstance(placement, FromPlan):
         planned = placement.file.outage_s

@@ -1,5 +1,5 @@
 """``outage_log``: a drive's log with the GNSS removed inside the outages ``replay``/``evaluate``
-would place, and the plan that scores an estimate made on it (:mod:`ionav_viz.nav.plan_file`)."""
+would place, and the plan that scores an estimate made on it (:mod:`ionav_viz.experiment.plan_file`)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from ..core.errors import InputError
 from ..core.fileio import atomic_path, check_output_file, refuse_output_onto_input
 from ..core.signals import hold_signals
 from ..core.timing import stage
-from ..nav.outages import Placement
-from ..nav.plan_file import FromPlan, PlanFile, checksum
+from ..experiment.outages import Placement
+from ..experiment.plan_file import FromPlan, PlanFile, checksum
 from ..nav.windows import make_windows
 from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
 from .options import DriveLike, RunOptions, check_event_types, input_paths, no_outage_fits, options_of, placement_of, too_short, windows_of

@@ -11,8 +11,8 @@ from dataclasses import dataclass, field, replace
 from ..analysis.evaluate import DriveResult, evaluate_drive
 from ..analysis.events import Event, detect_events
 from ..core.drive import Drive
+from ..experiment.outages import At, OutagePlan, Placement, Planned
 from ..nav.bias import SensorBias
-from ..nav.outages import At, OutagePlan, Placement, Planned
 from ..nav.protocol import Estimator
 from ..nav.windows import Windows, make_windows
 from .options import RunOptions
@@ -43,7 +43,7 @@ def plan_outages(drive: Drive, windows: Windows, placement: Placement, n_windows
     placement needs them and they were not given). Placements that choose where outages go leave
     ``run.warm_up_s`` free at the drive's start; outages at given times or from a plan are where
     they are said to be."""
-    from ..nav.plan_file import FromPlan
+    from ..experiment.plan_file import FromPlan
 
     if isinstance(placement, FromPlan):
         placement = placement.for_drive(drive)

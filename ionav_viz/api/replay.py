@@ -14,7 +14,7 @@ from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_output_folder, refuse_output_onto_input, refuse_output_onto_output
 from ..core.timing import stage
 from ..core.warnings_log import collecting_warnings
-from ..nav.outages import Placement
+from ..experiment.outages import Placement
 from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
 from ..sources.load import LogOptions, ReadOptions, load_drive

@@ -68,12 +68,12 @@ def train(
     per drive with the file's sha256; ``device``: where torch trains (``"cpu"``, ``"cuda"``;
     default a GPU when torch sees one: :func:`training_device`; deterministic for a seed on the
     CPU); ``progress(label, epoch, epochs)`` and ``on_epoch(status)``
-    (an ``ionav_viz.nav.training.EpochStatus``: the fit, its epoch, training and validation loss,
+    (an ``ionav_viz.learning.training.EpochStatus``: the fit, its epoch, training and validation loss,
     optimiser steps done and planned, time elapsed and left) are called after every epoch.
     Returns the trained ``IdnnModel``.
     """
-    from ..nav.idnn import ModelConfig, check_model_dir, save_model
-    from ..nav.training import train_models
+    from ..learning.idnn import ModelConfig, check_model_dir, save_model
+    from ..learning.training import train_models
 
     read = read if read is not None else ReadOptions()
     device = training_device(device)
@@ -103,10 +103,10 @@ def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] 
     :func:`train` writes it; its weight files are the model's, byte for byte).
 
     ``drives``: the drives to fit it on (default the bundled synthetic training drives, which the
-    shipped model was trained on); see :func:`ionav_viz.nav.training.fit_uncertainty`. Returns the
+    shipped model was trained on); see :func:`ionav_viz.learning.training.fit_uncertainty`. Returns the
     model with its uncertainty."""
-    from ..nav.idnn import check_model_dir, save_model
-    from ..nav.training import add_uncertainty
+    from ..learning.idnn import check_model_dir, save_model
+    from ..learning.training import add_uncertainty
 
     read = read if read is not None else ReadOptions()
     model = parent_model(model)
@@ -125,7 +125,7 @@ def fit_uncertainty(model: Any, output: str | Path, drives: Sequence[DriveLike] 
 
 def parent_model(from_model: Any) -> Any:
     """The model to fine-tune: an ``IdnnModel``, a model directory, or ``"shipped"``."""
-    from ..nav.idnn import IdnnModel, default_model_dir, load_model
+    from ..learning.idnn import IdnnModel, default_model_dir, load_model
 
     if isinstance(from_model, IdnnModel):
         return from_model
@@ -145,8 +145,8 @@ def fine_tune_settings(parent: Any, epochs_disp: int | None = None, epochs_yaw: 
                        seed: int | None = None) -> Any:
     """The ``ModelConfig`` for fine-tuning ``parent`` (a model, its directory or ``"shipped"``): its
     architecture, lower learning rates with a cosine decay, fewer epochs
-    (:func:`ionav_viz.nav.training.fine_tune_config` says why)."""
-    from ..nav.training import fine_tune_config
+    (:func:`ionav_viz.learning.training.fine_tune_config` says why)."""
+    from ..learning.training import fine_tune_config
 
     return fine_tune_config(parent_model(parent).config, epochs_disp, epochs_yaw, seed)
 

@@ -106,7 +106,7 @@ def outage_and_placement(outage: Optional[str], plan: Optional[Path],
         return length, placement.placement
     if placement.option != "--outage":
         raise typer.BadParameter(f"give --plan or {placement.option.split()[0]}, not both", param_hint="--plan")
-    from ..nav.plan_file import FromPlan
+    from ..experiment.plan_file import FromPlan
 
     return length, FromPlan(plan)
 ModelOpt = typer.Option(None, "--model", help="IDNN model directory (default: the shipped model).", show_default=False)
@@ -290,7 +290,7 @@ def with_placement_options(command: Callable[..., Any]) -> Callable[..., Any]:
 def placement_of(every: Optional[str], at: Optional[str], random_count: Optional[int], seed: int,
                  on: Optional[str]) -> PlacementArgs:
     """The outage placement the options choose (at most one of them; the library checks its values)."""
-    from ..nav.outages import AroundEvents, At, Every, Random, Tile
+    from ..experiment.outages import AroundEvents, At, Every, Random, Tile
     from .app import options_named
 
     chosen = [o for o, v in (("--every", every), ("--at", at), ("--random", random_count), ("--on", on))

@@ -44,7 +44,7 @@ def cross_validate(
     from .. import api
     from ..api.cross_validate import cross_validate as run_folds
     from ..api.training import training_device
-    from ..nav.idnn import ModelConfig
+    from ..learning.idnn import ModelConfig
 
     outage_s = c.duration_s(outage, "--outage")
     if from_model is not None:

@@ -107,7 +107,7 @@ def train(
 ) -> None:
     """Train the displacement and orientation-rate networks and write them with their metadata."""
     from .. import api
-    from ..nav.idnn import ModelConfig
+    from ..learning.idnn import ModelConfig
 
     if paper_train and drives:  # the drives were dropped silently for the paper's runs
         raise typer.BadParameter(f"--paper-train trains on the paper's runs, and {len(drives)} drive(s) were given too: give one or the other",
@@ -133,7 +133,7 @@ def train(
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
     from ..core.grid import WINDOW_S
-    from ..nav.training import EXAMPLE_STEP_S
+    from ..learning.training import EXAMPLE_STEP_S
 
     print(f"trained {arch} on {len(model.metadata['training']['drives'])} drive(s), {model.metadata['training']['n_examples']} "
           f"training examples ({WINDOW_S:g} s windows every {EXAMPLE_STEP_S:g} s); "
@@ -161,7 +161,7 @@ def architectures(
     steps: int = typer.Option(10, "--steps", help="Time steps (10 Hz samples) per input, 1-20."),
 ) -> None:
     """Trainable parameters of each network per hidden width, laid out like the paper's Table 2."""
-    from ..nav.idnn import ARCHS, ModelConfig, build_net, count_parameters
+    from ..learning.idnn import ARCHS, ModelConfig, build_net, count_parameters
 
     ModelConfig(n_steps_disp=steps).validate()  # the time steps a model may have (1-20), as train checks them
     widths = (8, 16, 32, 64, 128, 192, 256, 320)

@@ -16,7 +16,7 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"
 
 #: What the forkserver imports once, before it forks the workers: each worker then starts with
 #: them loaded instead of importing them again (the IDNN runs in numpy: torch is not needed to evaluate).
-PRELOAD = ("numpy", "pandas", "safetensors.numpy", "numba", "ionav_viz.api.fleet", "ionav_viz.nav.idnn",
+PRELOAD = ("numpy", "pandas", "safetensors.numpy", "numba", "ionav_viz.api.fleet", "ionav_viz.learning.idnn",
            "ionav_viz.nav.planar_filter")
 
 

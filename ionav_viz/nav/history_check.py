@@ -1,6 +1,6 @@
 """How far an estimator's covariance holds on this drive: its own NEES on the GNSS before each outage.
 
-A learned variance (the IDNN's, :class:`~ionav_viz.nav.idnn.Uncertainty`) is fitted on its training
+A learned variance (the IDNN's, :class:`~ionav_viz.learning.idnn.Uncertainty`) is fitted on its training
 drives, a filter's (``ekf``) follows a noise model written for a car's IMU; on a drive unlike those
 (another IMU, a shaking phone holder) either is overconfident, and its inputs cannot tell it so.
 Before an outage the drive still has GNSS: the estimator is run on

@@ -21,7 +21,7 @@ Writing one::
             return Estimate(disp_m=disp, yaw_rate_radps=np.zeros_like(disp))
 
 How estimators are found by name, loaded as plug-ins and chosen by default is
-:mod:`ionav_viz.nav.registry`.
+:mod:`ionav_viz.experiment.registry`.
 
 Rule for fair comparison: GNSS inside an outage is the truth being scored. An estimator may
 read ``inputs.windows`` (the whole drive's windows) only *before* each outage's start window.

@@ -262,3 +262,31 @@ def make_windows(
         truth_fault=np.concatenate(parts["bad"]),
         receiver_fault=np.concatenate(parts["rx"]) if parts["rx"] else None,
     )
+
+
+def segment_ranges(windows: Windows) -> list[tuple[int, int]]:
+    """Per run of consecutive good-truth windows of one segment, the range ``[first possible
+    start, end)`` of window indices (the run's first window only feeds the IDNN's first input)."""
+    seg = windows.segment
+    if len(seg) == 0:
+        return []
+    ok = windows.truth_ok
+    # a run breaks where the segment changes or the truth turns bad
+    key = np.where(ok, seg, -1)
+    starts = np.flatnonzero(ok & np.concatenate([[True], key[1:] != key[:-1]]))
+    ends = np.flatnonzero(ok & np.concatenate([key[1:] != key[:-1], [True]])) + 1
+    # and none before the warm-up's end (Windows.after_warm_up)
+    return [(max(int(a) + 1, windows.first_start), int(b)) for a, b in zip(starts, ends)
+            if max(int(a) + 1, windows.first_start) < b]
+
+
+def starts_ok(windows: Windows) -> np.ndarray:
+    """Per window, whether the receiver gives an outage starting there a fix to start from."""
+    return np.concatenate([[False], windows.receiver_ok[:-1]]) if len(windows) else np.zeros(0, dtype=bool)
+
+
+def valid_start(windows: Windows, start: int, n: int) -> bool:
+    """Whether an ``n``-window outage can start at window ``start``."""
+    return bool(starts_ok(windows)[start]) and any(a <= start and start + n <= b
+                                                    for a, b in segment_ranges(windows)) \
+        if 0 <= start < len(windows) else False

@@ -1,6 +1,6 @@
 """Reading an estimated trajectory that an estimator outside ionav-viz wrote (``--external NAME=PATH``).
 
-Stamps are on the clock of the outaged log the estimator ran on (:mod:`ionav_viz.nav.plan_file`:
+Stamps are on the clock of the outaged log the estimator ran on (:mod:`ionav_viz.experiment.plan_file`:
 UNIX seconds for message logs, the time of day for IO-VNBD). Positions are WGS84 degrees, or
 metres in the **local frame**: east (x) and north (y) on the azimuthal equidistant plane about the
 drive's first trustworthy GNSS fix (``Drive.local_origin_deg``), up ignored. Formats:

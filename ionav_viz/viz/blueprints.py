@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..nav.registry import BASELINE
+from ..experiment.registry import BASELINE
 from . import entities as ent
 from .geometry import map_zoom, padded_bounds
 from .recording_info import OutageInfo, RecordingInfo

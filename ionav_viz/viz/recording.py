@@ -136,7 +136,7 @@ def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> s
     show no legend): the truth, each estimator (the baseline first), the sensors and, where an
     estimator gives a covariance, its 95 % ellipses (drawn in synthetic outages only: a run through
     the log's own GNSS losses alone has none)."""
-    from ..nav.registry import BASELINE
+    from ..experiment.registry import BASELINE
 
     names = sorted(result.estimates, key=lambda n: (n != BASELINE, labels[n]))
     items = [f"{labels[n]} {color_word(colors[n])}" for n in ("gnss", *names)] + [f"{GYRO_LABEL}, accelerometer grey"]

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.fileio import utf8_alias
-from ..nav.registry import BASELINE
+from ..experiment.registry import BASELINE
 from . import entities as ent
 from .style import GNSS_LABEL
 

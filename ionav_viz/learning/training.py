@@ -30,14 +30,14 @@ from ..core.covariance import determinant_en, nees_en
 from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.grid import WINDOW_S
-from .bias import SensorBias
+from ..nav.bias import SensorBias
+from ..nav.kalman import CHI2_2_95
+from ..nav.planar_filter import calibration
+from ..nav.track import TrackCovariance
+from ..nav.windows import make_windows
 from .domain import Domain, domain_of
 from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, Uncertainty, build_net, count_parameters, sample_history
-from .kalman import CHI2_2_95
-from .planar_filter import calibration
 from .provenance import check_inputs, drive_record, input_record, seen_drives
-from .track import TrackCovariance
-from .windows import make_windows
 
 Progress = Callable[[str, int, int], None]
 
@@ -354,7 +354,7 @@ class _AutogradSteps:
 
 
 class _FeedForwardSteps:
-    """Optimiser steps of :func:`~ionav_viz.nav.idnn.build_net`'s feed-forward networks, their
+    """Optimiser steps of :func:`~ionav_viz.learning.idnn.build_net`'s feed-forward networks, their
     gradients written out: the same operations as autograd's backward pass through the
     network (linear, ReLU, dropout, linear, ReLU, dropout, linear, plus the skip term), the L1 loss
     and the L2-SP pull (``anchor``), and the same Adamax update as ``torch.optim.Adamax``, on one
@@ -501,7 +501,7 @@ def train_models(
 
 
 def training_domain(drives: list[tuple[Drive, SensorBias]], parent: IdnnModel | None = None) -> Domain:
-    """The domain of a model trained on ``drives`` (:func:`~ionav_viz.nav.domain.domain_of`), joined
+    """The domain of a model trained on ``drives`` (:func:`~ionav_viz.learning.domain.domain_of`), joined
     with a fine-tuned model's ``parent``'s where it has one, said in its note."""
     parent_domain = parent.domain if parent is not None else None
     note = f"the inputs of its {len(drives)} training drive(s)"
@@ -889,8 +889,8 @@ def outage_cases(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n:
 def outage_cases_by_block(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, n: int, warm_up_s: float,
                           blocks: list[tuple[float, float]]) -> list[list[tuple]]:
     """:func:`outage_cases` of each of ``blocks``, the windows and the calibration worked out once."""
-    from .outages import valid_start
-    from .protocol import EstimatorInputs
+    from ..nav.protocol import EstimatorInputs
+    from ..nav.windows import valid_start
 
     out: list[list[tuple]] = [[] for _ in blocks]
     for drive, bias in drives:
@@ -1095,12 +1095,12 @@ class OutageRuns:
 def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_windows: int = UNCERTAINTY_OUTAGE_WINDOWS,
                 stride: int = UNCERTAINTY_STRIDE_WINDOWS) -> OutageRuns:
     """Run ``model`` on overlapping ``n_windows`` outages of ``drives`` exactly as
-    :class:`~ionav_viz.nav.idnn.IdnnEstimator` runs them (calibration at the start, its own
+    :class:`~ionav_viz.learning.idnn.IdnnEstimator` runs them (calibration at the start, its own
     displacement fed back, standing windows), and measure the rebuilt track against the fixes."""
     from ..core.geo import wgs84
-    from .outages import valid_start
-    from .protocol import EstimatorInputs
-    from .track import rebuild_track
+    from ..nav.protocol import EstimatorInputs
+    from ..nav.track import rebuild_track
+    from ..nav.windows import valid_start
 
     parts = []
     for drive, bias in drives:
@@ -1143,7 +1143,7 @@ def nees(unc: Uncertainty, runs: OutageRuns) -> np.ndarray:
 
 
 def fit_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], runs: OutageRuns | None = None) -> tuple[Uncertainty, dict[str, Any]]:
-    """Fit ``model``'s :class:`~ionav_viz.nav.idnn.Uncertainty` on ``drives`` (its networks unchanged);
+    """Fit ``model``'s :class:`~ionav_viz.learning.idnn.Uncertainty` on ``drives`` (its networks unchanged);
     returns it and what the fit saw (for the metadata).
 
     The outages are run as the estimator runs them (:func:`outage_runs`), so the per-window

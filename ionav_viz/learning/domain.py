@@ -10,7 +10,7 @@ A model's ``metadata.json`` keeps a summary of its training inputs (:class:`Doma
   differences, robust, over the whole drive: what the networks see of the sensor's noise and the
   car's vibration), as the range over the drives;
 * the IMUs' own sample rates and sample kinds (``2-channel``, or ``6-axis`` with ``averaged`` or
-  ``single`` readings; :func:`~ionav_viz.nav.provenance.imu_kind`).
+  ``single`` readings; :func:`~ionav_viz.learning.provenance.imu_kind`).
 
 A fine-tuned model's domain is its parent's and its own drives' together. A drive is
 :func:`outside` the domain where its 99.5 % acceleration, yaw rate or speed exceeds the training's
@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..core.drive import Drive
-from .bias import SensorBias
+from ..nav.bias import SensorBias
 from .provenance import RATE_TOLERANCE, imu_kind
 
 #: The quantiles of the sizes of the training samples kept per feature.

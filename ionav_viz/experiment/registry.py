@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ..core.fileio import check_regular_input
-from .protocol import Estimator, EstimatorError, available, validate
+from ..nav.protocol import Estimator, EstimatorError, available, validate
 
 #: The entry-point group that installed packages register estimators under.
 ENTRY_POINT_GROUP = "ionav_viz.estimators"
@@ -30,23 +30,23 @@ BASELINE = "ins"
 def builtin(name: str, model: Any = None) -> Estimator:
     """A built-in estimator by name; ``model`` (an IDNN model or its directory) is for ``idnn``."""
     if name == "ins":
-        from .ins import InsEstimator
+        from ..nav.ins import InsEstimator
 
         return InsEstimator()
     if name == "idnn":
-        from .idnn import IdnnEstimator
+        from ..learning.idnn import IdnnEstimator
 
         return IdnnEstimator(model)
     if name == "odo":
-        from .odometry import OdometryEstimator
+        from ..nav.odometry import OdometryEstimator
 
         return OdometryEstimator()
     if name == "ekf":
-        from .ekf import EkfEstimator
+        from ..nav.ekf import EkfEstimator
 
         return EkfEstimator()
     if name == "gins":
-        from .gins import GinsEstimator
+        from ..nav.gins import GinsEstimator
 
         return GinsEstimator()
     raise EstimatorError(f"unknown built-in estimator {name!r}", f"choose from {', '.join(BUILTIN)}")

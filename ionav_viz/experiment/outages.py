@@ -41,7 +41,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.gnss_quality import fault_names
 from ..core.grid import WINDOW_S
-from .windows import Windows
+from ..nav.windows import Windows, segment_ranges, starts_ok, valid_start
 
 log = logging.getLogger("ionav_viz")
 
@@ -60,22 +60,6 @@ def outage_windows(outage_s: float, what: str = "outage length", param: str = "o
     return int(round(outage_s))
 
 
-def _segment_ranges(windows: Windows) -> list[tuple[int, int]]:
-    """Per run of consecutive good-truth windows of one segment, the range ``[first possible
-    start, end)`` of window indices (the run's first window only feeds the IDNN's first input)."""
-    seg = windows.segment
-    if len(seg) == 0:
-        return []
-    ok = windows.truth_ok
-    # a run breaks where the segment changes or the truth turns bad
-    key = np.where(ok, seg, -1)
-    starts = np.flatnonzero(ok & np.concatenate([[True], key[1:] != key[:-1]]))
-    ends = np.flatnonzero(ok & np.concatenate([key[1:] != key[:-1], [True]])) + 1
-    # and none before the warm-up's end (Windows.after_warm_up)
-    return [(max(int(a) + 1, windows.first_start), int(b)) for a, b in zip(starts, ends)
-            if max(int(a) + 1, windows.first_start) < b]
-
-
 def truth_faults_near(windows: Windows, start: int, n: int) -> int:
     """Fault bits of the windows an ``n``-window outage at ``start`` needs good (start-1 .. start+n-1)."""
     return int(np.bitwise_or.reduce(windows.truth_fault[max(start - 1, 0) : start + n])) if len(windows) else 0
@@ -85,11 +69,6 @@ def receiver_faults_before(windows: Windows, start: int) -> int:
     """Fault bits of the receiver's fixes the estimators would start an outage at ``start`` from
     (the window before it)."""
     return int(windows.receiver_fault[start - 1]) if 1 <= start <= len(windows) else 0
-
-
-def _starts_ok(windows: Windows) -> np.ndarray:
-    """Per window, whether the receiver gives an outage starting there a fix to start from."""
-    return np.concatenate([[False], windows.receiver_ok[:-1]]) if len(windows) else np.zeros(0, dtype=bool)
 
 
 def excluded_by_truth(windows: Windows, n: int, place: Callable[[Windows], np.ndarray]) -> int:
@@ -104,13 +83,6 @@ def excluded_by_truth(windows: Windows, n: int, place: Callable[[Windows], np.nd
     return sum(1 for k in starts if truth_faults_near(windows, int(k), n) or receiver_faults_before(windows, int(k)))
 
 
-def valid_start(windows: Windows, start: int, n: int) -> bool:
-    """Whether an ``n``-window outage can start at window ``start``."""
-    return bool(_starts_ok(windows)[start]) and any(a <= start and start + n <= b
-                                                    for a, b in _segment_ranges(windows)) \
-        if 0 <= start < len(windows) else False
-
-
 def tile(windows: Windows, n: int) -> np.ndarray:
     """Back-to-back outages of ``n`` windows covering each segment (the paper's protocol)."""
     return every(windows, n, n)
@@ -121,9 +93,9 @@ def every(windows: Windows, n: int, period: int) -> np.ndarray:
     if period < n:
         raise InputError(f"outage period {period} s is shorter than the outage ({n} s)",
                          "choose a period at least as long as the outage", param="placement")
-    ok = _starts_ok(windows)
+    ok = starts_ok(windows)
     starts: list[int] = []
-    for a, b in _segment_ranges(windows):
+    for a, b in segment_ranges(windows):
         k = a
         while k + n <= b:
             if ok[k]:
@@ -174,8 +146,8 @@ def at(windows: Windows, times_s: list[float], n: int) -> np.ndarray:
 def random(windows: Windows, n: int, count: int, seed: int) -> np.ndarray:
     """``count`` non-overlapping ``n``-window outages drawn uniformly (seeded; :class:`Random` checks both)."""
     rng = np.random.default_rng(seed)
-    candidates = np.concatenate([np.arange(a, b - n + 1) for a, b in _segment_ranges(windows)] or [np.zeros(0, int)])
-    candidates = candidates[_starts_ok(windows)[candidates]]
+    candidates = np.concatenate([np.arange(a, b - n + 1) for a, b in segment_ranges(windows)] or [np.zeros(0, int)])
+    candidates = candidates[starts_ok(windows)[candidates]]
     chosen: list[int] = []
     for k in rng.permutation(candidates):
         if all(abs(int(k) - c) >= n for c in chosen):

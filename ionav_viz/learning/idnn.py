@@ -33,12 +33,12 @@ drift and is taken off (:meth:`IdnnModel.predict_displacement`). The paper's met
 its feedback input is the previous window's displacement, zero for a standing car, and its
 networks and their training are unchanged. A model may blend the INS DR's displacement into its
 own (``ins_blend``, :meth:`IdnnModel.predict`): fine-tuning chooses the share on the car's own
-drive (:func:`ionav_viz.nav.training.choose_ins_blend`); the shipped model has none.
+drive (:func:`ionav_viz.learning.training.choose_ins_blend`); the shipped model has none.
 
 Uncertainty (beyond the paper, optional: :class:`Uncertainty`): each window's displacement and
 yaw-rate variance as a function of what the networks predicted and how far into the outage the
 window lies, fitted after the networks by a Gaussian likelihood of the position errors of outages
-run as the estimator runs them (:func:`ionav_viz.nav.training.fit_uncertainty`), and propagated
+run as the estimator runs them (:func:`ionav_viz.learning.training.fit_uncertainty`), and propagated
 through the rebuilt track (:func:`ionav_viz.nav.track.track_covariance`) to the estimate's
 ``pos_cov_m2``. A model without it (every model before it) estimates no covariance.
 
@@ -61,14 +61,14 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input, read_json_bounded, refuse_system_output, staging_folder, swap_in_directory, write_failure
 from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
-from . import history_check
-from .bias import SensorBias
+from ..nav import history_check
+from ..nav.bias import SensorBias
+from ..nav.planar_filter import SensorCalibration, calibration
+from ..nav.protocol import Estimate, EstimatorInputs
+from ..nav.track import TrackCovariance
+from ..nav.windows import Windows
 from .domain import Domain, outside, sigma_scale
-from .planar_filter import SensorCalibration, calibration
-from .protocol import Estimate, EstimatorInputs
 from .provenance import check_inputs, trained_outages
-from .track import TrackCovariance
-from .windows import Windows
 
 log = logging.getLogger("ionav_viz")
 
@@ -384,7 +384,7 @@ class Uncertainty:
     :func:`~ionav_viz.nav.track.track_covariance` propagates, fitted (with ``fix_var_m2``, the GNSS
     fixes' own error at the start and the end, which the scoring truth also has) by the Gaussian
     likelihood of the 2D position error at every window boundary of outages run as the estimator
-    runs them (:func:`ionav_viz.nav.training.fit_uncertainty`): the compounding is in the fit.
+    runs them (:func:`ionav_viz.learning.training.fit_uncertainty`): the compounding is in the fit.
     The course at the start has the GNSS course's error (:data:`COURSE_SPEED_SD_MPS`).
     """
 
@@ -448,7 +448,7 @@ class IdnnModel:
 
     @property
     def domain(self) -> Domain | None:
-        """What its training inputs were (:class:`~ionav_viz.nav.domain.Domain`, the metadata's
+        """What its training inputs were (:class:`~ionav_viz.learning.domain.Domain`, the metadata's
         ``domain``), None for a model without the record (older ones)."""
         record = self.metadata.get("domain")
         return Domain.from_dict(record) if record is not None else None
@@ -532,7 +532,7 @@ class IdnnModel:
             yaw = np.where(standing, 0.0, yaw)
         disp = self.predict_displacement(accel, windows.gnss_disp_m[starts - 1], standing)
         if self.config.ins_blend > 0:
-            from .ins import dead_reckon
+            from ..nav.ins import dead_reckon
 
             ins_m, _ = dead_reckon(windows.accel_mps2[idx], windows.gyro_radps[idx], windows.speed0_mps[starts], bias,
                                    windows.rate_hz, still)
@@ -606,8 +606,8 @@ class IdnnEstimator:
 
     def _check_domain(self, model: IdnnModel, inputs: EstimatorInputs, label: str, disp_m: np.ndarray):
         """Warn when the drive's inputs lie outside what ``model`` was trained on
-        (:func:`~ionav_viz.nav.domain.outside`), naming what, and return the factor on each outage's
-        position sigma, ``widen(accel, gyro, disp)`` (:func:`~ionav_viz.nav.domain.sigma_scale`: 1
+        (:func:`~ionav_viz.learning.domain.outside`), naming what, and return the factor on each outage's
+        position sigma, ``widen(accel, gyro, disp)`` (:func:`~ionav_viz.learning.domain.sigma_scale`: 1
         for a model without a domain record, or inside it)."""
         domain = model.domain
         drive, bias = inputs.drive, inputs.bias
@@ -671,7 +671,7 @@ class IdnnEstimator:
 def outages_in_training(model: IdnnModel, drive: Any, windows: Windows, starts: np.ndarray, n_windows: int) -> np.ndarray:
     """Per outage (``starts``: first window indices), whether it lies in data ``model`` (or its
     parent) was trained on: the same file by sha256 and overlapping time, the window before the
-    outage included (it feeds the first input; :func:`ionav_viz.nav.provenance.trained_outages`)."""
+    outage included (it feeds the first input; :func:`ionav_viz.learning.provenance.trained_outages`)."""
     starts = np.asarray(starts, dtype=int)
     hit = np.zeros(len(starts), dtype=bool)
     if len(starts):
