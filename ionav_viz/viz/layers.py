@@ -82,14 +82,23 @@ def state_color(state: str) -> tuple[int, int, int]:
     return EVENT_STATE_COLORS.get(state.rpartition(" #")[0], EVENT_COLOR)
 
 
-def log_state_styles(rec, entity: str, states: list[str]) -> None:
-    """Each state of the lane ``entity``: its short label (:func:`~ionav_viz.viz.entities.state_label`)
-    and colour (:func:`state_color`), static."""
+def log_state_styles(rec, entity: str, states: list[str], t_s: np.ndarray, end_s: float) -> None:
+    """Each state of the lane ``entity`` (``states``: the state from each time of ``t_s`` on, the
+    last until ``end_s``): its colour (:func:`state_color`) and its label, the longest of
+    :func:`~ionav_viz.viz.entities.state_labels` that fits the shortest span of that state
+    (:func:`~ionav_viz.viz.blueprints.state_label_fits`), static."""
     import rerun as rr
 
-    values = list(dict.fromkeys(states))
-    rec.log(entity, rr.StateConfiguration(values=values, labels=[ent.state_label(v) for v in values],
-                                          colors=[state_color(v) for v in values]), static=True)
+    from .blueprints import state_label_fits
+
+    t = np.asarray(t_s, dtype=np.float64)
+    spans = np.diff(np.append(t, max(float(end_s), float(t[-1]) if len(t) else 0.0)))
+    shortest: dict[str, float] = {}
+    for state, span in zip(states, spans):
+        shortest[state] = min(shortest.get(state, np.inf), float(span))
+    values = list(shortest)
+    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v])) for v in values]
+    rec.log(entity, rr.StateConfiguration(values=values, labels=labels, colors=[state_color(v) for v in values]), static=True)
 
 
 def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, np.ndarray]) -> None:
@@ -304,7 +313,7 @@ def log_events(layers: Layers, events: list, drive) -> None:
         times += [e.t0_s, e.t1_s]
         states += [ent.event_state(e.type, i + 1), ent.NO_EVENT_STATE]
     order = np.argsort(times, kind="stable")
-    log_state_styles(rec, ent.EVENTS_STATE, states)
+    log_state_styles(rec, ent.EVENTS_STATE, [states[k] for k in order], np.asarray(times)[order], float(drive.t_s[-1]))
     send(ent.EVENTS_STATE, np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
     # a loss's middle lies between its good fixes (``usable``), not at (0, 0)
