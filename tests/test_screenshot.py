@@ -355,8 +355,8 @@ def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
         "/view/ts": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.DISPLACEMENTS}},
     }
     online = focus_blueprint(bp, "all", {}, t_s=341.8, end_s=341.8)
-    assert online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"] == {"start": {"Absolute": 280_000_000_000},
-                                                                     "end": {"Absolute": 345_800_000_000}}  # + room for the last label
+    assert online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"] == {"start": {"Absolute": 276_000_000_000},
+                                                                     "end": {"Absolute": 345_800_000_000}}  # + room for the end labels
     assert "/view/map" in online and all(online[p] == {k: {**v, "state": "Hidden"}} for p, (k, v) in
                                          {"/top_panel": ("PanelBlueprint", {}), "/time_panel": ("TimePanelBlueprint", {})}.items())
     offline = focus_blueprint(bp, "all", {}, map_tiles=False)
@@ -457,6 +457,23 @@ def test_small_images_label_every_plot(recording, tmp_path, size, time):
             labels = _label_runs(img, y0, y1)
             assert len(labels) >= 3, (view, k, labels)
             assert _no_legend(img, y0, y1) < 25, (view, k)
+
+
+def test_the_first_time_label_is_whole(recording, tmp_path):
+    """Issue 63: the time plots of a view as wide as the image (signals, errors, filter health) drew
+    the label of their first tick, at the plot's left edge, across the image's edge ("4m 40s" of
+    "+4m 40s"): they now start a few seconds before it. No text in the image's two leftmost columns."""
+    from ionav_viz.viz.blueprints import TOP_BAND_PX
+
+    out = tmp_path / "shots"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--view", "health",
+                   "--time", "worst", "--size", "1024x576")
+    assert proc.returncode == 0, proc.stderr
+    for view in ("signals", "errors", "health"):
+        light = _image(out / f"V-sim-sharp-cornering-{view}-worst.png")[TOP_BAND_PX:, :40].min(axis=-1) > 120
+        rule = light[:, 1:].all(axis=1)  # a horizontal line (the state timeline's axis) is no text
+        cut = np.nonzero(light[:, :2].any(axis=1) & ~rule)[0]
+        assert len(cut) == 0, (view, cut + TOP_BAND_PX)
 
 
 def test_key_entries_and_y_ranges():

@@ -42,10 +42,10 @@ def column_fraction(origin: str) -> float:
 WEB_PAGE_PX = (1280, 720)
 #: What the web viewer's page keeps above and below the views: its top bar and the collapsed time panel.
 WEB_CHROME_PX = 66
-#: Seconds of the drive the time plots and the state timeline show across by default: the viewer's
-#: own window in a browser (64 s at any page width, measured), and a screenshot's
-#: (:data:`PLOT_WINDOW_S` and :data:`PLOT_MARGIN_S`).
-TIMELINE_WINDOW_S = 64.0
+#: Seconds of the drive the time plots and the state timeline show across by default: the larger
+#: of the viewer's own window in a browser (64 s at any page width, measured) and a screenshot's
+#: (:data:`PLOT_WINDOW_S` and a :data:`PLOT_MARGIN_S` on either side).
+TIMELINE_WINDOW_S = 68.0
 #: The narrowest image whose state labels must fit their spans: screenshots are made for 1024x576
 #: and larger, the web page for :data:`WEB_PAGE_PX`.
 NARROWEST_PX = 1024
@@ -367,12 +367,14 @@ def web_error_rows_px(n_estimators: int, synthetic: bool = True) -> tuple[float,
     summary = min(summary_px(n_estimators), 0.5 * views)
     plots = _split(views - summary, ERROR_PLOT_SHARES) if synthetic else (views - summary,)
     return (*plots, summary)
+
+
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
 #: The time plots' tick step (s) at a screenshot's window (the viewer's choice, measured on renders).
 PLOT_TICK_S = 10.0
-#: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
-#: on it, and was cut in half at the plot's edge.
+#: Seconds of plot before the window's start and after its end: the label of a tick at either end
+#: is centred on it, and was cut at the plot's edge ("4m 40s" of "+4m 40s").
 PLOT_MARGIN_S = 4.0
 #: The viewer's panels a screenshot hides (only the views are drawn: no menu, badges or timeline).
 HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint", "/selection_panel": "PanelBlueprint",
@@ -409,7 +411,8 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
                     n_estimators: int = 4, warned: bool = False, shown: frozenset[str] | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
     origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
-    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`; without
+    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window` and :data:`PLOT_MARGIN_S`
+    either side; without
     ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
     the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``;
     of :data:`OPTIONAL_VIEWS`, only those ``shown`` (None: all; a recording made before they were
@@ -439,8 +442,8 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     if t_s is not None and end_s is not None:
         x0, x1 = plot_window(t_s, end_s)
         for key, vb in views.items():
-            if vb.get("class_identifier") == "TimeSeries":  # room on the right for the last tick's label
-                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(x0 * 1e9))},
+            if vb.get("class_identifier") == "TimeSeries":  # room on either side for the first and last ticks' labels
+                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round((x0 - PLOT_MARGIN_S) * 1e9))},
                                                                      "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
     if not map_tiles:
         if view == "map":
