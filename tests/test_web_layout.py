@@ -7,6 +7,7 @@ end ("bra" of a 3 s hard brake)."""
 
 import uuid
 
+import numpy as np
 import pytest
 
 from ionav_viz.viz import entities as ent
@@ -55,6 +56,15 @@ def hard_brake(tmp_path_factory):
     error tabs (position error, drift, sigma, NIS), the brakes' short spans on the manoeuvre lane."""
     out = tmp_path_factory.mktemp("web") / "hb.rrd"
     proc = run_cli("replay", "hard-brake", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def roundabout(tmp_path_factory):
+    """roundabout replayed: its last outage's frame (a bend north) fills the inspector's height."""
+    out = tmp_path_factory.mktemp("web") / "rb.rrd"
+    proc = run_cli("replay", "roundabout", "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
     return out
 
@@ -119,7 +129,7 @@ def test_every_title_shows_whole_on_the_page_the_layout_is_made_for(hard_brake):
 
 def test_every_state_label_fits_its_span(hard_brake):
     """Each state's label fits the shortest span of that state at the default zoom of the narrowest
-    image (64 s across the signals column of 1024 px): a hard brake of 2-6 s shows its colour and
+    image (68 s across the signals column of 1024 px): a hard brake of 2-6 s shows its colour and
     no label (the hover text names it), each 10 s outage its number."""
     reader, recording, _ = _stores(hard_brake)
     lanes = (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE)
@@ -151,3 +161,38 @@ def test_every_state_label_fits_its_span(hard_brake):
             seen.add((state.rpartition(" #")[0] or state, label))
     assert ("hard-brake", " ") in seen and ("outage 1 (30-40 s)", "#1") in seen
     assert not any(kind == "hard-brake" and label.strip() for kind, label in seen)
+
+
+#: Pixels below the inspector's scale bar its label takes (the label's box under the bar; measured on
+#: the served page, where 18 px cut "20 m" in half).
+SCALE_LABEL_PX = 24
+
+
+def test_the_inspectors_scale_label_is_inside_its_view(roundabout):
+    """In every outage the inspector's scale bar lies high enough in its frame that its label, below
+    it, is inside the view on the page the layout is made for (the viewer fits the frame, its grid,
+    to the view and centres it): roundabout's outage 57, whose frame fills the view's height, had
+    17 px below its bar, "20 m" cut in half."""
+    from ionav_viz.viz.blueprints import TITLE_BAR_PX
+
+    root, items = _layout(roundabout)
+    [(width_px, height_px)] = [(w, h - TITLE_BAR_PX) for k, (w, h, _) in _widths(root, items, WEB_PAGE_PX[0], WEB_PAGE_PX[1] - WEB_CHROME_PX).items()
+                               if items[k]["space_origin"][0].strip("/") == ent.INSPECT]
+    reader, recording, _ = _stores(roundabout)
+    strips = {}
+    for chunk in reader.stream(store=recording):
+        entity = str(chunk.entity_path).strip("/")
+        if entity in (ent.INSPECT_GRID, ent.INSPECT_SCALE) and not chunk.is_static:
+            batch = chunk.to_record_batch()
+            column = next(n for n in batch.schema.names if n.endswith(":strips"))
+            times = batch.column("time").cast("int64").to_pylist()
+            strips.setdefault(entity, {}).update(zip(times, batch.column(column).to_pylist()))
+    rooms = []
+    for t, grid in strips[ent.INSPECT_GRID].items():
+        xy = np.array([p for line in grid for p in line], dtype=float)
+        (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)  # screen y grows downwards: the bottom is y1
+        px_per_m = min(width_px / (x1 - x0), height_px / (y1 - y0))
+        view_bottom = (y0 + y1) / 2 + height_px / px_per_m / 2
+        [bar] = strips[ent.INSPECT_SCALE][t]
+        rooms.append((view_bottom - bar[0][1]) * px_per_m)
+    assert len(rooms) == 57 and min(rooms) >= SCALE_LABEL_PX, sorted(rooms)[:5]
