@@ -44,7 +44,7 @@ WEB_PAGE_PX = (1280, 720)
 WEB_CHROME_PX = 66
 #: Seconds of the drive the time plots and the state timeline show across by default: the larger
 #: of the viewer's own window in a browser (64 s at any page width, measured) and a screenshot's
-#: (:data:`PLOT_WINDOW_S` and a :data:`PLOT_MARGIN_S` on either side).
+#: (:data:`PLOT_WINDOW_S`, :data:`PLOT_MARGIN_S` after it and at most as much before it).
 TIMELINE_WINDOW_S = 68.0
 #: The narrowest image whose state labels must fit their spans: screenshots are made for 1024x576
 #: and larger, the web page for :data:`WEB_PAGE_PX`.
@@ -373,9 +373,26 @@ def web_error_rows_px(n_estimators: int, synthetic: bool = True) -> tuple[float,
 PLOT_WINDOW_S = 60.0
 #: The time plots' tick step (s) at a screenshot's window (the viewer's choice, measured on renders).
 PLOT_TICK_S = 10.0
-#: Seconds of plot before the window's start and after its end: the label of a tick at either end
-#: is centred on it, and was cut at the plot's edge ("4m 40s" of "+4m 40s").
+#: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
+#: on it, and was cut in half at the plot's edge.
 PLOT_MARGIN_S = 4.0
+#: Pixels of plot before the window's first tick: its label, centred on it, cleared the view's left
+#: edge by a few pixels less than that ("4m 40s" of "+4m 40s"; half a label, about 25 px, less the
+#: narrowest y-axis labels beside it, about 10 px). And pixels of plot the label of the tick before
+#: it reaches into, from the plot's start back (the y-axis labels, up to about 30 px, and half a
+#: label: "0s" of "+4m 30s" drawn at the view's edge). Measured on renders.
+FIRST_LABEL_PX, PREVIOUS_LABEL_PX = 16.0, 60.0
+
+
+def first_label_margin_s(window_s: float, plot_px: float) -> float:
+    """Seconds of time plot before the first tick of a window ``window_s`` long (:func:`plot_window`,
+    its start on a whole :data:`PLOT_TICK_S`) in plots ``plot_px`` wide: :data:`FIRST_LABEL_PX` of
+    them, so that the first tick's label is whole, and no more than leaves the tick before it
+    :data:`PREVIOUS_LABEL_PX` out of the plot, so that its label is not drawn in part (that wins in
+    plots too narrow for both, about 7 px a second or less: the review layout's columns below about
+    1600 px, where the y-axis labels beside the first tick leave its label room enough)."""
+    px_per_s = plot_px / window_s
+    return max(0.0, min(FIRST_LABEL_PX / px_per_s, PLOT_TICK_S - PREVIOUS_LABEL_PX / px_per_s))
 #: The viewer's panels a screenshot hides (only the views are drawn: no menu, badges or timeline).
 HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint", "/selection_panel": "PanelBlueprint",
                  "/time_panel": "TimePanelBlueprint"}
@@ -411,8 +428,8 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
                     n_estimators: int = 4, warned: bool = False, shown: frozenset[str] | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
     origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
-    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window` and :data:`PLOT_MARGIN_S`
-    either side; without
+    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`, :func:`first_label_margin_s`
+    before it and :data:`PLOT_MARGIN_S` after; without
     ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
     the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``;
     of :data:`OPTIONAL_VIEWS`, only those ``shown`` (None: all; a recording made before they were
@@ -441,9 +458,12 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             bp[key + "/ScalarAxis"] = {"ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
     if t_s is not None and end_s is not None:
         x0, x1 = plot_window(t_s, end_s)
+        # the time plots are a column wide in the review layout, else as wide as the image (a column alone, or maximised)
+        plot_px = (size or (1600, 900))[0] * (column_fraction(ent.DISPLACEMENTS) if view == "all" else 1.0)
+        start = x0 - first_label_margin_s(x1 - x0 + PLOT_MARGIN_S, plot_px)
         for key, vb in views.items():
             if vb.get("class_identifier") == "TimeSeries":  # room on either side for the first and last ticks' labels
-                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round((x0 - PLOT_MARGIN_S) * 1e9))},
+                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(start * 1e9))},
                                                                      "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
     if not map_tiles:
         if view == "map":
