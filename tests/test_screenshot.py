@@ -461,13 +461,13 @@ def test_small_images_label_every_plot(recording, tmp_path, size, time):
 
 
 def _text_at_edge(img, x: int) -> np.ndarray:
-    """Rows (below the key band) with light text in pixel columns ``x`` and ``x + 1``: a label cut at a
-    view's left edge there (horizontal lines, the state timeline's axis, aside)."""
+    """Rows (below the key band) with light text in pixel column ``x``, a view's first: a label cut at
+    its left edge (horizontal lines, the state timeline's axis, aside)."""
     from ionav_viz.viz.blueprints import TOP_BAND_PX
 
     light = img[TOP_BAND_PX:, x : x + 40].min(axis=-1) > 60  # the faded labels too (about 80), not the grid (55)
     rule = light[:, 1:].all(axis=1)
-    return np.nonzero(light[:, :2].any(axis=1) & ~rule)[0] + TOP_BAND_PX
+    return np.nonzero(light[:, 0] & ~rule)[0] + TOP_BAND_PX
 
 
 def test_the_first_time_label_is_whole(recording, tmp_path):
@@ -675,6 +675,18 @@ def real_losses(tmp_path_factory):
     rep = run_cli("evaluate", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins,odo", "--json")
     assert rep.returncode == 0, rep.stderr
     return out, json.loads(rep.stdout)["gnss_outages"]["bridged"]
+
+
+def test_no_label_of_the_tick_before_the_plots_shows_beside_wide_y_labels(real_losses, tmp_path):
+    """The tunnel drive's yaw rate (y labels "-0.1" to "0.1", the widest) showed the "s" of the tick
+    before its first at the signals column's edge in the review layout: nothing there now."""
+    out = tmp_path / "shots"
+    proc = run_cli("screenshot", str(real_losses[0]), "-o", str(out), "--view", "all", "--time", "worst")
+    assert proc.returncode == 0, proc.stderr
+    img = _image(out / "V-sim-motorway-tunnels-all-worst.png")
+    for column_x in (640, 1120):
+        cut = _text_at_edge(img, column_x)
+        assert len(cut) == 0, (column_x, cut)
 
 
 def test_a_recording_through_real_losses_alone_frames_them_by_number_and_as_the_worst(real_losses):

@@ -379,9 +379,9 @@ PLOT_MARGIN_S = 4.0
 #: Pixels of plot before the window's first tick: its label, centred on it, cleared the view's left
 #: edge by a few pixels less than that ("4m 40s" of "+4m 40s"; half a label, about 25 px, less the
 #: narrowest y-axis labels beside it, about 10 px). And pixels of plot the label of the tick before
-#: it reaches into, from the plot's start back (the y-axis labels, up to about 30 px, and half a
-#: label: "0s" of "+4m 30s" drawn at the view's edge). Measured on renders.
-FIRST_LABEL_PX, PREVIOUS_LABEL_PX = 16.0, 60.0
+#: it reaches into, from the plot's start back (the y-axis labels, up to about 35 px beside "-0.1",
+#: and half a label: "0s" of "+4m 30s" drawn at the view's edge). Measured on renders.
+FIRST_LABEL_PX, PREVIOUS_LABEL_PX = 16.0, 65.0
 
 
 def first_label_margin_s(window_s: float, plot_px: float) -> float:
@@ -389,7 +389,7 @@ def first_label_margin_s(window_s: float, plot_px: float) -> float:
     its start on a whole :data:`PLOT_TICK_S`) in plots ``plot_px`` wide: :data:`FIRST_LABEL_PX` of
     them, so that the first tick's label is whole, and no more than leaves the tick before it
     :data:`PREVIOUS_LABEL_PX` out of the plot, so that its label is not drawn in part (that wins in
-    plots too narrow for both, about 7 px a second or less: the review layout's columns below about
+    plots too narrow for both, about 7.5 px a second or less: the review layout's columns up to
     1600 px, where the y-axis labels beside the first tick leave its label room enough)."""
     px_per_s = plot_px / window_s
     return max(0.0, min(FIRST_LABEL_PX / px_per_s, PLOT_TICK_S - PREVIOUS_LABEL_PX / px_per_s))
