@@ -112,6 +112,22 @@ def test_worst_outage_marks_start_end_direction_and_north_apart_from_the_track()
     assert not any(box.contains(x, y) for x, y in truth_px), "the north arrow lies on the track"
 
 
+def test_an_estimate_ending_on_the_truths_end_is_seen():
+    """Issue 63: the truth's end was a filled square drawn over the estimates' end dots, so an
+    estimate ending within a few metres of it (roundabout's GNSS-aided INS 1.0 m, odometry 1.3 m)
+    had no end to see. The square is hollow now and the ends are drawn above it: the INS DR of this
+    report ends exactly on the truth's end, and its colour shows there."""
+    fig = figure(ONE, "worst")
+    [ax] = fig.axes
+    fig.canvas.draw()
+    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
+    x, y = ax.transData.transform((80.0, -60.0))  # the truth's end, where the INS DR ends too
+    row, col = int(round(rgb.shape[0] - y)), int(round(x))
+    box = rgb[row - 4 : row + 5, col - 4 : col + 5]
+    ins = np.array(ESTIMATORS[0][2])
+    assert int((np.abs(box - ins).max(axis=-1) <= 40).sum()) >= 6, box.tolist()
+
+
 def test_bands_and_lines_are_told_apart_without_colour():
     """Each drift band is hatched in its own pattern and outlined in its estimator's colour; each
     estimator's line has its own style (drift, CDF and worst outage) and marker (per outage)."""

@@ -355,8 +355,9 @@ def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
         "/view/ts": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.DISPLACEMENTS}},
     }
     online = focus_blueprint(bp, "all", {}, t_s=341.8, end_s=341.8)
-    assert online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"] == {"start": {"Absolute": 280_000_000_000},
-                                                                     "end": {"Absolute": 345_800_000_000}}  # + room for the last label
+    view_range = online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"]
+    assert view_range["end"] == {"Absolute": 345_800_000_000}  # + room for the last label
+    assert 277_000_000_000 < view_range["start"]["Absolute"] < 280_000_000_000  # and the first
     assert "/view/map" in online and all(online[p] == {k: {**v, "state": "Hidden"}} for p, (k, v) in
                                          {"/top_panel": ("PanelBlueprint", {}), "/time_panel": ("TimePanelBlueprint", {})}.items())
     offline = focus_blueprint(bp, "all", {}, map_tiles=False)
@@ -457,6 +458,37 @@ def test_small_images_label_every_plot(recording, tmp_path, size, time):
             labels = _label_runs(img, y0, y1)
             assert len(labels) >= 3, (view, k, labels)
             assert _no_legend(img, y0, y1) < 25, (view, k)
+
+
+def _text_at_edge(img, x: int) -> np.ndarray:
+    """Rows (below the key band) with light text in pixel column ``x``, a view's first: a label cut at
+    its left edge (horizontal lines, the state timeline's axis, aside)."""
+    from ionav_viz.viz.blueprints import TOP_BAND_PX
+
+    light = img[TOP_BAND_PX:, x : x + 40].min(axis=-1) > 60  # the faded labels too (about 80), not the grid (55)
+    rule = light[:, 1:].all(axis=1)
+    return np.nonzero(light[:, 0] & ~rule)[0] + TOP_BAND_PX
+
+
+def test_the_first_time_label_is_whole(recording, tmp_path):
+    """Issue 63: the time plots began at their first tick, whose label is centred on it: a view as
+    wide as the image (signals, errors, filter health) drew it across the image's left edge ("4m
+    40s" of "+4m 40s"). They now start a little before it, but not so much that the label of the
+    tick before it is drawn at the view's edge ("0s" of "+4m 30s", in the review layout's columns):
+    no text at the left edge of any of those views, at 1024x576 and at the review layout's 1600x900."""
+    out = tmp_path / "shots"
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--view", "health",
+                   "--time", "worst", "--size", "1024x576")
+    assert proc.returncode == 0, proc.stderr
+    for view in ("signals", "errors", "health"):
+        cut = _text_at_edge(_image(out / f"V-sim-sharp-cornering-{view}-worst.png"), 0)
+        assert len(cut) == 0, (view, cut)
+    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "all", "--time", "305s")  # ticks +4m 30s, +4m 40s, ...
+    assert proc.returncode == 0, proc.stderr
+    img = _image(out / "V-sim-sharp-cornering-all-0305.0s.png")
+    for column_x in (640, 1120):  # the signals and errors columns (4:3:3 of 1600 px)
+        cut = _text_at_edge(img, column_x)
+        assert len(cut) == 0, (column_x, cut)
 
 
 def test_key_entries_and_y_ranges():
@@ -643,6 +675,18 @@ def real_losses(tmp_path_factory):
     rep = run_cli("evaluate", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins,odo", "--json")
     assert rep.returncode == 0, rep.stderr
     return out, json.loads(rep.stdout)["gnss_outages"]["bridged"]
+
+
+def test_no_label_of_the_tick_before_the_plots_shows_beside_wide_y_labels(real_losses, tmp_path):
+    """The tunnel drive's yaw rate (y labels "-0.1" to "0.1", the widest) showed the "s" of the tick
+    before its first at the signals column's edge in the review layout: nothing there now."""
+    out = tmp_path / "shots"
+    proc = run_cli("screenshot", str(real_losses[0]), "-o", str(out), "--view", "all", "--time", "worst")
+    assert proc.returncode == 0, proc.stderr
+    img = _image(out / "V-sim-motorway-tunnels-all-worst.png")
+    for column_x in (640, 1120):
+        cut = _text_at_edge(img, column_x)
+        assert len(cut) == 0, (column_x, cut)
 
 
 def test_a_recording_through_real_losses_alone_frames_them_by_number_and_as_the_worst(real_losses):

@@ -35,6 +35,32 @@ def column_fraction(origin: str) -> float:
     return COLUMN_SHARES[column] / sum(COLUMN_SHARES) * share
 
 
+#: The page (pixels, width x height) the recording's own layout is made for in a browser (Rerun's
+#: web viewer, ``replay --serve-web``), the least it is made for: every view and tab title shows in
+#: full there (the viewer cuts a title at its view's edge, "Drive: east-north ("), the state
+#: timeline keeps its three lanes, the summary its table. Wider and taller pages only add room.
+WEB_PAGE_PX = (1280, 720)
+#: What the web viewer's page keeps above and below the views: its top bar and the collapsed time panel.
+WEB_CHROME_PX = 66
+#: Seconds of the drive the time plots and the state timeline show across by default: the larger
+#: of the viewer's own window in a browser (64 s at any page width, measured) and a screenshot's
+#: (:data:`PLOT_WINDOW_S`, :data:`PLOT_MARGIN_S` after it and at most as much before it).
+TIMELINE_WINDOW_S = 68.0
+#: The narrowest image whose state labels must fit their spans: screenshots are made for 1024x576
+#: and larger, the web page for :data:`WEB_PAGE_PX`.
+NARROWEST_PX = 1024
+#: A state label's width in its lane: pixels per character and the padding around it (measured on renders).
+STATE_LABEL_PX_PER_CHAR, STATE_LABEL_PAD_PX = 7.0, 8.0
+
+
+def state_label_fits(label: str, span_s: float) -> bool:
+    """Whether the state label ``label`` shows whole in a span of ``span_s`` seconds of its lane at the
+    default zoom (:data:`TIMELINE_WINDOW_S` across the signals column) of the narrowest image
+    (:data:`NARROWEST_PX`): the viewer cuts a label at its span's end ("bra" of a 3 s brake)."""
+    px_per_s = NARROWEST_PX * column_fraction("/") / TIMELINE_WINDOW_S
+    return len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= span_s * px_per_s
+
+
 INSPECTOR_NAME = "Current outage: m from its start fix, north up"
 #: The local view shows the whole drive's scale bar; framed on an outage (screenshots), that outage's.
 LOCAL_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_SCALE}"]
@@ -44,8 +70,8 @@ LOCAL_FRAMED_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_GRID_SCALE}"]
 #: The key's ellipse: an outline in a neutral light grey, as each estimator draws its own in its colour.
 ELLIPSE_KEY_COLOR = (200, 200, 200)
 
-#: The local view's name in the recording: what its overview markers are.
-LOCAL_NAME = "Drive: east-north (m); dots: manoeuvres pale yellow, outage starts grey"
+#: The local view's name in the recording (what its dots are is in the key: :func:`~ionav_viz.viz.recording.key_markdown`).
+LOCAL_NAME = "Drive: east-north (m)"
 #: Views of the review layout that only some recordings have data for (:func:`blueprint`'s ``shown``).
 OPTIONAL_VIEWS = (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH, ent.error_group("crse_m"))
 def shown_views(info: RecordingInfo) -> frozenset[str]:
@@ -222,11 +248,14 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     the signals, the errors and the summary; time plots with ``y_ranges`` (by origin) when given.
     ``shown``: which of :data:`OPTIONAL_VIEWS` hold data (None: all); the others are left out, so
     that no view opens empty (a run through the log's own losses alone has no CRSE, CAE or drift;
-    one without a filter's covariance or health no sigma or NIS tab)."""
+    one without a filter's covariance or health no sigma or NIS tab). Made for the page
+    :data:`WEB_PAGE_PX`: titles that show in full there, the rows of :func:`web_signal_rows_px` and
+    :func:`web_error_rows_px` (the summary's table a row per estimator of ``labels``)."""
     import rerun.blueprint as rrb
 
     ranges = y_ranges or {}
     has = (lambda origin: True) if shown is None else (lambda origin: origin in shown)
+    n_estimators = len(labels)
 
     # No legend on the time plots: Rerun draws it inside the plot, in a corner, where the curves of
     # a 60 s window pass sooner or later. The key above the signals names every line by its colour
@@ -251,23 +280,22 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
         plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
         plot(ent.ACCEL),
-        row_shares=list(SIGNAL_ROW_SHARES),
+        row_shares=list(web_signal_rows_px()),
     )
-    error_tabs = [plot(ent.error_group("position_error_m"))]
-    if has(ent.DRIFT):
-        error_tabs.append(rrb.Spatial2DView(origin=ent.DRIFT, name=TAB_TITLES[ent.DRIFT][0]))
-    if has(ent.UNCERTAINTY):
-        error_tabs.append(rrb.TimeSeriesView(origin=ent.UNCERTAINTY, name=TAB_TITLES[ent.UNCERTAINTY][0]))
-    if has(ent.HEALTH):
-        error_tabs.append(rrb.TimeSeriesView(origin=ent.HEALTH, name=TAB_TITLES[ent.HEALTH][0]))
-    rows = [rrb.Tabs(*error_tabs, active_tab=0) if len(error_tabs) > 1 else error_tabs[0]]
-    shares = [ERROR_COLUMN_SHARES[0]]
-    if has(ent.error_group("crse_m")):  # the CRSE, CAE and orientation-rate CRSE are of synthetic outages
-        rows += [rrb.Tabs(plot(ent.error_group("crse_m")), plot(ent.error_group("cae_m"))), plot(ent.error_group("yaw_crse_radps"))]
-        shares += list(ERROR_COLUMN_SHARES[1:3])
+    # tab titles that all show in their bar on the narrowest page (the viewer cuts the others: "Drift: error (m")
+    error_origins = [ent.error_group("position_error_m"), *(o for o in (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH) if has(o))]
+    tab_names = _fit_tabs(tuple(error_origins), WEB_PAGE_PX[0] * column_fraction(ent.error_group("position_error_m")))
+    views = {ent.DRIFT: rrb.Spatial2DView, ent.UNCERTAINTY: rrb.TimeSeriesView, ent.HEALTH: rrb.TimeSeriesView}
+    error_tabs = [plot(o, tab_names[o]) if o not in views else views[o](origin=o, name=tab_names[o]) for o in error_origins]
+    rows = [rrb.Tabs(*error_tabs, active_tab=0) if len(error_tabs) > 1 else plot(error_origins[0])]
+    synthetic = has(ent.error_group("crse_m"))
+    if synthetic:  # the CRSE, CAE and orientation-rate CRSE are of synthetic outages
+        crse_cae = (ent.error_group("crse_m"), ent.error_group("cae_m"))
+        crse_names = _fit_tabs(crse_cae, WEB_PAGE_PX[0] * column_fraction(crse_cae[0]))
+        rows += [rrb.Tabs(*(plot(o, crse_names[o]) for o in crse_cae)), plot(ent.error_group("yaw_crse_radps"))]
     rows.append(rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"), rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"),
                          active_tab=0))
-    shares.append(ERROR_COLUMN_SHARES[3])
+    shares = list(web_error_rows_px(n_estimators, synthetic))
     errors = rrb.Vertical(*rows, row_shares=shares)
     # the viewer opens on the first timeline it meets, time_of_day (axes at "+17h 30s"): time into the drive instead
     return rrb.Blueprint(rrb.Horizontal(tracks, signals, errors, column_shares=list(COLUMN_SHARES)),
@@ -311,11 +339,36 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
     return Framing(zoom, bounds, entities)
 
 
-#: The signal column's rows: the colour key, the state timeline, displacement, yaw rate, acceleration.
-SIGNAL_ROW_SHARES = (1.6, 2.8, 3, 3, 2)
-#: The error column's rows: position error, CRSE/CAE, orientation-rate CRSE, the summary tabs
-#: (screenshots: :func:`shot_rows`).
-ERROR_COLUMN_SHARES = (3, 3, 2.5, 3.5)
+#: The web page's colour key (four lines of the signals column at :data:`WEB_PAGE_PX`) and state
+#: timeline (its title, time axis and three lanes; pixels, measured on renders).
+WEB_KEY_PX, WEB_TIMELINE_PX = 84.0, 180.0
+#: How the time plots of a column share what the key, the timeline or the summary leave: the
+#: signals (displacement, yaw rate, acceleration) and the errors (position error, CRSE/CAE,
+#: orientation-rate CRSE).
+SIGNAL_PLOT_SHARES, ERROR_PLOT_SHARES = (3.0, 3.0, 2.0), (3.0, 3.0, 2.5)
+
+
+def _split(total_px: float, shares: tuple[float, ...]) -> tuple[float, ...]:
+    return tuple(total_px * s / sum(shares) for s in shares)
+
+
+def web_signal_rows_px() -> tuple[float, ...]:
+    """The signals column's rows on the page :data:`WEB_PAGE_PX` (pixels; the blueprint's row shares):
+    the key, the state timeline with its three lanes, displacement, yaw rate, acceleration."""
+    views = WEB_PAGE_PX[1] - WEB_CHROME_PX
+    return (WEB_KEY_PX, WEB_TIMELINE_PX, *_split(views - WEB_KEY_PX - WEB_TIMELINE_PX, SIGNAL_PLOT_SHARES))
+
+
+def web_error_rows_px(n_estimators: int, synthetic: bool = True) -> tuple[float, ...]:
+    """The errors column's rows on the page :data:`WEB_PAGE_PX` (pixels; the blueprint's row shares):
+    the position error, and with ``synthetic`` outages the CRSE/CAE and orientation-rate CRSE, then
+    the summary with its whole table of ``n_estimators`` (:func:`summary_px`)."""
+    views = WEB_PAGE_PX[1] - WEB_CHROME_PX
+    summary = min(summary_px(n_estimators), 0.5 * views)
+    plots = _split(views - summary, ERROR_PLOT_SHARES) if synthetic else (views - summary,)
+    return (*plots, summary)
+
+
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.
 PLOT_WINDOW_S = 60.0
 #: The time plots' tick step (s) at a screenshot's window (the viewer's choice, measured on renders).
@@ -323,6 +376,23 @@ PLOT_TICK_S = 10.0
 #: Seconds of empty plot after the window's end: the label of a tick at the window's end is centred
 #: on it, and was cut in half at the plot's edge.
 PLOT_MARGIN_S = 4.0
+#: Pixels of plot before the window's first tick: its label, centred on it, cleared the view's left
+#: edge by a few pixels less than that ("4m 40s" of "+4m 40s"; half a label, about 25 px, less the
+#: narrowest y-axis labels beside it, about 10 px). And pixels of plot the label of the tick before
+#: it reaches into, from the plot's start back (the y-axis labels, up to about 35 px beside "-0.1",
+#: and half a label: "0s" of "+4m 30s" drawn at the view's edge). Measured on renders.
+FIRST_LABEL_PX, PREVIOUS_LABEL_PX = 16.0, 65.0
+
+
+def first_label_margin_s(window_s: float, plot_px: float) -> float:
+    """Seconds of time plot before the first tick of a window ``window_s`` long (:func:`plot_window`,
+    its start on a whole :data:`PLOT_TICK_S`) in plots ``plot_px`` wide: :data:`FIRST_LABEL_PX` of
+    them, so that the first tick's label is whole, and no more than leaves the tick before it
+    :data:`PREVIOUS_LABEL_PX` out of the plot, so that its label is not drawn in part (that wins in
+    plots too narrow for both, about 7.5 px a second or less: the review layout's columns up to
+    1600 px, where the y-axis labels beside the first tick leave its label room enough)."""
+    px_per_s = plot_px / window_s
+    return max(0.0, min(FIRST_LABEL_PX / px_per_s, PLOT_TICK_S - PREVIOUS_LABEL_PX / px_per_s))
 #: The viewer's panels a screenshot hides (only the views are drawn: no menu, badges or timeline).
 HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint", "/selection_panel": "PanelBlueprint",
                  "/time_panel": "TimePanelBlueprint"}
@@ -358,7 +428,8 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
                     n_estimators: int = 4, warned: bool = False, shown: frozenset[str] | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
     origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
-    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`; without
+    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`, :func:`first_label_margin_s`
+    before it and :data:`PLOT_MARGIN_S` after; without
     ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
     the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``;
     of :data:`OPTIONAL_VIEWS`, only those ``shown`` (None: all; a recording made before they were
@@ -387,9 +458,12 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             bp[key + "/ScalarAxis"] = {"ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
     if t_s is not None and end_s is not None:
         x0, x1 = plot_window(t_s, end_s)
+        # the time plots are a column wide in the review layout, else as wide as the image (a column alone, or maximised)
+        plot_px = (size or (1600, 900))[0] * (column_fraction(ent.DISPLACEMENTS) if view == "all" else 1.0)
+        start = x0 - first_label_margin_s(x1 - x0 + PLOT_MARGIN_S, plot_px)
         for key, vb in views.items():
-            if vb.get("class_identifier") == "TimeSeries":  # room on the right for the last tick's label
-                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(x0 * 1e9))},
+            if vb.get("class_identifier") == "TimeSeries":  # room on either side for the first and last ticks' labels
+                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(start * 1e9))},
                                                                      "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
     if not map_tiles:
         if view == "map":

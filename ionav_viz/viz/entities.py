@@ -259,23 +259,32 @@ EVENT_SHORT = {"hard-brake": "brake", "quick-accel": "accel", "roundabout": "rou
                "left-right": "L-R", "cruise": "cruise", "gnss-outage": "no GNSS"}
 
 
-def state_label(state: str) -> str:
-    """What a state's lane shows (the viewer's state timeline cuts a label at its lane's end: a
-    10 s outage in a 60 s window is about 50 px wide in a 1024 px review): ``#3`` for outage 3,
-    ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` for ``hard-brake #3``, blank for no
-    event. The whole state stays the value (hover text, and what screenshots read back)."""
+def state_labels(state: str) -> tuple[str, ...]:
+    """What a state's lane may show, longest first (:func:`state_label` takes the first that fits):
+    ``#3`` or ``3`` for outage 3, ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` for
+    ``hard-brake #3``; the last is always a blank (an empty label falls back to the state's own
+    value, cut in a short span). The whole state stays the value (hover text, and what screenshots
+    read back)."""
+    blank = " "
     if (n := parse_outage_state(state)) is not None:
-        return f"#{n}"
+        return f"#{n}", f"{n}", blank
     if (n := parse_real_outage_state(state)) is not None:
-        return f"real #{n}"
+        return f"real #{n}", blank
     if state.startswith("bad: "):
-        return "bad"
+        return "bad", blank
     if state.startswith(("receiver lost", "receiver untrusted")):
-        return "rx lost" if state.startswith("receiver lost") else "rx bad"
+        return ("rx lost" if state.startswith("receiver lost") else "rx bad"), blank
     if state == NO_EVENT_STATE:
-        return " "  # blank (an empty label falls back to the state's own "none", cut in short gaps)
+        return (blank,)
     kind, sep, _number = state.rpartition(" #")
-    return EVENT_SHORT.get(kind, kind) if sep else state
+    return (EVENT_SHORT.get(kind, kind) if sep else state), blank
+
+
+def state_label(state: str, fits=lambda label: True) -> str:
+    """What a state's lane shows: the longest of :func:`state_labels` that ``fits`` (a test of the
+    label's text; the viewer's state timeline cuts a label at its span's end: ``bra`` of a 3 s
+    brake), else a blank."""
+    return next((label for label in state_labels(state) if fits(label)), " ")
 
 
 #: Every path a recording can hold, with ``<est>`` for an estimator's name: what

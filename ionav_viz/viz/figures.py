@@ -682,6 +682,10 @@ def _end_gap_m(tracks: dict[str, Any], name: str) -> float:
     return float(np.hypot(ends[0][0] - ends[1][0], ends[0][1] - ends[1][1]))
 
 
+#: The worst outage's start and truth-end markers (the estimates' ends are drawn above them).
+END_ZORDER = 5.0
+
+
 def _worst(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     tracks = rep["worst_tracks"]
     fig, ax = _new_figure(width_in, 3.7)
@@ -701,18 +705,18 @@ def _worst(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
         ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, zorder=z, **style)
         if name == "truth":
             truth_xy = np.column_stack([east[shown], north[shown]])
-        else:  # where this estimate ended
+        else:  # where this estimate ended: over the truth's end marker, which is hollow (an estimate ending on it shows inside)
             last = np.flatnonzero(shown)[-1]
-            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none", zorder=z + 1)
+            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none", zorder=END_ZORDER + 1 + z)
     _skipped("worst", skipped)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xticks([])
     ax.set_yticks([])
     for side in ("left", "bottom"):
         ax.spines[side].set_visible(False)
-    ax.plot([0], [0], marker="o", ms=6, mfc="white", mec="black", mew=1.0, ls="none", label="start (last GNSS fix)", zorder=5)
+    ax.plot([0], [0], marker="o", ms=6, mfc="white", mec="black", mew=1.0, ls="none", label="start (last GNSS fix)", zorder=END_ZORDER)
     if truth_xy is not None and len(truth_xy) > 1:
-        ax.plot(*truth_xy[-1], marker="s", ms=5.5, mfc="black", mec="black", ls="none", label="end (truth)", zorder=5)
+        ax.plot(*truth_xy[-1], marker="s", ms=5.5, mfc="none", mec="black", mew=1.0, ls="none", label="end (truth)", zorder=END_ZORDER)
         _direction_arrows(ax, truth_xy, truth_color)
     ax.margins(0.12)
     _north_arrow(ax)

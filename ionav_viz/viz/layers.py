@@ -28,6 +28,10 @@ END_DOT_PT, TRUTH_DOT_PT = 5.0, 8.5
 TRACK_PT, RIM_PT = 2.0, 0.7
 #: The current outage's truth, underneath: wider than five stacked tracks.
 TRUTH_TRACK_PT = 5.5
+#: The inspector's scale bar: this share of its frame's height above the frame's bottom, so that its
+#: label (below it) is not cut at the view's edge where the frame fills the view's height (the
+#: web page's inspector is 366 px high at 1280x720: 0.05 left 18 px, "20 m" cut in half).
+INSPECT_SCALE_ABOVE = 0.09
 
 
 def track_radii_pt(stack: np.ndarray, n_estimators: int) -> np.ndarray:
@@ -82,14 +86,23 @@ def state_color(state: str) -> tuple[int, int, int]:
     return EVENT_STATE_COLORS.get(state.rpartition(" #")[0], EVENT_COLOR)
 
 
-def log_state_styles(rec, entity: str, states: list[str]) -> None:
-    """Each state of the lane ``entity``: its short label (:func:`~ionav_viz.viz.entities.state_label`)
-    and colour (:func:`state_color`), static."""
+def log_state_styles(rec, entity: str, states: list[str], t_s: np.ndarray, end_s: float) -> None:
+    """Each state of the lane ``entity`` (``states``: the state from each time of ``t_s`` on, the
+    last until ``end_s``): its colour (:func:`state_color`) and its label, the longest of
+    :func:`~ionav_viz.viz.entities.state_labels` that fits the shortest span of that state
+    (:func:`~ionav_viz.viz.blueprints.state_label_fits`), static."""
     import rerun as rr
 
-    values = list(dict.fromkeys(states))
-    rec.log(entity, rr.StateConfiguration(values=values, labels=[ent.state_label(v) for v in values],
-                                          colors=[state_color(v) for v in values]), static=True)
+    from .blueprints import state_label_fits
+
+    t = np.asarray(t_s, dtype=np.float64)
+    spans = np.diff(np.append(t, max(float(end_s), float(t[-1]) if len(t) else 0.0)))
+    shortest: dict[str, float] = {}
+    for state, span in zip(states, spans):
+        shortest[state] = min(shortest.get(state, np.inf), float(span))
+    values = list(shortest)
+    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v])) for v in values]
+    rec.log(entity, rr.StateConfiguration(values=values, labels=labels, colors=[state_color(v) for v in values]), static=True)
 
 
 def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, np.ndarray]) -> None:
@@ -140,7 +153,8 @@ def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, 
         radii=np.full(sum(map(len, grids)), rr.Radius.ui_points(0.8)), draw_order=np.full(sum(map(len, grids)), 1.0)).partition(
             [len(g) for g in grids]))
     send(ent.INSPECT_SCALE, t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st) for bx, st in zip(bounds, steps)])), labels=[scale_label(st) for st in steps],
+        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st, INSPECT_SCALE_ABOVE) for bx, st in zip(bounds, steps)])),
+        labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
     local_bounds = [(bx[0] + s[0], bx[1] + s[0], bx[2] + s[1], bx[3] + s[1]) for bx, s in zip(bounds, start_xy)]
     send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
@@ -255,7 +269,7 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
         bounds = padded_bounds(np.concatenate([*truth[-1], *(tr[-1] for tr in tracks.values()), np.zeros((1, 2))]))
         steps.append(nice_step(max(bounds[1] - bounds[0], bounds[3] - bounds[2])))
         grids.append(grid_strips(bounds, steps[-1]))
-        bars.append(scale_bar(bounds, steps[-1]))
+        bars.append(scale_bar(bounds, steps[-1], INSPECT_SCALE_ABOVE))
     wide = rr.Radius.ui_points(TRUTH_TRACK_PT)
     send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged([s for pair in truth for s in pair])), colors=np.tile(GNSS_COLOR, (2 * m, 1)),
@@ -304,7 +318,7 @@ def log_events(layers: Layers, events: list, drive) -> None:
         times += [e.t0_s, e.t1_s]
         states += [ent.event_state(e.type, i + 1), ent.NO_EVENT_STATE]
     order = np.argsort(times, kind="stable")
-    log_state_styles(rec, ent.EVENTS_STATE, states)
+    log_state_styles(rec, ent.EVENTS_STATE, [states[k] for k in order], np.asarray(times)[order], float(drive.t_s[-1]))
     send(ent.EVENTS_STATE, np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
     # a loss's middle lies between its good fixes (``usable``), not at (0, 0)

@@ -131,11 +131,12 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
     return out
 
 
-def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> str:
+def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str], manoeuvres: bool = False) -> str:
     """Which colour is which line, in words (the viewer's ``key`` above the signals; its plots
     show no legend): the truth, each estimator (the baseline first), the sensors and, where an
     estimator gives a covariance, its 95 % ellipses (drawn in synthetic outages only: a run through
-    the log's own GNSS losses alone has none)."""
+    the log's own GNSS losses alone has none), and the drive views' dots: the ``manoeuvres`` where
+    there are some, the outage starts."""
     from ..experiment.registry import BASELINE
 
     names = sorted(result.estimates, key=lambda n: (n != BASELINE, labels[n]))
@@ -144,6 +145,10 @@ def key_markdown(result: DriveResult, colors: dict, labels: dict[str, str]) -> s
         items.append("receiver fixes pale green dots")
     if len(result.starts) and any(getattr(e, "pos_cov_m2", None) is not None for e in result.estimates.values()):
         items.append("outlines: 95 % ellipses")
+    starts = ["outage starts"] * bool(len(result.starts)) + ["first fixes after real losses"] * bool(result.bridged)
+    dots = ["manoeuvres pale yellow"] * manoeuvres + [f"{' and '.join(starts)} grey"] * bool(starts)
+    if dots:
+        items.append("dots: " + ", ".join(dots))
     return " · ".join(items) + "\n"
 
 
@@ -177,7 +182,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     labels = {**{e.name: e.label for e in result.estimators}, "gnss": REFERENCE_LABEL if drive.has_reference else GNSS_LABEL,
               "gyro": GYRO_LABEL}
     _log_series_styles(rec, list(result.estimates), colors, labels)
-    rec.log(ent.KEY, rr.TextDocument(key_markdown(result, colors, labels), media_type=rr.MediaType.MARKDOWN), static=True)
+    rec.log(ent.KEY, rr.TextDocument(key_markdown(result, colors, labels, bool(events)), media_type=rr.MediaType.MARKDOWN), static=True)
     rows[ent.KEY] = 1
     _log_static_layers(layers, drive, summary_md)
     step("static layers")
@@ -273,7 +278,7 @@ def _log_signals(layers: Layers, drive) -> None:
                                                                 radii=np.full(nu, -TRUTH_DOT_PT), draw_order=np.full(nu, TRUTH_END_ORDER)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
-    log_state_styles(layers.rec, ent.GNSS_QUALITY, [str(q) for q in quality[change]])
+    log_state_styles(layers.rec, ent.GNSS_QUALITY, [str(q) for q in quality[change]], t[change], float(t[-1]))
     send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
@@ -307,7 +312,7 @@ def _log_outage_states(rec, send, result: DriveResult) -> tuple[np.ndarray, np.n
     for b in result.bridged:
         states[b.start : b.start + b.n_windows] = ent.real_outage_state(b.number, b.gap_t0_s, b.gap_t1_s)
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
-    log_state_styles(rec, ent.GNSS_STATE, [str(s) for s in states[change]])
+    log_state_styles(rec, ent.GNSS_STATE, [str(s) for s in states[change]], w.t0_s[change], float(t_end[-1]) if len(w) else 0.0)
     send(ent.GNSS_STATE, w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
     return t_end, idx
 

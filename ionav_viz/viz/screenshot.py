@@ -217,7 +217,7 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
             for shot, path in zip(shots, paths):
                 frame = framing(info, shot.outage, size, shot.view)
                 x0, x1 = plot_window(shot.t_s, info.end_s)
-                extents = {o: plot_range(o, *e, pad=False) for o in MIN_Y_SPAN if (e := info.y_extent(o, x0, x1 + PLOT_MARGIN_S)) is not None}
+                extents = {o: plot_range(o, *e, pad=False) for o in MIN_Y_SPAN if (e := info.y_extent(o, x0 - PLOT_MARGIN_S, x1 + PLOT_MARGIN_S)) is not None}
                 try:
                     layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
                                              t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles, size=size,

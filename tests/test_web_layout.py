@@ -1,0 +1,198 @@
+"""The recording's own layout as a browser shows it (``replay --serve-web``, issue 63): read back from
+the ``.rrd`` a replay writes (its blueprint and its state lanes), no viewer needed. On the page the
+layout is made for (1280x720) the web viewer cut view titles at their view's edge ("Drive:
+east-north (", the tabs "Drift: error (m" and "Displaceme"), hid the third state lane (the
+outages) below the timeline's edge, cut the summary's table, and cut state labels at their span's
+end ("bra" of a 3 s hard brake)."""
+
+import uuid
+
+import numpy as np
+import pytest
+
+from ionav_viz.viz import entities as ent
+from ionav_viz.viz.blueprints import (
+    NARROWEST_PX,
+    STATE_LABEL_PAD_PX,
+    STATE_LABEL_PX_PER_CHAR,
+    TAB_BAR_ICONS_PX,
+    TAB_EXTRA_PX,
+    TIMELINE_WINDOW_S,
+    TITLE_ICONS_PX,
+    TITLE_PX_PER_CHAR,
+    WEB_CHROME_PX,
+    WEB_PAGE_PX,
+    summary_px,
+)
+
+from .conftest import run_cli
+
+pytestmark = pytest.mark.xdist_group("web_layout")
+
+#: Container kinds as the viewer stores them.
+TABS, HORIZONTAL, VERTICAL = 1, 2, 3
+#: What the state timeline needs for its three lanes (title bar, time axis, and each lane's name
+#: above its bar; pixels, measured on the served page at 1280x720).
+THREE_LANES_PX = 170
+
+
+def _stores(path):
+    from rerun.chunk import RrdReader
+
+    reader = RrdReader(str(path))
+    [recording] = reader.recordings()
+    [layout] = reader.blueprints()
+    return reader, recording, layout
+
+
+def _components(chunk) -> dict:
+    batch = chunk.to_record_batch()
+    return {n.split(":")[-1]: batch.column(n).to_pylist()[-1] for n in batch.schema.names if ":" in n}
+
+
+@pytest.fixture(scope="module")
+def hard_brake(tmp_path_factory):
+    """hard-brake replayed with every built-in estimator that reports a covariance or health: four
+    error tabs (position error, drift, sigma, NIS), the brakes' short spans on the manoeuvre lane."""
+    out = tmp_path_factory.mktemp("web") / "hb.rrd"
+    proc = run_cli("replay", "hard-brake", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def roundabout(tmp_path_factory):
+    """roundabout replayed: its last outage's frame (a bend north) fills the inspector's height."""
+    out = tmp_path_factory.mktemp("web") / "rb.rrd"
+    proc = run_cli("replay", "roundabout", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def _layout(path) -> tuple[str, dict[str, dict]]:
+    """The layout's root container and every container and view of it (by ``container/<id>``, ``view/<id>``)."""
+    reader, _, layout = _stores(path)
+    items, root = {}, None
+    for chunk in reader.stream(store=layout):
+        entity = str(chunk.entity_path).strip("/")
+        if entity == "viewport":
+            root = "container/" + str(uuid.UUID(bytes=bytes(_components(chunk)["root_container"][0])))
+        elif entity.count("/") == 1 and entity.startswith(("container/", "view/")):
+            items.setdefault(entity, {}).update(_components(chunk))
+    return root, items
+
+
+def _widths(root: str, items: dict[str, dict], width_px: float, height_px: float) -> dict[str, tuple[float, float, list[str]]]:
+    """Each view's (width, height) in pixels on a page of the views' ``width_px`` x ``height_px``,
+    and the tabs sharing its bar (itself alone outside a tab bar)."""
+    out = {}
+
+    def walk(key: str, w: float, h: float, tabs: list[str]) -> None:
+        item = items[key]
+        if key.startswith("view/"):
+            out[key] = (w, h, tabs or [key])
+            return
+        contents, kind = item["contents"], item["container_kind"][0]
+        if kind == TABS:
+            for child in contents:
+                walk(child, w, h, list(contents))
+            return
+        shares = item.get("col_shares" if kind == HORIZONTAL else "row_shares") or [1.0] * len(contents)
+        for child, share in zip(contents, shares):
+            part = share / sum(shares)
+            walk(child, w * part if kind == HORIZONTAL else w, h * part if kind == VERTICAL else h, [])
+
+    walk(root, width_px, height_px, [])
+    return out
+
+
+def test_every_title_shows_whole_on_the_page_the_layout_is_made_for(hard_brake):
+    """At 1280x720 every view title fits its view and the tabs of a bar fit it together (the title
+    font's measured width per character, the icons beside), the state timeline has room for its
+    three lanes and the summary for its table (a row per estimator)."""
+    root, items = _layout(hard_brake)
+    views = _widths(root, items, WEB_PAGE_PX[0], WEB_PAGE_PX[1] - WEB_CHROME_PX)
+    name = {k: v["display_name"][0] for k, v in items.items() if k.startswith("view/")}
+    origin = {k: v["space_origin"][0].strip("/") for k, v in items.items() if k.startswith("view/")}
+    tabbed = {o for k, (_, _, tabs) in views.items() if len(tabs) > 1 for o in (origin[k],)}
+    assert {ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH} <= tabbed  # four error tabs
+    for key, (width, _height, tabs) in views.items():
+        if len(tabs) > 1:
+            needed = sum(len(name[t]) * TITLE_PX_PER_CHAR + TAB_EXTRA_PX for t in tabs) + TAB_BAR_ICONS_PX
+        else:
+            needed = len(name[key]) * TITLE_PX_PER_CHAR + TITLE_ICONS_PX
+        assert needed <= width, (origin[key], name[key], [name[t] for t in tabs], round(width))
+    height = {origin[k] or items[k]["class_identifier"][0]: h for k, (_, h, _) in views.items()}
+    assert height["StateTimeline"] >= THREE_LANES_PX, height["StateTimeline"]
+    assert height[ent.OVERVIEW] >= summary_px(4), height[ent.OVERVIEW]  # INS DR, IDNN, odometry, GNSS-aided INS
+
+
+def test_every_state_label_fits_its_span(hard_brake):
+    """Each state's label fits the shortest span of that state at the default zoom of the narrowest
+    image (68 s across the signals column of 1024 px): a hard brake of 2-6 s shows its colour and
+    no label (the hover text names it), each 10 s outage its number."""
+    reader, recording, _ = _stores(hard_brake)
+    lanes = (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE)
+    labels, changes, end_s = {}, {lane: [] for lane in lanes}, 0.0
+    for chunk in reader.stream(store=recording):
+        entity = str(chunk.entity_path).strip("/")
+        batch = chunk.to_record_batch()
+        if "time" in batch.schema.names and len(batch):
+            t_s = batch.column("time").cast("int64").to_numpy() / 1e9
+            end_s = max(end_s, float(t_s.max()))
+        if entity not in lanes:
+            continue
+        if chunk.is_static:
+            found = _components(chunk)
+            labels[entity] = dict(zip(found["values"], found["labels"]))
+        else:
+            column = next(n for n in batch.schema.names if n.endswith(":state"))
+            changes[entity] += zip(t_s, (v[0] for v in batch.column(column).to_pylist()))
+    px_per_s = NARROWEST_PX * 0.3 / TIMELINE_WINDOW_S  # the signals column: 3 of 10 shares
+    seen = set()
+    for lane in lanes:
+        rows = sorted(changes[lane])
+        ends = [t for t, _ in rows[1:]] + [end_s]
+        for (t0, state), t1 in zip(rows, ends):
+            label = labels[lane][state]
+            assert label != "", (lane, state)  # an empty label falls back to the whole state, cut
+            if label.strip():
+                assert len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= (t1 - t0) * px_per_s, (lane, state, label, t1 - t0)
+            seen.add((state.rpartition(" #")[0] or state, label))
+    assert ("hard-brake", " ") in seen and ("outage 1 (30-40 s)", "#1") in seen
+    assert not any(kind == "hard-brake" and label.strip() for kind, label in seen)
+
+
+#: Pixels below the inspector's scale bar its label takes (the label's box under the bar; measured on
+#: the served page, where 18 px cut "20 m" in half).
+SCALE_LABEL_PX = 24
+
+
+def test_the_inspectors_scale_label_is_inside_its_view(roundabout):
+    """In every outage the inspector's scale bar lies high enough in its frame that its label, below
+    it, is inside the view on the page the layout is made for (the viewer fits the frame, its grid,
+    to the view and centres it): roundabout's outage 57, whose frame fills the view's height, had
+    17 px below its bar, "20 m" cut in half."""
+    from ionav_viz.viz.blueprints import TITLE_BAR_PX
+
+    root, items = _layout(roundabout)
+    [(width_px, height_px)] = [(w, h - TITLE_BAR_PX) for k, (w, h, _) in _widths(root, items, WEB_PAGE_PX[0], WEB_PAGE_PX[1] - WEB_CHROME_PX).items()
+                               if items[k]["space_origin"][0].strip("/") == ent.INSPECT]
+    reader, recording, _ = _stores(roundabout)
+    strips = {}
+    for chunk in reader.stream(store=recording):
+        entity = str(chunk.entity_path).strip("/")
+        if entity in (ent.INSPECT_GRID, ent.INSPECT_SCALE) and not chunk.is_static:
+            batch = chunk.to_record_batch()
+            column = next(n for n in batch.schema.names if n.endswith(":strips"))
+            times = batch.column("time").cast("int64").to_pylist()
+            strips.setdefault(entity, {}).update(zip(times, batch.column(column).to_pylist()))
+    rooms = []
+    for t, grid in strips[ent.INSPECT_GRID].items():
+        xy = np.array([p for line in grid for p in line], dtype=float)
+        (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)  # screen y grows downwards: the bottom is y1
+        px_per_m = min(width_px / (x1 - x0), height_px / (y1 - y0))
+        view_bottom = (y0 + y1) / 2 + height_px / px_per_m / 2
+        [bar] = strips[ent.INSPECT_SCALE][t]
+        rooms.append((view_bottom - bar[0][1]) * px_per_m)
+    assert len(rooms) == 57 and min(rooms) >= SCALE_LABEL_PX, sorted(rooms)[:5]
