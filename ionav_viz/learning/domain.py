@@ -43,7 +43,8 @@ SEEN_QUANTILE = 0.999
 #: How far beyond the training's value (relative) a drive's may lie before it is said to be outside.
 TOLERANCE = 0.2
 #: The sampled features: name -> (words, unit, digits).
-SAMPLED = {"accel_mps2": ("acceleration", "m/s²", 2), "yaw_rate_radps": ("yaw rate", "rad/s", 2), "speed_mps": ("speed", "m/s", 1)}
+SAMPLED = {"accel_mps2": ("acceleration", "m/s²", 2), "yaw_rate_radps": ("yaw rate", "rad/s", 2),
+           "speed_mps": ("speed", "m/s", 1)}
 #: The noise features: name -> (words, unit, digits).
 NOISE = {"accel_noise_mps2": ("accelerometer noise", "m/s²", 3), "gyro_noise_radps": ("gyro noise", "rad/s", 4)}
 #: A sample rate or sample kind not trained on counts this much in :func:`sigma_scale` (the inputs'
@@ -91,13 +92,14 @@ def sampled_values(drive: Drive, bias: SensorBias) -> dict[str, np.ndarray]:
     """The sizes of the drive's samples of each :data:`SAMPLED` feature: bias-corrected acceleration
     and yaw rate, GNSS speed."""
     cols = drive.columns
-    return {"accel_mps2": np.abs(cols["accel_long_mps2"] - bias.accel_mps2), "yaw_rate_radps": np.abs(cols["yaw_rate_radps"] - bias.gyro_radps),
-            "speed_mps": np.abs(cols["speed_mps"])}
+    return {"accel_mps2": np.abs(cols["accel_long_mps2"] - bias.accel_mps2),
+            "yaw_rate_radps": np.abs(cols["yaw_rate_radps"] - bias.gyro_radps), "speed_mps": np.abs(cols["speed_mps"])}
 
 
 def drive_noise(drive: Drive) -> dict[str, float]:
     """Each :data:`NOISE` feature of the drive (:func:`noise_of` its samples)."""
-    return {"accel_noise_mps2": noise_of(drive.columns["accel_long_mps2"]), "gyro_noise_radps": noise_of(drive.columns["yaw_rate_radps"])}
+    return {"accel_noise_mps2": noise_of(drive.columns["accel_long_mps2"]),
+            "gyro_noise_radps": noise_of(drive.columns["yaw_rate_radps"])}
 
 
 def _quantiles(values: np.ndarray) -> list[float]:
@@ -127,8 +129,8 @@ class Domain:
 
     def to_dict(self) -> dict[str, Any]:
         return {"quantiles_of": list(QUANTILES), "quantiles": {k: list(v) for k, v in self.quantiles.items()},
-                "noise": {k: list(v) for k, v in self.noise.items()}, "rates_hz": list(self.rates_hz), "kinds": list(self.kinds),
-                "n_drives": self.n_drives, "note": self.note}
+                "noise": {k: list(v) for k, v in self.noise.items()}, "rates_hz": list(self.rates_hz),
+                "kinds": list(self.kinds), "n_drives": self.n_drives, "note": self.note}
 
     @classmethod
     def from_dict(cls, d: Any) -> Domain:
@@ -221,8 +223,9 @@ def outside(domain: Domain, drive: Drive, bias: SensorBias) -> list[Outside]:
             continue
         mine, trained = float(np.quantile(v, CHECK_QUANTILE)), domain.value(name, CHECK_QUANTILE)
         if mine > trained * (1.0 + TOLERANCE):
-            found.append(Outside(name, f"{words} up to {_fmt(mine, digits)} {unit}, trained up to {_fmt(trained, digits)} {unit}",
-                                 mine / trained - 1.0 if trained > 0 else 1.0))
+            found.append(Outside(name,
+                                 f"{words} up to {_fmt(mine, digits)} {unit}, trained up to "
+                                 f"{_fmt(trained, digits)} {unit}", mine / trained - 1.0 if trained > 0 else 1.0))
     for name, value in drive_noise(drive).items():
         words, unit, digits = NOISE[name]
         lo, hi = domain.noise[name]
@@ -246,11 +249,12 @@ def outside(domain: Domain, drive: Drive, bias: SensorBias) -> list[Outside]:
 def sigma_scale(domain: Domain, drive_outside: Sequence[Outside], accel_mps2: np.ndarray, gyro_radps: np.ndarray,
                 speed_mps: np.ndarray) -> np.ndarray:
     """Per outage, the factor on the learned position sigma (>= 1; the covariance takes its square):
-    ``1 + d``, ``d`` the drive's noise (noisier than trained), rate and kind distances (:func:`outside`) and, per outage,
-    how far its inputs go beyond what the networks saw (:data:`SEEN_QUANTILE` of the training's):
-    the mean over its samples of ``max(0, |x| / seen - 1)`` for the bias-corrected acceleration and
-    yaw rate (``accel_mps2``, ``gyro_radps``: ``(n_outages, ...)``) and the predicted speed
-    (``speed_mps``, ``(n_outages, n_windows)``). 1 for an outage inside the domain."""
+    ``1 + d``, ``d`` the drive's noise (noisier than trained), rate and kind distances
+    (:func:`outside`) and, per outage, how far its inputs go beyond what the networks saw
+    (:data:`SEEN_QUANTILE` of the training's): the mean over its samples of
+    ``max(0, |x| / seen - 1)`` for the bias-corrected acceleration and yaw rate (``accel_mps2``,
+    ``gyro_radps``: ``(n_outages, ...)``) and the predicted speed (``speed_mps``,
+    ``(n_outages, n_windows)``). 1 for an outage inside the domain."""
     base = sum(o.distance for o in drive_outside if o.feature not in SAMPLED and o.widens)
     d = np.full(len(accel_mps2), float(base))
     if not len(d):

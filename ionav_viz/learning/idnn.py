@@ -19,10 +19,11 @@ INS (:mod:`ionav_viz.nav.planar_filter`) has learnt at the outage start: the acc
 tilt and the road grade there), the gyro bias and the gyro scale error. Every feature group
 and the target are min-max normalised to [0, 1] with the training statistics, stored with the
 model. With ``residual`` (default, beyond the paper) each network learns a correction to a
-kinematic skip term (:func:`kinematic_weights`, :meth:`Normalisation.skip_terms`). Architectures (``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed
-inputs, 2 hidden layers of 32 units, 10 % dropout), ``mlp`` (the same net on the latest sample
-only), and ``rnn``/``gru``/``lstm`` (2 recurrent layers over the time steps; the feedback input
-joins the last hidden state).
+kinematic skip term (:func:`kinematic_weights`, :meth:`Normalisation.skip_terms`). Architectures
+(``arch``): ``idnn`` (the paper's: a feed-forward net on the time-delayed inputs, 2 hidden layers
+of 32 units, 10 % dropout), ``mlp`` (the same net on the latest sample only), and
+``rnn``/``gru``/``lstm`` (2 recurrent layers over the time steps; the feedback input joins the
+last hidden state).
 
 In prediction (beyond the paper, as the INS DR, :mod:`ionav_viz.nav.ins`): a displacement is a
 distance, so the network's output is clipped at zero before it is fed back, and a window where the
@@ -102,15 +103,26 @@ class ModelConfig:
     epochs_disp: int = 40
     epochs_yaw: int = 60
     lr_decay_tail: float = 0.3
-    inputs: str = "calibrated"  # the ekf's calibration at the outage start (the shipped model's); "plain": the paper's standstill biases
+    # the ekf's calibration at the outage start (the shipped model's); "plain": the paper's standstill biases
+    inputs: str = "calibrated"
     seed: int = 0
-    lr_schedule: str = "tail"  # "tail": constant, then linear to 0 over lr_decay_tail; "cosine": cosine to 0 throughout (fine-tuning)
-    validation_tail: float = 0.0  # 0: a seeded random 10 % of the windows is the validation set; > 0: the last fraction of each drive, by time
-    keep: str = "last"  # which weights each network ends with: "last" epoch's; "best" epoch's on validation; "last-or-start": the last unless the start (a parent's) is better on validation
+    # "tail": constant, then linear to 0 over lr_decay_tail; "cosine": cosine to 0 throughout (fine-tuning)
+    lr_schedule: str = "tail"
+    # 0: a seeded random 10 % of the windows is the validation set; > 0: the last fraction of each drive, by time
+    validation_tail: float = 0.0
+    # which weights each network ends with: "last" epoch's; "best" epoch's on validation; "last-or-start": the last
+    # unless the start (a parent's) is better on validation
+    keep: str = "last"
     anchor: float = 0.0  # fine-tuning: loss + anchor * mean squared distance of the weights from the parent's (L2-SP)
-    validation_outage_s: int = 0  # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output fed back
-    validation_folds: int = 0  # fine-tuning: 1: the tail decides, then refit on every window; k > 1: k time blocks left out in turn decide; 0: the tail-trained fit is kept
-    tune_layers: str = "all"  # fine-tuning trains "all" layers, or the "first" only; "all,first" (with validation_folds): the first only for a network validation keeps from all
+    # > 0, with validation_tail: the displacement network is validated on outages this long in the tail, its own output
+    # fed back
+    validation_outage_s: int = 0
+    # fine-tuning: 1: the tail decides, then refit on every window; k > 1: k time blocks left out in turn decide; 0: the
+    # tail-trained fit is kept
+    validation_folds: int = 0
+    # fine-tuning trains "all" layers, or the "first" only; "all,first" (with validation_folds): the first only for a
+    # network validation keeps from all
+    tune_layers: str = "all"
     # prediction: this share of each window's displacement is the INS DR's, the rest the network's
     # (fine-tuning chooses it)
     ins_blend: float = 0.0
@@ -126,8 +138,9 @@ class ModelConfig:
                 raise InputError(f"{name} = {value!r} is not a whole number", param=name)
             if not low <= value <= high:
                 what = "time steps" if name.startswith("n_steps") else name
-                raise InputError(f"{value} {what} ({name}) out of range", f"use {low} to {high}" + (" time steps (2 s at 10 Hz)" if name.startswith("n_steps") else ""),
-                                 param=name)
+                raise InputError(f"{value} {what} ({name}) out of range",
+                                 f"use {low} to {high}" + (" time steps (2 s at 10 Hz)"
+                                                           if name.startswith("n_steps") else ""), param=name)
         for name, (low, high) in _FLOAT_LIMITS.items():
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -139,11 +152,13 @@ class ModelConfig:
         if self.inputs not in INPUTS:
             raise InputError(f"unknown inputs {self.inputs!r}", f"choose one of {', '.join(INPUTS)}", param="inputs")
         if self.lr_schedule not in LR_SCHEDULES:
-            raise InputError(f"unknown learning-rate schedule {self.lr_schedule!r}", f"choose one of {', '.join(LR_SCHEDULES)}", param="lr_schedule")
+            raise InputError(f"unknown learning-rate schedule {self.lr_schedule!r}",
+                             f"choose one of {', '.join(LR_SCHEDULES)}", param="lr_schedule")
         if not isinstance(self.residual, bool):
             raise InputError(f"residual = {self.residual!r} is not true or false", param="residual")
         if self.tune_layers not in TUNE_LAYERS_CHOICES:
-            raise InputError(f"unknown tune_layers {self.tune_layers!r}", f"choose one of {', '.join(TUNE_LAYERS_CHOICES)}", param="tune_layers")
+            raise InputError(f"unknown tune_layers {self.tune_layers!r}",
+                             f"choose one of {', '.join(TUNE_LAYERS_CHOICES)}", param="tune_layers")
         if self.keep not in KEEP_CHOICES:
             raise InputError(f"unknown keep {self.keep!r}", f"choose one of {', '.join(KEEP_CHOICES)}", param="keep")
 
@@ -152,8 +167,8 @@ class ModelConfig:
 _INT_LIMITS = {"n_steps_disp": (1, 20), "n_steps_yaw": (1, 20), "hidden": (1, 1024), "batch_size": (1, 65536),
                "epochs_disp": (1, 100_000), "epochs_yaw": (1, 100_000), "seed": (0, 2**32 - 1),
                "validation_outage_s": (0, 600), "validation_folds": (0, 100)}
-_FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0), "lr_yaw": (1e-9, 10.0),
-                 "lr_decay_tail": (0.0, 1.0), "validation_tail": (0.0, 0.9),
+_FLOAT_LIMITS = {"dropout": (0.0, 1.0), "feedback_noise_m": (0.0, 100.0), "lr_disp": (1e-9, 10.0),
+                 "lr_yaw": (1e-9, 10.0), "lr_decay_tail": (0.0, 1.0), "validation_tail": (0.0, 0.9),
                  "anchor": (0.0, 1e6), "ins_blend": (0.0, 1.0)}
 #: Largest weights file read (bytes): the biggest network of the allowed sizes is far smaller.
 MAX_WEIGHTS_BYTES = 256 * 2**20
@@ -176,7 +191,8 @@ def kinematic_weights(n_steps: int) -> np.ndarray:
     return k / k.sum()
 
 
-def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bool, skip: tuple[float, float] | None = None):
+def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bool,
+              skip: tuple[float, float] | None = None):
     """A torch module mapping normalised inputs (batch, n_steps [+ 1 feedback]) -> (batch,).
 
     With ``skip = (gain, offset)`` the output adds a kinematic skip term, so the layers learn a
@@ -188,7 +204,8 @@ def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bo
     import torch
     from torch import nn
 
-    weights = torch.from_numpy((kinematic_weights(n_steps) if feedback else np.full(n_steps, 1.0 / n_steps)).astype(np.float32))
+    weights = torch.from_numpy((kinematic_weights(n_steps) if feedback
+                                else np.full(n_steps, 1.0 / n_steps)).astype(np.float32))
 
     def skip_of(x: torch.Tensor, w: torch.Tensor) -> torch.Tensor | float:
         if skip is None:
@@ -201,7 +218,8 @@ def build_net(arch: str, n_steps: int, hidden: int, dropout: float, feedback: bo
             super().__init__()
             self.latest_only = latest_only
             self.dropout = dropout
-            self.register_buffer("skip_weights", weights, persistent=False)  # moves with the net (to a GPU), not a weight
+            # moves with the net (to a GPU), not a weight
+            self.register_buffer("skip_weights", weights, persistent=False)
             self.body = nn.Sequential(
                 nn.Linear(n_in, hidden), nn.ReLU(), nn.Dropout(dropout),
                 nn.Linear(hidden, hidden), nn.ReLU(), nn.Dropout(dropout),
@@ -249,8 +267,8 @@ def feed_forward_shapes(arch: str, n_steps: int, hidden: int, feedback: bool) ->
     """The weight names and shapes of :func:`build_net`'s feed-forward nets (torch's ``Linear``
     layout: ``(out, in)``), without torch."""
     n_in = (1 if arch == "mlp" else n_steps) + int(feedback)
-    return {"body.0.weight": (hidden, n_in), "body.0.bias": (hidden,), "body.3.weight": (hidden, hidden), "body.3.bias": (hidden,),
-            "body.6.weight": (1, hidden), "body.6.bias": (1,)}
+    return {"body.0.weight": (hidden, n_in), "body.0.bias": (hidden,), "body.3.weight": (hidden, hidden),
+            "body.3.bias": (hidden,), "body.6.weight": (1, hidden), "body.6.bias": (1,)}
 
 
 class NumpyFeedForward:
@@ -346,7 +364,9 @@ class Normalisation:
         (summing to 1). Orientation rate: the mean gyro rate (gyro and yaw rate share one scaling).
         """
         if not displacement:
-            return (1.0, 0.0) if self.gyro == self.yaw else ((self.gyro.hi - self.gyro.lo) / (self.yaw.hi - self.yaw.lo), (self.gyro.lo - self.yaw.lo) / (self.yaw.hi - self.yaw.lo))
+            return (1.0, 0.0) if self.gyro == self.yaw else (
+                (self.gyro.hi - self.gyro.lo) / (self.yaw.hi - self.yaw.lo),
+                (self.gyro.lo - self.yaw.lo) / (self.yaw.hi - self.yaw.lo))
         span = self.disp.hi - self.disp.lo
         return ((self.accel.hi - self.accel.lo) * WINDOW_S / span, self.accel.lo * WINDOW_S / span)
 
@@ -418,7 +438,8 @@ class Uncertainty:
         return cov
 
     def to_tensors(self) -> dict[str, np.ndarray]:
-        return {"disp_coef": np.asarray(self.disp_coef, dtype=np.float64), "yaw_coef": np.asarray(self.yaw_coef, dtype=np.float64),
+        return {"disp_coef": np.asarray(self.disp_coef, dtype=np.float64),
+                "yaw_coef": np.asarray(self.yaw_coef, dtype=np.float64),
                 "fix_var_m2": np.asarray([self.fix_var_m2], dtype=np.float64)}
 
     @classmethod
@@ -430,7 +451,8 @@ class Uncertainty:
                 raise ValueError(f"{name}: expected {size} finite number(s), got {None if t is None else t.shape}")
         if tensors["fix_var_m2"][0] < 0:
             raise ValueError("fix_var_m2 is negative")
-        return cls(tensors["disp_coef"].astype(np.float64), tensors["yaw_coef"].astype(np.float64), float(tensors["fix_var_m2"][0]))
+        return cls(tensors["disp_coef"].astype(np.float64), tensors["yaw_coef"].astype(np.float64),
+                   float(tensors["fix_var_m2"][0]))
 
 
 @dataclass
@@ -467,7 +489,8 @@ class IdnnModel:
         x = self.norm.gyro.scale(gyro_radps.reshape(-1, self.config.n_steps_yaw))
         return self.norm.yaw.unscale(self._run(self.yaw_net, x)).reshape(shape)
 
-    def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray, still: np.ndarray | None = None) -> np.ndarray:
+    def predict_displacement(self, accel_mps2: np.ndarray, first_prev_disp_m: np.ndarray,
+                             still: np.ndarray | None = None) -> np.ndarray:
         """Displacement (m) of every window of every sequence, feeding back the model's own output.
 
         ``accel_mps2``: (n_seq, n_windows, n_steps_disp) bias-corrected; ``first_prev_disp_m``: (n_seq,)
@@ -498,7 +521,8 @@ class IdnnModel:
         return out
 
     def predict(self, windows: Windows, starts: np.ndarray, n_windows: int, bias: SensorBias,
-                calibration: SensorCalibration | None = None, still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                calibration: SensorCalibration | None = None,
+                still: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Displacement (m) and yaw rate (rad/s) per window for outages of ``n_windows`` starting at
         ``starts`` (batched): two arrays of shape (n_outages, n_windows).
 
@@ -519,7 +543,8 @@ class IdnnModel:
         gyro = sample_history(windows.gyro_radps, idx, self.config.n_steps_yaw)
         if self.config.inputs == "calibrated":
             if calibration is None:
-                raise ValueError("this model takes calibrated inputs: pass the filter's calibration (ionav_viz.nav.planar_filter.calibration)")
+                raise ValueError("this model takes calibrated inputs: pass the filter's calibration "
+                                 "(ionav_viz.nav.planar_filter.calibration)")
             # the road driven since the start, as the speed there would take it (the grade part fades)
             at_start = calibration.at(np.broadcast_to(starts[:, None], idx.shape))
             driven = windows.speed0_mps[starts][:, None] * WINDOW_S * np.arange(n_windows)[None, :]
@@ -601,7 +626,8 @@ class IdnnEstimator:
         widen = self._check_domain(model, inputs, label, disp)
         if model.uncertainty is not None:
             cov = model.uncertainty.position_covariance(inputs.course0_deg, inputs.speed0_mps, disp, yaw)
-            cov = cov * (widen(inputs.accel_mps2, inputs.gyro_radps, disp) ** 2 * self._history_scale(model, inputs, cal, widen))[:, None, None, None]
+            cov = cov * (widen(inputs.accel_mps2, inputs.gyro_radps, disp) ** 2
+                         * self._history_scale(model, inputs, cal, widen))[:, None, None, None]
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
     def _check_domain(self, model: IdnnModel, inputs: EstimatorInputs, label: str, disp_m: np.ndarray):
@@ -623,15 +649,20 @@ class IdnnEstimator:
         if any(o.widens for o in found):  # a sensor only quieter than any trained on is no reason to doubt the model
             scale = widen(inputs.accel_mps2, inputs.gyro_radps, disp_m) if len(disp_m) else np.ones(1)
             what = "; ".join(o.text for o in found)
-            note = {"outside": [o.text for o in found], "sigma_scale_median": float(np.median(scale)), "sigma_scale_max": float(np.max(scale))}
+            note = {"outside": [o.text for o in found], "sigma_scale_median": float(np.median(scale)),
+                    "sigma_scale_max": float(np.max(scale))}
             self._domain_notes[drive.name] = note
-            widened = f"its uncertainty widened (sigma x{note['sigma_scale_median']:.2f} median, x{note['sigma_scale_max']:.2f} at most)" \
-                if model.uncertainty is not None else "it has no uncertainty to widen"
-            which = "the shipped model" if model.directory and is_shipped_model_dir(Path(model.directory)) else f"the model {model.directory or '(in memory)'}"
+            widened = (f"its uncertainty widened (sigma x{note['sigma_scale_median']:.2f} median, "
+                       f"x{note['sigma_scale_max']:.2f} at most)"
+                       if model.uncertainty is not None else "it has no uncertainty to widen")
+            which = ("the shipped model"
+                     if model.directory and is_shipped_model_dir(Path(model.directory))
+                     else f"the model {model.directory or '(in memory)'}")
             log.warning("%s: IDNN: inputs outside what %s was trained on: %s; %s", drive.name, which, what, widened)
         return widen
 
-    def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None, widen) -> np.ndarray:
+    def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
+                       widen) -> np.ndarray:
         """Per outage, how much to widen the learned covariance (``widen``-ed out of the model's
         domain): the model's NEES on pseudo-outages over the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
         w, n = inputs.windows, inputs.n_windows
@@ -656,19 +687,23 @@ class IdnnEstimator:
         if len(starts) == 0:
             return
         t0 = inputs.windows.t0_s[starts]
-        inside = np.flatnonzero(outages_in_training(model, inputs.drive, inputs.windows, starts, inputs.n_windows)).tolist()
+        inside = np.flatnonzero(outages_in_training(model, inputs.drive, inputs.windows, starts,
+                                                    inputs.n_windows)).tolist()
         if not inside:
             return
-        listed = ", ".join(f"{t0[i]:g}-{t0[i] + inputs.n_windows * WINDOW_S:g} s" for i in inside[:20]) + (" ..." if len(inside) > 20 else "")
+        listed = (", ".join(f"{t0[i]:g}-{t0[i] + inputs.n_windows * WINDOW_S:g} s" for i in inside[:20])
+                  + (" ..." if len(inside) > 20 else ""))
         text = (f"{inputs.drive.name}: {len(inside)} of {len(starts)} outages lie in data {label} was trained on "
                 f"(same file by sha256, overlapping time): {listed}")
         if self.strict:
-            raise InputError(text, "evaluate on drives or spans the model never saw (--span), or leave out --strict to score them anyway",
-                             param="strict")
+            raise InputError(text,
+                             "evaluate on drives or spans the model never saw (--span), or leave out --strict to "
+                             "score them anyway", param="strict")
         log.warning("%s; their IDNN scores flatter the model", text)
 
 
-def outages_in_training(model: IdnnModel, drive: Any, windows: Windows, starts: np.ndarray, n_windows: int) -> np.ndarray:
+def outages_in_training(model: IdnnModel, drive: Any, windows: Windows, starts: np.ndarray,
+                        n_windows: int) -> np.ndarray:
     """Per outage (``starts``: first window indices), whether it lies in data ``model`` (or its
     parent) was trained on: the same file by sha256 and overlapping time, the window before the
     outage included (it feeds the first input; :func:`ionav_viz.learning.provenance.trained_outages`)."""
@@ -708,12 +743,14 @@ def check_model_dir(directory: Path, overwrite: bool = False) -> Path:
     if directory.exists() and not directory.is_dir():
         raise InputError(f"{directory}: exists and is not a directory", "choose a model directory name", param="output")
     if directory.exists() and not overwrite:
-        raise InputError(f"{directory}: exists already", "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
+        raise InputError(f"{directory}: exists already",
+                         "choose another directory, or allow replacing it (overwrite=True, --force)", param="output")
     if directory.is_dir():  # replaced whole: --force on a folder of other files deleted them with it
         foreign = sorted(p.name for p in directory.iterdir() if p.name not in MODEL_DIR_FILES)
         if foreign:
             more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
-            raise InputError(f"{directory}: holds {foreign[0]!r}{more}, not a model's file; replacing the model would delete them",
+            raise InputError(f"{directory}: holds {foreign[0]!r}{more}, not a model's file; replacing the model "
+                             "would delete them",
                              "choose another directory, or move them out first", param="output")
     parent = directory.parent if str(directory.parent) else Path(".")
     if not parent.is_dir():
@@ -736,7 +773,8 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
     parent = directory.parent if str(directory.parent) else Path(".")
 
     def refused(exc: OSError) -> InputError:
-        return InputError(f"{directory}: cannot write in {parent} ({exc.strerror})", "choose a writable directory", param="output")
+        return InputError(f"{directory}: cannot write in {parent} ({exc.strerror})", "choose a writable directory",
+                          param="output")
 
     with staging_folder(directory, parent, refused=refused) as tmp:
         try:
@@ -754,8 +792,8 @@ def save_model(model: IdnnModel, directory: Path, *, overwrite: bool = False) ->
                 (tmp / UNCERTAINTY_FILE).write_bytes(data)
                 meta["uncertainty"] = {**model.metadata.get("uncertainty", {}), "file": UNCERTAINTY_FILE,
                                        "sha256": hashlib.sha256(data).hexdigest()}
-            meta.update(format_version=FORMAT_VERSION, config=written_config(model.config), normalisation=model.norm.to_dict(),
-                        weights_sha256=checksums)
+            meta.update(format_version=FORMAT_VERSION, config=written_config(model.config),
+                        normalisation=model.norm.to_dict(), weights_sha256=checksums)
             (tmp / "metadata.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
             swap_in_directory(tmp, directory)
         except OSError as exc:
@@ -784,35 +822,46 @@ def load_model(directory: str | Path) -> IdnnModel:
 
     directory = Path(directory)
     meta_path = directory / "metadata.json"
-    check_regular_input(directory, "model", hint="give a model directory written by 'ionav-viz train'", folder_ok=True, missing_ok=True)
-    if directory.is_file():  # its metadata.json, a weights file: was "DIR/metadata.json/metadata.json: cannot read it (Not a directory)"
-        raise InputError(f"{directory}: a file; a model is the directory holding metadata.json and the weights", f"give its directory ({directory.parent})",
-                         param="model")
+    check_regular_input(directory, "model", hint="give a model directory written by 'ionav-viz train'", folder_ok=True,
+                        missing_ok=True)
+    # its metadata.json, a weights file: was "DIR/metadata.json/metadata.json: cannot read it (Not a directory)"
+    if directory.is_file():
+        raise InputError(f"{directory}: a file; a model is the directory holding metadata.json and the weights",
+                         f"give its directory ({directory.parent})", param="model")
     check_regular_input(meta_path, "model", hint="retrain or restore the model", missing_ok=True)
     if not meta_path.is_file():
-        folds = sorted(p.name for p in directory.glob("fold-*") if (p / "metadata.json").is_file()) if directory.is_dir() else []
-        hint = (f"it holds cross-validate's fold models ({', '.join(folds[:3])}{' ...' if len(folds) > 3 else ''}): give one of them" if folds
+        folds = (sorted(p.name for p in directory.glob("fold-*") if (p / "metadata.json").is_file())
+                 if directory.is_dir() else [])
+        hint = (f"it holds cross-validate's fold models ({', '.join(folds[:3])}{' ...' if len(folds) > 3 else ''}): "
+                "give one of them" if folds
                 else "train one with 'ionav-viz train -o DIR' and give that directory")
         raise InputError(f"{directory}: no IDNN model here (metadata.json missing)", hint, param="model")
     # bounded in size (16 MiB) and depth: nested brackets were a RecursionError traceback
-    meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model", what="a model's metadata",
-                             allow_nan=True)  # json.dumps wrote them (a NaN validation score); the fields are checked below
+    meta = read_json_bounded(meta_path, param="model", max_bytes=16 * 2**20, hint="retrain or restore the model",
+                             what="a model's metadata",
+                             # json.dumps wrote them (a NaN validation score); the fields are checked below
+                             allow_nan=True)
     try:
         if meta.get("format_version") != FORMAT_VERSION:
-            raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}", "retrain with this version of ionav-viz")
+            raise InputError(f"{meta_path}: model format {meta.get('format_version')!r}, expected {FORMAT_VERSION}",
+                             "retrain with this version of ionav-viz")
         config = ModelConfig(**{"inputs": "plain", **meta["config"]})  # models from before the option took plain inputs
         norm = Normalisation.from_dict(meta["normalisation"])
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{meta_path}: not valid JSON ({exc})", "the model directory is damaged; retrain or restore it") from None
+        raise InputError(f"{meta_path}: not valid JSON ({exc})",
+                         "the model directory is damaged; retrain or restore it") from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-        raise InputError(f"{meta_path}: incomplete or invalid metadata ({type(exc).__name__}: {exc})", "retrain or restore the model") from None
+        raise InputError(f"{meta_path}: incomplete or invalid metadata ({type(exc).__name__}: {exc})",
+                         "retrain or restore the model") from None
     try:
         config.validate()
     except InputError as exc:
-        raise InputError(f"{meta_path}: {exc.message}", "the metadata is damaged; retrain or restore the model") from None
+        raise InputError(f"{meta_path}: {exc.message}",
+                         "the metadata is damaged; retrain or restore the model") from None
     digests = meta.get("weights_sha256")
     if not isinstance(digests, dict):
-        raise InputError(f"{meta_path}: no weights_sha256 (checksums of the weight files)", "retrain it with this version of ionav-viz")
+        raise InputError(f"{meta_path}: no weights_sha256 (checksums of the weight files)",
+                         "retrain it with this version of ionav-viz")
     nets = {}
     for key, filename in MODEL_FILES.items():
         path = directory / filename
@@ -822,7 +871,8 @@ def load_model(directory: str | Path) -> IdnnModel:
         numpy_net = config.arch in FEED_FORWARD_ARCHS  # inference without torch (NumpyFeedForward)
         if numpy_net:
             net = None
-            expected = {k: (v, "float32") for k, v in feed_forward_shapes(config.arch, steps, config.hidden, is_disp).items()}
+            expected = {k: (v, "float32")
+                        for k, v in feed_forward_shapes(config.arch, steps, config.hidden, is_disp).items()}
         else:
             net = build_net(config.arch, steps, config.hidden, config.dropout, is_disp, skip)
             expected = {k: (tuple(v.shape), str(v.dtype).removeprefix("torch.")) for k, v in net.state_dict().items()}
@@ -831,15 +881,19 @@ def load_model(directory: str | Path) -> IdnnModel:
             if not stat.S_ISREG(info.st_mode):
                 raise InputError(f"{path}: not a regular file", "the weights must be a safetensors file")
             if info.st_size > MAX_WEIGHTS_BYTES:
-                raise InputError(f"{path}: {info.st_size / 2**20:.0f} MiB, far more than any IDNN's weights", "retrain or restore the model")
+                raise InputError(f"{path}: {info.st_size / 2**20:.0f} MiB, far more than any IDNN's weights",
+                                 "retrain or restore the model")
             raw = path.read_bytes()
             state = load_arrays(raw)  # numpy arrays; safetensors holds no code (pickles are never loaded)
         except OSError as exc:
-            raise InputError(f"{path}: cannot read model weights ({exc.strerror})", "retrain or restore the model") from None
+            raise InputError(f"{path}: cannot read model weights ({exc.strerror})",
+                             "retrain or restore the model") from None
         except InputError:
             raise
         except (SafetensorError, ValueError, Exception) as exc:  # safetensors rejects anything else, pickles included
-            raise InputError(f"{path}: not a safetensors weights file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", "weights must be safetensors; pickled files are never loaded") from None
+            raise InputError(f"{path}: not a safetensors weights file "
+                             f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                             "weights must be safetensors; pickled files are never loaded") from None
         bad = [k for k in expected if k not in state or tuple(state[k].shape) != tuple(expected[k][0])]
         extra = [k for k in state if k not in expected]
         if bad or extra:
@@ -847,12 +901,14 @@ def load_model(directory: str | Path) -> IdnnModel:
             got = tuple(state[first].shape) if first in state else "missing"
             want = tuple(expected[first][0]) if first in expected else "unexpected"
             raise InputError(
-                f"{path}: weights do not fit the {config.arch} architecture of metadata.json ({first}: {got} vs {want})",
+                f"{path}: weights do not fit the {config.arch} architecture of metadata.json "
+                f"({first}: {got} vs {want})",
                 "the weights and metadata come from different models; retrain",
             )
         for name, array in state.items():
             if str(array.dtype) != expected[name][1]:
-                raise InputError(f"{path}: {name} is {array.dtype}, expected {expected[name][1]}", "retrain or restore the model")
+                raise InputError(f"{path}: {name} is {array.dtype}, expected {expected[name][1]}",
+                                 "retrain or restore the model")
             if not bool(np.isfinite(array).all()):
                 raise InputError(f"{path}: {name} holds NaN or infinite weights", "retrain or restore the model")
         if digests.get(filename) != hashlib.sha256(raw).hexdigest():
@@ -872,8 +928,10 @@ def load_model(directory: str | Path) -> IdnnModel:
         try:
             Domain.from_dict(meta["domain"])
         except ValueError as exc:
-            raise InputError(f"{meta_path}: {exc}", "the metadata is damaged; retrain or restore the model", param="model") from None
-    return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory), _load_uncertainty(directory, meta))
+            raise InputError(f"{meta_path}: {exc}", "the metadata is damaged; retrain or restore the model",
+                             param="model") from None
+    return IdnnModel(config, norm, nets["displacement"], nets["yaw_rate"], meta, str(directory),
+                     _load_uncertainty(directory, meta))
 
 
 def _load_uncertainty(directory: Path, meta: dict[str, Any]) -> Uncertainty | None:
@@ -887,7 +945,8 @@ def _load_uncertainty(directory: Path, meta: dict[str, Any]) -> Uncertainty | No
     path = directory / UNCERTAINTY_FILE
     hint = "retrain or restore the model"
     if not isinstance(info, dict) or info.get("file") != UNCERTAINTY_FILE or not isinstance(info.get("sha256"), str):
-        raise InputError(f"{directory / 'metadata.json'}: the uncertainty entry does not name {UNCERTAINTY_FILE} with its sha256", hint)
+        raise InputError(f"{directory / 'metadata.json'}: the uncertainty entry does not name {UNCERTAINTY_FILE} "
+                         "with its sha256", hint)
     try:
         size = path.stat()
         if not stat.S_ISREG(size.st_mode) or size.st_size > 2**20:
@@ -900,4 +959,5 @@ def _load_uncertainty(directory: Path, meta: dict[str, Any]) -> Uncertainty | No
     try:
         return Uncertainty.from_tensors(load_arrays(raw))
     except (SafetensorError, ValueError, Exception) as exc:  # safetensors only: never a pickle
-        raise InputError(f"{path}: not a valid uncertainty file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", hint) from None
+        raise InputError(f"{path}: not a valid uncertainty file "
+                         f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})", hint) from None

@@ -87,7 +87,8 @@ class TrainingMeter:
         """``steps`` more optimiser steps to come."""
         self.steps_planned += int(steps)
 
-    def epoch(self, label: str, epoch: int, epochs: int, loss: float, validation_loss: float | None, steps: int, seconds: float) -> None:
+    def epoch(self, label: str, epoch: int, epochs: int, loss: float, validation_loss: float | None, steps: int,
+              seconds: float) -> None:
         """An epoch of ``steps`` optimiser steps, taking ``seconds``, done by the fit ``label``."""
         self.steps_done += int(steps)
         self.steps_planned = max(self.steps_planned, self.steps_done)
@@ -113,7 +114,8 @@ class _ScopedMeter:
     def plan(self, steps: int) -> None:
         self.meter.plan(steps)
 
-    def epoch(self, label: str, epoch: int, epochs: int, loss: float, validation_loss: float | None, steps: int, seconds: float) -> None:
+    def epoch(self, label: str, epoch: int, epochs: int, loss: float, validation_loss: float | None, steps: int,
+              seconds: float) -> None:
         self.meter.epoch(label + "".join(self.suffixes), epoch, epochs, loss, validation_loss, steps, seconds)
 
 
@@ -192,9 +194,11 @@ def training_examples(drives: list[tuple[Drive, SensorBias]], n_steps_disp: int,
             else:
                 accel, gyro = accel - bias.accel_mps2, gyro - bias.gyro_radps
             t0, length = float(drive.t_s[0]), float(drive.t_s[-1] - drive.t_s[0]) + 1.0 / drive.rate_hz
-            parts.append((accel, w.gnss_disp_m[k - 1], w.gnss_disp_m[k], gyro, w.gnss_yaw_rate_radps[k], w.t0_s[k] - t0, np.full(len(k), length)))
+            parts.append((accel, w.gnss_disp_m[k - 1], w.gnss_disp_m[k], gyro, w.gnss_yaw_rate_radps[k], w.t0_s[k] - t0,
+                          np.full(len(k), length)))
     if not parts:
-        raise InputError("no training windows: the training drives are too short", "give drives of at least a few seconds")
+        raise InputError("no training windows: the training drives are too short",
+                         "give drives of at least a few seconds")
     return TrainingSet(*(np.concatenate(p) for p in zip(*parts)))
 
 
@@ -216,13 +220,16 @@ class FitSettings:
     decay_tail: float = 0.0
     schedule: str = "tail"  # "cosine": lr * (1 + cos(pi * step / steps)) / 2, for fine-tuning (decay_tail unused)
     device: str = "cpu"
-    keep: str = "last"  # with validation data, "best": the weights of the epoch best on it (epoch 0: the start's); "last-or-start": the last epoch's unless the start's are better
+    # with validation data, "best": the weights of the epoch best on it (epoch 0: the start's); "last-or-start": the
+    # last epoch's unless the start's are better
+    keep: str = "last"
     anchor: float = 0.0  # loss + anchor * mean squared distance of the weights from the starting ones (L2-SP)
-    layers: str = "all"  # the parameters trained: "all", or "first": the first layer's only (the others stay as they start)
+    # the parameters trained: "all", or "first": the first layer's only (the others stay as they start)
+    layers: str = "all"
 
 
-def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, meter: TrainingMeter | None = None, label: str = "",
-                validation: tuple[np.ndarray, np.ndarray] | Callable[[], float] | None = None,
+def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, meter: TrainingMeter | None = None,
+                label: str = "", validation: tuple[np.ndarray, np.ndarray] | Callable[[], float] | None = None,
                 selection: dict[str, Any] | None = None) -> list[float]:
     """Minimise L1 with Adamax as ``fit`` says; returns the mean loss of each epoch.
 
@@ -256,7 +263,8 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, meter: Trai
         def lr_factor(step: int) -> float:
             return 1.0 if tail_steps <= 0 else min(1.0, max(0.0, (total_steps - step) / tail_steps))
     trained = [p for name, p in net.named_parameters() if fit.layers == "all" or in_first_layer(name)]
-    steps: _FeedForwardSteps | _AutogradSteps = (_FeedForwardSteps(net, trained, fit.anchor) if _FeedForwardSteps.fits(net)
+    steps: _FeedForwardSteps | _AutogradSteps = (_FeedForwardSteps(net, trained, fit.anchor)
+                                                 if _FeedForwardSteps.fits(net)
                                                  else _AutogradSteps(net, trained, fit.anchor, lr, lr_factor))
     loss_fn = torch.nn.L1Loss()
     history = []
@@ -302,14 +310,15 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, meter: Trai
                 if fit.keep == "best" and val_history[-1] < min(val_history[:-1]):
                     best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
             if meter is not None:
-                meter.epoch(label, epoch + 1, epochs, history[-1], val_history[-1] if val_history else None, steps_per_epoch,
-                            time.monotonic() - epoch_start_s)
+                meter.epoch(label, epoch + 1, epochs, history[-1], val_history[-1] if val_history else None,
+                            steps_per_epoch, time.monotonic() - epoch_start_s)
     finally:
         steps.close()
     kept = epochs
     if best_state is not None:
         # argmin: the first of equal losses, the start's on a tie
-        kept = int(np.argmin(val_history)) if fit.keep == "best" else (0 if val_history[0] <= val_history[-1] else epochs)
+        kept = (int(np.argmin(val_history))
+                if fit.keep == "best" else (0 if val_history[0] <= val_history[-1] else epochs))
         if kept != epochs:
             net.load_state_dict(best_state)
     net.to("cpu")
@@ -317,8 +326,9 @@ def fit_network(net, x: np.ndarray, y: np.ndarray, fit: FitSettings, meter: Trai
     if selection is not None and val_history:
         selection.update({"validation_loss_start": val_history[0], "validation_loss_last": val_history[-1],
                           "validation_loss_kept": val_history[kept],
-                          "validation_loss_best_trained": min(val_history[1:]) if len(val_history) > 1 else None, "best_epoch": int(np.argmin(val_history)),
-                          "kept_epoch": kept, "epochs": epochs, "keep": fit.keep})
+                          "validation_loss_best_trained": min(val_history[1:]) if len(val_history) > 1 else None,
+                          "best_epoch": int(np.argmin(val_history)), "kept_epoch": kept, "epochs": epochs,
+                          "keep": fit.keep})
     return history
 
 
@@ -343,7 +353,8 @@ class _AutogradSteps:
         loss = self.loss_fn(self.net(xb), yb)
         objective = loss
         if self.start:
-            objective = loss + self.anchor * sum(((p - p0) ** 2).sum() for p, p0 in zip(self.net.parameters(), self.start)) / self.n_params
+            objective = loss + self.anchor * sum(((p - p0) ** 2).sum()
+                                                 for p, p0 in zip(self.net.parameters(), self.start)) / self.n_params
         objective.backward()
         self.opt.step()
         self.schedule.step()
@@ -494,7 +505,8 @@ def train_models(
     small, and a second thread only waits on the first (on a busy 2-core machine a step took 16 x
     as long with two); the weights are the same either way."""
     meter = TrainingMeter(progress, on_epoch) if progress is not None or on_epoch is not None else None
-    with _torch_scratch(), _seeded_deterministic_torch(config.seed, device == "cpu"), _torch_threads(1 if device == "cpu" else None):
+    with (_torch_scratch(), _seeded_deterministic_torch(config.seed, device == "cpu"),
+          _torch_threads(1 if device == "cpu" else None)):
         model = _train(drives, config, meter, description, parent, device)
     model.metadata["domain"] = training_domain(drives, parent).to_dict()
     return model
@@ -506,7 +518,8 @@ def training_domain(drives: list[tuple[Drive, SensorBias]], parent: IdnnModel | 
     parent_domain = parent.domain if parent is not None else None
     note = f"the inputs of its {len(drives)} training drive(s)"
     if parent is not None:
-        note += " and its parent's" if parent_domain is not None else " (its parent has no domain record: its inputs are not in it)"
+        note += (" and its parent's"
+                 if parent_domain is not None else " (its parent has no domain record: its inputs are not in it)")
     return domain_of(drives, parent_domain, note)
 
 
@@ -536,11 +549,13 @@ FINE_TUNE_ANCHOR = 10.0
 FINE_TUNE_VALIDATION_OUTAGE_S = 5
 #: Fine-tuning's decision, then fit: the tail decides (1 block), the kept networks refitted on every window.
 FINE_TUNE_VALIDATION_FOLDS = 1
-#: What fine-tuning trains: every layer, and where validation keeps the parent's weights from that, the first layer alone.
+#: What fine-tuning trains: every layer, and where validation keeps the parent's weights from that, the first
+#: layer alone.
 FINE_TUNE_LAYERS = "all,first"
 
 
-def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs_yaw: int | None = None, seed: int | None = None) -> ModelConfig:
+def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs_yaw: int | None = None,
+                     seed: int | None = None) -> ModelConfig:
     """The settings for fine-tuning ``parent`` on a few minutes of one vehicle's drives: the
     parent's architecture, input steps and inputs (its weights and normalisation must fit); learning
     rates the parent's / :data:`FINE_TUNE_LR_DIVISOR` with a cosine decay to zero; batches of
@@ -553,12 +568,13 @@ def fine_tune_config(parent: ModelConfig, epochs_disp: int | None = None, epochs
     choice, and what was tried and not taken: docs/fine-tuning.md."""
     import dataclasses
 
-    return dataclasses.replace(parent, lr_disp=parent.lr_disp / FINE_TUNE_LR_DIVISOR, lr_yaw=parent.lr_yaw / FINE_TUNE_LR_DIVISOR,
-                               epochs_disp=epochs_disp or FINE_TUNE_EPOCHS, epochs_yaw=epochs_yaw or FINE_TUNE_EPOCHS,
-                               batch_size=FINE_TUNE_BATCH, lr_schedule="cosine", seed=parent.seed if seed is None else seed,
+    return dataclasses.replace(parent, lr_disp=parent.lr_disp / FINE_TUNE_LR_DIVISOR,
+                               lr_yaw=parent.lr_yaw / FINE_TUNE_LR_DIVISOR, epochs_disp=epochs_disp or FINE_TUNE_EPOCHS,
+                               epochs_yaw=epochs_yaw or FINE_TUNE_EPOCHS, batch_size=FINE_TUNE_BATCH,
+                               lr_schedule="cosine", seed=parent.seed if seed is None else seed,
                                validation_tail=FINE_TUNE_VALIDATION_TAIL, keep=FINE_TUNE_KEEP, anchor=FINE_TUNE_ANCHOR,
-                               validation_outage_s=FINE_TUNE_VALIDATION_OUTAGE_S, validation_folds=FINE_TUNE_VALIDATION_FOLDS,
-                               tune_layers=FINE_TUNE_LAYERS)
+                               validation_outage_s=FINE_TUNE_VALIDATION_OUTAGE_S,
+                               validation_folds=FINE_TUNE_VALIDATION_FOLDS, tune_layers=FINE_TUNE_LAYERS)
 
 
 @contextlib.contextmanager
@@ -599,9 +615,10 @@ def fit_steps(config: ModelConfig, n_examples: int) -> int:
     return (config.epochs_disp + config.epochs_yaw) * per_epoch
 
 
-def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None, description: str,
-           parent: IdnnModel | None = None, device: str = "cpu", hold_out: bool | tuple[float, float] = True, uncertainty: bool = True,
-           data: TrainingSet | None = None, planned: bool = False) -> IdnnModel:
+def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None,
+           description: str, parent: IdnnModel | None = None, device: str = "cpu",
+           hold_out: bool | tuple[float, float] = True, uncertainty: bool = True, data: TrainingSet | None = None,
+           planned: bool = False) -> IdnnModel:
     """Train (or fine-tune from ``parent``) both networks; ``hold_out=False``: on every window,
     ``(lo, hi)``: on every window outside that block of each drive (:meth:`TrainingSet.block_split`),
     either with no validation data (``config.keep`` must be ``"last"``); ``uncertainty=False``: fit none.
@@ -618,7 +635,8 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
         for drive, _ in drives:
             check_inputs(parent.metadata, drive, f"the parent model {parent.directory}")
     if data is None:
-        data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs, seed=config.seed)
+        data = training_examples(drives, config.n_steps_disp, config.n_steps_yaw, inputs=config.inputs,
+                                 seed=config.seed)
     if hold_out is not True:
         train = data.subset(data.block_split(*hold_out)[0]) if hold_out else data
         val = data.subset(np.zeros(len(data), dtype=bool))
@@ -626,8 +644,9 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
         train_mask, val_mask = data.time_split(config.validation_tail)
         train, val = data.subset(train_mask), data.subset(val_mask)
         if not len(train) or not len(val):
-            raise InputError(f"no {'training' if not len(train) else 'validation'} windows when the last {config.validation_tail:.0%} of each "
-                             "drive is held out for validation", "give longer drives or spans")
+            raise InputError(f"no {'training' if not len(train) else 'validation'} windows when the last "
+                             f"{config.validation_tail:.0%} of each drive is held out for validation",
+                             "give longer drives or spans")
     else:
         rng = np.random.default_rng(config.seed)
         val_mask = rng.random(len(data)) < 0.1
@@ -653,8 +672,9 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
     # Only the first try runs here: the retries of "all,first" (the first layer alone where validation keeps the parent
     # from every layer) are made by _fine_tune_cross_validated, so without validation_folds they are skipped, unsaid.
     layers = config.tune_layers.split(",")[0] if parent is not None else "all"
-    disp_fit = FitSettings(config.lr_disp, config.epochs_disp, config.batch_size, config.seed, config.n_steps_disp, noise_sd,
-                           config.lr_decay_tail, config.lr_schedule, device, config.keep, config.anchor, layers)
+    disp_fit = FitSettings(config.lr_disp, config.epochs_disp, config.batch_size, config.seed, config.n_steps_disp,
+                           noise_sd, config.lr_decay_tail, config.lr_schedule, device, config.keep, config.anchor,
+                           layers)
     selection: dict[str, dict[str, Any]] = {"displacement": {}, "yaw_rate": {}}
     disp_val: Any = (displacement_inputs(norm, val), norm.disp.scale(val.disp_m)) if config.keep != "last" else None
     if disp_val is not None and config.validation_outage_s > 0 and config.validation_tail > 0 and device == "cpu":
@@ -663,15 +683,18 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
             disp_val = lambda: score(IdnnModel(config, norm, disp_net, yaw_net))  # noqa: E731
     if meter is not None and not planned:
         meter.plan(fit_steps(config, len(train)))
-    disp_loss = fit_network(disp_net, displacement_inputs(norm, train), norm.disp.scale(train.disp_m), disp_fit, meter, "displacement",
-                            disp_val, selection["displacement"])
+    disp_loss = fit_network(disp_net, displacement_inputs(norm, train), norm.disp.scale(train.disp_m), disp_fit, meter,
+                            "displacement", disp_val, selection["displacement"])
     if callable(disp_val):
-        selection["displacement"]["validation"] = (f"displacement CRSE (m, mean) of {config.validation_outage_s} s outages starting every "
-                                                   "0.1 s in the tail, the network's own displacement fed back")
-    yaw_fit = FitSettings(config.lr_yaw, config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0, config.lr_decay_tail,
-                          config.lr_schedule, device, config.keep, config.anchor, layers)
-    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), yaw_fit, meter,
-                           "orientation rate", (norm.gyro.scale(val.gyro_radps), norm.yaw.scale(val.yaw_rate_radps)) if config.keep != "last" else None,
+        selection["displacement"]["validation"] = (f"displacement CRSE (m, mean) of {config.validation_outage_s} s "
+                                                   "outages starting every 0.1 s in the tail, the network's own "
+                                                   "displacement fed back")
+    yaw_fit = FitSettings(config.lr_yaw, config.epochs_yaw, config.batch_size, config.seed + 1, None, 0.0,
+                          config.lr_decay_tail, config.lr_schedule, device, config.keep, config.anchor, layers)
+    yaw_loss = fit_network(yaw_net, norm.gyro.scale(train.gyro_radps), norm.yaw.scale(train.yaw_rate_radps), yaw_fit,
+                           meter, "orientation rate",
+                           (norm.gyro.scale(val.gyro_radps), norm.yaw.scale(val.yaw_rate_radps))
+                           if config.keep != "last" else None,
                            selection["yaw_rate"])
 
     model = IdnnModel(config, norm, disp_net, yaw_net)
@@ -681,7 +704,8 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
     model.metadata = {
         "training": {
             "description": description,
-            "drives": [{**drive_record(d), "bias_accel_mps2": b.accel_mps2, "bias_gyro_radps": b.gyro_radps} for d, b in drives],
+            "drives": [{**drive_record(d), "bias_accel_mps2": b.accel_mps2, "bias_gyro_radps": b.gyro_radps}
+                       for d, b in drives],
             "n_examples": len(train),
             "n_validation": len(val),
             "final_loss_normalised": {"displacement": disp_loss[-1], "yaw_rate": yaw_loss[-1]},
@@ -689,8 +713,9 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
         "validation": {
             "disp_mae_m": float(np.mean(np.abs(val_disp - val.disp_m))) if len(val) else None,
             "yaw_rate_mae_radps": float(np.mean(np.abs(val_yaw - val.yaw_rate_radps))) if len(val) else None,
-            "note": "one-window predictions on " + (f"the last {config.validation_tail:.0%} of each drive (by time)" if config.validation_tail > 0
-                                                      else "a seeded 10 % hold-out") + ", previous displacement from GNSS",
+            "note": "one-window predictions on " + (f"the last {config.validation_tail:.0%} of each drive (by time)"
+                                                    if config.validation_tail > 0 else "a seeded 10 % hold-out")
+                    + ", previous displacement from GNSS",
         },
         "trainable_parameters": {"displacement": count_parameters(disp_net), "yaw_rate": count_parameters(yaw_net)},
         "versions": _versions(),
@@ -712,8 +737,9 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
 CROSS_VALIDATION_WARM_UP_S = 30.0
 
 
-def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None,
-                               description: str, parent: IdnnModel, device: str) -> IdnnModel:
+def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: ModelConfig,
+                               meter: TrainingMeter | _ScopedMeter | None, description: str, parent: IdnnModel,
+                               device: str) -> IdnnModel:
     """Fine-tune ``parent`` on every window of ``drives``, keeping each network's fine-tuned weights
     only when fine-tuning beats the parent on data it did not see (``config.validation_folds``).
 
@@ -721,14 +747,14 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     time): the tail decides, as it does without ``validation_folds``, but the model kept is then
     fine-tuned on every window, the tail too. With ``k > 1`` each drive is cut by time into ``k``
     blocks (blocked cross-validation: neighbouring windows are nearly the same example, so the data
-    left out must be a stretch of time, never shuffled windows). For each block in turn the parent is fine-tuned on every window outside that block of
-    every drive (a window across its edges is in neither), with the final settings, and it and the
-    parent are scored inside the block: the displacement network by the displacement CRSE of
-    ``config.validation_outage_s`` s outages starting every 0.1 s from
-    :data:`CROSS_VALIDATION_WARM_UP_S` into the drive (its own output fed back, as the estimator
-    runs it), the orientation-rate network by its one-window L1 loss. Pooled over the blocks, the
-    scores say whether fine-tuning on this car's data generalises to time it did not see; the final
-    fit on every window is then kept for each network that did.
+    left out must be a stretch of time, never shuffled windows). For each block in turn the parent
+    is fine-tuned on every window outside that block of every drive (a window across its edges is in
+    neither), with the final settings, and it and the parent are scored inside the block: the
+    displacement network by the displacement CRSE of ``config.validation_outage_s`` s outages
+    starting every 0.1 s from :data:`CROSS_VALIDATION_WARM_UP_S` into the drive (its own output fed
+    back, as the estimator runs it), the orientation-rate network by its one-window L1 loss. Pooled
+    over the blocks, the scores say whether fine-tuning on this car's data generalises to time it
+    did not see; the final fit on every window is then kept for each network that did.
 
     ``config.tune_layers`` lists what is fine-tuned, in turn: ``"all,first"`` fine-tunes every layer,
     and a network whose fine-tuning that did not beat the parent is tried again with its first layer
@@ -751,10 +777,12 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
         logging.getLogger("ionav_viz").info("fine-tuning: the displacement takes %.0f %% of the INS DR's (%s)",
                                             100 * blend, blend_record["validation"])
     k = config.validation_folds
-    where = f"each of {k} blocks of each drive (by time) left out in turn" if k > 1 else f"the last {config.validation_tail:.0%} of each drive (by time) left out"
+    where = (f"each of {k} blocks of each drive (by time) left out in turn"
+             if k > 1 else f"the last {config.validation_tail:.0%} of each drive (by time) left out")
     what = (f"{where}: the displacement CRSE (m, mean) of {config.validation_outage_s} s "
-            f"outages in it starting every 0.1 s from {CROSS_VALIDATION_WARM_UP_S:g} s into the drive, the network's own displacement fed back, "
-            "and the orientation rate's one-window L1 loss (normalised), of the parent and of the parent fine-tuned outside the block")
+            f"outages in it starting every 0.1 s from {CROSS_VALIDATION_WARM_UP_S:g} s into the drive, the network's "
+            "own displacement fed back, and the orientation rate's one-window L1 loss (normalised), of the parent and "
+            "of the parent fine-tuned outside the block")
     selection: dict[str, Any] = {"validation": what, "folds": [], "ins_blend": blend_record}
     nets = {"displacement": ("disp_net", parent.disp_net), "yaw_rate": ("yaw_net", parent.yaw_net)}
     undecided = list(nets)
@@ -768,18 +796,21 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
         torch.manual_seed(config.seed)  # each try as if it were the only one
         stage = dataclasses.replace(config, tune_layers=layers)
         stage_meter = meter if meter is None or len(stages) == 1 else meter.within(f" ({layers} layers)")
-        final, folds, scores, n_validation = _validated_fine_tune(drives, stage, stage_meter, description, parent, device, where, data, cases)
+        final, folds, scores, n_validation = _validated_fine_tune(drives, stage, stage_meter, description, parent,
+                                                                  device, where, data, cases)
         selection["folds"] += [{**f, "layers": layers} if len(stages) > 1 else f for f in folds]
         if model is None:
             model = final
         for name in list(undecided):
             tried[name].append({"layers": layers, "validation_loss_fine_tuned": scores[name]["fine-tuned"]})
-            selection[name] = {"validation_loss_parent": scores[name]["parent"], "validation_loss_fine_tuned": scores[name]["fine-tuned"],
+            selection[name] = {"validation_loss_parent": scores[name]["parent"],
+                               "validation_loss_fine_tuned": scores[name]["fine-tuned"],
                                "n_validation": n_validation[name], "layers": None, "kept": "parent"}
             if scores[name]["fine-tuned"] < scores[name]["parent"]:
                 attr = nets[name][0]
                 setattr(model, attr, getattr(final, attr))
-                selection[name].update(layers=layers, kept="fine-tuned on every window" if layers == "all" else f"{layers} layer fine-tuned on every window")
+                selection[name].update(layers=layers, kept="fine-tuned on every window" if layers == "all"
+                                       else f"{layers} layer fine-tuned on every window")
                 undecided.remove(name)
         if not undecided:
             break
@@ -791,11 +822,12 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
         attr, parent_net = nets[name]
         with torch.no_grad():
             getattr(model, attr).load_state_dict(parent_net.state_dict())
-        losses = ", ".join(f"fine-tuned{'' if t['layers'] == 'all' else ' (' + t['layers'] + ' layer)'} {t['validation_loss_fine_tuned']:.4g}"
+        losses = ", ".join(f"fine-tuned{'' if t['layers'] == 'all' else ' (' + t['layers'] + ' layer)'} "
+                           f"{t['validation_loss_fine_tuned']:.4g}"
                            for t in tried[name])
         line = (f"fine-tuning did not beat the parent on time it did not see ({where}): the "
-                f"{name.replace('_', '-')} network keeps the parent's weights (validation loss: parent {selection[name]['validation_loss_parent']:.4g}, "
-                f"{losses})")
+                f"{name.replace('_', '-')} network keeps the parent's weights (validation loss: parent "
+                f"{selection[name]['validation_loss_parent']:.4g}, {losses})")
         selection[name]["note"] = line
         logging.getLogger("ionav_viz").warning("%s", line)
     model.config = config
@@ -805,9 +837,10 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     return model
 
 
-def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: TrainingMeter | _ScopedMeter | None,
-                         description: str, parent: IdnnModel, device: str, where: str, data: TrainingSet,
-                         cases_of: dict[tuple[float, float], list[tuple]]) -> tuple[IdnnModel, list[dict[str, Any]], dict[str, dict[str, float]], dict[str, int]]:
+def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelConfig,
+                         meter: TrainingMeter | _ScopedMeter | None, description: str, parent: IdnnModel, device: str,
+                         where: str, data: TrainingSet, cases_of: dict[tuple[float, float], list[tuple]]
+                         ) -> tuple[IdnnModel, list[dict[str, Any]], dict[str, dict[str, float]], dict[str, int]]:
     """One try of :func:`_fine_tune_cross_validated`: the parent fine-tuned (the layers
     ``config.tune_layers`` says) on every window, the fold records, and each network's pooled scores
     (``"parent"``, ``"fine-tuned"``) and number of validation values. ``data``: the drives'
@@ -818,23 +851,27 @@ def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelCo
     k = config.validation_folds
     inner = dataclasses.replace(config, validation_folds=0, validation_tail=0.0, keep="last")
     norm = parent.norm
-    pooled: dict[str, dict[str, list[np.ndarray]]] = {name: {"parent": [], "fine-tuned": []} for name in ("displacement", "yaw_rate")}
+    pooled: dict[str, dict[str, list[np.ndarray]]] = {name: {"parent": [], "fine-tuned": []}
+                                                      for name in ("displacement", "yaw_rate")}
     one_window: dict[str, list[np.ndarray]] = {"disp_m": [], "yaw_rate_radps": []}
     folds = []
     blocks = [(fold / k, (fold + 1) / k) for fold in range(k)] if k > 1 else [(1.0 - config.validation_tail, 1.0)]
     for block in blocks:
         if block not in cases_of:
-            cases_of[block] = outage_cases(drives, config, config.validation_outage_s, warm_up_s=CROSS_VALIDATION_WARM_UP_S, block=block)
+            cases_of[block] = outage_cases(drives, config, config.validation_outage_s,
+                                           warm_up_s=CROSS_VALIDATION_WARM_UP_S, block=block)
     used = [(fold, block) for fold, block in enumerate(blocks) if cases_of[block] or data.block_split(*block)[1].any()]
     if meter is not None:  # every fit of this try, before the first: the time left is the try's
-        meter.plan(sum(fit_steps(inner, int(data.block_split(*block)[0].sum())) for _, block in used) + fit_steps(inner, len(data)))
+        meter.plan(sum(fit_steps(inner, int(data.block_split(*block)[0].sum())) for _, block in used)
+                   + fit_steps(inner, len(data)))
     for fold, block in used:
         cases = cases_of[block]
         ex = data.subset(data.block_split(*block)[1])
         fold_meter = None if meter is None else meter.within(f" (block {fold + 1}/{len(blocks)} left out)")
-        model = _train(drives, inner, fold_meter, description, parent, device, hold_out=block, uncertainty=False, data=data, planned=True)
-        record: dict[str, Any] = {"left_out": [round(block[0], 4), round(block[1], 4)], "n_outages": sum(len(c[1]) for c in cases),
-                                  "n_windows": len(ex)}
+        model = _train(drives, inner, fold_meter, description, parent, device, hold_out=block, uncertainty=False,
+                       data=data, planned=True)
+        record: dict[str, Any] = {"left_out": [round(block[0], 4), round(block[1], 4)],
+                                  "n_outages": sum(len(c[1]) for c in cases), "n_windows": len(ex)}
         yaw_radps = {who: m.predict_yaw_rate(ex.gyro_radps) for who, m in (("parent", parent), ("fine-tuned", model))}
         for who, m in (("parent", parent), ("fine-tuned", model)):
             disp_err = _outage_errors(m, cases)
@@ -843,17 +880,19 @@ def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelCo
             pooled["yaw_rate"][who].append(yaw_err)
             record[who] = {"displacement": float(np.mean(disp_err)) if len(disp_err) else None,
                            "yaw_rate": float(np.mean(yaw_err)) if len(yaw_err) else None}
-        one_window["disp_m"].append(np.abs(norm.disp.unscale(model._run(model.disp_net, displacement_inputs(norm, ex))) - ex.disp_m))
+        one_window["disp_m"].append(np.abs(norm.disp.unscale(model._run(model.disp_net, displacement_inputs(norm, ex)))
+                                           - ex.disp_m))
         one_window["yaw_rate_radps"].append(np.abs(yaw_radps["fine-tuned"] - ex.yaw_rate_radps))
         folds.append(record)
     final_meter = None if meter is None else meter.within(" (every window)")
-    model = _train(drives, inner, final_meter, description, parent, device, hold_out=False, uncertainty=False, data=data, planned=True)
+    model = _train(drives, inner, final_meter, description, parent, device, hold_out=False, uncertainty=False,
+                   data=data, planned=True)
     held = {key: np.concatenate(v) if v else np.zeros(0) for key, v in one_window.items()}
     model.metadata["validation"] = {
         "disp_mae_m": float(np.mean(held["disp_m"])) if len(held["disp_m"]) else None,
         "yaw_rate_mae_radps": float(np.mean(held["yaw_rate_radps"])) if len(held["yaw_rate_radps"]) else None,
-        "note": f"one-window predictions with {where}, by the model fine-tuned on the rest, previous displacement from GNSS; "
-                "the final model trained on every window",
+        "note": f"one-window predictions with {where}, by the model fine-tuned on the rest, previous "
+                "displacement from GNSS; the final model trained on every window",
     }
     scores, n_validation = {}, {}
     for name, by_who in pooled.items():
@@ -863,7 +902,8 @@ def _validated_fine_tune(drives: list[tuple[Drive, SensorBias]], config: ModelCo
     return model, folds, scores, n_validation
 
 
-def outage_validation(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, tail: float, n: int) -> Callable[[IdnnModel], float] | None:
+def outage_validation(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, tail: float,
+                      n: int) -> Callable[[IdnnModel], float] | None:
     """A score of a model on ``n``-window outages lying (with the window before each) in the last
     ``tail`` of each drive, at ten grid phases: the mean displacement CRSE (m), run as the estimator
     runs them (its own displacement fed back, calibrated at the start, standing windows). None when
@@ -897,7 +937,8 @@ def outage_cases_by_block(drives: list[tuple[Drive, SensorBias]], config: ModelC
         t_first = float(drive.t_s[0])
         length = float(drive.t_s[-1]) - t_first + 1.0 / drive.rate_hz
         for phase in range(10):
-            w = make_windows(drive, offset_s=phase / 10.0).ignoring_receiver()  # the model runs on the truth's GNSS here
+            # the model runs on the truth's GNSS here
+            w = make_windows(drive, offset_s=phase / 10.0).ignoring_receiver()
             ok = np.array([k for k in range(1, len(w) - n + 1)
                            if w.segment[k - 1] == w.segment[k] and valid_start(w, k, n)
                            and w.truth_ok[k - 1 : k + n].all()], dtype=int)
@@ -991,16 +1032,19 @@ def _selection_record(selection: dict[str, dict[str, Any]], fine_tuned: bool, ta
     import logging
 
     where = f"the last {tail:.0%} of each drive" if tail > 0 else "a seeded 10 % of the windows"
-    record: dict[str, Any] = {"validation": f"L1 loss (normalised) of one-window predictions on {where}, after every epoch"}
+    record: dict[str, Any] = {"validation": f"L1 loss (normalised) of one-window predictions on {where}, "
+                                            "after every epoch"}
     for name, sel in selection.items():
         if not sel:
             continue
         kept_parent = fine_tuned and sel["kept_epoch"] == 0
         record[name] = {**sel, "kept": "parent" if kept_parent else f"epoch {sel['kept_epoch']} of {sel['epochs']}"}
         if kept_parent:
-            trained = sel["validation_loss_last"] if sel["keep"] == "last-or-start" else sel["validation_loss_best_trained"]
-            line = (f"fine-tuning did not beat the parent on validation ({where}): the {name.replace('_', '-')} network keeps the "
-                    f"parent's weights (validation loss: parent {sel['validation_loss_start']:.4g}, fine-tuned {trained:.4g})")
+            trained = (sel["validation_loss_last"]
+                       if sel["keep"] == "last-or-start" else sel["validation_loss_best_trained"])
+            line = (f"fine-tuning did not beat the parent on validation ({where}): the {name.replace('_', '-')} "
+                    "network keeps the parent's weights (validation loss: parent "
+                    f"{sel['validation_loss_start']:.4g}, fine-tuned {trained:.4g})")
             record[name]["note"] = line
             logging.getLogger("ionav_viz").warning("%s", line)
     return record
@@ -1023,9 +1067,11 @@ def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]]) ->
     if runs is None or len(runs) < MIN_UNCERTAINTY_OUTAGES:
         found = 0 if runs is None else len(runs)
         model.uncertainty = None
-        model.metadata["uncertainty_skipped"] = (f"{found} overlapping outages of {UNCERTAINTY_OUTAGE_WINDOWS * WINDOW_S:g} s (one every "
-                                                 f"{UNCERTAINTY_STRIDE_WINDOWS * WINDOW_S:g} s, after a {UNCERTAINTY_WARM_UP_S:g} s warm-up) "
-                                                 f"in the training drives, fewer than {MIN_UNCERTAINTY_OUTAGES}: no uncertainty fitted")
+        model.metadata["uncertainty_skipped"] = (f"{found} overlapping outages of "
+                                                 f"{UNCERTAINTY_OUTAGE_WINDOWS * WINDOW_S:g} s (one every "
+                                                 f"{UNCERTAINTY_STRIDE_WINDOWS * WINDOW_S:g} s, after a "
+                                                 f"{UNCERTAINTY_WARM_UP_S:g} s warm-up) in the training drives, fewer "
+                                                 f"than {MIN_UNCERTAINTY_OUTAGES}: no uncertainty fitted")
         logging.getLogger("ionav_viz").warning("IDNN uncertainty not fitted: %s", model.metadata["uncertainty_skipped"])
         return model
     model.uncertainty, info = fit_uncertainty(model, drives, runs)
@@ -1040,7 +1086,8 @@ def parent_record(parent: IdnnModel) -> dict[str, Any]:
     from .idnn import is_shipped_model_dir
 
     training = parent.metadata.get("training", {})
-    return {"directory": "shipped" if parent.directory and is_shipped_model_dir(Path(parent.directory)) else parent.directory,
+    return {"directory": ("shipped" if parent.directory and is_shipped_model_dir(Path(parent.directory))
+                          else parent.directory),
             "weights_sha256": parent.metadata.get("weights_sha256"), "description": training.get("description", ""),
             "drives": seen_drives(parent.metadata)}
 
@@ -1049,7 +1096,8 @@ def _check_fits_parent(config: ModelConfig, parent: IdnnModel) -> None:
     """A fine-tuning ``config`` keeps the parent's architecture, input steps and inputs (its weights must fit)."""
     for name in ("arch", "n_steps_disp", "n_steps_yaw", "hidden", "residual", "inputs"):
         if getattr(config, name) != getattr(parent.config, name):
-            raise InputError(f"fine-tuning keeps the parent model's {name} ({getattr(parent.config, name)!r}), and {getattr(config, name)!r} was asked for",
+            raise InputError(f"fine-tuning keeps the parent model's {name} ({getattr(parent.config, name)!r}), and "
+                             f"{getattr(config, name)!r} was asked for",
                              "leave the architecture options out with --from-model", param=name)
 
 
@@ -1059,7 +1107,8 @@ def _versions() -> dict[str, Any]:
     import numpy
     import torch
 
-    return {"ionav_viz": version("ionav-viz"), "torch": torch.__version__, "numpy": numpy.__version__, "python": platform.python_version()}
+    return {"ionav_viz": version("ionav-viz"), "torch": torch.__version__, "numpy": numpy.__version__,
+            "python": platform.python_version()}
 
 
 #: The uncertainty's fit (:func:`fit_uncertainty`): outages of this many windows, one starting every
@@ -1104,22 +1153,27 @@ def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_wind
 
     parts = []
     for drive, bias in drives:
-        windows = make_windows(drive).ignoring_receiver().after_warm_up(UNCERTAINTY_WARM_UP_S)  # the truth's GNSS, as training's
-        starts = np.array([k for k in range(windows.first_start, len(windows) - n_windows + 1, stride) if valid_start(windows, k, n_windows)],
-                          dtype=int)
+        # the truth's GNSS, as training's
+        windows = make_windows(drive).ignoring_receiver().after_warm_up(UNCERTAINTY_WARM_UP_S)
+        starts = np.array([k for k in range(windows.first_start, len(windows) - n_windows + 1, stride)
+                           if valid_start(windows, k, n_windows)], dtype=int)
         if not len(starts):
             continue
         inputs = EstimatorInputs(drive, windows, starts, n_windows, bias)
-        cal = calibration(drive, windows, bias.accel_mps2, bias.gyro_radps) if model.config.inputs == "calibrated" else None
+        cal = (calibration(drive, windows, bias.accel_mps2, bias.gyro_radps)
+               if model.config.inputs == "calibrated" else None)
         disp, yaw = model.predict(windows, starts, n_windows, bias, cal, inputs.still)
         track = rebuild_track(inputs.lat0_deg, inputs.lon0_deg, inputs.course0_deg, disp, yaw)
         idx = inputs.window_index
-        az, _, dist = wgs84().inv(windows.lon1_deg[idx], windows.lat1_deg[idx], track.lon_deg[:, 1:], track.lat_deg[:, 1:])
+        az, _, dist = wgs84().inv(windows.lon1_deg[idx], windows.lat1_deg[idx], track.lon_deg[:, 1:],
+                                  track.lat_deg[:, 1:])
         az, dist = np.deg2rad(np.asarray(az).reshape(idx.shape)), np.asarray(dist).reshape(idx.shape)
         err = np.stack([dist * np.sin(az), dist * np.cos(az)], axis=-1)
-        parts.append((disp, yaw, np.asarray(inputs.course0_deg, dtype=float), np.asarray(inputs.speed0_mps, dtype=float), err))
+        parts.append((disp, yaw, np.asarray(inputs.course0_deg, dtype=float),
+                      np.asarray(inputs.speed0_mps, dtype=float), err))
     if not parts:
-        raise InputError(f"no {n_windows} s outages fit in the training drives for the IDNN's uncertainty", "give longer drives")
+        raise InputError(f"no {n_windows} s outages fit in the training drives for the IDNN's uncertainty",
+                         "give longer drives")
     return OutageRuns(*(np.concatenate(p) for p in zip(*parts)))
 
 
@@ -1131,7 +1185,8 @@ NLL_MIN_DET_M4 = 1e-300
 def uncertainty_nll(unc: Uncertainty, runs: OutageRuns) -> float:
     """Mean Gaussian negative log-likelihood (per boundary, constant dropped) of the runs' 2D position
     errors under ``unc``'s covariance."""
-    cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps, runs.tracks())[:, 1:]
+    cov = unc.position_covariance(runs.course0_deg, runs.speed0_mps, runs.disp_m, runs.yaw_rate_radps,
+                                  runs.tracks())[:, 1:]
     nees = nees_en(runs.error_en_m, cov, NLL_MIN_DET_M4)
     return float(np.mean(0.5 * (nees + np.log(determinant_en(cov, NLL_MIN_DET_M4)))))
 
@@ -1142,7 +1197,8 @@ def nees(unc: Uncertainty, runs: OutageRuns) -> np.ndarray:
     return np.einsum("nwa,nwab,nwb->nw", runs.error_en_m, np.linalg.inv(cov), runs.error_en_m)
 
 
-def fit_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], runs: OutageRuns | None = None) -> tuple[Uncertainty, dict[str, Any]]:
+def fit_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]],
+                    runs: OutageRuns | None = None) -> tuple[Uncertainty, dict[str, Any]]:
     """Fit ``model``'s :class:`~ionav_viz.learning.idnn.Uncertainty` on ``drives`` (its networks unchanged);
     returns it and what the fit saw (for the metadata).
 
@@ -1167,12 +1223,14 @@ def fit_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], ru
     unc = unpack(best.x)
     q = nees(unc, runs)
     info = {
-        "description": "per-window displacement and yaw-rate variances, log-linear in (1, log j, predicted speed or turn); "
-                       "docs/method.md, 'The IDNN's uncertainty'",
-        "fitted_on": f"{len(runs)} outages of {runs.disp_m.shape[1]} s (one every {UNCERTAINTY_STRIDE_WINDOWS} s, after a "
-                     f"{UNCERTAINTY_WARM_UP_S:g} s warm-up) of the training drives, run as the estimator runs them",
+        "description": "per-window displacement and yaw-rate variances, log-linear in (1, log j, predicted "
+                       "speed or turn); docs/method.md, 'The IDNN's uncertainty'",
+        "fitted_on": f"{len(runs)} outages of {runs.disp_m.shape[1]} s (one every "
+                     f"{UNCERTAINTY_STRIDE_WINDOWS} s, after a {UNCERTAINTY_WARM_UP_S:g} s warm-up) of the training "
+                     "drives, run as the estimator runs them",
         "nll": float(best.fun),
-        "parameters": {"disp_coef": unc.disp_coef.tolist(), "yaw_coef": unc.yaw_coef.tolist(), "fix_var_m2": unc.fix_var_m2},
+        "parameters": {"disp_coef": unc.disp_coef.tolist(), "yaw_coef": unc.yaw_coef.tolist(),
+                       "fix_var_m2": unc.fix_var_m2},
         "mean_nees": {f"{k}s": float(np.mean(q[:, k - 1])) for k in (10, 30, 60) if k <= q.shape[1]},
         "coverage_95": {f"{k}s": float(np.mean(q[:, k - 1] <= CHI2_2_95)) for k in (10, 30, 60) if k <= q.shape[1]},
     }
