@@ -19,8 +19,8 @@ from .style import color_word
 
 #: Views a screenshot shows: the whole review layout, or one view (maximised) or column of plots.
 VIEWS = ("all", "outage", "map", "local", "signals", "errors", "health")
-_ORIGINS = {"outage": ent.INSPECT, "map": ent.MAP, "local": ent.LOCAL, "signals": ent.DISPLACEMENTS, "errors": ent.error_group("position_error_m"),
-            "health": ent.HEALTH}
+_ORIGINS = {"outage": ent.INSPECT, "map": ent.MAP, "local": ent.LOCAL, "signals": ent.DISPLACEMENTS,
+            "errors": ent.error_group("position_error_m"), "health": ent.HEALTH}
 #: The review layout's three columns and their shares: tracks (the inspector above the local view
 #: and the map, side by side), signals, errors.
 COLUMN_SHARES = (4, 3, 3)
@@ -70,7 +70,8 @@ LOCAL_FRAMED_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_GRID_SCALE}"]
 #: The key's ellipse: an outline in a neutral light grey, as each estimator draws its own in its colour.
 ELLIPSE_KEY_COLOR = (200, 200, 200)
 
-#: The local view's name in the recording (what its dots are is in the key: :func:`~ionav_viz.viz.recording.key_markdown`).
+#: The local view's name in the recording (what its dots are is in the key:
+#: :func:`~ionav_viz.viz.recording.key_markdown`).
 LOCAL_NAME = "Drive: east-north (m)"
 #: Views of the review layout that only some recordings have data for (:func:`blueprint`'s ``shown``).
 OPTIONAL_VIEWS = (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH, ent.error_group("crse_m"))
@@ -116,7 +117,8 @@ def data_range(lo: float, hi: float, min_span: float, pad: bool = True, signed: 
     lo, hi = (float(lo), float(hi)) if np.isfinite(lo) and np.isfinite(hi) else (0.0, 0.0)
     if hi - lo < min_span:
         mid = (lo + hi) / 2
-        lo, hi = (0.0, min_span) if not signed and lo >= 0 and mid - min_span / 2 < 0 else (mid - min_span / 2, mid + min_span / 2)
+        lo, hi = ((0.0, min_span)
+                  if not signed and lo >= 0 and mid - min_span / 2 < 0 else (mid - min_span / 2, mid + min_span / 2))
     margin = 0.05 * (hi - lo) if pad else 0.0
     return (lo if lo == 0 else lo - margin), hi + margin
 
@@ -213,10 +215,11 @@ class ShotRows:
 
 
 def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False, synthetic: bool = True) -> ShotRows:
-    """The rows of a screenshot of ``size`` with ``n_estimators`` (:func:`summary_px`): in a small image the error column
-    leaves out its orientation-rate CRSE plot (the summary's table keeps its mean) rather than draw
-    three plots too low for three labelled y ticks; without ``synthetic`` outages (a run through the
-    log's own losses alone) it has the position error alone above the summary."""
+    """The rows of a screenshot of ``size`` with ``n_estimators`` (:func:`summary_px`): in a small
+    image the error column leaves out its orientation-rate CRSE plot (the summary's table keeps its
+    mean) rather than draw three plots too low for three labelled y ticks; without ``synthetic``
+    outages (a run through the log's own losses alone) it has the position error alone above the
+    summary."""
     views = size[1] - TOP_BAND_PX
     timeline = min(TIMELINE_PX, 0.31 * views)
     signal = (views - timeline) / 3
@@ -230,13 +233,15 @@ def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False
     return ShotRows((timeline, signal, signal, signal), (err,) * plots + (summary,), yaw_crse)
 
 
-def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False, synthetic: bool = True) -> dict[str, float]:
+def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False,
+                    synthetic: bool = True) -> dict[str, float]:
     """The height in pixels of each time plot's drawing area in a screenshot of ``size`` (the
     review layout and the signals and errors columns share their rows); a plot the image leaves
     out is not there."""
     rows = shot_rows(size, n_estimators, warned, synthetic)
     out = {o: rows.signals[1] for o in (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL)}
-    out.update({o: rows.errors[0] for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))})
+    out.update({o: rows.errors[0]
+                for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))})
     if rows.yaw_crse:
         out[ent.error_group("yaw_crse_radps")] = rows.errors[2]
     return {o: max(px - TITLE_BAR_PX - TIME_LABELS_PX, 20.0) for o, px in out.items()}
@@ -283,18 +288,20 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
         row_shares=list(web_signal_rows_px()),
     )
     # tab titles that all show in their bar on the narrowest page (the viewer cuts the others: "Drift: error (m")
-    error_origins = [ent.error_group("position_error_m"), *(o for o in (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH) if has(o))]
+    error_origins = [ent.error_group("position_error_m"),
+                     *(o for o in (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH) if has(o))]
     tab_names = _fit_tabs(tuple(error_origins), WEB_PAGE_PX[0] * column_fraction(ent.error_group("position_error_m")))
     views = {ent.DRIFT: rrb.Spatial2DView, ent.UNCERTAINTY: rrb.TimeSeriesView, ent.HEALTH: rrb.TimeSeriesView}
-    error_tabs = [plot(o, tab_names[o]) if o not in views else views[o](origin=o, name=tab_names[o]) for o in error_origins]
+    error_tabs = [plot(o, tab_names[o]) if o not in views else views[o](origin=o, name=tab_names[o])
+                  for o in error_origins]
     rows = [rrb.Tabs(*error_tabs, active_tab=0) if len(error_tabs) > 1 else plot(error_origins[0])]
     synthetic = has(ent.error_group("crse_m"))
     if synthetic:  # the CRSE, CAE and orientation-rate CRSE are of synthetic outages
         crse_cae = (ent.error_group("crse_m"), ent.error_group("cae_m"))
         crse_names = _fit_tabs(crse_cae, WEB_PAGE_PX[0] * column_fraction(crse_cae[0]))
         rows += [rrb.Tabs(*(plot(o, crse_names[o]) for o in crse_cae)), plot(ent.error_group("yaw_crse_radps"))]
-    rows.append(rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"), rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"),
-                         active_tab=0))
+    rows.append(rrb.Tabs(rrb.TextDocumentView(origin=ent.OVERVIEW, name="Summary"),
+                         rrb.TextDocumentView(origin=ent.SUMMARY, name="Details"), active_tab=0))
     shares = list(web_error_rows_px(n_estimators, synthetic))
     errors = rrb.Vertical(*rows, row_shares=shares)
     # the viewer opens on the first timeline it meets, time_of_day (axes at "+17h 30s"): time into the drive instead
@@ -335,7 +342,8 @@ def framing(info: RecordingInfo, outage: OutageInfo | None, size: tuple[int, int
     bounds = padded_bounds(outage.local_points, margin=0.12) if len(outage.local_points) else None
     if outage.real:  # the log's own loss: its tracks and the fixes around it, drawn from its start on
         return Framing(zoom, bounds, [ent.REAL_OUTAGE_CURRENT])
-    entities = [ent.outage_truth(ent.MAP), ent.MAP_CONTEXT, *(ent.live_track(ent.MAP, name) for name in info.estimators)]
+    entities = [ent.outage_truth(ent.MAP), ent.MAP_CONTEXT,
+                *(ent.live_track(ent.MAP, name) for name in info.estimators)]
     return Framing(zoom, bounds, entities)
 
 
@@ -394,8 +402,8 @@ def first_label_margin_s(window_s: float, plot_px: float) -> float:
     px_per_s = plot_px / window_s
     return max(0.0, min(FIRST_LABEL_PX / px_per_s, PLOT_TICK_S - PREVIOUS_LABEL_PX / px_per_s))
 #: The viewer's panels a screenshot hides (only the views are drawn: no menu, badges or timeline).
-HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint", "/selection_panel": "PanelBlueprint",
-                 "/time_panel": "TimePanelBlueprint"}
+HIDDEN_PANELS = {"/top_panel": "PanelBlueprint", "/blueprint_panel": "PanelBlueprint",
+                 "/selection_panel": "PanelBlueprint", "/time_panel": "TimePanelBlueprint"}
 
 
 def without_panels(blueprint: dict[str, Any]) -> dict[str, Any]:
@@ -452,19 +460,23 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
             continue
         origin = vb.get("space_origin", "").strip("/")
         # the image's colour key names every line (screenshot.draw_key): no legend over the curves
-        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}), "visible": False}}
+        bp[key + "/PlotLegend"] = {"PlotLegend": {**bp.get(key + "/PlotLegend", {}).get("PlotLegend", {}),
+                                                  "visible": False}}
         if origin in heights and origin in y_extents:  # ticks for this plot's height, over what it shows
             y = bp.get(key + "/ScalarAxis", {}).get("ScalarAxis", {})
-            bp[key + "/ScalarAxis"] = {"ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
+            bp[key + "/ScalarAxis"] = {
+                "ScalarAxis": {**y, "range": list(axis_range(*y_extents[origin], heights[origin]))}}
     if t_s is not None and end_s is not None:
         x0, x1 = plot_window(t_s, end_s)
-        # the time plots are a column wide in the review layout, else as wide as the image (a column alone, or maximised)
+        # the time plots are a column wide in the review layout, else as wide as the image (a column alone, or
+        # maximised)
         plot_px = (size or (1600, 900))[0] * (column_fraction(ent.DISPLACEMENTS) if view == "all" else 1.0)
         start = x0 - first_label_margin_s(x1 - x0 + PLOT_MARGIN_S, plot_px)
         for key, vb in views.items():
             if vb.get("class_identifier") == "TimeSeries":  # room on either side for the first and last ticks' labels
-                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {"start": {"Absolute": int(round(start * 1e9))},
-                                                                     "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
+                bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {
+                    "start": {"Absolute": int(round(start * 1e9))},
+                    "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
     if not map_tiles:
         if view == "map":
             view = "local"
@@ -563,7 +575,8 @@ def _holds(bp: dict[str, Any], key: str, view_key: str) -> bool:
     """Whether the container or view ``key`` is ``view_key`` or holds it."""
     if key.lstrip("/") == view_key.lstrip("/"):
         return True
-    return any(_holds(bp, "/" + c.lstrip("/"), view_key) for c in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []))
+    return any(_holds(bp, "/" + c.lstrip("/"), view_key)
+               for c in bp.get(key, {}).get("ContainerBlueprint", {}).get("contents", []))
 
 
 def _view_key(views: dict[str, Any], origin: str) -> str | None:
@@ -625,8 +638,10 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
         mid_err = ", ".join(f"{lab} {e:.1f} m" for lab, _n, e in errs)
         short_err = ", ".join(f"{lab} {e:.1f}" for lab, _n, e in errs)
         head = o.head
-        focus = [f"{head}, final error: {long_err}", f"{head}, final error: {mid_err}", f"{head}, final error (m): {short_err}",
-                 f"{'real ' if o.real else ''}#{o.number} {o.span}, final (m): {short_err}", f"{head}, final errors in the key above"]
+        focus = [f"{head}, final error: {long_err}", f"{head}, final error: {mid_err}",
+                 f"{head}, final error (m): {short_err}",
+                 f"{'real ' if o.real else ''}#{o.number} {o.span}, final (m): {short_err}",
+                 f"{head}, final errors in the key above"]
         shortest = [head]
     else:
         focus, shortest = [when], []
@@ -638,25 +653,34 @@ def titles_for(info: RecordingInfo, shot: Shot, width_px: int) -> dict[str, str]
     inspect_titles = [f"{info.drive}: {inspect_head}, t = {shot.t_s:.1f} s; m from its start fix, north up",
                       f"{inspect_head}, t = {shot.t_s:.1f} s; m from its start fix", inspect_head]
     titles = {
-        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest, w(ent.INSPECT)) if o else
+        ent.INSPECT: _fit([f"{info.drive}: {f}; m from the start fix, north up" for f in focus] + focus + shortest,
+                          w(ent.INSPECT)) if o else
         _fit(inspect_titles, w(ent.INSPECT)),
-        ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else []) + [f"{info.drive}: map, {f}" for f in focus]
+        ent.MAP: _fit(([f"{info.drive}: map, {when} ({legend})"] if o is None else [])
+                      + [f"{info.drive}: map, {f}" for f in focus]
                     + shortest + ["Map" + (f", {o.name}" if o else "")], w(ent.MAP)),
         ent.LOCAL: _fit([f"{info.drive}: local east-north (m), north up, {f}" for f in focus]
-                      + [f"{info.drive}: east-north (m), {f}" for f in focus] + ["Drive: east-north (m)", "East-north (m)"], w(ent.LOCAL)),
+                      + [f"{info.drive}: east-north (m), {f}" for f in focus]
+                      + ["Drive: east-north (m)", "East-north (m)"], w(ent.LOCAL)),
         "/": _fit([f"{info.drive}, {when}", f"{info.drive}, t = {shot.t_s:.1f} s", f"t = {shot.t_s:.1f} s"], w("/")),
-        ent.DISPLACEMENTS: _fit([f"{info.drive}: displacement per second (m), {when}", PLOT_NAMES[ent.DISPLACEMENTS], "Displacement (m)"],
+        ent.DISPLACEMENTS: _fit([f"{info.drive}: displacement per second (m), {when}", PLOT_NAMES[ent.DISPLACEMENTS],
+                                 "Displacement (m)"],
                                 w(ent.DISPLACEMENTS)),
-        ent.YAW_RATES: _fit([f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey", PLOT_NAMES[ent.YAW_RATES], "Yaw rate (rad/s)"], w(ent.YAW_RATES)),
-        ent.ACCEL: _fit([f"{PLOT_NAMES[ent.ACCEL]}; accelerometer grey", PLOT_NAMES[ent.ACCEL], "Long. accel. (m/s²)"], w(ent.ACCEL)),
-        ent.error_group("yaw_crse_radps"): _fit([PLOT_NAMES[ent.error_group("yaw_crse_radps")], "Orientation-rate CRSE (rad/s)",
-                                                 "Yaw-rate CRSE (rad/s)"], w(ent.error_group("yaw_crse_radps"))),
+        ent.YAW_RATES: _fit([f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey", PLOT_NAMES[ent.YAW_RATES], "Yaw rate (rad/s)"],
+                            w(ent.YAW_RATES)),
+        ent.ACCEL: _fit([f"{PLOT_NAMES[ent.ACCEL]}; accelerometer grey", PLOT_NAMES[ent.ACCEL], "Long. accel. (m/s²)"],
+                        w(ent.ACCEL)),
+        ent.error_group("yaw_crse_radps"): _fit([PLOT_NAMES[ent.error_group("yaw_crse_radps")],
+                                                 "Orientation-rate CRSE (rad/s)", "Yaw-rate CRSE (rad/s)"],
+                                                w(ent.error_group("yaw_crse_radps"))),
     }
-    for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH), (ent.error_group("crse_m"), ent.error_group("cae_m"))):
+    for tabs in ((ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH),
+                 (ent.error_group("crse_m"), ent.error_group("cae_m"))):
         titles.update(_fit_tabs(tabs, w(tabs[0])))
     if o is None and shot.view != "all":  # the time plots of a column: say when
         titles[ent.error_group("position_error_m")] = _fit([f"{info.drive}: 2D position error (m), {when}",
-                                                            titles[ent.error_group("position_error_m")]], w(ent.error_group("position_error_m")))
+                                                            titles[ent.error_group("position_error_m")]],
+                                                           w(ent.error_group("position_error_m")))
     return titles
 
 
@@ -694,8 +718,9 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     """The colour key of a screenshot: every track or curve the shot draws, the truth first, with
     each estimator's final error when the shot frames an outage; the overview's markers where the
     shot shows them (the local view and map: manoeuvres and outage starts, and beside a reference
-    the receiver's own fixes; the inspector: the outage's start fix); the sensors' grey lines where the signals are shown; the estimators' 95 %
-    position ellipses where the tracks are shown and the recording draws them."""
+    the receiver's own fixes; the inspector: the outage's start fix); the sensors' grey lines where
+    the signals are shown; the estimators' 95 % position ellipses where the tracks are shown and the
+    recording draws them."""
     from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR, RECEIVER_COLOR
 
     view = shot.view
@@ -711,7 +736,8 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
     if view in ("all", "local", "map") and info.receiver:  # beside a reference: the fixes the estimators were given
         keys.append(KeyEntry("dot", RECEIVER_COLOR, "receiver fixes"))
     if view in ("all", "local", "map"):
-        marks = ["outage start"] * bool(info.outages or not info.real_outages) + ["first fix after a real loss"] * bool(info.real_outages)
+        marks = (["outage start"] * bool(info.outages or not info.real_outages)
+                 + ["first fix after a real loss"] * bool(info.real_outages))
         keys += [KeyEntry("dot", EVENT_COLOR, "manoeuvre"), KeyEntry("dot", OUTAGE_MARK_COLOR, ", ".join(marks))]
     if view == "outage":
         keys.append(KeyEntry("dot", OUTAGE_MARK_COLOR, "start fix"))

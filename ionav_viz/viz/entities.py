@@ -198,7 +198,8 @@ def is_outage_frame(path: str) -> bool:
     """Whether ``path`` is drawn per outage in the map or local view and so frames it: the outage's
     truth, every growing estimated track, the outage's scale bar."""
     parts = path.strip("/").split("/")
-    return parts[0] in VIEWS_2D and (parts[1:] in (["gnss", "outage"], ["scale"]) or (len(parts) == 3 and parts[2] == "live"))
+    return parts[0] in VIEWS_2D and (parts[1:] in (["gnss", "outage"], ["scale"]) or
+                                     (len(parts) == 3 and parts[2] == "live"))
 
 
 # --- state labels -------------------------------------------------------------------------
@@ -290,15 +291,15 @@ def state_label(state: str, fits=lambda label: True) -> str:
 #: Every path a recording can hold, with ``<est>`` for an estimator's name: what
 #: ``docs/recording.md`` documents (a test checks both ways).
 PATTERNS = (
-    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), receiver(MAP), receiver(LOCAL), truth_position(MAP), truth_position(LOCAL),
-    *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)), *(all_tracks(v, "<est>") for v in VIEWS_2D),
-    *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT, LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE,
-    inspect_position("<est>"), local_position("<est>"), INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START,
-    GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL, SPEED,
-    *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
+    truth(MAP), truth(LOCAL), truth_bad(MAP), truth_bad(LOCAL), receiver(MAP), receiver(LOCAL), truth_position(MAP),
+    truth_position(LOCAL), *(live_track(v, "<est>") for v in (*VIEWS_2D, INSPECT)),
+    *(all_tracks(v, "<est>") for v in VIEWS_2D), *(outage_truth(v) for v in (*VIEWS_2D, INSPECT)), MAP_CONTEXT,
+    LOCAL_OUTAGES, LOCAL_GRID, LOCAL_GRID_SCALE, LOCAL_SCALE, inspect_position("<est>"), local_position("<est>"),
+    INSPECT_TRUTH_POSITION, INSPECT_GRID, INSPECT_SCALE, INSPECT_START, GNSS_AVAILABLE, GNSS_STATE, GNSS_QUALITY, ACCEL,
+    SPEED, *(yaw_rate(s) for s in ("gyro", "gnss", "<est>")), *(displacement(s) for s in ("gnss", "<est>")),
     *(error_series(m, "<est>") for m in ERROR_METRICS),
-    *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), REAL_OUTAGE_CURRENT, real_outage_errors("<est>"),
-    EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT, KEY,
+    *(real_outage_tracks(v, "<est>") for v in VIEWS_2D), *(end_fixes(v) for v in VIEWS_2D), REAL_OUTAGE_CURRENT,
+    real_outage_errors("<est>"), EVENTS_STATE, *(event_points(v) for v in VIEWS_2D), SUMMARY, OVERVIEW, REPORT, KEY,
     DRIFT_AXES, DRIFT_TICKS, drift_mean("<est>"), drift_band("<est>"), drift_current("<est>"),
     f"{HEALTH}/<est>/nis/<kind>", f"{HEALTH}/<est>/gated/<kind>", HEALTH_EXPECTED,
     *(ellipse(v, "<est>") for v in (*VIEWS_2D, INSPECT)), uncertainty_error("<est>"), uncertainty_radius("<est>"),
@@ -308,8 +309,10 @@ PATTERNS = (
 def pattern_of(path: str) -> str | None:
     """The entry of :data:`PATTERNS` a written path is an instance of, else None."""
     path = path.strip("/")
-    for pattern in sorted(PATTERNS, key=lambda p: "<est>" in p):  # literal paths before the patterns with a name in them
-        regex = re.escape(pattern).replace(re.escape("<est>"), r"[a-z][a-z0-9_-]*").replace(re.escape("<kind>"), r"[a-z0-9_]+")
+    # literal paths before the patterns with a name in them
+    for pattern in sorted(PATTERNS, key=lambda p: "<est>" in p):
+        regex = (re.escape(pattern).replace(re.escape("<est>"), r"[a-z][a-z0-9_-]*")
+                 .replace(re.escape("<kind>"), r"[a-z0-9_]+"))
         if re.fullmatch(regex, path):
             return pattern
     return None

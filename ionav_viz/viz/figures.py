@@ -68,18 +68,20 @@ FIGURES = ("drift", "cdf", "outages", "outages-wide", "worst", "calibration")
 #: matplotlib settings of every figure: the type sizes, no top and right spines, text kept as text
 #: in SVG and PDF, the figure saved at its own size.
 STYLE = {"font.size": FONT_PT, "axes.titlesize": FONT_PT, "axes.labelsize": FONT_PT, "legend.fontsize": FONT_PT - 1,
-         "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False, "axes.spines.right": False,
-         "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard", "hatch.linewidth": 0.5}
+         "xtick.labelsize": FONT_PT - 1, "ytick.labelsize": FONT_PT - 1, "axes.spines.top": False,
+         "axes.spines.right": False, "svg.fonttype": "none", "pdf.fonttype": 42, "savefig.bbox": "standard",
+         "hatch.linewidth": 0.5}
 #: The figures of a fleet's report.
 FLEET_FIGURES = ("fleet-box", "fleet-cdf")
 #: The figure of a report of several outage lengths (``evaluate --outage 10s,30s --json``).
 LENGTH_FIGURES = ("lengths",)
-_WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN, "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN,
-           "lengths": COLUMN_IN}
+_WIDTHS = {"fleet-box": COLUMN_IN, "fleet-cdf": COLUMN_IN, "drift": COLUMN_IN, "cdf": COLUMN_IN, "outages": COLUMN_IN,
+           "outages-wide": PAGE_IN, "worst": COLUMN_IN, "calibration": COLUMN_IN, "lengths": COLUMN_IN}
 
 
 #: What a report's reader says to give instead of a bad one.
-REPORT_HINT = "give the output of 'ionav-viz evaluate --json' (one outage length; a fleet's too), or a recording written by 'ionav-viz replay'"
+REPORT_HINT = ("give the output of 'ionav-viz evaluate --json' (one outage length; a fleet's too), or a recording "
+               "written by 'ionav-viz replay'")
 #: The JSON of several reports, which figures does not draw: its key, and what it holds.
 SEVERAL_REPORTS = {"scenarios": "one report per scenario (evaluate --scenario)",
                    "by_event": "one report per manoeuvre type (evaluate --by-event)",
@@ -126,19 +128,24 @@ def check_report(rep: Any, path: Path) -> None:
     several = [what for key, what in SEVERAL_REPORTS.items() if isinstance(rep, dict) and key in rep]
     if several:
         raise InputError(f"{path}: holds {several[0]}, and figures draws one report",
-                         "give 'ionav-viz evaluate DRIVE... --json' (one drive or several, one outage length or several; --on TYPE "
-                         "for one manoeuvre type), a fleet's, or a recording written by 'ionav-viz replay'", param="result")
+                         "give 'ionav-viz evaluate DRIVE... --json' (one drive or several, one outage length or "
+                         "several; --on TYPE for one manoeuvre type), a fleet's, or a recording written by "
+                         "'ionav-viz replay'",
+                         param="result")
     if not isinstance(rep, dict):
         raise InputError(f"{path}: a JSON {_kind(rep)}, not a report (an object)", REPORT_HINT, param="result")
     if isinstance(rep.get("folds"), list) and "by" in rep and "drive" not in rep:
-        raise InputError(f"{path}: a cross-validation report (cross-validate --json: each fold's CRSE), with no outages or "
-                         "drift curves to draw", "figures takes one drive's 'ionav-viz evaluate DRIVE --json' (e.g. with "
-                         "--model on a fold's model from cross-validate -o), a fleet's, or a recording from 'ionav-viz replay'",
+        raise InputError(f"{path}: a cross-validation report (cross-validate --json: each fold's CRSE), with "
+                         "no outages or drift curves to draw",
+                         "figures takes one drive's 'ionav-viz evaluate DRIVE --json' (e.g. with "
+                         "--model on a fold's model from cross-validate -o), a fleet's, or a recording from "
+                         "'ionav-viz replay'",
                          param="result")
     if not rep.get("sequences") and isinstance(rep.get("gnss_outages"), dict):
         bridged = rep["gnss_outages"].get("bridged")
         _refuse_real_losses_only(path, len(bridged) if isinstance(bridged, list) else None, "drive")
-    for key in ("drive", "n_sequences", "outage_s", "estimators", "sequences", "drift", "final_error_percentiles", "worst_tracks"):
+    for key in ("drive", "n_sequences", "outage_s", "estimators", "sequences", "drift", "final_error_percentiles",
+                "worst_tracks"):
         if key not in rep:
             fail(key, "missing (not a report with outages and drift curves, or one made by an earlier ionav-viz)")
     _need_text(rep["drive"], "drive", fail)
@@ -161,13 +168,16 @@ def check_report(rep: Any, path: Path) -> None:
             fail(f"{where}.name", f"{e['name']!r} is listed twice")
         names.append(e["name"])
         color = e.get("color")
-        if color is not None and not (isinstance(color, list) and len(color) == 3 and all(_is_int(c) and 0 <= c <= 255 for c in color)):
+        if color is not None and not (isinstance(color, list) and len(color) == 3 and
+                                      all(_is_int(c) and 0 <= c <= 255 for c in color)):
             fail(f"{where}.color", f"{color!r} is not an RGB triple of 0-255 integers")
     for name in names:
         curve = _need_object(_need_object(rep["drift"], "drift", fail).get(name), f"drift.{name}", fail)
-        lengths = {key: len(_need_numbers(curve.get(key), f"drift.{name}.{key}", fail)) for key in ("t_s", "mean_m", "p10_m", "p90_m")}
+        lengths = {key: len(_need_numbers(curve.get(key), f"drift.{name}.{key}", fail))
+                   for key in ("t_s", "mean_m", "p10_m", "p90_m")}
         if len(set(lengths.values())) != 1:
-            fail(f"drift.{name}", f"t_s, mean_m, p10_m and p90_m differ in length ({', '.join(f'{k} {n}' for k, n in lengths.items())})")
+            fail(f"drift.{name}",
+                 f"t_s, mean_m, p10_m and p90_m differ in length ({', '.join(f'{k} {n}' for k, n in lengths.items())})")
         p50 = _need_object(_need_object(rep["final_error_percentiles"], "final_error_percentiles", fail).get(name),
                            f"final_error_percentiles.{name}", fail).get("p50")
         _need_number(p50, f"final_error_percentiles.{name}.p50", fail)
@@ -227,7 +237,8 @@ def check_fleet_report(rep: dict[str, Any], path: Path) -> None:
         for key in ("name", "label"):
             _need_text(e.get(key), f"estimators[{i}].{key}", fail)
         color = e.get("color")
-        if color is not None and not (isinstance(color, list) and len(color) == 3 and all(_is_int(c) and 0 <= c <= 255 for c in color)):
+        if color is not None and not (isinstance(color, list) and len(color) == 3 and
+                                      all(_is_int(c) and 0 <= c <= 255 for c in color)):
             fail(f"estimators[{i}].color", f"{color!r} is not an RGB triple of 0-255 integers")
         names.append(e["name"])
     drives = rep.get("drives")
@@ -262,11 +273,13 @@ def _refuse_real_losses_only(path: Path, bridged: int | None, drives: str) -> No
     losses = f", {bridged} bridged" if bridged is not None else ", bridged"
     raise InputError(f"{path}: this run has no synthetic outages, only the log's own GNSS losses{losses} "
                      "(--on gnss-outage); the figures draw synthetic outages",
-                     f"replay or evaluate the {drives} with synthetic ones: --outage 10s, without --on gnss-outage", param="result")
+                     f"replay or evaluate the {drives} with synthetic ones: --outage 10s, without --on gnss-outage",
+                     param="result")
 
 
 def _kind(value: Any) -> str:
-    return {dict: "object", list: "array", str: "string", bool: "boolean", type(None): "null"}.get(type(value), "number")
+    return {dict: "object", list: "array", str: "string", bool: "boolean",
+            type(None): "null"}.get(type(value), "number")
 
 
 def _is_int(value: Any) -> bool:
@@ -313,13 +326,15 @@ def _floats(values: list[Any]) -> np.ndarray:
 
 def colors_of(rep: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
     """Each estimator's colour as the recording draws it (matplotlib's 0-1 RGB)."""
-    estimators = [SimpleNamespace(name=e["name"], color=tuple(e["color"]) if e.get("color") else None) for e in rep["estimators"]]
-    return {name: tuple(c / 255 for c in rgb) for name, rgb in estimator_colors(estimators).items()}  # type: ignore[misc]
+    estimators = [SimpleNamespace(name=e["name"], color=tuple(e["color"]) if e.get("color") else None)
+                  for e in rep["estimators"]]
+    return {name: tuple(c / 255 for c in rgb)  # type: ignore[misc]
+            for name, rgb in estimator_colors(estimators).items()}
 
 
 def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
-    """Every figure of :data:`FIGURES` (a fleet's report: :data:`FLEET_FIGURES`) in every format of :data:`FORMATS`, into ``folder`` (made
-    when missing, with its parents). Returns the files.
+    """Every figure of :data:`FIGURES` (a fleet's report: :data:`FLEET_FIGURES`) in every format of :data:`FORMATS`,
+    into ``folder`` (made when missing, with its parents). Returns the files.
 
     Drawn into a temporary folder, beside ``folder`` when that is new (then renamed to it), else
     inside it (``-o .`` needs no right to write in the folder above); when all are written, the
@@ -359,12 +374,12 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
 
 
 def figure(rep: dict[str, Any], name: str) -> Any:
-    """The matplotlib ``Figure`` of :data:`FIGURES` (or :data:`FLEET_FIGURES`) ``name`` for the checked report ``rep``, at its
-    width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
+    """The matplotlib ``Figure`` of :data:`FIGURES` (or :data:`FLEET_FIGURES`) ``name`` for the checked report ``rep``,
+    at its width (:data:`COLUMN_IN` or :data:`PAGE_IN`), drawn with :data:`STYLE`."""
     from matplotlib import rc_context
 
-    draws = {"fleet-box": _fleet_box, "fleet-cdf": _fleet_cdf, "drift": _drift, "cdf": _cdf, "outages": _outages, "outages-wide": _outages, "worst": _worst, "calibration": _calibration,
-             "lengths": _lengths}
+    draws = {"fleet-box": _fleet_box, "fleet-cdf": _fleet_cdf, "drift": _drift, "cdf": _cdf, "outages": _outages,
+             "outages-wide": _outages, "worst": _worst, "calibration": _calibration, "lengths": _lengths}
     with rc_context(STYLE):
         fig = draws[name](rep, _WIDTHS[name])
         fig.canvas.draw()  # laid out with the style's sizes
@@ -415,8 +430,8 @@ def _move_in(scratch: Path, folder: Path, names: list[str], given: Path) -> None
 
 def _check_replaceable(target: Path, shown: Path) -> None:
     if target.is_dir() or (target.exists() and not target.is_file()):
-        raise InputError(f"{shown}: exists and is not a regular file", "ionav-viz only ever replaces regular files; choose another folder",
-                         param="output")
+        raise InputError(f"{shown}: exists and is not a regular file",
+                         "ionav-viz only ever replaces regular files; choose another folder", param="output")
 
 
 def _new_figure(width_in: float, height_in: float) -> tuple[Any, Any]:
@@ -479,14 +494,15 @@ def _legend(fig: Any, ax: Any, width_in: float, entries: list[tuple[Any, str]] |
     fit ``width_in``; ``entries``: (handle, label) pairs instead of the labelled artists."""
     from matplotlib.legend_handler import HandlerTuple
 
-    handles, labels = ([h for h, _ in entries], [t for _, t in entries]) if entries is not None else ax.get_legend_handles_labels()
+    handles, labels = (([h for h, _ in entries], [t for _, t in entries])
+                       if entries is not None else ax.get_legend_handles_labels())
     if not handles:  # nothing drawn: no empty legend (matplotlib warns)
         return
     longest = max(len(t) for t in labels)
     per_column_in = (longest * (FONT_PT - 1) * 0.55 + 30) / 72  # text, its line sample and the gap
     ncols = max(1, min(len(labels), int(width_in // per_column_in)))
-    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, frameon=False, handlelength=2.4, columnspacing=1.2,
-               handler_map={tuple: HandlerTuple(ndivide=1)})
+    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, frameon=False, handlelength=2.4,
+               columnspacing=1.2, handler_map={tuple: HandlerTuple(ndivide=1)})
 
 
 def _defined(label: str, x: np.ndarray, y: np.ndarray, skipped: list[str]) -> np.ndarray | None:
@@ -514,9 +530,10 @@ def _drift(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
         band = np.isfinite(t) & np.isfinite(p10) & np.isfinite(p90)
         # each band hatched in its own pattern and outlined in its colour: overlapping bands stay
         # apart (in greyscale too), where filled ones blended into one colour
-        patch = ax.fill_between(t, p10, p90, where=band, facecolor=(*color, 0.08), edgecolor=color, hatch=HATCHES[i % len(HATCHES)],
-                                lw=0.5)
-        [line] = ax.plot(t, np.where(shown, mean, np.nan), color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)])  # a gap where undefined
+        patch = ax.fill_between(t, p10, p90, where=band, facecolor=(*color, 0.08), edgecolor=color,
+                                hatch=HATCHES[i % len(HATCHES)], lw=0.5)
+        # a gap where undefined
+        [line] = ax.plot(t, np.where(shown, mean, np.nan), color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)])
         handles.append(((patch, line), label))  # the legend shows the band's hatching under the line
     _skipped("drift", skipped)
     ax.set_xlabel("time since the outage began (s)")
@@ -591,8 +608,8 @@ def _cdf_figure(rep: dict[str, Any], kind: str, title: str, curves: list[tuple[s
     # gap at the axes' top, and read as stopping short of all outages (0.98)
     right = 1.05 * max((float(d[4][-1]) for d in drawn), default=1.0) or 1.0
     for name, label, color, i, v, share in drawn:
-        ax.step(np.r_[0.0, v, right], np.r_[0.0, share, 1.0], where="post", color=color, lw=1.3, ls=LINE_STYLES[i % len(LINE_STYLES)],
-                label=legend(name, label))
+        ax.step(np.r_[0.0, v, right], np.r_[0.0, share, 1.0], where="post", color=color, lw=1.3,
+                ls=LINE_STYLES[i % len(LINE_STYLES)], label=legend(name, label))
     _skipped(kind, skipped)
     ax.set_xlabel(f"final position error after {rep['outage_s']:g} s (m)")
     ax.set_ylabel("share of outages")
@@ -640,13 +657,14 @@ def _outages(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
             continue
         if not shown.all():
             missing = x[~shown]
-            skipped.append(f"{label}: outage(s) {', '.join(str(k) for k in missing[:5])}{' ...' if len(missing) > 5 else ''} left out")
+            skipped.append(f"{label}: outage(s) "
+                           f"{', '.join(str(k) for k in missing[:5])}{' ...' if len(missing) > 5 else ''} left out")
         if bars:
-            ax.bar(x[shown] - 0.4 + width * (j + 0.5), finals[shown], width, color=color, label=label, lw=0.4, edgecolor="black",
-                   hatch=HATCHES[j % len(HATCHES)] if len(styled) > 1 else None)
+            ax.bar(x[shown] - 0.4 + width * (j + 0.5), finals[shown], width, color=color, label=label, lw=0.4,
+                   edgecolor="black", hatch=HATCHES[j % len(HATCHES)] if len(styled) > 1 else None)
         else:
-            ax.plot(x[shown], finals[shown], ls="none", marker=MARKERS[j % len(MARKERS)], ms=2.4, mew=0.4, mfc="none" if j % 2 else color,
-                    color=color, label=label)
+            ax.plot(x[shown], finals[shown], ls="none", marker=MARKERS[j % len(MARKERS)], ms=2.4, mew=0.4,
+                    mfc="none" if j % 2 else color, color=color, label=label)
     _skipped("outages", skipped)
     ax.set_ylim(bottom=0)
     ax.set_xlabel("outage (numbered through the drives)")
@@ -662,8 +680,10 @@ def _outages(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
                 ax.axvline(first - 0.5, color="0.35", lw=0.6, ls=(0, (3, 2)))
             span_in = (last - first + 1) / n * (width_in - 0.6)
             text = drive if len(drive) * (FONT_PT - 1.5) * 0.55 / 72 <= span_in else f"D{k + 1}"
-            ax.text((first + last) / 2, 1.01, text, transform=on_top, ha="center", va="bottom", fontsize=FONT_PT - 1.5, clip_on=False)
-        if any(len(d) * (FONT_PT - 1.5) * 0.55 / 72 > (last - first + 1) / n * (width_in - 0.6) for d, first, last in runs):
+            ax.text((first + last) / 2, 1.01, text, transform=on_top, ha="center", va="bottom", fontsize=FONT_PT - 1.5,
+                    clip_on=False)
+        if any(len(d) * (FONT_PT - 1.5) * 0.55 / 72 > (last - first + 1) / n * (width_in - 0.6)
+               for d, first, last in runs):
             names = ", ".join(f"D{k + 1} {d}" for k, (d, _a, _b) in enumerate(runs))
             ax.set_xlabel("\n".join(textwrap.wrap(f"outage; {names}", int(width_in * 14))))
     title = f"{rep['n_sequences']} outages of {rep['outage_s']:g} s" if len(runs) > 1 else _title(rep)
@@ -693,30 +713,38 @@ def _worst(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
     truth_color = tuple(c / 255 for c in GNSS_COLOR)
     skipped = []
     lines = [("truth", truth_label, truth_color, {"lw": 2.6, "alpha": 0.8, "solid_capstyle": "round"}),
-             *((name, label, color, {"lw": 1.1, "ls": LINE_STYLES[i % len(LINE_STYLES)]}) for name, label, color, i in _styled(rep))]
+             *((name, label, color, {"lw": 1.1, "ls": LINE_STYLES[i % len(LINE_STYLES)]})
+               for name, label, color, i in _styled(rep))]
     truth_xy = None
-    stack = stacking({name: _end_gap_m(tracks, name) for name, *_ in lines[1:]})  # the worst estimate underneath, the best on top
+    # the worst estimate underneath, the best on top
+    stack = stacking({name: _end_gap_m(tracks, name) for name, *_ in lines[1:]})
     for name, label, color, style in lines:
         east, north = _floats(tracks[name]["east_m"]), _floats(tracks[name]["north_m"])
         shown = _defined(label, east, north, skipped)
         if shown is None:
             continue
         z = 2.0 + stack.get(name, 0.0)
-        ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, zorder=z, **style)
+        ax.plot(np.where(shown, east, np.nan), np.where(shown, north, np.nan), color=color, label=label, zorder=z,
+                **style)
         if name == "truth":
             truth_xy = np.column_stack([east[shown], north[shown]])
-        else:  # where this estimate ended: over the truth's end marker, which is hollow (an estimate ending on it shows inside)
+        else:
+            # where this estimate ended: over the truth's end marker, which is hollow (an estimate ending on it
+            # shows inside)
             last = np.flatnonzero(shown)[-1]
-            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none", zorder=END_ZORDER + 1 + z)
+            ax.plot([east[last]], [north[last]], marker="o", ms=3, color=color, mec="black", mew=0.4, ls="none",
+                    zorder=END_ZORDER + 1 + z)
     _skipped("worst", skipped)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xticks([])
     ax.set_yticks([])
     for side in ("left", "bottom"):
         ax.spines[side].set_visible(False)
-    ax.plot([0], [0], marker="o", ms=6, mfc="white", mec="black", mew=1.0, ls="none", label="start (last GNSS fix)", zorder=END_ZORDER)
+    ax.plot([0], [0], marker="o", ms=6, mfc="white", mec="black", mew=1.0, ls="none", label="start (last GNSS fix)",
+            zorder=END_ZORDER)
     if truth_xy is not None and len(truth_xy) > 1:
-        ax.plot(*truth_xy[-1], marker="s", ms=5.5, mfc="none", mec="black", mew=1.0, ls="none", label="end (truth)", zorder=END_ZORDER)
+        ax.plot(*truth_xy[-1], marker="s", ms=5.5, mfc="none", mec="black", mew=1.0, ls="none", label="end (truth)",
+                zorder=END_ZORDER)
         _direction_arrows(ax, truth_xy, truth_color)
     ax.margins(0.12)
     _north_arrow(ax)
@@ -737,14 +765,16 @@ def _direction_arrows(ax: Any, xy: np.ndarray, color: Any) -> None:
     for share in (1 / 3, 2 / 3):
         k = int(np.clip(np.searchsorted(along, share * along[-1]), 1, len(xy) - 1))
         ax.annotate("", xy=tuple(xy[k]), xytext=tuple(xy[k - 1]),
-                    arrowprops={"arrowstyle": "-|>,head_length=0.6,head_width=0.35", "color": "black", "lw": 0.8, "shrinkA": 0, "shrinkB": 0})
+                    arrowprops={"arrowstyle": "-|>,head_length=0.6,head_width=0.35", "color": "black", "lw": 0.8,
+                                "shrinkA": 0, "shrinkB": 0})
 
 
 def _north_arrow(ax: Any) -> None:
     """A north arrow in the upper left corner of the axes, apart from the tracks (north is up: the
     axes have equal scales)."""
-    ax.annotate("N", xy=(0.05, 0.97), xytext=(0.05, 0.82), xycoords="axes fraction", textcoords="axes fraction", ha="center",
-                va="top", fontsize=FONT_PT - 1, arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 0.9})
+    ax.annotate("N", xy=(0.05, 0.97), xytext=(0.05, 0.82), xycoords="axes fraction", textcoords="axes fraction",
+                ha="center", va="top", fontsize=FONT_PT - 1,
+                arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 0.9})
 
 
 def _scale_bar(ax: Any) -> None:
@@ -759,7 +789,8 @@ def _scale_bar(ax: Any) -> None:
     length = max((m * 10**k for m in (1, 2, 5) if m * 10**k <= target), default=10**k)
     right, bottom = x1 - 0.05 * (x1 - x0), y0 + 0.06 * (y1 - y0)
     ax.plot([right - length, right], [bottom, bottom], color="black", lw=1.5, solid_capstyle="butt")
-    ax.text(right - length / 2, bottom + 0.02 * (y1 - y0), f"{length:g} m", ha="center", va="bottom", fontsize=FONT_PT - 1)
+    ax.text(right - length / 2, bottom + 0.02 * (y1 - y0), f"{length:g} m", ha="center", va="bottom",
+            fontsize=FONT_PT - 1)
 
 
 def _fleet_finals(rep: dict[str, Any], name: str) -> dict[str, np.ndarray]:
@@ -800,12 +831,14 @@ def _fleet_box(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
         stats["whislo"], stats["whishi"] = np.percentile(defined, [10, 90])
         ax.bxp([stats], positions=[k], widths=0.55, showfliers=False, patch_artist=True,
                    medianprops={"color": color, "lw": 1.6}, whiskerprops={"color": color}, capprops={"color": color},
-                   boxprops={"edgecolor": color, "facecolor": (*color, 0.15), "hatch": HATCHES[i % len(HATCHES)], "lw": 0.8})
-        ax.scatter(k + rng.uniform(-0.16, 0.16, len(defined)), defined, s=7, color=color, marker=MARKERS[i % len(MARKERS)],
-                   lw=0, alpha=0.85, zorder=3)
+                   boxprops={"edgecolor": color, "facecolor": (*color, 0.15), "hatch": HATCHES[i % len(HATCHES)],
+                             "lw": 0.8})
+        ax.scatter(k + rng.uniform(-0.16, 0.16, len(defined)), defined, s=7, color=color,
+                   marker=MARKERS[i % len(MARKERS)], lw=0, alpha=0.85, zorder=3)
         shown.append(label)
     _skipped("fleet-box", skipped)
-    ax.set_xticks(range(1, len(shown) + 1), shown, rotation=20 if len(shown) > 3 else 0, ha="right" if len(shown) > 3 else "center")
+    ax.set_xticks(range(1, len(shown) + 1), shown, rotation=20 if len(shown) > 3 else 0,
+                  ha="right" if len(shown) > 3 else "center")
     ax.set_ylabel(f"drive's mean final error after {rep['outage_s']:g} s (m)")
     ax.set_ylim(bottom=0)
     ax.set_xlim(0.4, len(shown) + 0.6)
@@ -822,7 +855,8 @@ def _fleet_cdf(rep: dict[str, Any], width_in: float = COLUMN_IN) -> Any:
         median = f"p50 {p50:.1f} m" if is_finite_number(p50) else "p50 n/a"
         return f"{label} ({median}, {len(per_drive[name])} drives)"
 
-    curves = [(name, label, color, i, np.concatenate(list(per_drive[name].values())) if per_drive[name] else np.zeros(0))
+    curves = [(name, label, color, i,
+               np.concatenate(list(per_drive[name].values())) if per_drive[name] else np.zeros(0))
               for name, label, color, i in _styled(rep)]
     return _cdf_figure(rep, "fleet-cdf", _fleet_title(rep), curves, legend, width_in)
 

@@ -44,7 +44,8 @@ def final_errors_m(report: FleetReport, table: DriveTable, estimator: str) -> np
     """The drive's final position errors (m) of ``estimator``: over its synthetic outages, or over
     its own GNSS losses in a fleet through them alone (:func:`through_real_losses`)."""
     if through_real_losses(report):
-        return np.array([b["final_error_m"][estimator] for b in table.real_outages if estimator in b["final_error_m"]], dtype=float)
+        return np.array([b["final_error_m"][estimator] for b in table.real_outages if estimator in b["final_error_m"]],
+                        dtype=float)
     return table.metrics[estimator]["final_position_error_m"] if estimator in table.metrics else np.zeros(0)
 
 
@@ -60,10 +61,12 @@ def worst_outage(report: FleetReport, table: DriveTable) -> dict[str, Any] | Non
     i = int(np.nanargmax(err))
     if through_real_losses(report):
         b = table.real_outages[i]
-        return {"number": b["number"], "name": f"real GNSS outage {b['number']} ({b['gap_start_s']:.0f}-{b['gap_end_s']:.0f} s)",
+        return {"number": b["number"],
+                "name": f"real GNSS outage {b['number']} ({b['gap_start_s']:.0f}-{b['gap_end_s']:.0f} s)",
                 "final_error_m": float(err[i])}
     t0 = float(table.start_s[i])
-    return {"number": i + 1, "name": f"outage {i + 1} ({t0:.0f}-{t0 + table.outage_s:.0f} s)", "final_error_m": float(err[i])}
+    return {"number": i + 1, "name": f"outage {i + 1} ({t0:.0f}-{t0 + table.outage_s:.0f} s)",
+            "final_error_m": float(err[i])}
 
 
 def open_command(report: FleetReport, table: DriveTable, worst: dict[str, Any]) -> str:
@@ -99,13 +102,17 @@ def drives_markdown(report: FleetReport, colors: dict[str, tuple[int, int, int]]
     ests, labels = report.estimators, report.labels
     by = labels[report.worst_of] if report.worst_of else ""
     real = through_real_losses(report)
-    header = ["#", "drive", "losses" if real else "outages"] + [f"{labels[e]} m" for e in ests] + [f"worst {'loss' if real else 'outage'} ({by} m)"]
-    title = (f"{report.n_real_outages} of the logs' own GNSS losses, bridged" if real else f"{report.n_outages} outages of {report.outage_s:g} s")
+    header = (["#", "drive", "losses" if real else "outages"] + [f"{labels[e]} m" for e in ests]
+              + [f"worst {'loss' if real else 'outage'} ({by} m)"])
+    title = (f"{report.n_real_outages} of the logs' own GNSS losses, bridged" if real
+             else f"{report.n_outages} outages of {report.outage_s:g} s")
     what = "loss" if real else "outage"
     lines = [f"# Fleet: {len(report.drives)} drive(s), {title}",
-             "", f"Mean final position error per drive (the bars are numbered as the rows), and each drive's worst {what}."
+             "",
+             f"Mean final position error per drive (the bars are numbered as the rows), and each drive's worst {what}."
              + (f" {key_line(report, colors)}" if colors else ""), "",
-             "| " + " | ".join(header) + " |", "|" + "|".join("---" if j == 1 or j == len(header) - 1 else "---:" for j in range(len(header))) + "|"]
+             "| " + " | ".join(header) + " |",
+             "|" + "|".join("---" if j == 1 or j == len(header) - 1 else "---:" for j in range(len(header))) + "|"]
     replays = []
     for k, t in enumerate(report.drives, 1):
         worst = worst_outage(report, t)
@@ -119,7 +126,8 @@ def drives_markdown(report: FleetReport, colors: dict[str, tuple[int, int, int]]
         else:
             replays.append(f"{k}. {t.name}, {worst['name']}: `{open_command(report, t, worst)}`{where}")
     lines += ["", f"## See a drive's worst {what}", "",
-              f"Each command renders the {what} it names, framed (in the viewer, `rerun <drive>.rrd`: the inspector shows it from its start on).",
+              f"Each command renders the {what} it names, framed (in the viewer, `rerun <drive>.rrd`: the inspector "
+              "shows it from its start on).",
               "", *replays]
     if report.failures or report.skipped:
         lines += ["", "## Not evaluated", "", *(f"- {f.spec}: {f.reason}" for f in [*report.failures, *report.skipped])]
@@ -143,10 +151,13 @@ def fleet_blueprint(report: FleetReport) -> Any:
     what = "loss" if through_real_losses(report) else "outage"
     return rrb.Blueprint(
         rrb.Vertical(
-            rrb.Tabs(rrb.TextDocumentView(origin=FLEET_TABLE, name="Drives"), rrb.TextDocumentView(origin=FLEET_REPORT, name="Fleet report")),
+            rrb.Tabs(rrb.TextDocumentView(origin=FLEET_TABLE, name="Drives"),
+                     rrb.TextDocumentView(origin=FLEET_REPORT, name="Fleet report")),
             rrb.Horizontal(
-                rrb.BarChartView(origin=MEAN_BARS, name="Mean final error per drive (m)", plot_legend=rrb.PlotLegend(visible=False)),
-                rrb.BarChartView(origin=WORST_BARS, name=f"Worst {what}'s final error per drive (m)", plot_legend=rrb.PlotLegend(visible=False)),
+                rrb.BarChartView(origin=MEAN_BARS, name="Mean final error per drive (m)",
+                                 plot_legend=rrb.PlotLegend(visible=False)),
+                rrb.BarChartView(origin=WORST_BARS, name=f"Worst {what}'s final error per drive (m)",
+                                 plot_legend=rrb.PlotLegend(visible=False)),
             ),
             row_shares=[4, 5]),
         collapse_panels=True)
@@ -164,7 +175,8 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
     rows: dict[str, int] = {}
     with streamed_to(rec, path, target):
         rec.send_blueprint(fleet_blueprint(report))
-        rec.log(FLEET_TABLE, rr.TextDocument(drives_markdown(report, colors), media_type=rr.MediaType.MARKDOWN), static=True)
+        rec.log(FLEET_TABLE, rr.TextDocument(drives_markdown(report, colors), media_type=rr.MediaType.MARKDOWN),
+                static=True)
         rec.log(FLEET_REPORT, rr.TextDocument(report.to_markdown(), media_type=rr.MediaType.MARKDOWN), static=True)
         rows |= {FLEET_TABLE: 1, FLEET_REPORT: 1}
         numbers = np.arange(1, len(report.drives) + 1, dtype=np.float64)
@@ -174,8 +186,10 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
             means = np.array([summarise(err)["mean"] for err in errors])
             worst = np.array([np.nanmax(err) if np.isfinite(err).any() else np.nan for err in errors])
             for root, values in ((MEAN_BARS, means), (WORST_BARS, worst)):
-                rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e], abscissa=bar_abscissa(numbers, j, n_est),
-                                                   widths=np.full(len(numbers), BAR_WIDTH / n_est, dtype=np.float32)), static=True)
+                rec.log(f"{root}/{e}", rr.BarChart(np.nan_to_num(values, nan=0.0), color=colors[e],
+                                                   abscissa=bar_abscissa(numbers, j, n_est),
+                                                   widths=np.full(len(numbers), BAR_WIDTH / n_est, dtype=np.float32)),
+                        static=True)
                 rows[f"{root}/{e}"] = 1
     return rows
 
@@ -196,5 +210,6 @@ def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_
         viewer.open(Path(recording))
         time.sleep(SCREENSHOT_SETTLE_S)
         # the band above the views (the viewer's title bar) says what the image is, as a replay's key does
-        viewer.show(without_panels(viewer.base_blueprint), None, Path(out), finish=lambda png: draw_key(png, [], title[0].upper() + title[1:]))
+        viewer.show(without_panels(viewer.base_blueprint), None, Path(out),
+                    finish=lambda png: draw_key(png, [], title[0].upper() + title[1:]))
     return Path(out)

@@ -24,7 +24,8 @@ def padded_bounds(points: np.ndarray, margin: float = 0.15, min_half_m: float = 
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre, half = (lo + hi) / 2, (hi - lo) / 2
     half = np.maximum(half + margin * 2 * half.max(), min_half_m)
-    return (float(centre[0] - half[0]), float(centre[0] + half[0]), float(centre[1] - half[1]), float(centre[1] + half[1]))
+    return (float(centre[0] - half[0]), float(centre[0] + half[0]), float(centre[1] - half[1]),
+            float(centre[1] + half[1]))
 
 
 def nice_step(extent_m: float, lines: int = 6) -> float:
@@ -53,7 +54,8 @@ def scale_bar(bounds: Bounds, step_m: float, above: float = 0.05) -> np.ndarray:
     return np.array([[x0, y], [x0 + step_m, y]])
 
 
-def scale_bar_clear_of(bounds: Bounds, step_m: float, points: np.ndarray, above: float = 0.09) -> tuple[np.ndarray, Bounds]:
+def scale_bar_clear_of(bounds: Bounds, step_m: float, points: np.ndarray,
+                       above: float = 0.09) -> tuple[np.ndarray, Bounds]:
     """A scale bar (as :func:`scale_bar`) that neither it nor its label covers ``points``, and the
     bounds that hold it: in the bottom-left corner of ``bounds``, else the bottom-right, the
     top-left, the top-right, else in a band grown below the points (bounds tightly around a drive
@@ -70,7 +72,8 @@ def scale_bar_clear_of(bounds: Bounds, step_m: float, points: np.ndarray, above:
                     & (pts[:, 1] <= y + above * height)).any()
 
     right = x1 - x0 - step_m
-    for dx, y in ((0.0, y1 - above * height), (right, y1 - above * height), (0.0, y0 + 0.03 * height), (right, y0 + 0.03 * height)):
+    for dx, y in ((0.0, y1 - above * height), (right, y1 - above * height), (0.0, y0 + 0.03 * height),
+                  (right, y0 + 0.03 * height)):
         bar = np.array([[x0 + dx, y], [x0 + dx + step_m, y]])
         if clear(bar):
             return bar, bounds

@@ -60,18 +60,21 @@ def log_health(layers, result: DriveResult, labels: dict[str, str]) -> bool:
             n_series += 1
             mean = running_mean(t, per_row, NIS_MEAN_S)
             keep = np.isfinite(mean)
-            rec.log(ent.health_nis(name, kind), rr.SeriesLines(colors=[color], names=[f"{labels.get(name, name)}: {kind}"], widths=[1.5]),
+            rec.log(ent.health_nis(name, kind),
+                    rr.SeriesLines(colors=[color], names=[f"{labels.get(name, name)}: {kind}"], widths=[1.5]),
                     static=True)
             send(ent.health_nis(name, kind), t[keep], rr.Scalars.columns(scalars=mean[keep]))
             gated = (status[:, cols] == 2).any(axis=1)
             if gated.any():
-                rec.log(ent.health_gated(name, kind), rr.SeriesPoints(colors=[GATED_COLOR], names=[f"{labels.get(name, name)}: {kind} gated out"],
-                                                                       markers=["cross"], marker_sizes=[4.0]), static=True)
+                rec.log(ent.health_gated(name, kind),
+                        rr.SeriesPoints(colors=[GATED_COLOR], names=[f"{labels.get(name, name)}: {kind} gated out"],
+                                        markers=["cross"], marker_sizes=[4.0]), static=True)
                 level = np.where(np.isfinite(mean[gated]), mean[gated], 1.0)
                 send(ent.health_gated(name, kind), t[gated], rr.Scalars.columns(scalars=level))
             logged = True
     if logged:
-        rec.log(ent.HEALTH_EXPECTED, rr.SeriesLines(colors=[(90, 90, 90)], names=["1: consistent"], widths=[1.0]), static=True)
+        rec.log(ent.HEALTH_EXPECTED, rr.SeriesLines(colors=[(90, 90, 90)], names=["1: consistent"], widths=[1.0]),
+                static=True)
         t_all = result.drive.t_s
         send(ent.HEALTH_EXPECTED, np.array([t_all[0], t_all[-1]]), rr.Scalars.columns(scalars=np.ones(2)))
     return logged

@@ -45,7 +45,8 @@ def track_radii_pt(stack: np.ndarray, n_estimators: int) -> np.ndarray:
 def real_stacking(result: DriveResult) -> dict[str, np.ndarray]:
     """Each estimator's place in the draw order of each of the log's own GNSS losses
     (:func:`~ionav_viz.viz.style.stacking` of its final errors there)."""
-    return stacking({e.name: np.array([b.final_error_m.get(e.name, np.nan) for b in result.bridged]) for e in result.estimators})
+    return stacking({e.name: np.array([b.final_error_m.get(e.name, np.nan) for b in result.bridged])
+                     for e in result.estimators})
 
 #: Seconds of GNSS track before and after an outage drawn faintly around it on the map.
 CONTEXT_S = 3.0
@@ -82,7 +83,8 @@ def state_color(state: str) -> tuple[int, int, int]:
     if state.startswith("bad: "):
         return STATE_COLORS["bad"]
     if state in (ent.GNSS_AVAILABLE_STATE, ent.GOOD_TRUTH_STATE, ent.NO_EVENT_STATE):
-        return STATE_COLORS[{ent.GNSS_AVAILABLE_STATE: "GNSS", ent.GOOD_TRUTH_STATE: "good", ent.NO_EVENT_STATE: "none"}[state]]
+        return STATE_COLORS[{ent.GNSS_AVAILABLE_STATE: "GNSS", ent.GOOD_TRUTH_STATE: "good",
+                             ent.NO_EVENT_STATE: "none"}[state]]
     return EVENT_STATE_COLORS.get(state.rpartition(" #")[0], EVENT_COLOR)
 
 
@@ -102,7 +104,8 @@ def log_state_styles(rec, entity: str, states: list[str], t_s: np.ndarray, end_s
         shortest[state] = min(shortest.get(state, np.inf), float(span))
     values = list(shortest)
     labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v])) for v in values]
-    rec.log(entity, rr.StateConfiguration(values=values, labels=labels, colors=[state_color(v) for v in values]), static=True)
+    rec.log(entity, rr.StateConfiguration(values=values, labels=labels, colors=[state_color(v) for v in values]),
+            static=True)
 
 
 def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, np.ndarray]) -> None:
@@ -127,19 +130,23 @@ def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, 
     b = np.searchsorted(drive.t_s[ti], t0 + n_win, side="left")
     ca = np.searchsorted(drive.t_s[ti], t0 - CONTEXT_S, side="left")
     cb = np.searchsorted(drive.t_s[ti], t0 + n_win + CONTEXT_S, side="right")
-    truth = [np.concatenate([start_xy[k : k + 1], truth_xy[ti[i:j]], end_xy[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
-    truth_geo = [np.concatenate([start_ll[k : k + 1], truth_ll[ti[i:j]], end_ll[k : k + 1]]) for k, (i, j) in enumerate(zip(a, b))]
+    truth = [np.concatenate([start_xy[k : k + 1], truth_xy[ti[i:j]], end_xy[k : k + 1]])
+             for k, (i, j) in enumerate(zip(a, b))]
+    truth_geo = [np.concatenate([start_ll[k : k + 1], truth_ll[ti[i:j]], end_ll[k : k + 1]])
+                 for k, (i, j) in enumerate(zip(a, b))]
     wide = rr.Radius.ui_points(TRUTH_TRACK_PT)
     send(ent.outage_truth(ent.LOCAL), t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged(truth)), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
+        strips=columns.line_strips_2d(*columns.ragged(truth)), colors=np.tile(GNSS_COLOR, (n, 1)),
+        radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
     send(ent.outage_truth(ent.MAP), t_rows, rr.GeoLineStrings.columns(
-        line_strings=columns.geo_line_strings(*columns.ragged(truth_geo)), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide)))
+        line_strings=columns.geo_line_strings(*columns.ragged(truth_geo)), colors=np.tile(GNSS_COLOR, (n, 1)),
+        radii=np.full(n, wide)))
     send(ent.MAP_CONTEXT, t_rows, rr.GeoLineStrings.columns(
-        line_strings=columns.geo_line_strings(*columns.ragged([truth_ll[ti[i:j]] for i, j in zip(ca, cb)])), colors=np.tile(faded(GNSS_COLOR), (n, 1)),
-        radii=np.full(n, rr.Radius.ui_points(2.0))))
+        line_strings=columns.geo_line_strings(*columns.ragged([truth_ll[ti[i:j]] for i, j in zip(ca, cb)])),
+        colors=np.tile(faded(GNSS_COLOR), (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0))))
     send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([tr - s for tr, s in zip(truth, start_xy)])), colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide),
-        draw_order=np.full(n, 12.0)))
+        strips=columns.line_strips_2d(*columns.ragged([tr - s for tr, s in zip(truth, start_xy)])),
+        colors=np.tile(GNSS_COLOR, (n, 1)), radii=np.full(n, wide), draw_order=np.full(n, 12.0)))
 
     # Each outage's frame: its truth and every estimate, padded; a grid and a scale bar to match.
     bounds = []
@@ -149,21 +156,26 @@ def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, 
     steps = [nice_step(max(bx[1] - bx[0], bx[3] - bx[2])) for bx in bounds]
     grids = [grid_strips(bx, st) for bx, st in zip(bounds, steps)]
     send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (sum(map(len, grids)), 1)),
-        radii=np.full(sum(map(len, grids)), rr.Radius.ui_points(0.8)), draw_order=np.full(sum(map(len, grids)), 1.0)).partition(
-            [len(g) for g in grids]))
+        strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])),
+        colors=np.tile(GRID_COLOR, (sum(map(len, grids)), 1)),
+        radii=np.full(sum(map(len, grids)), rr.Radius.ui_points(0.8)),
+        draw_order=np.full(sum(map(len, grids)), 1.0)).partition([len(g) for g in grids]))
     send(ent.INSPECT_SCALE, t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st, INSPECT_SCALE_ABOVE) for bx, st in zip(bounds, steps)])),
+        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st, INSPECT_SCALE_ABOVE)
+                                                       for bx, st in zip(bounds, steps)])),
         labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
     local_bounds = [(bx[0] + s[0], bx[1] + s[0], bx[2] + s[1], bx[3] + s[1]) for bx, s in zip(bounds, start_xy)]
     send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st) for bx, st in zip(local_bounds, steps)])), labels=[scale_label(st) for st in steps],
-        colors=np.tile(SCALE_COLOR, (n, 1)), radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
-    rec.log(ent.INSPECT_START, rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
+        strips=columns.line_strips_2d(*columns.ragged([scale_bar(bx, st) for bx, st in zip(local_bounds, steps)])),
+        labels=[scale_label(st) for st in steps], colors=np.tile(SCALE_COLOR, (n, 1)),
+        radii=np.full(n, rr.Radius.ui_points(2.0)), draw_order=np.full(n, 50.0)))
+    rec.log(ent.INSPECT_START,
+            rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
             static=True)
     rec.log(ent.LOCAL_OUTAGES, rr.Points2D(start_xy, labels=[f"outage {i + 1}" for i in range(n)], show_labels=False,
-                                         colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(3.0), draw_order=25), static=True)
+                                         colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(3.0), draw_order=25),
+            static=True)
 
 
 def log_grid(rec, xy: np.ndarray) -> None:
@@ -176,7 +188,8 @@ def log_grid(rec, xy: np.ndarray) -> None:
     # the bounds hug the drive, so the bar goes to a corner the track leaves free (else below it)
     bar, bounds = scale_bar_clear_of(bounds, step, xy, above=0.09)
     grid = grid_strips(bounds, step)
-    rec.log(ent.LOCAL_GRID, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
+    rec.log(ent.LOCAL_GRID, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1),
+            static=True)
     rec.log(ent.LOCAL_GRID_SCALE, rr.LineStrips2D([bar], labels=[scale_label(step)], colors=[SCALE_COLOR],
                                                 radii=rr.Radius.ui_points(2.0), draw_order=50), static=True)
 
@@ -191,9 +204,10 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
     rec, send = layers.rec, layers.send
     bridged = result.bridged
     end_ll = np.array([[b.end_lat_deg, b.end_lon_deg] for b in bridged])
-    rec.log(ent.end_fixes(ent.MAP), rr.GeoPoints(lat_lon=end_ll, colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
-    rec.log(ent.end_fixes(ent.LOCAL), rr.Points2D(layers.xy(end_ll[:, 0], end_ll[:, 1]),
-                                                      colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
+    rec.log(ent.end_fixes(ent.MAP),
+            rr.GeoPoints(lat_lon=end_ll, colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(6.0)), static=True)
+    rec.log(ent.end_fixes(ent.LOCAL), rr.Points2D(layers.xy(end_ll[:, 0], end_ll[:, 1]), colors=[OUTAGE_MARK_COLOR],
+                                                  radii=rr.Radius.ui_points(5.0), draw_order=40), static=True)
     t1 = np.array([b.t1_s for b in bridged])
     # every estimator's track through each loss, on the map and in the local frame (one projection per estimator)
     tracks_ll, tracks_xy = {}, {}
@@ -201,13 +215,16 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
     for est in result.estimators:
         name, color = est.name, colors[est.name]
         ll = [np.stack([b.tracks[name].lat_deg[0], b.tracks[name].lon_deg[0]], axis=-1) for b in bridged]
-        tracks_ll[name], tracks_xy[name] = ll, np.split(layers.xy(*np.concatenate(ll).T), np.cumsum([len(x) for x in ll])[:-1])
-        rec.log(ent.real_outage_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=ll, colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
+        tracks_ll[name], tracks_xy[name] = ll, np.split(layers.xy(*np.concatenate(ll).T),
+                                                        np.cumsum([len(x) for x in ll])[:-1])
+        rec.log(ent.real_outage_tracks(ent.MAP, name),
+                rr.GeoLineStrings(lat_lon=ll, colors=[color], radii=rr.Radius.ui_points(3.0)), static=True)
         rec.log(ent.real_outage_tracks(ent.LOCAL, name), rr.LineStrips2D(
             tracks_xy[name], colors=[color], draw_order=TRACK_ORDER + float(np.mean(stack[name])),
             radii=track_radii_pt(stack[name], len(result.estimators))), static=True)
         entity = ent.real_outage_errors(name)
-        rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]), static=True)
+        rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]),
+                static=True)
         send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
     t_rows = np.array([b.t0_s for b in bridged]) + ent.OUTAGE_EPS_S
     _log_current_real_outage(layers, result, colors, tracks_ll, tracks_xy, t_rows)
@@ -228,7 +245,8 @@ def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict, 
     for i, b in enumerate(bridged):
         before = ti[(t[ti] >= b.gap_t0_s - CONTEXT_S) & (t[ti] <= b.gap_t0_s)]
         after = ti[(t[ti] >= b.gap_t1_s) & (t[ti] <= b.gap_t1_s + CONTEXT_S)]
-        rows.append([layers.truth_ll[before], layers.truth_ll[after], *(tracks_ll[e.name][i] for e in result.estimators)])
+        rows.append([layers.truth_ll[before], layers.truth_ll[after],
+                     *(tracks_ll[e.name][i] for e in result.estimators)])
         rgb += [faded(GNSS_COLOR), faded(GNSS_COLOR)] + [colors[e.name] for e in result.estimators]
         end = layers.xy(np.array([b.end_lat_deg]), np.array([b.end_lon_deg]))
         bounds = padded_bounds(np.concatenate([*(tracks_xy[e.name][i] for e in result.estimators), end]))
@@ -237,15 +255,15 @@ def _log_current_real_outage(layers: Layers, result: DriveResult, colors: dict, 
     flat = [s for strips in rows for s in strips]
     n, m = len(flat), len(bridged)
     layers.send(ent.REAL_OUTAGE_CURRENT, t_rows, rr.GeoLineStrings.columns(
-        line_strings=columns.geo_line_strings(*columns.ragged(flat)), colors=np.asarray(rgb), radii=np.full(n, rr.Radius.ui_points(3.0))).partition(
-            [len(strips) for strips in rows]))
+        line_strings=columns.geo_line_strings(*columns.ragged(flat)), colors=np.asarray(rgb),
+        radii=np.full(n, rr.Radius.ui_points(3.0))).partition([len(strips) for strips in rows]))
     layers.send(ent.LOCAL_SCALE, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged(bars)), labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (m, 1)), radii=np.full(m, rr.Radius.ui_points(2.0)), draw_order=np.full(m, 50.0)))
 
 
-def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dict, tracks_xy: dict[str, list[np.ndarray]],
-                                t_rows: np.ndarray) -> None:
+def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dict,
+                                tracks_xy: dict[str, list[np.ndarray]], t_rows: np.ndarray) -> None:
     """The outage inspector from each real loss's start (rows ``t_rows``) on, as for a synthetic
     outage (:func:`log_outage_frames`): in metres from its start fix (where the tracks ``tracks_xy``
     start), the good fixes :data:`CONTEXT_S` before it and from the first good fix after it, every
@@ -263,7 +281,8 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
         before = ti[(t[ti] >= b.t0_s - CONTEXT_S) & (t[ti] < b.t0_s)]
         after = ti[(t[ti] > b.t1_s) & (t[ti] <= b.t1_s + CONTEXT_S)]
         end = layers.xy(np.array([b.end_lat_deg]), np.array([b.end_lon_deg]))
-        truth.append([np.concatenate([layers.truth_xy[before] - start, np.zeros((1, 2))]), np.concatenate([end, layers.truth_xy[after]]) - start])
+        truth.append([np.concatenate([layers.truth_xy[before] - start, np.zeros((1, 2))]),
+                      np.concatenate([end, layers.truth_xy[after]]) - start])
         for e in result.estimators:
             tracks[e.name].append(tracks_xy[e.name][i] - start)
         bounds = padded_bounds(np.concatenate([*truth[-1], *(tr[-1] for tr in tracks.values()), np.zeros((1, 2))]))
@@ -272,8 +291,9 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
         bars.append(scale_bar(bounds, steps[-1], INSPECT_SCALE_ABOVE))
     wide = rr.Radius.ui_points(TRUTH_TRACK_PT)
     send(ent.outage_truth(ent.INSPECT), t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([s for pair in truth for s in pair])), colors=np.tile(GNSS_COLOR, (2 * m, 1)),
-        radii=np.full(2 * m, wide), draw_order=np.full(2 * m, 12.0)).partition(np.full(m, 2)))
+        strips=columns.line_strips_2d(*columns.ragged([s for pair in truth for s in pair])),
+        colors=np.tile(GNSS_COLOR, (2 * m, 1)), radii=np.full(2 * m, wide),
+        draw_order=np.full(2 * m, 12.0)).partition(np.full(m, 2)))
     stack = real_stacking(result)
     for e in result.estimators:
         color = np.tile(colors[e.name], (m, 1))
@@ -283,25 +303,30 @@ def _log_real_outages_inspected(layers: Layers, result: DriveResult, colors: dic
         # each estimate's end, a dot: where tracks along one road cover each other, how far each went
         ends = np.array([tr[-1] for tr in tracks[e.name]])
         send(ent.inspect_position(e.name), t_rows, rr.Points2D.columns(
-            positions=ends, colors=color, radii=np.full(m, rr.Radius.ui_points(END_DOT_PT)), draw_order=END_ORDER + stack[e.name]))
-        send(ent.local_position(e.name), t_rows, rr.Points2D.columns(
-            positions=np.array([tracks_xy[e.name][i][-1] for i in range(m)]), colors=color, radii=np.full(m, rr.Radius.ui_points(END_DOT_PT)),
+            positions=ends, colors=color, radii=np.full(m, rr.Radius.ui_points(END_DOT_PT)),
             draw_order=END_ORDER + stack[e.name]))
-        if len(result.starts) and result.estimates[e.name].pos_cov_m2 is not None:  # a synthetic outage's ellipse, drawn before: emptied
+        send(ent.local_position(e.name), t_rows, rr.Points2D.columns(
+            positions=np.array([tracks_xy[e.name][i][-1] for i in range(m)]), colors=color,
+            radii=np.full(m, rr.Radius.ui_points(END_DOT_PT)), draw_order=END_ORDER + stack[e.name]))
+        # a synthetic outage's ellipse, drawn before: emptied
+        if len(result.starts) and result.estimates[e.name].pos_cov_m2 is not None:
             send(ent.ellipse(ent.INSPECT, e.name), t_rows, rr.LineStrips2D.columns(
-                strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))).partition(np.zeros(m, dtype=int)))
+                strips=columns.line_strips_2d(np.zeros((0, 2)), np.zeros(1, dtype=int))
+            ).partition(np.zeros(m, dtype=int)))
     # the truth's end (the first good fix after the loss), a wide dot under the estimates' ends
     send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(
         positions=np.array([pair[1][0] for pair in truth]), colors=np.tile(GNSS_COLOR, (m, 1)),
         radii=np.full(m, rr.Radius.ui_points(TRUTH_DOT_PT)), draw_order=np.full(m, TRUTH_END_ORDER)))
     count = sum(map(len, grids))
     send(ent.INSPECT_GRID, t_rows, rr.LineStrips2D.columns(
-        strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])), colors=np.tile(GRID_COLOR, (count, 1)),
-        radii=np.full(count, rr.Radius.ui_points(0.8)), draw_order=np.full(count, 1.0)).partition([len(g) for g in grids]))
+        strips=columns.line_strips_2d(*columns.ragged([g for grid in grids for g in grid])),
+        colors=np.tile(GRID_COLOR, (count, 1)), radii=np.full(count, rr.Radius.ui_points(0.8)),
+        draw_order=np.full(count, 1.0)).partition([len(g) for g in grids]))
     send(ent.INSPECT_SCALE, t_rows, rr.LineStrips2D.columns(
         strips=columns.line_strips_2d(*columns.ragged(bars)), labels=[scale_label(st) for st in steps],
         colors=np.tile(SCALE_COLOR, (m, 1)), radii=np.full(m, rr.Radius.ui_points(2.0)), draw_order=np.full(m, 50.0)))
-    layers.rec.log(ent.INSPECT_START, rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
+    layers.rec.log(ent.INSPECT_START,
+                   rr.Points2D([[0.0, 0.0]], colors=[OUTAGE_MARK_COLOR], radii=rr.Radius.ui_points(5.0), draw_order=45),
                    static=True)
 
 
@@ -326,10 +351,12 @@ def log_events(layers: Layers, events: list, drive) -> None:
     lon = np.interp(mid, drive.t_s[usable], drive.lon_deg[usable])
     labels = [ent.event_state(e.type, i + 1) for i, e in enumerate(events)]
     # names in the hover text and on the timeline only: permanent labels would cover the tracks
-    rec.log(ent.event_points(ent.MAP), rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5)),
+    rec.log(ent.event_points(ent.MAP),
+            rr.GeoPoints(lat_lon=np.stack([lat, lon], axis=-1), colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5)),
             static=True)
     rec.log(ent.event_points(ent.LOCAL), rr.Points2D(layers.xy(lat, lon), labels=labels, show_labels=False,
-                                        colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5), draw_order=25), static=True)
+                                        colors=[EVENT_COLOR], radii=rr.Radius.ui_points(3.5), draw_order=25),
+            static=True)
 
 
 #: The drift view's plot area (its own units: the 2D view keeps one scale on both axes, so seconds
@@ -356,25 +383,28 @@ def log_drift(layers: Layers, result: DriveResult, colors: dict, t_rows: np.ndar
     t_step = max(1, int(nice_step(float(n_win), lines=5)))
 
     def xy(t_s: np.ndarray, err_m: np.ndarray) -> np.ndarray:
-        return np.stack([np.asarray(t_s, dtype=float) / n_win * DRIFT_W, -np.asarray(err_m, dtype=float) / y_max * DRIFT_H], axis=-1)
+        return np.stack([np.asarray(t_s, dtype=float) / n_win * DRIFT_W,
+                         -np.asarray(err_m, dtype=float) / y_max * DRIFT_H], axis=-1)
 
     t_axis = np.arange(n_win + 1, dtype=float)
     ys = np.arange(0.0, y_max + step / 2, step)
     ts = np.arange(0.0, n_win + 0.5, t_step)
     grid = [xy([0, n_win], [y, y]) for y in ys] + [xy([t, t], [0, y_max]) for t in ts]
-    rec.log(ent.DRIFT_AXES, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1), static=True)
+    rec.log(ent.DRIFT_AXES, rr.LineStrips2D(grid, colors=[GRID_COLOR], radii=rr.Radius.ui_points(0.8), draw_order=1),
+            static=True)
     ticks = np.concatenate([xy(ts, np.zeros(len(ts))) + [0.0, 6.0], xy(np.zeros(len(ys)), ys) - [10.0, 0.0]])
     labels = [f"{t:g} s" for t in ts] + [f"{y:g} m" for y in ys]
-    rec.log(ent.DRIFT_TICKS, rr.Points2D(ticks, labels=labels, colors=[SCALE_COLOR], radii=rr.Radius.ui_points(0.5), show_labels=True,
-                                         draw_order=2), static=True)
+    rec.log(ent.DRIFT_TICKS, rr.Points2D(ticks, labels=labels, colors=[SCALE_COLOR], radii=rr.Radius.ui_points(0.5),
+                                         show_labels=True, draw_order=2), static=True)
     for name, curve in curves.items():
         color = colors[name]
-        rec.log(ent.drift_mean(name), rr.LineStrips2D([xy(t_axis, curve["mean_m"])], colors=[color], radii=rr.Radius.ui_points(3.5),
-                                                      draw_order=20), static=True)
-        rec.log(ent.drift_band(name), rr.LineStrips2D([xy(t_axis, curve["p10_m"]), xy(t_axis, curve["p90_m"])], colors=[faded(color, 0.3)],
-                                                      radii=rr.Radius.ui_points(0.6), draw_order=10), static=True)
+        rec.log(ent.drift_mean(name), rr.LineStrips2D([xy(t_axis, curve["mean_m"])], colors=[color],
+                                                      radii=rr.Radius.ui_points(3.5), draw_order=20), static=True)
+        rec.log(ent.drift_band(name), rr.LineStrips2D([xy(t_axis, curve["p10_m"]), xy(t_axis, curve["p90_m"])],
+                                                      colors=[faded(color, 0.3)], radii=rr.Radius.ui_points(0.6),
+                                                      draw_order=10), static=True)
         current = xy(np.broadcast_to(t_axis, errors[name].shape), errors[name])  # (outages, win+1, 2)
         n_rows = len(t_rows)
         send(ent.drift_current(name), t_rows, rr.LineStrips2D.columns(
-            strips=columns.line_strips_2d(*columns.growing(current)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(1.6)),
-            draw_order=np.full(n_rows, 30.0)))
+            strips=columns.line_strips_2d(*columns.growing(current)), colors=np.tile(color, (n_rows, 1)),
+            radii=np.full(n_rows, rr.Radius.ui_points(1.6)), draw_order=np.full(n_rows, 30.0)))

@@ -37,7 +37,8 @@ def _endpoint(url: str) -> tuple[str, int]:
     try:
         port = parsed.port or DEFAULT_GRPC_PORT
     except ValueError:
-        raise InputError(f"{url}: the port is not a number", f"use e.g. {DEFAULT_CONNECT_URL}", param="connect") from None
+        raise InputError(f"{url}: the port is not a number", f"use e.g. {DEFAULT_CONNECT_URL}",
+                         param="connect") from None
     return parsed.hostname, port
 
 
@@ -58,8 +59,8 @@ def check_viewer(url: str, timeout_s: float = 2.0) -> None:
     try:
         raw = socket.create_connection((host, port), timeout=timeout_s)
     except OSError as exc:
-        raise ToolFailure(f"--connect {url}: no Rerun viewer is listening there ({exc.strerror or exc}); start one with 'rerun' "
-                          "(or 'ionav-viz replay ... --serve-web' to view in a browser)") from None
+        raise ToolFailure(f"--connect {url}: no Rerun viewer is listening there ({exc.strerror or exc}); start one "
+                          "with 'rerun' (or 'ionav-viz replay ... --serve-web' to view in a browser)") from None
     try:
         with raw:
             sock = raw
@@ -102,7 +103,8 @@ def send_recording(path: Path, url: str = DEFAULT_CONNECT_URL, timeout_s: float 
     import sys
 
     check_viewer(url)
-    code = "import sys; from ionav_viz.viz.live import stream_file; stream_file(sys.argv[1], sys.argv[2], float(sys.argv[3]))"
+    code = ("import sys; from ionav_viz.viz.live import stream_file; "
+            "stream_file(sys.argv[1], sys.argv[2], float(sys.argv[3]))")
     with subprocess.Popen([sys.executable, "-c", code, url, str(path), str(timeout_s)], stdin=subprocess.DEVNULL,
                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) as proc:
         try:
@@ -137,8 +139,8 @@ def stream_file(url: str, path: str, timeout_s: float) -> None:
         [store] = reader.recordings()
         rec = rr.RecordingStream(store.application_id, recording_id=store.recording_id)
         rec.connect_grpc(url)
-        rec.send_blueprint(review_blueprint([label for label, _ in info.estimators.values()], info.lat_deg, info.lon_deg,
-                                            shown=shown_views(info)))
+        rec.send_blueprint(review_blueprint([label for label, _ in info.estimators.values()], info.lat_deg,
+                                            info.lon_deg, shown=shown_views(info)))
         rec.send_chunks(reader.stream(store=store))
     rec.flush(timeout_sec=timeout_s)
     rec.disconnect()
@@ -170,15 +172,16 @@ class WebServing:
 
         for port, param in ((self.grpc_port, "grpc_port"), (self.web_port, "web_port")):
             if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
-                raise InputError(f"port {port!r} is not a TCP port", "choose a port between 1024 and 65535", param=param)
+                raise InputError(f"port {port!r} is not a TCP port", "choose a port between 1024 and 65535",
+                                 param=param)
         if self.grpc_port == self.web_port:
-            raise InputError(f"the gRPC server and the web viewer cannot share port {self.web_port}", "give them different ports",
-                             param="web_port")
+            raise InputError(f"the gRPC server and the web viewer cannot share port {self.web_port}",
+                             "give them different ports", param="web_port")
         try:
             ipaddress.ip_address(self.bind)
         except ValueError:
-            raise InputError(f"bind address {self.bind!r} is not an IP address", "use e.g. 127.0.0.1 (this machine only) or 0.0.0.0",
-                             param="bind") from None
+            raise InputError(f"bind address {self.bind!r} is not an IP address",
+                             "use e.g. 127.0.0.1 (this machine only) or 0.0.0.0", param="bind") from None
         for port, option in ((self.grpc_port, "--grpc-port"), (self.web_port, "--web-port")):
             _check_free(self.bind, port, option)
 
@@ -216,14 +219,15 @@ class WebServer:
         try:
             with open(log, "ab") as out:
                 self._proc = subprocess.Popen(
-                    [rerun_executable(), "--serve-web", "--bind", s.bind, "--port", str(s.grpc_port), "--web-viewer-port", str(s.web_port),
-                     str(self._path.resolve())],
+                    [rerun_executable(), "--serve-web", "--bind", s.bind, "--port", str(s.grpc_port),
+                     "--web-viewer-port", str(s.web_port), str(self._path.resolve())],
                     stdin=subprocess.DEVNULL, stdout=out, stderr=out, start_new_session=True,
                     env={**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "warn"), "TMPDIR": self._dir.name})
             deadline = time.monotonic() + self._timeout_s
             while not all(_accepts(s.host, port) for port in (s.grpc_port, s.web_port)):
                 if self._proc.poll() is not None or time.monotonic() > deadline:
-                    tail = [line for line in log.read_text(errors="replace").splitlines() if line.strip()][-1:] or ["no output"]
+                    tail = ([line for line in log.read_text(errors="replace").splitlines() if line.strip()][-1:]
+                            or ["no output"])
                     raise ToolFailure(f"the Rerun web viewer did not start ({tail[0].strip()[:200]})")
                 time.sleep(0.1)
         except BaseException:
@@ -263,4 +267,5 @@ def _check_free(bind: str, port: int, option: str) -> None:
         try:
             s.bind((bind, port))
         except OSError:
-            raise ToolFailure(f"{option} {port}: the port is in use on {bind} (another viewer or server?); choose another with {option}") from None
+            raise ToolFailure(f"{option} {port}: the port is in use on {bind} (another viewer or server?); choose "
+                              f"another with {option}") from None

@@ -120,7 +120,8 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
     ok = w.truth_ok
     data = {
         ent.DISPLACEMENTS: [w.gnss_disp_m[ok], *(e.disp_m for e in result.estimates.values())],
-        ent.YAW_RATES: [drive.yaw_rate_radps, w.gnss_yaw_rate_radps[ok], *(e.yaw_rate_radps for e in result.estimates.values())],
+        ent.YAW_RATES: [drive.yaw_rate_radps, w.gnss_yaw_rate_radps[ok],
+                        *(e.yaw_rate_radps for e in result.estimates.values())],
         ent.ACCEL: [drive.accel_long_mps2],
     }
     out = {}
@@ -179,10 +180,12 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     layers = Layers(rec, send, lat0, lon0, truth_ll, truth_xy, usable)
 
     colors = {**estimator_colors(result.estimators), "gnss": GNSS_COLOR, "gyro": GYRO_COLOR}
-    labels = {**{e.name: e.label for e in result.estimators}, "gnss": REFERENCE_LABEL if drive.has_reference else GNSS_LABEL,
-              "gyro": GYRO_LABEL}
+    labels = {**{e.name: e.label for e in result.estimators},
+              "gnss": REFERENCE_LABEL if drive.has_reference else GNSS_LABEL, "gyro": GYRO_LABEL}
     _log_series_styles(rec, list(result.estimates), colors, labels)
-    rec.log(ent.KEY, rr.TextDocument(key_markdown(result, colors, labels, bool(events)), media_type=rr.MediaType.MARKDOWN), static=True)
+    rec.log(ent.KEY,
+            rr.TextDocument(key_markdown(result, colors, labels, bool(events)), media_type=rr.MediaType.MARKDOWN),
+            static=True)
     rows[ent.KEY] = 1
     _log_static_layers(layers, drive, summary_md)
     step("static layers")
@@ -196,7 +199,8 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     starts = result.starts
     if len(starts):
         # every estimate's tracks in the local frame, (seq, win+1, 2): projected once
-        tracks_xy = {name: screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0)) for name, e in result.estimates.items()}
+        tracks_xy = {name: screen_xy(*local_en_m(e.track.lat_deg, e.track.lon_deg, lat0, lon0))
+                     for name, e in result.estimates.items()}
         log_outage_frames(layers, result, tracks_xy)
         t_win = t_end[idx].ravel()
         t_rows = _outage_times(result.windows.t0_s[starts], t_win.reshape(len(starts), result.n_windows))
@@ -216,8 +220,9 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
     synthetic = len(starts) > 0
     shown = {ent.DRIFT: synthetic, ent.error_group("crse_m"): synthetic, ent.HEALTH: health,
              ent.UNCERTAINTY: synthetic and any(e.pos_cov_m2 is not None for e in result.estimates.values())}
-    rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable], drive.lon_deg[usable],
-                                        y_ranges(result), frozenset(k for k, v in shown.items() if v)))
+    rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable],
+                                        drive.lon_deg[usable], y_ranges(result),
+                                        frozenset(k for k, v in shown.items() if v)))
     return rows
 
 
@@ -228,10 +233,12 @@ def _log_series_styles(rec, estimators: list[str], colors: dict, labels: dict[st
     for est in ["gyro", "gnss", *estimators]:
         rec.log(ent.yaw_rate(est), rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]), static=True)
     for est in ["gnss", *estimators]:
-        rec.log(ent.displacement(est), rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]), static=True)
+        rec.log(ent.displacement(est), rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[1.5]),
+                static=True)
     for est in estimators:
         for metric in ent.ERROR_METRICS:
-            rec.log(ent.error_series(metric, est), rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[2.0]), static=True)
+            rec.log(ent.error_series(metric, est),
+                    rr.SeriesLines(colors=[colors[est]], names=[labels[est]], widths=[2.0]), static=True)
     rec.log(ent.ACCEL, rr.SeriesLines(colors=[GYRO_COLOR], names=["accelerometer"]), static=True)
     rec.log(ent.SPEED, rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS speed"]), static=True)
     rec.log(ent.GNSS_AVAILABLE, rr.SeriesLines(colors=[GNSS_COLOR], names=["GNSS available"]), static=True)
@@ -246,20 +253,25 @@ def _log_static_layers(layers: Layers, drive, summary_md: str) -> None:
     good_runs, bad_runs = truth_runs(drive.gnss_ok, usable)
     # The truth is drawn wide underneath, the overview layers thin, the growing tracks wide on top.
     # The whole drive's truth is faint: the current outage's (``*/gnss/outage``) is drawn wide on top.
-    rec.log(ent.truth(ent.MAP), rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in good_runs], colors=[faded(GNSS_COLOR, 0.6)],
-                                           radii=rr.Radius.ui_points(2.5)), static=True)
-    rec.log(ent.truth(ent.LOCAL), rr.LineStrips2D([truth_xy[a:b] for a, b in good_runs], colors=[faded(GNSS_COLOR, 0.6)],
-                                          radii=rr.Radius.ui_points(2.5), draw_order=10), static=True)
+    rec.log(ent.truth(ent.MAP), rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in good_runs],
+                                                  colors=[faded(GNSS_COLOR, 0.6)], radii=rr.Radius.ui_points(2.5)),
+            static=True)
+    rec.log(ent.truth(ent.LOCAL), rr.LineStrips2D([truth_xy[a:b] for a, b in good_runs],
+                                                  colors=[faded(GNSS_COLOR, 0.6)], radii=rr.Radius.ui_points(2.5),
+                                                  draw_order=10), static=True)
     log_grid(rec, truth_xy[usable])
     if bad_runs:
-        rec.log(ent.truth_bad(ent.MAP), rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in bad_runs], colors=[BAD_GNSS_COLOR],
-                                                  radii=rr.Radius.ui_points(1.5)), static=True)
+        rec.log(ent.truth_bad(ent.MAP), rr.GeoLineStrings(lat_lon=[truth_ll[a:b] for a, b in bad_runs],
+                                                          colors=[BAD_GNSS_COLOR], radii=rr.Radius.ui_points(1.5)),
+                static=True)
         rec.log(ent.truth_bad(ent.LOCAL), rr.LineStrips2D([truth_xy[a:b] for a, b in bad_runs], colors=[BAD_GNSS_COLOR],
                                                   radii=rr.Radius.ui_points(1.5), draw_order=11), static=True)
     if drive.has_reference:  # the receiver's fixes the estimators were given, as small dots beside the truth
         rx_ll = np.column_stack([drive.columns["gnss_lat_deg"], drive.columns["gnss_lon_deg"]])
         rx_east, rx_north = local_en_m(rx_ll[:, 0], rx_ll[:, 1], layers.lat0, layers.lon0)
-        rec.log(ent.receiver(ent.MAP), rr.GeoPoints(lat_lon=rx_ll[usable], colors=[RECEIVER_COLOR], radii=rr.Radius.ui_points(1.5)), static=True)
+        rec.log(ent.receiver(ent.MAP),
+                rr.GeoPoints(lat_lon=rx_ll[usable], colors=[RECEIVER_COLOR], radii=rr.Radius.ui_points(1.5)),
+                static=True)
         rec.log(ent.receiver(ent.LOCAL), rr.Points2D(screen_xy(rx_east, rx_north)[usable], colors=[RECEIVER_COLOR],
                                                      radii=rr.Radius.ui_points(1.5), draw_order=9), static=True)
     rec.log(ent.SUMMARY, rr.TextDocument(summary_md, media_type=rr.MediaType.MARKDOWN), static=True)
@@ -272,10 +284,13 @@ def _log_signals(layers: Layers, drive) -> None:
     send, usable = layers.send, layers.usable
     t = drive.t_s
     tu, nu = t[usable], int(usable.sum())
-    send(ent.truth_position(ent.MAP), tu, rr.GeoPoints.columns(positions=layers.truth_ll[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
+    send(ent.truth_position(ent.MAP), tu, rr.GeoPoints.columns(positions=layers.truth_ll[usable],
+                                                               colors=np.tile(GNSS_COLOR, (nu, 1)),
                                                                radii=np.full(nu, -6.0)))
-    send(ent.truth_position(ent.LOCAL), tu, rr.Points2D.columns(positions=layers.truth_xy[usable], colors=np.tile(GNSS_COLOR, (nu, 1)),
-                                                                radii=np.full(nu, -TRUTH_DOT_PT), draw_order=np.full(nu, TRUTH_END_ORDER)))
+    send(ent.truth_position(ent.LOCAL), tu, rr.Points2D.columns(positions=layers.truth_xy[usable],
+                                                                colors=np.tile(GNSS_COLOR, (nu, 1)),
+                                                                radii=np.full(nu, -TRUTH_DOT_PT),
+                                                                draw_order=np.full(nu, TRUTH_END_ORDER)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
     log_state_styles(layers.rec, ent.GNSS_QUALITY, [str(q) for q in quality[change]], t[change], float(t[-1]))
@@ -303,7 +318,8 @@ def _log_outage_states(rec, send, result: DriveResult) -> tuple[np.ndarray, np.n
     for b in result.bridged:  # the log's own GNSS losses, bridged: no GNSS there either
         available[b.start : b.start + b.n_windows] = 0.0
     t_state = np.concatenate([w.t0_s, [t_end[-1]]]) if len(w) else np.zeros(0)
-    send(ent.GNSS_AVAILABLE, t_state, rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
+    send(ent.GNSS_AVAILABLE, t_state,
+         rr.Scalars.columns(scalars=np.concatenate([available, [available[-1]]]) if len(w) else available))
     states = np.full(len(w), ent.GNSS_AVAILABLE_STATE, dtype=object)
     for mask in np.unique(w.receiver_fault[w.receiver_fault != 0]):  # beside a reference: the estimators' GNSS lost
         states[w.receiver_fault == mask] = ent.receiver_lost_state(fault_names(int(mask)))
@@ -312,7 +328,8 @@ def _log_outage_states(rec, send, result: DriveResult) -> tuple[np.ndarray, np.n
     for b in result.bridged:
         states[b.start : b.start + b.n_windows] = ent.real_outage_state(b.number, b.gap_t0_s, b.gap_t1_s)
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
-    log_state_styles(rec, ent.GNSS_STATE, [str(s) for s in states[change]], w.t0_s[change], float(t_end[-1]) if len(w) else 0.0)
+    log_state_styles(rec, ent.GNSS_STATE, [str(s) for s in states[change]], w.t0_s[change],
+                     float(t_end[-1]) if len(w) else 0.0)
     send(ent.GNSS_STATE, w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
     return t_end, idx
 
@@ -343,7 +360,8 @@ def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy
     # per outage the start point alone (clears the previous outage's track), then the
     # strip of points 0..k at each window's end (rows as :func:`_outage_times`)
     send(ent.live_track(ent.MAP, name), t_rows, rr.GeoLineStrings.columns(
-        line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, wide)))
+        line_strings=columns.geo_line_strings(*columns.growing(ll)), colors=np.tile(color, (n_rows, 1)),
+        radii=np.full(n_rows, wide)))
     # stacked by the outage's errors: the worst underneath and widest, so that each track shows a rim of its colour
     radii = track_radii_pt(order, len(result.estimates))
     send(ent.live_track(ent.LOCAL, name), t_rows, rr.LineStrips2D.columns(
@@ -356,11 +374,14 @@ def _log_estimate(layers: Layers, result: DriveResult, name: str, est, color, xy
     # the estimate's current position: visible where tracks along the same road cover each other
     for entity, points in ((ent.inspect_position(name), rel), (ent.local_position(name), xy)):
         send(entity, t_rows, rr.Points2D.columns(
-            positions=points.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(END_DOT_PT)),
-            draw_order=END_ORDER + order))
+            positions=points.reshape(-1, 2), colors=np.tile(color, (n_rows, 1)),
+            radii=np.full(n_rows, rr.Radius.ui_points(END_DOT_PT)), draw_order=END_ORDER + order))
     faint = faded(color)
-    rec.log(ent.all_tracks(ent.MAP, name), rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin), static=True)
-    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)), colors=[faint], radii=thin,
+    rec.log(ent.all_tracks(ent.MAP, name),
+            rr.GeoLineStrings(lat_lon=columns.geo_line_strings(*columns.stacked(ll)), colors=[faint], radii=thin),
+            static=True)
+    rec.log(ent.all_tracks(ent.LOCAL, name), rr.LineStrips2D(columns.line_strips_2d(*columns.stacked(xy)),
+                                                             colors=[faint], radii=thin,
                                                              draw_order=20 + float(np.mean(stack))), static=True)
     w, starts, n_win = result.windows, result.starts, result.n_windows
     series = {ent.displacement(name): est.disp_m, ent.yaw_rate(name): est.yaw_rate_radps}
@@ -383,8 +404,8 @@ def _log_truth_position(layers: Layers, result: DriveResult, t_rows: np.ndarray)
     xy = layers.xy(lat.ravel(), lon.ravel()).reshape(len(starts), n_win + 1, 2)
     n_rows = len(t_rows)
     layers.send(ent.INSPECT_TRUTH_POSITION, t_rows, rr.Points2D.columns(
-        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)), radii=np.full(n_rows, rr.Radius.ui_points(TRUTH_DOT_PT)),
-        draw_order=np.full(n_rows, TRUTH_END_ORDER)))
+        positions=(xy - xy[:, :1]).reshape(-1, 2), colors=np.tile(GNSS_COLOR, (n_rows, 1)),
+        radii=np.full(n_rows, rr.Radius.ui_points(TRUTH_DOT_PT)), draw_order=np.full(n_rows, TRUTH_END_ORDER)))
 
 
 def truth_runs(good: np.ndarray, usable: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
@@ -428,6 +449,8 @@ def _check_written(path: Path, target: Path) -> None:
         with utf8_alias(path) as readable:
             ok = len(rrd_reader(readable).recordings()) == 1
     except Exception as exc:  # the reader's errors are not one class
-        raise ToolFailure(f"{target}: the written recording does not read back ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); is the disk full?") from None
+        raise ToolFailure(f"{target}: the written recording does not read back "
+                          f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); is the disk full?"
+                          ) from None
     if not ok:
         raise ToolFailure(f"{target}: the written recording holds no recording; is the disk full?")

@@ -66,17 +66,21 @@ class RecordingInfo:
     path: Path
     drive: str
     end_s: float
-    states: list[tuple[float, float, str]]  # (start s, end s, label) of every outage state, real ones too, and receiver losses
+    # (start s, end s, label) of every outage state, real ones too, and receiver losses
+    states: list[tuple[float, float, str]]
     outages: list[OutageInfo]  # the synthetic outages
     lat_deg: np.ndarray  # the GNSS track
     lon_deg: np.ndarray
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # name -> (label, colour)
     truth_label: str = GNSS_LABEL  # what the green track is: the GNSS fixes, or a reference beside them
-    plots: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # time plot origin -> (t s, value), every line
+    # time plot origin -> (t s, value), every line
+    plots: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     ellipses: set[str] = field(default_factory=set)  # the estimators whose 95 % ellipses are drawn
     warned: bool = False  # whether the summary tab lists warnings (a line more)
-    health: list[tuple[str, tuple[int, int, int]]] = field(default_factory=list)  # the filter-health lines (label, colour)
-    real_outages: list[OutageInfo] = field(default_factory=list)  # the log's own GNSS losses, bridged (replay --on gnss-outage)
+    # the filter-health lines (label, colour)
+    health: list[tuple[str, tuple[int, int, int]]] = field(default_factory=list)
+    # the log's own GNSS losses, bridged (replay --on gnss-outage)
+    real_outages: list[OutageInfo] = field(default_factory=list)
     receiver: bool = False  # whether the receiver's own fixes are drawn beside a reference (--truth-topic)
 
     @property
@@ -181,7 +185,8 @@ def read_recording_info(path: Path) -> RecordingInfo:
 def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
     scan = _scan_chunks(path, _chunks(path, readable))
     if not scan.states:
-        raise InputError(f"{path}: not an ionav-viz replay recording (no /{ent.GNSS_STATE})", "make one with 'ionav-viz replay DRIVE'")
+        raise InputError(f"{path}: not an ionav-viz replay recording (no /{ent.GNSS_STATE})",
+                         "make one with 'ionav-viz replay DRIVE'")
     scan.states.sort()
     spans = []
     for i, (t, label) in enumerate(scan.states):
@@ -190,14 +195,17 @@ def _read_recording_info(path: Path, readable: Path) -> RecordingInfo:
             spans.append((float(t), float(nxt), label))
     outages = _outages(spans, scan.errors, scan.drawn)
     ll = np.concatenate(scan.track) if scan.track else np.zeros((0, 2))
-    plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])) for o, parts in scan.plots.items()}
-    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators, scan.truth_label, plots,
-                         scan.ellipses, scan.warned, list(scan.health.values()), _real_outages(spans, scan), scan.receiver)
+    plots = {o: (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+             for o, parts in scan.plots.items()}
+    return RecordingInfo(path, scan.drive, scan.end_s, spans, outages, ll[:, 0], ll[:, 1], scan.estimators,
+                         scan.truth_label, plots, scan.ellipses, scan.warned, list(scan.health.values()),
+                         _real_outages(spans, scan), scan.receiver)
 
 
 def _unreadable(path: Path, exc: Exception) -> InputError:
     """The error for a file Rerun's reader cannot read (its errors are of various classes)."""
-    return InputError(f"{path}: not a readable Rerun recording ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+    return InputError(f"{path}: not a readable Rerun recording "
+                      f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
                       "make one with 'ionav-viz replay DRIVE'")
 
 
@@ -245,14 +253,19 @@ class _Scan:
     track: list[np.ndarray] = field(default_factory=list)  # the truth's positions (lat, lon), per chunk
     estimators: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # label, colour
     truth_label: str = GNSS_LABEL
-    plots: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # plot origin -> (t, value) per chunk
-    errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # position error (t, m) per chunk
+    # plot origin -> (t, value) per chunk
+    plots: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+    # position error (t, m) per chunk
+    errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
     drawn: dict[str, _Rows] = field(default_factory=dict)  # each outage frame's rows
     ellipses: set[str] = field(default_factory=set)
     warned: bool = False
-    health: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)  # NIS line entity -> (label, colour)
-    real_errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # real losses' final errors (t, m)
-    real_tracks: dict[tuple[str, str], list[np.ndarray]] = field(default_factory=dict)  # (view, est) -> a track per real loss
+    # NIS line entity -> (label, colour)
+    health: dict[str, tuple[str, tuple[int, int, int]]] = field(default_factory=dict)
+    # real losses' final errors (t, m)
+    real_errors: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
+    # (view, est) -> a track per real loss
+    real_tracks: dict[tuple[str, str], list[np.ndarray]] = field(default_factory=dict)
     end_fixes: dict[str, np.ndarray] = field(default_factory=dict)  # view -> the first good fix after each real loss
     receiver: bool = False
 
@@ -274,7 +287,8 @@ class _Scan:
             for n in names:
                 if n.endswith(":name"):
                     values = [v for v in batch.column(n).to_pylist() if v]
-                    self.drive = str(values[0][0] if isinstance(values[0], list) else values[0]) if values else self.drive
+                    self.drive = (str(values[0][0] if isinstance(values[0], list) else values[0])
+                                  if values else self.drive)
             return
         if chunk.is_static and entity.strip("/").startswith(ent.HEALTH + "/") and "/nis/" in entity:
             self.health[entity] = _series_style(batch)
@@ -286,10 +300,12 @@ class _Scan:
         parts = entity.strip("/").split("/")
         if chunk.is_static and len(parts) == 3 and parts[0] in (ent.LOCAL, ent.MAP):
             if entity.strip("/") == ent.real_outage_tracks(parts[0], parts[1]):
-                self.real_tracks[(parts[0], parts[1])] = _strips(batch, _column(path, entity, names, ":strips", ":line_strings"))
+                self.real_tracks[(parts[0], parts[1])] = _strips(
+                    batch, _column(path, entity, names, ":strips", ":line_strings"))
             elif entity.strip("/") == ent.end_fixes(parts[0]):
-                self.end_fixes[parts[0]] = np.asarray(batch.column(_column(path, entity, names, ":positions")).flatten().flatten(),
-                                                      dtype=np.float64).reshape(-1, 2)
+                self.end_fixes[parts[0]] = np.asarray(
+                    batch.column(_column(path, entity, names, ":positions")).flatten().flatten(),
+                    dtype=np.float64).reshape(-1, 2)
             return
         if chunk.is_static or "time" not in names:
             return
@@ -332,7 +348,8 @@ def _scan_chunks(path: Path, chunks) -> _Scan:
     except Exception as exc:  # values of other types or shapes than ionav-viz logs (pyarrow's errors are not one class)
         if not entity:
             raise _unreadable(path, exc) from None
-        raise InputError(f"{path}: {entity} is not laid out as ionav-viz logs it ({type(exc).__name__}: {str(exc)[:120]})",
+        raise InputError(f"{path}: {entity} is not laid out as ionav-viz logs it ({type(exc).__name__}: "
+                         f"{str(exc)[:120]})",
                          "replay the drive again with this version of ionav-viz") from None
     return scan
 
@@ -353,8 +370,8 @@ def _outages(spans: list[tuple[float, float, str]], errors: dict[str, list[tuple
         local = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith(ent.LOCAL + "/")]
         geo = [rows.last_in(start, end) for key, rows in drawn.items() if key.startswith(ent.MAP + "/")]
         ll = np.concatenate(geo) if geo else np.zeros((0, 2))
-        outages.append(OutageInfo(len(outages) + 1, start, end, final, np.concatenate(local) if local else np.zeros((0, 2)),
-                                  ll[:, 0], ll[:, 1]))
+        outages.append(OutageInfo(len(outages) + 1, start, end, final,
+                                  np.concatenate(local) if local else np.zeros((0, 2)), ll[:, 0], ll[:, 1]))
     return outages
 
 
@@ -373,12 +390,14 @@ def _real_outages(spans: list[tuple[float, float, str]], scan: _Scan) -> list[Ou
             final[name] = float(v[k]) if k is not None else float("nan")
         drawn = {}
         for view in (ent.LOCAL, ent.MAP):
-            tracks = [strips[number - 1] for (v, _), strips in scan.real_tracks.items() if v == view and len(strips) >= number]
+            tracks = [strips[number - 1] for (v, _), strips in scan.real_tracks.items() if v == view and
+                      len(strips) >= number]
             ends = scan.end_fixes.get(view, np.zeros((0, 2)))
-            bar = [rows.last_in(start, end) for key, rows in scan.drawn.items() if key == ent.LOCAL_SCALE and view == ent.LOCAL]
+            bar = [rows.last_in(start, end) for key, rows in scan.drawn.items() if key == ent.LOCAL_SCALE and
+                   view == ent.LOCAL]
             drawn[view] = np.concatenate([*tracks, ends[number - 1 : number], *bar, np.zeros((0, 2))])
-        outages.append(OutageInfo(number, start, end, final, drawn[ent.LOCAL], drawn[ent.MAP][:, 0], drawn[ent.MAP][:, 1],
-                                  real=True, label=label))
+        outages.append(OutageInfo(number, start, end, final, drawn[ent.LOCAL], drawn[ent.MAP][:, 0],
+                                  drawn[ent.MAP][:, 1], real=True, label=label))
     return outages
 
 
@@ -409,7 +428,8 @@ def _column(path: Path, entity: str, names: list[str], *suffixes: str) -> str:
     not written by this version of ionav-viz (or was crafted)."""
     found = next((n for n in names if n.endswith(suffixes)), None)
     if found is None:
-        raise InputError(f"{path}: {entity} holds no {' or '.join(s.lstrip(':') for s in suffixes)} (it is logged as another type)",
+        raise InputError(f"{path}: {entity} holds no {' or '.join(s.lstrip(':') for s in suffixes)} (it is logged as "
+                         "another type)",
                          "replay the drive again with this version of ionav-viz")
     return found
 
@@ -451,10 +471,11 @@ def report_json(path: Path) -> str:
             raise _unreadable(path, exc) from None
     if is_fleet_recording(path):
         raise InputError(f"{path}: a fleet overview (evaluate --fleet-rrd), which carries no report for the figures",
-                         "figures takes the fleet's report instead: 'ionav-viz evaluate DRIVES --json > fleet.json', then 'figures fleet.json'",
+                         "figures takes the fleet's report instead: 'ionav-viz evaluate DRIVES --json > fleet.json', "
+                         "then 'figures fleet.json'",
                          param="result")
-    raise InputError(f"{path}: the recording carries no report (made by an earlier ionav-viz?)", "replay the drive again, or give 'evaluate --json' output",
-                     param="result")
+    raise InputError(f"{path}: the recording carries no report (made by an earlier ionav-viz?)",
+                     "replay the drive again, or give 'evaluate --json' output", param="result")
 
 
 #: How a fleet overview's recording id starts (a replay's is its drive's name and outage length;

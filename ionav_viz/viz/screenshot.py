@@ -111,7 +111,8 @@ def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
         font = ImageFont.load_default(size=min(11, max(8, (band - 6) // 2 - 2)))
         head_w = font.getlength(head) + font.size if head else 0.0
         w = widths(font)
-        split = max(1, max((i for i in range(len(keys) + 1) if head_w + sum(w[:i]) <= room), default=1))  # what fits the first line
+        # what fits the first line
+        split = max(1, max((i for i in range(len(keys) + 1) if head_w + sum(w[:i]) <= room), default=1))
         line_h = (band - 4) / 2
         if head:
             draw.text((10, 2), head, fill=KEY_TEXT_RGB, font=font)
@@ -136,9 +137,11 @@ def resolve_time(spec: str, info: RecordingInfo, worst_of: str = BASELINE) -> tu
     try:
         t = parse_duration_s(spec, "time", allow_zero=True)
     except InputError as exc:  # named --time on the command line, with what else it takes
-        raise InputError(exc.message, "give a time into the drive (35s, 500ms, 1m), 'worst' or 'end'", param="times") from None
+        raise InputError(exc.message, "give a time into the drive (35s, 500ms, 1m), 'worst' or 'end'",
+                         param="times") from None
     if t > info.end_s + 1e-6:
-        raise InputError(f"time {spec}: after the end of the recording ({info.end_s:.1f} s)", "choose a time within the drive, 'worst' or 'end'", param="times")
+        raise InputError(f"time {spec}: after the end of the recording ({info.end_s:.1f} s)",
+                         "choose a time within the drive, 'worst' or 'end'", param="times")
     return t, None
 
 
@@ -154,7 +157,8 @@ def parse_size(text: str) -> tuple[int, int]:
 def check_size(width: int, height: int) -> tuple[int, int]:
     """An image size the viewer can render: 200 to 8192 pixels each way."""
     if not (200 <= width <= 8192 and 200 <= height <= 8192):
-        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels", param="size")
+        raise InputError(f"image size {width}x{height}: width and height must be between 200 and 8192 pixels",
+                         param="size")
     return width, height
 
 
@@ -179,7 +183,8 @@ def safe_stem(name: str) -> str:
 
 
 def render(recordings: list[Path], out: Path, times: list[str], views: list[str], size: tuple[int, int],
-           timeout_s: float = 120.0, progress=None, outages: Sequence[int] = (), worst_of: str = BASELINE) -> list[Path]:
+           timeout_s: float = 120.0, progress=None, outages: Sequence[int] = (),
+           worst_of: str = BASELINE) -> list[Path]:
     """Render every (recording, time or outage, view) combination with one headless viewer; returns the PNGs.
 
     ``times``: ``'35s'``, ``'end'`` or ``'worst'`` (the outage with the largest final position error
@@ -211,13 +216,15 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
     with made_folders(folder), HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
         tiles = map_tiles_reachable()  # once the viewer runs: a missing renderer is said first, alone
         if not tiles and any(v in ("map", "all") for v in views):
-            log.warning("map tiles cannot load (%s is unreachable): screenshots draw the local east-north view in the map's place", TILE_HOST)
+            log.warning("map tiles cannot load (%s is unreachable): screenshots draw the local east-north view in "
+                        "the map's place", TILE_HOST)
         for info, shots, paths in plans:
             viewer.open(info.path)
             for shot, path in zip(shots, paths):
                 frame = framing(info, shot.outage, size, shot.view)
                 x0, x1 = plot_window(shot.t_s, info.end_s)
-                extents = {o: plot_range(o, *e, pad=False) for o in MIN_Y_SPAN if (e := info.y_extent(o, x0 - PLOT_MARGIN_S, x1 + PLOT_MARGIN_S)) is not None}
+                extents = {o: plot_range(o, *e, pad=False) for o in MIN_Y_SPAN
+                           if (e := info.y_extent(o, x0 - PLOT_MARGIN_S, x1 + PLOT_MARGIN_S)) is not None}
                 try:
                     layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
                                              t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles, size=size,

@@ -5,10 +5,11 @@ colour-blind-safe palette (:data:`OKABE_ITO`; Okabe & Ito, "Color Universal Desi
 truth its bluish green, each built-in estimator one of the others (fixed in its class), a plug-in
 without a colour one of :data:`PALETTE`: yellow (no built-in's) while it is free, else one chosen
 by a stable hash of its name among the colours no other estimator of the run uses, so it keeps its
-colour from run to run (black is left out: unseen on the viewer's dark theme). Everything else that is coloured by kind (measurement kinds
-in the filter-health view, the states of the GNSS, outage and manoeuvre lanes, the manoeuvre
-dots) takes Paul Tol's "muted" scheme (:data:`TOL_MUTED`; Tol, "Colour Schemes", SRON, 2021), and
-marks that name no kind (grid, scale bars, outage starts, sensors) are grey.
+colour from run to run (black is left out: unseen on the viewer's dark theme). Everything else
+that is coloured by kind (measurement kinds in the filter-health view, the states of the GNSS,
+outage and manoeuvre lanes, the manoeuvre dots) takes Paul Tol's "muted" scheme
+(:data:`TOL_MUTED`; Tol, "Colour Schemes", SRON, 2021), and marks that name no kind (grid, scale
+bars, outage starts, sensors) are grey.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ OKABE_ITO: dict[str, RGB] = {
 #: Paul Tol's "muted" scheme, by name: what is coloured by kind and is no track.
 TOL_MUTED: dict[str, RGB] = {
     "rose": (204, 102, 119), "indigo": (51, 34, 136), "sand": (221, 204, 119), "dark green": (17, 119, 51),
-    "cyan": (136, 204, 238), "teal": (68, 170, 153), "olive": (153, 153, 51), "wine": (136, 34, 85), "purple": (170, 68, 153),
+    "cyan": (136, 204, 238), "teal": (68, 170, 153), "olive": (153, 153, 51), "wine": (136, 34, 85),
+    "purple": (170, 68, 153),
 }
 
 #: Colours of what is not an estimator: the truth (Okabe-Ito's green), the rest grey or Tol's.
@@ -45,8 +47,9 @@ SCALE_COLOR: RGB = (145, 145, 145)
 #: (alternating, so that consecutive ones are told apart), the log's own losses, the receiver lost
 #: beside a reference; the truth good or bad; each manoeuvre type, no manoeuvre.
 STATE_COLORS: dict[str, RGB] = {
-    "GNSS": (90, 90, 90), "outage": TOL_MUTED["indigo"], "outage alt": TOL_MUTED["purple"], "real outage": TOL_MUTED["wine"],
-    "receiver": TOL_MUTED["rose"], "good": (90, 90, 90), "bad": TOL_MUTED["rose"], "none": (60, 60, 60),
+    "GNSS": (90, 90, 90), "outage": TOL_MUTED["indigo"], "outage alt": TOL_MUTED["purple"],
+    "real outage": TOL_MUTED["wine"], "receiver": TOL_MUTED["rose"], "good": (90, 90, 90), "bad": TOL_MUTED["rose"],
+    "none": (60, 60, 60),
 }
 EVENT_STATE_COLORS: dict[str, RGB] = {
     "hard-brake": TOL_MUTED["rose"], "quick-accel": TOL_MUTED["olive"], "roundabout": TOL_MUTED["teal"],
@@ -115,5 +118,6 @@ def stacking(errors_m: dict[str, Any]) -> dict[str, Any]:
     err = np.stack([np.nan_to_num(np.asarray(errors_m[n], dtype=float), nan=np.inf) for n in names])  # (est, ...)
     order = np.argsort(-err, axis=0, kind="stable")  # worst first
     rank = np.empty_like(order)
-    np.put_along_axis(rank, order, np.arange(len(names)).reshape((-1,) + (1,) * (err.ndim - 1)) * np.ones_like(order), axis=0)
+    np.put_along_axis(rank, order, np.arange(len(names)).reshape((-1,) + (1,) * (err.ndim - 1)) * np.ones_like(order),
+                      axis=0)
     return {n: rank[i] / len(names) for i, n in enumerate(names)}

@@ -31,7 +31,8 @@ def ellipses_en_m(cov_m2: np.ndarray, scale: float = CHI2_2_95) -> np.ndarray:
     return np.einsum("...ij,pj->...pi", vectors * radii[..., None, :], unit)
 
 
-def log_uncertainty(layers, result, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray, t_windows: np.ndarray) -> None:
+def log_uncertainty(layers, result, name: str, est, color, xy: np.ndarray, t_rows: np.ndarray,
+                    t_windows: np.ndarray) -> None:
     """One estimator's ellipses (rows as its growing tracks: each outage's start, then every
     window's end) and its sigma-vs-error series (``t_windows``: each outage window's end time)."""
     import rerun as rr
@@ -73,6 +74,8 @@ def log_uncertainty_styles(rec, result, colors: dict, labels: dict[str, str]) ->
     for name, sol in result.estimates.items():
         if sol.pos_cov_m2 is None:
             continue
-        rec.log(ent.uncertainty_error(name), rr.SeriesLines(colors=[colors[name]], names=[f"{labels[name]}: error"], widths=[2.0]), static=True)
-        rec.log(ent.uncertainty_radius(name), rr.SeriesLines(colors=[faded(colors[name], 0.6)], names=[f"{labels[name]}: 95 % radius"],
-                                                              widths=[1.0]), static=True)
+        rec.log(ent.uncertainty_error(name),
+                rr.SeriesLines(colors=[colors[name]], names=[f"{labels[name]}: error"], widths=[2.0]), static=True)
+        rec.log(ent.uncertainty_radius(name),
+                rr.SeriesLines(colors=[faded(colors[name], 0.6)], names=[f"{labels[name]}: 95 % radius"], widths=[1.0]),
+                static=True)

@@ -92,8 +92,8 @@ class HeadlessViewer:
             port = free_port()
             with open(self.log_path, "ab") as log:
                 self.proc = subprocess.Popen(
-                    [rerun_executable(), "--headless", "--port", str(port), "--window-size", f"{self.width}x{self.height}",
-                     "--hide-welcome-screen", "--memory-limit", "25%"],
+                    [rerun_executable(), "--headless", "--port", str(port), "--window-size",
+                     f"{self.width}x{self.height}", "--hide-welcome-screen", "--memory-limit", "25%"],
                     stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
                     # TMPDIR: the viewer's own scratch folders go into ours and are removed with it
                     env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn"),
@@ -113,7 +113,8 @@ class HeadlessViewer:
                     time.sleep(0.2)
             if self.proc.poll() is None:
                 self._stop()
-                raise RendererMissing(f"the headless Rerun viewer did not answer within {min(30.0, self.timeout_s):.0f} s")
+                raise RendererMissing("the headless Rerun viewer did not answer within "
+                                      f"{min(30.0, self.timeout_s):.0f} s")
             if "Address already in use" not in self._log_tail():
                 self._raise_dead()
         self._raise_dead()
@@ -126,7 +127,8 @@ class HeadlessViewer:
 
     def _raise_dead(self) -> None:
         text = self._log_tail()
-        lines = [line for line in text.splitlines() if "panicked" in line or "adapter" in line.lower() or "Error" in line]
+        lines = [line for line in text.splitlines() if "panicked" in line or "adapter" in line.lower() or
+                 "Error" in line]
         why = lines[0].strip() if lines else f"exit code {self.proc.returncode if self.proc else '?'}"
         raise RendererMissing(
             f"the headless Rerun viewer could not render ({why[:200]}); on a machine without a GPU install "
@@ -142,7 +144,8 @@ class HeadlessViewer:
         except Exception as exc:
             if self.proc is not None and self.proc.poll() is not None:
                 self._raise_dead()
-            raise RendererMissing(f"the headless Rerun viewer failed during {method}: {str(exc).splitlines()[0][:200]}") from None
+            raise RendererMissing(f"the headless Rerun viewer failed during {method}: "
+                                  f"{str(exc).splitlines()[0][:200]}") from None
 
     def open(self, path: Path) -> None:
         """Open a recording and wait until it is the active one."""
@@ -156,14 +159,16 @@ class HeadlessViewer:
         # every image starts from the recording's own layout (shots change titles, framing, maximised view)
         self.base_blueprint = self.call("get_blueprint").blueprint
 
-    def show(self, blueprint: dict[str, Any], t_s: float | None, out: Path, finish: Callable[[Path], None] | None = None) -> None:
+    def show(self, blueprint: dict[str, Any], t_s: float | None, out: Path,
+             finish: Callable[[Path], None] | None = None) -> None:
         """Show the open recording with ``blueprint`` at ``t_s`` on the ``time`` timeline (None: a
         recording without one, all static) and save the image to ``out`` (atomically; ``finish``
         changes the image before it is moved in)."""
         self.call("set_blueprint", blueprint, of="recording")
         if t_s is not None:
             self.call("set_time", "time", duration=float(t_s), play_state="paused")
-        time.sleep(max(self.settle_s, self.toasts_gone_s - (time.monotonic() - self._answered)))  # let it draw at the new time
+        # let it draw at the new time
+        time.sleep(max(self.settle_s, self.toasts_gone_s - (time.monotonic() - self._answered)))
         with atomic_path(out, suffix=".tmp.png") as tmp, utf8_alias(tmp) as writable:
             self.call("save_screenshot", str(writable))
             if not tmp.is_file() or tmp.stat().st_size == 0:
