@@ -40,9 +40,10 @@ _EXPORTS = {
     "write_fleet_recording": "api", "FleetReport": "analysis.fleet", "Drive": "core.drive",
     "InputError": "core.errors", "ToolFailure": "core.errors", "Estimate": "nav.protocol",
     "EstimatorInputs": "nav.protocol", "Estimator": "nav.protocol", "EstimatorError": "nav.protocol",
-    "FilterHealth": "nav.protocol", "SensorBias": "nav.bias", "Tile": "experiment.outages", "Every": "experiment.outages",
-    "At": "experiment.outages", "Random": "experiment.outages", "AroundEvents": "experiment.outages", "cross_validate": "api",
-    "fine_tune_settings": "api", "ModelConfig": "learning.idnn", "EventThresholds": "analysis.events",
+    "FilterHealth": "nav.protocol", "SensorBias": "nav.bias", "Tile": "experiment.outages",
+    "Every": "experiment.outages", "At": "experiment.outages", "Random": "experiment.outages",
+    "AroundEvents": "experiment.outages", "cross_validate": "api", "fine_tune_settings": "api",
+    "ModelConfig": "learning.idnn", "EventThresholds": "analysis.events",
     "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
     "GnssLimits": "core.gnss_quality",
 }  # fmt: skip

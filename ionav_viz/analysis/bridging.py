@@ -65,9 +65,10 @@ def bridge_gnss_outages(drive: Drive, windows: Windows, gaps: Sequence[tuple[flo
                         estimators: Sequence[Estimator],
                         bias: SensorBias) -> tuple[list[BridgedOutage], dict[str, int]]:
     """Every estimator through each GNSS gap ``(last good fix s, first good fix s)``; returns the
-    bridged outages and how many gaps could not be bridged, per reason (:func:`~ionav_viz.experiment.outages.unbridged`). The
-    estimators are given the receiver's fixes (:meth:`~ionav_viz.core.drive.Drive.as_received`) and
-    scored against ``windows``, the truth (a reference where the drive has one)."""
+    bridged outages and how many gaps could not be bridged, per reason
+    (:func:`~ionav_viz.experiment.outages.unbridged`). The estimators are given the receiver's fixes
+    (:meth:`~ionav_viz.core.drive.Drive.as_received`) and scored against ``windows``, the truth (a
+    reference where the drive has one)."""
     geod = wgs84()
     received = drive.as_received()
     given = windows if received is drive else make_windows(received)

@@ -213,7 +213,8 @@ def replay_lengths(
     d = load_drive(drive, read)  # read once, replayed for every length
 
     def one(length: float) -> ReplayResult:
-        stem = Path(output).stem if output is not None else default_stem(d.name, read.span if read is not None else None)
+        stem = (Path(output).stem if output is not None
+                else default_stem(d.name, read.span if read is not None else None))
         name = f"{stem}-{length:g}s.rrd"
         target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
         return replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
