@@ -26,7 +26,13 @@ import tempfile
 from pathlib import Path
 
 from _cli import add_debug, output_file, run
-from results_table import command_line, held_out_drives, machine, wrap, write_atomically  # the same held-out cars as docs/results.md
+from results_table import (  # the same held-out cars as docs/results.md
+    command_line,
+    held_out_drives,
+    machine,
+    wrap,
+    write_atomically,
+)
 
 import ionav_viz as iv
 from ionav_viz.analysis.evaluate import evaluate_drive, improvement_pct, resolve_bias

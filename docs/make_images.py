@@ -55,7 +55,8 @@ def regenerate() -> dict:
     with tempfile.TemporaryDirectory(prefix="ionav-docs-") as tmp:
         folder = Path(tmp)
         replayed = iv.replay(DRIVE, OUTAGE_S, output=folder / "roundabout.rrd")
-        [hero] = iv.screenshot(replayed.path, folder / "hero.png", iv.Shots(times=("worst",), views=("all",), size=(1600, 900)))
+        [hero] = iv.screenshot(replayed.path, folder / "hero.png",
+                               iv.Shots(times=("worst",), views=("all",), size=(1600, 900)))
         shutil.copyfile(hero, DOCS / "review-roundabout.png")
         iv.figures(replayed.path, folder / "figures")
         shutil.copyfile(folder / "figures" / "drift.png", DOCS / "figure-drift.png")
@@ -71,7 +72,8 @@ def main() -> int:
     if args.check:
         recorded, now = json.loads(NUMBERS.read_text()), current_numbers()
         if recorded != now:
-            print(f"docs/images.json is out of date: run 'python docs/make_images.py'\n  recorded {recorded}\n  now      {now}", file=sys.stderr)
+            print(f"docs/images.json is out of date: run 'python docs/make_images.py'\n  recorded {recorded}\n"
+                  f"  now      {now}", file=sys.stderr)
             return 1
         print("docs/images.json matches the current code")
         return 0

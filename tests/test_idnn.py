@@ -10,7 +10,16 @@ import torch
 from ionav_viz.core.errors import InputError
 from ionav_viz.dataset.catalog import SCENARIOS
 from ionav_viz.dataset.samples import samples_dir
-from ionav_viz.learning.idnn import IdnnModel, MinMax, ModelConfig, Normalisation, build_net, kinematic_weights, load_model, save_model
+from ionav_viz.learning.idnn import (
+    IdnnModel,
+    MinMax,
+    ModelConfig,
+    Normalisation,
+    build_net,
+    kinematic_weights,
+    load_model,
+    save_model,
+)
 from ionav_viz.learning.training import FitSettings, fit_network, train_models, training_examples
 from ionav_viz.nav.bias import SensorBias
 from ionav_viz.sources.iovnbd import read_iovnbd

@@ -17,7 +17,14 @@ import pytest
 import ionav_viz as iv
 from ionav_viz.core.drive import IMU_COLUMNS, Drive
 from ionav_viz.core.errors import InputError
-from ionav_viz.sources.imu.mount import angles_deg, estimate_mount, format_mount, parse_mount, rotation_angle_deg, rotation_deg
+from ionav_viz.sources.imu.mount import (
+    angles_deg,
+    estimate_mount,
+    format_mount,
+    parse_mount,
+    rotation_angle_deg,
+    rotation_deg,
+)
 
 from .conftest import run_cli
 

@@ -14,7 +14,15 @@ from typing import Any
 from ..core.errors import InputError
 from ..core.fileio import check_regular_input
 from ..dataset.catalog import PAPER_TEST_RUNS, PAPER_TRAIN_RUNS, manifest, paper_role, parse_manifest, run_key, runs
-from ..dataset.fetch import VERIFIED_CACHE, VerifiedCache, base_url, configured_data_root, default_data_root, fetch_file, safe_target
+from ..dataset.fetch import (
+    VERIFIED_CACHE,
+    VerifiedCache,
+    base_url,
+    configured_data_root,
+    default_data_root,
+    fetch_file,
+    safe_target,
+)
 
 
 @dataclass(frozen=True)

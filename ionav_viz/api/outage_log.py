@@ -15,7 +15,17 @@ from ..experiment.outages import Placement
 from ..experiment.plan_file import FromPlan, PlanFile, checksum
 from ..nav.windows import make_windows
 from ..sources.load import ReadOptions, load_drive, open_message_log, source_kind
-from .options import DriveLike, RunOptions, check_event_types, input_paths, no_outage_fits, options_of, placement_of, too_short, windows_of
+from .options import (
+    DriveLike,
+    RunOptions,
+    check_event_types,
+    input_paths,
+    no_outage_fits,
+    options_of,
+    placement_of,
+    too_short,
+    windows_of,
+)
 from .pipeline import plan_outages
 from .simulation import vehicle_speed_for_log
 

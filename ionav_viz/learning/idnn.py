@@ -60,7 +60,14 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fileio import check_regular_input, read_json_bounded, refuse_system_output, staging_folder, swap_in_directory, write_failure
+from ..core.fileio import (
+    check_regular_input,
+    read_json_bounded,
+    refuse_system_output,
+    staging_folder,
+    swap_in_directory,
+    write_failure,
+)
 from ..core.grid import GRID_STEP_S, MIN_COURSE_SPEED_MPS, WINDOW_S
 from ..nav import history_check
 from ..nav.bias import SensorBias

@@ -36,7 +36,16 @@ from ..nav.planar_filter import calibration
 from ..nav.track import TrackCovariance
 from ..nav.windows import make_windows
 from .domain import Domain, domain_of
-from .idnn import IdnnModel, MinMax, ModelConfig, Normalisation, Uncertainty, build_net, count_parameters, sample_history
+from .idnn import (
+    IdnnModel,
+    MinMax,
+    ModelConfig,
+    Normalisation,
+    Uncertainty,
+    build_net,
+    count_parameters,
+    sample_history,
+)
 from .provenance import check_inputs, drive_record, input_record, seen_drives
 
 Progress = Callable[[str, int, int], None]

@@ -57,7 +57,27 @@ from .ins import dead_reckon
 from .kalman import UpdateLog
 from .protocol import REINITIALISED, Estimate, EstimatorInputs, FilterHealth
 from .stillness import drive_still
-from .strapdown import BAX, BGX, GINS_MEASUREMENTS, KO, N_NOMINAL, PSIM, PX, QW, SG, THM, VX, Earth, FilterInputs, FilterNoise, FilterSwitches, GinsNoise, earth_at, filter_outputs, run_filter
+from .strapdown import (
+    BAX,
+    BGX,
+    GINS_MEASUREMENTS,
+    KO,
+    N_NOMINAL,
+    PSIM,
+    PX,
+    QW,
+    SG,
+    THM,
+    VX,
+    Earth,
+    FilterInputs,
+    FilterNoise,
+    FilterSwitches,
+    GinsNoise,
+    earth_at,
+    filter_outputs,
+    run_filter,
+)
 from .track import rebuild_track
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows

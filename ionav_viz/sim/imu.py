@@ -72,7 +72,15 @@ from ..core.units import wrap_360
 from ..sources.imu.mount import rotation_deg
 from ..sources.iovnbd import HEADER
 from ..sources.mcap_writer import TRUTH_TOPIC, write_mcap
-from .simulate import SIMULATED_SCENARIOS, TRUTH_RATE_HZ, SensorModel, can_speeds, gauss_markov, grade_profile, plan_truth
+from .simulate import (
+    SIMULATED_SCENARIOS,
+    TRUTH_RATE_HZ,
+    SensorModel,
+    can_speeds,
+    gauss_markov,
+    grade_profile,
+    plan_truth,
+)
 
 
 @dataclass(frozen=True)

@@ -52,7 +52,14 @@ import numpy as np
 from ..analysis.drift import error_cdf
 from ..analysis.schema import schema_of
 from ..core.errors import InputError
-from ..core.fileio import check_output_folder, check_regular_input, parse_json_bounded, read_json_bounded, staging_folder, write_failure
+from ..core.fileio import (
+    check_output_folder,
+    check_regular_input,
+    parse_json_bounded,
+    read_json_bounded,
+    staging_folder,
+    write_failure,
+)
 from ..core.json_out import is_finite_number
 from ..core.signals import hold_signals
 from .style import GNSS_COLOR, GNSS_LABEL, REFERENCE_LABEL, estimator_colors, stacking

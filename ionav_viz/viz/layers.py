@@ -15,7 +15,17 @@ from ..core.geo import local_en_m
 from . import columns
 from . import entities as ent
 from .geometry import grid_strips, nice_step, padded_bounds, scale_bar, scale_bar_clear_of, scale_label, screen_xy
-from .style import EVENT_COLOR, EVENT_STATE_COLORS, GNSS_COLOR, GRID_COLOR, OUTAGE_MARK_COLOR, SCALE_COLOR, STATE_COLORS, faded, stacking
+from .style import (
+    EVENT_COLOR,
+    EVENT_STATE_COLORS,
+    GNSS_COLOR,
+    GRID_COLOR,
+    OUTAGE_MARK_COLOR,
+    SCALE_COLOR,
+    STATE_COLORS,
+    faded,
+    stacking,
+)
 
 #: Draw orders of the 2D views' marks: an estimator's mark adds its place in the stack of the
 #: outage (:func:`~ionav_viz.viz.style.stacking`, in [0, 1)) to its kind's: tracks, then the truth's

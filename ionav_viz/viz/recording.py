@@ -33,8 +33,34 @@ from .blueprints import blueprint, plot_range
 from .columns import with_breaks
 from .geometry import map_zoom, screen_xy
 from .health import log_health
-from .layers import END_DOT_PT, END_ORDER, TRACK_ORDER, TRUTH_DOT_PT, TRUTH_END_ORDER, Layers, log_drift, log_events, log_grid, log_outage_frames, log_real_outages, log_state_styles, track_radii_pt
-from .style import BAD_GNSS_COLOR, GNSS_COLOR, GNSS_LABEL, GYRO_COLOR, GYRO_LABEL, RECEIVER_COLOR, REFERENCE_LABEL, color_word, estimator_colors, faded, stacking
+from .layers import (
+    END_DOT_PT,
+    END_ORDER,
+    TRACK_ORDER,
+    TRUTH_DOT_PT,
+    TRUTH_END_ORDER,
+    Layers,
+    log_drift,
+    log_events,
+    log_grid,
+    log_outage_frames,
+    log_real_outages,
+    log_state_styles,
+    track_radii_pt,
+)
+from .style import (
+    BAD_GNSS_COLOR,
+    GNSS_COLOR,
+    GNSS_LABEL,
+    GYRO_COLOR,
+    GYRO_LABEL,
+    RECEIVER_COLOR,
+    REFERENCE_LABEL,
+    color_word,
+    estimator_colors,
+    faded,
+    stacking,
+)
 from .uncertainty import log_uncertainty, log_uncertainty_styles
 
 APP_ID = "ionav-viz"

@@ -20,7 +20,21 @@ from pathlib import Path
 from ..core.errors import InputError
 from ..core.fileio import made_folders
 from ..experiment.registry import BASELINE
-from .blueprints import MIN_Y_SPAN, PLOT_MARGIN_S, TOP_BAND_PX, VIEWS, KeyEntry, Shot, focus_blueprint, framing, key_for, plot_range, plot_window, shown_views, titles_for
+from .blueprints import (
+    MIN_Y_SPAN,
+    PLOT_MARGIN_S,
+    TOP_BAND_PX,
+    VIEWS,
+    KeyEntry,
+    Shot,
+    focus_blueprint,
+    framing,
+    key_for,
+    plot_range,
+    plot_window,
+    shown_views,
+    titles_for,
+)
 from .recording_info import OutageInfo, RecordingInfo, read_recording_info
 from .viewer import HeadlessViewer, RendererMissing
 
