@@ -44,8 +44,24 @@ def test_the_summary_says_what_its_counts_are(tuned):
     n = json.loads((tuned / "metadata.json").read_text())["training"]["n_examples"]
     assert f"trained idnn on 1 drive(s), {n} training examples (1 s windows every 0.1 s); trainable parameters" in stderr
     assert 1000 < n <= 1200  # about 10 a second over 120 s, less the validation tail
-    assert ("uncertainty: 11 overlapping outages of 60 s (one every 3 s, after a 30 s warm-up) in the training drives, "
-            "fewer than 30: no uncertainty fitted") in stderr
+    # 11 outages of 60 s, one every 3 s: 11 * 3 / 60 = 0.55 outages' worth of independent time
+    assert ("uncertainty: the parent's: the fine-tuning drives hold 11 overlapping outages of 60 s (one every 3 s), "
+            "about 0.6 independent, fewer than 30 to fit its own") in stderr
+
+
+def test_a_fine_tuned_model_too_short_to_fit_an_uncertainty_keeps_its_parents(tuned):
+    """Fine-tuned on 120 s, the model had no uncertainty at all (no covariance, nothing for the
+    review's ellipses or the out-of-domain widening to act on); on the corpus's robot log a fit on
+    the first half's 3 minutes held the second half's 30 s errors in its 95 % ellipse on 3 of 6
+    outages. It keeps the shipped model's, the same parameters and the same file's bytes."""
+    from ionav_viz.learning.idnn import UNCERTAINTY_FILE, default_model_dir, load_model
+
+    meta = json.loads((tuned / "metadata.json").read_text())
+    shipped = json.loads((default_model_dir() / "metadata.json").read_text())
+    assert meta["uncertainty"]["parameters"] == shipped["uncertainty"]["parameters"]
+    assert meta["uncertainty"]["inherited"].startswith("the parent's")
+    assert (tuned / UNCERTAINTY_FILE).read_bytes() == (default_model_dir() / UNCERTAINTY_FILE).read_bytes()
+    assert load_model(tuned).uncertainty is not None and "uncertainty_skipped" not in meta
 
 
 def test_fine_tuned_model_records_parent_span_checksum_and_imu(tuned):

@@ -184,7 +184,9 @@ def train(
                   f"the blend {means[f'{kept:g}']:.2f} m)", file=sys.stderr)
     print(f"validation MAE: displacement {val['disp_mae_m']:.3f} m, orientation rate "
           f"{val['yaw_rate_mae_radps']:.4f} rad/s", file=sys.stderr)
-    if (unc := model.metadata.get("uncertainty")) is not None:
+    if (unc := model.metadata.get("uncertainty")) is not None and "inherited" in unc:
+        print(f"uncertainty: {unc['inherited']}", file=sys.stderr)
+    elif unc is not None:
         inside = ", ".join(f"{100 * v:.0f} % at {k}" for k, v in unc["coverage_95"].items())
         print(f"uncertainty: the 95 % ellipse holds the training outages' position errors {inside}", file=sys.stderr)
     else:

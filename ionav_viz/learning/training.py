@@ -736,7 +736,7 @@ def _train(drives: list[tuple[Drive, SensorBias]], config: ModelConfig, meter: T
     if config.keep != "last":
         model.metadata["epoch_selection"] = _selection_record(selection, parent is not None, config.validation_tail)
     if uncertainty:
-        add_uncertainty(model, drives)
+        add_uncertainty(model, drives, parent)
     return model
 
 
@@ -842,7 +842,7 @@ def _fine_tune_cross_validated(drives: list[tuple[Drive, SensorBias]], config: M
     model.config = config
     model.metadata["hyperparameters"] = asdict(config)
     model.metadata["epoch_selection"] = selection
-    add_uncertainty(model, drives)
+    add_uncertainty(model, drives, parent)
     return model
 
 
@@ -1063,18 +1063,37 @@ def _selection_record(selection: dict[str, dict[str, Any]], fine_tuned: bool, ta
 MIN_UNCERTAINTY_OUTAGES = 30
 
 
-def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]]) -> IdnnModel:
+def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]],
+                    parent: IdnnModel | None = None) -> IdnnModel:
     """Fit ``model``'s uncertainty on ``drives`` (:func:`fit_uncertainty`) and set it with its record in
     the metadata; drives too short for :data:`MIN_UNCERTAINTY_OUTAGES` outages leave the model
-    without one (it then estimates no covariance), said in the metadata. The networks are unchanged."""
+    without one (it then estimates no covariance), said in the metadata. The networks are unchanged.
+
+    A fine-tuned model (``parent`` given) is fitted only on :data:`MIN_UNCERTAINTY_OUTAGES`
+    independent outages (the overlapping ones' total time over one outage's length); on fewer it
+    keeps its parent's uncertainty, said in the metadata's ``inherited``. A few minutes of one drive,
+    cut into outages that overlap 19 times in 20, fit seven parameters to what amounts to three or
+    four outages: too narrow on the rest of the drive. The parent's, fitted on its fleet, is the
+    better prior; the estimator's check on each drive's GNSS widens it where the drive says so."""
     import logging
 
     try:
         runs = outage_runs(model, drives)
     except InputError:
         runs = None
-    if runs is None or len(runs) < MIN_UNCERTAINTY_OUTAGES:
-        found = 0 if runs is None else len(runs)
+    found = 0 if runs is None else len(runs)
+    independent = found * UNCERTAINTY_STRIDE_WINDOWS / UNCERTAINTY_OUTAGE_WINDOWS
+    if parent is not None and parent.uncertainty is not None and independent < MIN_UNCERTAINTY_OUTAGES:
+        model.uncertainty = parent.uncertainty
+        model.metadata.pop("uncertainty_skipped", None)
+        model.metadata["uncertainty"] = {
+            **{k: v for k, v in parent.metadata.get("uncertainty", {}).items() if k not in ("file", "sha256")},
+            "inherited": (f"the parent's: the fine-tuning drives hold {found} overlapping outages of "
+                          f"{UNCERTAINTY_OUTAGE_WINDOWS * WINDOW_S:g} s (one every "
+                          f"{UNCERTAINTY_STRIDE_WINDOWS * WINDOW_S:g} s), about {independent:.1f} independent, "
+                          f"fewer than {MIN_UNCERTAINTY_OUTAGES} to fit its own")}
+        return model
+    if runs is None or found < MIN_UNCERTAINTY_OUTAGES:
         model.uncertainty = None
         model.metadata["uncertainty_skipped"] = (f"{found} overlapping outages of "
                                                  f"{UNCERTAINTY_OUTAGE_WINDOWS * WINDOW_S:g} s (one every "
