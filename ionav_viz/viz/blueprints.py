@@ -42,22 +42,32 @@ def column_fraction(origin: str) -> float:
 WEB_PAGE_PX = (1280, 720)
 #: What the web viewer's page keeps above and below the views: its top bar and the collapsed time panel.
 WEB_CHROME_PX = 66
-#: Seconds of the drive the time plots and the state timeline show across by default: the larger
-#: of the viewer's own window in a browser (64 s at any page width, measured) and a screenshot's
-#: (:data:`PLOT_WINDOW_S`, :data:`PLOT_MARGIN_S` after it and at most as much before it).
-TIMELINE_WINDOW_S = 68.0
 #: The narrowest image whose state labels must fit their spans: screenshots are made for 1024x576
 #: and larger, the web page for :data:`WEB_PAGE_PX`.
 NARROWEST_PX = 1024
 #: A state label's width in its lane: pixels per character and the padding around it (measured on renders).
 STATE_LABEL_PX_PER_CHAR, STATE_LABEL_PAD_PX = 7.0, 8.0
+#: The state timeline opens on the whole drive, with this share of the drive's length before its
+#: start and after its end: no span crosses the view's edge (the viewer draws a label from where its
+#: span enters the view and cuts it where the span ends: "cr" of "cruise"), and the ruler's first and
+#: last labels are whole.
+STATE_VIEW_PAD = 0.06
 
 
-def state_label_fits(label: str, span_s: float) -> bool:
-    """Whether the state label ``label`` shows whole in a span of ``span_s`` seconds of its lane at the
-    default zoom (:data:`TIMELINE_WINDOW_S` across the signals column) of the narrowest image
-    (:data:`NARROWEST_PX`): the viewer cuts a label at its span's end ("bra" of a 3 s brake)."""
-    px_per_s = NARROWEST_PX * column_fraction("/") / TIMELINE_WINDOW_S
+def state_view_s(end_s: float) -> tuple[float, float]:
+    """The state timeline's default time range (s) for a drive ending at ``end_s`` (its times
+    start at 0): the whole drive, :data:`STATE_VIEW_PAD` of it on either side."""
+    pad_s = STATE_VIEW_PAD * max(float(end_s), 1.0)
+    return -pad_s, float(end_s) + pad_s
+
+
+def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
+    """Whether the state label ``label`` shows whole in a span of ``span_s`` seconds of its lane in
+    its default view (:func:`state_view_s` of a drive ending at ``end_s``, across the signals column)
+    of the narrowest image (:data:`NARROWEST_PX`): the viewer cuts a label at its span's end ("bra"
+    of a 3 s brake)."""
+    t0_s, t1_s = state_view_s(end_s)
+    px_per_s = NARROWEST_PX * column_fraction("/") / (t1_s - t0_s)
     return len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= span_s * px_per_s
 
 
@@ -248,14 +258,16 @@ def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool =
 
 
 def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[float, float]] | None = None,
-              shown: frozenset[str] | None = None):
+              shown: frozenset[str] | None = None, end_s: float | None = None):
     """The default review layout: the outage inspector above the whole-drive local and map views,
     the signals, the errors and the summary; time plots with ``y_ranges`` (by origin) when given.
     ``shown``: which of :data:`OPTIONAL_VIEWS` hold data (None: all); the others are left out, so
     that no view opens empty (a run through the log's own losses alone has no CRSE, CAE or drift;
     one without a filter's covariance or health no sigma or NIS tab). Made for the page
     :data:`WEB_PAGE_PX`: titles that show in full there, the rows of :func:`web_signal_rows_px` and
-    :func:`web_error_rows_px` (the summary's table a row per estimator of ``labels``)."""
+    :func:`web_error_rows_px` (the summary's table a row per estimator of ``labels``). With the
+    drive's ``end_s``, the state timeline opens on the whole drive (:func:`state_view_s`)."""
+    import rerun as rr
     import rerun.blueprint as rrb
 
     ranges = y_ranges or {}
@@ -281,7 +293,9 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     signals = rrb.Vertical(
         rrb.TextDocumentView(origin=ent.KEY, name="Key", titlebar=False),
         rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
-                              name="GNSS, outages, manoeuvres"),
+                              name="GNSS, outages, manoeuvres", time_view=None if end_s is None else rrb.TimeAxis(
+                                  view_range=rr.TimeRange(*(rrb.TimeRangeBoundary.absolute(seconds=t)
+                                                            for t in state_view_s(end_s))))),
         plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
         plot(ent.ACCEL),
