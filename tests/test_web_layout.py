@@ -223,3 +223,36 @@ def test_the_inspectors_scale_label_is_inside_its_view(roundabout):
         [bar] = strips[ent.INSPECT_SCALE][t]
         rooms.append((view_bottom - bar[0][1]) * px_per_m)
     assert len(rooms) == 57 and min(rooms) >= SCALE_LABEL_PX, sorted(rooms)[:5]
+
+
+def test_every_time_plot_opens_on_the_whole_drive_with_labelled_y_ticks(hard_brake):
+    """On the page the layout is made for, every time plot opens on the whole drive, as the state
+    timeline (nothing scrolls with the time cursor, which cut the first tick's label at the view's
+    edge: "9m 30s"), and its y range has at least two labelled ticks at its height (the viewer
+    labels ticks a power of ten apart, and only :data:`TICK_PX` or more apart: its own fit of an
+    error plot 90 px high labelled only "0" of errors up to 9 m)."""
+    import math
+
+    from ionav_viz.viz.blueprints import TICK_PX, web_plot_px
+
+    _root, items = _layout(hard_brake)
+    _, _, end_s = _lanes(hard_brake)
+    reader, _, layout = _stores(hard_brake)
+    props = {}
+    for chunk in reader.stream(store=layout):
+        path = str(chunk.entity_path).strip("/").split("/")
+        if len(path) == 3 and path[0] == "view":
+            props.setdefault(f"view/{path[1]}", {}).update(_components(chunk))
+    heights = web_plot_px(4)
+    plots = {items[k]["space_origin"][0].strip("/"): k for k, v in items.items()
+             if v.get("class_identifier", [""])[0] == "TimeSeries"}
+    assert set(heights) <= set(plots) | {ent.UNCERTAINTY, ent.HEALTH}, set(heights) - set(plots)
+    for origin, key in plots.items():
+        view = props[key]["view_range"][0]
+        assert (view["start"] / 1e9, view["end"] / 1e9) == pytest.approx(state_view_s(end_s)), origin
+        if origin not in heights:  # sigma and NIS tabs: the viewer's own fit
+            continue
+        lo, hi = props[key]["range"][0]
+        labelled = max(sum(1 for _ in range(math.ceil(lo / 10.0 ** k), math.floor(hi / 10.0 ** k) + 1))
+                       for k in range(-4, 4) if heights[origin] * 10.0 ** k / (hi - lo) >= TICK_PX)
+        assert labelled >= 2, (origin, lo, hi, heights[origin])

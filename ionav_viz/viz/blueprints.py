@@ -47,18 +47,19 @@ WEB_CHROME_PX = 66
 NARROWEST_PX = 1024
 #: A state label's width in its lane: pixels per character and the padding around it (measured on renders).
 STATE_LABEL_PX_PER_CHAR, STATE_LABEL_PAD_PX = 7.0, 8.0
-#: The state timeline opens on the whole drive, with this share of the drive's length before its
-#: start and after its end: no span crosses the view's edge (the viewer draws a label from where its
-#: span enters the view and cuts it where the span ends: "cr" of "cruise"), and the ruler's first and
-#: last labels are whole.
-STATE_VIEW_PAD = 0.06
+#: The state timeline opens on the whole drive, with these shares of the drive's length as room
+#: before its start and after its end: no span crosses the view's edge (the viewer draws a label from
+#: where its span enters the view and cuts it where the span ends: "cr" of "cruise"), and the time
+#: plots' first and last tick labels, centred on their ticks, are whole.
+STATE_VIEW_PAD_BEFORE, STATE_VIEW_PAD_AFTER = 0.05, 0.05
 
 
 def state_view_s(end_s: float) -> tuple[float, float]:
-    """The state timeline's default time range (s) for a drive ending at ``end_s`` (its times
-    start at 0): the whole drive, :data:`STATE_VIEW_PAD` of it on either side."""
-    pad_s = STATE_VIEW_PAD * max(float(end_s), 1.0)
-    return -pad_s, float(end_s) + pad_s
+    """The state timeline's and the web page's time plots' default time range (s) for a drive ending
+    at ``end_s`` (its times start at 0): the whole drive, with :data:`STATE_VIEW_PAD_BEFORE` and
+    :data:`STATE_VIEW_PAD_AFTER` of it as room."""
+    length_s = max(float(end_s), 1.0)
+    return -STATE_VIEW_PAD_BEFORE * length_s, float(end_s) + STATE_VIEW_PAD_AFTER * length_s
 
 
 def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
@@ -266,13 +267,22 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     one without a filter's covariance or health no sigma or NIS tab). Made for the page
     :data:`WEB_PAGE_PX`: titles that show in full there, the rows of :func:`web_signal_rows_px` and
     :func:`web_error_rows_px` (the summary's table a row per estimator of ``labels``). With the
-    drive's ``end_s``, the state timeline opens on the whole drive (:func:`state_view_s`)."""
+    drive's ``end_s``, the state timeline and the time plots open on the whole drive
+    (:func:`state_view_s`). ``y_ranges`` are the data's: each plot's is widened to labelled ticks for its
+    height on the page (:func:`axis_range`, :func:`web_plot_px`)."""
     import rerun as rr
     import rerun.blueprint as rrb
 
-    ranges = y_ranges or {}
     has = (lambda origin: True) if shown is None else (lambda origin: origin in shown)
     n_estimators = len(labels)
+    # y ranges with at least three labelled ticks at the plots' heights on the page (the viewer's own fit
+    # labelled only "0" of errors from 0 to 9 m in a plot 90 px high)
+    heights = web_plot_px(n_estimators, has(ent.error_group("crse_m")))
+    ranges = {o: axis_range(*r, heights[o]) if o in heights else r for o, r in (y_ranges or {}).items()}
+    # every time view opens on the whole drive, as the state timeline: nothing scrolls with the time cursor,
+    # where the first tick's label was cut at the view's edge ("9m 30s" of "+9m 30s")
+    whole = None if end_s is None else rrb.TimeAxis(view_range=rr.TimeRange(
+        *(rrb.TimeRangeBoundary.absolute(seconds=t) for t in state_view_s(end_s))))
 
     # No legend on the time plots: Rerun draws it inside the plot, in a corner, where the curves of
     # a 60 s window pass sooner or later. The key above the signals names every line by its colour
@@ -280,7 +290,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     def plot(origin: str, name: str | None = None):
         return rrb.TimeSeriesView(origin=origin, name=name or PLOT_NAMES[origin],
                                   axis_y=rrb.ScalarAxis(range=ranges[origin]) if origin in ranges else None,
-                                  plot_legend=rrb.PlotLegend(visible=False))
+                                  axis_x=whole, plot_legend=rrb.PlotLegend(visible=False))
 
     tracks = rrb.Vertical(
         rrb.Spatial2DView(origin=ent.INSPECT, name=INSPECTOR_NAME),
@@ -293,9 +303,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     signals = rrb.Vertical(
         rrb.TextDocumentView(origin=ent.KEY, name="Key", titlebar=False),
         rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
-                              name="GNSS, outages, manoeuvres", time_view=None if end_s is None else rrb.TimeAxis(
-                                  view_range=rr.TimeRange(*(rrb.TimeRangeBoundary.absolute(seconds=t)
-                                                            for t in state_view_s(end_s))))),
+                              name="GNSS, outages, manoeuvres", time_view=whole),
         plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
         plot(ent.ACCEL),
@@ -306,7 +314,8 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
                      *(o for o in (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH) if has(o))]
     tab_names = _fit_tabs(tuple(error_origins), WEB_PAGE_PX[0] * column_fraction(ent.error_group("position_error_m")))
     views = {ent.DRIFT: rrb.Spatial2DView, ent.UNCERTAINTY: rrb.TimeSeriesView, ent.HEALTH: rrb.TimeSeriesView}
-    error_tabs = [plot(o, tab_names[o]) if o not in views else views[o](origin=o, name=tab_names[o])
+    error_tabs = [plot(o, tab_names[o]) if o not in views else
+                  views[o](origin=o, name=tab_names[o], **({} if o == ent.DRIFT else {"axis_x": whole}))
                   for o in error_origins]
     rows = [rrb.Tabs(*error_tabs, active_tab=0) if len(error_tabs) > 1 else plot(error_origins[0])]
     synthetic = has(ent.error_group("crse_m"))
@@ -367,7 +376,7 @@ WEB_KEY_PX, WEB_TIMELINE_PX = 84.0, 180.0
 #: How the time plots of a column share what the key, the timeline or the summary leave: the
 #: signals (displacement, yaw rate, acceleration) and the errors (position error, CRSE/CAE,
 #: orientation-rate CRSE).
-SIGNAL_PLOT_SHARES, ERROR_PLOT_SHARES = (3.0, 3.0, 2.0), (3.0, 3.0, 2.5)
+SIGNAL_PLOT_SHARES, ERROR_PLOT_SHARES = (3.0, 3.0, 2.5), (3.0, 3.0, 2.5)
 
 
 def _split(total_px: float, shares: tuple[float, ...]) -> tuple[float, ...]:
@@ -389,6 +398,18 @@ def web_error_rows_px(n_estimators: int, synthetic: bool = True) -> tuple[float,
     summary = min(summary_px(n_estimators), 0.5 * views)
     plots = _split(views - summary, ERROR_PLOT_SHARES) if synthetic else (views - summary,)
     return (*plots, summary)
+
+
+def web_plot_px(n_estimators: int, synthetic: bool = True) -> dict[str, float]:
+    """The height in pixels of each time plot's drawing area on the page :data:`WEB_PAGE_PX` (its row
+    of :func:`web_signal_rows_px` or :func:`web_error_rows_px`, less its title bar and time labels)."""
+    signals = dict(zip((ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL), web_signal_rows_px()[2:]))
+    error_rows = web_error_rows_px(n_estimators, synthetic)[:-1]
+    errors = {ent.error_group("position_error_m"): error_rows[0]}
+    if synthetic:
+        errors.update({ent.error_group("crse_m"): error_rows[1], ent.error_group("cae_m"): error_rows[1],
+                       ent.error_group("yaw_crse_radps"): error_rows[2]})
+    return {o: px - TITLE_BAR_PX - TIME_LABELS_PX for o, px in {**signals, **errors}.items()}
 
 
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.

@@ -140,9 +140,14 @@ def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray
 
 
 def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
-    """The signal plots' y ranges over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`:
-    a flat line still gets ticks). The error plots keep the viewer's own fit to what is shown: a
-    drive's worst outage would flatten every other one (screenshots set every plot's range)."""
+    """Each time plot's data range over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`
+    without padding: a flat line still gets ticks; the blueprint widens it to labelled ticks): the
+    signals, and the errors of the synthetic outages (the position error's with the log's own
+    losses' final errors). The web page's plots show the whole drive, so its worst outage sets the
+    error plots' range, as the viewer's own fit would (screenshots set every plot's range to what
+    they show)."""
+    from ..analysis.metrics import cumulative_errors
+
     drive, w = result.drive, result.windows
     ok = w.truth_ok
     data = {
@@ -151,11 +156,19 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
                         *(e.yaw_rate_radps for e in result.estimates.values())],
         ent.ACCEL: [drive.accel_long_mps2],
     }
+    if len(result.starts):
+        for est in result.estimates.values():
+            for metric, values in cumulative_errors(w, result.starts, result.n_windows, est).items():
+                data.setdefault(ent.error_group(metric), []).append(values)
+    if result.bridged:
+        data.setdefault(ent.error_group("position_error_m"), []).append(
+            [v for b in result.bridged for v in b.final_error_m.values()])
     out = {}
     for origin, parts in data.items():
         values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in parts])
         values = values[np.isfinite(values)]
-        out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)))
+        out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)),
+                                 pad=False)
     return out
 
 
