@@ -59,3 +59,53 @@ def test_scale_bars_read_on_a_dark_and_a_light_background():
     with both backgrounds (at least 60 levels from each)."""
     dark, light = 13, 248
     assert all(abs(c - dark) >= 60 and abs(c - light) >= 60 for c in SCALE_COLOR)
+
+
+def test_each_span_of_a_state_has_the_label_that_fits_it():
+    """The viewer gives a state value one label: with one value for every "bad" span, one short
+    bad span made the label of every bad span blank. Each span of a shared state now has its own
+    value (its times), so a long bad span reads "bad" beside a short one left blank, every span
+    in its kind's one colour, and the state read back is the state."""
+    import numpy as np
+
+    from ionav_viz.viz.layers import log_state_lane
+
+    logged, sent = {}, {}
+    rec = SimpleNamespace(log=lambda entity, arch, static: logged.update(
+        {entity: {b.component_descriptor().component.split(":")[-1]: b.as_arrow_array().to_pylist()
+                  for b in arch.as_component_batches()}}))
+    bad = ent.bad_truth_state(["frozen"])
+    states = [ent.GOOD_TRUTH_STATE, bad, ent.GOOD_TRUTH_STATE, bad, ent.GOOD_TRUTH_STATE]
+    times_s = np.array([0.0, 100.0, 101.0, 300.0, 500.0])  # a 1 s bad span, then a 200 s one, on a 600 s drive
+    log_state_lane(rec, lambda entity, t, cols: sent.update({entity: [
+        v for b in cols for v in b.as_arrow_array().to_pylist()]}), ent.GNSS_QUALITY, states, times_s, 600.0)
+    config = logged[ent.GNSS_QUALITY]
+    label = dict(zip(config["values"], config["labels"]))
+    color = dict(zip(config["values"], config["colors"]))
+    values = [v[0] if isinstance(v, list) else v for v in sent[ent.GNSS_QUALITY]]
+    assert len(set(values)) == 5 and [ent.base_state(v) for v in values] == states
+    assert [label[v] for v in values[1::2]] == [" ", "bad"]  # the short span blank, the long one labelled
+    assert len({color[v] for v in values[1::2]}) == 1 and len({color[v] for v in values[::2]}) == 1
+    assert values[1] == "bad: frozen, 100.0-101.0 s"
+
+
+def _contrast(a: int, b: int) -> float:
+    """WCAG's contrast ratio of two greys (0-255)."""
+    def lum(v: int) -> float:
+        c = v / 255
+        return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+    hi, lo = sorted((lum(a), lum(b)), reverse=True)
+    return (hi + 0.05) / (lo + 0.05)
+
+
+def test_scale_labels_contrast_on_both_themes_label_boxes():
+    """Rerun draws a label in its entity's colour on a box of the theme's: (239, 239, 239) on the
+    light theme, (28, 28, 28) on the dark one (measured on the served page). The scale bars' grey
+    (145) gave "20 m" 2.7:1 on the light box; the grey now is the one that reads best on both, at
+    least 3.8:1 on each (the most one colour can have on both boxes)."""
+    light_box, dark_box = 239, 28
+    assert all(c == SCALE_COLOR[0] for c in SCALE_COLOR)
+    grey = SCALE_COLOR[0]
+    assert min(_contrast(grey, light_box), _contrast(grey, dark_box)) >= 3.8
+    best = max(range(256), key=lambda v: min(_contrast(v, light_box), _contrast(v, dark_box)))
+    assert abs(grey - best) <= 3, best

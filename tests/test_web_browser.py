@@ -160,6 +160,9 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
             driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
             try:
                 driver.execute_cdp_cmd("Emulation.setEmulatedMedia", {"features": [{"name": "prefers-color-scheme", "value": theme}]})
+                # the page itself 1280x720 (--window-size counts the browser's own bars: the page was 1280x577)
+                driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": WINDOW_PX[0], "height": WINDOW_PX[1],
+                                                                             "deviceScaleFactor": 1, "mobile": False})
                 driver.set_page_load_timeout(HANG_S)
                 driver.get(url.group(1))
                 deadline = time.monotonic() + RENDER_TIMEOUT_S
@@ -186,6 +189,10 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
         for name, (_, least) in MIN_PIXELS.items():
             assert counts[theme][name] >= least, (f"{theme} theme, {name}: {counts[theme][name]} pixels of its colour after {elapsed_s:.0f} s "
                                                   f"(see {tmp_path / f'browser-{theme}.png'}; console: {severe[-3:]})")
+    for theme in THEMES:
+        from PIL import Image
+
+        assert Image.open(tmp_path / f"browser-{theme}.png").size == WINDOW_PX, theme
     assert hosts <= DOCUMENTED_HOSTS, f"the page asked hosts the README does not name: {sorted(hosts - DOCUMENTED_HOSTS)}"
     assert "tel.rerun.io" in hosts  # the README says the page sends usage events, opt-out or not
     assert code == 130 and "Traceback" not in server.stderr.read()

@@ -17,11 +17,12 @@ from ionav_viz.viz.blueprints import (
     STATE_LABEL_PX_PER_CHAR,
     TAB_BAR_ICONS_PX,
     TAB_EXTRA_PX,
-    TIMELINE_WINDOW_S,
     TITLE_ICONS_PX,
     TITLE_PX_PER_CHAR,
     WEB_CHROME_PX,
     WEB_PAGE_PX,
+    column_fraction,
+    state_view_s,
     summary_px,
 )
 
@@ -127,11 +128,10 @@ def test_every_title_shows_whole_on_the_page_the_layout_is_made_for(hard_brake):
     assert height[ent.OVERVIEW] >= summary_px(4), height[ent.OVERVIEW]  # INS DR, IDNN, odometry, GNSS-aided INS
 
 
-def test_every_state_label_fits_its_span(hard_brake):
-    """Each state's label fits the shortest span of that state at the default zoom of the narrowest
-    image (68 s across the signals column of 1024 px): a hard brake of 2-6 s shows its colour and
-    no label (the hover text names it), each 10 s outage its number."""
-    reader, recording, _ = _stores(hard_brake)
+def _lanes(path) -> tuple[dict, dict, float]:
+    """The state lanes of a recording: each lane's labels by value, its (time, value) changes, and the
+    recording's last time (s)."""
+    reader, recording, _ = _stores(path)
     lanes = (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE)
     labels, changes, end_s = {}, {lane: [] for lane in lanes}, 0.0
     for chunk in reader.stream(store=recording):
@@ -148,19 +148,46 @@ def test_every_state_label_fits_its_span(hard_brake):
         else:
             column = next(n for n in batch.schema.names if n.endswith(":state"))
             changes[entity] += zip(t_s, (v[0] for v in batch.column(column).to_pylist()))
-    px_per_s = NARROWEST_PX * 0.3 / TIMELINE_WINDOW_S  # the signals column: 3 of 10 shares
+    return labels, changes, end_s
+
+
+def test_every_state_label_fits_its_span(hard_brake):
+    """Each span's label fits that span in the state timeline's default view (the whole drive, with
+    the room :func:`state_view_s` leaves, across the signals column of the narrowest image, 1024 px):
+    a span shorter than its label shows its colour and no label (the hover text names it). Each span
+    has its own value, so that a short span of a state no longer blanks the label of a long one
+    (the viewer labels a value, not a span)."""
+    labels, changes, end_s = _lanes(hard_brake)
+    t0_s, t1_s = state_view_s(end_s)
+    px_per_s = NARROWEST_PX * column_fraction("/") / (t1_s - t0_s)
     seen = set()
-    for lane in lanes:
-        rows = sorted(changes[lane])
+    for lane, rows in changes.items():
+        rows = sorted(rows)
         ends = [t for t, _ in rows[1:]] + [end_s]
+        assert len({v for _, v in rows}) == len(rows), lane  # a value per span
         for (t0, state), t1 in zip(rows, ends):
             label = labels[lane][state]
             assert label != "", (lane, state)  # an empty label falls back to the whole state, cut
-            if label.strip():
-                assert len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= (t1 - t0) * px_per_s, (lane, state, label, t1 - t0)
-            seen.add((state.rpartition(" #")[0] or state, label))
-    assert ("hard-brake", " ") in seen and ("outage 1 (30-40 s)", "#1") in seen
-    assert not any(kind == "hard-brake" and label.strip() for kind, label in seen)
+            fits = len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= (t1 - t0) * px_per_s
+            assert fits or not label.strip(), (lane, state, label, t1 - t0)
+            seen.add((ent.base_state(state).rpartition(" #")[0] or ent.base_state(state), label))
+    assert ("hard-brake", " ") in seen and ("good", "good") in seen
+
+
+def test_the_state_timeline_opens_on_the_whole_drive(hard_brake):
+    """The state timeline's default range holds the whole drive with room on either side: no span
+    crosses its edges, where the viewer drew a label from the span's visible start and cut it at
+    the span's end ("cr" of "cruise"); the time axis is seconds into the drive."""
+    _root, items = _layout(hard_brake)
+    _, _, end_s = _lanes(hard_brake)
+    reader, _, layout = _stores(hard_brake)
+    [timeline] = [k for k, v in items.items() if v.get("class_identifier", [""])[0] == "StateTimeline"]
+    ranges = [_components(c)["view_range"] for c in reader.stream(store=layout)
+              if str(c.entity_path).strip("/").startswith(timeline + "/") and "TimeAxis" in str(c.entity_path)]
+    assert ranges, "no time axis on the state timeline"
+    [[view]] = ranges
+    start_s, stop_s = view["start"] / 1e9, view["end"] / 1e9  # absolute times (ns)
+    assert start_s < 0 and stop_s > end_s and (stop_s - end_s) >= 0.05 * end_s, (start_s, stop_s, end_s)
 
 
 #: Pixels below the inspector's scale bar its label takes (the label's box under the bar; measured on
@@ -196,3 +223,36 @@ def test_the_inspectors_scale_label_is_inside_its_view(roundabout):
         [bar] = strips[ent.INSPECT_SCALE][t]
         rooms.append((view_bottom - bar[0][1]) * px_per_m)
     assert len(rooms) == 57 and min(rooms) >= SCALE_LABEL_PX, sorted(rooms)[:5]
+
+
+def test_every_time_plot_opens_on_the_whole_drive_with_labelled_y_ticks(hard_brake):
+    """On the page the layout is made for, every time plot opens on the whole drive, as the state
+    timeline (nothing scrolls with the time cursor, which cut the first tick's label at the view's
+    edge: "9m 30s"), and its y range has at least two labelled ticks at its height (the viewer
+    labels ticks a power of ten apart, and only :data:`TICK_PX` or more apart: its own fit of an
+    error plot 90 px high labelled only "0" of errors up to 9 m)."""
+    import math
+
+    from ionav_viz.viz.blueprints import TICK_PX, web_plot_px
+
+    _root, items = _layout(hard_brake)
+    _, _, end_s = _lanes(hard_brake)
+    reader, _, layout = _stores(hard_brake)
+    props = {}
+    for chunk in reader.stream(store=layout):
+        path = str(chunk.entity_path).strip("/").split("/")
+        if len(path) == 3 and path[0] == "view":
+            props.setdefault(f"view/{path[1]}", {}).update(_components(chunk))
+    heights = web_plot_px(4)
+    plots = {items[k]["space_origin"][0].strip("/"): k for k, v in items.items()
+             if v.get("class_identifier", [""])[0] == "TimeSeries"}
+    assert set(heights) <= set(plots) | {ent.UNCERTAINTY, ent.HEALTH}, set(heights) - set(plots)
+    for origin, key in plots.items():
+        view = props[key]["view_range"][0]
+        assert (view["start"] / 1e9, view["end"] / 1e9) == pytest.approx(state_view_s(end_s)), origin
+        if origin not in heights:  # sigma and NIS tabs: the viewer's own fit
+            continue
+        lo, hi = props[key]["range"][0]
+        labelled = max(sum(1 for _ in range(math.ceil(lo / 10.0 ** k), math.floor(hi / 10.0 ** k) + 1))
+                       for k in range(-4, 4) if heights[origin] * 10.0 ** k / (hi - lo) >= TICK_PX)
+        assert labelled >= 2, (origin, lo, hi, heights[origin])

@@ -42,22 +42,33 @@ def column_fraction(origin: str) -> float:
 WEB_PAGE_PX = (1280, 720)
 #: What the web viewer's page keeps above and below the views: its top bar and the collapsed time panel.
 WEB_CHROME_PX = 66
-#: Seconds of the drive the time plots and the state timeline show across by default: the larger
-#: of the viewer's own window in a browser (64 s at any page width, measured) and a screenshot's
-#: (:data:`PLOT_WINDOW_S`, :data:`PLOT_MARGIN_S` after it and at most as much before it).
-TIMELINE_WINDOW_S = 68.0
 #: The narrowest image whose state labels must fit their spans: screenshots are made for 1024x576
 #: and larger, the web page for :data:`WEB_PAGE_PX`.
 NARROWEST_PX = 1024
 #: A state label's width in its lane: pixels per character and the padding around it (measured on renders).
 STATE_LABEL_PX_PER_CHAR, STATE_LABEL_PAD_PX = 7.0, 8.0
+#: The state timeline opens on the whole drive, with these shares of the drive's length as room
+#: before its start and after its end: no span crosses the view's edge (the viewer draws a label from
+#: where its span enters the view and cuts it where the span ends: "cr" of "cruise"), and the time
+#: plots' first and last tick labels, centred on their ticks, are whole.
+STATE_VIEW_PAD_BEFORE, STATE_VIEW_PAD_AFTER = 0.05, 0.05
 
 
-def state_label_fits(label: str, span_s: float) -> bool:
-    """Whether the state label ``label`` shows whole in a span of ``span_s`` seconds of its lane at the
-    default zoom (:data:`TIMELINE_WINDOW_S` across the signals column) of the narrowest image
-    (:data:`NARROWEST_PX`): the viewer cuts a label at its span's end ("bra" of a 3 s brake)."""
-    px_per_s = NARROWEST_PX * column_fraction("/") / TIMELINE_WINDOW_S
+def state_view_s(end_s: float) -> tuple[float, float]:
+    """The state timeline's and the web page's time plots' default time range (s) for a drive ending
+    at ``end_s`` (its times start at 0): the whole drive, with :data:`STATE_VIEW_PAD_BEFORE` and
+    :data:`STATE_VIEW_PAD_AFTER` of it as room."""
+    length_s = max(float(end_s), 1.0)
+    return -STATE_VIEW_PAD_BEFORE * length_s, float(end_s) + STATE_VIEW_PAD_AFTER * length_s
+
+
+def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
+    """Whether the state label ``label`` shows whole in a span of ``span_s`` seconds of its lane in
+    its default view (:func:`state_view_s` of a drive ending at ``end_s``, across the signals column)
+    of the narrowest image (:data:`NARROWEST_PX`): the viewer cuts a label at its span's end ("bra"
+    of a 3 s brake)."""
+    t0_s, t1_s = state_view_s(end_s)
+    px_per_s = NARROWEST_PX * column_fraction("/") / (t1_s - t0_s)
     return len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= span_s * px_per_s
 
 
@@ -248,19 +259,30 @@ def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool =
 
 
 def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[float, float]] | None = None,
-              shown: frozenset[str] | None = None):
+              shown: frozenset[str] | None = None, end_s: float | None = None):
     """The default review layout: the outage inspector above the whole-drive local and map views,
     the signals, the errors and the summary; time plots with ``y_ranges`` (by origin) when given.
     ``shown``: which of :data:`OPTIONAL_VIEWS` hold data (None: all); the others are left out, so
     that no view opens empty (a run through the log's own losses alone has no CRSE, CAE or drift;
     one without a filter's covariance or health no sigma or NIS tab). Made for the page
     :data:`WEB_PAGE_PX`: titles that show in full there, the rows of :func:`web_signal_rows_px` and
-    :func:`web_error_rows_px` (the summary's table a row per estimator of ``labels``)."""
+    :func:`web_error_rows_px` (the summary's table a row per estimator of ``labels``). With the
+    drive's ``end_s``, the state timeline and the time plots open on the whole drive
+    (:func:`state_view_s`). ``y_ranges`` are the data's: each plot's is widened to labelled ticks for its
+    height on the page (:func:`axis_range`, :func:`web_plot_px`)."""
+    import rerun as rr
     import rerun.blueprint as rrb
 
-    ranges = y_ranges or {}
     has = (lambda origin: True) if shown is None else (lambda origin: origin in shown)
     n_estimators = len(labels)
+    # y ranges with at least three labelled ticks at the plots' heights on the page (the viewer's own fit
+    # labelled only "0" of errors from 0 to 9 m in a plot 90 px high)
+    heights = web_plot_px(n_estimators, has(ent.error_group("crse_m")))
+    ranges = {o: axis_range(*r, heights[o]) if o in heights else r for o, r in (y_ranges or {}).items()}
+    # every time view opens on the whole drive, as the state timeline: nothing scrolls with the time cursor,
+    # where the first tick's label was cut at the view's edge ("9m 30s" of "+9m 30s")
+    whole = None if end_s is None else rrb.TimeAxis(view_range=rr.TimeRange(
+        *(rrb.TimeRangeBoundary.absolute(seconds=t) for t in state_view_s(end_s))))
 
     # No legend on the time plots: Rerun draws it inside the plot, in a corner, where the curves of
     # a 60 s window pass sooner or later. The key above the signals names every line by its colour
@@ -268,7 +290,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     def plot(origin: str, name: str | None = None):
         return rrb.TimeSeriesView(origin=origin, name=name or PLOT_NAMES[origin],
                                   axis_y=rrb.ScalarAxis(range=ranges[origin]) if origin in ranges else None,
-                                  plot_legend=rrb.PlotLegend(visible=False))
+                                  axis_x=whole, plot_legend=rrb.PlotLegend(visible=False))
 
     tracks = rrb.Vertical(
         rrb.Spatial2DView(origin=ent.INSPECT, name=INSPECTOR_NAME),
@@ -281,7 +303,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     signals = rrb.Vertical(
         rrb.TextDocumentView(origin=ent.KEY, name="Key", titlebar=False),
         rrb.StateTimelineView(origin="/", contents=[ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE],
-                              name="GNSS, outages, manoeuvres"),
+                              name="GNSS, outages, manoeuvres", time_view=whole),
         plot(ent.DISPLACEMENTS),
         plot(ent.YAW_RATES, f"{PLOT_NAMES[ent.YAW_RATES]}; gyro grey"),
         plot(ent.ACCEL),
@@ -292,7 +314,8 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
                      *(o for o in (ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH) if has(o))]
     tab_names = _fit_tabs(tuple(error_origins), WEB_PAGE_PX[0] * column_fraction(ent.error_group("position_error_m")))
     views = {ent.DRIFT: rrb.Spatial2DView, ent.UNCERTAINTY: rrb.TimeSeriesView, ent.HEALTH: rrb.TimeSeriesView}
-    error_tabs = [plot(o, tab_names[o]) if o not in views else views[o](origin=o, name=tab_names[o])
+    error_tabs = [plot(o, tab_names[o]) if o not in views else
+                  views[o](origin=o, name=tab_names[o], **({} if o == ent.DRIFT else {"axis_x": whole}))
                   for o in error_origins]
     rows = [rrb.Tabs(*error_tabs, active_tab=0) if len(error_tabs) > 1 else plot(error_origins[0])]
     synthetic = has(ent.error_group("crse_m"))
@@ -353,7 +376,7 @@ WEB_KEY_PX, WEB_TIMELINE_PX = 84.0, 180.0
 #: How the time plots of a column share what the key, the timeline or the summary leave: the
 #: signals (displacement, yaw rate, acceleration) and the errors (position error, CRSE/CAE,
 #: orientation-rate CRSE).
-SIGNAL_PLOT_SHARES, ERROR_PLOT_SHARES = (3.0, 3.0, 2.0), (3.0, 3.0, 2.5)
+SIGNAL_PLOT_SHARES, ERROR_PLOT_SHARES = (3.0, 3.0, 2.5), (3.0, 3.0, 2.5)
 
 
 def _split(total_px: float, shares: tuple[float, ...]) -> tuple[float, ...]:
@@ -375,6 +398,18 @@ def web_error_rows_px(n_estimators: int, synthetic: bool = True) -> tuple[float,
     summary = min(summary_px(n_estimators), 0.5 * views)
     plots = _split(views - summary, ERROR_PLOT_SHARES) if synthetic else (views - summary,)
     return (*plots, summary)
+
+
+def web_plot_px(n_estimators: int, synthetic: bool = True) -> dict[str, float]:
+    """The height in pixels of each time plot's drawing area on the page :data:`WEB_PAGE_PX` (its row
+    of :func:`web_signal_rows_px` or :func:`web_error_rows_px`, less its title bar and time labels)."""
+    signals = dict(zip((ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL), web_signal_rows_px()[2:]))
+    error_rows = web_error_rows_px(n_estimators, synthetic)[:-1]
+    errors = {ent.error_group("position_error_m"): error_rows[0]}
+    if synthetic:
+        errors.update({ent.error_group("crse_m"): error_rows[1], ent.error_group("cae_m"): error_rows[1],
+                       ent.error_group("yaw_crse_radps"): error_rows[2]})
+    return {o: px - TITLE_BAR_PX - TIME_LABELS_PX for o, px in {**signals, **errors}.items()}
 
 
 #: Seconds of the drive a screenshot's time plots show: centred on the shot's time, kept inside the drive.

@@ -260,6 +260,23 @@ EVENT_SHORT = {"hard-brake": "brake", "quick-accel": "accel", "roundabout": "rou
                "left-right": "L-R", "cruise": "cruise", "gnss-outage": "no GNSS"}
 
 
+_SPAN = re.compile(r"^(.*), (\d+\.\d)-(\d+\.\d) s$")
+
+
+def span_state(state: str, t0_s: float, t1_s: float) -> str:
+    """The value of one span of a state that several spans of a lane share (``GNSS``, ``good``,
+    ``bad: frozen``, ``none``): the state and its times, ``GNSS, 40.0-70.0 s``. The viewer gives each
+    value one label, so each span needs its own value for a label sized to that span."""
+    return f"{state}, {t0_s:.1f}-{t1_s:.1f} s"
+
+
+def base_state(value: str) -> str:
+    """The state of a lane's value (:func:`span_state`'s times taken off; any other value is its
+    own state, as in recordings made before spans had their own values)."""
+    found = _SPAN.match(value)
+    return found.group(1) if found else value
+
+
 def state_labels(state: str) -> tuple[str, ...]:
     """What a state's lane may show, longest first (:func:`state_label` takes the first that fits):
     ``#3`` or ``3`` for outage 3, ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` for
@@ -267,6 +284,7 @@ def state_labels(state: str) -> tuple[str, ...]:
     value, cut in a short span). The whole state stays the value (hover text, and what screenshots
     read back)."""
     blank = " "
+    state = base_state(state)
     if (n := parse_outage_state(state)) is not None:
         return f"#{n}", f"{n}", blank
     if (n := parse_real_outage_state(state)) is not None:

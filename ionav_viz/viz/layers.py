@@ -83,7 +83,9 @@ class Layers:
 
 
 def state_color(state: str) -> tuple[int, int, int]:
-    """A state lane's colour (:data:`~ionav_viz.viz.style.STATE_COLORS`): never an estimator's."""
+    """A state lane's colour (:data:`~ionav_viz.viz.style.STATE_COLORS`): never an estimator's; one
+    per kind of state (every span's value of it alike, :func:`~ionav_viz.viz.entities.base_state`)."""
+    state = ent.base_state(state)
     if (n := ent.parse_outage_state(state)) is not None:
         return STATE_COLORS["outage" if n % 2 else "outage alt"]
     if ent.parse_real_outage_state(state) is not None:
@@ -98,24 +100,37 @@ def state_color(state: str) -> tuple[int, int, int]:
     return EVENT_STATE_COLORS.get(state.rpartition(" #")[0], EVENT_COLOR)
 
 
-def log_state_styles(rec, entity: str, states: list[str], t_s: np.ndarray, end_s: float) -> None:
-    """Each state of the lane ``entity`` (``states``: the state from each time of ``t_s`` on, the
-    last until ``end_s``): its colour (:func:`state_color`) and its label, the longest of
-    :func:`~ionav_viz.viz.entities.state_labels` that fits the shortest span of that state
-    (:func:`~ionav_viz.viz.blueprints.state_label_fits`), static."""
+def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, end_s: float) -> None:
+    """The state lane ``entity``: ``states``, each from its time of ``t_s`` on (the last until
+    ``end_s``), sent as state changes, and each value's colour (:func:`state_color`, one per kind)
+    and label, static. A state that several spans share gets a value per span
+    (:func:`~ionav_viz.viz.entities.span_state`): the viewer gives a value one label, and each span's
+    label is the longest of :func:`~ionav_viz.viz.entities.state_labels` that fits that span in the
+    lane's default view (:func:`~ionav_viz.viz.blueprints.state_label_fits`; one short ``bad`` span
+    made every ``bad`` span's label blank)."""
     import rerun as rr
 
     from .blueprints import state_label_fits
 
     t = np.asarray(t_s, dtype=np.float64)
-    spans = np.diff(np.append(t, max(float(end_s), float(t[-1]) if len(t) else 0.0)))
-    shortest: dict[str, float] = {}
-    for state, span in zip(states, spans):
-        shortest[state] = min(shortest.get(state, np.inf), float(span))
-    values = list(shortest)
-    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v])) for v in values]
-    rec.log(entity, rr.StateConfiguration(values=values, labels=labels, colors=[state_color(v) for v in values]),
-            static=True)
+    ends = np.append(t[1:], max(float(end_s), float(t[-1]) if len(t) else 0.0))
+    shared = _shared(states)
+    values = [ent.span_state(s, a, b) if s in shared else s for s, a, b in zip(states, t, ends)]
+    shortest: dict[str, float] = {}  # a value's shortest span (two spans' values alike when rounded: the shorter's)
+    for value, span in zip(values, ends - t):
+        shortest[value] = min(shortest.get(value, np.inf), float(span))
+    names = list(shortest)
+    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v], end_s)) for v in names]
+    rec.log(entity, rr.StateConfiguration(values=names, labels=labels,
+                                          colors=[state_color(v) for v in names]), static=True)
+    send(entity, t, rr.StateChange.columns(state=values))
+
+
+def _shared(states: list[str]) -> set[str]:
+    """The states that occur more than once in ``states``."""
+    from collections import Counter
+
+    return {s for s, n in Counter(states).items() if n > 1}
 
 
 def log_outage_frames(layers: Layers, result: DriveResult, tracks_xy: dict[str, np.ndarray]) -> None:
@@ -353,8 +368,8 @@ def log_events(layers: Layers, events: list, drive) -> None:
         times += [e.t0_s, e.t1_s]
         states += [ent.event_state(e.type, i + 1), ent.NO_EVENT_STATE]
     order = np.argsort(times, kind="stable")
-    log_state_styles(rec, ent.EVENTS_STATE, [states[k] for k in order], np.asarray(times)[order], float(drive.t_s[-1]))
-    send(ent.EVENTS_STATE, np.asarray(times)[order], rr.StateChange.columns(state=[states[k] for k in order]))
+    log_state_lane(rec, send, ent.EVENTS_STATE, [states[k] for k in order], np.asarray(times)[order],
+                   float(drive.t_s[-1]))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
     # a loss's middle lies between its good fixes (``usable``), not at (0, 0)
     lat = np.interp(mid, drive.t_s[usable], drive.lat_deg[usable])

@@ -140,7 +140,7 @@ def stream_file(url: str, path: str, timeout_s: float) -> None:
         rec = rr.RecordingStream(store.application_id, recording_id=store.recording_id)
         rec.connect_grpc(url)
         rec.send_blueprint(review_blueprint([label for label, _ in info.estimators.values()], info.lat_deg,
-                                            info.lon_deg, shown=shown_views(info)))
+                                            info.lon_deg, shown=shown_views(info), end_s=info.end_s))
         rec.send_chunks(reader.stream(store=store))
     rec.flush(timeout_sec=timeout_s)
     rec.disconnect()

@@ -45,7 +45,7 @@ from .layers import (
     log_grid,
     log_outage_frames,
     log_real_outages,
-    log_state_styles,
+    log_state_lane,
     track_radii_pt,
 )
 from .style import (
@@ -131,17 +131,23 @@ def streamed_to(rec, path: Path, target: Path | None = None) -> Iterator[None]:
 
 
 def review_blueprint(labels: list[str], lat_deg: np.ndarray, lon_deg: np.ndarray, y_ranges: dict | None = None,
-                     shown: frozenset[str] | None = None):
+                     shown: frozenset[str] | None = None, end_s: float | None = None):
     """The review layout for estimators ``labels``, its map zoomed to the track (``lat_deg``,
     ``lon_deg``: the usable GNSS fixes), its time plots' y axes set to ``y_ranges`` when given,
-    with the optional views ``shown`` (:func:`~ionav_viz.viz.blueprints.blueprint`)."""
-    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges, shown)
+    with the optional views ``shown``, its time views framed for a drive ending at ``end_s``
+    (:func:`~ionav_viz.viz.blueprints.blueprint`)."""
+    return blueprint(labels, map_zoom(lat_deg, lon_deg, 350), y_ranges, shown, end_s)
 
 
 def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
-    """The signal plots' y ranges over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`:
-    a flat line still gets ticks). The error plots keep the viewer's own fit to what is shown: a
-    drive's worst outage would flatten every other one (screenshots set every plot's range)."""
+    """Each time plot's data range over the whole drive (:func:`~ionav_viz.viz.blueprints.plot_range`
+    without padding: a flat line still gets ticks; the blueprint widens it to labelled ticks): the
+    signals, and the errors of the synthetic outages (the position error's with the log's own
+    losses' final errors). The web page's plots show the whole drive, so its worst outage sets the
+    error plots' range, as the viewer's own fit would (screenshots set every plot's range to what
+    they show)."""
+    from ..analysis.metrics import cumulative_errors
+
     drive, w = result.drive, result.windows
     ok = w.truth_ok
     data = {
@@ -150,11 +156,19 @@ def y_ranges(result: DriveResult) -> dict[str, tuple[float, float]]:
                         *(e.yaw_rate_radps for e in result.estimates.values())],
         ent.ACCEL: [drive.accel_long_mps2],
     }
+    if len(result.starts):
+        for est in result.estimates.values():
+            for metric, values in cumulative_errors(w, result.starts, result.n_windows, est).items():
+                data.setdefault(ent.error_group(metric), []).append(values)
+    if result.bridged:
+        data.setdefault(ent.error_group("position_error_m"), []).append(
+            [v for b in result.bridged for v in b.final_error_m.values()])
     out = {}
     for origin, parts in data.items():
         values = np.concatenate([np.asarray(v, dtype=np.float64).ravel() for v in parts])
         values = values[np.isfinite(values)]
-        out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)))
+        out[origin] = plot_range(origin, *((float(values.min()), float(values.max())) if len(values) else (0.0, 0.0)),
+                                 pad=False)
     return out
 
 
@@ -248,7 +262,7 @@ def log_result(rec, result: DriveResult, summary_md: str, progress=None, events:
              ent.UNCERTAINTY: synthetic and any(e.pos_cov_m2 is not None for e in result.estimates.values())}
     rec.send_blueprint(review_blueprint([e.label for e in result.estimators], drive.lat_deg[usable],
                                         drive.lon_deg[usable], y_ranges(result),
-                                        frozenset(k for k, v in shown.items() if v)))
+                                        frozenset(k for k, v in shown.items() if v), float(drive.t_s[-1])))
     return rows
 
 
@@ -319,8 +333,7 @@ def _log_signals(layers: Layers, drive) -> None:
                                                                 draw_order=np.full(nu, TRUTH_END_ORDER)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
-    log_state_styles(layers.rec, ent.GNSS_QUALITY, [str(q) for q in quality[change]], t[change], float(t[-1]))
-    send(ent.GNSS_QUALITY, t[change], rr.StateChange.columns(state=[str(q) for q in quality[change]]))
+    log_state_lane(layers.rec, send, ent.GNSS_QUALITY, [str(q) for q in quality[change]], t[change], float(t[-1]))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send(ent.SPEED, t, rr.Scalars.columns(scalars=drive.speed_mps))
@@ -354,9 +367,8 @@ def _log_outage_states(rec, send, result: DriveResult) -> tuple[np.ndarray, np.n
     for b in result.bridged:
         states[b.start : b.start + b.n_windows] = ent.real_outage_state(b.number, b.gap_t0_s, b.gap_t1_s)
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
-    log_state_styles(rec, ent.GNSS_STATE, [str(s) for s in states[change]], w.t0_s[change],
-                     float(t_end[-1]) if len(w) else 0.0)
-    send(ent.GNSS_STATE, w.t0_s[change], rr.StateChange.columns(state=[str(s) for s in states[change]]))
+    log_state_lane(rec, send, ent.GNSS_STATE, [str(s) for s in states[change]], w.t0_s[change],
+                   float(t_end[-1]) if len(w) else 0.0)
     return t_end, idx
 
 

@@ -316,7 +316,8 @@ class _Scan:
             self.end_s = max(self.end_s, float(times.max()))
         if entity.strip("/") == ent.GNSS_STATE:
             col = _column(path, entity, names, ":state")
-            self.states += list(zip(times, (v[0] for v in batch.column(col).to_pylist())))
+            # a state shared by several spans has a value per span (its times): the state is what is read
+            self.states += list(zip(times, (ent.base_state(v[0]) for v in batch.column(col).to_pylist())))
         elif entity.strip("/") == ent.truth_position(ent.MAP):
             col = _column(path, entity, names, ":positions")
             self.track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))

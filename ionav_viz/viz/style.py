@@ -42,7 +42,7 @@ BAD_GNSS_COLOR: RGB = (175, 175, 175)
 #: Grid lines of the metric 2D views; their scale bars and tick labels: a mid grey, read on the
 #: viewer's dark theme and its light one (white was lost on white).
 GRID_COLOR: RGB = (55, 55, 55)
-SCALE_COLOR: RGB = (145, 145, 145)
+SCALE_COLOR: RGB = (120, 120, 120)
 #: The state lanes' colours (Tol's muted, grey for the ordinary state): GNSS there, outages
 #: (alternating, so that consecutive ones are told apart), the log's own losses, the receiver lost
 #: beside a reference; the truth good or bad; each manoeuvre type, no manoeuvre.
