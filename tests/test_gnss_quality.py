@@ -15,6 +15,7 @@ import pytest
 from ionav_viz.core.gnss_quality import GnssFault, GnssLimits, assess_gnss
 from ionav_viz.dataset.samples import SAMPLES, sample_path, samples_dir
 from ionav_viz.sources.iovnbd import HEADER
+from ionav_viz.viz.entities import base_state
 
 from .conftest import run_cli
 from .test_replay import read_rrd
@@ -176,7 +177,7 @@ def test_recording_shows_quality_and_draws_bad_stretches_apart(faulty, tmp_path)
     proc = run_cli("replay", str(faulty), "--no-idnn", "-q", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
     rows, static = read_rrd(out)
-    states = {s[0] for _, s in rows["/gnss/quality"]}
+    states = {base_state(s[0]) for _, s in rows["/gnss/quality"]}  # each span's value carries its times
     assert states == {"good", "bad: near-zero", "bad: no-fix", "bad: frozen", "bad: jump"}
     # fixes at (0, 0) and the jump are not drawn; the frozen and no-fix stretches are, in grey
     assert "/local/gnss_bad" in static and "/map/gnss_bad" in static
@@ -316,7 +317,7 @@ def test_an_outage_asked_for_where_the_receiver_has_no_fix_is_refused_and_the_re
     proc = run_cli("replay", str(path), *args, "-q", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
     rows, _ = read_rrd(out)
-    states = [(time, s[0]) for time, s in rows["/gnss/state"]]
+    states = [(time, base_state(s[0])) for time, s in rows["/gnss/state"]]
     lost_at = [time for time, s in states if s == "receiver lost: no-fix"]
     assert lost_at  # where no outage covers the loss, from a window that touches it
     assert all(lost[(t >= x - 0.1) & (t <= x + 1.1)].any() for x in lost_at), lost_at
