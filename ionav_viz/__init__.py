@@ -45,7 +45,7 @@ _EXPORTS = {
     "AroundEvents": "experiment.outages", "cross_validate": "api", "fine_tune_settings": "api",
     "ModelConfig": "learning.idnn", "EventThresholds": "analysis.events",
     "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
-    "GnssLimits": "core.gnss_quality",
+    "GnssLimits": "core.gnss_quality", "Experiment": "api", "FleetOptions": "api", "Engine": "api",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
@@ -76,6 +76,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .analysis.report import Report
     from .api import (
         DatasetSource,
+        Engine,
+        Experiment,
+        FleetOptions,
         Outage,
         OutageLogResult,
         ReplayResult,

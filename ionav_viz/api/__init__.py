@@ -19,13 +19,24 @@ from ..viz.live import WebServing
 from .compare import compare
 from .cross_validate import CrossValidation, cross_validate
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
-from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
+from .deprecated import (
+    evaluate_by_event,
+    evaluate_fleet,
+    evaluate_lengths,
+    replay_fleet,
+    replay_lengths,
+    replay_scenario,
+)
+from .engine import Engine
+from .evaluate import ScenarioDrives, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
+from .experiment import Experiment, FleetOptions
 from .figures import figures
-from .fleet import evaluate_fleet, replay_fleet, write_fleet_recording
+from .fleet import run_fleet, write_fleet_recording
 from .options import RunOptions
 from .outage_log import OutageLogResult, outage_log
-from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
+from .replay import RECORDINGS_DIR, Outage, ReplayResult, serve_web
+from .run import evaluate, replay
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
 from .training import TrainingDrives, fine_tune_settings, train, training_drives
@@ -36,6 +47,9 @@ __all__ = [
     "CrossValidation",
     "DatasetSource",
     "DetectorQuality",
+    "Engine",
+    "Experiment",
+    "FleetOptions",
     "Outage",
     "OutageLogResult",
     "ReplayResult",
@@ -63,6 +77,7 @@ __all__ = [
     "replay_fleet",
     "replay_lengths",
     "replay_scenario",
+    "run_fleet",
     "scenario_drives",
     "screenshot",
     "serve_web",

@@ -127,8 +127,8 @@ def cross_validate(
     from ..core.warnings_log import printing_once
     from ..learning.idnn import ModelConfig, check_model_dir, save_model
     from ..learning.training import train_models
-    from .evaluate import evaluate
     from .options import windows_of
+    from .run import evaluate
     from .training import parent_model, training_device
 
     if isinstance(folds, bool) or not isinstance(folds, int) or folds < 2:
