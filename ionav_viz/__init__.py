@@ -46,6 +46,7 @@ _EXPORTS = {
     "ModelConfig": "learning.idnn", "EventThresholds": "analysis.events",
     "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
     "GnssLimits": "core.gnss_quality", "Experiment": "api", "FleetOptions": "api", "Engine": "api",
+    "TrainingOptions": "api",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
@@ -85,6 +86,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
         RunOptions,
         RunSelection,
         Shots,
+        TrainingOptions,
         WebServing,
         compare,
         convert,

@@ -5,6 +5,7 @@ no public function of the API takes more than 8 parameters."""
 
 from __future__ import annotations
 
+import inspect
 import json
 from dataclasses import replace
 
@@ -113,3 +114,32 @@ def test_replay_scenario_warns_and_returns_the_same(tmp_path):
     new = iv.replay(iv.Experiment(scenario="roundabout", run=CHEAP), output=tmp_path / "new")
     assert [p.name for p in old] == [p.name for p in new] == ["roundabout-V-sim-roundabout.rrd"]
     assert [p.parent for p in old] == [tmp_path / "old"]
+
+
+def test_train_and_cross_validate_keep_from_model_and_device_with_a_warning(tmp_path):
+    """Both moved into iv.TrainingOptions; given as keywords they still work, said deprecated.
+    (An unknown device is refused before any drive is read, either way.)"""
+    with pytest.warns(DeprecationWarning, match=r"device= is deprecated: pass TrainingOptions"), \
+            pytest.raises(iv.InputError) as err:
+        iv.train(tmp_path / "m", ["roundabout"], device="tpu")
+    assert err.value.param == "device"
+    with pytest.raises(iv.InputError) as err:
+        iv.cross_validate(["roundabout", "motorway"], 2, config=iv.TrainingOptions(device="tpu"))
+    assert err.value.param == "device"
+    with pytest.raises(iv.InputError) as err:
+        iv.train(tmp_path / "m", ["roundabout"], iv.TrainingOptions(), from_model="shipped")
+    assert err.value.param == "from_model"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_no_public_function_of_the_api_takes_more_than_8_parameters():
+    import ionav_viz.api as api
+
+    over = {}
+    for name in api.__all__:
+        value = getattr(api, name)
+        if inspect.isfunction(value):
+            n = len(inspect.signature(value).parameters)
+            if n > 8:
+                over[name] = n
+    assert over == {}

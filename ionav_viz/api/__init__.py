@@ -39,7 +39,7 @@ from .replay import RECORDINGS_DIR, Outage, ReplayResult, serve_web
 from .run import evaluate, replay
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
-from .training import TrainingDrives, fine_tune_settings, train, training_drives
+from .training import TrainingDrives, TrainingOptions, fine_tune_settings, train, training_drives
 
 __all__ = [
     "RECORDINGS_DIR",
@@ -58,6 +58,7 @@ __all__ = [
     "ScenarioDrives",
     "Shots",
     "TrainingDrives",
+    "TrainingOptions",
     "WebServing",
     "compare",
     "convert",
