@@ -12,6 +12,12 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
     print(report.to_text())
     result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd")
     iv.screenshot([result.path], "shots/", iv.Shots(times=["worst"], views=["local"]))
+    reports = iv.evaluate(iv.Experiment([drive], outage_s=[10, 30]))  # {10.0: Report, 30.0: Report}
+
+:class:`Experiment` (``experiment.py``) is one run's set-up; :func:`evaluate` and :func:`replay`
+(``run.py``) take it, or its fields as arguments, and its fields choose the variant (several
+outage lengths, by manoeuvre, a fleet on an :class:`Engine`, a scenario). The previous release's
+names of the variants are in ``deprecated.py``, for one release.
 """
 
 
