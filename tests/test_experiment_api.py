@@ -67,8 +67,9 @@ def test_the_deprecated_mcap_keyword_still_works_and_warns():
 
 
 def test_evaluate_lengths_warns_and_returns_the_same():
-    with pytest.warns(DeprecationWarning, match=r"evaluate_lengths is deprecated: use evaluate\("):
+    with pytest.warns(DeprecationWarning, match=r"evaluate_lengths is deprecated: use evaluate\(") as said:
         old = iv.evaluate_lengths("roundabout", [10, 30], run=CHEAP)
+    assert said[0].filename == __file__  # the caller's line, not the wrapper's
     new = iv.evaluate("roundabout", [10, 30], run=CHEAP)
     assert {k: r.to_json() for k, r in old.items()} == {k: r.to_json() for k, r in new.items()}
 
