@@ -18,7 +18,7 @@ drive's number, sensor errors of the 'training' fleet; tiled 10 s outages, every
 estimator that applies (the IDNN, so torch, in every worker).
 
 Each mode runs in a fresh process (``--child``), timed from the call of
-``ionav_viz.api.fleet.evaluate_fleet`` to its return: reading, estimators, the workers' start
+``ionav_viz.evaluate`` on an engine to its return: reading, estimators, the workers' start
 (the forkserver's imports, each worker's first load of numba's compiled filters) and pooling
 included. The timed runs are not watched: memory comes from one more run of each mode, sampled
 every 0.1 s over the child and all its descendants (``peak_total_MB``: the largest sum of their
@@ -63,10 +63,10 @@ def make_fleet(folder: Path, drives: int, minutes: float) -> list[Path]:
 
 def child(folder: Path, pattern: str, workers: int, cluster: str | None) -> None:
     """One mode, in this process: print its figures as one JSON line."""
-    from ionav_viz.api.fleet import evaluate_fleet
+    import ionav_viz as iv
 
     began = time.perf_counter()
-    report = evaluate_fleet([str(folder / pattern)], 10, workers=workers, cluster=cluster)
+    report = iv.evaluate([str(folder / pattern)], 10, engine=iv.Engine(workers, cluster))
     wall_s = time.perf_counter() - began
     results = report.to_dict()
     results.pop("timing")

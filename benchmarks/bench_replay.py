@@ -40,7 +40,7 @@ def one_run(csv: Path, out: Path) -> dict:
     import ionav_viz.learning.idnn
     import ionav_viz.nav.gins
     import ionav_viz.viz.recording  # noqa: F401
-    from ionav_viz.api.replay import replay
+    from ionav_viz.api.run import replay
 
     stages: dict[str, float] = {}
     rows = [0]
@@ -149,7 +149,7 @@ def bench_rowwise(hours: float, folder: Path) -> None:
     import numpy as np
     import rerun as rr
 
-    from ionav_viz.api.replay import replay
+    from ionav_viz.api.run import replay
 
     replayed = replay(str(simulate(folder, hours)), 10.0, output=folder / "batched.rrd")
     result = replayed.result

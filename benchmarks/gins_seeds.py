@@ -45,7 +45,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         paths = [str(write_imu_log(Path(tmp) / f"{args.grade}-{s}.mcap", SCENARIOS[i % 3], s, 60.0 * args.minutes, args.grade))
                  for i, s in enumerate(seeds)]
-        reports = iv.evaluate_lengths(paths, lengths, estimators=list(ESTIMATORS), read=iv.ReadOptions(log=log))
+        reports = iv.evaluate(paths, list(lengths), estimators=list(ESTIMATORS), read=iv.ReadOptions(log=log))
     fixes_only = ", fixes only (no receiver velocity)" if args.without_velocity else ""
     print(f"{args.grade}{fixes_only}, seeds {seeds[0]}-{seeds[-1]}, {args.minutes:g} min each: final error, % of distance driven")
     for length, rep in reports.items():

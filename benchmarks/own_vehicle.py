@@ -67,7 +67,8 @@ def measure(folder: Path, label: str, sensors: object, index: int, minutes: floa
     model = folder / f"model-car{index}"
     start = time.perf_counter()
     cpu0 = time.process_time()
-    iv.train(model, [str(p) for p in tune], read=iv.ReadOptions(span=span), from_model="shipped", command="benchmarks/own_vehicle.py")
+    iv.train(model, [str(p) for p in tune], iv.TrainingOptions(from_model="shipped"), read=iv.ReadOptions(span=span),
+             command="benchmarks/own_vehicle.py")
     wall_s, cpu_s = time.perf_counter() - start, time.process_time() - cpu0
     row = {"car": label, "tune_wall_s": wall_s, "tune_cpu_s": cpu_s}
     for outage in (10, 30):

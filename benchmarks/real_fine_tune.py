@@ -102,9 +102,8 @@ def measure(name: str, entry: dict, config_overrides: dict, folder: Path, fracti
     model = iv.train(
         folder / name,
         [str(path)],
-        config,
+        iv.TrainingOptions(config, "shipped"),
         read=read_options(entry, f"0s:{split_s:g}s"),
-        from_model="shipped",
         command=f"benchmarks/real_fine_tune.py ({name})",
     )
     wall_s, cpu_s = time.perf_counter() - wall0, time.process_time() - cpu0

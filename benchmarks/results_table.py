@@ -181,7 +181,7 @@ def measure(model: str | None, minutes: float, seed_base: int, lengths: list[flo
     run = iv.RunOptions(model=model)
 
     def add(key: str, drives: list, read: iv.ReadOptions | None = None) -> None:
-        for length, rep in iv.evaluate_lengths(drives, lengths, estimators=list(ESTIMATORS), run=run, read=read).items():
+        for length, rep in iv.evaluate(drives, list(lengths), estimators=list(ESTIMATORS), run=run, read=read).items():
             d = rep.to_dict()
             labels.update({e["name"]: e["label"] for e in d["estimators"]})
             cells.setdefault((key, length), Cell({}, {})).add(d)

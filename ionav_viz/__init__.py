@@ -11,6 +11,15 @@ The public API (see "Python API" in the README, and docs/ for the reference)::
                        run=iv.RunOptions(bias_from="stationary"), read=iv.ReadOptions(yaw_sign="auto"))
     iv.screenshot([result.path], "shots/", iv.Shots(times=["worst"]))
 
+    exp = iv.Experiment(["roundabout", "motorway"], outage_s=[10, 30], run=iv.RunOptions(estimators=["ins"]))
+    reports = iv.evaluate(exp)                            # {10.0: Report, 30.0: Report}
+    fleet = iv.evaluate(iv.Experiment(["logs/"], 10.0, engine=iv.Engine(workers=4)))  # a FleetReport
+
+An :class:`Experiment` is one run's set-up (drives, outage lengths, placement, run and read
+options, engine, plan, externals); ``evaluate`` and ``replay`` take one or its fields as arguments,
+and its fields choose the variant: several outage lengths, ``by_event``, a fleet (``engine``), a
+``scenario``.
+
 Data flows one way through the subpackages (a test enforces it):
 
     core (drive model, errors, grid)  <-  dataset (catalog, samples, fetch)  <-  sources (readers)
@@ -45,7 +54,8 @@ _EXPORTS = {
     "AroundEvents": "experiment.outages", "cross_validate": "api", "fine_tune_settings": "api",
     "ModelConfig": "learning.idnn", "EventThresholds": "analysis.events",
     "Event": "analysis.events", "LogOptions": "sources.load", "ReadOptions": "sources.load",
-    "GnssLimits": "core.gnss_quality",
+    "GnssLimits": "core.gnss_quality", "Experiment": "api", "FleetOptions": "api", "Engine": "api",
+    "TrainingOptions": "api",
 }  # fmt: skip
 __all__ = ["__version__", *_EXPORTS]
 
@@ -76,12 +86,16 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .analysis.report import Report
     from .api import (
         DatasetSource,
+        Engine,
+        Experiment,
+        FleetOptions,
         Outage,
         OutageLogResult,
         ReplayResult,
         RunOptions,
         RunSelection,
         Shots,
+        TrainingOptions,
         WebServing,
         compare,
         convert,

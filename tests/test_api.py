@@ -78,7 +78,7 @@ def test_at_times_are_where_asked(tmp_path):
 
 
 def test_evaluate_by_event_builds_reports_per_manoeuvre():
-    by = iv.evaluate_by_event(["hard-brake", "sharp-cornering"], 10.0, ["hard-brake", "sharp-cornering", "left-right"])
+    by = iv.evaluate(["hard-brake", "sharp-cornering"], 10.0, by_event=["hard-brake", "sharp-cornering", "left-right"])
     assert set(by) == {"hard-brake", "sharp-cornering", "left-right"}
     assert {s["drive"] for s in by["hard-brake"].to_dict()["sequences"]} == {"V-sim-hard-brake"}
     assert by["left-right"].estimators == ["ins", "idnn", "odo", "ekf"]
@@ -191,7 +191,7 @@ def test_a_metric_the_report_does_not_hold_names_the_choices():
     (lambda tmp: iv.convert("roundabout", tmp / "x.mcap", read="x"), "read"),
     (lambda tmp: iv.outage_log("roundabout", tmp / "cut.csv", read="x"), "read"),
     (lambda tmp: iv.evaluate("roundabout", 10.0, run="x"), "run"),
-    (lambda tmp: iv.evaluate_fleet(["roundabout", "motorway"], 10.0, read="x"), "read"),
+    (lambda tmp: iv.evaluate(["roundabout", "motorway"], 10.0, read="x", engine=iv.Engine(1)), "read"),
     (lambda tmp: iv.cross_validate(["roundabout", "motorway"], 2, output=tmp, run="x"), "run"),
     (lambda tmp: iv.screenshot([tmp / "r.rrd"], tmp / "shots", shots="x"), "shots"),
     (lambda tmp: iv.find_events("roundabout", thresholds=iv.EventThresholds(hard_brake_g=-1)), "thresholds"),

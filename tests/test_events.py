@@ -222,6 +222,6 @@ def test_by_event_says_a_type_without_events_in_every_format():
     assert overview.stdout.splitlines()[-1] == "quick-accel: 0 events"
     out = json.loads(run_cli(*args, "--json").stdout)
     assert list(out["by_event"]) == ["hard-brake"] and out["events"] == {"hard-brake": 20, "quick-accel": 0}
-    by = iv.evaluate_by_event(["hard-brake"], 10.0, ["hard-brake", "quick-accel"], ["ins"])
+    by = iv.evaluate(["hard-brake"], 10.0, estimators=["ins"], by_event=["hard-brake", "quick-accel"])
     assert list(by) == ["hard-brake"] and by.events == {"hard-brake": 20, "quick-accel": 0}
     assert by.without_outage_lines() == ["quick-accel: 0 events"]

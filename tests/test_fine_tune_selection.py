@@ -95,7 +95,7 @@ def test_fine_tuning_that_only_harms_keeps_the_parents_weights_and_says_so(tmp_p
     config = fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2)
     config.lr_disp = config.lr_yaw = 10.0
     with caplog.at_level(logging.WARNING, logger="ionav_viz"):
-        iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+        iv.train(tmp_path / "m", [str(DRIVE)], iv.TrainingOptions(config, "shipped"), read=iv.ReadOptions(span="0s:120s"))
     meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
     shipped = default_model_dir()
     for name in ("displacement", "yaw_rate"):
@@ -122,7 +122,7 @@ def test_without_validation_folds_the_tail_trained_fit_is_kept(tmp_path):
 
     config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), validation_folds=0)
     config.lr_disp = config.lr_yaw = 10.0
-    iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    iv.train(tmp_path / "m", [str(DRIVE)], iv.TrainingOptions(config, "shipped"), read=iv.ReadOptions(span="0s:120s"))
     meta = json.loads((tmp_path / "m" / "metadata.json").read_text())
     for name in ("displacement", "yaw_rate"):
         assert meta["epoch_selection"][name]["kept"] == "parent"
@@ -135,8 +135,8 @@ def test_a_fine_tuned_model_records_which_weights_it_kept(tmp_path):
     import ionav_viz as iv
     from ionav_viz.api.training import fine_tune_settings
 
-    model = iv.train(tmp_path / "m", [str(DRIVE)], fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2),
-                     read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    model = iv.train(tmp_path / "m", [str(DRIVE)], iv.TrainingOptions(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), "shipped"),
+                     read=iv.ReadOptions(span="0s:120s"))
     sel = model.metadata["epoch_selection"]
     assert model.config.validation_folds == 1 and model.config.validation_tail == pytest.approx(0.2)
     for name in ("displacement", "yaw_rate"):
@@ -192,7 +192,7 @@ def _cross_validated(tmp_path, lr: float | None = None):
     config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), validation_folds=4)
     if lr is not None:
         config.lr_disp = config.lr_yaw = lr
-    model = iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    model = iv.train(tmp_path / "m", [str(DRIVE)], iv.TrainingOptions(config, "shipped"), read=iv.ReadOptions(span="0s:120s"))
     return model, json.loads((tmp_path / "m" / "metadata.json").read_text())
 
 
@@ -252,7 +252,7 @@ def test_first_layer_fine_tuning_changes_only_the_first_layer_of_a_kept_network(
     from ionav_viz.learning.idnn import default_model_dir, load_model
 
     config = dataclasses.replace(fine_tune_settings("shipped", epochs_disp=2, epochs_yaw=2), tune_layers="first")
-    model = iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped")
+    model = iv.train(tmp_path / "m", [str(DRIVE)], iv.TrainingOptions(config, "shipped"), read=iv.ReadOptions(span="0s:120s"))
     tuned, shipped = load_model(tmp_path / "m"), load_model(default_model_dir())
     for name, attr in (("displacement", "disp_net"), ("yaw_rate", "yaw_net")):
         sel = model.metadata["epoch_selection"][name]

@@ -46,14 +46,13 @@ def test_pooled_results_are_bit_for_bit_the_serial_run_and_one_report_over_the_d
     """Two worker processes give exactly the serial fleet's numbers, and those are exactly what one
     report over the same drives (plain 'evaluate A B C') gives: summary, improvement, every outage."""
     import ionav_viz as iv
-    from ionav_viz.api.fleet import evaluate_fleet
 
     drives = _good(fleet_dir)
     calls: list[tuple[str, int, int]] = []
-    serial = evaluate_fleet(drives, 10, workers=1, progress=lambda *call: calls.append(call))
+    serial = iv.evaluate(drives, 10, engine=iv.Engine(1), progress=lambda *call: calls.append(call))
     assert [c[1:] for c in calls] == [(1, 3), (2, 3), (3, 3)]
     assert calls[-1][0].startswith(f"3/3 drives, {serial.n_outages} outages scored, slowest V-f")
-    pooled = evaluate_fleet([*drives, drives[0], str(fleet_dir / ".." / fleet_dir.name / "V-f1.csv")], 10, workers=2)  # the same drive twice: once
+    pooled = iv.evaluate([*drives, drives[0], str(fleet_dir / ".." / fleet_dir.name / "V-f1.csv")], 10, engine=iv.Engine(2))  # the same drive twice: once
     assert [t.name for t in pooled.drives] == ["V-f0", "V-f1", "V-f2"]
     assert "idnn" in serial.estimators  # torch in the workers too
     import pickle
@@ -169,7 +168,7 @@ def test_a_dying_worker_is_retried_once_then_reported():
 def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
     """A real Dask scheduler and two workers on 127.0.0.1 give exactly the serial results."""
     pytest.importorskip("distributed")
-    from ionav_viz.api.fleet import evaluate_fleet
+    import ionav_viz as iv
 
     env = {**os.environ, "PYTHONPATH": str(REPO)}  # the workers import this checkout's ionav_viz
     dask = shutil.which("dask", path=str(Path(sys.executable).parent)) or "dask"
@@ -187,8 +186,8 @@ def test_dask_cluster_gives_the_serial_results(fleet_dir, tmp_path):
         with Client(address, timeout=f"{HANG_S:.0f}s") as client:  # both workers up before the work (a hang guard only)
             client.wait_for_workers(2, timeout=HANG_S)
         drives = [*_good(fleet_dir), str(fleet_dir / "V-bad.csv")]
-        on_cluster = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), cluster=address)
-        serial = evaluate_fleet(drives, 10, estimators=CHEAP.split(","), workers=1)
+        on_cluster = iv.evaluate(drives, 10, estimators=CHEAP.split(","), engine=iv.Engine(cluster=address))
+        serial = iv.evaluate(drives, 10, estimators=CHEAP.split(","), engine=iv.Engine(1))
         assert json.dumps(_results(on_cluster)) == json.dumps(_results(serial))
         assert on_cluster.timing["engine"].startswith("Dask")
         assert len(on_cluster.failures) == 1
@@ -203,11 +202,11 @@ def test_no_dask_scheduler_is_one_error_naming_the_option(fleet_dir):
     pytest.importorskip("distributed")
     import dask
 
-    from ionav_viz.api.fleet import evaluate_fleet
+    import ionav_viz as iv
     from ionav_viz.core.errors import InputError
 
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), pytest.raises(InputError) as err:
-        evaluate_fleet([str(fleet_dir / "V-f0.csv")], 10, estimators=["ins"], cluster="tcp://127.0.0.1:9")
+        iv.evaluate([str(fleet_dir / "V-f0.csv")], 10, estimators=["ins"], engine=iv.Engine(cluster="tcp://127.0.0.1:9"))
     assert err.value.param == "cluster" and "no Dask scheduler answered at tcp://127.0.0.1:9" in str(err.value)
 
 
@@ -227,10 +226,10 @@ def test_replay_of_many_drives_writes_one_recording_each(fleet_dir, tmp_path):
     assert all((out / n).stat().st_size > 0 for n in ("V-f0.rrd", "V-f1.rrd", "V-f2.rrd", "V-f0-2.rrd"))
     assert "V-bad.csv: missing column" in result.stderr
     assert "Fleet: 5 drive(s), 4 evaluated, 1 failed" in result.stderr
-    from ionav_viz.api.fleet import evaluate_fleet, replay_fleet
+    import ionav_viz as iv
 
-    replayed = replay_fleet(_good(fleet_dir)[:2], tmp_path / "api", 10, estimators=CHEAP.split(","), workers=1)
-    evaluated = evaluate_fleet(_good(fleet_dir)[:2], 10, estimators=CHEAP.split(","), workers=1)
+    replayed = iv.replay(_good(fleet_dir)[:2], 10, estimators=CHEAP.split(","), output=tmp_path / "api", engine=iv.Engine(1))
+    evaluated = iv.evaluate(_good(fleet_dir)[:2], 10, estimators=CHEAP.split(","), engine=iv.Engine(1))
     assert _same(replayed.to_dict()["sequences"], evaluated.to_dict()["sequences"])
     assert [r["recording"] for r in replayed.drive_rows()] == [str(tmp_path / "api" / n) for n in ("V-f0.rrd", "V-f1.rrd")]
     refused = run_cli("replay", *_good(fleet_dir), "-o", str(tmp_path / "one.rrd"))
@@ -370,10 +369,10 @@ def test_the_error_into_an_outage_is_the_final_error_of_a_shorter_one(fleet_dir)
     outage from the same start (evaluated on its own), so the breakdown stands for the length."""
     import numpy as np
 
-    from ionav_viz.api.fleet import evaluate_fleet
+    import ionav_viz as iv
 
     drives = _good(fleet_dir)
-    long, short = (evaluate_fleet(drives, n, estimators=["ins", "odo", "ekf"], workers=1) for n in (30, 10))
+    long, short = (iv.evaluate(drives, n, estimators=["ins", "odo", "ekf"], engine=iv.Engine(1)) for n in (30, 10))
     compared = 0
     for t30, t10 in zip(long.drives, short.drives):
         for est in ("ins", "odo", "ekf"):

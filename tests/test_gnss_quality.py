@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ionav_viz.core.gnss_quality import GnssFault, GnssLimits, assess_gnss
+from ionav_viz.core.gnss_quality import GnssFault, GnssLimits, ReceiverQuality, assess_gnss
 from ionav_viz.dataset.samples import SAMPLES, sample_path, samples_dir
 from ionav_viz.sources.iovnbd import HEADER
 from ionav_viz.viz.entities import base_state
@@ -226,7 +226,7 @@ def test_source_flags_satellites_accuracy_and_null_island():
     sats = np.array([0, 3, 4, 9, 9, 9, 9, 9, 9, 9], dtype=float)
     sigma = np.array([1, 1, 1, 6, 1, 1, 1, 1, 1, 1], dtype=float)
     lat[7], lon[7] = 0.0, 0.0
-    fault = assess_gnss(t, lat, lon, v, n_satellites=sats, sigma_m=sigma)
+    fault = assess_gnss(t, lat, lon, v, ReceiverQuality(n_satellites=sats, sigma_m=sigma))
     assert list(fault) == [GnssFault.NO_FIX, GnssFault.FEW_SATELLITES, 0, GnssFault.POOR_ACCURACY, 0, 0, 0,
                            GnssFault.NEAR_ZERO, 0, 0]
 

@@ -158,11 +158,17 @@ def test_an_unresponsive_scheduler_is_one_line_within_the_connect_timeout(drives
         import dask
 
         with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), pytest.raises(iv.InputError) as err:
-            iv.evaluate_fleet([str(drives / "V-a.csv")], estimators=["ins"], cluster=address)
+            _fleet([str(drives / "V-a.csv")], estimators=["ins"], cluster=address)
         assert err.value.param == "cluster"
 
 
 # --- 4. the fleet API's arguments ---------------------------------------------------------------
+def _fleet(drives, estimators=None, placement=None, progress=None, workers=1, cluster=None, runs=(), replay_options=""):
+    """A fleet through the API: ``iv.evaluate`` on an engine, its arguments as the fleet took them."""
+    return iv.evaluate(drives, None, placement, estimators, progress=progress, runs=runs,
+                       engine=iv.Engine(workers, cluster), fleet=iv.FleetOptions(replay_options=replay_options))
+
+
 @pytest.mark.parametrize(("kwargs", "param"), [
     ({"cluster": 5}, "cluster"), ({"cluster": ["local"]}, "cluster"), ({"cluster": "tcp://[::1"}, "cluster"),
     ({"drives": None}, "drives"), ({"drives": 5}, "drives"), ({"drives": ["x", 5]}, "drives"), ({"runs": 5}, "runs"),
@@ -173,19 +179,19 @@ def test_the_fleet_api_names_a_bad_argument(drives, kwargs, param):
     """Each was a TypeError (or an AttributeError) naming no argument; now an InputError naming it."""
     call = {"drives": [str(drives / "V-a.csv")], "estimators": ["ins"], "workers": 1, **kwargs}
     with pytest.raises(iv.InputError) as err:
-        iv.evaluate_fleet(**call)
+        _fleet(**call)
     assert err.value.param == param, err.value
 
 
 def test_one_path_given_to_the_fleet_api_is_one_drive_or_folder(drives, tmp_path):
     """``evaluate_fleet("/path/fleet")`` iterated the string's characters into 17 failed "drives"."""
-    report = iv.evaluate_fleet(str(drives), estimators=["ins"], workers=1)
+    report = _fleet(str(drives), estimators=["ins"], workers=1)
     assert [Path(t.spec).name for t in report.drives] == ["V-a.csv", "V-b.csv"] and not report.failures
     from ionav_viz.api.fleet import plan_fleet
 
     assert [Path(d.spec).name for d in plan_fleet(drives / "V-b.csv").drives] == ["V-b.csv"]
-    for call, param in ((lambda: iv.replay_fleet(str(drives), folder=5), "output"),
-                        (lambda: iv.replay_fleet(None), "drives"),
+    for call, param in ((lambda: iv.replay(str(drives), output=5, engine=iv.Engine(1)), "output"),
+                        (lambda: iv.replay(None, engine=iv.Engine(1)), "drives"),
                         (lambda: iv.write_fleet_recording({"drives": []}, tmp_path / "f.rrd"), "report")):
         with pytest.raises(iv.InputError) as err:
             call()

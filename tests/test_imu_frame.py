@@ -70,10 +70,10 @@ def test_a_mount_stops_the_run_with_its_estimate_and_the_options(logs, mount):
     assert f"map the IMU axes with --imu-axes {axes} (the nearest exact permutation)" in message
     assert "\n" not in message
     ref = read_mcap(logs["rep103"])
-    fixed = read_mcap(logs[mount], imu_axes=axes)  # the exact permutation: the same drive
+    fixed = read_mcap(logs[mount], iv.LogOptions(imu_axes=axes))  # the exact permutation: the same drive
     np.testing.assert_allclose(fixed.accel_long_mps2, ref.accel_long_mps2, atol=1e-9)
     np.testing.assert_allclose(fixed.yaw_rate_radps, ref.yaw_rate_radps, atol=1e-9)
-    auto = read_mcap(logs[mount], imu_mount="auto")  # the estimate: within a degree or two of it
+    auto = read_mcap(logs[mount], iv.LogOptions(imu_mount="auto"))  # the estimate: within a degree or two of it
     assert np.abs(auto.yaw_rate_radps - ref.yaw_rate_radps).max() < 0.005
     assert np.abs(auto.accel_long_mps2 - ref.accel_long_mps2).max() < 0.5
 

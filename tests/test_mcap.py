@@ -46,7 +46,7 @@ def test_ros2_imu_100hz_gnss_5hz_jittered(tmp_path):
 def test_log_time_instead_of_header_stamps(tmp_path):
     path = fx.write_ros2(tmp_path / "a.mcap", latency_s=0.03)
     header = read_mcap(path)
-    log = read_mcap(path, stamps="log")
+    log = read_mcap(path, iv.LogOptions(stamps="log"))
     # the recorder's log time is 30 ms late: the grid starts 30 ms later in the day
     assert log.start_time_of_day_s - header.start_time_of_day_s == pytest.approx(0.03, abs=0.003)
 
@@ -82,7 +82,7 @@ def test_several_imu_topics_need_a_choice(tmp_path):
     with pytest.raises(InputError, match=r"several IMU topics") as raised:
         read_mcap(path)
     assert raised.value.param == "imu_topic"  # the command line names it --imu-topic
-    _check_straight_line(read_mcap(path, imu_topic="/imu2"))
+    _check_straight_line(read_mcap(path, iv.LogOptions(imu_topic="/imu2")))
     proc = run_cli("info", str(path))
     assert proc.returncode == 0 and "/imu2" in proc.stdout and "several IMU topics" in proc.stderr
 

@@ -51,7 +51,7 @@ def fine_tuned_on_first_half(log: str, folder: Path) -> tuple[np.ndarray, np.nda
     drive = iv.load_drive(path, read_options(entry))
     split_s = float(math.floor(float(drive.t_s[-1] - drive.t_s[0]) / 2))
     config = iv.fine_tune_settings("shipped", epochs_disp=EPOCHS, epochs_yaw=EPOCHS)
-    model = iv.train(folder / "m", [path], config, read=read_options(entry, f"0s:{split_s:g}s"), from_model="shipped")
+    model = iv.train(folder / "m", [path], iv.TrainingOptions(config, "shipped"), read=read_options(entry, f"0s:{split_s:g}s"))
     run = {"warm_up_s": split_s + 1.0}  # the window before the first outage lies after the training span
     parent = iv.evaluate([drive], 10, estimators=["ins", "idnn"], run=iv.RunOptions(**run))
     tuned = iv.evaluate(

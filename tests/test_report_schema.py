@@ -43,9 +43,9 @@ def test_a_drive_report_names_its_kind_first_and_documents_every_key(report):
 
 
 def test_several_reports_and_a_fleet_name_their_kinds_and_document_every_key(report):
-    lengths = json.loads(lengths_to_json(iv.evaluate_lengths(["roundabout"], [10, 30])))
-    by_event = json.loads(reports_to_json(iv.evaluate_by_event(["roundabout"], 10.0), key="by_event"))
-    fleet = iv.evaluate_fleet(["roundabout", "hard-brake"], 10.0, workers=1).to_dict()
+    lengths = json.loads(lengths_to_json(iv.evaluate(["roundabout"], [10, 30])))
+    by_event = json.loads(reports_to_json(iv.evaluate(["roundabout"], 10.0, by_event=True), key="by_event"))
+    fleet = iv.evaluate(["roundabout", "hard-brake"], 10.0, engine=iv.Engine(1)).to_dict()
     for kind, doc in (("lengths", lengths), ("by_event", by_event), ("fleet", fleet)):
         assert doc["schema"] == f"ionav-viz/{kind}/1"
         assert set(doc) - documented_keys(kind) == set(), kind

@@ -249,10 +249,11 @@ def test_outage_starting_while_standing_still(tmp_path):
     assert proc.returncode == 0, proc.stderr
     ev = run_cli("evaluate", "hard-brake", "--outage", "3s", "--json")
     from ionav_viz.analysis.evaluate import evaluate_drive
+    from ionav_viz.experiment.outages import OutagePlan
     from ionav_viz.sources.load import load_drive
 
     drive = load_drive("hard-brake")
-    res = evaluate_drive(drive, 3, ["ins"], starts=np.array([2]))
+    res = evaluate_drive(drive, 3, ["ins"], plan=OutagePlan(np.array([2]), ""))
     assert np.isfinite(res.metrics["ins"]["crse_m"]).all()
     assert res.metrics["ins"]["final_position_error_m"][0] < 1.0  # standing still: stays put
     assert ev.returncode == 0

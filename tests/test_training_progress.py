@@ -78,8 +78,8 @@ def test_training_reports_each_epoch_and_gives_torch_its_threads_back(tmp_path):
     seen: list[EpochStatus] = []
     calls: list[tuple[str, int, int]] = []
     config = dataclasses.replace(iv.fine_tune_settings("shipped", 2, 2), tune_layers="all")  # one try
-    iv.train(tmp_path / "m", [str(DRIVE)], config, read=iv.ReadOptions(span="0s:120s"), from_model="shipped",
-             on_epoch=seen.append, progress=lambda *a: calls.append(a), device="cpu")
+    iv.train(tmp_path / "m", [str(DRIVE)], iv.TrainingOptions(config, "shipped", "cpu"), read=iv.ReadOptions(span="0s:120s"),
+             on_epoch=seen.append, progress=lambda *a: calls.append(a))
     assert torch.get_num_threads() == before
     # the tail decides (the model fine-tuned on the first 80 %), then every window: both networks, 2 epochs each
     assert [s.label for s in seen] == [f"{net} ({fit})" for fit in ("block 1/1 left out", "every window")

@@ -19,7 +19,7 @@ from ..core.drive import Drive
 from ..core.gnss_quality import count_by_fault
 from ..core.grid import WINDOW_S
 from ..core.timing import stage
-from ..experiment.outages import excluded_by_truth, tile
+from ..experiment.outages import OutagePlan, excluded_by_truth, tile
 from ..experiment.registry import BASELINE
 from ..experiment.registry import resolve as resolve_estimators
 from ..nav.bias import SensorBias, resolve_bias
@@ -140,27 +140,24 @@ def evaluate_drive(
     estimators: Sequence[str | Estimator],
     *,
     bias: SensorBias | None = None,
-    starts: np.ndarray | None = None,
+    plan: OutagePlan | None = None,
     windows: Windows | None = None,
-    excluded_outages: int | None = None,
-    gnss_gaps: Sequence[tuple[float, float]] = (),
-    placement: str = "",
 ) -> DriveResult:
-    """Every one of ``estimators`` on the ``n_windows``-second outages ``starts`` (default: the
+    """Every one of ``estimators`` on the ``n_windows``-second outages of ``plan`` (default: the
     paper's tiling) of ``drive``.
 
     ``estimators``: names or objects (see :func:`ionav_viz.experiment.registry.resolve`). ``bias``:
-    default from the drive's own stationary stretches. ``excluded_outages``: how many outages the
-    caller's placement lost to bad GNSS truth (counted here for the default tiling).
-    ``gnss_gaps``: the log's own GNSS losses ``(last good fix s, first good fix s)`` to bridge as
-    well (:mod:`ionav_viz.analysis.bridging`).
+    default from the drive's own stationary stretches. ``plan``: the outages' first windows, how
+    many outages the caller's placement lost to bad GNSS truth (counted here for the default
+    tiling), the log's own GNSS losses ``(last good fix s, first good fix s)`` to bridge as well
+    (:mod:`ionav_viz.analysis.bridging`) and the placement in words.
     """
     n = int(n_windows)
     windows = windows if windows is not None else make_windows(drive)
-    if starts is None:
-        starts = tile(windows, n)
-        excluded_outages = excluded_by_truth(windows, n, lambda w: tile(w, n))
-    starts = np.asarray(starts, dtype=int)
+    if plan is None:
+        plan = OutagePlan(tile(windows, n), "", excluded_by_truth(windows, n, lambda w: tile(w, n)))
+    starts = np.asarray(plan.starts, dtype=int)
+    excluded_outages, gnss_gaps, placement = plan.excluded, plan.gnss_gaps, plan.description
     bias = bias if bias is not None else resolve_bias(drive)
     chosen = resolve_estimators(list(estimators))
     # estimators get the receiver's GNSS; they are scored against the truth (a reference, if any)

@@ -12,6 +12,12 @@ dataclasses, and problems are :class:`~ionav_viz.core.errors.InputError` (bad in
     print(report.to_text())
     result = iv.replay(drive, placement=iv.Every(30.0), output="roundabout.rrd")
     iv.screenshot([result.path], "shots/", iv.Shots(times=["worst"], views=["local"]))
+    reports = iv.evaluate(iv.Experiment([drive], outage_s=[10, 30]))  # {10.0: Report, 30.0: Report}
+
+:class:`Experiment` (``experiment.py``) is one run's set-up; :func:`evaluate` and :func:`replay`
+(``run.py``) take it, or its fields as arguments, and its fields choose the variant (several
+outage lengths, by manoeuvre, a fleet on an :class:`Engine`, a scenario). The previous release's
+names of the variants are in ``deprecated.py``, for one release.
 """
 
 
@@ -19,16 +25,27 @@ from ..viz.live import WebServing
 from .compare import compare
 from .cross_validate import CrossValidation, cross_validate
 from .datasets import DatasetSource, RunSelection, fetch, list_runs
-from .evaluate import ScenarioDrives, evaluate, evaluate_by_event, evaluate_lengths, scenario_drives
+from .deprecated import (
+    evaluate_by_event,
+    evaluate_fleet,
+    evaluate_lengths,
+    replay_fleet,
+    replay_lengths,
+    replay_scenario,
+)
+from .engine import Engine
+from .evaluate import ScenarioDrives, scenario_drives
 from .events import DetectorQuality, detector_quality, find_events
+from .experiment import Experiment, FleetOptions
 from .figures import figures
-from .fleet import evaluate_fleet, replay_fleet, write_fleet_recording
+from .fleet import run_fleet, write_fleet_recording
 from .options import RunOptions
 from .outage_log import OutageLogResult, outage_log
-from .replay import RECORDINGS_DIR, Outage, ReplayResult, replay, replay_lengths, replay_scenario, serve_web
+from .replay import RECORDINGS_DIR, Outage, ReplayResult, serve_web
+from .run import evaluate, replay
 from .screenshots import Shots, screenshot
 from .simulation import Converted, convert, simulate, simulate_bundled
-from .training import TrainingDrives, fine_tune_settings, train, training_drives
+from .training import TrainingDrives, TrainingOptions, fine_tune_settings, train, training_drives
 
 __all__ = [
     "RECORDINGS_DIR",
@@ -36,6 +53,9 @@ __all__ = [
     "CrossValidation",
     "DatasetSource",
     "DetectorQuality",
+    "Engine",
+    "Experiment",
+    "FleetOptions",
     "Outage",
     "OutageLogResult",
     "ReplayResult",
@@ -44,6 +64,7 @@ __all__ = [
     "ScenarioDrives",
     "Shots",
     "TrainingDrives",
+    "TrainingOptions",
     "WebServing",
     "compare",
     "convert",
@@ -63,6 +84,7 @@ __all__ = [
     "replay_fleet",
     "replay_lengths",
     "replay_scenario",
+    "run_fleet",
     "scenario_drives",
     "screenshot",
     "serve_web",

@@ -18,7 +18,7 @@ import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 from ..core.drive import Drive
 from ..core.durations import Span
@@ -26,6 +26,10 @@ from ..core.errors import InputError
 from ..core.signals import hold_signals
 from ..sources.load import ReadOptions, crop_to_span, load_drives
 from .options import DriveLike, Progress, RunOptions, options_of
+
+if TYPE_CHECKING:
+    from ..learning.idnn import IdnnModel, ModelConfig
+    from .training import TrainingOptions
 
 
 @dataclass
@@ -100,36 +104,52 @@ class CrossValidation:
         return "\n".join(rows)
 
 
+class CrossValidateKeywords(TypedDict, total=False):
+    """:func:`cross_validate`'s keyword arguments beside the settings, output and progress: ``read``,
+    how drives are read (``read.span`` limits every drive first); ``run``, its ``bias_from`` and
+    warm-up are used; ``from_model`` and ``device`` (deprecated:
+    :class:`~ionav_viz.api.training.TrainingOptions`)."""
+
+    read: ReadOptions | None
+    run: RunOptions | None
+    from_model: str | Path | IdnnModel | None
+    device: str | None
+
+
 def cross_validate(
     drives: Sequence[DriveLike],
     folds: int = 5,
     outage_s: float = 10.0,
     *,
-    config: Any = None,
-    from_model: Any = None,
-    read: ReadOptions | None = None,
-    run: RunOptions | None = None,
+    config: ModelConfig | TrainingOptions | None = None,
     output: str | Path | None = None,
-    device: str | None = None,
     progress: Progress | None = None,
+    **keywords: Unpack[CrossValidateKeywords],
 ) -> CrossValidation:
     """Train ``folds`` models, each tested on data it never saw (module docstring), and report each
     fold's test metrics and their spread.
 
-    ``config``: the training settings (``ModelConfig``; default the shipped model's, or with
-    ``from_model`` :func:`~ionav_viz.api.training.fine_tune_settings`); ``read``: how drives are read
-    (``read.span`` limits every drive first); ``run``: its ``bias_from`` is used; ``output``: a
-    folder to write each fold's model into (``fold-1`` ...); ``device``: where torch trains
-    (default ``"cuda"`` when torch sees a GPU, else the CPU).
+    ``config``: a :class:`~ionav_viz.api.training.TrainingOptions` (the settings, default the
+    shipped model's, or with ``from_model`` :func:`~ionav_viz.api.training.fine_tune_settings`; the
+    model fine-tuned from; where torch trains, default ``"cuda"`` when torch sees a GPU, else the
+    CPU), or only the settings (a ``ModelConfig``); ``output``: a folder to write each fold's model
+    into (``fold-1`` ...); ``keywords``: ``read`` and ``run`` (:class:`CrossValidateKeywords`).
     """
     import time
 
     from ..core.warnings_log import printing_once
     from ..learning.idnn import ModelConfig, check_model_dir, save_model
     from ..learning.training import train_models
-    from .evaluate import evaluate
     from .options import windows_of
-    from .training import parent_model, training_device
+    from .run import evaluate
+    from .training import parent_model, training_device, training_of
+
+    unknown = sorted(set(keywords) - set(CrossValidateKeywords.__annotations__))
+    if unknown:
+        raise TypeError(f"cross_validate() got an unexpected keyword argument {unknown[0]!r}")
+    training = training_of(config, keywords)
+    config, from_model, device = training.config, training.from_model, training.device
+    run, read = keywords.get("run"), keywords.get("read")
 
     if isinstance(folds, bool) or not isinstance(folds, int) or folds < 2:
         raise InputError(f"{folds!r} folds: need at least 2", "give --folds 2 or more (5 is usual)", param="folds")

@@ -1,25 +1,26 @@
-"""Evaluating estimators on GNSS outages: :func:`evaluate`, :func:`evaluate_by_event`, and the
-scenarios' test drives."""
+"""Evaluating estimators on GNSS outages in this process: an :class:`~.experiment.Experiment` at
+one outage length, at several, by manoeuvre type, and the scenarios' test drives
+(:func:`ionav_viz.evaluate` chooses among them)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..analysis.evaluate import DriveResult
 from ..analysis.events import MANOEUVRE_TYPES, detect_events
 from ..analysis.report import EventReports, Report
-from ..core.drive import Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_folder
 from ..core.warnings_log import collecting_warnings
 from ..dataset.catalog import PAPER_TEST_RUNS, SCENARIOS, run_key
 from ..experiment.outages import GNSS_OUTAGE, AroundEvents, Placement
-from ..experiment.plan_file import FromPlan
-from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
-from ..sources.load import LogOptions, ReadOptions, load_drives
+from ..sources.load import ReadOptions, load_drives
 from ..sources.resolve import data_root as _data_root
+from .experiment import Experiment
 from .options import (
     DriveLike,
     Progress,
@@ -27,11 +28,9 @@ from .options import (
     check_event_types,
     each_length,
     input_paths,
-    lengths_of,
     log,
     name_of,
     no_outage_fits,
-    options_of,
     placement_of,
     refuse_export_onto_inputs,
     too_short,
@@ -39,6 +38,9 @@ from .options import (
     with_externals,
 )
 from .pipeline import plan_drive, score
+
+if TYPE_CHECKING:
+    pass
 
 
 class ScenarioDrives(dict):
@@ -80,61 +82,23 @@ def scenario_drives(scenario: str, data_root: str | Path | None = None) -> Scena
 
 
 
-def evaluate(
-    drives: Sequence[DriveLike] | DriveLike,
-    outage_s: float | None = None,
-    placement: Placement | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    progress: Progress | None = None,
-    mcap: LogOptions | None = None,
-    truth: str | None = None,
-    plan: str | Path | None = None,
-    external: Mapping[str, str | Path] | None = None,
-    export: str | Path | None = None,
-) -> Report:
-    """Every estimator on the same GNSS outages of each drive, scored with the paper's metrics.
+def scenario_groups(exp: Experiment) -> ScenarioDrives:
+    """``exp.scenario``'s test drives by scenario, where they come from logged."""
+    groups = scenario_drives(exp.scenario, exp.read.data_root)
+    log.info("drives: %s", groups.source)
+    return groups
 
-    Args:
-        drives: drives or what names them (see :func:`load_drive`).
-        outage_s: length of each outage, whole seconds.
-        placement: where outages go (default :class:`Tile`, the paper's consecutive outages).
-            A drive too short for one tiled outage is skipped with a warning.
-        estimators: a shortcut for ``run.estimators``.
-        run: which estimators run with what model, biases and event thresholds (:class:`RunOptions`).
-        read: how drives are read (:class:`ReadOptions`); outages go only where every window has
-            good GNSS truth, and the report counts what was excluded.
-        mcap: deprecated, ``read.log``.
-        plan: an outage plan file (``OUT.outages.json`` of :func:`outage_log`): exactly its outages
-            (instead of ``placement``; the outage length is the plan's).
-        external: estimates made outside ionav-viz on the plan's outaged log, ``{name: trajectory}``
-            (a ``.csv``, a ``.tum`` or ``LOG:TOPIC``, :mod:`ionav_viz.sources.trajectory`), scored
-            like the built-ins; they need ``plan``.
-        export: a folder to write the per-outage table, evo's TUM tracks and GeoJSON/GPX tracks
-            into (:mod:`ionav_viz.analysis.exports`).
-        truth: a message log's reference topic, the truth every score is measured against
-            (a shortcut for ``read.log.truth_topic``; see :class:`LogOptions`).
 
-    Returns:
-        a :class:`Report`; ``report.to_json()`` is what ``ionav-viz evaluate --json`` prints.
-    """
-    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
-    if not items:
-        raise InputError("no drive to evaluate", "give at least one drive")
-    placement = placement_of(placement, plan)
-    n = windows_of(outage_s, placement)  # checked before any drive is read
-    if isinstance(placement, FromPlan) and len(items) != 1:
-        raise InputError(f"a plan is made for one drive, and {len(items)} are given", "evaluate the plan's drive alone",
-                         param="plan")
-    run, read = options_of(run, estimators, read, mcap, truth)
-    run = with_externals(run, external, placement)
+def evaluate_single(exp: Experiment, progress: Progress | None, export: str | Path | None) -> Report:
+    """One outage length: every drive of ``exp`` in this process, one report."""
+    items = list(exp.drives)
+    placement = placement_of(exp.placement, exp.plan)
+    n = windows_of(exp.outage_s, placement)  # checked before any drive is read
+    run, read = exp.options()
+    run = with_externals(run, exp.external, placement)
     if export is not None:
         check_output_folder(Path(export), param="export")
-        refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement, external=external))
-    if placement.event_types:
-        check_event_types(placement.event_types)
+        refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement, external=exp.external))
     run.chosen()
     with collecting_warnings() as warned:
         results = _evaluate_each(items, n, placement, run, read, progress)
@@ -183,57 +147,27 @@ def _evaluate_each(items: list[DriveLike], n: int, placement: Placement, run: Ru
     return results
 
 
-def evaluate_lengths(
-    drives: Sequence[DriveLike] | DriveLike,
-    lengths_s: Sequence[float],
-    placement: Placement | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    progress: Progress | None = None,
-    truth: str | None = None,
-    export: str | Path | None = None,
-) -> dict[float, Report]:
-    """:func:`evaluate` for each outage length of ``lengths_s`` on the same drives and placement:
-    ``{length: report}`` in increasing length (``analysis.report.by_length`` compares them), and with
-    ``export`` one folder ``EXPORT/<length>s`` each (as :func:`~ionav_viz.api.replay.replay_lengths`
-    writes them). A length no drive has room for is left out with a warning (nothing exported for
-    it) when another fits; when none fits, the shortest one's error, and nothing is written."""
-    lengths = lengths_of(lengths_s, placement)
-    _, read = options_of(None, None, read, None, truth)  # the reference topic read with the drives, once
-    items = [drives] if isinstance(drives, (Drive, str, Path)) else list(drives)
+def evaluate_each_length(exp: Experiment, progress: Progress | None, export: str | Path | None) -> dict[float, Report]:
+    """Each of ``exp``'s outage lengths on the same drives, read once: ``{length: report}``."""
+    _, read = exp.options()  # the reference topic read with the drives, once
+    items = list(exp.drives)
     if export is not None:  # checked before any work, as evaluate checks it
         check_output_folder(Path(export), param="export")
-        refuse_export_onto_inputs(export, input_paths(items, read, run=run, plan=placement))
+        refuse_export_onto_inputs(export, input_paths(items, read, run=exp.run, plan=exp.placement))
     loaded = load_drives(items, read)  # read once, used for every length
-    return dict(each_length(lengths,
-                            lambda length: evaluate(loaded, length, placement, estimators, run=run, read=read,
-                                                    progress=progress,
-                                                    export=None if export is None else Path(export) / f"{length:g}s")))
+    return dict(each_length(exp.lengths_s,
+                            lambda length: evaluate_single(replace(exp, drives=loaded, outage_s=length), progress,
+                                                           None if export is None else Path(export) / f"{length:g}s")))
 
 
-def evaluate_by_event(
-    drives: Sequence[DriveLike],
-    outage_s: float | None = None,
-    types: Sequence[str] | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    mcap: LogOptions | None = None,
-    truth: str | None = None,
-) -> EventReports:
-    """One report per manoeuvre type: an outage centred on each detected event, across ``drives``
-    (``types`` default: every manoeuvre type; ``gnss-outage``: the log's own losses, bridged).
-    A type with no event, or none with room for an outage, has no report; the result's ``events``
-    counts each type's events (:class:`~ionav_viz.analysis.report.EventReports`). The other
-    arguments as for :func:`evaluate`."""
-    kinds = tuple(types) if types else MANOEUVRE_TYPES
+def evaluate_events(exp: Experiment) -> EventReports:
+    """One report per manoeuvre type of ``exp.by_event`` (True: every manoeuvre type)."""
+    kinds = exp.by_event if isinstance(exp.by_event, tuple) and exp.by_event else MANOEUVRE_TYPES
     check_event_types(kinds)
-    n = windows_of(outage_s)
-    run, read = options_of(run, estimators, read, mcap, truth)
+    n = windows_of(exp.outage_s)
+    run, read = exp.options()
     run.chosen()
+    drives = list(exp.drives)
     with collecting_warnings() as warned:
         per_type, counts = _evaluate_by_event_each(drives, n, kinds, run, read)
     reports = EventReports({kind: Report(results, kind, warnings=warned) for kind, results in per_type.items()

@@ -21,10 +21,10 @@ from ..core.errors import InputError
 from ..core.fileio import read_bytes_bounded
 from ..experiment.outages import GNSS_OUTAGE, Placement
 from ..nav.bias import SensorBias, resolve_bias
-from ..nav.protocol import Estimator
 from ..sources.load import ReadOptions
 from .engine import Engine, WorkerLost, default_workers, run_each
-from .options import Progress, RunOptions, check_event_types, load_stationary, options_of, placement_of, windows_of
+from .experiment import Experiment, FleetOptions
+from .options import Progress, RunOptions, load_stationary, placement_of, windows_of
 from .replay import default_stem
 
 log = logging.getLogger("ionav_viz")
@@ -259,11 +259,11 @@ def evaluate_one(spec: str, job: _Job, recording: str | None = None,
                 return DriveFailure(spec, f"skipped: {why} ({drive.duration_s:.0f} s)", time.perf_counter() - began,
                                     skipped=True)
             if recording is not None:
-                from .replay import replay
+                from .replay import replay_single
 
                 with _one_torch_thread(load=_torch_idnn(job.run.applying_to([drive]))):
-                    result = replay(drive, job.n_windows, job.placement, output=recording, run=job.run,
-                                    read=job.read).result
+                    result = replay_single(Experiment(drive, job.n_windows, job.placement, run=job.run, read=job.read),
+                                           recording, None, None, None).result
             else:
                 ests = job.run.applying_to([drive])
                 with _one_torch_thread(load=_torch_idnn(ests)):
@@ -350,92 +350,46 @@ class _quiet_log:
         self.logger.handlers[:], self.logger.propagate = self.saved
 
 
-def evaluate_fleet(
-    drives: Sequence[str | Path] | str | Path,
-    outage_s: float | None = None,
-    placement: Placement | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    workers: int | None = None,
-    cluster: str | None = None,
-    fail_fast: bool = False,
-    progress: Progress | None = None,
-    replay_options: str = "",
-    runs: Sequence[str] = (),
-    fleet_rrd: str | Path | None = None,
-) -> FleetReport:
-    """Evaluate every drive on its own, on ``workers`` processes (default: every core; 1: in this
-    process) or a Dask cluster (``cluster``: ``tcp://host:8786``, or ``"local"``), and pool the
-    results in the order the drives were given: the report is the same whatever the workers.
-
-    Args:
-        drives: paths, folders, globs, ``@list.txt`` files or names (:func:`expand_drives`), or one
-            of them alone (a str or Path: one drive, folder, glob or list); a worker reads each
-            drive itself, so on a cluster every path must be one the workers see.
-        outage_s, placement, estimators, run, read: as for :func:`ionav_viz.evaluate`; the
-            estimators are chosen per drive (the default ones that apply to it).
-        fail_fast: the first drive that fails raises its :class:`InputError` (the work not started
-            is cancelled) instead of being reported.
-        progress: ``progress(label, done, total)`` after each drive; the label says the outages
-            scored and the slowest drive so far.
-        replay_options: the options that replay a drive the same way, for the report's commands.
-        runs: IO-VNBD run selections added to the drives (``all``, a group, a driver; :func:`expand_drives`).
-        fleet_rrd: where to write the fleet's overview recording (:func:`write_fleet_recording`)
-            when some drive was evaluated; checked with the run's other outputs before any work
-            (:func:`plan_outputs`).
-
-    Returns:
-        a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
-        with its one-line reason, a drive too short for one outage in ``skipped``.
-    """
-    _check_callables(progress, replay_options)
-    engine = Engine(workers if workers is not None else default_workers(), cluster).start()
-    items = expand_drives(drives, runs)
-    job = _job_of(items, outage_s, placement, estimators, run, read)
-    outputs = plan_outputs(items, fleet_rrd=fleet_rrd, inputs=fleet_inputs(drives, items, job.run))
-    report = _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items], job,
-                        engine, fail_fast, progress, replay_options)
-    if outputs.fleet_rrd is not None and report.drives:
-        _write_overview(report, outputs.fleet_rrd)
-    return report
-
-
-def replay_fleet(
-    drives: Sequence[str | Path] | str | Path,
-    folder: str | Path = "recordings",
-    outage_s: float | None = None,
-    placement: Placement | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    workers: int | None = None,
-    cluster: str | None = None,
-    fail_fast: bool = False,
-    progress: Progress | None = None,
-    replay_options: str = "",
-    runs: Sequence[str] = (),
-    fleet_rrd: str | Path | None = None,
-) -> FleetReport:
-    """:func:`ionav_viz.replay` of every drive into ``folder`` (made when missing), one recording
+def run_fleet(exp: Experiment, folder: str | Path | None, progress: Progress | None,
+              fleet: FleetOptions | None = None) -> FleetReport:
+    """``exp``'s drives each on its own on ``exp.engine`` (worker processes, default every core, or a
+    Dask cluster), pooled in the order the drives were given: the report is the same whatever the
+    workers. With ``folder``, each drive is replayed there too (made when missing), one recording
     each, ``<drive>.rrd`` (with ``read.span`` the span too, ``<drive>-0s-60s.rrd``, as
     :func:`ionav_viz.api.replay.default_stem` names it; a name another drive's recording has taken
-    gets the first free ``-2``, ``-3``...: :func:`plan_outputs`), in parallel as
-    :func:`evaluate_fleet` evaluates them; each row of the report has its ``recording``. With
-    ``fleet_rrd``, the fleet's overview recording too. On a cluster, ``folder`` must be one every
-    worker can write to."""
-    _check_callables(progress, replay_options)
-    if not isinstance(folder, (str, os.PathLike)):
+    gets the first free ``-2``, ``-3``...: :func:`plan_outputs`), each row of the report with its
+    ``recording``; on a cluster, ``folder`` must be one every worker can write to.
+
+    ``exp.drives``: paths, folders, globs, ``@list.txt`` files or names (:func:`expand_drives`),
+    and ``exp.runs`` IO-VNBD run selections; a worker reads each drive itself, so on a cluster
+    every path must be one the workers see; the estimators are chosen per drive (the default ones
+    that apply to it). ``progress(label, done, total)`` after each drive; the label says the
+    outages scored and the slowest drive so far. ``fleet``: :class:`FleetOptions` (fail fast, the
+    overview recording, the replay options the report's commands carry).
+
+    Returns a :class:`FleetReport`; a drive that cannot be read or evaluated is in its ``failures``
+    with its one-line reason, a drive too short for one outage in ``skipped``."""
+    fleet = fleet if fleet is not None else FleetOptions()
+    if not isinstance(fleet, FleetOptions):
+        raise InputError(f"fleet={fleet!r} is not a FleetOptions", "give fleet=iv.FleetOptions(...), or leave it out",
+                         param="fleet")
+    check_callables(progress, fleet.replay_options)
+    if folder is not None and not isinstance(folder, (str, os.PathLike)):
         raise InputError(f"folder={folder!r} is not a folder's path",
                          "give the folder the recordings go into, e.g. 'recordings'", param="output")
-    engine = Engine(workers if workers is not None else default_workers(), cluster).start()
-    items = expand_drives(drives, runs)
-    job = _job_of(items, outage_s, placement, estimators, run, read)
+    engine = exp.engine.start()
+    items = expand_drives(list(exp.drives), exp.runs)
+    job = _job_of(items, exp)
+    if folder is None:
+        outputs = plan_outputs(items, fleet_rrd=fleet.fleet_rrd, inputs=fleet_inputs(list(exp.drives), items, job.run))
+        report = _run_fleet([(d.spec, job, None, _absolute(d.spec)) for d in items], [d.size_bytes for d in items],
+                            job, engine, fleet.fail_fast, progress, fleet.replay_options)
+        if outputs.fleet_rrd is not None and report.drives:
+            _write_overview(report, outputs.fleet_rrd)
+        return report
     out = Path(folder)
-    outputs = plan_outputs(items, folder=out, span=job.read.span, fleet_rrd=fleet_rrd,
-                           inputs=fleet_inputs(drives, items, job.run))
+    outputs = plan_outputs(items, folder=out, span=job.read.span, fleet_rrd=fleet.fleet_rrd,
+                           inputs=fleet_inputs(list(exp.drives), items, job.run))
     for spec, recording in outputs.renamed.items():
         log.warning("%s: recorded as %s, as another output of this run has the drive's name", spec, recording)
     work = [(d.spec, job, recording, _absolute(d.spec)) for d, recording in zip(items, outputs.recordings)]
@@ -443,7 +397,8 @@ def replay_fleet(
     out.mkdir(parents=True, exist_ok=True)
     report = None
     try:
-        report = _run_fleet(work, [d.size_bytes for d in items], job, engine, fail_fast, progress, replay_options)
+        report = _run_fleet(work, [d.size_bytes for d in items], job, engine, fleet.fail_fast, progress,
+                            fleet.replay_options)
         if outputs.fleet_rrd is not None and report.drives:
             _write_overview(report, outputs.fleet_rrd)
         return report
@@ -567,7 +522,7 @@ def fleet_inputs(specs: Sequence[str | Path] | str | Path | None, items: Sequenc
     return paths
 
 
-def _check_callables(progress: Any, replay_options: Any) -> None:
+def check_callables(progress: Any, replay_options: Any) -> None:
     """``progress`` a callable or None and ``replay_options`` a string, before any work (a number
     was a TypeError after the first drive, or a report that printed it as the options)."""
     if progress is not None and not callable(progress):
@@ -584,16 +539,13 @@ def _drive_name(spec: str) -> str:
     return (path.parent.name if path.name == "metadata.yaml" else path.stem) or "drive"
 
 
-def _job_of(items: list[FleetDrive], outage_s: float | None, placement: Placement | None,
-            estimators: Sequence[str | Estimator] | None, run: RunOptions | None, read: ReadOptions | None) -> _Job:
+def _job_of(items: list[FleetDrive], exp: Experiment) -> _Job:
     """The run's options, checked once, before any worker starts."""
     if not items:
         raise InputError("no drive to evaluate", "give at least one drive")
-    placement = placement_of(placement, None)
-    n = windows_of(outage_s, placement)
-    run, read = options_of(run, estimators, read, None, None)
-    if placement.event_types:
-        check_event_types(placement.event_types)
+    placement = placement_of(exp.placement, None)
+    n = windows_of(exp.outage_s, placement)
+    run, read = exp.options()
     run.chosen()  # plug-ins and the model are checked here, before any worker starts
     if run.bias_from is not None and not isinstance(run.bias_from, SensorBias):
         # --bias-from too: a file that cannot be read, or does not stand

@@ -172,19 +172,27 @@ def check_event_types(types: Sequence[str]) -> None:
 
 def placement_of(placement: Placement | FromPlan | None, plan: str | Path | None) -> Placement | FromPlan:
     """The placement of a call: ``plan`` (a plan file) or ``placement``, default :class:`Tile`."""
-    from ..experiment.outages import Placement, Tile
+    from ..experiment.outages import Tile
     from ..experiment.plan_file import FromPlan
 
+    check_placement(placement, plan)
     if plan is not None:
-        if placement is not None:
-            raise InputError("outages given twice (a plan and a placement)", "give a plan or a placement, not both",
-                             param="plan")
         return FromPlan(plan)
+    return placement or Tile()
+
+
+def check_placement(placement: object, plan: str | Path | None) -> None:
+    """``placement`` a placement (or None), and not given beside a plan file; reads nothing."""
+    from ..experiment.outages import Placement
+    from ..experiment.plan_file import FromPlan
+
+    if plan is not None and placement is not None:
+        raise InputError("outages given twice (a plan and a placement)", "give a plan or a placement, not both",
+                         param="plan")
     if placement is not None and not isinstance(placement, (*get_args(Placement), FromPlan)):  # 5 was an AttributeError
         raise InputError(f"placement={placement!r} is not a placement",
                          "give iv.Tile(), iv.Every(30.0), iv.At([...]), iv.Random(n), iv.AroundEvents([...]) "
                          "or a plan (plan=FILE), or leave it out", param="placement")
-    return placement or Tile()
 
 
 def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None,
@@ -198,12 +206,7 @@ def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None,
 
     if not external:
         return run
-    if not hasattr(external, "items"):
-        raise InputError(f"external={external!r} is not a mapping of names to trajectories",
-                         "e.g. external={'rl': 'rl.csv'}", param="external")
-    if not isinstance(placement, FromPlan):
-        raise InputError("an external estimate is scored on the outages of the log it ran on",
-                         "score it on that log's plan (its NAME.outages.json)", param="external")
+    check_externals(external, isinstance(placement, FromPlan))
     built = []
     for name, spec in external.items():
         if str(name) in BUILTIN:  # an external 'ins' became the baseline every improvement is measured against
@@ -217,6 +220,19 @@ def with_externals(run: RunOptions, external: Mapping[str, str | Path] | None,
     if estimators is not None:  # --estimators ins,mine with --external mine=...: 'mine' is the external, run once
         estimators = [e for e in estimators if not (isinstance(e, str) and e.strip() in names)]
     return replace(run, estimators=estimators, plugins=tuple(run.plugins) + tuple(built))
+
+
+def check_externals(external: object, on_a_plan: bool) -> None:
+    """``external`` (when given) a mapping of names to trajectories, scored on a plan's outages
+    (``on_a_plan``); reads nothing."""
+    if not external:
+        return
+    if not hasattr(external, "items"):
+        raise InputError(f"external={external!r} is not a mapping of names to trajectories",
+                         "e.g. external={'rl': 'rl.csv'}", param="external")
+    if not on_a_plan:
+        raise InputError("an external estimate is scored on the outages of the log it ran on",
+                         "score it on that log's plan (its NAME.outages.json)", param="external")
 
 
 def input_paths(drives: Sequence[DriveLike] | DriveLike | None, read: ReadOptions | None = None, *,

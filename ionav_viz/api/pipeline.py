@@ -69,7 +69,5 @@ def score(planned: DrivePlan, estimators: Sequence[Estimator], bias: SensorBias 
     """Every one of ``estimators`` on the planned outages of the drive, scored with the paper's
     metrics (:func:`~ionav_viz.analysis.evaluate.evaluate_drive`); ``bias``: the sensor biases
     (None: from the drive's own stationary stretches)."""
-    plan = planned.plan
-    return evaluate_drive(planned.drive, planned.n_windows, estimators, bias=bias, starts=plan.starts,
-                          windows=planned.windows, excluded_outages=plan.excluded, gnss_gaps=plan.gnss_gaps,
-                          placement=plan.description)
+    return evaluate_drive(planned.drive, planned.n_windows, estimators, bias=bias, plan=planned.plan,
+                          windows=planned.windows)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..analysis.evaluate import DriveResult
 from ..analysis.events import Event, detect_events
@@ -15,22 +15,19 @@ from ..core.fileio import check_output_file, check_output_folder, refuse_output_
 from ..core.timing import stage
 from ..core.warnings_log import collecting_warnings
 from ..experiment.outages import Placement
-from ..nav.protocol import Estimator
 from ..nav.windows import make_windows
-from ..sources.load import LogOptions, ReadOptions, load_drive
+from ..sources.load import ReadOptions, load_drive
 from ..viz.live import WebServing
 from .evaluate import scenario_drives, write_exports
+from .experiment import Experiment
 from .options import (
     DriveLike,
     Progress,
     RunOptions,
-    check_event_types,
     each_length,
     input_paths,
-    lengths_of,
     log,
     no_outage_fits,
-    options_of,
     placement_of,
     refuse_export_onto_inputs,
     too_short,
@@ -38,6 +35,9 @@ from .options import (
     with_externals,
 )
 from .pipeline import plan_drive, score
+
+if TYPE_CHECKING:
+    pass
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
@@ -78,40 +78,9 @@ class ReplayResult:
 
 
 
-def replay(
-    drive: DriveLike,
-    outage_s: float | None = None,
-    placement: Placement | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    output: str | Path | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    progress: Progress | None = None,
-    connect: str | None = None,
-    mcap: LogOptions | None = None,
-    truth: str | None = None,
-    plan: str | Path | None = None,
-    external: Mapping[str, str | Path] | None = None,
-    export: str | Path | None = None,
-) -> ReplayResult:
-    """Replay ``drive`` with GNSS outages, run the estimators side by side and write a ``.rrd``.
-
-    Args:
-        drive, outage_s, placement, estimators, run, read, truth, plan, external, export: as for :func:`evaluate`
-            (:class:`AroundEvents` places an outage on each detected manoeuvre of its types).
-        output: the ``.rrd`` to write (default ``recordings/<drive>.rrd`` in the current
-            directory, the folder made when missing; with ``read.span``, ``<drive>-0s-60s.rrd`` or
-            ``<drive>-60s-end.rrd``: :func:`default_stem`); an existing file is replaced atomically,
-            nothing is left behind on failure.
-        progress: called as the recording is built.
-        connect: also stream the recording to the Rerun viewer at this gRPC address (e.g.
-            ``rerun+http://127.0.0.1:9876/proxy``, where a plain ``rerun`` listens); checked
-            before any work.
-
-    Returns:
-        a :class:`ReplayResult` with the written path, the report and the outages.
-    """
+def replay_single(exp: Experiment, output: str | Path | None, progress: Progress | None, connect: str | None,
+                export: str | Path | None) -> ReplayResult:
+    """One drive at one outage length into one recording."""
     from ..viz import live
 
     if connect is not None:
@@ -119,18 +88,17 @@ def replay(
     out = Path(output) if output is not None else None
     if out is not None and out.suffix.lower() != ".rrd":
         raise InputError(f"{out}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
-    placement = placement_of(placement, plan)
-    n = windows_of(outage_s, placement)
-    run, read = options_of(run, estimators, read, mcap, truth)
-    run = with_externals(run, external, placement)
-    inputs = input_paths(drive, read, run=run, plan=placement, external=external)
+    drive = exp.drives[0]
+    placement = placement_of(exp.placement, exp.plan)
+    n = windows_of(exp.outage_s, placement)
+    run, read = exp.options()
+    run = with_externals(run, exp.external, placement)
+    inputs = input_paths(drive, read, run=run, plan=placement, external=exp.external)
     refuse_output_onto_input(out, inputs)
     if export is not None:
         check_output_folder(Path(export), param="export")
         refuse_export_onto_inputs(export, inputs)
         refuse_output_onto_output(out, export, param="export", replaced=["tum"])
-    if placement.event_types:
-        check_event_types(placement.event_types)
     run.chosen()
     with collecting_warnings() as warned:
         replayed = _replay(drive, n, placement, out, run, read, progress, connect, warned, export)
@@ -189,50 +157,34 @@ def _replay(drive: DriveLike, n: int, placement: Placement, out: Path | None, ru
 
 
 
-def replay_lengths(
-    drive: DriveLike,
-    lengths_s: Sequence[float],
-    placement: Placement | None = None,
-    estimators: Sequence[str | Estimator] | None = None,
-    output: str | Path | None = None,
-    *,
-    run: RunOptions | None = None,
-    read: ReadOptions | None = None,
-    progress: Progress | None = None,
-    export: str | Path | None = None,
-) -> list[ReplayResult]:
-    """:func:`replay` for each outage length of ``lengths_s`` (increasing) on the same drive and
-    placement: one recording per length, ``OUTPUT-<length>s.rrd`` (default
-    ``recordings/<drive>-<length>s.rrd``), and with ``export`` one folder ``EXPORT/<length>s`` each.
-    ``analysis.report.by_length`` of their reports gives the error against outage length. A length
-    the drive has no room for is left out with a warning (nothing written for it) when another
-    fits; when none fits, the shortest one's error, and nothing is written."""
-    lengths = lengths_of(lengths_s, placement)
+def replay_each_length(exp: Experiment, output: str | Path | None, progress: Progress | None,
+                    export: str | Path | None) -> list[ReplayResult]:
+    """Each of ``exp``'s outage lengths on its one drive, read once: one recording per length,
+    ``OUTPUT-<length>s.rrd`` (default ``recordings/<drive>-<length>s.rrd``), and with ``export``
+    one folder ``EXPORT/<length>s`` each."""
     if output is not None and Path(output).suffix.lower() != ".rrd":
         raise InputError(f"{output}: a recording must end in .rrd", "choose a name like drive.rrd", param="output")
-    d = load_drive(drive, read)  # read once, replayed for every length
+    _, read = exp.options()
+    d = load_drive(exp.drives[0], read)  # read once, replayed for every length
 
     def one(length: float) -> ReplayResult:
-        stem = (Path(output).stem if output is not None
-                else default_stem(d.name, read.span if read is not None else None))
+        stem = Path(output).stem if output is not None else default_stem(d.name, read.span)
         name = f"{stem}-{length:g}s.rrd"
         target = Path(output).with_name(name) if output is not None else Path(RECORDINGS_DIR, name)
-        return replay(d, length, placement, estimators, target, run=run, read=read, progress=progress,
-                      export=None if export is None else Path(export) / f"{length:g}s")
+        return replay_single(replace(exp, drives=(d,), outage_s=length), target, progress, None,
+                           None if export is None else Path(export) / f"{length:g}s")
 
-    return [result for _, result in each_length(lengths, one)]
+    return [result for _, result in each_length(exp.lengths_s, one)]
 
 
-def replay_scenario(scenario: str, folder: str | Path, outage_s: float = 10.0, placement: Placement | None = None, *,
-                    run: RunOptions | None = None, read: ReadOptions | None = None) -> list[Path]:
-    """Replay every test drive of ``scenario`` (``"all"``: of every scenario; see
-    :func:`scenario_drives`) into ``folder`` as ``<scenario>-<drive>.rrd``; returns the paths."""
-    read = read if read is not None else ReadOptions()
-    groups = scenario_drives(scenario, read.data_root)
+def replay_scenario_drives(exp: Experiment, folder: str | Path) -> list[Path]:
+    """Every test drive of ``exp.scenario`` into ``folder`` as ``<scenario>-<drive>.rrd``; the paths."""
+    groups = scenario_drives(exp.scenario, exp.read.data_root)
     log.info("drives: %s", groups.source)
-    return [replay(spec, outage_s, placement, output=Path(folder) / f"{group}-{Path(spec).stem}.rrd", run=run,
-                   read=read).path
+    return [replay_single(replace(exp, drives=(spec,), scenario=None), Path(folder) / f"{group}-{Path(spec).stem}.rrd",
+                        None, None, None).path
             for group, specs in groups.items() for spec in specs]
+
 
 def _summary_markdown(result: DriveResult, report: Report, description: str) -> str:
     """The recording's summary document: the run, the worst outages and the paper's table."""

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 from ..core.errors import InputError
 from ..core.fileio import refuse_output_onto_input
@@ -12,6 +14,64 @@ from ..nav.bias import resolve_bias
 from ..sources.load import ReadOptions, load_drives
 from ..sources.resolve import data_root as _data_root
 from .options import DriveLike, Progress, input_paths, load_stationary
+
+if TYPE_CHECKING:
+    from ..learning.idnn import IdnnModel, ModelConfig
+
+#: The devices training takes (``"auto"``: a GPU when torch sees one, else the CPU).
+DEVICES = ("auto", "cpu", "cuda")
+
+
+@dataclass(frozen=True)
+class TrainingOptions:
+    """What :func:`train` and :func:`~ionav_viz.api.cross_validate.cross_validate` train, and where.
+
+    Attributes:
+        config: the training settings (a ``ModelConfig``); default the shipped model's settings,
+            or with ``from_model`` :func:`fine_tune_settings` of it.
+        from_model: fine-tune this model (a model directory, ``"shipped"`` or an ``IdnnModel``)
+            instead of starting from random weights: its weights, input normalisation and
+            architecture are the start, and the model's metadata records it as the parent.
+        device: where torch trains (``"cpu"``, ``"cuda"``; None or ``"auto"``: a GPU when torch
+            sees one, :func:`training_device`; deterministic for a seed on the CPU).
+    """
+
+    config: ModelConfig | None = None
+    from_model: str | Path | IdnnModel | None = None
+    device: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.device is not None and self.device not in DEVICES:
+            raise InputError(f"unknown device {self.device!r}", f"choose one of {', '.join(DEVICES)}", param="device")
+
+
+def training_of(config: ModelConfig | TrainingOptions | None, moved: Mapping[str, Any]) -> TrainingOptions:
+    """The :class:`TrainingOptions` of a call: ``config`` itself, or a ``ModelConfig`` (or None)
+    with the deprecated ``from_model=`` and ``device=`` keywords (each warns)."""
+    from_model, device = moved.get("from_model"), moved.get("device")
+    if isinstance(config, TrainingOptions):
+        given = [name for name, value in (("from_model", from_model), ("device", device)) if value is not None]
+        if given:
+            raise InputError(f"{given[0]}= given beside TrainingOptions", "give it in the TrainingOptions",
+                             param=given[0])
+        return config
+    for name, value in (("from_model", from_model), ("device", device)):
+        if value is not None:
+            warnings.warn(f"{name}= is deprecated: pass TrainingOptions(config, {name}=...)", DeprecationWarning,
+                          stacklevel=3)
+    return TrainingOptions(config, from_model, device)
+
+
+class TrainKeywords(TypedDict, total=False):
+    """:func:`train`'s keyword arguments beside the model directory, drives, settings and callbacks:
+    ``bias_from``, a stationary drive for the sensor biases (default each drive's own);
+    ``command``, how it was trained, kept in the metadata; ``from_model`` and ``device``
+    (deprecated: :class:`TrainingOptions`)."""
+
+    bias_from: DriveLike | None
+    command: str
+    from_model: str | Path | IdnnModel | None
+    device: str | None
 
 
 class TrainingDrives(list):
@@ -42,43 +102,41 @@ def training_drives(paper: bool = False, data_root: str | Path | None = None) ->
 def train(
     output: str | Path,
     drives: Sequence[DriveLike] | None = None,
-    config: Any = None,
+    config: ModelConfig | TrainingOptions | None = None,
     *,
-    bias_from: DriveLike | None = None,
     read: ReadOptions | None = None,
     force: bool = False,
     progress: Progress | None = None,
-    command: str = "ionav_viz.train",
-    from_model: Any = None,
-    device: str | None = None,
     on_epoch: Any = None,
+    **keywords: Unpack[TrainKeywords],
 ) -> Any:
     """Train the IDNN's two networks and write them with their metadata to ``output`` (a model
     directory; an existing one is replaced only with ``force``, atomically).
 
     ``drives``: default the bundled synthetic training drives (:func:`training_drives`, which
     also gives the paper's runs);
-    ``config``: an ``ionav_viz.ModelConfig`` (default the shipped model's settings);
-    ``bias_from``: a stationary drive for the sensor biases (default each drive's own);
-    ``command``: how it was trained, kept in the metadata;
-    ``from_model``: fine-tune this model (a model directory, ``"shipped"`` or an ``IdnnModel``)
-    instead of starting from random weights: its weights, input normalisation and architecture
-    are the start, ``config`` defaults to :func:`fine_tune_settings`, and the metadata records it
-    as the parent; ``read.span`` (``--span``) chooses the part of each drive to train on, recorded
-    per drive with the file's sha256; ``device``: where torch trains (``"cpu"``, ``"cuda"``;
-    default a GPU when torch sees one: :func:`training_device`; deterministic for a seed on the
-    CPU); ``progress(label, epoch, epochs)`` and ``on_epoch(status)``
+    ``config``: a :class:`TrainingOptions` (the settings, the model fine-tuned from, the device),
+    or only the settings, an ``ionav_viz.ModelConfig`` (default the shipped model's settings);
+    ``read.span`` (``--span``) chooses the part of each drive to train on, recorded per drive with
+    the file's sha256; ``progress(label, epoch, epochs)`` and ``on_epoch(status)``
     (an ``ionav_viz.learning.training.EpochStatus``: the fit, its epoch, training and validation loss,
-    optimiser steps done and planned, time elapsed and left) are called after every epoch.
+    optimiser steps done and planned, time elapsed and left) are called after every epoch;
+    ``keywords``: ``bias_from`` and ``command`` (:class:`TrainKeywords`).
     Returns the trained ``IdnnModel``.
     """
     from ..learning.idnn import ModelConfig, check_model_dir, save_model
     from ..learning.training import train_models
 
+    unknown = sorted(set(keywords) - set(TrainKeywords.__annotations__))
+    if unknown:
+        raise TypeError(f"train() got an unexpected keyword argument {unknown[0]!r}")
+    training = training_of(config, keywords)
+    bias_from, command = keywords.get("bias_from"), keywords.get("command", "ionav_viz.train")
     read = read if read is not None else ReadOptions()
-    device = training_device(device)
-    parent = parent_model(from_model) if from_model is not None else None
-    config = config if config is not None else (ModelConfig() if parent is None else fine_tune_settings(parent))
+    device = training_device(training.device)
+    parent = parent_model(training.from_model) if training.from_model is not None else None
+    config = (training.config if training.config is not None
+              else (ModelConfig() if parent is None else fine_tune_settings(parent)))
     config.validate()
     specs = training_drives() if drives is None else drives
     description = getattr(specs, "description", TrainingDrives.description)
@@ -149,10 +207,6 @@ def fine_tune_settings(parent: Any, epochs_disp: int | None = None, epochs_yaw: 
     from ..learning.training import fine_tune_config
 
     return fine_tune_config(parent_model(parent).config, epochs_disp, epochs_yaw, seed)
-
-
-#: The devices training takes (``"auto"``: a GPU when torch sees one, else the CPU).
-DEVICES = ("auto", "cpu", "cuda")
 
 
 def training_device(device: str | None = None) -> str:

@@ -65,8 +65,8 @@ def cross_validate(
                     print(said[0], file=sys.stderr)
             advance(text, done, total)
 
-        result = run_folds(drives, folds, outage_s, config=config, from_model=from_model, read=read,
-                           run=api.RunOptions(bias_from=bias_from), output=output, device=device, progress=step)
+        result = run_folds(drives, folds, outage_s, config=api.TrainingOptions(config, from_model, device),
+                           output=output, progress=step, read=read, run=api.RunOptions(bias_from=bias_from))
     print(result.to_json() if as_json else result.to_text())
 
 

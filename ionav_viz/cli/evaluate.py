@@ -94,12 +94,14 @@ def evaluate(
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage or '10s'}",
                                                  placement="--plan" if plan else placement.option):
         if by_event:
-            reports = api.evaluate_by_event([s for specs in groups.values() for s in specs], outage_s, placement.on,
-                                            run=run, read=read)
+            reports = api.evaluate(api.Experiment([s for specs in groups.values() for s in specs], outage_s,
+                                                  run=run, read=read,
+                                                  by_event=tuple(placement.on) if placement.on else True))
         else:
-            reports = {group: replace(api.evaluate(specs, outage_s, chosen, external=c.externals_of(external),
+            reports = {group: replace(api.evaluate(api.Experiment(specs, outage_s, chosen, run=run, read=read,
+                                                                  external=c.externals_of(external)),
                                                    export=None if export is None
-                                                   else (export / group if group else export), run=run, read=read,
+                                                   else (export / group if group else export),
                                                    progress=c.progress_callback(bar, "evaluating")), title=group)
                        for group, specs in groups.items()}
 
@@ -134,8 +136,8 @@ def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.Pla
         raise typer.BadParameter("give at least one drive", param_hint="DRIVES")
     lengths = c.durations_of(outage, "--outage")
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
-        reports = api.evaluate_lengths(drives, lengths, placement.placement, run=run, read=read,
-                                       progress=c.progress_callback(bar, "evaluating"), export=export)
+        reports = api.evaluate(api.Experiment(drives, lengths, placement.placement, run=run, read=read),
+                               progress=c.progress_callback(bar, "evaluating"), export=export)
     if as_json:
         print(lengths_to_json(reports))
         return

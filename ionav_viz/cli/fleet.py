@@ -37,6 +37,7 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     """Evaluate the drives as a fleet and print its report (and with ``fleet_rrd`` write its
     overview recording there); exit 3 when some drives failed
     (:data:`ionav_viz.api.fleet.EXIT_SOME_FAILED`), 2 when none could be evaluated."""
+    from .. import api
     from ..api import fleet
     from ..core.json_out import dumps_json
 
@@ -56,17 +57,27 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
             print(dumps_json(plan.to_dict()) if as_json else plan.to_text(), end="\n" if as_json else "")
             return
         with c.progress(quiet) as bar:
-            report = fleet.evaluate_fleet(drives, outage_s, placement.placement, run=run, read=read, workers=workers,
-                                          cluster=cluster, fail_fast=fail_fast,
-                                          progress=c.progress_callback(bar, "evaluating"),
-                                          replay_options=_replay_options(outage, placement, run, read), runs=runs or (),
-                                          fleet_rrd=fleet_rrd)
+            report = api.evaluate(_experiment(drives, outage_s, placement, run, read, workers, cluster, runs),
+                                  progress=c.progress_callback(bar, "evaluating"),
+                                  fleet=api.FleetOptions(fail_fast, fleet_rrd, _replay_options(outage, placement, run,
+                                                                                                read)))
     if as_json:
         print(report.to_json())
     else:
         print(report.to_markdown() if markdown else report.to_text(c.terminal_width()), end="")
     _said_fleet_rrd(report, fleet_rrd, quiet)
     _exit_for(report, quiet)
+
+
+def _experiment(drives: list[str], outage_s: Optional[float], placement: c.PlacementArgs, run: Any, read: Any,
+                workers: Optional[int], cluster: Optional[str], runs: Optional[list[str]]) -> Any:
+    """The fleet's :class:`~ionav_viz.api.experiment.Experiment`: on ``workers`` processes (default
+    every core) or the Dask ``cluster``."""
+    from .. import api
+    from ..api.engine import default_workers
+
+    engine = api.Engine(workers if workers is not None else default_workers(), cluster)
+    return api.Experiment(drives, outage_s, placement.placement, run=run, read=read, engine=engine, runs=runs or ())
 
 
 def _note_pool(workers: Optional[int], cluster: Optional[str], quiet: bool) -> None:
@@ -144,7 +155,7 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
                  refused: dict[str, Any], fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
     """Replay many drives, one recording each into the folder ``-o`` (default ``recordings``):
     the recordings' paths on stdout, the fleet report on stderr; exit codes as for evaluate."""
-    from ..api import fleet
+    from .. import api
 
     for option, given in refused.items():
         if given:
@@ -157,11 +168,11 @@ def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str
                        placement=placement.option, runs="--runs", fleet_rrd="--fleet-rrd"):
         _note_pool(workers, cluster, quiet)
         with c.progress(quiet) as bar:
-            report = fleet.replay_fleet(drives, output if output is not None else Path("recordings"), outage_s,
-                                        placement.placement, run=run, read=read, workers=workers, cluster=cluster,
-                                        fail_fast=fail_fast, progress=c.progress_callback(bar, "replaying"),
-                                        replay_options=_replay_options(outage, placement, run, read), runs=runs or (),
-                                        fleet_rrd=fleet_rrd)
+            report = api.replay(_experiment(drives, outage_s, placement, run, read, workers, cluster, runs),
+                                output=output if output is not None else Path("recordings"),
+                                progress=c.progress_callback(bar, "replaying"),
+                                fleet=api.FleetOptions(fail_fast, fleet_rrd, _replay_options(outage, placement, run,
+                                                                                              read)))
     if not quiet:
         print(report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     for table in report.drives:

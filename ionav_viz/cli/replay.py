@@ -91,8 +91,8 @@ def replay(
                                          param_hint="--outage")
         lengths = c.durations_of(outage, "--outage")
         with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage}", placement=placement.option):
-            results = api.replay_lengths(drive_spec, lengths, placement.placement, output=output, run=run, read=read,
-                                         export=export, progress=c.progress_callback(bar, "writing"))
+            results = api.replay(api.Experiment(drive_spec, lengths, placement.placement, run=run, read=read),
+                                 output=output, export=export, progress=c.progress_callback(bar, "writing"))
         if not quiet:
             from ..analysis.report import by_length
             from ..analysis.tables import render_lengths
@@ -125,9 +125,9 @@ def replay(
                         "machine is on", bind)
     with c.progress(quiet) as bar, options_named(outage_s=f"--outage {outage or '10s'}",
                                                  placement="--plan" if plan else placement.option):
-        result = api.replay(drive_spec, outage_s, chosen, external=c.externals_of(external), export=export,
-                            output=output, run=run, read=read, connect=connect,
-                            progress=c.progress_callback(bar, "writing"))
+        result = api.replay(api.Experiment(drive_spec, outage_s, chosen, run=run, read=read,
+                                           external=c.externals_of(external)),
+                            output=output, connect=connect, export=export, progress=c.progress_callback(bar, "writing"))
     if not quiet:
         print(result.report.to_text(c.terminal_width(sys.stderr)), end="", file=sys.stderr)
     print(result.path)

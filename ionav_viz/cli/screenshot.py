@@ -87,8 +87,8 @@ def screenshot(
             read = ReadOptions(data_root=data_root_opt)
             if not quiet:
                 print(f"drives: {api.scenario_drives(scenario, read.data_root).source}", file=sys.stderr)
-            rrds = api.replay_scenario(scenario, tmp, length, placement.placement,
-                                       run=c.run_options(estimator_names, plugins), read=read)
+            rrds = api.replay(api.Experiment(scenario=scenario, outage_s=length, placement=placement.placement,
+                                             run=c.run_options(estimator_names, plugins), read=read), output=tmp)
         api.screenshot(rrds, output, api.Shots(times, views, width_height, numbers, worst_of), timeout_s=timeout_s,
                        progress=None if quiet else print)
 

@@ -162,8 +162,8 @@ def train(
     specs = (api.training_drives(paper=True, data_root=read.data_root)
              if paper_train else (list(drives) if drives else None))
     with training_progress(quiet) as on_epoch:
-        model = api.train(output, specs, config, bias_from=bias_from, read=read, force=force, on_epoch=on_epoch,
-                          command=training_command(sys.argv[1:]), from_model=from_model, device=device)
+        model = api.train(output, specs, api.TrainingOptions(config, from_model, device), read=read, force=force,
+                          on_epoch=on_epoch, bias_from=bias_from, command=training_command(sys.argv[1:]))
     val = model.metadata["validation"]
     params = model.metadata["trainable_parameters"]
     from ..core.grid import WINDOW_S

@@ -119,13 +119,29 @@ def position_sigma_m(t_s: np.ndarray, drive_t_s: np.ndarray, reported_m: np.ndar
     return np.maximum(np.interp(t_s, drive_t_s, reported_m), GNSS_SIGMA_FLOOR_M)
 
 
+@dataclass(frozen=True)
+class ReceiverQuality:
+    """What the source says of each fix, per sample (each optional; None: the source does not say).
+
+    Attributes:
+        n_satellites: satellites used (0: no fix).
+        sigma_m: reported horizontal standard deviation (m).
+        has_fix: 0 where the source had no fix at that time.
+    """
+
+    n_satellites: np.ndarray | None = None
+    sigma_m: np.ndarray | None = None
+    has_fix: np.ndarray | None = None
+
+
 def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed_mps: np.ndarray,
-                n_satellites: np.ndarray | None = None, sigma_m: np.ndarray | None = None,
-                vehicle_speed_mps: np.ndarray | None = None, limits: GnssLimits = GnssLimits(),
-                has_fix: np.ndarray | None = None, accel_mps2: np.ndarray | None = None) -> np.ndarray:
+                receiver: ReceiverQuality | None = None, vehicle_speed_mps: np.ndarray | None = None,
+                limits: GnssLimits = GnssLimits(), accel_mps2: np.ndarray | None = None) -> np.ndarray:
     """Fault mask (uint16, 0 = good) of each sample; see the module docstring for the checks.
-    ``has_fix`` (0 where the source had no fix) and ``accel_mps2`` (longitudinal specific force,
-    for the frozen check) are optional."""
+    ``receiver`` (what the source says of each fix) and ``accel_mps2`` (longitudinal specific
+    force, for the frozen check) are optional."""
+    receiver = receiver if receiver is not None else ReceiverQuality()
+    n_satellites, sigma_m, has_fix = receiver.n_satellites, receiver.sigma_m, receiver.has_fix
     n = len(t_s)
     fault = np.zeros(n, dtype=np.uint16)
     if has_fix is not None:

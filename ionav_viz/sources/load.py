@@ -13,7 +13,7 @@ from ..core.drive import Drive, measured_imu
 from ..core.durations import Span, parse_span
 from ..core.errors import InputError
 from ..core.gnss_lag import speed_lag_of
-from ..core.gnss_quality import GnssFault, GnssLimits, assess_gnss, count_by_fault
+from ..core.gnss_quality import GnssFault, GnssLimits, ReceiverQuality, assess_gnss, count_by_fault
 from ..core.grid import stamp_tolerance_s
 from ..core.timing import stage
 from .log_options import LogOptions
@@ -219,9 +219,9 @@ def mark_gnss_quality(drive: Drive, limits: GnssLimits) -> None:
     """Set ``drive.gnss_fault`` from the GNSS quality checks and say once what was found."""
     cols = drive.columns
     received = drive.as_received()  # the receiver's own fixes, sigma and gaps
-    receiver_fault = assess_gnss(drive.t_s, received.lat_deg, received.lon_deg, received.speed_mps,
-                                 cols.get("n_satellites"), cols.get("gnss_sigma_m"), cols.get("speed_can_mps"), limits,
-                                 has_fix=cols.get("gnss_fix"), accel_mps2=drive.accel_long_mps2)
+    said = ReceiverQuality(cols.get("n_satellites"), cols.get("gnss_sigma_m"), cols.get("gnss_fix"))
+    receiver_fault = assess_gnss(drive.t_s, received.lat_deg, received.lon_deg, received.speed_mps, said,
+                                 cols.get("speed_can_mps"), limits, accel_mps2=drive.accel_long_mps2)
     if drive.has_reference:  # the truth is the reference: its own continuity checks only
         # beside a reference the fixes are only the filters' input, weighted by their reported
         # sigma: a phone's 8 m fixes still aid them (they are never scored against)

@@ -13,12 +13,15 @@ import dataclasses
 import logging
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core.drive import Drive
 from ..core.errors import InputError
 from .inflate import check_declared, inflate
 from .message_log import ChannelInfo, decode_json, read_log
+
+if TYPE_CHECKING:
+    from .log_options import LogOptions
 
 log = logging.getLogger("ionav_viz")
 
@@ -220,13 +223,10 @@ def _bounded_chunks(path: Path) -> Iterator[None]:
         stream_reader.get_chunk_data_stream = real
 
 
-def read_mcap(path: str | Path, *, imu_topic: str | None = None, gnss_topic: str | None = None,
-              gnss_velocity_topic: str | None = None, vehicle_speed_topic: str | None = None, stamps: str = "header",
-              name: str | None = None, imu_axes: str | None = None, yaw_sign: str = "auto",
-              imu_mount: str | None = None) -> Drive:
-    """Read an MCAP log into a drive on a 10 Hz grid (see :mod:`.message_log`)."""
+def read_mcap(path: str | Path, options: LogOptions | None = None, *, name: str | None = None,
+              yaw_sign: str = "auto") -> Drive:
+    """Read an MCAP log into a drive on a 10 Hz grid (see :mod:`.message_log`), its topics, stamps
+    and IMU frame as ``options`` say (default :class:`~.log_options.LogOptions`: each found)."""
     from .log_options import LogOptions
 
-    options = LogOptions(imu_topic=imu_topic, gnss_topic=gnss_topic, gnss_velocity_topic=gnss_velocity_topic,
-                         vehicle_speed_topic=vehicle_speed_topic, stamps=stamps, imu_axes=imu_axes, imu_mount=imu_mount)
-    return read_log(McapLog(path), options, name=name, yaw_sign=yaw_sign)
+    return read_log(McapLog(path), options if options is not None else LogOptions(), name=name, yaw_sign=yaw_sign)
