@@ -225,3 +225,11 @@ def test_by_event_says_a_type_without_events_in_every_format():
     by = iv.evaluate(["hard-brake"], 10.0, estimators=["ins"], by_event=["hard-brake", "quick-accel"])
     assert list(by) == ["hard-brake"] and by.events == {"hard-brake": 20, "quick-accel": 0}
     assert by.without_outage_lines() == ["quick-accel: 0 events"]
+
+
+def test_by_event_with_export_is_refused_in_one_line(tmp_path):
+    """``evaluate --by-event --export DIR`` exited 0 and wrote nothing into DIR, without a word."""
+    proc = run_cli("evaluate", "hard-brake", "--by-event", "--on", "hard-brake", "--export", str(tmp_path / "out"))
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: ") and proc.stderr.count("\n") == 1 and "--export" in proc.stderr
+    assert list(tmp_path.iterdir()) == []

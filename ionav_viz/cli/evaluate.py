@@ -83,6 +83,9 @@ def evaluate(
     if by_event and plan is not None:
         raise typer.BadParameter("--by-event places one outage on each event; --plan places the plan's",
                                  param_hint="--by-event")
+    if by_event and export is not None:  # it was ignored without a word
+        raise typer.BadParameter("--by-event writes no per-outage files; --export writes a run's",
+                                 param_hint="--export")
     if by_event and placement.on is None and placement.option != "--outage":
         raise typer.BadParameter(f"--by-event places one outage on each event; {placement.option.split()[0]} places "
                                  "them otherwise", param_hint="--by-event")
