@@ -1077,11 +1077,8 @@ def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]],
     better prior; the estimator's check on each drive's GNSS widens it where the drive says so."""
     import logging
 
-    try:
-        runs = outage_runs(model, drives)
-    except InputError:
-        runs = None
-    found = 0 if runs is None else len(runs)
+    outages = uncertainty_outages(drives)
+    found = sum(len(starts) for *_, starts in outages)
     independent = found * UNCERTAINTY_STRIDE_WINDOWS / UNCERTAINTY_OUTAGE_WINDOWS
     if parent is not None and parent.uncertainty is not None and independent < MIN_UNCERTAINTY_OUTAGES:
         model.uncertainty = parent.uncertainty
@@ -1093,7 +1090,7 @@ def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]],
                           f"{UNCERTAINTY_STRIDE_WINDOWS * WINDOW_S:g} s), about {independent:.1f} independent, "
                           f"fewer than {MIN_UNCERTAINTY_OUTAGES} to fit its own")}
         return model
-    if runs is None or found < MIN_UNCERTAINTY_OUTAGES:
+    if found < MIN_UNCERTAINTY_OUTAGES:
         model.uncertainty = None
         model.metadata["uncertainty_skipped"] = (f"{found} overlapping outages of "
                                                  f"{UNCERTAINTY_OUTAGE_WINDOWS * WINDOW_S:g} s (one every "
@@ -1102,6 +1099,7 @@ def add_uncertainty(model: IdnnModel, drives: list[tuple[Drive, SensorBias]],
                                                  f"than {MIN_UNCERTAINTY_OUTAGES}: no uncertainty fitted")
         logging.getLogger("ionav_viz").warning("IDNN uncertainty not fitted: %s", model.metadata["uncertainty_skipped"])
         return model
+    runs = _run_outages(model, outages, UNCERTAINTY_OUTAGE_WINDOWS)
     model.uncertainty, info = fit_uncertainty(model, drives, runs)
     model.metadata.pop("uncertainty_skipped", None)
     model.metadata["uncertainty"] = info
@@ -1174,19 +1172,35 @@ def outage_runs(model: IdnnModel, drives: list[tuple[Drive, SensorBias]], n_wind
     """Run ``model`` on overlapping ``n_windows`` outages of ``drives`` exactly as
     :class:`~ionav_viz.learning.idnn.IdnnEstimator` runs them (calibration at the start, its own
     displacement fed back, standing windows), and measure the rebuilt track against the fixes."""
-    from ..core.geo import wgs84
-    from ..nav.protocol import EstimatorInputs
-    from ..nav.track import rebuild_track
+    return _run_outages(model, uncertainty_outages(drives, n_windows, stride), n_windows)
+
+
+def uncertainty_outages(drives: list[tuple[Drive, SensorBias]], n_windows: int = UNCERTAINTY_OUTAGE_WINDOWS,
+                        stride: int = UNCERTAINTY_STRIDE_WINDOWS) -> list[tuple[Drive, SensorBias, Any, np.ndarray]]:
+    """Each drive's overlapping ``n_windows`` outages for the uncertainty's fit, one every ``stride``
+    windows after :data:`UNCERTAINTY_WARM_UP_S`: ``(drive, bias, windows, starts)``, the drives with
+    none left out. Counting them runs no model."""
     from ..nav.windows import valid_start
 
-    parts = []
+    found = []
     for drive, bias in drives:
         # the truth's GNSS, as training's
         windows = make_windows(drive).ignoring_receiver().after_warm_up(UNCERTAINTY_WARM_UP_S)
         starts = np.array([k for k in range(windows.first_start, len(windows) - n_windows + 1, stride)
                            if valid_start(windows, k, n_windows)], dtype=int)
-        if not len(starts):
-            continue
+        if len(starts):
+            found.append((drive, bias, windows, starts))
+    return found
+
+
+def _run_outages(model: IdnnModel, outages: list[tuple[Drive, SensorBias, Any, np.ndarray]],
+                 n_windows: int) -> OutageRuns:
+    from ..core.geo import wgs84
+    from ..nav.protocol import EstimatorInputs
+    from ..nav.track import rebuild_track
+
+    parts = []
+    for drive, bias, windows, starts in outages:
         inputs = EstimatorInputs(drive, windows, starts, n_windows, bias)
         cal = (calibration(drive, windows, bias.accel_mps2, bias.gyro_radps)
                if model.config.inputs == "calibrated" else None)
