@@ -43,14 +43,11 @@ the grade part fades over GRADE_LENGTH_M of road.
 Noise values were chosen on the simulator's bundled test drives only (never on the real
 dataset), starting from its error model (``ionav_viz/sim/simulate.py``): sensor white noise as
 documented, the GNSS wander taken as white with its full standard deviation, the GNSS speed at
-0.05 m/s, and an offset random walk of 0.1 m/s^2/sqrt(s) loose enough to follow the road grade.
-Measured on those drives with the vehicle speed left out (`python benchmarks/ekf_tuning.py`):
-displacement CRSE 0.24-0.96 of the INS DR's, the motorway (grade changing within an outage at
-26 m/s) the closest.
+0.05 m/s, and an offset random walk of 0.1 m/s^2/sqrt(s) loose enough to follow the road grade
+(what they give: docs/method.md, `python benchmarks/ekf_tuning.py`).
 
 The filter's loops are compiled with numba (``cache=True``: the first run on a machine compiles
-them in about 6 s and stores the result in ``__pycache__``). Its pass over a drive runs at about
-4 million samples/s on our 2-core machine (`python benchmarks/bench_replay.py`).
+them and stores the result in ``__pycache__``; `python benchmarks/bench_replay.py` times a pass).
 """
 
 from __future__ import annotations
