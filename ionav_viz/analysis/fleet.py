@@ -23,6 +23,7 @@ from ..core import run_config
 from ..core.json_out import dumps_json
 from ..nav.protocol import color_of
 from .consistency import RATIO_AT_S
+from .document import Block, Code, Document, Heading, Items, Paragraphs, Table, to_markdown, to_text
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
@@ -453,63 +454,57 @@ class FleetReport:
 
     def to_text(self, width: int | None = None) -> str:
         """The report as plain text, its tables fitted into ``width`` columns (None: no limit)."""
-        return _render(self, markdown=False, width=width)
+        return to_text(self.document(timing=True), width)
 
     def to_markdown(self) -> str:
-        """The report as Markdown."""
-        return _render(self, markdown=True, width=None)
+        """The report as Markdown (without the run's wall time: the same whatever the workers)."""
+        return to_markdown(self.document(timing=False))
+
+    def document(self, timing: bool = True) -> Document:
+        """The report as a document (:mod:`.document`): the title, the drives' own GNSS losses, the
+        pooled table, the estimators' uncertainty, the breakdowns by manoeuvre and by time into
+        the outage, a row per drive, the worst drives and outages with the command that replays
+        each, the failed and skipped drives and the warnings; ``timing``: the wall time last."""
+        return _document(self, timing)
 
 
-def _own_losses_section(rep: FleetReport, table: Any, heading: Any, markdown: bool) -> list[str]:
+def _own_losses_section(rep: FleetReport) -> list[Block]:
     """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_outages`)."""
     real, labels = rep.real_outages(), rep.labels
     gaps = [b["gap_s"] for b in real["losses"]]
-    lines = [heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s "
-                     "without a fix; final error from the last good fix to the first after, m)"), ""]
     rows = [[labels[e], str(p["drives"]), str(p["losses"]), _f(p["mean_final_error_m"]), _f(p["p90_final_error_m"]),
              f"{_f(p['worst']['final_error_m'], 1)} ({p['worst']['drive']} #{p['worst']['number']})"]
             for e, p in real["pooled"].items()]
-    lines += table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1) + [""]
     ests = list(real["pooled"])
-    rows = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"]
-            + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
-            for d in real["drives"]]
-    lines += table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], rows, 1) + [""]
-    return lines
+    per_drive = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"]
+                 + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
+                 for d in real["drives"]]
+    return [Heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s "
+                    "without a fix; final error from the last good fix to the first after, m)", 2),
+            Table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1, align=True),
+            Table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], per_drive, 1, align=True)]
 
 
 def _f(x: float, decimals: int = 2) -> str:
     return "-" if not np.isfinite(x) else f"{x:.{decimals}f}"
 
 
-def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
-    from .tables import aligned
-
-    def table(header: list[str], rows: list[list[str]], left: int) -> list[str]:
-        if markdown:
-            return ["| " + " | ".join(header) + " |",
-                    "|" + "|".join("---" if j < left else "---:" for j in range(len(header))) + "|",
-                    *("| " + " | ".join(r) + " |" for r in rows)]
-        return aligned(header, rows, left, width)
-
-    def heading(text: str) -> str:
-        return f"## {text}" if markdown else text
-
+def _document(rep: FleetReport, timing: bool) -> Document:
     ests, labels, base = rep.estimators, rep.labels, rep.baseline
     hours = sum(t.duration_s for t in rep.drives) / 3600.0
     km = sum(t.distance_m for t in rep.drives) / 1000.0
     given = len(rep.drives) + len(rep.failures) + len(rep.skipped)
-    lines = [("# " if markdown else "") + f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
-             + (f", {len(rep.failures)} failed" if rep.failures else "")
-             + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
-             + (f"; {rep.n_outages} outages of {rep.outage_s:g} s" if rep.n_outages or not rep.n_real_outages else "")
-             + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
-             + f" over {hours:.2f} h and {km:.1f} km", ""]
+    blocks: list[Block] = [Heading(
+        f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
+        + (f", {len(rep.failures)} failed" if rep.failures else "")
+        + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
+        + (f"; {rep.n_outages} outages of {rep.outage_s:g} s" if rep.n_outages or not rep.n_real_outages else "")
+        + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
+        + f" over {hours:.2f} h and {km:.1f} km", 1)]
     if rep.n_real_outages:
-        lines += _own_losses_section(rep, table, heading, markdown)
+        blocks += _own_losses_section(rep)
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
-        lines += [heading("Pooled over the fleet (mean over outages)"), ""]
         header = (["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"]
                   + ([f"final vs {labels[base]} %", "95 % interval"] if base else []))
         rows = []
@@ -523,18 +518,18 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                 lo, hi = p.get("improvement_ci95_pct", {}).get("final_position_error_m", (float("nan"), float("nan")))
                 row.append(f"{_f(lo, 1)} to {_f(hi, 1)}" if math.isfinite(lo) and math.isfinite(hi) else "")
             rows.append(row)
-        lines += table(header, rows, 1) + [""]
+        blocks += [Heading("Pooled over the fleet (mean over outages)", 2), Table(header, rows, 1, align=True)]
         others = [e for e in ests if e != base]
         consistent = rep.consistency()
         if consistent:
             from .consistency import consistency_line
 
-            lines += [heading("How sure each estimator is (pooled over the fleet)"), ""]
-            lines += [("- " if markdown else "") + consistency_line(labels[e], c) for e, c in consistent.items()] + [""]
+            blocks += [Heading("How sure each estimator is (pooled over the fleet)", 2),
+                       Items([consistency_line(labels[e], c) for e, c in consistent.items()])]
+        versus = f"; improvement over {labels[base]}, %" if base else ""
         for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.by_manoeuvre()),
                                      ("By time into the outage (mean position error, m", "Into outage",
                                       rep.by_length())):
-            lines += [heading(title + (f"; improvement over {labels[base]}, %" if base else "") + ")"), ""]
             header = ([first, "outages"] + [labels[e] for e in ests]
                       + ([f"{labels[e]} %" for e in others] if base else []))
             rows = []
@@ -544,9 +539,7 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                 if base:
                     row += [_f(g["improvement_pct"][e], 1) for e in others]
                 rows.append(row)
-            lines += table(header, rows, 1) + [""]
-        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {labels[base]}, %" if base else "")
-                          + ")"), ""]
+            blocks += [Heading(f"{title}{versus})", 2), Table(header, rows, 1, align=True)]
         header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests]
                   + ([f"{labels[e]} %" for e in others] if base else []) + ["warnings"])
         rows = []
@@ -559,33 +552,25 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
             if base:
                 row += [_f(r.get("improvement_pct", {}).get(e, float("nan")), 1) for e in others]
             rows.append(row + [str(len(t.warnings))])
-        lines += table(header, rows, 1) + [""]
+        blocks += [Heading(f"Per drive (mean final error, m{versus})", 2), Table(header, rows, 1, align=True)]
         worst = rep.worst_drives()
         if worst:
-            lines += [heading(f"Worst drives (by {labels[rep.worst_of]} mean final error)"), ""]
-            lines += [f"{k}. {w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: "
-                      + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
+            blocks += [Heading(f"Worst drives (by {labels[rep.worst_of]} mean final error)", 2),
+                       Items([(f"{w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: ",
+                               Code(w["command"])) for w in worst], numbered=True)]
         worst = rep.worst_outages()
         if worst:
-            lines += [heading(f"Worst outages (by {labels[rep.worst_of]} final error)"), ""]
-            lines += [f"{k}. {w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                      + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items()) + "; replay: "
-                      + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
+            blocks += [Heading(f"Worst outages (by {labels[rep.worst_of]} final error)", 2),
+                       Items([(f"{w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
+                               + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items())
+                               + "; replay: ", Code(w["command"])) for w in worst], numbered=True)]
     for title, items in (("Failed drives", rep.failures), ("Skipped drives", rep.skipped)):
         if items:
-            lines += [heading(f"{title} ({len(items)})"), ""]
-            lines += [("- " if markdown else "") + f"{f.spec}: {f.reason}" for f in items] + [""]
+            blocks += [Heading(f"{title} ({len(items)})", 2), Items([f"{f.spec}: {f.reason}" for f in items])]
     warned = [(t.name, w) for t in rep.drives for w in t.warnings]
     if warned:
-        lines += [heading(f"Warnings ({len(warned)})"), ""]
-        lines += [("- " if markdown else "") + (w if w.startswith(name) else f"{name}: {w}")
-                  for name, w in warned] + [""]
-    if rep.timing.get("wall_s") is not None and not markdown:
-        lines.append(f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time")
-    if width is not None:  # the tables fit already; prose lines (worst, failures, warnings) are wrapped
-        import textwrap
-
-        lines = [ln if len(ln) <= width else "\n".join(textwrap.wrap(ln, width, subsequent_indent="   ",
-                                                                     break_on_hyphens=False))
-                 for ln in lines]
-    return "\n".join(lines).rstrip("\n") + "\n"
+        blocks += [Heading(f"Warnings ({len(warned)})", 2),
+                   Items([w if w.startswith(name) else f"{name}: {w}" for name, w in warned])]
+    if timing and rep.timing.get("wall_s") is not None:
+        blocks.append(Paragraphs([f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time"]))
+    return Document(blocks, spaced=True, hang=3)
