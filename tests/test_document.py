@@ -31,6 +31,16 @@ def test_a_table_too_wide_is_split_into_blocks_that_repeat_the_keys():
     )
 
 
+def test_a_table_that_cannot_be_split_is_kept_whole():
+    """Fewer than two value columns: nothing to split into blocks (this raised UnboundLocalError,
+    and ``compare`` at COLUMNS=40 printed a traceback)."""
+    keys_only = Table(["Run", "file"], [["own", "runs/own.json"]], 2)
+    assert to_text(Document([keys_only], hang=None), width=10) == "Run  file\n---  -------------\nown  runs/own.json\n"
+    one_value = Table(["Run", "file"], [["own", "runs/own.json"]], 1)
+    assert to_text(Document([one_value], hang=None), width=10) == (
+        "Run           file\n---  -------------\nown  runs/own.json\n")
+
+
 def test_a_table_as_markdown():
     assert to_markdown(Document([TABLE])) == (
         "| Drive | outages | final m |\n"

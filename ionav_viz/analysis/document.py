@@ -174,7 +174,8 @@ def aligned(header: list[str], rows: list[list[str]], left: int, width: int | No
 
     Wider than ``width``, the header cells are wrapped onto several lines (a column as wide as its
     values or its longest word), and if that is still too wide the value columns are split into
-    blocks, one under the other, each repeating the key columns.
+    blocks, one under the other, each repeating the key columns. A table with fewer than two value
+    columns cannot be split: it is returned with its header wrapped, wider than ``width``.
     """
     lines = _table([header], rows, left)
     if width is None or max(map(len, lines)) <= width:
@@ -184,9 +185,11 @@ def aligned(header: list[str], rows: list[list[str]], left: int, width: int | No
         lines = _table(header_lines, rows, left)
         if max(map(len, lines)) <= width:
             return lines
+    keys, values = list(range(min(left, len(header)))), list(range(min(left, len(header)), len(header)))
+    if len(values) < 2:
+        return lines
     header_lines = _wrapped_header(header, rows, 2)
     col_w = [max(len(r[j]) for r in header_lines + rows) for j in range(len(header))]
-    keys, values = list(range(min(left, len(header)))), list(range(min(left, len(header)), len(header)))
     room = width - sum(col_w[j] + 2 for j in keys)
     for n_blocks in range(2, len(values) + 1):  # as few blocks as fit, of equal column counts
         size = -(-len(values) // n_blocks)
