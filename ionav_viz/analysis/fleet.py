@@ -4,7 +4,8 @@ their small per-outage tables, never from the drives themselves.
 A :class:`DriveTable` is everything the report needs of one evaluated drive: per outage its start,
 GNSS distance and every estimator's metrics, and per drive its length, distance, biases, GNSS truth
 exclusions and warnings (a few kB for a long drive). A :class:`DriveFailure` is a drive that could
-not be evaluated, with its one-line reason. A :class:`FleetReport` pools the tables in input
+not be evaluated, with its one-line reason; a :class:`DriveRow` one drive's row of the
+report (its mean errors and improvements). A :class:`FleetReport` pools the tables in input
 order, so its numbers are the same whichever worker computed which drive; as JSON, text and
 Markdown it gives per-drive rows, the pooled summary per estimator, the worst drives and outages
 with the command that replays each, and the failures.
@@ -163,6 +164,40 @@ class DriveFailure:
     elapsed_s: float = 0.0
     hint: str = ""
     skipped: bool = False
+
+
+@dataclass(frozen=True)
+class DriveRow:
+    """One evaluated drive's row of the fleet report.
+
+    Attributes:
+        table: the drive's :class:`DriveTable`.
+        mean_final_error_m: per estimator that ran on it, the mean final position error over its
+            outages (m; NaN without one).
+        improvement_pct: per estimator but the INS DR, how much lower that mean is than the INS
+            DR's (%); None when the INS DR did not run.
+    """
+
+    table: DriveTable
+    mean_final_error_m: dict[str, float]
+    improvement_pct: dict[str, float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The row in the JSON's ``drives``: ``drive``, ``spec``, ``source``, ``duration_s``,
+        ``distance_m``, ``outages``, ``mean_final_error_m``, ``improvement_pct`` (with the INS DR),
+        ``gnss_truth``, ``bias``, ``truth``, ``warnings``, where known ``placement`` and ``imu`` (the
+        drive's mount and clock offset among it), and, when the drive was replayed, its ``recording``."""
+        t = self.table
+        row: dict[str, Any] = {"drive": t.name, "spec": t.spec, "source": t.source, "duration_s": t.duration_s,
+                               "distance_m": t.distance_m, "outages": t.n_outages,
+                               "mean_final_error_m": self.mean_final_error_m}
+        if self.improvement_pct is not None:
+            row["improvement_pct"] = self.improvement_pct
+        row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
+                **({"placement": t.placement} if t.placement else {}), **({"imu": t.imu} if t.imu else {})}
+        if t.recording is not None:
+            row["recording"] = t.recording
+        return row
 
 
 @dataclass(repr=False)
@@ -325,26 +360,21 @@ class FleetReport:
                 out[est] = c
         return out
 
-    def drive_rows(self) -> list[dict[str, Any]]:
-        """One row per evaluated drive: ``drive``, ``spec``, ``source``, ``duration_s``,
-        ``distance_m``, ``outages``, per estimator its ``mean_final_error_m`` and (not the INS DR)
-        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``,
-        where known ``placement`` and ``imu`` (the drive's mount and clock offset among it),
-        and, when the drive was replayed, its ``recording``."""
+    def rows(self) -> list[DriveRow]:
+        """One :class:`DriveRow` per evaluated drive, in input order."""
         base = self.baseline
         rows = []
         for t in self.drives:
             means = {e: t.mean_final_error_m(e) for e in t.metrics}
-            row: dict[str, Any] = {"drive": t.name, "spec": t.spec, "source": t.source, "duration_s": t.duration_s,
-                                   "distance_m": t.distance_m, "outages": t.n_outages, "mean_final_error_m": means}
-            if base is not None and base in means:
-                row["improvement_pct"] = {e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
-            row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
-                    **({"placement": t.placement} if t.placement else {}), **({"imu": t.imu} if t.imu else {})}
-            if t.recording is not None:
-                row["recording"] = t.recording
-            rows.append(row)
+            rows.append(DriveRow(
+                table=t, mean_final_error_m=means,
+                improvement_pct=({e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
+                                 if base is not None and base in means else None)))
         return rows
+
+    def drive_rows(self) -> list[dict[str, Any]]:
+        """:meth:`rows` as the JSON's ``drives`` (:meth:`DriveRow.to_dict`)."""
+        return [r.to_dict() for r in self.rows()]
 
     @property
     def n_real_outages(self) -> int:
@@ -543,14 +573,14 @@ def _document(rep: FleetReport, timing: bool) -> Document:
         header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests]
                   + ([f"{labels[e]} %" for e in others] if base else []) + ["warnings"])
         rows = []
-        for t, r in zip(rep.drives, rep.drive_rows()):
-            means = r["mean_final_error_m"]
+        for r in rep.rows():
+            t, means = r.table, r.mean_final_error_m
             windows = t.gnss_truth.get("windows", 0)
             bad_pct = 100.0 * t.gnss_truth.get("excluded_windows", 0) / windows if windows else float("nan")
             row = [t.name, str(t.n_outages), f"{t.duration_s / 3600:.2f}", f"{t.distance_m / 1000:.1f}", _f(bad_pct, 1)]
             row += [_f(means.get(e, float("nan"))) for e in ests]
             if base:
-                row += [_f(r.get("improvement_pct", {}).get(e, float("nan")), 1) for e in others]
+                row += [_f((r.improvement_pct or {}).get(e, float("nan")), 1) for e in others]
             rows.append(row + [str(len(t.warnings))])
         blocks += [Heading(f"Per drive (mean final error, m{versus})", 2), Table(header, rows, 1, align=True)]
         worst = rep.worst_drives()
