@@ -154,6 +154,15 @@ def test_the_terminal_table_holds_evo_res_statistics_and_the_change(tmp_path):
     assert md.returncode == 0 and "| INS DR | b | 4 |" in md.stdout and "[-1.1, +3.1]" in md.stdout, md.stdout
 
 
+def test_a_narrow_terminal_gets_every_table(tmp_path):
+    """At 40 columns the runs' table (keys only: nothing to split into blocks) is printed as it is
+    and the others are split; it printed a traceback."""
+    a, b = _write(tmp_path, "a.json", A), _write(tmp_path, "b.json", B)
+    proc = run_cli("compare", str(a), str(b), "--label", "before,after", env={"COLUMNS": "40"})
+    assert proc.returncode == 0 and not proc.stderr, proc.stderr
+    assert str(a) in proc.stdout and "[+1.04, +4.96]" in proc.stdout
+
+
 def test_runs_of_other_outages_are_refused_naming_both_files_and_the_first_that_differs(tmp_path):
     a = _write(tmp_path, "a.json", A)
     moved = _write(

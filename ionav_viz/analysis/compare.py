@@ -36,9 +36,9 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.json_out import dumps_json, is_finite_number
+from .document import Block, Document, Heading, Paragraphs, Table, to_markdown, to_text
 from .metrics import METRICS
 from .schema import schema_of, tagged
-from .tables import aligned
 
 #: What each metric is called in tables and figures, with its unit.
 METRIC_LABELS = {
@@ -529,47 +529,32 @@ class Comparison:
 
     def to_text(self, width: int | None = None) -> str:
         """The tables as plain text; ``width``: fit them into that many columns (None: no limit)."""
-        return self._render(markdown=False, width=width)
+        return to_text(self.document(), width)
 
     def to_markdown(self) -> str:
         """The tables as Markdown."""
-        return self._render(markdown=True, width=None)
+        return to_markdown(self.document())
 
-    def _render(self, markdown: bool, width: int | None) -> str:
-        def table(header: list[str], rows: list[list[str]], left: int) -> list[str]:
-            if markdown:  # each row whole (a key the text leaves blank under the row above is repeated)
-                filled = [list(r) for r in rows]
-                for above, row in zip(filled, filled[1:]):
-                    row[:left] = [cell or up for cell, up in zip(row[:left], above[:left])]
-                return [
-                    "| " + " | ".join(header) + " |",
-                    "|" + "---|" * len(header),
-                    *("| " + " | ".join(r) + " |" for r in filled),
-                ]
-            return aligned(header, rows, left, width)
-
-        def heading(text: str) -> str:
-            return f"**{text}**" if markdown else text
-
+    def document(self) -> Document:
+        """The comparison as a document (:mod:`.document`): the runs; per metric each run's
+        statistics and each later run's change against the baseline; the outages that changed most."""
         base = self.baseline.label
         labels = {e: info["label"] for e, info in self.estimators.items()}
         lengths = ", ".join(f"{x:g}" for x in sorted({k.outage_s for k in self.baseline.outages}))
         drives = list(dict.fromkeys(k.drive for k in self.baseline.outages))
         shown = ", ".join(drives[:4]) + (f" and {len(drives) - 4} more" if len(drives) > 4 else "")
-        lines = [
-            heading(
-                f"{len(self.runs)} runs on the same {self.n_outages} outages of {lengths} s ({shown}); "
-                f"changes against {base}, {INTERVAL_METHOD}, 95 %"
-            ),
-            "",
+
+        def table(header: list[str], rows: list[list[str]], left: int) -> Table:
+            # as Markdown each row whole (a key the text leaves blank under the row above is repeated)
+            return Table(header, rows, left, repeat_keys=True)
+
+        blocks: list[Block] = [
+            Heading(f"{len(self.runs)} runs on the same {self.n_outages} outages of {lengths} s ({shown}); "
+                    f"changes against {base}, {INTERVAL_METHOD}, 95 %"),
+            table(["Run", "file", "kind of report"], [[r.label, r.source, r.kind] for r in self.runs], 3),
         ]
-        lines += table(["Run", "file", "kind of report"], [[r.label, r.source, r.kind] for r in self.runs], 3) + [""]
         for metric in self.metrics:
             decimals = _decimals(metric)
-            lines += [
-                heading(f"{METRIC_LABELS[metric][:1].upper()}{METRIC_LABELS[metric][1:]} over each run's outages"),
-                "",
-            ]
             rows = [
                 [
                     labels[e] if j == 0 else "",
@@ -579,7 +564,9 @@ class Comparison:
                 for e, per in self.stats.items()
                 for j, (label, st) in enumerate(per[metric].items())
             ]
-            lines += table(["Estimator", "Run", *STATISTICS], rows, 2) + [""]
+            name = METRIC_LABELS[metric]
+            blocks += [Heading(f"{name[:1].upper()}{name[1:]} over each run's outages"),
+                       table(["Estimator", "Run", *STATISTICS], rows, 2)]
             rows = []
             for e, per in self.changes.items():
                 for j, (label, ch) in enumerate(per[metric].items()):
@@ -599,29 +586,16 @@ class Comparison:
                         ]
                     )
             if rows:
-                lines += [heading(f"Change of the mean against {base} ({METRIC_LABELS[metric]})"), ""]
-                lines += table(
-                    [
-                        "Estimator",
-                        "Run",
-                        f"{base} mean",
-                        "run mean",
-                        "change",
-                        "95 % interval",
-                        "change %",
-                        "outages lower/higher",
-                        "verdict",
-                    ],
-                    rows,
-                    2,
-                ) + [""]
+                header = ["Estimator", "Run", f"{base} mean", "run mean", "change", "95 % interval", "change %",
+                          "outages lower/higher", "verdict"]
+                blocks += [Heading(f"Change of the mean against {base} ({METRIC_LABELS[metric]})"),
+                           table(header, rows, 2)]
         only = [e for e in self.estimators if e not in self.changes]
         if only:
-            lines += [
+            blocks.append(Paragraphs([
                 f"Not compared (in one run only, or not in {base}): "
-                + ", ".join(f"{labels[e]} ({', '.join(r.label for r in self.runs if e in r.values)})" for e in only),
-                "",
-            ]
+                + ", ".join(f"{labels[e]} ({', '.join(r.label for r in self.runs if e in r.values)})" for e in only)
+            ]))
         metric = self.metrics[0]
         decimals = _decimals(metric)
         rows = []
@@ -643,15 +617,13 @@ class Comparison:
                         ]
                     )
         if rows:
-            lines += [heading(f"The {self.top} outages that changed most ({METRIC_LABELS[metric]})"), ""]
-            lines += table(
-                ["Estimator", "Run", "Drive", "#", "start s", "length s", base, "run", "change"], rows, 3
-            ) + [""]
-        lines.append(
+            blocks += [Heading(f"The {self.top} outages that changed most ({METRIC_LABELS[metric]})"),
+                       table(["Estimator", "Run", "Drive", "#", "start s", "length s", base, "run", "change"], rows, 3)]
+        blocks.append(Paragraphs([
             "Outages are taken as independent: those of one drive share its road and sensors, so the intervals are, "
             "if anything, too narrow."
-        )
-        return "\n".join(lines) + "\n"
+        ]))
+        return Document(blocks, spaced=True, hang=None)
 
 
 def _decimals(metric: str) -> int:

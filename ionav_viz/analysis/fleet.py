@@ -4,7 +4,8 @@ their small per-outage tables, never from the drives themselves.
 A :class:`DriveTable` is everything the report needs of one evaluated drive: per outage its start,
 GNSS distance and every estimator's metrics, and per drive its length, distance, biases, GNSS truth
 exclusions and warnings (a few kB for a long drive). A :class:`DriveFailure` is a drive that could
-not be evaluated, with its one-line reason. A :class:`FleetReport` pools the tables in input
+not be evaluated, with its one-line reason; a :class:`DriveRow` one drive's row of the
+report (its mean errors and improvements). A :class:`FleetReport` pools the tables in input
 order, so its numbers are the same whichever worker computed which drive; as JSON, text and
 Markdown it gives per-drive rows, the pooled summary per estimator, the worst drives and outages
 with the command that replays each, and the failures.
@@ -23,6 +24,7 @@ from ..core import run_config
 from ..core.json_out import dumps_json
 from ..nav.protocol import color_of
 from .consistency import RATIO_AT_S
+from .document import Block, Code, Document, Heading, Items, Paragraphs, Table, to_markdown, to_text
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
@@ -162,6 +164,40 @@ class DriveFailure:
     elapsed_s: float = 0.0
     hint: str = ""
     skipped: bool = False
+
+
+@dataclass(frozen=True)
+class DriveRow:
+    """One evaluated drive's row of the fleet report.
+
+    Attributes:
+        table: the drive's :class:`DriveTable`.
+        mean_final_error_m: per estimator that ran on it, the mean final position error over its
+            outages (m; NaN without one).
+        improvement_pct: per estimator but the INS DR, how much lower that mean is than the INS
+            DR's (%); None when the INS DR did not run.
+    """
+
+    table: DriveTable
+    mean_final_error_m: dict[str, float]
+    improvement_pct: dict[str, float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The row in the JSON's ``drives``: ``drive``, ``spec``, ``source``, ``duration_s``,
+        ``distance_m``, ``outages``, ``mean_final_error_m``, ``improvement_pct`` (with the INS DR),
+        ``gnss_truth``, ``bias``, ``truth``, ``warnings``, where known ``placement`` and ``imu`` (the
+        drive's mount and clock offset among it), and, when the drive was replayed, its ``recording``."""
+        t = self.table
+        row: dict[str, Any] = {"drive": t.name, "spec": t.spec, "source": t.source, "duration_s": t.duration_s,
+                               "distance_m": t.distance_m, "outages": t.n_outages,
+                               "mean_final_error_m": self.mean_final_error_m}
+        if self.improvement_pct is not None:
+            row["improvement_pct"] = self.improvement_pct
+        row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
+                **({"placement": t.placement} if t.placement else {}), **({"imu": t.imu} if t.imu else {})}
+        if t.recording is not None:
+            row["recording"] = t.recording
+        return row
 
 
 @dataclass(repr=False)
@@ -324,26 +360,21 @@ class FleetReport:
                 out[est] = c
         return out
 
-    def drive_rows(self) -> list[dict[str, Any]]:
-        """One row per evaluated drive: ``drive``, ``spec``, ``source``, ``duration_s``,
-        ``distance_m``, ``outages``, per estimator its ``mean_final_error_m`` and (not the INS DR)
-        ``improvement_pct`` of it over the INS DR's, ``gnss_truth``, ``bias``, ``truth``, ``warnings``,
-        where known ``placement`` and ``imu`` (the drive's mount and clock offset among it),
-        and, when the drive was replayed, its ``recording``."""
+    def rows(self) -> list[DriveRow]:
+        """One :class:`DriveRow` per evaluated drive, in input order."""
         base = self.baseline
         rows = []
         for t in self.drives:
             means = {e: t.mean_final_error_m(e) for e in t.metrics}
-            row: dict[str, Any] = {"drive": t.name, "spec": t.spec, "source": t.source, "duration_s": t.duration_s,
-                                   "distance_m": t.distance_m, "outages": t.n_outages, "mean_final_error_m": means}
-            if base is not None and base in means:
-                row["improvement_pct"] = {e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
-            row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
-                    **({"placement": t.placement} if t.placement else {}), **({"imu": t.imu} if t.imu else {})}
-            if t.recording is not None:
-                row["recording"] = t.recording
-            rows.append(row)
+            rows.append(DriveRow(
+                table=t, mean_final_error_m=means,
+                improvement_pct=({e: improvement_pct(means[base], v) for e, v in means.items() if e != base}
+                                 if base is not None and base in means else None)))
         return rows
+
+    def drive_rows(self) -> list[dict[str, Any]]:
+        """:meth:`rows` as the JSON's ``drives`` (:meth:`DriveRow.to_dict`)."""
+        return [r.to_dict() for r in self.rows()]
 
     @property
     def n_real_outages(self) -> int:
@@ -453,63 +484,57 @@ class FleetReport:
 
     def to_text(self, width: int | None = None) -> str:
         """The report as plain text, its tables fitted into ``width`` columns (None: no limit)."""
-        return _render(self, markdown=False, width=width)
+        return to_text(self.document(timing=True), width)
 
     def to_markdown(self) -> str:
-        """The report as Markdown."""
-        return _render(self, markdown=True, width=None)
+        """The report as Markdown (without the run's wall time: the same whatever the workers)."""
+        return to_markdown(self.document(timing=False))
+
+    def document(self, timing: bool = True) -> Document:
+        """The report as a document (:mod:`.document`): the title, the drives' own GNSS losses, the
+        pooled table, the estimators' uncertainty, the breakdowns by manoeuvre and by time into
+        the outage, a row per drive, the worst drives and outages with the command that replays
+        each, the failed and skipped drives and the warnings; ``timing``: the wall time last."""
+        return _document(self, timing)
 
 
-def _own_losses_section(rep: FleetReport, table: Any, heading: Any, markdown: bool) -> list[str]:
+def _own_losses_section(rep: FleetReport) -> list[Block]:
     """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_outages`)."""
     real, labels = rep.real_outages(), rep.labels
     gaps = [b["gap_s"] for b in real["losses"]]
-    lines = [heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s "
-                     "without a fix; final error from the last good fix to the first after, m)"), ""]
     rows = [[labels[e], str(p["drives"]), str(p["losses"]), _f(p["mean_final_error_m"]), _f(p["p90_final_error_m"]),
              f"{_f(p['worst']['final_error_m'], 1)} ({p['worst']['drive']} #{p['worst']['number']})"]
             for e, p in real["pooled"].items()]
-    lines += table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1) + [""]
     ests = list(real["pooled"])
-    rows = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"]
-            + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
-            for d in real["drives"]]
-    lines += table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], rows, 1) + [""]
-    return lines
+    per_drive = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"]
+                 + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
+                 for d in real["drives"]]
+    return [Heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s "
+                    "without a fix; final error from the last good fix to the first after, m)", 2),
+            Table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1, align=True),
+            Table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], per_drive, 1, align=True)]
 
 
 def _f(x: float, decimals: int = 2) -> str:
     return "-" if not np.isfinite(x) else f"{x:.{decimals}f}"
 
 
-def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
-    from .tables import aligned
-
-    def table(header: list[str], rows: list[list[str]], left: int) -> list[str]:
-        if markdown:
-            return ["| " + " | ".join(header) + " |",
-                    "|" + "|".join("---" if j < left else "---:" for j in range(len(header))) + "|",
-                    *("| " + " | ".join(r) + " |" for r in rows)]
-        return aligned(header, rows, left, width)
-
-    def heading(text: str) -> str:
-        return f"## {text}" if markdown else text
-
+def _document(rep: FleetReport, timing: bool) -> Document:
     ests, labels, base = rep.estimators, rep.labels, rep.baseline
     hours = sum(t.duration_s for t in rep.drives) / 3600.0
     km = sum(t.distance_m for t in rep.drives) / 1000.0
     given = len(rep.drives) + len(rep.failures) + len(rep.skipped)
-    lines = [("# " if markdown else "") + f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
-             + (f", {len(rep.failures)} failed" if rep.failures else "")
-             + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
-             + (f"; {rep.n_outages} outages of {rep.outage_s:g} s" if rep.n_outages or not rep.n_real_outages else "")
-             + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
-             + f" over {hours:.2f} h and {km:.1f} km", ""]
+    blocks: list[Block] = [Heading(
+        f"Fleet: {given} drive(s), {len(rep.drives)} evaluated"
+        + (f", {len(rep.failures)} failed" if rep.failures else "")
+        + (f", {len(rep.skipped)} skipped" if rep.skipped else "")
+        + (f"; {rep.n_outages} outages of {rep.outage_s:g} s" if rep.n_outages or not rep.n_real_outages else "")
+        + (f"; {rep.n_real_outages} of the logs' own GNSS losses bridged" if rep.n_real_outages else "")
+        + f" over {hours:.2f} h and {km:.1f} km", 1)]
     if rep.n_real_outages:
-        lines += _own_losses_section(rep, table, heading, markdown)
+        blocks += _own_losses_section(rep)
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
         pooled = rep.pooled()
-        lines += [heading("Pooled over the fleet (mean over outages)"), ""]
         header = (["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"]
                   + ([f"final vs {labels[base]} %", "95 % interval"] if base else []))
         rows = []
@@ -523,18 +548,18 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                 lo, hi = p.get("improvement_ci95_pct", {}).get("final_position_error_m", (float("nan"), float("nan")))
                 row.append(f"{_f(lo, 1)} to {_f(hi, 1)}" if math.isfinite(lo) and math.isfinite(hi) else "")
             rows.append(row)
-        lines += table(header, rows, 1) + [""]
+        blocks += [Heading("Pooled over the fleet (mean over outages)", 2), Table(header, rows, 1, align=True)]
         others = [e for e in ests if e != base]
         consistent = rep.consistency()
         if consistent:
             from .consistency import consistency_line
 
-            lines += [heading("How sure each estimator is (pooled over the fleet)"), ""]
-            lines += [("- " if markdown else "") + consistency_line(labels[e], c) for e, c in consistent.items()] + [""]
+            blocks += [Heading("How sure each estimator is (pooled over the fleet)", 2),
+                       Items([consistency_line(labels[e], c) for e, c in consistent.items()])]
+        versus = f"; improvement over {labels[base]}, %" if base else ""
         for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.by_manoeuvre()),
                                      ("By time into the outage (mean position error, m", "Into outage",
                                       rep.by_length())):
-            lines += [heading(title + (f"; improvement over {labels[base]}, %" if base else "") + ")"), ""]
             header = ([first, "outages"] + [labels[e] for e in ests]
                       + ([f"{labels[e]} %" for e in others] if base else []))
             rows = []
@@ -544,48 +569,38 @@ def _render(rep: FleetReport, markdown: bool, width: int | None) -> str:
                 if base:
                     row += [_f(g["improvement_pct"][e], 1) for e in others]
                 rows.append(row)
-            lines += table(header, rows, 1) + [""]
-        lines += [heading("Per drive (mean final error, m" + (f"; improvement over {labels[base]}, %" if base else "")
-                          + ")"), ""]
+            blocks += [Heading(f"{title}{versus})", 2), Table(header, rows, 1, align=True)]
         header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests]
                   + ([f"{labels[e]} %" for e in others] if base else []) + ["warnings"])
         rows = []
-        for t, r in zip(rep.drives, rep.drive_rows()):
-            means = r["mean_final_error_m"]
+        for r in rep.rows():
+            t, means = r.table, r.mean_final_error_m
             windows = t.gnss_truth.get("windows", 0)
             bad_pct = 100.0 * t.gnss_truth.get("excluded_windows", 0) / windows if windows else float("nan")
             row = [t.name, str(t.n_outages), f"{t.duration_s / 3600:.2f}", f"{t.distance_m / 1000:.1f}", _f(bad_pct, 1)]
             row += [_f(means.get(e, float("nan"))) for e in ests]
             if base:
-                row += [_f(r.get("improvement_pct", {}).get(e, float("nan")), 1) for e in others]
+                row += [_f((r.improvement_pct or {}).get(e, float("nan")), 1) for e in others]
             rows.append(row + [str(len(t.warnings))])
-        lines += table(header, rows, 1) + [""]
+        blocks += [Heading(f"Per drive (mean final error, m{versus})", 2), Table(header, rows, 1, align=True)]
         worst = rep.worst_drives()
         if worst:
-            lines += [heading(f"Worst drives (by {labels[rep.worst_of]} mean final error)"), ""]
-            lines += [f"{k}. {w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: "
-                      + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
+            blocks += [Heading(f"Worst drives (by {labels[rep.worst_of]} mean final error)", 2),
+                       Items([(f"{w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: ",
+                               Code(w["command"])) for w in worst], numbered=True)]
         worst = rep.worst_outages()
         if worst:
-            lines += [heading(f"Worst outages (by {labels[rep.worst_of]} final error)"), ""]
-            lines += [f"{k}. {w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                      + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items()) + "; replay: "
-                      + (f"`{w['command']}`" if markdown else w["command"]) for k, w in enumerate(worst, 1)] + [""]
+            blocks += [Heading(f"Worst outages (by {labels[rep.worst_of]} final error)", 2),
+                       Items([(f"{w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
+                               + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items())
+                               + "; replay: ", Code(w["command"])) for w in worst], numbered=True)]
     for title, items in (("Failed drives", rep.failures), ("Skipped drives", rep.skipped)):
         if items:
-            lines += [heading(f"{title} ({len(items)})"), ""]
-            lines += [("- " if markdown else "") + f"{f.spec}: {f.reason}" for f in items] + [""]
+            blocks += [Heading(f"{title} ({len(items)})", 2), Items([f"{f.spec}: {f.reason}" for f in items])]
     warned = [(t.name, w) for t in rep.drives for w in t.warnings]
     if warned:
-        lines += [heading(f"Warnings ({len(warned)})"), ""]
-        lines += [("- " if markdown else "") + (w if w.startswith(name) else f"{name}: {w}")
-                  for name, w in warned] + [""]
-    if rep.timing.get("wall_s") is not None and not markdown:
-        lines.append(f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time")
-    if width is not None:  # the tables fit already; prose lines (worst, failures, warnings) are wrapped
-        import textwrap
-
-        lines = [ln if len(ln) <= width else "\n".join(textwrap.wrap(ln, width, subsequent_indent="   ",
-                                                                     break_on_hyphens=False))
-                 for ln in lines]
-    return "\n".join(lines).rstrip("\n") + "\n"
+        blocks += [Heading(f"Warnings ({len(warned)})", 2),
+                   Items([w if w.startswith(name) else f"{name}: {w}" for name, w in warned])]
+    if timing and rep.timing.get("wall_s") is not None:
+        blocks.append(Paragraphs([f"{rep.timing.get('engine', '')}: {rep.timing['wall_s']:.1f} s wall time"]))
+    return Document(blocks, spaced=True, hang=3)

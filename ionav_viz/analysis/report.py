@@ -21,12 +21,13 @@ from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
 from .consistency import consistency
+from .document import Document, to_markdown, to_text
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise
 from .schema import tagged
-from .tables import truth_line
+from .tables import report_document, truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
@@ -275,18 +276,19 @@ class Report:
         """Exactly what ``ionav-viz evaluate --json`` prints for one group (NaN as null)."""
         return dumps_json(self.to_dict(), indent=indent)
 
+    def document(self) -> Document:
+        """The report as a document (:mod:`.document`, :func:`ionav_viz.analysis.tables.report_document`):
+        what :meth:`to_text` and :meth:`to_markdown` lay out."""
+        return report_document(self.to_dict(), self.title)
+
     def to_text(self, width: int | None = None) -> str:
         """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
         into that many columns (wrapped headers, then blocks of columns), None: no limit."""
-        from .tables import render_text
-
-        return render_text(self.to_dict(), self.title, width)
+        return to_text(self.document(), width)
 
     def to_markdown(self) -> str:
         """The same table as Markdown."""
-        from .tables import render_markdown
-
-        return render_markdown(self.to_dict(), self.title)
+        return to_markdown(self.document())
 
 
 def _drive_health(result: DriveResult) -> dict[str, Any]:

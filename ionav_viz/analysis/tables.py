@@ -1,4 +1,5 @@
-"""The paper's results tables (Tables 8-12 layout) from an ``evaluate`` report dict, as text or Markdown.
+"""The paper's results tables (Tables 8-12 layout) from an ``evaluate`` report dict: a drive report as a
+document (:func:`report_document`, :mod:`.document`), laid out as text or Markdown by :mod:`.document`'s renderers.
 
 Any number of estimators: the paper's layout puts the candidate estimators first and the INS DR
 (the baseline) last; improvements are each candidate's over the INS DR.
@@ -7,8 +8,9 @@ Any number of estimators: the paper's layout puts the candidate estimators first
 from __future__ import annotations
 
 import math
-import textwrap
 from typing import Any
+
+from .document import Block, Document, Heading, Paragraphs, Table, aligned, to_markdown, to_text
 
 _STATS = (("max", "max"), ("min", "min"), ("mean", "μ"), ("std", "σ"))
 _BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps"),
@@ -144,55 +146,41 @@ def worst_title(rep: dict[str, Any]) -> str:
     return f"Worst outages by {labels.get(rep.get('worst_of', 'ins'), 'INS DR')} final position error"
 
 
-def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
-    lines: list[str] = []
+def report_document(rep: dict[str, Any], scenario: str | None = None) -> Document:
+    """A drive report (``Report.to_dict``) as a document: the paper's table, the log's own GNSS
+    outages where it bridged some, a line each on the improvements, the GNSS truth, the drives,
+    the estimators' uncertainty, health and choices, then the drift and the worst outages."""
+    blocks: list[Block] = []
     if rep["n_sequences"] or "gnss_outages" not in rep:
         header, rows = table_rows(rep)
-        lines = [f"**{title_of(rep, scenario)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        lines += ["| " + " | ".join(f"**{c}**" if j == 0 and c else c for j, c in enumerate(r)) + " |" for r in rows]
-        lines += [""] if lines else []
+        blocks += [Heading(title_of(rep, scenario)), Table(header, rows, 2, strong_first=True)]
     if "gnss_outages" in rep:
         header, rows = bridged_rows(rep)
-        lines += [f"**{rep['drive']}: the log's own GNSS outages** (truth: the first good fix after each)", "",
-                  "| " + " | ".join(header) + " |",
-                  "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows] + [""]
-        lines += [bridged_line(rep)]
-    # the same lines as the text report, each a paragraph of its own
+        blocks += [Heading(f"{rep['drive']}: the log's own GNSS outages",
+                           note="(truth: the first good fix after each)"),
+                   Table(header, rows, 1), Paragraphs([bridged_line(rep)])]
     said = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
     said += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
-    extra = [line for text in said for line in ("", text)][1:] if said else []
+    blocks.append(Paragraphs(said))
     if rep.get("drift"):
         header, rows = drift_rows(rep)
-        extra += ["", f"**{DRIFT_TITLE}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        extra += ["| " + " | ".join(r) + " |" for r in rows]
+        blocks += [Heading(DRIFT_TITLE, lead_in=True), Table(header, rows, 1)]
     if rep.get("worst"):
         header, rows = worst_rows(rep)
-        extra += ["", f"**{worst_title(rep)}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        extra += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines + extra) + "\n"
+        blocks += [Heading(worst_title(rep), lead_in=True),
+                   Table(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2)]
+    return Document(blocks, spaced=False)
+
+
+def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
+    """The report (``Report.to_dict``) as Markdown: :func:`report_document`."""
+    return to_markdown(report_document(rep, scenario))
 
 
 def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | None = None) -> str:
     """The report as plain-text tables; ``width`` (columns, e.g. the terminal's): wider tables get
     wrapped headers and then are split into blocks of columns (None: one line per row, any width)."""
-    out: list[str] = []
-    if rep["n_sequences"] or "gnss_outages" not in rep:
-        header, rows = table_rows(rep)
-        out = [title_of(rep, scenario), *aligned(header, rows, 2, width)]
-    if "gnss_outages" in rep:
-        header, rows = bridged_rows(rep)
-        out += [f"{rep['drive']}: the log's own GNSS outages (truth: the first good fix after each)",
-                *aligned(header, rows, 1, width), bridged_line(rep)]
-    out += (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    out += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
-    if rep.get("drift"):
-        header, rows = drift_rows(rep)
-        out += [f"{DRIFT_TITLE}:", *aligned(header, rows, 1, width)]
-    if rep.get("worst"):
-        header, rows = worst_rows(rep)
-        out += [f"{worst_title(rep)}:",
-                *aligned(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2, width)]
-    return "\n".join(_folded(line, width) for line in out) + "\n"
+    return to_text(report_document(rep, scenario), width)
 
 
 def drive_lines(rep: dict[str, Any], most: int = 4) -> list[str]:
@@ -243,65 +231,6 @@ def domain_lines(rep: dict[str, Any]) -> list[str]:
                        f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
                        f"x{note['sigma_scale_max']:.2f} at most)")
     return out
-
-
-def _folded(line: str, width: int | None) -> str:
-    """A prose line (title, summary) wrapped at ``width``; table lines already fit."""
-    if width is None or len(line) <= width:
-        return line
-    return "\n".join(textwrap.wrap(line, width, subsequent_indent="  ", break_on_hyphens=False))
-
-
-def aligned(header: list[str], rows: list[list[str]], left: int, width: int | None = None) -> list[str]:
-    """A plain-text table: the first ``left`` columns (the keys) left-aligned, the rest right-aligned.
-
-    Wider than ``width``, the header cells are wrapped onto several lines (a column as wide as its
-    values or its longest word), and if that is still too wide the value columns are split into
-    blocks, one under the other, each repeating the key columns.
-    """
-    lines = _table([header], rows, left)
-    if width is None or max(map(len, lines)) <= width:
-        return lines
-    for lines_per_header in (2, 3, 4, 99):  # as few header lines as fit
-        header_lines = _wrapped_header(header, rows, lines_per_header)
-        lines = _table(header_lines, rows, left)
-        if max(map(len, lines)) <= width:
-            return lines
-    header_lines = _wrapped_header(header, rows, 2)
-    col_w = [max(len(r[j]) for r in header_lines + rows) for j in range(len(header))]
-    keys, values = list(range(min(left, len(header)))), list(range(min(left, len(header)), len(header)))
-    room = width - sum(col_w[j] + 2 for j in keys)
-    for n_blocks in range(2, len(values) + 1):  # as few blocks as fit, of equal column counts
-        size = -(-len(values) // n_blocks)
-        blocks = [values[i : i + size] for i in range(0, len(values), size)]
-        if all(sum(col_w[j] + 2 for j in block) - 2 <= room for block in blocks):
-            break
-    out: list[str] = []
-    for b, block in enumerate(blocks):
-        cols = keys + block
-        kept = [r for r in rows if any(r[j] for j in block)]  # a row with nothing in this block is left out of it
-        heads = [line for line in ([h[j] for j in cols] for h in header_lines) if any(line)]
-        out += ([""] if b else []) + _table(heads, [[r[j] for j in cols] for r in kept], len(keys))
-    return out
-
-
-def _wrapped_header(header: list[str], rows: list[list[str]], n_lines: int) -> list[list[str]]:
-    """Header cells wrapped onto about ``n_lines`` lines (a column never narrower than its values or
-    its longest word), bottom-aligned: one list of cells per header line."""
-    widths = [max([len(r[j]) for r in rows] + [len(w) for w in h.split()] + [-(-len(h) // n_lines)])
-              for j, h in enumerate(header)]
-    wrapped = [textwrap.wrap(h, widths[j], break_on_hyphens=False) or [""] for j, h in enumerate(header)]
-    depth = max(map(len, wrapped))
-    padded = [[""] * (depth - len(w)) + w for w in wrapped]
-    return [[cell[i] for cell in padded] for i in range(depth)]
-
-
-def _table(header_lines: list[list[str]], rows: list[list[str]], left: int) -> list[str]:
-    widths = [max(len(r[j]) for r in header_lines + rows) for j in range(len(header_lines[0]))]
-
-    def line(r: list[str]) -> str:
-        return "  ".join(c.ljust(w) if j < left else c.rjust(w) for j, (c, w) in enumerate(zip(r, widths))).rstrip()
-    return [line(h) for h in header_lines] + ["  ".join("-" * w for w in widths)] + [line(r) for r in rows]
 
 
 def bridged_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
@@ -364,9 +293,7 @@ def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: s
     estimator (and split into blocks of groups if that is still too wide)."""
     header, rows = overview_rows(reports, label)
     if markdown:
-        lines = (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-                 + ["| " + " | ".join(r) + " |" for r in rows])
-        return "\n".join(lines) + "\n"
+        return to_markdown(Document([Table(header, rows)]))
     widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
     lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths)))
              for r in [header] + rows]
@@ -412,7 +339,5 @@ def render_lengths(summary: dict[str, Any], labels: dict[str, str], markdown: bo
              *(_fmt(c, 2) for c in r["crse_m"])] for e, r in summary.items()]
     title = "Error against outage length (mean over each length's outages; " + ", ".join(
         f"{x:g} s: {n}" for x, n in zip(first["outage_s"], first["n_outages"])) + " outages)"
-    if markdown:
-        return "\n".join([f"**{title}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-                         + ["| " + " | ".join(r) + " |" for r in rows]) + "\n"
-    return "\n".join([title, *aligned(header, rows, 1, width)]) + "\n"
+    doc = Document([Heading(title), Table(header, rows, 1)], spaced=False, hang=None)
+    return to_markdown(doc) if markdown else to_text(doc, width)

@@ -640,7 +640,7 @@ class FleetPlan:
 
     def to_text(self) -> str:
         """One line per drive (size in MB, or "missing"), then the total and the time estimate."""
-        from ..analysis.tables import aligned
+        from ..analysis.document import aligned
 
         rows = [[d.spec,
                  "missing" if d.spec in self.missing else "-" if d.size_bytes is None else f"{d.size_bytes / 1e6:.1f}"]
