@@ -229,11 +229,11 @@ def test_every_time_plot_opens_on_the_whole_drive_with_labelled_y_ticks(hard_bra
     """On the page the layout is made for, every time plot opens on the whole drive, as the state
     timeline (nothing scrolls with the time cursor, which cut the first tick's label at the view's
     edge: "9m 30s"), and its y range has at least two labelled ticks at its height (the viewer
-    labels ticks a power of ten apart, and only :data:`TICK_PX` or more apart: its own fit of an
-    error plot 90 px high labelled only "0" of errors up to 9 m)."""
+    labels ticks a power of ten apart, and only :data:`FAINT_TICK_PX` or more apart: its own fit of
+    an error plot 90 px high labelled only "0" of errors up to 9 m)."""
     import math
 
-    from ionav_viz.viz.blueprints import TICK_PX, web_plot_px
+    from ionav_viz.viz.blueprints import FAINT_TICK_PX, web_plot_px
 
     _root, items = _layout(hard_brake)
     _, _, end_s = _lanes(hard_brake)
@@ -254,5 +254,36 @@ def test_every_time_plot_opens_on_the_whole_drive_with_labelled_y_ticks(hard_bra
             continue
         lo, hi = props[key]["range"][0]
         labelled = max(sum(1 for _ in range(math.ceil(lo / 10.0 ** k), math.floor(hi / 10.0 ** k) + 1))
-                       for k in range(-4, 4) if heights[origin] * 10.0 ** k / (hi - lo) >= TICK_PX)
+                       for k in range(-4, 4) if heights[origin] * 10.0 ** k / (hi - lo) >= FAINT_TICK_PX)
         assert labelled >= 2, (origin, lo, hi, heights[origin])
+
+
+def test_small_values_fill_their_plot_on_the_page():
+    """On the page, the orientation-rate CRSE plot (69 px of plot) of the roundabout drive (0 to
+    0.271 rad/s) was labelled 0, 1 and 2: the three-labels rule at 23 px a tick took ticks of 1,
+    and the data lay in the bottom tenth. It now has ticks of 0.1 (0, 0.1, 0.2, labelled 20 px or
+    more apart, as the viewer still draws them), the data filling most of the plot, the outer labels
+    whole; where a coarse step leaves the data room enough, nothing changes."""
+    import math
+
+    from ionav_viz.viz.blueprints import (
+        FAINT_TICK_PX,
+        LABEL_MARGIN_PX,
+        TICK_PX,
+        axis_range,
+        plot_range,
+        web_plot_px,
+    )
+
+    px = web_plot_px(4)[ent.error_group("yaw_crse_radps")]
+    assert 60 < px < 80  # the page's smallest error plot
+    lo, hi = plot_range(ent.error_group("yaw_crse_radps"), 2.4e-5, 0.271, pad=False)
+    a, b = axis_range(lo, hi, px)
+    assert a <= lo and b >= hi and (hi - lo) / (b - a) > 0.8, (a, b)
+    step = 0.1
+    assert FAINT_TICK_PX <= px * step / (b - a) < TICK_PX
+    ticks = np.arange(math.ceil(a / step), math.floor(b / step) + 1) * step
+    assert len(ticks) == 3 and min(ticks[0] - a, b - ticks[-1]) * px / (b - a) >= LABEL_MARGIN_PX - 0.01
+    # errors up to 29 m in the page's 92 px plots: ticks of 10 at 23 px or more, as before
+    a, b = axis_range(0.0, 29.18, web_plot_px(4)[ent.error_group("position_error_m")])
+    assert (a, b) == pytest.approx((-2.68, 32.68), abs=1e-2)

@@ -153,8 +153,15 @@ def plot_range(origin: str, lo: float, hi: float, pad: bool = True) -> tuple[flo
 #: apart only with about this much room (fewer pixels: only the coarser ticks get labels; at 23 px
 #: they are drawn at about half the brightness of the others, 120 of 255, and read well).
 TICK_PX = 23
+#: Pixels between labelled ticks at which the plots still label them, fainter (measured on renders of
+#: a 69 px plot: "0.1" and "0.2" read at 20 px, not drawn at 18): :func:`axis_range` goes down to it
+#: where :data:`TICK_PX` would leave the data in less than :data:`SQUASHED_SHARE` of the plot.
+FAINT_TICK_PX = 20
+SQUASHED_SHARE = 0.5
 #: Pixels above the top tick and below the bottom one: half a label's height, so that it is not cut.
 LABEL_MARGIN_PX = 7
+#: Pixels between the data and the plot's edge where no label needs the room.
+DATA_MARGIN_PX = 3
 
 
 def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
@@ -166,7 +173,11 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
     this rare, :func:`shot_rows`). A plot too small for three labels at any step (under about
     2.3 :data:`TICK_PX`) keeps the data's own range. A margin of 6 % each way keeps the outer
     labels drawn (at least :data:`LABEL_MARGIN_PX`, beyond the data and beyond the outermost
-    labelled ticks)."""
+    labelled ticks). Where that leaves the data in less than :data:`SQUASHED_SHARE` of the plot
+    (0.27 rad/s under ticks of 1 in a plot 69 px high: the data in its bottom tenth), a finer step
+    labelled at :data:`FAINT_TICK_PX` or more is taken when it gives three labelled ticks (0, 0.1,
+    0.2), the data :data:`DATA_MARGIN_PX` inside the edges and the outer labels
+    :data:`LABEL_MARGIN_PX` inside."""
 
     def framed(a: float, b: float) -> tuple[float, float]:
         m = max(0.06, LABEL_MARGIN_PX / max(plot_px - 2 * LABEL_MARGIN_PX, 1.0)) * (b - a)
@@ -180,22 +191,47 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
             r0, r1 = min(r0, math.ceil(r0 / step - 1e-9) * step - m), max(r1, math.floor(r1 / step + 1e-9) * step + m)
         return r0, r1
 
+    def reach(step: float) -> tuple[float, float]:
+        first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+        if last - first >= 2:
+            return lo, hi
+        # fewer than three ticks inside: reach out to them
+        if lo >= 0:
+            return min(lo, first * step), max(hi, (first + 2) * step)
+        if hi <= 0:
+            return min(lo, (last - 2) * step), max(hi, last * step)
+        return min(lo, -step), max(hi, step)
+
+    def tight(a: float, b: float, step: float) -> tuple[float, float]:
+        # the data DATA_MARGIN_PX inside each edge, and the outermost ticks inside LABEL_MARGIN_PX: a tick just
+        # beyond the data is left outside rather than pushing the edge out (a few rounds: the scale moves)
+        r0, r1 = framed(a, b)
+        for _ in range(6):
+            per_px = (r1 - r0) / plot_px
+            top, bottom = b + DATA_MARGIN_PX * per_px, a - DATA_MARGIN_PX * per_px
+            t_top, t_bottom = math.floor(top / step + 1e-9) * step, math.ceil(bottom / step - 1e-9) * step
+            r0, r1 = min(bottom, t_bottom - LABEL_MARGIN_PX * per_px), max(top, t_top + LABEL_MARGIN_PX * per_px)
+        return r0, r1
+
     k0 = math.floor(math.log10(max(hi - lo, 1e-12))) - 1
+    chosen = None
     for k in range(k0, k0 + 4):  # from a tenth of the data's span to ten times it: coarser gains nothing
         step = 10.0 ** k
-        first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
-        a, b = lo, hi
-        if last - first < 2:  # fewer than three ticks inside: reach out to them
-            if lo >= 0:
-                a, b = min(lo, first * step), max(hi, (first + 2) * step)
-            elif hi <= 0:
-                a, b = min(lo, (last - 2) * step), max(hi, last * step)
-            else:
-                a, b = min(lo, -step), max(hi, step)
-        r0, r1 = clear(*framed(a, b), step)
+        r0, r1 = clear(*framed(*reach(step)), step)
         if plot_px * step / (r1 - r0) >= TICK_PX:
-            return r0, r1
-    return framed(lo, hi)
+            chosen = (k, (r0, r1))
+            break
+    if chosen is None:
+        return framed(lo, hi)
+    k, (r0, r1) = chosen
+    if hi - lo < SQUASHED_SHARE * (r1 - r0):  # the data squashed: finer ticks, fainter, if they are labelled at all
+        for finer in range(k0, k):
+            step = 10.0 ** finer
+            t0, t1 = tight(*reach(step), step)
+            labelled = math.floor(t1 / step + 1e-9) - math.ceil(t0 / step - 1e-9) + 1
+            if plot_px * step / (t1 - t0) >= FAINT_TICK_PX and labelled >= 3:
+                return t0, t1
+    return r0, r1
 
 
 #: Above the views, the band the viewer keeps for its hidden top panel (screenshots draw the colour
