@@ -128,26 +128,35 @@ def test_every_title_shows_whole_on_the_page_the_layout_is_made_for(hard_brake):
     assert height[ent.OVERVIEW] >= summary_px(4), height[ent.OVERVIEW]  # INS DR, IDNN, odometry, GNSS-aided INS
 
 
-def _lanes(path) -> tuple[dict, dict, float]:
+def _lanes(path, ends: dict | None = None) -> tuple[dict, dict, float]:
     """The state lanes of a recording: each lane's labels by value, its (time, value) changes, and the
-    recording's last time (s)."""
+    drive's last time (s), the last of its data but the lanes' empty states (their ends, and the
+    ruler's end after the drive); those go into ``ends`` by lane, with the recording's last time."""
     reader, recording, _ = _stores(path)
     lanes = (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE)
-    labels, changes, end_s = {}, {lane: [] for lane in lanes}, 0.0
+    labels, changes, end_s, last_s = {}, {lane: [] for lane in lanes}, 0.0, 0.0
     for chunk in reader.stream(store=recording):
         entity = str(chunk.entity_path).strip("/")
         batch = chunk.to_record_batch()
-        if "time" in batch.schema.names and len(batch):
-            t_s = batch.column("time").cast("int64").to_numpy() / 1e9
-            end_s = max(end_s, float(t_s.max()))
+        t_s = batch.column("time").cast("int64").to_numpy() / 1e9 if "time" in batch.schema.names else np.zeros(0)
+        if len(t_s):
+            last_s = max(last_s, float(t_s.max()))
         if entity not in lanes:
+            end_s = max([end_s, *t_s])
             continue
         if chunk.is_static:
             found = _components(chunk)
             labels[entity] = dict(zip(found["values"], found["labels"]))
         else:
             column = next(n for n in batch.schema.names if n.endswith(":state"))
-            changes[entity] += zip(t_s, (v[0] for v in batch.column(column).to_pylist()))
+            for t, v in zip(t_s, batch.column(column).to_pylist()):
+                if v[0] is None:
+                    (ends if ends is not None else {}).setdefault(entity, []).append(float(t))
+                else:
+                    changes[entity].append((t, v[0]))
+                    end_s = max(end_s, float(t))
+    if ends is not None:
+        ends["recording"] = last_s
     return labels, changes, end_s
 
 
@@ -287,3 +296,26 @@ def test_small_values_fill_their_plot_on_the_page():
     # errors up to 29 m in the page's 92 px plots: ticks of 10 at 23 px or more, as before
     a, b = axis_range(0.0, 29.18, web_plot_px(4)[ent.error_group("position_error_m")])
     assert (a, b) == pytest.approx((-2.68, 32.68), abs=1e-2)
+
+
+def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(hard_brake):
+    """Rerun's state timeline draws its time ruler over the recording's data, from its first to its
+    last time on the ``time`` timeline, whatever the view's range, and cuts a tick label that runs
+    past it: a drive ending at 600 s showed a lone "+" of "+10m" at the ruler's end, in screenshots
+    and on the page. Each lane now ends at the drive's end with an empty state (no span drawn
+    open-ended past it), and a second empty state sets the recording's last time to the ruler's
+    end (:func:`ruler_end_s`), where its last label is whole at every width the layout is made for;
+    the state timeline and the time plots open on the drive and the ruler (:func:`state_view_s`)."""
+    from ionav_viz.viz.blueprints import RULER_WIDTHS_PX, _ruler_cuts_a_label, ruler_end_s
+
+    ends: dict = {}
+    _, changes, end_s = _lanes(hard_brake, ends)
+    assert end_s == pytest.approx(600.0, abs=0.2)
+    ruler_s = ruler_end_s(end_s)
+    assert ends["recording"] == pytest.approx(ruler_s) and end_s + 1.0 < ruler_s < 1.15 * end_s
+    for lane in (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE):
+        assert max(t for t, _ in changes[lane]) < ends[lane][0] <= end_s + 1e-6 and ends[lane][-1] == pytest.approx(ruler_s)
+    view = state_view_s(end_s)
+    assert view[1] > ruler_s
+    assert not any(_ruler_cuts_a_label(ruler_s, view, w) for w in RULER_WIDTHS_PX)
+    assert all(_ruler_cuts_a_label(end_s, (view[0], end_s + 0.05 * end_s), w) for w in (0.3 * 1024, 0.3 * 1600, 0.3 * 1280))

@@ -56,10 +56,65 @@ STATE_VIEW_PAD_BEFORE, STATE_VIEW_PAD_AFTER = 0.05, 0.05
 
 def state_view_s(end_s: float) -> tuple[float, float]:
     """The state timeline's and the web page's time plots' default time range (s) for a drive ending
-    at ``end_s`` (its times start at 0): the whole drive, with :data:`STATE_VIEW_PAD_BEFORE` and
-    :data:`STATE_VIEW_PAD_AFTER` of it as room."""
+    at ``end_s`` (its times start at 0): the whole drive and its time ruler (:func:`ruler_end_s`),
+    with :data:`STATE_VIEW_PAD_BEFORE` and :data:`STATE_VIEW_PAD_AFTER` of the drive as room."""
     length_s = max(float(end_s), 1.0)
-    return -STATE_VIEW_PAD_BEFORE * length_s, float(end_s) + STATE_VIEW_PAD_AFTER * length_s
+    return -STATE_VIEW_PAD_BEFORE * length_s, ruler_end_s(end_s) + STATE_VIEW_PAD_AFTER * length_s
+
+
+#: The state timeline's time ruler (Rerun 0.41, measured on renders and read in its ruler code): it
+#: spans the recording's data on the ``time`` timeline, :data:`RULER_EDGE_PX` more each way (its torn
+#: edges), whatever the view's range, and cuts there a tick label that runs past it (the "+" of a
+#: "+10m" at a drive's end at 600 s). Ticks are :data:`RULER_STEPS_S` apart; the finest step at least
+#: 4 px apart is drawn, with two coarser ones, and a step's ticks are labelled where they are more
+#: than :data:`RULER_LABEL_MIN_PX` apart; a label starts :data:`RULER_LABEL_GAP_PX` right of its tick,
+#: :data:`RULER_CHAR_PX` a character or less ("+10m": 27 px).
+RULER_EDGE_PX, RULER_LABEL_MIN_PX, RULER_LABEL_GAP_PX, RULER_CHAR_PX = 10.0, 60.0, 4.0, 7.0
+RULER_STEPS_S = (0.001, 0.01, 0.1, 1.0, 10.0, 60.0, 600.0, 3600.0, 43200.0, 86400.0, 864000.0, 8640000.0)
+#: The state timeline's widths (px) its ruler's labels must be whole at: the review layout's signals
+#: column and the signals view alone, in images and pages from :data:`NARROWEST_PX` to 1920 px wide.
+RULER_WIDTHS_PX = tuple(f * w for w in range(1024, 1921, 16) for f in (3 / 10, 1.0))
+
+
+def ruler_label(t_s: float) -> str:
+    """A tick label of the state timeline's ruler as the viewer writes it (``+10m``, ``+1h 10m``)."""
+    total = int(round(t_s))
+    hours, rest = divmod(total, 3600)
+    minutes, seconds = divmod(rest, 60)
+    parts = [f"{v}{u}" for v, u in ((hours, "h"), (minutes, "m"), (seconds, "s")) if v]
+    return "+" + (" ".join(parts) or "0s")
+
+
+def _ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float) -> bool:
+    """Whether the ruler of data ending at ``last_s``, in a state timeline ``width_px`` wide showing
+    ``view`` (s), cuts the label of its last labelled tick at its end (or the view's)."""
+    px_per_s = width_px / (view[1] - view[0])
+    small = next((s for s in RULER_STEPS_S if s * px_per_s >= 4.0), RULER_STEPS_S[-1])
+    drawn = RULER_STEPS_S[RULER_STEPS_S.index(small):][:3]
+    labelled = [s for s in drawn if s * px_per_s > RULER_LABEL_MIN_PX]
+    if not labelled:
+        return False
+    edge_s = min(last_s + RULER_EDGE_PX / px_per_s, view[1])
+    tick_s = math.floor(edge_s / labelled[0] + 1e-9) * labelled[0]
+    label_px = RULER_LABEL_GAP_PX + len(ruler_label(tick_s)) * RULER_CHAR_PX
+    return tick_s >= 0 and tick_s + label_px / px_per_s > edge_s
+
+
+def ruler_end_s(end_s: float) -> float:
+    """Where the state lanes of a drive ending at ``end_s`` log their last (empty) change: the
+    recording's last time on the ``time`` timeline, so that the state timeline's ruler ends where
+    no tick's label runs past it at any of :data:`RULER_WIDTHS_PX` (its label whole). ``end_s``
+    itself where that holds there, else the first time after it (at most 25 % of the drive) that
+    does; the lanes end at ``end_s`` either way."""
+    end_s = float(end_s)
+    length_s = max(end_s, 1.0)
+    step_s = max(0.1, length_s / 2000)
+    for i in range(int(0.25 * length_s / step_s) + 1):
+        last_s = end_s + i * step_s
+        view = (-STATE_VIEW_PAD_BEFORE * length_s, last_s + STATE_VIEW_PAD_AFTER * length_s)
+        if not any(_ruler_cuts_a_label(last_s, view, w) for w in RULER_WIDTHS_PX):
+            return last_s
+    return end_s
 
 
 def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
