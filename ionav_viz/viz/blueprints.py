@@ -127,6 +127,18 @@ def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
     return len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= span_s * px_per_s
 
 
+#: The viewer draws a state label only in a span more than this many pixels wide (and cuts it at the
+#: span's end); two characters are whole from 18 px on ("28" ends 17 px into its span, measured on
+#: renders: in a span of 17 px it loses its last pixel column).
+STATE_TEXT_MIN_PX, STATE_WHOLE_ANYWHERE_CHARS = 16.0, 2
+
+
+def state_label_whole_anywhere(label: str) -> bool:
+    """Whether the state label ``label`` is whole in any span the viewer draws a label in, at any
+    zoom (absent in a narrower one): two characters or fewer."""
+    return len(label) <= STATE_WHOLE_ANYWHERE_CHARS
+
+
 INSPECTOR_NAME = "Current outage: m from its start fix, north up"
 #: The local view shows the whole drive's scale bar; framed on an outage (screenshots), that outage's.
 LOCAL_CONTENTS = ["+ $origin/**", f"- /{ent.LOCAL_SCALE}"]

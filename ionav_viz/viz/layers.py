@@ -110,11 +110,12 @@ def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, e
     (:func:`~ionav_viz.viz.entities.span_state`): the viewer gives a value one label, and each span's
     label is the longest of :func:`~ionav_viz.viz.entities.state_labels` that fits that span in the
     lane's default view (:func:`~ionav_viz.viz.blueprints.state_label_fits`; one short ``bad`` span
-    made every ``bad`` span's label blank)."""
+    made every ``bad`` span's label blank), else one whole wherever the viewer draws it
+    (:func:`~ionav_viz.viz.blueprints.state_label_whole_anywhere`: ``28``, which the hover shows)."""
     import pyarrow as pa
     import rerun as rr
 
-    from .blueprints import state_label_fits
+    from .blueprints import state_label_fits, state_label_whole_anywhere
 
     t = np.asarray(t_s, dtype=np.float64)
     ends = np.append(t[1:], max(float(end_s), float(t[-1]) if len(t) else 0.0))
@@ -124,7 +125,8 @@ def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, e
     for value, span in zip(values, ends - t):
         shortest[value] = min(shortest.get(value, np.inf), float(span))
     names = list(shortest)
-    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v], end_s)) for v in names]
+    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v], end_s),
+                              state_label_whole_anywhere) for v in names]
     rec.log(entity, rr.StateConfiguration(values=names, labels=labels,
                                           colors=[state_color(v) for v in names]), static=True)
     # empty states (nulls: a gap in the lane) end the last span at the drive's end, not open-ended past it
