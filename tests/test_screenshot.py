@@ -527,15 +527,7 @@ def test_key_entries_and_y_ranges():
     """What the key names per view (the truth where it is drawn, the markers where they are),
     and y ranges: three ticks a power of ten apart with room for their labels, a flat line
     included; the squeeze-avoiding fallback in a small plot."""
-    from ionav_viz.viz.blueprints import (
-        ELLIPSE_KEY_COLOR,
-        FAINT_TICK_PX,
-        KeyEntry,
-        Shot,
-        axis_range,
-        key_for,
-        plot_range,
-    )
+    from ionav_viz.viz.blueprints import ELLIPSE_KEY_COLOR, TICK_PX, KeyEntry, Shot, axis_range, key_for, plot_range
     from ionav_viz.viz.recording_info import OutageInfo, RecordingInfo
 
     info = RecordingInfo(path=None, drive="d", end_s=100.0, states=[], outages=[], lat_deg=np.zeros(0), lon_deg=np.zeros(0),
@@ -569,7 +561,7 @@ def test_key_entries_and_y_ranges():
         step = 10.0 ** np.floor(np.log10((b - a) / 2))  # labelled ticks inside, at the finest step that is
         for s in (step / 10, step, step * 10):
             inside = np.arange(np.ceil(a / s), np.floor(b / s) + 1) * s
-            if px * s / (b - a) >= FAINT_TICK_PX:  # the viewer labels them (fainter below TICK_PX)
+            if px * s / (b - a) >= TICK_PX:
                 return a, b, inside
         return a, b, np.zeros(0)
 
@@ -876,12 +868,12 @@ def test_no_labelled_tick_sits_at_a_plots_edge():
     margin at the plot's edge and its label was cut (a real loss's errors up to 2.79 m in a 88 px
     plot: the '3' half drawn at the top, 1 px from the edge). The outermost labelled ticks now
     lie half a label's height inside."""
-    from ionav_viz.viz.blueprints import FAINT_TICK_PX, LABEL_MARGIN_PX, axis_range
+    from ionav_viz.viz.blueprints import LABEL_MARGIN_PX, TICK_PX, axis_range
 
     for lo, hi, px in [(0.0, 2.79, 88), (0.0, 28.6, 93), (0.0, 36.97, 93), (-28.6, 6.44, 93), (-3.53, 3.04, 78),
                        (0.0, 7.32, 154), (-0.42, 0.61, 190), (0.0, 0.22, 91), (0.0, 16.5, 100), (0.0, 29.1, 120)]:
         a, b = axis_range(lo, hi, px)
-        step = next(10.0 ** k for k in range(-6, 6) if px * 10.0 ** k / (b - a) >= FAINT_TICK_PX)  # the finest labelled
+        step = next(10.0 ** k for k in range(-6, 6) if px * 10.0 ** k / (b - a) >= TICK_PX)  # the finest labelled
         ticks = np.arange(np.ceil(a / step - 1e-9), np.floor(b / step + 1e-9) + 1) * step
         assert a <= lo and b >= hi and len(ticks) >= 3, (lo, hi, px, a, b)
         to_edge_px = min(ticks[0] - a, b - ticks[-1]) * px / (b - a)

@@ -279,7 +279,7 @@ def test_small_values_fill_their_plot_on_the_page():
     0.271 rad/s) was labelled 0, 1 and 2: the three-labels rule at 23 px a tick took ticks of 1,
     and the data lay in the bottom tenth. It now has ticks of 0.1 (0, 0.1, 0.2, labelled 20 px or
     more apart, as the viewer still draws them), the data filling most of the plot, the outer labels
-    whole; where a coarse step leaves the data room enough, nothing changes."""
+    whole; where a coarse step leaves the data room enough, nothing changes, nor in screenshots."""
     import math
 
     from ionav_viz.viz.blueprints import (
@@ -294,12 +294,14 @@ def test_small_values_fill_their_plot_on_the_page():
     px = web_plot_px(4)[ent.error_group("yaw_crse_radps")]
     assert 60 < px < 80  # the page's smallest error plot
     lo, hi = plot_range(ent.error_group("yaw_crse_radps"), 2.4e-5, 0.271, pad=False)
-    a, b = axis_range(lo, hi, px)
+    a, b = axis_range(lo, hi, px, faint=True)
     assert a <= lo and b >= hi and (hi - lo) / (b - a) > 0.8, (a, b)
     step = 0.1
     assert FAINT_TICK_PX <= px * step / (b - a) < TICK_PX
     ticks = np.arange(math.ceil(a / step), math.floor(b / step) + 1) * step
     assert len(ticks) == 3 and min(ticks[0] - a, b - ticks[-1]) * px / (b - a) >= LABEL_MARGIN_PX - 0.01
+    # screenshots keep ticks labelled 23 px apart (their plots are made high enough for them)
+    assert axis_range(lo, hi, px) == pytest.approx((-0.253, 2.253), abs=1e-3)
     # errors up to 29 m in the page's 92 px plots: ticks of 10 at 23 px or more, as before
     a, b = axis_range(0.0, 29.18, web_plot_px(4)[ent.error_group("position_error_m")])
     assert (a, b) == pytest.approx((-2.68, 32.68), abs=1e-2)

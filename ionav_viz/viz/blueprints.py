@@ -231,7 +231,7 @@ LABEL_MARGIN_PX = 7
 DATA_MARGIN_PX = 3
 
 
-def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
+def axis_range(lo: float, hi: float, plot_px: float, faint: bool = False) -> tuple[float, float]:
     """A y range over ``lo``..``hi`` for a plot ``plot_px`` high, with at least three labelled
     ticks: the plots tick a power of ten apart and label ticks at least :data:`TICK_PX` apart, so
     the step is the finest power of ten that is labelled, and the range is widened to three ticks
@@ -240,8 +240,9 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
     this rare, :func:`shot_rows`). A plot too small for three labels at any step (under about
     2.3 :data:`TICK_PX`) keeps the data's own range. A margin of 6 % each way keeps the outer
     labels drawn (at least :data:`LABEL_MARGIN_PX`, beyond the data and beyond the outermost
-    labelled ticks). Where that leaves the data in less than :data:`SQUASHED_SHARE` of the plot
-    (0.27 rad/s under ticks of 1 in a plot 69 px high: the data in its bottom tenth), a finer step
+    labelled ticks). With ``faint`` (the web page's plots, which open on the whole drive), where
+    that leaves the data in less than :data:`SQUASHED_SHARE` of the plot (0.27 rad/s under ticks of 1
+    in a plot 69 px high: the data in its bottom tenth), a finer step
     labelled at :data:`FAINT_TICK_PX` or more is taken when it gives three labelled ticks (0, 0.1,
     0.2), the data :data:`DATA_MARGIN_PX` inside the edges and the outer labels
     :data:`LABEL_MARGIN_PX` inside."""
@@ -291,7 +292,9 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
     if chosen is None:
         return framed(lo, hi)
     k, (r0, r1) = chosen
-    if hi - lo < SQUASHED_SHARE * (r1 - r0):  # the data squashed: finer ticks, fainter, if they are labelled at all
+    # the data squashed: finer ticks, fainter, if they are labelled at all (not in screenshots: their plots are high
+    # enough for TICK_PX, and wider y labels there showed the tick before the first's label at the column's edge)
+    if faint and hi - lo < SQUASHED_SHARE * (r1 - r0):
         for finer in range(k0, k):
             step = 10.0 ** finer
             t0, t1 = tight(*reach(step), step)
@@ -381,7 +384,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     # y ranges with at least three labelled ticks at the plots' heights on the page (the viewer's own fit
     # labelled only "0" of errors from 0 to 9 m in a plot 90 px high)
     heights = web_plot_px(n_estimators, has(ent.error_group("crse_m")))
-    ranges = {o: axis_range(*r, heights[o]) if o in heights else r for o, r in (y_ranges or {}).items()}
+    ranges = {o: axis_range(*r, heights[o], faint=True) if o in heights else r for o, r in (y_ranges or {}).items()}
     # every time view opens on the whole drive, as the state timeline: nothing scrolls with the time cursor,
     # where the first tick's label was cut at the view's edge ("9m 30s" of "+9m 30s")
     whole = None if end_s is None else rrb.TimeAxis(view_range=rr.TimeRange(
