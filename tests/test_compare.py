@@ -369,3 +369,26 @@ def test_the_api_gives_what_the_command_prints(bundled_runs):
     with pytest.raises(iv.InputError, match="a run of type int") as info:
         iv.compare([a, 42])
     assert info.value.param == "runs"
+
+
+def test_the_figure_of_unchanged_runs_has_a_readable_axis(tmp_path):
+    """Two runs whose changes print as +0.00 (a float's last bits apart) drew an axis of +-8e-5 with
+    its '1e-5' offset over the axis label ('B - A1e-5'): the axis now spans at least twenty steps of the
+    printed resolution, with no offset."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import ionav_viz as iv
+    from ionav_viz.viz.compare_figure import comparison_figure
+
+    b = json.loads(json.dumps(A))
+    for seq in b["sequences"]:
+        for est in seq.values():
+            if isinstance(est, dict) and isinstance(est.get("crse_m"), float):
+                est["crse_m"] *= 1 + 1e-13
+    cmp = iv.compare([_write(tmp_path, "a.json", A), _write(tmp_path, "b.json", b)]).to_json()
+    fig = comparison_figure(cmp if isinstance(cmp, dict) else json.loads(cmp))
+    fig.canvas.draw()
+    for ax in fig.axes:
+        lo, hi = ax.get_xlim()
+        assert hi - lo >= 0.1 and ax.xaxis.get_offset_text().get_text() == "", (lo, hi)

@@ -81,14 +81,14 @@ def test_replay_aims_outages_at_events(tmp_path):
     assert len(found) == _planned("V-sim-roundabout.csv", "roundabout")
     # an outage centred on a roundabout must start after the 30 s warm-up
     events = [e for e in found if (0.5 * (e.t0_s + e.t1_s) - 5.0 if e.t1_s - e.t0_s <= 9 else e.t0_s - 1.0) >= 29.5]
-    starts = [t for t, v in rows["/gnss/state"] if v[0].startswith("outage")]
+    starts = [t for t, v in rows["/gnss/state"] if v[0] is not None and v[0].startswith("outage")]
     assert len(starts) == len(events) == len(result.outages) >= len(found) - 1
     for start, ev in zip(starts, events):
         if ev.t1_s - ev.t0_s <= 9:  # short enough: inside the outage
             assert start <= ev.t0_s and ev.t1_s <= start + 10
         else:  # longer than the outage: it starts 1 s into the outage
             assert start == pytest.approx(ev.t0_s - 1.0, abs=0.6)
-    marked = [v[0] for _, v in rows["/events/state"] if v[0].startswith("roundabout")]
+    marked = [v[0] for _, v in rows["/events/state"] if v[0] is not None and v[0].startswith("roundabout")]
     assert len(marked) == len(set(marked)) == len(found)  # every one marked, numbered among all manoeuvres of the drive
     assert "/map/events" in static and "/local/events" in static
 

@@ -177,7 +177,8 @@ def test_recording_shows_quality_and_draws_bad_stretches_apart(faulty, tmp_path)
     proc = run_cli("replay", str(faulty), "--no-idnn", "-q", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
     rows, static = read_rrd(out)
-    states = {base_state(s[0]) for _, s in rows["/gnss/quality"]}  # each span's value carries its times
+    # each span's value carries its times; empty states end the lane (and the ruler)
+    states = {base_state(s[0]) for _, s in rows["/gnss/quality"] if s[0] is not None}
     assert states == {"good", "bad: near-zero", "bad: no-fix", "bad: frozen", "bad: jump"}
     # fixes at (0, 0) and the jump are not drawn; the frozen and no-fix stretches are, in grey
     assert "/local/gnss_bad" in static and "/map/gnss_bad" in static
@@ -317,7 +318,7 @@ def test_an_outage_asked_for_where_the_receiver_has_no_fix_is_refused_and_the_re
     proc = run_cli("replay", str(path), *args, "-q", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
     rows, _ = read_rrd(out)
-    states = [(time, base_state(s[0])) for time, s in rows["/gnss/state"]]
+    states = [(time, base_state(s[0])) for time, s in rows["/gnss/state"] if s[0] is not None]
     lost_at = [time for time, s in states if s == "receiver lost: no-fix"]
     assert lost_at  # where no outage covers the loss, from a window that touches it
     assert all(lost[(t >= x - 0.1) & (t <= x + 1.1)].any() for x in lost_at), lost_at

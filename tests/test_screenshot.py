@@ -491,6 +491,38 @@ def test_the_first_time_label_is_whole(recording, tmp_path):
         assert len(cut) == 0, (column_x, cut)
 
 
+def _last_ruler_label_px(img, x0: int, x1: int) -> int:
+    """The width (pixels) of the last label of the state timeline's time ruler, up to the ruler's end
+    (its torn edge), in the view spanning columns ``x0``..``x1``: a label cut there is narrower."""
+    from ionav_viz.viz.blueprints import TOP_BAND_PX
+
+    grey = img[:, x0:x1].mean(axis=-1)
+    y_sep = next(y for y in range(TOP_BAND_PX, TOP_BAND_PX + 120) if (grey[y] > 90).mean() > 0.6)  # under the ruler
+    ruler = grey[y_sep - 14 : y_sep - 6]  # the labels' rows, above the tick marks
+    x_end = int(np.nonzero((ruler < 5).mean(axis=0) > 0.5)[0].max())
+    text = np.nonzero((ruler[:, : x_end + 1] > 40).any(axis=0))[0]
+    start = len(text) - 1
+    while start > 0 and text[start] - text[start - 1] <= 4:  # a label's glyphs are a few pixels apart at most
+        start -= 1
+    return int(text[-1] - text[start] + 1)
+
+
+def test_the_state_timelines_last_time_label_is_whole(recording, tmp_path):
+    """Issue 63: the state timeline's ruler spans the recording's data, and a bundled drive's ends at
+    600 s, a whole ten minutes: its "+10m" was cut at the ruler's end to a lone "+" (review layout,
+    signals view). The recording now ends where the label is whole: "+10m" (27 px) whole at the
+    ruler's end at 1024x576 and 1600x900, in the review layout's signals column and the signals view."""
+    out = tmp_path / "shots"
+    for size in ("1024x576", "1600x900"):
+        proc = run_cli("screenshot", str(recording), "-o", str(out / size), "--view", "all", "--view", "signals",
+                       "--time", "worst", "--size", size)
+        assert proc.returncode == 0, proc.stderr
+        width = int(size.split("x")[0])
+        for view, (x0, x1) in (("all", (int(0.4 * width), int(0.7 * width))), ("signals", (0, width))):
+            label_px = _last_ruler_label_px(_image(out / size / f"V-sim-sharp-cornering-{view}-worst.png"), x0, x1)
+            assert label_px >= 24, (size, view, label_px)
+
+
 def test_key_entries_and_y_ranges():
     """What the key names per view (the truth where it is drawn, the markers where they are),
     and y ranges: three ticks a power of ten apart with room for their labels, a flat line

@@ -128,35 +128,48 @@ def test_every_title_shows_whole_on_the_page_the_layout_is_made_for(hard_brake):
     assert height[ent.OVERVIEW] >= summary_px(4), height[ent.OVERVIEW]  # INS DR, IDNN, odometry, GNSS-aided INS
 
 
-def _lanes(path) -> tuple[dict, dict, float]:
+def _lanes(path, ends: dict | None = None) -> tuple[dict, dict, float]:
     """The state lanes of a recording: each lane's labels by value, its (time, value) changes, and the
-    recording's last time (s)."""
+    drive's last time (s), the last of its data but the lanes' empty states (their ends, and the
+    ruler's end after the drive); those go into ``ends`` by lane, with the recording's last time."""
     reader, recording, _ = _stores(path)
     lanes = (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE)
-    labels, changes, end_s = {}, {lane: [] for lane in lanes}, 0.0
+    labels, changes, end_s, last_s = {}, {lane: [] for lane in lanes}, 0.0, 0.0
     for chunk in reader.stream(store=recording):
         entity = str(chunk.entity_path).strip("/")
         batch = chunk.to_record_batch()
-        if "time" in batch.schema.names and len(batch):
-            t_s = batch.column("time").cast("int64").to_numpy() / 1e9
-            end_s = max(end_s, float(t_s.max()))
+        t_s = batch.column("time").cast("int64").to_numpy() / 1e9 if "time" in batch.schema.names else np.zeros(0)
+        if len(t_s):
+            last_s = max(last_s, float(t_s.max()))
         if entity not in lanes:
+            end_s = max([end_s, *t_s])
             continue
         if chunk.is_static:
             found = _components(chunk)
             labels[entity] = dict(zip(found["values"], found["labels"]))
         else:
             column = next(n for n in batch.schema.names if n.endswith(":state"))
-            changes[entity] += zip(t_s, (v[0] for v in batch.column(column).to_pylist()))
+            for t, v in zip(t_s, batch.column(column).to_pylist()):
+                if v[0] is None:
+                    (ends if ends is not None else {}).setdefault(entity, []).append(float(t))
+                else:
+                    changes[entity].append((t, v[0]))
+                    end_s = max(end_s, float(t))
+    if ends is not None:
+        ends["recording"] = last_s
     return labels, changes, end_s
 
 
 def test_every_state_label_fits_its_span(hard_brake):
     """Each span's label fits that span in the state timeline's default view (the whole drive, with
-    the room :func:`state_view_s` leaves, across the signals column of the narrowest image, 1024 px):
-    a span shorter than its label shows its colour and no label (the hover text names it). Each span
-    has its own value, so that a short span of a state no longer blanks the label of a long one
-    (the viewer labels a value, not a span)."""
+    the room :func:`state_view_s` leaves, across the signals column of the narrowest image, 1024 px),
+    or is whole wherever the viewer draws it (two characters: it draws none in a span of 16 px or
+    less); else the span shows its colour and no label. Issue 63: the viewer's hover text shows the
+    label, not the value, so the outages' spans, too short for "#28" at the whole-drive zoom, were
+    blank there and in the hover; they are now "28" (drawn where the span is 18 px or wider, as in
+    the signals view of a 1600 px image, and named in the hover), the brakes "3". Each span has its
+    own value, so that a short span of a state no longer blanks the label of a long one (the viewer
+    labels a value, not a span)."""
     labels, changes, end_s = _lanes(hard_brake)
     t0_s, t1_s = state_view_s(end_s)
     px_per_s = NARROWEST_PX * column_fraction("/") / (t1_s - t0_s)
@@ -169,9 +182,12 @@ def test_every_state_label_fits_its_span(hard_brake):
             label = labels[lane][state]
             assert label != "", (lane, state)  # an empty label falls back to the whole state, cut
             fits = len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= (t1 - t0) * px_per_s
-            assert fits or not label.strip(), (lane, state, label, t1 - t0)
+            assert fits or not label.strip() or len(label) <= 2, (lane, state, label, t1 - t0)
             seen.add((ent.base_state(state).rpartition(" #")[0] or ent.base_state(state), label))
-    assert ("hard-brake", " ") in seen and ("good", "good") in seen
+            if (n := ent.parse_outage_state(ent.base_state(state))) is not None:
+                assert label in (f"#{n}", f"{n}"), (state, label)  # never blank: the hover shows the label
+    assert ("hard-brake", "3") in seen and ("good", "good") in seen
+    assert any(state.startswith("outage ") and label.isdigit() for state, label in seen), sorted(seen)
 
 
 def test_the_state_timeline_opens_on_the_whole_drive(hard_brake):
@@ -229,11 +245,11 @@ def test_every_time_plot_opens_on_the_whole_drive_with_labelled_y_ticks(hard_bra
     """On the page the layout is made for, every time plot opens on the whole drive, as the state
     timeline (nothing scrolls with the time cursor, which cut the first tick's label at the view's
     edge: "9m 30s"), and its y range has at least two labelled ticks at its height (the viewer
-    labels ticks a power of ten apart, and only :data:`TICK_PX` or more apart: its own fit of an
-    error plot 90 px high labelled only "0" of errors up to 9 m)."""
+    labels ticks a power of ten apart, and only :data:`FAINT_TICK_PX` or more apart: its own fit of
+    an error plot 90 px high labelled only "0" of errors up to 9 m)."""
     import math
 
-    from ionav_viz.viz.blueprints import TICK_PX, web_plot_px
+    from ionav_viz.viz.blueprints import FAINT_TICK_PX, web_plot_px
 
     _root, items = _layout(hard_brake)
     _, _, end_s = _lanes(hard_brake)
@@ -254,5 +270,61 @@ def test_every_time_plot_opens_on_the_whole_drive_with_labelled_y_ticks(hard_bra
             continue
         lo, hi = props[key]["range"][0]
         labelled = max(sum(1 for _ in range(math.ceil(lo / 10.0 ** k), math.floor(hi / 10.0 ** k) + 1))
-                       for k in range(-4, 4) if heights[origin] * 10.0 ** k / (hi - lo) >= TICK_PX)
+                       for k in range(-4, 4) if heights[origin] * 10.0 ** k / (hi - lo) >= FAINT_TICK_PX)
         assert labelled >= 2, (origin, lo, hi, heights[origin])
+
+
+def test_small_values_fill_their_plot_on_the_page():
+    """On the page, the orientation-rate CRSE plot (69 px of plot) of the roundabout drive (0 to
+    0.271 rad/s) was labelled 0, 1 and 2: the three-labels rule at 23 px a tick took ticks of 1,
+    and the data lay in the bottom tenth. It now has ticks of 0.1 (0, 0.1, 0.2, labelled 20 px or
+    more apart, as the viewer still draws them), the data filling most of the plot, the outer labels
+    whole; where a coarse step leaves the data room enough, nothing changes, nor in screenshots."""
+    import math
+
+    from ionav_viz.viz.blueprints import (
+        FAINT_TICK_PX,
+        LABEL_MARGIN_PX,
+        TICK_PX,
+        axis_range,
+        plot_range,
+        web_plot_px,
+    )
+
+    px = web_plot_px(4)[ent.error_group("yaw_crse_radps")]
+    assert 60 < px < 80  # the page's smallest error plot
+    lo, hi = plot_range(ent.error_group("yaw_crse_radps"), 2.4e-5, 0.271, pad=False)
+    a, b = axis_range(lo, hi, px, faint=True)
+    assert a <= lo and b >= hi and (hi - lo) / (b - a) > 0.8, (a, b)
+    step = 0.1
+    assert FAINT_TICK_PX <= px * step / (b - a) < TICK_PX
+    ticks = np.arange(math.ceil(a / step), math.floor(b / step) + 1) * step
+    assert len(ticks) == 3 and min(ticks[0] - a, b - ticks[-1]) * px / (b - a) >= LABEL_MARGIN_PX - 0.01
+    # screenshots keep ticks labelled 23 px apart (their plots are made high enough for them)
+    assert axis_range(lo, hi, px) == pytest.approx((-0.253, 2.253), abs=1e-3)
+    # errors up to 29 m in the page's 92 px plots: ticks of 10 at 23 px or more, as before
+    a, b = axis_range(0.0, 29.18, web_plot_px(4)[ent.error_group("position_error_m")])
+    assert (a, b) == pytest.approx((-2.68, 32.68), abs=1e-2)
+
+
+def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(hard_brake):
+    """Rerun's state timeline draws its time ruler over the recording's data, from its first to its
+    last time on the ``time`` timeline, whatever the view's range, and cuts a tick label that runs
+    past it: a drive ending at 600 s showed a lone "+" of "+10m" at the ruler's end, in screenshots
+    and on the page. Each lane now ends at the drive's end with an empty state (no span drawn
+    open-ended past it), and a second empty state sets the recording's last time to the ruler's
+    end (:func:`ruler_end_s`), where its last label is whole at every width the layout is made for;
+    the state timeline and the time plots open on the drive and the ruler (:func:`state_view_s`)."""
+    from ionav_viz.viz.blueprints import RULER_WIDTHS_PX, _ruler_cuts_a_label, ruler_end_s
+
+    ends: dict = {}
+    _, changes, end_s = _lanes(hard_brake, ends)
+    assert end_s == pytest.approx(600.0, abs=0.2)
+    ruler_s = ruler_end_s(end_s)
+    assert ends["recording"] == pytest.approx(ruler_s) and end_s + 1.0 < ruler_s < 1.15 * end_s
+    for lane in (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE):
+        assert max(t for t, _ in changes[lane]) < ends[lane][0] <= end_s + 1e-6 and ends[lane][-1] == pytest.approx(ruler_s)
+    view = state_view_s(end_s)
+    assert view[1] > ruler_s
+    assert not any(_ruler_cuts_a_label(ruler_s, view, w) for w in RULER_WIDTHS_PX)
+    assert all(_ruler_cuts_a_label(end_s, (view[0], end_s + 0.05 * end_s), w) for w in (0.3 * 1024, 0.3 * 1600, 0.3 * 1280))

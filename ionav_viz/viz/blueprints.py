@@ -56,10 +56,65 @@ STATE_VIEW_PAD_BEFORE, STATE_VIEW_PAD_AFTER = 0.05, 0.05
 
 def state_view_s(end_s: float) -> tuple[float, float]:
     """The state timeline's and the web page's time plots' default time range (s) for a drive ending
-    at ``end_s`` (its times start at 0): the whole drive, with :data:`STATE_VIEW_PAD_BEFORE` and
-    :data:`STATE_VIEW_PAD_AFTER` of it as room."""
+    at ``end_s`` (its times start at 0): the whole drive and its time ruler (:func:`ruler_end_s`),
+    with :data:`STATE_VIEW_PAD_BEFORE` and :data:`STATE_VIEW_PAD_AFTER` of the drive as room."""
     length_s = max(float(end_s), 1.0)
-    return -STATE_VIEW_PAD_BEFORE * length_s, float(end_s) + STATE_VIEW_PAD_AFTER * length_s
+    return -STATE_VIEW_PAD_BEFORE * length_s, ruler_end_s(end_s) + STATE_VIEW_PAD_AFTER * length_s
+
+
+#: The state timeline's time ruler (Rerun 0.41, measured on renders and read in its ruler code): it
+#: spans the recording's data on the ``time`` timeline, :data:`RULER_EDGE_PX` more each way (its torn
+#: edges), whatever the view's range, and cuts there a tick label that runs past it (the "+" of a
+#: "+10m" at a drive's end at 600 s). Ticks are :data:`RULER_STEPS_S` apart; the finest step at least
+#: 4 px apart is drawn, with two coarser ones, and a step's ticks are labelled where they are more
+#: than :data:`RULER_LABEL_MIN_PX` apart; a label starts :data:`RULER_LABEL_GAP_PX` right of its tick,
+#: :data:`RULER_CHAR_PX` a character or less ("+10m": 27 px).
+RULER_EDGE_PX, RULER_LABEL_MIN_PX, RULER_LABEL_GAP_PX, RULER_CHAR_PX = 10.0, 60.0, 4.0, 7.0
+RULER_STEPS_S = (0.001, 0.01, 0.1, 1.0, 10.0, 60.0, 600.0, 3600.0, 43200.0, 86400.0, 864000.0, 8640000.0)
+#: The state timeline's widths (px) its ruler's labels must be whole at: the review layout's signals
+#: column and the signals view alone, in images and pages from :data:`NARROWEST_PX` to 1920 px wide.
+RULER_WIDTHS_PX = tuple(f * w for w in range(1024, 1921, 16) for f in (3 / 10, 1.0))
+
+
+def ruler_label(t_s: float) -> str:
+    """A tick label of the state timeline's ruler as the viewer writes it (``+10m``, ``+1h 10m``)."""
+    total = int(round(t_s))
+    hours, rest = divmod(total, 3600)
+    minutes, seconds = divmod(rest, 60)
+    parts = [f"{v}{u}" for v, u in ((hours, "h"), (minutes, "m"), (seconds, "s")) if v]
+    return "+" + (" ".join(parts) or "0s")
+
+
+def _ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float) -> bool:
+    """Whether the ruler of data ending at ``last_s``, in a state timeline ``width_px`` wide showing
+    ``view`` (s), cuts the label of its last labelled tick at its end (or the view's)."""
+    px_per_s = width_px / (view[1] - view[0])
+    small = next((s for s in RULER_STEPS_S if s * px_per_s >= 4.0), RULER_STEPS_S[-1])
+    drawn = RULER_STEPS_S[RULER_STEPS_S.index(small):][:3]
+    labelled = [s for s in drawn if s * px_per_s > RULER_LABEL_MIN_PX]
+    if not labelled:
+        return False
+    edge_s = min(last_s + RULER_EDGE_PX / px_per_s, view[1])
+    tick_s = math.floor(edge_s / labelled[0] + 1e-9) * labelled[0]
+    label_px = RULER_LABEL_GAP_PX + len(ruler_label(tick_s)) * RULER_CHAR_PX
+    return tick_s >= 0 and tick_s + label_px / px_per_s > edge_s
+
+
+def ruler_end_s(end_s: float) -> float:
+    """Where the state lanes of a drive ending at ``end_s`` log their last (empty) change: the
+    recording's last time on the ``time`` timeline, so that the state timeline's ruler ends where
+    no tick's label runs past it at any of :data:`RULER_WIDTHS_PX` (its label whole). ``end_s``
+    itself where that holds there, else the first time after it (at most 25 % of the drive) that
+    does; the lanes end at ``end_s`` either way."""
+    end_s = float(end_s)
+    length_s = max(end_s, 1.0)
+    step_s = max(0.1, length_s / 2000)
+    for i in range(int(0.25 * length_s / step_s) + 1):
+        last_s = end_s + i * step_s
+        view = (-STATE_VIEW_PAD_BEFORE * length_s, last_s + STATE_VIEW_PAD_AFTER * length_s)
+        if not any(_ruler_cuts_a_label(last_s, view, w) for w in RULER_WIDTHS_PX):
+            return last_s
+    return end_s
 
 
 def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
@@ -70,6 +125,18 @@ def state_label_fits(label: str, span_s: float, end_s: float) -> bool:
     t0_s, t1_s = state_view_s(end_s)
     px_per_s = NARROWEST_PX * column_fraction("/") / (t1_s - t0_s)
     return len(label) * STATE_LABEL_PX_PER_CHAR + STATE_LABEL_PAD_PX <= span_s * px_per_s
+
+
+#: The viewer draws a state label only in a span more than this many pixels wide (and cuts it at the
+#: span's end); two characters are whole from 18 px on ("28" ends 17 px into its span, measured on
+#: renders: in a span of 17 px it loses its last pixel column).
+STATE_TEXT_MIN_PX, STATE_WHOLE_ANYWHERE_CHARS = 16.0, 2
+
+
+def state_label_whole_anywhere(label: str) -> bool:
+    """Whether the state label ``label`` is whole in any span the viewer draws a label in, at any
+    zoom (absent in a narrower one): two characters or fewer."""
+    return len(label) <= STATE_WHOLE_ANYWHERE_CHARS
 
 
 INSPECTOR_NAME = "Current outage: m from its start fix, north up"
@@ -153,11 +220,18 @@ def plot_range(origin: str, lo: float, hi: float, pad: bool = True) -> tuple[flo
 #: apart only with about this much room (fewer pixels: only the coarser ticks get labels; at 23 px
 #: they are drawn at about half the brightness of the others, 120 of 255, and read well).
 TICK_PX = 23
+#: Pixels between labelled ticks at which the plots still label them, fainter (measured on renders of
+#: a 69 px plot: "0.1" and "0.2" read at 20 px, not drawn at 18): :func:`axis_range` goes down to it
+#: where :data:`TICK_PX` would leave the data in less than :data:`SQUASHED_SHARE` of the plot.
+FAINT_TICK_PX = 20
+SQUASHED_SHARE = 0.5
 #: Pixels above the top tick and below the bottom one: half a label's height, so that it is not cut.
 LABEL_MARGIN_PX = 7
+#: Pixels between the data and the plot's edge where no label needs the room.
+DATA_MARGIN_PX = 3
 
 
-def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
+def axis_range(lo: float, hi: float, plot_px: float, faint: bool = False) -> tuple[float, float]:
     """A y range over ``lo``..``hi`` for a plot ``plot_px`` high, with at least three labelled
     ticks: the plots tick a power of ten apart and label ticks at least :data:`TICK_PX` apart, so
     the step is the finest power of ten that is labelled, and the range is widened to three ticks
@@ -166,7 +240,12 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
     this rare, :func:`shot_rows`). A plot too small for three labels at any step (under about
     2.3 :data:`TICK_PX`) keeps the data's own range. A margin of 6 % each way keeps the outer
     labels drawn (at least :data:`LABEL_MARGIN_PX`, beyond the data and beyond the outermost
-    labelled ticks)."""
+    labelled ticks). With ``faint`` (the web page's plots, which open on the whole drive), where
+    that leaves the data in less than :data:`SQUASHED_SHARE` of the plot (0.27 rad/s under ticks of 1
+    in a plot 69 px high: the data in its bottom tenth), a finer step
+    labelled at :data:`FAINT_TICK_PX` or more is taken when it gives three labelled ticks (0, 0.1,
+    0.2), the data :data:`DATA_MARGIN_PX` inside the edges and the outer labels
+    :data:`LABEL_MARGIN_PX` inside."""
 
     def framed(a: float, b: float) -> tuple[float, float]:
         m = max(0.06, LABEL_MARGIN_PX / max(plot_px - 2 * LABEL_MARGIN_PX, 1.0)) * (b - a)
@@ -180,22 +259,49 @@ def axis_range(lo: float, hi: float, plot_px: float) -> tuple[float, float]:
             r0, r1 = min(r0, math.ceil(r0 / step - 1e-9) * step - m), max(r1, math.floor(r1 / step + 1e-9) * step + m)
         return r0, r1
 
+    def reach(step: float) -> tuple[float, float]:
+        first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+        if last - first >= 2:
+            return lo, hi
+        # fewer than three ticks inside: reach out to them
+        if lo >= 0:
+            return min(lo, first * step), max(hi, (first + 2) * step)
+        if hi <= 0:
+            return min(lo, (last - 2) * step), max(hi, last * step)
+        return min(lo, -step), max(hi, step)
+
+    def tight(a: float, b: float, step: float) -> tuple[float, float]:
+        # the data DATA_MARGIN_PX inside each edge, and the outermost ticks inside LABEL_MARGIN_PX: a tick just
+        # beyond the data is left outside rather than pushing the edge out (a few rounds: the scale moves)
+        r0, r1 = framed(a, b)
+        for _ in range(6):
+            per_px = (r1 - r0) / plot_px
+            top, bottom = b + DATA_MARGIN_PX * per_px, a - DATA_MARGIN_PX * per_px
+            t_top, t_bottom = math.floor(top / step + 1e-9) * step, math.ceil(bottom / step - 1e-9) * step
+            r0, r1 = min(bottom, t_bottom - LABEL_MARGIN_PX * per_px), max(top, t_top + LABEL_MARGIN_PX * per_px)
+        return r0, r1
+
     k0 = math.floor(math.log10(max(hi - lo, 1e-12))) - 1
+    chosen = None
     for k in range(k0, k0 + 4):  # from a tenth of the data's span to ten times it: coarser gains nothing
         step = 10.0 ** k
-        first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
-        a, b = lo, hi
-        if last - first < 2:  # fewer than three ticks inside: reach out to them
-            if lo >= 0:
-                a, b = min(lo, first * step), max(hi, (first + 2) * step)
-            elif hi <= 0:
-                a, b = min(lo, (last - 2) * step), max(hi, last * step)
-            else:
-                a, b = min(lo, -step), max(hi, step)
-        r0, r1 = clear(*framed(a, b), step)
+        r0, r1 = clear(*framed(*reach(step)), step)
         if plot_px * step / (r1 - r0) >= TICK_PX:
-            return r0, r1
-    return framed(lo, hi)
+            chosen = (k, (r0, r1))
+            break
+    if chosen is None:
+        return framed(lo, hi)
+    k, (r0, r1) = chosen
+    # the data squashed: finer ticks, fainter, if they are labelled at all (not in screenshots: their plots are high
+    # enough for TICK_PX, and wider y labels there showed the tick before the first's label at the column's edge)
+    if faint and hi - lo < SQUASHED_SHARE * (r1 - r0):
+        for finer in range(k0, k):
+            step = 10.0 ** finer
+            t0, t1 = tight(*reach(step), step)
+            labelled = math.floor(t1 / step + 1e-9) - math.ceil(t0 / step - 1e-9) + 1
+            if plot_px * step / (t1 - t0) >= FAINT_TICK_PX and labelled >= 3:
+                return t0, t1
+    return r0, r1
 
 
 #: Above the views, the band the viewer keeps for its hidden top panel (screenshots draw the colour
@@ -278,7 +384,7 @@ def blueprint(labels: list[str], zoom: float = 16.0, y_ranges: dict[str, tuple[f
     # y ranges with at least three labelled ticks at the plots' heights on the page (the viewer's own fit
     # labelled only "0" of errors from 0 to 9 m in a plot 90 px high)
     heights = web_plot_px(n_estimators, has(ent.error_group("crse_m")))
-    ranges = {o: axis_range(*r, heights[o]) if o in heights else r for o, r in (y_ranges or {}).items()}
+    ranges = {o: axis_range(*r, heights[o], faint=True) if o in heights else r for o, r in (y_ranges or {}).items()}
     # every time view opens on the whole drive, as the state timeline: nothing scrolls with the time cursor,
     # where the first tick's label was cut at the view's edge ("9m 30s" of "+9m 30s")
     whole = None if end_s is None else rrb.TimeAxis(view_range=rr.TimeRange(

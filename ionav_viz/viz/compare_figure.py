@@ -132,8 +132,14 @@ def _panel(
         right.append(f"{_fmt(change, decimals, True)} {_interval([lo, hi], decimals) if defined else '(no interval)'}")
         y += 1
     ax.axvline(0.0, color="0.35", lw=0.8, ls=(0, (4, 2)), zorder=0)
-    span = max(highs) - min(lows) or max(abs(max(highs)), abs(min(lows)), 1e-3)
-    ax.set_xlim(min(lows) - 0.08 * span, max(highs) + 0.08 * span)
+    # at least twenty steps of the printed resolution: changes that print as +0.00 (a float's last bits apart) had
+    # an axis of +-8e-5, its "1e-5" offset drawn over the axis label
+    least = 20.0 * 10.0 ** -decimals
+    span = max(max(highs) - min(lows), least)
+    mid = 0.5 * (max(highs) + min(lows))
+    lo_x, hi_x = min(min(lows), mid - 0.5 * span), max(max(highs), mid + 0.5 * span)
+    ax.set_xlim(lo_x - 0.08 * span, hi_x + 0.08 * span)
+    ax.ticklabel_format(axis="x", useOffset=False)
     ax.set_ylim(max(y - 0.5, 0.5), -0.5)  # the first row on top
     ax.set_yticks(ys, ticks)
     ax.tick_params(axis="y", length=0)
@@ -147,7 +153,8 @@ def _panel(
     name = METRIC_LABELS[metric]
     ax.set_title(name[:1].upper() + name[1:], loc="left", fontsize=FONT_PT)
     ax.set_xlabel("\n".join(textwrap.wrap(f"change of the mean, {run} \u2212 {cmp['baseline']}", 50)))
-    ax.xaxis.set_major_locator(MaxNLocator(3 if decimals > 2 else 5))  # labels of 3 decimals are wide
+    # labels of 3 decimals are wide; steps of 1, 2 or 5 (a step of 0.025 wrote "-0.050-0.025" as one)
+    ax.xaxis.set_major_locator(MaxNLocator(3 if decimals > 2 else 5, steps=[1, 2, 5, 10]))
     if not ys:
         ax.text(
             0.5, 0.5, "no estimator defines this metric in two runs", transform=ax.transAxes, ha="center", va="center"

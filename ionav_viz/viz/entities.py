@@ -279,10 +279,10 @@ def base_state(value: str) -> str:
 
 def state_labels(state: str) -> tuple[str, ...]:
     """What a state's lane may show, longest first (:func:`state_label` takes the first that fits):
-    ``#3`` or ``3`` for outage 3, ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` for
-    ``hard-brake #3``; the last is always a blank (an empty label falls back to the state's own
-    value, cut in a short span). The whole state stays the value (hover text, and what screenshots
-    read back)."""
+    ``#3`` or ``3`` for outage 3, ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` or ``3``
+    for ``hard-brake #3``; the last is always a blank (an empty label falls back to the state's own
+    value, cut in a short span). The viewer shows the label, not the value, in the hover text too;
+    the whole state stays the value (what screenshots read back)."""
     blank = " "
     state = base_state(state)
     if (n := parse_outage_state(state)) is not None:
@@ -295,15 +295,20 @@ def state_labels(state: str) -> tuple[str, ...]:
         return ("rx lost" if state.startswith("receiver lost") else "rx bad"), blank
     if state == NO_EVENT_STATE:
         return (blank,)
-    kind, sep, _number = state.rpartition(" #")
-    return (EVENT_SHORT.get(kind, kind) if sep else state), blank
+    kind, sep, number = state.rpartition(" #")
+    if sep:
+        return EVENT_SHORT.get(kind, kind), number, blank
+    return state, blank
 
 
-def state_label(state: str, fits=lambda label: True) -> str:
+def state_label(state: str, fits=lambda label: True, whole_anywhere=lambda label: False) -> str:
     """What a state's lane shows: the longest of :func:`state_labels` that ``fits`` (a test of the
     label's text; the viewer's state timeline cuts a label at its span's end: ``bra`` of a 3 s
-    brake), else a blank."""
-    return next((label for label in state_labels(state) if fits(label)), " ")
+    brake), else the longest that is ``whole_anywhere`` (whole in any span the viewer draws a label
+    in: ``28`` of outage 28, which the hover text then names), else a blank."""
+    labels = state_labels(state)
+    return next((label for label in labels if fits(label)), None) or next(
+        (label for label in labels if label.strip() and whole_anywhere(label)), " ")
 
 
 #: Every path a recording can hold, with ``<est>`` for an estimator's name: what

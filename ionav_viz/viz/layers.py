@@ -100,17 +100,22 @@ def state_color(state: str) -> tuple[int, int, int]:
     return EVENT_STATE_COLORS.get(state.rpartition(" #")[0], EVENT_COLOR)
 
 
-def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, end_s: float) -> None:
+def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, end_s: float,
+                   ruler_s: float | None = None) -> None:
     """The state lane ``entity``: ``states``, each from its time of ``t_s`` on (the last until
-    ``end_s``), sent as state changes, and each value's colour (:func:`state_color`, one per kind)
-    and label, static. A state that several spans share gets a value per span
+    ``end_s``, where an empty state ends it), sent as state changes, and each value's colour
+    (:func:`state_color`, one per kind) and label, static. With ``ruler_s`` after ``end_s``, a second
+    empty state there: the recording's last time, where the state timeline's ruler ends
+    (:func:`~ionav_viz.viz.blueprints.ruler_end_s`). A state that several spans share gets a value per span
     (:func:`~ionav_viz.viz.entities.span_state`): the viewer gives a value one label, and each span's
     label is the longest of :func:`~ionav_viz.viz.entities.state_labels` that fits that span in the
     lane's default view (:func:`~ionav_viz.viz.blueprints.state_label_fits`; one short ``bad`` span
-    made every ``bad`` span's label blank)."""
+    made every ``bad`` span's label blank), else one whole wherever the viewer draws it
+    (:func:`~ionav_viz.viz.blueprints.state_label_whole_anywhere`: ``28``, which the hover shows)."""
+    import pyarrow as pa
     import rerun as rr
 
-    from .blueprints import state_label_fits
+    from .blueprints import state_label_fits, state_label_whole_anywhere
 
     t = np.asarray(t_s, dtype=np.float64)
     ends = np.append(t[1:], max(float(end_s), float(t[-1]) if len(t) else 0.0))
@@ -120,10 +125,15 @@ def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, e
     for value, span in zip(values, ends - t):
         shortest[value] = min(shortest.get(value, np.inf), float(span))
     names = list(shortest)
-    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v], end_s)) for v in names]
+    labels = [ent.state_label(v, lambda label, v=v: state_label_fits(label, shortest[v], end_s),
+                              state_label_whole_anywhere) for v in names]
     rec.log(entity, rr.StateConfiguration(values=names, labels=labels,
                                           colors=[state_color(v) for v in names]), static=True)
-    send(entity, t, rr.StateChange.columns(state=values))
+    # empty states (nulls: a gap in the lane) end the last span at the drive's end, not open-ended past it
+    ends_s = [float(ends[-1])] if len(t) else []
+    if ruler_s is not None and ends_s and ruler_s > ends_s[0]:
+        ends_s.append(float(ruler_s))
+    send(entity, np.append(t, ends_s), rr.StateChange.columns(state=pa.array(values + [None] * len(ends_s), pa.utf8())))
 
 
 def _shared(states: list[str]) -> set[str]:
@@ -359,6 +369,8 @@ def log_events(layers: Layers, events: list, drive) -> None:
     """Detected manoeuvres: a state timeline, and labelled points on the map and local view."""
     import rerun as rr
 
+    from .blueprints import ruler_end_s
+
     rec, send, usable = layers.rec, layers.send, layers.usable
     times, states = [], []
     for i, e in enumerate(sorted(events, key=lambda e: e.t0_s)):
@@ -369,7 +381,7 @@ def log_events(layers: Layers, events: list, drive) -> None:
         states += [ent.event_state(e.type, i + 1), ent.NO_EVENT_STATE]
     order = np.argsort(times, kind="stable")
     log_state_lane(rec, send, ent.EVENTS_STATE, [states[k] for k in order], np.asarray(times)[order],
-                   float(drive.t_s[-1]))
+                   float(drive.t_s[-1]), ruler_end_s(float(drive.t_s[-1])))
     mid = np.array([0.5 * (e.t0_s + e.t1_s) for e in events])
     # a loss's middle lies between its good fixes (``usable``), not at (0, 0)
     lat = np.interp(mid, drive.t_s[usable], drive.lat_deg[usable])

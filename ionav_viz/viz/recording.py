@@ -29,7 +29,7 @@ from ..core.grid import WINDOW_S
 from ..core.runs import run_ranges
 from . import columns
 from . import entities as ent
-from .blueprints import blueprint, plot_range
+from .blueprints import blueprint, plot_range, ruler_end_s
 from .columns import with_breaks
 from .geometry import map_zoom, screen_xy
 from .health import log_health
@@ -333,7 +333,8 @@ def _log_signals(layers: Layers, drive) -> None:
                                                                 draw_order=np.full(nu, TRUTH_END_ORDER)))
     quality = _quality_states(drive.gnss_fault)
     change = np.concatenate([[True], quality[1:] != quality[:-1]])
-    log_state_lane(layers.rec, send, ent.GNSS_QUALITY, [str(q) for q in quality[change]], t[change], float(t[-1]))
+    log_state_lane(layers.rec, send, ent.GNSS_QUALITY, [str(q) for q in quality[change]], t[change], float(t[-1]),
+                   ruler_end_s(float(t[-1])))
     send(ent.ACCEL, t, rr.Scalars.columns(scalars=drive.accel_long_mps2))
     send(ent.yaw_rate("gyro"), t, rr.Scalars.columns(scalars=drive.yaw_rate_radps))
     send(ent.SPEED, t, rr.Scalars.columns(scalars=drive.speed_mps))
@@ -368,7 +369,7 @@ def _log_outage_states(rec, send, result: DriveResult) -> tuple[np.ndarray, np.n
         states[b.start : b.start + b.n_windows] = ent.real_outage_state(b.number, b.gap_t0_s, b.gap_t1_s)
     change = np.concatenate([[True], states[1:] != states[:-1]]) if len(w) else np.zeros(0, bool)
     log_state_lane(rec, send, ent.GNSS_STATE, [str(s) for s in states[change]], w.t0_s[change],
-                   float(t_end[-1]) if len(w) else 0.0)
+                   float(t_end[-1]) if len(w) else 0.0, ruler_end_s(float(result.drive.t_s[-1])))
     return t_end, idx
 
 

@@ -312,12 +312,16 @@ class _Scan:
         if len(parts) == 3 and parts[2] == "ellipse" and parts[0] in (ent.LOCAL, ent.INSPECT, ent.MAP):
             self.ellipses.add(parts[1])
         times = _times_of(batch)
+        if entity.strip("/") in (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE):
+            # a lane's empty states end it at the drive's end, and pad the recording to its ruler's end: not data
+            values = [v[0] if v else None for v in batch.column(_column(path, entity, names, ":state")).to_pylist()]
+            kept = [i for i, v in enumerate(values) if v is not None]
+            times, values = times[kept], [values[i] for i in kept]
         if len(times):
             self.end_s = max(self.end_s, float(times.max()))
         if entity.strip("/") == ent.GNSS_STATE:
-            col = _column(path, entity, names, ":state")
             # a state shared by several spans has a value per span (its times): the state is what is read
-            self.states += list(zip(times, (ent.base_state(v[0]) for v in batch.column(col).to_pylist())))
+            self.states += list(zip(times, (ent.base_state(v) for v in values)))
         elif entity.strip("/") == ent.truth_position(ent.MAP):
             col = _column(path, entity, names, ":positions")
             self.track.append(np.asarray(batch.column(col).flatten().flatten(), dtype=np.float64).reshape(-1, 2))
