@@ -100,8 +100,13 @@ def test_a_bad_drive_is_reported_and_the_others_kept(fleet_dir):
     # the command that replays a drive reads and scores it as the fleet did: every option but the fleet's own
     read = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--warm-up", "10s", "--gnss-limit", "max_sigma_m=13",
                    "--json", "-q")
-    command = json.loads(read.stdout)["worst_outages"][0]["command"]
-    assert command.startswith("ionav-viz replay ") and command.endswith(f"--outage 10s --estimators {CHEAP} --warm-up 10s --gnss-limit max_sigma_m=13")
+    worst = json.loads(read.stdout)["worst_outages"][0]
+    command, name, number = worst["command"], worst["drive"], worst["number"]
+    # ... into the drive's recording, then renders the outage it names (issue 63: it replayed the whole drive)
+    replay, shot = command.split(" && ")
+    assert replay.startswith("ionav-viz replay ") and replay.endswith(
+        f"--outage 10s --estimators {CHEAP} --warm-up 10s --gnss-limit max_sigma_m=13 -o {name}.rrd")
+    assert shot == f"ionav-viz screenshot {name}.rrd --outage-number {number} -o {name}-outage{number}.png"
     assert not any(w in command.split() for w in ("--workers", "--json", "-q")), command
     fast = run_cli("evaluate", str(fleet_dir), "--workers", "1", "--estimators", CHEAP, "--fail-fast")
     assert fast.returncode == 2 and fast.stdout == ""

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..core import run_config
+from ..core.fileio import safe_stem
 from ..core.json_out import dumps_json
 from ..nav.protocol import color_of
 from .consistency import RATIO_AT_S
@@ -414,6 +415,18 @@ class FleetReport:
         return " ".join(["ionav-viz replay", shlex.quote(spec),
                          self.replay_options or f"--outage {self.outage_s:g}s"]).strip()
 
+    def open_command(self, table: DriveTable, number: int) -> str:
+        """The command that shows outage ``number`` of ``table``'s drive: replay the drive with the
+        fleet's outages into ``<drive>.rrd`` (unless the fleet replayed it: its recording), then
+        render that outage, framed, by its number (``screenshot --outage-number``: the replay's
+        "outage N", or in a fleet through the logs' own losses its real loss N)."""
+        stem = safe_stem(table.name)
+        rrd = table.recording or f"{stem}.rrd"
+        replay = [] if table.recording else [f"{self.command(table.spec)} -o {shlex.quote(rrd)}"]
+        png = f"{stem}-outage{number}.png"
+        shot = f"ionav-viz screenshot {shlex.quote(rrd)} --outage-number {number} -o {shlex.quote(png)}"
+        return " && ".join([*replay, shot])
+
     def worst_drives(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
         """The ``count`` drives with the largest mean final error of :attr:`worst_of`, worst
         first: ``drive``, ``spec``, ``mean_final_error_m`` per estimator and ``command``."""
@@ -426,7 +439,8 @@ class FleetReport:
     def worst_outages(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
         """The ``count`` outages with the largest final error of :attr:`worst_of`, worst first:
         ``drive``, ``number`` (from 1 within its drive, the recording's "outage N"), ``start_s``,
-        ``end_s``, ``final_error_m`` per estimator and the ``command`` that replays its drive."""
+        ``end_s``, ``final_error_m`` per estimator and the ``command`` that replays its drive and
+        renders that outage (:meth:`open_command`)."""
         est = self.worst_of
         ranked = [(float(err), d, i, t) for d, t in enumerate(self.drives) if est in t.metrics
                   for i, err in enumerate(t.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
@@ -434,7 +448,7 @@ class FleetReport:
         return [{"drive": t.name, "number": i + 1, "start_s": round(float(t.start_s[i]), 3),
                  "end_s": round(float(t.start_s[i] + t.outage_s), 3),
                  "final_error_m": {e: float(t.metrics[e]["final_position_error_m"][i]) for e in t.metrics},
-                 "command": self.command(t.spec)} for _, _, i, t in ranked[:count]]
+                 "command": self.open_command(t, i + 1)} for _, _, i, t in ranked[:count]]
 
     def to_dict(self) -> dict[str, Any]:
         """The fleet's ``evaluate --json`` object, kind ``fleet`` of docs/report-schema.md (every key
@@ -593,7 +607,7 @@ def _document(rep: FleetReport, timing: bool) -> Document:
             blocks += [Heading(f"Worst outages (by {labels[rep.worst_of]} final error)", 2),
                        Items([(f"{w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
                                + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items())
-                               + "; replay: ", Code(w["command"])) for w in worst], numbered=True)]
+                               + "; see it: ", Code(w["command"])) for w in worst], numbered=True)]
     for title, items in (("Failed drives", rep.failures), ("Skipped drives", rep.skipped)):
         if items:
             blocks += [Heading(f"{title} ({len(items)})", 2), Items([f"{f.spec}: {f.reason}" for f in items])]

@@ -573,3 +573,11 @@ def _stat_or_none(path: Path) -> os.stat_result | None:
         return os.stat(path)
     except OSError:
         return None
+
+
+def safe_stem(name: str) -> str:
+    """A file-name stem from text that comes from inside a file (a recording's drive name): only
+    letters, digits, '.', '-' and '_', no leading dot, never a path."""
+    cleaned = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name)
+    cleaned = re.sub(r"\.{2,}", ".", cleaned).lstrip(".")
+    return cleaned[:100] or "recording"

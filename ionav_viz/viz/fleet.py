@@ -70,21 +70,9 @@ def worst_outage(report: FleetReport, table: DriveTable) -> dict[str, Any] | Non
 
 
 def open_command(report: FleetReport, table: DriveTable, worst: dict[str, Any]) -> str:
-    """The command that shows the drive's worst outage (``worst``, :func:`worst_outage`): replay
-    the drive with the fleet's outages into ``<drive>.rrd`` (unless it was replayed: its
-    recording), then render that outage, framed, by its number (``screenshot --outage-number``:
-    the replay's "outage N", or in a fleet through the logs' own losses its real loss N)."""
-    import shlex
-
-    from .screenshot import safe_stem
-
-    stem = safe_stem(table.name)
-    rrd = table.recording or f"{stem}.rrd"
-    replay = [] if table.recording else [f"{report.command(table.spec)} -o {shlex.quote(rrd)}"]
-    number = worst["number"]
-    png = f"{stem}-outage{number}.png"
-    shot = f"ionav-viz screenshot {shlex.quote(rrd)} --outage-number {number} -o {shlex.quote(png)}"
-    return " && ".join([*replay, shot])
+    """The command that shows the drive's worst outage (``worst``, :func:`worst_outage`):
+    :meth:`FleetReport.open_command` of its number."""
+    return report.open_command(table, worst["number"])
 
 
 def key_line(report: FleetReport, colors: dict[str, tuple[int, int, int]]) -> str:

@@ -12,13 +12,12 @@ Views: ``all`` (the recording's review layout), ``outage`` (the inspector), ``ma
 from __future__ import annotations
 
 import logging
-import re
 import socket
 from collections.abc import Sequence
 from pathlib import Path
 
 from ..core.errors import InputError
-from ..core.fileio import made_folders
+from ..core.fileio import made_folders, safe_stem
 from ..experiment.registry import BASELINE
 from .blueprints import (
     MIN_Y_SPAN,
@@ -186,14 +185,6 @@ def output_paths(out: Path, stem: str, requests: list[tuple[str, str]], single_f
     else:
         directory = out
     return [directory / f"{safe_stem(stem)}-{view}-{label}.png" for view, label in requests]
-
-
-def safe_stem(name: str) -> str:
-    """A file-name stem from text that comes from inside a file (a recording's drive name): only
-    letters, digits, '.', '-' and '_', no leading dot, never a path."""
-    cleaned = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name)
-    cleaned = re.sub(r"\.{2,}", ".", cleaned).lstrip(".")
-    return cleaned[:100] or "recording"
 
 
 def render(recordings: list[Path], out: Path, times: list[str], views: list[str], size: tuple[int, int],
