@@ -315,7 +315,7 @@ def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(
     open-ended past it), and a second empty state sets the recording's last time to the ruler's
     end (:func:`ruler_end_s`), where its last label is whole at every width the layout is made for;
     the state timeline and the time plots open on the drive and the ruler (:func:`state_view_s`)."""
-    from ionav_viz.viz.blueprints import RULER_WIDTHS_PX, _ruler_cuts_a_label, ruler_end_s
+    from ionav_viz.viz.blueprints import RULER_WIDTHS_PX, ruler_cuts_a_label, ruler_end_s
 
     ends: dict = {}
     _, changes, end_s = _lanes(hard_brake, ends)
@@ -326,5 +326,5 @@ def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(
         assert max(t for t, _ in changes[lane]) < ends[lane][0] <= end_s + 1e-6 and ends[lane][-1] == pytest.approx(ruler_s)
     view = state_view_s(end_s)
     assert view[1] > ruler_s
-    assert not any(_ruler_cuts_a_label(ruler_s, view, w) for w in RULER_WIDTHS_PX)
-    assert all(_ruler_cuts_a_label(end_s, (view[0], end_s + 0.05 * end_s), w) for w in (0.3 * 1024, 0.3 * 1600, 0.3 * 1280))
+    assert not any(ruler_cuts_a_label(ruler_s, view, w) for w in RULER_WIDTHS_PX)
+    assert all(ruler_cuts_a_label(end_s, (view[0], end_s + 0.05 * end_s), w) for w in (0.3 * 1024, 0.3 * 1600, 0.3 * 1280))

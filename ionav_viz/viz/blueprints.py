@@ -85,7 +85,7 @@ def ruler_label(t_s: float) -> str:
     return "+" + (" ".join(parts) or "0s")
 
 
-def _ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float) -> bool:
+def ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float) -> bool:
     """Whether the ruler of data ending at ``last_s``, in a state timeline ``width_px`` wide showing
     ``view`` (s), cuts the label of its last labelled tick at its end (or the view's)."""
     px_per_s = width_px / (view[1] - view[0])
@@ -112,7 +112,7 @@ def ruler_end_s(end_s: float) -> float:
     for i in range(int(0.25 * length_s / step_s) + 1):
         last_s = end_s + i * step_s
         view = (-STATE_VIEW_PAD_BEFORE * length_s, last_s + STATE_VIEW_PAD_AFTER * length_s)
-        if not any(_ruler_cuts_a_label(last_s, view, w) for w in RULER_WIDTHS_PX):
+        if not any(ruler_cuts_a_label(last_s, view, w) for w in RULER_WIDTHS_PX):
             return last_s
     return end_s
 
