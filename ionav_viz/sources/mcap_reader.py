@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -170,13 +170,33 @@ class McapLog:
                     decoded = decode_json(path, channel.topic, message.data, message.log_time)
                 else:
                     if channel.id not in decoders:
-                        decoder = factory.decoder_for(channel.message_encoding, schema)
+                        decoder = cdr_decoder(channel.message_encoding, schema) or factory.decoder_for(
+                            channel.message_encoding, schema)
                         if decoder is None:
                             raise InputError(f"{path}: topic {channel.topic}: cannot decode {channel.message_encoding} "
                                              f"with schema encoding {schema.encoding if schema else None!r}")
                         decoders[channel.id] = decoder
                     decoded = decoders[channel.id](message.data)
                 yield channel.topic, message.log_time, decoded
+
+
+def cdr_decoder(encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
+    """A decoder of ``cdr`` messages of a ``ros2msg`` schema built by rosbags (several times faster
+    than mcap_ros2's, the same values; number arrays as numpy arrays), or None where rosbags cannot
+    read the schema (mcap_ros2 decodes those)."""
+    if encoding != "cdr" or schema is None or schema.encoding != "ros2msg":
+        return None
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    from rosbags.typesys.msg import normalize_msgtype
+
+    try:
+        msgtype = normalize_msgtype(schema.name)
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(schema.data.decode(), msgtype))
+        store.get_msgdef(msgtype)  # every field's type is defined
+    except Exception:  # a definition rosbags does not parse: left to mcap_ros2
+        return None
+    return lambda data: store.deserialize_cdr(data, msgtype)
 
 
 def iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:

@@ -32,7 +32,6 @@ KITTI; for IO-VNBD, which carries no date, the UTC time of day on 1970-01-01).
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +41,7 @@ from ..core.drive import IMU_COLUMNS, RECEIVER_COLUMNS, Drive
 from ..core.errors import InputError
 from ..core.fileio import atomic_path, check_output_file
 from ..core.units import G_MPS2
+from .cdr import encode_many
 from .ros2_msgs import DEFINITIONS
 
 log = logging.getLogger("ionav_viz")
@@ -71,8 +71,44 @@ class Written:
     left_out: tuple[str, ...]
 
 
-def _header(stamp_ns: int, frame: str) -> dict:
-    return {"stamp": {"sec": stamp_ns // 1_000_000_000, "nanosec": stamp_ns % 1_000_000_000}, "frame_id": frame}
+def _messages(drive: Drive, keys: list[str], t_ns: np.ndarray, imu_axes: dict[str, np.ndarray], received: Drive,
+              vehicle_speed_mps: np.ndarray | None) -> dict[str, np.ndarray]:
+    """Every sample's message of each topic ``keys`` names, CDR-encoded: ``{key: (samples, bytes)}``."""
+    n = len(drive)
+    sec, nanosec = t_ns // 1_000_000_000, t_ns % 1_000_000_000
+
+    def header(frame: str) -> list[tuple[str, object]]:
+        return [("i4", sec), ("u4", nanosec), ("string", frame)]
+
+    heading = np.deg2rad(received.heading_deg)
+    height = drive.columns.get("height_m", np.zeros(n))
+    sigma = drive.columns.get("gnss_sigma_m")
+    covariance = np.zeros((n, 9))
+    if sigma is not None:
+        covariance[:, [0, 4, 8]] = np.asarray(sigma, dtype=float)[:, None] ** 2
+    no_fix = drive.columns.get("gnss_fix", np.ones(n)) == 0
+    ax, ay, az, gx, gy, gz = (imu_axes[c] for c in IMU_COLUMNS)
+    zeros3, zeros9, zeros36 = np.zeros((1, 3)), np.zeros((1, 9)), np.zeros((1, 36))
+    identity = np.array([[0.0, 0.0, 0.0, 1.0]])  # a quaternion (x, y, z, w)
+    unknown_orientation = np.r_[-1.0, np.zeros(8)][None]
+    fields = {
+        "imu": [*header("base_link"), ("f8", identity), ("f8", unknown_orientation),
+                ("f8", np.c_[gx, gy, gz]), ("f8", zeros9), ("f8", np.c_[ax, ay, az]), ("f8", zeros9)],
+        "fix": [*header("gps"), ("i1", np.where(no_fix, -1, 0)), ("u2", 1), ("f8", received.lat_deg),
+                ("f8", received.lon_deg), ("f8", np.where(np.isfinite(height), height, 0.0)), ("f8", covariance),
+                ("u1", 0 if sigma is None else 2)],
+        "vel": [*header("gps"), ("f8", np.c_[received.speed_mps * np.sin(heading),
+                                             received.speed_mps * np.cos(heading), np.zeros(n)]), ("f8", zeros3)],
+    }
+    if "truth" in keys:
+        fields["truth"] = [*header("truth"), ("i1", 0), ("u2", 1), ("f8", drive.lat_deg), ("f8", drive.lon_deg),
+                           ("f8", 0.0), ("f8", zeros9), ("u1", 0)]
+    if vehicle_speed_mps is not None:
+        unknown_pose = np.array([[-1.0 if i % 7 == 0 else 0.0 for i in range(36)]])
+        fields["odom"] = [*header("odom"), ("string", "base_link"), ("f8", zeros3), ("f8", identity),
+                          ("f8", unknown_pose),
+                          ("f8", np.c_[vehicle_speed_mps, np.zeros((n, 4)), drive.yaw_rate_radps]), ("f8", zeros36)]
+    return {key: encode_many(fields[key], n) for key in keys}
 
 
 def lateral_left(drive: Drive, path: Path | str = "") -> np.ndarray | None:
@@ -101,18 +137,13 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     ``omit_gnss``: per sample, True where no ``/gps/fix`` and ``/gps/vel`` message is written (an outage).
     A drive with a reference trajectory has its receiver written on ``/gps/fix`` and ``/gps/vel``
     and the reference on :data:`TRUTH_TOPIC` (at every sample)."""
-    from mcap_ros2.writer import Writer
+    from mcap.writer import CompressionType, Writer
 
     check_output_file(Path(path))
     n = len(drive)
     t_ns = np.rint(np.asarray(drive.stamp_s(drive.t_s)) * 1e9).astype(np.int64)
     omit = np.zeros(n, dtype=bool) if omit_gnss is None else np.asarray(omit_gnss, dtype=bool)
     received = drive.as_received()  # the receiver's fixes, speed and course (the drive itself without a reference)
-    heading = np.deg2rad(received.heading_deg)
-    v_east, v_north = received.speed_mps * np.sin(heading), received.speed_mps * np.cos(heading)
-    height = drive.columns.get("height_m", np.zeros(n))
-    sigma = drive.columns.get("gnss_sigma_m")
-    has_fix = drive.columns.get("gnss_fix", np.ones(n)) != 0
     # the full IMU when the drive has it, else a level IMU: gravity on z, nothing on the other axes
     imu_axes = {c: drive.columns.get(c, np.full(n, G_MPS2 if c == "accel_z_mps2" else 0.0)) for c in IMU_COLUMNS}
     imu_axes["accel_x_mps2"], imu_axes["gyro_z_radps"] = drive.accel_long_mps2, drive.yaw_rate_radps
@@ -126,63 +157,24 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
             raise InputError(f"{drive.name}: {field} at {float(drive.t_s[k]):.2f} s is not a finite number "
                              f"({float(values[k])})",
                              "fix the drive's IMU columns: a log with it would not read back", param="drive")
-    ax, ay, az, gx, gy, gz = (imu_axes[c] for c in IMU_COLUMNS)
-    zeros9 = [0.0] * 9
-    unknown_orientation = [-1.0] + [0.0] * 8
-    unknown_pose = [-1.0 if i % 7 == 0 else 0.0 for i in range(36)]
     # a speed fitted to the fixes is no receiver's velocity: written as one it would read back as measured
     keys = (["imu", "fix"] + ([] if drive.velocity_fitted else ["vel"])
             + (["odom"] if vehicle_speed_mps is not None else []) + (["truth"] if drive.has_reference else []))
+    rows = _messages(drive, keys, t_ns, imu_axes, received, vehicle_speed_mps)
     count = 0
     with atomic_path(Path(path), suffix=".tmp.mcap") as tmp, open(tmp, "wb") as stream:
-        writer = Writer(stream)
-        schemas = {k: writer.register_msgdef(SCHEMAS[k], DEFINITIONS[SCHEMAS[k]]) for k in keys}
-        for i in range(n):  # one message per sample and topic
+        writer = Writer(stream, chunk_size=1024 * 1024, compression=CompressionType.ZSTD, enable_crcs=True)
+        writer.start(profile="ros2", library="ionav-viz")
+        channels = {}
+        for key in keys:
+            schema = writer.register_schema(SCHEMAS[key], "ros2msg", DEFINITIONS[SCHEMAS[key]].encode())
+            channels[key] = writer.register_channel(TOPICS[key], "cdr", schema)
+        for i in range(n):  # one message per sample and topic, in time order
             stamp = int(t_ns[i])
-            msgs = {
-                "imu": {
-                    "header": _header(stamp, "base_link"),
-                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
-                    "orientation_covariance": unknown_orientation,
-                    "angular_velocity": {"x": float(gx[i]), "y": float(gy[i]), "z": float(gz[i])},
-                    "angular_velocity_covariance": zeros9,
-                    "linear_acceleration": {"x": float(ax[i]), "y": float(ay[i]), "z": float(az[i])},
-                    "linear_acceleration_covariance": zeros9,
-                },
-                "fix": {
-                    "header": _header(stamp, "gps"),
-                    "status": {"status": 0 if has_fix[i] else -1, "service": 1},
-                    "latitude": float(received.lat_deg[i]),
-                    "longitude": float(received.lon_deg[i]),
-                    "altitude": float(height[i]) if math.isfinite(height[i]) else 0.0,
-                    "position_covariance": zeros9 if sigma is None else [float(sigma[i]) ** 2 if k in (0, 4, 8) else 0.0
-                                                                         for k in range(9)],
-                    "position_covariance_type": 0 if sigma is None else 2,
-                },
-                "vel": {
-                    "header": _header(stamp, "gps"),
-                    "twist": {"linear": {"x": float(v_east[i]), "y": float(v_north[i]), "z": 0.0},
-                              "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-                },
-            }
-            if drive.has_reference:
-                msgs["truth"] = {"header": _header(stamp, "truth"), "status": {"status": 0, "service": 1},
-                                 "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]),
-                                 "altitude": 0.0, "position_covariance": zeros9, "position_covariance_type": 0}
-            if vehicle_speed_mps is not None:
-                msgs["odom"] = {
-                    "header": _header(stamp, "odom"), "child_frame_id": "base_link",
-                    "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
-                                      "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
-                             "covariance": unknown_pose},
-                    "twist": {"twist": {"linear": {"x": float(vehicle_speed_mps[i]), "y": 0.0, "z": 0.0},
-                                        "angular": {"x": 0.0, "y": 0.0, "z": float(drive.yaw_rate_radps[i])}},
-                              "covariance": [0.0] * 36},
-                }
             for key in keys:
                 if omit[i] and key in ("fix", "vel"):
                     continue
-                writer.write_message(TOPICS[key], schemas[key], msgs[key], log_time=stamp, publish_time=stamp)
+                writer.add_message(channels[key], log_time=stamp, data=rows[key][i].tobytes(), publish_time=stamp)
                 count += 1
         writer.finish()
     left_out = tuple(c for c in drive.columns if c not in CARRIED and c not in vehicle_speed_from)
