@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -18,7 +19,14 @@ def pytest_configure(config) -> None:
     """Each pytest-xdist worker is one core's worth of tests (``-n 2`` on 2 cores): its torch, and
     every process it starts, runs one thread, as the fleet's worker processes do. Two workers whose
     torch ran a thread per core each (four threads on two cores) spent most of their CPU waiting on
-    each other in every small network's step. A variable the user set is kept; ``-n 0`` is untouched."""
+    each other in every small network's step. A variable the user set is kept; ``-n 0`` is untouched.
+
+    Ctrl-C is Python's again where the suite was started with SIGINT ignored (a shell's background
+    job without job control, ``nohup``): every process the tests start inherits an ignored SIGINT,
+    so a test stopping ``replay --serve-web`` with Ctrl-C, as a user does, waited on it for
+    :data:`HANG_S`."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         return
     for name in THREAD_VARIABLES:
