@@ -4,6 +4,7 @@ title widths."""
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -100,6 +101,7 @@ def ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float
     return tick_s >= 0 and tick_s + label_px / px_per_s > edge_s
 
 
+@functools.lru_cache(maxsize=64)  # pure, and asked again for every state label of a recording
 def ruler_end_s(end_s: float) -> float:
     """Where the state lanes of a drive ending at ``end_s`` log their last (empty) change: the
     recording's last time on the ``time`` timeline, so that the state timeline's ruler ends where
