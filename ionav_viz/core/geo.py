@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from functools import cache
+import threading
+from functools import cache, lru_cache
 from typing import Any
 
 import numpy as np
@@ -17,14 +18,24 @@ def wgs84() -> Any:
     return Geod(ellps="WGS84")
 
 
+def _aeqd(lat0_deg: float, lon0_deg: float) -> Any:
+    """The transformer from WGS84 longitude, latitude to the azimuthal equidistant plane at the origin."""
+    return _aeqd_of_thread(float(lat0_deg), float(lon0_deg), threading.get_ident())
+
+
+@lru_cache(maxsize=64)  # making one costs ~10 ms; a pyproj Transformer is not to be shared across threads
+def _aeqd_of_thread(lat0_deg: float, lon0_deg: float, thread: int) -> Any:
+    from pyproj import Transformer
+
+    return Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84",
+                                always_xy=True)
+
+
 def local_en_m(lat_deg: np.ndarray, lon_deg: np.ndarray, lat0_deg: float,
                lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """East and north (m) of positions relative to an origin (azimuthal equidistant projection:
     true distances from the origin, and local scale within 1e-4 over 100 km)."""
-    from pyproj import Transformer
-
-    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84",
-                                    always_xy=True)
+    to_local = _aeqd(lat0_deg, lon0_deg)
     east, north = to_local.transform(np.asarray(lon_deg), np.asarray(lat_deg))
     return np.asarray(east), np.asarray(north)
 
@@ -33,10 +44,7 @@ def geodetic_of_en_m(east_m: np.ndarray, north_m: np.ndarray, lat0_deg: float,
                      lon0_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Latitude and longitude (deg) of east and north offsets (m) from an origin: the inverse of
     :func:`local_en_m` (the same azimuthal equidistant projection)."""
-    from pyproj import Transformer
-
-    to_local = Transformer.from_crs("EPSG:4326", f"+proj=aeqd +lat_0={lat0_deg} +lon_0={lon0_deg} +datum=WGS84",
-                                    always_xy=True)
+    to_local = _aeqd(lat0_deg, lon0_deg)
     lon, lat = to_local.transform(np.asarray(east_m, dtype=float), np.asarray(north_m, dtype=float),
                                   direction="INVERSE")
     return np.asarray(lat), np.asarray(lon)
