@@ -88,13 +88,21 @@ def _chrome(chromium: str, chromedriver: str, profile: Path, log: Path, env: dic
 
 
 def _counts(png: bytes) -> dict[str, int]:
-    """Pixels of each colour of MIN_PIXELS in the left column, below the top bar and above the time panel."""
+    """Pixels of each colour of MIN_PIXELS in the left column, below the top bar and above the time panel,
+    and its median grey level ("background", 0-255)."""
     from PIL import Image
 
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
     left = img[TOP_BAR_PX : img.shape[0] - TIME_PANEL_PX, : int(LEFT_COLUMN * img.shape[1])]
-    return {name: int((np.abs(left - np.array(rgb)).max(axis=-1) <= (12 if name == "scale" else 30)).sum())
-            for name, (rgb, _) in MIN_PIXELS.items()}
+    counts = {name: int((np.abs(left - np.array(rgb)).max(axis=-1) <= (12 if name == "scale" else 30)).sum())
+              for name, (rgb, _) in MIN_PIXELS.items()}
+    return {**counts, "background": int(np.median(left.mean(axis=-1)))}
+
+
+def _drawn(counts: dict[str, int], theme: str) -> bool:
+    """The page shows the recording in ``theme``: every colour of MIN_PIXELS, on a light or dark background."""
+    return ((counts["background"] > 128) == (theme == "light")
+            and all(counts[name] >= least for name, (_, least) in MIN_PIXELS.items()))
 
 
 def _requested_hosts(driver) -> set[str]:
@@ -156,27 +164,30 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
         line = server.stdout.readline()
         url = re.search(r"open (http://127\.0\.0\.1:\d+/\S*)", line)
         assert url and f":{web_port}/" in url.group(1), line
-        for theme in THEMES:
-            driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
-            try:
+        driver = _chrome(chromium, chromedriver, profile, tmp_path / "chromedriver.log", env)
+        try:  # one browser, the page loaded again in each colour scheme (a second browser cost a minute)
+            # the page itself 1280x720 (--window-size counts the browser's own bars: the page was 1280x577)
+            driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": WINDOW_PX[0], "height": WINDOW_PX[1],
+                                                                         "deviceScaleFactor": 1, "mobile": False})
+            driver.set_page_load_timeout(HANG_S)
+            for theme in THEMES:
                 driver.execute_cdp_cmd("Emulation.setEmulatedMedia", {"features": [{"name": "prefers-color-scheme", "value": theme}]})
-                # the page itself 1280x720 (--window-size counts the browser's own bars: the page was 1280x577)
-                driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": WINDOW_PX[0], "height": WINDOW_PX[1],
-                                                                             "deviceScaleFactor": 1, "mobile": False})
-                driver.set_page_load_timeout(HANG_S)
-                driver.get(url.group(1))
+                if theme == THEMES[0]:
+                    driver.get(url.group(1))
+                else:
+                    driver.refresh()
                 deadline = time.monotonic() + RENDER_TIMEOUT_S
                 while True:  # a screenshot waits for the next frame: seconds apart while the viewer loads
                     png = driver.get_screenshot_as_png()
                     counts[theme] = _counts(png)
-                    if all(counts[theme][name] >= least for name, (_, least) in MIN_PIXELS.items()) or time.monotonic() > deadline:
+                    if _drawn(counts[theme], theme) or time.monotonic() > deadline:
                         break
                     time.sleep(0.5)
                 (tmp_path / f"browser-{theme}.png").write_bytes(png)
-                hosts |= _requested_hosts(driver) - {f"127.0.0.1:{web_port}", f"127.0.0.1:{grpc_port}"}
-                severe += [entry["message"] for entry in driver.get_log("browser") if "ERR_NAME_NOT_RESOLVED" not in entry["message"]]
-            finally:
-                driver.quit()
+            hosts |= _requested_hosts(driver) - {f"127.0.0.1:{web_port}", f"127.0.0.1:{grpc_port}"}
+            severe += [entry["message"] for entry in driver.get_log("browser") if "ERR_NAME_NOT_RESOLVED" not in entry["message"]]
+        finally:
+            driver.quit()
     finally:
         server.send_signal(signal.SIGINT)
         try:
@@ -186,6 +197,7 @@ def test_served_recording_renders_in_a_browser(tmp_path, monkeypatch):
             code = server.wait()
     elapsed_s = time.monotonic() - start
     for theme in THEMES:
+        assert (counts[theme]["background"] > 128) == (theme == "light"), (theme, counts[theme]["background"])
         for name, (_, least) in MIN_PIXELS.items():
             assert counts[theme][name] >= least, (f"{theme} theme, {name}: {counts[theme][name]} pixels of its colour after {elapsed_s:.0f} s "
                                                   f"(see {tmp_path / f'browser-{theme}.png'}; console: {severe[-3:]})")
