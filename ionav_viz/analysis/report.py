@@ -10,7 +10,7 @@ Groups of reports (``--scenario all``, ``--by-event``) print as ``{"scenarios": 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -20,14 +20,15 @@ from ..core import run_config
 from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
+from . import tables
 from .consistency import consistency
-from .document import Document, to_markdown, to_text
+from .document import Block, Document, Heading, Paragraphs, Table, to_markdown, to_text
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise
+from .rows import BridgedRow, DriftRow, EstimatorRow, Spread, WorstRow
 from .schema import tagged
-from .tables import report_document, truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
@@ -109,9 +110,15 @@ class Report:
         return drive_labels([r.drive for r in self.results])
 
     @cached_property
+    def estimator_rows(self) -> list[EstimatorRow]:
+        """Per estimator, in report order: each metric's :class:`Spread` across the outages."""
+        return [EstimatorRow(est, label, **{m: Spread(**summarise(self.metric(est, m))) for m in METRICS})
+                for est, label in self.labels.items()]
+
+    @cached_property
     def summary(self) -> dict[str, dict[str, dict[str, float]]]:
-        """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages."""
-        return {est: {m: summarise(self.metric(est, m)) for m in METRICS} for est in self.estimators}
+        """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages (:attr:`estimator_rows`)."""
+        return {r.name: {m: asdict(getattr(r, m)) for m in METRICS} for r in self.estimator_rows}
 
     @cached_property
     def improvement_pct(self) -> dict[str, dict[str, float]]:
@@ -142,18 +149,38 @@ class Report:
         """The estimator whose final position error ranks the worst outages: the INS DR if it ran."""
         return next((n for n in self.estimators if is_baseline(n)), self.estimators[0])
 
-    def worst_outages(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[dict[str, Any]]:
+    def worst_rows(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[WorstRow]:
         """The ``count`` outages with the largest final position error of ``estimator`` (default
-        :attr:`worst_of`), worst first: ``drive``, ``number`` (1-based within its drive, as the
-        recording's "outage N"), ``start_s``, ``end_s`` and ``final_error_m`` per estimator."""
+        :attr:`worst_of`), worst first."""
         est = estimator or self.worst_of
         ranked = [(float(err), r, label, i) for r, label in zip(self.results, self.drive_labels)
                   for i, err in enumerate(r.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
         ranked.sort(key=lambda x: -x[0])
-        return [{"drive": label, "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
-                 "end_s": round(float(r.outage_t0_s[i] + r.n_windows), 3),
-                 "final_error_m": {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators}}
+        return [WorstRow(label, i + 1, round(float(r.outage_t0_s[i]), 3),
+                         round(float(r.outage_t0_s[i] + r.n_windows), 3),
+                         {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators})
                 for _err, r, label, i in ranked[:count]]
+
+    def worst_outages(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[dict[str, Any]]:
+        """:meth:`worst_rows` as the JSON's ``worst`` entries: ``drive``, ``number``, ``start_s``,
+        ``end_s`` and ``final_error_m`` per estimator."""
+        return [asdict(w) for w in self.worst_rows(count, estimator)]
+
+    @cached_property
+    def drift_rows(self) -> list[DriftRow]:
+        """Per estimator, in report order, its drift curve and final-error percentiles; none without outages."""
+        if not self.n_outages:
+            return []
+        drift = report_drift(self.results, self.estimators)
+        final = {est: final_error_percentiles(self.metric(est, "final_position_error_m")) for est in self.estimators}
+        return [DriftRow(est, label, **drift[est], **{f"final_{k}_m": v for k, v in final[est].items()})
+                for est, label in self.labels.items()]
+
+    @cached_property
+    def bridged_rows(self) -> list[BridgedRow]:
+        """The log's own GNSS losses the estimators bridged, drive by drive."""
+        return [BridgedRow(label, **b.to_dict())
+                for r, label in zip(self.results, self.drive_labels) for b in r.bridged]
 
     def outage_tracks(self, drive: str, number: int) -> dict[str, Any]:
         """One outage's tracks at its window boundaries: ``drive``, ``number``, ``start_s``, and
@@ -226,10 +253,11 @@ class Report:
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
             out["improvement_ci95_pct"] = self.improvement_ci95_pct
-        if sequences:
-            out["drift"] = report_drift(results, estimators)
-            out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m"))
-                                              for e in estimators}
+        if self.drift_rows:
+            out["drift"] = {d.name: {"t_s": d.t_s, "mean_m": d.mean_m, "p10_m": d.p10_m, "p90_m": d.p90_m}
+                            for d in self.drift_rows}
+            out["final_error_percentiles"] = {d.name: {"p50": d.final_p50_m, "p90": d.final_p90_m, "p95": d.final_p95_m,
+                                                       "max": d.final_max_m} for d in self.drift_rows}
         out["worst_of"] = self.worst_of
         out["worst"] = self.worst_outages()
         if out["worst"]:
@@ -237,7 +265,7 @@ class Report:
         bridged = [(label, b) for r, label in zip(results, self.drive_labels) for b in r.bridged]
         if bridged or any(r.unbridged for r in results):
             out["gnss_outages"] = {
-                "bridged": [{"drive": name, **b.to_dict()} for name, b in bridged],
+                "bridged": [asdict(b) for b in self.bridged_rows],
                 "not_bridged": sum(sum(r.unbridged.values()) for r in results),
                 "not_bridged_by_reason": _summed_counts([r.unbridged for r in results]),
                 "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged]))
@@ -277,9 +305,34 @@ class Report:
         return dumps_json(self.to_dict(), indent=indent)
 
     def document(self) -> Document:
-        """The report as a document (:mod:`.document`, :func:`ionav_viz.analysis.tables.report_document`):
-        what :meth:`to_text` and :meth:`to_markdown` lay out."""
-        return report_document(self.to_dict(), self.title)
+        """The report as a document (:mod:`.document`), what :meth:`to_text` and :meth:`to_markdown` lay
+        out: the paper's table, the log's own GNSS outages where it bridged some, a line each on the
+        improvements, the GNSS truth, the drives, the estimators' uncertainty, health and choices,
+        then the drift and the worst outages. The tables are the typed rows the JSON is built from
+        (:attr:`estimator_rows`, :attr:`bridged_rows`, :attr:`drift_rows`, :meth:`worst_rows`); the
+        lines are read from the JSON."""
+        rep = self.to_dict()
+        labels = self.labels
+        blocks: list[Block] = []
+        if rep["n_sequences"] or "gnss_outages" not in rep:
+            header, rows = tables.estimator_table(self.estimator_rows, rep["distance_m"], rep["n_sequences"])
+            blocks += [Heading(tables.title_of(rep, self.title)), Table(header, rows, 2, strong_first=True)]
+        if "gnss_outages" in rep:
+            bridged = self.bridged_rows
+            header, rows = tables.bridged_table(bridged, labels, len({b.drive for b in bridged}) > 1)
+            blocks += [Heading(f"{rep['drive']}: the log's own GNSS outages",
+                               note="(truth: the first good fix after each)"),
+                       Table(header, rows, 1), Paragraphs([tables.bridged_line(rep)])]
+        blocks.append(Paragraphs(tables.report_lines(rep)))
+        if self.drift_rows:
+            header, rows = tables.drift_table(self.drift_rows)
+            blocks += [Heading(tables.DRIFT_TITLE, lead_in=True), Table(header, rows, 1)]
+        worst = self.worst_rows()
+        if worst:
+            several = len({w.drive for w in worst}) > 1 or "+" in rep["drive"]
+            header, rows = tables.worst_table(worst, labels, several)
+            blocks += [Heading(tables.worst_title(rep), lead_in=True), Table(header, rows, 3 if several else 2)]
+        return Document(blocks, spaced=False)
 
     def to_text(self, width: int | None = None) -> str:
         """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
@@ -463,7 +516,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"- **Outages**: {placement}; {report.n_outages} outage(s)",
         *([f"- **IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
-        f"- **{truth_line(report.to_dict())}**",
+        f"- **{tables.truth_line(report.to_dict())}**",
         *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
            "(drawn as dots)"]
           if drive.has_reference else []),
