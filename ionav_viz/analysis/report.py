@@ -22,7 +22,7 @@ from ..core.errors import InputError
 from ..core.json_out import dumps_json
 from . import tables
 from .consistency import consistency
-from .document import Block, Document, Heading, Paragraphs, Table, to_markdown, to_text
+from .document import Block, Document, Heading, Items, Paragraphs, Table, to_markdown, to_text
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
@@ -442,21 +442,29 @@ def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> 
                                          "by_length": by_length(reports)}), indent=indent)
 
 
-def _bridged_loss_lines(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[str]:
-    """Markdown lines on the log's own GNSS losses the estimators bridged (``--on gnss-outage``):
-    each estimator's mean final error over them and the ``worst`` worst of them (by the first
-    estimator's error, the INS DR where it ran); none without any."""
+def _bridged_loss_blocks(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[Block]:
+    """On the log's own GNSS losses the estimators bridged (``--on gnss-outage``): each estimator's
+    mean final error over them and the ``worst`` worst of them (by the first estimator's error,
+    the INS DR where it ran); nothing without any."""
     bridged = result.bridged
     if not bridged:
         return []
     mean = {e: float(np.mean([b.final_error_m[e] for b in bridged])) for e in ests}
     by = ests[0]
     lines = [f"**Real GNSS outages**: {len(bridged)} ({sum(b.gap_s for b in bridged):.0f} s without GNSS), "
-             f"final error from the last good fix, mean m: " + ", ".join(f"{label[e]} {mean[e]:.1f}" for e in ests), ""]
-    for b in sorted(bridged, key=lambda b: -b.final_error_m[by])[:worst]:
-        lines += [f"{'**Worst real**' if worst == 1 else '-'} #{b.number} ({b.gap_t0_s:.0f}-{b.gap_t1_s:.0f} s, m): "
-                  + ", ".join(f"{label[e]} {b.final_error_m[e]:.1f}" for e in ests), ""]
-    return lines
+             f"final error from the last good fix, mean m: " + ", ".join(f"{label[e]} {mean[e]:.1f}" for e in ests)]
+    lines += [f"{'**Worst real**' if worst == 1 else '-'} #{b.number} ({b.gap_t0_s:.0f}-{b.gap_t1_s:.0f} s, m): "
+              + ", ".join(f"{label[e]} {b.final_error_m[e]:.1f}" for e in ests)
+              for b in sorted(bridged, key=lambda b: -b.final_error_m[by])[:worst]]
+    return [Paragraphs(lines)]
+
+
+def _means_table(report: Report, label: Mapping[str, str], header: list[str]) -> list[Block]:
+    """Each estimator's mean final error (m), displacement CRSE (m) and yaw CRSE (rad/s), under
+    ``header``; nothing without synthetic outages."""
+    rows = [[label[r.name], f"{r.final_position_error_m.mean:.2f}", f"{r.crse_m.mean:.2f}",
+             f"{r.yaw_crse_radps.mean:.3f}"] for r in report.estimator_rows]
+    return [Table(header, rows)] if report.n_outages else []
 
 
 def overview_markdown(result: DriveResult, report: Report) -> str:
@@ -466,24 +474,17 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
     summary column."""
     ests = report.estimators
     label = {e.name: e.label for e in result.estimators}
-    mean = {e: report.summary[e] for e in ests}
-    if report.n_outages:
-        lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
-                 "| mean | final m | CRSE m | yaw rad/s |", "|---|---|---|---|",
-                 *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | "
-                   f"{mean[e]['crse_m']['mean']:.2f} | {mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
-    else:  # only the log's own losses: no table of synthetic outages to fill with nothing
-        lines = [f"**{result.drive.name}**", ""]
-    # the worst real one where there is room: the screenshot's summary tab holds one worst line
-    lines += _bridged_loss_lines(result, label, ests, worst=0 if report.n_outages else 1)
-    worst = report.worst_outages(1)
-    if worst:
-        w = worst[0]
-        lines += [f"**Worst** #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s, m): "
-                  + ", ".join(f"{label[e]} {w['final_error_m'][e]:.1f}" for e in ests), ""]
+    head = f": {report.n_outages} outage(s) of {result.outage_s:g} s" if report.n_outages else ""
+    # only the log's own losses: no table of synthetic outages to fill with nothing
+    blocks: list[Block] = [Paragraphs([f"**{result.drive.name}**{head}"]),
+                           *_means_table(report, label, ["mean", "final m", "CRSE m", "yaw rad/s"]),
+                           # the worst real one where there is room: the screenshot's summary tab holds one worst line
+                           *_bridged_loss_blocks(result, label, ests, worst=0 if report.n_outages else 1)]
+    said = [f"**Worst** #{w.number} ({w.start_s:.0f}-{w.end_s:.0f} s, m): "
+            + ", ".join(f"{label[e]} {w.final_error_m[e]:.1f}" for e in ests) for w in report.worst_rows(1)]
     if report.warnings:  # the Details tab beside this one lists them, with the run's parameters
-        lines.append(f"**{len(report.warnings)} warning(s)**: see Details.")
-    return "\n".join(lines) + "\n"
+        said.append(f"**{len(report.warnings)} warning(s)**: see Details.")
+    return to_markdown(Document([*blocks, Paragraphs(said)]))
 
 
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
@@ -493,54 +494,47 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
     labels = " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else names[0]
     ests = report.estimators
     label = {e.name: e.label for e in result.estimators}
-    mean = {e: report.summary[e] for e in ests}
-    lines = [
-        f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s",
-        "",
-        *(["| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
-           "|---|---|---|---|",
-           *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
-             f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
-           ""] if report.n_outages else []),
-        *_bridged_loss_lines(result, label, ests, worst=3),
+    blocks: list[Block] = [
+        Paragraphs([f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s"]),
+        *_means_table(report, label, ["mean", "final error (m)", "disp. CRSE (m)", "yaw CRSE (rad/s)"]),
+        *_bridged_loss_blocks(result, label, ests, worst=3),
     ]
-    worst = report.worst_outages()
+    worst = report.worst_rows()
     if worst:
-        lines += [f"**Worst outages** (by {label[report.worst_of]} final error, m):", ""]
-        lines += [f"- #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                  + ", ".join(f"{label[e]} {w['final_error_m'][e]:.1f}" for e in ests) for w in worst]
-        lines.append("")
+        blocks += [Paragraphs([f"**Worst outages** (by {label[report.worst_of]} final error, m):"]),
+                   Items([f"#{w.number} ({w.start_s:.0f}-{w.end_s:.0f} s): "
+                          + ", ".join(f"{label[e]} {w.final_error_m[e]:.1f}" for e in ests) for w in worst])]
     if report.warnings:
-        lines += ["**Warnings** (as printed when the run was made):", "", *(f"- {w}" for w in report.warnings), ""]
-    lines += [
-        f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
-        f"- **Outages**: {placement}; {report.n_outages} outage(s)",
-        *([f"- **IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
-        f"- **{tables.truth_line(report.to_dict())}**",
-        *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
+        blocks += [Paragraphs(["**Warnings** (as printed when the run was made):"]), Items(list(report.warnings))]
+    lines = [
+        f"**Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
+        f"**Outages**: {placement}; {report.n_outages} outage(s)",
+        *([f"**IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
+        f"**{tables.truth_line(report.to_dict())}**",
+        *(["**Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
            "(drawn as dots)"]
           if drive.has_reference else []),
-        f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from "
+        f"**Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from "
         f"{bias.source}",
     ]
     info = {e["name"]: e.get("info", {}) for e in result.estimator_info()}
     if "idnn" in info:
         model_info = info["idnn"]
         trained = ", ".join(d["name"] for d in model_info.get("trained_on", [])) or "unknown"
-        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, "
+        lines.append(f"**IDNN model**: `{model_info['directory']}` ({model_info['arch']}, "
                      f"{model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
-            lines.append(f"- **Training data**: {model_info['training_data']}")
+            lines.append(f"**Training data**: {model_info['training_data']}")
         for name, note in (model_info.get("domain") or {}).items():
-            lines.append(f"- **IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
+            lines.append(f"**IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
                          f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
                          f"x{note['sigma_scale_max']:.2f} at most)")
     else:
-        lines.append("- **IDNN model**: none")
+        lines.append("**IDNN model**: none")
     for est in result.estimators:
         if est.name not in ("ins", "idnn"):
             extra = ", ".join(f"{k}: {v}" for k, v in info.get(est.name, {}).items())
-            lines.append(f"- **{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`"
+            lines.append(f"**{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`"
                          + (f" ({extra})" if extra else ""))
-    lines.append("- **Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
-    return "\n".join(lines) + "\n"
+    lines.append("**Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
+    return to_markdown(Document([*blocks, Items(lines)]))
