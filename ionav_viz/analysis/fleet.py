@@ -350,12 +350,7 @@ class FleetReport:
         return out
 
     def pooled(self) -> dict[str, dict[str, Any]]:
-        """Per estimator over the fleet: ``drives``, ``outages``, ``summary`` (per metric ``max``,
-        ``min``, ``mean``, ``std``), ``final_error_percentiles`` and, for the others than the INS DR,
-        ``improvement_pct`` over it on the outages both ran on (the same numbers as one report over
-        all the drives when every drive ran every estimator) and ``improvement_ci95_pct``, each as a
-        95 % interval ``[low, high]`` with the drives resampled
-        (:meth:`pooled_rows`)."""
+        """:meth:`pooled_rows` as the JSON's ``pooled``, by estimator (:meth:`PooledRow.to_dict`)."""
         return {r.spreads.name: r.to_dict() for r in self.pooled_rows()}
 
     def _breakdown(self, keys: list[Any], mask_of: Any, value_of: Any) -> list[BreakdownRow]:
