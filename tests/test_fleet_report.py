@@ -12,6 +12,7 @@ import pytest
 
 from ionav_viz.analysis.events import Event, outage_manoeuvres
 from ionav_viz.analysis.fleet import DriveTable, FleetReport
+from ionav_viz.core.json_out import dumps_json
 
 
 def _table(name: str, ins: list[float], odo: list[float], manoeuvre: list[str], outage_s: float = 30.0,
@@ -179,3 +180,20 @@ def test_the_report_names_each_estimator_by_its_display_name(report):
     for out in (report.to_text(width=120), report.to_markdown()):
         assert "INS DR" in out and not re.search(r"\bINS\b(?! DR)", out), out
     assert "Manoeuvre   outages  INS DR  Odometry  Odometry %" in report.to_text(width=120)
+
+
+def test_the_typed_rows_are_the_json_and_the_tables(report):
+    """The pooled and breakdown tables and the JSON are built from the same typed rows."""
+    doc, markdown = report.to_dict(), report.to_markdown()
+    pooled = report.pooled_rows()
+    assert [p.spreads.name for p in pooled] == ["ins", "odo"]
+    # as JSON: NaN (the CRSE's improvement over an INS DR without CRSE here) is null on both sides
+    assert dumps_json({p.spreads.name: p.to_dict() for p in pooled}) == dumps_json(doc["pooled"])
+    odo = pooled[1]
+    assert odo.spreads.final_position_error_m.mean == pytest.approx(13.0)  # (5 + 5 + 15 + 10 + 30) / 5
+    assert odo.improvement_pct["final_position_error_m"] == pytest.approx(100 * (1 - 13 / 32))  # INS DR: 160 / 5
+    assert f"| Odometry | 2 | 5 | {odo.spreads.final_position_error_m.mean:.2f} | {odo.final_p90_m:.2f} |" in markdown
+    for rows, key in ((report.manoeuvre_rows(), "by_manoeuvre"), (report.length_rows(), "by_length")):
+        assert dumps_json({r.key: r.to_dict() for r in rows}) == dumps_json(doc[key])
+        for r in rows:
+            assert f" {r.outages} | {r.mean_error_m['ins']:.2f} | {r.mean_error_m['odo']:.2f} |" in markdown

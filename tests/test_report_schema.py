@@ -82,3 +82,28 @@ def test_a_comparison_is_not_taken_for_a_report(tmp_path, report):
     for args in (("figures", str(comparison), "-o", str(tmp_path / "f")), ("compare", str(comparison), str(tmp_path / "a.json"))):
         proc = run_cli(*args)
         assert proc.returncode == 2 and "a comparison" in proc.stderr and proc.stderr.count("\n") == 1
+
+
+def test_a_reports_typed_rows_are_its_json_and_its_tables(report):
+    """The tables and the JSON are built from the same typed rows: each row is the JSON's entry,
+    and its numbers are the Markdown table's cells."""
+    from dataclasses import asdict
+
+    from ionav_viz.analysis.metrics import METRICS
+    from ionav_viz.core.json_out import dumps_json
+
+    doc, markdown = report.to_dict(), report.to_markdown()
+    assert [asdict(w) for w in report.worst_rows()] == doc["worst"] and doc["worst"]
+    for w in report.worst_rows():
+        assert f"| #{w.number} | {w.start_s:.0f}-{w.end_s:.0f} | " in markdown
+        assert all(f" {x:.2f} " in markdown for x in w.final_error_m.values())
+    assert [r.name for r in report.estimator_rows] == report.estimators
+    for row in report.estimator_rows:
+        spreads = {m: asdict(getattr(row, m)) for m in METRICS}
+        assert dumps_json(spreads) == dumps_json({m: doc["summary"][row.name][m] for m in METRICS})
+        assert f" {row.final_position_error_m.mean:.2f} " in markdown
+    for d in report.drift_rows:
+        assert doc["drift"][d.name] == {"t_s": d.t_s, "mean_m": d.mean_m, "p10_m": d.p10_m, "p90_m": d.p90_m}
+        assert doc["final_error_percentiles"][d.name] == {"p50": d.final_p50_m, "p90": d.final_p90_m,
+                                                          "p95": d.final_p95_m, "max": d.final_max_m}
+        assert f"| {d.label} | " in markdown and f" {d.final_max_m:.1f} |" in markdown

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import shlex
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -30,6 +30,7 @@ from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
 from .report import IMPROVEMENT_METRICS
+from .rows import EstimatorRow, Spread
 from .schema import tagged
 
 #: How many drives and outages the fleet report ranks as the worst.
@@ -201,6 +202,59 @@ class DriveRow:
         return row
 
 
+@dataclass(frozen=True)
+class PooledRow:
+    """One estimator pooled over a fleet's outages (a row of the pooled table, the JSON's ``pooled``).
+
+    Attributes:
+        drives, outages: how many drives it ran on, and their outages.
+        spreads: each metric's spread over those outages.
+        final_p50_m, final_p90_m, final_p95_m, final_max_m: the final position error's percentiles.
+        improvement_pct: but for the INS DR, how much lower each of
+            :data:`~ionav_viz.analysis.report.IMPROVEMENT_METRICS`' means is than the INS DR's on
+            the outages both ran on (%); None for the INS DR or without it.
+        improvement_ci95_pct: the same as 95 % intervals ``[low, high]``, the drives resampled.
+    """
+
+    drives: int
+    outages: int
+    spreads: EstimatorRow
+    final_p50_m: float
+    final_p90_m: float
+    final_p95_m: float
+    final_max_m: float
+    improvement_pct: dict[str, float] | None = None
+    improvement_ci95_pct: dict[str, list[float]] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON's ``pooled`` entry: ``drives``, ``outages``, ``summary``, ``final_error_percentiles``
+        and, with an improvement, ``improvement_pct`` and ``improvement_ci95_pct``."""
+        out: dict[str, Any] = {"drives": self.drives, "outages": self.outages,
+                               "summary": {m: asdict(getattr(self.spreads, m)) for m in METRICS},
+                               "final_error_percentiles": {"p50": self.final_p50_m, "p90": self.final_p90_m,
+                                                           "p95": self.final_p95_m, "max": self.final_max_m}}
+        if self.improvement_pct is not None:
+            out |= {"improvement_pct": self.improvement_pct, "improvement_ci95_pct": self.improvement_ci95_pct}
+        return out
+
+
+@dataclass(frozen=True)
+class BreakdownRow:
+    """The outages of one manoeuvre type, or one time into the outages (a row of the breakdowns,
+    an entry of the JSON's ``by_manoeuvre`` or ``by_length``): ``key`` (the type, or the seconds),
+    ``outages``, per estimator ``mean_error_m`` and, with the INS DR, per other estimator
+    ``improvement_pct`` of that mean over the INS DR's on the outages both ran on."""
+
+    key: str
+    outages: int
+    mean_error_m: dict[str, float]
+    improvement_pct: dict[str, float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"outages": self.outages, "mean_error_m": self.mean_error_m}
+        return out | ({"improvement_pct": self.improvement_pct} if self.improvement_pct is not None else {})
+
+
 @dataclass(repr=False)
 class FleetReport:
     """Every drive of a fleet, each evaluated on its own, pooled.
@@ -271,34 +325,35 @@ class FleetReport:
         tables = [t for t in (self.drives if drives is None else drives) if estimator in t.metrics]
         return np.concatenate([t.metrics[estimator][metric] for t in tables]) if tables else np.zeros(0)
 
-    def pooled(self) -> dict[str, dict[str, Any]]:
-        """Per estimator over the fleet: ``drives``, ``outages``, ``summary`` (per metric ``max``,
-        ``min``, ``mean``, ``std``), ``final_error_percentiles`` and, for the others than the INS DR,
-        ``improvement_pct`` over it on the outages both ran on (the same numbers as one report over
-        all the drives when every drive ran every estimator) and ``improvement_ci95_pct``, each as a
-        95 % interval ``[low, high]`` with the drives resampled
-        (:func:`~ionav_viz.analysis.evaluate.clustered_improvement_ci95_pct`)."""
-        out: dict[str, dict[str, Any]] = {}
+    def pooled_rows(self) -> list[PooledRow]:
+        """One :class:`PooledRow` per estimator, in the fleet's order: the same numbers as one report
+        over all the drives when every drive ran every estimator; the improvement's intervals
+        resample the drives (:func:`~ionav_viz.analysis.evaluate.clustered_improvement_ci95_pct`)."""
+        out = []
         base = self.baseline
         for est in self.estimators:
             ran = [t for t in self.drives if est in t.metrics]
-            entry: dict[str, Any] = {"drives": len(ran), "outages": int(sum(t.n_outages for t in ran)),
-                                     "summary": {m: summarise(self.metric(est, m)) for m in METRICS},
-                                     "final_error_percentiles": final_error_percentiles(
-                                         self.metric(est, "final_position_error_m"))}
+            spreads = EstimatorRow(est, self.labels[est],
+                                   **{m: Spread(**summarise(self.metric(est, m))) for m in METRICS})
+            final = final_error_percentiles(self.metric(est, "final_position_error_m"))
+            better = ci = None
             if base is not None and est != base:
                 both = [t for t in ran if base in t.metrics]
-                entry["improvement_pct"] = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"],
-                                                               summarise(self.metric(est, m, both))["mean"])
-                                            for m in IMPROVEMENT_METRICS}
-                entry["improvement_ci95_pct"] = {
-                    m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
-                                                           [t.metrics[est][m] for t in both]))
-                    for m in IMPROVEMENT_METRICS}
-            out[est] = entry
+                better = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"],
+                                             summarise(self.metric(est, m, both))["mean"]) for m in IMPROVEMENT_METRICS}
+                ci = {m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
+                                                             [t.metrics[est][m] for t in both]))
+                      for m in IMPROVEMENT_METRICS}
+            out.append(PooledRow(len(ran), int(sum(t.n_outages for t in ran)), spreads,
+                                 **{f"final_{k}_m": v for k, v in final.items()},
+                                 improvement_pct=better, improvement_ci95_pct=ci))
         return out
 
-    def _breakdown(self, keys: list[Any], mask_of: Any, value_of: Any) -> dict[str, dict[str, Any]]:
+    def pooled(self) -> dict[str, dict[str, Any]]:
+        """:meth:`pooled_rows` as the JSON's ``pooled``, by estimator (:meth:`PooledRow.to_dict`)."""
+        return {r.spreads.name: r.to_dict() for r in self.pooled_rows()}
+
+    def _breakdown(self, keys: list[Any], mask_of: Any, value_of: Any) -> list[BreakdownRow]:
         """Per key: ``outages`` and per estimator ``mean_error_m`` over the outages ``mask_of(table,
         key)`` selects (of ``value_of(table, estimator, key)``), and for the others than the INS DR
         ``improvement_pct`` of that mean over the INS DR's on the selected outages both ran on."""
@@ -308,23 +363,25 @@ class FleetReport:
         def pooled(est: str, key: Any, tables: list[DriveTable]) -> np.ndarray:
             return np.concatenate([value_of(t, est, key)[mask_of(t, key)] for t in tables]) if tables else empty
 
-        out: dict[str, dict[str, Any]] = {}
+        out = []
         for key in keys:
-            entry: dict[str, Any] = {"outages": int(sum(mask_of(t, key).sum() for t in self.drives)),
-                                     "mean_error_m": {}}
-            if base is not None:
-                entry["improvement_pct"] = {}
+            means: dict[str, float] = {}
+            better: dict[str, float] | None = None if base is None else {}
             for est in self.estimators:
                 ran = [t for t in self.drives if est in t.metrics]
-                entry["mean_error_m"][est] = summarise(pooled(est, key, ran))["mean"]
-                if base is not None and est != base:
+                means[est] = summarise(pooled(est, key, ran))["mean"]
+                if better is not None and est != base:
                     both = [t for t in ran if base in t.metrics]
-                    entry["improvement_pct"][est] = improvement_pct(summarise(pooled(base, key, both))["mean"],
-                                                                    summarise(pooled(est, key, both))["mean"])
-            out[str(key)] = entry
+                    better[est] = improvement_pct(summarise(pooled(base, key, both))["mean"],
+                                                  summarise(pooled(est, key, both))["mean"])
+            out.append(BreakdownRow(str(key), int(sum(mask_of(t, key).sum() for t in self.drives)), means, better))
         return out
 
     def by_manoeuvre(self) -> dict[str, dict[str, Any]]:
+        """:meth:`manoeuvre_rows` as the JSON's ``by_manoeuvre``, by type."""
+        return {r.key: r.to_dict() for r in self.manoeuvre_rows()}
+
+    def manoeuvre_rows(self) -> list[BreakdownRow]:
         """Per manoeuvre type the outages were labelled with (:attr:`DriveTable.manoeuvre`; the
         types in :data:`~ionav_viz.analysis.events.MANOEUVRE_TYPES` order, then ``none``):
         ``outages``, per estimator ``mean_error_m`` (the mean final position error) and, but for
@@ -337,6 +394,10 @@ class FleetReport:
                                lambda t, e, k: t.metrics[e]["final_position_error_m"])
 
     def by_length(self) -> dict[str, dict[str, Any]]:
+        """:meth:`length_rows` as the JSON's ``by_length``, by seconds."""
+        return {r.key: r.to_dict() for r in self.length_rows()}
+
+    def length_rows(self) -> list[BreakdownRow]:
         """Per second ``t`` of :func:`length_points` (10, 30, 60 s into the outages, and their end):
         ``outages``, per estimator ``mean_error_m`` (the mean position error that far into the
         outages: the final error an outage of ``t`` s from the same start would have, for an
@@ -548,18 +609,16 @@ def _document(rep: FleetReport, timing: bool) -> Document:
     if rep.n_real_outages:
         blocks += _own_losses_section(rep)
     if rep.drives and (rep.n_outages or not rep.n_real_outages):
-        pooled = rep.pooled()
         header = (["Estimator", "drives", "outages", "final error m", "p90 final m", "CRSE m", "yaw CRSE rad/s"]
                   + ([f"final vs {labels[base]} %", "95 % interval"] if base else []))
         rows = []
-        for e in ests:
-            p = pooled[e]
-            s = p["summary"]
-            row = [labels[e], str(p["drives"]), str(p["outages"]), _f(s["final_position_error_m"]["mean"]),
-                   _f(p["final_error_percentiles"]["p90"]), _f(s["crse_m"]["mean"]), _f(s["yaw_crse_radps"]["mean"], 3)]
+        for p in rep.pooled_rows():
+            s = p.spreads
+            row = [s.label, str(p.drives), str(p.outages), _f(s.final_position_error_m.mean), _f(p.final_p90_m),
+                   _f(s.crse_m.mean), _f(s.yaw_crse_radps.mean, 3)]
             if base:
-                row.append(_f(p["improvement_pct"]["final_position_error_m"], 1) if "improvement_pct" in p else "")
-                lo, hi = p.get("improvement_ci95_pct", {}).get("final_position_error_m", (float("nan"), float("nan")))
+                row.append(_f(p.improvement_pct["final_position_error_m"], 1) if p.improvement_pct else "")
+                lo, hi = (p.improvement_ci95_pct or {}).get("final_position_error_m", (float("nan"), float("nan")))
                 row.append(f"{_f(lo, 1)} to {_f(hi, 1)}" if math.isfinite(lo) and math.isfinite(hi) else "")
             rows.append(row)
         blocks += [Heading("Pooled over the fleet (mean over outages)", 2), Table(header, rows, 1, align=True)]
@@ -571,17 +630,17 @@ def _document(rep: FleetReport, timing: bool) -> Document:
             blocks += [Heading("How sure each estimator is (pooled over the fleet)", 2),
                        Items([consistency_line(labels[e], c) for e, c in consistent.items()])]
         versus = f"; improvement over {labels[base]}, %" if base else ""
-        for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.by_manoeuvre()),
+        for title, first, groups in (("By manoeuvre (mean final error, m", "Manoeuvre", rep.manoeuvre_rows()),
                                      ("By time into the outage (mean position error, m", "Into outage",
-                                      rep.by_length())):
+                                      rep.length_rows())):
             header = ([first, "outages"] + [labels[e] for e in ests]
                       + ([f"{labels[e]} %" for e in others] if base else []))
             rows = []
-            for key, g in groups.items():
-                row = ([key if first == "Manoeuvre" else f"{key} s", str(g["outages"])]
-                       + [_f(g["mean_error_m"][e]) for e in ests])
+            for g in groups:
+                row = ([g.key if first == "Manoeuvre" else f"{g.key} s", str(g.outages)]
+                       + [_f(g.mean_error_m[e]) for e in ests])
                 if base:
-                    row += [_f(g["improvement_pct"][e], 1) for e in others]
+                    row += [_f((g.improvement_pct or {})[e], 1) for e in others]
                 rows.append(row)
             blocks += [Heading(f"{title}{versus})", 2), Table(header, rows, 1, align=True)]
         header = (["Drive", "outages", "h", "km", "bad GNSS %"] + [labels[e] for e in ests]

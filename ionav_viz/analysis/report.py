@@ -10,7 +10,7 @@ Groups of reports (``--scenario all``, ``--by-event``) print as ``{"scenarios": 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -20,14 +20,15 @@ from ..core import run_config
 from ..core.drive import drive_labels
 from ..core.errors import InputError
 from ..core.json_out import dumps_json
+from . import tables
 from .consistency import consistency
-from .document import Document, to_markdown, to_text
+from .document import Block, Document, Heading, Items, Paragraphs, Table, to_markdown, to_text
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise
+from .rows import BridgedRow, DriftRow, EstimatorRow, Spread, WorstRow
 from .schema import tagged
-from .tables import report_document, truth_line
 
 #: The metrics whose means are compared with the baseline in ``improvement_pct``.
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
@@ -109,9 +110,15 @@ class Report:
         return drive_labels([r.drive for r in self.results])
 
     @cached_property
+    def estimator_rows(self) -> list[EstimatorRow]:
+        """Per estimator, in report order: each metric's :class:`Spread` across the outages."""
+        return [EstimatorRow(est, label, **{m: Spread(**summarise(self.metric(est, m))) for m in METRICS})
+                for est, label in self.labels.items()]
+
+    @cached_property
     def summary(self) -> dict[str, dict[str, dict[str, float]]]:
-        """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages."""
-        return {est: {m: summarise(self.metric(est, m)) for m in METRICS} for est in self.estimators}
+        """Per estimator and metric: ``max``, ``min``, ``mean``, ``std`` across outages (:attr:`estimator_rows`)."""
+        return {r.name: {m: asdict(getattr(r, m)) for m in METRICS} for r in self.estimator_rows}
 
     @cached_property
     def improvement_pct(self) -> dict[str, dict[str, float]]:
@@ -142,18 +149,38 @@ class Report:
         """The estimator whose final position error ranks the worst outages: the INS DR if it ran."""
         return next((n for n in self.estimators if is_baseline(n)), self.estimators[0])
 
-    def worst_outages(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[dict[str, Any]]:
+    def worst_rows(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[WorstRow]:
         """The ``count`` outages with the largest final position error of ``estimator`` (default
-        :attr:`worst_of`), worst first: ``drive``, ``number`` (1-based within its drive, as the
-        recording's "outage N"), ``start_s``, ``end_s`` and ``final_error_m`` per estimator."""
+        :attr:`worst_of`), worst first."""
         est = estimator or self.worst_of
         ranked = [(float(err), r, label, i) for r, label in zip(self.results, self.drive_labels)
                   for i, err in enumerate(r.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
         ranked.sort(key=lambda x: -x[0])
-        return [{"drive": label, "number": i + 1, "start_s": round(float(r.outage_t0_s[i]), 3),
-                 "end_s": round(float(r.outage_t0_s[i] + r.n_windows), 3),
-                 "final_error_m": {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators}}
+        return [WorstRow(label, i + 1, round(float(r.outage_t0_s[i]), 3),
+                         round(float(r.outage_t0_s[i] + r.n_windows), 3),
+                         {e: float(r.metrics[e]["final_position_error_m"][i]) for e in self.estimators})
                 for _err, r, label, i in ranked[:count]]
+
+    def worst_outages(self, count: int = WORST_COUNT, estimator: str | None = None) -> list[dict[str, Any]]:
+        """:meth:`worst_rows` as the JSON's ``worst`` entries: ``drive``, ``number``, ``start_s``,
+        ``end_s`` and ``final_error_m`` per estimator."""
+        return [asdict(w) for w in self.worst_rows(count, estimator)]
+
+    @cached_property
+    def drift_rows(self) -> list[DriftRow]:
+        """Per estimator, in report order, its drift curve and final-error percentiles; none without outages."""
+        if not self.n_outages:
+            return []
+        drift = report_drift(self.results, self.estimators)
+        final = {est: final_error_percentiles(self.metric(est, "final_position_error_m")) for est in self.estimators}
+        return [DriftRow(est, label, **drift[est], **{f"final_{k}_m": v for k, v in final[est].items()})
+                for est, label in self.labels.items()]
+
+    @cached_property
+    def bridged_rows(self) -> list[BridgedRow]:
+        """The log's own GNSS losses the estimators bridged, drive by drive."""
+        return [BridgedRow(label, **b.to_dict())
+                for r, label in zip(self.results, self.drive_labels) for b in r.bridged]
 
     def outage_tracks(self, drive: str, number: int) -> dict[str, Any]:
         """One outage's tracks at its window boundaries: ``drive``, ``number``, ``start_s``, and
@@ -226,10 +253,11 @@ class Report:
         if self.improvement_pct:
             out["improvement_pct"] = self.improvement_pct
             out["improvement_ci95_pct"] = self.improvement_ci95_pct
-        if sequences:
-            out["drift"] = report_drift(results, estimators)
-            out["final_error_percentiles"] = {e: final_error_percentiles(self.metric(e, "final_position_error_m"))
-                                              for e in estimators}
+        if self.drift_rows:
+            out["drift"] = {d.name: {"t_s": d.t_s, "mean_m": d.mean_m, "p10_m": d.p10_m, "p90_m": d.p90_m}
+                            for d in self.drift_rows}
+            out["final_error_percentiles"] = {d.name: {"p50": d.final_p50_m, "p90": d.final_p90_m, "p95": d.final_p95_m,
+                                                       "max": d.final_max_m} for d in self.drift_rows}
         out["worst_of"] = self.worst_of
         out["worst"] = self.worst_outages()
         if out["worst"]:
@@ -237,7 +265,7 @@ class Report:
         bridged = [(label, b) for r, label in zip(results, self.drive_labels) for b in r.bridged]
         if bridged or any(r.unbridged for r in results):
             out["gnss_outages"] = {
-                "bridged": [{"drive": name, **b.to_dict()} for name, b in bridged],
+                "bridged": [asdict(b) for b in self.bridged_rows],
                 "not_bridged": sum(sum(r.unbridged.values()) for r in results),
                 "not_bridged_by_reason": _summed_counts([r.unbridged for r in results]),
                 "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged]))
@@ -277,9 +305,34 @@ class Report:
         return dumps_json(self.to_dict(), indent=indent)
 
     def document(self) -> Document:
-        """The report as a document (:mod:`.document`, :func:`ionav_viz.analysis.tables.report_document`):
-        what :meth:`to_text` and :meth:`to_markdown` lay out."""
-        return report_document(self.to_dict(), self.title)
+        """The report as a document (:mod:`.document`), what :meth:`to_text` and :meth:`to_markdown` lay
+        out: the paper's table, the log's own GNSS outages where it bridged some, a line each on the
+        improvements, the GNSS truth, the drives, the estimators' uncertainty, health and choices,
+        then the drift and the worst outages. The tables are the typed rows the JSON is built from
+        (:attr:`estimator_rows`, :attr:`bridged_rows`, :attr:`drift_rows`, :meth:`worst_rows`); the
+        lines are read from the JSON."""
+        rep = self.to_dict()
+        labels = self.labels
+        blocks: list[Block] = []
+        if rep["n_sequences"] or "gnss_outages" not in rep:
+            header, rows = tables.estimator_table(self.estimator_rows, rep["distance_m"], rep["n_sequences"])
+            blocks += [Heading(tables.title_of(rep, self.title)), Table(header, rows, 2, strong_first=True)]
+        if "gnss_outages" in rep:
+            bridged = self.bridged_rows
+            header, rows = tables.bridged_table(bridged, labels, len({b.drive for b in bridged}) > 1)
+            blocks += [Heading(f"{rep['drive']}: the log's own GNSS outages",
+                               note="(truth: the first good fix after each)"),
+                       Table(header, rows, 1), Paragraphs([tables.bridged_line(rep)])]
+        blocks.append(Paragraphs(tables.report_lines(rep)))
+        if self.drift_rows:
+            header, rows = tables.drift_table(self.drift_rows)
+            blocks += [Heading(tables.DRIFT_TITLE, lead_in=True), Table(header, rows, 1)]
+        worst = self.worst_rows()
+        if worst:
+            several = len({w.drive for w in worst}) > 1 or "+" in rep["drive"]
+            header, rows = tables.worst_table(worst, labels, several)
+            blocks += [Heading(tables.worst_title(rep), lead_in=True), Table(header, rows, 3 if several else 2)]
+        return Document(blocks, spaced=False)
 
     def to_text(self, width: int | None = None) -> str:
         """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
@@ -389,21 +442,29 @@ def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> 
                                          "by_length": by_length(reports)}), indent=indent)
 
 
-def _bridged_loss_lines(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[str]:
-    """Markdown lines on the log's own GNSS losses the estimators bridged (``--on gnss-outage``):
-    each estimator's mean final error over them and the ``worst`` worst of them (by the first
-    estimator's error, the INS DR where it ran); none without any."""
+def _bridged_loss_blocks(result: DriveResult, label: Mapping[str, str], ests: list[str], worst: int) -> list[Block]:
+    """On the log's own GNSS losses the estimators bridged (``--on gnss-outage``): each estimator's
+    mean final error over them and the ``worst`` worst of them (by the first estimator's error,
+    the INS DR where it ran); nothing without any."""
     bridged = result.bridged
     if not bridged:
         return []
     mean = {e: float(np.mean([b.final_error_m[e] for b in bridged])) for e in ests}
     by = ests[0]
     lines = [f"**Real GNSS outages**: {len(bridged)} ({sum(b.gap_s for b in bridged):.0f} s without GNSS), "
-             f"final error from the last good fix, mean m: " + ", ".join(f"{label[e]} {mean[e]:.1f}" for e in ests), ""]
-    for b in sorted(bridged, key=lambda b: -b.final_error_m[by])[:worst]:
-        lines += [f"{'**Worst real**' if worst == 1 else '-'} #{b.number} ({b.gap_t0_s:.0f}-{b.gap_t1_s:.0f} s, m): "
-                  + ", ".join(f"{label[e]} {b.final_error_m[e]:.1f}" for e in ests), ""]
-    return lines
+             f"final error from the last good fix, mean m: " + ", ".join(f"{label[e]} {mean[e]:.1f}" for e in ests)]
+    lines += [f"{'**Worst real**' if worst == 1 else '-'} #{b.number} ({b.gap_t0_s:.0f}-{b.gap_t1_s:.0f} s, m): "
+              + ", ".join(f"{label[e]} {b.final_error_m[e]:.1f}" for e in ests)
+              for b in sorted(bridged, key=lambda b: -b.final_error_m[by])[:worst]]
+    return [Paragraphs(lines)]
+
+
+def _means_table(report: Report, label: Mapping[str, str], header: list[str]) -> list[Block]:
+    """Each estimator's mean final error (m), displacement CRSE (m) and yaw CRSE (rad/s), under
+    ``header``; nothing without synthetic outages."""
+    rows = [[label[r.name], f"{r.final_position_error_m.mean:.2f}", f"{r.crse_m.mean:.2f}",
+             f"{r.yaw_crse_radps.mean:.3f}"] for r in report.estimator_rows]
+    return [Table(header, rows)] if report.n_outages else []
 
 
 def overview_markdown(result: DriveResult, report: Report) -> str:
@@ -413,24 +474,17 @@ def overview_markdown(result: DriveResult, report: Report) -> str:
     summary column."""
     ests = report.estimators
     label = {e.name: e.label for e in result.estimators}
-    mean = {e: report.summary[e] for e in ests}
-    if report.n_outages:
-        lines = [f"**{result.drive.name}**: {report.n_outages} outage(s) of {result.outage_s:g} s", "",
-                 "| mean | final m | CRSE m | yaw rad/s |", "|---|---|---|---|",
-                 *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | "
-                   f"{mean[e]['crse_m']['mean']:.2f} | {mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests), ""]
-    else:  # only the log's own losses: no table of synthetic outages to fill with nothing
-        lines = [f"**{result.drive.name}**", ""]
-    # the worst real one where there is room: the screenshot's summary tab holds one worst line
-    lines += _bridged_loss_lines(result, label, ests, worst=0 if report.n_outages else 1)
-    worst = report.worst_outages(1)
-    if worst:
-        w = worst[0]
-        lines += [f"**Worst** #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s, m): "
-                  + ", ".join(f"{label[e]} {w['final_error_m'][e]:.1f}" for e in ests), ""]
+    head = f": {report.n_outages} outage(s) of {result.outage_s:g} s" if report.n_outages else ""
+    # only the log's own losses: no table of synthetic outages to fill with nothing
+    blocks: list[Block] = [Paragraphs([f"**{result.drive.name}**{head}"]),
+                           *_means_table(report, label, ["mean", "final m", "CRSE m", "yaw rad/s"]),
+                           # the worst real one where there is room: the screenshot's summary tab holds one worst line
+                           *_bridged_loss_blocks(result, label, ests, worst=0 if report.n_outages else 1)]
+    said = [f"**Worst** #{w.number} ({w.start_s:.0f}-{w.end_s:.0f} s, m): "
+            + ", ".join(f"{label[e]} {w.final_error_m[e]:.1f}" for e in ests) for w in report.worst_rows(1)]
     if report.warnings:  # the Details tab beside this one lists them, with the run's parameters
-        lines.append(f"**{len(report.warnings)} warning(s)**: see Details.")
-    return "\n".join(lines) + "\n"
+        said.append(f"**{len(report.warnings)} warning(s)**: see Details.")
+    return to_markdown(Document([*blocks, Paragraphs(said)]))
 
 
 def run_summary_markdown(result: DriveResult, report: Report, placement: str) -> str:
@@ -440,54 +494,47 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
     labels = " and ".join([", ".join(names[:-1]), names[-1]]) if len(names) > 1 else names[0]
     ests = report.estimators
     label = {e.name: e.label for e in result.estimators}
-    mean = {e: report.summary[e] for e in ests}
-    lines = [
-        f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s",
-        "",
-        *(["| mean | final error (m) | disp. CRSE (m) | yaw CRSE (rad/s) |",
-           "|---|---|---|---|",
-           *(f"| {label[e]} | {mean[e]['final_position_error_m']['mean']:.2f} | {mean[e]['crse_m']['mean']:.2f} | "
-             f"{mean[e]['yaw_crse_radps']['mean']:.3f} |" for e in ests),
-           ""] if report.n_outages else []),
-        *_bridged_loss_lines(result, label, ests, worst=3),
+    blocks: list[Block] = [
+        Paragraphs([f"**{drive.name}**: {labels}, {report.n_outages} GNSS outage(s) of {result.outage_s:g} s"]),
+        *_means_table(report, label, ["mean", "final error (m)", "disp. CRSE (m)", "yaw CRSE (rad/s)"]),
+        *_bridged_loss_blocks(result, label, ests, worst=3),
     ]
-    worst = report.worst_outages()
+    worst = report.worst_rows()
     if worst:
-        lines += [f"**Worst outages** (by {label[report.worst_of]} final error, m):", ""]
-        lines += [f"- #{w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                  + ", ".join(f"{label[e]} {w['final_error_m'][e]:.1f}" for e in ests) for w in worst]
-        lines.append("")
+        blocks += [Paragraphs([f"**Worst outages** (by {label[report.worst_of]} final error, m):"]),
+                   Items([f"#{w.number} ({w.start_s:.0f}-{w.end_s:.0f} s): "
+                          + ", ".join(f"{label[e]} {w.final_error_m[e]:.1f}" for e in ests) for w in worst])]
     if report.warnings:
-        lines += ["**Warnings** (as printed when the run was made):", "", *(f"- {w}" for w in report.warnings), ""]
-    lines += [
-        f"- **Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
-        f"- **Outages**: {placement}; {report.n_outages} outage(s)",
-        *([f"- **IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
-        f"- **{truth_line(report.to_dict())}**",
-        *(["- **Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
+        blocks += [Paragraphs(["**Warnings** (as printed when the run was made):"]), Items(list(report.warnings))]
+    lines = [
+        f"**Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
+        f"**Outages**: {placement}; {report.n_outages} outage(s)",
+        *([f"**IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
+        f"**{tables.truth_line(report.to_dict())}**",
+        *(["**Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
            "(drawn as dots)"]
           if drive.has_reference else []),
-        f"- **Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from "
+        f"**Sensor biases**: accelerometer {bias.accel_mps2:+.3f} m/s², gyro {bias.gyro_radps:+.5f} rad/s, from "
         f"{bias.source}",
     ]
     info = {e["name"]: e.get("info", {}) for e in result.estimator_info()}
     if "idnn" in info:
         model_info = info["idnn"]
         trained = ", ".join(d["name"] for d in model_info.get("trained_on", [])) or "unknown"
-        lines.append(f"- **IDNN model**: `{model_info['directory']}` ({model_info['arch']}, "
+        lines.append(f"**IDNN model**: `{model_info['directory']}` ({model_info['arch']}, "
                      f"{model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
-            lines.append(f"- **Training data**: {model_info['training_data']}")
+            lines.append(f"**Training data**: {model_info['training_data']}")
         for name, note in (model_info.get("domain") or {}).items():
-            lines.append(f"- **IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
+            lines.append(f"**IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
                          f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
                          f"x{note['sigma_scale_max']:.2f} at most)")
     else:
-        lines.append("- **IDNN model**: none")
+        lines.append("**IDNN model**: none")
     for est in result.estimators:
         if est.name not in ("ins", "idnn"):
             extra = ", ".join(f"{k}: {v}" for k, v in info.get(est.name, {}).items())
-            lines.append(f"- **{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`"
+            lines.append(f"**{est.label}**: plug-in `{type(est).__module__}.{type(est).__qualname__}`"
                          + (f" ({extra})" if extra else ""))
-    lines.append("- **Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
-    return "\n".join(lines) + "\n"
+    lines.append("**Errors**: e = truth - estimate; CRSE = sum |e|, CAE = sum e, AEPS = CRSE / N")
+    return to_markdown(Document([*blocks, Items(lines)]))

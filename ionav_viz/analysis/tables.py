@@ -1,5 +1,5 @@
-"""The paper's results tables (Tables 8-12 layout) from an ``evaluate`` report dict: a drive report as a
-document (:func:`report_document`, :mod:`.document`), laid out as text or Markdown by :mod:`.document`'s renderers.
+"""The paper's results tables (Tables 8-12 layout): a drive report as a document (:func:`report_document`,
+:mod:`.document`) from its typed rows, laid out as text or Markdown by :mod:`.document`'s renderers.
 
 Any number of estimators: the paper's layout puts the candidate estimators first and the INS DR
 (the baseline) last; improvements are each candidate's over the INS DR.
@@ -10,7 +10,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .document import Block, Document, Heading, Paragraphs, Table, aligned, to_markdown, to_text
+from .document import Document, Heading, Table, aligned, to_markdown, to_text
+from .rows import BridgedRow, DriftRow, EstimatorRow, WorstRow
 
 _STATS = (("max", "max"), ("min", "min"), ("mean", "μ"), ("std", "σ"))
 _BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps"),
@@ -36,36 +37,26 @@ def labels_of(rep: dict[str, Any]) -> dict[str, str]:
     return {e["name"]: e["label"] for e in rep["estimators"]}
 
 
-def table_order(rep: dict[str, Any]) -> list[str]:
-    """Candidates first, the INS DR baseline last (the paper's column order)."""
-    names = list(labels_of(rep))
-    return [n for n in names if n != "ins"] + [n for n in names if n == "ins"]
-
-
-def table_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
-    """Header and rows: displacement (m) and orientation rate (rad/s) per estimator."""
-    ests, labels = table_order(rep), labels_of(rep)
-    header = ["Metric", ""] + [f"{labels[e]} (m)" for e in ests] + [f"{labels[e]} (rad/s)" for e in ests]
-    rows = []
-    for title, disp_key, yaw_key in _BLOCKS:
+def estimator_table(rows: list[EstimatorRow], distance_m: dict[str, float],
+                    n_outages: int) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the paper's table: displacement (m) and orientation rate (rad/s) per
+    estimator (candidates first, the INS DR baseline last), the distance driven and the outages."""
+    ests = [r for r in rows if r.name != "ins"] + [r for r in rows if r.name == "ins"]
+    header = ["Metric", ""] + [f"{e.label} (m)" for e in ests] + [f"{e.label} (rad/s)" for e in ests]
+    out = []
+    blocks = [*((title, disp, yaw, 2) for title, disp, yaw in _BLOCKS),
+              ("Final position error", "final_position_error_m", None, 2),
+              ("Final error, % of distance", "final_error_pct", None, 1)]
+    for title, disp_key, yaw_key, decimals in blocks:
         for i, (stat, label) in enumerate(_STATS):
             row = [title if i == 0 else "", label]
-            row += [_fmt(rep["summary"][e][disp_key][stat]) for e in ests]
-            row += [_fmt(rep["summary"][e][yaw_key][stat], 3) for e in ests]
-            rows.append(row)
-    for i, (stat, label) in enumerate(_STATS):
-        row = ["Final position error" if i == 0 else "", label]
-        row += [_fmt(rep["summary"][e]["final_position_error_m"][stat]) for e in ests] + [""] * len(ests)
-        rows.append(row)
-    for i, (stat, label) in enumerate(_STATS):
-        row = ["Final error, % of distance" if i == 0 else "", label]
-        row += [_fmt(rep["summary"][e]["final_error_pct"][stat], 1) for e in ests] + [""] * len(ests)
-        rows.append(row)
+            row += [_fmt(getattr(getattr(e, disp_key), stat), decimals) for e in ests]
+            row += [_fmt(getattr(getattr(e, yaw_key), stat), 3) if yaw_key else "" for e in ests]
+            out.append(row)
     for i, (stat, label) in enumerate(_STATS[:3]):
-        rows.append(["Total distance (m)" if i == 0 else "", label,
-                     _fmt(rep["distance_m"][stat])] + [""] * (2 * len(ests) - 1))
-    rows.append(["Number of sequences", "", str(rep["n_sequences"])] + [""] * (2 * len(ests) - 1))
-    return header, rows
+        out.append(["Total distance (m)" if i == 0 else "", label, _fmt(distance_m[stat])] + [""] * (2 * len(ests) - 1))
+    out.append(["Number of sequences", "", str(n_outages)] + [""] * (2 * len(ests) - 1))
+    return header, out
 
 
 def improvement_lines(rep: dict[str, Any]) -> list[str]:
@@ -111,31 +102,25 @@ def title_of(rep: dict[str, Any], scenario: str | None = None) -> str:
     return f"{what}{rep['drive']}, {rep['outage_s']:g} s GNSS outages"
 
 
-def worst_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
-    """The worst outages: number, span and each estimator's final position error."""
-    labels = labels_of(rep)
-    several = len({w["drive"] for w in rep.get("worst", [])}) > 1 or "+" in rep["drive"]
+def worst_table(rows: list[WorstRow], labels: dict[str, str], several: bool) -> tuple[list[str], list[list[str]]]:
+    """The worst outages: number, (with ``several`` drives, the drive,) span and each estimator's
+    final position error."""
     header = ["Outage", *(["Drive"] if several else []), "Span (s)"] + [f"{labels[e]} final err. (m)" for e in labels]
-    rows = [[f"#{w['number']}", *([w["drive"]] if several else []), f"{w['start_s']:.0f}-{w['end_s']:.0f}",
-             *(_fmt(w["final_error_m"][e], 2) for e in labels)] for w in rep.get("worst", [])]
-    return header, rows
+    out = [[f"#{w.number}", *([w.drive] if several else []), f"{w.start_s:.0f}-{w.end_s:.0f}",
+            *(_fmt(w.final_error_m[e], 2) for e in labels)] for w in rows]
+    return header, out
 
 
-def drift_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+def drift_table(rows: list[DriftRow]) -> tuple[list[str], list[list[str]]]:
     """Position error against seconds since the outage began (about five points, the end always):
     per estimator the mean with the 10-90 % range; then the final-error percentiles."""
-    labels = labels_of(rep)
-    t = rep["drift"][next(iter(labels))]["t_s"]
+    t = rows[0].t_s
     step = max(1, round((len(t) - 1) / 5))
     picks = sorted({*range(step, len(t), step), len(t) - 1})
     header = ["Estimator", *(f"{t[k]:g} s" for k in picks), "p50", "p90", "p95", "max"]
-    rows = []
-    for e, label in labels.items():
-        d, pct = rep["drift"][e], rep["final_error_percentiles"][e]
-        rows.append([label,
-                     *(f"{_fmt(d['mean_m'][k], 1)} [{_fmt(d['p10_m'][k], 1)}-{_fmt(d['p90_m'][k], 1)}]" for k in picks),
-                     *(_fmt(pct[q], 1) for q in ("p50", "p90", "p95", "max"))])
-    return header, rows
+    out = [[d.label, *(f"{_fmt(d.mean_m[k], 1)} [{_fmt(d.p10_m[k], 1)}-{_fmt(d.p90_m[k], 1)}]" for k in picks),
+            *(_fmt(x, 1) for x in (d.final_p50_m, d.final_p90_m, d.final_p95_m, d.final_max_m))] for d in rows]
+    return header, out
 
 
 DRIFT_TITLE = "Position error since the outage began (m): mean [10-90 %], and final-error percentiles (m)"
@@ -146,41 +131,11 @@ def worst_title(rep: dict[str, Any]) -> str:
     return f"Worst outages by {labels.get(rep.get('worst_of', 'ins'), 'INS DR')} final position error"
 
 
-def report_document(rep: dict[str, Any], scenario: str | None = None) -> Document:
-    """A drive report (``Report.to_dict``) as a document: the paper's table, the log's own GNSS
-    outages where it bridged some, a line each on the improvements, the GNSS truth, the drives,
-    the estimators' uncertainty, health and choices, then the drift and the worst outages."""
-    blocks: list[Block] = []
-    if rep["n_sequences"] or "gnss_outages" not in rep:
-        header, rows = table_rows(rep)
-        blocks += [Heading(title_of(rep, scenario)), Table(header, rows, 2, strong_first=True)]
-    if "gnss_outages" in rep:
-        header, rows = bridged_rows(rep)
-        blocks += [Heading(f"{rep['drive']}: the log's own GNSS outages",
-                           note="(truth: the first good fix after each)"),
-                   Table(header, rows, 1), Paragraphs([bridged_line(rep)])]
+def report_lines(rep: dict[str, Any]) -> list[str]:
+    """A drive report's lines under its tables (``Report.to_dict``): the improvements where it has
+    synthetic outages, the GNSS truth, the drives, the estimators' uncertainty, health and choices."""
     said = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    said += drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
-    blocks.append(Paragraphs(said))
-    if rep.get("drift"):
-        header, rows = drift_rows(rep)
-        blocks += [Heading(DRIFT_TITLE, lead_in=True), Table(header, rows, 1)]
-    if rep.get("worst"):
-        header, rows = worst_rows(rep)
-        blocks += [Heading(worst_title(rep), lead_in=True),
-                   Table(header, rows, 3 if len(header) > 2 + len(labels_of(rep)) else 2)]
-    return Document(blocks, spaced=False)
-
-
-def render_markdown(rep: dict[str, Any], scenario: str | None = None) -> str:
-    """The report (``Report.to_dict``) as Markdown: :func:`report_document`."""
-    return to_markdown(report_document(rep, scenario))
-
-
-def render_text(rep: dict[str, Any], scenario: str | None = None, width: int | None = None) -> str:
-    """The report as plain-text tables; ``width`` (columns, e.g. the terminal's): wider tables get
-    wrapped headers and then are split into blocks of columns (None: one line per row, any width)."""
-    return to_text(report_document(rep, scenario), width)
+    return said + drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
 
 
 def drive_lines(rep: dict[str, Any], most: int = 4) -> list[str]:
@@ -233,16 +188,15 @@ def domain_lines(rep: dict[str, Any]) -> list[str]:
     return out
 
 
-def bridged_rows(rep: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
-    """One row per bridged GNSS outage: where, how long, and each estimator's final position error."""
-    labels = labels_of(rep)
-    several = len({b["drive"] for b in rep["gnss_outages"]["bridged"]}) > 1
+def bridged_table(rows: list[BridgedRow], labels: dict[str, str],
+                  several: bool) -> tuple[list[str], list[list[str]]]:
+    """One row per bridged GNSS outage: where (with ``several`` drives, on which), how long, and
+    each estimator's final position error."""
     header = ["#", *(["Drive"] if several else []), "Gap (s)", "From (s)", "Outage (s)", "Span (m)"]
     header += [f"{labels[e]} final err. (m)" for e in labels]
-    rows = [[str(b["number"]), *([b["drive"]] if several else []), f"{b['gap_s']:.1f}", f"{b['gap_start_s']:.1f}",
-             str(b["outage_s"]), f"{b['span_m']:.0f}", *(_fmt(b["final_error_m"][e], 2) for e in labels)]
-            for b in rep["gnss_outages"]["bridged"]]
-    return header, rows
+    out = [[str(b.number), *([b.drive] if several else []), f"{b.gap_s:.1f}", f"{b.gap_start_s:.1f}",
+            str(b.outage_s), f"{b.span_m:.0f}", *(_fmt(b.final_error_m[e], 2) for e in labels)] for b in rows]
+    return header, out
 
 
 def bridged_line(rep: dict[str, Any]) -> str:
