@@ -186,15 +186,15 @@ def cdr_decoder(encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
     read the schema (mcap_ros2 decodes those)."""
     if encoding != "cdr" or schema is None or schema.encoding != "ros2msg":
         return None
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-    from rosbags.typesys.msg import normalize_msgtype
-
     try:
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+        from rosbags.typesys.msg import normalize_msgtype
+
         msgtype = normalize_msgtype(schema.name)
         store = get_typestore(Stores.EMPTY)
         store.register(get_types_from_msg(schema.data.decode(), msgtype))
         store.get_msgdef(msgtype)  # every field's type is defined
-    except Exception:  # a definition rosbags does not parse: left to mcap_ros2
+    except Exception:  # a definition (or a rosbags release) rosbags does not parse with: left to mcap_ros2
         return None
     return lambda data: store.deserialize_cdr(data, msgtype)
 
