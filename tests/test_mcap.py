@@ -382,3 +382,17 @@ def test_a_log_reads_the_same_whichever_library_decodes_its_messages(tmp_path, m
     assert sorted(fast.columns) == sorted(slow.columns)
     for column in fast.columns:
         np.testing.assert_array_equal(fast.columns[column], slow.columns[column], err_msg=column)
+
+
+def test_stamps_past_ros2s_int32_seconds_are_refused_in_one_line(tmp_path):
+    """ROS 2's Time holds int32 seconds: a drive stamped in 2040 cannot be written (numpy would wrap
+    the seconds round silently), and nothing is left behind."""
+    import dataclasses
+
+    from ionav_viz.sources.mcap_writer import write_mcap
+
+    drive = dataclasses.replace(iv.load_drive("hard-brake"), start_stamp_s=2_208_988_800.0)  # 2040-01-01
+    out = tmp_path / "late.mcap"
+    with pytest.raises(InputError, match="do not fit ROS 2's int32 seconds"):
+        write_mcap(drive, out)
+    assert list(tmp_path.iterdir()) == []

@@ -142,6 +142,11 @@ def write_mcap(drive: Drive, path: Path, vehicle_speed_mps: np.ndarray | None = 
     check_output_file(Path(path))
     n = len(drive)
     t_ns = np.rint(np.asarray(drive.stamp_s(drive.t_s)) * 1e9).astype(np.int64)
+    if n and not (t_ns.min() // 1_000_000_000 >= -(2**31) and t_ns.max() // 1_000_000_000 < 2**31):
+        raise InputError(f"{drive.name}: its time stamps ({float(drive.stamp_s(drive.t_s[0])):.0f} s to "
+                         f"{float(drive.stamp_s(drive.t_s[-1])):.0f} s since 1970) do not fit ROS 2's int32 seconds "
+                         "(1901-12-13 to 2038-01-19)", "a log of these dates cannot be written as ROS 2 messages",
+                         param="drive")
     omit = np.zeros(n, dtype=bool) if omit_gnss is None else np.asarray(omit_gnss, dtype=bool)
     received = drive.as_received()  # the receiver's fixes, speed and course (the drive itself without a reference)
     # the full IMU when the drive has it, else a level IMU: gravity on z, nothing on the other axes
