@@ -187,13 +187,13 @@ def cdr_decoder(encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
     if encoding != "cdr" or schema is None or schema.encoding != "ros2msg":
         return None
     try:
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+        from rosbags.typesys import get_types_from_msg
         from rosbags.typesys.msg import normalize_msgtype
 
+        from .rosbag_reader import typestore_of
+
         msgtype = normalize_msgtype(schema.name)
-        store = get_typestore(Stores.EMPTY)
-        store.register(get_types_from_msg(schema.data.decode(), msgtype))
-        store.get_msgdef(msgtype)  # every field's type is defined
+        store = typestore_of(get_types_from_msg(schema.data.decode(), msgtype), msgtype)
     except Exception:  # a definition (or a rosbags release) rosbags does not parse with: left to mcap_ros2
         return None
     return lambda data: store.deserialize_cdr(data, msgtype)

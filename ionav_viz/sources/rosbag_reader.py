@@ -208,14 +208,23 @@ def _typestore(path: Path, connection: Any, ros1: bool) -> Any:
             parts = msgdef.data.split(sep)[1:] if msgdef.data.startswith(f"{sep}IDL: ") else [f"IDL: \n{msgdef.data}"]
             for part in parts:
                 types.update(get_types_from_idl(part.split("\n", 1)[1]))
-        store = get_typestore(Stores.EMPTY)
-        store.register(types)
-        store.get_msgdef(msgtype)  # every field's type is defined
+        store = typestore_of(types, msgtype)
     except Exception as exc:
         text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise InputError(f"{path}: topic {connection.topic}: the bag's definition of {msgtype} cannot be read "
                          f"({type(exc).__name__}: {text})",
                          "re-record the topic, or choose another one") from None
+    return store
+
+
+def typestore_of(types: dict, msgtype: str) -> Any:
+    """A rosbags type store holding ``types`` (parsed message definitions), checked to define every
+    field of ``msgtype``; rosbags' own error where one is missing."""
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.EMPTY)
+    store.register(types)
+    store.get_msgdef(msgtype)  # every field's type is defined
     return store
 
 
