@@ -107,7 +107,13 @@ def test_figures_from_a_recording_and_from_json(tmp_path):
 
     js = tmp_path / "r.json"
     js.write_text(run_cli("evaluate", "roundabout", "--every", "60s", "--no-idnn", "--json").stdout)
-    assert run_cli("figures", str(js), "-o", str(tmp_path / "figs2")).returncode == 0
+    proc = run_cli("figures", str(js), "-o", str(tmp_path / "figs2"), "--format", "png,.SVG")  # only those two
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "figs2").iterdir()) == sorted(f"{f}.{x}" for f in ("drift", "cdf", "outages", "outages-wide", "worst", "calibration") for x in ("svg", "png"))
+    for bad, fragment in [("jpg", "error: --format: format 'jpg' is unknown (hint: choose from svg, pdf, png)"), (",", "error: --format: no format given")]:
+        proc = run_cli("figures", str(js), "-o", str(tmp_path / "x"), "--format", bad)
+        assert proc.returncode == 2 and proc.stderr == fragment + ("\n" if bad == "jpg" else proc.stderr[len(fragment):]), proc.stderr
+        assert not (tmp_path / "x").exists()
     for bad, fragment in [(tmp_path / "figs" / "cdf.pdf", "not UTF-8 text"), (tmp_path / "none.json", "no such file")]:
         proc = run_cli("figures", str(bad), "-o", str(tmp_path / "x"))
         assert proc.returncode == 2 and fragment in proc.stderr and "Traceback" not in proc.stderr, proc.stderr

@@ -43,7 +43,7 @@ MANY = _report([(f"a-rather-long-drive-name-{k}", 8) for k in range(6)])
 def test_saved_widths_are_one_column_or_the_page_whatever_the_drives(rep, tmp_path):
     """3.5 in (7.16 in for outages-wide) at 300 dpi in every PNG, however many drives and however
     long their names (with two drives outages.png was 6 in, drift.png 4.3 in)."""
-    write_figures(rep, tmp_path)
+    write_figures(rep, tmp_path, ("svg", "png"))  # the PDFs' width is the same figure's
     for name in FIGURES:
         png = Image.open(tmp_path / f"{name}.png")
         want_in = PAGE_IN if name == "outages-wide" else COLUMN_IN
@@ -241,10 +241,10 @@ def test_the_api_draws_what_replay_and_evaluate_return(tmp_path):
     import ionav_viz as iv
 
     result = iv.replay("hard-brake", 10.0, iv.Every(60.0), estimators=["ins", "odo"], output=tmp_path / "hb.rrd")
-    from_file = iv.figures(result, tmp_path / "replayed")  # its recording, read back
-    drawn = iv.figures(result.report, tmp_path / "report")
-    assert [p.name for p in drawn] == [p.name for p in from_file]
-    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(drawn, from_file) if a.suffix == ".png")
+    from_file = iv.figures(result, tmp_path / "replayed", formats=["png"])  # its recording, read back
+    drawn = iv.figures(result.report, tmp_path / "report", formats=("PNG",))
+    assert [p.name for p in drawn] == [p.name for p in from_file] == [f"{name}.png" for name in FIGURES]
+    assert all(a.read_bytes() == b.read_bytes() for a, b in zip(drawn, from_file))
     with pytest.raises(iv.InputError, match="result of type int: not a recording, a report or its file") as info:
         iv.figures(42, tmp_path / "none")
     assert info.value.param == "result" and not (tmp_path / "none").exists()

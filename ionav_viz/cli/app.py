@@ -84,7 +84,7 @@ OPTION_OF: Mapping[str, str] = MappingProxyType({
     "warm_up": "--warm-up", "truth_topic": "--truth-topic", "truth_origin": "--truth-origin", "plan": "--plan",
     "external": "--external", "export": "--export", "imu_topic": "--imu-topic", "gnss_topic": "--gnss-topic",
     "connect": "--connect", "span": "--span", "from_model": "--from-model", "folds": "--folds", "strict": "--strict",
-    "device": "--device",
+    "device": "--device", "formats": "--format",
 })
 
 

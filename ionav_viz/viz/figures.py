@@ -43,6 +43,7 @@ import contextlib
 import logging
 import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -339,9 +340,9 @@ def colors_of(rep: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
             for name, rgb in estimator_colors(estimators).items()}
 
 
-def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
-    """Every figure of :data:`FIGURES` (a fleet's report: :data:`FLEET_FIGURES`) in every format of :data:`FORMATS`,
-    into ``folder`` (made when missing, with its parents). Returns the files.
+def write_figures(rep: dict[str, Any], folder: str | Path, formats: Sequence[str] = FORMATS) -> list[Path]:
+    """Every figure of :data:`FIGURES` (a fleet's report: :data:`FLEET_FIGURES`) in each of ``formats`` (some of
+    :data:`FORMATS`), into ``folder`` (made when missing, with its parents). Returns the files.
 
     Drawn into a temporary folder, beside ``folder`` when that is new (then renamed to it), else
     inside it (``-o .`` needs no right to write in the folder above); when all are written, the
@@ -353,7 +354,7 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
     given = check_output_folder(Path(folder))  # as messages name it
     folder = Path(os.path.abspath(given))  # '.' and '..' by name
     drawn = FLEET_FIGURES if is_fleet_report(rep) else LENGTH_FIGURES if is_lengths_report(rep) else FIGURES
-    for name in (f"{f}.{fmt}" for f in drawn for fmt in FORMATS):  # before drawing: what the moves would refuse
+    for name in (f"{f}.{fmt}" for f in drawn for fmt in formats):  # before drawing: what the moves would refuse
         _check_replaceable(folder / name, given / name)
     parent = folder if folder.is_dir() else folder.parent
     made = [] if folder.is_dir() else _make_parents(parent, given)
@@ -364,7 +365,7 @@ def write_figures(rep: dict[str, Any], folder: str | Path) -> list[Path]:
             with rc_context(STYLE):
                 for name in drawn:
                     fig = figure(rep, name)
-                    for fmt in FORMATS:
+                    for fmt in formats:
                         target = scratch / f"{name}.{fmt}"
                         try:
                             fig.savefig(target, format=fmt, dpi=300)
