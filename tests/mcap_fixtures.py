@@ -1,4 +1,4 @@
-"""MCAP files written directly with mcap / mcap_ros2 writers (independent of ionav-viz's converter)."""
+"""MCAP files written directly with mcap's writer (independent of ionav-viz's converter; the CDR from encode_many)."""
 
 from __future__ import annotations
 
@@ -31,6 +31,74 @@ def _stamp(t):
     return {"sec": sec, "nanosec": int(round((t - sec) * 1e9)) % 1_000_000_000}
 
 
+def _stamps(t_s):
+    """``_stamp`` of every time at once: (sec, nanosec) arrays."""
+    t_s = np.asarray(t_s, dtype=float)
+    sec = np.floor(t_s)
+    return sec.astype(np.int64), np.round((t_s - sec) * 1e9).astype(np.int64) % 1_000_000_000
+
+
+def _header(t_s, frame):
+    sec, nanosec = _stamps(t_s)
+    return [("i4", sec), ("u4", nanosec), ("string", frame)]
+
+
+def _imu_fields(t_s, frame, gyro, accel, gyro_cov=np.zeros(9), accel_cov=np.zeros(9)):
+    """sensor_msgs/msg/Imu of every sample: ``gyro``, ``accel`` (3, n), orientation unknown."""
+    return [*_header(t_s, frame), ("f8", [[0.0, 0.0, 0.0, 1.0]]), ("f8", [[-1.0] + [0.0] * 8]),
+            ("f8", np.asarray(gyro, dtype=float).T), ("f8", np.asarray(gyro_cov, dtype=float)[None]),
+            ("f8", np.asarray(accel, dtype=float).T), ("f8", np.asarray(accel_cov, dtype=float)[None])]
+
+
+def _fix_fields(t_s, frame, lat, lon, status=0, altitude_m=100.0, cov=np.zeros(9), cov_type=0):
+    """sensor_msgs/msg/NavSatFix of every fix."""
+    return [*_header(t_s, frame), ("i1", status), ("u2", 1), ("f8", lat), ("f8", lon), ("f8", altitude_m),
+            ("f8", np.asarray(cov, dtype=float)[None]), ("u1", cov_type)]
+
+
+def _odometry_fields(t_s, frame, child, position, pose_cov, speed_x):
+    """nav_msgs/msg/Odometry of every sample: ``position`` (n, 3), identity orientation, forward speed only."""
+    n = len(t_s)
+    return [*_header(t_s, frame), ("string", child), ("f8", position), ("f8", [[0.0, 0.0, 0.0, 1.0]]),
+            ("f8", np.asarray(pose_cov, dtype=float)[None]),
+            ("f8", np.c_[speed_x, np.zeros((n, 5))]), ("f8", np.zeros((1, 36)))]
+
+
+def _write_messages(path, streams, t0_s, log_offset_s, compression=None):
+    """Write ``streams`` [(topic, schema name, t_s after t0_s, fields of encode_many)] as a ROS 2 MCAP with
+    mcap's own writer, every message in time order (ties in the order given, as ``sorted`` keeps them),
+    log and publish time ``t0_s + t_s + log_offset_s``. The CDR comes from ``encode_many``, which test_mcap checks
+    byte for byte against mcap_ros2's encoder on these message types."""
+    from mcap.writer import CompressionType, Writer
+
+    from ionav_viz.sources.cdr import encode_many
+
+    topics, t_all, rows, payloads = [], [], [], []
+    for k, (topic, schema, t_s, fields) in enumerate(streams):
+        t_s = np.asarray(t_s, dtype=float)
+        topics.append((topic, schema))
+        t_all.append(t_s)
+        rows.append(np.c_[np.full(len(t_s), k), np.arange(len(t_s))])
+        payloads.append(encode_many(fields, len(t_s)) if len(t_s) else None)
+    t_all, rows = np.concatenate(t_all), np.concatenate(rows)
+    order = np.argsort(t_all, kind="stable")
+    with open(path, "wb") as f:
+        w = Writer(f, compression=CompressionType[compression] if compression else CompressionType.ZSTD)
+        w.start(profile="ros2", library="ionav-viz tests")
+        schemas, channels = {}, {}
+        for _topic, schema in topics:
+            if schema not in schemas:
+                schemas[schema] = w.register_schema(schema, "ros2msg", DEFINITIONS[schema].encode())
+        for i in order:
+            k, j = rows[i]
+            if k not in channels:
+                channels[k] = w.register_channel(topics[k][0], "cdr", schemas[topics[k][1]])
+            ns = int(round((t0_s + t_all[i] + log_offset_s) * 1e9))
+            w.add_message(channels[k], log_time=ns, data=payloads[k][j].tobytes(), publish_time=ns)
+        w.finish()
+    return path
+
+
 def sample_times(rate_hz, duration_s, rng, jitter_s=0.002):
     t = np.arange(0, duration_s, 1.0 / rate_hz)
     return np.sort(t + rng.uniform(-jitter_s, jitter_s, len(t)))
@@ -40,39 +108,21 @@ def write_ros2(path, duration_s=30.0, imu_hz=100, gnss_hz=5, seed=0, no_fix_time
                latency_s=0.03, compression=None, imu_until_s=None):
     """IMU at ``imu_hz`` and NavSatFix at ``gnss_hz`` with jittered header stamps; log time = stamp + latency;
     ``imu_until_s``: the IMU stops then (the fixes go on)."""
-    from mcap.writer import CompressionType
-    from mcap_ros2.writer import Writer
-
     rng = np.random.default_rng(seed)
-    with open(path, "wb") as f:
-        kwargs = {} if compression is None else {"compression": CompressionType[compression]}
-        w = Writer(f, **kwargs)
-        imu_schema = w.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"])
-        fix_schema = w.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"])
-        events = []
-        for t in sample_times(imu_hz, duration_s, rng):
-            if imu_until_s is not None and t > imu_until_s:
-                continue
-            msg = {"header": {"stamp": _stamp(T0_S + t), "frame_id": "base_link"},
-                   "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
-                   "angular_velocity": {"x": 0.0, "y": 0.0, "z": YAW_RATE_RADPS}, "angular_velocity_covariance": [0.0] * 9,
-                   "linear_acceleration": {"x": ACCEL_MPS2, "y": 0.0, "z": 9.81}, "linear_acceleration_covariance": [0.0] * 9}
-            events.append((t, "/imu", imu_schema, msg))
-            if extra_imu_topic:
-                events.append((t, "/imu2", imu_schema, msg))
-        g_t = sample_times(gnss_hz, duration_s, rng)
-        lat, lon = truth_position(g_t)
-        for t, la, lo in zip(g_t, lat, lon):
-            status = -1 if any(abs(t - x) < 0.5 / gnss_hz for x in no_fix_times) else 0
-            msg = {"header": {"stamp": _stamp(T0_S + t), "frame_id": "gps"}, "status": {"status": status, "service": 1},
-                   "latitude": float(la) + (1.0 if status < 0 else 0.0), "longitude": float(lo), "altitude": 100.0,
-                   "position_covariance": [0.0] * 9, "position_covariance_type": 0}
-            events.append((t, "/fix", fix_schema, msg))
-        for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
-            log_ns = int(round((T0_S + t + latency_s) * 1e9))
-            w.write_message(topic, schema, msg, log_time=log_ns, publish_time=log_ns)
-        w.finish()
-    return path
+    t = sample_times(imu_hz, duration_s, rng)
+    if imu_until_s is not None:
+        t = t[t <= imu_until_s]
+    imu = _imu_fields(T0_S + t, "base_link", np.c_[np.zeros((len(t), 2)), np.full(len(t), YAW_RATE_RADPS)].T,
+                      np.c_[np.full(len(t), ACCEL_MPS2), np.zeros(len(t)), np.full(len(t), 9.81)].T)
+    g_t = sample_times(gnss_hz, duration_s, rng)
+    lat, lon = truth_position(g_t)
+    no_fix = np.array([any(abs(t - x) < 0.5 / gnss_hz for x in no_fix_times) for t in g_t], dtype=bool)
+    streams = [("/imu", "sensor_msgs/msg/Imu", t, imu)]
+    if extra_imu_topic:
+        streams.append(("/imu2", "sensor_msgs/msg/Imu", t, imu))
+    streams.append(("/fix", "sensor_msgs/msg/NavSatFix", g_t,
+                    _fix_fields(T0_S + g_t, "gps", lat + np.where(no_fix, 1.0, 0.0), lon, status=np.where(no_fix, -1, 0))))
+    return _write_messages(path, streams, T0_S, latency_s, compression)
 
 
 def write_json(path, duration_s=30.0, imu_hz=50, gnss_hz=2, seed=1, tamper=None, **writer_options):
@@ -127,9 +177,7 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
     ``imu_noise``: white noise on every axis (0.05 m/s^2, 0.002 rad/s; drawn in the body frame, so
     every mount carries the same), as a real IMU has: without it gravity and the gyro's x and y
     read one value throughout, which the reader takes as axes not measured (no mount estimated).
-    Written with mcap_ros2 directly, not with ionav-viz's converter."""
-    from mcap_ros2.writer import Writer
-
+    Written with mcap's writer, not with ionav-viz's converter."""
     rng = np.random.default_rng(seed)
     rot = np.eye(3) if sensor_from_body is None else np.asarray(sensor_from_body, dtype=float)
     t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
@@ -147,29 +195,15 @@ def write_fix_only(drive, path, gnss_hz, seed=0, white_m=0.15, duplicate_share=0
         noise = np.random.default_rng(seed + 7919)
         accel, gyro = accel + noise.normal(0.0, 0.05, accel.shape), gyro + noise.normal(0.0, 0.002, gyro.shape)
     accel, gyro = rot @ accel, rot @ gyro
-    with open(path, "wb") as f:
-        w = Writer(f)
-        imu_schema = w.register_msgdef("sensor_msgs/msg/Imu", DEFINITIONS["sensor_msgs/msg/Imu"])
-        fix_schema = w.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"])
-        events = []
-        for i, t in enumerate(drive.t_s):
-            events.append((t, "/imu/data", imu_schema, {
-                "header": {"stamp": _stamp(t0 + t), "frame_id": "imu_link"},
-                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
-                "angular_velocity": dict(zip("xyz", map(float, gyro[:, i]))), "angular_velocity_covariance": [0.0] * 9,
-                "linear_acceleration": dict(zip("xyz", map(float, accel[:, i]))), "linear_acceleration_covariance": [0.0] * 9}))
-        for t, la, lo in zip(g_t, lat, lon):
-            msg = {"header": {"stamp": _stamp(t0 + t), "frame_id": "gps"}, "status": {"status": 0, "service": 1},
-                   "latitude": float(la), "longitude": float(lo), "altitude": 100.0,
-                   "position_covariance": [0.0] * 9, "position_covariance_type": 0}
-            events.append((t, "/fix", fix_schema, msg))
-            if rng.uniform() < duplicate_share:
-                events.append((t + 0.001, "/fix", fix_schema, msg))
-        for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
-            ns = int(round((t0 + t + 0.02) * 1e9))
-            w.write_message(topic, schema, msg, log_time=ns, publish_time=ns)
-        w.finish()
-    return path
+    twice = rng.uniform(size=len(g_t)) < duplicate_share  # the odd fix published again 1 ms later
+    fix = np.repeat(np.arange(len(g_t)), np.where(twice, 2, 1))
+    again = np.r_[False, fix[1:] == fix[:-1]]
+    t = np.asarray(drive.t_s, dtype=float)
+    return _write_messages(path, [
+        ("/imu/data", "sensor_msgs/msg/Imu", t, _imu_fields(t0 + t, "imu_link", gyro, accel)),
+        ("/fix", "sensor_msgs/msg/NavSatFix", g_t[fix] + np.where(again, 0.001, 0.0),
+         _fix_fields(t0 + g_t[fix], "gps", lat[fix], lon[fix])),
+    ], t0, 0.02)
 
 
 def _turn(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
@@ -194,9 +228,7 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
     the reference is also on ``/reference/odom``, an Odometry in the local frame ``map`` whose
     origin is at ``lat0, lon0`` and whose x axis points ``yaw_deg`` counter-clockwise from east
     (east and north from the geodesic's distance and azimuth: the azimuthal equidistant plane).
-    Written with mcap_ros2 directly."""
-    from mcap_ros2.writer import Writer
-
+    Written with mcap's writer, not with ionav-viz's converter."""
     rng = np.random.default_rng(seed)
     t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
     end = float(drive.t_s[-1]) if duration_s is None else min(float(drive.t_s[-1]), duration_s)
@@ -218,53 +250,32 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
     o_t = np.arange(0.0, end, 1.0 / odom_hz)
     o_speed = np.interp(o_t, drive.t_s, drive.columns["speed_can_mps"])
     cov = [gnss_sigma_m**2 if k in (0, 4) else (2 * gnss_sigma_m) ** 2 if k == 8 else 0.0 for k in range(9)]
-    with open(path, "wb") as f:
-        w = Writer(f)
-        schemas = {name: w.register_msgdef(name, DEFINITIONS[name]) for name in DEFINITIONS}
-        events = []
-        for i, t in enumerate(t_imu):
-            events.append((t, "/imu/data_raw", "sensor_msgs/msg/Imu", {
-                "header": {"stamp": _stamp(t0 + t), "frame_id": "imu_link"},
-                "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}, "orientation_covariance": [-1.0] + [0.0] * 8,
-                "angular_velocity": dict(zip("xyz", map(float, gyro[:, i]))), "angular_velocity_covariance": [4e-6 if k % 4 == 0 else 0.0 for k in range(9)],
-                "linear_acceleration": dict(zip("xyz", map(float, accel[:, i]))), "linear_acceleration_covariance": [2.5e-3 if k % 4 == 0 else 0.0 for k in range(9)]}))
-        for t, la, lo, c, v in zip(g_t, lat, lon, course, g_speed):
-            header = {"stamp": _stamp(t0 + t), "frame_id": "gps"}
-            events.append((t, "/gps/fix", "sensor_msgs/msg/NavSatFix", {
-                "header": header, "status": {"status": 0, "service": 1}, "latitude": float(la), "longitude": float(lo),
-                "altitude": 100.0, "position_covariance": cov, "position_covariance_type": 2}))
-            events.append((t, "/gps/vel", "geometry_msgs/msg/TwistStamped", {
-                "header": header, "twist": {"linear": {"x": float(v * math.sin(c)), "y": float(v * math.cos(c)), "z": 0.0},
-                                            "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}}))
-        for t, v in zip(o_t, o_speed):
-            events.append((t, "/wheel/odom", "nav_msgs/msg/Odometry", {
-                "header": {"stamp": _stamp(t0 + t), "frame_id": "odom"}, "child_frame_id": "base_link",
-                "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
-                         "covariance": [-1.0 if k % 7 == 0 else 0.0 for k in range(36)]},
-                "twist": {"twist": {"linear": {"x": float(v), "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-                          "covariance": [0.0] * 36}}))
-        for i, t in enumerate(drive.t_s[drive.t_s < end]):
-            events.append((t, "/reference/fix", "sensor_msgs/msg/NavSatFix", {
-                "header": {"stamp": _stamp(t0 + t), "frame_id": "gps"}, "status": {"status": 2, "service": 1},
-                "latitude": float(drive.lat_deg[i]), "longitude": float(drive.lon_deg[i]), "altitude": 100.0,
-                "position_covariance": [1e-4 if k % 4 == 0 else 0.0 for k in range(9)], "position_covariance_type": 2}))
-        if reference_frame is not None:
-            from pyproj import Geod
+    n_g = len(g_t)
+    keep = drive.t_s < end
+    t_ref = np.asarray(drive.t_s[keep], dtype=float)
+    streams = [
+        ("/imu/data_raw", "sensor_msgs/msg/Imu", t_imu,
+         _imu_fields(t0 + t_imu, "imu_link", gyro, accel, [4e-6 if k % 4 == 0 else 0.0 for k in range(9)],
+                     [2.5e-3 if k % 4 == 0 else 0.0 for k in range(9)])),
+        ("/gps/fix", "sensor_msgs/msg/NavSatFix", g_t, _fix_fields(t0 + g_t, "gps", lat, lon, cov=cov, cov_type=2)),
+        ("/gps/vel", "geometry_msgs/msg/TwistStamped", g_t,
+         [*_header(t0 + g_t, "gps"), ("f8", np.c_[g_speed * np.sin(course), g_speed * np.cos(course), np.zeros(n_g)]),
+          ("f8", np.zeros((1, 3)))]),
+        ("/wheel/odom", "nav_msgs/msg/Odometry", o_t,
+         _odometry_fields(t0 + o_t, "odom", "base_link", np.zeros((1, 3)),
+                          [-1.0 if k % 7 == 0 else 0.0 for k in range(36)], o_speed)),
+        ("/reference/fix", "sensor_msgs/msg/NavSatFix", t_ref,
+         _fix_fields(t0 + t_ref, "gps", drive.lat_deg[keep], drive.lon_deg[keep], status=2,
+                     cov=[1e-4 if k % 4 == 0 else 0.0 for k in range(9)], cov_type=2)),
+    ]
+    if reference_frame is not None:
+        from pyproj import Geod
 
-            lat0, lon0, yaw0 = reference_frame
-            keep = drive.t_s < end
-            az, _, dist = Geod(ellps="WGS84").inv(np.full(keep.sum(), lon0), np.full(keep.sum(), lat0), drive.lon_deg[keep], drive.lat_deg[keep])
-            east, north = dist * np.sin(np.radians(az)), dist * np.cos(np.radians(az))
-            c, s_ = math.cos(math.radians(yaw0)), math.sin(math.radians(yaw0))
-            for t, x, y in zip(drive.t_s[keep], c * east + s_ * north, -s_ * east + c * north):
-                events.append((t, "/reference/odom", "nav_msgs/msg/Odometry", {
-                    "header": {"stamp": _stamp(t0 + t), "frame_id": "map"}, "child_frame_id": "base_link",
-                    "pose": {"pose": {"position": {"x": float(x), "y": float(y), "z": 3.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
-                             "covariance": [0.0] * 36},
-                    "twist": {"twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-                              "covariance": [0.0] * 36}}))
-        for t, topic, schema, msg in sorted(events, key=lambda e: e[0]):
-            ns = int(round((t0 + t + 0.01) * 1e9))
-            w.write_message(topic, schemas[schema], msg, log_time=ns, publish_time=ns)
-        w.finish()
-    return path
+        lat0, lon0, yaw0 = reference_frame
+        az, _, dist = Geod(ellps="WGS84").inv(np.full(keep.sum(), lon0), np.full(keep.sum(), lat0), drive.lon_deg[keep], drive.lat_deg[keep])
+        east, north = dist * np.sin(np.radians(az)), dist * np.cos(np.radians(az))
+        c, s_ = math.cos(math.radians(yaw0)), math.sin(math.radians(yaw0))
+        position = np.c_[c * east + s_ * north, -s_ * east + c * north, np.full(len(t_ref), 3.0)]
+        streams.append(("/reference/odom", "nav_msgs/msg/Odometry", t_ref,
+                        _odometry_fields(t0 + t_ref, "map", "base_link", position, np.zeros(36), np.zeros(len(t_ref)))))
+    return _write_messages(path, streams, t0, 0.01)
