@@ -1,11 +1,12 @@
-"""ROS 2's CDR serialisation (little endian, ``CDR_LE``) of many fixed-layout messages at once.
+"""ROS 2's CDR serialisation (little endian, ``CDR_LE``) of many fixed-layout messages at once, both ways.
 
 A message whose fields are numbers, fixed-size arrays of numbers and strings that are the same in
 every message (a ``frame_id``) has the same bytes layout in every message, so all of them are
 written as one ``(messages, bytes)`` array, column by column. Alignment follows the CDR rule:
 a value of ``k`` bytes starts at a multiple of ``k`` counted from the end of the 4-byte
 encapsulation header; a string is its ``uint32`` length (with the terminating NUL), its bytes
-and the NUL. Nothing pads the end, as ``rclpy`` and ``mcap_ros2`` write it.
+and the NUL. Nothing pads the end, as ``rclpy`` and ``mcap_ros2`` write it (a reader allows up to
+3 bytes of padding, as rosbags does).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 #: The numeric kinds a field may be (numpy's little-endian type codes).
-CDR_KINDS = ("i1", "u1", "u2", "i4", "u4", "f8")
+CDR_KINDS = ("i1", "u1", "i2", "u2", "i4", "u4", "i8", "u8", "f4", "f8")
 #: The encapsulation header of little-endian plain CDR.
 CDR_HEADER = b"\x00\x01\x00\x00"
 
@@ -49,4 +50,51 @@ def encode_many(fields: Sequence[tuple[str, object]], n: int) -> np.ndarray:
     for offset, values in placed:
         start = len(CDR_HEADER) + offset
         out[:, start : start + values.itemsize * values.shape[1]].view(values.dtype)[:] = values
+    return out
+
+
+def decode_many(fields: Sequence[tuple[str, int]], data: np.ndarray) -> list | None:
+    """The values of ``n`` messages of one layout, read from their CDR bytes ``data`` (an ``(n, bytes)``
+    uint8 array): the inverse of :func:`encode_many`.
+
+    A field is ``(kind, count)``: ``kind`` one of :data:`CDR_KINDS` gives an ``(n,)`` array when
+    ``count`` is 0 (a single value) and an ``(n, count)`` one otherwise (a fixed-size array field);
+    ``"string"`` gives its text, which must be the same in every message. None when the messages do
+    not all have that layout (or there are none): another encapsulation than little-endian plain CDR, a string whose
+    length or bytes differ between messages, one not NUL-terminated or not UTF-8, or a message size
+    that is not the layout's (plus at most 3 bytes of padding)."""
+    header = np.frombuffer(CDR_HEADER, np.uint8)
+    if not len(data) or data.shape[1] < len(CDR_HEADER) or (data[:, : len(CDR_HEADER)] != header).any():
+        return None
+    body = data[:, len(CDR_HEADER):]
+    out: list = []
+    end = 0
+    for kind, count in fields:
+        if kind == "string":
+            end += -end % 4
+            if end + 4 > body.shape[1]:
+                return None
+            length = int(body[0, end : end + 4].copy().view("<u4")[0])
+            stop = end + 4 + length
+            text = body[0, end + 4 : stop]
+            if length < 1 or stop > body.shape[1] or text[-1] != 0 or (body[:, end:stop] != body[0, end:stop]).any():
+                return None
+            try:
+                out.append(text[:-1].tobytes().decode())
+            except UnicodeDecodeError:
+                return None
+            end = stop
+            continue
+        if kind not in CDR_KINDS:
+            raise ValueError(f"unknown CDR kind {kind!r}")
+        dtype = np.dtype("<" + kind)
+        end += -end % dtype.itemsize
+        stop = end + dtype.itemsize * max(count, 1)
+        if stop > body.shape[1]:
+            return None
+        values = np.ascontiguousarray(body[:, end:stop]).view(dtype)
+        out.append(values[:, 0] if count == 0 else values)
+        end = stop
+    if not end <= body.shape[1] <= end + 3:
+        return None
     return out
