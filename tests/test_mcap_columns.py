@@ -1,5 +1,5 @@
 """CDR of many messages at once, both ways: :func:`ionav_viz.sources.cdr.decode_many` reads what
-:func:`ionav_viz.sources.cdr.encode_many` writes, and refuses bytes that are not one layout."""
+:func:`ionav_viz.sources.cdr.encode_many` writes, and refuses bytes that are not one layout; IMU samples binned a block at a time as one by one."""
 
 import numpy as np
 
@@ -45,3 +45,34 @@ def test_decode_many_refuses_what_is_not_one_layout():
     assert decode_many(spec, big_endian) is None
     assert decode_many(spec, data[:, :-1]) is None  # too short
     assert decode_many(spec, data[:0]) is None
+
+
+def test_imu_bins_take_many_samples_as_one_by_one():
+    """Samples added a block at a time reach ``prepare`` in the same blocks and sum to the same bins,
+    bit for bit, as added one by one (over several of its blocks)."""
+    from ionav_viz.sources.resample import IMU_BLOCK_SAMPLES, ImuBins
+
+    rng = np.random.default_rng(9)
+    n = 2 * IMU_BLOCK_SAMPLES + 12345
+    samples = np.column_stack([np.sort(rng.uniform(0.0, n / 100.0, n)), rng.normal(size=(n, 6))])
+    seen = {"one": [], "many": []}
+
+    def bins(key):
+        return ImuBins(0.1, keep_samples=True, prepare=lambda block: seen[key].append(len(block)) or block * 1.0)
+
+    one, many = bins("one"), bins("many")
+    for row in samples.tolist():
+        one.add(tuple(row))
+    start = 0
+    while start < n:
+        size = int(rng.integers(1, 20000))
+        if rng.random() < 0.3:  # one by one between blocks
+            many.add(tuple(samples[start].tolist()))
+            size = 1
+        else:
+            many.add_many(samples[start : start + size])
+        start += size
+    for got, expected in zip(many.means(), one.means()):
+        assert np.array_equal(got, expected)
+    assert np.array_equal(many.kept_samples(), one.kept_samples())
+    assert seen["many"] == seen["one"] == [IMU_BLOCK_SAMPLES, IMU_BLOCK_SAMPLES, 12345]

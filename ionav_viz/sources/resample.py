@@ -40,6 +40,10 @@ from .plausibility import first_implausible
 log = logging.getLogger("ionav_viz")
 
 
+#: IMU samples gathered before each :meth:`ImuBins.prepare` (checked and turned to the body frame at once).
+IMU_BLOCK_SAMPLES = 65536
+
+
 class ImuBins:
     """Per-bin sums of IMU samples on a grid of ``dt`` (bins centred on grid times), streamed.
 
@@ -54,7 +58,9 @@ class ImuBins:
         self.prepare = prepare
         self.origin: float | None = None
         self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (bins, [value sums..., count])
-        self.buffer: list[tuple[float, ...]] = []
+        self.rows: list[tuple[float, ...]] = []  # samples added one by one, not yet in ``buffer``
+        self.buffer: list[np.ndarray] = []  # blocks of samples waiting for the next flush
+        self.buffered = 0  # samples in ``rows`` and ``buffer``
         # A log that may be single-rate (as many IMU as GNSS messages) also keeps its samples:
         # then they are as many as the output rows.
         self.samples: list[np.ndarray] | None = [] if keep_samples else None
@@ -62,15 +68,34 @@ class ImuBins:
         self.low, self.high = np.full(6, np.inf), np.full(6, -np.inf)
 
     def add(self, sample: tuple[float, ...]) -> None:
-        self.buffer.append(sample)
-        if len(self.buffer) >= 65536:
+        self.rows.append(sample)
+        self.buffered += 1
+        if self.buffered >= IMU_BLOCK_SAMPLES:
             self.flush()
 
+    def add_many(self, samples: np.ndarray) -> None:
+        """Add samples ``(n, 7)`` as :meth:`add` one by one would: the same blocks reach ``prepare``."""
+        while len(samples):
+            take = IMU_BLOCK_SAMPLES - self.buffered
+            self._park()
+            self.buffer.append(samples[:take])
+            self.buffered += len(self.buffer[-1])
+            samples = samples[take:]
+            if self.buffered >= IMU_BLOCK_SAMPLES:
+                self.flush()
+
+    def _park(self) -> None:
+        if self.rows:
+            self.buffer.append(np.asarray(self.rows))
+            self.rows.clear()
+
     def flush(self) -> None:
+        self._park()
         if not self.buffer:
             return
-        block = np.asarray(self.buffer)
+        block = np.concatenate(self.buffer)
         self.buffer.clear()
+        self.buffered = 0
         self.add_block(block)
 
     def add_block(self, block: np.ndarray) -> None:
