@@ -2,8 +2,10 @@
 
 What is read from which topic, stamps, rates and memory: :mod:`.message_log`. This module only
 lists an MCAP file's channels (from its summary, or by streaming a file without one) and streams
-the selected channels' decoded messages: indexed when the file is complete, else record by record
-(a recorder that stopped without a footer ends at its last complete record). CRCs are checked.
+the selected channels' messages: chunk by chunk when the file is complete and indexed (one chunk in
+memory at a time; a topic whose messages in a chunk share one CDR layout is handed over as columns,
+:func:`.cdr.decode_many`), else record by record (a recorder that stopped without a footer ends at
+its last complete record). CRCs are checked; chunks inflate within bounds (:mod:`.inflate`).
 """
 
 from __future__ import annotations
@@ -11,14 +13,18 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import struct
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ..core.drive import Drive
 from ..core.errors import InputError
+from .cdr import decode_many
 from .inflate import check_declared, inflate
-from .message_log import ChannelInfo, decode_json, read_log
+from .message_log import ChannelInfo, Columns, StreamBlock, decode_json, read_log
 
 if TYPE_CHECKING:
     from .log_options import LogOptions
@@ -159,28 +165,104 @@ class McapLog:
         return _bad(self.path, exc)
 
     def messages(self, channels: list[ChannelInfo]) -> Iterator[tuple[str, int, Any]]:
+        for block in self.blocks(channels):
+            yield from block.messages()
+
+    def blocks(self, channels: list[ChannelInfo]) -> Iterator[Any]:
+        """The messages of ``channels`` chunk by chunk (:class:`~.message_log.Block`) when the file is
+        complete and indexed, else all of them as one block, streamed (:func:`iter_messages`)."""
+        path = self.path
+        topics = [c.topic for c in channels]
+        decoders = _Decoders(path)
+        with open(path, "rb") as f:
+            summary = _open_reader(f).get_summary() if _check_framing(path) == "complete" else None
+            if summary is None or not summary.chunk_indexes:
+                yield StreamBlock(decoders.message(schema, channel, message.data, message.log_time)
+                              for schema, channel, message in iter_messages(path, f, topics))
+                return
+            with _bounded_chunks(path):
+                for chunk in _indexed_chunks(path, f, summary, topics):
+                    yield _Block(decoders, summary, *chunk)
+
+
+class _Decoders:
+    """Each channel's decoder, made at its first message: JSON, rosbags (:func:`cdr_decoder`), else mcap_ros2."""
+
+    def __init__(self, path: Path) -> None:
         from mcap_ros2.decoder import DecoderFactory
 
-        path = self.path
-        factory = DecoderFactory()
-        decoders: dict[int, Any] = {}
-        with open(path, "rb") as f:
-            for schema, channel, message in iter_messages(path, f, [c.topic for c in channels]):
-                if channel.message_encoding == "json":
-                    decoded = decode_json(path, channel.topic, message.data, message.log_time)
-                else:
-                    if channel.id not in decoders:
-                        decoder = cdr_decoder(channel.message_encoding, schema) or factory.decoder_for(
-                            channel.message_encoding, schema)
-                        if decoder is None:
-                            raise InputError(f"{path}: topic {channel.topic}: cannot decode {channel.message_encoding} "
-                                             f"with schema encoding {schema.encoding if schema else None!r}")
-                        decoders[channel.id] = decoder
-                    decoded = decoders[channel.id](message.data)
-                yield channel.topic, message.log_time, decoded
+        self.path, self.factory = path, DecoderFactory()
+        self.cdr: dict[int, CdrType | None] = {}
+        self.other: dict[int, Callable[[bytes], Any]] = {}
+
+    def message(self, schema: Any, channel: Any, data: bytes, log_time_ns: int) -> tuple[str, int, Any]:
+        """``(topic, log time ns, decoded message)``."""
+        if channel.message_encoding == "json":
+            return channel.topic, log_time_ns, decode_json(self.path, channel.topic, data, log_time_ns)
+        if (found := self.cdr_type(schema, channel)) is not None:
+            return channel.topic, log_time_ns, found.decode(data)
+        if channel.id not in self.other:
+            decoder = self.factory.decoder_for(channel.message_encoding, schema)
+            if decoder is None:
+                raise InputError(f"{self.path}: topic {channel.topic}: cannot decode {channel.message_encoding} "
+                                 f"with schema encoding {schema.encoding if schema else None!r}")
+            self.other[channel.id] = decoder
+        return channel.topic, log_time_ns, self.other[channel.id](data)
+
+    def cdr_type(self, schema: Any, channel: Any) -> CdrType | None:
+        """The channel's rosbags decoder, or None where rosbags does not decode it."""
+        if channel.id not in self.cdr:
+            self.cdr[channel.id] = cdr_decoder(channel.message_encoding, schema)
+        return self.cdr[channel.id]
 
 
-def cdr_decoder(encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
+@dataclasses.dataclass
+class CdrType:
+    """A ``ros2msg`` message type as rosbags reads it."""
+
+    store: Any
+    msgtype: str
+    _layout: list | None = None
+
+    def decode(self, data: bytes) -> Any:
+        return self.store.deserialize_cdr(data, self.msgtype)
+
+    def layout(self) -> list[tuple[str, str, int]] | None:
+        """The message's fields in CDR order as ``(path, kind, count)`` (:func:`.cdr.decode_many`'s
+        kinds and counts, strings included), or None when one has no fixed place (a sequence, an
+        array of messages, a type :data:`.cdr.CDR_KINDS` does not hold)."""
+        if self._layout is None:
+            self._layout = _flatten(self.store, self.msgtype, "") or []
+        return self._layout or None
+
+
+#: rosbags' base types that :func:`.cdr.decode_many` reads, as its kinds.
+_KINDS = {"int8": "i1", "uint8": "u1", "int16": "i2", "uint16": "u2", "int32": "i4", "uint32": "u4", "int64": "i8",
+          "uint64": "u8", "float32": "f4", "float64": "f8", "string": "string"}
+
+
+def _flatten(store: Any, msgtype: str, prefix: str) -> list[tuple[str, str, int]] | None:
+    from rosbags.typesys.base import Nodetype
+
+    out: list[tuple[str, str, int]] = []
+    for name, (node, detail) in store.fielddefs[msgtype][1]:
+        path = prefix + name
+        if node == Nodetype.NAME:
+            inner = _flatten(store, detail, path + ".")
+            if inner is None:
+                return None
+            out += inner
+        elif node == Nodetype.BASE and detail[0] in _KINDS and (detail[0] != "string" or not detail[1]):
+            out.append((path, _KINDS[detail[0]], 0))
+        elif (node == Nodetype.ARRAY and detail[0][0] == Nodetype.BASE and detail[0][1][0] in _KINDS
+              and detail[0][1][0] != "string"):
+            out.append((path, _KINDS[detail[0][1][0]], detail[1]))
+        else:
+            return None
+    return out
+
+
+def cdr_decoder(encoding: str, schema: Any) -> CdrType | None:
     """A decoder of ``cdr`` messages of a ``ros2msg`` schema built by rosbags (several times faster
     than mcap_ros2's, the same values; number arrays as numpy arrays), or None where rosbags cannot
     read the schema (mcap_ros2 decodes those)."""
@@ -196,10 +278,156 @@ def cdr_decoder(encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
         store = typestore_of(get_types_from_msg(schema.data.decode(), msgtype), msgtype)
     except Exception:  # a definition (or a rosbags release) rosbags does not parse with: left to mcap_ros2
         return None
-    return lambda data: store.deserialize_cdr(data, msgtype)
+    return CdrType(store, msgtype)
 
 
-def iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:
+class _Block:
+    """One chunk's messages of the chosen channels (a :class:`~.message_log.Block`): ``channel_ids``,
+    ``log_ns`` (uint64) and each message's bytes ``data[starts[i]:starts[i] + sizes[i]]``."""
+
+    def __init__(self, decoders: _Decoders, summary: Any, channel_ids: np.ndarray, log_ns: np.ndarray,
+                 starts: np.ndarray, sizes: np.ndarray, data: bytes) -> None:
+        self.decoders, self.summary = decoders, summary
+        self.channel_ids, self.log_ns, self.starts, self.sizes, self.data = channel_ids, log_ns, starts, sizes, data
+
+    def _schema(self, channel: Any) -> Any:
+        return None if channel.schema_id == 0 else self.summary.schemas[channel.schema_id]
+
+    def first_topic(self) -> str | None:
+        return self.summary.channels[int(self.channel_ids[0])].topic if len(self.channel_ids) else None
+
+    def messages(self) -> Iterator[tuple[str, int, Any]]:
+        for cid, log_ns, start, size in zip(self.channel_ids.tolist(), self.log_ns.tolist(), self.starts.tolist(),
+                                            self.sizes.tolist()):
+            channel = self.summary.channels[cid]
+            yield self.decoders.message(self._schema(channel), channel, self.data[start : start + size], log_ns)
+
+    def columns(self, topic: str) -> Columns | None:
+        ids = [cid for cid in np.unique(self.channel_ids).tolist() if self.summary.channels[cid].topic == topic]
+        if not ids:
+            return Columns(np.zeros(0, np.int64), {})
+        if len(ids) > 1:
+            return None
+        channel = self.summary.channels[ids[0]]
+        mine = self.channel_ids == ids[0]
+        sizes, log_ns = self.sizes[mine], self.log_ns[mine]
+        found = self.decoders.cdr_type(self._schema(channel), channel) if channel.message_encoding == "cdr" else None
+        if found is None or (layout := found.layout()) is None or (sizes != sizes[0]).any() or log_ns.max() >= 2**63:
+            return None
+        starts = self.starts[mine]
+        try:
+            found.decode(self.data[starts[0] : starts[0] + sizes[0]])  # what rosbags would refuse is read one by one
+        except Exception:
+            return None
+        rows = np.frombuffer(self.data, np.uint8)[starts[:, None] + np.arange(sizes[0])]
+        values = decode_many([(kind, count) for _, kind, count in layout], rows)
+        if values is None:
+            return None
+        return Columns(log_ns.astype(np.int64), {name: v for (name, _, _), v in zip(layout, values)})
+
+
+def _indexed_chunks(path: Path, f: Any, summary: Any, topics: list[str]) -> Iterator[tuple]:
+    """Each chunk holding messages of ``topics`` (by the summary's chunk indexes, in their order):
+    the arguments of :class:`_Block`. Records are read with struct; a chunk whose records are not
+    laid out plainly (one that overruns the chunk, a short message record, a schema or channel
+    record that reads otherwise, a message on a channel the summary does not list) is read by the
+    mcap package's own parser, which refuses it as it did."""
+    import mcap.stream_reader as stream_reader
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk, Message
+
+    wanted = {cid for cid, channel in summary.channels.items() if channel.topic in topics}
+    known = set(summary.channels)
+    for index in summary.chunk_indexes:
+        if not wanted.intersection(index.message_index_offsets):
+            continue
+        f.seek(index.chunk_start_offset + 1 + 8)
+        chunk = Chunk.read(ReadDataStream(f))
+        data = _inflated(path, chunk, validate_crc=True)
+        found = _scan_chunk(data, wanted, known)
+        if found is None:
+            records = [r for r in stream_reader.breakup_chunk(chunk, validate_crc=True) if isinstance(r, Message)
+                       and summary.channels[r.channel_id].topic in topics]  # an unknown channel: mcap's KeyError
+            sizes = np.array([len(r.data) for r in records], np.int64)
+            found = ([(r.channel_id, r.log_time, start, size) for r, start, size in
+                      zip(records, np.cumsum(sizes) - sizes, sizes)], b"".join(r.data for r in records))
+        rows, data = found
+        table = np.array([r[0] for r in rows], np.int64), np.array([r[1] for r in rows], np.uint64)
+        yield (*table, np.array([r[2] for r in rows], np.int64), np.array([r[3] for r in rows], np.int64), data)
+
+
+_RECORD = struct.Struct("<BQ")
+_MESSAGE = struct.Struct("<HIQQ")
+
+
+def _scan_chunk(data: bytes, wanted: set[int], known: set[int]) -> tuple[list, bytes] | None:
+    """``([(channel id, log time, start, size)...], data)`` of a chunk's messages on ``wanted``
+    channels, or None when a record is not laid out plainly or a message's channel is not among
+    the ``known`` ones (see :func:`_indexed_chunks`)."""
+    from io import BytesIO
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Channel, Schema
+
+    rows = []
+    pos, end = 0, len(data)
+    while pos < end:
+        if pos + _RECORD.size > end:
+            return None
+        opcode, length = _RECORD.unpack_from(data, pos)
+        body, pos = pos + _RECORD.size, pos + _RECORD.size + length
+        if pos > end:
+            return None
+        if opcode == _OPCODE_MESSAGE:
+            if length < _MESSAGE.size:
+                return None
+            channel_id, _, log_time, _ = _MESSAGE.unpack_from(data, body)
+            if channel_id not in known:
+                return None
+            if channel_id in wanted:
+                rows.append((channel_id, log_time, body + _MESSAGE.size, length - _MESSAGE.size))
+        elif opcode in (_OPCODE_SCHEMA, _OPCODE_CHANNEL):
+            stream = ReadDataStream(BytesIO(data[body:pos]))
+            try:
+                (Schema if opcode == _OPCODE_SCHEMA else Channel).read(stream)
+            except Exception:
+                return None
+            if stream.count != length:
+                return None
+    return rows, data
+
+
+_OPCODE_SCHEMA, _OPCODE_CHANNEL, _OPCODE_MESSAGE = 0x03, 0x04, 0x05
+
+
+@contextlib.contextmanager
+def _bounded_chunks(path: Path) -> Iterator[None]:
+    """While reading, every chunk inflates within bounds (:mod:`.inflate`).
+
+    Both of the ``mcap`` package's readers decompress each chunk through
+    ``mcap.stream_reader.get_chunk_data_stream``, which bounds zstd by the chunk's declared size
+    but inflates lz4 without limit; it has no hook, so for the time of a read that function is
+    :func:`_inflated`, as for the chunks read here.
+    """
+    from io import BytesIO
+
+    import mcap.stream_reader as stream_reader
+    from mcap.data_stream import ReadDataStream
+
+    real = stream_reader.get_chunk_data_stream
+
+    def bounded(chunk: Any, validate_crc: bool = False):
+        data = _inflated(path, chunk, validate_crc)
+        return ReadDataStream(BytesIO(data)), len(data)
+
+    stream_reader.get_chunk_data_stream = bounded
+    try:
+        yield
+    finally:
+        stream_reader.get_chunk_data_stream = real
+
+
+def iter_messages(path: Path, f: Any, topics: list[str] | None) -> Iterator[tuple[Any, Any, Any]]:
     """The file's messages on ``topics``: indexed when it can be, else streamed (a file without a
     footer ends at its last complete record); chunks inflate within bounds."""
     from mcap.exceptions import EndOfFile
@@ -215,32 +443,26 @@ def iter_messages(path: Path, f: Any, topics: list[str]) -> Iterator[tuple[Any, 
             return
 
 
-@contextlib.contextmanager
-def _bounded_chunks(path: Path) -> Iterator[None]:
-    """While reading, every chunk inflates within bounds (:mod:`.inflate`).
+def _inflated(path: Path, chunk: Any, validate_crc: bool) -> bytes:
+    """A chunk's records, inflated within bounds (:mod:`.inflate`) and, with ``validate_crc``,
+    checked against the chunk's CRC as the mcap package checks it (its error)."""
+    import zlib
 
-    Both of the ``mcap`` package's readers decompress each chunk through
-    ``mcap.stream_reader.get_chunk_data_stream``, which bounds zstd by the chunk's declared size
-    but inflates lz4 without limit; it has no hook, so for the time of a read that function checks
-    the declared size first and inflates lz4 here.
-    """
-    import mcap.stream_reader as stream_reader
+    from mcap.stream_reader import CRCValidationError
 
-    real = stream_reader.get_chunk_data_stream
+    where = f"{path}: the MCAP chunk of messages from log time {chunk.message_start_time} ns"
+    check_declared(chunk.uncompressed_size, where)
+    if chunk.compression == "lz4":
+        data = inflate(chunk.data, "lz4", chunk.uncompressed_size, where)
+    elif chunk.compression == "zstd":
+        import zstandard
 
-    def bounded(chunk: Any, validate_crc: bool = False):
-        where = f"{path}: the MCAP chunk of messages from log time {chunk.message_start_time} ns"
-        check_declared(chunk.uncompressed_size, where)
-        if chunk.compression == "lz4":
-            chunk = dataclasses.replace(chunk, compression="",
-                                        data=inflate(chunk.data, "lz4", chunk.uncompressed_size, where))
-        return real(chunk, validate_crc)
-
-    stream_reader.get_chunk_data_stream = bounded
-    try:
-        yield
-    finally:
-        stream_reader.get_chunk_data_stream = real
+        data = zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    else:  # none, or a compression the mcap package does not know: its records as they are
+        data = chunk.data
+    if validate_crc and chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise CRCValidationError(expected=chunk.uncompressed_crc, actual=zlib.crc32(data), record=chunk)
+    return data
 
 
 def read_mcap(path: str | Path, options: LogOptions | None = None, *, name: str | None = None,

@@ -44,7 +44,9 @@ the UTC time of day of the first stamp.
 
 Rates, gaps and memory: see :mod:`.resample` (one 10 Hz grid; IMU samples folded into per-bin
 sums as they stream past, so memory grows with the output, not the log). Only the selected
-topics are decoded.
+topics are decoded. A format that reads in blocks (an MCAP chunk: :class:`Block`) hands over each
+topic's messages of one fixed layout as columns, read by the same rules all at once; a block where
+that is not so (a layout that varies, JSON, a value to refuse) is read message by message.
 """
 
 from __future__ import annotations
@@ -135,6 +137,54 @@ class MessageLog(Protocol):
     def damaged(self, exc: BaseException) -> InputError:
         """The one-line error for a failure of the format's library while reading."""
         ...
+
+
+@dataclass(frozen=True)
+class Columns:
+    """The messages of one topic in a :class:`Block`, field by field."""
+
+    log_ns: np.ndarray  # int64, each message's log time (ns since 1970)
+    # field path ("header.stamp.sec") -> (n,) values, (n, k) for an array field, a string's text (the same in each)
+    fields: dict[str, Any]
+
+
+class Block(Protocol):
+    """Consecutive messages of the chosen channels, in the order the log holds them (an MCAP chunk's)."""
+
+    def first_topic(self) -> str | None:
+        """The topic of the block's first message (None: the block has none)."""
+        ...
+
+    def columns(self, topic: str) -> Columns | None:
+        """Every message of ``topic`` in the block as columns (none: zero rows), or None where they
+        cannot be read so (a layout that varies, JSON, a schema only mcap_ros2 decodes)."""
+        ...
+
+    def messages(self) -> Iterator[tuple[str, int, Any]]:
+        """The block's messages one by one, as :meth:`MessageLog.messages` gives them."""
+        ...
+
+
+@dataclass
+class StreamBlock:
+    """A format's messages as one block read one by one (a format without blocks, or a log read by streaming)."""
+
+    stream: Iterator[tuple[str, int, Any]]
+
+    def first_topic(self) -> str | None:
+        return None
+
+    def columns(self, topic: str) -> Columns | None:
+        return None
+
+    def messages(self) -> Iterator[tuple[str, int, Any]]:
+        return self.stream
+
+
+def _blocks(source: MessageLog, channels: list[ChannelInfo]) -> Iterator[Block]:
+    """The chosen channels' messages in blocks: the format's own (``source.blocks``), else one stream."""
+    blocks = getattr(source, "blocks", None)
+    return blocks(channels) if blocks is not None else iter([StreamBlock(source.messages(channels))])
 
 
 def _pick(channels: list[ChannelInfo], schemas: tuple[str, ...], topic: str | None, what: str, param: str,
@@ -419,19 +469,180 @@ class _Messages:
         readers = {"IMU": self._imu, "GNSS": self._gnss, "GNSS velocity": self._gnss_velocity,
                    "reference (truth)": self._local_reference if local_reference else self._reference_fix}
         try:
-            for topic, log_ns, msg in source.messages(sel.chosen):
-                role = roles[topic]
-                try:
-                    readers.get(role, self._vehicle_speed)(topic, log_ns, msg)
-                except (KeyError, AttributeError, TypeError, ValueError) as exc:
-                    raise InputError(f"{self.path}: topic {topic}: message lacks a field ({type(exc).__name__}: {exc})",
-                                     f"expected the {role} field names of "
-                                     f"{({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}"
-                                     ) from None
+            for block in _blocks(source, sel.chosen):
+                if self._read_columns(block, roles):
+                    continue
+                for topic, log_ns, msg in block.messages():
+                    role = roles[topic]
+                    try:
+                        readers.get(role, self._vehicle_speed)(topic, log_ns, msg)
+                    except (KeyError, AttributeError, TypeError, ValueError) as exc:
+                        raise InputError(f"{self.path}: topic {topic}: message lacks a field "
+                                         f"({type(exc).__name__}: {exc})",
+                                         f"expected the {role} field names of "
+                                         f"{({'IMU': IMU_SCHEMAS, 'GNSS': GNSS_SCHEMAS}.get(role, SPEED_SCHEMAS))[0]}"
+                                         ) from None
         except InputError:
             raise
         except Exception as exc:
             raise source.damaged(exc) from None
+
+    def _read_columns(self, block: Block, roles: dict[str, str]) -> bool:
+        """Read a block's messages topic by topic as columns, with the same result as reading them
+        one by one; False (nothing read) where a topic's messages are not columns, lack a field,
+        or hold a value that is refused (then the messages are read one by one, which refuses it)."""
+        columns = {}
+        for topic in roles:
+            if (found := block.columns(topic)) is None:
+                return False
+            columns[topic] = found
+        first = block.first_topic()
+        if first is None:
+            return True
+        readers = {"IMU": self._imu_columns, "GNSS": self._gnss_columns, "GNSS velocity": self._velocity_columns,
+                   "reference (truth)": self._reference_columns, "vehicle speed": self._vehicle_columns}
+        origin_ns = self.origin_ns
+        try:
+            if origin_ns is None:
+                first_ns = int(self._stamps_ns(columns[first])[0])
+                origin_ns = first_ns - first_ns % 1_000_000_000
+            commits = [readers[role](topic, columns[topic], origin_ns) for topic, role in roles.items()
+                       if len(columns[topic].log_ns)]
+        except (KeyError, IndexError, TypeError, ValueError):  # another type's fields or shapes: read one by one
+            return False
+        if any(commit is None for commit in commits):
+            return False
+        self.origin_ns = origin_ns
+        for commit in commits:
+            commit()
+        return True
+
+    def _stamps_ns(self, c: Columns) -> np.ndarray:
+        """Each message's stamp (ns since 1970) as :meth:`_when` takes it: the header stamp, the log
+        time where that is zero (or with ``stamps='log'``)."""
+        if self.stamps == "log":
+            return c.log_ns
+        ns = c.fields["header.stamp.sec"].astype(np.int64) * 1_000_000_000 + c.fields["header.stamp.nanosec"]
+        return np.where(ns > 0, ns, c.log_ns)
+
+    def _seconds_many(self, c: Columns, origin_ns: int) -> np.ndarray:
+        return (self._stamps_ns(c) - origin_ns).astype(float) * 1e-9
+
+    def _plausible(self, *checks: tuple[str, np.ndarray]) -> bool:
+        return all(first_implausible(column, values) is None for column, values in checks)
+
+    def _in_order_many(self, role: str, t: np.ndarray) -> None:
+        """:meth:`_in_order` of each stamp ``t`` in turn."""
+        if not len(t):
+            return
+        before = np.concatenate([[self.last_t.get(role, -math.inf)], t[:-1]])
+        backwards = t < before
+        if backwards.any():
+            i = int(np.argmax(backwards))
+            seen = self.backwards.setdefault(role, [0, float(t[i]), float(before[i])])
+            seen[0] += int(backwards.sum())
+        self.last_t[role] = float(t[-1])
+
+    def _imu_columns(self, topic: str, c: Columns, origin_ns: int):
+        """:meth:`_imu` of every message in ``c``: a function that adds them."""
+        t = self._seconds_many(c, origin_ns)
+        linear = c.fields["linear_acceleration_covariance"][:, 0] == -1.0
+        angular = ~linear & (c.fields["angular_velocity_covariance"][:, 0] == -1.0)
+        keep = ~(linear | angular)
+        samples = np.column_stack([t, *(c.fields[f"linear_acceleration.{a}"] for a in AXES),
+                                   *(c.fields[f"angular_velocity.{a}"] for a in AXES)]).astype(float)[keep]
+
+        def commit() -> None:
+            for name, skipped in (("linear acceleration", linear), ("angular velocity", angular)):
+                if skipped.any():
+                    self.not_provided[name] = self.not_provided.get(name, 0) + int(skipped.sum())
+            self._in_order_many("IMU", samples[:, 0])
+            self.imu.add_many(samples)
+        return commit
+
+    def _gnss_columns(self, topic: str, c: Columns, origin_ns: int):
+        """:meth:`_gnss` of every message in ``c`` (a NavSatFix): a function that adds them, or
+        None when one of them would be refused."""
+        if self.sel.gnss.schema not in GNSS_SCHEMAS[:2]:
+            return None
+        t = self._seconds_many(c, origin_ns)
+        lat, lon = c.fields["latitude"].astype(float), c.fields["longitude"].astype(float)
+        keep = (c.fields["status.status"] >= 0) & np.isfinite(lat) & np.isfinite(lon)
+        if not self._plausible(("lat_deg", lat[keep]), ("lon_deg", lon[keep])):
+            return None
+        covariance = c.fields["position_covariance"].astype(float)
+        variance = np.where(covariance[:, 4] > covariance[:, 0], covariance[:, 4], covariance[:, 0])
+        known = (c.fields["position_covariance_type"] != 0) & np.isfinite(variance) & (variance >= 0)
+        sigma = np.where(known, np.sqrt(np.where(known, variance, 0.0)), math.nan)
+        rows = np.column_stack([t, lat, lon, c.fields["altitude"].astype(float), sigma])[keep]
+
+        def commit() -> None:
+            self.dropped_no_fix += int((~keep).sum())
+            self._in_order_many("GNSS", rows[:, 0])
+            self.gnss.extend(map(tuple, rows.tolist()))
+        return commit
+
+    def _reference_columns(self, topic: str, c: Columns, origin_ns: int):
+        """:meth:`_reference_fix` (or :meth:`_local_reference`) of every message in ``c``: a function
+        that adds them, or None when one would be refused."""
+        schema = self.sel.reference.schema
+        t = self._seconds_many(c, origin_ns)
+        if schema not in GNSS_SCHEMAS:
+            pose = "pose" if schema in POSE_SCHEMAS[:2] else "pose.pose"
+            x, y = (c.fields[f"{pose}.position.{a}"].astype(float) for a in "xy")
+            frame = str(c.fields["header.frame_id"]).strip("/").lower()
+
+            def commit_local() -> None:
+                if not self.reference_frame:
+                    self.reference_frame.append(frame)
+                self._in_order_many("reference (truth)", t)
+                self.reference.extend(zip(t.tolist(), x.tolist(), y.tolist()))
+            return commit_local
+        if schema not in GNSS_SCHEMAS[:2]:
+            return None
+        lat, lon = c.fields["latitude"].astype(float), c.fields["longitude"].astype(float)
+        keep = (c.fields["status.status"] >= 0) & np.isfinite(lat) & np.isfinite(lon)
+        if not self._plausible(("lat_deg", lat[keep]), ("lon_deg", lon[keep])):
+            return None
+        rows = np.column_stack([t, lat, lon])[keep]
+
+        def commit() -> None:
+            self._in_order_many("reference (truth)", rows[:, 0])
+            self.reference.extend(map(tuple, rows.tolist()))
+        return commit
+
+    def _velocity_columns(self, topic: str, c: Columns, origin_ns: int):
+        """:meth:`_gnss_velocity` of every message in ``c`` (a TwistStamped): a function that adds
+        them, or None when one would be refused."""
+        if self.sel.gnss_velocity.schema not in TWIST_SCHEMAS:
+            return None
+        t = self._seconds_many(c, origin_ns).tolist()
+        east, north = (c.fields[f"twist.linear.{a}"].astype(float).tolist() for a in "xy")
+        # math's functions, as one message at a time: numpy's may round the last bit otherwise
+        rows = [(ti, math.hypot(e, n), math.degrees(math.atan2(e, n)) % 360.0) for ti, e, n in zip(t, east, north)]
+        if not self._plausible(("speed_mps", np.array([r[1] for r in rows]))):
+            return None
+
+        def commit() -> None:
+            self._in_order_many("GNSS velocity", np.array(t))
+            self.speed.extend(rows)
+        return commit
+
+    def _vehicle_columns(self, topic: str, c: Columns, origin_ns: int):
+        """:meth:`_vehicle_speed` of every message in ``c``: a function that adds them, or None when
+        one would be refused."""
+        schema = self.sel.vehicle_speed.schema
+        if schema not in SPEED_SCHEMAS:
+            return None
+        t = self._seconds_many(c, origin_ns)
+        v = np.abs(c.fields["twist.twist.linear.x" if schema in ODOMETRY_SCHEMAS else "twist.linear.x"].astype(float))
+        if not self._plausible(("speed_can_mps", v)):
+            return None
+
+        def commit() -> None:
+            self._in_order_many("vehicle speed", t)
+            self.vehicle.extend(zip(t.tolist(), v.tolist()))
+        return commit
 
     def warn_skipped(self) -> None:
         """Say which IMU messages were skipped ('not provided') and which came out of stamp order;
