@@ -209,3 +209,36 @@ def test_imu_bins_take_many_samples_as_one_by_one():
         assert np.array_equal(got, expected)
     assert np.array_equal(many.kept_samples(), one.kept_samples())
     assert seen["many"] == seen["one"] == [IMU_BLOCK_SAMPLES, IMU_BLOCK_SAMPLES, 12345]
+
+
+def test_a_type_defined_otherwise_under_the_same_name_is_read_by_its_own_definition(tmp_path):
+    """Parsed definitions are kept per process: a log whose sensor_msgs/msg/Imu carries one more
+    field (a vendor's build) is read by its own definition, after a log with the standard one."""
+    from mcap_ros2.writer import Writer
+
+    standard = iv.load_drive(fx.write_ros2(tmp_path / "standard.mcap", duration_s=10.0))
+    definition = DEFINITIONS["sensor_msgs/msg/Imu"].replace(
+        "float64[9] linear_acceleration_covariance", "float64[9] linear_acceleration_covariance\nfloat32 temperature", 1)
+    assert "temperature" in definition
+    path = tmp_path / "vendor.mcap"
+    with open(path, "wb") as f:
+        writer = Writer(f)
+        imu = writer.register_msgdef("sensor_msgs/msg/Imu", definition)
+        fix = writer.register_msgdef("sensor_msgs/msg/NavSatFix", DEFINITIONS["sensor_msgs/msg/NavSatFix"])
+        for i, t in enumerate(np.arange(0.0, 10.0, 0.01)):
+            stamp, log_ns = _stamp(fx.T0_S + t), round((fx.T0_S + t) * 1e9)
+            writer.write_message("/imu", imu, {
+                "header": {"stamp": stamp, "frame_id": "imu"}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                "orientation_covariance": [-1.0] + [0.0] * 8, "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.02},
+                "angular_velocity_covariance": [0.0] * 9, "linear_acceleration": {"x": 0.5, "y": 0.0, "z": 9.81},
+                "linear_acceleration_covariance": [0.0] * 9, "temperature": 40.0}, log_time=log_ns, publish_time=log_ns)
+            if i % 20 == 0:
+                lat, lon = fx.truth_position(np.array([t]))
+                writer.write_message("/fix", fix, {
+                    "header": {"stamp": stamp, "frame_id": "gps"}, "status": {"status": 0, "service": 1},
+                    "latitude": float(lat[0]), "longitude": float(lon[0]), "altitude": 100.0,
+                    "position_covariance": [0.0] * 9, "position_covariance_type": 0}, log_time=log_ns, publish_time=log_ns)
+        writer.finish()
+    vendor = iv.load_drive(path)
+    assert np.array_equal(vendor.accel_long_mps2, np.full(len(vendor), 0.5))
+    assert np.array_equal(standard.accel_long_mps2, np.full(len(standard), fx.ACCEL_MPS2))

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import logging
 import struct
 from collections.abc import Callable, Iterator
@@ -268,14 +269,26 @@ def cdr_decoder(encoding: str, schema: Any) -> CdrType | None:
     read the schema (mcap_ros2 decodes those)."""
     if encoding != "cdr" or schema is None or schema.encoding != "ros2msg":
         return None
+    definition = bytes(schema.data)
+    parse = _parsed_type if len(definition) <= CACHED_DEFINITION_BYTES else _parsed_type.__wrapped__
+    return parse(schema.name, definition)
+
+
+#: Message definitions up to this size (bytes; a standard one is a few KiB) are parsed once per process.
+CACHED_DEFINITION_BYTES = 65536
+
+
+@functools.lru_cache(maxsize=64)
+def _parsed_type(name: str, definition: bytes) -> CdrType | None:
+    """:func:`cdr_decoder`'s type (parsing a definition takes tens of ms)."""
     try:
         from rosbags.typesys import get_types_from_msg
         from rosbags.typesys.msg import normalize_msgtype
 
         from .rosbag_reader import typestore_of
 
-        msgtype = normalize_msgtype(schema.name)
-        store = typestore_of(get_types_from_msg(schema.data.decode(), msgtype), msgtype)
+        msgtype = normalize_msgtype(name)
+        store = typestore_of(get_types_from_msg(definition.decode(), msgtype), msgtype)
     except Exception:  # a definition (or a rosbags release) rosbags does not parse with: left to mcap_ros2
         return None
     return CdrType(store, msgtype)
