@@ -242,3 +242,27 @@ def test_a_type_defined_otherwise_under_the_same_name_is_read_by_its_own_definit
     vendor = iv.load_drive(path)
     assert np.array_equal(vendor.accel_long_mps2, np.full(len(vendor), 0.5))
     assert np.array_equal(standard.accel_long_mps2, np.full(len(standard), fx.ACCEL_MPS2))
+
+
+def test_a_damaged_chunk_after_the_first_is_one_line(tmp_path):
+    """A log with a velocity topic and a corrupted chunk past its first: reading a TwistStamped's
+    first frame used to read every chunk and let the mcap package's CRC error out as a traceback
+    (exit 1); now the chunk is met when it is read, and refused in one line."""
+    from mcap.reader import make_reader
+
+    from ionav_viz.sim.imu import SIM_TRUTH_TOPIC, write_imu_log
+
+    from .conftest import run_cli
+
+    path = tmp_path / "damaged.mcap"
+    write_imu_log(path, "roundabout", 1, 60.0, "mems")
+    with open(path, "rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert len(chunks) > 2
+    data = bytearray(path.read_bytes())
+    data[chunks[2].chunk_start_offset + chunks[2].chunk_length // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+    proc = run_cli("evaluate", str(path), "--truth-topic", SIM_TRUTH_TOPIC, "--no-idnn")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.startswith(f"error: {path}: ") and ("corrupted" in proc.stderr or "damaged" in proc.stderr)
