@@ -25,7 +25,7 @@ from ..core.drive import Drive
 from ..core.errors import InputError
 from .cdr import decode_many
 from .inflate import check_declared, inflate
-from .message_log import ChannelInfo, Columns, StreamBlock, decode_json, read_log
+from .message_log import Block, ChannelInfo, Columns, StreamBlock, decode_json, read_log
 
 if TYPE_CHECKING:
     from .log_options import LogOptions
@@ -169,7 +169,7 @@ class McapLog:
         for block in self.blocks(channels):
             yield from block.messages()
 
-    def blocks(self, channels: list[ChannelInfo]) -> Iterator[Any]:
+    def blocks(self, channels: list[ChannelInfo]) -> Iterator[Block]:
         """The messages of ``channels`` chunk by chunk (:class:`~.message_log.Block`) when the file is
         complete and indexed, else all of them as one block, streamed (:func:`iter_messages`)."""
         path = self.path
