@@ -224,11 +224,30 @@ def test_two_runs_in_parallel(recording, tmp_path):
     assert _viewers_under(private_tmp) == set()
 
 
+def _no_renderer_env(tmp_path):
+    """Environment variables under which the viewer finds no renderer."""
+    return {"VK_ICD_FILENAMES": str(tmp_path / "none.json"), "LIBGL_ALWAYS_SOFTWARE": "0", "MESA_LOADER_DRIVER_OVERRIDE": "none",
+            "GALLIUM_DRIVER": "none", "WGPU_BACKEND": "vulkan"}
+
+
+def _viewer_children():
+    """Headless viewer processes started by this process."""
+    from pathlib import Path
+
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and f"PPid:\t{os.getpid()}\n" in (proc / "status").read_text() and b"--headless" in (proc / "cmdline").read_bytes():
+                found.append(proc.name)
+        except OSError:
+            continue
+    return found
+
+
 def test_missing_renderer_is_a_clear_error_and_leaves_no_viewer(recording, tmp_path):
     private_tmp = tmp_path / "tmp"
     private_tmp.mkdir()
-    env = {"TMPDIR": str(private_tmp), "VK_ICD_FILENAMES": str(tmp_path / "none.json"), "LIBGL_ALWAYS_SOFTWARE": "0", "MESA_LOADER_DRIVER_OVERRIDE": "none",
-           "GALLIUM_DRIVER": "none", "WGPU_BACKEND": "vulkan"}
+    env = {"TMPDIR": str(private_tmp), **_no_renderer_env(tmp_path)}
     proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "x.png"), "--size", "400x300", env=env, timeout=HANG_S)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "mesa-vulkan-drivers" in proc.stderr and "Traceback" not in proc.stderr
@@ -236,6 +255,32 @@ def test_missing_renderer_is_a_clear_error_and_leaves_no_viewer(recording, tmp_p
     assert not (tmp_path / "x.png").exists()
     assert _viewers_under(private_tmp) == set()  # the viewer is stopped before the command returns
     assert list(private_tmp.iterdir()) == []
+
+
+def test_the_recording_is_read_while_the_viewer_starts_and_bad_input_is_said_first(recording, tmp_path, monkeypatch):
+    """The viewer is started first and the recording read while it starts and its start-up toasts
+    fade (it was read before, the viewer's wait coming after). A bad option found in reading it
+    is still said, not a missing renderer, and stops the viewer: no viewer and no file left."""
+    import ionav_viz as iv
+    import ionav_viz.viz.screenshot as screenshot
+    from ionav_viz.core.errors import InputError
+
+    real, viewers_while_reading = screenshot.read_recording_info, []
+
+    def read(path):
+        viewers_while_reading.append(len(_viewer_children()))
+        return real(path)
+
+    monkeypatch.setattr(screenshot, "read_recording_info", read)
+    out = tmp_path / "out"
+    for env in ({}, _no_renderer_env(tmp_path)):
+        with monkeypatch.context() as m:
+            for name, value in env.items():
+                m.setenv(name, value)
+            with pytest.raises(InputError, match="no outage 999"):
+                iv.screenshot(recording, out / "x.png", iv.Shots(views=["local"], outages=[999]))
+        assert _viewer_children() == [] and not out.exists()
+    assert viewers_while_reading[0] == 1, viewers_while_reading
 
 
 def test_replay_with_screenshot_dir(tmp_path):

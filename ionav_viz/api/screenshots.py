@@ -7,9 +7,13 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_regular_input, refuse_output_onto_input
+
+if TYPE_CHECKING:
+    from ..viz.viewer import HeadlessViewer
 
 log = logging.getLogger("ionav_viz")
 
@@ -57,7 +61,7 @@ def screenshot(
     Returns:
         the written PNG paths. Needs a Vulkan renderer (Mesa's lavapipe on machines without a GPU).
     """
-    from ..viz.screenshot import check_size, render
+    from ..viz.screenshot import check_size
 
     paths = [Path(recordings)] if isinstance(recordings, (str, Path)) else [Path(r) for r in recordings]
     if not paths:
@@ -84,8 +88,20 @@ def screenshot(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"{out}: cannot write in {existing} (permission denied)", "choose a writable output directory",
                          param="output")
+    from ..viz.viewer import HeadlessViewer
+
+    # the viewer starts first: the recordings are read, and the images planned, while it starts and its
+    # start-up toasts fade (a bad recording or option is still said first, and stops it)
+    with HeadlessViewer(width, height, timeout_s=timeout_s) as viewer:
+        return _render(paths, out, single, folder, shots, (width, height), timeout_s, progress, viewer)
+
+
+def _render(paths: list[Path], out: Path, single: bool, folder: Path, shots: Shots, size: tuple[int, int],
+            timeout_s: float, progress: Callable[[Path], None] | None, viewer: HeadlessViewer) -> list[Path]:
+    """:func:`screenshot`'s images, by the started ``viewer``: fleet overviews, then replays."""
     from ..viz.fleet import screenshot_fleet
     from ..viz.recording_info import is_fleet_recording
+    from ..viz.screenshot import render
 
     fleets = [p for p in paths if is_fleet_recording(p)]
     if fleets and (tuple(shots.times) != ("end",) or tuple(shots.views) != ("all",) or shots.outages):
@@ -98,12 +114,12 @@ def screenshot(
         png = out if single or (out.suffix.lower() == ".png" and len(paths) == 1) else folder / f"{rec.stem}.png"
         if png is not out:
             png.parent.mkdir(parents=True, exist_ok=True)
-        written.append(screenshot_fleet(rec, png, (width, height), timeout_s))
+        written.append(screenshot_fleet(rec, png, size, timeout_s, viewer=viewer))
         if progress:
             progress(png)
     paths = [p for p in paths if p not in fleets]
     if not paths:
         return written
     spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in shots.times]
-    return written + render(paths, Path(output), spec, list(shots.views), (width, height), timeout_s=timeout_s,
-                            progress=progress, outages=[int(n) for n in shots.outages], worst_of=shots.worst_of)
+    return written + render(paths, out, spec, list(shots.views), size, timeout_s=timeout_s, progress=progress,
+                            outages=[int(n) for n in shots.outages], worst_of=shots.worst_of, viewer=viewer)

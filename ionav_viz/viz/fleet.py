@@ -22,6 +22,7 @@ from ..analysis.metrics import summarise
 from .recording import APP_ID, streamed_to
 from .recording_info import FLEET_ID_PREFIX, rrd_reader
 from .style import estimator_colors
+from .viewer import HeadlessViewer
 
 #: Entity paths of the fleet recording.
 FLEET_TABLE = "fleet/drives"
@@ -182,19 +183,21 @@ def write_fleet_recording(report: FleetReport, path: Path, target: Path | None =
     return rows
 
 
-def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_s: float = 120.0) -> Path:
-    """A PNG of the fleet overview ``recording`` in its own layout, by the private headless viewer."""
+def screenshot_fleet(recording: Path, out: Path, size: tuple[int, int], timeout_s: float = 120.0,
+                     viewer: HeadlessViewer | None = None) -> Path:
+    """A PNG of the fleet overview ``recording`` in its own layout, by the private headless viewer
+    (``viewer``: a started one of ``size``, else one is started and shut down here)."""
+    import contextlib
     import time
 
     from ..core.fileio import utf8_alias
     from .blueprints import without_panels
     from .screenshot import draw_key
-    from .viewer import HeadlessViewer
 
     with utf8_alias(Path(recording)) as readable:
         ids = [str(r.recording_id) for r in rrd_reader(readable).recordings()]
     title = next((i for i in ids if i.startswith(FLEET_ID_PREFIX)), FLEET_ID_PREFIX)
-    with HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
+    with HeadlessViewer(*size, timeout_s=timeout_s) if viewer is None else contextlib.nullcontext(viewer) as viewer:
         viewer.open(Path(recording))
         time.sleep(SCREENSHOT_SETTLE_S)
         # the band above the views (the viewer's title bar) says what the image is, as a replay's key does

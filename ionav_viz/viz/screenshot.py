@@ -189,12 +189,18 @@ def output_paths(out: Path, stem: str, requests: list[tuple[str, str]], single_f
 
 def render(recordings: list[Path], out: Path, times: list[str], views: list[str], size: tuple[int, int],
            timeout_s: float = 120.0, progress=None, outages: Sequence[int] = (),
-           worst_of: str = BASELINE) -> list[Path]:
+           worst_of: str = BASELINE, viewer: HeadlessViewer | None = None) -> list[Path]:
     """Render every (recording, time or outage, view) combination with one headless viewer; returns the PNGs.
 
     ``times``: ``'35s'``, ``'end'`` or ``'worst'`` (the outage with the largest final position error
     of ``worst_of``, framed); ``outages``: outage numbers, each framed and shown at its end.
+    ``viewer``: a started viewer of ``size`` to render with (else one is started and shut down here).
+    Bad input is said before a missing renderer, and leaves neither a folder nor a viewer behind.
     """
+    if viewer is None:
+        # started first: the recordings are read while it starts and its toasts fade
+        with HeadlessViewer(*size, timeout_s=timeout_s) as own:
+            return render(recordings, out, times, views, size, timeout_s, progress, outages, worst_of, own)
     for view in views:
         if view not in VIEWS:
             raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}", param="views")
@@ -218,7 +224,8 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
     if out.suffix.lower() != ".png" or len(plans[0][2]) > 1 or len(infos) > 1:
         folder = out if out.suffix.lower() != ".png" else out.parent
     written: list[Path] = []
-    with made_folders(folder), HeadlessViewer(*size, timeout_s=timeout_s) as viewer:
+    with made_folders(folder):
+        viewer.ready()
         tiles = map_tiles_reachable()  # once the viewer runs: a missing renderer is said first, alone
         if not tiles and any(v in ("map", "all") for v in views):
             log.warning("map tiles cannot load (%s is unreachable): screenshots draw the local east-north view in "

@@ -19,6 +19,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -54,6 +55,8 @@ def rerun_executable() -> str:
 class HeadlessViewer:
     """A private headless Rerun viewer process; use as a context manager (always shut down)."""
 
+    #: Seconds between tries to reach a starting viewer.
+    poll_s = 0.05
     #: Seconds to let the viewer draw after a change of blueprint and time, before the screenshot.
     settle_s = 0.4
     #: No screenshot before this many seconds after the viewer answered: at its start it shows two
@@ -71,50 +74,85 @@ class HeadlessViewer:
         self.proc: subprocess.Popen | None = None
         self.client: Any = None
         self._answered = 0.0  # when the viewer first answered (time.monotonic())
+        self._watcher: threading.Thread | None = None  # notes when the viewer first answers
+        self._stopping = threading.Event()
+        self._failure: RendererMissing | None = None  # the viewer could not be started
         self._old_handlers: dict[int, Any] = {}
 
     def __enter__(self) -> HeadlessViewer:
-        from rerun.experimental import ViewerClient
-
+        """Start the viewer process and return at once: the caller's work before its first call (reading
+        recordings, planning images) runs while the viewer starts and its toasts fade; :meth:`ready`
+        (and every call) waits for its answer."""
         # SIGTERM and SIGHUP become an exception too (as Ctrl-C is), so __exit__ always runs.
         for sig in STOP_SIGNALS:
             with contextlib.suppress(ValueError):  # not the main thread
                 self._old_handlers[sig] = signal.signal(sig, raise_terminated)
         try:
-            self._start(ViewerClient)
+            self._spawn()
         except BaseException:
             self.__exit__(*sys.exc_info())
             raise
         return self
 
-    def _start(self, client_cls) -> None:
-        for _attempt in range(3):  # another process may grab the free port first
-            port = free_port()
-            with open(self.log_path, "ab") as log:
-                self.proc = subprocess.Popen(
-                    [rerun_executable(), "--headless", "--port", str(port), "--window-size",
-                     f"{self.width}x{self.height}", "--hide-welcome-screen", "--memory-limit", "25%"],
-                    stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
-                    # TMPDIR: the viewer's own scratch folders go into ours and are removed with it
-                    env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn"),
-                         "TMPDIR": self._dir.name},
-                )
-            url = f"rerun+http://127.0.0.1:{port}/proxy"
-            deadline = time.monotonic() + min(30.0, self.timeout_s)
-            while time.monotonic() < deadline:
-                if self.proc.poll() is not None:
-                    break
-                try:
-                    self.client = client_cls.connect(url)
-                    self.client.get_state()
-                    self._answered = time.monotonic()
-                    return
-                except Exception:
-                    time.sleep(0.2)
-            if self.proc.poll() is None:
+    def _spawn(self) -> None:
+        """Start the viewer process on a free port, and a thread that notes when it first answers.
+        A viewer that cannot start is said by :meth:`ready`, after the caller's own errors."""
+        try:
+            executable = rerun_executable()
+        except RendererMissing as exc:
+            self._failure = exc
+            return
+        port = free_port()
+        with open(self.log_path, "ab") as log:
+            self.proc = subprocess.Popen(
+                [executable, "--headless", "--port", str(port), "--window-size",
+                 f"{self.width}x{self.height}", "--hide-welcome-screen", "--memory-limit", "25%"],
+                stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
+                # TMPDIR: the viewer's own scratch folders go into ours and are removed with it
+                env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn"),
+                     "TMPDIR": self._dir.name},
+            )
+        from rerun.experimental import ViewerClient  # imported here, never in the thread (Python's import locks)
+
+        self._watcher = threading.Thread(target=self._watch, args=(ViewerClient, self.proc, port),
+                                         name="ionav-viewer-answer", daemon=True)
+        self._watcher.start()
+
+    def _watch(self, client_cls, proc: subprocess.Popen, port: int) -> None:
+        """In a thread: connect until the viewer answers (then set :attr:`client` and when it answered),
+        it exits, the start-up deadline passes or the viewer is being shut down."""
+        url = f"rerun+http://127.0.0.1:{port}/proxy"
+        deadline = time.monotonic() + self.answer_limit_s
+        while time.monotonic() < deadline and proc.poll() is None and not self._stopping.is_set():
+            try:
+                client = client_cls.connect(url)
+                client.get_state()
+            except Exception:
+                self._stopping.wait(self.poll_s)
+                continue
+            self._answered = time.monotonic()
+            self.client = client
+            return
+
+    @property
+    def answer_limit_s(self) -> float:
+        """Longest wait for a started viewer's first answer."""
+        return min(30.0, self.timeout_s)
+
+    def ready(self) -> None:
+        """Wait until the viewer answers; :class:`RendererMissing` if it cannot start. At once once it has."""
+        for attempt in range(3):  # another process may grab the free port first
+            if attempt:
+                self._spawn()
+            if self._failure is not None:
+                raise self._failure
+            while self._watcher is not None and self._watcher.is_alive():
+                self._watcher.join(0.1)  # short waits: a signal's handler runs between them
+            if self.client is not None:
+                return
+            if self.proc is not None and self.proc.poll() is None:
                 self._stop()
-                raise RendererMissing("the headless Rerun viewer did not answer within "
-                                      f"{min(30.0, self.timeout_s):.0f} s")
+                raise RendererMissing(f"the headless Rerun viewer did not answer within {self.answer_limit_s:.0f} s")
             if "Address already in use" not in self._log_tail():
                 self._raise_dead()
         self._raise_dead()
@@ -136,7 +174,9 @@ class HeadlessViewer:
         )
 
     def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        """A ViewerClient call; a dead viewer becomes :class:`RendererMissing`."""
+        """A ViewerClient call, once the viewer answers (:meth:`ready`); a dead viewer becomes
+        :class:`RendererMissing`."""
+        self.ready()
         try:
             return getattr(self.client, method)(*args, **kwargs)
         except (KeyboardInterrupt, SystemExit):
@@ -189,7 +229,10 @@ class HeadlessViewer:
                     pass
 
     def __exit__(self, *exc: Any) -> None:
+        self._stopping.set()
         self._stop()
+        if self._watcher is not None:
+            self._watcher.join(5.0)  # it stops at its next try (the viewer is gone)
         for sig, old in self._old_handlers.items():
             signal.signal(sig, old)
         self._old_handlers = {}
