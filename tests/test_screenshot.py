@@ -29,11 +29,65 @@ def recording(tmp_path_factory):
     out = tmp_path_factory.mktemp("rec") / "sharp.rrd"
     proc = run_cli("replay", "sharp-cornering", "--outage", "10s", "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
-    probe = run_cli("screenshot", str(out), "-o", str(out.with_suffix(".png")), "--size", "400x300")
-    if probe.returncode == 1 and "mesa-vulkan-drivers" in probe.stderr and not os.environ.get("CI"):
-        pytest.skip(f"no renderer on this machine: {probe.stderr.strip()}")
-    assert probe.returncode == 0, probe.stderr
     return out
+
+
+def _no_renderer(proc) -> bool:
+    """Whether ``proc`` failed for want of a renderer, on a machine other than CI's (which has one)."""
+    return proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI")
+
+
+#: The images of the recording the tests below look at: per size, the views, times and outage numbers
+#: that one ``screenshot`` command renders (one PNG each, named <drive>-<view>-<time>.png), for every
+#: test that looks at that size. A viewer costs seconds to start (its start-up toasts must fade first),
+#: an image a fraction of one.
+BATCHES = {
+    "800x450": (("local",), ("worst", "291s", "0ms"), ("3", "7")),
+    "800x600": (("map", "local", "signals", "errors"), ("35s", "end"), ()),
+    "1200x700": (("map", "local"), ("worst",), ()),
+    "1280x720": (("all", "signals", "errors"), ("end", "worst"), ()),
+    "1600x900": (("all", "signals", "errors"), ("end", "worst", "305s"), ()),
+    "1024x576": (("all", "signals", "errors", "health"), ("end", "worst"), ()),
+}
+
+
+class Shots:
+    """The images of ``batches`` (as :data:`BATCHES`) of ``recording`` (of the drive ``drive``), each
+    size's rendered by one command when a test first asks."""
+
+    def __init__(self, recording, root, batches=BATCHES, drive="V-sim-sharp-cornering"):
+        self.recording, self.root, self.batches, self.drive, self.procs = recording, root, batches, drive, {}
+
+    def folder(self, size: str):
+        """The folder of ``size``'s images (skips the test where nothing renders)."""
+        if size not in self.procs:
+            views, times, numbers = self.batches[size]
+            args = [a for v in views for a in ("--view", v)] + [a for t in times for a in ("--time", t)]
+            args += [a for n in numbers for a in ("--outage-number", n)]
+            self.procs[size] = run_cli("screenshot", str(self.recording), "-o", str(self.root / size), "--size", size,
+                                       *args)
+        proc = self.procs[size]
+        if _no_renderer(proc):
+            pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+        assert proc.returncode == 0, proc.stderr
+        return self.root / size
+
+    def __call__(self, size: str, view: str, label: str):
+        """The image of ``view`` at ``label`` (``worst``, ``end``, ``0035.0s``, ``outage3``) and ``size``."""
+        png = self.folder(size) / f"{self.drive}-{view}-{label}.png"
+        assert png.is_file(), sorted(p.name for p in png.parent.iterdir())
+        return png
+
+
+@pytest.fixture(scope="module")
+def shots(recording, tmp_path_factory):
+    return Shots(recording, tmp_path_factory.mktemp("shots"))
+
+
+@pytest.fixture
+def renderer(shots):
+    """For a test that needs the viewer to render: skipped where nothing renders (outside CI)."""
+    shots.folder("800x450")
 
 
 def _image(path):
@@ -53,14 +107,11 @@ def _extent_of(path, rgb, tol=30):
     return (int(np.ptp(xs)), int(np.ptp(ys))) if len(xs) else (0, 0)
 
 
-def test_worst_outage_local_view_frames_that_outage(recording, tmp_path):
+def test_worst_outage_local_view_frames_that_outage(shots):
     """Framed: the outage's own GNSS track (full green; the rest of the drive is drawn faint) spans a
     large part of the image, where the whole-drive view shows it a few pixels long; every
     estimator's colour is there (in the key at least: a track can lie under another one's)."""
-    framed, whole = tmp_path / "framed.png", tmp_path / "whole.png"
-    assert run_cli("screenshot", str(recording), "-o", str(framed), "--view", "local", "--time", "worst", "--size", "800x450").returncode == 0
-    proc = run_cli("screenshot", str(recording), "-o", str(whole), "--view", "local", "--time", "291s", "--size", "800x450")
-    assert proc.returncode == 0, proc.stderr
+    framed, whole = shots("800x450", "local", "worst"), shots("800x450", "local", "0291.0s")
     w, h = _extent_of(framed, GNSS_COLOR)
     assert w > 0.5 * 800 or h > 0.5 * (450 - TITLE_BAR_PX - 40), (w, h)
     w_whole, h_whole = _extent_of(whole, GNSS_COLOR)  # the same time (the worst outage's end), not framed
@@ -80,7 +131,7 @@ def _static_points(path, entity):
     return 0
 
 
-def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_path):
+def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, shots):
     """Events and outage starts carry names, but only in hover text. A label is drawn in its marker's
     colour: with labels turned on, the event colour covered 8,548 pixels of this local view (the bound
     is 3,770); by default it stays within the markers. No white text over the tracks either (the local view's scale bar,
@@ -91,9 +142,8 @@ def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_pa
     assert n_events > 20
     marker_px = np.pi * 5.0**2  # a 3.5-point radius marker, antialiased edge included
     for view in ("map", "local"):
-        out = tmp_path / f"{view}.png"
-        assert run_cli("screenshot", str(recording), "-o", str(out), "--view", view, "--time", "end", "--size", "800x600").returncode == 0
-        img = _image(out)[TITLE_BAR_PX:-45]  # not the titles, nor the time panel and map attribution
+        # not the titles, nor the time panel and map attribution
+        img = _image(shots("800x600", view, "end"))[TITLE_BAR_PX:-45]
         yellow = int((np.abs(img - np.array(EVENT_COLOR)).max(axis=-1) <= 60).sum())
         assert yellow < 1.2 * n_events * marker_px, (view, yellow, n_events)
         white = img.min(axis=-1) >= 200
@@ -105,12 +155,10 @@ def test_no_label_text_on_the_map_or_the_local_view_by_default(recording, tmp_pa
             assert int((np.abs(img[corner] - np.array(SCALE_COLOR)).max(axis=-1) <= 12).sum()) > 20
 
 
-def test_outage_numbers_and_worst_of(recording, tmp_path):
-    out = tmp_path / "shots"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "outage", "--outage-number", "3", "--outage-number", "7",
-                   "--size", "400x300")
-    assert proc.returncode == 0, proc.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["V-sim-sharp-cornering-outage-outage3.png", "V-sim-sharp-cornering-outage-outage7.png"]
+def test_outage_numbers_and_worst_of(recording, shots, tmp_path):
+    # one image each, named by its number (all the names: test_several_times_views_and_outage_numbers_make_one_png_each)
+    for number in (3, 7):
+        assert shots("800x450", "local", f"outage{number}").is_file()
     for args, message in [(["--outage-number", "999"], "no outage 999 (the recording has 57)"),
                           (["--outage", "10s"], "to frame outage N give --outage-number N"),
                           (["--time", "worst", "--worst-of", "nope"], "choose one of")]:
@@ -122,7 +170,7 @@ def test_outage_numbers_and_worst_of(recording, tmp_path):
     assert "warning: --outage 999: outage numbers are --outage-number now" in old.stderr, old.stderr
 
 
-def test_a_time_that_is_no_duration_names_time(recording, tmp_path):
+def test_a_time_that_is_no_duration_names_time(recording, shots, tmp_path):
     """--time -5s said "time '-5s' is not a duration (hint: use e.g. 10s, 500ms, 1m)": no option, and
     not that worst and end are times too; 0ms was refused while 0s was taken."""
     for bad in ("-5s", "ten"):
@@ -130,8 +178,7 @@ def test_a_time_that_is_no_duration_names_time(recording, tmp_path):
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr, proc.stderr
         assert proc.stderr.startswith(f"error: --time: time '{bad}' is not a duration") and "'worst' or 'end'" in proc.stderr, proc.stderr
     assert not (tmp_path / "x.png").exists()
-    proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "zero.png"), "--time", "0ms", "--view", "local", "--size", "400x300")
-    assert proc.returncode == 0 and (tmp_path / "zero.png").is_file(), proc.stderr
+    assert shots("800x450", "local", "0000.0s").is_file()  # --time 0ms
 
 
 def test_worst_of_picks_the_outage_with_the_largest_final_error_of_that_estimator(recording):
@@ -171,25 +218,28 @@ def test_review_layout_titles_fit_their_views(recording, size):
 
 
 @pytest.mark.parametrize("view", ["map", "local"])
-def test_png_has_the_size_and_every_estimator_colour(recording, tmp_path, view):
+def test_png_has_the_size_and_every_estimator_colour(shots, view):
     from PIL import Image
 
-    out = tmp_path / f"{view}.png"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", view, "--time", "worst", "--size", "1200x700")
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == str(out)
+    out = shots("1200x700", view, "worst")
     assert Image.open(out).size == (1200, 700)
     for name in ("gnss", "ins", "idnn"):
         assert _pixels_near(out, COLORS[name]) > 50, name
 
 
-def test_several_times_and_views_make_one_png_each(recording, tmp_path):
-    proc = run_cli("screenshot", str(recording), "-o", str(tmp_path / "shots"), "--view", "signals", "--view", "errors",
-                   "--time", "35s", "--time", "end", "--size", "800x600")
-    assert proc.returncode == 0, proc.stderr
-    names = sorted(p.name for p in (tmp_path / "shots").iterdir())
-    assert names == ["V-sim-sharp-cornering-errors-0035.0s.png", "V-sim-sharp-cornering-errors-end.png",
-                     "V-sim-sharp-cornering-signals-0035.0s.png", "V-sim-sharp-cornering-signals-end.png"]
+def test_several_times_views_and_outage_numbers_make_one_png_each(shots):
+    """One PNG per view and time (--view map --view local --view signals --view errors --time 35s --time
+    end), and per view and outage number; the command prints the path of each."""
+    folder = shots.folder("800x600")
+    names = sorted(p.name for p in folder.iterdir())
+    assert names == sorted(f"V-sim-sharp-cornering-{view}-{time}.png" for view in ("map", "local", "signals", "errors")
+                           for time in ("0035.0s", "end"))
+    assert sorted(shots.procs["800x600"].stdout.splitlines()) == sorted(str(folder / name) for name in names)
+    # --view local --time worst --time 291s --time 0ms --outage-number 3 --outage-number 7
+    names = sorted(p.name for p in shots.folder("800x450").iterdir())
+    assert names == ["V-sim-sharp-cornering-local-0000.0s.png", "V-sim-sharp-cornering-local-0291.0s.png",
+                     "V-sim-sharp-cornering-local-outage3.png", "V-sim-sharp-cornering-local-outage7.png",
+                     "V-sim-sharp-cornering-local-worst.png"]
 
 
 def _viewers_under(tmpdir):
@@ -210,7 +260,7 @@ def _viewers_under(tmpdir):
     return found
 
 
-def test_two_runs_in_parallel(recording, tmp_path):
+def test_two_runs_in_parallel(recording, renderer, tmp_path):
     private_tmp = tmp_path / "tmp"
     private_tmp.mkdir()
     cmds = [[sys.executable, "-m", "ionav_viz.cli", "screenshot", str(recording), "-o", str(tmp_path / f"p{i}.png"),
@@ -332,7 +382,7 @@ def test_a_truncated_recording_is_one_line(recording, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.rrd"]
 
 
-def test_a_missing_view_names_the_recording_and_leaves_no_folders(recording, tmp_path):
+def test_a_missing_view_names_the_recording_and_leaves_no_folders(recording, renderer, tmp_path):
     """Round 3: '-o new/deep/ --view local' on a recording without that view exited 2 but left the
     folders it made, and the message did not name the file."""
     import rerun as rr
@@ -353,15 +403,12 @@ def test_a_missing_view_names_the_recording_and_leaves_no_folders(recording, tmp
 
 
 @pytest.mark.parametrize("size", ["1600x900", "1280x720", "1024x576"])
-def test_clean_review_images_with_the_whole_summary(recording, tmp_path, size):
+def test_clean_review_images_with_the_whole_summary(shots, size):
     """Issue 31.1: only the views: no menu, badges or timeline (the top rows are background, the
     orange of the 'Software rasterizer' and 'Docker' badges is nowhere), and the summary tab ends
     above the image's bottom edge (its last line drawn, nothing cut) in the review layout; issue
     46.1: at 1024x576 too, and its table ends left of the image's right edge."""
-    out = tmp_path / "all.png"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "all", "--time", "end", "--size", size)
-    assert proc.returncode == 0, proc.stderr
-    img = _image(out)
+    img = _image(shots(size, "all", "end"))
     h, w, _ = img.shape
     # above the views the colour key (issue 46.1), not the top panel: its green truth swatch, no badge
     assert (np.abs(img[1:30] - np.array(GNSS_COLOR)).max(axis=-1) <= 40).sum() > 15, "no colour key above the views"
@@ -449,7 +496,7 @@ def _no_legend(img, y0, y1):
     return int(text.sum())
 
 
-def test_views_read_on_their_own(recording, tmp_path):
+def test_views_read_on_their_own(shots):
     """At 1600x900: the colour key in the band above the views names the truth and every
     estimator in their colours (the band is not empty), no legend box over the curves, and every
     time plot of the signals and errors columns has at least three labelled y ticks (a yaw rate
@@ -457,13 +504,8 @@ def test_views_read_on_their_own(recording, tmp_path):
     colour, above the whole layout."""
     from ionav_viz.viz.blueprints import TOP_BAND_PX, shot_rows
 
-    out = tmp_path / "big"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--time", "end", "--size", "1600x900")
-    assert proc.returncode == 0, proc.stderr
-    small = tmp_path / "small.png"
-    proc = run_cli("screenshot", str(recording), "-o", str(small), "--view", "all", "--time", "worst", "--size", "1024x576")
-    assert proc.returncode == 0, proc.stderr
-    signals, errors = (_image(out / f"V-sim-sharp-cornering-{v}-end.png") for v in ("signals", "errors"))
+    signals, errors = (_image(shots("1600x900", v, "end")) for v in ("signals", "errors"))
+    small = shots("1024x576", "all", "worst")
     for img, drawn in ((signals, COLORS), (errors, {k: v for k, v in COLORS.items() if k != "gnss"}), (_image(small), COLORS)):
         band = img[1:TOP_BAND_PX]
         for name, rgb in drawn.items():
@@ -482,7 +524,7 @@ def test_views_read_on_their_own(recording, tmp_path):
 
 @pytest.mark.parametrize("size", ["1280x720", "1024x576"])
 @pytest.mark.parametrize("time", ["end", "worst"])
-def test_small_images_label_every_plot(recording, tmp_path, size, time):
+def test_small_images_label_every_plot(shots, size, time):
     """Issue 46.1 at 1280x720 and 1024x576: every time plot of the signals and errors columns has
     at least three labelled y ticks (the acceleration, and at 1024 the error plots, showed a single
     '0'); a small image leaves out the orientation-rate CRSE rather than draw it too low for them."""
@@ -490,13 +532,10 @@ def test_small_images_label_every_plot(recording, tmp_path, size, time):
     from ionav_viz.viz.screenshot import parse_size
 
     w, h = parse_size(size)
-    out = tmp_path / "shots"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--time", time, "--size", size)
-    assert proc.returncode == 0, proc.stderr
     rows = shot_rows((w, h), 4)
     assert not rows.yaw_crse and len(rows.errors) == 3
     for view, shares, plots in (("signals", rows.signals, (1, 2, 3)), ("errors", rows.errors, (0, 1))):
-        img = _image(out / f"V-sim-sharp-cornering-{view}-{time}.png")
+        img = _image(shots(size, view, time))
         assert img.shape[:2] == (h, w)
         for k in plots:
             y0, y1 = _plot_rows((w, h), shares, k)
@@ -515,22 +554,16 @@ def _text_at_edge(img, x: int) -> np.ndarray:
     return np.nonzero(light[:, 0] & ~rule)[0] + TOP_BAND_PX
 
 
-def test_the_first_time_label_is_whole(recording, tmp_path):
+def test_the_first_time_label_is_whole(shots):
     """Issue 63: the time plots began at their first tick, whose label is centred on it: a view as
     wide as the image (signals, errors, filter health) drew it across the image's left edge ("4m
     40s" of "+4m 40s"). They now start a little before it, but not so much that the label of the
     tick before it is drawn at the view's edge ("0s" of "+4m 30s", in the review layout's columns):
     no text at the left edge of any of those views, at 1024x576 and at the review layout's 1600x900."""
-    out = tmp_path / "shots"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "signals", "--view", "errors", "--view", "health",
-                   "--time", "worst", "--size", "1024x576")
-    assert proc.returncode == 0, proc.stderr
     for view in ("signals", "errors", "health"):
-        cut = _text_at_edge(_image(out / f"V-sim-sharp-cornering-{view}-worst.png"), 0)
+        cut = _text_at_edge(_image(shots("1024x576", view, "worst")), 0)
         assert len(cut) == 0, (view, cut)
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "all", "--time", "305s")  # ticks +4m 30s, +4m 40s, ...
-    assert proc.returncode == 0, proc.stderr
-    img = _image(out / "V-sim-sharp-cornering-all-0305.0s.png")
+    img = _image(shots("1600x900", "all", "0305.0s"))  # ticks +4m 30s, +4m 40s, ...
     for column_x in (640, 1120):  # the signals and errors columns (4:3:3 of 1600 px)
         cut = _text_at_edge(img, column_x)
         assert len(cut) == 0, (column_x, cut)
@@ -552,19 +585,15 @@ def _last_ruler_label_px(img, x0: int, x1: int) -> int:
     return int(text[-1] - text[start] + 1)
 
 
-def test_the_state_timelines_last_time_label_is_whole(recording, tmp_path):
+def test_the_state_timelines_last_time_label_is_whole(shots):
     """Issue 63: the state timeline's ruler spans the recording's data, and a bundled drive's ends at
     600 s, a whole ten minutes: its "+10m" was cut at the ruler's end to a lone "+" (review layout,
     signals view). The recording now ends where the label is whole: "+10m" (27 px) whole at the
     ruler's end at 1024x576 and 1600x900, in the review layout's signals column and the signals view."""
-    out = tmp_path / "shots"
     for size in ("1024x576", "1600x900"):
-        proc = run_cli("screenshot", str(recording), "-o", str(out / size), "--view", "all", "--view", "signals",
-                       "--time", "worst", "--size", size)
-        assert proc.returncode == 0, proc.stderr
         width = int(size.split("x")[0])
         for view, (x0, x1) in (("all", (int(0.4 * width), int(0.7 * width))), ("signals", (0, width))):
-            label_px = _last_ruler_label_px(_image(out / size / f"V-sim-sharp-cornering-{view}-worst.png"), x0, x1)
+            label_px = _last_ruler_label_px(_image(shots(size, view, "worst")), x0, x1)
             assert label_px >= 24, (size, view, label_px)
 
 
@@ -678,7 +707,7 @@ def test_the_viewer_names_the_lines_in_a_key_not_in_legends(recording):
     assert "accelerometer grey" in key and "95 % ellipses" in key
 
 
-def test_the_health_view_names_its_lines_in_the_key(recording, tmp_path):
+def test_the_health_view_names_its_lines_in_the_key(recording, shots):
     """Issue 46.1: the filter-health view's legend covered its curves; its lines are named in the
     key above the view (each filter's kinds of measurement, in their colours), none over the plot."""
     from ionav_viz.viz.blueprints import TITLE_BAR_PX, TOP_BAND_PX
@@ -686,10 +715,7 @@ def test_the_health_view_names_its_lines_in_the_key(recording, tmp_path):
 
     info = read_recording_info(recording)
     assert info.health  # the GNSS-aided INS's kinds of measurement
-    out = tmp_path / "health.png"
-    proc = run_cli("screenshot", str(recording), "-o", str(out), "--view", "health", "--time", "end", "--size", "1024x576")
-    assert proc.returncode == 0, proc.stderr
-    img = _image(out)
+    img = _image(shots("1024x576", "health", "end"))
     for label, rgb in info.health:
         assert (np.abs(img[1:TOP_BAND_PX] - np.array(rgb)).max(axis=-1) <= 30).sum() > 5, label
     assert _no_legend(img, TOP_BAND_PX + TITLE_BAR_PX + 4, 576 - 24) < 25
@@ -754,13 +780,33 @@ def real_losses(tmp_path_factory):
     return out, json.loads(rep.stdout)["gnss_outages"]["bridged"]
 
 
-def test_no_label_of_the_tick_before_the_plots_shows_beside_wide_y_labels(real_losses, tmp_path):
+#: The tunnel drive's images the tests below look at (as :data:`BATCHES`).
+REAL_BATCHES = {"800x450": (("local", "outage"), ("worst", "end"), ())}
+
+
+@pytest.fixture(scope="module")
+def real_shots(real_losses, tmp_path_factory):
+    return Shots(real_losses[0], tmp_path_factory.mktemp("real-shots"), REAL_BATCHES, "V-sim-motorway-tunnels")
+
+
+@pytest.fixture(scope="module")
+def tunnel_replay_shots(tmp_path_factory):
+    """The folder of ``replay V-sim-motorway-tunnels --on gnss-outage --estimators ins --screenshot``
+    (every view at the worst real loss, 1600x900)."""
+    folder = tmp_path_factory.mktemp("tunnel-replay")
+    shots = folder / "shots"
+    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins",
+                   "-o", str(folder / "t.rrd"), "--screenshot", str(shots))
+    if _no_renderer(proc):
+        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    return shots
+
+
+def test_no_label_of_the_tick_before_the_plots_shows_beside_wide_y_labels(tunnel_replay_shots):
     """The tunnel drive's yaw rate (y labels "-0.1" to "0.1", the widest) showed the "s" of the tick
     before its first at the signals column's edge in the review layout: nothing there now."""
-    out = tmp_path / "shots"
-    proc = run_cli("screenshot", str(real_losses[0]), "-o", str(out), "--view", "all", "--time", "worst")
-    assert proc.returncode == 0, proc.stderr
-    img = _image(out / "V-sim-motorway-tunnels-all-worst.png")
+    img = _image(tunnel_replay_shots / "V-sim-motorway-tunnels-all-worst.png")
     for column_x in (640, 1120):
         cut = _text_at_edge(img, column_x)
         assert len(cut) == 0, (column_x, cut)
@@ -803,17 +849,11 @@ def test_a_recording_through_real_losses_alone_frames_them_by_number_and_as_the_
     assert max(x1 - x0, y1 - y0) < 1000.0 and frame.map_entities == ["map/gnss_outages/current"]
 
 
-def test_a_screenshot_of_a_replay_through_real_losses_alone_frames_the_worst(real_losses, tmp_path):
+def test_a_screenshot_of_a_replay_through_real_losses_alone_frames_the_worst(real_shots):
     """'worst' in a recording without synthetic outages is the real loss with the largest final
     error of the INS DR: the local view zooms on it (its track spans much of the image, where the
     whole drive's view draws all six small). replay --screenshot failed here before."""
-    out, _ = real_losses
-    framed, whole = tmp_path / "worst.png", tmp_path / "end.png"
-    for png, when in ((framed, "worst"), (whole, "end")):
-        proc = run_cli("screenshot", str(out), "-o", str(png), "--time", when, "--view", "local", "--size", "800x450")
-        if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
-            pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
-        assert proc.returncode == 0, proc.stderr
+    framed, whole = real_shots("800x450", "local", "worst"), real_shots("800x450", "local", "end")
     # its tracks: one long line across the image where the whole drive draws six short ones (the
     # odometry's, the closer estimate there, drawn over the INS DR's)
     assert _extent_of(framed, COLORS["odo"])[0] > 0.3 * 800
@@ -830,19 +870,14 @@ def _view_pixels_near(path, rgb, tol=30):
 
 
 @pytest.mark.parametrize("view", ["outage", "local"])
-def test_every_estimate_and_the_truth_end_are_seen_where_tracks_lie_on_one_road(real_losses, tmp_path, view):
+def test_every_estimate_and_the_truth_end_are_seen_where_tracks_lie_on_one_road(real_shots, view):
     """Issue 63: on the tunnel drive's worst loss (a straight road) the odometry's track covered the
     INS DR's, whose 17.7 m error could only be read in the key: every estimate is drawn in the
     order of its error (the worst underneath) and ends in a dot, over a wider green dot at the
     truth's end. Each colour is in the view itself, not only in the key (measured in the inspector
     and the local view: INS DR 32 and 36 px, odometry 1,190 and 2,500 px, green 880 and 27 px (the
     ring: the local view draws the drive's truth faint); the INS DR 0 before)."""
-    out, _ = real_losses
-    png = tmp_path / f"{view}.png"
-    proc = run_cli("screenshot", str(out), "-o", str(png), "--time", "worst", "--view", view, "--size", "800x450")
-    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
-        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
-    assert proc.returncode == 0, proc.stderr
+    png = real_shots("800x450", view, "worst")
     for name in ("ins", "odo", "gnss"):
         assert _view_pixels_near(png, COLORS[name]) > 15, (name, {n: _view_pixels_near(png, COLORS[n]) for n in ("ins", "odo", "gnss")})
 
@@ -856,9 +891,10 @@ def test_the_idnn_is_seen_on_hard_brakes_worst_outage(tmp_path):
     proc = run_cli("replay", "hard-brake", "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
     proc = run_cli("screenshot", str(out), "-o", str(png), "--time", "worst", "--view", "local", "--size", "1280x720")
-    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
+    if _no_renderer(proc):
         pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
     assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == str(png)  # one image: the -o file itself, and its path said
     for name in COLORS:
         assert _view_pixels_near(png, COLORS[name], tol=20) > 30, (name, {n: _view_pixels_near(png, c, tol=20) for n, c in COLORS.items()})
 
@@ -890,16 +926,11 @@ def test_the_viewer_opens_on_time_into_the_drive_with_no_empty_view(real_losses)
     assert not origins & empty, origins & empty
 
 
-def test_replay_through_real_losses_alone_with_screenshots(tmp_path):
+def test_replay_through_real_losses_alone_with_screenshots(tunnel_replay_shots):
     """replay --on gnss-outage --screenshot: every view with data at the worst real loss, the inspector too
     (the loss in metres from its start fix: the INS DR's colour there; before this, the replay
     failed at 'worst', then the inspector's image was blank)."""
-    shots = tmp_path / "shots"
-    proc = run_cli("replay", "V-sim-motorway-tunnels", "--on", "gnss-outage", "--estimators", "ins", "-o", str(tmp_path / "t.rrd"),
-                   "--screenshot", str(shots))
-    if proc.returncode == 1 and "mesa-vulkan-drivers" in proc.stderr and not os.environ.get("CI"):
-        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
-    assert proc.returncode == 0, proc.stderr
+    shots = tunnel_replay_shots
     # no filter-health image: the INS DR reports none (it was an empty view)
     assert sorted(p.name for p in shots.iterdir()) == sorted(f"V-sim-motorway-tunnels-{v}-worst.png"
                                                              for v in ("all", "outage", "map", "local", "signals", "errors"))
