@@ -307,6 +307,20 @@ def test_missing_renderer_is_a_clear_error_and_leaves_no_viewer(recording, tmp_p
     assert list(private_tmp.iterdir()) == []
 
 
+def test_a_viewer_entered_has_answered(tmp_path, monkeypatch):
+    """``with HeadlessViewer(...) as viewer:`` (tests/test_live.py, a fleet overview's image) enters
+    with a viewer that answers, or raises RendererMissing there, before its body (a screenshot
+    enters at once with wait=False, and reads its recordings while the viewer starts)."""
+    from ionav_viz.viz.viewer import HeadlessViewer, RendererMissing
+
+    for name, value in _no_renderer_env(tmp_path).items():
+        monkeypatch.setenv(name, value)
+    body = []
+    with pytest.raises(RendererMissing, match="mesa-vulkan-drivers"), HeadlessViewer(400, 300):
+        body.append("entered")
+    assert body == [] and _viewer_children() == []
+
+
 def test_the_recording_is_read_while_the_viewer_starts_and_bad_input_is_said_first(recording, tmp_path, monkeypatch):
     """The viewer is started first and the recording read while it starts and its start-up toasts
     fade (it was read before, the viewer's wait coming after). A bad option found in reading it

@@ -92,7 +92,7 @@ def screenshot(
 
     # the viewer starts first: the recordings are read, and the images planned, while it starts and its
     # start-up toasts fade (a bad recording or option is still said first, and stops it)
-    with HeadlessViewer(width, height, timeout_s=timeout_s) as viewer:
+    with HeadlessViewer(width, height, timeout_s=timeout_s, wait=False) as viewer:
         return _render(paths, out, single, folder, shots, (width, height), timeout_s, progress, viewer)
 
 

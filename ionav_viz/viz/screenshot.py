@@ -199,7 +199,7 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
     """
     if viewer is None:
         # started first: the recordings are read while it starts and its toasts fade
-        with HeadlessViewer(*size, timeout_s=timeout_s) as own:
+        with HeadlessViewer(*size, timeout_s=timeout_s, wait=False) as own:
             return render(recordings, out, times, views, size, timeout_s, progress, outages, worst_of, own)
     for view in views:
         if view not in VIEWS:

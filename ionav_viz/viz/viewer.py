@@ -66,8 +66,11 @@ class HeadlessViewer:
     #: shot after 1.2 s (a CI run, 2026-11-26) carried one over the map view.
     toasts_gone_s = 2.5
 
-    def __init__(self, width: int, height: int, timeout_s: float = 60.0) -> None:
-        self.width, self.height, self.timeout_s = width, height, timeout_s
+    def __init__(self, width: int, height: int, timeout_s: float = 60.0, *, wait: bool = True) -> None:
+        """``wait``: entering waits until the viewer answers (:class:`RendererMissing` if it cannot
+        start); False: entering only starts its process, and :meth:`ready` (and every call) waits, so
+        that the caller's work before its first call runs while it starts and its toasts fade."""
+        self.width, self.height, self.timeout_s, self.wait = width, height, timeout_s, wait
         self._dir = tempfile.TemporaryDirectory(prefix="ionav-viewer-")
         self._aliases = contextlib.ExitStack()  # UTF-8 names of open recordings, while the viewer reads them
         self.log_path = Path(self._dir.name) / "viewer.log"
@@ -80,15 +83,15 @@ class HeadlessViewer:
         self._old_handlers: dict[int, Any] = {}
 
     def __enter__(self) -> HeadlessViewer:
-        """Start the viewer process and return at once: the caller's work before its first call (reading
-        recordings, planning images) runs while the viewer starts and its toasts fade; :meth:`ready`
-        (and every call) waits for its answer."""
+        """Start the viewer process; wait for its answer unless ``wait`` is False."""
         # SIGTERM and SIGHUP become an exception too (as Ctrl-C is), so __exit__ always runs.
         for sig in STOP_SIGNALS:
             with contextlib.suppress(ValueError):  # not the main thread
                 self._old_handlers[sig] = signal.signal(sig, raise_terminated)
         try:
             self._spawn()
+            if self.wait:
+                self.ready()
         except BaseException:
             self.__exit__(*sys.exc_info())
             raise
