@@ -321,6 +321,16 @@ def test_a_viewer_entered_has_answered(tmp_path, monkeypatch):
     assert body == [] and _viewer_children() == []
 
 
+def test_a_starting_viewer_is_watched_without_the_rerun_package():
+    """Entering a viewer with wait=False starts its process and watches for its first answer without
+    importing the rerun package, which takes about a second (a starting viewer answers in less): in a
+    fresh 'ionav-viz screenshot' the toasts' wait counts from the viewer's answer, not from that import."""
+    code = ("import sys\nfrom ionav_viz.viz.viewer import HeadlessViewer\n"
+            "with HeadlessViewer(400, 300, wait=False):\n    print('rerun' in sys.modules)\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=HANG_S)
+    assert proc.returncode == 0 and proc.stdout.split() == ["False"], proc.stdout + proc.stderr
+
+
 def test_the_recording_is_read_while_the_viewer_starts_and_bad_input_is_said_first(recording, tmp_path, monkeypatch):
     """The viewer is started first and the recording read while it starts and its start-up toasts
     fade (it was read before, the viewer's wait coming after). A bad option found in reading it

@@ -12,6 +12,7 @@ terminal. On a machine without a GPU, Mesa's lavapipe Vulkan driver (Debian pack
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 import signal
@@ -52,6 +53,27 @@ def rerun_executable() -> str:
     return found
 
 
+def _state_probe() -> Callable[[str], None]:
+    """A function that asks the viewer at a URL for its state, and raises until it answers. Through
+    Rerun's native module, which imports at once: the ``rerun`` package takes about a second to
+    import, in which a starting viewer answers; ViewerClient's own call where that module differs."""
+    try:
+        from rerun_bindings import ViewerClientInternal
+    except ImportError:
+        ViewerClientInternal = None
+    if ViewerClientInternal is None or not hasattr(ViewerClientInternal, "viewer_control"):
+        from rerun.experimental import ViewerClient
+
+        return lambda url: ViewerClient.connect(url).get_state()
+    request = json.dumps({"get_state": {}})
+
+    def probe(url: str) -> None:
+        if "get_state" not in json.loads(ViewerClientInternal(url).viewer_control(request)):
+            raise RuntimeError("the viewer sent no state")
+
+    return probe
+
+
 class HeadlessViewer:
     """A private headless Rerun viewer process; use as a context manager (always shut down)."""
 
@@ -80,6 +102,7 @@ class HeadlessViewer:
         self._watcher: threading.Thread | None = None  # notes when the viewer first answers
         self._stopping = threading.Event()
         self._failure: RendererMissing | None = None  # the viewer could not be started
+        self._url = ""
         self._old_handlers: dict[int, Any] = {}
 
     def __enter__(self) -> HeadlessViewer:
@@ -115,26 +138,23 @@ class HeadlessViewer:
                 env={**os.environ, "RERUN_APP_ONLY": "true", "RUST_LOG": os.environ.get("RUST_LOG", "warn"),
                      "TMPDIR": self._dir.name},
             )
-        from rerun.experimental import ViewerClient  # imported here, never in the thread (Python's import locks)
-
-        self._watcher = threading.Thread(target=self._watch, args=(ViewerClient, self.proc, port),
+        self._url = f"rerun+http://127.0.0.1:{port}/proxy"
+        # made here, never in the thread (Python's import locks)
+        self._watcher = threading.Thread(target=self._watch, args=(_state_probe(), self.proc, self._url),
                                          name="ionav-viewer-answer", daemon=True)
         self._watcher.start()
 
-    def _watch(self, client_cls, proc: subprocess.Popen, port: int) -> None:
-        """In a thread: connect until the viewer answers (then set :attr:`client` and when it answered),
-        it exits, the start-up deadline passes or the viewer is being shut down."""
-        url = f"rerun+http://127.0.0.1:{port}/proxy"
+    def _watch(self, probe: Callable[[str], None], proc: subprocess.Popen, url: str) -> None:
+        """In a thread: ask the viewer for its state until it answers (then note when), it exits, the
+        start-up deadline passes or the viewer is being shut down."""
         deadline = time.monotonic() + self.answer_limit_s
         while time.monotonic() < deadline and proc.poll() is None and not self._stopping.is_set():
             try:
-                client = client_cls.connect(url)
-                client.get_state()
+                probe(url)
             except Exception:
                 self._stopping.wait(self.poll_s)
                 continue
             self._answered = time.monotonic()
-            self.client = client
             return
 
     @property
@@ -152,6 +172,11 @@ class HeadlessViewer:
             while self._watcher is not None and self._watcher.is_alive():
                 self._watcher.join(0.1)  # short waits: a signal's handler runs between them
             if self.client is not None:
+                return
+            if self._answered:
+                from rerun.experimental import ViewerClient
+
+                self.client = ViewerClient.connect(self._url)
                 return
             if self.proc is not None and self.proc.poll() is None:
                 self._stop()
