@@ -658,7 +658,9 @@ class _Messages:
                         "covariance[0] = -1)",
                         self.path, self.sel.imu.topic, fields)
         topic_of = {c.role: c.topic for c in self.sel.chosen}
-        for role, (n, first, before) in self.backwards.items():
+        # in the selection's order (IMU, GNSS, ...), not the order found: the same read one by one or as columns
+        for role in sorted(self.backwards, key=list(topic_of).index):
+            n, first, before = self.backwards[role]
             log.warning("%s: topic %s: %d message(s) stamped earlier than the one received before them (first %.3f s "
                         "after %.3f s); used in stamp order", self.path, topic_of[role], n, self.absolute_s(first),
                         self.absolute_s(before))
