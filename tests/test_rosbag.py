@@ -259,3 +259,68 @@ def test_the_earlier_speed_topic_is_the_gnss_velocity_topic():
     with pytest.deprecated_call():
         options = iv.LogOptions(speed_topic="/gps/vel")
     assert options.gnss_velocity_topic == "/gps/vel" and options.speed_topic is None
+
+
+def _write_messy_ros2(drive, path, varying_frames, bad_imu=False):
+    """``drive`` as a ROS 2 bag holding what real bags hold: IMU messages marking a field 'not provided',
+    one stamped a second early, fixes without a fix or with NaN positions and with covariances, velocity
+    messages with a zero stamp. ``varying_frames``: the IMU's frame_id changes length from one message to
+    the next (so no block of it is one CDR layout: read one by one). ``bad_imu``: one implausible value."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    time_type = store.types["builtin_interfaces/msg/Time"]
+    seen: dict[str, int] = {}
+    with Writer(path, version=9) as w:
+        connections = {}
+        for topic, msgtype, ns, msg in bf._messages(store, drive, bf._stamps_ns(drive), ros1=False):
+            i = seen[topic] = seen.get(topic, -1) + 1
+            if topic == "/imu/data":
+                msg.header.frame_id = ("imu" if i % 2 else "base_link") if varying_frames else "base_link"
+                if i % 397 == 5:
+                    msg.linear_acceleration_covariance = np.r_[-1.0, np.zeros(8)]
+                if i == 300:
+                    msg.header.stamp = time_type(sec=msg.header.stamp.sec - 1, nanosec=msg.header.stamp.nanosec)
+                if bad_imu and i == 1200:
+                    msg.linear_acceleration.x = 1e6
+            elif topic == "/gps/fix":
+                msg.status.status = -1 if i % 211 == 7 else 0
+                msg.latitude = float("nan") if i % 307 == 3 else msg.latitude
+                msg.position_covariance_type = 2
+                msg.position_covariance = np.array([4.0 + i % 3, 0, 0, 0, float("nan") if i % 5 == 0 else 5.0, 0, 0, 0, 1.0])
+            elif topic == "/gps/vel" and i % 401 == 11:
+                msg.header.stamp = time_type(sec=0, nanosec=0)
+            if topic not in connections:
+                connections[topic] = w.add_connection(topic, msgtype, typestore=store)
+            w.write(connections[topic], ns, store.serialize_cdr(msg, msgtype))
+    return path
+
+
+@pytest.mark.parametrize("stamps", ["header", "log"])
+def test_a_ros2_bag_reads_the_same_as_columns_and_one_by_one(tmp_path, caplog, stamps):
+    """A ROS 2 bag's fixed-layout messages are read as columns, a block at a time: the same drive bit
+    for bit, the same warnings and the same refusal as its messages read one by one."""
+    import logging
+
+    drive = iv.load_drive("roundabout")
+    got = {}
+    for varying in (False, True):
+        for bad in (False, True):
+            path = _write_messy_ros2(drive, tmp_path / f"bag-{varying}-{bad}", varying, bad)
+            caplog.clear()
+            with caplog.at_level(logging.WARNING, logger="ionav_viz"):
+                try:
+                    read = iv.load_drive(path, iv.ReadOptions(log=iv.LogOptions(stamps=stamps)))
+                except InputError as exc:
+                    read = str(exc).replace(str(path), "BAG")
+            got[varying, bad] = read, [r.getMessage().replace(str(path), "BAG") for r in caplog.records]
+    (columns, warned), (one_by_one, warned_one_by_one) = got[False, False], got[True, False]
+    assert warned == warned_one_by_one and any("'not provided'" in w for w in warned), warned
+    assert any("without a fix" in w for w in warned), warned
+    assert stamps == "log" or any("/imu/data: 1 message(s) stamped earlier" in w for w in warned), warned
+    assert columns.columns.keys() == one_by_one.columns.keys() and "gnss_sigma_m" in columns.columns
+    for name, values in one_by_one.columns.items():
+        assert np.array_equal(columns.columns[name], values, equal_nan=True), name
+    assert (columns.start_stamp_s, columns.imu) == (one_by_one.start_stamp_s, one_by_one.imu)
+    assert got[False, True][0] == got[True, True][0] and "linear_acceleration.x 1e+06" in got[True, True][0]

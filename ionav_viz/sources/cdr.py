@@ -11,7 +11,9 @@ and the NUL. Nothing pads the end, as ``rclpy`` and ``mcap_ros2`` write it (a re
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -97,4 +99,66 @@ def decode_many(fields: Sequence[tuple[str, int]], data: np.ndarray) -> list | N
         end = stop
     if not end <= body.shape[1] <= end + 3:
         return None
+    return out
+
+
+def fields_of(cdr_type: CdrType, rows: np.ndarray) -> dict[str, Any] | None:
+    """The messages ``rows`` (an ``(n, bytes)`` uint8 array of CDR messages of ``cdr_type``, every one
+    the same size) as ``{field path: values}`` (:func:`decode_many`), or None where they cannot be read
+    so: no fixed layout, bytes another layout's, or a first message rosbags refuses (then the caller reads
+    them one by one, which says why)."""
+    layout = cdr_type.layout()
+    if layout is None or not len(rows):
+        return None
+    try:
+        cdr_type.decode(rows[0].tobytes())
+    except Exception:
+        return None
+    values = decode_many([(kind, count) for _, kind, count in layout], rows)
+    return None if values is None else {name: v for (name, _, _), v in zip(layout, values)}
+
+
+@dataclasses.dataclass
+class CdrType:
+    """A ``ros2msg`` message type as rosbags reads it."""
+
+    store: Any
+    msgtype: str
+    _layout: list | None = None
+
+    def decode(self, data: bytes) -> Any:
+        return self.store.deserialize_cdr(data, self.msgtype)
+
+    def layout(self) -> list[tuple[str, str, int]] | None:
+        """The message's fields in CDR order as ``(path, kind, count)`` (:func:`decode_many`'s
+        kinds and counts, strings included), or None when one has no fixed place (a sequence, an
+        array of messages, a type :data:`CDR_KINDS` does not hold)."""
+        if self._layout is None:
+            self._layout = _flatten(self.store, self.msgtype, "") or []
+        return self._layout or None
+
+
+#: rosbags' base types that :func:`decode_many` reads, as its kinds.
+_KINDS = {"int8": "i1", "uint8": "u1", "int16": "i2", "uint16": "u2", "int32": "i4", "uint32": "u4", "int64": "i8",
+          "uint64": "u8", "float32": "f4", "float64": "f8", "string": "string"}
+
+
+def _flatten(store: Any, msgtype: str, prefix: str) -> list[tuple[str, str, int]] | None:
+    from rosbags.typesys.base import Nodetype
+
+    out: list[tuple[str, str, int]] = []
+    for name, (node, detail) in store.fielddefs[msgtype][1]:
+        path = prefix + name
+        if node == Nodetype.NAME:
+            inner = _flatten(store, detail, path + ".")
+            if inner is None:
+                return None
+            out += inner
+        elif node == Nodetype.BASE and detail[0] in _KINDS and (detail[0] != "string" or not detail[1]):
+            out.append((path, _KINDS[detail[0]], 0))
+        elif (node == Nodetype.ARRAY and detail[0][0] == Nodetype.BASE and detail[0][1][0] in _KINDS
+              and detail[0][1][0] != "string"):
+            out.append((path, _KINDS[detail[0][1][0]], detail[1]))
+        else:
+            return None
     return out

@@ -11,7 +11,6 @@ its last complete record). CRCs are checked; chunks inflate within bounds (:mod:
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import functools
 import logging
 import struct
@@ -23,7 +22,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.errors import InputError
-from .cdr import decode_many
+from .cdr import CdrType, fields_of
 from .inflate import check_declared, inflate
 from .message_log import Block, ChannelInfo, Columns, StreamBlock, decode_json, read_log
 
@@ -217,52 +216,6 @@ class _Decoders:
         return self.cdr[channel.id]
 
 
-@dataclasses.dataclass
-class CdrType:
-    """A ``ros2msg`` message type as rosbags reads it."""
-
-    store: Any
-    msgtype: str
-    _layout: list | None = None
-
-    def decode(self, data: bytes) -> Any:
-        return self.store.deserialize_cdr(data, self.msgtype)
-
-    def layout(self) -> list[tuple[str, str, int]] | None:
-        """The message's fields in CDR order as ``(path, kind, count)`` (:func:`.cdr.decode_many`'s
-        kinds and counts, strings included), or None when one has no fixed place (a sequence, an
-        array of messages, a type :data:`.cdr.CDR_KINDS` does not hold)."""
-        if self._layout is None:
-            self._layout = _flatten(self.store, self.msgtype, "") or []
-        return self._layout or None
-
-
-#: rosbags' base types that :func:`.cdr.decode_many` reads, as its kinds.
-_KINDS = {"int8": "i1", "uint8": "u1", "int16": "i2", "uint16": "u2", "int32": "i4", "uint32": "u4", "int64": "i8",
-          "uint64": "u8", "float32": "f4", "float64": "f8", "string": "string"}
-
-
-def _flatten(store: Any, msgtype: str, prefix: str) -> list[tuple[str, str, int]] | None:
-    from rosbags.typesys.base import Nodetype
-
-    out: list[tuple[str, str, int]] = []
-    for name, (node, detail) in store.fielddefs[msgtype][1]:
-        path = prefix + name
-        if node == Nodetype.NAME:
-            inner = _flatten(store, detail, path + ".")
-            if inner is None:
-                return None
-            out += inner
-        elif node == Nodetype.BASE and detail[0] in _KINDS and (detail[0] != "string" or not detail[1]):
-            out.append((path, _KINDS[detail[0]], 0))
-        elif (node == Nodetype.ARRAY and detail[0][0] == Nodetype.BASE and detail[0][1][0] in _KINDS
-              and detail[0][1][0] != "string"):
-            out.append((path, _KINDS[detail[0][1][0]], detail[1]))
-        else:
-            return None
-    return out
-
-
 def cdr_decoder(encoding: str, schema: Any) -> CdrType | None:
     """A decoder of ``cdr`` messages of a ``ros2msg`` schema built by rosbags (several times faster
     than mcap_ros2's, the same values; number arrays as numpy arrays), or None where rosbags cannot
@@ -325,18 +278,11 @@ class _Block:
         mine = self.channel_ids == ids[0]
         sizes, log_ns = self.sizes[mine], self.log_ns[mine]
         found = self.decoders.cdr_type(self._schema(channel), channel) if channel.message_encoding == "cdr" else None
-        if found is None or (layout := found.layout()) is None or (sizes != sizes[0]).any() or log_ns.max() >= 2**63:
+        if found is None or found.layout() is None or (sizes != sizes[0]).any() or log_ns.max() >= 2**63:
             return None
         starts = self.starts[mine]
-        try:
-            found.decode(self.data[starts[0] : starts[0] + sizes[0]])  # what rosbags would refuse is read one by one
-        except Exception:
-            return None
-        rows = np.frombuffer(self.data, np.uint8)[starts[:, None] + np.arange(sizes[0])]
-        values = decode_many([(kind, count) for _, kind, count in layout], rows)
-        if values is None:
-            return None
-        return Columns(log_ns.astype(np.int64), {name: v for (name, _, _), v in zip(layout, values)})
+        fields = fields_of(found, np.frombuffer(self.data, np.uint8)[starts[:, None] + np.arange(sizes[0])])
+        return None if fields is None else Columns(log_ns.astype(np.int64), fields)
 
 
 def _indexed_chunks(path: Path, f: Any, summary: Any, topics: list[str]) -> Iterator[tuple]:
