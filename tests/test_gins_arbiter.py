@@ -84,9 +84,9 @@ def test_on_a_log_built_to_break_the_filter_the_arbiter_takes_the_planar_dr_wher
 def test_the_text_report_says_what_the_arbiter_chose_on_one_drive(loose_holder):
     rep_on, rep_off, note = loose_holder
     text = rep_on.to_text()
-    assert f"GNSS/INS 3D propagation: {note}" in text
+    assert f"GNSS/INS 3D arbiter: {note}" in text
     assert "planar DR (the INS DR's propagation) on" in text
-    assert "propagation:" not in rep_off.to_text()  # without the arbiter there is nothing to say
+    assert "GNSS/INS 3D arbiter:" not in rep_off.to_text()  # without the arbiter there is nothing to say
 
 
 @pytest.mark.xfail(strict=True, reason="issue 41 point 7, open: the arbiter needs past pseudo-outages; the outages before "

@@ -166,12 +166,14 @@ def health_lines(rep: dict[str, Any]) -> list[str]:
 
 
 def arbiter_lines(rep: dict[str, Any]) -> list[str]:
-    """On one drive, a line per estimator that chose its propagation per outage (``gins``'s history
-    arbiter, :func:`ionav_viz.nav.gins.arbitrate`): what it chose and why. An estimator describes
-    the last drive it ran on, so a report of several drives leaves it to each drive's own run."""
+    """On one drive, a line per estimator that chose per outage from its pseudo-outages over the GNSS
+    before it (a history arbiter: ``gins``'s propagation, :func:`ionav_viz.nav.gins.arbitrate`; the
+    IDNN's share of the INS DR's displacement, :class:`ionav_viz.learning.idnn.IdnnEstimator`): what
+    it chose and why. An estimator describes the last drive it ran on, so a report of several drives
+    leaves it to each drive's own run."""
     if len(rep.get("drives", [])) != 1:
         return []
-    return [f"{e['label']} propagation: {e['info']['arbiter']}" for e in rep["estimators"]
+    return [f"{e['label']} arbiter: {e['info']['arbiter']}" for e in rep["estimators"]
             if e.get("info", {}).get("arbiter")]
 
 

@@ -585,6 +585,26 @@ class IdnnModel:
         } | ({"ins_blend": self.config.ins_blend} if self.config.ins_blend > 0 else {})
 
 
+#: The shares of the INS DR's displacement the IDNN's history arbiter chooses from per outage
+#: (:meth:`IdnnEstimator._arbitrate`): the first, none, is the model as trained.
+ARBITER_INS_SHARES = (0.0, 0.5, 1.0)
+#: The prior of the arbiter: the INS DR's displacement alone errs this many times as much as the
+#: network's, on pseudo-outages, until the drive's own past says otherwise. The shipped model's
+#: displacement CRSE is 1.9-2.7 times below the INS DR's on the simulated sets of docs/results.md,
+#: 1.1-2.1 on the roof and robot logs of the corpus; 2 is the cautious end: with 1.5 the arbiter
+#: also switched on those sets, wrongly more often than not (docs/real-imu-logs.md).
+ARBITER_PRIOR_INS_RATIO = 2.0
+
+
+def _outages(k: int) -> str:
+    return f"{k} outage" + ("" if k == 1 else "s")
+
+
+def arbiter_prior_ratio(share: float) -> float:
+    """The prior ratio of a blend's displacement CRSE to the network's: linear in the INS DR's ``share``."""
+    return 1.0 + (ARBITER_PRIOR_INS_RATIO - 1.0) * share
+
+
 class IdnnEstimator:
     """The paper's IDNN as an estimator: a trained model, or the shipped one (loaded when first used).
 
@@ -596,8 +616,11 @@ class IdnnEstimator:
     label = "IDNN"
     color = (0, 114, 178)  # Okabe-Ito blue
 
-    def __init__(self, model: IdnnModel | str | Path | None = None, strict: bool = False) -> None:
+    def __init__(self, model: IdnnModel | str | Path | None = None, strict: bool = False,
+                 arbiter: bool = True) -> None:
         self._model = model if isinstance(model, IdnnModel) else None
+        #: per outage, take a share of the INS DR's displacement where the drive's past says so (:meth:`_arbitrate`)
+        self.arbiter = bool(arbiter)
         self._directory = Path(model) if isinstance(model, (str, Path)) else None
         #: refuse (instead of warn) when an outage lies in data the model was trained on
         self.strict = strict
@@ -628,6 +651,9 @@ class IdnnEstimator:
         if model.config.inputs == "calibrated":
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
+        self._arbiter_note = ""
+        if self.arbiter:
+            disp = self._arbitrate(model, inputs, cal, disp)
         cov = None
         self._scale_note = ""
         widen = self._check_domain(model, inputs, label, disp)
@@ -636,6 +662,69 @@ class IdnnEstimator:
             cov = cov * (widen(inputs.accel_mps2, inputs.gyro_radps, disp) ** 2
                          * self._history_scale(model, inputs, cal, widen))[:, None, None, None]
         return Estimate(disp, yaw, pos_cov_m2=cov)
+
+    def _arbitrate(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
+                   disp_m: np.ndarray) -> np.ndarray:
+        """Per outage, the model's displacement (m, ``(m, n)``) with a share of the INS DR's on the same
+        samples (:data:`ARBITER_INS_SHARES`) where the drive's own past says so
+        (:func:`~ionav_viz.nav.history_check.past_choice` on the displacement CRSE of pseudo-outages of
+        the outage's length over the GNSS before it, each share's record shrunk toward
+        :func:`arbiter_prior_ratio`; an outage with fewer than :data:`history_check.ENOUGH` of its own
+        length behind it judged on :data:`history_check.SHORT_WINDOWS` s ones). The yaw rate stays
+        the network's."""
+        from ..nav.ins import dead_reckon
+
+        n, starts = int(inputs.n_windows), np.asarray(inputs.starts, dtype=int)
+        record = self._share_record(model, inputs, cal, n)
+        short = self._share_record(model, inputs, cal, history_check.SHORT_WINDOWS) \
+            if n > history_check.SHORT_WINDOWS else None
+        shorter = np.zeros(len(starts), dtype=bool)
+        if record is None:
+            record, shorter[:] = short, True
+        elif short is not None:
+            shorter = record[2] < history_check.ENOUGH
+            record = (np.where(shorter, short[0], record[0]), np.where(shorter, short[1], record[1]), record[2])
+        if record is None:
+            self._arbiter_note = (f"the network's displacement on all {len(starts)} outages (no pseudo-outage over "
+                                  "the GNSS before them to compare with)")
+            return disp_m
+        choice, sums = record[0], record[1]
+        share = np.asarray(ARBITER_INS_SHARES)[choice]
+        parts = [f"the network's displacement on {_outages(int(np.sum(choice == 0)))}"]
+        for c, b in enumerate(ARBITER_INS_SHARES[1:], start=1):
+            on = choice == c
+            if on.any():
+                lower = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[0][on])), 1e-9)
+                parts.append(f"{100 * b:.0f} % of the INS DR's on {_outages(int(on.sum()))} (their past "
+                             f"pseudo-outages' displacement CRSE {100.0 * lower:.0f} % lower with it)")
+        self._arbiter_note = (", ".join(parts) + f"; chosen per outage from the {n} s pseudo-outages over the GNSS "
+                              "before it" + (f"; {_outages(int(shorter.sum()))} with fewer than {history_check.ENOUGH} "
+                                             f"behind them judged on the {history_check.SHORT_WINDOWS} s ones"
+                                             if shorter.any() and n > history_check.SHORT_WINDOWS else ""))
+        if not share.any():
+            return disp_m
+        ins_m, _ = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias, inputs.rate_hz,
+                               inputs.still)
+        return (1.0 - share)[:, None] * disp_m + share[:, None] * ins_m
+
+    def _share_record(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
+                      n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """:meth:`_arbitrate`'s choice per outage from pseudo-outages of ``n`` windows
+        (:func:`~ionav_viz.nav.history_check.past_choice`), None where none fits."""
+        from ..nav.ins import dead_reckon
+
+        w = inputs.windows
+        pseudo = history_check.pseudo_starts_before(w, n, np.asarray(inputs.starts, dtype=int))
+        if not len(pseudo):
+            return None
+        idx = pseudo[:, None] + np.arange(n)[None, :]
+        still = inputs.still_grid[idx]
+        net, _ = model.predict(w, pseudo, n, inputs.bias, cal, still)
+        ins, _ = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[pseudo], inputs.bias, w.rate_hz, still)
+        truth = w.gnss_disp_m[idx]
+        err = np.stack([np.abs((1.0 - b) * net + b * ins - truth).sum(axis=1) for b in ARBITER_INS_SHARES])
+        return history_check.past_choice(pseudo + n, err, np.asarray(inputs.starts, dtype=int),
+                                         np.array([arbiter_prior_ratio(b) for b in ARBITER_INS_SHARES]))
 
     def _check_domain(self, model: IdnnModel, inputs: EstimatorInputs, label: str, disp_m: np.ndarray):
         """Warn when the drive's inputs lie outside what ``model`` was trained on
@@ -684,8 +773,9 @@ class IdnnEstimator:
         return scale
 
     def describe(self) -> dict[str, Any]:
-        note = getattr(self, "_scale_note", "")
+        note, arbiter = getattr(self, "_scale_note", ""), getattr(self, "_arbiter_note", "")
         return self.model.describe() | ({"uncertainty_scale": note} if note else {}) | (
+            {"arbiter": arbiter} if arbiter else {}) | (
             {"domain": dict(self._domain_notes)} if self._domain_notes else {})
 
     def _check_leakage(self, model: IdnnModel, inputs: EstimatorInputs, label: str) -> None:

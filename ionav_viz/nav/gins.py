@@ -449,10 +449,10 @@ _CANDIDATE_TEXT = {DEFAULT: "", REDUCED: "reduced (roll and pitch held)",
 
 #: The shorter horizon (windows) whose pseudo-outages speak for a longer outage that has fewer than
 #: :data:`ARBITER_ENOUGH` of its own length behind it (:func:`arbitrate`).
-ARBITER_SHORT_WINDOWS = 10
+ARBITER_SHORT_WINDOWS = history_check.SHORT_WINDOWS
 #: The pseudo-outages of an outage's own length it takes to be judged on them: under the prior
 #: (:data:`ARBITER_PRIOR_OUTAGES` at :data:`ARBITER_PRIOR_RATIO`), fewer than 4 can never switch.
-ARBITER_ENOUGH = 4
+ARBITER_ENOUGH = history_check.ENOUGH
 
 
 def arbitrate(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches) -> tuple[np.ndarray, str, np.ndarray]:
@@ -514,7 +514,7 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     their count per outage, every pseudo-outage's distance ``(3, k)``, and per outage the scale of
     the default propagation's covariance growth its past pseudo-outages call for
     (:func:`ionav_viz.nav.history_check.log_scale`); None where none fits."""
-    w, m = inputs.windows, inputs.n_outages
+    w = inputs.windows
     pseudo = history_check.pseudo_outages(w, n)
     # from the filter's alignment on (before it the pass ran free from fixes the GNSS check distrusts)
     starts = pseudo.starts[r.bounds.of_window[pseudo.starts] >= alignment_boundary(r.bounds)]
@@ -536,14 +536,11 @@ def _record(r: GinsRun, inputs: EstimatorInputs, blind: FilterSwitches, n: int,
     track = _planar_dr(inputs, starts, n)[2]
     dr = enu_of_geodetic(track.lat_deg[:, -1], track.lon_deg[:, -1], np.full(len(ends), h0), *r.origin)[:, :2]
     err[PLANAR_DR] = np.hypot(*(dr - fix).T)
-    sums, count = history_check.past_sums(ends, err, inputs.starts)
-    mean_default = sums[DEFAULT] / np.maximum(count, 1)
-    score = np.full((3, m), np.inf)
-    score[DEFAULT] = mean_default
-    for c in names[1:]:
-        score[c] = ((ARBITER_PRIOR_OUTAGES * ARBITER_PRIOR_RATIO * mean_default + sums[c])
-                    / (ARBITER_PRIOR_OUTAGES + count))
-    choice = np.where(count > 0, np.argmin(score, axis=0), DEFAULT)
+    # a candidate left out never wins (its record infinite)
+    ranked = np.where(np.isin(np.arange(3), names)[:, None], err, np.inf)
+    choice, sums, count = history_check.past_choice(ends, ranked, inputs.starts, np.array([1.0, ARBITER_PRIOR_RATIO,
+                                                                                            ARBITER_PRIOR_RATIO]))
+    sums = np.where(np.isfinite(sums), sums, 0.0)
     return choice, sums, count, err, history_check.log_scale(ends, nees, inputs.starts)
 
 

@@ -28,6 +28,13 @@ from .windows import Windows
 
 #: The weight of the prior scale 1, in pseudo-outages.
 PRIOR_OUTAGES = 3.0
+#: The shorter horizon (windows) whose pseudo-outages speak for a longer outage that has fewer than
+#: :data:`ENOUGH` of its own length behind it (an arbiter's choice: which estimate holds on a drive
+#: shows after 10 s already, and a 2-minute drive has a dozen of those).
+SHORT_WINDOWS = 10
+#: The pseudo-outages of an outage's own length it takes to be judged on them: under the prior
+#: (:data:`PRIOR_OUTAGES`), fewer than 4 can hardly move a choice.
+ENOUGH = 4
 
 
 @dataclass(frozen=True)
@@ -157,3 +164,20 @@ def growth_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray,
     scale = log_scale(starts + n_windows, nees, outage_starts)
     return scale, (f"x{float(np.median(scale)):.2f} median ({float(scale.min()):.2f}-{float(scale.max()):.2f}) "
                    f"on its growth through the outage, from its final NEES on {len(nees)} pseudo-outages over the GNSS")
+
+
+def past_choice(pseudo_ends: np.ndarray, err: np.ndarray, outage_starts: np.ndarray,
+                prior_ratio: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per outage, the candidate whose pseudo-outages that ended (``pseudo_ends``, window index after
+    their last) at or before its start erred least on average, from ``err`` ``(c, k)`` (one row per
+    candidate, row 0 the default; any error measure, larger worse). Each alternative's mean is shrunk
+    toward ``prior_ratio[c]`` times the default's with the weight of :data:`PRIOR_OUTAGES`: an
+    alternative is taken only when the drive's own past says clearly otherwise. Returns the choice
+    ``(m,)`` (0 where no pseudo-outage lies behind), each candidate's summed error ``(c, m)`` and the
+    count of pseudo-outages behind each outage ``(m,)``."""
+    sums, count = past_sums(pseudo_ends, err, outage_starts)
+    mean_default = sums[0] / np.maximum(count, 1)
+    ratio = np.asarray(prior_ratio, dtype=float)[:, None]
+    score = (PRIOR_OUTAGES * ratio * mean_default + sums) / (PRIOR_OUTAGES + count)
+    score[0] = mean_default
+    return np.where(count > 0, np.argmin(score, axis=0), 0), sums, count
