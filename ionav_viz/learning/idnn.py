@@ -589,10 +589,8 @@ class IdnnModel:
 #: (:meth:`IdnnEstimator._arbitrate`): the first, none, is the model as trained.
 ARBITER_INS_SHARES = (0.0, 0.5, 1.0)
 #: The prior of the arbiter: the INS DR's displacement alone errs this many times as much as the
-#: network's, on pseudo-outages, until the drive's own past says otherwise. The shipped model's
-#: displacement CRSE is 1.9-2.7 times below the INS DR's on the simulated sets of docs/results.md,
-#: 1.1-2.1 on the roof and robot logs of the corpus; 2 is the cautious end: with 1.5 the arbiter
-#: also switched on those sets, wrongly more often than not (docs/real-imu-logs.md).
+#: network's, on pseudo-outages, until the drive's own past says otherwise (how it was chosen:
+#: docs/real-imu-logs.md, "The IDNN's history arbiter").
 ARBITER_PRIOR_INS_RATIO = 2.0
 
 
