@@ -23,8 +23,6 @@ from ionav_viz.core.gnss_quality import GnssLimits
 from ionav_viz.learning.idnn import IdnnEstimator
 from ionav_viz.nav.history_check import past_choice
 
-pytestmark = pytest.mark.xdist_group("real_fine_tune")
-
 CORPUS_DIR = Path(__file__).parent / "data" / "real"
 CORPUS = json.loads((CORPUS_DIR / "corpus.json").read_text())
 
