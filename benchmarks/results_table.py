@@ -388,6 +388,28 @@ def corpus_results(lengths: list[float]) -> list[dict]:
             for name, entry in sorted(corpus["logs"].items())]
 
 
+def fine_tuned_results() -> list[dict]:
+    """``benchmarks/real_fine_tune.py``'s measurement on every corpus log: the shipped model
+    fine-tuned on the log's first half, scored with its parent and the INS DR on the second."""
+    from real_fine_tune import CORPUS_FILE as FINE_TUNE_CORPUS
+    from real_fine_tune import measure as fine_tune
+
+    corpus = json.loads(FINE_TUNE_CORPUS.read_text())
+    with tempfile.TemporaryDirectory(prefix="results-fine-tune-") as tmp:
+        return [fine_tune(name, entry, {}, Path(tmp), 0.5) for name, entry in sorted(corpus["logs"].items())]
+
+
+def fine_tuned_table(results: list[dict]) -> str:
+    """The shipped IDNN beside the fine-tuned one per corpus log (:func:`fine_tuned_results`)."""
+    lines = ["| log | outages (second half) | INS DR | shipped, its network alone | shipped (with its arbiter) "
+             "| fine-tuned on the first half |", "|---|---:|---:|---:|---:|---:|"]
+    for r in results:
+        m = r["mean_m"]
+        cells = [f"{m[k]:.2f}" if m else "–" for k in ("ins", "parent_network", "parent", "fine_tuned")]
+        lines.append(f"| {r['log']} | {r['outages']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def real_rows(results: list[dict], lengths: list[float]) -> str:
     """The real logs measured by ``benchmarks/real_imu_logs.py --json`` (on the user's local copies;
     :func:`read_real_logs`), in the overview's shape, for the page's "Real logs" section."""
@@ -418,7 +440,8 @@ def consistency_table(labels: dict[str, str], cells: dict[tuple[str, float], Cel
 
 
 def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: list[float], minutes: float, seed_base: int,
-         model: str | None, real: list[dict] | None = None, losses: dict | None = None) -> str:
+         model: str | None, real: list[dict] | None = None, losses: dict | None = None,
+         tuned: list[dict] | None = None) -> str:
     day = datetime.datetime.now(datetime.UTC).date().isoformat()
     model_text = f"the IDNN model in `{model}`" if model else "the shipped IDNN model"
     return wrap("\n".join([
@@ -456,6 +479,18 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
             *agreement_lines(real, cells),
             "",
         ] if real else []),
+        *([
+            "## The IDNN on the real logs, shipped and fine-tuned",
+            "",
+            "Each corpus log's second half, 10 s outages, IMU only: displacement CRSE (m), mean per outage, of the INS "
+            "DR, the shipped IDNN (its network alone, and with its history arbiter, the default) and the shipped IDNN "
+            "fine-tuned on the log's first half (`ionav-viz train LOG --span 0s:T --from-model shipped`), as "
+            "`benchmarks/real_fine_tune.py` measures it; the intervals and what fine-tuning kept: "
+            "[real-imu-logs.md](real-imu-logs.md#fine-tuned-on-the-cars-own-first-half-issue-62).",
+            "",
+            fine_tuned_table(tuned),
+            "",
+        ] if tuned else []),
         "## Final position error as a share of the distance driven, mean over outages",
         "",
         overview(labels, cells, lengths),
@@ -521,14 +556,18 @@ def main() -> None:
     lengths = lengths_s(args.lengths)
     logging.getLogger("ionav_viz").setLevel(logging.ERROR)
     labels, cells, losses = measure(args.model, args.minutes, args.seed_base, lengths, sets)
+    tuned = None
     if args.corpus:
         real = corpus_results(lengths) + real
+        if args.write is not None and args.model is None:
+            tuned = fine_tuned_results()
     if args.write is None:
         print(overview(labels, cells, lengths) + "\n\n" + comparisons(labels, cells, lengths) + "\n\n" + tables(labels, cells, lengths)
               + ("\n\n" + receiver_loss_table(losses) if losses else ""), end="")
     else:
         kept = kept_section(args.write)  # the own-vehicle section, written by benchmarks/own_vehicle.py
-        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, real, losses)
+        write_atomically(args.write, page(labels, cells, lengths, args.minutes, args.seed_base, args.model, real, losses,
+                                                  tuned)
                          + ("\n" + kept if kept else ""))
         print(args.write)
 
