@@ -101,3 +101,16 @@ def test_a_long_outage_with_little_history_of_its_length_is_judged_on_the_10_s_o
     on = IdnnEstimator()
     iv.evaluate([drive], 30, estimators=[on])
     assert "with fewer than 4 behind them judged on the 10 s ones" in on.describe()["arbiter"]
+
+
+def test_the_recordings_details_say_what_the_idnns_arbiter_chose(phone, tmp_path):
+    from tests.conftest import run_cli
+    from tests.test_real_logs import summary_of
+
+    entry = CORPUS["logs"]["phone_flat_meszdav"]
+    rrd = tmp_path / "phone.rrd"
+    proc = run_cli("replay", str(CORPUS_DIR / entry["file"]), "--outage", "10s", "--imu-mount", "auto",
+                   "--gnss-limit", f"max_sigma_m={entry['max_sigma_m']}", "--estimators", "ins,idnn", "-o", str(rrd), "-q")
+    assert proc.returncode == 0, proc.stderr
+    *_, note = phone  # the same drive and outages through the API
+    assert f"**IDNN arbiter**: {note}" in summary_of(rrd)

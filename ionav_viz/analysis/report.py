@@ -525,6 +525,8 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
                      f"{model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
             lines.append(f"**Training data**: {model_info['training_data']}")
+        if model_info.get("arbiter"):
+            lines.append(f"**IDNN arbiter**: {model_info['arbiter']}")
         for name, note in (model_info.get("domain") or {}).items():
             lines.append(f"**IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
                          f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
