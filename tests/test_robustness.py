@@ -920,10 +920,9 @@ def test_a_file_size_limit_is_one_line(tmp_path, command):
     'OSError: File too large' traceback."""
     out = tmp_path / "out.json"
     # numba writes its compiled kernels into the package's __pycache__ on first use: warm it without
-    # the limit, so that the limited run's only large writes are the command's own output
-    warm = subprocess.run([sys.executable, "-m", "ionav_viz.cli", *command, *(["-o", str(tmp_path.parent / f"{tmp_path.name}-warm")]
-                                                                           if command[0] == "train" else [])],
-                          cwd=REPO, capture_output=True, text=True, timeout=HANG_S)
+    # the limit (in this process: the files it writes are the same), so that the limited run's only
+    # large writes are the command's own output
+    warm = run_cli(*command, *(["-o", str(tmp_path.parent / f"{tmp_path.name}-warm")] if command[0] == "train" else []))
     assert warm.returncode == 0, warm.stderr
     if command[0] == "train":
         command = [*command, "-o", str(tmp_path / "model")]
