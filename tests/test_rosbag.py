@@ -299,17 +299,26 @@ def _write_messy_ros2(drive, path, varying_frames, bad_imu=False):
     return path
 
 
+@pytest.fixture(scope="module")
+def messy_bags(tmp_path_factory):
+    """The roundabout as a messy ROS 2 bag (:func:`_write_messy_ros2`), by (IMU frame names varying,
+    one implausible IMU value); written once, read by each stamps case."""
+    drive = iv.load_drive("roundabout")
+    root = tmp_path_factory.mktemp("messy")
+    return {(varying, bad): _write_messy_ros2(drive, root / f"bag-{varying}-{bad}", varying, bad)
+            for varying in (False, True) for bad in (False, True)}
+
+
 @pytest.mark.parametrize("stamps", ["header", "log"])
-def test_a_ros2_bag_reads_the_same_as_columns_and_one_by_one(tmp_path, caplog, stamps):
+def test_a_ros2_bag_reads_the_same_as_columns_and_one_by_one(caplog, messy_bags, stamps):
     """A ROS 2 bag's fixed-layout messages are read as columns, a block at a time: the same drive bit
     for bit, the same warnings and the same refusal as its messages read one by one."""
     import logging
 
-    drive = iv.load_drive("roundabout")
     got = {}
     for varying in (False, True):
         for bad in (False, True):
-            path = _write_messy_ros2(drive, tmp_path / f"bag-{varying}-{bad}", varying, bad)
+            path = messy_bags[varying, bad]
             caplog.clear()
             with caplog.at_level(logging.WARNING, logger="ionav_viz"):
                 try:
