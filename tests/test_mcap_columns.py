@@ -114,11 +114,19 @@ def _read(path, caplog, **options):
     return got, warnings
 
 
+@pytest.fixture(scope="module")
+def mixed_logs(tmp_path_factory):
+    """(the mixed log whose chunks are read as columns, the same log read message by message), written
+    once for every reading option below."""
+    root = tmp_path_factory.mktemp("mixed")
+    return _write_mixed(root / "columns.mcap", False), _write_mixed(root / "messages.mcap", True)
+
+
 @pytest.mark.parametrize("options", [{}, {"stamps": "log"}, {"truth_topic": "/truth/odom", "truth_origin": "auto"}])
-def test_columns_read_as_one_by_one(tmp_path, caplog, options):
+def test_columns_read_as_one_by_one(caplog, mixed_logs, options):
     stamps = options.get("stamps", "header")
-    by_columns, by_columns_warnings = _read(_write_mixed(tmp_path / "columns.mcap", False), caplog, **options)
-    one_by_one, one_by_one_warnings = _read(_write_mixed(tmp_path / "messages.mcap", True), caplog, **options)
+    by_columns, by_columns_warnings = _read(mixed_logs[0], caplog, **options)
+    one_by_one, one_by_one_warnings = _read(mixed_logs[1], caplog, **options)
     assert by_columns_warnings == one_by_one_warnings
     assert any("'not provided'" in w for w in one_by_one_warnings), one_by_one_warnings
     assert any("without a fix" in w for w in one_by_one_warnings), one_by_one_warnings
