@@ -107,3 +107,65 @@ def test_a_reports_typed_rows_are_its_json_and_its_tables(report):
         assert doc["final_error_percentiles"][d.name] == {"p50": d.final_p50_m, "p90": d.final_p90_m,
                                                           "p95": d.final_p95_m, "max": d.final_max_m}
         assert f"| {d.label} | " in markdown and f" {d.final_max_m:.1f} |" in markdown
+
+
+def test_a_reports_lines_are_its_typed_values_and_those_its_json(report):
+    """The lines under the tables (improvements, GNSS truth, drives, uncertainty) and the JSON are
+    built from the same typed values: each is the JSON's entry, and its numbers are the lines'."""
+    from dataclasses import asdict
+
+    doc, text, markdown = report.to_dict(), report.to_text(), report.to_markdown()
+    assert report.improvement_pct == doc["improvement_pct"]
+    assert report.improvement_ci95_pct == doc["improvement_ci95_pct"]
+    assert list(report.improvement_pct) == ["idnn", "odo", "ekf"]  # every estimator but the INS DR
+    for est, imp in report.improvement_pct.items():
+        assert imp["crse_m"] == imp.crse_pct and imp.to_dict() == doc["improvement_pct"][est]
+        lo, hi = report.improvement_ci95_pct[est].final_position_error_pct
+        line = (f"{report.labels[est]} improvement over INS DR (mean): displacement CRSE {imp.crse_pct:.1f} %, "
+                f"orientation-rate CRSE {imp.yaw_crse_pct:.1f} %, final position error "
+                f"{imp.final_position_error_pct:.1f} % (95 % interval {lo:.1f} to {hi:.1f} %)")
+        assert line in text and line in markdown
+    truth = report.gnss_truth
+    assert asdict(truth) == doc["gnss_truth"] and f"GNSS truth: all {truth.windows} windows trustworthy" in text
+    [drive] = report.drive_entries
+    assert drive.to_dict() == doc["drives"][0] and asdict(drive.gnss_truth) == doc["drives"][0]["gnss_truth"]
+    assert [doc["drives"][0][k] for k in ("name", "source", "placement")] == [drive.name, drive.source, drive.placement]
+    assert drive.imu is None and "imu" not in doc["drives"][0] and f"Outages: {drive.placement}\n" in text
+    assert {k: v for k, v in asdict(report.distance_m).items() if k != "std"} == doc["distance_m"]
+    assert report.filter_health == doc["filter_health"] and set(report.filter_health) == {"ekf"}
+    assert f"{report.labels['ekf']} health: " in text
+    assert report.consistency and all(doc["summary"][e]["consistency"] == c for e, c in report.consistency.items())
+
+
+def test_the_logs_own_losses_are_the_typed_value_the_json_and_the_text_are_built_from():
+    from dataclasses import asdict
+
+    from ionav_viz.core.json_out import dumps_json
+
+    report = iv.evaluate("V-sim-motorway-tunnels", placement=iv.AroundEvents(("gnss-outage",)))
+    doc, text = report.to_dict(), report.to_text()
+    real = report.gnss_outages
+    assert dumps_json(asdict(real)) == dumps_json(doc["gnss_outages"]) and len(real.bridged) == 6
+    assert real.bridged == report.bridged_rows and real.not_bridged == doc["gnss_outages"]["not_bridged"] == 0
+    means = ", ".join(f"{report.labels[e]} {s.mean:.2f} m" for e, s in real.final_error_m.items())
+    assert f"Mean final position error over 6 real GNSS outage(s): {means}\n" in text
+    truth = report.gnss_truth
+    assert asdict(truth) == doc["gnss_truth"] and truth.excluded_windows > 0
+    assert f"GNSS truth: {truth.excluded_windows} of {truth.windows} windows excluded (" in text
+    assert "IDNN arbiter: " in text and doc["estimators"] == report.estimator_info
+
+
+def test_the_overview_rows_are_the_reports_typed_values():
+    """``--overview``'s total row is the report over every drive: its means and improvements, as
+    ``--json`` gives them for the same drives."""
+    args = ("evaluate", "roundabout", "hard-brake", "--estimators", "ins,odo", "-q")
+    doc = json.loads(run_cli(*args, "--json").stdout)
+    overview = run_cli(*args, "--overview", "--markdown")
+    assert overview.returncode == 0, overview.stderr
+    total = next(line for line in overview.stdout.splitlines() if line.startswith("| total |"))
+    s, imp = doc["summary"], doc["improvement_pct"]["odo"]
+    cells = [f"{s['ins']['crse_m']['mean']:.2f}", f"{s['odo']['crse_m']['mean']:.2f}", f"{imp['crse_m']:.1f}",
+             f"{s['ins']['yaw_crse_radps']['mean']:.3f}", f"{s['odo']['yaw_crse_radps']['mean']:.3f}",
+             f"{imp['yaw_crse_radps']:.1f}", f"{s['ins']['final_position_error_m']['mean']:.2f}",
+             f"{s['odo']['final_position_error_m']['mean']:.2f}"]
+    assert total.startswith(f"| total | {doc['n_sequences']} | " + " | ".join(cells) + " | "), total

@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from ionav_viz.analysis.tables import aligned
+from ionav_viz.analysis.document import aligned
 
 from .conftest import run_cli
 
@@ -117,12 +117,11 @@ def test_a_value_that_rounds_to_zero_has_no_sign():
 
 def test_an_improvement_that_rounds_to_zero_has_no_sign():
     """An improvement of -0.04 % printed '-0.0 %' beside its interval's '0.0' (a review found it)."""
+    from ionav_viz.analysis.rows import Improvement
     from ionav_viz.analysis.tables import improvement_lines
 
-    rep = {"estimators": [{"name": "ins", "label": "INS DR"}, {"name": "odo", "label": "Odometry"}],
-           "improvement_pct": {"odo": {"crse_m": -0.04, "yaw_crse_radps": 0.0, "final_position_error_m": -0.04}},
-           "improvement_ci95_pct": {"odo": {"final_position_error_m": [-0.04, 0.03]}}}
-    [line] = improvement_lines(rep)
+    [line] = improvement_lines({"ins": "INS DR", "odo": "Odometry"}, {"odo": Improvement(-0.04, 0.0, -0.04)},
+                               {"odo": Improvement([-0.1, 0.1], [0.0, 0.0], [-0.04, 0.03])})
     assert "-0.0" not in line and "displacement CRSE 0.0 %" in line and "final position error 0.0 % (95 % interval 0.0 to 0.0 %)" in line, line
 
 

@@ -29,8 +29,7 @@ from .document import Block, Code, Document, Heading, Items, Paragraphs, Table, 
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
-from .report import IMPROVEMENT_METRICS
-from .rows import EstimatorRow, Spread
+from .rows import IMPROVEMENT_METRICS, EstimatorRow, Improvement, Spread
 from .schema import tagged
 
 #: How many drives and outages the fleet report ranks as the worst.
@@ -211,7 +210,7 @@ class PooledRow:
         spreads: each metric's spread over those outages.
         final_p50_m, final_p90_m, final_p95_m, final_max_m: the final position error's percentiles.
         improvement_pct: but for the INS DR, how much lower each of
-            :data:`~ionav_viz.analysis.report.IMPROVEMENT_METRICS`' means is than the INS DR's on
+            :data:`~ionav_viz.analysis.rows.IMPROVEMENT_METRICS`' means is than the INS DR's on
             the outages both ran on (%); None for the INS DR or without it.
         improvement_ci95_pct: the same as 95 % intervals ``[low, high]``, the drives resampled.
     """
@@ -223,8 +222,8 @@ class PooledRow:
     final_p90_m: float
     final_p95_m: float
     final_max_m: float
-    improvement_pct: dict[str, float] | None = None
-    improvement_ci95_pct: dict[str, list[float]] | None = None
+    improvement_pct: Improvement[float] | None = None
+    improvement_ci95_pct: Improvement[list[float]] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON's ``pooled`` entry: ``drives``, ``outages``, ``summary``, ``final_error_percentiles``
@@ -234,7 +233,8 @@ class PooledRow:
                                "final_error_percentiles": {"p50": self.final_p50_m, "p90": self.final_p90_m,
                                                            "p95": self.final_p95_m, "max": self.final_max_m}}
         if self.improvement_pct is not None:
-            out |= {"improvement_pct": self.improvement_pct, "improvement_ci95_pct": self.improvement_ci95_pct}
+            out |= {"improvement_pct": self.improvement_pct.to_dict(),
+                    "improvement_ci95_pct": self.improvement_ci95_pct.to_dict()}
         return out
 
 
@@ -339,11 +339,12 @@ class FleetReport:
             better = ci = None
             if base is not None and est != base:
                 both = [t for t in ran if base in t.metrics]
-                better = {m: improvement_pct(summarise(self.metric(base, m, both))["mean"],
-                                             summarise(self.metric(est, m, both))["mean"]) for m in IMPROVEMENT_METRICS}
-                ci = {m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
-                                                             [t.metrics[est][m] for t in both]))
-                      for m in IMPROVEMENT_METRICS}
+                better = Improvement.of({m: improvement_pct(summarise(self.metric(base, m, both))["mean"],
+                                                            summarise(self.metric(est, m, both))["mean"])
+                                         for m in IMPROVEMENT_METRICS})
+                ci = Improvement.of({m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
+                                                                            [t.metrics[est][m] for t in both]))
+                                     for m in IMPROVEMENT_METRICS})
             out.append(PooledRow(len(ran), int(sum(t.n_outages for t in ran)), spreads,
                                  **{f"final_{k}_m": v for k, v in final.items()},
                                  improvement_pct=better, improvement_ci95_pct=ci))
@@ -617,8 +618,9 @@ def _document(rep: FleetReport, timing: bool) -> Document:
             row = [s.label, str(p.drives), str(p.outages), _f(s.final_position_error_m.mean), _f(p.final_p90_m),
                    _f(s.crse_m.mean), _f(s.yaw_crse_radps.mean, 3)]
             if base:
-                row.append(_f(p.improvement_pct["final_position_error_m"], 1) if p.improvement_pct else "")
-                lo, hi = (p.improvement_ci95_pct or {}).get("final_position_error_m", (float("nan"), float("nan")))
+                row.append(_f(p.improvement_pct.final_position_error_pct, 1) if p.improvement_pct else "")
+                lo, hi = (p.improvement_ci95_pct.final_position_error_pct if p.improvement_ci95_pct
+                          else (float("nan"), float("nan")))
                 row.append(f"{_f(lo, 1)} to {_f(hi, 1)}" if math.isfinite(lo) and math.isfinite(hi) else "")
             rows.append(row)
         blocks += [Heading("Pooled over the fleet (mean over outages)", 2), Table(header, rows, 1, align=True)]

@@ -4,7 +4,7 @@ A :class:`Report` is what ``ionav-viz evaluate`` prints for one group of drives 
 one manoeuvre type, or the drives given); :meth:`Report.to_json` is exactly ``evaluate --json``.
 Groups of reports (``--scenario all``, ``--by-event``) print as ``{"scenarios": {...}}`` or
 ``{"by_event": {...}}`` (:func:`reports_to_json`) and as one overview table
-(:func:`ionav_viz.analysis.tables.render_overview`).
+(:func:`render_overview`).
 """
 
 from __future__ import annotations
@@ -22,16 +22,25 @@ from ..core.errors import InputError
 from ..core.json_out import dumps_json
 from . import tables
 from .consistency import consistency
-from .document import Block, Document, Heading, Items, Paragraphs, Table, to_markdown, to_text
+from .document import Block, Document, Heading, Items, Paragraphs, Table, aligned, to_markdown, to_text
 from .drift import final_error_percentiles, report_drift
 from .evaluate import DriveResult, improvement_ci95_pct, improvement_pct, is_baseline
 from .health import pooled_health, summarise_health
 from .metrics import METRICS, summarise
-from .rows import BridgedRow, DriftRow, EstimatorRow, Spread, WorstRow
+from .rows import (
+    IMPROVEMENT_METRICS,
+    BridgedRow,
+    DriftRow,
+    DriveEntry,
+    EstimatorRow,
+    GnssOutages,
+    GnssTruth,
+    Improvement,
+    Spread,
+    WorstRow,
+)
 from .schema import tagged
 
-#: The metrics whose means are compared with the baseline in ``improvement_pct``.
-IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
 #: How many of the worst outages reports list.
 WORST_COUNT = 3
 
@@ -121,28 +130,24 @@ class Report:
         return {r.name: {m: asdict(getattr(r, m)) for m in METRICS} for r in self.estimator_rows}
 
     @cached_property
-    def improvement_pct(self) -> dict[str, dict[str, float]]:
-        """Per estimator other than the INS DR: how much lower its mean metrics are than the INS's (%)."""
-        names = self.estimators
-        base = next((n for n in names if is_baseline(n)), None)
-        if base is None:
-            return {}
-        return {
-            est: {m: improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"])
-                  for m in IMPROVEMENT_METRICS}
-            for est in names if est != base
-        }
+    def improvement_pct(self) -> dict[str, Improvement[float]]:
+        """Per estimator other than the INS DR: how much lower its mean metrics are than the INS's (%;
+        ``improvement_pct["idnn"]["crse_m"]``); none without the INS DR."""
+        base = next((n for n in self.estimators if is_baseline(n)), None)
+        return {} if base is None else {
+            est: Improvement.of({m: improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"])
+                                 for m in IMPROVEMENT_METRICS})
+            for est in self.estimators if est != base}
 
     @cached_property
-    def improvement_ci95_pct(self) -> dict[str, dict[str, list[float]]]:
+    def improvement_ci95_pct(self) -> dict[str, Improvement[list[float]]]:
         """:attr:`improvement_pct`'s 95 % intervals, ``[low, high]`` per estimator and metric: a paired
         bootstrap over the outages (:func:`~ionav_viz.analysis.evaluate.improvement_ci95_pct`)."""
         base = next((n for n in self.estimators if is_baseline(n)), None)
-        if base is None:
-            return {}
-        return {est: {m: list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m)))
-                      for m in IMPROVEMENT_METRICS}
-                for est in self.estimators if est != base}
+        return {} if base is None else {
+            est: Improvement.of({m: list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m)))
+                                 for m in IMPROVEMENT_METRICS})
+            for est in self.estimators if est != base}
 
     @property
     def worst_of(self) -> str:
@@ -181,6 +186,56 @@ class Report:
         """The log's own GNSS losses the estimators bridged, drive by drive."""
         return [BridgedRow(label, **b.to_dict())
                 for r, label in zip(self.results, self.drive_labels) for b in r.bridged]
+
+    @cached_property
+    def gnss_outages(self) -> GnssOutages | None:
+        """The log's own GNSS losses, bridged or not; None where the drives had none."""
+        results = self.results
+        if not any(r.bridged or r.unbridged for r in results):
+            return None
+        bridged = [b for r in results for b in r.bridged]
+        return GnssOutages(self.bridged_rows, sum(sum(r.unbridged.values()) for r in results),
+                           _summed_counts([r.unbridged for r in results]),
+                           {e: Spread(**summarise(np.array([b.final_error_m[e] for b in bridged])))
+                            for e in self.estimators})
+
+    @cached_property
+    def distance_m(self) -> Spread:
+        """The GNSS distance driven during each outage, across the outages (m; the JSON leaves out its ``std``)."""
+        return Spread(**summarise(np.concatenate([r.gnss_distance_m for r in self.results])))
+
+    @property
+    def drive(self) -> str:
+        """The drives' names joined by ``+`` (the JSON's ``drive``)."""
+        return "+".join(r.drive.name for r in self.results)
+
+    @cached_property
+    def drive_entries(self) -> list[DriveEntry]:
+        """Each drive: its name in the report, source, GNSS truth, placement, IMU and filter health."""
+        return [DriveEntry(label, r.drive.source, GnssTruth(**r.truth_exclusions()), r.placement or "",
+                           *((r.drive.imu.to_dict(), r.drive.imu.describe()) if r.drive.imu is not None else ()),
+                           filter_health=_drive_health(r))
+                for r, label in zip(self.results, self.drive_labels)]
+
+    @cached_property
+    def gnss_truth(self) -> GnssTruth:
+        """What the GNSS quality checks excluded, summed over the drives."""
+        parts = [d.gnss_truth for d in self.drive_entries]
+        return GnssTruth(sum(p.windows for p in parts), sum(p.excluded_windows for p in parts),
+                         _summed_counts([p.excluded_by_reason for p in parts]),
+                         sum(p.receiver_lost_windows for p in parts), sum(p.excluded_outages for p in parts))
+
+    @cached_property
+    def filter_health(self) -> dict[str, dict[str, Any]]:
+        """Per estimator that reports one, its filters' health over the drives (:func:`~.health.pooled_health`)."""
+        health = {est: pooled_health([d.filter_health[est] for d in self.drive_entries if est in d.filter_health])
+                  for est in self.estimators}
+        return {est: h for est, h in health.items() if h}
+
+    @cached_property
+    def estimator_info(self) -> list[dict[str, Any]]:
+        """Name, label, colour and the estimator's own description (``info``) of each estimator."""
+        return self.results[0].estimator_info()
 
     def outage_tracks(self, drive: str, number: int) -> dict[str, Any]:
         """One outage's tracks at its window boundaries: ``drive``, ``number``, ``start_s``, and
@@ -228,31 +283,25 @@ class Report:
                 for est in estimators:
                     entry[est] = {m: float(res.metrics[est][m][i]) for m in METRICS}
                 sequences.append(entry)
-        distances = np.concatenate([r.gnss_distance_m for r in results])
         out: dict[str, Any] = tagged("report", {
-            "drive": "+".join(r.drive.name for r in results),
-            "drives": [{"name": label, "source": r.drive.source, "gnss_truth": r.truth_exclusions(),
-                        **({"placement": r.placement} if r.placement else {}),
-                        **({"imu": r.drive.imu.to_dict(),
-                            "imu_text": r.drive.imu.describe()} if r.drive.imu is not None else {}),
-                        **({"filter_health": h} if (h := _drive_health(r)) else {})}
-                       for r, label in zip(results, self.drive_labels)],
+            "drive": self.drive,
+            "drives": [d.to_dict() for d in self.drive_entries],
             "outage_s": results[0].outage_s,
             "n_sequences": len(sequences),
             "sequences": sequences,
             "summary": self._summary_with_consistency(),
-            "distance_m": {k: v for k, v in summarise(distances).items() if k != "std"},
+            "distance_m": {k: v for k, v in asdict(self.distance_m).items() if k != "std"},
             "bias": [
                 {"drive": label, "accel_mps2": r.bias.accel_mps2, "gyro_radps": r.bias.gyro_radps,
                  "source": r.bias.source}
                 for r, label in zip(results, self.drive_labels)
             ],
-            "estimators": results[0].estimator_info(),
-            "gnss_truth": _sum_truth([r.truth_exclusions() for r in results]),
+            "estimators": self.estimator_info,
+            "gnss_truth": asdict(self.gnss_truth),
         })
         if self.improvement_pct:
-            out["improvement_pct"] = self.improvement_pct
-            out["improvement_ci95_pct"] = self.improvement_ci95_pct
+            out["improvement_pct"] = {e: i.to_dict() for e, i in self.improvement_pct.items()}
+            out["improvement_ci95_pct"] = {e: i.to_dict() for e, i in self.improvement_ci95_pct.items()}
         if self.drift_rows:
             out["drift"] = {d.name: {"t_s": d.t_s, "mean_m": d.mean_m, "p10_m": d.p10_m, "p90_m": d.p90_m}
                             for d in self.drift_rows}
@@ -262,24 +311,14 @@ class Report:
         out["worst"] = self.worst_outages()
         if out["worst"]:
             out["worst_tracks"] = self.outage_tracks(out["worst"][0]["drive"], out["worst"][0]["number"])
-        bridged = [(label, b) for r, label in zip(results, self.drive_labels) for b in r.bridged]
-        if bridged or any(r.unbridged for r in results):
-            out["gnss_outages"] = {
-                "bridged": [asdict(b) for b in self.bridged_rows],
-                "not_bridged": sum(sum(r.unbridged.values()) for r in results),
-                "not_bridged_by_reason": _summed_counts([r.unbridged for r in results]),
-                "final_error_m": {est: summarise(np.array([b.final_error_m[est] for _, b in bridged]))
-                                  for est in estimators},
-            }
+        if self.gnss_outages is not None:
+            out["gnss_outages"] = asdict(self.gnss_outages)
         idnn = next((e for e in out["estimators"] if e["name"] == "idnn"), None)
         if idnn is not None:
             out["model"] = idnn.get("info", {})
         out["truth"] = "reference" if any(r.drive.has_reference for r in results) else "gnss"
-        health = {est: pooled_health([d["filter_health"][est] for d in out["drives"]
-                                      if est in d.get("filter_health", {})])
-                  for est in estimators}
-        if any(health.values()):
-            out["filter_health"] = {est: h for est, h in health.items() if h}
+        if self.filter_health:
+            out["filter_health"] = self.filter_health
         out["warnings"] = list(self.warnings)
         if self.config is not None:
             out["config"] = dict(self.config)
@@ -308,31 +347,45 @@ class Report:
         """The report as a document (:mod:`.document`), what :meth:`to_text` and :meth:`to_markdown` lay
         out: the paper's table, the log's own GNSS outages where it bridged some, a line each on the
         improvements, the GNSS truth, the drives, the estimators' uncertainty, health and choices,
-        then the drift and the worst outages. The tables are the typed rows the JSON is built from
-        (:attr:`estimator_rows`, :attr:`bridged_rows`, :attr:`drift_rows`, :meth:`worst_rows`); the
-        lines are read from the JSON."""
-        rep = self.to_dict()
-        labels = self.labels
+        then the drift and the worst outages: from the typed values the JSON is built from
+        (:attr:`estimator_rows`, :attr:`gnss_outages`, :attr:`drift_rows`, :meth:`worst_rows`,
+        :attr:`improvement_pct`, :attr:`gnss_truth`, :attr:`drive_entries`, ...), never from the JSON."""
+        labels, n, real = self.labels, self.n_outages, self.gnss_outages
         blocks: list[Block] = []
-        if rep["n_sequences"] or "gnss_outages" not in rep:
-            header, rows = tables.estimator_table(self.estimator_rows, rep["distance_m"], rep["n_sequences"])
-            blocks += [Heading(tables.title_of(rep, self.title)), Table(header, rows, 2, strong_first=True)]
-        if "gnss_outages" in rep:
-            bridged = self.bridged_rows
-            header, rows = tables.bridged_table(bridged, labels, len({b.drive for b in bridged}) > 1)
-            blocks += [Heading(f"{rep['drive']}: the log's own GNSS outages",
+        if n or real is None:
+            header, rows = tables.estimator_table(self.estimator_rows, self.distance_m, n)
+            blocks += [Heading(tables.title_of(self.drive, self.results[0].outage_s, self.title)),
+                       Table(header, rows, 2, strong_first=True)]
+        if real is not None:
+            header, rows = tables.bridged_table(real.bridged, labels, len({b.drive for b in real.bridged}) > 1)
+            blocks += [Heading(f"{self.drive}: the log's own GNSS outages",
                                note="(truth: the first good fix after each)"),
-                       Table(header, rows, 1), Paragraphs([tables.bridged_line(rep)])]
-        blocks.append(Paragraphs(tables.report_lines(rep)))
+                       Table(header, rows, 1), Paragraphs([tables.bridged_line(real, labels)])]
+        blocks.append(Paragraphs(self.lines()))
         if self.drift_rows:
             header, rows = tables.drift_table(self.drift_rows)
             blocks += [Heading(tables.DRIFT_TITLE, lead_in=True), Table(header, rows, 1)]
         worst = self.worst_rows()
         if worst:
-            several = len({w.drive for w in worst}) > 1 or "+" in rep["drive"]
+            several = len({w.drive for w in worst}) > 1 or "+" in self.drive
             header, rows = tables.worst_table(worst, labels, several)
-            blocks += [Heading(tables.worst_title(rep), lead_in=True), Table(header, rows, 3 if several else 2)]
+            blocks += [Heading(f"Worst outages by {labels[self.worst_of]} final position error", lead_in=True),
+                       Table(header, rows, 3 if several else 2)]
         return Document(blocks, spaced=False)
+
+    def lines(self) -> list[str]:
+        """The lines under the report's tables, from its typed values: the improvements where it has
+        synthetic outages, the GNSS truth, the drives, the estimators' uncertainty, health and choices."""
+        from .consistency import consistency_line
+        from .health import health_line
+
+        labels, info = self.labels, self.estimator_info
+        said = (tables.improvement_lines(labels, self.improvement_pct, self.improvement_ci95_pct)
+                if self.n_outages else [])
+        said += [tables.truth_line(self.gnss_truth), *tables.drive_lines(self.drive_entries)]
+        said += [consistency_line(labels[est], c) for est, c in self.consistency.items()]
+        said += [health_line(labels[est], summary) for est, summary in self.filter_health.items()]
+        return said + tables.arbiter_lines(info, len(self.results)) + tables.domain_lines(info)
 
     def to_text(self, width: int | None = None) -> str:
         """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
@@ -358,14 +411,6 @@ def _summed_counts(parts: list[dict[str, int]]) -> dict[str, int]:
     return total
 
 
-def _sum_truth(parts: list[dict[str, Any]]) -> dict[str, Any]:
-    reasons = _summed_counts([p["excluded_by_reason"] for p in parts])
-    return {"windows": sum(p["windows"] for p in parts), "excluded_windows": sum(p["excluded_windows"] for p in parts),
-            "excluded_by_reason": reasons,
-            "receiver_lost_windows": sum(p.get("receiver_lost_windows", 0) for p in parts),
-            "excluded_outages": sum(p["excluded_outages"] for p in parts)}
-
-
 def combined(reports: Mapping[Any, Report]) -> Report:
     """One report over every drive of several groups (the total of an overview)."""
     return Report([r for rep in reports.values() for r in rep.results], "total")
@@ -384,6 +429,74 @@ def overview_reports(reports: Mapping[Any, Report], by_group: bool = False) -> d
             rows[f"{group}: {label}" if group else label] = Report([res], res.drive.name)
     rows["total"] = combined(reports)
     return rows
+
+
+def overview_rows(reports: Mapping[Any, Report], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
+    """One row per scenario (or drive group): mean CRSE and final position error per estimator,
+    the INS DR first, each other estimator with its improvement over the INS DR (Δ %)."""
+    labels = next(iter(reports.values())).labels
+    names = [n for n in labels if n == "ins"] + [n for n in labels if n != "ins"]
+    blocks = (("Disp. CRSE μ", "crse_m", "m", 2, "crse_pct"),
+              ("Yaw CRSE μ", "yaw_crse_radps", "rad/s", 3, "yaw_crse_pct"),
+              ("Final pos. err. μ", "final_position_error_m", "m", 2, None),
+              ("Final err. μ", "final_error_pct", "% of distance", 1, None))
+    header = [label, "Sequences"]
+    for title, _metric, unit, _d, delta in blocks:
+        for i, est in enumerate(names):
+            header.append(f"{title} {labels[est]} ({unit})" if i == 0 else f"{labels[est]} ({unit})")
+            if delta and est != "ins" and "ins" in names:
+                header.append("Δ %")
+    rows = []
+    for group, rep in reports.items():
+        means, imp = {r.name: r for r in rep.estimator_rows}, rep.improvement_pct
+        row = [str(group or rep.drive), str(rep.n_outages)]
+        for _title, metric, _unit, d, delta in blocks:
+            for est in names:
+                row.append(tables._fmt(getattr(means[est], metric).mean, d) if est in means else "-")
+                if delta and est != "ins" and "ins" in names:
+                    row.append(tables._fmt(getattr(imp[est], delta), 1) if est in imp else "-")
+        rows.append(row)
+    return header, rows
+
+
+def render_overview(reports: Mapping[Any, Report], markdown: bool, label: str = "Scenario",
+                    width: int | None = None) -> str:
+    """The overview table; Δ % is an estimator's improvement over the INS DR (positive = better).
+
+    As text wider than ``width`` it is transposed: one column per group, one row per metric and
+    estimator (and split into blocks of groups if that is still too wide)."""
+    header, rows = overview_rows(reports, label)
+    if markdown:
+        return to_markdown(Document([Table(header, rows)]))
+    widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
+    lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths)))
+             for r in [header] + rows]
+    if width is not None and max(map(len, lines)) > width:
+        lines = aligned(*overview_transposed(reports, label), 2, width)
+    return "\n".join(lines) + "\n"
+
+
+def overview_transposed(reports: Mapping[Any, Report], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
+    """The overview with one column per group: rows are (metric, estimator) and each candidate's
+    improvement over the INS DR (``Δ %``) under it."""
+    header, rows = overview_rows(reports, label)
+    labels = next(iter(reports.values())).labels
+    # "motorway: V-sim-motorway" -> its group
+    out_header = ["Metric", "Estimator", *(r[0].split(": ")[0] for r in rows)]
+    out_rows = [["Sequences", "", *(r[1] for r in rows)]]
+    metric = ""
+    for j in range(2, len(header)):
+        name = header[j]
+        est = next((lab for lab in labels.values() if name.startswith(f"{lab} (") or f" {lab} (" in name), "")
+        if name == "Δ %":
+            out_rows.append(["", f"{out_rows[-1][1]} Δ %", *(r[j] for r in rows)])
+            continue
+        title = name[: name.index(est)].strip() if est and not name.startswith(est) else ""
+        unit = name[name.rindex("(") :].replace("% of distance", "% of dist.")
+        if title:
+            metric = f"{title} {unit}"
+        out_rows.append([metric if title else "", est, *(r[j] for r in rows)])
+    return out_header, out_rows
 
 
 class EventReports(dict):
@@ -510,7 +623,7 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
         f"**Source**: `{drive.source}` ({len(drive)} samples, {drive.duration_s:.1f} s, {drive.rate_hz:g} Hz)",
         f"**Outages**: {placement}; {report.n_outages} outage(s)",
         *([f"**IMU**: {drive.imu.describe()}"] if drive.imu is not None else []),
-        f"**{tables.truth_line(report.to_dict())}**",
+        f"**{tables.truth_line(report.gnss_truth)}**",
         *(["**Truth**: a reference trajectory beside the receiver; the estimators got only the receiver's fixes "
            "(drawn as dots)"]
           if drive.has_reference else []),

@@ -5,7 +5,14 @@ both built from. Every number carries its unit in its name; times are seconds on
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any, Generic, TypeVar
+
+#: The metrics whose means are compared with the baseline's (:class:`Improvement`), each to its field.
+IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
+_IMPROVEMENT_FIELDS = dict(zip(IMPROVEMENT_METRICS, ("crse_pct", "yaw_crse_pct", "final_position_error_pct")))
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -83,3 +90,82 @@ class BridgedRow:
     outage_s: int
     span_m: float
     final_error_m: dict[str, float]
+
+
+@dataclass(frozen=True, eq=False)
+class Improvement(Mapping[str, T], Generic[T]):
+    """How much lower one estimator's means are than the INS DR's (%; positive: better): of the
+    displacement CRSE, the orientation-rate CRSE and the final position error; as an interval, each
+    its 95 % ``[low, high]`` (%). A read-only mapping by metric name (:data:`IMPROVEMENT_METRICS`):
+    ``improvement["crse_m"]`` is ``crse_pct``, and it equals the dict :meth:`to_dict` gives, the
+    JSON's ``improvement_pct`` (or ``improvement_ci95_pct``) entry."""
+
+    crse_pct: T
+    yaw_crse_pct: T
+    final_position_error_pct: T
+
+    @classmethod
+    def of(cls, by_metric: Mapping[str, T]) -> Improvement[T]:
+        """From a mapping by metric name (every one of :data:`IMPROVEMENT_METRICS`)."""
+        return cls(*(by_metric[m] for m in IMPROVEMENT_METRICS))
+
+    def __getitem__(self, metric: str) -> T:
+        return getattr(self, _IMPROVEMENT_FIELDS[metric])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(IMPROVEMENT_METRICS)
+
+    def __len__(self) -> int:
+        return len(IMPROVEMENT_METRICS)
+
+    def to_dict(self) -> dict[str, T]:
+        return dict(self.items())
+
+
+@dataclass(frozen=True)
+class GnssTruth:
+    """What the GNSS quality checks kept out of the scores, on one drive or summed over a report's
+    (the JSON's ``gnss_truth``): of ``windows``, the ``excluded_windows`` of bad truth
+    (``excluded_by_reason``: windows per fault name), ``receiver_lost_windows`` (beside a reference:
+    the estimators' receiver had no fix to trust; no outage starts right after one) and the
+    ``excluded_outages`` not placed for either."""
+
+    windows: int
+    excluded_windows: int
+    excluded_by_reason: dict[str, int]
+    receiver_lost_windows: int
+    excluded_outages: int
+
+
+@dataclass(frozen=True)
+class DriveEntry:
+    """One drive of a report (the JSON's ``drives`` entry): its ``name`` as the report names it, the
+    file it was read from, its :class:`GnssTruth`, where its outages went (``placement``; empty when
+    unknown), what the reader found of its IMU (``imu``: ``ImuCharacter.to_dict``, and ``imu_text``;
+    None and empty for a drive without one) and each filter's health on it, by estimator."""
+
+    name: str
+    source: str
+    gnss_truth: GnssTruth
+    placement: str = ""
+    imu: dict[str, Any] | None = None
+    imu_text: str = ""
+    filter_health: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "source": self.source, "gnss_truth": asdict(self.gnss_truth),
+                **({"placement": self.placement} if self.placement else {}),
+                **({"imu": self.imu, "imu_text": self.imu_text} if self.imu is not None else {}),
+                **({"filter_health": self.filter_health} if self.filter_health else {})}
+
+
+@dataclass(frozen=True)
+class GnssOutages:
+    """The log's own GNSS losses in a report (``--on gnss-outage``; the JSON's ``gnss_outages``,
+    :func:`~dataclasses.asdict` of it): the ``bridged`` ones, how many were ``not_bridged`` in all and
+    by reason, and per estimator the :class:`Spread` of its final position error over the bridged (m)."""
+
+    bridged: list[BridgedRow]
+    not_bridged: int
+    not_bridged_by_reason: dict[str, int]
+    final_error_m: dict[str, Spread]

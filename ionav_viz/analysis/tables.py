@@ -1,5 +1,6 @@
-"""The paper's results tables (Tables 8-12 layout): a drive report as a document (:func:`report_document`,
-:mod:`.document`) from its typed rows, laid out as text or Markdown by :mod:`.document`'s renderers.
+"""The paper's results tables (Tables 8-12 layout) and the lines under them: the parts of a drive
+report's document (:meth:`ionav_viz.analysis.report.Report.document`), each from the report's typed
+values (:mod:`.rows`), never from its JSON; laid out as text or Markdown by :mod:`.document`'s renderers.
 
 Any number of estimators: the paper's layout puts the candidate estimators first and the INS DR
 (the baseline) last; improvements are each candidate's over the INS DR.
@@ -8,10 +9,11 @@ Any number of estimators: the paper's layout puts the candidate estimators first
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
-from .document import Document, Heading, Table, aligned, to_markdown, to_text
-from .rows import BridgedRow, DriftRow, EstimatorRow, WorstRow
+from .document import Document, Heading, Table, to_markdown, to_text
+from .rows import BridgedRow, DriftRow, DriveEntry, EstimatorRow, GnssOutages, GnssTruth, Improvement, Spread, WorstRow
 
 _STATS = (("max", "max"), ("min", "min"), ("mean", "μ"), ("std", "σ"))
 _BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps"),
@@ -32,12 +34,7 @@ def _pct(x: float) -> str:
     return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{round(x, 1) + 0.0:.1f} %"
 
 
-def labels_of(rep: dict[str, Any]) -> dict[str, str]:
-    """Estimator name -> label, in the report's order."""
-    return {e["name"]: e["label"] for e in rep["estimators"]}
-
-
-def estimator_table(rows: list[EstimatorRow], distance_m: dict[str, float],
+def estimator_table(rows: list[EstimatorRow], distance_m: Spread,
                     n_outages: int) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the paper's table: displacement (m) and orientation rate (rad/s) per
     estimator (candidates first, the INS DR baseline last), the distance driven and the outages."""
@@ -54,52 +51,49 @@ def estimator_table(rows: list[EstimatorRow], distance_m: dict[str, float],
             row += [_fmt(getattr(getattr(e, yaw_key), stat), 3) if yaw_key else "" for e in ests]
             out.append(row)
     for i, (stat, label) in enumerate(_STATS[:3]):
-        out.append(["Total distance (m)" if i == 0 else "", label, _fmt(distance_m[stat])] + [""] * (2 * len(ests) - 1))
+        out.append(["Total distance (m)" if i == 0 else "", label, _fmt(getattr(distance_m, stat))]
+                   + [""] * (2 * len(ests) - 1))
     out.append(["Number of sequences", "", str(n_outages)] + [""] * (2 * len(ests) - 1))
     return header, out
 
 
-def improvement_lines(rep: dict[str, Any]) -> list[str]:
-    """One line per estimator: its improvement over the INS DR, the final position error's with its
-    95 % interval (``improvement_ci95_pct``) where the report has one."""
-    labels = labels_of(rep)
-    ci = rep.get("improvement_ci95_pct", {})
+def improvement_lines(labels: Mapping[str, str], improvement: Mapping[str, Improvement[float]],
+                      ci95: Mapping[str, Improvement[list[float]]]) -> list[str]:
+    """One line per estimator of ``improvement``: its improvement over the INS DR, the final
+    position error's with its 95 % interval where ``ci95`` has a finite one."""
 
     def interval(est: str) -> str:
-        lo, hi = ci.get(est, {}).get("final_position_error_m", (None, None))
+        lo, hi = ci95[est].final_position_error_pct if est in ci95 else (None, None)
         if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
             return ""
         return f" (95 % interval {_fmt(lo, 1)} to {_fmt(hi, 1)} %)"
 
     return [
-        f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_pct(imp['crse_m'])}, "
-        f"orientation-rate CRSE {_pct(imp['yaw_crse_radps'])}, final position error "
-        f"{_pct(imp['final_position_error_m'])}{interval(est)}"
-        for est, imp in rep.get("improvement_pct", {}).items()
+        f"{labels[est]} improvement over INS DR (mean): displacement CRSE {_pct(imp.crse_pct)}, "
+        f"orientation-rate CRSE {_pct(imp.yaw_crse_pct)}, final position error "
+        f"{_pct(imp.final_position_error_pct)}{interval(est)}"
+        for est, imp in improvement.items()
     ]
 
 
-def truth_line(rep: dict[str, Any]) -> str:
+def truth_line(truth: GnssTruth) -> str:
     """One line on what the GNSS quality checks kept out of the scores."""
-    truth = rep.get("gnss_truth")
-    if not truth:
-        return ""
-    lost = truth.get("receiver_lost_windows", 0)
-    if not truth["excluded_windows"] and not lost:
-        return f"GNSS truth: all {truth['windows']} windows trustworthy, none excluded"
-    if truth["excluded_windows"]:
-        reasons = ", ".join(f"{name} {n}" for name, n in truth["excluded_by_reason"].items())
-        head = f"GNSS truth: {truth['excluded_windows']} of {truth['windows']} windows excluded ({reasons})"
+    lost = truth.receiver_lost_windows
+    if not truth.excluded_windows and not lost:
+        return f"GNSS truth: all {truth.windows} windows trustworthy, none excluded"
+    if truth.excluded_windows:
+        reasons = ", ".join(f"{name} {n}" for name, n in truth.excluded_by_reason.items())
+        head = f"GNSS truth: {truth.excluded_windows} of {truth.windows} windows excluded ({reasons})"
     else:
-        head = f"GNSS truth: all {truth['windows']} windows trustworthy"
+        head = f"GNSS truth: all {truth.windows} windows trustworthy"
     receiver = (f"; the receiver without a fix to trust in {lost} windows (no outage starts right after one)"
                 if lost else "")
-    return f"{head}{receiver}; {truth['excluded_outages']} outage(s) not placed there"
+    return f"{head}{receiver}; {truth.excluded_outages} outage(s) not placed there"
 
 
-def title_of(rep: dict[str, Any], scenario: str | None = None) -> str:
+def title_of(drive: str, outage_s: float, scenario: str | None = None) -> str:
     what = f"{scenario}: " if scenario else ""
-    return f"{what}{rep['drive']}, {rep['outage_s']:g} s GNSS outages"
+    return f"{what}{drive}, {outage_s:g} s GNSS outages"
 
 
 def worst_table(rows: list[WorstRow], labels: dict[str, str], several: bool) -> tuple[list[str], list[list[str]]]:
@@ -126,63 +120,32 @@ def drift_table(rows: list[DriftRow]) -> tuple[list[str], list[list[str]]]:
 DRIFT_TITLE = "Position error since the outage began (m): mean [10-90 %], and final-error percentiles (m)"
 
 
-def worst_title(rep: dict[str, Any]) -> str:
-    labels = labels_of(rep)
-    return f"Worst outages by {labels.get(rep.get('worst_of', 'ins'), 'INS DR')} final position error"
-
-
-def report_lines(rep: dict[str, Any]) -> list[str]:
-    """A drive report's lines under its tables (``Report.to_dict``): the improvements where it has
-    synthetic outages, the GNSS truth, the drives, the estimators' uncertainty, health and choices."""
-    said = (improvement_lines(rep) if rep["n_sequences"] else []) + [x for x in [truth_line(rep)] if x]
-    return said + drive_lines(rep) + consistency_lines(rep) + health_lines(rep) + arbiter_lines(rep) + domain_lines(rep)
-
-
-def drive_lines(rep: dict[str, Any], most: int = 4) -> list[str]:
-    """Where the outages went and what each drive's IMU is (for up to ``most`` drives; a fleet's
-    JSON has every one)."""
-    drives = rep.get("drives", [])
-    placements = {d["placement"] for d in drives if d.get("placement")}
+def drive_lines(drives: list[DriveEntry], most: int = 4) -> list[str]:
+    """Where the outages went and what each drive's IMU is (for up to ``most`` drives; the JSON has
+    every one)."""
+    placements = {d.placement for d in drives if d.placement}
     out = [f"Outages: {p}" for p in sorted(placements)] if len(placements) <= 2 else []
-    out += [f"{d['name']}: {d['imu_text']}" for d in drives[:most] if d.get("imu_text")]
-    return out
+    return out + [f"{d.name}: {d.imu_text}" for d in drives[:most] if d.imu_text]
 
 
-def consistency_lines(rep: dict[str, Any]) -> list[str]:
-    """A line per estimator that gives a position covariance: how honest it is (:mod:`.consistency`)."""
-    from .consistency import consistency_line
-
-    labels = {e["name"]: e["label"] for e in rep["estimators"]}
-    return [consistency_line(labels.get(est, est), s["consistency"]) for est, s in rep["summary"].items()
-            if "consistency" in s]
-
-
-def health_lines(rep: dict[str, Any]) -> list[str]:
-    """A line per filter of its health (:mod:`.health`), from the report's ``filter_health``."""
-    from .health import health_line
-
-    labels = {e["name"]: e["label"] for e in rep["estimators"]}
-    return [health_line(labels.get(est, est), summary) for est, summary in rep.get("filter_health", {}).items()]
-
-
-def arbiter_lines(rep: dict[str, Any]) -> list[str]:
-    """On one drive, a line per estimator that chose per outage from its pseudo-outages over the GNSS
-    before it (a history arbiter: ``gins``'s propagation, :func:`ionav_viz.nav.gins.arbitrate`; the
-    IDNN's share of the INS DR's displacement, :class:`ionav_viz.learning.idnn.IdnnEstimator`): what
-    it chose and why. An estimator describes the last drive it ran on, so a report of several drives
+def arbiter_lines(estimators: list[dict[str, Any]], n_drives: int) -> list[str]:
+    """On one drive, a line per estimator (of ``DriveResult.estimator_info``) that chose per outage
+    from its pseudo-outages over the GNSS before it (a history arbiter: ``gins``'s propagation,
+    :func:`ionav_viz.nav.gins.arbitrate`; the IDNN's share of the INS DR's displacement,
+    :class:`ionav_viz.learning.idnn.IdnnEstimator`), from its own description's ``arbiter``: what it
+    chose and why. An estimator describes the last drive it ran on, so a report of several drives
     leaves it to each drive's own run."""
-    if len(rep.get("drives", [])) != 1:
+    if n_drives != 1:
         return []
-    return [f"{e['label']} arbiter: {e['info']['arbiter']}" for e in rep["estimators"]
-            if e.get("info", {}).get("arbiter")]
+    return [f"{e['label']} arbiter: {e['info']['arbiter']}" for e in estimators if e.get("info", {}).get("arbiter")]
 
 
-def domain_lines(rep: dict[str, Any]) -> list[str]:
+def domain_lines(estimators: list[dict[str, Any]]) -> list[str]:
     """A line per drive whose inputs lie outside what the IDNN's model was trained on (the
-    estimator's ``domain`` description, :func:`ionav_viz.learning.domain.outside`): what, and how much its
-    uncertainty was widened."""
+    estimator's own ``domain`` description, :func:`ionav_viz.learning.domain.outside`): what, and how
+    much its uncertainty was widened."""
     out = []
-    for e in rep["estimators"]:
+    for e in estimators:
         for drive, note in (e.get("info", {}).get("domain") or {}).items():
             out.append(f"{e['label']} out of its training domain on {drive}: {'; '.join(note['outside'])} "
                        f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
@@ -201,86 +164,13 @@ def bridged_table(rows: list[BridgedRow], labels: dict[str, str],
     return header, out
 
 
-def bridged_line(rep: dict[str, Any]) -> str:
+def bridged_line(real: GnssOutages, labels: Mapping[str, str]) -> str:
     """Mean final position error per estimator over the bridged outages, and what was left out."""
-    g = rep["gnss_outages"]
-    labels = labels_of(rep)
-    means = ", ".join(f"{labels[e]} {_fmt(g['final_error_m'][e]['mean'], 2)} m" for e in labels)
-    why = g.get("not_bridged_by_reason") or {}
-    reasons = ", ".join(f"{n} with {reason}" for reason, n in why.items())
-    missed = (f"; {g['not_bridged']} outage(s) not bridged" + (f" ({reasons})" if reasons else "")
-              if g["not_bridged"] else "")
-    return f"Mean final position error over {len(g['bridged'])} real GNSS outage(s): {means}{missed}"
-
-
-def overview_rows(reports: dict[Any, dict[str, Any]], label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
-    """One row per scenario (or drive group): mean CRSE and final position error per estimator,
-    the INS DR first, each other estimator with its improvement over the INS DR (Δ %)."""
-    first = next(iter(reports.values()))
-    labels = labels_of(first)
-    names = [n for n in labels if n == "ins"] + [n for n in labels if n != "ins"]
-    blocks = (("Disp. CRSE μ", "crse_m", "m", 2, True), ("Yaw CRSE μ", "yaw_crse_radps", "rad/s", 3, True),
-              ("Final pos. err. μ", "final_position_error_m", "m", 2, False),
-              ("Final err. μ", "final_error_pct", "% of distance", 1, False))
-    header = [label, "Sequences"]
-    for title, _key, unit, _d, delta in blocks:
-        for i, est in enumerate(names):
-            header.append(f"{title} {labels[est]} ({unit})" if i == 0 else f"{labels[est]} ({unit})")
-            if delta and est != "ins" and "ins" in names:
-                header.append("Δ %")
-    rows = []
-    for group, rep in reports.items():
-        s, imp = rep["summary"], rep.get("improvement_pct", {})
-        row = [str(group or rep["drive"]), str(rep["n_sequences"])]
-        for _title, key, _unit, d, delta in blocks:
-            for est in names:
-                row.append(_fmt(s[est][key]["mean"], d) if est in s else "-")
-                if delta and est != "ins" and "ins" in names:
-                    row.append(_fmt(imp[est][key], 1) if est in imp else "-")
-        rows.append(row)
-    return header, rows
-
-
-def render_overview(reports: dict[Any, dict[str, Any]], markdown: bool, label: str = "Scenario",
-                    width: int | None = None) -> str:
-    """The overview table; Δ % is an estimator's improvement over the INS DR (positive = better).
-
-    As text wider than ``width`` it is transposed: one column per group, one row per metric and
-    estimator (and split into blocks of groups if that is still too wide)."""
-    header, rows = overview_rows(reports, label)
-    if markdown:
-        return to_markdown(Document([Table(header, rows)]))
-    widths = [max(len(r[j]) for r in [header] + rows) for j in range(len(header))]
-    lines = ["  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(r, widths)))
-             for r in [header] + rows]
-    if width is not None and max(map(len, lines)) > width:
-        lines = aligned(*overview_transposed(reports, label), 2, width)
-    return "\n".join(lines) + "\n"
-
-
-def overview_transposed(reports: dict[Any, dict[str, Any]],
-                        label: str = "Scenario") -> tuple[list[str], list[list[str]]]:
-    """The overview with one column per group: rows are (metric, estimator) and each candidate's
-    improvement over the INS DR (``Δ %``) under it."""
-    header, rows = overview_rows(reports, label)
-    first = next(iter(reports.values()))
-    labels = labels_of(first)
-    # "motorway: V-sim-motorway" -> its group
-    out_header = ["Metric", "Estimator", *(r[0].split(": ")[0] for r in rows)]
-    out_rows = [["Sequences", "", *(r[1] for r in rows)]]
-    metric = ""
-    for j in range(2, len(header)):
-        name = header[j]
-        est = next((lab for lab in labels.values() if name.startswith(f"{lab} (") or f" {lab} (" in name), "")
-        if name == "Δ %":
-            out_rows.append(["", f"{out_rows[-1][1]} Δ %", *(r[j] for r in rows)])
-            continue
-        title = name[: name.index(est)].strip() if est and not name.startswith(est) else ""
-        unit = name[name.rindex("(") :].replace("% of distance", "% of dist.")
-        if title:
-            metric = f"{title} {unit}"
-        out_rows.append([metric if title else "", est, *(r[j] for r in rows)])
-    return out_header, out_rows
+    means = ", ".join(f"{labels[e]} {_fmt(real.final_error_m[e].mean, 2)} m" for e in labels)
+    reasons = ", ".join(f"{n} with {reason}" for reason, n in real.not_bridged_by_reason.items())
+    missed = (f"; {real.not_bridged} outage(s) not bridged" + (f" ({reasons})" if reasons else "")
+              if real.not_bridged else "")
+    return f"Mean final position error over {len(real.bridged)} real GNSS outage(s): {means}{missed}"
 
 
 def render_lengths(summary: dict[str, Any], labels: dict[str, str], markdown: bool = False,

@@ -51,9 +51,7 @@ def evaluate(
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
     from .. import api
-    from ..analysis.report import overview_reports, reports_to_json
-    from ..analysis.tables import render_overview
-    from ..core.json_out import plain_json
+    from ..analysis.report import overview_reports, render_overview, reports_to_json
 
     if as_json and markdown:
         raise InputError("--json and --markdown: two output formats asked for", "give one of them")
@@ -119,8 +117,7 @@ def evaluate(
                  if by_event else "")
     if overview:
         rows = overview_reports(reports, by_event)
-        dicts = {group: plain_json(rep.to_dict()) for group, rep in rows.items()}
-        print(render_overview(dicts, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()) + none_here,
+        print(render_overview(rows, markdown, "Manoeuvre" if by_event else "Drive", c.terminal_width()) + none_here,
               end="")
         return
     print("\n".join(rep.to_markdown() if markdown else rep.to_text(c.terminal_width())
