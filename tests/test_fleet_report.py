@@ -197,3 +197,52 @@ def test_the_typed_rows_are_the_json_and_the_tables(report):
         assert dumps_json({r.key: r.to_dict() for r in rows}) == dumps_json(doc[key])
         for r in rows:
             assert f" {r.outages} | {r.mean_error_m['ins']:.2f} | {r.mean_error_m['odo']:.2f} |" in markdown
+
+
+def test_the_worst_drives_and_outages_are_typed_rows_the_json_and_the_text_are_built_from(report):
+    from dataclasses import asdict
+
+    doc, markdown = report.to_dict(), report.to_markdown()
+    drives, outages = report.worst_drive_rows(), report.worst_outage_rows()
+    assert [asdict(w) for w in drives] == doc["worst_drives"] == report.worst_drives()
+    assert [asdict(w) for w in outages] == doc["worst_outages"] == report.worst_outages()
+    assert [(w.drive, w.mean_final_error_m["ins"]) for w in drives] == [("B", 50.0), ("A", 20.0)]
+    assert [(w.drive, w.number, w.start_s, w.end_s) for w in outages[:2]] == [("B", 2, 60.0, 90.0), ("B", 1, 30.0, 60.0)]
+    for k, w in enumerate(drives, 1):
+        assert f"{k}. {w.drive}: {w.mean_final_error_m['ins']:.2f} m; replay: `{w.command}`" in markdown
+    for k, w in enumerate(outages, 1):
+        assert (f"{k}. {w.drive} outage {w.number} ({w.start_s:.0f}-{w.end_s:.0f} s): "
+                f"INS DR {w.final_error_m['ins']:.1f} m, Odometry {w.final_error_m['odo']:.1f} m; see it: `{w.command}`"
+                in markdown)
+
+
+def test_the_logs_own_losses_are_typed_rows_the_json_and_the_text_are_built_from():
+    """A fleet through its drives' own GNSS losses: per estimator pooled and per drive, worked out by
+    hand, as typed rows, as the JSON's ``real_outages`` and as the tables' cells."""
+    from dataclasses import asdict
+
+    from ionav_viz.analysis.rows import BridgedRow
+
+    def loss(drive: str, number: int, gap_s: float, ins: float, odo: float) -> BridgedRow:
+        return BridgedRow(drive, number, 100.0 * number, 100.0 * number + gap_s, gap_s, 100.0 * number,
+                          int(gap_s), 250.0, {"ins": ins, "odo": odo})
+
+    none = {"ins": [], "odo": []}  # no synthetic outage
+    a, b = _table("A", [], [], [], at10=none), _table("B", [], [], [], at10=none)
+    a.real_outages = [loss("A", 1, 10.0, 8.0, 2.0), loss("A", 2, 5.0, 4.0, 1.0)]
+    b.real_outages = [loss("B", 1, 12.0, 12.0, 6.0)]
+    report = FleetReport([a, b], outage_s=30.0)
+    real, doc, markdown = report.real_losses(), report.to_dict(), report.to_markdown()
+    assert real.to_dict() == doc["real_outages"] == report.real_outages() and doc["real_outages"]["n"] == real.n == 3
+    assert [asdict(x) for x in real.losses] == doc["real_outages"]["losses"] and real.losses[2].drive == "B"
+    ins, odo = real.pooled["ins"], real.pooled["odo"]
+    assert (ins.drives, ins.losses, ins.mean_final_error_m, ins.worst_drive, ins.worst_number) == (2, 3, 8.0, "B", 1)
+    assert doc["real_outages"]["pooled"]["ins"]["worst"] == {"drive": "B", "number": 1, "final_error_m": 12.0}
+    assert odo.mean_final_error_m == pytest.approx(3.0) and odo.worst_final_error_m == 6.0
+    assert [(d.drive, d.losses, d.gap_s, d.mean_final_error_m) for d in real.drives] == [
+        ("A", 2, 15.0, {"ins": 6.0, "odo": 1.5}), ("B", 1, 12.0, {"ins": 12.0, "odo": 6.0})]
+    assert [asdict(d) for d in real.drives] == doc["real_outages"]["drives"]
+    for e, p in real.pooled.items():
+        assert (f"| {report.labels[e]} | {p.drives} | {p.losses} | {p.mean_final_error_m:.2f} | {p.p90_final_error_m:.2f} "
+                f"| {p.worst_final_error_m:.1f} ({p.worst_drive} #{p.worst_number}) |") in markdown
+    assert "| A | 2 | 15.0 | 6.00 | 1.50 |" in markdown and "| B | 1 | 12.0 | 12.00 | 6.00 |" in markdown

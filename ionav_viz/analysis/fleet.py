@@ -29,7 +29,7 @@ from .document import Block, Code, Document, Heading, Items, Paragraphs, Table, 
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
-from .rows import IMPROVEMENT_METRICS, EstimatorRow, Improvement, Spread
+from .rows import IMPROVEMENT_METRICS, BridgedRow, EstimatorRow, Improvement, Spread, WorstRow
 from .schema import tagged
 
 #: How many drives and outages the fleet report ranks as the worst.
@@ -66,9 +66,8 @@ class DriveTable:
             ``final_position_error_m``).
         consistency: per estimator that gives a covariance, its compact per-outage values
             (:func:`ionav_viz.analysis.consistency.outage_consistency`).
-        real_outages: the log's own GNSS losses, bridged (``--on gnss-outage``): each
-            :meth:`ionav_viz.analysis.bridging.BridgedOutage.to_dict` (``number``, ``gap_s``,
-            ``final_error_m`` per estimator, ...).
+        real_outages: the log's own GNSS losses, bridged (``--on gnss-outage``), each a
+            :class:`~ionav_viz.analysis.rows.BridgedRow` of this drive.
     """
 
     spec: str
@@ -94,7 +93,7 @@ class DriveTable:
     consistency: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     #: per outage, whether it lies in data the IDNN's model was trained on (None: no IDNN ran)
     in_training: np.ndarray | None = None
-    real_outages: list[dict[str, Any]] = field(default_factory=list)
+    real_outages: list[BridgedRow] = field(default_factory=list)
 
     @property
     def n_outages(self) -> int:
@@ -146,7 +145,7 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps),
               "source": str(result.bias.source)},
         gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
-        real_outages=[b.to_dict() for b in result.bridged],
+        real_outages=[BridgedRow(drive.name, **b.to_dict()) for b in result.bridged],
         warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
         imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()},
         manoeuvre=outage_manoeuvres(events, result.outage_t0_s, result.outage_s), error_at_s=error_at,
@@ -253,6 +252,77 @@ class BreakdownRow:
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"outages": self.outages, "mean_error_m": self.mean_error_m}
         return out | ({"improvement_pct": self.improvement_pct} if self.improvement_pct is not None else {})
+
+
+@dataclass(frozen=True)
+class WorstDrive:
+    """One of a fleet's worst drives (the JSON's ``worst_drives`` entry): its name, how it was given
+    (``spec``), per estimator that ran on it the mean final position error (m), and the ``command``
+    that replays it with the fleet's outages."""
+
+    drive: str
+    spec: str
+    mean_final_error_m: dict[str, float]
+    command: str
+
+
+@dataclass(frozen=True)
+class WorstOutage(WorstRow):
+    """One of a fleet's worst outages (the JSON's ``worst_outages`` entry): a drive report's
+    :class:`~ionav_viz.analysis.rows.WorstRow` and the ``command`` that replays its drive and
+    renders it (:meth:`FleetReport.open_command`)."""
+
+    command: str
+
+
+@dataclass(frozen=True)
+class RealLossPooled:
+    """One estimator over a fleet's own GNSS losses (the JSON's ``real_outages.pooled`` entry): the
+    ``drives`` and ``losses`` it bridged, its mean and 90th-percentile final position error, and
+    its worst loss (drive, number within it, final error)."""
+
+    drives: int
+    losses: int
+    mean_final_error_m: float
+    p90_final_error_m: float
+    worst_drive: str
+    worst_number: int
+    worst_final_error_m: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"drives": self.drives, "losses": self.losses, "mean_final_error_m": self.mean_final_error_m,
+                "p90_final_error_m": self.p90_final_error_m,
+                "worst": {"drive": self.worst_drive, "number": self.worst_number,
+                          "final_error_m": self.worst_final_error_m}}
+
+
+@dataclass(frozen=True)
+class RealLossDrive:
+    """One drive's own GNSS losses (the JSON's ``real_outages.drives`` entry): how many, their time
+    without a fix in all (``gap_s``) and per estimator the mean final position error over them (m)."""
+
+    drive: str
+    losses: int
+    gap_s: float
+    mean_final_error_m: dict[str, float]
+
+
+@dataclass(frozen=True)
+class RealLosses:
+    """A fleet's drives' own GNSS losses, bridged (``--on gnss-outage``; the JSON's ``real_outages``,
+    :meth:`to_dict`): every loss, per estimator pooled over them, and per drive with losses."""
+
+    losses: list[BridgedRow]
+    pooled: dict[str, RealLossPooled]
+    drives: list[RealLossDrive]
+
+    @property
+    def n(self) -> int:
+        return len(self.losses)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"n": self.n, "pooled": {e: p.to_dict() for e, p in self.pooled.items()},
+                "drives": [asdict(d) for d in self.drives], "losses": [asdict(b) for b in self.losses]}
 
 
 @dataclass(repr=False)
@@ -443,34 +513,33 @@ class FleetReport:
     def n_real_outages(self) -> int:
         return int(sum(len(t.real_outages) for t in self.drives))
 
-    def real_outages(self) -> dict[str, Any]:
-        """The drives' own GNSS losses bridged (``--on gnss-outage``): ``n``; per estimator over
-        the fleet ``drives``, ``losses``, ``mean_final_error_m``, ``p90_final_error_m`` and the
-        ``worst`` (``drive``, ``number``, ``final_error_m``); ``drives`` (per drive with losses:
-        ``drive``, ``losses``, ``gap_s`` in all and per estimator ``mean_final_error_m``); ``losses``
-        (each, with its ``drive``)."""
-        losses = [{"drive": t.name, **b} for t in self.drives for b in t.real_outages]
-        pooled: dict[str, dict[str, Any]] = {}
+    def real_losses(self) -> RealLosses:
+        """The drives' own GNSS losses bridged (``--on gnss-outage``): every loss; per estimator over
+        the fleet its drives, losses, mean and p90 final error and worst loss; per drive with losses
+        their count, time without a fix and each estimator's mean final error."""
+        losses = [b for t in self.drives for b in t.real_outages]
+        pooled: dict[str, RealLossPooled] = {}
         for est in self.estimators:
-            mine = [b for b in losses if est in b["final_error_m"]]
+            mine = [b for b in losses if est in b.final_error_m]
             if not mine:
                 continue
-            err = np.array([b["final_error_m"][est] for b in mine], dtype=float)
+            err = np.array([b.final_error_m[est] for b in mine], dtype=float)
             k = int(np.nanargmax(err)) if np.isfinite(err).any() else 0
-            pooled[est] = {"drives": len({b["drive"] for b in mine}), "losses": len(mine),
-                           "mean_final_error_m": summarise(err)["mean"],
-                           "p90_final_error_m": final_error_percentiles(err)["p90"],
-                           "worst": {"drive": mine[k]["drive"], "number": mine[k]["number"],
-                                     "final_error_m": float(err[k])}}
-        drives = []
-        for t in self.drives:
-            if t.real_outages:
-                ests = [e for e in self.estimators if e in t.real_outages[0]["final_error_m"]]
-                drives.append({"drive": t.name, "losses": len(t.real_outages),
-                               "gap_s": float(sum(b["gap_s"] for b in t.real_outages)),
-                               "mean_final_error_m": {e: float(np.mean([b["final_error_m"][e] for b in t.real_outages]))
-                                                      for e in ests}})
-        return {"n": len(losses), "pooled": pooled, "drives": drives, "losses": losses}
+            pooled[est] = RealLossPooled(len({b.drive for b in mine}), len(mine), summarise(err)["mean"],
+                                         final_error_percentiles(err)["p90"], mine[k].drive, mine[k].number,
+                                         float(err[k]))
+        drives = [RealLossDrive(t.name, len(t.real_outages), float(sum(b.gap_s for b in t.real_outages)),
+                                {e: float(np.mean([b.final_error_m[e] for b in t.real_outages]))
+                                 for e in self.estimators if e in t.real_outages[0].final_error_m})
+                  for t in self.drives if t.real_outages]
+        return RealLosses(losses, pooled, drives)
+
+    def real_outages(self) -> dict[str, Any]:
+        """:meth:`real_losses` as the JSON's ``real_outages``: ``n``; per estimator ``pooled``
+        (``drives``, ``losses``, ``mean_final_error_m``, ``p90_final_error_m``, ``worst``: ``drive``,
+        ``number``, ``final_error_m``); ``drives`` (``drive``, ``losses``, ``gap_s``,
+        ``mean_final_error_m``); ``losses`` (each, with its ``drive``)."""
+        return self.real_losses().to_dict()
 
     def command(self, spec: str) -> str:
         """The command that replays one drive with the fleet's outages."""
@@ -489,28 +558,35 @@ class FleetReport:
         shot = f"ionav-viz screenshot {shlex.quote(rrd)} --outage-number {number} -o {shlex.quote(png)}"
         return " && ".join([*replay, shot])
 
-    def worst_drives(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
-        """The ``count`` drives with the largest mean final error of :attr:`worst_of`, worst
-        first: ``drive``, ``spec``, ``mean_final_error_m`` per estimator and ``command``."""
+    def worst_drive_rows(self, count: int = FLEET_WORST_COUNT) -> list[WorstDrive]:
+        """The ``count`` drives with the largest mean final error of :attr:`worst_of`, worst first."""
         est = self.worst_of
         ranked = [(t.mean_final_error_m(est), i, t) for i, t in enumerate(self.drives) if est is not None]
         ranked = sorted([r for r in ranked if np.isfinite(r[0])], key=lambda r: (-r[0], r[1]))
-        return [{"drive": t.name, "spec": t.spec, "mean_final_error_m": {e: t.mean_final_error_m(e) for e in t.metrics},
-                 "command": self.command(t.spec)} for _, _, t in ranked[:count]]
+        return [WorstDrive(t.name, t.spec, {e: t.mean_final_error_m(e) for e in t.metrics}, self.command(t.spec))
+                for _, _, t in ranked[:count]]
 
-    def worst_outages(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
-        """The ``count`` outages with the largest final error of :attr:`worst_of`, worst first:
-        ``drive``, ``number`` (from 1 within its drive, the recording's "outage N"), ``start_s``,
-        ``end_s``, ``final_error_m`` per estimator and the ``command`` that replays its drive and
-        renders that outage (:meth:`open_command`)."""
+    def worst_drives(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
+        """:meth:`worst_drive_rows` as the JSON's ``worst_drives``: ``drive``, ``spec``,
+        ``mean_final_error_m`` per estimator and ``command``."""
+        return [asdict(w) for w in self.worst_drive_rows(count)]
+
+    def worst_outage_rows(self, count: int = FLEET_WORST_COUNT) -> list[WorstOutage]:
+        """The ``count`` outages with the largest final error of :attr:`worst_of`, worst first, each
+        numbered from 1 within its drive (the recording's "outage N")."""
         est = self.worst_of
         ranked = [(float(err), d, i, t) for d, t in enumerate(self.drives) if est in t.metrics
                   for i, err in enumerate(t.metrics[est]["final_position_error_m"]) if np.isfinite(err)]
         ranked.sort(key=lambda r: (-r[0], r[1], r[2]))
-        return [{"drive": t.name, "number": i + 1, "start_s": round(float(t.start_s[i]), 3),
-                 "end_s": round(float(t.start_s[i] + t.outage_s), 3),
-                 "final_error_m": {e: float(t.metrics[e]["final_position_error_m"][i]) for e in t.metrics},
-                 "command": self.open_command(t, i + 1)} for _, _, i, t in ranked[:count]]
+        return [WorstOutage(t.name, i + 1, round(float(t.start_s[i]), 3), round(float(t.start_s[i] + t.outage_s), 3),
+                            {e: float(t.metrics[e]["final_position_error_m"][i]) for e in t.metrics},
+                            self.open_command(t, i + 1)) for _, _, i, t in ranked[:count]]
+
+    def worst_outages(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
+        """:meth:`worst_outage_rows` as the JSON's ``worst_outages``: ``drive``, ``number``,
+        ``start_s``, ``end_s``, ``final_error_m`` per estimator and the ``command`` that replays its
+        drive and renders that outage (:meth:`open_command`)."""
+        return [asdict(w) for w in self.worst_outage_rows(count)]
 
     def to_dict(self) -> dict[str, Any]:
         """The fleet's ``evaluate --json`` object, kind ``fleet`` of docs/report-schema.md (every key
@@ -575,17 +651,15 @@ class FleetReport:
 
 
 def _own_losses_section(rep: FleetReport) -> list[Block]:
-    """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_outages`)."""
-    real, labels = rep.real_outages(), rep.labels
-    gaps = [b["gap_s"] for b in real["losses"]]
-    rows = [[labels[e], str(p["drives"]), str(p["losses"]), _f(p["mean_final_error_m"]), _f(p["p90_final_error_m"]),
-             f"{_f(p['worst']['final_error_m'], 1)} ({p['worst']['drive']} #{p['worst']['number']})"]
-            for e, p in real["pooled"].items()]
-    ests = list(real["pooled"])
-    per_drive = [[d["drive"], str(d["losses"]), f"{d['gap_s']:.1f}"]
-                 + [_f(d["mean_final_error_m"].get(e, float("nan"))) for e in ests]
-                 for d in real["drives"]]
-    return [Heading(f"Through the logs' own GNSS losses ({real['n']}, {min(gaps):.0f}-{max(gaps):.0f} s "
+    """The fleet report's section on the drives' own GNSS losses (:meth:`FleetReport.real_losses`)."""
+    real, labels = rep.real_losses(), rep.labels
+    gaps = [b.gap_s for b in real.losses]
+    rows = [[labels[e], str(p.drives), str(p.losses), _f(p.mean_final_error_m), _f(p.p90_final_error_m),
+             f"{_f(p.worst_final_error_m, 1)} ({p.worst_drive} #{p.worst_number})"] for e, p in real.pooled.items()]
+    ests = list(real.pooled)
+    per_drive = [[d.drive, str(d.losses), f"{d.gap_s:.1f}"]
+                 + [_f(d.mean_final_error_m.get(e, float("nan"))) for e in ests] for d in real.drives]
+    return [Heading(f"Through the logs' own GNSS losses ({real.n}, {min(gaps):.0f}-{max(gaps):.0f} s "
                     "without a fix; final error from the last good fix to the first after, m)", 2),
             Table(["Estimator", "drives", "losses", "mean final m", "p90 final m", "worst m"], rows, 1, align=True),
             Table(["Drive", "losses", "without fix s"] + [labels[e] for e in ests], per_drive, 1, align=True)]
@@ -658,17 +732,17 @@ def _document(rep: FleetReport, timing: bool) -> Document:
                 row += [_f((r.improvement_pct or {}).get(e, float("nan")), 1) for e in others]
             rows.append(row + [str(len(t.warnings))])
         blocks += [Heading(f"Per drive (mean final error, m{versus})", 2), Table(header, rows, 1, align=True)]
-        worst = rep.worst_drives()
-        if worst:
+        worst_drives = rep.worst_drive_rows()
+        if worst_drives:
             blocks += [Heading(f"Worst drives (by {labels[rep.worst_of]} mean final error)", 2),
-                       Items([(f"{w['drive']}: {_f(w['mean_final_error_m'][rep.worst_of])} m; replay: ",
-                               Code(w["command"])) for w in worst], numbered=True)]
-        worst = rep.worst_outages()
+                       Items([(f"{w.drive}: {_f(w.mean_final_error_m[rep.worst_of])} m; replay: ", Code(w.command))
+                              for w in worst_drives], numbered=True)]
+        worst = rep.worst_outage_rows()
         if worst:
             blocks += [Heading(f"Worst outages (by {labels[rep.worst_of]} final error)", 2),
-                       Items([(f"{w['drive']} outage {w['number']} ({w['start_s']:.0f}-{w['end_s']:.0f} s): "
-                               + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w["final_error_m"].items())
-                               + "; see it: ", Code(w["command"])) for w in worst], numbered=True)]
+                       Items([(f"{w.drive} outage {w.number} ({w.start_s:.0f}-{w.end_s:.0f} s): "
+                               + ", ".join(f"{labels[e]} {_f(v, 1)} m" for e, v in w.final_error_m.items())
+                               + "; see it: ", Code(w.command)) for w in worst], numbered=True)]
     for title, items in (("Failed drives", rep.failures), ("Skipped drives", rep.skipped)):
         if items:
             blocks += [Heading(f"{title} ({len(items)})", 2), Items([f"{f.spec}: {f.reason}" for f in items])]

@@ -45,7 +45,7 @@ def final_errors_m(report: FleetReport, table: DriveTable, estimator: str) -> np
     """The drive's final position errors (m) of ``estimator``: over its synthetic outages, or over
     its own GNSS losses in a fleet through them alone (:func:`through_real_losses`)."""
     if through_real_losses(report):
-        return np.array([b["final_error_m"][estimator] for b in table.real_outages if estimator in b["final_error_m"]],
+        return np.array([b.final_error_m[estimator] for b in table.real_outages if estimator in b.final_error_m],
                         dtype=float)
     return table.metrics[estimator]["final_position_error_m"] if estimator in table.metrics else np.zeros(0)
 
@@ -62,8 +62,7 @@ def worst_outage(report: FleetReport, table: DriveTable) -> dict[str, Any] | Non
     i = int(np.nanargmax(err))
     if through_real_losses(report):
         b = table.real_outages[i]
-        return {"number": b["number"],
-                "name": f"real GNSS outage {b['number']} ({b['gap_start_s']:.0f}-{b['gap_end_s']:.0f} s)",
+        return {"number": b.number, "name": f"real GNSS outage {b.number} ({b.gap_start_s:.0f}-{b.gap_end_s:.0f} s)",
                 "final_error_m": float(err[i])}
     t0 = float(table.start_s[i])
     return {"number": i + 1, "name": f"outage {i + 1} ({t0:.0f}-{t0 + table.outage_s:.0f} s)",
