@@ -409,12 +409,12 @@ class FleetReport:
             better = ci = None
             if base is not None and est != base:
                 both = [t for t in ran if base in t.metrics]
-                better = Improvement.of({m: improvement_pct(summarise(self.metric(base, m, both))["mean"],
-                                                            summarise(self.metric(est, m, both))["mean"])
-                                         for m in IMPROVEMENT_METRICS})
-                ci = Improvement.of({m: list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
-                                                                            [t.metrics[est][m] for t in both]))
-                                     for m in IMPROVEMENT_METRICS})
+                better = Improvement(*(improvement_pct(summarise(self.metric(base, m, both))["mean"],
+                                                       summarise(self.metric(est, m, both))["mean"])
+                                       for m in IMPROVEMENT_METRICS))
+                ci = Improvement(*(list(clustered_improvement_ci95_pct([t.metrics[base][m] for t in both],
+                                                                       [t.metrics[est][m] for t in both]))
+                                   for m in IMPROVEMENT_METRICS))
             out.append(PooledRow(len(ran), int(sum(t.n_outages for t in ran)), spreads,
                                  **{f"final_{k}_m": v for k, v in final.items()},
                                  improvement_pct=better, improvement_ci95_pct=ci))
@@ -535,10 +535,7 @@ class FleetReport:
         return RealLosses(losses, pooled, drives)
 
     def real_outages(self) -> dict[str, Any]:
-        """:meth:`real_losses` as the JSON's ``real_outages``: ``n``; per estimator ``pooled``
-        (``drives``, ``losses``, ``mean_final_error_m``, ``p90_final_error_m``, ``worst``: ``drive``,
-        ``number``, ``final_error_m``); ``drives`` (``drive``, ``losses``, ``gap_s``,
-        ``mean_final_error_m``); ``losses`` (each, with its ``drive``)."""
+        """:meth:`real_losses` as the JSON's ``real_outages`` (:meth:`RealLosses.to_dict`)."""
         return self.real_losses().to_dict()
 
     def command(self, spec: str) -> str:
@@ -567,8 +564,7 @@ class FleetReport:
                 for _, _, t in ranked[:count]]
 
     def worst_drives(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
-        """:meth:`worst_drive_rows` as the JSON's ``worst_drives``: ``drive``, ``spec``,
-        ``mean_final_error_m`` per estimator and ``command``."""
+        """:meth:`worst_drive_rows` as the JSON's ``worst_drives``."""
         return [asdict(w) for w in self.worst_drive_rows(count)]
 
     def worst_outage_rows(self, count: int = FLEET_WORST_COUNT) -> list[WorstOutage]:
@@ -583,9 +579,7 @@ class FleetReport:
                             self.open_command(t, i + 1)) for _, _, i, t in ranked[:count]]
 
     def worst_outages(self, count: int = FLEET_WORST_COUNT) -> list[dict[str, Any]]:
-        """:meth:`worst_outage_rows` as the JSON's ``worst_outages``: ``drive``, ``number``,
-        ``start_s``, ``end_s``, ``final_error_m`` per estimator and the ``command`` that replays its
-        drive and renders that outage (:meth:`open_command`)."""
+        """:meth:`worst_outage_rows` as the JSON's ``worst_outages``."""
         return [asdict(w) for w in self.worst_outage_rows(count)]
 
     def to_dict(self) -> dict[str, Any]:

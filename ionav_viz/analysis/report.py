@@ -135,8 +135,8 @@ class Report:
         ``improvement_pct["idnn"]["crse_m"]``); none without the INS DR."""
         base = next((n for n in self.estimators if is_baseline(n)), None)
         return {} if base is None else {
-            est: Improvement.of({m: improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"])
-                                 for m in IMPROVEMENT_METRICS})
+            est: Improvement(*(improvement_pct(self.summary[base][m]["mean"], self.summary[est][m]["mean"])
+                               for m in IMPROVEMENT_METRICS))
             for est in self.estimators if est != base}
 
     @cached_property
@@ -145,8 +145,8 @@ class Report:
         bootstrap over the outages (:func:`~ionav_viz.analysis.evaluate.improvement_ci95_pct`)."""
         base = next((n for n in self.estimators if is_baseline(n)), None)
         return {} if base is None else {
-            est: Improvement.of({m: list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m)))
-                                 for m in IMPROVEMENT_METRICS})
+            est: Improvement(*(list(improvement_ci95_pct(self.metric(base, m), self.metric(est, m)))
+                               for m in IMPROVEMENT_METRICS))
             for est in self.estimators if est != base}
 
     @property

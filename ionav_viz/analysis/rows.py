@@ -104,11 +104,6 @@ class Improvement(Mapping[str, T], Generic[T]):
     yaw_crse_pct: T
     final_position_error_pct: T
 
-    @classmethod
-    def of(cls, by_metric: Mapping[str, T]) -> Improvement[T]:
-        """From a mapping by metric name (every one of :data:`IMPROVEMENT_METRICS`)."""
-        return cls(*(by_metric[m] for m in IMPROVEMENT_METRICS))
-
     def __getitem__(self, metric: str) -> T:
         return getattr(self, _IMPROVEMENT_FIELDS[metric])
 
