@@ -152,7 +152,9 @@ def test_the_logs_own_losses_are_the_typed_value_the_json_and_the_text_are_built
     truth = report.gnss_truth
     assert asdict(truth) == doc["gnss_truth"] and truth.excluded_windows > 0
     assert f"GNSS truth: {truth.excluded_windows} of {truth.windows} windows excluded (" in text
-    assert "IDNN arbiter: " in text and doc["estimators"] == report.estimator_info
+    info = {e["name"]: e.get("info", {}) for e in doc["estimators"]}
+    assert report.arbiter_notes == {e: i["arbiter"] for e, i in info.items() if "arbiter" in i} and report.arbiter_notes
+    assert all(f"{report.labels[e]} arbiter: {note}\n" in text for e, note in report.arbiter_notes.items())
 
 
 def test_the_overview_rows_are_the_reports_typed_values():

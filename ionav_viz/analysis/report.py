@@ -30,6 +30,7 @@ from .metrics import METRICS, summarise
 from .rows import (
     IMPROVEMENT_METRICS,
     BridgedRow,
+    DomainNote,
     DriftRow,
     DriveEntry,
     EstimatorRow,
@@ -237,6 +238,20 @@ class Report:
         """Name, label, colour and the estimator's own description (``info``) of each estimator."""
         return self.results[0].estimator_info()
 
+    @cached_property
+    def arbiter_notes(self) -> dict[str, str]:
+        """Per estimator that chose per outage from its pseudo-outages over the GNSS before it (a
+        history arbiter: ``gins``'s propagation, :func:`ionav_viz.nav.gins.arbitrate`; the IDNN's share
+        of the INS DR's displacement, :class:`ionav_viz.learning.idnn.IdnnEstimator`): what it chose
+        and why, as its own description's ``arbiter`` says of the last drive it ran on."""
+        return {e["name"]: note for e in self.estimator_info if (note := e.get("info", {}).get("arbiter"))}
+
+    @cached_property
+    def domain_notes(self) -> list[DomainNote]:
+        """Each estimator's drives whose inputs lie outside its model's training (its ``info.domain``)."""
+        return [DomainNote(e["name"], drive, list(n["outside"]), n["sigma_scale_median"], n["sigma_scale_max"])
+                for e in self.estimator_info for drive, n in (e.get("info", {}).get("domain") or {}).items()]
+
     def outage_tracks(self, drive: str, number: int) -> dict[str, Any]:
         """One outage's tracks at its window boundaries: ``drive``, ``number``, ``start_s``, and
         per estimator and ``truth`` the ``east_m`` and ``north_m`` of each boundary, metres on the
@@ -379,13 +394,16 @@ class Report:
         from .consistency import consistency_line
         from .health import health_line
 
-        labels, info = self.labels, self.estimator_info
+        labels = self.labels
         said = (tables.improvement_lines(labels, self.improvement_pct, self.improvement_ci95_pct)
                 if self.n_outages else [])
         said += [tables.truth_line(self.gnss_truth), *tables.drive_lines(self.drive_entries)]
         said += [consistency_line(labels[est], c) for est, c in self.consistency.items()]
         said += [health_line(labels[est], summary) for est, summary in self.filter_health.items()]
-        return said + tables.arbiter_lines(info, len(self.results)) + tables.domain_lines(info)
+        if len(self.results) == 1:  # an estimator describes the last drive it ran on: several leave it to each's own
+            said += [f"{labels[e]} arbiter: {note}" for e, note in self.arbiter_notes.items()]
+        return said + [f"{labels[n.estimator]} out of its training domain on {n.drive}: {tables.domain_detail(n)}"
+                       for n in self.domain_notes]
 
     def to_text(self, width: int | None = None) -> str:
         """The paper's table layout (Tables 8-12) as plain text; ``width``: fit tables and lines
@@ -638,12 +656,10 @@ def run_summary_markdown(result: DriveResult, report: Report, placement: str) ->
                      f"{model_info['n_steps_disp']} / {model_info['n_steps_yaw']} time steps), trained on {trained}")
         if model_info.get("training_data"):
             lines.append(f"**Training data**: {model_info['training_data']}")
-        if model_info.get("arbiter"):
-            lines.append(f"**IDNN arbiter**: {model_info['arbiter']}")
-        for name, note in (model_info.get("domain") or {}).items():
-            lines.append(f"**IDNN out of its training domain** on {name}: {'; '.join(note['outside'])} "
-                         f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
-                         f"x{note['sigma_scale_max']:.2f} at most)")
+        if "idnn" in report.arbiter_notes:
+            lines.append(f"**IDNN arbiter**: {report.arbiter_notes['idnn']}")
+        lines += [f"**IDNN out of its training domain** on {n.drive}: {tables.domain_detail(n)}"
+                  for n in report.domain_notes if n.estimator == "idnn"]
     else:
         lines.append("**IDNN model**: none")
     for est in result.estimators:

@@ -155,6 +155,19 @@ class DriveEntry:
 
 
 @dataclass(frozen=True)
+class DomainNote:
+    """Where one drive's inputs lie outside what an estimator's model was trained on, as the
+    estimator describes it (its own ``info.domain``, :func:`ionav_viz.learning.domain.outside`): what
+    lies ``outside``, and by how much its sigma was widened (median and most)."""
+
+    estimator: str
+    drive: str
+    outside: list[str]
+    sigma_scale_median: float
+    sigma_scale_max: float
+
+
+@dataclass(frozen=True)
 class GnssOutages:
     """The log's own GNSS losses in a report (``--on gnss-outage``; the JSON's ``gnss_outages``,
     :func:`~dataclasses.asdict` of it): the ``bridged`` ones, how many were ``not_bridged`` in all and

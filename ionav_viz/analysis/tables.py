@@ -13,7 +13,18 @@ from collections.abc import Mapping
 from typing import Any
 
 from .document import Document, Heading, Table, to_markdown, to_text
-from .rows import BridgedRow, DriftRow, DriveEntry, EstimatorRow, GnssOutages, GnssTruth, Improvement, Spread, WorstRow
+from .rows import (
+    BridgedRow,
+    DomainNote,
+    DriftRow,
+    DriveEntry,
+    EstimatorRow,
+    GnssOutages,
+    GnssTruth,
+    Improvement,
+    Spread,
+    WorstRow,
+)
 
 _STATS = (("max", "max"), ("min", "min"), ("mean", "μ"), ("std", "σ"))
 _BLOCKS = (("CRSE", "crse_m", "yaw_crse_radps"), ("CAE", "cae_m", "yaw_cae_radps"),
@@ -128,29 +139,10 @@ def drive_lines(drives: list[DriveEntry], most: int = 4) -> list[str]:
     return out + [f"{d.name}: {d.imu_text}" for d in drives[:most] if d.imu_text]
 
 
-def arbiter_lines(estimators: list[dict[str, Any]], n_drives: int) -> list[str]:
-    """On one drive, a line per estimator (of ``DriveResult.estimator_info``) that chose per outage
-    from its pseudo-outages over the GNSS before it (a history arbiter: ``gins``'s propagation,
-    :func:`ionav_viz.nav.gins.arbitrate`; the IDNN's share of the INS DR's displacement,
-    :class:`ionav_viz.learning.idnn.IdnnEstimator`), from its own description's ``arbiter``: what it
-    chose and why. An estimator describes the last drive it ran on, so a report of several drives
-    leaves it to each drive's own run."""
-    if n_drives != 1:
-        return []
-    return [f"{e['label']} arbiter: {e['info']['arbiter']}" for e in estimators if e.get("info", {}).get("arbiter")]
-
-
-def domain_lines(estimators: list[dict[str, Any]]) -> list[str]:
-    """A line per drive whose inputs lie outside what the IDNN's model was trained on (the
-    estimator's own ``domain`` description, :func:`ionav_viz.learning.domain.outside`): what, and how
-    much its uncertainty was widened."""
-    out = []
-    for e in estimators:
-        for drive, note in (e.get("info", {}).get("domain") or {}).items():
-            out.append(f"{e['label']} out of its training domain on {drive}: {'; '.join(note['outside'])} "
-                       f"(sigma widened x{note['sigma_scale_median']:.2f} median, "
-                       f"x{note['sigma_scale_max']:.2f} at most)")
-    return out
+def domain_detail(note: DomainNote) -> str:
+    """What of a drive lies outside an estimator's training domain, and how much its uncertainty was widened."""
+    return (f"{'; '.join(note.outside)} (sigma widened x{note.sigma_scale_median:.2f} median, "
+            f"x{note.sigma_scale_max:.2f} at most)")
 
 
 def bridged_table(rows: list[BridgedRow], labels: dict[str, str],
