@@ -1,6 +1,7 @@
-"""A drive report's typed rows (:class:`~ionav_viz.analysis.report.Report`): what its tables
-(:mod:`.tables`, as text and Markdown) and its JSON (``Report.to_dict``, docs/report-schema.md) are
-both built from. Every number carries its unit in its name; times are seconds on the drive's clock.
+"""A drive report's typed rows and values (:class:`~ionav_viz.analysis.report.Report`): what its
+tables and the lines under them (:mod:`.tables`, as text and Markdown) and its JSON (``Report.to_dict``,
+docs/report-schema.md) are all built from; a fleet's own rows are in :mod:`.fleet`. Every number
+carries its unit in its name; times are seconds on the drive's clock.
 """
 
 from __future__ import annotations
