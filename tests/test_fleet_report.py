@@ -12,6 +12,7 @@ import pytest
 
 from ionav_viz.analysis.events import Event, outage_manoeuvres
 from ionav_viz.analysis.fleet import DriveTable, FleetReport
+from ionav_viz.analysis.rows import GnssTruth
 from ionav_viz.core.json_out import dumps_json
 
 
@@ -24,7 +25,7 @@ def _table(name: str, ins: list[float], odo: list[float], manoeuvre: list[str], 
     return DriveTable(spec=f"{name}.csv", name=name, source=f"{name}.csv", duration_s=600.0, distance_m=1000.0, outage_s=outage_s,
                       estimators=[{"name": "ins", "label": "INS DR"}, {"name": "odo", "label": "Odometry"}],
                       start_s=30.0 + outage_s * np.arange(n), gnss_distance_m=np.full(n, 300.0), metrics=metrics,
-                      bias={}, gnss_truth={}, manoeuvre=manoeuvre,
+                      bias={}, gnss_truth=GnssTruth(n, 0, {}, 0, 0), manoeuvre=manoeuvre,
                       error_at_s={e: {"10": np.asarray(v, dtype=float)} for e, v in (at10 or {}).items()},
                       consistency={"odo": {k: np.asarray(v, dtype=float) for k, v in cons.items()}} if cons else {})
 
@@ -205,6 +206,7 @@ def test_the_worst_drives_and_outages_are_typed_rows_the_json_and_the_text_are_b
     doc, markdown = report.to_dict(), report.to_markdown()
     drives, outages = report.worst_drive_rows(), report.worst_outage_rows()
     assert [asdict(w) for w in drives] == doc["worst_drives"] == report.worst_drives()
+    assert [d["gnss_truth"] for d in doc["drives"]] == [asdict(t.gnss_truth) for t in report.drives]
     assert [asdict(w) for w in outages] == doc["worst_outages"] == report.worst_outages()
     assert [(w.drive, w.mean_final_error_m["ins"]) for w in drives] == [("B", 50.0), ("A", 20.0)]
     assert [(w.drive, w.number, w.start_s, w.end_s) for w in outages[:2]] == [("B", 2, 60.0, 90.0), ("B", 1, 30.0, 60.0)]

@@ -29,7 +29,7 @@ from .document import Block, Code, Document, Heading, Items, Paragraphs, Table, 
 from .drift import final_error_percentiles
 from .evaluate import DriveResult, clustered_improvement_ci95_pct, improvement_pct, is_baseline
 from .metrics import METRICS, summarise
-from .rows import IMPROVEMENT_METRICS, BridgedRow, EstimatorRow, Improvement, Spread, WorstRow
+from .rows import IMPROVEMENT_METRICS, BridgedRow, EstimatorRow, GnssTruth, Improvement, Spread, WorstRow
 from .schema import tagged
 
 #: How many drives and outages the fleet report ranks as the worst.
@@ -51,7 +51,7 @@ class DriveTable:
             the GNSS distance travelled during it (m).
         metrics: per estimator, each of :data:`METRICS` per outage.
         bias: the sensor biases the estimators were given (``accel_mps2``, ``gyro_radps``, ``source``).
-        gnss_truth: what the GNSS quality checks excluded (see ``DriveResult.truth_exclusions``).
+        gnss_truth: what the GNSS quality checks excluded (:class:`~ionav_viz.analysis.rows.GnssTruth`).
         truth: ``gnss`` or ``reference``.
         warnings: what was warned while this drive was read and evaluated (one line each).
         elapsed_s: wall time of this drive on its worker (not part of the results).
@@ -81,7 +81,7 @@ class DriveTable:
     gnss_distance_m: np.ndarray
     metrics: dict[str, dict[str, np.ndarray]]
     bias: dict[str, Any]
-    gnss_truth: dict[str, Any]
+    gnss_truth: GnssTruth
     truth: str = "gnss"
     warnings: list[str] = field(default_factory=list)
     elapsed_s: float = 0.0
@@ -144,7 +144,7 @@ def drive_table(spec: str, result: DriveResult, warnings: list[str] | None = Non
                  for est, per in result.metrics.items()},
         bias={"accel_mps2": float(result.bias.accel_mps2), "gyro_radps": float(result.bias.gyro_radps),
               "source": str(result.bias.source)},
-        gnss_truth=result.truth_exclusions(), truth="reference" if drive.has_reference else "gnss",
+        gnss_truth=GnssTruth(**result.truth_exclusions()), truth="reference" if drive.has_reference else "gnss",
         real_outages=[BridgedRow(drive.name, **b.to_dict()) for b in result.bridged],
         warnings=list(warnings or []), elapsed_s=float(elapsed_s), recording=recording, placement=result.placement,
         imu=None if drive.imu is None else {**drive.imu.to_dict(), "text": drive.imu.describe()},
@@ -193,7 +193,7 @@ class DriveRow:
                                "mean_final_error_m": self.mean_final_error_m}
         if self.improvement_pct is not None:
             row["improvement_pct"] = self.improvement_pct
-        row |= {"gnss_truth": t.gnss_truth, "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
+        row |= {"gnss_truth": asdict(t.gnss_truth), "bias": t.bias, "truth": t.truth, "warnings": list(t.warnings),
                 **({"placement": t.placement} if t.placement else {}), **({"imu": t.imu} if t.imu else {})}
         if t.recording is not None:
             row["recording"] = t.recording
@@ -718,8 +718,8 @@ def _document(rep: FleetReport, timing: bool) -> Document:
         rows = []
         for r in rep.rows():
             t, means = r.table, r.mean_final_error_m
-            windows = t.gnss_truth.get("windows", 0)
-            bad_pct = 100.0 * t.gnss_truth.get("excluded_windows", 0) / windows if windows else float("nan")
+            windows = t.gnss_truth.windows
+            bad_pct = 100.0 * t.gnss_truth.excluded_windows / windows if windows else float("nan")
             row = [t.name, str(t.n_outages), f"{t.duration_s / 3600:.2f}", f"{t.distance_m / 1000:.1f}", _f(bad_pct, 1)]
             row += [_f(means.get(e, float("nan"))) for e in ests]
             if base:
