@@ -171,3 +171,22 @@ def test_the_overview_rows_are_the_reports_typed_values():
              f"{imp['yaw_crse_radps']:.1f}", f"{s['ins']['final_position_error_m']['mean']:.2f}",
              f"{s['odo']['final_position_error_m']['mean']:.2f}"]
     assert total.startswith(f"| total | {doc['n_sequences']} | " + " | ".join(cells) + " | "), total
+
+
+def test_the_error_against_outage_length_is_typed_rows_the_json_and_the_table_are_built_from():
+    from ionav_viz.analysis.report import length_rows
+    from ionav_viz.core.json_out import dumps_json
+
+    reports = iv.evaluate(["roundabout"], [10, 30], estimators=["ins", "odo"])
+    rows, doc = length_rows(reports), json.loads(lengths_to_json(reports))
+    assert [r.name for r in rows] == ["ins", "odo"] and rows[0].outage_s == [10.0, 30.0]
+    assert dumps_json({r.name: r.to_dict() for r in rows}) == dumps_json(doc["by_length"])
+    fields = ("outage_s", "n_outages", "final_position_error_m", "final_error_pct", "crse_m", "final_error_p90_m")
+    assert all(doc["by_length"][r.name][f] == getattr(r, f) for r in rows for f in fields)
+    assert rows[1].crse_m[1] == reports[30].summary["odo"]["crse_m"]["mean"]
+    proc = run_cli("evaluate", "roundabout", "--outage", "10s,30s", "--estimators", "ins,odo", "--markdown", "-q")
+    assert proc.returncode == 0, proc.stderr
+    for r in rows:
+        cells = [f"{m:.2f} ({p:.1f} %)" for m, p in zip(r.final_position_error_m, r.final_error_pct)]
+        assert f"| {r.label} | " + " | ".join(cells + [f"{c:.2f}" for c in r.crse_m]) + " |" in proc.stdout
+    assert f"10 s: {rows[0].n_outages[0]}, 30 s: {rows[0].n_outages[1]} outages)" in proc.stdout

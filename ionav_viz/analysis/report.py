@@ -37,6 +37,7 @@ from .rows import (
     GnssOutages,
     GnssTruth,
     Improvement,
+    LengthRow,
     Spread,
     WorstRow,
 )
@@ -545,25 +546,23 @@ def reports_to_json(reports: Mapping[str, Report], key: str = "scenarios", inden
                                    "worst_of": total.worst_of, "worst": total.worst_outages()}), indent=indent)
 
 
+def length_rows(reports: Mapping[float, Report]) -> list[LengthRow]:
+    """Error against outage length (``evaluate --outage 10s,30s,60s``): a :class:`LengthRow` per
+    estimator, in report order, over each length's outages."""
+    reps = [reports[x] for x in sorted(reports)]
+
+    def means(est: str, metric: str) -> list[float]:
+        return [r.summary[est][metric]["mean"] if r.n_outages else float("nan") for r in reps]
+
+    return [LengthRow(est, label, [float(x) for x in sorted(reports)], [r.n_outages for r in reps],
+                      means(est, "final_position_error_m"), means(est, "final_error_pct"), means(est, "crse_m"),
+                      [final_error_percentiles(r.metric(est, "final_position_error_m"))["p90"] for r in reps])
+            for est, label in reps[0].labels.items()]
+
+
 def by_length(reports: Mapping[float, Report]) -> dict[str, Any]:
-    """Error against outage length (``evaluate --outage 10s,30s,60s``): per estimator, the lengths
-    (``outage_s``) with the mean ``final_position_error_m``, ``final_error_pct`` and ``crse_m``, and
-    the ``final_error_p90_m``, over each length's outages."""
-    lengths = sorted(reports)
-    names = reports[lengths[0]].estimators
-    out: dict[str, Any] = {}
-    for est in names:
-        rows: dict[str, list[float]] = {"outage_s": [float(x) for x in lengths], "n_outages": [],
-                                        "final_position_error_m": [], "final_error_pct": [], "crse_m": [],
-                                        "final_error_p90_m": []}
-        for length in lengths:
-            rep = reports[length]
-            rows["n_outages"].append(rep.n_outages)
-            for metric in ("final_position_error_m", "final_error_pct", "crse_m"):
-                rows[metric].append(rep.summary[est][metric]["mean"] if rep.n_outages else float("nan"))
-            rows["final_error_p90_m"].append(final_error_percentiles(rep.metric(est, "final_position_error_m"))["p90"])
-        out[est] = rows
-    return out
+    """:func:`length_rows` as the JSON's ``by_length``, by estimator (:meth:`LengthRow.to_dict`)."""
+    return {r.name: r.to_dict() for r in length_rows(reports)}
 
 
 def lengths_to_json(reports: Mapping[float, Report], indent: int | None = 2) -> str:

@@ -119,6 +119,26 @@ class Improvement(Mapping[str, T], Generic[T]):
 
 
 @dataclass(frozen=True)
+class LengthRow:
+    """One estimator's error against outage length (``evaluate --outage 10s,30s,60s``; the JSON's
+    ``by_length`` entry, :meth:`to_dict`): per length (``outage_s``, increasing) its outages, the mean
+    final position error with its share of the distance (%), the mean displacement CRSE and the
+    final error's 90th percentile (NaN where a length has no outage)."""
+
+    name: str
+    label: str
+    outage_s: list[float]
+    n_outages: list[int]
+    final_position_error_m: list[float]
+    final_error_pct: list[float]
+    crse_m: list[float]
+    final_error_p90_m: list[float]
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {k: v for k, v in asdict(self).items() if k not in ("name", "label")}
+
+
+@dataclass(frozen=True)
 class GnssTruth:
     """What the GNSS quality checks kept out of the scores, on one drive or summed over a report's
     (the JSON's ``gnss_truth``): of ``windows``, the ``excluded_windows`` of bad truth

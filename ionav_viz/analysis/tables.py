@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
 
 from .document import Document, Heading, Table, to_markdown, to_text
 from .rows import (
@@ -22,6 +21,7 @@ from .rows import (
     GnssOutages,
     GnssTruth,
     Improvement,
+    LengthRow,
     Spread,
     WorstRow,
 )
@@ -165,17 +165,15 @@ def bridged_line(real: GnssOutages, labels: Mapping[str, str]) -> str:
     return f"Mean final position error over {len(real.bridged)} real GNSS outage(s): {means}{missed}"
 
 
-def render_lengths(summary: dict[str, Any], labels: dict[str, str], markdown: bool = False,
-                   width: int | None = None) -> str:
+def render_lengths(lengths: list[LengthRow], markdown: bool = False, width: int | None = None) -> str:
     """Error against outage length: per estimator and length, the mean final position error (m)
     with its share of the distance (%), and the mean displacement CRSE (m)."""
-    first = next(iter(summary.values()))
-    header = ["Estimator", *(f"{x:g} s final (m, %)" for x in first["outage_s"]),
-              *(f"{x:g} s CRSE (m)" for x in first["outage_s"])]
-    rows = [[labels.get(e, e),
-             *(f"{_fmt(m, 2)} ({_fmt(p, 1)} %)" for m, p in zip(r["final_position_error_m"], r["final_error_pct"])),
-             *(_fmt(c, 2) for c in r["crse_m"])] for e, r in summary.items()]
+    first = lengths[0]
+    header = ["Estimator", *(f"{x:g} s final (m, %)" for x in first.outage_s),
+              *(f"{x:g} s CRSE (m)" for x in first.outage_s)]
+    rows = [[r.label, *(f"{_fmt(m, 2)} ({_fmt(p, 1)} %)" for m, p in zip(r.final_position_error_m, r.final_error_pct)),
+             *(_fmt(c, 2) for c in r.crse_m)] for r in lengths]
     title = "Error against outage length (mean over each length's outages; " + ", ".join(
-        f"{x:g} s: {n}" for x, n in zip(first["outage_s"], first["n_outages"])) + " outages)"
+        f"{x:g} s: {n}" for x, n in zip(first.outage_s, first.n_outages)) + " outages)"
     doc = Document([Heading(title), Table(header, rows, 1)], spaced=False, hang=None)
     return to_markdown(doc) if markdown else to_text(doc, width)

@@ -129,7 +129,7 @@ def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.Pla
     """``--outage 10s,30s,60s``: each length's report, then the error against outage length (the
     options it cannot take are refused by the caller); ``--export DIR`` writes ``DIR/<length>s``."""
     from .. import api
-    from ..analysis.report import by_length, lengths_to_json
+    from ..analysis.report import length_rows, lengths_to_json
     from ..analysis.tables import render_lengths
 
     if not drives:
@@ -142,7 +142,6 @@ def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.Pla
         print(lengths_to_json(reports))
         return
     width = c.terminal_width()
-    labels = {e: lab for e, lab in next(iter(reports.values())).labels.items()}
     parts = [rep.to_markdown() if markdown else rep.to_text(width) for rep in reports.values()]
-    parts.append(render_lengths(by_length(reports), labels, markdown, width))
+    parts.append(render_lengths(length_rows(reports), markdown, width))
     print("\n".join(parts), end="")

@@ -94,12 +94,11 @@ def replay(
             results = api.replay(api.Experiment(drive_spec, lengths, placement.placement, run=run, read=read),
                                  output=output, export=export, progress=c.progress_callback(bar, "writing"))
         if not quiet:
-            from ..analysis.report import by_length
+            from ..analysis.report import length_rows
             from ..analysis.tables import render_lengths
 
             reports = {r.report.results[0].outage_s: r.report for r in results}
-            print(render_lengths(by_length(reports), results[0].report.labels, width=c.terminal_width(sys.stderr)),
-                  end="", file=sys.stderr)
+            print(render_lengths(length_rows(reports), width=c.terminal_width(sys.stderr)), end="", file=sys.stderr)
         for r in results:
             print(r.path)
         return
