@@ -6,13 +6,11 @@ carries its unit in its name; times are seconds on the drive's clock.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any, Generic, TypeVar
 
 #: The metrics whose means are compared with the baseline's (:class:`Improvement`), each to its field.
 IMPROVEMENT_METRICS = ("crse_m", "yaw_crse_radps", "final_position_error_m")
-_IMPROVEMENT_FIELDS = dict(zip(IMPROVEMENT_METRICS, ("crse_pct", "yaw_crse_pct", "final_position_error_pct")))
 T = TypeVar("T")
 
 
@@ -93,29 +91,30 @@ class BridgedRow:
     final_error_m: dict[str, float]
 
 
-@dataclass(frozen=True, eq=False)
-class Improvement(Mapping[str, T], Generic[T]):
+class Improvement(dict[str, T], Generic[T]):
     """How much lower one estimator's means are than the INS DR's (%; positive: better): of the
     displacement CRSE, the orientation-rate CRSE and the final position error; as an interval, each
-    its 95 % ``[low, high]`` (%). A read-only mapping by metric name (:data:`IMPROVEMENT_METRICS`):
-    ``improvement["crse_m"]`` is ``crse_pct``, and it equals the dict :meth:`to_dict` gives, the
-    JSON's ``improvement_pct`` (or ``improvement_ci95_pct``) entry."""
+    its 95 % ``[low, high]`` (%). A dict by metric name (:data:`IMPROVEMENT_METRICS`), the JSON's
+    ``improvement_pct`` (or ``improvement_ci95_pct``) entry, with its values as attributes too:
+    ``improvement["crse_m"]`` is ``improvement.crse_pct``."""
 
-    crse_pct: T
-    yaw_crse_pct: T
-    final_position_error_pct: T
+    def __init__(self, crse_pct: T, yaw_crse_pct: T, final_position_error_pct: T) -> None:
+        super().__init__(zip(IMPROVEMENT_METRICS, (crse_pct, yaw_crse_pct, final_position_error_pct), strict=True))
 
-    def __getitem__(self, metric: str) -> T:
-        return getattr(self, _IMPROVEMENT_FIELDS[metric])
+    @property
+    def crse_pct(self) -> T:
+        return self[IMPROVEMENT_METRICS[0]]
 
-    def __iter__(self) -> Iterator[str]:
-        return iter(IMPROVEMENT_METRICS)
+    @property
+    def yaw_crse_pct(self) -> T:
+        return self[IMPROVEMENT_METRICS[1]]
 
-    def __len__(self) -> int:
-        return len(IMPROVEMENT_METRICS)
+    @property
+    def final_position_error_pct(self) -> T:
+        return self[IMPROVEMENT_METRICS[2]]
 
     def to_dict(self) -> dict[str, T]:
-        return dict(self.items())
+        return dict(self)
 
 
 @dataclass(frozen=True)
