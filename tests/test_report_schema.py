@@ -117,6 +117,8 @@ def test_a_reports_lines_are_its_typed_values_and_those_its_json(report):
     doc, text, markdown = report.to_dict(), report.to_text(), report.to_markdown()
     assert report.improvement_pct == doc["improvement_pct"]
     assert report.improvement_ci95_pct == doc["improvement_ci95_pct"]
+    # a caller's own json.dumps takes them as the plain dicts they were
+    assert json.loads(json.dumps(report.improvement_pct)) == json.loads(report.to_json())["improvement_pct"]
     assert list(report.improvement_pct) == ["idnn", "odo", "ekf"]  # every estimator but the INS DR
     for est, imp in report.improvement_pct.items():
         assert imp["crse_m"] == imp.crse_pct and imp.to_dict() == doc["improvement_pct"][est]
