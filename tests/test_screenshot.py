@@ -464,7 +464,7 @@ def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
     its end), and without map tiles the map view is left out of the layout, the local view taking
     its place (and a --view map shot draws the local view)."""
     from ionav_viz.viz import entities as ent
-    from ionav_viz.viz.blueprints import focus_blueprint, plot_window
+    from ionav_viz.viz.blueprints import ShotLayout, focus_blueprint, plot_window
 
     # the start at a whole 10 s: a tick just before it was labelled at the plot's left edge, cut ("m" of "+6m")
     assert plot_window(341.8, 341.8) == (280.0, 341.8) and plot_window(10.0, 341.8) == (0.0, 60.0)
@@ -479,15 +479,15 @@ def test_time_plots_end_at_the_drive_end_and_the_map_gives_way_offline():
         "/view/map": {"ViewBlueprint": {"class_identifier": "Map", "space_origin": ent.MAP}},
         "/view/ts": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.DISPLACEMENTS}},
     }
-    online = focus_blueprint(bp, "all", {}, t_s=341.8, end_s=341.8)
+    online = focus_blueprint(bp, "all", {}, layout=ShotLayout(t_s=341.8, end_s=341.8))
     view_range = online["/view/ts/TimeAxis"]["TimeAxis"]["view_range"]
     assert view_range["end"] == {"Absolute": 345_800_000_000}  # + room for the last label
     assert 277_000_000_000 < view_range["start"]["Absolute"] < 280_000_000_000  # and the first
     assert "/view/map" in online and all(online[p] == {k: {**v, "state": "Hidden"}} for p, (k, v) in
                                          {"/top_panel": ("PanelBlueprint", {}), "/time_panel": ("TimePanelBlueprint", {})}.items())
-    offline = focus_blueprint(bp, "all", {}, map_tiles=False)
+    offline = focus_blueprint(bp, "all", {}, layout=ShotLayout(map_tiles=False))
     assert "/view/map" not in offline and offline["/container/tracks"]["ContainerBlueprint"]["contents"] == ["/view/local"]
-    maximised = focus_blueprint(bp, "map", {}, map_tiles=False)["/viewport"]["ViewportBlueprint"]["maximized"]
+    maximised = focus_blueprint(bp, "map", {}, layout=ShotLayout(map_tiles=False))["/viewport"]["ViewportBlueprint"]["maximized"]
     assert maximised == "local"
 
 
@@ -760,7 +760,7 @@ def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
     100 px of buttons); at 1024 px the column has about 300, so an image keeps only the active tab;
     at 1600 (about 470 px) all four stay, as does the two-tab CRSE/CAE bar at every size."""
     from ionav_viz.viz import entities as ent
-    from ionav_viz.viz.blueprints import focus_blueprint
+    from ionav_viz.viz.blueprints import ShotLayout, focus_blueprint
 
     four = [ent.error_group("position_error_m"), ent.DRIFT, ent.UNCERTAINTY, ent.HEALTH]
     views = {f"/view/t{i}": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": o}} for i, o in enumerate(four)}
@@ -773,10 +773,10 @@ def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
         "/view/cae": {"ViewBlueprint": {"class_identifier": "TimeSeries", "space_origin": ent.error_group("cae_m")}},
         **views,
     }
-    small = focus_blueprint(bp, "all", {}, size=(1024, 576))
+    small = focus_blueprint(bp, "all", {}, layout=ShotLayout(size=(1024, 576)))
     assert small["/container/tabs"]["ContainerBlueprint"]["contents"] == ["/view/t0"] and "/view/t3" not in small
     assert len(small["/container/two"]["ContainerBlueprint"]["contents"]) == 2
-    large = focus_blueprint(bp, "all", {}, size=(1600, 900))
+    large = focus_blueprint(bp, "all", {}, layout=ShotLayout(size=(1600, 900)))
     assert large["/container/tabs"]["ContainerBlueprint"]["contents"] == list(views)
 
 

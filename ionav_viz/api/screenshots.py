@@ -5,38 +5,18 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..core.errors import InputError
 from ..core.fileio import check_output_file, check_regular_input, refuse_output_onto_input
+from ..viz.screenshot import Shots
 
 if TYPE_CHECKING:
     from ..viz.viewer import HeadlessViewer
 
 log = logging.getLogger("ionav_viz")
-
-
-@dataclass(frozen=True)
-class Shots:
-    """What :func:`screenshot` renders of each recording: every view at every time and outage.
-
-    Attributes:
-        times: seconds (float), ``"35s"``, ``"worst"`` or ``"end"``. ``"worst"`` is the end of the
-            outage with the largest final position error of ``worst_of`` (default the INS DR), and
-            frames that outage.
-        views: ``all``, ``outage`` (the outage inspector), ``map``, ``local``, ``signals``, ``errors``.
-        size: image width and height in pixels.
-        outages: outage numbers (1-based, as the replay lists them): each is shown at its end, framed.
-        worst_of: the estimator whose final error picks ``"worst"``.
-    """
-
-    times: Sequence[str | float] = ("end",)
-    views: Sequence[str] = ("all",)
-    size: tuple[int, int] = (1600, 900)
-    outages: Sequence[int] = ()
-    worst_of: str = "ins"
 
 
 def screenshot(
@@ -120,6 +100,5 @@ def _render(paths: list[Path], out: Path, single: bool, folder: Path, shots: Sho
     paths = [p for p in paths if p not in fleets]
     if not paths:
         return written
-    spec = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in shots.times]
-    return written + render(paths, out, spec, list(shots.views), size, timeout_s=timeout_s, progress=progress,
-                            outages=[int(n) for n in shots.outages], worst_of=shots.worst_of, viewer=viewer)
+    return written + render(paths, out, replace(shots, size=size), timeout_s=timeout_s, progress=progress,
+                            viewer=viewer)

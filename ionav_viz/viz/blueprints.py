@@ -573,19 +573,41 @@ def plot_window(t_s: float, end_s: float, width_s: float = PLOT_WINDOW_S) -> tup
     return math.floor(start / PLOT_TICK_S + 1e-9) * PLOT_TICK_S, start + width_s
 
 
+@dataclass(frozen=True)
+class ShotLayout:
+    """What a screenshot's layout (:func:`focus_blueprint`) depends on beyond its view and framing.
+
+    Attributes:
+        t_s, end_s: the shot's time and the recording's end (s); with both, the time plots show
+            :func:`plot_window`, :func:`first_label_margin_s` before it and :data:`PLOT_MARGIN_S` after.
+        map_tiles: whether map tiles load; without (offline), the map view is left out and the local
+            view takes its place.
+        size: the image (width, height, px); with ``n_estimators`` and ``warned`` it sets the
+            columns' rows (:func:`shot_rows`).
+        y_extents: per plot origin, the y range its data spans in the window (m, rad/s, ...).
+        shown: of :data:`OPTIONAL_VIEWS`, the ones the recording shows (None: all; a recording made
+            before they were left out of its own layout still holds them, empty).
+    """
+
+    t_s: float | None = None
+    end_s: float | None = None
+    map_tiles: bool = True
+    size: tuple[int, int] | None = None
+    y_extents: dict[str, tuple[float, float]] | None = None
+    n_estimators: int = 4
+    warned: bool = False
+    shown: frozenset[str] | None = None
+
+
 def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str], frame: Framing | None = None,
-                    t_s: float | None = None, end_s: float | None = None, map_tiles: bool = True,
-                    size: tuple[int, int] | None = None, y_extents: dict[str, tuple[float, float]] | None = None,
-                    n_estimators: int = 4, warned: bool = False, shown: frozenset[str] | None = None) -> dict[str, Any]:
+                    layout: ShotLayout | None = None) -> dict[str, Any]:
     """The recording's blueprint showing only ``view``, with view titles from ``titles`` (by
-    origin) and the map and local views framed as ``frame`` says; the viewer's panels hidden;
-    with ``t_s`` and ``end_s``, the time plots showing :func:`plot_window`, :func:`first_label_margin_s`
-    before it and :data:`PLOT_MARGIN_S` after; without
-    ``map_tiles`` (they cannot load: offline), the map view left out and the local view in its place;
-    the columns' rows as :func:`shot_rows` says for ``size``, ``n_estimators`` and ``warned``;
-    of :data:`OPTIONAL_VIEWS`, only those ``shown`` (None: all; a recording made before they were
-    left out of its own layout still holds them, empty)."""
+    origin), the map and local views framed as ``frame`` says, the rest as ``layout`` says
+    (:class:`ShotLayout`); the viewer's panels hidden."""
     frame = frame or Framing()
+    layout = layout or ShotLayout()
+    t_s, end_s, map_tiles, size = layout.t_s, layout.end_s, layout.map_tiles, layout.size
+    y_extents, n_estimators, warned, shown = layout.y_extents, layout.n_estimators, layout.warned, layout.shown
     bp = without_panels(blueprint)
     views = {k: v["ViewBlueprint"] for k, v in bp.items() if "ViewBlueprint" in v}
     synthetic = shown is None or ent.error_group("crse_m") in shown

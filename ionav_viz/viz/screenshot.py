@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import socket
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..core.errors import InputError
@@ -26,6 +27,7 @@ from .blueprints import (
     VIEWS,
     KeyEntry,
     Shot,
+    ShotLayout,
     focus_blueprint,
     framing,
     key_for,
@@ -187,20 +189,42 @@ def output_paths(out: Path, stem: str, requests: list[tuple[str, str]], single_f
     return [directory / f"{safe_stem(stem)}-{view}-{label}.png" for view, label in requests]
 
 
-def render(recordings: list[Path], out: Path, times: list[str], views: list[str], size: tuple[int, int],
-           timeout_s: float = 120.0, progress=None, outages: Sequence[int] = (),
-           worst_of: str = BASELINE, viewer: HeadlessViewer | None = None) -> list[Path]:
-    """Render every (recording, time or outage, view) combination with one headless viewer; returns the PNGs.
+@dataclass(frozen=True)
+class Shots:
+    """What a screenshot renders of each recording: every view at every time and outage
+    (:func:`render`; the API's :func:`ionav_viz.api.screenshots.screenshot`).
 
-    ``times``: ``'35s'``, ``'end'`` or ``'worst'`` (the outage with the largest final position error
-    of ``worst_of``, framed); ``outages``: outage numbers, each framed and shown at its end.
-    ``viewer``: a started viewer of ``size`` to render with (else one is started and shut down here).
-    Bad input is said before a missing renderer, and leaves neither a folder nor a viewer behind.
+    Attributes:
+        times: seconds (float), ``"35s"``, ``"worst"`` or ``"end"``. ``"worst"`` is the end of the
+            outage with the largest final position error of ``worst_of`` (default the INS DR), and
+            frames that outage.
+        views: ``all``, ``outage`` (the outage inspector), ``map``, ``local``, ``signals``, ``errors``.
+        size: image width and height in pixels.
+        outages: outage numbers (1-based, as the replay lists them): each is shown at its end, framed.
+        worst_of: the estimator whose final error picks ``"worst"``.
     """
+
+    times: Sequence[str | float] = ("end",)
+    views: Sequence[str] = ("all",)
+    size: tuple[int, int] = (1600, 900)
+    outages: Sequence[int] = ()
+    worst_of: str = BASELINE
+
+
+def render(recordings: list[Path], out: Path, shots: Shots, *, timeout_s: float = 120.0, progress=None,
+           viewer: HeadlessViewer | None = None) -> list[Path]:
+    """Render every (recording, time or outage, view) combination of ``shots`` with one headless
+    viewer; returns the PNGs. ``viewer``: a started viewer of ``shots.size`` to render with (else one
+    is started and shut down here). Bad input is said before a missing renderer, and leaves neither
+    a folder nor a viewer behind.
+    """
+    size = (int(shots.size[0]), int(shots.size[1]))
     if viewer is None:
         # started first: the recordings are read while it starts and its toasts fade
         with HeadlessViewer(*size, timeout_s=timeout_s, wait=False) as own:
-            return render(recordings, out, times, views, size, timeout_s, progress, outages, worst_of, own)
+            return render(recordings, out, shots, timeout_s=timeout_s, progress=progress, viewer=own)
+    times = [f"{t:g}s" if isinstance(t, (int, float)) else str(t) for t in shots.times]
+    views, outages, worst_of = list(shots.views), [int(n) for n in shots.outages], shots.worst_of
     for view in views:
         if view not in VIEWS:
             raise InputError(f"view {view!r} is unknown", f"choose from {', '.join(VIEWS)}", param="views")
@@ -210,16 +234,16 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
         if "health" in views and not info.health:
             raise InputError(f"{info.path}: no filter health to show (no estimator of this run reports one)",
                              "the GNSS-aided filters (ekf, gins) do; or choose another --view", param="views")
-        shots = []
+        planned = []
         for spec in times:
             t, outage = resolve_time(spec, info, worst_of)
             key = spec.strip().lower()
-            shots += [Shot(view, t, key if key in ("worst", "end") else f"{t:06.1f}s", outage) for view in views]
+            planned += [Shot(view, t, key if key in ("worst", "end") else f"{t:06.1f}s", outage) for view in views]
         for number in outages:
-            o = info.outage(int(number))
-            shots += [Shot(view, o.end_s, f"{'real-' if o.real else ''}outage{o.number}", o) for view in views]
-        paths = output_paths(out, info.drive, [(s.view, s.label) for s in shots], len(infos) == 1)
-        plans.append((info, shots, paths))
+            o = info.outage(number)
+            planned += [Shot(view, o.end_s, f"{'real-' if o.real else ''}outage{o.number}", o) for view in views]
+        paths = output_paths(out, info.drive, [(s.view, s.label) for s in planned], len(infos) == 1)
+        plans.append((info, planned, paths))
     folder = None
     if out.suffix.lower() != ".png" or len(plans[0][2]) > 1 or len(infos) > 1:
         folder = out if out.suffix.lower() != ".png" else out.parent
@@ -230,18 +254,18 @@ def render(recordings: list[Path], out: Path, times: list[str], views: list[str]
         if not tiles and any(v in ("map", "all") for v in views):
             log.warning("map tiles cannot load (%s is unreachable): screenshots draw the local east-north view in "
                         "the map's place", TILE_HOST)
-        for info, shots, paths in plans:
+        for info, planned, paths in plans:
             viewer.open(info.path)
-            for shot, path in zip(shots, paths):
+            for shot, path in zip(planned, paths):
                 frame = framing(info, shot.outage, size, shot.view)
                 x0, x1 = plot_window(shot.t_s, info.end_s)
                 extents = {o: plot_range(o, *e, pad=False) for o in MIN_Y_SPAN
                            if (e := info.y_extent(o, x0 - PLOT_MARGIN_S, x1 + PLOT_MARGIN_S)) is not None}
                 try:
-                    layout = focus_blueprint(viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
-                                             t_s=shot.t_s, end_s=info.end_s, map_tiles=tiles, size=size,
-                                             y_extents=extents, n_estimators=len(info.estimators), warned=info.warned,
-                                             shown=shown_views(info))
+                    layout = focus_blueprint(
+                        viewer.base_blueprint, shot.view, titles_for(info, shot, size[0]), frame,
+                        ShotLayout(shot.t_s, info.end_s, tiles, size, extents, len(info.estimators), info.warned,
+                                   shown_views(info)))
                 except InputError as exc:
                     raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
                 keys, head = key_for(info, shot), key_head(shot)
