@@ -612,10 +612,9 @@ def _last_ruler_label_px(img, x0: int, x1: int) -> int:
     ruler = grey[y_sep - 14 : y_sep - 6]  # the labels' rows, above the tick marks
     x_end = int(np.nonzero((ruler < 5).mean(axis=0) > 0.5)[0].max())
     text = np.nonzero((ruler[:, : x_end + 1] > 40).any(axis=0))[0]
-    start = len(text) - 1
-    while start > 0 and text[start] - text[start - 1] <= 4:  # a label's glyphs are a few pixels apart at most
-        start -= 1
-    return int(text[-1] - text[start] + 1)
+    # runs of columns a few pixels apart at most (a label's glyphs); a tick mark past the last label is one column
+    runs = np.split(text, np.nonzero(np.diff(text) > 4)[0] + 1)
+    return max(int(run[-1] - run[0] + 1) for run in runs[-2:])
 
 
 def test_the_state_timelines_last_time_label_is_whole(shots):

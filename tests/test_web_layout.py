@@ -323,8 +323,26 @@ def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(
     ruler_s = ruler_end_s(end_s)
     assert ends["recording"] == pytest.approx(ruler_s) and end_s + 1.0 < ruler_s < 1.15 * end_s
     for lane in (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE):
-        assert max(t for t, _ in changes[lane]) < ends[lane][0] <= end_s + 1e-6 and ends[lane][-1] == pytest.approx(ruler_s)
+        assert max(t for t, _ in changes[lane]) < ends[lane][-2] <= end_s + 1e-6 and ends[lane][-1] == pytest.approx(ruler_s)
     view = state_view_s(end_s)
     assert view[1] > ruler_s
     assert not any(ruler_cuts_a_label(ruler_s, view, w) for w in RULER_WIDTHS_PX)
     assert all(ruler_cuts_a_label(end_s, (view[0], end_s + 0.05 * end_s), w) for w in (0.3 * 1024, 0.3 * 1600, 0.3 * 1280))
+
+
+def test_no_two_spans_of_a_lane_touch(hard_brake):
+    """Rerun 0.41's state timeline folds a run of consecutive spans each under 4 px into one grey
+    block labelled "N states", and cuts that label where the block is narrower ("13 sta" of
+    sharp-cornering's manoeuvres at 1024x576); an empty state ends such a run. Every span of every
+    lane now ends 1 ms before the next one starts (an empty state there: far under a pixel), so no
+    two spans are consecutive and the viewer draws each alone, in its own colour."""
+    ends: dict = {}
+    _, changes, _ = _lanes(hard_brake, ends)
+    for lane in (ent.GNSS_STATE, ent.GNSS_QUALITY, ent.EVENTS_STATE):
+        rows = sorted([(t, v) for t, v in changes[lane]] + [(t, None) for t in ends[lane]], key=lambda r: r[0])
+        assert len(changes[lane]) >= 1
+        assert all(a[1] is None or b[1] is None for a, b in zip(rows, rows[1:])), lane
+        starts = np.array([t for t, _ in changes[lane]])
+        breaks = np.array(ends[lane][:-2])  # the last two: the lane's end at the drive's, the ruler's
+        assert len(breaks) == len(starts) - 1
+        assert np.allclose(starts[1:] - breaks, 1e-3, atol=1e-6), lane

@@ -71,10 +71,16 @@ def state_view_s(end_s: float) -> tuple[float, float]:
 #: than :data:`RULER_LABEL_MIN_PX` apart; a label starts :data:`RULER_LABEL_GAP_PX` right of its tick,
 #: :data:`RULER_CHAR_PX` a character or less ("+10m": 27 px).
 RULER_EDGE_PX, RULER_LABEL_MIN_PX, RULER_LABEL_GAP_PX, RULER_CHAR_PX = 10.0, 60.0, 4.0, 7.0
+#: Half the width of the time cursor's head on the ruler (px, measured on the served page): the web
+#: page opens with the cursor at the recording's last time, and a label under it reads "+10" of "+10m".
+CURSOR_HALF_PX = 7.0
 RULER_STEPS_S = (0.001, 0.01, 0.1, 1.0, 10.0, 60.0, 600.0, 3600.0, 43200.0, 86400.0, 864000.0, 8640000.0)
 #: The state timeline's widths (px) its ruler's labels must be whole at: the review layout's signals
 #: column and the signals view alone, in images and pages from :data:`NARROWEST_PX` to 1920 px wide.
 RULER_WIDTHS_PX = tuple(f * w for w in range(1024, 1921, 16) for f in (3 / 10, 1.0))
+#: The state timeline's widths (px) on the web page, which opens with the time cursor at the
+#: recording's last time: its signals column in pages from :data:`WEB_PAGE_PX` to 1920 px wide.
+PAGE_RULER_WIDTHS_PX = tuple(3 / 10 * w for w in range(WEB_PAGE_PX[0], 1921, 16))
 
 
 def ruler_label(t_s: float) -> str:
@@ -86,9 +92,11 @@ def ruler_label(t_s: float) -> str:
     return "+" + (" ".join(parts) or "0s")
 
 
-def ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float) -> bool:
+def ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float, cursor: bool = False) -> bool:
     """Whether the ruler of data ending at ``last_s``, in a state timeline ``width_px`` wide showing
-    ``view`` (s), cuts the label of its last labelled tick at its end (or the view's)."""
+    ``view`` (s), cuts the label of its last labelled tick at its end (or the view's); with
+    ``cursor``, also whether it runs that label under the time cursor at ``last_s`` (where the web
+    page opens)."""
     px_per_s = width_px / (view[1] - view[0])
     small = next((s for s in RULER_STEPS_S if s * px_per_s >= 4.0), RULER_STEPS_S[-1])
     drawn = RULER_STEPS_S[RULER_STEPS_S.index(small):][:3]
@@ -98,7 +106,9 @@ def ruler_cuts_a_label(last_s: float, view: tuple[float, float], width_px: float
     edge_s = min(last_s + RULER_EDGE_PX / px_per_s, view[1])
     tick_s = math.floor(edge_s / labelled[0] + 1e-9) * labelled[0]
     label_px = RULER_LABEL_GAP_PX + len(ruler_label(tick_s)) * RULER_CHAR_PX
-    return tick_s >= 0 and tick_s + label_px / px_per_s > edge_s
+    cursor_s = CURSOR_HALF_PX / px_per_s
+    under_cursor = tick_s - cursor_s <= last_s < tick_s + label_px / px_per_s + cursor_s
+    return tick_s >= 0 and (tick_s + label_px / px_per_s > edge_s or (cursor and under_cursor))
 
 
 @functools.lru_cache(maxsize=64)  # pure, and asked again for every state label of a recording
@@ -107,16 +117,20 @@ def ruler_end_s(end_s: float) -> float:
     recording's last time on the ``time`` timeline, so that the state timeline's ruler ends where
     no tick's label runs past it at any of :data:`RULER_WIDTHS_PX` (its label whole). ``end_s``
     itself where that holds there, else the first time after it (at most 25 % of the drive) that
-    does; the lanes end at ``end_s`` either way."""
+    does; the lanes end at ``end_s`` either way. Where such a time also keeps the last label clear of
+    the web page's opening time cursor (:data:`PAGE_RULER_WIDTHS_PX`), the first such."""
     end_s = float(end_s)
     length_s = max(end_s, 1.0)
     step_s = max(0.1, length_s / 2000)
+    whole = []
     for i in range(int(0.25 * length_s / step_s) + 1):
         last_s = end_s + i * step_s
         view = (-STATE_VIEW_PAD_BEFORE * length_s, last_s + STATE_VIEW_PAD_AFTER * length_s)
         if not any(ruler_cuts_a_label(last_s, view, w) for w in RULER_WIDTHS_PX):
-            return last_s
-    return end_s
+            if not any(ruler_cuts_a_label(last_s, view, w, cursor=True) for w in PAGE_RULER_WIDTHS_PX):
+                return last_s
+            whole.append(last_s)
+    return whole[0] if whole else end_s
 
 
 def state_label_fits(label: str, span_s: float, end_s: float) -> bool:

@@ -279,20 +279,21 @@ def base_state(value: str) -> str:
 
 def state_labels(state: str) -> tuple[str, ...]:
     """What a state's lane may show, longest first (:func:`state_label` takes the first that fits):
-    ``#3`` or ``3`` for outage 3, ``real #2``, ``bad`` for ``bad: frozen, jump``, ``brake`` or ``3``
-    for ``hard-brake #3``; the last is always a blank (an empty label falls back to the state's own
-    value, cut in a short span). The viewer shows the label, not the value, in the hover text too;
-    the whole state stays the value (what screenshots read back)."""
+    ``#3`` or ``3`` for outage 3, ``real #2`` or ``r2``, ``bad`` or ``!`` for ``bad: frozen, jump``,
+    ``rx lost`` or ``rx``, ``brake`` or ``3`` for ``hard-brake #3``; the last is always a blank (an
+    empty label falls back to the state's own value, cut in a short span). The viewer shows the
+    label, not the value, in the hover text too; the whole state stays the value (what screenshots
+    read back)."""
     blank = " "
     state = base_state(state)
     if (n := parse_outage_state(state)) is not None:
         return f"#{n}", f"{n}", blank
     if (n := parse_real_outage_state(state)) is not None:
-        return f"real #{n}", blank
+        return f"real #{n}", f"r{n}", blank
     if state.startswith("bad: "):
-        return "bad", blank
+        return "bad", "!", blank
     if state.startswith(("receiver lost", "receiver untrusted")):
-        return ("rx lost" if state.startswith("receiver lost") else "rx bad"), blank
+        return ("rx lost" if state.startswith("receiver lost") else "rx bad"), "rx", blank
     if state == NO_EVENT_STATE:
         return (blank,)
     kind, sep, number = state.rpartition(" #")

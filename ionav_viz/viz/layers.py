@@ -133,7 +133,33 @@ def log_state_lane(rec, send, entity: str, states: list[str], t_s: np.ndarray, e
     ends_s = [float(ends[-1])] if len(t) else []
     if ruler_s is not None and ends_s and ruler_s > ends_s[0]:
         ends_s.append(float(ruler_s))
-    send(entity, np.append(t, ends_s), rr.StateChange.columns(state=pa.array(values + [None] * len(ends_s), pa.utf8())))
+    times_s, values = with_merge_breaks(t, values)
+    send(entity, np.append(times_s, ends_s),
+         rr.StateChange.columns(state=pa.array(values + [None] * len(ends_s), pa.utf8())))
+
+
+#: How long before a span's end the empty state that keeps it apart from the next one starts (s):
+#: :func:`with_merge_breaks`.
+MERGE_BREAK_S = 1e-3
+
+
+def with_merge_breaks(t_s: np.ndarray, values: list) -> tuple[np.ndarray, list]:
+    """State changes ``values`` at times ``t_s`` (s, ascending), each span ended
+    :data:`MERGE_BREAK_S` before the next one starts by an empty state (None). Rerun 0.41's state
+    timeline folds runs of consecutive spans under 4 px into one grey block labelled "N states", cut
+    where the block is narrower than that label ("13 sta" of sharp-cornering's manoeuvres at
+    1024x576); an empty state ends such a run, so each span is drawn alone, in its own colour, and
+    labelled only where its label fits. The breaks are far under a pixel at any zoom the drive's
+    length allows, and a span shorter than 4 breaks keeps its end."""
+    t = np.asarray(t_s, dtype=np.float64)
+    if len(t) < 2:
+        return t, list(values)
+    gap = np.diff(t)
+    breaks = gap > 4 * MERGE_BREAK_S
+    out_t = np.concatenate([t, t[1:][breaks] - MERGE_BREAK_S])
+    out_v = list(values) + [None] * int(breaks.sum())
+    order = np.argsort(out_t, kind="stable")
+    return out_t[order], [out_v[k] for k in order]
 
 
 def _shared(states: list[str]) -> set[str]:
