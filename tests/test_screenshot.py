@@ -986,3 +986,48 @@ def test_no_labelled_tick_sits_at_a_plots_edge():
         assert a <= lo and b >= hi and len(ticks) >= 3, (lo, hi, px, a, b)
         to_edge_px = min(ticks[0] - a, b - ticks[-1]) * px / (b - a)
         assert to_edge_px >= LABEL_MARGIN_PX - 0.01, (lo, hi, px, a, b, ticks, to_edge_px)
+
+
+def test_no_time_label_is_cut_at_a_columns_edge_on_a_real_roof_log(tmp_path):
+    """The real roof MEMS log's review image at its worst outage (1600x900): its yaw rate's y labels
+    ("-0.5") are wider than the synthetic drives', and the label of the tick before the plot's first
+    showed its "s" at the signals column's edge. Each time plot now places its first tick by its own
+    y axis's width (blueprints.time_axis_range_s): no text at either column's edge."""
+    corpus = REPO / "tests" / "data" / "real"
+    rec = tmp_path / "roof.rrd"
+    proc = run_cli("replay", str(corpus / "roof_mems_rtk_gnss_imu_drive0708.mcap"), "--imu-mount", "auto",
+                   "--estimators", "ins,odo,ekf", "-q", "-o", str(rec))
+    assert proc.returncode == 0, proc.stderr
+    proc = run_cli("screenshot", str(rec), "-o", str(tmp_path / "shot.png"), "--view", "all", "--time", "worst", "-q")
+    if _no_renderer(proc):
+        pytest.skip(f"no renderer on this machine: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    img = _image(tmp_path / "shot.png")
+    for column_x in (640, 1120):
+        cut = _text_at_edge(img, column_x)
+        assert len(cut) == 0, (column_x, cut)
+
+
+def test_the_keys_words_stay_apart_in_its_smallest_type(tmp_path):
+    """A key of many entries is drawn in 10 px type, whose space the default font makes 2 px wide:
+    "INS DR52.5 m", "real GNSSoutage 5" in 1024 px images. A space is now a third of the type's
+    size: one more in an entry moves the key's end 3 px or more (2 before)."""
+    from PIL import Image
+
+    from ionav_viz.viz.blueprints import TOP_BAND_PX, KeyEntry
+    from ionav_viz.viz.screenshot import draw_key
+
+    def key_end(first: str) -> int:
+        blank = np.full((576, 1024, 3), 13, dtype=np.uint8)
+        blank[TOP_BAND_PX] = 53  # the views' top border
+        png = tmp_path / "k.png"
+        Image.fromarray(blank).save(png)
+        # wide enough to need the 10 px type on one line (11 px does not fit)
+        keys = ([KeyEntry("line", (213, 94, 0), first)]
+                + [KeyEntry("line", (86, 180, 233), f"GNSS-aided INS {i}6.8 m") for i in range(5)]
+                + [KeyEntry("line", (0, 114, 178), "IDNN 4.8 m")] * 2)
+        draw_key(png, keys)
+        band = np.asarray(Image.open(png).convert("RGB")).astype(int)[1 : TOP_BAND_PX - 1]
+        return int(np.nonzero((band.min(axis=-1) > 120).any(axis=0))[0].max())
+
+    assert key_end("INS DR 52.5 m") - key_end("INS DR52.5 m") >= 3

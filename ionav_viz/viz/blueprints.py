@@ -549,6 +549,48 @@ PLOT_MARGIN_S = 4.0
 FIRST_LABEL_PX, PREVIOUS_LABEL_PX = 16.0, 65.0
 
 
+#: A time plot's y axis, from the view's left edge to the plot's (measured on renders: 24 px beside
+#: "20", 36 px beside "-0.5"): a base and a width per character of its widest label; the plot's right
+#: edge inset from the view's; half a time label ("+1m 30s" is 49-50 px), centred on its tick; and the
+#: pixels between the 10 s ticks above which the viewer labels them.
+Y_AXIS_BASE_PX, Y_AXIS_CHAR_PX, PLOT_RIGHT_INSET_PX, TIME_LABEL_HALF_PX, TEN_S_LABELLED_PX = 12.0, 6.0, 2.0, 25.0, 60.0
+
+
+def y_axis_px(y_range: tuple[float, float], plot_px: float) -> float:
+    """The width (px) of a time plot's y axis over ``y_range`` in a plot ``plot_px`` high: the
+    labels of its finest labelled power of ten (at least :data:`TICK_PX` apart, as in screenshots), at
+    :data:`Y_AXIS_CHAR_PX` a character, plus :data:`Y_AXIS_BASE_PX`."""
+    r0, r1 = y_range
+    span = max(r1 - r0, 1e-12)
+    k = next((k for k in range(-6, 7) if plot_px * 10.0 ** k / span >= TICK_PX), 6)
+    ticks = np.arange(math.ceil(r0 / 10.0 ** k - 1e-9), math.floor(r1 / 10.0 ** k + 1e-9) + 1) * 10.0 ** k
+    chars = max((len(f"{t:.{max(0, -k)}f}") for t in ticks), default=1)
+    return Y_AXIS_BASE_PX + Y_AXIS_CHAR_PX * chars
+
+
+def time_axis_range_s(x0: float, x1: float, view_px: float, axis_px: float) -> tuple[float, float]:
+    """The x range (s) of a time plot showing the window ``x0``..``x1`` (``x0`` on a whole
+    :data:`PLOT_TICK_S`) in a view ``view_px`` wide whose y axis is ``axis_px`` wide. The viewer
+    centres each time label on its tick and draws it from the view's left edge (under the y axis) to
+    its right, cutting it there: where it labels the 10 s ticks, the first tick's label starts a few
+    pixels inside the view, the label of the tick before it ends outside ("s" of "+1m 20s" beside
+    "-0.5" on a real roof log), and the last tick's ends inside; elsewhere
+    :func:`first_label_margin_s` before ``x0`` and :data:`PLOT_MARGIN_S` after ``x1``."""
+    plot_px = max(view_px - axis_px - PLOT_RIGHT_INSET_PX, 1.0)
+    start, end = x0, x1 + PLOT_MARGIN_S
+    if PLOT_TICK_S * plot_px / (end - start) < TEN_S_LABELLED_PX:
+        return x0 - first_label_margin_s(x1 - x0 + PLOT_MARGIN_S, view_px), end
+    for _ in range(3):  # the margins change the scale: a few rounds
+        px_per_s = plot_px / (end - start)
+        lowest = max(TIME_LABEL_HALF_PX + 1 - axis_px, 0.0) + 4.0  # the first label whole, with room
+        highest = PLOT_TICK_S * px_per_s - axis_px - TIME_LABEL_HALF_PX - 1  # the one before it outside
+        start = x0 - max(min(lowest, highest), 0.0) / px_per_s
+        last_tick = math.floor(end / PLOT_TICK_S + 1e-9) * PLOT_TICK_S
+        if (end - last_tick) * px_per_s + PLOT_RIGHT_INSET_PX < TIME_LABEL_HALF_PX + 1:
+            end = last_tick + (TIME_LABEL_HALF_PX + 1) / px_per_s
+    return start, end
+
+
 def first_label_margin_s(window_s: float, plot_px: float) -> float:
     """Seconds of time plot before the first tick of a window ``window_s`` long (:func:`plot_window`,
     its start on a whole :data:`PLOT_TICK_S`) in plots ``plot_px`` wide: :data:`FIRST_LABEL_PX` of
@@ -649,13 +691,15 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
         x0, x1 = plot_window(t_s, end_s)
         # the time plots are a column wide in the review layout, else as wide as the image (a column alone, or
         # maximised)
-        plot_px = (size or (1600, 900))[0] * (column_fraction(ent.DISPLACEMENTS) if view == "all" else 1.0)
-        start = x0 - first_label_margin_s(x1 - x0 + PLOT_MARGIN_S, plot_px)
+        view_px = (size or (1600, 900))[0] * (column_fraction(ent.DISPLACEMENTS) if view == "all" else 1.0)
         for key, vb in views.items():
             if vb.get("class_identifier") == "TimeSeries":  # room on either side for the first and last ticks' labels
+                origin = vb.get("space_origin", "").strip("/")
+                axis = (y_axis_px(axis_range(*y_extents[origin], heights[origin]), heights[origin])
+                        if origin in heights and origin in y_extents else Y_AXIS_BASE_PX + 3 * Y_AXIS_CHAR_PX)
+                start, end = time_axis_range_s(x0, x1, view_px, axis)
                 bp[key + "/TimeAxis"] = {"TimeAxis": {"view_range": {
-                    "start": {"Absolute": int(round(start * 1e9))},
-                    "end": {"Absolute": int(round((x1 + PLOT_MARGIN_S) * 1e9))}}}}
+                    "start": {"Absolute": int(round(start * 1e9))}, "end": {"Absolute": int(round(end * 1e9))}}}}
     if not map_tiles:
         if view == "map":
             view = "local"

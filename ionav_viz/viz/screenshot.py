@@ -93,9 +93,23 @@ def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
     draw = ImageDraw.Draw(img)
     draw.rectangle([1, 1, img.width - 2, band - 1], fill=BACKGROUND_RGB)
 
+    def space(font) -> float:
+        # the default font's space is 2 px at 10-11 px ("INS DR52.5 m" in a 1024 px image): a third of the size at least
+        return max(font.getlength(" "), font.size / 3)
+
+    def length(font, text: str) -> float:
+        words = text.split(" ")
+        return sum(font.getlength(w) for w in words) + space(font) * (len(words) - 1)
+
+    def write(xy: tuple[float, float], text: str, font) -> None:
+        x, y = xy
+        for word in text.split(" "):
+            draw.text((x, y), word, fill=KEY_TEXT_RGB, font=font)
+            x += font.getlength(word) + space(font)
+
     def widths(font) -> list[float]:
         swatch = font.size * 1.4
-        return [swatch + 5 + font.getlength(k.text) + font.size for k in keys]
+        return [swatch + 5 + length(font, k.text) + font.size for k in keys]
 
     def place(font, items: list[KeyEntry], y: float, x: float) -> None:
         swatch = font.size * 1.4
@@ -109,28 +123,28 @@ def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
                 draw.ellipse([x, mid - ry, x + 2 * rx, mid + ry], outline=k.rgb, width=max(1, round(font.size / 8)))
             else:
                 draw.line([x, mid, x + swatch, mid], fill=k.rgb, width=max(2, round(font.size / 5)))
-            draw.text((x + swatch + 5, y), k.text, fill=KEY_TEXT_RGB, font=font)
-            x += swatch + 5 + font.getlength(k.text) + font.size
+            write((x + swatch + 5, y), k.text, font)
+            x += swatch + 5 + length(font, k.text) + font.size
 
     room = img.width - 20
     for size in (14, 13, 12, 11, 10):
         font = ImageFont.load_default(size=size)
-        head_w = font.getlength(head) + font.size if head else 0.0
+        head_w = length(font, head) + font.size if head else 0.0
         if head_w + sum(widths(font)) <= room:
             y = (band - font.size) / 2 - 1
             if head:
-                draw.text((10, y), head, fill=KEY_TEXT_RGB, font=font)
+                write((10, y), head, font)
             place(font, list(keys), y, 10 + head_w)
             break
     else:  # two lines, the head on the first
         font = ImageFont.load_default(size=min(11, max(8, (band - 6) // 2 - 2)))
-        head_w = font.getlength(head) + font.size if head else 0.0
+        head_w = length(font, head) + font.size if head else 0.0
         w = widths(font)
         # what fits the first line
         split = max(1, max((i for i in range(len(keys) + 1) if head_w + sum(w[:i]) <= room), default=1))
         line_h = (band - 4) / 2
         if head:
-            draw.text((10, 2), head, fill=KEY_TEXT_RGB, font=font)
+            write((10, 2), head, font)
         place(font, list(keys[:split]), 2, 10 + head_w)
         place(font, list(keys[split:]), 2 + line_h, 10)
     img.save(png, format="PNG")
