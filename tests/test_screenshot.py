@@ -1010,8 +1010,8 @@ def test_no_time_label_is_cut_at_a_columns_edge_on_a_real_roof_log(tmp_path):
 
 def test_the_keys_words_stay_apart_in_its_smallest_type(tmp_path):
     """A key of many entries is drawn in 10 px type, whose space the default font makes 2 px wide:
-    "INS DR52.5 m", "real GNSSoutage 5" in 1024 px images. A space is now a third of the type's
-    size: one more in an entry moves the key's end 3 px or more (2 before)."""
+    "INS DR52.5 m", "real GNSSoutage 5" in 1024 px images. A space is now 3 px at least, as the
+    font's from 12 px up: one more in an entry moves the key's end 3 px or more (2 before)."""
     from PIL import Image
 
     from ionav_viz.viz.blueprints import TOP_BAND_PX, KeyEntry

@@ -94,8 +94,8 @@ def draw_key(png: Path, keys: Sequence[KeyEntry], head: str = "") -> None:
     draw.rectangle([1, 1, img.width - 2, band - 1], fill=BACKGROUND_RGB)
 
     def space(font) -> float:
-        # the default font's space is 2 px at 10-11 px ("INS DR52.5 m" in a 1024 px image): a third of the size at least
-        return max(font.getlength(" "), font.size / 3)
+        # the default font's space is 2 px at 10-11 px ("INS DR52.5 m" in a 1024 px image), 3 px from 12 px up
+        return max(font.getlength(" "), 3.0)
 
     def length(font, text: str) -> float:
         words = text.split(" ")
