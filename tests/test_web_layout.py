@@ -315,7 +315,7 @@ def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(
     open-ended past it), and a second empty state sets the recording's last time to the ruler's
     end (:func:`ruler_end_s`), where its last label is whole at every width the layout is made for;
     the state timeline and the time plots open on the drive and the ruler (:func:`state_view_s`)."""
-    from ionav_viz.viz.blueprints import RULER_WIDTHS_PX, ruler_cuts_a_label, ruler_end_s
+    from ionav_viz.viz.blueprints import PAGE_RULER_WIDTHS_PX, RULER_WIDTHS_PX, ruler_cuts_a_label, ruler_end_s
 
     ends: dict = {}
     _, changes, end_s = _lanes(hard_brake, ends)
@@ -328,6 +328,11 @@ def test_the_lanes_end_at_the_drive_and_the_ruler_where_its_last_label_is_whole(
     assert view[1] > ruler_s
     assert not any(ruler_cuts_a_label(ruler_s, view, w) for w in RULER_WIDTHS_PX)
     assert all(ruler_cuts_a_label(end_s, (view[0], end_s + 0.05 * end_s), w) for w in (0.3 * 1024, 0.3 * 1600, 0.3 * 1280))
+    # the page opens with the time cursor at the recording's last time: clear of "+10m" there (27 px from its tick at
+    # 600 s, the cursor's head 7 px each side), as it was not at 651 s, the end chosen before for the label alone
+    assert not any(ruler_cuts_a_label(ruler_s, view, w, cursor=True) for w in PAGE_RULER_WIDTHS_PX)
+    old = (view[0], 651.0 + 0.05 * end_s)
+    assert not ruler_cuts_a_label(651.0, old, 0.3 * 1280) and ruler_cuts_a_label(651.0, old, 0.3 * 1280, cursor=True)
 
 
 def test_no_two_spans_of_a_lane_touch(hard_brake):
