@@ -560,14 +560,17 @@ def test_views_read_on_their_own(shots):
 def test_small_images_label_every_plot(shots, size, time):
     """Issue 46.1 at 1280x720 and 1024x576: every time plot of the signals and errors columns has
     at least three labelled y ticks (the acceleration, and at 1024 the error plots, showed a single
-    '0'); a small image leaves out the orientation-rate CRSE rather than draw it too low for them."""
+    '0'); a small image leaves out the orientation-rate CRSE rather than draw it too low for them,
+    and at 1024x576 the acceleration too (three labels had the displacement's 0-30 m under ticks of
+    100, in the plot's bottom fifth): the displacement and the yaw rate each take half the column."""
     from ionav_viz.viz.blueprints import shot_rows
     from ionav_viz.viz.screenshot import parse_size
 
     w, h = parse_size(size)
     rows = shot_rows((w, h), 4)
     assert not rows.yaw_crse and len(rows.errors) == 3
-    for view, shares, plots in (("signals", rows.signals, (1, 2, 3)), ("errors", rows.errors, (0, 1))):
+    assert rows.accel == (size == "1280x720") and len(rows.signals) == (4 if rows.accel else 3)
+    for view, shares, plots in (("signals", rows.signals, range(1, len(rows.signals))), ("errors", rows.errors, (0, 1))):
         img = _image(shots(size, view, time))
         assert img.shape[:2] == (h, w)
         for k in plots:
@@ -1031,3 +1034,17 @@ def test_the_keys_words_stay_apart_in_its_smallest_type(tmp_path):
         return int(np.nonzero((band.min(axis=-1) > 120).any(axis=0))[0].max())
 
     assert key_end("INS DR 52.5 m") - key_end("INS DR52.5 m") >= 3
+
+
+def test_a_small_images_displacement_fills_its_plot():
+    """At 1024x576 the signals column's three plots were 79 px high: three labelled ticks put a
+    drive's 0-30 m displacement under ticks of 100 (a range of -22..222 m). Without the acceleration
+    the two left are 141 px high: ticks of 10, the data over most of the plot."""
+    from ionav_viz.viz import entities as ent
+    from ionav_viz.viz.blueprints import axis_range, plot_heights_px
+
+    heights = plot_heights_px((1024, 576))
+    assert ent.ACCEL not in heights and ent.ACCEL in plot_heights_px((1280, 720))
+    lo, hi = axis_range(0.0, 30.0, heights[ent.DISPLACEMENTS])
+    assert lo < 0.0 and 30.0 < hi < 40.0
+

@@ -342,28 +342,31 @@ def summary_px(n_estimators: int, warned: bool = False) -> float:
 class ShotRows:
     """The rows (pixels) of a screenshot's signals and errors columns."""
 
-    signals: tuple[float, ...]  # the state timeline, displacement, yaw rate, acceleration
+    signals: tuple[float, ...]  # the state timeline, displacement, yaw rate, acceleration (unless dropped)
     errors: tuple[float, ...]  # position error, CRSE/CAE, the orientation-rate CRSE (unless dropped), the summary
     yaw_crse: bool  # whether the orientation-rate CRSE is drawn
+    accel: bool = True  # whether the acceleration is drawn
 
 
 def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False, synthetic: bool = True) -> ShotRows:
     """The rows of a screenshot of ``size`` with ``n_estimators`` (:func:`summary_px`): in a small
     image the error column leaves out its orientation-rate CRSE plot (the summary's table keeps its
-    mean) rather than draw three plots too low for three labelled y ticks; without ``synthetic``
-    outages (a run through the log's own losses alone) it has the position error alone above the
-    summary."""
+    mean), and the signals column its acceleration, rather than draw three plots too low for three
+    labelled y ticks over the data (a 1024x576 image's displacement, 0-30 m in plots 79 px high, had
+    ticks of 100); without ``synthetic`` outages (a run through the log's own losses alone) the error
+    column has the position error alone above the summary."""
     views = size[1] - TOP_BAND_PX
     timeline = min(TIMELINE_PX, 0.31 * views)
-    signal = (views - timeline) / 3
+    accel = (views - timeline) / 3 - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX
+    signals = (timeline,) + ((views - timeline) / (3 if accel else 2),) * (3 if accel else 2)
     summary = min(summary_px(n_estimators, warned), 0.5 * views)
     if not synthetic:
-        return ShotRows((timeline, signal, signal, signal), (views - summary, summary), False)
+        return ShotRows(signals, (views - summary, summary), False, accel)
     three = (views - summary) / 3
     yaw_crse = three - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX
     plots = 3 if yaw_crse else 2
     err = (views - summary) / plots
-    return ShotRows((timeline, signal, signal, signal), (err,) * plots + (summary,), yaw_crse)
+    return ShotRows(signals, (err,) * plots + (summary,), yaw_crse, accel)
 
 
 def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False,
@@ -372,7 +375,7 @@ def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool =
     review layout and the signals and errors columns share their rows); a plot the image leaves
     out is not there."""
     rows = shot_rows(size, n_estimators, warned, synthetic)
-    out = {o: rows.signals[1] for o in (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL)}
+    out = {o: rows.signals[1] for o in (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL)[: len(rows.signals) - 1]}
     out.update({o: rows.errors[0]
                 for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))})
     if rows.yaw_crse:
@@ -720,11 +723,13 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     _remove(bp, views, _view_key(views, ent.KEY))
     _single_tabs_where_narrow(bp, views, (size or (1600, 900))[0], view)
     # the columns' rows in screenshots (pixels): the timeline's lanes, the whole summary, and the
-    # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE
+    # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE and the acceleration
     rows = shot_rows(size or (1600, 900), n_estimators, warned, synthetic)
     if not rows.yaw_crse:
         _remove(bp, views, _view_key(views, ent.error_group("yaw_crse_radps")))
-    for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.ACCEL, rows.signals)):
+    if not rows.accel:
+        _remove(bp, views, _view_key(views, ent.ACCEL))
+    for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.DISPLACEMENTS, rows.signals)):
         held = _view_key(views, origin)
         for value in bp.values():
             container = value.get("ContainerBlueprint", {})
@@ -937,13 +942,13 @@ class KeyEntry:
     text: str
 
 
-def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
+def key_for(info: RecordingInfo, shot: Shot, accel: bool = True) -> list[KeyEntry]:
     """The colour key of a screenshot: every track or curve the shot draws, the truth first, with
     each estimator's final error when the shot frames an outage; the overview's markers where the
     shot shows them (the local view and map: manoeuvres and outage starts, and beside a reference
     the receiver's own fixes; the inspector: the outage's start fix); the sensors' grey lines where
-    the signals are shown; the estimators' 95 % position ellipses where the tracks are shown and the
-    recording draws them."""
+    the signals are shown (the gyro's alone without the ``accel`` plot: :func:`shot_rows`); the
+    estimators' 95 % position ellipses where the tracks are shown and the recording draws them."""
     from .style import EVENT_COLOR, GNSS_COLOR, GYRO_COLOR, OUTAGE_MARK_COLOR, RECEIVER_COLOR
 
     view = shot.view
@@ -955,7 +960,7 @@ def key_for(info: RecordingInfo, shot: Shot) -> list[KeyEntry]:
         final = shot.outage.final_error_m.get(name) if shot.outage is not None else None
         keys.append(KeyEntry("line", rgb, f"{label} {final:.1f} m" if final is not None and final == final else label))
     if view in ("all", "signals"):
-        keys.append(KeyEntry("line", GYRO_COLOR, "gyro, accelerometer"))
+        keys.append(KeyEntry("line", GYRO_COLOR, "gyro, accelerometer" if accel else "gyro"))
     if view in ("all", "local", "map") and info.receiver:  # beside a reference: the fixes the estimators were given
         keys.append(KeyEntry("dot", RECEIVER_COLOR, "receiver fixes"))
     if view in ("all", "local", "map"):

@@ -33,6 +33,7 @@ from .blueprints import (
     key_for,
     plot_range,
     plot_window,
+    shot_rows,
     shown_views,
     titles_for,
 )
@@ -282,7 +283,7 @@ def render(recordings: list[Path], out: Path, shots: Shots, *, timeout_s: float 
                                    shown_views(info)))
                 except InputError as exc:
                     raise InputError(f"{info.path}: {exc.message}", exc.hint) from None
-                keys, head = key_for(info, shot), key_head(shot)
+                keys, head = key_for(info, shot, shot_rows(size).accel), key_head(shot)
                 viewer.show(layout, shot.t_s, path, finish=lambda png, keys=keys, head=head: draw_key(png, keys, head))
                 written.append(path)
                 if progress:
