@@ -104,6 +104,7 @@ class HeadlessViewer:
         self._failure: RendererMissing | None = None  # the viewer could not be started
         self._url = ""
         self._old_handlers: dict[int, Any] = {}
+        self._shown = False  # whether an image has set a blueprint (the app's active one is then that image's)
 
     def __enter__(self) -> HeadlessViewer:
         """Start the viewer process; wait for its answer unless ``wait`` is False."""
@@ -226,6 +227,16 @@ class HeadlessViewer:
             time.sleep(0.1)
         # every image starts from the recording's own layout (shots change titles, framing, maximised view)
         self.base_blueprint = self.call("get_blueprint").blueprint
+        if self._shown:
+            # the viewer keeps one active blueprint per application: the next recording opened on the last
+            # image's (a second drive's "all" image came out as the first's signals column); back to its own
+            stale = self.base_blueprint
+            self.call("run_command", "recording.reset_blueprint_to_default")
+            while (own := self.call("get_blueprint").blueprint) == stale:
+                if time.monotonic() > deadline:
+                    raise RendererMissing(f"the viewer did not show {path}'s own layout within {self.timeout_s:.0f} s")
+                time.sleep(0.05)
+            self.base_blueprint = own
 
     def show(self, blueprint: dict[str, Any], t_s: float | None, out: Path,
              finish: Callable[[Path], None] | None = None) -> None:
@@ -233,6 +244,7 @@ class HeadlessViewer:
         recording without one, all static) and save the image to ``out`` (atomically; ``finish``
         changes the image before it is moved in)."""
         self.call("set_blueprint", blueprint, of="recording")
+        self._shown = True
         if t_s is not None:
             self.call("set_time", "time", duration=float(t_s), play_state="paused")
         # let it draw at the new time
