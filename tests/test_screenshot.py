@@ -561,16 +561,18 @@ def test_small_images_label_every_plot(shots, size, time):
     """Issue 46.1 at 1280x720 and 1024x576: every time plot of the signals and errors columns has
     at least three labelled y ticks (the acceleration, and at 1024 the error plots, showed a single
     '0'); a small image leaves out the orientation-rate CRSE rather than draw it too low for them,
-    and at 1024x576 the acceleration too (three labels had the displacement's 0-30 m under ticks of
-    100, in the plot's bottom fifth): the displacement and the yaw rate each take half the column."""
+    and at 1024x576 the acceleration and the CRSE and CAE too (three labels had the displacement's
+    0-30 m under ticks of 100, in the plot's bottom fifth, and the errors' 0-52 m): the displacement
+    and the yaw rate each take half the column, the position error all the errors column's plots."""
     from ionav_viz.viz.blueprints import shot_rows
     from ionav_viz.viz.screenshot import parse_size
 
     w, h = parse_size(size)
     rows = shot_rows((w, h), 4)
-    assert not rows.yaw_crse and len(rows.errors) == 3
-    assert rows.accel == (size == "1280x720") and len(rows.signals) == (4 if rows.accel else 3)
-    for view, shares, plots in (("signals", rows.signals, range(1, len(rows.signals))), ("errors", rows.errors, (0, 1))):
+    assert not rows.yaw_crse and rows.accel == rows.crse == (size == "1280x720")
+    assert len(rows.signals) == (4 if rows.accel else 3) and len(rows.errors) == (3 if rows.crse else 2)
+    for view, shares, plots in (("signals", rows.signals, range(1, len(rows.signals))),
+                                ("errors", rows.errors, range(len(rows.errors) - 1))):
         img = _image(shots(size, view, time))
         assert img.shape[:2] == (h, w)
         for k in plots:
@@ -760,7 +762,8 @@ def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
     """Issue 46.1 (no clipped titles): the error column's four tabs need about 400 px at their
     shortest titles ("Error (m)", "Drift", "Sigma", "NIS": 22 characters at 6.3 px, 36 px a tab and
     100 px of buttons); at 1024 px the column has about 300, so an image keeps only the active tab;
-    at 1600 (about 470 px) all four stay, as does the two-tab CRSE/CAE bar at every size."""
+    at 1600 (about 470 px) all four stay, as does the two-tab CRSE/CAE bar where it is drawn (1280
+    px and up: a 1024x576 image leaves the CRSE and CAE out, see shot_rows)."""
     from ionav_viz.viz import entities as ent
     from ionav_viz.viz.blueprints import ShotLayout, focus_blueprint
 
@@ -777,7 +780,9 @@ def test_a_tab_bar_too_narrow_for_its_titles_keeps_only_the_active_tab():
     }
     small = focus_blueprint(bp, "all", {}, layout=ShotLayout(size=(1024, 576)))
     assert small["/container/tabs"]["ContainerBlueprint"]["contents"] == ["/view/t0"] and "/view/t3" not in small
-    assert len(small["/container/two"]["ContainerBlueprint"]["contents"]) == 2
+    assert "/container/two" not in small and "/view/crse" not in small
+    middle = focus_blueprint(bp, "all", {}, layout=ShotLayout(size=(1280, 720)))
+    assert len(middle["/container/two"]["ContainerBlueprint"]["contents"]) == 2
     large = focus_blueprint(bp, "all", {}, layout=ShotLayout(size=(1600, 900)))
     assert large["/container/tabs"]["ContainerBlueprint"]["contents"] == list(views)
 
@@ -1047,6 +1052,10 @@ def test_a_small_images_displacement_fills_its_plot():
     assert ent.ACCEL not in heights and ent.ACCEL in plot_heights_px((1280, 720))
     lo, hi = axis_range(0.0, 30.0, heights[ent.DISPLACEMENTS])
     assert lo < 0.0 and 30.0 < hi < 40.0
+    # the errors column's one plot: a real phone's 0-52 m under ticks of 10 (two plots of 89 px: of 100)
+    assert ent.error_group("crse_m") not in heights
+    lo, hi = axis_range(0.0, 52.0, heights[ent.error_group("position_error_m")])
+    assert 52.0 < hi < 65.0
 
 
 def test_the_second_recording_of_a_run_has_its_own_layout(tmp_path):

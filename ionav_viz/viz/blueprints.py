@@ -346,15 +346,17 @@ class ShotRows:
     errors: tuple[float, ...]  # position error, CRSE/CAE, the orientation-rate CRSE (unless dropped), the summary
     yaw_crse: bool  # whether the orientation-rate CRSE is drawn
     accel: bool = True  # whether the acceleration is drawn
+    crse: bool = True  # whether the CRSE and CAE are drawn
 
 
 def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False, synthetic: bool = True) -> ShotRows:
     """The rows of a screenshot of ``size`` with ``n_estimators`` (:func:`summary_px`): in a small
-    image the error column leaves out its orientation-rate CRSE plot (the summary's table keeps its
-    mean), and the signals column its acceleration, rather than draw three plots too low for three
-    labelled y ticks over the data (a 1024x576 image's displacement, 0-30 m in plots 79 px high, had
-    ticks of 100); without ``synthetic`` outages (a run through the log's own losses alone) the error
-    column has the position error alone above the summary."""
+    image each column keeps the plots that are :data:`MIN_PLOT_PX` high, the first ones, rather than
+    draw them too low for three labelled y ticks over the data (a 1024x576 image's displacement, 0-30
+    m in plots 79 px high, had ticks of 100; its position errors, 0-52 m in 89 px, too): the signals
+    column leaves out its acceleration, the error column its orientation-rate CRSE, then its CRSE and
+    CAE (the summary's table keeps their means); without ``synthetic`` outages (a run through the
+    log's own losses alone) the error column has the position error alone above the summary."""
     views = size[1] - TOP_BAND_PX
     timeline = min(TIMELINE_PX, 0.31 * views)
     accel = (views - timeline) / 3 - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX
@@ -362,11 +364,9 @@ def shot_rows(size: tuple[int, int], n_estimators: int = 4, warned: bool = False
     summary = min(summary_px(n_estimators, warned), 0.5 * views)
     if not synthetic:
         return ShotRows(signals, (views - summary, summary), False, accel)
-    three = (views - summary) / 3
-    yaw_crse = three - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX
-    plots = 3 if yaw_crse else 2
+    plots = next(k for k in (3, 2, 1) if (views - summary) / k - TITLE_BAR_PX - TIME_LABELS_PX >= MIN_PLOT_PX or k == 1)
     err = (views - summary) / plots
-    return ShotRows(signals, (err,) * plots + (summary,), yaw_crse, accel)
+    return ShotRows(signals, (err,) * plots + (summary,), plots == 3, accel, plots >= 2)
 
 
 def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool = False,
@@ -377,7 +377,8 @@ def plot_heights_px(size: tuple[int, int], n_estimators: int = 4, warned: bool =
     rows = shot_rows(size, n_estimators, warned, synthetic)
     out = {o: rows.signals[1] for o in (ent.DISPLACEMENTS, ent.YAW_RATES, ent.ACCEL)[: len(rows.signals) - 1]}
     out.update({o: rows.errors[0]
-                for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))})
+                for o in (ent.error_group("position_error_m"), ent.error_group("crse_m"), ent.error_group("cae_m"))[
+                    : 3 if rows.crse else 1]})
     if rows.yaw_crse:
         out[ent.error_group("yaw_crse_radps")] = rows.errors[2]
     return {o: max(px - TITLE_BAR_PX - TIME_LABELS_PX, 20.0) for o, px in out.items()}
@@ -723,12 +724,16 @@ def focus_blueprint(blueprint: dict[str, Any], view: str, titles: dict[str, str]
     _remove(bp, views, _view_key(views, ent.KEY))
     _single_tabs_where_narrow(bp, views, (size or (1600, 900))[0], view)
     # the columns' rows in screenshots (pixels): the timeline's lanes, the whole summary, and the
-    # time plots as high as the rest allows; a small image leaves out the orientation-rate CRSE and the acceleration
+    # time plots as high as the rest allows; a small image leaves out what would squeeze them (shot_rows)
     rows = shot_rows(size or (1600, 900), n_estimators, warned, synthetic)
     if not rows.yaw_crse:
         _remove(bp, views, _view_key(views, ent.error_group("yaw_crse_radps")))
     if not rows.accel:
         _remove(bp, views, _view_key(views, ent.ACCEL))
+    if not rows.crse:
+        for origin in (ent.error_group("crse_m"), ent.error_group("cae_m")):
+            _remove(bp, views, _view_key(views, origin))
+        _remove_empty_containers(bp)
     for origin, shares in ((ent.OVERVIEW, rows.errors), (ent.DISPLACEMENTS, rows.signals)):
         held = _view_key(views, origin)
         for value in bp.values():
