@@ -82,6 +82,18 @@ def test_replay_on_gnss_outage_reports_and_records_them(tmp_path):
     assert [v[0] == 0.0 for _, v in available] == [ent.is_outage_state(s) for s in in_force]
     # tour 51: no 95 % ellipse is drawn through a real loss, and the key named them even so
     assert not any(p.endswith("/ellipse") for p in [*rows, *static])
+    # issue 63: the signals' plots showed only the GNSS around each loss; each estimator's displacement and yaw rate
+    # are there through it, a value per second of the loss (its windows) between two breaks: the motorway's ~25 m/s
+    spans = [(t, float(str(v[0]).split("(")[1].split("-")[0]), float(str(v[0]).split("-")[1].split(" ")[0]))
+             for t, v in lane if "real GNSS outage" in str(v[0])]
+    for name in ("ins", "odo", "idnn"):
+        disp = rows[f"/signals/displacement_m/{name}"]
+        values = np.array([v[0] for _, v in disp], dtype=float)
+        assert np.isnan(values[0]) and np.isnan(values[-1]) and len(rows[f"/signals/yaw_rate_radps/{name}"]) == len(disp)
+        finite = values[np.isfinite(values)]
+        assert len(finite) == len(values) - 2 * len(spans) and len(finite) >= sum(b - a for _, a, b in spans)
+    odo = np.array([v[0] for _, v in rows["/signals/displacement_m/odo"]], dtype=float)
+    assert 20.0 < np.nanmedian(odo) < 32.0
     from rerun.chunk import RrdReader
 
     key = " ".join(str(v) for c in RrdReader(out).stream() if str(c.entity_path).strip("/") == ent.KEY

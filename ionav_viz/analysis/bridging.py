@@ -19,6 +19,7 @@ import numpy as np
 
 from ..core.drive import Drive
 from ..core.geo import wgs84
+from ..core.grid import WINDOW_S
 from ..experiment.outages import bridge_each, placed_of, reasons_of
 from ..nav.bias import SensorBias
 from ..nav.protocol import Estimator, EstimatorInputs, solve
@@ -53,6 +54,16 @@ class BridgedOutage:
     @property
     def gap_s(self) -> float:
         return self.gap_t1_s - self.gap_t0_s
+
+    def window_signals(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the estimator ``name`` gave through this loss, per window: the windows' end times
+        (s), the displacement (m, the geodesic between its track's positions) and the yaw rate (rad/s,
+        counter-clockwise positive, from its course: clockwise from north), as its track was built."""
+        track = self.tracks[name]
+        lat, lon, course = track.lat_deg[0], track.lon_deg[0], track.heading_deg[0]
+        _, _, disp = wgs84().inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
+        yaw = -np.deg2rad((np.diff(course) + 180.0) % 360.0 - 180.0) / WINDOW_S
+        return self.t0_s + WINDOW_S * np.arange(1, len(course)), np.asarray(disp, dtype=float), yaw
 
     def to_dict(self) -> dict[str, Any]:
         return {"number": self.number, "gap_start_s": round(self.gap_t0_s, 2), "gap_end_s": round(self.gap_t1_s, 2),

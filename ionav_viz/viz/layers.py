@@ -287,6 +287,12 @@ def log_real_outages(layers: Layers, result: DriveResult, colors: dict, labels: 
         rec.log(entity, rr.SeriesPoints(colors=[color], names=[f"{labels[name]} (real outages)"], marker_sizes=[6.0]),
                 static=True)
         send(entity, t1, rr.Scalars.columns(scalars=[b.final_error_m[name] for b in bridged]))
+        # its displacement and yaw rate through each loss in the signals' plots (a break before and after each)
+        parts = [b.window_signals(name) for b in bridged]
+        t_s = np.concatenate([np.concatenate([[t[0] - 0.5], t, [t[-1] + 0.5]]) for t, _, _ in parts])
+        for series, k in ((ent.displacement(name), 1), (ent.yaw_rate(name), 2)):
+            values = np.concatenate([np.concatenate([[np.nan], p[k], [np.nan]]) for p in parts])
+            send(series, t_s, rr.Scalars.columns(scalars=values))
     t_rows = np.array([b.t0_s for b in bridged]) + ent.OUTAGE_EPS_S
     _log_current_real_outage(layers, result, colors, tracks_ll, tracks_xy, t_rows)
     _log_real_outages_inspected(layers, result, colors, tracks_xy, t_rows)
