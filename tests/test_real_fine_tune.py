@@ -150,10 +150,16 @@ def test_where_the_parent_beats_the_ins_dr_on_the_first_half_no_share_is_taken(t
 def test_every_fine_tuned_model_has_an_uncertainty_and_its_ellipse_holds_the_second_half(log, tuned):
     """Issue 62 point 3 on the corpus: fine-tuned on half a log (too short to fit an uncertainty of
     its own), the model keeps its parent's (the phone's and the dash's had none: no covariance at
-    all); on the logs with 10 or more outages in the second half its 95 % ellipse holds at least 80 %
-    of the outages' final position errors (the robot's own fit held 3 of 6 at 30 s)."""
+    all); on the logs with 10 or more outages in the second half its 95 % ellipse holds 80-99 % of
+    the outages' final position errors (the robot's own fit held 3 of 6 at 30 s), or all of them
+    where an honest ellipse holds all n one time in four or more (0.95^n >= 0.25: n <= 27), and it
+    is not underconfident by more than a factor of two (ANEES at least 0.5: the phone's was 0.14,
+    its ellipse 52 m across 10 s against 13 m of error, when the metric took a whole fix's 8 m for
+    the noise of the difference of two fixes 10 s apart, 3.6 m there)."""
     *_, meta = tuned(log)
     assert meta["uncertainty"]["inherited"].startswith("the parent's"), meta.get("uncertainty")
     consistency = meta["second_half"]["consistency"]
-    if consistency["n_outages"] >= 10:
-        assert consistency["coverage_95"] >= 80.0, consistency
+    n = consistency["n_outages"]
+    if n >= 10:
+        assert 80.0 <= consistency["coverage_95"] <= 99.0 or (consistency["coverage_95"] == 100.0 and 0.95**n >= 0.25), consistency
+        assert consistency["anees"] >= 0.5, consistency

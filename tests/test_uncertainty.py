@@ -11,7 +11,9 @@ propagated, measured for honesty and drawn.
 
 from __future__ import annotations
 
+import math
 import re
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -179,16 +181,23 @@ def test_a_trajectory_covariance_is_checked_alike_at_every_size(tmp_path, sigma_
                 read_trajectory(path)
 
 
-def test_the_history_scale_is_the_past_pseudo_outages_mean_nees_shrunk_toward_one():
-    """Issue 43.2/5: per outage, the mean NEES per dof of the pseudo-outages ended at or before its
-    start, with 3 pseudo-outages' weight on 1, never below 1. By hand: pseudo-outages ending at
-    windows 5, 10 and 20 with NEES 2, 4 and 1; outages starting at 0 (none before: 1), 10 (two:
-    (3 + 2 + 4) / 5 = 1.8) and 25 (all three: (3 + 7) / 6); a drive where it is underconfident stays at 1."""
+def test_the_history_scale_is_the_past_pseudo_outages_geometric_mean_nees_shrunk_toward_one():
+    """Issue 43.2/5, 62.3: per outage, exp of the mean of log NEES per dof + Euler's gamma (the log of
+    an honest one averages -gamma) over the pseudo-outages ended at or before its start, with 3
+    pseudo-outages' weight on a log of 0, never below 1. By hand: pseudo-outages ending at windows 5,
+    10 and 20 with NEES 2, 4 and 1; outages starting at 0 (none before: 1), 10 (two: exp((ln 8 +
+    2 gamma) / 5)) and 25 (all three: exp((ln 8 + 3 gamma) / 6)); a drive where it is
+    underconfident stays at 1; one pseudo-outage across a jump of the fixes (NEES 400 among nine of
+    1) does not set it (an arithmetic mean: (3 + 409) / 13 = 31.7)."""
     from ionav_viz.nav.history_check import history_scale
 
+    gamma = 0.5772156649015329
     scale = history_scale(np.array([10, 5, 20]), np.array([4.0, 2.0, 1.0]), np.array([0, 10, 25]))
-    assert np.allclose(scale, [1.0, 1.8, 10.0 / 6.0])
+    assert np.allclose(scale, [1.0, math.exp((math.log(8) + 2 * gamma) / 5), math.exp((math.log(8) + 3 * gamma) / 6)])
     assert np.allclose(history_scale(np.array([5, 10]), np.array([0.1, 0.2]), np.array([12])), [1.0])
+    jump = history_scale(np.arange(1, 11), np.array([1.0] * 9 + [400.0]), np.array([10]))
+    assert jump == pytest.approx(math.exp((math.log(400) + 10 * gamma) / 13))
+    assert jump < 2.5
 
 
 @pytest.mark.parametrize(("name", "scenario", "seed", "seconds", "before", "coverage_gain"), [
@@ -267,3 +276,65 @@ def test_gins_weighs_its_mechanisation_by_the_noise_it_drives_through():
     sigma_a, sigma_g, where = sensor_noise(acc, gyr, GinsNoise())
     assert 0.08 < sigma_a < 0.17 and "whole drive" in where
     assert 0.08 / 17.0 < sigma_g < 0.17 / 17.0
+
+
+def receiver_drive(sigma_m: float, tau_s: float, seconds: int, seed: int, jumps: int = 0) -> iv.Drive:
+    """A car at 15 m/s, straight for 290 s then a 90 deg left turn over 10 s, again and again; its
+    receiver's fixes at 1 Hz carry a first-order Gauss-Markov error on each axis (``sigma_m``,
+    correlation time ``tau_s``), ``jumps`` of them 60 m off; its Doppler speed 0.05 m/s of white noise."""
+    from ionav_viz.core.geo import geodetic_of_en_m
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(seconds, dtype=float)
+    turn = (t % 300) >= 290
+    yaw_rate = np.where(turn, math.radians(9.0), 0.0)  # left: the course falls
+    course = np.cumsum(np.concatenate([[0.0], -yaw_rate[:-1]]))  # rad, clockwise from north
+    east = np.cumsum(15.0 * np.sin(course))
+    north = np.cumsum(15.0 * np.cos(course))
+    phi = math.exp(-1.0 / tau_s)
+    noise = np.zeros((seconds, 2))
+    noise[0] = rng.normal(0, sigma_m, 2)
+    for i in range(1, seconds):
+        noise[i] = phi * noise[i - 1] + rng.normal(0, sigma_m * math.sqrt(1 - phi * phi), 2)
+    noise[rng.choice(np.arange(1, seconds - 1), jumps, replace=False)] += 60.0
+    lat, lon = geodetic_of_en_m(east + noise[:, 0], north + noise[:, 1], 52.0, -1.5)
+    columns = {"t_s": t, "lat_deg": lat, "lon_deg": lon, "speed_mps": 15.0 + rng.normal(0, 0.05, seconds),
+               "heading_deg": np.degrees(course) % 360.0, "accel_long_mps2": np.zeros(seconds),
+               "yaw_rate_radps": yaw_rate, "gnss_sigma_m": np.full(seconds, 8.0)}
+    return iv.Drive("receiver", "", 1.0, 0.0, columns)
+
+
+@pytest.mark.parametrize(("sigma_m", "tau_s", "jumps"), [(3.0, 20.0, 0), (3.0, 20.0, 20), (1.0, 200.0, 0)])
+def test_the_fixes_difference_noise_is_measured_on_the_drive(sigma_m, tau_s, jumps):
+    """Issue 62.3: a receiver whose error wanders (Gauss-Markov) has a difference of two fixes h s apart
+    of sigma sqrt(2 (1 - exp(-h / tau))) per axis, far under the sigma it reports: measured on the
+    drive's straight stretches to 10 % (with what the Doppler speed's noise adds over h s), whether or not 80 of its 12000 fixes jump 60 m; the metric takes
+    it, never above the reported 8 m."""
+    from ionav_viz.analysis.consistency import fix_difference_sigma_m, truth_noise_m
+
+    drive = receiver_drive(sigma_m, tau_s, 12000, seed=7, jumps=4 * jumps)
+    lags = np.arange(1, 31)
+    # the fixes' difference along the track, and the speed's white noise integrated by the trapezoid
+    # rule (half a sample at each end): 0.05^2 (h - 1/2) m^2
+    expected = np.sqrt(2.0 * sigma_m**2 * (1.0 - np.exp(-lags / tau_s)) + 0.05**2 * (lags - 0.5))
+    measured = fix_difference_sigma_m(drive, 30)
+    assert np.allclose(measured, expected, rtol=0.1), np.round(measured / expected, 2)
+    assert np.array_equal(truth_noise_m(SimpleNamespace(drive=drive), 30), np.maximum(measured, 0.3))
+
+
+def test_the_fixes_difference_noise_is_not_measured_where_the_speed_is_the_fixes_own():
+    """A receiver without a velocity (its speed fitted to its fixes) or a reference beside them: nothing
+    to measure it with, and nothing to measure; a lag no straight stretch reaches: NaN."""
+    from ionav_viz.analysis.consistency import fix_difference_sigma_m, truth_noise_m
+
+    drive = receiver_drive(3.0, 20.0, 600, seed=7)
+    fitted = iv.Drive("fitted", "", 1.0, 0.0, {**drive.columns, "gnss_speed_fitted": np.ones(len(drive))})
+    assert fix_difference_sigma_m(fitted, 10) is None
+    referenced = iv.Drive("ref", "", 1.0, 0.0, {**drive.columns, "gnss_lat_deg": drive.lat_deg, "gnss_lon_deg": drive.lon_deg,
+                                                "gnss_speed_mps": drive.speed_mps, "gnss_heading_deg": drive.heading_deg})
+    assert fix_difference_sigma_m(referenced, 10) is None
+    far = fix_difference_sigma_m(drive, 300)
+    assert np.isfinite(far[:200]).all() and np.isnan(far[-1])
+    wide = receiver_drive(10.0, 20.0, 3000, seed=7)  # its fixes' differences over 20 s wider than the 8 m reported
+    assert np.array_equal(truth_noise_m(SimpleNamespace(drive=wide), 300)[[0, 60, -1]], [fix_difference_sigma_m(wide, 1)[0], 8.0, 8.0])
+    assert np.array_equal(truth_noise_m(SimpleNamespace(drive=referenced), 5), np.zeros(5))

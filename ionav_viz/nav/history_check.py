@@ -9,10 +9,12 @@ squared there (its 2D position error against the fixes, over its covariance) say
 covariance understates its error on this drive; the fixes' own noise is in the error, not in the
 covariance, so on a receiver of metres (a phone's) the scale comes out a little wider than the
 reference would ask (:func:`covariance_scale`). Each outage's
-covariance is scaled by the mean NEES per degree of freedom of the pseudo-outages that ended at or
-before its start: only the past, as a vehicle would have it. The scale is never below 1 (the
-estimator is never made surer than it was trained to be) and is shrunk toward 1 with the weight of
-:data:`PRIOR_OUTAGES` pseudo-outages, so the first outages of a drive, with little history, move little.
+covariance is scaled by the geometric mean of the NEES per degree of freedom of the pseudo-outages
+that ended at or before its start (:func:`history_scale`): only the past, as a vehicle would have
+it; a mean of logs, so that one pseudo-outage across a jump of the fixes does not set it. The scale
+is never below 1 (the estimator is never made surer than it was trained to be) and is shrunk toward
+1 with the weight of :data:`PRIOR_OUTAGES` pseudo-outages, so the first outages of a drive, with
+little history, move little.
 """
 
 from __future__ import annotations
@@ -109,10 +111,11 @@ def covariance_scale(windows: Windows, n_windows: int, outage_starts: np.ndarray
 
 
 def history_scale(pseudo_ends: np.ndarray, pseudo_nees: np.ndarray, outage_starts: np.ndarray) -> np.ndarray:
-    """Per outage, the covariance's scale (see the module docstring) from the pseudo-outages that
-    ended (``pseudo_ends``, window index after their last) at or before its start."""
-    total, count = past_sums(pseudo_ends, pseudo_nees, outage_starts)
-    return np.maximum((PRIOR_OUTAGES + total) / (PRIOR_OUTAGES + count), 1.0)
+    """Per outage, the covariance's scale from the mean NEES per degree of freedom of each
+    pseudo-outage that ended (``pseudo_ends``, window index after their last) at or before its
+    start: :func:`log_scale`, never below 1. Its correction for the log of one NEES (an exponential
+    variable) widens a little for a mean over a pseudo-outage's boundaries, which spreads less."""
+    return np.maximum(log_scale(pseudo_ends, pseudo_nees, outage_starts), 1.0)
 
 
 def past_sums(pseudo_ends: np.ndarray, values: np.ndarray, outage_starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
