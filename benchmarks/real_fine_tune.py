@@ -149,7 +149,20 @@ def measure(name: str, entry: dict, config_overrides: dict, folder: Path, fracti
         "fine_tune_cpu_s": round(cpu_s, 1),
         "n_examples": model.metadata["training"]["n_examples"],
         "ins_blend": model.metadata["epoch_selection"].get("ins_blend"),
+        "ellipse": {"parent": ellipse(parent), "fine_tuned": ellipse(tuned)},
     }
+
+
+def ellipse(report: dict) -> dict | None:
+    """The IDNN's 95 % ellipse on an evaluate report's outages: the share of final errors inside it
+    (%), the ANEES (1 when honest) and the outages counted; None without a covariance."""
+    c = report["summary"]["idnn"].get("consistency")
+    return None if c is None else {"coverage_95": c["coverage_95"], "anees": c["anees"], "n_outages": c["n_outages"]}
+
+
+def ellipse_cell(e: dict | None) -> str:
+    """``inside % / ANEES`` of :func:`ellipse`, or a dash."""
+    return "–" if e is None else f"{e['coverage_95']:.0f} % / {e['anees']:.2f}"
 
 
 def verdict(result: dict) -> str:
@@ -172,9 +185,10 @@ def _gap(gap: list[float] | None) -> str:
 
 HEADER = (
     "| log | split (s) | outages | INS DR (m) | parent's network alone (m) | parent (m) | fine-tuned (m) "
-    "| fine-tuned - INS DR (m) | fine-tuned - parent (m) | criterion | fine-tuning kept | fine-tuning wall / CPU (s) |"
+    "| fine-tuned - INS DR (m) | fine-tuned - parent (m) | criterion | fine-tuned: inside its 95 % ellipse / ANEES "
+    "| fine-tuning kept | fine-tuning wall / CPU (s) |"
 )
-RULE = "|---|---|---|---|---|---|---|---|---|---|---|---|"
+RULE = "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 
 
 def row(r: dict) -> str:
@@ -183,7 +197,7 @@ def row(r: dict) -> str:
     gaps = f"{_gap(r['fine_tuned_minus_ins_m'])} | {_gap(r['fine_tuned_minus_parent_m'])}"
     return (
         f"| {r['log']} | {r['split_s']:g} of {r['length_s']:g} | {r['outages']} | {means} | {gaps} | {verdict(r)} | "
-        f"{r['kept']} | {r['fine_tune_wall_s']} / {r['fine_tune_cpu_s']} |"
+        f"{ellipse_cell(r['ellipse']['fine_tuned'])} | {r['kept']} | {r['fine_tune_wall_s']} / {r['fine_tune_cpu_s']} |"
     )
 
 
@@ -194,7 +208,9 @@ def markdown(results: list[dict], argv: list[str]) -> str:
         f"{platform.machine()}, trained on the CPU, Python {platform.python_version()}, ionav-viz {iv.__version__}); "
         "do not edit by hand. Displacement CRSE per 10 s outage, mean over the outages of the second half; "
         "differences: mean [95 % interval, paired bootstrap over the outages]. The parent is the shipped model "
-        "with its history arbiter (the IDNN's default); its network alone, without it.",
+        "with its history arbiter (the IDNN's default); its network alone, without it. The ellipse: the share of "
+        "the outages' final errors inside the fine-tuned model's 95 % ellipse (95 % when honest) and its ANEES "
+        "(1 when honest; outputs.md).",
         "",
         HEADER,
         RULE,

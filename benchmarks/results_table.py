@@ -401,11 +401,15 @@ def fine_tuned_results() -> list[dict]:
 
 def fine_tuned_table(results: list[dict]) -> str:
     """The shipped IDNN beside the fine-tuned one per corpus log (:func:`fine_tuned_results`)."""
+    from real_fine_tune import ellipse_cell
+
     lines = ["| log | outages (second half) | INS DR | shipped, its network alone | shipped (with its arbiter) "
-             "| fine-tuned on the first half |", "|---|---:|---:|---:|---:|---:|"]
+             "| fine-tuned on the first half | shipped: inside its 95 % ellipse / ANEES "
+             "| fine-tuned: inside its 95 % ellipse / ANEES |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results:
         m = r["mean_m"]
         cells = [f"{m[k]:.2f}" if m else "–" for k in ("ins", "parent_network", "parent", "fine_tuned")]
+        cells += [ellipse_cell(r["ellipse"][k]) for k in ("parent", "fine_tuned")]
         lines.append(f"| {r['log']} | {r['outages']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -486,7 +490,10 @@ def page(labels: dict[str, str], cells: dict[tuple[str, float], Cell], lengths: 
             "DR, the shipped IDNN (its network alone, and with its history arbiter, the default) and the shipped IDNN "
             "fine-tuned on the log's first half (`ionav-viz train LOG --span 0s:T --from-model shipped`), as "
             "`benchmarks/real_fine_tune.py` measures it; the intervals and what fine-tuning kept: "
-            "[real-imu-logs.md](real-imu-logs.md#fine-tuned-on-the-cars-own-first-half-issue-62).",
+            "[real-imu-logs.md](real-imu-logs.md#fine-tuned-on-the-cars-own-first-half-issue-62). The last two "
+            "columns: the share of the outages' final errors inside the model's 95 % ellipse (95 % when honest; "
+            "where the truth is the receiver's fixes, the noise of their difference counted: "
+            "[outputs.md](outputs.md#how-sure-each-estimator-is)) and its ANEES (1 when honest).",
             "",
             fine_tuned_table(tuned),
             "",
