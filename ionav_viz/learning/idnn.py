@@ -592,6 +592,10 @@ ARBITER_INS_SHARES = (0.0, 0.5, 1.0)
 #: network's, on pseudo-outages, until the drive's own past says otherwise (how it was chosen:
 #: docs/real-imu-logs.md, "The IDNN's history arbiter").
 ARBITER_PRIOR_INS_RATIO = 2.0
+#: The prior ratio of the gyro's heading error to the network's yaw rate's, on pseudo-outages
+#: (:meth:`IdnnEstimator._arbitrate`): none, the drive's own past decides (why: docs/real-imu-logs.md,
+#: "The IDNN's history arbiter").
+ARBITER_GYRO_PRIOR_RATIO = 1.0
 
 
 def _outages(k: int) -> str:
@@ -651,7 +655,7 @@ class IdnnEstimator:
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
         self._arbiter_note = ""
         if self.arbiter:
-            disp = self._arbitrate(model, inputs, cal, disp)
+            disp, yaw = self._arbitrate(model, inputs, cal, disp, yaw)
         cov = None
         self._scale_note = ""
         widen = self._check_domain(model, inputs, label, disp)
@@ -662,31 +666,33 @@ class IdnnEstimator:
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
     def _arbitrate(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                   disp_m: np.ndarray) -> np.ndarray:
+                   disp_m: np.ndarray, yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per outage, the model's displacement (m, ``(m, n)``) with a share of the INS DR's on the same
-        samples (:data:`ARBITER_INS_SHARES`) where the drive's own past says so
-        (:func:`~ionav_viz.nav.history_check.past_choice` on the displacement CRSE of pseudo-outages of
-        the outage's length over the GNSS before it, each share's record shrunk toward
-        :func:`arbiter_prior_ratio`; an outage with fewer than :data:`history_check.ENOUGH` of its own
-        length behind it judged on :data:`history_check.SHORT_WINDOWS` s ones). The yaw rate stays
-        the network's."""
+        samples (:data:`ARBITER_INS_SHARES`), and its yaw rate (rad/s) or the INS DR's (the gyro's),
+        where the drive's own past says so (:func:`~ionav_viz.nav.history_check.past_choice` on
+        pseudo-outages of the outage's length over the GNSS before it; an outage with fewer than
+        :data:`history_check.ENOUGH` of its own length behind it judged on
+        :data:`history_check.SHORT_WINDOWS` s ones). The displacement by its CRSE there, each share's
+        record shrunk toward :func:`arbiter_prior_ratio`; the yaw rate by the heading's error it
+        leaves at each boundary (:data:`ARBITER_GYRO_PRIOR_RATIO`)."""
         from ..nav.ins import dead_reckon
 
         n, starts = int(inputs.n_windows), np.asarray(inputs.starts, dtype=int)
-        record = self._share_record(model, inputs, cal, n)
-        short = self._share_record(model, inputs, cal, history_check.SHORT_WINDOWS) \
-            if n > history_check.SHORT_WINDOWS else None
+        records = self._share_records(model, inputs, cal, n)
+        short = (self._share_records(model, inputs, cal, history_check.SHORT_WINDOWS)
+                 if n > history_check.SHORT_WINDOWS else None)
         shorter = np.zeros(len(starts), dtype=bool)
-        if record is None:
-            record, shorter[:] = short, True
+        if records is None:
+            records, shorter[:] = short, True
         elif short is not None:
-            shorter = record[2] < history_check.ENOUGH
-            record = (np.where(shorter, short[0], record[0]), np.where(shorter, short[1], record[1]), record[2])
-        if record is None:
-            self._arbiter_note = (f"the network's displacement on all {len(starts)} outages (no pseudo-outage over "
-                                  "the GNSS before them to compare with)")
-            return disp_m
-        choice, sums = record[0], record[1]
+            shorter = records[0][2] < history_check.ENOUGH
+            records = tuple((np.where(shorter, s[0], r[0]), np.where(shorter, s[1], r[1]), r[2])
+                            for r, s in zip(records, short))
+        if records is None:
+            self._arbiter_note = (f"the network's displacement and yaw rate on all {len(starts)} outages (no "
+                                  "pseudo-outage over the GNSS before them to compare with)")
+            return disp_m, yaw_radps
+        (choice, sums, _), (yaw_choice, yaw_sums, _) = records
         share = np.asarray(ARBITER_INS_SHARES)[choice]
         parts = [f"the network's displacement on {_outages(int(np.sum(choice == 0)))}"]
         for c, b in enumerate(ARBITER_INS_SHARES[1:], start=1):
@@ -695,34 +701,46 @@ class IdnnEstimator:
                 lower = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[0][on])), 1e-9)
                 parts.append(f"{100 * b:.0f} % of the INS DR's on {_outages(int(on.sum()))} (their past "
                              f"pseudo-outages' displacement CRSE {100.0 * lower:.0f} % lower with it)")
+        gyro = yaw_choice == 1
+        if gyro.any():
+            lower = 1.0 - np.sum(yaw_sums[1][gyro]) / max(float(np.sum(yaw_sums[0][gyro])), 1e-9)
+            parts.append(f"the gyro's yaw rate on {_outages(int(gyro.sum()))} (their past pseudo-outages' heading "
+                         f"error {100.0 * lower:.0f} % lower with it)")
         self._arbiter_note = (", ".join(parts) + f"; chosen per outage from the {n} s pseudo-outages over the GNSS "
                               "before it" + (f"; {_outages(int(shorter.sum()))} with fewer than {history_check.ENOUGH} "
                                              f"behind them judged on the {history_check.SHORT_WINDOWS} s ones"
                                              if shorter.any() and n > history_check.SHORT_WINDOWS else ""))
-        if not share.any():
-            return disp_m
-        ins_m, _ = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias, inputs.rate_hz,
-                               inputs.still)
-        return (1.0 - share)[:, None] * disp_m + share[:, None] * ins_m
+        if not share.any() and not gyro.any():
+            return disp_m, yaw_radps
+        ins_m, ins_yaw = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias,
+                                     inputs.rate_hz, inputs.still)
+        return (1.0 - share)[:, None] * disp_m + share[:, None] * ins_m, np.where(gyro[:, None], ins_yaw, yaw_radps)
 
-    def _share_record(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                      n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """:meth:`_arbitrate`'s choice per outage from pseudo-outages of ``n`` windows
-        (:func:`~ionav_viz.nav.history_check.past_choice`), None where none fits."""
+    def _share_records(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
+                       n: int) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] | None:
+        """:meth:`_arbitrate`'s choices per outage from pseudo-outages of ``n`` windows
+        (:func:`~ionav_viz.nav.history_check.past_choice`): of the INS DR's share of the displacement,
+        and of the yaw rate (0: the network's, 1: the gyro's); None where no pseudo-outage fits."""
         from ..nav.ins import dead_reckon
 
         w = inputs.windows
-        pseudo = history_check.pseudo_starts_before(w, n, np.asarray(inputs.starts, dtype=int))
+        outages = np.asarray(inputs.starts, dtype=int)
+        pseudo = history_check.pseudo_starts_before(w, n, outages)
         if not len(pseudo):
             return None
         idx = pseudo[:, None] + np.arange(n)[None, :]
         still = inputs.still_grid[idx]
-        net, _ = model.predict(w, pseudo, n, inputs.bias, cal, still)
-        ins, _ = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[pseudo], inputs.bias, w.rate_hz, still)
-        truth = w.gnss_disp_m[idx]
+        net, net_yaw = model.predict(w, pseudo, n, inputs.bias, cal, still)
+        ins, ins_yaw = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[pseudo], inputs.bias, w.rate_hz,
+                                   still)
+        truth, truth_yaw = w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx]
         err = np.stack([np.abs((1.0 - b) * net + b * ins - truth).sum(axis=1) for b in ARBITER_INS_SHARES])
-        return history_check.past_choice(pseudo + n, err, np.asarray(inputs.starts, dtype=int),
-                                         np.array([arbiter_prior_ratio(b) for b in ARBITER_INS_SHARES]))
+        # the heading's error at each boundary (rad s), not the rate's: a rate erring one way turns the
+        # track away, the same error back and forth does not
+        heading_err = np.stack([np.abs(np.cumsum(y - truth_yaw, axis=1)).sum(axis=1) for y in (net_yaw, ins_yaw)])
+        return (history_check.past_choice(pseudo + n, err, outages,
+                                          np.array([arbiter_prior_ratio(b) for b in ARBITER_INS_SHARES])),
+                history_check.past_choice(pseudo + n, heading_err, outages, np.array([1.0, ARBITER_GYRO_PRIOR_RATIO])))
 
     def _check_domain(self, model: IdnnModel, inputs: EstimatorInputs, label: str, disp_m: np.ndarray):
         """Warn when the drive's inputs lie outside what ``model`` was trained on
