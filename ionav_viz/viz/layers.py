@@ -35,9 +35,9 @@ TRACK_ORDER, TRUTH_END_ORDER, END_ORDER = 30.0, 35.0, 40.0
 END_DOT_PT, TRUTH_DOT_PT = 5.0, 8.5
 #: The current outage's tracks (radius, ui points): the best estimate's, and what each one below it
 #: in the stack adds, so that tracks along one line show as nested bands, each a rim of its colour.
-TRACK_PT, RIM_PT = 2.0, 0.7
+TRACK_PT, RIM_PT = 2.0, 1.0
 #: The current outage's truth, underneath: wider than five stacked tracks.
-TRUTH_TRACK_PT = 5.5
+TRUTH_TRACK_PT = 6.5
 #: The inspector's scale bar: this share of its frame's height above the frame's bottom, so that its
 #: label (below it) is not cut at the view's edge where the frame fills the view's height (the
 #: web page's inspector is 366 px high at 1280x720: 0.05 left 18 px, "20 m" cut in half).
