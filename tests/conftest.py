@@ -35,6 +35,17 @@ def pytest_configure(config) -> None:
         sys.modules["torch"].set_num_threads(int(os.environ["OMP_NUM_THREADS"]))
 
 
+#: Modules of one test that runs for half a minute (a browser loading the web viewer): queued first.
+LONG_FIRST = ("tests/test_web_browser.py::",)
+
+
+def pytest_collection_modifyitems(items) -> None:
+    """The tests of :data:`LONG_FIRST` first. pytest-xdist's ``loadgroup`` queues the groups of most
+    tests first, then the single tests in their collection order: a half-minute test collected near
+    the end ran alone on one worker while the other had finished."""
+    items.sort(key=lambda item: not item.nodeid.startswith(LONG_FIRST))
+
+
 #: A guard against a hang, never a limit on a slow run: a run that takes this long is stuck (a loaded
 #: machine makes a test slower, never 30 times slower). Tests time nothing else.
 HANG_S = 1800.0
