@@ -243,6 +243,19 @@ def test_outages_under_10_s_give_no_dangling_error_over_sigma():
     assert re.search(r"^Odometry uncertainty: .*, rms error/sigma 10 s \d+\.\d\d$", ten, re.M), ten
 
 
+def test_the_uncertainty_line_counts_the_outages_inside_as_the_export_lists_them(tmp_path):
+    """A share inside the ellipse says little without its count (all of 2 outages, all of 200): the
+    text line says 'on K of N outages', K and N as the export's per-outage rows have them."""
+    import csv
+
+    report = iv.evaluate("roundabout", 10.0, estimators=["ins", "odo"], export=tmp_path / "x")
+    rows = [r for r in csv.DictReader((tmp_path / "x" / "outages.csv").open()) if r["estimator"] == "odo"]
+    inside = sum(r["final_inside_95"] == "1" for r in rows)
+    assert 0 < inside < len(rows)
+    line = next(x for x in report.to_text().splitlines() if x.startswith("Odometry uncertainty:"))
+    assert f"inside the 95 % ellipse on {inside} of {len(rows)} outages, " in line, line
+
+
 def test_the_log_scale_recovers_a_known_scale_both_ways():
     """Issue 59.5: NEES per dof of an honest 2D covariance is exponential of mean 1; of a covariance
     ``s`` times too narrow, exponential of mean ``s``. The geometric-mean estimator recovers ``s``

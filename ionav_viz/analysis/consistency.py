@@ -230,10 +230,13 @@ def consistency(results: list, name: str) -> dict[str, Any] | None:
 
 
 def consistency_line(label: str, c: dict[str, Any]) -> str:
-    """One line of the text report; the rms error/sigma only at the seconds of :data:`RATIO_AT_S`
-    the outages reach (none in outages under 10 s)."""
+    """One line of the text report: the outages counted with the share inside (all of 2 outages
+    inside says little, all of 200 much); the rms error/sigma only at the seconds of
+    :data:`RATIO_AT_S` the outages reach (none in outages under 10 s)."""
     ratios = ", ".join(f"{t} s {v:.2f}" for t, v in c["error_over_sigma"].items())
     lo, hi = c["anees_band"]
+    n = int(c["n_outages"])
+    inside = round(c["coverage_95"] * n / 100.0)
     return (f"{label} uncertainty: ANEES {c['anees']:.2f} (1 when honest; 95 % band {lo:.2f}-{hi:.2f}: "
-            f"{c['verdict']}), final errors inside the 95 % ellipse {c['coverage_95']:.0f} % (95 % "
-            "when honest)" + (f", rms error/sigma {ratios}" if ratios else ""))
+            f"{c['verdict']}), final errors inside the 95 % ellipse on {inside} of {n} outages, "
+            f"{c['coverage_95']:.0f} % (95 % when honest)" + (f", rms error/sigma {ratios}" if ratios else ""))
