@@ -147,7 +147,7 @@ def truth_noise_m(result, n_lags: int) -> np.ndarray:
     measured = fix_difference_sigma_m(result.drive, n_lags)
     if measured is None or reported == 0.0:
         return np.full(n_lags, reported)
-    return np.clip(np.where(np.isfinite(measured), measured, reported), min(GNSS_SIGMA_FLOOR_M, reported), reported)
+    return np.clip(np.where(np.isfinite(measured), measured, reported), GNSS_SIGMA_FLOOR_M, reported)
 
 
 def outage_nees(result, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
