@@ -60,14 +60,14 @@ def crse(report: iv.Report, name: str) -> np.ndarray:
 @pytest.fixture(scope="module")
 def phone():
     drive = load("phone_flat_meszdav")
-    on = IdnnEstimator()
+    on, off = IdnnEstimator(), IdnnEstimator(arbiter=False)
     with_arbiter = iv.evaluate([drive], 10, estimators=["ins", on])
-    without = iv.evaluate([drive], 10, estimators=[IdnnEstimator(arbiter=False)])
-    return with_arbiter, without, on.describe()["arbiter"]
+    without = iv.evaluate([drive], 10, estimators=[off])
+    return with_arbiter, without, on.describe()["arbiter"], (on.describe(), off.describe())
 
 
 def test_on_the_phone_the_arbiter_takes_the_ins_drs_displacement_where_the_past_says_so(phone):
-    with_arbiter, without, note = phone
+    with_arbiter, without, note, _ = phone
     ins, on, off = crse(with_arbiter, "ins"), crse(with_arbiter, "idnn"), crse(without, "idnn")
     assert off.mean() > ins.mean()  # the shipped model's network loses to the INS DR on this phone
     assert on.mean() < off.mean() - 0.5, (on.mean(), off.mean())
@@ -81,10 +81,25 @@ def test_on_the_phone_the_arbiter_takes_the_ins_drs_displacement_where_the_past_
 
 
 def test_the_text_report_says_what_the_idnns_arbiter_chose(phone):
-    with_arbiter, without, note = phone
+    with_arbiter, without, note, _ = phone
     assert f"IDNN arbiter: {note}" in with_arbiter.to_text()
     assert "IDNN arbiter:" not in without.to_text()
     assert [e["info"]["arbiter"] for e in with_arbiter.to_dict()["estimators"] if e["name"] == "idnn"] == [note]
+
+
+def test_the_ellipse_is_judged_on_the_estimates_the_arbiter_gives_the_outages(phone):
+    """The history check scales the covariance by the NEES on pseudo-outages over the GNSS: each run
+    as an outage starting there would be, with the arbiter's choice from the ones before it. On the
+    phone the arbiter's choices err less there than the network alone (above), so their NEES is lower
+    and the scale narrower than without the arbiter, on the same 26 pseudo-outages; judged on the
+    network's own estimates both would be equal."""
+    import re
+
+    with_arbiter, without = (d["uncertainty_scale"] for d in phone[3])
+    pattern = r"x([\d.]+) median, .* per degree of freedom ([\d.]+) on (\d+) pseudo-outages"
+    (scale_on, nees_on, k_on), (scale_off, nees_off, k_off) = (re.search(pattern, n).groups() for n in (with_arbiter, without))
+    assert k_on == k_off == "26"
+    assert float(nees_on) < 0.9 * float(nees_off) and float(scale_on) < float(scale_off), (with_arbiter, without)
 
 
 def test_where_the_network_beats_the_ins_dr_the_arbiter_keeps_its_displacement_and_takes_the_truer_heading():
@@ -144,5 +159,5 @@ def test_the_recordings_details_say_what_the_idnns_arbiter_chose(phone, tmp_path
     proc = run_cli("replay", str(CORPUS_DIR / entry["file"]), "--outage", "10s", "--imu-mount", "auto",
                    "--gnss-limit", f"max_sigma_m={entry['max_sigma_m']}", "--estimators", "ins,idnn", "-o", str(rrd), "-q")
     assert proc.returncode == 0, proc.stderr
-    *_, note = phone  # the same drive and outages through the API
+    _, _, note, _ = phone  # the same drive and outages through the API
     assert f"**IDNN arbiter**: {note}" in summary_of(rrd)

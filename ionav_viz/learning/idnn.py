@@ -53,7 +53,7 @@ import json
 import logging
 import math
 import stat
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -607,6 +607,90 @@ def arbiter_prior_ratio(share: float) -> float:
     return 1.0 + (ARBITER_PRIOR_INS_RATIO - 1.0) * share
 
 
+@dataclass(frozen=True)
+class _PseudoRuns:
+    """The network's and the INS DR's estimates on pseudo-outages of ``n_windows`` windows over the
+    GNSS before the last outage (:func:`~ionav_viz.nav.history_check.pseudo_starts_before`), and how
+    each candidate of the history arbiter erred there: ``disp_err`` ``(c, k)``, the displacement
+    CRSE (m) of each of :data:`ARBITER_INS_SHARES`; ``heading_err`` ``(2, k)``, the heading's error
+    summed over the window boundaries (rad s), of the network's yaw rate and the gyro's."""
+
+    starts: np.ndarray
+    n_windows: int
+    net_m: np.ndarray
+    net_yaw_radps: np.ndarray
+    ins_m: np.ndarray
+    ins_yaw_radps: np.ndarray
+    disp_err: np.ndarray
+    heading_err: np.ndarray
+
+    def choose(self, at: np.ndarray) -> tuple[np.ndarray, ...]:
+        """For outages starting at windows ``at``, from the pseudo-outages that ended by then
+        (:func:`~ionav_viz.nav.history_check.past_choice`): the share's index, each share's summed
+        error, the count behind, whether the gyro's yaw rate, and the two yaw candidates' summed error."""
+        ends = self.starts + self.n_windows
+        choice, sums, count = history_check.past_choice(
+            ends, self.disp_err, at, np.array([arbiter_prior_ratio(b) for b in ARBITER_INS_SHARES]))
+        yaw_choice, yaw_sums, _ = history_check.past_choice(ends, self.heading_err, at,
+                                                            np.array([1.0, ARBITER_GYRO_PRIOR_RATIO]))
+        return choice, sums, count, yaw_choice == 1, yaw_sums
+
+    def as_chosen(self, picked: tuple[np.ndarray, ...] | None) -> _PseudoRuns:
+        """These pseudo-outages with ``picked`` (:func:`_choices` at :attr:`starts`) applied: the
+        estimate an outage starting at each would have got, in :attr:`net_m`/:attr:`net_yaw_radps`."""
+        if picked is None:
+            return self
+        choice, _, gyro, _, _ = picked
+        share = np.asarray(ARBITER_INS_SHARES)[choice][:, None]
+        return replace(self, net_m=(1.0 - share) * self.net_m + share * self.ins_m,
+                       net_yaw_radps=np.where(gyro[:, None], self.ins_yaw_radps, self.net_yaw_radps))
+
+
+def _pseudo_runs(model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
+                 n: int) -> _PseudoRuns | None:
+    """The history arbiter's record (:class:`_PseudoRuns`) on pseudo-outages of ``n`` windows; None
+    where none fits before the last outage."""
+    from ..nav.ins import dead_reckon
+
+    w = inputs.windows
+    pseudo = history_check.pseudo_starts_before(w, n, np.asarray(inputs.starts, dtype=int))
+    if not len(pseudo):
+        return None
+    idx = pseudo[:, None] + np.arange(n)[None, :]
+    still = inputs.still_grid[idx]
+    net, net_yaw = model.predict(w, pseudo, n, inputs.bias, cal, still)
+    ins, ins_yaw = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[pseudo], inputs.bias, w.rate_hz,
+                               still)
+    truth, truth_yaw = w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx]
+    err = np.stack([np.abs((1.0 - b) * net + b * ins - truth).sum(axis=1) for b in ARBITER_INS_SHARES])
+    # the heading's error at each boundary (rad s), not the rate's: a rate erring one way turns the
+    # track away, the same error back and forth does not
+    heading_err = np.stack([np.abs(np.cumsum(y - truth_yaw, axis=1)).sum(axis=1) for y in (net_yaw, ins_yaw)])
+    return _PseudoRuns(pseudo, n, net, net_yaw, ins, ins_yaw, err, heading_err)
+
+
+def _choices(runs: _PseudoRuns | None, short: _PseudoRuns | None,
+             at: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """The history arbiter's choices for outages starting at windows ``at``: on ``runs`` (pseudo-outages
+    of the outages' length), or on ``short`` (of :data:`history_check.SHORT_WINDOWS`) for an outage with
+    fewer than :data:`history_check.ENOUGH` of its own length behind it or none at all. Returns the
+    share's index, each share's summed error ``(c, m)``, whether the gyro's yaw rate, the two yaw
+    candidates' summed error ``(2, m)`` and whether the short ones decided; None when neither exists."""
+    shorter = np.zeros(len(at), dtype=bool)
+    if runs is None and short is None:
+        return None
+    if runs is None:
+        choice, sums, _, gyro, yaw_sums = short.choose(at)
+        return choice, sums, gyro, yaw_sums, ~shorter
+    choice, sums, count, gyro, yaw_sums = runs.choose(at)
+    if short is not None:
+        shorter = count < history_check.ENOUGH
+        s_choice, s_sums, _, s_gyro, s_yaw_sums = short.choose(at)
+        choice, sums = np.where(shorter, s_choice, choice), np.where(shorter, s_sums, sums)
+        gyro, yaw_sums = np.where(shorter, s_gyro, gyro), np.where(shorter, s_yaw_sums, yaw_sums)
+    return choice, sums, gyro, yaw_sums, shorter
+
+
 class IdnnEstimator:
     """The paper's IDNN as an estimator: a trained model, or the shipped one (loaded when first used).
 
@@ -654,45 +738,37 @@ class IdnnEstimator:
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
         disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
         self._arbiter_note = ""
+        judged = None
         if self.arbiter:
-            disp, yaw = self._arbitrate(model, inputs, cal, disp, yaw)
+            disp, yaw, judged = self._arbitrate(model, inputs, cal, disp, yaw)
         cov = None
         self._scale_note = ""
         widen = self._check_domain(model, inputs, label, disp)
         if model.uncertainty is not None:
             cov = model.uncertainty.position_covariance(inputs.course0_deg, inputs.speed0_mps, disp, yaw)
             cov = cov * (widen(inputs.accel_mps2, inputs.gyro_radps, disp) ** 2
-                         * self._history_scale(model, inputs, cal, widen))[:, None, None, None]
+                         * self._history_scale(model, inputs, cal, widen, judged))[:, None, None, None]
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
     def _arbitrate(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                   disp_m: np.ndarray, yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   disp_m: np.ndarray, yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray, _PseudoRuns | None]:
         """Per outage, the model's displacement (m, ``(m, n)``) with a share of the INS DR's on the same
         samples (:data:`ARBITER_INS_SHARES`), and its yaw rate (rad/s) or the INS DR's (the gyro's),
-        where the drive's own past says so (:func:`~ionav_viz.nav.history_check.past_choice` on
-        pseudo-outages of the outage's length over the GNSS before it; an outage with fewer than
-        :data:`history_check.ENOUGH` of its own length behind it judged on
-        :data:`history_check.SHORT_WINDOWS` s ones). The displacement by its CRSE there, each share's
-        record shrunk toward :func:`arbiter_prior_ratio`; the yaw rate by the heading's error it
-        leaves at each boundary (:data:`ARBITER_GYRO_PRIOR_RATIO`)."""
+        where the drive's own past says so (:func:`_choices`), and the pseudo-outages of the outage's
+        length each with the choice the arbiter would have made for an outage starting there (for
+        :meth:`_history_scale`: the covariance is judged on what the outages get; None where none fits)."""
         from ..nav.ins import dead_reckon
 
         n, starts = int(inputs.n_windows), np.asarray(inputs.starts, dtype=int)
-        records = self._share_records(model, inputs, cal, n)
-        short = (self._share_records(model, inputs, cal, history_check.SHORT_WINDOWS)
+        runs = _pseudo_runs(model, inputs, cal, n)
+        short = (_pseudo_runs(model, inputs, cal, history_check.SHORT_WINDOWS)
                  if n > history_check.SHORT_WINDOWS else None)
-        shorter = np.zeros(len(starts), dtype=bool)
-        if records is None:
-            records, shorter[:] = short, True
-        elif short is not None:
-            shorter = records[0][2] < history_check.ENOUGH
-            records = tuple((np.where(shorter, s[0], r[0]), np.where(shorter, s[1], r[1]), r[2])
-                            for r, s in zip(records, short))
-        if records is None:
+        picked = _choices(runs, short, starts)
+        if picked is None:
             self._arbiter_note = (f"the network's displacement and yaw rate on all {len(starts)} outages (no "
                                   "pseudo-outage over the GNSS before them to compare with)")
-            return disp_m, yaw_radps
-        (choice, sums, _), (yaw_choice, yaw_sums, _) = records
+            return disp_m, yaw_radps, None
+        choice, sums, gyro, yaw_sums, shorter = picked
         share = np.asarray(ARBITER_INS_SHARES)[choice]
         parts = [f"the network's displacement on {_outages(int(np.sum(choice == 0)))}"]
         for c, b in enumerate(ARBITER_INS_SHARES[1:], start=1):
@@ -701,7 +777,6 @@ class IdnnEstimator:
                 lower = 1.0 - np.sum(sums[c][on]) / max(float(np.sum(sums[0][on])), 1e-9)
                 parts.append(f"{100 * b:.0f} % of the INS DR's on {_outages(int(on.sum()))} (their past "
                              f"pseudo-outages' displacement CRSE {100.0 * lower:.0f} % lower with it)")
-        gyro = yaw_choice == 1
         if gyro.any():
             lower = 1.0 - np.sum(yaw_sums[1][gyro]) / max(float(np.sum(yaw_sums[0][gyro])), 1e-9)
             parts.append(f"the gyro's yaw rate on {_outages(int(gyro.sum()))} (their past pseudo-outages' heading "
@@ -710,37 +785,13 @@ class IdnnEstimator:
                               "before it" + (f"; {_outages(int(shorter.sum()))} with fewer than {history_check.ENOUGH} "
                                              f"behind them judged on the {history_check.SHORT_WINDOWS} s ones"
                                              if shorter.any() and n > history_check.SHORT_WINDOWS else ""))
+        judged = runs.as_chosen(_choices(runs, short, runs.starts)) if runs is not None else None
         if not share.any() and not gyro.any():
-            return disp_m, yaw_radps
+            return disp_m, yaw_radps, judged
         ins_m, ins_yaw = dead_reckon(inputs.accel_mps2, inputs.gyro_radps, inputs.speed0_mps, inputs.bias,
                                      inputs.rate_hz, inputs.still)
-        return (1.0 - share)[:, None] * disp_m + share[:, None] * ins_m, np.where(gyro[:, None], ins_yaw, yaw_radps)
-
-    def _share_records(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                       n: int) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] | None:
-        """:meth:`_arbitrate`'s choices per outage from pseudo-outages of ``n`` windows
-        (:func:`~ionav_viz.nav.history_check.past_choice`): of the INS DR's share of the displacement,
-        and of the yaw rate (0: the network's, 1: the gyro's); None where no pseudo-outage fits."""
-        from ..nav.ins import dead_reckon
-
-        w = inputs.windows
-        outages = np.asarray(inputs.starts, dtype=int)
-        pseudo = history_check.pseudo_starts_before(w, n, outages)
-        if not len(pseudo):
-            return None
-        idx = pseudo[:, None] + np.arange(n)[None, :]
-        still = inputs.still_grid[idx]
-        net, net_yaw = model.predict(w, pseudo, n, inputs.bias, cal, still)
-        ins, ins_yaw = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[pseudo], inputs.bias, w.rate_hz,
-                                   still)
-        truth, truth_yaw = w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx]
-        err = np.stack([np.abs((1.0 - b) * net + b * ins - truth).sum(axis=1) for b in ARBITER_INS_SHARES])
-        # the heading's error at each boundary (rad s), not the rate's: a rate erring one way turns the
-        # track away, the same error back and forth does not
-        heading_err = np.stack([np.abs(np.cumsum(y - truth_yaw, axis=1)).sum(axis=1) for y in (net_yaw, ins_yaw)])
-        return (history_check.past_choice(pseudo + n, err, outages,
-                                          np.array([arbiter_prior_ratio(b) for b in ARBITER_INS_SHARES])),
-                history_check.past_choice(pseudo + n, heading_err, outages, np.array([1.0, ARBITER_GYRO_PRIOR_RATIO])))
+        return ((1.0 - share)[:, None] * disp_m + share[:, None] * ins_m, np.where(gyro[:, None], ins_yaw, yaw_radps),
+                judged)
 
     def _check_domain(self, model: IdnnModel, inputs: EstimatorInputs, label: str, disp_m: np.ndarray):
         """Warn when the drive's inputs lie outside what ``model`` was trained on
@@ -774,14 +825,18 @@ class IdnnEstimator:
         return widen
 
     def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                       widen) -> np.ndarray:
+                       widen, judged: _PseudoRuns | None = None) -> np.ndarray:
         """Per outage, how much to widen the learned covariance (``widen``-ed out of the model's
-        domain): the model's NEES on pseudo-outages over the GNSS before it (:mod:`ionav_viz.nav.history_check`)."""
+        domain): the model's NEES on pseudo-outages over the GNSS before it (:mod:`ionav_viz.nav.history_check`),
+        each run as the outages are (``judged``: the arbiter's choice on each; None: the network's own)."""
         w, n = inputs.windows, inputs.n_windows
 
         def run(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             idx = starts[:, None] + np.arange(n)[None, :]
-            disp, yaw = model.predict(w, starts, n, inputs.bias, cal, inputs.still_grid[idx])
+            if judged is not None and np.array_equal(judged.starts, starts):
+                disp, yaw = judged.net_m, judged.net_yaw_radps
+            else:
+                disp, yaw = model.predict(w, starts, n, inputs.bias, cal, inputs.still_grid[idx])
             cov = model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
             return disp, yaw, cov * (widen(w.accel_mps2[idx], w.gyro_radps[idx], disp) ** 2)[:, None, None, None]
 
