@@ -11,9 +11,12 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import typer
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions, RunOptions
 
 # --- options shared by several commands -----------------------------------------------------
 DataRoot = typer.Option(None, "--data-root",
@@ -173,7 +176,7 @@ def _with_options(command: Callable[..., Any], options: tuple, argument: str,
 def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command the shared drive-reading options (declared once, in :data:`_SOURCE_OPTIONS`);
     the command receives them as one ``read: ReadOptions`` argument (checked by the library)."""
-    def build(v: dict[str, Any]) -> Any:
+    def build(v: dict[str, Any]) -> ReadOptions:
         from ..core.gnss_quality import GnssLimits
         from ..sources.load import LogOptions, ReadOptions
 
@@ -187,7 +190,7 @@ def with_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     return _with_options(command, _SOURCE_OPTIONS, "read", build)
 
 
-def source_args(read: Any) -> list[str]:
+def source_args(read: ReadOptions) -> list[str]:
     """The source options ``read`` (a ReadOptions built by :func:`with_source_options`) holds, as
     command-line arguments, those at their defaults left out: what a printed next command needs to
     read the drive as this one did."""
@@ -219,7 +222,7 @@ def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a command ``--estimators``, ``--estimator``, ``--model``, ``--no-idnn``, ``--bias-from``,
     ``--threshold`` and ``--strict`` (declared once, in :data:`_ESTIMATOR_OPTIONS`), as one ``run: RunOptions``
     argument."""
-    def build(v: dict[str, Any]) -> Any:
+    def build(v: dict[str, Any]) -> RunOptions:
         from dataclasses import replace
 
         run = run_options(v["estimator_names"], v["plugins"], v["no_idnn"], v["model"], v["bias_from"], v["thresholds"],
@@ -231,7 +234,7 @@ def with_estimator_options(command: Callable[..., Any]) -> Callable[..., Any]:
 
 def run_options(names: Optional[str], plugins: Optional[list[str]], no_idnn: bool = False, model: Optional[Path] = None,
                 bias_from: Optional[str] = None, threshold_pairs: Optional[list[str]] = None,
-                warm_up: str = "30s") -> Any:
+                warm_up: str = "30s") -> RunOptions:
     """The :class:`~ionav_viz.api.RunOptions` the estimator options say (the library checks them)."""
     from ..analysis.events import EventThresholds
     from ..api import RunOptions

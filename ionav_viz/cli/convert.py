@@ -5,13 +5,16 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
 from ..core.errors import InputError, printable
 from . import common as c
 from .app import app
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions
 
 
 @app.command()
@@ -22,7 +25,7 @@ def convert(
                                           "bundled scenario or run name."),
     output: Path = typer.Option(..., "-o", "--output",
                                 help="The .mcap file to write (ROS 2 cdr: Imu, NavSatFix, TwistStamped)."),
-    read: Any = None,  # ReadOptions (c.with_source_options)
+    read: ReadOptions | None = None,  # ReadOptions (c.with_source_options)
     quiet: bool = c.QuietOpt,
 ) -> None:
     """Convert a drive to a ROS 2 MCAP log that opens in Foxglove and 'ros2 bag'."""

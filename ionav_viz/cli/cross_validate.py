@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
 from . import common as c
 from .app import app
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions
 
 
 @app.command("cross-validate")
@@ -38,7 +41,7 @@ def cross_validate(
     as_json: bool = typer.Option(False, "--json", help="Print the folds and their spread as JSON."),
     quiet: bool = c.QuietOpt,
     # ReadOptions: --span, --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
-    read: Any = None,
+    read: ReadOptions | None = None,
 ) -> None:
     """Train K models, each tested on drives (or time blocks of one drive) it never saw; per-fold metrics and spread."""
     from .. import api

@@ -5,13 +5,16 @@ from __future__ import annotations
 import sys
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
 from ..core.errors import InputError
 from . import common as c
 from .app import app, options_named
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions, RunOptions
 
 
 @app.command()
@@ -45,9 +48,9 @@ def evaluate(
     runs: Optional[list[str]] = c.RunsOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
-    run: Any = None,
+    run: RunOptions | None = None,
     # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
-    read: Any = None,
+    read: ReadOptions | None = None,
 ) -> None:
     """Evaluate INS dead reckoning, the IDNN (and your estimators) on consecutive GNSS outages, as the paper does."""
     from .. import api
@@ -124,8 +127,8 @@ def evaluate(
                     for rep in reports.values()) + none_here, end="")
 
 
-def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.PlacementArgs, run: Any, read: Any,
-                      as_json: bool, markdown: bool, quiet: bool, export: Optional[Path]) -> None:
+def _evaluate_lengths(outage: str, drives: Optional[list[str]], placement: c.PlacementArgs, run: RunOptions,
+                      read: ReadOptions, as_json: bool, markdown: bool, quiet: bool, export: Optional[Path]) -> None:
     """``--outage 10s,30s,60s``: each length's report, then the error against outage length (the
     options it cannot take are refused by the caller); ``--export DIR`` writes ``DIR/<length>s``."""
     from .. import api

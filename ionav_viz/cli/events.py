@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 from typer.core import TyperCommand
 
 from . import common as c
 from .app import app, options_named
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions
 
 
 class _EventsCommand(TyperCommand):
@@ -37,7 +40,7 @@ def events(
                                       "where the simulator knows every manoeuvre."),
     thresholds: Optional[list[str]] = c.Thresholds,
     # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
-    read: Any = None,
+    read: ReadOptions | None = None,
 ) -> None:
     """Find hard brakes, roundabouts, sharp/left-right turns, acceleration swings, cruising and the log's GNSS losses.
 

@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import typer
 
 from . import common as c
 from .app import options_named
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions, RunOptions
 
 
 def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: Optional[str], fail_fast: bool,
@@ -30,10 +33,10 @@ def is_fleet_run(drives: Optional[list[str]], workers: Optional[int], cluster: O
     return False
 
 
-def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any,
-                   *, workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool, as_json: bool,
-                   markdown: bool, quiet: bool, refused: dict[str, Any], fleet_rrd: Optional[Path] = None,
-                   runs: Optional[list[str]] = None) -> None:
+def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement: c.PlacementArgs, run: RunOptions,
+                   read: ReadOptions, *, workers: Optional[int], cluster: Optional[str], fail_fast: bool, dry_run: bool,
+                   as_json: bool, markdown: bool, quiet: bool, refused: dict[str, Any],
+                   fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
     """Evaluate the drives as a fleet and print its report (and with ``fleet_rrd`` write its
     overview recording there); exit 3 when some drives failed
     (:data:`ionav_viz.api.fleet.EXIT_SOME_FAILED`), 2 when none could be evaluated."""
@@ -69,8 +72,8 @@ def evaluate_fleet(drives: Optional[list[str]], outage: Optional[str], placement
     _exit_for(report, quiet)
 
 
-def _experiment(drives: list[str], outage_s: Optional[float], placement: c.PlacementArgs, run: Any, read: Any,
-                workers: Optional[int], cluster: Optional[str], runs: Optional[list[str]]) -> Any:
+def _experiment(drives: list[str], outage_s: Optional[float], placement: c.PlacementArgs, run: RunOptions,
+                read: ReadOptions, workers: Optional[int], cluster: Optional[str], runs: Optional[list[str]]) -> Any:
     """The fleet's :class:`~ionav_viz.api.experiment.Experiment`: on ``workers`` processes (default
     every core) or the Dask ``cluster``."""
     from .. import api
@@ -106,7 +109,8 @@ _NOT_REPLAYED = frozenset(("--workers", "--cluster", "--fail-fast", "--dry-run",
                            "--output", "--open", "--connect", "--screenshot", "--force"))
 
 
-def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any, read: Any = None) -> str:
+def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: RunOptions,
+                    read: ReadOptions | None = None) -> str:
     """The options that replay one drive of the fleet the same way: every option the command was
     given (how drives are read, the estimators, the placement, the warm-up, ...) but the fleet's own
     and where its output goes; from the command line as typed, else from what was parsed."""
@@ -150,9 +154,10 @@ def _replay_options(outage: Optional[str], placement: c.PlacementArgs, run: Any,
     return " ".join(parts)
 
 
-def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs, run: Any,
-                 read: Any, *, workers: Optional[int], cluster: Optional[str], fail_fast: bool, quiet: bool,
-                 refused: dict[str, Any], fleet_rrd: Optional[Path] = None, runs: Optional[list[str]] = None) -> None:
+def replay_fleet(drives: list[str], output: Optional[Path], outage: Optional[str], placement: c.PlacementArgs,
+                 run: RunOptions, read: ReadOptions, *, workers: Optional[int], cluster: Optional[str], fail_fast: bool,
+                 quiet: bool, refused: dict[str, Any], fleet_rrd: Optional[Path] = None,
+                 runs: Optional[list[str]] = None) -> None:
     """Replay many drives, one recording each into the folder ``-o`` (default ``recordings``):
     the recordings' paths on stdout, the fleet report on stderr; exit codes as for evaluate."""
     from .. import api

@@ -6,12 +6,15 @@ from __future__ import annotations
 import shlex
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import typer
 
 from . import common as c
 from .app import app, options_named
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions
 
 
 @app.command("outage-log")
@@ -28,7 +31,7 @@ def outage_log(
     warm_up: str = c.WarmUp,
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
-    read: Any = None,  # ReadOptions (c.with_source_options)
+    read: ReadOptions | None = None,  # ReadOptions (c.with_source_options)
 ) -> None:
     """Write a drive's log without GNSS in the outages evaluate would place, and the plan to score an estimate on it."""
     from .. import api

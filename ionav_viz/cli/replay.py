@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
 from ..viz.live import DEFAULT_CONNECT_URL, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 from . import common as c
 from .app import app, log, options_named
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions, RunOptions
 
 #: The --help panel of the options that show the recording.
 VIEWING = "Viewing it (viewer, browser)"
@@ -52,9 +55,9 @@ def replay(
     quiet: bool = c.QuietOpt,
     placement: c.PlacementArgs = None,  # --every, --at, --random, --seed, --on (c.with_placement_options)
     # RunOptions: --estimators, --estimator, --model, --no-idnn, --bias-from, --threshold (c.with_estimator_options)
-    run: Any = None,
+    run: RunOptions | None = None,
     # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
-    read: Any = None,
+    read: ReadOptions | None = None,
     screenshot_dir: Optional[Path] = typer.Option(None, "--screenshot",
                                                   help="Also render review images (every view, at the worst outage) "
                                                        "into this directory."),

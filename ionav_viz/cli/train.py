@@ -7,12 +7,15 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import typer
 
 from . import common as c
 from .app import app
+
+if TYPE_CHECKING:
+    from ..api.options import ReadOptions
 
 
 def training_command(argv: list[str]) -> str:
@@ -130,7 +133,7 @@ def train(
                                                         "Deterministic for a seed on the CPU."),
     bias_from: Optional[str] = c.BiasFromOpt,
     # ReadOptions: --data-root, --yaw-sign, log topics and stamps, --gnss-limit (c.with_source_options)
-    read: Any = None,
+    read: ReadOptions | None = None,
 ) -> None:
     """Train the displacement and orientation-rate networks and write them with their metadata."""
     from .. import api
