@@ -17,6 +17,8 @@ import typer
 
 if TYPE_CHECKING:
     from ..api.options import ReadOptions, RunOptions
+    from ..experiment.outages import Placement
+    from ..experiment.plan_file import FromPlan
 
 # --- options shared by several commands -----------------------------------------------------
 DataRoot = typer.Option(None, "--data-root",
@@ -101,7 +103,7 @@ OutageOrPlanOpt = typer.Option(None, "--outage",
 
 
 def outage_and_placement(outage: Optional[str], plan: Optional[Path],
-                         placement: PlacementArgs) -> tuple[Optional[float], Any]:
+                         placement: PlacementArgs) -> tuple[Optional[float], Placement | FromPlan]:
     """The outage length and placement of a command with ``--plan``: with a plan, its length unless
     --outage is given (the library checks they agree) and its outages (no other placement)."""
     length = duration_s(outage, "--outage") if outage is not None else None
@@ -276,7 +278,7 @@ _PLACEMENT_OPTIONS = (
 class PlacementArgs:
     """The outage placement the options chose, and the option that chose it (for messages)."""
 
-    placement: Any
+    placement: Placement
     option: str
     on: Optional[tuple[str, ...]]  # the --on event types, if given
 
