@@ -123,6 +123,13 @@ EstimatorsOpt = typer.Option(None, "--estimators",
 EstimatorOpt = typer.Option(None, "--estimator",
                             help="Add your own estimator MODULE:NAME (a class or no-argument factory; repeatable). See "
                                  "'Your own estimator' in the README.", show_default=False)
+EpochsDispOpt = typer.Option(None, "--epochs-disp",
+                             help="Epochs of the displacement model (default: Table 5's 40; 100 with --from-model).",
+                             show_default=False)
+EpochsYawOpt = typer.Option(None, "--epochs-yaw",
+                            help="Epochs of the orientation-rate model (default: Table 5's 60; 100 with --from-model).",
+                            show_default=False)
+TrainSeedOpt = typer.Option(0, "--seed", help="Random seed of the training (deterministic on the CPU).")
 BiasFromOpt = typer.Option(None, "--bias-from",
                            help="Stationary drive for sensor biases (default: the drive's own stationary stretches).",
                            show_default=False)

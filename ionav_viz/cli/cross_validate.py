@@ -27,13 +27,9 @@ def cross_validate(
                                              help="Fine-tune this model in every fold (a model directory, or "
                                                   "'shipped') instead of training from random weights.",
                                              show_default=False),
-    epochs_disp: Optional[int] = typer.Option(None, "--epochs-disp",
-                                              help="Epochs of the displacement model (default: 40; 100 with "
-                                                   "--from-model).", show_default=False),
-    epochs_yaw: Optional[int] = typer.Option(None, "--epochs-yaw",
-                                             help="Epochs of the orientation-rate model (default: 60; 100 with "
-                                                  "--from-model).", show_default=False),
-    seed: int = typer.Option(0, "--seed", help="Random seed of the training (deterministic on the CPU)."),
+    epochs_disp: Optional[int] = c.EpochsDispOpt,
+    epochs_yaw: Optional[int] = c.EpochsYawOpt,
+    seed: int = c.TrainSeedOpt,
     output: Optional[Path] = typer.Option(None, "-o", "--output",
                                           help="An existing folder to write each fold's model into (fold-1, "
                                                "fold-2, ...).", show_default=False),

@@ -104,12 +104,8 @@ def train(
                                    "10 = 1 s, 20 = 2 s; 14 as the shipped model)."),
     steps_yaw: int = typer.Option(10, "--steps-yaw",
                                   help="Time steps of gyro yaw rate per orientation-rate input (Table 3)."),
-    epochs_disp: Optional[int] = typer.Option(None, "--epochs-disp",
-                                              help="Epochs of the displacement model (default: Table 5's 40; 100 with "
-                                                   "--from-model).", show_default=False),
-    epochs_yaw: Optional[int] = typer.Option(None, "--epochs-yaw",
-                                             help="Epochs of the orientation-rate model (default: Table 5's 60; 100 "
-                                                  "with --from-model).", show_default=False),
+    epochs_disp: Optional[int] = c.EpochsDispOpt,
+    epochs_yaw: Optional[int] = c.EpochsYawOpt,
     from_model: Optional[str] = typer.Option(None, "--from-model",
                                               help="Fine-tune this model (a model directory, or 'shipped'): its "
                                                    "weights and normalisation are the start; learning rates / 2, "
@@ -126,7 +122,7 @@ def train(
     inputs: str = typer.Option("calibrated", "--inputs",
                                help="calibrated (shipped): samples corrected by the GNSS-aided INS at the outage "
                                     "start; plain: by the standstill biases (the paper)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (training is deterministic on the CPU)."),
+    seed: int = c.TrainSeedOpt,
     quiet: bool = typer.Option(False, "--quiet", "-q",
                                help="No progress (a bar on a terminal, else a line every few seconds)."),
     device: str = typer.Option("auto", "--device", help="auto: a GPU when torch sees one, else the CPU; cpu; cuda. "
