@@ -129,8 +129,19 @@ def worse_beyond_spread(baseline: np.ndarray, candidate: np.ndarray) -> bool:
     return bool(np.percentile(mc - mb, 2.5) > 0)
 
 
-@pytest.mark.parametrize(("log", "length"), [(log, length) for log in sorted(CORPUS["logs"]) for length in (10, 30)
-                                             if str(length) in CORPUS["logs"][log]["envelope"]])
+#: The second phone drive, held out of every choice made on the first (added 2026-11-29), where the
+#: shipped model is worse than the INS DR beyond the spread (docs/real-imu-logs.md, "The held-out phone drive").
+HELD_OUT_MISSES = {
+    ("phone_flat_meszdav_q2", 10): "held-out phone, 10 s: final error 11.3 % against the INS DR's 10.0 %",
+    ("phone_flat_meszdav_q2", 30): "held-out phone, 30 s: CRSE 98.4 m against the INS DR's 54.1 m (the network runs "
+                                   "away on 4 of 7 outages)",
+}
+
+
+@pytest.mark.parametrize(("log", "length"), [
+    pytest.param(log, length, marks=pytest.mark.xfail(strict=True, reason=HELD_OUT_MISSES[log, length]))
+    if (log, length) in HELD_OUT_MISSES else (log, length)
+    for log in sorted(CORPUS["logs"]) for length in (10, 30) if str(length) in CORPUS["logs"][log]["envelope"]])
 def test_untuned_the_shipped_idnn_is_no_worse_than_the_ins_dr_on_each_corpus_log(log, length):
     """Issue 62 point 2 on the corpus: the shipped model, not fine-tuned, IMU only, on 10 and 30 s
     outages tiled over each log: neither its displacement CRSE nor its final error (% of the distance)

@@ -90,17 +90,25 @@ LOGS = sorted(CORPUS["logs"])
 #: 29 s to fine-tune on: no validation outage fits after the 30 s warm-up, so the parent is kept,
 #: and the parent is above the INS DR on the second half's 2 outages (docs/real-imu-logs.md).
 SHORT = {"dash_comma2k19"}
+#: The second phone drive, held out of every choice made on the first (added 2026-11-29): issue 62 points 1
+#: and 3 fail there (docs/real-imu-logs.md, "The held-out phone drive").
+HELD_OUT_PHONE = "phone_flat_meszdav_q2"
+HELD_OUT_MISSES = {
+    "criterion": "held-out phone: fine-tuned 11.83 m against the INS DR's 11.02 m on the second half (issue 62 point 1)",
+    "ellipse": "held-out phone: 77 % of 13 second-half outages inside the 95 % ellipse, ANEES 1.9 (issue 62 point 3)",
+}
 
 
-@pytest.mark.parametrize(
-    "log",
-    [
-        pytest.param(log, marks=pytest.mark.xfail(strict=True, reason="29 s of drive validates nothing"))
-        if log in SHORT
-        else log
-        for log in LOGS
-    ],
-)
+def expected(log: str, check: str):
+    """``log`` as a parameter, an expected failure (strict) where this check fails on it, said why."""
+    if log in SHORT and check == "criterion":
+        return pytest.param(log, marks=pytest.mark.xfail(strict=True, reason="29 s of drive validates nothing"))
+    if log == HELD_OUT_PHONE:
+        return pytest.param(log, marks=pytest.mark.xfail(strict=True, reason=HELD_OUT_MISSES[check]))
+    return log
+
+
+@pytest.mark.parametrize("log", [expected(log, "criterion") for log in LOGS])
 def test_fine_tuned_on_the_first_half_beats_the_ins_dr_and_never_its_parent_on_the_second(log, tuned):
     ins, parent, fine, _, _ = tuned(log)
     assert fine.mean() < ins.mean(), f"{log}: fine-tuned {fine.mean():.2f} m, INS DR {ins.mean():.2f} m"
@@ -146,7 +154,7 @@ def test_where_the_parent_beats_the_ins_dr_on_the_first_half_no_share_is_taken(t
     assert len(record["n_outages"]) == 5 and sum(record["n_outages"]) > 0
 
 
-@pytest.mark.parametrize("log", LOGS)
+@pytest.mark.parametrize("log", [expected(log, "ellipse") for log in LOGS])
 def test_every_fine_tuned_model_has_an_uncertainty_and_its_ellipse_holds_the_second_half(log, tuned):
     """Issue 62 point 3 on the corpus: fine-tuned on half a log (too short to fit an uncertainty of
     its own), the model keeps its parent's (the phone's and the dash's had none: no covariance at

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import functools
 import hashlib
 import math
 import os
@@ -86,6 +87,16 @@ SOURCES = {
             "data/raw_data_train/rsq_q1/00/Accelerometer.csv": "99c88ddaeec44777eac37388ef43e88f233f0e4e",
             "data/raw_data_train/rsq_q1/00/Gyroscope.csv": "86de0cece38cef37ee4919752c4f8950829cb48a",
             "data/raw_data_train/rsq_q1/00/Location.csv": "43649920122ba242e1c11867bf0192b92ff6dd2c",
+        },
+    },
+    "phone_flat_meszdav_rsq_q2_01": {
+        "repo": "meszdav/road-surface-quality",
+        "commit": "4512ab613564d725380b8fa8f57f07c1c1aa00b7",
+        "files": {
+            "LICENSE": "316be2e9f11662553114277667d0c0b57421579a",
+            "data/raw_data_train/rsq_q2/01/Accelerometer.csv": "4e451e956bc3167140e1c2b329db3996d9737086",
+            "data/raw_data_train/rsq_q2/01/Gyroscope.csv": "38fd2aa3a09b556bebcf1f172c8c3c23b9a49363",
+            "data/raw_data_train/rsq_q2/01/Location.csv": "a85ee14f9705c3a50bcfe3ff09d23d23e6282983",
         },
     },
     "robot_husky_robot_localization_test1": {
@@ -337,10 +348,12 @@ MESZDAV_T0_UNIX_S = dt.datetime(2020, 9, 1, 8, 0, tzinfo=dt.UTC).timestamp()
 MESZDAV_KEEP_S = 330.0
 
 
-def phone_flat_meszdav(root: Path, whole: bool = False) -> list:
-    """meszdav/road-surface-quality's ``rsq_q1/00``: an iPhone lying flat, phyphox app, 100 Hz
-    accelerometer (with gravity) and gyro, iOS location at 1 Hz, Hungary 2020; its first
-    :data:`MESZDAV_KEEP_S` seconds (of 632).
+def phone_flat_meszdav(root: Path, whole: bool = False, log: str = "phone_flat_meszdav_rsq_q1_00",
+                       folder: str = "data/raw_data_train/rsq_q1/00/") -> list:
+    """meszdav/road-surface-quality's ``rsq_q1/00`` (or another phyphox ``folder`` of the same
+    repository, as ``log``): an iPhone lying flat, phyphox app, 100 Hz accelerometer (with gravity)
+    and gyro, iOS location at 1 Hz, Hungary 2020; its first :data:`MESZDAV_KEEP_S` seconds (of 632;
+    ``rsq_q2/01``: of 374).
 
     phyphox stamps the accelerometer and the gyro apart (both 100 Hz, 0-5 ms apart): each
     accelerometer sample is paired with the gyro sample nearest in time (none resampled), the
@@ -348,9 +361,6 @@ def phone_flat_meszdav(root: Path, whole: bool = False) -> list:
     recorded (iOS: x right, y forward along the phone, z up out of the screen). Location: the
     horizontal accuracy as east and north sigma, the vertical as up (phyphox labels its unit
     degrees; it is metres); speed and course where iOS gives them (not -1)."""
-    log = "phone_flat_meszdav_rsq_q1_00"
-    folder = "data/raw_data_train/rsq_q1/00/"
-
     def table(name: str) -> np.ndarray:
         return np.loadtxt(original(root, log, folder + name), delimiter=",", skiprows=1, dtype=float)
 
@@ -428,7 +438,9 @@ def robot_husky(root: Path, whole: bool = False) -> list:
 
 
 BUILDERS = {"roof_mems_rtk_gnss_imu_drive0708": roof_mems_rtk, "dash_comma2k19_example1": dash_comma2k19,
-            "phone_flat_meszdav_rsq_q1_00": phone_flat_meszdav, "robot_husky_robot_localization_test1": robot_husky}
+            "phone_flat_meszdav_rsq_q1_00": phone_flat_meszdav, "robot_husky_robot_localization_test1": robot_husky,
+            "phone_flat_meszdav_rsq_q2_01": functools.partial(phone_flat_meszdav, log="phone_flat_meszdav_rsq_q2_01",
+                                                              folder="data/raw_data_train/rsq_q2/01/")}
 
 
 def main(argv: list[str] | None = None) -> int:
