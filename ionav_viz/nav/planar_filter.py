@@ -309,17 +309,21 @@ def _restart(x, P, inp, model, k, accel_offset, gyro_bias):  # pragma: no cover 
 def _forward_kernel(inp, model, accel_offset, gyro_bias, log):  # pragma: no cover - compiled
     """The pass over the drive: at each window start its fix (position, speed, and the course when
     faster than FILTER_COURSE_MIN_SPEED_MPS), then the window's propagation and the vehicle speed at
-    its end. Returns the states and covariances at the window starts (after their fix) and the
-    offset's slow part there."""
+    its end. Each segment's state starts (again) at its first usable fix. Returns the states and
+    covariances at the window starts (after their fix) and the offset's slow part there."""
     nw = len(inp.segment)
     xs, Ps, slow = np.zeros((nw, N_STATES)), np.zeros((nw, N_STATES, N_STATES)), np.zeros(nw)
     x, P = np.zeros(N_STATES), np.zeros((N_STATES, N_STATES))
     J = np.zeros((N_STATES, N_STATES))
     H = (np.zeros(2, dtype=np.int64), np.zeros(2))
     mean = accel_offset
+    started = False  # whether this segment has had a usable fix: its state starts at the first
     for k in range(nw):
-        if k == 0 or inp.segment[k] != inp.segment[k - 1]:
+        # a phone's first seconds hold a stale position and course: a state started from them and
+        # corrected at the first usable fix (a course 156 deg off, at 2 deg) learns a gyro bias of 11 deg/s
+        if k == 0 or inp.segment[k] != inp.segment[k - 1] or (not started and inp.good[k]):
             _restart(x, P, inp, model, k, accel_offset, gyro_bias)
+            started = bool(inp.good[k])
         elif inp.good[k]:
             r_pos = inp.sigma[k] ** 2
             _apply(P, x, H, gnss_state(x, E, inp.e[k], r_pos, H), log, k, E)
