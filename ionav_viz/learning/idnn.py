@@ -626,8 +626,10 @@ class _PseudoRuns:
 
     def choose(self, at: np.ndarray) -> tuple[np.ndarray, ...]:
         """For outages starting at windows ``at``, from the pseudo-outages that ended by then
-        (:func:`~ionav_viz.nav.history_check.past_choice`): the share's index, each share's summed
-        error, the count behind, whether the gyro's yaw rate, and the two yaw candidates' summed error."""
+        (:func:`~ionav_viz.nav.history_check.past_choice`; each share's record shrunk toward
+        :func:`arbiter_prior_ratio`, the gyro's toward :data:`ARBITER_GYRO_PRIOR_RATIO`): the share's
+        index, each share's summed error, the count behind, whether the gyro's yaw rate, and the two yaw
+        candidates' summed error."""
         ends = self.starts + self.n_windows
         choice, sums, count = history_check.past_choice(
             ends, self.disp_err, at, np.array([arbiter_prior_ratio(b) for b in ARBITER_INS_SHARES]))
