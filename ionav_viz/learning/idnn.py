@@ -53,7 +53,7 @@ import json
 import logging
 import math
 import stat
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -637,15 +637,25 @@ class _PseudoRuns:
                                                             np.array([1.0, ARBITER_GYRO_PRIOR_RATIO]))
         return choice, sums, count, yaw_choice == 1, yaw_sums
 
-    def as_chosen(self, picked: tuple[np.ndarray, ...] | None) -> _PseudoRuns:
+    def as_chosen(self, picked: tuple[np.ndarray, ...] | None) -> _Judged:
         """These pseudo-outages with ``picked`` (:func:`_choices` at :attr:`starts`) applied: the
-        estimate an outage starting at each would have got, in :attr:`net_m`/:attr:`net_yaw_radps`."""
+        estimate an outage starting at each would have got (the network's where nothing was picked)."""
         if picked is None:
-            return self
+            return _Judged(self.starts, self.net_m, self.net_yaw_radps)
         choice, _, gyro, _, _ = picked
         share = np.asarray(ARBITER_INS_SHARES)[choice][:, None]
-        return replace(self, net_m=(1.0 - share) * self.net_m + share * self.ins_m,
-                       net_yaw_radps=np.where(gyro[:, None], self.ins_yaw_radps, self.net_yaw_radps))
+        return _Judged(self.starts, (1.0 - share) * self.net_m + share * self.ins_m,
+                       np.where(gyro[:, None], self.ins_yaw_radps, self.net_yaw_radps))
+
+
+@dataclass(frozen=True)
+class _Judged:
+    """Pseudo-outages (first windows ``starts``) estimated as the IDNN's outages are, with its history
+    arbiter's choices: displacement (m) and yaw rate (rad/s, CCW +) per window ``(k, n)``."""
+
+    starts: np.ndarray
+    disp_m: np.ndarray
+    yaw_radps: np.ndarray
 
 
 def _pseudo_runs(model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
@@ -753,7 +763,7 @@ class IdnnEstimator:
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
     def _arbitrate(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                   disp_m: np.ndarray, yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray, _PseudoRuns | None]:
+                   disp_m: np.ndarray, yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Judged | None]:
         """Per outage, the model's displacement (m, ``(m, n)``) with a share of the INS DR's on the same
         samples (:data:`ARBITER_INS_SHARES`), and its yaw rate (rad/s) or the INS DR's (the gyro's),
         where the drive's own past says so (:func:`_choices`), and the pseudo-outages of the outage's
@@ -827,7 +837,7 @@ class IdnnEstimator:
         return widen
 
     def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                       widen, judged: _PseudoRuns | None = None) -> np.ndarray:
+                       widen, judged: _Judged | None = None) -> np.ndarray:
         """Per outage, how much to widen the learned covariance (``widen``-ed out of the model's
         domain): the model's NEES on pseudo-outages over the GNSS before it (:mod:`ionav_viz.nav.history_check`),
         each run as the outages are (``judged``: the arbiter's choice on each; None: the network's own)."""
@@ -836,7 +846,7 @@ class IdnnEstimator:
         def run(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             idx = starts[:, None] + np.arange(n)[None, :]
             if judged is not None and np.array_equal(judged.starts, starts):
-                disp, yaw = judged.net_m, judged.net_yaw_radps
+                disp, yaw = judged.disp_m, judged.yaw_radps
             else:
                 disp, yaw = model.predict(w, starts, n, inputs.bias, cal, inputs.still_grid[idx])
             cov = model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
