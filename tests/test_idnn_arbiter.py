@@ -130,11 +130,13 @@ def worse_beyond_spread(baseline: np.ndarray, candidate: np.ndarray) -> bool:
 
 
 #: The second phone drive, held out of every choice made on the first (added 2026-11-29), where the
-#: shipped model is worse than the INS DR beyond the spread at 30 s (docs/real-imu-logs.md, "The held-out
-#: phone drive"; at 10 s too, 11.3 against 10.0 %, until the filter's calibration started at the first usable fix).
+#: shipped model is worse than the INS DR beyond the spread (docs/real-imu-logs.md, "The held-out phone
+#: drive"). At 10 s since its receiver's speed glitches are flagged (no outage starts on them).
 HELD_OUT_MISSES = {
-    ("phone_flat_meszdav_q2", 30): "held-out phone, 30 s: CRSE 98.1 m against the INS DR's 54.1 m (the network runs "
-                                   "away on 4 of 7 outages)",
+    ("phone_flat_meszdav_q2", 10): "held-out phone, 10 s: final error 9.0 % of the distance against the INS DR's "
+                                   "7.6 % (CRSE 9.5 against 8.4 m, within the spread)",
+    ("phone_flat_meszdav_q2", 30): "held-out phone, 30 s: CRSE 75.5 m against the INS DR's 33.6 m (its network runs "
+                                   "away at low speed)",
 }
 
 

@@ -53,7 +53,8 @@ MIN_DRIVING_S = 60.0
 USE_ABOVE_S = 0.2
 #: The fix faults that break a speed's time series (a gap, a frozen or jumping receiver); a coarse
 #: fix's speed (few satellites, a poor reported accuracy: a phone's 6-8 m) still shows when it changed.
-SPEED_FAULTS = GnssFault.NO_FIX | GnssFault.NEAR_ZERO | GnssFault.FROZEN | GnssFault.JUMP
+SPEED_FAULTS = (GnssFault.NO_FIX | GnssFault.NEAR_ZERO | GnssFault.FROZEN | GnssFault.JUMP
+                | GnssFault.SPEED_STEP)
 #: The forward accelerometer's offset from the receiver's speed rate is its mean over this (s, trailing).
 OFFSET_WINDOW_S = 30.0
 

@@ -30,6 +30,13 @@ between consecutive samples):
   explain: ``d > jump_speed_factor * max(v_i, v_i+1) * dt + jump_margin_m``. A single sample
   jumping away and back is flagged alone; a step (the track jumps once, e.g. when the receiver
   settles after a loss) flags both samples around it.
+* ``speed-step``: from one sample not already known bad to another ``speed_step_span_s`` later, the
+  speed changes by more than the accelerometer's longitudinal specific force integrated over the
+  same time, give or take ``speed_step_mps`` (a phone's location service reporting 1.5 m/s for a
+  second of a drive at 9 m/s). Every sample of such a stretch is flagged: the glitch and the
+  samples interpolated to and from it. Only where the drive has a measured longitudinal
+  acceleration; 5 m/s in 1 s is twice what a hard brake leaves unexplained on a receiver that
+  smooths its speed by a second (a phone's, measured on the corpus logs).
 """
 
 from __future__ import annotations
@@ -53,6 +60,7 @@ class GnssFault(enum.IntFlag):
     NEAR_ZERO = 8
     FROZEN = 16
     JUMP = 32
+    SPEED_STEP = 64
 
 
 #: Each fault bit's name in reports, JSON and the recording.
@@ -63,6 +71,7 @@ FAULT_NAMES = {
     GnssFault.NEAR_ZERO: "near-zero",
     GnssFault.FROZEN: "frozen",
     GnssFault.JUMP: "jump",
+    GnssFault.SPEED_STEP: "speed-step",
 }
 
 
@@ -77,6 +86,8 @@ class GnssLimits:
     moving_mps: float = 1.0
     jump_speed_factor: float = 1.5
     jump_margin_m: float = 3.0
+    speed_step_mps: float = 5.0
+    speed_step_span_s: float = 1.0
 
     def __post_init__(self) -> None:
         check_ranges(self, _LIMIT_RANGES, "GNSS limit", "gnss_limits")
@@ -89,6 +100,7 @@ class GnssLimits:
 _LIMIT_RANGES = {
     "min_satellites": (0, 64), "max_sigma_m": (0.001, 1e4), "near_zero_deg": (0.0, 10.0), "frozen_min_s": (0.05, 60.0),
     "moving_mps": (0.0, 50.0), "jump_speed_factor": (1.0, 10.0), "jump_margin_m": (0.0, 1e4),
+    "speed_step_mps": (0.1, 1e3), "speed_step_span_s": (0.05, 60.0),
 }
 
 
@@ -139,7 +151,7 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
                 limits: GnssLimits = GnssLimits(), accel_mps2: np.ndarray | None = None) -> np.ndarray:
     """Fault mask (uint16, 0 = good) of each sample; see the module docstring for the checks.
     ``receiver`` (what the source says of each fix) and ``accel_mps2`` (longitudinal specific
-    force, for the frozen check) are optional."""
+    force (m/s^2), for the frozen and speed-step checks) are optional."""
     receiver = receiver if receiver is not None else ReceiverQuality()
     n_satellites, sigma_m, has_fix = receiver.n_satellites, receiver.sigma_m, receiver.has_fix
     n = len(t_s)
@@ -173,6 +185,8 @@ def assess_gnss(t_s: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray, speed
     flagged[:-1] |= step
     flagged[1:] |= step
     fault[flagged] |= np.uint16(GnssFault.JUMP)
+    if accel_mps2 is not None and np.ptp(accel_mps2) > 0:  # a constant is no accelerometer
+        fault[_speed_steps(t_s, speed_mps, accel_mps2, fault == 0, limits)] |= np.uint16(GnssFault.SPEED_STEP)
     return fault
 
 
@@ -202,3 +216,20 @@ def _frozen(t_s: np.ndarray, step_m: np.ndarray, speed: np.ndarray, limits: Gnss
                        - np.bincount(last[held] + 1, minlength=len(t_s) + 1))
     fault[run_of[: len(t_s)] > 0] = np.uint16(GnssFault.FROZEN)
     return fault
+
+
+def _speed_steps(t_s: np.ndarray, speed_mps: np.ndarray, accel_mps2: np.ndarray, good: np.ndarray,
+                 limits: GnssLimits) -> np.ndarray:
+    """Whether each sample lies in a stretch of ``speed_step_span_s`` from one ``good`` sample to
+    another over which the speed changes by more than ``speed_step_mps`` beyond the integrated
+    longitudinal specific force (both ends included; a receiver's speed of 0 in a loss, already
+    flagged, is no step from the fixes around it). A gap in the samples longer than the span is
+    never inside a stretch."""
+    dv_imu = np.concatenate([[0.0], np.cumsum(0.5 * (accel_mps2[1:] + accel_mps2[:-1]) * np.diff(t_s))])
+    end = np.arange(len(t_s))
+    start = np.searchsorted(t_s, t_s - limits.speed_step_span_s)
+    unexplained = (speed_mps[end] - speed_mps[start]) - (dv_imu[end] - dv_imu[start])
+    bad = (np.abs(unexplained) > limits.speed_step_mps) & good[start] & good[end]
+    # every sample from start to end of each bad stretch: +1 at its start, -1 after its end
+    cover = np.cumsum(np.bincount(start[bad], minlength=len(t_s) + 1) - np.bincount(end[bad] + 1, minlength=len(t_s) + 1))
+    return cover[: len(t_s)] > 0
