@@ -217,7 +217,8 @@ def _turn(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
 
 
 def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz=5, odom_hz=50, seed=0,
-                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4), duration_s=None, reference_frame=None):
+                    gnss_sigma_m=1.0, lever_arm_m=(0.5, -0.3, 0.4), duration_s=None, reference_frame=None,
+                    velocity_gap_s=None):
     """``drive`` (a simulated one) as a real car's ROS 2 MCAP looks: a 6-axis IMU at ``imu_hz`` in
     its own frame ``imu_link``, turned by ``mount_deg`` (roll, pitch, yaw of the IMU in the body
     frame) and offset by ``lever_arm_m`` from the body origin (the centripetal acceleration it adds
@@ -228,7 +229,9 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
     the reference is also on ``/reference/odom``, an Odometry in the local frame ``map`` whose
     origin is at ``lat0, lon0`` and whose x axis points ``yaw_deg`` counter-clockwise from east
     (east and north from the geodesic's distance and azimuth: the azimuthal equidistant plane).
-    Written with mcap's writer, not with ionav-viz's converter."""
+    ``velocity_gap_s`` ``(t0, t1)``: no velocity message in that span of drive time, the fixes going
+    on (a phone's location service losing its course). Written with mcap's writer, not with
+    ionav-viz's converter."""
     rng = np.random.default_rng(seed)
     t0 = T0_S - T0_S % 86400 + drive.start_time_of_day_s
     end = float(drive.t_s[-1]) if duration_s is None else min(float(drive.t_s[-1]), duration_s)
@@ -251,6 +254,7 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
     o_speed = np.interp(o_t, drive.t_s, drive.columns["speed_can_mps"])
     cov = [gnss_sigma_m**2 if k in (0, 4) else (2 * gnss_sigma_m) ** 2 if k == 8 else 0.0 for k in range(9)]
     n_g = len(g_t)
+    vel = np.ones(n_g, dtype=bool) if velocity_gap_s is None else (g_t < velocity_gap_s[0]) | (g_t > velocity_gap_s[1])
     keep = drive.t_s < end
     t_ref = np.asarray(drive.t_s[keep], dtype=float)
     streams = [
@@ -258,8 +262,9 @@ def write_realistic(drive, path, mount_deg=(2.0, -3.0, 4.0), imu_hz=100, gnss_hz
          _imu_fields(t0 + t_imu, "imu_link", gyro, accel, [4e-6 if k % 4 == 0 else 0.0 for k in range(9)],
                      [2.5e-3 if k % 4 == 0 else 0.0 for k in range(9)])),
         ("/gps/fix", "sensor_msgs/msg/NavSatFix", g_t, _fix_fields(t0 + g_t, "gps", lat, lon, cov=cov, cov_type=2)),
-        ("/gps/vel", "geometry_msgs/msg/TwistStamped", g_t,
-         [*_header(t0 + g_t, "gps"), ("f8", np.c_[g_speed * np.sin(course), g_speed * np.cos(course), np.zeros(n_g)]),
+        ("/gps/vel", "geometry_msgs/msg/TwistStamped", g_t[vel],
+         [*_header(t0 + g_t[vel], "gps"),
+          ("f8", np.c_[g_speed * np.sin(course), g_speed * np.cos(course), np.zeros(n_g)][vel]),
           ("f8", np.zeros((1, 3)))]),
         ("/wheel/odom", "nav_msgs/msg/Odometry", o_t,
          _odometry_fields(t0 + o_t, "odom", "base_link", np.zeros((1, 3)),

@@ -77,6 +77,26 @@ def test_a_poor_receiver_is_named_not_the_outage_length(tmp_path):
         assert "the receiver reports 12.0 m (median); --gnss-limit max_sigma_m=12" in error, error  # the limit that takes them
 
 
+def test_a_gap_in_the_receivers_velocity_is_no_fix_not_a_line_drawn_across_it(tmp_path):
+    """The receiver's velocity stops for 8 s (40.1-48.0 s; fixes at 5 Hz go on): the speed there would
+    be a line drawn from the last velocity to the next, which no receiver said. Those samples are
+    the receiver's no-fix (the filters do not use it there); every other sample is as before."""
+    from ionav_viz.core.gnss_quality import GnssFault
+
+    drive = iv.load_drive("hard-brake")
+    read = iv.ReadOptions(log=iv.LogOptions(gnss_topic="/gps/fix", truth_topic="/reference/fix"))
+    whole = iv.load_drive(str(write_realistic(drive, tmp_path / "car.mcap", duration_s=90.0)), read)
+    gapped = iv.load_drive(str(write_realistic(drive, tmp_path / "gap.mcap", duration_s=90.0, velocity_gap_s=(40.1, 48.0))),
+                           read)
+    # the last velocity before the gap is at 40.0 s and the next at 48.2 s (5 Hz): 8.2 s apart; as
+    # with fixes after a gap, the first after it is counted in the gap
+    inside = (gapped.t_s > 40.0 + 1e-3) & (gapped.t_s < 48.2 + 1e-3)
+    lost = (gapped.receiver_fault & GnssFault.NO_FIX) != 0
+    assert np.array_equal(lost, inside), (gapped.t_s[lost & ~inside], gapped.t_s[inside & ~lost])
+    assert np.array_equal(gapped.receiver_fault[~inside], whole.receiver_fault[~inside])
+    assert np.array_equal(gapped.as_received().speed_mps[~inside], whole.as_received().speed_mps[~inside])
+
+
 def test_a_phone_without_a_reference_is_scored_with_the_limit_the_error_names(tmp_path):
     """A phone reports 8 m for every fix: without a reference nothing is trustworthy truth, and the
     error names the --gnss-limit that scores against its own fixes; with it, the log is scored."""

@@ -15,7 +15,8 @@ Checks, per sample ``i`` (positions compared in a local flat frame, fine for the
 between consecutive samples):
 
 * ``no-fix``: satellite count 0 (IO-VNBD's logger keeps its last numbers during a loss), or no
-  fix at all at that time (an MCAP log whose IMU goes on through a gap between fixes).
+  fix at all at that time (an MCAP log whose IMU goes on through a gap between fixes, or between
+  the receiver's velocity messages while its fixes go on).
 * ``few-satellites``: satellite count below ``min_satellites``.
 * ``poor-accuracy``: reported horizontal standard deviation above ``max_sigma_m``.
 * ``near-zero``: latitude and longitude both within ``near_zero_deg`` of 0 (a receiver's

@@ -357,8 +357,13 @@ def _fix_quality_columns(grid: _Grid, fitted: bool, streams: LogStreams) -> dict
         columns["height_m"] = grid.alt_m
     if len(grid.sigma_m) and np.isfinite(grid.sigma_m).all():  # the receiver's own accuracy, when every fix has one
         columns["gnss_sigma_m"] = grid.sigma_m
-    if not grid.has_fix.all():
-        columns["gnss_fix"] = grid.has_fix.astype(float)
+    has_fix = grid.has_fix
+    if streams.speed is not None and len(streams.speed) >= 2:
+        # inside a gap of the receiver's velocity (its fixes going on) the speed is a line drawn across
+        # the gap: no fix to score or to start an outage from
+        has_fix = has_fix & covered(t, streams.speed[:, 0], SAME_INSTANT_S)
+    if not has_fix.all():
+        columns["gnss_fix"] = has_fix.astype(float)
     if fitted:  # the receiver's speed and course are the positions' (Drive: gnss_speed_fitted)
         columns["gnss_speed_fitted"] = np.ones(len(t))
     vehicle_speed = streams.vehicle_speed
