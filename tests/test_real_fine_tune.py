@@ -94,8 +94,8 @@ SHORT = {"dash_comma2k19"}
 #: and 3 fail there (docs/real-imu-logs.md, "The held-out phone drive").
 HELD_OUT_PHONE = "phone_flat_meszdav_q2"
 HELD_OUT_MISSES = {
-    "criterion": "held-out phone: fine-tuned 13.70 m against the INS DR's 10.15 m on the second half (issue 62 point 1)",
-    "ellipse": "held-out phone: 67 % of 12 second-half outages inside the 95 % ellipse, ANEES 2.9 (issue 62 point 3)",
+    "criterion": "held-out phone: fine-tuned 14.27 m against the INS DR's 10.15 m on the second half (issue 62 point 1)",
+    "ellipse": "held-out phone: 67 % of 12 second-half outages inside the 95 % ellipse, ANEES 3.5 (issue 62 point 3)",
 }
 
 

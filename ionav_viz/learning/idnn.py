@@ -658,8 +658,81 @@ class _Judged:
     yaw_radps: np.ndarray
 
 
-def _pseudo_runs(model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                 n: int) -> _PseudoRuns | None:
+class _Network:
+    """The model's network run on outages or pseudo-outages of a drive, its inputs calibrated by the
+    filter (``cal``) with or without the road grade part of the accelerometer's offset, per start as
+    the pseudo-outages of :data:`history_check.SHORT_WINDOWS` windows before it say
+    (:func:`~ionav_viz.nav.history_check.past_choice` under :data:`GRADE_PRIOR_RATIO`; the grade, as
+    the model was trained, until :data:`history_check.ENOUGH` of them lie behind). The filter's grade
+    follows the receiver's speed: worth its noise with a good receiver, not with a phone's
+    (docs/real-imu-logs.md, "The held-out phone drive"). ``choose_grade`` False: always the grade."""
+
+    def __init__(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
+                 choose_grade: bool) -> None:
+        self.model, self.inputs, self.cal = model, inputs, cal
+        self.flat_cal = None
+        self.ends = self.err = None
+        if cal is None or not choose_grade:
+            return
+        import dataclasses
+
+        w, n = inputs.windows, history_check.SHORT_WINDOWS
+        pseudo = history_check.pseudo_starts_before(w, n, np.asarray(inputs.starts, dtype=int))
+        if not len(pseudo):
+            return
+        self.flat_cal = dataclasses.replace(cal, accel_grade_mps2=np.zeros_like(cal.accel_grade_mps2))
+        idx = pseudo[:, None] + np.arange(n)[None, :]
+        truth = w.gnss_disp_m[idx]
+        still = inputs.still_grid[idx]
+        self.err = np.stack([np.abs(model.predict(w, pseudo, n, inputs.bias, c, still)[0] - truth).sum(axis=1)
+                             for c in (cal, self.flat_cal)])
+        self.ends = pseudo + n
+
+    def flat_at(self, starts: np.ndarray) -> np.ndarray:
+        """Whether the outages starting at windows ``starts`` leave the grade out."""
+        return self._choice(starts)[0] == 1
+
+    def _choice(self, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per start, 1 where the grade is left out, and the two candidates' summed CRSE (m) behind it.
+        Judged on ``log(1 + CRSE)``: which is better pseudo-outage by pseudo-outage, not one
+        pseudo-outage's large error (a roof log's 41 m against 14 m, over a grade the RTK-fed
+        filter had right everywhere else)."""
+        if self.ends is None:
+            return np.zeros(len(starts), dtype=int), np.zeros((2, len(starts)))
+        choice, _, count = history_check.past_choice(self.ends, np.log1p(self.err), starts,
+                                                     np.array([1.0, GRADE_PRIOR_RATIO]))
+        choice = np.where(count >= history_check.ENOUGH, choice, 0)
+        return choice, history_check.past_sums(self.ends, self.err, starts)[0]
+
+    def describe(self, starts: np.ndarray) -> str:
+        """What was chosen for the outages at ``starts``, for the arbiter's note ("" where nothing)."""
+        choice, sums = self._choice(starts)
+        flat = choice == 1
+        if not flat.any():
+            return ""
+        lower = 1.0 - np.sum(sums[1][flat]) / max(float(np.sum(sums[0][flat])), 1e-9)
+        return (f"the inputs without the filter's road grade on {_outages(int(flat.sum()))} (their past "
+                f"{history_check.SHORT_WINDOWS} s pseudo-outages' displacement CRSE {100.0 * lower:.0f} % lower "
+                "without it)")
+
+    def __call__(self, starts: np.ndarray, n: int, still: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Displacement (m) and yaw rate (rad/s) per window ``(m, n)`` of outages at ``starts``."""
+        w, bias = self.inputs.windows, self.inputs.bias
+        disp, yaw = self.model.predict(w, starts, n, bias, self.cal, still)
+        flat = self.flat_at(starts)
+        if flat.any():
+            disp = disp.copy()
+            disp[flat] = self.model.predict(w, starts[flat], n, bias, self.flat_cal,
+                                            None if still is None else still[flat])[0]
+        return disp, yaw
+
+
+#: The prior of the grade's choice (:class:`_Network`): the error without the grade over the error
+#: with it, on the pseudo-outages, until the drive's own past says otherwise.
+GRADE_PRIOR_RATIO = 1.0
+
+
+def _pseudo_runs(network: _Network, inputs: EstimatorInputs, n: int) -> _PseudoRuns | None:
     """The history arbiter's record (:class:`_PseudoRuns`) on pseudo-outages of ``n`` windows; None
     where none fits before the last outage."""
     from ..nav.ins import dead_reckon
@@ -670,7 +743,7 @@ def _pseudo_runs(model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibrati
         return None
     idx = pseudo[:, None] + np.arange(n)[None, :]
     still = inputs.still_grid[idx]
-    net, net_yaw = model.predict(w, pseudo, n, inputs.bias, cal, still)
+    net, net_yaw = network(pseudo, n, still)
     ins, ins_yaw = dead_reckon(w.accel_mps2[idx], w.gyro_radps[idx], w.speed0_mps[pseudo], inputs.bias, w.rate_hz,
                                still)
     truth, truth_yaw = w.gnss_disp_m[idx], w.gnss_yaw_rate_radps[idx]
@@ -748,22 +821,23 @@ class IdnnEstimator:
         self._check_leakage(model, inputs, label)
         if model.config.inputs == "calibrated":
             cal = calibration(inputs.drive, inputs.windows, inputs.bias.accel_mps2, inputs.bias.gyro_radps)
-        disp, yaw = model.predict(inputs.windows, inputs.starts, inputs.n_windows, inputs.bias, cal, inputs.still)
+        network = _Network(model, inputs, cal, choose_grade=self.arbiter)
+        disp, yaw = network(np.asarray(inputs.starts, dtype=int), inputs.n_windows, inputs.still)
         self._arbiter_note = ""
         judged = None
         if self.arbiter:
-            disp, yaw, judged = self._arbitrate(model, inputs, cal, disp, yaw)
+            disp, yaw, judged = self._arbitrate(network, inputs, disp, yaw)
         cov = None
         self._scale_note = ""
         widen = self._check_domain(model, inputs, label, disp)
         if model.uncertainty is not None:
             cov = model.uncertainty.position_covariance(inputs.course0_deg, inputs.speed0_mps, disp, yaw)
             cov = cov * (widen(inputs.accel_mps2, inputs.gyro_radps, disp) ** 2
-                         * self._history_scale(model, inputs, cal, widen, judged))[:, None, None, None]
+                         * self._history_scale(network, inputs, widen, judged))[:, None, None, None]
         return Estimate(disp, yaw, pos_cov_m2=cov)
 
-    def _arbitrate(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                   disp_m: np.ndarray, yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Judged | None]:
+    def _arbitrate(self, network: _Network, inputs: EstimatorInputs, disp_m: np.ndarray,
+                   yaw_radps: np.ndarray) -> tuple[np.ndarray, np.ndarray, _Judged | None]:
         """Per outage, the model's displacement (m, ``(m, n)``) with a share of the INS DR's on the same
         samples (:data:`ARBITER_INS_SHARES`), and its yaw rate (rad/s) or the INS DR's (the gyro's),
         where the drive's own past says so (:func:`_choices`), and the pseudo-outages of the outage's
@@ -772,8 +846,8 @@ class IdnnEstimator:
         from ..nav.ins import dead_reckon
 
         n, starts = int(inputs.n_windows), np.asarray(inputs.starts, dtype=int)
-        runs = _pseudo_runs(model, inputs, cal, n)
-        short = (_pseudo_runs(model, inputs, cal, history_check.SHORT_WINDOWS)
+        runs = _pseudo_runs(network, inputs, n)
+        short = (_pseudo_runs(network, inputs, history_check.SHORT_WINDOWS)
                  if n > history_check.SHORT_WINDOWS else None)
         picked = _choices(runs, short, starts)
         if picked is None:
@@ -783,6 +857,8 @@ class IdnnEstimator:
         choice, sums, gyro, yaw_sums, shorter = picked
         share = np.asarray(ARBITER_INS_SHARES)[choice]
         parts = [f"the network's displacement on {_outages(int(np.sum(choice == 0)))}"]
+        if grade := network.describe(starts):
+            parts.append(grade)
         for c, b in enumerate(ARBITER_INS_SHARES[1:], start=1):
             on = choice == c
             if on.any():
@@ -836,8 +912,8 @@ class IdnnEstimator:
             log.warning("%s: IDNN: inputs outside what %s was trained on: %s; %s", drive.name, which, what, widened)
         return widen
 
-    def _history_scale(self, model: IdnnModel, inputs: EstimatorInputs, cal: SensorCalibration | None,
-                       widen, judged: _Judged | None = None) -> np.ndarray:
+    def _history_scale(self, network: _Network, inputs: EstimatorInputs, widen,
+                       judged: _Judged | None = None) -> np.ndarray:
         """Per outage, how much to widen the learned covariance (``widen``-ed out of the model's
         domain): the model's NEES on pseudo-outages over the GNSS before it (:mod:`ionav_viz.nav.history_check`),
         each run as the outages are (``judged``: the arbiter's choice on each; None: the network's own)."""
@@ -848,8 +924,8 @@ class IdnnEstimator:
             if judged is not None and np.array_equal(judged.starts, starts):
                 disp, yaw = judged.disp_m, judged.yaw_radps
             else:
-                disp, yaw = model.predict(w, starts, n, inputs.bias, cal, inputs.still_grid[idx])
-            cov = model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
+                disp, yaw = network(starts, n, inputs.still_grid[idx])
+            cov = network.model.uncertainty.position_covariance(w.heading0_deg[starts], w.speed0_mps[starts], disp, yaw)
             return disp, yaw, cov * (widen(w.accel_mps2[idx], w.gyro_radps[idx], disp) ** 2)[:, None, None, None]
 
         scale, self._scale_note = history_check.covariance_scale(w, n, inputs.starts, run)
