@@ -232,5 +232,6 @@ def _speed_steps(t_s: np.ndarray, speed_mps: np.ndarray, accel_mps2: np.ndarray,
     unexplained = (speed_mps[end] - speed_mps[start]) - (dv_imu[end] - dv_imu[start])
     bad = (np.abs(unexplained) > limits.speed_step_mps) & good[start] & good[end]
     # every sample from start to end of each bad stretch: +1 at its start, -1 after its end
-    cover = np.cumsum(np.bincount(start[bad], minlength=len(t_s) + 1) - np.bincount(end[bad] + 1, minlength=len(t_s) + 1))
+    edges = np.bincount(start[bad], minlength=len(t_s) + 1) - np.bincount(end[bad] + 1, minlength=len(t_s) + 1)
+    cover = np.cumsum(edges)
     return cover[: len(t_s)] > 0
