@@ -297,7 +297,8 @@ class GinsEstimator:
         n = self.noise
         # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
         r_vel = (n.gnss_fitted_velocity_mps if drive.velocity_fitted else n.gnss_velocity_mps) ** 2
-        inputs = FilterInputs(np.ascontiguousarray(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64),
+        # a copy: a read-only time array (a memory-mapped source's) is another type to numba, and another compilation
+        inputs = FilterInputs(np.array(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64),
                               b.segment_start.astype(bool), b.gnss_ok.astype(bool), pos,
                               np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,
                               still.astype(bool), fix_steps(b, pos, sigma), bool(has_height),
@@ -315,9 +316,9 @@ class GinsEstimator:
             # no usable fix before it: the boundaries before run free from an alignment on the unusable
             # fixes (as the drive's start always was; only an outage placed there uses them)
             run_filter(inputs, noise, earth, switches, *self._aligned(0, pos, vel, sigma, acc, b, dt, init), 0,
-                       aligned - 1, out)
+                       aligned - 1, out, 1.0)
         run_filter(inputs, noise, earth, switches, *self._aligned(aligned, pos, vel, sigma, acc, b, dt, init), aligned,
-                   nb - 1, out)
+                   nb - 1, out, 1.0)
         xs = out.xs
         self._last = {"mechanisation": _mechanisation_text(reduced, drive), "gnss_speed_lag": lag_text,
                       "imu_white_noise": f"accel {sigma_a:.3f} m/s^2, gyro {np.rad2deg(sigma_g):.3f} deg/s per sample "

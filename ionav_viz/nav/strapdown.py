@@ -745,7 +745,7 @@ def _consistency_step(log, b, nis_mean, q_scale):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=1.0):  # pragma: no cover - compiled
+def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0):  # pragma: no cover - compiled
     """Run from boundary ``b_first`` to ``b_last`` (inclusive) from the state ``x0, P0`` at
     ``b_first``'s sample, updating at every boundary after the first (:class:`FilterInputs`,
     :class:`FilterNoise`, :class:`Earth`, :class:`FilterSwitches`); writes into ``out``
@@ -753,6 +753,8 @@ def run_filter(inputs, noise, earth, sw, x0, P0, b_first, b_last, out, q_scale0=
     rows), the update log (when it has rows), and per boundary the position (m), the turn since
     ``b_first`` (rad, counter-clockwise: the corrected gyro integrated, so a window's yaw rate is a
     rate, not the updates' corrections of the heading) and the distance since ``b_first`` (m).
+    ``q_scale0``: the process noise's scale at ``b_first`` (1.0 from a filter's start; always given,
+    so that every call has one signature and numba compiles the filter once).
 
     At each boundary, in this order, every update folded into one error estimate and fed back once:
 
