@@ -192,3 +192,22 @@ def test_a_receiver_that_jumps_does_not_drag_the_filter():
     during = (b.t_s >= 200.0) & (b.t_s <= 204.0)
     error = np.hypot(*(run.xs[during, :2] - truth[during, :2]).T)
     assert error.max() < 5.0, error
+
+
+def test_the_filter_compiles_once_whatever_the_drives_arrays():
+    """numba compiles ``run_filter`` once per argument types (about 20 s on a cold cache): a read-only
+    time array (an MCAP log's) beside a writable one (a drive built in memory), or a call leaving
+    ``q_scale0`` to its default beside the history arbiter's, made three. Both drives, outages and
+    pseudo-outages, share one signature."""
+    import json
+    from pathlib import Path
+
+    from ionav_viz.nav.strapdown import run_filter
+
+    corpus = Path(__file__).parent / "data" / "real"
+    entry = json.loads((corpus / "corpus.json").read_text())["logs"]["roof_mems_rtk"]
+    options = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", **entry.get("log", {})), span="0s:60s")
+    for drive in (iv.load_drive(str(corpus / entry["file"]), options), _drive("roundabout", 14, 60.0)):
+        report = iv.evaluate([drive], 10, estimators=["gins"], run=iv.RunOptions(warm_up_s=20.0))
+        assert report.to_dict()["sequences"]
+    assert len(run_filter.signatures) == 1, run_filter.signatures
