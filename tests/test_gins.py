@@ -194,20 +194,23 @@ def test_a_receiver_that_jumps_does_not_drag_the_filter():
     assert error.max() < 5.0, error
 
 
-def test_the_filter_compiles_once_whatever_the_drives_arrays():
-    """numba compiles ``run_filter`` once per argument types (about 20 s on a cold cache): a read-only
-    time array (an MCAP log's) beside a writable one (a drive built in memory), or a call leaving
-    ``q_scale0`` to its default beside the history arbiter's, made three. Both drives, outages and
-    pseudo-outages, share one signature."""
+def test_the_filters_compile_once_whatever_the_drives_arrays():
+    """numba compiles a kernel once per argument types (gins's filter about 20 s on a cold cache): a
+    read-only array (an MCAP log's time, its windows' segments, a slice of outage starts) beside a
+    writable one (a drive built in memory), or a call leaving ``q_scale0`` to its default beside the
+    history arbiter's, made three of gins's and two of ekf's. Both drives, outages and pseudo-outages
+    alike, share one signature of each."""
     import json
     from pathlib import Path
 
+    from ionav_viz.nav.planar_filter import _forward_kernel, outage_kernel
     from ionav_viz.nav.strapdown import run_filter
 
     corpus = Path(__file__).parent / "data" / "real"
     entry = json.loads((corpus / "corpus.json").read_text())["logs"]["roof_mems_rtk"]
     options = iv.ReadOptions(log=iv.LogOptions(imu_mount="auto", **entry.get("log", {})), span="0s:60s")
     for drive in (iv.load_drive(str(corpus / entry["file"]), options), _drive("roundabout", 14, 60.0)):
-        report = iv.evaluate([drive], 10, estimators=["gins"], run=iv.RunOptions(warm_up_s=20.0))
+        report = iv.evaluate([drive], 10, estimators=["gins", "ekf"], run=iv.RunOptions(warm_up_s=20.0))
         assert report.to_dict()["sequences"]
-    assert len(run_filter.signatures) == 1, run_filter.signatures
+    for kernel in (run_filter, _forward_kernel, outage_kernel):
+        assert len(kernel.signatures) == 1, (kernel.__name__, kernel.signatures)

@@ -444,10 +444,12 @@ def forward(drive: Drive, windows: Windows, accel_offset: float, gyro_bias: floa
 
 
 def planar_inputs(windows: Windows, meas: Measurements, inc: Increments) -> PlanarInputs:
-    """The filter's typed inputs (numba-ready) from the windows, measurements and increments."""
-    f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
-    return PlanarInputs(np.ascontiguousarray(windows.segment, dtype=np.int64), f(meas.e), f(meas.n), f(meas.speed),
-                        f(meas.course), np.ascontiguousarray(meas.good, dtype=np.bool_), f(meas.sigma_m),
+    """The filter's typed inputs (numba-ready) from the windows, measurements and increments: writable
+    copies, since a read-only array (a window's segment of an MCAP log) is another type to numba, and
+    another compilation of every kernel."""
+    f = lambda a: np.array(a, dtype=float)  # noqa: E731
+    return PlanarInputs(np.array(windows.segment, dtype=np.int64), f(meas.e), f(meas.n), f(meas.speed),
+                        f(meas.course), np.array(meas.good, dtype=np.bool_), f(meas.sigma_m),
                         f(meas.vehicle), f(inc.F), f(inc.G), f(inc.W), float(inc.T))
 
 
@@ -477,8 +479,9 @@ class ForwardPass:
         """Every outage from the state at its start (:func:`outage_kernel`): distance (m) and yaw
         rate (rad/s, counter-clockwise) per window, ``(len(starts), n_windows)``, and the filter's
         east/north position covariance (m^2) at every boundary, ``(len(starts), n_windows + 1, 2, 2)``."""
-        return outage_kernel((self.xs, self.Ps, self.slow), self.inputs, self.model, np.asarray(starts, dtype=np.int64),
-                             int(n_windows), np.ascontiguousarray(still, dtype=np.bool_))
+        # writable copies: a read-only array is another type to numba (another compilation)
+        return outage_kernel((self.xs, self.Ps, self.slow), self.inputs, self.model, np.array(starts, dtype=np.int64),
+                             int(n_windows), np.array(still, dtype=np.bool_))
 
 
 def forward_pass(windows: Windows, meas: Measurements, inc: Increments, accel_offset: float, gyro_bias: float,
