@@ -7,7 +7,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ..analysis.evaluate import DriveResult
 from ..analysis.events import MANOEUVRE_TYPES, detect_events
@@ -38,9 +37,6 @@ from .options import (
     with_externals,
 )
 from .pipeline import plan_drive, score
-
-if TYPE_CHECKING:
-    pass
 
 
 class ScenarioDrives(dict):

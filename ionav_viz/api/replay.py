@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ..analysis.evaluate import DriveResult
 from ..analysis.events import Event, detect_events
@@ -35,9 +34,6 @@ from .options import (
     with_externals,
 )
 from .pipeline import plan_drive, score
-
-if TYPE_CHECKING:
-    pass
 
 #: Where :func:`replay` writes ``<drive>.rrd`` by default, relative to the current directory.
 RECORDINGS_DIR = "recordings"
