@@ -198,12 +198,12 @@ def test_the_filters_compile_once_whatever_the_drives_arrays():
     """numba compiles a kernel once per argument types (gins's filter about 20 s on a cold cache): a
     read-only array (an MCAP log's time, its windows' segments, a slice of outage starts) beside a
     writable one (a drive built in memory), or a call leaving ``q_scale0`` to its default beside the
-    history arbiter's, made three of gins's and two of ekf's. Both drives, outages and pseudo-outages
-    alike, share one signature of each."""
+    history arbiter's, made three of gins's filter and two of ekf's outage kernel. Both drives,
+    outages and pseudo-outages alike, share one signature of each."""
     import json
     from pathlib import Path
 
-    from ionav_viz.nav.planar_filter import _forward_kernel, outage_kernel
+    from ionav_viz.nav.planar_filter import outage_kernel
     from ionav_viz.nav.strapdown import run_filter
 
     corpus = Path(__file__).parent / "data" / "real"
@@ -212,5 +212,5 @@ def test_the_filters_compile_once_whatever_the_drives_arrays():
     for drive in (iv.load_drive(str(corpus / entry["file"]), options), _drive("roundabout", 14, 60.0)):
         report = iv.evaluate([drive], 10, estimators=["gins", "ekf"], run=iv.RunOptions(warm_up_s=20.0))
         assert report.to_dict()["sequences"]
-    for kernel in (run_filter, _forward_kernel, outage_kernel):
+    for kernel in (run_filter, outage_kernel):
         assert len(kernel.signatures) == 1, (kernel.__name__, kernel.signatures)
