@@ -402,17 +402,35 @@ def terminal_width(stream=None) -> int:
     return PIPED_WIDTH
 
 
+#: Said above the progress bar when the first run after an install compiles the filters (core/jit.py).
+COMPILE_NOTICE = "compiling the filters for this machine, once after an install or an update: about half a minute"
+
+
 def progress(quiet: bool):
-    """A rich progress bar on stderr, or a no-op when quiet or not a terminal."""
-    from contextlib import nullcontext
+    """A rich progress bar on stderr, or a no-op when quiet or not a terminal. While it shows, a first
+    run's compilation of the filters is said above it (:data:`COMPILE_NOTICE`), once."""
+    from contextlib import contextmanager, nullcontext
 
     if quiet or not sys.stderr.isatty():
         return nullcontext(None)
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                    TimeElapsedColumn(), console=Console(stderr=True), transient=True)
+    from ..core import jit
+
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                   TimeElapsedColumn(), console=Console(stderr=True), transient=True)
+
+    @contextmanager
+    def showing():
+        with bar:
+            jit.on_first_compile(lambda: bar.console.print(COMPILE_NOTICE, highlight=False, markup=False))
+            try:
+                yield bar
+            finally:
+                jit.on_first_compile(None)
+
+    return showing()
 
 
 def progress_callback(bar, label: str):

@@ -28,6 +28,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from ..core import jit
+
+jit.watch(__name__)  # say a first run's compilation (core/jit.py)
+
 #: The 95 % point of a chi-square of two degrees of freedom (``-2 ln 0.05``): a 2D error whose NEES
 #: is below it lies inside the 95 % ellipse of its covariance.
 CHI2_2_95 = -2.0 * math.log(0.05)

@@ -58,6 +58,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from ..core import jit
 from ..core.drive import Drive
 from ..core.geo import local_en_m
 from ..core.gnss_quality import position_sigma_m
@@ -65,6 +66,8 @@ from ..core.grid import GRID_RATE_HZ, WINDOW_S
 from . import kalman
 from .vehicle_speed import speed_in_mps, vehicle_speed
 from .windows import Windows
+
+jit.watch(__name__)  # say a first run's compilation (core/jit.py)
 
 E, N, V, PSI, BA, BG, K, S = range(8)
 N_STATES = 8

@@ -84,9 +84,11 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from ..core import rotation
+from ..core import jit, rotation
 from ..core.geo import EARTH_MEAN_RADIUS_M, earth_rate_enu_radps, normal_gravity_mps2
 from . import kalman
+
+jit.watch(__name__)  # say a first run's compilation (core/jit.py)
 
 #: A GNSS position component further than this many variances (a chi-square, 1 degree of freedom:
 #: 5 sigma) from the filter's prediction is a jump, not a fix (receivers jump by metres when they
