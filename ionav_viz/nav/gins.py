@@ -297,7 +297,7 @@ class GinsEstimator:
         n = self.noise
         # no receiver velocity: the one fitted to the fixes lags in braking (the positions again, smoothed)
         r_vel = (n.gnss_fitted_velocity_mps if drive.velocity_fitted else n.gnss_velocity_mps) ** 2
-        # a copy: a read-only time array (a memory-mapped source's) is another type to numba, and another compilation
+        # a copy: a read-only time array (an MCAP log's) is another type to numba, and another compilation
         inputs = FilterInputs(np.array(drive.t_s, dtype=float), acc, gyr, b.sample.astype(np.int64),
                               b.segment_start.astype(bool), b.gnss_ok.astype(bool), pos,
                               np.ascontiguousarray(sigma, dtype=float), vel, vel_ok.astype(bool), odo,

@@ -63,7 +63,6 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from ..core import jit
 from ..core.drive import IMU_COLUMNS, Drive
 from ..core.errors import InputError
 from ..core.fileio import check_output_file
@@ -82,8 +81,6 @@ from .simulate import (
     grade_profile,
     plan_truth,
 )
-
-jit.watch(__name__)  # say a first run's compilation (core/jit.py)
 
 
 @dataclass(frozen=True)
