@@ -255,7 +255,8 @@ def _product(A, B, out):  # pragma: no cover - compiled
 
 # The measurements, one function each: each writes its row of H into the scratch ``H = (cols,
 # h)`` (its nonzeros) and returns ``(innovation, r, nnz)``: measured minus predicted, its variance
-# and the number of nonzeros; :func:`_apply` folds one in with the shared update.
+# and the number of nonzeros; :func:`_apply` folds one in with the shared update. Counts, columns
+# and slots go as np.int64, not as the constants they are: numba compiles once per constant given.
 
 
 @njit(cache=True)
@@ -266,7 +267,7 @@ def gnss_state(x, col, z, r, H):  # pragma: no cover - compiled
     innovation = z - x[col]
     if col == PSI:
         innovation = (innovation + np.pi) % (2 * np.pi) - np.pi
-    return innovation, r, 1
+    return innovation, r, np.int64(1)
 
 
 @njit(cache=True)
@@ -275,14 +276,14 @@ def vehicle_speed_meas(x, z, r, H):  # pragma: no cover - compiled
     cols, h = H
     cols[0], h[0] = V, x[K]
     cols[1], h[1] = K, x[V]
-    return z - x[K] * x[V], r, 2
+    return z - x[K] * x[V], r, np.int64(2)
 
 
 @njit(cache=True)
 def standstill(x, r, H):  # pragma: no cover - compiled
     """Standing: the speed is 0 m/s."""
     kalman.unit_row(H, V)
-    return -x[V], r, 1
+    return -x[V], r, np.int64(1)
 
 
 @njit(cache=True)
@@ -329,18 +330,18 @@ def _forward_kernel(inp, model, accel_offset, gyro_bias, log):  # pragma: no cov
             started = bool(inp.good[k])
         elif inp.good[k]:
             r_pos = inp.sigma[k] ** 2
-            _apply(P, x, H, gnss_state(x, E, inp.e[k], r_pos, H), log, k, E)
-            _apply(P, x, H, gnss_state(x, N, inp.n[k], r_pos, H), log, k, N)
-            _apply(P, x, H, gnss_state(x, V, inp.speed[k], model.r_speed, H), log, k, V)
+            _apply(P, x, H, gnss_state(x, np.int64(E), inp.e[k], r_pos, H), log, k, np.int64(E))
+            _apply(P, x, H, gnss_state(x, np.int64(N), inp.n[k], r_pos, H), log, k, np.int64(N))
+            _apply(P, x, H, gnss_state(x, np.int64(V), inp.speed[k], model.r_speed, H), log, k, np.int64(V))
             if inp.speed[k] > FILTER_COURSE_MIN_SPEED_MPS:  # the course only when moving: its noise grows as 1/speed
                 r_course = (model.course_sd_at_10mps * 10.0 / max(inp.speed[k], 1.0)) ** 2
-                _apply(P, x, H, gnss_state(x, PSI, inp.course[k], r_course, H), log, k, PSI)
+                _apply(P, x, H, gnss_state(x, np.int64(PSI), inp.course[k], r_course, H), log, k, np.int64(PSI))
         xs[k], Ps[k] = x, P
         mean += model.alpha * (x[BA] - mean)
         slow[k] = mean
         _propagate(x, P, inp.F[k], inp.G[k], inp.W[k], inp.T, model.q, J, model.turn_sd)
         if np.isfinite(inp.vehicle[k]):
-            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), log, k, SLOT_VEHICLE)
+            _apply(P, x, H, vehicle_speed_meas(x, inp.vehicle[k], model.r_vehicle, H), log, k, np.int64(SLOT_VEHICLE))
     return xs, Ps, slow
 
 

@@ -455,7 +455,8 @@ def _correct(x, dx):  # pragma: no cover - compiled
 # The measurements, one function each. Each writes its row of H over the error state into the
 # scratch ``H = (cols, h)`` (its nonzeros) and returns ``(dz, r, nnz)``: the prediction from the
 # nominal state minus the measurement (the error state's measurement, ``dz = H dx + noise``), its
-# variance and the number of nonzeros. :func:`_apply` folds one in.
+# variance and the number of nonzeros. :func:`_apply` folds one in. Counts and slots are passed as
+# np.int64, not as the constants they are: numba compiles a function once per constant it is given.
 
 
 @njit(cache=True)
@@ -463,21 +464,21 @@ def gnss_position(x, pos, sigma, axis, H):  # pragma: no cover - compiled
     """A GNSS position component (``axis`` 0 east, 1 north, 2 up; m), sigma ``sigma`` (twice it up)."""
     kalman.unit_row(H, DP + axis)
     s = sigma if axis < 2 else 2.0 * sigma
-    return x[PX + axis] - pos[axis], s * s, 1
+    return x[PX + axis] - pos[axis], s * s, np.int64(1)
 
 
 @njit(cache=True)
 def gnss_velocity(x, vel, axis, r, H):  # pragma: no cover - compiled
     """A GNSS horizontal velocity component (``axis`` 0 east, 1 north; m/s), variance ``r``."""
     kalman.unit_row(H, DV + axis)
-    return x[VX + axis] - vel[axis], r, 1
+    return x[VX + axis] - vel[axis], r, np.int64(1)
 
 
 @njit(cache=True)
 def zupt(x, axis, r, H):  # pragma: no cover - compiled
     """Zero velocity: the navigation-frame velocity component ``axis`` is 0 m/s."""
     kalman.unit_row(H, DV + axis)
-    return x[VX + axis], r, 1
+    return x[VX + axis], r, np.int64(1)
 
 
 @njit(cache=True)
@@ -486,7 +487,7 @@ def zaru(x, C, omega_ie, gyro_mean, axis, r, H):  # pragma: no cover - compiled
     plus the Earth's rate (``C``: ``C_b^n``)."""
     kalman.unit_row(H, DBG + axis)
     earth_b = C[0, axis] * omega_ie[0] + C[1, axis] * omega_ie[1] + C[2, axis] * omega_ie[2]
-    return x[BGX + axis] + earth_b - gyro_mean[axis], r, 1
+    return x[BGX + axis] + earth_b - gyro_mean[axis], r, np.int64(1)
 
 
 @njit(cache=True)
@@ -500,7 +501,7 @@ def level(x, C, f_mean, axis, r, H):  # pragma: no cover - compiled
     cols[0], h[0] = PHI, -g * C[1, axis]
     cols[1], h[1] = PHI + 1, g * C[0, axis]
     cols[2], h[2] = DBA + axis, 1.0
-    return C[2, axis] * g + x[BAX + axis] - f_mean[axis], r, 3
+    return C[2, axis] * g + x[BAX + axis] - f_mean[axis], r, np.int64(3)
 
 
 @njit(cache=True)
@@ -522,21 +523,21 @@ def nhc_lateral(x, C, M, vb, r, H):  # pragma: no cover - compiled
     """The vehicle frame's lateral velocity ``vb_y + psi_m vb_x`` is 0 m/s (``vb = C^T v``, ``M``
     its attitude Jacobian)."""
     _body_velocity_row(C, M, 1, 1.0, DPSIM, vb[0], H)
-    return vb[1] + x[PSIM] * vb[0], r, 7
+    return vb[1] + x[PSIM] * vb[0], r, np.int64(7)
 
 
 @njit(cache=True)
 def nhc_vertical(x, C, M, vb, r, H):  # pragma: no cover - compiled
     """The vehicle frame's vertical velocity ``vb_z - theta_m vb_x`` is 0 m/s."""
     _body_velocity_row(C, M, 2, 1.0, DTHM, -vb[0], H)
-    return vb[2] - x[THM] * vb[0], r, 7
+    return vb[2] - x[THM] * vb[0], r, np.int64(7)
 
 
 @njit(cache=True)
 def odometer(x, C, M, vb, speed_mps, r, H):  # pragma: no cover - compiled
     """The vehicle speed reads ``k`` times the forward velocity ``vb_x`` (m/s)."""
     _body_velocity_row(C, M, 0, x[KO], DK, vb[0], H)
-    return x[KO] * vb[0] - speed_mps, r, 7
+    return x[KO] * vb[0] - speed_mps, r, np.int64(7)
 
 
 @njit(cache=True)
@@ -624,7 +625,7 @@ def _reinitialise(x, P, P0, inputs, r_vel, b, log):  # pragma: no cover - compil
     for k in range(N_ERR):
         P[PHI + 2, k] = P[k, PHI + 2] = 0.0
     P[PHI + 2, PHI + 2] = P0[PHI + 2, PHI + 2]
-    kalman.record(log, b, SLOT_REINIT, offset, 1.0, True)
+    kalman.record(log, b, np.int64(SLOT_REINIT), offset, 1.0, True)
 
 
 @njit(cache=True)
@@ -716,10 +717,10 @@ def _moving_updates(x, P, dx, noise, sw, odo_mps, H, log, b):  # pragma: no cove
     v = x[VX:VX + 3]
     vb, M = _tmul3(C, v), _body_velocity_jacobian(C, v)
     if sw.nhc:
-        _apply(P, dx, H, nhc_lateral(x, C, M, vb, noise.r_lat, H), np.inf, log, b, SLOT_NHC_LAT)
-        _apply(P, dx, H, nhc_vertical(x, C, M, vb, noise.r_vert, H), np.inf, log, b, SLOT_NHC_VERT)
+        _apply(P, dx, H, nhc_lateral(x, C, M, vb, noise.r_lat, H), np.inf, log, b, np.int64(SLOT_NHC_LAT))
+        _apply(P, dx, H, nhc_vertical(x, C, M, vb, noise.r_vert, H), np.inf, log, b, np.int64(SLOT_NHC_VERT))
     if sw.odometer and not math.isnan(odo_mps):
-        _apply(P, dx, H, odometer(x, C, M, vb, odo_mps, noise.r_odo, H), np.inf, log, b, SLOT_ODOMETER)
+        _apply(P, dx, H, odometer(x, C, M, vb, odo_mps, noise.r_odo, H), np.inf, log, b, np.int64(SLOT_ODOMETER))
 
 
 #: The consistency test (run_filter): the running mean of the GNSS position's NIS per scalar over
