@@ -403,7 +403,7 @@ def terminal_width(stream=None) -> int:
 
 
 #: Said above the progress bar when the first run after an install compiles the filters (core/jit.py).
-COMPILE_NOTICE = "compiling the filters for this machine, once after an install or an update: about half a minute"
+COMPILE_NOTICE = "compiling the filters for this machine, once after an install or an update: about 25 s"
 
 
 def progress(quiet: bool):

@@ -2,8 +2,8 @@
 
 numba compiles a kernel the first time it runs with its argument types and keeps the result in its
 cache (the package's ``__pycache__``, or the user's cache folder where that is read-only): the first
-run after an install or an update compiles (the 3D filter about 20 s of a core, the planar one about
-5 s), later runs load from the cache in a fraction of a second. A front end that shows progress asks
+run after an install or an update compiles (the 3D filter about 15 s of a core, the planar one about
+6 s), later runs load from the cache in a fraction of a second. A front end that shows progress asks
 to be told once (:func:`on_first_compile`), so that a run that seems to stand still says why; a load
 from the cache says nothing. The filters' modules :func:`watch` themselves at import (the
 simulator's one small kernel compiles in a blink and is not watched).
